@@ -1,0 +1,24 @@
+"""Exceptions and warnings raised by the shape-difference core.
+
+Every error says what is wrong, the first offending index where there is one, and how to fix it,
+so that the Blender operators can show the message to the user unchanged.
+"""
+
+
+class ShapeDifferenceError(Exception):
+    """Base class of every error raised by :mod:`core`."""
+
+
+class MeshError(ShapeDifferenceError, ValueError):
+    """The input mesh (or a pose of it) cannot be used: bad indices, degenerate or non-manifold
+    geometry, inconsistent orientation, mismatched vertex counts, non-finite coordinates."""
+
+
+class RecoveryError(ShapeDifferenceError, ArithmeticError):
+    """Areas, edge lengths or an embedding cannot be recovered from the given shape differences
+    (a singular system such as the paper's Fig. 2, a failed solver, an infeasible program)."""
+
+
+class ShapeDifferenceWarning(UserWarning):
+    """A result was computed, but through a documented fallback (e.g. an interpolated metric that
+    is not exactly realizable); the message says which and why."""

@@ -1,0 +1,234 @@
+"""Mesh topology and input validation (paper §4.2: a manifold, orientable triangle mesh).
+
+Conventions used throughout :mod:`core`:
+
+- ``vertices``: float64 ``(n, 3)``; ``triangles``: int64 ``(m, 3)``, counter-clockwise seen from
+  the outside (the side the normals point to).
+- Corner ``k`` of triangle ``t`` is vertex ``triangles[t, k]``; the edge *opposite* corner ``k``
+  joins corners ``k+1`` and ``k+2`` (mod 3) and is ``triangle_edges[t, k]``.
+- ``edges``: int64 ``(E, 2)`` with ``edges[e, 0] < edges[e, 1]``.
+- ``edge_triangles[e, 0]`` is the triangle that traverses edge ``e`` as
+  ``edges[e, 0] -> edges[e, 1]``, ``edge_triangles[e, 1]`` the one traversing it backwards;
+  ``-1`` where there is none (a boundary edge).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import MeshError
+
+#: A triangle whose doubled area is below this fraction of its longest squared edge is degenerate.
+DEGENERATE_TRIANGLE_RATIO = 1e-10
+
+_FIX_MANIFOLD = (
+    "Shape differences need a manifold mesh: in Blender use Select > Select All by Trait > "
+    "Non Manifold, then fix or delete the selected geometry."
+)
+
+
+def triangle_areas(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Triangle areas µ, float64 ``(m,)`` (paper §4.2)."""
+    p0, p1, p2 = (vertices[triangles[:, k]] for k in range(3))
+    return 0.5 * np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+
+
+def triangle_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Unit face normals, float64 ``(m, 3)``, oriented by the counter-clockwise corner order."""
+    p0, p1, p2 = (vertices[triangles[:, k]] for k in range(3))
+    normals = np.cross(p1 - p0, p2 - p0)
+    return normals / np.linalg.norm(normals, axis=1, keepdims=True)
+
+
+def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vertices") -> np.ndarray:
+    """Return ``vertices`` as contiguous float64 ``(n, 3)``; raise :class:`MeshError` on a wrong
+    shape, a vertex count different from ``n_vertices`` or a non-finite coordinate."""
+    array = np.ascontiguousarray(vertices, dtype=np.float64)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise MeshError(f"{name} must be an array of shape (n, 3); got shape {array.shape}.")
+    if n_vertices is not None and array.shape[0] != n_vertices:
+        raise MeshError(
+            f"{name} has {array.shape[0]} vertices but the base mesh has {n_vertices}. Poses must "
+            "be in vertex-for-vertex correspondence with the base: use shape keys or frames of "
+            "the same mesh, and avoid modifiers that add or remove vertices (Subdivision, "
+            "Decimate, Remesh) or apply them to every pose."
+        )
+    finite = np.isfinite(array).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise MeshError(
+            f"{name}: vertex {bad} has a non-finite coordinate {array[bad].tolist()}. Fix the pose "
+            "(e.g. a simulation that exploded) or remove that frame."
+        )
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class MeshTopology:
+    """Connectivity of a triangle mesh, computed once and shared by every pose of it.
+
+    Build it with :func:`mesh_topology`, which validates the input. All arrays are int64.
+    """
+
+    n_vertices: int
+    triangles: np.ndarray  # (m, 3)
+    edges: np.ndarray  # (E, 2), edges[:, 0] < edges[:, 1]
+    triangle_edges: np.ndarray  # (m, 3), edge opposite each corner
+    edge_triangles: np.ndarray  # (E, 2), forward / backward triangle, -1 if none
+    used_vertices: np.ndarray = field(repr=False)  # (n_used,) vertices in at least one triangle
+
+    @property
+    def n_triangles(self) -> int:
+        return int(self.triangles.shape[0])
+
+    @property
+    def n_edges(self) -> int:
+        return int(self.edges.shape[0])
+
+    @property
+    def boundary_edges(self) -> np.ndarray:
+        """Indices of edges with a single triangle, int64 ``(B,)``."""
+        return np.flatnonzero((self.edge_triangles < 0).any(axis=1))
+
+    @property
+    def interior_edges(self) -> np.ndarray:
+        """Indices of edges with two triangles, int64 ``(E - B,)``."""
+        return np.flatnonzero((self.edge_triangles >= 0).all(axis=1))
+
+    @property
+    def loose_vertices(self) -> np.ndarray:
+        """Vertices in no triangle (allowed; they are carried along unchanged)."""
+        mask = np.ones(self.n_vertices, dtype=bool)
+        mask[self.used_vertices] = False
+        return np.flatnonzero(mask)
+
+    def squared_edge_lengths(self, vertices: np.ndarray) -> np.ndarray:
+        """Squared edge lengths ℓ², float64 ``(E,)``."""
+        d = vertices[self.edges[:, 0]] - vertices[self.edges[:, 1]]
+        return np.einsum("ij,ij->i", d, d)
+
+    def vertex_normals(self, vertices: np.ndarray) -> np.ndarray:
+        """Unit area-weighted vertex normals, float64 ``(n, 3)`` (zero for loose vertices)."""
+        t = self.triangles
+        weighted = np.cross(vertices[t[:, 1]] - vertices[t[:, 0]], vertices[t[:, 2]] - vertices[t[:, 0]])
+        normals = np.zeros((self.n_vertices, 3))
+        for k in range(3):
+            np.add.at(normals, t[:, k], weighted)
+        length = np.linalg.norm(normals, axis=1, keepdims=True)
+        return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+
+    def components(self) -> tuple[int, np.ndarray]:
+        """Connected components over triangles: (count, label per triangle int64 ``(m,)``)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+
+        inner = self.edge_triangles[self.interior_edges]
+        m = self.n_triangles
+        graph = coo_matrix((np.ones(len(inner)), (inner[:, 0], inner[:, 1])), shape=(m, m))
+        count, labels = connected_components(graph, directed=False)
+        return int(count), labels.astype(np.int64)
+
+    def check_pose(self, vertices, *, name: str = "vertices") -> np.ndarray:
+        """Validate one pose of this mesh: shape, vertex count, finite, no degenerate triangle."""
+        array = check_vertices(vertices, self.n_vertices, name=name)
+        check_nondegenerate(array, self.triangles, name=name)
+        return array
+
+
+def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices") -> None:
+    """Raise :class:`MeshError` naming the first triangle whose area is (numerically) zero."""
+    p0, p1, p2 = (vertices[triangles[:, k]] for k in range(3))
+    doubled_area = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    longest = np.max([np.einsum("ij,ij->i", a - b, a - b) for a, b in ((p1, p2), (p2, p0), (p0, p1))], axis=0)
+    bad = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * longest))
+    if bad.size:
+        t = int(bad[0])
+        raise MeshError(
+            f"{name}: triangle {t} (vertices {triangles[t].tolist()}) has zero area "
+            f"({bad.size} degenerate triangle(s) in all). Remove degenerate faces: in Blender use "
+            "Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance."
+        )
+
+
+def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
+    """Validate ``triangles`` (int ``(m, 3)``) of a mesh with ``n_vertices`` vertices and build its
+    topology: edges, triangle→edge and edge→triangle incidence, boundary.
+
+    Raises :class:`MeshError` (a ``ValueError``) for fewer than one triangle, indices out of range,
+    a vertex repeated in a triangle, an edge shared by more than two triangles, or inconsistent
+    orientation. Geometry checks (degenerate triangles, non-finite coordinates) are in
+    :meth:`MeshTopology.check_pose`. Loose vertices are allowed.
+    """
+    tris = np.asarray(triangles)
+    if tris.ndim != 2 or tris.shape[1] != 3:
+        raise MeshError(f"triangles must be an integer array of shape (m, 3); got shape {tris.shape}.")
+    if tris.shape[0] < 1:
+        raise MeshError("The mesh has no triangles: shape differences need at least one face.")
+    if not np.issubdtype(tris.dtype, np.integer):
+        if not np.all(np.mod(tris, 1) == 0):
+            raise MeshError("triangles must hold integer vertex indices.")
+    tris = np.ascontiguousarray(tris, dtype=np.int64)
+    out_of_range = np.flatnonzero(((tris < 0) | (tris >= n_vertices)).any(axis=1))
+    if out_of_range.size:
+        t = int(out_of_range[0])
+        raise MeshError(
+            f"Triangle {t} refers to vertex indices {tris[t].tolist()}, but the mesh has "
+            f"{n_vertices} vertices (valid indices are 0..{n_vertices - 1}). Pass the triangles "
+            "and vertices of the same mesh."
+        )
+    repeated = np.flatnonzero(
+        (tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 2] == tris[:, 0])
+    )
+    if repeated.size:
+        t = int(repeated[0])
+        raise MeshError(
+            f"Triangle {t} uses a vertex twice ({tris[t].tolist()}). Remove degenerate faces: in "
+            "Blender use Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance."
+        )
+
+    m = tris.shape[0]
+    # Half-edge opposite corner k goes from corner k+1 to corner k+2.
+    tails = tris[:, [1, 2, 0]].ravel()
+    heads = tris[:, [2, 0, 1]].ravel()
+    low, high = np.minimum(tails, heads), np.maximum(tails, heads)
+    keys = low * n_vertices + high
+    unique_keys, edge_of_halfedge, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    edge_of_halfedge = edge_of_halfedge.reshape(-1)
+    if (counts > 2).any():
+        e = int(np.flatnonzero(counts > 2)[0])
+        owners = np.flatnonzero(edge_of_halfedge == e) // 3
+        a, b = divmod(int(unique_keys[e]), n_vertices)
+        raise MeshError(
+            f"Edge ({a}, {b}) is shared by {counts[e]} triangles ({owners.tolist()}). "
+            + _FIX_MANIFOLD
+        )
+    edges = np.stack(np.divmod(unique_keys, n_vertices), axis=1).astype(np.int64)
+    n_edges = edges.shape[0]
+
+    forward = tails < heads  # half-edge runs edges[e,0] -> edges[e,1]
+    slot = np.where(forward, 0, 1)
+    edge_triangles = np.full((n_edges, 2), -1, dtype=np.int64)
+    owner = np.repeat(np.arange(m, dtype=np.int64), 3)
+    # Two half-edges of one edge in the same direction means the two triangles disagree.
+    occupancy = np.zeros((n_edges, 2), dtype=np.int64)
+    np.add.at(occupancy, (edge_of_halfedge, slot), 1)
+    if (occupancy > 1).any():
+        e = int(np.flatnonzero((occupancy > 1).any(axis=1))[0])
+        owners = np.flatnonzero(edge_of_halfedge == e) // 3
+        raise MeshError(
+            f"Triangles {owners[0]} and {owners[1]} traverse edge ({edges[e, 0]}, {edges[e, 1]}) "
+            "in the same direction: the mesh orientation is inconsistent (or the surface is not "
+            "orientable). In Blender select all and use Mesh > Normals > Recalculate Outside."
+        )
+    edge_triangles[edge_of_halfedge, slot] = owner
+
+    return MeshTopology(
+        n_vertices=int(n_vertices),
+        triangles=tris,
+        edges=edges,
+        triangle_edges=edge_of_halfedge.reshape(m, 3).astype(np.int64),
+        edge_triangles=edge_triangles,
+        used_vertices=np.unique(tris),
+    )

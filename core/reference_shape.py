@@ -1,0 +1,271 @@
+"""The base shape M prepared once (paper §6–7): everything that depends only on M — topology,
+inner products, the offset surface M_t, factorizations, eigenbases — computed on first use and
+reused for every target pose, frame and in-between.
+
+A :class:`SurfaceLayer` is one of the two meshes the four differences live on: the base M
+(intrinsic differences) or its offset M_t (extrinsic differences, §5.2). :class:`ReferenceShape`
+holds both, turns target poses into :class:`ShapeDifferences` and back into recovered metrics and
+embeddings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from .errors import MeshError
+from .inner_products import ProductAssembler, pose_products
+from .laplace_basis import LaplaceBasis, laplace_basis
+from .mesh_topology import MeshTopology, check_vertices, mesh_topology
+from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .shape_difference import (
+    FullDifference,
+    ReducedDifference,
+    functional_map_differences,
+    reduced_differences,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class LayerMetric:
+    """Intrinsic metric of one layer of one pose: areas µ ``(m,)`` and squared lengths ℓ² ``(E,)``."""
+
+    areas: np.ndarray
+    squared_lengths: np.ndarray
+
+
+class SurfaceLayer:
+    """One mesh (M or M_t) with its reference pose: products, factorizations and eigenbases."""
+
+    def __init__(self, name: str, topology: MeshTopology, positions: np.ndarray):
+        self.name = name
+        self.topology = topology
+        self.assembler = ProductAssembler(topology)
+        self.areas, self.squared_lengths, self.mass, self.conformal = pose_products(self.assembler, positions)
+        self._bases: dict[int, LaplaceBasis] = {}
+
+    @property
+    def metric(self) -> LayerMetric:
+        return LayerMetric(self.areas, self.squared_lengths)
+
+    @cached_property
+    def area_recovery(self):
+        from .metric_recovery import AreaRecovery
+
+        return AreaRecovery(self.assembler)
+
+    def basis(self, k: int) -> LaplaceBasis:
+        """The first ``k`` eigenpairs of this layer's reference pose (cached; a larger cached
+        basis is truncated rather than recomputed)."""
+        larger = [size for size in self._bases if size >= k]
+        if larger:
+            cached = self._bases[min(larger)]
+            return cached if cached.size == k else LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
+        self._bases[k] = laplace_basis(self.mass, self.conformal, k, what=self.name)
+        return self._bases[k]
+
+    def differences(self, target_positions: np.ndarray, k_M: int | None, k_N: int | None):
+        """Area and conformal differences from this layer's reference to a target pose of it."""
+        _, _, mass, conformal = pose_products(self.assembler, target_positions)
+        if k_M is None:
+            return FullDifference("area", self.mass, mass), FullDifference("conformal", self.conformal, conformal)
+        base_basis = self.basis(k_M)
+        if k_N is None:
+            return reduced_differences(base_basis, mass, conformal)
+        target_basis = laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
+        return functional_map_differences(base_basis, target_basis, mass)
+
+    def recover(self, area_difference, conformal_difference) -> LayerMetric:
+        """Areas and squared lengths of the target from its two differences: linear solves in the
+        full basis (Props. 1–2), convex programs when truncated (§7.1–7.2)."""
+        if isinstance(area_difference, FullDifference):
+            from .metric_recovery import recover_squared_lengths
+
+            areas = self.area_recovery.solve(*area_difference.product_entries(self.assembler))
+            _, edge_values = conformal_difference.product_entries(self.assembler)
+            squared = recover_squared_lengths(self.assembler, areas, edge_values, what=self.name)
+            return LayerMetric(areas, squared)
+        from .convex_recovery import recover_truncated_metric
+
+        return recover_truncated_metric(self, area_difference, conformal_difference)
+
+
+@dataclass(frozen=True, eq=False)
+class ShapeDifferences:
+    """The four shape differences of a target N relative to a base M (§6).
+
+    ``area``/``conformal``: intrinsic (on M); ``offset_area``/``offset_conformal``: extrinsic (on
+    the offset surface M_t at distance ``offset``), ``None`` when ``use_extrinsic`` is off. Each is
+    a :class:`~core.shape_difference.FullDifference` (``k_M is None``) or a
+    :class:`~core.shape_difference.ReducedDifference`. ``reference`` is the prepared base, reused
+    by :func:`core.reconstruct`.
+    """
+
+    area: FullDifference | ReducedDifference
+    conformal: FullDifference | ReducedDifference
+    offset_area: FullDifference | ReducedDifference | None
+    offset_conformal: FullDifference | ReducedDifference | None
+    offset: float
+    k_M: int | None
+    k_N: int | None
+    reference: "ReferenceShape" = field(repr=False)
+
+    @property
+    def use_extrinsic(self) -> bool:
+        return self.offset_area is not None
+
+
+@dataclass(frozen=True, eq=False)
+class RecoveredMetric:
+    """Recovered intrinsic metric of the target and, when extrinsic, of its offset surface."""
+
+    base: LayerMetric
+    offset: LayerMetric | None
+
+
+class ReferenceShape:
+    """The base mesh M, validated and prepared once for many targets.
+
+    ``vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``; ``offset`` the distance t of
+    the offset surface (``None``: :func:`default_offset`, half the mean edge length);
+    ``use_extrinsic`` builds the offset layer. Loose vertices (in no triangle) are allowed: they
+    are left out of every computation and kept in place in results.
+    """
+
+    def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        vertices = check_vertices(vertices, name="base vertices")
+        full_topology = mesh_topology(triangles, vertices.shape[0])
+        self.n_vertices = vertices.shape[0]
+        self.vertices = vertices
+        self.used_vertices = full_topology.used_vertices
+        compact_index = np.full(self.n_vertices, -1, dtype=np.int64)
+        compact_index[self.used_vertices] = np.arange(self.used_vertices.size)
+        topology = (
+            full_topology
+            if self.used_vertices.size == self.n_vertices
+            else mesh_topology(compact_index[full_topology.triangles], self.used_vertices.size)
+        )
+        self.topology = topology
+        self.triangles = full_topology.triangles
+        base_positions = topology.check_pose(vertices[self.used_vertices], name="base vertices")
+        self.offset = float(default_offset(base_positions, topology.triangles) if offset is None else offset)
+        if not (np.isfinite(self.offset) and self.offset > 0):
+            raise MeshError(f"The offset distance t must be a positive number; got {offset!r}.")
+        self.base = SurfaceLayer("base mesh", topology, base_positions)
+        self.surface: OffsetSurface | None = None
+        self.offset_layer: SurfaceLayer | None = None
+        if use_extrinsic:
+            self.surface = offset_surface(topology)
+            self.offset_layer = SurfaceLayer(
+                "offset surface", self.surface.topology, self.surface.positions(base_positions, self.offset)
+            )
+
+    @property
+    def use_extrinsic(self) -> bool:
+        return self.offset_layer is not None
+
+    def matches(self, vertices, triangles) -> bool:
+        """True if ``(vertices, triangles)`` is exactly the mesh this reference was built from."""
+        v, t = np.asarray(vertices), np.asarray(triangles)
+        return v.shape == self.vertices.shape and t.shape == self.triangles.shape and np.array_equal(
+            v, self.vertices
+        ) and np.array_equal(t, self.triangles)
+
+    def compact_pose(self, vertices, *, name: str = "target vertices") -> np.ndarray:
+        """Validate a pose ``(n, 3)`` of this mesh and return its used vertices ``(n_used, 3)``."""
+        full = check_vertices(vertices, self.n_vertices, name=name)
+        return self.topology.check_pose(full[self.used_vertices], name=name)
+
+    def expand_pose(self, compact: np.ndarray, loose_positions: np.ndarray | None = None) -> np.ndarray:
+        """Scatter used-vertex positions ``(n_used, 3)`` back to ``(n, 3)``; loose vertices take
+        ``loose_positions`` (default: the base pose)."""
+        out = np.array(self.vertices if loose_positions is None else loose_positions, dtype=np.float64)
+        out[self.used_vertices] = compact
+        return out
+
+    def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None) -> ShapeDifferences:
+        """The four differences (§6) of a target pose ``(n, 3)`` relative to this base."""
+        if k_N is not None and k_M is None:
+            raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+        target = self.compact_pose(target_vertices)
+        area, conformal = self.base.differences(target, k_M, k_N)
+        offset_area = offset_conformal = None
+        if self.use_extrinsic:
+            offset_target = self.surface.positions(target, self.offset)
+            offset_area, offset_conformal = self.offset_layer.differences(offset_target, k_M, k_N)
+        return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.offset, k_M, k_N, self)
+
+    def recover_metric(self, differences: ShapeDifferences) -> RecoveredMetric:
+        """Areas and squared lengths of the target (and of its offset surface) — §7.1–7.2."""
+        base = self.base.recover(differences.area, differences.conformal)
+        offset = None
+        if differences.use_extrinsic:
+            if not self.use_extrinsic:
+                raise MeshError("These differences are extrinsic but the reference was built without an offset surface.")
+            offset = self.offset_layer.recover(differences.offset_area, differences.offset_conformal)
+        return RecoveredMetric(base, offset)
+
+    def pose_metric(self, vertices) -> RecoveredMetric:
+        """The exact metric of a pose ``(n, 3)`` (what recovery would return in the full basis)."""
+        target = self.compact_pose(vertices)
+        areas, squared, _, _ = pose_products(self.base.assembler, target)
+        offset = None
+        if self.use_extrinsic:
+            positions = self.surface.positions(target, self.offset)
+            o_areas, o_squared, _, _ = pose_products(self.offset_layer.assembler, positions)
+            offset = LayerMetric(o_areas, o_squared)
+        return RecoveredMetric(LayerMetric(areas, squared), offset)
+
+    def thickening_squared_lengths(self, metric: RecoveredMetric) -> np.ndarray:
+        """Squared lengths of every edge of the canonical thickening (§5.3) from a metric."""
+        return self.surface.thickening_squared_lengths(
+            metric.base.squared_lengths, metric.offset.squared_lengths, self.offset
+        )
+
+    # -- embedding (§7.3) and placement ------------------------------------------------------
+    @property
+    def base_positions(self) -> np.ndarray:
+        """The base pose's used vertices, float64 ``(n_used, 3)``."""
+        return self.vertices[self.used_vertices]
+
+    @cached_property
+    def vertex_weights(self) -> np.ndarray:
+        """Lumped vertex areas of the base ``(n_used,)``: weights for rigid placement."""
+        return np.asarray(self.base.mass.sum(axis=1)).ravel()
+
+    @cached_property
+    def vertex_components(self) -> np.ndarray:
+        """Connected-component label of every used vertex ``(n_used,)``."""
+        _, labels = self.topology.components()
+        out = np.empty(self.topology.n_vertices, dtype=np.int64)
+        out[self.topology.triangles.ravel()] = np.repeat(labels, 3)
+        return out
+
+    def embed(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None) -> np.ndarray:
+        """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
+        layer of the embedded canonical thickening, or — without the offset layer — a fit of the
+        base edge lengths started from ``initial`` (default: the base pose)."""
+        from .embedding import embed_base_edges, embed_thickening
+
+        if metric.offset is not None:
+            result = embed_thickening(
+                self.surface, self.thickening_squared_lengths(metric), initial_points=initial, anchor=anchor
+            )
+        else:
+            start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
+            result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
+        return result.base_vertices
+
+    def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
+        possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection)."""
+        from .rigid_alignment import rigid_alignment
+
+        placed = np.empty_like(positions)
+        for label in np.unique(self.vertex_components):
+            rows = self.vertex_components == label
+            rotation, translation = rigid_alignment(positions[rows], target[rows], self.vertex_weights[rows])
+            placed[rows] = positions[rows] @ rotation.T + translation
+        return placed
