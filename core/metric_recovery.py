@@ -7,19 +7,25 @@ Props. 1–2, appendix): two sparse linear solves.
   ±1 areas are invisible) — Prop. 1's condition — which is checked combinatorially.
 - Squared lengths ℓ² from the per-edge entries of ``C = C(ℓ²; µ)`` with µ fixed: a square sparse
   system ``B_µ ℓ² = c``. It is singular for rare area distributions (Fig. 2: two tetrahedra glued
-  at their bases with equal areas); an estimate of its condition number rejects those.
+  at their bases with equal areas, and every flat regular grid); Heron's formula, with the known
+  areas, then supplies the missing equations (see :func:`recover_squared_lengths`).
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 from .errors import RecoveryError
 from .inner_products import ProductAssembler
 from .mesh_topology import MeshTopology
 
-#: Above this estimated 1-norm condition number the length system is treated as singular.
-SINGULAR_CONDITION = 1e12
+#: Up to this estimated 1-norm condition number ``B_µ ℓ² = c`` alone is solved; above it Heron's
+#: formula is added (a condition number κ costs about log10(κ) of the 16 digits).
+WELL_CONDITIONED = 1e7
+#: Gauss–Newton on (B_µ, Heron) stops at this relative residual, or fails after this many steps.
+HERON_TOLERANCE = 1e-13
+MAX_HERON_ITERATIONS = 30
 
 
 class AreaRecovery:
@@ -66,12 +72,23 @@ def check_area_recoverable(topology: MeshTopology) -> None:
 
 
 def recover_squared_lengths(
-    assembler: ProductAssembler, areas: np.ndarray, edge_values: np.ndarray, *, what: str = "mesh"
+    assembler: ProductAssembler,
+    areas: np.ndarray,
+    edge_values: np.ndarray,
+    *,
+    reference_squared_lengths: np.ndarray | None = None,
+    what: str = "mesh",
 ) -> np.ndarray:
     """Prop. 2: squared edge lengths ℓ² ``(E,)`` from the per-edge entries ``c`` ``(E,)`` of
-    ``C(ℓ²; µ)`` and the (recovered) areas µ ``(m,)`` by one sparse LU solve of ``B_µ ℓ² = c``.
+    ``C(ℓ²; µ)`` and the (recovered) areas µ ``(m,)``.
 
-    Raises :class:`RecoveryError` when ``B_µ`` is singular or nearly so (paper Fig. 2).
+    One sparse LU solve of ``B_µ ℓ² = c`` when ``B_µ`` is well conditioned. ``B_µ`` is singular
+    for some area distributions — Fig. 2, and (measured) every flat regular grid, i.e. the rest
+    pose of most cloth, where all areas are equal. The areas carry the missing information:
+    Heron's formula ``16µ² = 2(x₁x₂ + x₂x₃ + x₃x₁) − (x₁² + x₂² + x₃²)`` per triangle. Then a
+    sparse Gauss–Newton solve of both sets of equations, started from the Tikhonov solution
+    nearest ``reference_squared_lengths``, recovers ℓ². :class:`RecoveryError` if even that
+    system is singular or does not converge.
     """
     if not (np.all(np.isfinite(areas)) and np.all(areas > 0)):
         bad = int(np.flatnonzero(~(areas > 0))[0])
@@ -84,23 +101,68 @@ def recover_squared_lengths(
     matrix = assembler.length_map(areas).tocsc()
     try:
         factor = splu(matrix)
-    except RuntimeError as error:  # exactly singular
-        raise _singular_length_system(what) from error
-    n = matrix.shape[0]
-    inverse = LinearOperator(
-        (n, n), matvec=factor.solve, rmatvec=lambda x: factor.solve(x, trans="T"), dtype=np.float64
+        n = matrix.shape[0]
+        inverse = LinearOperator(
+            (n, n), matvec=factor.solve, rmatvec=lambda x: factor.solve(x, trans="T"), dtype=np.float64
+        )
+        condition = onenormest(matrix) * onenormest(inverse)
+    except RuntimeError:  # exactly singular
+        condition = np.inf
+    if np.isfinite(condition) and condition <= WELL_CONDITIONED:
+        return factor.solve(edge_values)
+    return _lengths_with_heron(assembler, matrix, areas, edge_values, reference_squared_lengths, what)
+
+
+def _heron(topology, squared_lengths):
+    """16µ² from squared lengths per triangle ``(m,)`` and its Jacobian (sparse ``(m, E)``)."""
+    x = squared_lengths[topology.triangle_edges]  # (m, 3)
+    total = x.sum(axis=1, keepdims=True)
+    value = 2.0 * (x[:, 0] * x[:, 1] + x[:, 1] * x[:, 2] + x[:, 2] * x[:, 0]) - np.sum(x * x, axis=1)
+    gradient = 2.0 * (total - 2.0 * x)  # ∂/∂x_k = 2(x_{k+1} + x_{k+2} − x_k)
+    m = topology.n_triangles
+    jacobian = sp.csr_matrix(
+        (gradient.ravel(), (np.repeat(np.arange(m), 3), topology.triangle_edges.ravel())),
+        shape=(m, topology.n_edges),
     )
-    condition = onenormest(matrix) * onenormest(inverse)
-    if not np.isfinite(condition) or condition > SINGULAR_CONDITION:
-        raise _singular_length_system(what, condition)
-    return factor.solve(edge_values)
+    return value, jacobian
 
 
-def _singular_length_system(what: str, condition: float | None = None) -> RecoveryError:
-    detail = "" if condition is None else f" (condition number ≈ {condition:.2g})"
+def _lengths_with_heron(assembler, matrix, areas, edge_values, reference, what):
+    from scipy.sparse.linalg import splu
+
+    topology = assembler.topology
+    target = 16.0 * areas**2
+    weight = sp.diags(1.0 / target)  # Heron residuals relative to 16µ²: dimensionless like c
+    scale = abs(matrix).max()
+    x = (
+        np.full(topology.n_edges, np.mean(4.0 * areas) / np.sqrt(3.0))
+        if reference is None
+        else np.asarray(reference, dtype=np.float64)
+    )
+    # Start: the solution of B x = c nearest the reference (Tikhonov), then Gauss–Newton.
+    normal = (matrix.T @ matrix + 1e-10 * scale**2 * sp.identity(topology.n_edges)).tocsc()
+    x = x + splu(normal).solve(matrix.T @ (edge_values - matrix @ x))
+    norm_c = max(np.linalg.norm(edge_values), np.finfo(float).tiny)
+    for _ in range(MAX_HERON_ITERATIONS):
+        value, jacobian = _heron(topology, x)
+        residual = np.concatenate([matrix @ x - edge_values, weight @ (value - target)])
+        if np.linalg.norm(residual) <= HERON_TOLERANCE * (norm_c + np.sqrt(topology.n_triangles)):
+            return x
+        stacked = sp.vstack([matrix, weight @ jacobian]).tocsc()
+        try:
+            step = splu((stacked.T @ stacked).tocsc()).solve(-(stacked.T @ residual))
+        except RuntimeError as error:
+            raise _singular_length_system(what) from error
+        if not np.all(np.isfinite(step)):
+            raise _singular_length_system(what)
+        x = x + step
+    raise _singular_length_system(what)
+
+
+def _singular_length_system(what: str) -> RecoveryError:
     return RecoveryError(
         f"The conformal shape difference of the {what} does not determine its edge lengths for "
-        f"these triangle areas{detail}: the linear system of Prop. 2 is singular, as for two "
-        "tetrahedra glued at their bases with equal areas (paper Fig. 2). Perturb the mesh "
-        "slightly or remesh it."
+        "these triangle areas: the linear system of Prop. 2 is singular (as for two tetrahedra "
+        "glued at their bases with equal areas, paper Fig. 2) and Heron's formula does not "
+        "resolve it. Perturb the mesh slightly or remesh it."
     )

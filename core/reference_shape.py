@@ -85,7 +85,9 @@ class SurfaceLayer:
 
             areas = self.area_recovery.solve(*area_difference.product_entries(self.assembler))
             _, edge_values = conformal_difference.product_entries(self.assembler)
-            squared = recover_squared_lengths(self.assembler, areas, edge_values, what=self.name)
+            squared = recover_squared_lengths(
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+            )
             return LayerMetric(areas, squared)
         from .convex_recovery import recover_truncated_metric
 

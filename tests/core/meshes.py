@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 
 
-def grid(nx: int, ny: int | None = None, *, size: float = 1.0, jitter: float = 0.0, seed: int = 0):
+def grid(nx: int, ny: int | None = None, *, size: float = 1.0, jitter: float = 0.0, seed: int = 0, alternate: bool = True):
     """A flat ``nx × ny``-vertex sheet in the xy-plane, triangles counter-clockwise seen from +z.
 
-    Quads are split along alternating diagonals; ``jitter`` moves interior vertices randomly by a
+    Quads are split along alternating diagonals (``alternate``) or all along the same one, as
+    Blender's Grid primitive and the paper's cloth do; ``jitter`` moves interior vertices randomly by a
     fraction of the spacing (breaks symmetries). Returns ``(vertices (n,3), triangles (m,3))``.
     """
     ny = nx if ny is None else ny
@@ -23,7 +24,7 @@ def grid(nx: int, ny: int | None = None, *, size: float = 1.0, jitter: float = 0
         for i in range(nx - 1):
             a = j * nx + i
             b, c, d = a + 1, a + nx, a + nx + 1
-            if (i + j) % 2:
+            if (i + j) % 2 or not alternate:
                 triangles += [[a, b, d], [a, d, c]]
             else:
                 triangles += [[a, b, c], [b, d, c]]

@@ -1,0 +1,117 @@
+"""Validation of user meshes: every error names the problem, the first offending index and a fix."""
+
+import numpy as np
+import pytest
+
+import core
+from core.mesh_topology import mesh_topology
+from meshes import grid, icosphere
+
+
+def _error(vertices, triangles, target=None):
+    with pytest.raises(core.MeshError) as info:
+        core.shape_differences(vertices, vertices if target is None else target, triangles)
+    assert isinstance(info.value, ValueError)
+    return str(info.value)
+
+
+def test_topology_of_a_grid():
+    vertices, triangles = grid(5)
+    topology = mesh_topology(triangles, len(vertices))
+    assert topology.n_edges == 4 * 5 + 4 * 5 + 16  # horizontal + vertical + diagonals
+    assert len(topology.boundary_edges) == 16
+    # Every triangle's edge opposite corner k joins its other two corners.
+    for k in range(3):
+        ends = np.sort(triangles[:, [(k + 1) % 3, (k + 2) % 3]], axis=1)
+        assert np.array_equal(topology.edges[topology.triangle_edges[:, k]], ends)
+    # The forward triangle of an edge traverses it from edges[e,0] to edges[e,1].
+    for e in topology.interior_edges[:10]:
+        a, b = topology.edges[e]
+        t = triangles[topology.edge_triangles[e, 0]]
+        k = list(t).index(a)
+        assert t[(k + 1) % 3] == b
+
+
+def test_index_out_of_range():
+    vertices, triangles = grid(4)
+    triangles = triangles.copy()
+    triangles[7, 1] = 99
+    message = _error(vertices, triangles)
+    assert "Triangle 7" in message and "99" in message and "0..15" in message
+
+
+def test_repeated_vertex():
+    vertices, triangles = grid(4)
+    triangles = triangles.copy()
+    triangles[3] = [2, 5, 2]
+    message = _error(vertices, triangles)
+    assert "Triangle 3" in message and "twice" in message and "Degenerate Dissolve" in message
+
+
+def test_zero_area_triangle():
+    vertices, triangles = grid(4)
+    vertices = vertices.copy()
+    a, b, c = triangles[4]
+    vertices[c] = 0.5 * (vertices[a] + vertices[b])  # collinear corners
+    message = _error(vertices, triangles)
+    assert "zero area" in message and "Clean Up" in message
+
+
+def test_degenerate_target_is_rejected_too():
+    vertices, triangles = grid(4)
+    target = vertices.copy()
+    target[triangles[2]] = target[triangles[2, 0]]
+    message = _error(vertices, triangles, target)
+    assert "target" in message and "zero area" in message
+
+
+def test_edge_shared_by_three_triangles():
+    vertices, triangles = grid(4)
+    topology = mesh_topology(triangles, len(vertices))
+    a, b = topology.edges[topology.interior_edges[0]]
+    vertices = np.vstack([vertices, [[0.1, 0.1, 1.0]]])
+    triangles = np.vstack([triangles, [[a, b, 16]]])
+    message = _error(vertices, triangles)
+    assert f"({min(a, b)}, {max(a, b)})" in message and "3 triangles" in message and "Non Manifold" in message
+
+
+def test_inconsistent_orientation():
+    vertices, triangles = grid(4)
+    triangles = triangles.copy()
+    triangles[5] = triangles[5, ::-1]
+    message = _error(vertices, triangles)
+    assert "same direction" in message and "Recalculate Outside" in message
+
+
+def test_non_finite_coordinates():
+    vertices, triangles = grid(4)
+    target = vertices.copy()
+    target[6, 2] = np.nan
+    message = _error(vertices, triangles, target)
+    assert "vertex 6" in message and "non-finite" in message
+
+
+def test_vertex_count_mismatch():
+    vertices, triangles = grid(4)
+    message = _error(vertices, triangles, vertices[:-1])
+    assert "15 vertices" in message and "16" in message and "correspondence" in message
+
+
+def test_no_triangles():
+    vertices, _ = grid(3)
+    message = _error(vertices, np.zeros((0, 3), dtype=int))
+    assert "no triangles" in message
+
+
+def test_loose_vertices_are_allowed_and_kept_in_place():
+    vertices, triangles = icosphere(1)
+    loose = np.array([[3.0, 3.0, 3.0], [4.0, 0.0, 0.0]])
+    base = np.vstack([vertices, loose])
+    target = base.copy()
+    target[: len(vertices)] *= 1.3
+    target[len(vertices):] += 7.0  # motion of loose vertices is not encoded by shape differences
+    differences = core.shape_differences(base, target, triangles)
+    metric = differences.reference.recover_metric(differences)
+    exact = differences.reference.pose_metric(target)
+    assert np.allclose(metric.base.areas, exact.base.areas, rtol=1e-10)
+    assert differences.reference.expand_pose(differences.reference.base_positions)[-2:].tolist() == loose.tolist()
