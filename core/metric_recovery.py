@@ -20,11 +20,12 @@ from .errors import RecoveryError
 from .inner_products import ProductAssembler
 from .mesh_topology import MeshTopology
 
-#: Up to this estimated 1-norm condition number ``B_µ ℓ² = c`` alone is solved; above it Heron's
-#: formula is added (a condition number κ costs about log10(κ) of the 16 digits).
-WELL_CONDITIONED = 1e7
-#: Gauss–Newton on (B_µ, Heron) stops at this relative residual, or fails after this many steps.
-HERON_TOLERANCE = 1e-13
+#: The direct solution is accepted when Heron's formula holds to this relative accuracy; otherwise
+#: (``B_µ`` singular or ill conditioned) Gauss–Newton on both sets of equations polishes it.
+HERON_CHECK = 1e-9
+#: That Gauss–Newton runs until its residual stops shrinking (the rounding floor) and succeeds if
+#: the residual is then below this fraction of the data's size.
+HERON_ACCEPTED_RESIDUAL = 1e-7
 MAX_HERON_ITERATIONS = 30
 
 
@@ -36,10 +37,7 @@ class AreaRecovery:
         self.assembler = assembler
         check_area_recoverable(assembler.topology)
         self._map = assembler.area_map().tocsc()
-        normal = (self._map.T @ self._map).tocsc()
-        from scipy.sparse.linalg import splu
-
-        self._factor = splu(normal)
+        self._factor = _spd_factor((self._map.T @ self._map).tocsc())
 
     def solve(self, diagonal: np.ndarray, edge_values: np.ndarray) -> np.ndarray:
         """Areas µ ``(m,)`` from the diagonal ``(n,)`` and per-edge ``(E,)`` entries of ``A``."""
@@ -82,13 +80,15 @@ def recover_squared_lengths(
     """Prop. 2: squared edge lengths ℓ² ``(E,)`` from the per-edge entries ``c`` ``(E,)`` of
     ``C(ℓ²; µ)`` and the (recovered) areas µ ``(m,)``.
 
-    One sparse LU solve of ``B_µ ℓ² = c`` when ``B_µ`` is well conditioned. ``B_µ`` is singular
+    One sparse LU solve of ``B_µ ℓ² = c``, checked against Heron's formula. ``B_µ`` is singular
     for some area distributions — Fig. 2, and (measured) every flat regular grid, i.e. the rest
     pose of most cloth, where all areas are equal. The areas carry the missing information:
     Heron's formula ``16µ² = 2(x₁x₂ + x₂x₃ + x₃x₁) − (x₁² + x₂² + x₃²)`` per triangle. Then a
-    sparse Gauss–Newton solve of both sets of equations, started from the Tikhonov solution
-    nearest ``reference_squared_lengths``, recovers ℓ². :class:`RecoveryError` if even that
-    system is singular or does not converge.
+    sparse Gauss–Newton solve of both sets of equations, started from the direct solution (or,
+    if there is none, from the Tikhonov solution nearest ``reference_squared_lengths``),
+    recovers ℓ²; one step usually suffices, since the error of the direct solution lies in the
+    near-kernel of ``B_µ``. :class:`RecoveryError` if even that system is singular or does not
+    converge.
     """
     if not (np.all(np.isfinite(areas)) and np.all(areas > 0)):
         bad = int(np.flatnonzero(~(areas > 0))[0])
@@ -96,21 +96,19 @@ def recover_squared_lengths(
             f"The recovered area of triangle {bad} of the {what} is {areas[bad]:.3g}: edge lengths "
             "need positive areas. The shape difference does not describe a valid mesh."
         )
-    from scipy.sparse.linalg import LinearOperator, onenormest, splu
+    from scipy.sparse.linalg import splu
 
     matrix = assembler.length_map(areas).tocsc()
+    target = 16.0 * areas**2
     try:
-        factor = splu(matrix)
-        n = matrix.shape[0]
-        inverse = LinearOperator(
-            (n, n), matvec=factor.solve, rmatvec=lambda x: factor.solve(x, trans="T"), dtype=np.float64
-        )
-        condition = onenormest(matrix) * onenormest(inverse)
+        solution = splu(matrix).solve(edge_values)
     except RuntimeError:  # exactly singular
-        condition = np.inf
-    if np.isfinite(condition) and condition <= WELL_CONDITIONED:
-        return factor.solve(edge_values)
-    return _lengths_with_heron(assembler, matrix, areas, edge_values, reference_squared_lengths, what)
+        solution = None
+    if solution is not None and np.all(np.isfinite(solution)):
+        value, _ = _heron(assembler.topology, solution)
+        if np.max(np.abs(value - target) / target) <= HERON_CHECK:
+            return solution
+    return _lengths_with_heron(assembler, matrix, areas, edge_values, solution, reference_squared_lengths, what)
 
 
 def _heron(topology, squared_lengths):
@@ -127,36 +125,54 @@ def _heron(topology, squared_lengths):
     return value, jacobian
 
 
-def _lengths_with_heron(assembler, matrix, areas, edge_values, reference, what):
+def _spd_factor(matrix):
+    """SuperLU of a symmetric positive definite matrix: minimum degree on its pattern and no
+    pivoting (measured 1.5–2× faster and sparser than the default COLAMD on normal matrices)."""
     from scipy.sparse.linalg import splu
 
+    return splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+
+
+def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference, what):
     topology = assembler.topology
     target = 16.0 * areas**2
     weight = sp.diags(1.0 / target)  # Heron residuals relative to 16µ²: dimensionless like c
-    scale = abs(matrix).max()
-    x = (
-        np.full(topology.n_edges, np.mean(4.0 * areas) / np.sqrt(3.0))
-        if reference is None
-        else np.asarray(reference, dtype=np.float64)
-    )
-    # Start: the solution of B x = c nearest the reference (Tikhonov), then Gauss–Newton.
-    normal = (matrix.T @ matrix + 1e-10 * scale**2 * sp.identity(topology.n_edges)).tocsc()
-    x = x + splu(normal).solve(matrix.T @ (edge_values - matrix @ x))
-    norm_c = max(np.linalg.norm(edge_values), np.finfo(float).tiny)
+    if start is not None and np.all(np.isfinite(start)) and np.all(start > 0):
+        x = start
+    else:  # the solution of B x = c nearest the reference lengths (Tikhonov)
+        x = (
+            np.full(topology.n_edges, np.mean(4.0 * areas) / np.sqrt(3.0))
+            if reference is None
+            else np.asarray(reference, dtype=np.float64)
+        )
+        scale = abs(matrix).max()
+        normal = (matrix.T @ matrix + 1e-10 * scale**2 * sp.identity(topology.n_edges)).tocsc()
+        x = x + _spd_factor(normal).solve(matrix.T @ (edge_values - matrix @ x))
+    data_size = np.linalg.norm(edge_values) + np.sqrt(topology.n_triangles)
+    previous = np.inf
     for _ in range(MAX_HERON_ITERATIONS):
         value, jacobian = _heron(topology, x)
-        residual = np.concatenate([matrix @ x - edge_values, weight @ (value - target)])
-        if np.linalg.norm(residual) <= HERON_TOLERANCE * (norm_c + np.sqrt(topology.n_triangles)):
+        linear_residual = matrix @ x - edge_values
+        residual = np.concatenate([linear_residual, weight @ (value - target)])
+        size = np.linalg.norm(residual)
+        if np.max(np.abs(value - target) / target) <= HERON_CHECK and np.linalg.norm(
+            linear_residual
+        ) <= HERON_CHECK * data_size:
             return x
+        if size > 0.5 * previous:  # no longer converging: at the rounding floor, or stuck
+            break
+        previous, best = size, x
         stacked = sp.vstack([matrix, weight @ jacobian]).tocsc()
         try:
-            step = splu((stacked.T @ stacked).tocsc()).solve(-(stacked.T @ residual))
+            step = _spd_factor((stacked.T @ stacked).tocsc()).solve(-(stacked.T @ residual))
         except RuntimeError as error:
             raise _singular_length_system(what) from error
         if not np.all(np.isfinite(step)):
             raise _singular_length_system(what)
         x = x + step
-    raise _singular_length_system(what)
+    if not previous <= HERON_ACCEPTED_RESIDUAL * data_size:
+        raise _singular_length_system(what)
+    return best
 
 
 def _singular_length_system(what: str) -> RecoveryError:

@@ -1,0 +1,586 @@
+"""In-betweens and exaggerations by interpolating shape differences (paper §8.4, Figs. 14–15).
+
+Public API (re-exported by :mod:`core`):
+
+- :func:`interpolate` ``(vertices_a, vertices_b, triangles, factor)`` — one pose; ``factor`` 0 gives
+  ``a``, 1 gives ``b``, 0.5 an in-between, 1.5 an exaggeration, negative values reverse the motion.
+- :class:`Interpolator` — the same with the preparation (topology, factorization, per-triangle
+  differences) done once for many factors.
+- :class:`SequenceInterpolator` ``(key_poses, triangles)`` — in-betweens for every gap of a list of
+  K key poses, ``pose(gap_index, factor)``; everything that depends on the topology or on one key
+  is computed once, and the interpolation is C¹-smooth across keys (no popping between gaps).
+
+Method
+------
+In the full basis the four shape differences of ``b`` relative to ``a`` are equivalent to the
+metric of ``b`` (triangle areas and edge lengths, §4.2, Props. 1–2) and of its offset surface, i.e.
+to the first fundamental form and to how every triangle turns relative to its neighbours
+(the extrinsic part, §5.3). We interpolate exactly those two pieces of information, per triangle
+``T`` (a 3×3 deformation gradient ``F_T = R_T U_T`` from ``a`` to ``b``, the triangle's unit normal
+as third column, polar-decomposed):
+
+- **intrinsic**: the stretch ``U_T`` (the metric tensor ``F_Tᵀ F_T = U_T²``, i.e. the triangle's
+  area and edge lengths), interpolated log-Euclidean, ``U_T(s) = exp(s log U_T)``: exact at 0
+  and 1, always positive definite (never negative lengths — the ill-posedness of linearly
+  interpolated inner products that issue 3 measured), isometric motions stay isometric for every
+  ``s`` including exaggerations;
+- **extrinsic**: the rotation field ``R_T``, interpolated along geodesics of the rotation group
+  (the short way round), ``R_T(s) = exp(s log R_T)``. A rigid motion is therefore
+  interpolated rigidly (no chord shortcut, no shrinking).
+
+Reconstruction (§7.3 in local/global form): positions minimizing
+``Σ_T Σ_{edges ij of T} |x_j − x_i − R_T(s) U_T(s) (a_j − a_i)|² + λ Σ_v m_v |x_v − p_v|²``
+(a Poisson solve with a tiny anchor ``λ`` to the placement guide ``p``), then a few
+as-rigid-as-possible iterations that re-fit each triangle's rotation to the current positions
+while keeping its interpolated metric ``U_T(s)`` — so that the result's edge lengths follow the
+interpolated metric although the interpolated targets are never exactly realizable. The normal
+matrix depends only on the topology: it is factorized once (sparse LU) and every in-between costs
+a handful of back-substitutions.
+
+Placement: each connected component's area-weighted centroid follows the linear interpolation
+of the keys' centroids (two keys) or their Catmull–Rom spline (sequences), and its orientation
+is the interpolated rotation field's. Sequences interpolate the per-triangle rotations,
+stretches and centroids with Catmull–Rom splines over the neighbouring keys instead of linearly
+(C¹ across keys; captures accelerating motion, e.g. cloth falling under gravity).
+
+Robustness: the result is checked for non-finite values, flipped triangles (a normal opposing
+the interpolated normal ``R_T(s) n_T``) and collapsed ones; on failure it is recomputed with the
+metric fitted from the linear blend (strongly anchored), then the linear blend is returned, each
+time with a :class:`~core.errors.ShapeDifferenceWarning` saying so.
+
+Truncated bases (``k_M``/``k_N``): the target metric (edge lengths of ``b``) is recovered from the
+truncated differences through :meth:`ReferenceShape.recover_metric` (convex recovery, §7.1–7.2)
+and replaces the exact stretch of ``b``; the rotation field still comes from the poses. If the
+recovery is unavailable or fails, the full-basis metric is used with a warning.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import OrderedDict
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.spatial.transform import Rotation
+
+from .errors import MeshError, ShapeDifferenceWarning
+from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+
+__all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
+
+#: Weight of the positional anchor relative to the edge terms (per unit vertex mass, mean mass 1):
+#: only fixes the translation gauge (placement is by centroids), so that rigid motions stay exact.
+ANCHOR_WEIGHT = 1e-7
+#: Local/global (as-rigid-as-possible) iterations after the Poisson solve.
+ARAP_ITERATIONS = 10
+#: Stop the iterations early when no vertex moved by more than this fraction of the mean edge.
+ARAP_TOLERANCE = 1e-5
+#: Largest angle between a triangle's fitted rotation and its interpolated one (radians).
+MAX_ROTATION_DEVIATION = np.pi / 4
+#: Anchor weight of the first fallback (metric fitted from the linear blend).
+FALLBACK_ANCHOR_WEIGHT = 1e-1
+#: A triangle whose area dropped below this fraction of its (interpolated) target area is collapsed.
+COLLAPSE_RATIO = 1e-3
+#: Per-segment caches kept by SequenceInterpolator.
+SEGMENT_CACHE = 4
+
+
+# ---------------------------------------------------------------------------------------------
+# small batched linear algebra
+
+
+def _frames(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Per-triangle frames ``[e1 | e2 | n]`` (m, 3, 3): two edge vectors and the unit normal."""
+    p0 = vertices[triangles[:, 0]]
+    e1 = vertices[triangles[:, 1]] - p0
+    e2 = vertices[triangles[:, 2]] - p0
+    n = np.cross(e1, e2)
+    norm = np.linalg.norm(n, axis=1, keepdims=True)
+    n = np.divide(n, norm, out=np.zeros_like(n), where=norm > 0)
+    return np.stack([e1, e2, n], axis=2)
+
+
+def _polar(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Batched polar decomposition ``F = R U`` (R proper rotation, U symmetric), (m, 3, 3) each."""
+    u, _, vt = np.linalg.svd(f)
+    d = np.sign(np.linalg.det(u @ vt))
+    d[d == 0] = 1.0
+    u = u * np.stack([np.ones_like(d), np.ones_like(d), d], axis=1)[:, None, :]
+    r = u @ vt
+    return r, np.transpose(r, (0, 2, 1)) @ f
+
+
+def _rotation_part(f: np.ndarray, iterations: int = 8) -> np.ndarray:
+    """Rotation of the polar decomposition of matrices with positive determinant (m, 3, 3), by
+    the scaled Newton iteration X ← (γX + X⁻ᵀ/γ)/2 (Higham), ~10× faster than a batched SVD. The
+    triangle frames used here are right-handed by construction, so ``det > 0``."""
+    x = f
+    for _ in range(iterations):
+        c0, c1, c2 = x[:, :, 0], x[:, :, 1], x[:, :, 2]
+        cof = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
+        det = np.einsum("ij,ij->i", c0, cof[:, :, 0])
+        bad = ~(det > 1e-300)
+        det = np.where(bad, 1.0, det)
+        inv_t = cof / det[:, None, None]
+        gamma = np.sqrt(np.sqrt(np.einsum("kab,kab->k", inv_t, inv_t) / np.maximum(np.einsum("kab,kab->k", x, x), 1e-300)))
+        new = 0.5 * (gamma[:, None, None] * x + inv_t / gamma[:, None, None])
+        new[bad] = np.eye(3)
+        x = new
+    return x
+
+
+def _sym_log(s: np.ndarray) -> np.ndarray:
+    s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
+    w, q = np.linalg.eigh(s)
+    return (q * np.log(np.maximum(w, 1e-8))[:, None, :]) @ np.transpose(q, (0, 2, 1))
+
+
+def _sym_exp(s: np.ndarray) -> np.ndarray:
+    s = 0.5 * (s + np.transpose(s, (0, 2, 1)))
+    w, q = np.linalg.eigh(s)
+    return (q * np.exp(np.clip(w, -30.0, 30.0))[:, None, :]) @ np.transpose(q, (0, 2, 1))
+
+
+def _kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Proper rotation (3, 3) best mapping ``source`` onto ``target`` (weighted, centred)."""
+    w = weights / weights.sum()
+    s = source - w @ source
+    t = target - w @ target
+    u, _, vt = np.linalg.svd(t.T @ (s * w[:, None]))
+    d = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
+    return (u * np.array([1.0, 1.0, d])) @ vt
+
+
+def _spline_weights(s: float, cubic: bool) -> np.ndarray:
+    """Weights of the values at key times (−1, 0, 1, 2) for parameter ``s`` of the gap (0, 1).
+
+    ``cubic``: Catmull–Rom (C¹, exact at 0 and 1); otherwise linear (0, 1 − s, s, 0)."""
+    if not cubic:
+        return np.array([0.0, 1.0 - s, s, 0.0])
+    s2, s3 = s * s, s * s * s
+    return np.array([(-s3 + 2 * s2 - s) / 2, (3 * s3 - 5 * s2 + 2) / 2, (-3 * s3 + 4 * s2 + s) / 2, (s3 - s2) / 2])
+
+
+# ---------------------------------------------------------------------------------------------
+# topology-only preparation
+
+
+class _Topology:
+    """Everything that depends only on the triangles: edge incidence, the factorized normal
+    matrix, components. ``mass`` (lumped vertex areas of the first pose, mean 1) weighs the anchor."""
+
+    def __init__(self, triangles, n_vertices: int, first_pose: np.ndarray, anchor_weight: float):
+        topo = mesh_topology(triangles, n_vertices)
+        self.topology = topo
+        self.n = n_vertices
+        t = topo.triangles
+        self.triangles = t
+        m = t.shape[0]
+        self.i = t[:, [0, 1, 2]].ravel()
+        self.j = t[:, [1, 2, 0]].ravel()
+        self.tri_of = np.repeat(np.arange(m), 3)
+        rows = np.arange(3 * m)
+        self.D = sp.csr_matrix(
+            (np.r_[-np.ones(3 * m), np.ones(3 * m)], (np.r_[rows, rows], np.r_[self.i, self.j])), shape=(3 * m, n_vertices)
+        )
+        self.Dt = self.D.T.tocsr()
+        p0 = first_pose[t[:, 0]]
+        areas = 0.5 * np.linalg.norm(np.cross(first_pose[t[:, 1]] - p0, first_pose[t[:, 2]] - p0), axis=1)
+        mass = np.bincount(t.ravel(), np.repeat(areas / 3.0, 3), n_vertices)
+        used = mass > 0
+        mass = mass / mass[used].mean()
+        mass[~used] = 1.0  # loose vertices follow the placement guide
+        self.mass = mass
+        self.used = used
+        self.weights = np.where(used, mass, 0.0)
+        _, tri_labels = topo.components()
+        labels = np.full(n_vertices, -1, dtype=np.int64)
+        labels[t.ravel()] = np.repeat(tri_labels, 3)
+        self.components = [np.flatnonzero(labels == c) for c in np.unique(tri_labels)]
+        self._solvers: dict[float, object] = {}
+        self.anchor_weight = anchor_weight
+
+    def solver(self, weight: float):
+        if weight not in self._solvers:
+            matrix = (self.Dt @ self.D + sp.diags(weight * self.mass)).tocsc()
+            self._solvers[weight] = spla.factorized(matrix)
+        return self._solvers[weight]
+
+    def solve(self, edge_vectors: np.ndarray, guide: np.ndarray, weight: float) -> np.ndarray:
+        """argmin_x Σ |x_j − x_i − d|² + weight Σ m_v |x_v − guide_v|² for per-corner-edge ``d``."""
+        rhs = self.Dt @ edge_vectors + (weight * self.mass)[:, None] * guide
+        solve = self.solver(weight)
+        return np.column_stack([solve(np.ascontiguousarray(rhs[:, k])) for k in range(3)])
+
+    def centroid(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        w = self.weights[rows]
+        return w @ x[rows] / w.sum()
+
+    def place(self, x: np.ndarray, centroids: list[np.ndarray]) -> np.ndarray:
+        for rows, c in zip(self.components, centroids):
+            x[rows] += c - self.centroid(x, rows)
+        return x
+
+
+class _Key:
+    """Per-key data: positions, inverse triangle frames, unit normals, component centroids."""
+
+    def __init__(self, topo: _Topology, vertices: np.ndarray, name: str):
+        v = check_vertices(vertices, topo.n, name=name)
+        check_nondegenerate(v, topo.triangles, name=name)
+        self.vertices = v
+        frames = _frames(v, topo.triangles)
+        self.normals = frames[:, :, 2].copy()
+        self.areas = 0.5 * np.linalg.norm(np.cross(frames[:, :, 0], frames[:, :, 1]), axis=1)
+        self.frame_inverse = np.linalg.inv(frames)
+        self.edge_vectors = v[topo.j] - v[topo.i]
+        self.centroids = [topo.centroid(v, rows) for rows in topo.components]
+
+
+class _Relative:
+    """Differences of key ``other`` relative to the base key of a segment: per-triangle rotation
+    vectors and log-stretches (the interpolated data), and the key's centroids and positions."""
+
+    def __init__(self, topo: _Topology, base: _Key, other: _Key, stretch_override: np.ndarray | None = None):
+        f = _frames(other.vertices, topo.triangles) @ base.frame_inverse
+        r, u = _polar(f)
+        # The short way round (angle ≤ π): the interpolated normal then never opposes both keys'
+        # normals. (Choosing the way nearer the mesh's global rotation instead, for consistency
+        # between neighbours turning by almost π, flipped hundreds of triangles on a flapping flag.)
+        self.rotvec = Rotation.from_matrix(r).as_rotvec()
+        self.log_stretch = _sym_log(u if stretch_override is None else stretch_override)
+        self.centroids = other.centroids
+        self.vertices = other.vertices
+
+    @classmethod
+    def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
+        self = cls.__new__(cls)
+        m = topo.triangles.shape[0]
+        self.rotvec = np.zeros((m, 3))
+        self.log_stretch = np.zeros((m, 3, 3))
+        self.centroids = base.centroids
+        self.vertices = base.vertices
+        return self
+
+    @staticmethod
+    def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
+        """Linear extrapolation 2·current − previous (end condition of the spline)."""
+        self = _Relative.__new__(_Relative)
+        self.rotvec = 2 * current.rotvec - previous.rotvec
+        self.log_stretch = 2 * current.log_stretch - previous.log_stretch
+        self.centroids = [2 * c - p for c, p in zip(current.centroids, previous.centroids)]
+        self.vertices = 2 * current.vertices - previous.vertices
+        return self
+
+
+class _Segment:
+    """One gap between key ``base`` (s = 0) and the next key (s = 1), with the keys before and
+    after it (real or phantom) for the Catmull–Rom spline."""
+
+    def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
+                 use_extrinsic: bool):
+        self.topo, self.base, self.next = topo, base, nxt
+        self.relatives = relatives  # at key times −1, 0, 1, 2 (relative to base)
+        self.cubic = cubic
+        self.use_extrinsic = use_extrinsic
+
+    def _mix(self, w: np.ndarray, attr: str):
+        out = None
+        for wk, rel in zip(w, self.relatives):
+            if wk == 0.0:
+                continue
+            value = getattr(rel, attr)
+            out = wk * value if out is None else out + wk * value
+        return out
+
+    def targets(self, s: float):
+        w = _spline_weights(s, self.cubic)
+        stretch = _sym_exp(self._mix(w, "log_stretch"))
+        rotation = Rotation.from_rotvec(self._mix(w, "rotvec")).as_matrix()
+        centroids = [sum(wk * rel.centroids[c] for wk, rel in zip(w, self.relatives)) for c in range(len(self.topo.components))]
+        guide = self._mix(w, "vertices")
+        return rotation, stretch, centroids, guide
+
+    def pose(self, s: float, *, iterations: int = ARAP_ITERATIONS) -> tuple[np.ndarray, str | None]:
+        """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
+        topo, base = self.topo, self.base
+        rotation, stretch, centroids, guide = self.targets(s)
+        weight = topo.anchor_weight
+        if self.use_extrinsic:
+            x0 = topo.solve(np.einsum("kab,kb->ka", (rotation @ stretch)[topo.tri_of], base.edge_vectors), guide, weight)
+            x0 = topo.place(x0, centroids)
+        else:
+            x0 = guide.copy()
+        x = topo.place(self._arap(x0, stretch, rotation, x0.copy(), weight, iterations), centroids)
+        problem = self.check(x, s, rotation, stretch)
+        if problem is None:
+            return x, None
+        tried = [(self._badness(x, s), x)]
+        # Repair: re-fit with the interpolated rotation imposed on the defective triangles and
+        # their neighbours (a local fix; most of the pose is kept).
+        t = topo.triangles
+        cross = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+        bad = self.flipped(cross, s, rotation) | (0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * base.areas)
+        if self.use_extrinsic and bad.any() and np.isfinite(x).all():
+            near = np.zeros(topo.n, dtype=bool)
+            near[t[bad].ravel()] = True
+            force = near[t].any(axis=1)
+            z = topo.place(self._arap(x, stretch, rotation, x0.copy(), weight, iterations, force=force), centroids)
+            if self.check(z, s, rotation, stretch) is None:
+                return z, None
+            tried.append((self._badness(z, s), z))
+        # Fallback 1: the Poisson solve alone (rotations exactly the interpolated ones).
+        if self.use_extrinsic and self.check(x0, s, rotation, stretch) is None:
+            return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
+        tried.append((self._badness(x0, s), x0))
+        # Fallback 2: fit the interpolated metric starting from, and strongly anchored to, the blend.
+        blend = (1.0 - s) * base.vertices + s * self.next.vertices
+        y = self._arap(blend.copy(), stretch, None, blend, FALLBACK_ANCHOR_WEIGHT, iterations)
+        if self.check(y, s, rotation, stretch, orientation=False) is None:
+            return y, f"{problem}; used the interpolated metric fitted near the linear blend instead"
+        tried.append((self._badness(y, s), y))
+        if self.check(blend, s, rotation, stretch, orientation=False) is None:
+            return blend, f"{problem}; the metric fit near the linear blend failed too, returned the linear blend"
+        tried.append((self._badness(blend, s), blend))
+        best = min(range(len(tried)), key=lambda k: tried[k][0])
+        return tried[best][1], f"{problem}; every fallback has defects too, returned the candidate with the fewest"
+
+    def flipped(self, cross: np.ndarray, s: float, rotation: np.ndarray | None) -> np.ndarray:
+        """Triangles (bool (m,)) whose normal ``cross`` opposes both keys' normals (in-betweens,
+        0 ≤ s ≤ 1) or, for extrapolations, the interpolated normal ``R_T(s) n_T`` (else the
+        nearer key's normal)."""
+        if 0.0 <= s <= 1.0:
+            return (np.einsum("ij,ij->i", cross, self.base.normals) < 0) & (
+                np.einsum("ij,ij->i", cross, self.next.normals) < 0)
+        if rotation is not None:
+            return np.einsum("ij,ij->i", cross, np.einsum("kab,kb->ka", rotation, self.base.normals)) < 0
+        return np.einsum("ij,ij->i", cross, (self.base if s < 0.5 else self.next).normals) < 0
+
+    def _badness(self, x, s) -> float:
+        if not np.isfinite(x).all():
+            return np.inf
+        cross = np.cross(x[self.topo.triangles[:, 1]] - x[self.topo.triangles[:, 0]],
+                         x[self.topo.triangles[:, 2]] - x[self.topo.triangles[:, 0]])
+        against_a = np.einsum("ij,ij->i", cross, self.base.normals) < 0
+        against_b = np.einsum("ij,ij->i", cross, self.next.normals) < 0
+        area = 0.5 * np.linalg.norm(cross, axis=1)
+        return float(np.sum(against_a & against_b) + np.sum(area < COLLAPSE_RATIO * self.base.areas))
+
+    def _arap(self, x, stretch, rotation, guide, weight, iterations, force=None):
+        """Local/global fit of the interpolated metric ``stretch``: each triangle's rotation is
+        re-fitted to the current positions, but replaced by the interpolated ``rotation`` where the
+        two differ by more than :data:`MAX_ROTATION_DEVIATION` (keeps folds from flipping)."""
+        topo, base = self.topo, self.base
+        h = np.mean(np.linalg.norm(base.edge_vectors, axis=1))
+        cos_max = np.cos(MAX_ROTATION_DEVIATION)
+        for _ in range(iterations):
+            r = _rotation_part(_frames(x, topo.triangles) @ base.frame_inverse)
+            if rotation is not None:
+                cos = 0.5 * (np.einsum("kab,kab->k", r, rotation) - 1.0)
+                far = ~(cos > cos_max)
+                if force is not None:
+                    far |= force
+                r[far] = rotation[far]
+            new = topo.solve(np.einsum("kab,kb->ka", (r @ stretch)[topo.tri_of], base.edge_vectors), guide, weight)
+            step = np.max(np.abs(new - x))
+            x = new
+            if not np.isfinite(step) or step < ARAP_TOLERANCE * h:
+                break
+        return x
+
+    def check(self, x, s, rotation, stretch, orientation: bool = True) -> str | None:
+        if not np.isfinite(x).all():
+            return "the reconstruction produced non-finite coordinates"
+        topo, base = self.topo, self.base
+        frames = _frames(x, topo.triangles)
+        cross = np.cross(frames[:, :, 0], frames[:, :, 1])
+        area = 0.5 * np.linalg.norm(cross, axis=1)
+        target_area = base.areas * np.abs(np.linalg.det(stretch))
+        collapsed = int(np.sum(area < COLLAPSE_RATIO * target_area))
+        if collapsed:
+            return f"{collapsed} triangle(s) collapsed"
+        # Flipped: the normal opposes both keys' normals (in-betweens) or the nearer key's
+        # (extrapolations) and, with ``orientation``, the interpolated normal R_T(s) n_T too.
+        flipped = int(np.sum(self.flipped(cross, s, rotation if orientation else None)))
+        if flipped:
+            return f"{flipped} triangle(s) flipped"
+        return None
+
+
+def _warn(message: str) -> None:
+    warnings.warn(f"Shape-difference interpolation: {message}.", ShapeDifferenceWarning, stacklevel=3)
+
+
+def _truncated_stretch(base_vertices, other_vertices, triangles, k_M, k_N, offset, use_extrinsic, topo, base_key):
+    """Stretch tensors (m, 3, 3) of ``other`` relative to ``base`` whose edge lengths are the ones
+    recovered from the truncated shape differences; None (with a warning) if unavailable."""
+    try:
+        from .reference_shape import ReferenceShape
+
+        reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
+        differences = reference.shape_differences(other_vertices, k_M=k_M, k_N=k_N)
+        metric = reference.recover_metric(differences)
+        squared = np.asarray(metric.base.squared_lengths, dtype=np.float64)
+        edge_of_corner = reference.topology.triangle_edges  # edge opposite each corner (compact)
+    except Exception as error:  # noqa: BLE001 - any failure falls back to the full basis
+        _warn(f"truncated recovery (k_M={k_M}, k_N={k_N}) failed ({error}); used the full-basis metric")
+        return None
+    if not (np.isfinite(squared).all() and (squared > 0).all()):
+        _warn("truncated recovery returned non-positive squared lengths; used the full-basis metric")
+        return None
+    # Edge k of each triangle (corner k -> k+1) is opposite corner k+2.
+    tri_sq = squared[edge_of_corner[:, [2, 0, 1]]]  # (m, 3): |e01|², |e12|², |e20|²
+    return _stretch_from_lengths(base_key, topo, tri_sq)
+
+
+def _stretch_from_lengths(base_key: _Key, topo: _Topology, tri_sq: np.ndarray) -> np.ndarray:
+    """Symmetric stretch U (m, 3, 3) in the base key's frame whose metric U² gives the triangle's
+    edges the squared lengths ``tri_sq`` (m, 3) (order e01, e12, e20); unit along the normal."""
+    fr = np.linalg.inv(base_key.frame_inverse)
+    e1, e2 = fr[:, :, 0], fr[:, :, 1]
+    # Orthonormal tangent basis (t1, t2) and base edge coordinates in it.
+    t1 = e1 / np.linalg.norm(e1, axis=1, keepdims=True)
+    t2 = np.cross(fr[:, :, 2], t1)
+    edges = [e1, e2 - e1, -e2]
+    coords = np.stack([np.stack([np.einsum("ij,ij->i", e, t1), np.einsum("ij,ij->i", e, t2)], 1) for e in edges], 1)
+    a, b = coords[:, :, 0], coords[:, :, 1]
+    system = np.stack([a * a, 2 * a * b, b * b], axis=2)  # (m, 3, 3) · (g11, g12, g22) = ℓ²
+    g = np.linalg.solve(system, tri_sq[:, :, None])[:, :, 0]
+    metric2 = np.stack([np.stack([g[:, 0], g[:, 1]], 1), np.stack([g[:, 1], g[:, 2]], 1)], 1)
+    w, q = np.linalg.eigh(metric2)
+    root2 = (q * np.sqrt(np.maximum(w, 1e-12))[:, None, :]) @ np.transpose(q, (0, 2, 1))
+    basis = np.stack([t1, t2, fr[:, :, 2]], axis=2)  # (m, 3, 3) columns
+    root3 = np.zeros_like(basis)
+    root3[:, :2, :2] = root2
+    root3[:, 2, 2] = 1.0
+    return basis @ root3 @ np.transpose(basis, (0, 2, 1))
+
+
+# ---------------------------------------------------------------------------------------------
+# public API
+
+
+class SequenceInterpolator:
+    """In-betweens for every gap of K ≥ 2 key poses of one mesh (e.g. every 4th simulation frame).
+
+    ``key_poses``: sequence of K arrays ``(n, 3)`` (or an array ``(K, n, 3)``); ``triangles`` int
+    ``(m, 3)``. ``pose(gap_index, factor)`` returns float64 ``(n, 3)``: key ``gap_index`` at
+    factor 0, key ``gap_index + 1`` at factor 1. ``len()`` is the number of gaps, K − 1.
+    ``pose_at(time)`` takes a global time in key units (``time = gap_index + factor``).
+
+    Rotations, stretches and centroids are interpolated with Catmull–Rom splines over the
+    neighbouring keys (``smooth=True``; linear with ``smooth=False``), so consecutive gaps join
+    with matching velocity. The topology and its factorization are built once; the data of each
+    key and each gap on first use (the last few gaps are cached). ``k_M``/``k_N``/``offset``/
+    ``use_extrinsic`` as for :class:`Interpolator`.
+    """
+
+    def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
+                 offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
+        keys = [np.asarray(k) for k in key_poses]
+        if len(keys) < 2:
+            raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
+        first = check_vertices(keys[0], name="key pose 0")
+        self._raw = keys
+        self._topo = _Topology(triangles, first.shape[0], first, ANCHOR_WEIGHT)
+        self._keys: dict[int, _Key] = {}
+        self._segments: OrderedDict[int, _Segment] = OrderedDict()
+        self.k_M, self.k_N, self.offset = k_M, k_N, offset
+        self.use_extrinsic = bool(use_extrinsic)
+        self.smooth = bool(smooth)
+        if k_N is not None and k_M is None:
+            raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+
+    def __len__(self) -> int:
+        return len(self._raw) - 1
+
+    @property
+    def triangles(self) -> np.ndarray:
+        return self._topo.triangles
+
+    def _key(self, index: int) -> _Key:
+        if index not in self._keys:
+            self._keys[index] = _Key(self._topo, self._raw[index], f"key pose {index}")
+        return self._keys[index]
+
+    def _relative(self, base: int, other: int) -> _Relative:
+        stretch = None
+        if self.k_M is not None:
+            stretch = _truncated_stretch(
+                self._raw[base], self._raw[other], self._topo.triangles, self.k_M, self.k_N, self.offset,
+                self.use_extrinsic, self._topo, self._key(base),
+            )
+        return _Relative(self._topo, self._key(base), self._key(other), stretch)
+
+    def _segment(self, gap: int) -> _Segment:
+        if gap in self._segments:
+            self._segments.move_to_end(gap)
+            return self._segments[gap]
+        topo, base = self._topo, self._key(gap)
+        last = len(self._raw) - 1
+        ident = _Relative.identity(topo, base)
+        nxt = self._relative(gap, gap + 1)
+        cubic = self.smooth and last >= 2
+        if cubic:
+            prev = self._relative(gap, gap - 1) if gap >= 1 else _Relative.phantom(nxt, ident)
+            after = self._relative(gap, gap + 2) if gap + 2 <= last else _Relative.phantom(ident, nxt)
+        else:
+            prev = after = ident
+        segment = _Segment(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic)
+        self._segments[gap] = segment
+        while len(self._segments) > SEGMENT_CACHE:
+            self._segments.popitem(last=False)
+        return segment
+
+    def pose(self, gap_index: int, factor: float) -> np.ndarray:
+        """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
+        gap = int(gap_index)
+        if not 0 <= gap < len(self):
+            raise IndexError(f"gap_index {gap_index} out of range for {len(self)} gap(s).")
+        s = float(factor)
+        if not np.isfinite(s):
+            raise ValueError(f"factor must be a finite number; got {factor!r}.")
+        if s == 0.0:
+            return self._key(gap).vertices.copy()
+        if s == 1.0:
+            return self._key(gap + 1).vertices.copy()
+        x, problem = self._segment(gap).pose(s)
+        if problem:
+            _warn(f"pose at factor {s:g} of gap {gap}: {problem}")
+        return x
+
+    def pose_at(self, time: float) -> np.ndarray:
+        """The pose at global ``time`` in key units (0 = first key, K − 1 = last key); times
+        outside extrapolate the first or last gap."""
+        gap = int(np.clip(np.floor(time), 0, len(self) - 1))
+        return self.pose(gap, float(time) - gap)
+
+
+class Interpolator:
+    """Poses between (and beyond) two poses ``vertices_a`` (factor 0) and ``vertices_b`` (factor 1)
+    of one mesh, prepared once: ``pose(factor)`` returns float64 ``(n, 3)``.
+
+    ``k_M``/``k_N``: interpolate truncated shape differences (the metric of ``b`` is the one
+    recovered from them); ``None`` = full basis. ``offset``: offset distance of the extrinsic
+    differences (used by the truncated recovery). ``use_extrinsic=False`` interpolates the
+    intrinsic metric only (bending then follows the linear blend).
+    """
+
+    def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
+                 offset: float | None = None, use_extrinsic: bool = True):
+        self._sequence = SequenceInterpolator(
+            [vertices_a, vertices_b], triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
+            smooth=False,
+        )
+
+    def pose(self, factor: float) -> np.ndarray:
+        """0 → a, 1 → b, 0.5 in-between, 1.5 exaggeration, negative: the motion reversed."""
+        return self._sequence.pose(0, factor)
+
+
+def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,
+                k_N: int | None = None, offset: float | None = None, use_extrinsic: bool = True) -> np.ndarray:
+    """One pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1); see :class:`Interpolator`."""
+    return Interpolator(vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset,
+                        use_extrinsic=use_extrinsic).pose(factor)

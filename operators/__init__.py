@@ -1,0 +1,17 @@
+"""The operators of the extension; their idnames and property names are a public API."""
+
+import bpy
+
+from .frames import SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames
+from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
+                    SHAPE_DIFFERENCES_OT_reconstruct)
+
+classes = (
+    SHAPE_DIFFERENCES_OT_frames_to_shape_keys,
+    SHAPE_DIFFERENCES_OT_inbetween,
+    SHAPE_DIFFERENCES_OT_exaggerate,
+    SHAPE_DIFFERENCES_OT_reconstruct,
+    SHAPE_DIFFERENCES_OT_inbetween_frames,
+)
+
+register, unregister = bpy.utils.register_classes_factory(classes)

@@ -1,0 +1,235 @@
+"""What every Shape Differences operator shares: running its work as a generator (synchronously
+in ``execute``, from a modal timer with a progress bar and Esc to cancel in ``invoke``), turning
+bad input into reports, and resolving the core settings from the scene or the operator.
+
+An operator's work is a generator that validates first, computes while yielding its progress
+(0..1) and writes to the object only in its last step, so cancelling or failing changes nothing.
+"""
+
+import warnings
+
+import bpy
+from bpy.props import BoolProperty, FloatProperty, IntProperty
+
+from .. import bridge
+
+
+def load_core():
+    """The core package, imported on first use so enabling the extension stays fast."""
+    from .. import core
+    return core
+
+
+class InputError(Exception):
+    """Bad selection or settings: the message says what is wrong and how to fix it."""
+
+
+def reported_error(error: BaseException) -> str | None:
+    """The message to show for an expected failure, or None for a bug that should propagate."""
+    if isinstance(error, (InputError, bridge.VertexCountChanged)):
+        return str(error)
+    if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
+            "scipy", "cvxpy", "clarabel"):
+        return (f"The Python package '{error.name}' is missing. Install the Shape Differences "
+                "zip built for your platform (it bundles SciPy and cvxpy), then restart Blender.")
+    core = load_core()
+    if isinstance(error, core.ShapeDifferenceError):
+        return str(error)
+    return None
+
+
+class GeneratorOperator:
+    """Mixin for operators whose work is the generator ``run(context)``."""
+
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        if obj is None or obj.type != 'MESH':
+            cls.poll_message_set("Select a mesh object: the active object must be a mesh")
+            return False
+        if obj.mode != 'OBJECT':
+            cls.poll_message_set("Switch to Object Mode first")
+            return False
+        return True
+
+    def run(self, context):
+        """Validate, compute (yielding progress in 0..1), then write. Set ``self.summary``."""
+        raise NotImplementedError
+
+    # -- driving the generator -------------------------------------------------------------
+
+    def _start(self, context):
+        self._job = self.run(context)
+        self._warnings: list[str] = []
+        self.summary = ""
+
+    def _step(self) -> tuple[str | None, float]:
+        """Advance the job by one step: (final status or None while running, progress)."""
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                return None, next(self._job)
+            except StopIteration:
+                return 'FINISHED', 1.0
+            except Exception as error:
+                message = reported_error(error)
+                if message is None:
+                    raise
+                self.report({'ERROR'}, message)
+                return 'CANCELLED', 1.0
+            finally:
+                self._collect_warnings(caught)
+
+    def _collect_warnings(self, caught):
+        core_warning = load_core().ShapeDifferenceWarning
+        for warning in caught:
+            if not issubclass(warning.category, core_warning):
+                warnings.showwarning(warning.message, warning.category, warning.filename,
+                                     warning.lineno)
+            elif str(warning.message) not in self._warnings:
+                self._warnings.append(str(warning.message))
+
+    def _finish(self, status: str) -> set[str]:
+        for message in self._warnings:
+            self.report({'WARNING'}, message)
+        if status == 'FINISHED' and self.summary:
+            self.report({'INFO'}, self.summary)
+        return {status}
+
+    def execute(self, context):
+        self._start(context)
+        while True:
+            status, _progress = self._step()
+            if status:
+                return self._finish(status)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        return self._start_modal(context)
+
+    def _start_modal(self, context) -> set[str]:
+        self._start(context)
+        status, _progress = self._step()  # validation runs right away
+        if status:
+            return self._finish(status)
+        window_manager = context.window_manager
+        window_manager.progress_begin(0, 100)
+        self._timer = window_manager.event_timer_add(0.001, window=context.window)
+        window_manager.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        if event.type == 'ESC':
+            self._job.close()  # runs the job's clean-up; nothing has been written yet
+            self.report({'WARNING'}, "Cancelled: nothing was changed")
+            return self._end_modal(context, 'CANCELLED')
+        if event.type == 'TIMER':
+            status, progress = self._step()
+            context.window_manager.progress_update(int(100 * progress))
+            if status:
+                return self._end_modal(context, status)
+        return {'RUNNING_MODAL'}  # block other input while the object is being worked on
+
+    def _end_modal(self, context, status: str) -> set[str]:
+        window_manager = context.window_manager
+        window_manager.event_timer_remove(self._timer)
+        window_manager.progress_end()
+        return self._finish(status)
+
+
+# -- settings shared with the core ----------------------------------------------------------
+
+class CoreSettings:
+    """The core's settings as properties: the scene settings and each core operator have them."""
+
+    k_m: IntProperty(
+        name="k_M", min=0, default=0,
+        description="Intrinsic basis size (Laplacian eigenfunctions of the base mesh); "
+                    "0 = full basis")
+    k_n: IntProperty(
+        name="k_N", min=0, default=0,
+        description="Extrinsic basis size (eigenfunctions on the offset surface); 0 = full basis")
+    offset: FloatProperty(
+        name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
+        description="Distance of the offset surface that carries the extrinsic information; "
+                    "0 = automatic (scales with the mesh)")
+    use_extrinsic: BoolProperty(
+        name="Extrinsic", default=True,
+        description="Use extrinsic (offset surface) shape differences as well as intrinsic ones")
+
+
+class CoreSettingsProperties(CoreSettings):
+    """Core settings of an operator: each one not set is taken from the scene settings."""
+
+    def core_options(self, context, vertex_count: int, triangle_count: int) -> dict:
+        """Keyword arguments for the core facade, from this operator or the scene settings.
+
+        Resolved values are written back to the operator so the Redo panel shows them.
+        """
+        settings = context.scene.shape_differences
+        for name in ("k_m", "k_n", "offset", "use_extrinsic"):
+            if not self.properties.is_property_set(name):
+                setattr(self, name, getattr(settings, name))
+        for label, k, limit in (("k_M", self.k_m, vertex_count),
+                                ("k_N", self.k_n, vertex_count + triangle_count)):
+            if k >= limit:
+                raise InputError(
+                    f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
+                    f"use at most {limit - 1}, or 0 for the full basis")
+        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=self.offset or None,
+                    use_extrinsic=self.use_extrinsic)
+
+
+# -- shape key lookup -------------------------------------------------------------------------
+
+def surface_triangles(obj):
+    """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error."""
+    triangles = bridge.mesh_triangles(obj.data)
+    if len(triangles) == 0:
+        raise InputError(f"'{obj.name}' has no faces: shape differences need a surface mesh")
+    return triangles
+
+
+def key_blocks_of(obj, needed: int = 2):
+    """The shape keys of ``obj``, requiring at least ``needed`` of them."""
+    key = obj.data.shape_keys
+    count = len(key.key_blocks) if key else 0
+    if count < needed:
+        raise InputError(
+            f"'{obj.name}' has {count} shape key{'s' if count != 1 else ''}, needs at least "
+            f"{needed} (a Basis and a pose): add keys in Properties › Object Data › Shape Keys, or "
+            "capture an animation with 'Frames to Shape Keys'")
+    return key.key_blocks
+
+
+def find_key(obj, name: str, property_name: str):
+    """The shape key called ``name``; the error lists the keys there are."""
+    key_blocks = key_blocks_of(obj)
+    key_block = key_blocks.get(name)
+    if key_block is None:
+        names = ", ".join(f"'{kb.name}'" for kb in key_blocks)
+        raise InputError(f"'{obj.name}' has no shape key '{name}' (for {property_name}); "
+                         f"pick one of {names}")
+    return key_block
+
+
+def default_pose_key(obj):
+    """The key a user most likely means: the active shape key unless it is the Basis, else the
+    last key."""
+    key_blocks = key_blocks_of(obj)
+    active = obj.active_shape_key
+    return active if active is not None and active != key_blocks[0] else key_blocks[-1]
+
+
+def resolve_key(obj, name: str, property_name: str, default):
+    """``find_key`` for a given name, ``default`` (a key) when the name is empty."""
+    return find_key(obj, name, property_name) if name else default
+
+
+def require_distinct(first, second, first_name: str, second_name: str):
+    if first == second:
+        raise InputError(f"{first_name} and {second_name} are both '{first.name}': "
+                         "pick two different shape keys")

@@ -1,0 +1,143 @@
+"""Small real scenes for the operator tests: a grid with posed shape keys, a baked cloth
+simulation, an armature animation; and a snapshot of everything an operator must not change."""
+
+import bpy
+import numpy as np
+
+
+def grid_object(subdivisions: int = 12, name: str = "Sheet"):
+    """A flat subdivided grid (about ``subdivisions**2`` vertices), active and selected."""
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=subdivisions, y_subdivisions=subdivisions,
+                                    size=2.0)
+    obj = bpy.context.active_object
+    obj.name = name
+    return obj
+
+
+def rolled(positions: np.ndarray, angle: float) -> np.ndarray:
+    """The grid rolled about the y axis into an arc of ``angle`` radians (a bending pose)."""
+    x, y = positions[:, 0], positions[:, 1]
+    width = x.max() - x.min()
+    radius = width / angle
+    theta = (x - x.min()) / radius
+    return np.stack([radius * np.sin(theta) + x.min(), y, radius * (1 - np.cos(theta))], axis=1)
+
+
+def add_key(obj, name: str, positions: np.ndarray):
+    """Add a shape key with the given positions (creating the Basis first)."""
+    if obj.data.shape_keys is None:
+        obj.shape_key_add(name="Basis", from_mix=False)
+    key_block = obj.shape_key_add(name=name, from_mix=False)
+    key_block.data.foreach_set("co", positions.astype(np.float32).ravel())
+    obj.data.update()
+    return key_block
+
+
+def posed_grid(bridge, subdivisions: int = 12):
+    """A grid with a Basis and two rolled poses, "Bend" (the active key) and "Curl"."""
+    obj = grid_object(subdivisions)
+    rest = bridge.vertex_positions(obj.data)
+    add_key(obj, "Curl", rolled(rest, 2.0))
+    add_key(obj, "Bend", rolled(rest, 1.0))
+    obj.active_shape_key_index = 2
+    return obj
+
+
+def cloth_scene(subdivisions: int = 14, frames: int = 13):
+    """A grid falling onto a sphere with a Cloth modifier, baked for ``frames`` frames."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.6, location=(0, 0, 0), segments=16,
+                                         ring_count=8)
+    bpy.context.active_object.modifiers.new("Collision", 'COLLISION')
+    obj = grid_object(subdivisions, name="Cloth")
+    obj.location.z = 1.0
+    cloth = obj.modifiers.new("Cloth", 'CLOTH')
+    cloth.point_cache.frame_start, cloth.point_cache.frame_end = 1, frames
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+    return obj
+
+
+def armature_scene(frames: int = 9):
+    """A grid strip bent by a two-bone armature whose second bone rotates from frame 1 to
+    ``frames``; the vertices are weighted to the bones by their x coordinate."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=5, size=2.0)
+    strip = bpy.context.active_object
+    strip.scale.y = 0.25
+    bpy.ops.object.transform_apply(scale=True)
+
+    bpy.ops.object.armature_add(enter_editmode=True, location=(-1, 0, 0))
+    rig = bpy.context.active_object
+    first = rig.data.edit_bones[0]
+    first.name, first.head, first.tail = "Root", (0, 0, 0), (1, 0, 0)
+    second = rig.data.edit_bones.new("Tip")
+    second.head, second.tail, second.parent = (1, 0, 0), (2, 0, 0), first
+    bpy.ops.object.mode_set(mode='OBJECT')
+
+    x = np.array([v.co.x for v in strip.data.vertices])
+    tip_weight = np.clip((x + 0.2) / 0.4, 0.0, 1.0)
+    root_group, tip_group = strip.vertex_groups.new(name="Root"), strip.vertex_groups.new(name="Tip")
+    for index, weight in enumerate(tip_weight):
+        root_group.add([index], 1.0 - weight, 'REPLACE')
+        tip_group.add([index], weight, 'REPLACE')
+    strip.modifiers.new("Armature", 'ARMATURE').object = rig
+
+    tip = rig.pose.bones["Tip"]
+    tip.rotation_mode = 'XYZ'
+    for frame, angle in ((1, 0.0), (frames, 1.2)):
+        tip.rotation_euler = (0.0, -angle, 0.0)
+        tip.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(1)
+    bpy.context.view_layer.objects.active = strip
+    strip.select_set(True)
+    return strip
+
+
+def evaluated_frames(bridge, obj, frames):
+    """The evaluated positions of ``obj`` at each of ``frames`` (restores the current frame)."""
+    return dict(bridge.frame_positions(bpy.context, obj, list(frames)))
+
+
+def snapshot(bridge, obj) -> dict:
+    """Everything about ``obj`` and the scene that a failed operator must leave as it was."""
+    mesh = obj.data
+    positions = bridge.vertex_positions(mesh)
+    keys = {}
+    animation = None
+    if mesh.shape_keys is not None:
+        for key_block in mesh.shape_keys.key_blocks:
+            keys[key_block.name] = (bridge.shape_key_positions(key_block), key_block.value,
+                                    key_block.relative_key.name)
+        animation_data = mesh.shape_keys.animation_data
+        animation = animation_data.action.name if animation_data and animation_data.action else None
+    return {
+        "positions": positions,
+        "keys": keys,
+        "key_animation": animation,
+        "active_key": obj.active_shape_key_index,
+        "modifiers": [(m.name, m.type, m.show_viewport, m.show_render) for m in obj.modifiers],
+        "object_animation": (obj.animation_data.action.name
+                             if obj.animation_data and obj.animation_data.action else None),
+        "frame": bpy.context.scene.frame_current,
+        "actions": sorted(action.name for action in bpy.data.actions),
+        "meshes": len(bpy.data.meshes),
+    }
+
+
+def assert_unchanged(before: dict, after: dict):
+    assert after["keys"].keys() == before["keys"].keys()
+    for name, (coordinates, value, relative) in before["keys"].items():
+        np.testing.assert_array_equal(after["keys"][name][0], coordinates)
+        assert after["keys"][name][1:] == (value, relative)
+    np.testing.assert_array_equal(after["positions"], before["positions"])
+    for field in ("key_animation", "active_key", "modifiers", "object_animation", "frame",
+                  "actions", "meshes"):
+        assert after[field] == before[field], field
+
+
+def key_names(obj) -> list[str]:
+    return [key_block.name for key_block in obj.data.shape_keys.key_blocks]

@@ -1,0 +1,137 @@
+"""Bad selections, settings and meshes: a report that says what is wrong and how to fix it, and
+nothing changes (shape keys, vertices, modifiers, animation, current frame)."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import (add_key, armature_scene, assert_unchanged, grid_object,  # noqa: E402
+                            posed_grid, snapshot)
+
+
+def fails_without_change(bridge, obj, operator, match, **properties):
+    """Run ``operator`` and check it raises with a message matching ``match`` and that
+    nothing about ``obj`` changed."""
+    before = snapshot(bridge, obj)
+    with pytest.raises(RuntimeError, match=match) as failure:
+        operator(**properties)
+    assert "Traceback" not in str(failure.value), "a crash, not a report"
+    assert_unchanged(before, snapshot(bridge, obj))
+
+
+def test_no_active_object(bpy_empty):
+    with pytest.raises(RuntimeError, match="active object must be a mesh"):
+        bpy.ops.shape_differences.inbetween()
+
+
+def test_active_object_is_not_a_mesh(bpy_empty):
+    bpy.ops.object.empty_add()
+    with pytest.raises(RuntimeError, match="active object must be a mesh"):
+        bpy.ops.shape_differences.frames_to_shape_keys()
+
+
+def test_edit_mode(bpy_empty):
+    grid_object(4)
+    bpy.ops.object.mode_set(mode='EDIT')
+    with pytest.raises(RuntimeError, match="Object Mode"):
+        bpy.ops.shape_differences.exaggerate()
+
+
+@pytest.mark.parametrize("operator", ["inbetween", "exaggerate", "reconstruct"])
+def test_fewer_than_two_keys(bpy_empty, extension, operator):
+    obj = grid_object(4)
+    run = getattr(bpy.ops.shape_differences, operator)
+    fails_without_change(extension.bridge, obj, run, "has 0 shape keys, needs at least 2")
+    obj.shape_key_add(name="Basis")
+    fails_without_change(extension.bridge, obj, run, "has 1 shape key, needs at least 2")
+
+
+def test_unknown_key_names_the_keys_there_are(bpy_empty, extension):
+    obj = posed_grid(extension.bridge, 6)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         r"no shape key 'Nope' \(for To\); pick one of 'Basis', 'Curl', 'Bend'",
+                         key_b="Nope")
+
+
+def test_same_key_twice(bpy_empty, extension):
+    obj = posed_grid(extension.bridge, 6)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         "both 'Bend': pick two different", key_a="Bend", key_b="Bend")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.exaggerate,
+                         "both 'Basis'", key="Basis")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "is the Basis", key="Basis")
+
+
+def test_k_larger_than_the_mesh_allows(bpy_empty, extension):
+    obj = posed_grid(extension.bridge, 6)
+    vertex_count = len(obj.data.vertices)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         f"k_M = {vertex_count} is too large .* use at most {vertex_count - 1}",
+                         k_m=vertex_count)
+    bpy.context.scene.shape_differences.k_m = 10_000
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "k_M = 10000 is too large")
+
+
+def test_vertex_count_changing_over_frames(bpy_empty, extension):
+    strip = armature_scene()
+    strip.modifiers.new("Decimate", 'DECIMATE').ratio = 0.5
+    for operator in (bpy.ops.shape_differences.frames_to_shape_keys,
+                     bpy.ops.shape_differences.inbetween_frames):
+        fails_without_change(extension.bridge, strip, operator, "instead of .* Disable modifiers")
+
+
+def test_too_few_frames(bpy_empty, extension):
+    strip = armature_scene()
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.inbetween_frames,
+                         "give 1 frame, at least 2", frame_start=3, frame_end=3)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.frames_to_shape_keys,
+                         "give 0 frames", frame_start=5, frame_end=2)
+
+
+def test_mesh_without_faces(bpy_empty, extension):
+    obj = posed_grid(extension.bridge, 5)
+    bpy.ops.object.mode_set(mode='EDIT')
+    bpy.ops.mesh.select_all(action='SELECT')
+    bpy.ops.mesh.delete(type='ONLY_FACE')
+    bpy.ops.object.mode_set(mode='OBJECT')
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         "has no faces")
+
+
+def test_degenerate_pose(bpy_empty, extension, core):
+    obj = posed_grid(extension.bridge, 6)
+    flat = extension.bridge.shape_key_positions(obj.data.shape_keys.key_blocks["Basis"])
+    flat[:, 0] = 0.0  # the flat sheet squashed onto a line: every triangle has zero area
+    add_key(obj, "Collapsed", flat)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         "zero area .* Degenerate Dissolve", key_b="Collapsed")
+
+
+def test_non_manifold_mesh(bpy_empty, extension, core):
+    """Three triangles sharing one edge: core rejects the mesh, the operator reports it."""
+    mesh = bpy.data.meshes.new("Fin")
+    vertices = [(0, 0, 0), (1, 0, 0), (0.5, 1, 0), (0.5, -1, 0), (0.5, 0, 1)]
+    mesh.from_pydata(vertices, [], [(0, 1, 2), (1, 0, 3), (0, 1, 4)])
+    obj = bpy.data.objects.new("Fin", mesh)
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    add_key(obj, "Moved", np.array(vertices) * 1.1)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.exaggerate,
+                         "manifold")
+
+
+@pytest.mark.parametrize("with_keys", [False, True], ids=["no keys yet", "existing keys"])
+def test_writing_is_all_or_nothing(bpy_empty, extension, with_keys):
+    """If writing fails half-way, the keys written so far (and a Basis made for them) go."""
+    bridge = extension.bridge
+    obj = posed_grid(bridge, 5) if with_keys else grid_object(5)
+    before = snapshot(bridge, obj)
+    good = bridge.vertex_positions(obj.data)
+    new_keys = [bridge.NewShapeKey("Good", good), bridge.NewShapeKey("Wrong size", good[:-1])]
+    with pytest.raises((RuntimeError, TypeError, ValueError)):
+        bridge.add_shape_keys(obj, new_keys, keyframes=[1, 2])
+    assert (obj.data.shape_keys is not None) == with_keys
+    assert_unchanged(before, snapshot(bridge, obj))

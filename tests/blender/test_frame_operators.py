@@ -1,0 +1,90 @@
+"""Frames to shape keys and in-between frames on a baked cloth simulation and an armature
+animation: one key per frame with the evaluated mesh, in-betweens as core computes them, key
+values keyframed, and the original animation, modifiers and current frame left alone."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
+                            key_names, snapshot)
+
+TOLERANCE = 1e-4
+
+
+def positions_of(bridge, obj, name):
+    return bridge.shape_key_positions(obj.data.shape_keys.key_blocks[name])
+
+
+def assert_animation_untouched(before, after):
+    for field in ("modifiers", "object_animation", "frame", "positions"):
+        np.testing.assert_equal(after[field], before[field])
+
+
+@pytest.mark.parametrize("make_scene", [cloth_scene, armature_scene], ids=["cloth", "armature"])
+def test_frames_to_shape_keys(bpy_empty, extension, make_scene):
+    obj = make_scene()
+    bridge = extension.bridge
+    bpy.context.scene.frame_set(2)
+    before = snapshot(bridge, obj)
+    expected = evaluated_frames(bridge, obj, range(1, 10))
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4)
+    assert key_names(obj) == ["Basis", "Frame 1", "Frame 5", "Frame 9"]
+    for frame in (1, 5, 9):
+        np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), expected[frame],
+                                   atol=TOLERANCE)
+    assert not np.allclose(expected[1], expected[9], atol=0.05), "the scene should move"
+    assert_animation_untouched(before, snapshot(bridge, obj))
+
+
+def test_frame_range_defaults_to_the_scene(bpy_empty, extension):
+    obj = armature_scene(frames=5)
+    bpy.ops.shape_differences.frames_to_shape_keys()
+    assert key_names(obj)[1:] == [f"Frame {frame}" for frame in range(1, 6)]
+
+
+@pytest.mark.parametrize("make_scene", [cloth_scene, armature_scene], ids=["cloth", "armature"])
+def test_inbetween_frames(bpy_empty, extension, core, make_scene):
+    obj = make_scene()
+    bridge = extension.bridge
+    before = snapshot(bridge, obj)
+    frames = [1, 5, 9]
+    poses = evaluated_frames(bridge, obj, frames)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3)
+
+    factors = (0.25, 0.5, 0.75)
+    expected_names = ["Basis"]
+    for frame, next_frame in zip(frames, frames[1:]):
+        expected_names.append(f"Frame {frame}")
+        expected_names += [f"Inbetween Frame {frame}-Frame {next_frame} {f:.2f}" for f in factors]
+    expected_names.append("Frame 9")
+    assert key_names(obj) == expected_names
+
+    sequence = core.SequenceInterpolator([poses[f] for f in frames],
+                                         bridge.mesh_triangles(obj.data))
+    for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
+        np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), poses[frame],
+                                   atol=TOLERANCE)
+        for factor in factors:
+            name = f"Inbetween Frame {frame}-Frame {next_frame} {factor:.2f}"
+            np.testing.assert_allclose(positions_of(bridge, obj, name),
+                                       sequence.pose(gap, factor), atol=TOLERANCE)
+
+    # Key values: 1 at the key's own frame, 0 at every other sample frame.
+    key = obj.data.shape_keys
+    for index, name in enumerate(expected_names[1:]):
+        fcurve = bridge.shape_key_value_fcurve(key, name)
+        for other in range(1, 10):
+            assert fcurve.evaluate(other) == pytest.approx(1.0 if other == 1 + index else 0.0)
+        assert all(point.interpolation == 'LINEAR' for point in fcurve.keyframe_points)
+    assert_animation_untouched(before, snapshot(bridge, obj))
+
+
+def test_invoke_runs_to_the_end_in_background(bpy_empty, extension):
+    """From the UI, invoke() runs the work from a modal timer; in background mode (scripts,
+    ``blender --background``) it runs synchronously like execute()."""
+    obj = armature_scene(frames=3)
+    assert bpy.app.background
+    assert bpy.ops.shape_differences.frames_to_shape_keys('INVOKE_DEFAULT') == {'FINISHED'}
+    assert key_names(obj)[1:] == ["Frame 1", "Frame 2", "Frame 3"]

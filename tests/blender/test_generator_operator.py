@@ -1,0 +1,109 @@
+"""The modal driver of long operators, with a stand-in window manager (modal operators get no
+timer events headless): progress is shown, Esc cancels before anything is written and runs the
+job's clean-up, errors become reports."""
+
+import warnings
+from types import SimpleNamespace
+
+import pytest
+
+pytest.importorskip("bpy")
+
+
+class FakeWindowManager:
+    def __init__(self):
+        self.progress, self.timers, self.handlers = [], 0, 0
+
+    def progress_begin(self, low, high):
+        self.progress.append("begin")
+
+    def progress_update(self, value):
+        self.progress.append(value)
+
+    def progress_end(self):
+        self.progress.append("end")
+
+    def event_timer_add(self, interval, window=None):
+        self.timers += 1
+        return "timer"
+
+    def event_timer_remove(self, timer):
+        self.timers -= 1
+
+    def modal_handler_add(self, operator):
+        self.handlers += 1
+
+
+def make_job(extension, log, fail_with=None, warn=None):
+    base = extension.operators.base
+
+    class Job(base.GeneratorOperator):
+        def report(self, kind, message):
+            log.append((set(kind), message))
+
+        def run(self, context):
+            try:
+                log.append("validated")
+                yield 0.0
+                yield 0.5
+                if warn:
+                    warnings.warn(warn)
+                if fail_with:
+                    raise fail_with
+                log.append("wrote")
+                self.summary = "done"
+            finally:
+                log.append("cleaned up")
+
+    return Job()
+
+
+def event(kind):
+    return SimpleNamespace(type=kind)
+
+
+def start(extension, log, **options):
+    job = make_job(extension, log, **options)
+    window_manager = FakeWindowManager()
+    context = SimpleNamespace(window_manager=window_manager, window=object())
+    assert job._start_modal(context) == {'RUNNING_MODAL'}
+    assert log == ["validated"] and window_manager.handlers == 1
+    return job, context, window_manager
+
+
+def test_timer_runs_the_job_with_progress(extension):
+    log = []
+    job, context, window_manager = start(extension, log)
+    assert job.modal(context, event('MOUSEMOVE')) == {'RUNNING_MODAL'}
+    statuses = [job.modal(context, event('TIMER')) for _ in range(2)]
+    assert statuses == [{'RUNNING_MODAL'}, {'FINISHED'}]
+    assert log == ["validated", "wrote", "cleaned up", ({'INFO'}, "done")]
+    assert window_manager.progress == ["begin", 50, 100, "end"]
+    assert window_manager.timers == 0
+
+
+def test_escape_cancels_before_anything_is_written(extension):
+    log = []
+    job, context, window_manager = start(extension, log)
+    job.modal(context, event('TIMER'))
+    assert job.modal(context, event('ESC')) == {'CANCELLED'}
+    assert "wrote" not in log and "cleaned up" in log
+    assert ({'WARNING'}, "Cancelled: nothing was changed") in log
+    assert window_manager.progress[-1] == "end" and window_manager.timers == 0
+
+
+def test_expected_errors_become_reports(extension):
+    log = []
+    error = extension.operators.base.InputError("Pick two keys")
+    job, context, _window_manager = start(extension, log, fail_with=error)
+    statuses = [job.modal(context, event('TIMER')) for _ in range(2)]
+    assert statuses[-1] == {'CANCELLED'}
+    assert ({'ERROR'}, "Pick two keys") in log and "wrote" not in log
+
+
+def test_core_warnings_become_warning_reports(extension, core):
+    log = []
+    warning = core.ShapeDifferenceWarning("Used the fallback")
+    job = make_job(extension, log, warn=warning)
+    assert job.execute(SimpleNamespace()) == {'FINISHED'}
+    assert log[-2:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done")]

@@ -1,0 +1,88 @@
+"""The built Linux zip installs and enables in the bpy module, and the extension then works with
+the SciPy and cvxpy from its own bundled wheels (the venv's copies are hidden)."""
+
+import importlib.util
+import os
+import platform
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+pytest.importorskip("bpy")
+
+from conftest import REPO_ROOT  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+
+def load_build_script():
+    spec = importlib.util.spec_from_file_location(
+        "build_extension", REPO_ROOT / "scripts" / "build_extension.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+INSTALL_SCRIPT = """
+import importlib.machinery, os, sys
+import bpy
+
+BUNDLED = ("scipy", "cvxpy", "clarabel", "_cvxcore", "_cvxpy_sparsecholesky")
+
+class BundledOnly:
+    '''Import the bundled packages only from the extension's own site-packages.'''
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] not in BUNDLED or path is not None:
+            return None
+        sites = [entry for entry in sys.path if entry.endswith("site-packages")
+                 and entry.startswith(os.environ["BLENDER_USER_RESOURCES"])]
+        spec = importlib.machinery.PathFinder.find_spec(name, sites)
+        if spec is None:
+            raise ModuleNotFoundError(f"{name} is not bundled", name=name)
+        return spec
+
+sys.meta_path.insert(0, BundledOnly())
+bpy.ops.extensions.package_install_files(filepath=ZIP, repo="user_default",
+                                         enable_on_install=True)
+module = "bl_ext.user_default.shape_differences"
+assert module in sys.modules, "the extension did not enable"
+import scipy, cvxpy
+print("SCIPY", scipy.__file__)
+print("CVXPY", cvxpy.__version__, cvxpy.installed_solvers())
+
+bpy.ops.mesh.primitive_grid_add(x_subdivisions=8, y_subdivisions=8)
+obj = bpy.context.active_object
+bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=2)
+try:
+    sys.modules[module + ".core"].Interpolator
+    core_ready = True
+except (AttributeError, ImportError, KeyError):
+    core_ready = False  # core still being written: frames_to_shape_keys only
+if core_ready:
+    key = obj.data.shape_keys.key_blocks["Frame 2"]
+    for point in key.data:
+        point.co.z += 0.1 * point.co.x ** 2
+    bpy.ops.shape_differences.inbetween(key_a="Frame 1", key_b="Frame 2", count=1,
+                                        k_m=20, k_n=20)
+print("KEYS", [k.name for k in obj.data.shape_keys.key_blocks], "CORE", core_ready)
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux" or platform.machine() != "x86_64",
+                    reason="builds and installs the linux-x64 zip")
+def test_linux_zip_installs_and_enables(tmp_path):
+    zips = load_build_script().build(["linux-x64"], tmp_path / "dist")
+    assert len(zips) == 1 and zips[0].name.endswith("-linux_x64.zip")
+    user = tmp_path / "user"
+    script = f"ZIP = {str(zips[0])!r}\n" + textwrap.dedent(INSTALL_SCRIPT)
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            env=dict(os.environ, BLENDER_USER_RESOURCES=str(user)), timeout=600)
+    output = result.stdout + result.stderr
+    assert result.returncode == 0, output
+    assert f"SCIPY {user}" in result.stdout, output
+    assert "CLARABEL" in result.stdout, output
+    assert "'Frame 1', 'Frame 2'" in result.stdout, output
+    if "CORE True" in result.stdout:
+        assert "'Inbetween Frame 1-Frame 2 0.50'" in result.stdout, output

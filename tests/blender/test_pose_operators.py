@@ -1,0 +1,103 @@
+"""In-between, exaggerate and reconstruct through bpy.ops: new keys with the right names, the
+positions core computes for the same input, existing keys untouched."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import key_names, posed_grid, snapshot  # noqa: E402
+
+TOLERANCE = 1e-4  # float32 storage of a ~2 unit mesh
+
+
+@pytest.fixture
+def posed(bpy_empty, extension, core):
+    """A grid with Basis, Curl and Bend (active), and the bridge to read it."""
+    return posed_grid(extension.bridge, 10), extension.bridge
+
+
+def positions_of(bridge, obj, name):
+    return bridge.shape_key_positions(obj.data.shape_keys.key_blocks[name])
+
+
+def assert_old_keys_kept(bridge, obj, before):
+    for name, (coordinates, value, relative) in before["keys"].items():
+        np.testing.assert_array_equal(positions_of(bridge, obj, name), coordinates)
+    np.testing.assert_array_equal(bridge.vertex_positions(obj.data), before["positions"])
+    assert obj.active_shape_key_index == before["active_key"]
+
+
+def test_inbetween(posed, core):
+    obj, bridge = posed
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=3)
+    new = [f"Inbetween Curl-Bend {f:.2f}" for f in (0.25, 0.5, 0.75)]
+    assert key_names(obj) == ["Basis", "Curl", "Bend"] + new
+    assert_old_keys_kept(bridge, obj, before)
+    interpolator = core.Interpolator(positions_of(bridge, obj, "Curl"),
+                                     positions_of(bridge, obj, "Bend"),
+                                     bridge.mesh_triangles(obj.data))
+    for name, factor in zip(new, (0.25, 0.5, 0.75)):
+        np.testing.assert_allclose(positions_of(bridge, obj, name), interpolator.pose(factor),
+                                   atol=TOLERANCE)
+        assert obj.data.shape_keys.key_blocks[name].value == 0.0
+
+
+def test_inbetween_defaults_and_unique_names(posed):
+    obj, _bridge = posed
+    bpy.ops.shape_differences.inbetween(count=1)  # Basis to the active key, Bend
+    bpy.ops.shape_differences.inbetween(count=1)
+    assert key_names(obj)[3:] == ["Inbetween Basis-Bend 0.50", "Inbetween Basis-Bend 0.50.001"]
+
+
+def test_exaggerate(posed, core):
+    obj, bridge = posed
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.exaggerate(key="Bend", factor=1.5)
+    assert key_names(obj)[-1] == "Exaggerate Bend 1.50"
+    assert_old_keys_kept(bridge, obj, before)
+    expected = core.Interpolator(positions_of(bridge, obj, "Basis"),
+                                 positions_of(bridge, obj, "Bend"),
+                                 bridge.mesh_triangles(obj.data)).pose(1.5)
+    np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50"), expected,
+                               atol=TOLERANCE)
+
+
+def test_reconstruct_uses_scene_settings(bpy_empty, extension, core):
+    bridge = extension.bridge
+    obj = posed_grid(bridge, 6)  # truncated recovery solves a convex program: keep it small
+    settings = bpy.context.scene.shape_differences
+    settings.k_m, settings.k_n, settings.use_extrinsic = 12, 16, True
+    bpy.ops.shape_differences.reconstruct(key="Curl")
+    assert key_names(obj)[-1] == "Reconstruct Curl (k 12/16)"  # k from the scene settings
+    base, triangles = positions_of(bridge, obj, "Basis"), bridge.mesh_triangles(obj.data)
+    differences = core.shape_differences(base, positions_of(bridge, obj, "Curl"), triangles,
+                                         k_M=12, k_N=16)
+    np.testing.assert_allclose(positions_of(bridge, obj, "Reconstruct Curl (k 12/16)"),
+                               core.reconstruct(base, triangles, differences), atol=TOLERANCE)
+
+
+def test_operator_settings_override_the_scene(posed, core):
+    obj, bridge = posed
+    bpy.context.scene.shape_differences.k_m = 30
+    bpy.ops.shape_differences.reconstruct(key="Bend", k_m=0, use_extrinsic=False)
+    assert key_names(obj)[-1] == "Reconstruct Bend (k full/full)"
+    base, triangles = positions_of(bridge, obj, "Basis"), bridge.mesh_triangles(obj.data)
+    differences = core.shape_differences(base, positions_of(bridge, obj, "Bend"), triangles,
+                                         use_extrinsic=False)
+    np.testing.assert_allclose(positions_of(bridge, obj, key_names(obj)[-1]),
+                               core.reconstruct(base, triangles, differences), atol=TOLERANCE)
+
+
+def test_ngons_are_triangulated(bpy_empty, extension, core):
+    """A cylinder with n-gon caps goes through loop triangles."""
+    bpy.ops.mesh.primitive_cylinder_add(vertices=12, depth=2.0, end_fill_type='NGON')
+    obj = bpy.context.active_object
+    bridge = extension.bridge
+    rest = bridge.vertex_positions(obj.data)
+    obj.shape_key_add(name="Basis")
+    squashed = obj.shape_key_add(name="Squash")
+    squashed.data.foreach_set("co", (rest * [1.2, 1.2, 0.7]).astype(np.float32).ravel())
+    bpy.ops.shape_differences.inbetween(count=1)
+    assert key_names(obj)[-1] == "Inbetween Basis-Squash 0.50"

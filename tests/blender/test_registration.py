@@ -1,0 +1,141 @@
+"""The extension loads like Blender loads it, exposes its public operator API and panel, and
+keeps SciPy and cvxpy out of start-up."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from conftest import MODULE, REPO_ROOT  # noqa: E402
+
+OPERATOR_PROPERTIES = {
+    "frames_to_shape_keys": {"frame_start", "frame_end", "frame_step"},
+    "inbetween": {"key_a", "key_b", "count", "k_m", "k_n", "offset", "use_extrinsic"},
+    "exaggerate": {"key", "reference", "factor", "k_m", "k_n", "offset", "use_extrinsic"},
+    "reconstruct": {"key", "k_m", "k_n", "offset", "use_extrinsic"},
+    "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count",
+                         "k_m", "k_n", "offset", "use_extrinsic"},
+}
+
+
+@pytest.mark.parametrize("name", sorted(OPERATOR_PROPERTIES))
+def test_operator_public_api(extension, name):
+    rna = getattr(bpy.ops.shape_differences, name).get_rna_type()
+    assert OPERATOR_PROPERTIES[name] <= set(rna.properties.keys())
+
+
+def test_operators_register_and_undo():
+    for name in OPERATOR_PROPERTIES:
+        operator_class = getattr(bpy.types, f"SHAPE_DIFFERENCES_OT_{name}")
+        assert {'REGISTER', 'UNDO'} <= operator_class.bl_options
+
+
+def test_scene_settings(bpy_empty):
+    settings = bpy.context.scene.shape_differences
+    assert (settings.k_m, settings.k_n, settings.offset, settings.use_extrinsic) == (0, 0, 0.0, True)
+
+
+def test_sidebar_panel(extension):
+    panel = bpy.types.VIEW3D_PT_shape_differences
+    assert (panel.bl_space_type, panel.bl_region_type, panel.bl_category) == (
+        'VIEW_3D', 'UI', "Shape Diff")
+    for child in ("VIEW3D_PT_shape_differences_poses", "VIEW3D_PT_shape_differences_animation"):
+        assert getattr(bpy.types, child).bl_parent_id == "VIEW3D_PT_shape_differences"
+
+
+def test_disable_and_enable_again(extension):
+    import addon_utils
+    addon_utils.disable(MODULE, default_set=True)
+    assert not hasattr(bpy.types.Scene, "shape_differences")
+    addon_utils.enable(MODULE, default_set=True)
+    assert bpy.ops.shape_differences.inbetween.get_rna_type()
+    assert hasattr(bpy.types.Scene, "shape_differences")
+
+
+def test_enabling_does_not_import_scipy_or_cvxpy(tmp_path):
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(REPO_ROOT / "scripts")!r})
+        import dev_extension
+        dev_extension.enable()
+        print("LOADED", sorted(m for m in ("scipy", "cvxpy", "clarabel") if m in sys.modules))
+    """)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path))
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            env=env, timeout=120)
+    assert "LOADED []" in result.stdout, result.stdout + result.stderr
+
+
+class RecordingLayout:
+    """Stands in for a UILayout (panels do not draw headless): checks that every property,
+    key picker and operator the panel draws exists, and records the operators' settings."""
+
+    def __init__(self):
+        self.operators = []
+
+    def column(self, align=False):
+        return self
+
+    row = column
+
+    def label(self, text="", icon='NONE'):
+        pass
+
+    def separator(self):
+        pass
+
+    def prop(self, data, name, **_options):
+        assert name in data.bl_rna.properties, name
+
+    def prop_search(self, data, name, search_data, search_name, **_options):
+        assert name in data.bl_rna.properties and search_name in search_data.bl_rna.properties
+
+    def operator(self, idname, **_options):
+        module, name = idname.split(".")
+        properties = getattr(getattr(bpy.ops, module), name).get_rna_type().properties
+        recorded = OperatorButton(idname, properties)
+        self.operators.append(recorded)
+        return recorded
+
+
+class OperatorButton:
+    def __init__(self, idname, properties):
+        object.__setattr__(self, "idname", idname)
+        object.__setattr__(self, "settings", {})
+        object.__setattr__(self, "properties", properties)
+
+    def __setattr__(self, name, value):
+        assert name in self.properties, f"{self.idname} has no property {name}"
+        self.settings[name] = value
+
+
+def draw_panels(extension):
+    """Draw every Shape Diff panel into a RecordingLayout; return the operator buttons."""
+    layout = RecordingLayout()
+    for name in ("VIEW3D_PT_shape_differences", "VIEW3D_PT_shape_differences_poses",
+                 "VIEW3D_PT_shape_differences_animation"):
+        panel = getattr(bpy.types, name)
+        panel_self = type("PanelSelf", (), {"layout": layout,
+                                            "split_layout": panel.split_layout})()
+        panel.draw(panel_self, bpy.context)
+    return [(button.idname, button.settings) for button in layout.operators]
+
+
+def test_panel_draws_settings_and_operators(bpy_empty, extension):
+    from blender_scenes import posed_grid
+    bpy.ops.mesh.primitive_grid_add()
+    assert [idname for idname, _ in draw_panels(extension)] == [
+        "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames"]
+
+    posed_grid(extension.bridge, 4)
+    settings = bpy.context.scene.shape_differences
+    settings.key_a, settings.key_b, settings.count, settings.factor = "Curl", "Bend", 5, 2.0
+    buttons = dict(draw_panels(extension))
+    assert set(buttons) == {f"shape_differences.{name}" for name in OPERATOR_PROPERTIES}
+    assert buttons["shape_differences.inbetween"] == {"key_a": "Curl", "key_b": "Bend",
+                                                      "count": 5}
+    assert buttons["shape_differences.exaggerate"]["factor"] == 2.0

@@ -1,0 +1,272 @@
+"""Embedding of the canonical thickening from its edge lengths (§7.3) and rigid alignment."""
+
+import sys
+import warnings
+from pathlib import Path
+
+ROOT = str(Path(__file__).resolve().parents[2])
+if ROOT not in sys.path:
+    sys.path.insert(0, ROOT)
+
+import numpy as np
+import pytest
+
+from core.embedding import embed_base_edges, embed_thickening
+from core.errors import RecoveryError, ShapeDifferenceError
+from core.mesh_topology import mesh_topology
+from core.offset_surface import default_offset, offset_surface
+from core.rigid_alignment import align_rigidly, rigid_alignment
+from meshes import cube_with_bump, drape, grid, icosphere, random_rotation, stretch_and_bend
+
+
+# -- helpers -------------------------------------------------------------------------------------
+
+
+def thickening_lengths(base, triangles, target, *, offset=None, noise=0.0, seed=0):
+    """(surface, exact (or noisy) thickening squared lengths of ``target``, its points)."""
+    topology = mesh_topology(triangles, base.shape[0])
+    surface = offset_surface(topology)
+    t = default_offset(base, triangles) if offset is None else offset
+    offset_positions = surface.positions(target, t)
+    base_sq = topology.squared_edge_lengths(target)
+    offset_sq = surface.topology.squared_edge_lengths(offset_positions)
+    if noise:
+        rng = np.random.default_rng(seed)
+        base_sq = base_sq * (1 + noise * rng.normal(size=base_sq.shape))
+        offset_sq = offset_sq * (1 + noise * rng.normal(size=offset_sq.shape))
+    return surface, surface.thickening_squared_lengths(base_sq, offset_sq, t), surface.thickening_points(target, offset_positions)
+
+
+def relative_errors(result, target):
+    aligned = align_rigidly(result, target)
+    diagonal = np.linalg.norm(np.ptp(target, axis=0))
+    error = np.linalg.norm(aligned - target, axis=1)
+    return np.sqrt(np.mean(error**2)) / diagonal, error.max() / diagonal
+
+
+def assert_exact(base, triangles, target, **kwargs):
+    surface, squared, _ = thickening_lengths(base, triangles, target, **kwargs)
+    result = embed_thickening(surface, squared)
+    rms, worst = relative_errors(result.base_vertices, target)
+    assert rms <= 1e-6 and worst <= 1e-6, (rms, worst, result)
+    assert result.residual <= 1e-8
+    assert np.isfinite(result.points).all()
+    return result
+
+
+def fold(vertices, angle):
+    """Sharp fold of a unit sheet along x = 0.5 by ``angle`` (radians)."""
+    out = vertices.copy()
+    right = vertices[:, 0] > 0.5
+    x = vertices[right, 0] - 0.5
+    out[right, 0] = 0.5 + x * np.cos(angle)
+    out[right, 2] = x * np.sin(angle)
+    return out
+
+
+def crumple(vertices, amplitude=0.15, seed=3):
+    """A crumpled sheet: smooth random displacement of several frequencies."""
+    rng = np.random.default_rng(seed)
+    out = vertices.copy()
+    for _ in range(6):
+        k = rng.normal(scale=6.0, size=(3, 3))
+        phase = rng.uniform(0, 2 * np.pi, 3)
+        out += amplitude / 3 * np.sin(vertices @ k + phase)
+    return out
+
+
+def dent(vertices, depth=0.6):
+    """A sphere pushed in deeply around +z (a strongly dented ball)."""
+    out = vertices.copy()
+    weight = np.clip(vertices[:, 2], 0, None) ** 3
+    out *= (1 - depth * weight)[:, None]
+    return out
+
+
+def bend_sphere(vertices, angle=2.0):
+    """The upper half of a sphere rotated progressively about the x-axis (strong bending)."""
+    out = vertices.copy()
+    theta = angle * np.clip(vertices[:, 2], 0, None)
+    c, s = np.cos(theta), np.sin(theta)
+    out[:, 1], out[:, 2] = c * vertices[:, 1] - s * vertices[:, 2], s * vertices[:, 1] + c * vertices[:, 2]
+    return out * np.array([1.0, 1.3, 0.8])
+
+
+# -- rigid alignment ---------------------------------------------------------------------------
+
+
+def test_rigid_alignment_recovers_motion_without_reflection():
+    rng = np.random.default_rng(0)
+    source = rng.normal(size=(50, 3))
+    rotation = random_rotation(4)
+    target = source @ rotation.T + np.array([1.0, -2.0, 0.5])
+    R, t = rigid_alignment(source, target)
+    assert np.allclose(R, rotation) and np.allclose(t, [1.0, -2.0, 0.5])
+    assert np.isclose(np.linalg.det(R), 1.0)
+    mirrored = source * np.array([1, 1, -1])
+    R, _ = rigid_alignment(source, mirrored)
+    assert np.isclose(np.linalg.det(R), 1.0)
+
+
+def test_rigid_alignment_weighted_and_errors():
+    rng = np.random.default_rng(1)
+    source = rng.normal(size=(20, 3))
+    target = source @ random_rotation(2).T
+    target[:5] += 10.0  # outliers with zero weight
+    weights = np.ones(20)
+    weights[:5] = 0
+    aligned = align_rigidly(source, target, weights)
+    assert np.allclose(aligned[5:], target[5:])
+    with pytest.raises(ShapeDifferenceError):
+        rigid_alignment(source, target[:3])
+    with pytest.raises(ShapeDifferenceError):
+        rigid_alignment(source, target, -weights)
+
+
+# -- exact embedding (full basis) ----------------------------------------------------------------
+
+
+def test_flat_sheet():
+    v, f = grid(12)
+    assert_exact(v, f, v)
+
+
+def test_sheet_draped_around_cylinder():
+    v, f = grid(20)
+    assert_exact(v, f, drape(v, 4.0) @ random_rotation(1).T)
+
+
+def test_sheet_with_sharp_fold():
+    v, f = grid(17)  # fold line x = 0.5 runs along mesh edges
+    assert_exact(v, f, fold(v, 0.9 * np.pi))  # folded almost flat onto itself
+    assert_exact(v, f, fold(v, -0.75 * np.pi))
+
+
+def test_crumpled_sheet():
+    v, f = grid(20, jitter=0.3)
+    assert_exact(v, f, crumple(v))
+
+
+def test_stretched_non_isometric_sheet():
+    v, f = grid(15, 10, alternate=False)
+    assert_exact(v, f, stretch_and_bend(v))
+
+
+def test_sphere_bent_and_dented():
+    v, f = icosphere(2)
+    assert_exact(v, f, bend_sphere(v))
+    assert_exact(v, f, dent(v))
+
+
+def test_cube_inward_and_outward_bump():
+    outward, f = cube_with_bump(8, 0.35)
+    inward, _ = cube_with_bump(8, -0.35)
+    # The two poses are exactly isometric: only the extrinsic layer tells them apart.
+    assert_exact(outward, f, inward)
+    assert_exact(inward, f, outward)
+
+
+def test_returns_whole_thickening():
+    v, f = grid(8)
+    target = drape(v, 2.0)
+    surface, squared, points = thickening_lengths(v, f, target)
+    result = embed_thickening(surface, squared)
+    assert result.points.shape == points.shape
+    rms, worst = relative_errors(result.points, points)
+    assert worst < 1e-6
+    # Upward tetrahedra come out positively oriented.
+    tets = surface.thickening_tetrahedra[: surface.centered_triangles.size]
+    p = result.points[tets]
+    volume = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    assert (volume > 0).all()
+
+
+def test_disconnected_components_and_loose_vertex():
+    v1, f1 = grid(6)
+    v2, f2 = icosphere(1)
+    loose = np.array([[5.0, 5.0, 5.0]])
+    base = np.concatenate([v1, v2 + 3.0, loose])
+    triangles = np.concatenate([f1, f2 + len(v1)])
+    target = np.concatenate([drape(v1, 2.0), dent(v2) + 3.0, loose])
+    surface, squared, _ = thickening_lengths(base, triangles, target)
+    result = embed_thickening(surface, squared)
+    assert result.components == 2
+    n1 = len(v1)
+    for rows in (slice(0, n1), slice(n1, n1 + len(v2))):
+        rms, worst = relative_errors(result.base_vertices[rows], target[rows])
+        assert worst < 1e-6
+    assert np.array_equal(result.base_vertices[-1], np.zeros(3))  # loose: no edge, left at 0
+    anchored = embed_thickening(surface, squared, anchor=(base, 1e-12))
+    assert np.allclose(anchored.base_vertices[-1], loose[0])
+
+
+def test_warm_start_and_anchor():
+    v, f = grid(10)
+    target = drape(v, 2.0)
+    surface, squared, points = thickening_lengths(v, f, target)
+    start = points + 0.01 * np.random.default_rng(0).normal(size=points.shape)
+    result = embed_thickening(surface, squared, initial_points=start)
+    assert result.initializer == "initial_points"
+    assert relative_errors(result.base_vertices, target)[1] < 1e-6
+    # A strong anchor pulls towards the anchor positions (scale-aware weight).
+    blend = 0.5 * (v + target)
+    weak = embed_thickening(surface, squared, anchor=(blend, 1e-6))
+    strong = embed_thickening(surface, squared, anchor=(blend, 10.0))
+    distance = [np.linalg.norm(r.base_vertices - blend) for r in (weak, strong)]
+    assert distance[1] < distance[0]
+    assert weak.residual < 1e-3 < strong.residual
+
+
+# -- inexact lengths -----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("noise", [1e-4, 1e-3])
+def test_noisy_lengths_give_bounded_error(noise):
+    v, f = grid(15)
+    target = drape(v, 3.0)
+    surface, squared, _ = thickening_lengths(v, f, target, noise=noise)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = embed_thickening(surface, squared)
+    assert np.isfinite(result.points).all()
+    rms, worst = relative_errors(result.base_vertices, target)
+    assert rms < 30 * noise and worst < 100 * noise
+    assert result.residual < 10 * noise
+
+
+def test_noisy_sphere():
+    v, f = icosphere(2)
+    target = dent(v)
+    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = embed_thickening(surface, squared)
+    rms, _ = relative_errors(result.base_vertices, target)
+    assert np.isfinite(result.points).all() and rms < 3e-2
+
+
+def test_invalid_lengths_raise():
+    v, f = grid(5)
+    surface, squared, _ = thickening_lengths(v, f, v)
+    bad = squared.copy()
+    bad[3] = -1.0
+    with pytest.raises(RecoveryError, match="squared edge length 3"):
+        embed_thickening(surface, bad)
+    bad[3] = np.nan
+    with pytest.raises(RecoveryError):
+        embed_thickening(surface, bad)
+    with pytest.raises(RecoveryError):
+        embed_thickening(surface, squared[:-1])
+
+
+# -- intrinsic-only embedding --------------------------------------------------------------------
+
+
+def test_embed_base_edges_fits_lengths():
+    v, f = grid(10)
+    topology = mesh_topology(f, len(v))
+    target = stretch_and_bend(v)
+    start = target + 0.01 * np.random.default_rng(0).normal(size=v.shape)
+    result = embed_base_edges(topology, topology.squared_edge_lengths(target), initial_vertices=start)
+    assert result.residual < 1e-6
+    assert result.base_vertices.shape == v.shape

@@ -1,0 +1,211 @@
+"""In-betweens and exaggerations (core.interpolation, issue 3) on analytic motions; no bpy."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core.errors import MeshError, ShapeDifferenceWarning
+from core.interpolation import Interpolator, SequenceInterpolator, interpolate
+
+from meshes import grid
+
+
+def _edges(triangles):
+    e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return np.unique(np.sort(e, axis=1), axis=0)
+
+
+def _edge_deviation(x, rest, triangles):
+    e = _edges(triangles)
+    lx = np.linalg.norm(x[e[:, 0]] - x[e[:, 1]], axis=1)
+    lr = np.linalg.norm(rest[e[:, 0]] - rest[e[:, 1]], axis=1)
+    return np.abs(lx / lr - 1.0)
+
+
+def _flipped(x, key_a, key_b, triangles):
+    def n(v):
+        return np.cross(v[triangles[:, 1]] - v[triangles[:, 0]], v[triangles[:, 2]] - v[triangles[:, 0]])
+
+    nx = n(x)
+    return int(np.sum((np.einsum("ij,ij->i", nx, n(key_a)) < 0) & (np.einsum("ij,ij->i", nx, n(key_b)) < 0)))
+
+
+def _strip(n=30, width=6, length=2.0):
+    flat, triangles = grid(n, width, size=length)
+    return flat, triangles
+
+
+def _bend(flat, angle, length=2.0):
+    """Isometric bend of the strip (x ∈ [0, length]) onto a cylinder arc of total angle ``angle``."""
+    if abs(angle) < 1e-12:
+        return flat.copy()
+    r = length / angle
+    th = flat[:, 0] / r
+    return np.stack([r * np.sin(th), flat[:, 1], r * (1 - np.cos(th))], axis=1)
+
+
+def _roll(flat, t, radius=0.3):
+    """A sheet rolling onto a cylinder of ``radius``: the part x < t·L wraps around it (isometric)."""
+    x0 = t * flat[:, 0].max()
+    out = flat.copy()
+    wrapped = flat[:, 0] < x0
+    th = (x0 - flat[wrapped, 0]) / radius
+    out[wrapped, 0] = x0 - radius * np.sin(th)
+    out[wrapped, 2] = radius * (1 - np.cos(th))
+    return out
+
+
+@pytest.fixture(scope="module")
+def strip():
+    return _strip()
+
+
+def test_exact_at_zero_and_one(strip):
+    flat, tri = strip
+    a, b = _bend(flat, 0.3), _bend(flat, 2.0)
+    it = Interpolator(a, b, tri)
+    np.testing.assert_allclose(it.pose(0.0), a, atol=1e-12)
+    np.testing.assert_allclose(it.pose(1.0), b, atol=1e-12)
+    # nearly 0 / 1: continuous (no jump when leaving the keys)
+    np.testing.assert_allclose(it.pose(1e-6), a, atol=1e-5)
+    np.testing.assert_allclose(it.pose(1 - 1e-6), b, atol=1e-5)
+
+
+def test_rigid_rotation_is_interpolated_rigidly():
+    flat, tri = grid(12, 8, size=1.0)
+    a = flat + np.array([0.2, -0.1, 0.05])
+    rotation = Rotation.from_rotvec([0.3, -0.5, 1.6])  # ~97°
+    center = a.mean(axis=0)
+    b = (a - center) @ rotation.as_matrix().T + center
+    mid = interpolate(a, b, tri, 0.5)
+    expected = (a - center) @ Rotation.from_rotvec(0.5 * rotation.as_rotvec()).as_matrix().T + center
+    np.testing.assert_allclose(mid, expected, atol=1e-8)
+    chord = 0.5 * (a + b)
+    assert _edge_deviation(chord, a, tri).mean() > 0.05  # the blend shrinks
+    assert _edge_deviation(mid, a, tri).max() < 1e-8
+
+
+@pytest.mark.parametrize("factor", [0.25, 0.5, 0.75])
+def test_bending_strip_in_betweens(strip, factor):
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, np.pi)
+    x = interpolate(a, b, tri, factor)
+    assert np.isfinite(x).all()
+    assert _edge_deviation(x, a, tri).mean() < 1e-3
+    assert _flipped(x, a, b, tri) == 0
+    truth = _bend(flat, factor * np.pi)
+    chord = (1 - factor) * a + factor * b
+    # the shape is the true bend (compare after removing placement)
+    err = np.sqrt(np.mean(np.sum((x - x.mean(0) - (truth - truth.mean(0))) ** 2, axis=1)))
+    err_chord = np.sqrt(np.mean(np.sum((chord - chord.mean(0) - (truth - truth.mean(0))) ** 2, axis=1)))
+    assert err < 0.2 * err_chord
+
+
+@pytest.mark.parametrize("factor", [1.5, -0.5])
+def test_exaggeration_of_isometric_bend_keeps_edges(strip, factor):
+    flat, tri = strip
+    a, b = _bend(flat, 0.4), _bend(flat, 1.6)
+    x = interpolate(a, b, tri, factor)
+    lin = (1 - factor) * a + factor * b
+    dev = _edge_deviation(x, flat, tri)
+    assert dev.mean() < 0.01 and dev.max() < 0.03
+    assert _edge_deviation(lin, flat, tri).mean() > 2 * dev.mean()  # linear extrapolation stretches
+
+
+def test_rolling_sheet(strip):
+    flat, tri = grid(25, 10, size=2.0)
+    a, b = _roll(flat, 0.0), _roll(flat, 0.5)
+    for s in (0.25, 0.5, 0.75):
+        x = interpolate(a, b, tri, s)
+        assert np.isfinite(x).all()
+        assert _edge_deviation(x, flat, tri).mean() < 0.01
+        assert _flipped(x, a, b, tri) == 0
+
+
+def test_sequence_is_coherent_across_gaps(strip):
+    flat, tri = strip
+    angles = np.linspace(0.0, 2.4, 5)
+    keys = [_bend(flat, t) + np.array([0.0, 0.0, -0.3 * t * t]) for t in angles]  # bending + accelerating fall
+    seq = SequenceInterpolator(keys, tri)
+    assert len(seq) == 4
+    for k in range(len(seq)):
+        np.testing.assert_allclose(seq.pose(k, 0.0), keys[k], atol=1e-12)
+        np.testing.assert_allclose(seq.pose(k, 1.0), keys[k + 1], atol=1e-12)
+    # continuity and no popping: consecutive samples across gap boundaries move by similar steps
+    times = np.linspace(0.0, 4.0, 81)
+    poses = np.array([seq.pose_at(t) for t in times])
+    steps = np.linalg.norm(np.diff(poses, axis=0), axis=2).max(axis=1)
+    assert steps.max() < 2.0 * np.median(steps)
+    # velocity continuity at a key: one-sided differences agree (C¹, Catmull–Rom)
+    eps = 1e-3
+    left = (seq.pose(0, 1.0) - seq.pose(0, 1.0 - eps)) / eps
+    right = (seq.pose(1, eps) - seq.pose(1, 0.0)) / eps
+    assert np.linalg.norm(left - right) / np.linalg.norm(left) < 0.05
+    for t in times:
+        x = seq.pose_at(t)
+        assert _edge_deviation(x, flat, tri).mean() < 2e-3
+
+
+def test_sequence_beats_blend_on_accelerating_fall(strip):
+    flat, tri = strip
+    times = np.arange(0, 9)
+    frames = [_bend(flat, 0.2 * t) + np.array([0.0, 0.0, -0.05 * t * t]) for t in times]
+    keys = frames[::2]
+    seq = SequenceInterpolator(keys, tri)
+    for k in range(len(seq)):
+        truth = frames[2 * k + 1]
+        ours = seq.pose(k, 0.5)
+        blend = 0.5 * (keys[k] + keys[k + 1])
+        # interior gaps see both neighbours (Catmull–Rom); end gaps extrapolate one of them
+        ratio = 0.25 if 0 < k < len(seq) - 1 else 0.6
+        assert np.linalg.norm(ours - truth) < ratio * np.linalg.norm(blend - truth)
+
+
+def test_no_nan_or_flip_on_unrealizable_targets():
+    flat, tri = grid(15, 15, size=1.0)
+    rng = np.random.default_rng(3)
+    a = _roll(flat, 0.3, radius=0.2)
+    b = flat + 0.02 * rng.standard_normal(flat.shape)  # noisy, stretched, not isometric to a
+    b[:, 2] += 0.3 * np.sin(3 * flat[:, 0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        for s in (0.3, 0.5, 0.8, 1.5):
+            x = interpolate(a, b, tri, s)
+            assert np.isfinite(x).all()
+            if s <= 1:
+                assert _flipped(x, a, b, tri) == 0
+
+
+def test_fallback_warns(monkeypatch, strip):
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    it = Interpolator(a, b, tri)
+    real = ci._Segment._arap
+
+    def broken(self, x, *args, **kwargs):
+        return np.full_like(x, np.nan)
+
+    monkeypatch.setattr(ci._Segment, "_arap", broken)
+    with pytest.warns(ShapeDifferenceWarning, match="non-finite"):
+        x = it.pose(0.5)
+    assert np.isfinite(x).all()
+    monkeypatch.setattr(ci._Segment, "_arap", real)
+
+
+def test_intrinsic_only_and_input_errors(strip):
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    x = interpolate(a, b, tri, 0.5, use_extrinsic=False)
+    assert np.isfinite(x).all() and _edge_deviation(x, flat, tri).mean() < 0.01
+    with pytest.raises(MeshError):
+        interpolate(a, b[:-1], tri, 0.5)
+    with pytest.raises(MeshError):
+        SequenceInterpolator([a], tri)
+    with pytest.raises(IndexError):
+        SequenceInterpolator([a, b], tri).pose(1, 0.5)

@@ -1,0 +1,97 @@
+"""View3D › Sidebar › "Shape Diff": settings and the operators with their key pickers."""
+
+import bpy
+
+
+class ShapeDiffPanel:
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Shape Diff"
+
+    def split_layout(self):
+        """The panel layout with labels on the left, as Blender's property panels have."""
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        return layout
+
+
+class VIEW3D_PT_shape_differences(ShapeDiffPanel, bpy.types.Panel):
+    bl_label = "Shape Differences"
+
+    def draw(self, context):
+        layout = self.split_layout()
+        settings = context.scene.shape_differences
+        column = layout.column(align=True)
+        column.prop(settings, "k_m")
+        column.prop(settings, "k_n")
+        layout.prop(settings, "offset")
+        layout.prop(settings, "use_extrinsic")
+
+
+def shape_keys_of(context):
+    """The shape key datablock of the active mesh object, or None."""
+    obj = context.active_object
+    return obj.data.shape_keys if obj is not None and obj.type == 'MESH' else None
+
+
+class VIEW3D_PT_shape_differences_poses(ShapeDiffPanel, bpy.types.Panel):
+    bl_label = "Poses"
+    bl_parent_id = "VIEW3D_PT_shape_differences"
+
+    def draw(self, context):
+        layout = self.split_layout()
+        settings = context.scene.shape_differences
+        shape_keys = shape_keys_of(context)
+        if shape_keys is None:
+            layout.label(text="The active mesh has no shape keys", icon='INFO')
+            return
+
+        def key_picker(column, name):
+            column.prop_search(settings, name, shape_keys, "key_blocks", icon='SHAPEKEY_DATA')
+
+        column = layout.column()
+        key_picker(column, "key_a")
+        key_picker(column, "key_b")
+        column.prop(settings, "count")
+        operator = column.operator("shape_differences.inbetween", icon='IPO_LINEAR')
+        operator.key_a, operator.key_b, operator.count = (
+            settings.key_a, settings.key_b, settings.count)
+
+        layout.separator()
+        column = layout.column()
+        key_picker(column, "key")
+        key_picker(column, "reference")
+        column.prop(settings, "factor")
+        row = column.row(align=True)
+        operator = row.operator("shape_differences.exaggerate", icon='FORCE_FORCE')
+        operator.key, operator.reference, operator.factor = (
+            settings.key, settings.reference, settings.factor)
+        operator = row.operator("shape_differences.reconstruct", icon='FILE_REFRESH')
+        operator.key = settings.key
+
+
+class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
+    bl_label = "Animation"
+    bl_parent_id = "VIEW3D_PT_shape_differences"
+
+    def draw(self, context):
+        layout = self.split_layout()
+        scene = context.scene
+        settings = scene.shape_differences
+        column = layout.column(align=True)
+        column.prop(scene, "frame_start", text="Frame Start")
+        column.prop(scene, "frame_end", text="End")
+        layout.prop(settings, "frame_step")
+        operator = layout.operator("shape_differences.frames_to_shape_keys", icon='KEYFRAME')
+        operator.frame_step = settings.frame_step
+        layout.prop(settings, "frame_count")
+        operator = layout.operator("shape_differences.inbetween_frames", icon='ANIM')
+        operator.frame_step, operator.count = settings.frame_step, settings.frame_count
+
+
+classes = (
+    VIEW3D_PT_shape_differences,
+    VIEW3D_PT_shape_differences_poses,
+    VIEW3D_PT_shape_differences_animation,
+)
