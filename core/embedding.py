@@ -68,6 +68,12 @@ LOOKAHEAD_CHECKS = 6
 #: Three placed neighbours locate a point only if their doubled triangle area is at least this
 #: times their squared extent (nearly collinear neighbours amplify errors without bound).
 WELL_SHAPED = 2e-2
+#: Waves re-solved after each new wave (front relaxation against error growth).
+RELAX_WAVES = 2
+#: Local repair: rings of neighbours added around badly fitting edges, and the largest share of
+#: the points it may free before a global polish is used instead.
+LOCAL_REPAIR_RINGS = 3
+LOCAL_REPAIR_FRACTION = 0.3
 #: Largest star valence enumerated exhaustively for a seed (2^(k-1) orientation patterns).
 MAX_SEED_VALENCE = 12
 #: Default cap on Levenberg–Marquardt iterations.
@@ -313,8 +319,11 @@ class _Greedy:
             b[:, r] = np.bincount(owner, q[:, r] * rhs, minlength=P)
             for c in range(r, 3):
                 A[:, r, c] = A[:, c, r] = np.bincount(owner, q[:, r] * q[:, c], minlength=P)
+        finite = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
+        A[~finite] = np.eye(3)
+        b[~finite] = 0.0
         eig = np.linalg.eigvalsh(A)
-        good = eig[:, 0] > COPLANAR_RATIO * np.maximum(eig[:, 2], np.finfo(float).tiny)
+        good = finite & (eig[:, 0] > COPLANAR_RATIO * np.maximum(eig[:, 2], np.finfo(float).tiny))
         A[~good] = np.eye(3)
         y = np.linalg.solve(A, b[:, :, None])[:, :, 0]
         x = center + y
@@ -323,6 +332,13 @@ class _Greedy:
         rel = np.abs(np.einsum("ij,ij->i", d, d) - sq) / np.maximum(sq, np.finfo(float).tiny)
         worst = np.maximum.reduceat(rel, np.searchsorted(owner, np.arange(P)))  # owner is sorted
         return x, good, worst
+
+    def _relax(self, points: np.ndarray) -> None:
+        owner, nbr, sq = self.g.rows(points)
+        keep = self.placed[nbr]
+        owner, nbr, sq = owner[keep], nbr[keep], sq[keep]
+        ok = np.bincount(owner, minlength=points.size) >= 3
+        self.pos[points] = self._refine(self.pos[points], owner, self.pos[nbr], sq, ok, iterations=1)
 
     @staticmethod
     def _refine(x, owner, p, sq, good, iterations: int = 2):
@@ -342,12 +358,16 @@ class _Greedy:
                     A[:, i, j] = A[:, j, i] = np.bincount(owner, jac[:, i] * jac[:, j], minlength=P)
             A[~good] = np.eye(3)
             b[~good] = 0.0
-            x = x - np.linalg.solve(A, b[:, :, None])[:, :, 0]
+            # A whisker of damping keeps degenerate stencils (inconsistent lengths) solvable.
+            A += (1e-10 * np.trace(A, axis1=1, axis2=2) + np.finfo(float).tiny)[:, None, None] * np.eye(3)
+            step = np.linalg.solve(A, b[:, :, None])[:, :, 0]
+            x = x - np.where(np.isfinite(step).all(axis=1, keepdims=True), step, 0.0)
         return x
 
     def run(self, front: np.ndarray, *, max_waves: int | None = None, log: list | None = None, max_checks=None):
         """Propagate waves from ``front``. Returns (worst check residual, number of checks)."""
         worst, checks, waves = 0.0, 0, 0
+        recent: list = []
         while front.size:
             new, x, w, c = self.wave(front)
             worst, checks = max(worst, w), checks + c
@@ -355,6 +375,12 @@ class _Greedy:
                 break
             front = self.place(new, x, log)
             waves += 1
+            if log is None and RELAX_WAVES:
+                # Re-solve the last few waves with the neighbours placed since: points placed
+                # with few constraints are corrected before errors propagate (without it,
+                # round-off grew to 1e-2 over the ~700 waves of a 224×224 sheet).
+                recent = (recent + [new])[-RELAX_WAVES:]
+                self._relax(np.concatenate(recent))
             if max_waves is not None and waves >= max_waves:
                 break
             if max_checks is not None and checks >= max_checks:
@@ -659,6 +685,8 @@ def _relative_residuals(x: np.ndarray, edges: np.ndarray, squared: np.ndarray):
 #: Conjugate-gradient iterations per Gauss–Newton step (inexact Newton) and relative tolerance.
 CG_ITERATIONS = 300
 CG_TOLERANCE = 1e-4
+#: Levenberg–Marquardt stops when an accepted step lowers the cost by less than this fraction.
+STAGNATION = 1e-3
 
 
 def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
@@ -814,7 +842,7 @@ def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor
         if not accepted:
             converged = True  # no descent possible: a (local) minimum to working precision
             break
-        if improvement <= 1e-7 * old_cost or np.abs(step).max() <= 1e-14 * length_scale:
+        if improvement <= STAGNATION * old_cost or np.abs(step).max() <= 1e-14 * length_scale:
             converged = True
             break
     return x, iterations, converged
@@ -903,7 +931,7 @@ def embed_thickening(
     *,
     initial_points: np.ndarray | None = None,
     anchor: tuple[np.ndarray, float] | None = None,
-    tolerance: float = 1e-10,
+    tolerance: float = 1e-8,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> EmbeddingResult:
     """Positions of the canonical thickening (§5.3) realizing ``squared_lengths`` (§7.3).
@@ -922,8 +950,9 @@ def embed_thickening(
       error on one edge. Exact lengths are then no longer reproduced exactly. Without
       ``initial_points`` the greedy result is first moved rigidly onto the anchor (per component).
     - ``tolerance``: skip / stop the polish when the RMS relative length residual is below it
-      (default 1e-10: the greedy start on exact data is ~1e-12 to 1e-11, far below the 1e-6
-      accuracy needed, and one more inexact-Newton step would cost more than the greedy);
+      (default 1e-8: the greedy start on exact data is ~1e-13 to 1e-10 — round-off grows
+      slowly with the mesh size — far below the 1e-6 accuracy needed, and polishing it costs
+      more than the greedy itself on large meshes);
       ``max_iterations``: cap on Levenberg–Marquardt iterations.
 
     Each connected component is embedded independently (its placement relative to the others is
@@ -960,14 +989,33 @@ def embed_thickening(
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
     x0[~has_edge] = fallback[~has_edge]
     x, iterations, converged = _polish(x0, edges, squared, has_edge, anchor_points, anchor_weight, length_scale,
-                                        tolerance, max_iterations)
+                                        tolerance, max_iterations, local=greedy is not None)
     return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, greedy, n_comp_real)
 
 
-def _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, max_iterations):
+def _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, max_iterations,
+            local=False):
     rel = _relative_residuals(x0, edges, squared)
     if (np.sqrt(np.mean(rel * rel)) <= tolerance and not anchor_weight) or max_iterations <= 0:
         return x0, 0, True
+    if local and not anchor_weight:
+        # Repair first where the residual is concentrated (a boundary strip where round-off grew,
+        # a point whose mirror side was decided late): a small LM on those points and a few rings
+        # around them, the rest held fixed (which also fixes the gauge).
+        bad = np.abs(rel) > max(tolerance, 10.0 * float(np.median(np.abs(rel))))
+        region = np.zeros(x0.shape[0], dtype=bool)
+        region[edges[bad].ravel()] = True
+        for _ in range(LOCAL_REPAIR_RINGS):
+            touching = region[edges[:, 0]] | region[edges[:, 1]]
+            region[edges[touching].ravel()] = True
+        region &= free
+        if 0 < region.sum() <= LOCAL_REPAIR_FRACTION * free.sum():
+            x1, it1, _ = _levenberg_marquardt(x0, edges, squared, region, length_scale=length_scale,
+                                             tolerance=tolerance, max_iterations=max_iterations)
+            rel1 = _relative_residuals(x1, edges, squared)
+            if np.sqrt(np.mean(rel1 * rel1)) <= tolerance:
+                return x1, it1, True
+            x0 = x1
     x, iterations, converged = _levenberg_marquardt(
         x0, edges, squared, free, anchor_points=anchor_points, anchor_weight=anchor_weight,
         length_scale=length_scale, tolerance=tolerance, max_iterations=max_iterations,
@@ -1031,7 +1079,7 @@ def embed_base_edges(
     *,
     initial_vertices: np.ndarray,
     anchor: tuple[np.ndarray, float] | None = None,
-    tolerance: float = 1e-10,
+    tolerance: float = 1e-8,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> EmbeddingResult:
     """Intrinsic-only embedding (no offset layer): vertex positions ``(n, 3)`` whose edge lengths

@@ -111,14 +111,15 @@ class ProductAssembler:
 
     # -- the linear maps recovery inverts ---------------------------------------------------
     def area_map(self) -> sp.csr_matrix:
-        """The linear map µ ↦ (per-edge entries, diagonal entries) of ``A(µ)`` as a sparse matrix,
-        float64 ``(E + n, m)`` (rows: edges first, then vertices). Prop. 1 inverts it."""
+        """The linear map µ ↦ per-edge entries of ``A(µ)``, ``A_vw = Σ_{T∋(v,w)} µ(T) / 12``, as a
+        sparse float64 ``(E, m)`` matrix. Prop. 1 inverts it. The diagonal entries add nothing:
+        ``A_vv`` is half the sum of the edge entries around ``v`` (every triangle at ``v`` has
+        two edges at ``v``)."""
         topo = self.topology
         m = topo.n_triangles
-        owner = np.repeat(np.arange(m), 3)
-        rows = np.concatenate([topo.triangle_edges.ravel(), topo.n_edges + topo.triangles.ravel()])
-        vals = np.concatenate([np.full(3 * m, 1.0 / 12.0), np.full(3 * m, 1.0 / 6.0)])
-        return sp.csr_matrix((vals, (rows, np.concatenate([owner, owner]))), shape=(topo.n_edges + topo.n_vertices, m))
+        rows = topo.triangle_edges.ravel()
+        cols = np.repeat(np.arange(m), 3)
+        return sp.csr_matrix((np.full(3 * m, 1.0 / 12.0), (rows, cols)), shape=(topo.n_edges, m))
 
     def length_map(self, areas: np.ndarray) -> sp.csr_matrix:
         """``B_µ``: the linear map ℓ² ↦ per-edge entries of ``C(ℓ²; µ)`` for fixed areas µ, float64

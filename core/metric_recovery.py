@@ -1,8 +1,8 @@
 """Recovery of triangle areas and squared edge lengths from full-basis products (paper §4.2,
 Props. 1–2, appendix): two sparse linear solves.
 
-- Areas µ from ``A = A(µ)``: the entries of ``A`` are sums of the areas of the triangles around an
-  edge (``/12``) or a vertex (``/6``). The least-squares system is singular exactly when a closed
+- Areas µ from ``A = A(µ)``: the off-diagonal entries of ``A`` are sums of the areas of the
+  triangles around an edge (``/12``); the diagonal ones are implied by them. The least-squares system is singular exactly when a closed
   connected component has only even-valence vertices (its dual graph is bipartite, so alternating
   ±1 areas are invisible) — Prop. 1's condition — which is checked combinatorially.
 - Squared lengths ℓ² from the per-edge entries of ``C = C(ℓ²; µ)`` with µ fixed: a square sparse
@@ -22,7 +22,7 @@ from .mesh_topology import MeshTopology
 
 #: The direct solution is accepted when Heron's formula holds to this relative accuracy; otherwise
 #: (``B_µ`` singular or ill conditioned) Gauss–Newton on both sets of equations polishes it.
-HERON_CHECK = 1e-9
+HERON_CHECK = 1e-8
 #: That Gauss–Newton runs until its residual stops shrinking (the rounding floor) and succeeds if
 #: the residual is then below this fraction of the data's size.
 HERON_ACCEPTED_RESIDUAL = 1e-7
@@ -30,7 +30,8 @@ MAX_HERON_ITERATIONS = 30
 
 
 class AreaRecovery:
-    """Prop. 1 for one topology: factorizes the normal equations of µ ↦ entries of ``A(µ)`` once,
+    """Prop. 1 for one topology: factorizes the normal equations of µ ↦ edge entries of ``A(µ)``
+    (the dual graph's pattern: 4 nonzeros per row) once,
     then recovers the areas of any number of targets with two triangular solves each."""
 
     def __init__(self, assembler: ProductAssembler):
@@ -39,10 +40,9 @@ class AreaRecovery:
         self._map = assembler.area_map().tocsc()
         self._factor = _spd_factor((self._map.T @ self._map).tocsc())
 
-    def solve(self, diagonal: np.ndarray, edge_values: np.ndarray) -> np.ndarray:
-        """Areas µ ``(m,)`` from the diagonal ``(n,)`` and per-edge ``(E,)`` entries of ``A``."""
-        rhs = self._map.T @ np.concatenate([edge_values, diagonal])
-        return self._factor.solve(rhs)
+    def solve(self, edge_values: np.ndarray) -> np.ndarray:
+        """Areas µ ``(m,)`` from the per-edge entries ``(E,)`` of ``A`` (least squares)."""
+        return self._factor.solve(self._map.T @ edge_values)
 
 
 def check_area_recoverable(topology: MeshTopology) -> None:

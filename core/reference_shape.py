@@ -83,7 +83,8 @@ class SurfaceLayer:
         if isinstance(area_difference, FullDifference):
             from .metric_recovery import recover_squared_lengths
 
-            areas = self.area_recovery.solve(*area_difference.product_entries(self.assembler))
+            _, area_edge_values = area_difference.product_entries(self.assembler)
+            areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
                 self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name

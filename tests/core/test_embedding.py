@@ -270,3 +270,10 @@ def test_embed_base_edges_fits_lengths():
     result = embed_base_edges(topology, topology.squared_edge_lengths(target), initial_vertices=start)
     assert result.residual < 1e-6
     assert result.base_vertices.shape == v.shape
+
+
+def test_larger_crumpled_sheet_stays_exact():
+    # Round-off grows along long boundary strips; front relaxation + local repair keep it exact.
+    v, f = grid(60)
+    result = assert_exact(v, f, crumple(drape(v, 3.0), 0.05))
+    assert result.unresolved_choices > 0  # boundary lifted vertices have only 3 neighbours
