@@ -74,6 +74,8 @@ RELAX_WAVES = 2
 #: the points it may free before a global polish is used instead.
 LOCAL_REPAIR_RINGS = 3
 LOCAL_REPAIR_FRACTION = 0.3
+#: Hinge-frame starts with an RMS relative residual below this go straight to the polish.
+FRAMES_NEARLY_EXACT = 1e-6
 #: Largest star valence enumerated exhaustively for a seed (2^(k-1) orientation patterns).
 MAX_SEED_VALENCE = 12
 #: Default cap on Levenberg–Marquardt iterations.
@@ -883,7 +885,12 @@ def _anchor_array(anchor, n_points: int, n_base: int):
     return out, weight
 
 
-def _finish(x, edges, squared, n_base, x_start, iterations, initializer, converged, greedy=None, components=1):
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(values * values))) if values.size else 0.0
+
+
+def _finish(x, edges, squared, n_base, x_start, iterations, initializer, converged, greedy=None, components=1,
+            unresolved=None):
     rel = _relative_residuals(x, edges, squared) if edges.size else np.zeros(1)
     rel0 = _relative_residuals(x_start, edges, squared) if edges.size else np.zeros(1)
     if not np.isfinite(x).all():
@@ -897,7 +904,7 @@ def _finish(x, edges, squared, n_base, x_start, iterations, initializer, converg
         iterations=int(iterations),
         initializer=initializer,
         lookahead_choices=0 if greedy is None else greedy.lookahead_choices,
-        unresolved_choices=0 if greedy is None else greedy.unresolved_choices,
+        unresolved_choices=unresolved if unresolved is not None else (0 if greedy is None else greedy.unresolved_choices),
         components=components,
         converged=converged,
     )
@@ -979,10 +986,20 @@ def embed_thickening(
         fallback = x0.copy()
         initializer, greedy = "initial_points", None
     else:
-        graph = _Graph(n_points, edges, squared, _upward_tets(surface), surface.thickening_tetrahedra)
-        greedy = _greedy_embedding(surface, graph, has_edge, _seed_order(surface))
-        x0 = greedy.pos.copy()
-        initializer = "greedy"
+        from .hinge_frames import hinge_frame_embedding
+
+        frames = hinge_frame_embedding(surface, squared)
+        x0, initializer, greedy = frames.points, "hinge_frames", None
+        frames_rms = _rms(_relative_residuals(np.where(has_edge[:, None], x0, 0.0), edges, squared))
+        if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
+            # Far from exact (inexact lengths, or a sign no star could decide): the wavefront may
+            # start the polish closer. Below the threshold the polish only removes round-off.
+            graph = _Graph(n_points, edges, squared, _upward_tets(surface), surface.thickening_tetrahedra)
+            greedy = _greedy_embedding(surface, graph, has_edge, _seed_order(surface))
+            if _rms(_relative_residuals(greedy.pos, edges, squared)) < frames_rms:
+                x0, initializer = greedy.pos.copy(), "greedy"
+            else:
+                greedy = None
         if anchor_points is not None:
             x0 = _align_components(x0, anchor_points, labels, has_edge)
     if anchor_points is not None:
@@ -990,7 +1007,9 @@ def embed_thickening(
     x0[~has_edge] = fallback[~has_edge]
     x, iterations, converged = _polish(x0, edges, squared, has_edge, anchor_points, anchor_weight, length_scale,
                                         tolerance, max_iterations, local=greedy is not None)
-    return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, greedy, n_comp_real)
+    unresolved = frames.unresolved if initializer == "hinge_frames" else None
+    return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, greedy, n_comp_real,
+                   unresolved=unresolved)
 
 
 def _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, max_iterations,
