@@ -279,3 +279,18 @@ def test_larger_crumpled_sheet_stays_exact():
     result = assert_exact(v, f, crumple(drape(v, 3.0), 0.05))
     assert result.initializer == "hinge_frames" and result.iterations == 0
     assert result.residual <= 1e-11
+
+
+@pytest.mark.parametrize("angle", [2.0, 2.6, -2.6])
+def test_hinge_signs_are_voted_where_mesh_edge_tetrahedra_invert(angle):
+    # Folds this sharp invert the mesh-edge tetrahedra along the fold line: the sign of those
+    # hinges cannot be assumed and must come from the lifted vertices of the stars around them.
+    v, f = grid(17, jitter=0.3)
+    target = fold(v, angle)
+    surface, squared, points = thickening_lengths(v, f, target)
+    upward, interior = surface.centered_triangles.size, surface.base.interior_edges.size
+    p = points[surface.thickening_tetrahedra[upward: upward + interior]]
+    volumes = np.einsum("ij,ij->i", p[:, 1] - p[:, 0], np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    assert (volumes < 0).sum() >= 10
+    result = assert_exact(v, f, target)
+    assert result.initializer == "hinge_frames" and result.iterations == 0 and result.unresolved_choices == 0
