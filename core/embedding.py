@@ -995,7 +995,13 @@ def embed_thickening(
 
         frames = hinge_frame_embedding(surface, squared)
         x0, initializer, greedy = frames.points, "hinge_frames", None
-        frames_rms = _rms(_relative_residuals(np.where(has_edge[:, None], x0, 0.0), edges, squared))
+        frames_rms = _rms(_relative_residuals(x0, edges, squared))
+        if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
+            # Inexact lengths: fit the frames to all hinges at once rather than chain them.
+            synchronized = frames.synchronized()
+            synchronized_rms = _rms(_relative_residuals(synchronized, edges, squared))
+            if synchronized_rms < frames_rms:
+                x0, frames_rms = synchronized, synchronized_rms
         if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
             # Far from exact (inexact lengths, or a sign no star could decide): the wavefront may
             # start the polish closer. Below the threshold the polish only removes round-off.

@@ -29,8 +29,6 @@ caller checks the residuals of the result and falls back to other initializers w
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from .offset_surface import OffsetSurface
@@ -45,13 +43,23 @@ CLOSURE_GATE = 1e-3
 DECISIVE_RATIO = 10.0
 
 
-@dataclass(frozen=True, eq=False)
 class HingeFrameEmbedding:
-    """``points`` float64 ``(n + n_offset, 3)``; ``unresolved`` hinges whose sign no star decided
-    (their dihedral is ~0 or the lengths leave them flexible)."""
+    """``points`` float64 ``(n + n_offset, 3)`` glued along a tree; ``unresolved`` hinges whose
+    sign no star decided (their dihedral is ~0 or the lengths leave them flexible);
+    :meth:`synchronized` the least-squares gluing over all hinges (for inexact lengths)."""
 
-    points: np.ndarray
-    unresolved: int
+    def __init__(self, surface, local, hinges, sign, rotation, shift, offset, unresolved):
+        self._surface, self._local, self._hinges, self._sign = surface, local, hinges, sign
+        self._rotation, self._shift, self._offset = rotation, shift, offset
+        self.unresolved = unresolved
+        self.points = _thickening_points(surface, local, rotation, shift, offset)
+
+    def synchronized(self) -> np.ndarray:
+        """Thickening points from frames that fit every hinge in the least-squares sense
+        (rotation synchronization, then a Poisson solve for the vertices), instead of the tree's
+        exact chain: inexact hinge angles average out rather than accumulate along tree paths."""
+        return _synchronized_points(self._surface, self._local, self._hinges, self._sign, self._rotation,
+                                    self.points[: self._surface.base.n_vertices], self._offset)
 
 
 def _rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -278,8 +286,8 @@ def _star_votes(surface, local, hinges: _Hinges, offset_squared, offset_lookup, 
 
 
 def _glue(surface, local, hinges: _Hinges, sign: np.ndarray):
-    """Compose frames along breadth-first trees of the dual graph; returns base positions ``(n, 3)``
-    (zero for vertices in no triangle)."""
+    """Compose frames along breadth-first trees of the dual graph: per triangle the rigid map
+    (R ``(m, 3, 3)``, s ``(m, 3)``) from its frame to the root's of its component."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import breadth_first_order, connected_components
 
@@ -307,13 +315,67 @@ def _glue(surface, local, hinges: _Hinges, sign: np.ndarray):
             step_rotation, step_shift = hinges.maps(hinge, sign[hinge], hinges.first[hinge] == up)
             rotation[at] = rotation[up] @ step_rotation
             shift[at] = np.einsum("tij,tj->ti", rotation[up], step_shift) + shift[up]
+    return rotation, shift
+
+
+def _thickening_points(surface, local, rotation, shift, offset) -> np.ndarray:
+    """Every vertex at the mean of its corners' positions in the glued frames, then the offset
+    layer from those vertices (exact when the frames are)."""
+    base = surface.base
     corners = np.einsum("tij,tcj->tci", rotation, local[:, :3]) + shift[:, None, :]  # (m, 3, 3)
     count_per_vertex = np.bincount(base.triangles.ravel(), minlength=base.n_vertices)
     positions = np.stack(
         [np.bincount(base.triangles.ravel(), corners[:, :, d].ravel(), minlength=base.n_vertices) for d in range(3)],
         axis=1,
+    ) / np.maximum(count_per_vertex, 1)[:, None]
+    return np.concatenate([positions, surface.positions(positions, offset)])
+
+
+def _synchronized_points(surface, local, hinges: _Hinges, sign, tree_rotation, tree_positions, offset):
+    """Least-squares frames: rows of the rotations solve ``R_second = R_first Q_h`` over all hinges
+    (a connection Laplacian, softly pinned to the tree's frames to fix the global rotation), are
+    projected onto SO(3), and the vertices solve ``x_j − x_i = R_T (L_j − L_i)`` over all triangle
+    edges (a graph Laplacian, softly pinned to the tree's vertices)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    base = surface.base
+    m, H = base.n_triangles, hinges.edges.size
+    pick = np.arange(H)
+    q = hinges.rotation[pick, sign]  # maps second's frame to first's
+    # Per hinge 3 equations y_second − Qᵀ y_first = 0 for each row y of the rotations.
+    rows = np.arange(3 * H).reshape(H, 3)
+    ident_rows, ident_cols = rows.ravel(), (3 * hinges.second[:, None] + np.arange(3)).ravel()
+    block_rows = np.repeat(rows, 3, axis=1).ravel()
+    block_cols = np.tile(3 * hinges.first[:, None] + np.arange(3), (1, 3)).ravel()
+    block_vals = -np.swapaxes(q, 1, 2).reshape(H, 9).ravel()
+    A = sp.csr_matrix(
+        (np.concatenate([np.ones(3 * H), block_vals]), (np.concatenate([ident_rows, block_rows]),
+                                                        np.concatenate([ident_cols, block_cols]))),
+        shape=(3 * H, 3 * m),
     )
-    return positions / np.maximum(count_per_vertex, 1)[:, None]
+    normal = (A.T @ A).tocsc()
+    pin = 1e-8 * float(normal.diagonal().mean())
+    solve = splu((normal + pin * sp.identity(3 * m, format="csc")).tocsc()).solve
+    rotation = np.stack([solve(pin * tree_rotation[:, r, :].reshape(-1)).reshape(m, 3) for r in range(3)], axis=1)
+    u, _, vt = np.linalg.svd(rotation)
+    flip = np.linalg.det(u @ vt) < 0
+    u[flip, :, 2] *= -1
+    rotation = u @ vt
+    # Vertices from the triangle edges in the synchronized frames.
+    tris = base.triangles
+    tails, heads = tris[:, [0, 1, 2]].ravel(), tris[:, [1, 2, 0]].ravel()
+    local_edges = (local[:, [1, 2, 0]] - local[:, [0, 1, 2]])  # (m, 3, 3) corner k -> k+1
+    world_edges = np.einsum("tij,tkj->tki", rotation, local_edges).reshape(-1, 3)
+    n = base.n_vertices
+    e = np.arange(tails.size)
+    D = sp.csr_matrix((np.r_[-np.ones(e.size), np.ones(e.size)], (np.r_[e, e], np.r_[tails, heads])), shape=(e.size, n))
+    laplacian = (D.T @ D).tocsc()
+    pin = 1e-8 * float(laplacian.diagonal().mean())
+    solve = splu((laplacian + pin * sp.identity(n, format="csc")).tocsc()).solve
+    rhs = D.T @ world_edges + pin * tree_positions
+    positions = np.stack([solve(np.ascontiguousarray(rhs[:, d])) for d in range(3)], axis=1)
+    return np.concatenate([positions, surface.positions(positions, offset)])
 
 
 def hinge_frame_embedding(surface: OffsetSurface, squared: np.ndarray) -> HingeFrameEmbedding:
@@ -334,9 +396,8 @@ def hinge_frame_embedding(surface: OffsetSurface, squared: np.ndarray) -> HingeF
     )
     votes = _star_votes(surface, local, hinges, offset_squared, offset_lookup, offset)
     sign = np.where(votes >= 0, 0, 1)
-    positions = _glue(surface, local, hinges, sign)
-    points = np.concatenate([positions, surface.positions(positions, offset)])
+    rotation, shift = _glue(surface, local, hinges, sign)
     # Hinges whose dihedral is flat enough that both signs agree are not ambiguous.
     differs = np.linalg.norm(hinges.rotation[:, 0] - hinges.rotation[:, 1], axis=(1, 2)) > 1e-6
     unresolved = int(np.sum(differs & (np.abs(votes) < np.log(DECISIVE_RATIO))))
-    return HingeFrameEmbedding(points, unresolved)
+    return HingeFrameEmbedding(surface, local, hinges, sign, rotation, shift, offset, unresolved)
