@@ -319,19 +319,29 @@ def _glue(surface, local, hinges: _Hinges, sign: np.ndarray):
 
 
 def _thickening_points(surface, local, rotation, shift, offset) -> np.ndarray:
-    """Every vertex at the mean of its corners' positions in the glued frames, then the offset
-    layer from those vertices (exact when the frames are)."""
-    base = surface.base
-    corners = np.einsum("tij,tcj->tci", rotation, local[:, :3]) + shift[:, None, :]  # (m, 3, 3)
-    count_per_vertex = np.bincount(base.triangles.ravel(), minlength=base.n_vertices)
-    positions = np.stack(
-        [np.bincount(base.triangles.ravel(), corners[:, :, d].ravel(), minlength=base.n_vertices) for d in range(3)],
-        axis=1,
-    ) / np.maximum(count_per_vertex, 1)[:, None]
+    """Vertices from the glued frames, then the offset layer from them (exact when they are)."""
+    positions = corner_mean_positions(surface.base, local, rotation, shift)
     return np.concatenate([positions, surface.positions(positions, offset)])
 
 
+def corner_mean_positions(base, local, rotation, shift) -> np.ndarray:
+    """Every vertex ``(n, 3)`` at the mean of its corners' positions ``R_T L_T + s_T`` in the
+    triangle frames (``local`` ``(m, ≥3, 3)``, ``rotation`` ``(m, 3, 3)``, ``shift`` ``(m, 3)``)."""
+    corners = np.einsum("tij,tcj->tci", rotation, local[:, :3]) + shift[:, None, :]  # (m, 3, 3)
+    count_per_vertex = np.bincount(base.triangles.ravel(), minlength=base.n_vertices)
+    return np.stack(
+        [np.bincount(base.triangles.ravel(), corners[:, :, d].ravel(), minlength=base.n_vertices) for d in range(3)],
+        axis=1,
+    ) / np.maximum(count_per_vertex, 1)[:, None]
+
+
 def _synchronized_points(surface, local, hinges: _Hinges, sign, tree_rotation, tree_positions, offset):
+    positions = synchronized_positions(surface.base, local, hinges.first, hinges.second,
+                                       hinges.rotation[np.arange(hinges.edges.size), sign], tree_rotation, tree_positions)
+    return np.concatenate([positions, surface.positions(positions, offset)])
+
+
+def synchronized_positions(base, local, first, second, q, pin_rotation, pin_positions) -> np.ndarray:
     """Least-squares frames: rows of the rotations solve ``R_second = R_first Q_h`` over all hinges
     (a connection Laplacian, softly pinned to the tree's frames to fix the global rotation), are
     projected onto SO(3), and the vertices solve ``x_j − x_i = R_T (L_j − L_i)`` over all triangle
@@ -339,15 +349,12 @@ def _synchronized_points(surface, local, hinges: _Hinges, sign, tree_rotation, t
     import scipy.sparse as sp
     from scipy.sparse.linalg import splu
 
-    base = surface.base
-    m, H = base.n_triangles, hinges.edges.size
-    pick = np.arange(H)
-    q = hinges.rotation[pick, sign]  # maps second's frame to first's
+    m, H = base.n_triangles, first.size  # q (H, 3, 3) maps the second triangle's frame to the first's
     # Per hinge 3 equations y_second − Qᵀ y_first = 0 for each row y of the rotations.
     rows = np.arange(3 * H).reshape(H, 3)
-    ident_rows, ident_cols = rows.ravel(), (3 * hinges.second[:, None] + np.arange(3)).ravel()
+    ident_rows, ident_cols = rows.ravel(), (3 * second[:, None] + np.arange(3)).ravel()
     block_rows = np.repeat(rows, 3, axis=1).ravel()
-    block_cols = np.tile(3 * hinges.first[:, None] + np.arange(3), (1, 3)).ravel()
+    block_cols = np.tile(3 * first[:, None] + np.arange(3), (1, 3)).ravel()
     block_vals = -np.swapaxes(q, 1, 2).reshape(H, 9).ravel()
     A = sp.csr_matrix(
         (np.concatenate([np.ones(3 * H), block_vals]), (np.concatenate([ident_rows, block_rows]),
@@ -357,7 +364,7 @@ def _synchronized_points(surface, local, hinges: _Hinges, sign, tree_rotation, t
     normal = (A.T @ A).tocsc()
     pin = 1e-8 * float(normal.diagonal().mean())
     solve = splu((normal + pin * sp.identity(3 * m, format="csc")).tocsc()).solve
-    rotation = np.stack([solve(pin * tree_rotation[:, r, :].reshape(-1)).reshape(m, 3) for r in range(3)], axis=1)
+    rotation = np.stack([solve(pin * pin_rotation[:, r, :].reshape(-1)).reshape(m, 3) for r in range(3)], axis=1)
     u, _, vt = np.linalg.svd(rotation)
     flip = np.linalg.det(u @ vt) < 0
     u[flip, :, 2] *= -1
@@ -373,9 +380,8 @@ def _synchronized_points(surface, local, hinges: _Hinges, sign, tree_rotation, t
     laplacian = (D.T @ D).tocsc()
     pin = 1e-8 * float(laplacian.diagonal().mean())
     solve = splu((laplacian + pin * sp.identity(n, format="csc")).tocsc()).solve
-    rhs = D.T @ world_edges + pin * tree_positions
-    positions = np.stack([solve(np.ascontiguousarray(rhs[:, d])) for d in range(3)], axis=1)
-    return np.concatenate([positions, surface.positions(positions, offset)])
+    rhs = D.T @ world_edges + pin * pin_positions
+    return np.stack([solve(np.ascontiguousarray(rhs[:, d])) for d in range(3)], axis=1)
 
 
 def hinge_frame_embedding(surface: OffsetSurface, squared: np.ndarray) -> HingeFrameEmbedding:
