@@ -37,6 +37,8 @@ from .offset_surface import OffsetSurface
 MAX_STAR_HINGES = 12
 #: Residual floor of the sign votes: differences below it are round-off, not evidence.
 VOTE_FLOOR = 1e-11
+#: Rows (star × sign pattern) scored per batch.
+PATTERN_BATCH = 1 << 16
 #: Sign patterns whose fan fails to close by more than this (relative) skip the trilateration.
 CLOSURE_GATE = 1e-3
 #: A hinge whose vote is weaker than this factor (both signs fit about equally) is unresolved.
@@ -232,13 +234,85 @@ def _trilaterate(anchors: np.ndarray, squared: np.ndarray) -> np.ndarray:
     return np.max(np.abs(_rows_dot(diff, diff) - squared) / squared, axis=1)
 
 
+class _StarScorer:
+    """Scores sign patterns of a group of stars: fan closure (closed fans) and the residual of
+    the lifted vertex trilaterated from the star's vertex and face centers."""
+
+    def __init__(self, apex, centers, distances, scale2, closed):
+        self.apex, self.centers, self.distances, self.scale2, self.closed = apex, centers, distances, scale2, closed
+
+    def __call__(self, rows, rotation, shift, placed) -> np.ndarray:
+        """``rows`` the star of every batch row; ``rotation``/``shift`` the composed map around
+        the fan; ``placed`` ``(R, k, 3)`` the face centers in the first frame."""
+        anchors = np.concatenate([self.apex[rows][:, None], placed], axis=1)
+        spheres = self.distances[rows]
+        if self.closed:  # trilaterate only where the fan closes: the others are wrong already
+            score = np.sqrt(np.sum((rotation - np.eye(3)) ** 2, axis=(1, 2)) + _rows_dot(shift, shift) / self.scale2[rows])
+            near = np.flatnonzero(score < CLOSURE_GATE)
+            if near.size:
+                score[near] = np.maximum(score[near], _trilaterate(anchors[near], spheres[near]))
+        else:
+            score = _trilaterate(anchors, spheres)
+        return np.where(np.isfinite(score), score, np.inf)
+
+
+def _best_by_enumeration(scorer: _StarScorer, maps, h: int, k: int) -> np.ndarray:
+    """Best score per star, hinge and sign ``(S, h, 2)``, all patterns as one batch of rows."""
+    S = scorer.apex.shape[0]
+    patterns = 2**h
+    bits = (np.arange(patterns)[:, None] >> np.arange(h)[None, :]) & 1  # (P, h)
+    rows = np.repeat(np.arange(S), patterns)  # star-major
+    rotation = np.broadcast_to(np.eye(3), (rows.size, 3, 3))
+    shift = np.zeros((rows.size, 3))
+    placed = [scorer.centers[rows, 0]]
+    for i in range(h):
+        step_rotation = maps[i][0][:, bits[:, i]].reshape(rows.size, 3, 3)
+        step_shift = maps[i][1][:, bits[:, i]].reshape(rows.size, 3)
+        shift = (rotation @ step_shift[:, :, None])[:, :, 0] + shift
+        rotation = rotation @ step_rotation
+        if i + 1 < k:
+            placed.append((rotation @ scorer.centers[rows, i + 1, :, None])[:, :, 0] + shift)
+    score = scorer(rows, rotation, shift, np.stack(placed, axis=1)).reshape(S, patterns)
+    best = np.empty((S, h, 2))
+    for j in range(h):
+        for sign in (0, 1):
+            best[:, j, sign] = score[:, bits[:, j] == sign].min(axis=1)
+    return best
+
+
+def _best_by_descent(scorer: _StarScorer, maps, h: int, k: int) -> np.ndarray:
+    """The same, depth-first over the hinges, vectorized over stars: a pattern prefix is
+    composed once for all its completions (2^(h+1) compositions instead of h·2^h)."""
+    S = scorer.apex.shape[0]
+    rows = np.arange(S)
+    best = np.full((S, h, 2), np.inf)
+    bits = np.zeros(h, dtype=np.int64)
+
+    def descend(i, rotation, shift, placed):
+        if i == h:
+            score = scorer(rows, rotation, shift, np.stack(placed, axis=1))
+            for j in range(h):
+                np.minimum(best[:, j, bits[j]], score, out=best[:, j, bits[j]])
+            return
+        for sign in (0, 1):
+            bits[i] = sign
+            new_rotation = rotation @ maps[i][0][:, sign]
+            new_shift = (rotation @ maps[i][1][:, sign, :, None])[:, :, 0] + shift
+            new_placed = placed
+            if i + 1 < k:
+                new_placed = placed + [(new_rotation @ scorer.centers[:, i + 1, :, None])[:, :, 0] + new_shift]
+            descend(i + 1, new_rotation, new_shift, new_placed)
+
+    descend(0, np.broadcast_to(np.eye(3), (S, 3, 3)), np.zeros((S, 3)), [scorer.centers[:, 0]])
+    return best
+
+
 def _star_votes(surface, local, hinges: _Hinges, offset_squared, offset_lookup, offset: float) -> np.ndarray:
     """Per hinge, the summed log-ratio of the best star residuals with its negative and its
     positive sign (> 0 favours the positive mesh-edge tetrahedron)."""
     votes = np.zeros(hinges.edges.size)
     hinge_of_edge = np.full(surface.base.n_edges, -1)
     hinge_of_edge[hinges.edges] = np.arange(hinges.edges.size)
-    eye = np.eye(3)
     for vertex, triangle, slot, hinge, toward_first, closed in _fans(surface, hinge_of_edge):
         S, k = triangle.shape
         h = hinge.shape[1]
@@ -252,33 +326,11 @@ def _star_votes(surface, local, hinges: _Hinges, offset_squared, offset_lookup, 
         apex = local[triangle[:, 0], slot[:, 0]]  # the star's vertex in the first frame
         scale2 = np.maximum(distances.max(axis=1), np.finfo(float).tiny)
         maps = [hinges.maps(hinge[:, i, None], np.array([[0, 1]]), toward_first[:, i, None]) for i in range(h)]
-        best = np.full((S, h, 2), np.inf)
-        bits = np.zeros(h, dtype=np.int64)
-
-        def descend(i, rotation, shift, placed):
-            if i == h:
-                anchors = np.concatenate([apex[:, None], np.stack(placed, axis=1)], axis=1)
-                if closed:  # trilaterate only where the fan closes: the others are wrong already
-                    score = np.sqrt(np.sum((rotation - eye) ** 2, axis=(1, 2)) + _rows_dot(shift, shift) / scale2)
-                    near = np.flatnonzero(score < CLOSURE_GATE)
-                    score[near] = np.maximum(score[near], _trilaterate(anchors[near], distances[near]))
-                else:
-                    score = _trilaterate(anchors, distances)
-                score = np.where(np.isfinite(score), score, np.inf)
-                for j in range(h):
-                    np.minimum(best[:, j, bits[j]], score, out=best[:, j, bits[j]])
-                return
-            for sign in (0, 1):
-                bits[i] = sign
-                step_rotation, step_shift = maps[i][0][:, sign], maps[i][1][:, sign]
-                new_rotation = rotation @ step_rotation
-                new_shift = (rotation @ step_shift[:, :, None])[:, :, 0] + shift
-                new_placed = placed
-                if i + 1 < k:
-                    new_placed = placed + [(new_rotation @ centers[:, i + 1, :, None])[:, :, 0] + new_shift]
-                descend(i + 1, new_rotation, new_shift, new_placed)
-
-        descend(0, np.broadcast_to(eye, (S, 3, 3)), np.zeros((S, 3)), [centers[:, 0]])
+        scorer = _StarScorer(apex, centers, distances, scale2, closed)
+        if S * 2**h <= PATTERN_BATCH:
+            best = _best_by_enumeration(scorer, maps, h, k)  # few stars: all patterns in one batch
+        else:
+            best = _best_by_descent(scorer, maps, h, k)  # many stars: share pattern prefixes
         ratio = np.log((best[:, :, 1] + VOTE_FLOOR) / (best[:, :, 0] + VOTE_FLOOR))
         ratio = np.where(np.isfinite(ratio), ratio, 0.0)
         np.add.at(votes, hinge.ravel(), np.clip(ratio, -50.0, 50.0).ravel())

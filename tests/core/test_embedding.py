@@ -309,3 +309,28 @@ def test_hinge_signs_are_voted_where_mesh_edge_tetrahedra_invert(angle):
     assert (volumes < 0).sum() >= 10
     result = assert_exact(v, f, target)
     assert result.initializer == "hinge_frames" and result.iterations == 0 and result.unresolved_choices == 0
+
+
+def delaunay_disk(n: int = 400, seed: int = 0):
+    """An irregular triangulation of the unit disk (valences 3–12), counter-clockwise from +z."""
+    from scipy.spatial import Delaunay
+
+    rng = np.random.default_rng(seed)
+    points = rng.uniform(-1, 1, (3 * n, 2))
+    points = points[np.linalg.norm(points, axis=1) < 1][:n]
+    triangles = Delaunay(points).simplices
+    vertices = np.c_[points, np.zeros(len(points))]
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    clockwise = np.cross(b - a, c - a)[:, 2] < 0
+    triangles[clockwise] = triangles[clockwise][:, [0, 2, 1]]
+    return vertices, triangles
+
+
+def test_irregular_triangulation_with_high_valence_stars():
+    v, f = delaunay_disk()
+    valence = np.bincount(f.ravel())
+    assert valence.max() >= 9  # stars whose 2^k sign patterns are enumerated in one batch
+    x, y = v[:, 0], v[:, 1]
+    bent = np.stack([np.sin(2.5 * x) / 2.5, y, (1 - np.cos(2.5 * x)) / 2.5 + 0.2 * np.sin(3 * y)], axis=1)
+    result = assert_exact(v, f, bent)
+    assert result.initializer == "hinge_frames"
