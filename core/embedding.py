@@ -989,35 +989,41 @@ def embed_thickening(
         if x0.shape != (n_points, 3) or not np.isfinite(x0).all():
             raise RecoveryError(f"initial_points must be finite with shape ({n_points}, 3); got {x0.shape}.")
         fallback = x0.copy()
-        initializer, greedy = "initial_points", None
+        starts = [("initial_points", x0, None)]
     else:
         from .hinge_frames import hinge_frame_embedding
 
         frames = hinge_frame_embedding(surface, squared)
-        x0, initializer, greedy = frames.points, "hinge_frames", None
-        frames_rms = _rms(_relative_residuals(x0, edges, squared))
+        x0, frames_rms = frames.points, _rms(_relative_residuals(frames.points, edges, squared))
+        starts = [("hinge_frames", x0, None)]
         if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
-            # Inexact lengths: fit the frames to all hinges at once rather than chain them.
+            # Inexact lengths: fit the frames to all hinges at once rather than chain them, and
+            # polish the wavefront's start too: the initial residual does not tell which start
+            # reaches the better fit (measured on truncated cloth: 0.024 → 0.0057 from the frames,
+            # 0.018 → 0.0080 from the wavefront).
             synchronized = frames.synchronized()
-            synchronized_rms = _rms(_relative_residuals(synchronized, edges, squared))
-            if synchronized_rms < frames_rms:
-                x0, frames_rms = synchronized, synchronized_rms
-        if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
-            # Far from exact (inexact lengths, or a sign no star could decide): the wavefront may
-            # start the polish closer. Below the threshold the polish only removes round-off.
+            if _rms(_relative_residuals(synchronized, edges, squared)) < frames_rms:
+                starts = [("hinge_frames", synchronized, None)]
             graph = _Graph(n_points, edges, squared, _upward_tets(surface), surface.thickening_tetrahedra)
             greedy = _greedy_embedding(surface, graph, has_edge, _seed_order(surface))
-            if _rms(_relative_residuals(greedy.pos, edges, squared)) < frames_rms:
-                x0, initializer = greedy.pos.copy(), "greedy"
-            else:
-                greedy = None
-        if anchor_points is not None:
-            x0 = _align_components(x0, anchor_points, labels, has_edge)
+            starts.append(("greedy", greedy.pos.copy(), greedy))
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
-    x0[~has_edge] = fallback[~has_edge]
-    x, iterations, converged = _polish(x0, edges, squared, has_edge, anchor_points, anchor_weight, length_scale,
-                                        tolerance, max_iterations, local=greedy is not None)
+    best = None
+    for initializer, start, greedy in starts:
+        if anchor_points is not None and initial_points is None:
+            start = _align_components(start, anchor_points, labels, has_edge)
+        start[~has_edge] = fallback[~has_edge]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            x, iterations, converged = _polish(start, edges, squared, has_edge, anchor_points, anchor_weight,
+                                                length_scale, tolerance, max_iterations, local=greedy is not None)
+        residual = _rms(_relative_residuals(x, edges, squared))
+        if best is None or residual < best[0]:
+            best = (residual, initializer, start, greedy, x, iterations, converged, caught)
+    _, initializer, x0, greedy, x, iterations, converged, caught = best
+    for warning in caught:
+        warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
     unresolved = frames.unresolved if initializer == "hinge_frames" else None
     return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, greedy, n_comp_real,
                    unresolved=unresolved)
