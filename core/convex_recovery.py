@@ -169,10 +169,9 @@ def _spectral_norm(matrix: np.ndarray, iterations: int = 20) -> float:
 
 def nystrom(gram: np.ndarray, rank: int, *, floor: float, seed: int = 0) -> LowRankGram:
     """Randomized Nyström approximation of an explicit PSD matrix (Tropp et al. 2017, Alg. 3),
-    eigenvalues below ``floor`` dropped. One pass over ``gram`` in its own precision (the edge
-    Gram is formed in float32: the sketch is the only O(N² p) step and float32 halves it; the
-    core solve is float64, and the shift below keeps it positive definite under float32
-    round-off). ``rank ≥ N/2`` uses a dense eigensolver."""
+    eigenvalues below ``floor`` dropped. One pass over ``gram`` (the O(N² p) sketch) in its own
+    precision (:data:`EDGE_GRAM_DTYPE`); the shift keeps the core factor positive definite under
+    round-off. ``rank ≥ N/2`` uses a dense eigensolver."""
     n = gram.shape[0]
     mean_diag = float(np.trace(gram, dtype=np.float64)) / n
     if rank >= 0.5 * n:
