@@ -7,7 +7,7 @@ draped; k_M = 100, k_N = 200 as in Fig. 14 — the "200" of Fig. 16's Cloth HD r
 
 "prep" is the per-base-shape work, done once per ReferenceShape and basis and reused by every
 target and frame (area: a diagonal preconditioner — the area program is matrix-free CG; edge: the
-Nyström factor of the edge Gram, the dominant cost); the solve columns are per target. Each layer
+pivoted Cholesky factor of the edge Gram, the dominant cost); the solve columns are per target. Each layer
 also reports how many constraints of eqs. (8)/(10) the returned metric violates (must be 0) and
 the ADMM iterations (0 when the unconstrained optimum is already feasible).
 """

@@ -36,13 +36,15 @@ How the programs are solved:
    bounded program is solved (scipy's ``lsq_linear``, trust-region reflective, matrix-free).
 2. **Lengths: low-rank data term.** With ``c = B_µ ℓ²`` the cotangent weights, the data term is
    ``‖H c − d‖²`` with Gram ``W = (U Uᵀ)∘²`` (``U`` the ``(E, k)`` edge differences of Φ) from
-   ``⟨u uᵀ, v vᵀ⟩ = (u·v)²``; nothing of size k² × E is formed. A float64 Nyström factor
-   ``W ≈ Y Λ Yᵀ`` of rank ``12k + 100`` is computed once per layer and basis (cached; this is
-   the "prep" of the benchmark). Measured on the cloth: a rank-700 factor, or a float32 one,
-   gives length errors above the base pose's (the inaccurate tail eigenpairs inflate the
-   projected data ``Λ^-½ Yᵀ d``), rank 1,100–1,300 float64 gives the numbers above.
-   Eigenpairs are kept when ``λ ‖B_µ‖² > LOWRANK_TOLERANCE · ε′`` (W lives in cotangent-weight
-   space, ε′ in squared-length space; comparing λ with ε′ directly kept only 4 directions).
+   ``⟨u uᵀ, v vᵀ⟩ = (u·v)²``; nothing of size k² × E or E × E is formed. W's spectrum falls fast
+   (offset layer of the cloth, k = 100: λ_700/λ_1 = 1e-3, λ_1000/λ_1 = 1e-6, λ_1300/λ_1 = 5e-8), so
+   a randomly pivoted Cholesky factor (block RPCholesky, columns ``(U U_Sᵀ)∘²`` on demand) to a
+   residual trace of :data:`EDGE_GRAM_TOLERANCE` is computed once per layer and basis (cached;
+   the "prep" of the benchmark) and orthonormalized through the eigenpairs of ``FᵀF``. Measured
+   on the cloth's offset layer (9,148 edges): 0.9 s + 1.0 s, against 1.4 s to form W and 5.0 s for
+   a rank-1,300 float64 Nyström sketch of it (same errors to three digits; float32 or rank 700
+   gave errors above the base pose's). Eigenpairs are kept when ``λ ‖B_µ‖² > LOWRANK_TOLERANCE ·
+   ε′`` (W lives in cotangent-weight space, ε′ in squared-length space).
 3. **Constraints only where needed.** The unconstrained optimum is one Woodbury solve; if every
    triangle satisfies its constraint it is returned. Otherwise (the usual case — on the cloth
    about half the triangles violate ``det E₃ ≥ 4µ²``) ADMM with per-triangle slot copies: exact
@@ -50,7 +52,7 @@ How the programs are solved:
    closed-form projection onto ``{x_T : s ≥ √(16µ² + 2‖t‖²)}`` (the squared lengths of a
    triangle of area ≥ µ in coordinates where the rotated second-order cone of the paper is
    rotationally symmetric), Anderson-accelerated, ρ rebalanced on the residuals. 150–450
-   iterations, 1–6 s.
+   iterations, 0.6–3.7 s.
    CLARABEL through cvxpy solves the same program (``tests/core/test_convex_recovery.py``
    checks agreement on a small mesh) but took 470 s for the 3,136-edge cloth layer with an
    exact factor (dense ``p × E`` block in its KKT system) — hence the hand-written solver.
@@ -78,17 +80,19 @@ LENGTH_EPSILON = 3e-4
 #: 10 × 10 sheet at k = n − 1 errors µ 5e-5, ℓ² 2e-4 (1e-4) vs 5e-6, 3e-5 (1e-5); on the cloth at
 #: k = 100, ℓ² 1.5e-2 in 7 s (1e-4) vs 1.7e-2 in 19 s (1e-5: slower CG and ADMM, no gain).
 EXACT_EPSILON = 1e-4
-#: Conjugate gradients (area program): relative residual and iteration cap.
-CG_TOLERANCE = 1e-10
+#: Conjugate gradients (area program): relative residual and iteration cap. Offset layer of the
+#: cloth: 1e-10 / 1e-8 / 1e-6 take 155 / 99 / 39 iterations, area error 2.3856e-2 / 2.3856e-2 / 2.3859e-2.
+CG_TOLERANCE = 1e-6
 CG_MAX_ITERATIONS = 2000
-#: Rank of the Nyström factor of the edge Gram: EDGE_RANK_PER_FUNCTION × k + EDGE_RANK_OFFSET.
-EDGE_RANK_PER_FUNCTION = 12
-EDGE_RANK_OFFSET = 100
-#: Precision of the edge Gram and its sketch (float32 loses the tail eigenpairs: measured length
-#: error 0.13 on the cloth against 0.02 in float64).
-EDGE_GRAM_DTYPE = np.float64
-#: Keep Nyström eigenvalues λ with λ‖B_µ‖² above this fraction of ε′.
-LOWRANK_TOLERANCE = 1e-2
+#: The edge Gram's pivoted Cholesky factor stops when the trace of its residual is below this
+#: fraction of the trace. Measured on the cloth (k = 100): 1e-5 / 1e-6 / 1e-7 / 1e-8 give offset
+#: ranks ~1,200 / 1,383 / 1,634 / 1,886 and base ranks up to 2,010; the errors are the same to
+#: three digits (ℓ² 1.73e-2 / 3.05e-2, Hausdorff 1.2 %) from 3e-6 down, 1e-5 raised the base ℓ²
+#: error to 1.77e-2.
+EDGE_GRAM_TOLERANCE = 3e-6
+#: Keep eigenvalues λ of the edge Gram with λ‖B_µ‖² above this fraction of ε′ (measured on the
+#: cloth: 1e-2 and 1 give the same errors, 100 raises the base ℓ² error from 1.73e-2 to 1.83e-2).
+LOWRANK_TOLERANCE = 1.0
 #: Recovered areas below this fraction of the reference area are raised to it (with a
 #: ShapeDifferenceWarning): eq. (10) divides by µ, and µ ≥ 0 can be active when truncated.
 AREA_FLOOR = 0.05
@@ -153,52 +157,51 @@ class LowRankGram:
     mean_diagonal: float
 
 
-def _spectral_norm(matrix: np.ndarray, iterations: int = 20) -> float:
-    """Largest singular value by power iteration on ``MᵀM`` (a full SVD of the 9,148 × 1,300
-    sketch took 0.8 s; this, ~10 ms). Slightly low at worst, which only scales the tiny shift."""
-    v = np.ones(matrix.shape[1]) / np.sqrt(matrix.shape[1])
-    value = 0.0
-    for _ in range(iterations):
-        w = matrix.T @ (matrix @ v)
-        value = float(np.linalg.norm(w))
-        if value == 0.0:
-            return 0.0
-        v = w / value
-    return float(np.sqrt(value))
+def randomly_pivoted_cholesky(columns, diagonal: np.ndarray, *, tolerance: float, max_rank: int,
+                              block: int = 128, seed: int = 0) -> np.ndarray:
+    """Block randomly pivoted Cholesky (Chen, Epperly, Tropp, Webber 2023) of a PSD matrix ``G``
+    ``(N, N)`` given only its ``diagonal`` and ``columns(S)`` ``(N, |S|)``: ``G ≈ F Fᵀ`` with
+    ``F`` ``(N, r)``, stopped when the trace of the residual falls below ``tolerance`` × trace(G)
+    or ``r`` reaches ``max_rank``. Pivots are drawn in blocks with probability proportional to
+    the residual diagonal; each block's own Cholesky is LAPACK's pivoted one (``dpstrf``), which
+    drops pivots made redundant by the others in the block. Cost O(N r² + r·cost(column)),
+    nothing of size N × N is formed."""
+    from scipy.linalg import lapack
 
-
-def nystrom(gram: np.ndarray, rank: int, *, floor: float, seed: int = 0) -> LowRankGram:
-    """Randomized Nyström approximation of an explicit PSD matrix (Tropp et al. 2017, Alg. 3),
-    eigenvalues below ``floor`` dropped. One pass over ``gram`` (the O(N² p) sketch) in its own
-    precision (:data:`EDGE_GRAM_DTYPE`); the shift keeps the core factor positive definite under
-    round-off. ``rank ≥ N/2`` uses a dense eigensolver."""
-    n = gram.shape[0]
-    mean_diag = float(np.trace(gram, dtype=np.float64)) / n
-    if rank >= 0.5 * n:
-        values, vectors = np.linalg.eigh(np.asarray(gram, dtype=np.float64))
-        keep = values > floor
-        order = np.argsort(values[keep])[::-1]
-        return LowRankGram(vectors[:, keep][:, order], values[keep][order], mean_diag)
+    n = diagonal.size
     rng = np.random.default_rng(seed)
-    # Gaussian test matrix, columns of norm ≈ 1 (orthonormalizing it cost as much as the sketch
-    # on 9,148 edges and changed no kept eigenvalue by more than 1e-9 relative, measured).
-    omega = rng.standard_normal((n, rank), dtype=np.float32)
-    omega *= 1.0 / np.sqrt(n)
-    sketch = np.asarray(gram @ omega.astype(gram.dtype, copy=False), dtype=np.float64)  # Y = G Ω
-    omega = omega.astype(np.float64)
-    shift = np.sqrt(n) * np.finfo(gram.dtype).eps * max(_spectral_norm(sketch), 1e-300)
-    sketch += shift * omega
-    core = omega.T @ sketch
-    chol = np.linalg.cholesky(0.5 * (core + core.T))
-    b = sla.solve_triangular(chol, sketch.T, lower=True, check_finite=False).T  # (n, p), G ≈ B Bᵀ
-    values, small = np.linalg.eigh(b.T @ b)
-    values = np.maximum(values - shift, 0.0)
-    # b = Y S Vᵀ  ⇒  Y = b V S⁻¹ on the kept part.
-    keep = values > max(floor, 10.0 * shift)
-    vectors = (b @ small[:, keep]) / np.sqrt(values[keep] + shift)
-    values = values[keep]
-    order = np.argsort(values)[::-1]
-    return LowRankGram(vectors[:, order], values[order], mean_diag)
+    rows = np.empty((min(max_rank, n), n))  # Fᵀ, filled row by row: its leading rows stay contiguous
+    residual = np.array(diagonal, dtype=np.float64)
+    stop = tolerance * float(residual.sum())
+    rank = 0
+    while rank < rows.shape[0] and residual.sum() > stop:
+        weights = np.maximum(residual, 0.0)
+        picks = np.unique(rng.choice(n, size=min(block, rows.shape[0] - rank), p=weights / weights.sum()))
+        cols = columns(picks)
+        if rank:
+            cols -= rows[:rank].T @ rows[:rank, picks]
+        pivot_block = cols[picks]
+        chol, order, found, _ = lapack.dpstrf(
+            0.5 * (pivot_block + pivot_block.T), lower=1, tol=1e-12 * max(float(pivot_block.diagonal().max()), 1e-300)
+        )
+        if found == 0:
+            break
+        order = order[:found] - 1
+        new = sla.solve_triangular(np.tril(chol[:found, :found]), cols[:, order].T, lower=True, check_finite=False)
+        rows[rank : rank + found] = new
+        rank += found
+        residual -= np.einsum("ij,ij->j", new, new)
+    return rows[:rank].T
+
+
+def low_rank_gram(factor: np.ndarray, mean_diagonal: float) -> LowRankGram:
+    """``F Fᵀ = Y diag(values) Yᵀ`` with orthonormal ``Y`` from the eigenpairs of ``FᵀF``
+    (r × r; a QR of F cost 4× more, measured on 9,148 × 1,886)."""
+    values, small = np.linalg.eigh(factor.T @ factor)
+    keep = values > values[-1] * np.finfo(float).eps * factor.shape[1]
+    order = np.argsort(values[keep])[::-1]
+    values, small = values[keep][order], small[:, keep][:, order]
+    return LowRankGram((factor @ small) / np.sqrt(values), values, mean_diagonal)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -251,10 +254,11 @@ def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
         dpsi = 2.0 * sb * a * a + 6.0 * (sb * sb - ct) * a - 4.0 * rt * rt * sb
         with np.errstate(divide="ignore", invalid="ignore"):
             newton = sb - psi / dpsi
-        inside = np.isfinite(newton) & (newton > lot) & (newton < hit)
+        # Inclusive: a converged Newton step lands on the end the bracket just moved to.
+        inside = np.isfinite(newton) & (newton >= lot) & (newton <= hit)
         s_new = np.where(inside, newton, 0.5 * (lot + hit))
         s[todo], lo[todo], hi[todo] = s_new, lot, hit
-        moving = np.abs(s_new - sb) > 1e-14 * np.maximum(np.abs(sb), 1e-300)
+        moving = np.abs(s_new - sb) > 1e-13 * np.maximum(np.abs(sb), 1e-300)
         todo = todo[moving]
         if todo.size == 0:
             break
@@ -287,6 +291,12 @@ class _Woodbury:
         return y - self.dinv * (self.f.T @ sla.cho_solve(self.chol, self.f @ y, check_finite=False))
 
 
+def _gram_of_rows(a: np.ndarray) -> np.ndarray:
+    """``a aᵀ`` by BLAS ``syrk`` (half the flops of a general product)."""
+    upper = sla.blas.dsyrk(1.0, np.asfortranarray(a))
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
 class _SplitGram:
     """``F D⁻¹ Fᵀ`` for every ``D = ε + ρ · counts`` from one pass over ``F``: the edges fall in
     a few classes of equal slot count (1 on the boundary, 2 inside), so ``F D⁻¹ Fᵀ =
@@ -296,7 +306,7 @@ class _SplitGram:
     def __init__(self, f: np.ndarray, counts: np.ndarray):
         self.f, self.counts = f, counts
         self.classes = [(float(c), counts == c) for c in np.unique(counts)]
-        self.grams = [f[:, mask] @ f[:, mask].T for _, mask in self.classes]
+        self.grams = [_gram_of_rows(f[:, mask]) for _, mask in self.classes]
 
     def woodbury(self, eps: float, rho: float) -> _Woodbury:
         capacitance = np.eye(self.f.shape[0])
@@ -420,7 +430,7 @@ class TruncatedRecovery:
     ``(a, b)``) are needed, so ``Hᵀ M`` costs ``O(n k²)`` and ``H x = Φᵀ X Φ`` (``X`` sparse) as much.
     """
 
-    def __init__(self, layer, basis, *, rank: int | None = None):
+    def __init__(self, layer, basis):
         self.layer = layer
         self.basis = basis
         topo = layer.topology
@@ -430,7 +440,6 @@ class TruncatedRecovery:
         k = phi.shape[1]
         self.k = k
         self.U = phi[topo.edges[:, 0]] - phi[topo.edges[:, 1]]
-        self.rank = rank
         self._edge_gram = None
         self._area_diagonal = None
         self.last_area_info: dict = {}
@@ -573,11 +582,12 @@ class TruncatedRecovery:
         """Low-rank factor of ``W = HᵀH = (U Uᵀ)∘²`` (edges × edges; depends on the layer and the
         basis only, cached)."""
         if self._edge_gram is None:
-            u = self.U.astype(EDGE_GRAM_DTYPE)
-            w = u @ u.T
-            np.multiply(w, w, out=w)
-            rank = self.rank if self.rank is not None else EDGE_RANK_PER_FUNCTION * self.k + EDGE_RANK_OFFSET
-            self._edge_gram = nystrom(w, min(rank, w.shape[0]), floor=0.0)
+            u = self.U
+            diagonal = np.einsum("ij,ij->i", u, u) ** 2
+            factor = randomly_pivoted_cholesky(
+                lambda picks: np.square(u @ u[picks].T), diagonal, tolerance=EDGE_GRAM_TOLERANCE, max_rank=u.shape[0]
+            )
+            self._edge_gram = low_rank_gram(factor, float(diagonal.mean()))
         return self._edge_gram
 
     def edge_scale(self, length_map) -> float:

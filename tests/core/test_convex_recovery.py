@@ -40,6 +40,30 @@ def test_projection_onto_triangle_set():
         assert np.all(np.sum((p - x) ** 2, 1) <= np.sum((y - x) ** 2, 1) + 1e-9)
 
 
+def test_pivoted_cholesky_of_the_edge_gram_matches_its_eigendecomposition():
+    # W = (U Uᵀ)∘² of a small layer, formed explicitly here only to check the factor.
+    v, t = grid(12, jitter=0.3)
+    ref = ReferenceShape(v, t, use_extrinsic=False)
+    solver = cr.TruncatedRecovery(ref.base, ref.base.basis(30))
+    u = solver.U
+    gram = (u @ u.T) ** 2
+    tolerance = 1e-6
+    factor = cr.randomly_pivoted_cholesky(lambda s: (u @ u[s].T) ** 2, np.diag(gram).copy(),
+                                          tolerance=tolerance, max_rank=u.shape[0])
+    residual = gram - factor @ factor.T
+    exact = np.linalg.eigvalsh(gram)
+    # A PSD residual whose trace is what the stopping rule promises.
+    assert np.linalg.eigvalsh(residual).min() > -1e-9 * exact[-1]
+    assert np.trace(residual) <= tolerance * np.trace(gram) * (1 + 1e-6)
+    # Fewer columns than edges (the spectrum falls fast), at most k(k+1)/2.
+    assert factor.shape[1] < min(u.shape[0], 30 * 31 // 2)
+    low = cr.low_rank_gram(factor, float(np.mean(np.diag(gram))))
+    assert np.allclose(low.vectors.T @ low.vectors, np.eye(low.values.size), atol=1e-8)
+    assert np.allclose(low.vectors * low.values @ low.vectors.T, factor @ factor.T, atol=1e-9 * exact[-1])
+    # Leading eigenvalues agree with the exact ones.
+    assert np.allclose(low.values[:50], exact[::-1][:50], rtol=1e-6)
+
+
 @pytest.fixture(scope="module")
 def small_sheet():
     v, t = grid(10, jitter=0.3)
