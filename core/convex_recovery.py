@@ -33,7 +33,7 @@ How the programs are solved:
    mesh's sparsity pattern (``d_v = φ_vᵀ P φ_v``, ``o_e = φ_aᵀ P φ_b``), O(n k²) each; the
    regularized normal equations are solved by Jacobi-preconditioned CG (0.1–1 s for 2k–6k
    triangles, no m × m Gram). ``µ ≥ 0`` is checked afterwards; only if it is violated the
-   bounded program is solved (scipy's ``lsq_linear``, trust-region reflective, matrix-free).
+   bounded program is solved (scipy's L-BFGS-B in Jacobi-scaled variables, matrix-free).
 2. **Lengths: low-rank data term.** With ``c = B_µ ℓ²`` the cotangent weights, the data term is
    ``‖H c − d‖²`` with Gram ``W = (U Uᵀ)∘²`` (``U`` the ``(E, k)`` edge differences of Φ) from
    ``⟨u uᵀ, v vᵀ⟩ = (u·v)²``; nothing of size k² × E or E × E is formed. W's spectrum falls fast
@@ -84,6 +84,8 @@ EXACT_EPSILON = 1e-4
 #: cloth: 1e-10 / 1e-8 / 1e-6 take 155 / 99 / 39 iterations, area error 2.3856e-2 / 2.3856e-2 / 2.3859e-2.
 CG_TOLERANCE = 1e-6
 CG_MAX_ITERATIONS = 2000
+#: Iteration cap of the bounded area program (L-BFGS-B), used only when CG gives negative areas.
+BOUNDED_MAX_ITERATIONS = 2000
 #: The edge Gram's pivoted Cholesky factor stops when the trace of its residual is below this
 #: fraction of the trace. Measured on the cloth (k = 100): 1e-5 / 1e-6 / 1e-7 / 1e-8 give offset
 #: ranks ~1,200 / 1,383 / 1,634 / 1,886 and base ranks up to 2,010; the errors are the same to
@@ -102,6 +104,12 @@ CONSTRAINT_TOLERANCE = 1e-6
 #: changes the recovered lengths by ~1e-3 relative to their error against 1e-6 and saves ~40 %.
 ADMM_TOLERANCE = 1e-5
 ADMM_MAX_ITERATIONS = 3000
+#: ADMM also stops when its relative residual, already below ADMM_STALL_FACTOR × the tolerance,
+#: fell by less than 10 % over the last ADMM_STALL_WINDOW iterations. Measured on the offset layer
+#: of a Blender drape (frames 40 → 48): 1.1e-4 at 250 iterations, 6.3e-5 at 1,000, 4.7e-5 at
+#: 3,000 (38 s) whatever ρ; converging cases reach 1e-5 in 150–460 iterations.
+ADMM_STALL_FACTOR = 10.0
+ADMM_STALL_WINDOW = 250
 #: ADMM penalty ρ in units of √(ε · mean diagonal of the data term's Gram), rebalanced every
 #: ADMM_ADAPT_EVERY iterations (a p × p refactorization each), at most ADMM_MAX_ADAPTATIONS
 #: times. Measured iterations at tolerance 1e-5 (cloth base / cloth offset / human offset):
@@ -354,6 +362,7 @@ def _admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, 
     converged = False
     it = 0
     prev_res = np.inf
+    checkpoint = np.inf
     adaptations = 0
     for it in range(1, max_iter + 1):
         z_prev = z
@@ -384,6 +393,12 @@ def _admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, 
             if primal <= tol * scale and res <= tol * scale:
                 converged = True
                 break
+            if it % ADMM_STALL_WINDOW == 0:
+                # Stalled near the tolerance: stop (the caller warns that it was not reached).
+                current = max(primal, res) / scale
+                if current <= ADMM_STALL_FACTOR * tol and current > 0.9 * checkpoint:
+                    break
+                checkpoint = current
         if it % ADMM_ADAPT_EVERY == 0 and adaptations < ADMM_MAX_ADAPTATIONS:
             # Residual balancing (OSQP's rule on relative residuals): ρ ← ρ √(r_primal / r_dual),
             # the scaled dual u rescaled with it, Anderson's history restarted.
@@ -546,30 +561,35 @@ class TruncatedRecovery:
         return mu
 
     def _bounded_areas(self, product, eps, start):
-        """``µ ≥ 0`` active: scipy's bounded least squares (trust-region reflective with LSMR) on
-        the stacked system ``[H; √ε I] µ ≈ [P; √ε µ_M]``, matrix-free."""
-        from scipy.optimize import lsq_linear
-        from scipy.sparse.linalg import LinearOperator
+        """``µ ≥ 0`` active: the same quadratic by scipy's L-BFGS-B with the bounds, in
+        Jacobi-scaled variables ``y = √diag · µ`` (the bound stays ``y ≥ 0``), started from the
+        clipped unconstrained optimum. Measured on an offset layer with 6,016 triangles where CG
+        gave negative areas (a Blender drape, frames 40 → 48): 1.4 s, against 170 s for scipy's bounded least squares (``lsq_linear``,
+        trust-region reflective with LSMR) on the same program."""
+        from scipy.optimize import minimize
 
         reference = self.layer.areas
-        m, k = reference.size, self.k
-        root = np.sqrt(eps)
-        p = 0.5 * (product + product.T)
+        scale = np.sqrt(self.area_gram_diagonal() + eps)
+        rhs = self.area_data(product) + eps * reference
 
-        def matvec(x):
-            x = np.ravel(x)
-            return np.concatenate([self.area_operator(x).ravel(), root * x])
+        def objective(y):
+            mu = y / scale
+            normal = self.area_data(self.area_operator(mu)) + eps * mu
+            return 0.5 * float(mu @ normal) - float(rhs @ mu), (normal - rhs) / scale
 
-        def rmatvec(y):
-            y = np.ravel(y)
-            return self.area_data(y[: k * k].reshape(k, k)) + root * y[k * k :]
-
-        op = LinearOperator((k * k + m, m), matvec=matvec, rmatvec=rmatvec, dtype=float)
-        target = np.concatenate([p.ravel(), root * reference])
-        result = lsq_linear(op, target, bounds=(0.0, np.inf), method="trf", lsq_solver="lsmr", tol=1e-10, max_iter=200)
+        result = minimize(objective, np.maximum(start, 0.0) * scale, jac=True, method="L-BFGS-B",
+                          bounds=[(0.0, None)] * reference.size,
+                          options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0, "gtol": 1e-10 * float(np.abs(rhs / scale).max())})
         if not np.all(np.isfinite(result.x)):
             raise RecoveryError(f"The bounded area program of the {self.layer.name} failed ({result.message}).")
-        return np.maximum(result.x, 0.0)
+        if not result.success:
+            warnings.warn(
+                f"The bounded area program of the {self.layer.name} stopped before convergence "
+                f"({result.message}); the areas are its last iterate.",
+                ShapeDifferenceWarning,
+                stacklevel=4,
+            )
+        return np.maximum(result.x / scale, 0.0)
 
     # -- squared lengths, eq. (10) --------------------------------------------------------------
     def edge_data(self, product: np.ndarray) -> np.ndarray:

@@ -253,8 +253,13 @@ class ReferenceShape:
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
+            # The base pose is raced against the hinge frames as a start when the lengths are
+            # inexact (truncated or noisy differences; see embedding.START_TRIAL_ITERATIONS).
+            base = self.base_positions
+            base_thickening = self.surface.thickening_points(base, self.surface.positions(base, self.offset))
             result = embed_thickening(
-                self.surface, self.thickening_squared_lengths(metric), initial_points=initial, anchor=anchor
+                self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
+                reference_points=base_thickening, anchor=anchor,
             )
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
