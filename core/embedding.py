@@ -1006,7 +1006,8 @@ def embed_thickening(
             raise RecoveryError(f"initial_points must be finite with shape ({n_points}, 3); got {x0.shape}.")
         fallback = x0.copy()
         starts = [("initial_points", x0)]
-    else:
+    try_greedy = False
+    if initial_points is None:
         from .hinge_frames import hinge_frame_embedding
 
         frames = hinge_frame_embedding(surface, squared)
@@ -1027,7 +1028,7 @@ def embed_thickening(
             else:
                 # The greedy wavefront is a last start, polished to the end only when a short
                 # trial already fits better than the frames (with a reference pose it never did).
-                starts.append(("greedy", None))
+                try_greedy = True
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
 
@@ -1047,30 +1048,27 @@ def embed_thickening(
         rest[2] += iterations
         return rest
 
-    trials = []
-    for initializer, start in starts:
-        greedy = None
-        if initializer == "greedy":
-            graph = _Graph(n_points, edges, squared, _upward_tets(surface), surface.thickening_tetrahedra)
-            greedy = _greedy_embedding(surface, graph, has_edge, _seed_order(surface))
-            start = greedy.pos.copy()
+    def prepared(start):
         if anchor_points is not None and initial_points is None:
             start = _align_components(start, anchor_points, labels, has_edge)
         start[~has_edge] = fallback[~has_edge]
-        several = len(starts) > 1
-        trial = polish(start, min(START_TRIAL_ITERATIONS, max_iterations) if several else max_iterations,
-                       greedy is not None)
-        if initializer == "greedy":
-            if trial[0] < best[3][0]:
-                trial = finish(trial)
-            if trial[0] < best[3][0]:
-                best = (initializer, start, greedy, trial)
-            break
-        trials.append((initializer, start, greedy, trial))
-        if len(trials) == len(starts) - (starts[-1][0] == "greedy"):
-            # The other starts are raced: the lowest residual after the trial goes on to the end.
-            best = min(trials, key=lambda item: item[3][0])
-            best = best[:3] + (finish(best[3]),)
+        return start
+
+    # Several starts are raced: a short trial each, the lowest residual goes on to the end.
+    budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 or try_greedy else max_iterations
+    trials = [(name, prepared(start), None) for name, start in starts]
+    trials = [item + (polish(item[1], budget, False),) for item in trials]
+    best = min(trials, key=lambda item: item[3][0])
+    best = best[:3] + (finish(best[3]),)
+    if try_greedy:
+        graph = _Graph(n_points, edges, squared, _upward_tets(surface), surface.thickening_tetrahedra)
+        greedy = _greedy_embedding(surface, graph, has_edge, _seed_order(surface))
+        start = prepared(greedy.pos.copy())
+        trial = polish(start, budget, True)
+        if trial[0] < best[3][0]:
+            trial = finish(trial)
+        if trial[0] < best[3][0]:
+            best = ("greedy", start, greedy, trial)
     initializer, x0, greedy, (_, x, iterations, converged, caught) = best
     for warning in caught:
         warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
