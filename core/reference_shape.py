@@ -42,6 +42,7 @@ class SurfaceLayer:
     def __init__(self, name: str, topology: MeshTopology, positions: np.ndarray):
         self.name = name
         self.topology = topology
+        self.positions = positions
         self.assembler = ProductAssembler(topology)
         self.areas, self.squared_lengths, self.mass, self.conformal = pose_products(self.assembler, positions)
         self._bases: dict[int, LaplaceBasis] = {}
@@ -255,8 +256,7 @@ class ReferenceShape:
         if metric.offset is not None:
             # The base pose is raced against the hinge frames as a start when the lengths are
             # inexact (truncated or noisy differences; see embedding.START_TRIAL_ITERATIONS).
-            base = self.base_positions
-            base_thickening = self.surface.thickening_points(base, self.surface.positions(base, self.offset))
+            base_thickening = self.surface.thickening_points(self.base.positions, self.offset_layer.positions)
             result = embed_thickening(
                 self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
                 reference_points=base_thickening, anchor=anchor,
