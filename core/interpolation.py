@@ -82,6 +82,12 @@ MAX_ROTATION_DEVIATION = np.pi / 4
 FALLBACK_ANCHOR_WEIGHT = 1e-1
 #: A triangle whose area dropped below this fraction of its (interpolated) target area is collapsed.
 COLLAPSE_RATIO = 1e-3
+#: Repair rounds for a reconstruction with flipped or collapsed triangles: each imposes the
+#: interpolated rotations on the defects and this many vertex rings around the region imposed so
+#: far. Measured on a 10k-vertex crumpling drape (keys 16 frames apart, 45 in-betweens): one round
+#: of one ring left 9 in-betweens to fallbacks (mean edge deviation 1.78 %), rounds (1, 1, 2, 4)
+#: 7 (1.72 %); the 1k scenes never needed a repair.
+REPAIR_RINGS = (1, 1, 2, 4)
 #: Per-segment caches kept by SequenceInterpolator.
 SEGMENT_CACHE = 4
 
@@ -318,18 +324,20 @@ class _Segment:
             return x, None
         tried = [(self._badness(x, s), x)]
         # Repair: re-fit with the interpolated rotation imposed on the defective triangles and
-        # their neighbours (a local fix; most of the pose is kept).
-        t = topo.triangles
-        cross = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
-        bad = self.flipped(cross, s, rotation) | (0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * base.areas)
-        if self.use_extrinsic and bad.any() and np.isfinite(x).all():
-            near = np.zeros(topo.n, dtype=bool)
-            near[t[bad].ravel()] = True
-            force = near[t].any(axis=1)
-            z = topo.place(self._arap(x, stretch, rotation, x0.copy(), weight, iterations, force=force), centroids)
-            if self.check(z, s, rotation, stretch) is None:
-                return z, None
-            tried.append((self._badness(z, s), z))
+        # a neighbourhood of them that grows while defects remain (a local fix; most of the pose
+        # is kept).
+        if self.use_extrinsic and np.isfinite(x).all():
+            force = np.zeros(topo.triangles.shape[0], dtype=bool)
+            z = x
+            for rings in REPAIR_RINGS:
+                defects = self.defects(z, s, rotation)
+                if not defects.any():
+                    break
+                force = self.grow(force | defects, rings)
+                z = topo.place(self._arap(z, stretch, rotation, x0.copy(), weight, iterations, force=force), centroids)
+                if self.check(z, s, rotation, stretch) is None:
+                    return z, None
+                tried.append((self._badness(z, s), z))
         # Fallback 1: the Poisson solve alone (rotations exactly the interpolated ones).
         if self.use_extrinsic and self.check(x0, s, rotation, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
@@ -357,15 +365,26 @@ class _Segment:
             return np.einsum("ij,ij->i", cross, np.einsum("kab,kb->ka", rotation, self.base.normals)) < 0
         return np.einsum("ij,ij->i", cross, (self.base if s < 0.5 else self.next).normals) < 0
 
+    def defects(self, x, s, rotation) -> np.ndarray:
+        """Flipped or collapsed triangles of ``x`` (bool (m,))."""
+        t = self.topo.triangles
+        cross = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
+        return self.flipped(cross, s, rotation) | (0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * self.base.areas)
+
+    def grow(self, triangles: np.ndarray, rings: int) -> np.ndarray:
+        """The triangles (bool (m,)) within ``rings`` vertex rings of ``triangles``."""
+        t = self.topo.triangles
+        for _ in range(rings):
+            near = np.zeros(self.topo.n, dtype=bool)
+            near[t[triangles].ravel()] = True
+            triangles = near[t].any(axis=1)
+        return triangles
+
     def _badness(self, x, s) -> float:
+        """Number of defects, counting flips against both keys' normals whatever ``s``."""
         if not np.isfinite(x).all():
             return np.inf
-        cross = np.cross(x[self.topo.triangles[:, 1]] - x[self.topo.triangles[:, 0]],
-                         x[self.topo.triangles[:, 2]] - x[self.topo.triangles[:, 0]])
-        against_a = np.einsum("ij,ij->i", cross, self.base.normals) < 0
-        against_b = np.einsum("ij,ij->i", cross, self.next.normals) < 0
-        area = 0.5 * np.linalg.norm(cross, axis=1)
-        return float(np.sum(against_a & against_b) + np.sum(area < COLLAPSE_RATIO * self.base.areas))
+        return float(self.defects(x, min(max(s, 0.0), 1.0), None).sum())
 
     def _arap(self, x, stretch, rotation, guide, weight, iterations, force=None):
         """Local/global fit of the interpolated metric ``stretch``: each triangle's rotation is

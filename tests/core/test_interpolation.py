@@ -198,6 +198,36 @@ def test_fallback_warns(monkeypatch, strip):
     monkeypatch.setattr(ci._Segment, "_arap", real)
 
 
+def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
+    """A reconstruction with a folded-over vertex is re-fitted with the interpolated rotations
+    imposed around the defect (growing rings), not handed to a fallback."""
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    clean = Interpolator(a, b, tri).pose(0.5)
+    real = ci._Segment._arap
+    forced = []
+
+    def folding_first_fit(self, x, *args, force=None, **kwargs):
+        out = real(self, x, *args, force=force, **kwargs)
+        if force is None and not forced:
+            i, j, k = tri[len(tri) // 2]
+            out[i] = out[j] + out[k] - out[i]  # reflect a corner across its opposite edge
+        forced.append(force)
+        return out
+
+    monkeypatch.setattr(ci._Segment, "_arap", folding_first_fit)
+    it = Interpolator(a, b, tri)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = it.pose(0.5)
+    assert _flipped(x, a, b, tri) == 0
+    repairs = [f for f in forced if f is not None]
+    assert repairs and repairs[0][len(tri) // 2] and 1 < repairs[0].sum() < len(tri) // 2
+    assert np.abs(x - clean).max() < 1e-3 * np.ptp(clean, axis=0).max()
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
