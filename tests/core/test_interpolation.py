@@ -228,6 +228,21 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     assert np.abs(x - clean).max() < 1e-3 * np.ptp(clean, axis=0).max()
 
 
+def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
+    """If every candidate has defects, the metric fit with the fewest is returned, not the
+    shrinking linear blend (even when the blend has fewer)."""
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+    blend = 0.5 * (a + b)
+    monkeypatch.setattr(ci._Segment, "check", lambda self, x, *args, **kwargs: "1 triangle(s) flipped")
+    monkeypatch.setattr(ci._Segment, "_badness", lambda self, x, s: 0.0 if np.allclose(x, blend) else 3.0)
+    with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
+        x = Interpolator(a, b, tri).pose(0.5)
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
