@@ -766,7 +766,7 @@ def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor
     Newton step; SuperLU was measured 0.4–3 s per factorization already at 1k vertices). Returns
     ``(x, iterations, converged)``.
     """
-    from scipy.sparse import coo_matrix
+    from scipy.sparse import bsr_matrix, coo_matrix
 
     N = x0.shape[0]
     index = np.full(N, -1, dtype=np.int64)
@@ -809,6 +809,7 @@ def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor
     iterations, converged = 0, False
     mu = None
     rows = np.arange(edges.shape[0])
+    block_index, block_pointer = np.arange(nf), np.arange(nf + 1)
     for iterations in range(1, max_iterations + 1):
         rms = np.sqrt(np.mean(_relative_residuals(x, edges, squared) ** 2)) if edges.size else 0.0
         if rms <= tolerance and not aw:
@@ -837,16 +838,16 @@ def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor
         accepted = False
         for _ in range(10):
             damping = max(mu, floor)
-            blocks = _block_jacobi(ei, ej, g, nf, anchor_diag + damping)
+            # Block-diagonal preconditioner as a BSR matrix: its product is 3× faster than an
+            # einsum over the (nf, 3, 3) blocks (30 vs 100 µs at 4k points).
+            preconditioner = bsr_matrix((_block_jacobi(ei, ej, g, nf, anchor_diag + damping), block_index,
+                                         block_pointer), shape=(3 * nf, 3 * nf))
             diagonal = anchor_diag + damping
 
             def apply_A(v, diagonal=diagonal):
                 return JT @ (J @ v) + diagonal * v
 
-            def apply_M(v, blocks=blocks):
-                return np.einsum("nij,nj->ni", blocks, v.reshape(nf, 3)).ravel()
-
-            step = -_pcg(apply_A, grad, apply_M, CG_ITERATIONS, CG_TOLERANCE)
+            step = -_pcg(apply_A, grad, preconditioner.__matmul__, CG_ITERATIONS, CG_TOLERANCE)
             trial = x.copy()
             trial[free] += step.reshape(-1, 3)
             new_cost, new_r, new_d = cost_of(trial)
