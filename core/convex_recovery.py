@@ -210,7 +210,7 @@ def randomly_pivoted_cholesky(columns, diagonal: np.ndarray, *, tolerance: float
 def low_rank_gram(factor: np.ndarray, mean_diagonal: float) -> LowRankGram:
     """``F Fᵀ = Y diag(values) Yᵀ`` with orthonormal ``Y`` from the eigenpairs of ``FᵀF``
     (r × r; a QR of F cost 4× more, measured on 9,148 × 1,886)."""
-    values, small = np.linalg.eigh(factor.T @ factor)
+    values, small = np.linalg.eigh(_gram_of_rows(factor.T))
     keep = values > values[-1] * np.finfo(float).eps * factor.shape[1]
     order = np.argsort(values[keep])[::-1]
     values, small = values[keep][order], small[:, keep][:, order]
