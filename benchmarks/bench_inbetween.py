@@ -204,11 +204,7 @@ def plot(results, path):
 
 def side_by_side(path, scene_name="flag_wind", gap=16, key=2):
     """True frame / linear blend / ours for the middle of one gap, coloured by edge stretch."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+    from benchmarks.render import common_bounds, draw_mesh, pyplot, save
 
     scene = load_scene(scene_name)
     frames, tri = scene.frames, scene.triangles
@@ -221,6 +217,7 @@ def side_by_side(path, scene_name="flag_wind", gap=16, key=2):
     true = frames[key * gap + gap // 2]
     blend = 0.5 * (a + b)
     rest = frames[0]
+    metric = Metrics(frames, tri)
 
     def stretch(x):  # per-triangle mean relative edge change vs rest
         out = 0
@@ -229,33 +226,18 @@ def side_by_side(path, scene_name="flag_wind", gap=16, key=2):
         return out / 3 - 1
 
     poses = [("key frame", a), ("true frame (dropped)", true), ("linear blend", blend), ("ours", ours), ("key frame", b)]
-    lo, hi = np.min([p.min(0) for _, p in poses], axis=0), np.max([p.max(0) for _, p in poses], axis=0)
-    fig = plt.figure(figsize=(12.5, 3.0), dpi=80)
-    cmap = plt.get_cmap("coolwarm")
+    bounds = common_bounds([p for _, p in poses])
+    fig = pyplot().figure(figsize=(12.5, 3.0), dpi=80)
     for k, (title, x) in enumerate(poses):
         ax = fig.add_subplot(1, len(poses), k + 1, projection="3d")
-        value = np.clip(stretch(x) / 0.05, -1, 1) * 0.5 + 0.5
-        light = np.abs(Metrics(frames, tri).normals(x)[:, 1]) / np.linalg.norm(Metrics(frames, tri).normals(x), axis=1)
-        colors = cmap(value)
-        colors[:, :3] *= (0.55 + 0.45 * light)[:, None]
-        coll = Poly3DCollection(x[tri], facecolors=colors, edgecolors="none")
-        ax.add_collection3d(coll)
-        ax.set_xlim(lo[0], hi[0])
-        ax.set_ylim(lo[1], hi[1])
-        ax.set_zlim(lo[2], hi[2])
-        ax.set_box_aspect(hi - lo)
-        ax.view_init(elev=15, azim=-70)
-        ax.set_axis_off()
         rms = np.sqrt(np.mean(np.sum((x - true) ** 2, 1))) / np.linalg.norm(true.max(0) - true.min(0))
-        dev = np.mean(np.abs(Metrics(frames, tri).lengths(x) / Metrics(frames, tri).rest - 1))
-        ax.set_title(f"{title}\nRMS {rms:.1e}, edges {dev * 100:.1f}%", fontsize=8)
+        dev = np.mean(np.abs(metric.lengths(x) / metric.rest - 1))
+        draw_mesh(ax, x, tri, np.clip(stretch(x) / 0.05, -1, 1) * 0.5 + 0.5, bounds,
+                  title=f"{title}\nRMS {rms:.1e}, edges {dev * 100:.1f}%")
     fig.suptitle(
         f"{scene_name}: frames {key * gap} and {(key + 1) * gap} kept, frame {key * gap + gap // 2} predicted "
         "(colour: edge stretch vs rest, blue −5% … red +5%)", fontsize=9)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
-    plt.close(fig)
+    save(fig, path)
 
 
 def exaggeration_check(log=print):
