@@ -252,6 +252,26 @@ def test_reference_start_is_raced_against_the_hinge_frames():
         embed_thickening(surface, squared, reference_points=reference[:-1])
 
 
+def test_continuation_deforms_the_reference_into_the_target():
+    # The fallback start for fits that stay far from their lengths: a flat sheet deformed in
+    # steps into a drape rolled by 5 rad (one full turn would close it), then fitted to the end.
+    import core.embedding as em
+
+    v, f = grid(15)
+    target = drape(v, 5.0)
+    surface, squared, _ = thickening_lengths(v, f, target)
+    flat = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    edges = surface.thickening_edges
+    free = np.ones(len(flat), dtype=bool)
+    scale = float(np.mean(np.sqrt(squared)))
+    steps = em._continuation(flat, edges, squared, free, None, 0.0, scale, 1e-10)
+    halfway = np.linalg.norm(steps[: len(v)] - align_rigidly(target, steps[: len(v)]), axis=1).max()
+    assert 0 < halfway < np.linalg.norm(v - align_rigidly(target, v), axis=1).max()
+    result = embed_thickening(surface, squared, initial_points=steps)
+    rms, worst = relative_errors(result.base_vertices, target)
+    assert rms < 1e-6 and worst < 1e-5 and result.residual < 1e-8
+
+
 def test_one_percent_noise_on_a_crumpled_sheet_averages_out():
     # Independent 1 % noise on every squared length: the frames are fitted to all hinges at
     # once (synchronized), so the error stays well below the noise instead of growing along
