@@ -120,7 +120,8 @@ class EmbeddingResult:
     and ``max_residual`` its largest magnitude; ``initial_residual`` the same for the start
     (greedy or given); ``iterations`` the Levenberg–Marquardt iterations taken; ``initializer``
     ``"hinge_frames"``, ``"greedy"``, ``"initial_points"``, ``"reference_points"`` or
-    ``"continuation"``; ``lookahead_choices`` / ``unresolved_choices`` how many mirror ambiguities the greedy resolved by lookahead / had to decide without evidence (parts
+    ``"continuation"``; ``lookahead_choices`` / ``unresolved_choices`` how many mirror
+    ambiguities the greedy resolved by lookahead / had to decide without evidence (parts
     that the lengths leave flexible, e.g. a lifted vertex above a two-triangle boundary fan);
     ``components`` the connected components embedded independently.
     """
