@@ -264,7 +264,8 @@ def test_continuation_deforms_the_reference_into_the_target():
     edges = surface.thickening_edges
     free = np.ones(len(flat), dtype=bool)
     scale = float(np.mean(np.sqrt(squared)))
-    steps = em._continuation(flat, edges, squared, free, None, 0.0, scale, 1e-10)
+    fractions, iterations = em.CONTINUATION_SCHEDULES[0]
+    steps = em._continuation(flat, edges, squared, free, None, 0.0, scale, 1e-10, fractions, iterations)
     halfway = np.linalg.norm(steps[: len(v)] - align_rigidly(target, steps[: len(v)]), axis=1).max()
     assert 0 < halfway < np.linalg.norm(v - align_rigidly(target, v), axis=1).max()
     result = embed_thickening(surface, squared, initial_points=steps)
