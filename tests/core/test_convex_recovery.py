@@ -214,3 +214,23 @@ def test_non_finite_difference_is_a_clear_error(small_sheet):
     product[2, 5] = np.nan
     with pytest.raises(RecoveryError, match="non-finite"):
         solver.areas(product)
+
+
+def test_layers_recovered_concurrently_match_one_after_the_other():
+    # recover_metric runs the base and offset programs in two threads (one BLAS thread each);
+    # the result must be that of the layers solved one at a time on a fresh reference.
+    import warnings
+
+    v, t = grid(14, jitter=0.2)
+    target = drape(v, 1.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        together = ReferenceShape(v, t)
+        metric = together.recover_metric(together.shape_differences(target, k_M=30, k_N=60))
+        apart = ReferenceShape(v, t)
+        d = apart.shape_differences(target, k_M=30, k_N=60)
+        layers = [apart.base.recover(d.area, d.conformal),
+                  apart.offset_layer.recover(d.offset_area, d.offset_conformal)]
+    for got, expected in zip((metric.base, metric.offset), layers):
+        for a, b in ((got.areas, expected.areas), (got.squared_lengths, expected.squared_lengths)):
+            assert np.linalg.norm(a - b) <= 1e-6 * np.linalg.norm(b)
