@@ -440,17 +440,15 @@ def _warn(message: str) -> None:
     warnings.warn(f"Shape-difference interpolation: {message}.", ShapeDifferenceWarning, stacklevel=3)
 
 
-def _truncated_stretch(base_vertices, other_vertices, triangles, k_M, k_N, offset, use_extrinsic, topo, base_key):
-    """Stretch tensors (m, 3, 3) of ``other`` relative to ``base`` whose edge lengths are the ones
-    recovered from the truncated shape differences; None (with a warning) if unavailable."""
+def _truncated_stretch(reference, other_vertices, k_M, k_N, topo, base_key):
+    """Stretch tensors (m, 3, 3) of ``other`` relative to the base of ``reference`` (a callable
+    returning the base's :class:`ReferenceShape`, built once per key) whose edge lengths are the
+    ones recovered from the truncated intrinsic differences; None (with a warning) if unavailable."""
     try:
-        from .reference_shape import ReferenceShape
-
-        reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
-        differences = reference.shape_differences(other_vertices, k_M=k_M, k_N=k_N)
-        metric = reference.recover_metric(differences)
+        base = reference()
+        metric = base.recover_metric(base.shape_differences(other_vertices, k_M=k_M, k_N=k_N))
         squared = np.asarray(metric.base.squared_lengths, dtype=np.float64)
-        edge_of_corner = reference.topology.triangle_edges  # edge opposite each corner (compact)
+        edge_of_corner = base.topology.triangle_edges  # edge opposite each corner (compact)
     except Exception as error:  # noqa: BLE001 - any failure falls back to the full basis
         _warn(f"truncated recovery (k_M={k_M}, k_N={k_N}) failed ({error}); used the full-basis metric")
         return None
@@ -514,6 +512,7 @@ class SequenceInterpolator:
         self._topo = _Topology(triangles, first.shape[0], first, ANCHOR_WEIGHT)
         self._keys: dict[int, _Key] = {}
         self._segments: OrderedDict[int, _Segment] = OrderedDict()
+        self._references: dict = {}
         self.k_M, self.k_N, self.offset = k_M, k_N, offset
         self.use_extrinsic = bool(use_extrinsic)
         self.smooth = bool(smooth)
@@ -532,13 +531,23 @@ class SequenceInterpolator:
             self._keys[index] = _Key(self._topo, self._raw[index], f"key pose {index}")
         return self._keys[index]
 
+    def _reference(self, index: int):
+        """The truncated recovery's prepared base for key ``index`` (eigenbasis, Gram factor),
+        shared by the relatives of its segment. Only the intrinsic metric is recovered (the
+        rotations come from the poses), so no offset surface is built."""
+        if index not in self._references:
+            from .reference_shape import ReferenceShape
+
+            self._references.clear()  # one base at a time: segments are visited per base key
+            self._references[index] = ReferenceShape(self._raw[index], self._topo.triangles, offset=self.offset,
+                                                      use_extrinsic=False)
+        return self._references[index]
+
     def _relative(self, base: int, other: int) -> _Relative:
         stretch = None
         if self.k_M is not None:
-            stretch = _truncated_stretch(
-                self._raw[base], self._raw[other], self._topo.triangles, self.k_M, self.k_N, self.offset,
-                self.use_extrinsic, self._topo, self._key(base),
-            )
+            stretch = _truncated_stretch(lambda: self._reference(base), self._raw[other], self.k_M, self.k_N,
+                                         self._topo, self._key(base))
         return _Relative(self._topo, self._key(base), self._key(other), stretch)
 
     def _segment(self, gap: int) -> _Segment:
@@ -591,8 +600,9 @@ class Interpolator:
 
     ``k_M``/``k_N``: interpolate truncated shape differences (the metric of ``b`` is the one
     recovered from them); ``None`` = full basis. ``offset``: offset distance of the extrinsic
-    differences (used by the truncated recovery). ``use_extrinsic=False`` interpolates the
-    intrinsic metric only (bending then follows the linear blend).
+    differences (validated; the truncated recovery here needs only the intrinsic metric, the
+    rotations come from the poses). ``use_extrinsic=False`` interpolates the intrinsic metric only
+    (bending then follows the linear blend).
     """
 
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,

@@ -243,6 +243,40 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
+def test_truncated_inbetween_approaches_the_full_basis_one(strip):
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.5)
+    full = Interpolator(a, b, tri).pose(0.5)
+    extent = np.ptp(full, axis=0).max()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        errors = [np.abs(Interpolator(a, b, tri, k_M=k).pose(0.5) - full).max() / extent
+                  for k in (20, len(flat) - 1)]
+    assert not [w for w in caught if "truncated recovery" in str(w.message)]  # no full-basis fallback
+    assert errors[1] < 1e-3 and errors[1] < errors[0]
+
+
+def test_truncated_sequence_prepares_each_key_once(monkeypatch, strip):
+    """The truncated recovery's base (eigenbasis, Gram factor) is built once per key and without
+    an offset surface (only the intrinsic metric is recovered)."""
+    import core.reference_shape as rs
+
+    built = []
+
+    class Counting(rs.ReferenceShape):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            built.append(self)
+
+    monkeypatch.setattr(rs, "ReferenceShape", Counting)
+    flat, tri = strip
+    keys = [_bend(flat, angle) for angle in (0.0, 0.5, 1.0, 1.5)]
+    seq = SequenceInterpolator(keys, tri, k_M=20, k_N=30)
+    for gap in range(len(seq)):
+        assert np.isfinite(seq.pose(gap, 0.5)).all()
+    assert len(built) == len(seq) and not any(reference.use_extrinsic for reference in built)
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
