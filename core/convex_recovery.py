@@ -572,9 +572,10 @@ class TruncatedRecovery:
     def _bounded_areas(self, normal_matvec, rhs, eps, start):
         """``µ ≥ 0`` active: the quadratic of the CG solve (its normal operator ``normal_matvec`` and
         right-hand side ``rhs``) by scipy's L-BFGS-B with the bounds, in Jacobi-scaled variables
-        ``y = √diag · µ`` (the bound stays ``y ≥ 0``), started from the clipped CG optimum. Measured on an offset layer with 5,642 triangles where CG
-        gave negative areas (a Blender drape, frames 40 → 48): 1.4 s, against 170 s for scipy's
-        bounded least squares (``lsq_linear``, trust-region reflective with LSMR)."""
+        ``y = √diag · µ`` (the bound stays ``y ≥ 0``), started from the clipped CG optimum.
+        Measured on an offset layer with 5,642 triangles where CG gave negative areas (a Blender
+        drape, frames 40 → 48): 1.4 s, against 170 s for scipy's bounded least squares
+        (``lsq_linear``, trust-region reflective with LSMR)."""
         from scipy.optimize import minimize
 
         reference = self.layer.areas

@@ -378,7 +378,8 @@ class _Segment:
         """Flipped or collapsed triangles of ``x`` (bool (m,))."""
         t = self.topo.triangles
         cross = np.cross(x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]])
-        return self.flipped(cross, s, rotation) | (0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * self.base.areas)
+        collapsed = 0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * self.base.areas
+        return self.flipped(cross, s, rotation) | collapsed
 
     def grow(self, triangles: np.ndarray, rings: int) -> np.ndarray:
         """The triangles (bool (m,)) within ``rings`` vertex rings of ``triangles``."""
