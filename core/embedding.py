@@ -1227,3 +1227,24 @@ def embed_base_edges(
     x, iterations, converged = _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale,
                                         tolerance, max_iterations)
     return _finish(x, edges, squared, topology.n_vertices, x0, iterations, "initial_points", converged)
+
+
+def refine_edge_lengths(vertices: np.ndarray, edges: np.ndarray, squared_lengths: np.ndarray, *,
+                        anchor_weight: float, max_iterations: int, fixed: np.ndarray | None = None) -> np.ndarray:
+    """A few Levenberg–Marquardt steps moving ``vertices`` ``(n, 3)`` towards the squared edge
+    lengths ``squared_lengths`` ``(E,)`` of ``edges`` ``(E, 2)``, each vertex softly anchored to
+    its start (``anchor_weight`` per squared mean edge length, which also fixes the rigid gauge);
+    ``fixed`` bool ``(n,)`` vertices stay. Returns the new positions ``(n, 3)``; no convergence
+    is required (a polish of a pose that already nearly fits)."""
+    x0 = np.asarray(vertices, dtype=np.float64)
+    squared = np.asarray(squared_lengths, dtype=np.float64)
+    free = np.zeros(x0.shape[0], dtype=bool)
+    free[edges.ravel()] = True
+    if fixed is not None:
+        free &= ~fixed
+    if not free.any():
+        return x0.copy()
+    length_scale = float(np.mean(np.sqrt(squared)))
+    x, _, _ = _levenberg_marquardt(x0, edges, squared, free, anchor_points=x0, anchor_weight=anchor_weight,
+                                   length_scale=length_scale, max_iterations=max_iterations)
+    return x

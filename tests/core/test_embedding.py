@@ -11,7 +11,7 @@ if ROOT not in sys.path:
 import numpy as np
 import pytest
 
-from core.embedding import embed_base_edges, embed_thickening
+from core.embedding import embed_base_edges, embed_thickening, refine_edge_lengths
 from core.errors import RecoveryError, ShapeDifferenceError
 from core.mesh_topology import mesh_topology
 from core.offset_surface import default_offset, offset_surface
@@ -324,6 +324,24 @@ def test_embed_base_edges_fits_lengths():
     result = embed_base_edges(topology, topology.squared_edge_lengths(target), initial_vertices=start)
     assert result.residual < 1e-6
     assert result.base_vertices.shape == v.shape
+
+
+def test_refine_edge_lengths_moves_free_vertices_towards_the_lengths():
+    v, f = grid(10)
+    topology = mesh_topology(f, len(v))
+    target = stretch_and_bend(v)
+    start = target + 0.01 * np.random.default_rng(1).normal(size=v.shape)
+    fixed = np.zeros(len(v), dtype=bool)
+    fixed[:10] = True
+    start[fixed] = target[fixed]
+    squared = topology.squared_edge_lengths(target)
+    x = refine_edge_lengths(start, topology.edges, squared, anchor_weight=1e-4, max_iterations=10, fixed=fixed)
+
+    def misfit(y):
+        return np.sqrt(np.mean((topology.squared_edge_lengths(y) / squared - 1.0) ** 2))
+
+    assert misfit(x) < 0.1 * misfit(start)
+    np.testing.assert_array_equal(x[fixed], start[fixed])
 
 
 def test_larger_crumpled_sheet_stays_exact():

@@ -243,6 +243,76 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
+def _metric_misfit(x, segment, s):
+    """RMS relative misfit of the corner edges of ``x`` to the interpolated metric at ``s``."""
+    import core.interpolation as ci
+
+    topo = segment.topo
+    stretch = segment.targets(s)[1]
+    target = np.linalg.norm(np.einsum("kab,kb->ka", stretch[topo.tri_of], segment.base.edge_vectors), axis=1)
+    return float(np.sqrt(np.mean((np.linalg.norm(x[topo.j] - x[topo.i], axis=1) / target - 1.0) ** 2)))
+
+
+def test_polish_moves_towards_the_interpolated_metric(monkeypatch):
+    """The final Levenberg–Marquardt polish fits the interpolated (unrealizable) metric better
+    than the local/global fit alone, without flipping anything."""
+    import core.interpolation as ci
+
+    flat, tri = grid(15, 15, size=1.0)
+    rng = np.random.default_rng(5)
+    a = _roll(flat, 0.3, radius=0.2)
+    b = flat + 0.01 * rng.standard_normal(flat.shape)
+    b[:, 2] += 0.3 * np.sin(3 * flat[:, 0])
+    segment = Interpolator(a, b, tri)._sequence._segment(0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        polished = segment.pose(0.5)[0]
+        monkeypatch.setattr(ci, "POLISH_ITERATIONS", 0)
+        plain = segment.pose(0.5)[0]
+    assert _metric_misfit(polished, segment, 0.5) < 0.8 * _metric_misfit(plain, segment, 0.5)
+    assert _flipped(polished, a, b, tri) == 0
+
+
+def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeypatch, strip):
+    """When imposing the interpolated rotations cannot remove a fold, the linear blend's local
+    geometry is imposed around it: no fallback, no flip, and the metric is kept elsewhere."""
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    segment = Interpolator(a, b, tri)._sequence._segment(0)
+    interpolated = segment.targets(0.5)[0]
+    real = ci._Segment._arap
+    middle = len(tri) // 2
+
+    def fold_unless_blend_imposed(self, x, stretch, rotation, *args, force=None, **kwargs):
+        out = real(self, x, stretch, rotation, *args, force=force, **kwargs)
+        if force is None or np.allclose(rotation[force], interpolated[force]):
+            i, j, k = tri[middle]
+            out[i] = out[j] + out[k] - out[i]  # a fold the interpolated rotations never remove
+        return out
+
+    monkeypatch.setattr(ci._Segment, "_arap", fold_unless_blend_imposed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = segment.pose(0.5)[0]
+    blend = 0.5 * (a + b)
+    assert _flipped(x, a, b, tri) == 0
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
+
+
+def test_sequence_does_not_overshoot_after_an_abrupt_stop(strip):
+    """Keys moving at constant speed, then (almost) at rest, as cloth landing on a collider: the
+    gap after the stop stays near its keys instead of carrying the earlier speed on."""
+    flat, tri = strip
+    speed = np.array([0.5, 0.0, 0.0])
+    keys = [flat + k * speed for k in range(3)] + [flat + 2 * speed + 0.01 * k * speed for k in (1, 2)]
+    seq = SequenceInterpolator(keys, tri)
+    shift = (seq.pose(2, 0.5) - keys[2]).mean(axis=0)
+    # Catmull–Rom would move 0.5·0.01 + 0.125·(keys[3] − keys[1])/2 ≈ 0.068 of the speed.
+    assert 0.0 <= shift[0] <= 0.02 * speed[0]
+
+
 def test_truncated_inbetween_approaches_the_full_basis_one(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.5)
