@@ -731,7 +731,12 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
             for c in range(3):
                 blocks[:, r, c] += np.bincount(cols[ok], outer[ok, r, c], minlength=nf)
     blocks += extra_diag.reshape(nf, 3)[:, :, None] * np.eye(3)[None]
-    return np.linalg.inv(blocks)
+    # Closed-form inverse (rows of the adjugate: cross products of the columns) instead of the
+    # batched LAPACK one: 10k blocks 25 ms → 3 ms per call on this machine (the LAPACK path pays
+    # per-matrix and thread overheads; the blocks are positive definite, so the determinant is > 0).
+    c0, c1, c2 = blocks[:, :, 0], blocks[:, :, 1], blocks[:, :, 2]
+    adjugate = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=1)
+    return adjugate / np.einsum("ij,ij->i", c0, adjugate[:, 0])[:, None, None]
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
@@ -769,7 +774,7 @@ def _pcg(apply_A, b, apply_M, iterations, tolerance):
 
 
 def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_weight=0.0, length_scale=1.0,
-                         tolerance=1e-12, max_iterations=DEFAULT_MAX_ITERATIONS):
+                         tolerance=1e-12, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS):
     """Minimize ``Σ_e r_e² + (w / h²) Σ_v |x_v − a_v|²`` with ``r_e = (|x_i − x_j|² − ℓ²_e)/(2ℓ²_e)``.
 
     ``x0`` ``(N, 3)``; ``free`` bool ``(N,)`` points that move (the others stay); ``anchor_points``
@@ -859,7 +864,7 @@ def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor
             def apply_A(v, diagonal=diagonal):
                 return JT @ (J @ v) + diagonal * v
 
-            step = -_pcg(apply_A, grad, preconditioner.__matmul__, CG_ITERATIONS, CG_TOLERANCE)
+            step = -_pcg(apply_A, grad, preconditioner.__matmul__, cg_iterations, CG_TOLERANCE)
             trial = x.copy()
             trial[free] += step.reshape(-1, 3)
             new_cost, new_r, new_d = cost_of(trial)
@@ -1230,12 +1235,14 @@ def embed_base_edges(
 
 
 def refine_edge_lengths(vertices: np.ndarray, edges: np.ndarray, squared_lengths: np.ndarray, *,
-                        anchor_weight: float, max_iterations: int, fixed: np.ndarray | None = None) -> np.ndarray:
+                        anchor_weight: float, max_iterations: int, fixed: np.ndarray | None = None,
+                        cg_iterations: int = CG_ITERATIONS) -> np.ndarray:
     """A few Levenberg–Marquardt steps moving ``vertices`` ``(n, 3)`` towards the squared edge
     lengths ``squared_lengths`` ``(E,)`` of ``edges`` ``(E, 2)``, each vertex softly anchored to
     its start (``anchor_weight`` per squared mean edge length, which also fixes the rigid gauge);
     ``fixed`` bool ``(n,)`` vertices stay. Returns the new positions ``(n, 3)``; no convergence
-    is required (a polish of a pose that already nearly fits)."""
+    is required (a polish of a pose that already nearly fits); ``cg_iterations`` caps each inexact
+    Newton step."""
     x0 = np.asarray(vertices, dtype=np.float64)
     squared = np.asarray(squared_lengths, dtype=np.float64)
     free = np.zeros(x0.shape[0], dtype=bool)
@@ -1246,5 +1253,6 @@ def refine_edge_lengths(vertices: np.ndarray, edges: np.ndarray, squared_lengths
         return x0.copy()
     length_scale = float(np.mean(np.sqrt(squared)))
     x, _, _ = _levenberg_marquardt(x0, edges, squared, free, anchor_points=x0, anchor_weight=anchor_weight,
-                                   length_scale=length_scale, max_iterations=max_iterations)
+                                   length_scale=length_scale, max_iterations=max_iterations,
+                                   cg_iterations=cg_iterations)
     return x
