@@ -51,8 +51,8 @@ captures accelerating motion, e.g. cloth falling under gravity).
 
 Robustness: the result is checked for non-finite values, flipped triangles (a normal opposing
 the interpolated normal ``R_T(s) n_T``) and collapsed ones; defects are first repaired locally
-(the interpolated rotations, then the linear blend's, then the blend's rotations and stretches
-imposed on a growing neighbourhood of them); if that fails, the
+(the interpolated rotations, then the linear blend's, then the blend's rotations and stretches,
+then each key's, imposed on a growing neighbourhood of them); if that fails, the
 Poisson solve alone, the metric fitted near the linear blend (strongly anchored) and the linear
 blend are tried in turn, the first without defects is returned, and if none is, the metric fit
 with the fewest defects — each time with a :class:`~core.errors.ShapeDifferenceWarning` saying so.
@@ -387,12 +387,16 @@ class _Segment:
         # them that grows while defects remain (a local fix; most of the pose is kept): first the
         # interpolated rotations, then the linear blend's (integrable: they come from a mesh), and
         # where the interpolated metric cannot be realized there without a fold (cloth crumpled
-        # below edge scale) the blend's stretches too, i.e. the blend's local geometry spliced in.
-        # 10k crumpling drape, keys 16 frames apart: fallbacks 5 → 0 of 45 in-betweens.
+        # below edge scale) the blend's stretches too, i.e. the blend's local geometry spliced in;
+        # last, where the blend itself is folded, each key's own local geometry (nearer key first;
+        # unflipped against that key by construction). 10k crumpling drape, keys 16 frames apart:
+        # sequence fallbacks 5 → 0 of 45 in-betweens; two poses 12 flipped triangles → 0 over 24.
         blend = (1.0 - s) * base.vertices + s * self.next.vertices
         if self.use_extrinsic and np.isfinite(x).all():
             blend_rotation, blend_stretch = _polar(_frames(blend, topo.triangles) @ base.frame_inverse)
-            for imposed in ((rotation, stretch), (blend_rotation, stretch), (blend_rotation, blend_stretch)):
+            keys = [(Rotation.from_rotvec(rel.rotvec).as_matrix(), _sym_exp(rel.log_stretch))
+                    for rel in (self.relatives[1:3] if s < 0.5 else self.relatives[2:0:-1])]  # nearer first
+            for imposed in ((rotation, stretch), (blend_rotation, stretch), (blend_rotation, blend_stretch), *keys):
                 z = self._repair(x, anchor, weight, s, rotation, stretch, centroids, imposed, tried, iterations)
                 if z is not None:
                     return self.polish(z, s, rotation, stretch, centroids), None

@@ -301,6 +301,32 @@ def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeyp
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
+def test_a_key_geometry_is_spliced_where_the_blend_folds_too(monkeypatch, strip):
+    """When neither the interpolated nor the blend's rotations remove a fold, a key's own local
+    geometry (here the first key's: identity relative to it) is imposed around it."""
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    segment = Interpolator(a, b, tri)._sequence._segment(0)
+    real = ci._Segment._arap
+    middle = len(tri) // 2
+
+    def fold_unless_first_key_imposed(self, x, stretch, rotation, *args, force=None, **kwargs):
+        out = real(self, x, stretch, rotation, *args, force=force, **kwargs)
+        if force is None or not np.allclose(rotation[force], np.eye(3)):
+            i, j, k = tri[middle]
+            out[i] = out[j] + out[k] - out[i]
+        return out
+
+    monkeypatch.setattr(ci._Segment, "_arap", fold_unless_first_key_imposed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = segment.pose(0.5)[0]
+    assert _flipped(x, a, b, tri) == 0
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(0.5 * (a + b), flat, tri).mean()
+
+
 def test_sequence_does_not_overshoot_after_an_abrupt_stop(strip):
     """Keys moving at constant speed, then (almost) at rest, as cloth landing on a collider: the
     gap after the stop stays near its keys instead of carrying the earlier speed on."""
