@@ -89,6 +89,23 @@ def test_rigid_rotation_is_interpolated_rigidly():
     assert _edge_deviation(mid, a, tri).max() < 1e-8
 
 
+def test_two_components_translating_and_turning_are_each_placed():
+    """One sheet translating (anchored to the blend, which is exact for it) and one turning by 97°
+    about its centroid (not anchored: placed by its centroid): both in-betweens are exact."""
+    flat, tri = grid(8, 6, size=1.0)
+    n = len(flat)
+    rotation = Rotation.from_rotvec([0.3, -0.5, 1.6])
+    sheet_a = flat + np.array([3.0, 0.0, 0.0])
+    center = sheet_a.mean(axis=0)
+    a = np.vstack([flat, sheet_a])
+    b = np.vstack([flat + np.array([0.4, 0.2, -0.3]), (sheet_a - center) @ rotation.as_matrix().T + center])
+    triangles = np.vstack([tri, tri + n])
+    mid = interpolate(a, b, triangles, 0.5)
+    half = Rotation.from_rotvec(0.5 * rotation.as_rotvec()).as_matrix()
+    np.testing.assert_allclose(mid[:n], flat + np.array([0.2, 0.1, -0.15]), atol=1e-6)
+    np.testing.assert_allclose(mid[n:], (sheet_a - center) @ half.T + center, atol=1e-6)
+
+
 @pytest.mark.parametrize("factor", [0.25, 0.5, 0.75])
 def test_bending_strip_in_betweens(strip, factor):
     flat, tri = strip
