@@ -45,10 +45,11 @@ this costs one more factorization per in-between.
 Placement: each connected component's area-weighted centroid follows the cubic spline of the
 keys' centroids (sequences), and its orientation is the interpolated rotation field's. Two-pose
 in-betweens are placed by their anchor to the blend (the parts the blend moves accurately sit
-where it puts them; the linear interpolation of the centroids where nothing is anchored). Sequences interpolate the per-triangle rotations,
-stretches and centroids with cubic splines over the neighbouring keys instead of linearly
-(Catmull–Rom tangents limited against overshoot: C¹ across keys where the motion is smooth;
-captures accelerating motion, e.g. cloth falling under gravity).
+where it puts them; the linear interpolation of the centroids where nothing is anchored).
+Sequences interpolate the per-triangle rotations, stretches and centroids with cubic splines over
+the neighbouring keys instead of linearly (Catmull–Rom tangents limited against overshoot: C¹
+across keys where the motion is smooth; captures accelerating motion, e.g. cloth falling under
+gravity).
 
 Robustness: the result is checked for non-finite values, flipped triangles (a normal opposing
 the interpolated normal ``R_T(s) n_T``) and collapsed ones; defects are first repaired locally
@@ -268,6 +269,8 @@ class _Topology:
         self.edges = topo.edges
         self.edge_of_corner = topo.triangle_edges[:, [2, 0, 1]].ravel()
         self.corners_per_edge = np.bincount(self.edge_of_corner, minlength=topo.n_edges)
+        self.corner_edges_per_vertex = (np.bincount(self.i, minlength=n_vertices)
+                                        + np.bincount(self.j, minlength=n_vertices))
 
     def solver(self, weight):
         """Factorized normal matrix for an anchor ``weight``: a number (cached) or per-vertex
@@ -458,14 +461,11 @@ class _Segment:
     def anchor_weights(self, s: float) -> np.ndarray:
         """Per-vertex weights (n,) anchoring a two-pose in-between to the linear blend where the
         blend keeps the keys' edge lengths (see :data:`BLEND_ANCHOR_WEIGHT`)."""
-        topo, a, b = self.topo, self.base.vertices, self.next.vertices
-        blend = (1.0 - s) * a + s * b
-        key_lengths = (1.0 - s) * np.linalg.norm(a[topo.j] - a[topo.i], axis=1) + s * np.linalg.norm(
-            b[topo.j] - b[topo.i], axis=1)
-        shortening = np.abs(np.linalg.norm(blend[topo.j] - blend[topo.i], axis=1) / key_lengths - 1.0)
-        count = np.bincount(topo.i, minlength=topo.n) + np.bincount(topo.j, minlength=topo.n)
+        topo, a, b = self.topo, self.base.edge_vectors, self.next.edge_vectors
+        key_lengths = (1.0 - s) * np.linalg.norm(a, axis=1) + s * np.linalg.norm(b, axis=1)
+        shortening = np.abs(np.linalg.norm((1.0 - s) * a + s * b, axis=1) / key_lengths - 1.0)
         summed = np.bincount(topo.i, shortening, topo.n) + np.bincount(topo.j, shortening, topo.n)
-        per_vertex = summed / np.maximum(count, 1)
+        per_vertex = summed / np.maximum(topo.corner_edges_per_vertex, 1)
         falloff = (BLEND_SHORTENING_SCALE / np.maximum(per_vertex, BLEND_SHORTENING_SCALE)) ** 2
         weight = BLEND_ANCHOR_WEIGHT * falloff * np.maximum(0.0, 1.0 - per_vertex / BLEND_SHORTENING_CUTOFF) ** 2
         return np.maximum(weight, topo.anchor_weight)  # never below the gauge weight (nonsingular)
