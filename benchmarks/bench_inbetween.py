@@ -237,7 +237,7 @@ def side_by_side(path, scene_name="flag_wind", gap=16, key=2):
     fig.suptitle(
         f"{scene_name}: frames {key * gap} and {(key + 1) * gap} kept, frame {key * gap + gap // 2} predicted "
         "(colour: edge stretch vs rest, blue −5% … red +5%)", fontsize=9)
-    save(fig, path)
+    save(fig, path, top=0.9)
 
 
 def exaggeration_check(log=print):

@@ -45,8 +45,10 @@ def common_bounds(poses) -> tuple[np.ndarray, np.ndarray]:
     return np.min([p.min(0) for p in poses], axis=0), np.max([p.max(0) for p in poses], axis=0)
 
 
-def save(fig, path) -> None:
-    fig.tight_layout()
+def save(fig, path, top: float = 1.0) -> None:
+    """Lay out and write ``fig``; ``top`` < 1 keeps that fraction of the height free of axes
+    (``tight_layout`` does not make room for a ``suptitle`` above 3-D axes)."""
+    fig.tight_layout(rect=(0.0, 0.0, 1.0, top))
     Path(path).parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path)
     pyplot().close(fig)

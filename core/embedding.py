@@ -64,6 +64,7 @@ import numpy as np
 from .errors import RecoveryError, ShapeDifferenceWarning
 from .mesh_topology import MeshTopology
 from .offset_surface import OffsetSurface
+from .small_matrices import cofactors_3x3
 
 #: Trilateration needs the neighbours' scatter to have smallest/largest eigenvalue above this.
 COPLANAR_RATIO = 1e-3
@@ -731,12 +732,9 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
             for c in range(3):
                 blocks[:, r, c] += np.bincount(cols[ok], outer[ok, r, c], minlength=nf)
     blocks += extra_diag.reshape(nf, 3)[:, :, None] * np.eye(3)[None]
-    # Closed-form inverse (rows of the adjugate: cross products of the columns) instead of the
-    # batched LAPACK one: 10k blocks 25 ms → 3 ms per call on this machine (the LAPACK path pays
-    # per-matrix and thread overheads; the blocks are positive definite, so the determinant is > 0).
-    c0, c1, c2 = blocks[:, :, 0], blocks[:, :, 1], blocks[:, :, 2]
-    adjugate = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=1)
-    return adjugate / np.einsum("ij,ij->i", c0, adjugate[:, 0])[:, None, None]
+    # Closed-form inverse; the blocks are positive definite, so the determinant is > 0.
+    cofactors, det = cofactors_3x3(blocks)
+    return np.transpose(cofactors, (0, 2, 1)) / det[:, None, None]
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:

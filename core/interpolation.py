@@ -77,6 +77,7 @@ from scipy.spatial.transform import Rotation
 
 from .errors import MeshError, ShapeDifferenceWarning
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+from .small_matrices import cofactors_3x3
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -169,9 +170,7 @@ def _rotation_part(f: np.ndarray, iterations: int = 8) -> np.ndarray:
     triangle frames used here are right-handed by construction, so ``det > 0``."""
     x = f
     for _ in range(iterations):
-        c0, c1, c2 = x[:, :, 0], x[:, :, 1], x[:, :, 2]
-        cof = np.stack([np.cross(c1, c2), np.cross(c2, c0), np.cross(c0, c1)], axis=2)
-        det = np.einsum("ij,ij->i", c0, cof[:, :, 0])
+        cof, det = cofactors_3x3(x)
         bad = ~(det > 1e-300)
         det = np.where(bad, 1.0, det)
         inv_t = cof / det[:, None, None]
