@@ -132,15 +132,6 @@ class ProductAssembler:
         vals = np.concatenate([weight if j == 0 else -weight for k in range(3) for j in range(3)])
         return sp.csr_matrix((vals, (rows, cols)), shape=(topo.n_edges, topo.n_edges))
 
-    def edge_contribution_vectors(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Per (triangle, edge-slot) data for building ``C`` term by term: for the edge opposite
-        corner k of triangle t, returns (triangle index ``(3m,)``, edge index ``(3m,)``, the two
-        endpoint vertices ``(3m, 2)``). Useful for reduced-basis Gram matrices (§7.2)."""
-        topo = self.topology
-        t = np.repeat(np.arange(topo.n_triangles), 3)
-        ends = np.stack([topo.triangles[:, [1, 2, 0]].ravel(), topo.triangles[:, [2, 0, 1]].ravel()], axis=1)
-        return t, topo.triangle_edges.ravel(), ends
-
 
 def pose_products(assembler: ProductAssembler, vertices: np.ndarray):
     """Everything §4.2 defines for one pose: areas µ ``(m,)``, squared edge lengths ℓ² ``(E,)``,

@@ -193,16 +193,6 @@ def _sym_exp(s: np.ndarray) -> np.ndarray:
     return (q * np.exp(np.clip(w, -30.0, 30.0))[:, None, :]) @ np.transpose(q, (0, 2, 1))
 
 
-def _kabsch(source: np.ndarray, target: np.ndarray, weights: np.ndarray) -> np.ndarray:
-    """Proper rotation (3, 3) best mapping ``source`` onto ``target`` (weighted, centred)."""
-    w = weights / weights.sum()
-    s = source - w @ source
-    t = target - w @ target
-    u, _, vt = np.linalg.svd(t.T @ (s * w[:, None]))
-    d = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
-    return (u * np.array([1.0, 1.0, d])) @ vt
-
-
 def _spline(values, s: float, cubic: bool):
     """Value at parameter ``s`` of the gap (0, 1) from the values at key times (−1, 0, 1, 2)
     (arrays of one shape, elementwise).
