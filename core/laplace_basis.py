@@ -57,7 +57,11 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
     diag_ratio = conformal.diagonal() / mass.diagonal()
     shift = -1e-3 * float(np.median(diag_ratio[np.isfinite(diag_ratio)]))
     try:
-        values, vectors = eigsh(conformal.tocsc(), k=k, M=mass.tocsc(), sigma=shift, which="LM")
+        # A fixed start vector: ARPACK's own is drawn from a generator that advances with every
+        # call, so repeated eigenspaces (symmetric meshes) came out rotated differently per call
+        # and recoveries depended, at round-off, on what had run before in the process.
+        start = np.random.default_rng(0).standard_normal(n)
+        values, vectors = eigsh(conformal.tocsc(), k=k, M=mass.tocsc(), sigma=shift, which="LM", v0=start)
     except (ArpackNoConvergence, RuntimeError) as error:
         raise RecoveryError(
             f"The Laplace–Beltrami eigensolver did not converge for the {what} with k = {k} "
