@@ -732,9 +732,11 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
             for c in range(3):
                 blocks[:, r, c] += np.bincount(cols[ok], outer[ok, r, c], minlength=nf)
     blocks += extra_diag.reshape(nf, 3)[:, :, None] * np.eye(3)[None]
-    # Closed-form inverse; the blocks are positive definite, so the determinant is > 0.
+    # Closed-form inverse; the blocks are symmetric positive definite (determinant > 0, the
+    # cofactor matrix its own transpose). Kept C-contiguous: the BSR product ravels its data on
+    # every call, and a transposed view made that a copy (+0.45 s on the 1k cloth's embedding).
     cofactors, det = cofactors_3x3(blocks)
-    return np.transpose(cofactors, (0, 2, 1)) / det[:, None, None]
+    return cofactors / det[:, None, None]
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
