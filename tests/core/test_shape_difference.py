@@ -4,7 +4,7 @@ intrinsic/extrinsic distinction of the paper's Fig. 7 cube."""
 import numpy as np
 
 import core
-from meshes import cube, cube_with_bump, icosphere, stretch_and_bend
+from meshes import cube, cube_with_bump, drape, grid, icosphere, stretch_and_bend
 
 
 def _relative_difference(a, b):
@@ -79,8 +79,6 @@ def test_reduced_difference_matches_its_definition():
 def test_truncated_differences_are_reproducible_on_a_symmetric_mesh():
     # A square grid has repeated Laplace–Beltrami eigenvalues: any rotation of such an eigenspace
     # is an eigenbasis, so the sparse eigensolver must start from the same vector every time.
-    from meshes import drape, grid
-
     vertices, triangles = grid(30)
     assert vertices.shape[0] > core.laplace_basis.DENSE_EIGEN_LIMIT  # the sparse (ARPACK) path
     target = drape(vertices)
