@@ -51,7 +51,7 @@ def shape_differences(
 ) -> ShapeDifferences:
     """The four shape differences of ``target_vertices`` relative to ``base_vertices`` (§6).
 
-    ``k_M = None``: full basis, eqs. (3)–(4) (exactly invertible). ``k_M`` only: reduced in the
+    ``k_M = None`` (or 0): full basis, eqs. (3)–(4) (exactly invertible). ``k_M`` only: reduced in the
     first ``k_M`` Laplace–Beltrami eigenfunctions of the base, eq. (5). ``k_M`` and ``k_N``:
     source- and target-truncated through the functional map of the vertex correspondence,
     eq. (6). ``offset``: the offset distance t in the mesh's units (``None``: half the mean edge

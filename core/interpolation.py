@@ -76,6 +76,7 @@ import scipy.sparse.linalg as spla
 from scipy.spatial.transform import Rotation
 
 from .errors import MeshError, ShapeDifferenceWarning
+from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
 from .small_matrices import cofactors_3x3
 
@@ -633,11 +634,10 @@ class SequenceInterpolator:
         self._keys: dict[int, _Key] = {}
         self._segments: OrderedDict[int, _Segment] = OrderedDict()
         self._references: dict = {}
-        self.k_M, self.k_N, self.offset = k_M, k_N, offset
+        self.k_M, self.k_N = basis_sizes(k_M, k_N)
+        self.offset = offset
         self.use_extrinsic = bool(use_extrinsic)
         self.smooth = bool(smooth)
-        if k_N is not None and k_M is None:
-            raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
 
     def __len__(self) -> int:
         return len(self._raw) - 1

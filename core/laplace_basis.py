@@ -34,6 +34,15 @@ class LaplaceBasis:
         return out
 
 
+def basis_sizes(k_M, k_N) -> tuple[int | None, int | None]:
+    """Normalize the basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the
+    sidebar's convention); ``k_N`` (target basis) needs ``k_M`` (base basis)."""
+    k_M, k_N = (k or None for k in (k_M, k_N))
+    if k_N is not None and k_M is None:
+        raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+    return k_M, k_N
+
+
 def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh") -> LaplaceBasis:
     """The ``k`` smallest eigenpairs of ``(C, A)`` (scipy ``eigsh`` in shift-invert mode about a
     small negative shift, so the factorized matrix ``C − σA`` is positive definite).

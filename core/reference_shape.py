@@ -17,7 +17,7 @@ import numpy as np
 
 from .errors import MeshError
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, laplace_basis
+from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
 from .shape_difference import (
@@ -217,8 +217,7 @@ class ReferenceShape:
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None) -> ShapeDifferences:
         """The four differences (§6) of a target pose ``(n, 3)`` relative to this base."""
-        if k_N is not None and k_M is None:
-            raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+        k_M, k_N = basis_sizes(k_M, k_N)
         target = self.compact_pose(target_vertices)
         area, conformal = self.base.differences(target, k_M, k_N)
         offset_area = offset_conformal = None

@@ -147,11 +147,12 @@ class CoreSettings:
 
     k_m: IntProperty(
         name="k_M", min=0, default=0,
-        description="Intrinsic basis size (Laplacian eigenfunctions of the base mesh); "
-                    "0 = full basis")
+        description="Basis size on the base pose: Laplacian eigenfunctions of the base mesh and of its "
+                    "offset surface (eqs. 5-6); 0 = full basis, exact")
     k_n: IntProperty(
         name="k_N", min=0, default=0,
-        description="Extrinsic basis size (eigenfunctions on the offset surface); 0 = full basis")
+        description="Basis size on the target pose (functional map from the vertex correspondence, "
+                    "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
     offset: FloatProperty(
         name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
         description="Distance of the offset surface that carries the extrinsic information; "
@@ -164,7 +165,7 @@ class CoreSettings:
 class CoreSettingsProperties(CoreSettings):
     """Core settings of an operator: each one not set is taken from the scene settings."""
 
-    def core_options(self, context, vertex_count: int, triangle_count: int) -> dict:
+    def core_options(self, context, vertex_count: int) -> dict:
         """Keyword arguments for the core facade, from this operator or the scene settings.
 
         Resolved values are written back to the operator so the Redo panel shows them.
@@ -173,12 +174,14 @@ class CoreSettingsProperties(CoreSettings):
         for name in ("k_m", "k_n", "offset", "use_extrinsic"):
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
-        for label, k, limit in (("k_M", self.k_m, vertex_count),
-                                ("k_N", self.k_n, vertex_count + triangle_count)):
-            if k >= limit:
+        # Both bases live on meshes with the base's vertices (the offset surfaces have more).
+        for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
+            if k >= vertex_count:
                 raise InputError(
                     f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
-                    f"use at most {limit - 1}, or 0 for the full basis")
+                    f"use at most {vertex_count - 1}, or 0 for the full basis")
+        if self.k_n and not self.k_m:
+            raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=self.offset or None,
                     use_extrinsic=self.use_extrinsic)
 

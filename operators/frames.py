@@ -86,7 +86,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(CoreSettingsProperties, FrameRangePr
         obj = context.active_object
         frames = self.frames(context)
         triangles = surface_triangles(obj)
-        options = self.core_options(context, len(obj.data.vertices), len(triangles))
+        options = self.core_options(context, len(obj.data.vertices))
         poses = yield from self.read_frames(context, obj, frames, 0.2)
         sequence = load_core().SequenceInterpolator(poses, triangles, **options)
         new_keys, timeline = [], []

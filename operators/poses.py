@@ -27,7 +27,7 @@ class KeyPairProperties:
         setattr(self, first, start.name)
         setattr(self, second, end.name)
         triangles = surface_triangles(obj)
-        options = self.core_options(context, len(obj.data.vertices), len(triangles))
+        options = self.core_options(context, len(obj.data.vertices))
         yield 0.0
         interpolator = load_core().Interpolator(
             bridge.shape_key_positions(start), bridge.shape_key_positions(end), triangles,
@@ -107,7 +107,7 @@ class SHAPE_DIFFERENCES_OT_reconstruct(CoreSettingsProperties, GeneratorOperator
                              "from: pick another shape key to reconstruct")
         self.key = key.name
         triangles = surface_triangles(obj)
-        options = self.core_options(context, len(obj.data.vertices), len(triangles))
+        options = self.core_options(context, len(obj.data.vertices))
         yield 0.0
         core = load_core()
         base = bridge.shape_key_positions(key_blocks[0])

@@ -73,6 +73,10 @@ def test_k_larger_than_the_mesh_allows(bpy_empty, extension):
     bpy.context.scene.shape_differences.k_m = 10_000
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
                          "k_M = 10000 is too large")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         f"k_N = {vertex_count} is too large", k_m=10, k_n=vertex_count)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "k_N = 12 needs k_M", k_m=0, k_n=12)
 
 
 def test_vertex_count_changing_over_frames(bpy_empty, extension):

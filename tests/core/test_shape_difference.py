@@ -2,6 +2,7 @@
 intrinsic/extrinsic distinction of the paper's Fig. 7 cube."""
 
 import numpy as np
+import pytest
 
 import core
 from meshes import cube, cube_with_bump, drape, grid, icosphere, stretch_and_bend
@@ -87,3 +88,15 @@ def test_truncated_differences_are_reproducible_on_a_symmetric_mesh():
     a = first.shape_differences(target, k_M=40, k_N=80)
     b = second.shape_differences(target, k_M=40, k_N=80)
     np.testing.assert_allclose(a.conformal.matrix, b.conformal.matrix, atol=1e-10)
+
+
+def test_zero_basis_size_means_the_full_basis_as_in_the_sidebar():
+    base, triangles = grid(6, 6)
+    target = stretch_and_bend(base)
+    reference = core.ReferenceShape(base, triangles)
+    zero = reference.shape_differences(target, k_M=0, k_N=0)
+    assert zero.k_M is None and zero.k_N is None
+    full = reference.shape_differences(target)
+    assert np.allclose(zero.offset_conformal.dense(), full.offset_conformal.dense(), rtol=0, atol=1e-12)
+    with pytest.raises(core.MeshError, match="k_N .* needs k_M"):
+        reference.shape_differences(target, k_M=0, k_N=20)
