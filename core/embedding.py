@@ -13,8 +13,9 @@ of M stalls for large motions, e.g. a flat sheet to a draped cloth):
    diagonal on a 50k-vertex crumpled sheet in ~3 s). When its residual is not at round-off level
    (inexact lengths), the frames are synchronized (fitted to all hinges at once) and raced
    against the caller's reference pose (the base shape, from :class:`ReferenceShape`): a few
-   Levenberg–Marquardt iterations each, the better one is polished to the end. Noisy hinge signs
-   can fold the frames; without a reference pose the greedy wavefront below is the second start.
+   Levenberg–Marquardt iterations each (side by side in threads on two cores), the better one is
+   polished to the end. Noisy hinge signs can fold the frames; without a reference pose the
+   greedy wavefront below is the second start.
 1. **Greedy wavefront initializer** following the proof of Prop. 4: tetrahedra are glued one by
    one from their edge lengths, whole wavefronts at once with NumPy.
 
@@ -56,6 +57,7 @@ were. No ARAP stage: the greedy start is already in the basin of the fit in the 
 from __future__ import annotations
 
 import itertools
+import os
 import warnings
 from dataclasses import dataclass
 
@@ -1055,15 +1057,13 @@ def embed_thickening(
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
 
     def polish(start, budget, local):
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            x, iterations, converged = _polish(start, edges, squared, has_edge, anchor_points, anchor_weight,
-                                                length_scale, tolerance, budget, local=local)
-        return [_rms(_relative_residuals(x, edges, squared)), x, iterations, converged, caught]
+        x, iterations, converged = _polish(start, edges, squared, has_edge, anchor_points, anchor_weight,
+                                           length_scale, tolerance, budget, local=local)
+        return [_rms(_relative_residuals(x, edges, squared)), x, iterations, converged]
 
     def finish(trial):
         """Polish a trial to the end (the remaining iteration budget)."""
-        residual, x, iterations, converged, caught = trial
+        residual, x, iterations, converged = trial
         if converged or iterations >= max_iterations:
             return trial
         rest = polish(x, max_iterations - iterations, False)
@@ -1079,7 +1079,8 @@ def embed_thickening(
     # Several starts are raced: a short trial each, the lowest residual goes on to the end.
     budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 or try_greedy else max_iterations
     trials = [(name, prepared(start), None) for name, start in starts]
-    trials = [item + (polish(item[1], budget, False),) for item in trials]
+    fits = _concurrently(lambda item: polish(item[1], budget, False), trials)
+    trials = [item + (fit,) for item, fit in zip(trials, fits)]
     best = min(trials, key=lambda item: item[3][0])
     best = best[:3] + (finish(best[3]),)
     if try_greedy:
@@ -1094,15 +1095,18 @@ def embed_thickening(
     if continuation_start is not None and best[3][0] > CONTINUATION_RESIDUAL:
         # Far from realizable: the fit stopped in the basin of its start. Deform the reference
         # pose gradually instead (its own lengths blended into the targets) and keep the better.
-        for fractions, steps in CONTINUATION_SCHEDULES:
+        def continued(schedule):
+            fractions, steps = schedule
             x = _continuation(prepared(continuation_start.copy()), edges, squared, has_edge, anchor_points,
                               anchor_weight, length_scale, tolerance, fractions, steps)
-            trial = polish(x, max_iterations, False)
+            return polish(x, max_iterations, False)
+
+        for trial in _concurrently(continued, CONTINUATION_SCHEDULES):
             if trial[0] < best[3][0]:
                 best = ("continuation", continuation_start, None, trial)
-    initializer, x0, greedy, (_, x, iterations, converged, caught) = best
-    for warning in caught:
-        warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+    initializer, x0, greedy, (_, x, iterations, converged) = best
+    if not converged:
+        _warn_unconverged(x, edges, squared, iterations)
     unresolved = frames.unresolved if initializer == "hinge_frames" else None
     return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, greedy, n_comp_real,
                    unresolved=unresolved)
@@ -1135,16 +1139,33 @@ def _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale
         x0, edges, squared, free, anchor_points=anchor_points, anchor_weight=anchor_weight,
         length_scale=length_scale, tolerance=tolerance, max_iterations=max_iterations,
     )
-    if not converged:
-        warnings.warn(
-            f"Embedding: Levenberg–Marquardt stopped after {iterations} iterations without converging "
-            "(RMS relative length residual "
-            f"{np.sqrt(np.mean(_relative_residuals(x, edges, squared) ** 2)):.3g}); the result is the best "
-            "fit found. Increase max_iterations or check the recovered lengths.",
-            ShapeDifferenceWarning,
-            stacklevel=3,
-        )
     return x, iterations, converged
+
+
+def _warn_unconverged(x, edges, squared, iterations):
+    """The public embedders' warning for a fit that stopped before converging."""
+    warnings.warn(
+        f"Embedding: Levenberg–Marquardt stopped after {iterations} iterations without converging "
+        f"(RMS relative length residual {_rms(_relative_residuals(x, edges, squared)):.3g}); the result "
+        "is the best fit found. Increase max_iterations or check the recovered lengths.",
+        ShapeDifferenceWarning,
+        stacklevel=3,
+    )
+
+
+def _concurrently(function, items) -> list:
+    """``[function(item) for item in items]``, in threads when there are several items and
+    cores. For independent Levenberg–Marquardt fits: their sparse products and NumPy array
+    arithmetic release the GIL (measured on the 1,089-vertex cloth's thickening, 2 cores: two
+    fits side by side 1.7× faster than one after the other). Results do not depend on it."""
+    items = list(items)
+    workers = min(len(items), os.cpu_count() or 1)
+    if workers < 2:
+        return [function(item) for item in items]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(workers) as pool:
+        return list(pool.map(function, items))
 
 
 def _continuation(x, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, fractions,
@@ -1154,11 +1175,9 @@ def _continuation(x, edges, squared, free, anchor_points, anchor_weight, length_
     caller's)."""
     d = x[edges[:, 0]] - x[edges[:, 1]]
     own = np.einsum("ij,ij->i", d, d)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # intermediate steps are capped
-        for fraction in fractions:
-            x, _, _ = _polish(x, edges, (1.0 - fraction) * own + fraction * squared, free, anchor_points,
-                              anchor_weight, length_scale, tolerance, iterations)
+    for fraction in fractions:  # intermediate steps are capped: not converging there is expected
+        x, _, _ = _polish(x, edges, (1.0 - fraction) * own + fraction * squared, free, anchor_points,
+                          anchor_weight, length_scale, tolerance, iterations)
     return x
 
 
@@ -1231,6 +1250,8 @@ def embed_base_edges(
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
     x, iterations, converged = _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale,
                                         tolerance, max_iterations)
+    if not converged:
+        _warn_unconverged(x, edges, squared, iterations)
     return _finish(x, edges, squared, topology.n_vertices, x0, iterations, "initial_points", converged)
 
 

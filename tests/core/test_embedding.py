@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from core.embedding import embed_base_edges, embed_thickening, refine_edge_lengths
-from core.errors import RecoveryError, ShapeDifferenceError
+from core.errors import RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
 from core.mesh_topology import mesh_topology
 from core.offset_surface import default_offset, offset_surface
 from core.rigid_alignment import align_rigidly, rigid_alignment
@@ -250,6 +250,42 @@ def test_reference_start_is_raced_against_the_hinge_frames():
     assert rms < 1e-3 and worst < 3e-3 and result.residual < 1e-3
     with pytest.raises(RecoveryError, match="reference_points"):
         embed_thickening(surface, squared, reference_points=reference[:-1])
+
+
+def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkeypatch):
+    # The starts (hinge frames, reference pose) and the continuation schedules are fitted side
+    # by side when there are two cores; the chosen fit must not depend on it, bit for bit.
+    import core.embedding as em
+
+    v, f = grid(15)
+    target = drape(v, 3.0)
+    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
+    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    monkeypatch.setattr(em, "CONTINUATION_RESIDUAL", 0.0)  # make the continuations run too
+    results = []
+    for cores in (2, 1):
+        monkeypatch.setattr(em.os, "cpu_count", lambda cores=cores: cores)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            results.append(embed_thickening(surface, squared, reference_points=reference))
+    assert results[0].initializer == results[1].initializer
+    assert np.array_equal(results[0].points, results[1].points)
+
+
+def test_an_unconverged_fit_warns_once():
+    v, f = grid(15)
+    target = drape(v, 3.0)
+    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
+    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        embed_thickening(surface, squared, reference_points=reference, max_iterations=1)
+    unconverged = [w for w in caught if issubclass(w.category, ShapeDifferenceWarning)
+                   and "without converging" in str(w.message)]
+    assert len(unconverged) == 1, [str(w.message) for w in caught]
+    with pytest.warns(ShapeDifferenceWarning, match="without converging"):
+        embed_base_edges(mesh_topology(f, len(v)), mesh_topology(f, len(v)).squared_edge_lengths(target),
+                         initial_vertices=v, max_iterations=1)
 
 
 def test_continuation_deforms_the_reference_into_the_target():
