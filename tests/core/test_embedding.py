@@ -37,6 +37,16 @@ def thickening_lengths(base, triangles, target, *, offset=None, noise=0.0, seed=
     return surface, surface.thickening_squared_lengths(base_sq, offset_sq, t), surface.thickening_points(target, offset_positions)
 
 
+def noisy_drape_with_flat_reference():
+    """A strongly bent 15 × 15 drape with 1e-3 noise on its thickening lengths, and the flat
+    sheet's thickening as the reference pose: (v, f, target, surface, squared, reference)."""
+    v, f = grid(15)
+    target = drape(v, 3.0)
+    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
+    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    return v, f, target, surface, squared, reference
+
+
 def relative_errors(result, target):
     aligned = align_rigidly(result, target)
     diagonal = np.linalg.norm(np.ptp(target, axis=0))
@@ -238,10 +248,7 @@ def test_reference_start_is_raced_against_the_hinge_frames():
     # 1e-3 noise on a strongly bent 15 × 15 drape: the noisy hinge signs fold the frames
     # (error 8.5 % of the diagonal when they are the only start); the flat base pose, raced as a
     # second start, reaches the least-squares fit.
-    v, f = grid(15)
-    target = drape(v, 3.0)
-    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
-    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    v, f, target, surface, squared, reference = noisy_drape_with_flat_reference()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = embed_thickening(surface, squared, reference_points=reference)
@@ -257,10 +264,7 @@ def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkey
     # by side when there are two cores; the chosen fit must not depend on it, bit for bit.
     import core.embedding as em
 
-    v, f = grid(15)
-    target = drape(v, 3.0)
-    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
-    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    v, f, target, surface, squared, reference = noisy_drape_with_flat_reference()
     monkeypatch.setattr(em, "CONTINUATION_RESIDUAL", 0.0)  # make the continuations run too
     results = []
     for cores in (2, 1):
@@ -273,10 +277,7 @@ def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkey
 
 
 def test_an_unconverged_fit_warns_once():
-    v, f = grid(15)
-    target = drape(v, 3.0)
-    surface, squared, _ = thickening_lengths(v, f, target, noise=1e-3)
-    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
+    v, f, target, surface, squared, reference = noisy_drape_with_flat_reference()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         embed_thickening(surface, squared, reference_points=reference, max_iterations=1)
@@ -284,8 +285,8 @@ def test_an_unconverged_fit_warns_once():
                    and "without converging" in str(w.message)]
     assert len(unconverged) == 1, [str(w.message) for w in caught]
     with pytest.warns(ShapeDifferenceWarning, match="without converging"):
-        embed_base_edges(mesh_topology(f, len(v)), mesh_topology(f, len(v)).squared_edge_lengths(target),
-                         initial_vertices=v, max_iterations=1)
+        topology = mesh_topology(f, len(v))
+        embed_base_edges(topology, topology.squared_edge_lengths(target), initial_vertices=v, max_iterations=1)
 
 
 def test_continuation_deforms_the_reference_into_the_target():
