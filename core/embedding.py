@@ -11,12 +11,8 @@ sense otherwise. The base layer (the first ``n`` rows) is the reconstructed pose
    hinges at once) and raced against the caller's reference pose (the base shape, from
    :class:`ReferenceShape`): a few Levenberg–Marquardt iterations each, the better one is
    polished to the end. Noisy hinge signs can fold the frames; the reference pose does not fold.
-2. **Fit: Levenberg–Marquardt** (only if the RMS relative residual exceeds ``tolerance``) of the
-   residuals ``(|x_i − x_j|² − ℓ²_e) / (2ℓ²_e)`` (≈ the relative length error: every edge counts
-   the same whatever its size), with a sparse Jacobian; each step is an inexact Newton step by
-   block-Jacobi preconditioned CG. The 6-dimensional rigid gauge is handled by the Levenberg
-   damping: rigid motions leave the residuals unchanged, so the gradient is orthogonal to them
-   and the damped step has no gauge component.
+2. **Fit** (:mod:`core.edge_length_fit`, only if the RMS relative residual exceeds
+   ``tolerance``): Levenberg–Marquardt on the relative length residuals.
 3. **Continuation** when the best fit stays far from realizable: the reference pose deformed
    gradually into the target lengths.
 
@@ -32,10 +28,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .edge_length_fit import DEFAULT_MAX_ITERATIONS, EdgeLengthFit, Fit, relative_residuals, rms
 from .errors import RecoveryError, ShapeDifferenceWarning
+from .hinge_frames import hinge_frame_embedding
 from .mesh_topology import MeshTopology
 from .offset_surface import OffsetSurface
-from .small_matrices import cofactors_3x3
 
 #: Hinge-frame starts with an RMS relative residual below this go straight to the polish.
 FRAMES_NEARLY_EXACT = 1e-6
@@ -57,8 +54,6 @@ START_TRIAL_ITERATIONS = 3
 #: rest → 48: 15.5 → 17.5 % at a lower residual).
 CONTINUATION_RESIDUAL = 2e-2
 CONTINUATION_SCHEDULES = (((0.25, 0.5, 0.75), 4), (tuple(np.arange(1, 8) / 8), 3))
-#: Default cap on Levenberg–Marquardt iterations.
-DEFAULT_MAX_ITERATIONS = 60
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,195 +87,6 @@ class EmbeddingResult:
         return self.points[: self.n_base]
 
 
-# ---------------------------------------------------------------------------------------------
-# Levenberg–Marquardt polish
-# ---------------------------------------------------------------------------------------------
-
-
-def _relative_residuals(x: np.ndarray, edges: np.ndarray, squared: np.ndarray):
-    d = x[edges[:, 0]] - x[edges[:, 1]]
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
-    target = np.sqrt(squared)
-    floor = np.finfo(float).tiny
-    return (length - target) / np.maximum(target, floor)
-
-
-#: Conjugate-gradient iterations per Gauss–Newton step (inexact Newton) and relative tolerance.
-CG_ITERATIONS = 300
-CG_TOLERANCE = 1e-4
-#: Levenberg–Marquardt stops when an accepted step lowers the cost by less than this fraction.
-STAGNATION = 1e-3
-
-
-def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
-    """Inverse 3×3 diagonal blocks ``(nf, 3, 3)`` of ``JᵀJ + diag(extra_diag)`` for rows
-    ``± g_e`` at unknowns ``edges_i`` / ``edges_j`` (−1: fixed)."""
-    blocks = np.zeros((nf, 3, 3))
-    outer = g[:, :, None] * g[:, None, :]
-    for cols in (edges_i, edges_j):
-        ok = cols >= 0
-        for r in range(3):
-            for c in range(3):
-                blocks[:, r, c] += np.bincount(cols[ok], outer[ok, r, c], minlength=nf)
-    blocks += extra_diag.reshape(nf, 3)[:, :, None] * np.eye(3)[None]
-    # Closed-form inverse; the blocks are symmetric positive definite (determinant > 0, the
-    # cofactor matrix its own transpose). Kept C-contiguous: the BSR product ravels its data on
-    # every call, and a transposed view made that a copy (+0.45 s on the 1k cloth's embedding).
-    cofactors, det = cofactors_3x3(blocks)
-    return cofactors / det[:, None, None]
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """Vector dot product without BLAS (multithreaded BLAS is slow for these sizes on a busy
-    machine: measured 40× slower than a single-threaded loop under load)."""
-    return float(np.einsum("i,i->", a, b))
-
-
-def _pcg(apply_A, b, apply_M, iterations, tolerance):
-    """Preconditioned conjugate gradients for an SPD operator (fixed small API, any SciPy)."""
-    x = np.zeros_like(b)
-    r = b.copy()
-    z = apply_M(r)
-    p = z.copy()
-    rz = _dot(r, z)
-    b_norm2 = _dot(b, b)
-    if b_norm2 == 0:
-        return x
-    for _ in range(iterations):
-        Ap = apply_A(p)
-        pAp = _dot(p, Ap)
-        if not pAp > 0:
-            break
-        alpha = rz / pAp
-        x += alpha * p
-        r -= alpha * Ap
-        if _dot(r, r) <= tolerance * tolerance * b_norm2:
-            break
-        z = apply_M(r)
-        rz_new = _dot(r, z)
-        p *= rz_new / rz
-        p += z
-        rz = rz_new
-    return x
-
-
-def _levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_weight=0.0, length_scale=1.0,
-                         tolerance=1e-12, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS):
-    """Minimize ``Σ_e r_e² + (w / h²) Σ_v |x_v − a_v|²`` with ``r_e = (|x_i − x_j|² − ℓ²_e)/(2ℓ²_e)``.
-
-    ``x0`` ``(N, 3)``; ``free`` bool ``(N,)`` points that move (the others stay); ``anchor_points``
-    ``(N, 3)`` with NaN rows for unanchored points; ``length_scale`` ``h`` the mean edge length.
-    Each step solves ``(JᵀJ + µI + A) δ = −g`` by block-Jacobi preconditioned CG (an inexact
-    Newton step; SuperLU was measured 0.4–3 s per factorization already at 1k vertices). Returns
-    ``(x, iterations, converged)``.
-    """
-    from scipy.sparse import bsr_matrix, coo_matrix
-
-    N = x0.shape[0]
-    index = np.full(N, -1, dtype=np.int64)
-    index[free] = np.arange(int(free.sum()))
-    nf = int(free.sum())
-    use = (index[edges[:, 0]] >= 0) | (index[edges[:, 1]] >= 0)
-    edges, squared = edges[use], squared[use]
-    scale2 = np.maximum(squared, 1e-12 * max(float(np.mean(squared)) if squared.size else 1.0, np.finfo(float).tiny))
-    inv = 1.0 / (2.0 * scale2)
-    anchored = np.zeros(N, dtype=bool)
-    aw = 0.0
-    if anchor_points is not None and anchor_weight > 0:
-        anchored = free & np.isfinite(anchor_points).all(axis=1)
-        aw = float(anchor_weight) / (length_scale * length_scale)
-    anchor_diag = np.zeros(3 * nf)
-    if aw:
-        anchor_diag.reshape(nf, 3)[index[anchored]] = aw
-    x = x0.copy()
-    ei, ej = index[edges[:, 0]], index[edges[:, 1]]
-
-    def cost_of(x):
-        d = x[edges[:, 0]] - x[edges[:, 1]]
-        r = (np.einsum("ij,ij->i", d, d) - squared) * inv
-        c = float(r @ r)
-        if aw:
-            da = x[anchored] - anchor_points[anchored]
-            c += aw * float(np.einsum("ij,ij->", da, da))
-        return c, r, d
-
-    def scatter(values_i, values_j):
-        """Σ over edges of per-edge 3-vectors into the unknowns, (nf*3,)."""
-        out = np.zeros((nf, 3))
-        for cols, vals in ((ei, values_i), (ej, values_j)):
-            ok = cols >= 0
-            for k in range(3):
-                out[:, k] += np.bincount(cols[ok], vals[ok, k], minlength=nf)
-        return out.ravel()
-
-    cost, r, d = cost_of(x)
-    iterations, converged = 0, False
-    mu = None
-    rows = np.arange(edges.shape[0])
-    block_index, block_pointer = np.arange(nf), np.arange(nf + 1)
-    for iterations in range(1, max_iterations + 1):
-        rms = np.sqrt(np.mean(_relative_residuals(x, edges, squared) ** 2)) if edges.size else 0.0
-        if rms <= tolerance and not aw:
-            converged = True
-            iterations -= 1
-            break
-        g = 2.0 * d * inv[:, None]  # ∂r_e/∂x_i = g_e, ∂r_e/∂x_j = −g_e
-        grad = scatter(g * r[:, None], -g * r[:, None])
-        if aw:
-            grad.reshape(nf, 3)[index[anchored]] += aw * (x[anchored] - anchor_points[anchored])
-        data, rr, cc = [], [], []
-        for cols, sgn in ((ei, 1.0), (ej, -1.0)):
-            ok = cols >= 0
-            for k in range(3):
-                data.append(sgn * g[ok, k])
-                rr.append(rows[ok])
-                cc.append(3 * cols[ok] + k)
-        J = coo_matrix((np.concatenate(data), (np.concatenate(rr), np.concatenate(cc))),
-                       shape=(edges.shape[0], 3 * nf)).tocsr()
-        JT = J.T.tocsr()
-        gg = np.einsum("ij,ij->i", g, g)
-        mean_diag = float(2.0 * gg.sum() / max(3 * nf, 1) + anchor_diag.mean()) if nf else 1.0
-        if mu is None:
-            mu = 1e-6 * mean_diag
-        floor = 1e-12 * mean_diag
-        accepted = False
-        for _ in range(10):
-            damping = max(mu, floor)
-            # Block-diagonal preconditioner as a BSR matrix: its product is 3× faster than an
-            # einsum over the (nf, 3, 3) blocks (30 vs 100 µs at 4k points).
-            preconditioner = bsr_matrix((_block_jacobi(ei, ej, g, nf, anchor_diag + damping), block_index,
-                                         block_pointer), shape=(3 * nf, 3 * nf))
-            diagonal = anchor_diag + damping
-
-            def apply_A(v, diagonal=diagonal):
-                return JT @ (J @ v) + diagonal * v
-
-            step = -_pcg(apply_A, grad, preconditioner.__matmul__, cg_iterations, CG_TOLERANCE)
-            trial = x.copy()
-            trial[free] += step.reshape(-1, 3)
-            new_cost, new_r, new_d = cost_of(trial)
-            if np.isfinite(new_cost) and new_cost <= cost:
-                improvement = cost - new_cost
-                x, r, d = trial, new_r, new_d
-                old_cost, cost = cost, new_cost
-                mu = max(mu / 4.0, floor)
-                accepted = True
-                break
-            mu = damping * 8.0
-        if not accepted:
-            converged = True  # no descent possible: a (local) minimum to working precision
-            break
-        if improvement <= STAGNATION * old_cost or np.abs(step).max() <= 1e-14 * length_scale:
-            converged = True
-            break
-    return x, iterations, converged
-
-
-# ---------------------------------------------------------------------------------------------
-# public API
-# ---------------------------------------------------------------------------------------------
-
-
 def _check_lengths(squared, expected: int, what: str) -> np.ndarray:
     s = np.asarray(squared, dtype=np.float64).reshape(-1)
     if s.shape[0] != expected:
@@ -311,14 +117,10 @@ def _anchor_array(anchor, n_points: int, n_base: int):
     return out, weight
 
 
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(values * values))) if values.size else 0.0
-
-
 def _finish(x, edges, squared, n_base, x_start, iterations, initializer, converged, components=1,
             unresolved=0):
-    rel = _relative_residuals(x, edges, squared) if edges.size else np.zeros(1)
-    rel0 = _relative_residuals(x_start, edges, squared) if edges.size else np.zeros(1)
+    rel = relative_residuals(x, edges, squared) if edges.size else np.zeros(1)
+    rel0 = relative_residuals(x_start, edges, squared) if edges.size else np.zeros(1)
     if not np.isfinite(x).all():
         raise RecoveryError("The embedding produced non-finite positions; the edge lengths are inconsistent.")
     return EmbeddingResult(
@@ -408,6 +210,8 @@ def embed_thickening(
     n_comp_real = int(np.unique(labels[has_edge]).size)
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
 
+    problem = EdgeLengthFit(edges, squared, has_edge, anchor_points, anchor_weight, length_scale, tolerance)
+
     fallback = np.zeros((n_points, 3))
     continuation_start = None
     if initial_points is not None:
@@ -417,15 +221,13 @@ def embed_thickening(
         fallback = x0.copy()
         starts = [("initial_points", x0)]
     if initial_points is None:
-        from .hinge_frames import hinge_frame_embedding
-
         frames = hinge_frame_embedding(surface, squared)
-        x0, frames_rms = frames.points, _rms(_relative_residuals(frames.points, edges, squared))
+        x0, frames_rms = frames.points, problem.residual(frames.points)
         starts = [("hinge_frames", x0)]
         if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
             # Inexact lengths: fit the frames to all hinges at once rather than chain them.
             synchronized = frames.synchronized()
-            if _rms(_relative_residuals(synchronized, edges, squared)) < frames_rms:
+            if problem.residual(synchronized) < frames_rms:
                 starts = [("hinge_frames", synchronized)]
             if reference_points is not None:
                 reference = np.array(reference_points, dtype=np.float64)
@@ -438,20 +240,6 @@ def embed_thickening(
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
 
-    def polish(start, budget):
-        x, iterations, converged = _polish(start, edges, squared, has_edge, anchor_points, anchor_weight,
-                                           length_scale, tolerance, budget)
-        return [_rms(_relative_residuals(x, edges, squared)), x, iterations, converged]
-
-    def finish(trial):
-        """Polish a trial to the end (the remaining iteration budget)."""
-        residual, x, iterations, converged = trial
-        if converged or iterations >= max_iterations:
-            return trial
-        rest = polish(x, max_iterations - iterations)
-        rest[2] += iterations
-        return rest
-
     def prepared(start):
         if anchor_points is not None and initial_points is None:
             start = _align_components(start, anchor_points, labels, has_edge)
@@ -460,47 +248,50 @@ def embed_thickening(
 
     # Several starts are raced: a short trial each, the lowest residual goes on to the end.
     budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 else max_iterations
-    trials = [(name, prepared(start), None) for name, start in starts]
-    fits = _concurrently(lambda item: polish(item[1], budget), trials)
-    trials = [item + (fit,) for item, fit in zip(trials, fits)]
-    best = min(trials, key=lambda item: item[3][0])
-    best = best[:3] + (finish(best[3]),)
-    if continuation_start is not None and best[3][0] > CONTINUATION_RESIDUAL:
+    candidates = [_Start(name, prepared(points)) for name, points in starts]
+    trials = _concurrently(lambda start: problem.fit(start.points, budget), candidates)
+    best_start, best_trial = min(zip(candidates, trials), key=lambda pair: pair[1].residual)
+    best = _Embedded(best_start, problem.resume(best_trial, max_iterations))
+    if continuation_start is not None and best.fit.residual > CONTINUATION_RESIDUAL:
         # Far from realizable: the fit stopped in the basin of its start. Deform the reference
         # pose gradually instead (its own lengths blended into the targets) and keep the better.
         def continued(schedule):
             fractions, steps = schedule
-            x = _continuation(prepared(continuation_start.copy()), edges, squared, has_edge, anchor_points,
-                              anchor_weight, length_scale, tolerance, fractions, steps)
-            return polish(x, max_iterations)
+            x = problem.continuation(prepared(continuation_start.copy()), fractions, steps)
+            return problem.fit(x, max_iterations)
 
         for trial in _concurrently(continued, CONTINUATION_SCHEDULES):
-            if trial[0] < best[3][0]:
-                best = ("continuation", continuation_start, None, trial)
-    initializer, x0, greedy, (_, x, iterations, converged) = best
-    if not converged:
-        _warn_unconverged(x, edges, squared, iterations)
-    unresolved = frames.unresolved if initializer == "hinge_frames" else 0
-    return _finish(x, edges, squared, n_base, x0, iterations, initializer, converged, n_comp_real,
-                   unresolved=unresolved)
+            if trial.residual < best.fit.residual:
+                best = _Embedded(_Start("continuation", continuation_start), trial)
+    fit = best.fit
+    if not fit.converged:
+        _warn_unconverged(fit.points, edges, squared, fit.iterations)
+    unresolved = frames.unresolved if best.start.name == "hinge_frames" else 0
+    return _finish(fit.points, edges, squared, n_base, best.start.points, fit.iterations, best.start.name,
+                   fit.converged, n_comp_real, unresolved=unresolved)
 
 
-def _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, max_iterations):
-    rel = _relative_residuals(x0, edges, squared)
-    if (np.sqrt(np.mean(rel * rel)) <= tolerance and not anchor_weight) or max_iterations <= 0:
-        return x0, 0, True
-    x, iterations, converged = _levenberg_marquardt(
-        x0, edges, squared, free, anchor_points=anchor_points, anchor_weight=anchor_weight,
-        length_scale=length_scale, tolerance=tolerance, max_iterations=max_iterations,
-    )
-    return x, iterations, converged
+@dataclass(frozen=True, eq=False)
+class _Start:
+    """A start of the fit: ``name`` (the result's ``initializer``) and ``points`` ``(N, 3)``."""
+
+    name: str
+    points: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Embedded:
+    """The chosen start and the fit from it."""
+
+    start: _Start
+    fit: Fit
 
 
 def _warn_unconverged(x, edges, squared, iterations):
     """The public embedders' warning for a fit that stopped before converging."""
     warnings.warn(
         f"Embedding: Levenberg–Marquardt stopped after {iterations} iterations without converging "
-        f"(RMS relative length residual {_rms(_relative_residuals(x, edges, squared)):.3g}); the result "
+        f"(RMS relative length residual {rms(relative_residuals(x, edges, squared)):.3g}); the result "
         "is the best fit found. Increase max_iterations or check the recovered lengths.",
         ShapeDifferenceWarning,
         stacklevel=3,
@@ -521,19 +312,6 @@ def _concurrently(function, items) -> list:
 
     with ThreadPoolExecutor(workers) as pool:
         return list(pool.map(function, items))
-
-
-def _continuation(x, edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance, fractions,
-                  iterations):
-    """Deform ``x`` ``(N, 3)`` gradually towards ``squared``: ``iterations`` LM steps on its own
-    squared lengths blended into the targets by each of ``fractions`` (the full step is the
-    caller's)."""
-    d = x[edges[:, 0]] - x[edges[:, 1]]
-    own = np.einsum("ij,ij->i", d, d)
-    for fraction in fractions:  # intermediate steps are capped: not converging there is expected
-        x, _, _ = _polish(x, edges, (1.0 - fraction) * own + fraction * squared, free, anchor_points,
-                          anchor_weight, length_scale, tolerance, iterations)
-    return x
 
 
 def embed_base_edges(
@@ -562,32 +340,8 @@ def embed_base_edges(
     free = np.zeros(topology.n_vertices, dtype=bool)
     free[edges.ravel()] = True
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
-    x, iterations, converged = _polish(x0, edges, squared, free, anchor_points, anchor_weight, length_scale,
-                                        tolerance, max_iterations)
-    if not converged:
-        _warn_unconverged(x, edges, squared, iterations)
-    return _finish(x, edges, squared, topology.n_vertices, x0, iterations, "initial_points", converged)
-
-
-def refine_edge_lengths(vertices: np.ndarray, edges: np.ndarray, squared_lengths: np.ndarray, *,
-                        anchor_weight: float, max_iterations: int, fixed: np.ndarray | None = None,
-                        cg_iterations: int = CG_ITERATIONS) -> np.ndarray:
-    """A few Levenberg–Marquardt steps moving ``vertices`` ``(n, 3)`` towards the squared edge
-    lengths ``squared_lengths`` ``(E,)`` of ``edges`` ``(E, 2)``, each vertex softly anchored to
-    its start (``anchor_weight`` per squared mean edge length, which also fixes the rigid gauge);
-    ``fixed`` bool ``(n,)`` vertices stay. Returns the new positions ``(n, 3)``; no convergence
-    is required (a polish of a pose that already nearly fits); ``cg_iterations`` caps each inexact
-    Newton step."""
-    x0 = np.asarray(vertices, dtype=np.float64)
-    squared = np.asarray(squared_lengths, dtype=np.float64)
-    free = np.zeros(x0.shape[0], dtype=bool)
-    free[edges.ravel()] = True
-    if fixed is not None:
-        free &= ~fixed
-    if not free.any():
-        return x0.copy()
-    length_scale = float(np.mean(np.sqrt(squared)))
-    x, _, _ = _levenberg_marquardt(x0, edges, squared, free, anchor_points=x0, anchor_weight=anchor_weight,
-                                   length_scale=length_scale, max_iterations=max_iterations,
-                                   cg_iterations=cg_iterations)
-    return x
+    problem = EdgeLengthFit(edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance)
+    fit = problem.fit(x0, max_iterations)
+    if not fit.converged:
+        _warn_unconverged(fit.points, edges, squared, fit.iterations)
+    return _finish(fit.points, edges, squared, topology.n_vertices, x0, fit.iterations, "initial_points", fit.converged)
