@@ -46,6 +46,9 @@ ANDERSON_RCOND = 1e-10
 
 @dataclass
 class ADMMSolution:
+    """``x`` the last x-iterate, after ``iterations``; ``converged`` False when stopped by the
+    iteration cap or a stall."""
+
     x: np.ndarray
     iterations: int
     converged: bool
@@ -72,8 +75,7 @@ def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u
     def step(v):
         x = solver.solve(b + rho * np.bincount(slots, v, minlength=n))
         xs = x[slots]
-        # v = z − u; the z-update reads Sx + u = Sx + (z − v) — keep z, u implicit through
-        # the reflected form: with w = 2 Sx − v, z = Π(w), u = Sx − v ... (standard DR).
+        # Douglas–Rachford form of the scaled ADMM step: z = Π(2 Sx − v), then v ← v + z − Sx.
         w = 2.0 * xs - v
         z = project(w)
         return v + z - xs, x, xs, z
