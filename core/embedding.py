@@ -192,23 +192,23 @@ def embed_thickening(
         if x0.shape != (n_points, 3) or not np.isfinite(x0).all():
             raise RecoveryError(f"initial_points must be finite with shape ({n_points}, 3); got {x0.shape}.")
         fallback = x0.copy()
-        starts = [("initial_points", x0)]
-    if initial_points is None:
+        starts = [_Start("initial_points", x0)]
+    else:
         frames = hinge_frame_embedding(surface, squared)
         x0, frames_rms = frames.points, problem.residual(frames.points)
-        starts = [("hinge_frames", x0)]
+        starts = [_Start("hinge_frames", x0)]
         if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
             # Inexact lengths: fit the frames to all hinges at once rather than chain them.
             synchronized = frames.synchronized()
             if problem.residual(synchronized) < frames_rms:
-                starts = [("hinge_frames", synchronized)]
+                starts = [_Start("hinge_frames", synchronized)]
             if reference_points is not None:
                 reference = np.array(reference_points, dtype=np.float64)
                 if reference.shape != (n_points, 3) or not np.isfinite(reference).all():
                     raise RecoveryError(
                         f"reference_points must be finite with shape ({n_points}, 3); got {reference.shape}."
                     )
-                starts.append(("reference_points", reference))
+                starts.append(_Start("reference_points", reference))
                 continuation_start = reference
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
@@ -221,7 +221,7 @@ def embed_thickening(
 
     # Several starts are raced: a short trial each, the lowest residual goes on to the end.
     budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 else max_iterations
-    candidates = [_Start(name, prepared(points)) for name, points in starts]
+    candidates = [_Start(start.name, prepared(start.points)) for start in starts]
     trials = _concurrently(lambda start: problem.fit(start.points, budget), candidates)
     best_start, best_trial = min(zip(candidates, trials), key=lambda pair: pair[1].residual)
     best = _Embedded(best_start, problem.resume(best_trial, max_iterations))
