@@ -9,7 +9,8 @@ bending, so they separate those poses and lay an animation's frames along a curv
 
 Cost: what depends only on the base (topology, offset surface, the base's ``k_M`` eigenbases) is
 prepared once by one :class:`~core.reference_shape.ReferenceShape`; per pose, eq. (6) needs the
-first ``k_N`` eigenpairs of the pose and of its offset surface (ARPACK), and eq. (5)
+first ``k_N`` eigenpairs of the pose and of its offset surface (ARPACK; the pose's basis ends at
+a spectral gap at or just above ``k_N``, :data:`SPECTRAL_GAP`), and eq. (5)
 (``k_N=None``) needs none — only sparse products, ~100× cheaper. The per-pose work runs with
 one BLAS thread: on a shared 2-core machine the threaded BLAS made the offset eigensolve 3× slower
 (see ``benchmarks/bench_analysis.py``). A warm-started block solver (LOBPCG from the base's
@@ -101,6 +102,41 @@ class ShapeSpace:
         return np.argsort(self.coordinates(kind, 1)[:, 0], kind="stable")
 
 
+#: The pose's basis of eq. (6) ends at the first index ≥ k_N where the next eigenvalue is at least
+#: this much larger (relative): a cut inside a cluster of (numerically) equal eigenvalues picks an
+#: arbitrary part of it, and then mirror-image poses — equal spectra up to round-off — got
+#: intrinsic points 1e-3 of the spread apart on the symmetric cube of Fig. 7 (1e-9 with the cut).
+SPECTRAL_GAP = 1e-6
+#: How many eigenpairs beyond k_N are computed to find that gap.
+GAP_SEARCH = 8
+
+
+def spectral_cut(eigenvalues: np.ndarray, k: int) -> int:
+    """The number of eigenpairs to keep: the first ``c ≥ k`` with a relative gap after index
+    ``c - 1`` (``k`` itself if there is none among ``eigenvalues``)."""
+    for c in range(k, eigenvalues.size):
+        if eigenvalues[c] - eigenvalues[c - 1] > SPECTRAL_GAP * abs(eigenvalues[c]):
+            return c
+    return k
+
+
+def pose_differences(layer, positions: np.ndarray, k_M: int, k_N: int | None):
+    """Area and conformal differences (eq. 5, or eq. 6 with the pose's basis cut at a spectral
+    gap, see :data:`SPECTRAL_GAP`) of one pose of a reference layer."""
+    from .inner_products import pose_products
+    from .laplace_basis import LaplaceBasis, laplace_basis
+    from .shape_difference import functional_map_differences, reduced_differences
+
+    _, _, mass, conformal = pose_products(layer.assembler, positions)
+    base_basis = layer.basis(k_M)
+    if k_N is None:
+        return reduced_differences(base_basis, mass, conformal)
+    size = max(k_N, min(k_N + GAP_SEARCH, layer.topology.n_vertices - 1))
+    basis = laplace_basis(mass, conformal, size, what=f"pose's {layer.name}")
+    cut = spectral_cut(basis.eigenvalues, k_N)
+    return functional_map_differences(base_basis, LaplaceBasis(basis.eigenvalues[:cut], basis.functions[:, :cut]), mass)
+
+
 def _single_threaded_blas():
     try:
         from threadpoolctl import threadpool_limits
@@ -132,12 +168,12 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     with _single_threaded_blas():
         for index, pose in enumerate(poses):
-            try:
-                differences = reference.shape_differences(pose, k_M=k_M, k_N=k_N)
-            except MeshError as error:
-                raise MeshError(f"Pose {index}: {error}") from error
-            for kind in KINDS:
-                features[kind][index] = getattr(differences, kind).matrix.ravel()
+            compact = reference.compact_pose(pose, name=f"pose {index}")
+            layers = [(reference.base, compact, KINDS[:2]),
+                      (reference.offset_layer, reference.surface.positions(compact, reference.offset), KINDS[2:])]
+            for layer, positions, kinds in layers:
+                for kind, difference in zip(kinds, pose_differences(layer, positions, k_M, k_N)):
+                    features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
     return ShapeSpace(features, k_M, k_N, reference.offset)
 

@@ -114,7 +114,7 @@ def test_bad_inputs_name_the_problem(bump_collection):
         core.shape_space(poses[:1], t)
     with pytest.raises(core.MeshError, match="set k_M"):
         core.shape_space(poses[:3], t, k_M=None, k_N=None)
-    with pytest.raises(core.MeshError, match="Pose 2"):
+    with pytest.raises(core.MeshError, match="pose 2"):
         core.shape_space([poses[0], poses[1], poses[2][:-1]], t, k_M=10, k_N=20)
     with pytest.raises(ValueError, match="kind must be one of"):
         core.shape_space(poses[:3], t, k_M=10, k_N=20).coordinates("volume")
