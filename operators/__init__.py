@@ -2,6 +2,7 @@
 
 import bpy
 
+from .analysis import classes as analysis_classes
 from .frames import SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
                     SHAPE_DIFFERENCES_OT_reconstruct)
@@ -12,6 +13,7 @@ classes = (
     SHAPE_DIFFERENCES_OT_exaggerate,
     SHAPE_DIFFERENCES_OT_reconstruct,
     SHAPE_DIFFERENCES_OT_inbetween_frames,
+    *analysis_classes,
 )
 
 register, unregister = bpy.utils.register_classes_factory(classes)
