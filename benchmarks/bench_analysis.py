@@ -243,7 +243,7 @@ def figure_pullback(v, t, target, base, pulled, exact, truth, own, ours):
     d_max = exact.geodesic_distances(source).max()
     for column, (name, positions, metric) in enumerate(rows):
         for row, (what, values, cmap, limits) in enumerate(
-            [("geodesic distance from the pole", metric.geodesic_distances(source), "magma", (0, d_max)),
+            [("geodesic distance from vertex 0", metric.geodesic_distances(source), "magma", (0, d_max)),
              ("eigenfunction 6", metric.eigenfunctions(6)[:, 5], "RdBu_r", None)]):
             ax = fig.add_subplot(2, 4, row * 4 + column + 1, projection="3d")
             face_values = values[t].mean(axis=1)
