@@ -188,15 +188,12 @@ def _scatter(reference, values):
 
 
 def _layouts(squared):
-    """Edge vectors ``(m, 3, 2)`` of each triangle laid out in the plane from its squared edge
-    lengths ``(m, 3)`` (edge ``c`` opposite corner ``c``: from corner c+1 to corner c+2)."""
-    l01 = np.sqrt(squared[:, 2])
-    x2 = (squared[:, 1] + squared[:, 2] - squared[:, 0]) / (2.0 * l01)
-    y2 = np.sqrt(np.maximum(squared[:, 1] - x2 * x2, 0.0))
-    p = np.zeros((squared.shape[0], 3, 2))
-    p[:, 1, 0] = l01
-    p[:, 2, 0], p[:, 2, 1] = x2, y2
-    return p[:, [2, 0, 1]] - p[:, [1, 2, 0]]
+    """Edge vectors ``(m, 3, 2)`` of each triangle laid out in the plane (edge ``c`` opposite
+    corner ``c``, from corner c+1 to corner c+2)."""
+    from .pulled_back_metric import planar_layouts
+
+    corners = planar_layouts(squared)
+    return corners[:, [2, 0, 1]] - corners[:, [1, 2, 0]]
 
 
 def _conformal_ratio(base_edges, pose_squared):

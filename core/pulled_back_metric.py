@@ -39,6 +39,20 @@ def heron_areas(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
     return np.sqrt(np.where(q > 0, q, np.nan)) / 4.0
 
 
+def planar_layouts(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
+    """Corner positions ``(m, 3, 2)`` of each triangle laid out in the plane from its squared edge
+    lengths ``(m, 3)`` (edge ``c`` opposite corner ``c``): corner 0 at the origin, corner 1 on the
+    x axis, corner 2 above it (counter-clockwise)."""
+    x = squared_lengths_per_triangle
+    length_01 = np.sqrt(x[:, 2])
+    x2 = (x[:, 1] + x[:, 2] - x[:, 0]) / (2.0 * length_01)
+    corners = np.zeros((x.shape[0], 3, 2))
+    corners[:, 1, 0] = length_01
+    corners[:, 2, 0] = x2
+    corners[:, 2, 1] = np.sqrt(np.maximum(x[:, 1] - x2 * x2, 0.0))
+    return corners
+
+
 class IntrinsicTriangulation:
     """A triangle mesh known by its edge lengths only: per-triangle planar layouts, the gradient
     of piecewise-linear functions, the cotangent Laplacian and the heat method.
@@ -57,13 +71,7 @@ class IntrinsicTriangulation:
                 f"Triangle {bad}'s edge lengths violate the triangle inequality: the metric is not "
                 "a valid triangulation (recover it from less truncated differences)."
             )
-        # Planar layout of every triangle: corner 0 at the origin, corner 1 on the x axis.
-        length_01 = np.sqrt(per_triangle[:, 2])
-        x2 = (per_triangle[:, 1] + per_triangle[:, 2] - per_triangle[:, 0]) / (2.0 * length_01)
-        y2 = 2.0 * self.areas / length_01
-        corners = np.zeros((topology.n_triangles, 3, 2))
-        corners[:, 1, 0] = length_01
-        corners[:, 2, 0], corners[:, 2, 1] = x2, y2
+        corners = planar_layouts(per_triangle)
         # Gradient of the hat function of corner c: the opposite edge turned by 90°, / (2 area).
         opposite = corners[:, [2, 0, 1]] - corners[:, [1, 2, 0]]
         self.hat_gradients = np.stack([-opposite[..., 1], opposite[..., 0]], axis=-1) / (2.0 * self.areas[:, None, None])
