@@ -148,9 +148,28 @@ def cloth(count=24, k_m=50, k_n=100, figure=True):
               f"variance PC1/PC2 {100 * ratio[0]:.1f}/{100 * ratio[1]:.1f} %")
     if not figure:
         return
+    blender_image(space, IMAGES / "shape_space_blender_image.png")
     scatter_panels(space, np.arange(len(frames)), "Frames of a cloth simulation (drape over a sphere), coloured by "
                    "frame: the offset embeddings recover the playing order", IMAGES / "shape_space_cloth.png",
                    connect=True, colorbar_label="frame index")
+
+
+def blender_image(space, path):
+    """The picture the Shape Space operator draws into a Blender image (NumPy raster, bitmap font)."""
+    import importlib.util
+
+    import matplotlib.image
+
+    # operators/ is a package of the extension (relative imports of bridge, bpy); this module of
+    # it is bpy-free, so load it by path.
+    spec = importlib.util.spec_from_file_location("analysis_plot", ROOT / "operators" / "analysis_plot.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    shape_space_image = module.shape_space_image
+
+    canvas = shape_space_image({kind: space.coordinates(kind, 2) for kind in KINDS},
+                               {kind: space.explained_variance_ratio(kind) for kind in KINDS})
+    matplotlib.image.imsave(path, np.clip(canvas.pixels, 0.0, 1.0))
 
 
 # -- speed -----------------------------------------------------------------------------------------

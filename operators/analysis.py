@@ -80,6 +80,7 @@ def shape_space_image(obj, data: dict, highlight: int | None = None):
         image = bpy.data.images.new(data["image"], width, height, alpha=True, float_buffer=True)
     image.pixels.foreach_set(pixels.ravel())
     image.update()
+    image.preview_ensure().reload()  # the sidebar shows the preview (drawing may not create it)
     return image
 
 

@@ -112,8 +112,7 @@ class VIEW3D_PT_shape_differences_analysis(ShapeDiffPanel, bpy.types.Panel):
                 shares = " / ".join(f"{100 * value:.1f} %" for value in list(data["variance"][kind])[:2])
                 column.label(text=f"  {kind.replace('_', ' ').title()}: {shares}")
             image = bpy.data.images.get(data["image"])
-            if image is not None:
-                image.preview_ensure()
+            if image is not None and image.preview is not None:
                 layout.template_icon(icon_value=image.preview.icon_id, scale=8.0)
             row = layout.row(align=True)
             for text, step, icon in (("Previous", -1, 'TRIA_LEFT'), ("Next", 1, 'TRIA_RIGHT')):
