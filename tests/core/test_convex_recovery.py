@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import core
-from core import RecoveryError
+from core import RecoveryError, admm, truncated_recovery
 from core.low_rank import low_rank_gram, randomly_pivoted_cholesky
 from core.reference_shape import ReferenceShape
 from core.triangle_constraints import CONSTRAINT_TOLERANCE, heron, project_triangles
@@ -254,8 +254,8 @@ def test_layers_recovered_concurrently_match_one_after_the_other(monkeypatch):
         together = ReferenceShape(v, t)
         metric = together.recover_metric(together.shape_differences(target, k_M=30, k_N=60))
         apart = separately()
-        monkeypatch.setattr(cr, "CG_TOLERANCE", 1e-2 * cr.CG_TOLERANCE)
-        monkeypatch.setattr(cr, "ADMM_TOLERANCE", 1e-2 * cr.ADMM_TOLERANCE)
+        monkeypatch.setattr(truncated_recovery, "CG_TOLERANCE", 1e-2 * truncated_recovery.CG_TOLERANCE)
+        monkeypatch.setattr(admm, "ADMM_TOLERANCE", 1e-2 * admm.ADMM_TOLERANCE)
         converged = separately()
     for got, expected, tight in zip((metric.base, metric.offset), apart, converged):
         for name in ("areas", "squared_lengths"):
