@@ -289,6 +289,9 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangePr
             results.append((distortion, eigen))
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
+        if self.source == 'FRAMES':
+            # The frame handler shows the map of the frame being played (see follow_frame).
+            mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}
         what = f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"{len(poses)} frames"
         self.summary = (f"Wrote distortion maps of {what}: colour attributes "
                         f"{', '.join('SD ' + name + labels[0] for name, *_ in MAPS)}"
@@ -324,6 +327,40 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangePr
         if first is not None:  # by name: references to attributes go stale as others are added
             mesh.color_attributes.active_color = mesh.color_attributes[first]
         mesh.update()
+
+
+#: Custom property (on the mesh) listing the frames that have distortion maps.
+FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"
+
+
+@bpy.app.handlers.persistent
+def follow_frame(scene, _depsgraph=None):
+    """After a frame change, make each mesh's distortion map of that frame (or of the last mapped
+    frame before it) the active colour attribute, so playback shows the maps frame by frame. Only
+    which colour attribute is active changes. The map shown is the one whose prefix the active
+    colour attribute has (SD Area, SD Conformal, SD Bending), so picking one in the list sticks."""
+    for obj in scene.objects:
+        mesh = obj.data if obj.type == 'MESH' else None
+        if mesh is None or FRAME_MAPS_PROPERTY not in mesh:
+            continue
+        frames = sorted(int(frame) for frame in mesh[FRAME_MAPS_PROPERTY]["frames"])
+        shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
+        active = mesh.color_attributes.active_color
+        kind = next((name for name, *_ in MAPS if active is not None and active.name.startswith(f"SD {name} f")),
+                    mesh[FRAME_MAPS_PROPERTY]["map"])
+        attribute = mesh.color_attributes.get(f"SD {kind} f{shown[-1]}")
+        if attribute is not None and (active is None or active.name != attribute.name):
+            mesh.color_attributes.active_color = attribute
+
+
+def register_handlers():
+    if follow_frame not in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.append(follow_frame)
+
+
+def unregister_handlers():
+    if follow_frame in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.remove(follow_frame)
 
 
 classes = (

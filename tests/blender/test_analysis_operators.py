@@ -100,6 +100,14 @@ def test_distortion_maps_of_frames(bpy_empty, extension):
     assert_unchanged(before, snapshot(bridge, obj))
     for frame in (1, 3, 5):
         assert obj.data.color_attributes.get(f"SD Bending f{frame}") is not None
+    # Playback shows each frame's map (the last mapped frame before it in between).
+    for frame, shown in ((3, "SD Area f3"), (4, "SD Area f3"), (5, "SD Area f5")):
+        bpy.context.scene.frame_set(frame)
+        assert obj.data.color_attributes.active_color.name == shown
+    obj.data.color_attributes.active_color = obj.data.color_attributes["SD Bending f5"]
+    bpy.context.scene.frame_set(1)
+    assert obj.data.color_attributes.active_color.name == "SD Bending f1"
+    assert_unchanged(dict(before, frame=1), snapshot(bridge, obj))
 
 
 def test_errors_change_nothing(keyed):
