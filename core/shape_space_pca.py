@@ -11,12 +11,12 @@ Cost: what depends only on the base (topology, offset surface, the base's ``k_M`
 prepared once by one :class:`~core.reference_shape.ReferenceShape`; per pose, eq. (6) needs the
 first ``k_N`` eigenpairs of the pose and of its offset surface (ARPACK; the pose's basis ends at
 a spectral gap at or just above ``k_N``, :data:`SPECTRAL_GAP`), and eq. (5)
-(``k_N=None``) needs none — only sparse products, ~100× cheaper. The per-pose work runs with
-one BLAS thread: on a shared 2-core machine the threaded BLAS made the offset eigensolve 3× slower
-(see ``benchmarks/bench_analysis.py``). A warm-started block solver (LOBPCG from the base's
-eigenvectors with the pose's exact shift-invert preconditioner) needed 4–5 iterations and was
-1.5–2.5× slower than ARPACK from scratch at k = 100 on a 2,944-vertex offset surface, so it is
-not used (docs/analysis.md).
+(``k_N=None``) needs none — only sparse products, ~30× cheaper. The per-pose work runs with one
+BLAS thread: on a shared 2-core machine the threaded BLAS made these small dense problems far
+slower (a 220 × 220 ``eigh``: 0.35 s against 0.024 s; 50 cloth frames: 9.5 s/pose before, 2.0 s
+now; see docs/analysis.md). A warm-started block solver (LOBPCG from the base's eigenvectors with
+the pose's exact shift-invert preconditioner) needed 3–5 iterations and was 1.5–2.5× slower than
+ARPACK from scratch at k = 100 on a 2,944-vertex offset surface, so it is not used.
 """
 
 from __future__ import annotations
