@@ -10,6 +10,9 @@ Public API (arrays: vertices float64 ``(n, 3)``, triangles int ``(m, 3)``):
 - :func:`interpolate`, :class:`Interpolator`, :class:`SequenceInterpolator` — in-betweens and
   exaggerations by interpolating shape differences (§8.4).
 - :class:`ReferenceShape` — a base mesh prepared once for many targets.
+- :func:`shape_space` — PCA of the differences of a collection of poses (§8.1);
+  :func:`pull_back` — the target's metric on the base mesh: Laplacian, geodesics, WKS (§8.3);
+  :func:`distortion` — per-face and per-vertex distortion maps of a pose.
 - :func:`default_offset`; errors :class:`MeshError`, :class:`RecoveryError` (both
   :class:`ShapeDifferenceError`) and :class:`ShapeDifferenceWarning`.
 """
@@ -32,6 +35,12 @@ __all__ = [
     "ShapeDifferences",
     "RecoveredMetric",
     "default_offset",
+    "shape_space",
+    "ShapeSpace",
+    "pull_back",
+    "PulledBackMetric",
+    "distortion",
+    "Distortion",
     "MeshError",
     "RecoveryError",
     "ShapeDifferenceError",
@@ -59,6 +68,16 @@ def shape_differences(
     """
     reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
     return reference.shape_differences(target_vertices, k_M=k_M, k_N=k_N)
+
+
+_ANALYSIS = {
+    "shape_space": ".shape_space_pca",
+    "ShapeSpace": ".shape_space_pca",
+    "pull_back": ".pulled_back_metric",
+    "PulledBackMetric": ".pulled_back_metric",
+    "distortion": ".distortion_maps",
+    "Distortion": ".distortion_maps",
+}
 
 
 def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.ndarray:
@@ -102,6 +121,11 @@ def interpolate(
 
 
 def __getattr__(name: str):
+    # Analysis modules (shape space, pull-back, distortion) load on first use as well.
+    if name in _ANALYSIS:
+        import importlib
+
+        return getattr(importlib.import_module(_ANALYSIS[name], __name__), name)
     # Interpolation classes load on first use, keeping `import core` light.
     if name in ("Interpolator", "SequenceInterpolator"):
         from . import interpolation

@@ -90,8 +90,44 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         operator.frame_step, operator.count = settings.frame_step, settings.frame_count
 
 
+class VIEW3D_PT_shape_differences_analysis(ShapeDiffPanel, bpy.types.Panel):
+    """Shape space and distortion maps (operators/analysis.py); results stored on the object."""
+
+    bl_label = "Analysis"
+    bl_parent_id = "VIEW3D_PT_shape_differences"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        from ..operators.analysis import KINDS, stored_shape_space
+
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator("shape_differences.shape_space", text="Space of Keys", icon='SHAPEKEY_DATA').source = 'KEYS'
+        row.operator("shape_differences.shape_space", text="Space of Frames", icon='ANIM').source = 'FRAMES'
+        data = stored_shape_space(context.active_object)
+        if data is not None:
+            column = layout.column(align=True)
+            column.label(text=f"{len(data['poses'])} poses, k {data['k_M']}/{data['k_N'] or '-'}; PC 1 / PC 2 share:")
+            for kind in KINDS:
+                shares = " / ".join(f"{100 * value:.1f} %" for value in list(data["variance"][kind])[:2])
+                column.label(text=f"  {kind.replace('_', ' ').title()}: {shares}")
+            image = bpy.data.images.get(data["image"])
+            if image is not None and image.preview is not None:
+                layout.template_icon(icon_value=image.preview.icon_id, scale=8.0)
+            row = layout.row(align=True)
+            for text, step, icon in (("Previous", -1, 'TRIA_LEFT'), ("Next", 1, 'TRIA_RIGHT')):
+                operator = row.operator("shape_differences.shape_space_select", text=text, icon=icon)
+                operator.kind, operator.rank, operator.step = 'offset_area', -1, step
+        layout.separator()
+        row = layout.row(align=True)
+        row.operator("shape_differences.distortion_maps", text="Maps of Active Key",
+                     icon='MOD_VERTEX_WEIGHT').source = 'ACTIVE_KEY'
+        row.operator("shape_differences.distortion_maps", text="Maps of Frames", icon='ANIM').source = 'FRAMES'
+
+
 classes = (
     VIEW3D_PT_shape_differences,
     VIEW3D_PT_shape_differences_poses,
     VIEW3D_PT_shape_differences_animation,
+    VIEW3D_PT_shape_differences_analysis,
 )
