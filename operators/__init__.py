@@ -2,7 +2,8 @@
 
 import bpy
 
-from .frames import SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames
+from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames,
+                     SHAPE_DIFFERENCES_OT_retime)
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
                     SHAPE_DIFFERENCES_OT_reconstruct)
 
@@ -12,6 +13,7 @@ classes = (
     SHAPE_DIFFERENCES_OT_exaggerate,
     SHAPE_DIFFERENCES_OT_reconstruct,
     SHAPE_DIFFERENCES_OT_inbetween_frames,
+    SHAPE_DIFFERENCES_OT_retime,
 )
 
 register, unregister = bpy.utils.register_classes_factory(classes)

@@ -55,12 +55,12 @@ def test_exaggerate(posed, core):
     obj, bridge = posed
     before = snapshot(bridge, obj)
     bpy.ops.shape_differences.exaggerate(key="Bend", factor=1.5)
-    assert key_names(obj)[-1] == "Exaggerate Bend 1.50"
+    assert key_names(obj)[-1] == "Exaggerate Bend 1.50 from Basis"
     assert_old_keys_kept(bridge, obj, before)
     expected = core.Interpolator(positions_of(bridge, obj, "Basis"),
                                  positions_of(bridge, obj, "Bend"),
                                  bridge.mesh_triangles(obj.data)).pose(1.5)
-    np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50"), expected,
+    np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50 from Basis"), expected,
                                atol=TOLERANCE)
 
 
