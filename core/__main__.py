@@ -3,6 +3,7 @@
     python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 -o out.pc2
     python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 --chunk 2/8 -o part2.pc2
     python -m core merge part1.pc2 part2.pc2 ... -o out.pc2
+    python -m core merge --numbered 'parts/chunk#.pc2' --count 8 -o out.pc2
     python -m core info in.pc2
 
 ``retime`` reads a PC2 or MDD cache (exported by any package) and the mesh's faces from an OBJ
@@ -67,7 +68,10 @@ def _parser() -> argparse.ArgumentParser:
     retime.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
     merge = commands.add_parser("merge", help="concatenate retimed chunks (in order) into one PC2")
-    merge.add_argument("parts", nargs="+", help="chunk PC2 files in chunk order")
+    merge.add_argument("parts", nargs="*", help="chunk PC2 files in chunk order")
+    merge.add_argument("--numbered", metavar="PATTERN",
+                       help="chunk files named by PATTERN with '#' replaced by 1..COUNT (for farm jobs)")
+    merge.add_argument("--count", type=int, help="number of numbered chunk files")
     merge.add_argument("-o", "--output", required=True, help="output PC2 file")
 
     info = commands.add_parser("info", help="print a cache's header")
@@ -116,8 +120,13 @@ def main(argv=None) -> int:
         if args.command == "retime":
             return _retime(args)
         if args.command == "merge":
-            merge_pc2(args.parts, args.output)
-            print(f"wrote {args.output} from {len(args.parts)} part(s)")
+            parts = list(args.parts)
+            if args.numbered:
+                if "#" not in args.numbered or not args.count or args.count < 1:
+                    raise ShapeDifferenceError("--numbered needs a PATTERN with '#' and --count N >= 1")
+                parts += [args.numbered.replace("#", str(i)) for i in range(1, args.count + 1)]
+            merge_pc2(parts, args.output)
+            print(f"wrote {args.output} from {len(parts)} part(s)")
             return 0
         cache = read_point_cache(args.cache)
         print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, start {cache.start:g}, "

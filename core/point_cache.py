@@ -75,6 +75,7 @@ def _write_atomically(path: Path, chunks) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
+        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; a cache is shared like any file
         with os.fdopen(handle, "wb") as stream:
             for chunk in chunks:
                 stream.write(chunk)
@@ -82,6 +83,12 @@ def _write_atomically(path: Path, chunks) -> None:
     except BaseException:
         os.unlink(temporary)
         raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def pc2_header(n_points: int, n_samples: int, start: float = 0.0, sampling: float = 1.0) -> bytes:

@@ -82,7 +82,7 @@ def test_chunks_concatenate_bit_for_bit():
     source, triangles = rolling_sheet(n_frames=13)
     plan = plan_retime(13, 2, 0.7)
     whole = retime(source, triangles, step=2, speed=0.7)
-    for count in (2, 4, 7):
+    for count in (2, 7):  # 7 chunks of 6 gaps: one chunk is empty
         parts = [retime(source, triangles, step=2, speed=0.7, gaps=plan.chunk(i, count)) for i in range(count)]
         assert sum(len(part) for part in parts) == plan.n_out
         assert np.concatenate(parts).tobytes() == whole.tobytes()
