@@ -128,20 +128,23 @@ class GeneratorOperator:
 
     def _step(self) -> tuple[str | None, float]:
         """Advance the job by one step: (final status or None while running, progress)."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
-                return None, next(self._job)
-            except StopIteration:
-                return 'FINISHED', 1.0
-            except Exception as error:
-                message = reported_error(error, self.pose_names)
-                if message is None:
-                    raise
-                self.report({'ERROR'}, message)
-                return 'CANCELLED', 1.0
-            finally:
-                self._collect_warnings(caught)
+        caught = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    return None, next(self._job)
+                except StopIteration:
+                    return 'FINISHED', 1.0
+                except Exception as error:
+                    message = reported_error(error, self.pose_names)
+                    if message is None:
+                        raise
+                    self.report({'ERROR'}, message)
+                    return 'CANCELLED', 1.0
+        finally:
+            # After the recording ends: showing a foreign warning inside it would record it again.
+            self._collect_warnings(caught)
 
     def _collect_warnings(self, caught):
         core_warning = load_core().ShapeDifferenceWarning

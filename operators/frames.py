@@ -75,7 +75,7 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
     def run(self, context):
         obj = context.active_object
         frames = self.frames(context)
-        self.check_output(obj)
+        self.check_captured_output(obj)
         poses = yield from self.read_frames(context, obj, frames, 1.0)
         self.summary = self.write_poses(
             context, obj, poses, names=[frame_key_name(frame) for frame in frames],
@@ -101,7 +101,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         frames = self.frames(context)
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
-        self.check_output(obj)
+        self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in frames]
         poses = yield from self.read_frames(context, obj, frames, 0.2)
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, poses, triangles,
@@ -159,7 +159,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
-        self.check_output(obj)
+        self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
         poses = yield from self.read_frames(context, obj, key_frames, 0.1)
         samples = KeySamples(plan.n_source, dict(zip(plan.keys.tolist(), poses)))

@@ -27,6 +27,8 @@ from .base import InputError, load_core
 # Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
 SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
 CACHE_FOLDER = "caches"
+# Modifiers that do not move the mesh they are on.
+PASSIVE_MODIFIERS = {'COLLISION'}
 
 
 def unbaked_simulations(obj) -> list[str]:
@@ -61,10 +63,30 @@ class PoseWriter:
                 "(a new object; this one stays as it is), or bake the simulation first "
                 "(Physics › Cache › Bake)")
 
+    def check_captured_output(self, source) -> None:
+        """``check_output`` for poses captured from the evaluated mesh: shape keys added to
+        ``source`` are deformed again by what moved it, so say so (the work still runs)."""
+        self.check_output(source)
+        if self.output != 'SHAPE_KEYS':
+            return
+        movers = [f"'{m.name}'" for m in source.modifiers
+                  if m.show_viewport and m.type not in PASSIVE_MODIFIERS]
+        key = source.data.shape_keys
+        if key is not None and key.animation_data is not None and (
+                key.animation_data.action is not None or len(key.animation_data.drivers)):
+            movers.append("its animated shape keys")
+        if movers:
+            self.report({'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
+                                     f"of '{source.name}': disable those to play them as captured, "
+                                     "or use Output › Point Cache (a new object)")
+
     def cache_path(self, object_name: str) -> tuple[Path, str]:
         """The PC2 file to write (never an existing one) and the path to store in the modifier
         (relative to the .blend when the user gave a relative path or none)."""
         base_name = bpy.path.clean_name(object_name) + ".pc2"
+        if self.filepath.startswith("//") and not bpy.data.filepath:
+            raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, which is "
+                             "not saved yet: save the .blend first, or give an absolute path")
         if self.filepath:
             path = Path(bpy.path.abspath(self.filepath))
             if self.filepath.endswith(("/", "\\")) or path.is_dir():

@@ -95,6 +95,13 @@ def test_too_few_frames(bpy_empty, extension):
                          "give 0 frames", frame_start=5, frame_end=2)
 
 
+@pytest.mark.parametrize("operator", ["inbetween", "inbetween_frames"])
+def test_count_zero_is_an_error(bpy_empty, extension, operator):
+    obj = posed_grid(extension.bridge, 5)
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
+                         "Count is 0: ask for at least 1", count=0)
+
+
 def test_mesh_without_faces(bpy_empty, extension):
     obj = posed_grid(extension.bridge, 5)
     bpy.ops.object.mode_set(mode='EDIT')
@@ -111,7 +118,9 @@ def test_degenerate_pose(bpy_empty, extension, core):
     flat[:, 0] = 0.0  # the flat sheet squashed onto a line: every triangle has zero area
     add_key(obj, "Collapsed", flat)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
-                         "zero area .* Degenerate Dissolve", key_b="Collapsed")
+                         "shape key 'Collapsed': .*zero area .* Degenerate Dissolve", key_b="Collapsed")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         "shape key 'Collapsed': .*zero area", key_a="Collapsed", key_b="Bend")
 
 
 def test_non_manifold_mesh(bpy_empty, extension, core):

@@ -146,3 +146,14 @@ def test_escape_is_answered_while_a_core_call_runs(extension):
     assert time.monotonic() - began < 1.0
     assert not any(entry[0] == "wrote" for entry in log)
     assert window_manager.progress[-2:] == [30, "end"] and window_manager.timers == 0
+
+
+def test_other_warnings_are_passed_on_once(extension, core):
+    """A warning that is not the core's (e.g. NumPy's RuntimeWarning) is passed on once to the
+    usual warning display (it used to be re-recorded forever), and the job finishes."""
+    log = []
+    job = make_job(extension, log, warn=RuntimeWarning("Mean of empty slice"))
+    with pytest.warns(RuntimeWarning, match="Mean of empty slice") as shown:
+        assert job.execute(SimpleNamespace()) == {'FINISHED'}
+    assert len(shown) == 1
+    assert log[-1] == ({'INFO'}, "done")
