@@ -216,21 +216,45 @@ def test_non_finite_difference_is_a_clear_error(small_sheet):
         solver.areas(product)
 
 
-def test_layers_recovered_concurrently_match_one_after_the_other():
+def test_layers_recovered_concurrently_match_one_after_the_other(monkeypatch):
     # recover_metric runs the base and offset programs in two threads (one BLAS thread each);
     # the result must be that of the layers solved one at a time on a fresh reference.
+    #
+    # Tolerance. The two runs do the same arithmetic except for BLAS's summation order, which
+    # depends on its thread count and kernel (bit-for-bit equal with OPENBLAS_NUM_THREADS=1, not
+    # with two threads on every kernel). The programs are solved iteratively (CG for the areas,
+    # ADMM for the lengths) and stopped at relative residuals CG_TOLERANCE / ADMM_TOLERANCE; any
+    # point of that stopping ball around the optimum is an equally valid answer, and a round-off
+    # perturbation may land on another one (measured: 1e-10 to 1.4e-5 relative under the
+    # Haswell, Zen, Sandybridge and Prescott kernels with two threads). So each quantity may
+    # differ by up to twice the ball's radius, measured here as the distance from a run at the
+    # shipped tolerances to one converged far tighter. A threading fault (layers swapped, shared
+    # state) shows as O(1) differences, far outside it.
     import warnings
+
+    from core.errors import ShapeDifferenceWarning
 
     v, t = grid(14, jitter=0.2)
     target = drape(v, 1.5)
+
+    def separately():
+        reference = ReferenceShape(v, t)
+        d = reference.shape_differences(target, k_M=30, k_N=60)
+        return [reference.base.recover(d.area, d.conformal),
+                reference.offset_layer.recover(d.offset_area, d.offset_conformal)]
+
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+        # Both ADMM runs converge (a stalled run, with its warning, would widen the ball).
+        warnings.simplefilter("error", ShapeDifferenceWarning)
         together = ReferenceShape(v, t)
         metric = together.recover_metric(together.shape_differences(target, k_M=30, k_N=60))
-        apart = ReferenceShape(v, t)
-        d = apart.shape_differences(target, k_M=30, k_N=60)
-        layers = [apart.base.recover(d.area, d.conformal),
-                  apart.offset_layer.recover(d.offset_area, d.offset_conformal)]
-    for got, expected in zip((metric.base, metric.offset), layers):
-        for a, b in ((got.areas, expected.areas), (got.squared_lengths, expected.squared_lengths)):
-            assert np.linalg.norm(a - b) <= 1e-6 * np.linalg.norm(b)
+        apart = separately()
+        monkeypatch.setattr(cr, "CG_TOLERANCE", 1e-2 * cr.CG_TOLERANCE)
+        monkeypatch.setattr(cr, "ADMM_TOLERANCE", 1e-2 * cr.ADMM_TOLERANCE)
+        converged = separately()
+    for got, expected, tight in zip((metric.base, metric.offset), apart, converged):
+        for name in ("areas", "squared_lengths"):
+            a, b, c = getattr(got, name), getattr(expected, name), getattr(tight, name)
+            radius = np.linalg.norm(b - c)
+            assert 0 < radius < 1e-2 * np.linalg.norm(b)  # the tighter run did converge further
+            assert np.linalg.norm(a - b) <= 2 * radius
