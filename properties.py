@@ -91,7 +91,7 @@ class Speed:
     """Playback speed of a retimed animation."""
 
     speed: FloatProperty(
-        name="Speed", default=0.5, min=0.001, soft_min=0.1, soft_max=4.0,
+        name="Speed", default=0.5, soft_min=0.1, soft_max=4.0,  # speed <= 0 is reported, not clamped
         description="Playback speed of the retimed motion: 0.5 = twice as slow (twice the frames), "
                     "1 = the original timing with the dropped frames rebuilt, 2 = twice as fast")
 

@@ -104,7 +104,8 @@ class GeneratorOperator:
         bpy) and get its result. From the UI it runs in a worker thread while this yields
         ``progress`` every few hundredths of a second, so Esc cancels at once however long the
         call takes (a cancelled call finishes in the background and its result is dropped);
-        in ``execute`` it simply runs."""
+        in ``execute`` it simply runs. Warnings the call raises are collected like the job's
+        own while a timer tick waits for it, which is nearly all the time it runs."""
         if not getattr(self, "_modal", False):
             yield progress  # lets execute() print progress on the console
             return function(*args, **kwargs)

@@ -9,8 +9,8 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, require_count,
-                   surface_triangles)
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core,
+                   require_count, surface_triangles)
 from .output import PoseWriter, unbaked_simulations
 from .poses import format_factor, inbetween_name
 
@@ -80,12 +80,13 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
         self.summary = self.write_poses(
             context, obj, poses, names=[frame_key_name(frame) for frame in frames],
             frames=[float(frame) for frame in frames],
-            label=f"Frames {frames[0]}-{frames[-1]}" + (f" step {self.frame_step}" if self.frame_step > 1 else ""))
+            label=f"Frames {frames[0]}-{frames[-1]}"
+                  + (f" step {self.frame_step}" if self.frame_step > 1 else ""))
 
 
-class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, AnimationOutput, CoreSettingsProperties,
-                                            FrameRangeProperties, PoseWriter, GeneratorOperator,
-                                            bpy.types.Operator):
+class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, AnimationOutput,
+                                            CoreSettingsProperties, FrameRangeProperties,
+                                            PoseWriter, GeneratorOperator, bpy.types.Operator):
     """Take every n-th evaluated frame as a key pose and add in-betweens for each gap: as a point
     cache on a new object (the active object stays as it was), or as shape keys whose values are
     keyframed so playback shows the denser motion"""

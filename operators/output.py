@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 
 from .. import bridge
-from .base import InputError, load_core
+from .base import InputError
 
 # Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
 SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}

@@ -102,6 +102,16 @@ def test_count_zero_is_an_error(bpy_empty, extension, operator):
                          "Count is 0: ask for at least 1", count=0)
 
 
+@pytest.mark.parametrize("properties, match", [
+    (dict(speed=0.0), "speed must be a positive number; got 0"),
+    (dict(frame_start=1, frame_end=4, frame_step=4), "4 frames with step 4 give fewer than two key poses"),
+])
+def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, match):
+    strip = armature_scene(frames=5)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime, match,
+                         **properties)
+
+
 def test_mesh_without_faces(bpy_empty, extension):
     obj = posed_grid(extension.bridge, 5)
     bpy.ops.object.mode_set(mode='EDIT')

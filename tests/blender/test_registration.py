@@ -10,7 +10,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from conftest import MODULE, REPO_ROOT  # noqa: E402
+from dev_extension import MODULE, REPO_ROOT  # noqa: E402  (scripts/, put on sys.path by conftest)
 
 CORE = {"k_m", "k_n", "offset", "use_extrinsic"}
 OUTPUT = {"output", "filepath"}
