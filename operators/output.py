@@ -138,6 +138,10 @@ class PoseWriter:
         except BaseException:
             path.unlink(missing_ok=True)
             raise
+        if source.animation_data is not None and source.animation_data.action is not None:
+            self.report({'WARNING'}, f"'{source.name}' has its own object animation, which a point "
+                                     f"cache does not hold: '{obj.name}' stays where '{source.name}' "
+                                     "is now (it follows a parent, if any)")
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "

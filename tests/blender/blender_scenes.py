@@ -107,9 +107,10 @@ def driven_keys_scene(frames: int = 9):
     return obj
 
 
-def armature_scene(frames: int = 9):
+def armature_scene(frames: int = 9, parented: bool = False):
     """A grid strip bent by a two-bone armature whose second bone rotates from frame 1 to
-    ``frames``; the vertices are weighted to the bones by their x coordinate."""
+    ``frames``; the vertices are weighted to the bones by their x coordinate. ``parented``: the
+    strip is also the armature object's child, and the armature object moves."""
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, frames
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=5, size=2.0)
@@ -138,6 +139,12 @@ def armature_scene(frames: int = 9):
     for frame, angle in ((1, 0.0), (frames, 1.2)):
         tip.rotation_euler = (0.0, -angle, 0.0)
         tip.keyframe_insert("rotation_euler", frame=frame)
+    if parented:
+        strip.parent = rig
+        strip.matrix_parent_inverse = rig.matrix_world.inverted()
+        for frame, height in ((1, 0.0), (frames, 0.5)):
+            rig.location.z = height
+            rig.keyframe_insert("location", frame=frame)
     scene.frame_set(1)
     bpy.context.view_layer.objects.active = strip
     strip.select_set(True)

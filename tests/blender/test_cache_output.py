@@ -55,7 +55,8 @@ def assert_cache_object(obj, source, path=None):
     return cache_file
 
 
-SCENES = {"pinned cloth": (pinned_cloth_scene, 25), "armature": (armature_scene, 13),
+SCENES = {"pinned cloth": (pinned_cloth_scene, 25),
+          "armature": (lambda frames: armature_scene(frames, parented=True), 13),
           "driven keys": (driven_keys_scene, 13)}
 
 
@@ -85,6 +86,10 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
         time = 1 + (out_frame - 1) * 0.5
         if time == int(time) and (int(time) - 1) % 4 == 0:  # a kept frame: the source exactly
             np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=TOLERANCE)
+    for frame in (1, end):  # placed like the source, following its parent if it has one
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_allclose(np.array(first.matrix_world), np.array(source.matrix_world), atol=1e-6)
+    bpy.context.scene.frame_set(1)
     sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data))
     for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5
         time = 1 + (out_frame - 1) * 0.5
