@@ -64,6 +64,8 @@ def _parser() -> argparse.ArgumentParser:
     retime.add_argument("--offset", type=float, default=0.0, help="offset distance t (0 = automatic)")
     retime.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
     retime.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
+    retime.add_argument("--start", type=float,
+                        help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)")
     retime.add_argument("-o", "--output", required=True, help="output PC2 file")
     retime.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
@@ -107,7 +109,7 @@ def _retime(args) -> int:
             print(f"retime: sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps}), "
                   f"{done}/{len(outputs)} of this part, {time.monotonic() - began:.1f} s",
                   file=sys.stderr, flush=True)
-    start = cache.start + outputs.start * cache.sampling
+    start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
     write_pc2(args.output, poses, start=start, sampling=cache.sampling)
     print(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
           f"of {plan.n_gaps}), {cache.n_points} points")

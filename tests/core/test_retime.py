@@ -118,8 +118,10 @@ def test_command_chunks_and_merge(tmp_path, capsys):
     whole = read_pc2(tmp_path / "whole.pc2")
     assert (whole.start, whole.sampling, whole.n_samples) == (10.0, 1.0, 17)
     np.testing.assert_array_equal(whole.positions[8], source[4])
-    assert main(["retime", *common, "--gaps", "1:2", "-q", "-o", str(tmp_path / "gap.pc2")]) == 0
-    np.testing.assert_array_equal(read_pc2(tmp_path / "gap.pc2").positions, whole.positions[8:17])  # the last key is in the last gap
+    assert main(["retime", *common, "--gaps", "1:2", "--start", "1", "-q", "-o", str(tmp_path / "gap.pc2")]) == 0
+    gap = read_pc2(tmp_path / "gap.pc2")
+    np.testing.assert_array_equal(gap.positions, whole.positions[8:17])  # the last key is in the last gap
+    assert gap.start == 1 + 8
 
 
 def test_command_errors_are_one_line(tmp_path):
