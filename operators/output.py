@@ -51,9 +51,14 @@ class PoseWriter:
     """Writes poses according to the operator's ``output`` and ``filepath`` properties."""
 
     def check_output(self, source) -> None:
-        """Refuse shape key output where writing would clear an unbaked simulation (call it in
-        the validation step, before any work)."""
+        """Refuse what the writing step would fail on or harm (call it in the validation step,
+        before any work): shape keys on an object with an unbaked simulation (they would empty
+        its cache), a cache file relative to a .blend that was never saved."""
         if self.output != 'SHAPE_KEYS':
+            if self.filepath.startswith("//") and not bpy.data.filepath:
+                raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
+                                 "which is not saved yet: save the .blend first, or give an "
+                                 "absolute path")
             return
         unbaked = unbaked_simulations(source)
         if unbaked:
@@ -84,9 +89,6 @@ class PoseWriter:
         """The PC2 file to write (never an existing one) and the path to store in the modifier
         (relative to the .blend when the user gave a relative path or none)."""
         base_name = bpy.path.clean_name(object_name) + ".pc2"
-        if self.filepath.startswith("//") and not bpy.data.filepath:
-            raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, which is "
-                             "not saved yet: save the .blend first, or give an absolute path")
         if self.filepath:
             path = Path(bpy.path.abspath(self.filepath))
             if self.filepath.endswith(("/", "\\")) or path.is_dir():

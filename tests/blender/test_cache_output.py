@@ -205,3 +205,18 @@ def test_headless_runs_print_progress(bpy_empty, extension, core, capfd, monkeyp
     err = capfd.readouterr().err
     lines = err.splitlines()
     assert "Retime: 46%" in lines and lines[-1] == "Retime: done"
+
+
+def test_default_cache_file_beside_the_saved_blend(bpy_empty, extension, core, tmp_path):
+    source = armature_scene(frames=3)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    source = bpy.data.objects[source.name]
+    for _ in range(2):
+        names = set(bpy.data.objects.keys())
+        bpy.ops.shape_differences.frames_to_shape_keys(output='CACHE')
+        obj = new_object(names)
+    assert bpy.data.objects["Grid Frames 1-3"].modifiers[0].filepath == "//caches/Grid_Frames_1-3.pc2"
+    assert obj.name == "Grid Frames 1-3.001"
+    assert obj.modifiers[0].filepath == "//caches/Grid_Frames_1-3_001.pc2"
+    assert sorted(p.name for p in (tmp_path / "caches").iterdir()) == ["Grid_Frames_1-3.pc2",
+                                                                      "Grid_Frames_1-3_001.pc2"]

@@ -112,6 +112,12 @@ def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, m
                          **properties)
 
 
+def test_relative_cache_file_without_a_saved_blend(bpy_empty, extension):
+    strip = armature_scene(frames=5)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                         "relative to the .blend, which is not saved yet", filepath="//cache.pc2")
+
+
 def test_mesh_without_faces(bpy_empty, extension):
     obj = posed_grid(extension.bridge, 5)
     bpy.ops.object.mode_set(mode='EDIT')
