@@ -2,6 +2,7 @@
 
 import bpy
 
+from .base import shutdown_worker
 from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames,
                      SHAPE_DIFFERENCES_OT_retime)
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
@@ -16,4 +17,9 @@ classes = (
     SHAPE_DIFFERENCES_OT_retime,
 )
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+register, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def unregister():
+    _unregister_classes()
+    shutdown_worker()

@@ -67,6 +67,14 @@ WORKER_POLL_SECONDS = 0.05
 _worker = None
 
 
+def shutdown_worker():
+    """Let the worker thread end (after a call still running) when the extension is disabled."""
+    global _worker
+    if _worker is not None:
+        _worker.shutdown(wait=False, cancel_futures=True)
+        _worker = None
+
+
 def worker():
     """The one thread that runs core computations of modal operators (never bpy calls)."""
     global _worker
