@@ -9,7 +9,7 @@ import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
-from ..properties import AnalysisBasis
+from ..properties import AnalysisBasis, CaptureStep
 from .base import (GeneratorOperator, InputError, default_pose_key, key_blocks_of, resolve_key,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
@@ -83,7 +83,7 @@ def show_image(context, image):
             area.tag_redraw()
 
 
-class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, FrameRangeProperties, GeneratorOperator,
+class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
                                        bpy.types.Operator):
     """Embed the shape keys or frames of the active mesh in the plane by PCA of their four shape
     differences (paper §8.1) and draw the four embeddings into an image ("Shape Space <object>",
@@ -201,7 +201,7 @@ MAPS = (
 )
 
 
-class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangeProperties, GeneratorOperator,
+class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
                                            bpy.types.Operator):
     """Write distortion maps of a pose against its base as mesh attributes: area change,
     conformal (angle) distortion and bending (change of the offset surface) as colour attributes

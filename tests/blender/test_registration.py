@@ -21,9 +21,9 @@ OPERATOR_PROPERTIES = {
     "reconstruct": {"key"} | CORE | OUTPUT,
     "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count"} | CORE | OUTPUT,
     "retime": {"frame_start", "frame_end", "frame_step", "speed", "filepath"} | CORE | OUTPUT,
-    "shape_space": {"source", "frame_start", "frame_end", "k_m", "k_n", "offset"},
+    "shape_space": {"source", "frame_start", "frame_end", "frame_step", "k_m", "k_n", "offset"},
     "shape_space_select": {"kind", "rank", "step"},
-    "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "k_m", "offset"},
+    "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "frame_step", "k_m", "offset"},
 }
 
 
@@ -122,7 +122,7 @@ def draw_panels(extension):
     """Draw every Shape Diff panel into a RecordingLayout; return the operator buttons."""
     layout = RecordingLayout()
     for name in ("VIEW3D_PT_shape_differences", "VIEW3D_PT_shape_differences_poses",
-                 "VIEW3D_PT_shape_differences_animation"):
+                 "VIEW3D_PT_shape_differences_animation", "VIEW3D_PT_shape_differences_analysis"):
         panel = getattr(bpy.types, name)
         panel_self = type("PanelSelf", (), {"layout": layout,
                                             "split_layout": panel.split_layout})()
@@ -135,13 +135,16 @@ def test_panel_draws_settings_and_operators(bpy_empty, extension):
     bpy.ops.mesh.primitive_grid_add()
     assert [idname for idname, _ in draw_panels(extension)] == [
         "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames",
-        "shape_differences.retime"]
+        "shape_differences.retime", *["shape_differences.shape_space"] * 2,
+        *["shape_differences.distortion_maps"] * 2]
 
     posed_grid(extension.bridge, 4)
     settings = bpy.context.scene.shape_differences
     settings.key_a, settings.key_b, settings.count, settings.factor = "Curl", "Bend", 5, 2.0
     buttons = dict(draw_panels(extension))
-    assert set(buttons) == {f"shape_differences.{name}" for name in OPERATOR_PROPERTIES}
+    # Select Pose appears once a shape space is stored (tests/blender/test_analysis_operators.py).
+    assert set(buttons) == {f"shape_differences.{name}" for name in OPERATOR_PROPERTIES} - {
+        "shape_differences.shape_space_select"}
     assert buttons["shape_differences.inbetween"] == {"key_a": "Curl", "key_b": "Bend",
                                                       "count": 5, "output": 'SHAPE_KEYS',
                                                       "filepath": ""}
