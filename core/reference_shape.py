@@ -20,6 +20,7 @@ from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .validation import check_flag, check_offset
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -88,7 +89,7 @@ class SurfaceLayer:
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=f"target pose ({self.name} layer)"
             )
             return LayerMetric(areas, squared)
         from .convex_recovery import recover_truncated_metric
@@ -165,6 +166,7 @@ class ReferenceShape:
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name="base vertices")
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
@@ -289,6 +291,7 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
+        self.last_embedding = result  # core.reconstruct warns from it (mirror choices without evidence)
         return result.base_vertices
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
