@@ -175,9 +175,9 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
         metric = reference.recover_metric(differences)
         _check_recovered_metric(metric, differences)
         placed = reference.place_near(reference.embed(metric), reference.base_positions)
-        if differences.k_M is None:
+        if differences.k_M is None:  # exact lengths: a miss or an undecided mirror is real
             _warn_unrealized(reference, metric, placed)
-        _warn_undetermined(reference)
+            _warn_undetermined(reference)
         return reference.expand_pose(placed)
 
 
