@@ -115,7 +115,8 @@ def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> n
     out_of_range = (array < 0) | (array >= n_vertices)
     if out_of_range.any():
         t = int(np.flatnonzero(out_of_range.any(axis=1))[0])
-        shown = [int(x) if float(x).is_integer() and abs(x) < 2**62 else float(x) for x in array[t].tolist()]
+        shown = [int(x) if isinstance(x, int) or (float(x).is_integer() and abs(x) < 2**62) else x
+                 for x in array[t].tolist()]
         raise MeshError(
             f"Triangle {t} (row {t} of {name}) refers to vertex indices {shown}, but the mesh has "
             f"{n_vertices} vertices (valid indices are 0..{n_vertices - 1}; negative indices are "
@@ -166,6 +167,7 @@ def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices") -> np.
 def _whole_number(value, name: str, *, allow_none: bool = False):
     """``value`` as a Python int if it is a whole number (int, NumPy integer, or an integral float);
     MeshError for booleans, fractions, text and anything else."""
+    value = _scalar(value)
     if value is None and allow_none:
         return None
     if isinstance(value, (bool, np.bool_)):
@@ -177,15 +179,24 @@ def _whole_number(value, name: str, *, allow_none: bool = False):
     raise MeshError(f"{name} must be a whole number; got {_describe(value)}.")
 
 
-def check_basis_sizes(k_M, k_N, n_vertices: int | None = None) -> tuple[int | None, int | None]:
+def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1) -> tuple[int | None, int | None]:
     """Basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the sidebar's
-    convention). Each must be a whole number in ``1..n_vertices − 1`` (``n_vertices``: vertices in
-    at least one triangle; unchecked when ``None``); ``k_N`` (target basis) needs ``k_M``."""
+    convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
+    (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
+    ``n_components`` eigenfunctions are constant per connected component and carry no conformal
+    information); ``k_N`` (target basis) needs ``k_M``."""
     sizes = []
     for label, k in (("k_M (base basis size)", k_M), ("k_N (target basis size)", k_N)):
         k = _whole_number(k, label, allow_none=True)
         if k is not None and k < 0:
             raise MeshError(f"{label} must be 0 / None (full basis) or a positive number of eigenfunctions; got {k}.")
+        if k and k <= n_components:
+            raise MeshError(
+                f"{label} is {k}, but the first {n_components} Laplace–Beltrami eigenfunctions of this "
+                f"mesh ({n_components} connected part(s)) are constant on each part, so the conformal "
+                f"difference would be empty. Use at least {n_components + 1} (typically 50–300), or 0 / "
+                "None for the full basis."
+            )
         if k and n_vertices is not None and k >= n_vertices:
             raise MeshError(
                 f"{label} is {k}, but the mesh has {n_vertices} vertices in triangles, so at most "
@@ -198,8 +209,14 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None) -> tuple[int | No
     return sizes[0], sizes[1]
 
 
+def _scalar(value):
+    """A 0-d NumPy array as its scalar (e.g. a value read from an array); anything else unchanged."""
+    return value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+
+
 def check_real(value, name: str) -> float:
     """``value`` as a finite Python float; MeshError for booleans, text, complex and non-finite."""
+    value = _scalar(value)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
         raise MeshError(f"{name} must be a real number; got {_describe(value)}.")
     number = float(value)
@@ -294,7 +311,7 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     first, topology = check_mesh(poses[0], triangles, name=names[0])
     for pose, name in zip(poses[1:], names[1:]):
         check_pose(pose, topology, name=name)
-    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size))
+    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
     return k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
 
 

@@ -250,9 +250,24 @@ def test_gap_index_errors_are_also_index_errors(sequence):
 
 def test_whole_float_basis_size_and_numpy_scalars_are_accepted(sheet):
     v, t, target = sheet
-    d = core.shape_differences(v, target, t, k_M=np.int32(8), k_N=12.0, offset=np.float32(0.1),
+    d = core.shape_differences(v, target, t, k_M=np.int32(8), k_N=12.0, offset=np.array(0.1, dtype=np.float32),
                                use_extrinsic=np.True_)
     assert (d.k_M, d.k_N) == (8, 12) and isinstance(d.k_M, int)
+
+
+def test_basis_of_constants_only_is_rejected(sheet):
+    # The first eigenfunction of each connected part is constant (λ = 0): a basis of those alone
+    # gives an empty conformal difference (it reconstructed the base silently, with BLAS errors).
+    v, t, target = sheet
+    two_v, two_t = np.vstack([v, v + 3.0]), np.vstack([t, t + len(v)])
+    two_target = np.vstack([target, target + 3.0])
+    with pytest.raises(MeshError, match="k_M .* is 1.*constant"):
+        core.shape_differences(v, target, t, k_M=1)
+    with pytest.raises(MeshError, match="k_N .* is 2.*2 connected part"):
+        core.shape_differences(two_v, two_target, two_t, k_M=5, k_N=2)
+    with pytest.raises(MeshError, match="constant"):
+        core.interpolate(v, target, t, 0.5, k_M=1)
+    assert core.shape_differences(two_v, two_target, two_t, k_M=3, use_extrinsic=False).k_M == 3
 
 
 # -- inputs are never modified, also on failure --------------------------------------------------
