@@ -15,7 +15,9 @@ DENSE_EIGEN_LIMIT = 600
 #: (``scipy.linalg.eigh`` with ``subset_by_index``): ARPACK's cost grows like n k², the dense
 #: solve's like n³. Measured on a 2,500-vertex sheet, one BLAS thread, same (loaded) run: ARPACK
 #: 1.2 / 2.2 / 6.7 / 29 s for k = 50 / 100 / 200 / 400, dense 27 s for k = 500 and 1,000, 59 s
-#: for k = 2,000 (ARPACK did not finish k = 2,000 in 250 s in issue 19).
+#: for k = 2,000 (ARPACK did not finish k = 2,000 in 250 s in issue 19). LAPACK's divide and
+#: conquer (``driver="gvd"``) on every eigenpair, then truncated, beats the subset driver ``gvx``
+#: even for k = 500 (another loaded run: 50 s against 78 s for k = 500 and 81 s for k = 2,000).
 DENSE_EIGEN_FRACTION = 1.0 / 6.0
 #: Largest vertex count solved densely (two n × n float64 matrices and LAPACK's work space:
 #: about 3 GB at this size); larger meshes use ARPACK whatever k.
@@ -71,7 +73,11 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
         from scipy.linalg import LinAlgError, eigh
 
         try:
-            values, vectors = eigh(conformal.toarray(), mass.toarray(), subset_by_index=[0, k - 1])
+            if n <= DENSE_EIGEN_LIMIT:
+                values, vectors = eigh(conformal.toarray(), mass.toarray(), subset_by_index=[0, k - 1])
+            else:  # divide and conquer on every pair, then the first k: faster than the subset driver
+                values, vectors = eigh(conformal.toarray(), mass.toarray(), driver="gvd")
+                values, vectors = values[:k], vectors[:, :k]
         except (LinAlgError, ValueError) as error:
             raise RecoveryError(
                 f"The Laplace–Beltrami eigensolver failed for the {what} with k = {k} ({error}). "
