@@ -465,7 +465,7 @@ class _Segment:
         """``x`` (defect-free) moved closer to the interpolated metric's edge lengths by a few
         Levenberg–Marquardt steps; vertices around triangles the polish would flip or collapse
         are held (growing rings); ``x`` itself if defects remain."""
-        from .embedding import refine_edge_lengths
+        from .edge_length_fit import refine_edge_lengths
 
         topo = self.topo
         corner = np.einsum("kab,kb->ka", stretch[topo.tri_of], self.base.edge_vectors)
