@@ -174,10 +174,11 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
     with numerical_failures("Reconstructing the pose"):
         metric = reference.recover_metric(differences)
         _check_recovered_metric(metric, differences)
-        placed = reference.place_near(reference.embed(metric), reference.base_positions)
+        embedding = reference.embed_result(metric)
+        placed = reference.place_near(embedding.base_vertices, reference.base_positions)
         if differences.k_M is None:  # exact lengths: a miss or an undecided mirror is real
             _warn_unrealized(reference, metric, placed)
-            _warn_undetermined(reference)
+            _warn_undetermined(embedding.unresolved_choices)
         return reference.expand_pose(placed)
 
 
@@ -255,10 +256,8 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
         )
 
 
-def _warn_undetermined(reference: ReferenceShape) -> None:
+def _warn_undetermined(choices: int) -> None:
     """ShapeDifferenceWarning if the embedding had to pick a mirror image without evidence."""
-    result = getattr(reference, "last_embedding", None)
-    choices = int(getattr(result, "unresolved_choices", 0))
     if choices:
         warnings.warn(
             f"The differences leave part of the pose undetermined: {choices} mirror choice(s) of the "

@@ -100,7 +100,8 @@ class SurfaceLayer:
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=f"target pose ({self.name} layer)"
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths,
+                what=f"target pose ({self.name} layer)",
             )
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
@@ -288,6 +289,11 @@ class ReferenceShape:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
         layer of the embedded canonical thickening, or — without the offset layer — a fit of the
         base edge lengths started from ``initial`` (default: the base pose)."""
+        return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
+
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+        """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
@@ -301,8 +307,7 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
-        self.last_embedding = result  # core.reconstruct warns from it (mirror choices without evidence)
-        return result.base_vertices
+        return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
