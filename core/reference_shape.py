@@ -21,6 +21,7 @@ from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .validation import check_flag, check_offset
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -99,7 +100,8 @@ class SurfaceLayer:
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths,
+                what=f"target pose ({self.name} layer)",
             )
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
@@ -175,6 +177,7 @@ class ReferenceShape:
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name="base vertices")
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
@@ -286,6 +289,11 @@ class ReferenceShape:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
         layer of the embedded canonical thickening, or — without the offset layer — a fit of the
         base edge lengths started from ``initial`` (default: the base pose)."""
+        return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
+
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+        """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
@@ -299,7 +307,7 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
-        return result.base_vertices
+        return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
