@@ -30,6 +30,7 @@ from .shape_difference import (
     reduced_differences,
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
+from .validation import check_flag, check_offset
 
 
 @dataclass(frozen=True, eq=False)
@@ -101,7 +102,8 @@ class SurfaceLayer:
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths,
+                what=f"target pose ({self.name} layer)",
             )
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
@@ -176,6 +178,7 @@ class ReferenceShape:
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name="base vertices")
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
@@ -285,6 +288,11 @@ class ReferenceShape:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
         layer of the embedded canonical thickening, or — without the offset layer — a fit of the
         base edge lengths started from ``initial`` (default: the base pose)."""
+        return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
+
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+        """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
@@ -298,7 +306,7 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
-        return result.base_vertices
+        return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as

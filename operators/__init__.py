@@ -4,7 +4,9 @@ import bpy
 
 from . import analysis
 from .analysis import classes as analysis_classes
-from .frames import SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames
+from .base import shutdown_worker
+from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames,
+                     SHAPE_DIFFERENCES_OT_retime)
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
                     SHAPE_DIFFERENCES_OT_reconstruct)
 
@@ -14,6 +16,7 @@ classes = (
     SHAPE_DIFFERENCES_OT_exaggerate,
     SHAPE_DIFFERENCES_OT_reconstruct,
     SHAPE_DIFFERENCES_OT_inbetween_frames,
+    SHAPE_DIFFERENCES_OT_retime,
     *analysis_classes,
 )
 
@@ -28,3 +31,4 @@ def register():
 def unregister():
     analysis.unregister_handlers()
     _unregister_classes()
+    shutdown_worker()

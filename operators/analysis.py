@@ -6,15 +6,14 @@ an image and custom properties, the distortion maps write mesh attributes only.
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
+from ..properties import AnalysisBasis, CaptureStep
 from .base import (GeneratorOperator, InputError, default_pose_key, key_blocks_of, resolve_key,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
-#: Custom property (on the object) holding the last shape space.
-SHAPE_SPACE_PROPERTY = "shape_space"
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
 KIND_ITEMS = [
     ("offset_area", "Offset Area", "Area-based differences of the offset surface (extrinsic)"),
@@ -29,17 +28,8 @@ SOURCE_ITEMS = [
 ]
 
 
-class AnalysisBasisProperties:
-    """Basis sizes and offset of the analysis operators (the shape space needs a truncated basis,
-    so they do not follow the scene's k_M / k_N, whose default is the full basis)."""
-
-    k_m: IntProperty(name="k_M", min=2, default=50,
-                     description="Basis size on the base: the differences compared are k_M × k_M")
-    k_n: IntProperty(name="k_N", min=0, default=100,
-                     description="Basis size on each pose (eq. 6); 0 = differences in the base's basis "
-                                 "only (eq. 5), much faster")
-    offset: FloatProperty(name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
-                          description="Offset surface distance; 0 = the scene setting, or automatic")
+class AnalysisBasisProperties(AnalysisBasis):
+    """The analysis operators' basis sizes (declared in :mod:`properties`) and their checks."""
 
     def resolved_offset(self, context):
         return self.offset or context.scene.shape_differences.offset or None
@@ -93,7 +83,7 @@ def show_image(context, image):
             area.tag_redraw()
 
 
-class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, FrameRangeProperties, GeneratorOperator,
+class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
                                        bpy.types.Operator):
     """Embed the shape keys or frames of the active mesh in the plane by PCA of their four shape
     differences (paper §8.1) and draw the four embeddings into an image ("Shape Space <object>",
@@ -138,18 +128,11 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, FrameRangeProper
             "selected": -1,
         }
         image = shape_space_image(obj, data)
-        obj[SHAPE_SPACE_PROPERTY] = data
+        obj[bridge.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)
         shares = ", ".join(f"{kind.replace('_', ' ')} {100 * data['variance'][kind][0]:.0f} %" for kind in KINDS)
         self.summary = (f"Shape space of {len(names)} poses drawn into image '{image.name}' "
                         f"(share of PC 1: {shares})")
-
-
-def stored_shape_space(obj) -> dict | None:
-    if obj is None or SHAPE_SPACE_PROPERTY not in obj:
-        return None
-    data = obj[SHAPE_SPACE_PROPERTY]
-    return data.to_dict() if hasattr(data, "to_dict") else dict(data)
 
 
 class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
@@ -168,14 +151,14 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if stored_shape_space(context.active_object) is None:
+        if bridge.stored_shape_space(context.active_object) is None:
             cls.poll_message_set("Run Shape Space on the active mesh first")
             return False
         return True
 
     def execute(self, context):
         obj = context.active_object
-        data = stored_shape_space(obj)
+        data = bridge.stored_shape_space(obj)
         first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
         order = np.argsort(first_axis, kind="stable")
         if self.rank >= 0:
@@ -196,7 +179,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
         else:
             context.scene.frame_set(int(data["frames"][pose]))
         data["selected"] = pose
-        obj[SHAPE_SPACE_PROPERTY] = data
+        obj[bridge.SHAPE_SPACE_PROPERTY] = data
         show_image(context, shape_space_image(obj, data, highlight=pose))
         self.report({'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
                               f"{self.kind.replace('_', ' ')} axis")
@@ -218,29 +201,7 @@ MAPS = (
 )
 
 
-def loop_triangle_polygons(mesh) -> np.ndarray:
-    """The polygon of every loop triangle, int64 ``(m,)`` (same order as bridge.mesh_triangles)."""
-    mesh.calc_loop_triangles()
-    buffer = np.empty(len(mesh.loop_triangles), dtype=np.int32)
-    mesh.loop_triangles.foreach_get("polygon_index", buffer)
-    return buffer.astype(np.int64)
-
-
-def write_attribute(mesh, name: str, domain: str, values: np.ndarray, *, color: bool = False):
-    """Create or overwrite one attribute (FLOAT, or FLOAT_COLOR when ``color``) of ``mesh``."""
-    kind = 'FLOAT_COLOR' if color else 'FLOAT'
-    existing = mesh.attributes.get(name)
-    if existing is not None and (existing.data_type != kind or existing.domain != domain):
-        mesh.attributes.remove(existing)
-        existing = None
-    if existing is None:
-        existing = (mesh.color_attributes.new(name, kind, domain) if color
-                    else mesh.attributes.new(name, kind, domain))
-    existing.data.foreach_set("color" if color else "value", np.ascontiguousarray(values, dtype=np.float32).ravel())
-    return existing
-
-
-class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangeProperties, GeneratorOperator,
+class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
                                            bpy.types.Operator):
     """Write distortion maps of a pose against its base as mesh attributes: area change,
     conformal (angle) distortion and bending (change of the offset surface) as colour attributes
@@ -301,7 +262,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangePr
     def _write(mesh, triangles, base, labels, results):
         from .analysis_plot import scalar_colors
 
-        polygons = loop_triangle_polygons(mesh)
+        polygons = bridge.loop_triangle_polygons(mesh)
         corners = base[triangles]
         weights = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
         polygon_weight = np.bincount(polygons, weights, len(mesh.polygons))
@@ -313,16 +274,16 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, FrameRangePr
                 face_values = getattr(distortion, face_field)
                 if vertex_values is None:
                     continue
-                write_attribute(mesh, f"SD {name}{label}", 'POINT',
+                bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
                                 scalar_colors(vertex_values, diverging=diverging, floor=centre), color=True)
                 first = first or f"SD {name}{label}"
-                write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
+                bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
                 per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
-                write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
+                bridge.write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
             for kind, functions in eigen.items():
                 for i in range(functions.shape[1]):
                     title = kind.replace("_", " ").title()
-                    write_attribute(mesh, f"SD Eigen {title} {i + 1}{label}", 'POINT',
+                    bridge.write_attribute(mesh, f"SD Eigen {title} {i + 1}{label}", 'POINT',
                                     scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
         if first is not None:  # by name: references to attributes go stale as others are added
             mesh.color_attributes.active_color = mesh.color_attributes[first]

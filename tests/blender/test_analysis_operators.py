@@ -47,7 +47,8 @@ def test_shape_space_of_keys(keyed, core):
 def test_select_pose_by_its_place_along_the_first_axis(keyed):
     obj, bridge = keyed
     bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=0)
-    first = np.reshape(obj["shape_space"]["coordinates"]["offset_area"], (-1, 2))[:, 0]
+    # A copy: a view of the ID property would dangle once the operator stores the selection.
+    first = np.array(obj["shape_space"]["coordinates"]["offset_area"], dtype=float).reshape(-1, 2)[:, 0]
     keys_before = snapshot(bridge, obj)["keys"]
     bpy.ops.shape_differences.shape_space_select(kind='offset_area', rank=0)
     assert obj.active_shape_key_index == int(np.argmin(first))
