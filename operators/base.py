@@ -29,17 +29,19 @@ class InputError(Exception):
     """Bad selection or settings: the message says what is wrong and how to fix it."""
 
 
-POSE_REFERENCE = re.compile(r"\bkey pose (\d+)\b")
+# The core names poses "key pose i" (sequences) or "vertices_a" / "vertices_b" (two poses).
+POSE_REFERENCE = re.compile(r"\bkey pose (\d+)\b|\bvertices_([ab])\b")
 
 
 def name_poses(message: str, pose_names) -> str:
-    """``message`` with the core's "key pose i" replaced by the name of the i-th pose the operator
-    passed (a shape key or a frame), so users read the names they know."""
+    """``message`` with the core's "key pose i" (or "vertices_a" / "vertices_b") replaced by the
+    name of the i-th pose the operator passed (a shape key or a frame), so users read the names
+    they know."""
     if not pose_names:
         return message
 
     def named(match):
-        index = int(match.group(1))
+        index = int(match.group(1)) if match.group(1) else "ab".index(match.group(2))
         return pose_names[index] if index < len(pose_names) else match.group(0)
 
     return POSE_REFERENCE.sub(named, message)
