@@ -1,6 +1,6 @@
 """Small vectorized geometry shared by the core modules: row-wise dot products, unit vectors,
-Heron's formula on squared lengths, nearest rotations, connected components and the transfer of
-per-triangle labels to vertices.
+Heron's formula on squared lengths, nearest rotations, connected components, the transfer of
+per-triangle labels to vertices and lumped (barycentric) vertex areas.
 
 Every function works on stacks (one row per point, edge, triangle or matrix) and allocates no
 Python objects per row.
@@ -62,3 +62,10 @@ def vertex_labels(triangles: np.ndarray, triangle_labels: np.ndarray, n_vertices
     out = np.full(n_vertices, fill, dtype=np.int64)
     out[triangles.ravel()] = np.repeat(triangle_labels, 3)
     return out
+
+
+def lumped_vertex_areas(triangles: np.ndarray, areas: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Lumped (barycentric) vertex areas float64 ``(n_vertices,)``: a third of the ``areas``
+    ``(m,)`` of the ``triangles`` ``(m, 3)`` around each vertex — the row sums of the P1 mass
+    matrix A of eq. (1); 0 for vertices in no triangle."""
+    return np.bincount(triangles.ravel(), np.repeat(areas / 3.0, 3), n_vertices)

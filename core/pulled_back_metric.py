@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError, RecoveryError
+from .geometry import DIVISION_FLOOR, heron, lumped_vertex_areas, normalize, vertex_labels
 from .laplace_basis import LaplaceBasis, laplace_basis
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
@@ -34,8 +35,7 @@ WKS_MARGIN = 2.0
 def heron_areas(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
     """Triangle areas from squared edge lengths ``(m, 3)`` (Heron's formula in squared lengths);
     NaN where the triangle inequality fails."""
-    x = squared_lengths_per_triangle
-    q = 2.0 * (x[:, 0] * x[:, 1] + x[:, 1] * x[:, 2] + x[:, 2] * x[:, 0]) - np.sum(x * x, axis=1)
+    q = heron(squared_lengths_per_triangle)  # 16 area²
     return np.sqrt(np.where(q > 0, q, np.nan)) / 4.0
 
 
@@ -101,7 +101,7 @@ class IntrinsicTriangulation:
 
     def lumped_mass(self) -> np.ndarray:
         """Vertex areas ``(n,)``: a third of the areas of the triangles around each vertex."""
-        return np.bincount(self.topology.triangles.ravel(), np.repeat(self.areas / 3.0, 3), self.topology.n_vertices)
+        return lumped_vertex_areas(self.topology.triangles, self.areas, self.topology.n_vertices)
 
     def heat_method(self):
         """A :class:`HeatMethod` factored for this metric (reuse it for many sources)."""
@@ -125,8 +125,7 @@ class HeatMethod:
         # each component, after which the matrix is positive definite.
         n = triangulation.topology.n_vertices
         count, labels = triangulation.topology.components()
-        vertex_component = np.empty(n, dtype=np.int64)
-        vertex_component[triangulation.topology.triangles.ravel()] = np.repeat(labels, 3)
+        vertex_component = vertex_labels(triangulation.topology.triangles, labels, n)
         self.vertex_component = vertex_component
         pinned = np.array([np.flatnonzero(vertex_component == c)[0] for c in range(count)])
         self._pinned = pinned
@@ -145,8 +144,7 @@ class HeatMethod:
         impulse[source] = 1.0
         heat = self._heat.solve(impulse)
         gradient = tri.gradient(heat)
-        norm = np.linalg.norm(gradient, axis=1, keepdims=True)
-        direction = -np.divide(gradient, norm, out=np.zeros_like(gradient), where=norm > 0)
+        direction = -normalize(gradient)[0]
         rhs = tri.divergence(direction) * self._keep
         phi = self._poisson.solve(rhs)
         # The pinned vertex has φ = 0; shift each component so the source is at distance 0.
@@ -253,7 +251,7 @@ class PulledBackMetric:
 def wks_energies(eigenvalues: np.ndarray, count: int, *, variance: float = WKS_VARIANCE):
     """Evenly spaced log-energies ``(count,)`` and the Gaussian width σ for the nonzero
     ``eigenvalues``."""
-    positive = eigenvalues[eigenvalues > 1e-9 * max(float(eigenvalues.max()), 1e-300)]
+    positive = eigenvalues[eigenvalues > 1e-9 * max(float(eigenvalues.max()), DIVISION_FLOOR)]
     if positive.size < 2:
         raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
     low, high = np.log(positive[0]), np.log(positive[-1])
@@ -264,7 +262,7 @@ def wks_energies(eigenvalues: np.ndarray, count: int, *, variance: float = WKS_V
 def wave_kernel_signature(basis: LaplaceBasis, energies, *, variance: float = WKS_VARIANCE) -> np.ndarray:
     """WKS ``(n, len(energies))`` of an eigenbasis (see :meth:`PulledBackMetric.wave_kernel_signature`)."""
     values = basis.eigenvalues
-    nonzero = values > 1e-9 * max(float(values.max()), 1e-300)
+    nonzero = values > 1e-9 * max(float(values.max()), DIVISION_FLOOR)
     if np.ndim(energies) == 0:
         energies, sigma = wks_energies(values, int(energies), variance=variance)
     else:
@@ -273,7 +271,7 @@ def wave_kernel_signature(basis: LaplaceBasis, energies, *, variance: float = WK
         sigma = variance * (np.log(positive[-1]) - np.log(positive[0])) / energies.size
     logs = np.log(values[nonzero])
     weights = np.exp(-((energies[None, :] - logs[:, None]) ** 2) / (2.0 * sigma**2))  # (k, e)
-    return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), 1e-300)
+    return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), DIVISION_FLOOR)
 
 
 def pull_back(base_vertices, triangles, differences) -> PulledBackMetric:

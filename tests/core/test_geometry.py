@@ -2,8 +2,17 @@
 
 import numpy as np
 
-from core.geometry import connected_components, heron, nearest_rotations, normalize, rows_dot, vertex_labels
+from core.geometry import (
+    connected_components,
+    heron,
+    lumped_vertex_areas,
+    nearest_rotations,
+    normalize,
+    rows_dot,
+    vertex_labels,
+)
 from core.mesh_topology import triangle_areas
+from core.reference_shape import ReferenceShape
 from core.rigid_alignment import align_components
 from meshes import grid, icosphere, random_rotation
 
@@ -46,6 +55,18 @@ def test_components_and_vertex_labels():
     assert labels[3] not in (labels[0], labels[4])  # isolated node
     triangles = np.array([[0, 1, 2], [3, 4, 5]])
     assert np.array_equal(vertex_labels(triangles, np.array([7, 9]), 7), [7, 7, 7, 9, 9, 9, -1])
+
+
+def test_lumped_vertex_areas_are_the_mass_matrix_row_sums():
+    v, t = icosphere(1)
+    v = v * np.array([1.0, 2.0, 0.5])
+    areas = triangle_areas(v, t)
+    mass = ReferenceShape(v, t, use_extrinsic=False).base.mass  # the P1 mass matrix of eq. (1)
+    lumped = lumped_vertex_areas(t, areas, len(v))
+    assert np.allclose(lumped, np.asarray(mass.sum(axis=1)).ravel(), rtol=1e-13)
+    assert np.isclose(lumped.sum(), areas.sum(), rtol=1e-13)
+    # A vertex in no triangle (index 3) has no area.
+    assert np.allclose(lumped_vertex_areas(np.array([[0, 1, 2]]), np.array([0.6]), 4), [0.2, 0.2, 0.2, 0.0])
 
 
 def test_align_components_moves_each_component_rigidly():
