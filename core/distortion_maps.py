@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
-from .geometry import DIVISION_FLOOR, lumped_vertex_areas
+from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
 from .shape_space_pca import KINDS
 
@@ -179,9 +179,7 @@ def distortion(base_vertices, pose_vertices, triangles, *, offset: float | None 
 # -- helpers -----------------------------------------------------------------------------------
 def _scatter(reference, values):
     """Used-vertex values ``(n_used, ...)`` to all vertices ``(n, ...)``, 0 at loose vertices."""
-    out = np.zeros((reference.n_vertices,) + values.shape[1:])
-    out[reference.used_vertices] = values
-    return out
+    return expand_vertex_values(reference.used_vertices, values, reference.n_vertices)
 
 
 def _layouts(squared):

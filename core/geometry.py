@@ -1,6 +1,7 @@
 """Small vectorized geometry shared by the core modules: row-wise dot products, unit vectors,
 Heron's formula on squared lengths, nearest rotations, connected components, the transfer of
-per-triangle labels to vertices and lumped (barycentric) vertex areas.
+per-triangle labels to vertices, lumped (barycentric) vertex areas, and values on a mesh's used
+vertices written out to all of its vertices.
 
 Every function works on stacks (one row per point, edge, triangle or matrix) and allocates no
 Python objects per row.
@@ -61,6 +62,14 @@ def vertex_labels(triangles: np.ndarray, triangle_labels: np.ndarray, n_vertices
     components, where all triangles around a vertex agree); vertices in no triangle get ``fill``."""
     out = np.full(n_vertices, fill, dtype=np.int64)
     out[triangles.ravel()] = np.repeat(triangle_labels, 3)
+    return out
+
+
+def expand_vertex_values(used_vertices: np.ndarray, values: np.ndarray, n_vertices: int, *, fill: float = 0.0) -> np.ndarray:
+    """Float64 ``(n_vertices, …)`` holding ``values`` ``(n_used, …)`` at the ``used_vertices``
+    ``(n_used,)`` (vertex indices, e.g. those in some triangle) and ``fill`` at every other vertex."""
+    out = np.full((n_vertices,) + np.shape(values)[1:], fill, dtype=np.float64)
+    out[used_vertices] = values
     return out
 
 

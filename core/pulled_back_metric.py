@@ -21,7 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError, RecoveryError
-from .geometry import DIVISION_FLOOR, heron, lumped_vertex_areas, normalize, vertex_labels
+from .geometry import DIVISION_FLOOR, expand_vertex_values, heron, lumped_vertex_areas, normalize, vertex_labels
 from .laplace_basis import LaplaceBasis, laplace_basis
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
@@ -242,33 +242,34 @@ class PulledBackMetric:
         return int(position)
 
     def _expand(self, values: np.ndarray, fill: float) -> np.ndarray:
-        shape = (self.reference.n_vertices,) + values.shape[1:]
-        out = np.full(shape, fill, dtype=np.float64)
-        out[self.reference.used_vertices] = values
-        return out
+        return expand_vertex_values(self.reference.used_vertices, values, self.reference.n_vertices, fill=fill)
+
+
+def _wks_spectrum(eigenvalues: np.ndarray, count: int, variance: float):
+    """Mask of the nonzero ``eigenvalues``, their extreme log-eigenvalues and the Gaussian width
+    σ for ``count`` energies."""
+    nonzero = eigenvalues > 1e-9 * max(float(eigenvalues.max()), DIVISION_FLOOR)
+    positive = eigenvalues[nonzero]
+    if positive.size < 2:
+        raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
+    low, high = np.log(positive[0]), np.log(positive[-1])
+    return nonzero, low, high, variance * (high - low) / count
 
 
 def wks_energies(eigenvalues: np.ndarray, count: int, *, variance: float = WKS_VARIANCE):
     """Evenly spaced log-energies ``(count,)`` and the Gaussian width σ for the nonzero
     ``eigenvalues``."""
-    positive = eigenvalues[eigenvalues > 1e-9 * max(float(eigenvalues.max()), DIVISION_FLOOR)]
-    if positive.size < 2:
-        raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
-    low, high = np.log(positive[0]), np.log(positive[-1])
-    sigma = variance * (high - low) / count
+    _, low, high, sigma = _wks_spectrum(eigenvalues, count, variance)
     return np.linspace(low + WKS_MARGIN * sigma, high - WKS_MARGIN * sigma, count), sigma
 
 
 def wave_kernel_signature(basis: LaplaceBasis, energies, *, variance: float = WKS_VARIANCE) -> np.ndarray:
     """WKS ``(n, len(energies))`` of an eigenbasis (see :meth:`PulledBackMetric.wave_kernel_signature`)."""
     values = basis.eigenvalues
-    nonzero = values > 1e-9 * max(float(values.max()), DIVISION_FLOOR)
     if np.ndim(energies) == 0:
-        energies, sigma = wks_energies(values, int(energies), variance=variance)
-    else:
-        energies = np.asarray(energies, dtype=np.float64)
-        positive = values[nonzero]
-        sigma = variance * (np.log(positive[-1]) - np.log(positive[0])) / energies.size
+        energies, _ = wks_energies(values, int(energies), variance=variance)
+    energies = np.asarray(energies, dtype=np.float64)
+    nonzero, _, _, sigma = _wks_spectrum(values, energies.size, variance)
     logs = np.log(values[nonzero])
     weights = np.exp(-((energies[None, :] - logs[:, None]) ** 2) / (2.0 * sigma**2))  # (k, e)
     return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), DIVISION_FLOOR)

@@ -4,6 +4,7 @@ import numpy as np
 
 from core.geometry import (
     connected_components,
+    expand_vertex_values,
     heron,
     lumped_vertex_areas,
     nearest_rotations,
@@ -67,6 +68,13 @@ def test_lumped_vertex_areas_are_the_mass_matrix_row_sums():
     assert np.isclose(lumped.sum(), areas.sum(), rtol=1e-13)
     # A vertex in no triangle (index 3) has no area.
     assert np.allclose(lumped_vertex_areas(np.array([[0, 1, 2]]), np.array([0.6]), 4), [0.2, 0.2, 0.2, 0.0])
+
+
+def test_expand_vertex_values_fills_the_unused_vertices():
+    used = np.array([0, 2, 3])
+    assert np.array_equal(expand_vertex_values(used, np.array([1.0, 2.0, 3.0]), 5), [1.0, 0.0, 2.0, 3.0, 0.0])
+    wide = expand_vertex_values(used, np.arange(6.0).reshape(3, 2), 4, fill=np.inf)
+    assert wide.shape == (4, 2) and np.all(np.isinf(wide[1])) and np.array_equal(wide[3], [4.0, 5.0])
 
 
 def test_align_components_moves_each_component_rigidly():
