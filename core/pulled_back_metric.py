@@ -57,11 +57,15 @@ class IntrinsicTriangulation:
     """A triangle mesh known by its edge lengths only: per-triangle planar layouts, the gradient
     of piecewise-linear functions, the cotangent Laplacian and the heat method.
 
-    ``topology``: :class:`~core.mesh_topology.MeshTopology`; ``squared_lengths`` ``(E,)``.
+    ``topology``: :class:`~core.mesh_topology.MeshTopology`; ``squared_lengths`` ``(E,)``;
+    ``assembler``: a :class:`~core.inner_products.ProductAssembler` of ``topology`` if one exists.
     """
 
-    def __init__(self, topology, squared_lengths: np.ndarray):
+    def __init__(self, topology, squared_lengths: np.ndarray, *, assembler=None):
+        from .inner_products import ProductAssembler
+
         self.topology = topology
+        self.assembler = ProductAssembler(topology) if assembler is None else assembler
         self.squared_lengths = np.asarray(squared_lengths, dtype=np.float64)
         per_triangle = self.squared_lengths[topology.triangle_edges]  # opposite each corner
         self.areas = heron_areas(per_triangle)
@@ -91,13 +95,9 @@ class IntrinsicTriangulation:
         return np.bincount(self.topology.triangles.ravel(), local.ravel(), self.topology.n_vertices)
 
     def cotangent_laplacian(self) -> sp.csr_matrix:
-        """``C_vw = Σ_T area_T ⟨∇φ_v, ∇φ_w⟩``: the cotangent stiffness matrix (eq. 2), PSD."""
-        t = self.topology.triangles
-        local = self.areas[:, None, None] * np.einsum("tid,tjd->tij", self.hat_gradients, self.hat_gradients)
-        rows = np.repeat(t, 3, axis=1).ravel()
-        cols = np.tile(t, (1, 3)).ravel()
-        n = self.topology.n_vertices
-        return sp.csr_matrix((local.ravel(), (rows, cols)), shape=(n, n))
+        """``C_vw = Σ_T area_T ⟨∇φ_v, ∇φ_w⟩``: the cotangent stiffness matrix ``C(ℓ²; µ)`` of
+        eq. (2) with the Heron areas of these lengths, PSD."""
+        return self.assembler.conformal_matrix(self.squared_lengths, self.areas)
 
     def lumped_mass(self) -> np.ndarray:
         """Vertex areas ``(n,)``: a third of the areas of the triangles around each vertex."""
@@ -213,7 +213,9 @@ class PulledBackMetric:
         further sources)."""
         used = self._compact_vertex(source_vertex)
         if self._heat is None:
-            self._heat = IntrinsicTriangulation(self.reference.topology, self.squared_lengths).heat_method()
+            self._heat = IntrinsicTriangulation(
+                self.reference.topology, self.squared_lengths, assembler=self.reference.base.assembler
+            ).heat_method()
         return self._expand(self._heat.distances(used), np.inf)
 
     def wave_kernel_signature(self, energies: int | np.ndarray = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:
