@@ -172,6 +172,42 @@ def triangle_rotations(bases: np.ndarray, base_bases: np.ndarray, angle: np.ndar
     return matmul(matmul(bases, plane_rotation(angle)), transpose(base_bases))
 
 
+def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
+    """Rotation vectors (m, 3) (angle ≤ π) of rotation matrices (m, 3, 3), through unit
+    quaternions by Shepperd's method (the largest of the four candidate components is divided by,
+    stable at every angle including half turns); the same as SciPy's ``Rotation.as_rotvec``,
+    whose ``from_matrix`` re-orthogonalizes each matrix and costs 20× more."""
+    r = rotations
+    trace = r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2]
+    candidates = np.stack([trace, r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
+    choice = np.argmax(candidates, axis=1)
+    q = np.empty((len(r), 4))  # (x, y, z, w)
+    for k in range(4):
+        rows = choice == k
+        if not rows.any():
+            continue
+        m = r[rows]
+        if k == 0:
+            w = 0.5 * np.sqrt(np.maximum(1.0 + trace[rows], 0.0))
+            q[rows] = np.stack([(m[:, 2, 1] - m[:, 1, 2]) / (4 * w), (m[:, 0, 2] - m[:, 2, 0]) / (4 * w),
+                                (m[:, 1, 0] - m[:, 0, 1]) / (4 * w), w], axis=1)
+        else:
+            i = k - 1
+            j, l = (i + 1) % 3, (i + 2) % 3
+            big = 0.5 * np.sqrt(np.maximum(1.0 + m[:, i, i] - m[:, j, j] - m[:, l, l], 0.0))
+            out = np.empty((rows.sum(), 4))
+            out[:, i] = big
+            out[:, j] = (m[:, j, i] + m[:, i, j]) / (4 * big)
+            out[:, l] = (m[:, l, i] + m[:, i, l]) / (4 * big)
+            out[:, 3] = (m[:, l, j] - m[:, j, l]) / (4 * big)
+            q[rows] = out
+    q[q[:, 3] < 0] *= -1.0  # w ≥ 0: angle ≤ π
+    sin_half = np.linalg.norm(q[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(sin_half, q[:, 3])
+    scale = np.where(sin_half > SERIES_THRESHOLD, angle / np.where(sin_half > 0, sin_half, 1.0), 2.0)
+    return q[:, :3] * scale[:, None]
+
+
 # ---------------------------------------------------------------------------------------------
 # rigid motions of the whole mesh (screw interpolation)
 
