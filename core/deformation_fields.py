@@ -34,6 +34,9 @@ SERIES_THRESHOLD = 1e-4
 #: Log-stretch eigenvalues are clipped to ±this before exponentiating (a stretch by e^30 is far
 #: outside anything a pose can mean; the clip only keeps extrapolations finite).
 MAX_LOG_STRETCH = 30.0
+#: Rotations within this angle (radians) of a half turn may turn either way: both are as short.
+#: Far above rounding (1e-15) and far below any motion meant to turn one way.
+HALF_TURN_TOLERANCE = 1e-6
 
 
 def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -228,18 +231,23 @@ def _screw_matrix(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * h + b * (h @ h)
 
 
-def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarray | None = None) -> np.ndarray:
-    """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``. Among the rotation
-    vectors of ``R`` (``ω + 2πk ω̂``) the one nearest ``reference`` (3,) is taken (a half turn's
-    two directions, or the unwrapped angle of a motion continuing across keys)."""
-    w = Rotation.from_matrix(rotation).as_rotvec()
+def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarray | None = None,
+              unwrap: bool = False) -> np.ndarray:
+    """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``, the short way
+    round. With a ``reference`` rotation vector (3,): a half turn (within
+    :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to it,
+    and with ``unwrap`` the representative ``ω + 2πk ω̂`` (either direction) nearest to it is
+    taken (a motion continuing across keys)."""
+    w = rotation_vectors(rotation[None])[0]
     if reference is not None:
         theta = np.linalg.norm(w)
-        axis = w / theta if theta > 0 else reference / max(np.linalg.norm(reference), np.finfo(float).tiny)
-        candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
-        if theta > 0:
+        if unwrap and theta > 0:
+            axis = w / theta
+            candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
             candidates += [(theta - 2 * np.pi * k) * -axis for k in (0, 1)]
-        w = min(candidates, key=lambda c: np.linalg.norm(c - reference))
+            w = min(candidates, key=lambda c: np.linalg.norm(c - reference))
+        elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, reference) < 0:
+            w = -w
     v = np.linalg.lstsq(_screw_matrix(w), translation, rcond=None)[0]
     return np.concatenate([w, v])
 

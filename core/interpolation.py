@@ -197,13 +197,14 @@ class _Relative:
 
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
         screws, rotations, translations, self.nonrigidity = [], [], [], []
-        if turns is None:  # every piece turns the way the whole mesh does (a half turn: one way)
+        unwrap = turns is not None  # the continuation of the next key's turn
+        if turns is None:  # every piece's half turn goes the way the whole mesh turns
             whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
-            turns = np.repeat(df.rotation_vectors(whole[None])[0][None], len(topo.components), axis=0)
+            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
         for c, rows in enumerate(topo.components):
             a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
             rotation, translation = rigid_alignment(a, b, w)
-            screws.append(df.rigid_log(rotation, translation, turns[c]))
+            screws.append(df.rigid_log(rotation, translation, turns[c], unwrap))
             rotations.append(rotation)
             translations.append(translation)
             misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
