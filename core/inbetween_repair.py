@@ -54,7 +54,7 @@ class Repair:
         """Flipped or collapsed triangles of ``x`` (bool (m,)); all of them if ``x`` is not finite."""
         if not np.isfinite(x).all():
             return np.ones(len(self.gap.topo.triangles), dtype=bool)
-        e = df.corner_edges(x, self.gap.topo.triangles)
+        e = self.gap.edges_of(x)
         cross = np.cross(e[:, 0], -e[:, 2])
         target = self.gap.base.areas * (stretch[:, 0] * stretch[:, 2] - stretch[:, 1] ** 2)
         collapsed = 0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * target
@@ -112,12 +112,12 @@ class Repair:
         """The (rotations, packed stretches) imposed around defects, in the order tried."""
         gap = self.gap
         t = gap.topo.triangles
+        rotation, stretch, _, _ = gap.targets(s)
+        yield rotation, stretch
         bases = df.tangent_bases(blend, t)
         coordinates = df.tangent_coordinates(df.corner_edges(blend, t), bases)
         angle, blend_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse))
         blend_rotation = df.triangle_rotations(bases, gap.base.bases, angle)
-        rotation, stretch, _, _ = gap.targets(s)
-        yield rotation, stretch
         yield blend_rotation, stretch
         yield blend_rotation, blend_stretch
         keys = gap.relatives[1:3] if s < 0.5 else gap.relatives[2:0:-1]  # nearer key first
