@@ -16,6 +16,7 @@ from functools import cached_property
 import numpy as np
 
 from .errors import MeshError
+from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
@@ -26,6 +27,7 @@ from .shape_difference import (
     functional_map_differences,
     reduced_differences,
 )
+from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,16 +48,27 @@ class SurfaceLayer:
         self.assembler = ProductAssembler(topology)
         self.areas, self.squared_lengths, self.mass, self.conformal = pose_products(self.assembler, positions)
         self._bases: dict[int, LaplaceBasis] = {}
+        self._truncated_solvers: dict[int, TruncatedRecovery] = {}
 
     @property
     def metric(self) -> LayerMetric:
         return LayerMetric(self.areas, self.squared_lengths)
 
     @cached_property
-    def area_recovery(self):
-        from .metric_recovery import AreaRecovery
-
+    def area_recovery(self) -> AreaRecovery:
+        """Prop. 1's factorization for this layer (full basis), built on first use."""
         return AreaRecovery(self.assembler)
+
+    def truncated_solver(self, basis: LaplaceBasis) -> TruncatedRecovery:
+        """The programs (8) and (10) of this layer for ``basis`` (cached per basis size):
+        everything that depends only on the reference layer and the basis is computed once."""
+        solver = self._truncated_solvers.get(basis.size)
+        if solver is None or not (
+            solver.basis is basis or np.array_equal(solver.basis.functions, basis.functions)
+        ):
+            solver = TruncatedRecovery(self, basis)
+            self._truncated_solvers[basis.size] = solver
+        return solver
 
     def basis(self, k: int) -> LaplaceBasis:
         """The first ``k`` eigenpairs of this layer's reference pose (cached; a larger cached
@@ -82,8 +95,6 @@ class SurfaceLayer:
         """Areas and squared lengths of the target from its two differences: linear solves in the
         full basis (Props. 1–2), convex programs when truncated (§7.1–7.2)."""
         if isinstance(area_difference, FullDifference):
-            from .metric_recovery import recover_squared_lengths
-
             _, area_edge_values = area_difference.product_entries(self.assembler)
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
@@ -91,9 +102,8 @@ class SurfaceLayer:
                 self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
             )
             return LayerMetric(areas, squared)
-        from .convex_recovery import recover_truncated_metric
-
-        return recover_truncated_metric(self, area_difference, conformal_difference)
+        solver = self.truncated_solver(area_difference.basis)
+        return LayerMetric(*recover_truncated_metric(solver, area_difference, conformal_difference))
 
 
 def _recover_layers(jobs) -> list[LayerMetric]:
