@@ -218,12 +218,9 @@ class _Gap:
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "centroids")}
         self.splines = spline
         self.plane = base.bases[:, :, :2]
-        self.weights = self.anchor_weights() if anchored else None
-        if self.weights is not None and not (self.weights > GAUGE_WEIGHT).any():
-            self.weights = None
-        w = np.full(topo.n, GAUGE_WEIGHT) if self.weights is None else self.weights
-        self.system = (topo.factor(GAUGE_WEIGHT if self.weights is None else w), w * topo.mass)
-        self.placed_by_centroid = [not (w[rows] > GAUGE_WEIGHT).any() for rows in topo.components]
+        self.anchored = anchored
+        self._anchors: dict[bool, tuple] = {}
+        self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         lengths = np.linalg.norm(base.edges, axis=2)
@@ -232,14 +229,32 @@ class _Gap:
         self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
         self.repair = Repair(self)
 
-    def anchor_weights(self) -> np.ndarray:
+    def select(self, s: float) -> None:
+        """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
+        extrapolations, each computed and factorized once (``weights``, ``co_moving``, ``system``
+        and ``placed_by_centroid``)."""
+        between = 0.0 < s < 1.0
+        if between not in self._anchors:
+            topo = self.topo
+            weights, co_moving = self.anchor_weights(between) if self.anchored else (None, None)
+            if weights is not None and not (weights > GAUGE_WEIGHT).any():
+                weights = None
+            w = np.full(topo.n, GAUGE_WEIGHT) if weights is None else weights
+            system = (topo.factor(GAUGE_WEIGHT if weights is None else w), w * topo.mass)
+            placed = [not (w[rows] > GAUGE_WEIGHT).any() for rows in topo.components]
+            self._anchors[between] = (weights, co_moving, system, placed)
+        self.weights, self.co_moving, self.system, self.placed_by_centroid = self._anchors[between]
+
+    def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
         """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge
-        lengths (see :data:`BLEND_ANCHOR_WEIGHT`), and per vertex whether the blend is taken in
+        lengths (in-betweens) or, for extrapolations, where the edge vectors do not change (a
+        linear extrapolation is exact only for translating parts) (see
+        :data:`BLEND_ANCHOR_WEIGHT`), and per vertex whether the blend is taken in
         the world or with its component's rigid motion undone (``self.co_moving``, bool (n,)):
         the latter where the vertex moves with that rigid motion (edge vectors around it within
         BLEND_SHORTENING_SCALE of the base's once it is undone) and the world leaves them less
-        unchanged. Parts that do not move are anchored in the world (exact: they stay put), a
-        rigidly moving mesh with its motion undone (exact at every factor)."""
+        unchanged (bool (n,)). Parts that do not move are anchored in the world (exact: they stay
+        put), a rigidly moving mesh with its motion undone (exact at every factor)."""
         topo = self.topo
         a = self.base.edges.reshape(-1, 3)
         b = self.next.edges.reshape(-1, 3)
@@ -255,12 +270,15 @@ class _Gap:
             return np.abs(np.linalg.norm(a + other, axis=1) / (length_a + np.linalg.norm(other, axis=1)) - 1.0)
 
         co_moving_change = per_vertex(np.linalg.norm(c - a, axis=1) / length_a)
-        self.co_moving = (co_moving_change < BLEND_SHORTENING_SCALE) & (
-            co_moving_change < per_vertex(np.linalg.norm(b - a, axis=1) / length_a))
-        change = np.where(self.co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
+        world_change = per_vertex(np.linalg.norm(b - a, axis=1) / length_a)
+        co_moving = (co_moving_change < BLEND_SHORTENING_SCALE) & (co_moving_change < world_change)
+        if between:
+            change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
+        else:
+            change = np.where(co_moving, co_moving_change, world_change)
         falloff = (BLEND_SHORTENING_SCALE / np.maximum(change, BLEND_SHORTENING_SCALE)) ** 2
         weight = BLEND_ANCHOR_WEIGHT * falloff * np.maximum(0.0, 1.0 - change / BLEND_SHORTENING_CUTOFF) ** 2
-        return np.maximum(weight, GAUGE_WEIGHT)
+        return np.maximum(weight, GAUGE_WEIGHT), co_moving
 
     # --- the interpolated field at one factor
 
@@ -431,6 +449,7 @@ class _Gap:
 
     def pose(self, s: float) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
+        self.select(s)
         rotation, stretch, motion, guide = self.targets(s)
         if self.use_extrinsic:
             x0 = self.place(self.solve(self.target_edges(rotation, stretch), guide), s, motion)
