@@ -195,11 +195,12 @@ def format_row(e: dict) -> str:
 
 
 def peak_memory(name: str, gap: int) -> float:
-    """Peak resident memory (MB) of a child process that loads scene ``name``, prepares its keys
-    (every ``gap``-th frame) and computes every in-between of the sequence; its baseline after
-    the imports is printed too."""
+    """Peak resident memory (MB, the kernel's ``VmHWM`` of the child's own address space:
+    ``ru_maxrss`` would keep the parent's across ``exec``) of a child process that loads scene
+    ``name``, prepares its keys (every ``gap``-th frame) and computes every in-between of the
+    sequence; its baseline after loading and the imports too."""
     code = f"""
-import resource, sys, warnings
+import sys, warnings
 sys.path.insert(0, {str(ROOT)!r})
 import numpy as np
 from benchmarks.cloth_scenes import load_scene
@@ -208,12 +209,16 @@ from benchmarks.bench_inbetween import _poses
 scene = load_scene({name!r})
 keys = np.ascontiguousarray(scene.frames[::{gap}]); triangles = scene.triangles
 del scene
-base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+def peak():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+base = peak()
 warnings.simplefilter("ignore")
 seq = SequenceInterpolator(keys, triangles)
 for k in range(len(seq)):
     _poses(seq, k, np.arange(1, {gap}) / {gap})
-print(base / 1024, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+print(base, peak())
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     base, peak = map(float, out.stdout.split()[-2:])

@@ -181,6 +181,7 @@ class _Relative:
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
         self.screw = np.array(screws)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
+        self.world = other.vertices
         self.centroids = other.centroids
 
     @classmethod
@@ -189,7 +190,7 @@ class _Relative:
         m = topo.triangles.shape[0]
         self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
         self.screw = np.zeros((len(topo.components), 6))
-        self.vertices = base.vertices
+        self.vertices = self.world = base.vertices
         self.centroids = base.centroids
         self.nonrigidity = [0.0] * len(topo.components)
         return self
@@ -198,7 +199,7 @@ class _Relative:
     def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
         """Linear extrapolation 2·current − previous (end condition of the spline)."""
         self = _Relative.__new__(_Relative)
-        for name in ("rotvec", "log_stretch", "screw", "vertices", "centroids"):
+        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
             setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         return self
@@ -215,7 +216,7 @@ class _Gap:
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
         spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic)
-                  for name in ("rotvec", "log_stretch", "screw", "vertices", "centroids")}
+                  for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         self.splines = spline
         self.plane = base.bases[:, :, :2]
         self.anchored = anchored
@@ -291,10 +292,10 @@ class _Gap:
         residual = Rotation.from_rotvec(self.splines["rotvec"].at(s)).as_matrix()
         rotation = df.matmul(motion[0][self.topo.triangle_component], residual)
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
-        if self.weights is not None:  # two poses: the linear blend (or extrapolation)
-            guide = (1.0 - s) * self.base.vertices + s * self.next.vertices
+        if self.weights is not None:  # the keys' per-vertex spline (two poses: the linear blend)
+            guide = self.splines["world"].at(s)
             if self.co_moving.any():
-                undone = (1.0 - s) * self.base.vertices + s * self.relatives[2].vertices
+                undone = self.splines["vertices"].at(s)
                 guide[self.co_moving] = self.topo.apply_motion(undone, *motion)[self.co_moving]
         else:
             guide = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
