@@ -50,6 +50,7 @@ from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .inbetween_solver import _Gap, _Key, _log_stretch_from_lengths, _Relative, _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_vertices
+from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_time
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -79,6 +80,7 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
+        key_poses, k_M, k_N, offset, use_extrinsic, smooth = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -167,6 +169,7 @@ class SequenceInterpolator:
 
     def poses(self, gap_index: int, factors) -> np.ndarray:
         """The poses (len(factors), n, 3) at ``factors`` in gap ``gap_index``."""
+        gap_index, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
         gap = int(gap_index)
         if not 0 <= gap < len(self):
             raise IndexError(f"gap_index {gap_index} out of range for {len(self)} gap(s).")
@@ -186,6 +189,7 @@ class SequenceInterpolator:
     def pose_at(self, time: float) -> np.ndarray:
         """The pose at global ``time`` in key units (0 = first key, K − 1 = last key); times
         outside extrapolate the first or last gap."""
+        time = check_time(time, len(self))
         gap = int(np.clip(np.floor(time), 0, len(self) - 1))
         return self.pose(gap, float(time) - gap)
 
@@ -204,17 +208,20 @@ class Interpolator:
 
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True):
+        k_M, k_N, offset, use_extrinsic = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
         self._sequence = SequenceInterpolator([vertices_a, vertices_b], triangles, k_M=k_M, k_N=k_N, offset=offset,
                                               use_extrinsic=use_extrinsic, smooth=False)
         self._sequence._anchored = True
 
     def pose(self, factor: float) -> np.ndarray:
         """0 → a, 1 → b, 0.5 in-between, 1.5 exaggeration, negative: the motion reversed."""
+        factor = check_factor(factor)
         return self._sequence.pose(0, factor)
 
 
 def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,
                 k_N: int | None = None, offset: float | None = None, use_extrinsic: bool = True) -> np.ndarray:
     """One pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1); see :class:`Interpolator`."""
+    factor = check_factor(factor)
     return Interpolator(vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset,
                         use_extrinsic=use_extrinsic).pose(factor)

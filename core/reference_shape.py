@@ -17,10 +17,12 @@ import numpy as np
 
 from .errors import MeshError
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
+from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .rigid_alignment import align_components
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -28,6 +30,7 @@ from .shape_difference import (
     reduced_differences,
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
+from .validation import check_flag, check_offset
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,7 +102,8 @@ class SurfaceLayer:
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths,
+                what=f"target pose ({self.name} layer)",
             )
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
@@ -110,10 +114,9 @@ def _recover_layers(jobs) -> list[LayerMetric]:
     """``layer.recover(area, conformal)`` for every ``(layer, area, conformal)`` of ``jobs``.
 
     Truncated programs of two layers run in two threads, each with a single-threaded BLAS
-    (their work is BLAS, LAPACK and sparse products, which release the GIL). Measured on the
-    1,089-vertex cloth, 2 cores, k = 100 / 200: 5.2–5.8 s against 6.8–7.4 s one layer after the
-    other with two BLAS threads (8.0 s with one; two layers with two BLAS threads each: 7.6 s).
-    Sequential without threadpoolctl or a second core, and in the full basis (sparse LU solves).
+    (their work is BLAS, LAPACK and sparse products, which release the GIL; faster than one
+    layer after the other with a multithreaded BLAS, see docs/design-decisions.md). Sequential
+    without threadpoolctl or a second core, and in the full basis (sparse LU solves).
     """
     import os
 
@@ -175,6 +178,7 @@ class ReferenceShape:
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name="base vertices")
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
@@ -278,14 +282,17 @@ class ReferenceShape:
     def vertex_components(self) -> np.ndarray:
         """Connected-component label of every used vertex ``(n_used,)``."""
         _, labels = self.topology.components()
-        out = np.empty(self.topology.n_vertices, dtype=np.int64)
-        out[self.topology.triangles.ravel()] = np.repeat(labels, 3)
-        return out
+        return vertex_labels(self.topology.triangles, labels, self.topology.n_vertices)
 
     def embed(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None) -> np.ndarray:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
         layer of the embedded canonical thickening, or — without the offset layer — a fit of the
         base edge lengths started from ``initial`` (default: the base pose)."""
+        return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
+
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+        """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
@@ -299,16 +306,9 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
-        return result.base_vertices
+        return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection)."""
-        from .rigid_alignment import rigid_alignment
-
-        placed = np.empty_like(positions)
-        for label in np.unique(self.vertex_components):
-            rows = self.vertex_components == label
-            rotation, translation = rigid_alignment(positions[rows], target[rows], self.vertex_weights[rows])
-            placed[rows] = positions[rows] @ rotation.T + translation
-        return placed
+        return align_components(positions, target, self.vertex_components, weights=self.vertex_weights)
