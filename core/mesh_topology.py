@@ -208,9 +208,9 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         owners = np.flatnonzero(edge_of_halfedge == e) // 3
         named = ", ".join(str(divmod(int(unique_keys[i]), n_vertices)) for i in bad[:10])
         raise MeshError(
-            f"{bad.size} edge(s) are shared by more than two triangles: {named}"
-            f"{', ...' if bad.size > 10 else ''} (the first by triangles {owners.tolist()}). "
-            + _FIX_MANIFOLD
+            f"Edge {divmod(int(unique_keys[e]), n_vertices)} is shared by {counts[e]} triangles "
+            f"({owners.tolist()}); {bad.size} edge(s) are shared by more than two triangles: {named}"
+            f"{', ...' if bad.size > 10 else ''}. " + _FIX_MANIFOLD
         )
     edges = np.stack(np.divmod(unique_keys, n_vertices), axis=1).astype(np.int64)
     n_edges = edges.shape[0]
