@@ -88,6 +88,12 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         layout.prop(settings, "frame_count")
         operator = layout.operator("shape_differences.inbetween_frames", icon='ANIM')
         operator.frame_step, operator.count = settings.frame_step, settings.frame_count
+        # Transfer: poses of another selected mesh (any connectivity) onto the active one.
+        row = layout.row(align=True)
+        operator = row.operator("shape_differences.transfer_poses", text="Transfer Keys", icon='MOD_DATA_TRANSFER')
+        operator.source = 'KEYS'
+        operator = row.operator("shape_differences.transfer_poses", text="Transfer Frames", icon='MOD_DATA_TRANSFER')
+        operator.source, operator.frame_step = 'FRAMES', settings.frame_step
 
 
 classes = (
