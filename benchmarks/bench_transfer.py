@@ -71,8 +71,13 @@ def remesh(scene, density: float, seed: int):
 
     rest = scene.rest
     origin = rest.mean(axis=0)
-    _, _, axes = np.linalg.svd(rest - origin)
-    plane = (rest - origin) @ axes[:2].T  # 2-D coordinates in the sheet's plane
+    nx = cloth_scenes_grid_width(scene)
+    first = rest[1] - rest[0]  # along a row of Blender's grid
+    second = rest[nx] - rest[0]  # along a column
+    first /= np.linalg.norm(first)
+    second -= first * (second @ first)
+    second /= np.linalg.norm(second)
+    plane = (rest - origin) @ np.stack([first, second]).T  # 2-D coordinates, axes along the sheet's sides
     lo, hi = plane.min(0), plane.max(0)
     side = int(round(np.sqrt(density * len(rest))))
     u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
@@ -107,6 +112,14 @@ def remesh(scene, density: float, seed: int):
         best_tri[better], best_w[better], best_out[better] = tri[better], w[better], out[better]
     frames = np.einsum("nk,fnki->fni", best_w, scene.frames[:, sim_tris[best_tri]])
     return frames, triangles
+
+
+def cloth_scenes_grid_width(scene) -> int:
+    """Vertices per row of the simulated grid (Blender's grid numbers them row by row)."""
+    rest = scene.rest
+    row = rest[1] - rest[0]
+    steps = (rest[1:] - rest[:-1]) @ row / (row @ row)
+    return int(np.flatnonzero(np.abs(steps - 1.0) > 1e-3)[0]) + 1
 
 
 def surface_samples(vertices, triangles):

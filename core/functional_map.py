@@ -30,6 +30,9 @@ from .errors import MeshError
 #: counts as flat (the fit is a pseudo-inverse there: no motion along the normal of a flat ring).
 AFFINE_RINGS = 2
 AFFINE_CUTOFF = 1e-3
+#: Target vertices past the boundary of the base's image are extrapolated from the nearest
+#: triangle while no barycentric weight is below minus this (see :func:`push_forward_matrix`).
+EXTRAPOLATION_LIMIT = 0.5
 
 
 def check_correspondence(correspondence, n_base: int, n_target: int) -> np.ndarray:
@@ -112,11 +115,9 @@ def locally_affine_images(base_positions: np.ndarray, base_edges: np.ndarray, im
     return y_mean + np.einsum("nij,nj->ni", affine, x - x_mean)
 
 
-def closest_points_on_triangles(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest point of each ``points`` ``(P, 3)`` on its triangle ``corners`` ``(P, 3, 3)``:
-    returns barycentric weights ``(P, 3)`` and squared distances ``(P,)``. Inside the triangle
-    the orthogonal projection, else the nearest point of its three sides. (Written out: no
-    library in the extension's dependencies offers it vectorized.)"""
+def plane_weights(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Barycentric weights ``(P, 3)`` of the orthogonal projection of ``points`` ``(P, 3)`` onto
+    the planes of the triangles ``corners`` ``(P, 3, 3)`` (negative outside the triangle)."""
     a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
     e1, e2, d = b - a, c - a, points - a
     g11, g12, g22 = (np.einsum("ij,ij->i", u, v) for u, v in ((e1, e1), (e1, e2), (e2, e2)))
@@ -124,7 +125,15 @@ def closest_points_on_triangles(points: np.ndarray, corners: np.ndarray) -> tupl
     det = np.maximum(g11 * g22 - g12 * g12, np.finfo(float).tiny)
     s = (g22 * r1 - g12 * r2) / det
     t = (g11 * r2 - g12 * r1) / det
-    weights = np.stack([1.0 - s - t, s, t], axis=1)
+    return np.stack([1.0 - s - t, s, t], axis=1)
+
+
+def closest_points_on_triangles(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point of each ``points`` ``(P, 3)`` on its triangle ``corners`` ``(P, 3, 3)``:
+    returns barycentric weights ``(P, 3)`` and squared distances ``(P,)``. Inside the triangle
+    the orthogonal projection, else the nearest point of its three sides. (Written out: no
+    library in the extension's dependencies offers it vectorized.)"""
+    weights = plane_weights(points, corners)
     outside = (weights < 0).any(axis=1)
     if outside.any():
         best = np.full(int(outside.sum()), np.inf)
@@ -169,9 +178,19 @@ def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base
     triangles ``(m_M, 3)`` at the images of the base vertices on the target, ``base_images``
     ``(n_M, 3)`` — as the closest point to each target vertex ``target_points`` ``(n_N, 3)``
     (searched next to the nearest image vertex): the inverse of the base → target map, defined at
-    every target vertex even where that map is not onto."""
+    every target vertex even where that map is not onto (extrapolated linearly past the image
+    mesh's boundary)."""
     from scipy.spatial import cKDTree
 
     _, seeds = cKDTree(base_images).query(target_points)
     triangles, weights = project_near(target_points, np.asarray(seeds, dtype=np.int64), base_images, base_triangles)
+    # Outside the image mesh (a target boundary reaching past the base's), extrapolate linearly
+    # from the nearest triangle instead of clamping onto its side: clamped, a row of target
+    # vertices would land on one line and their triangles would collapse.
+    # Only just outside (a fraction of a triangle): farther out, clamping is the safer guess.
+    outside = np.flatnonzero((weights <= 0.0).any(axis=1))
+    if outside.size:
+        extrapolated = plane_weights(target_points[outside], base_images[base_triangles[triangles[outside]]])
+        near = extrapolated.min(axis=1) >= -EXTRAPOLATION_LIMIT
+        weights[outside[near]] = extrapolated[near]
     return pull_back_matrix(base_triangles[triangles], weights, base_images.shape[0])

@@ -34,9 +34,11 @@ def test_identity_map_gives_the_same_mesh_differences():
     same = core.shape_differences(v, pose, t, k_M=15, k_N=30)
     across = core.shape_differences(v, pose, t, k_M=15, k_N=30, target_triangles=t,
                                     correspondence=np.arange(len(v)), target_rest_vertices=v)
+    # Equal up to the target eigenbasis, which after the first pose (the meshing correction's)
+    # comes from two warm-started subspace iterations instead of an exact eigensolve.
     for name in ("area", "conformal", "offset_area", "offset_conformal"):
         a, b = getattr(same, name).matrix, getattr(across, name).matrix
-        assert np.linalg.norm(a - b) <= 1e-8 * np.linalg.norm(a), name
+        assert np.linalg.norm(a - b) <= 1e-5 * np.linalg.norm(a), name
 
 
 def test_remeshed_drape_is_rebuilt_on_the_base(sheets):
