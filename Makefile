@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install test test-fast demo package validate clean
+.PHONY: install test test-fast demo package validate farm-check clean
 
 install: $(STAMP)
 
@@ -17,6 +17,10 @@ $(STAMP): requirements-dev.txt requirements-extension.txt
 
 validate: $(STAMP)
 	$(PY) scripts/build_extension.py validate
+
+# The Open Job Description template of farm/ (openjd-cli comes with requirements-dev.txt).
+farm-check: $(STAMP)
+	$(VENV)/bin/openjd check farm/retime.openjd.yaml
 
 test: validate
 	$(PY) -m pytest

@@ -52,20 +52,23 @@ class VertexCountChanged(ValueError):
     """The evaluated mesh does not have the vertex count of the original mesh at some frame."""
 
 
-def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: list[int]):
+def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: list[int],
+                    first_visit: int | None = None):
     """Yield ``(frame, positions)`` for the evaluated mesh of ``obj`` at each of ``frames``
     (ascending).
 
-    Every frame from the first to the last is visited in order, so that simulations that are not
-    baked still advance one frame at a time. The scene's current frame is restored afterwards,
-    also when the caller stops early.
+    Every frame from the first (or from ``first_visit`` if earlier: where an unbaked simulation
+    starts) to the last is visited in order, so that simulations that are not baked still
+    advance one frame at a time. The scene's current frame is restored afterwards, also when the
+    caller stops early.
     """
     scene = context.scene
     wanted = set(frames)
     vertex_count = len(obj.data.vertices)
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
     try:
-        for frame in range(frames[0], frames[-1] + 1):
+        first = frames[0] if first_visit is None else min(first_visit, frames[0])
+        for frame in range(first, frames[-1] + 1):
             scene.frame_set(frame)
             if frame not in wanted:
                 continue
@@ -83,25 +86,49 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
 
 @dataclass
 class NewShapeKey:
-    """A shape key to be written: its wanted name (made unique by Blender) and coordinates."""
+    """A shape key to be written: its wanted name and coordinates. ``name`` may be shortened to
+    fit Blender's limit; ``tail`` (e.g. the factor) is always kept."""
 
     name: str
     positions: np.ndarray
+    tail: str = ""
 
 
-MAX_NAME_LENGTH = 63  # Blender's limit for shape key names
+MAX_NAME_LENGTH = 63  # bytes (UTF-8) in a Blender ID or shape key name
 
 
-def unique_key_name(obj: bpy.types.Object, name: str) -> str:
-    """``name``, or ``name.001``, ``name.002``, ... if taken (Blender's own renaming would read a
-    name ending in ``0.50`` as already numbered and turn it into ``0.051``)."""
-    taken = set(obj.data.shape_keys.key_blocks.keys()) if obj.data.shape_keys else set()
-    candidate = name[:MAX_NAME_LENGTH]
+def shorten(text: str, limit: int) -> str:
+    """``text`` within ``limit`` bytes (UTF-8), cut short with a final "…" if it is longer."""
+    encoded = text.encode()
+    if len(encoded) <= limit:
+        return text
+    ellipsis = "\u2026"
+    return encoded[:max(limit - len(ellipsis.encode()), 0)].decode(errors="ignore") + ellipsis
+
+
+def fit_name(head: str, tail: str = "") -> str:
+    """``head + tail`` within Blender's name length: ``head`` (e.g. a key or object name) is
+    shortened so that ``tail`` (the factor, the reference, a number) is always kept whole."""
+    return shorten(head, MAX_NAME_LENGTH - len(tail.encode())) + tail
+
+
+def unique_name(head: str, tail: str, taken) -> str:
+    """``fit_name(head, tail)``, or with ``.001``, ``.002``, ... appended if that name is taken.
+
+    Blender's own renaming cuts the end of a long name to fit its number (losing a factor) and
+    reads a name ending in ``0.50`` as already numbered (``0.051``); this never does either."""
+    candidate = fit_name(head, tail)
     number = 0
     while candidate in taken:
         number += 1
-        candidate = f"{name[:MAX_NAME_LENGTH - 4]}.{number:03d}"
+        candidate = fit_name(head, f"{tail}.{number:03d}")
     return candidate
+
+
+def unique_key_name(obj: bpy.types.Object, name: str, tail: str = "") -> str:
+    """A shape key name for ``name + tail`` not yet used on ``obj`` (see :func:`unique_name`)."""
+    taken = set(obj.data.shape_keys.key_blocks.keys()) if obj.data.shape_keys else set()
+    return unique_name(name, tail, taken)
 
 
 def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
@@ -122,7 +149,8 @@ def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
         if not had_basis:
             obj.shape_key_add(name=BASIS_NAME, from_mix=False)
         for new_key in new_keys:
-            key_block = obj.shape_key_add(name=unique_key_name(obj, new_key.name), from_mix=False)
+            key_block = obj.shape_key_add(name=unique_key_name(obj, new_key.name, new_key.tail),
+                                           from_mix=False)
             added.append(key_block)
             key_block.value = 0.0
             key_block.data.foreach_set(
@@ -190,3 +218,83 @@ def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]
             for point in fcurve.keyframe_points:
                 point.interpolation = 'LINEAR'
             fcurve.update()
+
+
+# -- a new object that plays a point cache ----------------------------------------------------
+
+# Parent types that deform the child (a virtual modifier): the copy must not inherit them.
+DEFORMING_PARENT_TYPES = {'ARMATURE', 'LATTICE', 'CURVE'}
+
+
+def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name: str,
+                     filepath: str, start: float, sampling: float) -> bpy.types.Object:
+    """A new object named ``name`` with a copy of ``source``'s mesh (no shape keys, no
+    modifiers) and a Mesh Cache modifier that plays the PC2 file ``filepath`` whose first sample
+    is at frame ``start``, one every ``sampling`` frames.
+
+    It is linked to the collections of ``source``, placed where ``source`` is (with the same
+    parent unless that parent deforms it) and ``source`` stays the active, selected object. If
+    anything fails, the new object and mesh are removed again.
+    """
+    mesh = source.data.copy()
+    obj = None
+    try:
+        mesh.name = name
+        obj = bpy.data.objects.new(name, mesh)
+        if mesh.shape_keys is not None:
+            obj.shape_key_clear()
+        for collection in source.users_collection or (context.scene.collection,):
+            collection.objects.link(obj)
+        if source.parent is not None and source.parent_type not in DEFORMING_PARENT_TYPES:
+            obj.parent, obj.parent_type = source.parent, source.parent_type
+            obj.parent_bone = source.parent_bone
+            obj.matrix_parent_inverse = source.matrix_parent_inverse.copy()
+            obj.matrix_basis = source.matrix_basis.copy()
+        else:
+            obj.matrix_world = source.matrix_world.copy()
+        modifier = obj.modifiers.new("Mesh Cache", 'MESH_CACHE')
+        modifier.cache_format = 'PC2'
+        modifier.filepath = filepath
+        # The modifier reads sample (frame * frame_scale - frame_start) of the file.
+        modifier.frame_scale = 1.0 / sampling
+        modifier.frame_start = start / sampling
+        return obj
+    except BaseException:
+        if obj is not None:
+            bpy.data.objects.remove(obj)
+        bpy.data.meshes.remove(mesh)
+        raise
+
+
+#: Custom property (on the object) holding the last shape space (operators/analysis.py).
+SHAPE_SPACE_PROPERTY = "shape_space"
+
+
+def stored_shape_space(obj) -> dict | None:
+    """The shape space last stored on ``obj`` as a plain dict, or None."""
+    if obj is None or SHAPE_SPACE_PROPERTY not in obj:
+        return None
+    data = obj[SHAPE_SPACE_PROPERTY]
+    return data.to_dict() if hasattr(data, "to_dict") else dict(data)
+
+
+def loop_triangle_polygons(mesh) -> np.ndarray:
+    """The polygon of every loop triangle, int64 ``(m,)`` (same order as bridge.mesh_triangles)."""
+    mesh.calc_loop_triangles()
+    buffer = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", buffer)
+    return buffer.astype(np.int64)
+
+
+def write_attribute(mesh, name: str, domain: str, values: np.ndarray, *, color: bool = False):
+    """Create or overwrite one attribute (FLOAT, or FLOAT_COLOR when ``color``) of ``mesh``."""
+    kind = 'FLOAT_COLOR' if color else 'FLOAT'
+    existing = mesh.attributes.get(name)
+    if existing is not None and (existing.data_type != kind or existing.domain != domain):
+        mesh.attributes.remove(existing)
+        existing = None
+    if existing is None:
+        existing = (mesh.color_attributes.new(name, kind, domain) if color
+                    else mesh.attributes.new(name, kind, domain))
+    existing.data.foreach_set("color" if color else "value", np.ascontiguousarray(values, dtype=np.float32).ravel())
+    return existing

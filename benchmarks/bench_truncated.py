@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "core"))
 
-from core import convex_recovery as cr  # noqa: E402
-from core.reference_shape import RecoveredMetric, ReferenceShape  # noqa: E402
+from core.reference_shape import LayerMetric, RecoveredMetric, ReferenceShape  # noqa: E402
+from core.triangle_constraints import CONSTRAINT_TOLERANCE, heron  # noqa: E402
 
 PAPER = {  # Fig. 16: area, edge (intrinsic); area, edge (offset); reconstruction — seconds
     "human": (4.7, 9.0, 16.5, 310.9, 195.6),
@@ -86,14 +86,15 @@ def run(name, k_m=100, k_n=200):
         ("offset", ref.offset_layer, diffs.offset_area, diffs.offset_conformal, truth.offset),
     ):
         t0 = time.perf_counter()
-        solver = cr.layer_solver(layer, da.basis)
+        solver = layer.truncated_solver(da.basis)
         solver.area_gram()
         t1 = time.perf_counter()
-        mu = solver.areas(da.product_matrix())
+        mu = solver.areas(da.product_matrix()).areas
         t2 = time.perf_counter()
         solver.edge_gram()
         t3 = time.perf_counter()
-        sq = solver.squared_lengths(dc.product_matrix(), mu)
+        lengths = solver.squared_lengths(dc.product_matrix(), mu)
+        sq = lengths.squared_lengths
         t4 = time.perf_counter()
         row[label] = (t1 - t0, t2 - t1, t3 - t2, t4 - t3)
         xt = sq[layer.topology.triangle_edges]
@@ -101,13 +102,11 @@ def run(name, k_m=100, k_n=200):
         violated[label] = (
             int(np.sum(mu < 0)),
             int(np.sum(roots.sum(axis=1) - 2 * roots.max(axis=1) <= 0)),
-            int(np.sum(cr.heron(xt) < 16 * mu**2 * (1 - cr.CONSTRAINT_TOLERANCE))),
-            solver.last_edge_info.get("iterations", 0),
+            int(np.sum(heron(xt) < 16 * mu**2 * (1 - CONSTRAINT_TOLERANCE))),
+            lengths.iterations,
         )
         rel = lambda a, b: float(np.linalg.norm(a - b) / np.linalg.norm(b))  # noqa: E731
         acc[label] = (rel(mu, tm.areas), rel(sq, tm.squared_lengths), rel(layer.squared_lengths, tm.squared_lengths))
-        from core.reference_shape import LayerMetric
-
         metrics[label] = LayerMetric(mu, sq)
         topo = layer.topology
         print(f"{name} {label}: |V| {topo.n_vertices} |F| {topo.n_triangles} |E| {topo.n_edges}", flush=True)

@@ -13,6 +13,9 @@ Public API (arrays: vertices float64 ``(n, 3)``, triangles int ``(m, 3)``):
 - :class:`Transfer` — poses of a differently meshed target rebuilt on the base mesh through a
   functional map (§6.3, Fig. 15); ``shape_differences``, ``interpolate`` and
   ``SequenceInterpolator`` take such a target with ``target_triangles``.
+- :func:`shape_space` — PCA of the differences of a collection of poses (§8.1);
+  :func:`pull_back` — the target's metric on the base mesh: Laplacian, geodesics, WKS (§8.3);
+  :func:`distortion` — per-face and per-vertex distortion maps of a pose.
 - :func:`default_offset`; errors :class:`MeshError`, :class:`RecoveryError` (both
   :class:`ShapeDifferenceError`) and :class:`ShapeDifferenceWarning`.
 """
@@ -21,9 +24,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import MeshError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
-from .offset_surface import default_offset
+import warnings
+
+from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
+from .offset_surface import check_offset_pose, default_offset
 from .reference_shape import RecoveredMetric, ReferenceShape, ShapeDifferences
+from .validation import (
+    check_basis_sizes,
+    check_factor,
+    check_flag,
+    check_mesh,
+    check_offset,
+    check_pose,
+    check_triangles,
+    check_vertices,
+    numerical_failures,
+)
 
 __all__ = [
     "shape_differences",
@@ -36,7 +52,14 @@ __all__ = [
     "ShapeDifferences",
     "RecoveredMetric",
     "default_offset",
+    "shape_space",
+    "ShapeSpace",
+    "pull_back",
+    "PulledBackMetric",
+    "distortion",
+    "Distortion",
     "MeshError",
+    "MeshIndexError",
     "RecoveryError",
     "ShapeDifferenceError",
     "ShapeDifferenceWarning",
@@ -71,6 +94,10 @@ def shape_differences(
     base at rest. ``target_rest_vertices`` ``(n_N, 3)``: the target pose the map refers to (its
     rest pose; default ``target_vertices``). See :class:`core.transfer.Transfer`, which prepares
     all this once for many target poses.
+
+    Raises :class:`MeshError` for invalid arguments (``docs/errors.md``); warns
+    (:class:`ShapeDifferenceWarning`) when the offset is so far from the mesh's scale that the
+    extrinsic differences lose precision.
     """
     if target_triangles is not None:
         from .transfer import Transfer
@@ -79,8 +106,87 @@ def shape_differences(
         transfer = Transfer(base_vertices, triangles, rest, target_triangles, correspondence=correspondence,
                             k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic)
         return transfer.differences(target_vertices)
-    reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
-    return reference.shape_differences(target_vertices, k_M=k_M, k_N=k_N)
+    base, topology = check_mesh(base_vertices, triangles, name="base_vertices")
+    target = check_pose(target_vertices, topology, name="target_vertices")
+    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
+    offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
+    with numerical_failures("Computing the shape differences"):
+        reference = ReferenceShape(base, topology.triangles, offset=offset, use_extrinsic=use_extrinsic)
+        for name, pose in (("base_vertices", base), ("target_vertices", target)):
+            _warn_precision(reference, pose[reference.used_vertices], name)
+            if use_extrinsic:
+                check_offset_pose(reference.surface, pose[reference.used_vertices], reference.offset, name=name,
+                                  vertex_ids=reference.used_vertices)
+        if use_extrinsic:
+            _warn_offset_scale(reference)
+        return reference.shape_differences(target, k_M=k_M, k_N=k_N)
+
+
+#: shape_differences warns when round-off alone may change recovered squared edge lengths by
+#: more than this (relative). The cotangent weights of eq. (2), (ℓ_k² − ℓ_i² − ℓ_j²)/(8µ), cancel
+#: terms of size ℓ²_max(T) to resolve ℓ²_min(T) and 2µ(T), so they lose a factor
+#: κ_T = ℓ²_max / min(ℓ²_min, 2µ) of precision (measured: one vertex of a 0.2-edge sheet pulled
+#: 1e6 away, κ ≈ 2.5e13, recovered squared lengths 1e-3 off in the full basis; 1e3 away, 1e-8).
+PRECISION_TOLERANCE = 1e-4
+
+
+def _warn_precision(reference: ReferenceShape, pose: np.ndarray, name: str) -> None:
+    topology = reference.topology
+    squared = topology.squared_edge_lengths(pose)[topology.triangle_edges]  # (m, 3)
+    from .mesh_topology import triangle_areas
+
+    doubled = 2.0 * triangle_areas(pose, topology.triangles)
+    kappa = squared.max(axis=1) / np.minimum(squared.min(axis=1), doubled)
+    worst = int(np.argmax(kappa))
+    loss = np.finfo(np.float64).eps * kappa[worst]
+    if loss > PRECISION_TOLERANCE:
+        corners = reference.triangles[worst]  # same order as the compact topology's
+        edges = np.sqrt(squared[worst])
+        warnings.warn(
+            f"{name}: triangle {worst} (vertices {corners.tolist()}) has edges from {edges.min():.3g} to "
+            f"{edges.max():.3g} long (or is nearly flat); recovering its edge lengths from the "
+            f"differences loses precision (relative error up to about {loss:.1g}). The pose may be "
+            "an extreme stretch or a stray vertex: check it, or remesh.",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )
+
+
+#: The extrinsic differences stay accurate for offsets between these multiples of the mean edge
+#: length (thickening lengths are t² + O(ℓ²): far above, the edge information drowns in t²'s
+#: round-off; far below, the offset surface's lengths differ from the base's at round-off).
+OFFSET_RANGE = (1e-3, 1e3)
+
+
+def _warn_offset_scale(reference: ReferenceShape) -> None:
+    mean_edge = float(np.mean(np.sqrt(reference.base.squared_lengths)))
+    ratio = reference.offset / mean_edge
+    low, high = OFFSET_RANGE
+    if not low <= ratio <= high:
+        warnings.warn(
+            f"offset {reference.offset:g} is {ratio:.3g} × the mean edge length {mean_edge:.3g}; "
+            f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
+            "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )
+
+
+#: reconstruct warns when the returned pose misses the recovered edge lengths by more than this
+#: (relative, largest over the edges) for full-basis differences, which determine the lengths
+#: exactly (the embedding converges to ~1e-8 on valid input; truncated differences give lengths
+#: that are only approximately realizable, so they are not checked this way).
+REALIZATION_TOLERANCE = 1e-3
+
+
+_ANALYSIS = {
+    "shape_space": ".shape_space_pca",
+    "ShapeSpace": ".shape_space_pca",
+    "pull_back": ".pulled_back_metric",
+    "PulledBackMetric": ".pulled_back_metric",
+    "distortion": ".distortion_maps",
+    "Distortion": ".distortion_maps",
+}
 
 
 def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.ndarray:
@@ -92,14 +198,116 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
     result is placed by the rotation and translation that bring it closest to the base (least
     squares weighted by vertex area, per connected component). Loose vertices keep their base
     positions.
+
+    ``base_vertices`` and ``triangles`` must be those ``differences`` were computed from
+    (:class:`MeshError` otherwise). Warns (:class:`ShapeDifferenceWarning`) when the returned
+    pose does not realize the recovered edge lengths (full basis).
     """
-    reference = differences.reference
-    if not reference.matches(base_vertices, triangles):
-        reference = ReferenceShape(
-            base_vertices, triangles, offset=differences.offset, use_extrinsic=differences.use_extrinsic
+    if not isinstance(differences, ShapeDifferences):
+        raise MeshError(
+            f"differences must be the ShapeDifferences returned by core.shape_differences; got "
+            f"{type(differences).__name__}."
         )
-    metric = reference.recover_metric(differences)
-    return reference.expand_pose(reference.place_near(reference.embed(metric), reference.base_positions))
+    reference = differences.reference
+    base = check_vertices(base_vertices, name="base_vertices")
+    tris = check_triangles(triangles, base.shape[0])
+    _check_same_mesh(reference, base, tris)
+    with numerical_failures("Reconstructing the pose"):
+        metric = reference.recover_metric(differences)
+        _check_recovered_metric(metric, differences)
+        embedding = reference.embed_result(metric)
+        placed = reference.place_near(embedding.base_vertices, reference.base_positions)
+        if differences.k_M is None:  # exact lengths: a miss or an undecided mirror is real
+            _warn_unrealized(reference, metric, placed)
+            _warn_undetermined(embedding.unresolved_choices)
+        return reference.expand_pose(placed)
+
+
+def _check_same_mesh(reference: ReferenceShape, base: np.ndarray, tris: np.ndarray) -> None:
+    """MeshError unless ``(base, tris)`` is the mesh the differences were computed on."""
+    computed_on = (
+        f"These shape differences were computed on a mesh with {reference.n_vertices} vertices and "
+        f"{reference.triangles.shape[0]} triangles"
+    )
+    fix = "Pass the base_vertices and triangles given to shape_differences."
+    if base.shape[0] != reference.n_vertices or tris.shape != reference.triangles.shape:
+        raise MeshError(
+            f"{computed_on}, but base_vertices has {base.shape[0]} vertices and triangles has "
+            f"{tris.shape[0]} rows. {fix}"
+        )
+    if not np.array_equal(tris, reference.triangles):
+        same_corners = np.array_equal(np.sort(tris, axis=1), np.sort(reference.triangles, axis=1))
+        differ = np.flatnonzero((tris != reference.triangles).any(axis=1))
+        t = int(differ[0])
+        if same_corners:
+            raise MeshError(
+                f"{computed_on}; the triangles given list the same corners in another order "
+                f"(triangle {t}: {tris[t].tolist()}, was {reference.triangles[t].tolist()}), which "
+                f"reverses or rotates them ({differ.size} in all). {fix}"
+            )
+        raise MeshError(f"{computed_on}; triangle {t} differs ({tris[t].tolist()}, was "
+                        f"{reference.triangles[t].tolist()}; {differ.size} in all). {fix}")
+    if not np.array_equal(base, reference.vertices):
+        moved = np.linalg.norm(base - reference.vertices, axis=1)
+        v = int(np.argmax(moved))
+        raise MeshError(
+            f"{computed_on} from another base pose: vertex {v} of base_vertices is {moved[v]:.3g} "
+            f"away from where it was ({int(np.count_nonzero(moved))} vertices differ). {fix}"
+        )
+
+
+def _check_recovered_metric(metric: RecoveredMetric, differences: ShapeDifferences) -> None:
+    """RecoveryError, in the user's terms, if the recovered lengths cannot be embedded."""
+    layers = [("the target pose", metric.base)]
+    if metric.offset is not None:
+        layers.append(("the target's offset surface", metric.offset))
+    for label, layer in layers:
+        squared = layer.squared_lengths
+        bad = np.flatnonzero(~np.isfinite(squared) | (squared <= 0))
+        if bad.size:
+            cause = (
+                f"the truncated basis (k_M={differences.k_M}, k_N={differences.k_N}) is probably too "
+                "small for this deformation: raise k_M, or use the full basis (k_M=None)"
+                if differences.k_M is not None
+                else "the full-basis differences do not describe a valid mesh (were they edited or "
+                "computed on another mesh?)"
+            )
+            raise RecoveryError(
+                f"The squared edge lengths recovered for {label} are not all positive ({bad.size} of "
+                f"{squared.size}): {cause}."
+            )
+
+
+def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed: np.ndarray) -> None:
+    """ShapeDifferenceWarning if the pose misses the recovered (exact) edge lengths."""
+    wanted = np.sqrt(metric.base.squared_lengths)
+    got = np.sqrt(reference.topology.squared_edge_lengths(placed))
+    error = np.abs(got - wanted) / wanted
+    worst = int(np.argmax(error))
+    if error[worst] > REALIZATION_TOLERANCE:
+        a, b = (int(reference.used_vertices[i]) for i in reference.topology.edges[worst])
+        warnings.warn(
+            f"The reconstructed pose misses the edge lengths the differences describe: edge ({a}, {b}) "
+            f"is {100 * error[worst]:.3g} % off ({int(np.count_nonzero(error > REALIZATION_TOLERANCE))} "
+            f"edges beyond {100 * REALIZATION_TOLERANCE:g} %). The embedding could not realize this "
+            "pose (an extreme stretch, a sharp fold, or lengths beyond floating-point precision); "
+            "check the result.",
+            ShapeDifferenceWarning,
+            stacklevel=2,
+        )
+
+
+def _warn_undetermined(choices: int) -> None:
+    """ShapeDifferenceWarning if the embedding had to pick a mirror image without evidence."""
+    if choices:
+        warnings.warn(
+            f"The differences leave part of the pose undetermined: {choices} mirror choice(s) of the "
+            "embedding had no length to decide them (e.g. a fold along the only edge of a two-triangle "
+            "strip, whose folded and flat shapes have the same lengths). That part may come back "
+            "mirrored or flat; more triangles around the fold make it determined.",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )
 
 
 def interpolate(
@@ -125,6 +333,7 @@ def interpolate(
     ``target_rest_vertices`` as in :func:`shape_differences`), then in-betweened in the full basis."""
     from .interpolation import Interpolator
 
+    factor = check_factor(factor)
     if target_triangles is not None:
         from .transfer import transferred_keys
 
@@ -139,6 +348,11 @@ def interpolate(
 
 
 def __getattr__(name: str):
+    # Analysis modules (shape space, pull-back, distortion) load on first use as well.
+    if name in _ANALYSIS:
+        import importlib
+
+        return getattr(importlib.import_module(_ANALYSIS[name], __name__), name)
     # Interpolation classes load on first use, keeping `import core` light.
     if name == "SequenceInterpolator":  # same-mesh, or key poses of another mesh (core.transfer)
         from .transfer import _sequence_class

@@ -22,3 +22,8 @@ class RecoveryError(ShapeDifferenceError, ArithmeticError):
 class ShapeDifferenceWarning(UserWarning):
     """A result was computed, but through a documented fallback (e.g. an interpolated metric that
     is not exactly realizable); the message says which and why."""
+
+
+class MeshIndexError(MeshError, IndexError):
+    """An index argument (e.g. a sequence's ``gap_index``) is out of range or not a whole number.
+    Both a :class:`MeshError` and an ``IndexError``."""

@@ -78,6 +78,7 @@ from scipy.spatial.transform import Rotation
 from .errors import MeshError, ShapeDifferenceWarning
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_time
 from .small_matrices import cofactors_3x3
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
@@ -464,7 +465,7 @@ class _Segment:
         """``x`` (defect-free) moved closer to the interpolated metric's edge lengths by a few
         Levenberg–Marquardt steps; vertices around triangles the polish would flip or collapse
         are held (growing rings); ``x`` itself if defects remain."""
-        from .embedding import refine_edge_lengths
+        from .edge_length_fit import refine_edge_lengths
 
         topo = self.topo
         corner = np.einsum("kab,kb->ka", stretch[topo.tri_of], self.base.edge_vectors)
@@ -625,6 +626,7 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
+        key_poses, k_M, k_N, offset, use_extrinsic, smooth = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -692,6 +694,7 @@ class SequenceInterpolator:
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
+        gap_index, factor = check_gap_index(gap_index, len(self)), check_factor(factor)
         gap = int(gap_index)
         if not 0 <= gap < len(self):
             raise IndexError(f"gap_index {gap_index} out of range for {len(self)} gap(s).")
@@ -710,6 +713,7 @@ class SequenceInterpolator:
     def pose_at(self, time: float) -> np.ndarray:
         """The pose at global ``time`` in key units (0 = first key, K − 1 = last key); times
         outside extrapolate the first or last gap."""
+        time = check_time(time, len(self))
         gap = int(np.clip(np.floor(time), 0, len(self) - 1))
         return self.pose(gap, float(time) - gap)
 
@@ -727,6 +731,7 @@ class Interpolator:
 
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True):
+        k_M, k_N, offset, use_extrinsic = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
         self._sequence = SequenceInterpolator(
             [vertices_a, vertices_b], triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
             smooth=False,
@@ -734,11 +739,13 @@ class Interpolator:
 
     def pose(self, factor: float) -> np.ndarray:
         """0 → a, 1 → b, 0.5 in-between, 1.5 exaggeration, negative: the motion reversed."""
+        factor = check_factor(factor)
         return self._sequence.pose(0, factor)
 
 
 def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,
                 k_N: int | None = None, offset: float | None = None, use_extrinsic: bool = True) -> np.ndarray:
     """One pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1); see :class:`Interpolator`."""
+    factor = check_factor(factor)
     return Interpolator(vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset,
                         use_extrinsic=use_extrinsic).pose(factor)

@@ -11,6 +11,17 @@ from .errors import MeshError, RecoveryError
 
 #: Up to this many vertices a dense generalized eigensolver is faster and more robust than ARPACK.
 DENSE_EIGEN_LIMIT = 600
+#: Above it, a basis of at least this fraction of the vertices is also computed densely
+#: (``scipy.linalg.eigh`` with ``subset_by_index``): ARPACK's cost grows like n k², the dense
+#: solve's like n³. Measured on a 2,500-vertex sheet, one BLAS thread, same (loaded) run: ARPACK
+#: 1.2 / 2.2 / 6.7 / 29 s for k = 50 / 100 / 200 / 400, dense 27 s for k = 500 and 1,000, 59 s
+#: for k = 2,000 (ARPACK did not finish k = 2,000 in 250 s in issue 19). LAPACK's divide and
+#: conquer (``driver="gvd"``) on every eigenpair, then truncated, beats the subset driver ``gvx``
+#: even for k = 500 (another loaded run: 50 s against 78 s for k = 500 and 81 s for k = 2,000).
+DENSE_EIGEN_FRACTION = 1.0 / 6.0
+#: Largest vertex count solved densely (two n × n float64 matrices and LAPACK's work space:
+#: about 3 GB at this size); larger meshes use ARPACK whatever k.
+DENSE_EIGEN_MAX_VERTICES = 12000
 
 
 @dataclass(frozen=True, eq=False)
@@ -34,18 +45,20 @@ class LaplaceBasis:
         return out
 
 
-def basis_sizes(k_M, k_N) -> tuple[int | None, int | None]:
+def basis_sizes(k_M, k_N, n_vertices: int | None = None) -> tuple[int | None, int | None]:
     """Normalize the basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the
-    sidebar's convention); ``k_N`` (target basis) needs ``k_M`` (base basis)."""
-    k_M, k_N = (k or None for k in (k_M, k_N))
-    if k_N is not None and k_M is None:
-        raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
-    return k_M, k_N
+    sidebar's convention); ``k_N`` (target basis) needs ``k_M`` (base basis). Whole numbers only,
+    below ``n_vertices`` when given (:func:`core.validation.check_basis_sizes`)."""
+    from .validation import check_basis_sizes
+
+    return check_basis_sizes(k_M, k_N, n_vertices)
 
 
 def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh") -> LaplaceBasis:
-    """The ``k`` smallest eigenpairs of ``(C, A)`` (scipy ``eigsh`` in shift-invert mode about a
-    small negative shift, so the factorized matrix ``C − σA`` is positive definite).
+    """The ``k`` smallest eigenpairs of ``(C, A)``: scipy ``eigsh`` in shift-invert mode about a
+    small negative shift (so the factorized matrix ``C − σA`` is positive definite), or a dense
+    ``eigh`` for small meshes and for bases of at least :data:`DENSE_EIGEN_FRACTION` of the
+    vertices.
 
     ``mass``, ``conformal``: float64 sparse ``(n, n)``. Raises :class:`MeshError` if ``k`` is not in
     ``1..n-1`` and :class:`RecoveryError` if the eigensolver fails.
@@ -56,10 +69,20 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
             f"The {what} has {n} vertices, so the number of Laplace–Beltrami eigenfunctions must be "
             f"between 1 and {n - 1}; got {k}. Lower k, or use 0 / None for the full basis."
         )
-    if n <= DENSE_EIGEN_LIMIT:
-        from scipy.linalg import eigh
+    if n <= DENSE_EIGEN_LIMIT or (k >= DENSE_EIGEN_FRACTION * n and n <= DENSE_EIGEN_MAX_VERTICES):
+        from scipy.linalg import LinAlgError, eigh
 
-        values, vectors = eigh(conformal.toarray(), mass.toarray(), subset_by_index=[0, k - 1])
+        try:
+            if n <= DENSE_EIGEN_LIMIT:
+                values, vectors = eigh(conformal.toarray(), mass.toarray(), subset_by_index=[0, k - 1])
+            else:  # divide and conquer on every pair, then the first k: faster than the subset driver
+                values, vectors = eigh(conformal.toarray(), mass.toarray(), driver="gvd")
+                values, vectors = values[:k], vectors[:, :k]
+        except (LinAlgError, ValueError) as error:
+            raise RecoveryError(
+                f"The Laplace–Beltrami eigensolver failed for the {what} with k = {k} ({error}). "
+                "Check the mesh for nearly degenerate triangles."
+            ) from error
         return LaplaceBasis(values, vectors)
     from scipy.sparse.linalg import ArpackNoConvergence, eigsh
 

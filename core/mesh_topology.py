@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import MeshError
+from .validation import check_triangles, check_vertices  # noqa: F401 (re-exported)
 
 #: A triangle whose doubled area is below this fraction of its longest squared edge is degenerate.
 DEGENERATE_TRIANGLE_RATIO = 1e-10
@@ -40,29 +41,6 @@ def triangle_normals(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     p0, p1, p2 = (vertices[triangles[:, k]] for k in range(3))
     normals = np.cross(p1 - p0, p2 - p0)
     return normals / np.linalg.norm(normals, axis=1, keepdims=True)
-
-
-def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vertices") -> np.ndarray:
-    """Return ``vertices`` as contiguous float64 ``(n, 3)``; raise :class:`MeshError` on a wrong
-    shape, a vertex count different from ``n_vertices`` or a non-finite coordinate."""
-    array = np.ascontiguousarray(vertices, dtype=np.float64)
-    if array.ndim != 2 or array.shape[1] != 3:
-        raise MeshError(f"{name} must be an array of shape (n, 3); got shape {array.shape}.")
-    if n_vertices is not None and array.shape[0] != n_vertices:
-        raise MeshError(
-            f"{name} has {array.shape[0]} vertices but the base mesh has {n_vertices}. Poses must "
-            "be in vertex-for-vertex correspondence with the base: use shape keys or frames of "
-            "the same mesh, and avoid modifiers that add or remove vertices (Subdivision, "
-            "Decimate, Remesh) or apply them to every pose."
-        )
-    finite = np.isfinite(array).all(axis=1)
-    if not finite.all():
-        bad = int(np.flatnonzero(~finite)[0])
-        raise MeshError(
-            f"{name}: vertex {bad} has a non-finite coordinate {array[bad].tolist()}. Fix the pose "
-            "(e.g. a simulation that exploded) or remove that frame."
-        )
-    return array
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,10 +109,11 @@ class MeshTopology:
         return int(count), labels.astype(np.int64)
 
     def check_pose(self, vertices, *, name: str = "vertices") -> np.ndarray:
-        """Validate one pose of this mesh: shape, vertex count, finite, no degenerate triangle."""
-        array = check_vertices(vertices, self.n_vertices, name=name)
-        check_nondegenerate(array, self.triangles, name=name)
-        return array
+        """Validate one pose of this mesh: shape, vertex count, finite, range, size, no degenerate
+        triangle (:func:`core.validation.check_pose`)."""
+        from .validation import check_pose
+
+        return check_pose(vertices, self, name=name)
 
 
 def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices") -> None:
@@ -142,6 +121,15 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
     p0, p1, p2 = (vertices[triangles[:, k]] for k in range(3))
     doubled_area = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
     longest = np.max([np.einsum("ij,ij->i", a - b, a - b) for a, b in ((p1, p2), (p2, p0), (p0, p1))], axis=0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        overflow = ~np.isfinite(doubled_area) | ~np.isfinite(longest)
+    if overflow.any():
+        t = int(np.flatnonzero(overflow)[0])
+        raise MeshError(
+            f"{name}: triangle {t} (vertices {triangles[t].tolist()}) is too large to measure in "
+            "floating point (its squared edge lengths overflow). Scale the mesh down (in Blender: "
+            "scale the object, then Object > Apply > Scale), or fix the vertices of that triangle."
+        )
     bad = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * longest))
     if bad.size:
         t = int(bad[0])
@@ -156,42 +144,17 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
     """Validate ``triangles`` (int ``(m, 3)``) of a mesh with ``n_vertices`` vertices and build its
     topology: edges, triangle→edge and edge→triangle incidence, boundary.
 
-    Raises :class:`MeshError` (a ``ValueError``) for fewer than one triangle, indices out of range,
-    a vertex repeated in a triangle, an edge shared by more than two triangles, or inconsistent
-    orientation. Geometry checks (degenerate triangles, non-finite coordinates) are in
+    Raises :class:`MeshError` (a ``ValueError``) for fewer than one triangle, indices out of range
+    or not whole numbers, a vertex repeated in a triangle, an edge shared by more than two
+    triangles, a non-manifold ("bow-tie") vertex, or inconsistent orientation. Geometry checks (degenerate triangles, non-finite coordinates) are in
     :meth:`MeshTopology.check_pose`. Loose vertices are allowed.
 
     ``allow_non_manifold`` (for targets of a cross-mesh transfer only, never a base): edges shared
     by more than two triangles or traversed twice in one direction are kept (the mass and
     conformal matrices are sums over triangles, well defined) but get no ``edge_triangles``
-    (``-1, -1``: neither interior nor a hinge of the offset surface).
+    (``-1, -1``: neither interior nor a hinge of the offset surface); bow-tie vertices pass.
     """
-    tris = np.asarray(triangles)
-    if tris.ndim != 2 or tris.shape[1] != 3:
-        raise MeshError(f"triangles must be an integer array of shape (m, 3); got shape {tris.shape}.")
-    if tris.shape[0] < 1:
-        raise MeshError("The mesh has no triangles: shape differences need at least one face.")
-    if not np.issubdtype(tris.dtype, np.integer):
-        if not np.all(np.mod(tris, 1) == 0):
-            raise MeshError("triangles must hold integer vertex indices.")
-    tris = np.ascontiguousarray(tris, dtype=np.int64)
-    out_of_range = np.flatnonzero(((tris < 0) | (tris >= n_vertices)).any(axis=1))
-    if out_of_range.size:
-        t = int(out_of_range[0])
-        raise MeshError(
-            f"Triangle {t} refers to vertex indices {tris[t].tolist()}, but the mesh has "
-            f"{n_vertices} vertices (valid indices are 0..{n_vertices - 1}). Pass the triangles "
-            "and vertices of the same mesh."
-        )
-    repeated = np.flatnonzero(
-        (tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 2] == tris[:, 0])
-    )
-    if repeated.size:
-        t = int(repeated[0])
-        raise MeshError(
-            f"Triangle {t} uses a vertex twice ({tris[t].tolist()}). Remove degenerate faces: in "
-            "Blender use Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance."
-        )
+    tris = check_triangles(triangles, n_vertices)
 
     m = tris.shape[0]
     # Half-edge opposite corner k goes from corner k+1 to corner k+2.
@@ -236,6 +199,7 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         )
     else:
         edge_triangles[edge_of_halfedge, slot] = owner
+        _check_manifold_vertices(tris, edges, edge_triangles, n_vertices)
 
     return MeshTopology(
         n_vertices=int(n_vertices),
@@ -245,3 +209,40 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         edge_triangles=edge_triangles,
         used_vertices=np.unique(tris),
     )
+
+
+def _check_manifold_vertices(tris: np.ndarray, edges: np.ndarray, edge_triangles: np.ndarray, n_vertices: int) -> None:
+    """Raise :class:`MeshError` naming the vertices whose triangles form more than one fan
+    ("bow-tie" vertices, where two sheets touch at a single vertex). Corners of one vertex are
+    joined when their triangles share an edge at that vertex; a manifold vertex has one group."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    inner = np.flatnonzero((edge_triangles >= 0).all(axis=1))
+    t1, t2 = edge_triangles[inner, 0], edge_triangles[inner, 1]
+    rows, cols = [], []
+    for end in (0, 1):
+        v = edges[inner, end]
+        rows.append(3 * t1 + np.argmax(tris[t1] == v[:, None], axis=1))
+        cols.append(3 * t2 + np.argmax(tris[t2] == v[:, None], axis=1))
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    corners = 3 * tris.shape[0]
+    graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(corners, corners))
+    _, fan = connected_components(graph, directed=False)
+    vertex = tris.ravel()
+    pairs = np.unique(np.stack([vertex, fan]), axis=1)
+    fans = np.bincount(pairs[0], minlength=n_vertices)
+    bad = np.flatnonzero(fans > 1)
+    if bad.size:
+        first = int(bad[0])
+        groups = [np.flatnonzero((vertex == first) & (fan == f)) // 3 for f in np.unique(fan[vertex == first])]
+        shown = ", ".join(str(g.tolist()) for g in groups[:3])
+        listed = bad[:10].tolist()
+        raise MeshError(
+            f"Vertices {listed}{' ...' if bad.size > 10 else ''} ({bad.size} in all) are non-manifold "
+            f"(\"bow-tie\"): the triangles around each form separate fans that touch only at that "
+            f"vertex (vertex {first}: fans of triangles {shown}). Shape differences need a manifold "
+            "mesh. In Blender use Select > Select All by Trait > Non Manifold (with Vertices on), "
+            "then split each selected vertex into one per fan (Vertex > Rip Vertices, V) or delete "
+            "the faces that touch the rest only at that vertex."
+        )

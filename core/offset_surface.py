@@ -32,10 +32,14 @@ DEFAULT_OFFSET_PER_EDGE_LENGTH = 0.5
 def default_offset(vertices: np.ndarray, triangles: np.ndarray) -> float:
     """The automatic offset distance t: half the mean edge length of the mesh (scales with it).
 
-    ``vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``.
+    ``vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``; :class:`MeshError` if they are
+    not a valid mesh (non-finite or out-of-range coordinates, bad or negative indices, no
+    triangle).
     """
-    v = np.asarray(vertices, dtype=np.float64)
-    t = np.asarray(triangles)
+    from .validation import check_triangles, check_vertices
+
+    v = check_vertices(vertices, name="vertices")
+    t = check_triangles(triangles, v.shape[0])
     lengths = [np.linalg.norm(v[t[:, (k + 1) % 3]] - v[t[:, k]], axis=1) for k in range(3)]
     return float(DEFAULT_OFFSET_PER_EDGE_LENGTH * np.mean(lengths))
 
@@ -131,7 +135,15 @@ def offset_surface(base: MeshTopology) -> OffsetSurface:
     triangles = np.concatenate(
         [np.stack([lift_of_vertex[a], c2, c1], axis=1), np.stack([lift_of_vertex[b], c1, c2], axis=1)]
     )
-    topology = mesh_topology(triangles, lifted.size + centered.size)
+    try:
+        topology = mesh_topology(triangles, lifted.size + centered.size)
+    except MeshError as error:  # its indices are the offset surface's: say it in the base's terms
+        raise MeshError(
+            "The offset surface of this mesh is not a valid surface, so extrinsic shape differences "
+            "cannot be computed; the mesh is manifold but its triangles are arranged so that their "
+            "offsets overlap. Turn off extrinsic differences (use_extrinsic=False) or remesh. "
+            f"(Offset surface: {error})"
+        ) from error
     return OffsetSurface(
         base=base,
         topology=topology,
@@ -171,3 +183,30 @@ def _thickening_tetrahedra(surface: OffsetSurface) -> np.ndarray:
     apex = surface.lifted_vertices[offset_tris[:, 0] - n]
     downward = np.concatenate([apex[:, None], offset_tris], axis=1)
     return np.concatenate([upward, mesh_edge, downward]).astype(np.int64)
+
+
+def check_offset_pose(surface: OffsetSurface, vertices: np.ndarray, offset: float, *, name: str = "vertices",
+                      vertex_ids: np.ndarray | None = None) -> None:
+    """Raise :class:`MeshError`, naming the base mesh's edge, if the offset surface of a pose
+    ``vertices (n, 3)`` at distance ``offset`` has a degenerate triangle (the offsets of two
+    neighbouring triangles collapse onto each other, e.g. a fold much sharper than the offset
+    distance). Offset triangle ``j`` lies over the base's ``j % E_inner``-th interior edge;
+    ``vertex_ids`` maps the base's vertex indices to the caller's (loose vertices removed)."""
+    from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
+
+    positions = surface.positions(vertices, offset)
+    tris = surface.topology.triangles
+    p0, p1, p2 = (positions[tris[:, k]] for k in range(3))
+    doubled = np.linalg.norm(np.cross(p1 - p0, p2 - p0), axis=1)
+    longest = np.max([np.einsum("ij,ij->i", a - b, a - b) for a, b in ((p1, p2), (p2, p0), (p0, p1))], axis=0)
+    bad = np.flatnonzero(~(doubled > DEGENERATE_TRIANGLE_RATIO * longest))
+    if bad.size:
+        inner = surface.base.interior_edges
+        a, b = surface.base.edges[inner[bad[0] % inner.size]]
+        if vertex_ids is not None:
+            a, b = vertex_ids[a], vertex_ids[b]
+        raise MeshError(
+            f"{name}: the offset surface at distance {offset:g} collapses over the edge ({a}, {b}) "
+            f"({bad.size} offset triangle(s) in all): the triangles on either side fold onto each "
+            "other at this distance. Use a smaller offset, or turn off extrinsic differences."
+        )

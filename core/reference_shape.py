@@ -16,16 +16,19 @@ from functools import cached_property
 import numpy as np
 
 from .errors import MeshError
+from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .validation import check_flag, check_offset
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
     functional_map_differences,
     reduced_differences,
 )
+from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,16 +49,27 @@ class SurfaceLayer:
         self.assembler = ProductAssembler(topology)
         self.areas, self.squared_lengths, self.mass, self.conformal = pose_products(self.assembler, positions)
         self._bases: dict[int, LaplaceBasis] = {}
+        self._truncated_solvers: dict[int, TruncatedRecovery] = {}
 
     @property
     def metric(self) -> LayerMetric:
         return LayerMetric(self.areas, self.squared_lengths)
 
     @cached_property
-    def area_recovery(self):
-        from .metric_recovery import AreaRecovery
-
+    def area_recovery(self) -> AreaRecovery:
+        """Prop. 1's factorization for this layer (full basis), built on first use."""
         return AreaRecovery(self.assembler)
+
+    def truncated_solver(self, basis: LaplaceBasis) -> TruncatedRecovery:
+        """The programs (8) and (10) of this layer for ``basis`` (cached per basis size):
+        everything that depends only on the reference layer and the basis is computed once."""
+        solver = self._truncated_solvers.get(basis.size)
+        if solver is None or not (
+            solver.basis is basis or np.array_equal(solver.basis.functions, basis.functions)
+        ):
+            solver = TruncatedRecovery(self, basis)
+            self._truncated_solvers[basis.size] = solver
+        return solver
 
     def basis(self, k: int) -> LaplaceBasis:
         """The first ``k`` eigenpairs of this layer's reference pose (cached; a larger cached
@@ -82,18 +96,16 @@ class SurfaceLayer:
         """Areas and squared lengths of the target from its two differences: linear solves in the
         full basis (Props. 1–2), convex programs when truncated (§7.1–7.2)."""
         if isinstance(area_difference, FullDifference):
-            from .metric_recovery import recover_squared_lengths
-
             _, area_edge_values = area_difference.product_entries(self.assembler)
             areas = self.area_recovery.solve(area_edge_values)
             _, edge_values = conformal_difference.product_entries(self.assembler)
             squared = recover_squared_lengths(
-                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths, what=self.name
+                self.assembler, areas, edge_values, reference_squared_lengths=self.squared_lengths,
+                what=f"target pose ({self.name} layer)",
             )
             return LayerMetric(areas, squared)
-        from .convex_recovery import recover_truncated_metric
-
-        return recover_truncated_metric(self, area_difference, conformal_difference)
+        solver = self.truncated_solver(area_difference.basis)
+        return LayerMetric(*recover_truncated_metric(solver, area_difference, conformal_difference))
 
 
 def _recover_layers(jobs) -> list[LayerMetric]:
@@ -165,6 +177,7 @@ class ReferenceShape:
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+        offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name="base vertices")
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
@@ -276,6 +289,11 @@ class ReferenceShape:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
         layer of the embedded canonical thickening, or — without the offset layer — a fit of the
         base edge lengths started from ``initial`` (default: the base pose)."""
+        return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
+
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+        """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
@@ -289,7 +307,7 @@ class ReferenceShape:
         else:
             start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
-        return result.base_vertices
+        return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as

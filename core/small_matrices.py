@@ -1,6 +1,6 @@
 """Closed-form operations on stacks of 3×3 matrices (``(k, 3, 3)``), used where NumPy's batched
 LAPACK calls pay per-matrix and thread overheads that dominate at this size (measured in
-:func:`core.embedding._block_jacobi`: 10k blocks 25 ms → 3 ms per inverse)."""
+:func:`core.edge_length_fit._block_jacobi`: 10k blocks 25 ms → 3 ms per inverse)."""
 
 from __future__ import annotations
 

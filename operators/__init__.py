@@ -2,7 +2,11 @@
 
 import bpy
 
-from .frames import SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames
+from . import analysis
+from .analysis import classes as analysis_classes
+from .base import shutdown_worker
+from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames,
+                     SHAPE_DIFFERENCES_OT_retime)
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
                     SHAPE_DIFFERENCES_OT_reconstruct)
 from .transfer import SHAPE_DIFFERENCES_OT_transfer_poses
@@ -13,7 +17,20 @@ classes = (
     SHAPE_DIFFERENCES_OT_exaggerate,
     SHAPE_DIFFERENCES_OT_reconstruct,
     SHAPE_DIFFERENCES_OT_inbetween_frames,
+    SHAPE_DIFFERENCES_OT_retime,
+    *analysis_classes,
     SHAPE_DIFFERENCES_OT_transfer_poses,
 )
 
-register, unregister = bpy.utils.register_classes_factory(classes)
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)
+
+
+def register():
+    _register_classes()
+    analysis.register_handlers()
+
+
+def unregister():
+    analysis.unregister_handlers()
+    _unregister_classes()
+    shutdown_worker()

@@ -6,12 +6,17 @@ An operator's work is a generator that validates first, computes while yielding 
 (0..1) and writes to the object only in its last step, so cancelling or failing changes nothing.
 """
 
+import re
+import sys
+import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import wait as wait_for
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty
 
 from .. import bridge
+from ..properties import CoreSettings
 
 
 def load_core():
@@ -24,7 +29,25 @@ class InputError(Exception):
     """Bad selection or settings: the message says what is wrong and how to fix it."""
 
 
-def reported_error(error: BaseException) -> str | None:
+# The core names poses "key pose i" (sequences) or "vertices_a" / "vertices_b" (two poses).
+POSE_REFERENCE = re.compile(r"\bkey pose (\d+)\b|\bvertices_([ab])\b")
+
+
+def name_poses(message: str, pose_names) -> str:
+    """``message`` with the core's "key pose i" (or "vertices_a" / "vertices_b") replaced by the
+    name of the i-th pose the operator passed (a shape key or a frame), so users read the names
+    they know."""
+    if not pose_names:
+        return message
+
+    def named(match):
+        index = int(match.group(1)) if match.group(1) else "ab".index(match.group(2))
+        return pose_names[index] if index < len(pose_names) else match.group(0)
+
+    return POSE_REFERENCE.sub(named, message)
+
+
+def reported_error(error: BaseException, pose_names=()) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
     if isinstance(error, (InputError, bridge.VertexCountChanged)):
         return str(error)
@@ -34,12 +57,40 @@ def reported_error(error: BaseException) -> str | None:
                 "zip built for your platform (it bundles SciPy and cvxpy), then restart Blender.")
     core = load_core()
     if isinstance(error, core.ShapeDifferenceError):
-        return str(error)
+        return name_poses(str(error), pose_names)
     return None
 
 
+# Seconds between progress lines printed on the console in background mode.
+CONSOLE_PROGRESS_INTERVAL = 1.0
+# Longest a timer tick waits for a core computation running in the worker thread: Esc and the
+# rest of Blender's UI stay responsive while one core call takes seconds.
+WORKER_POLL_SECONDS = 0.05
+_worker = None
+
+
+def shutdown_worker():
+    """Let the worker thread end (after a call still running) when the extension is disabled."""
+    global _worker
+    if _worker is not None:
+        _worker.shutdown(wait=False, cancel_futures=True)
+        _worker = None
+
+
+def worker():
+    """The one thread that runs core computations of modal operators (never bpy calls)."""
+    global _worker
+    if _worker is None:
+        _worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="shape_differences")
+    return _worker
+
+
 class GeneratorOperator:
-    """Mixin for operators whose work is the generator ``run(context)``."""
+    """Mixin for operators whose work is the generator ``run(context)``.
+
+    ``run`` may set ``self.pose_names`` (the names of the poses it hands to the core, in order)
+    so that core messages about "key pose i" name them.
+    """
 
     bl_options = {'REGISTER', 'UNDO'}
 
@@ -58,29 +109,53 @@ class GeneratorOperator:
         """Validate, compute (yielding progress in 0..1), then write. Set ``self.summary``."""
         raise NotImplementedError
 
+    def compute(self, progress: float, function, *args, **kwargs):
+        """``yield from`` this to run one core call ``function(*args, **kwargs)`` (pure NumPy, no
+        bpy) and get its result. From the UI it runs in a worker thread while this yields
+        ``progress`` every few hundredths of a second, so Esc cancels at once however long the
+        call takes (a cancelled call finishes in the background and its result is dropped);
+        in ``execute`` it simply runs. Warnings the call raises are collected like the job's
+        own while a timer tick waits for it, which is nearly all the time it runs."""
+        if not getattr(self, "_modal", False):
+            yield progress  # lets execute() print progress on the console
+            return function(*args, **kwargs)
+        future = worker().submit(function, *args, **kwargs)
+        try:
+            while not wait_for([future], timeout=WORKER_POLL_SECONDS).done:
+                yield progress
+        except GeneratorExit:
+            future.cancel()
+            raise
+        return future.result()
+
     # -- driving the generator -------------------------------------------------------------
 
-    def _start(self, context):
+    def _start(self, context, modal: bool = False):
+        self._modal = modal
         self._job = self.run(context)
         self._warnings: list[str] = []
         self.summary = ""
+        self.pose_names = ()
 
     def _step(self) -> tuple[str | None, float]:
         """Advance the job by one step: (final status or None while running, progress)."""
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            try:
-                return None, next(self._job)
-            except StopIteration:
-                return 'FINISHED', 1.0
-            except Exception as error:
-                message = reported_error(error)
-                if message is None:
-                    raise
-                self.report({'ERROR'}, message)
-                return 'CANCELLED', 1.0
-            finally:
-                self._collect_warnings(caught)
+        caught = []
+        try:
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                try:
+                    return None, next(self._job)
+                except StopIteration:
+                    return 'FINISHED', 1.0
+                except Exception as error:
+                    message = reported_error(error, self.pose_names)
+                    if message is None:
+                        raise
+                    self.report({'ERROR'}, message)
+                    return 'CANCELLED', 1.0
+        finally:
+            # After the recording ends: showing a foreign warning inside it would record it again.
+            self._collect_warnings(caught)
 
     def _collect_warnings(self, caught):
         core_warning = load_core().ShapeDifferenceWarning
@@ -88,8 +163,10 @@ class GeneratorOperator:
             if not issubclass(warning.category, core_warning):
                 warnings.showwarning(warning.message, warning.category, warning.filename,
                                      warning.lineno)
-            elif str(warning.message) not in self._warnings:
-                self._warnings.append(str(warning.message))
+                continue
+            message = name_poses(str(warning.message), self.pose_names)
+            if message not in self._warnings:
+                self._warnings.append(message)
 
     def _finish(self, status: str) -> set[str]:
         for message in self._warnings:
@@ -99,11 +176,21 @@ class GeneratorOperator:
         return {status}
 
     def execute(self, context):
+        """Run the whole job now; in background mode print its progress on the console."""
+        console = bpy.app.background
+        label = getattr(self, "bl_label", type(self).__name__)
+        last_print = time.monotonic()
         self._start(context)
         while True:
-            status, _progress = self._step()
+            status, progress = self._step()
             if status:
+                if console:
+                    print(f"{label}: {'done' if status == 'FINISHED' else 'cancelled'}", file=sys.stderr,
+                          flush=True)
                 return self._finish(status)
+            if console and time.monotonic() - last_print >= CONSOLE_PROGRESS_INTERVAL:
+                last_print = time.monotonic()
+                print(f"{label}: {100 * progress:.0f}%", file=sys.stderr, flush=True)
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
@@ -111,7 +198,7 @@ class GeneratorOperator:
         return self._start_modal(context)
 
     def _start_modal(self, context) -> set[str]:
-        self._start(context)
+        self._start(context, modal=True)
         status, _progress = self._step()  # validation runs right away
         if status:
             return self._finish(status)
@@ -122,45 +209,33 @@ class GeneratorOperator:
         return {'RUNNING_MODAL'}
 
     def modal(self, context, event):
-        if event.type == 'ESC':
-            self._job.close()  # runs the job's clean-up; nothing has been written yet
-            self.report({'WARNING'}, "Cancelled: nothing was changed")
-            return self._end_modal(context, 'CANCELLED')
-        if event.type == 'TIMER':
-            status, progress = self._step()
-            context.window_manager.progress_update(int(100 * progress))
-            if status:
-                return self._end_modal(context, status)
-        return {'RUNNING_MODAL'}  # block other input while the object is being worked on
-
-    def _end_modal(self, context, status: str) -> set[str]:
-        window_manager = context.window_manager
-        window_manager.event_timer_remove(self._timer)
-        window_manager.progress_end()
+        """One timer tick runs one step of the job; Esc closes the job (nothing is written
+        before its last step). The timer and the progress cursor go whatever happens, also when
+        a step raises an unexpected error."""
+        status = None
+        try:
+            if event.type == 'ESC':
+                self._job.close()  # runs the job's clean-up; nothing has been written yet
+                self.report({'WARNING'}, "Cancelled: nothing was changed")
+                status = 'CANCELLED'
+            elif event.type == 'TIMER':
+                status, progress = self._step()
+                context.window_manager.progress_update(int(100 * progress))
+        except BaseException:
+            status = 'CANCELLED'
+            self._job.close()
+            raise
+        finally:
+            if status is not None:
+                window_manager = context.window_manager
+                window_manager.event_timer_remove(self._timer)
+                window_manager.progress_end()
+        if status is None:
+            return {'RUNNING_MODAL'}  # block other input while the object is being worked on
         return self._finish(status)
 
 
 # -- settings shared with the core ----------------------------------------------------------
-
-class CoreSettings:
-    """The core's settings as properties: the scene settings and each core operator have them."""
-
-    k_m: IntProperty(
-        name="k_M", min=0, default=0,
-        description="Basis size on the base pose: Laplacian eigenfunctions of the base mesh and of its "
-                    "offset surface (eqs. 5-6); 0 = full basis, exact")
-    k_n: IntProperty(
-        name="k_N", min=0, default=0,
-        description="Basis size on the target pose (functional map from the vertex correspondence, "
-                    "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
-    offset: FloatProperty(
-        name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
-        description="Distance of the offset surface that carries the extrinsic information; "
-                    "0 = automatic (scales with the mesh)")
-    use_extrinsic: BoolProperty(
-        name="Extrinsic", default=True,
-        description="Use extrinsic (offset surface) shape differences as well as intrinsic ones")
-
 
 class CoreSettingsProperties(CoreSettings):
     """Core settings of an operator: each one not set is taken from the scene settings."""
@@ -230,6 +305,11 @@ def default_pose_key(obj):
 def resolve_key(obj, name: str, property_name: str, default):
     """``find_key`` for a given name, ``default`` (a key) when the name is empty."""
     return find_key(obj, name, property_name) if name else default
+
+
+def require_count(count: int, what: str):
+    if count < 1:
+        raise InputError(f"Count is {count}: ask for at least 1 of the {what}")
 
 
 def require_distinct(first, second, first_name: str, second_name: str):

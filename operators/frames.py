@@ -1,4 +1,5 @@
-"""Operators on the evaluated animation of the active mesh (cloth, armature, any modifiers)."""
+"""Operators on the evaluated animation of the active mesh (cloth, armature, any modifiers):
+capture frames, in-between every n-th frame, retime."""
 
 from contextlib import closing
 
@@ -6,13 +7,23 @@ import bpy
 from bpy.props import IntProperty
 
 from .. import bridge
+from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
+                          Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core,
-                   surface_triangles)
-from .poses import added_summary, inbetween_name
+                   require_count, surface_triangles)
+from .output import PoseWriter, unbaked_simulations
+from .poses import format_factor, inbetween_name
 
 
 def frame_key_name(frame: int) -> str:
     return f"Frame {frame}"
+
+
+def simulation_start(obj) -> int | None:
+    """The first frame of ``obj``'s unbaked simulations: reading frames starts there, so that a
+    simulation that is not baked is computed from its start, one frame at a time."""
+    starts = [obj.modifiers[name].point_cache.frame_start for name in unbaked_simulations(obj)]
+    return min(starts) if starts else None
 
 
 class FrameRangeProperties:
@@ -20,21 +31,24 @@ class FrameRangeProperties:
 
     frame_start: IntProperty(name="Start", description="First frame (default: the scene's start)")
     frame_end: IntProperty(name="End", description="Last frame (default: the scene's end)")
-    frame_step: IntProperty(name="Step", min=1, default=1,
-                            description="Take every n-th frame from the start")
 
     minimum_frames = 1
 
-    def frames(self, context) -> list[int]:
-        """The frames to read; resolved values are written back for the Redo panel."""
+    def frame_range(self, context) -> tuple[int, int]:
+        """Start and end frame; resolved values are written back for the Redo panel."""
         scene = context.scene
         for name in ("frame_start", "frame_end"):
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(scene, name))
-        frames = list(range(self.frame_start, self.frame_end + 1, self.frame_step))
+        return self.frame_start, self.frame_end
+
+    def frames(self, context) -> list[int]:
+        """Every ``frame_step``-th frame of the range (at least ``minimum_frames`` of them)."""
+        start, end = self.frame_range(context)
+        frames = list(range(start, end + 1, self.frame_step))
         if len(frames) < self.minimum_frames:
             raise InputError(
-                f"Frames {self.frame_start} to {self.frame_end} with step {self.frame_step} give "
+                f"Frames {start} to {end} with step {self.frame_step} give "
                 f"{len(frames)} frame{'s' if len(frames) != 1 else ''}, at least "
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
@@ -42,17 +56,18 @@ class FrameRangeProperties:
     def read_frames(self, context, obj, frames: list[int], progress_share: float):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions."""
         poses = []
-        with closing(bridge.frame_positions(context, obj, frames)) as frame_reader:
+        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(obj))
+        with closing(reader) as frame_reader:
             for frame, positions in frame_reader:
                 poses.append(positions)
                 yield progress_share * len(poses) / len(frames)
         return poses
 
 
-class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(FrameRangeProperties, GeneratorOperator,
-                                                bpy.types.Operator):
-    """Add one shape key per frame with the evaluated mesh (after cloth, armature and other
-    modifiers) at that frame"""
+class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRangeProperties,
+                                                PoseWriter, GeneratorOperator, bpy.types.Operator):
+    """Capture the evaluated mesh (after cloth, armature and other modifiers) at every n-th
+    frame, as one shape key per frame or as a point cache on a new object"""
 
     bl_idname = "shape_differences.frames_to_shape_keys"
     bl_label = "Frames to Shape Keys"
@@ -60,47 +75,108 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(FrameRangeProperties, GeneratorO
     def run(self, context):
         obj = context.active_object
         frames = self.frames(context)
+        self.check_captured_output(obj)
         poses = yield from self.read_frames(context, obj, frames, 1.0)
-        new_keys = [bridge.NewShapeKey(frame_key_name(frame), positions)
-                    for frame, positions in zip(frames, poses)]
-        self.summary = added_summary(bridge.add_shape_keys(obj, new_keys))
+        self.summary = self.write_poses(
+            context, obj, poses, names=[frame_key_name(frame) for frame in frames],
+            frames=[float(frame) for frame in frames],
+            label=f"Frames {frames[0]}-{frames[-1]}"
+                  + (f" step {self.frame_step}" if self.frame_step > 1 else ""))
 
 
-class SHAPE_DIFFERENCES_OT_inbetween_frames(CoreSettingsProperties, FrameRangeProperties,
-                                            GeneratorOperator, bpy.types.Operator):
-    """Take every n-th evaluated frame as a shape key, add in-between keys for each gap and
-    keyframe the key values so playback shows the denser motion. Existing animation is kept: to
-    see the keys play, disable the modifiers that made the motion (e.g. Cloth)"""
+class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, AnimationOutput,
+                                            CoreSettingsProperties, FrameRangeProperties,
+                                            PoseWriter, GeneratorOperator, bpy.types.Operator):
+    """Take every n-th evaluated frame as a key pose and add in-betweens for each gap: as a point
+    cache on a new object (the active object stays as it was), or as shape keys whose values are
+    keyframed so playback shows the denser motion"""
 
     bl_idname = "shape_differences.inbetween_frames"
     bl_label = "In-between Frames"
-
-    frame_step: IntProperty(name="Step", min=1, default=4,
-                            description="Take every n-th frame from the start as a key pose")
-    count: IntProperty(name="Count", min=1, soft_max=20, default=3,
-                       description="In-between keys per gap between two key poses")
 
     minimum_frames = 2
 
     def run(self, context):
         obj = context.active_object
+        require_count(self.count, "in-betweens per gap")
         frames = self.frames(context)
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
+        self.check_captured_output(obj)
+        self.pose_names = [f"frame {frame}" for frame in frames]
         poses = yield from self.read_frames(context, obj, frames, 0.2)
-        sequence = load_core().SequenceInterpolator(poses, triangles, **options)
-        new_keys, timeline = [], []
+        sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, poses, triangles,
+                                           **options)
+        names, tails, all_poses, timeline = [], [], [], []
+        done, total = 0, (len(frames) - 1) * self.count
         for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
-            new_keys.append(bridge.NewShapeKey(frame_key_name(frame), poses[gap]))
+            names.append(frame_key_name(frame)), tails.append(""), all_poses.append(poses[gap])
             timeline.append(frame)
             for i in range(1, self.count + 1):
                 factor = i / (self.count + 1)
-                new_keys.append(bridge.NewShapeKey(
-                    inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor),
-                    sequence.pose(gap, factor)))
+                name, tail = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
+                names.append(name), tails.append(tail)
+                all_poses.append((yield from self.compute(0.2 + 0.8 * done / total, sequence.pose,
+                                                          gap, factor)))
                 timeline.append(frame + factor * (next_frame - frame))
-            yield 0.2 + 0.8 * (gap + 1) / (len(frames) - 1)
-        new_keys.append(bridge.NewShapeKey(frame_key_name(frames[-1]), poses[-1]))
+                done += 1
+        names.append(frame_key_name(frames[-1])), tails.append(""), all_poses.append(poses[-1])
         timeline.append(frames[-1])
-        names = bridge.add_shape_keys(obj, new_keys, keyframes=timeline)
-        self.summary = added_summary(names) + f" (keyframed from frame {frames[0]} to {frames[-1]})"
+        self.summary = self.write_poses(
+            context, obj, all_poses, names=names, tails=tails, frames=timeline, keyframe=True,
+            label=f"Inbetween step {self.frame_step} x{self.count}")
+        if self.output == 'SHAPE_KEYS':
+            self.summary += f" (keyframed from frame {frames[0]} to {frames[-1]})"
+
+
+class KeySamples:
+    """The source samples of a retime as ``core.retime`` indexes them: only the keys are read."""
+
+    def __init__(self, n_samples: int, keys: dict):
+        self.n_samples, self.keys = n_samples, keys
+
+    def __len__(self):
+        return self.n_samples
+
+    def __getitem__(self, index):
+        return self.keys[int(index)]
+
+
+class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsProperties,
+                                  FrameRangeProperties, PoseWriter, GeneratorOperator,
+                                  bpy.types.Operator):
+    """Retime the evaluated animation: key every n-th frame and play the motion at a new speed
+    (0.5 = twice as slow), with in-betweens from shape differences; the kept frames are exactly
+    the source's. Writes a point cache on a new object (or keyframed shape keys)"""
+
+    bl_idname = "shape_differences.retime"
+    bl_label = "Retime"
+
+    def run(self, context):
+        obj = context.active_object
+        retime = load_core_retime()
+        start, end = self.frame_range(context)
+        plan = retime.plan_retime(end - start + 1, self.frame_step, self.speed)
+        key_frames = [start + int(key) for key in plan.keys]
+        triangles = surface_triangles(obj)
+        options = self.core_options(context, len(obj.data.vertices))
+        self.check_captured_output(obj)
+        self.pose_names = [f"frame {frame}" for frame in key_frames]
+        poses = yield from self.read_frames(context, obj, key_frames, 0.1)
+        samples = KeySamples(plan.n_source, dict(zip(plan.keys.tolist(), poses)))
+        poses_out = retime.iter_retime(samples, triangles, plan, **options)
+        retimed = []
+        for index in range(plan.n_out):
+            _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
+            retimed.append(pose)
+        out_frames = [float(start + k) for k in range(plan.n_out)]
+        speed = format_factor(self.speed)
+        self.summary = self.write_poses(
+            context, obj, retimed, names=[f"Retime {speed}x"] * plan.n_out,
+            tails=[f" frame {frame:g}" for frame in out_frames], frames=out_frames, keyframe=True,
+            label=f"Retime {speed}x step {self.frame_step}")
+
+
+def load_core_retime():
+    from ..core import retime
+    return retime

@@ -1,15 +1,31 @@
 """Operators on the shape keys of the active mesh: in-between, exaggerate, reconstruct."""
 
 import bpy
-from bpy.props import FloatProperty, IntProperty, StringProperty
 
 from .. import bridge
+from ..bridge import shorten
+from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, default_pose_key,
-                   key_blocks_of, load_core, require_distinct, resolve_key, surface_triangles)
+                   key_blocks_of, load_core, require_count, require_distinct, resolve_key,
+                   surface_triangles)
+from .output import PoseWriter
 
 
-def inbetween_name(name_a: str, name_b: str, factor: float) -> str:
-    return f"Inbetween {name_a}-{name_b} {factor:.2f}"
+def format_factor(factor: float) -> str:
+    """A factor with two decimals, or three where two would lose it (0.125, 0.333)."""
+    text = f"{factor:.3f}"
+    return text[:-1] if text.endswith("0") else text
+
+
+def inbetween_name(name_a: str, name_b: str, factor: float) -> tuple[str, str]:
+    """(head, tail) of an in-between key's name: the keys may be shortened, the factor never."""
+    return f"Inbetween {shorten(name_a, 22)}-{shorten(name_b, 22)}", f" {format_factor(factor)}"
+
+
+def scene_frames(context, count: int) -> list[float]:
+    """``count`` consecutive frames from the scene's start: where a cache shows key poses."""
+    start = context.scene.frame_start
+    return [float(start + i) for i in range(count)]
 
 
 class KeyPairProperties:
@@ -28,75 +44,67 @@ class KeyPairProperties:
         setattr(self, second, end.name)
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
+        self.check_output(obj)
+        self.pose_names = (f"shape key '{start.name}'", f"shape key '{end.name}'")
         yield 0.0
-        interpolator = load_core().Interpolator(
-            bridge.shape_key_positions(start), bridge.shape_key_positions(end), triangles,
-            **options)
+        interpolator = yield from self.compute(
+            0.0, load_core().Interpolator, bridge.shape_key_positions(start),
+            bridge.shape_key_positions(end), triangles, **options)
         return start, end, interpolator
 
 
-def added_summary(names: list[str]) -> str:
-    shown = names if len(names) <= 4 else [names[0], "...", names[-1]]
-    return f"Added {len(names)} shape key{'s' if len(names) != 1 else ''}: " + ", ".join(shown)
-
-
-class SHAPE_DIFFERENCES_OT_inbetween(KeyPairProperties, CoreSettingsProperties, GeneratorOperator,
+class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
+                                     CoreSettingsProperties, PoseWriter, GeneratorOperator,
                                      bpy.types.Operator):
-    """Add evenly spaced in-between shape keys from shape differences between two keys"""
+    """Add evenly spaced in-between poses from shape differences between two keys, as shape
+    keys or as a point cache on a new object"""
 
     bl_idname = "shape_differences.inbetween"
     bl_label = "In-between"
 
-    key_a: StringProperty(name="From", description="First shape key (empty: the Basis)")
-    key_b: StringProperty(
-        name="To", description="Second shape key (empty: the active key, or the last one)")
-    count: IntProperty(name="Count", min=1, soft_max=50, default=3,
-                       description="Number of in-between keys, evenly spaced between the two")
-
     def run(self, context):
+        require_count(self.count, "in-betweens")
         key_a, key_b, interpolator = yield from self.pair_interpolator(
             context, "key_a", "key_b", ("From", "To"))
-        new_keys = []
-        for i in range(1, self.count + 1):
-            yield 0.5 * i / self.count
-            factor = i / (self.count + 1)
-            new_keys.append(bridge.NewShapeKey(
-                inbetween_name(key_a.name, key_b.name, factor), interpolator.pose(factor)))
-        self.summary = added_summary(bridge.add_shape_keys(context.active_object, new_keys))
+        factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
+        poses = []
+        for i, factor in enumerate(factors, 1):
+            poses.append((yield from self.compute((i - 1) / self.count, interpolator.pose, factor)))
+        obj = context.active_object
+        label = f"Inbetween {shorten(key_a.name, 16)}-{shorten(key_b.name, 16)} x{self.count}"
+        if self.output == 'CACHE':  # the cache plays the whole motion, keys included
+            poses = [bridge.shape_key_positions(key_a), *poses, bridge.shape_key_positions(key_b)]
+        names, tails = zip(*(inbetween_name(key_a.name, key_b.name, f) for f in factors))
+        self.summary = self.write_poses(context, obj, poses, names=names, tails=tails,
+                                        frames=scene_frames(context, len(poses)), label=label)
 
 
-class SHAPE_DIFFERENCES_OT_exaggerate(KeyPairProperties, CoreSettingsProperties,
-                                      GeneratorOperator, bpy.types.Operator):
-    """Add a shape key that pushes a pose further from a reference pose (factor > 1) or tones it
-    down (factor < 1), through shape differences"""
+class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProperties,
+                                      CoreSettingsProperties, PoseWriter, GeneratorOperator,
+                                      bpy.types.Operator):
+    """Add a pose pushed further from a reference pose (factor > 1) or toned down (factor < 1),
+    through shape differences, as a shape key or as a point cache on a new object"""
 
     bl_idname = "shape_differences.exaggerate"
     bl_label = "Exaggerate"
 
-    key: StringProperty(name="Key", description="Pose to exaggerate (empty: the active key)")
-    reference: StringProperty(name="Reference",
-                              description="Pose the change is measured from (empty: the Basis)")
-    factor: FloatProperty(name="Factor", default=1.5, soft_min=0.0, soft_max=3.0,
-                          description="1 = the key itself, above 1 exaggerates, below 1 tones down")
-
     def run(self, context):
-        _reference, key, interpolator = yield from self.pair_interpolator(
+        reference, key, interpolator = yield from self.pair_interpolator(
             context, "reference", "key", ("Reference", "Key"))
-        yield 0.5
-        pose = bridge.NewShapeKey(f"Exaggerate {key.name} {self.factor:.2f}",
-                                  interpolator.pose(self.factor))
-        self.summary = added_summary(bridge.add_shape_keys(context.active_object, [pose]))
+        pose = yield from self.compute(0.5, interpolator.pose, self.factor)
+        tail = f" {format_factor(self.factor)} from {shorten(reference.name, 20)}"
+        self.summary = self.write_poses(
+            context, context.active_object, [pose], names=[f"Exaggerate {key.name}"], tails=[tail],
+            frames=scene_frames(context, 1), label=f"Exaggerate {shorten(key.name, 16)}{tail}")
 
 
-class SHAPE_DIFFERENCES_OT_reconstruct(CoreSettingsProperties, GeneratorOperator,
-                                       bpy.types.Operator):
-    """Add a shape key with a pose rebuilt from its shape differences to the Basis at the current
-    k_M, k_N and t: shows what a truncated basis keeps"""
+class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperties,
+                                       PoseWriter, GeneratorOperator, bpy.types.Operator):
+    """Add a pose rebuilt from its shape differences to the Basis at the current k_M, k_N and t
+    (shows what a truncated basis keeps), as a shape key or as a point cache on a new object"""
 
     bl_idname = "shape_differences.reconstruct"
     bl_label = "Reconstruct"
-
-    key: StringProperty(name="Key", description="Pose to rebuild (empty: the active key)")
 
     def run(self, context):
         obj = context.active_object
@@ -108,13 +116,18 @@ class SHAPE_DIFFERENCES_OT_reconstruct(CoreSettingsProperties, GeneratorOperator
         self.key = key.name
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
+        self.check_output(obj)
+        self.pose_names = (f"shape key '{key_blocks[0].name}'", f"shape key '{key.name}'")
         yield 0.0
         core = load_core()
         base = bridge.shape_key_positions(key_blocks[0])
-        differences = core.shape_differences(base, bridge.shape_key_positions(key), triangles,
-                                             **options)
-        yield 0.5
-        truncation = f"k {self.k_m or 'full'}/{self.k_n or 'full'}"
-        pose = bridge.NewShapeKey(f"Reconstruct {key.name} ({truncation})",
-                                  core.reconstruct(base, triangles, differences))
-        self.summary = added_summary(bridge.add_shape_keys(obj, [pose]))
+        use_extrinsic = options.pop("use_extrinsic")
+        reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles,
+                                            offset=options.pop("offset"), use_extrinsic=use_extrinsic)
+        differences = yield from self.compute(0.2, reference.shape_differences,
+                                              bridge.shape_key_positions(key), **options)
+        pose = yield from self.compute(0.5, core.reconstruct, base, triangles, differences)
+        tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"
+        self.summary = self.write_poses(
+            context, obj, [pose], names=[f"Reconstruct {key.name}"], tails=[tail],
+            frames=scene_frames(context, 1), label=f"Reconstruct {shorten(key.name, 16)}{tail}")

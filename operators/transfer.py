@@ -7,10 +7,11 @@ import numpy as np
 from bpy.props import EnumProperty, StringProperty
 
 from .. import bridge
+from ..properties import PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
-from .poses import added_summary
+from .output import PoseWriter
 
 #: Basis sizes used when the settings ask for the full basis (0), which a map between two
 #: meshes cannot use (paper §6.3; the paper's Figs. 11 and 14).
@@ -45,12 +46,12 @@ def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
     return values.astype(np.int64)
 
 
-class SHAPE_DIFFERENCES_OT_transfer_poses(CoreSettingsProperties, FrameRangeProperties, GeneratorOperator,
-                                          bpy.types.Operator):
+class SHAPE_DIFFERENCES_OT_transfer_poses(PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
+                                          GeneratorOperator, bpy.types.Operator):
     """Rebuild the poses of another selected mesh (shape keys or animation frames, any
-    connectivity) on the active mesh from their shape differences through a functional map, and
-    add them as shape keys. The two meshes are matched by closest points at rest (they must
-    overlap there) or by a vertex attribute holding the map"""
+    connectivity) on the active mesh from their shape differences through a functional map, as
+    shape keys or as a point cache on a new object. The two meshes are matched by closest points
+    at rest (they must overlap there) or by a vertex attribute holding the map"""
 
     bl_idname = "shape_differences.transfer_poses"
     bl_label = "Transfer Poses"
@@ -95,17 +96,20 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CoreSettingsProperties, FrameRangeProp
         return k_m, k_n
 
     def _source_poses(self, context, source):
-        """(names, rest positions, poses), in object space of the source."""
+        """(names, frames, rest positions, poses), in object space of the source."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
             rest = bridge.shape_key_positions(key_blocks[0])
-            return [kb.name for kb in key_blocks[1:]], rest, [bridge.shape_key_positions(kb) for kb in key_blocks[1:]]
+            names = [kb.name for kb in key_blocks[1:]]
+            return (names, [float(i) for i in range(1, len(names) + 1)], rest,
+                    [bridge.shape_key_positions(kb) for kb in key_blocks[1:]])
         frames = self.frames(context)
         poses = []
         with closing(bridge.frame_positions(context, source, frames)) as reader:
             for _frame, positions in reader:
                 poses.append(positions)
-        return [frame_key_name(f) for f in frames], bridge.vertex_positions(source.data), poses
+        return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
+                poses)
 
     def run(self, context):
         obj = context.active_object
@@ -115,22 +119,24 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CoreSettingsProperties, FrameRangeProp
         n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
         options = self.core_options(context, n_base)
         k_m, k_n = self._basis_sizes(options, n_base, n_source)
+        self.check_output(obj)
         correspondence = None
         if self.matching == 'ATTRIBUTE':
             correspondence = read_correspondence(obj, self.map_attribute, n_source)
-        names, rest, poses = self._source_poses(context, source)
+        names, frames, rest, poses = self._source_poses(context, source)
         if not poses:
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
         core = load_core()
         base = _world(obj, bridge.vertex_positions(obj.data))
-        transfer = core.Transfer(base, triangles, _world(source, rest), source_triangles,
-                                 correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"],
-                                 use_extrinsic=options["use_extrinsic"])
-        yield 0.1
-        new_keys = []
-        for i, (name, pose) in enumerate(zip(names, poses)):
-            rebuilt = transfer.pose(_world(source, pose))
-            new_keys.append(bridge.NewShapeKey(f"{source.name} {name}", _local(obj, rebuilt)))
-            yield 0.1 + 0.9 * (i + 1) / len(poses)
-        self.summary = added_summary(bridge.add_shape_keys(obj, new_keys)) + f" (k_M = {k_m}, k_N = {k_n})"
+        transfer = yield from self.compute(
+            0.1, core.Transfer, base, triangles, _world(source, rest), source_triangles,
+            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"],
+            use_extrinsic=options["use_extrinsic"])
+        rebuilt = []
+        for i, pose in enumerate(poses):
+            world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose, _world(source, pose))
+            rebuilt.append(_local(obj, world))
+        self.summary = self.write_poses(
+            context, obj, rebuilt, names=[f"{source.name} {name}" for name in names], frames=frames,
+            label=f"Transfer {source.name}") + f" (k_M = {k_m}, k_N = {k_n})"

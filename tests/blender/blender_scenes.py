@@ -60,9 +60,57 @@ def cloth_scene(subdivisions: int = 14, frames: int = 13):
     return obj
 
 
-def armature_scene(frames: int = 9):
+def pinned_cloth_scene(subdivisions: int = 8, frames: int = 13, bake: bool = False):
+    """A grid hanging from its pinned back edge (a Cloth modifier with a pin group), simulated
+    into its memory cache frame by frame (``bake=False``: the cache is not baked) or baked."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    obj = grid_object(subdivisions, name="Flag")
+    obj.rotation_euler.x = 1.2
+    pinned = obj.vertex_groups.new(name="Pin")
+    pinned.add([v.index for v in obj.data.vertices if v.co.y > 0.99], 1.0, 'REPLACE')
+    cloth = obj.modifiers.new("Cloth", 'CLOTH')
+    cloth.settings.vertex_group_mass = "Pin"
+    cloth.point_cache.frame_start, cloth.point_cache.frame_end = 1, frames
+    if bake:
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.ptcache.bake_all(bake=True)
+    else:
+        for frame in range(1, frames + 1):
+            scene.frame_set(frame)
+    scene.frame_set(1)
+    return obj
+
+
+def driven_keys_scene(frames: int = 9):
+    """A grid whose "Bend" key value is keyframed 0 → 1 and whose "Curl" key value is driven by
+    Bend's value (a driver), so the animation comes from keys driven by other keys."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    obj = grid_object(6, name="Driven")
+    rest = np.array([v.co[:] for v in obj.data.vertices])
+    add_key(obj, "Bend", rolled(rest, 1.5))
+    curl = rest.copy()
+    curl[:, 2] += 0.3 * curl[:, 1] ** 2
+    add_key(obj, "Curl", curl)
+    bend = obj.data.shape_keys.key_blocks["Bend"]
+    for frame, value in ((1, 0.0), (frames, 1.0)):
+        bend.value = value
+        bend.keyframe_insert("value", frame=frame)
+    driver = obj.data.shape_keys.key_blocks["Curl"].driver_add("value").driver
+    variable = driver.variables.new()
+    variable.targets[0].id_type = 'KEY'
+    variable.targets[0].id = obj.data.shape_keys
+    variable.targets[0].data_path = 'key_blocks["Bend"].value'
+    driver.expression = f"{variable.name} * {variable.name}"
+    scene.frame_set(1)
+    return obj
+
+
+def armature_scene(frames: int = 9, parented: bool = False):
     """A grid strip bent by a two-bone armature whose second bone rotates from frame 1 to
-    ``frames``; the vertices are weighted to the bones by their x coordinate."""
+    ``frames``; the vertices are weighted to the bones by their x coordinate. ``parented``: the
+    strip is also the armature object's child, and the armature object moves."""
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, frames
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=5, size=2.0)
@@ -91,6 +139,12 @@ def armature_scene(frames: int = 9):
     for frame, angle in ((1, 0.0), (frames, 1.2)):
         tip.rotation_euler = (0.0, -angle, 0.0)
         tip.keyframe_insert("rotation_euler", frame=frame)
+    if parented:
+        strip.parent = rig
+        strip.matrix_parent_inverse = rig.matrix_world.inverted()
+        for frame, height in ((1, 0.0), (frames, 0.5)):
+            rig.location.z = height
+            rig.keyframe_insert("location", frame=frame)
     scene.frame_set(1)
     bpy.context.view_layer.objects.active = strip
     strip.select_set(True)
@@ -114,8 +168,22 @@ def snapshot(bridge, obj) -> dict:
                                     key_block.relative_key.name)
         animation_data = mesh.shape_keys.animation_data
         animation = animation_data.action.name if animation_data and animation_data.action else None
+    key_fcurves, drivers = [], []
+    if mesh.shape_keys is not None and mesh.shape_keys.animation_data is not None:
+        animation_data = mesh.shape_keys.animation_data
+        drivers = [(d.data_path, d.driver.expression) for d in animation_data.drivers]
+        if animation_data.action is not None:
+            key_fcurves = [(point.co[:], point.interpolation)
+                           for fcurve in _fcurves(animation_data)
+                           for point in fcurve.keyframe_points]
     return {
         "positions": positions,
+        "key_fcurves": key_fcurves,
+        "drivers": drivers,
+        "modifier_settings": [_rna_values(m) for m in obj.modifiers],
+        "point_caches": [(m.name, m.point_cache.info, m.point_cache.is_baked)
+                         for m in obj.modifiers if hasattr(m, "point_cache")],
+        "matrix": [tuple(row) for row in obj.matrix_world],
         "keys": keys,
         "key_animation": animation,
         "active_key": obj.active_shape_key_index,
@@ -128,6 +196,25 @@ def snapshot(bridge, obj) -> dict:
     }
 
 
+def _fcurves(animation_data):
+    action = animation_data.action
+    if hasattr(animation_data, "action_slot"):
+        from bpy_extras import anim_utils
+        channelbag = anim_utils.action_get_channelbag_for_slot(action, animation_data.action_slot)
+        return channelbag.fcurves if channelbag else ()
+    return action.fcurves
+
+
+def _rna_values(struct) -> dict:
+    """Every plain property of ``struct`` (a modifier), for before/after comparisons."""
+    values = {}
+    for prop in struct.bl_rna.properties:
+        if prop.type in ('BOOLEAN', 'INT', 'FLOAT', 'STRING', 'ENUM') and not prop.is_readonly:
+            value = getattr(struct, prop.identifier)
+            values[prop.identifier] = tuple(value) if hasattr(value, "__len__") and not isinstance(value, str) else value
+    return values
+
+
 def assert_unchanged(before: dict, after: dict):
     assert after["keys"].keys() == before["keys"].keys()
     for name, (coordinates, value, relative) in before["keys"].items():
@@ -135,7 +222,8 @@ def assert_unchanged(before: dict, after: dict):
         assert after["keys"][name][1:] == (value, relative)
     np.testing.assert_array_equal(after["positions"], before["positions"])
     for field in ("key_animation", "active_key", "modifiers", "object_animation", "frame",
-                  "actions", "meshes"):
+                  "actions", "meshes", "key_fcurves", "drivers", "modifier_settings",
+                  "point_caches", "matrix"):
         assert after[field] == before[field], field
 
 

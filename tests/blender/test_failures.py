@@ -95,6 +95,29 @@ def test_too_few_frames(bpy_empty, extension):
                          "give 0 frames", frame_start=5, frame_end=2)
 
 
+@pytest.mark.parametrize("operator", ["inbetween", "inbetween_frames"])
+def test_count_zero_is_an_error(bpy_empty, extension, operator):
+    obj = posed_grid(extension.bridge, 5)
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
+                         "Count is 0: ask for at least 1", count=0)
+
+
+@pytest.mark.parametrize("properties, match", [
+    (dict(speed=0.0), "speed must be a positive number; got 0"),
+    (dict(frame_start=1, frame_end=4, frame_step=4), "4 frames with step 4 give fewer than two key poses"),
+])
+def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, match):
+    strip = armature_scene(frames=5)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime, match,
+                         **properties)
+
+
+def test_relative_cache_file_without_a_saved_blend(bpy_empty, extension):
+    strip = armature_scene(frames=5)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                         "relative to the .blend, which is not saved yet", filepath="//cache.pc2")
+
+
 def test_mesh_without_faces(bpy_empty, extension):
     obj = posed_grid(extension.bridge, 5)
     bpy.ops.object.mode_set(mode='EDIT')
@@ -111,7 +134,9 @@ def test_degenerate_pose(bpy_empty, extension, core):
     flat[:, 0] = 0.0  # the flat sheet squashed onto a line: every triangle has zero area
     add_key(obj, "Collapsed", flat)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
-                         "zero area .* Degenerate Dissolve", key_b="Collapsed")
+                         "shape key 'Collapsed': .*zero area .* Degenerate Dissolve", key_b="Collapsed")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         "shape key 'Collapsed': .*zero area", key_a="Collapsed", key_b="Bend")
 
 
 def test_non_manifold_mesh(bpy_empty, extension, core):

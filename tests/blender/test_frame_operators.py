@@ -51,7 +51,8 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     before = snapshot(bridge, obj)
     frames = [1, 5, 9]
     poses = evaluated_frames(bridge, obj, frames)
-    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                               output='SHAPE_KEYS')
 
     factors = (0.25, 0.5, 0.75)
     expected_names = ["Basis"]

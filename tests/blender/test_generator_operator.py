@@ -101,9 +101,59 @@ def test_expected_errors_become_reports(extension):
     assert ({'ERROR'}, "Pick two keys") in log and "wrote" not in log
 
 
+def test_unexpected_error_still_ends_the_modal(extension):
+    """A bug in a step propagates, but the timer and the progress cursor go first."""
+    log = []
+    job, context, window_manager = start(extension, log, fail_with=ZeroDivisionError("bug"))
+    job.modal(context, event('TIMER'))
+    with pytest.raises(ZeroDivisionError):
+        job.modal(context, event('TIMER'))
+    assert window_manager.progress[-1] == "end" and window_manager.timers == 0
+    assert "cleaned up" in log and "wrote" not in log
+
+
 def test_core_warnings_become_warning_reports(extension, core):
     log = []
     warning = core.ShapeDifferenceWarning("Used the fallback")
     job = make_job(extension, log, warn=warning)
     assert job.execute(SimpleNamespace()) == {'FINISHED'}
     assert log[-2:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done")]
+
+
+def test_escape_is_answered_while_a_core_call_runs(extension):
+    """A core call that takes seconds runs in the worker thread: each timer tick returns within
+    a fraction of a second and Esc cancels at once, writing nothing."""
+    import time
+    base = extension.operators.base
+    log = []
+
+    class SlowJob(base.GeneratorOperator):
+        def report(self, kind, message):
+            log.append((set(kind), message))
+
+        def run(self, context):
+            yield 0.0
+            result = yield from self.compute(0.3, time.sleep, 3.0)
+            log.append(("wrote", result))
+
+    job, window_manager = SlowJob(), FakeWindowManager()
+    context = SimpleNamespace(window_manager=window_manager, window=object())
+    assert job._start_modal(context) == {'RUNNING_MODAL'}
+    began = time.monotonic()
+    for _ in range(3):
+        assert job.modal(context, event('TIMER')) == {'RUNNING_MODAL'}
+    assert job.modal(context, event('ESC')) == {'CANCELLED'}
+    assert time.monotonic() - began < 1.0
+    assert not any(entry[0] == "wrote" for entry in log)
+    assert window_manager.progress[-2:] == [30, "end"] and window_manager.timers == 0
+
+
+def test_other_warnings_are_passed_on_once(extension, core):
+    """A warning that is not the core's (e.g. NumPy's RuntimeWarning) is passed on once to the
+    usual warning display (it used to be re-recorded forever), and the job finishes."""
+    log = []
+    job = make_job(extension, log, warn=RuntimeWarning("Mean of empty slice"))
+    with pytest.warns(RuntimeWarning, match="Mean of empty slice") as shown:
+        assert job.execute(SimpleNamespace()) == {'FINISHED'}
+    assert len(shown) == 1
+    assert log[-1] == ({'INFO'}, "done")

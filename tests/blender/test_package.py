@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("bpy")
 
-from conftest import REPO_ROOT  # noqa: E402
+from dev_extension import REPO_ROOT  # noqa: E402  (scripts/, put on sys.path by conftest)
 
 pytestmark = pytest.mark.slow
 

@@ -55,12 +55,12 @@ def test_exaggerate(posed, core):
     obj, bridge = posed
     before = snapshot(bridge, obj)
     bpy.ops.shape_differences.exaggerate(key="Bend", factor=1.5)
-    assert key_names(obj)[-1] == "Exaggerate Bend 1.50"
+    assert key_names(obj)[-1] == "Exaggerate Bend 1.50 from Basis"
     assert_old_keys_kept(bridge, obj, before)
     expected = core.Interpolator(positions_of(bridge, obj, "Basis"),
                                  positions_of(bridge, obj, "Bend"),
                                  bridge.mesh_triangles(obj.data)).pose(1.5)
-    np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50"), expected,
+    np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50 from Basis"), expected,
                                atol=TOLERANCE)
 
 
@@ -101,3 +101,28 @@ def test_ngons_are_triangulated(bpy_empty, extension, core):
     squashed.data.foreach_set("co", (rest * [1.2, 1.2, 0.7]).astype(np.float32).ravel())
     bpy.ops.shape_differences.inbetween(count=1)
     assert key_names(obj)[-1] == "Inbetween Basis-Squash 0.50"
+
+
+def test_long_names_keep_the_factor_and_the_reference(bpy_empty, extension, core):
+    bridge = extension.bridge
+    obj = posed_grid(bridge, 5)
+    long_a, long_b = "R_brow_raise_outer_corrective_left_side_v2", "R_brow_raise_outer_corrective_right_side_v2"
+    obj.data.shape_keys.key_blocks["Curl"].name = long_a
+    obj.data.shape_keys.key_blocks["Bend"].name = long_b
+    for _ in range(2):
+        bpy.ops.shape_differences.inbetween(key_a=long_a, key_b=long_b, count=7)
+    bpy.ops.shape_differences.exaggerate(key=long_b, reference=long_a, factor=1.25)
+    names = key_names(obj)[3:]
+    assert len(names) == 15 and len(set(names)) == 15
+    assert all(len(name.encode()) <= 63 for name in names)
+    assert [name.split(" ")[-1] for name in names[:7]] == ["0.125", "0.25", "0.375", "0.50", "0.625",
+                                                          "0.75", "0.875"]
+    assert names[7].endswith(" 0.125.001") and names[13].endswith(" 0.875.001")
+    assert names[14].startswith("Exaggerate R_brow") and " 1.25 from R_brow" in names[14]
+
+
+def test_captured_keys_warn_about_double_deformation(bpy_empty, extension, capfd):
+    from blender_scenes import armature_scene
+    armature_scene(frames=3)
+    bpy.ops.shape_differences.frames_to_shape_keys(output='SHAPE_KEYS')
+    assert "deformed again by 'Armature'" in capfd.readouterr().out

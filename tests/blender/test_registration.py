@@ -10,15 +10,20 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from conftest import MODULE, REPO_ROOT  # noqa: E402
+from dev_extension import MODULE, REPO_ROOT  # noqa: E402  (scripts/, put on sys.path by conftest)
 
+CORE = {"k_m", "k_n", "offset", "use_extrinsic"}
+OUTPUT = {"output", "filepath"}
 OPERATOR_PROPERTIES = {
-    "frames_to_shape_keys": {"frame_start", "frame_end", "frame_step"},
-    "inbetween": {"key_a", "key_b", "count", "k_m", "k_n", "offset", "use_extrinsic"},
-    "exaggerate": {"key", "reference", "factor", "k_m", "k_n", "offset", "use_extrinsic"},
-    "reconstruct": {"key", "k_m", "k_n", "offset", "use_extrinsic"},
-    "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count",
-                         "k_m", "k_n", "offset", "use_extrinsic"},
+    "frames_to_shape_keys": {"frame_start", "frame_end", "frame_step"} | OUTPUT,
+    "inbetween": {"key_a", "key_b", "count"} | CORE | OUTPUT,
+    "exaggerate": {"key", "reference", "factor"} | CORE | OUTPUT,
+    "reconstruct": {"key"} | CORE | OUTPUT,
+    "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count"} | CORE | OUTPUT,
+    "retime": {"frame_start", "frame_end", "frame_step", "speed", "filepath"} | CORE | OUTPUT,
+    "shape_space": {"source", "frame_start", "frame_end", "frame_step", "k_m", "k_n", "offset"},
+    "shape_space_select": {"kind", "rank", "step"},
+    "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "frame_step", "k_m", "offset"},
 }
 
 
@@ -117,7 +122,7 @@ def draw_panels(extension):
     """Draw every Shape Diff panel into a RecordingLayout; return the operator buttons."""
     layout = RecordingLayout()
     for name in ("VIEW3D_PT_shape_differences", "VIEW3D_PT_shape_differences_poses",
-                 "VIEW3D_PT_shape_differences_animation"):
+                 "VIEW3D_PT_shape_differences_animation", "VIEW3D_PT_shape_differences_analysis"):
         panel = getattr(bpy.types, name)
         panel_self = type("PanelSelf", (), {"layout": layout,
                                             "split_layout": panel.split_layout})()
@@ -129,13 +134,42 @@ def test_panel_draws_settings_and_operators(bpy_empty, extension):
     from blender_scenes import posed_grid
     bpy.ops.mesh.primitive_grid_add()
     assert [idname for idname, _ in draw_panels(extension)] == [
-        "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames"]
+        "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames",
+        "shape_differences.retime", *["shape_differences.shape_space"] * 2,
+        *["shape_differences.distortion_maps"] * 2]
 
     posed_grid(extension.bridge, 4)
     settings = bpy.context.scene.shape_differences
     settings.key_a, settings.key_b, settings.count, settings.factor = "Curl", "Bend", 5, 2.0
     buttons = dict(draw_panels(extension))
-    assert set(buttons) == {f"shape_differences.{name}" for name in OPERATOR_PROPERTIES}
+    # Select Pose appears once a shape space is stored (tests/blender/test_analysis_operators.py).
+    assert set(buttons) == {f"shape_differences.{name}" for name in OPERATOR_PROPERTIES} - {
+        "shape_differences.shape_space_select"}
     assert buttons["shape_differences.inbetween"] == {"key_a": "Curl", "key_b": "Bend",
-                                                      "count": 5}
+                                                      "count": 5, "output": 'SHAPE_KEYS',
+                                                      "filepath": ""}
+    assert buttons["shape_differences.retime"]["output"] == 'CACHE'
+    settings.pose_output, settings.speed = 'CACHE', 0.25
+    buttons = dict(draw_panels(extension))
+    assert buttons["shape_differences.exaggerate"]["output"] == 'CACHE'
+    assert buttons["shape_differences.retime"]["speed"] == 0.25
     assert buttons["shape_differences.exaggerate"]["factor"] == 2.0
+
+
+def test_properties_are_declared_once(bpy_empty):
+    """The operators and the scene settings share one declaration of each property (the
+    mixins of properties.py): same type, default and limits; ui does not import operators."""
+    settings = bpy.context.scene.shape_differences.bl_rna.properties
+    shared = {"inbetween": ["key_a", "key_b", "count", "k_m", "k_n", "offset", "use_extrinsic"],
+              "exaggerate": ["key", "reference", "factor"], "retime": ["speed", "frame_step"],
+              "inbetween_frames": [("count", "frame_count")]}
+    for operator, names in shared.items():
+        properties = getattr(bpy.ops.shape_differences, operator).get_rna_type().properties
+        for name in names:
+            mine, scene_name = (name, name) if isinstance(name, str) else name
+            a, b = properties[mine], settings[scene_name]
+            assert (a.type, a.description) == (b.type, b.description), name
+            if a.type in ('INT', 'FLOAT'):
+                assert (a.default, a.hard_min, a.hard_max) == (b.default, b.hard_min, b.hard_max)
+    source = (REPO_ROOT / "ui" / "properties.py").read_text() + (REPO_ROOT / "ui" / "panel.py").read_text()
+    assert "..operators" not in source and "operators.base" not in source

@@ -11,7 +11,8 @@ if ROOT not in sys.path:
 import numpy as np
 import pytest
 
-from core.embedding import embed_base_edges, embed_thickening, refine_edge_lengths
+from core.edge_length_fit import EdgeLengthFit, refine_edge_lengths
+from core.embedding import CONTINUATION_SCHEDULES, embed_base_edges, embed_thickening
 from core.errors import RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
 from core.mesh_topology import mesh_topology
 from core.offset_surface import default_offset, offset_surface
@@ -232,12 +233,14 @@ def test_warm_start_and_anchor():
 
 @pytest.mark.parametrize("noise", [1e-4, 1e-3])
 def test_noisy_lengths_give_bounded_error(noise):
+    # As ReferenceShape.embed calls it: the base pose's thickening is the reference start.
     v, f = grid(15)
     target = drape(v, 3.0)
     surface, squared, _ = thickening_lengths(v, f, target, noise=noise)
+    reference = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = embed_thickening(surface, squared)
+        result = embed_thickening(surface, squared, reference_points=reference)
     assert np.isfinite(result.points).all()
     rms, worst = relative_errors(result.base_vertices, target)
     assert rms < 30 * noise and worst < 100 * noise
@@ -292,17 +295,15 @@ def test_an_unconverged_fit_warns_once():
 def test_continuation_deforms_the_reference_into_the_target():
     # The fallback start for fits that stay far from their lengths: a flat sheet deformed in
     # steps into a drape rolled by 5 rad (one full turn would close it), then fitted to the end.
-    import core.embedding as em
-
     v, f = grid(15)
     target = drape(v, 5.0)
     surface, squared, _ = thickening_lengths(v, f, target)
     flat = surface.thickening_points(v, surface.positions(v, default_offset(v, f)))
-    edges = surface.thickening_edges
     free = np.ones(len(flat), dtype=bool)
     scale = float(np.mean(np.sqrt(squared)))
-    fractions, iterations = em.CONTINUATION_SCHEDULES[0]
-    steps = em._continuation(flat, edges, squared, free, None, 0.0, scale, 1e-10, fractions, iterations)
+    problem = EdgeLengthFit(surface.thickening_edges, squared, free, None, 0.0, scale, 1e-10)
+    fractions, iterations = CONTINUATION_SCHEDULES[0]
+    steps = problem.continuation(flat, fractions, iterations)
     halfway = np.linalg.norm(steps[: len(v)] - align_rigidly(target, steps[: len(v)]), axis=1).max()
     assert 0 < halfway < np.linalg.norm(v - align_rigidly(target, v), axis=1).max()
     result = embed_thickening(surface, squared, initial_points=steps)

@@ -68,9 +68,11 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
 
+from .admm import admm
 from .errors import RecoveryError, ShapeDifferenceWarning
+from .low_rank import LowRankGram, SplitGram, low_rank_gram, randomly_pivoted_cholesky
+from .triangle_constraints import feasible_lengths, project_triangles, satisfied
 
 #: ε of eq. (8) relative to σ_A = ‖Φᵀ A(µ_M) Φ‖²/‖µ_M‖² (see TruncatedRecovery.area_scale).
 AREA_EPSILON = 1e-2
@@ -98,334 +100,59 @@ LOWRANK_TOLERANCE = 1.0
 #: Recovered areas below this fraction of the reference area are raised to it (with a
 #: ShapeDifferenceWarning): eq. (10) divides by µ, and µ ≥ 0 can be active when truncated.
 AREA_FLOOR = 0.05
-#: Relative tolerance on det E₃ ≥ 4µ² of the returned squared lengths.
-CONSTRAINT_TOLERANCE = 1e-6
-#: ADMM stopping tolerance (relative primal and fixed-point residuals) and iteration cap. 1e-5
-#: changes the recovered lengths by ~1e-3 relative to their error against 1e-6 and saves ~40 %.
-ADMM_TOLERANCE = 1e-5
-ADMM_MAX_ITERATIONS = 3000
-#: ADMM also stops when its relative residual, already below ADMM_STALL_FACTOR × the tolerance,
-#: fell by less than 10 % over the last ADMM_STALL_WINDOW iterations, or so slowly that at that
-#: rate the tolerance would not be reached within the iteration cap. Measured on offset layers of
-#: Blender cloth: a drape (frames 40 → 48) at 1.1e-4 after 250 iterations, 6.3e-5 after 1,000,
-#: 4.7e-5 after 3,000 (38 s) whatever ρ; a flag in wind (40 → 48) shrinking ~1/iterations, from
-#: 5.8e-4 at 250 to 5.7e-5 at 3,000 (35 s; now stopped at 750, 9.6 s). Converging cases reach
-#: 1e-5 in 150–460 iterations. The slack is far below what decides accuracy: the true lengths fit
-#: the truncated data 3× (synthetic cloth) to 750× (drape) worse than the optimum does, and the
-#: Hausdorff errors on 16 Blender scene pairs moved by at most 0.4 points.
-ADMM_STALL_FACTOR = 30.0
-ADMM_STALL_WINDOW = 250
-#: ADMM penalty ρ in units of √(ε · mean diagonal of the data term's Gram), rebalanced every
-#: ADMM_ADAPT_EVERY iterations (a p × p refactorization each), at most ADMM_MAX_ADAPTATIONS
-#: times. Measured iterations at tolerance 1e-5 (cloth base / cloth offset / human offset):
-#: ×10 fixed 130 / 140 / 445; ×30 fixed — / — / 315; ×10 with (100, 2) 155 / 155 / ~400;
-#: more frequent rebalancing (25, 10) 430 / 275 / — — the rule is not monotone, so it is mild.
-ADMM_RHO_SCALE = 10.0
-ADMM_ADAPT_EVERY = 100
-ADMM_MAX_ADAPTATIONS = 2
 
 
-# ---------------------------------------------------------------------------------------------
-# Public hook (called by SurfaceLayer.recover)
-# ---------------------------------------------------------------------------------------------
-def recover_truncated_metric(layer, area_difference, conformal_difference):
-    """Areas and squared lengths of the target of one layer from its truncated differences."""
-    from .reference_shape import LayerMetric
-
-    solver = layer_solver(layer, area_difference.basis)
+def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, conformal_difference):
+    """Areas ``(m,)`` and squared lengths ``(E,)`` of the target of one layer from its truncated
+    differences, by the layer's :class:`TruncatedRecovery` for their basis."""
     # Eq. (5) differences are exact in the basis (the true metric fits them to round-off), so
     # they take the small ε of EXACT_EPSILON; eq. (6) ones carry the k_N truncation of the
-    # functional map, which a small ε would fit as if it were geometry (measured: area error
-    # 2.5e-3 at ε = 1e-2 σ_A but 8.9e-2 at 1e-7 σ_A on the 1,089-vertex cloth).
+    # functional map, which a small ε would fit as if it were geometry.
     exact = getattr(area_difference, "target_size", None) is None
-    areas = solver.areas(area_difference.product_matrix(), epsilon=EXACT_EPSILON if exact else AREA_EPSILON)
+    areas = solver.areas(area_difference.product_matrix(), epsilon=EXACT_EPSILON if exact else AREA_EPSILON).areas
     squared = solver.squared_lengths(
         conformal_difference.product_matrix(), areas, epsilon=EXACT_EPSILON if exact else LENGTH_EPSILON
-    )
-    return LayerMetric(areas, squared)
+    ).squared_lengths
+    return areas, squared
 
 
-def layer_solver(layer, basis) -> "TruncatedRecovery":
-    """The (cached) :class:`TruncatedRecovery` of ``layer`` for ``basis``: everything that
-    depends only on the reference layer and the basis is computed once per layer and k."""
-    cache = layer.__dict__.setdefault("_truncated_recovery", {})
-    solver = cache.get(basis.size)
-    if solver is None or not (
-        solver.basis is basis or np.array_equal(solver.basis.functions, basis.functions)
-    ):
-        solver = TruncatedRecovery(layer, basis)
-        cache[basis.size] = solver
-    return solver
+@dataclass(frozen=True, eq=False)
+class AreaSolution:
+    """Result of eq. (8): ``areas`` ``(m,)``; ``epsilon`` the absolute ε used; ``method``
+    ``"cg"`` (the unconstrained optimum was feasible) or ``"bounded"`` (µ ≥ 0 active)."""
+
+    areas: np.ndarray
+    epsilon: float
+    method: str
 
 
-# ---------------------------------------------------------------------------------------------
-# Low-rank factorization of explicit PSD Gram matrices
-# ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class LowRankGram:
-    """``G ≈ Y diag(values) Yᵀ`` with ``Y`` ``(N, p)`` orthonormal; ``mean_diagonal`` of the exact G."""
+@dataclass(frozen=True, eq=False)
+class EdgeProgram:
+    """Eq. (10) in the low-rank form solved here: ``min ½‖F x − g‖² + ½ε‖x − x_M‖²`` over the
+    squared lengths ``x`` ``(E,)``; ``factor`` ``F`` ``(p, E)``, ``target`` ``g`` ``(p,)``, ``epsilon``
+    the absolute ε′, ``reference`` ``x_M`` the reference layer's squared lengths."""
 
-    vectors: np.ndarray
-    values: np.ndarray
-    mean_diagonal: float
+    factor: np.ndarray
+    target: np.ndarray
+    epsilon: float
+    reference: np.ndarray
 
-
-def randomly_pivoted_cholesky(columns, diagonal: np.ndarray, *, tolerance: float, max_rank: int,
-                              block: int = 128, seed: int = 0) -> np.ndarray:
-    """Block randomly pivoted Cholesky (Chen, Epperly, Tropp, Webber 2023) of a PSD matrix ``G``
-    ``(N, N)`` given only its ``diagonal`` and ``columns(S)`` ``(N, |S|)``: ``G ≈ F Fᵀ`` with
-    ``F`` ``(N, r)``, stopped when the trace of the residual falls below ``tolerance`` × trace(G)
-    or ``r`` reaches ``max_rank``. Pivots are drawn in blocks with probability proportional to
-    the residual diagonal; each block's own Cholesky is LAPACK's pivoted one (``dpstrf``), which
-    drops pivots made redundant by the others in the block. Cost O(N r² + r·cost(column)),
-    nothing of size N × N is formed."""
-    from scipy.linalg import lapack
-
-    n = diagonal.size
-    rng = np.random.default_rng(seed)
-    rows = np.empty((min(max_rank, n), n))  # Fᵀ, filled row by row: its leading rows stay contiguous
-    residual = np.array(diagonal, dtype=np.float64)
-    stop = tolerance * float(residual.sum())
-    rank = 0
-    while rank < rows.shape[0] and residual.sum() > stop:
-        weights = np.maximum(residual, 0.0)
-        picks = np.unique(rng.choice(n, size=min(block, rows.shape[0] - rank), p=weights / weights.sum()))
-        cols = columns(picks)
-        if rank:
-            cols -= rows[:rank].T @ rows[:rank, picks]
-        pivot_block = cols[picks]
-        chol, order, found, _ = lapack.dpstrf(
-            0.5 * (pivot_block + pivot_block.T), lower=1, tol=1e-12 * max(float(pivot_block.diagonal().max()), 1e-300)
-        )
-        if found == 0:
-            break
-        order = order[:found] - 1
-        new = sla.solve_triangular(np.tril(chol[:found, :found]), cols[:, order].T, lower=True, check_finite=False)
-        rows[rank : rank + found] = new
-        rank += found
-        residual -= np.einsum("ij,ij->j", new, new)
-    return rows[:rank].T
+    @property
+    def rank(self) -> int:
+        return self.target.size
 
 
-def low_rank_gram(factor: np.ndarray, mean_diagonal: float) -> LowRankGram:
-    """``F Fᵀ = Y diag(values) Yᵀ`` with orthonormal ``Y`` from the eigenpairs of ``FᵀF``
-    (r × r; a QR of F cost 4× more, measured on 9,148 × 1,886)."""
-    values, small = np.linalg.eigh(_gram_of_rows(factor.T))
-    keep = values > values[-1] * np.finfo(float).eps * factor.shape[1]
-    order = np.argsort(values[keep])[::-1]
-    values, small = values[keep][order], small[:, keep][:, order]
-    return LowRankGram((factor @ small) / np.sqrt(values), values, mean_diagonal)
+@dataclass(frozen=True, eq=False)
+class LengthSolution:
+    """Result of eq. (10): ``squared_lengths`` ``(E,)``; ``epsilon`` the absolute ε′; ``rank`` of
+    the data term kept; ``iterations`` of ADMM (0: the unconstrained optimum was feasible);
+    ``converged`` False when ADMM stopped before its tolerance (with a warning)."""
 
-
-# ---------------------------------------------------------------------------------------------
-# Per-triangle constraint set and its projection
-# ---------------------------------------------------------------------------------------------
-_AXIS = np.full(3, 1.0 / np.sqrt(3.0))
-
-
-def heron(x: np.ndarray) -> np.ndarray:
-    """``q = 2(ab+bc+ca) − a² − b² − c²`` = 16·area² for squared lengths ``x`` ``(m, 3)``
-    (= 4 det E₃)."""
-    a, b, c = x[:, 0], x[:, 1], x[:, 2]
-    return 2.0 * (a * b + b * c + c * a) - a * a - b * b - c * c
-
-
-def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
-    """Euclidean projection of each row of ``x`` ``(m, 3)`` onto the convex set of squared
-    lengths of a triangle with area ≥ ``areas`` ``(m,)``: ``s ≥ √(16µ² + 2‖t‖²)`` where ``s`` is the
-    coordinate along (1,1,1)/√3 and ``t`` the orthogonal part (Props. 5–6; for µ = 0 the
-    triangle-inequality cone). Vectorized bisection on the KKT condition (unique root)."""
-    s0 = x @ _AXIS
-    t0 = x - s0[:, None] * _AXIS
-    r0 = np.linalg.norm(t0, axis=1)
-    c = 16.0 * areas * areas
-    bad = s0 < np.sqrt(c + 2.0 * r0 * r0)
-    if not bad.any():
-        return x.copy()
-    s0b, r0b, cb = s0[bad], r0[bad], c[bad]
-    # Boundary point (ρ, s): s² = c + 2ρ², ρ = ρ0 s / (3s − 2s0); χ(s) increasing on [lo, hi].
-    lo = np.maximum(np.sqrt(cb), s0b)
-    hi = np.maximum(np.sqrt(cb + 2.0 * r0b * r0b), lo)
-    lo = np.maximum(lo, 1e-300)
-    # Safeguarded Newton on ψ(s) = (s² − c)(3s − 2s0)² − 2ρ0² s² (same sign as χ on the bracket).
-    # Start from the projection onto the tangent plane of the boundary (one Gauss–Newton step on
-    # s² − 2ρ² = c from (ρ0, s0)), clipped to the bracket: near-boundary points — all of them
-    # once ADMM settles — then need 2–3 Newton steps instead of ~10 from the bracket's end.
-    phi0 = s0b * s0b - 2.0 * r0b * r0b - cb
-    grad2 = 16.0 * r0b * r0b + 4.0 * s0b * s0b
-    with np.errstate(divide="ignore", invalid="ignore"):
-        start = s0b - 2.0 * s0b * phi0 / grad2
-    s = np.where(np.isfinite(start), np.clip(start, lo, hi), hi)
-    todo = np.arange(s.size)  # rows whose Newton iteration has not settled yet
-    for _ in range(60):
-        sb, s0t, ct, rt, lot, hit = s[todo], s0b[todo], cb[todo], r0b[todo], lo[todo], hi[todo]
-        a = 3.0 * sb - 2.0 * s0t
-        psi = (sb * sb - ct) * a * a - 2.0 * rt * rt * sb * sb
-        up = psi > 0
-        hit = np.where(up, sb, hit)
-        lot = np.where(up, lot, sb)
-        dpsi = 2.0 * sb * a * a + 6.0 * (sb * sb - ct) * a - 4.0 * rt * rt * sb
-        with np.errstate(divide="ignore", invalid="ignore"):
-            newton = sb - psi / dpsi
-        # Inclusive: a converged Newton step lands on the end the bracket just moved to.
-        inside = np.isfinite(newton) & (newton >= lot) & (newton <= hit)
-        s_new = np.where(inside, newton, 0.5 * (lot + hit))
-        s[todo], lo[todo], hi[todo] = s_new, lot, hit
-        moving = np.abs(s_new - sb) > 1e-13 * np.maximum(np.abs(sb), 1e-300)
-        todo = todo[moving]
-        if todo.size == 0:
-            break
-    hi = np.maximum(s, lo)
-    s = hi  # on the feasible side
-    rho = np.sqrt(np.maximum(s * s - cb, 0.0) / 2.0)
-    rho = np.minimum(rho, r0b)
-    out = x.copy()
-    scale = np.divide(rho, r0b, out=np.zeros_like(rho), where=r0b > 0)
-    out[bad] = s[:, None] * _AXIS + scale[:, None] * t0[bad]
-    return out
-
-
-# ---------------------------------------------------------------------------------------------
-# ADMM for  min ½‖F x − g‖² + ½ε‖x − x0‖²  s.t.  x[slots] ∈ C
-# ---------------------------------------------------------------------------------------------
-class _Woodbury:
-    """Solves ``(FᵀF + diag(d)) x = r`` with a ``p × p`` Cholesky factor of ``I + F D⁻¹ Fᵀ``
-    (``capacitance``: that matrix when already known)."""
-
-    def __init__(self, f: np.ndarray, d: np.ndarray, capacitance: np.ndarray | None = None):
-        self.f, self.dinv = f, 1.0 / d
-        if capacitance is None:
-            capacitance = f @ (self.dinv[:, None] * f.T)
-            capacitance[np.diag_indices_from(capacitance)] += 1.0
-        self.chol = sla.cho_factor(capacitance, lower=True)
-
-    def solve(self, r: np.ndarray) -> np.ndarray:
-        y = self.dinv * r
-        return y - self.dinv * (self.f.T @ sla.cho_solve(self.chol, self.f @ y, check_finite=False))
-
-
-def _gram_of_rows(a: np.ndarray) -> np.ndarray:
-    """``a aᵀ`` by BLAS ``syrk`` (half the flops of a general product)."""
-    upper = sla.blas.dsyrk(1.0, np.asfortranarray(a))
-    return np.triu(upper) + np.triu(upper, 1).T
-
-
-class _SplitGram:
-    """``F D⁻¹ Fᵀ`` for every ``D = ε + ρ · counts`` from one pass over ``F``: the edges fall in
-    a few classes of equal slot count (1 on the boundary, 2 inside), so ``F D⁻¹ Fᵀ =
-    Σ_c F_c F_cᵀ / (ε + ρ c)``. The unconstrained solve (ρ = 0) and every ADMM penalty then
-    share the O(p² E) product; a new ρ costs one p × p Cholesky factorization."""
-
-    def __init__(self, f: np.ndarray, counts: np.ndarray):
-        self.f, self.counts = f, counts
-        self.classes = [(float(c), counts == c) for c in np.unique(counts)]
-        self.grams = [_gram_of_rows(f[:, mask]) for _, mask in self.classes]
-
-    def woodbury(self, eps: float, rho: float) -> _Woodbury:
-        capacitance = np.eye(self.f.shape[0])
-        for (c, _), gram in zip(self.classes, self.grams):
-            capacitance += gram / (eps + rho * c)
-        return _Woodbury(self.f, eps + rho * self.counts, capacitance)
-
-
-@dataclass
-class _Solution:
-    x: np.ndarray
+    squared_lengths: np.ndarray
+    epsilon: float
+    rank: int
     iterations: int
     converged: bool
-
-
-def _admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u_start=None,
-          rho=None, tol=None, max_iter=None, memory=8, split=None):
-    """Scaled-form ADMM with slot copies ``z = x[slots]`` (``project`` maps a slot vector onto the
-    constraint set), accelerated by safeguarded type-II Anderson acceleration on the
-    Douglas–Rachford variable ``v = z − u`` (the x-update depends on the state only through it).
-    Returns the solution and ``(z, u, rho)`` for warm starts."""
-    n = x0.size
-    tol = ADMM_TOLERANCE if tol is None else tol
-    max_iter = ADMM_MAX_ITERATIONS if max_iter is None else max_iter
-    b = f.T @ g + eps * x0
-    if rho is None:
-        rho = ADMM_RHO_SCALE * np.sqrt(eps * max(float(np.sum(f * f)) / n, eps))
-    x = x0.copy() if x_start is None else x_start.copy()
-    z = project(x[slots]) if z_start is None else z_start.copy()
-    u = np.zeros(slots.size) if u_start is None else u_start.copy()
-    split = _SplitGram(f, counts) if split is None else split
-    solver = split.woodbury(eps, rho)
-
-    def step(v):
-        x = solver.solve(b + rho * np.bincount(slots, v, minlength=n))
-        xs = x[slots]
-        # v = z − u; the z-update reads Sx + u = Sx + (z − v) — keep z, u implicit through
-        # the reflected form: with w = 2 Sx − v, z = Π(w), u = Sx − v ... (standard DR).
-        w = 2.0 * xs - v
-        z = project(w)
-        return v + z - xs, x, xs, z
-
-    v = z - u
-    hist_v, hist_r = [], []
-    converged = False
-    it = 0
-    prev_res = np.inf
-    checkpoint = np.inf
-    adaptations = 0
-    for it in range(1, max_iter + 1):
-        z_prev = z
-        tv, x, xs, z = step(v)
-        r = tv - v
-        res = np.linalg.norm(r)
-        # Anderson (type II) on the fixed point v = T(v).
-        hist_v.append(tv)
-        hist_r.append(r)
-        if len(hist_v) > memory + 1:
-            hist_v.pop(0)
-            hist_r.pop(0)
-        v_next = tv
-        if len(hist_r) >= 3 and res < 10 * prev_res:
-            dr = np.diff(np.array(hist_r), axis=0)
-            dv = np.diff(np.array(hist_v), axis=0)
-            try:
-                gamma = np.linalg.lstsq(dr.T, r, rcond=1e-10)[0]
-                cand = tv - dv.T @ gamma
-                if np.all(np.isfinite(cand)):
-                    v_next = cand
-            except np.linalg.LinAlgError:
-                pass
-        prev_res = min(prev_res, res)
-        if it % 5 == 0:
-            primal = np.linalg.norm(xs - z)
-            scale = max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
-            if primal <= tol * scale and res <= tol * scale:
-                converged = True
-                break
-            if it % ADMM_STALL_WINDOW == 0:
-                # Stalled near the tolerance: stop (the caller warns that it was not reached).
-                current = max(primal, res) / scale
-                if current <= ADMM_STALL_FACTOR * tol:
-                    # At this window's rate, would the tolerance be reached within the cap?
-                    rate = current / checkpoint
-                    windows_left = (max_iter - it) / ADMM_STALL_WINDOW
-                    if rate > 0.9 or rate ** windows_left > tol / current:
-                        break
-                checkpoint = current
-        if it % ADMM_ADAPT_EVERY == 0 and adaptations < ADMM_MAX_ADAPTATIONS:
-            # Residual balancing (OSQP's rule on relative residuals): ρ ← ρ √(r_primal / r_dual),
-            # the scaled dual u rescaled with it, Anderson's history restarted.
-            u_now = z - v_next
-            primal = np.linalg.norm(xs - z) / max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
-            dual = np.linalg.norm(z - z_prev) / max(np.linalg.norm(u_now), 1e-300)
-            ratio = primal / max(dual, 1e-300)
-            if not 0.2 <= ratio <= 5.0:
-                factor = float(np.clip(np.sqrt(ratio), 0.1, 10.0))
-                u_now /= factor
-                rho *= factor
-                solver = split.woodbury(eps, rho)
-                v_next = z - u_now
-                hist_v, hist_r, prev_res = [], [], np.inf
-                adaptations += 1
-        v = v_next
-    u = z - v
-    return _Solution(x, it, converged), (z, u, rho)
 
 
 def _check_product(product, k, what):
@@ -440,9 +167,7 @@ def _check_product(product, k, what):
         )
 
 
-# ---------------------------------------------------------------------------------------------
-# The per-layer solver
-# ---------------------------------------------------------------------------------------------
+
 class TruncatedRecovery:
     """Programs (8) and (10) for one layer and one truncated basis. Construction does all the
     target-independent work; :meth:`edge_gram` (the low-rank factor of the edge program, computed
@@ -466,8 +191,6 @@ class TruncatedRecovery:
         self.U = phi[topo.edges[:, 0]] - phi[topo.edges[:, 1]]
         self._edge_gram = None
         self._area_diagonal = None
-        self.last_area_info: dict = {}
-        self.last_edge_info: dict = {}
 
     # -- matrix-free pieces ---------------------------------------------------------------------
     def reduce(self, matrix) -> np.ndarray:
@@ -517,7 +240,7 @@ class TruncatedRecovery:
         reference = self.layer.areas
         return float(np.sum(self.area_operator(reference) ** 2) / np.sum(reference**2))
 
-    def areas(self, product: np.ndarray, *, epsilon: float | None = None, floor: bool = True) -> np.ndarray:
+    def areas(self, product: np.ndarray, *, epsilon: float | None = None, floor: bool = True) -> AreaSolution:
         """Eq. (8): ``min ‖Φᵀ A(µ) Φ − P‖²_F + ε‖µ − µ_M‖²`` s.t. ``µ ≥ 0`` (``epsilon`` relative to
         :meth:`area_scale`; default :data:`AREA_EPSILON`). With ``floor`` (default), areas below
         :data:`AREA_FLOOR` × the reference are raised to it with a warning (eq. 10 divides by µ);
@@ -554,8 +277,6 @@ class TruncatedRecovery:
         if mu.min() < 0.0:
             mu = self._bounded_areas(normal.matvec, rhs, eps, mu)
             method = "bounded"
-        self.last_area_epsilon = eps
-        self.last_area_info = {"epsilon": eps, "method": method}
         lowest = AREA_FLOOR * reference
         low = (mu < lowest) if floor else np.zeros(m, dtype=bool)
         if low.any():
@@ -567,7 +288,7 @@ class TruncatedRecovery:
                 stacklevel=3,
             )
             mu = np.maximum(mu, lowest)
-        return mu
+        return AreaSolution(mu, eps, method)
 
     def _bounded_areas(self, normal_matvec, rhs, eps, start):
         """``µ ≥ 0`` active: the quadratic of the CG solve (its normal operator ``normal_matvec`` and
@@ -627,11 +348,10 @@ class TruncatedRecovery:
         lap = self.layer.assembler.from_entries(self.layer.assembler.laplacian_diagonal(c), c)
         return float(np.sum(self.reduce(lap) ** 2) / np.sum(reference**2))
 
-    def squared_lengths(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None) -> np.ndarray:
-        """Eq. (10): ``min ‖Φᵀ C(ℓ²; µ) Φ − P‖²_F + ε′‖ℓ² − ℓ²_M‖²`` s.t. ``ℓ² ≥ 0``, triangle
-        inequality, ``det E₃ ≥ 4µ²`` (``epsilon`` relative to :meth:`edge_scale`; default
-        :data:`LENGTH_EPSILON`)."""
-        topo = self.topology
+    def edge_program(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None) -> EdgeProgram:
+        """Eq. (10)'s data term and regularization in low-rank form for the conformal product
+        ``product`` ``(k, k)`` and the recovered areas ``areas`` ``(m,)`` (``epsilon`` relative to
+        :meth:`edge_scale`; default :data:`LENGTH_EPSILON`)."""
         _check_product(product, self.k, f"conformal difference of the {self.layer.name}")
         if not (np.all(np.isfinite(areas)) and np.all(areas > 0)):
             bad = int(np.flatnonzero(~(areas > 0))[0])
@@ -642,7 +362,6 @@ class TruncatedRecovery:
             )
         gram = self.edge_gram()
         length_map = self.layer.assembler.length_map(areas).tocsc()  # B_µ (E, E)
-        reference = self.layer.squared_lengths
         eps = (LENGTH_EPSILON if epsilon is None else epsilon) * self.edge_scale(length_map)
         # W lives in cotangent-weight space, ε′ in squared-length space: a direction of W with
         # eigenvalue λ contributes at most λ‖B_µ‖² to the objective's curvature, so it is
@@ -652,21 +371,33 @@ class TruncatedRecovery:
         y, lam = gram.vectors[:, keep], gram.values[keep]
         f = np.sqrt(lam)[:, None] * np.asarray((length_map.T @ y).T)  # (p, E) = Λ^½ Yᵀ B_µ
         g = (y.T @ self.edge_data(product)) / np.sqrt(lam)
+        return EdgeProgram(f, g, eps, self.layer.squared_lengths)
+
+    def squared_lengths(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None) -> LengthSolution:
+        """Eq. (10): ``min ‖Φᵀ C(ℓ²; µ) Φ − P‖²_F + ε′‖ℓ² − ℓ²_M‖²`` s.t. ``ℓ² ≥ 0``, triangle
+        inequality, ``det E₃ ≥ 4µ²`` (``epsilon`` relative to :meth:`edge_scale`; default
+        :data:`LENGTH_EPSILON`)."""
+        topo = self.topology
+        program = self.edge_program(product, areas, epsilon=epsilon)
+        f, g, eps, reference = program.factor, program.target, program.epsilon, program.reference
         slots = topo.triangle_edges.ravel()
         counts = np.bincount(slots, minlength=topo.n_edges).astype(float)
         # Unconstrained optimum first (one Woodbury solve); the cone constraints only if violated.
-        split = _SplitGram(f, counts)
+        split = SplitGram(f, counts)
         x = split.woodbury(eps, 0.0).solve(f.T @ g + eps * reference)
         iterations, converged = 0, True
-        if not self._satisfied(x[slots].reshape(-1, 3), areas).all():
+        if not satisfied(x[slots].reshape(-1, 3), areas).all():
             project = lambda v: project_triangles(v.reshape(-1, 3), areas).ravel()  # noqa: E731
-            sol, state = _admm(f, g, eps, reference, slots, counts, project, x_start=x, split=split)
+            sol, state = admm(f, g, eps, reference, slots, counts, project, x_start=x, split=split)
             iterations, converged = sol.iterations, sol.converged
-            x = self._feasible(sol.x, state[0], slots, counts, areas)
-        self.last_edge_epsilon = eps
-        self.last_edge_iterations = iterations
-        self.last_edge_problem = (f, g)
-        self.last_edge_info = {"epsilon": eps, "rank": int(lam.size), "iterations": iterations}
+            x, reached = feasible_lengths(state[0], slots, counts, areas)
+            if not reached:
+                bad = np.flatnonzero(~satisfied(x[slots].reshape(-1, 3), areas))
+                raise RecoveryError(
+                    f"The edge-length program of the {self.layer.name} did not reach a point satisfying "
+                    f"the triangle constraints (first violated triangle {bad[0]}, {bad.size} in all). "
+                    "The truncated differences may be inconsistent with the recovered areas; try a larger k."
+                )
         if not converged:
             warnings.warn(
                 f"The edge-length program of the {self.layer.name} stopped after {iterations} "
@@ -675,38 +406,4 @@ class TruncatedRecovery:
                 ShapeDifferenceWarning,
                 stacklevel=3,
             )
-        return x
-
-    def _feasible(self, x, z, slots, counts, areas):
-        """Edge values satisfying every triangle constraint. Start from the average of the ADMM
-        slot copies; while some triangle is invalid, project the slot copies of the violated
-        triangles (with a tiny safety margin on the area) and average again (averaged
-        projections, convergent to a point of the intersection); finally scale all squared
-        lengths by the smallest γ ≥ 1 with q(γx_T) = γ² q(x_T) ≥ 16µ² everywhere (γ − 1 is of the
-        order of the ADMM residual)."""
-        n = counts.size
-        x = np.bincount(slots, z, minlength=n) / counts
-        margin = areas * (1.0 + CONSTRAINT_TOLERANCE)
-        for _ in range(500):
-            xt = x[slots].reshape(-1, 3)
-            q = heron(xt)
-            valid = (q > 0) & (xt > 0).all(axis=1)
-            gamma2 = np.max(np.divide(16.0 * margin * margin, q, out=np.full_like(q, np.inf), where=valid))
-            if valid.all() and gamma2 <= 1.0 + 1e-3:
-                return x * np.sqrt(max(gamma2, 1.0))
-            bad = ~valid | (16.0 * margin * margin > q * (1.0 + 1e-3))
-            fixed = np.where(np.repeat(bad, 3), project_triangles(xt, margin).ravel(), xt.ravel())
-            x = np.bincount(slots, fixed, minlength=n) / counts
-        xt = x[slots].reshape(-1, 3)
-        bad = np.flatnonzero(~self._satisfied(xt, areas))
-        raise RecoveryError(
-            f"The edge-length program of the {self.layer.name} did not reach a point satisfying "
-            f"the triangle constraints (first violated triangle {bad[0]}, {bad.size} in all). "
-            "The truncated differences may be inconsistent with the recovered areas; try a larger k."
-        )
-
-    @staticmethod
-    def _satisfied(xt, areas):
-        q = heron(xt)
-        s = xt.sum(axis=1) / np.sqrt(3.0)
-        return (s > 0) & (q >= 16.0 * areas * areas * (1.0 - CONSTRAINT_TOLERANCE)) & (q > 0) & (xt > 0).all(axis=1)
+        return LengthSolution(x, eps, program.rank, iterations, converged)

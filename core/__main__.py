@@ -1,0 +1,143 @@
+"""Headless commands on point caches, without Blender (studio batches and farms).
+
+    python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 -o out.pc2
+    python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 --chunk 2/8 -o part2.pc2
+    python -m core merge part1.pc2 part2.pc2 ... -o out.pc2
+    python -m core merge --numbered 'parts/chunk#.pc2' --count 8 -o out.pc2
+    python -m core info in.pc2
+
+``retime`` reads a PC2 or MDD cache (exported by any package) and the mesh's faces from an OBJ
+with the same vertices in the same order, keys every ``--step``-th sample and writes a PC2 that
+plays the motion at ``--speed`` (see :mod:`core.retime`). ``--chunk I/N`` (1-based) or
+``--gaps A:B`` computes only the output samples of some key gaps; ``merge`` concatenates the
+chunk files into exactly (bit for bit) the file one process writes. Progress goes to stderr;
+errors print one line and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+import numpy as np
+
+from .errors import ShapeDifferenceError
+from .obj_file import read_obj
+from .point_cache import merge_pc2, read_point_cache, write_pc2
+from .retime import iter_retime, plan_retime
+
+
+def _chunk(text: str) -> tuple[int, int]:
+    try:
+        index, count = (int(part) for part in text.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--chunk wants I/N (e.g. 2/8); got {text!r}") from None
+    if not 1 <= index <= count:
+        raise argparse.ArgumentTypeError(f"--chunk {text}: need 1 <= I <= N")
+    return index - 1, count
+
+
+def _gap_range(text: str) -> tuple[int, int]:
+    try:
+        start, stop = (int(part) for part in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--gaps wants A:B (e.g. 0:6); got {text!r}") from None
+    return start, stop
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="python -m core", description=__doc__.split("\n\n")[0])
+    commands = parser.add_subparsers(dest="command", required=True)
+
+    retime = commands.add_parser("retime", help="retime a PC2/MDD cache from every step-th sample")
+    retime.add_argument("cache", help="input PC2 or MDD file")
+    retime.add_argument("--topology", required=True, help="OBJ file with the mesh's faces (same vertex order)")
+    retime.add_argument("--step", type=int, required=True, help="key every step-th sample")
+    retime.add_argument("--speed", type=float, default=1.0,
+                        help="0.5 = twice as slow, 1 = original timing (dropped samples rebuilt), 2 = twice as fast")
+    part = retime.add_mutually_exclusive_group()
+    part.add_argument("--chunk", type=_chunk, help="compute chunk I of N (1-based) of the key gaps")
+    part.add_argument("--gaps", type=_gap_range, help="compute key gaps A to B (0-based, B excluded)")
+    retime.add_argument("--k-m", type=int, default=0, help="base basis size (0 = full basis)")
+    retime.add_argument("--k-n", type=int, default=0, help="target basis size (0 = not truncated)")
+    retime.add_argument("--offset", type=float, default=0.0, help="offset distance t (0 = automatic)")
+    retime.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
+    retime.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
+    retime.add_argument("--start", type=float,
+                        help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)")
+    retime.add_argument("-o", "--output", required=True, help="output PC2 file")
+    retime.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
+
+    merge = commands.add_parser("merge", help="concatenate retimed chunks (in order) into one PC2")
+    merge.add_argument("parts", nargs="*", help="chunk PC2 files in chunk order")
+    merge.add_argument("--numbered", metavar="PATTERN",
+                       help="chunk files named by PATTERN with '#' replaced by 1..COUNT (for farm jobs)")
+    merge.add_argument("--count", type=int, help="number of numbered chunk files")
+    merge.add_argument("-o", "--output", required=True, help="output PC2 file")
+
+    info = commands.add_parser("info", help="print a cache's header")
+    info.add_argument("cache", help="PC2 or MDD file")
+    return parser
+
+
+def _retime(args) -> int:
+    cache = read_point_cache(args.cache)
+    rest, triangles = read_obj(args.topology)
+    if len(rest) != cache.n_points:
+        raise ShapeDifferenceError(
+            f"'{args.topology}' has {len(rest)} vertices but '{args.cache}' has {cache.n_points} points: "
+            "export the OBJ from the same mesh, without modifiers that change its vertices."
+        )
+    plan = plan_retime(cache.n_samples, args.step, args.speed)
+    if args.chunk is not None:
+        gaps = plan.chunk(*args.chunk)
+    elif args.gaps is not None:
+        gaps = range(*args.gaps)
+        if not 0 <= gaps.start <= gaps.stop <= plan.n_gaps:
+            raise ShapeDifferenceError(f"--gaps {gaps.start}:{gaps.stop} is outside the {plan.n_gaps} key gaps.")
+    else:
+        gaps = range(plan.n_gaps)
+    outputs = plan.outputs(gaps)
+    options = dict(k_M=args.k_m or None, k_N=args.k_n or None, offset=args.offset or None,
+                   use_extrinsic=not args.intrinsic, smooth=not args.linear)
+    poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)
+    began = time.monotonic()
+    for done, (index, pose) in enumerate(iter_retime(cache.positions, triangles, plan, gaps, **options), 1):
+        poses[index - outputs.start] = pose
+        if not args.quiet:
+            print(f"retime: sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps}), "
+                  f"{done}/{len(outputs)} of this part, {time.monotonic() - began:.1f} s",
+                  file=sys.stderr, flush=True)
+    start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
+    write_pc2(args.output, poses, start=start, sampling=cache.sampling)
+    print(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
+          f"of {plan.n_gaps}), {cache.n_points} points")
+    return 0
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
+    try:
+        if args.command == "retime":
+            return _retime(args)
+        if args.command == "merge":
+            parts = list(args.parts)
+            if args.numbered:
+                if "#" not in args.numbered or not args.count or args.count < 1:
+                    raise ShapeDifferenceError("--numbered needs a PATTERN with '#' and --count N >= 1")
+                parts += [args.numbered.replace("#", str(i)) for i in range(1, args.count + 1)]
+            merge_pc2(parts, args.output)
+            print(f"wrote {args.output} from {len(parts)} part(s)")
+            return 0
+        cache = read_point_cache(args.cache)
+        print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, start {cache.start:g}, "
+              f"sampling {cache.sampling:g}" + (" (MDD, times in seconds)" if cache.times is not None else ""))
+        return 0
+    except (ShapeDifferenceError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,141 @@
+"""ADMM for a least-squares problem with per-slot convex constraints:
+``min ½‖F x − g‖² + ½ε‖x − x0‖²`` s.t. ``x[slots] ∈ C`` (slot copies ``z = x[slots]``).
+
+The truncated edge-length program (eq. 10, :mod:`core.truncated_recovery`) is of this form, with
+``C`` the per-triangle sets of :mod:`core.triangle_constraints` (an edge has one slot per triangle
+it bounds). The x-update is an exact Woodbury solve (:mod:`core.low_rank`), the z-update a
+projection; Anderson acceleration on the Douglas–Rachford variable, ρ rebalanced on the residuals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .low_rank import SplitGram
+
+#: ADMM stopping tolerance (relative primal and fixed-point residuals) and iteration cap. 1e-5
+#: changes the recovered lengths by ~1e-3 relative to their error against 1e-6 and saves ~40 %.
+ADMM_TOLERANCE = 1e-5
+ADMM_MAX_ITERATIONS = 3000
+#: ADMM also stops when its relative residual, already below ADMM_STALL_FACTOR × the tolerance,
+#: fell by less than 10 % over the last ADMM_STALL_WINDOW iterations, or so slowly that at that
+#: rate the tolerance would not be reached within the iteration cap. Measured on offset layers of
+#: Blender cloth: a drape (frames 40 → 48) at 1.1e-4 after 250 iterations, 6.3e-5 after 1,000,
+#: 4.7e-5 after 3,000 (38 s) whatever ρ; a flag in wind (40 → 48) shrinking ~1/iterations, from
+#: 5.8e-4 at 250 to 5.7e-5 at 3,000 (35 s; now stopped at 750, 9.6 s). Converging cases reach
+#: 1e-5 in 150–460 iterations. The slack is far below what decides accuracy: the true lengths fit
+#: the truncated data 3× (synthetic cloth) to 750× (drape) worse than the optimum does, and the
+#: Hausdorff errors on 16 Blender scene pairs moved by at most 0.4 points.
+ADMM_STALL_FACTOR = 30.0
+ADMM_STALL_WINDOW = 250
+#: ADMM penalty ρ in units of √(ε · mean diagonal of the data term's Gram), rebalanced every
+#: ADMM_ADAPT_EVERY iterations (a p × p refactorization each), at most ADMM_MAX_ADAPTATIONS
+#: times. Measured iterations at tolerance 1e-5 (cloth base / cloth offset / human offset):
+#: ×10 fixed 130 / 140 / 445; ×30 fixed — / — / 315; ×10 with (100, 2) 155 / 155 / ~400;
+#: more frequent rebalancing (25, 10) 430 / 275 / — — the rule is not monotone, so it is mild.
+ADMM_RHO_SCALE = 10.0
+ADMM_ADAPT_EVERY = 100
+ADMM_MAX_ADAPTATIONS = 2
+
+
+@dataclass
+class ADMMSolution:
+    x: np.ndarray
+    iterations: int
+    converged: bool
+
+
+def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u_start=None,
+          rho=None, tol=None, max_iter=None, memory=8, split=None):
+    """Scaled-form ADMM with slot copies ``z = x[slots]`` (``project`` maps a slot vector onto the
+    constraint set), accelerated by safeguarded type-II Anderson acceleration on the
+    Douglas–Rachford variable ``v = z − u`` (the x-update depends on the state only through it).
+    Returns the solution and ``(z, u, rho)`` for warm starts."""
+    n = x0.size
+    tol = ADMM_TOLERANCE if tol is None else tol
+    max_iter = ADMM_MAX_ITERATIONS if max_iter is None else max_iter
+    b = f.T @ g + eps * x0
+    if rho is None:
+        rho = ADMM_RHO_SCALE * np.sqrt(eps * max(float(np.sum(f * f)) / n, eps))
+    x = x0.copy() if x_start is None else x_start.copy()
+    z = project(x[slots]) if z_start is None else z_start.copy()
+    u = np.zeros(slots.size) if u_start is None else u_start.copy()
+    split = SplitGram(f, counts) if split is None else split
+    solver = split.woodbury(eps, rho)
+
+    def step(v):
+        x = solver.solve(b + rho * np.bincount(slots, v, minlength=n))
+        xs = x[slots]
+        # v = z − u; the z-update reads Sx + u = Sx + (z − v) — keep z, u implicit through
+        # the reflected form: with w = 2 Sx − v, z = Π(w), u = Sx − v ... (standard DR).
+        w = 2.0 * xs - v
+        z = project(w)
+        return v + z - xs, x, xs, z
+
+    v = z - u
+    hist_v, hist_r = [], []
+    converged = False
+    it = 0
+    prev_res = np.inf
+    checkpoint = np.inf
+    adaptations = 0
+    for it in range(1, max_iter + 1):
+        z_prev = z
+        tv, x, xs, z = step(v)
+        r = tv - v
+        res = np.linalg.norm(r)
+        # Anderson (type II) on the fixed point v = T(v).
+        hist_v.append(tv)
+        hist_r.append(r)
+        if len(hist_v) > memory + 1:
+            hist_v.pop(0)
+            hist_r.pop(0)
+        v_next = tv
+        if len(hist_r) >= 3 and res < 10 * prev_res:
+            dr = np.diff(np.array(hist_r), axis=0)
+            dv = np.diff(np.array(hist_v), axis=0)
+            try:
+                gamma = np.linalg.lstsq(dr.T, r, rcond=1e-10)[0]
+                cand = tv - dv.T @ gamma
+                if np.all(np.isfinite(cand)):
+                    v_next = cand
+            except np.linalg.LinAlgError:
+                pass
+        prev_res = min(prev_res, res)
+        if it % 5 == 0:
+            primal = np.linalg.norm(xs - z)
+            scale = max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
+            if primal <= tol * scale and res <= tol * scale:
+                converged = True
+                break
+            if it % ADMM_STALL_WINDOW == 0:
+                # Stalled near the tolerance: stop (the caller warns that it was not reached).
+                current = max(primal, res) / scale
+                if current <= ADMM_STALL_FACTOR * tol:
+                    # At this window's rate, would the tolerance be reached within the cap?
+                    rate = current / checkpoint
+                    windows_left = (max_iter - it) / ADMM_STALL_WINDOW
+                    if rate > 0.9 or rate ** windows_left > tol / current:
+                        break
+                checkpoint = current
+        if it % ADMM_ADAPT_EVERY == 0 and adaptations < ADMM_MAX_ADAPTATIONS:
+            # Residual balancing (OSQP's rule on relative residuals): ρ ← ρ √(r_primal / r_dual),
+            # the scaled dual u rescaled with it, Anderson's history restarted.
+            u_now = z - v_next
+            primal = np.linalg.norm(xs - z) / max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
+            dual = np.linalg.norm(z - z_prev) / max(np.linalg.norm(u_now), 1e-300)
+            ratio = primal / max(dual, 1e-300)
+            if not 0.2 <= ratio <= 5.0:
+                factor = float(np.clip(np.sqrt(ratio), 0.1, 10.0))
+                u_now /= factor
+                rho *= factor
+                solver = split.woodbury(eps, rho)
+                v_next = z - u_now
+                hist_v, hist_r, prev_res = [], [], np.inf
+                adaptations += 1
+        v = v_next
+    u = z - v
+    return ADMMSolution(x, it, converged), (z, u, rho)
+

@@ -1,0 +1,208 @@
+"""Distortion maps of a pose against its base: where and how the shape differences are not the
+identity, as per-face and per-vertex scalars a user can paint on the mesh.
+
+- **Area change** ``log(µ_N / µ_M)`` per triangle, and of the lumped vertex areas per vertex
+  (what the area-based difference D_A measures; 0 where areas are kept).
+- **Conformal distortion** ``σ₁/σ₂ ≥ 1`` per triangle, the ratio of the singular values of the
+  linear map from the base triangle to the pose's (computed from edge lengths alone, like D_C):
+  1 where angles are kept. Per vertex: the base-area-weighted mean of its triangles.
+- **Bending**: the log area change of the offset surface at distance t (§5.2) minus the intrinsic
+  log area change. An offset surface's area element is ``(1 + 2tH + t²K) dA``, so this is
+  ≈ ``2t ΔH``: positive where the pose bulges more towards its normals than the base, negative
+  where it folds in — what the extrinsic differences see and the intrinsic ones cannot. Per vertex
+  from the offset triangles over it (Fig. 5: each has one lifted vertex), per face from those
+  around its centre.
+- **Leading eigenfunctions of each difference operator**: eigenvectors of the ``k × k``
+  differences of eq. (5) in the base's first ``k`` eigenfunctions (``D_A c = ν c``;
+  ``Φᵀ C_N Φ c = ν diag(λ) c`` for the conformal kinds), ordered by ``|log ν|``: the functions the
+  pose stretches or shrinks most, scale by scale (the basis size bounds the finest scale). Offset
+  kinds live on the offset surface and are read back at each base vertex's lifted vertex.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+
+from .mesh_topology import triangle_areas
+from .shape_space_pca import KINDS
+
+#: Default basis size for the eigenfunctions of the difference operators.
+DEFAULT_EIGEN_BASIS = 50
+
+
+@dataclass(frozen=True, eq=False)
+class Distortion:
+    """Distortion of one pose (see the module docstring). Face arrays ``(m,)`` follow
+    ``triangles``; vertex arrays ``(n,)`` the base vertices (0 for vertices in no triangle)."""
+
+    area_change_faces: np.ndarray
+    area_change_vertices: np.ndarray
+    conformal_faces: np.ndarray
+    conformal_vertices: np.ndarray
+    bending_faces: np.ndarray | None
+    bending_vertices: np.ndarray | None
+    _analyzer: "DistortionAnalyzer" = field(repr=False)
+    _pose: np.ndarray = field(repr=False)
+
+    def eigenfunctions(self, kind: str = "area", count: int = 4) -> tuple[np.ndarray, np.ndarray]:
+        """The ``count`` leading eigenpairs of one difference operator: eigenvalues ``ν`` ``(count,)``
+        (ordered by ``|log ν|``, largest first) and functions float64 ``(n, count)`` on the base
+        vertices, each scaled to a maximum absolute value of 1 and signed so that it is largest
+        where positive."""
+        return self._analyzer.eigenfunctions(self._pose, kind, count)
+
+
+class DistortionAnalyzer:
+    """A base mesh prepared once (topology, offset surface, eigenbases) for the distortion maps
+    of many poses: ``DistortionAnalyzer(base, triangles).pose(vertices)``."""
+
+    def __init__(self, base_vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True,
+                 k: int = DEFAULT_EIGEN_BASIS):
+        from .reference_shape import ReferenceShape
+
+        self.reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
+        ref = self.reference
+        self.k = int(min(k, ref.topology.n_vertices - 1))
+        self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
+        self._base_vertex_area = _lumped(ref.topology, ref.base.areas)
+        if ref.use_extrinsic:
+            surface = ref.surface
+            offset_tris = surface.topology.triangles
+            # Offset triangles are (a_t, c_T2, c_T1): corner 0 is the lifted vertex, 1–2 centres.
+            self._lift_owner = surface.lifted_vertices[offset_tris[:, 0]]
+            n_lift = surface.lifted_vertices.size
+            self._center_owner = surface.centered_triangles[offset_tris[:, 1:] - n_lift]  # (m_t, 2)
+            self._base_offset_vertex = self._offset_sums(ref.offset_layer.areas)
+
+    # -- per-face and per-vertex maps ---------------------------------------------------------
+    def pose(self, pose_vertices) -> Distortion:
+        ref = self.reference
+        pose = ref.compact_pose(pose_vertices, name="pose vertices")
+        topo = ref.topology
+        areas = triangle_areas(pose, topo.triangles)
+        squared = topo.squared_edge_lengths(pose)
+        area_faces = np.log(areas / ref.base.areas)
+        area_vertices = np.log(_lumped(topo, areas) / self._base_vertex_area)
+        conformal_faces = _conformal_ratio(self._base_local, squared[topo.triangle_edges])
+        weights = np.repeat(ref.base.areas, 3)
+        conformal_vertices = np.bincount(topo.triangles.ravel(), weights * np.repeat(conformal_faces, 3),
+                                         topo.n_vertices) / np.bincount(topo.triangles.ravel(), weights, topo.n_vertices)
+        bending_faces = bending_vertices = None
+        if ref.use_extrinsic:
+            offset_positions = ref.surface.positions(pose, ref.offset)
+            offset_areas = triangle_areas(offset_positions, ref.surface.topology.triangles)
+            vertex_sum, face_sum = self._offset_sums(offset_areas)
+            base_vertex_sum, base_face_sum = self._base_offset_vertex
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bending_vertices = np.where(base_vertex_sum > 0, np.log(vertex_sum / base_vertex_sum), 0.0)
+                bending_faces = np.where(base_face_sum > 0, np.log(face_sum / base_face_sum), 0.0)
+            bending_vertices = np.where(base_vertex_sum > 0, bending_vertices - area_vertices, 0.0)
+            bending_faces = np.where(base_face_sum > 0, bending_faces - area_faces, 0.0)
+        return Distortion(
+            area_change_faces=area_faces,
+            area_change_vertices=_scatter(ref, area_vertices),
+            conformal_faces=conformal_faces,
+            conformal_vertices=_scatter(ref, conformal_vertices),
+            bending_faces=bending_faces,
+            bending_vertices=None if bending_vertices is None else _scatter(ref, bending_vertices),
+            _analyzer=self,
+            _pose=pose,
+        )
+
+    def _offset_sums(self, offset_areas):
+        topo = self.reference.topology
+        vertex_sum = np.bincount(self._lift_owner, offset_areas, topo.n_vertices)
+        face_sum = np.bincount(self._center_owner.ravel(), np.repeat(offset_areas, 2), topo.n_triangles)
+        return vertex_sum, face_sum
+
+    # -- eigenfunctions of the difference operators ---------------------------------------------
+    def eigenfunctions(self, pose: np.ndarray, kind: str, count: int):
+        from .inner_products import pose_products
+
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}.")
+        ref = self.reference
+        if kind.startswith("offset"):
+            if not ref.use_extrinsic:
+                raise ValueError("This analyzer was built without the offset surface (use_extrinsic=False).")
+            layer, positions = ref.offset_layer, ref.surface.positions(pose, ref.offset)
+        else:
+            layer, positions = ref.base, pose
+        basis = layer.basis(min(self.k, layer.topology.n_vertices - 1))
+        _, _, mass, conformal = pose_products(layer.assembler, positions)
+        phi = basis.functions
+        if kind.endswith("area"):
+            values, vectors = np.linalg.eigh(phi.T @ (mass @ phi))
+        else:
+            keep = basis.pseudo_inverse_eigenvalues() > 0
+            reduced = phi[:, keep].T @ (conformal @ phi[:, keep])
+            values, vectors = sla.eigh(0.5 * (reduced + reduced.T), np.diag(basis.eigenvalues[keep]))
+            phi = phi[:, keep]
+        order = np.argsort(-np.abs(np.log(np.maximum(values, 1e-300))), kind="stable")[:count]
+        functions = phi @ vectors[:, order]
+        if kind.startswith("offset"):
+            functions = self._on_base_vertices(functions)
+        scale = functions[np.argmax(np.abs(functions), axis=0), np.arange(functions.shape[1])]
+        functions = functions / np.where(scale == 0, 1.0, scale)
+        return values[order], _scatter(ref, functions)
+
+    def _on_base_vertices(self, offset_values: np.ndarray) -> np.ndarray:
+        """Offset-surface vertex values ``(n_t, c)`` at the base vertices ``(n, c)``: the lifted
+        vertex's value, or for a vertex with none (a corner touching no interior edge) the mean of
+        the centres of its triangles."""
+        surface = self.reference.surface
+        topo = self.reference.topology
+        out = np.zeros((topo.n_vertices, offset_values.shape[1]))
+        out[surface.lifted_vertices] = offset_values[: surface.lifted_vertices.size]
+        missing = np.flatnonzero(surface.lift_of_vertex < 0)
+        for vertex in missing:
+            centers = surface.center_of_triangle[np.flatnonzero((topo.triangles == vertex).any(axis=1))]
+            centers = centers[centers >= 0]
+            if centers.size:
+                out[vertex] = offset_values[centers].mean(axis=0)
+        return out
+
+
+def distortion(base_vertices, pose_vertices, triangles, *, offset: float | None = None,
+               use_extrinsic: bool = True, k: int = DEFAULT_EIGEN_BASIS) -> Distortion:
+    """Distortion maps of ``pose_vertices`` ``(n, 3)`` against ``base_vertices`` ``(n, 3)`` with
+    ``triangles`` ``(m, 3)`` (see :mod:`core.distortion_maps`); ``offset`` the offset distance t
+    (``None``: half the mean edge length), ``k`` the basis size for :meth:`Distortion.eigenfunctions`.
+    For many poses of one base, reuse a :class:`DistortionAnalyzer`."""
+    return DistortionAnalyzer(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic, k=k).pose(pose_vertices)
+
+
+# -- helpers -----------------------------------------------------------------------------------
+def _lumped(topology, areas):
+    return np.bincount(topology.triangles.ravel(), np.repeat(areas / 3.0, 3), topology.n_vertices)
+
+
+def _scatter(reference, values):
+    """Used-vertex values ``(n_used, ...)`` to all vertices ``(n, ...)``, 0 at loose vertices."""
+    out = np.zeros((reference.n_vertices,) + values.shape[1:])
+    out[reference.used_vertices] = values
+    return out
+
+
+def _layouts(squared):
+    """Edge vectors ``(m, 3, 2)`` of each triangle laid out in the plane (edge ``c`` opposite
+    corner ``c``, from corner c+1 to corner c+2)."""
+    from .pulled_back_metric import planar_layouts
+
+    corners = planar_layouts(squared)
+    return corners[:, [2, 0, 1]] - corners[:, [1, 2, 0]]
+
+
+def _conformal_ratio(base_edges, pose_squared):
+    """σ₁/σ₂ of the map between two triangles known by their edges: the metric tensor G of the
+    pose in the base triangle's coordinates solves ``eᵀ G e = ℓ²`` for the three edges."""
+    ex, ey = base_edges[..., 0], base_edges[..., 1]
+    system = np.stack([ex * ex, 2.0 * ex * ey, ey * ey], axis=-1)  # (m, 3, 3)
+    g11, g12, g22 = np.moveaxis(np.linalg.solve(system, pose_squared[..., None])[..., 0], -1, 0)
+    half_trace = 0.5 * (g11 + g22)
+    root = np.sqrt(np.maximum(half_trace**2 - (g11 * g22 - g12 * g12), 0.0))
+    largest, smallest = half_trace + root, np.maximum(half_trace - root, 1e-300)
+    return np.sqrt(largest / smallest)

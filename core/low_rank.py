@@ -1,0 +1,112 @@
+"""Low-rank factorizations of positive semidefinite Gram matrices and the solves they allow.
+
+Used by the truncated edge-length program (eq. 10, :mod:`core.truncated_recovery`), whose data
+term has the Gram ``W = (U Uᵀ)∘²`` (edges × edges) with a fast-falling spectrum: a randomly
+pivoted Cholesky factor of it, orthonormalized; and ``(FᵀF + D) x = r`` solved through the
+``p × p`` capacitance matrix (Woodbury identity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+
+
+@dataclass(frozen=True)
+class LowRankGram:
+    """``G ≈ Y diag(values) Yᵀ`` with ``Y`` ``(N, p)`` orthonormal; ``mean_diagonal`` of the exact G."""
+
+    vectors: np.ndarray
+    values: np.ndarray
+    mean_diagonal: float
+
+
+def randomly_pivoted_cholesky(columns, diagonal: np.ndarray, *, tolerance: float, max_rank: int,
+                              block: int = 128, seed: int = 0) -> np.ndarray:
+    """Block randomly pivoted Cholesky (Chen, Epperly, Tropp, Webber 2023) of a PSD matrix ``G``
+    ``(N, N)`` given only its ``diagonal`` and ``columns(S)`` ``(N, |S|)``: ``G ≈ F Fᵀ`` with
+    ``F`` ``(N, r)``, stopped when the trace of the residual falls below ``tolerance`` × trace(G)
+    or ``r`` reaches ``max_rank``. Pivots are drawn in blocks with probability proportional to
+    the residual diagonal; each block's own Cholesky is LAPACK's pivoted one (``dpstrf``), which
+    drops pivots made redundant by the others in the block. Cost O(N r² + r·cost(column)),
+    nothing of size N × N is formed."""
+    from scipy.linalg import lapack
+
+    n = diagonal.size
+    rng = np.random.default_rng(seed)
+    rows = np.empty((min(max_rank, n), n))  # Fᵀ, filled row by row: its leading rows stay contiguous
+    residual = np.array(diagonal, dtype=np.float64)
+    stop = tolerance * float(residual.sum())
+    rank = 0
+    while rank < rows.shape[0] and residual.sum() > stop:
+        weights = np.maximum(residual, 0.0)
+        picks = np.unique(rng.choice(n, size=min(block, rows.shape[0] - rank), p=weights / weights.sum()))
+        cols = columns(picks)
+        if rank:
+            cols -= rows[:rank].T @ rows[:rank, picks]
+        pivot_block = cols[picks]
+        chol, order, found, _ = lapack.dpstrf(
+            0.5 * (pivot_block + pivot_block.T), lower=1, tol=1e-12 * max(float(pivot_block.diagonal().max()), 1e-300)
+        )
+        if found == 0:
+            break
+        order = order[:found] - 1
+        new = sla.solve_triangular(np.tril(chol[:found, :found]), cols[:, order].T, lower=True, check_finite=False)
+        rows[rank : rank + found] = new
+        rank += found
+        residual -= np.einsum("ij,ij->j", new, new)
+    return rows[:rank].T
+
+
+def low_rank_gram(factor: np.ndarray, mean_diagonal: float) -> LowRankGram:
+    """``F Fᵀ = Y diag(values) Yᵀ`` with orthonormal ``Y`` from the eigenpairs of ``FᵀF``
+    (r × r; a QR of F cost 4× more, measured on 9,148 × 1,886)."""
+    values, small = np.linalg.eigh(gram_of_rows(factor.T))
+    keep = values > values[-1] * np.finfo(float).eps * factor.shape[1]
+    order = np.argsort(values[keep])[::-1]
+    values, small = values[keep][order], small[:, keep][:, order]
+    return LowRankGram((factor @ small) / np.sqrt(values), values, mean_diagonal)
+
+
+
+class Woodbury:
+    """Solves ``(FᵀF + diag(d)) x = r`` with a ``p × p`` Cholesky factor of ``I + F D⁻¹ Fᵀ``
+    (``capacitance``: that matrix when already known)."""
+
+    def __init__(self, f: np.ndarray, d: np.ndarray, capacitance: np.ndarray | None = None):
+        self.f, self.dinv = f, 1.0 / d
+        if capacitance is None:
+            capacitance = f @ (self.dinv[:, None] * f.T)
+            capacitance[np.diag_indices_from(capacitance)] += 1.0
+        self.chol = sla.cho_factor(capacitance, lower=True)
+
+    def solve(self, r: np.ndarray) -> np.ndarray:
+        y = self.dinv * r
+        return y - self.dinv * (self.f.T @ sla.cho_solve(self.chol, self.f @ y, check_finite=False))
+
+
+def gram_of_rows(a: np.ndarray) -> np.ndarray:
+    """``a aᵀ`` by BLAS ``syrk`` (half the flops of a general product)."""
+    upper = sla.blas.dsyrk(1.0, np.asfortranarray(a))
+    return np.triu(upper) + np.triu(upper, 1).T
+
+
+class SplitGram:
+    """``F D⁻¹ Fᵀ`` for every ``D = ε + ρ · counts`` from one pass over ``F``: the edges fall in
+    a few classes of equal slot count (1 on the boundary, 2 inside), so ``F D⁻¹ Fᵀ =
+    Σ_c F_c F_cᵀ / (ε + ρ c)``. The unconstrained solve (ρ = 0) and every ADMM penalty then
+    share the O(p² E) product; a new ρ costs one p × p Cholesky factorization."""
+
+    def __init__(self, f: np.ndarray, counts: np.ndarray):
+        self.f, self.counts = f, counts
+        self.classes = [(float(c), counts == c) for c in np.unique(counts)]
+        self.grams = [gram_of_rows(f[:, mask]) for _, mask in self.classes]
+
+    def woodbury(self, eps: float, rho: float) -> Woodbury:
+        capacitance = np.eye(self.f.shape[0])
+        for (c, _), gram in zip(self.classes, self.grams):
+            capacitance += gram / (eps + rho * c)
+        return Woodbury(self.f, eps + rho * self.counts, capacitance)
+

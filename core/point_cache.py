@@ -1,0 +1,193 @@
+"""Point caches: vertex positions per frame in the PC2 and MDD files that Blender's Mesh Cache
+modifier plays and that Maya, Houdini, Cinema 4D and 3ds Max export.
+
+Written by hand with :mod:`struct` and NumPy because both formats are a fixed header followed by
+raw float32 samples, and no maintained PyPI package reads them without pulling in a DCC.
+
+- PC2 (little-endian): ``b'POINTCACHE2\\0'``, int32 version (1), int32 point count, float32
+  start frame, float32 sampling (frames per sample), int32 sample count; then float32 xyz per
+  point per sample.
+- MDD (big-endian): int32 frame count, int32 point count, float32 time per frame (seconds), then
+  float32 xyz per point per frame.
+
+A bad or truncated file raises :class:`core.MeshError` naming the file and what is wrong.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MeshError
+
+PC2_MAGIC = b"POINTCACHE2\0"
+PC2_HEADER = struct.Struct("<12siiffi")
+MDD_HEADER = struct.Struct(">ii")
+
+
+@dataclass(frozen=True)
+class PointCache:
+    """Positions of one mesh over time.
+
+    ``positions``: float32 ``(samples, points, 3)`` (a read-only memory map for files read from
+    disk: index it to load only the samples you need). ``start``/``sampling``: frame of the first
+    sample and frames between samples (PC2); ``times``: seconds per sample (MDD only, else None).
+    """
+
+    positions: np.ndarray
+    start: float = 0.0
+    sampling: float = 1.0
+    times: np.ndarray | None = None
+
+    @property
+    def n_samples(self) -> int:
+        return self.positions.shape[0]
+
+    @property
+    def n_points(self) -> int:
+        return self.positions.shape[1]
+
+
+def _positions_array(positions) -> np.ndarray:
+    """``positions`` as float32 ``(samples, points, 3)``; a single pose ``(points, 3)`` is one sample."""
+    array = np.asarray(positions)
+    if array.ndim == 2:
+        array = array[None]
+    if array.ndim != 3 or array.shape[2] != 3:
+        raise MeshError(f"Point cache positions must have shape (samples, points, 3); got {array.shape}.")
+    if array.shape[1] == 0:
+        raise MeshError("A point cache needs at least one point; got 0.")
+    if not np.isfinite(array).all():
+        sample = int(np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))[0])
+        raise MeshError(f"Point cache sample {sample} has non-finite coordinates (NaN or inf).")
+    return np.ascontiguousarray(array, dtype="<f4")
+
+
+def _write_atomically(path: Path, chunks) -> None:
+    """Write ``chunks`` (bytes-like) to a temporary file beside ``path`` and rename it into place,
+    so that a reader (or a failed write) never sees half a file."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; a cache is shared like any file
+        with os.fdopen(handle, "wb") as stream:
+            for chunk in chunks:
+                stream.write(chunk)
+        os.replace(temporary, path)
+    except BaseException:
+        os.unlink(temporary)
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def pc2_header(n_points: int, n_samples: int, start: float = 0.0, sampling: float = 1.0) -> bytes:
+    """The 32-byte PC2 header."""
+    return PC2_HEADER.pack(PC2_MAGIC, 1, int(n_points), float(start), float(sampling), int(n_samples))
+
+
+def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0) -> Path:
+    """Write float ``(samples, points, 3)`` positions (or one ``(points, 3)`` pose) as a PC2 file.
+
+    ``start`` is the frame of the first sample, ``sampling`` the frames between samples. The file
+    appears complete or not at all. Returns the path.
+    """
+    array = _positions_array(positions)
+    if not (np.isfinite(start) and np.isfinite(sampling) and sampling > 0):
+        raise MeshError(f"PC2 start must be finite and sampling positive; got {start}, {sampling}.")
+    _write_atomically(path, [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()])
+    return Path(path)
+
+
+def _file_size_check(path: Path, expected: int, what: str) -> None:
+    size = path.stat().st_size
+    if size != expected:
+        raise MeshError(
+            f"'{path}' is not a complete {what}: its header promises {expected} bytes, the file has "
+            f"{size}. Export the cache again (the file may have been cut off while copying)."
+        )
+
+
+def read_pc2(path) -> PointCache:
+    """Read a PC2 file; positions are a read-only float32 memory map ``(samples, points, 3)``."""
+    path = Path(path)
+    with open(path, "rb") as stream:
+        header = stream.read(PC2_HEADER.size)
+    if len(header) < PC2_HEADER.size or header[:11] != PC2_MAGIC[:11]:
+        raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2').")
+    _magic, version, n_points, start, sampling, n_samples = PC2_HEADER.unpack(header)
+    if version != 1 or n_points <= 0 or n_samples < 0 or not np.isfinite([start, sampling]).all():
+        raise MeshError(
+            f"'{path}' has an invalid PC2 header (version {version}, {n_points} points, {n_samples} "
+            f"samples, start {start}, sampling {sampling})."
+        )
+    _file_size_check(path, PC2_HEADER.size + 12 * n_points * n_samples, "PC2 file")
+    positions = (np.memmap(path, dtype="<f4", mode="r", offset=PC2_HEADER.size, shape=(n_samples, n_points, 3))
+                 if n_samples else np.empty((0, n_points, 3), dtype="<f4"))
+    return PointCache(positions, float(start), float(sampling))
+
+
+def read_mdd(path) -> PointCache:
+    """Read an MDD file (big-endian); ``times`` are its per-frame times in seconds and
+    ``positions`` float32 ``(frames, points, 3)`` in native byte order."""
+    path = Path(path)
+    with open(path, "rb") as stream:
+        header = stream.read(MDD_HEADER.size)
+        if len(header) < MDD_HEADER.size:
+            raise MeshError(f"'{path}' is not an MDD point cache (shorter than its 8-byte header).")
+        n_frames, n_points = MDD_HEADER.unpack(header)
+        if n_frames < 0 or n_points <= 0:
+            raise MeshError(f"'{path}' has an invalid MDD header ({n_frames} frames, {n_points} points).")
+        _file_size_check(path, MDD_HEADER.size + 4 * n_frames + 12 * n_points * n_frames, "MDD file")
+        times = np.frombuffer(stream.read(4 * n_frames), dtype=">f4").astype(np.float64)
+        positions = np.frombuffer(stream.read(), dtype=">f4").reshape(n_frames, n_points, 3).astype("<f4")
+    return PointCache(positions, times=times)
+
+
+def read_point_cache(path) -> PointCache:
+    """Read a PC2 or MDD file, told apart by the PC2 signature (MDD has none)."""
+    path = Path(path)
+    if not path.is_file():
+        raise MeshError(f"'{path}' does not exist or is not a file.")
+    with open(path, "rb") as stream:
+        signature = stream.read(11)
+    return read_pc2(path) if signature == PC2_MAGIC[:11] else read_mdd(path)
+
+
+def merge_pc2(parts, path) -> Path:
+    """Concatenate PC2 files whose samples follow one another (chunks of one job) into ``path``.
+
+    Every part must have the same point count and sampling, and each must start where the one
+    before ends; parts without samples are allowed. The samples are copied byte for byte.
+    """
+    caches = [(Path(part), read_pc2(part)) for part in parts]
+    if not caches:
+        raise MeshError("Nothing to merge: give at least one PC2 file.")
+    first_path, first = caches[0]
+    expected_start = first.start
+    for part, cache in caches:
+        if cache.n_points != first.n_points or cache.sampling != first.sampling:
+            raise MeshError(
+                f"'{part}' has {cache.n_points} points at sampling {cache.sampling}, but '{first_path}' has "
+                f"{first.n_points} at {first.sampling}: these are not chunks of one cache."
+            )
+        if np.float32(cache.start) != np.float32(expected_start):
+            raise MeshError(
+                f"'{part}' starts at frame {cache.start:g}, expected {expected_start:g} (where the part before "
+                "ends): give the chunks in order, with none missing."
+            )
+        expected_start = cache.start + cache.n_samples * cache.sampling
+    n_samples = sum(cache.n_samples for _, cache in caches)
+    header = pc2_header(first.n_points, n_samples, first.start, first.sampling)
+    _write_atomically(path, [header, *(cache.positions.tobytes() for _, cache in caches)])
+    return Path(path)

@@ -1,0 +1,292 @@
+"""The target's metric pulled back to the base mesh (paper §8.3, Figs. 11–12).
+
+The areas µ and squared edge lengths ℓ² recovered from the intrinsic shape differences (§7.1–7.2:
+linear solves in the full basis, convex programs when truncated) are the target N's metric written
+on the connectivity of the base M. Everything intrinsic can then be computed on M as if it were N,
+without an embedding of N: the Laplacian ``C(ℓ²; µ)φ = λ A(µ)φ`` of eq. (2) and its eigenpairs,
+geodesic distances (the heat method, Crane et al. 2013) and the wave kernel signature (Aubry et al.
+2011).
+
+The heat method here is intrinsic — each triangle is laid out in the plane from its three edge
+lengths, where gradients and divergences are taken — and hand-written because the libraries'
+heat methods (potpourri3d, libigl, geometry-central's Python bindings) take vertex positions,
+which a pulled-back metric does not have.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import MeshError, RecoveryError
+from .laplace_basis import LaplaceBasis, laplace_basis
+
+#: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
+HEAT_TIME_FACTOR = 1.0
+#: WKS: Gaussian width in units of the log-energy step (Aubry et al. use 6–7), and the number of
+#: those widths kept clear of the extreme log-eigenvalues at both ends.
+WKS_VARIANCE = 7.0
+WKS_MARGIN = 2.0
+
+
+def heron_areas(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
+    """Triangle areas from squared edge lengths ``(m, 3)`` (Heron's formula in squared lengths);
+    NaN where the triangle inequality fails."""
+    x = squared_lengths_per_triangle
+    q = 2.0 * (x[:, 0] * x[:, 1] + x[:, 1] * x[:, 2] + x[:, 2] * x[:, 0]) - np.sum(x * x, axis=1)
+    return np.sqrt(np.where(q > 0, q, np.nan)) / 4.0
+
+
+def planar_layouts(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
+    """Corner positions ``(m, 3, 2)`` of each triangle laid out in the plane from its squared edge
+    lengths ``(m, 3)`` (edge ``c`` opposite corner ``c``): corner 0 at the origin, corner 1 on the
+    x axis, corner 2 above it (counter-clockwise)."""
+    x = squared_lengths_per_triangle
+    length_01 = np.sqrt(x[:, 2])
+    x2 = (x[:, 1] + x[:, 2] - x[:, 0]) / (2.0 * length_01)
+    corners = np.zeros((x.shape[0], 3, 2))
+    corners[:, 1, 0] = length_01
+    corners[:, 2, 0] = x2
+    corners[:, 2, 1] = np.sqrt(np.maximum(x[:, 1] - x2 * x2, 0.0))
+    return corners
+
+
+class IntrinsicTriangulation:
+    """A triangle mesh known by its edge lengths only: per-triangle planar layouts, the gradient
+    of piecewise-linear functions, the cotangent Laplacian and the heat method.
+
+    ``topology``: :class:`~core.mesh_topology.MeshTopology`; ``squared_lengths`` ``(E,)``.
+    """
+
+    def __init__(self, topology, squared_lengths: np.ndarray):
+        self.topology = topology
+        self.squared_lengths = np.asarray(squared_lengths, dtype=np.float64)
+        per_triangle = self.squared_lengths[topology.triangle_edges]  # opposite each corner
+        self.areas = heron_areas(per_triangle)
+        if not np.all(np.isfinite(self.areas) & (self.areas > 0)):
+            bad = int(np.flatnonzero(~(self.areas > 0))[0])
+            raise RecoveryError(
+                f"Triangle {bad}'s edge lengths violate the triangle inequality: the metric is not "
+                "a valid triangulation (recover it from less truncated differences)."
+            )
+        corners = planar_layouts(per_triangle)
+        # Gradient of the hat function of corner c: the opposite edge turned by 90°, / (2 area).
+        opposite = corners[:, [2, 0, 1]] - corners[:, [1, 2, 0]]
+        self.hat_gradients = np.stack([-opposite[..., 1], opposite[..., 0]], axis=-1) / (2.0 * self.areas[:, None, None])
+
+    @property
+    def mean_edge_length(self) -> float:
+        return float(np.mean(np.sqrt(self.squared_lengths)))
+
+    def gradient(self, values: np.ndarray) -> np.ndarray:
+        """Per-triangle gradient ``(m, 2)`` (in each triangle's layout) of vertex values ``(n,)``."""
+        return np.einsum("tc,tcd->td", values[self.topology.triangles], self.hat_gradients)
+
+    def divergence(self, field_: np.ndarray) -> np.ndarray:
+        """Integrated divergence ``(n,)`` of a per-triangle vector field ``(m, 2)``:
+        ``Σ_T area_T ⟨∇φ_v, X_T⟩`` (the weak form, so that ``C u = div ∇u``)."""
+        local = self.areas[:, None] * np.einsum("tcd,td->tc", self.hat_gradients, field_)
+        return np.bincount(self.topology.triangles.ravel(), local.ravel(), self.topology.n_vertices)
+
+    def cotangent_laplacian(self) -> sp.csr_matrix:
+        """``C_vw = Σ_T area_T ⟨∇φ_v, ∇φ_w⟩``: the cotangent stiffness matrix (eq. 2), PSD."""
+        t = self.topology.triangles
+        local = self.areas[:, None, None] * np.einsum("tid,tjd->tij", self.hat_gradients, self.hat_gradients)
+        rows = np.repeat(t, 3, axis=1).ravel()
+        cols = np.tile(t, (1, 3)).ravel()
+        n = self.topology.n_vertices
+        return sp.csr_matrix((local.ravel(), (rows, cols)), shape=(n, n))
+
+    def lumped_mass(self) -> np.ndarray:
+        """Vertex areas ``(n,)``: a third of the areas of the triangles around each vertex."""
+        return np.bincount(self.topology.triangles.ravel(), np.repeat(self.areas / 3.0, 3), self.topology.n_vertices)
+
+    def heat_method(self):
+        """A :class:`HeatMethod` factored for this metric (reuse it for many sources)."""
+        return HeatMethod(self)
+
+
+class HeatMethod:
+    """Geodesic distances by the heat method (Crane, Weischedel, Wardetzky 2013) on an intrinsic
+    triangulation: heat flow ``(M + tC) u = δ_s`` for ``t = h²``, the normalized field
+    ``X = −∇u/|∇u|``, then the Poisson problem ``C φ = div X``. Both matrices are factored once."""
+
+    def __init__(self, triangulation: IntrinsicTriangulation):
+        from scipy.sparse.linalg import splu
+
+        self.triangulation = triangulation
+        stiffness = triangulation.cotangent_laplacian()
+        self.mass = triangulation.lumped_mass()
+        time = HEAT_TIME_FACTOR * triangulation.mean_edge_length**2
+        self._heat = splu(sp.csc_matrix(sp.diags(self.mass) + time * stiffness))
+        # The Poisson problem is singular (constants) per connected component: pin one vertex of
+        # each component, after which the matrix is positive definite.
+        n = triangulation.topology.n_vertices
+        count, labels = triangulation.topology.components()
+        vertex_component = np.empty(n, dtype=np.int64)
+        vertex_component[triangulation.topology.triangles.ravel()] = np.repeat(labels, 3)
+        self.vertex_component = vertex_component
+        pinned = np.array([np.flatnonzero(vertex_component == c)[0] for c in range(count)])
+        self._pinned = pinned
+        keep = np.ones(n)
+        keep[pinned] = 0.0
+        mask = sp.diags(keep)
+        poisson = mask @ stiffness @ mask + sp.diags(1.0 - keep)
+        self._poisson = splu(sp.csc_matrix(poisson))
+        self._keep = keep
+
+    def distances(self, source: int) -> np.ndarray:
+        """Geodesic distance of every vertex to ``source`` ``(n,)``; ``inf`` on other components."""
+        tri = self.triangulation
+        n = tri.topology.n_vertices
+        impulse = np.zeros(n)
+        impulse[source] = 1.0
+        heat = self._heat.solve(impulse)
+        gradient = tri.gradient(heat)
+        norm = np.linalg.norm(gradient, axis=1, keepdims=True)
+        direction = -np.divide(gradient, norm, out=np.zeros_like(gradient), where=norm > 0)
+        rhs = tri.divergence(direction) * self._keep
+        phi = self._poisson.solve(rhs)
+        # The pinned vertex has φ = 0; shift each component so the source is at distance 0.
+        same = self.vertex_component == self.vertex_component[source]
+        out = np.full(n, np.inf)
+        out[same] = phi[same] - phi[source]
+        return out
+
+
+@dataclass(eq=False)
+class PulledBackMetric:
+    """The target's metric on the base mesh's connectivity (§8.3).
+
+    ``areas`` µ float64 ``(m,)`` per triangle of ``triangles``; ``squared_lengths`` ℓ² float64
+    ``(E,)`` per edge of ``edges`` (int64 ``(E, 2)``, vertex indices of the base mesh). Vertex
+    arrays returned have one row per base vertex; vertices in no triangle get 0 (eigenfunctions,
+    WKS) or ``inf`` (distances).
+    """
+
+    reference: object = field(repr=False)
+    areas: np.ndarray
+    squared_lengths: np.ndarray
+    _bases: dict = field(default_factory=dict, repr=False)
+    _heat: HeatMethod | None = field(default=None, repr=False)
+
+    @property
+    def triangles(self) -> np.ndarray:
+        return self.reference.triangles
+
+    @property
+    def edges(self) -> np.ndarray:
+        return self.reference.used_vertices[self.reference.topology.edges]
+
+    @property
+    def edge_lengths(self) -> np.ndarray:
+        return np.sqrt(self.squared_lengths)
+
+    def mass_matrix(self) -> sp.csr_matrix:
+        """``A(µ)`` of eq. (1) on the used vertices, sparse ``(n_used, n_used)``."""
+        return self.reference.base.assembler.mass_matrix(self.areas)
+
+    def laplacian(self) -> sp.csr_matrix:
+        """``C(ℓ²; µ)`` of eq. (2) on the used vertices: the pulled-back Laplacian (Fig. 11)."""
+        return self.reference.base.assembler.conformal_matrix(self.squared_lengths, self.areas)
+
+    def laplace_basis(self, k: int) -> LaplaceBasis:
+        """The first ``k`` eigenpairs of the pulled-back Laplacian (on the used vertices)."""
+        larger = [size for size in self._bases if size >= k]
+        if larger:
+            cached = self._bases[min(larger)]
+            return LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
+        self._bases[k] = laplace_basis(self.mass_matrix(), self.laplacian(), k, what="pulled-back metric")
+        return self._bases[k]
+
+    def laplacian_eigenvalues(self, k: int) -> np.ndarray:
+        """The ``k`` smallest eigenvalues ``(k,)`` of ``C(ℓ²; µ) φ = λ A(µ) φ`` (ascending)."""
+        return self.laplace_basis(k).eigenvalues.copy()
+
+    def eigenfunctions(self, k: int) -> np.ndarray:
+        """The first ``k`` eigenfunctions, float64 ``(n, k)``, A(µ)-orthonormal."""
+        return self._expand(self.laplace_basis(k).functions, 0.0)
+
+    def geodesic_distances(self, source_vertex: int) -> np.ndarray:
+        """Geodesic distances ``(n,)`` from ``source_vertex`` in the pulled-back metric (the heat
+        method on the intrinsic triangulation; the heat and Poisson factors are reused for
+        further sources)."""
+        used = self._compact_vertex(source_vertex)
+        if self._heat is None:
+            self._heat = IntrinsicTriangulation(self.reference.topology, self.squared_lengths).heat_method()
+        return self._expand(self._heat.distances(used), np.inf)
+
+    def wave_kernel_signature(self, energies: int | np.ndarray = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:
+        """Wave kernel signature (Aubry et al. 2011), float64 ``(n, len(energies))``:
+        ``WKS(x, e) = Σ_i φ_i(x)² exp(−(e − log λ_i)²/2σ²) / Σ_i exp(−(e − log λ_i)²/2σ²)`` over
+        the first ``k`` nonzero eigenpairs. ``energies``: a count (evenly spaced log-energies
+        between the extreme log-eigenvalues, ``WKS_MARGIN`` widths inside) or explicit values (to
+        compare several metrics at the same energies, see :meth:`wks_energies`)."""
+        basis = self.laplace_basis(min(k, self.reference.topology.n_vertices - 1))
+        return self._expand(wave_kernel_signature(basis, energies, variance=variance), 0.0)
+
+    def wks_energies(self, count: int = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:
+        """The log-energies ``(count,)`` :meth:`wave_kernel_signature` uses for ``count``."""
+        basis = self.laplace_basis(min(k, self.reference.topology.n_vertices - 1))
+        return wks_energies(basis.eigenvalues, count, variance=variance)[0]
+
+    # -- vertex numbering --------------------------------------------------------------------------
+    def _compact_vertex(self, vertex: int) -> int:
+        if int(vertex) != vertex or not 0 <= vertex < self.reference.n_vertices:
+            raise MeshError(
+                f"source_vertex must be a vertex index in 0..{self.reference.n_vertices - 1}; got {vertex!r}."
+            )
+        position = np.searchsorted(self.reference.used_vertices, int(vertex))
+        if position >= self.reference.used_vertices.size or self.reference.used_vertices[position] != vertex:
+            raise MeshError(f"Vertex {vertex} is in no triangle, so it has no geodesic distances.")
+        return int(position)
+
+    def _expand(self, values: np.ndarray, fill: float) -> np.ndarray:
+        shape = (self.reference.n_vertices,) + values.shape[1:]
+        out = np.full(shape, fill, dtype=np.float64)
+        out[self.reference.used_vertices] = values
+        return out
+
+
+def wks_energies(eigenvalues: np.ndarray, count: int, *, variance: float = WKS_VARIANCE):
+    """Evenly spaced log-energies ``(count,)`` and the Gaussian width σ for the nonzero
+    ``eigenvalues``."""
+    positive = eigenvalues[eigenvalues > 1e-9 * max(float(eigenvalues.max()), 1e-300)]
+    if positive.size < 2:
+        raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
+    low, high = np.log(positive[0]), np.log(positive[-1])
+    sigma = variance * (high - low) / count
+    return np.linspace(low + WKS_MARGIN * sigma, high - WKS_MARGIN * sigma, count), sigma
+
+
+def wave_kernel_signature(basis: LaplaceBasis, energies, *, variance: float = WKS_VARIANCE) -> np.ndarray:
+    """WKS ``(n, len(energies))`` of an eigenbasis (see :meth:`PulledBackMetric.wave_kernel_signature`)."""
+    values = basis.eigenvalues
+    nonzero = values > 1e-9 * max(float(values.max()), 1e-300)
+    if np.ndim(energies) == 0:
+        energies, sigma = wks_energies(values, int(energies), variance=variance)
+    else:
+        energies = np.asarray(energies, dtype=np.float64)
+        positive = values[nonzero]
+        sigma = variance * (np.log(positive[-1]) - np.log(positive[0])) / energies.size
+    logs = np.log(values[nonzero])
+    weights = np.exp(-((energies[None, :] - logs[:, None]) ** 2) / (2.0 * sigma**2))  # (k, e)
+    return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), 1e-300)
+
+
+def pull_back(base_vertices, triangles, differences) -> PulledBackMetric:
+    """The target's metric on the base mesh from its shape differences (§8.3).
+
+    ``base_vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``; ``differences`` from
+    :func:`core.shape_differences` (full basis: exact linear recovery; truncated ``k_M``/``k_N``:
+    the convex programs of §7). Only the intrinsic pair is used.
+    """
+    from .reference_shape import ReferenceShape
+
+    reference = differences.reference
+    if not reference.matches(base_vertices, triangles):
+        reference = ReferenceShape(base_vertices, triangles, offset=differences.offset, use_extrinsic=False)
+    metric = reference.base.recover(differences.area, differences.conformal)
+    return PulledBackMetric(reference, metric.areas, metric.squared_lengths)

@@ -1,0 +1,135 @@
+"""Retiming an animation from every ``step``-th frame: slow motion, the original timing with the
+dropped frames rebuilt, or faster, with in-betweens from :class:`core.SequenceInterpolator`.
+
+Times are in source samples (frames): sample ``j`` of an animation of ``F`` samples is at time
+``j``. The key poses are samples ``0, step, 2·step, …`` and the last sample (a shorter last gap
+when ``F − 1`` is not a multiple of ``step``). Output sample ``k`` shows source time
+``k · speed`` for ``k = 0 … ⌊(F − 1) / speed⌋``: ``speed = 0.5`` over 25 frames gives 49. An
+output sample at a key's time is that key's positions exactly; any other is the in-between of its
+gap at the factor of its time within the gap.
+
+Chunks: the result for a gap depends only on the keys and the gap, and every call builds the
+interpolator from all the keys, so computing gaps ``a:b`` in one process and ``b:c`` in another
+gives exactly (bit for bit) the samples of computing ``a:c`` at once. :meth:`RetimePlan.chunk`
+splits the gaps evenly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import MeshError
+
+# An output time this close to a whole sample (relative) is that sample: k · speed in floating
+# point misses integers by a few ulps (3 · 0.1 = 0.30000000000000004).
+WHOLE_SAMPLE_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class RetimePlan:
+    """Which source samples are keys and, for each output sample, its gap and factor.
+
+    ``keys``: int ``(K,)`` source samples used as key poses. ``times``: float ``(n_out,)`` source
+    time of each output sample. ``gaps``: int ``(n_out,)`` the gap (key ``g`` → ``g + 1``) each
+    output sample lies in (the last key belongs to the last gap). ``factors``: float ``(n_out,)``
+    position within the gap (0 at key ``g``, 1 at key ``g + 1``). ``exact_keys``: int
+    ``(n_out,)`` the key an output sample shows exactly, −1 for in-betweens.
+    """
+
+    n_source: int
+    step: int
+    speed: float
+    keys: np.ndarray
+    times: np.ndarray
+    gaps: np.ndarray
+    factors: np.ndarray
+    exact_keys: np.ndarray
+
+    @property
+    def n_gaps(self) -> int:
+        return len(self.keys) - 1
+
+    @property
+    def n_out(self) -> int:
+        return len(self.times)
+
+    def chunk(self, index: int, count: int) -> range:
+        """The gaps of chunk ``index`` (0-based) of ``count`` near-equal contiguous chunks."""
+        if not (isinstance(count, (int, np.integer)) and count >= 1 and 0 <= index < count):
+            raise ValueError(f"chunk {index} of {count}: need 0 <= index < count and count >= 1.")
+        bounds = [self.n_gaps * i // count for i in range(count + 1)]
+        return range(bounds[index], bounds[index + 1])
+
+    def outputs(self, gaps: range) -> range:
+        """The output samples that lie in ``gaps`` (a contiguous range, possibly empty)."""
+        start = int(np.searchsorted(self.gaps, gaps.start, side="left"))
+        stop = int(np.searchsorted(self.gaps, gaps.stop, side="left"))
+        return range(start, stop)
+
+
+def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
+    """Plan the retime of ``n_source`` samples keyed every ``step``-th, played at ``speed``."""
+    if int(step) != step or step < 1:
+        raise MeshError(f"The frame step must be a whole number of at least 1; got {step}.")
+    if not (np.isfinite(speed) and speed > 0):
+        raise MeshError(f"The speed must be a positive number; got {speed}.")
+    step, speed = int(step), float(speed)
+    if n_source < 2 or n_source - 1 < step:
+        raise MeshError(
+            f"{n_source} frame{'s' if n_source != 1 else ''} with step {step} give fewer than two key "
+            f"poses: use at least {step + 1} frames or a smaller step."
+        )
+    keys = np.arange(0, n_source, step)
+    if keys[-1] != n_source - 1:
+        keys = np.append(keys, n_source - 1)
+    last = n_source - 1
+    n_out = int(np.floor(last / speed * (1 + WHOLE_SAMPLE_TOLERANCE))) + 1
+    times = np.arange(n_out) * speed
+    whole = np.round(times)
+    snap = np.abs(times - whole) <= WHOLE_SAMPLE_TOLERANCE * np.maximum(1.0, whole)
+    times = np.minimum(np.where(snap, whole, times), last)
+    gaps = np.clip(np.searchsorted(keys, times, side="right") - 1, 0, len(keys) - 2)
+    starts, ends = keys[gaps], keys[gaps + 1]
+    factors = (times - starts) / (ends - starts)
+    exact = np.full(n_out, -1)
+    exact[factors == 0.0] = gaps[factors == 0.0]
+    exact[factors == 1.0] = gaps[factors == 1.0] + 1
+    return RetimePlan(n_source, step, speed, keys, times, gaps, factors, exact)
+
+
+def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, **interpolator_options):
+    """Yield ``(output index, positions float64 (n, 3))`` for the output samples in ``gaps``
+    (default: all), in order.
+
+    ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only the key
+    samples are read). ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``,
+    ``smooth`` of :class:`core.SequenceInterpolator`.
+    """
+    from .interpolation import SequenceInterpolator
+
+    if len(samples) != plan.n_source:
+        raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")
+    gaps = range(plan.n_gaps) if gaps is None else gaps
+    if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
+        raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
+    key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
+    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
+    for index in plan.outputs(gaps):
+        key = plan.exact_keys[index]
+        if key >= 0:
+            yield index, key_poses[key].copy()
+        else:
+            yield index, sequence.pose(int(plan.gaps[index]), float(plan.factors[index]))
+
+
+def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = None,
+           **interpolator_options) -> np.ndarray:
+    """The retimed samples float32 ``(n_out, n, 3)`` (only those in ``gaps`` if given) of
+    ``samples`` float ``(n_source, n, 3)`` keyed every ``step``-th, at ``speed``; see the module
+    docstring."""
+    plan = plan_retime(len(samples), step, speed)
+    n_points = np.shape(samples)[1]
+    poses = [pose for _, pose in iter_retime(samples, triangles, plan, gaps, **interpolator_options)]
+    return np.asarray(poses, dtype=np.float32).reshape(-1, n_points, 3)

@@ -1,0 +1,344 @@
+"""Argument checks of the public API, in one place (see ``docs/errors.md``).
+
+Every public function of :mod:`core` (and the operators) calls these once, at its boundary, and
+works with what they return. Bad input raises :class:`~core.errors.MeshError` (a ``ValueError``)
+naming the argument, the first offending index of the caller's own data and what to do; nothing
+is coerced silently (a complex coordinate, a fractional index, ``k_M=10.5``, ``True`` as a
+number or ``"False"`` as a flag are errors, not conversions). Inputs are never modified.
+
+Checks: :func:`check_vertices`, :func:`check_triangles`, :func:`check_mesh` (both, plus the
+topology: manifold edges *and* vertices, consistent orientation), :func:`check_basis_sizes`,
+:func:`check_offset`, :func:`check_factor`, :func:`check_gap_index`, :func:`check_time`,
+:func:`check_flag`, :func:`check_key_poses`; :func:`numerical_failures` turns a solver's raw
+exception into a :class:`~core.errors.RecoveryError`.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from contextlib import contextmanager
+
+import numpy as np
+
+from .errors import MeshError, MeshIndexError, RecoveryError
+
+#: Largest accepted coordinate magnitude. The method squares lengths twice (Heron's formula,
+#: 16µ² = 2Σx_i x_j − Σx_i², x = ℓ²), so ℓ⁴ must stay far inside float64's range (1e±308).
+MAX_COORDINATE = 1e30
+#: Smallest accepted mesh size (largest extent of its bounding box), for the same reason: ℓ⁴ of a
+#: mesh 1e-80 across underflows to zero and every triangle looks degenerate.
+MIN_EXTENT = 1e-30
+#: Accepted |factor| (and distance of a time outside the keys): beyond, rotations wrap around many
+#: times and the interpolated metric overflows; an exaggeration of 1000× is already meaningless.
+MAX_FACTOR = 1e3
+
+
+def _describe(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _real_array(values, name: str, what: str) -> np.ndarray:
+    """``values`` as a NumPy array of real numbers (no copy if already one); MeshError otherwise."""
+    try:
+        array = np.asarray(values)
+    except Exception as error:  # ragged lists, objects NumPy cannot hold
+        raise MeshError(f"{name} must be {what}; got {type(values).__name__} ({error}).") from error
+    kind = array.dtype.kind
+    if kind == "c":
+        raise MeshError(
+            f"{name} has complex values; {what} must be real numbers (the imaginary part would be "
+            "lost). Pass the real coordinates, e.g. numpy.real(...) if the imaginary part is zero."
+        )
+    if kind == "b":
+        raise MeshError(f"{name} holds booleans; {what} must be numbers.")
+    if kind not in "iuf":
+        if kind == "O" and array.size and all(isinstance(x, numbers.Real) and not isinstance(x, bool)
+                                              for x in array.ravel()):
+            return array.astype(np.float64)
+        raise MeshError(f"{name} must hold numbers; got an array of dtype {array.dtype} ({what} expected).")
+    return array
+
+
+def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vertices") -> np.ndarray:
+    """``vertices`` as contiguous float64 ``(n, 3)`` (a copy is made only if needed; the input is
+    never modified). MeshError on a non-numeric or complex array, a wrong shape, a vertex count
+    different from ``n_vertices``, a non-finite coordinate or a magnitude beyond
+    :data:`MAX_COORDINATE`."""
+    array = _real_array(vertices, name, "vertex coordinates (n, 3)")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise MeshError(f"{name} must be an array of shape (n, 3); got shape {array.shape}.")
+    if n_vertices is not None and array.shape[0] != n_vertices:
+        raise MeshError(
+            f"{name} has {array.shape[0]} vertices but the base mesh has {n_vertices}. Poses must "
+            "be in vertex-for-vertex correspondence with the base: use shape keys or frames of "
+            "the same mesh, and avoid modifiers that add or remove vertices (Subdivision, "
+            "Decimate, Remesh) or apply them to every pose."
+        )
+    array = np.ascontiguousarray(array, dtype=np.float64)
+    finite = np.isfinite(array).all(axis=1)
+    if not finite.all():
+        bad = int(np.flatnonzero(~finite)[0])
+        raise MeshError(
+            f"{name}: vertex {bad} has a non-finite coordinate {array[bad].tolist()}. Fix the pose "
+            "(e.g. a simulation that exploded) or remove that frame."
+        )
+    magnitude = np.abs(array).max(axis=1) if array.size else np.zeros(0)
+    if magnitude.size and magnitude.max() > MAX_COORDINATE:
+        bad = int(np.argmax(magnitude))
+        raise MeshError(
+            f"{name}: vertex {bad} has coordinate {magnitude[bad]:.3g}, beyond the supported "
+            f"{MAX_COORDINATE:.0e} (edge lengths to the fourth power would overflow). Scale the "
+            "mesh down (in Blender: scale the object, then Object > Apply > Scale), or fix that vertex."
+        )
+    return array
+
+
+def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> np.ndarray:
+    """``triangles`` as contiguous int64 ``(m, 3)``, ``m ≥ 1``, every index in ``0..n_vertices−1``
+    and no vertex twice in a triangle. Integer-valued floats are accepted; fractional, complex,
+    boolean or text indices are a MeshError (nothing is rounded or wrapped)."""
+    array = _real_array(triangles, name, "integer vertex indices (m, 3)")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise MeshError(f"{name} must be an integer array of shape (m, 3); got shape {array.shape}.")
+    if array.shape[0] < 1:
+        raise MeshError(f"The mesh has no triangles ({name} is empty): shape differences need at least one face.")
+    if array.dtype.kind == "f":
+        bad = ~np.isfinite(array) | (np.mod(array, 1) != 0)
+        if bad.any():
+            t = int(np.flatnonzero(bad.any(axis=1))[0])
+            raise MeshError(
+                f"Triangle {t} (row {t} of {name}) has index values {array[t].tolist()}, which are not whole numbers; "
+                "triangles must hold integer vertex indices."
+            )
+    out_of_range = (array < 0) | (array >= n_vertices)
+    if out_of_range.any():
+        t = int(np.flatnonzero(out_of_range.any(axis=1))[0])
+        shown = [int(x) if isinstance(x, int) or (float(x).is_integer() and abs(x) < 2**62) else x
+                 for x in array[t].tolist()]
+        raise MeshError(
+            f"Triangle {t} (row {t} of {name}) refers to vertex indices {shown}, but the mesh has "
+            f"{n_vertices} vertices (valid indices are 0..{n_vertices - 1}; negative indices are "
+            "not counted from the end). Pass the triangles and vertices of the same mesh."
+        )
+    tris = np.ascontiguousarray(array, dtype=np.int64)
+    repeated = np.flatnonzero((tris[:, 0] == tris[:, 1]) | (tris[:, 1] == tris[:, 2]) | (tris[:, 2] == tris[:, 0]))
+    if repeated.size:
+        t = int(repeated[0])
+        raise MeshError(
+            f"Triangle {t} (row {t} of {name}) uses a vertex twice ({tris[t].tolist()}). Remove degenerate faces: "
+            "in Blender use Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance."
+        )
+    return tris
+
+
+def check_mesh(vertices, triangles, *, name: str = "vertices"):
+    """Validate a mesh: :func:`check_vertices`, :func:`check_triangles`, its topology (manifold
+    edges and vertices, consistent orientation), its size and its triangles (none degenerate).
+    Returns ``(vertices float64 (n, 3), topology)`` with the topology of
+    :func:`core.mesh_topology.mesh_topology`."""
+    from .mesh_topology import mesh_topology
+
+    array = check_vertices(vertices, name=name)
+    topology = mesh_topology(triangles, array.shape[0])
+    check_pose(array, topology, name=name)
+    return array, topology
+
+
+def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices") -> np.ndarray:
+    """Validate one pose ``(n, 3)`` of a mesh of known topology: count, finite, range, size of the
+    used part (≥ :data:`MIN_EXTENT`), no degenerate triangle. Returns float64 ``(n, 3)``."""
+    from .mesh_topology import check_nondegenerate
+
+    array = check_vertices(vertices, topology.n_vertices, name=name)
+    used = array[topology.used_vertices]
+    extent = float(np.max(used.max(axis=0) - used.min(axis=0)))
+    if not extent >= MIN_EXTENT:
+        raise MeshError(
+            f"{name}: the mesh is only {extent:.3g} units across, below the supported "
+            f"{MIN_EXTENT:.0e} (areas and squared lengths would underflow). Scale it up (in "
+            "Blender: scale the object, then Object > Apply > Scale)."
+        )
+    check_nondegenerate(array, topology.triangles, name=name)
+    return array
+
+
+def _whole_number(value, name: str, *, allow_none: bool = False):
+    """``value`` as a Python int if it is a whole number (int, NumPy integer, or an integral float);
+    MeshError for booleans, fractions, text and anything else."""
+    value = _scalar(value)
+    if value is None and allow_none:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        raise MeshError(f"{name} must be a whole number; got the boolean {value!r}.")
+    if isinstance(value, numbers.Integral):
+        return int(value)
+    if isinstance(value, numbers.Real) and math.isfinite(float(value)) and float(value).is_integer():
+        return int(value)
+    raise MeshError(f"{name} must be a whole number; got {_describe(value)}.")
+
+
+def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1) -> tuple[int | None, int | None]:
+    """Basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the sidebar's
+    convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
+    (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
+    ``n_components`` eigenfunctions are constant per connected component and carry no conformal
+    information); ``k_N`` (target basis) needs ``k_M``."""
+    sizes = []
+    for label, k in (("k_M (base basis size)", k_M), ("k_N (target basis size)", k_N)):
+        k = _whole_number(k, label, allow_none=True)
+        if k is not None and k < 0:
+            raise MeshError(f"{label} must be 0 / None (full basis) or a positive number of eigenfunctions; got {k}.")
+        if k and k <= n_components:
+            raise MeshError(
+                f"{label} is {k}, but the first {n_components} Laplace–Beltrami eigenfunctions of this "
+                f"mesh ({n_components} connected part(s)) are constant on each part, so the conformal "
+                f"difference would be empty. Use at least {n_components + 1} (typically 50–300), or 0 / "
+                "None for the full basis."
+            )
+        if k and n_vertices is not None and k >= n_vertices:
+            raise MeshError(
+                f"{label} is {k}, but the mesh has {n_vertices} vertices in triangles, so at most "
+                f"{n_vertices - 1} Laplace–Beltrami eigenfunctions exist. Lower it, or use 0 / None "
+                "for the full basis (exact, and faster than a basis this large)."
+            )
+        sizes.append(k or None)
+    if sizes[1] is not None and sizes[0] is None:
+        raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+    return sizes[0], sizes[1]
+
+
+def _scalar(value):
+    """A 0-d NumPy array as its scalar (e.g. a value read from an array); anything else unchanged."""
+    return value.item() if isinstance(value, np.ndarray) and value.ndim == 0 else value
+
+
+def check_real(value, name: str) -> float:
+    """``value`` as a finite Python float; MeshError for booleans, text, complex and non-finite."""
+    value = _scalar(value)
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise MeshError(f"{name} must be a real number; got {_describe(value)}.")
+    number = float(value)
+    if not math.isfinite(number):
+        raise MeshError(f"{name} must be a finite number; got {value!r}.")
+    return number
+
+
+def check_offset(offset) -> float | None:
+    """The offset distance t (§5.2): ``None`` (automatic, :func:`core.default_offset`) or a finite
+    positive number in the mesh's units."""
+    if offset is None:
+        return None
+    t = check_real(offset, "offset (the offset distance t)")
+    if not t > 0:
+        raise MeshError(
+            f"offset (the offset distance t) must be positive; got {offset!r}. Use None for the "
+            "automatic distance (half the mean edge length)."
+        )
+    return t
+
+
+def check_factor(factor, *, name: str = "factor") -> float:
+    """An interpolation factor (0 = first pose, 1 = second, outside: extrapolation), finite and
+    within ±:data:`MAX_FACTOR`."""
+    s = check_real(factor, name)
+    if abs(s) > MAX_FACTOR:
+        raise MeshError(
+            f"{name} is {s:g}; factors beyond ±{MAX_FACTOR:g} are not supported (rotations wrap "
+            "around many times and lengths overflow). Use a factor between 0 and 1 for in-betweens, "
+            "slightly beyond for exaggeration."
+        )
+    return s
+
+
+def check_gap_index(gap_index, n_gaps: int) -> int:
+    """A gap of a sequence: a whole number in ``0..n_gaps − 1`` (negative indices are not counted
+    from the end). Raises :class:`~core.errors.MeshIndexError` (a MeshError and an IndexError)."""
+    try:
+        gap = _whole_number(gap_index, "gap_index")
+    except MeshError as error:
+        raise MeshIndexError(str(error)) from None
+    if not 0 <= gap < n_gaps:
+        raise MeshIndexError(
+            f"gap_index {gap} is out of range: the sequence has {n_gaps + 1} keys, so gaps "
+            f"0..{n_gaps - 1} (gap i runs from key i to key i + 1)."
+        )
+    return gap
+
+
+def check_time(time, n_gaps: int) -> float:
+    """A global time in key units (``gap_index + factor``; outside ``0..n_gaps`` extrapolates),
+    finite and at most :data:`MAX_FACTOR` gaps outside the keys."""
+    value = check_real(time, "time")
+    if value < -MAX_FACTOR or value > n_gaps + MAX_FACTOR:
+        raise MeshError(
+            f"time is {value:g}, more than {MAX_FACTOR:g} gaps outside the keys (0..{n_gaps}); "
+            "extrapolation that far is not supported."
+        )
+    return value
+
+
+def check_flag(value, name: str) -> bool:
+    """A boolean switch: ``True``/``False`` (or NumPy booleans). Text such as ``"False"`` and numbers
+    are MeshError (``bool("False")`` is true)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise MeshError(f"{name} must be True or False; got {_describe(value)}.")
+
+
+def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses") -> list[np.ndarray]:
+    """Key poses as a list of float64 ``(n, 3)`` arrays with one vertex count (from a list of
+    arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate."""
+    if isinstance(key_poses, (str, bytes)) or not hasattr(key_poses, "__iter__"):
+        raise MeshError(f"{name} must be a sequence of vertex arrays (n, 3); got {type(key_poses).__name__}.")
+    poses = list(key_poses)
+    if len(poses) < minimum:
+        raise MeshError(f"A sequence needs at least {minimum} key poses; got {len(poses)}.")
+    first = check_vertices(poses[0], name=f"key pose 0 of {name}")
+    return [first] + [check_vertices(p, first.shape[0], name=f"key pose {i} of {name}") for i, p in
+                      enumerate(poses[1:], start=1)]
+
+
+def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, *,
+                        names=None):
+    """Everything the in-between constructors take, checked once: every pose (count, finite,
+    range, size, no degenerate triangle), the topology, the basis sizes against the used vertex
+    count, the offset and the flag. Returns ``(k_M, k_N, offset, use_extrinsic)`` normalized.
+
+    ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``)."""
+    names = names or [f"key pose {i}" for i in range(len(poses))]
+    first, topology = check_mesh(poses[0], triangles, name=names[0])
+    for pose, name in zip(poses[1:], names[1:]):
+        check_pose(pose, topology, name=name)
+    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
+    return k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
+
+
+@contextmanager
+def numerical_failures(what: str):
+    """Turn a raw numerical exception escaping a solver (NumPy's LinAlgError, SciPy's "Factor is
+    exactly singular" RuntimeError, overflow, division by zero) into a RecoveryError naming the
+    step ``what``; documented errors pass through unchanged."""
+    from .errors import ShapeDifferenceError
+
+    try:
+        yield
+    except ShapeDifferenceError:
+        raise
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError, RuntimeError,
+            IndexError, TypeError) as error:
+        raise RecoveryError(
+            f"{what} failed numerically ({type(error).__name__}: {error}). The input is valid but "
+            "beyond what the solver can handle (e.g. nearly degenerate triangles or an extreme "
+            "deformation); try a less extreme pose, a remeshed surface, or report it with the mesh."
+        ) from error
+
+
+def check_sequence(key_poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, smooth=True):
+    """:func:`check_key_poses` and :func:`check_interpolation` for a sequence constructor, plus its
+    ``smooth`` flag. Returns ``(key_poses list of float64 (n, 3), k_M, k_N, offset, use_extrinsic,
+    smooth)``."""
+    poses = check_key_poses(key_poses)
+    k_M, k_N, offset, use_extrinsic = check_interpolation(poses, triangles, k_M, k_N, offset, use_extrinsic)
+    return poses, k_M, k_N, offset, use_extrinsic, check_flag(smooth, "smooth")

@@ -1,0 +1,331 @@
+"""Operators that show what the shape differences reveal (paper §8.1, distortion maps): the shape
+space of the shape keys or frames of the active mesh, drawn into an image, and distortion maps
+written as attributes. Neither changes positions, shape keys or animation: the shape space writes
+an image and custom properties, the distortion maps write mesh attributes only.
+"""
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, IntProperty, StringProperty
+
+from .. import bridge
+from ..properties import AnalysisBasis, CaptureStep
+from .base import (GeneratorOperator, InputError, default_pose_key, key_blocks_of, resolve_key,
+                   surface_triangles)
+from .frames import FrameRangeProperties, frame_key_name
+
+KINDS = ("area", "conformal", "offset_area", "offset_conformal")
+KIND_ITEMS = [
+    ("offset_area", "Offset Area", "Area-based differences of the offset surface (extrinsic)"),
+    ("offset_conformal", "Offset Conformal", "Conformal differences of the offset surface (extrinsic)"),
+    ("area", "Area", "Area-based differences (intrinsic)"),
+    ("conformal", "Conformal", "Conformal differences (intrinsic)"),
+]
+SOURCE_ITEMS = [
+    ("KEYS", "Shape Keys", "Every shape key of the active mesh; the first (Basis) is the base"),
+    ("FRAMES", "Frames", "The evaluated mesh (cloth, armature, any modifiers) at each frame of the "
+                         "range; the first frame is the base"),
+]
+
+
+class AnalysisBasisProperties(AnalysisBasis):
+    """The analysis operators' basis sizes (declared in :mod:`properties`) and their checks."""
+
+    def resolved_offset(self, context):
+        return self.offset or context.scene.shape_differences.offset or None
+
+    def check_sizes(self, vertex_count: int):
+        for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
+            if k >= vertex_count:
+                raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
+                                 f"use at most {vertex_count - 1}")
+        if self.k_n and self.k_n < self.k_m:
+            raise InputError(f"k_N = {self.k_n} must be at least k_M = {self.k_m} (or 0)")
+
+
+def _drive(steps, start: float, share: float):
+    """Run a core generator, yielding its progress mapped to ``start + share * p``; return its value."""
+    while True:
+        try:
+            progress = next(steps)
+        except StopIteration as done:
+            return done.value
+        yield start + share * progress
+
+
+# -- shape space ------------------------------------------------------------------------------------
+
+def shape_space_image(obj, data: dict, highlight: int | None = None):
+    """Draw the stored shape space of ``obj`` into the image ``data['image']`` (created or resized)."""
+    from .analysis_plot import shape_space_image as draw
+
+    coordinates = {kind: np.asarray(data["coordinates"][kind], dtype=float).reshape(-1, 2) for kind in KINDS}
+    variance = {kind: list(data["variance"][kind]) for kind in KINDS}
+    pixels = draw(coordinates, variance, highlight=highlight).rgba_bottom_up()
+    height, width = pixels.shape[:2]
+    image = bpy.data.images.get(data["image"])
+    if image is not None and tuple(image.size) != (width, height):
+        image.scale(width, height)
+    if image is None:
+        image = bpy.data.images.new(data["image"], width, height, alpha=True, float_buffer=True)
+    image.pixels.foreach_set(pixels.ravel())
+    image.update()
+    image.preview_ensure().reload()  # the sidebar shows the preview (drawing may not create it)
+    return image
+
+
+def show_image(context, image):
+    """Show ``image`` in every Image Editor of the current screen (there may be none)."""
+    screen = getattr(context, "screen", None)
+    for area in (screen.areas if screen else ()):
+        if area.type == 'IMAGE_EDITOR':
+            area.spaces.active.image = image
+            area.tag_redraw()
+
+
+class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
+                                       bpy.types.Operator):
+    """Embed the shape keys or frames of the active mesh in the plane by PCA of their four shape
+    differences (paper §8.1) and draw the four embeddings into an image ("Shape Space <object>",
+    shown in Image Editors); the coordinates are stored on the object"""
+
+    bl_idname = "shape_differences.shape_space"
+    bl_label = "Shape Space"
+
+    source: EnumProperty(name="Poses", items=SOURCE_ITEMS, default='KEYS')
+
+    minimum_frames = 2
+
+    def run(self, context):
+        obj = context.active_object
+        triangles = surface_triangles(obj)
+        self.check_sizes(len(obj.data.vertices))
+        frames = None
+        if self.source == 'KEYS':
+            key_blocks = key_blocks_of(obj, 2)
+            names = [key_block.name for key_block in key_blocks]
+            poses = [bridge.shape_key_positions(key_block) for key_block in key_blocks]
+            yield 0.0
+        else:
+            frames = self.frames(context)
+            names = [frame_key_name(frame) for frame in frames]
+            poses = yield from self.read_frames(context, obj, frames, 0.1)
+        from ..core.shape_space_pca import shape_space_steps
+
+        space = yield from _drive(
+            shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
+                              offset=self.resolved_offset(context)), 0.1, 0.85)
+        data = {
+            "source": self.source,
+            "poses": names,
+            "frames": frames or [],
+            "k_M": self.k_m,
+            "k_N": self.k_n,
+            "offset": space.offset,
+            "image": f"Shape Space {obj.name}",
+            "coordinates": {kind: space.coordinates(kind, 2).ravel().tolist() for kind in KINDS},
+            "variance": {kind: space.explained_variance_ratio(kind)[:4].tolist() for kind in KINDS},
+            "selected": -1,
+        }
+        image = shape_space_image(obj, data)
+        obj[bridge.SHAPE_SPACE_PROPERTY] = data
+        show_image(context, image)
+        shares = ", ".join(f"{kind.replace('_', ' ')} {100 * data['variance'][kind][0]:.0f} %" for kind in KINDS)
+        self.summary = (f"Shape space of {len(names)} poses drawn into image '{image.name}' "
+                        f"(share of PC 1: {shares})")
+
+
+class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
+    """Select a pose of the stored shape space by its place along the first axis of one embedding
+    (the paper's Fig. 8 order): makes its shape key active, or goes to its frame"""
+
+    bl_idname = "shape_differences.shape_space_select"
+    bl_label = "Select Pose"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    kind: EnumProperty(name="Embedding", items=KIND_ITEMS, default='offset_area')
+    rank: IntProperty(name="Rank", min=-1, default=-1,
+                      description="Place along the first axis (0 = leftmost); -1 = step from the "
+                                  "current selection")
+    step: IntProperty(name="Step", default=1, description="With rank -1: move this many places")
+
+    @classmethod
+    def poll(cls, context):
+        if bridge.stored_shape_space(context.active_object) is None:
+            cls.poll_message_set("Run Shape Space on the active mesh first")
+            return False
+        return True
+
+    def execute(self, context):
+        obj = context.active_object
+        data = bridge.stored_shape_space(obj)
+        first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
+        order = np.argsort(first_axis, kind="stable")
+        if self.rank >= 0:
+            rank = min(self.rank, len(order) - 1)
+        else:
+            current = int(data.get("selected", -1))
+            now = int(np.flatnonzero(order == current)[0]) if current >= 0 else -1
+            rank = int(np.clip(now + self.step, 0, len(order) - 1))
+        pose = int(order[rank])
+        name = data["poses"][pose]
+        if data["source"] == 'KEYS':
+            key = obj.data.shape_keys
+            index = key.key_blocks.find(name) if key else -1
+            if index < 0:
+                self.report({'ERROR'}, f"The shape key '{name}' no longer exists: run Shape Space again")
+                return {'CANCELLED'}
+            obj.active_shape_key_index = index
+        else:
+            context.scene.frame_set(int(data["frames"][pose]))
+        data["selected"] = pose
+        obj[bridge.SHAPE_SPACE_PROPERTY] = data
+        show_image(context, shape_space_image(obj, data, highlight=pose))
+        self.report({'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
+                              f"{self.kind.replace('_', ' ')} axis")
+        return {'FINISHED'}
+
+
+# -- distortion maps --------------------------------------------------------------------------------
+
+DISTORTION_SOURCE_ITEMS = [
+    ("ACTIVE_KEY", "Active Key", "The active shape key (or the one named) against the Basis"),
+    ("FRAMES", "Frames", "The evaluated mesh at every frame of the range against the rest mesh; "
+                         "one set of attributes per frame, named with the frame"),
+]
+#: (name, per-vertex attribute of core.Distortion, per-face attribute, diverging map, centre)
+MAPS = (
+    ("Area", "area_change_vertices", "area_change_faces", True, 0.0),
+    ("Conformal", "conformal_vertices", "conformal_faces", False, 1.0),
+    ("Bending", "bending_vertices", "bending_faces", True, 0.0),
+)
+
+
+class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
+                                           bpy.types.Operator):
+    """Write distortion maps of a pose against its base as mesh attributes: area change,
+    conformal (angle) distortion and bending (change of the offset surface) as colour attributes
+    to show in the viewport (Solid shading › Attribute), their values per vertex and per face, and
+    the leading eigenfunctions of each shape difference. Positions, keys and animation are kept"""
+
+    bl_idname = "shape_differences.distortion_maps"
+    bl_label = "Distortion Maps"
+
+    source: EnumProperty(name="Poses", items=DISTORTION_SOURCE_ITEMS, default='ACTIVE_KEY')
+    key: StringProperty(name="Key", description="Pose to map (empty: the active key)")
+    eigenfunctions: IntProperty(name="Eigenfunctions", min=0, max=8, default=2,
+                                description="Leading eigenfunctions of each of the four differences "
+                                            "to write (colour attributes 'SD Eigen <kind> <i>')")
+
+    minimum_frames = 1
+
+    def run(self, context):
+        obj = context.active_object
+        mesh = obj.data
+        triangles = surface_triangles(obj)
+        self.check_sizes(len(mesh.vertices))
+        key = mesh.shape_keys
+        base = (bridge.shape_key_positions(key.key_blocks[0]) if key else bridge.vertex_positions(mesh))
+        if self.source == 'ACTIVE_KEY':
+            key_blocks = key_blocks_of(obj, 2)
+            pose_key = resolve_key(obj, self.key, "Key", default_pose_key(obj))
+            if pose_key == key_blocks[0]:
+                raise InputError(f"'{pose_key.name}' is the Basis, which the maps are measured from: "
+                                 "pick another shape key")
+            self.key = pose_key.name
+            labels, poses = [""], [bridge.shape_key_positions(pose_key)]
+            yield 0.0
+        else:
+            frames = self.frames(context)
+            labels = [f" f{frame}" for frame in frames]
+            poses = yield from self.read_frames(context, obj, frames, 0.3)
+        from ..core.distortion_maps import DistortionAnalyzer
+
+        analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m)
+        results = []
+        for index, pose in enumerate(poses):
+            distortion = analyzer.pose(pose)
+            eigen = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)[1]
+                     for kind in KINDS} if self.eigenfunctions else {}
+            results.append((distortion, eigen))
+            yield 0.3 + 0.65 * (index + 1) / len(poses)
+        self._write(mesh, triangles, base, labels, results)
+        if self.source == 'FRAMES':
+            # The frame handler shows the map of the frame being played (see follow_frame).
+            mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}
+        what = f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"{len(poses)} frames"
+        self.summary = (f"Wrote distortion maps of {what}: colour attributes "
+                        f"{', '.join('SD ' + name + labels[0] for name, *_ in MAPS)}"
+                        + (f" and {4 * self.eigenfunctions} eigenfunction maps" if self.eigenfunctions else ""))
+
+    @staticmethod
+    def _write(mesh, triangles, base, labels, results):
+        from .analysis_plot import scalar_colors
+
+        polygons = bridge.loop_triangle_polygons(mesh)
+        corners = base[triangles]
+        weights = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+        polygon_weight = np.bincount(polygons, weights, len(mesh.polygons))
+        polygon_weight[polygon_weight == 0] = 1.0
+        first = None
+        for label, (distortion, eigen) in zip(labels, results):
+            for name, vertex_field, face_field, diverging, centre in MAPS:
+                vertex_values = getattr(distortion, vertex_field)
+                face_values = getattr(distortion, face_field)
+                if vertex_values is None:
+                    continue
+                bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
+                                scalar_colors(vertex_values, diverging=diverging, floor=centre), color=True)
+                first = first or f"SD {name}{label}"
+                bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
+                per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
+                bridge.write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
+            for kind, functions in eigen.items():
+                for i in range(functions.shape[1]):
+                    title = kind.replace("_", " ").title()
+                    bridge.write_attribute(mesh, f"SD Eigen {title} {i + 1}{label}", 'POINT',
+                                    scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
+        if first is not None:  # by name: references to attributes go stale as others are added
+            mesh.color_attributes.active_color = mesh.color_attributes[first]
+        mesh.update()
+
+
+#: Custom property (on the mesh) listing the frames that have distortion maps.
+FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"
+
+
+@bpy.app.handlers.persistent
+def follow_frame(scene, _depsgraph=None):
+    """After a frame change, make each mesh's distortion map of that frame (or of the last mapped
+    frame before it) the active colour attribute, so playback shows the maps frame by frame. Only
+    which colour attribute is active changes. The map shown is the one whose prefix the active
+    colour attribute has (SD Area, SD Conformal, SD Bending), so picking one in the list sticks."""
+    for obj in scene.objects:
+        mesh = obj.data if obj.type == 'MESH' else None
+        if mesh is None or FRAME_MAPS_PROPERTY not in mesh:
+            continue
+        frames = sorted(int(frame) for frame in mesh[FRAME_MAPS_PROPERTY]["frames"])
+        shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
+        active = mesh.color_attributes.active_color
+        kind = next((name for name, *_ in MAPS if active is not None and active.name.startswith(f"SD {name} f")),
+                    mesh[FRAME_MAPS_PROPERTY]["map"])
+        attribute = mesh.color_attributes.get(f"SD {kind} f{shown[-1]}")
+        if attribute is not None and (active is None or active.name != attribute.name):
+            mesh.color_attributes.active_color = attribute
+
+
+def register_handlers():
+    if follow_frame not in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.append(follow_frame)
+
+
+def unregister_handlers():
+    if follow_frame in bpy.app.handlers.frame_change_post:
+        bpy.app.handlers.frame_change_post.remove(follow_frame)
+
+
+classes = (
+    SHAPE_DIFFERENCES_OT_shape_space,
+    SHAPE_DIFFERENCES_OT_shape_space_select,
+    SHAPE_DIFFERENCES_OT_distortion_maps,
+)

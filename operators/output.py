@@ -1,0 +1,155 @@
+"""Where an operator's poses go: shape keys on the active object, or a PC2 point cache played by
+a Mesh Cache modifier on a new object. Any operator that writes poses uses this mixin:
+
+    class MY_OT_thing(PoseOutput, PoseWriter, GeneratorOperator, bpy.types.Operator):
+        def run(self, context):
+            source = context.active_object
+            self.check_output(source)              # validation step: refuses what would harm
+            ...                                    # compute poses, yielding progress
+            self.summary = self.write_poses(context, source, poses, names=names,
+                                            frames=frames, label="Thing 1.50")
+
+``PoseOutput`` / ``AnimationOutput`` (in :mod:`..properties`) declare the ``output`` and
+``filepath`` properties; ``PoseWriter`` writes. Cache output never modifies the source object.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import bpy
+import numpy as np
+
+from .. import bridge
+from .base import InputError
+
+# Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
+SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
+CACHE_FOLDER = "caches"
+# Modifiers that do not move the mesh they are on.
+PASSIVE_MODIFIERS = {'COLLISION'}
+
+
+def unbaked_simulations(obj) -> list[str]:
+    """Names of ``obj``'s enabled cloth / soft body modifiers whose cache is not baked."""
+    return [modifier.name for modifier in obj.modifiers
+            if modifier.type in SIMULATION_MODIFIERS and modifier.show_viewport
+            and not modifier.point_cache.is_baked]
+
+
+def unique_file(path: Path) -> Path:
+    """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists."""
+    candidate, number = path, 0
+    while candidate.exists():
+        number += 1
+        candidate = path.with_name(f"{path.stem}.{number:03d}{path.suffix}")
+    return candidate
+
+
+class PoseWriter:
+    """Writes poses according to the operator's ``output`` and ``filepath`` properties."""
+
+    def check_output(self, source) -> None:
+        """Refuse what the writing step would fail on or harm (call it in the validation step,
+        before any work): shape keys on an object with an unbaked simulation (they would empty
+        its cache), a cache file relative to a .blend that was never saved."""
+        if self.output != 'SHAPE_KEYS':
+            if self.filepath.startswith("//") and not bpy.data.filepath:
+                raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
+                                 "which is not saved yet: save the .blend first, or give an "
+                                 "absolute path")
+            return
+        unbaked = unbaked_simulations(source)
+        if unbaked:
+            raise InputError(
+                f"Adding shape keys to '{source.name}' would empty the unbaked cache of its "
+                f"{', '.join(repr(name) for name in unbaked)} simulation: choose Output › Point Cache "
+                "(a new object; this one stays as it is), or bake the simulation first "
+                "(Physics › Cache › Bake)")
+
+    def check_captured_output(self, source) -> None:
+        """``check_output`` for poses captured from the evaluated mesh: shape keys added to
+        ``source`` are deformed again by what moved it, so say so (the work still runs)."""
+        self.check_output(source)
+        if self.output != 'SHAPE_KEYS':
+            return
+        movers = [f"'{m.name}'" for m in source.modifiers
+                  if m.show_viewport and m.type not in PASSIVE_MODIFIERS]
+        key = source.data.shape_keys
+        if key is not None and key.animation_data is not None and (
+                key.animation_data.action is not None or len(key.animation_data.drivers)):
+            movers.append("its animated shape keys")
+        if movers:
+            self.report({'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
+                                     f"of '{source.name}': disable those to play them as captured, "
+                                     "or use Output › Point Cache (a new object)")
+
+    def cache_path(self, object_name: str) -> tuple[Path, str]:
+        """The PC2 file to write (never an existing one) and the path to store in the modifier
+        (relative to the .blend when the user gave a relative path or none)."""
+        base_name = bpy.path.clean_name(object_name) + ".pc2"
+        if self.filepath:
+            path = Path(bpy.path.abspath(self.filepath))
+            if self.filepath.endswith(("/", "\\")) or path.is_dir():
+                path = path / base_name
+            elif path.suffix.lower() != ".pc2":
+                path = path.with_name(path.name + ".pc2")
+        elif bpy.data.filepath:
+            path = Path(bpy.path.abspath(f"//{CACHE_FOLDER}")) / base_name
+        else:
+            path = Path(bpy.app.tempdir or os.path.realpath(".")) / base_name
+            self.report({'WARNING'}, "The .blend is not saved, so the cache went to a temporary "
+                                     f"folder ({path.parent}): save the .blend or set a Cache File "
+                                     "to keep it")
+        path = unique_file(path)
+        relative = bpy.data.filepath and (not self.filepath or self.filepath.startswith("//"))
+        return path, (bpy.path.relpath(str(path)) if relative else str(path))
+
+    def write_poses(self, context, source, poses, *, names: list[str], frames: list[float],
+                    label: str, tails: list[str] | None = None, keyframe: bool = False) -> str:
+        """Write ``poses`` (float ``(n, 3)`` each) and return the summary for the report.
+
+        Shape keys: one key per pose named ``names[i] + tails[i]`` (the tail, e.g. a factor, is
+        never cut), keyframed at ``frames`` if ``keyframe``. Point cache: a PC2 of the poses at
+        ``frames`` (evenly spaced) on a new object called "<source> <label>".
+        """
+        if self.output == 'SHAPE_KEYS':
+            tails = tails or [""] * len(names)
+            new_keys = [bridge.NewShapeKey(name, pose, tail)
+                        for name, pose, tail in zip(names, poses, tails)]
+            added = bridge.add_shape_keys(source, new_keys, keyframes=frames if keyframe else None)
+            return added_summary(added)
+        return self.write_cache_object(context, source, poses, frames, label)
+
+    def write_cache_object(self, context, source, poses, frames: list[float], label: str) -> str:
+        sampling = float(frames[1] - frames[0]) if len(frames) > 1 else 1.0
+        if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
+            raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
+        name = bridge.unique_name(source.name, f" {label}", bpy.data.objects.keys())
+        path, stored_path = self.cache_path(name)
+        try:
+            from ..core.point_cache import write_pc2
+            write_pc2(path, np.asarray(poses), start=frames[0],
+                      sampling=sampling)
+        except OSError as error:
+            raise InputError(f"Cannot write the cache file '{path}': {error.strerror or error}. "
+                             "Pick another Cache File") from None
+        try:
+            obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling)
+        except BaseException:
+            path.unlink(missing_ok=True)
+            raise
+        if source.animation_data is not None and source.animation_data.action is not None:
+            self.report({'WARNING'}, f"'{source.name}' has its own object animation, which a point "
+                                     f"cache does not hold: '{obj.name}' stays where '{source.name}' "
+                                     "is now (it follows a parent, if any)")
+        span = (f"frame {frames[0]:g}" if len(frames) == 1
+                else f"frames {frames[0]:g}-{frames[-1]:g}")
+        return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
+                f"({span}) from {path}")
+
+
+def added_summary(names: list[str]) -> str:
+    shown = names if len(names) <= 4 else [names[0], "...", names[-1]]
+    return f"Added {len(names)} shape key{'s' if len(names) != 1 else ''}: " + ", ".join(shown)

@@ -1,0 +1,153 @@
+"""Every user-facing property of the extension, declared once as a mixin (the glTF-Blender-IO
+pattern). The operators and the scene settings (``scene.shape_differences``, the sidebar's
+defaults) both inherit from these, so a name, range, default and tooltip is written in one place.
+
+This module imports only ``bpy.props``: ``ui`` and ``operators`` both build on it.
+"""
+
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+
+
+class CoreSettings:
+    """The core's settings: the scene settings and each core operator have them."""
+
+    k_m: IntProperty(
+        name="k_M", min=0, default=0,
+        description="Basis size on the base pose: Laplacian eigenfunctions of the base mesh and of its "
+                    "offset surface (eqs. 5-6); 0 = full basis, exact")
+    k_n: IntProperty(
+        name="k_N", min=0, default=0,
+        description="Basis size on the target pose (functional map from the vertex correspondence, "
+                    "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
+    offset: FloatProperty(
+        name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
+        description="Distance of the offset surface that carries the extrinsic information; "
+                    "0 = automatic (scales with the mesh)")
+    use_extrinsic: BoolProperty(
+        name="Extrinsic", default=True,
+        description="Use extrinsic (offset surface) shape differences as well as intrinsic ones")
+
+
+class AnalysisBasis:
+    """Basis sizes and offset of the analysis operators. The shape space needs a truncated basis, so
+    they do not follow the scene's k_M / k_N, whose default is the full basis."""
+
+    k_m: IntProperty(name="k_M", min=2, default=50,
+                     description="Basis size on the base: the differences compared are k_M × k_M")
+    k_n: IntProperty(name="k_N", min=0, default=100,
+                     description="Basis size on each pose (eq. 6); 0 = differences in the base's basis "
+                                 "only (eq. 5), much faster")
+    offset: FloatProperty(name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
+                          description="Offset surface distance; 0 = the scene setting, or automatic")
+
+
+def _count_property(description: str):
+    # No hard minimum: Blender would clamp 0 to 1 silently; the operators report counts below 1.
+    return IntProperty(name="Count", soft_min=1, soft_max=20, default=3, description=description)
+
+
+class KeyPair:
+    """The two shape keys an in-between goes from and to, and how many in-betweens."""
+
+    key_a: StringProperty(name="From", description="First shape key (empty: the Basis)")
+    key_b: StringProperty(
+        name="To", description="Second shape key (empty: the active key, or the last one)")
+    count: _count_property("Number of in-between poses, evenly spaced between the two keys")
+
+
+class PoseKey:
+    """The shape key to exaggerate or rebuild."""
+
+    key: StringProperty(name="Key", description="Pose to exaggerate or rebuild "
+                                                "(empty: the active key)")
+
+
+class ExaggeratedPose(PoseKey):
+    """The pose to exaggerate, the reference it is measured from, the factor."""
+
+    reference: StringProperty(name="Reference",
+                              description="Pose the change is measured from (empty: the Basis)")
+    factor: FloatProperty(name="Factor", default=1.5, soft_min=0.0, soft_max=3.0,
+                          description="1 = the key itself, above 1 exaggerates, below 1 tones down")
+
+
+class KeyStep:
+    """Key poses every n-th frame of the animation."""
+
+    frame_step: IntProperty(name="Step", min=1, default=4,
+                            description="Take every n-th frame from the start as a key pose")
+
+
+_PER_GAP = "In-between poses per gap between two key frames"
+
+
+class InbetweensPerGap:
+    """In-betweens per gap between two key frames (an operator's ``count``)."""
+
+    count: _count_property(_PER_GAP)
+
+
+class FrameInbetweens:
+    """The same for the scene settings, where ``count`` is the Poses panel's."""
+
+    frame_count: _count_property(_PER_GAP)
+
+
+class CaptureStep:
+    """Frames to capture: every n-th."""
+
+    frame_step: IntProperty(name="Step", min=1, default=1,
+                            description="Take every n-th frame from the start")
+
+
+class Speed:
+    """Playback speed of a retimed animation."""
+
+    speed: FloatProperty(
+        name="Speed", default=0.5, soft_min=0.1, soft_max=4.0,  # speed <= 0 is reported, not clamped
+        description="Playback speed of the retimed motion: 0.5 = twice as slow (twice the frames), "
+                    "1 = the original timing with the dropped frames rebuilt, 2 = twice as fast")
+
+
+OUTPUT_ITEMS = (
+    ('SHAPE_KEYS', "Shape Keys",
+     "Add the poses as shape keys of the active object (its modifiers still deform them)"),
+    ('CACHE', "Point Cache",
+     "Write the poses to a PC2 file played by a Mesh Cache modifier on a new object (a copy of "
+     "the mesh without the modifiers that moved it); the active object stays as it was"),
+)
+
+
+def _output_property(default: str):
+    return EnumProperty(name="Output", items=OUTPUT_ITEMS, default=default,
+                        description="Where the poses go")
+
+
+_FILEPATH = StringProperty(
+    name="Cache File", subtype='FILE_PATH', default="",
+    description="PC2 file for Point Cache output (an existing file is never overwritten: a "
+                "numbered name is used); empty = a file named after the object in a 'caches' "
+                "folder beside the .blend")
+
+
+class PoseOutput:
+    """Output choice of operators on shape keys: shape keys unless asked otherwise."""
+
+    output: _output_property('SHAPE_KEYS')
+    filepath: _FILEPATH
+
+
+class AnimationOutput:
+    """Output choice of operators on a modifier-driven animation: a cache on a new object,
+    because keys added to the animated object are deformed again by its modifiers."""
+
+    output: _output_property('CACHE')
+    filepath: _FILEPATH
+
+
+class SidebarOutputs:
+    """The sidebar's output choices: one for the Poses panel, one for the Animation panel."""
+
+    pose_output: _output_property('SHAPE_KEYS')
+    output: _output_property('CACHE')
+    filepath: _FILEPATH

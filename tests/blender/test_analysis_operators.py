@@ -1,0 +1,124 @@
+"""Shape Space and Distortion Maps through bpy.ops: results as core computes them, an image and
+custom properties or attributes written, and positions, keys and animation left as they were."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import add_key, armature_scene, assert_unchanged, grid_object, posed_grid, rolled, snapshot  # noqa: E402,F401
+
+
+@pytest.fixture
+def keyed(bpy_empty, extension, core):
+    """A grid with Basis, Curl, Bend and mirrored copies of both (isometric to them)."""
+    obj = posed_grid(extension.bridge, 10)
+    rest = extension.bridge.vertex_positions(obj.data)
+    for name, angle in (("Curl down", 2.0), ("Bend down", 1.0)):
+        add_key(obj, name, rolled(rest, angle) * np.array([1.0, 1.0, -1.0]))
+    obj.active_shape_key_index = 2
+    return obj, extension.bridge
+
+
+def test_shape_space_of_keys(keyed, core):
+    obj, bridge = keyed
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=40)
+    assert_unchanged(before, snapshot(bridge, obj))
+    data = obj["shape_space"].to_dict()
+    names = [kb.name for kb in obj.data.shape_keys.key_blocks]
+    assert list(data["poses"]) == names
+    poses = [bridge.shape_key_positions(kb) for kb in obj.data.shape_keys.key_blocks]
+    space = core.shape_space(poses, bridge.mesh_triangles(obj.data), k_M=20, k_N=40)
+    for kind in ("area", "offset_area"):
+        stored = np.reshape(data["coordinates"][kind], (-1, 2))
+        np.testing.assert_allclose(stored, space.coordinates(kind, 2), atol=1e-9 * np.abs(stored).max())
+    # The mirrored keys coincide intrinsically and not with the offset.
+    area = np.reshape(data["coordinates"]["area"], (-1, 2))
+    offset = np.reshape(data["coordinates"]["offset_area"], (-1, 2))
+    assert np.linalg.norm(area[1] - area[3]) <= 1e-6 * np.abs(area).max()
+    assert np.linalg.norm(offset[1] - offset[3]) > 0.1 * np.abs(offset).max()
+    image = bpy.data.images[data["image"]]
+    pixels = np.empty(image.size[0] * image.size[1] * 4, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    assert image.size[0] > 4 * image.size[1] / 2 and pixels.reshape(-1, 4)[:, :3].std() > 0.05
+
+
+def test_select_pose_by_its_place_along_the_first_axis(keyed):
+    obj, bridge = keyed
+    bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=0)
+    # A copy: a view of the ID property would dangle once the operator stores the selection.
+    first = np.array(obj["shape_space"]["coordinates"]["offset_area"], dtype=float).reshape(-1, 2)[:, 0]
+    keys_before = snapshot(bridge, obj)["keys"]
+    bpy.ops.shape_differences.shape_space_select(kind='offset_area', rank=0)
+    assert obj.active_shape_key_index == int(np.argmin(first))
+    bpy.ops.shape_differences.shape_space_select(kind='offset_area', rank=-1, step=1)
+    assert obj.active_shape_key_index == int(np.argsort(first)[1])
+    assert snapshot(bridge, obj)["keys"].keys() == keys_before.keys()
+
+
+def test_shape_space_of_frames_keeps_the_animation(bpy_empty, extension, core):
+    obj = armature_scene(frames=9)
+    bridge = extension.bridge
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.shape_space(source='FRAMES', frame_start=1, frame_end=9, k_m=15, k_n=30)
+    assert_unchanged(before, snapshot(bridge, obj))
+    data = obj["shape_space"].to_dict()
+    assert list(data["frames"]) == list(range(1, 10))
+    xy = np.reshape(data["coordinates"]["offset_area"], (-1, 2))
+    distance = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+    np.fill_diagonal(distance, np.inf)
+    assert np.all(np.abs(distance.argmin(axis=1) - np.arange(9)) == 1)  # a curve in playing order
+    bpy.ops.shape_differences.shape_space_select(kind='offset_area', rank=0)
+    assert bpy.context.scene.frame_current in (1, 9)
+
+
+def test_distortion_maps_of_the_active_key(keyed, core):
+    obj, bridge = keyed
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', k_m=20, eigenfunctions=1)
+    assert_unchanged(before, snapshot(bridge, obj))
+    mesh = obj.data
+    for name in ("SD Area", "SD Conformal", "SD Bending", "SD Eigen Offset Area 1"):
+        assert mesh.color_attributes.get(name) is not None, name
+    values = np.empty(len(mesh.vertices), dtype=np.float32)
+    mesh.attributes["sd_bending"].data.foreach_get("value", values)
+    basis, bend = (bridge.shape_key_positions(mesh.shape_keys.key_blocks[n]) for n in ("Basis", "Bend"))
+    expected = core.distortion(basis, bend, bridge.mesh_triangles(mesh), k=20).bending_vertices
+    np.testing.assert_allclose(values, expected, atol=1e-5)
+    faces = np.empty(len(mesh.polygons), dtype=np.float32)
+    mesh.attributes["sd_area_face"].data.foreach_get("value", faces)
+    assert np.all(np.isfinite(faces))
+    assert mesh.color_attributes.active_color.name == "SD Area"
+
+
+def test_distortion_maps_of_frames(bpy_empty, extension):
+    obj = armature_scene(frames=5)
+    bridge = extension.bridge
+    before = snapshot(bridge, obj)
+    bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=1, frame_end=5, frame_step=2,
+                                              k_m=15, eigenfunctions=0)
+    assert_unchanged(before, snapshot(bridge, obj))
+    for frame in (1, 3, 5):
+        assert obj.data.color_attributes.get(f"SD Bending f{frame}") is not None
+    # Playback shows each frame's map (the last mapped frame before it in between).
+    for frame, shown in ((3, "SD Area f3"), (4, "SD Area f3"), (5, "SD Area f5")):
+        bpy.context.scene.frame_set(frame)
+        assert obj.data.color_attributes.active_color.name == shown
+    obj.data.color_attributes.active_color = obj.data.color_attributes["SD Bending f5"]
+    bpy.context.scene.frame_set(1)
+    assert obj.data.color_attributes.active_color.name == "SD Bending f1"
+    assert_unchanged(dict(before, frame=1), snapshot(bridge, obj))
+
+
+def test_errors_change_nothing(keyed):
+    obj, bridge = keyed
+    before = snapshot(bridge, obj)
+    with pytest.raises(RuntimeError, match="is the Basis"):
+        bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Basis")
+    with pytest.raises(RuntimeError, match="too large"):
+        bpy.ops.shape_differences.shape_space(source='KEYS', k_m=500)
+    with pytest.raises(RuntimeError, match="Run Shape Space"):
+        bpy.ops.shape_differences.shape_space_select(rank=0)
+    assert_unchanged(before, snapshot(bridge, obj))
+    assert "shape_space" not in obj and obj.data.color_attributes.get("SD Area") is None

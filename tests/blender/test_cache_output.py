@@ -1,0 +1,222 @@
+"""Output as a point cache on a new object, and retiming, on scenes whose motion comes from a
+pinned cloth (not baked), an armature-skinned limb and shape keys driven by other keys: the
+source object stays bit for bit as it was, the new object plays the source at the kept frames
+and core's in-betweens elsewhere, and a second run never touches the first."""
+
+import importlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import (armature_scene, assert_unchanged, driven_keys_scene,  # noqa: E402
+                            evaluated_frames, key_names, pinned_cloth_scene, posed_grid, snapshot)
+
+TOLERANCE = 1e-5  # float32 positions
+
+
+def assert_source_unchanged(bridge, obj, before, frames=()):
+    after = snapshot(bridge, obj)
+    after["meshes"] = before["meshes"]  # the new object brings its own mesh
+    assert_unchanged(before, after)
+    if frames:
+        expected = before["evaluated"]
+        for frame, positions in evaluated_frames(bridge, obj, frames).items():
+            np.testing.assert_array_equal(positions, expected[frame])
+
+
+def played(bridge, obj, frames):
+    """The evaluated mesh of the cache object at each frame."""
+    result = {}
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+    bpy.context.scene.frame_set(1)
+    return result
+
+
+def new_object(source_name_before: set):
+    created = [obj for obj in bpy.data.objects if obj.name not in source_name_before]
+    assert len(created) == 1, [obj.name for obj in created]
+    return created[0]
+
+
+def assert_cache_object(obj, source, path=None):
+    assert obj.name.startswith(source.name + " ")
+    assert [m.type for m in obj.modifiers] == ['MESH_CACHE']
+    assert obj.data.shape_keys is None and obj.data is not source.data
+    assert len(obj.data.vertices) == len(source.data.vertices)
+    cache_file = Path(bpy.path.abspath(obj.modifiers[0].filepath))
+    assert cache_file.is_file()
+    if path is not None:
+        assert cache_file == Path(path)
+    return cache_file
+
+
+SCENES = {"pinned cloth": (pinned_cloth_scene, 25),
+          "armature": (lambda frames: armature_scene(frames, parented=True), 13),
+          "driven keys": (driven_keys_scene, 13)}
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tmp_path):
+    make_scene, end = SCENES[scene]
+    source = make_scene(frames=end)
+    bridge = extension.bridge
+    before = snapshot(bridge, source)
+    before["evaluated"] = evaluated_frames(bridge, source, range(1, end + 1))
+    names = set(bpy.data.objects.keys())
+    path = tmp_path / "retime.pc2"
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=end, frame_step=4, speed=0.5,
+                                     filepath=str(path))
+    first = new_object(names)
+    assert first.name == f"{source.name} Retime 0.50x step 4"
+    assert_cache_object(first, source, path)
+    assert_source_unchanged(bridge, source, before, frames=range(1, end + 1, 3))
+
+    n_out = 2 * end - 1  # frames 1-25 at half speed: 49
+    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(path)
+    assert (cache.n_samples, cache.start, cache.sampling) == (n_out, 1.0, 1.0)
+    source_frames = before["evaluated"]
+    keys = [source_frames[f] for f in range(1, end + 1, 4)]
+    playback = played(bridge, first, range(1, n_out + 1))
+    for out_frame in range(1, n_out + 1):
+        time = 1 + (out_frame - 1) * 0.5
+        if time == int(time) and (int(time) - 1) % 4 == 0:  # a kept frame: the source exactly
+            np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=TOLERANCE)
+    for frame in (1, end):  # placed like the source, following its parent if it has one
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_allclose(np.array(first.matrix_world), np.array(source.matrix_world), atol=1e-6)
+    bpy.context.scene.frame_set(1)
+    sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data))
+    for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5
+        time = 1 + (out_frame - 1) * 0.5
+        gap, factor = divmod(time - 1, 4)
+        np.testing.assert_allclose(playback[out_frame], sequence.pose(int(gap), factor / 4),
+                                   atol=TOLERANCE)
+
+    # A second run: a second object and file; the first stays as it was.
+    first_bytes, first_name = path.read_bytes(), first.name
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=end, frame_step=6, speed=1.0,
+                                     filepath=str(path))
+    second = new_object(names)
+    second_file = assert_cache_object(second, source)
+    assert second_file != path and path.read_bytes() == first_bytes
+    assert bpy.data.objects[first_name].modifiers[0].filepath == str(path)
+    np.testing.assert_array_equal(played(bridge, first, [5])[5], playback[5])
+    assert_source_unchanged(bridge, source, before)
+
+
+@pytest.mark.parametrize("speed, frames", [(1.0, 9), (2.0, 5)])
+def test_retime_original_timing_and_faster(bpy_empty, extension, core, speed, frames, tmp_path):
+    source = armature_scene(frames=9)
+    bridge = extension.bridge
+    source_frames = evaluated_frames(bridge, source, range(1, 10))
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=speed,
+                                     filepath=str(tmp_path / "out.pc2"))
+    playback = played(bridge, new_object(names), range(1, frames + 1))
+    for out_frame in range(1, frames + 1):
+        time = 1 + (out_frame - 1) * speed
+        tolerance = TOLERANCE if (time - 1) % 4 == 0 else 0.05  # dropped frames: rebuilt closely
+        np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=tolerance)
+
+
+def test_retime_as_keyframed_shape_keys(bpy_empty, extension, core):
+    source = armature_scene(frames=5)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=0.5,
+                                     output='SHAPE_KEYS')
+    assert key_names(source)[1:] == [f"Retime 0.50x frame {f}" for f in range(1, 10)]
+
+
+def test_unbaked_cloth_cache_is_never_cleared(bpy_empty, extension, core, tmp_path):
+    source = pinned_cloth_scene(frames=9)
+    bridge = extension.bridge
+    cache_info = source.modifiers["Cloth"].point_cache.info
+    assert cache_info.startswith("9 frames")
+    before = snapshot(bridge, source)
+    before["evaluated"] = evaluated_frames(bridge, source, range(1, 10))
+    with pytest.raises(RuntimeError, match="would empty the unbaked cache of its 'Cloth' simulation"):
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4,
+                                                   output='SHAPE_KEYS')
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path / "cloth.pc2"))
+    assert_cache_object(new_object(names), source)
+    bpy.context.evaluated_depsgraph_get()
+    assert source.modifiers["Cloth"].point_cache.info == cache_info
+    assert_source_unchanged(bridge, source, before, frames=range(1, 10))
+
+
+@pytest.mark.parametrize("operator, properties, expected", [
+    ("inbetween", dict(key_a="Curl", key_b="Bend", count=1),
+     lambda core, k, t: [k["Curl"], core.Interpolator(k["Curl"], k["Bend"], t).pose(0.5), k["Bend"]]),
+    ("exaggerate", dict(key="Bend", factor=1.5),
+     lambda core, k, t: [core.Interpolator(k["Basis"], k["Bend"], t).pose(1.5)]),
+    ("reconstruct", dict(key="Curl"),
+     lambda core, k, t: [core.reconstruct(k["Basis"], t, core.shape_differences(k["Basis"], k["Curl"], t))]),
+], ids=["inbetween", "exaggerate", "reconstruct"])
+def test_pose_operators_write_a_cache_object(bpy_empty, extension, core, operator, properties,
+                                             expected, tmp_path):
+    bridge = extension.bridge
+    source = posed_grid(bridge, 5)
+    before = snapshot(bridge, source)
+    names = set(bpy.data.objects.keys())
+    getattr(bpy.ops.shape_differences, operator)(output='CACHE', filepath=str(tmp_path) + "/",
+                                                 **properties)
+    obj = new_object(names)
+    assert_cache_object(obj, source)
+    assert_source_unchanged(bridge, source, before)
+    keys = {kb.name: bridge.shape_key_positions(kb) for kb in source.data.shape_keys.key_blocks}
+    poses = expected(core, keys, bridge.mesh_triangles(source.data))
+    start = bpy.context.scene.frame_start
+    playback = played(bridge, obj, range(start, start + len(poses)))
+    for i, pose in enumerate(poses):
+        np.testing.assert_allclose(playback[start + i], pose, atol=1e-4)
+
+
+def test_frames_to_a_cache_object(bpy_empty, extension, core, tmp_path):
+    source = armature_scene(frames=9)
+    bridge = extension.bridge
+    expected = evaluated_frames(bridge, source, range(1, 10))
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_step=2, output='CACHE',
+                                                   filepath=str(tmp_path / "frames"))
+    obj = new_object(names)
+    assert obj.name == "Sheet Frames 1-9 step 2" or obj.name.endswith("Frames 1-9 step 2")
+    assert_cache_object(obj, source, tmp_path / "frames.pc2")
+    playback = played(bridge, obj, range(1, 10))
+    for frame in range(1, 10):  # every 2nd frame exactly, linear between
+        if frame % 2:
+            np.testing.assert_allclose(playback[frame], expected[frame], atol=TOLERANCE)
+        else:
+            np.testing.assert_allclose(playback[frame], (expected[frame - 1] + expected[frame + 1]) / 2,
+                                       atol=TOLERANCE)
+
+
+def test_headless_runs_print_progress(bpy_empty, extension, core, capfd, monkeypatch, tmp_path):
+    monkeypatch.setattr(extension.operators.base, "CONSOLE_PROGRESS_INTERVAL", 0.0)
+    armature_scene(frames=5)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=1.0,
+                                     filepath=str(tmp_path / "a.pc2"))
+    err = capfd.readouterr().err
+    lines = err.splitlines()
+    assert "Retime: 46%" in lines and lines[-1] == "Retime: done"
+
+
+def test_default_cache_file_beside_the_saved_blend(bpy_empty, extension, core, tmp_path):
+    source = armature_scene(frames=3)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    source = bpy.data.objects[source.name]
+    for _ in range(2):
+        names = set(bpy.data.objects.keys())
+        bpy.ops.shape_differences.frames_to_shape_keys(output='CACHE')
+        obj = new_object(names)
+    assert bpy.data.objects["Grid Frames 1-3"].modifiers[0].filepath == "//caches/Grid_Frames_1-3.pc2"
+    assert obj.name == "Grid Frames 1-3.001"
+    assert obj.modifiers[0].filepath == "//caches/Grid_Frames_1-3_001.pc2"
+    assert sorted(p.name for p in (tmp_path / "caches").iterdir()) == ["Grid_Frames_1-3.pc2",
+                                                                      "Grid_Frames_1-3_001.pc2"]

@@ -1,0 +1,288 @@
+"""Hostile inputs through the public API (issue 19): every bad argument is a documented exception
+(MeshError for meshes and parameters, RecoveryError for solver failure) naming the argument and
+the user's own index; accepted input the method cannot represent faithfully gets a
+ShapeDifferenceWarning; inputs are never modified. Numbered tests follow the issue's items."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import core
+from core import MeshError, RecoveryError, ShapeDifferenceWarning
+
+from meshes import drape, grid
+
+
+@pytest.fixture(scope="module")
+def sheet():
+    v, t = grid(6, jitter=0.2)
+    return v, t, drape(v, 1.0)
+
+
+@pytest.fixture(scope="module")
+def sequence(sheet):
+    v, t, target = sheet
+    return core.SequenceInterpolator([v, target, drape(v, 1.5)], t)
+
+
+def _no_warnings(function, *args, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        return function(*args, **kwargs)
+
+
+def _bow_tie(v, t):
+    """Two copies of the sheet touching at one vertex (the first copy's far corner)."""
+    n = len(v)
+    corner, other = int(np.argmax(v[:, 0] + v[:, 1])), int(np.argmin(v[:, 0] + v[:, 1]))
+    v2 = np.concatenate([v, v + [1.0, 1.0, 0.3]])
+    v2[n + other] = v[corner]
+    t2 = np.concatenate([t, t + n])
+    t2[t2 == n + other] = corner
+    return v2, t2, corner
+
+
+# -- item 2: bow-tie vertices -----------------------------------------------------------------
+def test_2_bow_tie_vertex_is_rejected_with_its_index_and_the_fix(sheet):
+    v, t, _ = sheet
+    v2, t2, corner = _bow_tie(v, t)
+    for call in (lambda: core.shape_differences(v2, drape(v2, 0.8), t2),
+                 lambda: core.interpolate(v2, drape(v2, 0.8), t2, 0.5),
+                 lambda: core.default_offset(v2, t2) and core.ReferenceShape(v2, t2)):
+        with pytest.raises(MeshError, match=rf"Vertices \[{corner}\].*bow-tie.*Rip Vertices"):
+            call()
+
+
+def test_manifold_meshes_with_boundary_corners_pass(sheet):
+    v, t, target = sheet
+    _no_warnings(core.shape_differences, v, target, t)
+
+
+# -- item 3: large bases use the dense eigensolver ---------------------------------------------
+def test_3_basis_near_the_vertex_count_uses_the_dense_solver(monkeypatch):
+    import scipy.sparse.linalg
+
+    v, t = grid(26, jitter=0.2)  # 676 vertices: above the small-mesh dense limit
+    n = len(v)
+
+    def no_arpack(*args, **kwargs):
+        raise AssertionError("ARPACK used for a basis of nearly every vertex")
+
+    monkeypatch.setattr(scipy.sparse.linalg, "eigsh", no_arpack)
+    d = core.shape_differences(v, drape(v, 1.0), t, k_M=n - 1, use_extrinsic=False)
+    basis = d.area.basis
+    assert basis.size == n - 1
+    reference = d.reference
+    gram = basis.functions.T @ (reference.base.mass @ basis.functions)
+    assert np.allclose(gram, np.eye(n - 1), atol=1e-8)  # A-orthonormal, as eq. (5) needs
+    residual = reference.base.conformal @ basis.functions - reference.base.mass @ basis.functions * basis.eigenvalues
+    assert np.linalg.norm(residual) <= 1e-8 * np.linalg.norm(reference.base.conformal @ basis.functions)
+
+
+# -- item 4: Interpolator / SequenceInterpolator validate k and offset --------------------------
+@pytest.mark.parametrize("options, message", [
+    (dict(k_M=-3), "k_M"), (dict(k_M=500), "at most 35"), (dict(k_M=5, k_N=500), "k_N"),
+    (dict(k_N=5), "needs k_M"), (dict(offset=-1.0), "positive"), (dict(offset=float("nan")), "finite"),
+    (dict(offset="a"), "real number"), (dict(offset=True), "real number"),
+])
+def test_4_interpolators_reject_bad_basis_sizes_and_offsets(sheet, options, message):
+    v, t, target = sheet
+    for build in (lambda: core.Interpolator(v, target, t, **options),
+                  lambda: core.SequenceInterpolator([v, target], t, **options),
+                  lambda: core.interpolate(v, target, t, 0.5, **options),
+                  lambda: core.shape_differences(v, target, t, **options)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # an error, not a warning and a fallback
+            with pytest.raises(MeshError, match=message):
+                build()
+
+
+# -- item 5: reconstruct checks that the differences belong to the mesh ------------------------
+def test_5_reconstruct_rejects_reversed_triangles_another_mesh_or_another_base(sheet):
+    v, t, target = sheet
+    d = core.shape_differences(v, target, t)
+    with pytest.raises(MeshError, match="another order"):
+        core.reconstruct(v, t[:, ::-1], d)
+    w, s = grid(4)
+    with pytest.raises(MeshError, match="36 vertices and 50 triangles"):
+        core.reconstruct(w, s, d)
+    moved = v.copy()
+    moved[7] += 0.1
+    with pytest.raises(MeshError, match="vertex 7"):
+        core.reconstruct(moved, t, d)
+    with pytest.raises(MeshError, match="ShapeDifferences"):
+        core.reconstruct(v, t, [d.area, d.conformal])
+    assert np.allclose(core.reconstruct(v, t, d)[:, :2].std(), target[:, :2].std(), rtol=0.2)
+
+
+# -- item 6: no raw exception escapes -----------------------------------------------------------
+@pytest.mark.parametrize("call, message", [
+    (lambda v, t, g, s: s.pose(0, 1e200), "factor"),
+    (lambda v, t, g, s: s.pose_at(float("nan")), "time"),
+    (lambda v, t, g, s: s.pose_at(1e20), "time"),
+    (lambda v, t, g, s: core.shape_differences(v * 1e80, g * 1e80, t), "1e\\+30"),
+    (lambda v, t, g, s: core.interpolate(v * 1e80, g * 1e80, t, 0.5), "1e\\+30"),
+    (lambda v, t, g, s: core.shape_differences(v * 1e-80, g * 1e-80, t), "units across"),
+    (lambda v, t, g, s: core.interpolate(v * 1e-80, g * 1e-80, t, 0.5), "units across"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t.astype(str)), "triangles"),
+    (lambda v, t, g, s: core.shape_differences(v, g * 1e160, t), "target_vertices"),
+    (lambda v, t, g, s: core.shape_differences(v.tolist() + [["a", 0, 0]], g, t), "numbers"),
+    (lambda v, t, g, s: core.shape_differences(v, g, [[0, 1]]), "shape"),
+    (lambda v, t, g, s: core.interpolate(v, g, t, "half"), "factor"),
+])
+def test_6_extreme_or_malformed_input_is_a_mesh_error(sheet, sequence, call, message):
+    v, t, target = sheet
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow RuntimeWarnings either
+        with pytest.raises(MeshError, match=message):
+            call(v, t, target, sequence)
+
+
+def test_6_solver_failure_is_a_recovery_error():
+    from core.validation import numerical_failures
+
+    with pytest.raises(RecoveryError, match="LinAlgError"):
+        with numerical_failures("A step"):
+            np.linalg.solve(np.zeros((2, 2)), np.ones(2))
+
+
+# -- item 7: accepted extreme input is warned about ---------------------------------------------
+def test_7_stray_vertex_far_away_warns_about_precision(sheet):
+    v, t, target = sheet
+    stray = target.copy()
+    stray[5] += 1e6
+    with pytest.warns(ShapeDifferenceWarning, match="loses precision"):
+        core.shape_differences(v, stray, t)
+    stray[5] = target[5] + 1e3  # far, but within precision: no warning
+    _no_warnings(core.shape_differences, v, stray, t)
+
+
+def test_7_offset_far_from_the_mesh_scale_warns(sheet):
+    v, t, target = sheet
+    with pytest.warns(ShapeDifferenceWarning, match="mean edge length"):
+        core.shape_differences(v, target, t, offset=1e12)
+    _no_warnings(core.shape_differences, v, target, t, offset=0.1)
+
+
+def test_7_fold_the_lengths_cannot_decide_warns():
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])
+    t = np.array([[0, 1, 2], [1, 3, 2]])
+    folded = v.copy()
+    folded[3] = [0.5, 0.5, np.sqrt(0.5)]  # 90° about the diagonal
+    d = core.shape_differences(v, folded, t)
+    with pytest.warns(ShapeDifferenceWarning, match="undetermined"):
+        core.reconstruct(v, t, d)
+
+
+def test_7_exact_reconstruction_stays_silent(sheet):
+    v, t, target = sheet
+    d = core.shape_differences(v, target, t)
+    x = _no_warnings(core.reconstruct, v, t, d)
+    edges = core.ReferenceShape(v, t).topology.edges
+    lengths = lambda p: np.linalg.norm(p[edges[:, 0]] - p[edges[:, 1]], axis=1)  # noqa: E731
+    assert np.allclose(lengths(x), lengths(target), rtol=1e-6)
+
+
+# -- item 8: default_offset validates ---------------------------------------------------------
+@pytest.mark.parametrize("vertices, triangles, message", [
+    (lambda v: v * np.nan, lambda t: t, "non-finite"),
+    (lambda v: v, lambda t: t[:0], "no triangles"),
+    (lambda v: v, lambda t: -t - 1, "negative indices"),
+    (lambda v: v[:, :2], lambda t: t, "shape"),
+])
+def test_8_default_offset_validates(sheet, vertices, triangles, message):
+    v, t, _ = sheet
+    with pytest.raises(MeshError, match=message):
+        core.default_offset(vertices(v), triangles(t))
+    assert core.default_offset(v, t) > 0
+
+
+# -- item 9: messages in the user's terms -------------------------------------------------------
+def test_9_messages_name_the_users_own_indices_and_values(sheet):
+    v, t, target = sheet
+    big = np.where(t == 0, 1e20, t).astype(float)
+    with pytest.raises(MeshError, match=r"\[1e\+20, 1, 6\]"):
+        core.shape_differences(v, target, big)
+    with pytest.raises(MeshError, match="target_vertices.*coordinate"):
+        core.shape_differences(v, target * 1e40, t)  # overflow, not "zero area"
+    flat = target.copy()
+    flat[t[3]] = flat[t[3][0]]
+    with pytest.raises(MeshError, match="target_vertices: triangle"):
+        core.shape_differences(v, flat, t)
+    with pytest.raises(MeshError, match=r"k_M .* is 36.*35"):
+        core.shape_differences(v, target, t, k_M=36)
+
+
+def test_9_loose_vertices_keep_the_users_numbering(sheet):
+    v, t, target = sheet
+    loose = np.concatenate([[[5.0, 5.0, 5.0]], v])  # vertex 0 in no triangle
+    stray = np.concatenate([[[5.0, 5.0, 5.0]], target])
+    stray[6] += 1e6
+    with pytest.warns(ShapeDifferenceWarning, match=r"vertices \[.*\b6\b.*\]"):
+        core.shape_differences(loose, stray, t + 1)
+
+
+# -- item 10: no silent coercions ---------------------------------------------------------------
+@pytest.mark.parametrize("call, message", [
+    (lambda v, t, g, s: core.shape_differences(v + 1j, g, t), "complex"),
+    (lambda v, t, g, s: s.pose(1.7, 0.5), "whole number"),
+    (lambda v, t, g, s: s.pose(True, 0.5), "boolean"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t, k_M=10.5), "whole number"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t, k_M=True), "boolean"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t, use_extrinsic="False"), "True or False"),
+    (lambda v, t, g, s: core.Interpolator(v, g, t, use_extrinsic=0), "True or False"),
+    (lambda v, t, g, s: core.SequenceInterpolator([v, g], t, smooth="yes"), "True or False"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t + 0.5), "whole numbers"),
+    (lambda v, t, g, s: core.shape_differences(v, g, t.astype(bool)), "booleans"),
+])
+def test_10_no_silent_coercion(sheet, sequence, call, message):
+    v, t, target = sheet
+    with pytest.raises(MeshError, match=message):
+        call(v, t, target, sequence)
+
+
+def test_gap_index_errors_are_also_index_errors(sequence):
+    for gap in (-1, 2, 10**20):
+        with pytest.raises(IndexError, match="gap"):
+            sequence.pose(gap, 0.5)
+
+
+def test_whole_float_basis_size_and_numpy_scalars_are_accepted(sheet):
+    v, t, target = sheet
+    d = core.shape_differences(v, target, t, k_M=np.int32(8), k_N=12.0, offset=np.array(0.1, dtype=np.float32),
+                               use_extrinsic=np.True_)
+    assert (d.k_M, d.k_N) == (8, 12) and isinstance(d.k_M, int)
+
+
+def test_basis_of_constants_only_is_rejected(sheet):
+    # The first eigenfunction of each connected part is constant (λ = 0): a basis of those alone
+    # gives an empty conformal difference (it reconstructed the base silently, with BLAS errors).
+    v, t, target = sheet
+    two_v, two_t = np.vstack([v, v + 3.0]), np.vstack([t, t + len(v)])
+    two_target = np.vstack([target, target + 3.0])
+    with pytest.raises(MeshError, match="k_M .* is 1.*constant"):
+        core.shape_differences(v, target, t, k_M=1)
+    with pytest.raises(MeshError, match="k_N .* is 2.*2 connected part"):
+        core.shape_differences(two_v, two_target, two_t, k_M=5, k_N=2)
+    with pytest.raises(MeshError, match="constant"):
+        core.interpolate(v, target, t, 0.5, k_M=1)
+    assert core.shape_differences(two_v, two_target, two_t, k_M=3, use_extrinsic=False).k_M == 3
+
+
+# -- inputs are never modified, also on failure --------------------------------------------------
+def test_inputs_unchanged_on_success_and_failure(sheet):
+    v, t, target = sheet
+    arrays = [v.copy(), target.copy(), t.copy()]
+    d = core.shape_differences(*arrays[:2], arrays[2], k_M=10)
+    core.reconstruct(arrays[0], arrays[2], d)
+    core.interpolate(arrays[0], arrays[1], arrays[2], 0.5)
+    with pytest.raises(MeshError):
+        core.reconstruct(arrays[0], arrays[2][:, ::-1], d)
+    with pytest.raises(MeshError):
+        core.shape_differences(arrays[0], arrays[1], arrays[2], k_M=99)
+    for got, expected in zip(arrays, (v, target, t)):
+        assert np.array_equal(got, expected)
+    for array in arrays:
+        array.setflags(write=False)  # read-only inputs (e.g. Blender buffers) work too
+    core.shape_differences(*arrays[:2], arrays[2])

@@ -1,0 +1,91 @@
+"""PC2 and MDD files: written samples read back exactly, headers as Blender's Mesh Cache modifier
+reads them, chunks merged byte for byte, and bad files rejected with MeshError."""
+
+import struct
+
+import numpy as np
+import pytest
+
+from core import MeshError
+from core.point_cache import merge_pc2, read_mdd, read_pc2, read_point_cache, write_pc2
+
+
+def samples(n_samples=5, n_points=7, seed=0):
+    return np.random.default_rng(seed).normal(size=(n_samples, n_points, 3)).astype(np.float32)
+
+
+def test_pc2_round_trip_and_header(tmp_path):
+    data = samples()
+    path = write_pc2(tmp_path / "a.pc2", data, start=3.0, sampling=0.5)
+    raw = path.read_bytes()
+    # The header layout Blender's Mesh Cache modifier and other packages read.
+    assert struct.unpack("<12siiffi", raw[:32]) == (b"POINTCACHE2\0", 1, 7, 3.0, 0.5, 5)
+    assert len(raw) == 32 + data.nbytes
+    cache = read_pc2(path)
+    np.testing.assert_array_equal(cache.positions, data)
+    assert (cache.start, cache.sampling, cache.n_samples, cache.n_points) == (3.0, 0.5, 5, 7)
+
+
+def test_single_pose_is_one_sample(tmp_path):
+    pose = samples(1)[0]
+    cache = read_point_cache(write_pc2(tmp_path / "pose.pc2", pose))
+    np.testing.assert_array_equal(cache.positions, pose[None])
+
+
+def test_mdd_read(tmp_path):
+    data = samples(4, 6)
+    times = np.array([0.0, 0.04, 0.08, 0.12], dtype=">f4")
+    path = tmp_path / "a.mdd"
+    path.write_bytes(struct.pack(">ii", 4, 6) + times.tobytes() + data.astype(">f4").tobytes())
+    cache = read_point_cache(path)
+    np.testing.assert_array_equal(cache.positions, data)
+    np.testing.assert_array_equal(cache.times, times.astype(np.float64))
+    np.testing.assert_array_equal(read_mdd(path).positions, data)
+
+
+def test_merge_is_byte_for_byte(tmp_path):
+    data = samples(9)
+    whole = write_pc2(tmp_path / "whole.pc2", data, start=1.0)
+    parts = [write_pc2(tmp_path / f"part{i}.pc2", data[a:b], start=1.0 + a)
+             for i, (a, b) in enumerate([(0, 4), (4, 4), (4, 9)])]
+    merged = merge_pc2(parts, tmp_path / "merged.pc2")
+    assert merged.read_bytes() == whole.read_bytes()
+
+
+def test_merge_rejects_gaps_and_mismatches(tmp_path):
+    data = samples(6)
+    first = write_pc2(tmp_path / "1.pc2", data[:3], start=1.0)
+    third = write_pc2(tmp_path / "3.pc2", data[4:], start=5.0)
+    with pytest.raises(MeshError, match="starts at frame 5, expected 4"):
+        merge_pc2([first, third], tmp_path / "out.pc2")
+    other = write_pc2(tmp_path / "other.pc2", samples(3, 8), start=4.0)
+    with pytest.raises(MeshError, match="not chunks of one cache"):
+        merge_pc2([first, other], tmp_path / "out.pc2")
+    assert not (tmp_path / "out.pc2").exists()
+
+
+@pytest.mark.parametrize("damage, match", [
+    (lambda raw: b"NOTACACHE!!!" + raw[12:], "is not a complete MDD|invalid MDD"),
+    (lambda raw: raw[:-4], "not a complete PC2 file"),
+    (lambda raw: raw[:20], "is not a PC2|invalid PC2|not a complete"),
+    (lambda raw: raw[:12] + struct.pack("<i", 2) + raw[16:], "invalid PC2 header"),
+    (lambda raw: b"", "not an MDD"),
+])
+def test_bad_files(tmp_path, damage, match):
+    good = write_pc2(tmp_path / "good.pc2", samples()).read_bytes()
+    bad = tmp_path / "bad.pc2"
+    bad.write_bytes(damage(good))
+    with pytest.raises(MeshError, match=match):
+        read_point_cache(bad)
+
+
+def test_missing_file_and_bad_positions(tmp_path):
+    with pytest.raises(MeshError, match="does not exist"):
+        read_point_cache(tmp_path / "nope.pc2")
+    data = samples()
+    data[2, 1, 0] = np.nan
+    with pytest.raises(MeshError, match="sample 2 has non-finite"):
+        write_pc2(tmp_path / "nan.pc2", data)
+    with pytest.raises(MeshError, match="shape"):
+        write_pc2(tmp_path / "flat.pc2", np.zeros((4, 2)))
+    assert not list(tmp_path.iterdir())

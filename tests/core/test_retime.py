@@ -1,0 +1,138 @@
+"""Retiming from every step-th frame: the plan (frame counts, kept frames, factors), kept frames
+exactly the source's, in-betweens those of SequenceInterpolator, chunks concatenating bit for
+bit into the single-process result, and the headless command (python -m core)."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from core import MeshError, SequenceInterpolator
+from core.__main__ import main
+from core.obj_file import read_obj, write_obj
+from core.point_cache import read_pc2, write_pc2
+from core.retime import iter_retime, plan_retime, retime
+from meshes import grid
+
+ROOT = __import__("pathlib").Path(__file__).resolve().parents[2]
+
+
+def rolling_sheet(n_frames=9, nx=7):
+    """A sheet rolling up over ``n_frames`` frames: float32 samples ``(F, n, 3)`` and triangles."""
+    rest, triangles = grid(nx)
+    frames = []
+    for t in np.linspace(0.2, 2.0, n_frames):
+        radius = 1.0 / t
+        theta = rest[:, 0] / radius
+        frames.append(np.stack([radius * np.sin(theta), rest[:, 1], radius * (1 - np.cos(theta))], axis=1))
+    return np.array(frames, dtype=np.float32), triangles
+
+
+@pytest.mark.parametrize("n_source, step, speed, n_out, keys", [
+    (25, 4, 0.5, 49, [0, 4, 8, 12, 16, 20, 24]),
+    (25, 4, 1.0, 25, [0, 4, 8, 12, 16, 20, 24]),
+    (25, 4, 2.0, 13, [0, 4, 8, 12, 16, 20, 24]),
+    (23, 5, 0.5, 45, [0, 5, 10, 15, 20, 22]),  # a shorter last gap ends on the last frame
+    (11, 2, 0.3, 34, [0, 2, 4, 6, 8, 10]),
+])
+def test_plan(n_source, step, speed, n_out, keys):
+    plan = plan_retime(n_source, step, speed)
+    assert plan.n_out == n_out
+    assert plan.keys.tolist() == keys
+    assert plan.times[-1] <= n_source - 1
+    # Output samples at a key's time show that key; every other time is strictly inside its gap.
+    for k in range(plan.n_out):
+        at_key = np.flatnonzero(plan.keys == plan.times[k])
+        assert plan.exact_keys[k] == (at_key[0] if len(at_key) else -1)
+        if plan.exact_keys[k] < 0:
+            assert 0 < plan.factors[k] < 1
+            g = plan.gaps[k]
+            assert plan.times[k] == pytest.approx(plan.keys[g] + plan.factors[k] * (plan.keys[g + 1] - plan.keys[g]))
+    assert plan.times[0] == 0 and plan.exact_keys[-1] == (len(keys) - 1 if plan.times[-1] == n_source - 1 else -1)
+
+
+def test_plan_snaps_whole_frames():
+    plan = plan_retime(4, 1, 0.1)  # 30 * 0.1 is 3.0000000000000004 in floating point
+    assert plan.n_out == 31 and plan.exact_keys[30] == 3 and plan.exact_keys[10] == 1
+
+
+@pytest.mark.parametrize("n_source, step, speed", [(1, 1, 1.0), (5, 5, 1.0), (9, 0, 1.0), (9, 2, 0.0),
+                                                   (9, 2, float("nan")), (9, 2.5, 1.0)])
+def test_plan_rejects(n_source, step, speed):
+    with pytest.raises(MeshError):
+        plan_retime(n_source, step, speed)
+
+
+def test_kept_frames_exact_and_inbetweens_from_the_sequence():
+    source, triangles = rolling_sheet()
+    result = retime(source, triangles, step=4, speed=0.5)
+    assert result.shape == (17, source.shape[1], 3) and result.dtype == np.float32
+    for k, frame in enumerate(range(0, 9)):
+        if frame % 4 == 0:
+            np.testing.assert_array_equal(result[2 * k], source[frame])
+    sequence = SequenceInterpolator([source[f].astype(np.float64) for f in (0, 4, 8)], triangles)
+    np.testing.assert_array_equal(result[3], sequence.pose(0, 0.375).astype(np.float32))
+    np.testing.assert_array_equal(result[11], sequence.pose(1, 0.375).astype(np.float32))
+    # The dropped frames come back close to the source (a smooth roll).
+    assert np.abs(result[2] - source[1]).max() < 0.02
+
+
+def test_chunks_concatenate_bit_for_bit():
+    source, triangles = rolling_sheet(n_frames=13)
+    plan = plan_retime(13, 2, 0.7)
+    whole = retime(source, triangles, step=2, speed=0.7)
+    for count in (2, 7):  # 7 chunks of 6 gaps: one chunk is empty
+        parts = [retime(source, triangles, step=2, speed=0.7, gaps=plan.chunk(i, count)) for i in range(count)]
+        assert sum(len(part) for part in parts) == plan.n_out
+        assert np.concatenate(parts).tobytes() == whole.tobytes()
+    indices = [index for index, _ in iter_retime(source, triangles, plan, range(2, 4))]
+    assert indices == list(plan.outputs(range(2, 4)))
+
+
+def test_obj_round_trip(tmp_path):
+    vertices, triangles = grid(4)
+    path = write_obj(tmp_path / "sheet.obj", vertices, triangles)
+    read_vertices, read_triangles = read_obj(path)
+    np.testing.assert_allclose(read_vertices, vertices, atol=1e-9)
+    np.testing.assert_array_equal(read_triangles, triangles)
+    (tmp_path / "quad.obj").write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 -1//1\n")
+    assert read_obj(tmp_path / "quad.obj")[1].tolist() == [[0, 1, 2], [0, 2, 3]]
+    (tmp_path / "bad.obj").write_text("v 0 0 0\nf 1 2 3\n")
+    with pytest.raises(MeshError, match="line 2"):
+        read_obj(tmp_path / "bad.obj")
+
+
+def test_command_chunks_and_merge(tmp_path, capsys):
+    source, triangles = rolling_sheet(n_frames=9, nx=6)
+    cache = write_pc2(tmp_path / "in.pc2", source, start=10.0)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = [str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    assert main(["retime", *common, "-o", str(tmp_path / "whole.pc2")]) == 0
+    assert "retime: sample 17/17" in capsys.readouterr().err
+    parts = [tmp_path / f"part{i}.pc2" for i in (1, 2, 3)]
+    for i, part in enumerate(parts, 1):
+        assert main(["retime", *common, "--chunk", f"{i}/3", "-q", "-o", str(part)]) == 0
+    assert main(["merge", *map(str, parts), "-o", str(tmp_path / "merged.pc2")]) == 0
+    assert (tmp_path / "merged.pc2").read_bytes() == (tmp_path / "whole.pc2").read_bytes()
+    whole = read_pc2(tmp_path / "whole.pc2")
+    assert (whole.start, whole.sampling, whole.n_samples) == (10.0, 1.0, 17)
+    np.testing.assert_array_equal(whole.positions[8], source[4])
+    assert main(["retime", *common, "--gaps", "1:2", "--start", "1", "-q", "-o", str(tmp_path / "gap.pc2")]) == 0
+    gap = read_pc2(tmp_path / "gap.pc2")
+    np.testing.assert_array_equal(gap.positions, whole.positions[8:17])  # the last key is in the last gap
+    assert gap.start == 1 + 8
+
+
+def test_command_errors_are_one_line(tmp_path):
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    write_obj(tmp_path / "other.obj", *grid(4))
+    result = subprocess.run([sys.executable, "-m", "core", "retime", str(cache), "--topology",
+                             str(tmp_path / "other.obj"), "--step", "2", "-o", str(tmp_path / "out.pc2")],
+                            cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.strip() == (f"error: '{tmp_path / 'other.obj'}' has 16 vertices but '{cache}' has 25 "
+                                     "points: export the OBJ from the same mesh, without modifiers that change "
+                                     "its vertices.")
+    assert not (tmp_path / "out.pc2").exists()

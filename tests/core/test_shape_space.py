@@ -1,0 +1,120 @@
+"""Shape space (paper §8.1): PCA of shape differences over a collection of poses."""
+
+import numpy as np
+import pytest
+
+import core
+from core.shape_space_pca import KINDS
+from meshes import grid
+
+
+def bumped(vertices, height, center=(0.5, 0.5), radius=0.3):
+    """The sheet with a smooth bump of ``height`` (negative: a dent, its exact mirror image)."""
+    r = np.linalg.norm(vertices[:, :2] - np.asarray(center), axis=1)
+    out = vertices.copy()
+    out[:, 2] += height * np.where(r < radius, np.cos(0.5 * np.pi * r / radius) ** 2, 0.0)
+    return out
+
+
+@pytest.fixture(scope="module")
+def bump_collection():
+    """Fig. 7 (top row) on a sheet: bumps of two sizes at two places, each up and down."""
+    v, t = grid(14, jitter=0.2)
+    poses = [v]
+    for center in ((0.4, 0.4), (0.6, 0.55)):
+        for height in (0.12, 0.2):
+            poses += [bumped(v, height, center), bumped(v, -height, center)]
+    return poses, t
+
+
+@pytest.fixture(scope="module")
+def bump_space(bump_collection):
+    poses, t = bump_collection
+    return core.shape_space(poses, t, k_M=20, k_N=40)
+
+
+def rolled(vertices, curvature):
+    """The sheet rolled onto a cylinder of the given curvature (isometric up to chord lengths)."""
+    if curvature == 0:
+        return vertices.copy()
+    radius = 1.0 / curvature
+    theta = (vertices[:, 0] - 0.5) / radius
+    return np.stack([radius * np.sin(theta), vertices[:, 1], radius * (1 - np.cos(theta))], axis=1)
+
+
+def spread(points):
+    return np.linalg.norm(points - points.mean(axis=0), axis=1).max()
+
+
+@pytest.mark.parametrize("kind", ["area", "conformal"])
+def test_mirror_images_coincide_in_intrinsic_coordinates(bump_space, kind):
+    xy = bump_space.coordinates(kind, dims=2)
+    up, down = xy[1::2], xy[2::2]
+    assert spread(xy) > 0
+    assert np.abs(up - down).max() <= 1e-9 * spread(xy)
+
+
+@pytest.mark.parametrize("kind", ["offset_area", "offset_conformal"])
+def test_mirror_images_separate_in_offset_coordinates(bump_space, kind):
+    points = bump_space.coordinates(kind, dims=bump_space.n_poses - 1)
+    gaps = np.linalg.norm(points[1::2] - points[2::2], axis=1)
+    assert gaps.min() > 0.1 * spread(points)
+
+
+def test_full_rank_coordinates_keep_the_frobenius_distances(bump_collection, bump_space):
+    poses, t = bump_collection
+    reference = core.ReferenceShape(poses[0], t)
+    matrices = [reference.shape_differences(p, k_M=20, k_N=40).offset_area.matrix for p in poses[:5]]
+    points = bump_space.coordinates("offset_area", dims=bump_space.n_poses)[:5]
+    for i in range(5):
+        for j in range(i):
+            expected = np.linalg.norm(matrices[i] - matrices[j])
+            assert np.linalg.norm(points[i] - points[j]) == pytest.approx(expected, rel=1e-8)
+
+
+def test_variance_ratios_sum_to_one_and_decrease(bump_space):
+    for kind in KINDS:
+        ratio = bump_space.explained_variance_ratio(kind)
+        assert ratio.sum() == pytest.approx(1.0)
+        assert np.all(np.diff(ratio) <= 1e-12)
+        assert bump_space.coordinates(kind, 3).shape == (bump_space.n_poses, 3)
+        assert bump_space.coordinates(kind, 3).dtype == np.float64
+
+
+def test_animation_frames_lie_along_a_curve_in_playing_order():
+    """Fig. 9: a sheet bending over a bar, frame after frame (nearly isometric): each frame's
+    nearest neighbour in the 2-D offset embedding is the previous or the next frame."""
+    v, t = grid(13, jitter=0.2)
+    frames = [rolled(v, amount) for amount in np.linspace(0.0, 3.0, 10)]
+    space = core.shape_space(frames, t, k_M=20, k_N=40)
+    for kind in ("offset_area", "offset_conformal"):
+        xy = space.coordinates(kind)
+        distance = np.linalg.norm(xy[:, None] - xy[None], axis=2)
+        np.fill_diagonal(distance, np.inf)
+        nearest = distance.argmin(axis=1)
+        assert np.all(np.abs(nearest - np.arange(len(frames))) == 1), (kind, nearest)
+    # A nearly isometric motion: the intrinsic differences move far less than the extrinsic ones.
+    intrinsic = spread(space.coordinates("area", 2))
+    extrinsic = spread(space.coordinates("offset_area", 2))
+    assert intrinsic < 0.1 * extrinsic
+
+
+def test_eq5_differences_without_a_pose_basis(bump_collection):
+    poses, t = bump_collection
+    space = core.shape_space(poses[:5], t, k_M=20, k_N=None)
+    xy = space.coordinates("area")
+    assert np.abs(xy[1] - xy[2]).max() <= 1e-9 * spread(xy)
+    off = space.coordinates("offset_area", dims=4)
+    assert np.linalg.norm(off[1] - off[2]) > 0.1 * spread(off)
+
+
+def test_bad_inputs_name_the_problem(bump_collection):
+    poses, t = bump_collection
+    with pytest.raises(core.MeshError, match="at least two poses"):
+        core.shape_space(poses[:1], t)
+    with pytest.raises(core.MeshError, match="set k_M"):
+        core.shape_space(poses[:3], t, k_M=None, k_N=None)
+    with pytest.raises(core.MeshError, match="pose 2"):
+        core.shape_space([poses[0], poses[1], poses[2][:-1]], t, k_M=10, k_N=20)
+    with pytest.raises(ValueError, match="kind must be one of"):
+        core.shape_space(poses[:3], t, k_M=10, k_N=20).coordinates("volume")

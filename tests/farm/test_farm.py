@@ -1,0 +1,120 @@
+"""The farm job definitions: the Open Job Description template passes `openjd check` and its
+chunked run (`openjd run`, two chunks, then the merge) writes exactly the single-process cache;
+the Flamenco job type is valid JavaScript and the commands it authors, run in order, do too."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core.__main__ import main
+from core.obj_file import write_obj
+from core.point_cache import write_pc2
+
+ROOT = Path(__file__).resolve().parents[2]
+TEMPLATE = ROOT / "farm" / "retime.openjd.yaml"
+JOB_TYPE = ROOT / "farm" / "shape-differences-retime.js"
+OPENJD = shutil.which("openjd", path=str(Path(sys.executable).parent)) or shutil.which("openjd")
+NODE = shutil.which("node")
+
+
+@pytest.fixture(scope="module")
+def job(tmp_path_factory):
+    """A small rolling-sheet cache, its OBJ, and the single-process retime of it."""
+    folder = tmp_path_factory.mktemp("farm")
+    n = 5
+    xs, ys = np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n))
+    rest = np.stack([xs.ravel(), ys.ravel(), np.zeros(n * n)], axis=1)
+    triangles = [[j * n + i, j * n + i + 1, (j + 1) * n + i + 1] for j in range(n - 1) for i in range(n - 1)]
+    triangles += [[j * n + i, (j + 1) * n + i + 1, (j + 1) * n + i] for j in range(n - 1) for i in range(n - 1)]
+    frames = []
+    for bend in np.linspace(0.3, 2.0, 9):
+        theta = rest[:, 0] * bend
+        frames.append(np.stack([np.sin(theta) / bend, rest[:, 1], (1 - np.cos(theta)) / bend], axis=1))
+    cache = write_pc2(folder / "in.pc2", np.array(frames), start=1.0)
+    topology = write_obj(folder / "sheet.obj", rest, np.array(triangles))
+    single = folder / "single.pc2"
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5",
+                 "-q", "-o", str(single)]) == 0
+    return folder, cache, topology, single.read_bytes()
+
+
+@pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
+def test_openjd_template_checks():
+    result = subprocess.run([OPENJD, "check", str(TEMPLATE)], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0 and "passes validation" in result.stdout, result.stdout + result.stderr
+
+
+@pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
+def test_openjd_two_chunks_equal_the_single_process(job):
+    folder, cache, topology, single = job
+    (folder / "chunks").mkdir()
+    parameters = dict(InputCache=cache, Topology=topology, OutputCache=folder / "farm.pc2",
+                      ChunkDirectory=folder / "chunks", ExtensionDirectory=ROOT, Python=sys.executable,
+                      Step=4, Speed=0.5, Chunks=2)
+    command = [OPENJD, "run", str(TEMPLATE), "--step", "Merge", "--run-dependencies"]
+    for key, value in parameters.items():
+        command += ["-p", f"{key}={value}"]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    assert sorted(p.name for p in (folder / "chunks").iterdir()) == ["chunk1.pc2", "chunk2.pc2"]
+    assert (folder / "farm.pc2").read_bytes() == single
+
+
+HARNESS = """
+const fs = require("fs");
+const vm = require("vm");
+const tasks = [];
+const author = {
+  Task: (name, type) => ({ name, type, commands: [], dependencies: [],
+    addCommand(command) { this.commands.push(command); },
+    addDependency(task) { this.dependencies.push(task.name); } }),
+  Command: (type, parameters) => ({ type, parameters }),
+};
+const job = { settings: JSON.parse(process.argv[2]), addTask(task) { tasks.push(task); } };
+const context = vm.createContext({ author, job, JSON, String });
+vm.runInContext(fs.readFileSync(process.argv[1], "utf8") + "\\ncompileJob(job);", context);
+console.log(JSON.stringify(tasks));
+"""
+
+
+def compile_flamenco_job(settings: dict) -> list[dict]:
+    result = subprocess.run([NODE, "-e", HARNESS, str(JOB_TYPE), json.dumps(settings)], capture_output=True,
+                            text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout)
+
+
+@pytest.mark.skipif(NODE is None, reason="node is not installed")
+def test_flamenco_job_type_syntax():
+    result = subprocess.run([NODE, "--check", str(JOB_TYPE)], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+
+
+@pytest.mark.skipif(NODE is None, reason="node is not installed")
+def test_flamenco_job_runs_chunks_then_merge(job):
+    folder, cache, topology, single = job
+    (folder / "flamenco").mkdir()
+    settings = dict(input_cache=str(cache), topology=str(topology), output_cache=str(folder / "flamenco.pc2"),
+                    chunk_directory=str(folder / "flamenco"), step=4, speed=0.5, chunks=3, runner="python",
+                    python=sys.executable, core_directory=str(ROOT),
+                    extension_module="bl_ext.user_default.shape_differences")
+    tasks = compile_flamenco_job(settings)
+    assert [task["name"] for task in tasks] == ["retime-1-of-3", "retime-2-of-3", "retime-3-of-3", "merge"]
+    assert tasks[-1]["dependencies"] == ["retime-1-of-3", "retime-2-of-3", "retime-3-of-3"]
+    for task in tasks:  # what the workers would run, in dependency order
+        (command,) = task["commands"]
+        assert command["type"] == "exec"
+        result = subprocess.run([command["parameters"]["exe"], *command["parameters"]["args"]],
+                                capture_output=True, text=True, timeout=300)
+        assert result.returncode == 0, result.stderr
+    assert (folder / "flamenco.pc2").read_bytes() == single
+
+    blender = compile_flamenco_job(dict(settings, runner="blender"))
+    command = blender[0]["commands"][0]
+    assert command["type"] == "blender-render" and command["parameters"]["exe"] == "{blender}"
+    assert "bl_ext.user_default.shape_differences.core.__main__" in command["parameters"]["args"][1]
