@@ -7,7 +7,7 @@ import numpy as np
 from bpy.props import EnumProperty, StringProperty
 
 from .. import bridge
-from ..properties import PoseOutput
+from ..properties import CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
@@ -46,7 +46,7 @@ def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
     return values.astype(np.int64)
 
 
-class SHAPE_DIFFERENCES_OT_transfer_poses(PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
+class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
                                           GeneratorOperator, bpy.types.Operator):
     """Rebuild the poses of another selected mesh (shape keys or animation frames, any
     connectivity) on the active mesh from their shape differences through a functional map, as

@@ -80,3 +80,11 @@ def test_transfer_cloth_frames(bpy_empty, extension, core):
     assert key_names(target) == ["Basis", "Cloth Frame 9"]
     rebuilt = bridge.shape_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
     assert np.isfinite(rebuilt).all() and bpy.context.scene.frame_current == 1
+
+
+def test_transfer_to_a_point_cache(pair, tmp_path):
+    source, target, bridge = pair
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32, output='CACHE', filepath=str(tmp_path / "moved.pc2"))
+    assert target.data.shape_keys is None  # the active mesh is left as it was
+    cached = [o for o in bpy.data.objects if o.name.startswith("Sheet Transfer Source")]
+    assert len(cached) == 1 and any(m.type == 'MESH_CACHE' for m in cached[0].modifiers)
