@@ -116,8 +116,10 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         row = layout.row(align=True)
         operator = row.operator("shape_differences.transfer_poses", text="Transfer Keys", icon='MOD_DATA_TRANSFER')
         operator.source = 'KEYS'
+        set_output(operator, settings, "pose_output")
         operator = row.operator("shape_differences.transfer_poses", text="Transfer Frames", icon='MOD_DATA_TRANSFER')
         operator.source, operator.frame_step = 'FRAMES', settings.frame_step
+        set_output(operator, settings, "output")
 
 
 class VIEW3D_PT_shape_differences_analysis(ShapeDiffPanel, bpy.types.Panel):
