@@ -1,38 +1,45 @@
-"""In-betweening benchmark on Blender cloth simulations (issue 3): linear shape-key blend vs
-``core`` (interpolated shape differences).
+"""In-betweening benchmark on Blender cloth simulations: ``core`` against the linear blend and a
+per-vertex Catmull–Rom spline of the same keys, and against the cost of simulating (issue 17).
 
 Run from the repository root (bakes the scenes with the ``bpy`` module on first use, then reads
 the cache in ``benchmarks/output/``):
 
-    python -m benchmarks.bench_inbetween                  # every scene, gaps 2 4 8 16
-    python -m benchmarks.bench_inbetween --scenes drape_sphere flag_wind --gaps 4 8
+    python -m benchmarks.bench_inbetween --quick         # 1k scenes + the 14k tablecloth, stored bakes
+    python -m benchmarks.bench_inbetween                 # every scene, Blender re-timed in this run
+    python -m benchmarks.bench_inbetween --scenes tablecloth --gaps 4 8 --protocols seq
     python -m benchmarks.bench_inbetween --plot docs/images/inbetween_error.png \
         --side-by-side docs/images/inbetween_side_by_side.png
 
 Protocols (g = gap between kept frames):
 
-- ``pair``: keep frames i and i+g, predict frame i+g/2 with ``core.interpolate(..., 0.5)``
-  (two poses only; i runs over every ``--stride``-th frame);
 - ``seq``: keep every g-th frame as key poses of a ``core.SequenceInterpolator`` and predict every
-  dropped frame i·g + j at factor j/g (all gaps; neighbouring keys inform each gap).
+  dropped frame i·g + j at factor j/g with ``poses(gap, factors)`` (all in-betweens of a gap at
+  once). Compared with the linear blend and the per-vertex uniform Catmull–Rom spline of the same
+  keys (end gaps: the missing neighbour extrapolated linearly), what Houdini, Cinema 4D and
+  Blender's Mesh Cache offer;
+- ``pair``: keep frames i and i+g, predict frame i+g/2 with ``core.Interpolator(a, b).pose(0.5)``
+  (two poses only; i runs over every ``--stride``-th frame).
 
 Metrics (per predicted frame, then median or mean over frames):
 
-- ``rms``: positional RMS error to the true frame, divided by the true frame's bounding-box
-  diagonal; no alignment (placement counts);
-- ``dev``: mean relative edge-length deviation from the rest shape (frame 0),
-  ``mean_e |ℓ_e(pose) − ℓ_e(rest)| / ℓ_e(rest)``; the simulation's own is the same quantity on the
-  true frame; the issue's bound is ``dev ≤ 2·dev_sim + 0.1 %``;
-- ``dev_true``: ``mean_e |ℓ_e(pose) / ℓ_e(true frame) − 1|`` (edge-length error vs the truth);
-- ``flips``: triangles whose normal opposes the normals of both key poses of the gap (the true
-  frames have some too where the cloth crumples below edge scale; reported as ``sim``);
-- ``s/inb``: seconds per in-between once the key poses are prepared (``seq``), and for a
-  one-off ``core.interpolate`` call including preparation (``pair``).
+- ``rms``: positional RMS error to the true frame / the true frame's bounding-box diagonal (median);
+- ``dev``: mean relative edge-length deviation from the rest shape (frame 0); ``sim`` is the
+  same on the true frames; the issue's bound is ``dev ≤ 2·dev_sim + 0.1 %``;
+- ``flips``: triangles whose normal opposes the normals of both keys of the gap (sum);
+- ``s/inb``: seconds per in-between, the preparation of the keys included (``seq``: the whole
+  ``SequenceInterpolator`` construction and every gap's ``poses`` divided by the in-betweens;
+  ``pair``: one ``Interpolator`` construction and ``pose``), and its ratio to Blender's cloth bake
+  per frame on the same mesh (``--rebake``: timed in this run, the default for the full run;
+  otherwise the time stored with the cached bake, marked "stored");
+- ``MB``: peak resident memory of a child process that prepares the keys and computes the
+  in-betweens of the sequence (``--memory``).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import subprocess
 import sys
 import time
 import warnings
@@ -47,6 +54,9 @@ if str(ROOT) not in sys.path:
 from benchmarks.cloth_scenes import SCENES, load_scene  # noqa: E402
 from core.errors import ShapeDifferenceWarning  # noqa: E402
 from core.interpolation import Interpolator, SequenceInterpolator  # noqa: E402
+
+QUICK_SCENES = ["drape_sphere", "fall_box", "tablecloth"]
+LARGE_SCENES = ["tablecloth", "sheet_cube_50k"]
 
 
 def unique_edges(triangles: np.ndarray) -> np.ndarray:
@@ -71,70 +81,90 @@ class Metrics:
 
     def __call__(self, pose, true, key_a, key_b) -> dict:
         diag = np.linalg.norm(true.max(0) - true.min(0))
-        lengths = self.lengths(pose)
         n = self.normals(pose)
         flips = (np.einsum("ij,ij->i", n, self.normals(key_a)) < 0) & (np.einsum("ij,ij->i", n, self.normals(key_b)) < 0)
         return {
             "rms": float(np.sqrt(np.mean(np.sum((pose - true) ** 2, axis=1))) / diag),
-            "dev": float(np.mean(np.abs(lengths / self.rest - 1.0))),
-            "dev_true": float(np.mean(np.abs(lengths / self.lengths(true) - 1.0))),
+            "dev": float(np.mean(np.abs(self.lengths(pose) / self.rest - 1.0))),
             "flips": int(flips.sum()),
             "nan": int(not np.isfinite(pose).all()),
         }
 
 
+def catmull_rom(keys: np.ndarray, gap: int, s: float) -> np.ndarray:
+    """Per-vertex uniform Catmull–Rom spline of ``keys`` (K, n, 3) at factor ``s`` of ``gap``;
+    a missing neighbour at either end is the linear extrapolation of the last two keys."""
+    p1, p2 = keys[gap], keys[gap + 1]
+    p0 = keys[gap - 1] if gap >= 1 else 2 * p1 - p2
+    p3 = keys[gap + 2] if gap + 2 < len(keys) else 2 * p2 - p1
+    s2, s3 = s * s, s * s * s
+    return 0.5 * (2 * p1 + (p2 - p0) * s + (2 * p0 - 5 * p1 + 4 * p2 - p3) * s2 + (3 * p1 - p0 - 3 * p2 + p3) * s3)
+
+
 def _summary(rows: list[dict]) -> dict:
     out = {"n": len(rows)}
-    for key in ("rms", "dev", "dev_true"):
-        values = np.array([r[key] for r in rows])
-        out[key] = float(np.median(values)) if key == "rms" else float(np.mean(values))
+    out["rms"] = float(np.median([r["rms"] for r in rows]))
+    out["dev"] = float(np.mean([r["dev"] for r in rows]))
     out["flips"] = int(sum(r["flips"] for r in rows))
     out["nan"] = int(sum(r["nan"] for r in rows))
-    out["seconds"] = float(np.mean([r["seconds"] for r in rows])) if "seconds" in rows[0] else float("nan")
     return out
 
 
-def run_scene(name: str, gaps, *, stride: int = 2, protocols=("pair", "seq"), max_seq_frames=None, log=print):
+def _poses(seq, gap, factors):
+    """All in-betweens of one gap (the batch API when this ``core`` has it)."""
+    if hasattr(seq, "poses"):
+        return seq.poses(gap, factors)
+    return np.stack([seq.pose(gap, f) for f in factors])
+
+
+def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), bake_seconds=None,
+              max_pairs=None, log=print):
+    """Rows of the table for one scene; ``bake_seconds``: Blender's bake per frame timed in this
+    run (None: the time stored with the cached bake)."""
     scene = load_scene(name, verbose=True)
     frames, triangles = scene.frames, scene.triangles
+    per_frame = scene.seconds_per_frame if bake_seconds is None else bake_seconds
     metric = Metrics(frames, triangles)
-    n_frames = len(frames)
-    results = []
-    warned = []
+    results, warned = [], []
     for g in gaps:
         for protocol in protocols:
-            rows = {"blend": [], "ours": [], "sim": []}
+            rows = {"ours": [], "blend": [], "cubic": [], "sim": []}
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always", ShapeDifferenceWarning)
                 if protocol == "pair":
-                    for i in range(0, n_frames - g, stride):
+                    starts = list(range(0, len(frames) - g, stride))
+                    if max_pairs is not None:
+                        starts = starts[:: max(1, len(starts) // max_pairs)][:max_pairs]
+                    t0 = time.perf_counter()
+                    for i in starts:
                         a, b, true = frames[i], frames[i + g], frames[i + g // 2]
-                        t0 = time.perf_counter()
                         ours = Interpolator(a, b, triangles).pose(0.5)
-                        seconds = time.perf_counter() - t0
-                        rows["ours"].append({**metric(ours, true, a, b), "seconds": seconds})
+                        rows["ours"].append(metric(ours, true, a, b))
                         rows["blend"].append(metric(0.5 * (a + b), true, a, b))
+                        rows["cubic"].append(rows["blend"][-1])
                         rows["sim"].append(metric(true, true, a, b))
+                    count = len(starts)
                 else:
-                    keys = frames[::g]
+                    keys = frames[: (len(frames) - 1) // g * g + 1 : g]
+                    factors = np.arange(1, g) / g
                     t0 = time.perf_counter()
                     seq = SequenceInterpolator(keys, triangles)
-                    targets = [(k, j) for k in range(len(seq)) for j in range(1, g)]
-                    if max_seq_frames is not None:  # the middle frame of each gap only
-                        targets = [(k, g // 2) for k in range(len(seq))]
-                    for k, j in targets:
-                        a, b, true = keys[k], keys[k + 1], frames[k * g + j]
-                        s = j / g
-                        seq._segment(k)  # prepare the gap (per-key work), timed separately
-                        t0 = time.perf_counter()
-                        ours = seq.pose(k, s)
-                        seconds = time.perf_counter() - t0
-                        rows["ours"].append({**metric(ours, true, a, b), "seconds": seconds})
-                        rows["blend"].append(metric((1 - s) * a + s * b, true, a, b))
-                        rows["sim"].append(metric(true, true, a, b))
+                    predicted = [_poses(seq, k, factors) for k in range(len(seq))]
+                    count = len(seq) * len(factors)
+                seconds = (time.perf_counter() - t0) / count
+                if protocol == "seq":
+                    for k in range(len(seq)):
+                        a, b = keys[k], keys[k + 1]
+                        for j, s in enumerate(factors, start=1):
+                            true = frames[k * g + j]
+                            rows["ours"].append(metric(predicted[k][j - 1], true, a, b))
+                            rows["blend"].append(metric((1 - s) * a + s * b, true, a, b))
+                            rows["cubic"].append(metric(catmull_rom(keys, k, s), true, a, b))
+                            rows["sim"].append(metric(true, true, a, b))
                 warned.extend(str(w.message) for w in caught)
-            summary = {key: _summary(value) for key, value in rows.items()}
-            entry = {"scene": name, "n_vertices": frames.shape[1], "gap": g, "protocol": protocol, **summary}
+            entry = {"scene": name, "n_vertices": frames.shape[1], "gap": g, "protocol": protocol,
+                     "seconds": seconds, "bake": per_frame, "bake_stored": bake_seconds is None,
+                     **{key: _summary(value) for key, value in rows.items()}}
             results.append(entry)
             log(format_row(entry))
     if warned:
@@ -144,22 +174,55 @@ def run_scene(name: str, gaps, *, stride: int = 2, protocols=("pair", "seq"), ma
 
 def format_header() -> str:
     return (
-        "| scene | n | g | protocol | RMS ours | RMS blend | dev ours | dev blend | dev sim | bound | "
-        "edge err vs true ours / blend | flips ours / blend / sim | s per in-between |\n"
+        "| scene | n | g | protocol | s / in-between | × bake | RMS ours | ÷ linear | ÷ Catmull–Rom | "
+        "dev ours | dev sim | bound | flips ours / linear / sim |\n"
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     )
 
 
 def format_row(e: dict) -> str:
-    o, b, s = e["ours"], e["blend"], e["sim"]
+    o, b, c, s = e["ours"], e["blend"], e["cubic"], e["sim"]
     bound = 2 * s["dev"] + 0.001
     ok = "✓" if o["dev"] <= bound else "✗"
+    ratio = e["seconds"] / e["bake"]
+    cubic = f"{o['rms'] / c['rms']:.3f}" if e["protocol"] == "seq" else "–"
     return (
-        f"| {e['scene']} | {e['n_vertices']} | {e['gap']} | {e['protocol']} | {o['rms']:.2e} | {b['rms']:.2e} | "
-        f"{o['dev'] * 100:.2f}% {ok} | {b['dev'] * 100:.2f}% | {s['dev'] * 100:.2f}% | {bound * 100:.2f}% | "
-        f"{o['dev_true'] * 100:.2f}% / {b['dev_true'] * 100:.2f}% | {o['flips']} / {b['flips']} / {s['flips']} | "
-        f"{o['seconds']:.3f} |"
+        f"| {e['scene']} | {e['n_vertices']} | {e['gap']} | {e['protocol']} | {e['seconds']:.4f} | "
+        f"{ratio:.3f}{' (stored)' if e['bake_stored'] else ''} | {o['rms']:.2e} | {o['rms'] / b['rms']:.3f} | "
+        f"{cubic} | {o['dev'] * 100:.2f}% {ok} | {s['dev'] * 100:.2f}% | {bound * 100:.2f}% | "
+        f"{o['flips']} / {b['flips']} / {s['flips']} |"
     )
+
+
+def peak_memory(name: str, gap: int) -> float:
+    """Peak resident memory (MB, the kernel's ``VmHWM`` of the child's own address space:
+    ``ru_maxrss`` would keep the parent's across ``exec``) of a child process that loads scene
+    ``name``, prepares its keys (every ``gap``-th frame) and computes every in-between of the
+    sequence; its baseline after loading and the imports too."""
+    code = f"""
+import sys, warnings
+sys.path.insert(0, {str(ROOT)!r})
+import numpy as np
+from benchmarks.cloth_scenes import load_scene
+from core.interpolation import SequenceInterpolator
+from benchmarks.bench_inbetween import _poses
+scene = load_scene({name!r})
+keys = np.ascontiguousarray(scene.frames[::{gap}]); triangles = scene.triangles
+del scene
+def peak():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+base = peak()
+warnings.simplefilter("ignore")
+seq = SequenceInterpolator(keys, triangles)
+for k in range(len(seq)):
+    _poses(seq, k, np.arange(1, {gap}) / {gap})
+print(base, peak())
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    base, peak = map(float, out.stdout.split()[-2:])
+    return base, peak
 
 
 def plot(results, path):
@@ -269,23 +332,50 @@ def exaggeration_check(log=print):
             f"(linear {np.sqrt(np.mean(np.sum((lin - bent(f * np.pi / 2)) ** 2, 1))):.2e})")
 
 
+def bake_per_frame(name: str) -> float:
+    """Blender's cloth bake of scene ``name`` timed in this run, in a child process (seconds per
+    frame); the frames are re-cached."""
+    code = (f"import sys; sys.path.insert(0, {str(ROOT)!r}); from benchmarks.cloth_scenes import load_scene; "
+            f"print(load_scene({name!r}, rebake=True).seconds_per_frame)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(out.stdout.split()[-1])
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scenes", nargs="*", default=list(SCENES))
-    parser.add_argument("--gaps", nargs="*", type=int, default=[2, 4, 8, 16])
+    parser.add_argument("--scenes", nargs="*", default=None)
+    parser.add_argument("--gaps", nargs="*", type=int, default=[4, 8, 16])
     parser.add_argument("--stride", type=int, default=2, help="pair protocol: every stride-th start frame")
-    parser.add_argument("--protocols", nargs="*", default=["pair", "seq"])
+    parser.add_argument("--protocols", nargs="*", default=["seq", "pair"])
+    parser.add_argument("--quick", action="store_true",
+                        help=f"scenes {' '.join(QUICK_SCENES)}, stored bake times, pairs at most 8 per gap")
+    parser.add_argument("--rebake", nargs="*", default=None,
+                        help="scenes whose Blender bake is timed again in this run (default: the large "
+                             "scenes in a full run, none with --quick)")
+    parser.add_argument("--memory", action="store_true", help="peak memory of the sequence in a child process")
+    parser.add_argument("--json", default=None, help="write the results as JSON")
     parser.add_argument("--plot", default=None, help="save the error/deviation-vs-gap plot (PNG)")
     parser.add_argument("--side-by-side", default=None, help="save a side-by-side image (PNG)")
     args = parser.parse_args(argv)
+    scenes = args.scenes or (QUICK_SCENES if args.quick else list(SCENES))
+    rebake = args.rebake if args.rebake is not None else ([] if args.quick else [s for s in scenes if s in LARGE_SCENES])
     exaggeration_check()
+    timed = {}
+    for name in rebake:
+        timed[name] = bake_per_frame(name)
+        print(f"Blender's cloth bake of {name} in this run: {timed[name]:.3f} s per frame")
     print(format_header())
     results = []
-    for name in args.scenes:
-        # Every scene starts a pair at every stride-th frame (the 10k scene once used every 4th
-        # only: its g = 16 median over 6 pairs put ours 12 % above the blend, over all 24 pairs
-        # it is 0.4 % below).
-        results += run_scene(name, args.gaps, stride=args.stride, protocols=args.protocols)
+    for name in scenes:
+        results += run_scene(name, args.gaps, stride=args.stride, protocols=args.protocols,
+                             bake_seconds=timed.get(name), max_pairs=8 if args.quick or name in LARGE_SCENES else None)
+        if args.memory and name in LARGE_SCENES:
+            base, peak = peak_memory(name, min(args.gaps))
+            print(f"  {name}: peak memory {peak:.0f} MB (after loading and imports: {base:.0f} MB), "
+                  f"gap {min(args.gaps)}")
+            results[-1]["memory_mb"] = peak
+    if args.json:
+        Path(args.json).write_text(json.dumps(results, indent=1))
     if args.plot:
         plot([r for r in results if r["n_vertices"] <= 5000], args.plot)
     if args.side_by_side:

@@ -33,8 +33,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "core"))
 
+from core.geometry import heron  # noqa: E402
 from core.reference_shape import LayerMetric, RecoveredMetric, ReferenceShape  # noqa: E402
-from core.triangle_constraints import CONSTRAINT_TOLERANCE, heron  # noqa: E402
+from core.triangle_constraints import CONSTRAINT_TOLERANCE  # noqa: E402
 
 PAPER = {  # Fig. 16: area, edge (intrinsic); area, edge (offset); reconstruction — seconds
     "human": (4.7, 9.0, 16.5, 310.9, 195.6),

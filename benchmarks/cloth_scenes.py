@@ -20,7 +20,11 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
   two objects, self-collision on); Blender's default (soft) cloth, which crumples below edge scale.
 - ``hang_corners``: 20×20 sheet (400 vertices), default cloth pinned at two corners, swinging down
   from horizontal.
-- ``drape_sphere_hd``: 100×100 sheet (10000 vertices) as ``drape_sphere`` (speed target).
+- ``drape_sphere_hd``: 100×100 sheet (10000 vertices) as ``drape_sphere``.
+- ``tablecloth``: 120×120 tablecloth (14,400 vertices, default cloth) falling onto a round table
+  (a cylinder), the scene of issue 17 (speed target).
+- ``sheet_cube_50k``: 224×224 sheet (50,176 vertices, default cloth) falling over the edge of a
+  cube onto a floor (speed and memory target at ~50k vertices).
 
 Stiff scenes (tension/compression 80, bending 2–5, quality 10) keep edge lengths within ~0.2–0.6%
 of rest like the simulations in issue 3; default cloth (bending 0.5) wrinkles below the edge scale
@@ -71,6 +75,8 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec(
             "drape_sphere_hd", "drape", (100, 100), frames=64, quality=10, params=(("stiffness", 80.0), ("bending", 5.0))
         ),
+        SceneSpec("tablecloth", "table", (120, 120), size=2.2, frames=48),
+        SceneSpec("sheet_cube_50k", "edge", (224, 224), size=2.4, frames=40),
     ]
 }
 
@@ -80,7 +86,12 @@ class ClothScene:
     name: str
     frames: np.ndarray  # float64 (F, n, 3)
     triangles: np.ndarray  # int64 (m, 3)
-    bake_seconds: float
+    bake_seconds: float  # Blender's cloth bake of all frames (when this scene was baked)
+
+    @property
+    def seconds_per_frame(self) -> float:
+        """Blender's cloth solver time per simulated frame (frame 1 is the initial state)."""
+        return self.bake_seconds / max(len(self.frames) - 1, 1)
 
     @property
     def rest(self) -> np.ndarray:
@@ -93,7 +104,8 @@ class ClothScene:
 
 
 def load_scene(name: str, *, rebake: bool = False, verbose: bool = False) -> ClothScene:
-    """The baked frames of scene ``name`` (from the .npz cache when its parameters match)."""
+    """The baked frames of scene ``name`` (from the .npz cache when its parameters match, unless
+    ``rebake``: then Blender's bake is timed again in this process)."""
     spec = SCENES[name]
     OUTPUT_DIR.mkdir(parents=True, exist_ok=True)
     path = OUTPUT_DIR / f"cloth_{name}.npz"
@@ -101,9 +113,7 @@ def load_scene(name: str, *, rebake: bool = False, verbose: bool = False) -> Clo
         data = np.load(path)
         if str(data["key"]) == spec.key():
             return ClothScene(name, data["frames"], data["triangles"], float(data["bake_seconds"]))
-    t0 = time.perf_counter()
-    frames, triangles = bake(spec)
-    seconds = time.perf_counter() - t0
+    frames, triangles, seconds = bake(spec)
     np.savez_compressed(path, frames=frames, triangles=triangles, key=spec.key(), bake_seconds=seconds)
     if verbose:
         print(f"baked {name}: {frames.shape[1]} vertices, {frames.shape[0]} frames in {seconds:.1f} s")
@@ -156,6 +166,8 @@ def _collider(bpy, kind, **kw):
         bpy.ops.mesh.primitive_cube_add(**kw)
     elif kind == "plane":
         bpy.ops.mesh.primitive_plane_add(**kw)
+    elif kind == "cylinder":
+        bpy.ops.mesh.primitive_cylinder_add(vertices=64, **kw)
     ob = bpy.context.active_object
     bpy.ops.object.shade_smooth() if kind == "sphere" else None
     ob.modifiers.new("Collision", "COLLISION")
@@ -178,8 +190,9 @@ def _quiet_stdout():
         os.close(devnull)
 
 
-def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
-    """Build scene ``spec`` in a fresh Blender file, bake its cloth and read every frame."""
+def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray, float]:
+    """Build scene ``spec`` in a fresh Blender file, bake its cloth and read every frame:
+    ``(frames, triangles, seconds)`` with the seconds of Blender's cloth bake alone."""
     bpy = _import_bpy()
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
@@ -204,6 +217,13 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
         cloth, co = _grid(bpy, spec, location=(0.3, 0.2, 1.6), rotation=(0.35, 0.25, 0.5))
         _collider(bpy, "cube", size=0.8, location=(0.0, 0.0, 0.4), rotation=(0.0, 0.0, 0.6))
         _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
+    elif spec.kind == "table":
+        cloth, co = _grid(bpy, spec, location=(0.04, -0.02, 1.1), rotation=(0.0, 0.0, 0.3))
+        _collider(bpy, "cylinder", radius=0.6, depth=0.8, location=(0.0, 0.0, 0.4))
+    elif spec.kind == "edge":
+        cloth, co = _grid(bpy, spec, location=(0.9, 0.1, 1.3), rotation=(0.05, 0.1, 0.2))
+        _collider(bpy, "cube", size=1.0, location=(0.0, 0.0, 0.5), rotation=(0.0, 0.0, 0.3))
+        _collider(bpy, "plane", size=10.0, location=(0.0, 0.0, 0.0))
     elif spec.kind == "hang":
         cloth, co = _grid(bpy, spec, location=(0.0, 0.0, 1.5))
         corners = [0, nx - 1]  # two corners of the first row
@@ -231,8 +251,10 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
     if bending is not None:
         settings.bending_stiffness = bending
 
+    t0 = time.perf_counter()
     with _quiet_stdout(), bpy.context.temp_override(scene=scene):
         bpy.ops.ptcache.bake_all(bake=True)
+    bake_seconds = time.perf_counter() - t0
 
     mesh = cloth.data
     n = len(mesh.vertices)
@@ -255,7 +277,7 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray]:
         mw = np.array(cloth.matrix_world, dtype=np.float64)
         pts = buf.reshape(-1, 3).astype(np.float64)
         frames[k] = pts @ mw[:3, :3].T + mw[:3, 3]
-    return frames, triangles
+    return frames, triangles, bake_seconds
 
 
 def main(argv=None):

@@ -1,6 +1,6 @@
 """Shape differences core: the functional characterization of intrinsic and extrinsic geometry
 (Corman, Solomon, Ben-Chen, Guibas, Ovsjanikov, ACM TOG 2017) for meshes in vertex-for-vertex
-correspondence. Pure NumPy/SciPy (cvxpy only for truncated recovery); never imports bpy.
+correspondence. Pure NumPy/SciPy; never imports bpy.
 
 Public API (arrays: vertices float64 ``(n, 3)``, triangles int ``(m, 3)``):
 

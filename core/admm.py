@@ -13,42 +13,49 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geometry import DIVISION_FLOOR
 from .low_rank import SplitGram
 
-#: ADMM stopping tolerance (relative primal and fixed-point residuals) and iteration cap. 1e-5
-#: changes the recovered lengths by ~1e-3 relative to their error against 1e-6 and saves ~40 %.
+# Measurements behind every constant: docs/design-decisions.md.
+#: Stopping tolerance on the relative primal and fixed-point residuals, and iteration cap.
 ADMM_TOLERANCE = 1e-5
 ADMM_MAX_ITERATIONS = 3000
-#: ADMM also stops when its relative residual, already below ADMM_STALL_FACTOR × the tolerance,
-#: fell by less than 10 % over the last ADMM_STALL_WINDOW iterations, or so slowly that at that
-#: rate the tolerance would not be reached within the iteration cap. Measured on offset layers of
-#: Blender cloth: a drape (frames 40 → 48) at 1.1e-4 after 250 iterations, 6.3e-5 after 1,000,
-#: 4.7e-5 after 3,000 (38 s) whatever ρ; a flag in wind (40 → 48) shrinking ~1/iterations, from
-#: 5.8e-4 at 250 to 5.7e-5 at 3,000 (35 s; now stopped at 750, 9.6 s). Converging cases reach
-#: 1e-5 in 150–460 iterations. The slack is far below what decides accuracy: the true lengths fit
-#: the truncated data 3× (synthetic cloth) to 750× (drape) worse than the optimum does, and the
-#: Hausdorff errors on 16 Blender scene pairs moved by at most 0.4 points.
+#: Convergence is checked every this many iterations.
+ADMM_CHECK_EVERY = 5
+#: Stop a stall: residual below ADMM_STALL_FACTOR × the tolerance and shrinking by less than
+#: 1 − ADMM_STALL_RATE per ADMM_STALL_WINDOW iterations (or too slowly to reach the tolerance
+#: within the cap); the slack is far below what decides accuracy.
 ADMM_STALL_FACTOR = 30.0
 ADMM_STALL_WINDOW = 250
-#: ADMM penalty ρ in units of √(ε · mean diagonal of the data term's Gram), rebalanced every
-#: ADMM_ADAPT_EVERY iterations (a p × p refactorization each), at most ADMM_MAX_ADAPTATIONS
-#: times. Measured iterations at tolerance 1e-5 (cloth base / cloth offset / human offset):
-#: ×10 fixed 130 / 140 / 445; ×30 fixed — / — / 315; ×10 with (100, 2) 155 / 155 / ~400;
-#: more frequent rebalancing (25, 10) 430 / 275 / — — the rule is not monotone, so it is mild.
+ADMM_STALL_RATE = 0.9
+#: Initial ρ in units of √(ε · mean diagonal of the data Gram); rebalanced every ADMM_ADAPT_EVERY
+#: iterations (a p × p refactorization each), at most ADMM_MAX_ADAPTATIONS times.
 ADMM_RHO_SCALE = 10.0
 ADMM_ADAPT_EVERY = 100
 ADMM_MAX_ADAPTATIONS = 2
+#: Residual balancing (OSQP's rule): ρ changes only when primal/dual leaves this band, by
+#: √(primal/dual) clipped to RHO_STEP_LIMIT.
+RHO_BALANCE_BAND = (0.2, 5.0)
+RHO_STEP_LIMIT = (0.1, 10.0)
+#: Anderson acceleration: differences kept, residual growth (× best) beyond which an
+#: extrapolation is not tried, and the rcond of its least-squares solve.
+ANDERSON_MEMORY = 8
+ANDERSON_SAFEGUARD = 10.0
+ANDERSON_RCOND = 1e-10
 
 
 @dataclass
 class ADMMSolution:
+    """``x`` the last x-iterate, after ``iterations``; ``converged`` False when stopped by the
+    iteration cap or a stall."""
+
     x: np.ndarray
     iterations: int
     converged: bool
 
 
 def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u_start=None,
-          rho=None, tol=None, max_iter=None, memory=8, split=None):
+          rho=None, tol=None, max_iter=None, memory=ANDERSON_MEMORY, split=None):
     """Scaled-form ADMM with slot copies ``z = x[slots]`` (``project`` maps a slot vector onto the
     constraint set), accelerated by safeguarded type-II Anderson acceleration on the
     Douglas–Rachford variable ``v = z − u`` (the x-update depends on the state only through it).
@@ -68,8 +75,7 @@ def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u
     def step(v):
         x = solver.solve(b + rho * np.bincount(slots, v, minlength=n))
         xs = x[slots]
-        # v = z − u; the z-update reads Sx + u = Sx + (z − v) — keep z, u implicit through
-        # the reflected form: with w = 2 Sx − v, z = Π(w), u = Sx − v ... (standard DR).
+        # Douglas–Rachford form of the scaled ADMM step: z = Π(2 Sx − v), then v ← v + z − Sx.
         w = 2.0 * xs - v
         z = project(w)
         return v + z - xs, x, xs, z
@@ -93,20 +99,20 @@ def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u
             hist_v.pop(0)
             hist_r.pop(0)
         v_next = tv
-        if len(hist_r) >= 3 and res < 10 * prev_res:
+        if len(hist_r) >= 3 and res < ANDERSON_SAFEGUARD * prev_res:
             dr = np.diff(np.array(hist_r), axis=0)
             dv = np.diff(np.array(hist_v), axis=0)
             try:
-                gamma = np.linalg.lstsq(dr.T, r, rcond=1e-10)[0]
+                gamma = np.linalg.lstsq(dr.T, r, rcond=ANDERSON_RCOND)[0]
                 cand = tv - dv.T @ gamma
                 if np.all(np.isfinite(cand)):
                     v_next = cand
             except np.linalg.LinAlgError:
                 pass
         prev_res = min(prev_res, res)
-        if it % 5 == 0:
+        if it % ADMM_CHECK_EVERY == 0:
             primal = np.linalg.norm(xs - z)
-            scale = max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
+            scale = max(np.linalg.norm(xs), np.linalg.norm(z), DIVISION_FLOOR)
             if primal <= tol * scale and res <= tol * scale:
                 converged = True
                 break
@@ -117,18 +123,18 @@ def admm(f, g, eps, x0, slots, counts, project, *, x_start=None, z_start=None, u
                     # At this window's rate, would the tolerance be reached within the cap?
                     rate = current / checkpoint
                     windows_left = (max_iter - it) / ADMM_STALL_WINDOW
-                    if rate > 0.9 or rate ** windows_left > tol / current:
+                    if rate > ADMM_STALL_RATE or rate ** windows_left > tol / current:
                         break
                 checkpoint = current
         if it % ADMM_ADAPT_EVERY == 0 and adaptations < ADMM_MAX_ADAPTATIONS:
             # Residual balancing (OSQP's rule on relative residuals): ρ ← ρ √(r_primal / r_dual),
             # the scaled dual u rescaled with it, Anderson's history restarted.
             u_now = z - v_next
-            primal = np.linalg.norm(xs - z) / max(np.linalg.norm(xs), np.linalg.norm(z), 1e-300)
-            dual = np.linalg.norm(z - z_prev) / max(np.linalg.norm(u_now), 1e-300)
-            ratio = primal / max(dual, 1e-300)
-            if not 0.2 <= ratio <= 5.0:
-                factor = float(np.clip(np.sqrt(ratio), 0.1, 10.0))
+            primal = np.linalg.norm(xs - z) / max(np.linalg.norm(xs), np.linalg.norm(z), DIVISION_FLOOR)
+            dual = np.linalg.norm(z - z_prev) / max(np.linalg.norm(u_now), DIVISION_FLOOR)
+            ratio = primal / max(dual, DIVISION_FLOOR)
+            if not RHO_BALANCE_BAND[0] <= ratio <= RHO_BALANCE_BAND[1]:
+                factor = float(np.clip(np.sqrt(ratio), *RHO_STEP_LIMIT))
                 u_now /= factor
                 rho *= factor
                 solver = split.woodbury(eps, rho)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
 from .shape_space_pca import KINDS
 
@@ -67,7 +68,7 @@ class DistortionAnalyzer:
         ref = self.reference
         self.k = int(min(k, ref.topology.n_vertices - 1))
         self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
-        self._base_vertex_area = _lumped(ref.topology, ref.base.areas)
+        self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:
             surface = ref.surface
             offset_tris = surface.topology.triangles
@@ -85,11 +86,11 @@ class DistortionAnalyzer:
         areas = triangle_areas(pose, topo.triangles)
         squared = topo.squared_edge_lengths(pose)
         area_faces = np.log(areas / ref.base.areas)
-        area_vertices = np.log(_lumped(topo, areas) / self._base_vertex_area)
+        area_vertices = np.log(lumped_vertex_areas(topo.triangles, areas, topo.n_vertices) / self._base_vertex_area)
         conformal_faces = _conformal_ratio(self._base_local, squared[topo.triangle_edges])
-        weights = np.repeat(ref.base.areas, 3)
-        conformal_vertices = np.bincount(topo.triangles.ravel(), weights * np.repeat(conformal_faces, 3),
-                                         topo.n_vertices) / np.bincount(topo.triangles.ravel(), weights, topo.n_vertices)
+        # Base-area-weighted mean over each vertex's triangles (the thirds cancel).
+        conformal_vertices = lumped_vertex_areas(topo.triangles, ref.base.areas * conformal_faces,
+                                                 topo.n_vertices) / self._base_vertex_area
         bending_faces = bending_vertices = None
         if ref.use_extrinsic:
             offset_positions = ref.surface.positions(pose, ref.offset)
@@ -141,7 +142,7 @@ class DistortionAnalyzer:
             reduced = phi[:, keep].T @ (conformal @ phi[:, keep])
             values, vectors = sla.eigh(0.5 * (reduced + reduced.T), np.diag(basis.eigenvalues[keep]))
             phi = phi[:, keep]
-        order = np.argsort(-np.abs(np.log(np.maximum(values, 1e-300))), kind="stable")[:count]
+        order = np.argsort(-np.abs(np.log(np.maximum(values, DIVISION_FLOOR))), kind="stable")[:count]
         functions = phi @ vectors[:, order]
         if kind.startswith("offset"):
             functions = self._on_base_vertices(functions)
@@ -176,15 +177,9 @@ def distortion(base_vertices, pose_vertices, triangles, *, offset: float | None 
 
 
 # -- helpers -----------------------------------------------------------------------------------
-def _lumped(topology, areas):
-    return np.bincount(topology.triangles.ravel(), np.repeat(areas / 3.0, 3), topology.n_vertices)
-
-
 def _scatter(reference, values):
     """Used-vertex values ``(n_used, ...)`` to all vertices ``(n, ...)``, 0 at loose vertices."""
-    out = np.zeros((reference.n_vertices,) + values.shape[1:])
-    out[reference.used_vertices] = values
-    return out
+    return expand_vertex_values(reference.used_vertices, values, reference.n_vertices)
 
 
 def _layouts(squared):
@@ -204,5 +199,5 @@ def _conformal_ratio(base_edges, pose_squared):
     g11, g12, g22 = np.moveaxis(np.linalg.solve(system, pose_squared[..., None])[..., 0], -1, 0)
     half_trace = 0.5 * (g11 + g22)
     root = np.sqrt(np.maximum(half_trace**2 - (g11 * g22 - g12 * g12), 0.0))
-    largest, smallest = half_trace + root, np.maximum(half_trace - root, 1e-300)
+    largest, smallest = half_trace + root, np.maximum(half_trace - root, DIVISION_FLOOR)
     return np.sqrt(largest / smallest)

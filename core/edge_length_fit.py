@@ -20,21 +20,40 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .geometry import rows_dot
 from .pcg import pcg
 from .small_matrices import cofactors_3x3
 
+# Measurements behind every constant: docs/design-decisions.md.
+#: Default RMS relative length residual at which the public fits stop.
+DEFAULT_TOLERANCE = 1e-8
+#: Tolerance of refine_edge_lengths: it runs its iteration budget unless the fit is at round-off.
+REFINE_TOLERANCE = 1e-12
 #: Default cap on Levenberg–Marquardt iterations.
 DEFAULT_MAX_ITERATIONS = 60
 #: Conjugate-gradient iterations per Gauss–Newton step (inexact Newton) and relative tolerance.
 CG_ITERATIONS = 300
 CG_TOLERANCE = 1e-4
-#: Levenberg–Marquardt stops when an accepted step lowers the cost by less than this fraction.
+#: Levenberg–Marquardt stops when an accepted step lowers the cost by less than this fraction,
+#: or when no point moves more than STEP_FLOOR mean edge lengths.
 STAGNATION = 1e-3
+STEP_FLOOR = 1e-14
+#: Levenberg damping relative to the mean diagonal of JᵀJ: the first value (nearly Gauss–Newton)
+#: and the floor that keeps the damped system definite along the rigid gauge.
+INITIAL_DAMPING = 1e-6
+DAMPING_FLOOR = 1e-12
+#: Damping divided after an accepted step, multiplied after a rejected one; that many
+#: rejections in a row mean no descent is left (a local minimum to working precision).
+DAMPING_DECREASE = 4.0
+DAMPING_INCREASE = 8.0
+DAMPING_TRIES = 10
+#: Target squared lengths below this fraction of their mean are floored in the residual weights.
+LENGTH_FLOOR = 1e-12
 
 
 def relative_residuals(x: np.ndarray, edges: np.ndarray, squared: np.ndarray):
     d = x[edges[:, 0]] - x[edges[:, 1]]
-    length = np.sqrt(np.einsum("ij,ij->i", d, d))
+    length = np.sqrt(rows_dot(d, d))
     target = np.sqrt(squared)
     floor = np.finfo(float).tiny
     return (length - target) / np.maximum(target, floor)
@@ -92,7 +111,7 @@ class EdgeLengthFit:
         squared lengths blended into the targets by each of ``fractions`` (the full step is the
         caller's)."""
         d = x[self.edges[:, 0]] - x[self.edges[:, 1]]
-        own = np.einsum("ij,ij->i", d, d)
+        own = rows_dot(d, d)
         for fraction in fractions:  # intermediate steps are capped: not converging there is expected
             blended = replace(self, squared=(1.0 - fraction) * own + fraction * self.squared)
             x, _, _ = blended._polish(x, iterations)
@@ -122,19 +141,19 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
     blocks += extra_diag.reshape(nf, 3)[:, :, None] * np.eye(3)[None]
     # Closed-form inverse; the blocks are symmetric positive definite (determinant > 0, the
     # cofactor matrix its own transpose). Kept C-contiguous: the BSR product ravels its data on
-    # every call, and a transposed view made that a copy (+0.45 s on the 1k cloth's embedding).
+    # every call, and a transposed view would make that a copy.
     cofactors, det = cofactors_3x3(blocks)
     return cofactors / det[:, None, None]
 
 
 def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_weight=0.0, length_scale=1.0,
-                         tolerance=1e-12, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS):
+                         tolerance=REFINE_TOLERANCE, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS):
     """Minimize ``Σ_e r_e² + (w / h²) Σ_v |x_v − a_v|²`` with ``r_e = (|x_i − x_j|² − ℓ²_e)/(2ℓ²_e)``.
 
     ``x0`` ``(N, 3)``; ``free`` bool ``(N,)`` points that move (the others stay); ``anchor_points``
     ``(N, 3)`` with NaN rows for unanchored points; ``length_scale`` ``h`` the mean edge length.
     Each step solves ``(JᵀJ + µI + A) δ = −g`` by block-Jacobi preconditioned CG (an inexact
-    Newton step; SuperLU was measured 0.4–3 s per factorization already at 1k vertices). Returns
+    Newton step: a sparse factorization per step costs far more). Returns
     ``(x, iterations, converged)``.
     """
     from scipy.sparse import bsr_matrix, coo_matrix
@@ -145,7 +164,7 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
     nf = int(free.sum())
     use = (index[edges[:, 0]] >= 0) | (index[edges[:, 1]] >= 0)
     edges, squared = edges[use], squared[use]
-    scale2 = np.maximum(squared, 1e-12 * max(float(np.mean(squared)) if squared.size else 1.0, np.finfo(float).tiny))
+    scale2 = np.maximum(squared, LENGTH_FLOOR * max(float(np.mean(squared)) if squared.size else 1.0, np.finfo(float).tiny))
     inv = 1.0 / (2.0 * scale2)
     anchored = np.zeros(N, dtype=bool)
     aw = 0.0
@@ -160,7 +179,7 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
 
     def cost_of(x):
         d = x[edges[:, 0]] - x[edges[:, 1]]
-        r = (np.einsum("ij,ij->i", d, d) - squared) * inv
+        r = (rows_dot(d, d) - squared) * inv
         c = float(r @ r)
         if aw:
             da = x[anchored] - anchor_points[anchored]
@@ -201,16 +220,16 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
         J = coo_matrix((np.concatenate(data), (np.concatenate(rr), np.concatenate(cc))),
                        shape=(edges.shape[0], 3 * nf)).tocsr()
         JT = J.T.tocsr()
-        gg = np.einsum("ij,ij->i", g, g)
+        gg = rows_dot(g, g)
         mean_diag = float(2.0 * gg.sum() / max(3 * nf, 1) + anchor_diag.mean()) if nf else 1.0
         if mu is None:
-            mu = 1e-6 * mean_diag
-        floor = 1e-12 * mean_diag
+            mu = INITIAL_DAMPING * mean_diag
+        floor = DAMPING_FLOOR * mean_diag
         accepted = False
-        for _ in range(10):
+        for _ in range(DAMPING_TRIES):
             damping = max(mu, floor)
-            # Block-diagonal preconditioner as a BSR matrix: its product is 3× faster than an
-            # einsum over the (nf, 3, 3) blocks (30 vs 100 µs at 4k points).
+            # Block-diagonal preconditioner as a BSR matrix (a faster product than an einsum
+            # over the (nf, 3, 3) blocks).
             preconditioner = bsr_matrix((_block_jacobi(ei, ej, g, nf, anchor_diag + damping), block_index,
                                          block_pointer), shape=(3 * nf, 3 * nf))
             diagonal = anchor_diag + damping
@@ -226,14 +245,14 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
                 improvement = cost - new_cost
                 x, r, d = trial, new_r, new_d
                 old_cost, cost = cost, new_cost
-                mu = max(mu / 4.0, floor)
+                mu = max(mu / DAMPING_DECREASE, floor)
                 accepted = True
                 break
-            mu = damping * 8.0
+            mu = damping * DAMPING_INCREASE
         if not accepted:
             converged = True  # no descent possible: a (local) minimum to working precision
             break
-        if improvement <= STAGNATION * old_cost or np.abs(step).max() <= 1e-14 * length_scale:
+        if improvement <= STAGNATION * old_cost or np.abs(step).max() <= STEP_FLOOR * length_scale:
             converged = True
             break
     return x, iterations, converged

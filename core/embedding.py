@@ -28,30 +28,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .edge_length_fit import DEFAULT_MAX_ITERATIONS, EdgeLengthFit, Fit, relative_residuals, rms
+from .edge_length_fit import DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, EdgeLengthFit, Fit, relative_residuals, rms
 from .errors import RecoveryError, ShapeDifferenceWarning
+from .geometry import connected_components
 from .hinge_frames import hinge_frame_embedding
 from .mesh_topology import MeshTopology
 from .offset_surface import OffsetSurface
+from .rigid_alignment import align_components
 
-#: Hinge-frame starts with an RMS relative residual below this go straight to the polish.
+# Measurements behind every constant: docs/design-decisions.md.
+#: Hinge-frame starts with an RMS relative residual below this are exact lengths up to
+#: round-off: no race, straight to the (usually skipped) polish.
 FRAMES_NEARLY_EXACT = 1e-6
-#: With inexact lengths several starts are polished for this many Levenberg–Marquardt iterations
-#: and only the best goes on to the end. Measured (RMS residual / Hausdorff of the base layer, truncated
-#: differences k = 100 / 200): the hinge frames fold where the hinge signs are noisy — drape
-#: frames 8 → 16 of a Blender cloth simulation 0.046 / 24.9 % against 0.022 / 7.5 % from the base
-#: pose, a flag in wind 0.111 / 29 % against 0.065 / 10.4 % — and tie on smooth poses (synthetic
-#: cloth 0.0057 both). A full second polish cost 1–2 s on the 1,089-vertex cloth.
+#: With inexact lengths the starts are fitted for this many Levenberg–Marquardt iterations each
+#: and only the best goes on to the end (the hinge frames fold where hinge signs are noisy; the
+#: reference pose does not, but may fit worse on smooth poses).
 START_TRIAL_ITERATIONS = 3
-#: When the best start still leaves an RMS relative length residual above this, the reference
-#: pose is also deformed gradually into the target lengths and the lowest residual wins. Each
-#: schedule of CONTINUATION_SCHEDULES is (fractions of the way, LM iterations per fraction), then a
-#: fit to the end. Measured on 16 Blender cloth pairs (truncated k = 100 / 200): residuals
-#: 0.0014–0.0102 where the result was within 2 % of the target, 0.022–0.058 on crumpling cloth.
-#: On the 9 crumpling pairs the Hausdorff/diagonal errors summed to 125.8 % without continuation,
-#: 117.4 % with the 4-step schedule alone, 115.5 % with the 8-step one alone and 113.2 % with both
-#: raced (e.g. flag 40 → 48: 16.1 → 8.4 %, falling sheet rest → 95: 31.9 → 15.3 %; worst loss flag
-#: rest → 48: 15.5 → 17.5 % at a lower residual).
+#: When the best fit's RMS relative residual stays above this, the reference pose is also
+#: deformed gradually into the target lengths and the lowest residual wins; each schedule is
+#: (fractions of the way, LM iterations per fraction), raced, then fitted to the end.
 CONTINUATION_RESIDUAL = 2e-2
 CONTINUATION_SCHEDULES = (((0.25, 0.5, 0.75), 4), (tuple(np.arange(1, 8) / 8), 3))
 
@@ -137,28 +132,6 @@ def _finish(x, edges, squared, n_base, x_start, iterations, initializer, converg
     )
 
 
-def _components(n_points: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    graph = coo_matrix((np.ones(edges.shape[0]), (edges[:, 0], edges[:, 1])), shape=(n_points, n_points))
-    return connected_components(graph, directed=False)
-
-
-def _align_components(x, reference, labels, active):
-    """Rigidly move each component of ``x`` onto ``reference`` (rows with finite reference)."""
-    from .rigid_alignment import rigid_alignment
-
-    out = x.copy()
-    for label in np.unique(labels[active]):
-        rows = (labels == label) & active
-        ok = rows & np.isfinite(reference).all(axis=1)
-        if ok.sum() >= 3:
-            R, t = rigid_alignment(x[ok], reference[ok])
-            out[rows] = x[rows] @ R.T + t
-    return out
-
-
 def embed_thickening(
     surface: OffsetSurface,
     squared_lengths: np.ndarray,
@@ -166,7 +139,7 @@ def embed_thickening(
     initial_points: np.ndarray | None = None,
     reference_points: np.ndarray | None = None,
     anchor: tuple[np.ndarray, float] | None = None,
-    tolerance: float = 1e-8,
+    tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> EmbeddingResult:
     """Positions of the canonical thickening (§5.3) realizing ``squared_lengths`` (§7.3).
@@ -190,8 +163,8 @@ def embed_thickening(
       error on one edge. Exact lengths are then no longer reproduced exactly. Without
       ``initial_points`` the start is first moved rigidly onto the anchor (per component).
     - ``tolerance``: skip / stop the polish when the RMS relative length residual is below it
-      (default 1e-8: the hinge frames on exact data are at ~1e-12, far below the 1e-6
-      accuracy needed);
+      (:data:`~core.edge_length_fit.DEFAULT_TOLERANCE`: the hinge frames on exact data are at
+      ~1e-12, far below it);
       ``max_iterations``: cap on Levenberg–Marquardt iterations.
 
     Each connected component is embedded independently (its placement relative to the others is
@@ -206,7 +179,7 @@ def embed_thickening(
     anchor_points, anchor_weight = _anchor_array(anchor, n_points, n_base)
     has_edge = np.zeros(n_points, dtype=bool)
     has_edge[edges.ravel()] = True
-    n_comp, labels = _components(n_points, edges)
+    _, labels = connected_components(n_points, edges)
     n_comp_real = int(np.unique(labels[has_edge]).size)
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
 
@@ -219,36 +192,36 @@ def embed_thickening(
         if x0.shape != (n_points, 3) or not np.isfinite(x0).all():
             raise RecoveryError(f"initial_points must be finite with shape ({n_points}, 3); got {x0.shape}.")
         fallback = x0.copy()
-        starts = [("initial_points", x0)]
-    if initial_points is None:
+        starts = [_Start("initial_points", x0)]
+    else:
         frames = hinge_frame_embedding(surface, squared)
         x0, frames_rms = frames.points, problem.residual(frames.points)
-        starts = [("hinge_frames", x0)]
+        starts = [_Start("hinge_frames", x0)]
         if not frames_rms <= max(tolerance, FRAMES_NEARLY_EXACT):
             # Inexact lengths: fit the frames to all hinges at once rather than chain them.
             synchronized = frames.synchronized()
             if problem.residual(synchronized) < frames_rms:
-                starts = [("hinge_frames", synchronized)]
+                starts = [_Start("hinge_frames", synchronized)]
             if reference_points is not None:
                 reference = np.array(reference_points, dtype=np.float64)
                 if reference.shape != (n_points, 3) or not np.isfinite(reference).all():
                     raise RecoveryError(
                         f"reference_points must be finite with shape ({n_points}, 3); got {reference.shape}."
                     )
-                starts.append(("reference_points", reference))
+                starts.append(_Start("reference_points", reference))
                 continuation_start = reference
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
 
     def prepared(start):
         if anchor_points is not None and initial_points is None:
-            start = _align_components(start, anchor_points, labels, has_edge)
+            start = align_components(start, anchor_points, labels, active=has_edge)
         start[~has_edge] = fallback[~has_edge]
         return start
 
     # Several starts are raced: a short trial each, the lowest residual goes on to the end.
     budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 else max_iterations
-    candidates = [_Start(name, prepared(points)) for name, points in starts]
+    candidates = [_Start(start.name, prepared(start.points)) for start in starts]
     trials = _concurrently(lambda start: problem.fit(start.points, budget), candidates)
     best_start, best_trial = min(zip(candidates, trials), key=lambda pair: pair[1].residual)
     best = _Embedded(best_start, problem.resume(best_trial, max_iterations))
@@ -301,9 +274,7 @@ def _warn_unconverged(x, edges, squared, iterations):
 def _concurrently(function, items) -> list:
     """``[function(item) for item in items]``, in threads when there are several items and
     cores. For independent Levenberg–Marquardt fits: their sparse products and NumPy array
-    arithmetic release the GIL (2 cores, truncated k = 100 / 200 lengths: embedding the 1,089-vertex
-    cloth 2.4–2.6 → 2.2 s, a Blender flag 40 → 48 with its continuations 10.6 → 8.1–8.4 s). The
-    results do not depend on it."""
+    arithmetic release the GIL. The results do not depend on it."""
     items = list(items)
     workers = min(len(items), os.cpu_count() or 1)
     if workers < 2:
@@ -320,7 +291,7 @@ def embed_base_edges(
     *,
     initial_vertices: np.ndarray,
     anchor: tuple[np.ndarray, float] | None = None,
-    tolerance: float = 1e-8,
+    tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
 ) -> EmbeddingResult:
     """Intrinsic-only embedding (no offset layer): vertex positions ``(n, 3)`` whose edge lengths

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .geometry import connected_components, nearest_rotations, normalize, rows_dot
 from .offset_surface import OffsetSurface
 
 #: Largest number of hinges of one star whose sign patterns are enumerated (2^k patterns).
@@ -43,6 +44,17 @@ PATTERN_BATCH = 1 << 16
 CLOSURE_GATE = 1e-3
 #: A hinge whose vote is weaker than this factor (both signs fit about equally) is unresolved.
 DECISIVE_RATIO = 10.0
+#: One star's log-ratio vote is clipped to ± this, so that a star with a zero residual cannot
+#: outvote all others.
+VOTE_CLIP = 50.0
+#: Hinges whose two signed rotations differ by less than this (Frobenius) are flat: both signs
+#: give the same frames, so they are not ambiguous.
+FLAT_HINGE = 1e-6
+#: Relative Tikhonov term keeping the star trilateration solvable for coplanar anchors.
+TRILATERATION_DAMPING = 1e-12
+#: Weight (relative to the mean diagonal) pinning the synchronized frames and vertices to the
+#: tree's: fixes the global gauge without pulling the least-squares fit.
+SYNCHRONIZATION_PIN = 1e-8
 
 
 class HingeFrameEmbedding:
@@ -62,15 +74,6 @@ class HingeFrameEmbedding:
         exact chain: inexact hinge angles average out rather than accumulate along tree paths."""
         return _synchronized_points(self._surface, self._local, self._hinges, self._sign, self._rotation,
                                     self.points[: self._surface.base.n_vertices], self._offset)
-
-
-def _rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("...i,...i->...", a, b)
-
-
-def _normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    return v / np.maximum(norm, np.finfo(float).tiny), norm[..., 0]
 
 
 def triangle_local_points(triangle_squared: np.ndarray, offset: float) -> np.ndarray:
@@ -94,10 +97,10 @@ def triangle_local_points(triangle_squared: np.ndarray, offset: float) -> np.nda
 def _edge_frame(a, b, c):
     """Orthonormal frames ``[u, w, u × w]`` (…, 3, 3 columns) of hinge axis ``u = (b − a)/|b − a|``
     and the direction ``w`` from the axis to ``c``; also ``c``'s axial coordinate and radius."""
-    u, _ = _normalize(b - a)
+    u, _ = normalize(b - a)
     d = c - a
-    s = _rows_dot(d, u)
-    w, rho = _normalize(d - s[..., None] * u)
+    s = rows_dot(d, u)
+    w, rho = normalize(d - s[..., None] * u)
     return np.stack([u, w, np.cross(u, w)], axis=-1), s, rho
 
 
@@ -220,18 +223,18 @@ def _trilaterate(anchors: np.ndarray, squared: np.ndarray) -> np.ndarray:
     center = anchors.mean(axis=1, keepdims=True)
     q = anchors - center
     qt = np.swapaxes(q, 1, 2)
-    qq = _rows_dot(q, q)
+    qq = rows_dot(q, q)
     rhs = 0.5 * (qq - qq.mean(axis=1, keepdims=True) - squared + squared.mean(axis=1, keepdims=True))
     scatter = qt @ q
-    damping = 1e-12 * np.trace(scatter, axis1=1, axis2=2)[:, None, None] * np.eye(3)
+    damping = TRILATERATION_DAMPING * np.trace(scatter, axis1=1, axis2=2)[:, None, None] * np.eye(3)
     x = np.linalg.solve(scatter + damping, (qt @ rhs[:, :, None]))[:, :, 0]
     for _ in range(2):
         diff = x[:, None, :] - q
-        residual = _rows_dot(diff, diff) - squared
+        residual = rows_dot(diff, diff) - squared
         diff_t = np.swapaxes(diff, 1, 2)
         x = x - 0.5 * np.linalg.solve(diff_t @ diff + damping, diff_t @ residual[:, :, None])[:, :, 0]
     diff = x[:, None, :] - q
-    return np.max(np.abs(_rows_dot(diff, diff) - squared) / squared, axis=1)
+    return np.max(np.abs(rows_dot(diff, diff) - squared) / squared, axis=1)
 
 
 class _StarScorer:
@@ -247,7 +250,7 @@ class _StarScorer:
         anchors = np.concatenate([self.apex[rows][:, None], placed], axis=1)
         spheres = self.distances[rows]
         if self.closed:  # trilaterate only where the fan closes: the others are wrong already
-            score = np.sqrt(np.sum((rotation - np.eye(3)) ** 2, axis=(1, 2)) + _rows_dot(shift, shift) / self.scale2[rows])
+            score = np.sqrt(np.sum((rotation - np.eye(3)) ** 2, axis=(1, 2)) + rows_dot(shift, shift) / self.scale2[rows])
             near = np.flatnonzero(score < CLOSURE_GATE)
             if near.size:
                 score[near] = np.maximum(score[near], _trilaterate(anchors[near], spheres[near]))
@@ -333,7 +336,7 @@ def _star_votes(surface, local, hinges: _Hinges, offset_squared, offset_lookup, 
             best = _best_by_descent(scorer, maps, h, k)  # many stars: share pattern prefixes
         ratio = np.log((best[:, :, 1] + VOTE_FLOOR) / (best[:, :, 0] + VOTE_FLOOR))
         ratio = np.where(np.isfinite(ratio), ratio, 0.0)
-        np.add.at(votes, hinge.ravel(), np.clip(ratio, -50.0, 50.0).ravel())
+        np.add.at(votes, hinge.ravel(), np.clip(ratio, -VOTE_CLIP, VOTE_CLIP).ravel())
     return votes
 
 
@@ -341,12 +344,12 @@ def _glue(surface, local, hinges: _Hinges, sign: np.ndarray):
     """Compose frames along breadth-first trees of the dual graph: per triangle the rigid map
     (R ``(m, 3, 3)``, s ``(m, 3)``) from its frame to the root's of its component."""
     from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import breadth_first_order, connected_components
+    from scipy.sparse.csgraph import breadth_first_order
 
     base = surface.base
     m = base.n_triangles
     dual = coo_matrix((np.ones(hinges.edges.size), (hinges.first, hinges.second)), shape=(m, m)).tocsr()
-    count, labels = connected_components(dual, directed=False)
+    count, labels = connected_components(m, np.stack([hinges.first, hinges.second], axis=1))
     rotation = np.zeros((m, 3, 3))
     shift = np.zeros((m, 3))
     find = _pair_lookup(np.stack([hinges.first, hinges.second], axis=1), m)
@@ -414,13 +417,10 @@ def synchronized_positions(base, local, first, second, q, pin_rotation, pin_posi
         shape=(3 * H, 3 * m),
     )
     normal = (A.T @ A).tocsc()
-    pin = 1e-8 * float(normal.diagonal().mean())
+    pin = SYNCHRONIZATION_PIN * float(normal.diagonal().mean())
     solve = splu((normal + pin * sp.identity(3 * m, format="csc")).tocsc()).solve
     rotation = np.stack([solve(pin * pin_rotation[:, r, :].reshape(-1)).reshape(m, 3) for r in range(3)], axis=1)
-    u, _, vt = np.linalg.svd(rotation)
-    flip = np.linalg.det(u @ vt) < 0
-    u[flip, :, 2] *= -1
-    rotation = u @ vt
+    rotation = nearest_rotations(rotation)
     # Vertices from the triangle edges in the synchronized frames.
     tris = base.triangles
     tails, heads = tris[:, [0, 1, 2]].ravel(), tris[:, [1, 2, 0]].ravel()
@@ -430,7 +430,7 @@ def synchronized_positions(base, local, first, second, q, pin_rotation, pin_posi
     e = np.arange(tails.size)
     D = sp.csr_matrix((np.r_[-np.ones(e.size), np.ones(e.size)], (np.r_[e, e], np.r_[tails, heads])), shape=(e.size, n))
     laplacian = (D.T @ D).tocsc()
-    pin = 1e-8 * float(laplacian.diagonal().mean())
+    pin = SYNCHRONIZATION_PIN * float(laplacian.diagonal().mean())
     solve = splu((laplacian + pin * sp.identity(n, format="csc")).tocsc()).solve
     rhs = D.T @ world_edges + pin * pin_positions
     return np.stack([solve(np.ascontiguousarray(rhs[:, d])) for d in range(3)], axis=1)
@@ -456,6 +456,6 @@ def hinge_frame_embedding(surface: OffsetSurface, squared: np.ndarray) -> HingeF
     sign = np.where(votes >= 0, 0, 1)
     rotation, shift = _glue(surface, local, hinges, sign)
     # Hinges whose dihedral is flat enough that both signs agree are not ambiguous.
-    differs = np.linalg.norm(hinges.rotation[:, 0] - hinges.rotation[:, 1], axis=(1, 2)) > 1e-6
+    differs = np.linalg.norm(hinges.rotation[:, 0] - hinges.rotation[:, 1], axis=(1, 2)) > FLAT_HINGE
     unresolved = int(np.sum(differs & (np.abs(votes) < np.log(DECISIVE_RATIO))))
     return HingeFrameEmbedding(surface, local, hinges, sign, rotation, shift, offset, unresolved)

@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError, RecoveryError
+from .geometry import DIVISION_FLOOR, expand_vertex_values, heron, lumped_vertex_areas, normalize, vertex_labels
 from .laplace_basis import LaplaceBasis, laplace_basis
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
@@ -34,8 +35,7 @@ WKS_MARGIN = 2.0
 def heron_areas(squared_lengths_per_triangle: np.ndarray) -> np.ndarray:
     """Triangle areas from squared edge lengths ``(m, 3)`` (Heron's formula in squared lengths);
     NaN where the triangle inequality fails."""
-    x = squared_lengths_per_triangle
-    q = 2.0 * (x[:, 0] * x[:, 1] + x[:, 1] * x[:, 2] + x[:, 2] * x[:, 0]) - np.sum(x * x, axis=1)
+    q = heron(squared_lengths_per_triangle)  # 16 area²
     return np.sqrt(np.where(q > 0, q, np.nan)) / 4.0
 
 
@@ -57,11 +57,15 @@ class IntrinsicTriangulation:
     """A triangle mesh known by its edge lengths only: per-triangle planar layouts, the gradient
     of piecewise-linear functions, the cotangent Laplacian and the heat method.
 
-    ``topology``: :class:`~core.mesh_topology.MeshTopology`; ``squared_lengths`` ``(E,)``.
+    ``topology``: :class:`~core.mesh_topology.MeshTopology`; ``squared_lengths`` ``(E,)``;
+    ``assembler``: a :class:`~core.inner_products.ProductAssembler` of ``topology`` if one exists.
     """
 
-    def __init__(self, topology, squared_lengths: np.ndarray):
+    def __init__(self, topology, squared_lengths: np.ndarray, *, assembler=None):
+        from .inner_products import ProductAssembler
+
         self.topology = topology
+        self.assembler = ProductAssembler(topology) if assembler is None else assembler
         self.squared_lengths = np.asarray(squared_lengths, dtype=np.float64)
         per_triangle = self.squared_lengths[topology.triangle_edges]  # opposite each corner
         self.areas = heron_areas(per_triangle)
@@ -91,17 +95,13 @@ class IntrinsicTriangulation:
         return np.bincount(self.topology.triangles.ravel(), local.ravel(), self.topology.n_vertices)
 
     def cotangent_laplacian(self) -> sp.csr_matrix:
-        """``C_vw = Σ_T area_T ⟨∇φ_v, ∇φ_w⟩``: the cotangent stiffness matrix (eq. 2), PSD."""
-        t = self.topology.triangles
-        local = self.areas[:, None, None] * np.einsum("tid,tjd->tij", self.hat_gradients, self.hat_gradients)
-        rows = np.repeat(t, 3, axis=1).ravel()
-        cols = np.tile(t, (1, 3)).ravel()
-        n = self.topology.n_vertices
-        return sp.csr_matrix((local.ravel(), (rows, cols)), shape=(n, n))
+        """``C_vw = Σ_T area_T ⟨∇φ_v, ∇φ_w⟩``: the cotangent stiffness matrix ``C(ℓ²; µ)`` of
+        eq. (2) with the Heron areas of these lengths, PSD."""
+        return self.assembler.conformal_matrix(self.squared_lengths, self.areas)
 
     def lumped_mass(self) -> np.ndarray:
         """Vertex areas ``(n,)``: a third of the areas of the triangles around each vertex."""
-        return np.bincount(self.topology.triangles.ravel(), np.repeat(self.areas / 3.0, 3), self.topology.n_vertices)
+        return lumped_vertex_areas(self.topology.triangles, self.areas, self.topology.n_vertices)
 
     def heat_method(self):
         """A :class:`HeatMethod` factored for this metric (reuse it for many sources)."""
@@ -125,8 +125,7 @@ class HeatMethod:
         # each component, after which the matrix is positive definite.
         n = triangulation.topology.n_vertices
         count, labels = triangulation.topology.components()
-        vertex_component = np.empty(n, dtype=np.int64)
-        vertex_component[triangulation.topology.triangles.ravel()] = np.repeat(labels, 3)
+        vertex_component = vertex_labels(triangulation.topology.triangles, labels, n)
         self.vertex_component = vertex_component
         pinned = np.array([np.flatnonzero(vertex_component == c)[0] for c in range(count)])
         self._pinned = pinned
@@ -145,8 +144,7 @@ class HeatMethod:
         impulse[source] = 1.0
         heat = self._heat.solve(impulse)
         gradient = tri.gradient(heat)
-        norm = np.linalg.norm(gradient, axis=1, keepdims=True)
-        direction = -np.divide(gradient, norm, out=np.zeros_like(gradient), where=norm > 0)
+        direction = -normalize(gradient)[0]
         rhs = tri.divergence(direction) * self._keep
         phi = self._poisson.solve(rhs)
         # The pinned vertex has φ = 0; shift each component so the source is at distance 0.
@@ -215,7 +213,9 @@ class PulledBackMetric:
         further sources)."""
         used = self._compact_vertex(source_vertex)
         if self._heat is None:
-            self._heat = IntrinsicTriangulation(self.reference.topology, self.squared_lengths).heat_method()
+            self._heat = IntrinsicTriangulation(
+                self.reference.topology, self.squared_lengths, assembler=self.reference.base.assembler
+            ).heat_method()
         return self._expand(self._heat.distances(used), np.inf)
 
     def wave_kernel_signature(self, energies: int | np.ndarray = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:
@@ -244,36 +244,37 @@ class PulledBackMetric:
         return int(position)
 
     def _expand(self, values: np.ndarray, fill: float) -> np.ndarray:
-        shape = (self.reference.n_vertices,) + values.shape[1:]
-        out = np.full(shape, fill, dtype=np.float64)
-        out[self.reference.used_vertices] = values
-        return out
+        return expand_vertex_values(self.reference.used_vertices, values, self.reference.n_vertices, fill=fill)
+
+
+def _wks_spectrum(eigenvalues: np.ndarray, count: int, variance: float):
+    """Mask of the nonzero ``eigenvalues``, their extreme log-eigenvalues and the Gaussian width
+    σ for ``count`` energies."""
+    nonzero = eigenvalues > 1e-9 * max(float(eigenvalues.max()), DIVISION_FLOOR)
+    positive = eigenvalues[nonzero]
+    if positive.size < 2:
+        raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
+    low, high = np.log(positive[0]), np.log(positive[-1])
+    return nonzero, low, high, variance * (high - low) / count
 
 
 def wks_energies(eigenvalues: np.ndarray, count: int, *, variance: float = WKS_VARIANCE):
     """Evenly spaced log-energies ``(count,)`` and the Gaussian width σ for the nonzero
     ``eigenvalues``."""
-    positive = eigenvalues[eigenvalues > 1e-9 * max(float(eigenvalues.max()), 1e-300)]
-    if positive.size < 2:
-        raise MeshError("The wave kernel signature needs at least two nonzero eigenvalues: raise k.")
-    low, high = np.log(positive[0]), np.log(positive[-1])
-    sigma = variance * (high - low) / count
+    _, low, high, sigma = _wks_spectrum(eigenvalues, count, variance)
     return np.linspace(low + WKS_MARGIN * sigma, high - WKS_MARGIN * sigma, count), sigma
 
 
 def wave_kernel_signature(basis: LaplaceBasis, energies, *, variance: float = WKS_VARIANCE) -> np.ndarray:
     """WKS ``(n, len(energies))`` of an eigenbasis (see :meth:`PulledBackMetric.wave_kernel_signature`)."""
     values = basis.eigenvalues
-    nonzero = values > 1e-9 * max(float(values.max()), 1e-300)
     if np.ndim(energies) == 0:
-        energies, sigma = wks_energies(values, int(energies), variance=variance)
-    else:
-        energies = np.asarray(energies, dtype=np.float64)
-        positive = values[nonzero]
-        sigma = variance * (np.log(positive[-1]) - np.log(positive[0])) / energies.size
+        energies, _ = wks_energies(values, int(energies), variance=variance)
+    energies = np.asarray(energies, dtype=np.float64)
+    nonzero, _, _, sigma = _wks_spectrum(values, energies.size, variance)
     logs = np.log(values[nonzero])
     weights = np.exp(-((energies[None, :] - logs[:, None]) ** 2) / (2.0 * sigma**2))  # (k, e)
-    return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), 1e-300)
+    return (basis.functions[:, nonzero] ** 2 @ weights) / np.maximum(weights.sum(axis=0), DIVISION_FLOOR)
 
 
 def pull_back(base_vertices, triangles, differences) -> PulledBackMetric:

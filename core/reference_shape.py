@@ -17,11 +17,12 @@ import numpy as np
 
 from .errors import MeshError
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
+from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
-from .validation import check_flag, check_offset
+from .rigid_alignment import align_components
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -29,6 +30,7 @@ from .shape_difference import (
     reduced_differences,
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
+from .validation import check_flag, check_offset
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,10 +114,9 @@ def _recover_layers(jobs) -> list[LayerMetric]:
     """``layer.recover(area, conformal)`` for every ``(layer, area, conformal)`` of ``jobs``.
 
     Truncated programs of two layers run in two threads, each with a single-threaded BLAS
-    (their work is BLAS, LAPACK and sparse products, which release the GIL). Measured on the
-    1,089-vertex cloth, 2 cores, k = 100 / 200: 5.2–5.8 s against 6.8–7.4 s one layer after the
-    other with two BLAS threads (8.0 s with one; two layers with two BLAS threads each: 7.6 s).
-    Sequential without threadpoolctl or a second core, and in the full basis (sparse LU solves).
+    (their work is BLAS, LAPACK and sparse products, which release the GIL; faster than one
+    layer after the other with a multithreaded BLAS, see docs/design-decisions.md). Sequential
+    without threadpoolctl or a second core, and in the full basis (sparse LU solves).
     """
     import os
 
@@ -281,9 +282,7 @@ class ReferenceShape:
     def vertex_components(self) -> np.ndarray:
         """Connected-component label of every used vertex ``(n_used,)``."""
         _, labels = self.topology.components()
-        out = np.empty(self.topology.n_vertices, dtype=np.int64)
-        out[self.topology.triangles.ravel()] = np.repeat(labels, 3)
-        return out
+        return vertex_labels(self.topology.triangles, labels, self.topology.n_vertices)
 
     def embed(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None) -> np.ndarray:
         """Positions ``(n_used, 3)`` realizing ``metric``, up to rigid motion (§7.3): the base
@@ -312,11 +311,4 @@ class ReferenceShape:
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection)."""
-        from .rigid_alignment import rigid_alignment
-
-        placed = np.empty_like(positions)
-        for label in np.unique(self.vertex_components):
-            rows = self.vertex_components == label
-            rotation, translation = rigid_alignment(positions[rows], target[rows], self.vertex_weights[rows])
-            placed[rows] = positions[rows] @ rotation.T + translation
-        return placed
+        return align_components(positions, target, self.vertex_components, weights=self.vertex_weights)

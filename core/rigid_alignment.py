@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ShapeDifferenceError
+from .geometry import nearest_rotations
 
 
 def rigid_alignment(source, target, weights=None) -> tuple[np.ndarray, np.ndarray]:
@@ -41,11 +42,7 @@ def rigid_alignment(source, target, weights=None) -> tuple[np.ndarray, np.ndarra
     s_mean = w @ s
     x_mean = w @ x
     covariance = (x - x_mean).T @ ((s - s_mean) * w[:, None])  # (3, 3): Σ w x̃ s̃ᵀ
-    u, _, vt = np.linalg.svd(covariance)
-    d = np.sign(np.linalg.det(u) * np.linalg.det(vt))
-    if d == 0:
-        d = 1.0
-    rotation = (u * np.array([1.0, 1.0, d])) @ vt
+    rotation = nearest_rotations(covariance)
     translation = x_mean - rotation @ s_mean
     return rotation, translation
 
@@ -54,3 +51,20 @@ def align_rigidly(source, target, weights=None) -> np.ndarray:
     """``source`` ``(n, 3)`` moved by :func:`rigid_alignment` onto ``target`` ``(n, 3)``."""
     rotation, translation = rigid_alignment(source, target, weights)
     return np.asarray(source, dtype=np.float64) @ rotation.T + translation
+
+
+def align_components(points, target, labels, *, weights=None, active=None) -> np.ndarray:
+    """``points`` ``(n, 3)`` with each connected component (rows of equal ``labels`` ``(n,)``)
+    moved by its own :func:`rigid_alignment` onto ``target`` ``(n, 3)``. Only rows where
+    ``active`` (bool ``(n,)``, default all) move; within a component, rows whose target is not
+    finite do not count, and a component with fewer than 3 counted rows stays where it is.
+    ``weights`` ``(n,)`` as in :func:`rigid_alignment`."""
+    out = points.copy()
+    active = np.ones(points.shape[0], dtype=bool) if active is None else active
+    for label in np.unique(labels[active]):
+        rows = (labels == label) & active
+        ok = rows & np.isfinite(target).all(axis=1)
+        if ok.sum() >= 3:
+            rotation, translation = rigid_alignment(points[ok], target[ok], None if weights is None else weights[ok])
+            out[rows] = points[rows] @ rotation.T + translation
+    return out

@@ -10,17 +10,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from .geometry import DIVISION_FLOOR, heron
+
 #: Relative tolerance on det E₃ ≥ 4µ² of the returned squared lengths.
 CONSTRAINT_TOLERANCE = 1e-6
+#: Projection: cap and relative step tolerance of the safeguarded Newton iteration per row.
+PROJECTION_NEWTON_ITERATIONS = 60
+PROJECTION_NEWTON_TOLERANCE = 1e-13
+#: Averaged projections to one feasible edge vector: cap of rounds, and the uniform scaling
+#: (γ² ≤ 1 + slack) that may finish them.
+FEASIBILITY_ROUNDS = 500
+FEASIBILITY_SCALING_SLACK = 1e-3
 
 _AXIS = np.full(3, 1.0 / np.sqrt(3.0))
-
-
-def heron(x: np.ndarray) -> np.ndarray:
-    """``q = 2(ab+bc+ca) − a² − b² − c²`` = 16·area² for squared lengths ``x`` ``(m, 3)``
-    (= 4 det E₃)."""
-    a, b, c = x[:, 0], x[:, 1], x[:, 2]
-    return 2.0 * (a * b + b * c + c * a) - a * a - b * b - c * c
 
 
 def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
@@ -39,7 +41,7 @@ def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
     # Boundary point (ρ, s): s² = c + 2ρ², ρ = ρ0 s / (3s − 2s0); χ(s) increasing on [lo, hi].
     lo = np.maximum(np.sqrt(cb), s0b)
     hi = np.maximum(np.sqrt(cb + 2.0 * r0b * r0b), lo)
-    lo = np.maximum(lo, 1e-300)
+    lo = np.maximum(lo, DIVISION_FLOOR)
     # Safeguarded Newton on ψ(s) = (s² − c)(3s − 2s0)² − 2ρ0² s² (same sign as χ on the bracket).
     # Start from the projection onto the tangent plane of the boundary (one Gauss–Newton step on
     # s² − 2ρ² = c from (ρ0, s0)), clipped to the bracket: near-boundary points — all of them
@@ -50,7 +52,7 @@ def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
         start = s0b - 2.0 * s0b * phi0 / grad2
     s = np.where(np.isfinite(start), np.clip(start, lo, hi), hi)
     todo = np.arange(s.size)  # rows whose Newton iteration has not settled yet
-    for _ in range(60):
+    for _ in range(PROJECTION_NEWTON_ITERATIONS):
         sb, s0t, ct, rt, lot, hit = s[todo], s0b[todo], cb[todo], r0b[todo], lo[todo], hi[todo]
         a = 3.0 * sb - 2.0 * s0t
         psi = (sb * sb - ct) * a * a - 2.0 * rt * rt * sb * sb
@@ -64,7 +66,7 @@ def project_triangles(x: np.ndarray, areas: np.ndarray) -> np.ndarray:
         inside = np.isfinite(newton) & (newton >= lot) & (newton <= hit)
         s_new = np.where(inside, newton, 0.5 * (lot + hit))
         s[todo], lo[todo], hi[todo] = s_new, lot, hit
-        moving = np.abs(s_new - sb) > 1e-13 * np.maximum(np.abs(sb), 1e-300)
+        moving = np.abs(s_new - sb) > PROJECTION_NEWTON_TOLERANCE * np.maximum(np.abs(sb), DIVISION_FLOOR)
         todo = todo[moving]
         if todo.size == 0:
             break
@@ -100,14 +102,14 @@ def feasible_lengths(z: np.ndarray, slots: np.ndarray, counts: np.ndarray, areas
     n = counts.size
     x = np.bincount(slots, z, minlength=n) / counts
     margin = areas * (1.0 + CONSTRAINT_TOLERANCE)
-    for _ in range(500):
+    for _ in range(FEASIBILITY_ROUNDS):
         xt = x[slots].reshape(-1, 3)
         q = heron(xt)
         valid = (q > 0) & (xt > 0).all(axis=1)
         gamma2 = np.max(np.divide(16.0 * margin * margin, q, out=np.full_like(q, np.inf), where=valid))
-        if valid.all() and gamma2 <= 1.0 + 1e-3:
+        if valid.all() and gamma2 <= 1.0 + FEASIBILITY_SCALING_SLACK:
             return x * np.sqrt(max(gamma2, 1.0)), True
-        bad = ~valid | (16.0 * margin * margin > q * (1.0 + 1e-3))
+        bad = ~valid | (16.0 * margin * margin > q * (1.0 + FEASIBILITY_SCALING_SLACK))
         fixed = np.where(np.repeat(bad, 3), project_triangles(xt, margin).ravel(), xt.ravel())
         x = np.bincount(slots, fixed, minlength=n) / counts
     return x, False

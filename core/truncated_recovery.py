@@ -7,58 +7,34 @@ are
 - squared lengths, eq. (10):  ``min ‖Φᵀ C(ℓ²; µ) Φ − diag(λ) D_C‖²_F + ε′ ‖ℓ² − ℓ²_M‖²``  s.t.
   ``ℓ² ≥ 0`` and, per triangle, ``E₃(T) ⪰ 0`` with ``det E₃(T) ≥ 4 µ(T)²`` (Props. 5–6).
 
-Both data terms are consistent: the true metric of the target fits eq. (5) differences to
-round-off and eq. (6) ones to the k_N truncation of the functional map (relative residuals
-1.9e-4 for areas, 1.5e-3 for lengths on the 1,089-vertex cloth at k_M = 100, k_N = 200, against
-1.6e-2 / 3.4e-2 for the base pose). What decides accuracy is ε:
+ε and ε′ are given relative to the data term's curvature along the reference,
+``σ_A = ‖Φᵀ A(µ_M) Φ‖²/‖µ_M‖²`` (= k) and ``σ_C = ‖Φᵀ C(ℓ²_M; µ) Φ‖²/‖ℓ²_M‖²``, which makes them
+invariant under scaling of the mesh and of the basis. Eq. (5) differences are exact in the basis
+and take the small :data:`EXACT_EPSILON`, so that the result converges to the exact metric as k
+grows; eq. (6) ones carry the k_N truncation of the functional map, which a small ε would fit as
+if it were geometry (:data:`AREA_EPSILON`, :data:`LENGTH_EPSILON`).
 
-**ε (measured, ``benchmarks/bench_truncated.py``).** ε is given relative to the data term's
-curvature along the reference, ``σ_A = ‖Φᵀ A(µ_M) Φ‖²/‖µ_M‖²`` (= k) and ``σ_C = ‖Φᵀ C(ℓ²_M; µ)
-Φ‖²/‖ℓ²_M‖²``, which makes it invariant under scaling of the mesh and of the basis. For eq. (6)
-differences the data carry the k_N truncation, and a small ε fits it as if it were geometry: on
-the cloth the area error is 2.5e-3 at ε = 1e-2 σ_A, 1.6e-2 at 1e-4 σ_A and 8.9e-2 at 1e-7 σ_A
-(the base pose itself is at 1.5e-2). Hence a fixed ``AREA_EPSILON = 1e-2``. For lengths the
-error is flat in ε′ (cloth: 1.97e-2 / 1.85e-2 / 1.75e-2 at 3e-3 / 1e-3 / 3e-4 σ_C; human
-6.9e-2 / 6.8e-2 / 6.8e-2) but the reconstruction is not: Hausdorff/diagonal of the
-intrinsic+extrinsic embedding on cloth drapes of 1, 2 and 3 rad/unit was 0.012 / 0.014 / 0.23 at
-3e-3, 0.011 / 0.038 / 0.048 at 1e-3 and 0.009 / 0.016 / 0.033 at 3e-4, hence ``LENGTH_EPSILON =
-3e-4``. There is no search that lowers ε until the viscosity term is "small": it drove ε to
-~1e-8 and gave errors worse than the base pose. Eq. (5) differences are exact in the basis and
-use the smaller :data:`EXACT_EPSILON` (= 1e-4), so that the result converges to the exact metric
-as k grows to the full basis (µ 5e-5, ℓ² 2e-4 at k = n − 1 on a 10 × 10 sheet).
-
-How the programs are solved:
+How the programs are solved (the measurements behind each choice: docs/design-decisions.md):
 
 1. **Areas: matrix-free conjugate gradients.** ``H µ = Φᵀ A(µ) Φ`` and its adjoint need only the
    mesh's sparsity pattern (``d_v = φ_vᵀ P φ_v``, ``o_e = φ_aᵀ P φ_b``), O(n k²) each; the
-   regularized normal equations are solved by Jacobi-preconditioned CG (0.1–1 s for 2k–6k
-   triangles, no m × m Gram). ``µ ≥ 0`` is checked afterwards; only if it is violated the
-   bounded program is solved (scipy's L-BFGS-B in Jacobi-scaled variables, matrix-free).
+   regularized normal equations are solved by Jacobi-preconditioned CG. ``µ ≥ 0`` is checked
+   afterwards; only if it is violated the bounded program is solved (scipy's L-BFGS-B in
+   Jacobi-scaled variables, matrix-free).
 2. **Lengths: low-rank data term.** With ``c = B_µ ℓ²`` the cotangent weights, the data term is
    ``‖H c − d‖²`` with Gram ``W = (U Uᵀ)∘²`` (``U`` the ``(E, k)`` edge differences of Φ) from
-   ``⟨u uᵀ, v vᵀ⟩ = (u·v)²``; nothing of size k² × E or E × E is formed. W's spectrum falls fast
-   (offset layer of the cloth, k = 100: λ_700/λ_1 = 1e-3, λ_1000/λ_1 = 1e-6, λ_1300/λ_1 = 5e-8), so
-   a randomly pivoted Cholesky factor (block RPCholesky, columns ``(U U_Sᵀ)∘²`` on demand) to a
-   residual trace of :data:`EDGE_GRAM_TOLERANCE` is computed once per layer and basis (cached;
-   the "prep" of the benchmark) and orthonormalized through the eigenpairs of ``FᵀF``. Measured
-   on the cloth's offset layer (9,148 edges): 0.9 s + 1.0 s, against 1.4 s to form W and 5.0 s for
-   a rank-1,300 float64 Nyström sketch of it (same errors to three digits; float32 or rank 700
-   gave errors above the base pose's). Eigenpairs are kept when ``λ ‖B_µ‖² > LOWRANK_TOLERANCE ·
-   ε′`` (W lives in cotangent-weight space, ε′ in squared-length space).
+   ``⟨u uᵀ, v vᵀ⟩ = (u·v)²``; nothing of size k² × E or E × E is formed. W's spectrum falls fast,
+   so a randomly pivoted Cholesky factor (:mod:`core.low_rank`, columns ``(U U_Sᵀ)∘²`` on demand)
+   to a residual trace of :data:`EDGE_GRAM_TOLERANCE` is computed once per layer and basis and
+   orthonormalized. Eigenpairs are kept when ``λ ‖B_µ‖² > LOWRANK_TOLERANCE · ε′`` (W lives in
+   cotangent-weight space, ε′ in squared-length space).
 3. **Constraints only where needed.** The unconstrained optimum is one Woodbury solve; if every
-   triangle satisfies its constraint it is returned. Otherwise (the usual case — on the cloth
-   about half the triangles violate ``det E₃ ≥ 4µ²``) ADMM with per-triangle slot copies: exact
-   x-updates ``(FᵀF + D) x = r`` by Woodbury with a ``p × p`` Cholesky factor, z-updates by the
-   closed-form projection onto ``{x_T : s ≥ √(16µ² + 2‖t‖²)}`` (the squared lengths of a
-   triangle of area ≥ µ in coordinates where the rotated second-order cone of the paper is
-   rotationally symmetric), Anderson-accelerated, ρ rebalanced on the residuals. 150–450
-   iterations, 0.6–3.7 s.
-   CLARABEL through cvxpy solves the same program (``tests/core/test_convex_recovery.py``
-   checks agreement on a small mesh) but took 470 s for the 3,136-edge cloth layer with an
-   exact factor (dense ``p × E`` block in its KKT system) — hence the hand-written solver.
+   triangle satisfies its constraint it is returned. Otherwise ADMM (:mod:`core.admm`) with
+   per-triangle slot copies: exact x-updates by Woodbury, z-updates by the projection onto each
+   triangle's set (:mod:`core.triangle_constraints`).
 4. **Feasible output.** The returned lengths satisfy every constraint (triangle inequality
-   strictly; ``det E₃ ≥ 4µ²`` up to :data:`CONSTRAINT_TOLERANCE` relative), or
-   :class:`RecoveryError` is raised; an iteration cap or floored areas give a
+   strictly; ``det E₃ ≥ 4µ²`` up to :data:`~core.triangle_constraints.CONSTRAINT_TOLERANCE`
+   relative), or :class:`RecoveryError` is raised; an iteration cap or floored areas give a
    :class:`ShapeDifferenceWarning`.
 """
 
@@ -71,31 +47,27 @@ import numpy as np
 
 from .admm import admm
 from .errors import RecoveryError, ShapeDifferenceWarning
+from .geometry import DIVISION_FLOOR, rows_dot
 from .low_rank import LowRankGram, SplitGram, low_rank_gram, randomly_pivoted_cholesky
 from .triangle_constraints import feasible_lengths, project_triangles, satisfied
 
-#: ε of eq. (8) relative to σ_A = ‖Φᵀ A(µ_M) Φ‖²/‖µ_M‖² (see TruncatedRecovery.area_scale).
+# Measurements behind every constant: docs/design-decisions.md.
+#: ε of eq. (8) relative to σ_A (:meth:`TruncatedRecovery.area_scale`) for eq. (6) differences.
 AREA_EPSILON = 1e-2
-#: ε′ of eq. (10) relative to σ_C = ‖Φᵀ C(ℓ²_M; µ) Φ‖²/‖ℓ²_M‖² (TruncatedRecovery.edge_scale).
+#: ε′ of eq. (10) relative to σ_C (:meth:`TruncatedRecovery.edge_scale`) for eq. (6) differences.
 LENGTH_EPSILON = 3e-4
-#: ε and ε′ (same units) for eq. (5) differences, which are exact in the basis. Measured: on the
-#: 10 × 10 sheet at k = n − 1 errors µ 5e-5, ℓ² 2e-4 (1e-4) vs 5e-6, 3e-5 (1e-5); on the cloth at
-#: k = 100, ℓ² 1.5e-2 in 7 s (1e-4) vs 1.7e-2 in 19 s (1e-5: slower CG and ADMM, no gain).
+#: ε and ε′ (same units) for eq. (5) differences, which are exact in the basis.
 EXACT_EPSILON = 1e-4
-#: Conjugate gradients (area program): relative residual and iteration cap. Offset layer of the
-#: cloth: 1e-10 / 1e-8 / 1e-6 take 155 / 99 / 39 iterations, area error 2.3856e-2 / 2.3856e-2 / 2.3859e-2.
+#: Conjugate gradients of the area program: relative residual and iteration cap.
 CG_TOLERANCE = 1e-6
 CG_MAX_ITERATIONS = 2000
-#: Iteration cap of the bounded area program (L-BFGS-B), used only when CG gives negative areas.
+#: Bounded area program (L-BFGS-B, only when CG gives negative areas): iteration cap and
+#: projected-gradient tolerance relative to the largest scaled right-hand side.
 BOUNDED_MAX_ITERATIONS = 2000
-#: The edge Gram's pivoted Cholesky factor stops when the trace of its residual is below this
-#: fraction of the trace. Measured on the cloth (k = 100): 1e-5 / 1e-6 / 1e-7 / 1e-8 give offset
-#: ranks ~1,200 / 1,383 / 1,634 / 1,886 and base ranks up to 2,010; the errors are the same to
-#: three digits (ℓ² 1.73e-2 / 3.05e-2, Hausdorff 1.2 %) from 3e-6 down, 1e-5 raised the base ℓ²
-#: error to 1.77e-2.
+BOUNDED_GRADIENT_TOLERANCE = 1e-10
+#: The edge Gram's pivoted Cholesky factor stops at this fraction of the trace left.
 EDGE_GRAM_TOLERANCE = 3e-6
-#: Keep eigenvalues λ of the edge Gram with λ‖B_µ‖² above this fraction of ε′ (measured on the
-#: cloth: 1e-2 and 1 give the same errors, 100 raises the base ℓ² error from 1.73e-2 to 1.83e-2).
+#: Keep eigenvalues λ of the edge Gram with λ‖B_µ‖² above this fraction of ε′.
 LOWRANK_TOLERANCE = 1.0
 #: Recovered areas below this fraction of the reference area are raised to it (with a
 #: ShapeDifferenceWarning): eq. (10) divides by µ, and µ ≥ 0 can be active when truncated.
@@ -202,8 +174,8 @@ class TruncatedRecovery:
         p = 0.5 * (product + product.T)
         phi_p = self.phi @ p
         edges = self.topology.edges
-        diagonal = np.einsum("ij,ij->i", phi_p, self.phi)
-        off = np.einsum("ij,ij->i", phi_p[edges[:, 0]], self.phi[edges[:, 1]])
+        diagonal = rows_dot(phi_p, self.phi)
+        off = rows_dot(phi_p[edges[:, 0]], self.phi[edges[:, 1]])
         return diagonal, off
 
     # -- areas, eq. (8) -------------------------------------------------------------------------
@@ -266,7 +238,7 @@ class TruncatedRecovery:
                 f"{info}); the truncated shape difference may be corrupt."
             )
         if info > 0:
-            residual = np.linalg.norm(normal.matvec(mu) - rhs) / max(np.linalg.norm(rhs), 1e-300)
+            residual = np.linalg.norm(normal.matvec(mu) - rhs) / max(np.linalg.norm(rhs), DIVISION_FLOOR)
             warnings.warn(
                 f"The area program of the {self.layer.name} stopped after {info} conjugate-gradient "
                 f"iterations at relative residual {residual:.1e} (tolerance {CG_TOLERANCE:g}); the "
@@ -293,10 +265,8 @@ class TruncatedRecovery:
     def _bounded_areas(self, normal_matvec, rhs, eps, start):
         """``µ ≥ 0`` active: the quadratic of the CG solve (its normal operator ``normal_matvec`` and
         right-hand side ``rhs``) by scipy's L-BFGS-B with the bounds, in Jacobi-scaled variables
-        ``y = √diag · µ`` (the bound stays ``y ≥ 0``), started from the clipped CG optimum.
-        Measured on an offset layer with 5,642 triangles where CG gave negative areas (a Blender
-        drape, frames 40 → 48): 1.4 s, against 170 s for scipy's bounded least squares
-        (``lsq_linear``, trust-region reflective with LSMR)."""
+        ``y = √diag · µ`` (the bound stays ``y ≥ 0``), started from the clipped CG optimum
+        (two orders of magnitude faster than ``scipy.optimize.lsq_linear`` here)."""
         from scipy.optimize import minimize
 
         reference = self.layer.areas
@@ -307,7 +277,7 @@ class TruncatedRecovery:
             normal = normal_matvec(mu)
             return 0.5 * float(mu @ normal) - float(rhs @ mu), (normal - rhs) / scale
 
-        gradient_tolerance = 1e-10 * float(np.abs(rhs / scale).max())
+        gradient_tolerance = BOUNDED_GRADIENT_TOLERANCE * float(np.abs(rhs / scale).max())
         result = minimize(objective, np.maximum(start, 0.0) * scale, jac=True, method="L-BFGS-B",
                           bounds=[(0.0, None)] * reference.size,
                           options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0, "gtol": gradient_tolerance})
@@ -334,7 +304,7 @@ class TruncatedRecovery:
         basis only, cached)."""
         if self._edge_gram is None:
             u = self.U
-            diagonal = np.einsum("ij,ij->i", u, u) ** 2
+            diagonal = rows_dot(u, u) ** 2
             factor = randomly_pivoted_cholesky(
                 lambda picks: np.square(u @ u[picks].T), diagonal, tolerance=EDGE_GRAM_TOLERANCE, max_rank=u.shape[0]
             )

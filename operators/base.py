@@ -52,9 +52,9 @@ def reported_error(error: BaseException, pose_names=()) -> str | None:
     if isinstance(error, (InputError, bridge.VertexCountChanged)):
         return str(error)
     if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
-            "scipy", "cvxpy", "clarabel"):
+            "scipy", "threadpoolctl"):
         return (f"The Python package '{error.name}' is missing. Install the Shape Differences "
-                "zip built for your platform (it bundles SciPy and cvxpy), then restart Blender.")
+                "zip built for your platform (it bundles SciPy and threadpoolctl), then restart Blender.")
     core = load_core()
     if isinstance(error, core.ShapeDifferenceError):
         return name_poses(str(error), pose_names)

@@ -6,7 +6,7 @@
 Runs in an environment with the ``bpy`` module, whose bundled extension CLI (``blender_ext.py``)
 does the validating and building, exactly as ``blender --command extension ...`` would.
 
-The committed manifest lists no wheels (a dev checkout uses the venv's SciPy and cvxpy); ``build``
+The committed manifest lists no wheels (a dev checkout uses the venv's SciPy); ``build``
 copies the sources to ``build/stage/shape_differences``, downloads the wheels of
 ``requirements-extension.txt`` for every platform into its ``wheels/``, writes them into the
 staged manifest and builds one zip per platform into ``dist/``.

@@ -100,7 +100,9 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         layout.prop(settings, "output")
         if settings.output == 'CACHE':
             layout.prop(settings, "filepath")
-        operator = layout.operator("shape_differences.frames_to_shape_keys", icon='KEYFRAME')
+        # With cache output the same operator bakes the evaluated frames into a cache object.
+        label = "Frames to Cache" if settings.output == 'CACHE' else "Frames to Shape Keys"
+        operator = layout.operator("shape_differences.frames_to_shape_keys", text=label, icon='KEYFRAME')
         operator.frame_step = settings.frame_step
         set_output(operator, settings, "output")
         layout.prop(settings, "frame_count")

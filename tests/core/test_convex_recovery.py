@@ -6,9 +6,10 @@ import pytest
 
 import core
 from core import RecoveryError, admm, truncated_recovery
+from core.geometry import heron
 from core.low_rank import low_rank_gram, randomly_pivoted_cholesky
 from core.reference_shape import ReferenceShape
-from core.triangle_constraints import CONSTRAINT_TOLERANCE, heron, project_triangles
+from core.triangle_constraints import CONSTRAINT_TOLERANCE, project_triangles
 from core.truncated_recovery import TruncatedRecovery
 
 from meshes import drape, grid, stretch_and_bend

@@ -203,113 +203,100 @@ def test_fallback_warns(monkeypatch, strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     it = Interpolator(a, b, tri)
-    real = ci._Segment._arap
+    real = ci._Gap.fit
 
     def broken(self, x, *args, **kwargs):
         return np.full_like(x, np.nan)
 
-    monkeypatch.setattr(ci._Segment, "_arap", broken)
+    monkeypatch.setattr(ci._Gap, "fit", broken)
     with pytest.warns(ShapeDifferenceWarning, match="non-finite"):
         x = it.pose(0.5)
     assert np.isfinite(x).all()
-    monkeypatch.setattr(ci._Segment, "_arap", real)
+    monkeypatch.setattr(ci._Gap, "fit", real)
 
 
 def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     """A reconstruction with a folded-over vertex is re-fitted with the interpolated rotations
-    imposed around the defect (growing rings), not handed to a fallback."""
+    imposed around the defect (growing rings, only that region solved), not handed to a fallback."""
     import core.interpolation as ci
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     clean = Interpolator(a, b, tri).pose(0.5)
-    real = ci._Segment._arap
+    real_fit, real_local = ci._Gap.fit, ci._Gap.local_fit
     forced = []
 
-    def folding_first_fit(self, x, *args, force=None, **kwargs):
-        out = real(self, x, *args, force=force, **kwargs)
-        if force is None and not forced:
-            i, j, k = tri[len(tri) // 2]
-            out[i] = out[j] + out[k] - out[i]  # reflect a corner across its opposite edge
-        forced.append(force)
+    def folding_fit(self, x, *args, **kwargs):
+        out = real_fit(self, x, *args, **kwargs)
+        i, j, k = tri[len(tri) // 2]
+        out[i] = out[j] + out[k] - out[i]  # reflect a corner across its opposite edge
         return out
 
-    monkeypatch.setattr(ci._Segment, "_arap", folding_first_fit)
+    def recording_local_fit(self, x, stretch, rotation, guide, force, iterations):
+        forced.append(force.copy())
+        return real_local(self, x, stretch, rotation, guide, force, iterations)
+
+    monkeypatch.setattr(ci._Gap, "fit", folding_fit)
+    monkeypatch.setattr(ci._Gap, "local_fit", recording_local_fit)
     it = Interpolator(a, b, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = it.pose(0.5)
     assert _flipped(x, a, b, tri) == 0
-    repairs = [f for f in forced if f is not None]
-    assert repairs and repairs[0][len(tri) // 2] and 1 < repairs[0].sum() < len(tri) // 2
+    assert forced and forced[0][len(tri) // 2] and 1 < forced[0].sum() < len(tri) // 2
     assert np.abs(x - clean).max() < 1e-3 * np.ptp(clean, axis=0).max()
 
 
 def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     """If every candidate has defects, the metric fit with the fewest is returned, not the
     shrinking linear blend (even when the blend has fewer)."""
-    import core.interpolation as ci
+    import core.inbetween_repair as repair
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 2.0)
     blend = 0.5 * (a + b)
-    monkeypatch.setattr(ci._Segment, "check", lambda self, x, *args, **kwargs: "1 triangle(s) flipped")
-    monkeypatch.setattr(ci._Segment, "_badness", lambda self, x, s: 0.0 if np.allclose(x, blend) else 3.0)
+
+    def defects(self, x, *args):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if np.allclose(x, blend) else 3] = True
+        return out
+
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
+    monkeypatch.setattr(repair.Repair, "defects", defects)
     with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
         x = Interpolator(a, b, tri).pose(0.5)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
-def _metric_misfit(x, segment, s):
-    """RMS relative misfit of the corner edges of ``x`` to the interpolated metric at ``s``."""
+def _folding_repairs(monkeypatch, tri, keep_fold):
+    """Patch the fits so that a corner of the middle triangle is reflected after the first fit
+    and after every repair fit for which ``keep_fold(rotation, force)`` is true."""
     import core.interpolation as ci
 
-    topo = segment.topo
-    stretch = segment.targets(s)[1]
-    target = np.linalg.norm(np.einsum("kab,kb->ka", stretch[topo.tri_of], segment.base.edge_vectors), axis=1)
-    return float(np.sqrt(np.mean((np.linalg.norm(x[topo.j] - x[topo.i], axis=1) / target - 1.0) ** 2)))
+    real_fit, real_local = ci._Gap.fit, ci._Gap.local_fit
+    i, j, k = tri[len(tri) // 2]
 
+    def fold(out):
+        out[i] = out[j] + out[k] - out[i]
+        return out
 
-def test_polish_moves_towards_the_interpolated_metric(monkeypatch):
-    """The final Levenberg–Marquardt polish fits the interpolated (unrealizable) metric better
-    than the local/global fit alone, without flipping anything."""
-    import core.interpolation as ci
+    monkeypatch.setattr(ci._Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
 
-    flat, tri = grid(15, 15, size=1.0)
-    rng = np.random.default_rng(5)
-    a = _roll(flat, 0.3, radius=0.2)
-    b = flat + 0.01 * rng.standard_normal(flat.shape)
-    b[:, 2] += 0.3 * np.sin(3 * flat[:, 0])
-    segment = Interpolator(a, b, tri)._sequence._segment(0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ShapeDifferenceWarning)
-        polished = segment.pose(0.5)[0]
-        monkeypatch.setattr(ci, "POLISH_ITERATIONS", 0)
-        plain = segment.pose(0.5)[0]
-    assert _metric_misfit(polished, segment, 0.5) < 0.8 * _metric_misfit(plain, segment, 0.5)
-    assert _flipped(polished, a, b, tri) == 0
+    def local_fit(self, x, stretch, rotation, guide, force, iterations):
+        out = real_local(self, x, stretch, rotation, guide, force, iterations)
+        return fold(out) if keep_fold(rotation, force) else out
+
+    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
 
 
 def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeypatch, strip):
     """When imposing the interpolated rotations cannot remove a fold, the linear blend's local
     geometry is imposed around it: no fallback, no flip, and the metric is kept elsewhere."""
-    import core.interpolation as ci
-
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
-    segment = Interpolator(a, b, tri)._sequence._segment(0)
+    segment = Interpolator(a, b, tri)._sequence._gap(0)
     interpolated = segment.targets(0.5)[0]
-    real = ci._Segment._arap
-    middle = len(tri) // 2
-
-    def fold_unless_blend_imposed(self, x, stretch, rotation, *args, force=None, **kwargs):
-        out = real(self, x, stretch, rotation, *args, force=force, **kwargs)
-        if force is None or np.allclose(rotation[force], interpolated[force]):
-            i, j, k = tri[middle]
-            out[i] = out[j] + out[k] - out[i]  # a fold the interpolated rotations never remove
-        return out
-
-    monkeypatch.setattr(ci._Segment, "_arap", fold_unless_blend_imposed)
+    _folding_repairs(monkeypatch, tri, lambda rotation, force: np.allclose(rotation[force], interpolated[force]))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = segment.pose(0.5)[0]
@@ -321,22 +308,10 @@ def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeyp
 def test_a_key_geometry_is_spliced_where_the_blend_folds_too(monkeypatch, strip):
     """When neither the interpolated nor the blend's rotations remove a fold, a key's own local
     geometry (here the first key's: identity relative to it) is imposed around it."""
-    import core.interpolation as ci
-
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
-    segment = Interpolator(a, b, tri)._sequence._segment(0)
-    real = ci._Segment._arap
-    middle = len(tri) // 2
-
-    def fold_unless_first_key_imposed(self, x, stretch, rotation, *args, force=None, **kwargs):
-        out = real(self, x, stretch, rotation, *args, force=force, **kwargs)
-        if force is None or not np.allclose(rotation[force], np.eye(3)):
-            i, j, k = tri[middle]
-            out[i] = out[j] + out[k] - out[i]
-        return out
-
-    monkeypatch.setattr(ci._Segment, "_arap", fold_unless_first_key_imposed)
+    segment = Interpolator(a, b, tri)._sequence._gap(0)
+    _folding_repairs(monkeypatch, tri, lambda rotation, force: not np.allclose(rotation[force], np.eye(3)))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = segment.pose(0.5)[0]

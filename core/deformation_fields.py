@@ -1,0 +1,258 @@
+"""Per-triangle deformation fields between two poses of one mesh, and their log/exp coordinates.
+
+The deformation of triangle ``T`` from a base pose to another pose is the linear map ``F_T`` that
+takes the base triangle's edges to the other's (and its unit normal to the other's unit normal).
+Its polar decomposition ``F_T = R_T U_T`` splits it into
+
+- a **stretch** ``U_T`` (symmetric positive definite, identity along the base normal): the
+  first fundamental form of the other pose pulled back to the base, ``F_Tᵀ F_T = U_T²``, i.e. the
+  triangle's edge lengths and area — the information of the intrinsic shape differences in the
+  full basis (paper §4.2, Props. 1–2);
+- a **rotation** ``R_T``: how the triangle turns, whose variation between neighbours is the
+  extrinsic information (§5.3).
+
+Both are stored in coordinates where interpolation is linear: the stretch as the 2×2 matrix
+logarithm in the base triangle's tangent basis (three numbers), the rotation as a rotation vector
+relative to the whole mesh's best rigid motion (so a rigid motion of the mesh, or of several
+pieces moving as one, has zero residual at every triangle and is interpolated exactly, also for
+half turns). Everything is closed-form per triangle (2×2 polar decompositions, logarithms and
+exponentials), vectorized over the triangles; rigid motions of the whole mesh are interpolated
+along screw motions (the exponential map of SE(3)).
+
+Shapes: ``m`` triangles, ``n`` vertices; corner edge ``c`` of a triangle runs from its corner ``c``
+to corner ``c + 1`` (mod 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+#: Smallest ratio (radius / mean eigenvalue, or angle in radians) at which the closed-form
+#: expressions below are evaluated directly; below it their Taylor series (error < 1e-16).
+SERIES_THRESHOLD = 1e-4
+#: Log-stretch eigenvalues are clipped to ±this before exponentiating (a stretch by e^30 is far
+#: outside anything a pose can mean; the clip only keeps extrapolations finite).
+MAX_LOG_STRETCH = 30.0
+#: Rotations within this angle (radians) of a half turn may turn either way: both are as short.
+#: Far above rounding (1e-15) and far below any motion meant to turn one way.
+HALF_TURN_TOLERANCE = 1e-6
+
+
+def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Batched products ``a @ b`` of small matrices (…, p, q) × (…, q, r), written out per entry:
+    NumPy's batched ``matmul`` and ``einsum`` loop over the batch with per-matrix overhead and are
+    5–10× slower for 2×2 and 3×3 blocks."""
+    a, b = np.asarray(a), np.asarray(b)
+    shape = np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (a.shape[-2], b.shape[-1])
+    out = np.empty(shape)
+    for i in range(a.shape[-2]):
+        for j in range(b.shape[-1]):
+            entry = a[..., i, 0] * b[..., 0, j]
+            for k in range(1, a.shape[-1]):
+                entry = entry + a[..., i, k] * b[..., k, j]
+            out[..., i, j] = entry
+    return out
+
+
+def transpose(a: np.ndarray) -> np.ndarray:
+    """``a`` (…, p, q) with its last two axes swapped."""
+    return np.swapaxes(a, -1, -2)
+
+
+def corner_edges(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Edge vectors (m, 3, 3) of every triangle: ``[:, c]`` runs from corner ``c`` to ``c + 1``."""
+    p = vertices[triangles]
+    return p[:, [1, 2, 0]] - p
+
+
+def tangent_bases(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Orthonormal right-handed frames (m, 3, 3) per triangle, as columns ``[t1 | t2 | n]``:
+    ``t1`` along the first edge, ``n`` the unit normal, ``t2 = n × t1``. Degenerate triangles get
+    zero columns (callers check non-degeneracy at the boundary)."""
+    p = vertices[triangles]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    n = np.cross(e1, e2)
+    t1 = e1 / np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), np.finfo(float).tiny)
+    n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), np.finfo(float).tiny)
+    return np.stack([t1, np.cross(n, t1), n], axis=2)
+
+
+def tangent_coordinates(edges: np.ndarray, bases: np.ndarray) -> np.ndarray:
+    """Coordinates (m, 3, 2) of the corner edges (m, 3, 3) in the tangent bases' ``(t1, t2)``."""
+    return matmul(edges, bases[:, :, :2])
+
+
+def _edge_matrix(coordinates: np.ndarray) -> np.ndarray:
+    """2×2 matrices (m, 2, 2) whose columns are the first and (minus the) third corner edge,
+    i.e. ``p1 − p0`` and ``p2 − p0``, in tangent coordinates."""
+    return np.stack([coordinates[:, 0], -coordinates[:, 2]], axis=2)
+
+
+def planar_maps(coordinates: np.ndarray, base_inverse: np.ndarray) -> np.ndarray:
+    """The 2×2 deformation gradients (m, 2, 2) from the base triangles (``base_inverse``: inverse
+    edge matrices (m, 2, 2)) to triangles with tangent ``coordinates`` (m, 3, 2) in their own
+    tangent bases."""
+    return matmul(_edge_matrix(coordinates), base_inverse)
+
+
+def inverse_edge_matrices(coordinates: np.ndarray) -> np.ndarray:
+    """Inverse (m, 2, 2) of the edge matrices of triangles with tangent ``coordinates`` (m, 3, 2)
+    (upper triangular in their own basis: ``p1 − p0`` lies along ``t1``)."""
+    e = _edge_matrix(coordinates)
+    a, b, d = e[:, 0, 0], e[:, 0, 1], e[:, 1, 1]
+    inverse = np.zeros_like(e)
+    inverse[:, 0, 0] = 1.0 / a
+    inverse[:, 0, 1] = -b / (a * d)
+    inverse[:, 1, 1] = 1.0 / d
+    return inverse
+
+
+def planar_polar(maps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Polar decomposition ``M = Q S`` of 2×2 maps (m, 2, 2) with positive determinant: the
+    rotation angles (m,) of ``Q`` and the symmetric stretches ``S`` as ``(s11, s12, s22)`` (m, 3).
+    Closed form: ``Q`` turns by ``atan2(c − b, a + d)`` for ``M = [[a, b], [c, d]]``."""
+    a, b, c, d = maps[:, 0, 0], maps[:, 0, 1], maps[:, 1, 0], maps[:, 1, 1]
+    angle = np.arctan2(c - b, a + d)
+    cos, sin = np.cos(angle), np.sin(angle)
+    s11 = cos * a + sin * c
+    s12 = 0.5 * (cos * b + sin * d + cos * c - sin * a)
+    s22 = -sin * b + cos * d
+    return angle, np.stack([s11, s12, s22], axis=1)
+
+
+def _symmetric_parts(s: np.ndarray):
+    mean = 0.5 * (s[:, 0] + s[:, 2])
+    half = 0.5 * (s[:, 0] - s[:, 2])
+    return mean, half, s[:, 1], np.hypot(half, s[:, 1])
+
+
+def log_stretch(s: np.ndarray) -> np.ndarray:
+    """Matrix logarithm of symmetric positive definite 2×2 matrices ``(s11, s12, s22)`` (m, 3),
+    in the same packing: ``log S = ½ log det S · I + atanh(ρ/μ)/ρ · (S − μ I)`` with mean
+    eigenvalue ``μ`` and radius ``ρ`` (the eigenvalues are ``μ ± ρ``)."""
+    mean, half, off, radius = _symmetric_parts(s)
+    x = radius / mean
+    direct = x > SERIES_THRESHOLD
+    ratio = np.where(direct, np.arctanh(np.minimum(x, 1 - 1e-16)) / np.where(direct, x, 1.0), 1.0 + x * x / 3.0)
+    slope = ratio / mean
+    level = 0.5 * np.log(np.maximum((mean - radius) * (mean + radius), np.finfo(float).tiny))
+    return np.stack([level + slope * half, slope * off, level - slope * half], axis=1)
+
+
+def exp_stretch(log: np.ndarray) -> np.ndarray:
+    """Matrix exponential of symmetric 2×2 matrices ``(l11, l12, l22)`` (m, 3), same packing:
+    ``exp L = e^μ (cosh ρ · I + sinh ρ / ρ · (L − μ I))``."""
+    mean, half, off, radius = _symmetric_parts(log)
+    mean = np.clip(mean, -MAX_LOG_STRETCH, MAX_LOG_STRETCH)
+    radius_clipped = np.minimum(radius, MAX_LOG_STRETCH)
+    scale = np.where(radius > 0, radius_clipped / np.where(radius > 0, radius, 1.0), 1.0)
+    direct = radius_clipped > SERIES_THRESHOLD
+    sinhc = np.where(direct, np.sinh(radius_clipped) / np.where(direct, radius_clipped, 1.0),
+                     1.0 + radius_clipped ** 2 / 6.0)
+    growth = np.exp(mean)
+    diagonal, slope = growth * np.cosh(radius_clipped), growth * sinhc * scale
+    return np.stack([diagonal + slope * half, slope * off, diagonal - slope * half], axis=1)
+
+
+def apply_stretch(s: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
+    """``S v`` for packed symmetric 2×2 ``s`` (m, 3) and tangent vectors ``coordinates`` (m, c, 2)."""
+    x, y = coordinates[..., 0], coordinates[..., 1]
+    return np.stack([s[:, 0, None] * x + s[:, 1, None] * y, s[:, 1, None] * x + s[:, 2, None] * y], axis=-1)
+
+
+def plane_rotation(angle: np.ndarray) -> np.ndarray:
+    """3×3 rotations (m, 3, 3) by ``angle`` (m,) about the third axis."""
+    cos, sin = np.cos(angle), np.sin(angle)
+    out = np.zeros(angle.shape + (3, 3))
+    out[:, 0, 0], out[:, 0, 1], out[:, 1, 0], out[:, 1, 1], out[:, 2, 2] = cos, -sin, sin, cos, 1.0
+    return out
+
+
+def triangle_rotations(bases: np.ndarray, base_bases: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """World rotations (m, 3, 3) of the triangles: base tangent frame → the pose's tangent frame,
+    turned in the plane by the polar rotation ``angle`` (m,): ``B · Rz(angle) · B_baseᵀ``."""
+    return matmul(matmul(bases, plane_rotation(angle)), transpose(base_bases))
+
+
+def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
+    """Rotation vectors (m, 3) (angle ≤ π) of rotation matrices (m, 3, 3), through unit
+    quaternions by Shepperd's method (the largest of the four candidate components is divided by,
+    stable at every angle including half turns); the same as SciPy's ``Rotation.as_rotvec``,
+    whose ``from_matrix`` re-orthogonalizes each matrix and costs 20× more."""
+    r = rotations
+    trace = r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2]
+    candidates = np.stack([trace, r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
+    choice = np.argmax(candidates, axis=1)
+    q = np.empty((len(r), 4))  # (x, y, z, w)
+    for k in range(4):
+        rows = choice == k
+        if not rows.any():
+            continue
+        m = r[rows]
+        if k == 0:
+            w = 0.5 * np.sqrt(np.maximum(1.0 + trace[rows], 0.0))
+            q[rows] = np.stack([(m[:, 2, 1] - m[:, 1, 2]) / (4 * w), (m[:, 0, 2] - m[:, 2, 0]) / (4 * w),
+                                (m[:, 1, 0] - m[:, 0, 1]) / (4 * w), w], axis=1)
+        else:
+            i = k - 1
+            j, l = (i + 1) % 3, (i + 2) % 3
+            big = 0.5 * np.sqrt(np.maximum(1.0 + m[:, i, i] - m[:, j, j] - m[:, l, l], 0.0))
+            out = np.empty((rows.sum(), 4))
+            out[:, i] = big
+            out[:, j] = (m[:, j, i] + m[:, i, j]) / (4 * big)
+            out[:, l] = (m[:, l, i] + m[:, i, l]) / (4 * big)
+            out[:, 3] = (m[:, l, j] - m[:, j, l]) / (4 * big)
+            q[rows] = out
+    q[q[:, 3] < 0] *= -1.0  # w ≥ 0: angle ≤ π
+    sin_half = np.linalg.norm(q[:, :3], axis=1)
+    angle = 2.0 * np.arctan2(sin_half, q[:, 3])
+    scale = np.where(sin_half > SERIES_THRESHOLD, angle / np.where(sin_half > 0, sin_half, 1.0), 2.0)
+    return q[:, :3] * scale[:, None]
+
+
+# ---------------------------------------------------------------------------------------------
+# rigid motions of the whole mesh (screw interpolation)
+
+
+def _hat(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def _screw_matrix(w: np.ndarray) -> np.ndarray:
+    """``V(ω) = I + (1 − cos θ)/θ² [ω] + (θ − sin θ)/θ³ [ω]²`` (θ = |ω|): the translation part of
+    the SE(3) exponential."""
+    theta = float(np.linalg.norm(w))
+    if theta > SERIES_THRESHOLD:
+        a, b = (1.0 - np.cos(theta)) / theta ** 2, (theta - np.sin(theta)) / theta ** 3
+    else:
+        a, b = 0.5 - theta ** 2 / 24.0, 1.0 / 6.0 - theta ** 2 / 120.0
+    h = _hat(w)
+    return np.eye(3) + a * h + b * (h @ h)
+
+
+def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarray | None = None,
+              unwrap: bool = False) -> np.ndarray:
+    """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``, the short way
+    round. With a ``reference`` rotation vector (3,): a half turn (within
+    :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to it,
+    and with ``unwrap`` the representative ``ω + 2πk ω̂`` (either direction) nearest to it is
+    taken (a motion continuing across keys)."""
+    w = rotation_vectors(rotation[None])[0]
+    if reference is not None:
+        theta = np.linalg.norm(w)
+        if unwrap and theta > 0:
+            axis = w / theta
+            candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
+            candidates += [(theta - 2 * np.pi * k) * -axis for k in (0, 1)]
+            w = min(candidates, key=lambda c: np.linalg.norm(c - reference))
+        elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, reference) < 0:
+            w = -w
+    v = np.linalg.lstsq(_screw_matrix(w), translation, rcond=None)[0]
+    return np.concatenate([w, v])
+
+
+def rigid_exp(screw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation (3, 3) and translation (3,) of screw coordinates ``(ω, v)`` (6,)."""
+    w, v = screw[:3], screw[3:]
+    return Rotation.from_rotvec(w).as_matrix(), _screw_matrix(w) @ v

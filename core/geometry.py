@@ -1,0 +1,80 @@
+"""Small vectorized geometry shared by the core modules: row-wise dot products, unit vectors,
+Heron's formula on squared lengths, nearest rotations, connected components, the transfer of
+per-triangle labels to vertices, lumped (barycentric) vertex areas, and values on a mesh's used
+vertices written out to all of its vertices.
+
+Every function works on stacks (one row per point, edge, triangle or matrix) and allocates no
+Python objects per row.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Positive floor for norms used as denominators that can be exactly zero (an all-zero residual);
+#: far below any meaningful value, above the subnormal range.
+DIVISION_FLOOR = 1e-300
+
+
+def rows_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products of corresponding rows along the last axis: ``(…, d)``, ``(…, d)`` → ``(…)``."""
+    return np.einsum("...i,...i->...", a, b)
+
+
+def normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Unit vectors along the last axis of ``v`` ``(…, d)`` and their former lengths ``(…)``
+    (zero vectors stay zero)."""
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return v / np.maximum(norm, np.finfo(float).tiny), norm[..., 0]
+
+
+def heron(squared: np.ndarray) -> np.ndarray:
+    """Heron's formula on squared lengths: ``2(ab + bc + ca) − a² − b² − c²`` = 16·area² per row
+    of ``squared`` ``(m, 3)`` (``a, b, c`` the three squared edge lengths of a triangle; = 4 det E₃
+    of paper §7.2). Negative when the lengths violate the triangle inequality."""
+    a, b, c = squared[:, 0], squared[:, 1], squared[:, 2]
+    return 2.0 * (a * b + b * c + c * a) - a * a - b * b - c * c
+
+
+def nearest_rotations(matrices: np.ndarray) -> np.ndarray:
+    """The proper rotation nearest (Frobenius) each of ``matrices`` ``(…, 3, 3)``: ``U Vᵀ`` from
+    the SVD, with the last column of ``U`` negated where that product would be a reflection."""
+    u, _, vt = np.linalg.svd(matrices)
+    flip = np.linalg.det(u @ vt) < 0
+    u[..., :, 2] *= np.where(flip, -1.0, 1.0)[..., None]
+    return u @ vt
+
+
+def connected_components(n_nodes: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of the undirected graph on ``n_nodes`` nodes with edges ``pairs``
+    ``(P, 2)``: their count and the label of every node, int ``(n_nodes,)`` (an isolated node is a
+    component of its own)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components as components
+
+    graph = coo_matrix((np.ones(pairs.shape[0]), (pairs[:, 0], pairs[:, 1])), shape=(n_nodes, n_nodes))
+    count, labels = components(graph, directed=False)
+    return int(count), labels
+
+
+def vertex_labels(triangles: np.ndarray, triangle_labels: np.ndarray, n_vertices: int, *, fill: int = -1) -> np.ndarray:
+    """Per-vertex labels int64 ``(n_vertices,)`` from per-triangle ones ``(m,)`` (e.g. connected
+    components, where all triangles around a vertex agree); vertices in no triangle get ``fill``."""
+    out = np.full(n_vertices, fill, dtype=np.int64)
+    out[triangles.ravel()] = np.repeat(triangle_labels, 3)
+    return out
+
+
+def expand_vertex_values(used_vertices: np.ndarray, values: np.ndarray, n_vertices: int, *, fill: float = 0.0) -> np.ndarray:
+    """Float64 ``(n_vertices, …)`` holding ``values`` ``(n_used, …)`` at the ``used_vertices``
+    ``(n_used,)`` (vertex indices, e.g. those in some triangle) and ``fill`` at every other vertex."""
+    out = np.full((n_vertices,) + np.shape(values)[1:], fill, dtype=np.float64)
+    out[used_vertices] = values
+    return out
+
+
+def lumped_vertex_areas(triangles: np.ndarray, areas: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Lumped (barycentric) vertex areas float64 ``(n_vertices,)``: a third of the ``areas``
+    ``(m,)`` of the ``triangles`` ``(m, 3)`` around each vertex — the row sums of the P1 mass
+    matrix A of eq. (1); 0 for vertices in no triangle."""
+    return np.bincount(triangles.ravel(), np.repeat(areas / 3.0, 3), n_vertices)

@@ -1,0 +1,469 @@
+"""The in-between solver objects (paper §7.3 in local/global form): per topology the factorized
+normal matrix, per key its frames, per gap the splines of the deformation fields between its keys,
+the anchor and the reconstruction of a pose at any factor.
+
+``_Topology`` (triangles only) → ``_Key`` (one pose) → ``_Relative`` (a key seen from the base key
+of a gap: :mod:`core.deformation_fields`) → ``_Gap`` (splines of the relatives at key times
+−1, 0, 1, 2 (:mod:`core.splines`) and ``pose(s)``: Poisson solve, local/global fit, checks and
+repairs (:mod:`core.inbetween_repair`)). The public classes live in :mod:`core.interpolation`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from scipy.spatial.transform import Rotation
+
+from . import deformation_fields as df
+from .inbetween_repair import Repair
+from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+from .rigid_alignment import rigid_alignment
+from .splines import HermiteGap
+
+#: Anchor weight (per unit vertex mass, mean mass 1, relative to the unit edge terms) that only
+#: fixes the translation gauge of the Poisson solve: small enough to leave shapes exact to ~1e-7
+#: of their size (placement is done afterwards), large enough to keep the matrix well conditioned.
+GAUGE_WEIGHT = 1e-7
+#: Local/global iterations after the Poisson solve, at most. They bring the edge lengths onto the
+#: interpolated metric where the interpolated rotations are not integrable (crumpling cloth); the
+#: numbers behind the count are in docs/inbetweens.md.
+ARAP_ITERATIONS = 6
+#: Past steps mixed by the Anderson acceleration of the local/global iterations.
+ANDERSON_WINDOW = 3
+#: The local/global fit stops when the mean relative deviation of its edge lengths from the
+#: interpolated metric is below the larger of METRIC_TOLERANCE (the issue's additive slack of 0.1
+#: point on edge deviation) and KEY_VARIATION_FRACTION × the mean relative change of edge lengths
+#: between the gap's two keys: the simulated frames between two keys differ from any smooth
+#: interpolation of their metrics by about that much, so fitting the interpolated metric closer
+#: does not bring the pose closer to the frame (14k tablecloth, keys 8 frames apart, key-to-key
+#: change 4.5 %: the Poisson solve alone is 0.70 × the blend's RMS, 6 fitting steps 0.75 ×; a
+#: stiff 1k drape, keys 16 apart, change 0.5 %: the steps take the edge deviation 1.10 → 0.48 %).
+METRIC_TOLERANCE = 1e-3
+KEY_VARIATION_FRACTION = 0.5
+#: Stop the iterations early when no vertex moved by more than this fraction of the mean edge.
+ARAP_TOLERANCE = 1e-5
+#: Largest angle between a triangle's fitted rotation and its interpolated one (radians); beyond
+#: it the interpolated rotation is kept (keeps folds from flipping over during the fit).
+MAX_ROTATION_DEVIATION = np.pi / 4
+#: Two-pose interpolation anchors vertex ``v`` to the linear blend with weight
+#: BLEND_ANCHOR_WEIGHT · (BLEND_SHORTENING_SCALE / max(c, scale))² · max(0, 1 − c / CUTOFF)², where
+#: ``c`` is the blend's mean relative edge shortening around ``v`` at the middle of the gap (in
+#: the world or with the component's rigid motion undone, see ``_Gap.anchor_weights``). Where the
+#: blend keeps the edge lengths (the neighbourhood translates) it is accurate, so parts that do not
+#: move stay put, translating parts sit where the blend puts them, and parts turning about them
+#: hang from them; where the blend shortens edges (rotating parts: it cuts the chord; 10 % is a
+#: turn of ~50°) the weight vanishes and the interpolated rotations alone decide.
+BLEND_ANCHOR_WEIGHT = 0.1
+BLEND_SHORTENING_SCALE = 0.01
+BLEND_SHORTENING_CUTOFF = 0.1
+#: Components without anchored vertices are placed by their centroid: along the screw motion of
+#: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
+#: about a common pivot stay together), along the spline of the keys' centroids where they deform
+#: (free-falling cloth: the centroid follows its own trajectory, not the rotation's arc), mixed
+#: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
+#: the gap's keys / the component's bounding-box diagonal) relative to this scale.
+RIGID_PLACEMENT_SCALE = 1e-3
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products (k,) of (k, 3) arrays."""
+    return np.einsum("ij,ij->i", a, b)
+
+
+class _Topology:
+    """What depends only on the triangles: edge incidence (``D``: corner edges × vertices), lumped
+    vertex masses of the first pose (mean 1), components, and the factorized normal matrices."""
+
+    def __init__(self, triangles, n_vertices: int, first_pose: np.ndarray):
+        topo = mesh_topology(triangles, n_vertices)
+        self.n = n_vertices
+        t = self.triangles = topo.triangles
+        m = t.shape[0]
+        self.i, self.j = t.ravel(), t[:, [1, 2, 0]].ravel()  # corner edge c of triangle k: row 3k + c
+        rows = np.arange(3 * m)
+        self.D = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)], (np.r_[rows, rows], np.r_[self.i, self.j])),
+                               shape=(3 * m, n_vertices))
+        self.Dt = self.D.T.tocsr()
+        self.laplacian = (self.Dt @ self.D).tocsc()
+        edges = df.corner_edges(first_pose, t)
+        areas = 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 2]), axis=1)
+        mass = np.bincount(t.ravel(), np.repeat(areas / 3.0, 3), n_vertices)
+        used = mass > 0
+        self.mass = np.where(used, mass / mass[used].mean(), 1.0)  # loose vertices follow the guide
+        self.weights = np.where(used, self.mass, 0.0)
+        _, labels = topo.components()
+        vertex_labels = np.full(n_vertices, -1, dtype=np.int64)
+        vertex_labels[t.ravel()] = np.repeat(labels, 3)
+        kept = np.unique(labels)
+        self.components = [np.flatnonzero(vertex_labels == c) for c in kept]
+        self.triangle_component = np.searchsorted(kept, labels)
+        self.vertex_component = np.where(vertex_labels >= 0, np.searchsorted(kept, vertex_labels), -1)
+        self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
+        self._uniform: dict[float, object] = {}
+
+    def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT):
+        """Sparse LU of ``DᵀD + diag(w · mass)`` for per-vertex ``weights`` (n,) or one weight
+        for all (cached per value). The matrix is symmetric positive definite: symmetric mode with
+        a minimum-degree ordering of ``A + Aᵀ`` has about 60 % of the default ordering's fill
+        and solves twice as fast."""
+        uniform = np.isscalar(weights)
+        if uniform and weights in self._uniform:
+            return self._uniform[weights]
+        w = np.full(self.n, weights) if uniform else weights
+        lu = spla.splu((self.laplacian + sp.diags(w * self.mass)).tocsc(), permc_spec="MMD_AT_PLUS_A",
+                       diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        if uniform:
+            self._uniform[weights] = lu
+        return lu
+
+    def centroid(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        w = self.weights[rows]
+        return w @ x[rows] / w.sum()
+
+    def apply_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+        """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices
+        unchanged)."""
+        c = self.vertex_component
+        out = x.copy()
+        used = c >= 0
+        out[used] = df.matmul(rotations[c[used]], x[used, :, None])[:, :, 0] + translations[c[used]]
+        return out
+
+    def undo_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`apply_motion`."""
+        inverse = np.transpose(rotations, (0, 2, 1))
+        return self.apply_motion(x, inverse, -np.einsum("cab,cb->ca", inverse, translations))
+
+
+class _Key:
+    """Per-key data: positions, tangent bases, corner edges and their tangent coordinates, the
+    inverse edge matrices, normals, areas and component centroids."""
+
+    def __init__(self, topo: _Topology, vertices, name: str):
+        v = check_vertices(vertices, topo.n, name=name)
+        check_nondegenerate(v, topo.triangles, name=name)
+        self.vertices = v
+        self.bases = df.tangent_bases(v, topo.triangles)
+        self.edges = df.corner_edges(v, topo.triangles)
+        self.coordinates = df.tangent_coordinates(self.edges, self.bases)
+        self.inverse = df.inverse_edge_matrices(self.coordinates)
+        self.normals = self.bases[:, :, 2]
+        self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
+        self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
+
+
+class _Relative:
+    """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
+    (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
+    log-stretches (packed 2×2 in the base's tangent bases (m, 3)) and the vertices with their
+    component's rigid motion undone (n, 3)."""
+
+    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
+        screws, rotations, translations, self.nonrigidity = [], [], [], []
+        unwrap = turns is not None  # the continuation of the next key's turn
+        if turns is None:  # every piece's half turn goes the way the whole mesh turns
+            whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
+            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
+        for c, rows in enumerate(topo.components):
+            a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
+            rotation, translation = rigid_alignment(a, b, w)
+            screws.append(df.rigid_log(rotation, translation, turns[c], unwrap))
+            rotations.append(rotation)
+            translations.append(translation)
+            misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
+            self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
+        rotations, translations = np.array(rotations), np.array(translations)
+        angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
+        triangle = df.triangle_rotations(other.bases, base.bases, angle)
+        residual = df.matmul(df.transpose(rotations[topo.triangle_component]), triangle)
+        self.rotvec = df.rotation_vectors(residual)
+        self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
+        self.screw = np.array(screws)
+        self.vertices = topo.undo_motion(other.vertices, rotations, translations)
+        self.world = other.vertices
+        self.centroids = other.centroids
+
+    @classmethod
+    def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
+        self = cls.__new__(cls)
+        m = topo.triangles.shape[0]
+        self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
+        self.screw = np.zeros((len(topo.components), 6))
+        self.vertices = self.world = base.vertices
+        self.centroids = base.centroids
+        self.nonrigidity = [0.0] * len(topo.components)
+        return self
+
+    @staticmethod
+    def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
+        """Linear extrapolation 2·current − previous (end condition of the spline)."""
+        self = _Relative.__new__(_Relative)
+        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
+            setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
+        self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
+        return self
+
+
+class _Gap:
+    """One gap between key ``base`` (s = 0) and key ``next`` (s = 1), prepared once: splines of
+    the relatives at key times −1, 0, 1, 2, the target edges' constant factors, the anchor and
+    its factorization. :meth:`poses` answers any factors."""
+
+    def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
+                 use_extrinsic: bool, anchored: bool):
+        self.topo, self.base, self.next = topo, base, nxt
+        self.relatives = relatives
+        self.cubic, self.use_extrinsic = cubic, use_extrinsic
+        spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic)
+                  for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
+        self.splines = spline
+        self.plane = base.bases[:, :, :2]
+        self.anchored = anchored
+        self._anchors: dict[bool, tuple] = {}
+        self.select(0.5)
+        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
+        self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
+        lengths = np.linalg.norm(base.edges, axis=2)
+        self.mean_edge = float(np.mean(lengths))
+        variation = float(np.mean(np.abs(np.linalg.norm(nxt.edges, axis=2) / lengths - 1.0)))
+        self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
+        self.repair = Repair(self)
+
+    def select(self, s: float) -> None:
+        """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
+        extrapolations, each computed and factorized once (``weights``, ``co_moving``, ``system``
+        and ``placed_by_centroid``)."""
+        between = 0.0 < s < 1.0
+        if between not in self._anchors:
+            topo = self.topo
+            weights, co_moving = self.anchor_weights(between) if self.anchored else (None, None)
+            if weights is not None and not (weights > GAUGE_WEIGHT).any():
+                weights = None
+            w = np.full(topo.n, GAUGE_WEIGHT) if weights is None else weights
+            system = (topo.factor(GAUGE_WEIGHT if weights is None else w), w * topo.mass)
+            placed = [not (w[rows] > GAUGE_WEIGHT).any() for rows in topo.components]
+            self._anchors[between] = (weights, co_moving, system, placed)
+        self.weights, self.co_moving, self.system, self.placed_by_centroid = self._anchors[between]
+
+    def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge
+        lengths (in-betweens) or, for extrapolations, where the edge vectors do not change (a
+        linear extrapolation is exact only for translating parts) (see
+        :data:`BLEND_ANCHOR_WEIGHT`), and per vertex whether the blend is taken in
+        the world or with its component's rigid motion undone (``self.co_moving``, bool (n,)):
+        the latter where the vertex moves with that rigid motion (edge vectors around it within
+        BLEND_SHORTENING_SCALE of the base's once it is undone) and the world leaves them less
+        unchanged (bool (n,)). Parts that do not move are anchored in the world (exact: they stay
+        put), a rigidly moving mesh with its motion undone (exact at every factor)."""
+        topo = self.topo
+        a = self.base.edges.reshape(-1, 3)
+        b = self.next.edges.reshape(-1, 3)
+        undone = self.relatives[2].vertices
+        c = (undone[topo.j] - undone[topo.i])
+        length_a = np.linalg.norm(a, axis=1)
+
+        def per_vertex(values):
+            return (np.bincount(topo.i, values, topo.n) + np.bincount(topo.j, values, topo.n)) / np.maximum(
+                topo.edges_per_vertex, 1)
+
+        def shortening(other):
+            return np.abs(np.linalg.norm(a + other, axis=1) / (length_a + np.linalg.norm(other, axis=1)) - 1.0)
+
+        co_moving_change = per_vertex(np.linalg.norm(c - a, axis=1) / length_a)
+        world_change = per_vertex(np.linalg.norm(b - a, axis=1) / length_a)
+        co_moving = (co_moving_change < BLEND_SHORTENING_SCALE) & (co_moving_change < world_change)
+        if between:
+            change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
+        else:
+            change = np.where(co_moving, co_moving_change, world_change)
+        falloff = (BLEND_SHORTENING_SCALE / np.maximum(change, BLEND_SHORTENING_SCALE)) ** 2
+        weight = BLEND_ANCHOR_WEIGHT * falloff * np.maximum(0.0, 1.0 - change / BLEND_SHORTENING_CUTOFF) ** 2
+        return np.maximum(weight, GAUGE_WEIGHT), co_moving
+
+    # --- the interpolated field at one factor
+
+    def targets(self, s: float):
+        """Interpolated rotations (m, 3, 3), stretches (packed (m, 3)), the components' rigid
+        motions (rotations (C, 3, 3), translations (C, 3)) and the guide positions (n, 3) at
+        factor ``s``."""
+        motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
+        motion = (np.array([r for r, _ in motions]), np.array([t for _, t in motions]))
+        residual = Rotation.from_rotvec(self.splines["rotvec"].at(s)).as_matrix()
+        rotation = df.matmul(motion[0][self.topo.triangle_component], residual)
+        stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
+        if self.weights is not None:  # the keys' per-vertex spline (two poses: the linear blend)
+            guide = self.splines["world"].at(s)
+            if self.co_moving.any():
+                undone = self.splines["vertices"].at(s)
+                guide[self.co_moving] = self.topo.apply_motion(undone, *motion)[self.co_moving]
+        else:
+            guide = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        return rotation, stretch, motion, guide
+
+    def target_edges(self, rotation: np.ndarray, stretch: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """Corner edge vectors (m, 3, 3) ``R_T U_T e`` of the base's corner edges ``e`` (of the
+        triangles ``rows``)."""
+        local = df.apply_stretch(stretch, self.base.coordinates[rows])  # (m, 3, 2) in the base's (t1, t2)
+        world = df.matmul(local, df.transpose(self.plane[rows]))
+        return df.matmul(world, df.transpose(rotation))
+
+    def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
+        """Positions (n, 3) fitting corner ``edges`` (m, 3, 3) and the anchor to ``guide``
+        (``system``: (factor, per-vertex anchor) other than the gap's own)."""
+        lu, anchor = system or self.system
+        rhs = self.topo.Dt @ edges.reshape(-1, 3) + anchor[:, None] * guide
+        return lu.solve(np.asfortranarray(rhs))
+
+    def place(self, x: np.ndarray, s: float, motion) -> np.ndarray:
+        """Components without anchored vertices moved to their interpolated centroid (see
+        :data:`RIGID_PLACEMENT_SCALE`)."""
+        rotations, translations = motion
+        spline = self.splines["centroids"].at(s)
+        for c, rows in enumerate(self.topo.components):
+            if self.placed_by_centroid[c]:
+                rigid = rotations[c] @ self.base.centroids[c] + translations[c]
+                target = self.rigidity[c] * rigid + (1.0 - self.rigidity[c]) * spline[c]
+                x[rows] += target - self.topo.centroid(x, rows)
+        return x
+
+    def edges_of(self, x: np.ndarray) -> np.ndarray:
+        """Corner edge vectors (m, 3, 3) of positions ``x``."""
+        return (x[self.topo.j] - x[self.topo.i]).reshape(-1, 3, 3)
+
+    def local_targets(self, rotation: np.ndarray | None, stretch: np.ndarray, rows=slice(None)) -> dict:
+        """What the local steps at one factor share: the metric's corner edges in the base's
+        tangent coordinates ``u``, ``v`` (m, 3 corners) and their lengths, the interpolated
+        rotations' images of the base frames (three (m, 3)) and the interpolated target edges
+        (of the triangles ``rows``; ``rotation`` and ``stretch`` given for those)."""
+        local = df.apply_stretch(stretch, self.base.coordinates[rows])
+        out = {"u": np.ascontiguousarray(local[..., 0]), "v": np.ascontiguousarray(local[..., 1]),
+               "lengths": np.linalg.norm(local, axis=2), "rotation": rotation}
+        if rotation is not None:
+            frames = df.matmul(rotation, self.base.bases[rows])
+            out["frames"] = [np.ascontiguousarray(frames[:, :, k]) for k in range(3)]
+            out["edges"] = self.target_edges(rotation, stretch, rows)
+        return out
+
+    def fitted_edges(self, edges: np.ndarray, targets: dict, force=None, inverse=None) -> np.ndarray:
+        """Corner edge targets (m, 3, 3) of a local step from the current corner ``edges``: the
+        interpolated metric turned by each triangle's rotation re-fitted to them (the orthonormal
+        polar factor ``W = G (GᵀG)^-½`` of the 3×2 map ``G`` from the base's tangent plane), or
+        by the interpolated rotation where the two differ by more than
+        :data:`MAX_ROTATION_DEVIATION` or where ``force`` (bool (m,)) is set (``inverse``: the
+        base's inverse edge matrices of these triangles; default all). Written out on (m, 3)
+        columns: the batched 3×3 products this replaces cost 10× more."""
+        inverse = self.base.inverse if inverse is None else inverse  # upper triangular
+        e1, e2 = edges[:, 0], -edges[:, 2]
+        g0 = e1 * inverse[:, 0, 0, None]
+        g1 = e1 * inverse[:, 0, 1, None] + e2 * inverse[:, 1, 1, None]
+        c11, c12, c22 = _dot(g0, g0), _dot(g0, g1), _dot(g1, g1)
+        root_det = np.sqrt(np.maximum(c11 * c22 - c12 * c12, 0.0))
+        scale = np.sqrt(np.maximum(c11 + c22 + 2.0 * root_det, np.finfo(float).tiny))
+        # (GᵀG)^½ = (C + √det C · I) / √(tr C + 2 √det C) = [[a, b], [b, d]]; W = G · its inverse
+        a, b, d = (c11 + root_det) / scale, c12 / scale, (c22 + root_det) / scale
+        det = a * d - b * b
+        det = np.where(det > 0, det, 1.0)
+        w0 = (g0 * d[:, None] - g1 * b[:, None]) / det[:, None]
+        w1 = (g1 * a[:, None] - g0 * b[:, None]) / det[:, None]
+        u, v = targets["u"], targets["v"]
+        out = w0[:, None, :] * u[:, :, None] + w1[:, None, :] * v[:, :, None]
+        if targets["rotation"] is None:
+            return out
+        f0, f1, f2 = targets["frames"]
+        trace = _dot(w0, f0) + _dot(w1, f1) + _dot(np.cross(w0, w1), f2)
+        far = ~(0.5 * (trace - 1.0) > np.cos(MAX_ROTATION_DEVIATION))
+        if force is not None:
+            far |= force
+        out[far] = targets["edges"][far]
+        return out
+
+    @staticmethod
+    def misfit(edges: np.ndarray, targets: dict) -> float:
+        """Mean relative deviation of the lengths of corner ``edges`` from the metric's."""
+        lengths = np.sqrt(np.sum(edges * edges, axis=2))
+        return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0)))
+
+    def fit(self, x, stretch, rotation, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None):
+        """Local/global fit of the interpolated metric ``stretch`` from ``x`` (``rotation``: the
+        interpolated rotations the fit may not stray far from; None: unconstrained), the
+        iterations accelerated by Anderson mixing of the last :data:`ANDERSON_WINDOW` steps
+        (Peng et al., TOG 2018: local/global steps converge slowly on the smooth part of the
+        error, which the mixing extrapolates); stops once the edge lengths are within the gap's
+        tolerance of the metric (see :data:`METRIC_TOLERANCE`)."""
+        targets = self.local_targets(rotation, stretch)
+        steps, images = [], []
+        for _ in range(iterations):
+            edges = self.edges_of(x)
+            if self.misfit(edges, targets) < self.tolerance:
+                break
+            image = self.solve(self.fitted_edges(edges, targets, force), guide, system)
+            image = image if system is not None else self.place(image, s, motion)
+            residual = image - x
+            step = np.max(np.abs(residual))
+            if not np.isfinite(step) or step < ARAP_TOLERANCE * self.mean_edge:
+                return image
+            steps.append(residual.ravel())
+            images.append(image.ravel())
+            if len(steps) > 1:
+                df_ = np.diff(np.array(steps[-ANDERSON_WINDOW - 1:]), axis=0).T
+                dg = np.diff(np.array(images[-ANDERSON_WINDOW - 1:]), axis=0).T
+                gamma = np.linalg.lstsq(df_, steps[-1], rcond=None)[0]
+                image = (images[-1] - dg @ gamma).reshape(-1, 3)
+            x = image
+        return x
+
+    def local_fit(self, x, stretch, rotation, guide, force, iterations):
+        """Local/global fit of ``stretch`` on the vertices all of whose triangles are in ``force``
+        (bool (m,)), the rest of ``x`` held fixed: a repair touches only the region of a defect
+        and factorizes only its (small) block of the normal matrix."""
+        topo, t = self.topo, self.topo.triangles
+        outside = np.zeros(topo.n, dtype=bool)
+        outside[t[~force].ravel()] = True
+        inside = np.zeros(topo.n, dtype=bool)
+        inside[t[force].ravel()] = True
+        free = np.flatnonzero(inside & ~outside)
+        if free.size == 0:
+            return x
+        region = np.flatnonzero(force)
+        corners = (3 * region[:, None] + np.arange(3)).ravel()
+        incidence = topo.D[corners]  # (3r, n): the region's corner edges
+        anchor = self.system[1]
+        block = (incidence[:, free].T @ incidence[:, free] + sp.diags(anchor[free])).tocsc()
+        coupling = incidence[:, free].T @ incidence  # (f, n)
+        solver = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        targets = self.local_targets(None if rotation is None else rotation[region], stretch[region], region)
+        inverse = self.base.inverse[region]
+        x = x.copy()
+        for _ in range(iterations):
+            edges = (x[topo.j[corners]] - x[topo.i[corners]]).reshape(-1, 3, 3)
+            fitted = self.fitted_edges(edges, targets, force[region], inverse)
+            held = x.copy()
+            held[free] = 0.0
+            rhs = incidence[:, free].T @ fitted.reshape(-1, 3) + anchor[free, None] * guide[free] - coupling @ held
+            new = solver.solve(np.asfortranarray(rhs))
+            step = np.max(np.abs(new - x[free]))
+            x[free] = new
+            if not np.isfinite(step) or step < ARAP_TOLERANCE * self.mean_edge:
+                break
+        return x
+
+    def pose(self, s: float) -> tuple[np.ndarray, str | None]:
+        """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
+        self.select(s)
+        rotation, stretch, motion, guide = self.targets(s)
+        if self.use_extrinsic:
+            x0 = self.place(self.solve(self.target_edges(rotation, stretch), guide), s, motion)
+        else:
+            x0 = self.place(guide.copy(), s, motion)
+        x = self.fit(x0, stretch, rotation if self.use_extrinsic else None, guide, s, motion)
+        return self.repair.checked(x, x0, s, rotation, stretch, guide, motion)
+
+
+def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:
+    """Packed log-stretches (m, 3) in the base's tangent bases whose metric ``U²`` gives the base's
+    corner edges the squared lengths ``corner_squared`` (m, 3)."""
+    a, b = base.coordinates[:, :, 0], base.coordinates[:, :, 1]
+    system = np.stack([a * a, 2 * a * b, b * b], axis=2)  # (m, 3, 3) · (g11, g12, g22) = ℓ²
+    metric = np.linalg.solve(system, corner_squared[:, :, None])[:, :, 0]
+    return 0.5 * df.log_stretch(metric)

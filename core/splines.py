@@ -1,0 +1,45 @@
+"""Splines through the keys of a sequence, per element (the in-betweens of §8.4 over many keys).
+
+A gap runs from key time 0 to 1; its neighbours sit at −1 and 2. :class:`HermiteGap` is prepared
+once per gap from the values at the four key times (arrays of one shape) and evaluated at any
+factor with a handful of vector operations, so every in-between of a gap shares the preparation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: The spline's tangent at the start of a gap is at most this multiple of the secant over the gap,
+#: per element (Fritsch–Carlson's monotonicity bound): the velocity a gap inherits from the
+#: previous one, which a collision can stop abruptly (cloth landing on a collider); unlimited
+#: Catmull–Rom tangents overshoot into the gap after such a stop. The numbers behind the value
+#: are in docs/inbetweens.md.
+TANGENT_LIMIT = 3.0
+
+
+class HermiteGap:
+    """Cubic Hermite interpolation over one gap with Catmull–Rom tangents ``(v₁ − v₋₁)/2`` and
+    ``(v₂ − v₀)/2``, the first limited per element to :data:`TANGENT_LIMIT` × the secant
+    ``v₁ − v₀`` (the velocity at the gap's end may legitimately be large: motion accelerating from
+    rest). C¹ across keys where the limit is inactive; exact for quadratic motion.
+    ``cubic=False``: linear in the two keys (``before``/``after`` are ignored).
+
+    ``values``: ``(before, start, end, after)`` at key times −1, 0, 1, 2, arrays of one shape.
+    """
+
+    def __init__(self, values, cubic: bool):
+        before, start, end, after = values
+        self.start = start
+        self.secant = end - start
+        self.cubic = cubic
+        if cubic:
+            limit = TANGENT_LIMIT * np.abs(self.secant)
+            self.t0 = np.clip(0.5 * (end - before), -limit, limit)
+            self.t1 = 0.5 * (after - start)
+
+    def at(self, s: float) -> np.ndarray:
+        """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""
+        if not self.cubic:
+            return self.start + s * self.secant
+        s2, s3 = s * s, s * s * s
+        return self.start + (3 * s2 - 2 * s3) * self.secant + (s3 - 2 * s2 + s) * self.t0 + (s3 - s2) * self.t1

@@ -1,0 +1,91 @@
+"""Shared geometry helpers (core/geometry.py) and per-component rigid placement."""
+
+import numpy as np
+
+from core.geometry import (
+    connected_components,
+    expand_vertex_values,
+    heron,
+    lumped_vertex_areas,
+    nearest_rotations,
+    normalize,
+    rows_dot,
+    vertex_labels,
+)
+from core.mesh_topology import triangle_areas
+from core.reference_shape import ReferenceShape
+from core.rigid_alignment import align_components
+from meshes import grid, icosphere, random_rotation
+
+
+def test_rows_dot_and_normalize():
+    rng = np.random.default_rng(0)
+    a, b = rng.normal(size=(50, 3)), rng.normal(size=(50, 3))
+    assert np.allclose(rows_dot(a, b), [x @ y for x, y in zip(a, b)], rtol=1e-14)
+    stacked = rng.normal(size=(4, 5, 3))
+    assert rows_dot(stacked, stacked).shape == (4, 5)
+    unit, length = normalize(np.vstack([a, np.zeros(3)]))
+    assert np.allclose(np.linalg.norm(unit[:-1], axis=1), 1.0) and np.allclose(length[:-1], np.linalg.norm(a, axis=1))
+    assert np.array_equal(unit[-1], np.zeros(3)) and length[-1] == 0.0
+
+
+def test_heron_is_sixteen_squared_areas():
+    v, t = icosphere(1)
+    v = v * np.array([1.0, 2.0, 0.5])
+    squared = np.stack([np.sum((v[t[:, i]] - v[t[:, j]]) ** 2, axis=1) for i, j in ((1, 2), (2, 0), (0, 1))], axis=1)
+    assert np.allclose(heron(squared), 16.0 * triangle_areas(v, t) ** 2, rtol=1e-10)
+    assert heron(np.array([[1.0, 1.0, 4.0 + 1e-3]]))[0] < 0  # 1 + 1 < 2.0002: no triangle
+
+
+def test_nearest_rotations_are_proper_and_nearest():
+    rng = np.random.default_rng(1)
+    rotations = np.stack([random_rotation(seed) for seed in range(6)])
+    # A rotation times a positive symmetric stretch: the nearest rotation is the rotation itself.
+    stretch = np.stack([np.diag(rng.uniform(0.5, 2.0, 3)) for _ in range(6)])
+    assert np.allclose(nearest_rotations(rotations @ stretch), rotations, atol=1e-12)
+    reflections = rotations * np.array([1.0, 1.0, -1.0])  # det −1: never returned
+    found = nearest_rotations(reflections)
+    assert np.allclose(np.linalg.det(found), 1.0)
+    assert np.allclose(found @ np.swapaxes(found, 1, 2), np.eye(3), atol=1e-12)
+    assert np.allclose(nearest_rotations(rotations[0] @ stretch[0]), rotations[0], atol=1e-12)  # one matrix
+
+
+def test_components_and_vertex_labels():
+    count, labels = connected_components(6, np.array([[0, 1], [1, 2], [4, 5]]))
+    assert count == 3 and labels[0] == labels[1] == labels[2] and labels[4] == labels[5] != labels[0]
+    assert labels[3] not in (labels[0], labels[4])  # isolated node
+    triangles = np.array([[0, 1, 2], [3, 4, 5]])
+    assert np.array_equal(vertex_labels(triangles, np.array([7, 9]), 7), [7, 7, 7, 9, 9, 9, -1])
+
+
+def test_lumped_vertex_areas_are_the_mass_matrix_row_sums():
+    v, t = icosphere(1)
+    v = v * np.array([1.0, 2.0, 0.5])
+    areas = triangle_areas(v, t)
+    mass = ReferenceShape(v, t, use_extrinsic=False).base.mass  # the P1 mass matrix of eq. (1)
+    lumped = lumped_vertex_areas(t, areas, len(v))
+    assert np.allclose(lumped, np.asarray(mass.sum(axis=1)).ravel(), rtol=1e-13)
+    assert np.isclose(lumped.sum(), areas.sum(), rtol=1e-13)
+    # A vertex in no triangle (index 3) has no area.
+    assert np.allclose(lumped_vertex_areas(np.array([[0, 1, 2]]), np.array([0.6]), 4), [0.2, 0.2, 0.2, 0.0])
+
+
+def test_expand_vertex_values_fills_the_unused_vertices():
+    used = np.array([0, 2, 3])
+    assert np.array_equal(expand_vertex_values(used, np.array([1.0, 2.0, 3.0]), 5), [1.0, 0.0, 2.0, 3.0, 0.0])
+    wide = expand_vertex_values(used, np.arange(6.0).reshape(3, 2), 4, fill=np.inf)
+    assert wide.shape == (4, 2) and np.all(np.isinf(wide[1])) and np.array_equal(wide[3], [4.0, 5.0])
+
+
+def test_align_components_moves_each_component_rigidly():
+    v, _ = grid(5)
+    points = np.vstack([v, v + 5.0])
+    labels = np.repeat([0, 1], len(v))
+    moved = points.copy()
+    moved[labels == 0] = points[labels == 0] @ random_rotation(2).T + 1.0
+    moved[labels == 1] = points[labels == 1] @ random_rotation(3).T - 2.0
+    assert np.allclose(align_components(moved, points, labels), points, atol=1e-12)
+    active = labels == 0
+    out = align_components(moved, points, labels, active=active)
+    assert np.allclose(out[active], points[active], atol=1e-12)
+    assert np.array_equal(out[~active], moved[~active])  # inactive rows stay

@@ -1,0 +1,164 @@
+"""Where in-betweens and exaggerations are placed (issue 17 item 3, issue 19 item 1): rigid motions
+of the whole mesh (pieces and half turns included) are reproduced exactly, parts that do not move
+stay put, pieces move as one, exaggerated bends do not flip triangles. No bpy."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.linalg import expm, logm
+from scipy.spatial.transform import Rotation
+
+from core.errors import ShapeDifferenceWarning
+from core.interpolation import Interpolator, SequenceInterpolator
+
+from meshes import grid, icosphere
+
+FACTORS = (-0.5, 0.25, 0.5, 0.75, 1.5, 2.0)
+
+
+def _rigid(vertices, rotation, pivot, shift=(0.0, 0.0, 0.0)):
+    return (vertices - pivot) @ rotation.T + pivot + np.asarray(shift)
+
+
+def _screw(vertices, rotation, translation, s):
+    """``x ↦ exp(s log T) x`` for the rigid motion ``T x = R x + t`` (the constant-velocity rigid
+    motion; SciPy's matrix logarithm and exponential, independent of the code under test)."""
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rotation, translation
+    moved = np.real(expm(s * logm(t)))
+    return vertices @ moved[:3, :3].T + moved[:3, 3]
+
+
+def _head_with_eyes():
+    """A head (sphere of radius 1) and two eyes (spheres of radius 0.2) in their sockets: three
+    connected components."""
+    head, tri = icosphere(2)
+    eye, eye_tri = icosphere(1, radius=0.2)
+    parts, triangles, offset = [head], [tri], len(head)
+    for center in ((0.35, 0.85, 0.3), (-0.35, 0.85, 0.3)):
+        parts.append(eye + np.array(center))
+        triangles.append(eye_tri + offset)
+        offset += len(eye)
+    return np.vstack(parts), np.vstack(triangles)
+
+
+def _arm(angle, n=41, width=7):
+    """A strip along x ∈ [0, 2] bent about y at the elbow (x = 1) by ``angle``: the upper arm
+    (x < 0.9) is fixed, the forearm turns rigidly, the elbow (0.9–1.1) bends isometrically."""
+    flat, tri = grid(n, width, size=2.0)
+    x = flat[:, 0]
+    radius = 0.2 / angle if angle else np.inf
+    out = flat.copy()
+    if angle:
+        bend = np.clip(x - 0.9, 0.0, 0.2)
+        theta = bend / radius
+        out[:, 0] = np.where(x < 0.9, x, 0.9 + radius * np.sin(theta))
+        out[:, 2] = np.where(x < 0.9, 0.0, radius * (1 - np.cos(theta)))
+        past = x > 1.1
+        along = x[past] - 1.1
+        out[past, 0] += along * np.cos(angle)
+        out[past, 2] += along * np.sin(angle)
+    return out, tri
+
+
+def _normals(x, triangles):
+    return np.cross(x[triangles[:, 1]] - x[triangles[:, 0]], x[triangles[:, 2]] - x[triangles[:, 0]])
+
+
+@pytest.mark.parametrize("angle", [np.radians(60.0), np.radians(135.0), np.pi])
+def test_rigid_motion_of_the_whole_mesh_is_the_screw_motion_at_every_factor(angle):
+    """A rigid motion about an axis off the mesh, with a shift along it, pieces included: every
+    factor (in-betweens, exaggerations, reversal) is that motion to 1e-6 of the size. A half turn
+    is ambiguous in direction: either way round is a rigid turn, and edge lengths stay exact."""
+    a, tri = _head_with_eyes()
+    axis = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
+    rotation = Rotation.from_rotvec(angle * axis).as_matrix()
+    pivot = np.array([0.5, -1.5, 0.2])
+    b = _rigid(a, rotation, pivot, shift=0.4 * axis)
+    translation = b[0] - rotation @ a[0]
+    it = Interpolator(a, b, tri)
+    for s in FACTORS:
+        x = it.pose(s)
+        if angle < np.pi:
+            np.testing.assert_allclose(x, _screw(a, rotation, translation, s), atol=1e-6)
+        else:
+            # both directions of the half turn are rigid turns: the result is one of them
+            errors = [np.abs(x - _rigid(a, Rotation.from_rotvec(sign * s * angle * axis).as_matrix(), pivot,
+                                        shift=0.4 * s * axis)).max() for sign in (1, -1)]
+            assert min(errors) < 1e-6, errors
+
+
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_eyes_stay_in_their_sockets_when_the_head_turns(factor):
+    """Head and eyes turned together by 60° about the neck: at 0.5 and ×2 the distances between
+    the pieces are those of the rest pose (the pieces move as one)."""
+    a, tri = _head_with_eyes()
+    b = _rigid(a, Rotation.from_rotvec([0.0, 0.0, np.radians(60.0)]).as_matrix(), np.array([0.0, 0.0, -1.2]))
+    x = Interpolator(a, b, tri).pose(factor)
+    n_head = len(icosphere(2)[0])
+    for eye in (slice(n_head, n_head + 42), slice(n_head + 42, None)):
+        distances = np.linalg.norm(x[eye][:, None] - x[:n_head][None], axis=2)
+        rest = np.linalg.norm(a[eye][:, None] - a[:n_head][None], axis=2)
+        assert np.abs(distances - rest).max() < 1e-6
+
+
+def test_rigid_sequence_is_reproduced_at_every_time():
+    """Keys of a mesh turning at constant speed about a pivot (and drifting along the axis): every
+    in-between of every gap, end gaps included, is the rigid motion (the spline of the screw
+    coordinates is exact for constant velocity)."""
+    a, tri = _head_with_eyes()
+    axis = np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0])
+    step = Rotation.from_rotvec(np.radians(50.0) * axis).as_matrix()
+    pivot = np.array([1.0, 0.5, 0.0])
+    keys = [a]
+    for _ in range(4):
+        keys.append(_rigid(keys[-1], step, pivot, shift=0.1 * axis))
+    translation = keys[1][0] - step @ a[0]
+    seq = SequenceInterpolator(keys, tri)
+    for time in (0.3, 1.5, 2.25, 3.8, 4.5):
+        np.testing.assert_allclose(seq.pose_at(time), _screw(a, step, translation, time), atol=1e-6)
+
+
+@pytest.mark.parametrize("factor", [0.5, 1.5, 2.0])
+def test_fixed_upper_arm_stays_fixed(factor):
+    """An arm bent at the elbow by 100°: the upper arm, fixed in both keys, is fixed at every
+    factor, exaggerations included."""
+    a, tri = _arm(0.0)
+    b, _ = _arm(np.radians(100.0))
+    x = Interpolator(a, b, tri).pose(factor)
+    upper = a[:, 0] < 0.85
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    assert np.abs(x[upper] - a[upper]).max() < 1e-3 * diagonal
+
+
+def test_exaggerated_bend_does_not_flip():
+    """×2 of a 100° bend: no triangle faces against the 200° bend's, and the forearm keeps its
+    length (the exaggeration is a bend, not a stretch)."""
+    a, tri = _arm(0.0)
+    b, _ = _arm(np.radians(100.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = Interpolator(a, b, tri).pose(2.0)
+    truth, _ = _arm(np.radians(200.0))
+    assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+    edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    lengths = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+    rest = np.linalg.norm(a[edges[:, 0]] - a[edges[:, 1]], axis=1)
+    assert np.abs(lengths / rest - 1).max() < 0.02
+
+
+def test_gap_results_do_not_depend_on_what_was_computed_before():
+    """A farm computes gaps in any order, in separate processes: the same gap and factors give
+    bit-identical poses whatever was asked before."""
+    flat, tri = grid(12, 9, size=1.0)
+    keys = [flat + np.array([0.0, 0.0, -0.1 * k * k]) + 0.05 * np.sin(3 * flat[:, [1, 0, 0]] + k) for k in range(5)]
+    factors = [0.25, 0.5, 0.75]
+    fresh = SequenceInterpolator(keys, tri).poses(2, factors)
+    busy = SequenceInterpolator(keys, tri)
+    for gap in (3, 0, 1):
+        busy.poses(gap, factors)
+    assert np.array_equal(busy.poses(2, factors), fresh)
+    assert np.array_equal(np.stack([busy.pose(2, f) for f in factors]), fresh)
