@@ -10,6 +10,9 @@ Public API (arrays: vertices float64 ``(n, 3)``, triangles int ``(m, 3)``):
 - :func:`interpolate`, :class:`Interpolator`, :class:`SequenceInterpolator` — in-betweens and
   exaggerations by interpolating shape differences (§8.4).
 - :class:`ReferenceShape` — a base mesh prepared once for many targets.
+- :class:`Transfer` — poses of a differently meshed target rebuilt on the base mesh through a
+  functional map (§6.3, Fig. 15); ``shape_differences``, ``interpolate`` and
+  ``SequenceInterpolator`` take such a target with ``target_triangles``.
 - :func:`shape_space` — PCA of the differences of a collection of poses (§8.1);
   :func:`pull_back` — the target's metric on the base mesh: Laplacian, geodesics, WKS (§8.3);
   :func:`distortion` — per-face and per-vertex distortion maps of a pose.
@@ -45,6 +48,7 @@ __all__ = [
     "Interpolator",
     "SequenceInterpolator",
     "ReferenceShape",
+    "Transfer",
     "ShapeDifferences",
     "RecoveredMetric",
     "default_offset",
@@ -71,6 +75,9 @@ def shape_differences(
     k_N: int | None = None,
     offset: float | None = None,
     use_extrinsic: bool = True,
+    target_triangles=None,
+    correspondence=None,
+    target_rest_vertices=None,
 ) -> ShapeDifferences:
     """The four shape differences of ``target_vertices`` relative to ``base_vertices`` (§6).
 
@@ -80,10 +87,25 @@ def shape_differences(
     eq. (6). ``offset``: the offset distance t in the mesh's units (``None``: half the mean edge
     length of the base). ``use_extrinsic=False`` computes the intrinsic pair only.
 
+    Another mesh as target (§6.3, Fig. 15): ``target_triangles`` int ``(m_N, 3)`` are the
+    target's triangles and ``target_vertices`` ``(n_N, 3)`` its pose; ``k_M`` and ``k_N`` are then
+    required. ``correspondence`` int ``(n_M,)``: each base vertex's matched target vertex (not
+    necessarily a bijection); ``None`` matches closest points, for a target that overlaps the
+    base at rest. ``target_rest_vertices`` ``(n_N, 3)``: the target pose the map refers to (its
+    rest pose; default ``target_vertices``). See :class:`core.transfer.Transfer`, which prepares
+    all this once for many target poses.
+
     Raises :class:`MeshError` for invalid arguments (``docs/errors.md``); warns
     (:class:`ShapeDifferenceWarning`) when the offset is so far from the mesh's scale that the
     extrinsic differences lose precision.
     """
+    if target_triangles is not None:
+        from .transfer import Transfer
+
+        rest = target_vertices if target_rest_vertices is None else target_rest_vertices
+        transfer = Transfer(base_vertices, triangles, rest, target_triangles, correspondence=correspondence,
+                            k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic)
+        return transfer.differences(target_vertices)
     base, topology = check_mesh(base_vertices, triangles, name="base_vertices")
     target = check_pose(target_vertices, topology, name="target_vertices")
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
@@ -298,13 +320,28 @@ def interpolate(
     k_N: int | None = None,
     offset: float | None = None,
     use_extrinsic: bool = True,
+    target_triangles=None,
+    correspondence=None,
+    target_rest_vertices=None,
 ) -> np.ndarray:
     """The pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1): 0.5 is an
     in-between, 1.5 an exaggeration, negative values reverse the motion (§8.4). See
-    :class:`Interpolator` to reuse the preparation for many factors."""
+    :class:`Interpolator` to reuse the preparation for many factors.
+
+    With ``target_triangles``, ``vertices_b`` is a pose of another mesh: it is first rebuilt on
+    the mesh of ``vertices_a`` (:class:`Transfer`, ``k_M`` / ``k_N``, ``correspondence`` and
+    ``target_rest_vertices`` as in :func:`shape_differences`), then in-betweened in the full basis."""
     from .interpolation import Interpolator
 
     factor = check_factor(factor)
+    if target_triangles is not None:
+        from .transfer import transferred_keys
+
+        (vertices_b,) = transferred_keys(
+            vertices_a, triangles, [vertices_b], target_triangles, correspondence=correspondence,
+            target_rest_vertices=target_rest_vertices, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
+        )
+        k_M = k_N = None
     return Interpolator(
         vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic
     ).pose(factor)
@@ -317,6 +354,15 @@ def __getattr__(name: str):
 
         return getattr(importlib.import_module(_ANALYSIS[name], __name__), name)
     # Interpolation classes load on first use, keeping `import core` light.
+    if name == "SequenceInterpolator":  # same-mesh, or key poses of another mesh (core.transfer)
+        from .transfer import _sequence_class
+
+        globals()[name] = _sequence_class()
+        return globals()[name]
+    if name == "Transfer":
+        from .transfer import Transfer
+
+        return Transfer
     if name in ("Interpolator", "SequenceInterpolator"):
         from . import interpolation
 

@@ -140,7 +140,7 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
         )
 
 
-def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
+def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = False) -> MeshTopology:
     """Validate ``triangles`` (int ``(m, 3)``) of a mesh with ``n_vertices`` vertices and build its
     topology: edges, triangle→edge and edge→triangle incidence, boundary.
 
@@ -148,6 +148,11 @@ def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
     or not whole numbers, a vertex repeated in a triangle, an edge shared by more than two
     triangles, a non-manifold ("bow-tie") vertex, or inconsistent orientation. Geometry checks (degenerate triangles, non-finite coordinates) are in
     :meth:`MeshTopology.check_pose`. Loose vertices are allowed.
+
+    ``allow_non_manifold`` (for targets of a cross-mesh transfer only, never a base): edges shared
+    by more than two triangles or traversed twice in one direction are kept (the mass and
+    conformal matrices are sums over triangles, well defined) but get no ``edge_triangles``
+    (``-1, -1``: neither interior nor a hinge of the offset surface); bow-tie vertices pass.
     """
     tris = check_triangles(triangles, n_vertices)
 
@@ -159,13 +164,16 @@ def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
     keys = low * n_vertices + high
     unique_keys, edge_of_halfedge, counts = np.unique(keys, return_inverse=True, return_counts=True)
     edge_of_halfedge = edge_of_halfedge.reshape(-1)
-    if (counts > 2).any():
-        e = int(np.flatnonzero(counts > 2)[0])
+    non_manifold = counts > 2
+    if non_manifold.any() and not allow_non_manifold:
+        bad = np.flatnonzero(non_manifold)
+        e = int(bad[0])
         owners = np.flatnonzero(edge_of_halfedge == e) // 3
-        a, b = divmod(int(unique_keys[e]), n_vertices)
+        named = ", ".join(str(divmod(int(unique_keys[i]), n_vertices)) for i in bad[:10])
         raise MeshError(
-            f"Edge ({a}, {b}) is shared by {counts[e]} triangles ({owners.tolist()}). "
-            + _FIX_MANIFOLD
+            f"Edge {divmod(int(unique_keys[e]), n_vertices)} is shared by {counts[e]} triangles "
+            f"({owners.tolist()}); {bad.size} edge(s) are shared by more than two triangles: {named}"
+            f"{', ...' if bad.size > 10 else ''}. " + _FIX_MANIFOLD
         )
     edges = np.stack(np.divmod(unique_keys, n_vertices), axis=1).astype(np.int64)
     n_edges = edges.shape[0]
@@ -177,7 +185,11 @@ def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
     # Two half-edges of one edge in the same direction means the two triangles disagree.
     occupancy = np.zeros((n_edges, 2), dtype=np.int64)
     np.add.at(occupancy, (edge_of_halfedge, slot), 1)
-    if (occupancy > 1).any():
+    inconsistent = (occupancy > 1).any(axis=1)
+    if allow_non_manifold:
+        keep = ~(non_manifold | inconsistent)[edge_of_halfedge]
+        edge_triangles[edge_of_halfedge[keep], slot[keep]] = owner[keep]
+    elif inconsistent.any():
         e = int(np.flatnonzero((occupancy > 1).any(axis=1))[0])
         owners = np.flatnonzero(edge_of_halfedge == e) // 3
         raise MeshError(
@@ -185,8 +197,9 @@ def mesh_topology(triangles, n_vertices: int) -> MeshTopology:
             "in the same direction: the mesh orientation is inconsistent (or the surface is not "
             "orientable). In Blender select all and use Mesh > Normals > Recalculate Outside."
         )
-    edge_triangles[edge_of_halfedge, slot] = owner
-    _check_manifold_vertices(tris, edges, edge_triangles, n_vertices)
+    else:
+        edge_triangles[edge_of_halfedge, slot] = owner
+        _check_manifold_vertices(tris, edges, edge_triangles, n_vertices)
 
     return MeshTopology(
         n_vertices=int(n_vertices),

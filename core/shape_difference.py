@@ -101,10 +101,17 @@ def functional_map_differences(
 ) -> tuple[ReducedDifference, ReducedDifference]:
     """Eq. (6): source- and target-truncated differences ``D_A = FᵀF`` and
     ``D_C = diag(λ_M)⁺ Fᵀ diag(λ_N) F``, each float64 ``(k_M, k_M)``."""
-    fmap = functional_map(base_basis, target_basis, target_mass)
+    return map_differences(base_basis, target_basis.eigenvalues, functional_map(base_basis, target_basis, target_mass))
+
+
+def map_differences(
+    base_basis: LaplaceBasis, target_eigenvalues: np.ndarray, fmap: np.ndarray
+) -> tuple[ReducedDifference, ReducedDifference]:
+    """Eq. (6) for a given functional map ``fmap`` ``(k_N, k_M)`` (of this mesh's poses, or
+    between two meshes, :mod:`core.functional_map`) and the target eigenvalues ``(k_N,)``."""
     area = fmap.T @ fmap
-    conformal = base_basis.pseudo_inverse_eigenvalues()[:, None] * (fmap.T @ (target_basis.eigenvalues[:, None] * fmap))
-    k_n = target_basis.size
+    conformal = base_basis.pseudo_inverse_eigenvalues()[:, None] * (fmap.T @ (target_eigenvalues[:, None] * fmap))
+    k_n = int(target_eigenvalues.size)
     return (
         ReducedDifference("area", _symmetric(area), base_basis, k_n),
         ReducedDifference("conformal", conformal, base_basis, k_n),

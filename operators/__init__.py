@@ -9,6 +9,7 @@ from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCE
                      SHAPE_DIFFERENCES_OT_retime)
 from .poses import (SHAPE_DIFFERENCES_OT_exaggerate, SHAPE_DIFFERENCES_OT_inbetween,
                     SHAPE_DIFFERENCES_OT_reconstruct)
+from .transfer import SHAPE_DIFFERENCES_OT_transfer_poses
 
 classes = (
     SHAPE_DIFFERENCES_OT_frames_to_shape_keys,
@@ -18,6 +19,7 @@ classes = (
     SHAPE_DIFFERENCES_OT_inbetween_frames,
     SHAPE_DIFFERENCES_OT_retime,
     *analysis_classes,
+    SHAPE_DIFFERENCES_OT_transfer_poses,
 )
 
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(classes)

@@ -114,6 +114,15 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         operator.frame_step, operator.speed = settings.frame_step, settings.speed
         set_output(operator, settings, "output")
 
+        # Transfer: poses of another selected mesh (any connectivity) onto the active one.
+        row = layout.row(align=True)
+        operator = row.operator("shape_differences.transfer_poses", text="Transfer Keys", icon='MOD_DATA_TRANSFER')
+        operator.source = 'KEYS'
+        set_output(operator, settings, "pose_output")
+        operator = row.operator("shape_differences.transfer_poses", text="Transfer Frames", icon='MOD_DATA_TRANSFER')
+        operator.source, operator.frame_step = 'FRAMES', settings.frame_step
+        set_output(operator, settings, "output")
+
 
 class VIEW3D_PT_shape_differences_analysis(ShapeDiffPanel, bpy.types.Panel):
     """Shape space and distortion maps (operators/analysis.py); results stored on the object."""

@@ -24,6 +24,7 @@ OPERATOR_PROPERTIES = {
     "shape_space": {"source", "frame_start", "frame_end", "frame_step", "k_m", "k_n", "offset"},
     "shape_space_select": {"kind", "rank", "step"},
     "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "frame_step", "k_m", "offset"},
+    "transfer_poses": {"source", "matching", "map_attribute", "frame_start", "frame_end", "frame_step"} | CORE | OUTPUT,
 }
 
 
@@ -135,7 +136,7 @@ def test_panel_draws_settings_and_operators(bpy_empty, extension):
     bpy.ops.mesh.primitive_grid_add()
     assert [idname for idname, _ in draw_panels(extension)] == [
         "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames",
-        "shape_differences.retime", *["shape_differences.shape_space"] * 2,
+        "shape_differences.retime", *["shape_differences.transfer_poses"] * 2, *["shape_differences.shape_space"] * 2,
         *["shape_differences.distortion_maps"] * 2]
 
     posed_grid(extension.bridge, 4)

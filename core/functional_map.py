@@ -1,0 +1,196 @@
+"""Functional maps between two meshes of different connectivity (paper §6.3, eq. 6).
+
+A point-to-point correspondence gives, for every vertex ``i`` of the base M, a matched vertex
+``c[i]`` of the target N (as map files store it; not necessarily a bijection). Its pull-back of
+functions is the sparse ``(n_M, n_N)`` matrix ``Π`` with ``Π[i, c[i]] = 1`` (``g ↦ g ∘ c``). The
+functional map of eq. (6), ``F`` ``(k_N, k_M)``, takes coefficients of a function in the first
+``k_M`` eigenfunctions ``Φ_M`` of M to coefficients in the first ``k_N`` eigenfunctions ``Φ_N`` of
+N; it is the least-squares inverse of the pull-back in the reduced bases,
+
+    F = argmin ‖Π Φ_N F − Φ_M‖²_{A_M}   ⇔   (Bᵀ A_M B) F = Bᵀ A_M Φ_M,   B = Π Φ_N  ``(n_M, k_N)``
+
+(Φ_M is A_M-orthonormal). For the identity correspondence of one mesh and full bases this is
+``Φ_N⁻¹ Φ_M = Φ_Nᵀ A_N Φ_M``, the map :func:`core.shape_difference.functional_map` builds for
+poses of one mesh; truncated, both are projections of the same operator onto ``span Φ_N`` and
+differ only in the norm (A_M here, A_N there), which a non-bijective map cannot provide.
+
+Without a map, :func:`closest_point_correspondence` matches every base vertex to the nearest
+target vertex of a rest pose that overlaps the base (KD-tree).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import MeshError
+
+#: Rings of base neighbours in the local affine fit that smooths a vertex map
+#: (:func:`locally_affine_images`), and the relative spread below which a direction of a ring
+#: counts as flat (the fit is a pseudo-inverse there: no motion along the normal of a flat ring).
+AFFINE_RINGS = 2
+AFFINE_CUTOFF = 1e-3
+#: Target vertices past the boundary of the base's image are extrapolated from the nearest
+#: triangle while no barycentric weight is below minus this (see :func:`push_forward_matrix`).
+EXTRAPOLATION_LIMIT = 0.5
+
+
+def check_correspondence(correspondence, n_base: int, n_target: int) -> np.ndarray:
+    """``correspondence`` as int64 ``(n_base,)`` with values in ``0..n_target-1``; raises
+    :class:`MeshError` naming the first bad entry."""
+    array = np.asarray(correspondence)
+    if array.ndim != 1 or array.shape[0] != n_base:
+        raise MeshError(
+            f"The correspondence must give one target vertex index per base vertex, an integer "
+            f"array of shape ({n_base},); got shape {array.shape}."
+        )
+    if array.size and not np.issubdtype(array.dtype, np.integer):
+        if not (np.isfinite(array).all() and np.all(np.mod(array, 1) == 0)):
+            raise MeshError("The correspondence must hold integer target vertex indices.")
+    array = array.astype(np.int64)
+    bad = np.flatnonzero((array < 0) | (array >= n_target))
+    if bad.size:
+        i = int(bad[0])
+        raise MeshError(
+            f"The correspondence maps base vertex {i} to target vertex {int(array[i])}, but the "
+            f"target has {n_target} vertices (valid indices are 0..{n_target - 1}); "
+            f"{bad.size} entries are out of range. Use a map computed for these two meshes."
+        )
+    return array
+
+
+def closest_point_correspondence(base_vertices: np.ndarray, target_vertices: np.ndarray) -> np.ndarray:
+    """For every base vertex ``(n_M, 3)`` the index of the nearest target vertex ``(n_N, 3)``,
+    int64 ``(n_M,)``: the correspondence of two meshes that overlap at rest (same place, same
+    scale). A KD-tree query, O(n log n)."""
+    from scipy.spatial import cKDTree
+
+    _, index = cKDTree(np.asarray(target_vertices, dtype=np.float64)).query(np.asarray(base_vertices, dtype=np.float64))
+    return np.asarray(index, dtype=np.int64)
+
+
+def pull_back_matrix(triangles: np.ndarray, weights: np.ndarray, n_target: int) -> sp.csr_matrix:
+    """``Π`` float64 ``(n_M, n_N)`` of a point-to-surface map: row ``i`` holds the barycentric
+    ``weights[i]`` ``(3,)`` of base vertex ``i``'s image in the target triangle ``triangles[i]``
+    (vertex indices ``(3,)``), so ``(Π g)[i]`` is the target function ``g`` interpolated there."""
+    n = triangles.shape[0]
+    return sp.csr_matrix((weights.ravel(), (np.repeat(np.arange(n), 3), triangles.ravel())), shape=(n, n_target))
+
+
+def functional_map(target_functions: np.ndarray, target_mass: sp.spmatrix, pushed_base_functions: np.ndarray) -> np.ndarray:
+    """``F = Φ_Nᵀ A_N (Q Φ_M)`` float64 ``(k_N, k_M)``: the base functions carried to the target
+    (``Q Φ_M`` ``(n_N, k_M)``, see :func:`push_forward_matrix`) projected A_N-orthogonally onto the
+    target functions ``Φ_N`` ``(n_N, k_N)`` (least squares in the reduced basis with the target's
+    mass matrix ``A_N`` ``(n_N, n_N)``)."""
+    return target_functions.T @ np.asarray(target_mass @ pushed_base_functions)
+
+
+# ---------------------------------------------------------------------------------------------
+# From a vertex map to a point-to-surface map
+# ---------------------------------------------------------------------------------------------
+def locally_affine_images(base_positions: np.ndarray, base_edges: np.ndarray, images: np.ndarray,
+                          rings: int = AFFINE_RINGS) -> np.ndarray:
+    """Images of the base vertices ``(n_M, 3)`` smoothed by a local affine fit: for every base
+    vertex ``i``, the affine map ``x ↦ A x + b`` best taking the base positions of its
+    ``rings``-ring (``base_positions`` ``(n_M, 3)``, edges ``(E, 2)``) to their ``images``
+    ``(n_M, 3)`` (least squares; pseudo-inverse across a flat ring), evaluated at ``x_i``. Exact for a
+    map that is affine over a ring (a rigid motion, a stretch, a bend far larger than the ring),
+    while the snapping of a vertex map — up to half a target edge, in random directions — is
+    averaged out; boundaries are fitted like the interior (no shrinking, unlike a diffusion)."""
+    n = base_positions.shape[0]
+    adjacency = sp.csr_matrix((np.ones(2 * len(base_edges)), (base_edges.ravel(), base_edges[:, ::-1].ravel())),
+                              shape=(n, n)) + sp.identity(n, format="csr")
+    ring = adjacency
+    for _ in range(rings - 1):
+        ring = ring @ adjacency
+    ring.data[:] = 1.0
+    ring = sp.diags(1.0 / np.asarray(ring.sum(axis=1)).ravel()) @ ring  # row means
+    x, y = base_positions, images
+    x_mean, y_mean = ring @ x, ring @ y
+    xx = (ring @ np.einsum("ni,nj->nij", x, x).reshape(n, 9)).reshape(n, 3, 3) - np.einsum("ni,nj->nij", x_mean, x_mean)
+    yx = (ring @ np.einsum("ni,nj->nij", y, x).reshape(n, 9)).reshape(n, 3, 3) - np.einsum("ni,nj->nij", y_mean, x_mean)
+    values, vectors = np.linalg.eigh(xx)
+    inverse = np.where(values > AFFINE_CUTOFF * values[:, -1:], 1.0 / np.maximum(values, np.finfo(float).tiny), 0.0)
+    affine = yx @ np.einsum("nij,nj,nkj->nik", vectors, inverse, vectors)  # yx · pinv(xx)
+    return y_mean + np.einsum("nij,nj->ni", affine, x - x_mean)
+
+
+def plane_weights(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Barycentric weights ``(P, 3)`` of the orthogonal projection of ``points`` ``(P, 3)`` onto
+    the planes of the triangles ``corners`` ``(P, 3, 3)`` (negative outside the triangle)."""
+    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
+    e1, e2, d = b - a, c - a, points - a
+    g11, g12, g22 = (np.einsum("ij,ij->i", u, v) for u, v in ((e1, e1), (e1, e2), (e2, e2)))
+    r1, r2 = np.einsum("ij,ij->i", d, e1), np.einsum("ij,ij->i", d, e2)
+    det = np.maximum(g11 * g22 - g12 * g12, np.finfo(float).tiny)
+    s = (g22 * r1 - g12 * r2) / det
+    t = (g11 * r2 - g12 * r1) / det
+    return np.stack([1.0 - s - t, s, t], axis=1)
+
+
+def closest_points_on_triangles(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point of each ``points`` ``(P, 3)`` on its triangle ``corners`` ``(P, 3, 3)``:
+    returns barycentric weights ``(P, 3)`` and squared distances ``(P,)``. Inside the triangle
+    the orthogonal projection, else the nearest point of its three sides. (Written out: no
+    library in the extension's dependencies offers it vectorized.)"""
+    weights = plane_weights(points, corners)
+    outside = (weights < 0).any(axis=1)
+    if outside.any():
+        best = np.full(int(outside.sum()), np.inf)
+        best_w = np.zeros((best.size, 3))
+        p = points[outside]
+        for i, j in ((0, 1), (1, 2), (2, 0)):
+            u, v = corners[outside, i], corners[outside, j]
+            edge = v - u
+            f = np.clip(np.einsum("ij,ij->i", p - u, edge) / np.maximum(np.einsum("ij,ij->i", edge, edge), np.finfo(float).tiny), 0.0, 1.0)
+            dist = np.sum((u + f[:, None] * edge - p) ** 2, axis=1)
+            closer = dist < best
+            best[closer] = dist[closer]
+            w = np.zeros((best.size, 3))
+            w[:, i], w[:, j] = 1.0 - f, f
+            best_w[closer] = w[closer]
+        weights[outside] = best_w
+    nearest = np.einsum("nk,nki->ni", weights, corners)
+    return weights, np.sum((nearest - points) ** 2, axis=1)
+
+
+def project_near(points: np.ndarray, seeds: np.ndarray, target_positions: np.ndarray,
+                 target_triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each point ``(P, 3)``, its closest point on the target triangles touching the 1-ring
+    of its seed vertex ``seeds`` ``(P,)``: the target triangle index ``(P,)`` and barycentric
+    weights ``(P, 3)``. The search stays next to the seed, so a point is never matched across a
+    fold or to another part of the surface than its vertex match says."""
+    n, m = target_positions.shape[0], target_triangles.shape[0]
+    incidence = sp.csr_matrix((np.ones(3 * m), (target_triangles.ravel(), np.repeat(np.arange(m), 3))), shape=(n, m))
+    vertex_ring = sp.csr_matrix((incidence @ incidence.T) > 0)  # vertices sharing a triangle, and itself
+    near = sp.csr_matrix((vertex_ring @ incidence) > 0)[seeds]  # (P, m) candidate triangles
+    owner = np.repeat(np.arange(near.shape[0]), np.diff(near.indptr))
+    candidates = near.indices
+    weights, dist = closest_points_on_triangles(points[owner], target_positions[target_triangles[candidates]])
+    order = np.lexsort((dist, owner))
+    first = order[np.searchsorted(owner[order], np.arange(points.shape[0]))]
+    return candidates[first], weights[first]
+
+
+def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base_triangles: np.ndarray) -> sp.csr_matrix:
+    """``Q`` float64 ``(n_N, n_M)``: ``(Q f)[j]`` is the base function ``f`` interpolated at the
+    preimage of target vertex ``j``. The preimages are found on the *image mesh* — the base
+    triangles ``(m_M, 3)`` at the images of the base vertices on the target, ``base_images``
+    ``(n_M, 3)`` — as the closest point to each target vertex ``target_points`` ``(n_N, 3)``
+    (searched next to the nearest image vertex): the inverse of the base → target map, defined at
+    every target vertex even where that map is not onto (extrapolated linearly past the image
+    mesh's boundary)."""
+    from scipy.spatial import cKDTree
+
+    _, seeds = cKDTree(base_images).query(target_points)
+    triangles, weights = project_near(target_points, np.asarray(seeds, dtype=np.int64), base_images, base_triangles)
+    # Outside the image mesh (a target boundary reaching past the base's), extrapolate linearly
+    # from the nearest triangle instead of clamping onto its side: clamped, a row of target
+    # vertices would land on one line and their triangles would collapse.
+    # Only just outside (a fraction of a triangle): farther out, clamping is the safer guess.
+    outside = np.flatnonzero((weights <= 0.0).any(axis=1))
+    if outside.size:
+        extrapolated = plane_weights(target_points[outside], base_images[base_triangles[triangles[outside]]])
+        near = extrapolated.min(axis=1) >= -EXTRAPOLATION_LIMIT
+        weights[outside[near]] = extrapolated[near]
+    return pull_back_matrix(base_triangles[triangles], weights, base_images.shape[0])

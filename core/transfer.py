@@ -1,0 +1,373 @@
+"""Poses of a differently meshed target rebuilt on the base's connectivity (paper §6.3, Fig. 15).
+
+A :class:`Transfer` holds a base mesh M (a :class:`~core.reference_shape.ReferenceShape`), a
+target connectivity N with a pose of it that locates it (its rest pose), and a point-to-point
+correspondence from M to N (given, or built from closest points when the two overlap at rest).
+For every pose of N it computes the four source- and target-truncated shape differences of
+eq. (6) — on M and N, and on their offset surfaces M_t and N_t at the base's offset distance t —
+through the functional maps of :mod:`core.functional_map`, and rebuilds the pose on M by the
+truncated recovery (§7.1–7.2) and the embedding of the canonical thickening (§7.3).
+
+Prepared once per transfer and reused for every frame: the base (its eigenbases, the recovery's
+factorizations, the offset surface), the target's topology and offset surface, and the
+correspondences of both layers. Per frame: the target's products and its two eigenbases (the
+only target-side work), two small least-squares solves for the maps, the recovery, the
+embedding.
+
+The offset layers need their own correspondence: a lifted base vertex goes to the lifted target
+vertex of its matched vertex (or the nearest lifted one, at the corners of a boundary, which have
+no offset vertex), a base face center to the target face center nearest to the mean of its
+corners' matches — both measured on the target's rest pose.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import MeshError, ShapeDifferenceWarning
+from .functional_map import (check_correspondence, closest_point_correspondence, functional_map,
+                             locally_affine_images, project_near, pull_back_matrix, push_forward_matrix)
+from .inner_products import ProductAssembler, pose_products
+from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
+from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+
+
+#: Target eigenbases after the first pose: subspace iterations from the previous pose's functions,
+#: on SUBSPACE_MARGIN × k_N of them (the extra ones speed up convergence of the k_N wanted).
+SUBSPACE_MARGIN = 1.5
+SUBSPACE_ITERATIONS = 2
+
+
+class _TargetLayer:
+    """One layer of the target (N or N_t): topology, product assembler, and the push-forward
+    ``Q`` ``(n_N, n_M)`` of functions from the matching base layer."""
+
+    def __init__(self, name, topology, push):
+        self.name = name
+        self.topology = topology
+        self.assembler = ProductAssembler(topology)
+        self.push = push
+        self._pushed = {}
+        self._subspace = None  # (k_N, functions (n, p)) of the last pose, the next one's start
+
+    def basis(self, mass, conformal, k: int):
+        """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
+        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
+        every later pose, :data:`SUBSPACE_ITERATIONS` shift-invert subspace iterations with a
+        Rayleigh–Ritz step started from the previous pose's functions — a pose of the same
+        mesh, whose eigenspaces move little (one sparse LU and ``p`` solves instead of a Lanczos
+        run with 2k + 1 vectors; measured ARPACK at k = 200: 95 % of its time in its own
+        re-orthogonalization)."""
+        n = mass.shape[0]
+        p = min(n - 1, int(np.ceil(SUBSPACE_MARGIN * k)))
+        if self._subspace is None or self._subspace[0] != k or p <= k:
+            full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
+            self._subspace = (k, full.functions)
+            return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
+        import scipy.linalg as sla
+        from scipy.sparse.linalg import splu
+
+        diag_ratio = conformal.diagonal() / mass.diagonal()
+        shift = -1e-3 * float(np.median(diag_ratio[np.isfinite(diag_ratio)]))
+        factor = splu((conformal - shift * mass).tocsc())
+        x = self._subspace[1]
+        for _ in range(SUBSPACE_ITERATIONS):
+            x, _ = np.linalg.qr(factor.solve(np.asarray(mass @ x)))
+            values, small = sla.eigh(x.T @ np.asarray(conformal @ x), x.T @ np.asarray(mass @ x))
+            x = x @ small
+        self._subspace = (k, x)
+        return LaplaceBasis(values[:k], x[:, :k])
+
+    def differences(self, base_layer, positions, k_M, k_N):
+        from .shape_difference import map_differences
+
+        _, _, mass, conformal = pose_products(self.assembler, positions)
+        target_basis = self.basis(mass, conformal, k_N)
+        base_basis = base_layer.basis(k_M)
+        if k_M not in self._pushed:  # Q Φ_M depends on the base and the map only
+            self._pushed = {k_M: np.asarray(self.push @ base_basis.functions)}
+        fmap = functional_map(target_basis.functions, mass, self._pushed[k_M])
+        return map_differences(base_basis, target_basis.eigenvalues, fmap)
+
+
+class Transfer:
+    """Rebuild poses of a target mesh N on the connectivity of a base mesh M (module docstring).
+
+    ``base_vertices`` float ``(n_M, 3)`` and ``triangles`` int ``(m_M, 3)``: the base (manifold;
+    a non-manifold base raises :class:`MeshError` naming its edges). ``target_rest_vertices``
+    ``(n_N, 3)`` and ``target_triangles`` ``(m_N, 3)``: the target's connectivity and a pose of it
+    that locates it — its rest pose (any pose works when a correspondence is given; it is then
+    only used to match the offset layers). A few non-manifold target edges are accepted with a
+    warning. ``correspondence`` int ``(n_M,)``: for every base vertex its matched target vertex
+    (``None``: the nearest target vertex of ``target_rest_vertices``, for meshes that overlap
+    at rest). ``k_M`` / ``k_N``: base and target basis sizes (required: a functional map between
+    two meshes lives in truncated bases). ``offset``, ``use_extrinsic``: as for
+    :class:`~core.reference_shape.ReferenceShape`. ``reference``: an existing prepared base to
+    reuse (its eigenbases and factorizations).
+    """
+
+    def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
+                 k_M: int | None = 100, k_N: int | None = 200, offset: float | None = None,
+                 use_extrinsic: bool = True, reference=None, refine_map: bool = True,
+                 correct_discretization: bool = True):
+        from .reference_shape import ReferenceShape
+
+        k_M, k_N = basis_sizes(k_M, k_N)
+        if k_M is None or k_N is None:
+            raise MeshError(
+                "Shape differences between two different meshes need truncated bases: set both k_M "
+                "(base) and k_N (target), e.g. k_M = 100 and k_N = 200."
+            )
+        self.k_M, self.k_N = int(k_M), int(k_N)
+        if reference is None or not reference.matches(base_vertices, triangles):
+            reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
+        self.reference = reference
+        rest = check_vertices(target_rest_vertices, name="target rest vertices")
+        self.n_target = rest.shape[0]
+        topology = mesh_topology(target_triangles, self.n_target, allow_non_manifold=True)
+        self._warn_non_manifold(topology)
+        # Target vertices in no triangle are left out (compact numbering, as for the base).
+        self.target_used = topology.used_vertices
+        compact = np.full(self.n_target, -1, dtype=np.int64)
+        compact[self.target_used] = np.arange(self.target_used.size)
+        if self.target_used.size != self.n_target:
+            topology = mesh_topology(compact[topology.triangles], self.target_used.size, allow_non_manifold=True)
+        self.target_triangles = np.asarray(target_triangles, dtype=np.int64)
+        rest_used = rest[self.target_used]
+        check_nondegenerate(rest_used, topology.triangles, name="target rest vertices")
+
+        base_used = reference.used_vertices
+        if correspondence is None:
+            matched = self.target_used[closest_point_correspondence(reference.base_positions, rest_used)]
+            self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
+            self.correspondence[base_used] = matched
+        else:
+            self.correspondence = check_correspondence(correspondence, reference.n_vertices, self.n_target)
+        loose = np.flatnonzero(compact[self.correspondence[base_used]] < 0)
+        if loose.size:
+            i = int(base_used[loose[0]])
+            raise MeshError(
+                f"The correspondence maps base vertex {i} to target vertex {int(self.correspondence[i])}, "
+                f"which is in no triangle of the target ({loose.size} such base vertices). Match base "
+                "vertices to vertices of the target's surface."
+            )
+        seeds = compact[self.correspondence[base_used]]
+        if correspondence is None:
+            points = reference.base_positions  # the meshes overlap: project the base itself
+        elif refine_map:
+            points = locally_affine_images(reference.base_positions, reference.topology.edges, rest_used[seeds])
+        else:
+            points = rest_used[seeds]
+        image_triangles, weights = project_near(points, seeds, rest_used, topology.triangles)
+        if correspondence is not None and not refine_map:
+            weights = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
+        n_used = self.target_used.size
+        pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
+        push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
+        self.layers = [_TargetLayer("mesh", topology, push)]
+        self.target_surface = None
+        if reference.use_extrinsic:
+            from .offset_surface import offset_surface
+
+            try:
+                self.target_surface = offset_surface(topology)
+            except MeshError as error:
+                raise MeshError(
+                    f"The target mesh has no usable offset surface ({error}) Transfer with "
+                    "use_extrinsic=False (intrinsic differences only) or repair the target."
+                ) from error
+            offset_rest = self.target_surface.positions(rest_used, reference.offset)
+            offset_pull_back = _offset_pull_back(reference.surface, self.target_surface, image_triangles, weights,
+                                                 seeds, rest_used)
+            push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
+            self.layers.append(_TargetLayer("offset surface", self.target_surface.topology, push))
+        self.discretization_error = self._discretization_error() if correct_discretization else None
+
+    @staticmethod
+    def _warn_non_manifold(topology):
+        counts = np.bincount(topology.triangle_edges.ravel(), minlength=topology.n_edges)
+        hinged = (topology.edge_triangles >= 0).sum(axis=1)
+        odd = np.flatnonzero((counts > 2) | ((counts == 2) & (hinged < 2)))
+        if odd.size:
+            named = ", ".join(str(tuple(int(v) for v in topology.edges[e])) for e in odd[:5])
+            warnings.warn(
+                f"The target mesh has {odd.size} non-manifold or inconsistently oriented edge(s) "
+                f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
+                "matrix; its offset surface (extrinsic differences) is cut open along them.",
+                ShapeDifferenceWarning,
+                stacklevel=3,
+            )
+
+    # -- per pose ---------------------------------------------------------------------------
+    def _target_positions(self, target_vertices) -> np.ndarray:
+        full = check_vertices(target_vertices, name="target vertices")
+        if full.shape[0] != self.n_target:
+            raise MeshError(
+                f"target vertices has {full.shape[0]} vertices but the target mesh has {self.n_target}: "
+                "every target pose must be a pose of the same target mesh."
+            )
+        positions = full[self.target_used]
+        check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
+        return positions
+
+    def _layer_differences(self, positions):
+        """``[(area, conformal)]`` of eq. (6) per layer (mesh, offset surface) for a target pose of
+        used vertices ``(n_N_used, 3)``, uncorrected."""
+        ref = self.reference
+        out = [self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)]
+        if ref.use_extrinsic:
+            offset_positions = self.target_surface.positions(positions, ref.offset)
+            out.append(self.layers[1].differences(ref.offset_layer, offset_positions, self.k_M, self.k_N))
+        return out
+
+    def _discretization_error(self):
+        """What eq. (6) gets wrong only because the target is meshed differently: the differences
+        of the base's own rest pose carried onto the target's connectivity (each target vertex
+        placed at its preimage on the base, ``Q x_M``), minus their exact value for the same
+        surface (area: the identity; conformal: ``diag(λ)⁺ diag(λ)``). Subtracted from every
+        pose's differences; ``None`` (with a warning) where the carried rest pose folds."""
+        ref = self.reference
+        on_base = np.asarray(self.layers[0].push @ ref.base_positions)
+        try:
+            check_nondegenerate(on_base, self.layers[0].topology.triangles, name="target mesh laid on the base")
+            carried = self._layer_differences(on_base)
+        except MeshError as error:
+            warnings.warn(
+                f"The target's connectivity could not be laid on the base surface through the map ({error}); "
+                "the differences are not corrected for the change of meshing and are less accurate.",
+                ShapeDifferenceWarning,
+                stacklevel=3,
+            )
+            return None
+        errors = []
+        for (area, conformal), layer in zip(carried, (ref.base, ref.offset_layer)):
+            basis = layer.basis(self.k_M)
+            exact = basis.pseudo_inverse_eigenvalues() * basis.eigenvalues
+            errors.append((area.matrix - np.eye(self.k_M), conformal.matrix - np.diag(exact)))
+        return errors
+
+    def differences(self, target_vertices):
+        """The four differences (eq. 6) of a target pose ``(n_N, 3)``, on the base's bases, with
+        the :meth:`_discretization_error` removed: a
+        :class:`~core.reference_shape.ShapeDifferences` for :func:`core.reconstruct`."""
+        from dataclasses import replace
+
+        from .reference_shape import ShapeDifferences
+
+        layers = self._layer_differences(self._target_positions(target_vertices))
+        if self.discretization_error is not None:
+            layers = [
+                (replace(area, matrix=area.matrix - error_a), replace(conformal, matrix=conformal.matrix - error_c))
+                for (area, conformal), (error_a, error_c) in zip(layers, self.discretization_error)
+            ]
+        (area, conformal), (offset_area, offset_conformal) = layers[0], (layers[1] if len(layers) > 1 else (None, None))
+        ref = self.reference
+        return ShapeDifferences(area, conformal, offset_area, offset_conformal, ref.offset, self.k_M, self.k_N, ref)
+
+    def pose(self, target_vertices) -> np.ndarray:
+        """The target pose ``(n_N, 3)`` rebuilt on the base mesh, float64 ``(n_M, 3)``: recovered
+        from its shape differences and placed by the rigid motion that brings each component
+        closest to the target's matched vertices."""
+        ref = self.reference
+        differences = self.differences(target_vertices)
+        metric = ref.recover_metric(differences)
+        matched = np.asarray(target_vertices, dtype=np.float64)[self.correspondence[ref.used_vertices]]
+        placed = ref.place_near(ref.embed(metric), matched)
+        return ref.expand_pose(placed)
+
+
+def _offset_pull_back(base_surface, target_surface, image_triangles, weights, seeds, target_rest):
+    """``Π_t`` ``(n_Mt, n_Nt)`` between the offset surfaces from the base layer's point-to-surface
+    map (each base vertex's image: target triangle ``image_triangles`` ``(n_M,)``, barycentric
+    ``weights`` ``(n_M, 3)``; ``seeds`` its matched target vertex) and the target's rest pose.
+
+    A lifted base vertex takes its vertex's weights on the lifted target vertices at the corners
+    (renormalized; the nearest lifted vertex where no corner is lifted). A base face center maps
+    to the point above the mean of its corners' images: projected onto the target surface near
+    the first corner's match, in target triangle ``T`` at weights ``w``, it is written on the
+    vertices of the offset surface above ``T`` — ``3 min(w)`` on the face center of ``T`` (above
+    its barycenter) and ``w − min(w)`` on the lifted corners (a convex combination of nearby
+    offset vertices, exact for functions that are affine there)."""
+    from scipy.spatial import cKDTree
+
+    target = target_surface.base
+    n_lifted = target_surface.lifted_vertices.size
+    lift = target_surface.lift_of_vertex
+    center = target_surface.center_of_triangle
+
+    def rows(corner_lifts, corner_weights, centers, center_weights, fallback_points):
+        w = np.where(corner_lifts >= 0, corner_weights, 0.0)
+        c = np.where(centers >= 0, center_weights, 0.0)
+        total = w.sum(axis=1) + c
+        lost = ~(total > 1e-12)
+        if lost.any():  # no offset vertex above the image: the nearest lifted one
+            _, nearest = cKDTree(target_rest[target_surface.lifted_vertices]).query(fallback_points[lost])
+            corner_lifts, w = corner_lifts.copy(), w.copy()
+            corner_lifts[lost, 0], w[lost] = nearest, [1.0, 0.0, 0.0]
+            total[lost] = 1.0
+        columns = np.concatenate([np.maximum(corner_lifts, 0), np.maximum(centers, 0)[:, None]], axis=1)
+        values = np.concatenate([w, c[:, None]], axis=1) / total[:, None]
+        return columns, values
+
+    corners = target.triangles[image_triangles]  # (n_M, 3)
+    lifted = base_surface.lifted_vertices
+    images = np.einsum("nk,nki->ni", weights, target_rest[corners])
+    lift_cols, lift_vals = rows(lift[corners[lifted]], weights[lifted], np.full(lifted.size, -1), np.zeros(lifted.size),
+                                images[lifted])
+
+    base_corners = base_surface.base.triangles[base_surface.centered_triangles]  # (m_c, 3) base vertices
+    q = images[base_corners].mean(axis=1)
+    triangles, w = project_near(q, seeds[base_corners[:, 0]], target_rest, target.triangles)
+    low = w.min(axis=1)
+    center_cols, center_vals = rows(lift[target.triangles[triangles]], w - low[:, None], center[triangles], 3.0 * low, q)
+
+    columns = np.concatenate([lift_cols, center_cols])
+    values = np.concatenate([lift_vals, center_vals])
+    n_rows = columns.shape[0]
+    return sp.csr_matrix((values.ravel(), (np.repeat(np.arange(n_rows), 4), columns.ravel())),
+                         shape=(n_rows, target_surface.topology.n_vertices))
+
+
+def transferred_keys(base_vertices, triangles, key_poses, target_triangles, *, correspondence=None,
+                     target_rest_vertices=None, k_M=100, k_N=200, offset=None, use_extrinsic=True) -> list:
+    """Every pose of ``key_poses`` (poses ``(n_N, 3)`` of the target mesh) rebuilt on the base mesh
+    by one :class:`Transfer` (``target_rest_vertices`` defaults to the first key)."""
+    keys = [np.asarray(k) for k in key_poses]
+    if not keys:
+        raise MeshError("No target poses to transfer.")
+    transfer = Transfer(base_vertices, triangles, keys[0] if target_rest_vertices is None else target_rest_vertices,
+                        target_triangles, correspondence=correspondence, k_M=k_M, k_N=k_N, offset=offset,
+                        use_extrinsic=use_extrinsic)
+    return [transfer.pose(key) for key in keys]
+
+
+def _sequence_class():
+    from .interpolation import SequenceInterpolator
+
+    class TransferSequenceInterpolator(SequenceInterpolator):
+        """:class:`~core.interpolation.SequenceInterpolator` that also takes key poses of another
+        mesh: with ``target_triangles`` the keys are poses of that target mesh, first rebuilt on
+        the base mesh (``base_vertices`` on ``triangles``) by a :class:`Transfer` with ``k_M`` /
+        ``k_N`` (``correspondence``, ``target_rest_vertices`` as there), then in-betweened on the
+        base mesh in the full basis. Without ``target_triangles``: the same-mesh interpolator."""
+
+        def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
+                     smooth=True, base_vertices=None, target_triangles=None, correspondence=None,
+                     target_rest_vertices=None):
+            if target_triangles is not None:
+                if base_vertices is None:
+                    raise MeshError("Key poses of another mesh need base_vertices: the pose of the mesh to move.")
+                key_poses = transferred_keys(
+                    base_vertices, triangles, key_poses, target_triangles, correspondence=correspondence,
+                    target_rest_vertices=target_rest_vertices, k_M=k_M, k_N=k_N, offset=offset,
+                    use_extrinsic=use_extrinsic,
+                )
+                k_M = k_N = None
+            super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
+                             smooth=smooth)
+
+    TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
+    return TransferSequenceInterpolator

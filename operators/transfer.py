@@ -1,0 +1,142 @@
+"""Transfer poses from a differently meshed object onto the active mesh (issue 21, paper Fig. 15)."""
+
+from contextlib import closing
+
+import bpy
+import numpy as np
+from bpy.props import EnumProperty, StringProperty
+
+from .. import bridge
+from ..properties import CaptureStep, PoseOutput
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
+                   surface_triangles)
+from .frames import FrameRangeProperties, frame_key_name
+from .output import PoseWriter
+
+#: Basis sizes used when the settings ask for the full basis (0), which a map between two
+#: meshes cannot use (paper §6.3; the paper's Figs. 11 and 14).
+DEFAULT_K_M, DEFAULT_K_N = 100, 200
+
+
+def _world(obj, positions):
+    matrix = np.array(obj.matrix_world, dtype=np.float64)
+    return positions @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def _local(obj, positions):
+    matrix = np.linalg.inv(np.array(obj.matrix_world, dtype=np.float64))
+    return positions @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
+    """The integer point attribute ``name`` of the active mesh: each vertex's matched vertex of
+    the source mesh."""
+    attribute = obj.data.attributes.get(name)
+    if attribute is None or attribute.domain != 'POINT' or attribute.data_type != 'INT':
+        raise InputError(
+            f"'{obj.name}' has no integer vertex attribute '{name}' holding the matched source vertex "
+            "of each vertex: import the map as an Integer / Vertex attribute, or choose Closest Points")
+    values = np.empty(len(obj.data.vertices), dtype=np.int32)
+    attribute.data.foreach_get("value", values)
+    bad = np.flatnonzero((values < 0) | (values >= n_source))
+    if bad.size:
+        raise InputError(
+            f"Attribute '{name}' maps vertex {int(bad[0])} of '{obj.name}' to source vertex "
+            f"{int(values[bad[0]])}, but the source has {n_source} vertices ({bad.size} such vertices)")
+    return values.astype(np.int64)
+
+
+class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
+                                          GeneratorOperator, bpy.types.Operator):
+    """Rebuild the poses of another selected mesh (shape keys or animation frames, any
+    connectivity) on the active mesh from their shape differences through a functional map, as
+    shape keys or as a point cache on a new object. The two meshes are matched by closest points
+    at rest (they must overlap there) or by a vertex attribute holding the map"""
+
+    bl_idname = "shape_differences.transfer_poses"
+    bl_label = "Transfer Poses"
+
+    source: EnumProperty(
+        name="Poses", default='KEYS',
+        items=[('KEYS', "Shape Keys", "Every shape key of the source after its Basis (the Basis is its rest pose)"),
+               ('FRAMES', "Frames", "The source's evaluated mesh at each frame (cloth, armature, any "
+                                    "modifiers); its undeformed mesh is the rest pose")])
+    matching: EnumProperty(
+        name="Map", default='CLOSEST',
+        items=[('CLOSEST', "Closest Points", "Match every vertex to the closest point of the source's rest "
+                                             "pose (the two meshes must overlap at rest, in world space)"),
+               ('ATTRIBUTE', "Attribute", "Read the map from an integer vertex attribute of the active mesh")])
+    map_attribute: StringProperty(
+        name="Attribute", default="correspondence",
+        description="Integer vertex attribute of the active mesh: the matched source vertex of each vertex")
+
+    @classmethod
+    def poll(cls, context):
+        if not super().poll(context):
+            return False
+        if not any(o.type == 'MESH' and o != context.active_object for o in context.selected_objects):
+            cls.poll_message_set("Also select the mesh whose poses to transfer (the active mesh is the one to move)")
+            return False
+        return True
+
+    def _source_object(self, context):
+        others = [o for o in context.selected_objects if o.type == 'MESH' and o != context.active_object]
+        if len(others) != 1:
+            raise InputError(
+                f"Select exactly one other mesh as the source of the poses ({len(others)} selected besides "
+                "the active mesh)")
+        return others[0]
+
+    def _basis_sizes(self, options, n_base: int, n_source: int):
+        k_m = options["k_M"] or min(DEFAULT_K_M, n_base - 1)
+        k_n = options["k_N"] or min(DEFAULT_K_N, n_source - 1)
+        if k_n >= n_source:
+            raise InputError(f"k_N = {k_n} is too large for the source mesh with {n_source} vertices: "
+                             f"use at most {n_source - 1}")
+        return k_m, k_n
+
+    def _source_poses(self, context, source):
+        """(names, frames, rest positions, poses), in object space of the source."""
+        if self.source == 'KEYS':
+            key_blocks = key_blocks_of(source)
+            rest = bridge.shape_key_positions(key_blocks[0])
+            names = [kb.name for kb in key_blocks[1:]]
+            return (names, [float(i) for i in range(1, len(names) + 1)], rest,
+                    [bridge.shape_key_positions(kb) for kb in key_blocks[1:]])
+        frames = self.frames(context)
+        poses = []
+        with closing(bridge.frame_positions(context, source, frames)) as reader:
+            for _frame, positions in reader:
+                poses.append(positions)
+        return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
+                poses)
+
+    def run(self, context):
+        obj = context.active_object
+        source = self._source_object(context)
+        triangles = surface_triangles(obj)
+        source_triangles = surface_triangles(source)
+        n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
+        options = self.core_options(context, n_base)
+        k_m, k_n = self._basis_sizes(options, n_base, n_source)
+        self.check_output(obj)
+        correspondence = None
+        if self.matching == 'ATTRIBUTE':
+            correspondence = read_correspondence(obj, self.map_attribute, n_source)
+        names, frames, rest, poses = self._source_poses(context, source)
+        if not poses:
+            raise InputError(f"'{source.name}' has no pose to transfer")
+        yield 0.05
+        core = load_core()
+        base = _world(obj, bridge.vertex_positions(obj.data))
+        transfer = yield from self.compute(
+            0.1, core.Transfer, base, triangles, _world(source, rest), source_triangles,
+            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"],
+            use_extrinsic=options["use_extrinsic"])
+        rebuilt = []
+        for i, pose in enumerate(poses):
+            world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose, _world(source, pose))
+            rebuilt.append(_local(obj, world))
+        self.summary = self.write_poses(
+            context, obj, rebuilt, names=[f"{source.name} {name}" for name in names], frames=frames,
+            label=f"Transfer {source.name}") + f" (k_M = {k_m}, k_N = {k_n})"

@@ -1,0 +1,90 @@
+"""Transfer Poses through bpy.ops: poses of a differently meshed object rebuilt on the active mesh
+as new shape keys, with the map from closest points or from a vertex attribute."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import add_key, cloth_scene, grid_object, key_names, rolled, snapshot  # noqa: E402
+
+TOLERANCE = 1e-4  # float32 storage of a ~2 unit mesh
+
+
+def hausdorff(a, b):
+    from scipy.spatial import cKDTree
+
+    return max(cKDTree(a).query(b)[0].max(), cKDTree(b).query(a)[0].max())
+
+
+@pytest.fixture
+def pair(bpy_empty, extension, core):
+    """A 15 × 15 source grid with a "Bend" key and an 11 × 11 grid (active) over it, both selected."""
+    bridge = extension.bridge
+    source = grid_object(14, name="Source")
+    add_key(source, "Bend", rolled(bridge.vertex_positions(source.data), 1.0))
+    target = grid_object(10, name="Sheet")
+    source.select_set(True)
+    target.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    return source, target, bridge
+
+
+def test_transfer_keys_by_closest_points(pair, core):
+    source, target, bridge = pair
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
+    assert key_names(target) == ["Basis", "Source Bend"]
+    rebuilt = bridge.shape_key_positions(target.data.shape_keys.key_blocks["Source Bend"])
+    rest = bridge.vertex_positions(target.data)
+    expected = core.Transfer(rest, bridge.mesh_triangles(target.data), bridge.vertex_positions(source.data),
+                             bridge.mesh_triangles(source.data), k_M=16, k_N=32).pose(
+        bridge.shape_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+    np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)
+    truth = rolled(rest, 1.0)  # the source's pose is this surface; the rebuild is placed on it
+    assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(rest, truth)
+
+
+def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
+    source, target, bridge = pair
+    from scipy.spatial import cKDTree
+
+    _, matched = cKDTree(bridge.vertex_positions(source.data)).query(bridge.vertex_positions(target.data))
+    attribute = target.data.attributes.new("map", 'INT', 'POINT')
+    attribute.data.foreach_set("value", matched.astype(np.int32))
+    before = snapshot(bridge, target)
+    with pytest.raises(RuntimeError, match="no integer vertex attribute 'missing'"):
+        bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="missing", k_m=16, k_n=32)
+    attribute.data[3].value = 10_000
+    with pytest.raises(RuntimeError, match="maps vertex 3 of 'Sheet' to source vertex 10000"):
+        bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map", k_m=16, k_n=32)
+    assert target.data.shape_keys is None and before["positions"].shape == bridge.vertex_positions(target.data).shape
+    attribute.data[3].value = int(matched[3])
+    bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map", k_m=16, k_n=32)
+    assert key_names(target) == ["Basis", "Source Bend"]
+
+
+def test_transfer_needs_a_second_mesh(bpy_empty, extension, core):
+    grid_object(6)
+    with pytest.raises(RuntimeError, match="Also select the mesh"):
+        bpy.ops.shape_differences.transfer_poses()
+
+
+def test_transfer_cloth_frames(bpy_empty, extension, core):
+    bridge = extension.bridge
+    cloth = cloth_scene(14, frames=9)
+    target = grid_object(10, name="Sheet")
+    target.location.z = 1.0  # over the cloth's rest pose, in world space
+    cloth.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=9, frame_end=9, k_m=16, k_n=32)
+    assert key_names(target) == ["Basis", "Cloth Frame 9"]
+    rebuilt = bridge.shape_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
+    assert np.isfinite(rebuilt).all() and bpy.context.scene.frame_current == 1
+
+
+def test_transfer_to_a_point_cache(pair, tmp_path):
+    source, target, bridge = pair
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32, output='CACHE', filepath=str(tmp_path / "moved.pc2"))
+    assert target.data.shape_keys is None  # the active mesh is left as it was
+    cached = [o for o in bpy.data.objects if o.name.startswith("Sheet Transfer Source")]
+    assert len(cached) == 1 and any(m.type == 'MESH_CACHE' for m in cached[0].modifiers)

@@ -1,0 +1,90 @@
+"""Functional maps from point-to-point correspondences (core.functional_map, paper §6.3)."""
+
+import numpy as np
+import pytest
+from meshes import drape, grid
+
+from core.errors import MeshError
+from core.functional_map import (check_correspondence, closest_point_correspondence, closest_points_on_triangles,
+                                 functional_map, locally_affine_images, project_near, push_forward_matrix)
+from core.mesh_topology import mesh_topology
+from core.reference_shape import ReferenceShape
+from core.shape_difference import functional_map as same_mesh_functional_map
+
+
+def test_closest_points_on_triangles_match_dense_sampling():
+    rng = np.random.default_rng(0)
+    corners = rng.normal(size=(200, 3, 3))
+    points = rng.normal(size=(200, 3)) * 1.5
+    weights, squared = closest_points_on_triangles(points, corners)
+    assert np.all(weights >= -1e-12) and np.allclose(weights.sum(axis=1), 1.0)
+    # Independent check: no point of a fine barycentric grid of the triangle is closer.
+    s, t = np.meshgrid(np.linspace(0, 1, 61), np.linspace(0, 1, 61))
+    keep = s + t <= 1
+    grid_w = np.stack([1 - s[keep] - t[keep], s[keep], t[keep]], axis=1)  # (G, 3)
+    samples = np.einsum("gk,nki->ngi", grid_w, corners)
+    sampled = np.min(np.sum((samples - points[:, None]) ** 2, axis=2), axis=1)
+    assert np.all(squared <= sampled + 1e-12)
+    assert np.all(squared >= sampled - 0.02 * np.sqrt(sampled) * np.max(np.ptp(corners, axis=1), axis=1) - 1e-12)
+
+
+def test_identity_map_is_the_same_mesh_functional_map():
+    v, t = grid(12, jitter=0.3)
+    target = drape(v, 1.5)
+    ref = ReferenceShape(v, t, use_extrinsic=False)
+    target_ref = ReferenceShape(target, t, use_extrinsic=False)
+    base_basis, target_basis = ref.base.basis(15), target_ref.base.basis(30)
+    push = push_forward_matrix(v, v, t)  # every vertex its own preimage
+    assert np.allclose(push.toarray(), np.eye(len(v)))
+    fmap = functional_map(target_basis.functions, target_ref.base.mass, push @ base_basis.functions)
+    assert np.allclose(fmap, same_mesh_functional_map(base_basis, target_basis, target_ref.base.mass), atol=1e-12)
+
+
+def test_push_forward_interpolates_linear_functions_exactly():
+    base, base_tris = grid(9, jitter=0.3)
+    target, _ = grid(13, jitter=0.3, seed=5, alternate=False)
+    push = push_forward_matrix(target, base, base_tris)
+    linear = base @ np.array([0.3, -1.2, 0.0]) + 0.7
+    assert np.allclose(push @ linear, target @ np.array([0.3, -1.2, 0.0]) + 0.7, atol=1e-12)
+    assert np.allclose(push.sum(axis=1), 1.0)
+
+
+def test_locally_affine_images_keep_affine_maps_and_reduce_snapping():
+    v, t = grid(15, jitter=0.3)
+    edges = mesh_topology(t, len(v)).edges
+    affine = np.array([[1.1, 0.2, 0.0], [-0.1, 0.9, 0.0], [0.3, 0.1, 1.0]])
+    images = v @ affine.T + [0.5, -0.2, 1.0]
+    assert np.allclose(locally_affine_images(v, edges, images), images, atol=1e-9)
+    # A vertex map to a coarser mesh snaps each image by up to half an edge; the fit averages it out.
+    target, target_tris = grid(11, jitter=0.3, seed=2, alternate=False)
+    snapped = target[closest_point_correspondence(v, target)]
+    smoothed = locally_affine_images(v, edges, snapped)
+    error = lambda x: np.sqrt(np.mean(np.sum((x - v) ** 2, axis=1)))  # noqa: E731
+    assert error(smoothed) < 0.6 * error(snapped)
+    seeds = closest_point_correspondence(v, target)
+    triangles, weights = project_near(smoothed, seeds, target, target_tris)
+    on_surface = np.einsum("nk,nki->ni", weights, target[target_tris[triangles]])
+    assert np.allclose(on_surface[:, 2], 0.0) and error(on_surface) <= error(smoothed) + 1e-12
+
+
+def test_correspondence_is_checked():
+    with pytest.raises(MeshError, match="shape"):
+        check_correspondence(np.zeros(3, dtype=int), 4, 10)
+    with pytest.raises(MeshError, match="base vertex 2 to target vertex 10"):
+        check_correspondence([0, 1, 10, 3], 4, 10)
+    with pytest.raises(MeshError, match="integer"):
+        check_correspondence([0.5, 1, 2, 3], 4, 10)
+    assert check_correspondence([0.0, 1.0, 9.0, 3.0], 4, 10).dtype == np.int64
+
+
+def test_non_manifold_edges_are_named_for_a_base_and_allowed_for_a_target():
+    v, t = grid(4)
+    a, b = mesh_topology(t, 16).edges[mesh_topology(t, 16).interior_edges[0]]
+    fin = np.vstack([t, [[a, b, 16]]])  # a third triangle on an interior edge
+    with pytest.raises(MeshError, match=rf"shared by more than two triangles: \({a}, {b}\).*Non Manifold"):
+        mesh_topology(fin, 17)
+    topology = mesh_topology(fin, 17, allow_non_manifold=True)
+    edge = np.flatnonzero((topology.edges == [a, b]).all(axis=1))[0]
+    assert (topology.edge_triangles[edge] == -1).all()
+    manifold = mesh_topology(t, 16)
+    assert topology.interior_edges.size == manifold.interior_edges.size - 1

@@ -1,0 +1,113 @@
+"""Poses of a differently meshed target rebuilt on the base mesh (core.transfer, paper Fig. 15)."""
+
+import warnings
+
+import numpy as np
+import pytest
+from meshes import drape, grid
+
+import core
+from core.errors import MeshError, ShapeDifferenceWarning
+from core.mesh_topology import mesh_topology
+from core.rigid_alignment import align_rigidly
+from core.transfer import Transfer
+
+
+def hausdorff_over_diagonal(a, b):
+    from scipy.spatial import cKDTree
+
+    d = max(cKDTree(a).query(b)[0].max(), cKDTree(b).query(a)[0].max())
+    return d / np.linalg.norm(b.max(0) - b.min(0))
+
+
+@pytest.fixture(scope="module")
+def sheets():
+    """A 10 × 10 base and a 12 × 12 target of the same unit square, triangulated differently."""
+    base, base_tris = grid(10, jitter=0.3)
+    target, target_tris = grid(12, jitter=0.3, seed=3, alternate=False)
+    return base, base_tris, target, target_tris
+
+
+def test_identity_map_gives_the_same_mesh_differences():
+    v, t = grid(12, jitter=0.3)
+    pose = drape(v, 1.5)
+    same = core.shape_differences(v, pose, t, k_M=15, k_N=30)
+    across = core.shape_differences(v, pose, t, k_M=15, k_N=30, target_triangles=t,
+                                    correspondence=np.arange(len(v)), target_rest_vertices=v)
+    # Equal up to the target eigenbasis, which after the first pose (the meshing correction's)
+    # comes from two warm-started subspace iterations instead of an exact eigensolve.
+    for name in ("area", "conformal", "offset_area", "offset_conformal"):
+        a, b = getattr(same, name).matrix, getattr(across, name).matrix
+        assert np.linalg.norm(a - b) <= 1e-5 * np.linalg.norm(a), name
+
+
+def test_remeshed_drape_is_rebuilt_on_the_base(sheets):
+    base, base_tris, target, target_tris = sheets
+    truth = drape(base, 1.0)  # the target's surface, sampled at the base vertices
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        differences = core.shape_differences(base, drape(target, 1.0), base_tris, target_triangles=target_tris,
+                                             target_rest_vertices=target, k_M=16, k_N=32)
+        rebuilt = core.reconstruct(base, base_tris, differences)
+    assert rebuilt.shape == base.shape
+    error = hausdorff_over_diagonal(align_rigidly(rebuilt, truth), truth)
+    unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+    assert error < 0.05 and error < 0.5 * unchanged
+
+
+def test_vertex_map_target_sequence_and_interpolation(sheets):
+    base, base_tris, target, target_tris = sheets
+    vertex_map = core.transfer.closest_point_correspondence(base, target)
+    keys = [target, drape(target, 1.0)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        sequence = core.SequenceInterpolator(keys, base_tris, base_vertices=base, target_triangles=target_tris,
+                                             correspondence=vertex_map, k_M=16, k_N=32)
+        end = sequence.pose(0, 1.0)
+        middle = sequence.pose(0, 0.5)
+    truth = drape(base, 1.0)
+    assert hausdorff_over_diagonal(align_rigidly(end, truth), truth) < 0.5 * hausdorff_over_diagonal(
+        align_rigidly(base, truth), truth)
+    # The first key is the rest pose of the same surface: rebuilt as the base, up to the
+    # truncation (the same 5 % bound as for the drape).
+    assert hausdorff_over_diagonal(align_rigidly(sequence.pose(0, 0.0), base), base) < 0.05
+    assert np.isfinite(middle).all() and len(sequence) == 1 and sequence.triangles.shape == base_tris.shape
+
+
+def test_target_with_a_non_manifold_edge_still_transfers(sheets):
+    base, base_tris, target, target_tris = sheets
+    topology = mesh_topology(target_tris, len(target))
+    a, b = topology.edges[topology.interior_edges[40]]
+    fin_vertex = 0.5 * (target[a] + target[b]) + [0.0, 0.0, 0.05]
+    rest = np.vstack([target, fin_vertex])
+    triangles = np.vstack([target_tris, [[a, b, len(target)]]])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        transfer = Transfer(base, base_tris, rest, triangles, k_M=16, k_N=32)
+    # The fin is named; laid on the base it collapses, so the meshing correction is skipped (said).
+    messages = [str(w.message) for w in caught if issubclass(w.category, ShapeDifferenceWarning)]
+    assert any("1 non-manifold" in m and f"({a}, {b})" in m for m in messages)
+    assert any("not corrected for the change of meshing" in m for m in messages)
+    differences = transfer.differences(rest)
+    assert np.isfinite(differences.offset_conformal.matrix).all()
+    # At rest the target is the base surface: its differences are those of the base to itself
+    # (the identity), up to the meshing error at the resolution of the coarse sheets, which is
+    # small in the lowest frequencies (uncorrected here).
+    assert np.allclose(differences.area.matrix[:6, :6], np.eye(6), atol=0.05)
+
+
+def test_errors_in_the_users_terms(sheets):
+    base, base_tris, target, target_tris = sheets
+    with pytest.raises(MeshError, match="need truncated bases"):
+        core.shape_differences(base, target, base_tris, target_triangles=target_tris)
+    with pytest.raises(MeshError, match="out of range"):
+        core.shape_differences(base, target, base_tris, target_triangles=target_tris, k_M=10, k_N=20,
+                               correspondence=np.full(len(base), len(target)))
+    topology = mesh_topology(base_tris, len(base))
+    a, b = topology.edges[topology.interior_edges[0]]
+    with pytest.raises(MeshError, match=rf"\({a}, {b}\).*Non Manifold"):
+        core.shape_differences(np.vstack([base, [[0, 0, 1.0]]]), target, np.vstack([base_tris, [[a, b, len(base)]]]),
+                               target_triangles=target_tris, k_M=10, k_N=20)
+    transfer = Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, use_extrinsic=False)
+    with pytest.raises(MeshError, match="same target mesh"):
+        transfer.differences(target[:-1])
