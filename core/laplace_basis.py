@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,3 +102,76 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
         ) from error
     order = np.argsort(values)
     return LaplaceBasis(values[order], vectors[:, order])
+
+
+#: :func:`warm_laplace_basis` accepts its Ritz pairs when every wanted one has a residual
+#: ``‖C φ − λ A φ‖_{A⁻¹} ≤ WARM_TOLERANCE · λ_{k−1}`` (``φ`` A-normalized). A residual ``r`` puts an
+#: exact eigenvalue within ``r`` of ``λ`` (and the eigenvalue error is ``O(r² / gap)``), and the
+#: wanted subspace within an angle ``r / gap`` of the exact one (Davis–Kahan), where ``gap`` is the
+#: distance to the first unwanted eigenvalue. Measured on consecutive frames of a 1,024-vertex
+#: cloth (k = 108, 162 start functions): one iteration gave residual 3e-7 and a largest angle to
+#: ARPACK's subspace of 3e-7, on the mesh and on its offset surface.
+WARM_TOLERANCE = 1e-6
+#: Subspace iterations :func:`warm_laplace_basis` runs at most before falling back to ARPACK (each
+#: costs about a third of an ARPACK solve at that size; from a pose far away the residual falls
+#: only ~2× per iteration, and ARPACK is cheaper).
+WARM_ITERATIONS = 3
+
+_log = logging.getLogger(__name__)
+
+
+def _residuals(mass, conformal_x, mass_x, values, lumped):
+    """``‖C x_i − λ_i A x_i‖`` per column in the lumped-mass ``A⁻¹`` norm, an upper bound of the
+    Galerkin one up to a factor 2 (the P1 mass matrix lies between ¼ and 1 × its lumped diagonal)."""
+    r = conformal_x - mass_x * values
+    return 2.0 * np.sqrt(np.einsum("ij,ij->j", r, r / lumped[:, None]))
+
+
+def warm_laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, start, *,
+                       iterations: int = WARM_ITERATIONS, tolerance: float = WARM_TOLERANCE,
+                       what: str = "mesh") -> LaplaceBasis:
+    """The ``k`` smallest eigenpairs of ``(C, A)`` (as :func:`laplace_basis`) from a nearby basis:
+    shift-invert subspace iteration with a Rayleigh–Ritz step, started from ``start`` (a
+    :class:`LaplaceBasis` or float64 ``(n, p)`` functions with ``p > k``, e.g. the eigenbasis of
+    another pose of the same mesh, whose eigenspaces move little). One sparse LU and ``p`` solves
+    per iteration instead of a Lanczos run with ``2k + 1`` re-orthogonalized vectors.
+
+    Returns all ``p`` Ritz pairs, ascending: the first ``k`` meet the residual test of
+    :data:`WARM_TOLERANCE` (checked after every iteration, at most ``iterations``); the others are
+    approximate and serve as the next start (the extra columns speed up convergence, at the rate
+    ``λ_k / λ_p`` per iteration). If the test still fails, the result is :func:`laplace_basis`'s
+    with ``p`` eigenpairs (logged at INFO level) — never an unconverged basis.
+    """
+    import scipy.linalg as sla
+    from scipy.sparse.linalg import splu
+
+    functions = start.functions if isinstance(start, LaplaceBasis) else np.asarray(start, dtype=np.float64)
+    n = mass.shape[0]
+    p = functions.shape[1] if functions.ndim == 2 else 0
+    if functions.ndim != 2 or functions.shape[0] != n or not k < p < n:
+        raise MeshError(
+            f"A warm start for {k} eigenfunctions of the {what} ({n} vertices) needs more than {k} and "
+            f"fewer than {n} start functions on its vertices; got an array of shape {functions.shape}."
+        )
+    diag_ratio = conformal.diagonal() / mass.diagonal()
+    shift = -1e-3 * float(np.median(diag_ratio[np.isfinite(diag_ratio)]))
+    lumped = np.asarray(mass.sum(axis=1)).ravel()
+    try:
+        factor = splu((conformal - shift * mass).tocsc())
+    except RuntimeError:
+        factor = None
+    if factor is not None:
+        x = functions
+        for _ in range(int(iterations)):
+            x, _ = np.linalg.qr(factor.solve(np.asarray(mass @ x)))
+            cx, mx = np.asarray(conformal @ x), np.asarray(mass @ x)
+            try:
+                values, small = sla.eigh(x.T @ cx, x.T @ mx)
+            except (sla.LinAlgError, ValueError):
+                break
+            x, cx, mx = x @ small, cx @ small, mx @ small
+            residual = _residuals(mass, cx[:, :k], mx[:, :k], values[:k], lumped)
+            if np.all(residual <= tolerance * max(abs(values[k - 1]), np.finfo(float).tiny)):
+                return LaplaceBasis(values, x)
+    _log.info("Warm-started eigensolver did not converge for the %s (k = %d): falling back to ARPACK.", what, k)
+    return laplace_basis(mass, conformal, p, what=what)

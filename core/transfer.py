@@ -31,14 +31,14 @@ from .errors import MeshError, ShapeDifferenceWarning
 from .functional_map import (check_correspondence, closest_point_correspondence, functional_map,
                              locally_affine_images, project_near, pull_back_matrix, push_forward_matrix)
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
+from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis, warm_laplace_basis
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
 
 
-#: Target eigenbases after the first pose: subspace iterations from the previous pose's functions,
-#: on SUBSPACE_MARGIN × k_N of them (the extra ones speed up convergence of the k_N wanted).
+#: Target eigenbases after the first pose: warm-started subspace iterations from the previous
+#: pose's functions, SUBSPACE_MARGIN × k_N of them (the extra ones speed up convergence of the k_N
+#: wanted).
 SUBSPACE_MARGIN = 1.5
-SUBSPACE_ITERATIONS = 2
 
 
 class _TargetLayer:
@@ -56,30 +56,17 @@ class _TargetLayer:
     def basis(self, mass, conformal, k: int):
         """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
         (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
-        every later pose, :data:`SUBSPACE_ITERATIONS` shift-invert subspace iterations with a
-        Rayleigh–Ritz step started from the previous pose's functions — a pose of the same
-        mesh, whose eigenspaces move little (one sparse LU and ``p`` solves instead of a Lanczos
-        run with 2k + 1 vectors; measured ARPACK at k = 200: 95 % of its time in its own
-        re-orthogonalization)."""
+        every later pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
+        pose's functions — a pose of the same mesh, whose eigenspaces move little (measured ARPACK
+        at k = 200: 95 % of its time in its own re-orthogonalization)."""
         n = mass.shape[0]
         p = min(n - 1, int(np.ceil(SUBSPACE_MARGIN * k)))
         if self._subspace is None or self._subspace[0] != k or p <= k:
             full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
-            self._subspace = (k, full.functions)
-            return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
-        import scipy.linalg as sla
-        from scipy.sparse.linalg import splu
-
-        diag_ratio = conformal.diagonal() / mass.diagonal()
-        shift = -1e-3 * float(np.median(diag_ratio[np.isfinite(diag_ratio)]))
-        factor = splu((conformal - shift * mass).tocsc())
-        x = self._subspace[1]
-        for _ in range(SUBSPACE_ITERATIONS):
-            x, _ = np.linalg.qr(factor.solve(np.asarray(mass @ x)))
-            values, small = sla.eigh(x.T @ np.asarray(conformal @ x), x.T @ np.asarray(mass @ x))
-            x = x @ small
-        self._subspace = (k, x)
-        return LaplaceBasis(values[:k], x[:, :k])
+        else:
+            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], what=f"target {self.name}")
+        self._subspace = (k, full.functions)
+        return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
 
     def differences(self, base_layer, positions, k_M, k_N):
         from .shape_difference import map_differences
