@@ -18,6 +18,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
+from .geometry import rows_dot
 
 #: A triangle whose area dropped below this fraction of its interpolated target area is collapsed.
 COLLAPSE_RATIO = 1e-3
@@ -38,33 +39,38 @@ class Repair:
 
     # --- defects
 
-    def flipped(self, cross: np.ndarray, s: float, rotation: np.ndarray | None) -> np.ndarray:
-        """Triangles (bool (m,)) whose normal ``cross`` (m, 3) opposes both keys' normals
-        (in-betweens, 0 ≤ s ≤ 1) or, for extrapolations, the interpolated normal ``R_T(s) n_T``
-        (without ``rotation``: the nearer key's normal)."""
+    def flipped(self, cross: np.ndarray, s: float, rotation: np.ndarray | None, rows=slice(None)) -> np.ndarray:
+        """Triangles (bool (r,)) among ``rows`` whose normal ``cross`` (r, 3) opposes both keys'
+        normals (in-betweens, 0 ≤ s ≤ 1) or, for extrapolations, the interpolated normal
+        ``R_T(s) n_T`` (``rotation``: (m, 3, 3) of every triangle; without it: the nearer key's
+        normal)."""
         gap = self.gap
         if 0.0 <= s <= 1.0:
-            return (np.einsum("ij,ij->i", cross, gap.base.normals) < 0) & (
-                np.einsum("ij,ij->i", cross, gap.next.normals) < 0)
+            return (rows_dot(cross, gap.base.normals[rows]) < 0) & (rows_dot(cross, gap.next.normals[rows]) < 0)
         if rotation is not None:
-            return np.einsum("ij,ij->i", cross, np.einsum("kab,kb->ka", rotation, gap.base.normals)) < 0
-        return np.einsum("ij,ij->i", cross, (gap.base if s < 0.5 else gap.next).normals) < 0
+            return rows_dot(cross, np.einsum("kab,kb->ka", rotation[rows], gap.base.normals[rows])) < 0
+        return rows_dot(cross, (gap.base if s < 0.5 else gap.next).normals[rows]) < 0
 
-    def defects(self, x: np.ndarray, s: float, rotation, stretch) -> np.ndarray:
-        """Flipped or collapsed triangles of ``x`` (bool (m,)); all of them if ``x`` is not finite."""
+    def defects(self, x: np.ndarray, s: float, rotation, stretch, rows=None) -> np.ndarray:
+        """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
+        ``rows``); all of them if ``x`` is not finite."""
+        m = len(self.gap.topo.triangles)
         if not np.isfinite(x).all():
-            return np.ones(len(self.gap.topo.triangles), dtype=bool)
-        e = self.gap.edges_of(x)
-        cross = np.cross(e[:, 0], -e[:, 2])
-        target = self.gap.base.areas * (stretch[:, 0] * stretch[:, 2] - stretch[:, 1] ** 2)
+            return np.ones(m if rows is None else len(rows), dtype=bool)
+        rows = slice(None) if rows is None else rows
+        t = self.gap.topo.triangles[rows]
+        e1, e2 = x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]]
+        cross = np.cross(e1, e2)
+        st = stretch[rows]
+        target = self.gap.base.areas[rows] * (st[:, 0] * st[:, 2] - st[:, 1] ** 2)
         collapsed = 0.5 * np.linalg.norm(cross, axis=1) < COLLAPSE_RATIO * target
-        return self.flipped(cross, s, rotation) | collapsed
+        return self.flipped(cross, s, rotation, rows) | collapsed
 
-    def problem(self, x, s, rotation, stretch) -> str | None:
-        """What is wrong with ``x`` in words, or None."""
+    def problem(self, x, s, rotation, stretch, defects=None) -> str | None:
+        """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""
         if not np.isfinite(x).all():
             return "the reconstruction produced non-finite coordinates"
-        count = int(self.defects(x, s, rotation, stretch).sum())
+        count = int((self.defects(x, s, rotation, stretch) if defects is None else defects).sum())
         return f"{count} triangle(s) flipped or collapsed" if count else None
 
     def grow(self, triangles: np.ndarray, rings: int) -> np.ndarray:
@@ -81,7 +87,8 @@ class Repair:
     def checked(self, x, x0, s, rotation, stretch, guide, motion) -> tuple[np.ndarray, str | None]:
         """``(x, None)`` if the fit ``x`` is defect-free, else a repair or a fallback with the
         message saying which (``x0``: the Poisson solve of the interpolated field)."""
-        problem = self.problem(x, s, rotation, stretch)
+        defects = self.defects(x, s, rotation, stretch)
+        problem = self.problem(x, s, rotation, stretch, defects)
         if problem is None:
             return x, None
         gap = self.gap
@@ -89,7 +96,7 @@ class Repair:
         blend = (1.0 - s) * gap.base.vertices + s * gap.next.vertices
         if gap.use_extrinsic and fits:
             for imposed in self.imposed_fields(blend, s):
-                z = self.rounds(x, s, rotation, stretch, guide, motion, imposed, fits)
+                z = self.rounds(x, defects, s, rotation, stretch, guide, motion, imposed, fits)
                 if z is not None:
                     return z, None
         if gap.use_extrinsic and self.problem(x0, s, rotation, stretch) is None:
@@ -126,22 +133,25 @@ class Repair:
             residual = Rotation.from_rotvec(key.rotvec).as_matrix()
             yield df.matmul(motion[gap.topo.triangle_component], residual), df.exp_stretch(key.log_stretch)
 
-    def rounds(self, x, s, rotation, stretch, guide, motion, imposed, fits):
-        """Rounds of :data:`REPAIR_RINGS` imposing ``imposed`` (rotations, stretches) on the defects
-        of ``x`` and rings around them; the first defect-free fit, else None (fits kept in ``fits``)."""
+    def rounds(self, x, defects, s, rotation, stretch, guide, motion, imposed, fits):
+        """Rounds of :data:`REPAIR_RINGS` imposing ``imposed`` (rotations, stretches) on the
+        ``defects`` (bool (m,)) of ``x`` and rings around them; the first defect-free fit, else
+        None (fits kept in ``fits``). A round moves only vertices all of whose triangles are
+        imposed, so only the imposed triangles are checked again."""
         gap = self.gap
         force = np.zeros(len(gap.topo.triangles), dtype=bool)
-        z = x
         for rings in REPAIR_RINGS:
-            defects = self.defects(z, s, rotation, stretch)
-            if not defects.any():
-                break
             force = self.grow(force | defects, rings)
             field = np.where(force[:, None, None], imposed[0], rotation)
             metric = np.where(force[:, None], imposed[1], stretch)
-            z = gap.local_fit(z, metric, field, guide, force, REPAIR_ITERATIONS)
-            if self.problem(z, s, rotation, stretch) is None:
-                return z
-            if np.isfinite(z).all():
-                fits.append(z)
+            x = gap.local_fit(x, metric, field, guide, force, REPAIR_ITERATIONS)
+            if not np.isfinite(x).all():
+                defects = np.ones_like(force)
+                continue
+            defects = defects.copy()
+            rows = np.flatnonzero(force)
+            defects[rows] = self.defects(x, s, rotation, stretch, rows=rows)
+            if not defects.any():
+                return x
+            fits.append(x)
         return None
