@@ -16,7 +16,12 @@ BLAS thread: on a shared 2-core machine the threaded BLAS made these small dense
 slower (a 220 × 220 ``eigh``: 0.35 s against 0.024 s; 50 cloth frames: 9.5 s/pose before, 2.0 s
 now; see docs/analysis.md). A warm-started block solver (LOBPCG from the base's eigenvectors with
 the pose's exact shift-invert preconditioner) needed 3–5 iterations and was 1.5–2.5× slower than
-ARPACK from scratch at k = 100 on a 2,944-vertex offset surface, so it is not used.
+ARPACK from scratch at k = 100 on a 2,944-vertex offset surface, so it is not used; neither is
+:func:`~core.laplace_basis.warm_laplace_basis` (shift-invert subspace iteration from the previous
+pose): on 50 frames spread over a 1,024-vertex cloth simulation it fell back to ARPACK on 76 of
+100 solves and took 2.1–2.6× ARPACK's time, and from the base's basis far poses do not converge;
+a start that depends on the previous pose would also make mirror-image poses differ at its
+tolerance (1e-6) instead of at round-off.
 """
 
 from __future__ import annotations
