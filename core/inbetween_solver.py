@@ -384,14 +384,16 @@ class _Gap:
         lengths = np.sqrt(np.sum(edges * edges, axis=2))
         return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0)))
 
-    def fit(self, x, stretch, rotation, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None):
+    def fit(self, x, stretch, rotation, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,
+            targets=None):
         """Local/global fit of the interpolated metric ``stretch`` from ``x`` (``rotation``: the
         interpolated rotations the fit may not stray far from; None: unconstrained), the
         iterations accelerated by Anderson mixing of the last :data:`ANDERSON_WINDOW` steps
         (Peng et al., TOG 2018: local/global steps converge slowly on the smooth part of the
         error, which the mixing extrapolates); stops once the edge lengths are within the gap's
-        tolerance of the metric (see :data:`METRIC_TOLERANCE`)."""
-        targets = self.local_targets(rotation, stretch)
+        tolerance of the metric (see :data:`METRIC_TOLERANCE`); ``targets``: ``local_targets(rotation,
+        stretch)`` if the caller has them."""
+        targets = self.local_targets(rotation, stretch) if targets is None else targets
         steps, images = [], []
         for _ in range(iterations):
             edges = self.edges_of(x)
@@ -452,11 +454,13 @@ class _Gap:
         """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
         self.select(s)
         rotation, stretch, motion, guide = self.targets(s)
+        fitted = rotation if self.use_extrinsic else None
+        targets = self.local_targets(fitted, stretch)  # shared by the Poisson solve and the fit
         if self.use_extrinsic:
-            x0 = self.place(self.solve(self.target_edges(rotation, stretch), guide), s, motion)
+            x0 = self.place(self.solve(targets["edges"], guide), s, motion)
         else:
             x0 = self.place(guide.copy(), s, motion)
-        x = self.fit(x0, stretch, rotation if self.use_extrinsic else None, guide, s, motion)
+        x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets)
         return self.repair.checked(x, x0, s, rotation, stretch, guide, motion)
 
 
