@@ -16,6 +16,7 @@ import scipy.sparse.linalg as spla
 from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
+from .geometry import lumped_vertex_areas, rows_dot, vertex_labels
 from .inbetween_repair import Repair
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
 from .rigid_alignment import rigid_alignment
@@ -66,11 +67,6 @@ BLEND_SHORTENING_CUTOFF = 0.1
 RIGID_PLACEMENT_SCALE = 1e-3
 
 
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise dot products (k,) of (k, 3) arrays."""
-    return np.einsum("ij,ij->i", a, b)
-
-
 class _Topology:
     """What depends only on the triangles: edge incidence (``D``: corner edges × vertices), lumped
     vertex masses of the first pose (mean 1), components, and the factorized normal matrices."""
@@ -88,17 +84,16 @@ class _Topology:
         self.laplacian = (self.Dt @ self.D).tocsc()
         edges = df.corner_edges(first_pose, t)
         areas = 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 2]), axis=1)
-        mass = np.bincount(t.ravel(), np.repeat(areas / 3.0, 3), n_vertices)
+        mass = lumped_vertex_areas(t, areas, n_vertices)
         used = mass > 0
         self.mass = np.where(used, mass / mass[used].mean(), 1.0)  # loose vertices follow the guide
         self.weights = np.where(used, self.mass, 0.0)
         _, labels = topo.components()
-        vertex_labels = np.full(n_vertices, -1, dtype=np.int64)
-        vertex_labels[t.ravel()] = np.repeat(labels, 3)
+        per_vertex = vertex_labels(t, labels, n_vertices)
         kept = np.unique(labels)
-        self.components = [np.flatnonzero(vertex_labels == c) for c in kept]
+        self.components = [np.flatnonzero(per_vertex == c) for c in kept]
         self.triangle_component = np.searchsorted(kept, labels)
-        self.vertex_component = np.where(vertex_labels >= 0, np.searchsorted(kept, vertex_labels), -1)
+        self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
 
@@ -357,7 +352,7 @@ class _Gap:
         e1, e2 = edges[:, 0], -edges[:, 2]
         g0 = e1 * inverse[:, 0, 0, None]
         g1 = e1 * inverse[:, 0, 1, None] + e2 * inverse[:, 1, 1, None]
-        c11, c12, c22 = _dot(g0, g0), _dot(g0, g1), _dot(g1, g1)
+        c11, c12, c22 = rows_dot(g0, g0), rows_dot(g0, g1), rows_dot(g1, g1)
         root_det = np.sqrt(np.maximum(c11 * c22 - c12 * c12, 0.0))
         scale = np.sqrt(np.maximum(c11 + c22 + 2.0 * root_det, np.finfo(float).tiny))
         # (GᵀG)^½ = (C + √det C · I) / √(tr C + 2 √det C) = [[a, b], [b, d]]; W = G · its inverse
@@ -371,7 +366,7 @@ class _Gap:
         if targets["rotation"] is None:
             return out
         f0, f1, f2 = targets["frames"]
-        trace = _dot(w0, f0) + _dot(w1, f1) + _dot(np.cross(w0, w1), f2)
+        trace = rows_dot(w0, f0) + rows_dot(w1, f1) + rows_dot(np.cross(w0, w1), f2)
         far = ~(0.5 * (trace - 1.0) > np.cos(MAX_ROTATION_DEVIATION))
         if force is not None:
             far |= force
