@@ -18,7 +18,6 @@ from scipy.spatial.transform import Rotation
 from . import deformation_fields as df
 from .geometry import lumped_vertex_areas, rows_dot, vertex_labels
 from .inbetween_repair import Repair
-from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
 from .rigid_alignment import rigid_alignment
 from .splines import HermiteGap
 
@@ -71,8 +70,8 @@ class _Topology:
     """What depends only on the triangles: edge incidence (``D``: corner edges × vertices), lumped
     vertex masses of the first pose (mean 1), components, and the factorized normal matrices."""
 
-    def __init__(self, triangles, n_vertices: int, first_pose: np.ndarray):
-        topo = mesh_topology(triangles, n_vertices)
+    def __init__(self, topo, first_pose: np.ndarray):
+        n_vertices = first_pose.shape[0]
         self.n = n_vertices
         t = self.triangles = topo.triangles
         m = t.shape[0]
@@ -94,6 +93,10 @@ class _Topology:
         self.components = [np.flatnonzero(per_vertex == c) for c in kept]
         self.triangle_component = np.searchsorted(kept, labels)
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
+        self.triangles_per_vertex = np.bincount(t.ravel(), minlength=n_vertices)
+        adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
+                                  shape=(n_vertices, m))
+        self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
 
@@ -132,15 +135,16 @@ class _Topology:
 
 
 class _Key:
-    """Per-key data: positions, tangent bases, corner edges and their tangent coordinates, the
-    inverse edge matrices, normals, areas and component centroids."""
+    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent bases,
+    the edges' tangent coordinates, inverse edge matrices, normals, areas and component centroids."""
 
-    def __init__(self, topo: _Topology, vertices, name: str):
-        v = check_vertices(vertices, topo.n, name=name)
-        check_nondegenerate(v, topo.triangles, name=name)
+    def __init__(self, topo: _Topology, vertices):
+        v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
         self.vertices = v
-        self.bases = df.tangent_bases(v, topo.triangles)
-        self.edges = df.corner_edges(v, topo.triangles)
+        self.edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
+        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
+        self.bases = df.tangent_bases(self.edges)
+        self.columns = np.ascontiguousarray(self.bases.transpose(2, 0, 1))  # (3, m, 3): t1, t2, n
         self.coordinates = df.tangent_coordinates(self.edges, self.bases)
         self.inverse = df.inverse_edge_matrices(self.coordinates)
         self.normals = self.bases[:, :, 2]
@@ -170,9 +174,10 @@ class _Relative:
             self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
         rotations, translations = np.array(rotations), np.array(translations)
         angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
-        triangle = df.triangle_rotations(other.bases, base.bases, angle)
-        residual = df.matmul(df.transpose(rotations[topo.triangle_component]), triangle)
-        self.rotvec = df.rotation_vectors(residual)
+        # the triangles' rotations as images of the base frames, with their component's rotation undone
+        frames = df.turned_rows(df.plane_turned_frames(other.bases, angle), df.transpose(rotations),
+                                topo.triangle_component)
+        self.rotvec = df.frame_rotation_vectors(frames, base.columns)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
         self.screw = np.array(screws)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
@@ -213,15 +218,13 @@ class _Gap:
         spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic)
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         self.splines = spline
-        self.plane = base.bases[:, :, :2]
         self.anchored = anchored
         self._anchors: dict[bool, tuple] = {}
         self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
-        lengths = np.linalg.norm(base.edges, axis=2)
-        self.mean_edge = float(np.mean(lengths))
-        variation = float(np.mean(np.abs(np.linalg.norm(nxt.edges, axis=2) / lengths - 1.0)))
+        self.mean_edge = float(np.mean(base.lengths))
+        variation = float(np.mean(np.abs(nxt.lengths / base.lengths - 1.0)))
         self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
         self.repair = Repair(self)
 
@@ -279,13 +282,13 @@ class _Gap:
     # --- the interpolated field at one factor
 
     def targets(self, s: float):
-        """Interpolated rotations (m, 3, 3), stretches (packed (m, 3)), the components' rigid
+        """Interpolated rotations as the images of the base's tangent frames (``frames`` (3, m, 3):
+        ``R_T t1``, ``R_T t2``, ``R_T n``), stretches (packed (m, 3)), the components' rigid
         motions (rotations (C, 3, 3), translations (C, 3)) and the guide positions (n, 3) at
         factor ``s``."""
         motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
         motion = (np.array([r for r, _ in motions]), np.array([t for _, t in motions]))
-        residual = Rotation.from_rotvec(self.splines["rotvec"].at(s)).as_matrix()
-        rotation = df.matmul(motion[0][self.topo.triangle_component], residual)
+        frames = self.key_frames(self.splines["rotvec"].at(s), motion[0])
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
         if self.weights is not None:  # the keys' per-vertex spline (two poses: the linear blend)
             guide = self.splines["world"].at(s)
@@ -294,14 +297,13 @@ class _Gap:
                 guide[self.co_moving] = self.topo.apply_motion(undone, *motion)[self.co_moving]
         else:
             guide = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
-        return rotation, stretch, motion, guide
+        return frames, stretch, motion, guide
 
-    def target_edges(self, rotation: np.ndarray, stretch: np.ndarray, rows=slice(None)) -> np.ndarray:
-        """Corner edge vectors (m, 3, 3) ``R_T U_T e`` of the base's corner edges ``e`` (of the
-        triangles ``rows``)."""
-        local = df.apply_stretch(stretch, self.base.coordinates[rows])  # (m, 3, 2) in the base's (t1, t2)
-        world = df.matmul(local, df.transpose(self.plane[rows]))
-        return df.matmul(world, df.transpose(rotation))
+    def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """Frames (3, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals (r, 3) of
+        the triangles ``rows``, ``rotations``: the components' (C, 3, 3))."""
+        return df.rotated_frames(Rotation.from_rotvec(rotvec), rotations, self.topo.triangle_component[rows],
+                                 self.base.columns[:, rows])
 
     def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (m, 3, 3) and the anchor to ``guide``
@@ -323,21 +325,22 @@ class _Gap:
         return x
 
     def edges_of(self, x: np.ndarray) -> np.ndarray:
-        """Corner edge vectors (m, 3, 3) of positions ``x``."""
-        return (x[self.topo.j] - x[self.topo.i]).reshape(-1, 3, 3)
+        """Corner edge vectors (m, 3, 3) of positions ``x`` (a sparse product: 5× faster than
+        gathering both ends)."""
+        return (self.topo.D @ x).reshape(-1, 3, 3)
 
-    def local_targets(self, rotation: np.ndarray | None, stretch: np.ndarray, rows=slice(None)) -> dict:
+    def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None)) -> dict:
         """What the local steps at one factor share: the metric's corner edges in the base's
-        tangent coordinates ``u``, ``v`` (m, 3 corners) and their lengths, the interpolated
-        rotations' images of the base frames (three (m, 3)) and the interpolated target edges
-        (of the triangles ``rows``; ``rotation`` and ``stretch`` given for those)."""
-        local = df.apply_stretch(stretch, self.base.coordinates[rows])
-        out = {"u": np.ascontiguousarray(local[..., 0]), "v": np.ascontiguousarray(local[..., 1]),
-               "lengths": np.linalg.norm(local, axis=2), "rotation": rotation}
-        if rotation is not None:
-            frames = df.matmul(rotation, self.base.bases[rows])
-            out["frames"] = [np.ascontiguousarray(frames[:, :, k]) for k in range(3)]
-            out["edges"] = self.target_edges(rotation, stretch, rows)
+        tangent coordinates ``u``, ``v`` (r, 3 corners) and their lengths, the interpolated
+        rotations' ``frames`` (3, r, 3) and the interpolated target edges ``R_T U_T e``
+        (r, 3, 3) (of the triangles ``rows``; ``frames`` and ``stretch`` given for those)."""
+        coordinates = self.base.coordinates[rows]
+        x, y = coordinates[..., 0], coordinates[..., 1]
+        s11, s12, s22 = (stretch[:, k, None] for k in range(3))
+        u, v = s11 * x + s12 * y, s12 * x + s22 * y
+        out = {"u": u, "v": v, "lengths": np.sqrt(u * u + v * v), "frames": frames}
+        if frames is not None:
+            out["edges"] = u[:, :, None] * frames[0][:, None, :] + v[:, :, None] * frames[1][:, None, :]
         return out
 
     def fitted_edges(self, edges: np.ndarray, targets: dict, force=None, inverse=None) -> np.ndarray:
@@ -363,7 +366,7 @@ class _Gap:
         w1 = (g1 * a[:, None] - g0 * b[:, None]) / det[:, None]
         u, v = targets["u"], targets["v"]
         out = w0[:, None, :] * u[:, :, None] + w1[:, None, :] * v[:, :, None]
-        if targets["rotation"] is None:
+        if targets["frames"] is None:
             return out
         f0, f1, f2 = targets["frames"]
         trace = rows_dot(w0, f0) + rows_dot(w1, f1) + rows_dot(np.cross(w0, w1), f2)
@@ -376,19 +379,19 @@ class _Gap:
     @staticmethod
     def misfit(edges: np.ndarray, targets: dict) -> float:
         """Mean relative deviation of the lengths of corner ``edges`` from the metric's."""
-        lengths = np.sqrt(np.sum(edges * edges, axis=2))
+        lengths = np.sqrt(np.einsum("kcd,kcd->kc", edges, edges))
         return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0)))
 
-    def fit(self, x, stretch, rotation, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,
+    def fit(self, x, stretch, frames, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,
             targets=None):
-        """Local/global fit of the interpolated metric ``stretch`` from ``x`` (``rotation``: the
+        """Local/global fit of the interpolated metric ``stretch`` from ``x`` (``frames``: the
         interpolated rotations the fit may not stray far from; None: unconstrained), the
         iterations accelerated by Anderson mixing of the last :data:`ANDERSON_WINDOW` steps
         (Peng et al., TOG 2018: local/global steps converge slowly on the smooth part of the
         error, which the mixing extrapolates); stops once the edge lengths are within the gap's
-        tolerance of the metric (see :data:`METRIC_TOLERANCE`); ``targets``: ``local_targets(rotation,
+        tolerance of the metric (see :data:`METRIC_TOLERANCE`); ``targets``: ``local_targets(frames,
         stretch)`` if the caller has them."""
-        targets = self.local_targets(rotation, stretch) if targets is None else targets
+        targets = self.local_targets(frames, stretch) if targets is None else targets
         steps, images = [], []
         for _ in range(iterations):
             edges = self.edges_of(x)
@@ -410,53 +413,71 @@ class _Gap:
             x = image
         return x
 
-    def local_fit(self, x, stretch, rotation, guide, force, iterations):
-        """Local/global fit of ``stretch`` on the vertices all of whose triangles are in ``force``
-        (bool (m,)), the rest of ``x`` held fixed: a repair touches only the region of a defect
-        and factorizes only its (small) block of the normal matrix."""
-        topo, t = self.topo, self.topo.triangles
-        outside = np.zeros(topo.n, dtype=bool)
-        outside[t[~force].ravel()] = True
-        inside = np.zeros(topo.n, dtype=bool)
-        inside[t[force].ravel()] = True
-        free = np.flatnonzero(inside & ~outside)
-        if free.size == 0:
-            return x
-        region = np.flatnonzero(force)
-        corners = (3 * region[:, None] + np.arange(3)).ravel()
-        incidence = topo.D[corners]  # (3r, n): the region's corner edges
-        anchor = self.system[1]
-        block = (incidence[:, free].T @ incidence[:, free] + sp.diags(anchor[free])).tocsc()
-        coupling = incidence[:, free].T @ incidence  # (f, n)
-        solver = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        targets = self.local_targets(None if rotation is None else rotation[region], stretch[region], region)
-        inverse = self.base.inverse[region]
-        x = x.copy()
-        for _ in range(iterations):
-            edges = (x[topo.j[corners]] - x[topo.i[corners]]).reshape(-1, 3, 3)
-            fitted = self.fitted_edges(edges, targets, force[region], inverse)
-            held = x.copy()
-            held[free] = 0.0
-            rhs = incidence[:, free].T @ fitted.reshape(-1, 3) + anchor[free, None] * guide[free] - coupling @ held
-            new = solver.solve(np.asfortranarray(rhs))
-            step = np.max(np.abs(new - x[free]))
-            x[free] = new
-            if not np.isfinite(step) or step < ARAP_TOLERANCE * self.mean_edge:
-                break
-        return x
+    def region(self, force: np.ndarray) -> "_Region":
+        """The vertices all of whose triangles are in ``force`` (bool (m,)) with their block of
+        the normal matrix factorized (a repair moves only those)."""
+        return _Region(self, force)
+
+    def local_fit(self, x, region: "_Region", frames, stretch, guide) -> np.ndarray:
+        """``x`` with the free vertices of ``region`` re-solved so that the region's corner edges
+        fit the field (``frames`` (3, r, 3), ``stretch`` (r, 3) of the region's triangles), the
+        rest of ``x`` held fixed. Every edge of the region is imposed (no local step), so one
+        solve is the fit."""
+        out = x.copy()
+        if region.free.size:
+            edges = self.local_targets(frames, stretch, region.rows)["edges"]
+            out[region.free] = region.solve(edges, x, guide)
+        return out
 
     def pose(self, s: float) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
         self.select(s)
-        rotation, stretch, motion, guide = self.targets(s)
-        fitted = rotation if self.use_extrinsic else None
+        frames, stretch, motion, guide = self.targets(s)
+        fitted = frames if self.use_extrinsic else None
         targets = self.local_targets(fitted, stretch)  # shared by the Poisson solve and the fit
         if self.use_extrinsic:
             x0 = self.place(self.solve(targets["edges"], guide), s, motion)
         else:
             x0 = self.place(guide.copy(), s, motion)
         x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets)
-        return self.repair.checked(x, x0, s, rotation, stretch, guide, motion)
+        return self.repair.checked(x, x0, s, frames, stretch, guide, motion)
+
+
+class _Region:
+    """A repair's region: the triangles ``rows`` (r,) of a mask, the vertices ``free`` all of whose
+    triangles are in it, and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
+    matrix on them (``D_f``: the region's corner edges × free vertices); the held vertices enter
+    the right-hand side."""
+
+    def __init__(self, gap: _Gap, force: np.ndarray):
+        topo = gap.topo
+        self.rows = np.flatnonzero(force)
+        corners = topo.triangles[self.rows]
+        touched, local = np.unique(corners, return_inverse=True)
+        inside = np.bincount(local, minlength=touched.size)
+        self.free = touched[inside == topo.triangles_per_vertex[touched]]
+        self.anchor = gap.system[1][self.free]
+        if not self.free.size:
+            return
+        r = self.rows.size
+        ends = local.reshape(r, 3)
+        rows = np.arange(3 * r)
+        incidence = sp.csr_matrix((np.r_[-np.ones(3 * r), np.ones(3 * r)],
+                                   (np.r_[rows, rows], np.r_[ends.ravel(), ends[:, [1, 2, 0]].ravel()])),
+                                  shape=(3 * r, touched.size))
+        is_free = inside == topo.triangles_per_vertex[touched]
+        self.touched, self.held = touched, touched[~is_free]
+        free_part, self.held_part = incidence[:, is_free], incidence[:, ~is_free]
+        self.free_t = free_part.T.tocsr()
+        block = (self.free_t @ free_part + sp.diags(self.anchor)).tocsc()
+        self.lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
+
+    def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
+        """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)
+        with the held vertices at ``x``."""
+        rhs = self.free_t @ (edges.reshape(-1, 3) - self.held_part @ x[self.held])
+        return self.lu.solve(np.asfortranarray(rhs + self.anchor[:, None] * guide[self.free]))
 
 
 def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:

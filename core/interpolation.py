@@ -49,7 +49,6 @@ import numpy as np
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .inbetween_solver import _Gap, _Key, _log_stretch_from_lengths, _Relative, _Topology
 from .laplace_basis import basis_sizes
-from .mesh_topology import check_vertices
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_time
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
@@ -80,13 +79,16 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
-        key_poses, k_M, k_N, offset, use_extrinsic, smooth = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
+        key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth)
+
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth):
+        """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
-        first = check_vertices(keys[0], name="key pose 0")
         self._raw = keys
-        self._topo = _Topology(triangles, first.shape[0], first)
+        self._topo = _Topology(topology, keys[0])
         self._keys: dict[int, _Key] = {}
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._references: dict = {}
@@ -105,7 +107,7 @@ class SequenceInterpolator:
 
     def _key(self, index: int) -> _Key:
         if index not in self._keys:
-            self._keys[index] = _Key(self._topo, self._raw[index], f"key pose {index}")
+            self._keys[index] = _Key(self._topo, self._raw[index])
         return self._keys[index]
 
     def _reference(self, index: int):
@@ -208,9 +210,9 @@ class Interpolator:
 
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True):
-        k_M, k_N, offset, use_extrinsic = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
-        self._sequence = SequenceInterpolator([vertices_a, vertices_b], triangles, k_M=k_M, k_N=k_N, offset=offset,
-                                              use_extrinsic=use_extrinsic, smooth=False)
+        k_M, k_N, offset, use_extrinsic, topology = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
+        self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
+        self._sequence._setup([vertices_a, vertices_b], topology, k_M, k_N, offset, use_extrinsic, False)
         self._sequence._anchored = True
 
     def pose(self, factor: float) -> np.ndarray:

@@ -232,9 +232,9 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
         out[i] = out[j] + out[k] - out[i]  # reflect a corner across its opposite edge
         return out
 
-    def recording_local_fit(self, x, stretch, rotation, guide, force, iterations):
-        forced.append(force.copy())
-        return real_local(self, x, stretch, rotation, guide, force, iterations)
+    def recording_local_fit(self, x, region, frames, stretch, guide):
+        forced.append(region.rows.copy())
+        return real_local(self, x, region, frames, stretch, guide)
 
     monkeypatch.setattr(ci._Gap, "fit", folding_fit)
     monkeypatch.setattr(ci._Gap, "local_fit", recording_local_fit)
@@ -243,7 +243,7 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = it.pose(0.5)
     assert _flipped(x, a, b, tri) == 0
-    assert forced and forced[0][len(tri) // 2] and 1 < forced[0].sum() < len(tri) // 2
+    assert forced and len(tri) // 2 in forced[0] and 1 < forced[0].size < len(tri) // 2
     assert np.abs(x - clean).max() < 1e-3 * np.ptp(clean, axis=0).max()
 
 
@@ -270,7 +270,9 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
 
 def _folding_repairs(monkeypatch, tri, keep_fold):
     """Patch the fits so that a corner of the middle triangle is reflected after the first fit
-    and after every repair fit for which ``keep_fold(rotation, force)`` is true."""
+    and after every repair fit for which ``keep_fold(frames, rows)`` is true (``frames``
+    (3, r, 3): the imposed rotations' images of the base frames of the region's triangles
+    ``rows``)."""
     import core.interpolation as ci
 
     real_fit, real_local = ci._Gap.fit, ci._Gap.local_fit
@@ -282,9 +284,9 @@ def _folding_repairs(monkeypatch, tri, keep_fold):
 
     monkeypatch.setattr(ci._Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
 
-    def local_fit(self, x, stretch, rotation, guide, force, iterations):
-        out = real_local(self, x, stretch, rotation, guide, force, iterations)
-        return fold(out) if keep_fold(rotation, force) else out
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = real_local(self, x, region, frames, stretch, guide)
+        return fold(out) if keep_fold(frames, region.rows) else out
 
     monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
 
@@ -296,7 +298,7 @@ def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeyp
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     segment = Interpolator(a, b, tri)._sequence._gap(0)
     interpolated = segment.targets(0.5)[0]
-    _folding_repairs(monkeypatch, tri, lambda rotation, force: np.allclose(rotation[force], interpolated[force]))
+    _folding_repairs(monkeypatch, tri, lambda frames, rows: np.allclose(frames, interpolated[:, rows]))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = segment.pose(0.5)[0]
@@ -311,7 +313,8 @@ def test_a_key_geometry_is_spliced_where_the_blend_folds_too(monkeypatch, strip)
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     segment = Interpolator(a, b, tri)._sequence._gap(0)
-    _folding_repairs(monkeypatch, tri, lambda rotation, force: not np.allclose(rotation[force], np.eye(3)))
+    base_frames = segment.base.columns  # the first key's own rotations are the identity
+    _folding_repairs(monkeypatch, tri, lambda frames, rows: not np.allclose(frames, base_frames[:, rows]))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         x = segment.pose(0.5)[0]
