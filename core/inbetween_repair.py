@@ -52,18 +52,27 @@ class Repair:
             return rows_dot(cross, frames[2][rows]) < 0
         return rows_dot(cross, (gap.base if s < 0.5 else gap.next).normals[rows]) < 0
 
-    def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None) -> np.ndarray:
+    def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None, log_stretch=None) -> np.ndarray:
         """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
-        ``rows``); all of them if ``x`` is not finite."""
+        ``rows``); all of them if ``x`` is not finite. The interpolated areas come from
+        ``stretch`` (packed (m, 3)) or, if given instead, ``log_stretch`` (det exp L = e^tr L)."""
         m = len(self.gap.topo.triangles)
         if not np.isfinite(x).all():
             return np.ones(m if rows is None else len(rows), dtype=bool)
-        rows = slice(None) if rows is None else rows
-        t = self.gap.topo.triangles[rows]
-        e1, e2 = x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]]
+        if rows is None:
+            edges = self.gap.edges_of(x)
+            e1, e2 = edges[:, 0], -edges[:, 2]
+            rows = slice(None)
+        else:
+            t = self.gap.topo.triangles[rows]
+            e1, e2 = x[t[:, 1]] - x[t[:, 0]], x[t[:, 2]] - x[t[:, 0]]
         cross = np.cross(e1, e2)
-        st = stretch[rows]
-        target = self.gap.base.areas[rows] * (st[:, 0] * st[:, 2] - st[:, 1] ** 2)
+        if log_stretch is not None:
+            scale = np.exp(log_stretch[rows, 0] + log_stretch[rows, 2])
+        else:
+            st = stretch[rows]
+            scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
+        target = self.gap.base.areas[rows] * scale
         collapsed = 0.5 * np.sqrt(rows_dot(cross, cross)) < COLLAPSE_RATIO * target
         return self.flipped(cross, s, frames, rows) | collapsed
 

@@ -93,6 +93,7 @@ class _Topology:
         self.components = [np.flatnonzero(per_vertex == c) for c in kept]
         self.triangle_component = np.searchsorted(kept, labels)
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
+        self.all_in_one = len(self.components) == 1 and self.components[0].size == n_vertices  # no loose vertex
         self.triangles_per_vertex = np.bincount(t.ravel(), minlength=n_vertices)
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
@@ -123,6 +124,8 @@ class _Topology:
         """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices
         unchanged)."""
         c = self.vertex_component
+        if self.all_in_one:
+            return x @ rotations[0].T + translations[0]
         out = x.copy()
         used = c >= 0
         out[used] = df.matmul(rotations[c[used]], x[used, :, None])[:, :, 0] + translations[c[used]]
@@ -147,7 +150,7 @@ class _Key:
         self.columns = np.ascontiguousarray(self.bases.transpose(2, 0, 1))  # (3, m, 3): t1, t2, n
         self.coordinates = df.tangent_coordinates(self.edges, self.bases)
         self.inverse = df.inverse_edge_matrices(self.coordinates)
-        self.normals = self.bases[:, :, 2]
+        self.normals = self.columns[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
 
@@ -286,8 +289,7 @@ class _Gap:
         ``R_T t1``, ``R_T t2``, ``R_T n``), stretches (packed (m, 3)), the components' rigid
         motions (rotations (C, 3, 3), translations (C, 3)) and the guide positions (n, 3) at
         factor ``s``."""
-        motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
-        motion = (np.array([r for r, _ in motions]), np.array([t for _, t in motions]))
+        motion = self.motion(s)
         frames = self.key_frames(self.splines["rotvec"].at(s), motion[0])
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
         if self.weights is not None:  # the keys' per-vertex spline (two poses: the linear blend)
@@ -298,6 +300,12 @@ class _Gap:
         else:
             guide = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
         return frames, stretch, motion, guide
+
+    def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
+        translations (C, 3)."""
+        motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
+        return np.array([r for r, _ in motions]), np.array([t for _, t in motions])
 
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Frames (3, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals (r, 3) of

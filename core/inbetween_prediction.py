@@ -1,0 +1,71 @@
+"""All the in-betweens of one gap at once: the reconstruction solved at a few factors, the others
+predicted from them (the sequence part of "solving all in-betweens of a gap together").
+
+Between two keys the reconstruction ``N(s)`` of :meth:`core.inbetween_solver._Gap.pose` differs
+from the gap's guide — the keys' per-vertex spline with each component's interpolated rigid
+motion undone, ``V(s)``, moved by that motion ``M(s)`` — by a correction that vanishes at both
+keys and varies smoothly with ``s``: the part of the motion a per-vertex spline cannot follow
+(arcs of turning parts, edge lengths kept). :func:`gap_poses` solves ``N`` at the requested
+factors nearest :data:`SOLVED_FACTORS`, writes their corrections in the co-moving frame,
+``D_j = M(s_j)⁻¹ N(s_j) − V(s_j)``, and predicts every other in-between as
+``M(s) (V(s) + D(s))`` with ``D`` the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` and
+``(1, 0)`` (degree 4 for three solved factors). A rigid motion has ``D = 0`` and is reproduced exactly at every factor. A predicted
+pose with a flipped or collapsed triangle is solved instead. Measured (docs/inbetweens.md): on the
+14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 8 and 16 frames apart,
+median RMS and mean edge deviation within 0.5 % of solving every in-between.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import BarycentricInterpolator
+
+
+#: The factors solved in a gap when at least :data:`MIN_PREDICTED_BATCH` in-betweens are asked
+#: together: those asked nearest to these. Three solved factors keep the predicted ones within
+#: 0.5 % of solved ones in RMS and edge deviation; one (the midpoint) does not (falling sheet, keys
+#: 4 frames apart: 1.24 × the RMS of solving each, above the per-vertex cubic spline's).
+SOLVED_FACTORS = (0.25, 0.5, 0.75)
+#: Fewer in-betweens than this in a batch are all solved (prediction saves nothing then).
+MIN_PREDICTED_BATCH = 5
+
+
+def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
+    """``(positions (n, 3), problem or None)`` at each of ``factors`` (floats, extrapolations and
+    keys included) of ``gap`` (a ``core.inbetween_solver._Gap``)."""
+    interior = sorted({s for s in factors if 0.0 < s < 1.0})
+    if gap.anchored or len(interior) < MIN_PREDICTED_BATCH:
+        return [gap.pose(s) for s in factors]
+    solved_factors = sorted({min(interior, key=lambda s: abs(s - q)) for q in SOLVED_FACTORS})
+    solved = {s: gap.pose(s) for s in solved_factors}
+    correction = _correction(gap, {s: x for s, (x, _) in solved.items()})
+    out = []
+    for s in factors:
+        if s in solved:
+            out.append(solved[s])
+        elif 0.0 < s < 1.0:
+            out.append(_predicted(gap, s, correction))
+        else:
+            out.append(gap.pose(s))
+    return out
+
+
+def _correction(gap, solved: dict) -> BarycentricInterpolator:
+    """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
+    ``solved`` poses {factor: positions} (barycentric form: built and evaluated in O(n))."""
+    zero = np.zeros((gap.topo.n, 3))
+    factors, values = [0.0], [zero]
+    for s in sorted(solved):
+        factors.append(s)
+        values.append(gap.topo.undo_motion(solved[s], *gap.motion(s)) - gap.splines["vertices"].at(s))
+    factors.append(1.0)
+    values.append(zero)
+    return BarycentricInterpolator(factors, np.stack(values), axis=0)
+
+
+def _predicted(gap, s: float, correction: BarycentricInterpolator) -> tuple[np.ndarray, str | None]:
+    """The predicted pose at ``s``, or the solved one where the prediction has a defect."""
+    x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
+    if np.isfinite(x).all() and not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
+        return x, None
+    return gap.pose(s)
