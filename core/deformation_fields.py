@@ -79,7 +79,7 @@ def tangent_bases(edges: np.ndarray) -> np.ndarray:
 
 def tangent_coordinates(edges: np.ndarray, bases: np.ndarray) -> np.ndarray:
     """Coordinates (m, 3, 2) of the corner edges (m, 3, 3) in the tangent bases' ``(t1, t2)``."""
-    return np.einsum("kcd,kde->kce", edges, bases[:, :, :2])
+    return np.stack([(edges * bases[:, None, :, k]).sum(axis=2) for k in range(2)], axis=2)
 
 
 def _edge_matrix(coordinates: np.ndarray) -> np.ndarray:
@@ -160,13 +160,16 @@ def apply_stretch(s: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
     return np.stack([s[:, 0, None] * x + s[:, 1, None] * y, s[:, 1, None] * x + s[:, 2, None] * y], axis=-1)
 
 
-def rotated_frames(residual: Rotation, rotations: np.ndarray, components: np.ndarray,
+def rotated_frames(rotvec: np.ndarray, rotations: np.ndarray, components: np.ndarray,
                    columns: np.ndarray) -> np.ndarray:
     """Images ``R_T b_c`` (3, m, 3) of the base frame columns ``columns`` (3, m, 3) under the
-    rotations ``R_T = M_{c(T)} · residual_T``: ``residual`` a SciPy ``Rotation`` of m rotations,
+    rotations ``R_T = M_{c(T)} · exp(rotvec_T)``: ``rotvec`` (m, 3) rotation vectors,
     ``rotations`` the components' rotations (C, 3, 3), ``components`` (m,) each triangle's
-    component. Rotated as vectors, never as 3×3 matrix products (5–10× cheaper)."""
-    return turned_rows(np.stack([residual.apply(columns[c]) for c in range(3)]), rotations, components)
+    component. One batched product per column (measured fastest of SciPy's ``apply``, a single
+    einsum over all columns and quaternion arithmetic for this shape)."""
+    residual = Rotation.from_rotvec(rotvec).as_matrix()
+    frames = np.stack([np.einsum("kab,kb->ka", residual, columns[c]) for c in range(3)])
+    return turned_rows(frames, rotations, components)
 
 
 def turned_rows(vectors: np.ndarray, rotations: np.ndarray, components: np.ndarray) -> np.ndarray:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
 from .geometry import lumped_vertex_areas, rows_dot, vertex_labels
@@ -310,8 +309,7 @@ class _Gap:
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Frames (3, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals (r, 3) of
         the triangles ``rows``, ``rotations``: the components' (C, 3, 3))."""
-        return df.rotated_frames(Rotation.from_rotvec(rotvec), rotations, self.topo.triangle_component[rows],
-                                 self.base.columns[:, rows])
+        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows], self.base.columns[:, rows])
 
     def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (m, 3, 3) and the anchor to ``guide``
