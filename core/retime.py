@@ -8,8 +8,9 @@ when ``F − 1`` is not a multiple of ``step``). Output sample ``k`` shows sourc
 output sample at a key's time is that key's positions exactly; any other is the in-between of its
 gap at the factor of its time within the gap.
 
-Chunks: the result for a gap depends only on the keys and the gap, and every call builds the
-interpolator from all the keys, so computing gaps ``a:b`` in one process and ``b:c`` in another
+Chunks: the in-betweens of a gap are asked together (:meth:`core.SequenceInterpolator.poses`
+shares the work between them), so the result for a gap depends only on the keys, the gap and the
+plan; every call builds the interpolator from all the keys, so computing gaps ``a:b`` in one process and ``b:c`` in another
 gives exactly (bit for bit) the samples of computing ``a:c`` at once. :meth:`RetimePlan.chunk`
 splits the gaps evenly.
 """
@@ -116,12 +117,17 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
     key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
+    batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]
         if key >= 0:
             yield index, key_poses[key].copy()
-        else:
-            yield index, sequence.pose(int(plan.gaps[index]), float(plan.factors[index]))
+            continue
+        gap = int(plan.gaps[index])
+        if index not in batch:
+            rows = [i for i in plan.outputs(range(gap, gap + 1)) if plan.exact_keys[i] < 0]
+            batch = dict(zip(rows, sequence.poses(gap, [float(plan.factors[i]) for i in rows])))
+        yield index, batch[index]
 
 
 def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = None,
