@@ -73,5 +73,5 @@ def _predicted(gap, s: float, correction: BarycentricInterpolator) -> tuple[np.n
     """The predicted pose at ``s``, or the solved one where the prediction has a defect."""
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
     if np.isfinite(x).all() and not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
-        return x, None
+        return gap.pinned((x, None))
     return gap.pose(s)

@@ -5,7 +5,8 @@ rotations and stretches are imposed on the defective triangles and a neighbourho
 while defects remain (:data:`REPAIR_RINGS`); in each neighbourhood, in turn, the interpolated
 rotations, the linear blend's rotations (integrable: they come from a mesh), the blend's rotations
 and stretches (its local geometry spliced in, where the interpolated metric cannot be realized
-without a fold), and each key's own local geometry (nearer key first); the first defect-free one
+without a fold), the local geometry of the keys' per-vertex spline, and each key's own local
+geometry (nearer key first); the first defect-free one
 is kept, so a repair changes as small a region as it can. If no repair is defect-free, the fallbacks
 are tried in turn — the Poisson solve alone, the metric fitted near the linear blend (strongly
 anchored), the linear blend — and the first without defects is returned; if none is, the metric
@@ -135,26 +136,31 @@ class Repair:
         """The fields imposed around defects, in the order tried: functions of triangle indices
         ``rows`` (r,) returning (frames (3, r, 3), packed stretches (r, 3)) — the interpolated
         rotations, the linear blend's rotations (integrable: they come from a mesh), the blend's
-        rotations and stretches, each key's own local geometry (nearer key first)."""
+        rotations and stretches, those of the keys' per-vertex spline, each key's own local
+        geometry (nearer key first)."""
         gap = self.gap
         t = gap.topo.triangles
 
         def interpolated(rows):
             return frames[:, rows], stretch[rows]
 
-        def blend_field(rows):
-            edges = df.corner_edges(blend, t[rows])
-            bases = df.tangent_bases(edges)
-            coordinates = df.tangent_coordinates(edges, bases)
-            angle, blend_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse[rows]))
-            return df.plane_turned_frames(bases, angle), blend_stretch
+        def mesh_field(positions):  # the local geometry of a mesh: integrable
+            def field(rows):
+                edges = df.corner_edges(positions, t[rows])
+                bases = df.tangent_bases(edges)
+                coordinates = df.tangent_coordinates(edges, bases)
+                angle, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse[rows]))
+                return df.plane_turned_frames(bases, angle), mesh_stretch
+            return field
 
         def key_field(key):
             rotations = np.array([df.rigid_exp(screw)[0] for screw in key.screw])
             return lambda rows: (gap.key_frames(key.rotvec[rows], rotations, rows), df.exp_stretch(key.log_stretch[rows]))
 
         keys = gap.relatives[1:3] if s < 0.5 else gap.relatives[2:0:-1]  # nearer key first
-        return [interpolated, lambda rows: (blend_field(rows)[0], stretch[rows]), blend_field] + [key_field(k) for k in keys]
+        blend_field = mesh_field(blend)
+        return [interpolated, lambda rows: (blend_field(rows)[0], stretch[rows]), blend_field,
+                mesh_field(gap.splines["world"].at(s))] + [key_field(k) for k in keys]
 
     def rounds(self, x, defects, s, frames, stretch, guide, blend, best):
         """Regions growing by :data:`REPAIR_RINGS` around the ``defects`` (bool (m,)) of ``x``; in

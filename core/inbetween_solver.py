@@ -56,6 +56,17 @@ MAX_ROTATION_DEVIATION = np.pi / 4
 BLEND_ANCHOR_WEIGHT = 0.1
 BLEND_SHORTENING_SCALE = 0.01
 BLEND_SHORTENING_CUTOFF = 0.1
+#: Anchor weight (per unit vertex mass) of the vertices that sit still in every key of a sequence
+#: (pinned cloth): large enough that they stay put to ~1e-3 of the edge terms' pull (and are then
+#: set exactly), small enough to leave the normal matrix well conditioned.
+STATIC_ANCHOR_WEIGHT = 1e3
+#: Sequences anchor every other vertex to the keys' per-vertex spline with this weight (per unit
+#: vertex mass, relative to the unit edge terms of the graph Laplacian): shapes longer than about
+#: 2π/√w ≈ 60 edges follow the spline, shorter ones the interpolated fields. Without it the fields
+#: alone place the whole sheet and their small rotation errors add up along it (a flag pinned at
+#: its pole: 1.09–1.27 × the RMS of the per-vertex Catmull–Rom spline; with it 0.96–1.11);
+#: numbers for other weights in docs/inbetweens.md.
+SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
 #: about a common pivot stay together), along the spline of the keys' centroids where they deform
@@ -63,6 +74,10 @@ BLEND_SHORTENING_CUTOFF = 0.1
 #: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
 #: the gap's keys / the component's bounding-box diagonal) relative to this scale.
 RIGID_PLACEMENT_SCALE = 1e-3
+
+
+#: The splines of positions (their tangents are limited per point, see :class:`core.splines.HermiteGap`).
+POSITIONS = ("vertices", "world", "centroids")
 
 
 class _Topology:
@@ -100,19 +115,20 @@ class _Topology:
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
 
-    def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT):
+    def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None):
         """Sparse LU of ``DᵀD + diag(w · mass)`` for per-vertex ``weights`` (n,) or one weight
-        for all (cached per value). The matrix is symmetric positive definite: symmetric mode with
+        for all (cached per value, or per ``key`` for per-vertex weights). The matrix is symmetric positive definite: symmetric mode with
         a minimum-degree ordering of ``A + Aᵀ`` has about 60 % of the default ordering's fill
         and solves twice as fast."""
         uniform = np.isscalar(weights)
-        if uniform and weights in self._uniform:
-            return self._uniform[weights]
+        cache = weights if uniform else key
+        if cache is not None and cache in self._uniform:
+            return self._uniform[cache]
         w = np.full(self.n, weights) if uniform else weights
         lu = spla.splu((self.laplacian + sp.diags(w * self.mass)).tocsc(), permc_spec="MMD_AT_PLUS_A",
                        diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        if uniform:
-            self._uniform[weights] = lu
+        if cache is not None:
+            self._uniform[cache] = lu
         return lu
 
     def centroid(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -213,14 +229,15 @@ class _Gap:
     its factorization. :meth:`poses` answers any factors."""
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
-                 use_extrinsic: bool, anchored: bool):
+                 use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
-        spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic)
+        spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic, rows=name in POSITIONS)
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         self.splines = spline
         self.anchored = anchored
+        self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
         self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
@@ -237,14 +254,40 @@ class _Gap:
         between = 0.0 < s < 1.0
         if between not in self._anchors:
             topo = self.topo
-            weights, co_moving = self.anchor_weights(between) if self.anchored else (None, None)
+            weights, co_moving, key = None, None, None
+            if self.anchored:
+                weights, co_moving = self.anchor_weights(between)
+            else:  # sequences: one pattern for the whole sequence, factorized once
+                # the spline in the world where a component deforms, with its interpolated rigid
+                # motion undone where it moves rigidly (exact for rigid motions; mixed by its
+                # rigidity as the centroid placement is), in the world for still vertices
+                still = np.zeros(topo.n, dtype=bool) if self.static is None else self.static
+                weights, co_moving, key = self.sequence_weights(), ~still, "sequence"
             if weights is not None and not (weights > GAUGE_WEIGHT).any():
                 weights = None
             w = np.full(topo.n, GAUGE_WEIGHT) if weights is None else weights
-            system = (topo.factor(GAUGE_WEIGHT if weights is None else w), w * topo.mass)
+            system = (topo.factor(GAUGE_WEIGHT if weights is None else w, key), w * topo.mass)
             placed = [not (w[rows] > GAUGE_WEIGHT).any() for rows in topo.components]
             self._anchors[between] = (weights, co_moving, system, placed)
         self.weights, self.co_moving, self.system, self.placed_by_centroid = self._anchors[between]
+
+    def sequence_weights(self) -> np.ndarray:
+        """Per-vertex anchor weights (n,) of a sequence: :data:`SEQUENCE_ANCHOR_WEIGHT` to the
+        keys' per-vertex spline (in the co-moving frame), :data:`STATIC_ANCHOR_WEIGHT` where the
+        vertex is still in every key."""
+        weights = np.full(self.topo.n, SEQUENCE_ANCHOR_WEIGHT)
+        if self.static is not None:
+            weights[self.static] = STATIC_ANCHOR_WEIGHT
+        return weights
+
+    def repair_anchor(self, free: np.ndarray) -> np.ndarray:
+        """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
+        gap's own for two poses; for sequences only the still vertices' (a repair imposes a local
+        field and the region's boundary fixes its place: a pull toward the spline would fight it)."""
+        anchor = self.system[1][free]
+        if self.anchored:
+            return anchor
+        return np.where(anchor >= STATIC_ANCHOR_WEIGHT * self.topo.mass[free], anchor, GAUGE_WEIGHT * self.topo.mass[free])
 
     def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
         """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge
@@ -291,13 +334,17 @@ class _Gap:
         motion = self.motion(s)
         frames = self.key_frames(self.splines["rotvec"].at(s), motion[0])
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
-        if self.weights is not None:  # the keys' per-vertex spline (two poses: the linear blend)
-            guide = self.splines["world"].at(s)
-            if self.co_moving.any():
-                undone = self.splines["vertices"].at(s)
-                guide[self.co_moving] = self.topo.apply_motion(undone, *motion)[self.co_moving]
-        else:
-            guide = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        if self.weights is None:  # a gauge only: the spline with the rigid motions undone
+            return frames, stretch, motion, self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        guide = self.splines["world"].at(s)  # the keys' per-vertex spline (two poses: the linear blend)
+        if self.co_moving.any():
+            undone = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+            if self.anchored:
+                mix = self.co_moving.astype(float)
+            else:
+                component = self.topo.vertex_component
+                mix = self.co_moving * np.where(component >= 0, self.rigidity[component], 0.0)
+            guide += mix[:, None] * (undone - guide)
         return frames, stretch, motion, guide
 
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -446,7 +493,13 @@ class _Gap:
         else:
             x0 = self.place(guide.copy(), s, motion)
         x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets)
-        return self.repair.checked(x, x0, s, frames, stretch, guide, motion)
+        return self.pinned(self.repair.checked(x, x0, s, frames, stretch, guide, motion))
+
+    def pinned(self, result):
+        """``(x, problem)`` with the sequence's still vertices exactly where they sit in the keys."""
+        if self.static is not None:
+            result[0][self.static] = self.base.vertices[self.static]
+        return result
 
 
 class _Region:
@@ -462,7 +515,7 @@ class _Region:
         touched, local = np.unique(corners, return_inverse=True)
         inside = np.bincount(local, minlength=touched.size)
         self.free = touched[inside == topo.triangles_per_vertex[touched]]
-        self.anchor = gap.system[1][self.free]
+        self.anchor = gap.repair_anchor(self.free)
         if not self.free.size:
             return
         r = self.rows.size

@@ -90,6 +90,11 @@ class SequenceInterpolator:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
+        # vertices still in every key (pinned cloth) are anchored where they sit: a sequence's
+        # in-betweens keep them there (two poses anchor what the blend keeps instead)
+        # vertices still in every key (pinned cloth) stay exactly where they sit
+        still = np.all(np.stack([np.all(k == keys[0], axis=1) for k in keys[1:]]), axis=0)
+        self._static = still if still.any() else None
         self._keys: dict[int, _Key] = {}
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._references: dict = {}
@@ -160,7 +165,7 @@ class SequenceInterpolator:
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored)
+                       self._anchored, self._static)
         self._gaps[gap] = segment
         while len(self._gaps) > GAP_CACHE:
             self._gaps.popitem(last=False)

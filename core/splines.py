@@ -25,16 +25,23 @@ class HermiteGap:
     ``cubic=False``: linear in the two keys (``before``/``after`` are ignored).
 
     ``values``: ``(before, start, end, after)`` at key times −1, 0, 1, 2, arrays of one shape.
+    ``rows=True`` limits the length of each row (points in space) instead of each element.
     """
 
-    def __init__(self, values, cubic: bool):
+    def __init__(self, values, cubic: bool, rows: bool = False):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
         self.cubic = cubic
         if cubic:
-            limit = TANGENT_LIMIT * np.abs(self.secant)
-            self.t0 = np.clip(0.5 * (end - before), -limit, limit)
+            t0 = 0.5 * (end - before)
+            if rows:  # positions: limit each row's length (rotation invariant, keeps C¹ per point)
+                limit = TANGENT_LIMIT * np.linalg.norm(self.secant, axis=-1, keepdims=True)
+                length = np.linalg.norm(t0, axis=-1, keepdims=True)
+                self.t0 = t0 * np.minimum(1.0, limit / np.maximum(length, np.finfo(float).tiny))
+            else:
+                limit = TANGENT_LIMIT * np.abs(self.secant)
+                self.t0 = np.clip(t0, -limit, limit)
             self.t1 = 0.5 * (after - start)
 
     def at(self, s: float) -> np.ndarray:
