@@ -177,7 +177,7 @@ class _Relative:
     component's rigid motion undone (n, 3)."""
 
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
-        screws, rotations, translations, self.nonrigidity = [], [], [], []
+        screws, rotations, translations, self.nonrigidity, self.misfits = [], [], [], [], []
         unwrap = turns is not None  # the continuation of the next key's turn
         if turns is None:  # every piece's half turn goes the way the whole mesh turns
             whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
@@ -189,6 +189,7 @@ class _Relative:
             rotations.append(rotation)
             translations.append(translation)
             misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
+            self.misfits.append(misfit)
             self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
         rotations, translations = np.array(rotations), np.array(translations)
         angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
@@ -201,6 +202,35 @@ class _Relative:
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
         self.centroids = other.centroids
+        self.angle, self.motion = angle, (rotations, translations)
+
+    def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
+        """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
+        ``other`` (its log-stretch from the poses), in closed form instead of from the poses
+        again: the rigid motions inverted, rotation residuals ``−R_c q`` (the residual's inverse
+        conjugated by its component's rotation), log-stretches ``−Q(θ) log S Q(θ)ᵀ`` (the planar
+        map's inverse is ``S⁻¹ Q(−θ)``, whose stretch in the base's tangent basis is
+        ``Q(θ) S⁻¹ Q(θ)ᵀ``). ``turns`` as for the constructor (unwrapped)."""
+        out = _Relative.__new__(_Relative)
+        rotations, translations = self.motion
+        inverse_rotations = df.transpose(rotations)
+        inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
+        out.screw = np.array([df.rigid_log(r, t, turn, True)
+                              for r, t, turn in zip(inverse_rotations, inverse_translations, turns)])
+        out.misfits = list(self.misfits)
+        out.nonrigidity = [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
+                           for misfit, rows in zip(self.misfits, topo.components)]
+        out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
+        cos, sin = np.cos(self.angle), np.sin(self.angle)
+        l11, l12, l22 = self.log_stretch.T
+        out.log_stretch = -np.stack([cos * cos * l11 - 2 * cos * sin * l12 + sin * sin * l22,
+                                     cos * sin * (l11 - l22) + (cos * cos - sin * sin) * l12,
+                                     sin * sin * l11 + 2 * cos * sin * l12 + cos * cos * l22], axis=1)
+        out.vertices = topo.apply_motion(other.vertices, rotations, translations)
+        out.world = other.vertices
+        out.centroids = other.centroids
+        out.angle, out.motion = -self.angle, (inverse_rotations, inverse_translations)
+        return out
 
     @classmethod
     def identity(cls, topo: _Topology, base: _Key) -> "_Relative":

@@ -148,6 +148,16 @@ class SequenceInterpolator:
         log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
         return _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn)
 
+    def _previous(self, gap: int, turns: np.ndarray) -> _Relative:
+        """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
+        next key (the same whichever gaps were computed before), or, with a truncated basis (its
+        metric is recovered per base key), from the poses."""
+        if self.k_M is not None:
+            return self._relative(gap, gap - 1, turns)
+        cached = self._gaps.get(gap - 1)
+        forward = cached.relatives[2] if cached is not None else self._relative(gap - 1, gap)
+        return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
+
     def _gap(self, gap: int) -> _Gap:
         if gap in self._gaps:
             self._gaps.move_to_end(gap)
@@ -160,7 +170,7 @@ class SequenceInterpolator:
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw[:, :3]
-            prev = self._relative(gap, gap - 1, -turn) if gap >= 1 else _Relative.phantom(nxt, ident)
+            prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident)
             after = self._relative(gap, gap + 2, 2 * turn) if gap + 2 <= last else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident

@@ -184,3 +184,24 @@ def test_predicted_inbetweens_stay_near_the_solved_ones():
         assert np.array_equal(batch[exact[0]], solved[exact[0]]) and np.array_equal(batch[exact[-1]], solved[exact[-1]])
         # measured 0.4 % (3 in-betweens) and 0.03 % (15) of how far the solve moves from the blend
         assert np.abs(batch - solved).max() < 0.02 * np.abs(solved - blend).max()
+
+
+def test_pinned_vertices_stay_put_in_sequences():
+    """A sheet hanging from its top edge swings and waves between the keys: the vertices that sit
+    still in every key (Blender's pinned cloth) stay exactly there in every in-between, solved or
+    predicted; the rest moves."""
+    flat, tri = grid(14, 10, size=1.0)
+    pinned = flat[:, 1] >= flat[:, 1].max() - 1e-12
+    depth = flat[:, 1].max() - flat[:, 1]  # 0 along the pinned edge
+    keys = []
+    for k in range(6):
+        angle = 0.5 * np.sin(0.9 * k) * depth  # a swing about the pinned edge, growing with depth
+        wave = 0.05 * depth * np.sin(4.0 * flat[:, 0] + k)
+        keys.append(np.stack([flat[:, 0], flat[:, 1].max() - depth * np.cos(angle), depth * np.sin(angle) + wave], axis=1))
+    assert all(np.array_equal(k[pinned], keys[0][pinned]) for k in keys)
+    seq = SequenceInterpolator(keys, tri)
+    for gap in range(len(seq)):
+        batch = seq.poses(gap, np.arange(1, 8) / 8)
+        assert np.array_equal(batch[:, pinned], np.broadcast_to(keys[0][pinned], batch[:, pinned].shape))
+        assert np.abs(batch[:, ~pinned] - keys[gap][~pinned]).max() > 1e-2
+    assert np.array_equal(seq.pose_at(2.3)[pinned], keys[0][pinned])
