@@ -225,6 +225,43 @@ print(base, peak())
     return base, peak
 
 
+def analytic_sheet_memory(side: int = 317, n_keys: int = 6, gap: int = 16) -> tuple[float, float, float]:
+    """Peak memory (MB) and seconds per in-between of a child that in-betweens an analytic sheet of
+    ``side``² vertices (317² = 100,489) waving and curling over ``n_keys`` keys, ``gap − 1``
+    in-betweens per gap: the 100k-vertex size of issue 17, without a bake."""
+    code = f"""
+import sys, time, warnings
+sys.path.insert(0, {str(ROOT)!r})
+import numpy as np
+from core.interpolation import SequenceInterpolator
+def peak():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+u, v = np.meshgrid(np.linspace(0, 1, {side}), np.linspace(0, 1, {side}), indexing="ij")
+i = np.arange({side} - 1)[:, None] * {side} + np.arange({side} - 1)[None, :]
+quads = np.stack([i, i + {side}, i + {side} + 1, i + 1], axis=-1).reshape(-1, 4)
+triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+keys = []
+for k in range({n_keys}):
+    t = 0.3 * k
+    bend = 1.2 * t * u
+    keys.append(np.stack([np.sin(bend) / max(1.2 * t, 1e-9) if k else u, v,
+                          (1 - np.cos(bend)) / max(1.2 * t, 1e-9) * (k > 0) + 0.02 * np.sin(6 * v + t)],
+                         axis=-1).reshape(-1, 3))
+base = peak()
+warnings.simplefilter("ignore")
+t0 = time.perf_counter()
+seq = SequenceInterpolator(keys, triangles)
+for k in range(len(seq)):
+    seq.poses(k, np.arange(1, {gap}) / {gap})
+print(base, peak(), (time.perf_counter() - t0) / (len(seq) * ({gap} - 1)))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    base, peak, seconds = map(float, out.stdout.split()[-3:])
+    return base, peak, seconds
+
+
 def plot(results, path):
     import matplotlib
 
@@ -374,6 +411,10 @@ def main(argv=None):
             print(f"  {name}: peak memory {peak:.0f} MB (after loading and imports: {base:.0f} MB), "
                   f"gap {min(args.gaps)}")
             results[-1]["memory_mb"] = peak
+    if args.memory:
+        base, peak, seconds = analytic_sheet_memory()
+        print(f"  analytic sheet, 100,489 vertices, 6 keys, 15 in-betweens per gap: peak memory {peak:.0f} MB "
+              f"(after imports: {base:.0f} MB), {seconds:.2f} s per in-between")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     if args.plot:
