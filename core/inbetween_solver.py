@@ -287,6 +287,9 @@ class _Gap:
             weights, co_moving, key = None, None, None
             if self.anchored:
                 weights, co_moving = self.anchor_weights(between)
+                if self.static is not None:  # still in both keys: held there as firmly as in sequences
+                    weights = np.where(self.static, STATIC_ANCHOR_WEIGHT, weights)
+                    co_moving = co_moving & ~self.static
             else:  # sequences: one pattern for the whole sequence, factorized once
                 # the spline in the world where a component deforms, with its interpolated rigid
                 # motion undone where it moves rigidly (exact for rigid motions; mixed by its
