@@ -302,7 +302,7 @@ def plot(results, path):
     plt.close(fig)
 
 
-def side_by_side(path, scene_name="flag_wind", gap=16, key=2):
+def side_by_side(path, scene_name="drape_sphere", gap=16, key=3):
     """True frame / linear blend / ours for the middle of one gap, coloured by edge stretch."""
     from benchmarks.render import common_bounds, draw_mesh, pyplot, save
 
@@ -418,7 +418,7 @@ def main(argv=None):
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     if args.plot:
-        plot([r for r in results if r["n_vertices"] <= 5000], args.plot)
+        plot([r for r in results if r["n_vertices"] <= 20000], args.plot)  # the 50k sheet would crowd the plot
     if args.side_by_side:
         side_by_side(args.side_by_side)
     return results
