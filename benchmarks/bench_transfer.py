@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import core  # noqa: E402
-from benchmarks import cloth_scenes  # noqa: E402
+from benchmarks import cloth_scenes, limb_scenes  # noqa: E402
 from core.functional_map import closest_point_correspondence  # noqa: E402
 from core.rigid_alignment import rigid_alignment  # noqa: E402
 
@@ -45,6 +45,10 @@ SCENES = {
     "drape5k": (cloth_scenes.SceneSpec("drape_sphere_5k", "drape", (72, 72), frames=64, quality=10,
                                        params=(("stiffness", 80.0), ("bending", 5.0))), 1.3, 0.65),
 }
+
+
+#: Procedural articulated limbs (benchmarks/limb_scenes.py): base vertices (the target has 1.3 ×).
+LIMBS = {"limb": 1000, "limb5k": 5000}
 
 
 def load(spec) -> cloth_scenes.ClothScene:
@@ -57,9 +61,7 @@ def load(spec) -> cloth_scenes.ClothScene:
         if str(data["key"]) == spec.key():
             return cloth_scenes.ClothScene(spec.name, data["frames"], data["triangles"], float(data["bake_seconds"]))
     cloth_scenes.OUTPUT_DIR.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    frames, triangles = cloth_scenes.bake(spec)
-    seconds = time.perf_counter() - t0
+    frames, triangles, seconds = cloth_scenes.bake(spec)
     np.savez_compressed(path, frames=frames, triangles=triangles, key=spec.key(), bake_seconds=seconds)
     return cloth_scenes.ClothScene(spec.name, frames, triangles, seconds)
 
@@ -144,6 +146,10 @@ def aligned(pose, target, correspondence):
 
 
 def prepare(scene_name: str, third: bool):
+    if scene_name in LIMBS:
+        if third:
+            raise SystemExit("--third applies to the cloth scenes only")
+        return (None, *limb_scenes.limb_scene(LIMBS[scene_name]))
     spec, density, third_density = SCENES[scene_name]
     scene = load(spec)
     target_frames, target_tris = remesh(scene, density, seed=1)
@@ -232,7 +238,7 @@ def picture(path, result):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scene", default="drape", choices=sorted(SCENES))
+    parser.add_argument("--scene", default="drape", choices=sorted(SCENES) + sorted(LIMBS))
     parser.add_argument("--frames", default="20,40,60")
     parser.add_argument("--third", action="store_true", help="base = a third triangulation, not the sim mesh")
     parser.add_argument("--no-same-mesh", action="store_true", help="skip the same-mesh reference timing")
