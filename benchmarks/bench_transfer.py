@@ -24,6 +24,7 @@ Scenes are baked headless on first use (``benchmarks/cloth_scenes.py``) and cach
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -184,6 +185,7 @@ def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=20
                 "truth": hausdorff_over_diagonal(aligned(rebuilt, base_frames[f], np.arange(len(base))), base_tris,
                                                  base_frames[f], base_tris),
                 "seconds": seconds,
+                "load": os.getloadavg()[0],
                 "pose": rebuilt,
             }
             if same_mesh:
@@ -203,7 +205,7 @@ def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=20
 def format_row(row) -> str:
     text = (f"  frame {row['frame']:3d}: rebuilt {100 * row['rebuilt']:5.2f} % (to its ground truth on the base "
             f"{100 * row['truth']:5.2f} %), unchanged base {100 * row['unchanged']:5.2f} %, ratio "
-            f"{row['rebuilt'] / row['unchanged']:.2f}; {row['seconds']:.1f} s")
+            f"{row['rebuilt'] / row['unchanged']:.2f}; {row['seconds']:.1f} s (load {row['load']:.1f})")
     if "same_seconds" in row:
         text += (f" (same-mesh eq. 6: {100 * row['same']:5.2f} %, {row['same_seconds']:.1f} s; ratio "
                  f"{row['seconds'] / row['same_seconds']:.2f})")

@@ -1,12 +1,12 @@
 """Procedural articulated scenes for the transfer benchmark (issue 21): a closed, smooth limb
-(a capsule: a cylinder with hemispherical caps) bent at two joints and twisted over an animation
-by linear-blend skinning, meshed twice independently — like a re-meshed scan sequence of a body.
+(a capsule: a cylinder with hemispherical caps) bent at two joints and twisted over an animation,
+meshed twice independently — like a re-meshed scan sequence of a body.
 
 - base: a structured ring mesh (rings of equal arc-length spacing along the profile, a fan at
   each pole), as a modelled mesh would be;
 - target: the convex hull of jittered samples of the same rest surface (an irregular,
   Delaunay-like triangulation of the capsule, which is convex at rest);
-- both are posed by the same skinning of their rest positions, so the base's own frames are the
+- both are posed by the same deformation of their rest positions, so the base's own frames are the
   ground truth of a rebuild, and the target's frames are the "other mesh" animation.
 """
 
@@ -17,10 +17,10 @@ import numpy as np
 #: Capsule: cylinder length and radius (the limb is 2 long, 0.2 thick: a finger or an arm).
 LENGTH = 2.0
 RADIUS = 0.2
-#: Joints along the axis (z), the width of the skinning blend around each (in radii), and the
-#: bend (about x) and twist (about the axis) reached at the last frame for each joint.
+#: Joints along the axis (z), the half-width of the bend around each (in radii), and the bend
+#: (about x) and twist (about the axis) reached at the last frame for each joint.
 JOINTS = (-LENGTH / 6, LENGTH / 6)
-BLEND = 1.0
+BLEND = 2.0
 BENDS_DEGREES = (70.0, 80.0)
 TWISTS_DEGREES = (20.0, 30.0)
 
@@ -156,21 +156,36 @@ def _rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
 
 
+def _smoothstep(t):
+    t = np.clip(t, 0.0, 1.0)
+    return t * t * (3 - 2 * t)
+
+
 def pose(rest: np.ndarray, phase: float) -> np.ndarray:
-    """The rest positions ``(n, 3)`` skinned at ``phase`` in [0, 1] (0: rest): each joint in
-    turn (from the top down) bends and twists everything above it, blended linearly over
-    :data:`BLEND` radii around the joint (smoothstep weights); then the whole limb turns by
-    ``phase`` × 40° about a tilted axis and moves, so a rigid alignment is part of the task."""
-    x = np.array(rest, dtype=np.float64)
-    z0 = rest[:, 2]
-    for joint, bend, twist in reversed(list(zip(JOINTS, BENDS_DEGREES, TWISTS_DEGREES))):
-        t = np.clip((z0 - joint) / (2 * BLEND * RADIUS) + 0.5, 0.0, 1.0)
-        w = t * t * (3 - 2 * t)
-        center = np.array([0.0, 0.0, joint])
-        rotation = _rotation(np.array([1.0, 0.0, 0.0]), np.radians(bend * phase)) @ _rotation(
-            np.array([0.0, 0.0, 1.0]), np.radians(twist * phase))
-        moved = (x - center) @ rotation.T + center
-        x = (1 - w)[:, None] * x + w[:, None] * moved
+    """The rest positions ``(n, 3)`` posed at ``phase`` in [0, 1] (0: rest). The axis bends (about
+    x) and twists at each joint gradually over :data:`BLEND` radii on either side, and every
+    cross-section follows it rigidly: a point ``(x, y, z)`` goes to ``C(z) + F(z) (x, y, 0)``
+    with ``F(z) = R_x(Θ(z)) R_z(Ψ(z))`` (Θ, Ψ the bend and twist accumulated up to height z) and
+    the axis ``C' = F e_z`` — unstretched along the axis, compressed on the inside of a bend and
+    stretched outside by the radius × the curvature, as skin over a joint. Then the whole limb
+    turns by ``phase`` × 40° about a tilted axis and moves, so a rigid alignment is part of the task."""
+    z_grid = np.linspace(rest[:, 2].min(), rest[:, 2].max(), 4001)
+    bend = np.zeros_like(z_grid)
+    twist = np.zeros_like(z_grid)
+    for joint, b, t in zip(JOINTS, BENDS_DEGREES, TWISTS_DEGREES):
+        w = _smoothstep((z_grid - joint) / (2 * BLEND * RADIUS) + 0.5)
+        bend += np.radians(b * phase) * w
+        twist += np.radians(t * phase) * w
+    direction = np.stack([np.zeros_like(bend), -np.sin(bend), np.cos(bend)], axis=1)  # R_x(Θ) e_z
+    steps = 0.5 * (direction[1:] + direction[:-1]) * np.diff(z_grid)[:, None]
+    axis = np.concatenate([[np.zeros(3)], np.cumsum(steps, axis=0)])
+    axis -= np.array([np.interp(0.0, z_grid, axis[:, k]) for k in range(3)])  # the middle stays
+    z = rest[:, 2]
+    theta, psi = np.interp(z, z_grid, bend), np.interp(z, z_grid, twist)
+    center = np.stack([np.interp(z, z_grid, axis[:, k]) for k in range(3)], axis=1)
+    u = rest[:, 0] * np.cos(psi) - rest[:, 1] * np.sin(psi)  # R_z(Ψ) (x, y)
+    v = rest[:, 0] * np.sin(psi) + rest[:, 1] * np.cos(psi)
+    x = center + np.stack([u, v * np.cos(theta), v * np.sin(theta)], axis=1)  # then R_x(Θ)
     turn = _rotation(np.array([0.3, 1.0, 0.2]), np.radians(40.0 * phase))
     return x @ turn.T + phase * np.array([0.5, -0.2, 0.3])
 

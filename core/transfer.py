@@ -310,7 +310,6 @@ class Transfer:
         warm (see :data:`WARM_EMBEDDING_GROWTH`), else (and when that fit is much worse than the
         previous pose's) by :meth:`~core.reference_shape.ReferenceShape.embed_result`."""
         ref, last = self.reference, self._last_embedding
-        result = None
         if self.warm_start and last is not None:
             result = ref.embed_result(metric, initial=last.points)
             if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
