@@ -4,7 +4,9 @@ The target is the simulated surface sampled at the vertices of a different trian
 Delaunay triangulation of jittered points of the rest sheet, each point carried through the
 frames by its barycentric coordinates in the simulated triangle it lies in); the base is the
 simulation's own mesh at rest, or a third triangulation of it. The map that "ships" with the data
-is a vertex map: for every base vertex the nearest target vertex at rest. Each target frame is
+is a vertex map: for every base vertex the nearest target vertex at rest. The ``limb`` scenes are
+an articulated closed limb instead, meshed twice independently (``benchmarks/limb_scenes.py``),
+like a re-meshed scan sequence of a body. Each target frame is
 rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with the target:
 
 - Hausdorff distance / bounding-box diagonal between the surfaces (vertices, edge midpoints and
@@ -14,8 +16,13 @@ rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with 
 - seconds per frame, against the same-mesh truncated reconstruction of the same frame (the base's
   own simulated pose, eq. 6 with the identity map) timed in the same run.
 
-    python -m benchmarks.bench_transfer [--scene drape|drape5k] [--frames 20,40,60] [--third]
+    python -m benchmarks.bench_transfer [--scene drape|drape5k|limb|limb5k] [--frames 20,40,60] [--third]
+                                        [--same-mesh all|first|none]
     python -m benchmarks.bench_transfer --picture docs/images/transfer_cloth.png
+    python -m benchmarks.bench_transfer --scene limb --frames 10,20,30,40 --picture docs/images/transfer_limb.png
+
+Frames are rebuilt in the order given by one ``core.Transfer``, each warm-started from the one
+before (an animation: give consecutive frames to time the steady state).
 
 Scenes are baked headless on first use (``benchmarks/cloth_scenes.py``) and cached in
 ``benchmarks/output``.
@@ -233,7 +240,8 @@ def picture(path, result):
         ax = fig.add_subplot(2, len(rows) + 1, len(rows) + j + 3, projection="3d")
         draw_mesh(ax, row["pose"], base_tris, np.full(len(base_tris), 0.25), bounds,
                   title=f"rebuilt on the base: {100 * row['rebuilt']:.1f} % (base {100 * row['unchanged']:.1f} %)")
-    fig.suptitle("Re-meshed Blender cloth rebuilt on the base mesh (Hausdorff / diagonal), k_M = 100, k_N = 200",
+    what = "Articulated limb" if result["scene"] in LIMBS else "Blender cloth"
+    fig.suptitle(f"Re-meshed {what} rebuilt on the base mesh (Hausdorff / diagonal), k_M = 100, k_N = 200",
                  fontsize=9)
     save(fig, path, top=0.93)
 
