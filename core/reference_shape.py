@@ -305,21 +305,26 @@ class ReferenceShape:
         base edge lengths started from ``initial`` (default: the base pose)."""
         return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
 
-    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None,
+                     nearby: np.ndarray | None = None):
         """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
-        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from.
+        ``nearby``: thickening points ``(n + n_offset, 3)`` of a nearby pose (the previous frame of
+        an animation), raced against the hinge frames instead of the base pose, without the
+        continuations from the base."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
             # The base pose is raced against the hinge frames as a start when the lengths are
             # inexact (truncated or noisy differences; see embedding.START_TRIAL_ITERATIONS).
-            base_thickening = self.surface.thickening_points(self.base.positions, self.offset_layer.positions)
+            reference = nearby if nearby is not None else self.surface.thickening_points(
+                self.base.positions, self.offset_layer.positions)
             result = embed_thickening(
                 self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
-                reference_points=base_thickening, anchor=anchor,
+                reference_points=reference, anchor=anchor, continuation=nearby is None,
             )
         else:
-            start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
+            start = next(p for p in (initial, nearby, self.base_positions) if p is not None)[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
         return result
 
