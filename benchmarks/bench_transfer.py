@@ -4,7 +4,9 @@ The target is the simulated surface sampled at the vertices of a different trian
 Delaunay triangulation of jittered points of the rest sheet, each point carried through the
 frames by its barycentric coordinates in the simulated triangle it lies in); the base is the
 simulation's own mesh at rest, or a third triangulation of it. The map that "ships" with the data
-is a vertex map: for every base vertex the nearest target vertex at rest. Each target frame is
+is a vertex map: for every base vertex the nearest target vertex at rest. The ``limb`` scenes are
+an articulated closed limb instead, meshed twice independently (``benchmarks/limb_scenes.py``),
+like a re-meshed scan sequence of a body. Each target frame is
 rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with the target:
 
 - Hausdorff distance / bounding-box diagonal between the surfaces (vertices, edge midpoints and
@@ -14,8 +16,13 @@ rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with 
 - seconds per frame, against the same-mesh truncated reconstruction of the same frame (the base's
   own simulated pose, eq. 6 with the identity map) timed in the same run.
 
-    python -m benchmarks.bench_transfer [--scene drape|drape5k] [--frames 20,40,60] [--third]
+    python -m benchmarks.bench_transfer [--scene drape|drape5k|limb|limb5k] [--frames 20,40,60] [--third]
+                                        [--same-mesh all|first|none]
     python -m benchmarks.bench_transfer --picture docs/images/transfer_cloth.png
+    python -m benchmarks.bench_transfer --scene limb --frames 10,20,30,40 --picture docs/images/transfer_limb.png
+
+Frames are rebuilt in the order given by one ``core.Transfer``, each warm-started from the one
+before (an animation: give consecutive frames to time the steady state).
 
 Scenes are baked headless on first use (``benchmarks/cloth_scenes.py``) and cached in
 ``benchmarks/output``.
@@ -24,6 +31,7 @@ Scenes are baked headless on first use (``benchmarks/cloth_scenes.py``) and cach
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 import warnings
@@ -35,7 +43,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import core  # noqa: E402
-from benchmarks import cloth_scenes  # noqa: E402
+from benchmarks import cloth_scenes, limb_scenes  # noqa: E402
 from core.functional_map import closest_point_correspondence  # noqa: E402
 from core.rigid_alignment import rigid_alignment  # noqa: E402
 
@@ -45,6 +53,10 @@ SCENES = {
     "drape5k": (cloth_scenes.SceneSpec("drape_sphere_5k", "drape", (72, 72), frames=64, quality=10,
                                        params=(("stiffness", 80.0), ("bending", 5.0))), 1.3, 0.65),
 }
+
+
+#: Procedural articulated limbs (benchmarks/limb_scenes.py): base vertices (the target has 1.3 ×).
+LIMBS = {"limb": 1000, "limb5k": 5000}
 
 
 def load(spec) -> cloth_scenes.ClothScene:
@@ -57,9 +69,7 @@ def load(spec) -> cloth_scenes.ClothScene:
         if str(data["key"]) == spec.key():
             return cloth_scenes.ClothScene(spec.name, data["frames"], data["triangles"], float(data["bake_seconds"]))
     cloth_scenes.OUTPUT_DIR.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    frames, triangles = cloth_scenes.bake(spec)
-    seconds = time.perf_counter() - t0
+    frames, triangles, seconds = cloth_scenes.bake(spec)
     np.savez_compressed(path, frames=frames, triangles=triangles, key=spec.key(), bake_seconds=seconds)
     return cloth_scenes.ClothScene(spec.name, frames, triangles, seconds)
 
@@ -144,6 +154,10 @@ def aligned(pose, target, correspondence):
 
 
 def prepare(scene_name: str, third: bool):
+    if scene_name in LIMBS:
+        if third:
+            raise SystemExit("--third applies to the cloth scenes only")
+        return (None, *limb_scenes.limb_scene(LIMBS[scene_name]))
     spec, density, third_density = SCENES[scene_name]
     scene = load(spec)
     target_frames, target_tris = remesh(scene, density, seed=1)
@@ -154,7 +168,7 @@ def prepare(scene_name: str, third: bool):
     return scene, base_frames, base_tris, target_frames, target_tris
 
 
-def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh=True, log=print):
+def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh="all", log=print):
     scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third)
     base, target_rest = base_frames[0], target_frames[0]
     vertex_map = closest_point_correspondence(base, target_rest)
@@ -178,9 +192,10 @@ def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=20
                 "truth": hausdorff_over_diagonal(aligned(rebuilt, base_frames[f], np.arange(len(base))), base_tris,
                                                  base_frames[f], base_tris),
                 "seconds": seconds,
+                "load": os.getloadavg()[0],
                 "pose": rebuilt,
             }
-            if same_mesh:
+            if same_mesh == "all" or (same_mesh == "first" and f == frames[0]):
                 t0 = time.perf_counter()
                 diffs = transfer.reference.shape_differences(base_frames[f], k_M=k_m, k_N=k_n)
                 same = core.reconstruct(base, base_tris, diffs)
@@ -197,7 +212,7 @@ def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=20
 def format_row(row) -> str:
     text = (f"  frame {row['frame']:3d}: rebuilt {100 * row['rebuilt']:5.2f} % (to its ground truth on the base "
             f"{100 * row['truth']:5.2f} %), unchanged base {100 * row['unchanged']:5.2f} %, ratio "
-            f"{row['rebuilt'] / row['unchanged']:.2f}; {row['seconds']:.1f} s")
+            f"{row['rebuilt'] / row['unchanged']:.2f}; {row['seconds']:.1f} s (load {row['load']:.1f})")
     if "same_seconds" in row:
         text += (f" (same-mesh eq. 6: {100 * row['same']:5.2f} %, {row['same_seconds']:.1f} s; ratio "
                  f"{row['seconds'] / row['same_seconds']:.2f})")
@@ -225,21 +240,23 @@ def picture(path, result):
         ax = fig.add_subplot(2, len(rows) + 1, len(rows) + j + 3, projection="3d")
         draw_mesh(ax, row["pose"], base_tris, np.full(len(base_tris), 0.25), bounds,
                   title=f"rebuilt on the base: {100 * row['rebuilt']:.1f} % (base {100 * row['unchanged']:.1f} %)")
-    fig.suptitle("Re-meshed Blender cloth rebuilt on the base mesh (Hausdorff / diagonal), k_M = 100, k_N = 200",
+    what = "Articulated limb" if result["scene"] in LIMBS else "Blender cloth"
+    fig.suptitle(f"Re-meshed {what} rebuilt on the base mesh (Hausdorff / diagonal), k_M = 100, k_N = 200",
                  fontsize=9)
     save(fig, path, top=0.93)
 
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scene", default="drape", choices=sorted(SCENES))
+    parser.add_argument("--scene", default="drape", choices=sorted(SCENES) + sorted(LIMBS))
     parser.add_argument("--frames", default="20,40,60")
     parser.add_argument("--third", action="store_true", help="base = a third triangulation, not the sim mesh")
-    parser.add_argument("--no-same-mesh", action="store_true", help="skip the same-mesh reference timing")
+    parser.add_argument("--same-mesh", choices=["all", "first", "none"], default="all",
+                        help="frames that also get the same-mesh reference reconstruction (timed)")
     parser.add_argument("--picture", help="write a Fig. 15-style picture to this path")
     args = parser.parse_args(argv)
     frames = tuple(int(f) for f in args.frames.split(","))
-    result = run(args.scene, frames, third=args.third, same_mesh=not args.no_same_mesh)
+    result = run(args.scene, frames, third=args.third, same_mesh=args.same_mesh)
     if args.picture:
         picture(args.picture, result)
 

@@ -141,6 +141,7 @@ def embed_thickening(
     anchor: tuple[np.ndarray, float] | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
+    continuation: bool = True,
 ) -> EmbeddingResult:
     """Positions of the canonical thickening (§5.3) realizing ``squared_lengths`` (§7.3).
 
@@ -154,7 +155,8 @@ def embed_thickening(
     - ``reference_points`` ``(n + n_offset, 3)``: a plausible pose (the base shape's thickening)
       raced against the hinge frames as a start when the lengths are inexact (see
       :data:`START_TRIAL_ITERATIONS`), and deformed gradually into the target lengths when the
-      best fit stays far from them (:data:`CONTINUATION_RESIDUAL`); ignored with
+      best fit stays far from them (:data:`CONTINUATION_RESIDUAL`; ``continuation=False``
+      skips that, e.g. when the reference is a nearby pose already); ignored with
       ``initial_points`` or exact lengths.
     - ``anchor = (positions, weight)``: positions ``(n + n_offset, 3)`` or ``(n, 3)`` (then only
       base vertices are anchored); adds ``weight · Σ_v |x_v − a_v|² / h²`` to the least-squares
@@ -209,7 +211,7 @@ def embed_thickening(
                         f"reference_points must be finite with shape ({n_points}, 3); got {reference.shape}."
                     )
                 starts.append(_Start("reference_points", reference))
-                continuation_start = reference
+                continuation_start = reference if continuation else None
     if anchor_points is not None:
         fallback = np.where(np.isfinite(anchor_points), anchor_points, fallback)
 

@@ -94,9 +94,12 @@ class SurfaceLayer:
         target_basis = laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
         return functional_map_differences(base_basis, target_basis, mass)
 
-    def recover(self, area_difference, conformal_difference) -> LayerMetric:
+    def recover(self, area_difference, conformal_difference, warm: dict | None = None,
+                tolerance: float | None = None) -> LayerMetric:
         """Areas and squared lengths of the target from its two differences: linear solves in the
-        full basis (Props. 1–2), convex programs when truncated (§7.1–7.2)."""
+        full basis (Props. 1–2), convex programs when truncated (§7.1–7.2; ``warm``: the
+        warm-start record of a pose sequence, ``tolerance`` the iterative solvers', see
+        :func:`~core.truncated_recovery.recover_truncated_metric`)."""
         if isinstance(area_difference, FullDifference):
             _, area_edge_values = area_difference.product_entries(self.assembler)
             areas = self.area_recovery.solve(area_edge_values)
@@ -107,31 +110,38 @@ class SurfaceLayer:
             )
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
-        return LayerMetric(*recover_truncated_metric(solver, area_difference, conformal_difference))
+        return LayerMetric(*recover_truncated_metric(solver, area_difference, conformal_difference, warm,
+                                                   tolerance))
 
 
 def _recover_layers(jobs) -> list[LayerMetric]:
-    """``layer.recover(area, conformal)`` for every ``(layer, area, conformal)`` of ``jobs``.
+    """``layer.recover(area, conformal, warm, tolerance)`` for every ``(layer, area, conformal, warm,
+    tolerance)`` of ``jobs``: truncated programs of two layers concurrently
+    (:func:`per_layer_threads`), in the full basis (sparse LU solves) one after the other."""
+    calls = [lambda job=job: job[0].recover(*job[1:]) for job in jobs]
+    return per_layer_threads(calls, parallel=not isinstance(jobs[0][1], FullDifference))
 
-    Truncated programs of two layers run in two threads, each with a single-threaded BLAS
-    (their work is BLAS, LAPACK and sparse products, which release the GIL; faster than one
-    layer after the other with a multithreaded BLAS, see docs/design-decisions.md). Sequential
-    without threadpoolctl or a second core, and in the full basis (sparse LU solves).
-    """
+
+def per_layer_threads(calls, *, parallel: bool = True) -> list:
+    """``[call() for call in calls]`` — for the two layers' independent work — in one thread per
+    call, each with a single-threaded BLAS (their work is BLAS, LAPACK and sparse products, which
+    release the GIL; faster than one layer after the other with a multithreaded BLAS, and far
+    faster on a busy machine, see docs/design-decisions.md). Sequential without threadpoolctl or
+    a second core, or unless ``parallel``."""
     import os
 
-    parallel = len(jobs) > 1 and not isinstance(jobs[0][1], FullDifference) and (os.cpu_count() or 1) > 1
+    parallel = parallel and len(calls) > 1 and (os.cpu_count() or 1) > 1
     if parallel:
         try:
             from threadpoolctl import threadpool_limits
         except ImportError:
             parallel = False
     if not parallel:
-        return [layer.recover(area, conformal) for layer, area, conformal in jobs]
+        return [call() for call in calls]
     from concurrent.futures import ThreadPoolExecutor
 
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(len(jobs)) as pool:
-        futures = [pool.submit(layer.recover, area, conformal) for layer, area, conformal in jobs]
+    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(len(calls)) as pool:
+        futures = [pool.submit(call) for call in calls]
         return [future.result() for future in futures]
 
 
@@ -240,13 +250,18 @@ class ReferenceShape:
             offset_area, offset_conformal = self.offset_layer.differences(offset_target, k_M, k_N)
         return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.offset, k_M, k_N, self)
 
-    def recover_metric(self, differences: ShapeDifferences) -> RecoveredMetric:
-        """Areas and squared lengths of the target (and of its offset surface) — §7.1–7.2."""
-        jobs = [(self.base, differences.area, differences.conformal)]
+    def recover_metric(self, differences: ShapeDifferences, *, warm: list | None = None,
+                       tolerance: float | None = None) -> RecoveredMetric:
+        """Areas and squared lengths of the target (and of its offset surface) — §7.1–7.2.
+        ``warm``: one dict per layer (base, offset) carried along a sequence of nearby poses, whose
+        solutions start the next pose's iterations; ``tolerance``: the relative stopping tolerance of
+        the iterative solvers (both: :func:`~core.truncated_recovery.recover_truncated_metric`)."""
+        warm = [None, None] if warm is None else warm
+        jobs = [(self.base, differences.area, differences.conformal, warm[0], tolerance)]
         if differences.use_extrinsic:
             if not self.use_extrinsic:
                 raise MeshError("These differences are extrinsic but the reference was built without an offset surface.")
-            jobs.append((self.offset_layer, differences.offset_area, differences.offset_conformal))
+            jobs.append((self.offset_layer, differences.offset_area, differences.offset_conformal, warm[1], tolerance))
         metrics = _recover_layers(jobs)
         return RecoveredMetric(metrics[0], metrics[1] if len(metrics) > 1 else None)
 
@@ -290,21 +305,26 @@ class ReferenceShape:
         base edge lengths started from ``initial`` (default: the base pose)."""
         return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
 
-    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None):
+    def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None,
+                     nearby: np.ndarray | None = None):
         """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
-        mirror choices made without evidence), which :func:`core.reconstruct` warns from."""
+        mirror choices made without evidence), which :func:`core.reconstruct` warns from.
+        ``nearby``: thickening points ``(n + n_offset, 3)`` of a nearby pose (the previous frame of
+        an animation), raced against the hinge frames instead of the base pose, without the
+        continuations from the base."""
         from .embedding import embed_base_edges, embed_thickening
 
         if metric.offset is not None:
             # The base pose is raced against the hinge frames as a start when the lengths are
             # inexact (truncated or noisy differences; see embedding.START_TRIAL_ITERATIONS).
-            base_thickening = self.surface.thickening_points(self.base.positions, self.offset_layer.positions)
+            reference = nearby if nearby is not None else self.surface.thickening_points(
+                self.base.positions, self.offset_layer.positions)
             result = embed_thickening(
                 self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
-                reference_points=base_thickening, anchor=anchor,
+                reference_points=reference, anchor=anchor, continuation=nearby is None,
             )
         else:
-            start = self.base_positions if initial is None else initial[: self.topology.n_vertices]
+            start = next(p for p in (initial, nearby, self.base_positions) if p is not None)[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
         return result
 

@@ -27,6 +27,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from .embedding import FRAMES_NEARLY_EXACT
 from .errors import MeshError, ShapeDifferenceWarning
 from .functional_map import (check_correspondence, closest_point_correspondence, functional_map,
                              locally_affine_images, project_near, pull_back_matrix, push_forward_matrix)
@@ -51,6 +52,22 @@ SUBSPACE_MARGIN = 1.5
 #: (residual ≈ λ_k) still falls back.
 SUBSPACE_ITERATIONS = 2
 WARM_RESIDUAL = 0.1
+#: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
+#: for transferred differences, instead of the same-mesh 1e-6 / 1e-5: their data carry the
+#: change of mesh and the k_N truncation at the 1e-2 level. Measured on the re-meshed drape
+#: (frames 20–22, k 100 / 200): Hausdorff/diagonal 4.08 / 4.28 / 4.81 % at the same-mesh
+#: tolerances, 4.11 / 4.34 / 4.78 % at 1e-4; ADMM iterations on the offset surface 285–350 → 95–160,
+#: area CG 1.2 → 0.3 s.
+RECOVERY_TOLERANCE = 1e-4
+#: Poses after the first are embedded from the previous pose's embedding (consecutive frames of
+#: an animation are close) raced against the hinge frames, instead of against the base pose with
+#: continuations from it (:func:`~core.embedding.embed_thickening`). On the 5k limb, frames
+#: 38 → 39 → 40: 3.25 / 3.85 / 4.63 % raced, 4.04 / 4.90 % from the previous pose alone, and a
+#: cold frame 40 8.78 % (its continuation wins the race at a lower residual in the wrong basin).
+#: The cold race is run as well, and the lower residual kept,
+#: when the warm fit's RMS relative length residual exceeds this factor × the previous pose's
+#: (a jump, or a start in the wrong basin).
+WARM_EMBEDDING_GROWTH = 1.5
 
 
 class _TargetLayer:
@@ -108,13 +125,17 @@ class Transfer:
     at rest). ``k_M`` / ``k_N``: base and target basis sizes (required: a functional map between
     two meshes lives in truncated bases). ``offset``, ``use_extrinsic``: as for
     :class:`~core.reference_shape.ReferenceShape`. ``reference``: an existing prepared base to
-    reuse (its eigenbases and factorizations).
+    reuse (its eigenbases and factorizations). ``warm_start`` (default): :meth:`pose` starts its
+    iterations (recovery programs, embedding) from the previous call's solutions, which pays for
+    the frames of an animation taken in order; results then depend, within the solvers'
+    tolerances, on the poses rebuilt before (the target eigenbases always do, see
+    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose is rebuilt from the base alone.
     """
 
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
                  k_M: int | None = 100, k_N: int | None = 200, offset: float | None = None,
                  use_extrinsic: bool = True, reference=None, refine_map: bool = True,
-                 correct_discretization: bool = True):
+                 correct_discretization: bool = True, warm_start: bool = True):
         from .reference_shape import ReferenceShape
 
         k_M, k_N = basis_sizes(k_M, k_N)
@@ -187,6 +208,9 @@ class Transfer:
             push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
             self.layers.append(_TargetLayer("offset surface", self.target_surface.topology, push))
         self.discretization_error = self._discretization_error() if correct_discretization else None
+        self.warm_start = bool(warm_start)
+        self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
+        self._last_embedding = None  # the last pose's EmbeddingResult
 
     @staticmethod
     def _warn_non_manifold(topology):
@@ -218,12 +242,14 @@ class Transfer:
     def _layer_differences(self, positions):
         """``[(area, conformal)]`` of eq. (6) per layer (mesh, offset surface) for a target pose of
         used vertices ``(n_N_used, 3)``, uncorrected."""
+        from .reference_shape import per_layer_threads
+
         ref = self.reference
-        out = [self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)]
+        calls = [lambda: self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)]
         if ref.use_extrinsic:
             offset_positions = self.target_surface.positions(positions, ref.offset)
-            out.append(self.layers[1].differences(ref.offset_layer, offset_positions, self.k_M, self.k_N))
-        return out
+            calls.append(lambda: self.layers[1].differences(ref.offset_layer, offset_positions, self.k_M, self.k_N))
+        return per_layer_threads(calls)
 
     def _discretization_error(self):
         """What eq. (6) gets wrong only because the target is meshed differently: the differences
@@ -275,10 +301,27 @@ class Transfer:
         closest to the target's matched vertices."""
         ref = self.reference
         differences = self.differences(target_vertices)
-        metric = ref.recover_metric(differences)
+        metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
+                                    tolerance=RECOVERY_TOLERANCE)
+        embedded = self._embed(metric)
         matched = np.asarray(target_vertices, dtype=np.float64)[self.correspondence[ref.used_vertices]]
-        placed = ref.place_near(ref.embed(metric), matched)
+        placed = ref.place_near(embedded.base_vertices, matched)
         return ref.expand_pose(placed)
+
+    def _embed(self, metric):
+        """The embedding (§7.3) of a recovered metric: from the previous pose's embedding when
+        warm (see :data:`WARM_EMBEDDING_GROWTH`), else (and when that fit is much worse than the
+        previous pose's) by :meth:`~core.reference_shape.ReferenceShape.embed_result`."""
+        ref, last = self.reference, self._last_embedding
+        if self.warm_start and last is not None:
+            result = ref.embed_result(metric, nearby=last.points)
+            if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
+                cold = ref.embed_result(metric)
+                result = cold if cold.residual < result.residual else result
+        else:
+            result = ref.embed_result(metric)
+        self._last_embedding = result
+        return result
 
 
 def _offset_pull_back(base_surface, target_surface, image_triangles, weights, seeds, target_rest):

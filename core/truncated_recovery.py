@@ -74,18 +74,32 @@ LOWRANK_TOLERANCE = 1.0
 AREA_FLOOR = 0.05
 
 
-def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, conformal_difference):
+def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, conformal_difference, warm=None,
+                             tolerance: float | None = None):
     """Areas ``(m,)`` and squared lengths ``(E,)`` of the target of one layer from its truncated
-    differences, by the layer's :class:`TruncatedRecovery` for their basis."""
+    differences, by the layer's :class:`TruncatedRecovery` for their basis.
+
+    ``warm``: ``None``, or a dict carried from one pose to the next of a sequence (empty at
+    first): it holds the last areas and ADMM state, which start the next pose's iterations, and
+    is updated in place. The programs are the same; only the starts differ. ``tolerance``: the
+    relative stopping tolerance of both iterative solvers (default: :data:`CG_TOLERANCE` for the
+    areas, :data:`~core.admm.ADMM_TOLERANCE` for the lengths)."""
     # Eq. (5) differences are exact in the basis (the true metric fits them to round-off), so
     # they take the small ε of EXACT_EPSILON; eq. (6) ones carry the k_N truncation of the
     # functional map, which a small ε would fit as if it were geometry.
     exact = getattr(area_difference, "target_size", None) is None
-    areas = solver.areas(area_difference.product_matrix(), epsilon=EXACT_EPSILON if exact else AREA_EPSILON).areas
-    squared = solver.squared_lengths(
-        conformal_difference.product_matrix(), areas, epsilon=EXACT_EPSILON if exact else LENGTH_EPSILON
-    ).squared_lengths
-    return areas, squared
+    warm_areas = None if warm is None else warm.get("areas")
+    areas = solver.areas(area_difference.product_matrix(), epsilon=EXACT_EPSILON if exact else AREA_EPSILON,
+                         start=warm_areas, tolerance=tolerance).areas
+    lengths = solver.squared_lengths(
+        conformal_difference.product_matrix(), areas, epsilon=EXACT_EPSILON if exact else LENGTH_EPSILON,
+        warm=None if warm is None else warm.get("admm"), tolerance=tolerance,
+    )
+    if warm is not None:
+        warm["areas"] = areas
+        if lengths.state is not None:
+            warm["admm"] = lengths.state
+    return areas, lengths.squared_lengths
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,6 +139,7 @@ class LengthSolution:
     rank: int
     iterations: int
     converged: bool
+    state: tuple | None = None  # ADMM's (z, u, ρ) when it ran: a warm start for a nearby pose
 
 
 def _check_product(product, k, what):
@@ -212,11 +227,14 @@ class TruncatedRecovery:
         reference = self.layer.areas
         return float(np.sum(self.area_operator(reference) ** 2) / np.sum(reference**2))
 
-    def areas(self, product: np.ndarray, *, epsilon: float | None = None, floor: bool = True) -> AreaSolution:
+    def areas(self, product: np.ndarray, *, epsilon: float | None = None, floor: bool = True,
+              start: np.ndarray | None = None, tolerance: float | None = None) -> AreaSolution:
         """Eq. (8): ``min ‖Φᵀ A(µ) Φ − P‖²_F + ε‖µ − µ_M‖²`` s.t. ``µ ≥ 0`` (``epsilon`` relative to
         :meth:`area_scale`; default :data:`AREA_EPSILON`). With ``floor`` (default), areas below
         :data:`AREA_FLOOR` × the reference are raised to it with a warning (eq. 10 divides by µ);
-        ``floor=False`` returns the optimum of eq. (8) itself."""
+        ``floor=False`` returns the optimum of eq. (8) itself. ``start`` ``(m,)``: the first CG
+        iterate (default: the reference areas), e.g. the areas of a nearby pose; ``tolerance``: CG's
+        relative residual (default :data:`CG_TOLERANCE`)."""
         from scipy.sparse.linalg import LinearOperator, cg
 
         _check_product(product, self.k, f"area difference of the {self.layer.name}")
@@ -230,7 +248,9 @@ class TruncatedRecovery:
         diag = self.area_gram_diagonal() + eps
         precond = LinearOperator((m, m), matvec=lambda x: np.ravel(x) / diag, dtype=float)
         rhs = data + eps * reference
-        mu, info = cg(normal, rhs, x0=reference.copy(), rtol=CG_TOLERANCE, maxiter=CG_MAX_ITERATIONS, M=precond)
+        x0 = reference.copy() if start is None else np.array(start, dtype=np.float64)
+        rtol = CG_TOLERANCE if tolerance is None else float(tolerance)
+        mu, info = cg(normal, rhs, x0=x0, rtol=rtol, maxiter=CG_MAX_ITERATIONS, M=precond)
         method = "cg"
         if info < 0 or not np.all(np.isfinite(mu)):
             raise RecoveryError(
@@ -343,10 +363,13 @@ class TruncatedRecovery:
         g = (y.T @ self.edge_data(product)) / np.sqrt(lam)
         return EdgeProgram(f, g, eps, self.layer.squared_lengths)
 
-    def squared_lengths(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None) -> LengthSolution:
+    def squared_lengths(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None,
+                        warm: tuple | None = None, tolerance: float | None = None) -> LengthSolution:
         """Eq. (10): ``min ‖Φᵀ C(ℓ²; µ) Φ − P‖²_F + ε′‖ℓ² − ℓ²_M‖²`` s.t. ``ℓ² ≥ 0``, triangle
         inequality, ``det E₃ ≥ 4µ²`` (``epsilon`` relative to :meth:`edge_scale`; default
-        :data:`LENGTH_EPSILON`)."""
+        :data:`LENGTH_EPSILON`). ``warm``: the :attr:`LengthSolution.state` of a nearby pose, which
+        starts ADMM's slot copies, scaled duals and ρ; ``tolerance``: ADMM's (default
+        :data:`~core.admm.ADMM_TOLERANCE`)."""
         topo = self.topology
         program = self.edge_program(product, areas, epsilon=epsilon)
         f, g, eps, reference = program.factor, program.target, program.epsilon, program.reference
@@ -355,10 +378,12 @@ class TruncatedRecovery:
         # Unconstrained optimum first (one Woodbury solve); the cone constraints only if violated.
         split = SplitGram(f, counts)
         x = split.woodbury(eps, 0.0).solve(f.T @ g + eps * reference)
-        iterations, converged = 0, True
+        iterations, converged, state = 0, True, None
         if not satisfied(x[slots].reshape(-1, 3), areas).all():
             project = lambda v: project_triangles(v.reshape(-1, 3), areas).ravel()  # noqa: E731
-            sol, state = admm(f, g, eps, reference, slots, counts, project, x_start=x, split=split)
+            z0, u0, rho0 = warm if warm is not None else (None, None, None)
+            sol, state = admm(f, g, eps, reference, slots, counts, project, x_start=x, split=split,
+                              z_start=z0, u_start=u0, rho=rho0, tol=tolerance)
             iterations, converged = sol.iterations, sol.converged
             x, reached = feasible_lengths(state[0], slots, counts, areas)
             if not reached:
@@ -376,4 +401,4 @@ class TruncatedRecovery:
                 ShapeDifferenceWarning,
                 stacklevel=3,
             )
-        return LengthSolution(x, eps, program.rank, iterations, converged)
+        return LengthSolution(x, eps, program.rank, iterations, converged, state)
