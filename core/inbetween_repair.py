@@ -17,6 +17,8 @@ fit with the fewest defects. Each fallback comes with a message for a
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 from . import deformation_fields as df
 from .geometry import rows_dot
@@ -184,3 +186,39 @@ class Repair:
                 if count < best[0]:
                     best = (count, z)
         return None, best
+
+
+class Region:
+    """A repair's region: the triangles ``rows`` (r,) of a mask, the vertices ``free`` all of whose
+    triangles are in it, and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
+    matrix on them (``D_f``: the region's corner edges × free vertices); the held vertices enter
+    the right-hand side."""
+
+    def __init__(self, gap, force: np.ndarray):
+        topo = gap.topo
+        self.rows = np.flatnonzero(force)
+        corners = topo.triangles[self.rows]
+        touched, local = np.unique(corners, return_inverse=True)
+        is_free = np.bincount(local, minlength=touched.size) == topo.triangles_per_vertex[touched]
+        self.free = touched[is_free]
+        self.anchor = gap.repair_anchor(self.free)
+        if not self.free.size:
+            return
+        r = self.rows.size
+        ends = local.reshape(r, 3)
+        rows = np.arange(3 * r)
+        incidence = sp.csr_matrix((np.r_[-np.ones(3 * r), np.ones(3 * r)],
+                                   (np.r_[rows, rows], np.r_[ends.ravel(), ends[:, [1, 2, 0]].ravel()])),
+                                  shape=(3 * r, touched.size))
+        self.touched, self.held = touched, touched[~is_free]
+        free_part, self.held_part = incidence[:, is_free], incidence[:, ~is_free]
+        self.free_t = free_part.T.tocsr()
+        block = (self.free_t @ free_part + sp.diags(self.anchor)).tocsc()
+        self.lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                            options={"SymmetricMode": True})
+
+    def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
+        """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)
+        with the held vertices at ``x``."""
+        rhs = self.free_t @ (edges.reshape(-1, 3) - self.held_part @ x[self.held])
+        return self.lu.solve(np.asfortranarray(rhs + self.anchor[:, None] * guide[self.free]))

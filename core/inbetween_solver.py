@@ -3,7 +3,7 @@ normal matrix, per key its frames, per gap the splines of the deformation fields
 the anchor and the reconstruction of a pose at any factor.
 
 ``_Topology`` (triangles only) → ``_Key`` (one pose) → ``_Relative`` (a key seen from the base key
-of a gap: :mod:`core.deformation_fields`) → ``_Gap`` (splines of the relatives at key times
+of a gap; both in :mod:`core.inbetween_keys`) → ``_Gap`` (splines of the relatives at key times
 −1, 0, 1, 2 (:mod:`core.splines`) and ``pose(s)``: Poisson solve, local/global fit, checks and
 repairs (:mod:`core.inbetween_repair`)). The public classes live in :mod:`core.interpolation`.
 """
@@ -16,8 +16,8 @@ import scipy.sparse.linalg as spla
 
 from . import deformation_fields as df
 from .geometry import lumped_vertex_areas, rows_dot, vertex_labels
-from .inbetween_repair import Repair
-from .rigid_alignment import rigid_alignment
+from .inbetween_keys import _Key, _Relative
+from .inbetween_repair import Region, Repair
 from .splines import HermiteGap
 
 #: Anchor weight (per unit vertex mass, mean mass 1, relative to the unit edge terms) that only
@@ -150,107 +150,6 @@ class _Topology:
         """The inverse of :meth:`apply_motion`."""
         inverse = np.transpose(rotations, (0, 2, 1))
         return self.apply_motion(x, inverse, -np.einsum("cab,cb->ca", inverse, translations))
-
-
-class _Key:
-    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent bases,
-    the edges' tangent coordinates, inverse edge matrices, normals, areas and component centroids."""
-
-    def __init__(self, topo: _Topology, vertices):
-        v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
-        self.vertices = v
-        self.edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
-        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
-        self.bases = df.tangent_bases(self.edges)
-        self.columns = np.ascontiguousarray(self.bases.transpose(2, 0, 1))  # (3, m, 3): t1, t2, n
-        self.coordinates = df.tangent_coordinates(self.edges, self.bases)
-        self.inverse = df.inverse_edge_matrices(self.coordinates)
-        self.normals = self.columns[2]
-        self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
-        self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
-
-
-class _Relative:
-    """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
-    (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
-    log-stretches (packed 2×2 in the base's tangent bases (m, 3)) and the vertices with their
-    component's rigid motion undone (n, 3)."""
-
-    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
-        screws, rotations, translations, self.nonrigidity, self.misfits = [], [], [], [], []
-        unwrap = turns is not None  # the continuation of the next key's turn
-        if turns is None:  # every piece's half turn goes the way the whole mesh turns
-            whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
-            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
-        for c, rows in enumerate(topo.components):
-            a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
-            rotation, translation = rigid_alignment(a, b, w)
-            screws.append(df.rigid_log(rotation, translation, turns[c], unwrap))
-            rotations.append(rotation)
-            translations.append(translation)
-            misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
-            self.misfits.append(misfit)
-            self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
-        rotations, translations = np.array(rotations), np.array(translations)
-        angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
-        # the triangles' rotations as images of the base frames, with their component's rotation undone
-        frames = df.turned_rows(df.plane_turned_frames(other.bases, angle), df.transpose(rotations),
-                                topo.triangle_component)
-        self.rotvec = df.frame_rotation_vectors(frames, base.columns)
-        self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
-        self.screw = np.array(screws)
-        self.vertices = topo.undo_motion(other.vertices, rotations, translations)
-        self.world = other.vertices
-        self.centroids = other.centroids
-        self.angle, self.motion = angle, (rotations, translations)
-
-    def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
-        """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
-        ``other`` (its log-stretch from the poses), in closed form instead of from the poses
-        again: the rigid motions inverted, rotation residuals ``−R_c q`` (the residual's inverse
-        conjugated by its component's rotation), log-stretches ``−Q(θ) log S Q(θ)ᵀ`` (the planar
-        map's inverse is ``S⁻¹ Q(−θ)``, whose stretch in the base's tangent basis is
-        ``Q(θ) S⁻¹ Q(θ)ᵀ``). ``turns`` as for the constructor (unwrapped)."""
-        out = _Relative.__new__(_Relative)
-        rotations, translations = self.motion
-        inverse_rotations = df.transpose(rotations)
-        inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
-        out.screw = np.array([df.rigid_log(r, t, turn, True)
-                              for r, t, turn in zip(inverse_rotations, inverse_translations, turns)])
-        out.misfits = list(self.misfits)
-        out.nonrigidity = [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
-                           for misfit, rows in zip(self.misfits, topo.components)]
-        out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
-        cos, sin = np.cos(self.angle), np.sin(self.angle)
-        l11, l12, l22 = self.log_stretch.T
-        out.log_stretch = -np.stack([cos * cos * l11 - 2 * cos * sin * l12 + sin * sin * l22,
-                                     cos * sin * (l11 - l22) + (cos * cos - sin * sin) * l12,
-                                     sin * sin * l11 + 2 * cos * sin * l12 + cos * cos * l22], axis=1)
-        out.vertices = topo.apply_motion(other.vertices, rotations, translations)
-        out.world = other.vertices
-        out.centroids = other.centroids
-        out.angle, out.motion = -self.angle, (inverse_rotations, inverse_translations)
-        return out
-
-    @classmethod
-    def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
-        self = cls.__new__(cls)
-        m = topo.triangles.shape[0]
-        self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
-        self.screw = np.zeros((len(topo.components), 6))
-        self.vertices = self.world = base.vertices
-        self.centroids = base.centroids
-        self.nonrigidity = [0.0] * len(topo.components)
-        return self
-
-    @staticmethod
-    def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
-        """Linear extrapolation 2·current − previous (end condition of the spline)."""
-        self = _Relative.__new__(_Relative)
-        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
-            setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
-        self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
-        return self
 
 
 class _Gap:
@@ -499,12 +398,12 @@ class _Gap:
             x = image
         return x
 
-    def region(self, force: np.ndarray) -> "_Region":
+    def region(self, force: np.ndarray) -> Region:
         """The vertices all of whose triangles are in ``force`` (bool (m,)) with their block of
         the normal matrix factorized (a repair moves only those)."""
-        return _Region(self, force)
+        return Region(self, force)
 
-    def local_fit(self, x, region: "_Region", frames, stretch, guide) -> np.ndarray:
+    def local_fit(self, x, region: Region, frames, stretch, guide) -> np.ndarray:
         """``x`` with the free vertices of ``region`` re-solved so that the region's corner edges
         fit the field (``frames`` (3, r, 3), ``stretch`` (r, 3) of the region's triangles), the
         rest of ``x`` held fixed. Every edge of the region is imposed (no local step), so one
@@ -533,49 +432,3 @@ class _Gap:
         if self.static is not None:
             result[0][self.static] = self.base.vertices[self.static]
         return result
-
-
-class _Region:
-    """A repair's region: the triangles ``rows`` (r,) of a mask, the vertices ``free`` all of whose
-    triangles are in it, and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
-    matrix on them (``D_f``: the region's corner edges × free vertices); the held vertices enter
-    the right-hand side."""
-
-    def __init__(self, gap: _Gap, force: np.ndarray):
-        topo = gap.topo
-        self.rows = np.flatnonzero(force)
-        corners = topo.triangles[self.rows]
-        touched, local = np.unique(corners, return_inverse=True)
-        inside = np.bincount(local, minlength=touched.size)
-        self.free = touched[inside == topo.triangles_per_vertex[touched]]
-        self.anchor = gap.repair_anchor(self.free)
-        if not self.free.size:
-            return
-        r = self.rows.size
-        ends = local.reshape(r, 3)
-        rows = np.arange(3 * r)
-        incidence = sp.csr_matrix((np.r_[-np.ones(3 * r), np.ones(3 * r)],
-                                   (np.r_[rows, rows], np.r_[ends.ravel(), ends[:, [1, 2, 0]].ravel()])),
-                                  shape=(3 * r, touched.size))
-        is_free = inside == topo.triangles_per_vertex[touched]
-        self.touched, self.held = touched, touched[~is_free]
-        free_part, self.held_part = incidence[:, is_free], incidence[:, ~is_free]
-        self.free_t = free_part.T.tocsr()
-        block = (self.free_t @ free_part + sp.diags(self.anchor)).tocsc()
-        self.lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                            options={"SymmetricMode": True})
-
-    def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
-        """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)
-        with the held vertices at ``x``."""
-        rhs = self.free_t @ (edges.reshape(-1, 3) - self.held_part @ x[self.held])
-        return self.lu.solve(np.asfortranarray(rhs + self.anchor[:, None] * guide[self.free]))
-
-
-def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:
-    """Packed log-stretches (m, 3) in the base's tangent bases whose metric ``U²`` gives the base's
-    corner edges the squared lengths ``corner_squared`` (m, 3)."""
-    a, b = base.coordinates[:, :, 0], base.coordinates[:, :, 1]
-    system = np.stack([a * a, 2 * a * b, b * b], axis=2)  # (m, 3, 3) · (g11, g12, g22) = ℓ²
-    metric = np.linalg.solve(system, corner_squared[:, :, None])[:, :, 0]
-    return 0.5 * df.log_stretch(metric)

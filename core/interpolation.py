@@ -48,7 +48,8 @@ import numpy as np
 
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .inbetween_prediction import gap_poses
-from .inbetween_solver import _Gap, _Key, _log_stretch_from_lengths, _Relative, _Topology
+from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
+from .inbetween_solver import _Gap, _Topology
 from .laplace_basis import basis_sizes
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_time
 

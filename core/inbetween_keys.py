@@ -1,0 +1,127 @@
+"""The keys of a gap for the in-between solver: per key its frames and edges (``_Key``), and a key
+seen from the base key of a gap (``_Relative``): each component's rigid motion, the per-triangle
+rotation residuals and log-stretches of :mod:`core.deformation_fields`, and the vertices with the
+rigid motions undone — what :mod:`core.inbetween_solver` splines over a gap.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import deformation_fields as df
+from .rigid_alignment import rigid_alignment
+
+if TYPE_CHECKING:
+    from .inbetween_solver import _Topology
+
+
+class _Key:
+    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent bases,
+    the edges' tangent coordinates, inverse edge matrices, normals, areas and component centroids."""
+
+    def __init__(self, topo: _Topology, vertices):
+        v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
+        self.vertices = v
+        self.edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
+        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
+        self.bases = df.tangent_bases(self.edges)
+        self.columns = np.ascontiguousarray(self.bases.transpose(2, 0, 1))  # (3, m, 3): t1, t2, n
+        self.coordinates = df.tangent_coordinates(self.edges, self.bases)
+        self.inverse = df.inverse_edge_matrices(self.coordinates)
+        self.normals = self.columns[2]
+        self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
+        self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
+
+
+class _Relative:
+    """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
+    (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
+    log-stretches (packed 2×2 in the base's tangent bases (m, 3)) and the vertices with their
+    component's rigid motion undone (n, 3)."""
+
+    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
+        screws, rotations, translations, self.nonrigidity, self.misfits = [], [], [], [], []
+        unwrap = turns is not None  # the continuation of the next key's turn
+        if turns is None:  # every piece's half turn goes the way the whole mesh turns
+            whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
+            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
+        for c, rows in enumerate(topo.components):
+            a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
+            rotation, translation = rigid_alignment(a, b, w)
+            screws.append(df.rigid_log(rotation, translation, turns[c], unwrap))
+            rotations.append(rotation)
+            translations.append(translation)
+            misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
+            self.misfits.append(misfit)
+            self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
+        rotations, translations = np.array(rotations), np.array(translations)
+        angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
+        # the triangles' rotations as images of the base frames, with their component's rotation undone
+        frames = df.turned_rows(df.plane_turned_frames(other.bases, angle), df.transpose(rotations),
+                                topo.triangle_component)
+        self.rotvec = df.frame_rotation_vectors(frames, base.columns)
+        self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
+        self.screw = np.array(screws)
+        self.vertices = topo.undo_motion(other.vertices, rotations, translations)
+        self.world = other.vertices
+        self.centroids = other.centroids
+        self.angle, self.motion = angle, (rotations, translations)
+
+    def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
+        """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
+        ``other`` (its log-stretch from the poses), in closed form instead of from the poses
+        again: the rigid motions inverted, rotation residuals ``−R_c q`` (the residual's inverse
+        conjugated by its component's rotation), log-stretches ``−Q(θ) log S Q(θ)ᵀ`` (the planar
+        map's inverse is ``S⁻¹ Q(−θ)``, whose stretch in the base's tangent basis is
+        ``Q(θ) S⁻¹ Q(θ)ᵀ``). ``turns`` as for the constructor (unwrapped)."""
+        out = _Relative.__new__(_Relative)
+        rotations, translations = self.motion
+        inverse_rotations = df.transpose(rotations)
+        inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
+        out.screw = np.array([df.rigid_log(r, t, turn, True)
+                              for r, t, turn in zip(inverse_rotations, inverse_translations, turns)])
+        out.misfits = list(self.misfits)
+        out.nonrigidity = [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
+                           for misfit, rows in zip(self.misfits, topo.components)]
+        out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
+        cos, sin = np.cos(self.angle), np.sin(self.angle)
+        l11, l12, l22 = self.log_stretch.T
+        out.log_stretch = -np.stack([cos * cos * l11 - 2 * cos * sin * l12 + sin * sin * l22,
+                                     cos * sin * (l11 - l22) + (cos * cos - sin * sin) * l12,
+                                     sin * sin * l11 + 2 * cos * sin * l12 + cos * cos * l22], axis=1)
+        out.vertices = topo.apply_motion(other.vertices, rotations, translations)
+        out.world = other.vertices
+        out.centroids = other.centroids
+        out.angle, out.motion = -self.angle, (inverse_rotations, inverse_translations)
+        return out
+
+    @classmethod
+    def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
+        self = cls.__new__(cls)
+        m = topo.triangles.shape[0]
+        self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
+        self.screw = np.zeros((len(topo.components), 6))
+        self.vertices = self.world = base.vertices
+        self.centroids = base.centroids
+        self.nonrigidity = [0.0] * len(topo.components)
+        return self
+
+    @staticmethod
+    def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
+        """Linear extrapolation 2·current − previous (end condition of the spline)."""
+        self = _Relative.__new__(_Relative)
+        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
+            setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
+        self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
+        return self
+
+
+def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:
+    """Packed log-stretches (m, 3) in the base's tangent bases whose metric ``U²`` gives the base's
+    corner edges the squared lengths ``corner_squared`` (m, 3)."""
+    a, b = base.coordinates[:, :, 0], base.coordinates[:, :, 1]
+    system = np.stack([a * a, 2 * a * b, b * b], axis=2)  # (m, 3, 3) · (g11, g12, g22) = ℓ²
+    metric = np.linalg.solve(system, corner_squared[:, :, None])[:, :, 0]
+    return 0.5 * df.log_stretch(metric)
