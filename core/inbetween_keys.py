@@ -42,28 +42,27 @@ class _Relative:
     component's rigid motion undone (n, 3)."""
 
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
-        screws, rotations, translations, self.nonrigidity, self.misfits = [], [], [], [], []
-        unwrap = turns is not None  # the continuation of the next key's turn
-        if turns is None:  # every piece's half turn goes the way the whole mesh turns
-            whole = rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
-            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
-        for c, rows in enumerate(topo.components):
+        rotations, translations, self.misfits = [], [], []
+        for rows in topo.components:
             a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
             rotation, translation = rigid_alignment(a, b, w)
-            screws.append(df.rigid_log(rotation, translation, turns[c], unwrap))
             rotations.append(rotation)
             translations.append(translation)
-            misfit = np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum())
-            self.misfits.append(misfit)
-            self.nonrigidity.append(misfit / max(np.linalg.norm(np.ptp(a, axis=0)), np.finfo(float).tiny))
+            self.misfits.append(np.sqrt(w @ np.sum((a @ rotation.T + translation - b) ** 2, axis=1) / w.sum()))
         rotations, translations = np.array(rotations), np.array(translations)
+        unwrap = turns is not None  # the continuation of the next key's turn
+        if turns is None:  # every piece's half turn goes the way the whole mesh turns
+            whole = rotations[0] if len(topo.components) == 1 else \
+                rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
+            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
+        self.screw = np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
+        self.nonrigidity = _nonrigidity(self.misfits, base, topo)
         angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_rows(df.plane_turned_frames(other.bases, angle), df.transpose(rotations),
                                 topo.triangle_component)
         self.rotvec = df.frame_rotation_vectors(frames, base.columns)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
-        self.screw = np.array(screws)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
         self.centroids = other.centroids
@@ -83,8 +82,7 @@ class _Relative:
         out.screw = np.array([df.rigid_log(r, t, turn, True)
                               for r, t, turn in zip(inverse_rotations, inverse_translations, turns)])
         out.misfits = list(self.misfits)
-        out.nonrigidity = [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
-                           for misfit, rows in zip(self.misfits, topo.components)]
+        out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
         cos, sin = np.cos(self.angle), np.sin(self.angle)
         l11, l12, l22 = self.log_stretch.T
@@ -116,6 +114,13 @@ class _Relative:
             setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         return self
+
+
+def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:
+    """Each component's RMS misfit of its best rigid motion over its bounding-box diagonal in the
+    ``base`` key."""
+    return [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
+            for misfit, rows in zip(misfits, topo.components)]
 
 
 def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:

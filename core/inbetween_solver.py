@@ -187,7 +187,7 @@ class _Gap:
             if self.anchored:
                 weights, co_moving = self.anchor_weights(between)
                 if self.static is not None:  # still in both keys: held there as firmly as in sequences
-                    weights = np.where(self.static, STATIC_ANCHOR_WEIGHT, weights)
+                    weights = self.pinned_weights(weights)
                     co_moving = co_moving & ~self.static
             else:  # sequences: one pattern for the whole sequence, factorized once
                 # the spline in the world where a component deforms, with its interpolated rigid
@@ -207,10 +207,11 @@ class _Gap:
         """Per-vertex anchor weights (n,) of a sequence: :data:`SEQUENCE_ANCHOR_WEIGHT` to the
         keys' per-vertex spline (in the co-moving frame), :data:`STATIC_ANCHOR_WEIGHT` where the
         vertex is still in every key."""
-        weights = np.full(self.topo.n, SEQUENCE_ANCHOR_WEIGHT)
-        if self.static is not None:
-            weights[self.static] = STATIC_ANCHOR_WEIGHT
-        return weights
+        return self.pinned_weights(np.full(self.topo.n, SEQUENCE_ANCHOR_WEIGHT))
+
+    def pinned_weights(self, weights: np.ndarray) -> np.ndarray:
+        """``weights`` (n,) with :data:`STATIC_ANCHOR_WEIGHT` on the still vertices."""
+        return weights if self.static is None else np.where(self.static, STATIC_ANCHOR_WEIGHT, weights)
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
         """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
@@ -219,7 +220,8 @@ class _Gap:
         anchor = self.system[1][free]
         if self.anchored:
             return anchor
-        return np.where(anchor >= STATIC_ANCHOR_WEIGHT * self.topo.mass[free], anchor, GAUGE_WEIGHT * self.topo.mass[free])
+        gauge = GAUGE_WEIGHT * self.topo.mass[free]
+        return gauge if self.static is None else np.where(self.static[free], anchor, gauge)
 
     def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
         """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge
