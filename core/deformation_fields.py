@@ -66,20 +66,28 @@ def corner_edges(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     return p[:, [1, 2, 0]] - p
 
 
-def tangent_bases(edges: np.ndarray) -> np.ndarray:
-    """Orthonormal right-handed frames (m, 3, 3) of triangles with corner ``edges`` (m, 3, 3), as
-    columns ``[t1 | t2 | n]``: ``t1`` along the first edge, ``n`` the unit normal, ``t2 = n × t1``.
-    Degenerate triangles get zero columns (callers check non-degeneracy at the boundary)."""
-    e1, e2 = edges[:, 0], -edges[:, 2]
-    n = np.cross(e1, e2)
-    t1 = e1 / np.maximum(np.sqrt(np.einsum("ij,ij->i", e1, e1)), np.finfo(float).tiny)[:, None]
-    n = n / np.maximum(np.sqrt(np.einsum("ij,ij->i", n, n)), np.finfo(float).tiny)[:, None]
-    return np.stack([t1, np.cross(n, t1), n], axis=2)
-
-
-def tangent_coordinates(edges: np.ndarray, bases: np.ndarray) -> np.ndarray:
-    """Coordinates (m, 3, 2) of the corner edges (m, 3, 3) in the tangent bases' ``(t1, t2)``."""
-    return np.stack([(edges * bases[:, None, :, k]).sum(axis=2) for k in range(2)], axis=2)
+def tangent_frames(edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal right-handed frames of triangles with corner ``edges`` (m, 3, 3) as columns
+    (3, m, 3) — ``t1`` along the first edge, ``t2 = n × t1``, ``n`` the unit normal — and the
+    corner edges' coordinates (m, 3, 2) in ``(t1, t2)``. The coordinates in closed form (the
+    first edge is ``(|e₀|, 0)``, ``p2 − p0`` is ``(e₀·f, |e₀ × f|) / |e₀|``) instead of nine
+    projections. Degenerate triangles get zero frames (callers check non-degeneracy at the
+    boundary)."""
+    e1, f = edges[:, 0], -edges[:, 2]
+    cross = np.cross(e1, f)
+    tiny = np.finfo(float).tiny
+    length = np.maximum(np.sqrt(np.einsum("ij,ij->i", e1, e1)), tiny)
+    height = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+    columns = np.empty((3,) + e1.shape)
+    columns[0] = e1 / length[:, None]
+    columns[2] = cross / np.maximum(height, tiny)[:, None]
+    columns[1] = np.cross(columns[2], columns[0])
+    coordinates = np.empty(edges.shape[:2] + (2,))
+    along = np.einsum("ij,ij->i", e1, f) / length
+    coordinates[:, 0, 0], coordinates[:, 0, 1] = length, 0.0
+    coordinates[:, 2, 0], coordinates[:, 2, 1] = -along, -height / length
+    coordinates[:, 1, 0], coordinates[:, 1, 1] = along - length, height / length
+    return columns, coordinates
 
 
 def _edge_matrix(coordinates: np.ndarray) -> np.ndarray:
@@ -107,17 +115,21 @@ def inverse_edge_matrices(coordinates: np.ndarray) -> np.ndarray:
     return inverse
 
 
-def planar_polar(maps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def planar_polar(maps: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:
     """Polar decomposition ``M = Q S`` of 2×2 maps (m, 2, 2) with positive determinant: the
-    rotation angles (m,) of ``Q`` and the symmetric stretches ``S`` as ``(s11, s12, s22)`` (m, 3).
-    Closed form: ``Q`` turns by ``atan2(c − b, a + d)`` for ``M = [[a, b], [c, d]]``."""
+    rotations ``Q`` as ``(cos, sin)`` of their angles ((m,) each) and the symmetric stretches
+    ``S`` as ``(s11, s12, s22)`` (m, 3). Closed form: ``Q`` turns by the angle of
+    ``(a + d, c − b)`` for ``M = [[a, b], [c, d]]`` (normalized, no trigonometric function)."""
     a, b, c, d = maps[:, 0, 0], maps[:, 0, 1], maps[:, 1, 0], maps[:, 1, 1]
-    angle = np.arctan2(c - b, a + d)
-    cos, sin = np.cos(angle), np.sin(angle)
+    x, y = a + d, c - b
+    radius = np.hypot(x, y)
+    zero = radius == 0  # the angle of (0, 0) is 0
+    radius = np.where(zero, 1.0, radius)
+    cos, sin = np.where(zero, 1.0, x / radius), y / radius
     s11 = cos * a + sin * c
     s12 = 0.5 * (cos * b + sin * d + cos * c - sin * a)
     s22 = -sin * b + cos * d
-    return angle, np.stack([s11, s12, s22], axis=1)
+    return (cos, sin), np.stack([s11, s12, s22], axis=1)
 
 
 def _symmetric_parts(s: np.ndarray):
@@ -141,16 +153,17 @@ def log_stretch(s: np.ndarray) -> np.ndarray:
 
 def exp_stretch(log: np.ndarray) -> np.ndarray:
     """Matrix exponential of symmetric 2×2 matrices ``(l11, l12, l22)`` (m, 3), same packing:
-    ``exp L = e^μ (cosh ρ · I + sinh ρ / ρ · (L − μ I))``."""
+    ``exp L = e^μ (cosh ρ · I + sinh ρ / ρ · (L − μ I))``, with ``e^μ cosh ρ`` and ``e^μ sinh ρ``
+    from the two eigenvalues ``e^(μ ± ρ)`` (two exponentials instead of three functions)."""
     mean, half, off, radius = _symmetric_parts(log)
     mean = np.clip(mean, -MAX_LOG_STRETCH, MAX_LOG_STRETCH)
     radius_clipped = np.minimum(radius, MAX_LOG_STRETCH)
     scale = np.where(radius > 0, radius_clipped / np.where(radius > 0, radius, 1.0), 1.0)
+    up, down = np.exp(mean + radius_clipped), np.exp(mean - radius_clipped)
+    diagonal = 0.5 * (up + down)
     direct = radius_clipped > SERIES_THRESHOLD
-    sinhc = np.where(direct, np.sinh(radius_clipped) / np.where(direct, radius_clipped, 1.0),
-                     1.0 + radius_clipped ** 2 / 6.0)
-    growth = np.exp(mean)
-    diagonal, slope = growth * np.cosh(radius_clipped), growth * sinhc * scale
+    slope = np.where(direct, 0.5 * (up - down) / np.where(direct, radius_clipped, 1.0),
+                     diagonal * (1.0 - radius_clipped ** 2 / 3.0)) * scale
     return np.stack([diagonal + slope * half, slope * off, diagonal - slope * half], axis=1)
 
 
@@ -180,14 +193,18 @@ def turned_rows(vectors: np.ndarray, rotations: np.ndarray, components: np.ndarr
     return np.einsum("kab,...kb->...ka", rotations[components], vectors)
 
 
-def plane_turned_frames(bases: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Columns (3, m, 3) of ``B · Rz(angle)`` for tangent frames ``bases`` (m, 3, 3) turned in
-    their plane by ``angle`` (m,): the images of a base triangle's frame under the rotation
-    ``B · Rz(angle) · B_baseᵀ`` that takes it to the triangle of ``bases`` (the polar rotation of
-    the planar map turns it by ``angle`` first)."""
-    cos, sin = np.cos(angle)[:, None], np.sin(angle)[:, None]
-    t1, t2 = bases[:, :, 0], bases[:, :, 1]
-    return np.stack([cos * t1 + sin * t2, cos * t2 - sin * t1, bases[:, :, 2]])
+def plane_turned_frames(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Columns (3, m, 3) of ``B · Rz(θ)`` for tangent frames with ``columns`` (3, m, 3) turned
+    in their plane by ``turn = (cos θ, sin θ)`` ((m,) each): the images of a base triangle's
+    frame under the rotation ``B · Rz(θ) · B_baseᵀ`` that takes it to the triangle of
+    ``columns`` (the polar rotation of the planar map turns it by ``θ`` first)."""
+    cos, sin = turn[0][:, None], turn[1][:, None]
+    t1, t2 = columns[0], columns[1]
+    out = np.empty_like(columns)
+    out[0] = cos * t1 + sin * t2
+    out[1] = cos * t2 - sin * t1
+    out[2] = columns[2]
+    return out
 
 
 def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
@@ -200,36 +217,37 @@ def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
 
 def frame_rotation_vectors(frames: np.ndarray, columns: np.ndarray) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations taking frames ``columns`` (3, m, 3) to ``frames``
-    (3, m, 3) (``R = Σ_c f_c b_cᵀ``), from the nine entries as contiguous columns: no (m, 3, 3)
-    array is formed (3× faster than :func:`rotation_vectors` of the products)."""
-    return _rotation_vectors_of_entries([[sum(frames[c][:, a] * columns[c][:, b] for c in range(3))
-                                          for b in range(3)] for a in range(3)])
+    (3, m, 3) (``R = Σ_c f_c b_cᵀ``), from the nine entries formed on contiguous (m,) rows: no
+    (m, 3, 3) array is formed (3× faster than :func:`rotation_vectors` of the products)."""
+    f, b = np.ascontiguousarray(frames.transpose(0, 2, 1)), np.ascontiguousarray(columns.transpose(0, 2, 1))
+    return _rotation_vectors_of_entries([[f[0, a] * b[0, c] + f[1, a] * b[1, c] + f[2, a] * b[2, c]
+                                          for c in range(3)] for a in range(3)])
 
 
 def _rotation_vectors_of_entries(r) -> np.ndarray:
-    """Shepperd's method on the entries ``r[a][b]`` ((m,) each) of rotation matrices."""
+    """Shepperd's method on the entries ``r[a][b]`` ((m,) each) of rotation matrices: the
+    quaternion from the trace for every row (the common case: turns below ~120°), re-done from
+    the largest diagonal entry on the rows where that entry exceeds the trace."""
     trace = r[0][0] + r[1][1] + r[2][2]
-    choice = np.argmax(np.stack([trace, r[0][0], r[1][1], r[2][2]]), axis=0)
+    w4 = 2.0 * np.sqrt(np.maximum(1.0 + trace, 0.0))  # 4w
     q = np.empty((len(trace), 4))  # (x, y, z, w)
-    for k in range(4):
-        rows = np.flatnonzero(choice == k)
+    with np.errstate(divide="ignore", invalid="ignore"):  # rows with w4 = 0 are re-done below
+        q[:, 0], q[:, 1], q[:, 2] = (r[2][1] - r[1][2]) / w4, (r[0][2] - r[2][0]) / w4, (r[1][0] - r[0][1]) / w4
+    q[:, 3] = 0.25 * w4
+    choice = np.argmax(np.stack([trace, r[0][0], r[1][1], r[2][2]]), axis=0)
+    for i in range(3):
+        rows = np.flatnonzero(choice == i + 1)
         if not rows.size:
             continue
         e = [[r[a][b][rows] for b in range(3)] for a in range(3)]
-        if k == 0:
-            w4 = 2.0 * np.sqrt(np.maximum(1.0 + trace[rows], 0.0))  # 4w
-            q[rows] = np.stack([(e[2][1] - e[1][2]) / w4, (e[0][2] - e[2][0]) / w4, (e[1][0] - e[0][1]) / w4,
-                                0.25 * w4], axis=1)
-        else:
-            i = k - 1
-            j, l = (i + 1) % 3, (i + 2) % 3
-            big4 = 2.0 * np.sqrt(np.maximum(1.0 + e[i][i] - e[j][j] - e[l][l], 0.0))  # 4 × the component
-            out = np.empty((rows.size, 4))
-            out[:, i] = 0.25 * big4
-            out[:, j] = (e[j][i] + e[i][j]) / big4
-            out[:, l] = (e[l][i] + e[i][l]) / big4
-            out[:, 3] = (e[l][j] - e[j][l]) / big4
-            q[rows] = out
+        j, l = (i + 1) % 3, (i + 2) % 3
+        big4 = 2.0 * np.sqrt(np.maximum(1.0 + e[i][i] - e[j][j] - e[l][l], 0.0))  # 4 × the component
+        out = np.empty((rows.size, 4))
+        out[:, i] = 0.25 * big4
+        out[:, j] = (e[j][i] + e[i][j]) / big4
+        out[:, l] = (e[l][i] + e[i][l]) / big4
+        out[:, 3] = (e[l][j] - e[j][l]) / big4
+        q[rows] = out
     q[q[:, 3] < 0] *= -1.0  # w ≥ 0: angle ≤ π
     sin_half = np.sqrt(np.einsum("ij,ij->i", q[:, :3], q[:, :3]))
     angle = 2.0 * np.arctan2(sin_half, q[:, 3])

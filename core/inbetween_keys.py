@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 
 class _Key:
-    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent bases,
+    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent frames,
     the edges' tangent coordinates, inverse edge matrices, normals, areas and component centroids."""
 
     def __init__(self, topo: _Topology, vertices):
@@ -26,9 +26,7 @@ class _Key:
         self.vertices = v
         self.edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
         self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
-        self.bases = df.tangent_bases(self.edges)
-        self.columns = np.ascontiguousarray(self.bases.transpose(2, 0, 1))  # (3, m, 3): t1, t2, n
-        self.coordinates = df.tangent_coordinates(self.edges, self.bases)
+        self.columns, self.coordinates = df.tangent_frames(self.edges)  # (3, m, 3): t1, t2, n; (m, 3, 2)
         self.inverse = df.inverse_edge_matrices(self.coordinates)
         self.normals = self.columns[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
@@ -57,16 +55,16 @@ class _Relative:
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
         self.screw = np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
-        angle, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
+        turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
-        frames = df.turned_rows(df.plane_turned_frames(other.bases, angle), df.transpose(rotations),
+        frames = df.turned_rows(df.plane_turned_frames(other.columns, turn), df.transpose(rotations),
                                 topo.triangle_component)
         self.rotvec = df.frame_rotation_vectors(frames, base.columns)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
         self.centroids = other.centroids
-        self.angle, self.motion = angle, (rotations, translations)
+        self.turn, self.motion = turn, (rotations, translations)
 
     def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
         """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
@@ -84,7 +82,7 @@ class _Relative:
         out.misfits = list(self.misfits)
         out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
-        cos, sin = np.cos(self.angle), np.sin(self.angle)
+        cos, sin = self.turn
         l11, l12, l22 = self.log_stretch.T
         out.log_stretch = -np.stack([cos * cos * l11 - 2 * cos * sin * l12 + sin * sin * l22,
                                      cos * sin * (l11 - l22) + (cos * cos - sin * sin) * l12,
@@ -92,7 +90,7 @@ class _Relative:
         out.vertices = topo.apply_motion(other.vertices, rotations, translations)
         out.world = other.vertices
         out.centroids = other.centroids
-        out.angle, out.motion = -self.angle, (inverse_rotations, inverse_translations)
+        out.turn, out.motion = (cos, -sin), (inverse_rotations, inverse_translations)
         return out
 
     @classmethod

@@ -149,10 +149,9 @@ class Repair:
         def mesh_field(positions):  # the local geometry of a mesh: integrable
             def field(rows):
                 edges = df.corner_edges(positions, t[rows])
-                bases = df.tangent_bases(edges)
-                coordinates = df.tangent_coordinates(edges, bases)
-                angle, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse[rows]))
-                return df.plane_turned_frames(bases, angle), mesh_stretch
+                columns, coordinates = df.tangent_frames(edges)
+                turn, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse[rows]))
+                return df.plane_turned_frames(columns, turn), mesh_stretch
             return field
 
         def key_field(key):

@@ -46,6 +46,7 @@ from collections import OrderedDict
 
 import numpy as np
 
+from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .inbetween_prediction import gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
@@ -86,6 +87,7 @@ class SequenceInterpolator:
 
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
+        keep_heap()  # many mesh-sized temporaries per in-between: reuse the heap's pages
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")

@@ -230,8 +230,8 @@ def _check_manifold_vertices(tris: np.ndarray, edges: np.ndarray, edge_triangles
     graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(corners, corners))
     _, fan = connected_components(graph, directed=False)
     vertex = tris.ravel()
-    pairs = np.unique(np.stack([vertex, fan]), axis=1)
-    fans = np.bincount(pairs[0], minlength=n_vertices)
+    pairs = np.unique(vertex.astype(np.int64) * corners + fan)  # one key per (vertex, fan): a flat sort
+    fans = np.bincount(pairs // corners, minlength=n_vertices)
     bad = np.flatnonzero(fans > 1)
     if bad.size:
         first = int(bad[0])
