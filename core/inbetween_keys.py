@@ -28,6 +28,11 @@ class _Key:
         self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
         self.columns, self.coordinates = df.tangent_frames(self.edges)  # (3, m, 3): t1, t2, n; (m, 3, 2)
         self.inverse = df.inverse_edge_matrices(self.coordinates)
+        # the same by coordinate, contiguous rows for the local steps: x and y of the corner edges
+        # (3 corners, m) each, the inverse edge matrices' entries 00, 01, 11 and the normals (3, m)
+        self.tangent_rows = np.ascontiguousarray(self.coordinates.transpose(2, 1, 0))
+        self.inverse_rows = np.ascontiguousarray(self.inverse[:, [0, 0, 1], [0, 1, 1]].T)
+        self.normal_rows = np.ascontiguousarray(self.columns[2].T)
         self.normals = self.columns[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
