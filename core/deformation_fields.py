@@ -215,13 +215,30 @@ def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
     return _rotation_vectors_of_entries([[rotations[:, a, b] for b in range(3)] for a in range(3)])
 
 
-def frame_rotation_vectors(frames: np.ndarray, columns: np.ndarray) -> np.ndarray:
-    """Rotation vectors (m, 3) of the rotations taking frames ``columns`` (3, m, 3) to ``frames``
-    (3, m, 3) (``R = Σ_c f_c b_cᵀ``), from the nine entries formed on contiguous (m,) rows: no
-    (m, 3, 3) array is formed (3× faster than :func:`rotation_vectors` of the products)."""
-    f, b = np.ascontiguousarray(frames.transpose(0, 2, 1)), np.ascontiguousarray(columns.transpose(0, 2, 1))
+def frame_rows_rotation_vectors(frames: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """Rotation vectors (m, 3) of the rotations taking frames ``columns`` to ``frames``, both
+    stored by coordinate (3 columns, 3 coordinates, m): the nine entries of ``R = Σ_c f_c b_cᵀ``
+    formed on contiguous (m,) rows, no (m, 3, 3) array (3× faster than :func:`rotation_vectors`
+    of the products)."""
+    f, b = frames, columns
     return _rotation_vectors_of_entries([[f[0, a] * b[0, c] + f[1, a] * b[1, c] + f[2, a] * b[2, c]
                                           for c in range(3)] for a in range(3)])
+
+
+def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], rotations: np.ndarray,
+                      components: np.ndarray) -> np.ndarray:
+    """:func:`plane_turned_frames` followed by :func:`turned_rows`, on frames stored by coordinate
+    (3 columns, 3 coordinates, m): ``M_c · B · Rz(θ)`` for ``columns`` ``B``, ``turn = (cos θ,
+    sin θ)`` ((m,) each) and the rotations (C, 3, 3) of each triangle's component."""
+    cos, sin = turn
+    turned = np.empty_like(columns)
+    turned[0] = cos * columns[0] + sin * columns[1]
+    turned[1] = cos * columns[1] - sin * columns[0]
+    turned[2] = columns[2]
+    if len(rotations) == 1:
+        return np.matmul(rotations[0], turned)
+    r = rotations[components].transpose(1, 2, 0)  # (3, 3, m)
+    return np.einsum("abk,cbk->cak", r, turned)
 
 
 def _rotation_vectors_of_entries(r) -> np.ndarray:

@@ -32,7 +32,8 @@ class _Key:
         # (3 corners, m) each, the inverse edge matrices' entries 00, 01, 11 and the normals (3, m)
         self.tangent_rows = np.ascontiguousarray(self.coordinates.transpose(2, 1, 0))
         self.inverse_rows = np.ascontiguousarray(self.inverse[:, [0, 0, 1], [0, 1, 1]].T)
-        self.normal_rows = np.ascontiguousarray(self.columns[2].T)
+        self.column_rows = np.ascontiguousarray(self.columns.transpose(0, 2, 1))  # (3 columns, 3 coordinates, m)
+        self.normal_rows = self.column_rows[2]
         self.normals = self.columns[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
@@ -62,9 +63,8 @@ class _Relative:
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
         turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
-        frames = df.turned_rows(df.plane_turned_frames(other.columns, turn), df.transpose(rotations),
-                                topo.triangle_component)
-        self.rotvec = df.frame_rotation_vectors(frames, base.columns)
+        frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
+        self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices

@@ -47,6 +47,7 @@ def test_planar_polar_matches_scipy_and_exp_inverts_log():
 
 
 def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
+    """Also the turned frames of several components against the products written out."""
     rng = np.random.default_rng(2)
     angles = np.r_[np.linspace(0, np.pi, 60), [1e-9, np.pi - 1e-9]]
     axes = rng.normal(size=(len(angles), 3))
@@ -54,10 +55,19 @@ def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
     base = Rotation.random(len(angles), random_state=3).as_matrix()
     columns = base.transpose(2, 0, 1).copy()
     turned = df.rotated_frames(rotvecs, np.eye(3)[None], np.zeros(len(angles), dtype=int), columns)
-    recovered = df.frame_rotation_vectors(turned, columns)
+    rows = lambda frames: np.ascontiguousarray(frames.transpose(0, 2, 1))  # noqa: E731
+    recovered = df.frame_rows_rotation_vectors(rows(turned), rows(columns))
     expected = Rotation.from_rotvec(rotvecs).as_matrix()
     assert np.allclose(Rotation.from_rotvec(recovered).as_matrix(), expected, atol=1e-9)
     assert np.allclose(recovered[:-1], rotvecs[:-1], atol=1e-9)  # angle < π: the vector itself
+    cos, sin = np.cos(angles), np.sin(angles)
+    pieces = Rotation.random(2, random_state=4).as_matrix()
+    component = np.arange(len(angles)) % 2
+    turned = df.turned_frame_rows(rows(columns), (cos, sin), pieces, component)
+    planar = np.zeros((len(angles), 3, 3))
+    planar[:, 0, 0], planar[:, 0, 1], planar[:, 1, 0], planar[:, 1, 1], planar[:, 2, 2] = cos, -sin, sin, cos, 1
+    expected = pieces[component] @ base @ planar  # columns: the images of the frame
+    assert np.allclose(turned, expected.transpose(2, 1, 0), atol=1e-13)
 
 
 def test_keep_heap_takes_effect_on_glibc_once():
