@@ -9,8 +9,10 @@ keys and varies smoothly with ``s``: the part of the motion a per-vertex spline 
 factors nearest :data:`SOLVED_FACTORS`, writes their corrections in the co-moving frame,
 ``D_j = M(s_j)⁻¹ N(s_j) − V(s_j)``, and predicts every other in-between as
 ``M(s) (V(s) + D(s))`` with ``D`` the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` and
-``(1, 0)`` (degree 4 for three solved factors, 3 for two). A rigid motion has ``D = 0`` and is reproduced exactly at every factor. A predicted
-pose with a flipped or collapsed triangle is solved instead. Measured (docs/inbetweens.md): on the
+``(1, 0)`` (degree 4 for three solved factors, 3 for two). A rigid motion has ``D = 0`` and is
+reproduced exactly at every factor. A predicted pose with a flipped or collapsed triangle is
+repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
+numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
 14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 4, 8 and 16 frames apart,
 median RMS within 1 % and mean edge deviation within 0.05 point of solving every in-between.
 """
@@ -72,6 +74,8 @@ def _correction(gap, solved: dict) -> BarycentricInterpolator:
 def _predicted(gap, s: float, correction: BarycentricInterpolator) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, or the solved one where the prediction has a defect."""
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
-    if np.isfinite(x).all() and not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
+    if not np.isfinite(x).all():
+        return gap.pose(s)
+    if not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
         return gap.pinned((x, None))
-    return gap.pose(s)
+    return gap.repaired(x, s)
