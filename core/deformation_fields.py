@@ -174,14 +174,14 @@ def apply_stretch(s: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
 
 
 def rotated_frames(rotvec: np.ndarray, rotations: np.ndarray, components: np.ndarray,
-                   columns: np.ndarray) -> np.ndarray:
-    """Images ``R_T b_c`` (3, m, 3) of the base frame columns ``columns`` (3, m, 3) under the
-    rotations ``R_T = M_{c(T)} · exp(rotvec_T)``: ``rotvec`` (m, 3) rotation vectors,
-    ``rotations`` the components' rotations (C, 3, 3), ``components`` (m,) each triangle's
-    component. One batched product per column (measured fastest of SciPy's ``apply``, a single
-    einsum over all columns and quaternion arithmetic for this shape)."""
+                   column_rows: np.ndarray) -> np.ndarray:
+    """Images ``R_T b_c`` (3, m, 3) of the base frame columns ``column_rows`` (3 columns,
+    3 coordinates, m) under the rotations ``R_T = M_{c(T)} · exp(rotvec_T)``: ``rotvec`` (m, 3)
+    rotation vectors, ``rotations`` the components' rotations (C, 3, 3), ``components`` (m,) each
+    triangle's component. One batched product per column (measured fastest of SciPy's ``apply``,
+    a single einsum over all columns and quaternion arithmetic for this shape)."""
     residual = Rotation.from_rotvec(rotvec).as_matrix()
-    frames = np.stack([np.einsum("kab,kb->ka", residual, columns[c]) for c in range(3)])
+    frames = np.stack([np.einsum("kab,bk->ka", residual, column_rows[c]) for c in range(3)])
     return turned_rows(frames, rotations, components)
 
 

@@ -18,23 +18,23 @@ if TYPE_CHECKING:
 
 
 class _Key:
-    """Per-key data: positions, corner edges (m, 3, 3) and their lengths (m, 3), tangent frames,
-    the edges' tangent coordinates, inverse edge matrices, normals, areas and component centroids."""
+    """Per-key data: positions, the corner edges' lengths (m, 3), their tangent coordinates
+    (m, 3, 2), inverse edge matrices (m, 2, 2), areas and component centroids, and for the local
+    steps the same stored by coordinate (contiguous rows): tangent coordinates (2, 3 corners, m),
+    inverse edge matrices' entries 00, 01, 11 (3, m), tangent frames (3 columns t1, t2, n;
+    3 coordinates; m) and normals (3, m)."""
 
     def __init__(self, topo: _Topology, vertices):
         v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
         self.vertices = v
-        self.edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
-        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", self.edges, self.edges))
-        self.columns, self.coordinates = df.tangent_frames(self.edges)  # (3, m, 3): t1, t2, n; (m, 3, 2)
+        edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
+        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", edges, edges))
+        columns, self.coordinates = df.tangent_frames(edges)
         self.inverse = df.inverse_edge_matrices(self.coordinates)
-        # the same by coordinate, contiguous rows for the local steps: x and y of the corner edges
-        # (3 corners, m) each, the inverse edge matrices' entries 00, 01, 11 and the normals (3, m)
         self.tangent_rows = np.ascontiguousarray(self.coordinates.transpose(2, 1, 0))
         self.inverse_rows = np.ascontiguousarray(self.inverse[:, [0, 0, 1], [0, 1, 1]].T)
-        self.column_rows = np.ascontiguousarray(self.columns.transpose(0, 2, 1))  # (3 columns, 3 coordinates, m)
+        self.column_rows = np.ascontiguousarray(columns.transpose(0, 2, 1))
         self.normal_rows = self.column_rows[2]
-        self.normals = self.columns[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
 

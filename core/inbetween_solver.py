@@ -240,8 +240,8 @@ class _Gap:
         unchanged (bool (n,)). Parts that do not move are anchored in the world (exact: they stay
         put), a rigidly moving mesh with its motion undone (exact at every factor)."""
         topo = self.topo
-        a = self.base.edges.reshape(-1, 3)
-        b = self.next.edges.reshape(-1, 3)
+        a = topo.D @ self.base.vertices  # corner edges (3m, 3)
+        b = topo.D @ self.next.vertices
         undone = self.relatives[2].vertices
         c = (undone[topo.j] - undone[topo.i])
         length_a = np.linalg.norm(a, axis=1)
@@ -296,7 +296,7 @@ class _Gap:
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Frames (3, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals (r, 3) of
         the triangles ``rows``, ``rotations``: the components' (C, 3, 3))."""
-        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows], self.base.columns[:, rows])
+        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows], self.base.column_rows[:, :, rows])
 
     def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (3 coordinates, 3 corners, m) and the anchor

@@ -54,8 +54,8 @@ def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
     rotvecs = angles[:, None] * axes / np.linalg.norm(axes, axis=1, keepdims=True)
     base = Rotation.random(len(angles), random_state=3).as_matrix()
     columns = base.transpose(2, 0, 1).copy()
-    turned = df.rotated_frames(rotvecs, np.eye(3)[None], np.zeros(len(angles), dtype=int), columns)
     rows = lambda frames: np.ascontiguousarray(frames.transpose(0, 2, 1))  # noqa: E731
+    turned = df.rotated_frames(rotvecs, np.eye(3)[None], np.zeros(len(angles), dtype=int), rows(columns))
     recovered = df.frame_rows_rotation_vectors(rows(turned), rows(columns))
     expected = Rotation.from_rotvec(rotvecs).as_matrix()
     assert np.allclose(Rotation.from_rotvec(recovered).as_matrix(), expected, atol=1e-9)

@@ -313,7 +313,7 @@ def test_a_key_geometry_is_spliced_where_the_blend_folds_too(monkeypatch, strip)
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     segment = Interpolator(a, b, tri)._sequence._gap(0)
-    base_frames = segment.base.columns  # the first key's own rotations are the identity
+    base_frames = segment.base.column_rows.transpose(0, 2, 1)  # the first key's own rotations: identity
     _folding_repairs(monkeypatch, tri, lambda frames, rows: not np.allclose(frames, base_frames[:, rows]))
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
