@@ -20,10 +20,9 @@ import ctypes.util
 import platform
 import sys
 
-#: Blocks below this size come from the heap (glibc's M_MMAP_THRESHOLD): every per-triangle array
-#: of a 20k-vertex mesh. Larger ones are mapped afresh, where NumPy asks for huge pages (arrays of
-#: 4 MB and more), so their first touch costs a fault per 2 MB instead of per 4 KB.
-MMAP_THRESHOLD = 4 << 20
+#: Blocks below this size come from the heap (glibc's M_MMAP_THRESHOLD): larger than any
+#: per-triangle array of a 100k-vertex mesh (200k triangles × 9 floats = 14 MB).
+MMAP_THRESHOLD = 64 << 20
 #: Free memory at the top of the heap kept for reuse before it is handed back (M_TRIM_THRESHOLD).
 TRIM_THRESHOLD = 64 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameter numbers
