@@ -10,7 +10,8 @@ thresholds keeps freed blocks in the heap for reuse: on the 14k tablecloth this 
 faults per in-between (3,600–3,900 → 1,900–2,000) and saves about a tenth of its time; numbers in
 docs/design-decisions.md. Only the process's C allocator settings change (no data); under another
 allocator (musl, macOS, Windows, or a malloc replaced by the host, as Blender's jemalloc builds do)
-this does nothing.
+this does nothing. Nor does it in an interactive Blender session, whose own allocations should go
+back to the system as usual; Blender in the background (farm and batch jobs) is tuned.
 """
 
 from __future__ import annotations
@@ -37,6 +38,9 @@ def keep_heap() -> bool:
         return True
     if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
         return False
+    blender = sys.modules.get("bpy")
+    if blender is not None and not getattr(getattr(blender, "app", None), "background", True):
+        return False  # an interactive session: leave the host's allocator as it is
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
         _done = bool(libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))

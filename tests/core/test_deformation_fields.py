@@ -5,7 +5,6 @@ from scipy.linalg import expm, logm, polar
 from scipy.spatial.transform import Rotation
 
 import core.deformation_fields as df
-from core.allocator import keep_heap
 
 
 def _random_triangles(count=200, seed=0):
@@ -68,12 +67,3 @@ def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
     planar[:, 0, 0], planar[:, 0, 1], planar[:, 1, 0], planar[:, 1, 1], planar[:, 2, 2] = cos, -sin, sin, cos, 1
     expected = pieces[component] @ base @ planar  # columns: the images of the frame
     assert np.allclose(turned, expected.transpose(2, 1, 0), atol=1e-13)
-
-
-def test_keep_heap_takes_effect_on_glibc_once():
-    import platform
-    import sys
-
-    first = keep_heap()
-    assert keep_heap() == first
-    assert first == (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
