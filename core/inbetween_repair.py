@@ -31,6 +31,11 @@ COLLAPSE_RATIO = 1e-3
 #: previous round (the first: around the defects) and imposes each field on it (numbers behind
 #: the schedule in docs/inbetweens.md).
 REPAIR_RINGS = (1, 1, 2, 4, 8)
+#: From this round on (regions of 4 rings and more) only the fields whose local geometry comes
+#: whole from a mesh — the blend's and each key's — are imposed: on the seven benchmark cloths (96
+#: repaired poses) the interpolated rotations, the blend's rotations alone and the spline's
+#: geometry never repaired a region that large, and those rounds cost the most.
+WHOLE_GEOMETRY_ROUND = 2
 #: Local/global iterations of the fallback that fits the metric near the linear blend.
 REPAIR_ITERATIONS = 10
 #: Anchor weight of the fallback that fits the interpolated metric near the linear blend.
@@ -42,6 +47,7 @@ class Repair:
 
     def __init__(self, gap):
         self.gap = gap
+        self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
     # --- defects
 
@@ -139,11 +145,11 @@ class Repair:
                          f"the fewest ({best[0]} flipped or collapsed triangle(s))")
 
     def imposed_fields(self, s, frames, stretch, blend):
-        """The fields imposed around defects, in the order tried: functions of triangle indices
-        ``rows`` (r,) returning (frames (3, r, 3), packed stretches (r, 3)) — the interpolated
-        rotations, the linear blend's rotations (integrable: they come from a mesh), the blend's
-        rotations and stretches, those of the keys' per-vertex spline, each key's own local
-        geometry (nearer key first)."""
+        """The fields imposed around defects, in the order tried: (function of triangle indices
+        ``rows`` (r,) returning (frames (3, r, 3), packed stretches (r, 3)), whether it is whole
+        geometry of a mesh) — the interpolated rotations, the linear blend's rotations
+        (integrable: they come from a mesh), the blend's rotations and stretches, those of the
+        keys' per-vertex spline, each key's own local geometry (nearer key first)."""
         gap = self.gap
         t = gap.topo.triangles
 
@@ -158,14 +164,24 @@ class Repair:
                 return df.plane_turned_frames(columns, turn), mesh_stretch
             return field
 
-        def key_field(key):
-            rotations = np.array([df.rigid_exp(screw)[0] for screw in key.screw])
-            return lambda rows: (gap.key_frames(key.rotvec[rows], rotations, rows), df.exp_stretch(key.log_stretch[rows]))
+        def key_field(index):
+            frames, stretches = self.key_geometry(index)
+            return lambda rows: (frames[:, rows], stretches[rows])
 
-        keys = gap.relatives[1:3] if s < 0.5 else gap.relatives[2:0:-1]  # nearer key first
+        keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
         blend_field = mesh_field(blend)
-        return [interpolated, lambda rows: (blend_field(rows)[0], stretch[rows]), blend_field,
-                mesh_field(gap.splines["world"].at(s))] + [key_field(k) for k in keys]
+        return [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
+                (mesh_field(gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
+
+    def key_geometry(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """The rotations (frames (3, m, 3)) and stretches (m, 3) of the gap's key ``index`` (1:
+        the base key, 2: the next one) seen from the base key: the same for every factor, so
+        computed once per gap."""
+        if index not in self._keys:
+            key = self.gap.relatives[index]
+            rotations = np.array([df.rigid_exp(screw)[0] for screw in key.screw])
+            self._keys[index] = (self.gap.key_frames(key.rotvec, rotations), df.exp_stretch(key.log_stretch))
+        return self._keys[index]
 
     def rounds(self, x, defects, s, frames, stretch, guide, blend, best):
         """Regions growing by :data:`REPAIR_RINGS` around the ``defects`` (bool (m,)) of ``x``; in
@@ -176,10 +192,12 @@ class Repair:
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
         force = defects
-        for rings in REPAIR_RINGS:
+        for round_index, rings in enumerate(REPAIR_RINGS):
             force = self.grow(force, rings)
             region = gap.region(force)
-            for field in fields:
+            for field, whole in fields:
+                if round_index >= WHOLE_GEOMETRY_ROUND and not whole:
+                    continue
                 z = gap.local_fit(x, region, *field(region.rows), guide)
                 if not np.isfinite(z).all():
                     continue
