@@ -186,6 +186,45 @@ def test_predicted_inbetweens_stay_near_the_solved_ones():
         assert np.abs(batch - solved).max() < 0.02 * np.abs(solved - blend).max()
 
 
+def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
+    """A predicted in-between with a folded triangle is repaired around the fold (no flip left),
+    not solved again: only the quarter points and the midpoint are solved."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_solver as solver
+
+    flat, tri = grid(12, 9, size=1.0)
+    keys = [flat + np.array([0.0, 0.0, -0.1 * k * k]) + 0.05 * np.sin(3 * flat[:, [1, 0, 0]] + k) for k in range(5)]
+    i, j, k = tri[len(tri) // 2]
+    real_correction, real_pose = prediction._correction, solver._Gap.pose
+
+    def folding_correction(gap, solved):
+        correction = real_correction(gap, solved)
+
+        def folded(s):  # vertex i reflected through the midpoint of its opposite edge
+            out = correction(s).copy()
+            v = gap.splines["vertices"].at(s) + out
+            out[i] += v[j] + v[k] - 2.0 * v[i]
+            return out
+        return folded
+
+    solved, repaired, real_repaired = [], [], solver._Gap.repaired
+    monkeypatch.setattr(prediction, "_correction", folding_correction)
+    monkeypatch.setattr(solver._Gap, "pose", lambda self, s: solved.append(s) or real_pose(self, s))
+    monkeypatch.setattr(solver._Gap, "repaired", lambda self, x, s: repaired.append(s) or real_repaired(self, x, s))
+    seq = SequenceInterpolator(keys, tri)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)  # repaired: no fallback
+        batch = seq.poses(2, np.arange(1, 8) / 8)
+    assert solved == [0.25, 0.5, 0.75] and len(repaired) == 4  # every predicted one was folded
+
+    def normals(x):
+        return np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
+
+    for x in batch:
+        assert not ((np.sum(normals(x) * normals(keys[2]), axis=1) < 0)
+                    & (np.sum(normals(x) * normals(keys[3]), axis=1) < 0)).any()
+
+
 def test_pinned_vertices_stay_put_in_sequences():
     """A sheet hanging from its top edge swings and waves between the keys: the vertices that sit
     still in every key (Blender's pinned cloth) stay exactly there in every in-between, solved or

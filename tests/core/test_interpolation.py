@@ -268,6 +268,30 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
+def test_no_fit_near_a_folded_blend(monkeypatch, strip):
+    """When the linear blend is defective too, the metric is not fitted near it (a fit held near
+    a folded blend keeps its folds): the metric fit with the fewest defects is returned at once."""
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:3] = True  # every candidate, the blend included, keeps three defects
+        return out if rows is None else out[rows]
+
+    fits, real_fit = [], solver._Gap.fit
+    monkeypatch.setattr(solver._Gap, "fit", lambda self, *args, **kwargs: fits.append(kwargs.get("system")) or
+                        real_fit(self, *args, **kwargs))
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "3 triangle(s) flipped")
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
+        Interpolator(a, b, tri).pose(0.5)
+    assert fits == [None]  # the pose's own fit only
+
+
 def _folding_repairs(monkeypatch, tri, keep_fold):
     """Patch the fits so that a corner of the middle triangle is reflected after the first fit
     and after every repair fit for which ``keep_fold(frames, rows)`` is true (``frames``
