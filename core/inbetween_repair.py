@@ -114,9 +114,10 @@ class Repair:
 
     # --- repair and fallbacks
 
-    def checked(self, x, x0, s, frames, stretch, guide, motion) -> tuple[np.ndarray, str | None]:
+    def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS) -> tuple[np.ndarray, str | None]:
         """``(x, None)`` if the fit ``x`` is defect-free, else a repair or a fallback with the
-        message saying which (``x0``: the Poisson solve of the interpolated field)."""
+        message saying which (``x0``: the Poisson solve of the interpolated field; ``rings``: the
+        repair rounds, :data:`REPAIR_RINGS` or fewer)."""
         defects = self.defects(x, s, frames, stretch)
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
@@ -125,7 +126,7 @@ class Repair:
         best = (int(defects.sum()), x) if np.isfinite(x).all() else None  # the last resort: fewest defects
         blend = (1.0 - s) * gap.base.vertices + s * gap.next.vertices
         if gap.use_extrinsic and best is not None:
-            z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best)
+            z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings)
             if z is not None:
                 return z, None
         if gap.use_extrinsic and self.problem(x0, s, frames, stretch) is None:
@@ -183,8 +184,8 @@ class Repair:
             self._keys[index] = (self.gap.key_frames(key.rotvec, rotations), df.exp_stretch(key.log_stretch))
         return self._keys[index]
 
-    def rounds(self, x, defects, s, frames, stretch, guide, blend, best):
-        """Regions growing by :data:`REPAIR_RINGS` around the ``defects`` (bool (m,)) of ``x``; in
+    def rounds(self, x, defects, s, frames, stretch, guide, blend, best, rings=REPAIR_RINGS):
+        """Regions growing by ``rings`` (:data:`REPAIR_RINGS`) around the ``defects`` (bool (m,)) of ``x``; in
         each, the fields of :meth:`imposed_fields` imposed in turn (the smallest region that
         any field repairs wins: a repair changes as little as it can). Returns the first
         defect-free fit (or None) and the fit with the fewest defects so far ``best``
@@ -192,8 +193,8 @@ class Repair:
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
         force = defects
-        for round_index, rings in enumerate(REPAIR_RINGS):
-            force = self.grow(force, rings)
+        for round_index, grown in enumerate(rings):
+            force = self.grow(force, grown)
             region = gap.region(force)
             for field, whole in fields:
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:

@@ -319,12 +319,14 @@ class _Gap(LocalGlobalFit):
         x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets)
         return self.pinned(self.repair.checked(x, x0, s, frames, stretch, guide, motion))
 
-    def repaired(self, x: np.ndarray, s: float) -> tuple[np.ndarray, str | None]:
+    def repaired(self, x: np.ndarray, s: float, rings=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the
-        defects are, as :meth:`pose` repairs its fit (without solving the pose again)."""
+        defects are, as :meth:`pose` repairs its fit (without solving the pose again; ``rings``:
+        the repair rounds, all of them by default)."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s)
-        return self.pinned(self.repair.checked(x, x, s, frames, stretch, guide, motion))
+        rounds = {} if rings is None else {"rings": rings}
+        return self.pinned(self.repair.checked(x, x, s, frames, stretch, guide, motion, **rounds))
 
     def pinned(self, result):
         """``(x, problem)`` with the sequence's still vertices exactly where they sit in the keys."""
