@@ -82,12 +82,12 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
+        keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
         self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth)
 
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
-        keep_heap()  # many mesh-sized temporaries per in-between: reuse the heap's pages
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -236,6 +236,7 @@ class Interpolator:
 
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True):
+        keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         k_M, k_N, offset, use_extrinsic, topology = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
         self._sequence._setup([vertices_a, vertices_b], topology, k_M, k_N, offset, use_extrinsic, False)

@@ -77,15 +77,14 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
             "Decimate, Remesh) or apply them to every pose."
         )
     array = np.ascontiguousarray(array, dtype=np.float64)
-    finite = np.isfinite(array).all(axis=1)
-    if not finite.all():
-        bad = int(np.flatnonzero(~finite)[0])
+    if not np.isfinite(array).all():  # whole-array checks first: row-wise reductions are slow
+        bad = int(np.flatnonzero(~np.isfinite(array).all(axis=1))[0])
         raise MeshError(
             f"{name}: vertex {bad} has a non-finite coordinate {array[bad].tolist()}. Fix the pose "
             "(e.g. a simulation that exploded) or remove that frame."
         )
-    magnitude = np.abs(array).max(axis=1) if array.size else np.zeros(0)
-    if magnitude.size and magnitude.max() > MAX_COORDINATE:
+    if array.size and np.abs(array).max() > MAX_COORDINATE:
+        magnitude = np.abs(array).max(axis=1)
         bad = int(np.argmax(magnitude))
         raise MeshError(
             f"{name}: vertex {bad} has coordinate {magnitude[bad]:.3g}, beyond the supported "
