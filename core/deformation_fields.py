@@ -97,22 +97,25 @@ def _edge_matrix(coordinates: np.ndarray) -> np.ndarray:
 
 
 def planar_maps(coordinates: np.ndarray, base_inverse: np.ndarray) -> np.ndarray:
-    """The 2×2 deformation gradients (m, 2, 2) from the base triangles (``base_inverse``: inverse
-    edge matrices (m, 2, 2)) to triangles with tangent ``coordinates`` (m, 3, 2) in their own
-    tangent bases."""
-    return matmul(_edge_matrix(coordinates), base_inverse)
+    """The 2×2 deformation gradients (m, 2, 2) from the base triangles (``base_inverse``: entries
+    00, 01, 11 (3, m) of their upper triangular inverse edge matrices) to triangles with tangent
+    ``coordinates`` (m, 3, 2) in their own tangent bases."""
+    e = _edge_matrix(coordinates)
+    i00, i01, i11 = base_inverse
+    out = np.empty_like(e)
+    out[:, 0, 0], out[:, 1, 0] = e[:, 0, 0] * i00, e[:, 1, 0] * i00
+    out[:, 0, 1] = e[:, 0, 0] * i01 + e[:, 0, 1] * i11
+    out[:, 1, 1] = e[:, 1, 0] * i01 + e[:, 1, 1] * i11
+    return out
 
 
 def inverse_edge_matrices(coordinates: np.ndarray) -> np.ndarray:
-    """Inverse (m, 2, 2) of the edge matrices of triangles with tangent ``coordinates`` (m, 3, 2)
-    (upper triangular in their own basis: ``p1 − p0`` lies along ``t1``)."""
+    """Entries 00, 01, 11 (3, m) of the inverse edge matrices of triangles with tangent
+    ``coordinates`` (m, 3, 2) (upper triangular in their own basis: ``p1 − p0`` lies along
+    ``t1``, so entry 10 is zero)."""
     e = _edge_matrix(coordinates)
     a, b, d = e[:, 0, 0], e[:, 0, 1], e[:, 1, 1]
-    inverse = np.zeros_like(e)
-    inverse[:, 0, 0] = 1.0 / a
-    inverse[:, 0, 1] = -b / (a * d)
-    inverse[:, 1, 1] = 1.0 / d
-    return inverse
+    return np.stack([1.0 / a, -b / (a * d), 1.0 / d])
 
 
 def planar_polar(maps: np.ndarray) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]:

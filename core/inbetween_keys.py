@@ -19,20 +19,19 @@ if TYPE_CHECKING:
 
 class _Key:
     """Per-key data: positions, the corner edges' lengths (m, 3), their tangent coordinates
-    (m, 3, 2), inverse edge matrices (m, 2, 2), areas and component centroids, and for the local
-    steps the same stored by coordinate (contiguous rows): tangent coordinates (2, 3 corners, m),
+    stored by coordinate (2, 3 corners, m; ``coordinates``: the same as a (m, 3, 2) view), the
     inverse edge matrices' entries 00, 01, 11 (3, m), tangent frames (3 columns t1, t2, n;
-    3 coordinates; m) and normals (3, m)."""
+    3 coordinates; m), normals (3, m), areas and component centroids."""
 
     def __init__(self, topo: _Topology, vertices):
         v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
         self.vertices = v
         edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
         self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", edges, edges))
-        columns, self.coordinates = df.tangent_frames(edges)
-        self.inverse = df.inverse_edge_matrices(self.coordinates)
-        self.tangent_rows = np.ascontiguousarray(self.coordinates.transpose(2, 1, 0))
-        self.inverse_rows = np.ascontiguousarray(self.inverse[:, [0, 0, 1], [0, 1, 1]].T)
+        columns, coordinates = df.tangent_frames(edges)
+        self.tangent_rows = np.ascontiguousarray(coordinates.transpose(2, 1, 0))
+        self.coordinates = self.tangent_rows.transpose(2, 1, 0)  # (m, 3, 2), a view: no second copy
+        self.inverse_rows = df.inverse_edge_matrices(coordinates)
         self.column_rows = np.ascontiguousarray(columns.transpose(0, 2, 1))
         self.normal_rows = self.column_rows[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
@@ -61,7 +60,7 @@ class _Relative:
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
         self.screw = np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
-        turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse))
+        turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse_rows))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)

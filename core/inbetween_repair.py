@@ -161,7 +161,7 @@ class Repair:
             def field(rows):
                 edges = df.corner_edges(positions, t[rows])
                 columns, coordinates = df.tangent_frames(edges)
-                turn, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse[rows]))
+                turn, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse_rows[:, rows]))
                 return df.plane_turned_frames(columns, turn), mesh_stretch
             return field
 
