@@ -25,6 +25,8 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
   (a cylinder), the scene of issue 17 (speed target).
 - ``sheet_cube_50k``: 224×224 sheet (50,176 vertices, default cloth) falling over the edge of a
   cube onto a floor (speed and memory target at ~50k vertices).
+- ``sheet_cube_100k``: the same at 316×316 (99,856 vertices) over 33 frames (the top of the
+  issue's 10k–100k range).
 
 Stiff scenes (tension/compression 80, bending 2–5, quality 10) keep edge lengths within ~0.2–0.6%
 of rest like the simulations in issue 3; default cloth (bending 0.5) wrinkles below the edge scale
@@ -77,6 +79,7 @@ SCENES: dict[str, SceneSpec] = {
         ),
         SceneSpec("tablecloth", "table", (120, 120), size=2.2, frames=48),
         SceneSpec("sheet_cube_50k", "edge", (224, 224), size=2.4, frames=40),
+        SceneSpec("sheet_cube_100k", "edge", (316, 316), size=2.4, frames=33),
     ]
 }
 
