@@ -52,21 +52,34 @@ SUBSPACE_MARGIN = 1.5
 #: (residual ≈ λ_k) still falls back.
 SUBSPACE_ITERATIONS = 2
 WARM_RESIDUAL = 0.1
+#: ... and up to this many iterations while the residual test fails, before ARPACK: the first pose
+#: of a transfer starts from the basis of the base's rest carried onto the target (computed for the
+#: meshing correction), which may be far. On the 5k limb, frame 38 (joints bent 70° and 80°):
+#: residual / λ_k 0.16 / 0.12 / 0.087 after 1 / 2 / 3 iterations on the mesh, 0.19 / 0.15 / 0.13 /
+#: 0.11 / 0.078 after 1–5 on the offset surface (3.5 s each), against 45 s for ARPACK's bases.
+SUBSPACE_MAX_ITERATIONS = 6
 #: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
 #: for transferred differences, instead of the same-mesh 1e-6 / 1e-5: their data carry the
 #: change of mesh and the k_N truncation at the 1e-2 level. Measured on the re-meshed drape
 #: (frames 20–22, k 100 / 200): Hausdorff/diagonal 4.08 / 4.28 / 4.81 % at the same-mesh
 #: tolerances, 4.11 / 4.34 / 4.78 % at 1e-4; ADMM iterations on the offset surface 285–350 → 95–160,
 #: area CG 1.2 → 0.3 s.
-RECOVERY_TOLERANCE = 1e-4
-#: Poses after the first are embedded from the previous pose's embedding (consecutive frames of
-#: an animation are close) raced against the hinge frames, instead of against the base pose with
-#: continuations from it (:func:`~core.embedding.embed_thickening`). On the 5k limb, frames
-#: 38 → 39 → 40: 3.25 / 3.85 / 4.63 % raced, 4.04 / 4.90 % from the previous pose alone, and a
-#: cold frame 40 8.78 % (its continuation wins the race at a lower residual in the wrong basin).
-#: The cold race is run as well, and the lower residual kept,
-#: when the warm fit's RMS relative length residual exceeds this factor × the previous pose's
-#: (a jump, or a start in the wrong basin).
+RECOVERY_TOLERANCE = 3e-4
+#: ADMM's initial penalty (in :func:`~core.admm.admm`'s units) for transferred differences,
+#: instead of the same-mesh :data:`~core.admm.ADMM_RHO_SCALE` = 10: on the 5k limb's offset
+#: surface (frame 38, cold) 90 iterations instead of 390, lengths within 0.4 % (RMS relative) and
+#: the pose within 0.01 point of Hausdorff (2.40 / 2.41 %); × 1,000 stopped as early, 3.6 % off.
+#: Later poses start from the previous pose's penalty.
+RECOVERY_RHO_SCALE = 100.0
+#: Every pose is embedded by Levenberg–Marquardt from the target pose carried to the base through
+#: the map (each base vertex at its image on the target, its offset surface above it): that pose
+#: is within the map's error of the answer, so the fit lands in the right basin without the race
+#: of starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
+#: lowest residual was not always the right basin. 5k limb, frame 38 from the same metric: 2.41 %
+#: (residual 0.0140) in 14 s, against 7.46 % (residual 0.0152, the base pose winning the race)
+#: and, from another metric, 3.25 % in 22 s. With ``warm_start``, when the fit's RMS relative length
+#: residual exceeds this factor × the previous pose's (a bad map image, a start in the wrong basin),
+#: the race is run as well and the lower residual kept.
 WARM_EMBEDDING_GROWTH = 1.5
 
 
@@ -86,7 +99,8 @@ class _TargetLayer:
         """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
         (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
         every later pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
-        pose's functions (:data:`SUBSPACE_ITERATIONS`, :data:`WARM_RESIDUAL`) — a pose of the same
+        pose's functions (:data:`SUBSPACE_ITERATIONS` to :data:`SUBSPACE_MAX_ITERATIONS`,
+        :data:`WARM_RESIDUAL`) — a pose of the same
         mesh, whose eigenspaces move little (measured ARPACK at k = 200: 95 % of its time in its own
         re-orthogonalization)."""
         n = mass.shape[0]
@@ -94,7 +108,7 @@ class _TargetLayer:
         if self._subspace is None or self._subspace[0] != k or p <= k:
             full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
         else:
-            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], iterations=SUBSPACE_ITERATIONS,
+            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], iterations=SUBSPACE_MAX_ITERATIONS,
                                       min_iterations=SUBSPACE_ITERATIONS,
                                       tolerance=WARM_RESIDUAL, what=f"target {self.name}")
         self._subspace = (k, full.functions)
@@ -189,6 +203,7 @@ class Transfer:
             weights = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
         n_used = self.target_used.size
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
+        self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
         push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
         self.layers = [_TargetLayer("mesh", topology, push)]
         self.target_surface = None
@@ -281,11 +296,15 @@ class Transfer:
         """The four differences (eq. 6) of a target pose ``(n_N, 3)``, on the base's bases, with
         the :meth:`_discretization_error` removed: a
         :class:`~core.reference_shape.ShapeDifferences` for :func:`core.reconstruct`."""
+        return self._differences(self._target_positions(target_vertices))
+
+    def _differences(self, positions):
+        """:meth:`differences` of a target pose of used vertices ``(n_N_used, 3)``."""
         from dataclasses import replace
 
         from .reference_shape import ShapeDifferences
 
-        layers = self._layer_differences(self._target_positions(target_vertices))
+        layers = self._layer_differences(positions)
         if self.discretization_error is not None:
             layers = [
                 (replace(area, matrix=area.matrix - error_a), replace(conformal, matrix=conformal.matrix - error_c))
@@ -300,26 +319,32 @@ class Transfer:
         from its shape differences and placed by the rigid motion that brings each component
         closest to the target's matched vertices."""
         ref = self.reference
-        differences = self.differences(target_vertices)
+        positions = self._target_positions(target_vertices)
+        differences = self._differences(positions)
         metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
-                                    tolerance=RECOVERY_TOLERANCE)
-        embedded = self._embed(metric)
+                                    tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
+        embedded = self._embed(metric, np.asarray(self._pull_back @ positions))
         matched = np.asarray(target_vertices, dtype=np.float64)[self.correspondence[ref.used_vertices]]
         placed = ref.place_near(embedded.base_vertices, matched)
         return ref.expand_pose(placed)
 
-    def _embed(self, metric):
-        """The embedding (§7.3) of a recovered metric: from the previous pose's embedding when
-        warm (see :data:`WARM_EMBEDDING_GROWTH`), else (and when that fit is much worse than the
-        previous pose's) by :meth:`~core.reference_shape.ReferenceShape.embed_result`."""
+    def _embed(self, metric, carried):
+        """The embedding (§7.3) of a recovered metric, fitted from ``carried`` ``(n_M_used, 3)``, the
+        target pose carried to the base's vertices (with its offset surface), and raced as well by
+        :meth:`~core.reference_shape.ReferenceShape.embed_result` when that fit is much worse
+        than the previous pose's (:data:`WARM_EMBEDDING_GROWTH`)."""
         ref, last = self.reference, self._last_embedding
-        if self.warm_start and last is not None:
-            result = ref.embed_result(metric, nearby=last.points)
-            if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
-                cold = ref.embed_result(metric)
-                result = cold if cold.residual < result.residual else result
-        else:
+        start = carried
+        if ref.use_extrinsic:
+            start = ref.surface.thickening_points(carried, ref.surface.positions(carried, ref.offset))
+        if not np.isfinite(start).all():  # the carried pose has a collapsed triangle (no normal)
             result = ref.embed_result(metric)
+        else:
+            result = ref.embed_result(metric, initial=start)
+        if self.warm_start and last is not None and result.residual > WARM_EMBEDDING_GROWTH * max(
+                last.residual, FRAMES_NEARLY_EXACT):
+            raced = ref.embed_result(metric)
+            result = raced if raced.residual < result.residual else result
         self._last_embedding = result
         return result
 
