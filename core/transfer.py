@@ -81,6 +81,13 @@ RECOVERY_RHO_SCALE = 100.0
 #: residual exceeds this factor × the previous pose's (a bad map image, a start in the wrong basin),
 #: the race is run as well and the lower residual kept.
 WARM_EMBEDDING_GROWTH = 1.5
+#: The first Levenberg–Marquardt damping of that fit (relative, see
+#: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
+#: round-off from the answer): the carried pose is a few percent off in lengths (RMS 0.09 on the 5k
+#: limb), where the nearly Gauss–Newton first steps were rejected at 300 CG iterations each. 5k limb,
+#: frame 40: 12.5 s (22 iterations) → 7.9 s (17), the same residual 0.0167 and pose (2.67 / 2.66 %);
+#: 1e-2 stopped on stagnation at residual 0.031, short of the fit.
+EMBEDDING_DAMPING = 1e-3
 
 
 class _TargetLayer:
@@ -340,7 +347,7 @@ class Transfer:
         if not np.isfinite(start).all():  # the carried pose has a collapsed triangle (no normal)
             result = ref.embed_result(metric)
         else:
-            result = ref.embed_result(metric, initial=start)
+            result = ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING)
         if self.warm_start and last is not None and result.residual > WARM_EMBEDDING_GROWTH * max(
                 last.residual, FRAMES_NEARLY_EXACT):
             raced = ref.embed_result(metric)
