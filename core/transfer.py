@@ -63,28 +63,35 @@ SUBSPACE_MAX_ITERATIONS = 6
 #: change of mesh and the k_N truncation at the 1e-2 level. Measured on the re-meshed drape
 #: (frames 20–22, k 100 / 200): Hausdorff/diagonal 4.08 / 4.28 / 4.81 % at the same-mesh
 #: tolerances, 4.11 / 4.34 / 4.78 % at 1e-4; ADMM iterations on the offset surface 285–350 → 95–160,
-#: area CG 1.2 → 0.3 s.
+#: area CG 1.2 → 0.3 s. 5k limb, frame 40 after 38 and 39: at 1e-4 ADMM 75 / 255 iterations (mesh /
+#: offset surface) and 44.7 s for both programs, 4.63 %; at 3e-4 25 / 40 and 14.1 s, 4.44 %; at 1e-3
+#: 10 / 15, 4.46 % (not taken: few triangles far off move a relative residual little).
 RECOVERY_TOLERANCE = 3e-4
 #: ADMM's initial penalty (in :func:`~core.admm.admm`'s units) for transferred differences,
 #: instead of the same-mesh :data:`~core.admm.ADMM_RHO_SCALE` = 10: on the 5k limb's offset
-#: surface (frame 38, cold) 90 iterations instead of 390, lengths within 0.4 % (RMS relative) and
-#: the pose within 0.01 point of Hausdorff (2.40 / 2.41 %); × 1,000 stopped as early, 3.6 % off.
+#: surface (frame 38, cold) 90 iterations instead of 390, lengths 1.16 % (RMS relative) from a
+#: run to 1e-5 (1,575 iterations) against 1.04 % at × 10, and the pose within 0.01 point of
+#: Hausdorff (2.40 / 2.41 %); × 1,000 stopped as early, 3.6 % off. (At 1e-4 and × 100: 180
+#: iterations, 0.63 %.)
 #: Later poses start from the previous pose's penalty.
 RECOVERY_RHO_SCALE = 100.0
-#: Every pose is embedded by Levenberg–Marquardt from the target pose carried to the base through
-#: the map (each base vertex at its image on the target, its offset surface above it): that pose
-#: is within the map's error of the answer, so the fit lands in the right basin without the race
-#: of starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
-#: lowest residual was not always the right basin. 5k limb, frame 38 from the same metric: 2.41 %
-#: (residual 0.0140) in 14 s, against 7.46 % (residual 0.0152, the base pose winning the race)
-#: and, from another metric, 3.25 % in 22 s. With ``warm_start``, when the fit's RMS relative length
-#: residual exceeds this factor × the previous pose's (a bad map image, a start in the wrong basin),
-#: the race is run as well and the lower residual kept.
+#: The first pose is embedded by Levenberg–Marquardt from the target pose carried to the base
+#: through the map (each base vertex at its image on the target, its offset surface above it): that
+#: pose is within the map's error of the answer, so the fit lands in the right basin without the
+#: race of starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`),
+#: whose lowest residual was not always the right basin. 5k limb, frame 38 from one metric: 2.41 %
+#: (residual 0.0140) in 14 s, against 7.46 % (residual 0.0152, the base pose winning the race); 5k
+#: cloth, frame 40: 5.20 % against 15.09 % with the race. With ``warm_start`` every later pose is
+#: fitted from the previous pose's embedding, cheaper on cloth, whose recovered lengths are
+#: further from realizable (frame 41: 6.6 s, 5.31 %, against 31 s, 5.14 % from the carried pose;
+#: limb frame 40: 7.5 s, 2.47 %, against 9.2 s, 2.66 %); when that fit's RMS relative length
+#: residual exceeds this factor × the previous pose's (a jump, a start in the wrong basin) the
+#: carried pose is fitted as well and the lower residual kept.
 WARM_EMBEDDING_GROWTH = 1.5
-#: The first Levenberg–Marquardt damping of that fit (relative, see
+#: The first Levenberg–Marquardt damping of these fits (relative, see
 #: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
-#: round-off from the answer): the carried pose is a few percent off in lengths (RMS 0.09 on the 5k
-#: limb), where the nearly Gauss–Newton first steps were rejected at 300 CG iterations each. 5k limb,
+#: round-off from the answer): their starts are a few percent off in lengths (the carried pose RMS
+#: 0.09 on the 5k limb), where the nearly Gauss–Newton first steps were rejected at 300 CG iterations each. 5k limb,
 #: frame 40: 12.5 s (22 iterations) → 7.9 s (17), the same residual 0.0167 and pose (2.67 / 2.66 %);
 #: 1e-2 stopped on stagnation at residual 0.031, short of the fit.
 EMBEDDING_DAMPING = 1e-3
@@ -336,22 +343,28 @@ class Transfer:
         return ref.expand_pose(placed)
 
     def _embed(self, metric, carried):
-        """The embedding (§7.3) of a recovered metric, fitted from ``carried`` ``(n_M_used, 3)``, the
-        target pose carried to the base's vertices (with its offset surface), and raced as well by
-        :meth:`~core.reference_shape.ReferenceShape.embed_result` when that fit is much worse
-        than the previous pose's (:data:`WARM_EMBEDDING_GROWTH`)."""
+        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): fitted from
+        the previous pose's embedding when warm, and (first, or when that fit is much worse than
+        the previous pose's) from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's
+        vertices, with its offset surface; by :meth:`~core.reference_shape.ReferenceShape.embed_result`'s
+        race of starts where the carried pose has a collapsed triangle (no normal)."""
         ref, last = self.reference, self._last_embedding
-        start = carried
-        if ref.use_extrinsic:
-            start = ref.surface.thickening_points(carried, ref.surface.positions(carried, ref.offset))
-        if not np.isfinite(start).all():  # the carried pose has a collapsed triangle (no normal)
-            result = ref.embed_result(metric)
+
+        def from_carried():
+            start = carried
+            if ref.use_extrinsic:
+                start = ref.surface.thickening_points(carried, ref.surface.positions(carried, ref.offset))
+            if not np.isfinite(start).all():
+                return ref.embed_result(metric)
+            return ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING)
+
+        if self.warm_start and last is not None:
+            result = ref.embed_result(metric, initial=last.points, initial_damping=EMBEDDING_DAMPING)
+            if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
+                other = from_carried()
+                result = other if other.residual < result.residual else result
         else:
-            result = ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING)
-        if self.warm_start and last is not None and result.residual > WARM_EMBEDDING_GROWTH * max(
-                last.residual, FRAMES_NEARLY_EXACT):
-            raced = ref.embed_result(metric)
-            result = raced if raced.residual < result.residual else result
+            result = from_carried()
         self._last_embedding = result
         return result
 
