@@ -76,12 +76,15 @@ RECOVERY_TOLERANCE = 3e-4
 #: Later poses start from the previous pose's penalty.
 RECOVERY_RHO_SCALE = 100.0
 #: The first pose is embedded by Levenberg–Marquardt from the target pose carried to the base
-#: through the map (each base vertex at its image on the target, its offset surface above it): that
-#: pose is within the map's error of the answer, so the fit lands in the right basin without the
-#: race of starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`),
-#: whose lowest residual was not always the right basin. 5k limb, frame 38 from one metric: 2.41 %
-#: (residual 0.0140) in 14 s, against 7.46 % (residual 0.0152, the base pose winning the race); 5k
-#: cloth, frame 40: 5.20 % against 15.09 % with the race. With ``warm_start`` every later pose is
+#: through the map (each base vertex at its image on the target), projected on the base's k_M
+#: eigenfunctions, with its offset surface: that pose is within the map's and the truncation's
+#: error of the answer, so the fit lands in the right basin without the race of starts and
+#: continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose lowest
+#: residual was not always the right basin. 5k limb, frame 38 from one metric: 2.39 % (residual
+#: 0.0139) in 7.2 s; unprojected 2.41 % (0.0140) in 14 s; the race 7.46 % (0.0152, the base pose
+#: winning). 5k cloth, frame 40: 5.20 % unprojected against 15.09 % with the race. 1k cloth, frame
+#: 20: 3.65 % (0.0310); unprojected 6.24 % (0.0314: the target's finer folds, which the truncated
+#: lengths do not resolve, kept); the race 4.52 % (0.0306, a continuation winning) in 13 s. With ``warm_start`` every later pose is
 #: fitted from the previous pose's embedding, cheaper on cloth, whose recovered lengths are
 #: further from realizable (frame 41: 6.6 s, 5.31 %, against 31 s, 5.14 % from the carried pose;
 #: limb frame 40: 7.5 s, 2.47 %, against 9.2 s, 2.66 %); when that fit's RMS relative length
@@ -351,9 +354,12 @@ class Transfer:
         ref, last = self.reference, self._last_embedding
 
         def from_carried():
-            start = carried
+            # Only what the base's k_M functions resolve: the fit's lengths carry no more, and the
+            # target's finer folds held the fit in a worse basin (the module constant).
+            basis = ref.base.basis(self.k_M).functions
+            start = basis @ (basis.T @ (ref.base.mass @ carried))
             if ref.use_extrinsic:
-                start = ref.surface.thickening_points(carried, ref.surface.positions(carried, ref.offset))
+                start = ref.surface.thickening_points(start, ref.surface.positions(start, ref.offset))
             if not np.isfinite(start).all():
                 return ref.embed_result(metric)
             return ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING)
