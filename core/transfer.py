@@ -76,20 +76,22 @@ RECOVERY_TOLERANCE = 3e-4
 #: Later poses start from the previous pose's penalty.
 RECOVERY_RHO_SCALE = 100.0
 #: The first pose is embedded by Levenberg–Marquardt from the target pose carried to the base
-#: through the map (each base vertex at its image on the target), projected on the base's k_M
-#: eigenfunctions, with its offset surface: that pose is within the map's and the truncation's
-#: error of the answer, so the fit lands in the right basin without the race of starts and
-#: continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose lowest
-#: residual was not always the right basin. 5k limb, frame 38 from one metric: 2.39 % (residual
-#: 0.0139) in 7.2 s; unprojected 2.41 % (0.0140) in 14 s; the race 7.46 % (0.0152, the base pose
-#: winning). 5k cloth, frame 40: 5.20 % unprojected against 15.09 % with the race. 1k cloth, frame
-#: 20: 3.65 % (0.0310); unprojected 6.24 % (0.0314: the target's finer folds, which the truncated
-#: lengths do not resolve, kept); the race 4.52 % (0.0306, a continuation winning) in 13 s. With ``warm_start`` every later pose is
-#: fitted from the previous pose's embedding, cheaper on cloth, whose recovered lengths are
-#: further from realizable (frame 41: 6.6 s, 5.31 %, against 31 s, 5.14 % from the carried pose;
-#: limb frame 40: 7.5 s, 2.47 %, against 9.2 s, 2.66 %); when that fit's RMS relative length
-#: residual exceeds this factor × the previous pose's (a jump, a start in the wrong basin) the
-#: carried pose is fitted as well and the lower residual kept.
+#: through the map (each base vertex at its image on the target), with its offset surface: that pose
+#: is within the map's error of the answer, so the fit lands in a basin near it, without the race of
+#: starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
+#: lowest residual was not always the right basin. Two such starts are fitted, the lower residual
+#: kept: the carried pose, and its projection on the base's k_M eigenfunctions (what the truncated
+#: lengths resolve). Hausdorff (residual) from one metric each: 5k limb frame 38, projected 2.39 %
+#: (0.0139) in 7.2 s, carried 2.41 % (0.0140) in 14 s, the race 7.46 % (0.0152, the base pose
+#: winning); 1k cloth frame 20, projected 3.65 % (0.0310), carried 6.24 % (0.0314: the target's finer
+#: folds held), the race 4.52 % (0.0306, a continuation) in 13 s; 5k cloth frame 41 (a crumpling
+#: sheet), projected 7.81 % (0.0320), carried 5.14 % (0.0311), the race at frame 40 15.09 %.
+#: With ``warm_start`` every later pose is fitted from the previous pose's embedding, cheaper on
+#: cloth, whose recovered lengths are further from realizable (5k cloth frame 41: 6.6 s, 5.31 %,
+#: against 31 s, 5.14 % from the carried pose; 5k limb frame 40: 7.5 s, 2.47 %, against 9.2 s,
+#: 2.66 %); when that fit's RMS relative length residual exceeds this factor × the previous pose's
+#: (a jump, a start in the wrong basin) the carried starts are fitted as well and the lowest
+#: residual kept.
 WARM_EMBEDDING_GROWTH = 1.5
 #: The first Levenberg–Marquardt damping of these fits (relative, see
 #: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
@@ -354,15 +356,21 @@ class Transfer:
         ref, last = self.reference, self._last_embedding
 
         def from_carried():
-            # Only what the base's k_M functions resolve: the fit's lengths carry no more, and the
-            # target's finer folds held the fit in a worse basin (the module constant).
+            # As carried, and projected on the base's k_M functions (what the lengths resolve):
+            # both fitted (in two threads), the lower residual kept (the module constant).
+            from .reference_shape import per_layer_threads
+
             basis = ref.base.basis(self.k_M).functions
-            start = basis @ (basis.T @ (ref.base.mass @ carried))
+            starts = [carried, basis @ (basis.T @ (ref.base.mass @ carried))]
             if ref.use_extrinsic:
-                start = ref.surface.thickening_points(start, ref.surface.positions(start, ref.offset))
-            if not np.isfinite(start).all():
+                starts = [ref.surface.thickening_points(s, ref.surface.positions(s, ref.offset)) for s in starts]
+            starts = [s for s in starts if np.isfinite(s).all()]
+            if not starts:
                 return ref.embed_result(metric)
-            return ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING)
+            fits = per_layer_threads([
+                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING) for s in starts
+            ])
+            return min(fits, key=lambda fit: fit.residual)
 
         if self.warm_start and last is not None:
             result = ref.embed_result(metric, initial=last.points, initial_damping=EMBEDDING_DAMPING)
