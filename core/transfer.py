@@ -162,7 +162,8 @@ class Transfer:
     iterations (recovery programs, embedding) from the previous call's solutions, which pays for
     the frames of an animation taken in order; results then depend, within the solvers'
     tolerances, on the poses rebuilt before (the target eigenbases always do, see
-    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose is rebuilt from the base alone.
+    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
+    embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
     """
 
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
