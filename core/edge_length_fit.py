@@ -80,7 +80,8 @@ class EdgeLengthFit:
     """Points ``(N, 3)`` to fit to the squared lengths ``squared`` ``(E,)`` of ``edges``
     ``(E, 2)``: ``free`` bool ``(N,)`` the points that move; ``anchor_points`` ``(N, 3)`` (NaN rows
     unanchored) with dimensionless ``anchor_weight``; ``length_scale`` the mean edge length;
-    the fit stops at RMS relative residual ``tolerance``."""
+    the fit stops at RMS relative residual ``tolerance``; ``initial_damping`` as in
+    :func:`levenberg_marquardt`."""
 
     edges: np.ndarray
     squared: np.ndarray
@@ -89,6 +90,7 @@ class EdgeLengthFit:
     anchor_weight: float
     length_scale: float
     tolerance: float
+    initial_damping: float = INITIAL_DAMPING
 
     def residual(self, x: np.ndarray) -> float:
         """RMS relative length residual of points ``x`` ``(N, 3)``."""
@@ -124,7 +126,7 @@ class EdgeLengthFit:
         return levenberg_marquardt(
             x0, self.edges, self.squared, self.free, anchor_points=self.anchor_points,
             anchor_weight=self.anchor_weight, length_scale=self.length_scale, tolerance=self.tolerance,
-            max_iterations=max_iterations,
+            max_iterations=max_iterations, initial_damping=self.initial_damping,
         )
 
 
@@ -147,14 +149,16 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
 
 
 def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_weight=0.0, length_scale=1.0,
-                         tolerance=REFINE_TOLERANCE, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS):
+                         tolerance=REFINE_TOLERANCE, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS,
+                         initial_damping=INITIAL_DAMPING):
     """Minimize ``Σ_e r_e² + (w / h²) Σ_v |x_v − a_v|²`` with ``r_e = (|x_i − x_j|² − ℓ²_e)/(2ℓ²_e)``.
 
     ``x0`` ``(N, 3)``; ``free`` bool ``(N,)`` points that move (the others stay); ``anchor_points``
     ``(N, 3)`` with NaN rows for unanchored points; ``length_scale`` ``h`` the mean edge length.
     Each step solves ``(JᵀJ + µI + A) δ = −g`` by block-Jacobi preconditioned CG (an inexact
-    Newton step: a sparse factorization per step costs far more). Returns
-    ``(x, iterations, converged)``.
+    Newton step: a sparse factorization per step costs far more). ``initial_damping``: the first
+    µ relative to the mean diagonal of ``JᵀJ`` (a start far from the fit takes fewer rejected
+    steps with a larger one). Returns ``(x, iterations, converged)``.
     """
     from scipy.sparse import bsr_matrix, coo_matrix
 
@@ -223,7 +227,7 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
         gg = rows_dot(g, g)
         mean_diag = float(2.0 * gg.sum() / max(3 * nf, 1) + anchor_diag.mean()) if nf else 1.0
         if mu is None:
-            mu = INITIAL_DAMPING * mean_diag
+            mu = initial_damping * mean_diag
         floor = DAMPING_FLOOR * mean_diag
         accepted = False
         for _ in range(DAMPING_TRIES):

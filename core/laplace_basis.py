@@ -165,8 +165,14 @@ def warm_laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, start,
     if factor is not None:
         x = functions
         for done in range(1, int(iterations) + 1):
-            x, _ = np.linalg.qr(factor.solve(np.asarray(mass @ x)))
-            cx, mx = np.asarray(conformal @ x), np.asarray(mass @ x)
+            x = factor.solve(np.asarray(mass @ x))
+            # Rayleigh–Ritz on the columns scaled to unit A-norm, without orthonormalizing them
+            # first: they are an inverse-iteration step from A-orthonormal Ritz vectors, so their
+            # A-Gram is well conditioned (a QR of the n × p block cost as much as the solves).
+            mx = np.asarray(mass @ x)
+            scale = 1.0 / np.sqrt(np.maximum(np.einsum("ij,ij->j", x, mx), np.finfo(float).tiny))
+            x, mx = x * scale, mx * scale
+            cx = np.asarray(conformal @ x)
             try:
                 values, small = sla.eigh(x.T @ cx, x.T @ mx)
             except (sla.LinAlgError, ValueError):

@@ -95,10 +95,11 @@ class SurfaceLayer:
         return functional_map_differences(base_basis, target_basis, mass)
 
     def recover(self, area_difference, conformal_difference, warm: dict | None = None,
-                tolerance: float | None = None) -> LayerMetric:
+                tolerance: float | None = None, rho_scale: float | None = None) -> LayerMetric:
         """Areas and squared lengths of the target from its two differences: linear solves in the
         full basis (Props. 1–2), convex programs when truncated (§7.1–7.2; ``warm``: the
-        warm-start record of a pose sequence, ``tolerance`` the iterative solvers', see
+        warm-start record of a pose sequence, ``tolerance`` the iterative solvers', ``rho_scale`` ADMM's
+        initial penalty, see
         :func:`~core.truncated_recovery.recover_truncated_metric`)."""
         if isinstance(area_difference, FullDifference):
             _, area_edge_values = area_difference.product_entries(self.assembler)
@@ -111,12 +112,12 @@ class SurfaceLayer:
             return LayerMetric(areas, squared)
         solver = self.truncated_solver(area_difference.basis)
         return LayerMetric(*recover_truncated_metric(solver, area_difference, conformal_difference, warm,
-                                                   tolerance))
+                                                   tolerance, rho_scale))
 
 
 def _recover_layers(jobs) -> list[LayerMetric]:
-    """``layer.recover(area, conformal, warm, tolerance)`` for every ``(layer, area, conformal, warm,
-    tolerance)`` of ``jobs``: truncated programs of two layers concurrently
+    """``layer.recover(area, conformal, warm, tolerance, rho_scale)`` for every ``(layer, area,
+    conformal, warm, tolerance, rho_scale)`` of ``jobs``: truncated programs of two layers concurrently
     (:func:`per_layer_threads`), in the full basis (sparse LU solves) one after the other."""
     calls = [lambda job=job: job[0].recover(*job[1:]) for job in jobs]
     return per_layer_threads(calls, parallel=not isinstance(jobs[0][1], FullDifference))
@@ -251,17 +252,18 @@ class ReferenceShape:
         return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.offset, k_M, k_N, self)
 
     def recover_metric(self, differences: ShapeDifferences, *, warm: list | None = None,
-                       tolerance: float | None = None) -> RecoveredMetric:
+                       tolerance: float | None = None, rho_scale: float | None = None) -> RecoveredMetric:
         """Areas and squared lengths of the target (and of its offset surface) — §7.1–7.2.
         ``warm``: one dict per layer (base, offset) carried along a sequence of nearby poses, whose
         solutions start the next pose's iterations; ``tolerance``: the relative stopping tolerance of
-        the iterative solvers (both: :func:`~core.truncated_recovery.recover_truncated_metric`)."""
+        the iterative solvers, ``rho_scale`` ADMM's initial penalty (both:
+        :func:`~core.truncated_recovery.recover_truncated_metric`)."""
         warm = [None, None] if warm is None else warm
-        jobs = [(self.base, differences.area, differences.conformal, warm[0], tolerance)]
+        jobs = [(self.base, differences.area, differences.conformal, warm[0], tolerance, rho_scale)]
         if differences.use_extrinsic:
             if not self.use_extrinsic:
                 raise MeshError("These differences are extrinsic but the reference was built without an offset surface.")
-            jobs.append((self.offset_layer, differences.offset_area, differences.offset_conformal, warm[1], tolerance))
+            jobs.append((self.offset_layer, differences.offset_area, differences.offset_conformal, warm[1], tolerance, rho_scale))
         metrics = _recover_layers(jobs)
         return RecoveredMetric(metrics[0], metrics[1] if len(metrics) > 1 else None)
 
@@ -306,13 +308,17 @@ class ReferenceShape:
         return self.embed_result(metric, initial=initial, anchor=anchor).base_vertices
 
     def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None,
-                     nearby: np.ndarray | None = None):
+                     nearby: np.ndarray | None = None, initial_damping: float | None = None):
         """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
         mirror choices made without evidence), which :func:`core.reconstruct` warns from.
         ``nearby``: thickening points ``(n + n_offset, 3)`` of a nearby pose (the previous frame of
         an animation), raced against the hinge frames instead of the base pose, without the
-        continuations from the base."""
+        continuations from the base. ``initial_damping``: the fit's first Levenberg–Marquardt
+        damping (:func:`~core.edge_length_fit.levenberg_marquardt`; default its own)."""
+        from .edge_length_fit import INITIAL_DAMPING
         from .embedding import embed_base_edges, embed_thickening
+
+        damping = INITIAL_DAMPING if initial_damping is None else float(initial_damping)
 
         if metric.offset is not None:
             # The base pose is raced against the hinge frames as a start when the lengths are
@@ -321,11 +327,12 @@ class ReferenceShape:
                 self.base.positions, self.offset_layer.positions)
             result = embed_thickening(
                 self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
-                reference_points=reference, anchor=anchor, continuation=nearby is None,
+                reference_points=reference, anchor=anchor, continuation=nearby is None, initial_damping=damping,
             )
         else:
             start = next(p for p in (initial, nearby, self.base_positions) if p is not None)[: self.topology.n_vertices]
-            result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start)
+            result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start,
+                                      initial_damping=damping)
         return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:

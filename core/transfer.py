@@ -52,22 +52,54 @@ SUBSPACE_MARGIN = 1.5
 #: (residual ≈ λ_k) still falls back.
 SUBSPACE_ITERATIONS = 2
 WARM_RESIDUAL = 0.1
+#: ... and up to this many iterations while the residual test fails, before ARPACK: the first pose
+#: of a transfer starts from the basis of the base's rest carried onto the target (computed for the
+#: meshing correction), which may be far. On the 5k limb, frame 38 (joints bent 70° and 80°):
+#: residual / λ_k 0.16 / 0.12 / 0.087 after 1 / 2 / 3 iterations on the mesh, 0.19 / 0.15 / 0.13 /
+#: 0.11 / 0.078 after 1–5 on the offset surface (3.5 s each), against 45 s for ARPACK's bases.
+SUBSPACE_MAX_ITERATIONS = 6
 #: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
 #: for transferred differences, instead of the same-mesh 1e-6 / 1e-5: their data carry the
 #: change of mesh and the k_N truncation at the 1e-2 level. Measured on the re-meshed drape
 #: (frames 20–22, k 100 / 200): Hausdorff/diagonal 4.08 / 4.28 / 4.81 % at the same-mesh
 #: tolerances, 4.11 / 4.34 / 4.78 % at 1e-4; ADMM iterations on the offset surface 285–350 → 95–160,
-#: area CG 1.2 → 0.3 s.
-RECOVERY_TOLERANCE = 1e-4
-#: Poses after the first are embedded from the previous pose's embedding (consecutive frames of
-#: an animation are close) raced against the hinge frames, instead of against the base pose with
-#: continuations from it (:func:`~core.embedding.embed_thickening`). On the 5k limb, frames
-#: 38 → 39 → 40: 3.25 / 3.85 / 4.63 % raced, 4.04 / 4.90 % from the previous pose alone, and a
-#: cold frame 40 8.78 % (its continuation wins the race at a lower residual in the wrong basin).
-#: The cold race is run as well, and the lower residual kept,
-#: when the warm fit's RMS relative length residual exceeds this factor × the previous pose's
-#: (a jump, or a start in the wrong basin).
+#: area CG 1.2 → 0.3 s. 5k limb, frame 40 after 38 and 39: at 1e-4 ADMM 75 / 255 iterations (mesh /
+#: offset surface) and 44.7 s for both programs, 4.63 %; at 3e-4 25 / 40 and 14.1 s, 4.44 %; at 1e-3
+#: 10 / 15, 4.46 % (not taken: few triangles far off move a relative residual little).
+RECOVERY_TOLERANCE = 3e-4
+#: ADMM's initial penalty (in :func:`~core.admm.admm`'s units) for transferred differences,
+#: instead of the same-mesh :data:`~core.admm.ADMM_RHO_SCALE` = 10: on the 5k limb's offset
+#: surface (frame 38, cold) 90 iterations instead of 390, lengths 1.16 % (RMS relative) from a
+#: run to 1e-5 (1,575 iterations) against 1.04 % at × 10, and the pose within 0.01 point of
+#: Hausdorff (2.40 / 2.41 %); × 1,000 stopped as early, 3.6 % off. (At 1e-4 and × 100: 180
+#: iterations, 0.63 %.)
+#: Later poses start from the previous pose's penalty.
+RECOVERY_RHO_SCALE = 100.0
+#: The first pose is embedded by Levenberg–Marquardt from the target pose carried to the base
+#: through the map (each base vertex at its image on the target), with its offset surface: that pose
+#: is within the map's error of the answer, so the fit lands in a basin near it, without the race of
+#: starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
+#: lowest residual was not always the right basin. Two such starts are fitted, the lower residual
+#: kept: the carried pose, and its projection on the base's k_M eigenfunctions (what the truncated
+#: lengths resolve). Hausdorff (residual) from one metric each: 5k limb frame 38, projected 2.39 %
+#: (0.0139) in 7.2 s, carried 2.41 % (0.0140) in 14 s, the race 7.46 % (0.0152, the base pose
+#: winning); 1k cloth frame 20, projected 3.65 % (0.0310), carried 6.24 % (0.0314: the target's finer
+#: folds held), the race 4.52 % (0.0306, a continuation) in 13 s; 5k cloth frame 41 (a crumpling
+#: sheet), projected 7.81 % (0.0320), carried 5.14 % (0.0311), the race at frame 40 15.09 %.
+#: With ``warm_start`` every later pose is fitted from the previous pose's embedding, cheaper on
+#: cloth, whose recovered lengths are further from realizable (5k cloth frame 41: 6.6 s, 5.31 %,
+#: against 31 s, 5.14 % from the carried pose; 5k limb frame 40: 7.5 s, 2.47 %, against 9.2 s,
+#: 2.66 %); when that fit's RMS relative length residual exceeds this factor × the previous pose's
+#: (a jump, a start in the wrong basin) the carried starts are fitted as well and the lowest
+#: residual kept.
 WARM_EMBEDDING_GROWTH = 1.5
+#: The first Levenberg–Marquardt damping of these fits (relative, see
+#: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
+#: round-off from the answer): their starts are a few percent off in lengths (the carried pose RMS
+#: 0.09 on the 5k limb), where the nearly Gauss–Newton first steps were rejected at 300 CG iterations each. 5k limb,
+#: frame 40: 12.5 s (22 iterations) → 7.9 s (17), the same residual 0.0167 and pose (2.67 / 2.66 %);
+#: 1e-2 stopped on stagnation at residual 0.031, short of the fit.
+EMBEDDING_DAMPING = 1e-3
 
 
 class _TargetLayer:
@@ -86,7 +118,8 @@ class _TargetLayer:
         """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
         (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
         every later pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
-        pose's functions (:data:`SUBSPACE_ITERATIONS`, :data:`WARM_RESIDUAL`) — a pose of the same
+        pose's functions (:data:`SUBSPACE_ITERATIONS` to :data:`SUBSPACE_MAX_ITERATIONS`,
+        :data:`WARM_RESIDUAL`) — a pose of the same
         mesh, whose eigenspaces move little (measured ARPACK at k = 200: 95 % of its time in its own
         re-orthogonalization)."""
         n = mass.shape[0]
@@ -94,7 +127,7 @@ class _TargetLayer:
         if self._subspace is None or self._subspace[0] != k or p <= k:
             full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
         else:
-            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], iterations=SUBSPACE_ITERATIONS,
+            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], iterations=SUBSPACE_MAX_ITERATIONS,
                                       min_iterations=SUBSPACE_ITERATIONS,
                                       tolerance=WARM_RESIDUAL, what=f"target {self.name}")
         self._subspace = (k, full.functions)
@@ -129,7 +162,8 @@ class Transfer:
     iterations (recovery programs, embedding) from the previous call's solutions, which pays for
     the frames of an animation taken in order; results then depend, within the solvers'
     tolerances, on the poses rebuilt before (the target eigenbases always do, see
-    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose is rebuilt from the base alone.
+    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
+    embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
     """
 
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
@@ -189,6 +223,7 @@ class Transfer:
             weights = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
         n_used = self.target_used.size
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
+        self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
         push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
         self.layers = [_TargetLayer("mesh", topology, push)]
         self.target_surface = None
@@ -281,11 +316,15 @@ class Transfer:
         """The four differences (eq. 6) of a target pose ``(n_N, 3)``, on the base's bases, with
         the :meth:`_discretization_error` removed: a
         :class:`~core.reference_shape.ShapeDifferences` for :func:`core.reconstruct`."""
+        return self._differences(self._target_positions(target_vertices))
+
+    def _differences(self, positions):
+        """:meth:`differences` of a target pose of used vertices ``(n_N_used, 3)``."""
         from dataclasses import replace
 
         from .reference_shape import ShapeDifferences
 
-        layers = self._layer_differences(self._target_positions(target_vertices))
+        layers = self._layer_differences(positions)
         if self.discretization_error is not None:
             layers = [
                 (replace(area, matrix=area.matrix - error_a), replace(conformal, matrix=conformal.matrix - error_c))
@@ -300,26 +339,47 @@ class Transfer:
         from its shape differences and placed by the rigid motion that brings each component
         closest to the target's matched vertices."""
         ref = self.reference
-        differences = self.differences(target_vertices)
+        positions = self._target_positions(target_vertices)
+        differences = self._differences(positions)
         metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
-                                    tolerance=RECOVERY_TOLERANCE)
-        embedded = self._embed(metric)
+                                    tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
+        embedded = self._embed(metric, np.asarray(self._pull_back @ positions))
         matched = np.asarray(target_vertices, dtype=np.float64)[self.correspondence[ref.used_vertices]]
         placed = ref.place_near(embedded.base_vertices, matched)
         return ref.expand_pose(placed)
 
-    def _embed(self, metric):
-        """The embedding (§7.3) of a recovered metric: from the previous pose's embedding when
-        warm (see :data:`WARM_EMBEDDING_GROWTH`), else (and when that fit is much worse than the
-        previous pose's) by :meth:`~core.reference_shape.ReferenceShape.embed_result`."""
+    def _embed(self, metric, carried):
+        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): fitted from
+        the previous pose's embedding when warm, and (first, or when that fit is much worse than
+        the previous pose's) from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's
+        vertices, with its offset surface; by :meth:`~core.reference_shape.ReferenceShape.embed_result`'s
+        race of starts where the carried pose has a collapsed triangle (no normal)."""
         ref, last = self.reference, self._last_embedding
+
+        def from_carried():
+            # As carried, and projected on the base's k_M functions (what the lengths resolve):
+            # both fitted (in two threads), the lower residual kept (the module constant).
+            from .reference_shape import per_layer_threads
+
+            basis = ref.base.basis(self.k_M).functions
+            starts = [carried, basis @ (basis.T @ (ref.base.mass @ carried))]
+            if ref.use_extrinsic:
+                starts = [ref.surface.thickening_points(s, ref.surface.positions(s, ref.offset)) for s in starts]
+            starts = [s for s in starts if np.isfinite(s).all()]
+            if not starts:
+                return ref.embed_result(metric)
+            fits = per_layer_threads([
+                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING) for s in starts
+            ])
+            return min(fits, key=lambda fit: fit.residual)
+
         if self.warm_start and last is not None:
-            result = ref.embed_result(metric, nearby=last.points)
+            result = ref.embed_result(metric, initial=last.points, initial_damping=EMBEDDING_DAMPING)
             if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
-                cold = ref.embed_result(metric)
-                result = cold if cold.residual < result.residual else result
+                other = from_carried()
+                result = other if other.residual < result.residual else result
         else:
-            result = ref.embed_result(metric)
+            result = from_carried()
         self._last_embedding = result
         return result
 

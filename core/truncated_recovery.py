@@ -75,7 +75,7 @@ AREA_FLOOR = 0.05
 
 
 def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, conformal_difference, warm=None,
-                             tolerance: float | None = None):
+                             tolerance: float | None = None, rho_scale: float | None = None):
     """Areas ``(m,)`` and squared lengths ``(E,)`` of the target of one layer from its truncated
     differences, by the layer's :class:`TruncatedRecovery` for their basis.
 
@@ -83,7 +83,8 @@ def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, confo
     first): it holds the last areas and ADMM state, which start the next pose's iterations, and
     is updated in place. The programs are the same; only the starts differ. ``tolerance``: the
     relative stopping tolerance of both iterative solvers (default: :data:`CG_TOLERANCE` for the
-    areas, :data:`~core.admm.ADMM_TOLERANCE` for the lengths)."""
+    areas, :data:`~core.admm.ADMM_TOLERANCE` for the lengths); ``rho_scale``: ADMM's initial
+    penalty without a warm one (:func:`~core.admm.admm`)."""
     # Eq. (5) differences are exact in the basis (the true metric fits them to round-off), so
     # they take the small ε of EXACT_EPSILON; eq. (6) ones carry the k_N truncation of the
     # functional map, which a small ε would fit as if it were geometry.
@@ -93,7 +94,7 @@ def recover_truncated_metric(solver: "TruncatedRecovery", area_difference, confo
                          start=warm_areas, tolerance=tolerance).areas
     lengths = solver.squared_lengths(
         conformal_difference.product_matrix(), areas, epsilon=EXACT_EPSILON if exact else LENGTH_EPSILON,
-        warm=None if warm is None else warm.get("admm"), tolerance=tolerance,
+        warm=None if warm is None else warm.get("admm"), tolerance=tolerance, rho_scale=rho_scale,
     )
     if warm is not None:
         warm["areas"] = areas
@@ -357,19 +358,22 @@ class TruncatedRecovery:
         # eigenvalue λ contributes at most λ‖B_µ‖² to the objective's curvature, so it is
         # negligible next to ε′ when λ‖B_µ‖² < LOWRANK_TOLERANCE × ε′ (‖B‖² ≤ ‖B‖₁‖B‖_∞).
         gain = float(abs(length_map).sum(axis=0).max() * abs(length_map).sum(axis=1).max())
-        keep = gram.values * gain > LOWRANK_TOLERANCE * eps
-        y, lam = gram.vectors[:, keep], gram.values[keep]
+        # The values are descending: the kept ones are a prefix (a view, no copy of the E × p vectors).
+        rank = int(np.count_nonzero(gram.values * gain > LOWRANK_TOLERANCE * eps))
+        y, lam = gram.vectors[:, :rank], gram.values[:rank]
         f = np.sqrt(lam)[:, None] * np.asarray((length_map.T @ y).T)  # (p, E) = Λ^½ Yᵀ B_µ
         g = (y.T @ self.edge_data(product)) / np.sqrt(lam)
         return EdgeProgram(f, g, eps, self.layer.squared_lengths)
 
     def squared_lengths(self, product: np.ndarray, areas: np.ndarray, *, epsilon: float | None = None,
-                        warm: tuple | None = None, tolerance: float | None = None) -> LengthSolution:
+                        warm: tuple | None = None, tolerance: float | None = None,
+                        rho_scale: float | None = None) -> LengthSolution:
         """Eq. (10): ``min ‖Φᵀ C(ℓ²; µ) Φ − P‖²_F + ε′‖ℓ² − ℓ²_M‖²`` s.t. ``ℓ² ≥ 0``, triangle
         inequality, ``det E₃ ≥ 4µ²`` (``epsilon`` relative to :meth:`edge_scale`; default
         :data:`LENGTH_EPSILON`). ``warm``: the :attr:`LengthSolution.state` of a nearby pose, which
         starts ADMM's slot copies, scaled duals and ρ; ``tolerance``: ADMM's (default
-        :data:`~core.admm.ADMM_TOLERANCE`)."""
+        :data:`~core.admm.ADMM_TOLERANCE`); ``rho_scale``: ADMM's initial penalty without a warm
+        one (:func:`~core.admm.admm`)."""
         topo = self.topology
         program = self.edge_program(product, areas, epsilon=epsilon)
         f, g, eps, reference = program.factor, program.target, program.epsilon, program.reference
@@ -383,7 +387,8 @@ class TruncatedRecovery:
             project = lambda v: project_triangles(v.reshape(-1, 3), areas).ravel()  # noqa: E731
             z0, u0, rho0 = warm if warm is not None else (None, None, None)
             sol, state = admm(f, g, eps, reference, slots, counts, project, x_start=x, split=split,
-                              z_start=z0, u_start=u0, rho=rho0, tol=tolerance)
+                              z_start=z0, u_start=u0, rho=rho0, tol=tolerance,
+                              rho_scale=rho_scale)
             iterations, converged = sol.iterations, sol.converged
             x, reached = feasible_lengths(state[0], slots, counts, areas)
             if not reached:

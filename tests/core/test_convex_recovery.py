@@ -108,16 +108,24 @@ def test_nonpositive_area_is_a_clear_error(small_sheet):
         solver.squared_lengths(diffs.conformal.product_matrix(), areas)
 
 
-def test_matches_conic_solver():
-    """The ADMM optimum of eq. (10) agrees with CLARABEL on the same (low-rank) program."""
+@pytest.mark.parametrize("settings", ["same-mesh", "transfer"])
+def test_matches_conic_solver(settings):
+    """The ADMM optimum of eq. (10) agrees with CLARABEL on the same (low-rank) program, with the
+    same-mesh settings and with the transfer's (looser tolerance, so float32 products in the
+    x-updates, and a 10× larger initial penalty)."""
     cp = pytest.importorskip("cvxpy")
+    from core.transfer import RECOVERY_RHO_SCALE, RECOVERY_TOLERANCE
+
+    options = {} if settings == "same-mesh" else {"tolerance": RECOVERY_TOLERANCE, "rho_scale": RECOVERY_RHO_SCALE}
     v, t = grid(7, jitter=0.3)
     ref = ReferenceShape(v, t, use_extrinsic=False)
     target = drape(v, 2.0)
     diffs = ref.shape_differences(target, k_M=15, k_N=30)
     solver = ref.base.truncated_solver(diffs.area.basis)
     areas = ref.pose_metric(target).base.areas
-    x_admm = solver.squared_lengths(diffs.conformal.product_matrix(), areas).squared_lengths
+    solution = solver.squared_lengths(diffs.conformal.product_matrix(), areas, **options)
+    assert solution.iterations > 0  # the constraints are active: ADMM ran
+    x_admm = solution.squared_lengths
     program = solver.edge_program(diffs.conformal.product_matrix(), areas)
     eps, f, g = program.epsilon, program.factor, program.target
     topo = ref.topology
@@ -132,6 +140,13 @@ def test_matches_conic_solver():
     def value(y):
         return 0.5 * np.sum((f @ y - g) ** 2) + 0.5 * eps * np.sum((y - ref.base.squared_lengths) ** 2)
 
+    if settings == "transfer":
+        # Stopped at a 30× looser tolerance: the squared lengths within ~1 % of the optimum (as
+        # on the 5k limb's offset surface against a run to 1e-5: 1.2 % RMS), below the error the
+        # change of mesh puts in transferred data; the data term, far more sensitive, is not
+        # minimized to the same relative precision.
+        assert _rel(x_admm, x.value) < 2e-2
+        return
     # Known gap (see the report of issue 4): the accelerated ADMM stops within ~2 % of the
     # conic optimum in objective; the squared lengths agree to ~1e-4.
     assert value(x_admm) <= value(x.value) * 1.03
@@ -264,3 +279,21 @@ def test_layers_recovered_concurrently_match_one_after_the_other(monkeypatch):
             radius = np.linalg.norm(b - c)
             assert 0 < radius < 1e-2 * np.linalg.norm(b)  # the tighter run did converge further
             assert np.linalg.norm(a - b) <= 2 * radius
+
+
+def test_woodbury_single_precision_products_agree_with_double():
+    """(FᵀF + D) x = r through the capacitance matrix: exact in float64 against a dense solve, and
+    with float32 products with F (ADMM at loose tolerances) within float32 rounding of it."""
+    from core.low_rank import SplitGram
+
+    rng = np.random.default_rng(4)
+    f = rng.standard_normal((40, 300)) * np.logspace(0, -4, 40)[:, None]
+    counts = rng.integers(1, 3, 300).astype(float)
+    split = SplitGram(f, counts)
+    r = rng.standard_normal(300)
+    eps, rho = 1e-3, 0.5
+    dense = np.linalg.solve(f.T @ f + np.diag(eps + rho * counts), r)
+    double = split.woodbury(eps, rho).solve(r)
+    single = split.woodbury(eps, rho, single=True).solve(r)
+    assert _rel(double, dense) < 1e-10
+    assert 1e-12 < _rel(single, dense) < 1e-5

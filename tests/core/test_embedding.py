@@ -219,6 +219,9 @@ def test_warm_start_and_anchor():
     result = embed_thickening(surface, squared, initial_points=start)
     assert result.initializer == "initial_points"
     assert relative_errors(result.base_vertices, target)[1] < 1e-6
+    # A larger first damping (the transfer's, for starts a few percent off) reaches the same fit.
+    damped = embed_thickening(surface, squared, initial_points=start, initial_damping=1e-3)
+    assert relative_errors(damped.base_vertices, target)[1] < 1e-6
     # A strong anchor pulls towards the anchor positions (scale-aware weight).
     blend = 0.5 * (v + target)
     weak = embed_thickening(surface, squared, anchor=(blend, 1e-6))
