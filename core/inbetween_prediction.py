@@ -59,8 +59,9 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     targets = SOLVED_FACTORS if len(interior) >= FULL_SAMPLE_BATCH else (SOLVED_FACTORS[0], SOLVED_FACTORS[-1])
     solved_factors = sorted({min(interior, key=lambda s: abs(s - q)) for q in targets})
     solved = {s: gap.pose(s) for s in solved_factors}
-    correction = _correction(gap, {s: x for s, (x, _) in solved.items()})
-    if len(solved) >= 3 and _inconsistent(gap, {s: x for s, (x, _) in solved.items()}):
+    positions = {s: x for s, (x, _) in solved.items()}
+    correction = _correction(gap, positions)
+    if len(solved) >= 3 and _inconsistent(gap, positions):
         return [solved[s] if s in solved else gap.pose(s) for s in factors]  # too rough to predict
     stubborn = any(problem for _, problem in solved.values())
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
@@ -75,6 +76,12 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     return out
 
 
+def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
+    """``M(s)⁻¹ x − V(s)`` (n, 3): positions ``x`` at factor ``s`` in the co-moving frame, less the
+    keys' co-moving spline."""
+    return gap.topo.undo_motion(x, *gap.motion(s)) - gap.splines["vertices"].at(s)
+
+
 def _correction(gap, solved: dict) -> BarycentricInterpolator:
     """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
     ``solved`` poses {factor: positions} (barycentric form: built and evaluated in O(n))."""
@@ -82,7 +89,7 @@ def _correction(gap, solved: dict) -> BarycentricInterpolator:
     factors, values = [0.0], [zero]
     for s in sorted(solved):
         factors.append(s)
-        values.append(gap.topo.undo_motion(solved[s], *gap.motion(s)) - gap.splines["vertices"].at(s))
+        values.append(_co_moving_correction(gap, s, solved[s]))
     factors.append(1.0)
     values.append(zero)
     return BarycentricInterpolator(factors, np.stack(values), axis=0)
@@ -96,7 +103,7 @@ def _inconsistent(gap, solved: dict) -> bool:
     middle = factors[len(factors) // 2]
     others = {s: x for s, x in solved.items() if s != middle}
     predicted = _correction(gap, others)(middle)
-    actual = gap.topo.undo_motion(solved[middle], *gap.motion(middle)) - gap.splines["vertices"].at(middle)
+    actual = _co_moving_correction(gap, middle, solved[middle])
     size = np.sqrt(np.mean(np.sum(actual ** 2, axis=1)))
     return bool(np.sqrt(np.mean(np.sum((predicted - actual) ** 2, axis=1))) > MAX_CROSS_VALIDATION * size)
 

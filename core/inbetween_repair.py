@@ -12,8 +12,8 @@ are tried in turn — the Poisson solve alone, the metric fitted near the linear
 anchored), the linear blend — and the first without defects is returned; if none is, the metric
 fit with the fewest defects. The fit near the blend is skipped when the blend itself is defective
 (held near a folded blend it keeps the folds: on the benchmark cloths it repaired none of the 24
-poses whose blend was defective, at ~1 s each on the 50k-vertex sheet). Each fallback comes with a message for a
-:class:`~core.errors.ShapeDifferenceWarning`.
+poses whose blend was defective, at ~1 s each on the 50k-vertex sheet). Each fallback comes with
+a message for a :class:`~core.errors.ShapeDifferenceWarning`.
 """
 
 from __future__ import annotations
