@@ -197,15 +197,15 @@ def turned_rows(vectors: np.ndarray, rotations: np.ndarray, components: np.ndarr
 
 
 def plane_turned_frames(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """Columns (3, m, 3) of ``B · Rz(θ)`` for tangent frames with ``columns`` (3, m, 3) turned
-    in their plane by ``turn = (cos θ, sin θ)`` ((m,) each): the images of a base triangle's
-    frame under the rotation ``B · Rz(θ) · B_baseᵀ`` that takes it to the triangle of
-    ``columns`` (the polar rotation of the planar map turns it by ``θ`` first)."""
-    cos, sin = turn[0][:, None], turn[1][:, None]
-    t1, t2 = columns[0], columns[1]
+    """Frames ``B · Rz(θ)`` stored by coordinate (3 columns, 3 coordinates, m) for tangent frames
+    ``columns`` ``B`` stored the same way, turned in their plane by ``turn = (cos θ, sin θ)``
+    ((m,) each): the images of a base triangle's frame under the rotation ``B · Rz(θ) · B_baseᵀ``
+    that takes it to the triangle of ``columns`` (the polar rotation of the planar map turns it by
+    ``θ`` first)."""
+    cos, sin = turn
     out = np.empty_like(columns)
-    out[0] = cos * t1 + sin * t2
-    out[1] = cos * t2 - sin * t1
+    out[0] = cos * columns[0] + sin * columns[1]
+    out[1] = cos * columns[1] - sin * columns[0]
     out[2] = columns[2]
     return out
 
@@ -233,11 +233,7 @@ def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], 
     """:func:`plane_turned_frames` followed by :func:`turned_rows`, on frames stored by coordinate
     (3 columns, 3 coordinates, m): ``M_c · B · Rz(θ)`` for ``columns`` ``B``, ``turn = (cos θ,
     sin θ)`` ((m,) each) and the rotations (C, 3, 3) of each triangle's component."""
-    cos, sin = turn
-    turned = np.empty_like(columns)
-    turned[0] = cos * columns[0] + sin * columns[1]
-    turned[1] = cos * columns[1] - sin * columns[0]
-    turned[2] = columns[2]
+    turned = plane_turned_frames(columns, turn)
     if len(rotations) == 1:
         return np.matmul(rotations[0], turned)
     r = rotations[components].transpose(1, 2, 0)  # (3, 3, m)

@@ -162,7 +162,8 @@ class Repair:
                 edges = df.corner_edges(positions, t[rows])
                 columns, coordinates = df.tangent_frames(edges)
                 turn, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse_rows[:, rows]))
-                return df.plane_turned_frames(columns, turn), mesh_stretch
+                turned = df.plane_turned_frames(columns.transpose(0, 2, 1), turn)  # by coordinate
+                return turned.transpose(0, 2, 1), mesh_stretch
             return field
 
         def key_field(index):

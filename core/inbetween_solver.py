@@ -73,14 +73,13 @@ class _Topology:
         rows = np.arange(3 * m)
         self.D = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)], (np.r_[rows, rows], np.r_[self.i, self.j])),
                                shape=(3 * m, n_vertices))
-        self.Dt = self.D.T.tocsr()
         # the same incidence with rows corner-major (row c·m + k), for the fit's component-wise
         # arrays (3 coordinates, 3 corners, m): contiguous per coordinate and corner
         self.Dc = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)],
                                  (np.r_[rows, rows], np.r_[t.T.ravel(), t[:, [1, 2, 0]].T.ravel()])),
                                 shape=(3 * m, n_vertices))
         self.Dct = self.Dc.T.tocsr()
-        self.laplacian = (self.Dt @ self.D).tocsc()
+        self.laplacian = (self.Dct @ self.Dc).tocsc()
         edges = df.corner_edges(first_pose, t)
         areas = 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 2]), axis=1)
         mass = lumped_vertex_areas(t, areas, n_vertices)

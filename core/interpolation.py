@@ -98,8 +98,6 @@ class SequenceInterpolator:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        # vertices still in every key (pinned cloth) are anchored where they sit: a sequence's
-        # in-betweens keep them there (two poses anchor what the blend keeps instead)
         # vertices still in every key (pinned cloth) stay exactly where they sit
         still = np.all(np.stack([np.all(k == keys[0], axis=1) for k in keys[1:]]), axis=0)
         self._static = still if still.any() else None
