@@ -55,7 +55,7 @@ class LocalGlobalFit:
         """Positions (n, 3) fitting corner ``edges`` (3 coordinates, 3 corners, m) and the anchor
         to ``guide`` (``system``: (factor, per-vertex anchor) other than the gap's own)."""
         lu, anchor = system or self.system
-        rhs = np.empty((self.topo.n, 3), order="F")
+        rhs = np.empty((self.topo.n, 3))
         for d in range(3):
             rhs[:, d] = self.topo.Dct @ edges[d].ravel() + anchor * guide[:, d]
         return lu.solve(rhs)

@@ -1,0 +1,66 @@
+"""Independent pieces of work in threads, one per available core.
+
+The in-betweens of a gap are independent computations whose time goes to NumPy array arithmetic
+and sparse products, which release Python's global lock, so two threads on two cores take less
+time than one piece after the other (numbers in docs/inbetweens.md). The threads are kept for the
+life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between);
+each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at once
+oversubscribe the cores). Results never depend on the number of threads: every piece is computed
+exactly as it would be alone.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+
+_pool = None
+_pool_lock = threading.Lock()
+_worker = threading.local()  # set in the pool's threads: work they submit runs in place
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system tells it)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+def concurrently(function, items, *, worth_it: bool = True) -> list:
+    """``[function(item) for item in items]``, in up to :func:`available_cores` threads when
+    there are several items and the caller says each is ``worth_it`` (large enough to pay for
+    handing it to a thread); in order, the first exception raised."""
+    items = list(items)
+    if not worth_it or len(items) < 2 or available_cores() < 2 or getattr(_worker, "inside", False):
+        return [function(item) for item in items]
+    pool = _shared_pool()
+    with _single_threaded_blas():
+        futures = [pool.submit(_in_worker, function, item) for item in items]
+        return [future.result() for future in futures]
+
+
+def _in_worker(function, item):
+    _worker.inside = True
+    return function(item)
+
+
+def _shared_pool():
+    global _pool
+    with _pool_lock:
+        if _pool is None:
+            from concurrent.futures import ThreadPoolExecutor
+
+            _pool = ThreadPoolExecutor(available_cores(), thread_name_prefix="shape-differences")
+        return _pool
+
+
+def _single_threaded_blas():
+    """A context limiting BLAS to one thread (a no-op without threadpoolctl)."""
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:
+        from contextlib import nullcontext
+
+        return nullcontext()
+    return threadpool_limits(limits=1, user_api="blas")

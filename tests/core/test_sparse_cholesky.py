@@ -1,0 +1,95 @@
+"""The factor of core/sparse_cholesky.py (CHOLMOD through cholespy, or SuperLU without it) and the
+threads of core/concurrency.py: same solutions, same in-betweens."""
+
+from __future__ import annotations
+
+import builtins
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+import core.concurrency as concurrency
+import core.inbetween_prediction as prediction
+from core.concurrency import concurrently
+from core.interpolation import SequenceInterpolator
+from core.sparse_cholesky import SPDFactor
+
+from meshes import grid
+
+
+def _normal_matrix(weight):
+    """Graph Laplacian of a 15 × 12 grid plus ``weight`` on the diagonal (the in-betweens' matrix)."""
+    _, triangles = grid(15, 12)
+    i, j = triangles.ravel(), triangles[:, [1, 2, 0]].ravel()
+    n = triangles.max() + 1
+    rows = np.arange(i.size)
+    incidence = sp.csr_matrix((np.r_[-np.ones(i.size), np.ones(i.size)], (np.r_[rows, rows], np.r_[i, j])),
+                              shape=(i.size, n))
+    return (incidence.T @ incidence + weight * sp.identity(n)).tocsc()
+
+
+@pytest.fixture(params=["installed", "SuperLU"])
+def backend(request, monkeypatch):
+    if request.param == "SuperLU":
+        real_import = builtins.__import__
+
+        def no_cholespy(name, *args, **kwargs):
+            if name == "cholespy":
+                raise ImportError("cholespy hidden by the test")
+            return real_import(name, *args, **kwargs)
+
+        monkeypatch.setattr(builtins, "__import__", no_cholespy)
+    return request.param
+
+
+@pytest.mark.parametrize("weight", [1e-7, 1e-2, 1e3])
+def test_solves_agree_with_a_direct_solve(backend, weight):
+    matrix = _normal_matrix(weight)
+    factor = SPDFactor(matrix)
+    if backend == "SuperLU":
+        assert factor.backend == "SuperLU"
+    rng = np.random.default_rng(0)
+    rhs = rng.standard_normal((matrix.shape[0], 3))
+    reference = spla.spsolve(matrix, rhs)
+    scale = np.abs(reference).max()
+    for b, expected in ((rhs, reference), (np.asfortranarray(rhs), reference), (rhs[:, 1].copy(), reference[:, 1])):
+        x = factor.solve(b)
+        assert x.shape == b.shape
+        # backward stable factorizations: error ~ condition number (≤ 1e8 here) × machine epsilon
+        assert np.abs(x - expected).max() <= 1e-6 * scale
+        # and a residual of round-off size: a small multiple of ε ‖A‖ ‖x‖
+        bound = 1e3 * np.finfo(float).eps * spla.norm(matrix, np.inf) * np.abs(x).max()
+        assert np.abs(matrix @ x - b).max() <= bound
+
+
+def test_concurrently_keeps_order_and_raises(monkeypatch):
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
+    assert concurrently(lambda k: k * k, range(7)) == [k * k for k in range(7)]
+
+    def fails(k):
+        if k == 3:
+            raise ValueError("piece 3")
+        return k
+
+    with pytest.raises(ValueError, match="piece 3"):
+        concurrently(fails, range(5))
+
+
+def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
+    """Solved and predicted in-betweens of a sequence are the same, bit for bit, in one thread
+    and in several."""
+    flat, triangles = grid(24, 16, size=1.0)
+    times = np.linspace(0.0, 1.0, 4)
+    keys = [np.c_[flat[:, 0], flat[:, 1] * np.cos(1.2 * t), flat[:, 1] * np.sin(1.2 * t) - 0.4 * t * t]
+            + 0.05 * np.sin(3 * flat[:, [0]] + t) for t in times]
+    factors = np.arange(1, 8) / 8
+    monkeypatch.setattr(prediction, "CONCURRENT_VERTICES", 0)  # this small mesh in threads too
+    results = {}
+    for cores in (1, 2):
+        monkeypatch.setattr(concurrency, "available_cores", lambda cores=cores: cores)
+        seq = SequenceInterpolator(keys, triangles)
+        results[cores] = np.array([seq.poses(k, factors) for k in range(len(seq))])
+    assert np.array_equal(results[1], results[2])
+    assert np.isfinite(results[2]).all()
