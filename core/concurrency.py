@@ -5,8 +5,9 @@ and sparse products, which release Python's global lock, so two threads on two c
 time than one piece after the other (numbers in docs/inbetweens.md). The threads are kept for the
 life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between);
 each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at once
-oversubscribe the cores). Results never depend on the number of threads: every piece is computed
-exactly as it would be alone.
+oversubscribe the cores). Every piece is computed as it would be alone: results depend on the
+number of threads only through the round-off of BLAS calls (~1e-14 relative), which a
+multithreaded BLAS sums in another order.
 """
 
 from __future__ import annotations

@@ -58,7 +58,7 @@ class _Relative:
             whole = rotations[0] if len(topo.components) == 1 else \
                 rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
-        self.screw = np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
+        self.screw = _screws(rotations, translations, turns, unwrap)
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
         turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse_rows))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
@@ -81,8 +81,7 @@ class _Relative:
         rotations, translations = self.motion
         inverse_rotations = df.transpose(rotations)
         inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
-        out.screw = np.array([df.rigid_log(r, t, turn, True)
-                              for r, t, turn in zip(inverse_rotations, inverse_translations, turns)])
+        out.screw = _screws(inverse_rotations, inverse_translations, turns, True)
         out.misfits = list(self.misfits)
         out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
@@ -96,6 +95,12 @@ class _Relative:
         out.centroids = other.centroids
         out.turn, out.motion = (cos, -sin), (inverse_rotations, inverse_translations)
         return out
+
+    def unwrap(self, turns: np.ndarray) -> "_Relative":
+        """This relative (built without ``turns``) with its screw coordinates taken as if the
+        constructor had been given ``turns`` (C, 3); the rest does not depend on them."""
+        self.screw = _screws(*self.motion, turns, True)
+        return self
 
     @classmethod
     def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
@@ -116,6 +121,12 @@ class _Relative:
             setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         return self
+
+
+def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool) -> np.ndarray:
+    """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
+    vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_log`)."""
+    return np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
 
 
 def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:

@@ -48,7 +48,8 @@ import numpy as np
 
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
-from .inbetween_prediction import gap_poses
+from .concurrency import concurrently
+from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
 from .inbetween_solver import _Gap, _Topology
 from .laplace_basis import basis_sizes
@@ -158,6 +159,16 @@ class SequenceInterpolator:
         log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
         return _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn)
 
+    def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
+        """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
+        built first: the key cache is not shared with the threads) unless a truncated recovery,
+        which prepares one base shape for them all, makes the metric."""
+        if self.k_M is not None:
+            return [self._relative(base, k) for k in others]
+        topo, key = self._topo, self._key(base)
+        keys = [self._key(k) for k in others]
+        return concurrently(lambda other: _Relative(topo, key, other), keys, worth_it=topo.n >= CONCURRENT_VERTICES)
+
     def _previous(self, gap: int, turns: np.ndarray) -> _Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
         next key (the same whichever gaps were computed before), or, with a truncated basis (its
@@ -175,13 +186,14 @@ class SequenceInterpolator:
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
-        nxt = self._relative(gap, gap + 1)
         cubic = self.smooth and last >= 2
+        ahead = self._relatives(gap, [gap + 1, gap + 2] if cubic and gap + 2 <= last else [gap + 1])
+        nxt = ahead[0]
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw[:, :3]
             prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident)
-            after = self._relative(gap, gap + 2, 2 * turn) if gap + 2 <= last else _Relative.phantom(ident, nxt)
+            after = ahead[1].unwrap(2 * turn) if gap + 2 <= last else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,

@@ -78,8 +78,8 @@ def test_concurrently_keeps_order_and_raises(monkeypatch):
 
 
 def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
-    """Solved and predicted in-betweens of a sequence are the same, bit for bit, in one thread
-    and in several."""
+    """Solved and predicted in-betweens of a sequence are the same in one thread and in several
+    (to the round-off of a BLAS that may sum in another order when it is limited to one thread)."""
     flat, triangles = grid(24, 16, size=1.0)
     times = np.linspace(0.0, 1.0, 4)
     keys = [np.c_[flat[:, 0], flat[:, 1] * np.cos(1.2 * t), flat[:, 1] * np.sin(1.2 * t) - 0.4 * t * t]
@@ -91,5 +91,5 @@ def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
         monkeypatch.setattr(concurrency, "available_cores", lambda cores=cores: cores)
         seq = SequenceInterpolator(keys, triangles)
         results[cores] = np.array([seq.poses(k, factors) for k in range(len(seq))])
-    assert np.array_equal(results[1], results[2])
+    np.testing.assert_allclose(results[2], results[1], rtol=0, atol=1e-12 * np.abs(results[1]).max())
     assert np.isfinite(results[2]).all()
