@@ -12,10 +12,22 @@ give the solution to round-off (tests/core/test_sparse_cholesky.py).
 
 from __future__ import annotations
 
+import atexit
 import threading
+import weakref
 
 import numpy as np
 import scipy.sparse as sp
+
+_live: weakref.WeakSet = weakref.WeakSet()  # factors holding a CHOLMOD solver
+
+
+@atexit.register
+def _release():
+    """Drop the CHOLMOD solvers still held at exit, before the interpreter's teardown (the
+    extension module otherwise reports them on stderr as leaked)."""
+    for factor in list(_live):
+        factor._cholmod = None
 
 
 class SPDFactor:
@@ -38,6 +50,7 @@ class SPDFactor:
         self._superlu = None
         self._cholmod = CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
                                         coo.data.astype(np.float64), MatrixType.COO)
+        _live.add(self)
 
     @property
     def backend(self) -> str:
@@ -45,7 +58,7 @@ class SPDFactor:
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """The solution (shape of ``rhs``) of ``matrix @ x = rhs``."""
-        if self._cholmod is None:
+        if self._superlu is not None:
             return self._superlu.solve(rhs)
         b = np.ascontiguousarray(rhs, dtype=np.float64)
         x = np.empty_like(b)

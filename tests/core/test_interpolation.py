@@ -403,3 +403,27 @@ def test_intrinsic_only_and_input_errors(strip):
         SequenceInterpolator([a], tri)
     with pytest.raises(IndexError):
         SequenceInterpolator([a, b], tri).pose(1, 0.5)
+
+
+def test_evicted_gaps_are_freed_at_once(strip):
+    """A gap the sequence's cache lets go is freed when it is dropped, not at the next full garbage
+    collection (no reference cycle through its repair: at 100k vertices each holds ~150 MB)."""
+    import gc
+    import weakref
+
+    from core import interpolation
+
+    flat, tri = strip
+    keys = [_bend(flat, 0.3 * k) for k in range(interpolation.GAP_CACHE + 3)]
+    seq = SequenceInterpolator(keys, tri)
+    seq.poses(0, [0.25, 0.5, 0.75])
+    first = weakref.ref(seq._gaps[0])
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        for k in range(1, len(seq)):
+            seq.poses(k, [0.5])
+        assert first() is None
+    finally:
+        if enabled:
+            gc.enable()
