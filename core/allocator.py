@@ -8,7 +8,8 @@ an expression with two such temporaries touches fresh pages each time it runs; e
 of a 4 KB page is a page fault (about 3 µs on the 2-core benchmark machine). Raising both
 thresholds keeps freed blocks in the heap for reuse: on the 14k tablecloth this halves the page
 faults per in-between (3,600–3,900 → 1,900–2,000) and saves about a tenth of its time; numbers in
-docs/design-decisions.md. Only the process's C allocator settings change (no data); under another
+docs/design-decisions.md. Threads share at most two heaps (:data:`ARENA_MAX`), so the
+in-betweens' pool threads reuse each other's freed blocks. Only the process's C allocator settings change (no data); under another
 allocator (musl, macOS, Windows, or a malloc replaced by the host, as Blender's jemalloc builds do)
 this does nothing. Nor does it in an interactive Blender session, whose own allocations should go
 back to the system as usual; Blender in the background (farm and batch jobs) is tuned.
@@ -26,12 +27,18 @@ import sys
 MMAP_THRESHOLD = 64 << 20
 #: Free memory at the top of the heap kept for reuse before it is handed back (M_TRIM_THRESHOLD).
 TRIM_THRESHOLD = 64 << 20
-_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameter numbers
+#: Heaps ("arenas") the threads share (M_ARENA_MAX): glibc gives threads heaps of their own, and
+#: memory freed in one is not reused by another, so the in-betweens' pool threads
+#: (core/concurrency.py) kept several sets of freed temporaries (100k sheet, keys 4 apart: peak
+#: 1,324 MB with glibc's default of 8 per core, 1,016 MB with 2, no slower).
+ARENA_MAX = 2
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameter numbers
 _done = False
 
 
 def keep_heap() -> bool:
-    """Raise glibc's mmap and trim thresholds once per process (see the module docstring).
+    """Raise glibc's mmap and trim thresholds and cap its arenas once per process (see the
+    module docstring).
     Returns whether the settings are in force (False on other platforms or C libraries)."""
     global _done
     if _done:
@@ -43,7 +50,8 @@ def keep_heap() -> bool:
         return False  # an interactive session: leave the host's allocator as it is
     try:
         libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        _done = bool(libc.mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD)) and bool(libc.mallopt(_M_TRIM_THRESHOLD, TRIM_THRESHOLD))
+        _done = all(libc.mallopt(parameter, value) for parameter, value in (
+            (_M_MMAP_THRESHOLD, MMAP_THRESHOLD), (_M_TRIM_THRESHOLD, TRIM_THRESHOLD), (_M_ARENA_MAX, ARENA_MAX)))
     except (OSError, AttributeError):  # no loadable C library or no mallopt: nothing to tune
         return False
     return _done

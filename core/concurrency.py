@@ -41,6 +41,14 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
         return [future.result() for future in futures]
 
 
+def in_background(function, *arguments):
+    """A Future of ``function(*arguments)`` run in a pool thread, or None with a single core or
+    when called from a pool thread (the caller then does the work when it needs it)."""
+    if available_cores() < 2 or getattr(_worker, "inside", False):
+        return None
+    return _shared_pool().submit(_in_worker, lambda _: function(*arguments), None)
+
+
 def _in_worker(function, item):
     _worker.inside = True
     return function(item)

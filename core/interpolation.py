@@ -41,6 +41,7 @@ that fails a documented fallback is returned with a :class:`~core.errors.ShapeDi
 
 from __future__ import annotations
 
+import threading
 import warnings
 from collections import OrderedDict
 
@@ -48,7 +49,7 @@ import numpy as np
 
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
-from .concurrency import concurrently
+from .concurrency import concurrently, in_background
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
 from .inbetween_solver import _Gap, _Topology
@@ -104,6 +105,8 @@ class SequenceInterpolator:
         self._static = still if still.any() else None
         self._keys: OrderedDict[int, _Key] = OrderedDict()
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
+        self._pending: dict = {}  # gap index → Future of its preparation in the background
+        self._cache_lock = threading.RLock()  # the caches are also filled by that preparation
         self._references: dict = {}
         self.k_M, self.k_N = basis_sizes(k_M, k_N)
         self.offset = offset
@@ -119,13 +122,17 @@ class SequenceInterpolator:
         return self._topo.triangles
 
     def _key(self, index: int) -> _Key:
-        if index in self._keys:
-            self._keys.move_to_end(index)
-        else:
-            self._keys[index] = _Key(self._topo, self._raw[index])
+        with self._cache_lock:
+            key = self._keys.get(index)
+            if key is not None:
+                self._keys.move_to_end(index)
+                return key
+        key = _Key(self._topo, self._raw[index])
+        with self._cache_lock:
+            self._keys[index] = key
             while len(self._keys) > KEY_CACHE:
                 self._keys.popitem(last=False)
-        return self._keys[index]
+        return key
 
     def _reference(self, index: int):
         """The truncated recovery's prepared base for key ``index`` (eigenbasis, Gram factor).
@@ -180,9 +187,34 @@ class SequenceInterpolator:
         return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
 
     def _gap(self, gap: int) -> _Gap:
-        if gap in self._gaps:
-            self._gaps.move_to_end(gap)
-            return self._gaps[gap]
+        pending = self._pending.pop(gap, None)
+        if pending is not None:
+            pending.result()  # prepared in the background: cached now
+        with self._cache_lock:
+            segment = self._gaps.get(gap)
+            if segment is not None:
+                self._gaps.move_to_end(gap)
+                return segment
+        return self._prepare(gap)
+
+    def _prepare_in_background(self, gap: int) -> None:
+        """Start preparing gap ``gap`` (the next one of an in-order visit) in a pool thread while
+        the current gap's in-betweens are solved: its keys and relatives are half of a gap's
+        serial work on large meshes. Not with a truncated metric (its recovery warns and keeps
+        one base shape) nor on small meshes."""
+        if (gap >= len(self) or gap in self._gaps or gap in self._pending or self.k_M is not None
+                or self._topo.n < CONCURRENT_VERTICES):
+            return
+        future = in_background(self._prepare, gap)
+        if future is not None:
+            self._pending[gap] = future
+
+    def _prepare(self, gap: int) -> _Gap:
+        """Build gap ``gap``'s data and cache it (the least recently used gap is let go first, so
+        that no more than GAP_CACHE gaps are held while it is built)."""
+        with self._cache_lock:
+            while len(self._gaps) >= GAP_CACHE:
+                self._gaps.popitem(last=False)
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
@@ -198,9 +230,8 @@ class SequenceInterpolator:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                        self._anchored, self._static)
-        self._gaps[gap] = segment
-        while len(self._gaps) > GAP_CACHE:
-            self._gaps.popitem(last=False)
+        with self._cache_lock:
+            self._gaps[gap] = segment
         return segment
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
@@ -227,7 +258,9 @@ class SequenceInterpolator:
                 out[k] = self._key(gap + int(s)).vertices
         if not between:
             return out
-        for k, (x, problem) in zip(between, gap_poses(self._gap(gap), [factors[k] for k in between])):
+        segment = self._gap(gap)
+        self._prepare_in_background(gap + 1)
+        for k, (x, problem) in zip(between, gap_poses(segment, [factors[k] for k in between])):
             out[k] = x
             if problem:
                 _warn(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
