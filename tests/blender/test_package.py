@@ -1,5 +1,5 @@
 """The built Linux zip installs and enables in the bpy module, and the extension then works with
-the SciPy from its own bundled wheels (the venv's copies are hidden)."""
+the SciPy, threadpoolctl and cholespy of its own bundled wheels (the venv's copies are hidden)."""
 
 import importlib.util
 import os
@@ -29,7 +29,7 @@ INSTALL_SCRIPT = """
 import importlib.machinery, os, sys
 import bpy
 
-BUNDLED = ("scipy", "threadpoolctl")
+BUNDLED = ("scipy", "threadpoolctl", "cholespy")
 
 class BundledOnly:
     '''Import the bundled packages only from the extension's own site-packages.'''
@@ -48,9 +48,10 @@ bpy.ops.extensions.package_install_files(filepath=ZIP, repo="user_default",
                                          enable_on_install=True)
 module = "bl_ext.user_default.shape_differences"
 assert module in sys.modules, "the extension did not enable"
-import scipy, threadpoolctl
+import scipy, threadpoolctl, cholespy
 print("SCIPY", scipy.__file__)
 print("THREADPOOLCTL", threadpoolctl.__file__)
+print("CHOLESPY", cholespy.__file__)
 
 bpy.ops.mesh.primitive_grid_add(x_subdivisions=8, y_subdivisions=8)
 obj = bpy.context.active_object
@@ -76,4 +77,5 @@ def test_linux_zip_installs_and_enables(tmp_path):
     assert result.returncode == 0, output
     assert f"SCIPY {user}" in result.stdout, output
     assert f"THREADPOOLCTL {user}" in result.stdout, output
+    assert f"CHOLESPY {user}" in result.stdout, output
     assert "'Frame 1', 'Frame 2', 'Inbetween Frame 1-Frame 2 0.50'" in result.stdout, output
