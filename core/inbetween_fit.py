@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import coordinate_cross, coordinate_dot
+from .geometry import coordinate_dot
 
 #: Local/global iterations after the Poisson solve, at most. They bring the edge lengths onto the
 #: interpolated metric where the interpolated rotations are not integrable (crumpling cloth); the
@@ -111,15 +111,19 @@ class LocalGlobalFit:
         # (GᵀG)^½ = (C + √det C · I) / √(tr C + 2 √det C) = [[a, b], [b, d]]; W = G · its inverse
         a, b, d = (c11 + root_det) / scale, c12 / scale, (c22 + root_det) / scale
         det = a * d - b * b
-        det = np.where(det > 0, det, 1.0)
-        w0 = (g0 * d - g1 * b) / det
-        w1 = (g1 * a - g0 * b) / det
-        out = w0[:, None, :] * targets["u"] + w1[:, None, :] * targets["v"]
+        inverse_det = 1.0 / np.where(det > 0, det, 1.0)
+        d, b, a = d * inverse_det, b * inverse_det, a * inverse_det  # per triangle before per coordinate
+        w0 = g0 * d - g1 * b
+        w1 = g1 * a - g0 * b
+        out = w0[:, None, :] * targets["u"]
+        out += w1[:, None, :] * targets["v"]
         if targets["frames"] is None:
             return out
-        f0, f1, f2 = targets["frames"]
-        normal = coordinate_cross(w0, w1)
-        trace = coordinate_dot(w0, f0) + coordinate_dot(w1, f1) + coordinate_dot(normal, f2)
+        f0, f1, _ = targets["frames"]
+        # trace of the turn from the interpolated rotation [f0, f1, f0×f1] to [w0, w1, w0×w1]; by
+        # Binet–Cauchy (w0×w1)·(f0×f1) = (w0·f0)(w1·f1) − (w0·f1)(w1·f0), no cross product needed
+        p, q = coordinate_dot(w0, f0), coordinate_dot(w1, f1)
+        trace = p + q + p * q - coordinate_dot(w0, f1) * coordinate_dot(w1, f0)
         far = ~(0.5 * (trace - 1.0) > np.cos(MAX_ROTATION_DEVIATION))
         if force is not None:
             far |= force
