@@ -1,8 +1,9 @@
 """Independent pieces of work in threads, one per available core.
 
-The in-betweens of a gap are independent computations whose time goes to NumPy array arithmetic
-and sparse products, which release Python's global lock, so two threads on two cores take less
-time than one piece after the other (numbers in docs/inbetweens.md). The threads are kept for the
+The in-betweens of a gap and the embedding's raced starts (:mod:`core.embedding`) are
+independent computations whose time goes to NumPy array arithmetic and sparse products, which
+release Python's global lock, so two threads on two cores take less time than one piece after the
+other (numbers in docs/inbetweens.md and docs/design-decisions.md). The threads are kept for the
 life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between);
 each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at once
 oversubscribe the cores). Every piece is computed as it would be alone: results depend on the

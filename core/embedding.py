@@ -22,12 +22,12 @@ and :attr:`EmbeddingResult.residual` reports how far from realizable the lengths
 
 from __future__ import annotations
 
-import os
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from .concurrency import concurrently
 from .edge_length_fit import (DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, INITIAL_DAMPING, EdgeLengthFit, Fit,
                               relative_residuals, rms)
 from .errors import RecoveryError, ShapeDifferenceWarning
@@ -228,7 +228,7 @@ def embed_thickening(
     # Several starts are raced: a short trial each, the lowest residual goes on to the end.
     budget = min(START_TRIAL_ITERATIONS, max_iterations) if len(starts) > 1 else max_iterations
     candidates = [_Start(start.name, prepared(start.points)) for start in starts]
-    trials = _concurrently(lambda start: problem.fit(start.points, budget), candidates)
+    trials = concurrently(lambda start: problem.fit(start.points, budget), candidates)
     best_start, best_trial = min(zip(candidates, trials), key=lambda pair: pair[1].residual)
     best = _Embedded(best_start, problem.resume(best_trial, max_iterations))
     if continuation_start is not None and best.fit.residual > CONTINUATION_RESIDUAL:
@@ -239,7 +239,7 @@ def embed_thickening(
             x = problem.continuation(prepared(continuation_start.copy()), fractions, steps)
             return problem.fit(x, max_iterations)
 
-        for trial in _concurrently(continued, CONTINUATION_SCHEDULES):
+        for trial in concurrently(continued, CONTINUATION_SCHEDULES):
             if trial.residual < best.fit.residual:
                 best = _Embedded(_Start("continuation", continuation_start), trial)
     fit = best.fit
@@ -275,20 +275,6 @@ def _warn_unconverged(x, edges, squared, iterations):
         ShapeDifferenceWarning,
         stacklevel=3,
     )
-
-
-def _concurrently(function, items) -> list:
-    """``[function(item) for item in items]``, in threads when there are several items and
-    cores. For independent Levenberg–Marquardt fits: their sparse products and NumPy array
-    arithmetic release the GIL. The results do not depend on it."""
-    items = list(items)
-    workers = min(len(items), os.cpu_count() or 1)
-    if workers < 2:
-        return [function(item) for item in items]
-    from concurrent.futures import ThreadPoolExecutor
-
-    with ThreadPoolExecutor(workers) as pool:
-        return list(pool.map(function, items))
 
 
 def embed_base_edges(

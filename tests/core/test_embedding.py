@@ -268,13 +268,14 @@ def test_reference_start_is_raced_against_the_hinge_frames():
 def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkeypatch):
     # The starts (hinge frames, reference pose) and the continuation schedules are fitted side
     # by side when there are two cores; the chosen fit must not depend on it, bit for bit.
+    import core.concurrency as concurrency
     import core.embedding as em
 
     v, f, target, surface, squared, reference = noisy_drape_with_flat_reference()
     monkeypatch.setattr(em, "CONTINUATION_RESIDUAL", 0.0)  # make the continuations run too
     results = []
     for cores in (2, 1):
-        monkeypatch.setattr(em.os, "cpu_count", lambda cores=cores: cores)
+        monkeypatch.setattr(concurrency, "available_cores", lambda cores=cores: cores)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             results.append(embed_thickening(surface, squared, reference_points=reference))
