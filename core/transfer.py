@@ -100,6 +100,16 @@ WARM_EMBEDDING_GROWTH = 1.5
 #: frame 40: 12.5 s (22 iterations) → 7.9 s (17), the same residual 0.0167 and pose (2.67 / 2.66 %);
 #: 1e-2 stopped on stagnation at residual 0.031, short of the fit.
 EMBEDDING_DAMPING = 1e-3
+#: These fits stop when an accepted Levenberg–Marquardt step lowers the misfit by less than this
+#: fraction (the same-mesh :data:`~core.edge_length_fit.STAGNATION` is 1e-3). Transferred lengths
+#: are not realizable (RMS relative residual 0.014 on the limb, 0.03 on cloth, against data
+#: accurate to the 1e-2 level): past that point the fit trades a fraction of a percent of misfit
+#: for moves along the directions the lengths barely constrain (bending of a sheet). 5k cloth
+#: frame 40 from the carried pose, Hausdorff / diagonal (cost): 4.18 % (90.6) after 8 steps,
+#: 4.55 % (87.8) after 11 (where this stops), 5.20 % (78.1) after 43 (where 1e-3 stopped), 5.96 %
+#: (74.6) after 150 and still falling — the least-squares optimum is no better a pose.
+EMBEDDING_STAGNATION = 1e-2
+WARM_EMBEDDING_STAGNATION = 1e-2
 
 
 class _TargetLayer:
@@ -246,6 +256,22 @@ class Transfer:
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
         self._last_embedding = None  # the last pose's EmbeddingResult
+        self._last_carried = None  # the last pose carried to the base (thickening points), finite
+        self._thickening_labels = None  # connected component of every thickening point
+
+    @property
+    def _fit_edges(self) -> np.ndarray:
+        """The edges ``(K, 2)`` the embedding fits: the canonical thickening's, or the base's."""
+        ref = self.reference
+        return ref.surface.thickening_edges if ref.use_extrinsic else ref.topology.edges
+
+    def _start_residual(self, metric, points) -> float:
+        """RMS relative length residual of embedding start ``points`` for ``metric``."""
+        from .edge_length_fit import relative_residuals, rms
+
+        ref = self.reference
+        squared = ref.thickening_squared_lengths(metric) if ref.use_extrinsic else metric.base.squared_lengths
+        return rms(relative_residuals(points, self._fit_edges, squared))
 
     @staticmethod
     def _warn_non_manifold(topology):
@@ -355,6 +381,8 @@ class Transfer:
         vertices, with its offset surface; by :meth:`~core.reference_shape.ReferenceShape.embed_result`'s
         race of starts where the carried pose has a collapsed triangle (no normal)."""
         ref, last = self.reference, self._last_embedding
+        thick = lambda x: ref.surface.thickening_points(x, ref.surface.positions(x, ref.offset))  # noqa: E731
+        carried_points = thick(carried) if ref.use_extrinsic else carried
 
         def from_carried():
             # As carried, and projected on the base's k_M functions (what the lengths resolve):
@@ -362,24 +390,41 @@ class Transfer:
             from .reference_shape import per_layer_threads
 
             basis = ref.base.basis(self.k_M).functions
-            starts = [carried, basis @ (basis.T @ (ref.base.mass @ carried))]
-            if ref.use_extrinsic:
-                starts = [ref.surface.thickening_points(s, ref.surface.positions(s, ref.offset)) for s in starts]
+            projected = basis @ (basis.T @ (ref.base.mass @ carried))
+            starts = [carried_points, thick(projected) if ref.use_extrinsic else projected]
             starts = [s for s in starts if np.isfinite(s).all()]
             if not starts:
                 return ref.embed_result(metric)
             fits = per_layer_threads([
-                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING) for s in starts
+                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING,
+                                           stagnation=EMBEDDING_STAGNATION) for s in starts
             ])
             return min(fits, key=lambda fit: fit.residual)
 
         if self.warm_start and last is not None:
-            result = ref.embed_result(metric, initial=last.points, initial_damping=EMBEDDING_DAMPING)
-            if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
-                other = from_carried()
-                result = other if other.residual < result.residual else result
+            start = last.points
+            if self._last_carried is not None and np.isfinite(carried_points).all():
+                # The previous embedding moved with the target: its offset from the carried pose
+                # (both rigidly aligned) added to this pose's carried one.
+                from .geometry import connected_components
+                from .rigid_alignment import align_components
+
+                if self._thickening_labels is None:
+                    self._thickening_labels = connected_components(start.shape[0], self._fit_edges)[1]
+                aligned = align_components(start, self._last_carried, self._thickening_labels)
+                start = carried_points + (aligned - self._last_carried)
+            limit = WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT)
+            if self._start_residual(metric, start) > limit:
+                result = from_carried()  # a jump: the previous pose is no start
+            else:
+                result = ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING,
+                                          stagnation=WARM_EMBEDDING_STAGNATION)
+                if result.residual > limit:
+                    other = from_carried()
+                    result = other if other.residual < result.residual else result
         else:
             result = from_carried()
+        self._last_carried = carried_points if np.isfinite(carried_points).all() else None
         self._last_embedding = result
         return result
 
