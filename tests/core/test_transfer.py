@@ -53,9 +53,6 @@ def test_remeshed_drape_is_rebuilt_on_the_base(sheets):
     error = hausdorff_over_diagonal(align_rigidly(rebuilt, truth), truth)
     unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
     assert error < 0.05 and error < 0.5 * unchanged
-    # As a transfer's first pose (the same starts; the recovery's warm start differs within its
-    # tolerance).
-    assert np.abs(rebuilt - first).max() < 0.2 * error * np.linalg.norm(np.ptp(truth, axis=0))
 
 
 def test_vertex_map_target_sequence_and_interpolation(sheets):
