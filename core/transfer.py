@@ -79,19 +79,18 @@ RECOVERY_RHO_SCALE = 100.0
 #: through the map (each base vertex at its image on the target), with its offset surface: that pose
 #: is within the map's error of the answer, so the fit lands in a basin near it, without the race of
 #: starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
-#: lowest residual was not always the right basin. Two such starts are fitted, the lower residual
-#: kept: the carried pose, and its projection on the base's k_M eigenfunctions (what the truncated
-#: lengths resolve). Hausdorff (residual) from one metric each: 5k limb frame 38, projected 2.39 %
-#: (0.0139) in 7.2 s, carried 2.41 % (0.0140) in 14 s, the race 7.46 % (0.0152, the base pose
-#: winning); 1k cloth frame 20, projected 3.65 % (0.0310), carried 6.24 % (0.0314: the target's finer
-#: folds held), the race 4.52 % (0.0306, a continuation) in 13 s; 5k cloth frame 41 (a crumpling
-#: sheet), projected 7.81 % (0.0320), carried 5.14 % (0.0311), the race at frame 40 15.09 %.
-#: With ``warm_start`` every later pose is fitted from the previous pose's embedding, cheaper on
-#: cloth, whose recovered lengths are further from realizable (5k cloth frame 41: 6.6 s, 5.31 %,
-#: against 31 s, 5.14 % from the carried pose; 5k limb frame 40: 7.5 s, 2.47 %, against 9.2 s,
-#: 2.66 %); when that fit's RMS relative length residual exceeds this factor × the previous pose's
-#: (a jump, a start in the wrong basin) the carried starts are fitted as well and the lowest
-#: residual kept.
+#: lowest residual was not always the right basin. Two such starts are fitted (in two threads), the
+#: lower residual kept: the carried pose, and its projection on the base's k_M eigenfunctions (what
+#: the truncated lengths resolve). Neither the start's residual nor a race of a few iterations
+#: picks the same one (re-meshed 1k drape, frame 20: the carried start 0.106 against 0.150, and
+#: lower after 3 iterations, but fitted 0.0319 / 5.61 % against the projection's 0.0317 / 2.85 %).
+#: With ``warm_start`` every later pose starts from the previous pose's embedding moved with the
+#: target (its offset from the previous carried pose, both rigidly aligned, added to this pose's
+#: carried one): 5k cloth frames 41 / 42 in 3 iterations, 4.27 / 4.18 %, where the previous
+#: embedding itself lagged (1k drape frame 23 after 20–22: 6.14 % against 4.67 %). When that
+#: start's RMS relative length residual, or its fit's, exceeds this factor × the previous fit's (a
+#: jump in the sequence: 1k drape frame 60 after 40, 0.064 against 0.027) the carried starts are
+#: fitted instead (the lowest residual kept).
 WARM_EMBEDDING_GROWTH = 1.5
 #: The first Levenberg–Marquardt damping of these fits (relative, see
 #: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
@@ -102,14 +101,13 @@ WARM_EMBEDDING_GROWTH = 1.5
 EMBEDDING_DAMPING = 1e-3
 #: These fits stop when an accepted Levenberg–Marquardt step lowers the misfit by less than this
 #: fraction (the same-mesh :data:`~core.edge_length_fit.STAGNATION` is 1e-3). Transferred lengths
-#: are not realizable (RMS relative residual 0.014 on the limb, 0.03 on cloth, against data
-#: accurate to the 1e-2 level): past that point the fit trades a fraction of a percent of misfit
-#: for moves along the directions the lengths barely constrain (bending of a sheet). 5k cloth
-#: frame 40 from the carried pose, Hausdorff / diagonal (cost): 4.18 % (90.6) after 8 steps,
-#: 4.55 % (87.8) after 11 (where this stops), 5.20 % (78.1) after 43 (where 1e-3 stopped), 5.96 %
-#: (74.6) after 150 and still falling — the least-squares optimum is no better a pose.
+#: are not realizable (RMS relative residual 0.014 on the limb, 0.03 on cloth; on the 5k cloth the
+#: simulated frame itself fits them at 0.14): past that point the fit trades a fraction of a
+#: percent of misfit for moves along the directions the lengths barely constrain (bending of a
+#: sheet), away from its start. 5k cloth frame 40 from the carried pose, Hausdorff / diagonal
+#: (cost): 4.18 % (90.6) after 8 steps, 4.55 % (87.8) after 11 (where this stops), 5.20 % (78.1)
+#: after 43 (where 1e-3 stopped), 5.96 % (74.6) after 150 and still falling.
 EMBEDDING_STAGNATION = 1e-2
-WARM_EMBEDDING_STAGNATION = 1e-2
 
 
 class _TargetLayer:
@@ -395,11 +393,13 @@ class Transfer:
         return ref.expand_pose(placed)
 
     def _embed(self, metric, carried):
-        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): fitted from
-        the previous pose's embedding when warm, and (first, or when that fit is much worse than
-        the previous pose's) from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's
-        vertices, with its offset surface; by :meth:`~core.reference_shape.ReferenceShape.embed_result`'s
-        race of starts where the carried pose has a collapsed triangle (no normal)."""
+        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): when warm,
+        fitted from the previous pose's embedding moved with the target; first, or after a jump,
+        from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's vertices, with its
+        offset surface, and its projection; by
+        :meth:`~core.reference_shape.ReferenceShape.embed_result`'s race of starts where the
+        carried pose has a collapsed triangle (no normal). Every fit stops at
+        :data:`EMBEDDING_STAGNATION`."""
         ref, last = self.reference, self._last_embedding
         thick = lambda x: ref.surface.thickening_points(x, ref.surface.positions(x, ref.offset))  # noqa: E731
         carried_points = thick(carried) if ref.use_extrinsic else carried
@@ -438,7 +438,7 @@ class Transfer:
                 result = from_carried()  # a jump: the previous pose is no start
             else:
                 result = ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING,
-                                          stagnation=WARM_EMBEDDING_STAGNATION)
+                                          stagnation=EMBEDDING_STAGNATION)
                 if result.residual > limit:
                     other = from_carried()
                     result = other if other.residual < result.residual else result
