@@ -113,7 +113,29 @@ def test_errors_in_the_users_terms(sheets):
         transfer.differences(target[:-1])
 
 
-def test_articulated_limb_sequence_is_rebuilt_and_warm_starts_do_not_change_it():
+@pytest.fixture(scope="module")
+def limb():
+    """A closed limb (benchmarks/limb_scenes.py) meshed twice independently (400 / 520 vertices)
+    and the vertex map of nearest vertices at rest: (base, base_tris, target, target_tris, map)."""
+    from benchmarks import limb_scenes
+
+    base, base_tris = limb_scenes.ring_capsule(400)
+    target, target_tris = limb_scenes.sampled_capsule(520, seed=1)
+    return base, base_tris, target, target_tris, core.transfer.closest_point_correspondence(base, target)
+
+
+def limb_errors(rebuilt, base, phase):
+    """(Hausdorff / diagonal of ``rebuilt`` and of the unchanged ``base`` to the limb's pose at
+    ``phase``, that pose's diagonal)."""
+    from benchmarks import limb_scenes
+
+    truth = limb_scenes.pose(base, phase)  # the same deformation of the base's rest vertices
+    error = hausdorff_over_diagonal(align_rigidly(rebuilt, truth), truth)
+    unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+    return error, unchanged, np.linalg.norm(np.ptp(truth, axis=0))
+
+
+def test_articulated_limb_sequence_is_rebuilt_and_warm_starts_do_not_change_it(limb):
     """A closed limb bent and twisted at two joints (benchmarks/limb_scenes.py), re-meshed
     independently, with a vertex map of nearest vertices at rest — like a re-meshed scan
     sequence. Each pose of the sequence is within the judged bounds, and the warm-started
@@ -121,22 +143,17 @@ def test_articulated_limb_sequence_is_rebuilt_and_warm_starts_do_not_change_it()
     transfer gives: the same programs, only their starts differ."""
     from benchmarks import limb_scenes
 
-    base, base_tris = limb_scenes.ring_capsule(400)
-    target, target_tris = limb_scenes.sampled_capsule(520, seed=1)
-    vertex_map = core.transfer.closest_point_correspondence(base, target)
+    base, base_tris, target, target_tris, vertex_map = limb
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
         warm = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=40, k_N=80)
         for phase in (0.6, 0.65, 0.7):
             posed = limb_scenes.pose(target, phase)
             rebuilt = warm.pose(posed)
-            truth = limb_scenes.pose(base, phase)  # the same deformation of the base's rest vertices
-            error = hausdorff_over_diagonal(align_rigidly(rebuilt, truth), truth)
-            unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+            error, unchanged, diagonal = limb_errors(rebuilt, base, phase)
             assert error < 0.05 and error < 0.5 * unchanged, phase
         cold = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=40, k_N=80,
                         warm_start=False).pose(posed)
-    diagonal = np.linalg.norm(np.ptp(truth, axis=0))
     # Both fit the same recovered metric and stop early (core.transfer.EMBEDDING_STAGNATION) from
     # different starts — the warm one from the previous pose moved with the target, the cold one
     # from the target carried through the map: they differ far less than either differs from the
@@ -144,15 +161,13 @@ def test_articulated_limb_sequence_is_rebuilt_and_warm_starts_do_not_change_it()
     assert np.abs(rebuilt - cold).max() < 0.2 * error * diagonal
 
 
-def test_a_jump_in_the_sequence_is_fitted_from_the_carried_target():
+def test_a_jump_in_the_sequence_is_fitted_from_the_carried_target(limb):
     """A warm transfer fed a pose far from the previous one (a jump, not the next frame) does not
     start from the previous pose: its embedding comes from the target carried through the map,
     and the pose is rebuilt within the judged bounds."""
     from benchmarks import limb_scenes
 
-    base, base_tris = limb_scenes.ring_capsule(400)
-    target, target_tris = limb_scenes.sampled_capsule(520, seed=1)
-    vertex_map = core.transfer.closest_point_correspondence(base, target)
+    base, base_tris, target, target_tris, vertex_map = limb
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
         transfer = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=40, k_N=80)
@@ -166,10 +181,8 @@ def test_a_jump_in_the_sequence_is_fitted_from_the_carried_target():
     # The start of the fit kept was one of the carried starts: its length residual is far above
     # the previous pose's (the criterion that skips the warm start).
     assert fitted.initial_residual > core.transfer.WARM_EMBEDDING_GROWTH * previous.residual
-    truth = limb_scenes.pose(base, 0.7)
-    error = hausdorff_over_diagonal(align_rigidly(rebuilt, truth), truth)
-    unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+    error, unchanged, diagonal = limb_errors(rebuilt, base, 0.7)
     assert error < 0.05 and error < 0.5 * unchanged
     # As a transfer's first pose (the same starts; the recovery's warm start differs within its
     # tolerance).
-    assert np.abs(rebuilt - first).max() < 0.2 * error * np.linalg.norm(np.ptp(truth, axis=0))
+    assert np.abs(rebuilt - first).max() < 0.2 * error * diagonal
