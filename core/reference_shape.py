@@ -73,11 +73,6 @@ class SurfaceLayer:
             self._truncated_solvers[basis.size] = solver
         return solver
 
-    def has_basis(self, k: int) -> bool:
-        """True if :meth:`basis` has ``k`` (or more) eigenpairs cached (safe to ask while another
-        thread computes one)."""
-        return any(size >= k for size in list(self._bases))
-
     def basis(self, k: int) -> LaplaceBasis:
         """The first ``k`` eigenpairs of this layer's reference pose (cached; a larger cached
         basis is truncated rather than recomputed)."""

@@ -122,16 +122,19 @@ class _TargetLayer:
         self._pushed = {}
         self._subspace = None  # (k_N, functions (n, p)) of the last pose, the next one's start
 
-    def basis(self, mass, conformal, k: int):
+    def basis(self, mass, conformal, k: int, start=None):
         """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
-        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
-        every later pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
+        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions,
+        or starts from ``start`` ``(n, p)`` when given (functions of a nearby surface); every later
+        pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
         pose's functions (:data:`SUBSPACE_ITERATIONS` to :data:`SUBSPACE_MAX_ITERATIONS`,
         :data:`WARM_RESIDUAL`) — a pose of the same
         mesh, whose eigenspaces move little (measured ARPACK at k = 200: 95 % of its time in its own
         re-orthogonalization)."""
         n = mass.shape[0]
         p = min(n - 1, int(np.ceil(SUBSPACE_MARGIN * k)))
+        if self._subspace is None and start is not None and start.shape == (n, p) and p > k:
+            self._subspace = (k, start)
         if self._subspace is None or self._subspace[0] != k or p <= k:
             full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
         else:
@@ -141,12 +144,14 @@ class _TargetLayer:
         self._subspace = (k, full.functions)
         return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
 
-    def differences(self, base_layer, positions, k_M, k_N):
+    def differences(self, base_layer, positions, k_M, k_N, start=None):
+        """Eq. (6) differences ``(area, conformal)`` of a pose ``positions`` of this layer on
+        ``base_layer``'s k_M functions (``start``: as for :meth:`basis`)."""
         from .shape_difference import map_differences
 
-        base_basis = base_layer.basis(k_M)  # first: the mesh layer's thread uses it (_prepare_edge_grams)
+        base_basis = base_layer.basis(k_M)
         _, _, mass, conformal = pose_products(self.assembler, positions)
-        target_basis = self.basis(mass, conformal, k_N)
+        target_basis = self.basis(mass, conformal, k_N, start)
         if k_M not in self._pushed:  # Q Φ_M depends on the base and the map only
             self._pushed = {k_M: np.asarray(self.push @ base_basis.functions)}
         fmap = functional_map(target_basis.functions, mass, self._pushed[k_M])
@@ -298,37 +303,67 @@ class Transfer:
         check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
         return positions
 
-    def _layer_differences(self, positions, *, after_mesh=None):
+    def _layer_differences(self, positions):
         """``[(area, conformal)]`` of eq. (6) per layer (mesh, offset surface) for a target pose of
-        used vertices ``(n_N_used, 3)``, uncorrected; ``after_mesh()`` runs in the mesh layer's
-        thread once its differences are done."""
+        used vertices ``(n_N_used, 3)``, uncorrected."""
         from .reference_shape import per_layer_threads
 
         ref = self.reference
-
-        def mesh_layer():
-            result = self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)
-            if after_mesh is not None:
-                after_mesh()
-            return result
-
-        calls = [mesh_layer]
+        calls = [lambda: self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)]
         if ref.use_extrinsic:
             offset_positions = self.target_surface.positions(positions, ref.offset)
             calls.append(lambda: self.layers[1].differences(ref.offset_layer, offset_positions, self.k_M, self.k_N))
         return per_layer_threads(calls)
 
-    def _prepare_edge_grams(self):
-        """The recovery's edge Gram factors (:meth:`~core.truncated_recovery.TruncatedRecovery.edge_gram`,
-        once per base and k_M), built during preparation in the mesh layer's thread, which
-        finishes long before the offset surface's (5k cloth: 6.8 s against 23.7 s, the target
-        offset surface's eigenbasis), instead of on the first pose (there 8.4 s for the offset
-        surface's, 2.2 s for the mesh's): the mesh's, and the offset surface's when its basis is
-        already there (the offset layer's thread computes it first); otherwise that one waits for
-        the first pose."""
-        for layer in (self.reference.base, self.reference.offset_layer):
-            if layer is not None and layer.has_basis(self.k_M):
-                layer.truncated_solver(layer.basis(self.k_M)).edge_gram()
+    def _rest_layer_differences(self, positions):
+        """:meth:`_layer_differences` of the first pose (the base's rest carried onto the target),
+        with the base-only edge Gram factors of the recovery
+        (:meth:`~core.truncated_recovery.TruncatedRecovery.edge_gram`) built on the way, and the
+        target offset surface's eigenbasis started from the target mesh's, lifted (each lifted
+        vertex takes its vertex's values, each face center the mean of its corners'): the offset
+        surface lies a fraction of an edge above the mesh, so its low eigenfunctions are nearly the
+        mesh's. 5k cloth (19,845 offset vertices, 300 functions, one thread): 4–5 s of subspace
+        iterations against 19.7 s of ARPACK, eigenvalues within 3e-5. The mesh layer's thread
+        computes the mesh's eigenbasis (ARPACK, 6 s) and the mesh's Gram factor (2.8 s); the
+        offset layer's computes the offset surface's Gram factor (10 s) while it waits for the
+        mesh's eigenbasis."""
+        import threading
+
+        from .reference_shape import per_layer_threads
+
+        ref = self.reference
+        if not ref.use_extrinsic:
+            result = self._layer_differences(positions)
+            ref.base.truncated_solver(ref.base.basis(self.k_M)).edge_gram()
+            return result
+        ready = threading.Event()
+
+        def mesh_layer():
+            try:
+                result = self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)
+            finally:
+                ready.set()  # also on failure: the offset layer must not wait forever
+            ref.base.truncated_solver(ref.base.basis(self.k_M)).edge_gram()
+            return result
+
+        def offset_layer():
+            layer = ref.offset_layer
+            layer.truncated_solver(layer.basis(self.k_M)).edge_gram()
+            offset_positions = self.target_surface.positions(positions, ref.offset)
+            ready.wait()
+            mesh = self.layers[0]._subspace
+            start = None if mesh is None else self._lifted(mesh[1])
+            return self.layers[1].differences(layer, offset_positions, self.k_M, self.k_N, start)
+
+        return per_layer_threads([mesh_layer, offset_layer])
+
+    def _lifted(self, functions) -> np.ndarray:
+        """Functions ``(n_N_used, p)`` on the target mesh carried to its offset surface's vertices
+        ``(n_Nt, p)``: a lifted vertex takes its vertex's values, a face center the mean of its
+        triangle's corners'."""
+        surface = self.target_surface
+        corners = surface.base.triangles[surface.centered_triangles]
+        return np.concatenate([functions[surface.lifted_vertices], functions[corners].mean(axis=1)])
 
     def _discretization_error(self):
         """What eq. (6) gets wrong only because the target is meshed differently: the differences
@@ -340,7 +375,7 @@ class Transfer:
         on_base = np.asarray(self.layers[0].push @ ref.base_positions)
         try:
             check_nondegenerate(on_base, self.layers[0].topology.triangles, name="target mesh laid on the base")
-            carried = self._layer_differences(on_base, after_mesh=self._prepare_edge_grams)
+            carried = self._rest_layer_differences(on_base)
         except MeshError as error:
             warnings.warn(
                 f"The target's connectivity could not be laid on the base surface through the map ({error}); "

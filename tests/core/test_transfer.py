@@ -186,3 +186,33 @@ def test_a_jump_in_the_sequence_is_fitted_from_the_carried_target(limb):
     # As a transfer's first pose (the same starts; the recovery's warm start differs within its
     # tolerance).
     assert np.abs(rebuilt - first).max() < 0.2 * error * diagonal
+
+
+def test_offset_surface_basis_of_the_carried_rest_starts_from_the_mesh_basis(sheets, monkeypatch):
+    """Preparation solves one eigenproblem from scratch (the target mesh's); the target offset
+    surface's eigenbasis starts from it, lifted, and agrees with a direct eigensolve of that
+    surface: the same eigenvalues (Rayleigh quotients) within the warm solver's residual test."""
+    import core.transfer as transfer_module
+    from core.inner_products import pose_products
+    from core.laplace_basis import laplace_basis
+
+    base, base_tris, target, target_tris = sheets
+    cold = []
+    monkeypatch.setattr(transfer_module, "laplace_basis",
+                        lambda *args, **kwargs: cold.append(kwargs.get("what")) or laplace_basis(*args, **kwargs))
+    k = 32
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        transfer = Transfer(base, base_tris, target, target_tris, k_M=16, k_N=k)
+    assert cold == ["target mesh"]
+    ref = transfer.reference
+    on_base = np.asarray(transfer.layers[0].push @ ref.base_positions)
+    _, _, mass, conformal = pose_products(transfer.layers[1].assembler,
+                                          transfer.target_surface.positions(on_base, ref.offset))
+    exact = laplace_basis(mass, conformal, k).eigenvalues
+    functions = transfer.layers[1]._subspace[1][:, :k]
+    quotients = np.einsum("ij,ij->j", functions, conformal @ functions) / np.einsum("ij,ij->j", functions,
+                                                                                   mass @ functions)
+    # A Ritz value is within its residual of an eigenvalue, which the warm solver bounds by
+    # WARM_RESIDUAL × λ_k (Bauer–Fike).
+    assert np.abs(quotients - exact).max() <= transfer_module.WARM_RESIDUAL * exact[-1]
