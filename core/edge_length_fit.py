@@ -80,7 +80,7 @@ class EdgeLengthFit:
     """Points ``(N, 3)`` to fit to the squared lengths ``squared`` ``(E,)`` of ``edges``
     ``(E, 2)``: ``free`` bool ``(N,)`` the points that move; ``anchor_points`` ``(N, 3)`` (NaN rows
     unanchored) with dimensionless ``anchor_weight``; ``length_scale`` the mean edge length;
-    the fit stops at RMS relative residual ``tolerance``; ``initial_damping`` as in
+    the fit stops at RMS relative residual ``tolerance``; ``initial_damping`` and ``stagnation`` as in
     :func:`levenberg_marquardt`."""
 
     edges: np.ndarray
@@ -91,6 +91,7 @@ class EdgeLengthFit:
     length_scale: float
     tolerance: float
     initial_damping: float = INITIAL_DAMPING
+    stagnation: float = STAGNATION
 
     def residual(self, x: np.ndarray) -> float:
         """RMS relative length residual of points ``x`` ``(N, 3)``."""
@@ -126,7 +127,7 @@ class EdgeLengthFit:
         return levenberg_marquardt(
             x0, self.edges, self.squared, self.free, anchor_points=self.anchor_points,
             anchor_weight=self.anchor_weight, length_scale=self.length_scale, tolerance=self.tolerance,
-            max_iterations=max_iterations, initial_damping=self.initial_damping,
+            max_iterations=max_iterations, initial_damping=self.initial_damping, stagnation=self.stagnation,
         )
 
 
@@ -150,7 +151,7 @@ def _block_jacobi(edges_i, edges_j, g, nf, extra_diag):
 
 def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_weight=0.0, length_scale=1.0,
                          tolerance=REFINE_TOLERANCE, max_iterations=DEFAULT_MAX_ITERATIONS, cg_iterations=CG_ITERATIONS,
-                         initial_damping=INITIAL_DAMPING):
+                         initial_damping=INITIAL_DAMPING, stagnation=STAGNATION):
     """Minimize ``Σ_e r_e² + (w / h²) Σ_v |x_v − a_v|²`` with ``r_e = (|x_i − x_j|² − ℓ²_e)/(2ℓ²_e)``.
 
     ``x0`` ``(N, 3)``; ``free`` bool ``(N,)`` points that move (the others stay); ``anchor_points``
@@ -158,7 +159,8 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
     Each step solves ``(JᵀJ + µI + A) δ = −g`` by block-Jacobi preconditioned CG (an inexact
     Newton step: a sparse factorization per step costs far more). ``initial_damping``: the first
     µ relative to the mean diagonal of ``JᵀJ`` (a start far from the fit takes fewer rejected
-    steps with a larger one). Returns ``(x, iterations, converged)``.
+    steps with a larger one); ``stagnation``: stop when an accepted step lowers the cost by less than
+    this fraction (:data:`STAGNATION`). Returns ``(x, iterations, converged)``.
     """
     from scipy.sparse import bsr_matrix, coo_matrix
 
@@ -256,7 +258,7 @@ def levenberg_marquardt(x0, edges, squared, free, *, anchor_points=None, anchor_
         if not accepted:
             converged = True  # no descent possible: a (local) minimum to working precision
             break
-        if improvement <= STAGNATION * old_cost or np.abs(step).max() <= STEP_FLOOR * length_scale:
+        if improvement <= stagnation * old_cost or np.abs(step).max() <= STEP_FLOOR * length_scale:
             converged = True
             break
     return x, iterations, converged

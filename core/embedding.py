@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .concurrency import concurrently
-from .edge_length_fit import (DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, INITIAL_DAMPING, EdgeLengthFit, Fit,
-                              relative_residuals, rms)
+from .edge_length_fit import (DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, INITIAL_DAMPING, STAGNATION, EdgeLengthFit,
+                              Fit, relative_residuals, rms)
 from .errors import RecoveryError, ShapeDifferenceWarning
 from .geometry import connected_components
 from .hinge_frames import hinge_frame_embedding
@@ -144,6 +144,7 @@ def embed_thickening(
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     continuation: bool = True,
     initial_damping: float = INITIAL_DAMPING,
+    stagnation: float = STAGNATION,
 ) -> EmbeddingResult:
     """Positions of the canonical thickening (§5.3) realizing ``squared_lengths`` (§7.3).
 
@@ -170,7 +171,8 @@ def embed_thickening(
       (:data:`~core.edge_length_fit.DEFAULT_TOLERANCE`: the hinge frames on exact data are at
       ~1e-12, far below it);
       ``max_iterations``: cap on Levenberg–Marquardt iterations; ``initial_damping``: its first
-      damping (:func:`~core.edge_length_fit.levenberg_marquardt`).
+      damping, ``stagnation``: the relative cost decrease below which it stops
+      (:func:`~core.edge_length_fit.levenberg_marquardt`).
 
     Each connected component is embedded independently (its placement relative to the others is
     unknowable). Loose base vertices (no edge) are returned at the anchor, else the initial point,
@@ -189,7 +191,7 @@ def embed_thickening(
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
 
     problem = EdgeLengthFit(edges, squared, has_edge, anchor_points, anchor_weight, length_scale, tolerance,
-                            initial_damping)
+                            initial_damping, stagnation)
 
     fallback = np.zeros((n_points, 3))
     continuation_start = None
@@ -286,6 +288,7 @@ def embed_base_edges(
     tolerance: float = DEFAULT_TOLERANCE,
     max_iterations: int = DEFAULT_MAX_ITERATIONS,
     initial_damping: float = INITIAL_DAMPING,
+    stagnation: float = STAGNATION,
 ) -> EmbeddingResult:
     """Intrinsic-only embedding (no offset layer): vertex positions ``(n, 3)`` whose edge lengths
     fit ``squared_lengths`` ``(E,)`` (for ``topology.edges``) in least squares, by
@@ -293,7 +296,7 @@ def embed_base_edges(
 
     Edge lengths alone do not determine the extrinsic shape (isometric bending, popping of
     vertices): the result is the fit nearest the start, not necessarily the original pose.
-    ``anchor`` and ``initial_damping`` as in :func:`embed_thickening`. Loose vertices stay at their initial positions.
+    ``anchor``, ``initial_damping`` and ``stagnation`` as in :func:`embed_thickening`. Loose vertices stay at their initial positions.
     """
     squared = _check_lengths(squared_lengths, topology.n_edges, "embed_base_edges")
     x0 = np.array(initial_vertices, dtype=np.float64)
@@ -305,7 +308,7 @@ def embed_base_edges(
     free[edges.ravel()] = True
     length_scale = float(np.mean(np.sqrt(squared))) if squared.size else 1.0
     problem = EdgeLengthFit(edges, squared, free, anchor_points, anchor_weight, length_scale, tolerance,
-                            initial_damping)
+                            initial_damping, stagnation)
     fit = problem.fit(x0, max_iterations)
     if not fit.converged:
         _warn_unconverged(fit.points, edges, squared, fit.iterations)

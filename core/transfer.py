@@ -79,19 +79,18 @@ RECOVERY_RHO_SCALE = 100.0
 #: through the map (each base vertex at its image on the target), with its offset surface: that pose
 #: is within the map's error of the answer, so the fit lands in a basin near it, without the race of
 #: starts and continuations from the base pose (:func:`~core.embedding.embed_thickening`), whose
-#: lowest residual was not always the right basin. Two such starts are fitted, the lower residual
-#: kept: the carried pose, and its projection on the base's k_M eigenfunctions (what the truncated
-#: lengths resolve). Hausdorff (residual) from one metric each: 5k limb frame 38, projected 2.39 %
-#: (0.0139) in 7.2 s, carried 2.41 % (0.0140) in 14 s, the race 7.46 % (0.0152, the base pose
-#: winning); 1k cloth frame 20, projected 3.65 % (0.0310), carried 6.24 % (0.0314: the target's finer
-#: folds held), the race 4.52 % (0.0306, a continuation) in 13 s; 5k cloth frame 41 (a crumpling
-#: sheet), projected 7.81 % (0.0320), carried 5.14 % (0.0311), the race at frame 40 15.09 %.
-#: With ``warm_start`` every later pose is fitted from the previous pose's embedding, cheaper on
-#: cloth, whose recovered lengths are further from realizable (5k cloth frame 41: 6.6 s, 5.31 %,
-#: against 31 s, 5.14 % from the carried pose; 5k limb frame 40: 7.5 s, 2.47 %, against 9.2 s,
-#: 2.66 %); when that fit's RMS relative length residual exceeds this factor × the previous pose's
-#: (a jump, a start in the wrong basin) the carried starts are fitted as well and the lowest
-#: residual kept.
+#: lowest residual was not always the right basin. Two such starts are fitted (in two threads), the
+#: lower residual kept: the carried pose, and its projection on the base's k_M eigenfunctions (what
+#: the truncated lengths resolve). Neither the start's residual nor a race of a few iterations
+#: picks the same one (re-meshed 1k drape, frame 20: the carried start 0.106 against 0.150, and
+#: lower after 3 iterations, but fitted 0.0319 / 5.61 % against the projection's 0.0317 / 2.85 %).
+#: With ``warm_start`` every later pose starts from the previous pose's embedding moved with the
+#: target (its offset from the previous carried pose, both rigidly aligned, added to this pose's
+#: carried one): 5k cloth frames 41 / 42 in 3 iterations, 4.27 / 4.18 %, where the previous
+#: embedding itself lagged (1k drape frame 23 after 20–22: 6.14 % against 4.67 %). When that
+#: start's RMS relative length residual, or its fit's, exceeds this factor × the previous fit's (a
+#: jump in the sequence: 1k drape frame 60 after 40, 0.064 against 0.027) the carried starts are
+#: fitted instead (the lowest residual kept).
 WARM_EMBEDDING_GROWTH = 1.5
 #: The first Levenberg–Marquardt damping of these fits (relative, see
 #: :func:`~core.edge_length_fit.levenberg_marquardt`; the same-mesh default 1e-6 suits starts at
@@ -100,6 +99,15 @@ WARM_EMBEDDING_GROWTH = 1.5
 #: frame 40: 12.5 s (22 iterations) → 7.9 s (17), the same residual 0.0167 and pose (2.67 / 2.66 %);
 #: 1e-2 stopped on stagnation at residual 0.031, short of the fit.
 EMBEDDING_DAMPING = 1e-3
+#: These fits stop when an accepted Levenberg–Marquardt step lowers the misfit by less than this
+#: fraction (the same-mesh :data:`~core.edge_length_fit.STAGNATION` is 1e-3). Transferred lengths
+#: are not realizable (RMS relative residual 0.014 on the limb, 0.03 on cloth; on the 5k cloth the
+#: simulated frame itself fits them at 0.14): past that point the fit trades a fraction of a
+#: percent of misfit for moves along the directions the lengths barely constrain (bending of a
+#: sheet), away from its start. 5k cloth frame 40 from the carried pose, Hausdorff / diagonal
+#: (cost): 4.18 % (90.6) after 8 steps, 4.55 % (87.8) after 11 (where this stops), 5.20 % (78.1)
+#: after 43 (where 1e-3 stopped), 5.96 % (74.6) after 150 and still falling.
+EMBEDDING_STAGNATION = 1e-2
 
 
 class _TargetLayer:
@@ -114,16 +122,19 @@ class _TargetLayer:
         self._pushed = {}
         self._subspace = None  # (k_N, functions (n, p)) of the last pose, the next one's start
 
-    def basis(self, mass, conformal, k: int):
+    def basis(self, mass, conformal, k: int, start=None):
         """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
-        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions;
-        every later pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
+        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions,
+        or starts from ``start`` ``(n, p)`` when given (functions of a nearby surface); every later
+        pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
         pose's functions (:data:`SUBSPACE_ITERATIONS` to :data:`SUBSPACE_MAX_ITERATIONS`,
         :data:`WARM_RESIDUAL`) — a pose of the same
         mesh, whose eigenspaces move little (measured ARPACK at k = 200: 95 % of its time in its own
         re-orthogonalization)."""
         n = mass.shape[0]
         p = min(n - 1, int(np.ceil(SUBSPACE_MARGIN * k)))
+        if self._subspace is None and start is not None and start.shape == (n, p) and p > k:
+            self._subspace = (k, start)
         if self._subspace is None or self._subspace[0] != k or p <= k:
             full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
         else:
@@ -133,12 +144,14 @@ class _TargetLayer:
         self._subspace = (k, full.functions)
         return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
 
-    def differences(self, base_layer, positions, k_M, k_N):
+    def differences(self, base_layer, positions, k_M, k_N, start=None):
+        """Eq. (6) differences ``(area, conformal)`` of a pose ``positions`` of this layer on
+        ``base_layer``'s k_M functions (``start``: as for :meth:`basis`)."""
         from .shape_difference import map_differences
 
-        _, _, mass, conformal = pose_products(self.assembler, positions)
-        target_basis = self.basis(mass, conformal, k_N)
         base_basis = base_layer.basis(k_M)
+        _, _, mass, conformal = pose_products(self.assembler, positions)
+        target_basis = self.basis(mass, conformal, k_N, start)
         if k_M not in self._pushed:  # Q Φ_M depends on the base and the map only
             self._pushed = {k_M: np.asarray(self.push @ base_basis.functions)}
         fmap = functional_map(target_basis.functions, mass, self._pushed[k_M])
@@ -246,6 +259,22 @@ class Transfer:
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
         self._last_embedding = None  # the last pose's EmbeddingResult
+        self._last_carried = None  # the last pose carried to the base (thickening points), finite
+        self._thickening_labels = None  # connected component of every thickening point
+
+    @property
+    def _fit_edges(self) -> np.ndarray:
+        """The edges ``(K, 2)`` the embedding fits: the canonical thickening's, or the base's."""
+        ref = self.reference
+        return ref.surface.thickening_edges if ref.use_extrinsic else ref.topology.edges
+
+    def _start_residual(self, metric, points) -> float:
+        """RMS relative length residual of embedding start ``points`` for ``metric``."""
+        from .edge_length_fit import relative_residuals, rms
+
+        ref = self.reference
+        squared = ref.thickening_squared_lengths(metric) if ref.use_extrinsic else metric.base.squared_lengths
+        return rms(relative_residuals(points, self._fit_edges, squared))
 
     @staticmethod
     def _warn_non_manifold(topology):
@@ -286,6 +315,56 @@ class Transfer:
             calls.append(lambda: self.layers[1].differences(ref.offset_layer, offset_positions, self.k_M, self.k_N))
         return per_layer_threads(calls)
 
+    def _rest_layer_differences(self, positions):
+        """:meth:`_layer_differences` of the first pose (the base's rest carried onto the target),
+        with the base-only edge Gram factors of the recovery
+        (:meth:`~core.truncated_recovery.TruncatedRecovery.edge_gram`) built on the way, and the
+        target offset surface's eigenbasis started from the target mesh's, lifted (each lifted
+        vertex takes its vertex's values, each face center the mean of its corners'): the offset
+        surface lies a fraction of an edge above the mesh, so its low eigenfunctions are nearly the
+        mesh's. 5k cloth (19,845 offset vertices, 300 functions, one thread): 4–5 s of subspace
+        iterations against 19.7 s of ARPACK, eigenvalues within 3e-5. The mesh layer's thread
+        computes the mesh's eigenbasis (ARPACK, 6 s) and the mesh's Gram factor (2.8 s); the
+        offset layer's computes the offset surface's Gram factor (10 s) while it waits for the
+        mesh's eigenbasis."""
+        import threading
+
+        from .reference_shape import per_layer_threads
+
+        ref = self.reference
+        if not ref.use_extrinsic:
+            result = self._layer_differences(positions)
+            ref.base.truncated_solver(ref.base.basis(self.k_M)).edge_gram()
+            return result
+        ready = threading.Event()
+
+        def mesh_layer():
+            try:
+                result = self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)
+            finally:
+                ready.set()  # also on failure: the offset layer must not wait forever
+            ref.base.truncated_solver(ref.base.basis(self.k_M)).edge_gram()
+            return result
+
+        def offset_layer():
+            layer = ref.offset_layer
+            layer.truncated_solver(layer.basis(self.k_M)).edge_gram()
+            offset_positions = self.target_surface.positions(positions, ref.offset)
+            ready.wait()
+            mesh = self.layers[0]._subspace
+            start = None if mesh is None else self._lifted(mesh[1])
+            return self.layers[1].differences(layer, offset_positions, self.k_M, self.k_N, start)
+
+        return per_layer_threads([mesh_layer, offset_layer])
+
+    def _lifted(self, functions) -> np.ndarray:
+        """Functions ``(n_N_used, p)`` on the target mesh carried to its offset surface's vertices
+        ``(n_Nt, p)``: a lifted vertex takes its vertex's values, a face center the mean of its
+        triangle's corners'."""
+        surface = self.target_surface
+        corners = surface.base.triangles[surface.centered_triangles]
+        return np.concatenate([functions[surface.lifted_vertices], functions[corners].mean(axis=1)])
+
     def _discretization_error(self):
         """What eq. (6) gets wrong only because the target is meshed differently: the differences
         of the base's own rest pose carried onto the target's connectivity (each target vertex
@@ -296,7 +375,7 @@ class Transfer:
         on_base = np.asarray(self.layers[0].push @ ref.base_positions)
         try:
             check_nondegenerate(on_base, self.layers[0].topology.triangles, name="target mesh laid on the base")
-            carried = self._layer_differences(on_base)
+            carried = self._rest_layer_differences(on_base)
         except MeshError as error:
             warnings.warn(
                 f"The target's connectivity could not be laid on the base surface through the map ({error}); "
@@ -349,12 +428,16 @@ class Transfer:
         return ref.expand_pose(placed)
 
     def _embed(self, metric, carried):
-        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): fitted from
-        the previous pose's embedding when warm, and (first, or when that fit is much worse than
-        the previous pose's) from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's
-        vertices, with its offset surface; by :meth:`~core.reference_shape.ReferenceShape.embed_result`'s
-        race of starts where the carried pose has a collapsed triangle (no normal)."""
+        """The embedding (§7.3) of a recovered metric (:data:`WARM_EMBEDDING_GROWTH`): when warm,
+        fitted from the previous pose's embedding moved with the target; first, or after a jump,
+        from ``carried`` ``(n_M_used, 3)``, the target pose carried to the base's vertices, with its
+        offset surface, and its projection; by
+        :meth:`~core.reference_shape.ReferenceShape.embed_result`'s race of starts where the
+        carried pose has a collapsed triangle (no normal). Every fit stops at
+        :data:`EMBEDDING_STAGNATION`."""
         ref, last = self.reference, self._last_embedding
+        thick = lambda x: ref.surface.thickening_points(x, ref.surface.positions(x, ref.offset))  # noqa: E731
+        carried_points = thick(carried) if ref.use_extrinsic else carried
 
         def from_carried():
             # As carried, and projected on the base's k_M functions (what the lengths resolve):
@@ -362,24 +445,41 @@ class Transfer:
             from .reference_shape import per_layer_threads
 
             basis = ref.base.basis(self.k_M).functions
-            starts = [carried, basis @ (basis.T @ (ref.base.mass @ carried))]
-            if ref.use_extrinsic:
-                starts = [ref.surface.thickening_points(s, ref.surface.positions(s, ref.offset)) for s in starts]
+            projected = basis @ (basis.T @ (ref.base.mass @ carried))
+            starts = [carried_points, thick(projected) if ref.use_extrinsic else projected]
             starts = [s for s in starts if np.isfinite(s).all()]
             if not starts:
                 return ref.embed_result(metric)
             fits = per_layer_threads([
-                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING) for s in starts
+                lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING,
+                                           stagnation=EMBEDDING_STAGNATION) for s in starts
             ])
             return min(fits, key=lambda fit: fit.residual)
 
         if self.warm_start and last is not None:
-            result = ref.embed_result(metric, initial=last.points, initial_damping=EMBEDDING_DAMPING)
-            if result.residual > WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT):
-                other = from_carried()
-                result = other if other.residual < result.residual else result
+            start = last.points
+            if self._last_carried is not None and np.isfinite(carried_points).all():
+                # The previous embedding moved with the target: its offset from the carried pose
+                # (both rigidly aligned) added to this pose's carried one.
+                from .geometry import connected_components
+                from .rigid_alignment import align_components
+
+                if self._thickening_labels is None:
+                    self._thickening_labels = connected_components(start.shape[0], self._fit_edges)[1]
+                aligned = align_components(start, self._last_carried, self._thickening_labels)
+                start = carried_points + (aligned - self._last_carried)
+            limit = WARM_EMBEDDING_GROWTH * max(last.residual, FRAMES_NEARLY_EXACT)
+            if self._start_residual(metric, start) > limit:
+                result = from_carried()  # a jump: the previous pose is no start
+            else:
+                result = ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING,
+                                          stagnation=EMBEDDING_STAGNATION)
+                if result.residual > limit:
+                    other = from_carried()
+                    result = other if other.residual < result.residual else result
         else:
             result = from_carried()
+        self._last_carried = carried_points if np.isfinite(carried_points).all() else None
         self._last_embedding = result
         return result
 

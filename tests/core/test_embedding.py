@@ -283,6 +283,23 @@ def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkey
     assert np.array_equal(results[0].points, results[1].points)
 
 
+
+def test_a_larger_stagnation_stops_the_same_fit_earlier():
+    # Unrealizable lengths (1e-2 noise) from a start away from the fit: Levenberg–Marquardt's
+    # trajectory does not depend on the stagnation threshold, only where it stops, so a looser
+    # one (the transfer's) stops at an earlier iterate of the same fit: no more iterations, no
+    # lower residual, and still far below the start's.
+    v, f = grid(12)
+    target = drape(v, 2.0)
+    surface, squared, points = thickening_lengths(v, f, target, noise=1e-2)
+    start = points + 0.05 * np.random.default_rng(1).normal(size=points.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tight, loose = (embed_thickening(surface, squared, initial_points=start, initial_damping=1e-3,
+                                         stagnation=s) for s in (1e-4, 1e-2))
+    assert loose.iterations < tight.iterations
+    assert tight.residual <= loose.residual < 0.5 * loose.initial_residual
+
 def test_an_unconverged_fit_warns_once():
     v, f, target, surface, squared, reference = noisy_drape_with_flat_reference()
     with warnings.catch_warnings(record=True) as caught:
