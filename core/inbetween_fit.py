@@ -147,7 +147,7 @@ class LocalGlobalFit:
         and no longer improving (:data:`STALL_FRACTION`); ``targets``: ``fit_targets(frames,
         stretch)`` if the caller has them."""
         targets = self.fit_targets(frames, stretch) if targets is None else targets
-        steps, images, misfits = [], [], []
+        misfits, previous, step_changes, image_changes = [], None, [], []
         for _ in range(iterations):
             edges = self.edges_of(x)
             misfits.append(self.misfit(edges, targets))
@@ -162,12 +162,19 @@ class LocalGlobalFit:
             step = np.max(np.abs(residual))
             if not np.isfinite(step) or step < ARAP_TOLERANCE * self.mean_edge:
                 return image
-            steps.append(residual.ravel())
-            images.append(image.ravel())
-            if len(steps) > 1:
-                df_ = np.diff(np.array(steps[-ANDERSON_WINDOW - 1:]), axis=0).T
-                dg = np.diff(np.array(images[-ANDERSON_WINDOW - 1:]), axis=0).T
-                gamma = np.linalg.lstsq(df_, steps[-1], rcond=None)[0]
-                image = (images[-1] - dg @ gamma).reshape(-1, 3)
+            current = (residual.ravel(), image.ravel())
+            if previous is not None:
+                # the last ANDERSON_WINDOW changes of step and image, and the mixing weights by
+                # least squares through their k × k normal equations (a pseudo-inverse drops
+                # nearly parallel changes): no (3n, k) matrices formed
+                step_changes = (step_changes + [current[0] - previous[0]])[-ANDERSON_WINDOW:]
+                image_changes = (image_changes + [current[1] - previous[1]])[-ANDERSON_WINDOW:]
+                gram = np.array([[a @ b for b in step_changes] for a in step_changes])
+                gamma = np.linalg.lstsq(gram, np.array([a @ current[0] for a in step_changes]), rcond=None)[0]
+                mixed = current[1].copy()
+                for weight, change in zip(gamma, image_changes):
+                    mixed -= weight * change
+                image = mixed.reshape(-1, 3)
+            previous = current
             x = image
         return x
