@@ -37,7 +37,7 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
     if not worth_it or len(items) < 2 or available_cores() < 2 or getattr(_worker, "inside", False):
         return [function(item) for item in items]
     pool = _shared_pool()
-    with _single_threaded_blas():
+    with single_threaded_blas():
         futures = [pool.submit(_in_worker, function, item) for item in items]
         return [future.result() for future in futures]
 
@@ -65,7 +65,7 @@ def _shared_pool():
         return _pool
 
 
-def _single_threaded_blas():
+def single_threaded_blas():
     """A context limiting BLAS to one thread (a no-op without threadpoolctl)."""
     try:
         from threadpoolctl import threadpool_limits

@@ -128,20 +128,19 @@ def per_layer_threads(calls, *, parallel: bool = True) -> list:
     call, each with a single-threaded BLAS (their work is BLAS, LAPACK and sparse products, which
     release the GIL; faster than one layer after the other with a multithreaded BLAS, and far
     faster on a busy machine, see docs/design-decisions.md). Sequential without threadpoolctl or
-    a second core, or unless ``parallel``."""
-    import os
+    a second core, or unless ``parallel``. Threads of its own, not the shared pool of
+    :mod:`core.concurrency`: each layer's embedding still races its starts there."""
+    import importlib.util
 
-    parallel = parallel and len(calls) > 1 and (os.cpu_count() or 1) > 1
-    if parallel:
-        try:
-            from threadpoolctl import threadpool_limits
-        except ImportError:
-            parallel = False
+    from .concurrency import available_cores, single_threaded_blas
+
+    parallel = (parallel and len(calls) > 1 and available_cores() > 1
+                and importlib.util.find_spec("threadpoolctl") is not None)
     if not parallel:
         return [call() for call in calls]
     from concurrent.futures import ThreadPoolExecutor
 
-    with threadpool_limits(limits=1, user_api="blas"), ThreadPoolExecutor(len(calls)) as pool:
+    with single_threaded_blas(), ThreadPoolExecutor(len(calls)) as pool:
         futures = [pool.submit(call) for call in calls]
         return [future.result() for future in futures]
 

@@ -26,11 +26,11 @@ tolerance (1e-6) instead of at round-off.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .concurrency import single_threaded_blas
 from .errors import MeshError
 
 #: The four kinds of shape difference, in the order the paper plots them.
@@ -142,14 +142,6 @@ def pose_differences(layer, positions: np.ndarray, k_M: int, k_N: int | None):
     return functional_map_differences(base_basis, LaplaceBasis(basis.eigenvalues[:cut], basis.functions[:, :cut]), mass)
 
 
-def _single_threaded_blas():
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
-
-
 def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None):
     """:func:`shape_space` as a generator yielding progress in ``[0, 1]`` after each pose; its
     return value (``StopIteration.value``, or ``yield from``) is the :class:`ShapeSpace`."""
@@ -171,7 +163,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
         raise MeshError(f"k_N (target basis, {k_N}) must be at least k_M (base basis, {k_M}).")
     reference = ReferenceShape(poses[0], triangles, offset=offset)
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
-    with _single_threaded_blas():
+    with single_threaded_blas():
         for index, pose in enumerate(poses):
             compact = reference.compact_pose(pose, name=f"pose {index}")
             layers = [(reference.base, compact, KINDS[:2]),
