@@ -17,6 +17,11 @@ if TYPE_CHECKING:
     from .inbetween_solver import _Topology
 
 
+#: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
+#: deformation (rotation residuals, stretches).
+KINEMATIC = ("screw", "vertices", "world", "centroids")
+
+
 class _Key:
     """Per-key data: positions, the corner edges' lengths (m, 3), their tangent coordinates
     stored by coordinate (2, 3 corners, m; ``coordinates``: the same as a (m, 3, 2) view), the
@@ -114,12 +119,19 @@ class _Relative:
         return self
 
     @staticmethod
-    def phantom(previous: "_Relative", current: "_Relative") -> "_Relative":
-        """Linear extrapolation 2·current − previous (end condition of the spline)."""
+    def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
+        """The key one step beyond ``current`` (end condition of the spline): the linear
+        extrapolation 2·current − previous, or with ``farther`` (the key before ``previous``) for
+        the motion (:data:`KINEMATIC`) the parabola through the three, 3·current − 3·previous +
+        farther."""
         self = _Relative.__new__(_Relative)
         for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
-            setattr(self, name, 2 * getattr(current, name) - getattr(previous, name))
+            c, p = getattr(current, name), getattr(previous, name)
+            quadratic = farther is not None and name in KINEMATIC
+            setattr(self, name, 3 * (c - p) + getattr(farther, name) if quadratic else 2 * c - p)
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
+        if farther is not None:
+            self.nonrigidity = np.maximum(self.nonrigidity, farther.nonrigidity)
         return self
 
 

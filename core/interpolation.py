@@ -224,12 +224,15 @@ class SequenceInterpolator:
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw[:, :3]
-            prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident)
-            after = ahead[1].unwrap(2 * turn) if gap + 2 <= last else _Relative.phantom(ident, nxt)
+            after = ahead[1].unwrap(2 * turn) if gap + 2 <= last else None
+            # the sequence's start: the parabola through the first three keys, its tangent at
+            # most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
+            prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident, after)
+            after = after if after is not None else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static)
+                       self._anchored, self._static, start=gap == 0)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

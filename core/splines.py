@@ -15,6 +15,12 @@ import numpy as np
 #: Catmull–Rom tangents overshoot into the gap after such a stop. The numbers behind the value
 #: are in docs/inbetweens.md.
 TANGENT_LIMIT = 3.0
+#: The first gap of a sequence has no key before it: its start tangent is that of the parabola
+#: through the first three keys (exact for motion at constant acceleration, such as cloth falling
+#: from rest at the start of a bake; the linear end condition gives it the whole gap's velocity at
+#: once), at most the gap's secant per element: where the motion stops at the second key (an
+#: impact) the parabola's tangent exceeds the secant and overshoots, the secant does not.
+START_TANGENT_LIMIT = 1.0
 
 
 class HermiteGap:
@@ -25,10 +31,11 @@ class HermiteGap:
     ``cubic=False``: linear in the two keys (``before``/``after`` are ignored).
 
     ``values``: ``(before, start, end, after)`` at key times −1, 0, 1, 2, arrays of one shape.
-    ``rows=True`` limits the length of each row (points in space) instead of each element.
+    ``rows=True`` limits the length of each row (points in space) instead of each element;
+    ``limit``: the multiple of the secant (:data:`START_TANGENT_LIMIT` for a sequence's first gap).
     """
 
-    def __init__(self, values, cubic: bool, rows: bool = False):
+    def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -36,11 +43,11 @@ class HermiteGap:
         if cubic:
             t0 = 0.5 * (end - before)
             if rows:  # positions: limit each row's length (rotation invariant, keeps C¹ per point)
-                limit = TANGENT_LIMIT * np.linalg.norm(self.secant, axis=-1, keepdims=True)
+                limit = limit * np.linalg.norm(self.secant, axis=-1, keepdims=True)
                 length = np.linalg.norm(t0, axis=-1, keepdims=True)
                 self.t0 = t0 * np.minimum(1.0, limit / np.maximum(length, np.finfo(float).tiny))
             else:
-                limit = TANGENT_LIMIT * np.abs(self.secant)
+                limit = limit * np.abs(self.secant)
                 self.t0 = np.clip(t0, -limit, limit)
             self.t1 = 0.5 * (after - start)
 
