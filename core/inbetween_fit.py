@@ -41,6 +41,8 @@ KEY_VARIATION_FRACTION = 0.5
 #: the pose while their misfit barely moves).
 STALL_FRACTION = 0.01
 STALL_NEAR = 3.0
+#: ... and wherever it is, when its misfit fell by less than FLAT_FRACTION over the last two steps.
+FLAT_FRACTION = 1e-3
 #: Stop the iterations early when no vertex moved by more than this fraction of the mean edge.
 ARAP_TOLERANCE = 1e-5
 #: Largest angle between a triangle's fitted rotation and its interpolated one (radians); beyond
@@ -154,8 +156,8 @@ class LocalGlobalFit:
             if misfits[-1] < self.tolerance:
                 break
             if len(misfits) > 2 and misfits[-1] > (1.0 - STALL_FRACTION) * misfits[-3] \
-                    and misfits[-1] < STALL_NEAR * self.tolerance:
-                break  # stalled near the tolerance: the metric is not reachable from here
+                    and (misfits[-1] < STALL_NEAR * self.tolerance or misfits[-1] > (1.0 - FLAT_FRACTION) * misfits[-3]):
+                break  # stalled near the tolerance, or anywhere without progress: not reachable from here
             image = self.solve(self.fitted_edges(edges, targets, force), guide, system)
             image = image if system is not None else self.place(image, s, motion)
             residual = image - x
