@@ -182,6 +182,21 @@ def test_sequence_beats_blend_on_accelerating_fall(strip):
         assert np.linalg.norm(ours - truth) < ratio * np.linalg.norm(blend - truth)
 
 
+def test_fall_from_rest_is_exact_from_the_first_gap(strip):
+    """A sheet dropped from rest, p(t) = p₀ + ½·a·t²: the sequence's first gap starts on the
+    parabola through the first three keys, so every in-between of it is exact (as the interior
+    gaps are with Catmull–Rom tangents), where the linear end condition starts at the first gap's
+    mean velocity (off by a·s(1 − s)²/2 at factor s)."""
+    flat, tri = strip
+    acceleration = np.array([0.1, -0.2, -1.0])
+    keys = [flat + 0.5 * acceleration * t * t for t in range(5)]
+    seq = SequenceInterpolator(keys, tri)
+    for gap in range(len(seq) - 1):  # the last gap ends on a linear extrapolation
+        for s in (0.25, 0.5, 0.75):
+            truth = flat + 0.5 * acceleration * (gap + s) ** 2
+            np.testing.assert_allclose(seq.pose(gap, s), truth, atol=1e-9)
+
+
 def test_no_nan_or_flip_on_unrealizable_targets():
     flat, tri = grid(15, 15, size=1.0)
     rng = np.random.default_rng(3)
