@@ -56,7 +56,10 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: Catmull–Rom spline's RMS; hanging sheet 1.009 → 0.939). Where it does not (keys 16 apart, turns:
 #: hanging sheet at g = 16, edge deviation 0.47 → 0.74 % with 3e-2 everywhere, bound 0.47), or
 #: where it keeps them worse than the blend (an impact at a key: the spline overshoots; 50k sheet,
-#: g = 4: 0.963 → 0.973 × without that condition), the gap keeps SEQUENCE_ANCHOR_WEIGHT.
+#: g = 4: 0.963 → 0.973 × without that condition), the gap keeps SEQUENCE_ANCHOR_WEIGHT. So does
+#: a gap whose keys differ by a rigid motion (up to RIGID_PLACEMENT_SCALE, a sheet falling flat):
+#: the fields reproduce it whatever the anchor, and the stronger one would cost a second
+#: factorization (~1 s at 100k vertices) for nothing.
 SMOOTH_ANCHOR_WEIGHT = 3e-2
 SMOOTH_SPLINE_STRAIN = 0.01
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
@@ -165,7 +168,7 @@ class _Gap(LocalGlobalFit):
         self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
         self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
-        if not anchored:
+        if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
             strain = self.mid_gap_strain(spline["world"].at(0.5))
             blend = self.mid_gap_strain(0.5 * (base.vertices + nxt.vertices))
             if strain < SMOOTH_SPLINE_STRAIN and strain <= blend + METRIC_TOLERANCE:
