@@ -407,6 +407,27 @@ def test_truncated_sequence_prepares_each_key_once(monkeypatch, strip):
     assert len(built) == len(seq) and not any(reference.use_extrinsic for reference in built)
 
 
+def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
+    """Gap k reads keys k − 1 … k + 2: visited in order, every key's frames are built once."""
+    import core.inbetween_keys as keys_module
+    import core.interpolation as interpolation
+
+    built = []
+
+    class Counting(keys_module._Key):
+        def __init__(self, topo, vertices):
+            super().__init__(topo, vertices)
+            built.append(self)
+
+    monkeypatch.setattr(interpolation, "_Key", Counting)
+    flat, tri = strip
+    keys = [_bend(flat, 0.3 * k) + np.array([0.0, 0.0, -0.1 * k * k]) for k in range(7)]
+    seq = SequenceInterpolator(keys, tri)
+    for gap in range(len(seq)):
+        seq.poses(gap, [0.25, 0.5, 0.75])
+    assert len(built) == len(keys)
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
