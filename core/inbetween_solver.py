@@ -52,15 +52,17 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: than SMOOTH_SPLINE_STRAIN (mean relative deviation) and by no more than the linear blend's (up
 #: to METRIC_TOLERANCE: where the cloth barely moves both are ~1e-4 and their order is noise). A
 #: spline that keeps the cloth's lengths there is right at short wavelengths too, and a stronger
-#: pull costs no edge deviation (flag pinned at its pole, keys 4 frames apart: 1.054 → 0.889 × the
-#: Catmull–Rom spline's RMS; hanging sheet 1.009 → 0.939). Where it does not (keys 16 apart, turns:
-#: hanging sheet at g = 16, edge deviation 0.47 → 0.74 % with 3e-2 everywhere, bound 0.47), or
-#: where it keeps them worse than the blend (an impact at a key: the spline overshoots; 50k sheet,
-#: g = 4: 0.963 → 0.973 × without that condition), the gap keeps SEQUENCE_ANCHOR_WEIGHT. So does
-#: a gap whose keys differ by a rigid motion (up to RIGID_PLACEMENT_SCALE, a sheet falling flat):
-#: the fields reproduce it whatever the anchor, and the stronger one would cost a second
-#: factorization (~1 s at 100k vertices) for nothing.
-SMOOTH_ANCHOR_WEIGHT = 3e-2
+#: pull costs no edge deviation (keys 4 frames apart, RMS ÷ the Catmull–Rom spline's: flag pinned
+#: at its pole 1.054 → 0.846, hanging sheet 1.009 → 0.936, falling sheet 0.964 → 0.875 with the
+#: start parabola). Baked for a check, a soft 6,400-vertex flag: 1.035 / 0.999 / 0.988 at 3e-2 /
+#: 0.1 / 0.3, a 10k sheet hanging from two corners 0.911 / 0.935 / 0.949.
+#: Where it does not (keys 16 apart, turns: hanging sheet at g = 16, edge deviation 0.47 → 0.74 %
+#: with 3e-2 everywhere, bound 0.47), or where it keeps them worse than the blend (an impact at a
+#: key: the spline overshoots; 50k sheet, g = 4: 0.963 → 0.973 × without that condition), the gap
+#: keeps SEQUENCE_ANCHOR_WEIGHT. So does a gap whose keys differ by a rigid motion (up to
+#: RIGID_PLACEMENT_SCALE, a sheet falling flat): the fields reproduce it whatever the anchor, and
+#: the stronger one would cost a second factorization (~1 s at 100k vertices) for nothing.
+SMOOTH_ANCHOR_WEIGHT = 0.1
 SMOOTH_SPLINE_STRAIN = 0.01
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
