@@ -428,6 +428,30 @@ def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
     assert len(built) == len(keys)
 
 
+def test_rigidly_moving_sequence_factorizes_once(monkeypatch, strip):
+    """Keys that differ by rigid motions (a sheet falling and turning without deforming) keep the
+    default spline anchor, as the gaps where the sheet bends fast do: one factorization for the
+    whole sequence."""
+    import core.inbetween_solver as solver
+
+    built = []
+
+    class Counting(solver.SPDFactor):
+        def __init__(self, matrix):
+            super().__init__(matrix)
+            built.append(self)
+
+    monkeypatch.setattr(solver, "SPDFactor", Counting)
+    flat, tri = strip
+    turns = Rotation.from_rotvec(np.outer(np.arange(5), [0.0, 0.3, 0.1])).as_matrix()
+    keys = [flat @ r.T + np.array([0.0, 0.0, -0.2 * k * k]) for k, r in enumerate(turns)]
+    keys += [_bend(keys[-1], angle) for angle in (1.5, 3.0)]
+    seq = SequenceInterpolator(keys, tri)
+    for gap in range(len(seq)):
+        seq.poses(gap, [0.25, 0.5, 0.75])
+    assert len(built) == 1
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
