@@ -47,22 +47,26 @@ STATIC_ANCHOR_WEIGHT = 1e3
 #: its pole: 1.09–1.27 × the RMS of the per-vertex Catmull–Rom spline; with it 0.96–1.11);
 #: numbers for other weights in docs/inbetweens.md.
 SEQUENCE_ANCHOR_WEIGHT = 1e-2
-#: ... and with the stronger SMOOTH_ANCHOR_WEIGHT in a gap where the motion is smooth: at the
-#: middle of the gap that spline's corner edge lengths deviate from the keys' mean lengths by less
-#: than SMOOTH_SPLINE_STRAIN (mean relative deviation) and by no more than the linear blend's (up
-#: to METRIC_TOLERANCE: where the cloth barely moves both are ~1e-4 and their order is noise). A
-#: spline that keeps the cloth's lengths there is right at short wavelengths too, and a stronger
-#: pull costs no edge deviation (keys 4 frames apart, RMS ÷ the Catmull–Rom spline's: flag pinned
-#: at its pole 1.054 → 0.846, hanging sheet 1.009 → 0.936, falling sheet 0.964 → 0.875 with the
-#: start parabola). Baked for a check, a soft 6,400-vertex flag: 1.035 / 0.999 / 0.988 at 3e-2 /
-#: 0.1 / 0.3, a 10k sheet hanging from two corners 0.911 / 0.935 / 0.949.
-#: Where it does not (keys 16 apart, turns: hanging sheet at g = 16, edge deviation 0.47 → 0.74 %
-#: with 3e-2 everywhere, bound 0.47), or where it keeps them worse than the blend (an impact at a
-#: key: the spline overshoots; 50k sheet, g = 4: 0.963 → 0.973 × without that condition), the gap
-#: keeps SEQUENCE_ANCHOR_WEIGHT. So does a gap whose keys differ by a rigid motion (up to
-#: RIGID_PLACEMENT_SCALE, a sheet falling flat): the fields reproduce it whatever the anchor, and
-#: the stronger one would cost a second factorization (~1 s at 100k vertices) for nothing.
+#: ... and with a stronger one in a gap where the motion is smooth: at the middle of the gap that
+#: spline's corner edge lengths deviate from the keys' mean lengths by less than
+#: SMOOTH_SPLINE_STRAIN (mean relative deviation) and by no more than the linear blend's (up to
+#: METRIC_TOLERANCE: where the cloth barely moves both are ~1e-4 and their order is noise). A
+#: spline that keeps the cloth's lengths is right at short wavelengths too: SMOOTH_ANCHOR_WEIGHT
+#: where its deviation is within the fit's own tolerance of the metric (the pull then costs no more
+#: edge length than the fit allows), SMOOTH_NEAR_ANCHOR_WEIGHT elsewhere under
+#: SMOOTH_SPLINE_STRAIN (an isometric bend whose last gap's spline deviates by 0.39 %: 0.1 there
+#: gave 0.25 % edge deviation, 3e-2 0.14 %). Keys 4 frames apart, RMS ÷ the Catmull–Rom
+#: spline's: flag pinned at its pole 1.054 → 0.889, hanging sheet 1.009 → 0.936, falling sheet
+#: 0.964 → 0.933 (with the start parabola); baked for a check, a soft 6,400-vertex flag 1.035 (3e-2
+#: everywhere) → 0.999 (0.1 everywhere). Where the spline does not keep the lengths (keys 16
+#: apart, turns: hanging sheet at g = 16, edge deviation 0.47 → 0.74 % with 3e-2 everywhere, bound
+#: 0.47), or keeps them worse than the blend (an impact at a key: the spline overshoots; 50k
+#: sheet, g = 4: 0.963 → 0.973 × without that condition), the gap keeps SEQUENCE_ANCHOR_WEIGHT.
+#: So does a gap whose keys differ by a rigid motion (up to RIGID_PLACEMENT_SCALE, a sheet falling
+#: flat): the fields reproduce it whatever the anchor, and a stronger one would cost a second
+#: factorization (~1 s at 100k vertices) for nothing.
 SMOOTH_ANCHOR_WEIGHT = 0.1
+SMOOTH_NEAR_ANCHOR_WEIGHT = 3e-2
 SMOOTH_SPLINE_STRAIN = 0.01
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
@@ -169,18 +173,18 @@ class _Gap(LocalGlobalFit):
         self.anchored = anchored
         self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
-        self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
-        if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
-            strain = self.mid_gap_strain(spline["world"].at(0.5))
-            blend = self.mid_gap_strain(0.5 * (base.vertices + nxt.vertices))
-            if strain < SMOOTH_SPLINE_STRAIN and strain <= blend + METRIC_TOLERANCE:
-                self.anchor_weight = SMOOTH_ANCHOR_WEIGHT
-        self.select(0.5)
-        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
-        self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         self.mean_edge = float(np.mean(base.lengths))
         variation = float(np.mean(np.abs(nxt.lengths / base.lengths - 1.0)))
         self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
+        self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
+        if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
+            strain = self.mid_gap_strain(spline["world"].at(0.5))
+            if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(0.5 * (base.vertices + nxt.vertices)) \
+                    + METRIC_TOLERANCE:
+                self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
+        self.select(0.5)
+        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
+        self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         self.repair = Repair(self)
 
     def select(self, s: float) -> None:
