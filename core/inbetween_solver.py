@@ -120,6 +120,7 @@ class _Topology:
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
+        self._incidences: dict = {}
 
     def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None) -> SPDFactor:
         """The factor of the symmetric positive definite ``DᵀD + diag(w · mass)`` for per-vertex
@@ -134,6 +135,16 @@ class _Topology:
         if cache is not None:
             self._uniform[cache] = lu
         return lu
+
+    def incidence(self, dtype=np.float64) -> sp.csr_matrix:
+        """``Dc`` with its ±1 entries in ``dtype`` (the index arrays shared)."""
+        if dtype == np.float64:
+            return self.Dc
+        cached = self._incidences.get(np.dtype(dtype))
+        if cached is None:
+            cached = self._incidences[np.dtype(dtype)] = sp.csr_matrix(
+                (self.Dc.data.astype(dtype), self.Dc.indices, self.Dc.indptr), shape=self.Dc.shape)
+        return cached
 
     def centroid(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
         w = self.weights[rows]
