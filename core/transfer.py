@@ -27,6 +27,7 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from .delaunay_flips import MAX_DIHEDRAL_DEGREES, delaunay_flips
 from .embedding import FRAMES_NEARLY_EXACT
 from .errors import MeshError, ShapeDifferenceWarning
 from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, functional_map,
@@ -220,9 +221,12 @@ class Transfer:
         if self._welded is not None:
             kept = self._welded[kept]
             kept = kept[(kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])]
-        flat = self._degenerate_at_rest(rest, kept)
-        if flat.size or self._welded is not None:  # slivers of a decimation: no area, no part of the surface
-            topology = mesh_topology(np.delete(kept, flat, axis=0), self.n_target, allow_non_manifold=True)
+        flat = self._degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
+        # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
+        # target's eigenbasis needs its surface, not its triangles.
+        kept = delaunay_flips(rest, np.delete(kept, flat, axis=0), max_dihedral_degrees=MAX_DIHEDRAL_DEGREES)
+        if not np.array_equal(kept, topology.triangles):
+            topology = mesh_topology(kept, self.n_target, allow_non_manifold=True)
         self._warn_non_manifold(topology)
         # Target vertices in no triangle are left out (compact numbering, as for the base).
         self.target_used = topology.used_vertices
