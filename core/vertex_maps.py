@@ -86,7 +86,8 @@ def vertex_map_indices(values, n_target: int, *, one_based: bool, what: str = "t
 
 
 def template_correspondence(base_vts, target_vts, n_base: int, n_target: int | None = None, *,
-                            one_based: bool = True) -> np.ndarray:
+                            one_based: bool = True,
+                            names: tuple[str, str] = ("the base's template map", "the target's template map")) -> np.ndarray:
     """The correspondence base → target composed from two template maps.
 
     ``base_vts`` / ``target_vts`` int ``(T,)``: for each of the ``T`` template vertices, its
@@ -94,9 +95,10 @@ def template_correspondence(base_vts, target_vts, n_base: int, n_target: int | N
     1-based as ``.vts`` files store them (``one_based=False`` for 0-based). Returns int64
     ``(n_base,)``: for each base vertex the target vertex of the template vertex landing on it,
     or :data:`~core.functional_map.UNMATCHED` (-1) where none does (where several do, the first).
-    Raises :class:`MeshError` naming what is wrong (lengths, an index out of range)."""
-    base = vertex_map_indices(base_vts, int(n_base), one_based=one_based, what="the base's template map")
-    target_values = _indices(target_vts, "the target's template map")
+    Raises :class:`MeshError` naming what is wrong (lengths, an index out of range), calling the
+    two maps by ``names``."""
+    base = vertex_map_indices(base_vts, int(n_base), one_based=one_based, what=names[0])
+    target_values = _indices(target_vts, names[1])
     if base.shape != target_values.shape:
         raise MeshError(
             f"The two template maps have different lengths ({base.size} and {target_values.size} entries): both must "
@@ -106,12 +108,11 @@ def template_correspondence(base_vts, target_vts, n_base: int, n_target: int | N
         target = target_values - 1 if one_based else target_values
         if target.size and target.min() < 0:
             raise MeshError(
-                f"Entry {int(np.argmin(target))} of the target's template map is {int(target_values.min())}: "
+                f"Entry {int(np.argmin(target))} of {names[1]} is {int(target_values.min())}: "
                 f"{'1-based indices start at 1 (the map looks 0-based)' if one_based else 'indices are never negative'}."
             )
     else:
-        target = vertex_map_indices(target_values, int(n_target), one_based=one_based,
-                                    what="the target's template map")
+        target = vertex_map_indices(target_values, int(n_target), one_based=one_based, what=names[1])
     correspondence = np.full(int(n_base), UNMATCHED, dtype=np.int64)
     landed, first = np.unique(base, return_index=True)  # the first template vertex on each base vertex
     correspondence[landed] = target[first]
