@@ -99,10 +99,10 @@ def hostile(vertices, triangles, seed: int, holes: int = 3, seam: int = 12, stra
     # Holes: the fans of a few interior vertices far from each other removed.
     centers = []
     for i in rng.permutation(interior):
+        if len(centers) >= holes:
+            break
         if all(np.linalg.norm(v[i] - v[c]) > 0.2 * np.ptp(v, axis=0).max() for c in centers):
             centers.append(i)
-        if len(centers) == holes:
-            break
     t = t[~np.isin(t, centers).any(axis=1)]
     # A seam: a chain of interior edges (a shortest path between two interior vertices) whose
     # vertices are duplicated; the triangles on one side of the chain use the copies.
