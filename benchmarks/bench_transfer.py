@@ -17,7 +17,8 @@ rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with 
   own simulated pose, eq. 6 with the identity map) timed in the same run.
 
     python -m benchmarks.bench_transfer [--scene drape|drape5k|limb|limb5k] [--frames 20,40,60] [--third]
-                                        [--same-mesh all|first|none]
+                                        [--same-mesh all|first|none] [--target sampled|decimated|hostile]
+                                        [--map nearest|template] [--matched 0.7]
     python -m benchmarks.bench_transfer --picture docs/images/transfer_cloth.png
     python -m benchmarks.bench_transfer --scene limb --frames 10,20,30,40 --picture docs/images/transfer_limb.png
 
@@ -43,7 +44,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import core  # noqa: E402
-from benchmarks import cloth_scenes, limb_scenes  # noqa: E402
+from benchmarks import cloth_scenes, limb_scenes, remeshed_targets  # noqa: E402
 from core.functional_map import closest_point_correspondence  # noqa: E402
 from core.rigid_alignment import rigid_alignment  # noqa: E402
 
@@ -74,11 +75,8 @@ def load(spec) -> cloth_scenes.ClothScene:
     return cloth_scenes.ClothScene(spec.name, frames, triangles, seconds)
 
 
-def remesh(scene, density: float, seed: int):
-    """A Delaunay triangulation of ``density × n`` jittered points of the flat rest sheet and the
-    simulated frames sampled at its vertices: (frames (F, n', 3), triangles (m', 3))."""
-    from scipy.spatial import Delaunay
-
+def sheet_plane(scene):
+    """2-D coordinates ``(n, 2)`` of the flat rest sheet (axes along its sides) and their bounds."""
     rest = scene.rest
     origin = rest.mean(axis=0)
     nx = cloth_scenes_grid_width(scene)
@@ -87,9 +85,17 @@ def remesh(scene, density: float, seed: int):
     first /= np.linalg.norm(first)
     second -= first * (second @ first)
     second /= np.linalg.norm(second)
-    plane = (rest - origin) @ np.stack([first, second]).T  # 2-D coordinates, axes along the sheet's sides
-    lo, hi = plane.min(0), plane.max(0)
-    side = int(round(np.sqrt(density * len(rest))))
+    plane = (rest - origin) @ np.stack([first, second]).T
+    return plane, plane.min(0), plane.max(0)
+
+
+def remesh(scene, density: float, seed: int):
+    """A Delaunay triangulation of ``density × n`` jittered points of the flat rest sheet and the
+    simulated frames sampled at its vertices: (frames (F, n', 3), triangles (m', 3))."""
+    from scipy.spatial import Delaunay
+
+    plane, lo, hi = sheet_plane(scene)
+    side = int(round(np.sqrt(density * len(plane))))
     u, v = np.meshgrid(np.linspace(0, 1, side), np.linspace(0, 1, side))
     rng = np.random.default_rng(seed)
     interior = (u > 0) & (u < 1) & (v > 0) & (v < 1)
@@ -97,6 +103,27 @@ def remesh(scene, density: float, seed: int):
     v = v + interior * rng.uniform(-0.35, 0.35, v.shape) / (side - 1)
     points = lo + np.stack([u.ravel(), v.ravel()], axis=1) * (hi - lo)
     triangles = Delaunay(points).simplices.astype(np.int64)
+    return sample_sheet(scene, plane, points, triangles)
+
+
+def decimated_sheet(scene, density: float, seed: int):
+    """Like :func:`remesh`, but the points are 4 × denser on one side of the sheet than on the
+    other and the triangulation is then subdivided and simplified by quadric edge collapse to
+    ``density × n`` vertices (``benchmarks/remeshed_targets.py``)."""
+    plane, lo, hi = sheet_plane(scene)
+    points, triangles = remeshed_targets.varying_density_sheet(lo, hi, int(1.5 * density * len(plane)), seed)
+    flat, triangles = remeshed_targets.decimated(np.column_stack([points, np.zeros(len(points))]), triangles,
+                                                 int(density * len(plane)))
+    return sample_sheet(scene, plane, flat[:, :2], triangles)
+
+
+def sample_sheet(scene, plane, points, triangles):
+    """The simulated frames sampled at ``points`` ``(n', 2)`` of the rest sheet's ``plane``
+    coordinates (each point carried by its barycentric coordinates in the simulated triangle it
+    lies in), and ``triangles`` oriented as the simulated mesh: (frames (F, n', 3), triangles)."""
+    from scipy.spatial import cKDTree
+
+    triangles = np.asarray(triangles, dtype=np.int64).copy()
     # Counter-clockwise as the simulated mesh (its normals give the offset side).
     sim_tris = scene.triangles
     p = plane[sim_tris]
@@ -107,8 +134,6 @@ def remesh(scene, density: float, seed: int):
     # Barycentric coordinates of every new point in the simulated triangle containing it (the
     # least outside among the 8 with the nearest centroids).
     centers = plane[sim_tris].mean(axis=1)
-    from scipy.spatial import cKDTree
-
     _, nearest = cKDTree(centers).query(points, k=8)
     best_tri, best_w, best_out = np.zeros(len(points), int), np.zeros((len(points), 3)), np.full(len(points), np.inf)
     for j in range(nearest.shape[1]):
@@ -153,32 +178,80 @@ def aligned(pose, target, correspondence):
     return pose @ rotation.T + translation
 
 
-def prepare(scene_name: str, third: bool):
+def prepare(scene_name: str, third: bool, target: str = "sampled"):
+    """(scene, base frames, base triangles, target frames, target triangles). ``target``:
+    ``sampled`` (the simulated surface or the limb sampled at an independent Delaunay-like
+    triangulation), ``decimated`` (subdivided, then quadric edge collapse; on the sheet from
+    points of varying density) or ``hostile`` (decimated, with holes, a tiny floating component,
+    a seam of duplicated vertices and unreferenced vertices: ``benchmarks/remeshed_targets.py``)."""
     if scene_name in LIMBS:
         if third:
             raise SystemExit("--third applies to the cloth scenes only")
-        return (None, *limb_scenes.limb_scene(LIMBS[scene_name]))
-    spec, density, third_density = SCENES[scene_name]
-    scene = load(spec)
-    target_frames, target_tris = remesh(scene, density, seed=1)
-    if third:
-        base_frames, base_tris = remesh(scene, third_density, seed=2)
+        n = LIMBS[scene_name]
+        scene = None
+        base_frames, base_tris, target_frames, target_tris = limb_scenes.limb_scene(n)
+        if target != "sampled":
+            dense, dense_tris = limb_scenes.sampled_capsule(3 * n, seed=4)
+            rest, target_tris = remeshed_targets.decimated(dense, dense_tris, int(1.3 * n))
+            phases = np.linspace(0.0, 1.0, len(base_frames))
+            target_frames = np.stack([limb_scenes.pose(rest, p) for p in phases])
     else:
-        base_frames, base_tris = scene.frames, scene.triangles
+        spec, density, third_density = SCENES[scene_name]
+        scene = load(spec)
+        if target == "sampled":
+            target_frames, target_tris = remesh(scene, density, seed=1)
+        else:
+            target_frames, target_tris = decimated_sheet(scene, density, seed=1)
+        if third:
+            base_frames, base_tris = remesh(scene, third_density, seed=2)
+        else:
+            base_frames, base_tris = scene.frames, scene.triangles
+    if target == "hostile":
+        _, target_tris, source = remeshed_targets.hostile(target_frames[0], target_tris, seed=5)
+        target_frames = np.stack([remeshed_targets.hostile_pose(f, source, target_frames[0]) for f in target_frames])
     return scene, base_frames, base_tris, target_frames, target_tris
 
 
-def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh="all", log=print):
-    scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third)
+def template_rest(scene_name: str, scene, base_frames):
+    """A third mesh's rest pose (the template of ``.vts``-style maps): an independent sampling of
+    the same surface with as many vertices as the base."""
+    if scene_name in LIMBS:
+        return limb_scenes.sampled_capsule(len(base_frames[0]), seed=7)[0]
+    return remesh(scene, 1.0, seed=3)[0][0]
+
+
+def correspondence(scene_name, scene, base, target_rest, how: str, matched: float, log):
+    """The map given to the transfer: ``nearest`` (the nearest target vertex of each base vertex
+    at rest) or ``template`` (two ``.vts``-style maps of a third mesh, composed); then only a
+    random ``matched`` fraction of its entries kept (the others -1, unmatched)."""
+    if how == "template":
+        base_vts, target_vts = remeshed_targets.template_maps(template_rest(scene_name, scene, [base]), base,
+                                                              target_rest)
+        vertex_map = core.template_correspondence(base_vts, target_vts, len(base), len(target_rest))
+    else:
+        vertex_map = closest_point_correspondence(base, target_rest)
+    if matched < 1.0:
+        rng = np.random.default_rng(11)
+        vertex_map = vertex_map.copy()
+        vertex_map[rng.random(len(base)) >= matched] = -1
+    log(f"map: {how}, {100 * np.mean(vertex_map >= 0):.1f} % of the base vertices matched")
+    return vertex_map
+
+
+def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh="all", target="sampled",
+        map_kind="nearest", matched=1.0, log=print):
+    scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third, target)
     base, target_rest = base_frames[0], target_frames[0]
-    vertex_map = closest_point_correspondence(base, target_rest)
+    vertex_map = closest_point_correspondence(base, target_rest)  # to align the results for the errors
+    given_map = correspondence(scene_name, scene, base, target_rest, map_kind, matched, log)
     log(f"{scene_name}{' (third triangulation)' if third else ''}: base {len(base)} vertices, target "
-        f"{len(target_rest)} vertices, k_M = {k_m}, k_N = {k_n}")
+        f"{len(target_rest)} vertices ({target}), k_M = {k_m}, k_N = {k_n}")
     rows = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", core.ShapeDifferenceWarning)
         t0 = time.perf_counter()
-        transfer = core.Transfer(base, base_tris, target_rest, target_tris, correspondence=vertex_map, k_M=k_m, k_N=k_n)
+        transfer = core.Transfer(base, base_tris, target_rest, target_tris, correspondence=given_map, k_M=k_m,
+                                 k_N=k_n)
         prep = time.perf_counter() - t0
         for f in frames:
             target = target_frames[f]
@@ -253,10 +326,16 @@ def main(argv=None):
     parser.add_argument("--third", action="store_true", help="base = a third triangulation, not the sim mesh")
     parser.add_argument("--same-mesh", choices=["all", "first", "none"], default="all",
                         help="frames that also get the same-mesh reference reconstruction (timed)")
+    parser.add_argument("--target", choices=["sampled", "decimated", "hostile"], default="sampled",
+                        help="how the target is re-meshed (benchmarks/remeshed_targets.py)")
+    parser.add_argument("--map", choices=["nearest", "template"], default="nearest",
+                        help="nearest target vertex at rest, or two .vts-style template maps composed")
+    parser.add_argument("--matched", type=float, default=1.0, help="keep this random fraction of the map")
     parser.add_argument("--picture", help="write a Fig. 15-style picture to this path")
     args = parser.parse_args(argv)
     frames = tuple(int(f) for f in args.frames.split(","))
-    result = run(args.scene, frames, third=args.third, same_mesh=args.same_mesh)
+    result = run(args.scene, frames, third=args.third, same_mesh=args.same_mesh, target=args.target,
+                 map_kind=args.map, matched=args.matched)
     if args.picture:
         picture(args.picture, result)
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.delaunay_flips import delaunay_flips
+
 #: Capsule: cylinder length and radius (the limb is 2 long, 0.2 thick: a finger or an arm).
 LENGTH = 2.0
 RADIUS = 0.2
@@ -96,45 +98,9 @@ def sampled_capsule(n_vertices: int, seed: int):
             free[neighbours[i]] = False
     vertices = points[kept]
     hull = ConvexHull(vertices)
+    # The hull joins points on a cylinder along its straight generators in slivers; flipped to
+    # Delaunay on the surface, as a remesher's would be.
     return vertices, delaunay_flips(vertices, _outward(vertices, hull.simplices.astype(np.int64)))
-
-
-def delaunay_flips(vertices, triangles, max_passes: int = 100):
-    """Flip interior edges whose two opposite angles sum to more than π until none is left (the
-    hull of points on a cylinder joins them along its straight generators in slivers; the
-    flipped triangulation is Delaunay on the surface, as a remesher's would be)."""
-    from core.mesh_topology import mesh_topology
-
-    tris = triangles.copy()
-    for _ in range(max_passes):
-        topo = mesh_topology(tris, len(vertices))
-        inner = np.flatnonzero((topo.edge_triangles >= 0).all(axis=1))
-        t1, t2 = topo.edge_triangles[inner, 0], topo.edge_triangles[inner, 1]
-        k1 = np.argmax(topo.triangle_edges[t1] == inner[:, None], axis=1)  # corner of t1 opposite the edge
-        k2 = np.argmax(topo.triangle_edges[t2] == inner[:, None], axis=1)
-        c, d = tris[t1, k1], tris[t2, k2]
-        a, b = tris[t1, (k1 + 1) % 3], tris[t1, (k1 + 2) % 3]
-
-        def angle(apex, p, q):
-            u, v = vertices[p] - vertices[apex], vertices[q] - vertices[apex]
-            return np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
-
-        excess = angle(c, a, b) + angle(d, a, b) - np.pi
-        existing = set(map(tuple, np.sort(topo.edges, axis=1)))
-        used = np.zeros(len(tris), dtype=bool)
-        flipped = 0
-        for i in np.argsort(-excess):
-            if excess[i] <= 1e-9:
-                break
-            if used[t1[i]] or used[t2[i]] or tuple(sorted((int(c[i]), int(d[i])))) in existing:
-                continue
-            used[t1[i]] = used[t2[i]] = True
-            tris[t1[i]] = (a[i], d[i], c[i])
-            tris[t2[i]] = (b[i], c[i], d[i])
-            flipped += 1
-        if not flipped:
-            break
-    return tris
 
 
 def _outward(vertices, triangles):

@@ -12,7 +12,9 @@ Public API (arrays: vertices float64 ``(n, 3)``, triangles int ``(m, 3)``):
 - :class:`ReferenceShape` — a base mesh prepared once for many targets.
 - :class:`Transfer` — poses of a differently meshed target rebuilt on the base mesh through a
   functional map (§6.3, Fig. 15); ``shape_differences``, ``interpolate`` and
-  ``SequenceInterpolator`` take such a target with ``target_triangles``.
+  ``SequenceInterpolator`` take such a target with ``target_triangles``;
+  :func:`template_correspondence` and :func:`read_vertex_map` turn map files into its
+  correspondence.
 - :func:`shape_space` — PCA of the differences of a collection of poses (§8.1);
   :func:`pull_back` — the target's metric on the base mesh: Laplacian, geodesics, WKS (§8.3);
   :func:`distortion` — per-face and per-vertex distortion maps of a pose.
@@ -56,6 +58,8 @@ __all__ = [
     "ShapeSpace",
     "pull_back",
     "PulledBackMetric",
+    "template_correspondence",
+    "read_vertex_map",
     "distortion",
     "Distortion",
     "MeshError",
@@ -186,6 +190,8 @@ _ANALYSIS = {
     "PulledBackMetric": ".pulled_back_metric",
     "distortion": ".distortion_maps",
     "Distortion": ".distortion_maps",
+    "template_correspondence": ".vertex_maps",
+    "read_vertex_map": ".vertex_maps",
 }
 
 

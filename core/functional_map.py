@@ -33,10 +33,20 @@ AFFINE_CUTOFF = 1e-3
 #: Target vertices past the boundary of the base's image are extrapolated from the nearest
 #: triangle while no barycentric weight is below minus this (see :func:`push_forward_matrix`).
 EXTRAPOLATION_LIMIT = 0.5
+#: A correspondence entry for a base vertex without a matched target vertex (a partial map, such
+#: as the composition of two template maps that no template vertex lands on).
+UNMATCHED = -1
+#: An unmatched vertex (or one with few matched neighbours) widens its ring, one ring at a time up
+#: to AFFINE_MAX_RINGS, until it holds at least this many matched vertices: an affine map of a
+#: curved patch needs points spread in two directions, and the snapping noise of single matches
+#: averages out only over several.
+AFFINE_MIN_MATCHED = 6
+AFFINE_MAX_RINGS = 8
 
 
-def check_correspondence(correspondence, n_base: int, n_target: int) -> np.ndarray:
-    """``correspondence`` as int64 ``(n_base,)`` with values in ``0..n_target-1``; raises
+def check_correspondence(correspondence, n_base: int, n_target: int, *, allow_unmatched: bool = False) -> np.ndarray:
+    """``correspondence`` as int64 ``(n_base,)`` with values in ``0..n_target-1`` (and
+    :data:`UNMATCHED`, -1, for a base vertex without a match when ``allow_unmatched``); raises
     :class:`MeshError` naming the first bad entry."""
     array = np.asarray(correspondence)
     if array.ndim != 1 or array.shape[0] != n_base:
@@ -48,12 +58,14 @@ def check_correspondence(correspondence, n_base: int, n_target: int) -> np.ndarr
         if not (np.isfinite(array).all() and np.all(np.mod(array, 1) == 0)):
             raise MeshError("The correspondence must hold integer target vertex indices.")
     array = array.astype(np.int64)
-    bad = np.flatnonzero((array < 0) | (array >= n_target))
+    low = UNMATCHED if allow_unmatched else 0
+    bad = np.flatnonzero((array < low) | (array >= n_target))
     if bad.size:
         i = int(bad[0])
+        unmatched = " or -1 for an unmatched base vertex" if allow_unmatched else ""
         raise MeshError(
             f"The correspondence maps base vertex {i} to target vertex {int(array[i])}, but the "
-            f"target has {n_target} vertices (valid indices are 0..{n_target - 1}); "
+            f"target has {n_target} vertices (valid indices are 0..{n_target - 1}{unmatched}); "
             f"{bad.size} entries are out of range. Use a map computed for these two meshes."
         )
     return array
@@ -89,14 +101,20 @@ def functional_map(target_functions: np.ndarray, target_mass: sp.spmatrix, pushe
 # From a vertex map to a point-to-surface map
 # ---------------------------------------------------------------------------------------------
 def locally_affine_images(base_positions: np.ndarray, base_edges: np.ndarray, images: np.ndarray,
-                          rings: int = AFFINE_RINGS) -> np.ndarray:
+                          rings: int = AFFINE_RINGS, matched: np.ndarray | None = None) -> np.ndarray:
     """Images of the base vertices ``(n_M, 3)`` smoothed by a local affine fit: for every base
     vertex ``i``, the affine map ``x ↦ A x + b`` best taking the base positions of its
     ``rings``-ring (``base_positions`` ``(n_M, 3)``, edges ``(E, 2)``) to their ``images``
     ``(n_M, 3)`` (least squares; pseudo-inverse across a flat ring), evaluated at ``x_i``. Exact for a
     map that is affine over a ring (a rigid motion, a stretch, a bend far larger than the ring),
     while the snapping of a vertex map — up to half a target edge, in random directions — is
-    averaged out; boundaries are fitted like the interior (no shrinking, unlike a diffusion)."""
+    averaged out; boundaries are fitted like the interior (no shrinking, unlike a diffusion).
+
+    ``matched`` bool ``(n_M,)`` (a partial map): only matched vertices enter the fits (the other
+    rows of ``images`` are ignored), so every vertex, matched or not, gets the image the fit of its
+    matched neighbours gives; a ring with fewer than :data:`AFFINE_MIN_MATCHED` matched vertices
+    grows, up to :data:`AFFINE_MAX_RINGS` rings; a vertex with none even then takes the fit of
+    the nearest matched vertex along the mesh (:func:`nearest_matched`), extrapolated to it."""
     n = base_positions.shape[0]
     adjacency = sp.csr_matrix((np.ones(2 * len(base_edges)), (base_edges.ravel(), base_edges[:, ::-1].ravel())),
                               shape=(n, n)) + sp.identity(n, format="csr")
@@ -104,8 +122,20 @@ def locally_affine_images(base_positions: np.ndarray, base_edges: np.ndarray, im
     for _ in range(rings - 1):
         ring = ring @ adjacency
     ring.data[:] = 1.0
+    y = images
+    if matched is not None:
+        matched = np.asarray(matched, dtype=bool)
+        ring = _matched_rings(ring, adjacency, matched, rings)
+        empty = np.flatnonzero(np.diff(ring.indptr) == 0)
+        if empty.size:  # far from every match: the nearest matched vertex's fit, extrapolated
+            nearest = nearest_matched(base_positions, base_edges, matched)
+            ring = sp.vstack([ring, ring[nearest[empty]]]).tocsr()
+            take = np.arange(n)
+            take[empty] = n + np.arange(empty.size)
+            ring = ring[take]
+        y = np.where(matched[:, None], images, 0.0)
     ring = sp.diags(1.0 / np.asarray(ring.sum(axis=1)).ravel()) @ ring  # row means
-    x, y = base_positions, images
+    x = base_positions
     x_mean, y_mean = ring @ x, ring @ y
     xx = (ring @ np.einsum("ni,nj->nij", x, x).reshape(n, 9)).reshape(n, 3, 3) - np.einsum("ni,nj->nij", x_mean, x_mean)
     yx = (ring @ np.einsum("ni,nj->nij", y, x).reshape(n, 9)).reshape(n, 3, 3) - np.einsum("ni,nj->nij", y_mean, x_mean)
@@ -113,6 +143,50 @@ def locally_affine_images(base_positions: np.ndarray, base_edges: np.ndarray, im
     inverse = np.where(values > AFFINE_CUTOFF * values[:, -1:], 1.0 / np.maximum(values, np.finfo(float).tiny), 0.0)
     affine = yx @ np.einsum("nij,nj,nkj->nik", vectors, inverse, vectors)  # yx · pinv(xx)
     return y_mean + np.einsum("nij,nj->ni", affine, x - x_mean)
+
+
+def _matched_rings(ring: sp.csr_matrix, adjacency: sp.csr_matrix, matched: np.ndarray, rings: int) -> sp.csr_matrix:
+    """``ring`` ``(n, n)`` (0/1) restricted to the ``matched`` columns, each row grown one ring at
+    a time (``adjacency`` with the diagonal) while it holds fewer than :data:`AFFINE_MIN_MATCHED`
+    matched vertices, up to :data:`AFFINE_MAX_RINGS` (a row may be left with none)."""
+    keep = sp.diags(matched.astype(np.float64))
+    grown = ring
+    few = np.flatnonzero(np.diff((ring @ keep).tocsr().indptr) < AFFINE_MIN_MATCHED)
+    for _ in range(rings, AFFINE_MAX_RINGS):
+        if not few.size:
+            break
+        rows = grown[few] @ adjacency
+        rows.data[:] = 1.0
+        # Replace the rows `few` of `grown` by their wider rings.
+        select = sp.csr_matrix((np.ones(few.size), (few, np.arange(few.size))), shape=(grown.shape[0], few.size))
+        others = sp.diags(np.isin(np.arange(grown.shape[0]), few, invert=True).astype(np.float64))
+        grown = (others @ grown + select @ rows).tocsr()
+        counts = np.diff((grown[few] @ keep).tocsr().indptr)
+        few = few[counts < AFFINE_MIN_MATCHED]
+    restricted = (grown @ keep).tocsr()
+    restricted.eliminate_zeros()
+    return restricted
+
+
+def nearest_matched(base_positions: np.ndarray, base_edges: np.ndarray, matched: np.ndarray) -> np.ndarray:
+    """For every base vertex ``(n_M,)`` the nearest ``matched`` vertex (bool ``(n_M,)``) along the
+    mesh's edges (``base_positions`` ``(n_M, 3)``, ``base_edges`` ``(E, 2)``; Dijkstra from every
+    matched vertex at once), int64 ``(n_M,)``. Raises :class:`MeshError` when a connected part of
+    the base has no matched vertex."""
+    from scipy.sparse.csgraph import dijkstra
+
+    n = base_positions.shape[0]
+    lengths = np.linalg.norm(base_positions[base_edges[:, 0]] - base_positions[base_edges[:, 1]], axis=1)
+    graph = sp.csr_matrix((np.maximum(lengths, np.finfo(float).tiny), (base_edges[:, 0], base_edges[:, 1])), shape=(n, n))
+    _, _, sources = dijkstra(graph, directed=False, indices=np.flatnonzero(matched), min_only=True,
+                             return_predecessors=True)
+    lost = np.flatnonzero(sources < 0)
+    if lost.size:
+        raise MeshError(
+            f"Base vertex {int(lost[0])} is in a part of the base mesh where the map matches no vertex "
+            f"({lost.size} such vertices): a map must match some vertices of every connected part."
+        )
+    return sources.astype(np.int64)
 
 
 def plane_weights(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
@@ -170,6 +244,26 @@ def project_near(points: np.ndarray, seeds: np.ndarray, target_positions: np.nda
     order = np.lexsort((dist, owner))
     first = order[np.searchsorted(owner[order], np.arange(points.shape[0]))]
     return candidates[first], weights[first]
+
+
+def walk_near(points: np.ndarray, seeds: np.ndarray, target_positions: np.ndarray,
+              target_triangles: np.ndarray, steps: int = 64) -> np.ndarray:
+    """Seeds ``(P,)`` for :func:`project_near` of ``points`` ``(P, 3)`` that may lie several
+    target edges from their first ``seeds``: each step moves a seed to the corner nearest to its
+    point's closest point on the triangles around it (a walk on the target surface, so it never
+    jumps across a fold), until no seed moves (or ``steps``)."""
+    seeds = np.array(seeds, dtype=np.int64)
+    moving = np.arange(points.shape[0])
+    for _ in range(steps):
+        if not moving.size:
+            break
+        triangles, weights = project_near(points[moving], seeds[moving], target_positions, target_triangles)
+        corners = target_triangles[triangles]
+        nearest = corners[np.arange(moving.size), np.argmax(weights, axis=1)]
+        moved = nearest != seeds[moving]
+        seeds[moving[moved]] = nearest[moved]
+        moving = moving[moved]
+    return seeds
 
 
 def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base_triangles: np.ndarray) -> sp.csr_matrix:

@@ -27,10 +27,12 @@ import warnings
 import numpy as np
 import scipy.sparse as sp
 
+from .delaunay_flips import MAX_DIHEDRAL_DEGREES, delaunay_flips
 from .embedding import FRAMES_NEARLY_EXACT
 from .errors import MeshError, ShapeDifferenceWarning
-from .functional_map import (check_correspondence, closest_point_correspondence, functional_map,
-                             locally_affine_images, project_near, pull_back_matrix, push_forward_matrix)
+from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, functional_map,
+                             locally_affine_images, nearest_matched, project_near, pull_back_matrix,
+                             push_forward_matrix, walk_near)
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis, warm_laplace_basis
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
@@ -108,6 +110,20 @@ EMBEDDING_DAMPING = 1e-3
 #: (cost): 4.18 % (90.6) after 8 steps, 4.55 % (87.8) after 11 (where this stops), 5.20 % (78.1)
 #: after 43 (where 1e-3 stopped), 5.96 % (74.6) after 150 and still falling.
 EMBEDDING_STAGNATION = 1e-2
+#: A partial correspondence (entries UNMATCHED, -1: base vertices no map entry lands on, as when
+#: two template maps are composed) must match at least this fraction of the base vertices, and
+#: warns below the second: the unmatched ones get their images from the local affine fit of
+#: matched neighbours (:func:`~core.functional_map.locally_affine_images`, rings widened until they
+#: hold enough matches). Measured (random subsets of a nearest-vertex map; docs/transfer.md): 73 %
+#: matched costs a few tenths of a point of Hausdorff / diagonal, 43 % 0.4–1.1 point, 21 % about a
+#: point on the 1k limb (frame 40 3.62 → 3.99 / 4.02 / 4.63 %).
+MIN_MATCHED_FRACTION = 0.1
+WARN_MATCHED_FRACTION = 0.5
+#: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
+#: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
+#: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
+#: the recovery fail).
+WELD_DISTANCE = 1e-7
 
 
 class _TargetLayer:
@@ -166,9 +182,11 @@ class Transfer:
     ``(n_N, 3)`` and ``target_triangles`` ``(m_N, 3)``: the target's connectivity and a pose of it
     that locates it — its rest pose (any pose works when a correspondence is given; it is then
     only used to match the offset layers). A few non-manifold target edges are accepted with a
-    warning. ``correspondence`` int ``(n_M,)``: for every base vertex its matched target vertex
-    (``None``: the nearest target vertex of ``target_rest_vertices``, for meshes that overlap
-    at rest). ``k_M`` / ``k_N``: base and target basis sizes (required: a functional map between
+    warning. ``correspondence`` int ``(n_M,)``: for every base vertex its matched target vertex,
+    or -1 (:data:`~core.functional_map.UNMATCHED`) where the map has none — a partial map, such as
+    :func:`core.template_correspondence` composes from two template maps; unmatched vertices take
+    their images from matched neighbours (:data:`MIN_MATCHED_FRACTION`). ``None``: the nearest
+    target vertex of ``target_rest_vertices``, for meshes that overlap at rest. ``k_M`` / ``k_N``: base and target basis sizes (required: a functional map between
     two meshes lives in truncated bases). ``offset``, ``use_extrinsic``: as for
     :class:`~core.reference_shape.ReferenceShape`. ``reference``: an existing prepared base to
     reuse (its eigenbases and factorizations). ``warm_start`` (default): :meth:`pose` starts its
@@ -198,11 +216,26 @@ class Transfer:
         rest = check_vertices(target_rest_vertices, name="target rest vertices")
         self.n_target = rest.shape[0]
         topology = mesh_topology(target_triangles, self.n_target, allow_non_manifold=True)
+        # Coincident copies of a vertex (split along UV seams or sharp edges by an exporter) are
+        # welded: the surface is one piece there, and its Laplacian must see it so.
+        self._welded = _coincident_vertices(rest, topology.used_vertices)
+        kept = topology.triangles
+        if self._welded is not None:
+            kept = self._welded[kept]
+            kept = kept[(kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])]
+        flat = self._degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
+        # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
+        # target's eigenbasis needs its surface, not its triangles.
+        kept = delaunay_flips(rest, np.delete(kept, flat, axis=0), max_dihedral_degrees=MAX_DIHEDRAL_DEGREES)
+        if not np.array_equal(kept, topology.triangles):
+            topology = mesh_topology(kept, self.n_target, allow_non_manifold=True)
         self._warn_non_manifold(topology)
         # Target vertices in no triangle are left out (compact numbering, as for the base).
         self.target_used = topology.used_vertices
         compact = np.full(self.n_target, -1, dtype=np.int64)
         compact[self.target_used] = np.arange(self.target_used.size)
+        if self._welded is not None:
+            compact = compact[self._welded]  # a copy's index means its welded vertex
         if self.target_used.size != self.n_target:
             topology = mesh_topology(compact[topology.triangles], self.target_used.size, allow_non_manifold=True)
         self.target_triangles = np.asarray(target_triangles, dtype=np.int64)
@@ -215,25 +248,42 @@ class Transfer:
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
             self.correspondence[base_used] = matched
         else:
-            self.correspondence = check_correspondence(correspondence, reference.n_vertices, self.n_target)
-        loose = np.flatnonzero(compact[self.correspondence[base_used]] < 0)
-        if loose.size:
+            self.correspondence = check_correspondence(correspondence, reference.n_vertices, self.n_target,
+                                                       allow_unmatched=True)
+        used_map = self.correspondence[base_used]
+        matched = used_map != UNMATCHED
+        loose = np.flatnonzero(matched & (compact[used_map] < 0))
+        if loose.size:  # matched to a loose target vertex (a stray point of a scan): unmatched
             i = int(base_used[loose[0]])
-            raise MeshError(
+            warnings.warn(
                 f"The correspondence maps base vertex {i} to target vertex {int(self.correspondence[i])}, "
-                f"which is in no triangle of the target ({loose.size} such base vertices). Match base "
-                "vertices to vertices of the target's surface."
+                f"which is in no triangle of the target ({loose.size} such base vertices); these base "
+                "vertices are treated as unmatched.",
+                ShapeDifferenceWarning,
+                stacklevel=2,
             )
-        seeds = compact[self.correspondence[base_used]]
+            matched[loose] = False
+        partial = not matched.all()
+        if partial:
+            self._check_matched_fraction(matched)
+        seeds = np.where(matched, compact[used_map], 0)
         if correspondence is None:
             points = reference.base_positions  # the meshes overlap: project the base itself
-        elif refine_map:
-            points = locally_affine_images(reference.base_positions, reference.topology.edges, rest_used[seeds])
+        elif refine_map or partial:
+            points = locally_affine_images(reference.base_positions, reference.topology.edges, rest_used[seeds],
+                                           matched=matched if partial else None)
         else:
             points = rest_used[seeds]
+        if partial:
+            # An unmatched vertex's image is found on the target by walking from the match of the
+            # nearest matched vertex along the base.
+            unmatched = np.flatnonzero(~matched)
+            start = seeds[nearest_matched(reference.base_positions, reference.topology.edges, matched)[unmatched]]
+            seeds[unmatched] = walk_near(points[unmatched], start, rest_used, topology.triangles)
         image_triangles, weights = project_near(points, seeds, rest_used, topology.triangles)
         if correspondence is not None and not refine_map:
-            weights = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
+            snapped = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
+            weights = np.where(matched[:, None], snapped, weights)
         n_used = self.target_used.size
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
         self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
@@ -276,6 +326,68 @@ class Transfer:
         squared = ref.thickening_squared_lengths(metric) if ref.use_extrinsic else metric.base.squared_lengths
         return rms(relative_residuals(points, self._fit_edges, squared))
 
+    def _mesh_residual(self, metric, vertices) -> float:
+        """RMS relative length residual of base ``vertices`` ``(n_M_used, 3)`` on the base mesh's
+        edges only (not the offset layer's, normal or side edges of the thickening).
+
+        Of the fits from the two carried starts, the one kept has the lower misfit of the mesh
+        layer, not of the whole thickening: the offset layer's recovered lengths are several times
+        less accurate (5k cloth frame 40, RMS relative error of the recovered lengths: mesh 0.18,
+        offset surface 1.1), so its misfit ranks poses by noise. Re-meshed 1k drape (mesh-layer
+        residual / Hausdorff): frame 20 0.0291 / 2.86 % against 0.0304 / 5.60 % (the whole
+        residual agrees), frame 60 after 40 0.0162 / 5.09 % against 0.0179 / 6.30 % (the whole
+        residual, 0.0252 against 0.0244, kept 6.30 %); frames 21 and 40 the same choice as the
+        whole residual's."""
+        from .edge_length_fit import relative_residuals, rms
+
+        return rms(relative_residuals(vertices, self.reference.topology.edges, metric.base.squared_lengths))
+
+    @staticmethod
+    def _degenerate_at_rest(rest, triangles) -> np.ndarray:
+        """Indices of the target triangles of zero area at rest (as
+        :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning:
+        a decimated or remeshed target may carry a few collinear slivers, which add nothing to its
+        surface but would make its Laplacian infinite. A target pose where a kept triangle
+        collapses is still an error."""
+        from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
+
+        corners = rest[triangles]
+        sides = corners[:, [1, 2, 0]] - corners[:, [2, 0, 1]]
+        doubled_area = np.linalg.norm(np.cross(sides[:, 0], sides[:, 1]), axis=1)
+        flat = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * np.einsum("tki,tki->tk", sides, sides).max(axis=1)))
+        if flat.size == triangles.shape[0]:
+            raise MeshError("target rest vertices: every triangle of the target has zero area.")
+        if flat.size:
+            warnings.warn(
+                f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
+                f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
+                "Dissolve removes them).",
+                ShapeDifferenceWarning,
+                stacklevel=3,
+            )
+        return flat
+
+    @staticmethod
+    def _check_matched_fraction(matched):
+        """A partial map must match at least :data:`MIN_MATCHED_FRACTION` of the base vertices
+        (:class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns."""
+        fraction = float(matched.mean())
+        if fraction < MIN_MATCHED_FRACTION:
+            raise MeshError(
+                f"The correspondence matches only {100 * fraction:.0f} % of the base vertices "
+                f"({int(matched.sum())} of {matched.size}); at least {100 * MIN_MATCHED_FRACTION:.0f} % "
+                "are needed: the unmatched ones take their images from matched neighbours, which must be "
+                "close enough to describe the map at the scale of the k_M basis. Use a denser map."
+            )
+        if fraction < WARN_MATCHED_FRACTION:
+            warnings.warn(
+                f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
+                f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
+                "typically costs about a point of accuracy (Hausdorff / diagonal).",
+                ShapeDifferenceWarning,
+                stacklevel=4,
+            )
+
     @staticmethod
     def _warn_non_manifold(topology):
         counts = np.bincount(topology.triangle_edges.ravel(), minlength=topology.n_edges)
@@ -300,6 +412,19 @@ class Transfer:
                 "every target pose must be a pose of the same target mesh."
             )
         positions = full[self.target_used]
+        if self._welded is not None:
+            copies = np.flatnonzero(self._welded != np.arange(self.n_target))
+            apart = np.linalg.norm(full[copies] - full[self._welded[copies]], axis=1)
+            scale = np.linalg.norm(np.ptp(positions, axis=0))
+            if apart.max() > WELD_DISTANCE * scale:
+                i = int(copies[np.argmax(apart)])
+                warnings.warn(
+                    f"Target vertices {i} and {int(self._welded[i])} coincide at rest and were welded, but this pose "
+                    f"moves them {apart.max():.3g} apart; the pose is taken as if both were at vertex "
+                    f"{int(self._welded[i])}.",
+                    ShapeDifferenceWarning,
+                    stacklevel=3,
+                )
         check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
         return positions
 
@@ -416,15 +541,15 @@ class Transfer:
     def pose(self, target_vertices) -> np.ndarray:
         """The target pose ``(n_N, 3)`` rebuilt on the base mesh, float64 ``(n_M, 3)``: recovered
         from its shape differences and placed by the rigid motion that brings each component
-        closest to the target's matched vertices."""
+        closest to the base vertices' images on the target (the map)."""
         ref = self.reference
         positions = self._target_positions(target_vertices)
         differences = self._differences(positions)
         metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
                                     tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
-        embedded = self._embed(metric, np.asarray(self._pull_back @ positions))
-        matched = np.asarray(target_vertices, dtype=np.float64)[self.correspondence[ref.used_vertices]]
-        placed = ref.place_near(embedded.base_vertices, matched)
+        carried = np.asarray(self._pull_back @ positions)  # each base vertex's image on this pose
+        embedded = self._embed(metric, carried)
+        placed = ref.place_near(embedded.base_vertices, carried)
         return ref.expand_pose(placed)
 
     def _embed(self, metric, carried):
@@ -454,7 +579,8 @@ class Transfer:
                 lambda s=s: ref.embed_result(metric, initial=s, initial_damping=EMBEDDING_DAMPING,
                                            stagnation=EMBEDDING_STAGNATION) for s in starts
             ])
-            return min(fits, key=lambda fit: fit.residual)
+            # The mesh layer's misfit decides (see _mesh_residual).
+            return min(fits, key=lambda fit: self._mesh_residual(metric, fit.base_vertices))
 
         if self.warm_start and last is not None:
             start = last.points
@@ -482,6 +608,28 @@ class Transfer:
         self._last_carried = carried_points if np.isfinite(carried_points).all() else None
         self._last_embedding = result
         return result
+
+
+def _coincident_vertices(rest, used) -> np.ndarray | None:
+    """For every target vertex ``(n_N,)`` the vertex it is welded to: the lowest-numbered of the
+    ``used`` vertices within :data:`WELD_DISTANCE` × the bounding-box diagonal of it at ``rest``
+    ``(n_N, 3)`` (itself where none is); ``None`` when no two used vertices coincide."""
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    points = rest[used]
+    scale = np.linalg.norm(np.ptp(points, axis=0))
+    pairs = cKDTree(points).query_pairs(WELD_DISTANCE * scale, output_type="ndarray")
+    if not len(pairs):
+        return None
+    n = used.size
+    _, labels = connected_components(sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                     directed=False)
+    first = np.full(labels.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, labels, np.arange(n))
+    welded = np.arange(rest.shape[0])
+    welded[used] = used[first[labels]]
+    return welded
 
 
 def _offset_pull_back(base_surface, target_surface, image_triangles, weights, seeds, target_rest):

@@ -4,7 +4,7 @@ from contextlib import closing
 
 import bpy
 import numpy as np
-from bpy.props import EnumProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
 from ..properties import CaptureStep, PoseOutput
@@ -46,12 +46,41 @@ def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
     return values.astype(np.int64)
 
 
+def read_map_files(obj, source, map_file: str, source_map_file: str, one_based: bool) -> np.ndarray:
+    """The correspondence from map files: ``map_file`` alone holds one source vertex per vertex of
+    the active mesh ``obj``; with ``source_map_file`` both are template maps (``.vts``: for each
+    template vertex, its vertex on the mesh), composed active → template → source. Vertices of the
+    active mesh that no template vertex lands on are unmatched (-1)."""
+    core = load_core()
+    if not map_file:
+        raise InputError("Set the Map File (one source vertex per line for each vertex of the active mesh, or "
+                         "the active mesh's template map), or choose another Map")
+    n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
+    first = core.read_vertex_map(bpy.path.abspath(map_file))
+    if source_map_file:
+        second = core.read_vertex_map(bpy.path.abspath(source_map_file))
+        return core.template_correspondence(
+            first, second, n_base, n_source, one_based=one_based,
+            names=(f"the Map File (template map of '{obj.name}', {n_base} vertices)",
+                   f"the Source Template Map (template map of '{source.name}', {n_source} vertices)"))
+    if first.size != n_base:
+        raise InputError(
+            f"The Map File has {first.size} entries but '{obj.name}' has {n_base} vertices: a per-vertex map "
+            "lists the matched source vertex of every vertex of the active mesh, in order (for two template "
+            ".vts files, also set the Source Template Map)")
+    from ..core.vertex_maps import vertex_map_indices
+
+    return vertex_map_indices(first, n_source, one_based=one_based,
+                              what=f"the Map File (vertices of '{source.name}', {n_source} in all)")
+
+
 class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
                                           GeneratorOperator, bpy.types.Operator):
     """Rebuild the poses of another selected mesh (shape keys or animation frames, any
     connectivity) on the active mesh from their shape differences through a functional map, as
     shape keys or as a point cache on a new object. The two meshes are matched by closest points
-    at rest (they must overlap there) or by a vertex attribute holding the map"""
+    at rest (they must overlap there), by a vertex attribute holding the map, or by map files (one
+    index per vertex, or two template .vts maps)"""
 
     bl_idname = "shape_differences.transfer_poses"
     bl_label = "Transfer Poses"
@@ -65,10 +94,25 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         name="Map", default='CLOSEST',
         items=[('CLOSEST', "Closest Points", "Match every vertex to the closest point of the source's rest "
                                              "pose (the two meshes must overlap at rest, in world space)"),
-               ('ATTRIBUTE', "Attribute", "Read the map from an integer vertex attribute of the active mesh")])
+               ('ATTRIBUTE', "Attribute", "Read the map from an integer vertex attribute of the active mesh"),
+               ('FILE', "File", "Read the map from a file: the matched source vertex of each vertex, one per "
+                                "line, or two template maps (.vts) composed")])
     map_attribute: StringProperty(
         name="Attribute", default="correspondence",
         description="Integer vertex attribute of the active mesh: the matched source vertex of each vertex")
+    map_file: StringProperty(
+        name="Map File", subtype='FILE_PATH', default="",
+        description="Text file with one index per line: the matched source vertex of each vertex of the active "
+                    "mesh; or, with a Source Template Map, the active mesh's template map (.vts)")
+    source_map_file: StringProperty(
+        name="Source Template Map", subtype='FILE_PATH', default="",
+        description="The source's template map (.vts: for each template vertex, its source vertex). When set, "
+                    "the Map File is the active mesh's template map and the two are composed; active vertices "
+                    "no template vertex lands on take their match from their neighbours")
+    one_based: BoolProperty(
+        name="1-Based Indices", default=True,
+        description="Indices in the map files start at 1 (MATLAB, .vts files of FAUST_r, SCAPE_r, SHREC'19); "
+                    "off: at 0")
 
     @classmethod
     def poll(cls, context):
@@ -123,6 +167,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         correspondence = None
         if self.matching == 'ATTRIBUTE':
             correspondence = read_correspondence(obj, self.map_attribute, n_source)
+        elif self.matching == 'FILE':
+            correspondence = read_map_files(obj, source, self.map_file, self.source_map_file, self.one_based)
         names, frames, rest, poses = self._source_poses(context, source)
         if not poses:
             raise InputError(f"'{source.name}' has no pose to transfer")

@@ -63,6 +63,51 @@ def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
     assert key_names(target) == ["Basis", "Source Bend"]
 
 
+def test_transfer_with_map_files(pair, core, tmp_path):
+    """Map = File: a per-vertex map (1-based, then 0-based) gives the attribute's result; two
+    template maps (.vts, 1-based) that cover part of the sheet are composed, the rest filled in;
+    bad files are refused in the user's terms and change nothing."""
+    source, target, bridge = pair
+    from scipy.spatial import cKDTree
+
+    sheet, grid = bridge.vertex_positions(target.data), bridge.vertex_positions(source.data)
+    _, matched = cKDTree(grid).query(sheet)
+    np.savetxt(tmp_path / "map1.txt", matched + 1, fmt="%d")
+    np.savetxt(tmp_path / "map0.txt", matched, fmt="%d")
+    run = lambda **kw: bpy.ops.shape_differences.transfer_poses(matching='FILE', k_m=16, k_n=32, **kw)  # noqa: E731
+    with pytest.raises(RuntimeError, match=r"Entry \d+ of the Map File .* is 0, but 1-based .*map is 0-based"):
+        run(map_file=str(tmp_path / "map0.txt"))
+    with pytest.raises(RuntimeError, match="Set the Map File"):
+        run()
+    with pytest.raises(RuntimeError, match=r"The Map File has 225 entries but 'Sheet' has 121 vertices"):
+        np.savetxt(tmp_path / "long.txt", np.arange(1, 226), fmt="%d")
+        run(map_file=str(tmp_path / "long.txt"))
+    assert target.data.shape_keys is None
+    run(map_file=str(tmp_path / "map1.txt"))
+    run(map_file=str(tmp_path / "map0.txt"), one_based=False)
+    keys = target.data.shape_keys.key_blocks
+    expected = core.Transfer(sheet, bridge.mesh_triangles(target.data), grid, bridge.mesh_triangles(source.data),
+                             correspondence=matched, k_M=16, k_N=32).pose(
+        bridge.shape_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+    for key in list(keys)[1:]:
+        np.testing.assert_allclose(bridge.shape_key_positions(key), expected, atol=TOLERANCE)
+    # Template maps: a 9 x 9 template over the same square; each file lists, per template vertex,
+    # the 1-based index of the nearest vertex of one mesh. Fewer template vertices than sheet
+    # vertices: some sheet vertices are unmatched.
+    xs, ys = np.meshgrid(np.linspace(sheet[:, 0].min(), sheet[:, 0].max(), 9),
+                         np.linspace(sheet[:, 1].min(), sheet[:, 1].max(), 9))
+    template = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, sheet[0, 2])], axis=1)
+    np.savetxt(tmp_path / "sheet.vts", cKDTree(sheet).query(template)[1] + 1, fmt="%d")
+    np.savetxt(tmp_path / "grid.vts", cKDTree(grid).query(template)[1] + 1, fmt="%d")
+    np.savetxt(tmp_path / "short.vts", cKDTree(grid).query(template[:-1])[1] + 1, fmt="%d")
+    with pytest.raises(RuntimeError, match="different lengths"):
+        run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "short.vts"))
+    run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "grid.vts"))
+    rebuilt = bridge.shape_key_positions(list(target.data.shape_keys.key_blocks)[-1])
+    truth = rolled(sheet, 1.0)
+    assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(sheet, truth)
+
+
 def test_transfer_needs_a_second_mesh(bpy_empty, extension, core):
     grid_object(6)
     with pytest.raises(RuntimeError, match="Also select the mesh"):

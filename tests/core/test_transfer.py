@@ -29,7 +29,11 @@ def sheets():
 
 
 def test_identity_map_gives_the_same_mesh_differences():
+    from core.delaunay_flips import delaunay_flips
+
     v, t = grid(12, jitter=0.3)
+    # A Delaunay mesh, which the transfer's flips of the target (core.delaunay_flips) leave as it is.
+    t = delaunay_flips(v, t)
     pose = drape(v, 1.5)
     same = core.shape_differences(v, pose, t, k_M=15, k_N=30)
     across = core.shape_differences(v, pose, t, k_M=15, k_N=30, target_triangles=t,
@@ -216,3 +220,115 @@ def test_offset_surface_basis_of_the_carried_rest_starts_from_the_mesh_basis(she
     # A Ritz value is within its residual of an eigenvalue, which the warm solver bounds by
     # WARM_RESIDUAL × λ_k (Bauer–Fike).
     assert np.abs(quotients - exact).max() <= transfer_module.WARM_RESIDUAL * exact[-1]
+
+
+def test_partial_map_fills_unmatched_vertices_from_matched_neighbours(sheets):
+    """A map that matches only 60 % of the base vertices (random; the others -1, as a composition
+    of template maps leaves them) still locates every base vertex on the target — within a target
+    edge of where the full map puts it (the affine fit is exact for maps affine over the ring) —
+    and the pose is rebuilt within twice the full map's error (and half the unchanged base's)."""
+    base, base_tris, target, target_tris = sheets
+    full = core.transfer.closest_point_correspondence(base, target)
+    partial = full.copy()
+    partial[np.random.default_rng(4).random(len(base)) >= 0.6] = -1
+    posed = drape(target, 1.0)
+    truth = drape(base, 1.0)
+    errors, images = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        for vertex_map in (full, partial):
+            transfer = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=16, k_N=32)
+            images.append(np.asarray(transfer._pull_back @ target[transfer.target_used]))
+            errors.append(hausdorff_over_diagonal(align_rigidly(transfer.pose(posed), truth), truth))
+    edge = 1.0 / 11  # the target grid's spacing
+    assert np.linalg.norm(images[1] - images[0], axis=1).max() < edge
+    unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+    assert errors[1] < 2 * errors[0] and errors[1] < 0.5 * unchanged
+
+
+def test_partial_maps_that_cannot_work_are_refused(sheets):
+    base, base_tris, target, target_tris = sheets
+    vertex_map = np.full(len(base), -1)
+    vertex_map[:5] = core.transfer.closest_point_correspondence(base[:5], target)
+    with pytest.raises(MeshError, match=r"matches only 5 % of the base vertices .* at least 10 %"):
+        Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=10, k_N=20)
+    with pytest.raises(MeshError, match="or -1 for an unmatched base vertex"):
+        Transfer(base, base_tris, target, target_tris, correspondence=np.full(len(base), -2), k_M=10, k_N=20)
+    # A second sheet of the base that the map does not reach at all.
+    two = np.vstack([base, base + [2.0, 0.0, 0.0]])
+    two_tris = np.vstack([base_tris, base_tris + len(base)])
+    vertex_map = np.concatenate([core.transfer.closest_point_correspondence(base, target), np.full(len(base), -1)])
+    with pytest.raises(MeshError, match=rf"Base vertex {len(base)} is in a part of the base mesh where the map matches no"):
+        Transfer(two, two_tris, target, target_tris, correspondence=vertex_map, k_M=10, k_N=20)
+
+
+def test_template_maps_compose_to_the_direct_map(tmp_path):
+    """Two .vts-style template maps (1-based) compose to the base → target map they encode; base
+    vertices no template vertex lands on are unmatched; files are read and errors are named."""
+    rng = np.random.default_rng(2)
+    n_base, n_target = 50, 70
+    direct = rng.integers(0, n_target, n_base)
+    landing = rng.permutation(n_base)[:40]  # template vertex i lands on base vertex landing[i]
+    landing = np.concatenate([landing, landing[:3]])  # three base vertices hit twice
+    base_vts, target_vts = landing + 1, direct[landing] + 1
+    target_vts[-3:] = 1  # the second landing disagrees: the first template vertex wins
+    composed = core.template_correspondence(base_vts, target_vts, n_base, n_target)
+    hit = np.zeros(n_base, bool)
+    hit[landing] = True
+    assert np.array_equal(composed[hit], direct[hit]) and np.all(composed[~hit] == -1)
+    np.savetxt(tmp_path / "base.vts", base_vts, fmt="%d")
+    np.savetxt(tmp_path / "target.vts", target_vts.astype(float))  # 1.000000000000000000e+00 style
+    read = [core.read_vertex_map(tmp_path / name) for name in ("base.vts", "target.vts")]
+    assert np.array_equal(core.template_correspondence(*read, n_base, n_target), composed)
+    with pytest.raises(MeshError, match="different lengths"):
+        core.template_correspondence(base_vts[:-1], target_vts, n_base)
+    zero_based = base_vts - 1
+    zero_based[0] = 0
+    with pytest.raises(MeshError, match=r"Entry 0 of the base's template map is 0, but 1-based indices .* run "
+                                        r"from 1 to 50.*map is 0-based"):
+        core.template_correspondence(zero_based, target_vts, n_base)
+    with pytest.raises(MeshError, match=r"run from 1 to 70"):
+        core.template_correspondence(base_vts, target_vts + n_target, n_base, n_target)
+    (tmp_path / "bad.vts").write_text("1\n2.5\n")
+    with pytest.raises(MeshError, match="not a whole vertex index"):
+        core.read_vertex_map(tmp_path / "bad.vts")
+    with pytest.raises(MeshError, match="does not exist"):
+        core.read_vertex_map(tmp_path / "missing.vts")
+
+
+def test_split_seams_slivers_and_loose_target_vertices(sheets):
+    """A target as exporters and decimators leave it — a seam of coincident duplicated vertices,
+    a zero-area sliver, a loose vertex the map points to — gives the same differences as the
+    clean target (duplicates welded, the sliver left out, the loose match treated as unmatched),
+    with warnings for what was dropped."""
+    base, base_tris, target, target_tris = sheets
+    vertex_map = core.transfer.closest_point_correspondence(base, target)
+    n = len(target)
+    seam = np.arange(14, 22)  # interior vertices of the second row, duplicated
+    copies = n + np.arange(seam.size)
+    tris = target_tris.copy()
+    # Triangles above the row use the copies: the seam splits the sheet along the row.
+    upper = np.isin(tris, seam).any(axis=1) & (target[tris][:, :, 1].mean(axis=1) > target[seam, 1].mean())
+    for s, c in zip(seam, copies):
+        tris[upper] = np.where(tris[upper] == s, c, tris[upper])
+    sliver = [[0, 1, 2]]  # three collinear vertices of the bottom side: zero area
+    hostile = np.vstack([target, target[seam], [[0.5, 0.5, 0.0]]])
+    hostile_map = vertex_map.copy()
+    hostile_map[0] = n + seam.size  # the loose vertex
+    posed = drape(target, 1.0)
+    hostile_posed = np.vstack([posed, posed[seam], [[0.5, 0.5, 0.0]]])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dirty = Transfer(base, base_tris, hostile, np.vstack([tris, sliver]), correspondence=hostile_map,
+                         k_M=16, k_N=32, use_extrinsic=False).differences(hostile_posed)
+    messages = " ".join(str(w.message) for w in caught)
+    assert "1 triangle(s) of zero area" in messages and "treated as unmatched" in messages
+    clean_map = vertex_map.copy()
+    clean_map[0] = -1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        clean = Transfer(base, base_tris, target, target_tris, correspondence=clean_map, k_M=16, k_N=32,
+                         use_extrinsic=False).differences(posed)
+    for name in ("area", "conformal"):
+        a, b = getattr(clean, name).matrix, getattr(dirty, name).matrix
+        assert np.allclose(a, b, atol=1e-9 * np.abs(a).max()), name
