@@ -57,8 +57,8 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: SMOOTH_SPLINE_STRAIN (an isometric bend whose last gap's spline deviates by 0.39 %: 0.1 there
 #: gave 0.25 % edge deviation, 3e-2 0.14 %). Keys 4 frames apart, RMS ÷ the Catmull–Rom
 #: spline's: flag pinned at its pole 1.054 → 0.889, hanging sheet 1.009 → 0.936, falling sheet
-#: 0.964 → 0.933 (with the start parabola); baked for a check, a soft 6,400-vertex flag 1.035 (3e-2
-#: everywhere) → 0.999 (0.1 everywhere). Where the spline does not keep the lengths (keys 16
+#: 0.964 → 0.875 (with the start parabola); baked for a check, a soft 6,400-vertex flag 1.013 (3e-2
+#: in every smooth gap: 1.035, 0.1: 0.999). Where the spline does not keep the lengths (keys 16
 #: apart, turns: hanging sheet at g = 16, edge deviation 0.47 → 0.74 % with 3e-2 everywhere, bound
 #: 0.47), or keeps them worse than the blend (an impact at a key: the spline overshoots; 50k
 #: sheet, g = 4: 0.963 → 0.973 × without that condition), the gap keeps SEQUENCE_ANCHOR_WEIGHT.
@@ -235,7 +235,8 @@ class _Gap(LocalGlobalFit):
 
     def sequence_weights(self) -> np.ndarray:
         """Per-vertex anchor weights (n,) of a sequence: the gap's ``anchor_weight``
-        (:data:`SEQUENCE_ANCHOR_WEIGHT` or :data:`SMOOTH_ANCHOR_WEIGHT`) to the keys' per-vertex
+        (:data:`SEQUENCE_ANCHOR_WEIGHT`, :data:`SMOOTH_NEAR_ANCHOR_WEIGHT` or
+        :data:`SMOOTH_ANCHOR_WEIGHT`) to the keys' per-vertex
         spline (in the co-moving frame), :data:`STATIC_ANCHOR_WEIGHT` where the vertex is still
         in every key."""
         return self.pinned_weights(np.full(self.topo.n, self.anchor_weight))
