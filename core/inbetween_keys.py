@@ -41,6 +41,9 @@ class _Key:
         self.normal_rows = self.column_rows[2]
         self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
+        # each component's bounding-box diagonal: the scale of its relatives' non-rigidity
+        self.diagonals = np.array([max(np.linalg.norm(np.ptp(v[rows], axis=0)), np.finfo(float).tiny)
+                                   for rows in topo.components])
 
 
 class _Relative:
@@ -144,8 +147,7 @@ def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, 
 def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:
     """Each component's RMS misfit of its best rigid motion over its bounding-box diagonal in the
     ``base`` key."""
-    return [misfit / max(np.linalg.norm(np.ptp(base.vertices[rows], axis=0)), np.finfo(float).tiny)
-            for misfit, rows in zip(misfits, topo.components)]
+    return list(np.asarray(misfits, dtype=np.float64) / base.diagonals)
 
 
 def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:

@@ -14,8 +14,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import deformation_fields as df
-from .geometry import lumped_vertex_areas, vertex_labels
-from .inbetween_fit import KEY_VARIATION_FRACTION, METRIC_TOLERANCE, LocalGlobalFit
+from .geometry import coordinate_dot, lumped_vertex_areas, vertex_labels
+from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
 from .sparse_cholesky import SPDFactor
@@ -189,9 +189,10 @@ class _Gap(LocalGlobalFit):
         self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
         self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
         if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
-            strain = self.mid_gap_strain(spline["world"].at(0.5))
-            if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(0.5 * (base.vertices + nxt.vertices)) \
-                    + METRIC_TOLERANCE:
+            reference = np.maximum(0.5 * (base.lengths + nxt.lengths).T, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
+            strain = self.mid_gap_strain(spline["world"].at(0.5), reference)
+            if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(
+                    0.5 * (base.vertices + nxt.vertices), reference) + METRIC_TOLERANCE:
                 self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
         self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
@@ -225,13 +226,13 @@ class _Gap(LocalGlobalFit):
             self._anchors[between] = (weights, co_moving, system, placed)
         self.weights, self.co_moving, self.system, self.placed_by_centroid = self._anchors[between]
 
-    def mid_gap_strain(self, x: np.ndarray) -> float:
-        """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from the
-        mean of the two keys' (see :data:`SMOOTH_SPLINE_STRAIN`)."""
-        edges = (self.topo.D @ x).reshape(-1, 3, 3)
-        lengths = np.sqrt(np.einsum("kcd,kcd->kc", edges, edges))
-        reference = 0.5 * (self.base.lengths + self.next.lengths)
-        return float(np.mean(np.abs(lengths / np.maximum(reference, np.finfo(float).tiny) - 1.0)))
+    def mid_gap_strain(self, x: np.ndarray, reference: np.ndarray) -> float:
+        """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
+        ``reference`` (3 corners, m; the mean of the two keys', see :data:`SMOOTH_SPLINE_STRAIN`),
+        in the local steps' precision (the thresholds are 1e-3 and above)."""
+        edges = self.edges_of(x, LOCAL_STEP_DTYPE)
+        lengths = np.sqrt(coordinate_dot(edges, edges))
+        return float(np.mean(np.abs(lengths / reference - 1.0), dtype=np.float64))
 
     def sequence_weights(self) -> np.ndarray:
         """Per-vertex anchor weights (n,) of a sequence: the gap's ``anchor_weight``
