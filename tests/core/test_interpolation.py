@@ -452,6 +452,16 @@ def test_rigidly_moving_sequence_factorizes_once(monkeypatch, strip):
     assert len(built) == 1
 
 
+def test_blas_threads_are_given_back(strip):
+    """In-betweens run with BLAS single-threaded and leave the process's BLAS settings as they were."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    flat, tri = strip
+    keys = [_bend(flat, 0.3 * k) for k in range(4)]
+    before = [info["num_threads"] for info in threadpoolctl.threadpool_info()]
+    SequenceInterpolator(keys, tri).poses(1, [0.25, 0.5, 0.75])
+    assert [info["num_threads"] for info in threadpoolctl.threadpool_info()] == before
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
