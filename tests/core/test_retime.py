@@ -73,20 +73,24 @@ def test_kept_frames_exact_and_inbetweens_from_the_sequence():
             np.testing.assert_array_equal(result[2 * k], source[frame])
     sequence = SequenceInterpolator([source[f].astype(np.float64) for f in (0, 4, 8)], triangles)
     factors = np.arange(1, 8) / 8  # each gap's seven in-betweens, asked together
-    np.testing.assert_array_equal(result[3], sequence.poses(0, factors)[2].astype(np.float32))
-    np.testing.assert_array_equal(result[11], sequence.poses(1, factors)[2].astype(np.float32))
+    # to round-off (see test_chunks_concatenate_to_round_off): float32 of the same poses
+    np.testing.assert_allclose(result[3], sequence.poses(0, factors)[2], rtol=0, atol=1e-6)
+    np.testing.assert_allclose(result[11], sequence.poses(1, factors)[2], rtol=0, atol=1e-6)
     # The dropped frames come back close to the source (a smooth roll).
     assert np.abs(result[2] - source[1]).max() < 0.02
 
 
-def test_chunks_concatenate_bit_for_bit():
+def test_chunks_concatenate_to_round_off():
+    """Chunks of a retime (farm tasks) are the whole retime's frames, to round-off: on AVX-512
+    machines NumPy's and OpenBLAS's small products choose kernels by memory alignment, so the
+    same computation in another process (or later in this one) can differ in the last bit."""
     source, triangles = rolling_sheet(n_frames=13)
     plan = plan_retime(13, 2, 0.7)
     whole = retime(source, triangles, step=2, speed=0.7)
     for count in (2, 7):  # 7 chunks of 6 gaps: one chunk is empty
         parts = [retime(source, triangles, step=2, speed=0.7, gaps=plan.chunk(i, count)) for i in range(count)]
         assert sum(len(part) for part in parts) == plan.n_out
-        assert np.concatenate(parts).tobytes() == whole.tobytes()
+        np.testing.assert_allclose(np.concatenate(parts), whole, rtol=0, atol=1e-6)
     indices = [index for index, _ in iter_retime(source, triangles, plan, range(2, 4))]
     assert indices == list(plan.outputs(range(2, 4)))
 

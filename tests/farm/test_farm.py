@@ -1,5 +1,5 @@
 """The farm job definitions: the Open Job Description template passes `openjd check` and its
-chunked run (`openjd run`, two chunks, then the merge) writes exactly the single-process cache;
+chunked run (`openjd run`, two chunks, then the merge) writes the single-process cache (to round-off);
 the Flamenco job type is valid JavaScript and the commands it authors, run in order, do too."""
 
 import json
@@ -13,7 +13,7 @@ import pytest
 
 from core.__main__ import main
 from core.obj_file import write_obj
-from core.point_cache import write_pc2
+from core.point_cache import read_pc2, write_pc2
 
 ROOT = Path(__file__).resolve().parents[2]
 TEMPLATE = ROOT / "farm" / "retime.openjd.yaml"
@@ -40,7 +40,17 @@ def job(tmp_path_factory):
     single = folder / "single.pc2"
     assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5",
                  "-q", "-o", str(single)]) == 0
-    return folder, cache, topology, single.read_bytes()
+    return folder, cache, topology, single
+
+
+def _same_frames(path, single):
+    """The farm's cache holds the single process's frames with its header, to round-off: on AVX-512
+    machines NumPy's and OpenBLAS's small products choose kernels by memory alignment, so two
+    processes can differ in the last bit of a float32."""
+    farm, whole = read_pc2(path), read_pc2(single)
+    assert farm.positions.shape == whole.positions.shape
+    assert (farm.start, farm.sampling) == (whole.start, whole.sampling)
+    np.testing.assert_allclose(farm.positions, whole.positions, rtol=0, atol=1e-6)
 
 
 @pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
@@ -62,7 +72,7 @@ def test_openjd_two_chunks_equal_the_single_process(job):
     result = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert sorted(p.name for p in (folder / "chunks").iterdir()) == ["chunk1.pc2", "chunk2.pc2"]
-    assert (folder / "farm.pc2").read_bytes() == single
+    _same_frames(folder / "farm.pc2", single)
 
 
 HARNESS = """
@@ -112,7 +122,7 @@ def test_flamenco_job_runs_chunks_then_merge(job):
         result = subprocess.run([command["parameters"]["exe"], *command["parameters"]["args"]],
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stderr
-    assert (folder / "flamenco.pc2").read_bytes() == single
+    _same_frames(folder / "flamenco.pc2", single)
 
     blender = compile_flamenco_job(dict(settings, runner="blender"))
     command = blender[0]["commands"][0]
