@@ -18,6 +18,7 @@ import threading
 
 _pool = None
 _pool_lock = threading.Lock()
+_controller = None  # see _blas_controller
 _worker = threading.local()  # set in the pool's threads: work they submit runs in place
 
 
@@ -67,10 +68,27 @@ def _shared_pool():
 
 def single_threaded_blas():
     """A context limiting BLAS to one thread (a no-op without threadpoolctl)."""
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
+    controller = _blas_controller()
+    if controller is None:
         from contextlib import nullcontext
 
         return nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
+    return controller.limit(limits=1, user_api="blas")
+
+
+def _blas_controller():
+    """threadpoolctl's view of the process's BLAS libraries, made once (None without
+    threadpoolctl): ``threadpool_limits`` looks the loaded libraries up again at every call, 1–4 ms,
+    as much as a tenth of a 10k-vertex in-between. Made at first use, when NumPy's and SciPy's
+    BLAS are loaded (``core`` imports both)."""
+    global _controller
+    if _controller is None:
+        try:
+            from threadpoolctl import ThreadpoolController
+        except ImportError:
+            _controller = False
+        else:
+            import scipy.linalg  # noqa: F401  (SciPy's own BLAS loaded before the libraries are listed)
+
+            _controller = ThreadpoolController()
+    return _controller or None
