@@ -155,7 +155,7 @@ class LocalGlobalFit:
         return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0), dtype=np.float64))
 
     def fit(self, x, stretch, frames, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,
-            targets=None):
+            targets=None, misfits=None):
         """Local/global fit of the interpolated metric ``stretch`` from ``x`` (``frames``: the
         interpolated rotations the fit may not stray far from; None: unconstrained), the
         iterations accelerated by Anderson mixing of the last :data:`ANDERSON_WINDOW` steps
@@ -163,10 +163,11 @@ class LocalGlobalFit:
         error, which the mixing extrapolates); stops once the edge lengths are within the gap's
         tolerance of the metric (see :data:`METRIC_TOLERANCE`), or within :data:`STALL_NEAR` × it
         and no longer improving (:data:`STALL_FRACTION`); ``targets``: ``fit_targets(frames,
-        stretch)`` if the caller has them."""
+        stretch)`` if the caller has them; ``misfits``: a list the misfit of each step is appended to."""
         targets = self.fit_targets(frames, stretch) if targets is None else targets
         local = None  # the local steps' targets in single precision, made at the first step
-        misfits, previous, step_changes, image_changes = [], None, [], []
+        misfits = [] if misfits is None else misfits
+        previous, step_changes, image_changes = None, [], []
         for _ in range(iterations):
             edges = self.edges_of(x, LOCAL_STEP_DTYPE)  # the misfit too: its tolerance is 1e-3
             misfits.append(self.misfit(edges, targets))
