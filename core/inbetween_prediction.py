@@ -80,11 +80,17 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
 def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:
     """``gap.pose(s)`` for each of ``factors`` not in ``known`` {factor: result}: the in-betweens
     concurrently, once the gap's in-between anchor is selected (each solve reads it; the
-    extrapolations' anchor differs, so those are solved one after the other)."""
+    extrapolations' anchor differs, so those are solved one after the other). When some of them
+    were solved with the weak anchor (held off the metric, see
+    :data:`core.inbetween_solver.HELD_MISFIT`), the others are solved with it too."""
     interior = [s for s in dict.fromkeys(factors) if 0.0 < s < 1.0 and s not in known]
     if interior:
         gap.select(interior[0])
         known = {**known, **dict(zip(interior, _per_factor(gap, gap.pose, interior)))}
+        held = {s: gap.held_factors.get(s, False) for s in known if 0.0 < s < 1.0}
+        if any(held.values()):
+            strong = [s for s, weak in held.items() if not weak]
+            known.update(zip(strong, _per_factor(gap, lambda s: gap.pose(s, weak=True), strong)))
     return [known[s] if s in known else gap.pose(s) for s in factors]
 
 

@@ -78,6 +78,10 @@ SMOOTH_SPLINE_STRAIN = 0.01
 HELD_MISFIT = 1.5
 HELD_PROGRESS = 0.15
 HELD_ANCHOR_WEIGHT = 1e-3
+#: (When the solved in-betweens of a gap disagree — some held, some not — the others are solved
+#: with the weak anchor too: the predicted ones interpolate their corrections, which must come from
+#: one anchor. 100k sheet, keys 8 apart: the gap whose three solved in-betweens were mixed was
+#: otherwise found too rough to predict and all seven were solved.)
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
 #: about a common pivot stay together), along the spline of the keys' centroids where they deform
@@ -208,6 +212,7 @@ class _Gap(LocalGlobalFit):
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         self.repair = Repair(self)
+        self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
 
     def select(self, s: float) -> None:
         """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
@@ -247,7 +252,7 @@ class _Gap(LocalGlobalFit):
     def held(self, misfits: list) -> bool:
         """Whether a sequence's fit with these ``misfits`` (per step) was held off the metric by
         the spline anchor (see :data:`HELD_MISFIT`)."""
-        return (not self.anchored and self.anchor_weight > HELD_ANCHOR_WEIGHT and len(misfits) > 1
+        return (self.anchor_weight > HELD_ANCHOR_WEIGHT and len(misfits) > 1
                 and misfits[-1] > HELD_MISFIT * self.tolerance and misfits[-1] > (1.0 - HELD_PROGRESS) * misfits[0])
 
     def weak_system(self) -> tuple:
@@ -377,22 +382,30 @@ class _Gap(LocalGlobalFit):
             out[region.free] = region.solve(edges, x, guide)
         return out
 
-    def pose(self, s: float) -> tuple[np.ndarray, str | None]:
-        """(positions (n, 3), None) or, after a fallback, (positions, what happened)."""
+    def pose(self, s: float, weak: bool | None = None) -> tuple[np.ndarray, str | None]:
+        """(positions (n, 3), None) or, after a fallback, (positions, what happened). ``weak``: an
+        in-between of a sequence fitted with the anchor at :data:`HELD_ANCHOR_WEIGHT` (True), with
+        the gap's own (False), or with the gap's own and again with the weak one if the first fit
+        is held off the metric (None; what was used is kept in ``self.held_factors[s]``)."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s)
         fitted = frames if self.use_extrinsic else None
         targets = self.fit_targets(fitted, stretch)  # shared by the Poisson solve and the fit
-        if self.use_extrinsic:
-            x0 = self.place(self.solve(targets["edges"], guide), s, motion)
-        else:
-            x0 = self.place(guide.copy(), s, motion)
-        misfits = []
-        x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits)
-        if 0.0 < s < 1.0 and self.held(misfits):
-            weak = self.weak_system()
-            x0 = self.solve(targets["edges"], guide, weak) if self.use_extrinsic else x0
-            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=weak)
+        between = 0.0 < s < 1.0 and not self.anchored
+        if not (between and weak):
+            if self.use_extrinsic:
+                x0 = self.place(self.solve(targets["edges"], guide), s, motion)
+            else:
+                x0 = self.place(guide.copy(), s, motion)
+            misfits = []
+            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits)
+            weak = weak is None and between and self.held(misfits)
+        if between and weak:
+            system = self.weak_system()
+            x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
+            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=system)
+        if between:
+            self.held_factors[s] = bool(weak)
         return self.pinned(self.repair.checked(x, x0, s, frames, stretch, guide, motion))
 
     def repaired(self, x: np.ndarray, s: float, rings=None) -> tuple[np.ndarray, str | None]:
