@@ -19,7 +19,7 @@ from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLE
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
 from .sparse_cholesky import SPDFactor
-from .splines import START_TANGENT_LIMIT, TANGENT_LIMIT, HermiteGap
+from .splines import TANGENT_LIMIT, HermiteGap
 
 #: Anchor weight (per unit vertex mass, mean mass 1, relative to the unit edge terms) that only
 #: fixes the translation gauge of the Poisson solve: small enough to leave shapes exact to ~1e-7
@@ -187,11 +187,12 @@ class _Gap(LocalGlobalFit):
     its factorization. :meth:`poses` answers any factors."""
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
-                 use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None, start: bool = False):
+                 use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
+                 start_limit: float | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
-        limit = START_TANGENT_LIMIT if start else TANGENT_LIMIT
+        limit = TANGENT_LIMIT if start_limit is None else start_limit  # a sequence's first gap: its own
         spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic, rows=name in POSITIONS, limit=limit)
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         self.splines = spline

@@ -54,7 +54,8 @@ from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
 from .inbetween_solver import _Gap, _Topology
 from .laplace_basis import basis_sizes
-from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_time
+from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
+from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -70,6 +71,27 @@ KEY_CACHE = 5
 
 def _warn(message: str) -> None:
     warnings.warn(f"Shape-difference interpolation: {message}.", ShapeDifferenceWarning, stacklevel=3)
+
+
+#: A motion starts from rest at its first key when its velocity there — from the first three frames
+#: of the source, one frame apart (the parabola through them) — is below this fraction of its mean
+#: velocity over the first gap (RMS over the vertices): free fall from rest gives 0 (exact for
+#: constant acceleration), motion at constant velocity 1.
+REST_START_FRACTION = 0.25
+
+
+def start_of_motion(frames, next_key, step: int) -> str:
+    """``"rest"`` or ``"keys"`` (the ``start`` of :class:`SequenceInterpolator`) for keys every
+    ``step``-th frame of a dense source: ``frames`` its first three frames (3, n, 3) — the first key
+    and the two frames after it — and ``next_key`` (n, 3) the second key (frame ``step``). With
+    fewer than three frames or a step below 2 the keys are the source: ``"keys"``."""
+    frames = [np.asarray(f, dtype=np.float64) for f in frames]
+    if step < 2 or len(frames) < 3:
+        return "keys"
+    velocity = 0.5 * (-3.0 * frames[0] + 4.0 * frames[1] - frames[2])  # per frame, at the first key
+    mean = (np.asarray(next_key, dtype=np.float64) - frames[0]) / step
+    rms = lambda v: float(np.sqrt(np.mean(np.sum(v * v, axis=1))))  # noqa: E731
+    return "rest" if rms(velocity) <= REST_START_FRACTION * rms(mean) else "keys"
 
 
 class SequenceInterpolator:
@@ -88,16 +110,25 @@ class SequenceInterpolator:
     gap's data on first use (the last few gaps are cached). A gap's results depend only on the
     keys, the gap and the factors asked for. ``k_M``/``k_N``/``offset``/``use_extrinsic`` as for
     :class:`Interpolator`.
+
+    ``start``: how the motion enters the first key. ``"rest"`` (the default): from rest, as a
+    simulation baked from its first frame or an animation from a held pose — the first gap starts
+    with zero velocity. ``"keys"``: keys cut from the middle of a motion — the start velocity is
+    that of the parabola through the first three keys, at most the first gap's (exact for motion
+    at constant velocity or acceleration). Where the source's frames between the keys are at hand
+    (the operators, :func:`core.retime.retime`), :func:`start_of_motion` chooses.
     """
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
-                 offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True):
+                 offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest"):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
+        start = check_start(start)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
-        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth)
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start)
 
-    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth):
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest"):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
+        self.start = start
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -228,17 +259,21 @@ class SequenceInterpolator:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw[:, :3]
             after = ahead[1].unwrap(2 * turn) if gap + 2 <= last else None
-            # the sequence's start: the parabola through the first three keys, its tangent at
-            # most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
+            # the sequence's start: from rest, or the parabola through the first three keys, its
+            # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
             prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident, after)
             after = after if after is not None else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static, start=gap == 0)
+                       self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
+
+    def _start_limit(self) -> float:
+        """The first gap's start tangent limit (× its secant) for this sequence's ``start``."""
+        return REST_START_LIMIT if self.start == "rest" else START_TANGENT_LIMIT
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""

@@ -105,10 +105,11 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     (default: all), in order.
 
     ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only the key
-    samples are read). ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``,
-    ``smooth`` of :class:`core.SequenceInterpolator`.
+    samples and the two after the first are read). ``interpolator_options``: ``k_M``, ``k_N``,
+    ``offset``, ``use_extrinsic``, ``smooth``, ``start`` of :class:`core.SequenceInterpolator`;
+    ``start`` by default from the source's first frames (:func:`core.interpolation.start_of_motion`).
     """
-    from .interpolation import SequenceInterpolator
+    from .interpolation import SequenceInterpolator, start_of_motion
 
     if len(samples) != plan.n_source:
         raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")
@@ -116,6 +117,10 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
     key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
+    if "start" not in interpolator_options:
+        step = int(plan.keys[1] - plan.keys[0])
+        first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
+        interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step)}
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):

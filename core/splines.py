@@ -15,12 +15,16 @@ import numpy as np
 #: Catmull–Rom tangents overshoot into the gap after such a stop. The numbers behind the value
 #: are in docs/inbetweens.md.
 TANGENT_LIMIT = 3.0
-#: The first gap of a sequence has no key before it: its start tangent is that of the parabola
-#: through the first three keys (exact for motion at constant acceleration, such as cloth falling
-#: from rest at the start of a bake; the linear end condition gives it the whole gap's velocity at
-#: once), at most the gap's secant per element: where the motion stops at the second key (an
-#: impact) the parabola's tangent exceeds the secant and overshoots, the secant does not.
+#: The first gap of a sequence has no key before it. A motion that starts at its first key from
+#: rest (a simulation baked from its first frame, an animation from a held pose) starts with zero
+#: tangents (:data:`REST_START_LIMIT`, the sequence's ``start="rest"``); one cut from the middle of
+#: a motion (``start="keys"``) with the tangent of the parabola through the first three keys (exact
+#: for motion at constant acceleration; the linear end condition gives it the whole gap's velocity
+#: at once), at most the gap's secant per element (START_TANGENT_LIMIT): where the motion stops at
+#: the second key (an impact) the parabola's tangent exceeds the secant and overshoots, the secant
+#: does not. Numbers in docs/inbetweens.md.
 START_TANGENT_LIMIT = 1.0
+REST_START_LIMIT = 0.0
 
 
 class HermiteGap:
@@ -32,7 +36,8 @@ class HermiteGap:
 
     ``values``: ``(before, start, end, after)`` at key times −1, 0, 1, 2, arrays of one shape.
     ``rows=True`` limits the length of each row (points in space) instead of each element;
-    ``limit``: the multiple of the secant (:data:`START_TANGENT_LIMIT` for a sequence's first gap).
+    ``limit``: the multiple of the secant (:data:`START_TANGENT_LIMIT` or :data:`REST_START_LIMIT`
+    for a sequence's first gap; 0 gives a zero start tangent).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT):

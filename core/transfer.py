@@ -708,7 +708,7 @@ def _sequence_class():
         base mesh in the full basis. Without ``target_triangles``: the same-mesh interpolator."""
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
-                     smooth=True, base_vertices=None, target_triangles=None, correspondence=None,
+                     smooth=True, start="rest", base_vertices=None, target_triangles=None, correspondence=None,
                      target_rest_vertices=None):
             if target_triangles is not None:
                 if base_vertices is None:
@@ -720,7 +720,7 @@ def _sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth)
+                             smooth=smooth, start=start)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

@@ -286,6 +286,17 @@ def check_flag(value, name: str) -> bool:
     raise MeshError(f"{name} must be True or False; got {_describe(value)}.")
 
 
+#: How a sequence's first gap starts (see :class:`core.SequenceInterpolator`).
+START_MODES = ("rest", "keys")
+
+
+def check_start(value) -> str:
+    """A sequence's ``start``: one of :data:`START_MODES`; anything else is a MeshError."""
+    if isinstance(value, str) and value in START_MODES:
+        return value
+    raise MeshError(f"start must be one of {', '.join(repr(m) for m in START_MODES)}; got {_describe(value)}.")
+
+
 def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses") -> list[np.ndarray]:
     """Key poses as a list of float64 ``(n, 3)`` arrays with one vertex count (from a list of
     arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate."""

@@ -53,6 +53,21 @@ class FrameRangeProperties:
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
 
+    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float):
+        """Yield progress while reading the evaluated mesh at the key frames ``keys`` and the two
+        frames after the first; returns the keys' positions and the sequence's ``start``
+        (``core.interpolation.start_of_motion``: whether the motion leaves the first key from
+        rest, as a simulation from its first frame does)."""
+        from ..core.interpolation import start_of_motion
+
+        step = keys[1] - keys[0] if len(keys) > 1 else 1
+        extra = [keys[0] + 1, keys[0] + 2] if step >= 2 else []  # with step 2 the second is a key
+        frames = sorted(set(keys) | set(extra))
+        read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share))))
+        first = [read[f] for f in (keys[0], keys[0] + 1, keys[0] + 2) if f in read] if step >= 2 else []
+        start = start_of_motion(first, read[keys[1]], step) if len(keys) > 1 else "keys"
+        return [read[f] for f in keys], start
+
     def read_frames(self, context, obj, frames: list[int], progress_share: float):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions."""
         poses = []
@@ -104,7 +119,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in frames]
-        poses = yield from self.read_frames(context, obj, frames, 0.2)
+        poses, options["start"] = yield from self.read_keys_and_start(context, obj, frames, 0.2)
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, poses, triangles,
                                            **options)
         names, tails, all_poses, timeline = [], [], [], []
@@ -161,7 +176,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
-        poses = yield from self.read_frames(context, obj, key_frames, 0.1)
+        poses, options["start"] = yield from self.read_keys_and_start(context, obj, key_frames, 0.1)
         samples = KeySamples(plan.n_source, dict(zip(plan.keys.tolist(), poses)))
         poses_out = retime.iter_retime(samples, triangles, plan, **options)
         retimed = []

@@ -216,19 +216,49 @@ def test_sequence_beats_blend_on_accelerating_fall(strip):
         assert np.linalg.norm(ours - truth) < ratio * np.linalg.norm(blend - truth)
 
 
-def test_fall_from_rest_is_exact_from_the_first_gap(strip):
-    """A sheet dropped from rest, p(t) = p₀ + ½·a·t²: the sequence's first gap starts on the
-    parabola through the first three keys, so every in-between of it is exact (as the interior
-    gaps are with Catmull–Rom tangents), where the linear end condition starts at the first gap's
-    mean velocity (off by a·s(1 − s)²/2 at factor s)."""
+@pytest.mark.parametrize("start", ["rest", "keys"])
+def test_fall_from_rest_is_exact_from_the_first_gap(strip, start):
+    """A sheet dropped from rest, p(t) = p₀ + ½·a·t²: the first gap starts from rest
+    (``start="rest"``) or on the parabola through the first three keys (``"keys"``, which has zero
+    velocity at the first key too), so every in-between of it is exact (as the interior gaps are
+    with Catmull–Rom tangents), where the linear end condition starts at the first gap's mean
+    velocity (off by a·s(1 − s)²/2 at factor s)."""
     flat, tri = strip
     acceleration = np.array([0.1, -0.2, -1.0])
     keys = [flat + 0.5 * acceleration * t * t for t in range(5)]
-    seq = SequenceInterpolator(keys, tri)
+    seq = SequenceInterpolator(keys, tri, start=start)
     for gap in range(len(seq) - 1):  # the last gap ends on a linear extrapolation
         for s in (0.25, 0.5, 0.75):
             truth = flat + 0.5 * acceleration * (gap + s) ** 2
             np.testing.assert_allclose(seq.pose(gap, s), truth, atol=1e-9)
+
+
+def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
+    """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
+    zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
+    parabola's tangent, 1.5 × the secant here, limited to it)."""
+    flat, tri = strip
+    keys = [flat, flat + [0.0, 0.0, -1.0], flat + [0.0, 0.0, -1.0], flat + [0.0, 0.0, -1.0]]
+    eps = 1e-3
+    rest = np.abs(SequenceInterpolator(keys, tri).pose(0, eps) - flat).max()
+    moving = np.abs(SequenceInterpolator(keys, tri, start="keys").pose(0, eps) - flat).max()
+    assert rest < 1e-5 and abs(moving - eps) < 1e-5
+
+
+def test_start_of_motion_tells_rest_from_motion():
+    """The first three frames of a dense source say how the motion leaves the first key: a fall
+    from rest (zero velocity) or one at constant velocity (the keys' own), whatever the step."""
+    from core.interpolation import start_of_motion
+
+    flat, _ = grid(6, 6)
+    fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(9)]
+    drift = [flat + [0.3 * t, 0.0, 0.0] for t in range(9)]
+    for step in (2, 4, 8):
+        assert start_of_motion(fall[:3], fall[step], step) == "rest"
+        assert start_of_motion(drift[:3], drift[step], step) == "keys"
+    assert start_of_motion(fall[:1], fall[1], 1) == "keys"  # no frames between the keys
+    with pytest.raises(MeshError):
+        SequenceInterpolator(fall[::4], grid(6, 6)[1], start="still")
 
 
 def test_no_nan_or_flip_on_unrealizable_targets():
