@@ -56,7 +56,7 @@ from core.errors import ShapeDifferenceWarning  # noqa: E402
 from core.interpolation import Interpolator, SequenceInterpolator  # noqa: E402
 
 QUICK_SCENES = ["drape_sphere", "fall_box", "tablecloth"]
-LARGE_SCENES = ["drape_sphere_hd", "tablecloth", "sheet_cube_50k", "sheet_cube_100k"]
+LARGE_SCENES = ["drape_sphere_hd", "tablecloth", "sheet_cube_50k", "sheet_cube_100k", "hang_10k", "flag_soft_10k"]
 
 
 def unique_edges(triangles: np.ndarray) -> np.ndarray:

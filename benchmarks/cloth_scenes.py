@@ -80,6 +80,9 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec("tablecloth", "table", (120, 120), size=2.2, frames=48),
         SceneSpec("sheet_cube_50k", "edge", (224, 224), size=2.4, frames=40),
         SceneSpec("sheet_cube_100k", "edge", (316, 316), size=2.4, frames=33),
+        # cheap bakes (nothing to collide with): the in-betweens' cost against the least Blender spends
+        SceneSpec("hang_10k", "hang", (100, 100), size=1.5, frames=65),  # default cloth, two corners pinned
+        SceneSpec("flag_soft_10k", "flag", (125, 80), size=2.0, frames=65),  # default cloth, pinned at its pole
     ]
 }
 
