@@ -82,11 +82,20 @@ def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:
     concurrently, once the gap's in-between anchor is selected (each solve reads it; the
     extrapolations' anchor differs, so those are solved one after the other). When some of them
     were solved with the weak anchor (held off the metric, see
-    :data:`core.inbetween_solver.HELD_MISFIT`), the others are solved with it too."""
+    :data:`core.inbetween_solver.HELD_MISFIT`), the others are solved with it too: the one nearest
+    the middle of the gap is solved first and, if it was held, the others with the weak anchor
+    straight away (the same poses, without their fits with the gap's own anchor)."""
     interior = [s for s in dict.fromkeys(factors) if 0.0 < s < 1.0 and s not in known]
     if interior:
         gap.select(interior[0])
-        known = {**known, **dict(zip(interior, _per_factor(gap, gap.pose, interior)))}
+        solve = gap.pose
+        if len(interior) > 2 and not gap.anchored:
+            middle = min(interior, key=lambda s: abs(s - 0.5))
+            known = {**known, middle: gap.pose(middle)}  # the other core prepares the next gap meanwhile
+            interior.remove(middle)
+            if gap.held_factors.get(middle):
+                solve = lambda s: gap.pose(s, weak=True)  # noqa: E731
+        known = {**known, **dict(zip(interior, _per_factor(gap, solve, interior)))}
         held = {s: gap.held_factors.get(s, False) for s in known if 0.0 < s < 1.0}
         if any(held.values()):
             strong = [s for s, weak in held.items() if not weak]
