@@ -216,9 +216,11 @@ class Transfer:
     Measured (docs/transfer.md, k_M = 100): the offset layer's recovered lengths are the weak part
     on cloth — re-meshed 1k drape, median relative error 6.6 % against 2.3 % for the mesh's, as bad
     with the exact same-mesh differences (the truncation, not the map) — and the thickening fitted
-    to them lands 3–6 % from the target where this fit lands at 1.5–3 %; the limb 2.8 % instead of
-    5.2 % at its last hostile frame (1.7 / 1.3 % instead of 1.3 / 0.9 % at its first); twice as
-    fast. ``True``: the four differences and the canonical thickening's embedding.
+    to them lands 2.5–6.5 % from the target where this fit (stopped at
+    :data:`INTRINSIC_EMBEDDING_TOLERANCE`) lands at 1.0–2.3 % (5k: 1.3–1.7 % against 4.2–6.5 %);
+    the limb 2.75 % instead of 5.22 % at its last hostile frame, but 1.22 / 2.21 % instead of
+    0.89 / 1.55 % at the sampled limb's first two; 2–6 × faster per frame. ``True``: the four
+    differences and the canonical thickening's embedding.
     """
 
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
