@@ -592,8 +592,17 @@ class Transfer:
         :data:`EMBEDDING_STAGNATION`."""
         ref, last = self.reference, self._last_embedding
         if not ref.use_extrinsic:
-            result = ref.embed_result(metric, initial=carried, initial_damping=EMBEDDING_DAMPING,
-                                      stagnation=EMBEDDING_STAGNATION, tolerance=INTRINSIC_EMBEDDING_TOLERANCE)
+            def fit(start):
+                return ref.embed_result(metric, initial=start, initial_damping=EMBEDDING_DAMPING,
+                                        stagnation=EMBEDDING_STAGNATION, tolerance=INTRINSIC_EMBEDDING_TOLERANCE)
+
+            result = fit(carried)
+            if result.residual > INTRINSIC_EMBEDDING_TOLERANCE:
+                # Stopped short of the lengths' accuracy: the carried pose is tangled (a sparse map's
+                # extrapolated vertices). Its projection on the base's k_M functions is smooth.
+                basis = ref.base.basis(self.k_M).functions
+                other = fit(basis @ (basis.T @ (ref.base.mass @ carried)))
+                result = min((result, other), key=lambda r: r.residual)
             self._last_embedding = result
             return result
         thick = lambda x: ref.surface.thickening_points(x, ref.surface.positions(x, ref.offset))  # noqa: E731

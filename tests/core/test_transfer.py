@@ -225,6 +225,32 @@ def test_intrinsic_transfer_fits_the_recovered_lengths_from_the_carried_target(l
     assert error < 0.05 and error < 0.5 * unchanged
 
 
+def test_a_tangled_carried_pose_is_refitted_from_its_projection(limb):
+    """A carried pose tangled at the scale of edges (as a sparse map's extrapolated vertices can
+    be) stops the intrinsic fit far short of the lengths; the transfer then also fits the carried
+    pose's projection on the base's k_M functions, which is smooth, and keeps the lower residual —
+    here one that reaches the stopping tolerance."""
+    import core.transfer as transfer_module
+    from benchmarks import limb_scenes
+
+    base, base_tris, target, target_tris, vertex_map = limb
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        transfer = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=40, k_N=80)
+    ref = transfer.reference
+    posed = limb_scenes.pose(base, 0.3)[ref.used_vertices]
+    metric = ref.pose_metric(posed)  # lengths that some pose realizes exactly
+    edge = np.sqrt(metric.base.squared_lengths).mean()
+    rng = np.random.default_rng(0)
+    offsets = 2.0 * edge * rng.normal(size=posed.shape)  # a fifth of the vertices, ~2 edges away
+    tangled = posed + offsets * (rng.random(len(posed)) < 0.2)[:, None]
+    tolerance = transfer_module.INTRINSIC_EMBEDDING_TOLERANCE
+    alone = ref.embed_result(metric, initial=tangled, initial_damping=transfer_module.EMBEDDING_DAMPING,
+                             stagnation=transfer_module.EMBEDDING_STAGNATION, tolerance=tolerance)
+    assert alone.residual > 10 * tolerance  # stuck: the case the refit is for
+    assert transfer._embed(metric, tangled).residual <= tolerance
+
+
 def test_offset_surface_basis_of_the_carried_rest_starts_from_the_mesh_basis(sheets, monkeypatch):
     """Preparation solves one eigenproblem from scratch (the target mesh's); the target offset
     surface's eigenbasis starts from it, lifted, and agrees with a direct eigensolve of that
