@@ -578,6 +578,13 @@ class Transfer:
         placed = ref.place_near(embedded.base_vertices, carried)
         return ref.expand_pose(placed)
 
+    def _projected(self, vertices) -> np.ndarray:
+        """Base ``vertices`` ``(n_M_used, 3)`` projected on the base's k_M eigenfunctions (mass
+        inner product): what the truncated lengths resolve, smooth at the scale of edges."""
+        ref = self.reference
+        basis = ref.base.basis(self.k_M).functions
+        return basis @ (basis.T @ (ref.base.mass @ vertices))
+
     def _embed(self, metric, carried):
         """The pose realizing a recovered metric. Intrinsic only: the base mesh fitted to its
         recovered edge lengths from ``carried`` ``(n_M_used, 3)``, the target pose carried to the
@@ -600,8 +607,7 @@ class Transfer:
             if result.residual > INTRINSIC_EMBEDDING_TOLERANCE:
                 # Stopped short of the lengths' accuracy: the carried pose is tangled (a sparse map's
                 # extrapolated vertices). Its projection on the base's k_M functions is smooth.
-                basis = ref.base.basis(self.k_M).functions
-                other = fit(basis @ (basis.T @ (ref.base.mass @ carried)))
+                other = fit(self._projected(carried))
                 result = min((result, other), key=lambda r: r.residual)
             self._last_embedding = result
             return result
@@ -613,9 +619,7 @@ class Transfer:
             # both fitted (in two threads), the lower residual kept (the module constant).
             from .reference_shape import per_layer_threads
 
-            basis = ref.base.basis(self.k_M).functions
-            projected = basis @ (basis.T @ (ref.base.mass @ carried))
-            starts = [carried_points, thick(projected)]
+            starts = [carried_points, thick(self._projected(carried))]
             starts = [s for s in starts if np.isfinite(s).all()]
             if not starts:
                 return ref.embed_result(metric)
