@@ -18,7 +18,7 @@ rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with 
 
     python -m benchmarks.bench_transfer [--scene drape|drape5k|limb|limb5k] [--frames 20,40,60] [--third]
                                         [--same-mesh all|first|none] [--target sampled|decimated|hostile]
-                                        [--map nearest|template] [--matched 0.7]
+                                        [--map nearest|template] [--matched 0.7] [--extrinsic]
     python -m benchmarks.bench_transfer --picture docs/images/transfer_cloth.png
     python -m benchmarks.bench_transfer --scene limb --frames 10,20,30,40 --picture docs/images/transfer_limb.png
 
@@ -239,7 +239,7 @@ def correspondence(scene_name, scene, base, target_rest, how: str, matched: floa
 
 
 def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh="all", target="sampled",
-        map_kind="nearest", matched=1.0, log=print):
+        map_kind="nearest", matched=1.0, use_extrinsic=False, log=print):
     scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third, target)
     base, target_rest = base_frames[0], target_frames[0]
     vertex_map = closest_point_correspondence(base, target_rest)  # to align the results for the errors
@@ -251,7 +251,7 @@ def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=20
         warnings.simplefilter("ignore", core.ShapeDifferenceWarning)
         t0 = time.perf_counter()
         transfer = core.Transfer(base, base_tris, target_rest, target_tris, correspondence=given_map, k_M=k_m,
-                                 k_N=k_n)
+                                 k_N=k_n, use_extrinsic=use_extrinsic)
         prep = time.perf_counter() - t0
         for f in frames:
             target = target_frames[f]
@@ -331,11 +331,13 @@ def main(argv=None):
     parser.add_argument("--map", choices=["nearest", "template"], default="nearest",
                         help="nearest target vertex at rest, or two .vts-style template maps composed")
     parser.add_argument("--matched", type=float, default=1.0, help="keep this random fraction of the map")
+    parser.add_argument("--extrinsic", action="store_true",
+                        help="also transfer the offset layer and embed the thickening (Transfer(use_extrinsic=True))")
     parser.add_argument("--picture", help="write a Fig. 15-style picture to this path")
     args = parser.parse_args(argv)
     frames = tuple(int(f) for f in args.frames.split(","))
     result = run(args.scene, frames, third=args.third, same_mesh=args.same_mesh, target=args.target,
-                 map_kind=args.map, matched=args.matched)
+                 map_kind=args.map, matched=args.matched, use_extrinsic=args.extrinsic)
     if args.picture:
         picture(args.picture, result)
 

@@ -336,7 +336,8 @@ def interpolate(
 
     With ``target_triangles``, ``vertices_b`` is a pose of another mesh: it is first rebuilt on
     the mesh of ``vertices_a`` (:class:`Transfer`, ``k_M`` / ``k_N``, ``correspondence`` and
-    ``target_rest_vertices`` as in :func:`shape_differences`), then in-betweened in the full basis."""
+    ``target_rest_vertices`` as in :func:`shape_differences`; intrinsic, its default), then
+    in-betweened in the full basis (``use_extrinsic`` applies to the in-between)."""
     from .interpolation import Interpolator
 
     factor = check_factor(factor)
@@ -345,7 +346,7 @@ def interpolate(
 
         (vertices_b,) = transferred_keys(
             vertices_a, triangles, [vertices_b], target_triangles, correspondence=correspondence,
-            target_rest_vertices=target_rest_vertices, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
+            target_rest_vertices=target_rest_vertices, k_M=k_M, k_N=k_N, offset=offset,
         )
         k_M = k_N = None
     return Interpolator(

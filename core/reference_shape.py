@@ -308,19 +308,22 @@ class ReferenceShape:
 
     def embed_result(self, metric: RecoveredMetric, *, initial: np.ndarray | None = None, anchor=None,
                      nearby: np.ndarray | None = None, initial_damping: float | None = None,
-                     stagnation: float | None = None):
+                     stagnation: float | None = None, tolerance: float | None = None):
         """:meth:`embed` with the whole :class:`~core.embedding.EmbeddingResult` (residuals,
         mirror choices made without evidence), which :func:`core.reconstruct` warns from.
         ``nearby``: thickening points ``(n + n_offset, 3)`` of a nearby pose (the previous frame of
         an animation), raced against the hinge frames instead of the base pose, without the
         continuations from the base. ``initial_damping``: the fit's first Levenberg–Marquardt
         damping and ``stagnation`` the relative cost decrease at which it stops
-        (:func:`~core.edge_length_fit.levenberg_marquardt`; default its own)."""
-        from .edge_length_fit import INITIAL_DAMPING, STAGNATION
+        (:func:`~core.edge_length_fit.levenberg_marquardt`; default its own); ``tolerance`` the RMS
+        relative length residual at which it stops (default
+        :data:`~core.edge_length_fit.DEFAULT_TOLERANCE`)."""
+        from .edge_length_fit import DEFAULT_TOLERANCE, INITIAL_DAMPING, STAGNATION
         from .embedding import embed_base_edges, embed_thickening
 
         damping = INITIAL_DAMPING if initial_damping is None else float(initial_damping)
         stagnation = STAGNATION if stagnation is None else float(stagnation)
+        tolerance = DEFAULT_TOLERANCE if tolerance is None else float(tolerance)
 
         if metric.offset is not None:
             # The base pose is raced against the hinge frames as a start when the lengths are
@@ -330,12 +333,12 @@ class ReferenceShape:
             result = embed_thickening(
                 self.surface, self.thickening_squared_lengths(metric), initial_points=initial,
                 reference_points=reference, anchor=anchor, continuation=nearby is None, initial_damping=damping,
-                stagnation=stagnation,
+                stagnation=stagnation, tolerance=tolerance,
             )
         else:
             start = next(p for p in (initial, nearby, self.base_positions) if p is not None)[: self.topology.n_vertices]
             result = embed_base_edges(self.topology, metric.base.squared_lengths, initial_vertices=start,
-                                      initial_damping=damping, stagnation=stagnation)
+                                      initial_damping=damping, stagnation=stagnation, tolerance=tolerance)
         return result
 
     def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:

@@ -175,10 +175,11 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         yield 0.05
         core = load_core()
         base = _world(obj, bridge.vertex_positions(obj.data))
+        # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
+        # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
         transfer = yield from self.compute(
             0.1, core.Transfer, base, triangles, _world(source, rest), source_triangles,
-            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"],
-            use_extrinsic=options["use_extrinsic"])
+            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"])
         rebuilt = []
         for i, pose in enumerate(poses):
             world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose, _world(source, pose))
