@@ -70,21 +70,20 @@ SMOOTH_NEAR_ANCHOR_WEIGHT = 3e-2
 SMOOTH_SPLINE_STRAIN = 0.01
 #: A sequence's in-between whose fit is held off the metric by the spline anchor — its misfit
 #: still above HELD_MISFIT × the gap's tolerance and less than HELD_PROGRESS below where the fit
-#: started — is solved again with the anchor weight HELD_ANCHOR_WEIGHT. (2.5 rather than 1.5: the
-#: weak anchor costs a factorization per sequence, 0.7 s at 100k vertices, and the 50k / 100k
-#: sheets' fits held at 1.6–2.1 × bought no RMS: 100k at g = 4 0.108–0.112 → 0.090–0.092 × the bake;
-#: the 10k hanging sheet at g = 8 0.773 → 0.883 × Catmull–Rom, the tablecloth at g = 4 0.717 → 0.754.) The per-vertex spline of a
-#: swinging sheet cuts the chords of its arcs: the whole sheet is too small, which the local steps
-#: cannot undo against a pull at every vertex (10k sheet hanging from two corners, keys 16 apart:
-#: misfit 4.75 → 4.57 % over the fit, tolerance 0.25 %). Where the fit converges the anchor stays
-#: (a flag pinned at its pole: its misfit halves; there the weak anchor costs 20–70 % of RMS).
+#: started — is solved again with the anchor weight HELD_ANCHOR_WEIGHT, and so are the other solved
+#: in-betweens of its gap (the predicted ones interpolate their corrections, which must come from
+#: one anchor; mixed, a gap of the 100k sheet was found too rough to predict and all seven solved).
+#: The per-vertex spline of a swinging sheet cuts the chords of its arcs: the whole sheet is too
+#: small, which the local steps cannot undo against a pull at every vertex (10k sheet hanging from
+#: two corners, keys 16 apart: misfit 4.75 → 4.57 % over the fit, tolerance 0.25 %). Where the fit
+#: converges the anchor stays (a flag pinned at its pole: its misfit halves; there the weak anchor
+#: costs 20–70 % of RMS). HELD_MISFIT is 2.5 rather than 1.5 because the weak anchor costs a
+#: factorization per sequence (0.7 s at 100k vertices) and the 50k / 100k sheets' fits held at
+#: 1.6–2.1 × bought no RMS (100k at g = 4: 0.108–0.112 → 0.090–0.092 × the bake); 10k hanging sheet
+#: at g = 8 0.773 → 0.883 × Catmull–Rom, tablecloth at g = 4 0.717 → 0.754.
 HELD_MISFIT = 2.5
 HELD_PROGRESS = 0.15
 HELD_ANCHOR_WEIGHT = 1e-3
-#: (When the solved in-betweens of a gap disagree — some held, some not — the others are solved
-#: with the weak anchor too: the predicted ones interpolate their corrections, which must come from
-#: one anchor. 100k sheet, keys 8 apart: the gap whose three solved in-betweens were mixed was
-#: otherwise found too rough to predict and all seven were solved.)
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
 #: about a common pivot stay together), along the spline of the keys' centroids where they deform
