@@ -188,8 +188,7 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
     edge_triangles = np.full((n_edges, 2), -1, dtype=np.int64)
     owner = np.repeat(np.arange(m, dtype=np.int64), 3)
     # Two half-edges of one edge in the same direction means the two triangles disagree.
-    occupancy = np.zeros((n_edges, 2), dtype=np.int64)
-    np.add.at(occupancy, (edge_of_halfedge, slot), 1)
+    occupancy = np.bincount(2 * edge_of_halfedge + slot, minlength=2 * n_edges).reshape(n_edges, 2)
     inconsistent = (occupancy > 1).any(axis=1)
     if allow_non_manifold:
         keep = ~(non_manifold | inconsistent)[edge_of_halfedge]
@@ -212,7 +211,7 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         edges=edges,
         triangle_edges=edge_of_halfedge.reshape(m, 3).astype(np.int64),
         edge_triangles=edge_triangles,
-        used_vertices=np.unique(tris),
+        used_vertices=np.flatnonzero(np.bincount(tris.ravel(), minlength=n_vertices)),
     )
 
 
