@@ -121,7 +121,7 @@ def test_rigid_sequence_is_reproduced_at_every_time():
     seq = SequenceInterpolator(keys, tri, start="keys")
     for time in (0.3, 1.5, 2.25, 3.8, 4.5):
         np.testing.assert_allclose(seq.pose_at(time), _screw(a, step, translation, time), atol=1e-6)
-    factors = np.arange(1, 8) / 8  # a batch: three solved, four predicted from them
+    factors = np.arange(1, 8) / 8  # a batch: two solved, five predicted from them
     for gap, poses in ((0, seq.poses(0, factors)), (2, seq.poses(2, factors))):
         for factor, pose in zip(factors, poses):
             np.testing.assert_allclose(pose, _screw(a, step, translation, gap + factor), atol=1e-6)
@@ -220,8 +220,8 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
     seq = SequenceInterpolator(keys, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)  # repaired: no fallback
-        batch = seq.poses(2, np.arange(1, 8) / 8)
-    assert sorted(solved) == [0.25, 0.5, 0.75] and len(repaired) == 4  # every predicted one was folded
+        batch = seq.poses(2, np.arange(1, 16) / 16)  # 15 in-betweens: three solved
+    assert sorted(solved) == [0.25, 0.5, 0.75] and len(repaired) == 12  # every predicted one was folded
 
     def normals(x):
         return np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
@@ -253,8 +253,8 @@ def test_rough_corrections_are_solved_not_predicted(monkeypatch):
     real_pose = type(gap).pose
     monkeypatch.setattr(prediction, "_inconsistent", lambda gap, solved: True)
     monkeypatch.setattr(type(gap), "pose", lambda self, s, **kw: solved.append(s) or real_pose(self, s, **kw))
-    SequenceInterpolator(keys, tri).poses(2, np.arange(1, 8) / 8)
-    assert sorted(solved) == list(np.arange(1, 8) / 8)
+    SequenceInterpolator(keys, tri).poses(2, np.arange(1, 16) / 16)  # three solved, then all
+    assert sorted(solved) == list(np.arange(1, 16) / 16)
 
 
 def test_pinned_vertices_stay_put_in_sequences():
