@@ -92,18 +92,20 @@ def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:
     interior = [s for s in dict.fromkeys(factors) if 0.0 < s < 1.0 and s not in known]
     if interior:
         gap.select(interior[0])
+        def weak(s):
+            return gap.pose(s, weak=True)
+
         solve = gap.pose
         if len(interior) > 2 and not gap.anchored:
             middle = min(interior, key=lambda s: abs(s - 0.5))
             known = {**known, middle: gap.pose(middle)}  # the other core prepares the next gap meanwhile
             interior.remove(middle)
-            if gap.held_factors.get(middle):
-                solve = lambda s: gap.pose(s, weak=True)  # noqa: E731
+            solve = weak if gap.held_factors.get(middle) else solve
         known = {**known, **dict(zip(interior, _per_factor(gap, solve, interior)))}
         held = {s: gap.held_factors.get(s, False) for s in known if 0.0 < s < 1.0}
         if any(held.values()):
-            strong = [s for s, weak in held.items() if not weak]
-            known.update(zip(strong, _per_factor(gap, lambda s: gap.pose(s, weak=True), strong)))
+            strong = [s for s, was_weak in held.items() if not was_weak]
+            known.update(zip(strong, _per_factor(gap, weak, strong)))
     return [known[s] if s in known else gap.pose(s) for s in factors]
 
 

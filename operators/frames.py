@@ -61,11 +61,10 @@ class FrameRangeProperties:
         from ..core.interpolation import start_of_motion
 
         step = keys[1] - keys[0] if len(keys) > 1 else 1
-        extra = [keys[0] + 1, keys[0] + 2] if step >= 2 else []  # with step 2 the second is a key
-        frames = sorted(set(keys) | set(extra))
+        first = [keys[0] + i for i in range(3)] if step >= 2 else []  # with step 2 the third is a key
+        frames = sorted(set(keys) | set(first))
         read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share))))
-        first = [read[f] for f in (keys[0], keys[0] + 1, keys[0] + 2) if f in read] if step >= 2 else []
-        start = start_of_motion(first, read[keys[1]], step) if len(keys) > 1 else "keys"
+        start = start_of_motion([read[f] for f in first], read[keys[1]], step) if len(keys) > 1 else "keys"
         return [read[f] for f in keys], start
 
     def read_frames(self, context, obj, frames: list[int], progress_share: float):
