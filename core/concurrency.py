@@ -6,7 +6,10 @@ release Python's global lock, so two threads on two cores take less time than on
 other (numbers in docs/inbetweens.md and docs/design-decisions.md). The threads are kept for the
 life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between);
 each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at once
-oversubscribe the cores). Every piece is computed as it would be alone: results depend on the
+oversubscribe the cores). A thread that hands out work does the first piece itself and, when it
+needs a result whose piece no thread has started, does that piece too (work stealing): no thread
+waits idle while work is queued, and work handed out from inside a piece (a gap prepared in the
+background computes its keys' relatives concurrently) cannot deadlock the pool. Every piece is computed as it would be alone: results depend on the
 number of threads only through the round-off of BLAS calls (~1e-14 relative), which a
 multithreaded BLAS sums in another order.
 """
@@ -19,7 +22,6 @@ import threading
 _pool = None
 _pool_lock = threading.Lock()
 _controller = None  # see _blas_controller
-_worker = threading.local()  # set in the pool's threads: work they submit runs in place
 
 
 def available_cores() -> int:
@@ -35,25 +37,41 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
     there are several items and the caller says each is ``worth_it`` (large enough to pay for
     handing it to a thread); in order, the first exception raised."""
     items = list(items)
-    if not worth_it or len(items) < 2 or available_cores() < 2 or getattr(_worker, "inside", False):
+    if not worth_it or len(items) < 2 or available_cores() < 2:
         return [function(item) for item in items]
     pool = _shared_pool()
     with single_threaded_blas():
-        futures = [pool.submit(_in_worker, function, item) for item in items]
-        return [future.result() for future in futures]
+        futures = [pool.submit(function, item) for item in items[1:]]
+        outcomes = [_outcome(lambda: function(items[0]))]
+        outcomes += [_outcome(lambda: result(future, function, item)) for future, item in zip(futures, items[1:])]
+    for value, error in outcomes:  # every piece finished: none left running on shared state
+        if error is not None:
+            raise error
+    return [value for value, _ in outcomes]
 
 
 def in_background(function, *arguments):
-    """A Future of ``function(*arguments)`` run in a pool thread, or None with a single core or
-    when called from a pool thread (the caller then does the work when it needs it)."""
-    if available_cores() < 2 or getattr(_worker, "inside", False):
+    """A Future of ``function(*arguments)`` run in a pool thread (read it with :func:`result`),
+    or None with a single core (the caller then does the work when it needs it)."""
+    if available_cores() < 2:
         return None
-    return _shared_pool().submit(_in_worker, lambda _: function(*arguments), None)
+    return _shared_pool().submit(function, *arguments)
 
 
-def _in_worker(function, item):
-    _worker.inside = True
-    return function(item)
+def result(future, function, *arguments):
+    """The result of ``future`` (``function(*arguments)`` handed to the pool), computed in this
+    thread if no pool thread has started it."""
+    if future.cancel():
+        return function(*arguments)
+    return future.result()
+
+
+def _outcome(call):
+    """``(call(), None)``, or ``(None, the exception)`` it raised."""
+    try:
+        return call(), None
+    except BaseException as error:  # re-raised by the caller once every piece is done
+        return None, error
 
 
 def _shared_pool():

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import deformation_fields as df
+from .geometry import coordinate_dot
 from .rigid_alignment import rigid_alignment
 
 if TYPE_CHECKING:
@@ -31,15 +32,13 @@ class _Key:
     def __init__(self, topo: _Topology, vertices):
         v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
         self.vertices = v
-        edges = (topo.D @ v).reshape(-1, 3, 3)  # corner edges
-        self.lengths = np.sqrt(np.einsum("kcd,kcd->kc", edges, edges))
-        columns, coordinates = df.tangent_frames(edges)
-        self.tangent_rows = np.ascontiguousarray(coordinates.transpose(2, 1, 0))
+        edges = topo.corner_edge_rows(v)  # (3 coordinates, 3 corners, m)
+        self.lengths = np.sqrt(coordinate_dot(edges, edges)).T  # (m, 3), a view
+        self.column_rows, self.tangent_rows = df.tangent_frame_rows(edges)
         self.coordinates = self.tangent_rows.transpose(2, 1, 0)  # (m, 3, 2), a view: no second copy
-        self.inverse_rows = df.inverse_edge_matrices(coordinates)
-        self.column_rows = np.ascontiguousarray(columns.transpose(0, 2, 1))
+        self.inverse_rows = df.inverse_edge_rows(self.tangent_rows)
         self.normal_rows = self.column_rows[2]
-        self.areas = 0.5 * np.abs(self.coordinates[:, 0, 0] * self.coordinates[:, 2, 1])
+        self.areas = 0.5 * np.abs(self.tangent_rows[0, 0] * self.tangent_rows[1, 2])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.components])
         # each component's bounding-box diagonal: the scale of its relatives' non-rigidity
         self.diagonals = np.array([max(np.linalg.norm(np.ptp(v[rows], axis=0)), np.finfo(float).tiny)
@@ -68,7 +67,7 @@ class _Relative:
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
         self.screw = _screws(rotations, translations, turns, unwrap)
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
-        turn, stretch = df.planar_polar(df.planar_maps(other.coordinates, base.inverse_rows))
+        turn, stretch = df.planar_polar(*df.planar_map_entries(other.tangent_rows, base.inverse_rows))
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)

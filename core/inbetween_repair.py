@@ -163,11 +163,10 @@ class Repair:
 
         def mesh_field(positions):  # the local geometry of a mesh: integrable
             def field(rows):
-                edges = df.corner_edges(positions, t[rows])
-                columns, coordinates = df.tangent_frames(edges)
-                turn, mesh_stretch = df.planar_polar(df.planar_maps(coordinates, gap.base.inverse_rows[:, rows]))
-                turned = df.plane_turned_frames(columns.transpose(0, 2, 1), turn)  # by coordinate
-                return turned.transpose(0, 2, 1), mesh_stretch
+                edges = df.corner_edges(positions, t[rows]).transpose(2, 1, 0)  # by coordinate
+                columns, coordinates = df.tangent_frame_rows(edges)
+                turn, mesh_stretch = df.planar_polar(*df.planar_map_entries(coordinates, gap.base.inverse_rows[:, rows]))
+                return df.plane_turned_frames(columns, turn).transpose(0, 2, 1), mesh_stretch
             return field
 
         def key_field(index):

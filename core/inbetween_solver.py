@@ -162,6 +162,18 @@ class _Topology:
                 (self.Dc.data.astype(dtype), self.Dc.indices, self.Dc.indptr), shape=self.Dc.shape)
         return cached
 
+    def corner_edge_rows(self, x: np.ndarray, dtype=np.float64) -> np.ndarray:
+        """Corner edge vectors of positions ``x`` (n, 3) by coordinate: (3 coordinates, 3 corners,
+        m), each (m,) row contiguous (one sparse product per coordinate), in ``dtype``. Element-wise
+        work on these rows is 3–5× faster than on (m, 3, 3) blocks."""
+        m = len(self.triangles)
+        incidence = self.incidence(dtype)
+        coordinates = np.ascontiguousarray(x.T, dtype=dtype)
+        out = np.empty((3, 3 * m), dtype=dtype)
+        for d in range(3):
+            out[d] = incidence @ coordinates[d]
+        return out.reshape(3, 3, m)
+
     def centroid(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
         w = self.weights[rows]
         return w @ x[rows] / w.sum()

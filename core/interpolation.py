@@ -49,7 +49,7 @@ import numpy as np
 
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
-from .concurrency import concurrently, in_background, single_threaded_blas
+from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
 from .inbetween_solver import _Gap, _Topology
@@ -223,7 +223,7 @@ class SequenceInterpolator:
     def _gap(self, gap: int) -> _Gap:
         pending = self._pending.pop(gap, None)
         if pending is not None:
-            pending.result()  # prepared in the background: cached now
+            result(pending, self._prepare, gap)  # prepared in the background (or here if not begun): cached now
         with self._cache_lock:
             segment = self._gaps.get(gap)
             if segment is not None:

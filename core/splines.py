@@ -46,19 +46,30 @@ class HermiteGap:
         self.secant = end - start
         self.cubic = cubic
         if cubic:
-            t0 = 0.5 * (end - before)
+            t0 = end - before
+            t0 *= 0.5
             if rows:  # positions: limit each row's length (rotation invariant, keeps C¹ per point)
-                limit = limit * np.linalg.norm(self.secant, axis=-1, keepdims=True)
-                length = np.linalg.norm(t0, axis=-1, keepdims=True)
-                self.t0 = t0 * np.minimum(1.0, limit / np.maximum(length, np.finfo(float).tiny))
+                # squared lengths compared: limit² |secant|² against |t0|², one square root per row
+                secant2 = np.einsum("...i,...i->...", self.secant, self.secant)
+                length2 = np.einsum("...i,...i->...", t0, t0)
+                over = np.flatnonzero((length2 > limit * limit * secant2).ravel())
+                if over.size:
+                    flat = t0.reshape(-1, t0.shape[-1])
+                    flat[over] *= (limit * np.sqrt(secant2.ravel()[over] / length2.ravel()[over]))[:, None]
+                self.t0 = t0
             else:
-                limit = limit * np.abs(self.secant)
-                self.t0 = np.clip(t0, -limit, limit)
-            self.t1 = 0.5 * (after - start)
+                bound = limit * np.abs(self.secant)
+                self.t0 = np.clip(t0, -bound, bound, out=t0)
+            self.t1 = after - start
+            self.t1 *= 0.5
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""
         if not self.cubic:
             return self.start + s * self.secant
         s2, s3 = s * s, s * s * s
-        return self.start + (3 * s2 - 2 * s3) * self.secant + (s3 - 2 * s2 + s) * self.t0 + (s3 - s2) * self.t1
+        out = (3 * s2 - 2 * s3) * self.secant
+        out += self.start
+        out += (s3 - 2 * s2 + s) * self.t0
+        out += (s3 - s2) * self.t1
+        return out

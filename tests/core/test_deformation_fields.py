@@ -15,7 +15,8 @@ def _random_triangles(count=200, seed=0):
 def test_tangent_frames_are_orthonormal_and_project_the_edges():
     corners = _random_triangles()
     edges = corners[:, [1, 2, 0]] - corners
-    columns, coordinates = df.tangent_frames(edges)
+    column_rows, coordinate_rows = df.tangent_frame_rows(edges.transpose(2, 1, 0))
+    columns, coordinates = column_rows.transpose(0, 2, 1), coordinate_rows.transpose(2, 1, 0)
     frames = columns.transpose(1, 2, 0)  # (m, 3, 3) with columns t1, t2, n
     assert np.allclose(np.einsum("kab,kac->kbc", frames, frames), np.eye(3), atol=1e-13)
     assert np.allclose(np.linalg.det(frames), 1.0)
@@ -29,7 +30,7 @@ def test_planar_polar_matches_scipy_and_exp_inverts_log():
     rng = np.random.default_rng(1)
     maps = rng.normal(size=(100, 2, 2))
     maps[np.linalg.det(maps) < 0] *= np.array([[1, 1], [-1, -1]])  # positive determinants
-    (cos, sin), stretch = df.planar_polar(maps)
+    (cos, sin), stretch = df.planar_polar(*(maps[:, i, j] for i in (0, 1) for j in (0, 1)))
     for k in range(len(maps)):
         rotation, symmetric = polar(maps[k])  # maps = rotation @ symmetric
         assert np.allclose([[cos[k], -sin[k]], [sin[k], cos[k]]], rotation, atol=1e-12)
@@ -67,3 +68,30 @@ def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
     planar[:, 0, 0], planar[:, 0, 1], planar[:, 1, 0], planar[:, 1, 1], planar[:, 2, 2] = cos, -sin, sin, cos, 1
     expected = pieces[component] @ base @ planar  # columns: the images of the frame
     assert np.allclose(turned, expected.transpose(2, 1, 0), atol=1e-13)
+
+
+def test_rotated_frames_of_several_components_match_the_matrices():
+    """Rodrigues on coordinate rows against SciPy's matrices, small (series branch) to large angles."""
+    rng = np.random.default_rng(5)
+    m = 90
+    rotvecs = rng.normal(size=(m, 3)) * np.r_[np.full(30, 1e-7), np.full(30, 0.3), np.full(30, 3.0)][:, None]
+    base = Rotation.random(m, random_state=6).as_matrix()
+    column_rows = np.ascontiguousarray(base.transpose(2, 1, 0))  # (3 columns, 3 coordinates, m)
+    pieces = Rotation.random(3, random_state=7).as_matrix()
+    component = np.arange(m) % 3
+    frames = df.rotated_frames(rotvecs, pieces, component, column_rows)  # (3 columns, m, 3)
+    expected = pieces[component] @ Rotation.from_rotvec(rotvecs).as_matrix() @ base
+    assert np.allclose(frames, expected.transpose(2, 0, 1), atol=1e-14)
+
+
+def test_planar_maps_take_the_base_edges_to_the_others():
+    corners = _random_triangles(seed=8)
+    other = corners + 0.2 * _random_triangles(seed=9)
+    rows = lambda c: np.ascontiguousarray((c[:, [1, 2, 0]] - c).transpose(2, 1, 0))  # noqa: E731
+    _, base_coordinates = df.tangent_frame_rows(rows(corners))
+    _, coordinates = df.tangent_frame_rows(rows(other))
+    a, b, c, d = df.planar_map_entries(coordinates, df.inverse_edge_rows(base_coordinates))
+    maps = np.stack([np.stack([a, b], -1), np.stack([c, d], -1)], -2)  # (m, 2, 2)
+    base_edges = base_coordinates.transpose(2, 0, 1)  # (m, 2, 3 corners): columns are the edges
+    other_edges = coordinates.transpose(2, 0, 1)
+    assert np.allclose(maps @ base_edges, other_edges, atol=1e-10)

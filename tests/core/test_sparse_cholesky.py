@@ -93,3 +93,26 @@ def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
         results[cores] = np.array([seq.poses(k, factors) for k in range(len(seq))])
     np.testing.assert_allclose(results[2], results[1], rtol=0, atol=1e-12 * np.abs(results[1]).max())
     assert np.isfinite(results[2]).all()
+
+
+def test_concurrently_nested_in_every_thread_finishes(monkeypatch):
+    # pieces that hand out pieces of their own, more than there are pool threads: a thread
+    # waiting for a piece nobody started does it itself, so the pool cannot deadlock
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
+
+    def tree(depth):
+        return 1 if depth == 0 else sum(concurrently(tree, [depth - 1] * 3))
+
+    assert tree(4) == 3 ** 4
+
+
+def test_a_background_piece_nobody_started_is_done_by_its_reader(monkeypatch):
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
+    import threading
+
+    release = threading.Event()
+    busy = [concurrency.in_background(release.wait) for _ in range(2)]  # both pool threads held
+    queued = concurrency.in_background(threading.get_ident)
+    assert concurrency.result(queued, threading.get_ident) == threading.get_ident()
+    release.set()
+    assert all(concurrency.result(f, release.wait) for f in busy)
