@@ -14,7 +14,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import deformation_fields as df
-from .geometry import coordinate_dot, lumped_vertex_areas, vertex_labels
+from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
@@ -117,8 +117,10 @@ class _Topology:
                                 shape=(3 * m, n_vertices))
         self.Dct = self.Dc.T.tocsr()
         self.laplacian = (self.Dct @ self.Dc).tocsc()
-        edges = df.corner_edges(first_pose, t)
-        areas = 0.5 * np.linalg.norm(np.cross(edges[:, 0], edges[:, 2]), axis=1)
+        self._incidences: dict = {}
+        edges = self.corner_edge_rows(first_pose)
+        cross = coordinate_cross(edges[:, 0], edges[:, 2])
+        areas = 0.5 * np.sqrt(coordinate_dot(cross, cross))
         mass = lumped_vertex_areas(t, areas, n_vertices)
         used = mass > 0
         self.mass = np.where(used, mass / mass[used].mean(), 1.0)  # loose vertices follow the guide
@@ -136,7 +138,6 @@ class _Topology:
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
-        self._incidences: dict = {}
 
     def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None) -> SPDFactor:
         """The factor of the symmetric positive definite ``DᵀD + diag(w · mass)`` for per-vertex
