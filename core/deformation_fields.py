@@ -169,12 +169,12 @@ def apply_stretch(s: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
 
 def rotated_frames(rotvec: np.ndarray, rotations: np.ndarray, components: np.ndarray,
                    column_rows: np.ndarray) -> np.ndarray:
-    """Images ``R_T b_c`` (3, m, 3) of the base frame columns ``column_rows`` (3 columns,
+    """Images ``R_T b_c`` (k, m, 3) of the base frame columns ``column_rows`` (k columns,
     3 coordinates, m) under the rotations ``R_T = M_{c(T)} · exp(rotvec_T)``: ``rotvec`` (m, 3)
     rotation vectors, ``rotations`` the components' rotations (C, 3, 3), ``components`` (m,) each
     triangle's component. Rodrigues' formula ``cos θ b + sinc θ (ω × b) + (1 − cos θ)/θ² ω (ω · b)`` on
-    contiguous coordinate rows, then the components' rotations; returned as a (3, m, 3) view of
-    rows stored (3 columns, 3 coordinates, m) (no 3×3 matrix per triangle is formed: 3× faster
+    contiguous coordinate rows, then the components' rotations; returned as a (k, m, 3) view of
+    rows stored (k columns, 3 coordinates, m) (no 3×3 matrix per triangle is formed: 3× faster
     than SciPy's ``Rotation.as_matrix`` and a batched product)."""
     w = np.ascontiguousarray(rotvec.T)
     theta2 = coordinate_dot(w, w)
@@ -185,7 +185,7 @@ def rotated_frames(rotvec: np.ndarray, rotations: np.ndarray, components: np.nda
     sinc = np.where(series, 1.0 - theta2 / 6.0, np.sin(theta) / safe)
     versine = np.where(series, 0.5 - theta2 / 24.0, (1.0 - cos) / (safe * safe))
     out = np.empty_like(column_rows)
-    for c in range(3):
+    for c in range(len(column_rows)):
         b = column_rows[c]
         out[c] = cos * b
         out[c] += sinc * coordinate_cross(w, b)

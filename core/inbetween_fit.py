@@ -76,7 +76,7 @@ class LocalGlobalFit:
 
     def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None)) -> dict:
         """The interpolated target edges ``R_T U_T e`` (r, 3, 3) of the triangles ``rows`` (a
-        repair region; ``frames`` (3, r, 3) and ``stretch`` (r, 3) given for those)."""
+        repair region; ``frames`` (k ≥ 2, r, 3) and ``stretch`` (r, 3) given for those)."""
         coordinates = self.base.coordinates[rows]
         x, y = coordinates[..., 0], coordinates[..., 1]
         s11, s12, s22 = (stretch[:, k, None] for k in range(3))
@@ -130,7 +130,7 @@ class LocalGlobalFit:
         out += w1[:, None, :] * targets["v"]
         if targets["frames"] is None:
             return out
-        f0, f1, _ = targets["frames"]
+        f0, f1 = targets["frames"][:2]
         # trace of the turn from the interpolated rotation [f0, f1, f0×f1] to [w0, w1, w0×w1]; by
         # Binet–Cauchy (w0×w1)·(f0×f1) = (w0·f0)(w1·f1) − (w0·f1)(w1·f0), no cross product needed
         p, q = coordinate_dot(w0, f0), coordinate_dot(w1, f1)

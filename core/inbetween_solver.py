@@ -337,14 +337,16 @@ class _Gap(LocalGlobalFit):
     # --- the interpolated field at one factor
 
     def targets(self, s: float, by_rows: bool = False):
-        """Interpolated rotations as the images of the base's tangent frames (``frames`` (3, m, 3):
-        ``R_T t1``, ``R_T t2``, ``R_T n``; with ``by_rows``, a :class:`_FramesByRows` that computes
+        """Interpolated rotations as the images of the base's tangent frames (``frames`` (k, m, 3):
+        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``; with ``by_rows``, a :class:`_FramesByRows` that computes
         ``frames[:, rows]`` when asked), stretches (packed (m, 3)), the components' rigid
         motions (rotations (C, 3, 3), translations (C, 3)) and the guide positions (n, 3) at
         factor ``s``."""
         motion = self.motion(s)
         rotvec = self.splines["rotvec"].at(s)
-        frames = _FramesByRows(self, rotvec, motion[0]) if by_rows else self.key_frames(rotvec, motion[0])
+        columns = 2 if 0.0 < s < 1.0 else 3  # the normals only for extrapolations' flip checks
+        frames = _FramesByRows(self, rotvec, motion[0], columns) if by_rows else \
+            self.key_frames(rotvec, motion[0], columns=columns)
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
         if self.weights is None:  # a gauge only: the spline with the rigid motions undone
             return frames, stretch, motion, self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
@@ -365,10 +367,12 @@ class _Gap(LocalGlobalFit):
         motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
         return np.array([r for r, _ in motions]), np.array([t for _, t in motions])
 
-    def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None)) -> np.ndarray:
-        """Frames (3, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals (r, 3) of
-        the triangles ``rows``, ``rotations``: the components' (C, 3, 3))."""
-        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows], self.base.column_rows[:, :, rows])
+    def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
+        """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals
+        (r, 3) of the triangles ``rows``, ``rotations``: the components' (C, 3, 3)): the images of
+        the base's ``t1``, ``t2`` and, with ``columns=3``, ``n``."""
+        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows],
+                                 self.base.column_rows[:columns, :, rows])
 
     def place(self, x: np.ndarray, s: float, motion) -> np.ndarray:
         """Components without anchored vertices moved to their interpolated centroid (see
@@ -389,7 +393,7 @@ class _Gap(LocalGlobalFit):
 
     def local_fit(self, x, region: Region, frames, stretch, guide) -> np.ndarray:
         """``x`` with the free vertices of ``region`` re-solved so that the region's corner edges
-        fit the field (``frames`` (3, r, 3), ``stretch`` (r, 3) of the region's triangles), the
+        fit the field (``frames`` (k ≥ 2, r, 3), ``stretch`` (r, 3) of the region's triangles), the
         rest of ``x`` held fixed. Every edge of the region is imposed (no local step), so one
         solve is the fit."""
         out = x.copy()
@@ -443,14 +447,14 @@ class _Gap(LocalGlobalFit):
 
 class _FramesByRows:
     """The interpolated rotations' frames of a gap at one factor, computed only for the triangles
-    asked, ``frames[:, rows]`` → (3, r, 3): a repair of a predicted in-between needs them on its
+    asked, ``frames[:, rows]`` → (k, r, 3): a repair of a predicted in-between needs them on its
     regions only (the full set costs 12 ms at 100k triangles)."""
 
-    def __init__(self, gap: _Gap, rotvec: np.ndarray, rotations: np.ndarray):
-        self.gap, self.rotvec, self.rotations = gap, rotvec, rotations
+    def __init__(self, gap: _Gap, rotvec: np.ndarray, rotations: np.ndarray, columns: int = 3):
+        self.gap, self.rotvec, self.rotations, self.columns = gap, rotvec, rotations, columns
 
     def __getitem__(self, index):
         columns, rows = index
         if columns != slice(None):
             raise IndexError("frames by rows are indexed as [:, rows]")
-        return self.gap.key_frames(self.rotvec[rows], self.rotations, rows)
+        return self.gap.key_frames(self.rotvec[rows], self.rotations, rows, self.columns)
