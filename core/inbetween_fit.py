@@ -59,6 +59,11 @@ LOCAL_STEP_DTYPE = np.float32
 class LocalGlobalFit:
     """The Poisson solve and the local/global fit of a gap's in-betweens (see the module docstring)."""
 
+    #: The local steps' largest turn away from the interpolated rotations (radians); a gap too
+    #: rough to predict widens it while its in-betweens are solved
+    #: (:data:`core.inbetween_prediction.ROUGH_ROTATION_DEVIATION`).
+    rotation_limit = MAX_ROTATION_DEVIATION
+
     def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (3 coordinates, 3 corners, m) and the anchor
         to ``guide`` (``system``: (factor, per-vertex anchor) other than the gap's own)."""
@@ -111,7 +116,7 @@ class LocalGlobalFit:
         metric turned by each triangle's rotation
         re-fitted to them (the orthonormal polar factor ``W = G (GᵀG)^-½`` of the 3×2 map ``G``
         from the base's tangent plane), or by the interpolated rotation where the two differ by
-        more than :data:`MAX_ROTATION_DEVIATION` or where ``force`` (bool (m,)) is set."""
+        more than :attr:`rotation_limit` or where ``force`` (bool (m,)) is set."""
         i00, i01, i11 = targets["inverse"]  # upper triangular
         e1, e2 = edges[:, 0], -edges[:, 2]
         g0 = e1 * i00
@@ -135,7 +140,7 @@ class LocalGlobalFit:
         # Binet–Cauchy (w0×w1)·(f0×f1) = (w0·f0)(w1·f1) − (w0·f1)(w1·f0), no cross product needed
         p, q = coordinate_dot(w0, f0), coordinate_dot(w1, f1)
         trace = p + q + p * q - coordinate_dot(w0, f1) * coordinate_dot(w1, f0)
-        far = ~(0.5 * (trace - 1.0) > np.cos(MAX_ROTATION_DEVIATION))
+        far = ~(0.5 * (trace - 1.0) > np.cos(self.rotation_limit))
         if force is not None:
             far |= force
         out[:, :, far] = targets["edges"][:, :, far]

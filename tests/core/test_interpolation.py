@@ -565,3 +565,54 @@ def test_evicted_gaps_are_freed_at_once(strip):
     finally:
         if enabled:
             gc.enable()
+
+
+def test_rotation_limit_of_the_local_steps(strip):
+    """A triangle whose current edges are its interpolated target edges turned by 60° keeps that
+    turn in a local step only where the rotation limit exceeds 60° (the limit a gap too rough to
+    predict uses, 67.5°); at the default 45° it gets its interpolated rotation back."""
+    from core import inbetween_fit, inbetween_prediction
+
+    flat, tri = strip
+    seq = SequenceInterpolator([flat, _bend(flat, 0.6), _bend(flat, 1.2)], tri)
+    gap = seq._gap(0)
+    gap.select(0.5)
+    frames, stretch, _, _ = gap.targets(0.5)
+    targets = gap.fit_targets(frames, stretch)
+    turn = Rotation.from_rotvec([0.0, np.pi / 3, 0.0]).as_matrix()
+    turned = np.einsum("ij,jcm->icm", turn, targets["edges"])
+    assert gap.rotation_limit == inbetween_fit.MAX_ROTATION_DEVIATION < np.pi / 3 < inbetween_prediction.ROUGH_ROTATION_DEVIATION
+    np.testing.assert_allclose(gap.fitted_edges(turned, targets), targets["edges"], atol=1e-12)
+    gap.rotation_limit = inbetween_prediction.ROUGH_ROTATION_DEVIATION
+    try:
+        np.testing.assert_allclose(gap.fitted_edges(turned, targets), turned, atol=1e-9)
+    finally:
+        del gap.rotation_limit
+
+
+def test_a_rough_gap_is_solved_with_the_wide_rotation_limit_and_gives_it_back(monkeypatch, strip):
+    """In a gap found too rough to predict, the in-betweens solved after the check fit with
+    ROUGH_ROTATION_DEVIATION, the three solved before it with the default limit; afterwards the
+    gap has its default again, so asking the same poses twice gives the same poses."""
+    from core import inbetween_fit, inbetween_prediction, inbetween_solver
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.8, 1.6, 2.4)]
+    seq = SequenceInterpolator(keys, tri)
+    limits = []
+    real_fit = inbetween_solver._Gap.fit
+
+    def recording_fit(self, *args, **kwargs):
+        limits.append(self.rotation_limit)
+        return real_fit(self, *args, **kwargs)
+
+    checked = []  # fits before the roughness check
+    monkeypatch.setattr(inbetween_solver._Gap, "fit", recording_fit)
+    monkeypatch.setattr(inbetween_prediction, "_inconsistent", lambda gap, solved: checked.append(len(limits)) or True)
+    factors = np.arange(1, 16) / 16
+    first = seq.poses(1, factors)
+    before, after = limits[:checked[0]], limits[checked[0]:]
+    assert len(before) >= 3 and set(before) == {inbetween_fit.MAX_ROTATION_DEVIATION}
+    assert len(after) >= 12 and set(after) == {inbetween_prediction.ROUGH_ROTATION_DEVIATION}
+    assert seq._gap(1).rotation_limit == inbetween_fit.MAX_ROTATION_DEVIATION
+    np.testing.assert_allclose(seq.poses(1, factors), first, atol=1e-12)
