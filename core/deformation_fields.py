@@ -312,15 +312,15 @@ def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarr
     """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``, the short way
     round. With a ``reference`` rotation vector (3,): a half turn (within
     :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to it,
-    and with ``unwrap`` the representative ``ω + 2πk ω̂`` (either direction) nearest to it is
-    taken (a motion continuing across keys)."""
+    and with ``unwrap`` the representative ``ω + 2πk ω̂`` nearest to it is taken (a motion
+    continuing across keys; k = −1 is the same rotation the other way round, ``−ω`` would be its
+    inverse)."""
     w = rotation_vectors(rotation[None])[0]
     if reference is not None:
         theta = np.linalg.norm(w)
         if unwrap and theta > 0:
             axis = w / theta
             candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
-            candidates += [(theta - 2 * np.pi * k) * -axis for k in (0, 1)]
             w = min(candidates, key=lambda c: np.linalg.norm(c - reference))
         elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, reference) < 0:
             w = -w

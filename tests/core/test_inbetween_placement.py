@@ -127,6 +127,26 @@ def test_rigid_sequence_is_reproduced_at_every_time():
             np.testing.assert_allclose(pose, _screw(a, step, translation, gap + factor), atol=1e-6)
 
 
+def test_a_swing_that_reverses_at_a_key_keeps_its_turning_direction():
+    """Keys of a rigid mesh swinging about a pivot, the turn reversing at key 1 (angles 0.3, 0.5,
+    0.4, 0.1 rad): the in-betweens of gap 1 are the rigid turns by the cubic Hermite spline of
+    the keys' angles with Catmull–Rom tangents, written out here. The turn back to key 0 seen from
+    key 1 is −0.2 rad; taking +0.2 (the inverse rotation, as near the continuation of the next
+    turn) reversed the start velocity."""
+    a, tri = _head_with_eyes()
+    axis = np.array([0.2, 0.0, 1.0]) / np.linalg.norm([0.2, 0.0, 1.0])
+    pivot = np.array([0.5, -2.0, 0.3])
+    angles = [0.3, 0.5, 0.4, 0.1]
+    keys = [_rigid(a, Rotation.from_rotvec(angle * axis).as_matrix(), pivot) for angle in angles]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    start, secant = angles[1], angles[2] - angles[1]
+    t0, t1 = 0.5 * (angles[2] - angles[0]), 0.5 * (angles[3] - angles[1])
+    for s in (0.125, 0.25, 0.5, 0.75):
+        angle = start + (3 * s**2 - 2 * s**3) * secant + (s**3 - 2 * s**2 + s) * t0 + (s**3 - s**2) * t1
+        expected = _rigid(a, Rotation.from_rotvec(angle * axis).as_matrix(), pivot)
+        np.testing.assert_allclose(seq.pose(1, s), expected, atol=1e-6)
+
+
 @pytest.mark.parametrize("factor", [0.5, 1.5, 2.0])
 def test_fixed_upper_arm_stays_fixed(factor):
     """An arm bent at the elbow by 100°: the upper arm, fixed in both keys, is fixed at every
