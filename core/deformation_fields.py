@@ -328,6 +328,25 @@ def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarr
     return np.concatenate([w, v])
 
 
+def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3), each the representative
+    ``ω + 2πk ω̂`` (k = −1, 0, 1) nearest its row of ``reference`` (m, 3): a turn continuing across
+    keys past a half turn (the per-row counterpart of :func:`rigid_log`'s ``unwrap``). Only rows
+    with ``|ω| + |reference| > π`` can change (elsewhere ``ω`` is within π of the reference and the
+    other representatives are farther)."""
+    theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
+    reach = np.sqrt(np.einsum("ij,ij->i", reference, reference))
+    rows = np.flatnonzero((theta + reach > np.pi) & (theta > 0))
+    if not rows.size:
+        return rotvec
+    out = rotvec.copy()
+    axis = rotvec[rows] / theta[rows, None]
+    candidates = np.stack([(theta[rows] + 2 * np.pi * k)[:, None] * axis for k in (-1, 0, 1)])
+    distance = np.einsum("krj,krj->kr", candidates - reference[rows], candidates - reference[rows])
+    out[rows] = candidates[np.argmin(distance, axis=0), np.arange(rows.size)]
+    return out
+
+
 def rigid_exp(screw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation (3, 3) and translation (3,) of screw coordinates ``(ω, v)`` (6,)."""
     w, v = screw[:3], screw[3:]

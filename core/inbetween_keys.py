@@ -103,10 +103,13 @@ class _Relative:
         out.turn, out.motion = (cos, -sin), (inverse_rotations, inverse_translations)
         return out
 
-    def unwrap(self, turns: np.ndarray) -> "_Relative":
+    def unwrap(self, turns: np.ndarray, rotvec: np.ndarray) -> "_Relative":
         """This relative (built without ``turns``) with its screw coordinates taken as if the
-        constructor had been given ``turns`` (C, 3); the rest does not depend on them."""
+        constructor had been given ``turns`` (C, 3), and each triangle's rotation vector the
+        representative nearest its row of ``rotvec`` (m, 3) (the continuation of a neighbouring
+        key's: a triangle turning past a half turn between keys keeps turning the same way)."""
         self.screw = _screws(*self.motion, turns, True)
+        self.rotvec = df.unwrapped_rotation_vectors(self.rotvec, rotvec)
         return self
 
     @classmethod

@@ -258,10 +258,11 @@ class SequenceInterpolator:
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw[:, :3]
-            after = ahead[1].unwrap(2 * turn) if gap + 2 <= last else None
+            after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec) if gap + 2 <= last else None
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
-            prev = self._previous(gap, -turn) if gap >= 1 else _Relative.phantom(nxt, ident, after)
+            prev = self._previous(gap, -turn).unwrap(-turn, -nxt.rotvec) if gap >= 1 else \
+                _Relative.phantom(nxt, ident, after)
             after = after if after is not None else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident

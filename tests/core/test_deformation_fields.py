@@ -95,3 +95,17 @@ def test_planar_maps_take_the_base_edges_to_the_others():
     base_edges = base_coordinates.transpose(2, 0, 1)  # (m, 2, 3 corners): columns are the edges
     other_edges = coordinates.transpose(2, 0, 1)
     assert np.allclose(maps @ base_edges, other_edges, atol=1e-10)
+
+
+def test_unwrapped_rotation_vectors_continue_a_turn_past_a_half_turn():
+    rng = np.random.default_rng(10)
+    axes = rng.normal(size=(50, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    turned = np.radians(200.0) * axes  # continuing a turn of 100° per key past the half turn
+    short = Rotation.from_rotvec(turned).as_rotvec()  # the same rotations, the short way (−160°)
+    reference = 2 * np.radians(100.0) * axes
+    out = df.unwrapped_rotation_vectors(short, reference)
+    assert np.allclose(out, turned, atol=1e-12)
+    assert np.allclose(Rotation.from_rotvec(out).as_matrix(), Rotation.from_rotvec(short).as_matrix(), atol=1e-12)
+    small = 0.3 * axes  # turns far from the half turn continuing small ones: left as they are
+    assert np.array_equal(df.unwrapped_rotation_vectors(small, 2 * 0.2 * axes), small)
