@@ -9,9 +9,9 @@ each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at
 oversubscribe the cores). A thread that hands out work does the first piece itself and, when it
 needs a result whose piece no thread has started, does that piece too (work stealing): no thread
 waits idle while work is queued, and work handed out from inside a piece (a gap prepared in the
-background computes its keys' relatives concurrently) cannot deadlock the pool. Every piece is computed as it would be alone: results depend on the
-number of threads only through the round-off of BLAS calls (~1e-14 relative), which a
-multithreaded BLAS sums in another order.
+background computes its keys' relatives concurrently) cannot deadlock the pool. Every piece is
+computed as it would be alone: results depend on the number of threads only through the
+round-off of BLAS calls (~1e-14 relative), which a multithreaded BLAS sums in another order.
 """
 
 from __future__ import annotations

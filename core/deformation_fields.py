@@ -244,14 +244,10 @@ def frame_rows_rotation_vectors(frames: np.ndarray, columns: np.ndarray) -> np.n
 
 def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], rotations: np.ndarray,
                       components: np.ndarray) -> np.ndarray:
-    """:func:`plane_turned_frames` followed by :func:`turned_rows`, on frames stored by coordinate
-    (3 columns, 3 coordinates, m): ``M_c · B · Rz(θ)`` for ``columns`` ``B``, ``turn = (cos θ,
-    sin θ)`` ((m,) each) and the rotations (C, 3, 3) of each triangle's component."""
-    turned = plane_turned_frames(columns, turn)
-    if len(rotations) == 1:
-        return np.matmul(rotations[0], turned)
-    r = rotations[components].transpose(1, 2, 0)  # (3, 3, m)
-    return np.einsum("abk,cbk->cak", r, turned)
+    """:func:`plane_turned_frames` followed by :func:`turned_coordinate_rows`, on frames stored by
+    coordinate (3 columns, 3 coordinates, m): ``M_c · B · Rz(θ)`` for ``columns`` ``B``,
+    ``turn = (cos θ, sin θ)`` ((m,) each) and the rotations (C, 3, 3) of each triangle's component."""
+    return turned_coordinate_rows(plane_turned_frames(columns, turn), rotations, components)
 
 
 def _rotation_vectors_of_entries(r) -> np.ndarray:

@@ -338,10 +338,10 @@ class _Gap(LocalGlobalFit):
 
     def targets(self, s: float, by_rows: bool = False):
         """Interpolated rotations as the images of the base's tangent frames (``frames`` (k, m, 3):
-        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``; with ``by_rows``, a :class:`_FramesByRows` that computes
-        ``frames[:, rows]`` when asked), stretches (packed (m, 3)), the components' rigid
-        motions (rotations (C, 3, 3), translations (C, 3)) and the guide positions (n, 3) at
-        factor ``s``."""
+        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``; with ``by_rows``, a
+        :class:`_FramesByRows` that computes ``frames[:, rows]`` when asked), stretches (packed
+        (m, 3)), the components' rigid motions (rotations (C, 3, 3), translations (C, 3)) and the
+        guide positions (n, 3) at factor ``s``."""
         motion = self.motion(s)
         rotvec = self.splines["rotvec"].at(s)
         columns = 2 if 0.0 < s < 1.0 else 3  # the normals only for extrapolations' flip checks

@@ -52,10 +52,9 @@ class HermiteGap:
                 # squared lengths compared: limit² |secant|² against |t0|², one square root per row
                 secant2 = np.einsum("...i,...i->...", self.secant, self.secant)
                 length2 = np.einsum("...i,...i->...", t0, t0)
-                over = np.flatnonzero((length2 > limit * limit * secant2).ravel())
-                if over.size:
-                    flat = t0.reshape(-1, t0.shape[-1])
-                    flat[over] *= (limit * np.sqrt(secant2.ravel()[over] / length2.ravel()[over]))[:, None]
+                over = length2 > limit * limit * secant2
+                if over.any():
+                    t0[over] *= (limit * np.sqrt(secant2[over] / length2[over]))[:, None]
                 self.t0 = t0
             else:
                 bound = limit * np.abs(self.secant)
