@@ -132,6 +132,9 @@ class _Topology:
         self.triangle_component = np.searchsorted(kept, labels)
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
         self.all_in_one = len(self.components) == 1 and self.components[0].size == n_vertices  # no loose vertex
+        # what selects each component's vertices: every vertex at once when there is one component
+        # and no loose vertex (no (n, 3) copies of the poses per key and relative)
+        self.component_rows = [slice(None)] if self.all_in_one else self.components
         self.triangles_per_vertex = np.bincount(t.ravel(), minlength=n_vertices)
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
