@@ -53,14 +53,15 @@ class VertexCountChanged(ValueError):
 
 
 def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: list[int],
-                    first_visit: int | None = None):
+                    first_visit: int | None = None, every_frame: bool = True):
     """Yield ``(frame, positions)`` for the evaluated mesh of ``obj`` at each of ``frames``
     (ascending).
 
-    Every frame from the first (or from ``first_visit`` if earlier: where an unbaked simulation
-    starts) to the last is visited in order, so that simulations that are not baked still
-    advance one frame at a time. The scene's current frame is restored afterwards, also when the
-    caller stops early.
+    With ``every_frame`` (the default) every frame from the first (or from ``first_visit`` if
+    earlier: where an unbaked simulation starts) to the last is visited in order, so that
+    simulations that are not baked still advance one frame at a time; without it only ``frames``
+    are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
+    The scene's current frame is restored afterwards, also when the caller stops early.
     """
     scene = context.scene
     wanted = set(frames)
@@ -68,7 +69,8 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
     try:
         first = frames[0] if first_visit is None else min(first_visit, frames[0])
-        for frame in range(first, frames[-1] + 1):
+        visits = range(first, frames[-1] + 1) if every_frame else frames
+        for frame in visits:
             scene.frame_set(frame)
             if frame not in wanted:
                 continue

@@ -38,6 +38,29 @@ def unbaked_simulations(obj) -> list[str]:
             and not modifier.point_cache.is_baked]
 
 
+#: Modifiers whose result at a frame may depend on the frames before it when not baked (cloth and
+#: soft bodies, particles, dynamic paint, fluids) or that may hold a simulation zone (geometry
+#: nodes, whose bakes are not checked here).
+SEQUENTIAL_MODIFIERS = SIMULATION_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'NODES'}
+
+
+def frames_depend_on_earlier(scene) -> bool:
+    """Whether evaluating a frame of ``scene`` may need the frames before it: an unbaked rigid
+    body world, or on any object an enabled modifier of :data:`SEQUENTIAL_MODIFIERS` other than
+    a baked cloth or soft body. Reading frames then visits every frame in order."""
+    world = scene.rigidbody_world
+    if world is not None and world.enabled and not world.point_cache.is_baked:
+        return True
+    for obj in scene.objects:
+        for modifier in getattr(obj, "modifiers", ()):
+            if modifier.type not in SEQUENTIAL_MODIFIERS or not modifier.show_viewport:
+                continue
+            if modifier.type in SIMULATION_MODIFIERS and modifier.point_cache.is_baked:
+                continue
+            return True
+    return False
+
+
 def unique_file(path: Path) -> Path:
     """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists."""
     candidate, number = path, 0
