@@ -95,13 +95,9 @@ def test_invoke_runs_to_the_end_in_background(bpy_empty, extension):
     assert key_names(obj)[1:] == ["Frame 1", "Frame 2", "Frame 3"]
 
 
-@pytest.mark.parametrize("bake", [True, False], ids=["baked", "unbaked"])
-def test_reading_keys_visits_only_the_key_frames_of_a_baked_simulation(bpy_empty, extension, bake, tmp_path):
-    """A baked cache is read at the key frames alone (a frame does not depend on the ones before);
-    an unbaked simulation is advanced through every frame from its start, as before."""
-    from blender_scenes import pinned_cloth_scene
-
-    pinned_cloth_scene(frames=9, bake=bake)
+def frames_visited_by_inbetween_frames(tmp_path) -> list[int]:
+    """The frames In-between Frames sets while it reads keys 1, 5, 9 (one in-between per gap),
+    without the last visit (restoring the current frame)."""
     visited = []
 
     def count(scene, *_):
@@ -113,9 +109,18 @@ def test_reading_keys_visits_only_the_key_frames_of_a_baked_simulation(bpy_empty
                                                    filepath=str(tmp_path / "cloth.pc2"))
     finally:
         bpy.app.handlers.frame_change_pre.remove(count)
-    read = visited[:-1]  # the last visit restores the current frame
+    return visited[:-1]
+
+
+@pytest.mark.parametrize("bake", [True, False], ids=["baked", "unbaked"])
+def test_reading_keys_visits_only_the_key_frames_of_a_baked_simulation(bpy_empty, extension, bake, tmp_path):
+    """A baked cache is read at the key frames alone (a frame does not depend on the ones before);
+    an unbaked simulation is advanced through every frame from its start, as before."""
+    from blender_scenes import pinned_cloth_scene
+
+    pinned_cloth_scene(frames=9, bake=bake)
     expected = [1, 2, 3, 5, 9] if bake else list(range(1, 10))  # keys 1, 5, 9 and frames 2, 3 (start of motion)
-    assert read == expected
+    assert frames_visited_by_inbetween_frames(tmp_path) == expected
 
 
 def test_geometry_nodes_anywhere_keep_reading_every_frame(bpy_empty, extension, tmp_path):
@@ -127,15 +132,4 @@ def test_geometry_nodes_anywhere_keep_reading_every_frame(bpy_empty, extension, 
     other = grid_object(2, name="Other")
     other.modifiers.new("Nodes", 'NODES')
     bpy.context.view_layer.objects.active = bpy.data.objects["Flag"]
-    visited = []
-
-    def count(scene, *_):
-        visited.append(scene.frame_current)
-
-    bpy.app.handlers.frame_change_pre.append(count)
-    try:
-        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
-                                                   filepath=str(tmp_path / "cloth.pc2"))
-    finally:
-        bpy.app.handlers.frame_change_pre.remove(count)
-    assert visited[:-1] == list(range(1, 10))
+    assert frames_visited_by_inbetween_frames(tmp_path) == list(range(1, 10))
