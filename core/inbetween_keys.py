@@ -108,10 +108,15 @@ class _Relative:
 
     def unwrap(self, turns: np.ndarray, rotvec: np.ndarray) -> "_Relative":
         """This relative (built without ``turns``) with its screw coordinates taken as if the
-        constructor had been given ``turns`` (C, 3), and each triangle's rotation vector the
-        representative nearest its row of ``rotvec`` (m, 3) (the continuation of a neighbouring
-        key's: a triangle turning past a half turn between keys keeps turning the same way)."""
+        constructor had been given ``turns`` (C, 3), its triangles' turns continued toward
+        ``rotvec`` (:meth:`continue_turns`)."""
         self.screw = _screws(*self.motion, turns, True)
+        return self.continue_turns(rotvec)
+
+    def continue_turns(self, rotvec: np.ndarray) -> "_Relative":
+        """This relative with each triangle's rotation vector the representative nearest its row
+        of ``rotvec`` (m, 3) (the continuation of a neighbouring key's: a triangle turning past a
+        half turn between keys keeps turning the same way)."""
         self.rotvec = df.unwrapped_rotation_vectors(self.rotvec, rotvec)
         return self
 

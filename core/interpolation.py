@@ -261,7 +261,7 @@ class SequenceInterpolator:
             after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec) if gap + 2 <= last else None
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
-            prev = self._previous(gap, -turn).unwrap(-turn, -nxt.rotvec) if gap >= 1 else \
+            prev = self._previous(gap, -turn).continue_turns(-nxt.rotvec) if gap >= 1 else \
                 _Relative.phantom(nxt, ident, after)
             after = after if after is not None else _Relative.phantom(ident, nxt)
         else:

@@ -38,27 +38,22 @@ def unbaked_simulations(obj) -> list[str]:
             and not modifier.point_cache.is_baked]
 
 
-#: Modifiers whose result at a frame may depend on the frames before it when not baked (cloth and
-#: soft bodies, particles, dynamic paint, fluids) or that may hold a simulation zone (geometry
-#: nodes, whose bakes are not checked here).
-SEQUENTIAL_MODIFIERS = SIMULATION_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'NODES'}
+#: Modifiers whose result at a frame may depend on the frames before it and whose bakes are not
+#: checked here: particles, dynamic paint, fluids, and geometry nodes (a simulation zone).
+SEQUENTIAL_MODIFIERS = {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'NODES'}
 
 
 def frames_depend_on_earlier(scene) -> bool:
     """Whether evaluating a frame of ``scene`` may need the frames before it: an unbaked rigid
-    body world, or on any object an enabled modifier of :data:`SEQUENTIAL_MODIFIERS` other than
-    a baked cloth or soft body. Reading frames then visits every frame in order."""
+    body world, or on any object an unbaked cloth or soft body (:func:`unbaked_simulations`) or
+    an enabled modifier of :data:`SEQUENTIAL_MODIFIERS`. Reading frames then visits every frame
+    in order."""
     world = scene.rigidbody_world
     if world is not None and world.enabled and not world.point_cache.is_baked:
         return True
-    for obj in scene.objects:
-        for modifier in getattr(obj, "modifiers", ()):
-            if modifier.type not in SEQUENTIAL_MODIFIERS or not modifier.show_viewport:
-                continue
-            if modifier.type in SIMULATION_MODIFIERS and modifier.point_cache.is_baked:
-                continue
-            return True
-    return False
+    return any(unbaked_simulations(obj) or any(m.type in SEQUENTIAL_MODIFIERS and m.show_viewport
+                                               for m in obj.modifiers)
+               for obj in scene.objects)
 
 
 def unique_file(path: Path) -> Path:
