@@ -20,7 +20,6 @@ median RMS within 1 % and mean edge deviation within 0.05 point of solving every
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import BarycentricInterpolator
 
 from .concurrency import concurrently
 from .inbetween_repair import REPAIR_RINGS
@@ -136,17 +135,30 @@ def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
     return gap.topo.undo_motion(x, *gap.motion(s)) - gap.splines["vertices"].at(s)
 
 
-def _correction(gap, solved: dict) -> BarycentricInterpolator:
+def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
     """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
-    ``solved`` poses {factor: positions} (barycentric form: built and evaluated in O(n))."""
-    zero = np.zeros((gap.topo.n, 3))
-    factors, values = [0.0], [zero]
-    for s in sorted(solved):
-        factors.append(s)
-        values.append(_co_moving_correction(gap, s, solved[s]))
-    factors.append(1.0)
-    values.append(zero)
-    return BarycentricInterpolator(factors, np.stack(values), axis=0)
+    ``solved`` poses {factor: positions}."""
+    return _CorrectionPolynomial({s: _co_moving_correction(gap, s, x) for s, x in solved.items()})
+
+
+class _CorrectionPolynomial:
+    """``D(s) = Σ_j ℓ_j(s) D_j``: the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` of
+    ``values`` {factor: (n, 3)} and ``(1, 0)`` in Lagrange form over those nodes (the keys' terms
+    vanish). Written out rather than SciPy's ``BarycentricInterpolator``: ``scipy.interpolate``
+    pulls in ``scipy.optimize`` and adds 0.1 s to the first in-between of a Blender session, for
+    weights of at most five nodes."""
+
+    def __init__(self, values: dict):
+        self.factors = sorted(values)
+        self.values = [values[s] for s in self.factors]
+        self.nodes = np.array([0.0, *self.factors, 1.0])
+
+    def __call__(self, s: float) -> np.ndarray:
+        out = np.zeros_like(self.values[0])
+        for j, (node, value) in enumerate(zip(self.factors, self.values), start=1):
+            others = np.delete(self.nodes, j)
+            out += float(np.prod((s - others) / (node - others))) * value
+        return out
 
 
 def _inconsistent(gap, solved: dict) -> bool:
@@ -162,7 +174,7 @@ def _inconsistent(gap, solved: dict) -> bool:
     return bool(np.sqrt(np.mean(np.sum((predicted - actual) ** 2, axis=1))) > MAX_CROSS_VALIDATION * size)
 
 
-def _predicted(gap, s: float, correction: BarycentricInterpolator, rings=None) -> tuple[np.ndarray, str | None]:
+def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect."""
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))

@@ -296,3 +296,26 @@ def test_pinned_vertices_stay_put_in_sequences():
         assert np.array_equal(batch[:, pinned], np.broadcast_to(keys[0][pinned], batch[:, pinned].shape))
         assert np.abs(batch[:, ~pinned] - keys[gap][~pinned]).max() > 1e-2
     assert np.array_equal(seq.pose_at(2.3)[pinned], keys[0][pinned])
+
+
+@pytest.mark.parametrize("factors", [(0.25, 0.75), (0.25, 0.5, 0.75), (0.125, 0.5, 0.6875)])
+def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_zeros(factors):
+    """The predicted in-betweens' correction polynomial agrees with SciPy's barycentric
+    interpolation through (0, 0), the solved corrections and (1, 0), and reproduces a polynomial of
+    that degree vanishing at both keys exactly."""
+    from scipy.interpolate import BarycentricInterpolator
+
+    from core.inbetween_prediction import _CorrectionPolynomial
+
+    rng = np.random.default_rng(3)
+    coefficients = rng.normal(size=(len(factors), 7, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
+
+    def exact(s):
+        return s * (1.0 - s) * sum(c * s ** k for k, c in enumerate(coefficients))
+
+    polynomial = _CorrectionPolynomial({s: exact(s) for s in factors})
+    nodes = [0.0, *factors, 1.0]
+    reference = BarycentricInterpolator(nodes, np.stack([exact(s) for s in nodes]), axis=0)
+    for s in np.linspace(-0.5, 1.5, 17):
+        np.testing.assert_allclose(polynomial(s), exact(s), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(polynomial(s), reference(s), rtol=1e-9, atol=1e-9)
