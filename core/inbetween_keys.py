@@ -6,6 +6,7 @@ rigid motions undone — what :mod:`core.inbetween_solver` splines over a gap.
 
 from __future__ import annotations
 
+import copy
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,6 +18,18 @@ from .rigid_alignment import rigid_alignment
 if TYPE_CHECKING:
     from .inbetween_solver import _Topology
 
+
+#: A gap's rotation fields are taken whole (each triangle's own rotation from the base key, not the
+#: residual to its component's best rigid rotation) when, toward the next key or the one after, the
+#: residuals' median angle exceeds the median angle of the triangles' whole rotations by more than
+#: this (radians): the rigid fit then adds turn instead of explaining it. A soft flag pinned at its
+#: pole, keys 16 frames apart: the best rigid rotation between two keys turns 161° about the pole,
+#: the residuals 130° (median), the triangles' normals 53°; splined, the residuals and the
+#: rigid motion compose to a third of the flag turned over at the middle of the gap (the simulated
+#: frame: 117 triangles of 40,000). A rigid motion (residuals zero) and cloth that does not turn as
+#: a whole (residuals equal to the normals' turns, within 4–16° on the benchmark's cloths) keep the
+#: decomposition; numbers in docs/inbetweens.md.
+SPURIOUS_RIGID_TURN = np.pi / 4
 
 #: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
 #: deformation (rotation residuals, stretches).
@@ -79,6 +92,30 @@ class _Relative:
         self.world = other.vertices
         self.centroids = other.centroids
         self.turn, self.motion = turn, (rotations, translations)
+
+    #: Whether ``rotvec`` holds the triangles' whole rotations (:meth:`whole_rotations`) rather
+    #: than their residuals to the component's rigid rotation.
+    whole = False
+
+    def residuals_add_turn(self, base: _Key, other: _Key) -> bool:
+        """Whether this relative's rotation residuals turn further than the triangles themselves
+        (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle against the median angle of
+        the triangles' whole rotations from ``base`` to ``other`` (from the trace of each rotation:
+        three dot products per triangle)."""
+        frames, columns = df.plane_turned_frames(other.column_rows, self.turn), base.column_rows
+        trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
+        whole = np.median(np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0)))
+        residual = np.median(np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec)))
+        return bool(residual > whole + SPURIOUS_RIGID_TURN)
+
+    def whole_rotations(self, base: _Key, other: _Key) -> "_Relative":
+        """A copy whose ``rotvec`` (m, 3) are the triangles' whole rotations from ``base`` to
+        ``other`` (the keys it was built from), the components' rigid rotations not undone."""
+        out = copy.copy(self)
+        out.rotvec = df.frame_rows_rotation_vectors(df.plane_turned_frames(other.column_rows, self.turn),
+                                                    base.column_rows)
+        out.whole = True
+        return out
 
     def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
         """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from

@@ -210,14 +210,17 @@ class SequenceInterpolator:
         keys = [self._key(k) for k in others]
         return concurrently(lambda other: _Relative(topo, key, other), keys, worth_it=topo.n >= CONCURRENT_VERTICES)
 
-    def _previous(self, gap: int, turns: np.ndarray) -> _Relative:
+    def _previous(self, gap: int, turns: np.ndarray, whole: bool = False) -> _Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
         next key (the same whichever gaps were computed before), or, with a truncated basis (its
-        metric is recovered per base key), from the poses."""
-        if self.k_M is not None:
-            return self._relative(gap, gap - 1, turns)
+        metric is recovered per base key), from the poses; ``whole``: with the triangles' whole
+        rotations (:meth:`_Relative.whole_rotations`), from the poses."""
+        if self.k_M is not None or whole:
+            previous = self._relative(gap, gap - 1, turns)
+            return previous.whole_rotations(self._key(gap), self._key(gap - 1)) if whole else previous
         cached = self._gaps.get(gap - 1)
-        forward = cached.relatives[2] if cached is not None else self._relative(gap - 1, gap)
+        forward = cached.relatives[2] if cached is not None and not cached.relatives[2].whole else \
+            self._relative(gap - 1, gap)
         return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
 
     def _gap(self, gap: int) -> _Gap:
@@ -253,7 +256,12 @@ class SequenceInterpolator:
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
         cubic = self.smooth and last >= 2
-        ahead = self._relatives(gap, [gap + 1, gap + 2] if cubic and gap + 2 <= last else [gap + 1])
+        others = [gap + 1, gap + 2] if cubic and gap + 2 <= last else [gap + 1]
+        ahead = self._relatives(gap, others)
+        # rotation fields taken whole where the components' rigid fits add turn (SPURIOUS_RIGID_TURN)
+        whole = any(r.residuals_add_turn(base, self._key(k)) for r, k in zip(ahead, others))
+        if whole:
+            ahead = [r.whole_rotations(base, self._key(k)) for r, k in zip(ahead, others)]
         nxt = ahead[0]
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
@@ -261,13 +269,14 @@ class SequenceInterpolator:
             after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec) if gap + 2 <= last else None
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
-            prev = self._previous(gap, -turn).continue_turns(-nxt.rotvec) if gap >= 1 else \
+            prev = self._previous(gap, -turn, whole).continue_turns(-nxt.rotvec) if gap >= 1 else \
                 _Relative.phantom(nxt, ident, after)
             after = after if after is not None else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None)
+                       self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None,
+                       whole_rotations=whole)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

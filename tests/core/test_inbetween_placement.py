@@ -319,3 +319,68 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
     for s in np.linspace(-0.5, 1.5, 17):
         np.testing.assert_allclose(polynomial(s), exact(s), rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(polynomial(s), reference(s), rtol=1e-9, atol=1e-9)
+
+
+def _relative(base_vertices, other_vertices, triangles):
+    """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (keys, relative)."""
+    from core.inbetween_keys import _Key, _Relative
+    from core.inbetween_solver import _Topology
+    from core.mesh_topology import mesh_topology
+
+    topo = _Topology(mesh_topology(triangles, len(base_vertices)), base_vertices)
+    base, other = _Key(topo, base_vertices), _Key(topo, other_vertices)
+    return topo, base, other, _Relative(topo, base, other)
+
+
+def test_whole_rotations_are_the_same_rotations_as_rigid_motion_and_residuals():
+    """A relative's triangle rotations taken whole equal its component's rigid rotation composed
+    with the residuals (both map each base triangle's frame onto the other key's triangle)."""
+    from core import deformation_fields as df
+
+    flat, tri = grid(15, 11, size=1.0)
+    bent = flat.copy()
+    bent[:, 2] = 0.3 * np.sin(2.5 * flat[:, 0]) * flat[:, 1]
+    turned = _rigid(bent, Rotation.from_rotvec([0.3, -0.2, 2.6]).as_matrix(), np.zeros(3), (0.4, 0.1, -0.2))
+    topo, base, other, relative = _relative(flat, turned, tri)
+    whole = relative.whole_rotations(base, other)
+    identity = np.broadcast_to(np.eye(3), relative.motion[0].shape)
+    np.testing.assert_allclose(df.rotated_frames(whole.rotvec, identity, topo.triangle_component, base.column_rows),
+                               df.rotated_frames(relative.rotvec, relative.motion[0], topo.triangle_component,
+                                                 base.column_rows), atol=1e-9)
+    assert whole.whole and not relative.whole
+
+
+def test_a_rigid_fit_that_turns_further_than_the_triangles_is_not_used():
+    """The residuals to a component's best rigid rotation are kept where they turn the triangles
+    less than their whole rotations (a rigid turn by 170° with a bend: residuals near zero), and
+    given up where the rigid fit adds turn: a strip whose two halves trade places without turning
+    (its best rigid fit is a half turn, its triangles turn by nothing but where the halves join)."""
+    flat, tri = grid(41, 5, size=2.0)
+    bent = flat.copy()
+    bent[:, 2] = 0.1 * np.sin(3.0 * flat[:, 0])
+    turned = _rigid(bent, Rotation.from_rotvec([0.0, 0.0, np.radians(170.0)]).as_matrix(), np.zeros(3))
+    _, base, other, relative = _relative(flat, turned, tri)
+    assert not relative.residuals_add_turn(base, other)
+    swapped = flat.copy()
+    swapped[:, 0] = np.where(flat[:, 0] < 1.0, flat[:, 0] + 1.0, flat[:, 0] - 1.0)
+    swapped[:, 2] = 0.2 * np.sin(np.pi * flat[:, 0])  # the joins lifted: no triangle collapses
+    _, base, other, relative = _relative(flat, swapped, tri)
+    assert np.degrees(np.linalg.norm(relative.screw[0, :3])) > 90.0  # the spurious half turn
+    assert relative.residuals_add_turn(base, other)
+
+
+
+def test_position_tangents_are_limited_at_a_stop_not_at_a_swing():
+    """Per point, the incoming tangent is limited against the longer of this gap's and the next
+    gap's secant: a point swinging back inside the gap (on a parabola through its turning point)
+    keeps its Catmull–Rom tangent, and the spline reproduces the parabola exactly; a point that
+    stops at a key and stays is limited to TANGENT_LIMIT × its secant (no overshoot past the stop)."""
+    from core.splines import TANGENT_LIMIT, HermiteGap
+
+    direction = np.array([0.6, 0.0, 0.8])
+    swing = [(t - 0.5) ** 2 * direction for t in (-1.0, 0.0, 1.0, 2.0)]  # turns back mid-gap: secant 0
+    stop = [np.array(p) for p in ([-3.0, 0, 0], [0.0, 0, 0], [0.1, 0, 0], [0.1, 0, 0])]
+    spline = HermiteGap([np.stack([a, b]) for a, b in zip(swing, stop)], cubic=True, rows=True)
+    for s in np.linspace(0.0, 1.0, 9):
+        np.testing.assert_allclose(spline.at(s)[0], (s - 0.5) ** 2 * direction, atol=1e-12)
+    np.testing.assert_allclose(spline.t0[1], [TANGENT_LIMIT * 0.1, 0.0, 0.0], atol=1e-12)
