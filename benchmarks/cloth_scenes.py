@@ -83,6 +83,8 @@ SCENES: dict[str, SceneSpec] = {
         # cheap bakes (nothing to collide with): the in-betweens' cost against the least Blender spends
         SceneSpec("hang_10k", "hang", (100, 100), size=1.5, frames=65),  # default cloth, two corners pinned
         SceneSpec("flag_soft_10k", "flag", (125, 80), size=2.0, frames=65),  # default cloth, pinned at its pole
+        # a softer flag (bending 0.1) that swings through ~160° about its pole between keys 16 apart
+        SceneSpec("flag_soft_20k", "flag", (180, 112), size=2.4, frames=73, params=(("bending", 0.1),)),
     ]
 }
 
