@@ -27,8 +27,9 @@ if TYPE_CHECKING:
 #: the residuals 130° (median), the triangles' normals 53°; splined, the residuals and the
 #: rigid motion compose to a third of the flag turned over at the middle of the gap (the simulated
 #: frame: 117 triangles of 40,000). A rigid motion (residuals zero) and cloth that does not turn as
-#: a whole (residuals equal to the normals' turns, within 4–16° on the benchmark's cloths) keep the
-#: decomposition; numbers in docs/inbetweens.md.
+#: a whole keep the decomposition: on the benchmark's cloths other than the flags the residuals'
+#: median exceeds the whole rotations' by 7° at most, on the flags by 26–72°; numbers in
+#: docs/inbetweens.md.
 SPURIOUS_RIGID_TURN = np.pi / 4
 
 #: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
