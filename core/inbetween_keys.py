@@ -19,9 +19,9 @@ if TYPE_CHECKING:
     from .inbetween_solver import _Topology
 
 
-#: A gap's rotation fields are taken whole (each triangle's own rotation from the base key, not the
-#: residual to its component's best rigid rotation) when, toward the next key or the one after, the
-#: residuals' median angle exceeds the median angle of the triangles' whole rotations by more than
+#: A piece's rotation fields in a gap are taken whole (each triangle's own rotation from the base key,
+#: not the residual to the piece's best rigid rotation) when, toward the next key or the one after,
+#: its residuals' median angle exceeds the median angle of the triangles' whole rotations by more than
 #: this (radians): the rigid fit then adds turn instead of explaining it. A soft flag pinned at its
 #: pole, keys 16 frames apart: the best rigid rotation between two keys turns 161° about the pole,
 #: the residuals 130° (median), the triangles' normals 53°; splined, the residuals and the
@@ -94,28 +94,33 @@ class _Relative:
         self.centroids = other.centroids
         self.turn, self.motion = turn, (rotations, translations)
 
-    #: Whether ``rotvec`` holds the triangles' whole rotations (:meth:`whole_rotations`) rather
-    #: than their residuals to the component's rigid rotation.
-    whole = False
+    #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
+    #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
+    whole = np.zeros(0, dtype=bool)
 
-    def residuals_add_turn(self, base: _Key, other: _Key) -> bool:
-        """Whether this relative's rotation residuals turn further than the triangles themselves
-        (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle against the median angle of
-        the triangles' whole rotations from ``base`` to ``other`` (from the trace of each rotation:
-        three dot products per triangle)."""
+    def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
+        """Per component (bool (C,)), whether this relative's rotation residuals turn further than
+        its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
+        against the median angle of the triangles' whole rotations from ``base`` to ``other``
+        (from the trace of each rotation: three dot products per triangle)."""
         frames, columns = df.plane_turned_frames(other.column_rows, self.turn), base.column_rows
         trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
-        whole = np.median(np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0)))
-        residual = np.median(np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec)))
-        return bool(residual > whole + SPURIOUS_RIGID_TURN)
+        whole = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+        residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
+        component = topo.triangle_component
+        return np.array([np.median(residual[component == c]) > np.median(whole[component == c]) + SPURIOUS_RIGID_TURN
+                         for c in range(len(topo.components))])
 
-    def whole_rotations(self, base: _Key, other: _Key) -> "_Relative":
-        """A copy whose ``rotvec`` (m, 3) are the triangles' whole rotations from ``base`` to
-        ``other`` (the keys it was built from), the components' rigid rotations not undone."""
+    def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray) -> "_Relative":
+        """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
+        the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
+        components' rigid rotations not undone."""
         out = copy.copy(self)
-        out.rotvec = df.frame_rows_rotation_vectors(df.plane_turned_frames(other.column_rows, self.turn),
-                                                    base.column_rows)
-        out.whole = True
+        rows = np.flatnonzero(components[topo.triangle_component])
+        frames = df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
+        out.rotvec = self.rotvec.copy()
+        out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
+        out.whole = components
         return out
 
     def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":

@@ -206,9 +206,10 @@ class _Gap(LocalGlobalFit):
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
-                 start_limit: float | None = None, whole_rotations: bool = False):
+                 start_limit: float | None = None, whole_rotations: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
-        self.whole_rotations = whole_rotations  # the relatives' rotvec: whole rotations, not residuals
+        # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
+        self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
         limit = TANGENT_LIMIT if start_limit is None else start_limit  # a sequence's first gap: its own
@@ -374,10 +375,10 @@ class _Gap(LocalGlobalFit):
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
         """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals
         (r, 3) of the triangles ``rows``, ``rotations``: the components' (C, 3, 3)): the images of
-        the base's ``t1``, ``t2`` and, with ``columns=3``, ``n``; with ``whole_rotations``,
-        ``exp(rotvec)`` alone)."""
-        if self.whole_rotations:
-            rotations = np.broadcast_to(np.eye(3), rotations.shape)
+        the base's ``t1``, ``t2`` and, with ``columns=3``, ``n``; in the components of
+        ``whole_rotations``, ``exp(rotvec)`` alone)."""
+        if self.whole_rotations.any():
+            rotations = np.where(self.whole_rotations[:, None, None], np.eye(3), rotations)
         return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows],
                                  self.base.column_rows[:columns, :, rows])
 

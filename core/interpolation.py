@@ -210,16 +210,17 @@ class SequenceInterpolator:
         keys = [self._key(k) for k in others]
         return concurrently(lambda other: _Relative(topo, key, other), keys, worth_it=topo.n >= CONCURRENT_VERTICES)
 
-    def _previous(self, gap: int, turns: np.ndarray, whole: bool = False) -> _Relative:
+    def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> _Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
         next key (the same whichever gaps were computed before), or, with a truncated basis (its
-        metric is recovered per base key), from the poses; ``whole``: with the triangles' whole
-        rotations (:meth:`_Relative.whole_rotations`), from the poses."""
-        if self.k_M is not None or whole:
+        metric is recovered per base key), from the poses; with the triangles' whole rotations in
+        the components ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), from the poses."""
+        if self.k_M is not None or whole.any():
             previous = self._relative(gap, gap - 1, turns)
-            return previous.whole_rotations(self._key(gap), self._key(gap - 1)) if whole else previous
+            return previous.whole_rotations(self._topo, self._key(gap), self._key(gap - 1), whole) \
+                if whole.any() else previous
         cached = self._gaps.get(gap - 1)
-        forward = cached.relatives[2] if cached is not None and not cached.relatives[2].whole else \
+        forward = cached.relatives[2] if cached is not None and not cached.relatives[2].whole.any() else \
             self._relative(gap - 1, gap)
         return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
 
@@ -258,10 +259,10 @@ class SequenceInterpolator:
         cubic = self.smooth and last >= 2
         others = [gap + 1, gap + 2] if cubic and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        # rotation fields taken whole where the components' rigid fits add turn (SPURIOUS_RIGID_TURN)
-        whole = any(r.residuals_add_turn(base, self._key(k)) for r, k in zip(ahead, others))
-        if whole:
-            ahead = [r.whole_rotations(base, self._key(k)) for r, k in zip(ahead, others)]
+        # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
+        whole = np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
+        if whole.any():
+            ahead = [r.whole_rotations(topo, base, self._key(k), whole) for r, k in zip(ahead, others)]
         nxt = ahead[0]
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's

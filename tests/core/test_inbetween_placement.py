@@ -342,12 +342,12 @@ def test_whole_rotations_are_the_same_rotations_as_rigid_motion_and_residuals():
     bent[:, 2] = 0.3 * np.sin(2.5 * flat[:, 0]) * flat[:, 1]
     turned = _rigid(bent, Rotation.from_rotvec([0.3, -0.2, 2.6]).as_matrix(), np.zeros(3), (0.4, 0.1, -0.2))
     topo, base, other, relative = _relative(flat, turned, tri)
-    whole = relative.whole_rotations(base, other)
+    whole = relative.whole_rotations(topo, base, other, np.ones(1, dtype=bool))
     identity = np.broadcast_to(np.eye(3), relative.motion[0].shape)
     np.testing.assert_allclose(df.rotated_frames(whole.rotvec, identity, topo.triangle_component, base.column_rows),
                                df.rotated_frames(relative.rotvec, relative.motion[0], topo.triangle_component,
                                                  base.column_rows), atol=1e-9)
-    assert whole.whole and not relative.whole
+    assert whole.whole.all() and not relative.whole.any()
 
 
 def test_a_rigid_fit_that_turns_further_than_the_triangles_is_not_used():
@@ -359,14 +359,14 @@ def test_a_rigid_fit_that_turns_further_than_the_triangles_is_not_used():
     bent = flat.copy()
     bent[:, 2] = 0.1 * np.sin(3.0 * flat[:, 0])
     turned = _rigid(bent, Rotation.from_rotvec([0.0, 0.0, np.radians(170.0)]).as_matrix(), np.zeros(3))
-    _, base, other, relative = _relative(flat, turned, tri)
-    assert not relative.residuals_add_turn(base, other)
+    topo, base, other, relative = _relative(flat, turned, tri)
+    assert not relative.residuals_add_turn(topo, base, other).any()
     swapped = flat.copy()
     swapped[:, 0] = np.where(flat[:, 0] < 1.0, flat[:, 0] + 1.0, flat[:, 0] - 1.0)
     swapped[:, 2] = 0.2 * np.sin(np.pi * flat[:, 0])  # the joins lifted: no triangle collapses
-    _, base, other, relative = _relative(flat, swapped, tri)
+    topo, base, other, relative = _relative(flat, swapped, tri)
     assert np.degrees(np.linalg.norm(relative.screw[0, :3])) > 90.0  # the spurious half turn
-    assert relative.residuals_add_turn(base, other)
+    assert relative.residuals_add_turn(topo, base, other).all()
 
 
 
@@ -384,3 +384,23 @@ def test_position_tangents_are_limited_at_a_stop_not_at_a_swing():
     for s in np.linspace(0.0, 1.0, 9):
         np.testing.assert_allclose(spline.at(s)[0], (s - 0.5) ** 2 * direction, atol=1e-12)
     np.testing.assert_allclose(spline.t0[1], [TANGENT_LIMIT * 0.1, 0.0, 0.0], atol=1e-12)
+
+
+def test_the_rigid_fit_is_given_up_per_piece():
+    """In a mesh of two pieces — one turning rigidly by 170°, one whose halves trade places — only
+    the second piece's rotations are taken whole; the first keeps its residuals unchanged."""
+    flat, tri = grid(41, 5, size=2.0)
+    turned = _rigid(flat, Rotation.from_rotvec([0.0, 0.0, np.radians(170.0)]).as_matrix(), np.zeros(3))
+    swapped = flat.copy()
+    swapped[:, 0] = np.where(flat[:, 0] < 1.0, flat[:, 0] + 1.0, flat[:, 0] - 1.0)
+    swapped[:, 2] = 0.2 * np.sin(np.pi * flat[:, 0])
+    shift = np.array([0.0, 3.0, 0.0])
+    base = np.vstack([flat, flat + shift])
+    other = np.vstack([turned, swapped + shift])
+    topo, base_key, other_key, relative = _relative(base, other, np.vstack([tri, tri + len(flat)]))
+    pieces = relative.residuals_add_turn(topo, base_key, other_key)
+    assert pieces.tolist() == [False, True]
+    whole = relative.whole_rotations(topo, base_key, other_key, pieces)
+    first = topo.triangle_component == 0
+    np.testing.assert_array_equal(whole.rotvec[first], relative.rotvec[first])
+    assert not np.allclose(whole.rotvec[~first], relative.rotvec[~first])
