@@ -107,9 +107,12 @@ class _Relative:
         trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
         whole = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
-        component = topo.triangle_component
-        return np.array([np.median(residual[component == c]) > np.median(whole[component == c]) + SPURIOUS_RIGID_TURN
-                         for c in range(len(topo.components))])
+        if len(topo.components) == 1:
+            return np.array([np.median(residual) > np.median(whole) + SPURIOUS_RIGID_TURN])
+        order = np.argsort(topo.triangle_component, kind="stable")  # the pieces' triangles, piece by piece
+        ends = np.cumsum(np.bincount(topo.triangle_component, minlength=len(topo.components)))[:-1]
+        return np.array([np.median(r) > np.median(w) + SPURIOUS_RIGID_TURN
+                         for r, w in zip(np.split(residual[order], ends), np.split(whole[order], ends))])
 
     def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray) -> "_Relative":
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
