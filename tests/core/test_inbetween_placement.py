@@ -322,7 +322,8 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
 
 
 def _relative(base_vertices, other_vertices, triangles):
-    """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (keys, relative)."""
+    """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (topology, base key,
+    other key, relative)."""
     from core.inbetween_keys import _Key, _Relative
     from core.inbetween_solver import _Topology
     from core.mesh_topology import mesh_topology
