@@ -116,7 +116,7 @@ def planar_polar(a, b, c, d) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]
     the symmetric stretches ``S`` as ``(s11, s12, s22)`` (m, 3). Closed form: ``Q`` turns by the
     angle of ``(a + d, c − b)`` (normalized, no trigonometric function)."""
     x, y = a + d, c - b
-    radius = np.hypot(x, y)
+    radius = _length(x, y)
     zero = radius == 0  # the angle of (0, 0) is 0
     radius = np.where(zero, 1.0, radius)
     cos, sin = np.where(zero, 1.0, x / radius), y / radius
@@ -126,10 +126,17 @@ def planar_polar(a, b, c, d) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]
     return (cos, sin), np.stack([s11, s12, s22], axis=1)
 
 
+def _length(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """``√(x² + y²)`` element-wise. Not ``np.hypot``, which NumPy computes one value at a time
+    (8× slower at 60k values); the entries here (planar maps, stretches and their logarithms) are
+    far from where the squares would overflow or underflow."""
+    return np.sqrt(x * x + y * y)
+
+
 def _symmetric_parts(s: np.ndarray):
     mean = 0.5 * (s[:, 0] + s[:, 2])
     half = 0.5 * (s[:, 0] - s[:, 2])
-    return mean, half, s[:, 1], np.hypot(half, s[:, 1])
+    return mean, half, s[:, 1], _length(half, s[:, 1])
 
 
 def log_stretch(s: np.ndarray) -> np.ndarray:
