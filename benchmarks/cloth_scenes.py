@@ -28,6 +28,17 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
 - ``sheet_cube_100k``: the same at 316×316 (99,856 vertices) over 33 frames (the top of the
   issue's 10k–100k range).
 
+- ``hang_10k``, ``flag_soft_10k``, ``flag_soft_20k``: cheap bakes (nothing to collide with), the
+  hanging sheet and the flag pinned at its pole at 10k–20k vertices.
+- ``banner_10k``: a 125×80 banner (default cloth) pinned along its pole, carried 2.9 units and
+  turned 120° about the vertical by its object's keyframes (pins that move and turn: the cloth
+  trails and flaps over between keys 16 frames apart).
+- ``curtain_ball_15k``: a 140×110 curtain (default cloth) pinned along its top edge, a ball
+  (radius 0.3) flying through it (a moving collider: a fast local impact).
+- ``balloon_10k``: a closed icosphere (10,242 vertices, default cloth with uniform pressure 8)
+  falling onto a floor and a box (a surface without boundary; the grid's ``subdivisions[0]`` is
+  the icosphere's subdivision level).
+
 Stiff scenes (tension/compression 80, bending 2–5, quality 10) keep edge lengths within ~0.2–0.6%
 of rest like the simulations in issue 3; default cloth (bending 0.5) wrinkles below the edge scale
 and shortens edges by 1–2%.
@@ -53,7 +64,7 @@ OUTPUT_DIR = Path(__file__).resolve().parent / "output"
 @dataclass(frozen=True)
 class SceneSpec:
     name: str
-    kind: str  # "drape", "flag", "fall", "hang"
+    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon"
     subdivisions: tuple[int, int]  # grid vertices along x, y
     size: float = 2.0
     frames: int = 96
@@ -85,6 +96,10 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec("flag_soft_10k", "flag", (125, 80), size=2.0, frames=65),  # default cloth, pinned at its pole
         # a softer flag (bending 0.1) that swings through ~160° about its pole between keys 16 apart
         SceneSpec("flag_soft_20k", "flag", (180, 112), size=2.4, frames=73, params=(("bending", 0.1),)),
+        # moving pins, a moving collider, a closed surface (added in session 33)
+        SceneSpec("banner_10k", "carry", (125, 80), size=2.0, frames=65),
+        SceneSpec("curtain_ball_15k", "ball", (140, 110), size=2.0, frames=49),
+        SceneSpec("balloon_10k", "balloon", (6, 6), frames=49),
     ]
 }
 
@@ -236,6 +251,29 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray, float]:
         cloth, co = _grid(bpy, spec, location=(0.0, 0.0, 1.5))
         corners = [0, nx - 1]  # two corners of the first row
         pin = _pin_group(cloth, corners)
+    elif spec.kind == "carry":
+        # Vertical banner pinned along its pole (x = min); the object walks and turns 120° about z.
+        cloth, co = _grid(bpy, spec, rotation=(np.pi / 2, 0.0, 0.0))
+        pin = _pin_group(cloth, np.flatnonzero(np.isclose(co[:, 0], co[:, 0].min())))
+        for frame, location, turn in ((1, (0.0, 0.0, 1.5), 0.0), (spec.frames // 2, (1.5, 0.5, 1.7), 1.0),
+                                      (spec.frames, (2.0, 2.0, 1.5), 2.1)):
+            cloth.location, cloth.rotation_euler = location, (0.0, 0.0, turn)
+            cloth.keyframe_insert("location", frame=frame)
+            cloth.keyframe_insert("rotation_euler", frame=frame)
+    elif spec.kind == "ball":
+        # Vertical curtain pinned along its top edge; a ball flies through it by the middle frame.
+        cloth, co = _grid(bpy, spec, location=(0.0, 0.0, 1.2), rotation=(np.pi / 2, 0.0, 0.0))
+        pin = _pin_group(cloth, np.flatnonzero(np.isclose(co[:, 1], co[:, 1].max())))
+        ball = _collider(bpy, "sphere", radius=0.3, location=(0.3, -2.0, 1.1))
+        ball.keyframe_insert("location", frame=1)
+        ball.location = (0.1, 2.0, 0.9)
+        ball.keyframe_insert("location", frame=spec.frames // 2)
+    elif spec.kind == "balloon":
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=nx, radius=0.5, location=(0.1, 0.0, 1.4))
+        cloth = bpy.context.active_object
+        bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
+        _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
+        _collider(bpy, "cube", size=0.5, location=(0.3, 0.1, 0.25), rotation=(0.0, 0.0, 0.4))
     else:
         raise ValueError(spec.kind)
 
@@ -243,8 +281,11 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray, float]:
     mod = cloth.modifiers.new("Cloth", "CLOTH")
     settings = mod.settings
     settings.quality = spec.quality
-    if spec.kind in ("flag", "hang"):
+    if spec.kind in ("flag", "hang", "carry", "ball"):
         settings.vertex_group_mass = pin
+    if spec.kind == "balloon":
+        settings.use_pressure = True
+        settings.uniform_pressure_force = 8.0
     if spec.kind == "fall":
         mod.collision_settings.use_self_collision = True
     mod.collision_settings.distance_min = 0.01

@@ -7,13 +7,18 @@ rotations, the linear blend's rotations (integrable: they come from a mesh), the
 and stretches (its local geometry spliced in, where the interpolated metric cannot be realized
 without a fold), the local geometry of the keys' per-vertex spline, and each key's own local
 geometry (nearer key first); the first defect-free one
-is kept, so a repair changes as small a region as it can. If no repair is defect-free, the fallbacks
-are tried in turn — the Poisson solve alone, the metric fitted near the linear blend (strongly
-anchored), the linear blend — and the first without defects is returned; if none is, the metric
-fit with the fewest defects. The fit near the blend is skipped when the blend itself is defective
-(held near a folded blend it keeps the folds: on the benchmark cloths it repaired none of the 24
-poses whose blend was defective, at ~1 s each on the 50k-vertex sheet). Each fallback comes with
-a message for a :class:`~core.errors.ShapeDifferenceWarning`.
+is kept, so a repair changes as small a region as it can. Regions stop growing once they cover
+:data:`MAX_REPAIR_FRACTION` of the mesh: imposing a key's geometry on most of it replaces the pose
+rather than repairing it. If no repair is defect-free, the Poisson solve alone is returned when it
+is; otherwise an in-between of a sequence (three keys or more, factor strictly between 0 and 1)
+is the metric fit with the fewest defects: its neighbours in time are fits too, and a whole-pose
+substitute (the blend, a fit near it) would jump away from them and back. Two poses and
+extrapolations try the metric fitted near the linear blend (strongly anchored), then the linear
+blend — two poses are held to the blend's error — and the first without defects is returned;
+if none is, the metric fit with the fewest defects. The fit near the blend is skipped when the blend
+itself is defective (held near a folded blend it keeps the folds: on the benchmark cloths it
+repaired none of the 24 poses whose blend was defective, at ~1 s each on the 50k-vertex sheet).
+Each fallback comes with a message for a :class:`~core.errors.ShapeDifferenceWarning`.
 """
 
 from __future__ import annotations
@@ -38,6 +43,11 @@ REPAIR_RINGS = (1, 1, 2, 4, 8)
 #: repaired poses) the interpolated rotations, the blend's rotations alone and the spline's
 #: geometry never repaired a region that large, and those rounds cost the most.
 WHOLE_GEOMETRY_ROUND = 2
+#: Largest repair region after the first round (fraction of the mesh's triangles): the rounds end
+#: at a region that would cover more (measured in docs/inbetweens.md, *Pops*: a ball thrown
+#: through a 15k curtain, keys 16 frames apart, 79 → 46 ms per in-between and the largest
+#: frame-to-frame jump 97 → 3.6 × the simulation's median; the benchmark cloths' results unchanged).
+MAX_REPAIR_FRACTION = 0.5
 #: Local/global iterations of the fallback that fits the metric near the linear blend.
 REPAIR_ITERATIONS = 10
 #: Anchor weight of the fallback that fits the interpolated metric near the linear blend.
@@ -135,6 +145,8 @@ class Repair:
                 return z, None
         if gap.use_extrinsic and self.problem(x0, s, frames, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
+        if best is not None and gap.cubic and 0.0 < s < 1.0:  # a sequence's in-between: as its neighbours
+            return best[1], self.kept(problem, best[0])
         blend_clean = self.problem(blend, s, None, stretch) is None
         if blend_clean or best is None:  # a fit held near a folded blend keeps its folds: not tried
             system = (gap.topo.factor(FALLBACK_ANCHOR_WEIGHT), np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
@@ -146,8 +158,13 @@ class Repair:
             best = (int(self.defects(y, s, frames, stretch).sum()), y)
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
-        return best[1], (f"{problem}; every repair and fallback has defects too, returned the metric fit with "
-                         f"the fewest ({best[0]} flipped or collapsed triangle(s))")
+        return best[1], self.kept(problem, best[0])
+
+    @staticmethod
+    def kept(problem: str, count: int) -> str:
+        """The warning's text when the metric fit with the fewest defects (``count``) is returned."""
+        return (f"{problem}; every repair and fallback has defects too, returned the metric fit with "
+                f"the fewest ({count} flipped or collapsed triangle(s))")
 
     def imposed_fields(self, s, frames, stretch, blend):
         """The fields imposed around defects, in the order tried: (function of triangle indices
@@ -197,8 +214,11 @@ class Repair:
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
         force = defects
+        largest = MAX_REPAIR_FRACTION * len(force)
         for round_index, grown in enumerate(rings):
             force = self.grow(force, grown)
+            if round_index and np.count_nonzero(force) > largest:  # a replacement, not a repair
+                break
             region = gap.region(force)
             for field, whole in fields:
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:

@@ -347,6 +347,82 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
+def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(monkeypatch, strip):
+    """An in-between of a sequence whose repairs all keep defects is the metric fit with the
+    fewest, even when the linear blend has none: its neighbours in time are fits, and the blend
+    (or a fit held near it) would jump away from them and back. No fit near the blend is tried.
+    Two poses still fall back to the clean blend (they are held to its error), and so do
+    extrapolations."""
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 2.0), _bend(flat, 3.0)
+    blend, extrapolation = 0.5 * (a + b), -0.5 * a + 1.5 * b
+
+    def clean(x):  # only the blend (and the linear extrapolation at 1.5) are clean
+        return np.allclose(x, blend) or np.allclose(x, extrapolation)
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if clean(x) else 3] = True
+        return out if rows is None else out[rows]
+
+    def problem(self, x, *args):
+        return None if clean(x) else "3 triangle(s) flipped"
+
+    near_blend, real_fit = [], solver._Gap.fit  # fits started from the blend: the fallback's
+    monkeypatch.setattr(solver._Gap, "fit", lambda self, x, *args, **kwargs: near_blend.append(clean(x)) or
+                        real_fit(self, x, *args, **kwargs))
+    monkeypatch.setattr(repair.Repair, "problem", problem)
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert near_blend and not any(near_blend)
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
+    with pytest.warns(ShapeDifferenceWarning, match="returned the linear blend"):
+        x = Interpolator(a, b, tri).pose(0.5)
+    np.testing.assert_allclose(x, blend)
+    assert any(near_blend)
+    with pytest.warns(ShapeDifferenceWarning, match="returned the linear blend"):
+        x = Interpolator(a, b, tri).pose(1.5)
+    np.testing.assert_allclose(x, extrapolation)
+
+
+def test_repair_regions_stop_at_half_the_mesh(monkeypatch, strip):
+    """The repair rounds do not impose fields on regions beyond ``MAX_REPAIR_FRACTION`` of the
+    triangles after the first round (that would replace the pose, not repair it), and still try
+    every round below it."""
+    import core.inbetween_repair as repair
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    regions, real_local = [], ci._Gap.local_fit
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[len(tri) // 2] = True  # one defect no repair removes
+        return out if rows is None else out[rows]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        regions.append(region.rows.size)
+        return real_local(self, x, region, frames, stretch, guide)
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
+    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        Interpolator(a, b, tri).pose(0.5)
+    assert regions and max(regions) <= repair.MAX_REPAIR_FRACTION * len(tri)
+    # without the limit the schedule grows beyond it: the limit is what stopped it
+    regions.clear()
+    monkeypatch.setattr(repair, "MAX_REPAIR_FRACTION", 1.0)
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        Interpolator(a, b, tri).pose(0.5)
+    assert max(regions) > 0.5 * len(tri)
+
+
 def test_no_fit_near_a_folded_blend(monkeypatch, strip):
     """When the linear blend is defective too, the metric is not fitted near it (a fit held near
     a folded blend keeps its folds): the metric fit with the fewest defects is returned at once."""
