@@ -35,6 +35,8 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
   trails and flaps over between keys 16 frames apart).
 - ``curtain_ball_15k``: a 140×110 curtain (default cloth) pinned along its top edge, a ball
   (radius 0.3) flying through it (a moving collider: a fast local impact).
+- ``two_sheets_10k``: two 72×72 sheets in one object (two pieces; default cloth, no collision
+  between them) falling onto a sphere and a floor.
 - ``balloon_10k``: a closed icosphere (10,242 vertices, default cloth with uniform pressure 8)
   falling onto a floor and a box (a surface without boundary; the grid's ``subdivisions[0]`` is
   the icosphere's subdivision level).
@@ -64,7 +66,7 @@ OUTPUT_DIR = Path(__file__).resolve().parent / "output"
 @dataclass(frozen=True)
 class SceneSpec:
     name: str
-    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon"
+    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon", "two"
     subdivisions: tuple[int, int]  # grid vertices along x, y
     size: float = 2.0
     frames: int = 96
@@ -100,6 +102,7 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec("banner_10k", "carry", (125, 80), size=2.0, frames=65),
         SceneSpec("curtain_ball_15k", "ball", (140, 110), size=2.0, frames=49),
         SceneSpec("balloon_10k", "balloon", (6, 6), frames=49),
+        SceneSpec("two_sheets_10k", "two", (72, 72), size=1.4, frames=49),
     ]
 }
 
@@ -268,6 +271,16 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray, float]:
         ball.keyframe_insert("location", frame=1)
         ball.location = (0.1, 2.0, 0.9)
         ball.keyframe_insert("location", frame=spec.frames // 2)
+    elif spec.kind == "two":
+        cloth, co = _grid(bpy, spec, location=(0.2, 0.0, 1.4), rotation=(0.2, 0.1, 0.3))
+        other, _ = _grid(bpy, spec, location=(-0.3, 0.2, 2.0), rotation=(-0.3, 0.2, 1.0))
+        bpy.ops.object.select_all(action="DESELECT")
+        cloth.select_set(True)
+        other.select_set(True)
+        bpy.context.view_layer.objects.active = cloth
+        bpy.ops.object.join()
+        _collider(bpy, "sphere", radius=0.6, location=(0.0, 0.0, 0.5))
+        _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
     elif spec.kind == "balloon":
         bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=nx, radius=0.5, location=(0.1, 0.0, 1.4))
         cloth = bpy.context.active_object

@@ -8,8 +8,8 @@ and stretches (its local geometry spliced in, where the interpolated metric cann
 without a fold), the local geometry of the keys' per-vertex spline, and each key's own local
 geometry (nearer key first); the first defect-free one
 is kept, so a repair changes as small a region as it can. Regions stop growing once they cover
-:data:`MAX_REPAIR_FRACTION` of the mesh: imposing a key's geometry on most of it replaces the pose
-rather than repairing it. If no repair is defect-free, the Poisson solve alone is returned when it
+:data:`MAX_REPAIR_FRACTION` of a piece of the mesh: imposing a key's geometry on most of it
+replaces the pose rather than repairing it. If no repair is defect-free, the Poisson solve alone is returned when it
 is; otherwise an in-between of a sequence (three keys or more, factor strictly between 0 and 1)
 is the metric fit with the fewest defects: its neighbours in time are fits too, and a whole-pose
 substitute (the blend, a fit near it) would jump away from them and back. Two poses and
@@ -43,11 +43,15 @@ REPAIR_RINGS = (1, 1, 2, 4, 8)
 #: repaired poses) the interpolated rotations, the blend's rotations alone and the spline's
 #: geometry never repaired a region that large, and those rounds cost the most.
 WHOLE_GEOMETRY_ROUND = 2
-#: Largest repair region after the first round (fraction of the mesh's triangles): the rounds end
-#: at a region that would cover more (measured in docs/inbetweens.md, *Pops*: a ball thrown
+#: Largest repair region after the first round (fraction of the triangles of any one connected
+#: piece of the mesh): the rounds end at a region that would cover more (measured in docs/inbetweens.md, *Pops*: a ball thrown
 #: through a 15k curtain, keys 16 frames apart, 79 → 46 ms per in-between and the largest
 #: frame-to-frame jump 97 → 3.6 × the simulation's median; the benchmark cloths' results unchanged).
 MAX_REPAIR_FRACTION = 0.5
+#: Largest move of a repair of a sequence's in-between, RMS over the vertices, as a fraction of the
+#: keys' RMS move across the gap (at least one mean edge length): a larger one jumps away from the
+#: neighbouring in-betweens, which do not follow (numbers in docs/inbetweens.md, *Pops*).
+MAX_REPAIR_MOVE = 0.1
 #: Local/global iterations of the fallback that fits the metric near the linear blend.
 REPAIR_ITERATIONS = 10
 #: Anchor weight of the fallback that fits the interpolated metric near the linear blend.
@@ -62,6 +66,7 @@ class Repair:
         # sequence's cache let go (~150 MB at 100k vertices) alive until a full garbage collection
         self.gap = weakref.proxy(gap)
         self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._move_limit: float | None = None
 
     # --- defects
 
@@ -214,11 +219,13 @@ class Repair:
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
         force = defects
-        largest = MAX_REPAIR_FRACTION * len(force)
+        limit = self.move_limit(s)
+        pieces = gap.topo.triangle_component
+        largest = MAX_REPAIR_FRACTION * np.bincount(pieces)
         for round_index, grown in enumerate(rings):
             force = self.grow(force, grown)
-            if round_index and np.count_nonzero(force) > largest:  # a replacement, not a repair
-                break
+            if round_index and (np.bincount(pieces[force], minlength=largest.size) > largest).any():
+                break  # most of a piece: a replacement, not a repair
             region = gap.region(force)
             for field, whole in fields:
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:
@@ -226,12 +233,26 @@ class Repair:
                 z = gap.local_fit(x, region, *field(region.rows), guide)
                 if not np.isfinite(z).all():
                     continue
+                if limit is not None and np.sum((z[region.free] - x[region.free]) ** 2) > limit:
+                    continue  # the pose would jump away from its neighbours in time
                 count = int(self.defects(z, s, frames, stretch, rows=region.rows).sum())
                 if count == 0:
                     return z, best
                 if count < best[0]:
                     best = (count, z)
         return None, best
+
+    def move_limit(self, s: float) -> float | None:
+        """The largest sum of squared vertex moves a repair of a sequence's in-between at ``s`` may
+        make (:data:`MAX_REPAIR_MOVE`), None for two poses and extrapolations."""
+        gap = self.gap
+        if not (gap.cubic and 0.0 < s < 1.0):
+            return None
+        if self._move_limit is None:
+            n = len(gap.base.vertices)
+            step = np.sum((gap.next.vertices - gap.base.vertices) ** 2) / n
+            self._move_limit = n * max(MAX_REPAIR_MOVE ** 2 * step, gap.mean_edge ** 2)
+        return self._move_limit
 
 
 class Region:

@@ -389,20 +389,22 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     np.testing.assert_allclose(x, extrapolation)
 
 
-def test_repair_regions_stop_at_half_the_mesh(monkeypatch, strip):
+def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     """The repair rounds do not impose fields on regions beyond ``MAX_REPAIR_FRACTION`` of the
-    triangles after the first round (that would replace the pose, not repair it), and still try
-    every round below it."""
+    triangles of any one piece of the mesh after the first round (that would replace the piece's
+    pose, not repair it), and still try every round below it."""
     import core.inbetween_repair as repair
     import core.interpolation as ci
 
     flat, tri = strip
-    a, b = _bend(flat, 0.0), _bend(flat, 1.0)
+    two = np.vstack([flat, flat + [0.0, 2.0, 0.0]])  # two strips side by side: two pieces
+    tris = np.vstack([tri, tri + len(flat)])
+    a, b = _bend(two, 0.0), _bend(two, 1.0)
     regions, real_local = [], ci._Gap.local_fit
 
     def defects(self, x, *args, rows=None):
-        out = np.zeros(len(tri), dtype=bool)
-        out[len(tri) // 2] = True  # one defect no repair removes
+        out = np.zeros(len(tris), dtype=bool)
+        out[len(tri) + len(tri) // 2] = True  # one defect in the second piece, no repair removes it
         return out if rows is None else out[rows]
 
     def local_fit(self, x, region, frames, stretch, guide):
@@ -413,14 +415,55 @@ def test_repair_regions_stop_at_half_the_mesh(monkeypatch, strip):
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
     monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
-        Interpolator(a, b, tri).pose(0.5)
+        Interpolator(a, b, tris).pose(0.5)
     assert regions and max(regions) <= repair.MAX_REPAIR_FRACTION * len(tri)
     # without the limit the schedule grows beyond it: the limit is what stopped it
     regions.clear()
     monkeypatch.setattr(repair, "MAX_REPAIR_FRACTION", 1.0)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
-        Interpolator(a, b, tri).pose(0.5)
+        Interpolator(a, b, tris).pose(0.5)
     assert max(regions) > 0.5 * len(tri)
+
+
+@pytest.mark.parametrize("shift, kept", [(1e-3, True), (5.0, False)])
+def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
+    """A repair of a sequence's in-between that moves the pose further than ``MAX_REPAIR_MOVE`` of
+    the keys' move across the gap (and more than a mean edge length) is not taken, even when
+    defect-free: the neighbouring in-betweens would not follow. A small one is; two poses take
+    either."""
+    import core.inbetween_repair as repair
+    import core.interpolation as ci
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
+    offset = shift * np.ptp(flat, axis=0).max()  # the strip is 2 long: a 4 mm or a 10 m lift
+    fit = []  # the pose the repairs start from
+
+    def moved(x):
+        return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * offset
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[len(tri) // 2] = not moved(x)  # one defect, gone from any repair
+        return out if rows is None else out[rows]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        fit[:] = fit or [x.copy()]
+        z = x.copy()
+        z[region.free, 2] += offset  # the region lifted
+        return z
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if moved(x) else "1 triangle(s) flipped")
+    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert fit and moved(x) == kept and bool(caught) != kept
+    fit.clear()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        assert moved(Interpolator(a, b, tri).pose(0.5))
 
 
 def test_no_fit_near_a_folded_blend(monkeypatch, strip):
