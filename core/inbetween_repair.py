@@ -6,17 +6,18 @@ while defects remain (:data:`REPAIR_RINGS`); in each neighbourhood, in turn, the
 rotations, the linear blend's rotations (integrable: they come from a mesh), the blend's rotations
 and stretches (its local geometry spliced in, where the interpolated metric cannot be realized
 without a fold), the local geometry of the keys' per-vertex spline, and each key's own local
-geometry (nearer key first); the first defect-free one
-is kept, so a repair changes as small a region as it can. Regions stop growing once they cover
-:data:`MAX_REPAIR_FRACTION` of a piece of the mesh: imposing a key's geometry on most of it
-replaces the pose rather than repairing it. If no repair is defect-free, the Poisson solve alone is returned when it
-is; otherwise an in-between of a sequence (three keys or more, factor strictly between 0 and 1)
-is the metric fit with the fewest defects: its neighbours in time are fits too, and a whole-pose
-substitute (the blend, a fit near it) would jump away from them and back. Two poses and
-extrapolations try the metric fitted near the linear blend (strongly anchored), then the linear
-blend — two poses are held to the blend's error — and the first without defects is returned;
-if none is, the metric fit with the fewest defects. The fit near the blend is skipped when the blend
-itself is defective (held near a folded blend it keeps the folds: on the benchmark cloths it
+geometry (nearer key first); the first defect-free one is kept, so a repair changes as small a
+region as it can. Regions stop growing once they cover :data:`MAX_REPAIR_FRACTION` of a piece of
+the mesh, and a repair of a sequence's in-between that moves the pose by more than
+:data:`MAX_REPAIR_MOVE` of the keys' move is not taken: either would replace the pose rather
+than repair it, and the neighbouring in-betweens would not follow. If no repair is defect-free,
+the Poisson solve alone is returned when it is; otherwise an in-between of a sequence (three keys
+or more, factor strictly between 0 and 1) is the metric fit with the fewest defects: its
+neighbours in time are fits too, and a whole-pose substitute (the blend, a fit near it) would
+jump away from them and back. Two poses and extrapolations try the metric fitted near the linear
+blend (strongly anchored), then the linear blend — two poses are held to the blend's error — and
+the first without defects is returned; if none is, the metric fit with the fewest defects. The
+fit near the blend is skipped when the blend itself is defective (held near a folded blend it keeps the folds: on the benchmark cloths it
 repaired none of the 24 poses whose blend was defective, at ~1 s each on the 50k-vertex sheet).
 Each fallback comes with a message for a :class:`~core.errors.ShapeDifferenceWarning`.
 """
@@ -44,9 +45,9 @@ REPAIR_RINGS = (1, 1, 2, 4, 8)
 #: geometry never repaired a region that large, and those rounds cost the most.
 WHOLE_GEOMETRY_ROUND = 2
 #: Largest repair region after the first round (fraction of the triangles of any one connected
-#: piece of the mesh): the rounds end at a region that would cover more (measured in docs/inbetweens.md, *Pops*: a ball thrown
-#: through a 15k curtain, keys 16 frames apart, 79 → 46 ms per in-between and the largest
-#: frame-to-frame jump 97 → 3.6 × the simulation's median; the benchmark cloths' results unchanged).
+#: piece of the mesh): the rounds end at a region that would cover more (docs/inbetweens.md,
+#: *Pops*: a ball thrown through a 15k curtain, keys 16 frames apart, 66 → 42–56 ms per in-between,
+#: largest frame-to-frame jump 10.6 → 0.52 × the simulation's; the benchmark cloths unchanged).
 MAX_REPAIR_FRACTION = 0.5
 #: Largest move of a repair of a sequence's in-between, RMS over the vertices, as a fraction of the
 #: keys' RMS move across the gap (at least one mean edge length): a larger one jumps away from the
@@ -151,7 +152,7 @@ class Repair:
         if gap.use_extrinsic and self.problem(x0, s, frames, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
         if best is not None and gap.cubic and 0.0 < s < 1.0:  # a sequence's in-between: as its neighbours
-            return best[1], self.kept(problem, best[0])
+            return best[1], self.kept_message(problem, best[0])
         blend_clean = self.problem(blend, s, None, stretch) is None
         if blend_clean or best is None:  # a fit held near a folded blend keeps its folds: not tried
             system = (gap.topo.factor(FALLBACK_ANCHOR_WEIGHT), np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
@@ -163,10 +164,10 @@ class Repair:
             best = (int(self.defects(y, s, frames, stretch).sum()), y)
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
-        return best[1], self.kept(problem, best[0])
+        return best[1], self.kept_message(problem, best[0])
 
     @staticmethod
-    def kept(problem: str, count: int) -> str:
+    def kept_message(problem: str, count: int) -> str:
         """The warning's text when the metric fit with the fewest defects (``count``) is returned."""
         return (f"{problem}; every repair and fallback has defects too, returned the metric fit with "
                 f"the fewest ({count} flipped or collapsed triangle(s))")
@@ -221,7 +222,7 @@ class Repair:
         force = defects
         limit = self.move_limit(s)
         pieces = gap.topo.triangle_component
-        largest = MAX_REPAIR_FRACTION * np.bincount(pieces)
+        largest = MAX_REPAIR_FRACTION * gap.topo.piece_sizes
         for round_index, grown in enumerate(rings):
             force = self.grow(force, grown)
             if round_index and (np.bincount(pieces[force], minlength=largest.size) > largest).any():

@@ -130,6 +130,7 @@ class _Topology:
         kept = np.unique(labels)
         self.components = [np.flatnonzero(per_vertex == c) for c in kept]
         self.triangle_component = np.searchsorted(kept, labels)
+        self.piece_sizes = np.bincount(self.triangle_component)  # triangles per component
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
         self.all_in_one = len(self.components) == 1 and self.components[0].size == n_vertices  # no loose vertex
         # what selects each component's vertices: every vertex at once when there is one component
