@@ -27,7 +27,6 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
   cube onto a floor (speed and memory target at ~50k vertices).
 - ``sheet_cube_100k``: the same at 316×316 (99,856 vertices) over 33 frames (the top of the
   issue's 10k–100k range).
-
 - ``hang_10k``, ``flag_soft_10k``, ``flag_soft_20k``: cheap bakes (nothing to collide with), the
   hanging sheet and the flag pinned at its pole at 10k–20k vertices.
 - ``banner_10k``: a 125×80 banner (default cloth) pinned along its pole, carried 2.9 units and

@@ -151,7 +151,7 @@ class Repair:
                 return z, None
         if gap.use_extrinsic and self.problem(x0, s, frames, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
-        if best is not None and gap.cubic and 0.0 < s < 1.0:  # a sequence's in-between: as its neighbours
+        if best is not None and self.in_sequence(s):  # keeps the metric, as its neighbours in time do
             return best[1], self.kept_message(problem, best[0])
         blend_clean = self.problem(blend, s, None, stretch) is None
         if blend_clean or best is None:  # a fit held near a folded blend keeps its folds: not tried
@@ -243,11 +243,16 @@ class Repair:
                     best = (count, z)
         return None, best
 
+    def in_sequence(self, s: float) -> bool:
+        """Whether factor ``s`` is an in-between of a sequence (three keys or more, 0 < s < 1):
+        one of a run of poses in time, which a pose must not jump away from."""
+        return self.gap.cubic and 0.0 < s < 1.0
+
     def move_limit(self, s: float) -> float | None:
         """The largest sum of squared vertex moves a repair of a sequence's in-between at ``s`` may
         make (:data:`MAX_REPAIR_MOVE`), None for two poses and extrapolations."""
         gap = self.gap
-        if not (gap.cubic and 0.0 < s < 1.0):
+        if not self.in_sequence(s):
             return None
         if self._move_limit is None:
             n = len(gap.base.vertices)
