@@ -61,7 +61,7 @@ from core.interpolation import Interpolator, SequenceInterpolator  # noqa: E402
 
 QUICK_SCENES = ["drape_sphere", "fall_box", "tablecloth"]
 LARGE_SCENES = ["drape_sphere_hd", "tablecloth", "sheet_cube_50k", "sheet_cube_100k", "hang_10k", "flag_soft_10k",
-                "flag_soft_20k", "banner_10k", "curtain_ball_15k", "balloon_10k", "two_sheets_10k"]
+                "flag_soft_20k", "banner_10k", "curtain_ball_15k", "balloon_10k", "two_sheets_10k", "lift_10k"]
 #: Scenes whose two-pose protocol runs on 8 start frames per gap (a pair costs seconds there); the
 #: others on every ``--stride``-th start frame: with 8 of 24 the 10k drape's median at g = 16 was
 #: 1.049 × the blend's against 0.995 over all 24 (its pairs span two decades of RMS).

@@ -39,6 +39,8 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
 - ``balloon_10k``: a closed icosphere (10,242 vertices, default cloth with uniform pressure 8)
   falling onto a floor and a box (a surface without boundary; the grid's ``subdivisions[0]`` is
   the icosphere's subdivision level).
+- ``lift_10k``: a 100×100 sheet (default cloth) lying on the floor, lifted by a sphere (radius
+  0.4) rising under it and moving sideways (a collider that carries the cloth; added in session 34).
 
 Stiff scenes (tension/compression 80, bending 2–5, quality 10) keep edge lengths within ~0.2–0.6%
 of rest like the simulations in issue 3; default cloth (bending 0.5) wrinkles below the edge scale
@@ -65,7 +67,7 @@ OUTPUT_DIR = Path(__file__).resolve().parent / "output"
 @dataclass(frozen=True)
 class SceneSpec:
     name: str
-    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon", "two"
+    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon", "two", "lift"
     subdivisions: tuple[int, int]  # grid vertices along x, y
     size: float = 2.0
     frames: int = 96
@@ -102,6 +104,7 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec("curtain_ball_15k", "ball", (140, 110), size=2.0, frames=49),
         SceneSpec("balloon_10k", "balloon", (6, 6), frames=49),
         SceneSpec("two_sheets_10k", "two", (72, 72), size=1.4, frames=49),
+        SceneSpec("lift_10k", "lift", (100, 100), size=2.0, frames=49),
     ]
 }
 
@@ -280,6 +283,14 @@ def bake(spec: SceneSpec) -> tuple[np.ndarray, np.ndarray, float]:
         bpy.ops.object.join()
         _collider(bpy, "sphere", radius=0.6, location=(0.0, 0.0, 0.5))
         _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
+    elif spec.kind == "lift":
+        # A sheet lying on the floor; a sphere rises under it, lifts it and carries it sideways.
+        cloth, co = _grid(bpy, spec, location=(0.0, 0.0, 0.02))
+        _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
+        ball = _collider(bpy, "sphere", radius=0.4, location=(0.1, 0.0, -0.5))
+        for frame, location in ((1, (0.1, 0.0, -0.5)), (30, (0.1, 0.0, 0.9)), (spec.frames, (0.8, 0.3, 1.1))):
+            ball.location = location
+            ball.keyframe_insert("location", frame=frame)
     elif spec.kind == "balloon":
         bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=nx, radius=0.5, location=(0.1, 0.0, 1.4))
         cloth = bpy.context.active_object

@@ -12,9 +12,10 @@ the mesh, and a repair of a sequence's in-between that moves the pose by more th
 :data:`MAX_REPAIR_MOVE` of the keys' move is not taken: either would replace the pose rather
 than repair it, and the neighbouring in-betweens would not follow. If no repair is defect-free,
 the Poisson solve alone is returned when it is; otherwise an in-between of a sequence (three keys
-or more, factor strictly between 0 and 1) is the metric fit with the fewest defects: its
-neighbours in time are fits too, and a whole-pose substitute (the blend, a fit near it) would
-jump away from them and back. Two poses and extrapolations try the metric fitted near the linear
+or more, factor strictly between 0 and 1) is the metric fit with the fewest defects — a repair
+that leaves fewer counts only if it moves the pose by at most :data:`MAX_PARTIAL_REPAIR_MOVE`
+mean edge lengths: its neighbours in time are fits too, and a whole-pose substitute (the blend, a
+fit near it) or a large partial repair would jump away from them and back. Two poses and extrapolations try the metric fitted near the linear
 blend (strongly anchored), then the linear blend — two poses are held to the blend's error — and
 the first without defects is returned; if none is, the metric fit with the fewest defects. The
 fit near the blend is skipped when the blend itself is defective (held near a folded blend it keeps the folds: on the benchmark cloths it
@@ -53,6 +54,12 @@ MAX_REPAIR_FRACTION = 0.5
 #: keys' RMS move across the gap (at least one mean edge length): a larger one jumps away from the
 #: neighbouring in-betweens, which do not follow (numbers in docs/inbetweens.md, *Pops*).
 MAX_REPAIR_MOVE = 0.1
+#: Largest move of a repair of a sequence's in-between that still leaves defects (kept as the fit
+#: with the fewest defects when no repair is defect-free), RMS over the vertices, in mean edge
+#: lengths: each in-between chooses its own, so a larger one is a jump away from neighbours that
+#: chose another (a sphere lifting a sheet, keys 16 apart: largest frame-to-frame jump 10.6 →
+#: 0.80 × the simulation's; numbers in docs/inbetweens.md, *Pops*).
+MAX_PARTIAL_REPAIR_MOVE = 1.0
 #: Local/global iterations of the fallback that fits the metric near the linear blend.
 REPAIR_ITERATIONS = 10
 #: Anchor weight of the fallback that fits the interpolated metric near the linear blend.
@@ -67,7 +74,7 @@ class Repair:
         # sequence's cache let go (~150 MB at 100k vertices) alive until a full garbage collection
         self.gap = weakref.proxy(gap)
         self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        self._move_limit: float | None = None
+        self._move_limits: tuple[float, float] | None = None
 
     # --- defects
 
@@ -220,7 +227,7 @@ class Repair:
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
         force = defects
-        limit = self.move_limit(s)
+        limit, partial_limit = self.move_limits(s) or (np.inf, np.inf)
         pieces = gap.topo.triangle_component
         largest = MAX_REPAIR_FRACTION * gap.topo.piece_sizes
         for round_index, grown in enumerate(rings):
@@ -234,12 +241,13 @@ class Repair:
                 z = gap.local_fit(x, region, *field(region.rows), guide)
                 if not np.isfinite(z).all():
                     continue
-                if limit is not None and np.sum((z[region.free] - x[region.free]) ** 2) > limit:
+                move = np.sum((z[region.free] - x[region.free]) ** 2)
+                if move > limit:
                     continue  # the pose would jump away from its neighbours in time
                 count = int(self.defects(z, s, frames, stretch, rows=region.rows).sum())
                 if count == 0:
                     return z, best
-                if count < best[0]:
+                if count < best[0] and move <= partial_limit:
                     best = (count, z)
         return None, best
 
@@ -248,17 +256,19 @@ class Repair:
         one of a run of poses in time, which a pose must not jump away from."""
         return self.gap.cubic and 0.0 < s < 1.0
 
-    def move_limit(self, s: float) -> float | None:
-        """The largest sum of squared vertex moves a repair of a sequence's in-between at ``s`` may
-        make (:data:`MAX_REPAIR_MOVE`), None for two poses and extrapolations."""
+    def move_limits(self, s: float) -> tuple[float, float] | None:
+        """The largest sums of squared vertex moves a repair of a sequence's in-between at ``s``
+        may make, defect-free (:data:`MAX_REPAIR_MOVE`) and leaving defects
+        (:data:`MAX_PARTIAL_REPAIR_MOVE`); None for two poses and extrapolations."""
         gap = self.gap
         if not self.in_sequence(s):
             return None
-        if self._move_limit is None:
+        if self._move_limits is None:
             n = len(gap.base.vertices)
             step = np.sum((gap.next.vertices - gap.base.vertices) ** 2) / n
-            self._move_limit = n * max(MAX_REPAIR_MOVE ** 2 * step, gap.mean_edge ** 2)
-        return self._move_limit
+            edge = gap.mean_edge ** 2
+            self._move_limits = (n * max(MAX_REPAIR_MOVE ** 2 * step, edge), n * MAX_PARTIAL_REPAIR_MOVE ** 2 * edge)
+        return self._move_limits
 
 
 class Region:

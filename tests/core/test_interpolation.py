@@ -466,6 +466,48 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
         assert moved(Interpolator(a, b, tri).pose(0.5))
 
 
+@pytest.mark.parametrize("lift, kept", [(1e-3, True), (1.0, False)])
+def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
+    """When no repair of a sequence's in-between is defect-free, one that removes some defects is
+    kept as the fit with the fewest only if it moves the pose by at most
+    ``MAX_PARTIAL_REPAIR_MOVE`` mean edge lengths (RMS), however far the keys move: the
+    neighbouring in-betweens choose their own, and a larger one is a jump away from them."""
+    import core.inbetween_repair as repair
+    import core.interpolation as ci
+
+    flat, tri = strip
+    travel = np.array([0.0, 0.0, 30.0])  # keys 30 apart: a tenth of their move would allow the lift
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0) + travel, _bend(flat, 1.5) + 2 * travel
+    fit = []  # the pose the repairs start from
+
+    def moved(x):
+        return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * lift
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[len(tri) // 2] = True  # a defect no repair removes
+        out[len(tri) // 2 + 1] = not moved(x)  # and one every repair removes
+        return out if rows is None else out[rows]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        fit[:] = fit or [x.copy()]
+        z = x.copy()
+        z[region.free, 2] += lift
+        return z
+
+    def run():
+        fit.clear()
+        with pytest.warns(ShapeDifferenceWarning, match="fewest"):
+            return SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, s, frames, stretch, defects=None: "flipped")
+    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    assert moved(run()) == kept
+    monkeypatch.setattr(repair, "MAX_PARTIAL_REPAIR_MOVE", np.inf)  # the limit is what refused it
+    assert moved(run())
+
+
 def test_no_fit_near_a_folded_blend(monkeypatch, strip):
     """When the linear blend is defective too, the metric is not fitted near it (a fit held near
     a folded blend keeps its folds): the metric fit with the fewest defects is returned at once."""
