@@ -2,10 +2,17 @@
 pattern). The operators and the scene settings (``scene.shape_differences``, the sidebar's
 defaults) both inherit from these, so a name, range, default and tooltip is written in one place.
 
-This module imports only ``bpy.props``: ``ui`` and ``operators`` both build on it.
+This module imports only ``bpy``'s properties and types: ``ui`` and ``operators`` both build on it.
 """
 
+import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+
+#: Options of a path property: Blender 5.0 warns when a path property without
+#: 'PATH_SUPPORTS_BLEND_RELATIVE' is given a path relative to the .blend ('//'); 4.2 does not know
+#: the option.
+PATH_OPTIONS = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
+                if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else {'ANIMATABLE'})
 
 
 class CoreSettings:
@@ -124,7 +131,7 @@ def _output_property(default: str):
 
 
 _FILEPATH = StringProperty(
-    name="Cache File", subtype='FILE_PATH', default="",
+    name="Cache File", subtype='FILE_PATH', default="", options=PATH_OPTIONS,
     description="PC2 file for Point Cache output (an existing file is never overwritten: a "
                 "numbered name is used); empty = a file named after the object in a 'caches' "
                 "folder beside the .blend")

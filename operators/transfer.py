@@ -7,7 +7,7 @@ import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
-from ..properties import CaptureStep, PoseOutput
+from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
@@ -101,11 +101,11 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         name="Attribute", default="correspondence",
         description="Integer vertex attribute of the active mesh: the matched source vertex of each vertex")
     map_file: StringProperty(
-        name="Map File", subtype='FILE_PATH', default="",
+        name="Map File", subtype='FILE_PATH', default="", options=PATH_OPTIONS,
         description="Text file with one index per line: the matched source vertex of each vertex of the active "
                     "mesh; or, with a Source Template Map, the active mesh's template map (.vts)")
     source_map_file: StringProperty(
-        name="Source Template Map", subtype='FILE_PATH', default="",
+        name="Source Template Map", subtype='FILE_PATH', default="", options=PATH_OPTIONS,
         description="The source's template map (.vts: for each template vertex, its source vertex). When set, "
                     "the Map File is the active mesh's template map and the two are composed; active vertices "
                     "no template vertex lands on take their match from their neighbours")

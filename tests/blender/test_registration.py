@@ -174,3 +174,15 @@ def test_properties_are_declared_once(bpy_empty):
                 assert (a.default, a.hard_min, a.hard_max) == (b.default, b.hard_min, b.hard_max)
     source = (REPO_ROOT / "ui" / "properties.py").read_text() + (REPO_ROOT / "ui" / "panel.py").read_text()
     assert "..operators" not in source and "operators.base" not in source
+
+
+def test_path_properties_accept_paths_relative_to_the_blend(bpy_empty):
+    """Every file path property takes '//' paths (relative to the .blend) without Blender 5's
+    warning that the property does not support them."""
+    owners = [getattr(bpy.ops.shape_differences, name).get_rna_type() for name in OPERATOR_PROPERTIES]
+    owners.append(bpy.context.scene.shape_differences.bl_rna)
+    paths = [p for rna in owners for p in rna.properties if p.type == 'STRING' and p.subtype == 'FILE_PATH']
+    assert {p.identifier for p in paths} == {"filepath", "map_file", "source_map_file"}
+    if not hasattr(paths[0], "is_path_supports_blend_relative"):
+        pytest.skip("this Blender has no blend-relative path option")
+    assert all(p.is_path_supports_blend_relative for p in paths)
