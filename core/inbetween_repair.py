@@ -1,26 +1,27 @@
 """Checking and repairing an in-between (flipped or collapsed triangles, non-finite values).
 
 A defect-free fit is returned as it is. Otherwise the fit is repaired where the defects are:
-rotations and stretches are imposed on the defective triangles and a neighbourhood that grows
-while defects remain (:data:`REPAIR_RINGS`); in each neighbourhood, in turn, the interpolated
-rotations, the linear blend's rotations (integrable: they come from a mesh), the blend's rotations
-and stretches (its local geometry spliced in, where the interpolated metric cannot be realized
-without a fold), the local geometry of the keys' per-vertex spline, and each key's own local
-geometry (nearer key first); the first defect-free one is kept, so a repair changes as small a
-region as it can. Regions stop growing once they cover :data:`MAX_REPAIR_FRACTION` of a piece of
-the mesh, and a repair of a sequence's in-between that moves the pose by more than
-:data:`MAX_REPAIR_MOVE` of the keys' move is not taken: either would replace the pose rather
-than repair it, and the neighbouring in-betweens would not follow. If no repair is defect-free,
-the Poisson solve alone is returned when it is; otherwise an in-between of a sequence (three keys
-or more, factor strictly between 0 and 1) is the metric fit with the fewest defects — a repair
-that leaves fewer counts only if it moves the pose by at most :data:`MAX_PARTIAL_REPAIR_MOVE`
-mean edge lengths: its neighbours in time are fits too, and a whole-pose substitute (the blend, a
-fit near it) or a large partial repair would jump away from them and back. Two poses and extrapolations try the metric fitted near the linear
-blend (strongly anchored), then the linear blend — two poses are held to the blend's error — and
-the first without defects is returned; if none is, the metric fit with the fewest defects. The
-fit near the blend is skipped when the blend itself is defective (held near a folded blend it keeps the folds: on the benchmark cloths it
-repaired none of the 24 poses whose blend was defective, at ~1 s each on the 50k-vertex sheet).
-Each fallback comes with a message for a :class:`~core.errors.ShapeDifferenceWarning`.
+rotations and stretches are imposed on the defective triangles and a neighbourhood that grows while
+defects remain (:data:`REPAIR_RINGS`); in each neighbourhood, in turn, the interpolated rotations,
+the linear blend's rotations (integrable: they come from a mesh), the blend's rotations and
+stretches (its local geometry spliced in, where the interpolated metric cannot be realized without a
+fold), the local geometry of the keys' per-vertex spline, and each key's own local geometry (nearer
+key first); the first defect-free one is kept, so a repair changes as small a region as it can.
+Regions stop growing once they cover :data:`MAX_REPAIR_FRACTION` of a piece of the mesh, and a
+repair of a sequence's in-between that moves the pose by more than :data:`MAX_REPAIR_MOVE` of the
+keys' move is not taken: either would replace the pose rather than repair it, and the neighbouring
+in-betweens would not follow. If no repair is defect-free, the Poisson solve alone is returned when
+it is; otherwise an in-between of a sequence (three keys or more, factor strictly between 0 and 1)
+is the metric fit with the fewest defects — a repair that leaves fewer counts only if it moves the
+pose by at most :data:`MAX_PARTIAL_REPAIR_MOVE` mean edge lengths: its neighbours in time are fits
+too, and a whole-pose substitute (the blend, a fit near it) or a large partial repair would jump
+away from them and back. Two poses and extrapolations try the metric fitted near the linear blend
+(strongly anchored), then the linear blend — two poses are held to the blend's error — and the first
+without defects is returned; if none is, the metric fit with the fewest defects. The fit near the
+blend is skipped when the blend itself is defective (held near a folded blend it keeps the folds: on
+the benchmark cloths it repaired none of the 24 poses whose blend was defective, at ~1 s each on the
+50k-vertex sheet). Each fallback comes with a message for a
+:class:`~core.errors.ShapeDifferenceWarning`.
 """
 
 from __future__ import annotations
