@@ -9,8 +9,10 @@ keys and varies smoothly with ``s``: the part of the motion a per-vertex spline 
 factors nearest :data:`SOLVED_FACTORS`, writes their corrections in the co-moving frame,
 ``D_j = M(s_j)⁻¹ N(s_j) − V(s_j)``, and predicts every other in-between as
 ``M(s) (V(s) + D(s))`` with ``D`` the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` and
-``(1, 0)`` (degree 4 for three solved factors, 3 for two). A rigid motion has ``D = 0`` and is
-reproduced exactly at every factor. A predicted pose with a flipped or collapsed triangle is
+``(1, 0)`` (degree 3 for two solved factors); with three, ``D`` also takes at each key the slope
+that gives the pose the guide's velocity there (degree 6, :data:`KEY_SLOPE_SOLVED`), so that
+consecutive gaps meet at a key with one velocity. A rigid motion has ``D = 0`` and is reproduced
+exactly at every factor. A predicted pose with a flipped or collapsed triangle is
 repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
 numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
 14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 4, 8 and 16 frames apart,
@@ -39,6 +41,22 @@ SOLVED_FACTORS = (0.25, 0.5, 0.75)
 #: eight cloths (tablecloth 0.740 → 0.774, soft flag 0.978 → 0.942), edge deviation +0.1–0.2 point
 #: within the bounds, flipped triangles on the 50k sheet 10 → 16 (the blend's 199).
 FULL_SAMPLE_BATCH = 8
+#: With this many solved factors (batches of :data:`FULL_SAMPLE_BATCH` in-betweens or more: keys 9
+#: frames apart or more) the correction's slope at each key is prescribed too: the one that gives
+#: the in-between the velocity of the gap's guide there — the keys' per-vertex spline in the world
+#: where a piece deforms, C¹ across the keys, and its interpolated rigid motion where it moves
+#: rigidly (slope zero: rigid motions stay exact). Consecutive gaps then leave a key with one
+#: velocity; before, the base ``M(s) V(s)`` kinked there with the rigid motions interpolated per
+#: gap, and so did the corrections. Keys 16 frames apart: largest frame-to-frame jump of the soft 20k
+#: flag 3.09 → 1.25 × the simulation's, the 1k flag 2.66 → 1.45 ×, the banner 1.39 → 0.98 ×; edge
+#: deviation down on the scenes that miss its bound (curtain 8.57 → 7.98 %, banner 6.00 → 5.51 %,
+#: balloon 2.95 → 2.66 %); RMS within −0.027 / +0.017 × Catmull–Rom (numbers in docs/inbetweens.md,
+#: *Pops*). With two solved factors the slopes cost RMS (keys 8 apart: soft flags +0.012 / +0.015 ×
+#: Catmull–Rom) and the jumps there are 0.4–1.6 × already.
+KEY_SLOPE_SOLVED = 3
+#: Step (in factor) of the one-sided differences that give the guide's and the base's velocities at
+#: a key: both are cubic in ``s``, so the slope is within ~1e-4 of its value.
+SLOPE_STEP = 1e-4
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
@@ -137,27 +155,52 @@ def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
 
 def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
     """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
-    ``solved`` poses {factor: positions}."""
-    return _CorrectionPolynomial({s: _co_moving_correction(gap, s, x) for s, x in solved.items()})
+    ``solved`` poses {factor: positions}, with the keys' slopes (:data:`KEY_SLOPE_SOLVED`)."""
+    values = {s: _co_moving_correction(gap, s, x) for s, x in solved.items()}
+    slopes = (_key_slope(gap, 0.0), _key_slope(gap, 1.0)) if len(solved) >= KEY_SLOPE_SOLVED else None
+    return _CorrectionPolynomial(values, slopes)
+
+
+def _key_slope(gap, s: float) -> np.ndarray:
+    """``D'(s)`` (n, 3) at key ``s`` (0 or 1) that gives the pose ``M (V + D)`` the velocity of the
+    gap's guide there: ``M(s)⁻¹ (G'(s) − (M V)'(s))`` (``D(s) = 0`` at a key), by one-sided
+    differences inside the gap (:data:`SLOPE_STEP`)."""
+    step = SLOPE_STEP if s == 0.0 else -SLOPE_STEP
+
+    def base(t):
+        return gap.topo.apply_motion(gap.splines["vertices"].at(t), *gap.motion(t))
+
+    change = (gap.guide(s + step, gap.motion(s + step)) - base(s + step)) - (gap.guide(s, gap.motion(s)) - base(s))
+    rotations, _ = gap.motion(s)
+    return gap.topo.undo_motion(change / step, rotations, np.zeros((len(rotations), 3)))
 
 
 class _CorrectionPolynomial:
-    """``D(s) = Σ_j ℓ_j(s) D_j``: the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` of
-    ``values`` {factor: (n, 3)} and ``(1, 0)`` in Lagrange form over those nodes (the keys' terms
-    vanish). Written out rather than SciPy's ``BarycentricInterpolator``: ``scipy.interpolate``
-    pulls in ``scipy.optimize`` and adds 0.1 s to the first in-between of a Blender session, for
-    weights of at most five nodes."""
+    """``D(s)``: the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` of ``values`` {factor:
+    (n, 3)} and ``(1, 0)``, and with ``slopes`` ((n, 3) at s = 0 and at s = 1) those derivatives
+    at the keys too — the sum of each condition's value times its cardinal polynomial, whose
+    monomial coefficients come from one (K × K) solve (K ≤ 7 conditions). Written out rather than
+    SciPy's ``KroghInterpolator``: ``scipy.interpolate`` pulls in ``scipy.optimize`` and adds 0.1 s
+    to the first in-between of a Blender session."""
 
-    def __init__(self, values: dict):
+    def __init__(self, values: dict, slopes: tuple[np.ndarray, np.ndarray] | None = None):
         self.factors = sorted(values)
-        self.values = [values[s] for s in self.factors]
-        self.nodes = np.array([0.0, *self.factors, 1.0])
+        conditions = [(0.0, 0), *((s, 0) for s in self.factors), (1.0, 0)]  # (node, derivative order)
+        data = [None, *(values[s] for s in self.factors), None]  # None: zero
+        if slopes is not None:
+            conditions += [(0.0, 1), (1.0, 1)]
+            data += list(slopes)
+        self.powers = np.arange(len(conditions))
+        rows = [self.powers * node ** np.maximum(self.powers - 1, 0) if order else node ** self.powers
+                for node, order in conditions]
+        self.cardinal = np.linalg.inv(np.array(rows, dtype=float))  # column k: condition k's polynomial
+        self.terms = [(k, value) for k, value in enumerate(data) if value is not None]
 
     def __call__(self, s: float) -> np.ndarray:
-        out = np.zeros_like(self.values[0])
-        for j, (node, value) in enumerate(zip(self.factors, self.values), start=1):
-            others = np.delete(self.nodes, j)
-            out += float(np.prod((s - others) / (node - others))) * value
+        weights = (float(s) ** self.powers) @ self.cardinal
+        out = np.zeros_like(self.terms[0][1])
+        for k, value in self.terms:
+            out += weights[k] * value
         return out
 
 

@@ -354,9 +354,17 @@ class _Gap(LocalGlobalFit):
         frames = _FramesByRows(self, rotvec, motion[0], columns) if by_rows else \
             self.key_frames(rotvec, motion[0], columns=columns)
         stretch = df.exp_stretch(self.splines["log_stretch"].at(s))
-        if self.weights is None:  # a gauge only: the spline with the rigid motions undone
-            return frames, stretch, motion, self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
-        guide = self.splines["world"].at(s)  # the keys' per-vertex spline (two poses: the linear blend)
+        return frames, stretch, motion, self.guide(s, motion)
+
+    def guide(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """The anchor's guide positions (n, 3) at factor ``s`` (``motion``: :meth:`motion` there):
+        the keys' per-vertex spline (two poses: the linear blend), with each component's
+        interpolated rigid motion undone where the anchor pattern says so (``co_moving``), mixed
+        by rigidity in sequences; with no anchor but the gauge, the spline with the rigid motions
+        undone."""
+        if self.weights is None:
+            return self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        guide = self.splines["world"].at(s)
         if self.co_moving.any():
             undone = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
             if self.anchored:
@@ -365,7 +373,7 @@ class _Gap(LocalGlobalFit):
                 component = self.topo.vertex_component
                 mix = self.co_moving * np.where(component >= 0, self.rigidity[component], 0.0)
             guide += mix[:, None] * (undone - guide)
-        return frames, stretch, motion, guide
+        return guide
 
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),

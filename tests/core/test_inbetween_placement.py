@@ -321,6 +321,69 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
         np.testing.assert_allclose(polynomial(s), reference(s), rtol=1e-9, atol=1e-9)
 
 
+@pytest.mark.parametrize("factors", [(0.25, 0.5, 0.75), (0.125, 0.5, 0.6875)])
+def test_correction_polynomial_takes_the_keys_slopes(factors):
+    """With slopes at the keys the correction polynomial agrees with SciPy's Hermite interpolation
+    (Krogh, the keys' nodes repeated), reproduces a polynomial of that degree with those values and
+    slopes exactly, and has the slopes asked for."""
+    from scipy.interpolate import KroghInterpolator
+
+    from core.inbetween_prediction import _CorrectionPolynomial
+
+    rng = np.random.default_rng(4)
+    coefficients = rng.normal(size=(len(factors) + 2, 5, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
+
+    def exact(s):
+        return s * (1.0 - s) * sum(c * s ** k for k, c in enumerate(coefficients))
+
+    def slope(s):  # of s (1 − s) p(s): (1 − 2s) p(s) + s (1 − s) p'(s)
+        p = sum(c * s ** k for k, c in enumerate(coefficients))
+        dp = sum(k * c * s ** (k - 1) for k, c in enumerate(coefficients) if k)
+        return (1.0 - 2.0 * s) * p + s * (1.0 - s) * dp
+
+    polynomial = _CorrectionPolynomial({s: exact(s) for s in factors}, (slope(0.0), slope(1.0)))
+    nodes = [0.0, 0.0, *factors, 1.0, 1.0]
+    values = [exact(0.0), slope(0.0), *(exact(s) for s in factors), exact(1.0), slope(1.0)]
+    reference = KroghInterpolator(nodes, np.stack(values), axis=0)
+    for s in np.linspace(-0.5, 1.5, 17):
+        np.testing.assert_allclose(polynomial(s), exact(s), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(polynomial(s), reference(s), rtol=1e-9, atol=1e-9)
+    h = 1e-6
+    np.testing.assert_allclose((polynomial(h) - polynomial(0.0)) / h, slope(0.0), rtol=1e-4, atol=1e-4)
+
+
+def test_sequence_gaps_meet_at_a_key_with_one_velocity(monkeypatch):
+    """Keys 9 frames apart or more (eight in-betweens asked together, three solved, the others
+    predicted): the poses leaving a key into the next gap and arriving at it from the previous one
+    move with the same velocity (the keys' slopes of the predicted corrections); without the slopes
+    they do not."""
+    import core.inbetween_prediction as prediction
+
+    flat, tri = grid(24, 6, size=2.0)
+
+    def bend(angle, lift):  # a strip bent onto an arc and lifted: deforming, not rigid
+        r = 2.0 / angle
+        th = flat[:, 0] / r
+        return np.stack([r * np.sin(th), flat[:, 1], r * (1 - np.cos(th)) + lift], axis=1)
+
+    keys = [bend(a, z) for a, z in ((0.3, 0.0), (1.0, 0.1), (1.8, 0.3), (2.4, 0.6), (2.7, 1.0))]
+    h = 1e-3
+    factors = [h, *np.arange(1, 16) / 16, 1.0 - h]
+
+    def mismatch():  # at keys 1 and 2, relative to the velocity
+        seq = SequenceInterpolator(keys, tri)
+        out = []
+        for k in (1, 2):
+            leaving, arriving = seq.poses(k, factors)[0], seq.poses(k - 1, factors)[-1]
+            v_out, v_in = (leaving - keys[k]) / h, (keys[k] - arriving) / h
+            out.append(np.sqrt(np.sum((v_out - v_in) ** 2) / np.sum(v_out ** 2)))
+        return max(out)
+
+    assert mismatch() < 2e-3  # h and the slopes' one-sided differences
+    monkeypatch.setattr(prediction, "KEY_SLOPE_SOLVED", 99)  # without the slopes
+    assert mismatch() > 5e-3
+
+
 def _relative(base_vertices, other_vertices, triangles):
     """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (topology, base key,
     other key, relative)."""
