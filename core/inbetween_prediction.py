@@ -167,12 +167,13 @@ def _key_slope(gap, s: float) -> np.ndarray:
     differences inside the gap (:data:`SLOPE_STEP`)."""
     step = SLOPE_STEP if s == 0.0 else -SLOPE_STEP
 
-    def base(t):
-        return gap.topo.apply_motion(gap.splines["vertices"].at(t), *gap.motion(t))
+    def guide_less_base(t):
+        motion = gap.motion(t)
+        return gap.guide(t, motion) - gap.topo.apply_motion(gap.splines["vertices"].at(t), *motion)
 
-    change = (gap.guide(s + step, gap.motion(s + step)) - base(s + step)) - (gap.guide(s, gap.motion(s)) - base(s))
     rotations, _ = gap.motion(s)
-    return gap.topo.undo_motion(change / step, rotations, np.zeros((len(rotations), 3)))
+    change = (guide_less_base(s + step) - guide_less_base(s)) / step
+    return gap.topo.undo_motion(change, rotations, np.zeros((len(rotations), 3)))
 
 
 class _CorrectionPolynomial:
