@@ -224,6 +224,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
     if not np.isfinite(x).all():
         return gap.pose(s)
+    gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
     if not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
-        return gap.pinned((x, None))
+        return gap.finished((x, None), s)
     return gap.repaired(x, s, rings)

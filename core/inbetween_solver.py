@@ -18,6 +18,7 @@ from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, ver
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
+from .inbetween_carried import CarriedPieces
 from .sparse_cholesky import SPDFactor
 from .splines import TANGENT_LIMIT, HermiteGap
 
@@ -104,6 +105,7 @@ class _Topology:
     def __init__(self, topo, first_pose: np.ndarray):
         n_vertices = first_pose.shape[0]
         self.n = n_vertices
+        self.first_pose = first_pose  # where pieces are seen to sit on each other (inbetween_carried)
         t = self.triangles = topo.triangles
         m = t.shape[0]
         self.i, self.j = t.ravel(), t[:, [1, 2, 0]].ravel()  # corner edge c of triangle k: row 3k + c
@@ -235,6 +237,7 @@ class _Gap(LocalGlobalFit):
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
+        self.carried = CarriedPieces(self, RIGID_PLACEMENT_SCALE)
 
     def select(self, s: float) -> None:
         """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
@@ -443,7 +446,7 @@ class _Gap(LocalGlobalFit):
             x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=system)
         if between:
             self.held_factors[s] = bool(weak)
-        return self.pinned(self.repair.checked(x, x0, s, frames, stretch, guide, motion))
+        return self.finished(self.repair.checked(x, x0, s, frames, stretch, guide, motion), s)
 
     def repaired(self, x: np.ndarray, s: float, rings=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the
@@ -453,12 +456,15 @@ class _Gap(LocalGlobalFit):
         # in-betweens' checks use the keys' normals: the repairs need the frames on their regions only
         frames, stretch, motion, guide = self.targets(s, by_rows=0.0 < s < 1.0)
         rounds = {} if rings is None else {"rings": rings}
-        return self.pinned(self.repair.checked(x, x, s, frames, stretch, guide, motion, **rounds))
+        return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, **rounds), s)
 
-    def pinned(self, result):
-        """``(x, problem)`` with the sequence's still vertices exactly where they sit in the keys."""
+    def finished(self, result, s: float):
+        """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit
+        in the keys and the rigid pieces that deforming ones carry moved with them
+        (:mod:`core.inbetween_carried`)."""
         if self.static is not None:
             result[0][self.static] = self.base.vertices[self.static]
+        self.carried.place(result[0], s)
         return result
 
 
