@@ -163,16 +163,12 @@ def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
 
 def _key_slope(gap, s: float) -> np.ndarray:
     """``D'(s)`` (n, 3) at key ``s`` (0 or 1) that gives the pose ``M (V + D)`` the velocity of the
-    gap's guide there: ``M(s)⁻¹ (G'(s) − (M V)'(s))`` (``D(s) = 0`` at a key), by one-sided
-    differences inside the gap (:data:`SLOPE_STEP`)."""
+    gap's guide there: ``M(s)⁻¹ (G'(s) − (M V)'(s))`` (``D(s) = 0`` at a key), by a one-sided
+    difference inside the gap (:data:`SLOPE_STEP`) of the guide's offset from ``M V``, which is
+    zero at the key."""
     step = SLOPE_STEP if s == 0.0 else -SLOPE_STEP
-
-    def guide_less_base(t):
-        motion = gap.motion(t)
-        return gap.guide(t, motion) - gap.topo.apply_motion(gap.splines["vertices"].at(t), *motion)
-
     rotations, _ = gap.motion(s)
-    change = (guide_less_base(s + step) - guide_less_base(s)) / step
+    change = gap.guide_offset(s + step, gap.motion(s + step)) / step
     return gap.topo.undo_motion(change, rotations, np.zeros((len(rotations), 3)))
 
 

@@ -365,18 +365,31 @@ class _Gap(LocalGlobalFit):
         interpolated rigid motion undone where the anchor pattern says so (``co_moving``), mixed
         by rigidity in sequences; with no anchor but the gauge, the spline with the rigid motions
         undone."""
+        base, offset = self._guide_parts(s, motion)
+        return base if offset is None else base + offset
+
+    def guide_offset(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """The guide (:meth:`guide`) less ``M(s) V(s)``, the keys' co-moving spline moved by the
+        components' interpolated rigid motions (n, 3): zero at both keys, which both pass through."""
+        base, offset = self._guide_parts(s, motion)
+        return np.zeros_like(base) if offset is None else offset
+
+    def _guide_parts(self, s: float, motion) -> tuple[np.ndarray, np.ndarray | None]:
+        """``M(s) V(s)`` (n, 3) and the guide's offset from it (n, 3; None: no offset): the
+        world spline's where no vertex moves with its component's rigid motion, otherwise that
+        times one less each vertex's share of the co-moving spline."""
+        base = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
         if self.weights is None:
-            return self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
-        guide = self.splines["world"].at(s)
+            return base, None
+        offset = self.splines["world"].at(s) - base
         if self.co_moving.any():
-            undone = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
             if self.anchored:
                 mix = self.co_moving.astype(float)
             else:
                 component = self.topo.vertex_component
                 mix = self.co_moving * np.where(component >= 0, self.rigidity[component], 0.0)
-            guide += mix[:, None] * (undone - guide)
-        return guide
+            offset *= (1.0 - mix)[:, None]
+        return base, offset
 
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
