@@ -11,7 +11,8 @@ factors nearest :data:`SOLVED_FACTORS`, writes their corrections in the co-movin
 ``M(s) (V(s) + D(s))`` with ``D`` the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` and
 ``(1, 0)`` (degree 3 for two solved factors); with three, ``D`` also takes at each key the slope
 that gives the pose the guide's velocity there (degree 6, :data:`KEY_SLOPE_SOLVED`), so that
-consecutive gaps meet at a key with one velocity. A rigid motion has ``D = 0`` and is reproduced
+consecutive gaps meet at a key with one velocity, and so it does with the middle alone (degree 4,
+batches of three: :data:`MIDDLE_SOLVED_BATCH`). A rigid motion has ``D = 0`` and is reproduced
 exactly at every factor. A predicted pose with a flipped or collapsed triangle is
 repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
 numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
@@ -31,18 +32,16 @@ from .inbetween_repair import REPAIR_RINGS
 #: to these. Three solved factors keep the predicted ones within 0.5 % of solved ones in RMS and
 #: edge deviation at gaps of 8 and 16 frames.
 SOLVED_FACTORS = (0.25, 0.5, 0.75)
-#: Batches of fewer in-betweens than this solve only those nearest the outer two of
-#: :data:`SOLVED_FACTORS` and predict what lies between (keys 4 frames apart: the midpoint
-#: predicted from the quarter points is within 1 % of solving it in RMS and 0.02 point in edge
-#: deviation; predicting the quarter points from the midpoint instead is not: falling sheet
-#: 1.24 × the RMS of solving, above the per-vertex cubic spline's). Keys 8 frames apart (seven
-#: in-betweens) too: one round of two solves on two cores instead of two rounds, 100k sheet
+#: Batches of fewer in-betweens than this (and more than :data:`MIDDLE_SOLVED_BATCH`) solve only
+#: those nearest the outer two of :data:`SOLVED_FACTORS` and predict what lies between. Keys 8
+#: frames apart (seven in-betweens): one round of two solves on two cores instead of two rounds, 100k sheet
 #: 223–243 → 185–192 ms per in-between, 50k 93–105 → 81–92 ms; RMS ÷ Catmull–Rom within ±0.035 on
 #: eight cloths (tablecloth 0.740 → 0.774, soft flag 0.978 → 0.942), edge deviation +0.1–0.2 point
 #: within the bounds, flipped triangles on the 50k sheet 10 → 16 (the blend's 199).
 FULL_SAMPLE_BATCH = 8
 #: With this many solved factors (batches of :data:`FULL_SAMPLE_BATCH` in-betweens or more: keys 9
-#: frames apart or more) the correction's slope at each key is prescribed too: the one that gives
+#: frames apart or more), and with the middle alone (:data:`MIDDLE_SOLVED_BATCH`), the correction's
+#: slope at each key is prescribed too: the one that gives
 #: the in-between the velocity of the gap's guide there — the keys' per-vertex spline in the world
 #: where a piece deforms, C¹ across the keys, and its interpolated rigid motion where it moves
 #: rigidly (slope zero: rigid motions stay exact). Consecutive gaps then leave a key with one
@@ -57,6 +56,18 @@ KEY_SLOPE_SOLVED = 3
 #: Step (in factor) of the one-sided differences that give the guide's and the base's velocities at
 #: a key: both are cubic in ``s``, so the slope is within ~1e-4 of its value.
 SLOPE_STEP = 1e-4
+#: Batches of at most this many in-betweens (keys 4 frames apart) solve only the one nearest the
+#: middle and predict the others with the keys' slopes (:data:`KEY_SLOPE_SOLVED`): the correction is
+#: then the quartic through the keys' zeros and slopes and the middle's value. RMS ÷ Catmull–Rom at
+#: g = 4 on 28 cloths, before → after: two sheets 1.055 → 1.011, tablecloth 0.754 → 0.716, curtain
+#: 0.897 → 0.846, 1k flag 0.890 → 0.853, balloon 0.929 → 0.915; the largest losses a 31k tablecloth
+#: baked at quality 3 0.760 → 0.786, the 400-vertex hanging sheet 0.810 → 0.836, lift 0.945 →
+#: 0.956; 50k / 100k sheets 0.929 / 0.884 → 0.930 / 0.888; edge deviation +0.00–0.06 point; time
+#: 0–16 % less (balloon 19.1 → 16.4, 10k hanging sheet 16.7 → 14.0 ms per in-between, alternated
+#: runs). Without the slopes (the quadratic through the middle) the falling sheet was 1.24 × the
+#: RMS of solving the quarter points; with keys 8 apart the middle alone lost (10k hanging sheet
+#: 0.783 → 0.834, the balloon's edge deviation 1.56 → 2.00 %).
+MIDDLE_SOLVED_BATCH = 3
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
@@ -96,7 +107,12 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
     if gap.anchored or len(interior) < MIN_PREDICTED_BATCH:
         return _solved(gap, factors, {})
-    targets = SOLVED_FACTORS if len(interior) >= FULL_SAMPLE_BATCH else (SOLVED_FACTORS[0], SOLVED_FACTORS[-1])
+    if len(interior) <= MIDDLE_SOLVED_BATCH:
+        targets = (SOLVED_FACTORS[1],)
+    elif len(interior) < FULL_SAMPLE_BATCH:
+        targets = (SOLVED_FACTORS[0], SOLVED_FACTORS[-1])
+    else:
+        targets = SOLVED_FACTORS
     solved_factors = sorted({min(interior, key=lambda s: abs(s - q)) for q in targets})
     solved = dict(zip(solved_factors, _solved(gap, solved_factors, {})))
     positions = {s: x for s, (x, _) in solved.items()}
@@ -155,9 +171,10 @@ def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
 
 def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
     """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
-    ``solved`` poses {factor: positions}, with the keys' slopes (:data:`KEY_SLOPE_SOLVED`)."""
+    ``solved`` poses {factor: positions}, with the keys' slopes (:data:`KEY_SLOPE_SOLVED`; with
+    one solved pose too, :data:`MIDDLE_SOLVED_BATCH`)."""
     values = {s: _co_moving_correction(gap, s, x) for s, x in solved.items()}
-    slopes = (_key_slope(gap, 0.0), _key_slope(gap, 1.0)) if len(solved) >= KEY_SLOPE_SOLVED else None
+    slopes = (_key_slope(gap, 0.0), _key_slope(gap, 1.0)) if len(solved) >= KEY_SLOPE_SOLVED or len(solved) == 1 else None
     return _CorrectionPolynomial(values, slopes)
 
 

@@ -292,10 +292,9 @@ class SequenceInterpolator:
 
     def poses(self, gap_index: int, factors) -> np.ndarray:
         """The poses (len(factors), n, 3) at ``factors`` in gap ``gap_index``, sharing the work:
-        with three or more in-betweens the reconstruction is solved at two or three of them and the
-        others are predicted from those (:mod:`core.inbetween_prediction`; within 1 % of solving
-        each in RMS and 0.05 point in edge deviation on the benchmark cloths); :meth:`pose` solves
-        every pose."""
+        with three or more in-betweens the reconstruction is solved at one to three of them and the
+        others are predicted from those (:mod:`core.inbetween_prediction`, which gives the
+        measurements against solving each); :meth:`pose` solves every pose."""
         gap_index, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
         gap = int(gap_index)
         if not 0 <= gap < len(self):

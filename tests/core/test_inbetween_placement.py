@@ -247,20 +247,20 @@ def test_gap_results_do_not_depend_on_what_was_computed_before():
 
 
 def test_predicted_inbetweens_stay_near_the_solved_ones():
-    """A batch of in-betweens solves two or three of them and predicts the rest from their
-    corrections to the keys' spline: the solved ones are those of ``pose``, the predicted ones
-    close to them (the correction is smooth in the factor)."""
+    """A batch of in-betweens solves one to three of them and predicts the rest from their
+    corrections to the keys' spline: the solved ones are those of ``pose`` (three in-betweens: the
+    middle; fifteen: the quarter points and the middle), the predicted ones close to them (the
+    correction is smooth in the factor)."""
     flat, tri = grid(12, 9, size=1.0)
     keys = [flat + np.array([0.0, 0.0, -0.1 * k * k]) + 0.05 * np.sin(3 * flat[:, [1, 0, 0]] + k) for k in range(5)]
     seq = SequenceInterpolator(keys, tri)
-    for factors in ([0.25, 0.5, 0.75], np.arange(1, 16) / 16):
+    for factors, solved_factors in (([0.25, 0.5, 0.75], (0.5,)), (np.arange(1, 16) / 16, (0.25, 0.5, 0.75))):
         batch = seq.poses(2, factors)
         solved = np.stack([seq.pose(2, f) for f in factors])
         blend = np.stack([(1 - f) * keys[2] + f * keys[3] for f in factors])
-        exact = [k for k, f in enumerate(factors) if f in (0.25, 0.5, 0.75)]
-        for k in (exact[0], exact[-1]):  # the same solve (to round-off, see the test above)
+        for k in [k for k, f in enumerate(factors) if f in solved_factors]:  # the same solve (to round-off)
             np.testing.assert_allclose(batch[k], solved[k], rtol=0, atol=1e-12)
-        # measured 0.4 % (3 in-betweens) and 0.03 % (15) of how far the solve moves from the blend
+        # measured 1.2 % (3 in-betweens) and 0.55 % (15) of how far the solve moves from the blend
         assert np.abs(batch - solved).max() < 0.02 * np.abs(solved - blend).max()
 
 
