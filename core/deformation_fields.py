@@ -303,14 +303,20 @@ def _hat(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
 
 
+def _screw_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``a = (1 − cos θ)/θ²`` and ``b = (θ − sin θ)/θ³`` for rotation angles ``theta`` (…), by
+    their series below :data:`SERIES_THRESHOLD`."""
+    direct = theta > SERIES_THRESHOLD
+    safe = np.where(direct, theta, 1.0)
+    a = np.where(direct, (1.0 - np.cos(safe)) / safe ** 2, 0.5 - theta ** 2 / 24.0)
+    b = np.where(direct, (safe - np.sin(safe)) / safe ** 3, 1.0 / 6.0 - theta ** 2 / 120.0)
+    return a, b
+
+
 def _screw_matrix(w: np.ndarray) -> np.ndarray:
     """``V(ω) = I + (1 − cos θ)/θ² [ω] + (θ − sin θ)/θ³ [ω]²`` (θ = |ω|): the translation part of
     the SE(3) exponential."""
-    theta = float(np.linalg.norm(w))
-    if theta > SERIES_THRESHOLD:
-        a, b = (1.0 - np.cos(theta)) / theta ** 2, (theta - np.sin(theta)) / theta ** 3
-    else:
-        a, b = 0.5 - theta ** 2 / 24.0, 1.0 / 6.0 - theta ** 2 / 120.0
+    a, b = _screw_coefficients(np.linalg.norm(w))
     h = _hat(w)
     return np.eye(3) + a * h + b * (h @ h)
 
@@ -359,3 +365,14 @@ def rigid_exp(screw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotation (3, 3) and translation (3,) of screw coordinates ``(ω, v)`` (6,)."""
     w, v = screw[:3], screw[3:]
     return Rotation.from_rotvec(w).as_matrix(), _screw_matrix(w) @ v
+
+
+def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotations (P, 3, 3) and translations (P, 3) of screw coordinates (P, 6): :func:`rigid_exp`
+    for many at once, the translation ``V(ω) v = v + a ω × v + b ω × (ω × v)`` with the
+    coefficients of :func:`_screw_matrix`."""
+    w, v = screws[:, :3], screws[:, 3:]
+    a, b = _screw_coefficients(np.linalg.norm(w, axis=1))
+    turned = np.cross(w, v)
+    translations = v + a[:, None] * turned + b[:, None] * np.cross(w, turned)
+    return Rotation.from_rotvec(w).as_matrix().reshape(-1, 3, 3), translations
