@@ -46,14 +46,13 @@ class CarriedPieces:
     per piece its vertices (k,), its carriers (j,) and the residual rigid motion (screw (6,)) from
     the carriers' motion at the next key to the piece's own."""
 
-    def __init__(self, gap, rigid_scale: float):
+    def __init__(self, gap):
         self.pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         topo, base, nxt = gap.topo, gap.base.vertices, gap.next.vertices
         self.base = base
         if len(topo.components) < 2:
             return
-        nonrigidity = np.max([r.nonrigidity for r in gap.relatives], axis=0)
-        rigid = nonrigidity < rigid_scale
+        rigid = gap.rigidity > 0.0  # moves rigidly across the gap's keys (RIGID_PLACEMENT_SCALE)
         if rigid.all() or not rigid.any():
             return
         from scipy.spatial import cKDTree  # noqa: PLC0415 (only meshes with rigid and deforming pieces)

@@ -15,10 +15,10 @@ import scipy.sparse as sp
 
 from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
+from .inbetween_carried import CarriedPieces
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
-from .inbetween_carried import CarriedPieces
 from .sparse_cholesky import SPDFactor
 from .splines import TANGENT_LIMIT, HermiteGap
 
@@ -237,7 +237,7 @@ class _Gap(LocalGlobalFit):
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
-        self.carried = CarriedPieces(self, RIGID_PLACEMENT_SCALE)
+        self.carried = CarriedPieces(self)
 
     def select(self, s: float) -> None:
         """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
