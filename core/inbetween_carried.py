@@ -63,9 +63,9 @@ class CarriedPieces:
             rows = topo.components[c]
             if gap.static is not None and gap.static[rows].all():
                 continue  # still in every key: pinned where it is
-            carriers = self._carriers(topo.first_pose, base, nxt, rows, deforming, tree)
-            if carriers is not None:
-                rotation, translation = rigid_alignment(base[carriers], nxt[carriers])
+            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree)
+            if seat is not None:
+                carriers, rotation, translation = seat
                 own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
                 # the piece's own motion after the carriers' undone: applied in part at each factor
                 residual_rotation = rotation.T @ own_rotation
@@ -85,8 +85,9 @@ class CarriedPieces:
             self._screws = np.array(screws)
 
     @staticmethod
-    def _carriers(first, base, nxt, rows, deforming, tree) -> np.ndarray | None:
-        """The vertices (j,) of deforming pieces that carry the rigid piece ``rows``, or None if
+    def _seat(first, base, nxt, rows, deforming, tree) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The vertices (j,) of deforming pieces that carry the rigid piece ``rows`` with their best
+        rigid motion (rotation (3, 3), translation (3,)) from the gap's base key to the next, or None if
         there are too few, too collinear, or they do not move with it from the gap's base key to
         the next. They are sought (with ``tree``, over the ``deforming`` vertices) where the piece
         sits in the first key (``first``: positions (n, 3)), the same seat for every gap (see
@@ -105,7 +106,7 @@ class CarriedPieces:
         rotation, translation = rigid_alignment(base[carriers], nxt[carriers])
         if np.abs(piece @ rotation.T + translation - nxt[rows]).max() > CARRIED_TOLERANCE * diagonal:
             return None
-        return carriers
+        return carriers, rotation, translation
 
     def place(self, x: np.ndarray, s: float) -> np.ndarray:
         """``x`` (n, 3), a pose at factor ``s``, with each carried piece moved by its carriers' best
