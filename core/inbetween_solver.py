@@ -92,6 +92,19 @@ HELD_ANCHOR_WEIGHT = 1e-3
 #: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
 #: the gap's keys / the component's bounding-box diagonal) relative to this scale.
 RIGID_PLACEMENT_SCALE = 1e-3
+#: An in-between of two poses moves a deforming component toward its centroid too where the blend
+#: anchor holds only a small part of it: by the share ``(1 − a / CENTROID_ANCHOR_SHARE)²`` of the
+#: way, ``a`` the component's mass-weighted anchor (weights relative to BLEND_ANCHOR_WEIGHT; none
+#: past this share, and none on a component with a vertex still in both keys, which fixes its
+#: place). A few vertices where the blend happens to keep edge lengths otherwise hold the whole
+#: piece, and the interpolated rotations' errors grow along it (two sheets crumpling onto each
+#: other, keys 16 frames apart: anchored on 0.1–0.7 % of their mass, one sheet's centroid 3–5 × the
+#: blend's distance from the frame's, its shape as close as the blend's). The move is a translation
+#: after the fit and its repairs (shapes, edge lengths and flipped triangles unchanged; moved at
+#: every fit step, some banner pairs fell back to the blend, 4.59 → 5.19 % edge deviation at g = 8).
+#: Two sheets at g = 16: 1.304 → 0.861 × the blend's RMS; numbers, losses (a swinging cape 0.922
+#: → 0.974) and other shares in docs/inbetweens.md, *Pieces the blend barely holds*.
+CENTROID_ANCHOR_SHARE = 0.2
 
 
 #: The splines of positions (their tangents are limited per point, see :class:`core.splines.HermiteGap`).
@@ -242,7 +255,7 @@ class _Gap(LocalGlobalFit):
     def select(self, s: float) -> None:
         """Set the anchor for factor ``s``: one pattern for in-betweens (0 < s < 1), one for
         extrapolations, each computed and factorized once (``weights``, ``co_moving``, ``system``
-        and ``placed_by_centroid``)."""
+        and ``by_centroid``)."""
         between = 0.0 < s < 1.0
         if between not in self._anchors:
             topo = self.topo
@@ -262,9 +275,24 @@ class _Gap(LocalGlobalFit):
                 weights = None
             w = np.full(topo.n, GAUGE_WEIGHT) if weights is None else weights
             system = (topo.factor(GAUGE_WEIGHT if weights is None else w, key), w * topo.mass)
-            placed = [not (w[rows] > GAUGE_WEIGHT).any() for rows in topo.components]
-            self._anchors[between] = (weights, co_moving, system, placed)
-        self.weights, self.co_moving, self.system, self.placed_by_centroid = self._anchors[between]
+            self._anchors[between] = (weights, co_moving, system, self.centroid_placement(w, between))
+        self.weights, self.co_moving, self.system, self.by_centroid = self._anchors[between]
+
+    def centroid_placement(self, weights: np.ndarray, between: bool) -> np.ndarray:
+        """Per component (C,), the share of the move onto its placed centroid (:meth:`place`) under
+        anchor ``weights`` (n,): 1 without an anchored vertex; for the in-betweens of two poses,
+        ``(1 − a / CENTROID_ANCHOR_SHARE)²`` up to that anchored share ``a`` of a component with no
+        still vertex (see :data:`CENTROID_ANCHOR_SHARE`); 0 otherwise."""
+        topo = self.topo
+        shares = np.zeros(len(topo.components))
+        for c, rows in enumerate(topo.components):
+            if not (weights[rows] > GAUGE_WEIGHT).any():
+                shares[c] = 1.0
+            elif self.anchored and between and (self.static is None or not self.static[rows].any()):
+                mass = topo.mass[rows]
+                held = np.sum(np.minimum(weights[rows] / BLEND_ANCHOR_WEIGHT, 1.0) * mass) / np.sum(mass)
+                shares[c] = max(0.0, 1.0 - held / CENTROID_ANCHOR_SHARE) ** 2
+        return shares
 
     def mid_gap_strain(self, x: np.ndarray, reference: np.ndarray) -> float:
         """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
@@ -407,16 +435,18 @@ class _Gap(LocalGlobalFit):
         return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows],
                                  self.base.column_rows[:columns, :, rows])
 
-    def place(self, x: np.ndarray, s: float, motion) -> np.ndarray:
+    def place(self, x: np.ndarray, s: float, motion, partly: bool = False) -> np.ndarray:
         """Components without anchored vertices moved to their interpolated centroid (see
-        :data:`RIGID_PLACEMENT_SCALE`)."""
+        :data:`RIGID_PLACEMENT_SCALE`); with ``partly``, instead those the anchor barely holds,
+        by their share ``by_centroid`` of the way (see :meth:`centroid_placement`)."""
         rotations, translations = motion
         spline = self.splines["centroids"].at(s)
         for c, rows in enumerate(self.topo.components):
-            if self.placed_by_centroid[c]:
+            share = self.by_centroid[c]
+            if (0.0 < share < 1.0) if partly else share == 1.0:
                 rigid = rotations[c] @ self.base.centroids[c] + translations[c]
                 target = self.rigidity[c] * rigid + (1.0 - self.rigidity[c]) * spline[c]
-                x[rows] += target - self.topo.centroid(x, rows)
+                x[rows] += share * (target - self.topo.centroid(x, rows))
         return x
 
     def region(self, force: np.ndarray) -> Region:
@@ -474,9 +504,13 @@ class _Gap(LocalGlobalFit):
     def finished(self, result, s: float):
         """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit
         in the keys and the rigid pieces that deforming ones carry moved with them
-        (:mod:`core.inbetween_carried`)."""
+        (:mod:`core.inbetween_carried`), after the pieces the anchor barely holds are moved toward
+        their centroid (:data:`CENTROID_ANCHOR_SHARE`; a translation each, after the fit and its
+        repairs, which it leaves as they are)."""
         if self.static is not None:
             result[0][self.static] = self.base.vertices[self.static]
+        if ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any():
+            self.place(result[0], s, self.motion(s), partly=True)
         self.carried.place(result[0], s)
         return result
 

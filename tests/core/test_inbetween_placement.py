@@ -213,6 +213,54 @@ def test_a_rigid_piece_that_moves_on_its_own_is_not_carried():
         np.testing.assert_allclose(interpolator.pose(factor)[hand], a[hand] + [0.0, 0.6 * factor, 0.0], atol=1e-9)
 
 
+def _accordion(n=41, folds=4, angle=np.radians(70.0), strip=0.1):
+    """A flat square sheet (side 2) and the same sheet folded like an accordion along x into
+    ``folds`` panels at ±``angle``, all but a ``strip`` along one side, which stays flat."""
+    flat, tri = grid(n, n, size=2.0)
+    x = flat[:, 0] - flat[:, 0].min()
+    panel = (2.0 - strip) / folds
+    along = np.clip(x - strip, 0.0, None)
+    which = np.minimum((along // panel).astype(int), folds - 1)
+    folded = flat.copy()
+    start = np.zeros(2)
+    for k in range(folds):
+        direction = np.array([np.cos(angle), np.sin(angle) * (1 if k % 2 == 0 else -1)])
+        rows = (which == k) & (x >= strip)
+        moved = start + np.outer(along[rows] - k * panel, direction)
+        folded[rows, 0], folded[rows, 2] = flat[:, 0].min() + strip + moved[:, 0], moved[:, 1]
+        start = start + panel * direction
+    return flat, folded, tri
+
+
+def test_a_piece_the_blend_barely_holds_is_placed_on_the_blends_centroid(monkeypatch):
+    """Two poses of a sheet that folds like an accordion while it moves: the blend keeps edge
+    lengths only on a narrow strip (its anchor holds ~4 % of the sheet), from which the
+    interpolated rotations would hang the whole sheet (its centroid then 4 % of the diagonal off the
+    blend's). The sheet is moved most of the way onto the blend's centroid (measured: 1.5 %; what is
+    left is the anchor's share, ``core.inbetween_solver.CENTROID_ANCHOR_SHARE``), as a whole: its
+    shape is the same."""
+    import core.inbetween_solver as solver
+
+    a, b, tri = _accordion()
+    b = b + np.array([0.5, 0.3, 1.5])
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+
+    def in_between():
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ShapeDifferenceWarning)
+            return Interpolator(a, b, tri).pose(0.5)
+
+    def centroid_offset(x):
+        return np.linalg.norm(x.mean(axis=0) - 0.5 * (a + b).mean(axis=0)) / diagonal
+
+    moved = in_between()
+    monkeypatch.setattr(solver, "CENTROID_ANCHOR_SHARE", 1e-12)  # the strip alone places the sheet
+    hanging = in_between()
+    assert centroid_offset(hanging) > 0.02
+    assert centroid_offset(moved) < 0.5 * centroid_offset(hanging)
+    np.testing.assert_allclose(np.ptp(moved - hanging, axis=0), 0.0, atol=1e-9 * diagonal)
+
+
 def test_exaggerated_bend_does_not_flip():
     """×2 of a 100° bend: no triangle faces against the 200° bend's, and the forearm keeps its
     length (the exaggeration is a bend, not a stretch)."""
