@@ -11,6 +11,7 @@ import pytest
 from scipy.linalg import expm, logm
 from scipy.spatial.transform import Rotation
 
+import core.inbetween_solver as solver
 from core.errors import ShapeDifferenceWarning
 from core.interpolation import Interpolator, SequenceInterpolator
 from core.rigid_alignment import rigid_alignment
@@ -232,15 +233,13 @@ def _accordion(n=41, folds=4, angle=np.radians(70.0), strip=0.1):
     return flat, folded, tri
 
 
-def test_a_piece_the_blend_barely_holds_is_placed_on_the_blends_centroid(monkeypatch):
+def test_a_piece_the_blend_barely_holds_is_moved_toward_the_blends_centroid(monkeypatch):
     """Two poses of a sheet that folds like an accordion while it moves: the blend keeps edge
     lengths only on a narrow strip (its anchor holds ~4 % of the sheet), from which the
     interpolated rotations would hang the whole sheet (its centroid then 4 % of the diagonal off the
     blend's). The sheet is moved most of the way onto the blend's centroid (measured: 1.5 %; what is
     left is the anchor's share, ``core.inbetween_solver.CENTROID_ANCHOR_SHARE``), as a whole: its
     shape is the same."""
-    import core.inbetween_solver as solver
-
     a, b, tri = _accordion()
     b = b + np.array([0.5, 0.3, 1.5])
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
@@ -316,7 +315,6 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
     """A predicted in-between with a folded triangle is repaired around the fold (no flip left),
     not solved again: only the quarter points and the midpoint are solved."""
     import core.inbetween_prediction as prediction
-    import core.inbetween_solver as solver
 
     flat, tri = grid(12, 9, size=1.0)
     keys = [flat + np.array([0.0, 0.0, -0.1 * k * k]) + 0.05 * np.sin(3 * flat[:, [1, 0, 0]] + k) for k in range(5)]
