@@ -361,16 +361,10 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     return out
 
 
-def rigid_exp(screw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation (3, 3) and translation (3,) of screw coordinates ``(ω, v)`` (6,)."""
-    rotations, translations = rigid_exps(np.asarray(screw, dtype=np.float64)[None])
-    return rotations[0], translations[0]
-
-
 def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rotations (P, 3, 3) and translations (P, 3) of screw coordinates (P, 6) (:func:`rigid_exp`
-    for one): the translation ``V(ω) v = v + a ω × v + b ω × (ω × v)`` with the coefficients of
-    :func:`_screw_matrix`."""
+    """Rotations (P, 3, 3) and translations (P, 3) of screw coordinates ``(ω, v)`` (P, 6), the
+    inverse of :func:`rigid_log` row by row: the translation ``V(ω) v = v + a ω × v + b ω × (ω ×
+    v)`` with the coefficients of :func:`_screw_matrix`."""
     w, v = screws[:, :3], screws[:, 3:]
     a, b = _screw_coefficients(np.linalg.norm(w, axis=1))
     turned = np.cross(w, v)

@@ -225,7 +225,7 @@ class Repair:
         computed once per gap."""
         if index not in self._keys:
             key = self.gap.relatives[index]
-            rotations = np.array([df.rigid_exp(screw)[0] for screw in key.screw])
+            rotations = df.rigid_exps(key.screw)[0]
             self._keys[index] = (self.gap.key_frames(key.rotvec, rotations), df.exp_stretch(key.log_stretch))
         return self._keys[index]
 

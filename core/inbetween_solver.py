@@ -422,8 +422,7 @@ class _Gap(LocalGlobalFit):
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
         translations (C, 3)."""
-        motions = [df.rigid_exp(screw) for screw in self.splines["screw"].at(s)]
-        return np.array([r for r, _ in motions]), np.array([t for _, t in motions])
+        return df.rigid_exps(self.splines["screw"].at(s))
 
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
         """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals
