@@ -52,7 +52,7 @@ from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
-from .inbetween_solver import _Gap, _Topology
+from .inbetween_solver import FREE_FLIGHT_JERK, _Gap, _Topology
 from .laplace_basis import basis_sizes
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
@@ -137,6 +137,8 @@ class SequenceInterpolator:
         # vertices still in every key (pinned cloth) stay exactly where they sit
         still = np.all(np.stack([np.all(k == keys[0], axis=1) for k in keys[1:]]), axis=0)
         self._static = still if still.any() else None
+        # the components' centroids in every key (K, C, 3): how steadily each piece moves
+        self._centroids = np.array([[self._topo.centroid(k, rows) for rows in self._topo.component_rows] for k in keys])
         self._keys: OrderedDict[int, _Key] = OrderedDict()
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
@@ -277,10 +279,21 @@ class SequenceInterpolator:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                        self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None,
-                       whole_rotations=whole)
+                       whole_rotations=whole, steady=self._steady(gap) if cubic else None)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
+
+    def _steady(self, gap: int) -> np.ndarray | None:
+        """Per component (C,), whether its centroid moved at constant acceleration over keys
+        ``gap − 2`` … ``gap + 1``: their third difference under :data:`FREE_FLIGHT_JERK` × the
+        gap's move (a first key at rest mirrors key 1 to key −1); None for the first gap and for
+        the second when the keys are cut from a motion (too few keys to tell)."""
+        if gap < 1 or (gap == 1 and self.start != "rest"):
+            return None
+        c = self._centroids[[abs(i) for i in range(gap - 2, gap + 2)]]
+        jerk = np.linalg.norm(c[3] - 3.0 * c[2] + 3.0 * c[1] - c[0], axis=1)
+        return jerk < FREE_FLIGHT_JERK * np.linalg.norm(c[3] - c[2], axis=1)
 
     def _start_limit(self) -> float:
         """The first gap's start tangent limit (× its secant) for this sequence's ``start``."""

@@ -43,9 +43,16 @@ class HermiteGap:
     the longer of this gap's secant and the next gap's ``v₂ − v₁``;
     ``limit``: the multiple of the secant (:data:`START_TANGENT_LIMIT` or :data:`REST_START_LIMIT`
     for a sequence's first gap; 0 gives a zero start tangent).
+    ``parabolic_end``: bool, broadcastable to the values' shape, or None: where True the end
+    tangent is the one of the parabola through the start (value and tangent) and the end,
+    ``2 (v₁ − v₀) − t₀`` (exact for constant acceleration; ``(3v₁ − 4v₀ + v₋₁)/2`` with an
+    unlimited start tangent, ``2 (v₁ − v₀)`` from rest), instead of the Catmull–Rom one, which
+    takes the velocity at the gap's end from the next gap: for motion that something stops
+    right after the end (see :data:`core.inbetween_solver.FREE_FLIGHT_NONRIGIDITY`).
     """
 
-    def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT):
+    def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
+                 parabolic_end: np.ndarray | None = None):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -69,6 +76,8 @@ class HermiteGap:
                 self.t0 = np.clip(t0, -bound, bound, out=t0)
             self.t1 = after - start
             self.t1 *= 0.5
+            if parabolic_end is not None:
+                self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""

@@ -233,6 +233,22 @@ def test_fall_from_rest_is_exact_from_the_first_gap(strip, start):
             np.testing.assert_allclose(seq.pose(gap, s), truth, atol=1e-9)
 
 
+def test_free_flight_up_to_an_impact_stays_on_its_parabola(strip):
+    """A sheet dropped from rest, p(t) = p₀ + ½·a·t², lands right after the third key and is bent
+    by the fourth: the gap before the landing is still free flight, so its in-betweens are on the
+    parabola, exactly, and stay flat. The Catmull–Rom tangent at its end would take the velocity
+    from the gap of the landing (and the bend from the fourth key: the shape would bulge)."""
+    flat, tri = strip
+    acceleration = np.array([0.05, 0.0, -1.0])
+    keys = [flat + 0.5 * acceleration * t * t for t in range(3)]
+    keys += [_bend(flat, 1.5) + 0.5 * acceleration * 4.0] * 2
+    seq = SequenceInterpolator(keys, tri)
+    for gap in (0, 1):
+        for s in (0.25, 0.5, 0.75):
+            truth = flat + 0.5 * acceleration * (gap + s) ** 2
+            np.testing.assert_allclose(seq.pose(gap, s), truth, atol=1e-9)
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
