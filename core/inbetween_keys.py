@@ -54,11 +54,7 @@ class _Key:
         self.normal_rows = self.column_rows[2]
         self.areas = 0.5 * np.abs(self.tangent_rows[0, 0] * self.tangent_rows[1, 2])
         self.centroids = np.array([topo.centroid(v, rows) for rows in topo.component_rows])
-        # each component's bounding-box diagonal: the scale of its relatives' non-rigidity
-        # (extents along contiguous coordinate rows: reductions across (n, 3) rows are 5× slower)
-        by_coordinate = np.ascontiguousarray(v.T)
-        self.diagonals = np.array([max(np.linalg.norm(np.ptp(by_coordinate[:, rows], axis=1)), np.finfo(float).tiny)
-                                   for rows in topo.component_rows])
+        self.diagonals = component_diagonals(topo, v)
 
 
 class _Relative:
@@ -68,15 +64,7 @@ class _Relative:
     component's rigid motion undone (n, 3)."""
 
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
-        rotations, translations, self.misfits = [], [], []
-        for rows in topo.component_rows:
-            a, b, w = base.vertices[rows], other.vertices[rows], topo.weights[rows]
-            rotation, translation = rigid_alignment(a, b, w)
-            rotations.append(rotation)
-            translations.append(translation)
-            residual = a @ rotation.T + translation - b
-            self.misfits.append(np.sqrt(w @ np.einsum("ij,ij->i", residual, residual) / w.sum()))
-        rotations, translations = np.array(rotations), np.array(translations)
+        rotations, translations, self.misfits = rigid_fits(topo, base.vertices, other.vertices)
         unwrap = turns is not None  # the continuation of the next key's turn
         if turns is None:  # every piece's half turn goes the way the whole mesh turns
             whole = rotations[0] if len(topo.components) == 1 else \
@@ -198,6 +186,29 @@ def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, 
     """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
     vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_log`)."""
     return np.array([df.rigid_log(r, t, turn, unwrap) for r, t, turn in zip(rotations, translations, turns)])
+
+
+def component_diagonals(topo: _Topology, vertices: np.ndarray) -> np.ndarray:
+    """Each component's bounding-box diagonal (C,) in ``vertices`` (n, 3): the scale of its
+    non-rigidity (extents along contiguous coordinate rows: reductions across (n, 3) rows are 5×
+    slower)."""
+    by_coordinate = np.ascontiguousarray(vertices.T)
+    return np.array([max(np.linalg.norm(np.ptp(by_coordinate[:, rows], axis=1)), np.finfo(float).tiny)
+                     for rows in topo.component_rows])
+
+
+def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, list]:
+    """Each component's best rigid motion taking vertices ``base`` (n, 3) onto ``other``: rotations
+    (C, 3, 3), translations (C, 3) and the RMS misfits (C,) it leaves (mass-weighted)."""
+    rotations, translations, misfits = [], [], []
+    for rows in topo.component_rows:
+        a, b, w = base[rows], other[rows], topo.weights[rows]
+        rotation, translation = rigid_alignment(a, b, w)
+        rotations.append(rotation)
+        translations.append(translation)
+        residual = a @ rotation.T + translation - b
+        misfits.append(np.sqrt(w @ np.einsum("ij,ij->i", residual, residual) / w.sum()))
+    return np.array(rotations), np.array(translations), misfits
 
 
 def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:

@@ -130,6 +130,24 @@ CENTROID_ANCHOR_SHARE = 0.2
 POSITIONS = ("vertices", "world", "centroids")
 
 
+def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarray | None) -> np.ndarray | None:
+    """Per component (C,), whether it is in free flight through a gap and hit right after it (see
+    :data:`FREE_FLIGHT_NONRIGIDITY`), from the non-rigidity (C,) of the keys before the gap, at its
+    end and after it, each seen from its start key; or None if no component is. A first gap
+    (``start_limit`` set) counts from rest only (its key before is an end condition); a later one
+    needs ``steady`` (C,): the centroid at constant acceleration up to the gap's end."""
+    before, nxt, after = np.asarray(before), np.asarray(nxt), np.asarray(after)
+    if start_limit is None and steady is not None:
+        flight = np.where(steady, np.maximum(before, nxt), np.inf)
+    elif start_limit == REST_START_LIMIT:
+        flight = nxt
+    else:
+        return None
+    free = ((flight < FREE_FLIGHT_NONRIGIDITY) & (after > 2.0 * FREE_FLIGHT_NONRIGIDITY)
+            & (after > FREE_FLIGHT_JUMP * flight))
+    return free if free.any() else None
+
+
 class _Topology:
     """What depends only on the triangles: edge incidence (``D``: corner edges × vertices), lumped
     vertex masses of the first pose (mean 1), components, and the factorized normal matrices."""
@@ -242,16 +260,19 @@ class _Gap(LocalGlobalFit):
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
-                 steady: np.ndarray | None = None):
+                 steady: np.ndarray | None = None, entry: tuple | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
         self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
         limit = TANGENT_LIMIT if start_limit is None else start_limit  # a sequence's first gap: its own
-        free = self.free_flight(relatives, start_limit, steady) if cubic else None
+        free = free_flight(*(r.nonrigidity for r in relatives[:1] + relatives[2:]), start_limit, steady) \
+            if cubic else None
         spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic, rows=name in POSITIONS, limit=limit,
-                                   parabolic_end=None if free is None else self.per_element(name, free))
+                                   parabolic_end=None if free is None else self.per_element(name, free),
+                                   entry=None if entry is None or name not in entry[1] else
+                                   (self.per_element(name, entry[0]), entry[1][name]))
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         self.splines = spline
         self.anchored = anchored
@@ -273,23 +294,6 @@ class _Gap(LocalGlobalFit):
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.carried = CarriedPieces(self)
-
-    def free_flight(self, relatives: list[_Relative], start_limit: float | None,
-                    steady: np.ndarray | None) -> np.ndarray | None:
-        """Per component (C,), whether it is in free flight through the gap and hit right after
-        it (see :data:`FREE_FLIGHT_NONRIGIDITY`), or None if no component is. A first gap
-        (``start_limit`` set) counts from rest only (its key before is an end condition); a later
-        one needs ``steady`` (C,): the centroid at constant acceleration up to the gap's end."""
-        before, _, nxt, after = (np.asarray(r.nonrigidity) for r in relatives)
-        if start_limit is None and steady is not None:
-            flight = np.where(steady, np.maximum(before, nxt), np.inf)
-        elif start_limit == REST_START_LIMIT:
-            flight = nxt
-        else:
-            return None
-        free = ((flight < FREE_FLIGHT_NONRIGIDITY) & (after > 2.0 * FREE_FLIGHT_NONRIGIDITY)
-                & (after > FREE_FLIGHT_JUMP * flight))
-        return free if free.any() else None
 
     def per_element(self, name: str, per_component: np.ndarray) -> np.ndarray:
         """``per_component`` (C,) spread to the rows of spline ``name`` (a column, to broadcast):

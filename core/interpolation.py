@@ -51,8 +51,8 @@ from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
-from .inbetween_solver import FREE_FLIGHT_JERK, _Gap, _Topology
+from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, component_diagonals, rigid_fits
+from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
@@ -279,7 +279,8 @@ class SequenceInterpolator:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                        self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None,
-                       whole_rotations=whole, steady=self._steady(gap) if cubic else None)
+                       whole_rotations=whole, steady=self._steady(gap) if cubic else None,
+                       entry=self._entry(gap, prev.nonrigidity) if cubic else None)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
@@ -294,6 +295,37 @@ class SequenceInterpolator:
         c = self._centroids[[abs(i) for i in range(gap - 2, gap + 2)]]
         jerk = np.linalg.norm(c[3] - 3.0 * c[2] + 3.0 * c[1] - c[0], axis=1)
         return jerk < FREE_FLIGHT_JERK * np.linalg.norm(c[3] - c[2], axis=1)
+
+    def _entry(self, gap: int, back: np.ndarray) -> tuple | None:
+        """Where the gap before ends in free flight (:func:`core.inbetween_solver.free_flight`, its
+        splines on the parabola through its start), this gap starts with that parabola's velocity
+        at the key, so that the two meet with one velocity: ``(per component (C,), {"world": (n,
+        3), "centroids": (C, 3)})`` — the positions in the world, which place a deforming piece —
+        or None. ``back``: the non-rigidity of key ``gap − 1`` seen from key ``gap`` (C,), which
+        rules most gaps out before the keys are aligned."""
+        k = gap - 1
+        if k < 0 or not (np.asarray(back) < FREE_FLIGHT_NONRIGIDITY).any():
+            return None
+        steady = self._steady(k)
+        if k >= 1 and (steady is None or not steady.any()):
+            return None
+        seen = [self._nonrigidity(k, i) if 0 <= i < len(self._raw) else np.zeros(len(self._topo.components))
+                for i in (k - 1, gap, gap + 1)]
+        free = free_flight(*seen, self._start_limit() if k == 0 else None, steady)
+        if free is None:
+            return None
+        x, c = self._raw, self._centroids
+        if k == 0:  # from rest (free_flight said so): the parabola's velocity at key 1 is 2 (x₁ − x₀)
+            return free, {"world": 2.0 * (x[1] - x[0]), "centroids": 2.0 * (c[1] - c[0])}
+        return free, {"world": 1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1],
+                      "centroids": 1.5 * c[gap] - 2.0 * c[k] + 0.5 * c[k - 1]}
+
+    def _nonrigidity(self, base: int, other: int) -> np.ndarray:
+        """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have
+        it: RMS misfit of the best rigid motion ÷ the component's diagonal in ``base``)."""
+        topo = self._topo
+        misfits = rigid_fits(topo, self._raw[base], self._raw[other])[2]
+        return np.asarray(misfits) / component_diagonals(topo, self._raw[base])
 
     def _start_limit(self) -> float:
         """The first gap's start tangent limit (× its secant) for this sequence's ``start``."""

@@ -49,10 +49,13 @@ class HermiteGap:
     unlimited start tangent, ``2 (v₁ − v₀)`` from rest), instead of the Catmull–Rom one, which
     takes the velocity at the gap's end from the next gap: for motion that something stops
     right after the end (see :data:`core.inbetween_solver.FREE_FLIGHT_NONRIGIDITY`).
+    ``entry``: ``(mask, tangent)`` or None: where ``mask`` the start tangent is ``tangent`` (the
+    velocity the gap before ends with on its parabola, so that the two meet with one velocity),
+    limited as any start tangent.
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
-                 parabolic_end: np.ndarray | None = None):
+                 parabolic_end: np.ndarray | None = None, entry: tuple | None = None):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -60,6 +63,8 @@ class HermiteGap:
         if cubic:
             t0 = end - before
             t0 *= 0.5
+            if entry is not None:
+                t0 = np.where(entry[0], entry[1], t0)
             if rows:  # positions: limit each row's length (rotation invariant, keeps C¹ per point)
                 # squared lengths compared: limit² |secant|² against |t0|², one square root per row
                 secant2 = np.einsum("...i,...i->...", self.secant, self.secant)
