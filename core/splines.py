@@ -90,23 +90,21 @@ class HermiteGap:
             self.t1 *= 0.5
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
-            self._limit_end(start - before if limit != REST_START_LIMIT else None, rows)
+            if limit == REST_START_LIMIT:  # a first gap from rest (see END_TANGENT_LIMIT)
+                self._limit_end(rows)
 
-    def _limit_end(self, previous: np.ndarray | None, rows: bool) -> None:
-        """Limit the end tangent to :data:`END_TANGENT_LIMIT` × the longer of the secant and
-        ``previous`` (the gap before's secant, or None from rest), per row when ``rows``."""
+    def _limit_end(self, rows: bool) -> None:
+        """Limit the end tangent to :data:`END_TANGENT_LIMIT` × the secant, per row when ``rows``."""
         if rows:
             bound2 = np.einsum("...i,...i->...", self.secant, self.secant)
-            if previous is not None:
-                np.maximum(bound2, np.einsum("...i,...i->...", previous, previous), out=bound2)
             length2 = np.einsum("...i,...i->...", self.t1, self.t1)
             over = length2 > END_TANGENT_LIMIT * END_TANGENT_LIMIT * bound2
             if over.any():
                 self.t1 = self.t1.copy()
                 self.t1[over] *= (END_TANGENT_LIMIT * np.sqrt(bound2[over] / length2[over]))[:, None]
         else:
-            bound = np.abs(self.secant) if previous is None else np.maximum(np.abs(self.secant), np.abs(previous))
-            self.t1 = np.clip(self.t1, -END_TANGENT_LIMIT * bound, END_TANGENT_LIMIT * bound)
+            bound = END_TANGENT_LIMIT * np.abs(self.secant)
+            self.t1 = np.clip(self.t1, -bound, bound)
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""

@@ -550,6 +550,24 @@ def test_position_tangents_are_limited_at_a_stop_not_at_a_swing():
     np.testing.assert_allclose(spline.t0[1], [TANGENT_LIMIT * 0.1, 0.0, 0.0], atol=1e-12)
 
 
+def test_a_point_that_settles_is_not_lent_the_next_gaps_velocity():
+    """A point that moves a little into the gap and is pulled far in the next one keeps its end
+    tangent within END_TANGENT_LIMIT × its secant, so it stays between its keys (Catmull–Rom's end
+    tangent, half the next move, takes it back past its start); a point accelerating from rest on a
+    parabola is under the limit and reproduced exactly."""
+    from core.splines import END_TANGENT_LIMIT, REST_START_LIMIT, HermiteGap
+
+    settle = [np.array(p) for p in ([0.0, 0, 0], [0.0, 0, 0], [0.1, 0, 0], [10.0, 0, 0])]
+    fall = [np.array([0.0, 0.0, -0.5 * t * t]) for t in (-1.0, 0.0, 1.0, 2.0)]
+    spline = HermiteGap([np.stack([a, b]) for a, b in zip(settle, fall)], cubic=True, rows=True,
+                        limit=REST_START_LIMIT)
+    path = np.array([spline.at(s) for s in np.linspace(0.0, 1.0, 21)])
+    assert path[:, 0, 0].min() >= -1e-12 and path[:, 0, 0].max() <= 0.1 + 1e-12
+    np.testing.assert_allclose(spline.t1[0], [END_TANGENT_LIMIT * 0.1, 0.0, 0.0], atol=1e-12)
+    for s in np.linspace(0.0, 1.0, 9):
+        np.testing.assert_allclose(spline.at(s)[1], [0.0, 0.0, -0.5 * s * s], atol=1e-12)
+
+
 def test_the_rigid_fit_is_given_up_per_piece():
     """In a mesh of two pieces — one turning rigidly by 170°, one whose halves trade places — only
     the second piece's rotations are taken whole; the first keeps its residuals unchanged."""
