@@ -106,8 +106,9 @@ RIGID_PLACEMENT_SCALE = 1e-3
 #: :class:`core.splines.HermiteGap`), exact for constant acceleration. RMS ÷ the linear blend's,
 #: keys 8 frames apart: 14k tablecloth 0.638 → 0.353, 10k drape 0.912 → 0.549, unseen irregular
 #: 10k mesh 0.913 → 0.493, unseen 30k tablecloth 0.618 → 0.317; of 93 sequence cells on 31 cloths
-#: 21 closer, one farther (a 10k sheet hanging from two corners at g = 4, 0.164 → 0.184), 6 with
-#: only a lower edge deviation; other scales in docs/inbetweens.md, *Free flight up to an impact*.
+#: 27 closer, two farther (a 10k sheet hanging from two corners at g = 4, 0.164 → 0.184; a sheet
+#: landing flat on a ramp, g = 16, 0.909 → 0.937); other scales in docs/inbetweens.md, *Free flight
+#: up to an impact*.
 FREE_FLIGHT_NONRIGIDITY = 5e-3
 FREE_FLIGHT_JUMP = 4.0
 FREE_FLIGHT_JERK = 0.5

@@ -74,39 +74,20 @@ class HermiteGap:
             t0 *= 0.5
             if entry is not None:
                 t0 = np.where(entry[0], entry[1], t0)
-            if rows:  # positions: limit each row's length (rotation invariant, keeps C¹ per point)
-                # squared lengths compared: limit² |secant|² against |t0|², one square root per row
-                secant2 = np.einsum("...i,...i->...", self.secant, self.secant)
-                if limit > 0:  # a point that only turns back in this gap moves on in the next one
-                    onward = after - end
-                    np.maximum(secant2, np.einsum("...i,...i->...", onward, onward), out=secant2)
-                length2 = np.einsum("...i,...i->...", t0, t0)
-                over = length2 > limit * limit * secant2
-                if over.any():
-                    t0[over] *= (limit * np.sqrt(secant2[over] / length2[over]))[:, None]
-                self.t0 = t0
-            else:
-                bound = limit * np.abs(self.secant)
-                self.t0 = np.clip(t0, -bound, bound, out=t0)
+            # positions: each row's length is limited (rotation invariant, keeps C¹ per point),
+            # against squared lengths: one square root per limited row
+            bound = np.einsum("...i,...i->...", self.secant, self.secant) if rows else np.abs(self.secant)
+            start_bound = bound
+            if rows and limit > 0:  # a point that only turns back in this gap moves on in the next one
+                onward = after - end
+                start_bound = np.maximum(bound, np.einsum("...i,...i->...", onward, onward))
+            self.t0 = _limited(t0, limit, start_bound, rows)
             self.t1 = after - start
             self.t1 *= 0.5
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
             if limit == REST_START_LIMIT:  # a first gap from rest (see END_TANGENT_LIMIT)
-                self._limit_end(rows)
-
-    def _limit_end(self, rows: bool) -> None:
-        """Limit the end tangent to :data:`END_TANGENT_LIMIT` × the secant, per row when ``rows``."""
-        if rows:
-            bound2 = np.einsum("...i,...i->...", self.secant, self.secant)
-            length2 = np.einsum("...i,...i->...", self.t1, self.t1)
-            over = length2 > END_TANGENT_LIMIT * END_TANGENT_LIMIT * bound2
-            if over.any():
-                self.t1 = self.t1.copy()
-                self.t1[over] *= (END_TANGENT_LIMIT * np.sqrt(bound2[over] / length2[over]))[:, None]
-        else:
-            bound = END_TANGENT_LIMIT * np.abs(self.secant)
-            self.t1 = np.clip(self.t1, -bound, bound)
+                self.t1 = _limited(self.t1, END_TANGENT_LIMIT, bound, rows)
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""
@@ -118,3 +99,16 @@ class HermiteGap:
         out += (s3 - 2 * s2 + s) * self.t0
         out += (s3 - s2) * self.t1
         return out
+
+
+def _limited(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:
+    """``tangent`` limited in place to ``limit`` × ``bound``: each row's length against the squared
+    lengths ``bound`` (``rows``), or each element against the magnitudes ``bound``."""
+    if rows:
+        length2 = np.einsum("...i,...i->...", tangent, tangent)
+        over = length2 > limit * limit * bound
+        if over.any():
+            tangent[over] *= (limit * np.sqrt(bound[over] / length2[over]))[:, None]
+        return tangent
+    bound = limit * bound
+    return np.clip(tangent, -bound, bound, out=tangent)
