@@ -112,6 +112,21 @@ RIGID_PLACEMENT_SCALE = 1e-3
 FREE_FLIGHT_NONRIGIDITY = 5e-3
 FREE_FLIGHT_JUMP = 4.0
 FREE_FLIGHT_JERK = 0.5
+#: After an impact. The mirror case: where the cloth hit something inside the gap before, the
+#: Catmull–Rom tangent at this gap's start key averages the fast fall before it with the slow
+#: settling after it, and the in-betweens overshoot the landed shape (a drape on a sphere, keys 4,
+#: 20 and 36: 2.26 × the blend's RMS in the gap after the landing). A component deformed across
+#: the gap before — the key before seen from this gap's start key, non-rigidity over 2 ×
+#: FREE_FLIGHT_NONRIGIDITY and over FREE_FLIGHT_JUMP × this gap's own — whose centroid moved over
+#: IMPACT_SLOWDOWN × as far in the gap before as in this one starts the gap on the parabola
+#: through its end (value and tangent) instead (``parabolic_start`` of
+#: :class:`core.splines.HermiteGap`): constant deceleration. Keys cut from the middle of a fall
+#: (40 cells of 8 cloths): 13 → 6 above a peer (drape on a sphere, keys 16 apart from frame 4:
+#: 1.651 → 0.874 × the blend); from frame 0 it moves four of 87 sequence cells, all closer (a 10k
+#: drape at g = 8 0.548 → 0.472 × the blend, a shrinking sheet at g = 4 1.065 → 0.928); a swing's
+#: turning point fails the deformation test, and at a slowdown of 2 a hanging sheet and a soft
+#: flag keep every digit (numbers in docs/inbetweens.md, *After an impact*).
+IMPACT_SLOWDOWN = 2.0
 #: An in-between of two poses moves a deforming component toward its centroid too where the blend
 #: anchor holds only a small part of it: by the share ``(1 − a / CENTROID_ANCHOR_SHARE)²`` of the
 #: way, ``a`` the component's mass-weighted anchor (weights relative to BLEND_ANCHOR_WEIGHT; none
@@ -147,6 +162,20 @@ def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarra
     free = ((flight < FREE_FLIGHT_NONRIGIDITY) & (after > 2.0 * FREE_FLIGHT_NONRIGIDITY)
             & (after > FREE_FLIGHT_JUMP * flight))
     return free if free.any() else None
+
+
+def after_impact(before, nxt, incoming, outgoing, start_limit: float | None) -> np.ndarray | None:
+    """Per component (C,), whether a gap starts right after an impact (see :data:`IMPACT_SLOWDOWN`),
+    from the non-rigidity (C,) of the keys before the gap and at its end, seen from its start key,
+    and the distances (C,) its centroid moved over the gap before (``incoming``) and over this one
+    (``outgoing``); or None if no component does. Not in a sequence's first gap (``start_limit``
+    set), whose key before is an end condition."""
+    if start_limit is not None:
+        return None
+    before, nxt = np.asarray(before), np.asarray(nxt)
+    hit = ((before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > FREE_FLIGHT_JUMP * nxt)
+           & (np.asarray(incoming) > IMPACT_SLOWDOWN * np.asarray(outgoing)))
+    return hit if hit.any() else None
 
 
 class _Topology:
@@ -268,10 +297,14 @@ class _Gap(LocalGlobalFit):
         self.relatives = relatives
         self.cubic, self.use_extrinsic = cubic, use_extrinsic
         limit = TANGENT_LIMIT if start_limit is None else start_limit  # a sequence's first gap: its own
-        free = free_flight(*(r.nonrigidity for r in relatives[:1] + relatives[2:]), start_limit, steady) \
-            if cubic else None
+        free = impact = None
+        if cubic:
+            free = free_flight(*(r.nonrigidity for r in relatives[:1] + relatives[2:]), start_limit, steady)
+            moves = np.linalg.norm(np.diff([r.centroids for r in relatives[:3]], axis=0), axis=2)  # (2, C)
+            impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit)
         spline = {name: HermiteGap([getattr(r, name) for r in relatives], cubic, rows=name in POSITIONS, limit=limit,
                                    parabolic_end=None if free is None else self.per_element(name, free),
+                                   parabolic_start=None if impact is None else self.per_element(name, impact),
                                    entry=None if entry is None or name not in entry[1] else
                                    (self.per_element(name, entry[0]), entry[1][name]))
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}

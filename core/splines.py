@@ -61,10 +61,15 @@ class HermiteGap:
     ``entry``: ``(mask, tangent)`` or None: where ``mask`` the start tangent is ``tangent`` (the
     velocity the gap before ends with on its parabola, so that the two meet with one velocity),
     limited as any start tangent.
+    ``parabolic_start``: bool like ``parabolic_end``, or None: where True the start tangent is the
+    one of the parabola through the end (value and tangent) and the start, ``2 (v₁ − v₀) − t₁``,
+    limited as any start tangent: for motion that something stopped right before the start (see
+    :data:`core.inbetween_solver.IMPACT_SLOWDOWN`).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
-                 parabolic_end: np.ndarray | None = None, entry: tuple | None = None):
+                 parabolic_end: np.ndarray | None = None, entry: tuple | None = None,
+                 parabolic_start: np.ndarray | None = None):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -88,6 +93,9 @@ class HermiteGap:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
             if limit == REST_START_LIMIT:  # a first gap from rest (see END_TANGENT_LIMIT)
                 self.t1 = _limited(self.t1, END_TANGENT_LIMIT, bound, rows)
+            if parabolic_start is not None:
+                self.t0 = np.where(parabolic_start, _limited(2.0 * self.secant - self.t1, limit, start_bound, rows),
+                                   self.t0)
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""

@@ -267,6 +267,21 @@ def test_the_gap_of_an_impact_starts_with_the_free_flight_velocity(strip):
     np.testing.assert_allclose(seq.pose(1, 0.5), flat + 0.5 * acceleration * 1.5 ** 2, atol=1e-9)
 
 
+def test_the_gap_after_an_impact_starts_on_the_parabola_through_its_end(strip):
+    """Keys cut from a fall (``start="keys"``): flat at the first two keys, bent by the landing
+    at the third, then sliding slowly at constant velocity. The gap after the landing starts on
+    the parabola through its end (here the slide's straight line) and keeps the landed shape, exactly;
+    the Catmull–Rom tangents at its start (the mean of the fall and the slide, of flat and bent)
+    would carry the sheet on past the key and unbend it."""
+    flat, tri = strip
+    bent = _bend(flat, 1.5)
+    drift = np.array([0.02, 0.0, 0.0])
+    keys = [flat + [0.0, 0.0, 3.0], flat + [0.0, 0.0, 2.0], bent, bent + drift, bent + 2.0 * drift]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    for s in (0.25, 0.5, 0.75):
+        np.testing.assert_allclose(seq.pose(2, s), bent + s * drift, atol=1e-9)
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
@@ -705,7 +720,9 @@ def test_rigidly_moving_sequence_factorizes_once(monkeypatch, strip):
     flat, tri = strip
     turns = Rotation.from_rotvec(np.outer(np.arange(5), [0.0, 0.3, 0.1])).as_matrix()
     keys = [flat @ r.T + np.array([0.0, 0.0, -0.2 * k * k]) for k, r in enumerate(turns)]
-    keys += [_bend(keys[-1], angle) for angle in (1.5, 3.0)]
+    # then bent fast while the fall goes on (not put back where it started: that jump and the
+    # slow gap after it would read as a landing, see IMPACT_SLOWDOWN)
+    keys += [_bend(keys[-1], angle) + np.array([0.0, 0.0, -0.2 * k * k]) for k, angle in ((5, 1.5), (6, 3.0))]
     seq = SequenceInterpolator(keys, tri)
     for gap in range(len(seq)):
         seq.poses(gap, [0.25, 0.5, 0.75])
