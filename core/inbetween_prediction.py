@@ -238,6 +238,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     if not np.isfinite(x).all():
         return gap.pose(s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
-    if not gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s)).any():
+    defects = gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s))
+    if not defects.any():
         return gap.finished((x, None), s)
-    return gap.repaired(x, s, rings)
+    return gap.repaired(x, s, rings, defects)

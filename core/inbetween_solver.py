@@ -580,15 +580,15 @@ class _Gap(LocalGlobalFit):
             self.held_factors[s] = bool(weak)
         return self.finished(self.repair.checked(x, x0, s, frames, stretch, guide, motion), s)
 
-    def repaired(self, x: np.ndarray, s: float, rings=None) -> tuple[np.ndarray, str | None]:
+    def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the
         defects are, as :meth:`pose` repairs its fit (without solving the pose again; ``rings``:
-        the repair rounds, all of them by default)."""
+        the repair rounds, all of them by default; ``defects``: those of ``x`` (bool (m,)) if known)."""
         self.select(s)
         # in-betweens' checks use the keys' normals: the repairs need the frames on their regions only
         frames, stretch, motion, guide = self.targets(s, by_rows=0.0 < s < 1.0)
         rounds = {} if rings is None else {"rings": rings}
-        return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, **rounds), s)
+        return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, **rounds), s)
 
     def finished(self, result, s: float):
         """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit

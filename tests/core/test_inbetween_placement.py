@@ -336,7 +336,7 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
     solved, repaired, real_repaired = [], [], solver._Gap.repaired
     monkeypatch.setattr(prediction, "_correction", folding_correction)
     monkeypatch.setattr(solver._Gap, "pose", lambda self, s, **kw: solved.append(s) or real_pose(self, s, **kw))
-    monkeypatch.setattr(solver._Gap, "repaired", lambda self, x, s, rings=None: repaired.append(s) or real_repaired(self, x, s, rings))
+    monkeypatch.setattr(solver._Gap, "repaired", lambda self, x, s, *rest: repaired.append(s) or real_repaired(self, x, s, *rest))
     seq = SequenceInterpolator(keys, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)  # repaired: no fallback
