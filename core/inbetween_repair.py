@@ -302,18 +302,19 @@ class Region:
         self.anchor = gap.repair_anchor(self.free)
         if not self.free.size:
             return
-        # D_fᵀ D_f counted edge by edge in NumPy (SciPy's sparse slicing and sums cost 2–3 ms per
-        # region, several times the factorization): a corner edge from vertex a to b adds 1 to
-        # (a, a) and (b, b) for each free end and −1 to (a, b) and (b, a) when both are free.
+        # D_fᵀ and D_fᵀ D_f built edge by edge from index arrays (SciPy's sparse column slicing,
+        # transposes and sums cost 2–3 ms per region, several times the factorization): a corner
+        # edge from vertex a to b adds 1 to (a, a) and (b, b) for each free end and −1 to (a, b)
+        # and (b, a) when both are free.
         f = self.free.size
         ends = local.reshape(-1, 3)
         start, end = ends.ravel(), ends[:, [1, 2, 0]].ravel()  # edge 3t + c runs from corner c to c + 1
         numbering = np.cumsum(is_free) - 1  # touched vertex → free index (where free)
         start_free, end_free = is_free[start], is_free[end]
-        ends_free = np.r_[np.flatnonzero(end_free), np.flatnonzero(start_free)]  # edge rows by free end, then free start
-        at = np.r_[numbering[end[end_free]], numbering[start[start_free]]]
-        self._pulls = (ends_free, np.r_[np.ones(end_free.sum()), -np.ones(start_free.sum())][:, None],
-                       (3 * at[:, None] + np.arange(3)).ravel())  # (edge rows, sign, free coordinate index)
+        at = np.r_[numbering[end[end_free]], numbering[start[start_free]]]  # each edge's free end, then free start
+        self.free_t = sp.csr_matrix((np.r_[np.ones(end_free.sum()), -np.ones(start_free.sum())],
+                                     (at, np.r_[np.flatnonzero(end_free), np.flatnonzero(start_free)])),
+                                    shape=(f, start.size))  # D_fᵀ
         self._held_starts = (np.flatnonzero(~start_free), touched[start[~start_free]])
         self._held_ends = (np.flatnonzero(~end_free), touched[end[~end_free]])
         both = start_free & end_free
@@ -330,8 +331,7 @@ class Region:
         residual = np.array(edges, dtype=float).reshape(-1, 3)  # the edges less their held ends' part
         residual[self._held_ends[0]] -= x[self._held_ends[1]]
         residual[self._held_starts[0]] += x[self._held_starts[1]]
-        rows, sign, index = self._pulls  # D_fᵀ residual: each edge pulls its free end forward and its free start back
-        rhs = np.bincount(index, (residual[rows] * sign).ravel(), minlength=3 * self.free.size).reshape(-1, 3)
+        rhs = self.free_t @ residual
         rhs += self.anchor[:, None] * guide[self.free]
         return self.lu.solve(np.asfortranarray(rhs))
 
