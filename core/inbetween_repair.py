@@ -296,7 +296,12 @@ class Region:
         topo = gap.topo
         self.rows = np.flatnonzero(force)
         corners = topo.triangles[self.rows]
-        touched, local = np.unique(corners, return_inverse=True)
+        used = np.zeros(topo.n, dtype=bool)  # the region's vertices in order, without a sort
+        used[corners] = True
+        touched = np.flatnonzero(used)
+        numbered = np.empty(topo.n, dtype=np.intp)
+        numbered[touched] = np.arange(touched.size)
+        local = numbered[corners].ravel()
         is_free = np.bincount(local, minlength=touched.size) == topo.triangles_per_vertex[touched]
         self.free = touched[is_free]
         self.anchor = gap.repair_anchor(self.free)
