@@ -299,34 +299,29 @@ class Region:
         used = np.zeros(topo.n, dtype=bool)  # the region's vertices in order, without a sort
         used[corners] = True
         touched = np.flatnonzero(used)
-        numbered = np.empty(topo.n, dtype=np.intp)
-        numbered[touched] = np.arange(touched.size)
-        local = numbered[corners].ravel()
+        slot = np.empty(topo.n, dtype=np.intp)
+        slot[touched] = np.arange(touched.size)
+        local = slot[corners].ravel()  # (3r,) each corner's vertex among the touched ones
         is_free = np.bincount(local, minlength=touched.size) == topo.triangles_per_vertex[touched]
         self.free = touched[is_free]
         self.anchor = gap.repair_anchor(self.free)
         if not self.free.size:
             return
-        # D_fᵀ and D_fᵀ D_f built edge by edge from index arrays (SciPy's sparse column slicing,
-        # transposes and sums cost 2–3 ms per region, several times the factorization): a corner
-        # edge from vertex a to b adds 1 to (a, a) and (b, b) for each free end and −1 to (a, b)
-        # and (b, a) when both are free.
-        f = self.free.size
+        # Every corner edge at a free vertex lies in the region, so D_fᵀ D_f is the mesh's
+        # D_cᵀ D_c on the free vertices. D_fᵀ is built from index arrays (SciPy's sparse column
+        # slicing and transposes cost 2–3 ms per region, several times the factorization).
         ends = local.reshape(-1, 3)
         start, end = ends.ravel(), ends[:, [1, 2, 0]].ravel()  # edge 3t + c runs from corner c to c + 1
-        numbering = np.cumsum(is_free) - 1  # touched vertex → free index (where free)
+        free_index = np.cumsum(is_free) - 1  # touched vertex → free index (where free)
         start_free, end_free = is_free[start], is_free[end]
-        at = np.r_[numbering[end[end_free]], numbering[start[start_free]]]  # each edge's free end, then free start
         self.free_t = sp.csr_matrix((np.r_[np.ones(end_free.sum()), -np.ones(start_free.sum())],
-                                     (at, np.r_[np.flatnonzero(end_free), np.flatnonzero(start_free)])),
-                                    shape=(f, start.size))  # D_fᵀ
+                                     (np.r_[free_index[end[end_free]], free_index[start[start_free]]],
+                                      np.r_[np.flatnonzero(end_free), np.flatnonzero(start_free)])),
+                                    shape=(self.free.size, start.size))  # D_fᵀ: +1 at each edge's free end, −1 at its free start
         self._held_starts = (np.flatnonzero(~start_free), touched[start[~start_free]])
         self._held_ends = (np.flatnonzero(~end_free), touched[end[~end_free]])
-        both = start_free & end_free
-        a, b = numbering[start[both]], numbering[end[both]]
-        diagonal = np.bincount(at, minlength=f) + self.anchor
-        block = sp.csc_matrix((np.r_[diagonal, -np.ones(2 * a.size)], (np.r_[np.arange(f), a, b], np.r_[np.arange(f), b, a])),
-                              shape=(f, f))
+        block = topo.laplacian[self.free][:, self.free]
+        block.setdiag(block.diagonal() + self.anchor)
         self.lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                             options={"SymmetricMode": True})
 

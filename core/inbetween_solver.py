@@ -273,7 +273,6 @@ class _Topology:
     def apply_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
         """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices
         unchanged)."""
-        c = self.vertex_component
         if self.all_in_one:
             return x @ rotations[0].T + translations[0]
         out = x.copy()
@@ -281,6 +280,7 @@ class _Topology:
             for k, rows in enumerate(self.components):
                 out[rows] = x[rows] @ rotations[k].T + translations[k]
             return out
+        c = self.vertex_component
         used = c >= 0
         out[used] = df.matmul(rotations[c[used]], x[used, :, None])[:, :, 0] + translations[c[used]]
         return out
