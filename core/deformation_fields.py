@@ -39,6 +39,9 @@ MAX_LOG_STRETCH = 30.0
 #: Rotations within this angle (radians) of a half turn may turn either way: both are as short.
 #: Far above rounding (1e-15) and far below any motion meant to turn one way.
 HALF_TURN_TOLERANCE = 1e-6
+#: :func:`turned_coordinate_rows` turns at most this many pieces whose columns are in order one
+#: piece at a time (a product per piece, ~5 µs of Python each); more by gathered 3×3 blocks.
+SLICED_PIECES = 64
 
 
 def matmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -210,6 +213,17 @@ def turned_coordinate_rows(rows: np.ndarray, rotations: np.ndarray, components: 
     ``rotations[components[k]]`` (rotations (C, 3, 3))."""
     if len(rotations) == 1:
         return np.matmul(rotations[0], rows)
+    if components.size and (np.diff(components) >= 0).all():
+        # the pieces' columns in order (the usual case): one product per piece on a view of its
+        # columns, 3.6 → 0.14 ms for two pieces of 10k triangles against the gathered blocks below
+        bounds = np.searchsorted(components, np.arange(len(rotations) + 1))
+        pieces = np.flatnonzero(np.diff(bounds))
+        if pieces.size <= SLICED_PIECES:
+            out = np.empty(rows.shape, dtype=np.result_type(rows, rotations))
+            for c in pieces:
+                columns = slice(bounds[c], bounds[c + 1])
+                out[..., columns] = np.matmul(rotations[c], rows[..., columns])
+            return out
     r = rotations[components]
     return np.stack([sum(r[:, a, b] * rows[..., b, :] for b in range(3)) for a in range(3)], axis=-2)
 
