@@ -140,11 +140,6 @@ IMPACT_SLOWDOWN = 2.0
 #: Two sheets at g = 16: 1.304 → 0.861 × the blend's RMS; numbers, losses (a swinging cape 0.922
 #: → 0.974) and other shares in docs/inbetweens.md, *Pieces the blend barely holds*.
 CENTROID_ANCHOR_SHARE = 0.2
-#: Meshes of at most this many pieces apply the pieces' rigid motions one piece at a time (a 3×3
-#: product over each piece's rows, a view where they are consecutive), more pieces per vertex by
-#: gathered 3×3 blocks: two sheets of 5k vertices each, 2.17 → 0.44 ms per call with the rows
-#: gathered, 0.14 ms as views (111–138 calls per sequence); a piece costs ~5 µs of Python in the loop.
-LOOPED_COMPONENTS = 64
 
 
 #: The splines of positions (their tangents are limited per point, see :class:`core.splines.HermiteGap`).
@@ -280,7 +275,7 @@ class _Topology:
         if self.all_in_one:
             return x @ rotations[0].T + translations[0]
         out = x.copy()
-        if len(self.components) <= LOOPED_COMPONENTS:
+        if len(self.components) <= df.SLICED_PIECES:  # one product per piece, on a view where its rows are consecutive
             for k, rows in enumerate(self.component_blocks):
                 out[rows] = x[rows] @ rotations[k].T + translations[k]
             return out
