@@ -215,13 +215,11 @@ class _Topology:
         self.piece_sizes = np.bincount(self.triangle_component)  # triangles per component
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
         self.all_in_one = len(self.components) == 1 and self.components[0].size == n_vertices  # no loose vertex
-        # what selects each component's vertices: every vertex at once when there is one component
-        # and no loose vertex (no (n, 3) copies of the poses per key and relative)
-        self.component_rows = [slice(None)] if self.all_in_one else self.components
-        # each piece's vertices as a slice where they are consecutive (the usual case: pieces
-        # joined into one object keep their vertex order), for views instead of gathered copies
-        self.component_blocks = [slice(rows[0], rows[-1] + 1) if rows.size and rows[-1] - rows[0] + 1 == rows.size else rows
-                                 for rows in self.components]
+        # what selects each component's vertices: a slice where they are consecutive (one component
+        # and no loose vertex, or pieces joined into one object in their vertex order), so that the
+        # poses per key, relative and rigid motion are views rather than (n, 3) copies
+        self.component_rows = [slice(rows[0], rows[-1] + 1) if rows.size and rows[-1] - rows[0] + 1 == rows.size else rows
+                               for rows in self.components]
         self.triangles_per_vertex = np.bincount(t.ravel(), minlength=n_vertices)
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
@@ -276,7 +274,7 @@ class _Topology:
             return x @ rotations[0].T + translations[0]
         out = x.copy()
         if len(self.components) <= df.SLICED_PIECES:  # one product per piece, on a view where its rows are consecutive
-            for k, rows in enumerate(self.component_blocks):
+            for k, rows in enumerate(self.component_rows):
                 out[rows] = x[rows] @ rotations[k].T + translations[k]
             return out
         c = self.vertex_component
