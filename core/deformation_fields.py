@@ -174,6 +174,19 @@ def exp_stretch(log: np.ndarray) -> np.ndarray:
     return np.stack([diagonal + slope * half, slope * off, diagonal - slope * half], axis=1)
 
 
+def sqrt_stretch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal square roots of symmetric 2×2 matrices ``(g11, g12, g22)`` (m, 3), same packing,
+    and where they exist (bool (m,): positive definite): ``√G = (G + √det G · I) / √(tr G + 2 √det G)``
+    (Cayley–Hamilton; the eigenvalues are ``μ ± ρ``). Rows that are not positive definite get I."""
+    mean, _, _, radius = _symmetric_parts(g)
+    ok = mean - radius > np.finfo(float).tiny
+    root_det = np.sqrt(np.where(ok, (mean - radius) * (mean + radius), 1.0))
+    scale = 1.0 / np.sqrt(np.where(ok, 2.0 * (mean + root_det), 4.0))
+    out = np.stack([(g[:, 0] + root_det) * scale, g[:, 1] * scale, (g[:, 2] + root_det) * scale], axis=1)
+    out[~ok] = (1.0, 0.0, 1.0)
+    return out, ok
+
+
 def apply_stretch(s: np.ndarray, coordinates: np.ndarray) -> np.ndarray:
     """``S v`` for packed symmetric 2×2 ``s`` (m, 3) and tangent vectors ``coordinates`` (m, c, 2)."""
     x, y = coordinates[..., 0], coordinates[..., 1]

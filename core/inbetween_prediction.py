@@ -238,7 +238,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     if not np.isfinite(x).all():
         return gap.pose(s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
-    defects = gap.repair.defects(x, s, None, None, log_stretch=gap.splines["log_stretch"].at(s))
+    defects = gap.repair.defects(x, s, None, gap.stretch(s))
     if not defects.any():
         return gap.finished((x, None), s)
     return gap.repaired(x, s, rings, defects)

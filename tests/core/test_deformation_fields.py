@@ -1,7 +1,7 @@
 """Per-triangle deformation fields (core/deformation_fields.py) against independent formulas."""
 
 import numpy as np
-from scipy.linalg import expm, logm, polar
+from scipy.linalg import expm, logm, polar, sqrtm
 from scipy.spatial.transform import Rotation
 
 import core.deformation_fields as df
@@ -44,6 +44,21 @@ def test_planar_polar_matches_scipy_and_exp_inverts_log():
         exps = df.exp_stretch(log)
         for k in range(len(log)):
             assert np.allclose(packed(exps[k]), expm(packed(log[k])), rtol=1e-12, atol=1e-14)
+
+
+def test_sqrt_stretch_matches_scipy_and_reports_what_has_no_root():
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(300, 2, 2))
+    spd = a @ a.transpose(0, 2, 1) + 1e-3 * np.eye(2)
+    spd[:5] = np.diag([1e-6, 50.0])  # far from isotropic
+    packed = np.stack([spd[:, 0, 0], spd[:, 0, 1], spd[:, 1, 1]], axis=1)
+    root, ok = df.sqrt_stretch(packed)
+    assert ok.all()
+    for r, g in zip(root, spd):
+        expected = sqrtm(g).real
+        assert np.allclose([[r[0], r[1]], [r[1], r[2]]], expected, rtol=1e-9, atol=1e-12)
+    indefinite = np.array([[1.0, 2.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, -1.0]])
+    assert not df.sqrt_stretch(indefinite)[1].any()
 
 
 def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
