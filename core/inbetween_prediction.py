@@ -233,12 +233,19 @@ def _inconsistent(gap, solved: dict) -> bool:
 
 def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
-    defect."""
+    defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
+    had none left), the pose solved at ``s`` instead if it has fewer."""
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
     if not np.isfinite(x).all():
         return gap.pose(s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
-    defects = gap.repair.defects(x, s, None, gap.stretch(s))
+    stretch = gap.stretch(s)
+    defects = gap.repair.defects(x, s, None, stretch)
     if not defects.any():
         return gap.finished((x, None), s)
-    return gap.repaired(x, s, rings, defects)
+    result = gap.repaired(x, s, rings, defects)
+    if result[1] is None or rings is not None:
+        return result
+    # the gap's solved in-betweens are clean but no repair cleans this prediction: solve it too
+    solved = gap.pose(s)
+    return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, stretch).sum()))

@@ -149,11 +149,15 @@ class Repair:
 
     # --- repair and fallbacks
 
-    def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None) -> tuple[np.ndarray, str | None]:
+    def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
+                looser=None) -> tuple[np.ndarray, str | None]:
         """``(x, None)`` if the fit ``x`` is defect-free, else a repair or a fallback with the
         message saying which (``x0``: the Poisson solve of the interpolated field, or ``x`` itself
         when there is none; ``rings``: the repair rounds, :data:`REPAIR_RINGS` or fewer;
-        ``defects``: :meth:`defects` of ``x`` if the caller has them)."""
+        ``defects``: :meth:`defects` of ``x`` if the caller has them; ``looser``: the fit's step
+        within the whole key-to-key change's tolerance, or None (see
+        :data:`core.inbetween_fit.TOLERANCE_TRIM`): where the repairs fail it is returned if it has
+        no defect, a fit as the fit's stop allowed before)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
@@ -165,6 +169,8 @@ class Repair:
             z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings)
             if z is not None:
                 return z, None
+        if looser is not None and self.problem(looser, s, frames, stretch) is None:
+            return looser, None
         if gap.use_extrinsic and x0 is not x and self.problem(x0, s, frames, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
         if best is not None and self.in_sequence(s):  # keeps the metric, as its neighbours in time do

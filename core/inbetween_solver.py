@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
 from .inbetween_carried import CarriedPieces
-from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit
+from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, fit_tolerances
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
 from .sparse_cholesky import SPDFactor
@@ -53,8 +53,8 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: SMOOTH_SPLINE_STRAIN (mean relative deviation) and by no more than the linear blend's (up to
 #: METRIC_TOLERANCE: where the cloth barely moves both are ~1e-4 and their order is noise). A
 #: spline that keeps the cloth's lengths is right at short wavelengths too: SMOOTH_ANCHOR_WEIGHT
-#: where its deviation is within the fit's own tolerance of the metric (the pull then costs no more
-#: edge length than the fit allows), SMOOTH_NEAR_ANCHOR_WEIGHT elsewhere under
+#: where its deviation is within the fit's tolerance of the metric before trimming (the pull then
+#: costs no more edge length than a fit stopped there, see :data:`core.inbetween_fit.TOLERANCE_TRIM`), SMOOTH_NEAR_ANCHOR_WEIGHT elsewhere under
 #: SMOOTH_SPLINE_STRAIN (an isometric bend whose last gap's spline deviates by 0.39 %: 0.1 there
 #: gave 0.25 % edge deviation, 3e-2 0.14 %). Keys 4 frames apart, RMS ÷ the Catmull–Rom
 #: spline's: flag pinned at its pole 1.054 → 0.889, hanging sheet 1.009 → 0.936, falling sheet
@@ -324,15 +324,14 @@ class _Gap(LocalGlobalFit):
         self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
-        variation = float(np.mean(np.abs(nxt.lengths / base.lengths - 1.0)))
-        self.tolerance = max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * variation)
+        self.tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
         self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
         if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
             reference = np.maximum(0.5 * (base.lengths + nxt.lengths).T, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
             strain = self.mid_gap_strain(spline["world"].at(0.5), reference)
             if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(
                     0.5 * (base.vertices + nxt.vertices), reference) + METRIC_TOLERANCE:
-                self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
+                self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.change_tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
         self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
@@ -594,16 +593,18 @@ class _Gap(LocalGlobalFit):
                 x0 = self.place(self.solve(targets["edges"], guide), s, motion)
             else:
                 x0 = self.place(guide.copy(), s, motion)
-            misfits = []
-            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits)
+            misfits, looser = [], []
+            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits, looser=looser)
             weak = weak is None and between and self.held(misfits)
         if between and weak:
             system = self.weak_system()
             x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
-            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=system)
+            looser = []
+            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=system, looser=looser)
         if between:
             self.held_factors[s] = bool(weak)
-        return self.finished(self.repair.checked(x, x0, s, frames, stretch, guide, motion), s)
+        checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None)
+        return self.finished(checked, s)
 
     def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the

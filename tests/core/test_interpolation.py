@@ -828,3 +828,84 @@ def test_a_rough_gap_is_solved_with_the_wide_rotation_limit_and_gives_it_back(mo
     assert len(after) >= 12 and set(after) == {inbetween_prediction.ROUGH_ROTATION_DEVIATION}
     assert seq._gap(1).rotation_limit == inbetween_fit.MAX_ROTATION_DEVIATION
     np.testing.assert_allclose(seq.poses(1, factors), first, atol=1e-12)
+
+
+def test_fit_tolerance_leaves_out_the_edges_a_fold_collapses():
+    """Keys whose edges all change by 2 % but for 0.5 % of them that collapse by 60 %: the fit's
+    tolerance is half the 2 % (TOLERANCE_TRIM drops the largest 1 %), the whole change's includes
+    them; no change gives the METRIC_TOLERANCE floor."""
+    from core.inbetween_fit import METRIC_TOLERANCE, fit_tolerances
+
+    base = np.random.default_rng(5).uniform(0.5, 2.0, size=(3, 20000))
+    change = np.full(base.shape, 0.02)
+    change.ravel()[::200] = -0.6
+    fit, whole = fit_tolerances(base, base * (1.0 + change))
+    assert fit == pytest.approx(0.5 * 0.02, rel=1e-12)
+    assert whole == pytest.approx(0.5 * (0.995 * 0.02 + 0.005 * 0.6), rel=1e-12)
+    assert fit_tolerances(base, base.copy()) == (METRIC_TOLERANCE, METRIC_TOLERANCE)
+
+
+def test_a_stalled_fit_returns_its_best_step(monkeypatch, strip):
+    """A fit whose misfit rises again before it stalls returns the positions of its lowest misfit,
+    not its last step."""
+    from core import inbetween_fit
+
+    flat, tri = strip
+    seq = SequenceInterpolator([flat, _bend(flat, 0.6), _bend(flat, 1.2)], tri)
+    gap = seq._gap(0)
+    gap.select(0.5)
+    frames, stretch, motion, guide = gap.targets(0.5)
+    script = iter([3.0, 2.0, 2.5, 2.6, 2.7, 2.8])  # × the tolerance: stalls at the fourth step
+    steps = []
+
+    def scripted(self, edges, targets):
+        return next(script) * self.tolerance
+
+    real_edges = inbetween_fit.LocalGlobalFit.edges_of
+
+    def recording_edges(self, x, *args):
+        steps.append(x)
+        return real_edges(self, x, *args)
+
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "misfit", scripted)
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "edges_of", recording_edges)
+    misfits = []
+    x = gap.fit(guide.copy(), stretch, frames, guide, 0.5, motion, misfits=misfits)
+    assert len(misfits) == 4 and x is steps[1]
+
+
+def test_a_fit_that_folds_past_the_whole_change_tolerance_falls_back_to_its_step_there(monkeypatch, strip):
+    """A sequence's fit that ends with defects no repair removes returns, without a warning, its
+    step where it would have stopped at the tolerance of the whole key-to-key change (see
+    TOLERANCE_TRIM) when that step is clean."""
+    import core.inbetween_repair as repair
+    from core import inbetween_fit
+
+    flat, tri = strip
+    seq = SequenceInterpolator([flat, _bend(flat, 0.6), _bend(flat, 1.2)], tri)
+    gap = seq._gap(0)
+    gap.change_tolerance = 2.2 * gap.tolerance
+    script = [3.0, 2.0, 1.5, 1.2]  # × the tolerance: within the whole change's at the second step
+    steps = []
+
+    def scripted(self, edges, targets):
+        return script[min(len(steps), len(script)) - 1] * self.tolerance
+
+    real_edges = inbetween_fit.LocalGlobalFit.edges_of
+
+    def recording_edges(self, x, *args):
+        steps.append(x)
+        return real_edges(self, x, *args)
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if x is steps[1] else 3] = True
+        return out if rows is None else out[rows]
+
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "misfit", scripted)
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "edges_of", recording_edges)
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x, problem = gap.pose(0.5)
+    assert problem is None and x is steps[1]
