@@ -246,6 +246,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     result = gap.repaired(x, s, rings, defects)
     if result[1] is None or rings is not None:
         return result
-    # the gap's solved in-betweens are clean but no repair cleans this prediction: solve it too
-    solved = gap.pose(s)
+    # the gap's solved in-betweens are clean but no repair cleans this prediction: solve it too,
+    # with the weak anchor if they were (see _solved)
+    solved = gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
     return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, stretch).sum()))
