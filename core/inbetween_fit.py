@@ -36,8 +36,8 @@ KEY_VARIATION_FRACTION = 0.5
 #: edges the simulation collapses between the keys (folds forming) otherwise set it (10k drape,
 #: keys 16 apart: a tolerance of 3.61 % with them, 0.85 % without, and every fit stopped at its
 #: Poisson solve). The whole change still sets the gap's anchor (see
-#: :data:`core.inbetween_solver.SMOOTH_ANCHOR_WEIGHT`), and a fit that ends with flipped triangles
-#: falls back to its step at that looser tolerance where the step is free of them.
+#: :data:`core.inbetween_solver.SMOOTH_ANCHOR_WEIGHT`), and a fit that ends with defects no repair
+#: removes falls back to its step at that looser tolerance where the step is free of them.
 TOLERANCE_TRIM = 0.01
 #: The fit also stops when its misfit is below STALL_NEAR × the tolerance and fell by less than
 #: STALL_FRACTION over the last two steps: the interpolated metric is not reachable there (the
@@ -189,7 +189,8 @@ class LocalGlobalFit:
         (Peng et al., TOG 2018: local/global steps converge slowly on the smooth part of the
         error, which the mixing extrapolates); stops once the edge lengths are within the gap's
         tolerance of the metric (see :data:`METRIC_TOLERANCE`), or within :data:`STALL_NEAR` × it
-        and no longer improving (:data:`STALL_FRACTION`); ``targets``: ``fit_targets(frames,
+        and no longer improving (:data:`STALL_FRACTION`), and then returns its step of lowest
+        misfit; ``targets``: ``fit_targets(frames,
         stretch)`` if the caller has them; ``misfits``: a list the misfit of each step is appended to;
         ``looser``: a list the first step where the fit would stop at ``self.change_tolerance`` is
         appended to (see :data:`TOLERANCE_TRIM`) when it goes on past it."""

@@ -54,9 +54,10 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 #: METRIC_TOLERANCE: where the cloth barely moves both are ~1e-4 and their order is noise). A
 #: spline that keeps the cloth's lengths is right at short wavelengths too: SMOOTH_ANCHOR_WEIGHT
 #: where its deviation is within the fit's tolerance of the metric before trimming (the pull then
-#: costs no more edge length than a fit stopped there, see :data:`core.inbetween_fit.TOLERANCE_TRIM`), SMOOTH_NEAR_ANCHOR_WEIGHT elsewhere under
-#: SMOOTH_SPLINE_STRAIN (an isometric bend whose last gap's spline deviates by 0.39 %: 0.1 there
-#: gave 0.25 % edge deviation, 3e-2 0.14 %). Keys 4 frames apart, RMS ÷ the Catmull–Rom
+#: costs no more edge length than a fit stopped there, see :data:`core.inbetween_fit.TOLERANCE_TRIM`),
+#: SMOOTH_NEAR_ANCHOR_WEIGHT elsewhere under SMOOTH_SPLINE_STRAIN (an isometric bend whose last
+#: gap's spline deviates by 0.39 %: 0.1 there gave 0.25 % edge deviation, 3e-2 0.14 %). Keys 4
+#: frames apart, RMS ÷ the Catmull–Rom
 #: spline's: flag pinned at its pole 1.054 → 0.889, hanging sheet 1.009 → 0.936, falling sheet
 #: 0.964 → 0.875 (with the start parabola); baked for a check, a soft 6,400-vertex flag 1.013 (3e-2
 #: in every smooth gap: 1.035, 0.1: 0.999). Where the spline does not keep the lengths (keys 16
@@ -489,9 +490,9 @@ class _Gap(LocalGlobalFit):
     def stretch(self, s: float) -> np.ndarray:
         """The interpolated stretches (packed (m, 3)) at factor ``s``. Between the keys, the square
         root of the spline of the metrics ``G = U²`` (the first fundamental form in the base's
-        tangent bases, linear in squared edge lengths): a strongly compressed edge shortens along
-        it as cloth does, where the spline of ``log U`` shortens it early (10k drape, gap 16:
-        edge deviation 2.00 → 1.88 %, RMS the same). The log spline where that metric is not
+        tangent bases, linear in squared edge lengths): an edge a fold collapses between the keys
+        shortens late, as cloth does, where the spline of ``log U`` shortens it early (numbers in
+        docs/inbetweens.md, *What is interpolated*). The log spline where that metric is not
         positive definite, and outside the keys, where exaggerations need it to stay so."""
         log = self.splines["log_stretch"]
         if not 0.0 < s < 1.0:
