@@ -174,6 +174,13 @@ def exp_stretch(log: np.ndarray) -> np.ndarray:
     return np.stack([diagonal + slope * half, slope * off, diagonal - slope * half], axis=1)
 
 
+def squared_stretch(u: np.ndarray) -> np.ndarray:
+    """``U²`` of symmetric 2×2 matrices ``(u11, u12, u22)`` (m, 3), same packing: the metric
+    ``G = UᵀU`` of a planar map with stretch ``U``."""
+    a, b, c = u[:, 0], u[:, 1], u[:, 2]
+    return np.stack([a * a + b * b, b * (a + c), b * b + c * c], axis=1)
+
+
 def sqrt_stretch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Principal square roots of symmetric 2×2 matrices ``(g11, g12, g22)`` (m, 3), same packing,
     and where they exist (bool (m,): positive definite): ``√G = (G + √det G · I) / √(tr G + 2 √det G)``

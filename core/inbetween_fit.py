@@ -32,10 +32,11 @@ ANDERSON_WINDOW = 3
 #: stiff 1k drape, keys 16 apart, change 0.5 %: the steps take the edge deviation 1.10 → 0.48 %).
 METRIC_TOLERANCE = 1e-3
 KEY_VARIATION_FRACTION = 0.5
-#: The key-to-key change behind the fit's stop leaves out its TOLERANCE_TRIM largest share: a few
-#: edges the simulation collapses between the keys (folds forming) otherwise set it (10k drape,
-#: keys 16 apart: a tolerance of 3.61 % with them, 0.85 % without, and every fit stopped at its
-#: Poisson solve). The whole change still sets the gap's anchor (see
+#: In large batches (:data:`core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH`) the key-to-key
+#: change behind the fit's stop leaves out its TOLERANCE_TRIM largest share: a few edges the
+#: simulation collapses between the keys (folds forming) otherwise set it (10k drape, keys 16
+#: apart: a tolerance of 3.61 % with them, 0.85 % without, and every fit stopped at its Poisson
+#: solve). The whole change still sets the gap's anchor (see
 #: :data:`core.inbetween_solver.SMOOTH_ANCHOR_WEIGHT`), and a fit that ends with defects no repair
 #: removes falls back to its step at that looser tolerance where the step is free of them.
 TOLERANCE_TRIM = 0.01

@@ -60,8 +60,8 @@ class _Key:
 class _Relative:
     """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
     (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
-    log-stretches (packed 2×2 in the base's tangent bases (m, 3)) and the vertices with their
-    component's rigid motion undone (n, 3)."""
+    log-stretches and metrics ``G = U²`` (packed 2×2 in the base's tangent bases (m, 3) each) and
+    the vertices with their component's rigid motion undone (n, 3)."""
 
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
         rotations, translations, self.misfits = rigid_fits(topo, base.vertices, other.vertices)
@@ -77,6 +77,7 @@ class _Relative:
         frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
+        self.metric = df.squared_stretch(stretch) if log_stretch is None else df.exp_stretch(2.0 * log_stretch)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
         self.centroids = other.centroids
@@ -120,7 +121,8 @@ class _Relative:
         again: the rigid motions inverted, rotation residuals ``−R_c q`` (the residual's inverse
         conjugated by its component's rotation), log-stretches ``−Q(θ) log S Q(θ)ᵀ`` (the planar
         map's inverse is ``S⁻¹ Q(−θ)``, whose stretch in the base's tangent basis is
-        ``Q(θ) S⁻¹ Q(θ)ᵀ``). ``turns`` as for the constructor (unwrapped)."""
+        ``Q(θ) S⁻¹ Q(θ)ᵀ``), metrics ``(Q(θ) G Q(θ)ᵀ)⁻¹``. ``turns`` as for the constructor
+        (unwrapped)."""
         out = _Relative.__new__(_Relative)
         rotations, translations = self.motion
         inverse_rotations = df.transpose(rotations)
@@ -130,10 +132,9 @@ class _Relative:
         out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
         cos, sin = self.turn
-        l11, l12, l22 = self.log_stretch.T
-        out.log_stretch = -np.stack([cos * cos * l11 - 2 * cos * sin * l12 + sin * sin * l22,
-                                     cos * sin * (l11 - l22) + (cos * cos - sin * sin) * l12,
-                                     sin * sin * l11 + 2 * cos * sin * l12 + cos * cos * l22], axis=1)
+        out.log_stretch = -_turned(self.log_stretch, cos, sin)
+        g11, g12, g22 = _turned(self.metric, cos, sin).T  # the metric of the inverse: its inverse
+        out.metric = np.stack([g22, -g12, g11], axis=1) / (g11 * g22 - g12 * g12)[:, None]
         out.vertices = topo.apply_motion(other.vertices, rotations, translations)
         out.world = other.vertices
         out.centroids = other.centroids
@@ -159,6 +160,7 @@ class _Relative:
         self = cls.__new__(cls)
         m = topo.triangles.shape[0]
         self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
+        self.metric = np.tile([1.0, 0.0, 1.0], (m, 1))
         self.screw = np.zeros((len(topo.components), 6))
         self.vertices = self.world = base.vertices
         self.centroids = base.centroids
@@ -170,16 +172,26 @@ class _Relative:
         """The key one step beyond ``current`` (end condition of the spline): the linear
         extrapolation 2·current − previous, or with ``farther`` (the key before ``previous``) for
         the motion (:data:`KINEMATIC`) the parabola through the three, 3·current − 3·previous +
-        farther."""
+        farther; the metric that of the extrapolated log-stretch (positive definite)."""
         self = _Relative.__new__(_Relative)
         for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
             c, p = getattr(current, name), getattr(previous, name)
             quadratic = farther is not None and name in KINEMATIC
             setattr(self, name, 3 * (c - p) + getattr(farther, name) if quadratic else 2 * c - p)
+        self.metric = df.exp_stretch(2.0 * self.log_stretch)
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         if farther is not None:
             self.nonrigidity = np.maximum(self.nonrigidity, farther.nonrigidity)
         return self
+
+
+def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
+    """``Q(θ) A Q(θ)ᵀ`` of symmetric 2×2 matrices ``A`` packed (m, 3), ``θ`` given by its cosines
+    and sines (m,)."""
+    a11, a12, a22 = packed.T
+    return np.stack([cos * cos * a11 - 2 * cos * sin * a12 + sin * sin * a22,
+                     cos * sin * (a11 - a22) + (cos * cos - sin * sin) * a12,
+                     sin * sin * a11 + 2 * cos * sin * a12 + cos * cos * a22], axis=1)
 
 
 def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool) -> np.ndarray:

@@ -68,6 +68,13 @@ SLOPE_STEP = 1e-4
 #: RMS of solving the quarter points; with keys 8 apart the middle alone lost (10k hanging sheet
 #: 0.783 → 0.834, the balloon's edge deviation 1.56 → 2.00 %).
 MIDDLE_SOLVED_BATCH = 3
+#: Batches of at least this many in-betweens (keys 9 frames apart or more: three solved factors,
+#: each predicting several others) fit to the tolerance without the largest key-to-key changes
+#: (:data:`core.inbetween_fit.TOLERANCE_TRIM`); smaller ones to the whole change's. Where one
+#: solved in-between serves three (keys 4 apart) or two serve seven (8 apart) the extra fit steps
+#: cost 15–45 % per in-between on the cheapest 10k bakes, for edge deviation already within its
+#: bound there (numbers in docs/inbetweens.md, *Design numbers*).
+TRIMMED_TOLERANCE_BATCH = 8
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
@@ -105,6 +112,8 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     keys included) of ``gap`` (a ``core.inbetween_solver._Gap``). The in-betweens are solved,
     and predicted, concurrently (:func:`core.concurrency.concurrently`)."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
+    trimmed = not gap.anchored and len(interior) >= TRIMMED_TOLERANCE_BATCH
+    gap.tolerance = gap.trimmed_tolerance if trimmed else gap.change_tolerance
     if gap.anchored or len(interior) < MIN_PREDICTED_BATCH:
         return _solved(gap, factors, {})
     if len(interior) <= MIDDLE_SOLVED_BATCH:
@@ -239,8 +248,8 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     if not np.isfinite(x).all():
         return gap.pose(s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
-    stretch = gap.stretch(s)
-    defects = gap.repair.defects(x, s, None, stretch)
+    scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
+    defects = gap.repair.defects(x, s, None, None, scale=scale)
     if not defects.any():
         return gap.finished((x, None), s)
     result = gap.repaired(x, s, rings, defects)
@@ -249,4 +258,4 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     # the gap's solved in-betweens are clean but no repair cleans this prediction: solve it too,
     # with the weak anchor if they were (see _solved)
     solved = gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
-    return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, stretch).sum()))
+    return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, None, scale=scale).sum()))

@@ -102,10 +102,11 @@ class Repair:
             return coordinate_dot(cross, frames[2][rows].T) < 0
         return coordinate_dot(cross, (gap.base if s < 0.5 else gap.next).normal_rows[:, rows]) < 0
 
-    def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None) -> np.ndarray:
+    def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None, scale=None) -> np.ndarray:
         """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
         ``rows``); all of them if ``x`` is not finite. The interpolated areas come from
-        ``stretch`` (packed (m, 3))."""
+        ``stretch`` (packed (m, 3)) or, if given instead, their ratios to the base's ``scale``
+        (m,; :meth:`core.inbetween_solver._Gap.area_scale`)."""
         m = len(self.gap.topo.triangles)
         if not np.isfinite(x).all():
             return np.ones(m if rows is None else len(rows), dtype=bool)
@@ -117,8 +118,11 @@ class Repair:
             t = self.gap.topo.triangles[rows]
             e1, e2 = (x[t[:, 1]] - x[t[:, 0]]).T, (x[t[:, 2]] - x[t[:, 0]]).T
         cross = coordinate_cross(e1, e2)
-        st = stretch[rows]
-        scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
+        if scale is None:
+            st = stretch[rows]
+            scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
+        else:
+            scale = scale[rows]
         target = self.gap.base.areas[rows] * scale
         collapsed = 0.5 * np.sqrt(coordinate_dot(cross, cross)) < COLLAPSE_RATIO * target
         return self.flipped(cross, s, frames, rows) | collapsed

@@ -319,13 +319,16 @@ class _Gap(LocalGlobalFit):
         spline = {name: hermite(name, [getattr(r, name) for r in relatives])
                   for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
         # between the keys the stretch comes from the metrics G = U² (see stretch)
-        spline["metric"] = hermite("log_stretch", [df.exp_stretch(2.0 * r.log_stretch) for r in relatives])
+        spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
         self.anchored = anchored
         self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
-        self.tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
+        # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
+        # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH)
+        self.trimmed_tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
+        self.tolerance = self.change_tolerance
         self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
         if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
             reference = np.maximum(0.5 * (base.lengths + nxt.lengths).T, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
@@ -501,6 +504,22 @@ class _Gap(LocalGlobalFit):
         if not ok.all():
             stretch[~ok] = df.exp_stretch(log.at(s)[~ok])
         return stretch
+
+    def area_scale(self, s: float) -> np.ndarray:
+        """``det U`` (m,) of the stretches :meth:`stretch` gives at factor ``s``, without them:
+        ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
+        outside them and where that ``G`` is not positive definite."""
+        if not 0.0 < s < 1.0:
+            log = self.splines["log_stretch"].at(s)
+            return np.exp(log[:, 0] + log[:, 2])
+        g = self.splines["metric"].at(s)
+        det = g[:, 0] * g[:, 2] - g[:, 1] ** 2
+        ok = (det > 0.0) & (g[:, 0] > 0.0)
+        scale = np.sqrt(np.where(ok, det, 1.0))
+        if not ok.all():
+            log = self.splines["log_stretch"].at(s)[~ok]
+            scale[~ok] = np.exp(log[:, 0] + log[:, 2])
+        return scale
 
     def guide(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """The anchor's guide positions (n, 3) at factor ``s`` (``motion``: :meth:`motion` there):

@@ -46,7 +46,7 @@ def test_planar_polar_matches_scipy_and_exp_inverts_log():
             assert np.allclose(packed(exps[k]), expm(packed(log[k])), rtol=1e-12, atol=1e-14)
 
 
-def test_sqrt_stretch_matches_scipy_and_reports_what_has_no_root():
+def test_sqrt_and_square_of_stretches_match_scipy_and_numpy():
     rng = np.random.default_rng(3)
     a = rng.normal(size=(300, 2, 2))
     spd = a @ a.transpose(0, 2, 1) + 1e-3 * np.eye(2)
@@ -59,6 +59,9 @@ def test_sqrt_stretch_matches_scipy_and_reports_what_has_no_root():
         assert np.allclose([[r[0], r[1]], [r[1], r[2]]], expected, rtol=1e-9, atol=1e-12)
     indefinite = np.array([[1.0, 2.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, -1.0]])
     assert not df.sqrt_stretch(indefinite)[1].any()
+    squared = df.squared_stretch(packed)
+    for q, g in zip(squared, spd):
+        np.testing.assert_allclose([[q[0], q[1]], [q[1], q[2]]], g @ g, rtol=1e-12, atol=1e-12)
 
 
 def test_rotation_vectors_of_frames_match_scipy_at_every_angle():

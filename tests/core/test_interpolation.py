@@ -925,7 +925,7 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
         solved = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
     moving = flat[:, 0] > 0.0
 
-    def defects(self, x, s, *args, rows=None):
+    def defects(self, x, s, *args, rows=None, scale=None):
         out = np.zeros(len(tri), dtype=bool)
         # the still vertices (x = 0) are set exactly after the check: compared elsewhere
         out[:0 if np.allclose(x[moving], solved[s][moving], rtol=0, atol=1e-12) else 3] = True
@@ -936,3 +936,28 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
         warnings.simplefilter("error", ShapeDifferenceWarning)
         poses = SequenceInterpolator(keys, tri).poses(0, factors)
     np.testing.assert_allclose(poses, [solved[s] for s in factors], rtol=0, atol=1e-12)
+
+
+def test_area_scale_is_the_determinant_of_the_stretch(strip):
+    """A gap's area ratios (what the defect check of a predicted in-between reads) are det U of
+    its interpolated stretches, between the keys and outside them."""
+    flat, tri = strip
+    keys = [_bend(flat, 0.0), 1.1 * _bend(flat, 0.8), _bend(flat, 1.6)]
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    for s in (0.3, 0.5, 1.5, -0.5):
+        u = gap.stretch(s)
+        np.testing.assert_allclose(gap.area_scale(s), u[:, 0] * u[:, 2] - u[:, 1] ** 2, rtol=1e-12)
+
+
+def test_relatives_carry_the_metric_of_their_log_stretch():
+    """Every relative of a gap — from the poses, inverted from the gap before, the identity and the
+    phantoms past the ends — carries G = exp(2 log U), what the gap's metric spline interpolates."""
+    import core.deformation_fields as df
+
+    flat, tri = _strip()
+    rng = np.random.default_rng(7)
+    keys = [_bend(flat, a) * (1.0 + 0.05 * rng.normal(size=flat.shape)) for a in (0.0, 0.7, 1.4, 2.1)]
+    seq = SequenceInterpolator(keys, tri)
+    for k in range(len(seq)):
+        for r in seq._gap(k).relatives:
+            np.testing.assert_allclose(r.metric, df.exp_stretch(2.0 * r.log_stretch), rtol=1e-9, atol=1e-12)
