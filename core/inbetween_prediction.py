@@ -68,13 +68,13 @@ SLOPE_STEP = 1e-4
 #: RMS of solving the quarter points; with keys 8 apart the middle alone lost (10k hanging sheet
 #: 0.783 → 0.834, the balloon's edge deviation 1.56 → 2.00 %).
 MIDDLE_SOLVED_BATCH = 3
-#: Batches of at least this many in-betweens (keys 9 frames apart or more: three solved factors,
-#: each predicting several others) fit to the tolerance without the largest key-to-key changes
+#: Batches with three solved factors (:data:`FULL_SAMPLE_BATCH` in-betweens or more: keys 9
+#: frames apart or more) fit to the tolerance without the largest key-to-key changes
 #: (:data:`core.inbetween_fit.TOLERANCE_TRIM`); smaller ones to the whole change's. Where one
 #: solved in-between serves three (keys 4 apart) or two serve seven (8 apart) the extra fit steps
 #: cost 15–45 % per in-between on the cheapest 10k bakes, for edge deviation already within its
 #: bound there (numbers in docs/inbetweens.md, *Design numbers*).
-TRIMMED_TOLERANCE_BATCH = 8
+TRIMMED_TOLERANCE_BATCH = FULL_SAMPLE_BATCH
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
