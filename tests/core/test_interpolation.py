@@ -961,3 +961,28 @@ def test_relatives_carry_the_metric_of_their_log_stretch():
     for k in range(len(seq)):
         for r in seq._gap(k).relatives:
             np.testing.assert_allclose(r.metric, df.exp_stretch(2.0 * r.log_stretch), rtol=1e-9, atol=1e-12)
+
+
+def test_stretch_falls_back_to_the_log_spline_where_the_metric_spline_is_not_positive_definite(monkeypatch, strip):
+    """Where the cubic spline of the metric leaves the positive definite matrices (it can, between
+    keys far apart) the stretch and its area ratio are the log spline's there, and the metric's
+    square root elsewhere."""
+    import core.deformation_fields as df
+
+    flat, tri = strip
+    keys = [_bend(flat, 0.0), 1.1 * _bend(flat, 0.8), _bend(flat, 1.6)]
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    spline, real_at = gap.splines["metric"], gap.splines["metric"].at
+    broken = np.zeros(len(tri), dtype=bool)
+    broken[::7] = True
+
+    def at(s):
+        g = real_at(s)
+        g[broken] = (1.0, 2.0, 1.0)  # eigenvalues 3 and −1
+        return g
+
+    monkeypatch.setattr(spline, "at", at)
+    u = gap.stretch(0.4)
+    np.testing.assert_allclose(u[broken], df.exp_stretch(gap.splines["log_stretch"].at(0.4)[broken]), rtol=1e-12)
+    np.testing.assert_allclose(u[~broken], df.sqrt_stretch(real_at(0.4))[0][~broken], rtol=1e-12)
+    np.testing.assert_allclose(gap.area_scale(0.4), u[:, 0] * u[:, 2] - u[:, 1] ** 2, rtol=1e-12)
