@@ -181,14 +181,20 @@ def squared_stretch(u: np.ndarray) -> np.ndarray:
     return np.stack([a * a + b * b, b * (a + c), b * b + c * c], axis=1)
 
 
+def sqrt_det(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``√det G`` (m,) of symmetric 2×2 matrices ``(g11, g12, g22)`` (m, 3) and where they are
+    positive definite (bool (m,); elsewhere the root is 1): the eigenvalues are ``μ ± ρ``."""
+    mean, _, _, radius = _symmetric_parts(g)
+    ok = mean - radius > np.finfo(float).tiny
+    return np.sqrt(np.where(ok, (mean - radius) * (mean + radius), 1.0)), ok
+
+
 def sqrt_stretch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Principal square roots of symmetric 2×2 matrices ``(g11, g12, g22)`` (m, 3), same packing,
     and where they exist (bool (m,): positive definite): ``√G = (G + √det G · I) / √(tr G + 2 √det G)``
     (Cayley–Hamilton; the eigenvalues are ``μ ± ρ``). Rows that are not positive definite get I."""
-    mean, _, _, radius = _symmetric_parts(g)
-    ok = mean - radius > np.finfo(float).tiny
-    root_det = np.sqrt(np.where(ok, (mean - radius) * (mean + radius), 1.0))
-    scale = 1.0 / np.sqrt(np.where(ok, 2.0 * (mean + root_det), 4.0))
+    root_det, ok = sqrt_det(g)
+    scale = 1.0 / np.sqrt(np.where(ok, g[:, 0] + g[:, 2] + 2.0 * root_det, 4.0))
     out = np.stack([(g[:, 0] + root_det) * scale, g[:, 1] * scale, (g[:, 2] + root_det) * scale], axis=1)
     out[~ok] = (1.0, 0.0, 1.0)
     return out, ok

@@ -512,10 +512,7 @@ class _Gap(LocalGlobalFit):
         if not 0.0 < s < 1.0:
             log = self.splines["log_stretch"].at(s)
             return np.exp(log[:, 0] + log[:, 2])
-        g = self.splines["metric"].at(s)
-        det = g[:, 0] * g[:, 2] - g[:, 1] ** 2
-        ok = (det > 0.0) & (g[:, 0] > 0.0)
-        scale = np.sqrt(np.where(ok, det, 1.0))
+        scale, ok = df.sqrt_det(self.splines["metric"].at(s))
         if not ok.all():
             log = self.splines["log_stretch"].at(s)[~ok]
             scale[~ok] = np.exp(log[:, 0] + log[:, 2])
