@@ -37,6 +37,13 @@ GAUGE_WEIGHT = 1e-7
 BLEND_ANCHOR_WEIGHT = 0.1
 BLEND_SHORTENING_SCALE = 0.01
 BLEND_SHORTENING_CUTOFF = 0.1
+#: ... and the blend is taken with the component's rigid motion undone only where that motion also
+#: takes the vertex to within this fraction of the component's diagonal of where it is: a part
+#: that turns as the whole component does but about another pivot (the middle segment of a finger
+#: curled by two equal joints) keeps its edge vectors once the turn is undone, yet the component's
+#: screw motion carries it along the wrong path (curled 60° / 60°: 0.9 % of the diagonal off at
+#: 0.5, edges 62 % off at × 2).
+CO_MOVING_DRIFT = 0.01
 #: Anchor weight (per unit vertex mass) of the vertices that sit still in every key of a sequence
 #: (pinned cloth): large enough that they stay put to ~1e-3 of the edge terms' pull (and are then
 #: set exactly), small enough to leave the normal matrix well conditioned.
@@ -466,7 +473,10 @@ class _Gap(LocalGlobalFit):
 
         co_moving_change = per_vertex(np.linalg.norm(c - a, axis=1) / length_a)
         world_change = per_vertex(np.linalg.norm(b - a, axis=1) / length_a)
-        co_moving = (co_moving_change < BLEND_SHORTENING_SCALE) & (co_moving_change < world_change)
+        component = np.maximum(topo.vertex_component, 0)
+        drift = np.linalg.norm(undone - self.base.vertices, axis=1) / self.base.diagonals[component]
+        co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & (co_moving_change < world_change)
+                     & (drift < CO_MOVING_DRIFT))
         if between:
             change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
         else:

@@ -276,6 +276,78 @@ def test_exaggerated_bend_does_not_flip():
     assert np.abs(lengths / rest - 1).max() < 0.02
 
 
+def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
+    """A strip along x ∈ [0, 3] curled about y at the ``joints`` (each bend spread over 0.2 of
+    its length) by ``angles`` (radians): the centre line integrated from its turning angle, so the
+    segments between the joints stay straight and rigid and the strip keeps its length."""
+    flat, tri = grid(n, width, size=length)
+    u = flat[:, 0]
+    fine = np.linspace(0.0, u.max(), 20001)
+    turn = sum(angle * np.clip((fine - joint) / 0.2, 0.0, 1.0) for angle, joint in zip(angles, joints))
+    step = np.diff(fine)
+    x = np.concatenate([[0.0], np.cumsum(np.cos(turn[:-1]) * step)])
+    z = np.concatenate([[0.0], np.cumsum(np.sin(turn[:-1]) * step)])
+    out = flat.copy()
+    out[:, 0], out[:, 2] = np.interp(u, fine, x), np.interp(u, fine, z)
+    return out, tri
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_a_strip_curled_at_two_joints_is_exaggerated_about_its_joints(degrees):
+    """Two joints curled by the same angle: the middle segment turns as the whole strip's best
+    rigid motion does, but about its own joint. Exaggerated ×1.5 and ×2 it is the strip curled by
+    1.5 and 2 × the angles (to 1e-3 of the diagonal: the joints' chords shorten a little as they
+    curl further) with the first segment fixed; taken along the whole strip's screw motion instead,
+    the middle segment left its joint (×2 of 60° / 60°: 7 % of the diagonal, edges 62 % off)."""
+    a, tri = _curled_strip((0.0, 0.0))
+    b, _ = _curled_strip((np.radians(degrees),) * 2)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, b, tri)
+    fixed = a[:, 0] < 0.85
+    for factor in (1.5, 2.0):
+        x = interpolator.pose(factor)
+        truth, _ = _curled_strip((factor * np.radians(degrees),) * 2)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal
+        assert np.abs(x[fixed] - a[fixed]).max() < 1e-6 * diagonal
+
+
+def test_a_strip_curled_past_a_half_turn_keeps_curling_the_same_way():
+    """Curled by 120° at each of two joints, the tip turns by 240° between the keys: half-way it
+    is the strip curled by 60° / 60° (to 1e-3 of the diagonal), its tip facing away from both
+    keys as the interpolated rotations say. Read as flipped against both keys' normals, the
+    exact fit was “repaired” into another shape (22 % of the diagonal off, 640 triangles facing
+    against the true pose's)."""
+    a, tri = _curled_strip((0.0, 0.0))
+    b, _ = _curled_strip((np.radians(120.0),) * 2)
+    truth, _ = _curled_strip((np.radians(60.0),) * 2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = Interpolator(a, b, tri).pose(0.5)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal
+    assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
+
+def test_a_lid_turned_by_a_half_turn_on_a_fixed_box_stays_rigid():
+    """A lid (a separate piece) turned by exactly 180° about its hinge while the box stays: at
+    every factor the box stays put and the lid is a rigid turn about the hinge (either way round:
+    both are as short). Half-way, its triangles' normals are perpendicular to both keys' in exact
+    arithmetic; read as flipped by rounding, they had a repair bend the lid (edges 56 % off)."""
+    box, box_triangles = icosphere(2)
+    lid, lid_triangles = icosphere(1, radius=0.4)
+    lid = lid + np.array([0.0, 0.0, 1.5])
+    hinge, axis = np.array([0.0, 1.0, 1.0]), np.array([1.0, 0.0, 0.0])
+    turned = _rigid(lid, Rotation.from_rotvec(np.pi * axis).as_matrix(), hinge)
+    tri = np.vstack([box_triangles, lid_triangles + len(box)])
+    interpolator = Interpolator(np.vstack([box, lid]), np.vstack([box, turned]), tri)
+    for s in FACTORS:
+        x = interpolator.pose(s)
+        assert np.abs(x[: len(box)] - box).max() < 1e-6
+        errors = [np.abs(x[len(box):] - _rigid(lid, Rotation.from_rotvec(sign * s * np.pi * axis).as_matrix(),
+                                                hinge)).max() for sign in (1, -1)]
+        assert min(errors) < 1e-6, (s, errors)
+
+
 def test_gap_results_do_not_depend_on_what_was_computed_before():
     """A farm computes gaps in any order, in separate processes: the same gap and factors give
     the same poses whatever was asked before, to round-off. Not bit for bit: on AVX-512 machines
