@@ -222,6 +222,17 @@ class _Topology:
         self.triangle_component = np.searchsorted(kept, labels)
         self.piece_sizes = np.bincount(self.triangle_component)  # triangles per component
         self.vertex_component = np.where(per_vertex >= 0, np.searchsorted(kept, per_vertex), -1)
+        # loose vertices (in no triangle) move with the piece nearest them in the first pose: its
+        # rigid motion carries them (a whole mesh turned rigidly turns them too) and undone, their
+        # keys' spline is interpolated in its frame
+        self.loose = np.flatnonzero(per_vertex < 0)
+        self.vertex_owner = self.vertex_component.copy()
+        if self.loose.size and self.components:
+            from scipy.spatial import cKDTree
+
+            used_rows = np.flatnonzero(per_vertex >= 0)
+            nearest = cKDTree(first_pose[used_rows]).query(first_pose[self.loose])[1]
+            self.vertex_owner[self.loose] = self.vertex_component[used_rows[nearest]]
         self.all_in_one = len(self.components) == 1 and self.components[0].size == n_vertices  # no loose vertex
         # what selects each component's vertices: a slice where they are consecutive (one component
         # and no loose vertex, or pieces joined into one object in their vertex order), so that the
@@ -276,18 +287,21 @@ class _Topology:
         return w @ x[rows] / w.sum()
 
     def apply_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
-        """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices
-        unchanged)."""
+        """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices:
+        their owner's, ``vertex_owner``)."""
         if self.all_in_one:
             return x @ rotations[0].T + translations[0]
-        out = x.copy()
-        if len(self.components) <= df.SLICED_PIECES:  # one product per piece, on a view where its rows are consecutive
-            for k, rows in enumerate(self.component_rows):
-                out[rows] = x[rows] @ rotations[k].T + translations[k]
-            return out
-        c = self.vertex_component
-        used = c >= 0
-        out[used] = df.matmul(rotations[c[used]], x[used, :, None])[:, :, 0] + translations[c[used]]
+        if not self.components:
+            return x.copy()
+        c = self.vertex_owner
+        if len(self.components) > df.SLICED_PIECES:
+            return df.matmul(rotations[c], x[:, :, None])[:, :, 0] + translations[c]
+        out = np.empty_like(x)
+        for k, rows in enumerate(self.component_rows):  # one product per piece, on a view where its rows are consecutive
+            out[rows] = x[rows] @ rotations[k].T + translations[k]
+        if self.loose.size:
+            loose = self.loose
+            out[loose] = df.matmul(rotations[c[loose]], x[loose, :, None])[:, :, 0] + translations[c[loose]]
         return out
 
     def undo_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
@@ -356,7 +370,7 @@ class _Gap(LocalGlobalFit):
         (loose vertices: False)."""
         topo = self.topo
         if name in ("vertices", "world"):
-            rows = np.where(topo.vertex_component >= 0, per_component[np.maximum(topo.vertex_component, 0)], False)
+            rows = per_component[topo.vertex_owner] if topo.components else np.zeros(topo.n, dtype=bool)
         elif name in ("screw", "centroids"):
             rows = per_component
         else:
@@ -473,9 +487,9 @@ class _Gap(LocalGlobalFit):
 
         co_moving_change = per_vertex(np.linalg.norm(c - a, axis=1) / length_a)
         world_change = per_vertex(np.linalg.norm(b - a, axis=1) / length_a)
-        component = np.maximum(topo.vertex_component, 0)
-        drift = np.linalg.norm(undone - self.base.vertices, axis=1) / self.base.diagonals[component]
-        co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & (co_moving_change < world_change)
+        drift = np.linalg.norm(undone - self.base.vertices, axis=1) / self.base.diagonals[topo.vertex_owner]
+        loose = topo.edges_per_vertex == 0  # no edge to judge by: with their owner where it takes them
+        co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & ((co_moving_change < world_change) | loose)
                      & (drift < CO_MOVING_DRIFT))
         if between:
             change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
@@ -555,8 +569,7 @@ class _Gap(LocalGlobalFit):
             if self.anchored:
                 mix = self.co_moving.astype(float)
             else:
-                component = self.topo.vertex_component
-                mix = self.co_moving * np.where(component >= 0, self.rigidity[component], 0.0)
+                mix = self.co_moving * self.rigidity[self.topo.vertex_owner]
             offset *= (1.0 - mix)[:, None]
         return base, offset
 

@@ -276,6 +276,30 @@ def test_exaggerated_bend_does_not_flip():
     assert np.abs(lengths / rest - 1).max() < 0.02
 
 
+def test_loose_vertices_follow_a_rigid_motion_of_the_whole_mesh():
+    """Two vertices in no triangle (helpers a mesh may carry) turn with the head and eyes: every
+    factor of two poses and every time of a sequence is the screw motion, loose vertices included
+    (they followed the linear blend: 0.32 off at 0.5 for a turn of 1 rad at 3 units); a loose
+    vertex that moves on its own (the mesh still) is the blend of its keys."""
+    head, tri = _head_with_eyes()
+    a = np.vstack([head, [[3.0, 0.0, 0.0], [0.0, -2.5, 1.0]]])
+    axis = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
+    rotation = Rotation.from_rotvec(1.0 * axis).as_matrix()
+    pivot = np.array([0.5, -1.5, 0.2])
+    b = _rigid(a, rotation, pivot, shift=0.4 * axis)
+    translation = b[0] - rotation @ a[0]
+    interpolator = Interpolator(a, b, tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _screw(a, rotation, translation, s), atol=1e-6)
+    keys = [_screw(a, rotation, translation, k) for k in range(4)]
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for time in (0.5, 1.25, 2.75):
+        np.testing.assert_allclose(sequence.pose_at(time), _screw(a, rotation, translation, time), atol=1e-6)
+    moved = a.copy()
+    moved[-1] += [0.0, 0.0, 1.0]
+    np.testing.assert_allclose(Interpolator(a, moved, tri).pose(0.5), 0.5 * (a + moved), atol=1e-9)
+
+
 def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
     """A strip along x ∈ [0, 3] curled about y at the ``joints`` (each bend spread over 0.2 of
     its length) by ``angles`` (radians): the centre line integrated from its turning angle, so the
