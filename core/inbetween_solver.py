@@ -17,6 +17,7 @@ from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
 from .inbetween_carried import CarriedPieces
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, fit_tolerances
+from .inbetween_joints import JOINT_REACH, composed, joint_screws, joint_tree
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
 from .sparse_cholesky import SPDFactor
@@ -346,6 +347,15 @@ class _Gap(LocalGlobalFit):
         self.static = static  # bool (n,): still in every key (pinned), or None
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
+        # rigid pieces jointed to each other move relative to the piece they hang from
+        self.joints = None
+        if len(topo.components) > 1:
+            rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
+            turns = sum(np.linalg.norm(r.screw[:, :3], axis=1) for r in relatives)
+            self.joints = joint_tree(topo, base.vertices, nxt.vertices, rigid, turns, JOINT_REACH * self.mean_edge)
+        if self.joints is not None:
+            phantom = [not hasattr(r, "motion") for r in relatives]  # end conditions: extrapolated keys
+            spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives], phantom))
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
         # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH)
         self.trimmed_tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
@@ -576,7 +586,10 @@ class _Gap(LocalGlobalFit):
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
         translations (C, 3)."""
-        return df.rigid_exps(self.splines["screw"].at(s))
+        motion = df.rigid_exps(self.splines["screw"].at(s))
+        if self.joints is None:
+            return motion
+        return composed(*self.joints, *motion, df.rigid_exps(self.splines["joint_screw"].at(s)))
 
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
         """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals

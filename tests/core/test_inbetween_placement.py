@@ -300,6 +300,48 @@ def test_loose_vertices_follow_a_rigid_motion_of_the_whole_mesh():
     np.testing.assert_allclose(Interpolator(a, moved, tri).pose(0.5), 0.5 * (a + moved), atol=1e-9)
 
 
+def _chain(angles):
+    """Three links (thin ellipsoids of length 1, each a separate piece) end to end along x from the
+    origin, each turned about y at its root joint by ``angles`` (radians) relative to the link
+    before it (the first about the origin): an arm rigged as separate rigid pieces."""
+    link, link_triangles = icosphere(2)
+    link = link * [0.5, 0.12, 0.12] + [0.5, 0.0, 0.0]
+    parts, joint, rotation = [], np.zeros(3), np.eye(3)
+    for angle in angles:
+        rotation = rotation @ Rotation.from_rotvec([0.0, -angle, 0.0]).as_matrix()
+        parts.append(link @ rotation.T + joint)
+        joint = joint + rotation @ [1.0, 0.0, 0.0]
+    triangles = np.vstack([link_triangles + k * len(link) for k in range(len(angles))])
+    return np.vstack(parts), triangles
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_jointed_rigid_pieces_turn_about_their_joints(degrees):
+    """Three links of an arm, separate pieces touching at their joints, each bent by the same angle:
+    every factor of two poses is the arm bent by that factor of the angles, to 1e-6 (each link
+    along its own screw motion: apart at the joints by up to 0.56 link lengths at 0.5 of 60° and
+    2.6 at ×2)."""
+    a, tri = _chain((0.0,) * 3)
+    b, _ = _chain((np.radians(degrees),) * 3)
+    interpolator = Interpolator(a, b, tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _chain((s * np.radians(degrees),) * 3)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("step", [40.0, 80.0])
+def test_jointed_rigid_pieces_in_a_sequence(step):
+    """The same arm's joints turning at constant speed, ``step`` degrees per key each (its last
+    link 3 × that in the world: 240° per gap at 80°): every in-between of every gap is the arm at
+    that time, to 1e-6."""
+    _, tri = _chain((0.0,) * 3)
+    keys = [_chain((np.radians(step * k),) * 3)[0] for k in range(5)]
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    factors = np.arange(1, 4) / 4
+    for gap in range(4):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(pose, _chain((np.radians(step * (gap + factor)),) * 3)[0], atol=1e-6)
+
+
 def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
     """A strip along x ∈ [0, 3] curled about y at the ``joints`` (each bend spread over 0.2 of
     its length) by ``angles`` (radians): the centre line integrated from its turning angle, so the

@@ -1,0 +1,128 @@
+"""Rigid pieces jointed to each other (the links of a rig modelled as separate pieces of one
+mesh): each moves along the screw motion of its rigid motion *relative to the piece it hangs
+from*, composed with that piece's, instead of along its own screw motion in the world.
+
+A link turning about a joint on a moving parent goes round the joint, not round the fixed axis of
+its own world motion: three links of an arm each bent 60° came apart at their joints by up to
+half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Two pieces are
+jointed in a gap when both are rigid over its keys (non-rigidity under
+:data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`) and their nearest vertices are within
+:data:`JOINT_REACH` mean edge lengths of each other at both of its keys. Each group of jointed
+pieces hangs from the one that moves least across the gap (a fixed base stays the root). At the
+keys the composed motions are the pieces' own, and a rigid motion of the whole mesh has identity
+relative motions, so it is reproduced exactly either way.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import minimum_spanning_tree
+
+from . import deformation_fields as df
+
+#: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
+#: pieces, at both keys of a gap, for them to be jointed.
+JOINT_REACH = 1.0
+
+
+def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns: np.ndarray, reach: float):
+    """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
+    ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
+    parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
+    two pieces are jointed. ``rigid``: bool (C,); ``turns``: how far each piece turns over the
+    gap's keys (C,), the least turning piece of a group is its root (in a chain the turns add up
+    from the piece fixed to the world); ``reach``: the joint distance."""
+    pieces = np.flatnonzero(rigid)
+    if pieces.size < 2:
+        return None
+    from scipy.spatial import cKDTree
+
+    rows = [np.arange(topo.n)[topo.component_rows[c]] for c in pieces]
+    label = np.concatenate([np.full(r.size, k) for k, r in enumerate(rows)])
+    index = np.concatenate(rows)
+    pairs = cKDTree(base[index]).query_pairs(reach, output_type="ndarray")
+    pairs = pairs[label[pairs[:, 0]] != label[pairs[:, 1]]]
+    if not pairs.size:
+        return None
+    ends = index[pairs]
+    apart = np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1)  # at the next key
+    held = apart <= reach
+    if not held.any():
+        return None
+    # of the pieces still touching at the next key, a spanning tree of the closest contacts: a
+    # joint keeps its two pieces together exactly, where a chain curled onto itself touches
+    # another link only in passing
+    a, b = np.sort(label[pairs[held]], axis=1).T
+    key = a * pieces.size + b
+    order = np.argsort(key, kind="stable")
+    key, separation = key[order], apart[held][order] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
+    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    closest = np.minimum.reduceat(separation, first)
+    graph = sp.coo_matrix((closest, (key[first] // pieces.size, key[first] % pieces.size)), shape=(pieces.size,) * 2)
+    tree = minimum_spanning_tree(graph.tocsr()).tocoo()
+    neighbours: dict[int, list[int]] = {}
+    for u, v in zip(tree.row, tree.col):
+        neighbours.setdefault(int(u), []).append(int(v))
+        neighbours.setdefault(int(v), []).append(int(u))
+    parents = np.full(len(topo.components), -1)
+    order, seen = [], set()
+    for root in sorted(neighbours, key=lambda k: turns[pieces[k]]):  # the least turning piece of each group first
+        if root in seen:
+            continue
+        seen.add(root)
+        queue = deque([root])
+        while queue:
+            k = queue.popleft()
+            order.append(int(pieces[k]))
+            for other in neighbours[k]:
+                if other not in seen:
+                    seen.add(other)
+                    parents[pieces[other]] = pieces[k]
+                    queue.append(other)
+    return parents, order
+
+
+def joint_screws(parents: np.ndarray, screws: list, phantom: list) -> list:
+    """Per key (the gap's relatives' ``screws``, (C, 6) each, key times −1, 0, 1, 2), each jointed
+    piece's screw coordinates relative to its parent's motion (rows of roots and unjointed pieces
+    unchanged): the turn to the next key the short way, the keys before and after continuing it
+    (the representative nearest −1 and 2 × it, as the pieces' own screws). Where ``phantom`` says
+    the key before or after is a sequence's end condition (extrapolated screws), the relative
+    screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones."""
+    children = np.flatnonzero(parents >= 0)
+
+    def relative(screw, turns=None, unwrap=False):
+        rotations, translations = df.rigid_exps(screw)
+        out = screw.copy()
+        for c in children:
+            p = parents[c]
+            inverse = rotations[p].T
+            out[c] = df.rigid_log(inverse @ rotations[c], inverse @ (translations[c] - translations[p]),
+                                  None if turns is None else turns[c], unwrap)
+        return out
+
+    start, onward = relative(screws[1]), relative(screws[2])
+    before = 2.0 * start - onward if phantom[0] else relative(screws[0], -onward[:, :3], True)
+    after = 2.0 * onward - start if phantom[3] else relative(screws[3], 2.0 * onward[:, :3], True)
+    for extrapolated, own in ((before, screws[0]), (after, screws[3])):
+        unjointed = parents < 0
+        extrapolated[unjointed] = own[unjointed]
+    return [before, start, onward, after]
+
+
+def composed(parents: np.ndarray, order: list, rotations: np.ndarray, translations: np.ndarray,
+             local: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The pieces' motions (rotations (C, 3, 3), translations (C, 3), the pieces' own) with each
+    jointed piece's replaced by its parent's composed with its ``local`` motion relative to it
+    (rotations, translations at the same factor), parents first."""
+    rotations, translations = rotations.copy(), translations.copy()
+    local_rotations, local_translations = local
+    for c in order:
+        p = parents[c]
+        if p >= 0:
+            rotations[c] = rotations[p] @ local_rotations[c]
+            translations[c] = rotations[p] @ local_translations[c] + translations[p]
+    return rotations, translations
