@@ -7,9 +7,10 @@ its own world motion: three links of an arm each bent 60° came apart at their j
 half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Two pieces are
 jointed in a gap when both are rigid over its keys (non-rigidity under
 :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`) and their nearest vertices are within
-:data:`JOINT_REACH` mean edge lengths of each other at both of its keys. Each group of jointed
-pieces hangs from the one that moves least across the gap (a fixed base stays the root). At the
-keys the composed motions are the pieces' own, and a rigid motion of the whole mesh has identity
+:data:`JOINT_REACH` mean edge lengths of each other at both of its keys. The joints are a minimum
+spanning tree of the pieces' closest contacts at the next key, and each group hangs from the piece
+that turns least over the gap's keys (a fixed base stays the root). At the keys the composed
+motions are the pieces' own, and a rigid motion of the whole mesh has identity
 relative motions, so it is reproduced exactly either way.
 """
 
@@ -107,8 +108,8 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list) -> list:
     start, onward = relative(screws[1]), relative(screws[2])
     before = 2.0 * start - onward if phantom[0] else relative(screws[0], -onward[:, :3], True)
     after = 2.0 * onward - start if phantom[3] else relative(screws[3], 2.0 * onward[:, :3], True)
+    unjointed = parents < 0
     for extrapolated, own in ((before, screws[0]), (after, screws[3])):
-        unjointed = parents < 0
         extrapolated[unjointed] = own[unjointed]
     return [before, start, onward, after]
 

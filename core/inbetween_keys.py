@@ -83,6 +83,8 @@ class _Relative:
         self.centroids = other.centroids
         self.turn, self.motion = turn, (rotations, translations)
 
+    #: Whether this is a sequence's end condition, extrapolated from the keys (:meth:`phantom`).
+    extrapolated = False
     #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
     #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
     whole = np.zeros(0, dtype=bool)
@@ -174,6 +176,7 @@ class _Relative:
         the motion (:data:`KINEMATIC`) the parabola through the three, 3·current − 3·previous +
         farther; the metric that of the extrapolated log-stretch (positive definite)."""
         self = _Relative.__new__(_Relative)
+        self.extrapolated = True
         for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
             c, p = getattr(current, name), getattr(previous, name)
             quadratic = farther is not None and name in KINEMATIC

@@ -354,8 +354,8 @@ class _Gap(LocalGlobalFit):
             turns = sum(np.linalg.norm(r.screw[:, :3], axis=1) for r in relatives)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, rigid, turns, JOINT_REACH * self.mean_edge)
         if self.joints is not None:
-            phantom = [not hasattr(r, "motion") for r in relatives]  # end conditions: extrapolated keys
-            spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives], phantom))
+            spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
+                                                                  [r.extrapolated for r in relatives]))
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
         # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH)
         self.trimmed_tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
@@ -377,7 +377,7 @@ class _Gap(LocalGlobalFit):
     def per_element(self, name: str, per_component: np.ndarray) -> np.ndarray:
         """``per_component`` (C,) spread to the rows of spline ``name`` (a column, to broadcast):
         vertices for positions, components for rigid motions and centroids, triangles for fields
-        (loose vertices: False)."""
+        (loose vertices: their owner's, ``_Topology.vertex_owner``)."""
         topo = self.topo
         if name in ("vertices", "world"):
             rows = per_component[topo.vertex_owner] if topo.components else np.zeros(topo.n, dtype=bool)
