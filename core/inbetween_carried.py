@@ -23,6 +23,7 @@ import numpy as np
 
 from . import deformation_fields as df
 from .geometry import nearest_rotations
+from .inbetween_joints import JOINT_REACH, joint_offset
 from .rigid_alignment import rigid_alignment
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
@@ -63,7 +64,7 @@ class CarriedPieces:
             rows = topo.components[c]
             if gap.static is not None and gap.static[rows].all():
                 continue  # still in every key: pinned where it is
-            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree)
+            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree, JOINT_REACH * gap.mean_edge)
             if seat is not None:
                 carriers, rotation, translation = seat
                 own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
@@ -85,13 +86,15 @@ class CarriedPieces:
             self._screws = np.array(screws)
 
     @staticmethod
-    def _seat(first, base, nxt, rows, deforming, tree) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _seat(first, base, nxt, rows, deforming, tree, reach) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The vertices (j,) of deforming pieces that carry the rigid piece ``rows`` with their best
         rigid motion (rotation (3, 3), translation (3,)) from the gap's base key to the next, or None if
-        there are too few, too collinear, or they do not move with it from the gap's base key to
-        the next. They are sought (with ``tree``, over the ``deforming`` vertices) where the piece
-        sits in the first key (``first``: positions (n, 3)), the same seat for every gap (see
-        :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`)."""
+        there are too few, too collinear, or they neither move with it from the gap's base key to
+        the next nor hold it at a joint (a vertex of the piece within ``reach`` of one of theirs at
+        both keys: a hand turning at the wrist of a bending arm). They are sought (with ``tree``,
+        over the ``deforming`` vertices) where the piece sits in the first key (``first``:
+        positions (n, 3)), the same seat for every gap (see :data:`CARRIER_REACH`,
+        :data:`CARRIED_TOLERANCE`)."""
         piece = base[rows]
         diagonal = float(np.linalg.norm(np.ptp(piece, axis=0)))
         if not diagonal > 0:
@@ -104,7 +107,8 @@ class CarriedPieces:
         if spread[1] / np.sqrt(carriers.size) < MIN_CARRIER_SPREAD * diagonal:
             return None
         rotation, translation = rigid_alignment(base[carriers], nxt[carriers])
-        if np.abs(piece @ rotation.T + translation - nxt[rows]).max() > CARRIED_TOLERANCE * diagonal:
+        if np.abs(piece @ rotation.T + translation - nxt[rows]).max() > CARRIED_TOLERANCE * diagonal \
+                and not _jointed(base, nxt, rows, carriers, (rotation, translation), reach):
             return None
         return carriers, rotation, translation
 
@@ -129,3 +133,21 @@ class CarriedPieces:
         piece = self._row_piece
         x[self._rows] = np.einsum("kij,kj->ki", total[piece], self.base[self._rows]) + shift[piece]
         return x
+
+
+def _jointed(base: np.ndarray, nxt: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, reach: float) -> bool:
+    """Whether the piece ``rows`` touches its ``carriers`` in the gap's base key (vertices within
+    ``reach``; positions (n, 3) of the base and next keys) and its motion relative to theirs
+    (``seat``: their best rigid motion, rotation and translation) holds that contact: jointed
+    (:func:`core.inbetween_joints.joint_offset`)."""
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    near = cKDTree(base[carriers]).query_ball_point(base[rows], reach)
+    pairs = [(r, c) for r, cs in zip(rows, near) for c in cs]
+    if not pairs:
+        return False
+    piece, seated = np.array(pairs).T
+    contact = 0.5 * (base[piece] + base[carriers[seated]])
+    rotation, translation = seat
+    own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
+    return joint_offset(contact, rotation.T @ own_rotation, rotation.T @ (own_translation - translation), reach) <= reach

@@ -6,9 +6,10 @@ A link turning about a joint on a moving parent goes round the joint, not round 
 its own world motion: three links of an arm each bent 60° came apart at their joints by up to
 half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Two pieces are
 jointed in a gap when both are rigid over its keys (non-rigidity under
-:data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`) and their nearest vertices are within
-:data:`JOINT_REACH` mean edge lengths of each other at both of its keys. The joints are a minimum
-spanning tree of the pieces' closest contacts at the next key, and each group hangs from the piece
+:data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`), they touch in its base key (vertices within
+:data:`JOINT_REACH` mean edge lengths) and the child's motion relative to the parent's holds the
+contact (:func:`joint_offset`: a hinge's axis runs through it). The joints are a minimum
+spanning tree of how well each contact is held, and each group hangs from the piece
 that turns least over the gap's keys (a fixed base stays the root). At the keys the composed
 motions are the pieces' own, and a rigid motion of the whole mesh has identity
 relative motions, so it is reproduced exactly either way.
@@ -27,6 +28,32 @@ from . import deformation_fields as df
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
 JOINT_REACH = 1.0
+
+
+def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndarray, reach: float) -> float:
+    """How far (≥ 0) the relative rigid motion ``x ↦ rotation · x + translation`` of two pieces
+    (the child's motion with its parent's undone) is from holding their ``contact`` (points (k, 3)
+    where they touch): 0 where it moves no contact point by more than ``reach``; else the distance
+    of its screw axis from the contact region (beyond the region's radius and ``reach``), inf if
+    it slides along its axis by more than ``reach`` or does not turn. A hinge whose pivot lies
+    inside both meshes moves every contact point but keeps its axis through the contact."""
+    moved = contact @ rotation.T + translation
+    if np.max(np.linalg.norm(moved - contact, axis=1)) <= reach:
+        return 0.0
+    turn = df.rotation_vectors(rotation[None])[0]
+    angle = float(np.linalg.norm(turn))
+    if angle < 1e-9:
+        return np.inf
+    axis = turn / angle
+    slide = float(translation @ axis)
+    if abs(slide) > reach:
+        return np.inf
+    pivot = np.linalg.lstsq(np.eye(3) - rotation, translation - slide * axis, rcond=None)[0]  # a point of the axis
+    centre = contact.mean(axis=0)
+    radius = float(np.max(np.linalg.norm(contact - centre, axis=1)))
+    offset = centre - pivot
+    distance = float(np.linalg.norm(offset - (offset @ axis) * axis))
+    return max(0.0, distance - radius - reach)
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns: np.ndarray, reach: float):
@@ -48,22 +75,32 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns
     pairs = pairs[label[pairs[:, 0]] != label[pairs[:, 1]]]
     if not pairs.size:
         return None
-    ends = index[pairs]
-    apart = np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1)  # at the next key
-    held = apart <= reach
-    if not held.any():
-        return None
-    # of the pieces still touching at the next key, a spanning tree of the closest contacts: a
-    # joint keeps its two pieces together exactly, where a chain curled onto itself touches
-    # another link only in passing
-    a, b = np.sort(label[pairs[held]], axis=1).T
+    # per pair of touching pieces, whether the child's motion relative to the parent's holds their
+    # contact (a joint); a spanning tree of the best held contacts (a chain curled onto itself
+    # touches another link only in passing, and its relative motion turns about another point)
+    from .rigid_alignment import rigid_alignment
+
+    motions = [rigid_alignment(base[r], nxt[r]) for r in rows]
+    a, b = np.sort(label[pairs], axis=1).T
     key = a * pieces.size + b
     order = np.argsort(key, kind="stable")
-    key, separation = key[order], apart[held][order] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
+    key, ends = key[order], index[pairs[order]]
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    closest = np.minimum.reduceat(separation, first)
-    graph = sp.coo_matrix((closest, (key[first] // pieces.size, key[first] % pieces.size)), shape=(pieces.size,) * 2)
-    tree = minimum_spanning_tree(graph.tocsr()).tocoo()
+    edges, weights = [], []
+    for start, stop in zip(first, np.r_[first[1:], key.size]):
+        u, v = divmod(int(key[start]), pieces.size)
+        (ru, tu), (rv, tv) = motions[u], motions[v]
+        contact = 0.5 * (base[ends[start:stop, 0]] + base[ends[start:stop, 1]])
+        offset = joint_offset(contact, ru.T @ rv, ru.T @ (tv - tu), reach)
+        if offset <= reach:
+            # the closest the touching vertices stay at the next key: 0 where a joint is a shared point
+            apart = np.min(np.linalg.norm(nxt[ends[start:stop, 0]] - nxt[ends[start:stop, 1]], axis=1))
+            edges.append((u, v))
+            weights.append(offset + apart + 1e-3 * reach)  # > 0: a zero is no edge to SciPy
+    if not edges:
+        return None
+    u, v = np.array(edges).T
+    tree = minimum_spanning_tree(sp.csr_matrix((weights, (u, v)), shape=(pieces.size,) * 2)).tocoo()
     neighbours: dict[int, list[int]] = {}
     for u, v in zip(tree.row, tree.col):
         neighbours.setdefault(int(u), []).append(int(v))
