@@ -6,9 +6,11 @@ next to it follows its fields and the keys' spline: the two paths part between t
 piece that sits on another one leaves it. Where it sits is read in the first key: its seat is the
 nearest vertices of deforming components there (the cloth under a button, the socket around an
 eye). In a gap where the seat's best rigid motion from the base key to the next takes the piece
-near where it is in the next key, the seat carries it: at every factor the piece takes the seat's
-best rigid motion from the base key to the pose, times the part of its own motion the seat misses
-(interpolated, so that both keys are met exactly). Elsewhere the piece keeps its own motion.
+near where it is in the next key, or where the piece touches its seat and turns about a point of
+their contact (a hand at the wrist of a bending forearm, :func:`core.inbetween_joints.joint_offset`),
+the seat carries it: at every factor the piece takes the seat's best rigid motion from the base key
+to the pose, times the part of its own motion the seat misses (interpolated, so that both keys are
+met exactly). Elsewhere the piece keeps its own motion.
 
 Measured (docs/inbetweens.md, *Pieces carried by deforming ones*): a hand (a separate sphere) on a
 forearm bent by 100°, two poses: off the forearm's end by 0.37–0.57 % of the diagonal in-between
