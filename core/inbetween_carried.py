@@ -92,8 +92,8 @@ class CarriedPieces:
         """The vertices (j,) of deforming pieces that carry the rigid piece ``rows`` with their best
         rigid motion (rotation (3, 3), translation (3,)) from the gap's base key to the next, or None if
         there are too few, too collinear, or they neither move with it from the gap's base key to
-        the next nor hold it at a joint (a vertex of the piece within ``reach`` of one of theirs at
-        both keys: a hand turning at the wrist of a bending arm). They are sought (with ``tree``,
+        the next nor hold it at a joint (it touches them, vertices within ``reach``, and turns
+        about a point of the contact: a hand turning at the wrist of a bending arm, :func:`_jointed`). They are sought (with ``tree``,
         over the ``deforming`` vertices) where the piece sits in the first key (``first``:
         positions (n, 3)), the same seat for every gap (see :data:`CARRIER_REACH`,
         :data:`CARRIED_TOLERANCE`)."""
