@@ -66,10 +66,11 @@ class CarriedPieces:
             rows = topo.components[c]
             if gap.static is not None and gap.static[rows].all():
                 continue  # still in every key: pinned where it is
-            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree, JOINT_REACH * gap.mean_edge)
+            own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
+            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree,
+                              (own_rotation, own_translation), JOINT_REACH * gap.mean_edge)
             if seat is not None:
                 carriers, rotation, translation = seat
-                own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
                 # the piece's own motion after the carriers' undone: applied in part at each factor
                 residual_rotation = rotation.T @ own_rotation
                 residual_translation = rotation.T @ (own_translation - translation)
@@ -88,12 +89,13 @@ class CarriedPieces:
             self._screws = np.array(screws)
 
     @staticmethod
-    def _seat(first, base, nxt, rows, deforming, tree, reach) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    def _seat(first, base, nxt, rows, deforming, tree, own, reach) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """The vertices (j,) of deforming pieces that carry the rigid piece ``rows`` with their best
         rigid motion (rotation (3, 3), translation (3,)) from the gap's base key to the next, or None if
         there are too few, too collinear, or they neither move with it from the gap's base key to
         the next nor hold it at a joint (it touches them, vertices within ``reach``, and turns
-        about a point of the contact: a hand turning at the wrist of a bending arm, :func:`_jointed`). They are sought (with ``tree``,
+        about a point of the contact: a hand turning at the wrist of a bending arm, :func:`_jointed`;
+        ``own``: the piece's best rigid motion between the keys, rotation and translation). They are sought (with ``tree``,
         over the ``deforming`` vertices) where the piece sits in the first key (``first``:
         positions (n, 3)), the same seat for every gap (see :data:`CARRIER_REACH`,
         :data:`CARRIED_TOLERANCE`)."""
@@ -110,7 +112,7 @@ class CarriedPieces:
             return None
         rotation, translation = rigid_alignment(base[carriers], nxt[carriers])
         if np.abs(piece @ rotation.T + translation - nxt[rows]).max() > CARRIED_TOLERANCE * diagonal \
-                and not _jointed(base, nxt, rows, carriers, (rotation, translation), reach):
+                and not _jointed(base, rows, carriers, (rotation, translation), own, reach):
             return None
         return carriers, rotation, translation
 
@@ -137,11 +139,11 @@ class CarriedPieces:
         return x
 
 
-def _jointed(base: np.ndarray, nxt: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, reach: float) -> bool:
+def _jointed(base: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, own, reach: float) -> bool:
     """Whether the piece ``rows`` touches its ``carriers`` in the gap's base key (vertices within
-    ``reach``; positions (n, 3) of the base and next keys) and its motion relative to theirs
-    (``seat``: their best rigid motion, rotation and translation) holds that contact: jointed
-    (:func:`core.inbetween_joints.joint_offset`)."""
+    ``reach``; ``base``: positions (n, 3)) and its motion ``own`` relative to theirs (``seat``;
+    each a best rigid motion between the keys, rotation and translation) holds that contact:
+    jointed (:func:`core.inbetween_joints.joint_offset`)."""
     from scipy.spatial import cKDTree  # noqa: PLC0415
 
     near = cKDTree(base[carriers]).query_ball_point(base[rows], reach)
@@ -151,5 +153,5 @@ def _jointed(base: np.ndarray, nxt: np.ndarray, rows: np.ndarray, carriers: np.n
     piece, seated = np.array(pairs).T
     contact = 0.5 * (base[piece] + base[carriers[seated]])
     rotation, translation = seat
-    own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
+    own_rotation, own_translation = own
     return joint_offset(contact, rotation.T @ own_rotation, rotation.T @ (own_translation - translation), reach) <= reach

@@ -56,11 +56,13 @@ def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndar
     return max(0.0, distance - radius - reach)
 
 
-def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns: np.ndarray, reach: float):
+def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
+               turns: np.ndarray, reach: float):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
-    two pieces are jointed. ``rigid``: bool (C,); ``turns``: how far each piece turns over the
+    two pieces are jointed. ``motions``: the pieces' best rigid motions from ``base`` to ``nxt``
+    (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``turns``: how far each piece turns over the
     gap's keys (C,), the least turning piece of a group is its root (in a chain the turns add up
     from the piece fixed to the world); ``reach``: the joint distance."""
     pieces = np.flatnonzero(rigid)
@@ -68,7 +70,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns
         return None
     from scipy.spatial import cKDTree
 
-    rows = [np.arange(topo.n)[topo.component_rows[c]] for c in pieces]
+    rows = [topo.components[c] for c in pieces]
     label = np.concatenate([np.full(r.size, k) for k, r in enumerate(rows)])
     index = np.concatenate(rows)
     pairs = cKDTree(base[index]).query_pairs(reach, output_type="ndarray")
@@ -78,9 +80,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns
     # per pair of touching pieces, whether the child's motion relative to the parent's holds their
     # contact (a joint); a spanning tree of the best held contacts (a chain curled onto itself
     # touches another link only in passing, and its relative motion turns about another point)
-    from .rigid_alignment import rigid_alignment
-
-    motions = [rigid_alignment(base[r], nxt[r]) for r in rows]
+    rotations, translations = motions[0][pieces], motions[1][pieces]
     a, b = np.sort(label[pairs], axis=1).T
     key = a * pieces.size + b
     order = np.argsort(key, kind="stable")
@@ -89,7 +89,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, rigid: np.ndarray, turns
     edges, weights = [], []
     for start, stop in zip(first, np.r_[first[1:], key.size]):
         u, v = divmod(int(key[start]), pieces.size)
-        (ru, tu), (rv, tv) = motions[u], motions[v]
+        (ru, tu), (rv, tv) = (rotations[u], translations[u]), (rotations[v], translations[v])
         contact = 0.5 * (base[ends[start:stop, 0]] + base[ends[start:stop, 1]])
         offset = joint_offset(contact, ru.T @ rv, ru.T @ (tv - tu), reach)
         if offset <= reach:

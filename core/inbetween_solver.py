@@ -352,7 +352,8 @@ class _Gap(LocalGlobalFit):
         if len(topo.components) > 1:
             rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
             turns = sum(np.linalg.norm(r.screw[:, :3], axis=1) for r in relatives)
-            self.joints = joint_tree(topo, base.vertices, nxt.vertices, rigid, turns, JOINT_REACH * self.mean_edge)
+            self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, turns,
+                                     JOINT_REACH * self.mean_edge)
         if self.joints is not None:
             spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
                                                                   [r.extrapolated for r in relatives]))
