@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from .concurrency import concurrently
+from .inbetween_fit import METRIC_TOLERANCE
 from .inbetween_repair import REPAIR_RINGS
 
 
@@ -240,6 +241,28 @@ def _inconsistent(gap, solved: dict) -> bool:
     return bool(np.sqrt(np.mean(np.sum((predicted - actual) ** 2, axis=1))) > MAX_CROSS_VALIDATION * size)
 
 
+def _still_in_place(gap, x: np.ndarray) -> np.ndarray:
+    """Predicted positions ``x`` (n, 3) with the still (pinned) vertices moved back where they sit
+    in the keys, and the miss spread around them by one solve of the gap's anchored system
+    ``(L + A) δ = A_still · miss`` (δ is the miss at the still vertices and fades over ~1/√w edges
+    away from them). A prediction ``M(s) (V(s) + D(s))`` passes through them only at the keys and
+    at the solved factors: the interpolated rigid motion of a flapping flag swings its pole in
+    between (a flag with small triangles at its pole, keys 8 frames apart: by 22 % of the mean edge
+    length), and setting the pins alone back afterwards (``finished``) put the whole miss into the
+    triangles at the pole (131 of them turned over). Unchanged where the miss is under
+    :data:`~core.inbetween_fit.METRIC_TOLERANCE` of the mean edge length."""
+    still = gap.static
+    if still is None:
+        return x
+    miss = gap.base.vertices[still] - x[still]
+    if np.max(np.abs(miss)) <= METRIC_TOLERANCE * gap.mean_edge:
+        return x
+    factor, anchor = gap.system
+    rhs = np.zeros_like(x)
+    rhs[still] = anchor[still, None] * miss
+    return x + factor.solve(rhs)
+
+
 def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
@@ -247,6 +270,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
     if not np.isfinite(x).all():
         return gap.pose(s)
+    x = _still_in_place(gap, x)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
     scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)

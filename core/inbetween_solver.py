@@ -45,9 +45,12 @@ BLEND_SHORTENING_CUTOFF = 0.1
 #: screw motion carries it along the wrong path (curled 60° / 60°: 0.9 % of the diagonal off at
 #: 0.5, edges 62 % off at × 2).
 CO_MOVING_DRIFT = 0.01
-#: Anchor weight (per unit vertex mass) of the vertices that sit still in every key of a sequence
-#: (pinned cloth): large enough that they stay put to ~1e-3 of the edge terms' pull (and are then
-#: set exactly), small enough to leave the normal matrix well conditioned.
+#: Anchor of the vertices that sit still in every key of a sequence (pinned cloth), per vertex
+#: whatever its mass (the edge terms pull on a vertex per edge, not per area): large enough that
+#: they stay put to ~1e-3 of the edge terms' pull (and are then set exactly), small enough to leave
+#: the normal matrix well conditioned. Per unit mass, as the other anchors, the pins of a flag
+#: whose triangles at its pole are 1/50 of the mean area were held 50 × less firmly, missed their
+#: place by a tenth of those triangles' size and, set exactly afterwards, turned slivers there over.
 STATIC_ANCHOR_WEIGHT = 1e3
 #: Sequences anchor every other vertex to the keys' per-vertex spline with this weight (per unit
 #: vertex mass, relative to the unit edge terms of the graph Laplacian): shapes longer than about
@@ -459,8 +462,9 @@ class _Gap(LocalGlobalFit):
         return self.pinned_weights(np.full(self.topo.n, self.anchor_weight))
 
     def pinned_weights(self, weights: np.ndarray) -> np.ndarray:
-        """``weights`` (n,) with :data:`STATIC_ANCHOR_WEIGHT` on the still vertices."""
-        return weights if self.static is None else np.where(self.static, STATIC_ANCHOR_WEIGHT, weights)
+        """``weights`` (n,, per unit mass) with :data:`STATIC_ANCHOR_WEIGHT` per vertex on the
+        still vertices."""
+        return weights if self.static is None else np.where(self.static, STATIC_ANCHOR_WEIGHT / self.topo.mass, weights)
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
         """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
