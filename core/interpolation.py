@@ -68,6 +68,34 @@ GAP_CACHE = 2
 #: (with four, key k − 1 was rebuilt for every gap: 0.05 s at 100k vertices); ~50 MB each at
 #: 100k vertices.
 KEY_CACHE = 5
+#: A vertex is still (pinned cloth: held exactly where it sits, see
+#: :data:`core.inbetween_solver.STATIC_ANCHOR_WEIGHT`) when no key moves it from the first key's
+#: position by more than this fraction of the first key's bounding-box diagonal, plus a few
+#: float32 roundings of its coordinates: a cache written in single precision through an object
+#: transform per frame moves pinned vertices by rounding, and compared exactly they were taken for
+#: moving ones (a 10k sheet pinned at two corners, its keys off by 1e-7 of the diagonal: the
+#: corners 4.2 % of the diagonal off at keys 16 frames apart). 1e-5 of a 2 m cloth is 0.02 mm.
+STILL_TOLERANCE = 1e-5
+
+def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
+    """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)), to
+    :data:`STILL_TOLERANCE`: such vertices (pinned cloth) stay exactly where they sit in the first
+    key."""
+    first = keys[0]
+    extent = np.ptp(first, axis=0) if first.size else np.zeros(3)
+    tolerance = STILL_TOLERANCE * np.linalg.norm(extent) + 8 * np.finfo(np.float32).eps * np.max(np.abs(first), initial=0.0)
+    still = np.ones(first.shape[0], dtype=bool)
+    for key in keys[1:]:
+        still &= np.max(np.abs(key - first), axis=1) <= tolerance
+    return still
+
+
+def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
+    """A copy of ``x`` (n, 3) with ``rows`` (bool (n,)) taken from ``source`` (n, 3)."""
+    out = x.copy()
+    out[rows] = source[rows]
+    return out
+
 
 def _warn(message: str) -> None:
     warnings.warn(f"Shape-difference interpolation: {message}.", ShapeDifferenceWarning, stacklevel=3)
@@ -132,11 +160,12 @@ class SequenceInterpolator:
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
+        still = still_vertices(keys)
+        self._static = still if still.any() else None
+        if self._static is not None:  # set where they sit in the first key (copies: the caller's arrays stay)
+            keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        # vertices still in every key (pinned cloth) stay exactly where they sit
-        still = np.all(np.stack([np.all(k == keys[0], axis=1) for k in keys[1:]]), axis=0)
-        self._static = still if still.any() else None
         # the components' centroids in every key (K, C, 3): how steadily each piece moves
         self._centroids = np.array([[self._topo.centroid(k, rows) for rows in self._topo.component_rows] for k in keys])
         self._keys: OrderedDict[int, _Key] = OrderedDict()
