@@ -54,6 +54,7 @@ from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, component_diagonals, rigid_fits
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
+from .seams import coincidence_tolerance, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
 
@@ -68,22 +69,17 @@ GAP_CACHE = 2
 #: (with four, key k − 1 was rebuilt for every gap: 0.05 s at 100k vertices); ~50 MB each at
 #: 100k vertices.
 KEY_CACHE = 5
-#: A vertex is still (pinned cloth: held exactly where it sits, see
-#: :data:`core.inbetween_solver.STATIC_ANCHOR_WEIGHT`) when no key moves it from the first key's
-#: position by more than this fraction of the first key's bounding-box diagonal, plus a few
-#: float32 roundings of its coordinates: a cache written in single precision through an object
-#: transform per frame moves pinned vertices by rounding, and compared exactly they were taken for
-#: moving ones (a 10k sheet pinned at two corners, its keys off by 1e-7 of the diagonal: the
-#: corners 4.2 % of the diagonal off at keys 16 frames apart). 1e-5 of a 2 m cloth is 0.02 mm.
-STILL_TOLERANCE = 1e-5
+
 
 def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
-    """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)), to
-    :data:`STILL_TOLERANCE`: such vertices (pinned cloth) stay exactly where they sit in the first
-    key."""
+    """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
+    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`.
+    Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
+    pins of a cache written in single precision through an object transform (moved by rounding)
+    were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
+    the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
     first = keys[0]
-    extent = np.ptp(first, axis=0) if first.size else np.zeros(3)
-    tolerance = STILL_TOLERANCE * np.linalg.norm(extent) + 8 * np.finfo(np.float32).eps * np.max(np.abs(first), initial=0.0)
+    tolerance = coincidence_tolerance(first)
     still = np.ones(first.shape[0], dtype=bool)
     for key in keys[1:]:
         still &= np.max(np.abs(key - first), axis=1) <= tolerance
@@ -160,6 +156,15 @@ class SequenceInterpolator:
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
+        self._triangles, self._copies = topology.triangles, None
+        try:  # pieces that touch along seams are interpolated as one (core.seams)
+            weld = seam_weld(keys, topology)
+        except MeshError as error:
+            weld = None
+            _warn(f"some pieces touch along seams but cannot be joined there ({error}); they are "
+                  "interpolated apart and the seams may open")
+        if weld is not None:
+            keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys)
         self._static = still if still.any() else None
         if self._static is not None:  # set where they sit in the first key (copies: the caller's arrays stay)
@@ -184,7 +189,7 @@ class SequenceInterpolator:
 
     @property
     def triangles(self) -> np.ndarray:
-        return self._topo.triangles
+        return self._triangles
 
     def _key(self, index: int) -> _Key:
         with self._cache_lock:
@@ -382,7 +387,7 @@ class SequenceInterpolator:
             if s in (0.0, 1.0):
                 out[k] = self._key(gap + int(s)).vertices
         if not between:
-            return out
+            return out if self._copies is None else out[:, self._copies]
         # BLAS single-threaded meanwhile: its calls here are (n, 3) × (3, 3) products, which a
         # second BLAS thread does not speed up; its workers spin on the core the other half of the
         # work needs (10k hanging sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread)
@@ -394,7 +399,7 @@ class SequenceInterpolator:
             out[k] = x
             if problem:
                 _warn(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
-        return out
+        return out if self._copies is None else out[:, self._copies]
 
     def pose_at(self, time: float) -> np.ndarray:
         """The pose at global ``time`` in key units (0 = first key, K − 1 = last key); times

@@ -1,0 +1,112 @@
+"""Pieces touching along seams (coincident, unshared vertices) are interpolated as one cloth."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from core.errors import ShapeDifferenceWarning
+from core.interpolation import Interpolator, SequenceInterpolator
+from core.seams import seam_weld
+from core.mesh_topology import mesh_topology
+
+from meshes import grid
+
+
+def _waving_sheet(n_keys=5, nx=16, ny=12):
+    """A sheet swinging about its top edge and waving (keys), and its triangles."""
+    flat, tri = grid(nx, ny, size=1.0)
+    depth = flat[:, 1].max() - flat[:, 1]
+    keys = []
+    for k in range(n_keys):
+        angle = 0.9 * np.sin(0.8 * k) * (depth / depth.max()) ** 1.5 + 0.2 * k
+        wave = 0.08 * depth * np.sin(5.0 * flat[:, 0] + 1.3 * k)
+        keys.append(np.stack([flat[:, 0] + 0.05 * k, flat[:, 1].max() - depth * np.cos(angle),
+                              depth * np.sin(angle) + wave], axis=1))
+    return keys, tri
+
+
+def _cut(keys, tri, flip_second=False):
+    """The same sheet as two pieces: the triangles right of the middle column get copies of the
+    column's vertices (appended), coincident with them in every key; ``flip_second`` reverses
+    that piece's triangles (panels exported with opposite normals)."""
+    c = keys[0][tri].mean(axis=1)
+    right = c[:, 0] > 0.5
+    seam = np.intersect1d(np.unique(tri[right]), np.unique(tri[~right]))
+    n = len(keys[0])
+    index = np.arange(n)
+    index[seam] = n + np.arange(seam.size)
+    cut = tri.copy()
+    cut[right] = index[tri[right]]
+    if flip_second:
+        cut[right] = cut[right][:, ::-1]
+    return [np.concatenate([k, k[seam]]) for k in keys], cut, seam, n + np.arange(seam.size)
+
+
+def test_a_sheet_cut_along_a_seam_is_interpolated_as_the_whole_sheet():
+    """Cut in two along a column of coincident vertices, the sheet's in-betweens (a sequence,
+    keys solved and predicted, and two poses with an exaggeration) are the uncut sheet's on every
+    vertex, and the copies of the seam stay on each other (apart, the pieces opened by up to a
+    mean edge length and more)."""
+    keys, tri = _waving_sheet()
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri)
+    whole = SequenceInterpolator(keys, tri)
+    pieces = SequenceInterpolator(cut_keys, cut_tri)
+    np.testing.assert_array_equal(pieces.triangles, cut_tri)
+    factors = np.arange(1, 8) / 8
+    for gap in range(len(whole)):
+        expected = whole.poses(gap, factors)
+        got = pieces.poses(gap, factors)
+        np.testing.assert_allclose(got[:, : len(keys[0])], expected, atol=1e-9)
+        np.testing.assert_array_equal(got[:, seam], got[:, copies])
+    for factor in (0.5, 1.5):
+        expected = Interpolator(keys[1], keys[3], tri).pose(factor)
+        got = Interpolator(cut_keys[1], cut_keys[3], cut_tri).pose(factor)
+        np.testing.assert_allclose(got[: len(keys[0])], expected, atol=1e-9)
+        np.testing.assert_array_equal(got[seam], got[copies])
+
+
+def test_vertices_that_part_are_not_welded():
+    """Copies that coincide in the first keys but move apart in a later one (a seam torn open)
+    are separate vertices: no weld, and the in-betweens reach the keys' copies where they are."""
+    keys, tri = _waving_sheet()
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri)
+    cut_keys[-1] = cut_keys[-1].copy()
+    cut_keys[-1][copies] += [0.0, 0.0, 0.05]
+    assert seam_weld(cut_keys, mesh_topology(cut_tri, len(cut_keys[0]))) is None
+    sequence = SequenceInterpolator(cut_keys, cut_tri)
+    last = sequence.poses(len(sequence) - 1, [1.0])[0]
+    np.testing.assert_array_equal(last, cut_keys[-1])
+
+
+def test_a_seam_between_oppositely_oriented_panels_stays_apart_with_a_warning():
+    """Two panels whose triangles face opposite ways cannot be joined into one consistently
+    oriented sheet: they are interpolated apart, with a warning that says the seams may open."""
+    keys, tri = _waving_sheet(n_keys=3)
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri, flip_second=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        pose = Interpolator(cut_keys[0], cut_keys[2], cut_tri).pose(0.5)
+    assert any("seams may open" in str(w.message) for w in caught)
+    assert np.isfinite(pose).all()
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_single_precision_seams_are_welded(scale):
+    """A seam whose copies a float32 cache rounds apart (the object far from the origin) is still
+    one seam, at any scale of the mesh."""
+    keys, tri = _waving_sheet(n_keys=3)
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri)
+    shift = np.array([40.0, -25.0, 7.0]) * scale
+    rng = np.random.default_rng(1)
+    rounded = []
+    for k in cut_keys:
+        x = (k * scale + shift).astype(np.float32).astype(np.float64)
+        x[copies] = np.nextafter(x[copies].astype(np.float32), np.float32(np.inf)).astype(np.float64)  # one ulp apart
+        rounded.append(x - shift + 1e-12 * rng.normal(size=x.shape))
+    weld = seam_weld(rounded, mesh_topology(cut_tri, len(rounded[0])))
+    assert weld is not None
+    np.testing.assert_array_equal(weld.copies[seam], weld.copies[copies])
+    assert weld.kept.size == len(keys[0])
