@@ -241,20 +241,20 @@ def _inconsistent(gap, solved: dict) -> bool:
     return bool(np.sqrt(np.mean(np.sum((predicted - actual) ** 2, axis=1))) > MAX_CROSS_VALIDATION * size)
 
 
-def _still_in_place(gap, x: np.ndarray) -> np.ndarray:
-    """Predicted positions ``x`` (n, 3) with the still (pinned) vertices moved back where they sit
-    in the keys, and the miss spread around them by one solve of the gap's anchored system
-    ``(L + A) δ = A_still · miss`` (δ is the miss at the still vertices and fades over ~1/√w edges
-    away from them). A prediction ``M(s) (V(s) + D(s))`` passes through them only at the keys and
-    at the solved factors: the interpolated rigid motion of a flapping flag swings its pole in
-    between (a flag with small triangles at its pole, keys 8 frames apart: by 22 % of the mean edge
-    length), and setting the pins alone back afterwards (``finished``) put the whole miss into the
-    triangles at the pole (131 of them turned over). Unchanged where the miss is under
-    :data:`~core.inbetween_fit.METRIC_TOLERANCE` of the mean edge length."""
+def _pins_in_place(gap, x: np.ndarray, s: float) -> np.ndarray:
+    """Predicted positions ``x`` (n, 3) at factor ``s`` with the pinned vertices moved where they
+    belong (``gap.pinned_positions``), and the miss spread around them by one solve of the gap's
+    anchored system ``(L + A) δ = A_pinned · miss`` (δ is the miss at the pins and fades over
+    ~1/√w edges away from them). A prediction ``M(s) (V(s) + D(s))`` passes through them only at
+    the keys and at the solved factors: the interpolated rigid motion of a flapping flag swings
+    its pole in between (a flag with small triangles at its pole, keys 8 frames apart: by 22 % of
+    the mean edge length), and setting the pins alone back afterwards (``finished``) put the whole
+    miss into the triangles at the pole (131 of them turned over). Unchanged where the miss is
+    under :data:`~core.inbetween_fit.METRIC_TOLERANCE` of the mean edge length."""
     still = gap.static
     if still is None:
         return x
-    miss = gap.base.vertices[still] - x[still]
+    miss = gap.pinned_positions(s) - x[still]
     if np.max(np.abs(miss)) <= METRIC_TOLERANCE * gap.mean_edge:
         return x
     factor, anchor = gap.system
@@ -270,7 +270,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
     if not np.isfinite(x).all():
         return gap.pose(s)
-    x = _still_in_place(gap, x)
+    x = _pins_in_place(gap, x, s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
     scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)

@@ -11,6 +11,7 @@ of a gap; both in :mod:`core.inbetween_keys`) → ``_Gap`` (splines of the relat
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 import scipy.sparse as sp
 
 from . import deformation_fields as df
@@ -20,6 +21,7 @@ from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, f
 from .inbetween_joints import JOINT_REACH, composed, joint_screws, joint_tree
 from .inbetween_keys import _Key, _Relative
 from .inbetween_repair import Region, Repair
+from .rigid_alignment import rigid_alignment
 from .sparse_cholesky import SPDFactor
 from .splines import REST_START_LIMIT, TANGENT_LIMIT, HermiteGap
 
@@ -156,6 +158,28 @@ CENTROID_ANCHOR_SHARE = 0.2
 
 #: The splines of positions (their tangents are limited per point, see :class:`core.splines.HermiteGap`).
 POSITIONS = ("vertices", "world", "centroids")
+
+
+def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Each riding set's (:mod:`core.pins`) turn about its centroid from positions ``base`` to
+    ``key`` (n, 3) — rotation vectors (S, 3), the short way round; for a set along a line (a
+    pole) the least turn taking the line to the key's, since a turn about the line moves none of
+    its vertices — and its centroids in ``key`` (S, 3)."""
+    turns, centroids = np.zeros((len(sets), 3)), np.zeros((len(sets), 3))
+    for k, rows in enumerate(sets):
+        a, b = base[rows] - base[rows].mean(axis=0), key[rows] - key[rows].mean(axis=0)
+        centroids[k] = key[rows].mean(axis=0)
+        _, spread, axes = np.linalg.svd(a, full_matrices=False)
+        if spread[1] <= 1e-6 * spread[0]:  # along a line
+            d0 = axes[0]
+            d1 = np.linalg.svd(b, full_matrices=False)[2][0]
+            d1 = d1 if d1 @ (b.T @ (a @ d0)) >= 0.0 else -d1
+            axis, cosine = np.cross(d0, d1), float(np.clip(d0 @ d1, -1.0, 1.0))
+            norm = np.linalg.norm(axis)
+            turns[k] = axis / norm * np.arctan2(norm, cosine) if norm > 0.0 else 0.0
+        else:
+            turns[k] = Rotation.from_matrix(rigid_alignment(a, b)[0]).as_rotvec()
+    return turns, centroids
 
 
 def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarray | None) -> np.ndarray | None:
@@ -321,7 +345,7 @@ class _Gap(LocalGlobalFit):
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
-                 start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
+                 riding: np.ndarray | None = None, start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
                  steady: np.ndarray | None = None, entry: tuple | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
@@ -347,7 +371,13 @@ class _Gap(LocalGlobalFit):
         spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
         self.anchored = anchored
-        self.static = static  # bool (n,): still in every key (pinned), or None
+        self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
+        # the riding sets (core.pins) and the spline of each one's rigid motion from the base key
+        self.riding = riding
+        if riding is not None:
+            motions = [riding_motions(base.vertices, r.world, riding) for r in relatives]
+            self.riding_turns = HermiteGap([m[0] for m in motions], cubic, limit=limit)
+            self.riding_centroids = HermiteGap([m[1] for m in motions], cubic, rows=True, limit=limit)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from
@@ -465,6 +495,17 @@ class _Gap(LocalGlobalFit):
         """``weights`` (n,, per unit mass) with :data:`STATIC_ANCHOR_WEIGHT` per vertex on the
         still vertices."""
         return weights if self.static is None else np.where(self.static, STATIC_ANCHOR_WEIGHT / self.topo.mass, weights)
+
+    def pinned_positions(self, s: float) -> np.ndarray:
+        """Where the pinned vertices (``static``) are at factor ``s`` ((p, 3), in their order):
+        still ones where the base key has them, each riding set moved from there by its rigid
+        motion's spline (:mod:`core.pins`)."""
+        x = self.base.vertices.copy()
+        if self.riding is not None:
+            rotations = Rotation.from_rotvec(self.riding_turns.at(s)).as_matrix().reshape(-1, 3, 3)
+            for rows, rotation, centroid in zip(self.riding, rotations, self.riding_centroids.at(s)):
+                x[rows] = (x[rows] - x[rows].mean(axis=0)) @ rotation.T + centroid
+        return x[self.static]
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
         """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
@@ -702,7 +743,7 @@ class _Gap(LocalGlobalFit):
         their centroid (:data:`CENTROID_ANCHOR_SHARE`; a translation each, after the fit and its
         repairs, which it leaves as they are)."""
         if self.static is not None:
-            result[0][self.static] = self.base.vertices[self.static]
+            result[0][self.static] = self.pinned_positions(s)
         if ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any():
             self.place(result[0], s, self.motion(s), partly=True)
         self.carried.place(result[0], s)

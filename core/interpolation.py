@@ -54,7 +54,8 @@ from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, component_diagonals, rigid_fits
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
-from .seams import coincidence_tolerance, seam_weld
+from .pins import riding_vertices, still_vertices
+from .seams import seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
 
@@ -69,21 +70,6 @@ GAP_CACHE = 2
 #: (with four, key k − 1 was rebuilt for every gap: 0.05 s at 100k vertices); ~50 MB each at
 #: 100k vertices.
 KEY_CACHE = 5
-
-
-def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
-    """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
-    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`.
-    Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
-    pins of a cache written in single precision through an object transform (moved by rounding)
-    were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
-    the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
-    first = keys[0]
-    tolerance = coincidence_tolerance(first)
-    still = np.ones(first.shape[0], dtype=bool)
-    for key in keys[1:]:
-        still &= np.max(np.abs(key - first), axis=1) <= tolerance
-    return still
 
 
 def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
@@ -166,11 +152,16 @@ class SequenceInterpolator:
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys)
-        self._static = still if still.any() else None
-        if self._static is not None:  # set where they sit in the first key (copies: the caller's arrays stay)
+        if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
+        # pins (core.pins): still vertices stay put, riding ones follow the keys' per-vertex spline
+        self._riding = riding_vertices(keys, topology.edges, self._topo.vertex_component, still) or None
+        if self._riding is not None:
+            still = still.copy()
+            still[np.concatenate(self._riding)] = True
+        self._static = still if still.any() else None
         # the components' centroids in every key (K, C, 3): how steadily each piece moves
         self._centroids = np.array([[self._topo.centroid(k, rows) for rows in self._topo.component_rows] for k in keys])
         self._keys: OrderedDict[int, _Key] = OrderedDict()
@@ -312,7 +303,7 @@ class SequenceInterpolator:
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static, start_limit=self._start_limit() if gap == 0 else None,
+                       self._anchored, self._static, self._riding, start_limit=self._start_limit() if gap == 0 else None,
                        whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                        entry=self._entry(gap, prev.nonrigidity) if cubic else None)
         with self._cache_lock:

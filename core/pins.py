@@ -1,0 +1,99 @@
+"""Pins: vertices a simulation holds rather than moves (Blender's pinned cloth).
+
+Two kinds are found in the keys of a sequence and held by the in-betweens
+(:class:`core.interpolation.SequenceInterpolator`) instead of being reconstructed with the cloth:
+
+- **still** vertices (:func:`still_vertices`) sit where they are in every key (a curtain's rod, a
+  flag's pole that does not move): they stay exactly where the first key has them;
+- **riding** vertices (:func:`riding_vertices`) are held by an animated object (a banner on a pole
+  that is carried, a cape's collar on a moving character): sets of three or more vertices joined
+  by edges that keep their lengths to single-precision rounding in every key, which no cloth does,
+  moving as one rigid body that is only part of its piece. Each set follows the spline of its
+  rigid motion through the keys, as the object's animation curves carry it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .seams import coincidence_tolerance
+
+#: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
+#: more than RIDING_ULPS float32 spacings of the keys' largest coordinate. A pole carried by its
+#: object keeps them to 0.9 spacing (the float32 object matrix is orthogonal only to rounding);
+#: cloth edges that happen to keep theirs over every key were found in sets of 3–9 vertices at
+#: 4.8–40 spacings (a 10k sheet falling flat, keys 8 and 16 apart; the 50k sheet, 16).
+MIN_RIDING_VERTICES = 6
+RIDING_ULPS = 3.0
+#: ... and in a piece at most this share of whose edges keep their lengths so: cloth around a held
+#: part. A strip bent onto a cylinder keeps every ruling (a third of its edges), an articulated
+#: limb its rigid segments; those are interpolated as they were, not held.
+MAX_RIDING_SHARE = 0.05
+
+
+def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
+    """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
+    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`.
+    Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
+    pins of a cache written in single precision through an object transform (moved by rounding)
+    were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
+    the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
+    first = keys[0]
+    tolerance = coincidence_tolerance(first)
+    still = np.ones(first.shape[0], dtype=bool)
+    for key in keys[1:]:
+        still &= np.max(np.abs(key - first), axis=1) <= tolerance
+    return still
+
+
+def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray, still: np.ndarray) -> list[np.ndarray]:
+    """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
+    (list of K ≥ 3 arrays (n, 3)): each a set of at least :data:`MIN_RIDING_VERTICES` vertices joined by
+    ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding
+    (:data:`RIDING_ULPS`), the set moves as one rigid body to that precision in every key, it is not a whole piece (``component`` (n,): each vertex's piece, −1 for loose
+    vertices; whole rigid pieces follow their screw motions) and not ``still`` (n,)."""
+    n = keys[0].shape[0]
+    riding: list[np.ndarray] = []
+    if len(keys) < 3 or not len(edges):
+        return riding
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from .rigid_alignment import rigid_alignment
+
+    first = keys[0]
+    largest = max(float(np.max(np.abs(key))) for key in keys)
+    tolerance = RIDING_ULPS * float(np.spacing(np.float32(largest)))
+    a, b = edges[:, 0], edges[:, 1]
+    length = np.linalg.norm(first[a] - first[b], axis=1)
+    kept = ~(still[a] & still[b])
+    for key in keys[1:]:
+        kept &= np.abs(np.linalg.norm(key[a] - key[b], axis=1) - length) <= tolerance
+        if not kept.any():
+            return riding
+    edge_piece = component[a]
+    pieces_edges = np.bincount(edge_piece[edge_piece >= 0], minlength=int(component.max()) + 1)
+    kept_edges = np.bincount(edge_piece[kept & (edge_piece >= 0)], minlength=pieces_edges.size)
+    cloth = kept_edges <= MAX_RIDING_SHARE * pieces_edges  # per piece
+    kept &= (edge_piece >= 0) & cloth[np.maximum(edge_piece, 0)]
+    if not kept.any():
+        return riding
+    graph = coo_matrix((np.ones(int(kept.sum())), (a[kept], b[kept])), shape=(n, n))
+    count, labels = connected_components(graph, directed=False)
+    sizes = np.bincount(labels, minlength=count)
+    piece_sizes = np.bincount(component[component >= 0])
+    for label in np.flatnonzero(sizes >= MIN_RIDING_VERTICES):
+        rows = np.flatnonzero(labels == label)
+        pieces = np.unique(component[rows])
+        if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
+            continue
+        if all(np.max(np.linalg.norm(_aligned(first[rows], key[rows], rigid_alignment) - key[rows], axis=1)) <= 4 * tolerance
+               for key in keys[1:]):
+            riding.append(rows)
+    return riding
+
+
+def _aligned(source: np.ndarray, target: np.ndarray, align) -> np.ndarray:
+    """``source`` (r, 3) moved by its best rigid motion onto ``target`` (r, 3)."""
+    rotation, translation = align(source, target)
+    return source @ rotation.T + translation
