@@ -40,9 +40,11 @@ def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
     the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
     first = keys[0]
     tolerance = coincidence_tolerance(first)
-    still = np.ones(first.shape[0], dtype=bool)
+    rows = np.arange(first.shape[0])  # the candidates left: each key is read only there
     for key in keys[1:]:
-        still &= np.max(np.abs(key - first), axis=1) <= tolerance
+        rows = rows[np.max(np.abs(key[rows] - first[rows]), axis=1) <= tolerance]
+    still = np.zeros(first.shape[0], dtype=bool)
+    still[rows] = True
     return still
 
 
@@ -65,12 +67,15 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     largest = max(float(np.max(np.abs(key))) for key in keys)
     tolerance = RIDING_ULPS * float(np.spacing(np.float32(largest)))
     a, b = edges[:, 0], edges[:, 1]
-    length = np.linalg.norm(first[a] - first[b], axis=1)
-    kept = ~(still[a] & still[b])
+    candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
+    length = np.linalg.norm(first[a[candidates]] - first[b[candidates]], axis=1)
     for key in keys[1:]:
-        kept &= np.abs(np.linalg.norm(key[a] - key[b], axis=1) - length) <= tolerance
-        if not kept.any():
+        close = np.abs(np.linalg.norm(key[a[candidates]] - key[b[candidates]], axis=1) - length) <= tolerance
+        candidates, length = candidates[close], length[close]
+        if not candidates.size:
             return riding
+    kept = np.zeros(len(edges), dtype=bool)
+    kept[candidates] = True
     edge_piece = component[a]
     pieces_edges = np.bincount(edge_piece[edge_piece >= 0], minlength=int(component.max()) + 1)
     kept_edges = np.bincount(edge_piece[kept & (edge_piece >= 0)], minlength=pieces_edges.size)
