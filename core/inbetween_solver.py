@@ -502,10 +502,17 @@ class _Gap(LocalGlobalFit):
         motion's spline (:mod:`core.pins`)."""
         x = self.base.vertices.copy()
         if self.riding is not None:
-            rotations = Rotation.from_rotvec(self.riding_turns.at(s)).as_matrix().reshape(-1, 3, 3)
-            for rows, rotation, centroid in zip(self.riding, rotations, self.riding_centroids.at(s)):
-                x[rows] = (x[rows] - x[rows].mean(axis=0)) @ rotation.T + centroid
+            self.ride(x, s)
         return x[self.static]
+
+    def ride(self, x: np.ndarray, s: float) -> np.ndarray:
+        """``x`` (n, 3) with each riding set (:mod:`core.pins`) where the spline of its rigid motion
+        puts it at factor ``s`` (in place; returned)."""
+        base = self.base.vertices
+        rotations = Rotation.from_rotvec(self.riding_turns.at(s)).as_matrix().reshape(-1, 3, 3)
+        for rows, rotation, centroid in zip(self.riding, rotations, self.riding_centroids.at(s)):
+            x[rows] = (base[rows] - base[rows].mean(axis=0)) @ rotation.T + centroid
+        return x
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
         """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
@@ -626,7 +633,8 @@ class _Gap(LocalGlobalFit):
         by rigidity in sequences; with no anchor but the gauge, the spline with the rigid motions
         undone."""
         base, offset = self._guide_parts(s, motion)
-        return base if offset is None else base + offset
+        guide = base if offset is None else base + offset
+        return guide if self.riding is None else self.ride(guide, s)  # riding sets: their own motion
 
     def guide_offset(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """The guide (:meth:`guide`) less ``M(s) V(s)``, the keys' co-moving spline moved by the
