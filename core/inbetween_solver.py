@@ -11,8 +11,8 @@ of a gap; both in :mod:`core.inbetween_keys`) → ``_Gap`` (splines of the relat
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 import scipy.sparse as sp
+from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
@@ -47,10 +47,10 @@ BLEND_SHORTENING_CUTOFF = 0.1
 #: screw motion carries it along the wrong path (curled 60° / 60°: 0.9 % of the diagonal off at
 #: 0.5, edges 62 % off at × 2).
 CO_MOVING_DRIFT = 0.01
-#: Anchor of the vertices that sit still in every key of a sequence (pinned cloth), per vertex
-#: whatever its mass (the edge terms pull on a vertex per edge, not per area): large enough that
-#: they stay put to ~1e-3 of the edge terms' pull (and are then set exactly), small enough to leave
-#: the normal matrix well conditioned. Per unit mass, as the other anchors, the pins of a flag
+#: Anchor of the pinned vertices of a sequence (still in every key, or riding on an animated
+#: object: :mod:`core.pins`), per vertex whatever its mass (the edge terms pull on a vertex per
+#: edge, not per area): large enough that they stay put to ~1e-3 of the edge terms' pull (and are
+#: then set exactly), small enough to leave the normal matrix well conditioned. Per unit mass, as the other anchors, the pins of a flag
 #: whose triangles at its pole are 1/50 of the mean area were held 50 × less firmly, missed their
 #: place by a tenth of those triangles' size and, set exactly afterwards, turned slivers there over.
 STATIC_ANCHOR_WEIGHT = 1e3
@@ -345,7 +345,7 @@ class _Gap(LocalGlobalFit):
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
-                 riding: np.ndarray | None = None, start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
+                 riding: list[np.ndarray] | None = None, start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
                  steady: np.ndarray | None = None, entry: tuple | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
@@ -372,7 +372,8 @@ class _Gap(LocalGlobalFit):
         self.splines = spline
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
-        # the riding sets (core.pins) and the spline of each one's rigid motion from the base key
+        # the riding sets (index arrays, core.pins) and the splines of each one's turn about its
+        # centroid from the base key and of its centroid
         self.riding = riding
         if riding is not None:
             motions = [riding_motions(base.vertices, r.world, riding) for r in relatives]
@@ -493,7 +494,7 @@ class _Gap(LocalGlobalFit):
 
     def pinned_weights(self, weights: np.ndarray) -> np.ndarray:
         """``weights`` (n,, per unit mass) with :data:`STATIC_ANCHOR_WEIGHT` per vertex on the
-        still vertices."""
+        pinned vertices (still and riding, :mod:`core.pins`)."""
         return weights if self.static is None else np.where(self.static, STATIC_ANCHOR_WEIGHT / self.topo.mass, weights)
 
     def pinned_positions(self, s: float) -> np.ndarray:

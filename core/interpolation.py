@@ -156,7 +156,7 @@ class SequenceInterpolator:
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        # pins (core.pins): still vertices stay put, riding ones follow the keys' per-vertex spline
+        # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid motion
         self._riding = riding_vertices(keys, topology.edges, self._topo.vertex_component, still) or None
         if self._riding is not None:
             still = still.copy()
