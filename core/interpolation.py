@@ -151,13 +151,22 @@ class SequenceInterpolator:
                   "interpolated apart and the seams may open")
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
-        still = still_vertices(keys)
+        still = still_vertices(keys, topology.edges)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
+        # interpolated about the middle of the first key, the results moved back: the splines of the
+        # pieces' screw motions limit their tangents per coordinate, which a translation changes
+        # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
+        self._given, self._still = keys, still
+        origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
+        self._origin = origin if origin.any() else None
+        if self._origin is not None:
+            keys = [k - origin for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid motion
-        self._riding = riding_vertices(keys, topology.edges, self._topo.vertex_component, still) or None
+        # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
+        # motion (found in the keys as given: their float32 rounding is that of the given coordinates)
+        self._riding = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still) or None
         if self._riding is not None:
             still = still.copy()
             still[np.concatenate(self._riding)] = True
@@ -376,7 +385,7 @@ class SequenceInterpolator:
         between = [k for k, s in enumerate(factors) if s not in (0.0, 1.0)]
         for k, s in enumerate(factors):
             if s in (0.0, 1.0):
-                out[k] = self._key(gap + int(s)).vertices
+                out[k] = self._given[gap + int(s)]
         if not between:
             return out if self._copies is None else out[:, self._copies]
         # BLAS single-threaded meanwhile: its calls here are (n, 3) × (3, 3) products, which a
@@ -387,7 +396,9 @@ class SequenceInterpolator:
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
         for k, (x, problem) in zip(between, solved):
-            out[k] = x
+            out[k] = x if self._origin is None else x + self._origin
+            if self._origin is not None and self._static is not None:
+                out[k][self._still] = self._given[0][self._still]  # exactly where they sit
             if problem:
                 _warn(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
         return out if self._copies is None else out[:, self._copies]

@@ -31,15 +31,16 @@ RIDING_ULPS = 3.0
 MAX_RIDING_SHARE = 0.05
 
 
-def still_vertices(keys: list[np.ndarray]) -> np.ndarray:
+def still_vertices(keys: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
     """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
-    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`.
+    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`
+    (``edges`` (E, 2): the mesh's, whose mean length caps it).
     Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
     pins of a cache written in single precision through an object transform (moved by rounding)
     were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
     the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
     first = keys[0]
-    tolerance = coincidence_tolerance(first)
+    tolerance = coincidence_tolerance(first, edges)
     rows = np.arange(first.shape[0])  # the candidates left: each key is read only there
     for key in keys[1:]:
         rows = rows[np.max(np.abs(key[rows] - first[rows]), axis=1) <= tolerance]
@@ -65,10 +66,13 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
 
     first = keys[0]
     largest = max(float(np.max(np.abs(key))) for key in keys)
-    tolerance = RIDING_ULPS * float(np.spacing(np.float32(largest)))
     a, b = edges[:, 0], edges[:, 1]
     candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
+    if not candidates.size:
+        return riding
     length = np.linalg.norm(first[a[candidates]] - first[b[candidates]], axis=1)
+    # float32 spacings, at most a thousandth of the mean edge (far from the origin they outgrow it)
+    tolerance = min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
     for key in keys[1:]:
         close = np.abs(np.linalg.norm(key[a[candidates]] - key[b[candidates]], axis=1) - length) <= tolerance
         candidates, length = candidates[close], length[close]

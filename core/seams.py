@@ -24,8 +24,12 @@ from .errors import MeshError
 
 #: Vertices closer than this fraction of the first pose's bounding-box diagonal (plus a few
 #: float32 roundings of their coordinates) count as one place: single-precision caches written
-#: through an object transform round coincident vertices apart by ~1e-7 of the diagonal.
+#: through an object transform round coincident vertices apart by ~1e-7 of the diagonal ...
 COINCIDENCE_TOLERANCE = 1e-5
+#: ... but never farther apart than this share of the mean edge length: far from the origin the
+#: float32 roundings alone grow past the edges (8 of them are 0.1 units at 1e5 units out), and
+#: neighbouring vertices would count as one place.
+COINCIDENCE_EDGE_SHARE = 0.01
 
 
 @dataclass(frozen=True)
@@ -41,13 +45,16 @@ class SeamWeld:
     topology: object
 
 
-def coincidence_tolerance(first: np.ndarray) -> float:
+def coincidence_tolerance(first: np.ndarray, edges: np.ndarray) -> float:
     """The distance (float) under which two vertices of pose ``first`` (n, 3) are at one place:
     :data:`COINCIDENCE_TOLERANCE` of its diagonal plus eight float32 roundings of its largest
-    coordinate."""
+    coordinate, at most :data:`COINCIDENCE_EDGE_SHARE` of the mean length of ``edges`` (E, 2)."""
     extent = np.ptp(first, axis=0) if first.size else np.zeros(3)
-    return float(COINCIDENCE_TOLERANCE * np.linalg.norm(extent)
+    tolerance = (COINCIDENCE_TOLERANCE * np.linalg.norm(extent)
                  + 8 * np.finfo(np.float32).eps * np.max(np.abs(first), initial=0.0))
+    if len(edges):
+        tolerance = min(tolerance, COINCIDENCE_EDGE_SHARE * float(np.mean(np.linalg.norm(first[edges[:, 0]] - first[edges[:, 1]], axis=1))))
+    return float(tolerance)
 
 
 def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
@@ -66,7 +73,7 @@ def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
     if boundary.size < 2:
         return None
     first = poses[0]
-    tolerance = coincidence_tolerance(first)
+    tolerance = coincidence_tolerance(first, topology.edges)
     pairs = cKDTree(first[boundary]).query_pairs(tolerance, output_type="ndarray")
     if not len(pairs):
         return None

@@ -871,3 +871,29 @@ def test_vertices_riding_on_an_animated_pole_follow_its_motion():
         for s, x in zip(factors, batch):
             np.testing.assert_allclose(x[pole], carried(local[pole], gap + s), atol=1e-9)
             assert np.isfinite(x).all()
+
+
+@pytest.mark.parametrize("distance", [1e3, 1e5])
+def test_in_betweens_far_from_the_origin_are_those_near_it_moved_there(distance):
+    """A swinging, waving sheet keyed 1e3 or 1e5 units from the origin (a scene laid out far from
+    it) gets the in-betweens it gets at the origin, moved there, to 1e-6 of its diagonal: sequences
+    and two poses (before: its float32 local steps rounded the positions before taking their
+    differences, 1e-3–5e-2 of the diagonal apart; the coincidence tolerances grew past the edges)."""
+    flat, tri = grid(16, 12, size=1.0)
+    depth = flat[:, 1].max() - flat[:, 1]
+    keys = []
+    for k in range(5):
+        angle = 0.9 * np.sin(0.8 * k) * (depth / depth.max()) ** 1.5 + 0.2 * k
+        wave = 0.08 * (depth + 0.1) * np.sin(5.0 * flat[:, 0] + 1.3 * k)  # the top edge too: nothing rides
+        keys.append(np.stack([flat[:, 0] + 0.05 * k, flat[:, 1].max() - depth * np.cos(angle),
+                              depth * np.sin(angle) + wave], axis=1))
+    shift = distance * np.array([0.6, -0.7, 0.4])
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    factors = np.arange(1, 8) / 8
+    near, far = SequenceInterpolator(keys, tri), SequenceInterpolator([k + shift for k in keys], tri)
+    for gap in range(len(near)):
+        np.testing.assert_allclose(far.poses(gap, factors) - shift, near.poses(gap, factors), atol=1e-6 * diagonal)
+    for factor in (0.5, 1.5):
+        expected = Interpolator(keys[1], keys[3], tri).pose(factor)
+        got = Interpolator(keys[1] + shift, keys[3] + shift, tri).pose(factor) - shift
+        np.testing.assert_allclose(got, expected, atol=1e-6 * diagonal)

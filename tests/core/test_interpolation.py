@@ -412,6 +412,8 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
 
     flat, tri = strip
     a, b, c = _bend(flat, 0.0), _bend(flat, 2.0), _bend(flat, 3.0)
+    middle = 0.5 * (a.min(axis=0) + a.max(axis=0))  # keyed about the origin: sequences work about
+    a, b, c = a - middle, b - middle, c - middle  # the first key's middle, and the mocks see positions
     blend, extrapolation = 0.5 * (a + b), -0.5 * a + 1.5 * b
 
     def clean(x):  # only the blend (and the linear extrapolation at 1.5) are clean
@@ -532,6 +534,8 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
     flat, tri = strip
     travel = np.array([0.0, 0.0, 30.0])  # keys 30 apart: a tenth of their move would allow the lift
     a, b, c = _bend(flat, 0.0), _bend(flat, 1.0) + travel, _bend(flat, 1.5) + 2 * travel
+    middle = 0.5 * (a.min(axis=0) + a.max(axis=0))  # keyed about the origin: sequences work about
+    a, b, c = a - middle, b - middle, c - middle  # the first key's middle, and the mocks see positions
     fit = []  # the pose the repairs start from
 
     def moved(x):
@@ -924,6 +928,8 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
 
     flat, tri = strip
     keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))  # keyed about the origin: sequences
+    keys = [k - middle for k in keys]  # work about the first key's middle, and the mock sees positions
     factors = np.arange(1, 8) / 8  # seven in-betweens: two solved, five predicted
     with monkeypatch.context() as every_one_solved:
         every_one_solved.setattr(prediction, "MIN_PREDICTED_BATCH", len(factors) + 1)
