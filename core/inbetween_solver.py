@@ -50,9 +50,10 @@ CO_MOVING_DRIFT = 0.01
 #: Anchor of the pinned vertices of a sequence (still in every key, or riding on an animated
 #: object: :mod:`core.pins`), per vertex whatever its mass (the edge terms pull on a vertex per
 #: edge, not per area): large enough that they stay put to ~1e-3 of the edge terms' pull (and are
-#: then set exactly), small enough to leave the normal matrix well conditioned. Per unit mass, as the other anchors, the pins of a flag
-#: whose triangles at its pole are 1/50 of the mean area were held 50 × less firmly, missed their
-#: place by a tenth of those triangles' size and, set exactly afterwards, turned slivers there over.
+#: then set exactly), small enough to leave the normal matrix well conditioned. Per unit mass, as
+#: the other anchors, the pins of a flag whose triangles at its pole are 1/50 of the mean area were
+#: held 50 × less firmly, missed their place by a tenth of those triangles' size and, set exactly
+#: afterwards, turned slivers there over.
 STATIC_ANCHOR_WEIGHT = 1e3
 #: Sequences anchor every other vertex to the keys' per-vertex spline with this weight (per unit
 #: vertex mass, relative to the unit edge terms of the graph Laplacian): shapes longer than about
