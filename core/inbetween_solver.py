@@ -348,8 +348,8 @@ class _Gap(LocalGlobalFit):
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
-                 riding: list[np.ndarray] | None = None, start_limit: float | None = None, whole_rotations: np.ndarray | None = None,
-                 steady: np.ndarray | None = None, entry: tuple | None = None):
+                 riding: list[np.ndarray] | None = None, start_limit: float | None = None,
+                 whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
         self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations

@@ -49,12 +49,15 @@ def still_vertices(keys: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
     return still
 
 
-def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray, still: np.ndarray) -> list[np.ndarray]:
+def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray,
+                    still: np.ndarray) -> list[np.ndarray]:
     """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
-    (list of K ≥ 3 arrays (n, 3)): each a set of at least :data:`MIN_RIDING_VERTICES` vertices joined by
-    ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding
-    (:data:`RIDING_ULPS`), the set moves as one rigid body to that precision in every key, it is not a whole piece (``component`` (n,): each vertex's piece, −1 for loose
-    vertices; whole rigid pieces follow their screw motions) and not ``still`` (n,)."""
+    (list of K ≥ 3 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
+    by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding
+    (:data:`RIDING_ULPS`), moves as one rigid body to that precision in every key, is not a whole
+    piece (``component`` (n,): each vertex's piece, −1 for loose vertices; whole rigid pieces
+    follow their screw motions) in a piece keeping no more than :data:`MAX_RIDING_SHARE` of its
+    edges so, and is not all ``still`` (n,)."""
     n = keys[0].shape[0]
     riding: list[np.ndarray] = []
     if len(keys) < 3 or not len(edges):
@@ -96,8 +99,8 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
         pieces = np.unique(component[rows])
         if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
             continue
-        if all(np.max(np.linalg.norm(_aligned(first[rows], key[rows], rigid_alignment) - key[rows], axis=1)) <= 4 * tolerance
-               for key in keys[1:]):
+        misses = (np.linalg.norm(_aligned(first[rows], key[rows], rigid_alignment) - key[rows], axis=1) for key in keys[1:])
+        if all(np.max(miss) <= 4 * tolerance for miss in misses):
             riding.append(rows)
     return riding
 

@@ -53,7 +53,8 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray) -> float:
     tolerance = (COINCIDENCE_TOLERANCE * np.linalg.norm(extent)
                  + 8 * np.finfo(np.float32).eps * np.max(np.abs(first), initial=0.0))
     if len(edges):
-        tolerance = min(tolerance, COINCIDENCE_EDGE_SHARE * float(np.mean(np.linalg.norm(first[edges[:, 0]] - first[edges[:, 1]], axis=1))))
+        mean_edge = float(np.mean(np.linalg.norm(first[edges[:, 0]] - first[edges[:, 1]], axis=1)))
+        tolerance = min(tolerance, COINCIDENCE_EDGE_SHARE * mean_edge)
     return float(tolerance)
 
 
