@@ -8,8 +8,8 @@ stretches, and a piece has no reason to meet its neighbour there: a 10k sheet cu
 row of coincident vertices opened by 1–13 mean edge lengths at keys 8 and 16 frames apart. Such
 vertices are welded for the interpolation and written back to every copy.
 
-:func:`seam_weld` finds them: boundary vertices that sit within :func:`coincidence_tolerance` of
-each other in every pose. The weld is used only where the welded mesh is a valid one (manifold,
+:func:`seam_weld` finds them: boundary edges whose ends sit within :func:`coincidence_tolerance`
+of another boundary edge's in every pose (pieces touching at a single point are not seams). The weld is used only where the welded mesh is a valid one (manifold,
 consistently oriented, no triangle losing a corner); otherwise the pieces stay apart and a warning
 says the seams may open.
 """
@@ -59,8 +59,9 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray) -> float:
 
 
 def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
-    """The weld of the boundary vertices of ``topology`` (a :class:`core.mesh_topology.MeshTopology`)
-    that coincide in every one of ``poses`` (list of (n, 3)), or None when there are none.
+    """The weld of the seams of ``topology`` (a :class:`core.mesh_topology.MeshTopology`): its
+    boundary edges that coincide, end for end, with exactly one other boundary edge in every one of
+    ``poses`` (list of (n, 3)); None when there are none.
     Raises :class:`MeshError` when the welded mesh is not a valid one (the caller keeps the
     pieces apart)."""
     from scipy.sparse import coo_matrix
@@ -85,8 +86,18 @@ def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
     if not together.any():
         return None
     n = topology.n_vertices
-    graph = coo_matrix((np.ones(int(together.sum())), (a[together], b[together])), shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
+    a, b = a[together], b[together]
+    labels = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)[1]
+    # only seams: boundary edges that coincide with exactly one other (pieces touching at a point
+    # stay apart, three panels on one edge too: joined there the mesh would not be a manifold)
+    ends = np.sort(labels[edges], axis=1)
+    _, edge_group, count = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
+    seam = np.zeros(n, dtype=bool)
+    seam[edges[count[edge_group.ravel()] == 2].ravel()] = True
+    a, b = a[seam[a] & seam[b]], b[seam[a] & seam[b]]
+    if not a.size:
+        return None
+    labels = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)[1]
     kept, copies = np.unique(labels, return_index=True, return_inverse=True)[1:]
     triangles = copies[topology.triangles]
     if (np.diff(np.sort(triangles, axis=1), axis=1) == 0).any():

@@ -110,3 +110,22 @@ def test_single_precision_seams_are_welded(scale):
     assert weld is not None
     np.testing.assert_array_equal(weld.copies[seam], weld.copies[copies])
     assert weld.kept.size == len(keys[0])
+
+
+def test_pieces_touching_at_a_point_are_not_a_seam():
+    """A small flap touching the cut sheet at one corner only (no edge in common) is no seam: the
+    sheet's seam is still welded, the flap stays its own piece, and nothing is warned (before: the
+    touching corner made the welded mesh a bow-tie, so no seam was welded and a warning said so)."""
+    keys, tri = _waving_sheet(n_keys=3)
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri)
+    corner = int(np.argmax(cut_keys[0][:, 0] + cut_keys[0][:, 1]))  # the sheet's far corner
+    n = len(cut_keys[0])
+    flap = [np.concatenate([k, k[corner] + [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0], [0.0, 0.0, 0.1]]]) for k in cut_keys]
+    flap_tri = np.concatenate([cut_tri, [[n, n + 1, n + 2]]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        sequence = SequenceInterpolator(flap, flap_tri)
+        poses = sequence.poses(0, [0.5])
+    np.testing.assert_array_equal(poses[0][seam], poses[0][copies])
+    weld = seam_weld(flap, mesh_topology(flap_tri, len(flap[0])))
+    assert weld.copies[n] != weld.copies[corner]
