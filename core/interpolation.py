@@ -55,7 +55,7 @@ from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, componen
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
-from .seams import seam_weld
+from .seams import coincidence_tolerance, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
 
@@ -158,6 +158,7 @@ class SequenceInterpolator:
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
+        self._hold_tolerance, self._holds = coincidence_tolerance(keys[0], topology.edges), {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None
         if self._origin is not None:
@@ -312,7 +313,7 @@ class SequenceInterpolator:
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static, self._riding, start_limit=self._start_limit() if gap == 0 else None,
+                       self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
                        whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                        entry=self._entry(gap, prev.nonrigidity) if cubic else None)
         with self._cache_lock:
@@ -345,12 +346,13 @@ class SequenceInterpolator:
             return None
         seen = [self._nonrigidity(k, i) if 0 <= i < len(self._raw) else np.zeros(len(self._topo.components))
                 for i in (k - 1, gap, gap + 1)]
-        free = free_flight(*seen, self._start_limit() if k == 0 else None, steady)
+        start = self._start_limit(k)
+        free = free_flight(*seen, start, steady)
         if free is None:
             return None
         x, c = self._raw, self._centroids
-        if k == 0:  # from rest (free_flight said so): the parabola's velocity at key 1 is 2 (x₁ − x₀)
-            return free, {"world": 2.0 * (x[1] - x[0]), "centroids": 2.0 * (c[1] - c[0])}
+        if start == REST_START_LIMIT:  # from rest (free_flight said so): the parabola's velocity at the key is 2 (x₁ − x₀)
+            return free, {"world": 2.0 * (x[gap] - x[k]), "centroids": 2.0 * (c[gap] - c[k])}
         return free, {"world": 1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1],
                       "centroids": 1.5 * c[gap] - 2.0 * c[k] + 0.5 * c[k - 1]}
 
@@ -361,9 +363,20 @@ class SequenceInterpolator:
         misfits = rigid_fits(topo, self._raw[base], self._raw[other])[2]
         return np.asarray(misfits) / component_diagonals(topo, self._raw[base])
 
-    def _start_limit(self) -> float:
-        """The first gap's start tangent limit (× its secant) for this sequence's ``start``."""
-        return REST_START_LIMIT if self.start == "rest" else START_TANGENT_LIMIT
+    def _start_limit(self, gap: int) -> float | None:
+        """Gap ``gap``'s start tangent limit (× its secant): the first gap's for this sequence's
+        ``start``, a gap after a hold's from rest (the motion starts there), None for the others."""
+        if gap == 0:
+            return REST_START_LIMIT if self.start == "rest" else START_TANGENT_LIMIT
+        return REST_START_LIMIT if self._hold(gap - 1) else None
+
+    def _hold(self, gap: int) -> bool:
+        """Whether gap ``gap``'s two keys are the same pose (a hold: its in-betweens are that pose;
+        the keys' spline would swing out and back through it toward the keys around it)."""
+        if gap not in self._holds:
+            a, b = self._given[gap], self._given[gap + 1]
+            self._holds[gap] = bool(np.max(np.abs(a - b), initial=0.0) <= self._hold_tolerance)
+        return self._holds[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
@@ -386,7 +399,8 @@ class SequenceInterpolator:
         for k, s in enumerate(factors):
             if s in (0.0, 1.0):
                 out[k] = self._given[gap + int(s)]
-        if not between:
+        if not between or self._hold(gap):  # a hold: the pose at every factor
+            out[between] = self._given[gap]
             return out if self._copies is None else out[:, self._copies]
         # BLAS single-threaded meanwhile: its calls here are (n, 3) × (3, 3) products, which a
         # second BLAS thread does not speed up; its workers spin on the core the other half of the

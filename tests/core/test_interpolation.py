@@ -997,3 +997,21 @@ def test_stretch_falls_back_to_the_log_spline_where_the_metric_spline_is_not_pos
     np.testing.assert_allclose(u[broken], df.exp_stretch(gap.splines["log_stretch"].at(0.4)[broken]), rtol=1e-12)
     np.testing.assert_allclose(u[~broken], df.sqrt_stretch(real_at(0.4))[0][~broken], rtol=1e-12)
     np.testing.assert_allclose(gap.area_scale(0.4), u[:, 0] * u[:, 2] - u[:, 1] ** 2, rtol=1e-12)
+
+
+
+def test_a_hold_stays_put_and_the_motion_after_it_starts_from_rest():
+    """A sheet swings up to a pose, holds it for a gap (two equal keys: an animator's held pose, a
+    cache that holds a pose), then falls from rest (p₀ + ½at²): the held gap's in-betweens are the
+    pose itself, and the gap after it starts from rest, so the fall is exact there (before: the
+    keys' spline swung out of the hold toward the keys around it and entered the fall moving, both
+    gaps 0.037 off on a first drop of 0.5)."""
+    flat, tri = grid(8, 6, size=1.0)
+    flat = flat + [0.0, 0.0, 0.02] * np.sin(3.0 * flat[:, [0]])  # not flat: a shape to keep
+    fall = np.array([0.1, -0.05, -1.0])
+    keys = [flat + [0.0, 0.0, 0.3], flat, flat] + [flat + 0.5 * fall * t ** 2 for t in (1.0, 2.0, 3.0)]
+    sequence = SequenceInterpolator(keys, tri)
+    factors = np.arange(1, 8) / 8
+    np.testing.assert_array_equal(sequence.poses(1, factors), np.broadcast_to(flat, (7, *flat.shape)))
+    for s, pose in zip(factors, sequence.poses(2, factors)):
+        np.testing.assert_allclose(pose, flat + 0.5 * fall * s ** 2, atol=1e-9)
