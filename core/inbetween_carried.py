@@ -25,7 +25,7 @@ import numpy as np
 
 from . import deformation_fields as df
 from .geometry import nearest_rotations
-from .inbetween_joints import JOINT_REACH, joint_offset
+from .inbetween_joints import JOINT_REACH, joint_offset, relative_motion
 from .rigid_alignment import rigid_alignment
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
@@ -66,15 +66,12 @@ class CarriedPieces:
             rows = topo.components[c]
             if gap.static is not None and gap.static[rows].all():
                 continue  # still in every key: pinned where it is
-            own_rotation, own_translation = rigid_alignment(base[rows], nxt[rows])
-            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree,
-                              (own_rotation, own_translation), JOINT_REACH * gap.mean_edge)
+            own = rigid_alignment(base[rows], nxt[rows])
+            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree, own, JOINT_REACH * gap.mean_edge)
             if seat is not None:
                 carriers, rotation, translation = seat
                 # the piece's own motion after the carriers' undone: applied in part at each factor
-                residual_rotation = rotation.T @ own_rotation
-                residual_translation = rotation.T @ (own_translation - translation)
-                screw = df.rigid_log(residual_rotation, residual_translation)
+                screw = df.rigid_log(*relative_motion((rotation, translation), own))
                 self.pieces.append((rows, carriers, screw))
         if self.pieces:  # concatenated for place(): pieces' vertices, carriers and their base fit
             rows, carriers, screws = zip(*self.pieces)
@@ -152,6 +149,4 @@ def _jointed(base: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, own
         return False
     piece, seated = np.array(pairs).T
     contact = 0.5 * (base[piece] + base[carriers[seated]])
-    rotation, translation = seat
-    own_rotation, own_translation = own
-    return joint_offset(contact, rotation.T @ own_rotation, rotation.T @ (own_translation - translation), reach) <= reach
+    return joint_offset(contact, *relative_motion(seat, own), reach) <= reach

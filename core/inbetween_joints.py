@@ -30,6 +30,14 @@ from . import deformation_fields as df
 JOINT_REACH = 1.0
 
 
+def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid motion ``child`` (rotation (3, 3), translation (3,)) with ``parent``'s undone:
+    ``(R_pᵀ R_c, R_pᵀ (t_c − t_p))``, so that ``parent ∘ relative = child``."""
+    (rotation, translation), (child_rotation, child_translation) = parent, child
+    return rotation.T @ child_rotation, rotation.T @ (child_translation - translation)
+
+
 def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndarray, reach: float) -> float:
     """How far (≥ 0) the relative rigid motion ``x ↦ rotation · x + translation`` of two pieces
     (the child's motion with its parent's undone) is from holding their ``contact`` (points (k, 3)
@@ -89,9 +97,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     edges, weights = [], []
     for start, stop in zip(first, np.r_[first[1:], key.size]):
         u, v = divmod(int(key[start]), pieces.size)
-        (ru, tu), (rv, tv) = (rotations[u], translations[u]), (rotations[v], translations[v])
         contact = 0.5 * (base[ends[start:stop, 0]] + base[ends[start:stop, 1]])
-        offset = joint_offset(contact, ru.T @ rv, ru.T @ (tv - tu), reach)
+        offset = joint_offset(contact, *relative_motion((rotations[u], translations[u]),
+                                                        (rotations[v], translations[v])), reach)
         if offset <= reach:
             # the closest the touching vertices stay at the next key: 0 where a joint is a shared point
             apart = np.min(np.linalg.norm(nxt[ends[start:stop, 0]] - nxt[ends[start:stop, 1]], axis=1))
@@ -137,8 +145,7 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list) -> list:
         out = screw.copy()
         for c in children:
             p = parents[c]
-            inverse = rotations[p].T
-            out[c] = df.rigid_log(inverse @ rotations[c], inverse @ (translations[c] - translations[p]),
+            out[c] = df.rigid_log(*relative_motion((rotations[p], translations[p]), (rotations[c], translations[c])),
                                   None if turns is None else turns[c], unwrap)
         return out
 

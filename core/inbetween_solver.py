@@ -504,10 +504,9 @@ class _Gap(LocalGlobalFit):
         """Where the pinned vertices (``static``) are at factor ``s`` ((p, 3), in their order):
         still ones where the base key has them, each riding set moved from there by its rigid
         motion's spline (:mod:`core.pins`)."""
-        x = self.base.vertices.copy()
-        if self.riding is not None:
-            self.ride(x, s)
-        return x[self.static]
+        if self.riding is None:
+            return self.base.vertices[self.static]
+        return self.ride(self.base.vertices.copy(), s)[self.static]
 
     def ride(self, x: np.ndarray, s: float) -> np.ndarray:
         """``x`` (n, 3) with each riding set (:mod:`core.pins`) where the spline of its rigid motion

@@ -143,22 +143,24 @@ class SequenceInterpolator:
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
         self._triangles, self._copies = topology.triangles, None
+        # at one place (seams, still vertices, holds): within this distance in every key
+        tolerance = coincidence_tolerance(keys[0], topology.edges)
         try:  # pieces that touch along seams are interpolated as one (core.seams)
-            weld = seam_weld(keys, topology)
+            weld = seam_weld(keys, topology, tolerance)
         except MeshError as error:
             weld = None
             _warn(f"some pieces touch along seams but cannot be joined there ({error}); they are "
                   "interpolated apart and the seams may open")
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
-        still = still_vertices(keys, topology.edges)
+        still = still_vertices(keys, tolerance)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         # interpolated about the middle of the first key, the results moved back: the splines of the
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
-        self._hold_tolerance, self._holds = coincidence_tolerance(keys[0], topology.edges), {}
+        self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None
         if self._origin is not None:

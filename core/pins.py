@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .seams import coincidence_tolerance
+from .rigid_alignment import rigid_alignment
+from .seams import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
 #: more than RIDING_ULPS float32 spacings of the keys' largest coordinate. A pole carried by its
@@ -31,16 +32,15 @@ RIDING_ULPS = 3.0
 MAX_RIDING_SHARE = 0.05
 
 
-def still_vertices(keys: list[np.ndarray], edges: np.ndarray) -> np.ndarray:
+def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
     """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
-    moves it from its place in the first further than :func:`core.seams.coincidence_tolerance`
-    (``edges`` (E, 2): the mesh's, whose mean length caps it).
+    moves it from its place in the first further than ``tolerance``
+    (:func:`core.seams.coincidence_tolerance`).
     Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
     pins of a cache written in single precision through an object transform (moved by rounding)
     were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
     the diagonal, had its corners 4.2 % of the diagonal off at keys 16 frames apart."""
     first = keys[0]
-    tolerance = coincidence_tolerance(first, edges)
     rows = np.arange(first.shape[0])  # the candidates left: each key is read only there
     for key in keys[1:]:
         rows = rows[np.max(np.abs(key[rows] - first[rows]), axis=1) <= tolerance]
@@ -62,11 +62,6 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     riding: list[np.ndarray] = []
     if len(keys) < 3 or not len(edges):
         return riding
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    from .rigid_alignment import rigid_alignment
-
     first = keys[0]
     largest = max(float(np.max(np.abs(key))) for key in keys)
     a, b = edges[:, 0], edges[:, 1]
@@ -90,22 +85,21 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     kept &= (edge_piece >= 0) & cloth[np.maximum(edge_piece, 0)]
     if not kept.any():
         return riding
-    graph = coo_matrix((np.ones(int(kept.sum())), (a[kept], b[kept])), shape=(n, n))
-    count, labels = connected_components(graph, directed=False)
-    sizes = np.bincount(labels, minlength=count)
+    labels = vertex_groups(a[kept], b[kept], n)
+    sizes = np.bincount(labels)
     piece_sizes = np.bincount(component[component >= 0])
     for label in np.flatnonzero(sizes >= MIN_RIDING_VERTICES):
         rows = np.flatnonzero(labels == label)
         pieces = np.unique(component[rows])
         if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
             continue
-        misses = (np.linalg.norm(_aligned(first[rows], key[rows], rigid_alignment) - key[rows], axis=1) for key in keys[1:])
-        if all(np.max(miss) <= 4 * tolerance for miss in misses):
+        if all(np.max(np.linalg.norm(_aligned(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
+               for key in keys[1:]):
             riding.append(rows)
     return riding
 
 
-def _aligned(source: np.ndarray, target: np.ndarray, align) -> np.ndarray:
+def _aligned(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """``source`` (r, 3) moved by its best rigid motion onto ``target`` (r, 3)."""
-    rotation, translation = align(source, target)
+    rotation, translation = rigid_alignment(source, target)
     return source @ rotation.T + translation

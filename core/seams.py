@@ -58,14 +58,22 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray) -> float:
     return float(tolerance)
 
 
-def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
-    """The weld of the seams of ``topology`` (a :class:`core.mesh_topology.MeshTopology`): its
-    boundary edges that coincide, end for end, with exactly one other boundary edge in every one of
-    ``poses`` (list of (n, 3)); None when there are none.
-    Raises :class:`MeshError` when the welded mesh is not a valid one (the caller keeps the
-    pieces apart)."""
+def vertex_groups(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """The group (n,) of each of ``n`` vertices joined by the pairs ``a``, ``b`` (each (p,)): the
+    connected components of the graph of those pairs."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
+
+    return connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)[1]
+
+
+def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None) -> SeamWeld | None:
+    """The weld of the seams of ``topology`` (a :class:`core.mesh_topology.MeshTopology`): its
+    boundary edges that coincide, end for end, with exactly one other boundary edge in every one of
+    ``poses`` (list of (n, 3)), within ``tolerance`` (:func:`coincidence_tolerance` by default);
+    None when there are none.
+    Raises :class:`MeshError` when the welded mesh is not a valid one (the caller keeps the
+    pieces apart)."""
     from scipy.spatial import cKDTree
 
     from .mesh_topology import mesh_topology
@@ -75,7 +83,8 @@ def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
     if boundary.size < 2:
         return None
     first = poses[0]
-    tolerance = coincidence_tolerance(first, topology.edges)
+    if tolerance is None:
+        tolerance = coincidence_tolerance(first, topology.edges)
     pairs = cKDTree(first[boundary]).query_pairs(tolerance, output_type="ndarray")
     if not len(pairs):
         return None
@@ -87,7 +96,7 @@ def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
         return None
     n = topology.n_vertices
     a, b = a[together], b[together]
-    labels = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)[1]
+    labels = vertex_groups(a, b, n)
     # only seams: boundary edges that coincide with exactly one other (pieces touching at a point
     # stay apart, three panels on one edge too: joined there the mesh would not be a manifold)
     ends = np.sort(labels[edges], axis=1)
@@ -97,8 +106,7 @@ def seam_weld(poses: list[np.ndarray], topology) -> SeamWeld | None:
     a, b = a[seam[a] & seam[b]], b[seam[a] & seam[b]]
     if not a.size:
         return None
-    labels = connected_components(coo_matrix((np.ones(a.size), (a, b)), shape=(n, n)), directed=False)[1]
-    kept, copies = np.unique(labels, return_index=True, return_inverse=True)[1:]
+    kept, copies = np.unique(vertex_groups(a, b, n), return_index=True, return_inverse=True)[1:]
     triangles = copies[topology.triangles]
     if (np.diff(np.sort(triangles, axis=1), axis=1) == 0).any():
         raise MeshError("welding the coincident vertices would collapse a triangle")
