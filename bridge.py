@@ -52,8 +52,14 @@ class VertexCountChanged(ValueError):
     """The evaluated mesh does not have the vertex count of the original mesh at some frame."""
 
 
+def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
+    """The number of vertices of ``obj``'s evaluated mesh (after its modifiers) at the depsgraph's
+    current frame."""
+    return len(obj.evaluated_get(depsgraph).data.vertices)
+
+
 def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: list[int],
-                    first_visit: int | None = None, every_frame: bool = True):
+                    first_visit: int | None = None, every_frame: bool = True, set_aside=()):
     """Yield ``(frame, positions)`` for the evaluated mesh of ``obj`` at each of ``frames``
     (ascending).
 
@@ -61,13 +67,19 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     earlier: where an unbaked simulation starts) to the last is visited in order, so that
     simulations that are not baked still advance one frame at a time; without it only ``frames``
     are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
-    The scene's current frame is restored afterwards, also when the caller stops early.
+    ``set_aside``: modifiers of ``obj`` switched off in the viewport while the frames are read
+    (the generators after the motion, :func:`operators.output.modifiers_set_aside`).
+    The scene's current frame and the modifiers are restored afterwards, also when the caller
+    stops early.
     """
     scene = context.scene
     wanted = set(frames)
     vertex_count = len(obj.data.vertices)
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
+    aside = [modifier for modifier in set_aside if modifier.show_viewport]
     try:
+        for modifier in aside:
+            modifier.show_viewport = False
         first = frames[0] if first_visit is None else min(first_visit, frames[0])
         visits = range(first, frames[-1] + 1) if every_frame else frames
         for frame in visits:
@@ -78,11 +90,15 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             if len(positions) != vertex_count:
                 raise VertexCountChanged(
                     f"At frame {frame} the evaluated mesh of '{obj.name}' has {len(positions)} "
-                    f"vertices instead of {vertex_count}: a modifier changes the topology. "
-                    "Disable modifiers that add or remove geometry (Subdivision, Remesh, Decimate, "
-                    "...) or apply them before capturing frames.")
+                    f"vertices instead of {vertex_count}: a modifier before the motion (or a "
+                    "Geometry Nodes modifier) changes the topology. Disable modifiers that add or "
+                    "remove geometry there (Subdivision, Remesh, Decimate, ...) or apply them before "
+                    "simulating or rigging; those after the cloth or armature are set aside by "
+                    "themselves.")
             yield frame, positions
     finally:
+        for modifier in aside:
+            modifier.show_viewport = True
         scene.frame_set(original_frame, subframe=original_subframe)
 
 
@@ -229,10 +245,11 @@ DEFORMING_PARENT_TYPES = {'ARMATURE', 'LATTICE', 'CURVE'}
 
 
 def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name: str,
-                     filepath: str, start: float, sampling: float) -> bpy.types.Object:
+                     filepath: str, start: float, sampling: float, modifiers=()) -> bpy.types.Object:
     """A new object named ``name`` with a copy of ``source``'s mesh (no shape keys, no
     modifiers) and a Mesh Cache modifier that plays the PC2 file ``filepath`` whose first sample
-    is at frame ``start``, one every ``sampling`` frames.
+    is at frame ``start``, one every ``sampling`` frames, followed by copies of ``source``'s
+    ``modifiers`` (the generators after its motion: a Subdivision, a Solidify).
 
     It is linked to the collections of ``source``, placed where ``source`` is (with the same
     parent unless that parent deforms it) and ``source`` stays the active, selected object. If
@@ -260,6 +277,12 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         # The modifier reads sample (frame * frame_scale - frame_start) of the file.
         modifier.frame_scale = 1.0 / sampling
         modifier.frame_start = start / sampling
+        if modifiers:
+            # Blender's own copy: every setting, Geometry Nodes inputs included
+            with context.temp_override(object=source, active_object=source, selected_objects=[obj],
+                                       selected_editable_objects=[obj]):
+                for copied in modifiers:
+                    bpy.ops.object.modifier_copy_to_selected(modifier=copied.name)
         return obj
     except BaseException:
         if obj is not None:

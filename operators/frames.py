@@ -11,7 +11,7 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core,
                    require_count, surface_triangles)
-from .output import PoseWriter, frames_depend_on_earlier, unbaked_simulations
+from .output import PoseWriter, frames_depend_on_earlier, modifiers_set_aside, unbaked_simulations
 from .poses import format_factor, inbetween_name
 
 
@@ -71,7 +71,8 @@ class FrameRangeProperties:
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions."""
         poses = []
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(obj),
-                                        every_frame=frames_depend_on_earlier(context.scene))
+                                        every_frame=frames_depend_on_earlier(context.scene),
+                                        set_aside=modifiers_set_aside(context, obj))
         with closing(reader) as frame_reader:
             for frame, positions in frame_reader:
                 poses.append(positions)

@@ -38,6 +38,52 @@ def unbaked_simulations(obj) -> list[str]:
             and not modifier.point_cache.is_baked]
 
 
+#: Modifiers that add or remove vertices (Blender's Generate category; Geometry Nodes apart, which
+#: may carry the motion itself).
+GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',
+                      'MULTIRES', 'REMESH', 'SCREW', 'SKIN', 'SOLIDIFY', 'SUBSURF', 'TRIANGULATE', 'WELD',
+                      'WIREFRAME'}
+#: Modifiers that smooth, displace or change normals, UVs or weights without animation of their
+#: own: they may follow a generator in the run that is set aside.
+TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE', 'WEIGHTED_NORMAL',
+                      'NORMAL_EDIT', 'UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_EDIT', 'VERTEX_WEIGHT_MIX',
+                      'VERTEX_WEIGHT_PROXIMITY', 'DATA_TRANSFER', 'COLLISION'}
+
+
+def trailing_generators(obj) -> list:
+    """The enabled modifiers at the end of ``obj``'s stack from its first generator on, when only
+    generators and touch-ups follow it: what turns the moving mesh (after the cloth, armature,
+    Mesh Cache) into the displayed one, such as a Subdivision Surface after the cloth."""
+    enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport]
+    start = len(enabled)
+    for index in range(len(enabled) - 1, -1, -1):
+        if enabled[index].type in GENERATE_MODIFIERS:
+            start = index
+        elif enabled[index].type not in TOUCH_UP_MODIFIERS:
+            break
+    return enabled[start:]
+
+
+def modifiers_set_aside(context, obj) -> list:
+    """The modifiers to switch off while the frames of ``obj`` are read: its trailing generators
+    (:func:`trailing_generators`) when its evaluated mesh has other vertices than its mesh (the
+    poses are of the mesh's own vertices), none otherwise. Raises :class:`InputError` when one of
+    its simulations is not baked: switching a modifier of the object off and on again marks that
+    cache outdated, and Blender then drops its frames."""
+    if bridge.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
+        return []
+    aside = trailing_generators(obj)
+    unbaked = unbaked_simulations(obj)
+    if aside and unbaked:
+        names = ", ".join(repr(modifier.name) for modifier in aside)
+        raise InputError(
+            f"{names} after the simulation changes the vertex count of '{obj.name}', and its "
+            f"{', '.join(repr(name) for name in unbaked)} cache is not baked: bake it (Physics › "
+            f"Cache › Bake) so that {names} can be set aside while the frames are read, or "
+            "disable it")
+    return aside
+
+
 #: Modifiers whose result at a frame may depend on the frames before it and whose bakes are not
 #: checked here: particles, dynamic paint, fluids, and geometry nodes (a simulation zone).
 SEQUENTIAL_MODIFIERS = {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'NODES'}
@@ -154,7 +200,8 @@ class PoseWriter:
             raise InputError(f"Cannot write the cache file '{path}': {error.strerror or error}. "
                              "Pick another Cache File") from None
         try:
-            obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling)
+            obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling,
+                                          modifiers=trailing_generators(source))
         except BaseException:
             path.unlink(missing_ok=True)
             raise

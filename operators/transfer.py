@@ -11,7 +11,7 @@ from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
-from .output import PoseWriter
+from .output import PoseWriter, modifiers_set_aside
 
 #: Basis sizes used when the settings ask for the full basis (0), which a map between two
 #: meshes cannot use (paper §6.3; the paper's Figs. 11 and 14).
@@ -149,7 +149,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
                     [bridge.shape_key_positions(kb) for kb in key_blocks[1:]])
         frames = self.frames(context)
         poses = []
-        with closing(bridge.frame_positions(context, source, frames)) as reader:
+        with closing(bridge.frame_positions(context, source, frames,
+                                            set_aside=modifiers_set_aside(context, source))) as reader:
             for _frame, positions in reader:
                 poses.append(positions)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),

@@ -1,0 +1,112 @@
+"""A Subdivision Surface or Solidify after the cloth or armature (the usual set-up for display and
+render) adds vertices to the evaluated mesh: frames are read with those trailing generators
+switched off (the poses are of the mesh's own vertices), they are switched on again afterwards,
+and the new object that plays the result gets copies of them after its Mesh Cache, so that it
+looks like the source. A generator before the motion, or one after an unbaked simulation (whose
+cache switching it off would outdate), is refused and nothing changes."""
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import (armature_scene, assert_unchanged, cloth_scene,  # noqa: E402
+                            evaluated_frames, key_names, pinned_cloth_scene, snapshot)
+from test_failures import fails_without_change  # noqa: E402
+
+TOLERANCE = 1e-5  # float32 positions
+
+
+def add_display_modifiers(obj):
+    subdivision = obj.modifiers.new("Subdivision", 'SUBSURF')
+    subdivision.levels = 1
+    solidify = obj.modifiers.new("Solidify", 'SOLIDIFY')
+    solidify.thickness = 0.02
+    return subdivision, solidify
+
+
+def displayed(bridge, obj, frames) -> dict:
+    """The evaluated mesh of ``obj`` at each of ``frames``, whatever its vertex count."""
+    result = {}
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+    bpy.context.scene.frame_set(1)
+    return result
+
+
+def new_objects(names_before: set):
+    return [obj for obj in bpy.data.objects if obj.name not in names_before]
+
+
+def test_inbetween_frames_reads_the_armature_motion_under_a_subdivision(bpy_empty, extension, tmp_path):
+    bridge = extension.bridge
+    strip = armature_scene(frames=9)
+    moving = evaluated_frames(bridge, strip, [1, 5, 9])  # the armature's motion of the mesh's vertices
+    add_display_modifiers(strip)
+    shown = displayed(bridge, strip, [1, 5, 9])
+    assert len(shown[5]) > len(strip.data.vertices), "the subdivision should add vertices"
+    before, names = snapshot(bridge, strip), set(bpy.data.objects.keys())
+
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path / "strip.pc2"))
+
+    after = snapshot(bridge, strip)
+    after["meshes"] = before["meshes"]  # the new object brings its own mesh
+    assert_unchanged(before, after)  # modifiers on again, with every setting as it was
+    [played] = new_objects(names)
+    assert [m.type for m in played.modifiers] == ['MESH_CACHE', 'SUBSURF', 'SOLIDIFY']
+    assert played.modifiers["Subdivision"].levels == 1
+    assert played.modifiers["Solidify"].thickness == pytest.approx(0.02)
+    for frame in (1, 5, 9):
+        # the cache holds the keys' own vertices, and the new object displays them as the source does
+        played.modifiers["Subdivision"].show_viewport = played.modifiers["Solidify"].show_viewport = False
+        np.testing.assert_allclose(evaluated_frames(bridge, played, [frame])[frame], moving[frame],
+                                   atol=TOLERANCE)
+        played.modifiers["Subdivision"].show_viewport = played.modifiers["Solidify"].show_viewport = True
+        np.testing.assert_allclose(displayed(bridge, played, [frame])[frame], shown[frame], atol=TOLERANCE)
+
+
+def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
+    bridge = extension.bridge
+    cloth = cloth_scene(subdivisions=10, frames=9)
+    moving = evaluated_frames(bridge, cloth, [1, 5, 9])
+    subdivision, _ = add_display_modifiers(cloth)
+    shown = displayed(bridge, cloth, [9])[9]
+    before = snapshot(bridge, cloth)
+
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
+                                                   output='SHAPE_KEYS')
+
+    assert key_names(cloth) == ["Basis", "Frame 1", "Frame 5", "Frame 9"]
+    for frame in (1, 5, 9):
+        np.testing.assert_allclose(
+            bridge.shape_key_positions(cloth.data.shape_keys.key_blocks[f"Frame {frame}"]),
+            moving[frame], atol=TOLERANCE)
+    assert subdivision.show_viewport
+    after = snapshot(bridge, cloth)
+    for field in ("modifiers", "modifier_settings", "point_caches", "frame"):
+        assert after[field] == before[field], field
+    # the bake still plays: the new keys are at value 0, the cloth drives the mesh
+    np.testing.assert_allclose(displayed(bridge, cloth, [9])[9], shown, atol=TOLERANCE)
+
+
+def test_a_subdivision_after_an_unbaked_cloth_is_refused(bpy_empty, extension):
+    flag = pinned_cloth_scene(frames=5, bake=False)
+    add_display_modifiers(flag)
+    bpy.context.view_layer.update()  # adding them empties the unbaked cache (Blender's doing, not ours)
+    fails_without_change(extension.bridge, flag, bpy.ops.shape_differences.inbetween_frames,
+                         "'Subdivision', 'Solidify' after the simulation .* 'Cloth' cache is not "
+                         "baked: bake it", frame_start=1, frame_end=5, frame_step=2)
+
+
+def test_a_generator_before_the_motion_is_refused(bpy_empty, extension):
+    strip = armature_scene()
+    decimate = strip.modifiers.new("Decimate", 'DECIMATE')
+    decimate.ratio = 0.5
+    strip.modifiers.move(len(strip.modifiers) - 1, 0)  # before the armature
+    assert [m.type for m in strip.modifiers] == ['DECIMATE', 'ARMATURE']
+    for operator in (bpy.ops.shape_differences.frames_to_shape_keys,
+                     bpy.ops.shape_differences.inbetween_frames):
+        fails_without_change(extension.bridge, strip, operator,
+                             "instead of .* a modifier before the motion")
