@@ -1015,3 +1015,33 @@ def test_a_hold_stays_put_and_the_motion_after_it_starts_from_rest():
     np.testing.assert_array_equal(sequence.poses(1, factors), np.broadcast_to(flat, (7, *flat.shape)))
     for s, pose in zip(factors, sequence.poses(2, factors)):
         np.testing.assert_allclose(pose, flat + 0.5 * fall * s ** 2, atol=1e-9)
+
+
+def _fold(flat, share, angle, radius=0.04):
+    """The sheet (x ∈ [0, 2]) with the part beyond ``1 − share`` of its length rolled over a hinge
+    of ``radius`` by ``angle`` (isometric: a fold, the rest flat where it was)."""
+    hinge = flat[:, 0].max() * (1.0 - share)
+    out = flat.copy()
+    d = flat[:, 0] - hinge
+    arc = np.clip(d, 0.0, radius * angle)
+    beyond = np.maximum(d - radius * angle, 0.0)
+    folded = d > 0
+    out[folded, 0] = (hinge + radius * np.sin(arc / radius) + beyond * np.cos(angle))[folded]
+    out[folded, 2] = (radius * (1.0 - np.cos(arc / radius)) + beyond * np.sin(angle))[folded]
+    return out
+
+
+def test_a_rigid_fit_that_adds_turn_takes_the_rotations_whole():
+    """A sheet with 45 % of it folded over by 150° and the rest where it was: its best rigid
+    rotation turns 38° although more than half its triangles do not turn at all, so residuals to
+    it would turn them by 38° (on a cloth dragged by a corner and folded over, splined and composed
+    with the rigid motion they turned 29 % of it over at the middle of the gap): the piece's whole
+    rotations are splined instead (``core.inbetween_keys.SPURIOUS_RIGID_TURN``). A fold whose rigid
+    fit turns the sheet less (14°) and the folded sheet turned rigidly (residuals zero) keep the
+    residuals, which make a rigid motion exact."""
+    flat, triangles = grid(41, 13, size=2.0)
+    turned = Rotation.from_rotvec([0.3, -0.5, 1.2]).apply(_fold(flat, 0.45, np.radians(150))) + [0.4, 0.1, 0.2]
+    cases = [(_fold(flat, 0.45, np.radians(150)), True), (_fold(flat, 0.3, np.radians(90)), False), (turned, False)]
+    for key, whole in cases:
+        gap = SequenceInterpolator([flat, key, key + [0.5, 0.0, 0.0]], triangles)._gap(0)
+        assert bool(gap.relatives[2].whole.any()) is whole
