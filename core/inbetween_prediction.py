@@ -192,10 +192,13 @@ def _key_slope(gap, s: float) -> np.ndarray:
     """``D'(s)`` (n, 3) at key ``s`` (0 or 1) that gives the pose ``M (V + D)`` the velocity of the
     gap's guide there: ``M(s)⁻¹ (G'(s) − (M V)'(s))`` (``D(s) = 0`` at a key), by a one-sided
     difference inside the gap (:data:`SLOPE_STEP`) of the guide's offset from ``M V``, which is
-    zero at the key."""
+    zero at the key. On components that turn as a whole (guided by ``M V``,
+    :data:`core.inbetween_solver.ARC_GUIDE_STRAIN_RATIO`) the world spline's velocity, which the
+    gaps on either side of the key share, except at a sequence's last key."""
     step = SLOPE_STEP if s == 0.0 else -SLOPE_STEP
     rotations, _ = gap.motion(s)
-    change = gap.guide_offset(s + step, gap.motion(s + step)) / step
+    last = s == 1.0 and gap.relatives[3].extrapolated
+    change = gap.guide_offset(s + step, gap.motion(s + step), arcs=last) / step
     return gap.topo.undo_motion(change, rotations, np.zeros((len(rotations), 3)))
 
 

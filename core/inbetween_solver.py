@@ -84,6 +84,22 @@ SEQUENCE_ANCHOR_WEIGHT = 1e-2
 SMOOTH_ANCHOR_WEIGHT = 0.1
 SMOOTH_NEAR_ANCHOR_WEIGHT = 3e-2
 SMOOTH_SPLINE_STRAIN = 0.01
+#: The sequence anchor's guide is the keys' per-vertex spline in the world where a component
+#: deforms; where it turns as a whole that spline cuts the chords of its arcs (a cloth on a
+#: turntable, 120° between keys 16 apart: its edges 37 % off the keys' at the middle of the gap,
+#: the in-betweens 5.9 % and 0.596 × the blend's RMS). A component whose world spline's mid-gap
+#: strain is over ARC_GUIDE_STRAIN_RATIO × that of its co-moving spline (the keys' shapes splined
+#: with its rigid motion undone, moved by the interpolated rigid motion; 0.27 % there) plus
+#: METRIC_TOLERANCE takes the co-moving spline as its guide; predicted in-betweens still leave
+#: an inner key with the world spline's velocity, which the gaps on either side share
+#: (:func:`core.inbetween_prediction._key_slope`; with the co-moving velocity, which each gap
+#: takes from its own rigid fits, a sheet hanging from two corners jumped 2.67 × the
+#: simulation's largest frame-to-frame acceleration at a key), and a sequence's last key with the
+#: guide's. Components under a free-flight or impact condition (which act on the world spline)
+#: keep it. Turntable 0.596 → 0.285 × the blend and edge deviation 2.39 → 0.65 % (bound 0.85 %);
+#: 10k sheet hanging from two corners at g = 16 0.816 → 0.681 × Catmull–Rom; numbers in
+#: docs/inbetweens.md, *Cloth that turns as a whole*.
+ARC_GUIDE_STRAIN_RATIO = 2.0
 #: A sequence's in-between whose fit is held off the metric by the spline anchor — its misfit
 #: still above HELD_MISFIT × the gap's tolerance and less than HELD_PROGRESS below where the fit
 #: started — is solved again with the anchor weight HELD_ANCHOR_WEIGHT, and so are the other solved
@@ -162,14 +178,15 @@ POSITIONS = ("vertices", "world", "centroids")
 
 
 def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Each riding set's (:mod:`core.pins`) turn about its centroid from positions ``base`` to
-    ``key`` (n, 3) — rotation vectors (S, 3), the short way round; for a set along a line (a
-    pole) the least turn taking the line to the key's, since a turn about the line moves none of
-    its vertices — and its centroids in ``key`` (S, 3)."""
-    turns, centroids = np.zeros((len(sets), 3)), np.zeros((len(sets), 3))
+    """Each riding set's (:mod:`core.pins`) rigid motion from positions ``base`` to ``key`` (n, 3):
+    rotations (S, 3, 3) and translations (S, 3) of ``x ↦ R x + t``, its turn about its centroid
+    the short way round — for a set along a line (a pole) the least turn taking the line to the
+    key's, since a turn about the line moves none of its vertices — and its centroid onto the
+    key's."""
+    rotations, translations = np.zeros((len(sets), 3, 3)), np.zeros((len(sets), 3))
     for k, rows in enumerate(sets):
-        a, b = base[rows] - base[rows].mean(axis=0), key[rows] - key[rows].mean(axis=0)
-        centroids[k] = key[rows].mean(axis=0)
+        start, end = base[rows].mean(axis=0), key[rows].mean(axis=0)
+        a, b = base[rows] - start, key[rows] - end
         _, spread, axes = np.linalg.svd(a, full_matrices=False)
         if spread[1] <= 1e-6 * spread[0]:  # along a line
             d0 = axes[0]
@@ -177,10 +194,30 @@ def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) ->
             d1 = d1 if d1 @ (b.T @ (a @ d0)) >= 0.0 else -d1
             axis, cosine = np.cross(d0, d1), float(np.clip(d0 @ d1, -1.0, 1.0))
             norm = np.linalg.norm(axis)
-            turns[k] = axis / norm * np.arctan2(norm, cosine) if norm > 0.0 else 0.0
+            turn = axis / norm * np.arctan2(norm, cosine) if norm > 0.0 else np.zeros(3)
+            rotations[k] = Rotation.from_rotvec(turn).as_matrix()
         else:
-            turns[k] = Rotation.from_matrix(rigid_alignment(a, b)[0]).as_rotvec()
-    return turns, centroids
+            rotations[k] = rigid_alignment(a, b)[0]
+        translations[k] = end - rotations[k] @ start
+    return rotations, translations
+
+
+def riding_screws(motions: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+    """Screw coordinates (S, 6) of the riding sets' rigid motions (:func:`riding_motions`) from a
+    gap's base key to the keys at times −1, 0, 1, 2: the next key's the short way round, the
+    others' turns continued from it (the key before the reverse of it, the key after twice it), so
+    that a set turning by more than a half turn over two gaps keeps turning the same way."""
+    nxt = [df.rigid_log(r, t) for r, t in zip(*motions[2])]
+    turns = [screw[:3] for screw in nxt]
+    out = []
+    for j, (rotations, translations) in enumerate(motions):
+        if j == 2:
+            out.append(np.array(nxt).reshape(-1, 6))
+            continue
+        scale = (-1.0, 0.0, None, 2.0)[j]
+        out.append(np.array([df.rigid_log(r, t, scale * turn, True)
+                             for r, t, turn in zip(rotations, translations, turns)]).reshape(-1, 6))
+    return out
 
 
 def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarray | None) -> np.ndarray | None:
@@ -379,9 +416,8 @@ class _Gap(LocalGlobalFit):
         # centroid from the base key and of its centroid
         self.riding = riding
         if riding is not None:
-            motions = [riding_motions(base.vertices, r.world, riding) for r in relatives]
-            self.riding_turns = HermiteGap([m[0] for m in motions], cubic, limit=limit)
-            self.riding_centroids = HermiteGap([m[1] for m in motions], cubic, rows=True, limit=limit)
+            screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives])
+            self.riding_screws = HermiteGap(screws, cubic, limit=limit)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from
@@ -408,6 +444,13 @@ class _Gap(LocalGlobalFit):
         self.select(0.5)
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
+        # the splines' conditions for free flight and impacts act on the world spline: not there
+        conditioned = np.zeros(len(topo.components), dtype=bool)
+        for condition in (free, impact, None if entry is None else entry[0]):
+            if condition is not None:
+                conditioned |= np.asarray(condition, dtype=bool)
+        self.arc_guided = self.turning_as_a_whole() & ~conditioned if cubic and not anchored else \
+            np.zeros(len(topo.components), dtype=bool)
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.carried = CarriedPieces(self)
@@ -471,9 +514,27 @@ class _Gap(LocalGlobalFit):
         """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
         ``reference`` (3 corners, m; the mean of the two keys', see :data:`SMOOTH_SPLINE_STRAIN`),
         in the local steps' precision (the thresholds are 1e-3 and above)."""
+        return float(np.mean(self._triangle_strains(x, reference)))
+
+    def _triangle_strains(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """Per triangle (m,), :meth:`mid_gap_strain` of its three corner edges."""
         edges = self.edges_of(x, LOCAL_STEP_DTYPE)
         lengths = np.sqrt(coordinate_dot(edges, edges))
-        return float(np.mean(np.abs(lengths / reference - 1.0), dtype=np.float64))
+        return np.mean(np.abs(lengths / reference - 1.0), axis=0, dtype=np.float64)
+
+    def turning_as_a_whole(self) -> np.ndarray:
+        """Per component (bool (C,)), whether the keys' per-vertex spline in the world strains it
+        at the middle of the gap by over :data:`ARC_GUIDE_STRAIN_RATIO` × as much as its co-moving
+        spline does, plus :data:`METRIC_TOLERANCE` (see there)."""
+        topo = self.topo
+        reference = np.maximum(0.5 * (self.base.lengths + self.next.lengths).T,
+                               np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
+        counts = np.maximum(topo.piece_sizes, 1)
+        world, moving = (np.bincount(topo.triangle_component, self._triangle_strains(x, reference),
+                                     minlength=len(counts)) / counts
+                         for x in (self.splines["world"].at(0.5),
+                                   topo.apply_motion(self.splines["vertices"].at(0.5), *self.motion(0.5))))
+        return world > ARC_GUIDE_STRAIN_RATIO * moving + METRIC_TOLERANCE
 
     def held(self, misfits: list) -> bool:
         """Whether a sequence's fit with these ``misfits`` (per step) was held off the metric by
@@ -512,9 +573,9 @@ class _Gap(LocalGlobalFit):
         """``x`` (n, 3) with each riding set (:mod:`core.pins`) where the spline of its rigid motion
         puts it at factor ``s`` (in place; returned)."""
         base = self.base.vertices
-        rotations = Rotation.from_rotvec(self.riding_turns.at(s)).as_matrix().reshape(-1, 3, 3)
-        for rows, rotation, centroid in zip(self.riding, rotations, self.riding_centroids.at(s)):
-            x[rows] = (base[rows] - base[rows].mean(axis=0)) @ rotation.T + centroid
+        rotations, translations = df.rigid_exps(self.riding_screws.at(s))
+        for rows, rotation, translation in zip(self.riding, rotations, translations):
+            x[rows] = base[rows] @ rotation.T + translation
         return x
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
@@ -639,16 +700,19 @@ class _Gap(LocalGlobalFit):
         guide = base if offset is None else base + offset
         return guide if self.riding is None else self.ride(guide, s)  # riding sets: their own motion
 
-    def guide_offset(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    def guide_offset(self, s: float, motion: tuple[np.ndarray, np.ndarray], arcs: bool = False) -> np.ndarray:
         """The guide (:meth:`guide`) less ``M(s) V(s)``, the keys' co-moving spline moved by the
-        components' interpolated rigid motions (n, 3): zero at both keys, which both pass through."""
-        base, offset = self._guide_parts(s, motion)
+        components' interpolated rigid motions (n, 3): zero at both keys, which both pass through;
+        without ``arcs``, the world spline's offset on the components that turn as a whole."""
+        base, offset = self._guide_parts(s, motion, arcs=arcs)
         return np.zeros_like(base) if offset is None else offset
 
-    def _guide_parts(self, s: float, motion) -> tuple[np.ndarray, np.ndarray | None]:
+    def _guide_parts(self, s: float, motion, arcs: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
         """``M(s) V(s)`` (n, 3) and the guide's offset from it (n, 3; None: no offset): the
         world spline's where no vertex moves with its component's rigid motion, otherwise that
-        times one less each vertex's share of the co-moving spline."""
+        times one less each vertex's share of the co-moving spline: its component's rigidity, or
+        all of it where the component turns as a whole (:data:`ARC_GUIDE_STRAIN_RATIO`) unless
+        ``arcs`` is False (the world spline there: the velocity a key's two gaps share)."""
         base = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
         if self.weights is None:
             return base, None
@@ -656,8 +720,9 @@ class _Gap(LocalGlobalFit):
         if self.co_moving.any():
             if self.anchored:
                 mix = self.co_moving.astype(float)
-            else:
-                mix = self.co_moving * self.rigidity[self.topo.vertex_owner]
+            else:  # by rigidity, or wholly where the component turns as a whole (ARC_GUIDE_STRAIN_RATIO)
+                share = np.maximum(self.rigidity, self.arc_guided) if arcs else self.rigidity
+                mix = self.co_moving * share[self.topo.vertex_owner]
             offset *= (1.0 - mix)[:, None]
         return base, offset
 

@@ -6,10 +6,11 @@ Two kinds are found in the keys of a sequence and held by the in-betweens
 - **still** vertices (:func:`still_vertices`) sit where they are in every key (a curtain's rod, a
   flag's pole that does not move): they stay exactly where the first key has them;
 - **riding** vertices (:func:`riding_vertices`) are held by an animated object (a banner on a pole
-  that is carried, a cape's collar on a moving character): sets of three or more vertices joined
+  that is carried, a cape's collar on a moving character): sets of six or more vertices joined
   by edges that keep their lengths to single-precision rounding in every key, which no cloth does,
   moving as one rigid body that is only part of its piece. Each set follows the spline of its
-  rigid motion through the keys, as the object's animation curves carry it.
+  rigid motion through the keys as a screw, its turn continued across them
+  (:func:`core.inbetween_solver.riding_screws`), as the object's animation curves carry it.
 """
 
 from __future__ import annotations

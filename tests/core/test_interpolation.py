@@ -1045,3 +1045,52 @@ def test_a_rigid_fit_that_adds_turn_takes_the_rotations_whole():
     for key, whole in cases:
         gap = SequenceInterpolator([flat, key, key + [0.5, 0.0, 0.0]], triangles)._gap(0)
         assert bool(gap.relatives[2].whole.any()) is whole
+
+
+def _turning_sheet(wobble):
+    """A draped 21 × 21 sheet turned 100° per key about the z axis, off its centre, with its shape
+    changed by ``wobble(t)`` (n, 3) at key time t; returns (pose(t), triangles)."""
+    from meshes import drape
+
+    flat, triangles = grid(21, size=2.0)
+    shape = drape(flat - [1.0, 1.0, 0.0], 0.8)
+
+    def pose(t):
+        return Rotation.from_euler("z", 100 * t, degrees=True).apply(shape + wobble(t) + [0.37, 0.23, 0.0])
+    return pose, triangles
+
+
+def test_a_sheet_turning_as_a_whole_is_turned_between_the_keys():
+    """A sheet turning 100° between keys while it sags and lifts by a few percent (so it is not
+    rigid): the keys' per-vertex spline cuts the chords of its arcs (a cloth on a turntable, keys 16
+    frames apart: 37 % of its edge lengths at mid-gap), so the anchor's guide is its co-moving
+    spline there (``core.inbetween_solver.ARC_GUIDE_STRAIN_RATIO``); the in-betweens follow the
+    turn to a fifth of the wobble's amplitude (0.035 off the 2-unit sheet before, the blend 0.3).
+    """
+    pose, triangles = _turning_sheet(lambda t: np.outer(0.03 * np.sin(2 * t) * np.ones(441), [0.0, 0.0, 1.0])
+                                     * np.cos(np.linspace(0, 6, 441))[:, None])
+    keys = [pose(k) for k in range(5)]
+    sequence = SequenceInterpolator(keys, triangles)
+    for gap in (1, 2):  # the first gap starts from rest and the last ends linearly, unlike the turn
+        factors = np.arange(1, 8) / 8
+        for s, x in zip(factors, sequence.poses(gap, factors)):
+            truth = pose(gap + s)
+            assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 0.2 * 0.03
+            assert _edge_deviation(x, truth, triangles).mean() < 0.1 * 0.03
+
+
+def test_pins_on_an_object_turning_past_a_half_turn_over_two_gaps_keep_turning():
+    """A sheet whose middle row keeps its length while the sheet turns 100° per key (the row is a
+    riding set, :mod:`core.pins`: pinned to a moving object): its rigid motion is splined as a
+    screw whose turns continue across the keys (200° to the key after next: the short way round
+    turned it 160° back, and the row missed by 0.4 of the 2-unit sheet at mid-gap)."""
+    pose, triangles = _turning_sheet(lambda t: 0.0)  # the drape keeps the row x = 0.5 straight and still
+    column = np.linspace(-1.0, 1.0, 21)[np.arange(441) % 21]
+    row = np.flatnonzero(np.isclose(column, 0.5))
+    along = np.linspace(0.0, 1.0, 21)[np.arange(441) // 21]
+    lift = np.outer(np.abs(column - 0.5) * (1.0 + along * along), [0.0, 0.0, 0.02])  # zero on the row
+    keys = [pose(k) + np.sin(2 * k) * lift for k in range(5)]  # the rest of the sheet not rigid
+    sequence = SequenceInterpolator(keys, triangles)
+    for gap in (1, 2):
+        for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, [0.25, 0.5, 0.75])):
+            np.testing.assert_allclose(x[row], pose(gap + s)[row], atol=1e-9)
