@@ -13,7 +13,8 @@ factors nearest :data:`SOLVED_FACTORS`, writes their corrections in the co-movin
 that gives the pose the guide's velocity there (degree 6, :data:`KEY_SLOPE_SOLVED`), so that
 consecutive gaps meet at a key with one velocity, and so it does with the middle alone (degree 4,
 batches of three: :data:`MIDDLE_SOLVED_BATCH`). A rigid motion has ``D = 0`` and is reproduced
-exactly at every factor. A predicted pose with a flipped or collapsed triangle is
+exactly at every factor; a gap where every component moves rigidly (a cloth in free flight, one
+lying still) is ``M(s) V(s)`` at every factor, without a solve. A predicted pose with a flipped or collapsed triangle is
 repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
 numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
 14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 4, 8 and 16 frames apart,
@@ -113,6 +114,10 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     keys included) of ``gap`` (a ``core.inbetween_solver._Gap``). The in-betweens are solved,
     and predicted, concurrently (:func:`core.concurrency.concurrently`)."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
+    if interior and not gap.anchored and (gap.rigidity > 0.0).all():
+        moved = _moved_rigidly(gap, interior)
+        if moved is not None:
+            return _solved(gap, factors, moved)
     trimmed = not gap.anchored and len(interior) >= TRIMMED_TOLERANCE_BATCH
     gap.tolerance = gap.trimmed_tolerance if trimmed else gap.change_tolerance
     if gap.anchored or len(interior) < MIN_PREDICTED_BATCH:
@@ -138,6 +143,23 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     predicted = [s for s in interior if s not in solved]
     solved.update(zip(predicted, _per_factor(gap, lambda s: _predicted(gap, s, correction, rings), predicted)))
     return _solved(gap, factors, solved)
+
+
+def _moved_rigidly(gap, factors) -> dict | None:
+    """In a gap of a sequence whose components all move rigidly across its keys (non-rigidity
+    under :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE` toward each of them: a cloth in free
+    flight, one lying still), the in-betweens {factor: (positions, None)} without a solve: the keys'
+    co-moving spline moved by the interpolated rigid motions, ``M(s) V(s)``, which is what the
+    solve returns for a rigid motion (the fields then are the rigid rotations, the stretches one)
+    and what a prediction starts from. None if one of them has a flipped or collapsed triangle
+    (then they are solved)."""
+    out = {}
+    for s in factors:
+        x = gap.topo.apply_motion(gap.splines["vertices"].at(s), *gap.motion(s))
+        if not np.isfinite(x).all() or gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).any():
+            return None
+        out[s] = gap.finished((x, None), s)
+    return out
 
 
 def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:

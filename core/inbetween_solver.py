@@ -10,6 +10,8 @@ of a gap; both in :mod:`core.inbetween_keys`) → ``_Gap`` (splines of the relat
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
@@ -445,12 +447,10 @@ class _Gap(LocalGlobalFit):
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         # the splines' conditions for free flight and impacts act on the world spline: not there
-        conditioned = np.zeros(len(topo.components), dtype=bool)
+        self._arc_candidates = np.full(len(topo.components), cubic and not anchored)
         for condition in (free, impact, None if entry is None else entry[0]):
             if condition is not None:
-                conditioned |= np.asarray(condition, dtype=bool)
-        self.arc_guided = self.turning_as_a_whole() & ~conditioned if cubic and not anchored else \
-            np.zeros(len(topo.components), dtype=bool)
+                self._arc_candidates &= ~np.asarray(condition, dtype=bool)
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.carried = CarriedPieces(self)
@@ -521,6 +521,16 @@ class _Gap(LocalGlobalFit):
         edges = self.edges_of(x, LOCAL_STEP_DTYPE)
         lengths = np.sqrt(coordinate_dot(edges, edges))
         return np.mean(np.abs(lengths / reference - 1.0), axis=0, dtype=np.float64)
+
+    @cached_property
+    def arc_guided(self) -> np.ndarray:
+        """Per component (bool (C,)) of a sequence, whether the anchor's guide is its co-moving
+        spline because it turns as a whole (:meth:`turning_as_a_whole`; not under a free-flight or
+        impact condition). Computed when a guide is first asked for: a gap whose in-betweens need
+        no solve (:func:`core.inbetween_prediction.gap_poses`) does without it."""
+        if not self._arc_candidates.any():
+            return self._arc_candidates
+        return self.turning_as_a_whole() & self._arc_candidates
 
     def turning_as_a_whole(self) -> np.ndarray:
         """Per component (bool (C,)), whether the keys' per-vertex spline in the world strains it
