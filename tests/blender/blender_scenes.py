@@ -151,6 +151,17 @@ def armature_scene(frames: int = 9, parented: bool = False):
     return strip
 
 
+def played(bridge, obj, frames) -> dict:
+    """The evaluated mesh of ``obj`` at each of ``frames``, whatever its vertex count (a cache
+    object, or one with a Subdivision after its motion); the scene is left at frame 1."""
+    result = {}
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+    bpy.context.scene.frame_set(1)
+    return result
+
+
 def evaluated_frames(bridge, obj, frames):
     """The evaluated positions of ``obj`` at each of ``frames`` (restores the current frame)."""
     return dict(bridge.frame_positions(bpy.context, obj, list(frames)))

@@ -12,7 +12,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, assert_unchanged, driven_keys_scene,  # noqa: E402
-                            evaluated_frames, key_names, pinned_cloth_scene, posed_grid, snapshot)
+                            evaluated_frames, key_names, pinned_cloth_scene, played, posed_grid,
+                            snapshot)
 
 TOLERANCE = 1e-5  # float32 positions
 
@@ -25,16 +26,6 @@ def assert_source_unchanged(bridge, obj, before, frames=()):
         expected = before["evaluated"]
         for frame, positions in evaluated_frames(bridge, obj, frames).items():
             np.testing.assert_array_equal(positions, expected[frame])
-
-
-def played(bridge, obj, frames):
-    """The evaluated mesh of the cache object at each frame."""
-    result = {}
-    for frame in frames:
-        bpy.context.scene.frame_set(frame)
-        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
-    bpy.context.scene.frame_set(1)
-    return result
 
 
 def new_object(source_name_before: set):

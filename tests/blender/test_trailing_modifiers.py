@@ -11,7 +11,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, assert_unchanged, cloth_scene,  # noqa: E402
-                            evaluated_frames, key_names, pinned_cloth_scene, snapshot)
+                            evaluated_frames, key_names, pinned_cloth_scene, played, snapshot)
 from test_failures import fails_without_change  # noqa: E402
 
 TOLERANCE = 1e-5  # float32 positions
@@ -25,16 +25,6 @@ def add_display_modifiers(obj):
     return subdivision, solidify
 
 
-def displayed(bridge, obj, frames) -> dict:
-    """The evaluated mesh of ``obj`` at each of ``frames``, whatever its vertex count."""
-    result = {}
-    for frame in frames:
-        bpy.context.scene.frame_set(frame)
-        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
-    bpy.context.scene.frame_set(1)
-    return result
-
-
 def new_objects(names_before: set):
     return [obj for obj in bpy.data.objects if obj.name not in names_before]
 
@@ -44,7 +34,7 @@ def test_inbetween_frames_reads_the_armature_motion_under_a_subdivision(bpy_empt
     strip = armature_scene(frames=9)
     moving = evaluated_frames(bridge, strip, [1, 5, 9])  # the armature's motion of the mesh's vertices
     add_display_modifiers(strip)
-    shown = displayed(bridge, strip, [1, 5, 9])
+    shown = played(bridge, strip, [1, 5, 9])
     assert len(shown[5]) > len(strip.data.vertices), "the subdivision should add vertices"
     before, names = snapshot(bridge, strip), set(bpy.data.objects.keys())
 
@@ -54,17 +44,17 @@ def test_inbetween_frames_reads_the_armature_motion_under_a_subdivision(bpy_empt
     after = snapshot(bridge, strip)
     after["meshes"] = before["meshes"]  # the new object brings its own mesh
     assert_unchanged(before, after)  # modifiers on again, with every setting as it was
-    [played] = new_objects(names)
-    assert [m.type for m in played.modifiers] == ['MESH_CACHE', 'SUBSURF', 'SOLIDIFY']
-    assert played.modifiers["Subdivision"].levels == 1
-    assert played.modifiers["Solidify"].thickness == pytest.approx(0.02)
+    [copy] = new_objects(names)
+    assert [m.type for m in copy.modifiers] == ['MESH_CACHE', 'SUBSURF', 'SOLIDIFY']
+    assert copy.modifiers["Subdivision"].levels == 1
+    assert copy.modifiers["Solidify"].thickness == pytest.approx(0.02)
     for frame in (1, 5, 9):
         # the cache holds the keys' own vertices, and the new object displays them as the source does
-        played.modifiers["Subdivision"].show_viewport = played.modifiers["Solidify"].show_viewport = False
-        np.testing.assert_allclose(evaluated_frames(bridge, played, [frame])[frame], moving[frame],
+        copy.modifiers["Subdivision"].show_viewport = copy.modifiers["Solidify"].show_viewport = False
+        np.testing.assert_allclose(evaluated_frames(bridge, copy, [frame])[frame], moving[frame],
                                    atol=TOLERANCE)
-        played.modifiers["Subdivision"].show_viewport = played.modifiers["Solidify"].show_viewport = True
-        np.testing.assert_allclose(displayed(bridge, played, [frame])[frame], shown[frame], atol=TOLERANCE)
+        copy.modifiers["Subdivision"].show_viewport = copy.modifiers["Solidify"].show_viewport = True
+        np.testing.assert_allclose(played(bridge, copy, [frame])[frame], shown[frame], atol=TOLERANCE)
 
 
 def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
@@ -72,7 +62,7 @@ def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
     cloth = cloth_scene(subdivisions=10, frames=9)
     moving = evaluated_frames(bridge, cloth, [1, 5, 9])
     subdivision, _ = add_display_modifiers(cloth)
-    shown = displayed(bridge, cloth, [9])[9]
+    shown = played(bridge, cloth, [9])[9]
     before = snapshot(bridge, cloth)
 
     bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
@@ -88,7 +78,7 @@ def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
     for field in ("modifiers", "modifier_settings", "point_caches", "frame"):
         assert after[field] == before[field], field
     # the bake still plays: the new keys are at value 0, the cloth drives the mesh
-    np.testing.assert_allclose(displayed(bridge, cloth, [9])[9], shown, atol=TOLERANCE)
+    np.testing.assert_allclose(played(bridge, cloth, [9])[9], shown, atol=TOLERANCE)
 
 
 def test_a_subdivision_after_an_unbaked_cloth_is_refused(bpy_empty, extension):
