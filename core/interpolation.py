@@ -55,7 +55,7 @@ from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, componen
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
-from .seams import coincidence_tolerance, seam_weld
+from .seams import coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
 
@@ -144,7 +144,8 @@ class SequenceInterpolator:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
         self._triangles, self._copies = topology.triangles, None
         # at one place (seams, still vertices, holds): within this distance in every key
-        tolerance = coincidence_tolerance(keys[0], topology.edges)
+        rounding = rounding_scale(keys)
+        tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
         try:  # pieces that touch along seams are interpolated as one (core.seams)
             weld = seam_weld(keys, topology, tolerance)
         except MeshError as error:
@@ -169,7 +170,8 @@ class SequenceInterpolator:
         self._topo = _Topology(topology, keys[0])
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates)
-        self._riding = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still) or None
+        self._riding = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still,
+                                       rounding) or None
         if self._riding is not None:
             still = still.copy()
             still[np.concatenate(self._riding)] = True

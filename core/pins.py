@@ -51,11 +51,12 @@ def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
 
 
 def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray,
-                    still: np.ndarray) -> list[np.ndarray]:
+                    still: np.ndarray, scale: float | None = None) -> list[np.ndarray]:
     """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
     (list of K ≥ 3 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
-    by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding
-    (:data:`RIDING_ULPS`), moves as one rigid body to that precision in every key, is not a whole
+    by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding of ``scale``
+    (:data:`RIDING_ULPS`; :func:`core.seams.rounding_scale`, by default the keys' largest
+    coordinate), moves as one rigid body to that precision in every key, is not a whole
     piece (``component`` (n,): each vertex's piece, −1 for loose vertices; whole rigid pieces
     follow their screw motions) in a piece keeping no more than :data:`MAX_RIDING_SHARE` of its
     edges so, and is not all ``still`` (n,)."""
@@ -64,13 +65,13 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     if len(keys) < 3 or not len(edges):
         return riding
     first = keys[0]
-    largest = max(float(np.max(np.abs(key))) for key in keys)
+    largest = max(float(np.max(np.abs(key))) for key in keys) if scale is None else scale
     a, b = edges[:, 0], edges[:, 1]
     candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
     if not candidates.size:
         return riding
     length = np.linalg.norm(first[a[candidates]] - first[b[candidates]], axis=1)
-    # float32 spacings, at most a thousandth of the mean edge (far from the origin they outgrow it)
+    # roundings, at most a thousandth of the mean edge (far from the origin they outgrow it)
     tolerance = min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
     for key in keys[1:]:
         close = np.abs(np.linalg.norm(key[a[candidates]] - key[b[candidates]], axis=1) - length) <= tolerance

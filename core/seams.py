@@ -45,13 +45,28 @@ class SeamWeld:
     topology: object
 
 
-def coincidence_tolerance(first: np.ndarray, edges: np.ndarray) -> float:
+def rounding_scale(poses: list[np.ndarray]) -> float:
+    """The magnitude whose single-precision rounding the coordinates of ``poses`` (list of (n, 3))
+    carry: their largest coordinate where every one is a float32 (stored so: Blender, most
+    caches), else the largest extent of a pose (computed in double precision from single-precision
+    positions about their object, as a cache moved by its object's transform is, or double
+    precision throughout, whose rounding is smaller still). The same sequence 1e4 units from the
+    origin in double precision had the roundings of float32 coordinates of 2e4 (0.02 units): a
+    cloth on a turntable, whose edges keep their lengths to 0.1 %, took 36 of its vertices for
+    still and six sets for riding, 0.22 of its diagonal off."""
+    if all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses):
+        return max((float(np.max(np.abs(pose), initial=0.0)) for pose in poses), default=0.0)
+    return max((float(np.linalg.norm(np.ptp(pose, axis=0))) for pose in poses if pose.size), default=0.0)
+
+
+def coincidence_tolerance(first: np.ndarray, edges: np.ndarray, scale: float | None = None) -> float:
     """The distance (float) under which two vertices of pose ``first`` (n, 3) are at one place:
-    :data:`COINCIDENCE_TOLERANCE` of its diagonal plus eight float32 roundings of its largest
-    coordinate, at most :data:`COINCIDENCE_EDGE_SHARE` of the mean length of ``edges`` (E, 2)."""
+    :data:`COINCIDENCE_TOLERANCE` of its diagonal plus eight float32 roundings of ``scale``
+    (:func:`rounding_scale`; by default its largest coordinate), at most
+    :data:`COINCIDENCE_EDGE_SHARE` of the mean length of ``edges`` (E, 2)."""
     extent = np.ptp(first, axis=0) if first.size else np.zeros(3)
-    tolerance = (COINCIDENCE_TOLERANCE * np.linalg.norm(extent)
-                 + 8 * np.finfo(np.float32).eps * np.max(np.abs(first), initial=0.0))
+    scale = np.max(np.abs(first), initial=0.0) if scale is None else scale
+    tolerance = COINCIDENCE_TOLERANCE * np.linalg.norm(extent) + 8 * np.finfo(np.float32).eps * scale
     if len(edges):
         mean_edge = float(np.mean(np.linalg.norm(first[edges[:, 0]] - first[edges[:, 1]], axis=1)))
         tolerance = min(tolerance, COINCIDENCE_EDGE_SHARE * mean_edge)

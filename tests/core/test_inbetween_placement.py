@@ -897,3 +897,31 @@ def test_in_betweens_far_from_the_origin_are_those_near_it_moved_there(distance)
         expected = Interpolator(keys[1], keys[3], tri).pose(factor)
         got = Interpolator(keys[1] + shift, keys[3] + shift, tri).pose(factor) - shift
         np.testing.assert_allclose(got, expected, atol=1e-6 * diagonal)
+
+
+def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
+    """Keys in double precision 2e4 units from the origin are not rounded to float32 there, so the
+    tolerances that allow for rounding (still vertices, riding sets: ``core.seams.rounding_scale``)
+    are those of the sheet's size: a vertex 3e-4 off the axis a sheet turns about (100° per key)
+    was taken for still (float32 roundings of 2e4: 0.02 units, capped at 1 % of the mean edge)
+    and held, 5.6e-4 off the in-betweens near the origin; keys that are float32 numbers keep the
+    float32 roundings of their largest coordinate (the tests above)."""
+    from meshes import drape
+
+    flat, tri = grid(21, size=2.0)
+    shape = drape(flat - [1.0, 1.0, 0.0], 0.8)
+    shape = shape - shape[220] + [3e-4, 0.0, 0.0]  # a vertex 3e-4 off the turning axis
+    bump = np.cos(np.linspace(0.0, 6.0, 441))
+    bump -= bump[220]  # which only turns
+
+    def key(t):
+        x = shape.copy()
+        x[:, 2] += 0.03 * np.sin(2 * t) * bump
+        return Rotation.from_euler("z", 100 * t, degrees=True).apply(x)
+
+    keys = [key(t) for t in range(5)]
+    shift = np.array([1e4, -2e4, 5e3])
+    near, far = SequenceInterpolator(keys, tri), SequenceInterpolator([k + shift for k in keys], tri)
+    for gap in range(len(near)):
+        np.testing.assert_allclose(far.poses(gap, [0.25, 0.5, 0.75]) - shift, near.poses(gap, [0.25, 0.5, 0.75]),
+                                   atol=1e-9)
