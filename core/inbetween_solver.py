@@ -402,7 +402,8 @@ class _Gap(LocalGlobalFit):
             impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit)
 
         def hermite(name: str, values: list) -> HermiteGap:
-            return HermiteGap(values, cubic, rows=name in POSITIONS, limit=limit,
+            # a piece that swings back inside the gap keeps its turn's tangent, as a point does (onward)
+            return HermiteGap(values, cubic, rows=name in POSITIONS, limit=limit, onward=name == "screw",
                               parabolic_end=None if free is None else self.per_element(name, free),
                               parabolic_start=None if impact is None else self.per_element(name, impact),
                               entry=None if entry is None or name not in entry[1] else
@@ -419,7 +420,7 @@ class _Gap(LocalGlobalFit):
         self.riding = riding
         if riding is not None:
             screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives])
-            self.riding_screws = HermiteGap(screws, cubic, limit=limit)
+            self.riding_screws = HermiteGap(screws, cubic, limit=limit, onward=True)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from

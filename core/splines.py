@@ -49,7 +49,8 @@ class HermiteGap:
 
     ``values``: ``(before, start, end, after)`` at key times −1, 0, 1, 2, arrays of one shape.
     ``rows=True`` limits the length of each row (points in space) instead of each element, against
-    the longer of this gap's secant and the next gap's ``v₂ − v₁``;
+    the longer of this gap's secant and the next gap's ``v₂ − v₁``; ``onward=True`` limits each
+    element's start tangent against the longer of the two too (a swing turning back inside the gap);
     ``limit``: the multiple of the secant (:data:`START_TANGENT_LIMIT` or :data:`REST_START_LIMIT`
     for a sequence's first gap; 0 gives a zero start tangent).
     ``parabolic_end``: bool, broadcastable to the values' shape, or None: where True the end
@@ -69,7 +70,7 @@ class HermiteGap:
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
                  parabolic_end: np.ndarray | None = None, entry: tuple | None = None,
-                 parabolic_start: np.ndarray | None = None):
+                 parabolic_start: np.ndarray | None = None, onward: bool = False):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -83,9 +84,9 @@ class HermiteGap:
             # against squared lengths: one square root per limited row
             bound = np.einsum("...i,...i->...", self.secant, self.secant) if rows else np.abs(self.secant)
             start_bound = bound
-            if rows and limit > 0:  # a point that only turns back in this gap moves on in the next one
-                onward = after - end
-                start_bound = np.maximum(bound, np.einsum("...i,...i->...", onward, onward))
+            if (rows or onward) and limit > 0:  # a point that only turns back in this gap moves on in the next one
+                step = after - end
+                start_bound = np.maximum(bound, np.einsum("...i,...i->...", step, step) if rows else np.abs(step))
             self.t0 = _limited(t0, limit, start_bound, rows)
             self.t1 = after - start
             self.t1 *= 0.5
