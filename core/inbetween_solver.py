@@ -415,8 +415,8 @@ class _Gap(LocalGlobalFit):
         self.splines = spline
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
-        # the riding sets (index arrays, core.pins) and the splines of each one's turn about its
-        # centroid from the base key and of its centroid
+        # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
+        # the base key (screws whose turns continue across the keys: riding_screws)
         self.riding = riding
         if riding is not None:
             screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives])
