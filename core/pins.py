@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rigid_alignment import rigid_alignment
+from .rigid_alignment import align_rigidly
 from .seams import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
@@ -95,13 +95,7 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
         pieces = np.unique(component[rows])
         if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
             continue
-        if all(np.max(np.linalg.norm(_aligned(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
+        if all(np.max(np.linalg.norm(align_rigidly(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
                for key in keys[1:]):
             riding.append(rows)
     return riding
-
-
-def _aligned(source: np.ndarray, target: np.ndarray) -> np.ndarray:
-    """``source`` (r, 3) moved by its best rigid motion onto ``target`` (r, 3)."""
-    rotation, translation = rigid_alignment(source, target)
-    return source @ rotation.T + translation

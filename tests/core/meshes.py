@@ -122,6 +122,20 @@ def drape(vertices: np.ndarray, amount: float = 1.0) -> np.ndarray:
     return out
 
 
+def draped_sheet():
+    """A 21 × 21-vertex sheet 2 units across, centred on the origin and draped over a bar
+    (:func:`drape`, 0.8): ``(vertices (441, 3), triangles)``."""
+    flat, triangles = grid(21, size=2.0)
+    return drape(flat - [1.0, 1.0, 0.0], 0.8), triangles
+
+
+def turned(vertices: np.ndarray, t: float, degrees: float = 100.0) -> np.ndarray:
+    """``vertices`` (n, 3) turned about the z axis by ``degrees`` per unit of key time ``t``."""
+    angle = np.radians(degrees * t)
+    c, s = np.cos(angle), np.sin(angle)
+    return vertices @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+
+
 def stretch_and_bend(vertices: np.ndarray, seed: int = 1) -> np.ndarray:
     """A non-isometric, smooth deformation (stretch + bend + smooth random displacement)."""
     rng = np.random.default_rng(seed)

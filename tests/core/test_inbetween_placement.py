@@ -906,10 +906,9 @@ def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     was taken for still (float32 roundings of 2e4: 0.02 units, capped at 1 % of the mean edge)
     and held, 5.6e-4 off the in-betweens near the origin; keys that are float32 numbers keep the
     float32 roundings of their largest coordinate (the tests above)."""
-    from meshes import drape
+    from meshes import draped_sheet, turned
 
-    flat, tri = grid(21, size=2.0)
-    shape = drape(flat - [1.0, 1.0, 0.0], 0.8)
+    shape, tri = draped_sheet()
     shape = shape - shape[220] + [3e-4, 0.0, 0.0]  # a vertex 3e-4 off the turning axis
     bump = np.cos(np.linspace(0.0, 6.0, 441))
     bump -= bump[220]  # which only turns
@@ -917,7 +916,7 @@ def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     def key(t):
         x = shape.copy()
         x[:, 2] += 0.03 * np.sin(2 * t) * bump
-        return Rotation.from_euler("z", 100 * t, degrees=True).apply(x)
+        return turned(x, t)
 
     keys = [key(t) for t in range(5)]
     shift = np.array([1e4, -2e4, 5e3])

@@ -1118,13 +1118,12 @@ def test_a_rigid_fit_that_adds_turn_takes_the_rotations_whole():
 def _turning_sheet(wobble):
     """A draped 21 × 21 sheet turned 100° per key about the z axis, off its centre, with its shape
     changed by ``wobble(t)`` (n, 3) at key time t; returns (pose(t), triangles)."""
-    from meshes import drape
+    from meshes import draped_sheet, turned
 
-    flat, triangles = grid(21, size=2.0)
-    shape = drape(flat - [1.0, 1.0, 0.0], 0.8)
+    shape, triangles = draped_sheet()
 
     def pose(t):
-        return Rotation.from_euler("z", 100 * t, degrees=True).apply(shape + wobble(t) + [0.37, 0.23, 0.0])
+        return turned(shape + wobble(t) + [0.37, 0.23, 0.0], t)
     return pose, triangles
 
 
