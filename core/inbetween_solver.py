@@ -409,7 +409,10 @@ class _Gap(LocalGlobalFit):
                               entry=None if entry is None or name not in entry[1] else
                               (self.per_element(name, entry[0]), entry[1][name]))
         spline = {name: hermite(name, [getattr(r, name) for r in relatives])
-                  for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids")}
+                  for name in ("log_stretch", "screw", "vertices", "world", "centroids")}
+        # the rotation residuals splined in each triangle's base frame (t1, t2, n), where their
+        # tangents' per-element limits do not depend on how the scene is turned (see local_rotvec)
+        spline["rotvec"] = hermite("rotvec", [self.local_rotvec(r.rotvec) for r in relatives])
         # between the keys the stretch comes from the metrics G = U² (see stretch)
         spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
@@ -455,6 +458,24 @@ class _Gap(LocalGlobalFit):
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.carried = CarriedPieces(self)
+
+    def local_rotvec(self, rotvec: np.ndarray) -> np.ndarray:
+        """Per-triangle rotation vectors (m, 3) in world coordinates → in the triangle's frame
+        ``(t1, t2, n)`` in the base key (m, 3). The splines limit tangents per element; in world
+        coordinates those limits depend on the world's axes, and a scene turned by a general
+        rotation came back up to 5e-2 of its diagonal off the unturned scene's in-betweens (a
+        balloon, keys 16 apart; 1e-6 in these frames)."""
+        w = np.ascontiguousarray(rotvec.T)
+        return np.stack([coordinate_dot(self.base.column_rows[c], w) for c in range(3)], axis=1)
+
+    def world_rotvec(self, local: np.ndarray) -> np.ndarray:
+        """Rotation vectors (m, 3) in the triangles' base frames → in world coordinates (m, 3):
+        the inverse of :meth:`local_rotvec` (a view of coordinate rows, as the frames take them)."""
+        columns = self.base.column_rows
+        out = columns[0] * local[:, 0]
+        out += columns[1] * local[:, 1]
+        out += columns[2] * local[:, 2]
+        return out.T
 
     def per_element(self, name: str, per_component: np.ndarray) -> np.ndarray:
         """``per_component`` (C,) spread to the rows of spline ``name`` (a column, to broadcast):
@@ -667,7 +688,7 @@ class _Gap(LocalGlobalFit):
         (m, 3)), the components' rigid motions (rotations (C, 3, 3), translations (C, 3)) and the
         guide positions (n, 3) at factor ``s``."""
         motion = self.motion(s)
-        rotvec = self.splines["rotvec"].at(s)
+        rotvec = self.world_rotvec(self.splines["rotvec"].at(s))
         columns = 2 if 0.0 < s < 1.0 else 3  # the normals only for extrapolations' flip checks
         frames = _FramesByRows(self, rotvec, motion[0], columns) if by_rows else \
             self.key_frames(rotvec, motion[0], columns=columns)

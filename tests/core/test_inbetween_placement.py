@@ -899,6 +899,27 @@ def test_in_betweens_far_from_the_origin_are_those_near_it_moved_there(distance)
         np.testing.assert_allclose(got, expected, atol=1e-6 * diagonal)
 
 
+def test_in_betweens_of_a_turned_scene_are_the_turned_in_betweens():
+    """A sheet whose two bending modes rise and fall out of step (its best rigid motion stays the
+    identity, the triangles' residual rotations change direction from key to key), turned by a
+    general rotation, gets the unturned sheet's in-betweens turned, to round-off. The residuals'
+    spline tangents are limited per element in each triangle's frame; limited per world axis,
+    the two came 7.8e-4 of the diagonal apart."""
+    flat, tri = grid(21, size=2.0)
+    x, y = flat[:, 0] - 1.0, flat[:, 1] - 1.0
+    keys = []
+    for first, second in zip((0.0, 0.3, 0.32, -0.1, 0.25, 0.3), (0.0, -0.05, 0.25, 0.3, -0.2, 0.1)):
+        z = first * np.cos(np.pi * x / 2) * np.cos(np.pi * y / 2) + second * np.cos(np.pi * x) * np.cos(np.pi * y / 2)
+        keys.append(np.stack([x, y, z - z.mean()], axis=1))
+    turn = Rotation.from_rotvec([0.3, -0.7, 0.4])
+    factors = np.arange(1, 4) / 4
+    upright, turned = SequenceInterpolator(keys, tri), SequenceInterpolator([turn.apply(k) for k in keys], tri)
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    for gap in range(len(upright)):
+        back = turn.inv().apply(turned.poses(gap, factors).reshape(-1, 3)).reshape(len(factors), -1, 3)
+        np.testing.assert_allclose(back, upright.poses(gap, factors), atol=1e-9 * diagonal)
+
+
 def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     """Keys in double precision 2e4 units from the origin are not rounded to float32 there, so the
     tolerances that allow for rounding (still vertices, riding sets: ``core.seams.rounding_scale``)
