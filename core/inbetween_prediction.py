@@ -94,8 +94,11 @@ MAX_CROSS_VALIDATION = 0.5
 #: frame 0 / 4 / 8 / 12: 1.50 / 1.40 / 1.49 / 1.74 % → 1.42 / 1.36 / 1.44 / 1.59 % (bounds 1.17–1.31;
 #: 90°: 1.42 / 1.32 / 1.50 / 1.59, 180°: 1.41 / 1.31 / 1.44 / 1.77: wider limits leave more
 #: triangles flipped through, which the repairs then undo at the cost of edge length), RMS and
-#: flipped triangles unchanged. The three in-betweens solved before the gap was found rough keep
-#: their fits (solving them again too: 1.39 instead of 1.41 % at 180°, three more solves).
+#: flipped triangles unchanged. The three in-betweens solved before the gap was found rough are
+#: solved again with it (three more solves): kept at 45° among neighbours at 67.5°, they stood
+#: out (a balloon's rough gap, keys 16 apart: its middle in-between 0.07 units, 4 % of the
+#: diagonal, off its neighbours; the 1k flag's largest frame-to-frame jump 6.44 → 1.98 × the
+#: simulation's in a variant of the rotation splines that made one of its gaps rough).
 ROUGH_ROTATION_DEVIATION = 3 * np.pi / 8
 #: Repair rounds of a predicted in-between when a solved one of the same gap kept defects that no
 #: repair removed (a gap where the keys fold triangles through): the regions up to 4 rings only.
@@ -132,10 +135,10 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     solved = dict(zip(solved_factors, _solved(gap, solved_factors, {})))
     positions = {s: x for s, (x, _) in solved.items()}
     correction = _correction(gap, positions)
-    if len(solved) >= 3 and _inconsistent(gap, positions):  # too rough to predict: all solved
+    if len(solved) >= 3 and _inconsistent(gap, positions):  # too rough to predict: all solved alike
         gap.rotation_limit = ROUGH_ROTATION_DEVIATION
         try:
-            return _solved(gap, factors, solved)
+            return _solved(gap, factors, {})
         finally:
             del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
     stubborn = any(problem for _, problem in solved.values())

@@ -550,7 +550,8 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
 def test_rough_corrections_are_solved_not_predicted(monkeypatch):
     """Corrections that vary smoothly with the factor are predicted; when the middle solved one is
     far from what the others predict (a flap between the keys), every in-between of the gap is
-    solved instead."""
+    solved instead, all with the wide rotation limit (the three solved first too: kept at the
+    narrow one among neighbours at the wide one, they stood out)."""
     import core.inbetween_prediction as prediction
 
     flat, tri = grid(12, 9, size=1.0)
@@ -568,9 +569,12 @@ def test_rough_corrections_are_solved_not_predicted(monkeypatch):
     solved = []
     real_pose = type(gap).pose
     monkeypatch.setattr(prediction, "_inconsistent", lambda gap, solved: True)
-    monkeypatch.setattr(type(gap), "pose", lambda self, s, **kw: solved.append(s) or real_pose(self, s, **kw))
+    monkeypatch.setattr(type(gap), "pose", lambda self, s, **kw: solved.append((s, self.rotation_limit)) or
+                        real_pose(self, s, **kw))
     SequenceInterpolator(keys, tri).poses(2, np.arange(1, 16) / 16)  # three solved, then all
-    assert sorted(solved) == list(np.arange(1, 16) / 16)
+    wide = [s for s, limit in solved if limit == prediction.ROUGH_ROTATION_DEVIATION]
+    assert sorted(wide) == list(np.arange(1, 16) / 16)
+    assert sorted(s for s, limit in solved if limit != prediction.ROUGH_ROTATION_DEVIATION) == [0.25, 0.5, 0.75]
 
 
 def test_pinned_vertices_stay_put_in_sequences():
