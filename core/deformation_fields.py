@@ -39,6 +39,11 @@ MAX_LOG_STRETCH = 30.0
 #: Rotations within this angle (radians) of a half turn may turn either way: both are as short.
 #: Far above rounding (1e-15) and far below any motion meant to turn one way.
 HALF_TURN_TOLERANCE = 1e-6
+#: Rotations within this angle (radians) of none are the identity when a turn is continued
+#: (``unwrap``): the identity's representatives are ``2πk u`` for every axis ``u``, and the axis
+#: of a rotation vector of length ~1e-16 is rounding noise (a sheet keyed every half turn: its key
+#: two half turns on was continued about a random axis, 181 % edge deviation half-way).
+ZERO_TURN_TOLERANCE = 1e-9
 #: Meshes of at most this many pieces are turned one piece at a time (a 3×3 product per piece on a
 #: view of its rows or columns where they are consecutive, ~5 µs of Python each), more pieces by
 #: gathered 3×3 blocks per vertex or triangle: here in :func:`turned_coordinate_rows` (two pieces of
@@ -367,22 +372,34 @@ def _screw_matrix(w: np.ndarray) -> np.ndarray:
 def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarray | None = None,
               unwrap: bool = False) -> np.ndarray:
     """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``, the short way
-    round. With a ``reference`` rotation vector (3,): a half turn (within
-    :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to it,
-    and with ``unwrap`` the representative ``ω + 2πk ω̂`` nearest to it is taken (a motion
-    continuing across keys; k = −1 is the same rotation the other way round, ``−ω`` would be its
-    inverse)."""
+    round. With a ``reference`` (a rotation vector (3,), or screw coordinates (6,) whose first
+    three are one): a half turn (within :data:`HALF_TURN_TOLERANCE` of π: both directions are as
+    short) turns the way nearer to it, and with ``unwrap`` the representative ``ω + 2πk ω̂``
+    nearest to it is taken (a motion continuing across keys; k = −1 is the same rotation the
+    other way round, ``−ω`` would be its inverse). A rotation within
+    :data:`ZERO_TURN_TOLERANCE` of none continued a whole turn about the reference's axis takes the
+    part of ``v`` that no translation fixes there (``V(2πû)`` maps it to zero) from a reference
+    screw: the continuation of a turn about a fixed axis stays about that axis."""
     w = rotation_vectors(rotation[None])[0]
+    whole_turn = False
     if reference is not None:
+        reference = np.asarray(reference, dtype=np.float64)
+        turn = reference[:3]
         theta = np.linalg.norm(w)
-        if unwrap and theta > 0:
+        if unwrap and theta <= ZERO_TURN_TOLERANCE:
+            w = _unwrapped_identity(turn[None])[0]
+            whole_turn = bool(w.any())
+        elif unwrap:
             axis = w / theta
             candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
-            w = min(candidates, key=lambda c: np.linalg.norm(c - reference))
-        elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, reference) < 0:
+            w = min(candidates, key=lambda c: np.linalg.norm(c - turn))
+        elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, turn) < 0:
             w = -w
-    v = np.linalg.lstsq(_screw_matrix(w), translation, rcond=None)[0]
-    return np.concatenate([w, v])
+    matrix = _screw_matrix(w)
+    if whole_turn and reference.size == 6:  # the least change from the reference's v that gives t
+        return np.concatenate([w, reference[3:] + np.linalg.lstsq(matrix, translation - matrix @ reference[3:],
+                                                                   rcond=None)[0]])
+    return np.concatenate([w, np.linalg.lstsq(matrix, translation, rcond=None)[0]])
 
 
 def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -393,15 +410,27 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     other representatives are farther)."""
     theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
     reach = np.sqrt(np.einsum("ij,ij->i", reference, reference))
-    rows = np.flatnonzero((theta + reach > np.pi) & (theta > 0))
-    if not rows.size:
+    identity = np.flatnonzero((theta <= ZERO_TURN_TOLERANCE) & (reach > np.pi))
+    rows = np.flatnonzero((theta + reach > np.pi) & (theta > ZERO_TURN_TOLERANCE))
+    if not rows.size and not identity.size:
         return rotvec
     out = rotvec.copy()
+    out[identity] = _unwrapped_identity(reference[identity])
+    if not rows.size:
+        return out
     axis = rotvec[rows] / theta[rows, None]
     candidates = np.stack([(theta[rows] + 2 * np.pi * k)[:, None] * axis for k in (-1, 0, 1)])
     distance = np.einsum("krj,krj->kr", candidates - reference[rows], candidates - reference[rows])
     out[rows] = candidates[np.argmin(distance, axis=0), np.arange(rows.size)]
     return out
+
+
+def _unwrapped_identity(reference: np.ndarray) -> np.ndarray:
+    """The representatives ``2πk û`` (r, 3) of the identity nearest the rows of ``reference``
+    (r, 3): along each reference, ``k`` its length in whole turns (rounded; zero for a null one)."""
+    reach = np.sqrt(np.einsum("ij,ij->i", reference, reference))
+    turns = np.round(reach / (2 * np.pi))
+    return reference * (2 * np.pi * turns / np.where(reach > 0, reach, 1.0))[:, None]
 
 
 def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

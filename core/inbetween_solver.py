@@ -210,7 +210,7 @@ def riding_screws(motions: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarr
     others' turns continued from it (the key before the reverse of it, the key after twice it), so
     that a set turning by more than a half turn over two gaps keeps turning the same way."""
     nxt = [df.rigid_log(r, t) for r, t in zip(*motions[2])]
-    turns = [screw[:3] for screw in nxt]
+    turns = nxt  # screws: a whole turn between keys continues about the same axis (rigid_log)
     out = []
     for j, (rotations, translations) in enumerate(motions):
         if j == 2:
