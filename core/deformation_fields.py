@@ -425,6 +425,36 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     return out
 
 
+def screw_left_jacobians(screws: np.ndarray) -> np.ndarray:
+    """The left Jacobians (P, 6, 6) of SE(3)'s exponential at screw coordinates ``(ω, v)``
+    (P, 6): ``(d exp(S)) exp(S)⁻¹ = (J dS)^``, the series ``Σ adₛⁿ / (n + 1)!``, read off the
+    exponential of a 12 × 12 block matrix (SciPy's ``expm``)."""
+    block = np.zeros((len(screws), 12, 12))
+    w = np.array([_hat(row) for row in screws[:, :3]]).reshape(-1, 3, 3)
+    block[:, :3, :3] = block[:, 3:6, 3:6] = w
+    block[:, 3:6, :3] = np.array([_hat(row) for row in screws[:, 3:]]).reshape(-1, 3, 3)
+    block[:, :6, 6:] = np.eye(6)
+    from scipy.linalg import expm  # lazily: scipy.linalg is not loaded by the rest of this module
+
+    return expm(block)[:, :6, 6:]
+
+
+def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple) -> np.ndarray:
+    """Screw coordinates (P, 6) to stand in a Catmull–Rom spline of screws for keys two steps on,
+    whose next keys are ``screws`` (P, 6) (the rigid motions ``motions``: rotations (P, 3, 3),
+    translations (P, 3)) and which are the rigid motions ``farther``: ``J(S)⁻¹ (S + T)``, ``T``
+    the step from the next key on (the short way round; a half turn the way ``S`` turns). Half of
+    it, the spline's tangent at the next key, is there the velocity ``(S + T)/2`` that the next gap
+    starts with, so the two meet with one velocity; and a piece that turns by nearly a whole turn
+    over the two steps is never taken as one screw, whose ``V(ω)`` is nearly singular there (a ball
+    rolling 178° per key came out 4.5 radii off its path)."""
+    rotations, translations = motions
+    step_rotations = matmul(farther[0], transpose(rotations))
+    step_translations = farther[1] - np.einsum("pab,pb->pa", step_rotations, translations)
+    steps = np.array([rigid_log(r, t, s) for r, t, s in zip(step_rotations, step_translations, screws)]).reshape(-1, 6)
+    return np.linalg.solve(screw_left_jacobians(screws), (screws + steps)[..., None])[..., 0]
+
+
 def _unwrapped_identity(reference: np.ndarray) -> np.ndarray:
     """The representatives ``2πk û`` (r, 3) of the identity nearest the rows of ``reference``
     (r, 3): along each reference, ``k`` its length in whole turns (rounded; zero for a null one)."""

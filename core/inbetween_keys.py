@@ -145,12 +145,23 @@ class _Relative:
         out.turn, out.motion = (cos, -sin), (inverse_rotations, inverse_translations)
         return out
 
-    def unwrap(self, turns: np.ndarray, rotvec: np.ndarray) -> "_Relative":
+    def unwrap(self, turns: np.ndarray, rotvec: np.ndarray, nxt: "_Relative | None" = None) -> "_Relative":
         """This relative (built without ``turns``) with its screw coordinates taken as if the
         constructor had been given ``turns`` (C, 3), its triangles' turns continued toward
-        ``rotvec`` (:meth:`continue_turns`)."""
+        ``rotvec`` (:meth:`continue_turns`); with the relative ``nxt`` of the key between, the
+        screws a spline takes for this key two steps on (:attr:`continued_screw`)."""
         self.screw = _screws(*self.motion, turns, True)
+        if nxt is not None:
+            self._continued = df.continued_screws(nxt.screw, nxt.motion, self.motion)
         return self.continue_turns(rotvec)
+
+    _continued = None
+
+    @property
+    def continued_screw(self) -> np.ndarray:
+        """Screw coordinates (C, 6) a Catmull–Rom spline takes for this key when it is two steps
+        on (:func:`core.deformation_fields.continued_screws`, set by :meth:`unwrap`), else ``screw``."""
+        return self.screw if self._continued is None else self._continued
 
     def continue_turns(self, rotvec: np.ndarray) -> "_Relative":
         """This relative with each triangle's rotation vector the representative nearest its row
@@ -182,7 +193,8 @@ class _Relative:
         for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
             c, p = getattr(current, name), getattr(previous, name)
             quadratic = farther is not None and name in KINEMATIC
-            setattr(self, name, 3 * (c - p) + getattr(farther, name) if quadratic else 2 * c - p)
+            far = None if farther is None else farther.continued_screw if name == "screw" else getattr(farther, name)
+            setattr(self, name, 3 * (c - p) + far if quadratic else 2 * c - p)
         self.metric = df.exp_stretch(2.0 * self.log_stretch)
         self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         if farther is not None:

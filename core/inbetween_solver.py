@@ -204,17 +204,22 @@ def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) ->
     return rotations, translations
 
 
-def riding_screws(motions: list[tuple[np.ndarray, np.ndarray]]) -> list[np.ndarray]:
+def riding_screws(motions: list[tuple[np.ndarray, np.ndarray]], farther_is_key: bool = False) -> list[np.ndarray]:
     """Screw coordinates (S, 6) of the riding sets' rigid motions (:func:`riding_motions`) from a
     gap's base key to the keys at times −1, 0, 1, 2: the next key's the short way round, the
     others' turns continued from it (the key before the reverse of it, the key after twice it), so
-    that a set turning by more than a half turn over two gaps keeps turning the same way."""
+    that a set turning by more than a half turn over two gaps keeps turning the same way; with
+    ``farther_is_key`` (the key after is a key, not the sequence's end condition), the key after's
+    :func:`core.deformation_fields.continued_screws`."""
     nxt = [df.rigid_log(r, t) for r, t in zip(*motions[2])]
     turns = nxt  # screws: a whole turn between keys continues about the same axis (rigid_log)
     out = []
     for j, (rotations, translations) in enumerate(motions):
         if j == 2:
             out.append(np.array(nxt).reshape(-1, 6))
+            continue
+        if j == 3 and farther_is_key:  # the next gap's start velocity (core.deformation_fields.continued_screws)
+            out.append(df.continued_screws(np.array(nxt).reshape(-1, 6), motions[2], (rotations, translations)))
             continue
         scale = (-1.0, 0.0, None, 2.0)[j]
         out.append(np.array([df.rigid_log(r, t, scale * turn, True)
@@ -409,7 +414,9 @@ class _Gap(LocalGlobalFit):
                               entry=None if entry is None or name not in entry[1] else
                               (self.per_element(name, entry[0]), entry[1][name]))
         spline = {name: hermite(name, [getattr(r, name) for r in relatives])
-                  for name in ("log_stretch", "screw", "vertices", "world", "centroids")}
+                  for name in ("log_stretch", "vertices", "world", "centroids")}
+        # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
+        spline["screw"] = hermite("screw", [r.screw for r in relatives[:3]] + [relatives[3].continued_screw])
         # the rotation residuals splined in each triangle's base frame (t1, t2, n), where their
         # tangents' per-element limits do not depend on how the scene is turned (see local_rotvec)
         spline["rotvec"] = hermite("rotvec", [self.local_rotvec(r.rotvec) for r in relatives])
@@ -422,7 +429,8 @@ class _Gap(LocalGlobalFit):
         # the base key (screws whose turns continue across the keys: riding_screws)
         self.riding = riding
         if riding is not None:
-            screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives])
+            screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
+                                   cubic and not getattr(relatives[3], "extrapolated", False))
             self.riding_screws = HermiteGap(screws, cubic, limit=limit, onward=True)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))

@@ -308,7 +308,7 @@ class SequenceInterpolator:
         if cubic:
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw  # screws: a whole turn between keys continues about the same axis
-            after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec) if gap + 2 <= last else None
+            after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec, nxt) if gap + 2 <= last else None
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
             prev = self._previous(gap, -turn, whole).continue_turns(-nxt.rotvec) if gap >= 1 else \
