@@ -10,7 +10,8 @@ jointed in a gap when both are rigid over its keys (non-rigidity under
 :data:`JOINT_REACH` mean edge lengths) and the child's motion relative to the parent's holds the
 contact (:func:`joint_offset`: a hinge's axis runs through it). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
-that turns least over the gap's keys (a fixed base stays the root). At the keys the composed
+that moves least over the gap's keys (a fixed base stays the root; measured by its vertices'
+moves, since a link turning past a half turn reads as a small turn the other way). At the keys the composed
 motions are the pieces' own, and a rigid motion of the whole mesh has identity
 relative motions, so it is reproduced exactly either way.
 """
@@ -65,14 +66,15 @@ def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndar
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-               turns: np.ndarray, reach: float):
+               moves: np.ndarray, reach: float):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
     two pieces are jointed. ``motions``: the pieces' best rigid motions from ``base`` to ``nxt``
-    (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``turns``: how far each piece turns over the
-    gap's keys (C,), the least turning piece of a group is its root (in a chain the turns add up
-    from the piece fixed to the world); ``reach``: the joint distance."""
+    (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``moves``: how far each piece
+    moves over the gap's keys (C,), the piece of a group that moves least is its root (in a chain
+    the motions add up from the piece fixed to the world; a turn would alias past a half turn);
+    ``reach``: the joint distance."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -115,7 +117,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         neighbours.setdefault(int(v), []).append(int(u))
     parents = np.full(len(topo.components), -1)
     order, seen = [], set()
-    for root in sorted(neighbours, key=lambda k: turns[pieces[k]]):  # the least turning piece of each group first
+    for root in sorted(neighbours, key=lambda k: moves[pieces[k]]):  # the piece of each group that moves least first
         if root in seen:
             continue
         seen.add(root)
@@ -131,27 +133,37 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     return parents, order
 
 
-def joint_screws(parents: np.ndarray, screws: list, phantom: list) -> list:
+def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list | None = None) -> list:
     """Per key (the gap's relatives' ``screws``, (C, 6) each, key times −1, 0, 1, 2), each jointed
     piece's screw coordinates relative to its parent's motion (rows of roots and unjointed pieces
     unchanged): the turn to the next key the short way, the keys before and after continuing it
     (the representative nearest −1 and 2 × it, as the pieces' own screws). Where ``phantom`` says
     the key before or after is a sequence's end condition (extrapolated screws), the relative
-    screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones."""
+    screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones.
+    ``motions``: per key, the pieces' rigid motions (rotations (C, 3, 3), translations (C, 3)) where
+    known, else None (then those of ``screws``: a whole turn's screw does not hold a translation
+    across its axis, see :func:`core.deformation_fields.rigid_log`)."""
     children = np.flatnonzero(parents >= 0)
+    motions = [None] * len(screws) if motions is None else motions
 
-    def relative(screw, turns=None, unwrap=False):
-        rotations, translations = df.rigid_exps(screw)
-        out = screw.copy()
-        for c in children:
-            p = parents[c]
-            out[c] = df.rigid_log(*relative_motion((rotations[p], translations[p]), (rotations[c], translations[c])),
-                                  None if turns is None else turns[c], unwrap)
+    def local(k):  # each child's rigid motion relative to its parent's at key k
+        rotations, translations = df.rigid_exps(screws[k]) if motions[k] is None else motions[k]
+        return [relative_motion((rotations[parents[c]], translations[parents[c]]), (rotations[c], translations[c]))
+                for c in children]
+
+    def relative(k, turns=None, unwrap=False):
+        out = screws[k].copy()
+        for c, motion in zip(children, local(k)):
+            out[c] = df.rigid_log(*motion, None if turns is None else turns[c], unwrap)
         return out
 
-    start, onward = relative(screws[1]), relative(screws[2])
-    before = 2.0 * start - onward if phantom[0] else relative(screws[0], -onward[:, :3], True)
-    after = 2.0 * onward - start if phantom[3] else relative(screws[3], 2.0 * onward[:, :3], True)
+    start, onward = relative(1), relative(2)
+    before = 2.0 * start - onward if phantom[0] else relative(0, -onward[:, :3], True)
+    after = 2.0 * onward - start if phantom[3] else screws[3].copy()
+    if not phantom[3] and children.size:  # the key after as the screws' spline takes it (continued_screws)
+        near, far = local(2), local(3)
+        after[children] = df.continued_screws(onward[children], tuple(np.array(m) for m in zip(*near)),
+                                              tuple(np.array(m) for m in zip(*far)))
     unjointed = parents < 0
     for extrapolated, own in ((before, screws[0]), (after, screws[3])):
         extrapolated[unjointed] = own[unjointed]

@@ -438,12 +438,12 @@ class _Gap(LocalGlobalFit):
         self.joints = None
         if len(topo.components) > 1:
             rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
-            turns = sum(np.linalg.norm(r.screw[:, :3], axis=1) for r in relatives)
-            self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, turns,
-                                     JOINT_REACH * self.mean_edge)
+            self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
+                                     self.piece_moves(relatives), JOINT_REACH * self.mean_edge)
         if self.joints is not None:
             spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
-                                                                  [r.extrapolated for r in relatives]))
+                                                                  [r.extrapolated for r in relatives],
+                                                                  [getattr(r, "motion", None) for r in relatives]))
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
         # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH)
         self.trimmed_tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
@@ -466,6 +466,20 @@ class _Gap(LocalGlobalFit):
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.carried = CarriedPieces(self)
+
+    def piece_moves(self, relatives: list) -> np.ndarray:
+        """How far each component (C,) moves over the gap's keys: the sum over ``relatives`` of
+        its vertices' RMS move from the base key, in the world. Positions do not alias as turns
+        do: a link turning 300° between keys reads as a turn of 60° the other way, but its
+        vertices still sweep round."""
+        topo, base = self.topo, self.base.vertices
+        owner = topo.vertex_owner
+        counts = np.maximum(np.bincount(owner[owner >= 0], minlength=len(topo.components)), 1)
+        total = np.zeros(len(topo.components))
+        for r in relatives:
+            moved = np.einsum("ij,ij->i", r.world - base, r.world - base)
+            total += np.sqrt(np.bincount(owner[owner >= 0], moved[owner >= 0], minlength=len(topo.components)) / counts)
+        return total
 
     def local_rotvec(self, rotvec: np.ndarray) -> np.ndarray:
         """Per-triangle rotation vectors (m, 3) in world coordinates → in the triangle's frame

@@ -333,12 +333,14 @@ def _chain(angles):
     return np.vstack(parts), triangles
 
 
-@pytest.mark.parametrize("degrees", [60.0, 90.0])
+@pytest.mark.parametrize("degrees", [60.0, 90.0, 100.0, 130.0])
 def test_jointed_rigid_pieces_turn_about_their_joints(degrees):
     """Three links of an arm, separate pieces touching at their joints, each bent by the same angle:
     every factor of two poses is the arm bent by that factor of the angles, to 1e-6 (each link
     along its own screw motion: apart at the joints by up to 0.56 link lengths at 0.5 of 60° and
-    2.6 at ×2)."""
+    2.6 at ×2). At 100° and 130° the last link turns 300° and 390° in the world, which reads as a
+    small turn: the arm hangs from the link that moves least (it had hung from that last link, 2.2
+    link lengths off)."""
     a, tri = _chain((0.0,) * 3)
     b, _ = _chain((np.radians(degrees),) * 3)
     interpolator = Interpolator(a, b, tri)
@@ -358,6 +360,24 @@ def test_jointed_rigid_pieces_in_a_sequence(step):
     for gap in range(4):
         for factor, pose in zip(factors, sequence.poses(gap, factors)):
             np.testing.assert_allclose(pose, _chain((np.radians(step * (gap + factor)),) * 3)[0], atol=1e-6)
+
+
+def test_jointed_rigid_pieces_whose_joints_speed_up():
+    """The arm's joints speeding up (60° per key + 15° per key², each): the in-betweens of the inner
+    gaps, whose Catmull–Rom splines of the joints' screws are exact for an angle quadratic in time,
+    are the arm at that time, to 1e-6 (before: 2.5 link lengths off where the last link's world turn
+    passed a half turn per key and the arm hung from it, 0.15 where the joints' spline took the key
+    after as a screw of a whole turn)."""
+    _, tri = _chain((0.0,) * 3)
+
+    def angle(t):
+        return np.radians(60.0 * t + 7.5 * t * t)
+
+    sequence = SequenceInterpolator([_chain((angle(k),) * 3)[0] for k in range(5)], tri, start="keys")
+    factors = np.arange(1, 4) / 4
+    for gap in (1, 2):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(pose, _chain((angle(gap + factor),) * 3)[0], atol=1e-6)
 
 
 def _forearm_and_hand(bend, swing, n=60, k=16, radius=0.1):
