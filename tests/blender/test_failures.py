@@ -120,6 +120,29 @@ def test_mesh_without_faces(bpy_empty, extension):
                          "has no faces")
 
 
+def test_a_cache_whose_topology_changes(bpy_empty, extension, tmp_path):
+    """An Alembic cache of a mesh that loses faces over time (a Build modifier, reversed, when it
+    was exported): the report says the cache's vertex count changes, at which frame, and that a
+    fixed topology or another frame range is needed; nothing changes."""
+    obj = grid_object(10)
+    obj.modifiers.new("Wave", 'WAVE')
+    build = obj.modifiers.new("Build", 'BUILD')
+    build.frame_start, build.frame_duration, build.use_reverse = 5, 30, True
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 33
+    path = str(tmp_path / "shrinking.abc")
+    bpy.ops.wm.alembic_export(filepath=path, start=1, end=33)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 33
+    bpy.ops.wm.alembic_import(filepath=path, as_background_job=False)
+    imported = [o for o in bpy.data.objects if o.type == 'MESH'][0]
+    bpy.context.view_layer.objects.active = imported
+    imported.select_set(True)
+    fails_without_change(extension.bridge, imported, bpy.ops.shape_differences.inbetween_frames,
+                         r"At frame \d+ the mesh cache .* of 'Sheet' \(.*shrinking\.abc\) has \d+ vertices "
+                         r"instead of 121: its topology changes over time", frame_step=4, output='CACHE')
+
+
 def test_degenerate_pose(bpy_empty, extension, core):
     obj = posed_grid(extension.bridge, 6)
     flat = extension.bridge.shape_key_positions(obj.data.shape_keys.key_blocks["Basis"])
