@@ -136,8 +136,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
 def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list | None = None) -> list:
     """Per key (the gap's relatives' ``screws``, (C, 6) each, key times −1, 0, 1, 2), each jointed
     piece's screw coordinates relative to its parent's motion (rows of roots and unjointed pieces
-    unchanged): the turn to the next key the short way, the keys before and after continuing it
-    (the representative nearest −1 and 2 × it, as the pieces' own screws). Where ``phantom`` says
+    unchanged): the turn to the next key the short way, the key before continuing it (the
+    representative nearest −1 × it) and the key after as a spline of screws takes it
+    (:func:`core.deformation_fields.continued_screws`), as the pieces' own screws. Where ``phantom`` says
     the key before or after is a sequence's end condition (extrapolated screws), the relative
     screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones.
     ``motions``: per key, the pieces' rigid motions (rotations (C, 3, 3), translations (C, 3)) where
