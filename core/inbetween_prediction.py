@@ -305,6 +305,10 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     if not defects.any():
         return gap.finished((x, None), s)
     result = gap.repaired(x, s, rings, defects)
+    if result[1] is None and gap.repair.moved_far(result[0], x):
+        # a clean repair that moves the pose by more than the cloth deforms: the solve, if clean
+        solved = gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
+        return solved if solved[1] is None else result
     if result[1] is None or rings is not None:
         return result
     # the gap's solved in-betweens are clean but no repair cleans this prediction: solve it too,

@@ -69,7 +69,10 @@ STALLED_ROUND, STALLED_DEFECTS = 2, 2
 MAX_REPAIR_FRACTION = 0.5
 #: Largest move of a repair of a sequence's in-between, RMS over the vertices, as a fraction of the
 #: keys' RMS move across the gap (at least one mean edge length): a larger one jumps away from the
-#: neighbouring in-betweens, which do not follow (numbers in docs/inbetweens.md, *Pops*).
+#: neighbouring in-betweens, which do not follow (numbers in docs/inbetweens.md, *Pops*). A
+#: predicted in-between's clean repair that moves it by more than this fraction of the keys' move
+#: with the pieces' rigid motions taken out gives way to the solve if that is clean
+#: (:meth:`Repair.moved_far`; a cape on a walking rig, whose walk is most of the keys' move).
 MAX_REPAIR_MOVE = 0.1
 #: Largest move of a repair of a sequence's in-between that still leaves defects (kept as the fit
 #: with the fewest defects when no repair is defect-free), RMS over the vertices, in mean edge
@@ -92,6 +95,7 @@ class Repair:
         self.gap = weakref.proxy(gap)
         self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._move_limits: tuple[float, float] | None = None
+        self._far_move: float | None = None  # mean squared move: see moved_far
 
     # --- defects
 
@@ -324,6 +328,17 @@ class Repair:
         """Whether factor ``s`` is an in-between of a sequence (three keys or more, 0 < s < 1):
         one of a run of poses in time, which a pose must not jump away from."""
         return self.gap.cubic and 0.0 < s < 1.0
+
+    def moved_far(self, z: np.ndarray, x: np.ndarray) -> bool:
+        """Whether ``z`` (a repair of the sequence's in-between ``x``, (n, 3)) moved it by more
+        than :data:`MAX_REPAIR_MOVE` of the keys' move with each piece's rigid motion taken out
+        (and more than a mean edge length), RMS over the vertices."""
+        gap = self.gap
+        if self._far_move is None:
+            moved = gap.topo.apply_motion(gap.base.vertices, *gap.relatives[2].motion)
+            self._far_move = max(MAX_REPAIR_MOVE ** 2 * np.mean(np.sum((gap.next.vertices - moved) ** 2, axis=1)),
+                                    gap.mean_edge ** 2)
+        return float(np.mean(np.sum((z - x) ** 2, axis=1))) > self._far_move
 
     def move_limits(self, s: float) -> tuple[float, float] | None:
         """The largest sums of squared vertex moves a repair of a sequence's in-between at ``s``

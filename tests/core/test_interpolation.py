@@ -1017,6 +1017,44 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
     np.testing.assert_allclose(poses, [solved[s] for s in factors], rtol=0, atol=1e-12)
 
 
+@pytest.mark.parametrize("shift, solved_instead", [(10.0, True), (0.01, False)])
+def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch, strip, shift, solved_instead):
+    """A predicted in-between whose clean repair moves it by more than the cloth deforms across the
+    gap (a tenth of the keys' move with each piece's rigid motion taken out, at least a mean edge
+    length) is solved instead when the solve is clean: its neighbours in time are predictions and
+    would not follow the repair (a cape on a walking rig, keys 8 apart: a repair moved one
+    in-between 1.2 mean edge lengths RMS, within a tenth of the walk, and it jumped 2.25 × the
+    simulation's largest acceleration). A repair that moves it a little is kept."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
+    keys = [k - middle for k in keys]
+    factors = np.arange(1, 8) / 8  # seven in-betweens: two solved, five predicted
+    with monkeypatch.context() as every_one_solved:
+        every_one_solved.setattr(prediction, "MIN_PREDICTED_BATCH", len(factors) + 1)
+        solved = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    moving = flat[:, 0] > 0.0
+
+    def defects(self, x, s, *args, rows=None, scale=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if np.allclose(x[moving], solved[s][moving], rtol=0, atol=1e-12) else 3] = True
+        return out if rows is None else out[rows]
+
+    def repaired(self, x, s, rings=None, defects=None):  # clean, moved by ``shift`` mean edges
+        return x + shift * self.mean_edge, None
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(solver._Gap, "repaired", repaired)
+    poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    predicted = [s for s in factors if s not in (0.25, 0.75)]
+    for s in predicted:
+        assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == solved_instead
+
+
 def test_area_scale_is_the_determinant_of_the_stretch(strip):
     """A gap's area ratios (what the defect check of a predicted in-between reads) are det U of
     its interpolated stretches, between the keys and outside them."""
