@@ -988,29 +988,37 @@ def test_a_fit_that_folds_past_the_whole_change_tolerance_falls_back_to_its_step
     assert problem is None and x is steps[1]
 
 
-def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
-    """In a gap whose solved in-betweens are clean, a predicted in-between whose defects no repair
-    removes is solved: every in-between of the gap is then its solved pose, with no warning."""
+def _predictions_flagged(monkeypatch, strip):
+    """A bending strip's first gap with seven in-betweens (two solved, five predicted): the keys
+    (about the first key's middle, where sequences work, so that a mock sees their positions), the
+    triangles, the factors, every in-between solved {factor: positions}, and ``Repair.defects``
+    mocked to flag three triangles of any pose but those solved ones."""
     import core.inbetween_prediction as prediction
     import core.inbetween_repair as repair
 
     flat, tri = strip
     keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
-    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))  # keyed about the origin: sequences
-    keys = [k - middle for k in keys]  # work about the first key's middle, and the mock sees positions
-    factors = np.arange(1, 8) / 8  # seven in-betweens: two solved, five predicted
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
+    keys = [k - middle for k in keys]
+    factors = np.arange(1, 8) / 8
     with monkeypatch.context() as every_one_solved:
         every_one_solved.setattr(prediction, "MIN_PREDICTED_BATCH", len(factors) + 1)
         solved = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
-    moving = flat[:, 0] > 0.0
+    moving = flat[:, 0] > 0.0  # the still vertices (x = 0) are set exactly after the check
 
     def defects(self, x, s, *args, rows=None, scale=None):
         out = np.zeros(len(tri), dtype=bool)
-        # the still vertices (x = 0) are set exactly after the check: compared elsewhere
         out[:0 if np.allclose(x[moving], solved[s][moving], rtol=0, atol=1e-12) else 3] = True
         return out if rows is None else out[rows]
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
+    return keys, tri, factors, solved, moving
+
+
+def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
+    """In a gap whose solved in-betweens are clean, a predicted in-between whose defects no repair
+    removes is solved: every in-between of the gap is then its solved pose, with no warning."""
+    keys, tri, factors, solved, _ = _predictions_flagged(monkeypatch, strip)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         poses = SequenceInterpolator(keys, tri).poses(0, factors)
@@ -1025,34 +1033,18 @@ def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch
     would not follow the repair (a cape on a walking rig, keys 8 apart: a repair moved one
     in-between 1.2 mean edge lengths RMS, within a tenth of the walk, and it jumped 2.25 × the
     simulation's largest acceleration). A repair that moves it a little is kept."""
-    import core.inbetween_prediction as prediction
-    import core.inbetween_repair as repair
     import core.inbetween_solver as solver
 
-    flat, tri = strip
-    keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
-    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
-    keys = [k - middle for k in keys]
-    factors = np.arange(1, 8) / 8  # seven in-betweens: two solved, five predicted
-    with monkeypatch.context() as every_one_solved:
-        every_one_solved.setattr(prediction, "MIN_PREDICTED_BATCH", len(factors) + 1)
-        solved = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
-    moving = flat[:, 0] > 0.0
-
-    def defects(self, x, s, *args, rows=None, scale=None):
-        out = np.zeros(len(tri), dtype=bool)
-        out[:0 if np.allclose(x[moving], solved[s][moving], rtol=0, atol=1e-12) else 3] = True
-        return out if rows is None else out[rows]
+    keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
 
     def repaired(self, x, s, rings=None, defects=None):  # clean, moved by ``shift`` mean edges
         return x + shift * self.mean_edge, None
 
-    monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(solver._Gap, "repaired", repaired)
     poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
-    predicted = [s for s in factors if s not in (0.25, 0.75)]
-    for s in predicted:
-        assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == solved_instead
+    for s in factors:
+        if s not in (0.25, 0.75):  # the predicted ones
+            assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == solved_instead
 
 
 def test_area_scale_is_the_determinant_of_the_stretch(strip):
