@@ -455,6 +455,23 @@ def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple) -> np.n
     return np.linalg.solve(screw_left_jacobians(screws), (screws + steps)[..., None])[..., 0]
 
 
+def key_screws(motions: list, farther_is_key: bool) -> list[np.ndarray]:
+    """Screw coordinates (P, 6) of P bodies' rigid motions ``motions`` (per key: rotations
+    (P, 3, 3), translations (P, 3)) from a gap's base key to the keys at times −1, 0, 1, 2, for a
+    spline of screws: the next key's the short way round, the key before's turn continued from it
+    (the representative nearest its reverse), the key after as :func:`continued_screws` takes it
+    where ``farther_is_key``, else (a sequence's end condition) its turn continued to twice the
+    next key's."""
+    def logs(k, reference=None):
+        rotations, translations = motions[k]
+        return np.array([rigid_log(r, t, None if reference is None else reference[i], reference is not None)
+                         for i, (r, t) in enumerate(zip(rotations, translations))]).reshape(-1, 6)
+
+    nxt = logs(2)
+    after = continued_screws(nxt, motions[2], motions[3]) if farther_is_key else logs(3, 2.0 * nxt)
+    return [logs(0, -nxt), logs(1), nxt, after]
+
+
 def _unwrapped_identity(reference: np.ndarray) -> np.ndarray:
     """The representatives ``2πk û`` (r, 3) of the identity nearest the rows of ``reference``
     (r, 3): along each reference, ``k`` its length in whole turns (rounded; zero for a null one)."""

@@ -136,9 +136,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
 def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list | None = None) -> list:
     """Per key (the gap's relatives' ``screws``, (C, 6) each, key times −1, 0, 1, 2), each jointed
     piece's screw coordinates relative to its parent's motion (rows of roots and unjointed pieces
-    unchanged): the turn to the next key the short way, the key before continuing it (the
-    representative nearest −1 × it) and the key after as a spline of screws takes it
-    (:func:`core.deformation_fields.continued_screws`), as the pieces' own screws. Where ``phantom`` says
+    unchanged), as the pieces' own (:func:`core.deformation_fields.key_screws`). Where ``phantom`` says
     the key before or after is a sequence's end condition (extrapolated screws), the relative
     screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones.
     ``motions``: per key, the pieces' rigid motions (rotations (C, 3, 3), translations (C, 3)) where
@@ -149,26 +147,20 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list
 
     def local(k):  # each child's rigid motion relative to its parent's at key k
         rotations, translations = df.rigid_exps(screws[k]) if motions[k] is None else motions[k]
-        return [relative_motion((rotations[parents[c]], translations[parents[c]]), (rotations[c], translations[c]))
-                for c in children]
+        pairs = [relative_motion((rotations[parents[c]], translations[parents[c]]), (rotations[c], translations[c]))
+                 for c in children]
+        return np.array([r for r, _ in pairs]).reshape(-1, 3, 3), np.array([t for _, t in pairs]).reshape(-1, 3)
 
-    def relative(k, turns=None, unwrap=False):
-        out = screws[k].copy()
-        for c, motion in zip(children, local(k)):
-            out[c] = df.rigid_log(*motion, None if turns is None else turns[c], unwrap)
-        return out
-
-    start, onward = relative(1), relative(2)
-    before = 2.0 * start - onward if phantom[0] else relative(0, -onward[:, :3], True)
-    after = 2.0 * onward - start if phantom[3] else screws[3].copy()
-    if not phantom[3] and children.size:  # the key after as the screws' spline takes it (continued_screws)
-        near, far = local(2), local(3)
-        after[children] = df.continued_screws(onward[children], tuple(np.array(m) for m in zip(*near)),
-                                              tuple(np.array(m) for m in zip(*far)))
-    unjointed = parents < 0
-    for extrapolated, own in ((before, screws[0]), (after, screws[3])):
-        extrapolated[unjointed] = own[unjointed]
-    return [before, start, onward, after]
+    out = [screw.copy() for screw in screws]  # roots and unjointed pieces: their own
+    if children.size:
+        before, start, onward, after = df.key_screws([local(k) for k in range(4)], not phantom[3])
+        if phantom[0]:
+            before = 2.0 * start - onward
+        if phantom[3]:
+            after = 2.0 * onward - start
+        for key, rows in zip(out, (before, start, onward, after)):
+            key[children] = rows
+    return out
 
 
 def composed(parents: np.ndarray, order: list, rotations: np.ndarray, translations: np.ndarray,

@@ -204,29 +204,6 @@ def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) ->
     return rotations, translations
 
 
-def riding_screws(motions: list[tuple[np.ndarray, np.ndarray]], farther_is_key: bool = False) -> list[np.ndarray]:
-    """Screw coordinates (S, 6) of the riding sets' rigid motions (:func:`riding_motions`) from a
-    gap's base key to the keys at times −1, 0, 1, 2: the next key's the short way round, the
-    others' turns continued from it (the key before the reverse of it, the key after twice it), so
-    that a set turning by more than a half turn over two gaps keeps turning the same way; with
-    ``farther_is_key`` (the key after is a key, not the sequence's end condition), the key after's
-    :func:`core.deformation_fields.continued_screws`."""
-    nxt = [df.rigid_log(r, t) for r, t in zip(*motions[2])]
-    turns = nxt  # screws: a whole turn between keys continues about the same axis (rigid_log)
-    out = []
-    for j, (rotations, translations) in enumerate(motions):
-        if j == 2:
-            out.append(np.array(nxt).reshape(-1, 6))
-            continue
-        if j == 3 and farther_is_key:  # the next gap's start velocity (core.deformation_fields.continued_screws)
-            out.append(df.continued_screws(np.array(nxt).reshape(-1, 6), motions[2], (rotations, translations)))
-            continue
-        scale = (-1.0, 0.0, None, 2.0)[j]
-        out.append(np.array([df.rigid_log(r, t, scale * turn, True)
-                             for r, t, turn in zip(rotations, translations, turns)]).reshape(-1, 6))
-    return out
-
-
 def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarray | None) -> np.ndarray | None:
     """Per component (C,), whether it is in free flight through a gap and hit right after it (see
     :data:`FREE_FLIGHT_NONRIGIDITY`), from the non-rigidity (C,) of the keys before the gap, at its
@@ -426,11 +403,11 @@ class _Gap(LocalGlobalFit):
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
-        # the base key (screws whose turns continue across the keys: riding_screws)
+        # the base key (screws whose turns continue across the keys: df.key_screws)
         self.riding = riding
         if riding is not None:
-            screws = riding_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
-                                   cubic and not getattr(relatives[3], "extrapolated", False))
+            screws = df.key_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
+                                   cubic and not relatives[3].extrapolated)
             self.riding_screws = HermiteGap(screws, cubic, limit=limit, onward=True)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))

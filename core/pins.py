@@ -10,7 +10,7 @@ Two kinds are found in the keys of a sequence and held by the in-betweens
   by edges that keep their lengths to single-precision rounding in every key, which no cloth does,
   moving as one rigid body that is only part of its piece. Each set follows the spline of its
   rigid motion through the keys as a screw, its turn continued across them
-  (:func:`core.inbetween_solver.riding_screws`), as the object's animation curves carry it.
+  (:func:`core.deformation_fields.key_screws`), as the object's animation curves carry it.
 """
 
 from __future__ import annotations
