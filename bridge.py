@@ -87,28 +87,33 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             if frame not in wanted:
                 continue
             positions = evaluated_positions(obj, context.evaluated_depsgraph_get())
-            caches = [m for m in obj.modifiers if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
-            if len(positions) != vertex_count and caches:
-                source = caches[0].cache_file.filepath if caches[0].cache_file is not None else "its cache file"
-                raise VertexCountChanged(
-                    f"At frame {frame} the mesh cache '{caches[0].name}' of '{obj.name}' ({source}) has "
-                    f"{len(positions)} vertices instead of {vertex_count}: its topology changes over "
-                    "time (a fluid, or a mesh remeshed or built frame by frame), and shape differences "
-                    "need one mesh whose vertices persist. Pick a frame range where the vertex count "
-                    "stays the same, or export the cache with a fixed topology.")
             if len(positions) != vertex_count:
-                raise VertexCountChanged(
-                    f"At frame {frame} the evaluated mesh of '{obj.name}' has {len(positions)} "
-                    f"vertices instead of {vertex_count}: a modifier before the motion (or a "
-                    "Geometry Nodes modifier) changes the topology. Disable modifiers that add or "
-                    "remove geometry there (Subdivision, Remesh, Decimate, ...) or apply them before "
-                    "simulating or rigging; those after the cloth or armature are set aside by "
-                    "themselves.")
+                _refuse_vertex_count(obj, frame, len(positions), vertex_count)
             yield frame, positions
     finally:
         for modifier in aside:
             modifier.show_viewport = True
         scene.frame_set(original_frame, subframe=original_subframe)
+
+
+def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int):
+    """Raise :class:`VertexCountChanged` for ``obj``'s evaluated mesh having ``count`` vertices at
+    ``frame`` instead of its mesh's ``vertex_count``, saying what changes the topology."""
+    caches = [m for m in obj.modifiers if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
+    if caches:
+        source = caches[0].cache_file.filepath if caches[0].cache_file is not None else "its cache file"
+        raise VertexCountChanged(
+            f"At frame {frame} the mesh cache '{caches[0].name}' of '{obj.name}' ({source}) has "
+            f"{count} vertices instead of {vertex_count}: its topology changes over time (a fluid, "
+            "or a mesh remeshed or built frame by frame), and shape differences need one mesh whose "
+            "vertices persist. Pick a frame range where the vertex count stays the same, or export "
+            "the cache with a fixed topology.")
+    raise VertexCountChanged(
+        f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+        f"{vertex_count}: a modifier before the motion (or a Geometry Nodes modifier) changes the "
+        "topology. Disable modifiers that add or remove geometry there (Subdivision, Remesh, "
+        "Decimate, ...) or apply them before simulating or rigging; those after the cloth or "
+        "armature are set aside by themselves.")
 
 
 @dataclass
