@@ -8,6 +8,17 @@ when ``F − 1`` is not a multiple of ``step``). Output sample ``k`` shows sourc
 output sample at a key's time is that key's positions exactly; any other is the in-between of its
 gap at the factor of its time within the gap.
 
+A :class:`core.SequenceInterpolator` takes its keys evenly spaced in time (its splines' velocities
+at a key come from the neighbouring keys), so a shorter last gap of ``r`` samples read as one of
+its gaps gets the wrong timing: its in-betweens came out 2–6 × further from the source than the
+linear blend's on two cloths keyed every 8th frame with ``r = 3``. It is the last gap of a
+second sequence keyed every ``r`` samples up to the last sample instead (:attr:`RetimePlan.tail`),
+which meets the first at its last whole-step key. The gap before still takes the last sample as
+a key one step on (its end velocity ``step / r`` times off where the motion is steady: a sheet at
+constant velocity, 18 samples keyed every 4th, 2 % of its size off there): on those cloths that
+gap was closer to the source so than with the end condition of a sequence stopped at the last
+whole step (numbers in docs/inbetweens.md, *Retiming a range that is not whole steps*).
+
 Chunks: the in-betweens of a gap are asked together (:meth:`core.SequenceInterpolator.poses`
 shares the work between them), so the result for a gap depends only on the keys, the gap and the
 plan; every call builds the interpolator from all the keys, so computing gaps ``a:b`` in one process and ``b:c`` in another
@@ -36,7 +47,9 @@ class RetimePlan:
     time of each output sample. ``gaps``: int ``(n_out,)`` the gap (key ``g`` → ``g + 1``) each
     output sample lies in (the last key belongs to the last gap). ``factors``: float ``(n_out,)``
     position within the gap (0 at key ``g``, 1 at key ``g + 1``). ``exact_keys``: int
-    ``(n_out,)`` the key an output sample shows exactly, −1 for in-betweens.
+    ``(n_out,)`` the key an output sample shows exactly, −1 for in-betweens. ``tail``: int, the
+    source samples keying the shorter last gap's own sequence (``r`` apart, ending on the last two
+    keys), empty when every gap is ``step`` long (see the module docstring).
     """
 
     n_source: int
@@ -47,10 +60,17 @@ class RetimePlan:
     gaps: np.ndarray
     factors: np.ndarray
     exact_keys: np.ndarray
+    tail: np.ndarray
 
     @property
     def n_gaps(self) -> int:
         return len(self.keys) - 1
+
+    @property
+    def samples_read(self) -> list[int]:
+        """The source samples the in-betweens need (the keys and the tail's), in order; the
+        start of the motion needs the two after the first key too (:func:`iter_retime`)."""
+        return sorted(set(self.keys.tolist()) | set(self.tail.tolist()))
 
     @property
     def n_out(self) -> int:
@@ -83,7 +103,10 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
             f"poses: use at least {step + 1} frames or a smaller step."
         )
     keys = np.arange(0, n_source, step)
+    tail = np.zeros(0, dtype=keys.dtype)
     if keys[-1] != n_source - 1:
+        short = n_source - 1 - keys[-1]
+        tail = np.array([keys[-1] - j * short for j in (2, 1) if keys[-1] - j * short >= 0] + [keys[-1], n_source - 1])
         keys = np.append(keys, n_source - 1)
     last = n_source - 1
     n_out = int(np.floor(last / speed * (1 + WHOLE_SAMPLE_TOLERANCE))) + 1
@@ -97,17 +120,19 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     exact = np.full(n_out, -1)
     exact[factors == 0.0] = gaps[factors == 0.0]
     exact[factors == 1.0] = gaps[factors == 1.0] + 1
-    return RetimePlan(n_source, step, speed, keys, times, gaps, factors, exact)
+    return RetimePlan(n_source, step, speed, keys, times, gaps, factors, exact, tail)
 
 
 def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, **interpolator_options):
     """Yield ``(output index, positions float64 (n, 3))`` for the output samples in ``gaps``
     (default: all), in order.
 
-    ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only the key
-    samples and the two after the first are read). ``interpolator_options``: ``k_M``, ``k_N``,
-    ``offset``, ``use_extrinsic``, ``smooth``, ``start`` of :class:`core.SequenceInterpolator`;
-    ``start`` by default from the source's first frames (:func:`core.interpolation.start_of_motion`).
+    ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only
+    :attr:`RetimePlan.samples_read` and the two samples after the first are read).
+    ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``, ``smooth``, ``start``
+    of :class:`core.SequenceInterpolator`; ``start`` by default from the source's first frames
+    (:func:`core.interpolation.start_of_motion`); the shorter last gap's sequence starts inside the
+    motion (``start="keys"``).
     """
     from .interpolation import SequenceInterpolator, start_of_motion
 
@@ -122,6 +147,10 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
         interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step)}
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
+    tail = None
+    if len(plan.tail) and gaps.stop == plan.n_gaps:
+        tail = SequenceInterpolator([np.asarray(samples[key], dtype=np.float64) for key in plan.tail], triangles,
+                                    **{**interpolator_options, "start": "keys"})
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]
@@ -131,7 +160,9 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         gap = int(plan.gaps[index])
         if index not in batch:
             rows = [i for i in plan.outputs(range(gap, gap + 1)) if plan.exact_keys[i] < 0]
-            batch = dict(zip(rows, sequence.poses(gap, [float(plan.factors[i]) for i in rows])))
+            factors = [float(plan.factors[i]) for i in rows]
+            short = tail is not None and gap == plan.n_gaps - 1
+            batch = dict(zip(rows, tail.poses(len(tail) - 1, factors) if short else sequence.poses(gap, factors)))
         yield index, batch[index]
 
 

@@ -53,19 +53,20 @@ class FrameRangeProperties:
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
 
-    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float):
-        """Yield progress while reading the evaluated mesh at the key frames ``keys`` and the two
-        frames after the first; returns the keys' positions and the sequence's ``start``
-        (``core.interpolation.start_of_motion``: whether the motion leaves the first key from
-        rest, as a simulation from its first frame does)."""
+    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float, also=()):
+        """Yield progress while reading the evaluated mesh at the key frames ``keys``, the two
+        frames after the first and the frames ``also``; returns the keys' positions, the
+        sequence's ``start`` (``core.interpolation.start_of_motion``: whether the motion leaves the
+        first key from rest, as a simulation from its first frame does) and {frame: positions}
+        of every frame read."""
         from ..core.interpolation import start_of_motion
 
         step = keys[1] - keys[0] if len(keys) > 1 else 1
         first = [keys[0] + i for i in range(3)] if step >= 2 else []  # with step 2 the third is a key
-        frames = sorted(set(keys) | set(first))
+        frames = sorted(set(keys) | set(first) | set(also))
         read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share))))
         start = start_of_motion([read[f] for f in first], read[keys[1]], step) if len(keys) > 1 else "keys"
-        return [read[f] for f in keys], start
+        return [read[f] for f in keys], start, read
 
     def read_frames(self, context, obj, frames: list[int], progress_share: float):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions."""
@@ -120,7 +121,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in frames]
-        poses, options["start"] = yield from self.read_keys_and_start(context, obj, frames, 0.2)
+        poses, options["start"], _read = yield from self.read_keys_and_start(context, obj, frames, 0.2)
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, poses, triangles,
                                            **options)
         names, tails, all_poses, timeline = [], [], [], []
@@ -145,7 +146,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
 
 
 class KeySamples:
-    """The source samples of a retime as ``core.retime`` indexes them: only the keys are read."""
+    """The source samples of a retime as ``core.retime`` indexes them: only those its plan reads
+    (``RetimePlan.samples_read``) are there."""
 
     def __init__(self, n_samples: int, keys: dict):
         self.n_samples, self.keys = n_samples, keys
@@ -177,8 +179,10 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
-        poses, options["start"] = yield from self.read_keys_and_start(context, obj, key_frames, 0.1)
-        samples = KeySamples(plan.n_source, dict(zip(plan.keys.tolist(), poses)))
+        # the keys and, where the last gap is shorter than a step, the samples keying it (core.retime)
+        _poses, options["start"], read = yield from self.read_keys_and_start(
+            context, obj, key_frames, 0.1, also=[start + sample for sample in plan.samples_read])
+        samples = KeySamples(plan.n_source, {sample: read[start + sample] for sample in plan.samples_read})
         poses_out = retime.iter_retime(samples, triangles, plan, **options)
         retimed = []
         for index in range(plan.n_out):

@@ -119,6 +119,24 @@ def test_retime_original_timing_and_faster(bpy_empty, extension, core, speed, fr
         np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=tolerance)
 
 
+def test_retime_of_a_range_that_is_not_whole_steps(bpy_empty, extension, core, tmp_path):
+    """Frames 1–12 keyed every 4th: the last gap (9 → 12) is three frames long, keyed by its own
+    sequence on frames 6, 9, 12 (core.retime); the operator reads those frames too and writes
+    what core.retime gives for the evaluated source."""
+    source = armature_scene(frames=12)
+    bridge = extension.bridge
+    source_frames = evaluated_frames(bridge, source, range(1, 13))
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=12, frame_step=4, speed=0.5,
+                                     filepath=str(tmp_path / "out.pc2"))
+    playback = played(bridge, new_object(names), range(1, 24))
+    retime = importlib.import_module(core.__name__ + ".retime")
+    expected = retime.retime(np.stack([source_frames[f] for f in range(1, 13)]), bridge.mesh_triangles(source.data),
+                             step=4, speed=0.5)
+    for out_frame in range(1, 24):
+        np.testing.assert_allclose(playback[out_frame], expected[out_frame - 1], atol=TOLERANCE)
+
+
 def test_retime_as_keyframed_shape_keys(bpy_empty, extension, core):
     source = armature_scene(frames=5)
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=0.5,

@@ -53,6 +53,35 @@ def test_plan(n_source, step, speed, n_out, keys):
     assert plan.times[0] == 0 and plan.exact_keys[-1] == (len(keys) - 1 if plan.times[-1] == n_source - 1 else -1)
 
 
+@pytest.mark.parametrize("n_source, step, tail", [
+    (25, 4, []), (23, 5, [16, 18, 20, 22]), (18, 4, [14, 15, 16, 17]), (12, 4, [2, 5, 8, 11]), (8, 4, [1, 4, 7]),
+])
+def test_plan_keys_a_shorter_last_gap_on_its_own_step(n_source, step, tail):
+    plan = plan_retime(n_source, step, 1.0)
+    assert plan.tail.tolist() == tail
+    assert plan.samples_read == sorted(set(plan.keys.tolist()) | set(tail))
+
+
+@pytest.mark.parametrize("n_source", [18, 19, 20, 23])
+def test_a_shorter_last_gap_keeps_the_timing_of_a_steady_motion(n_source):
+    """A sheet turning and sliding at constant velocity (a screw: exp(t ξ)), keyed every 4th sample
+    with a last gap of 1–3 samples: that gap's in-betweens are the motion (its own sequence is
+    evenly keyed); read as a gap of the other keys' sequence they were up to 2.5 % of its side off."""
+    from scipy.linalg import expm
+
+    rest, triangles = grid(8)
+    xi = np.zeros((4, 4))
+    xi[:3, :3] = [[0, -0.05, 0.02], [0.05, 0, -0.01], [-0.02, 0.01, 0]]
+    xi[:3, 3] = [0.1, 0.02, 0.03]
+    motion = [expm(t * xi) for t in np.arange(4 * n_source - 3) / 4]
+    moved = np.stack([rest @ m[:3, :3].T + m[:3, 3] for m in motion])  # every quarter sample
+    plan = plan_retime(n_source, 4, 0.25)
+    tail = plan.outputs(range(plan.n_gaps - 1, plan.n_gaps))
+    result = retime(moved[::4], triangles, step=4, speed=0.25, gaps=range(plan.n_gaps - 1, plan.n_gaps))
+    assert len(result) == len(tail) >= 4
+    np.testing.assert_allclose(result, moved[list(tail)], rtol=0, atol=1e-6)
+
+
 def test_plan_snaps_whole_frames():
     plan = plan_retime(4, 1, 0.1)  # 30 * 0.1 is 3.0000000000000004 in floating point
     assert plan.n_out == 31 and plan.exact_keys[30] == 3 and plan.exact_keys[10] == 1
