@@ -112,12 +112,13 @@ def test_kept_frames_exact_and_inbetweens_from_the_sequence():
     assert np.abs(result[2] - source[1]).max() < 0.02
 
 
-def test_chunks_concatenate_to_round_off():
+@pytest.mark.parametrize("n_frames", [13, 14])  # 14: a last gap of one frame, keyed by its own sequence
+def test_chunks_concatenate_to_round_off(n_frames):
     """Chunks of a retime (farm tasks) are the whole retime's frames, to round-off: on AVX-512
     machines NumPy's and OpenBLAS's small products choose kernels by memory alignment, so the
     same computation in another process (or later in this one) can differ in the last bit."""
-    source, triangles = rolling_sheet(n_frames=13)
-    plan = plan_retime(13, 2, 0.7)
+    source, triangles = rolling_sheet(n_frames=n_frames)
+    plan = plan_retime(n_frames, 2, 0.7)
     whole = retime(source, triangles, step=2, speed=0.7)
     for count in (2, 7):  # 7 chunks of 6 gaps: one chunk is empty
         parts = [retime(source, triangles, step=2, speed=0.7, gaps=plan.chunk(i, count)) for i in range(count)]
