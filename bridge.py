@@ -22,11 +22,44 @@ def vertex_positions(mesh: bpy.types.Mesh) -> np.ndarray:
     return buffer.reshape(-1, 3).astype(np.float64)
 
 
-def shape_key_positions(key_block: bpy.types.ShapeKey) -> np.ndarray:
+def stored_key_positions(key_block: bpy.types.ShapeKey) -> np.ndarray:
     """Coordinates stored in a shape key, float64 ``(n, 3)``."""
     buffer = np.empty(len(key_block.data) * 3, dtype=np.float32)
     key_block.data.foreach_get("co", buffer)
     return buffer.reshape(-1, 3).astype(np.float64)
+
+
+def shape_key_positions(key_block: bpy.types.ShapeKey, obj: bpy.types.Object) -> np.ndarray:
+    """The pose shape key ``key_block`` of ``obj``'s mesh shows on its own at value 1, float64
+    ``(n, 3)``, as Blender blends it: reference + weight × (key − its relative key), the weight
+    from its vertex group (1 without one, or where ``obj`` has no group of that name). That is
+    the stored coordinates for a key relative to the reference key without a vertex group (and
+    for absolute keys); a corrective relative to another key, or a left/right half masked by a
+    vertex group, is not its stored coordinates."""
+    co = stored_key_positions(key_block)
+    key = key_block.id_data
+    reference = key.reference_key
+    relative = key_block.relative_key
+    group = obj.vertex_groups.get(key_block.vertex_group) if key_block.vertex_group else None
+    if not key.use_relative or key_block == reference or (relative == reference and group is None):
+        return co
+    base = stored_key_positions(reference)
+    delta = co - (base if relative == reference else stored_key_positions(relative))
+    if group is not None:
+        delta *= vertex_group_weights(obj, group)[:, None]
+    return base + delta
+
+
+def vertex_group_weights(obj: bpy.types.Object, group: bpy.types.VertexGroup) -> np.ndarray:
+    """Each vertex's weight in ``group`` of ``obj`` (0 where it is not in the group), float64
+    ``(n,)``. A loop: the Python API has no bulk access to vertex group weights."""
+    weights = np.zeros(len(obj.data.vertices))
+    index = group.index
+    for vertex in obj.data.vertices:
+        for element in vertex.groups:
+            if element.group == index:
+                weights[vertex.index] = element.weight
+    return weights
 
 
 def mesh_triangles(mesh: bpy.types.Mesh) -> np.ndarray:

@@ -104,7 +104,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(obj, 2)
             names = [key_block.name for key_block in key_blocks]
-            poses = [bridge.shape_key_positions(key_block) for key_block in key_blocks]
+            poses = [bridge.shape_key_positions(key_block, obj) for key_block in key_blocks]
             yield 0.0
         else:
             frames = self.frames(context)
@@ -225,7 +225,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         triangles = surface_triangles(obj)
         self.check_sizes(len(mesh.vertices))
         key = mesh.shape_keys
-        base = (bridge.shape_key_positions(key.key_blocks[0]) if key else bridge.vertex_positions(mesh))
+        base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))
         if self.source == 'ACTIVE_KEY':
             key_blocks = key_blocks_of(obj, 2)
             pose_key = resolve_key(obj, self.key, "Key", default_pose_key(obj))
@@ -233,7 +233,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 raise InputError(f"'{pose_key.name}' is the Basis, which the maps are measured from: "
                                  "pick another shape key")
             self.key = pose_key.name
-            labels, poses = [""], [bridge.shape_key_positions(pose_key)]
+            labels, poses = [""], [bridge.shape_key_positions(pose_key, obj)]
             yield 0.0
         else:
             frames = self.frames(context)

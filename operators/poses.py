@@ -48,8 +48,8 @@ class KeyPairProperties:
         self.pose_names = (f"shape key '{start.name}'", f"shape key '{end.name}'")
         yield 0.0
         interpolator = yield from self.compute(
-            0.0, load_core().Interpolator, bridge.shape_key_positions(start),
-            bridge.shape_key_positions(end), triangles, **options)
+            0.0, load_core().Interpolator, bridge.shape_key_positions(start, obj),
+            bridge.shape_key_positions(end, obj), triangles, **options)
         return start, end, interpolator
 
 
@@ -73,7 +73,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
         obj = context.active_object
         label = f"Inbetween {shorten(key_a.name, 16)}-{shorten(key_b.name, 16)} x{self.count}"
         if self.output == 'CACHE':  # the cache plays the whole motion, keys included
-            poses = [bridge.shape_key_positions(key_a), *poses, bridge.shape_key_positions(key_b)]
+            poses = [bridge.shape_key_positions(key_a, obj), *poses, bridge.shape_key_positions(key_b, obj)]
         names, tails = zip(*(inbetween_name(key_a.name, key_b.name, f) for f in factors))
         self.summary = self.write_poses(context, obj, poses, names=names, tails=tails,
                                         frames=scene_frames(context, len(poses)), label=label)
@@ -120,12 +120,12 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         self.pose_names = (f"shape key '{key_blocks[0].name}'", f"shape key '{key.name}'")
         yield 0.0
         core = load_core()
-        base = bridge.shape_key_positions(key_blocks[0])
+        base = bridge.shape_key_positions(key_blocks[0], obj)
         use_extrinsic = options.pop("use_extrinsic")
         reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles,
                                             offset=options.pop("offset"), use_extrinsic=use_extrinsic)
         differences = yield from self.compute(0.2, reference.shape_differences,
-                                              bridge.shape_key_positions(key), **options)
+                                              bridge.shape_key_positions(key, obj), **options)
         pose = yield from self.compute(0.5, core.reconstruct, base, triangles, differences)
         tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"
         self.summary = self.write_poses(

@@ -143,10 +143,10 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         """(names, frames, rest positions, poses), in object space of the source."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
-            rest = bridge.shape_key_positions(key_blocks[0])
+            rest = bridge.shape_key_positions(key_blocks[0], source)
             names = [kb.name for kb in key_blocks[1:]]
             return (names, [float(i) for i in range(1, len(names) + 1)], rest,
-                    [bridge.shape_key_positions(kb) for kb in key_blocks[1:]])
+                    [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]])
         frames = self.frames(context)
         poses = []
         with closing(bridge.frame_positions(context, source, frames,

@@ -175,7 +175,7 @@ def snapshot(bridge, obj) -> dict:
     animation = None
     if mesh.shape_keys is not None:
         for key_block in mesh.shape_keys.key_blocks:
-            keys[key_block.name] = (bridge.shape_key_positions(key_block), key_block.value,
+            keys[key_block.name] = (bridge.stored_key_positions(key_block), key_block.value,
                                     key_block.relative_key.name)
         animation_data = mesh.shape_keys.animation_data
         animation = animation_data.action.name if animation_data and animation_data.action else None

@@ -28,7 +28,7 @@ def test_shape_space_of_keys(keyed, core):
     data = obj["shape_space"].to_dict()
     names = [kb.name for kb in obj.data.shape_keys.key_blocks]
     assert list(data["poses"]) == names
-    poses = [bridge.shape_key_positions(kb) for kb in obj.data.shape_keys.key_blocks]
+    poses = [bridge.stored_key_positions(kb) for kb in obj.data.shape_keys.key_blocks]
     space = core.shape_space(poses, bridge.mesh_triangles(obj.data), k_M=20, k_N=40)
     for kind in ("area", "offset_area"):
         stored = np.reshape(data["coordinates"][kind], (-1, 2))
@@ -83,7 +83,7 @@ def test_distortion_maps_of_the_active_key(keyed, core):
         assert mesh.color_attributes.get(name) is not None, name
     values = np.empty(len(mesh.vertices), dtype=np.float32)
     mesh.attributes["sd_bending"].data.foreach_get("value", values)
-    basis, bend = (bridge.shape_key_positions(mesh.shape_keys.key_blocks[n]) for n in ("Basis", "Bend"))
+    basis, bend = (bridge.stored_key_positions(mesh.shape_keys.key_blocks[n]) for n in ("Basis", "Bend"))
     expected = core.distortion(basis, bend, bridge.mesh_triangles(mesh), k=20).bending_vertices
     np.testing.assert_allclose(values, expected, atol=1e-5)
     faces = np.empty(len(mesh.polygons), dtype=np.float32)

@@ -182,7 +182,7 @@ def test_pose_operators_write_a_cache_object(bpy_empty, extension, core, operato
     obj = new_object(names)
     assert_cache_object(obj, source)
     assert_source_unchanged(bridge, source, before)
-    keys = {kb.name: bridge.shape_key_positions(kb) for kb in source.data.shape_keys.key_blocks}
+    keys = {kb.name: bridge.stored_key_positions(kb) for kb in source.data.shape_keys.key_blocks}
     poses = expected(core, keys, bridge.mesh_triangles(source.data))
     start = bpy.context.scene.frame_start
     playback = played(bridge, obj, range(start, start + len(poses)))

@@ -16,7 +16,7 @@ TOLERANCE = 1e-4
 
 
 def positions_of(bridge, obj, name):
-    return bridge.shape_key_positions(obj.data.shape_keys.key_blocks[name])
+    return bridge.stored_key_positions(obj.data.shape_keys.key_blocks[name])
 
 
 def assert_animation_untouched(before, after):

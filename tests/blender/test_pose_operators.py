@@ -6,7 +6,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import key_names, posed_grid, snapshot  # noqa: E402
+from blender_scenes import add_key, key_names, posed_grid, snapshot  # noqa: E402
 
 TOLERANCE = 1e-4  # float32 storage of a ~2 unit mesh
 
@@ -18,7 +18,7 @@ def posed(bpy_empty, extension, core):
 
 
 def positions_of(bridge, obj, name):
-    return bridge.shape_key_positions(obj.data.shape_keys.key_blocks[name])
+    return bridge.stored_key_positions(obj.data.shape_keys.key_blocks[name])
 
 
 def assert_old_keys_kept(bridge, obj, before):
@@ -42,6 +42,32 @@ def test_inbetween(posed, core):
         np.testing.assert_allclose(positions_of(bridge, obj, name), interpolator.pose(factor),
                                    atol=TOLERANCE)
         assert obj.data.shape_keys.key_blocks[name].value == 0.0
+
+
+def test_keys_are_read_as_the_poses_they_show(posed, core):
+    """A corrective relative to another key, and a key masked by a vertex group (a right half),
+    are the poses Blender shows with each alone at value 1 — reference + weight × (key − its
+    relative key) — not their stored coordinates; In-between goes to what is shown."""
+    obj, bridge = posed
+    blocks = obj.data.shape_keys.key_blocks
+    rest, bend = positions_of(bridge, obj, "Basis"), positions_of(bridge, obj, "Bend")
+    bump = 0.3 * np.exp(-4.0 * (rest[:, :2] ** 2).sum(axis=1))
+    add_key(obj, "Corrective", bend + bump[:, None] * [0.0, 0.0, 1.0]).relative_key = blocks["Bend"]
+    group = obj.vertex_groups.new(name="Right")
+    for index, weight in enumerate(np.clip(rest[:, 0] + 0.5, 0.0, 1.0)):
+        group.add([index], float(weight), 'REPLACE')
+    add_key(obj, "Bend Right", bend).vertex_group = "Right"
+    triangles = bridge.mesh_triangles(obj.data)
+    for name in ("Corrective", "Bend Right"):
+        for block in blocks:
+            block.value = 1.0 if block.name == name else 0.0
+        shown = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+        assert np.abs(shown - positions_of(bridge, obj, name)).max() > 0.1  # not what is stored
+        np.testing.assert_allclose(bridge.shape_key_positions(blocks[name], obj), shown, atol=TOLERANCE)
+        blocks[name].value = 0.0
+        bpy.ops.shape_differences.inbetween(key_a="Basis", key_b=name, count=1)
+        np.testing.assert_allclose(positions_of(bridge, obj, f"Inbetween Basis-{name} 0.50"),
+                                   core.Interpolator(rest, shown, triangles).pose(0.5), atol=TOLERANCE)
 
 
 def test_inbetween_defaults_and_unique_names(posed):

@@ -34,11 +34,11 @@ def test_transfer_keys_by_closest_points(pair, core):
     source, target, bridge = pair
     bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Source Bend"]
-    rebuilt = bridge.shape_key_positions(target.data.shape_keys.key_blocks["Source Bend"])
+    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Source Bend"])
     rest = bridge.vertex_positions(target.data)
     expected = core.Transfer(rest, bridge.mesh_triangles(target.data), bridge.vertex_positions(source.data),
                              bridge.mesh_triangles(source.data), k_M=16, k_N=32).pose(
-        bridge.shape_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+        bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
     np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)
     truth = rolled(rest, 1.0)  # the source's pose is this surface; the rebuild is placed on it
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(rest, truth)
@@ -88,9 +88,9 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     keys = target.data.shape_keys.key_blocks
     expected = core.Transfer(sheet, bridge.mesh_triangles(target.data), grid, bridge.mesh_triangles(source.data),
                              correspondence=matched, k_M=16, k_N=32).pose(
-        bridge.shape_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+        bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
     for key in list(keys)[1:]:
-        np.testing.assert_allclose(bridge.shape_key_positions(key), expected, atol=TOLERANCE)
+        np.testing.assert_allclose(bridge.stored_key_positions(key), expected, atol=TOLERANCE)
     # Template maps: a 9 x 9 template over the same square; each file lists, per template vertex,
     # the 1-based index of the nearest vertex of one mesh. Fewer template vertices than sheet
     # vertices: some sheet vertices are unmatched.
@@ -103,7 +103,7 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     with pytest.raises(RuntimeError, match="different lengths"):
         run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "short.vts"))
     run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "grid.vts"))
-    rebuilt = bridge.shape_key_positions(list(target.data.shape_keys.key_blocks)[-1])
+    rebuilt = bridge.stored_key_positions(list(target.data.shape_keys.key_blocks)[-1])
     truth = rolled(sheet, 1.0)
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(sheet, truth)
 
@@ -123,7 +123,7 @@ def test_transfer_cloth_frames(bpy_empty, extension, core):
     bpy.context.view_layer.objects.active = target
     bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=9, frame_end=9, k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Cloth Frame 9"]
-    rebuilt = bridge.shape_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
+    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
     assert np.isfinite(rebuilt).all() and bpy.context.scene.frame_current == 1
 
 
