@@ -103,10 +103,8 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
             f"poses: use at least {step + 1} frames or a smaller step."
         )
     keys = np.arange(0, n_source, step)
-    tail = np.zeros(0, dtype=keys.dtype)
+    tail = short_gap_keys(int(keys[-1]), n_source - 1)
     if keys[-1] != n_source - 1:
-        short = n_source - 1 - keys[-1]
-        tail = np.array([keys[-1] - j * short for j in (2, 1) if keys[-1] - j * short >= 0] + [keys[-1], n_source - 1])
         keys = np.append(keys, n_source - 1)
     last = n_source - 1
     n_out = int(np.floor(last / speed * (1 + WHOLE_SAMPLE_TOLERANCE))) + 1
@@ -121,6 +119,27 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     exact[factors == 0.0] = gaps[factors == 0.0]
     exact[factors == 1.0] = gaps[factors == 1.0] + 1
     return RetimePlan(n_source, step, speed, keys, times, gaps, factors, exact, tail)
+
+
+def short_gap_keys(last_key: int, last: int) -> np.ndarray:
+    """The samples (int) keying a last gap shorter than the step, from sample ``last_key`` (the
+    last whole-step key, ≥ 0) to ``last``: the sequence of its own, ``r = last − last_key`` apart —
+    up to two keys before ``last_key`` (those ≥ 0), ``last_key`` and ``last``; empty when ``last
+    == last_key`` (see the module docstring)."""
+    short = last - last_key
+    if short <= 0:
+        return np.zeros(0, dtype=np.int64)
+    return np.array([last_key - j * short for j in (2, 1) if last_key - j * short >= 0] + [last_key, last], dtype=np.int64)
+
+
+def short_gap_sequence(samples, triangles, tail, **interpolator_options):
+    """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
+    (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
+    motion; its last gap is the short gap."""
+    from .interpolation import SequenceInterpolator
+
+    return SequenceInterpolator([np.asarray(samples[key], dtype=np.float64) for key in tail], triangles,
+                                **{**interpolator_options, "start": "keys"})
 
 
 def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, **interpolator_options):
@@ -149,8 +168,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
-        tail = SequenceInterpolator([np.asarray(samples[key], dtype=np.float64) for key in plan.tail], triangles,
-                                    **{**interpolator_options, "start": "keys"})
+        tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options)
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]

@@ -120,29 +120,47 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj)
+        end = self.frame_range(context)[1]
+        # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
+        retime = load_core_retime()
+        tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
-        poses, options["start"], _read = yield from self.read_keys_and_start(context, obj, frames, 0.2)
+        poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, poses, triangles,
                                            **options)
         names, tails, all_poses, timeline = [], [], [], []
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
-        for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
-            names.append(frame_key_name(frame)), tails.append(""), all_poses.append(poses[gap])
+        spans = [(gap, frame, next_frame, factors) for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:]))]
+        ends = True  # the last frame is written
+        if tail:  # in-betweens as many frames apart as in the whole gaps
+            spacing, short = self.frame_step / (self.count + 1), end - frames[-1]
+            spans.append((None, frames[-1], end, [i * spacing / short for i in range(1, self.count + 1)
+                                                  if i * spacing < short * (1 - 1e-9)]))
+            # a point cache plays evenly spaced frames: the last frame only if it is one of them
+            ends = self.output == 'SHAPE_KEYS' or abs(short / spacing - round(short / spacing)) < 1e-9
+        for gap, frame, next_frame, gap_factors in spans:
+            names.append(frame_key_name(frame)), tails.append(""), all_poses.append(read[frame])
             timeline.append(frame)
-            # all in-betweens of a gap in one call: the core shares the work between them
-            all_poses.extend((yield from self.compute(0.2 + 0.8 * gap / (len(frames) - 1), sequence.poses,
-                                                      gap, factors)))
-            for factor in factors:
-                name, tail = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
-                names.append(name), tails.append(tail)
+            progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
+            if gap is None and gap_factors:
+                self.pose_names = [f"frame {frame}" for frame in tail]
+                short = yield from self.compute(progress, retime.short_gap_sequence, read, triangles, tail, **options)
+                gap, sequence = len(short) - 1, short
+            if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
+                all_poses.extend((yield from self.compute(progress, sequence.poses, gap, gap_factors)))
+            for factor in gap_factors:
+                name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
+                names.append(name), tails.append(tail_name)
                 timeline.append(frame + factor * (next_frame - frame))
-        names.append(frame_key_name(frames[-1])), tails.append(""), all_poses.append(poses[-1])
-        timeline.append(frames[-1])
+        last = spans[-1][2]
+        if ends:
+            names.append(frame_key_name(last)), tails.append(""), all_poses.append(read[last])
+            timeline.append(last)
         self.summary = self.write_poses(
             context, obj, all_poses, names=names, tails=tails, frames=timeline, keyframe=True,
             label=f"Inbetween step {self.frame_step} x{self.count}")
         if self.output == 'SHAPE_KEYS':
-            self.summary += f" (keyframed from frame {frames[0]} to {frames[-1]})"
+            self.summary += f" (keyframed from frame {frames[0]} to {last})"
 
 
 class KeySamples:

@@ -137,6 +137,25 @@ def test_retime_of_a_range_that_is_not_whole_steps(bpy_empty, extension, core, t
         np.testing.assert_allclose(playback[out_frame], expected[out_frame - 1], atol=TOLERANCE)
 
 
+def test_inbetween_frames_cache_of_a_range_that_is_not_whole_steps(bpy_empty, extension, core, tmp_path):
+    """Frames 1–12 keyed every 4th with one in-between per gap: the cache plays every 2nd frame,
+    so the short gap 9 → 12 adds frame 11 (from its own sequence on frames 3, 6, 9, 12) and the
+    last frame, off that spacing, is left out."""
+    source = armature_scene(frames=12)
+    bridge = extension.bridge
+    source_frames = evaluated_frames(bridge, source, range(1, 13))
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=12, frame_step=4, count=1,
+                                               filepath=str(tmp_path / "out.pc2"))
+    assert_cache_object(new_object(names), source)
+    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(tmp_path / "out.pc2")
+    assert (cache.n_samples, cache.start, cache.sampling) == (6, 1.0, 2.0)
+    np.testing.assert_allclose(cache.positions[4], source_frames[9], atol=TOLERANCE)
+    short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], bridge.mesh_triangles(source.data),
+                                      start="keys")
+    np.testing.assert_allclose(cache.positions[5], short.pose(2, 2 / 3), atol=TOLERANCE)
+
+
 def test_retime_as_keyframed_shape_keys(bpy_empty, extension, core):
     source = armature_scene(frames=5)
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=0.5,

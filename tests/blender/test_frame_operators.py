@@ -86,6 +86,29 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     assert_animation_untouched(before, snapshot(bridge, obj))
 
 
+def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, extension, core):
+    """Frames 1–11 every 4th: keys 1, 5, 9 and the last frame 11; the short gap 9 → 11 has
+    in-betweens as many frames apart as the others (one per frame with 3 per gap of 4), from its
+    own sequence on frames 7, 9, 11 (core.retime.short_gap_keys)."""
+    obj = armature_scene(frames=11)
+    bridge = extension.bridge
+    poses = evaluated_frames(bridge, obj, range(1, 12))
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=11, frame_step=4, count=3,
+                                               output='SHAPE_KEYS')
+    names = key_names(obj)
+    assert names[-3:] == ["Frame 9", "Inbetween Frame 9-Frame 11 0.50", "Frame 11"]
+    assert len(names) == 1 + 2 * 4 + 3  # Basis, two whole gaps (key + 3), Frame 9, one in-between, Frame 11
+    np.testing.assert_allclose(positions_of(bridge, obj, "Frame 11"), poses[11], atol=TOLERANCE)
+    retime = importlib.import_module(core.__name__ + ".retime")
+    tail = (1 + retime.short_gap_keys(8, 10)).tolist()
+    assert tail == [5, 7, 9, 11]
+    short = core.SequenceInterpolator([poses[f] for f in tail], bridge.mesh_triangles(obj.data), start="keys")
+    np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 9-Frame 11 0.50"),
+                               short.pose(len(short) - 1, 0.5), atol=TOLERANCE)
+    fcurve = bridge.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
+    assert fcurve.evaluate(10) == pytest.approx(1.0) and fcurve.evaluate(11) == pytest.approx(0.0)
+
+
 def test_invoke_runs_to_the_end_in_background(bpy_empty, extension):
     """From the UI, invoke() runs the work from a modal timer; in background mode (scripts,
     ``blender --background``) it runs synchronously like execute()."""
