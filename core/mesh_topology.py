@@ -143,7 +143,9 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
         raise MeshError(
             f"{name}: triangle {t} (vertices {triangles[t].tolist()}) has zero area "
             f"({bad.size} degenerate triangle(s) in all). Remove degenerate faces: in Blender use "
-            "Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance."
+            "Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance. If only this pose "
+            "flattens them (a shape key that scales a part to a point, a frame that crushes "
+            "the cloth), scale that part to a small size instead of zero, or leave that pose out."
         )
 
 
