@@ -164,7 +164,8 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if "start" not in interpolator_options:
         step = int(plan.keys[1] - plan.keys[0])
         first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
-        interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step)}
+        third = key_poses[2] if len(key_poses) > 2 else None
+        interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step, third)}
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:

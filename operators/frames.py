@@ -65,7 +65,8 @@ class FrameRangeProperties:
         first = [keys[0] + i for i in range(3)] if step >= 2 else []  # with step 2 the third is a key
         frames = sorted(set(keys) | set(first) | set(also))
         read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share))))
-        start = start_of_motion([read[f] for f in first], read[keys[1]], step) if len(keys) > 1 else "keys"
+        third = read[keys[2]] if len(keys) > 2 else None
+        start = start_of_motion([read[f] for f in first], read[keys[1]], step, third) if len(keys) > 1 else "keys"
         return [read[f] for f in keys], start, read
 
     def read_frames(self, context, obj, frames: list[int], progress_share: float):

@@ -82,7 +82,7 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
         np.testing.assert_allclose(np.array(first.matrix_world), np.array(source.matrix_world), atol=1e-6)
     bpy.context.scene.frame_set(1)
     start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
-        [source_frames[1], source_frames[2], source_frames[3]], source_frames[5], 4)
+        [source_frames[1], source_frames[2], source_frames[3]], source_frames[5], 4, source_frames[9])
     sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data), start=start)
     plan = importlib.import_module(core.__name__ + ".retime").plan_retime(end, 4, 0.5)
     for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5

@@ -65,7 +65,7 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     assert key_names(obj) == expected_names
 
     start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
-        [poses[1], poses[2], poses[3]], poses[5], 4)
+        [poses[1], poses[2], poses[3]], poses[5], 4, poses[9])
     sequence = core.SequenceInterpolator([poses[f] for f in frames],
                                          bridge.mesh_triangles(obj.data), start=start)
     for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):

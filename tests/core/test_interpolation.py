@@ -311,6 +311,15 @@ def test_start_of_motion_tells_rest_from_motion():
         assert start_of_motion(fall[:3], fall[step], step) == "rest"
         assert start_of_motion(drift[:3], drift[step], step) == "keys"
     assert start_of_motion(fall[:1], fall[1], 1) == "keys"  # no frames between the keys
+    for step in (2, 4):  # with a third key: the start whose velocity the frames' is nearer
+        assert start_of_motion(fall[:3], fall[step], step, fall[2 * step]) == "rest"
+        assert start_of_motion(drift[:3], drift[step], step, drift[2 * step]) == "keys"
+    # moving at the first key (0.3 per frame), nearly stopped at the second (0.2 from the first)
+    # and far on at the third (2.0): the keys' parabola leaves the first key backwards, further
+    # from the frames' velocity than rest (the mean-velocity rule alone said "keys")
+    swing = {t: flat + [x, 0.0, 0.0] for t, x in {0: 0.0, 1: 0.3, 2: 0.6, 8: 0.2, 16: 2.0}.items()}
+    assert start_of_motion([swing[0], swing[1], swing[2]], swing[8], 8) == "keys"
+    assert start_of_motion([swing[0], swing[1], swing[2]], swing[8], 8, swing[16]) == "rest"
     with pytest.raises(MeshError):
         SequenceInterpolator(fall[::4], grid(6, 6)[1], start="still")
 
