@@ -29,14 +29,20 @@ TANGENT_LIMIT = 3.0
 #: does not. Numbers in docs/inbetweens.md.
 START_TANGENT_LIMIT = 1.0
 REST_START_LIMIT = 0.0
-#: A sequence's first gap from rest ends with a tangent of at most this multiple of its secant, per
+#: A sequence's first gap ends with a tangent of at most this multiple of its secant, per
 #: element, per point for positions: its Catmull–Rom end tangent is taken from the next gap, which
 #: can lend it a velocity it never had — a cloth that settled inside the gap and is pulled away in
 #: the next one (a tablecloth dragged off a box, keys 16 frames apart: 1.061 → 0.972 × the
 #: per-vertex Catmull–Rom spline's RMS). Motion accelerating from rest ends it at twice its secant.
 #: Only there: the next gap starts with the unlimited tangent, and limited at every key the two
 #: gaps met with two velocities (a balloon bouncing, keys 16 apart: largest frame-to-frame
-#: acceleration 0.65 → 2.31 × the simulation's). Numbers in docs/inbetweens.md.
+#: acceleration 0.65 → 2.31 × the simulation's). A first gap cut from a motion
+#: (:data:`START_TANGENT_LIMIT`) too, for positions (its screws and fields keep one velocity at the
+#: second key: a ball rolling 178° per key), and its start tangent's bound from the next gap is
+#: at most :data:`TANGENT_LIMIT` × its own secant: a curtain barely moving before a ball hits it in
+#: the next gap, keys 8 apart, had tangents ~40 × the first gap's secant (its first in-betweens
+#: 6.9 × further from the source than the better of the blend and Catmull–Rom; now 1.12).
+#: Numbers in docs/inbetweens.md.
 END_TANGENT_LIMIT = 3.0
 
 
@@ -84,15 +90,18 @@ class HermiteGap:
             # against squared lengths: one square root per limited row
             bound = np.einsum("...i,...i->...", self.secant, self.secant) if rows else np.abs(self.secant)
             start_bound = bound
+            starts_here = limit <= START_TANGENT_LIMIT  # a sequence's first gap, a gap after a hold
             if (rows or onward) and limit > 0:  # a point that only turns back in this gap moves on in the next one
                 step = after - end
                 start_bound = np.maximum(bound, np.einsum("...i,...i->...", step, step) if rows else np.abs(step))
+                if starts_here:  # ... but a first gap cut from a motion starts at most TANGENT_LIMIT × its own secant
+                    start_bound = np.minimum(start_bound, (TANGENT_LIMIT ** 2 if rows else TANGENT_LIMIT) * bound)
             self.t0 = _limited(t0, limit, start_bound, rows)
             self.t1 = after - start
             self.t1 *= 0.5
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
-            if limit == REST_START_LIMIT:  # a first gap from rest (see END_TANGENT_LIMIT)
+            if limit == REST_START_LIMIT or (starts_here and rows):  # see END_TANGENT_LIMIT
                 self.t1 = _limited(self.t1, END_TANGENT_LIMIT, bound, rows)
             if parabolic_start is not None:
                 self.t0 = np.where(parabolic_start, _limited(2.0 * self.secant - self.t1, limit, start_bound, rows),

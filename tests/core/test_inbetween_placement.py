@@ -891,6 +891,24 @@ def test_a_point_that_settles_is_not_lent_the_next_gaps_velocity():
         np.testing.assert_allclose(spline.at(s)[1], [0.0, 0.0, -0.5 * s * s], atol=1e-12)
 
 
+def test_a_first_gap_cut_from_a_motion_is_not_lent_the_next_gaps_velocity():
+    """A sequence cut from a motion (start="keys") whose first gap barely moves (0.01) before the
+    next one moves far (1.0, a hit): the first gap's start tangent is at most TANGENT_LIMIT × its own
+    secant and its end tangent, for positions, at most END_TANGENT_LIMIT × (before: both bounded by
+    the next gap's move, so the point swung 0.073 away from its keys 0.01 apart; now 0.003); a point at
+    constant velocity is reproduced exactly."""
+    from core.splines import START_TANGENT_LIMIT, HermiteGap
+
+    hit = [np.array(p) for p in ([-0.01, 0, 0], [0.0, 0, 0], [0.01, 0, 0], [1.01, 0, 0])]
+    steady = [np.array([0.3 * t, 0.2 * t, 0.0]) for t in (-1.0, 0.0, 1.0, 2.0)]
+    spline = HermiteGap([np.stack([a, b]) for a, b in zip(hit, steady)], cubic=True, rows=True,
+                        limit=START_TANGENT_LIMIT)
+    path = np.array([spline.at(s) for s in np.linspace(0.0, 1.0, 21)])
+    assert np.abs(path[:, 0] - np.linspace(0.0, 0.01, 21)[:, None] * [1, 0, 0]).max() < 0.01
+    for s in np.linspace(0.0, 1.0, 9):
+        np.testing.assert_allclose(spline.at(s)[1], [0.3 * s, 0.2 * s, 0.0], atol=1e-12)
+
+
 def test_the_rigid_fit_is_given_up_per_piece():
     """In a mesh of two pieces — one turning rigidly by 170°, one whose halves trade places — only
     the second piece's rotations are taken whole; the first keeps its residuals unchanged."""
