@@ -145,8 +145,9 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
             if gap is None and gap_factors:
                 self.pose_names = [f"frame {frame}" for frame in tail]
-                short = yield from self.compute(progress, retime.short_gap_sequence, read, triangles, tail, **options)
-                gap, sequence = len(short) - 1, short
+                sequence = yield from self.compute(progress, retime.short_gap_sequence, read, triangles, tail,
+                                                   **options)
+                gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 all_poses.extend((yield from self.compute(progress, sequence.poses, gap, gap_factors)))
             for factor in gap_factors:

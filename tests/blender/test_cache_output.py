@@ -119,40 +119,33 @@ def test_retime_original_timing_and_faster(bpy_empty, extension, core, speed, fr
         np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=tolerance)
 
 
-def test_retime_of_a_range_that_is_not_whole_steps(bpy_empty, extension, core, tmp_path):
-    """Frames 1–12 keyed every 4th: the last gap (9 → 12) is three frames long, keyed by its own
-    sequence on frames 6, 9, 12 (core.retime); the operator reads those frames too and writes
-    what core.retime gives for the evaluated source."""
+def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
+    """Frames 1–12 keyed every 4th: the last gap (9 → 12) is three frames long and keyed by its own
+    sequence on frames 3, 6, 9, 12 (core.retime.short_gap_keys), which the operators read too.
+    Retime writes what core.retime gives for the evaluated source; In-between Frames with one
+    in-between per gap plays every 2nd frame, so the short gap adds frame 11 and the last frame,
+    off that spacing, is left out of its cache."""
     source = armature_scene(frames=12)
     bridge = extension.bridge
     source_frames = evaluated_frames(bridge, source, range(1, 13))
+    triangles = bridge.mesh_triangles(source.data)
     names = set(bpy.data.objects.keys())
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=12, frame_step=4, speed=0.5,
-                                     filepath=str(tmp_path / "out.pc2"))
+                                     filepath=str(tmp_path / "retime.pc2"))
     playback = played(bridge, new_object(names), range(1, 24))
     retime = importlib.import_module(core.__name__ + ".retime")
-    expected = retime.retime(np.stack([source_frames[f] for f in range(1, 13)]), bridge.mesh_triangles(source.data),
-                             step=4, speed=0.5)
+    expected = retime.retime(np.stack([source_frames[f] for f in range(1, 13)]), triangles, step=4, speed=0.5)
     for out_frame in range(1, 24):
         np.testing.assert_allclose(playback[out_frame], expected[out_frame - 1], atol=TOLERANCE)
 
-
-def test_inbetween_frames_cache_of_a_range_that_is_not_whole_steps(bpy_empty, extension, core, tmp_path):
-    """Frames 1–12 keyed every 4th with one in-between per gap: the cache plays every 2nd frame,
-    so the short gap 9 → 12 adds frame 11 (from its own sequence on frames 3, 6, 9, 12) and the
-    last frame, off that spacing, is left out."""
-    source = armature_scene(frames=12)
-    bridge = extension.bridge
-    source_frames = evaluated_frames(bridge, source, range(1, 13))
     names = set(bpy.data.objects.keys())
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=12, frame_step=4, count=1,
-                                               filepath=str(tmp_path / "out.pc2"))
+                                               filepath=str(tmp_path / "inbetween.pc2"))
     assert_cache_object(new_object(names), source)
-    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(tmp_path / "out.pc2")
+    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(tmp_path / "inbetween.pc2")
     assert (cache.n_samples, cache.start, cache.sampling) == (6, 1.0, 2.0)
     np.testing.assert_allclose(cache.positions[4], source_frames[9], atol=TOLERANCE)
-    short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], bridge.mesh_triangles(source.data),
-                                      start="keys")
+    short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], triangles, start="keys")
     np.testing.assert_allclose(cache.positions[5], short.pose(2, 2 / 3), atol=TOLERANCE)
 
 
