@@ -182,6 +182,23 @@ class _Relative:
         self.nonrigidity = [0.0] * len(topo.components)
         return self
 
+    def rescaled(self, origin: "_Relative", factor: float) -> "_Relative":
+        """The key ``origin + factor · (self − origin)`` in every splined quantity (the screw from
+        :attr:`continued_screw`): a key at another distance in time moved to where a spline with
+        evenly spaced keys wants it (a last gap a fraction ``h`` of a step long: the key after it
+        seen from the gap before, ``factor = 1/h``; the key before it seen from it, ``factor = h``),
+        so that Catmull–Rom's tangent is the mean of the two neighbouring secants per unit time.
+        Marked as an end condition (:attr:`extrapolated`): no pose has these values."""
+        out = _Relative.__new__(_Relative)
+        out.extrapolated = True
+        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
+            value = self.continued_screw if name == "screw" else getattr(self, name)
+            base = origin.continued_screw if name == "screw" else getattr(origin, name)
+            setattr(out, name, base + factor * (value - base))
+        out.metric = df.exp_stretch(2.0 * out.log_stretch)
+        out.nonrigidity = self.nonrigidity
+        return out
+
     @staticmethod
     def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
         """The key one step beyond ``current`` (end condition of the spline): the linear

@@ -57,7 +57,8 @@ from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
 from .seams import coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
-from .validation import check_factor, check_gap_index, check_interpolation, check_sequence, check_start, check_time
+from .validation import (check_factor, check_gap_index, check_interpolation, check_last_gap, check_sequence,
+                         check_start, check_time)
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -139,6 +140,11 @@ class SequenceInterpolator:
     keys, the gap and the factors asked for. ``k_M``/``k_N``/``offset``/``use_extrinsic`` as for
     :class:`Interpolator`.
 
+    ``last_gap``: the last gap's length as a fraction of the others' (0 < h ≤ 1; a range that is
+    not whole steps: keys every 4th frame and the last one 2 frames on, 0.5). The splines take the
+    keys evenly spaced otherwise; with it the gap before sees the last key, and the last gap the
+    key before it, per step of their own, so steady motion stays steady across both.
+
     ``start``: how the motion enters the first key. ``"rest"`` (the default): from rest, as a
     simulation baked from its first frame or an animation from a held pose — the first gap starts
     with zero velocity. ``"keys"``: keys cut from the middle of a motion — the start velocity is
@@ -148,15 +154,18 @@ class SequenceInterpolator:
     """
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
-                 offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest"):
+                 offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
+                 last_gap: float = 1.0):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start = check_start(start)
+        last_gap = check_last_gap(last_gap)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
-        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start)
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, last_gap)
 
-    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest"):
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", last_gap=1.0):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         self.start = start
+        self.last_gap = last_gap
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -332,6 +341,11 @@ class SequenceInterpolator:
             prev = self._previous(gap, -turn, whole).continue_turns(-nxt.rotvec) if gap >= 1 else \
                 _Relative.phantom(nxt, ident, after)
             after = after if after is not None else _Relative.phantom(ident, nxt)
+            if self.last_gap < 1.0:  # the last gap is shorter: its neighbours seen per step of the gap at hand
+                if gap + 2 == last:
+                    after = after.rescaled(nxt, 1.0 / self.last_gap)
+                elif gap == last - 1 and gap >= 1:
+                    prev = prev.rescaled(ident, self.last_gap)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
@@ -373,10 +387,12 @@ class SequenceInterpolator:
         if free is None:
             return None
         x, c = self._raw, self._centroids
+        # per step of this gap: a shorter last gap (last_gap) takes that fraction of the velocity
+        scale = self.last_gap if gap == len(self._raw) - 2 else 1.0
         if start == REST_START_LIMIT:  # from rest (free_flight said so): the parabola's velocity at the key is 2 (x₁ − x₀)
-            return free, {"world": 2.0 * (x[gap] - x[k]), "centroids": 2.0 * (c[gap] - c[k])}
-        return free, {"world": 1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1],
-                      "centroids": 1.5 * c[gap] - 2.0 * c[k] + 0.5 * c[k - 1]}
+            return free, {"world": 2.0 * scale * (x[gap] - x[k]), "centroids": 2.0 * scale * (c[gap] - c[k])}
+        return free, {"world": scale * (1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1]),
+                      "centroids": scale * (1.5 * c[gap] - 2.0 * c[k] + 0.5 * c[k - 1])}
 
     def _nonrigidity(self, base: int, other: int) -> np.ndarray:
         """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have

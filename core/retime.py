@@ -10,14 +10,14 @@ gap at the factor of its time within the gap.
 
 A :class:`core.SequenceInterpolator` takes its keys evenly spaced in time (its splines' velocities
 at a key come from the neighbouring keys), so a shorter last gap of ``r`` samples read as one of
-its gaps gets the wrong timing: its in-betweens came out 2–6 × further from the source than the
-linear blend's on two cloths keyed every 8th frame with ``r = 3``. It is the last gap of a
-second sequence keyed every ``r`` samples up to the last sample instead (:attr:`RetimePlan.tail`),
-which meets the first at its last whole-step key. The gap before still takes the last sample as
-a key one step on (its end velocity ``step / r`` times off where the motion is steady: a sheet at
-constant velocity, 18 samples keyed every 4th, 2 % of its size off there): on those cloths that
-gap was closer to the source so than with the end condition of a sequence stopped at the last
-whole step (numbers in docs/inbetweens.md, *Retiming a range that is not whole steps*).
+its gaps gets the wrong timing, and lends the gap before it a wrong end velocity: a sheet moving
+as a steady screw, 18 samples keyed every 4th, came out 2.5 % of its size off in both, where the
+linear blend is exact. The sequence of all the keys is told (``last_gap = r / step``), which
+makes both gaps exact for steady motion; the short gap's in-betweens come from a second sequence
+keyed every ``r`` samples up to the last sample (:attr:`RetimePlan.tail`), which knows the motion
+just before it (on four cloths its in-betweens were as close to the source as the first
+sequence's in the median and never more than 1.34 × the blend's error, against 2.23 ×). Numbers in
+docs/inbetweens.md, *Retiming a range that is not whole steps*.
 
 Chunks: the in-betweens of a gap are asked together (:meth:`core.SequenceInterpolator.poses`
 shares the work between them), so the result for a gap depends only on the keys, the gap and the
@@ -166,7 +166,8 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
         third = key_poses[2] if len(key_poses) > 2 else None
         interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step, third)}
-    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options)
+    last_gap = (plan.keys[-1] - plan.keys[-2]) / plan.step if len(plan.tail) else 1.0
+    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, last_gap=last_gap)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
         tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options)

@@ -758,8 +758,8 @@ def _sequence_class():
         in-betweens). Without ``target_triangles``: the same-mesh interpolator."""
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
-                     smooth=True, start="rest", base_vertices=None, target_triangles=None, correspondence=None,
-                     target_rest_vertices=None):
+                     smooth=True, start="rest", last_gap=1.0, base_vertices=None, target_triangles=None,
+                     correspondence=None, target_rest_vertices=None):
             if target_triangles is not None:
                 if base_vertices is None:
                     raise MeshError("Key poses of another mesh need base_vertices: the pose of the mesh to move.")
@@ -769,7 +769,7 @@ def _sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth, start=start)
+                             smooth=smooth, start=start, last_gap=last_gap)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

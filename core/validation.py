@@ -298,6 +298,17 @@ def check_start(value) -> str:
     raise MeshError(f"start must be one of {', '.join(repr(m) for m in START_MODES)}; got {_describe(value)}.")
 
 
+def check_last_gap(value) -> float:
+    """A sequence's ``last_gap``: how long its last gap lasts as a fraction of the others, a
+    number in (0, 1]; anything else is a MeshError."""
+    number = _scalar(value)
+    if isinstance(number, (bool, np.bool_)) or not isinstance(number, (int, float, np.integer, np.floating)) \
+            or not 0.0 < float(number) <= 1.0:
+        raise MeshError(f"last_gap must be a number in (0, 1] (the last gap's length as a fraction of the "
+                        f"others'); got {_describe(value)}.")
+    return float(number)
+
+
 def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses") -> list[np.ndarray]:
     """Key poses as a list of float64 ``(n, 3)`` arrays with one vertex count (from a list of
     arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate."""

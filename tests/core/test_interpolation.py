@@ -299,6 +299,35 @@ def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     assert rest < 1e-5 and abs(moving - eps) < 1e-5
 
 
+@pytest.mark.parametrize("short", [1, 2, 3])
+def test_a_shorter_last_gap_keeps_the_timing_of_every_gap(short):
+    """Keys every 4th sample of a steady screw motion (exp(t ξ)) and the last one ``short`` samples
+    after the one before: with ``last_gap = short / 4`` every in-between is the motion (the last
+    key's velocity seen per step of each gap); taken as evenly spaced, the last two gaps were up
+    to 2.4 % of the sheet off."""
+    from scipy.linalg import expm
+
+    rest, tri = grid(8, 8)
+    xi = np.zeros((4, 4))
+    xi[:3, :3] = [[0, -0.05, 0.02], [0.05, 0, -0.01], [-0.02, 0.01, 0]]
+    xi[:3, 3] = [0.1, 0.02, 0.03]
+
+    def pose(t):
+        m = expm(t * xi)
+        return rest @ m[:3, :3].T + m[:3, 3]
+
+    times = [0, 4, 8, 12, 12 + short]
+    sequence = SequenceInterpolator([pose(t) for t in times], tri, start="keys", last_gap=short / 4)
+    factors = np.linspace(0.0, 1.0, 9)[1:-1]
+    for gap in range(4):
+        a, b = times[gap], times[gap + 1]
+        for factor, x in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(x, pose(a + factor * (b - a)), rtol=0, atol=1e-9)
+    for bad in (0.0, 1.5, float("nan"), True, "half"):
+        with pytest.raises(MeshError, match="last_gap"):
+            SequenceInterpolator([pose(t) for t in times], tri, last_gap=bad)
+
+
 def test_start_of_motion_tells_rest_from_motion():
     """The first three frames of a dense source say how the motion leaves the first key: a fall
     from rest (zero velocity) or one at constant velocity (the keys' own), whatever the step."""
