@@ -57,7 +57,7 @@ from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
 from .seams import coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
-from .validation import (check_factor, check_gap_index, check_interpolation, check_last_gap, check_sequence,
+from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_sequence,
                          check_start, check_time)
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
@@ -140,10 +140,12 @@ class SequenceInterpolator:
     keys, the gap and the factors asked for. ``k_M``/``k_N``/``offset``/``use_extrinsic`` as for
     :class:`Interpolator`.
 
-    ``last_gap``: the last gap's length as a fraction of the others' (0 < h ≤ 1; a range that is
-    not whole steps: keys every 4th frame and the last one 2 frames on, 0.5). The splines take the
-    keys evenly spaced otherwise; with it the gap before sees the last key, and the last gap the
-    key before it, per step of their own, so steady motion stays steady across both.
+    ``key_times``: the time (frame) of each key, strictly increasing, or None (evenly spaced). The
+    splines' tangent at a key is the mean of its two neighbouring secants per unit time, so steady
+    motion stays steady across unevenly spaced keys (keys every 4th frame and the last one 2 frames
+    on: a range that is not whole steps). Factors stay per gap (0 → its first key, 1 → its second)
+    and :meth:`pose_at`'s time in key indices. The free-flight and steadiness tests, which compare
+    three or four keys, run only where those keys are evenly spaced.
 
     ``start``: how the motion enters the first key. ``"rest"`` (the default): from rest, as a
     simulation baked from its first frame or an animation from a held pose — the first gap starts
@@ -155,17 +157,18 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
-                 last_gap: float = 1.0):
+                 key_times=None):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start = check_start(start)
-        last_gap = check_last_gap(last_gap)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
-        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, last_gap)
+        key_times = check_key_times(key_times, len(key_poses))
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times)
 
-    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", last_gap=1.0):
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         self.start = start
-        self.last_gap = last_gap
+        # each gap's duration (K − 1,); evenly spaced keys: all 1
+        self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
             raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
@@ -333,19 +336,22 @@ class SequenceInterpolator:
             ahead = [r.whole_rotations(topo, base, self._key(k), whole) for r, k in zip(ahead, others)]
         nxt = ahead[0]
         if cubic:
+            # keys unevenly spaced: the neighbours' times in units of this gap (1 when even)
+            d = self._durations
+            ahead_time = 1.0 + d[gap + 1] / d[gap] if gap + 2 <= last else 2.0
+            back_time = d[gap - 1] / d[gap] if gap >= 1 else 1.0
             # rigid motions: the rotation vector nearest the continuation of the next key's
             turn = nxt.screw  # screws: a whole turn between keys continues about the same axis
-            after = ahead[1].unwrap(2 * turn, 2 * nxt.rotvec, nxt) if gap + 2 <= last else None
+            after = ahead[1].unwrap(ahead_time * turn, ahead_time * nxt.rotvec, nxt) if gap + 2 <= last else None
+            if after is not None and ahead_time != 2.0:  # where an evenly spaced key would be
+                after = after.rescaled(nxt, 1.0 / (ahead_time - 1.0))
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
-            prev = self._previous(gap, -turn, whole).continue_turns(-nxt.rotvec) if gap >= 1 else \
-                _Relative.phantom(nxt, ident, after)
+            prev = self._previous(gap, -back_time * turn, whole).continue_turns(-back_time * nxt.rotvec) \
+                if gap >= 1 else _Relative.phantom(nxt, ident, after)
+            if back_time != 1.0:
+                prev = prev.rescaled(ident, 1.0 / back_time)
             after = after if after is not None else _Relative.phantom(ident, nxt)
-            if self.last_gap < 1.0:  # the last gap is shorter: its neighbours seen per step of the gap at hand
-                if gap + 2 == last:
-                    after = after.rescaled(nxt, 1.0 / self.last_gap)
-                elif gap == last - 1 and gap >= 1:
-                    prev = prev.rescaled(ident, self.last_gap)
         else:
             prev = after = ident
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
@@ -362,6 +368,8 @@ class SequenceInterpolator:
         gap's move (a first key at rest mirrors key 1 to key −1); None for the first gap and for
         the second when the keys are cut from a motion (too few keys to tell)."""
         if gap < 1 or (gap == 1 and self.start != "rest"):
+            return None
+        if np.ptp(self._durations[max(gap - 2, 0):gap + 1]) > 0:  # the third difference: keys evenly spaced
             return None
         c = self._centroids[[abs(i) for i in range(gap - 2, gap + 2)]]
         jerk = np.linalg.norm(c[3] - 3.0 * c[2] + 3.0 * c[1] - c[0], axis=1)
@@ -387,8 +395,10 @@ class SequenceInterpolator:
         if free is None:
             return None
         x, c = self._raw, self._centroids
-        # per step of this gap: a shorter last gap (last_gap) takes that fraction of the velocity
-        scale = self.last_gap if gap == len(self._raw) - 2 else 1.0
+        d = self._durations
+        if start != REST_START_LIMIT and d[k - 1] != d[k]:  # the parabola's weights below: keys evenly spaced
+            return None
+        scale = d[gap] / d[k]  # per unit of this gap
         if start == REST_START_LIMIT:  # from rest (free_flight said so): the parabola's velocity at the key is 2 (x₁ − x₀)
             return free, {"world": 2.0 * scale * (x[gap] - x[k]), "centroids": 2.0 * scale * (c[gap] - c[k])}
         return free, {"world": scale * (1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1]),

@@ -12,7 +12,7 @@ A :class:`core.SequenceInterpolator` takes its keys evenly spaced in time (its s
 at a key come from the neighbouring keys), so a shorter last gap of ``r`` samples read as one of
 its gaps gets the wrong timing, and lends the gap before it a wrong end velocity: a sheet moving
 as a steady screw, 18 samples keyed every 4th, came out 2.5 % of its size off in both, where the
-linear blend is exact. The sequence of all the keys is told (``last_gap = r / step``), which
+linear blend is exact. The sequence of all the keys is given their times (``key_times``), which
 makes both gaps exact for steady motion; the short gap's in-betweens come from a second sequence
 keyed every ``r`` samples up to the last sample (:attr:`RetimePlan.tail`), which knows the motion
 just before it (on four cloths its in-betweens were as close to the source as the first
@@ -166,8 +166,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
         third = key_poses[2] if len(key_poses) > 2 else None
         interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step, third)}
-    last_gap = (plan.keys[-1] - plan.keys[-2]) / plan.step if len(plan.tail) else 1.0
-    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, last_gap=last_gap)
+    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
         tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options)

@@ -758,7 +758,7 @@ def _sequence_class():
         in-betweens). Without ``target_triangles``: the same-mesh interpolator."""
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
-                     smooth=True, start="rest", last_gap=1.0, base_vertices=None, target_triangles=None,
+                     smooth=True, start="rest", key_times=None, base_vertices=None, target_triangles=None,
                      correspondence=None, target_rest_vertices=None):
             if target_triangles is not None:
                 if base_vertices is None:
@@ -769,7 +769,7 @@ def _sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth, start=start, last_gap=last_gap)
+                             smooth=smooth, start=start, key_times=key_times)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

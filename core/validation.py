@@ -298,15 +298,23 @@ def check_start(value) -> str:
     raise MeshError(f"start must be one of {', '.join(repr(m) for m in START_MODES)}; got {_describe(value)}.")
 
 
-def check_last_gap(value) -> float:
-    """A sequence's ``last_gap``: how long its last gap lasts as a fraction of the others, a
-    number in (0, 1]; anything else is a MeshError."""
-    number = _scalar(value)
-    if isinstance(number, (bool, np.bool_)) or not isinstance(number, (int, float, np.integer, np.floating)) \
-            or not 0.0 < float(number) <= 1.0:
-        raise MeshError(f"last_gap must be a number in (0, 1] (the last gap's length as a fraction of the "
-                        f"others'); got {_describe(value)}.")
-    return float(number)
+def check_key_times(value, count: int) -> np.ndarray | None:
+    """A sequence's ``key_times``: ``None`` (evenly spaced) or ``count`` finite real numbers,
+    strictly increasing, as float64 ``(count,)``; anything else is a MeshError."""
+    if value is None:
+        return None
+    try:
+        times = np.asarray(value)
+    except Exception:  # noqa: BLE001 — ragged or exotic input: reported below in the user's terms
+        times = None
+    if times is None or times.dtype == bool or not np.issubdtype(times.dtype, np.number) \
+            or np.iscomplexobj(times) or times.shape != (count,):
+        raise MeshError(f"key_times must be {count} numbers, one per key pose; got {_describe(value)}.")
+    times = times.astype(np.float64)
+    if not np.isfinite(times).all() or not (np.diff(times) > 0).all():
+        raise MeshError(f"key_times must be finite and strictly increasing (the frame of each key pose); "
+                        f"got {times.tolist()}.")
+    return times
 
 
 def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses") -> list[np.ndarray]:

@@ -127,11 +127,10 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
         poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
-        # the last frame keys the sequence too, as a gap that much shorter (its gaps before it see it in time)
-        last_gap = (end - frames[-1]) / self.frame_step if tail and len(frames) > 1 else 1.0
-        sequence = yield from self.compute(0.2, load_core().SequenceInterpolator,
-                                           poses + ([read[end]] if last_gap < 1.0 else []), triangles,
-                                           **options, last_gap=last_gap)
+        # the last frame keys the sequence too, at its time (the gap before sees it so)
+        keyed = frames + ([end] if tail else [])
+        sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [read[f] for f in keyed],
+                                           triangles, **options, key_times=keyed)
         names, tails, all_poses, timeline = [], [], [], []
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
         spans = [(gap, frame, next_frame, factors) for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:]))]

@@ -107,11 +107,11 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
                                short.pose(len(short) - 1, 0.5), atol=TOLERANCE)
     fcurve = bridge.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
     assert fcurve.evaluate(10) == pytest.approx(1.0) and fcurve.evaluate(11) == pytest.approx(0.0)
-    # the whole gaps: the sequence of the keys and the last frame, its last gap half a step long
+    # the whole gaps: the sequence of the keys and the last frame, at their frames
     start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
         [poses[1], poses[2], poses[3]], poses[5], 4, poses[9])
     sequence = core.SequenceInterpolator([poses[f] for f in (1, 5, 9, 11)], bridge.mesh_triangles(obj.data),
-                                         start=start, last_gap=0.5)
+                                         start=start, key_times=[1, 5, 9, 11])
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 5-Frame 9 0.50"),
                                sequence.poses(1, [0.25, 0.5, 0.75])[1], atol=TOLERANCE)
 
