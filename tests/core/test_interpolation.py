@@ -11,7 +11,7 @@ from scipy.spatial.transform import Rotation
 from core.errors import MeshError, ShapeDifferenceWarning
 from core.interpolation import Interpolator, SequenceInterpolator, interpolate
 
-from meshes import grid
+from meshes import drape, grid
 
 
 def _edges(triangles):
@@ -322,6 +322,15 @@ def test_unevenly_spaced_keys_keep_the_timing_of_every_gap(times):
         a, b = times[gap], times[gap + 1]
         for factor, x in zip(factors, sequence.poses(gap, factors)):
             np.testing.assert_allclose(x, pose(a + factor * (b - a)), rtol=0, atol=1e-9)
+    # keys whose own speeds differ a thousandfold (a draping sheet moved as much in one frame as in
+    # 999): the in-betweens stay by the keys (KEY_TIME_RATIO_LIMIT; 3.4 units out without it)
+    flat, flat_tri = grid(10, 10)
+    draped = [drape(flat, a) for a in (0.0, 0.3, 0.6, 1.0)]
+    uneven = SequenceInterpolator(draped, flat_tri, key_times=[0, 1, 1000, 1001])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)  # no fallback needed either
+        poses = np.concatenate([uneven.poses(gap, factors) for gap in range(3)])
+    assert np.all(poses >= np.min(draped, axis=(0, 1)) - 0.01) and np.all(poses <= np.max(draped, axis=(0, 1)) + 0.01)
     for bad in ([0, 4, 4, 12, 13], [0, 4, 8, 12], [0, 4, 8, 12, float("nan")], [True] * 5, "times"):
         with pytest.raises(MeshError, match="key_times"):
             SequenceInterpolator([pose(t) for t in times], tri, key_times=bad)
