@@ -57,8 +57,8 @@ from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
 from .seams import coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
-from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_sequence,
-                         check_start, check_time)
+from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_real,
+                         check_sequence, check_start, check_time)
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -149,9 +149,9 @@ class SequenceInterpolator:
     ``key_times``: the time (frame) of each key, strictly increasing, or None (evenly spaced). The
     splines' tangent at a key is the mean of its two neighbouring secants per unit time, so steady
     motion stays steady across unevenly spaced keys (keys every 4th frame and the last one 2 frames
-    on: a range that is not whole steps). Factors stay per gap (0 → its first key, 1 → its second)
-    and :meth:`pose_at`'s time in key indices. The free-flight and steadiness tests, which compare
-    three or four keys, run only where those keys are evenly spaced.
+    on: a range that is not whole steps). Factors stay per gap (0 → its first key, 1 → its
+    second); :meth:`pose_at` then takes times in the keys' own. The free-flight and steadiness
+    tests, which compare three or four keys, run only where those keys are evenly spaced.
 
     ``start``: how the motion enters the first key. ``"rest"`` (the default): from rest, as a
     simulation baked from its first frame or an animation from a held pose — the first gap starts
@@ -174,6 +174,7 @@ class SequenceInterpolator:
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         self.start = start
         # each gap's duration (K − 1,); evenly spaced keys: all 1
+        self._key_times = key_times
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
@@ -472,11 +473,19 @@ class SequenceInterpolator:
         return out if self._copies is None else out[:, self._copies]
 
     def pose_at(self, time: float) -> np.ndarray:
-        """The pose at global ``time`` in key units (0 = first key, K − 1 = last key); times
-        outside extrapolate the first or last gap."""
-        time = check_time(time, len(self))
-        gap = int(np.clip(np.floor(time), 0, len(self) - 1))
-        return self.pose(gap, float(time) - gap)
+        """The pose at global ``time``: in the keys' own times where ``key_times`` was given, else
+        in key units (0 = first key, K − 1 = last key); times outside extrapolate the first or
+        last gap."""
+        if self._key_times is None:
+            time = check_time(time, len(self))
+            gap = int(np.clip(np.floor(time), 0, len(self) - 1))
+            return self.pose(gap, float(time) - gap)
+        times = self._key_times
+        value = check_real(time, "time")
+        gap = int(np.clip(np.searchsorted(times, value, side="right") - 1, 0, len(self) - 1))
+        factor = (value - times[gap]) / (times[gap + 1] - times[gap])
+        check_time(gap + factor, len(self))  # the same bound on extrapolation, in gaps
+        return self.pose(gap, float(factor))
 
 
 class Interpolator:

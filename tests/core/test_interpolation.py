@@ -322,6 +322,8 @@ def test_unevenly_spaced_keys_keep_the_timing_of_every_gap(times):
         a, b = times[gap], times[gap + 1]
         for factor, x in zip(factors, sequence.poses(gap, factors)):
             np.testing.assert_allclose(x, pose(a + factor * (b - a)), rtol=0, atol=1e-9)
+    for t in (1.5, times[2], 0.5 * (times[-2] + times[-1])):  # pose_at takes the keys' own times
+        np.testing.assert_allclose(sequence.pose_at(t), pose(t), rtol=0, atol=1e-9)
     # keys whose own speeds differ a thousandfold (a draping sheet moved as much in one frame as in
     # 999): the in-betweens stay by the keys (KEY_TIME_RATIO_LIMIT; 3.4 units out without it)
     flat, flat_tri = grid(10, 10)
