@@ -184,11 +184,11 @@ class _Relative:
 
     def rescaled(self, origin: "_Relative", factor: float) -> "_Relative":
         """The key ``origin + factor · (self − origin)`` in every splined quantity (the screw from
-        :attr:`continued_screw`): a key at another distance in time moved to where a spline with
-        evenly spaced keys wants it (a last gap a fraction ``h`` of a step long: the key after it
-        seen from the gap before, ``factor = 1/h``; the key before it seen from it, ``factor = h``),
-        so that Catmull–Rom's tangent is the mean of the two neighbouring secants per unit time.
-        Marked as an end condition (:attr:`extrapolated`): no pose has these values."""
+        :attr:`continued_screw`): a neighbouring key at another distance in time moved to where a
+        spline with evenly spaced keys wants it (``factor``: the gap at hand's duration ÷ the
+        neighbouring gap's), so that Catmull–Rom's tangent is the mean of the two neighbouring
+        secants per unit time. Marked as an end condition (:attr:`extrapolated`): no pose has
+        these values."""
         out = _Relative.__new__(_Relative)
         out.extrapolated = True
         for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):

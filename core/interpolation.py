@@ -173,8 +173,8 @@ class SequenceInterpolator:
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None):
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         self.start = start
-        # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._key_times = key_times
+        # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
         if len(keys) < 2:
