@@ -37,6 +37,9 @@ SPURIOUS_RIGID_TURN = np.pi / 6
 #: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
 #: deformation (rotation residuals, stretches).
 KINEMATIC = ("screw", "vertices", "world", "centroids")
+#: What of a relative the splines interpolate (the metric comes from the log-stretch where a key
+#: is extrapolated: :meth:`_Relative._extrapolated`).
+SPLINED = ("rotvec", "log_stretch") + KINEMATIC
 
 
 class _Key:
@@ -189,15 +192,10 @@ class _Relative:
         neighbouring gap's), so that Catmull–Rom's tangent is the mean of the two neighbouring
         secants per unit time. Marked as an end condition (:attr:`extrapolated`): no pose has
         these values."""
-        out = _Relative.__new__(_Relative)
-        out.extrapolated = True
-        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
-            value = self.continued_screw if name == "screw" else getattr(self, name)
-            base = origin.continued_screw if name == "screw" else getattr(origin, name)
-            setattr(out, name, base + factor * (value - base))
-        out.metric = df.exp_stretch(2.0 * out.log_stretch)
-        out.nonrigidity = self.nonrigidity
-        return out
+        def value(name):
+            here, there = (_splined(r, name) for r in (self, origin))
+            return there + factor * (here - there)
+        return _Relative._extrapolated(value, self.nonrigidity)
 
     @staticmethod
     def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
@@ -205,18 +203,33 @@ class _Relative:
         extrapolation 2·current − previous, or with ``farther`` (the key before ``previous``) for
         the motion (:data:`KINEMATIC`) the parabola through the three, 3·current − 3·previous +
         farther; the metric that of the extrapolated log-stretch (positive definite)."""
-        self = _Relative.__new__(_Relative)
-        self.extrapolated = True
-        for name in ("rotvec", "log_stretch", "screw", "vertices", "world", "centroids"):
+        def value(name):
             c, p = getattr(current, name), getattr(previous, name)
-            quadratic = farther is not None and name in KINEMATIC
-            far = None if farther is None else farther.continued_screw if name == "screw" else getattr(farther, name)
-            setattr(self, name, 3 * (c - p) + far if quadratic else 2 * c - p)
-        self.metric = df.exp_stretch(2.0 * self.log_stretch)
-        self.nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
+            if farther is not None and name in KINEMATIC:
+                return 3 * (c - p) + _splined(farther, name)
+            return 2 * c - p
+        nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         if farther is not None:
-            self.nonrigidity = np.maximum(self.nonrigidity, farther.nonrigidity)
-        return self
+            nonrigidity = np.maximum(nonrigidity, farther.nonrigidity)
+        return _Relative._extrapolated(value, nonrigidity)
+
+    @staticmethod
+    def _extrapolated(value, nonrigidity) -> "_Relative":
+        """An end condition (:attr:`extrapolated`) with ``value(name)`` for each splined quantity
+        (:data:`SPLINED`) and the metric of its log-stretch (positive definite)."""
+        out = _Relative.__new__(_Relative)
+        out.extrapolated = True
+        for name in SPLINED:
+            setattr(out, name, value(name))
+        out.metric = df.exp_stretch(2.0 * out.log_stretch)
+        out.nonrigidity = nonrigidity
+        return out
+
+
+def _splined(relative: "_Relative", name: str) -> np.ndarray:
+    """The value of ``relative`` a spline takes for quantity ``name`` (the screw: its
+    :attr:`_Relative.continued_screw`)."""
+    return relative.continued_screw if name == "screw" else getattr(relative, name)
 
 
 def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:

@@ -121,8 +121,6 @@ def start_of_motion(frames, next_key, step: int, third_key=None) -> str:
     rms = lambda v: float(np.sqrt(np.mean(np.sum(v * v, axis=1))))  # noqa: E731
     if third_key is None:
         return "rest" if rms(velocity) <= REST_START_FRACTION * rms(secant) else "keys"
-    from .splines import START_TANGENT_LIMIT
-
     keys = 0.5 * (-3.0 * frames[0] + 4.0 * np.asarray(next_key, dtype=np.float64)
                   - np.asarray(third_key, dtype=np.float64)) / step  # per frame, the keys' parabola
     bound = START_TANGENT_LIMIT * np.abs(secant)

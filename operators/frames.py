@@ -126,7 +126,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
-        poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
+        _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [read[f] for f in keyed],
