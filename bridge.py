@@ -287,20 +287,27 @@ def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]
 
 # -- a new object that plays a point cache ----------------------------------------------------
 
-# Parent types that deform the child (a virtual modifier): the copy must not inherit them.
+# Parent types that deform the child (a virtual modifier): the copy is parented as an object
+# ('OBJECT': the same world matrix, parent.matrix_world @ matrix_parent_inverse @ matrix_basis).
 DEFORMING_PARENT_TYPES = {'ARMATURE', 'LATTICE', 'CURVE'}
+# The object's own transform channels, copied before its animation and constraints.
+TRANSFORM_CHANNELS = ("rotation_mode", "location", "rotation_euler", "rotation_quaternion",
+                      "rotation_axis_angle", "scale", "delta_location", "delta_rotation_euler",
+                      "delta_rotation_quaternion", "delta_scale")
 
 
 def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name: str,
-                     filepath: str, start: float, sampling: float, modifiers=()) -> bpy.types.Object:
+                     filepath: str, start: float, sampling: float, modifiers=(),
+                     speed: float = 1.0, source_end: float | None = None) -> bpy.types.Object:
     """A new object named ``name`` with a copy of ``source``'s mesh (no shape keys, no
     modifiers) and a Mesh Cache modifier that plays the PC2 file ``filepath`` whose first sample
     is at frame ``start``, one every ``sampling`` frames, followed by copies of ``source``'s
     ``modifiers`` (the generators after its motion: a Subdivision, a Solidify).
 
-    It is linked to the collections of ``source``, placed where ``source`` is (with the same
-    parent unless that parent deforms it) and ``source`` stays the active, selected object. If
-    anything fails, the new object and mesh are removed again.
+    It is linked to the collections of ``source`` and moves as ``source`` does as a whole
+    (:func:`copy_object_motion`; the cache holds object-space positions; ``speed``, ``source_end``:
+    a retime that plays ``source``'s frames ``start`` … ``source_end``); ``source`` stays the
+    active, selected object. If anything fails, the new object and mesh are removed again.
     """
     mesh = source.data.copy()
     obj = None
@@ -311,13 +318,7 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
             obj.shape_key_clear()
         for collection in source.users_collection or (context.scene.collection,):
             collection.objects.link(obj)
-        if source.parent is not None and source.parent_type not in DEFORMING_PARENT_TYPES:
-            obj.parent, obj.parent_type = source.parent, source.parent_type
-            obj.parent_bone = source.parent_bone
-            obj.matrix_parent_inverse = source.matrix_parent_inverse.copy()
-            obj.matrix_basis = source.matrix_basis.copy()
-        else:
-            obj.matrix_world = source.matrix_world.copy()
+        copy_object_motion(context, source, obj, start, speed, (start, start if source_end is None else source_end))
         modifier = obj.modifiers.new("Mesh Cache", 'MESH_CACHE')
         modifier.cache_format = 'PC2'
         modifier.filepath = filepath
@@ -333,9 +334,47 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         return obj
     except BaseException:
         if obj is not None:
-            bpy.data.objects.remove(obj)
+            bpy.data.objects.remove(obj)  # a shared action stays: it is the source's
         bpy.data.meshes.remove(mesh)
         raise
+
+
+def copy_object_motion(context, source: bpy.types.Object, obj: bpy.types.Object, start: float = 0.0,
+                       speed: float = 1.0, source_times: tuple[float, float] = (0.0, 0.0)) -> None:
+    """Give the new object ``obj`` what moves ``source`` as a whole, so that object-space
+    positions played on ``obj`` land where they do on ``source``: its parent (parented as an
+    object where the parent deforms ``source``), its transform channels, its constraints (Blender's
+    copy) and its keyframed transform (the same action, shared). ``speed`` ≠ 1: ``obj`` plays
+    ``source``'s time ``start + (frame − start) · speed`` at ``frame`` (a retime; ``source_times``:
+    the first and last source time played), its action through an NLA strip scaled by ``1 / speed``; a parent and constraints keep the scene's own
+    timing. Not taken over: NLA tracks and drivers."""
+    if source.parent is not None:
+        obj.parent = source.parent
+        obj.parent_type = 'OBJECT' if source.parent_type in DEFORMING_PARENT_TYPES else source.parent_type
+        obj.parent_bone = source.parent_bone
+        obj.matrix_parent_inverse = source.matrix_parent_inverse.copy()
+    for channel in TRANSFORM_CHANNELS:
+        setattr(obj, channel, getattr(source, channel))
+    if source.constraints:
+        with context.temp_override(object=source, active_object=source, selected_objects=[obj],
+                                   selected_editable_objects=[obj]):
+            bpy.ops.object.constraints_copy()
+    animation = source.animation_data
+    if animation is not None and animation.action is not None:
+        data = obj.animation_data_create()
+        if speed == 1.0:
+            data.action = animation.action
+            if hasattr(animation, "action_slot"):  # Blender 4.4+: the slot the source plays
+                data.action_slot = animation.action_slot
+        else:
+            strip = data.nla_tracks.new().strips.new(f"{source.name} at {speed:g}x", int(start), animation.action)
+            if hasattr(animation, "action_slot"):
+                strip.action_slot = animation.action_slot
+            first, last = source_times
+            for _ in range(2):  # each setter clamps to the other end: twice reaches any range
+                strip.action_frame_start, strip.action_frame_end = first, max(last, first + 1.0)
+            strip.frame_start_ui = start  # moves the strip, keeping its length
+            strip.scale = 1.0 / speed
 
 
 #: Custom property (on the object) holding the last shape space (operators/analysis.py).

@@ -215,7 +215,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         self.summary = self.write_poses(
             context, obj, retimed, names=[f"Retime {speed}x"] * plan.n_out,
             tails=[f" frame {frame:g}" for frame in out_frames], frames=out_frames, keyframe=True,
-            label=f"Retime {speed}x step {self.frame_step}")
+            label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
 
 
 def load_core_retime():

@@ -171,22 +171,31 @@ class PoseWriter:
         return path, (bpy.path.relpath(str(path)) if relative else str(path))
 
     def write_poses(self, context, source, poses, *, names: list[str], frames: list[float],
-                    label: str, tails: list[str] | None = None, keyframe: bool = False) -> str:
+                    label: str, tails: list[str] | None = None, keyframe: bool = False,
+                    speed: float = 1.0) -> str:
         """Write ``poses`` (float ``(n, 3)`` each) and return the summary for the report.
 
         Shape keys: one key per pose named ``names[i] + tails[i]`` (the tail, e.g. a factor, is
         never cut), keyframed at ``frames`` if ``keyframe``. Point cache: a PC2 of the poses at
-        ``frames`` (evenly spaced) on a new object called "<source> <label>".
+        ``frames`` (evenly spaced) on a new object called "<source> <label>", which moves as
+        ``source`` does as a whole; ``speed``: the poses play ``source``'s time
+        ``frames[0] + (frame − frames[0]) · speed`` (a retime), its keyframed transform too.
         """
         if self.output == 'SHAPE_KEYS':
             tails = tails or [""] * len(names)
             new_keys = [bridge.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
             added = bridge.add_shape_keys(source, new_keys, keyframes=frames if keyframe else None)
+            if speed != 1.0 and object_motion(source):
+                self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "
+                                         f"{', '.join(object_motion(source))}, at its own speed while the new "
+                                         f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
+                                         "object) to retime its keyframed transform too")
             return added_summary(added)
-        return self.write_cache_object(context, source, poses, frames, label)
+        return self.write_cache_object(context, source, poses, frames, label, speed)
 
-    def write_cache_object(self, context, source, poses, frames: list[float], label: str) -> str:
+    def write_cache_object(self, context, source, poses, frames: list[float], label: str,
+                           speed: float = 1.0) -> str:
         sampling = float(frames[1] - frames[0]) if len(frames) > 1 else 1.0
         if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
             raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
@@ -201,18 +210,54 @@ class PoseWriter:
                              "Pick another Cache File") from None
         try:
             obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling,
-                                          modifiers=trailing_generators(source))
+                                          modifiers=trailing_generators(source), speed=speed,
+                                          source_end=frames[0] + (frames[-1] - frames[0]) * speed)
         except BaseException:
             path.unlink(missing_ok=True)
             raise
-        if source.animation_data is not None and source.animation_data.action is not None:
-            self.report({'WARNING'}, f"'{source.name}' has its own object animation, which a point "
-                                     f"cache does not hold: '{obj.name}' stays where '{source.name}' "
-                                     "is now (it follows a parent, if any)")
+        # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
+        # parent and constraints at the scene's own
+        motion = object_motion(source)
+        missing = [kind for kind in motion if kind in (NLA, DRIVERS)]
+        if missing:
+            self.report({'WARNING'}, f"'{obj.name}' is not moved by {' and '.join(missing)} of '{source.name}': "
+                                     "add those to it by hand if it should follow them")
+        own_speed = [kind for kind in motion if kind == CONSTRAINTS or kind.startswith(PARENT)]
+        if speed != 1.0 and own_speed:
+            self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
+                                     f"{' and '.join(own_speed)} move it at the scene's own speed")
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
                 f"({span}) from {path}")
+
+
+KEYFRAMED, NLA, DRIVERS, CONSTRAINTS, PARENT = ("its keyframed transform", "its NLA tracks", "drivers",
+                                                "its constraints", "its parent")
+
+
+def _animated(obj) -> bool:
+    animation = obj.animation_data
+    return bool(obj.constraints) or (animation is not None and (
+        animation.action is not None or len(animation.drivers) or any(not t.mute for t in animation.nla_tracks)))
+
+
+def object_motion(obj) -> list[str]:
+    """What moves ``obj`` as a whole, in the user's words (empty: nothing): of its own animation
+    data, constraints, and a parent that moves (itself or one of its parents animated)."""
+    animation = obj.animation_data
+    out = []
+    if animation is not None:
+        out += [KEYFRAMED] if animation.action is not None else []
+        out += [NLA] if any(not track.mute for track in animation.nla_tracks) else []
+        out += [DRIVERS] if len(animation.drivers) else []
+    out += [CONSTRAINTS] if obj.constraints else []
+    parent = obj.parent
+    while parent is not None and not _animated(parent):
+        parent = parent.parent
+    if parent is not None:
+        out.append(f"{PARENT} '{obj.parent.name}'")
+    return out
 
 
 def added_summary(names: list[str]) -> str:

@@ -244,3 +244,108 @@ def test_default_cache_file_beside_the_saved_blend(bpy_empty, extension, core, t
     assert obj.modifiers[0].filepath == "//caches/Grid_Frames_1-3_001.pc2"
     assert sorted(p.name for p in (tmp_path / "caches").iterdir()) == ["Grid_Frames_1-3.pc2",
                                                                       "Grid_Frames_1-3_001.pc2"]
+
+
+def _world(obj, positions):
+    matrix = np.array(obj.matrix_world)
+    return positions @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def _moving_strip(frames: int, parent_type: str = 'OBJECT'):
+    """The armature strip with its own keyframed transform (walking and turning, like a banner's
+    pole), a constraint that lifts it after an animated empty, and its rig, which moves, as its
+    parent of ``parent_type`` ('ARMATURE': the rig deforms it through the parent alone)."""
+    from blender_scenes import armature_scene
+    strip = armature_scene(frames=frames, parented=True)
+    rig = strip.parent
+    if parent_type == 'ARMATURE':
+        strip.modifiers.remove(strip.modifiers["Armature"])
+        strip.parent_type = 'ARMATURE'
+    strip.rotation_mode = 'YXZ'
+    for frame, location, turn in ((1, (0.0, 0.0, 0.0), 0.0), (frames, (1.5, 0.5, 0.2), 2.0)):
+        strip.location, strip.rotation_euler = location, (0.1, 0.0, turn)
+        strip.keyframe_insert("location", frame=frame)
+        strip.keyframe_insert("rotation_euler", frame=frame)
+    lift = bpy.data.objects.new("Lift", None)
+    bpy.context.scene.collection.objects.link(lift)
+    for frame, height in ((1, 0.0), (frames, 0.7)):
+        lift.location.z = height
+        lift.keyframe_insert("location", frame=frame)
+    constraint = strip.constraints.new('COPY_LOCATION')
+    constraint.target, constraint.use_x, constraint.use_y, constraint.use_offset = lift, False, False, True
+    bpy.context.scene.frame_set(1)
+    bpy.context.view_layer.objects.active = strip
+    strip.select_set(True)
+    return strip, rig
+
+
+@pytest.mark.parametrize("parent_type", ['OBJECT', 'ARMATURE'])
+def test_a_cache_object_moves_as_its_source_does(bpy_empty, extension, core, parent_type, tmp_path, capfd):
+    """In-between Frames on an object moved by its keyframes, a constraint and a moving parent (or
+    deformed by it): the new object is placed like the source at every frame (world positions at
+    the keys: the source's), and not deformed again by a deforming parent."""
+    source, rig = _moving_strip(9, parent_type)
+    bridge = extension.bridge
+    before = snapshot(bridge, source)
+    world = {}
+    for frame in range(1, 10):
+        bpy.context.scene.frame_set(frame)
+        world[frame] = (np.array(source.matrix_world),
+                        _world(source, bridge.evaluated_positions(source, bpy.context.evaluated_depsgraph_get())))
+    bpy.context.scene.frame_set(1)
+    names = set(bpy.data.objects.keys()) - {source.name}
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                               output='CACHE', filepath=str(tmp_path) + "/")
+    obj = new_object(names | {source.name})
+    assert_source_unchanged(bridge, source, before)
+    assert obj.parent is rig and obj.parent_type == 'OBJECT' and obj.animation_data.action is source.animation_data.action
+    for frame in range(1, 10):
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_allclose(np.array(obj.matrix_world), world[frame][0], atol=1e-6)
+        if frame in (1, 5, 9):
+            played_world = _world(obj, bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get()))
+            np.testing.assert_allclose(played_world, world[frame][1], atol=1e-4)
+    bpy.context.scene.frame_set(1)
+    assert "Warning" not in capfd.readouterr().out  # everything that moves the source was taken over
+
+
+def test_a_retimed_cache_object_plays_its_sources_keyframed_transform_at_the_new_speed(
+        bpy_empty, extension, core, tmp_path, capfd):
+    """Retime at half speed of an object moved by its keyframes (and a constraint and a parent,
+    which keep the scene's timing): the new object's keyframed transform plays the source's time
+    1 + (frame − 1) / 2, and the warning names what keeps the scene's timing."""
+    source, rig = _moving_strip(9)
+    source.constraints.clear()
+    source.parent = None
+    rig.animation_data_clear()
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
+                                     filepath=str(tmp_path / "slow.pc2"))
+    obj = new_object(names)
+    assert "Warning" not in capfd.readouterr().out
+    for out_frame in (1, 2, 6, 11, 16, 17):
+        time = 1 + (out_frame - 1) * 0.5
+        bpy.context.scene.frame_set(int(time), subframe=time - int(time))
+        expected = np.array(source.matrix_world)
+        bpy.context.scene.frame_set(out_frame)
+        np.testing.assert_allclose(np.array(obj.matrix_world), expected, atol=1e-6)
+    bpy.context.scene.frame_set(1)
+
+    source, rig = _moving_strip(9)  # with its constraint and moving parent: named in the warning
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
+                                     filepath=str(tmp_path / "slow2.pc2"))
+    new_object(names)
+    out = capfd.readouterr().out
+    assert f"plays the motion at 0.5x, but its constraints and its parent '{rig.name}' move it at the scene's own speed" in out
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5, output='SHAPE_KEYS')
+    assert f"by its keyframed transform, its constraints, its parent '{rig.name}', at its own speed" in capfd.readouterr().out
+
+
+def test_drivers_on_the_source_transform_are_named_as_left_out(bpy_empty, extension, core, tmp_path, capfd):
+    source, _rig = _moving_strip(5)
+    driver = source.driver_add("scale", 2).driver
+    driver.expression = "1 + frame / 10"
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=5, frame_step=2, count=1,
+                                               output='CACHE', filepath=str(tmp_path) + "/")
+    assert f"is not moved by drivers of '{source.name}'" in capfd.readouterr().out
