@@ -236,10 +236,16 @@ KEYFRAMED, NLA, DRIVERS, CONSTRAINTS, PARENT = ("its keyframed transform", "its 
                                                 "its constraints", "its parent")
 
 
+def _transform_drivers(animation) -> bool:
+    """Whether ``animation`` (an object's animation data) drives its transform."""
+    return any(driver.data_path in bridge.TRANSFORM_CHANNELS for driver in animation.drivers)
+
+
 def _animated(obj) -> bool:
     animation = obj.animation_data
     return bool(obj.constraints) or (animation is not None and (
-        animation.action is not None or len(animation.drivers) or any(not t.mute for t in animation.nla_tracks)))
+        animation.action is not None or _transform_drivers(animation)
+        or any(not track.mute for track in animation.nla_tracks)))
 
 
 def object_motion(obj) -> list[str]:
@@ -250,7 +256,7 @@ def object_motion(obj) -> list[str]:
     if animation is not None:
         out += [KEYFRAMED] if animation.action is not None else []
         out += [NLA] if any(not track.mute for track in animation.nla_tracks) else []
-        out += [DRIVERS] if len(animation.drivers) else []
+        out += [DRIVERS] if _transform_drivers(animation) else []
     out += [CONSTRAINTS] if obj.constraints else []
     parent = obj.parent
     while parent is not None and not _animated(parent):
