@@ -31,12 +31,14 @@ def _catmull_rom(p0, p1, p2, p3, s):
     return 0.5 * (2 * p1 + (p2 - p0) * s + (2 * p0 - 5 * p1 + 4 * p2 - p3) * s ** 2 + (3 * p1 - p0 - 3 * p2 + p3) * s ** 3)
 
 
-def _flipped(x, key_a, key_b, triangles):
-    def n(v):
-        return np.cross(v[triangles[:, 1]] - v[triangles[:, 0]], v[triangles[:, 2]] - v[triangles[:, 0]])
+def _normals(v, triangles):
+    return np.cross(v[triangles[:, 1]] - v[triangles[:, 0]], v[triangles[:, 2]] - v[triangles[:, 0]])
 
-    nx = n(x)
-    return int(np.sum((np.einsum("ij,ij->i", nx, n(key_a)) < 0) & (np.einsum("ij,ij->i", nx, n(key_b)) < 0)))
+
+def _flipped(x, key_a, key_b, triangles):
+    nx = _normals(x, triangles)
+    return int(np.sum((np.einsum("ij,ij->i", nx, _normals(key_a, triangles)) < 0)
+                      & (np.einsum("ij,ij->i", nx, _normals(key_b, triangles)) < 0)))
 
 
 def _strip(n=30, width=6, length=2.0):
@@ -527,6 +529,41 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     with pytest.warns(ShapeDifferenceWarning, match="returned the linear blend"):
         x = Interpolator(a, b, tri).pose(1.5)
     np.testing.assert_allclose(x, extrapolation)
+
+
+def test_two_poses_do_not_fall_back_to_a_blend_that_crushes_the_surface(monkeypatch, strip):
+    """Two poses whose fits all keep defects while the linear blend has no flipped or collapsed
+    triangle: a blend that crushes triangles below half their interpolated area where neither key
+    does (a strip rolled up 5.5 rad: half-way the blend cuts the roll's chords, its triangles where
+    the roll turns past 120° shrink to |cos(θ / 2)| of their area) is no safe fallback — the metric
+    fitted near it is returned — while a blend that does not (a 2 rad bend) still is."""
+    import core.inbetween_repair as repair
+
+    flat, tri = strip
+    for angle, crushes in ((5.5, True), (2.0, False)):
+        a, b = _bend(flat, 0.0), _bend(flat, angle)
+        blend = 0.5 * (a + b)
+        blend_area = np.linalg.norm(_normals(blend, tri), axis=1) / np.linalg.norm(_normals(a, tri), axis=1)
+        assert (blend_area.min() < repair.CRUSHED_AREA) == crushes  # the keys keep every area
+
+        def defects(self, x, *args, rows=None):
+            inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
+            out = np.zeros(len(tri), dtype=bool)
+            out[:0 if np.allclose(x, inner_blend) else 3] = True
+            return out if rows is None else out[rows]
+
+        monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "3 triangle(s) flipped")
+        monkeypatch.setattr(repair.Repair, "defects", defects)
+        with pytest.warns(ShapeDifferenceWarning) as caught:
+            x = Interpolator(a, b, tri).pose(0.5)
+        message = str(caught[0].message)
+        if crushes:
+            assert "returned the linear blend" not in message
+            assert _edge_deviation(x, flat, tri).mean() < 0.3 * _edge_deviation(blend, flat, tri).mean()
+        else:
+            assert "returned the linear blend" in message
+            np.testing.assert_allclose(x, blend)
+        monkeypatch.undo()
 
 
 def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
