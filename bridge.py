@@ -81,8 +81,16 @@ def evaluated_positions(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -
         evaluated.to_mesh_clear()
 
 
-class VertexCountChanged(ValueError):
+class FrameReadError(ValueError):
+    """The frames of an object cannot be read as the poses of its mesh (the message says why)."""
+
+
+class VertexCountChanged(FrameReadError):
     """The evaluated mesh does not have the vertex count of the original mesh at some frame."""
+
+
+class NotEvaluated(FrameReadError):
+    """The object is not in the depsgraph (disabled in viewports): its modifiers are not computed."""
 
 
 def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
@@ -101,11 +109,19 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     simulations that are not baked still advance one frame at a time; without it only ``frames``
     are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
     ``set_aside``: modifiers of ``obj`` switched off in the viewport while the frames are read
-    (the generators after the motion, :func:`operators.output.modifiers_set_aside`).
+    (the generators after the motion, :func:`operators.output.modifiers_set_aside`). Raises
+    :class:`NotEvaluated` for an object the depsgraph leaves out (disabled in viewports), before
+    anything is changed, and :class:`VertexCountChanged` for a frame whose mesh has other vertices.
     The scene's current frame and the modifiers are restored afterwards, also when the caller
     stops early.
     """
     scene = context.scene
+    if not obj.evaluated_get(context.evaluated_depsgraph_get()).is_evaluated:
+        raise NotEvaluated(
+            f"'{obj.name}' is disabled in viewports (its own Disable in Viewports, or its "
+            "collection's, or the collection is excluded from the view layer), so Blender does not "
+            "compute its cloth, armature or other modifiers and every frame would read its rest "
+            "mesh. Enable it in viewports (it may stay hidden with the eye icon) and run again")
     wanted = set(frames)
     vertex_count = len(obj.data.vertices)
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
@@ -343,8 +359,8 @@ def copy_object_motion(context, source: bpy.types.Object, obj: bpy.types.Object,
                        speed: float = 1.0, source_times: tuple[float, float] = (0.0, 0.0)) -> None:
     """Give the new object ``obj`` what moves ``source`` as a whole, so that object-space
     positions played on ``obj`` land where they do on ``source``: its parent (parented as an
-    object where the parent deforms ``source``), its transform channels, its constraints (Blender's
-    copy) and its keyframed transform (the same action, shared). ``speed`` ≠ 1: ``obj`` plays
+    object where the parent deforms ``source``), its transform channels, its constraints (copies)
+    and its keyframed transform (the same action, shared). ``speed`` ≠ 1: ``obj`` plays
     ``source``'s time ``start + (frame − start) · speed`` at ``frame`` (a retime; ``source_times``:
     the first and last source time played), its action through an NLA strip scaled by ``1 / speed``; a parent and constraints keep the scene's own
     timing. Not taken over: NLA tracks and drivers."""
@@ -355,10 +371,8 @@ def copy_object_motion(context, source: bpy.types.Object, obj: bpy.types.Object,
         obj.matrix_parent_inverse = source.matrix_parent_inverse.copy()
     for channel in TRANSFORM_CHANNELS:
         setattr(obj, channel, getattr(source, channel))
-    if source.constraints:
-        with context.temp_override(object=source, active_object=source, selected_objects=[obj],
-                                   selected_editable_objects=[obj]):
-            bpy.ops.object.constraints_copy()
+    for constraint in source.constraints:  # RNA's copy: an operator refuses a source hidden in viewports
+        obj.constraints.copy(constraint)
     animation = source.animation_data
     if animation is not None and animation.action is not None:
         data = obj.animation_data_create()

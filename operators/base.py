@@ -49,7 +49,7 @@ def name_poses(message: str, pose_names) -> str:
 
 def reported_error(error: BaseException, pose_names=()) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
-    if isinstance(error, (InputError, bridge.VertexCountChanged)):
+    if isinstance(error, (InputError, bridge.FrameReadError)):
         return str(error)
     if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
             "scipy", "threadpoolctl"):

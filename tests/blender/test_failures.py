@@ -87,6 +87,43 @@ def test_too_few_frames(bpy_empty, extension):
                          "give 0 frames", frame_start=5, frame_end=2)
 
 
+@pytest.mark.parametrize("disabled", ["object", "collection", "excluded"])
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime", "frames_to_shape_keys"])
+def test_an_object_disabled_in_viewports_is_refused(bpy_empty, extension, disabled, operator):
+    """Blender does not evaluate an object disabled in viewports (or in a disabled or excluded
+    collection): every frame would read its rest mesh, a still cache with no error. Refused, nothing
+    made or changed; hidden with the eye icon it is evaluated and runs."""
+    strip = armature_scene()
+    if disabled == "object":
+        strip.hide_viewport = True
+    else:
+        collection = bpy.data.collections.new("Rigged")
+        bpy.context.scene.collection.children.link(collection)
+        for owner in strip.users_collection:
+            owner.objects.unlink(strip)
+        collection.objects.link(strip)
+        if disabled == "collection":
+            collection.hide_viewport = True
+        else:
+            bpy.context.view_layer.layer_collection.children["Rigged"].exclude = True
+    names = set(bpy.data.objects.keys())
+    with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip]):
+        fails_without_change(extension.bridge, strip, getattr(bpy.ops.shape_differences, operator),
+                             "is disabled in viewports", frame_start=1, frame_end=9, frame_step=4,
+                             output='SHAPE_KEYS')
+    assert set(bpy.data.objects.keys()) == names
+
+
+def test_an_object_hidden_with_the_eye_icon_runs(bpy_empty, extension):
+    strip = armature_scene()
+    strip.hide_set(True)
+    with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip]):
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
+                                                       output='SHAPE_KEYS')
+    key = strip.data.shape_keys.key_blocks["Frame 9"]
+    assert np.abs(extension.bridge.stored_key_positions(key) - extension.bridge.vertex_positions(strip.data)).max() > 0.1
+
+
 @pytest.mark.parametrize("operator", ["inbetween", "inbetween_frames"])
 def test_count_zero_is_an_error(bpy_empty, extension, operator):
     obj = posed_grid(extension.bridge, 5)
