@@ -320,7 +320,8 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
     is at frame ``start``, one every ``sampling`` frames, followed by copies of ``source``'s
     ``modifiers`` (the generators after its motion: a Subdivision, a Solidify).
 
-    It is linked to the collections of ``source`` and moves as ``source`` does as a whole
+    It is linked to the collections of ``source`` (the scene's where those are linked from a
+    library or overridden) and moves as ``source`` does as a whole
     (:func:`copy_object_motion`; the cache holds object-space positions; ``speed``, ``source_end``:
     a retime that plays ``source``'s frames ``start`` … ``source_end``); ``source`` stays the
     active, selected object. If anything fails, the new object and mesh are removed again.
@@ -332,7 +333,10 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         obj = bpy.data.objects.new(name, mesh)
         if mesh.shape_keys is not None:
             obj.shape_key_clear()
-        for collection in source.users_collection or (context.scene.collection,):
+        # the source's collections that take new objects (not linked from a library, not
+        # overridden), else the scene's own
+        editable = [c for c in source.users_collection if c.library is None and c.override_library is None]
+        for collection in editable or (context.scene.collection,):
             collection.objects.link(obj)
         copy_object_motion(context, source, obj, start, speed, (start, start if source_end is None else source_end))
         modifier = obj.modifiers.new("Mesh Cache", 'MESH_CACHE')

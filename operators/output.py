@@ -117,13 +117,24 @@ class PoseWriter:
     def check_output(self, source) -> None:
         """Refuse what the writing step would fail on or harm (call it in the validation step,
         before any work): shape keys on an object with an unbaked simulation (they would empty
-        its cache), a cache file relative to a .blend that was never saved."""
+        its cache) or on a mesh linked from a library (or overridden: they would not be saved),
+        a cache file relative to a .blend that was never saved."""
         if self.output != 'SHAPE_KEYS':
             if self.filepath.startswith("//") and not bpy.data.filepath:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
             return
+        linked = next((data for data in (source.data, source.data.shape_keys) if data is not None and (
+            data.library is not None or data.override_library is not None)), None)
+        if linked is not None:
+            library = linked.library or linked.override_library.reference.library
+            origin = f"linked from '{library.filepath}'" if library is not None else "a library override"
+            raise InputError(
+                f"The mesh of '{source.name}' is {origin}: shape keys added to it are not saved with "
+                "this file (they are gone when it is opened again). Choose Output › Point Cache (a "
+                "new object), or make the mesh local first (Object › Relations › Make Local › "
+                "Selected Objects and Data)")
         unbaked = unbaked_simulations(source)
         if unbaked:
             raise InputError(

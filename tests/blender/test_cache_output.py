@@ -349,3 +349,53 @@ def test_drivers_on_the_source_transform_are_named_as_left_out(bpy_empty, extens
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=5, frame_step=2, count=1,
                                                output='CACHE', filepath=str(tmp_path) + "/")
     assert f"is not moved by drivers of '{source.name}'" in capfd.readouterr().out
+
+
+def _linked_sheet(bridge, tmp_path, override: bool):
+    """The posed grid saved in a library .blend inside a collection "Chars", linked into a fresh
+    file (the collection linked into the scene, or overridden through a collection instance)."""
+    from blender_scenes import posed_grid
+    collection = bpy.data.collections.new("Chars")
+    bpy.context.scene.collection.children.link(collection)
+    sheet = posed_grid(bridge, 5)
+    for owner in sheet.users_collection:
+        owner.objects.unlink(sheet)
+    collection.objects.link(sheet)
+    library = tmp_path / "library.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(library))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    with bpy.data.libraries.load(str(library), link=True) as (_source, linked):
+        linked.collections = ["Chars"]
+    chars = linked.collections[0]
+    if override:
+        instance = bpy.data.objects.new("Chars instance", None)
+        instance.instance_type, instance.instance_collection = 'COLLECTION', chars
+        bpy.context.scene.collection.objects.link(instance)
+        chars.override_hierarchy_create(bpy.context.scene, bpy.context.view_layer, reference=instance,
+                                        do_fully_editable=True)
+        return next(obj for obj in bpy.context.scene.objects if obj.type == 'MESH')
+    bpy.context.scene.collection.children.link(chars)
+    return chars.objects[0]
+
+
+@pytest.mark.parametrize("override", [False, True], ids=["linked", "overridden"])
+def test_a_linked_source_gets_its_cache_object_in_the_scene_and_no_shape_keys(bpy_empty, extension, core,
+                                                                              override, tmp_path):
+    """A character linked from a library (or overridden): its collection takes no new object, so
+    the cache object goes to the scene's collection and is saved with the file; shape keys on its
+    mesh would not be saved, so they are refused."""
+    sheet = _linked_sheet(extension.bridge, tmp_path, override)
+    names = set(bpy.data.objects.keys())
+    with bpy.context.temp_override(active_object=sheet, object=sheet, selected_objects=[sheet]):
+        with pytest.raises(RuntimeError, match="shape keys added to it are not saved"):
+            bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1, output='SHAPE_KEYS')
+    assert [key.name for key in sheet.data.shape_keys.key_blocks] == ["Basis", "Curl", "Bend"]
+    with bpy.context.temp_override(active_object=sheet, object=sheet, selected_objects=[sheet]):
+        bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1, output='CACHE',
+                                            filepath=str(tmp_path) + "/")
+    obj = new_object(names)
+    assert [c.name for c in obj.users_collection] == [bpy.context.scene.collection.name]
+    name = obj.name
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
+    assert name in bpy.context.scene.objects
