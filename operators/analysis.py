@@ -10,6 +10,7 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
+from .output import require_local
 from .base import (GeneratorOperator, InputError, default_pose_key, key_blocks_of, resolve_key,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
@@ -98,6 +99,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
 
     def run(self, context):
         obj = context.active_object
+        require_local(obj, obj, "the shape space stored on it is")
         triangles = surface_triangles(obj)
         self.check_sizes(len(obj.data.vertices))
         frames = None
@@ -222,6 +224,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
     def run(self, context):
         obj = context.active_object
         mesh = obj.data
+        require_local(obj, mesh, "maps written to it as attributes are")
         triangles = surface_triangles(obj)
         self.check_sizes(len(mesh.vertices))
         key = mesh.shape_keys

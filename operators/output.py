@@ -102,6 +102,22 @@ def frames_depend_on_earlier(scene) -> bool:
                for obj in scene.objects)
 
 
+def require_local(obj, data, what: str, advice: str = "Make") -> None:
+    """Raise :class:`InputError` if ``data`` (``obj`` itself or its mesh) is linked from a library
+    or a library override (its shape keys too, for a mesh): ``what`` (e.g. "shape keys added to it
+    are") would not be saved with the file — gone when it is opened again, with no warning."""
+    owned = [data] + ([data.shape_keys] if getattr(data, "shape_keys", None) is not None else [])
+    linked = next((item for item in owned if item.library is not None or item.override_library is not None), None)
+    if linked is None:
+        return
+    library = linked.library or linked.override_library.reference.library
+    origin = f"linked from '{library.filepath}'" if library is not None else "a library override"
+    subject = f"'{obj.name}'" if data == obj else f"The mesh of '{obj.name}'"
+    raise InputError(
+        f"{subject} is {origin}: {what} not saved with this file (gone when it is opened again). "
+        f"{advice} it local first (Object › Relations › Make Local › Selected Objects and Data)")
+
+
 def unique_file(path: Path) -> Path:
     """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists."""
     candidate, number = path, 0
@@ -125,16 +141,8 @@ class PoseWriter:
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
             return
-        linked = next((data for data in (source.data, source.data.shape_keys) if data is not None and (
-            data.library is not None or data.override_library is not None)), None)
-        if linked is not None:
-            library = linked.library or linked.override_library.reference.library
-            origin = f"linked from '{library.filepath}'" if library is not None else "a library override"
-            raise InputError(
-                f"The mesh of '{source.name}' is {origin}: shape keys added to it are not saved with "
-                "this file (they are gone when it is opened again). Choose Output › Point Cache (a "
-                "new object), or make the mesh local first (Object › Relations › Make Local › "
-                "Selected Objects and Data)")
+        require_local(source, source.data, "shape keys added to it are",
+                      "Choose Output › Point Cache (a new object), or make")
         unbaked = unbaked_simulations(source)
         if unbaked:
             raise InputError(

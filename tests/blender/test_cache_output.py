@@ -399,3 +399,17 @@ def test_a_linked_source_gets_its_cache_object_in_the_scene_and_no_shape_keys(bp
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
     assert name in bpy.context.scene.objects
+
+
+@pytest.mark.parametrize("override", [False, True], ids=["linked", "overridden"])
+@pytest.mark.parametrize("operator, match", [("distortion_maps", "maps written to it as attributes are not saved"),
+                                             ("shape_space", "the shape space stored on it is not saved")])
+def test_analysis_of_a_linked_source_is_refused(bpy_empty, extension, core, override, operator, match, tmp_path):
+    """Distortion maps (attributes on the mesh) and the shape space (a property of the object) of
+    a linked or overridden character would not be saved with the file: refused, nothing written."""
+    sheet = _linked_sheet(extension.bridge, tmp_path, override)
+    attributes = set(sheet.data.attributes.keys())
+    with bpy.context.temp_override(active_object=sheet, object=sheet, selected_objects=[sheet]):
+        with pytest.raises(RuntimeError, match=match):
+            getattr(bpy.ops.shape_differences, operator)()
+    assert set(sheet.data.attributes.keys()) == attributes and "shape_space" not in sheet
