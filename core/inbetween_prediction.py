@@ -14,7 +14,8 @@ that gives the pose the guide's velocity there (degree 6, :data:`KEY_SLOPE_SOLVE
 consecutive gaps meet at a key with one velocity, and so it does with the middle alone (degree 4,
 batches of three: :data:`MIDDLE_SOLVED_BATCH`). A rigid motion has ``D = 0`` and is reproduced
 exactly at every factor; a gap where every component moves rigidly (a cloth in free flight, one
-lying still) is ``M(s) V(s)`` at every factor, without a solve. A predicted pose with a flipped or collapsed triangle is
+lying still) is ``M(s) V(s)`` at every factor, without a solve, and one whose keys barely differ
+(:data:`STILL_MOVE`) the linear blend of its keys. A predicted pose with a flipped or collapsed triangle is
 repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
 numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
 14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 4, 8 and 16 frames apart,
@@ -105,6 +106,20 @@ ROUGH_ROTATION_DEVIATION = 3 * np.pi / 8
 #: 50k sheet over a cube edge, keys 16 frames apart: 0.37 → 0.25 s per in-between, flipped
 #: triangles unchanged (113; keys 8 apart: 10); 10k drape on a sphere, keys 8 apart: 1 → 2.
 REDUCED_ROUNDS = 3
+#: A sequence's gap whose keys' vertices move by less than this many mean edge lengths (RMS over
+#: each piece's vertices), and not rigidly to within :data:`STILL_RIGIDITY`, is the linear blend of
+#: its keys: a chord across a turn of angle θ is short of the arc by 1 − cos(θ/2) ≈ θ²/8, which is
+#: the fit's own tolerance (:data:`~core.inbetween_fit.METRIC_TOLERANCE`, a mean relative deviation)
+#: at θ = √(8 · 0.1 %) ≈ 0.089, so the fit has no metric to add to such a gap and what it adds is
+#: the splines' velocity borrowed from the gaps around it. A cloth lying over a rail, nearly still
+#: after frame 16 (keys 0.004–0.12 mean edges apart): 1.074 / 1.037 / 2.059 → 0.897 / 1.000 / 0.804 ×
+#: the blend's RMS at g = 4 / 8 / 16 (Catmull–Rom 1.000 / 1.000 / 1.069 → 0.835 / 0.964 / 0.417 ×);
+#: a flat sheet settling after its landing 0.660 / 0.975 → 0.790 / 0.823 × at g = 4 / 8 (its decay is
+#: smooth: the cubic follows it); the other 99 of the 105 cells of 35 cloths unchanged.
+STILL_MOVE = float(np.sqrt(8.0 * METRIC_TOLERANCE))
+#: ... unless every piece moves rigidly to within this fraction of its diagonal (the rigid-motion
+#: guarantee's 1e-6): a rigid motion, however small, stays the rigid motion at every factor.
+STILL_RIGIDITY = 1e-6
 #: In-betweens of meshes with at least this many vertices are solved and predicted in threads
 #: (:func:`core.concurrency.concurrently`); on smaller meshes the arrays are too short for NumPy's
 #: released global lock to outweigh handing the work over (1,024-vertex drape, keys 4 frames
@@ -117,6 +132,9 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     keys included) of ``gap`` (a ``core.inbetween_solver._Gap``). The in-betweens are solved,
     and predicted, concurrently (:func:`core.concurrency.concurrently`)."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
+    if interior and not gap.anchored and _nearly_still(gap):
+        blend = {s: gap.finished(((1.0 - s) * gap.base.vertices + s * gap.next.vertices, None), s) for s in interior}
+        return _solved(gap, factors, blend)
     if interior and not gap.anchored and (gap.rigidity > 0.0).all():
         moved = _moved_rigidly(gap, interior)
         if moved is not None:
@@ -146,6 +164,16 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     predicted = [s for s in interior if s not in solved]
     solved.update(zip(predicted, _per_factor(gap, lambda s: _predicted(gap, s, correction, rings), predicted)))
     return _solved(gap, factors, solved)
+
+
+def _nearly_still(gap) -> bool:
+    """Whether the keys of ``gap`` differ by less than :data:`STILL_MOVE` mean edge lengths (RMS
+    over each piece's vertices) by a motion that is not rigid to within :data:`STILL_RIGIDITY`."""
+    squared = np.sum((gap.next.vertices - gap.base.vertices) ** 2, axis=1)
+    limit = (STILL_MOVE * gap.mean_edge) ** 2
+    pieces = gap.topo.component_rows or [slice(None)]
+    return all(np.mean(squared[rows]) < limit for rows in pieces) \
+        and max(gap.relatives[2].nonrigidity) > STILL_RIGIDITY
 
 
 def _moved_rigidly(gap, factors) -> dict | None:

@@ -130,6 +130,52 @@ def test_rigid_sequence_is_reproduced_at_every_time():
             np.testing.assert_allclose(pose, _screw(a, step, translation, gap + factor), atol=1e-6)
 
 
+def test_a_tiny_rigid_turn_in_a_sequence_stays_the_rigid_turn():
+    """Keys of the head turning by 0.2° per key (every vertex moves far less than the still gaps'
+    limit, core.inbetween_prediction.STILL_MOVE mean edges): a rigid motion, however small, is not
+    taken for a nearly still cloth and blended — every in-between is the rigid turn."""
+    import core.inbetween_prediction as prediction
+
+    a, tri = _head_with_eyes()
+    step = Rotation.from_rotvec(np.radians(0.2) * np.array([0.0, 0.6, 0.8])).as_matrix()
+    keys = [a]
+    for _ in range(3):
+        keys.append(keys[-1] @ step.T)
+    e = a[tri[:, 1]] - a[tri[:, 0]]
+    assert np.linalg.norm(keys[1] - a, axis=1).max() < 0.5 * prediction.STILL_MOVE * np.linalg.norm(e, axis=1).mean()
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(3):
+        for factor, pose in zip((0.25, 0.5, 0.75), seq.poses(gap, [0.25, 0.5, 0.75])):
+            np.testing.assert_allclose(pose, _screw(a, step, np.zeros(3), gap + factor), atol=1e-9)
+
+
+def test_gaps_whose_keys_barely_differ_are_the_linear_blend():
+    """A sheet that falls and then jitters in place (keys 0.02 mean edges apart, not rigidly, as a
+    cloth settling on a rail): the settled gaps' in-betweens are the linear blend of their keys —
+    the fit has no metric to add to a motion that small, and the splines would lend those gaps the
+    velocity of the fall — while the falling gaps are not."""
+    import core.inbetween_prediction as prediction
+
+    flat, tri = grid(12)
+    mean_edge = np.linalg.norm(flat[tri[:, 1]] - flat[tri[:, 0]], axis=1).mean()
+    rng = np.random.default_rng(3)
+    keys = [flat + [0.0, 0.0, 1.0 - h] for h in (0.0, 0.3, 0.8)]
+    keys[2] = meshes.drape(keys[2], 0.2)
+    for _ in range(3):
+        keys.append(keys[2] + 0.02 * mean_edge * rng.standard_normal(flat.shape))
+    moves = [np.sqrt(np.mean(np.sum((b - a) ** 2, axis=1))) / mean_edge for a, b in zip(keys, keys[1:])]
+    assert min(moves[:2]) > 1.0 and max(moves[3:]) < prediction.STILL_MOVE
+    seq = SequenceInterpolator(keys, tri)
+    factors = [0.25, 0.5, 0.75]
+    for gap in range(len(keys) - 1):
+        blend = [(1 - s) * keys[gap] + s * keys[gap + 1] for s in factors]
+        poses = seq.poses(gap, factors)
+        if gap >= 3:
+            np.testing.assert_allclose(poses, blend, atol=1e-12)
+        elif gap < 2:
+            assert np.abs(np.array(poses) - blend).max() > 1e-3
+
+
 def test_a_swing_that_reverses_at_a_key_keeps_its_turning_direction():
     """Keys of a rigid mesh swinging about a pivot, the turn reversing at key 1 (angles 0.3, 0.5,
     0.4, 0.1 rad): the in-betweens of gap 1 are the rigid turns by the cubic Hermite spline of
