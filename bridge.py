@@ -338,7 +338,7 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         editable = [c for c in source.users_collection if c.library is None and c.override_library is None]
         for collection in editable or (context.scene.collection,):
             collection.objects.link(obj)
-        copy_object_motion(context, source, obj, start, speed, (start, start if source_end is None else source_end))
+        copy_object_motion(source, obj, start, speed, source_end)
         modifier = obj.modifiers.new("Mesh Cache", 'MESH_CACHE')
         modifier.cache_format = 'PC2'
         modifier.filepath = filepath
@@ -359,15 +359,15 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         raise
 
 
-def copy_object_motion(context, source: bpy.types.Object, obj: bpy.types.Object, start: float = 0.0,
-                       speed: float = 1.0, source_times: tuple[float, float] = (0.0, 0.0)) -> None:
+def copy_object_motion(source: bpy.types.Object, obj: bpy.types.Object, start: float = 0.0,
+                       speed: float = 1.0, source_end: float | None = None) -> None:
     """Give the new object ``obj`` what moves ``source`` as a whole, so that object-space
     positions played on ``obj`` land where they do on ``source``: its parent (parented as an
     object where the parent deforms ``source``), its transform channels, its constraints (copies)
     and its keyframed transform (the same action, shared). ``speed`` ≠ 1: ``obj`` plays
-    ``source``'s time ``start + (frame − start) · speed`` at ``frame`` (a retime; ``source_times``:
-    the first and last source time played), its action through an NLA strip scaled by ``1 / speed``; a parent and constraints keep the scene's own
-    timing. Not taken over: NLA tracks and drivers."""
+    ``source``'s time ``start + (frame − start) · speed`` at ``frame`` up to ``source_end`` (a
+    retime), its action through an NLA strip scaled by ``1 / speed``; a parent and constraints
+    keep the scene's own timing. Not taken over: NLA tracks and drivers."""
     if source.parent is not None:
         obj.parent = source.parent
         obj.parent_type = 'OBJECT' if source.parent_type in DEFORMING_PARENT_TYPES else source.parent_type
@@ -388,7 +388,7 @@ def copy_object_motion(context, source: bpy.types.Object, obj: bpy.types.Object,
             strip = data.nla_tracks.new().strips.new(f"{source.name} at {speed:g}x", int(start), animation.action)
             if hasattr(animation, "action_slot"):
                 strip.action_slot = animation.action_slot
-            first, last = source_times
+            first, last = start, start if source_end is None else source_end
             for _ in range(2):  # each setter clamps to the other end: twice reaches any range
                 strip.action_frame_start, strip.action_frame_end = first, max(last, first + 1.0)
             strip.frame_start_ui = start  # moves the strip, keeping its length

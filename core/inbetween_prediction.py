@@ -15,8 +15,8 @@ consecutive gaps meet at a key with one velocity, and so it does with the middle
 batches of three: :data:`MIDDLE_SOLVED_BATCH`). A rigid motion has ``D = 0`` and is reproduced
 exactly at every factor; a gap where every component moves rigidly (a cloth in free flight, one
 lying still) is ``M(s) V(s)`` at every factor, without a solve, and one whose keys barely differ
-(:data:`STILL_MOVE`) the linear blend of its keys. A predicted pose with a flipped or collapsed triangle is
-repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
+(:data:`STILL_MOVE`) the linear blend of its keys. A predicted pose with a flipped or collapsed
+triangle is repaired where its defects are, as a solved pose is (:meth:`core.inbetween_solver._Gap.repaired`;
 numbers in docs/inbetweens.md). Measured (docs/inbetweens.md): on the
 14k tablecloth, the 1k drape and the 576-vertex falling sheet with keys 4, 8 and 16 frames apart,
 median RMS within 1 % and mean edge deviation within 0.05 point of solving every in-between.
@@ -115,7 +115,7 @@ REDUCED_ROUNDS = 3
 #: after frame 16 (keys 0.004–0.12 mean edges apart): 1.074 / 1.037 / 2.059 → 0.897 / 1.000 / 0.804 ×
 #: the blend's RMS at g = 4 / 8 / 16 (Catmull–Rom 1.000 / 1.000 / 1.069 → 0.835 / 0.964 / 0.417 ×);
 #: a flat sheet settling after its landing 0.660 / 0.975 → 0.790 / 0.823 × at g = 4 / 8 (its decay is
-#: smooth: the cubic follows it); the other 99 of the 105 cells of 35 cloths unchanged.
+#: smooth: the cubic follows it); the other 100 of the 105 cells of 35 cloths unchanged.
 STILL_MOVE = float(np.sqrt(8.0 * METRIC_TOLERANCE))
 #: ... unless every piece moves rigidly to within this fraction of its diagonal (the rigid-motion
 #: guarantee's 1e-6): a rigid motion, however small, stays the rigid motion at every factor.

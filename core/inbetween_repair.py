@@ -246,7 +246,7 @@ class Repair:
             y = gap.fit(blend.copy(), stretch, None, blend, s, motion, REPAIR_ITERATIONS, system=system)
             if self.problem(y, s, None, stretch) is None:
                 return y, f"{problem}; used the interpolated metric fitted near the linear blend instead"
-            if not (folds | self.crushed(blend, s, stretch)).any():
+            if not (folds | self.crushed(blend, stretch)).any():
                 return blend, f"{problem}; the metric fit near the linear blend failed too, returned the linear blend"
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
@@ -257,9 +257,9 @@ class Repair:
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
         return best[1], self.kept_message(problem, best[0])
 
-    def crushed(self, x: np.ndarray, s: float, stretch: np.ndarray) -> np.ndarray:
+    def crushed(self, x: np.ndarray, stretch: np.ndarray) -> np.ndarray:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the
-        interpolated area (``stretch``: packed (m, 3) at factor ``s``) where neither key's is."""
+        interpolated area (``stretch``: packed (m, 3) at the pose's factor) where neither key's is."""
         gap = self.gap
         edges = gap.edges_of(x)
         cross = coordinate_cross(edges[:, 0], -edges[:, 2])

@@ -205,9 +205,10 @@ class PoseWriter:
             new_keys = [bridge.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
             added = bridge.add_shape_keys(source, new_keys, keyframes=frames if keyframe else None)
-            if speed != 1.0 and object_motion(source):
+            motion = object_motion(source) if speed != 1.0 else []
+            if motion:
                 self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "
-                                         f"{', '.join(object_motion(source))}, at its own speed while the new "
+                                         f"{', '.join(motion)}, at its own speed while the new "
                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
                                          "object) to retime its keyframed transform too")
             return added_summary(added)
