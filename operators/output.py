@@ -132,8 +132,8 @@ class PoseWriter:
 
     def check_output(self, source) -> None:
         """Refuse what the writing step would fail on or harm (call it in the validation step,
-        before any work): shape keys on an object with an unbaked simulation (they would empty
-        its cache) or on a mesh linked from a library (or overridden: they would not be saved),
+        before any work): shape keys on an object with an unbaked simulation, or whose mesh another
+        object with one shares (they would empty its cache), or on a mesh linked from a library (or overridden: they would not be saved),
         a cache file relative to a .blend that was never saved."""
         if self.output != 'SHAPE_KEYS':
             if self.filepath.startswith("//") and not bpy.data.filepath:
@@ -150,6 +150,16 @@ class PoseWriter:
                 f"{', '.join(repr(name) for name in unbaked)} simulation: choose Output › Point Cache "
                 "(a new object; this one stays as it is), or bake the simulation first "
                 "(Physics › Cache › Bake)")
+        # the mesh's other users (linked duplicates) lose their unbaked caches as well
+        for twin in (obj for obj in bpy.data.objects if obj.data == source.data and obj != source):
+            unbaked = unbaked_simulations(twin)
+            if unbaked:
+                raise InputError(
+                    f"'{source.name}' shares its mesh with '{twin.name}', and shape keys added to that "
+                    f"mesh would empty the unbaked cache of the {', '.join(repr(name) for name in unbaked)} "
+                    f"simulation of '{twin.name}': choose Output › Point Cache (a new object), bake "
+                    "that simulation first (Physics › Cache › Bake), or give this object its own mesh "
+                    "(Object › Relations › Make Single User › Object & Data)")
 
     def check_captured_output(self, source) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to

@@ -175,6 +175,30 @@ def test_unbaked_cloth_cache_is_never_cleared(bpy_empty, extension, core, tmp_pa
     assert_source_unchanged(bridge, source, before, frames=range(1, 10))
 
 
+def test_an_unbaked_cloth_sharing_the_mesh_keeps_its_cache(bpy_empty, extension, core):
+    """Shape keys added to a linked duplicate's mesh (Alt+D: one mesh, two objects) would empty the
+    unbaked cache of the other object's cloth: refused, the cache kept."""
+    source = pinned_cloth_scene(frames=9)
+    cache = source.modifiers["Cloth"].point_cache
+    cache_info = cache.info
+    twin = bpy.data.objects.new("Twin", source.data)
+    bpy.context.scene.collection.objects.link(twin)
+    twin.shape_key_add(name="Basis")
+    bend = twin.shape_key_add(name="Bend")
+    co = extension.bridge.vertex_positions(twin.data)
+    co[:, 2] += 0.3 * co[:, 0] ** 2
+    bend.data.foreach_set("co", co.astype(np.float32).ravel())
+    bpy.context.view_layer.update()
+    assert cache.info == cache_info and not cache.is_outdated
+    with bpy.context.temp_override(active_object=twin, object=twin, selected_objects=[twin]):
+        with pytest.raises(RuntimeError, match=f"shares its mesh with '{source.name}'"):
+            bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Bend", count=1, output='SHAPE_KEYS')
+    bpy.context.view_layer.update()
+    bpy.context.scene.frame_set(5)
+    assert cache.info == cache_info and not cache.is_outdated
+    assert [key.name for key in twin.data.shape_keys.key_blocks] == ["Basis", "Bend"]
+
+
 @pytest.mark.parametrize("operator, properties, expected", [
     ("inbetween", dict(key_a="Curl", key_b="Bend", count=1),
      lambda core, k, t: [k["Curl"], core.Interpolator(k["Curl"], k["Bend"], t).pose(0.5), k["Bend"]]),
