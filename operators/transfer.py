@@ -18,8 +18,10 @@ from .output import PoseWriter, modifiers_set_aside
 DEFAULT_K_M, DEFAULT_K_N = 100, 200
 
 
-def _world(obj, positions):
-    matrix = np.array(obj.matrix_world, dtype=np.float64)
+def _world(obj, positions, matrix=None):
+    """``positions`` of ``obj`` in world space, through ``matrix`` (4 × 4; default: its world
+    matrix now)."""
+    matrix = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)
     return positions @ matrix[:3, :3].T + matrix[:3, 3]
 
 
@@ -140,21 +142,25 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         return k_m, k_n
 
     def _source_poses(self, context, source):
-        """(names, frames, rest positions, poses), in object space of the source."""
+        """(names, frames, rest positions, poses), in object space of the source, and the source's
+        world matrix with each pose (frames: at that frame, so that a source moved as a whole by
+        its keyframes, constraints or parent is transferred with that motion)."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
             rest = bridge.shape_key_positions(key_blocks[0], source)
             names = [kb.name for kb in key_blocks[1:]]
             return (names, [float(i) for i in range(1, len(names) + 1)], rest,
-                    [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]])
+                    [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]],
+                    [source.matrix_world.copy()] * len(names))
         frames = self.frames(context)
-        poses = []
+        poses, matrices = [], []
         with closing(bridge.frame_positions(context, source, frames,
                                             set_aside=modifiers_set_aside(context, source))) as reader:
             for _frame, positions in reader:
                 poses.append(positions)
+                matrices.append(source.matrix_world.copy())
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
-                poses)
+                poses, matrices)
 
     def run(self, context):
         obj = context.active_object
@@ -170,7 +176,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             correspondence = read_correspondence(obj, self.map_attribute, n_source)
         elif self.matching == 'FILE':
             correspondence = read_map_files(obj, source, self.map_file, self.source_map_file, self.one_based)
-        names, frames, rest, poses = self._source_poses(context, source)
+        names, frames, rest, poses, matrices = self._source_poses(context, source)
         if not poses:
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
@@ -183,7 +189,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"])
         rebuilt = []
         for i, pose in enumerate(poses):
-            world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose, _world(source, pose))
+            world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose,
+                                            _world(source, pose, matrices[i]))
             rebuilt.append(_local(obj, world))
         self.summary = self.write_poses(
             context, obj, rebuilt, names=[f"{source.name} {name}" for name in names], frames=frames,

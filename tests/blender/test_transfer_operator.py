@@ -133,3 +133,32 @@ def test_transfer_to_a_point_cache(pair, tmp_path):
     assert target.data.shape_keys is None  # the active mesh is left as it was
     cached = [o for o in bpy.data.objects if o.name.startswith("Sheet Transfer Source")]
     assert len(cached) == 1 and any(m.type == 'MESH_CACHE' for m in cached[0].modifiers)
+
+
+def test_transfer_frames_of_a_source_moved_as_a_whole(bpy_empty, extension, core):
+    """Frames of a strip bent by its armature and carried by the armature object (its parent, which
+    rises 0.5): each frame is taken where the source is at that frame, so the rebuilt frames on a
+    remeshed strip follow the source in world space (before, every frame went through the source's
+    placement at the current frame: 0.5 units off at the last)."""
+    from blender_scenes import armature_scene
+    bridge = extension.bridge
+    source = armature_scene(frames=9, parented=True)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=13, y_subdivisions=4, size=2.0)
+    target = bpy.context.active_object
+    target.name = "Remeshed"
+    target.scale.y = 0.25
+    bpy.ops.object.transform_apply(scale=True)
+    bpy.context.scene.frame_set(9)
+    world = _world_of(source, bridge.evaluated_positions(source, bpy.context.evaluated_depsgraph_get()))
+    bpy.context.scene.frame_set(1)
+    source.select_set(True)
+    target.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=1, frame_end=9, frame_step=8, k_m=16, k_n=32)
+    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame 9"])
+    assert hausdorff(_world_of(target, rebuilt), world) < 0.1  # the rig rose 0.5
+
+
+def _world_of(obj, positions):
+    matrix = np.array(obj.matrix_world)
+    return positions @ matrix[:3, :3].T + matrix[:3, 3]
