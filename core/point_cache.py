@@ -155,13 +155,21 @@ def read_mdd(path) -> PointCache:
 
 
 def read_point_cache(path) -> PointCache:
-    """Read a PC2 or MDD file, told apart by the PC2 signature (MDD has none)."""
+    """Read a PC2 or MDD file, told apart by the PC2 signature (MDD has none); a file named
+    ``.pc2`` without the signature, or an empty one, raises :class:`MeshError`."""
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
     with open(path, "rb") as stream:
         signature = stream.read(11)
-    return read_pc2(path) if signature == PC2_MAGIC[:11] else read_mdd(path)
+    if not signature:
+        raise MeshError(f"'{path}' is empty: export the cache again.")
+    if signature == PC2_MAGIC[:11]:
+        return read_pc2(path)
+    if path.suffix.lower() == ".pc2":  # named PC2 but not one: say so rather than read it as MDD
+        raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2'): "
+                        "export it again as PC2, or give an MDD file its .mdd name.")
+    return read_mdd(path)
 
 
 def merge_pc2(parts, path) -> Path:

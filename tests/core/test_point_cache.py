@@ -65,11 +65,11 @@ def test_merge_rejects_gaps_and_mismatches(tmp_path):
 
 
 @pytest.mark.parametrize("damage, match", [
-    (lambda raw: b"NOTACACHE!!!" + raw[12:], "is not a complete MDD|invalid MDD"),
+    (lambda raw: b"NOTACACHE!!!" + raw[12:], "is not a PC2 point cache .* give an MDD file its .mdd name"),
     (lambda raw: raw[:-4], "not a complete PC2 file"),
     (lambda raw: raw[:20], "is not a PC2|invalid PC2|not a complete"),
     (lambda raw: raw[:12] + struct.pack("<i", 2) + raw[16:], "invalid PC2 header"),
-    (lambda raw: b"", "not an MDD"),
+    (lambda raw: b"", "is empty"),
 ])
 def test_bad_files(tmp_path, damage, match):
     good = write_pc2(tmp_path / "good.pc2", samples()).read_bytes()
