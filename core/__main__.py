@@ -90,6 +90,15 @@ def _retime(args) -> int:
             "export the OBJ from the same mesh, without modifiers that change its vertices."
         )
     plan = plan_retime(cache.n_samples, args.step, args.speed)
+    read = np.asarray(sorted(set(plan.samples_read) | {i for i in (1, 2) if i < cache.n_samples}), dtype=int)  # and the start's
+    broken = read[~np.isfinite(cache.positions[read]).all(axis=(1, 2))]
+    if broken.size:  # said here in the cache's own samples and frames, not as a key pose's index
+        first = int(broken[0])
+        raise ShapeDifferenceError(
+            f"'{args.cache}' sample {first + 1} (frame {cache.start + first * cache.sampling:g}) has "
+            f"non-finite coordinates (NaN or inf; {broken.size} of the samples the retime reads): the "
+            "simulation exploded there. Export the cache again without those frames, or pick a --step "
+            "whose keys avoid them.")
     if args.chunk is not None:
         gaps = plan.chunk(*args.chunk)
     elif args.gaps is not None:

@@ -175,3 +175,24 @@ def test_command_errors_are_one_line(tmp_path):
                                      "points: export the OBJ from the same mesh, without modifiers that change "
                                      "its vertices.")
     assert not (tmp_path / "out.pc2").exists()
+
+
+def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
+    """A cache with NaN in a sample the retime reads (a simulation that exploded): the error names
+    that sample and its frame in the cache's own numbering, before any work; NaN in a sample the
+    retime does not read (between keys) does not stop it."""
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    raw = write_pc2(tmp_path / "good.pc2", source, start=10.0).read_bytes()
+    header, data = raw[:32], np.frombuffer(raw[32:], dtype="<f4").reshape(source.shape).copy()
+    for sample, expected in ((4, "sample 5 (frame 14) has non-finite"), (6, None)):
+        broken = data.copy()
+        broken[sample, 3] = np.nan
+        (tmp_path / "bad.pc2").write_bytes(header + broken.tobytes())
+        code = main(["retime", str(tmp_path / "bad.pc2"), "--topology", str(topology), "--step", "4",
+                     "-q", "-o", str(tmp_path / "out.pc2")])
+        err = capsys.readouterr().err
+        if expected:
+            assert code == 2 and expected in err and not (tmp_path / "out.pc2").exists()
+        else:
+            assert code == 0 and np.isfinite(read_pc2(tmp_path / "out.pc2").positions).all()
