@@ -372,6 +372,7 @@ def copy_object_motion(source: bpy.types.Object, obj: bpy.types.Object, start: f
         obj.parent = source.parent
         obj.parent_type = 'OBJECT' if source.parent_type in DEFORMING_PARENT_TYPES else source.parent_type
         obj.parent_bone = source.parent_bone
+        obj.parent_vertices = source.parent_vertices[:]  # a vertex parent's vertices ('VERTEX', 'VERTEX_3')
         obj.matrix_parent_inverse = source.matrix_parent_inverse.copy()
     for channel in TRANSFORM_CHANNELS:
         setattr(obj, channel, getattr(source, channel))
