@@ -143,23 +143,21 @@ class PoseWriter:
             return
         require_local(source, source.data, "shape keys added to it are",
                       "Choose Output › Point Cache (a new object), or make")
-        unbaked = unbaked_simulations(source)
-        if unbaked:
-            raise InputError(
-                f"Adding shape keys to '{source.name}' would empty the unbaked cache of its "
-                f"{', '.join(repr(name) for name in unbaked)} simulation: choose Output › Point Cache "
-                "(a new object; this one stays as it is), or bake the simulation first "
-                "(Physics › Cache › Bake)")
         # the mesh's other users (linked duplicates) lose their unbaked caches as well
-        for twin in (obj for obj in bpy.data.objects if obj.data == source.data and obj != source):
-            unbaked = unbaked_simulations(twin)
+        for user in [source] + [obj for obj in bpy.data.objects if obj.data == source.data and obj != source]:
+            unbaked = ", ".join(repr(name) for name in unbaked_simulations(user))
+            if unbaked and user == source:
+                raise InputError(
+                    f"Adding shape keys to '{source.name}' would empty the unbaked cache of its "
+                    f"{unbaked} simulation: choose Output › Point Cache (a new object; this one stays "
+                    "as it is), or bake the simulation first (Physics › Cache › Bake)")
             if unbaked:
                 raise InputError(
-                    f"'{source.name}' shares its mesh with '{twin.name}', and shape keys added to that "
-                    f"mesh would empty the unbaked cache of the {', '.join(repr(name) for name in unbaked)} "
-                    f"simulation of '{twin.name}': choose Output › Point Cache (a new object), bake "
-                    "that simulation first (Physics › Cache › Bake), or give this object its own mesh "
-                    "(Object › Relations › Make Single User › Object & Data)")
+                    f"'{source.name}' shares its mesh with '{user.name}', and shape keys added to that "
+                    f"mesh would empty the unbaked cache of the {unbaked} simulation of '{user.name}': "
+                    "choose Output › Point Cache (a new object), bake that simulation first (Physics › "
+                    "Cache › Bake), or give this object its own mesh (Object › Relations › Make Single "
+                    "User › Object & Data)")
 
     def check_captured_output(self, source) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to
@@ -215,10 +213,10 @@ class PoseWriter:
             new_keys = [bridge.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
             added = bridge.add_shape_keys(source, new_keys, keyframes=frames if keyframe else None)
-            motion = object_motion(source) if speed != 1.0 else []
+            motion = object_motion(source) if speed != 1.0 else {}
             if motion:
                 self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "
-                                         f"{', '.join(motion)}, at its own speed while the new "
+                                         f"{', '.join(motion.values())}, at its own speed while the new "
                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
                                          "object) to retime its keyframed transform too")
             return added_summary(added)
@@ -248,11 +246,11 @@ class PoseWriter:
         # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)
-        missing = [kind for kind in motion if kind in (NLA, DRIVERS)]
+        missing = [words for kind, words in motion.items() if kind in ("nla", "drivers")]
         if missing:
             self.report({'WARNING'}, f"'{obj.name}' is not moved by {' and '.join(missing)} of '{source.name}': "
                                      "add those to it by hand if it should follow them")
-        own_speed = [kind for kind in motion if kind == CONSTRAINTS or kind.startswith(PARENT)]
+        own_speed = [words for kind, words in motion.items() if kind in ("constraints", "parent")]
         if speed != 1.0 and own_speed:
             self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
                                      f"{' and '.join(own_speed)} move it at the scene's own speed")
@@ -262,37 +260,37 @@ class PoseWriter:
                 f"({span}) from {path}")
 
 
-KEYFRAMED, NLA, DRIVERS, CONSTRAINTS, PARENT = ("its keyframed transform", "its NLA tracks", "drivers",
-                                                "its constraints", "its parent")
-
-
 def _transform_drivers(animation) -> bool:
     """Whether ``animation`` (an object's animation data) drives its transform."""
     return any(driver.data_path in bridge.TRANSFORM_CHANNELS for driver in animation.drivers)
 
 
-def _animated(obj) -> bool:
+def _own_motion(obj) -> dict[str, str]:
+    """What of ``obj``'s own moves it as a whole: {kind: the user's words} ("keyframed", "nla",
+    "drivers", "constraints")."""
     animation = obj.animation_data
-    return bool(obj.constraints) or (animation is not None and (
-        animation.action is not None or _transform_drivers(animation)
-        or any(not track.mute for track in animation.nla_tracks)))
-
-
-def object_motion(obj) -> list[str]:
-    """What moves ``obj`` as a whole, in the user's words (empty: nothing): of its own animation
-    data, constraints, and a parent that moves (itself or one of its parents animated)."""
-    animation = obj.animation_data
-    out = []
+    out = {}
     if animation is not None:
-        out += [KEYFRAMED] if animation.action is not None else []
-        out += [NLA] if any(not track.mute for track in animation.nla_tracks) else []
-        out += [DRIVERS] if _transform_drivers(animation) else []
-    out += [CONSTRAINTS] if obj.constraints else []
+        if animation.action is not None:
+            out["keyframed"] = "its keyframed transform"
+        if any(not track.mute for track in animation.nla_tracks):
+            out["nla"] = "its NLA tracks"
+        if _transform_drivers(animation):
+            out["drivers"] = "drivers"
+    if obj.constraints:
+        out["constraints"] = "its constraints"
+    return out
+
+
+def object_motion(obj) -> dict[str, str]:
+    """What moves ``obj`` as a whole, {kind: the user's words} (empty: nothing): its own
+    (:func:`_own_motion`) and, as "parent", a parent that moves (itself or one of its parents)."""
+    out = _own_motion(obj)
     parent = obj.parent
-    while parent is not None and not _animated(parent):
+    while parent is not None and not _own_motion(parent):
         parent = parent.parent
     if parent is not None:
-        out.append(f"{PARENT} '{obj.parent.name}'")
+        out["parent"] = f"its parent '{obj.parent.name}'"
     return out
 
 
