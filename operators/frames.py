@@ -120,7 +120,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         frames = self.frames(context)
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
-        self.check_captured_output(obj)
+        self.check_captured_output(obj, keyframed=True)
         end = self.frame_range(context)[1]
         # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
         retime = load_core_retime()
@@ -199,7 +199,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
-        self.check_captured_output(obj)
+        self.check_captured_output(obj, keyframed=True)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
         # the keys and, where the last gap is shorter than a step, the samples keying it (core.retime)
         _poses, options["start"], read = yield from self.read_keys_and_start(

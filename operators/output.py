@@ -130,11 +130,13 @@ def unique_file(path: Path) -> Path:
 class PoseWriter:
     """Writes poses according to the operator's ``output`` and ``filepath`` properties."""
 
-    def check_output(self, source) -> None:
+    def check_output(self, source, *, keyframed: bool = False) -> None:
         """Refuse what the writing step would fail on or harm (call it in the validation step,
         before any work): shape keys on an object with an unbaked simulation, or whose mesh another
         object with one shares (they would empty its cache), or on a mesh linked from a library (or overridden: they would not be saved),
-        a cache file relative to a .blend that was never saved."""
+        keyframed shape keys on absolute ones (``keyframed``: Blender plays those by their
+        Evaluation Time, never by the values keyed), a cache file relative to a .blend that was
+        never saved."""
         if self.output != 'SHAPE_KEYS':
             if self.filepath.startswith("//") and not bpy.data.filepath:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
@@ -143,6 +145,12 @@ class PoseWriter:
             return
         require_local(source, source.data, "shape keys added to it are",
                       "Choose Output › Point Cache (a new object), or make")
+        key = source.data.shape_keys
+        if keyframed and key is not None and not key.use_relative:
+            raise InputError(f"The shape keys of '{source.name}' are absolute (Shape Keys › Relative is "
+                             "off): Blender plays them by Evaluation Time and ignores the key values this "
+                             "would keyframe, so the new keys would never play. Choose Output › Point "
+                             "Cache (a new object), or turn Relative on")
         # the mesh's other users (linked duplicates) lose their unbaked caches as well
         for user in [source] + [obj for obj in bpy.data.objects if obj.data == source.data and obj != source]:
             unbaked = ", ".join(repr(name) for name in unbaked_simulations(user))
@@ -159,16 +167,17 @@ class PoseWriter:
                     "Cache › Bake), or give this object its own mesh (Object › Relations › Make Single "
                     "User › Object & Data)")
 
-    def check_captured_output(self, source) -> None:
+    def check_captured_output(self, source, *, keyframed: bool = False) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to
         ``source`` are deformed again by what moved it, so say so (the work still runs)."""
-        self.check_output(source)
+        self.check_output(source, keyframed=keyframed)
         if self.output != 'SHAPE_KEYS':
             return
         movers = [f"'{m.name}'" for m in source.modifiers
                   if m.show_viewport and m.type not in PASSIVE_MODIFIERS]
         key = source.data.shape_keys
-        if key is not None and key.animation_data is not None and (
+        # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
+        if key is not None and key.use_relative and key.animation_data is not None and (
                 key.animation_data.action is not None or len(key.animation_data.drivers)):
             movers.append("its animated shape keys")
         if movers:

@@ -86,6 +86,35 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     assert_animation_untouched(before, snapshot(bridge, obj))
 
 
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime"])
+def test_keyframed_shape_keys_on_absolute_keys_are_refused(bpy_empty, extension, operator):
+    """Absolute shape keys play by the Key's Evaluation Time, never by the values In-between
+    Frames and Retime keyframe: the new keys would never play (before, they were added and
+    reported as keyframed while playback showed no change). Refused, nothing changed; a point
+    cache plays."""
+    from blender_scenes import add_key, grid_object, rolled
+    bridge = extension.bridge
+    obj = grid_object(6)
+    rest = bridge.vertex_positions(obj.data)
+    add_key(obj, "A", rolled(rest, 1.0)), add_key(obj, "B", rolled(rest, 2.0))
+    key = obj.data.shape_keys
+    key.use_relative = False
+    key.eval_time = 10.0
+    key.keyframe_insert("eval_time", frame=1)
+    key.eval_time = 20.0
+    key.keyframe_insert("eval_time", frame=9)
+    before = snapshot(bridge, obj)
+    options = dict(frame_start=1, frame_end=9, frame_step=4)
+    run = getattr(bpy.ops.shape_differences, operator)
+    with pytest.raises(RuntimeError, match="absolute .*Evaluation Time"):
+        run(**options, output='SHAPE_KEYS')
+    assert key_names(obj) == ["Basis", "A", "B"]
+    assert_animation_untouched(before, snapshot(bridge, obj))
+    names = set(bpy.data.objects.keys())
+    run(**options, output='CACHE', filepath=bpy.app.tempdir)
+    assert len(set(bpy.data.objects.keys()) - names) == 1
+
+
 def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, extension, core):
     """Frames 1–11 every 4th: keys 1, 5, 9 and the last frame 11; the short gap 9 → 11 has
     in-betweens as many frames apart as the others (one per frame with 3 per gap of 4), from its
