@@ -43,24 +43,67 @@ def unbaked_simulations(obj) -> list[str]:
 GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',
                       'MULTIRES', 'REMESH', 'SCREW', 'SKIN', 'SOLIDIFY', 'SUBSURF', 'TRIANGULATE', 'WELD',
                       'WIREFRAME'}
-#: Modifiers that smooth, displace or change normals, UVs or weights without animation of their
-#: own: they may follow a generator in the run that is set aside.
-TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE', 'WEIGHTED_NORMAL',
-                      'NORMAL_EDIT', 'UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_EDIT', 'VERTEX_WEIGHT_MIX',
-                      'VERTEX_WEIGHT_PROXIMITY', 'DATA_TRANSFER', 'COLLISION'}
+#: Modifiers that smooth or displace the mesh without animation of their own: they may follow a
+#: generator in the run that is set aside.
+MOVING_TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE'}
+#: Modifiers that change normals, UVs, weights or shading and never a vertex position: the new
+#: object takes them over from the end of the stack even where nothing is set aside.
+STILL_MODIFIERS = {'WEIGHTED_NORMAL', 'NORMAL_EDIT', 'UV_PROJECT', 'UV_WARP', 'VERTEX_WEIGHT_EDIT',
+                   'VERTEX_WEIGHT_MIX', 'VERTEX_WEIGHT_PROXIMITY', 'DATA_TRANSFER', 'COLLISION'}
+#: Geometry Nodes that only read fields or set shading, materials and attributes: a node group
+#: made of these (Blender's *Smooth by Angle*, added by *Shade Auto Smooth*) moves nothing, adds
+#: nothing and does not depend on the frames before.
+ATTRIBUTE_NODES = {
+    'NodeGroupInput', 'NodeGroupOutput', 'NodeReroute', 'NodeFrame', 'GeometryNodeGroup',
+    'GeometryNodeSetShadeSmooth', 'GeometryNodeInputShadeSmooth', 'GeometryNodeInputEdgeSmooth',
+    'GeometryNodeInputMeshEdgeAngle', 'GeometryNodeInputNormal', 'GeometryNodeInputPosition',
+    'GeometryNodeInputIndex', 'GeometryNodeInputNamedAttribute', 'GeometryNodeStoreNamedAttribute',
+    'GeometryNodeRemoveAttribute', 'GeometryNodeSetMaterial', 'GeometryNodeSetMaterialIndex',
+    'GeometryNodeInputMaterialIndex', 'FunctionNodeCompare', 'FunctionNodeBooleanMath',
+    'FunctionNodeInputBool', 'ShaderNodeMath', 'ShaderNodeVectorMath', 'ShaderNodeValue',
+}
+
+
+def attribute_only(modifier) -> bool:
+    """Whether ``modifier`` is a Geometry Nodes modifier whose node group (and the groups in it)
+    has only :data:`ATTRIBUTE_NODES`."""
+    if modifier.type != 'NODES' or modifier.node_group is None:
+        return False
+    trees, seen = [modifier.node_group], set()
+    while trees:
+        tree = trees.pop()
+        if tree.name_full in seen:
+            continue
+        seen.add(tree.name_full)
+        for node in tree.nodes:
+            if node.bl_idname not in ATTRIBUTE_NODES:
+                return False
+            if node.bl_idname == 'GeometryNodeGroup':
+                if node.node_tree is None:
+                    return False
+                trees.append(node.node_tree)
+    return True
+
+
+def _still(modifier) -> bool:
+    return modifier.type in STILL_MODIFIERS or attribute_only(modifier)
 
 
 def trailing_generators(obj) -> list:
     """The enabled modifiers at the end of ``obj``'s stack from its first generator on, when only
     generators and touch-ups follow it: what turns the moving mesh (after the cloth, armature,
-    Mesh Cache) into the displayed one, such as a Subdivision Surface after the cloth."""
+    Mesh Cache) into the displayed one, such as a Subdivision Surface after the cloth and
+    *Smooth by Angle* after it. Without a generator there, the modifiers at the end that never
+    move a vertex (normals, UVs, *Smooth by Angle*)."""
     enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport]
-    start = len(enabled)
-    for index in range(len(enabled) - 1, -1, -1):
-        if enabled[index].type in GENERATE_MODIFIERS:
-            start = index
-        elif enabled[index].type not in TOUCH_UP_MODIFIERS:
-            break
+    run = len(enabled)  # the last modifiers: generators and touch-ups only
+    while run > 0 and (enabled[run - 1].type in GENERATE_MODIFIERS | MOVING_TOUCH_UP_MODIFIERS
+                       or _still(enabled[run - 1])):
+        run -= 1
+    generators = [index for index in range(run, len(enabled)) if enabled[index].type in GENERATE_MODIFIERS]
+    start = generators[0] if generators else len(enabled)
+    while start > run and _still(enabled[start - 1]):  # also those that never move a vertex before it
+        start -= 1
     return enabled[start:]
 
 
@@ -98,7 +141,7 @@ def frames_depend_on_earlier(scene) -> bool:
     if world is not None and world.enabled and not world.point_cache.is_baked:
         return True
     return any(unbaked_simulations(obj) or any(m.type in SEQUENTIAL_MODIFIERS and m.show_viewport
-                                               for m in obj.modifiers)
+                                               and not attribute_only(m) for m in obj.modifiers)
                for obj in scene.objects)
 
 

@@ -192,3 +192,24 @@ def test_geometry_nodes_anywhere_keep_reading_every_frame(bpy_empty, extension, 
     other.modifiers.new("Nodes", 'NODES')
     bpy.context.view_layer.objects.active = bpy.data.objects["Flag"]
     assert frames_visited_by_inbetween_frames(tmp_path) == list(range(1, 10))
+
+
+def test_smooth_by_angle_does_not_make_every_frame_read(bpy_empty, extension, tmp_path):
+    """*Shade Auto Smooth* adds a Geometry Nodes modifier (*Smooth by Angle*) that only sets
+    shading: it cannot hold a simulation, so a baked cloth's keys are still read at the key
+    frames alone; a node group that moves vertices keeps every frame read."""
+    from blender_scenes import grid_object, pinned_cloth_scene
+
+    flag = pinned_cloth_scene(frames=9, bake=True)
+    other = grid_object(2, name="Other")
+    for obj in (flag, other):
+        with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj],
+                                       selected_editable_objects=[obj]):
+            bpy.ops.object.shade_auto_smooth()
+    assert [m.type for m in flag.modifiers][-1] == 'NODES'
+    bpy.context.view_layer.objects.active = flag
+    assert frames_visited_by_inbetween_frames(tmp_path) == [1, 2, 3, 5, 9]
+    group = other.modifiers[-1].node_group.copy()  # the same group with a Set Position added
+    group.nodes.new("GeometryNodeSetPosition")
+    other.modifiers[-1].node_group = group
+    assert frames_visited_by_inbetween_frames(tmp_path) == list(range(1, 10))

@@ -25,6 +25,14 @@ def add_display_modifiers(obj):
     return subdivision, solidify
 
 
+def sharp_edges(mesh) -> np.ndarray:
+    """The evaluated mesh's edges marked sharp (what shades it by angle)."""
+    values = np.zeros(len(mesh.edges), dtype=bool)
+    if "sharp_edge" in mesh.attributes:
+        mesh.attributes["sharp_edge"].data.foreach_get("value", values)
+    return values
+
+
 def new_objects(names_before: set):
     return [obj for obj in bpy.data.objects if obj.name not in names_before]
 
@@ -79,6 +87,45 @@ def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
         assert after[field] == before[field], field
     # the bake still plays: the new keys are at value 0, the cloth drives the mesh
     np.testing.assert_allclose(played(bridge, cloth, [9])[9], shown, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("subdivided", [True, False], ids=["subdivision", "alone"])
+def test_shade_auto_smooth_after_the_motion_goes_with_the_new_object(bpy_empty, extension, subdivided, tmp_path):
+    """*Shade Auto Smooth* (Blender 4.1+) ends the stack with a *Smooth by Angle* Geometry Nodes
+    modifier. Behind a Subdivision it was taken for a generator before the motion and the run was
+    refused ("a modifier before the motion ... changes the topology"); alone, the new object lost
+    it and was shaded otherwise than the source. It is set aside with the Subdivision and copied
+    after the Mesh Cache: the new object shows the source's vertices and shading."""
+    bridge = extension.bridge
+    cloth = armature_scene(frames=9)  # bends enough to shade by angle
+    moving = evaluated_frames(bridge, cloth, [1, 5, 9])
+    if subdivided:
+        cloth.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth],
+                                   selected_editable_objects=[cloth]):
+        bpy.ops.object.shade_auto_smooth(angle=0.05)
+    shown = played(bridge, cloth, [5, 9])
+    names = set(bpy.data.objects.keys())
+
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path / "cloth.pc2"))
+
+    [copy] = new_objects(names)
+    assert [m.type for m in copy.modifiers] == ['MESH_CACHE'] + ['SUBSURF'] * subdivided + ['NODES']
+    assert copy.modifiers[-1].node_group == cloth.modifiers[-1].node_group
+    assert copy.modifiers[-1]["Input_1"] == pytest.approx(0.05)  # the angle
+    if not subdivided:
+        np.testing.assert_allclose(evaluated_frames(bridge, copy, [5])[5], moving[5], atol=TOLERANCE)
+    counts = []
+    for frame in (5, 9):
+        bpy.context.scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        np.testing.assert_allclose(bridge.evaluated_positions(copy, depsgraph), shown[frame], atol=TOLERANCE)
+        sharp = [sharp_edges(obj.evaluated_get(depsgraph).data) for obj in (cloth, copy)]
+        np.testing.assert_array_equal(sharp[1], sharp[0])
+        counts.append((sharp[0].sum(), len(sharp[0])))
+    bpy.context.scene.frame_set(1)
+    assert 0 < counts[-1][0] < counts[-1][1], counts  # bent, shaded by angle: some edges sharp
 
 
 def test_a_subdivision_after_an_unbaked_cloth_is_refused(bpy_empty, extension):
