@@ -216,8 +216,9 @@ class PoseWriter:
         self.check_output(source, keyframed=keyframed)
         if self.output != 'SHAPE_KEYS':
             return
-        movers = [f"'{m.name}'" for m in source.modifiers
-                  if m.show_viewport and m.type not in PASSIVE_MODIFIERS]
+        # generators are set aside while reading (or change no vertex): they do not add twice
+        movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and m.type not in PASSIVE_MODIFIERS
+                  and m.type not in GENERATE_MODIFIERS and not _still(m)]
         key = source.data.shape_keys
         # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
         if key is not None and key.use_relative and key.animation_data is not None and (

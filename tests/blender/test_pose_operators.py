@@ -148,7 +148,14 @@ def test_long_names_keep_the_factor_and_the_reference(bpy_empty, extension, core
 
 
 def test_captured_keys_warn_about_double_deformation(bpy_empty, extension, capfd):
+    """Keys captured from the evaluated mesh are moved again by the armature on playback (said);
+    not by a Subdivision set aside while reading nor by Smooth by Angle (it moves nothing)."""
     from blender_scenes import armature_scene
-    armature_scene(frames=3)
+    strip = armature_scene(frames=3)
+    strip.modifiers.new("Subdivision", 'SUBSURF')
+    with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip],
+                                   selected_editable_objects=[strip]):
+        bpy.ops.object.shade_auto_smooth()
+    assert [m.type for m in strip.modifiers] == ['ARMATURE', 'SUBSURF', 'NODES']
     bpy.ops.shape_differences.frames_to_shape_keys(output='SHAPE_KEYS')
-    assert "deformed again by 'Armature'" in capfd.readouterr().out
+    assert f"deformed again by 'Armature' of '{strip.name}':" in capfd.readouterr().out
