@@ -318,7 +318,8 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
     """A new object named ``name`` with a copy of ``source``'s mesh (no shape keys, no
     modifiers) and a Mesh Cache modifier that plays the PC2 file ``filepath`` whose first sample
     is at frame ``start``, one every ``sampling`` frames, followed by copies of ``source``'s
-    ``modifiers`` (the generators after its motion: a Subdivision, a Solidify).
+    ``modifiers`` (the generators after its motion: a Subdivision, a Solidify), with ``source``'s
+    object-linked materials and render settings (:func:`copy_object_look`).
 
     It is linked to the collections of ``source`` (the scene's where those are linked from a
     library or overridden) and moves as ``source`` does as a whole
@@ -339,6 +340,7 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         for collection in editable or (context.scene.collection,):
             collection.objects.link(obj)
         copy_object_motion(source, obj, start, speed, source_end)
+        copy_object_look(source, obj)
         modifier = obj.modifiers.new("Mesh Cache", 'MESH_CACHE')
         modifier.cache_format = 'PC2'
         modifier.filepath = filepath
@@ -357,6 +359,28 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
             bpy.data.objects.remove(obj)  # a shared action stays: it is the source's
         bpy.data.meshes.remove(mesh)
         raise
+
+
+# Object settings that decide how an object renders and shows (Blender 4.x / 5.x names; those a
+# version lacks are skipped).
+LOOK_SETTINGS = ("hide_render", "visible_camera", "visible_diffuse", "visible_glossy",
+                 "visible_transmission", "visible_volume_scatter", "visible_shadow", "is_holdout",
+                 "is_shadow_catcher", "pass_index", "color", "lightgroup", "display_type", "show_wire",
+                 "show_all_edges", "show_in_front", "shadow_terminator_normal_offset",
+                 "shadow_terminator_geometry_offset", "shadow_terminator_shading_offset")
+
+
+def copy_object_look(source: bpy.types.Object, obj: bpy.types.Object) -> None:
+    """Give ``obj`` (holding a copy of ``source``'s mesh) ``source``'s materials linked to the
+    object rather than the mesh, and its render visibility, pass index, colour and display
+    settings (:data:`LOOK_SETTINGS`), so that it renders as ``source`` does."""
+    for slot, copied in zip(source.material_slots, obj.material_slots):
+        if slot.link == 'OBJECT':
+            copied.link = 'OBJECT'
+            copied.material = slot.material
+    for setting in LOOK_SETTINGS:
+        if hasattr(source, setting):
+            setattr(obj, setting, getattr(source, setting))
 
 
 def copy_object_motion(source: bpy.types.Object, obj: bpy.types.Object, start: float = 0.0,

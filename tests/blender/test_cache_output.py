@@ -245,6 +245,29 @@ def test_frames_to_a_cache_object(bpy_empty, extension, core, tmp_path):
                                        atol=TOLERANCE)
 
 
+def test_a_cache_object_renders_as_its_source(bpy_empty, extension, core, tmp_path):
+    """Materials linked to the object (not the mesh), render visibility, pass index and display
+    settings go with the new object (before, it rendered with the mesh's material, cast the
+    shadow the source did not, and lost its pass index)."""
+    source = armature_scene(frames=5)
+    on_mesh, on_object = bpy.data.materials.new("Mesh material"), bpy.data.materials.new("Object material")
+    source.data.materials.append(on_mesh)
+    source.data.materials.append(on_mesh)
+    source.material_slots[1].link = 'OBJECT'
+    source.material_slots[1].material = on_object
+    source.visible_shadow = source.visible_glossy = False
+    source.pass_index, source.color, source.show_wire = 7, (1.0, 0.5, 0.25, 1.0), True
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_step=2, output='CACHE', filepath=str(tmp_path) + "/")
+    obj = new_object(names)
+    assert [(slot.link, slot.material) for slot in obj.material_slots] == [
+        ('DATA', on_mesh), ('OBJECT', on_object)]
+    assert not obj.visible_shadow and not obj.visible_glossy and obj.visible_camera
+    assert obj.pass_index == 7 and obj.show_wire
+    assert tuple(obj.color) == pytest.approx((1.0, 0.5, 0.25, 1.0))
+    assert source.material_slots[1].material == on_object and source.data.materials[1] == on_mesh
+
+
 def test_headless_runs_print_progress(bpy_empty, extension, core, capfd, monkeypatch, tmp_path):
     monkeypatch.setattr(extension.operators.base, "CONSOLE_PROGRESS_INTERVAL", 0.0)
     armature_scene(frames=5)
