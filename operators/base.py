@@ -263,6 +263,14 @@ class CoreSettingsProperties(CoreSettings):
 
 # -- shape key lookup -------------------------------------------------------------------------
 
+def playback_range(scene) -> tuple[int, int]:
+    """The frames playback covers: the preview range where it is on (the timeline's clock
+    button), else the scene's range — the default range of Blender's own *Bake Action*."""
+    if scene.use_preview_range:
+        return scene.frame_preview_start, scene.frame_preview_end
+    return scene.frame_start, scene.frame_end
+
+
 def surface_triangles(obj):
     """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error."""
     triangles = bridge.mesh_triangles(obj.data)

@@ -9,7 +9,7 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core,
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, playback_range,
                    require_count, surface_triangles)
 from .output import PoseWriter, frames_depend_on_earlier, modifiers_set_aside, unbaked_simulations
 from .poses import format_factor, inbetween_name
@@ -27,19 +27,21 @@ def simulation_start(obj) -> int | None:
 
 
 class FrameRangeProperties:
-    """Frame range properties; start and end default to the scene's range when not set."""
+    """Frame range properties; start and end default to the playback range when not set (the
+    preview range where it is on, else the scene's)."""
 
-    frame_start: IntProperty(name="Start", description="First frame (default: the scene's start)")
-    frame_end: IntProperty(name="End", description="Last frame (default: the scene's end)")
+    frame_start: IntProperty(name="Start", description="First frame (default: the start of the preview "
+                                                       "range where it is on, else of the scene)")
+    frame_end: IntProperty(name="End", description="Last frame (default: the end of the preview range "
+                                                   "where it is on, else of the scene)")
 
     minimum_frames = 1
 
     def frame_range(self, context) -> tuple[int, int]:
         """Start and end frame; resolved values are written back for the Redo panel."""
-        scene = context.scene
-        for name in ("frame_start", "frame_end"):
+        for name, frame in zip(("frame_start", "frame_end"), playback_range(context.scene)):
             if not self.properties.is_property_set(name):
-                setattr(self, name, getattr(scene, name))
+                setattr(self, name, frame)
         return self.frame_start, self.frame_end
 
     def frames(self, context) -> list[int]:

@@ -6,7 +6,7 @@ from .. import bridge
 from ..bridge import shorten
 from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, default_pose_key,
-                   key_blocks_of, load_core, require_count, require_distinct, resolve_key,
+                   key_blocks_of, load_core, playback_range, require_count, require_distinct, resolve_key,
                    surface_triangles)
 from .output import PoseWriter
 
@@ -23,8 +23,9 @@ def inbetween_name(name_a: str, name_b: str, factor: float) -> tuple[str, str]:
 
 
 def scene_frames(context, count: int) -> list[float]:
-    """``count`` consecutive frames from the scene's start: where a cache shows key poses."""
-    start = context.scene.frame_start
+    """``count`` consecutive frames from the start of the playback range (the preview range where
+    it is on): where a cache shows key poses."""
+    start = playback_range(context.scene)[0]
     return [float(start + i) for i in range(count)]
 
 

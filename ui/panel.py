@@ -94,8 +94,10 @@ class VIEW3D_PT_shape_differences_animation(ShapeDiffPanel, bpy.types.Panel):
         scene = context.scene
         settings = scene.shape_differences
         column = layout.column(align=True)
-        column.prop(scene, "frame_start", text="Frame Start")
-        column.prop(scene, "frame_end", text="End")
+        # the range the operators default to: the preview range where it is on, as the timeline shows
+        preview = "_preview" if scene.use_preview_range else ""
+        column.prop(scene, f"frame{preview}_start", text="Preview Start" if preview else "Frame Start")
+        column.prop(scene, f"frame{preview}_end", text="End")
         layout.prop(settings, "frame_step")
         layout.prop(settings, "output")
         if settings.output == 'CACHE':

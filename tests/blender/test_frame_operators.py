@@ -46,6 +46,25 @@ def test_frame_range_defaults_to_the_scene(bpy_empty, extension):
     assert key_names(obj)[1:] == [f"Frame {frame}" for frame in range(1, 6)]
 
 
+def test_frame_range_defaults_to_the_preview_range_where_it_is_on(bpy_empty, extension, tmp_path):
+    """With the timeline's preview range on, playback (and Blender's Bake Action) covers it, and
+    so do the operators (before, they read the whole scene range); the Redo panel shows it."""
+    obj = armature_scene(frames=9)
+    scene = bpy.context.scene
+    scene.use_preview_range = True
+    scene.frame_preview_start, scene.frame_preview_end = 3, 7
+    bpy.ops.shape_differences.frames_to_shape_keys()
+    assert key_names(obj)[1:] == [f"Frame {frame}" for frame in range(3, 8)]
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween(key_a="Frame 3", key_b="Frame 7", count=1, output='CACHE',
+                                        filepath=str(tmp_path) + "/")
+    [copy] = [o for o in bpy.data.objects if o.name not in names]
+    assert copy.modifiers["Mesh Cache"].frame_start == 3  # key A at the preview range's start
+    scene.use_preview_range = False
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_step=4)
+    assert key_names(obj)[6:] == ["Frame 1", "Frame 5.001", "Frame 9"]  # the scene range again
+
+
 @pytest.mark.parametrize("make_scene", [cloth_scene, armature_scene], ids=["cloth", "armature"])
 def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     obj = make_scene()
