@@ -28,6 +28,7 @@ splits the gaps evenly.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +38,10 @@ from .errors import MeshError
 # An output time this close to a whole sample (relative) is that sample: k · speed in floating
 # point misses integers by a few ulps (3 · 0.1 = 0.30000000000000004).
 WHOLE_SAMPLE_TOLERANCE = 1e-9
+#: Most output samples a retime plans: Blender's last frame (MAXFRAME). A longer retime plays
+#: nowhere, and its plan alone (four arrays per output sample) would fill the memory (speed 1e-7
+#: over 96 samples: 950 million samples, the process killed by the system).
+MAX_OUTPUT_SAMPLES = 1_048_574
 
 
 @dataclass(frozen=True)
@@ -107,7 +112,13 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     if keys[-1] != n_source - 1:
         keys = np.append(keys, n_source - 1)
     last = n_source - 1
-    n_out = int(np.floor(last / speed * (1 + WHOLE_SAMPLE_TOLERANCE))) + 1
+    span = last / speed * (1 + WHOLE_SAMPLE_TOLERANCE)  # n_out − 1 before the floor; may overflow to inf
+    if span >= MAX_OUTPUT_SAMPLES:
+        count = f"{math.floor(span) + 1:,}" if span < 1e15 else f"{span:.3g}"
+        raise MeshError(f"Speed {speed:g} over {n_source} frames gives {count} output frames, more than "
+                        f"{MAX_OUTPUT_SAMPLES:,} (the last frame Blender plays): raise the speed (0.5 = twice "
+                        "as slow) or retime a shorter range.")
+    n_out = math.floor(span) + 1
     times = np.arange(n_out) * speed
     whole = np.round(times)
     snap = np.abs(times - whole) <= WHOLE_SAMPLE_TOLERANCE * np.maximum(1.0, whole)

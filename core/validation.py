@@ -9,7 +9,7 @@ number or ``"False"`` as a flag are errors, not conversions). Inputs are never m
 Checks: :func:`check_vertices`, :func:`check_triangles`, :func:`check_mesh` (both, plus the
 topology: manifold edges *and* vertices, consistent orientation), :func:`check_basis_sizes`,
 :func:`check_offset`, :func:`check_factor`, :func:`check_gap_index`, :func:`check_time`,
-:func:`check_flag`, :func:`check_key_poses`; :func:`numerical_failures` turns a solver's raw
+:func:`check_flag`, :func:`check_key_poses`, :func:`check_output_memory`; :func:`numerical_failures` turns a solver's raw
 exception into a :class:`~core.errors.RecoveryError`.
 """
 
@@ -32,6 +32,9 @@ MIN_EXTENT = 1e-30
 #: Accepted |factor| (and distance of a time outside the keys): beyond, rotations wrap around many
 #: times and the interpolated metric overflows; an exaggeration of 1000× is already meaningless.
 MAX_FACTOR = 1e3
+#: Largest share of the memory available now that a job's output poses may take: the rest is
+#: for the job's own work and for whatever else the machine runs (Blender itself, other jobs).
+OUTPUT_MEMORY_SHARE = 0.5
 
 
 def _describe(value) -> str:
@@ -344,6 +347,22 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
         check_pose(pose, topology, name=name)
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
     return k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
+
+
+def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, bytes_per_point: int = 12) -> None:
+    """Refuse (:class:`~core.errors.MeshError`) an output of ``n_poses`` poses of ``n_points``
+    points (``bytes_per_point`` each: 12 for float32 coordinates) that would take more than
+    :data:`OUTPUT_MEMORY_SHARE` of the memory available now, before any work: the job would swap
+    or be killed by the system after running for a long time (a farm node's other jobs with it).
+    ``what`` says which output, ``advice`` how to make it smaller. Nothing is checked where the
+    system does not say how much memory is available."""
+    from .resources import available_memory
+
+    need = int(n_poses) * int(n_points) * bytes_per_point
+    free = available_memory()
+    if free is not None and need > OUTPUT_MEMORY_SHARE * free:
+        raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB, "
+                        f"and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
 
 
 @contextmanager

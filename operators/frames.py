@@ -4,6 +4,7 @@ capture frames, in-between every n-th frame, retime."""
 from contextlib import closing
 
 import bpy
+import numpy as np
 from bpy.props import IntProperty
 
 from .. import bridge
@@ -124,6 +125,11 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
         end = self.frame_range(context)[1]
+        # the keys, the in-betweens of each gap and, for a range that is not whole steps, those of
+        # the shorter last gap (at most as many) and the last frame
+        gaps = len(frames) - 1 + (end > frames[-1])
+        check_output_memory(len(frames) + (end > frames[-1]) + gaps * self.count, len(obj.data.vertices),
+                            "The output", "lower In-betweens per gap or the frame range")
         # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
@@ -153,7 +159,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                                                    **options)
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
-                all_poses.extend((yield from self.compute(progress, sequence.poses, gap, gap_factors)))
+                # kept as float32, what shape keys and point caches store
+                all_poses.extend((yield from self.compute(progress, sequence.poses, gap, gap_factors)).astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)
@@ -198,6 +205,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         retime = load_core_retime()
         start, end = self.frame_range(context)
         plan = retime.plan_retime(end - start + 1, self.frame_step, self.speed)
+        check_output_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(self.speed)}",
+                            "raise the speed or retime a shorter range")
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
@@ -211,13 +220,19 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         retimed = []
         for index in range(plan.n_out):
             _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
-            retimed.append(pose)
+            retimed.append(pose.astype(np.float32))  # what shape keys and point caches store
         out_frames = [float(start + k) for k in range(plan.n_out)]
         speed = format_factor(self.speed)
         self.summary = self.write_poses(
             context, obj, retimed, names=[f"Retime {speed}x"] * plan.n_out,
             tails=[f" frame {frame:g}" for frame in out_frames], frames=out_frames, keyframe=True,
             label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
+
+
+def check_output_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
+    """``core.validation.check_output_memory`` (core is imported when an operator first runs)."""
+    from ..core.validation import check_output_memory as check
+    check(n_poses, n_vertices, what, advice)
 
 
 def load_core_retime():

@@ -216,3 +216,21 @@ def test_writing_is_all_or_nothing(bpy_empty, extension, with_keys):
         bridge.add_shape_keys(obj, new_keys, keyframes=[1, 2])
     assert (obj.data.shape_keys is not None) == with_keys
     assert_unchanged(before, snapshot(bridge, obj))
+
+
+def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, core, monkeypatch):
+    """A retime slower than Blender can play (speed 1e-7: 80 million frames), or an output larger
+    than half the memory available (In-between Frames asked for 100,000 in-betweens per gap), is
+    refused before any frame is read: before, the first filled the memory until the system killed
+    Blender and the second ran for hours holding every pose."""
+    import importlib
+
+    from blender_scenes import armature_scene
+
+    strip = armature_scene(frames=9)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                         "gives 80,000,00[01] output frames, more than 1,048,574", frame_step=4, speed=1e-7)
+    monkeypatch.setattr(importlib.import_module(core.__name__ + ".resources"), "available_memory", lambda: 10**8)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.inbetween_frames,
+                         "The output is 200,003 poses of .* GB of memory available: lower In-betweens",
+                         frame_step=4, count=100_000)

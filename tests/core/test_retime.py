@@ -2,6 +2,7 @@
 exactly the source's, in-betweens those of SequenceInterpolator, chunks concatenating bit for
 bit into the single-process result, and the headless command (python -m core)."""
 
+import re
 import subprocess
 import sys
 
@@ -95,6 +96,16 @@ def test_plan_rejects(n_source, step, speed):
         plan_retime(n_source, step, speed)
 
 
+@pytest.mark.parametrize("speed, count", [(1e-7, "80,000,001"), (1e-300, "8e+300"), (8 / 1_048_574, "1,048,575")])
+def test_plan_refuses_more_frames_than_blender_plays(speed, count):
+    """A speed that would give more output frames than Blender's last frame is refused before the
+    plan's arrays are made: at 1e-7 over 96 samples they filled the memory and the system killed
+    the process (a farm node's other jobs with it)."""
+    with pytest.raises(MeshError, match=re.escape(f"gives {count} output frames, more than 1,048,574")):
+        plan_retime(9, 4, speed)
+    assert plan_retime(9, 4, 8 / 1_048_573).n_out == 1_048_574
+
+
 def test_kept_frames_exact_and_inbetweens_from_the_sequence():
     source, triangles = rolling_sheet()
     result = retime(source, triangles, step=4, speed=0.5)
@@ -175,6 +186,22 @@ def test_command_errors_are_one_line(tmp_path):
                                      "points: export the OBJ from the same mesh, without modifiers that change "
                                      "its vertices.")
     assert not (tmp_path / "out.pc2").exists()
+
+
+def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monkeypatch):
+    """An output that would take more than half the memory available is refused before any work,
+    with the way out (chunks); the same job in chunks that fit runs."""
+    import core.resources
+
+    source, triangles = rolling_sheet(n_frames=9, nx=6)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    whole = 33 * 36 * 12  # speed 0.25: 33 samples of 36 points, float32
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 2 * whole - 1)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.25", "-q"]
+    assert main([*common, "-o", str(tmp_path / "out.pc2")]) == 2
+    assert "is 33 poses of 36 vertices" in capsys.readouterr().err and not (tmp_path / "out.pc2").exists()
+    assert main([*common, "--chunk", "1/2", "-o", str(tmp_path / "part.pc2")]) == 0
 
 
 def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
