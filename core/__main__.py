@@ -24,7 +24,7 @@ import numpy as np
 
 from .errors import ShapeDifferenceError
 from .obj_file import read_obj
-from .point_cache import merge_pc2, read_point_cache, write_pc2
+from .point_cache import merge_pc2, read_point_cache, refuse_overwriting, write_pc2
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory
 
@@ -83,6 +83,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def _retime(args) -> int:
+    refuse_overwriting(args.output, {args.cache: "the input cache", args.topology: "the topology OBJ"})
     cache = read_point_cache(args.cache)
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
@@ -146,8 +147,12 @@ def main(argv=None) -> int:
         print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, start {cache.start:g}, "
               f"sampling {cache.sampling:g}" + (" (MDD, times in seconds)" if cache.times is not None else ""))
         return 0
-    except (ShapeDifferenceError, OSError) as error:
+    except ShapeDifferenceError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:  # a file that cannot be read or written: its name and why
+        where = f"'{error.filename}': " if error.filename else ""
+        print(f"error: {where}{error.strerror or error}", file=sys.stderr)
         return 2
 
 

@@ -71,18 +71,41 @@ def _positions_array(positions) -> np.ndarray:
 def _write_atomically(path: Path, chunks) -> None:
     """Write ``chunks`` (bytes-like) to a temporary file beside ``path`` and rename it into place,
     so that a reader (or a failed write) never sees half a file."""
+    given = path
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    if not str(given).strip():
+        raise MeshError("The output file name is empty: give one (such as out.pc2).")
+    if str(given).endswith(("/", os.sep)) or path.is_dir():
+        raise MeshError(f"'{given}' is a folder, not a file: give the output a file name (such as out.pc2).")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as error:  # said of the user's path, not of the temporary file
+        raise OSError(error.errno, error.strerror, str(given)) from None
     try:
         os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; a cache is shared like any file
         with os.fdopen(handle, "wb") as stream:
             for chunk in chunks:
                 stream.write(chunk)
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as error:
         os.unlink(temporary)
+        if isinstance(error, OSError):
+            raise OSError(error.errno, error.strerror, str(given)) from None
         raise
+
+
+def refuse_overwriting(path, inputs: dict) -> None:
+    """Raise :class:`MeshError` if the output ``path`` is one of the files ``inputs`` ({path: what
+    it is}) a job reads: writing it would replace what the job was run on."""
+    for source, what in inputs.items():
+        try:
+            same = Path(path).exists() and Path(source).exists() and os.path.samefile(path, source)
+        except OSError:
+            same = False
+        if same or Path(os.path.abspath(path)) == Path(os.path.abspath(source)):
+            raise MeshError(f"The output '{path}' is {what} ('{source}'): writing it would replace the "
+                            "data the job reads. Give another output file.")
 
 
 def _umask() -> int:
@@ -178,6 +201,7 @@ def merge_pc2(parts, path) -> Path:
     Every part must have the same point count and sampling, and each must start where the one
     before ends; parts without samples are allowed. The samples are copied byte for byte.
     """
+    refuse_overwriting(path, {part: "one of the parts to merge" for part in parts})
     caches = [(Path(part), read_pc2(part)) for part in parts]
     if not caches:
         raise MeshError("Nothing to merge: give at least one PC2 file.")

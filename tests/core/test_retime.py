@@ -204,6 +204,29 @@ def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monk
     assert main([*common, "--chunk", "1/2", "-o", str(tmp_path / "part.pc2")]) == 0
 
 
+def test_command_never_writes_over_what_it_reads(tmp_path, capsys):
+    """``-o`` naming the input cache (directly or through a link) or the OBJ is refused and the
+    file left as it was (before, a typo replaced the simulation with its retime); a folder or an
+    empty name is said as such, an unwritable place by the user's path (it named a temporary file)."""
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    (tmp_path / "link.pc2").symlink_to(cache)
+    original = cache.read_bytes(), topology.read_bytes()
+    for output, message in ((cache, "is the input cache"), (tmp_path / "link.pc2", "is the input cache"),
+                            (tmp_path / "sub" / ".." / "sheet.obj", "is the topology OBJ"),
+                            (str(tmp_path) + "/", "is a folder, not a file"), (tmp_path, "is a folder, not a file"),
+                            ("", "file name is empty"),
+                            (tmp_path / "in.pc2" / "out.pc2", f"'{tmp_path / 'in.pc2' / 'out.pc2'}': ")):
+        assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "-q",
+                     "-o", str(output)]) == 2
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1 and ".in.pc2." not in err, err
+    assert (cache.read_bytes(), topology.read_bytes()) == original
+    assert main(["merge", str(cache), "-o", str(cache)]) == 2
+    assert "is one of the parts to merge" in capsys.readouterr().err and cache.read_bytes() == original[0]
+
+
 def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
     """A cache with NaN in a sample the retime reads (a simulation that exploded): the error names
     that sample and its frame in the cache's own numbering, before any work; NaN in a sample the
