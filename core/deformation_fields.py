@@ -33,6 +33,9 @@ from .geometry import coordinate_cross, coordinate_dot
 #: Smallest ratio (radius / mean eigenvalue, or angle in radians) at which the closed-form
 #: expressions below are evaluated directly; below it their Taylor series (error < 1e-16).
 SERIES_THRESHOLD = 1e-4
+#: Relative cutoff of the singular values of ``V(ω)`` when solving for a screw's ``v``: far below
+#: the smallest a turn short of a whole one has (θ = 2π − 1e-5: ~1e-6), far above round-off.
+SCREW_CUTOFF = 1e-12
 #: Log-stretch eigenvalues are clipped to ±this before exponentiating (a stretch by e^30 is far
 #: outside anything a pose can mean; the clip only keeps extrapolations finite).
 MAX_LOG_STRETCH = 30.0
@@ -347,10 +350,6 @@ def _rotation_vectors_of_entries(r) -> np.ndarray:
 # rigid motions of the whole mesh (screw interpolation)
 
 
-def _hat(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
 def _screw_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``a = (1 − cos θ)/θ²`` and ``b = (θ − sin θ)/θ³`` for rotation angles ``theta`` (…), by
     their series below :data:`SERIES_THRESHOLD`."""
@@ -361,45 +360,67 @@ def _screw_coefficients(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return a, b
 
 
-def _screw_matrix(w: np.ndarray) -> np.ndarray:
-    """``V(ω) = I + (1 − cos θ)/θ² [ω] + (θ − sin θ)/θ³ [ω]²`` (θ = |ω|): the translation part of
-    the SE(3) exponential."""
-    a, b = _screw_coefficients(np.linalg.norm(w))
-    h = _hat(w)
-    return np.eye(3) + a * h + b * (h @ h)
-
-
 def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarray | None = None,
               unwrap: bool = False) -> np.ndarray:
-    """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``, the short way
-    round. With a ``reference`` (a rotation vector (3,), or screw coordinates (6,) whose first
-    three are one): a half turn (within :data:`HALF_TURN_TOLERANCE` of π: both directions are as
-    short) turns the way nearer to it, and with ``unwrap`` the representative ``ω + 2πk ω̂``
-    nearest to it is taken (a motion continuing across keys; k = −1 is the same rotation the
-    other way round, ``−ω`` would be its inverse). A rotation within
-    :data:`ZERO_TURN_TOLERANCE` of none continued a whole turn about the reference's axis takes the
-    part of ``v`` that no translation fixes there (``V(2πû)`` maps it to zero) from a reference
-    screw: the continuation of a turn about a fixed axis stays about that axis."""
-    w = rotation_vectors(rotation[None])[0]
-    whole_turn = False
-    if reference is not None:
-        reference = np.asarray(reference, dtype=np.float64)
-        turn = reference[:3]
-        theta = np.linalg.norm(w)
-        if unwrap and theta <= ZERO_TURN_TOLERANCE:
-            w = _unwrapped_identity(turn[None])[0]
-            whole_turn = bool(w.any())
-        elif unwrap:
-            axis = w / theta
-            candidates = [(theta + 2 * np.pi * k) * axis for k in (-1, 0, 1)]
-            w = min(candidates, key=lambda c: np.linalg.norm(c - turn))
-        elif abs(theta - np.pi) < HALF_TURN_TOLERANCE and np.dot(w, turn) < 0:
-            w = -w
-    matrix = _screw_matrix(w)
-    if whole_turn and reference.size == 6:  # the least change from the reference's v that gives t
-        return np.concatenate([w, reference[3:] + np.linalg.lstsq(matrix, translation - matrix @ reference[3:],
-                                                                   rcond=None)[0]])
-    return np.concatenate([w, np.linalg.lstsq(matrix, translation, rcond=None)[0]])
+    """Screw coordinates ``(ω, v)`` (6,) of the rigid motion ``x ↦ R x + t``: one row of
+    :func:`rigid_logs`."""
+    references = None if reference is None else np.asarray(reference, dtype=np.float64)[None]
+    return rigid_logs(rotation[None], np.asarray(translation)[None], references, unwrap)[0]
+
+
+def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.ndarray | None = None,
+               unwrap: bool = False) -> np.ndarray:
+    """Screw coordinates ``(ω, v)`` (P, 6) of the rigid motions ``x ↦ R x + t`` (rotations
+    (P, 3, 3), translations (P, 3)), the short way round. With ``references`` (rotation vectors
+    (P, 3), or screw coordinates (P, 6) whose first three are one): a half turn (within
+    :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to its
+    row, and with ``unwrap`` the representative ``ω + 2πk ω̂`` nearest to it is taken (a motion
+    continuing across keys; k = −1 is the same rotation the other way round, ``−ω`` would be its
+    inverse). A rotation within :data:`ZERO_TURN_TOLERANCE` of none continued a whole turn about
+    its reference's axis takes the part of ``v`` that no translation fixes there (``V(2πû)`` maps
+    it to zero) from a reference screw: the continuation of a turn about a fixed axis stays about
+    that axis. ``v`` is the least-squares (minimum-norm) solution of ``V(ω) v = t``."""
+    w = rotation_vectors(rotations)
+    translations = np.asarray(translations, dtype=np.float64)
+    whole_turn = np.zeros(len(w), dtype=bool)
+    if references is not None:
+        references = np.asarray(references, dtype=np.float64)
+        turn = references[:, :3]
+        theta = np.linalg.norm(w, axis=1)
+        if unwrap:  # every row (a half turn with a null reference goes the first way, k = −1)
+            still = theta <= ZERO_TURN_TOLERANCE
+            w = _nearest_representatives(w, theta, turn, np.flatnonzero(still), np.flatnonzero(~still))
+            whole_turn = still & w.any(axis=1)
+        else:
+            half = (np.abs(theta - np.pi) < HALF_TURN_TOLERANCE) & (np.einsum("ij,ij->i", w, turn) < 0)
+            w = np.where(half[:, None], -w, w)
+    a, b = _screw_coefficients(np.sqrt(np.einsum("ij,ij->i", w, w)))
+    h = _hats(w)  # V(ω) = I + a [ω] + b [ω]²: the translation part of SE(3)'s exponential
+    matrices = np.eye(3) + a[:, None, None] * h + b[:, None, None] * (h @ h)
+    # the part a whole turn's V(2πû) cannot give comes from the reference's v (the least change)
+    held = whole_turn & (references is not None and references.shape[1] == 6)
+    base = np.where(held[:, None], references[:, 3:], 0.0) if held.any() else np.zeros_like(translations)
+    rhs = translations - np.einsum("pab,pb->pa", matrices, base)
+    return np.concatenate([w, base + _least_squares_3x3(matrices, rhs)], axis=1)
+
+
+def _hats(w: np.ndarray) -> np.ndarray:
+    """The cross-product matrices [ω] (P, 3, 3) of the rows of ``w`` (P, 3)."""
+    h = np.zeros((len(w), 3, 3))
+    h[:, 0, 1], h[:, 0, 2], h[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    h[:, 1, 0], h[:, 2, 0], h[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return h
+
+
+def _least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The minimum-norm least-squares solutions (P, 3) of ``matrices`` (P, 3, 3) ``x = rhs``
+    (P, 3), singular values below :data:`SCREW_CUTOFF` times the largest dropped, by one batched
+    SVD. ``V(2πkû) = ûûᵀ`` has rank one: its two zero singular values come out at round-off
+    (2e-16–3e-16 for k = 3), within a factor of three of NumPy's ``lstsq`` cutoff (3 ε)."""
+    u, sigma, vt = np.linalg.svd(matrices)
+    cutoff = SCREW_CUTOFF * sigma[:, :1]
+    inverse = np.where(sigma > cutoff, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
+    return np.einsum("pji,pj->pi", vt, inverse * np.einsum("pji,pj->pi", u, rhs))
 
 
 def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -414,6 +435,13 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     rows = np.flatnonzero((theta + reach > np.pi) & (theta > ZERO_TURN_TOLERANCE))
     if not rows.size and not identity.size:
         return rotvec
+    return _nearest_representatives(rotvec, theta, reference, identity, rows)
+
+
+def _nearest_representatives(rotvec, theta, reference, identity, rows) -> np.ndarray:
+    """``rotvec`` (m, 3) (angles ``theta``) with the ``identity`` rows replaced by the whole turns
+    nearest their ``reference`` rows and the ``rows`` by the representative ``ω + 2πk ω̂``
+    (k = −1, 0, 1, the first of equally near ones) nearest theirs."""
     out = rotvec.copy()
     out[identity] = _unwrapped_identity(reference[identity])
     if not rows.size:
@@ -430,9 +458,9 @@ def screw_left_jacobians(screws: np.ndarray) -> np.ndarray:
     (P, 6): ``(d exp(S)) exp(S)⁻¹ = (J dS)^``, the series ``Σ adₛⁿ / (n + 1)!``, read off the
     exponential of a 12 × 12 block matrix (SciPy's ``expm``)."""
     block = np.zeros((len(screws), 12, 12))
-    w = np.array([_hat(row) for row in screws[:, :3]]).reshape(-1, 3, 3)
+    w = _hats(screws[:, :3])
     block[:, :3, :3] = block[:, 3:6, 3:6] = w
-    block[:, 3:6, :3] = np.array([_hat(row) for row in screws[:, 3:]]).reshape(-1, 3, 3)
+    block[:, 3:6, :3] = _hats(screws[:, 3:])
     block[:, :6, 6:] = np.eye(6)
     from scipy.linalg import expm  # lazily: scipy.linalg is not loaded by the rest of this module
 
@@ -451,7 +479,7 @@ def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple) -> np.n
     rotations, translations = motions
     step_rotations = matmul(farther[0], transpose(rotations))
     step_translations = farther[1] - np.einsum("pab,pb->pa", step_rotations, translations)
-    steps = np.array([rigid_log(r, t, s) for r, t, s in zip(step_rotations, step_translations, screws)]).reshape(-1, 6)
+    steps = rigid_logs(step_rotations, step_translations, screws)
     return np.linalg.solve(screw_left_jacobians(screws), (screws + steps)[..., None])[..., 0]
 
 
@@ -463,9 +491,7 @@ def key_screws(motions: list, farther_is_key: bool) -> list[np.ndarray]:
     where ``farther_is_key``, else (a sequence's end condition) its turn continued to twice the
     next key's."""
     def logs(k, reference=None):
-        rotations, translations = motions[k]
-        return np.array([rigid_log(r, t, None if reference is None else reference[i], reference is not None)
-                         for i, (r, t) in enumerate(zip(rotations, translations))]).reshape(-1, 6)
+        return rigid_logs(*motions[k], reference, reference is not None)
 
     nxt = logs(2)
     after = continued_screws(nxt, motions[2], motions[3]) if farther_is_key else logs(3, 2.0 * nxt)
@@ -483,7 +509,7 @@ def _unwrapped_identity(reference: np.ndarray) -> np.ndarray:
 def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotations (P, 3, 3) and translations (P, 3) of screw coordinates ``(ω, v)`` (P, 6), the
     inverse of :func:`rigid_log` row by row: the translation ``V(ω) v = v + a ω × v + b ω × (ω ×
-    v)`` with the coefficients of :func:`_screw_matrix`."""
+    v)`` with the coefficients of :func:`_screw_coefficients`."""
     w, v = screws[:, :3], screws[:, 3:]
     a, b = _screw_coefficients(np.linalg.norm(w, axis=1))
     turned = np.cross(w, v)

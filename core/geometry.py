@@ -56,6 +56,17 @@ def nearest_rotations(matrices: np.ndarray) -> np.ndarray:
     return u @ vt
 
 
+def grouped_medians(values: np.ndarray, groups: np.ndarray, n_groups: int) -> np.ndarray:
+    """The median (n_groups,) of the finite ``values`` (r,) in each group (``groups`` int (r,),
+    every group non-empty), as ``np.median`` of each gives it, by one sort (a loop of medians
+    over 3,000 pieces took 0.2 s)."""
+    order = np.lexsort((values, groups))
+    counts = np.bincount(groups, minlength=n_groups)
+    starts = np.cumsum(counts) - counts
+    ordered = values[order]
+    return (ordered[starts + (counts - 1) // 2] + ordered[starts + counts // 2]) / 2
+
+
 def connected_components(n_nodes: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     """Connected components of the undirected graph on ``n_nodes`` nodes with edges ``pairs``
     ``(P, 2)``: their count and the label of every node, int ``(n_nodes,)`` (an isolated node is a

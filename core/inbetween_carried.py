@@ -26,7 +26,7 @@ import numpy as np
 from . import deformation_fields as df
 from .geometry import nearest_rotations
 from .inbetween_joints import JOINT_REACH, joint_offset, relative_motion
-from .rigid_alignment import rigid_alignment
+from .rigid_alignment import rigid_alignments
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
 #: in the first key, those within this many of the piece's bounding-box diagonals of it (0.5 missed
@@ -60,58 +60,93 @@ class CarriedPieces:
             return
         from scipy.spatial import cKDTree  # noqa: PLC0415 (only meshes with rigid and deforming pieces)
 
-        deforming = np.concatenate([topo.components[c] for c in np.flatnonzero(~rigid)])
-        tree = cKDTree(topo.first_pose[deforming])
-        for c in np.flatnonzero(rigid):
-            rows = topo.components[c]
-            if gap.static is not None and gap.static[rows].all():
-                continue  # still in every key: pinned where it is
-            own = rigid_alignment(base[rows], nxt[rows])
-            seat = self._seat(topo.first_pose, base, nxt, rows, deforming, tree, own, JOINT_REACH * gap.mean_edge)
-            if seat is not None:
-                carriers, rotation, translation = seat
-                # the piece's own motion after the carriers' undone: applied in part at each factor
-                screw = df.rigid_log(*relative_motion((rotation, translation), own))
-                self.pieces.append((rows, carriers, screw))
-        if self.pieces:  # concatenated for place(): pieces' vertices, carriers and their base fit
-            rows, carriers, screws = zip(*self.pieces)
-            self._rows = np.concatenate(rows)
-            self._row_piece = np.repeat(np.arange(len(rows)), [r.size for r in rows])
-            self._carriers = np.concatenate(carriers)
-            self._counts = np.array([c.size for c in carriers])
-            self._starts = np.r_[0, np.cumsum(self._counts)[:-1]]
-            seated = base[self._carriers]
-            self._base_mean = np.add.reduceat(seated, self._starts, axis=0) / self._counts[:, None]
-            self._base_centred = seated - np.repeat(self._base_mean, self._counts, axis=0)
-            self._screws = np.array(screws)
+        # every piece at once, its vertices in component order (a loop cost ~0.6 ms per piece: 2,000
+        # sequins on a dress, 1.2 s per gap)
+        order, labels = topo.component_order, topo.vertex_component[topo.component_order]
+        deforming = order[~rigid[labels]]
+        if gap.static is not None:  # still in every key: pinned where it is
+            rigid = rigid & ~(np.bincount(labels, gap.static[order], minlength=rigid.size) == np.bincount(labels, minlength=rigid.size))
+        pieces = np.flatnonzero(rigid)
+        if not pieces.size:
+            return
+        chosen = rigid[labels]
+        rows, piece = order[chosen], np.searchsorted(pieces, labels[chosen])  # piece: index among ``pieces``
+        own = rigid_alignments(base[rows], nxt[rows], piece, pieces.size)
+        seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming, cKDTree(topo.first_pose[deforming]),
+                            own, JOINT_REACH * gap.mean_edge)
+        groups = np.split(rows, np.flatnonzero(np.diff(piece)) + 1)
+        kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats) if carriers is not None]
+        if not kept:
+            return
+        index = np.array([k for k, _, _ in kept])
+        seat_rotations = np.array([motion[0] for _, _, motion in kept])
+        seat_translations = np.array([motion[1] for _, _, motion in kept])
+        # each piece's own motion after its carriers' undone: applied in part at each factor
+        inverse = np.transpose(seat_rotations, (0, 2, 1))
+        relative = (inverse @ own[0][index], np.einsum("pab,pb->pa", inverse, own[1][index] - seat_translations))
+        screws = df.rigid_logs(*relative)
+        self.pieces = [(groups[k], carriers, screw) for (k, carriers, _), screw in zip(kept, screws)]
+        rows, carriers, screws = zip(*self.pieces)  # concatenated for place(): vertices, carriers, base fit
+        self._rows = np.concatenate(rows)
+        self._row_piece = np.repeat(np.arange(len(rows)), [r.size for r in rows])
+        self._carriers = np.concatenate(carriers)
+        self._counts = np.array([c.size for c in carriers])
+        self._starts = np.r_[0, np.cumsum(self._counts)[:-1]]
+        seated = base[self._carriers]
+        self._base_mean = np.add.reduceat(seated, self._starts, axis=0) / self._counts[:, None]
+        self._base_centred = seated - np.repeat(self._base_mean, self._counts, axis=0)
+        self._screws = np.array(screws)
 
     @staticmethod
-    def _seat(first, base, nxt, rows, deforming, tree, own, reach) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-        """The vertices (j,) of deforming pieces that carry the rigid piece ``rows`` with their best
-        rigid motion (rotation (3, 3), translation (3,)) from the gap's base key to the next, or None if
-        there are too few, too collinear, or they neither move with it from the gap's base key to
-        the next nor hold it at a joint (it touches them, vertices within ``reach``, and turns
-        about a point of the contact: a hand turning at the wrist of a bending arm, :func:`_jointed`;
-        ``own``: the piece's best rigid motion between the keys, rotation and translation). They are sought (with ``tree``,
-        over the ``deforming`` vertices) where the piece sits in the first key (``first``:
-        positions (n, 3)), the same seat for every gap (see :data:`CARRIER_REACH`,
-        :data:`CARRIED_TOLERANCE`)."""
-        piece = base[rows]
-        diagonal = float(np.linalg.norm(np.ptp(piece, axis=0)))
-        if not diagonal > 0:
-            return None
-        distance, nearest = tree.query(first[rows], k=CARRIER_NEIGHBOURS, distance_upper_bound=CARRIER_REACH * diagonal)
-        carriers = deforming[np.unique(nearest[np.isfinite(distance)])]
-        if carriers.size < MIN_CARRIERS:
-            return None
-        spread = np.linalg.svd(base[carriers] - base[carriers].mean(axis=0), compute_uv=False)
-        if spread[1] / np.sqrt(carriers.size) < MIN_CARRIER_SPREAD * diagonal:
-            return None
-        rotation, translation = rigid_alignment(base[carriers], nxt[carriers])
-        if np.abs(piece @ rotation.T + translation - nxt[rows]).max() > CARRIED_TOLERANCE * diagonal \
-                and not _jointed(base, rows, carriers, (rotation, translation), own, reach):
-            return None
-        return carriers, rotation, translation
+    def _seats(first, base, nxt, rows, piece, count, deforming, tree, own, reach) -> list:
+        """Per rigid piece (``rows`` (r,) their vertices, ``piece`` (r,) which of the ``count``
+        pieces each is, consecutive), ``(carriers (j,), (rotation, translation))``: the vertices of
+        deforming pieces that carry it with their best rigid motion from the gap's base key to the
+        next, or ``(None, None)`` if there are too few, too collinear, or they neither move with it
+        from the gap's base key to the next nor hold it at a joint (it touches them, vertices within
+        ``reach``, and turns about a point of the contact: a hand turning at the wrist of a bending
+        arm, :func:`_jointed`; ``own``: the pieces' best rigid motions between the keys, rotations
+        (count, 3, 3) and translations (count, 3)). They are sought (with ``tree``, over the
+        ``deforming`` vertices) where the piece sits in the first key (``first``: positions (n, 3)),
+        the same seat for every gap (see :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`)."""
+        starts = np.flatnonzero(np.r_[True, np.diff(piece) != 0])
+        extent = np.maximum.reduceat(base[rows], starts) - np.minimum.reduceat(base[rows], starts)
+        diagonal = np.sqrt(np.einsum("ij,ij->i", extent, extent))
+        reachable = CARRIER_REACH * diagonal
+        if not reachable.max() > 0:
+            return [(None, None)] * count
+        # the nearest few within the largest reach, then within each piece's own (the same sets)
+        distance, nearest = tree.query(first[rows], k=CARRIER_NEIGHBOURS, distance_upper_bound=reachable.max())
+        found = np.isfinite(distance) & (distance < reachable[piece][:, None])
+        pair = np.unique(piece[:, None].repeat(CARRIER_NEIGHBOURS, axis=1)[found] * deforming.size + nearest[found])
+        seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]  # by piece, then as ``deforming`` lists them
+        counts = np.bincount(seat_piece, minlength=count)
+        seated = base[carriers]
+        sums = np.stack([np.bincount(seat_piece, seated[:, d], minlength=count) for d in range(3)], axis=1)
+        centred = seated - (sums / np.maximum(counts, 1)[:, None])[seat_piece]
+        scatter = np.zeros((count, 3, 3))
+        for a in range(3):
+            for b in range(3):
+                scatter[:, a, b] = np.bincount(seat_piece, centred[:, a] * centred[:, b], minlength=count)
+        spread = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter)[:, 1], 0.0))  # second singular value of the centred carriers
+        usable = (diagonal > 0) & (counts >= MIN_CARRIERS) & (spread / np.sqrt(np.maximum(counts, 1)) >= MIN_CARRIER_SPREAD * diagonal)
+        rotations, translations = rigid_alignments(seated, nxt[carriers], seat_piece, count)
+        miss = np.abs(np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece] - nxt[rows]).max(axis=1)
+        worst = np.maximum.reduceat(miss, starts)
+        groups = np.split(carriers, np.cumsum(counts)[:-1])
+        ends = np.r_[starts[1:], rows.size]
+        out = []
+        for k in range(count):
+            if not usable[k]:
+                out.append((None, None))
+                continue
+            motion = (rotations[k], translations[k])
+            if worst[k] > CARRIED_TOLERANCE * diagonal[k] and not _jointed(
+                    base, rows[starts[k]:ends[k]], groups[k], motion, (own[0][k], own[1][k]), reach):
+                out.append((None, None))
+                continue
+            out.append((groups[k], motion))
+        return out
 
     def place(self, x: np.ndarray, s: float) -> np.ndarray:
         """``x`` (n, 3), a pose at factor ``s``, with each carried piece moved by its carriers' best

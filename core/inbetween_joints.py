@@ -145,11 +145,11 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list
     children = np.flatnonzero(parents >= 0)
     motions = [None] * len(screws) if motions is None else motions
 
-    def local(k):  # each child's rigid motion relative to its parent's at key k
+    def local(k):  # each child's rigid motion relative to its parent's at key k (relative_motion, every child at once)
         rotations, translations = df.rigid_exps(screws[k]) if motions[k] is None else motions[k]
-        pairs = [relative_motion((rotations[parents[c]], translations[parents[c]]), (rotations[c], translations[c]))
-                 for c in children]
-        return np.array([r for r, _ in pairs]).reshape(-1, 3, 3), np.array([t for _, t in pairs]).reshape(-1, 3)
+        inverse = np.transpose(rotations[parents[children]], (0, 2, 1))
+        return (inverse @ rotations[children],
+                np.einsum("cab,cb->ca", inverse, translations[children] - translations[parents[children]]))
 
     out = [screw.copy() for screw in screws]  # roots and unjointed pieces: their own
     if children.size:
@@ -170,9 +170,13 @@ def composed(parents: np.ndarray, order: list, rotations: np.ndarray, translatio
     (rotations, translations at the same factor), parents first."""
     rotations, translations = rotations.copy(), translations.copy()
     local_rotations, local_translations = local
-    for c in order:
+    depth = np.zeros(len(parents), dtype=np.intp)
+    for c in order:  # parents first: each child one level below its parent
+        if parents[c] >= 0:
+            depth[c] = depth[parents[c]] + 1
+    for level in range(1, int(depth.max(initial=0)) + 1):  # a level's children at once, on their parents' motions
+        c = np.flatnonzero(depth == level)
         p = parents[c]
-        if p >= 0:
-            rotations[c] = rotations[p] @ local_rotations[c]
-            translations[c] = rotations[p] @ local_translations[c] + translations[p]
+        translations[c] = np.einsum("cab,cb->ca", rotations[p], local_translations[c]) + translations[p]
+        rotations[c] = rotations[p] @ local_rotations[c]
     return rotations, translations

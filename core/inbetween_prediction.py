@@ -169,11 +169,15 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
 def _nearly_still(gap) -> bool:
     """Whether the keys of ``gap`` differ by less than :data:`STILL_MOVE` mean edge lengths (RMS
     over each piece's vertices) by a motion that is not rigid to within :data:`STILL_RIGIDITY`."""
+    topo = gap.topo
     squared = np.sum((gap.next.vertices - gap.base.vertices) ** 2, axis=1)
     limit = (STILL_MOVE * gap.mean_edge) ** 2
-    pieces = gap.topo.component_rows or [slice(None)]
-    return all(np.mean(squared[rows]) < limit for rows in pieces) \
-        and max(gap.relatives[2].nonrigidity) > STILL_RIGIDITY
+    if topo.components:  # each piece's mean over its vertices
+        rows, labels = topo.component_vertices, topo.component_labels
+        means = np.bincount(labels, squared[rows]) / np.bincount(labels)
+    else:
+        means = np.array([np.mean(squared)])
+    return bool((means < limit).all()) and max(gap.relatives[2].nonrigidity) > STILL_RIGIDITY
 
 
 def _moved_rigidly(gap, factors) -> dict | None:

@@ -51,7 +51,7 @@ from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, component_diagonals, rigid_fits
+from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
@@ -212,7 +212,7 @@ class SequenceInterpolator:
             still[np.concatenate(self._riding)] = True
         self._static = still if still.any() else None
         # the components' centroids in every key (K, C, 3): how steadily each piece moves
-        self._centroids = np.array([[self._topo.centroid(k, rows) for rows in self._topo.component_rows] for k in keys])
+        self._centroids = np.array([self._topo.centroids(k) for k in keys])
         self._keys: OrderedDict[int, _Key] = OrderedDict()
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
@@ -413,8 +413,7 @@ class SequenceInterpolator:
         """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have
         it: RMS misfit of the best rigid motion ÷ the component's diagonal in ``base``)."""
         topo = self._topo
-        misfits = rigid_fits(topo, self._raw[base], self._raw[other])[2]
-        return np.asarray(misfits) / component_diagonals(topo, self._raw[base])
+        return rigid_fits(topo, self._raw[base], self._raw[other])[2] / topo.diagonals(self._raw[base])
 
     def _start_limit(self, gap: int) -> float | None:
         """Gap ``gap``'s start tangent limit (× its secant): the first gap's for this sequence's

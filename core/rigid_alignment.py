@@ -38,13 +38,39 @@ def rigid_alignment(source, target, weights=None) -> tuple[np.ndarray, np.ndarra
         raise ShapeDifferenceError("rigid_alignment: the points or weights contain NaN or infinity.")
     if (w < 0).any() or not w.sum() > 0:
         raise ShapeDifferenceError("rigid_alignment: weights must be non-negative with a positive sum.")
-    w = w / w.sum()
-    s_mean = w @ s
-    x_mean = w @ x
-    covariance = (x - x_mean).T @ ((s - s_mean) * w[:, None])  # (3, 3): Σ w x̃ s̃ᵀ
-    rotation = nearest_rotations(covariance)
-    translation = x_mean - rotation @ s_mean
-    return rotation, translation
+    rotations, translations = rigid_alignments(s, x, np.zeros(s.shape[0], dtype=np.intp), 1, w / w.sum())
+    return rotations[0], translations[0]
+
+
+def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray, n_groups: int,
+                     weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`rigid_alignment` of every group of rows at once: rotations (G, 3, 3) and translations
+    (G, 3) taking the rows of ``source`` (n, 3) labelled ``g`` (``labels`` int (n,), 0 ≤ g <
+    ``n_groups``) closest to those of ``target`` (n, 3), weighted by ``weights`` (n,) (checked by the
+    caller; ``labels`` may be None for one group). Per-group sums by ``bincount``, one batched
+    SVD: a mesh of 3,000 pieces in milliseconds (a loop over the pieces took 0.1 s per call). A
+    group without weight gets the identity."""
+    w = np.ones(source.shape[0]) if weights is None else weights
+    if n_groups == 1 and w.sum() > 0:  # one group: matrix products (a call per piece costs a third of the sums below)
+        w = w / w.sum()
+        s_mean, x_mean = w @ source, w @ target
+        rotation = nearest_rotations((target - x_mean).T @ ((source - s_mean) * w[:, None]))  # Σ w x̃ s̃ᵀ
+        return rotation[None], (x_mean - rotation @ s_mean)[None]
+
+    def sums(values):  # per-group sums of w · values (n,)
+        return np.bincount(labels, w * values, minlength=n_groups)
+
+    total = sums(np.ones(source.shape[0]))
+    total = np.where(total > 0, total, 1.0)
+    s_mean = np.stack([sums(source[:, d]) for d in range(3)], axis=1) / total[:, None]
+    x_mean = np.stack([sums(target[:, d]) for d in range(3)], axis=1) / total[:, None]
+    s_centred, x_centred = source - s_mean[labels], target - x_mean[labels]  # about each group's mean: no cancellation far out
+    covariance = np.empty((n_groups, 3, 3))  # Σ w x̃ s̃ᵀ per group
+    for a in range(3):
+        for b in range(3):
+            covariance[:, a, b] = sums(x_centred[:, a] * s_centred[:, b])
+    rotations = nearest_rotations(covariance)
+    return rotations, x_mean - np.einsum("gab,gb->ga", rotations, s_mean)
 
 
 def align_rigidly(source, target, weights=None) -> np.ndarray:
@@ -61,10 +87,13 @@ def align_components(points, target, labels, *, weights=None, active=None) -> np
     ``weights`` ``(n,)`` as in :func:`rigid_alignment`."""
     out = points.copy()
     active = np.ones(points.shape[0], dtype=bool) if active is None else active
-    for label in np.unique(labels[active]):
-        rows = (labels == label) & active
-        ok = rows & np.isfinite(target).all(axis=1)
-        if ok.sum() >= 3:
-            rotation, translation = rigid_alignment(points[ok], target[ok], None if weights is None else weights[ok])
-            out[rows] = points[rows] @ rotation.T + translation
+    groups, group = np.unique(labels[active], return_inverse=True)
+    rows = np.flatnonzero(active)
+    ok = np.isfinite(target[rows]).all(axis=1)
+    counted = np.bincount(group[ok], minlength=groups.size)
+    rotations, translations = rigid_alignments(points[rows[ok]], target[rows[ok]], group[ok], groups.size,
+                                               None if weights is None else weights[rows[ok]])
+    moved = counted[group] >= 3
+    g = group[moved]
+    out[rows[moved]] = np.einsum("rab,rb->ra", rotations[g], points[rows[moved]]) + translations[g]
     return out

@@ -1,5 +1,6 @@
 """Per-triangle deformation fields (core/deformation_fields.py) against independent formulas."""
 
+import pytest
 import numpy as np
 from scipy.linalg import expm, logm, polar, sqrtm
 from scipy.spatial.transform import Rotation
@@ -127,3 +128,40 @@ def test_unwrapped_rotation_vectors_continue_a_turn_past_a_half_turn():
     assert np.allclose(Rotation.from_rotvec(out).as_matrix(), Rotation.from_rotvec(short).as_matrix(), atol=1e-12)
     small = 0.3 * axes  # turns far from the half turn continuing small ones: left as they are
     assert np.array_equal(df.unwrapped_rotation_vectors(small, 2 * 0.2 * axes), small)
+
+
+def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
+    """Screw coordinates of 300 rigid motions at once (angles 0 … π, translations up to 1e3) are
+    each the single motion's, and the exponential gives the motions back; a half turn goes the
+    way its reference turns; unwrapped, a turn continues past a half turn; whole turns (no
+    rotation, references near 2π and 6π) keep the reference's v off their axis (V(2πkû) = ûûᵀ,
+    whose round-off singular values must not be inverted)."""
+    rng = np.random.default_rng(6)
+    axes = rng.normal(size=(300, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    angles = rng.choice([0.0, 1e-7, 0.5, 2.0, 3.0, np.pi - 1e-3], 300)
+    rotations = Rotation.from_rotvec(axes * angles[:, None]).as_matrix()
+    translations = rng.normal(size=(300, 3)) * rng.choice([0.0, 1.0, 1e3], (300, 1))
+    screws = df.rigid_logs(rotations, translations)
+    back_rotations, back_translations = df.rigid_exps(screws)
+    assert np.abs(back_rotations - rotations).max() < 1e-12
+    assert np.abs(back_translations - translations).max() < 1e-9
+    assert np.allclose(df.rigid_log(rotations[7], translations[7]), screws[7], rtol=1e-12, atol=1e-12)
+
+    half = Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix()[None]
+    for sign in (1.0, -1.0):
+        assert df.rigid_logs(half, np.zeros((1, 3)), np.array([[0.0, 0.0, sign]]))[0, 2] == pytest.approx(sign * np.pi)
+    past = Rotation.from_rotvec([0.0, 0.0, -2.0]).as_matrix()[None]  # 2π − 2 the other way round
+    continued = df.rigid_logs(past, np.zeros((1, 3)), np.array([[0.0, 0.0, 4.0]]), unwrap=True)[0]
+    assert continued[2] == pytest.approx(2 * np.pi - 2.0)
+
+    references = np.array([np.r_[2 * np.pi * np.array([0.6, 0.0, 0.8]) + 0.01, 0.3, -0.2, 0.5],
+                           [-10.689591752508218, 2.87024259229626, 11.60761500054216,
+                            -10.035689726411743, 6.439175502723993, -1.4630745878746887]])
+    shifts = np.array([[0.2, 0.1, 0.4], [-1702.633218528604, -1206.8897435037434, -779.3230025985741]])
+    whole = df.rigid_logs(np.repeat(np.eye(3)[None], 2, axis=0), shifts, references, unwrap=True)
+    for turns, screw, reference, t in zip((1, 3), whole, references, shifts):
+        axis = reference[:3] / np.linalg.norm(reference[:3])
+        assert np.allclose(screw[:3], 2 * np.pi * turns * axis)
+        v = reference[3:]
+        assert np.allclose(screw[3:], v + axis * (axis @ (t - v)), rtol=1e-9, atol=1e-9)

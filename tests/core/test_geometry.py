@@ -5,6 +5,7 @@ import numpy as np
 from core.geometry import (
     connected_components,
     expand_vertex_values,
+    grouped_medians,
     heron,
     lumped_vertex_areas,
     nearest_rotations,
@@ -14,7 +15,7 @@ from core.geometry import (
 )
 from core.mesh_topology import triangle_areas
 from core.reference_shape import ReferenceShape
-from core.rigid_alignment import align_components
+from core.rigid_alignment import align_components, rigid_alignment, rigid_alignments
 from meshes import grid, icosphere, random_rotation
 
 
@@ -89,3 +90,36 @@ def test_align_components_moves_each_component_rigidly():
     out = align_components(moved, points, labels, active=active)
     assert np.allclose(out[active], points[active], atol=1e-12)
     assert np.array_equal(out[~active], moved[~active])  # inactive rows stay
+
+
+def test_grouped_medians_are_each_groups_median():
+    rng = np.random.default_rng(4)
+    groups = np.r_[np.arange(7), rng.integers(0, 7, 200)]  # every group present, sizes odd and even
+    values = rng.normal(size=groups.size) * 10.0 ** rng.integers(-8, 8, groups.size)
+    expected = [np.median(values[groups == g]) for g in range(7)]
+    assert np.array_equal(grouped_medians(values, groups, 7), expected)
+
+
+def test_rigid_alignments_of_many_groups_are_each_groups_alignment():
+    """The batched alignment of 500 pieces (a mesh of debris) gives each piece's own Kabsch
+    alignment, recovers exact rigid motions far from the origin, and the identity for a group
+    without weight."""
+    rng = np.random.default_rng(5)
+    sizes = rng.integers(3, 9, 500)
+    labels = np.repeat(np.arange(500), sizes)
+    source = rng.normal(size=(labels.size, 3)) + 1e4 * rng.normal(size=(500, 3))[labels]
+    rotations = np.array([random_rotation(k) for k in range(500)])
+    shifts = rng.normal(size=(500, 3)) * 100.0
+    target = np.einsum("rab,rb->ra", rotations[labels], source) + shifts[labels]
+    weights = rng.uniform(0.5, 2.0, labels.size)
+    found, moved = rigid_alignments(source, target, labels, 500, weights)
+    assert np.abs(found - rotations).max() < 1e-9
+    assert np.abs(np.einsum("rab,rb->ra", found[labels], source) + moved[labels] - target).max() < 1e-8
+    noisy = target + 0.1 * rng.normal(size=target.shape)
+    batched = rigid_alignments(source, noisy, labels, 500, weights)
+    for g in (0, 17, 499):
+        rows = labels == g
+        rotation, translation = rigid_alignment(source[rows], noisy[rows], weights[rows])
+        assert np.allclose(batched[0][g], rotation, atol=1e-12) and np.allclose(batched[1][g], translation, atol=1e-8)
+    empty = rigid_alignments(source, target, labels, 501, weights)
+    assert np.array_equal(empty[0][500], np.eye(3)) and np.array_equal(empty[1][500], np.zeros(3))

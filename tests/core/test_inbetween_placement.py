@@ -1078,3 +1078,71 @@ def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     for gap in range(len(near)):
         np.testing.assert_allclose(far.poses(gap, [0.25, 0.5, 0.75]) - shift, near.poses(gap, [0.25, 0.5, 0.75]),
                                    atol=1e-9)
+
+
+def test_a_mesh_of_many_rigid_pieces_moves_each_by_its_screw_motion():
+    """100 pieces (debris; more than SLICED_PIECES, so every per-piece step runs on all pieces at
+    once), each turned by up to 150° about its own axis and moved: two poses give each piece its
+    own screw motion at every factor, and a sequence keeps every piece rigid."""
+    rng = np.random.default_rng(8)
+    piece, piece_tri = icosphere(0, radius=0.05)
+    count = len(piece)
+    rest = np.vstack([piece + rng.uniform(-3.0, 3.0, 3) for _ in range(100)])
+    tri = np.vstack([piece_tri + k * count for k in range(100)])
+    motions = [(Rotation.from_rotvec(rng.normal(size=3) * rng.uniform(0.1, 2.6) / np.sqrt(3)).as_matrix(),
+                rng.normal(size=3)) for _ in range(100)]
+    moved = np.vstack([rest[k * count:(k + 1) * count] @ r.T + t for k, (r, t) in enumerate(motions)])
+    interpolator = Interpolator(rest, moved, tri)
+    for factor in (0.3, 0.5, 1.5):
+        pose = interpolator.pose(factor)
+        expected = np.vstack([_screw(rest[k * count:(k + 1) * count], r, t, factor) for k, (r, t) in enumerate(motions)])
+        np.testing.assert_allclose(pose, expected, atol=1e-9)
+    keys = [rest, moved, np.vstack([moved[k * count:(k + 1) * count] @ r.T + t for k, (r, t) in enumerate(motions)])]
+    edges = np.vstack([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
+    lengths = np.linalg.norm(rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
+    sequence = SequenceInterpolator(keys, tri)
+    for gap in range(len(sequence)):
+        for x in sequence.poses(gap, [0.25, 0.5, 0.75]):
+            np.testing.assert_allclose(np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1), lengths, atol=1e-9)
+
+
+def test_many_rigid_pieces_stay_on_the_bending_sheet_that_carries_them(monkeypatch):
+    """80 sequins (rigid quads a little above a sheet; more than SLICED_PIECES, so the seats are
+    found for all at once) on a sheet rolled by 90°: every in-between of two poses keeps each
+    sequin rigid and on the sheet (its nearest sheet vertex within a grid cell)."""
+    rng = np.random.default_rng(9)
+    flat, tri = grid(31, 31, size=2.0)
+    flat -= [1.0, 1.0, 0.0]  # centred: x, y in −1 … 1
+
+    radius = 2.0 / np.radians(90.0)
+    centres = rng.uniform(-0.9, 0.9, (80, 2))
+    quad = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * 0.04  # larger than a grid cell (0.067): seated
+    height = 0.005
+
+    def sequins(theta):  # each sequin rigidly on the sheet rolled by ``theta`` (its centre's angle)
+        turn = np.stack([np.cos(theta), np.zeros_like(theta), np.sin(theta)], axis=1)  # the roll's tangent
+        normal = np.stack([-np.sin(theta), np.zeros_like(theta), np.cos(theta)], axis=1)
+        where = np.stack([radius * np.sin(theta) - 1.0, centres[:, 1], radius * (1 - np.cos(theta))], axis=1)
+        return np.vstack([where[k] + height * normal[k] + np.outer(quad[:, 0], turn[k]) + np.outer(quad[:, 1], [0, 1, 0])
+                          for k in range(80)])
+
+    theta = (flat[:, 0] + 1.0) / radius
+    sheet = np.stack([radius * np.sin(theta) - 1.0, flat[:, 1], radius * (1 - np.cos(theta))], axis=1)
+    sequin_tri = np.vstack([np.array([[0, 1, 2], [0, 2, 3]]) + len(flat) + 4 * k for k in range(80)])
+    tri_all = np.vstack([tri, sequin_tri])
+    a = np.vstack([flat, np.vstack([np.c_[c + quad, np.full(4, height)] for c in centres])])
+    interpolator = Interpolator(a, np.vstack([sheet, sequins((centres[:, 0] + 1.0) / radius)]), tri_all)
+    edges = np.vstack([sequin_tri[:, [0, 1]], sequin_tri[:, [1, 2]], sequin_tri[:, [2, 0]]])
+    lengths = np.linalg.norm(a[edges[:, 0]] - a[edges[:, 1]], axis=1)
+    from scipy.spatial import cKDTree
+
+    import core.inbetween_carried as carried
+    seats = []
+    found = carried.CarriedPieces._seats
+    monkeypatch.setattr(carried.CarriedPieces, "_seats", staticmethod(lambda *a: seats.extend(found(*a)) or seats[-80:]))
+    for factor in (0.25, 0.5, 0.75):
+        x = interpolator.pose(factor)
+        np.testing.assert_allclose(np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1), lengths, atol=1e-9)
+        distance = cKDTree(x[:len(flat)]).query(x[len(flat):])[0]
+        assert distance.max() < height + 0.05, distance.max()  # a grid cell is 0.067 across
+    assert seats and all(carriers is not None for carriers, _ in seats)  # every sequin carried by the sheet
