@@ -30,9 +30,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .concurrency import single_threaded_blas
-from .errors import MeshError
+import warnings
 
+from .concurrency import single_threaded_blas
+from .errors import MeshError, ShapeDifferenceWarning
+
+#: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
+#: the differences' Frobenius norm is round-off, not a difference between poses: identical poses
+#: spread 5e-17 of it, poses moved by 1e-9 of the mesh's size 3e-9.
+ROUND_OFF_SPREAD = 1e-12
 #: The four kinds of shape difference, in the order the paper plots them.
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
 KIND_LABELS = {
@@ -71,6 +77,7 @@ class ShapeSpace:
             data = self.features[kind]
             centered = data - data.mean(axis=0)
             u, s, vt = np.linalg.svd(centered, full_matrices=False)
+            s = np.where(s > ROUND_OFF_SPREAD * np.linalg.norm(data), s, 0.0)  # round-off axes: no spread
             # Deterministic signs: each axis points towards its largest coordinate.
             scores = u * s
             flip = np.sign(scores[np.argmax(np.abs(scores), axis=0), np.arange(scores.shape[1])])
@@ -91,7 +98,7 @@ class ShapeSpace:
 
     def explained_variance_ratio(self, kind: str) -> np.ndarray:
         """Share of the collection's variance along each PCA axis, float64 ``(r,)`` summing to 1
-        (all zeros if every pose has the same differences)."""
+        (all zeros if every pose has the same differences, to :data:`ROUND_OFF_SPREAD`)."""
         _, s, _ = self._decomposition(kind)
         variance = s**2
         total = variance.sum()
@@ -172,7 +179,12 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                 for kind, difference in zip(kinds, pose_differences(layer, positions, k_M, k_N)):
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
-    return ShapeSpace(features, k_M, k_N, reference.offset)
+    space = ShapeSpace(features, k_M, k_N, reference.offset)
+    if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
+        warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
+                      "only): the shape space has no spread, every pose is at its origin.",
+                      ShapeDifferenceWarning, stacklevel=2)
+    return space
 
 
 def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None) -> ShapeSpace:

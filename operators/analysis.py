@@ -36,6 +36,12 @@ class AnalysisBasisProperties(AnalysisBasis):
         return self.offset or context.scene.shape_differences.offset or None
 
     def check_sizes(self, vertex_count: int):
+        """Refuse sizes the mesh cannot have; the defaults (sizes not given) shrink to a small mesh
+        (k_N to its vertex count less one, k_M to k_N), written back for the Redo panel."""
+        if not self.properties.is_property_set("k_n"):
+            self.k_n = min(self.k_n, vertex_count - 1)
+        if not self.properties.is_property_set("k_m"):
+            self.k_m = max(2, min(self.k_m, self.k_n or vertex_count - 1))
         for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
             if k >= vertex_count:
                 raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
@@ -245,14 +251,24 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         from ..core.distortion_maps import DistortionAnalyzer
 
         analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m)
-        results = []
+        results, unchanged = [], []
         for index, pose in enumerate(poses):
             distortion = analyzer.pose(pose)
-            eigen = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)[1]
+            pairs = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)
                      for kind in KINDS} if self.eigenfunctions else {}
-            results.append((distortion, eigen))
+            results.append((distortion, {kind: functions for kind, (_, functions) in pairs.items()}))
+            stretch = max((np.abs(np.log(np.maximum(np.abs(values), np.finfo(float).tiny))).max()
+                           for values, _ in pairs.values()), default=np.inf)
+            if stretch <= UNCHANGED_STRETCH:
+                unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
+        if unchanged:
+            self.report({'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
+                                     f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "
+                                     "difference is the identity to 1e-9): the maps show no distortion, and the "
+                                     "eigenfunction maps are arbitrary (every function is an eigenfunction of "
+                                     "the identity)")
         if self.source == 'FRAMES':
             # The frame handler shows the map of the frame being played (see follow_frame).
             mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}
@@ -292,6 +308,10 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             mesh.color_attributes.active_color = mesh.color_attributes[first]
         mesh.update()
 
+
+#: A pose whose difference operators' eigenvalues all have |log ν| at most this does not change
+#: the base: its leading eigenfunctions are arbitrary.
+UNCHANGED_STRETCH = 1e-9
 
 #: Custom property (on the mesh) listing the frames that have distortion maps.
 FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"

@@ -122,3 +122,28 @@ def test_errors_change_nothing(keyed):
         bpy.ops.shape_differences.shape_space_select(rank=0)
     assert_unchanged(before, snapshot(bridge, obj))
     assert "shape_space" not in obj and obj.data.color_attributes.get("SD Area") is None
+
+
+def test_a_small_mesh_and_poses_that_do_not_differ(bpy_empty, extension, capfd):
+    """On an 81-vertex grid the default basis sizes (k_M 50, k_N 100) shrink to the mesh (before,
+    "k_N = 100 is too large" for a size the user never set); a size the user sets is still
+    checked. A key equal to the Basis: its maps are one neutral colour and a warning says its
+    eigenfunction maps are arbitrary; a shape space of poses that do not differ says it has no
+    spread (before: "share of PC 1: 100 %" of round-off)."""
+    obj = grid_object(8)
+    rest = extension.bridge.vertex_positions(obj.data)
+    add_key(obj, "Same", rest)
+    add_key(obj, "Also same", rest)
+    obj.active_shape_key_index = 1
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', eigenfunctions=1)
+    out = capfd.readouterr().out
+    assert "'Same' does not change the base" in out and "eigenfunction maps are arbitrary" in out
+    colours = obj.data.color_attributes["SD Area"]
+    values = np.zeros(len(colours.data) * 4)
+    colours.data.foreach_get("color", values)
+    assert len(np.unique(values.reshape(-1, 4), axis=0)) == 1
+    bpy.ops.shape_differences.shape_space(source='KEYS')
+    out = capfd.readouterr().out
+    assert "no spread" in out and "share of PC 1: area 0 %" in out
+    with pytest.raises(RuntimeError, match="k_N = 100 is too large for a mesh with 81 vertices"):
+        bpy.ops.shape_differences.shape_space(source='KEYS', k_n=100)

@@ -118,3 +118,20 @@ def test_bad_inputs_name_the_problem(bump_collection):
         core.shape_space([poses[0], poses[1], poses[2][:-1]], t, k_M=10, k_N=20)
     with pytest.raises(ValueError, match="kind must be one of"):
         core.shape_space(poses[:3], t, k_M=10, k_N=20).coordinates("volume")
+
+
+def test_poses_that_do_not_differ_have_no_spread(bump_collection):
+    """Copies of one pose (a still animation): every axis is round-off (5e-17 of the differences'
+    norm), so the variance shares are zero, every pose is at the origin and a warning says so
+    (before, the round-off axis read as 100 % of the variance); poses moved by 1e-9 of the mesh's
+    size still spread."""
+    poses, t = bump_collection
+    with pytest.warns(core.ShapeDifferenceWarning, match="same shape differences"):
+        still = core.shape_space([poses[1]] * 4, t, k_M=12, k_N=None)
+    for kind in KINDS:
+        assert not still.explained_variance_ratio(kind).any()
+        assert not still.coordinates(kind).any()
+    rng = np.random.default_rng(3)
+    nudged = core.shape_space([poses[1] + 1e-9 * rng.normal(size=poses[1].shape) for _ in range(4)], t,
+                              k_M=12, k_N=None)
+    assert nudged.explained_variance_ratio("area").sum() == pytest.approx(1.0)
