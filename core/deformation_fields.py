@@ -401,7 +401,7 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
     held = whole_turn & (references is not None and references.shape[1] == 6)
     base = np.where(held[:, None], references[:, 3:], 0.0) if held.any() else np.zeros_like(translations)
     rhs = translations - np.einsum("pab,pb->pa", matrices, base)
-    return np.concatenate([w, base + _least_squares_3x3(matrices, rhs)], axis=1)
+    return np.concatenate([w, base + least_squares_3x3(matrices, rhs)], axis=1)
 
 
 def _hats(w: np.ndarray) -> np.ndarray:
@@ -412,7 +412,7 @@ def _hats(w: np.ndarray) -> np.ndarray:
     return h
 
 
-def _least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+def least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """The minimum-norm least-squares solutions (P, 3) of ``matrices`` (P, 3, 3) ``x = rhs``
     (P, 3), singular values below :data:`SCREW_CUTOFF` times the largest dropped, by one batched
     SVD. ``V(2πkû) = ûûᵀ`` has rank one: its two zero singular values come out at round-off

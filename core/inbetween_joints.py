@@ -42,27 +42,36 @@ def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarr
 def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndarray, reach: float) -> float:
     """How far (≥ 0) the relative rigid motion ``x ↦ rotation · x + translation`` of two pieces
     (the child's motion with its parent's undone) is from holding their ``contact`` (points (k, 3)
-    where they touch): 0 where it moves no contact point by more than ``reach``; else the distance
-    of its screw axis from the contact region (beyond the region's radius and ``reach``), inf if
-    it slides along its axis by more than ``reach`` or does not turn. A hinge whose pivot lies
-    inside both meshes moves every contact point but keeps its axis through the contact."""
-    moved = contact @ rotation.T + translation
-    if np.max(np.linalg.norm(moved - contact, axis=1)) <= reach:
-        return 0.0
-    turn = df.rotation_vectors(rotation[None])[0]
-    angle = float(np.linalg.norm(turn))
-    if angle < 1e-9:
-        return np.inf
-    axis = turn / angle
-    slide = float(translation @ axis)
-    if abs(slide) > reach:
-        return np.inf
-    pivot = np.linalg.lstsq(np.eye(3) - rotation, translation - slide * axis, rcond=None)[0]  # a point of the axis
-    centre = contact.mean(axis=0)
-    radius = float(np.max(np.linalg.norm(contact - centre, axis=1)))
+    where they touch): one pair of :func:`joint_offsets`."""
+    return float(joint_offsets(contact, np.zeros(len(contact), dtype=np.intp), np.array([0]), rotation[None],
+                               np.asarray(translation)[None], reach)[0])
+
+
+def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rotations: np.ndarray,
+                  translations: np.ndarray, reach: float) -> np.ndarray:
+    """Per pair of touching pieces (P,), how far (≥ 0) the relative rigid motion
+    ``x ↦ R x + t`` of the two (the child's motion with its parent's undone; ``rotations`` (P, 3, 3),
+    ``translations`` (P, 3)) is from holding their contact (``contact`` (k, 3) the points where they
+    touch, ``pair`` (k,) whose they are, in runs beginning at ``starts`` (P,)): 0 where it moves no
+    contact point by more than ``reach``; else the distance of its screw axis from the contact
+    region (beyond the region's radius and ``reach``), inf if it slides along its axis by more than
+    ``reach`` or does not turn. A hinge whose pivot lies inside both meshes moves every contact
+    point but keeps its axis through the contact. Every pair at once (a pile of 30,000 pieces has
+    50,000 touching pairs: 4 s per gap one by one)."""
+    moved = np.einsum("kab,kb->ka", rotations[pair], contact) + translations[pair]
+    held = np.maximum.reduceat(np.linalg.norm(moved - contact, axis=1), starts) <= reach
+    turn = df.rotation_vectors(rotations)
+    angle = np.linalg.norm(turn, axis=1)
+    axis = turn / np.where(angle > 0, angle, 1.0)[:, None]
+    slide = np.einsum("pa,pa->p", translations, axis)
+    hinged = ~held & (angle >= 1e-9) & (np.abs(slide) <= reach)
+    pivot = df.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)  # a point of the axis
+    counts = np.diff(np.r_[starts, len(contact)])
+    centre = np.add.reduceat(contact, starts) / counts[:, None]
+    radius = np.maximum.reduceat(np.linalg.norm(contact - centre[pair], axis=1), starts)
     offset = centre - pivot
-    distance = float(np.linalg.norm(offset - (offset @ axis) * axis))
-    return max(0.0, distance - radius - reach)
+    distance = np.linalg.norm(offset - np.einsum("pa,pa->p", offset, axis)[:, None] * axis, axis=1)
+    return np.where(held, 0.0, np.where(hinged, np.maximum(0.0, distance - radius - reach), np.inf))
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
@@ -96,20 +105,19 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     order = np.argsort(key, kind="stable")
     key, ends = key[order], index[pairs[order]]
     first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    edges, weights = [], []
-    for start, stop in zip(first, np.r_[first[1:], key.size]):
-        u, v = divmod(int(key[start]), pieces.size)
-        contact = 0.5 * (base[ends[start:stop, 0]] + base[ends[start:stop, 1]])
-        offset = joint_offset(contact, *relative_motion((rotations[u], translations[u]),
-                                                        (rotations[v], translations[v])), reach)
-        if offset <= reach:
-            # the closest the touching vertices stay at the next key: 0 where a joint is a shared point
-            apart = np.min(np.linalg.norm(nxt[ends[start:stop, 0]] - nxt[ends[start:stop, 1]], axis=1))
-            edges.append((u, v))
-            weights.append(offset + apart + 1e-3 * reach)  # > 0: a zero is no edge to SciPy
-    if not edges:
+    u, v = np.divmod(key[first], pieces.size)
+    inverse = np.transpose(rotations[u], (0, 2, 1))  # v's motion relative to u's (relative_motion, every pair)
+    contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
+    offsets = joint_offsets(contact, np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size])), first,
+                            inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u]),
+                            reach)
+    jointed = offsets <= reach
+    if not jointed.any():
         return None
-    u, v = np.array(edges).T
+    # the closest the touching vertices stay at the next key: 0 where a joint is a shared point
+    apart = np.minimum.reduceat(np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1), first)
+    weights = offsets[jointed] + apart[jointed] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
+    u, v = u[jointed], v[jointed]
     tree = minimum_spanning_tree(sp.csr_matrix((weights, (u, v)), shape=(pieces.size,) * 2)).tocoo()
     neighbours: dict[int, list[int]] = {}
     for u, v in zip(tree.row, tree.col):
