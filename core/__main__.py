@@ -26,7 +26,7 @@ from .errors import ShapeDifferenceError
 from .obj_file import read_obj
 from .point_cache import merge_pc2, read_point_cache, refuse_overwriting, write_pc2
 from .retime import iter_retime, plan_retime
-from .validation import check_output_memory
+from .validation import check_output_memory, check_working_memory
 
 
 def _chunk(text: str) -> tuple[int, int]:
@@ -112,6 +112,7 @@ def _retime(args) -> int:
     outputs = plan.outputs(gaps)
     options = dict(k_M=args.k_m or None, k_N=args.k_n or None, offset=args.offset or None,
                    use_extrinsic=not args.intrinsic, smooth=not args.linear)
+    check_working_memory(cache.n_points, "In-betweening this cache", "run it on a node with more memory")
     check_output_memory(len(outputs), cache.n_points, "The output of this retime",
                         "split it across processes with --chunk I/N (and merge the parts), or raise --speed")
     poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)

@@ -9,7 +9,8 @@ number or ``"False"`` as a flag are errors, not conversions). Inputs are never m
 Checks: :func:`check_vertices`, :func:`check_triangles`, :func:`check_mesh` (both, plus the
 topology: manifold edges *and* vertices, consistent orientation), :func:`check_basis_sizes`,
 :func:`check_offset`, :func:`check_factor`, :func:`check_gap_index`, :func:`check_time`,
-:func:`check_flag`, :func:`check_key_poses`, :func:`check_output_memory`; :func:`numerical_failures` turns a solver's raw
+:func:`check_flag`, :func:`check_key_poses`, :func:`check_output_memory`, :func:`check_working_memory`;
+:func:`numerical_failures` turns a solver's raw
 exception into a :class:`~core.errors.RecoveryError`.
 """
 
@@ -35,6 +36,10 @@ MAX_FACTOR = 1e3
 #: Largest share of the memory available now that a job's output poses may take: the rest is
 #: for the job's own work and for whatever else the machine runs (Blender itself, other jobs).
 OUTPUT_MEMORY_SHARE = 0.5
+#: Memory a sequence's in-betweens take per vertex at their peak (keys, fields, factorizations):
+#: the benchmark's 100k-vertex sheets peak at 948 MB, the analytic one with 15 in-betweens per gap
+#: at 1,114 MB (docs/inbetweens.md).
+WORKING_BYTES_PER_VERTEX = 12_000
 
 
 def _describe(value) -> str:
@@ -363,6 +368,21 @@ def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, 
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
         raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB, "
                         f"and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
+
+
+def check_working_memory(n_points: int, what: str, advice: str) -> None:
+    """Refuse (:class:`~core.errors.MeshError`) in-betweening a mesh of ``n_points`` vertices whose
+    working memory (:data:`WORKING_BYTES_PER_VERTEX` per vertex) exceeds the memory available now,
+    before any work: the system would kill the process when it runs out (Blender with the artist's
+    unsaved work). ``what`` names the job, ``advice`` the way out; unchecked where the system does
+    not say how much memory is available."""
+    from .resources import available_memory
+
+    need = int(n_points) * WORKING_BYTES_PER_VERTEX
+    free = available_memory()
+    if free is not None and need > free:
+        raise MeshError(f"{what} ({int(n_points):,} vertices) needs about {need / 1e9:.3g} GB of memory and this "
+                        f"machine has {free / 1e9:.3g} GB available: {advice}.")
 
 
 @contextmanager

@@ -230,8 +230,13 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
 
 
 def check_output_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
-    """``core.validation.check_output_memory`` (core is imported when an operator first runs)."""
-    from ..core.validation import check_output_memory as check
+    """``core.validation.check_working_memory`` of the in-betweens and ``check_output_memory`` of
+    the poses they give (core is imported when an operator first runs)."""
+    from ..core.validation import check_output_memory as check, check_working_memory
+
+    check_working_memory(n_vertices, "In-betweening this mesh",
+                         "decimate it or split it into parts, or run it on a machine with more memory "
+                         "(python -m core retime on a farm node)")
     check(n_poses, n_vertices, what, advice)
 
 

@@ -219,10 +219,11 @@ def test_writing_is_all_or_nothing(bpy_empty, extension, with_keys):
 
 
 def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, core, monkeypatch):
-    """A retime slower than Blender can play (speed 1e-7: 80 million frames), or an output larger
-    than half the memory available (In-between Frames asked for 100,000 in-betweens per gap), is
-    refused before any frame is read: before, the first filled the memory until the system killed
-    Blender and the second ran for hours holding every pose."""
+    """A retime slower than Blender can play (speed 1e-7: 80 million frames), an output larger
+    than half the memory available (In-between Frames asked for 100,000 in-betweens per gap), or a
+    mesh whose in-betweens need more memory than there is, is refused before any frame is read:
+    before, the first filled the memory until the system killed Blender and the second ran for
+    hours holding every pose."""
     import importlib
 
     from blender_scenes import armature_scene
@@ -234,3 +235,10 @@ def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, cor
     fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.inbetween_frames,
                          "The output is 200,003 poses of .* GB of memory available: lower In-betweens",
                          frame_step=4, count=100_000)
+    # a mesh whose in-betweens need more memory than there is (12 kB per vertex)
+    monkeypatch.setattr(importlib.import_module(core.__name__ + ".resources"), "available_memory",
+                        lambda: 12_000 * len(strip.data.vertices) - 1)
+    for operator in (bpy.ops.shape_differences.inbetween_frames, bpy.ops.shape_differences.retime):
+        fails_without_change(extension.bridge, strip, operator,
+                             f"In-betweening this mesh \\({len(strip.data.vertices)} vertices\\) needs about",
+                             frame_step=4)
