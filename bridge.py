@@ -7,6 +7,7 @@ always in object space. Nothing else in the extension converts.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import bpy
@@ -93,6 +94,31 @@ class NotEvaluated(FrameReadError):
     """The object is not in the depsgraph (disabled in viewports): its modifiers are not computed."""
 
 
+class CacheFileMissing(FrameReadError):
+    """A cache modifier of the object reads a file that is not there: every frame is its rest mesh."""
+
+
+def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
+    """``(modifier name, path)`` of the first enabled Mesh Cache or Mesh Sequence Cache (Alembic,
+    USD) modifier of ``obj`` whose file does not exist, or None. A file sequence (numbered files)
+    is not checked."""
+    for modifier in obj.modifiers:
+        if not modifier.show_viewport:
+            continue
+        if modifier.type == 'MESH_CACHE':
+            path = modifier.filepath
+        elif modifier.type == 'MESH_SEQUENCE_CACHE' and modifier.cache_file is not None \
+                and not modifier.cache_file.is_sequence:
+            path = modifier.cache_file.filepath
+        else:
+            continue
+        library = modifier.id_data.library
+        absolute = bpy.path.abspath(path, library=library) if path else ""
+        if not path or not os.path.isfile(absolute):
+            return modifier.name, absolute or "(no file)"
+    return None
+
+
 def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
     """The number of vertices of ``obj``'s evaluated mesh (after its modifiers) at the depsgraph's
     current frame."""
@@ -110,12 +136,19 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
     ``set_aside``: modifiers of ``obj`` switched off in the viewport while the frames are read
     (the generators after the motion, :func:`operators.output.modifiers_set_aside`). Raises
-    :class:`NotEvaluated` for an object the depsgraph leaves out (disabled in viewports), before
-    anything is changed, and :class:`VertexCountChanged` for a frame whose mesh has other vertices.
+    :class:`NotEvaluated` for an object the depsgraph leaves out (disabled in viewports) and
+    :class:`CacheFileMissing` for one whose cache modifier's file is gone, before anything is
+    changed, and :class:`VertexCountChanged` for a frame whose mesh has other vertices.
     The scene's current frame and the modifiers are restored afterwards, also when the caller
     stops early.
     """
     scene = context.scene
+    missing = missing_cache_file(obj)
+    if missing is not None:
+        raise CacheFileMissing(
+            f"The modifier '{missing[0]}' of '{obj.name}' reads '{missing[1]}', which does not exist (moved "
+            "or renamed?), so every frame would read its mesh at rest. Point the modifier to the file and "
+            "run again")
     if not obj.evaluated_get(context.evaluated_depsgraph_get()).is_evaluated:
         raise NotEvaluated(
             f"'{obj.name}' is disabled in viewports (its own Disable in Viewports, or its "

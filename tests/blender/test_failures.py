@@ -114,6 +114,33 @@ def test_an_object_disabled_in_viewports_is_refused(bpy_empty, extension, disabl
     assert set(bpy.data.objects.keys()) == names
 
 
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime", "frames_to_shape_keys", "distortion_maps"])
+def test_a_cache_modifier_whose_file_is_gone_is_refused(bpy_empty, extension, operator, tmp_path):
+    """A Mesh Cache modifier whose PC2 file was moved (or a temporary cache gone after a restart):
+    Blender plays the rest mesh at every frame, so every operator reading frames made a still
+    result and reported it done. Refused, naming the modifier and the path; nothing changed."""
+    import importlib
+
+    from blender_scenes import grid_object
+
+    sheet = grid_object(6)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "sim.pc2", np.array([rest + [0.0, 0.0, 0.1 * k] for k in range(9)]),
+                                 start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    path.rename(tmp_path / "moved.pc2")
+    names = set(bpy.data.objects.keys())
+    options = dict(source='FRAMES', k_m=10, k_n=0) if operator == "distortion_maps" else dict(frame_step=4)
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         "modifier 'Mesh Cache' of 'Sheet' reads '.*sim.pc2', which does not exist", **options)
+    assert set(bpy.data.objects.keys()) == names
+    (tmp_path / "moved.pc2").rename(path)  # back in place: it runs
+    getattr(bpy.ops.shape_differences, operator)(**options)
+
+
 def test_an_object_hidden_with_the_eye_icon_runs(bpy_empty, extension):
     strip = armature_scene()
     strip.hide_set(True)
