@@ -119,6 +119,21 @@ def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
     return None
 
 
+def still_frames(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray]) -> str | None:
+    """A warning when every pose read from ``obj`` at ``frames`` (two or more) is the same, to the
+    bit: a motion that never reached the mesh (a baked disk cache whose files are gone reads the
+    rest mesh at every frame, its cache saying "0 frames on disk") rather than a still object,
+    which is rarely worth in-betweening; None otherwise."""
+    if len(poses) < 2 or any(not np.array_equal(pose, poses[0]) for pose in poses[1:]):
+        return None
+    caches = [f"{m.name} cache: '{m.point_cache.info}'" for m in obj.modifiers
+              if m.show_viewport and hasattr(m, "point_cache")]
+    return (f"The {len(poses)} frames read from '{obj.name}' ({frames[0]}–{frames[-1]}) are all the same pose"
+            + (f" ({'; '.join(caches)})" if caches else "")
+            + ": if it should move, check what moves it (a baked cache whose files are gone, a simulation "
+              "outside this range)")
+
+
 def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
     """The number of vertices of ``obj``'s evaluated mesh (after its modifiers) at the depsgraph's
     current frame."""

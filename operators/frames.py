@@ -82,6 +82,9 @@ class FrameRangeProperties:
             for frame, positions in frame_reader:
                 poses.append(positions)
                 yield progress_share * len(poses) / len(frames)
+        still = bridge.still_frames(obj, frames, poses)
+        if still:
+            self.report({'WARNING'}, still)
         return poses
 
 

@@ -159,6 +159,9 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             for _frame, positions in reader:
                 poses.append(positions)
                 matrices.append(source.matrix_world.copy())
+        still = bridge.still_frames(source, frames, poses)
+        if still:
+            self.report({'WARNING'}, still)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
                 poses, matrices)
 

@@ -269,3 +269,33 @@ def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, cor
         fails_without_change(extension.bridge, strip, operator,
                              f"In-betweening this mesh \\({len(strip.data.vertices)} vertices\\) needs about",
                              frame_step=4)
+
+
+def test_frames_that_never_move_are_said_to(bpy_empty, extension, tmp_path, capfd):
+    """A cloth baked to a disk cache whose files are gone (the .blend moved without its
+    blendcache folder): Blender plays the rest mesh at every frame, "baked", 0 frames on disk.
+    The in-betweens of a still pose are that pose, but the run says the frames never move and
+    quotes the cache (before: reported done, nothing else)."""
+    import shutil
+
+    from blender_scenes import grid_object
+
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 9
+    cloth = grid_object(6, name="Cloth")
+    cloth.location.z = 1.0
+    modifier = cloth.modifiers.new("Cloth", 'CLOTH')
+    modifier.point_cache.frame_start, modifier.point_cache.frame_end = 1, 9
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    modifier.point_cache.use_disk_cache = True
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    bpy.ops.wm.save_mainfile()
+    shutil.rmtree(tmp_path / "blendcache_shot")
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
+    cloth = bpy.data.objects["Cloth"]
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        capfd.readouterr()
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    out = capfd.readouterr().out
+    assert "frames read from 'Cloth' (1–9) are all the same pose (Cloth cache: '0 frames on disk" in out
