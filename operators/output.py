@@ -94,8 +94,9 @@ def trailing_generators(obj) -> list:
     generators and touch-ups follow it: what turns the moving mesh (after the cloth, armature,
     Mesh Cache) into the displayed one, such as a Subdivision Surface after the cloth and
     *Smooth by Angle* after it. Without a generator there, the modifiers at the end that never
-    move a vertex (normals, UVs, *Smooth by Angle*)."""
-    enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport]
+    move a vertex (normals, UVs, *Smooth by Angle*). Enabled in the viewport or for rendering: a
+    Subdivision on for rendering only goes with the new object too, so that it renders alike."""
+    enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport or modifier.show_render]
     run = len(enabled)  # the last modifiers: generators and touch-ups only
     while run > 0 and (enabled[run - 1].type in GENERATE_MODIFIERS | MOVING_TOUCH_UP_MODIFIERS
                        or _still(enabled[run - 1])):

@@ -128,6 +128,25 @@ def test_shade_auto_smooth_after_the_motion_goes_with_the_new_object(bpy_empty, 
     assert 0 < counts[-1][0] < counts[-1][1], counts  # bent, shaded by angle: some edges sharp
 
 
+def test_a_subdivision_on_for_rendering_only_goes_with_the_new_object(bpy_empty, extension, tmp_path):
+    """A Subdivision switched off in the viewport and on for rendering (the usual way to keep the
+    viewport fast): the new object renders as the source does (before, it lost the modifier)."""
+    bridge = extension.bridge
+    strip = armature_scene(frames=9)
+    moving = evaluated_frames(bridge, strip, [5])
+    subdivision = strip.modifiers.new("Subdivision", 'SUBSURF')
+    subdivision.show_viewport, subdivision.render_levels = False, 2
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path / "strip.pc2"))
+    [copy] = new_objects(names)
+    assert [(m.type, m.show_viewport, m.show_render) for m in copy.modifiers] == [
+        ('MESH_CACHE', True, True), ('SUBSURF', False, True)]
+    assert copy.modifiers["Subdivision"].render_levels == 2
+    np.testing.assert_allclose(evaluated_frames(bridge, copy, [5])[5], moving[5], atol=TOLERANCE)
+    assert not subdivision.show_viewport and subdivision.show_render  # the source's as it was
+
+
 def test_a_subdivision_after_an_unbaked_cloth_is_refused(bpy_empty, extension):
     flag = pinned_cloth_scene(frames=5, bake=False)
     add_display_modifiers(flag)
