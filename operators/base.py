@@ -261,8 +261,6 @@ class CoreSettingsProperties(CoreSettings):
                     use_extrinsic=self.use_extrinsic)
 
 
-# -- shape key lookup -------------------------------------------------------------------------
-
 def playback_range(scene) -> tuple[int, int]:
     """The frames playback covers: the preview range where it is on (the timeline's clock
     button), else the scene's range — the default range of Blender's own *Bake Action*."""
@@ -270,6 +268,8 @@ def playback_range(scene) -> tuple[int, int]:
         return scene.frame_preview_start, scene.frame_preview_end
     return scene.frame_start, scene.frame_end
 
+
+# -- shape key lookup -------------------------------------------------------------------------
 
 def surface_triangles(obj):
     """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error."""

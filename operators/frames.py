@@ -131,8 +131,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # the keys, the in-betweens of each gap and, for a range that is not whole steps, those of
         # the shorter last gap (at most as many) and the last frame
         gaps = len(frames) - 1 + (end > frames[-1])
-        check_output_memory(len(frames) + (end > frames[-1]) + gaps * self.count, len(obj.data.vertices),
-                            "The output", "lower In-betweens per gap or the frame range")
+        check_memory(len(frames) + (end > frames[-1]) + gaps * self.count, len(obj.data.vertices),
+                     "The output", "lower In-betweens per gap or the frame range")
         # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
@@ -208,8 +208,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         retime = load_core_retime()
         start, end = self.frame_range(context)
         plan = retime.plan_retime(end - start + 1, self.frame_step, self.speed)
-        check_output_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(self.speed)}",
-                            "raise the speed or retime a shorter range")
+        check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(self.speed)}",
+                     "raise the speed or retime a shorter range")
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj)
         options = self.core_options(context, len(obj.data.vertices))
@@ -232,15 +232,15 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
             label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
 
 
-def check_output_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
+def check_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
     """``core.validation.check_working_memory`` of the in-betweens and ``check_output_memory`` of
     the poses they give (core is imported when an operator first runs)."""
-    from ..core.validation import check_output_memory as check, check_working_memory
+    from ..core.validation import check_output_memory, check_working_memory
 
     check_working_memory(n_vertices, "In-betweening this mesh",
                          "decimate it or split it into parts, or run it on a machine with more memory "
                          "(python -m core retime on a farm node)")
-    check(n_poses, n_vertices, what, advice)
+    check_output_memory(n_poses, n_vertices, what, advice)
 
 
 def load_core_retime():
