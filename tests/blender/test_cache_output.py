@@ -52,16 +52,22 @@ SCENES = {"pinned cloth": (pinned_cloth_scene, 25),
 
 
 @pytest.mark.parametrize("scene", SCENES)
-def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tmp_path):
+def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tmp_path, capfd):
     make_scene, end = SCENES[scene]
     source = make_scene(frames=end)
+    bpy.context.scene.frame_end = end
     bridge = extension.bridge
     before = snapshot(bridge, source)
     before["evaluated"] = evaluated_frames(bridge, source, range(1, end + 1))
     names = set(bpy.data.objects.keys())
     path = tmp_path / "retime.pc2"
+    capfd.readouterr()
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=end, frame_step=4, speed=0.5,
                                      filepath=str(path))
+    # the scene's range is left as it was, and the run says how far the motion now runs
+    assert bpy.context.scene.frame_end == end
+    assert (f"runs to frame {2 * end - 1}, past the end of playback at frame {end}: set the scene's End to "
+            f"{2 * end - 1}") in capfd.readouterr().out
     first = new_object(names)
     assert first.name == f"{source.name} Retime 0.50x step 4"
     assert_cache_object(first, source, path)
@@ -96,6 +102,7 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
     names = set(bpy.data.objects.keys())
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=end, frame_step=6, speed=1.0,
                                      filepath=str(path))
+    assert "past the end of playback" not in capfd.readouterr().out
     second = new_object(names)
     second_file = assert_cache_object(second, source)
     assert second_file != path and path.read_bytes() == first_bytes
