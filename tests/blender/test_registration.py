@@ -138,6 +138,9 @@ def test_panel_draws_settings_and_operators(bpy_empty, extension):
         "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames",
         "shape_differences.retime", *["shape_differences.transfer_poses"] * 2, *["shape_differences.shape_space"] * 2,
         *["shape_differences.distortion_maps"] * 2]
+    bpy.context.scene.use_preview_range = True  # the Animation panel shows the preview range then
+    assert len(draw_panels(extension)) == 9
+    bpy.context.scene.use_preview_range = False
 
     posed_grid(extension.bridge, 4)
     settings = bpy.context.scene.shape_differences
