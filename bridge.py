@@ -105,14 +105,13 @@ def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
     for modifier in obj.modifiers:
         if not modifier.show_viewport:
             continue
-        if modifier.type == 'MESH_CACHE':
-            path = modifier.filepath
+        if modifier.type == 'MESH_CACHE':  # a path relative to the file the object comes from
+            path, library = modifier.filepath, modifier.id_data.library
         elif modifier.type == 'MESH_SEQUENCE_CACHE' and modifier.cache_file is not None \
-                and not modifier.cache_file.is_sequence:
-            path = modifier.cache_file.filepath
+                and not modifier.cache_file.is_sequence:  # relative to the Cache File's own
+            path, library = modifier.cache_file.filepath, modifier.cache_file.library
         else:
             continue
-        library = modifier.id_data.library
         absolute = bpy.path.abspath(path, library=library) if path else ""
         if not path or not os.path.isfile(absolute):
             return modifier.name, absolute or "(no file)"

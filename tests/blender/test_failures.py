@@ -141,6 +141,23 @@ def test_a_cache_modifier_whose_file_is_gone_is_refused(bpy_empty, extension, op
     getattr(bpy.ops.shape_differences, operator)(**options)
 
 
+def test_an_alembic_cache_whose_file_is_gone_is_refused(bpy_empty, extension, tmp_path):
+    """The same for a Mesh Sequence Cache (an Alembic import): refused, naming the file."""
+    from blender_scenes import armature_scene
+
+    armature_scene(frames=9)
+    bpy.ops.wm.alembic_export(filepath=str(tmp_path / "strip.abc"), start=1, end=9)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.ops.wm.alembic_import(filepath=str(tmp_path / "strip.abc"))
+    imported = next(obj for obj in bpy.data.objects if obj.type == 'MESH')
+    assert [m.type for m in imported.modifiers] == ['MESH_SEQUENCE_CACHE']
+    bpy.context.view_layer.objects.active = imported
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    (tmp_path / "strip.abc").rename(tmp_path / "moved.abc")
+    fails_without_change(extension.bridge, imported, bpy.ops.shape_differences.frames_to_shape_keys,
+                         "reads '.*strip.abc', which does not exist", frame_step=4, output='SHAPE_KEYS')
+
+
 def test_an_object_hidden_with_the_eye_icon_runs(bpy_empty, extension):
     strip = armature_scene()
     strip.hide_set(True)
