@@ -179,7 +179,7 @@ def read_mdd(path) -> PointCache:
 
 def read_point_cache(path) -> PointCache:
     """Read a PC2 or MDD file, told apart by the PC2 signature (MDD has none); a file named
-    ``.pc2`` without the signature, or an empty one, raises :class:`MeshError`."""
+    ``.pc2`` without the signature, an empty one, or one that is neither, raises :class:`MeshError`."""
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
@@ -192,7 +192,14 @@ def read_point_cache(path) -> PointCache:
     if path.suffix.lower() == ".pc2":  # named PC2 but not one: say so rather than read it as MDD
         raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2'): "
                         "export it again as PC2, or give an MDD file its .mdd name.")
-    return read_mdd(path)
+    try:
+        return read_mdd(path)
+    except MeshError:
+        if path.suffix.lower() == ".mdd":
+            raise
+        # neither kind (an OBJ or Alembic file given as the cache): say that, not an MDD header's size
+        raise MeshError(f"'{path}' is not a point cache: neither PC2 (it does not start with 'POINTCACHE2') "
+                        "nor MDD (its header does not match its size). Give a .pc2 or .mdd file.") from None
 
 
 def merge_pc2(parts, path) -> Path:

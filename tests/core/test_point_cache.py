@@ -89,3 +89,15 @@ def test_missing_file_and_bad_positions(tmp_path):
     with pytest.raises(MeshError, match="shape"):
         write_pc2(tmp_path / "flat.pc2", np.zeros((4, 2)))
     assert not list(tmp_path.iterdir())
+
+
+def test_a_file_that_is_no_point_cache_is_said_to_be_none(tmp_path):
+    """An OBJ given as the cache (the arguments swapped): "not a point cache" (it read as an MDD
+    whose header "promises 18439727604560280776 bytes"); a damaged .mdd keeps the MDD message."""
+    obj = tmp_path / "sheet.obj"
+    obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(MeshError, match="is not a point cache: neither PC2 .* nor MDD"):
+        read_point_cache(obj)
+    (tmp_path / "cut.mdd").write_bytes(obj.read_bytes())
+    with pytest.raises(MeshError, match="not a complete MDD file"):
+        read_point_cache(tmp_path / "cut.mdd")
