@@ -133,6 +133,11 @@ INTRINSIC_EMBEDDING_TOLERANCE = 1e-2
 #: point on the 1k limb (frame 40 3.62 → 3.99 / 4.02 / 4.63 %).
 MIN_MATCHED_FRACTION = 0.1
 WARN_MATCHED_FRACTION = 0.5
+#: Closest points match two meshes that overlap at rest: a base vertex is then within about half a
+#: target edge of its nearest target vertex. When the median distance is more than this many
+#: target edge lengths the meshes are elsewhere (a remeshed copy placed beside the original),
+#: and the transfer is refused: it returned a flat sheet with warnings about the recovery.
+OVERLAP_EDGES = 2.0
 #: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
 #: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
 #: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
@@ -270,7 +275,9 @@ class Transfer:
 
         base_used = reference.used_vertices
         if correspondence is None:
-            matched = self.target_used[closest_point_correspondence(reference.base_positions, rest_used)]
+            nearest = closest_point_correspondence(reference.base_positions, rest_used)
+            self._check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
+            matched = self.target_used[nearest]
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
             self.correspondence[base_used] = matched
         else:
@@ -392,6 +399,20 @@ class Transfer:
                 stacklevel=3,
             )
         return flat
+
+    @staticmethod
+    def _check_overlap(base, nearest, target, target_edges) -> None:
+        """Raise :class:`MeshError` when the base positions (n, 3) are not on the target's rest
+        surface: their median distance to their ``nearest`` target vertices over :data:`OVERLAP_EDGES`
+        target edge lengths (``target_edges`` (E, 2) of positions ``target``)."""
+        edge = float(np.mean(np.linalg.norm(target[target_edges[:, 0]] - target[target_edges[:, 1]], axis=1)))
+        apart = float(np.median(np.linalg.norm(base - nearest, axis=1)))
+        if apart > OVERLAP_EDGES * edge:
+            raise MeshError(
+                f"The two meshes do not overlap at rest: half of the base's vertices are more than {apart:.3g} "
+                f"from the target's ({apart / edge:.1f} of its edge lengths), and closest points match only "
+                "meshes laid on each other. Place the target's rest pose where the base is, or give a "
+                "correspondence (in Blender: Map › Attribute or File)")
 
     @staticmethod
     def _check_matched_fraction(matched):

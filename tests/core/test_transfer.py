@@ -115,6 +115,13 @@ def test_errors_in_the_users_terms(sheets):
     transfer = Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, use_extrinsic=False)
     with pytest.raises(MeshError, match="same target mesh"):
         transfer.differences(target[:-1])
+    # a remeshed copy placed beside the base: closest points cannot match it (before: a flat sheet
+    # with warnings about the recovery); given a map it transfers
+    beside = target + [3.0, 0.0, 0.0]
+    with pytest.raises(MeshError, match=r"do not overlap at rest: .* \(2[0-9.]+ of its edge lengths\)"):
+        Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20)
+    nearest = np.argmin(np.linalg.norm(base[:, None] - target[None], axis=2), axis=1)
+    Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20, correspondence=nearest)
 
 
 @pytest.fixture(scope="module")
