@@ -118,7 +118,7 @@ def test_errors_in_the_users_terms(sheets):
     # a remeshed copy placed beside the base: closest points cannot match it (before: a flat sheet
     # with warnings about the recovery); given a map it transfers
     beside = target + [3.0, 0.0, 0.0]
-    with pytest.raises(MeshError, match=r"do not overlap at rest: .* \(2[0-9.]+ of its edge lengths\)"):
+    with pytest.raises(MeshError, match=r"do not overlap at rest: .* \(\d+\.\d of its edge lengths\)"):
         Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20)
     nearest = np.argmin(np.linalg.norm(base[:, None] - target[None], axis=2), axis=1)
     Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20, correspondence=nearest)
