@@ -82,6 +82,36 @@ def evaluated_positions(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -
         evaluated.to_mesh_clear()
 
 
+#: Relative spread of the singular values of an object's world matrix above which poses are
+#: interpolated in the world's proportions (:class:`WorldProportions`).
+SIMILARITY_TOLERANCE = 1e-6
+
+
+class WorldProportions:
+    """The linear part of ``obj``'s world matrix when it is not a rotation times one scale (an
+    object scaled along one axis in Object Mode, not applied): the simulation (and what the artist
+    sees) is in the world, where the mesh's own coordinates are stretched, so a turning fold looks
+    sheared there and in-betweens computed there keep the wrong lengths (a flag keyed every 8th
+    frame, scaled (2, 1, 1): edge deviation 0.79 → 2.80 %, RMS error ×2; the linear blend does not
+    care). Poses go through :meth:`to` before the core and :meth:`back` after; for a similarity
+    (any rotation, one scale) nothing is done."""
+
+    def __init__(self, obj: bpy.types.Object):
+        linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
+        sigma = np.linalg.svd(linear, compute_uv=False)
+        skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
+        self.matrix = linear.T if skewed else None  # row vectors: x ↦ x Lᵀ
+        self.inverse = np.linalg.inv(linear).T if skewed else None
+
+    def to(self, positions: np.ndarray) -> np.ndarray:
+        """Positions (…, n, 3) in the world's proportions."""
+        return positions if self.matrix is None else positions @ self.matrix
+
+    def back(self, positions: np.ndarray) -> np.ndarray:
+        """Positions (…, n, 3) in the world's proportions back in the mesh's coordinates."""
+        return positions if self.inverse is None else positions @ self.inverse
+
+
 class FrameReadError(ValueError):
     """The frames of an object cannot be read as the poses of its mesh (the message says why)."""
 

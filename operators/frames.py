@@ -138,9 +138,11 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
         _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
+        space = bridge.WorldProportions(obj)
+        scaled = {frame: space.to(positions) for frame, positions in read.items()}
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
-        sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [read[f] for f in keyed],
+        sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed)
         names, tails, all_poses, timeline = [], [], [], []
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
@@ -158,12 +160,13 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
             if gap is None and gap_factors:
                 self.pose_names = [f"frame {frame}" for frame in tail]
-                sequence = yield from self.compute(progress, retime.short_gap_sequence, read, triangles, tail,
+                sequence = yield from self.compute(progress, retime.short_gap_sequence, scaled, triangles, tail,
                                                    **options)
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
-                all_poses.extend((yield from self.compute(progress, sequence.poses, gap, gap_factors)).astype(np.float32))
+                all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors)))
+                                 .astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)
@@ -218,12 +221,13 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         # the keys and, where the last gap is shorter than a step, the samples keying it (core.retime)
         _poses, options["start"], read = yield from self.read_keys_and_start(
             context, obj, key_frames, 0.1, also=[start + sample for sample in plan.samples_read])
-        samples = KeySamples(plan.n_source, {sample: read[start + sample] for sample in plan.samples_read})
+        space = bridge.WorldProportions(obj)
+        samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample]) for sample in plan.samples_read})
         poses_out = retime.iter_retime(samples, triangles, plan, **options)
         retimed = []
         for index in range(plan.n_out):
             _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
-            retimed.append(pose.astype(np.float32))  # what shape keys and point caches store
+            retimed.append(space.back(pose).astype(np.float32))  # what shape keys and point caches store
         out_frames = [float(start + k) for k in range(plan.n_out)]
         speed = format_factor(self.speed)
         self.summary = self.write_poses(

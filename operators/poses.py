@@ -29,6 +29,17 @@ def scene_frames(context, count: int) -> list[float]:
     return [float(start + i) for i in range(count)]
 
 
+class InWorldProportions:
+    """An interpolator of poses taken into the world's proportions, its poses back in the mesh's
+    coordinates (:class:`bridge.WorldProportions`)."""
+
+    def __init__(self, interpolator, space):
+        self.interpolator, self.space = interpolator, space
+
+    def pose(self, factor: float):
+        return self.space.back(self.interpolator.pose(factor))
+
+
 class KeyPairProperties:
     """Interpolation between two shape keys of the active object, the first defaulting to the
     Basis and the second to the active key."""
@@ -48,10 +59,11 @@ class KeyPairProperties:
         self.check_output(obj)
         self.pose_names = (f"shape key '{start.name}'", f"shape key '{end.name}'")
         yield 0.0
+        space = bridge.WorldProportions(obj)
         interpolator = yield from self.compute(
-            0.0, load_core().Interpolator, bridge.shape_key_positions(start, obj),
-            bridge.shape_key_positions(end, obj), triangles, **options)
-        return start, end, interpolator
+            0.0, load_core().Interpolator, space.to(bridge.shape_key_positions(start, obj)),
+            space.to(bridge.shape_key_positions(end, obj)), triangles, **options)
+        return start, end, InWorldProportions(interpolator, space)
 
 
 class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,

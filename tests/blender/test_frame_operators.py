@@ -232,3 +232,39 @@ def test_smooth_by_angle_does_not_make_every_frame_read(bpy_empty, extension, tm
     group.nodes.new("GeometryNodeSetPosition")
     other.modifiers[-1].node_group = group
     assert frames_visited_by_inbetween_frames(tmp_path) == list(range(1, 10))
+
+
+def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, extension, tmp_path):
+    """A sheet scaled (2, 1, 0.5) and not applied, played by a Mesh Cache that turns it rigidly in
+    the world at a steady 15° per frame: every in-between of In-between Frames is that turn at its
+    frame (before, computed in the mesh's stretched coordinates: up to 0.77 off in the world, on a
+    sheet 4 wide)."""
+    import importlib
+
+    from scipy.spatial.transform import Rotation
+
+    from blender_scenes import grid_object
+
+    bridge = extension.bridge
+    sheet = grid_object(8)
+    sheet.scale = (2.0, 1.0, 0.5)
+    bpy.context.view_layer.update()
+    linear = np.array(sheet.matrix_world.to_3x3())
+    rest = bridge.vertex_positions(sheet.data)
+
+    def turned(frame):  # the world turn at ``frame``, in the mesh's coordinates
+        turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
+        return rest @ linear.T @ turn.T @ np.linalg.inv(linear).T
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([turned(f) for f in range(1, 10)]), start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    modifier.frame_start = 1.0  # sample 0 at frame 1 (the modifier reads sample frame − frame_start)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
+    for frame in (2, 3, 4, 6, 7, 8):
+        gap = 0 if frame < 5 else 1
+        name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)

@@ -159,3 +159,38 @@ def test_captured_keys_warn_about_double_deformation(bpy_empty, extension, capfd
     assert [m.type for m in strip.modifiers] == ['ARMATURE', 'SUBSURF', 'NODES']
     bpy.ops.shape_differences.frames_to_shape_keys(output='SHAPE_KEYS')
     assert f"deformed again by 'Armature' of '{strip.name}':" in capfd.readouterr().out
+
+
+@pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 1.5)])
+def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, extension, operator, factor):
+    """A sheet scaled (2, 1, 0.5) in Object Mode and not applied, whose key turns it rigidly by 80°
+    in the world (what the artist sees): the in-between and the exaggeration turn it rigidly in the
+    world too (before, interpolated in the mesh's own coordinates, where the turn looks sheared:
+    world edge lengths 69 % off on average half-way, 270 % at ×1.5)."""
+    import importlib
+
+    from scipy.spatial.transform import Rotation
+
+    from blender_scenes import grid_object
+
+    bridge = extension.bridge
+    sheet = grid_object(8)
+    sheet.scale = (2.0, 1.0, 0.5)
+    bpy.context.view_layer.update()
+    linear = np.array(sheet.matrix_world.to_3x3())
+    rest = bridge.vertex_positions(sheet.data)
+    turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()
+    add_key(sheet, "Turned", rest @ linear.T @ turn.T @ np.linalg.inv(linear).T)  # a world turn, in local coordinates
+    if operator == "inbetween":
+        bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Turned", count=1)
+    else:
+        bpy.ops.shape_differences.exaggerate(key="Turned", reference="Basis", factor=factor)
+    made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[-1]) @ linear.T
+    world_rest = rest @ linear.T
+    edges = np.array([(e.vertices[0], e.vertices[1]) for e in sheet.data.edges])
+    lengths = [np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) for x in (world_rest, made)]
+    np.testing.assert_allclose(lengths[1], lengths[0], rtol=1e-5)
+    alignment = importlib.import_module(extension.__name__ + ".core.rigid_alignment")
+    found = alignment.rigid_alignment(world_rest, made)[0]  # the world turn made: that fraction of the key's
+    assert np.allclose(Rotation.from_matrix(found).as_rotvec(), Rotation.from_matrix(turn).as_rotvec() * factor,
+                       atol=1e-4)
