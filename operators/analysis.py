@@ -120,6 +120,8 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             poses = yield from self.read_frames(context, obj, frames, 0.1)
         from ..core.shape_space_pca import shape_space_steps
 
+        proportions = bridge.WorldProportions(obj)  # measured as the world shows them
+        poses = [proportions.to(pose) for pose in poses]
         space = yield from _drive(
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
                               offset=self.resolved_offset(context)), 0.1, 0.85)
@@ -250,6 +252,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             poses = yield from self.read_frames(context, obj, frames, 0.3)
         from ..core.distortion_maps import DistortionAnalyzer
 
+        proportions = bridge.WorldProportions(obj)  # distortion as the world shows it
+        base, poses = proportions.to(base), [proportions.to(pose) for pose in poses]
         analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m)
         results, unchanged = [], []
         for index, pose in enumerate(poses):

@@ -147,3 +147,22 @@ def test_a_small_mesh_and_poses_that_do_not_differ(bpy_empty, extension, capfd):
     assert "no spread" in out and "share of PC 1: area 0 %" in out
     with pytest.raises(RuntimeError, match="k_N = 100 is too large for a mesh with 81 vertices"):
         bpy.ops.shape_differences.shape_space(source='KEYS', k_n=100)
+
+
+def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, extension):
+    """A sheet scaled (2, 1, 0.5) and not applied, its key a rigid turn in the world: no area
+    change (before, measured in the mesh's stretched coordinates: log area changes up to 1.36)."""
+    from scipy.spatial.transform import Rotation
+
+    sheet = grid_object(8)
+    sheet.scale = (2.0, 1.0, 0.5)
+    bpy.context.view_layer.update()
+    linear = np.array(sheet.matrix_world.to_3x3())
+    rest = extension.bridge.vertex_positions(sheet.data)
+    turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()
+    add_key(sheet, "Turned", rest @ linear.T @ turn.T @ np.linalg.inv(linear).T)
+    sheet.active_shape_key_index = 1
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', eigenfunctions=0)
+    values = np.zeros(len(sheet.data.vertices))
+    sheet.data.attributes["sd_area"].data.foreach_get("value", values)
+    assert np.abs(values).max() < 1e-5  # float32 keys
