@@ -14,6 +14,21 @@ def grid_object(subdivisions: int = 12, name: str = "Sheet"):
     return obj
 
 
+def stretched_sheet(bridge, scale=(2.0, 1.0, 0.5)):
+    """A grid scaled along its axes in Object Mode and not applied: (the object, the linear part
+    of its world matrix (3, 3), its rest positions in its own coordinates)."""
+    sheet = grid_object(8)
+    sheet.scale = scale
+    bpy.context.view_layer.update()
+    return sheet, np.array(sheet.matrix_world.to_3x3()), bridge.vertex_positions(sheet.data)
+
+
+def world_turned(positions: np.ndarray, linear: np.ndarray, turn: np.ndarray) -> np.ndarray:
+    """``positions`` (an object's own coordinates, its world matrix's linear part ``linear``)
+    turned by the rotation ``turn`` (3, 3) in the world, in the object's own coordinates."""
+    return positions @ linear.T @ turn.T @ np.linalg.inv(linear).T
+
+
 def rolled(positions: np.ndarray, angle: float) -> np.ndarray:
     """The grid rolled about the y axis into an arc of ``angle`` radians (a bending pose)."""
     x, y = positions[:, 0], positions[:, 1]

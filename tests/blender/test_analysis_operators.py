@@ -154,13 +154,10 @@ def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, ex
     change (before, measured in the mesh's stretched coordinates: log area changes up to 1.36)."""
     from scipy.spatial.transform import Rotation
 
-    sheet = grid_object(8)
-    sheet.scale = (2.0, 1.0, 0.5)
-    bpy.context.view_layer.update()
-    linear = np.array(sheet.matrix_world.to_3x3())
-    rest = extension.bridge.vertex_positions(sheet.data)
-    turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()
-    add_key(sheet, "Turned", rest @ linear.T @ turn.T @ np.linalg.inv(linear).T)
+    from blender_scenes import stretched_sheet, world_turned
+
+    sheet, linear, rest = stretched_sheet(extension.bridge)
+    add_key(sheet, "Turned", world_turned(rest, linear, Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()))
     sheet.active_shape_key_index = 1
     bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', eigenfunctions=0)
     values = np.zeros(len(sheet.data.vertices))

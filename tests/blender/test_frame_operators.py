@@ -243,18 +243,14 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
 
     from scipy.spatial.transform import Rotation
 
-    from blender_scenes import grid_object
+    from blender_scenes import stretched_sheet, world_turned
 
     bridge = extension.bridge
-    sheet = grid_object(8)
-    sheet.scale = (2.0, 1.0, 0.5)
-    bpy.context.view_layer.update()
-    linear = np.array(sheet.matrix_world.to_3x3())
-    rest = bridge.vertex_positions(sheet.data)
+    sheet, linear, rest = stretched_sheet(bridge)
 
     def turned(frame):  # the world turn at ``frame``, in the mesh's coordinates
         turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
-        return rest @ linear.T @ turn.T @ np.linalg.inv(linear).T
+        return world_turned(rest, linear, turn)
 
     point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
     path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([turned(f) for f in range(1, 10)]), start=1.0)

@@ -171,16 +171,12 @@ def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, e
 
     from scipy.spatial.transform import Rotation
 
-    from blender_scenes import grid_object
+    from blender_scenes import stretched_sheet, world_turned
 
     bridge = extension.bridge
-    sheet = grid_object(8)
-    sheet.scale = (2.0, 1.0, 0.5)
-    bpy.context.view_layer.update()
-    linear = np.array(sheet.matrix_world.to_3x3())
-    rest = bridge.vertex_positions(sheet.data)
+    sheet, linear, rest = stretched_sheet(bridge)
     turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()
-    add_key(sheet, "Turned", rest @ linear.T @ turn.T @ np.linalg.inv(linear).T)  # a world turn, in local coordinates
+    add_key(sheet, "Turned", world_turned(rest, linear, turn))
     if operator == "inbetween":
         bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Turned", count=1)
     else:
