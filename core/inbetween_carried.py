@@ -65,15 +65,16 @@ class CarriedPieces:
         order, labels = topo.component_order, topo.vertex_component[topo.component_order]
         deforming = order[~rigid[labels]]
         if gap.static is not None:  # still in every key: pinned where it is
-            rigid = rigid & ~(np.bincount(labels, gap.static[order], minlength=rigid.size) == np.bincount(labels, minlength=rigid.size))
+            still = np.bincount(labels, gap.static[order], minlength=rigid.size)
+            rigid = rigid & (still < np.bincount(labels, minlength=rigid.size))
         pieces = np.flatnonzero(rigid)
         if not pieces.size:
             return
         chosen = rigid[labels]
         rows, piece = order[chosen], np.searchsorted(pieces, labels[chosen])  # piece: index among ``pieces``
         own = rigid_alignments(base[rows], nxt[rows], piece, pieces.size)
-        seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming, cKDTree(topo.first_pose[deforming]),
-                            own, JOINT_REACH * gap.mean_edge)
+        seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming,
+                            cKDTree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge)
         groups = np.split(rows, np.flatnonzero(np.diff(piece)) + 1)
         kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats) if carriers is not None]
         if not kept:
@@ -119,7 +120,8 @@ class CarriedPieces:
         distance, nearest = tree.query(first[rows], k=CARRIER_NEIGHBOURS, distance_upper_bound=reachable.max())
         found = np.isfinite(distance) & (distance < reachable[piece][:, None])
         pair = np.unique(piece[:, None].repeat(CARRIER_NEIGHBOURS, axis=1)[found] * deforming.size + nearest[found])
-        seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]  # by piece, then as ``deforming`` lists them
+        # by piece, then in the order ``deforming`` lists them
+        seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]
         counts = np.bincount(seat_piece, minlength=count)
         seated = base[carriers]
         sums = np.stack([np.bincount(seat_piece, seated[:, d], minlength=count) for d in range(3)], axis=1)
@@ -128,10 +130,13 @@ class CarriedPieces:
         for a in range(3):
             for b in range(3):
                 scatter[:, a, b] = np.bincount(seat_piece, centred[:, a] * centred[:, b], minlength=count)
-        spread = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter)[:, 1], 0.0))  # second singular value of the centred carriers
-        usable = (diagonal > 0) & (counts >= MIN_CARRIERS) & (spread / np.sqrt(np.maximum(counts, 1)) >= MIN_CARRIER_SPREAD * diagonal)
+        # the second singular value of the centred carriers
+        spread = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter)[:, 1], 0.0))
+        usable = (diagonal > 0) & (counts >= MIN_CARRIERS) \
+            & (spread / np.sqrt(np.maximum(counts, 1)) >= MIN_CARRIER_SPREAD * diagonal)
         rotations, translations = rigid_alignments(seated, nxt[carriers], seat_piece, count)
-        miss = np.abs(np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece] - nxt[rows]).max(axis=1)
+        moved = np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece]
+        miss = np.abs(moved - nxt[rows]).max(axis=1)
         worst = np.maximum.reduceat(miss, starts)
         groups = np.split(carriers, np.cumsum(counts)[:-1])
         ends = np.r_[starts[1:], rows.size]

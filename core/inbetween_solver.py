@@ -566,7 +566,7 @@ class _Gap(LocalGlobalFit):
         if self.anchored and between:
             still = np.zeros(count, dtype=bool) if self.static is None else \
                 np.bincount(labels, self.static[rows], minlength=count) > 0
-            held = topo.component_sums(np.minimum(weights / BLEND_ANCHOR_WEIGHT, 1.0)) / topo.component_sums(np.ones(topo.n))
+            held = topo.component_sums(np.minimum(weights / BLEND_ANCHOR_WEIGHT, 1.0)) / topo.component_mass
             partly = anchored & ~still
             shares[partly] = np.maximum(0.0, 1.0 - held[partly] / CENTROID_ANCHOR_SHARE) ** 2
         return shares

@@ -64,7 +64,8 @@ def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray,
     total = np.where(total > 0, total, 1.0)
     s_mean = np.stack([sums(source[:, d]) for d in range(3)], axis=1) / total[:, None]
     x_mean = np.stack([sums(target[:, d]) for d in range(3)], axis=1) / total[:, None]
-    s_centred, x_centred = source - s_mean[labels], target - x_mean[labels]  # about each group's mean: no cancellation far out
+    # about each group's mean: no cancellation far from the origin
+    s_centred, x_centred = source - s_mean[labels], target - x_mean[labels]
     covariance = np.empty((n_groups, 3, 3))  # Σ w x̃ s̃ᵀ per group
     for a in range(3):
         for b in range(3):

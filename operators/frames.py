@@ -236,9 +236,10 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
             label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
         shown = playback_range(context.scene)[1]
         if out_frames[-1] > shown:  # the scene's range is the user's to change
+            which = "preview range" if context.scene.use_preview_range else "scene"
             self.report({'WARNING'}, f"The retimed motion runs to frame {out_frames[-1]:g}, past the end of "
-                                     f"playback at frame {shown}: set the {'preview range' if context.scene.use_preview_range else 'scene'}'s "
-                                     f"End to {out_frames[-1]:g} to play all of it")
+                                     f"playback at frame {shown}: set the {which}'s End to {out_frames[-1]:g} "
+                                     "to play all of it")
 
 
 def check_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
