@@ -56,10 +56,21 @@ def nearest_rotations(matrices: np.ndarray) -> np.ndarray:
     return u @ vt
 
 
+#: Up to this many groups :func:`grouped_medians` takes each group's median by a partition (two
+#: groups of 10k values: 61 µs, one sort of all: 1.8 ms); beyond, one sort (a loop of medians over
+#: 3,000 groups took 0.2 s).
+LOOPED_MEDIAN_GROUPS = 64
+
+
 def grouped_medians(values: np.ndarray, groups: np.ndarray, n_groups: int) -> np.ndarray:
     """The median (n_groups,) of the finite ``values`` (r,) in each group (``groups`` int (r,),
-    every group non-empty), as ``np.median`` of each gives it, by one sort (a loop of medians
-    over 3,000 pieces took 0.2 s)."""
+    every group non-empty), as ``np.median`` of each gives it."""
+    if n_groups == 1:
+        return np.array([np.median(values)])
+    if n_groups <= LOOPED_MEDIAN_GROUPS:
+        order = np.argsort(groups, kind="stable")
+        ends = np.cumsum(np.bincount(groups, minlength=n_groups))[:-1]
+        return np.array([np.median(part) for part in np.split(values[order], ends)])
     order = np.lexsort((values, groups))
     counts = np.bincount(groups, minlength=n_groups)
     starts = np.cumsum(counts) - counts

@@ -103,14 +103,7 @@ class _Relative:
         trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
         whole = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
-        if len(topo.components) == 1:
-            return np.array([np.median(residual) > np.median(whole) + SPURIOUS_RIGID_TURN])
         pieces, count = topo.triangle_component, len(topo.components)
-        if count <= df.SLICED_PIECES:  # few pieces: a partition each beats one sort of all the triangles
-            order = np.argsort(pieces, kind="stable")
-            ends = np.cumsum(np.bincount(pieces, minlength=count))[:-1]
-            return np.array([np.median(r) > np.median(w) + SPURIOUS_RIGID_TURN
-                             for r, w in zip(np.split(residual[order], ends), np.split(whole[order], ends))])
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
 
     def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray) -> "_Relative":

@@ -1,6 +1,7 @@
 """Shared geometry helpers (core/geometry.py) and per-component rigid placement."""
 
 import numpy as np
+import pytest
 
 from core.geometry import (
     connected_components,
@@ -92,12 +93,13 @@ def test_align_components_moves_each_component_rigidly():
     assert np.array_equal(out[~active], moved[~active])  # inactive rows stay
 
 
-def test_grouped_medians_are_each_groups_median():
+@pytest.mark.parametrize("count", [1, 7, 100])  # one group, a partition each, one sort of all
+def test_grouped_medians_are_each_groups_median(count):
     rng = np.random.default_rng(4)
-    groups = np.r_[np.arange(7), rng.integers(0, 7, 200)]  # every group present, sizes odd and even
+    groups = np.r_[np.arange(count), rng.integers(0, count, 200 * count)]  # every group present, sizes odd and even
     values = rng.normal(size=groups.size) * 10.0 ** rng.integers(-8, 8, groups.size)
-    expected = [np.median(values[groups == g]) for g in range(7)]
-    assert np.array_equal(grouped_medians(values, groups, 7), expected)
+    expected = [np.median(values[groups == g]) for g in range(count)]
+    assert np.array_equal(grouped_medians(values, groups, count), expected)
 
 
 def test_rigid_alignments_of_many_groups_are_each_groups_alignment():
