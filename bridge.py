@@ -391,17 +391,21 @@ TRANSFORM_CHANNELS = ("rotation_mode", "location", "rotation_euler", "rotation_q
 
 def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name: str,
                      filepath: str, start: float, sampling: float, modifiers=(),
-                     speed: float = 1.0, source_end: float | None = None) -> bpy.types.Object:
+                     speed: float = 1.0, source_end: float | None = None,
+                     deformed_by_parent: bool = False) -> bpy.types.Object:
     """A new object named ``name`` with a copy of ``source``'s mesh (no shape keys, no
     modifiers) and a Mesh Cache modifier that plays the PC2 file ``filepath`` whose first sample
     is at frame ``start``, one every ``sampling`` frames, followed by copies of ``source``'s
-    ``modifiers`` (the generators after its motion: a Subdivision, a Solidify), with ``source``'s
+    ``modifiers`` (the generators after its motion: a Subdivision, a Solidify; or, for poses of its
+    shape keys, its whole stack: an Armature), with ``source``'s
     object-linked materials and render settings (:func:`copy_object_look`).
 
     It is linked to the collections of ``source`` (the scene's where those are linked from a
     library or overridden) and moves as ``source`` does as a whole
     (:func:`copy_object_motion`; the cache holds object-space positions; ``speed``, ``source_end``:
-    a retime that plays ``source``'s frames ``start`` … ``source_end``); ``source`` stays the
+    a retime that plays ``source``'s frames ``start`` … ``source_end``; ``deformed_by_parent``:
+    a parent deforming ``source`` deforms the poses too, by :func:`parent_deform_modifier`);
+    ``source`` stays the
     active, selected object. If anything fails, the new object and mesh are removed again.
     """
     mesh = source.data.copy()
@@ -424,6 +428,8 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         # The modifier reads sample (frame * frame_scale - frame_start) of the file.
         modifier.frame_scale = 1.0 / sampling
         modifier.frame_start = start / sampling
+        if deformed_by_parent and source.parent is not None and source.parent_type in DEFORMING_PARENT_TYPES:
+            parent_deform_modifier(source, obj)
         if modifiers:
             # Blender's own copy: every setting, Geometry Nodes inputs included
             with context.temp_override(object=source, active_object=source, selected_objects=[obj],
@@ -436,6 +442,22 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
             bpy.data.objects.remove(obj)  # a shared action stays: it is the source's
         bpy.data.meshes.remove(mesh)
         raise
+
+
+def parent_deform_modifier(source: bpy.types.Object, obj: bpy.types.Object) -> None:
+    """Add to ``obj`` the modifier that stands for ``source``'s deforming parent (an armature,
+    lattice or curve parent): Blender applies such a parent as a modifier before the whole
+    stack, where the Mesh Cache would overwrite it, so ``obj`` is parented as an object
+    (:func:`copy_object_motion`) and gets the modifier after its Mesh Cache — with the settings
+    Blender gives it (an armature parent deforms by vertex groups and envelopes; a curve parent
+    along the object's track axis)."""
+    kind = source.parent_type
+    modifier = obj.modifiers.new(f"{source.parent.name} (parent)", kind)
+    modifier.object = source.parent
+    if kind == 'ARMATURE':
+        modifier.use_vertex_groups, modifier.use_bone_envelopes = True, True
+    elif kind == 'CURVE':
+        modifier.deform_axis = source.track_axis
 
 
 # Object settings that decide how an object renders and shows (Blender 4.x / 5.x names; those a

@@ -121,7 +121,8 @@ OUTPUT_ITEMS = (
      "Add the poses as shape keys of the active object (its modifiers still deform them)"),
     ('CACHE', "Point Cache",
      "Write the poses to a PC2 file played by a Mesh Cache modifier on a new object (a copy of "
-     "the mesh without the modifiers that moved it); the active object stays as it was"),
+     "the mesh: poses of shape keys under copies of its modifiers, as the keys are; captured "
+     "frames without the modifiers that moved them); the active object stays as it was"),
 )
 
 

@@ -108,6 +108,22 @@ def trailing_generators(obj) -> list:
     return enabled[start:]
 
 
+#: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
+#: simulate again from its own start) and what reads a cache (it would replace the poses).
+NOT_COPIED_UNDER_KEYS = SIMULATION_MODIFIERS | {'MESH_CACHE', 'MESH_SEQUENCE_CACHE', 'PARTICLE_SYSTEM',
+                                                'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
+
+
+def modifiers_under_keys(obj) -> tuple[list, list]:
+    """(modifiers to copy, modifiers left out) for a new object playing poses of ``obj``'s shape
+    keys: Blender deforms shape keys by the whole modifier stack (an Armature, a Lattice, a
+    Subdivision), so the new object takes over every enabled one but
+    :data:`NOT_COPIED_UNDER_KEYS` (enabled in the viewport or for rendering)."""
+    enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport or modifier.show_render]
+    return ([modifier for modifier in enabled if modifier.type not in NOT_COPIED_UNDER_KEYS],
+            [modifier for modifier in enabled if modifier.type in NOT_COPIED_UNDER_KEYS - PASSIVE_MODIFIERS])
+
+
 def modifiers_set_aside(context, obj) -> list:
     """The modifiers to switch off while the frames of ``obj`` are read: its trailing generators
     (:func:`trailing_generators`) when its evaluated mesh has other vertices than its mesh (the
@@ -253,7 +269,7 @@ class PoseWriter:
 
     def write_poses(self, context, source, poses, *, names: list[str], frames: list[float],
                     label: str, tails: list[str] | None = None, keyframe: bool = False,
-                    speed: float = 1.0) -> str:
+                    speed: float = 1.0, keyed: bool = False) -> str:
         """Write ``poses`` (float ``(n, 3)`` each) and return the summary for the report.
 
         Shape keys: one key per pose named ``names[i] + tails[i]`` (the tail, e.g. a factor, is
@@ -261,6 +277,10 @@ class PoseWriter:
         ``frames`` (evenly spaced) on a new object called "<source> <label>", which moves as
         ``source`` does as a whole; ``speed``: the poses play ``source``'s time
         ``frames[0] + (frame − frames[0]) · speed`` (a retime), its keyframed transform too.
+        ``keyed``: the poses are of ``source``'s shape keys (before its modifiers), and the new
+        object is deformed by copies of ``source``'s modifiers as the keys are
+        (:func:`modifiers_under_keys`); else they are what its modifiers made, and only the
+        generators after its motion are copied (:func:`trailing_generators`).
         """
         if self.output == 'SHAPE_KEYS':
             tails = tails or [""] * len(names)
@@ -274,10 +294,10 @@ class PoseWriter:
                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
                                          "object) to retime its keyframed transform too")
             return added_summary(added)
-        return self.write_cache_object(context, source, poses, frames, label, speed)
+        return self.write_cache_object(context, source, poses, frames, label, speed, keyed)
 
     def write_cache_object(self, context, source, poses, frames: list[float], label: str,
-                           speed: float = 1.0) -> str:
+                           speed: float = 1.0, keyed: bool = False) -> str:
         sampling = float(frames[1] - frames[0]) if len(frames) > 1 else 1.0
         if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
             raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
@@ -290,13 +310,19 @@ class PoseWriter:
         except OSError as error:
             raise InputError(f"Cannot write the cache file '{path}': {error.strerror or error}. "
                              "Pick another Cache File") from None
+        modifiers, left_out = modifiers_under_keys(source) if keyed else (trailing_generators(source), [])
         try:
             obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling,
-                                          modifiers=trailing_generators(source), speed=speed,
-                                          source_end=frames[0] + (frames[-1] - frames[0]) * speed)
+                                          modifiers=modifiers, speed=speed,
+                                          source_end=frames[0] + (frames[-1] - frames[0]) * speed,
+                                          deformed_by_parent=keyed)
         except BaseException:
             path.unlink(missing_ok=True)
             raise
+        if left_out:
+            self.report({'WARNING'}, f"'{obj.name}' plays the poses without {', '.join(repr(m.name) for m in left_out)} "
+                                     f"of '{source.name}' (a simulation or a cache is not copied): use "
+                                     "Output › Shape Keys to see them under it")
         # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)

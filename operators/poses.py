@@ -89,7 +89,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
             poses = [bridge.shape_key_positions(key_a, obj), *poses, bridge.shape_key_positions(key_b, obj)]
         names, tails = zip(*(inbetween_name(key_a.name, key_b.name, f) for f in factors))
         self.summary = self.write_poses(context, obj, poses, names=names, tails=tails,
-                                        frames=scene_frames(context, len(poses)), label=label)
+                                        frames=scene_frames(context, len(poses)), label=label, keyed=True)
 
 
 class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProperties,
@@ -108,7 +108,7 @@ class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProper
         tail = f" {format_factor(self.factor)} from {shorten(reference.name, 20)}"
         self.summary = self.write_poses(
             context, context.active_object, [pose], names=[f"Exaggerate {key.name}"], tails=[tail],
-            frames=scene_frames(context, 1), label=f"Exaggerate {shorten(key.name, 16)}{tail}")
+            frames=scene_frames(context, 1), label=f"Exaggerate {shorten(key.name, 16)}{tail}", keyed=True)
 
 
 class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperties,
@@ -143,4 +143,4 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"
         self.summary = self.write_poses(
             context, obj, [pose], names=[f"Reconstruct {key.name}"], tails=[tail],
-            frames=scene_frames(context, 1), label=f"Reconstruct {shorten(key.name, 16)}{tail}")
+            frames=scene_frames(context, 1), label=f"Reconstruct {shorten(key.name, 16)}{tail}", keyed=True)

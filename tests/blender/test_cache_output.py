@@ -11,7 +11,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import (armature_scene, assert_unchanged, driven_keys_scene,  # noqa: E402
+from blender_scenes import (add_key, armature_scene, assert_unchanged, driven_keys_scene,  # noqa: E402
                             evaluated_frames, key_names, pinned_cloth_scene, played, posed_grid,
                             snapshot)
 
@@ -497,3 +497,61 @@ def test_a_cache_object_keeps_its_sources_vertex_parent(bpy_empty, extension, co
         bpy.context.scene.frame_set(frame)
         np.testing.assert_allclose(np.array(obj.matrix_world), np.array(strip.matrix_world), atol=1e-6)
     bpy.context.scene.frame_set(1)
+
+
+@pytest.mark.parametrize("parent_type", [None, 'ARMATURE'])
+@pytest.mark.parametrize("operator, properties, frame", [
+    ("exaggerate", dict(reference="Basis", key="Curl", factor=1.5), 9),  # its one pose, held
+    ("inbetween", dict(key_a="Basis", key_b="Curl", count=1), 2),  # Basis, in-between, Curl from frame 1
+])
+def test_a_cache_object_of_shape_key_poses_is_deformed_as_the_keys_are(
+        bpy_empty, extension, core, operator, properties, frame, parent_type, tmp_path, capfd):
+    """Poses of the shape keys of a rigged strip (an Armature modifier after a Subdivision, or an
+    armature parent): the new object plays them under the same rig, as the new shape keys play on
+    the source (before, at rest: the strip straight while the rig bends it)."""
+    source = armature_scene(frames=9)
+    bridge = extension.bridge
+    rest = bridge.vertex_positions(source.data)
+    curl = rest.copy()
+    curl[:, 2] += 0.1 * np.sin(3.0 * curl[:, 0])  # a ripple the rig then bends
+    add_key(source, "Curl", curl).value = 0.0
+    source.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    bpy.ops.object.modifier_move_to_index(modifier="Subdivision", index=0)
+    if parent_type:  # a parent deforming it instead of the modifier
+        rig = source.modifiers["Armature"].object
+        source.modifiers.remove(source.modifiers["Armature"])
+        source.parent, source.parent_type = rig, parent_type
+    names = set(bpy.data.objects.keys())
+    with bpy.context.temp_override(active_object=source, object=source, selected_objects=[source]):
+        getattr(bpy.ops.shape_differences, operator)(output='CACHE', filepath=str(tmp_path) + "/", **properties)
+        getattr(bpy.ops.shape_differences, operator)(output='SHAPE_KEYS', **properties)
+    obj = new_object(names)
+    # an armature parent goes first in Blender's stack: its modifier right after the cache
+    assert [m.type for m in obj.modifiers] == (['MESH_CACHE', 'ARMATURE', 'SUBSURF'] if parent_type
+                                               else ['MESH_CACHE', 'SUBSURF', 'ARMATURE'])
+    assert obj.parent is source.parent and obj.parent_type == 'OBJECT'
+    added = source.data.shape_keys.key_blocks[-1]  # the pose the cache shows at ``frame``, as a key
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    bpy.context.scene.frame_set(frame)  # the rig bent
+    added.value = 1.0
+    bpy.context.view_layer.update()
+    keyed = bridge.evaluated_positions(source, depsgraph)
+    added.value = 0.0
+    bpy.context.view_layer.update()
+    cached = bridge.evaluated_positions(obj, depsgraph)
+    assert len(cached) == len(keyed) > len(rest)
+    assert np.abs(keyed - cached).max() < 1e-5
+    assert np.abs(keyed - bridge.vertex_positions(obj.evaluated_get(depsgraph).data)).max() < 1e-5
+    assert "Warning" not in capfd.readouterr().out
+
+
+def test_a_cache_object_of_shape_key_poses_names_the_simulation_it_leaves_out(bpy_empty, extension, core,
+                                                                              tmp_path, capfd):
+    """A cloth on the keyed mesh is not copied (it would simulate again from its own start): said."""
+    source = posed_grid(extension.bridge, 5)
+    source.modifiers.new("Wind cloth", 'CLOTH')
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.exaggerate(key="Bend", factor=1.5, output='CACHE', filepath=str(tmp_path) + "/")
+    obj = new_object(names)
+    assert [m.type for m in obj.modifiers] == ['MESH_CACHE']
+    assert "plays the poses without 'Wind cloth'" in capfd.readouterr().out
