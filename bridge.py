@@ -112,6 +112,14 @@ class WorldProportions:
         return positions if self.inverse is None else positions @ self.inverse
 
 
+def scene_time(scene: bpy.types.Scene, frame: float) -> float:
+    """The time at which ``scene`` evaluates animation, caches and simulations at ``frame``: the
+    frame itself, or scaled by the scene's *Time Stretching* (Output › Frame Range: old / new;
+    what ``frame_current_final`` shows), where keyframes and a Mesh Cache must sit to play at
+    ``frame``."""
+    return frame * scene.render.frame_map_old / scene.render.frame_map_new
+
+
 class FrameReadError(ValueError):
     """The frames of an object cannot be read as the poses of its mesh (the message says why)."""
 

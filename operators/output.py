@@ -286,7 +286,8 @@ class PoseWriter:
             tails = tails or [""] * len(names)
             new_keys = [bridge.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
-            added = bridge.add_shape_keys(source, new_keys, keyframes=frames if keyframe else None)
+            times = [bridge.scene_time(context.scene, frame) for frame in frames]
+            added = bridge.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             motion = object_motion(source) if speed != 1.0 else {}
             if motion:
                 self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "
@@ -301,20 +302,21 @@ class PoseWriter:
         sampling = float(frames[1] - frames[0]) if len(frames) > 1 else 1.0
         if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
             raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
+        # the Mesh Cache and the object's animation play the scene's time, not its frame number
+        start, sampling = bridge.scene_time(context.scene, frames[0]), bridge.scene_time(context.scene, sampling)
         name = bridge.unique_name(source.name, f" {label}", bpy.data.objects.keys())
         path, stored_path = self.cache_path(name)
         try:
             from ..core.point_cache import write_pc2
-            write_pc2(path, np.asarray(poses), start=frames[0],
-                      sampling=sampling)
+            write_pc2(path, np.asarray(poses), start=start, sampling=sampling)
         except OSError as error:
             raise InputError(f"Cannot write the cache file '{path}': {error.strerror or error}. "
                              "Pick another Cache File") from None
         modifiers, left_out = modifiers_under_keys(source) if keyed else (trailing_generators(source), [])
         try:
-            obj = bridge.add_cache_object(context, source, name, stored_path, frames[0], sampling,
+            obj = bridge.add_cache_object(context, source, name, stored_path, start, sampling,
                                           modifiers=modifiers, speed=speed,
-                                          source_end=frames[0] + (frames[-1] - frames[0]) * speed,
+                                          source_end=start + sampling * (len(frames) - 1) * speed,
                                           deformed_by_parent=keyed)
         except BaseException:
             path.unlink(missing_ok=True)

@@ -555,3 +555,39 @@ def test_a_cache_object_of_shape_key_poses_names_the_simulation_it_leaves_out(bp
     obj = new_object(names)
     assert [m.type for m in obj.modifiers] == ['MESH_CACHE']
     assert "plays the poses without 'Wind cloth'" in capfd.readouterr().out
+
+
+def _world_shown(bridge, obj, frame):
+    bpy.context.scene.frame_set(frame)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    matrix = np.array(obj.evaluated_get(depsgraph).matrix_world)
+    return bridge.evaluated_positions(obj, depsgraph) @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+@pytest.mark.parametrize("old, new", [(100, 50), (50, 100)])
+def test_outputs_play_at_the_frames_read_under_time_stretching(bpy_empty, extension, core, old, new, tmp_path):
+    """Time Stretching (Output › Frame Range) evaluates frame F at time F·old/new: the cache object,
+    the keyframed keys and a retime play the kept frames at the frames they were read from
+    (before, each was stretched a second time: 40 % of the motion off at frame 5)."""
+    bridge = extension.bridge
+    kept = (1, 5, 9, 13, 17)
+    for operator, properties in (("inbetween_frames", dict(frame_step=4, count=3, output='CACHE')),
+                                 ("retime", dict(frame_step=4, speed=0.5, output='CACHE')),
+                                 ("inbetween_frames", dict(frame_step=4, count=3, output='SHAPE_KEYS'))):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        # a moving parent keeps the scene's speed in a retime (a warning says so)
+        source = armature_scene(frames=17, parented=operator != "retime")
+        bpy.context.scene.render.frame_map_old, bpy.context.scene.render.frame_map_new = old, new
+        shown = {frame: _world_shown(bridge, source, frame) for frame in kept}
+        names = set(bpy.data.objects.keys())
+        getattr(bpy.ops.shape_differences, operator)(frame_start=1, frame_end=17, filepath=str(tmp_path) + "/",
+                                                     **properties)
+        if properties["output"] == 'SHAPE_KEYS':
+            obj = source
+            source.modifiers["Armature"].show_viewport = False  # the keys alone show what was read
+        else:
+            obj = new_object(names)
+        speed = properties.get("speed", 1.0)
+        for frame in kept:  # a retime shows source frame F at 1 + (F − 1) / speed
+            np.testing.assert_allclose(_world_shown(bridge, obj, round(1 + (frame - 1) / speed)), shown[frame],
+                                       atol=1e-5, err_msg=f"{operator} {properties['output']} frame {frame}")
