@@ -105,7 +105,8 @@ def trailing_generators(obj) -> list:
     start = generators[0] if generators else len(enabled)
     while start > run and _still(enabled[start - 1]):  # also those that never move a vertex before it
         start -= 1
-    return enabled[start:]
+    # a Collision modifier makes the object a collider and cannot be copied (Blender refuses)
+    return [modifier for modifier in enabled[start:] if modifier.type not in PASSIVE_MODIFIERS]
 
 
 #: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
@@ -134,6 +135,22 @@ def modifiers_set_aside(context, obj) -> list:
         return []
     aside = trailing_generators(obj)
     unbaked = unbaked_simulations(obj)
+    if aside and not unbaked:
+        # switching a modifier of a collider or force field off and on empties the caches of
+        # the unbaked simulations it acts on
+        field = getattr(obj, "field", None)
+        acts = field is not None and field.type != 'NONE' or any(
+            modifier.type == 'COLLISION' and modifier.show_viewport for modifier in obj.modifiers)
+        others = [other for other in context.scene.objects if other != obj and unbaked_simulations(other)] if acts else []
+        if others:
+            names = ", ".join(repr(modifier.name) for modifier in aside)
+            simulations = ", ".join(f"'{other.name}' ({', '.join(repr(n) for n in unbaked_simulations(other))})"
+                                    for other in others)
+            raise InputError(
+                f"{names} after the motion changes the vertex count of '{obj.name}' and is set aside while "
+                f"the frames are read, which would empty the unbaked cache of {simulations}: '{obj.name}' "
+                f"is a collider or force field they may react to. Bake those first (Physics › Cache › "
+                f"Bake), or disable {names}")
     if aside and unbaked:
         names = ", ".join(repr(modifier.name) for modifier in aside)
         raise InputError(
