@@ -500,9 +500,10 @@ class Interpolator:
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
-        k_M, k_N, offset, use_extrinsic, topology = check_interpolation([vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))  # noqa: E501
+        poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
+            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
-        self._sequence._setup([vertices_a, vertices_b], topology, k_M, k_N, offset, use_extrinsic, False)
+        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False)
         self._sequence._anchored = True
 
     def pose(self, factor: float) -> np.ndarray:

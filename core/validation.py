@@ -342,16 +342,15 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
                         names=None):
     """Everything the in-between constructors take, checked once: every pose (count, finite,
     range, size, no degenerate triangle), the topology, the basis sizes against the used vertex
-    count, the offset and the flag. Returns ``(k_M, k_N, offset, use_extrinsic)`` normalized and
-    the topology (:func:`core.mesh_topology.mesh_topology`).
+    count, the offset and the flag. Returns ``(poses list of float64 (n, 3), k_M, k_N, offset,
+    use_extrinsic)`` normalized and the topology (:func:`core.mesh_topology.mesh_topology`).
 
     ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``)."""
     names = names or [f"key pose {i}" for i in range(len(poses))]
     first, topology = check_mesh(poses[0], triangles, name=names[0])
-    for pose, name in zip(poses[1:], names[1:]):
-        check_pose(pose, topology, name=name)
+    checked = [first] + [check_pose(pose, topology, name=name) for pose, name in zip(poses[1:], names[1:])]
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
-    return k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
+    return checked, k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
 
 
 def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, bytes_per_point: int = 12) -> None:
@@ -409,6 +408,6 @@ def check_sequence(key_poses, triangles, k_M=None, k_N=None, offset=None, use_ex
     """:func:`check_key_poses` and :func:`check_interpolation` for a sequence constructor, plus its
     ``smooth`` flag. Returns ``(key_poses list of float64 (n, 3), k_M, k_N, offset, use_extrinsic,
     smooth, topology)``."""
-    poses = check_key_poses(key_poses)
-    k_M, k_N, offset, use_extrinsic, topology = check_interpolation(poses, triangles, k_M, k_N, offset, use_extrinsic)
+    poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
+        check_key_poses(key_poses), triangles, k_M, k_N, offset, use_extrinsic)
     return poses, k_M, k_N, offset, use_extrinsic, check_flag(smooth, "smooth"), topology

@@ -286,3 +286,21 @@ def test_inputs_unchanged_on_success_and_failure(sheet):
     for array in arrays:
         array.setflags(write=False)  # read-only inputs (e.g. Blender buffers) work too
     core.shape_differences(*arrays[:2], arrays[2])
+
+
+@pytest.mark.parametrize("dtype", [np.float16, object])
+def test_two_pose_interpolation_computes_in_float64_whatever_the_dtype(dtype):
+    """A sheet 2,000 units across turned by 30°, given as float16 (a half-float cache) or as an
+    object array: the same poses as from float64 (before, float16 overflowed in the seam tolerance
+    and every vertex was held still: factor 1 gave ``a``, 1,000 units from ``b``; object arrays
+    raised a TypeError from NumPy)."""
+    v, t = grid(6)
+    v = v * 1000.0
+    turn = np.radians(30.0)
+    rotation = np.array([[np.cos(turn), 0.0, np.sin(turn)], [0.0, 1.0, 0.0], [-np.sin(turn), 0.0, np.cos(turn)]])
+    a, b = v.astype(np.float16), (v @ rotation.T).astype(np.float16)
+    expected = core.Interpolator(a.astype(np.float64), b.astype(np.float64), t)
+    given = core.Interpolator(a.astype(dtype), b.astype(dtype), t)
+    for factor in (0.5, 1.0):
+        np.testing.assert_allclose(given.pose(factor), expected.pose(factor), atol=1e-9)
+    np.testing.assert_allclose(given.pose(1.0), b, atol=1e-9)
