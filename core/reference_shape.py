@@ -19,7 +19,7 @@ from .errors import MeshError
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis
+from .laplace_basis import LaplaceBasis, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, default_offset, offset_surface
 from .rigid_alignment import align_components
@@ -30,7 +30,7 @@ from .shape_difference import (
     reduced_differences,
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
-from .validation import check_flag, check_offset
+from .validation import check_basis_sizes, check_flag, check_offset
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,9 +239,14 @@ class ReferenceShape:
         out[self.used_vertices] = compact
         return out
 
+    def basis_sizes(self, k_M, k_N) -> tuple[int | None, int | None]:
+        """``k_M``, ``k_N`` normalized and checked against this mesh: below its vertex count (in
+        triangles), above its number of connected parts (:func:`core.validation.check_basis_sizes`)."""
+        return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0])
+
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None) -> ShapeDifferences:
         """The four differences (§6) of a target pose ``(n, 3)`` relative to this base."""
-        k_M, k_N = basis_sizes(k_M, k_N)
+        k_M, k_N = self.basis_sizes(k_M, k_N)
         target = self.compact_pose(target_vertices)
         area, conformal = self.base.differences(target, k_M, k_N)
         offset_area = offset_conformal = None

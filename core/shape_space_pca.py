@@ -169,6 +169,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     if k_N is not None and k_N < k_M:
         raise MeshError(f"k_N (target basis, {k_N}) must be at least k_M (base basis, {k_M}).")
     reference = ReferenceShape(poses[0], triangles, offset=offset)
+    reference.basis_sizes(k_M, k_N)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     with single_threaded_blas():
         for index, pose in enumerate(poses):

@@ -243,6 +243,7 @@ class Transfer:
         self.k_M, self.k_N = int(k_M), int(k_N)
         if reference is None or not reference.matches(base_vertices, triangles):
             reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
+        reference.basis_sizes(self.k_M, None)  # k_M against the base mesh (k_N is the target's)
         self.reference = reference
         rest = check_vertices(target_rest_vertices, name="target rest vertices")
         self.n_target = rest.shape[0]

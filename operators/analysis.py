@@ -35,16 +35,18 @@ class AnalysisBasisProperties(AnalysisBasis):
     def resolved_offset(self, context):
         return self.offset or context.scene.shape_differences.offset or None
 
-    def check_sizes(self, vertex_count: int):
-        """Refuse sizes the mesh cannot have; the defaults (sizes not given) shrink to a small mesh
-        (k_N to its vertex count less one, k_M to k_N), written back for the Redo panel."""
+    def check_sizes(self, triangles):
+        """Refuse sizes the mesh of ``triangles`` cannot have; the defaults (sizes not given) shrink
+        to a small mesh (k_N to its vertex count less one, k_M to k_N), written back for the Redo
+        panel. Its vertex count is of those in triangles: loose vertices have no eigenfunctions."""
+        vertex_count = int(np.unique(triangles).size)
         if not self.properties.is_property_set("k_n"):
             self.k_n = min(self.k_n, vertex_count - 1)
         if not self.properties.is_property_set("k_m"):
             self.k_m = max(2, min(self.k_m, self.k_n or vertex_count - 1))
         for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
             if k >= vertex_count:
-                raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
+                raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices in faces: "
                                  f"use at most {vertex_count - 1}")
         if self.k_n and self.k_n < self.k_m:
             raise InputError(f"k_N = {self.k_n} must be at least k_M = {self.k_m} (or 0)")
@@ -107,7 +109,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         obj = context.active_object
         require_local(obj, obj, "the shape space stored on it is")
         triangles = surface_triangles(obj)
-        self.check_sizes(len(obj.data.vertices))
+        self.check_sizes(triangles)
         frames = None
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(obj, 2)
@@ -234,7 +236,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         mesh = obj.data
         require_local(obj, mesh, "maps written to it as attributes are")
         triangles = surface_triangles(obj)
-        self.check_sizes(len(mesh.vertices))
+        self.check_sizes(triangles)
         key = mesh.shape_keys
         base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))
         if self.source == 'ACTIVE_KEY':

@@ -163,3 +163,19 @@ def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, ex
     values = np.zeros(len(sheet.data.vertices))
     sheet.data.attributes["sd_area"].data.foreach_get("value", values)
     assert np.abs(values).max() < 1e-5  # float32 keys
+
+
+def test_default_sizes_shrink_to_the_vertices_in_faces(bpy_empty, extension):
+    """A 49-vertex sheet with 5 loose vertices: the default sizes shrink to 48 (before, to 53, which
+    the core refused: "must be between 1 and 48; got 50" for sizes nobody set)."""
+    obj = grid_object(6)
+    obj.data.vertices.add(5)
+    rest = extension.bridge.vertex_positions(obj.data)
+    for index, angle in enumerate((0.5, 1.0, 1.5)):
+        bent = rest.copy()
+        bent[:49] = rolled(rest[:49], angle)
+        add_key(obj, f"Bend {index}", bent)
+    result = bpy.ops.shape_differences.shape_space(source='KEYS')
+    assert result == {'FINISHED'}
+    stored = extension.bridge.stored_shape_space(obj)
+    assert (stored["k_M"], stored["k_N"]) == (48, 48)

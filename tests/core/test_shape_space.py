@@ -135,3 +135,15 @@ def test_poses_that_do_not_differ_have_no_spread(bump_collection):
     nudged = core.shape_space([poses[1] + 1e-9 * rng.normal(size=poses[1].shape) for _ in range(4)], t,
                               k_M=12, k_N=None)
     assert nudged.explained_variance_ratio("area").sum() == pytest.approx(1.0)
+
+
+def test_a_base_basis_of_constants_per_piece_is_refused():
+    """Two separate sheets: k_M = 2 holds only the constant on each, whose conformal difference is
+    empty; refused as by ``core.shape_differences`` (before, accepted: conformal coordinates 50 ×
+    the area ones for bends that change no angle)."""
+    v, t = grid(6)
+    v2 = np.vstack([v, v + [3.0, 0.0, 0.0]])
+    t2 = np.vstack([t, t + len(v)])
+    poses = [v2, v2 + np.where(np.arange(len(v2))[:, None] < len(v), [0.0, 0.0, 0.0], [0.0, 0.0, 0.5])]
+    with pytest.raises(core.MeshError, match="2 connected part"):
+        core.shape_space(poses, t2, k_M=2, k_N=None)
