@@ -519,6 +519,31 @@ def test_a_strip_curled_past_a_half_turn_keeps_curling_the_same_way():
     assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
+def _rolled(vertices, angle):
+    """A sheet rolled about the y axis from its x = min edge into an arc of ``angle`` radians."""
+    x = vertices[:, 0] - vertices[:, 0].min()
+    radius = np.ptp(vertices[:, 0]) / angle
+    return np.stack([radius * np.sin(x / radius), vertices[:, 1], radius * (1.0 - np.cos(x / radius))], axis=1)
+
+
+@pytest.mark.parametrize("angle", [5.5, 6.2])
+def test_a_sheet_rolled_nearly_into_a_tube_is_rolled_half_as_far(angle):
+    """Rolled by 5.5 and 6.2 rad (its free edge turned by 315° and 355°: read edge by edge, a turn
+    of −45° and −5°, which the linear blend barely shortens), the in-betweens are the sheet rolled
+    by f · angle to 2e-3 of its width, silently (before, the blend anchored the free edge across
+    the turn: 0.65–0.78 of the width off, edges up to 80 % stretched, no warning)."""
+    v, t = grid(20, size=2.0)
+    rolled = _rolled(v, angle)
+    interpolator = Interpolator(v, rolled, t)
+    for factor in (0.3, 0.5, 0.7):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            x = interpolator.pose(factor)
+        truth = _rolled(v, factor * angle)
+        rotation, translation = rigid_alignment(x, truth)[:2]
+        assert np.abs(x @ rotation.T + translation - truth).max() < 2e-3 * 2.0
+
+
 def test_a_lid_turned_by_a_half_turn_on_a_fixed_box_stays_rigid():
     """A lid (a separate piece) turned by exactly 180° about its hinge while the box stays: at
     every factor the box stays put and the lid is a rigid turn about the hinge (either way round:
