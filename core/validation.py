@@ -95,7 +95,7 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
         magnitude = np.abs(array).max(axis=1)
         bad = int(np.argmax(magnitude))
         raise MeshError(
-            f"{name}: vertex {bad} has coordinate {magnitude[bad]:.3g}, beyond the supported "
+            f"{name}: vertex {bad} has coordinate {magnitude[bad]:.10g}, beyond the supported "
             f"{MAX_COORDINATE:.0e} (edge lengths to the fourth power would overflow). Scale the "
             "mesh down (in Blender: scale the object, then Object > Apply > Scale), or fix that vertex."
         )
