@@ -17,6 +17,7 @@ errors print one line and exit with status 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -24,7 +25,8 @@ import numpy as np
 
 from .errors import ShapeDifferenceError
 from .obj_file import read_obj
-from .point_cache import merge_pc2, read_point_cache, refuse_overwriting, write_pc2
+from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_point_cache, refuse_overwriting,
+                          write_pc2)
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory, check_working_memory
 
@@ -62,7 +64,9 @@ def _parser() -> argparse.ArgumentParser:
     part.add_argument("--gaps", type=_gap_range, help="compute key gaps A to B (0-based, B excluded)")
     retime.add_argument("--k-m", type=int, default=0, help="base basis size (0 = full basis)")
     retime.add_argument("--k-n", type=int, default=0, help="target basis size (0 = not truncated)")
-    retime.add_argument("--offset", type=float, default=0.0, help="offset distance t (0 = automatic)")
+    retime.add_argument("--offset", type=float, default=0.0,
+                        help="no effect: in-betweens use no offset surface (the rotations come from the "
+                             "keys); accepted so that older job scripts run")
     retime.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
     retime.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
     retime.add_argument("--start", type=float,
@@ -73,7 +77,8 @@ def _parser() -> argparse.ArgumentParser:
     merge = commands.add_parser("merge", help="concatenate retimed chunks (in order) into one PC2")
     merge.add_argument("parts", nargs="*", help="chunk PC2 files in chunk order")
     merge.add_argument("--numbered", metavar="PATTERN",
-                       help="chunk files named by PATTERN with '#' replaced by 1..COUNT (for farm jobs)")
+                       help="chunk files named by PATTERN with '#' in its file name (not its folders) "
+                            "replaced by 1..COUNT (for farm jobs)")
     merge.add_argument("--count", type=int, help="number of numbered chunk files")
     merge.add_argument("-o", "--output", required=True, help="output PC2 file")
 
@@ -82,9 +87,34 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _numbered(pattern: str, count: int | None) -> list[str]:
+    """The files ``pattern`` names with the ``#`` of its file name replaced by 1 … ``count``
+    (a ``#`` in a folder, such as ``shot#12/``, stays)."""
+    folder, name = os.path.split(pattern)
+    if "#" not in name or not count or count < 1:
+        raise ShapeDifferenceError("--numbered needs a PATTERN whose file name has a '#' (such as "
+                                   "chunks/chunk#.pc2) and --count N >= 1")
+    return [os.path.join(folder, name.replace("#", str(i))) for i in range(1, count + 1)]
+
+
+def _even_times(times: np.ndarray) -> bool:
+    """Whether an MDD's frame ``times`` (seconds) are finite and evenly spaced (to 1e-3 of a step)."""
+    if times.size < 3:
+        return bool(np.isfinite(times).all())
+    steps = np.diff(times)
+    return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
+
+
 def _retime(args) -> int:
+    check_pc2_name(args.output)
     refuse_overwriting(args.output, {args.cache: "the input cache", args.topology: "the topology OBJ"})
     cache = read_point_cache(args.cache)
+    check_pc2_timing(cache.start if args.start is None else args.start, cache.sampling)  # before any work
+    if args.offset and not args.quiet:
+        print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
+    if cache.times is not None and not _even_times(cache.times):
+        print(f"retime: warning: the frame times of '{args.cache}' are not evenly spaced (or not finite); "
+              "its frames are retimed as if they were", file=sys.stderr)
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -137,19 +167,31 @@ def main(argv=None) -> int:
             return _retime(args)
         if args.command == "merge":
             parts = list(args.parts)
+            if args.count is not None and not args.numbered:
+                raise ShapeDifferenceError("--count N goes with --numbered PATTERN (the parts it numbers)")
             if args.numbered:
-                if "#" not in args.numbered or not args.count or args.count < 1:
-                    raise ShapeDifferenceError("--numbered needs a PATTERN with '#' and --count N >= 1")
-                parts += [args.numbered.replace("#", str(i)) for i in range(1, args.count + 1)]
+                parts += _numbered(args.numbered, args.count)
             merge_pc2(parts, args.output)
             print(f"wrote {args.output} from {len(parts)} part(s)")
             return 0
         cache = read_point_cache(args.cache)
-        print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, start {cache.start:g}, "
-              f"sampling {cache.sampling:g}" + (" (MDD, times in seconds)" if cache.times is not None else ""))
+        if cache.times is None:
+            timing = f"start {cache.start:g}, sampling {cache.sampling:g}"
+        elif cache.n_samples == 0:
+            timing = "MDD"
+        else:  # an MDD's own times, in seconds
+            times = cache.times
+            spacing = (f", every {np.mean(np.diff(times)):.6g} s" if _even_times(times) else
+                       ", not evenly spaced") if times.size > 1 else ""
+            timing = f"MDD, times {times[0]:.6g} to {times[-1]:.6g} s{spacing}"
+        print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, {timing}")
         return 0
     except ShapeDifferenceError as error:
         print(f"error: {error}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"error: {args.command} ran out of memory on this machine: run it on one with more memory"
+              + (", or split it with --chunk I/N" if args.command == "retime" else ""), file=sys.stderr)
         return 2
     except OSError as error:  # a file that cannot be read or written: its name and why
         where = f"'{error.filename}': " if error.filename else ""

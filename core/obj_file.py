@@ -22,13 +22,15 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
     vertices, triangles = [], []
-    with open(path, encoding="utf-8", errors="replace") as stream:
+    with open(path, encoding="utf-8-sig", errors="replace") as stream:  # -sig: a byte-order mark is no text
         for line_number, line in enumerate(stream, 1):
             fields = line.split()
             if not fields:
                 continue
             try:
                 if fields[0] == "v":
+                    if len(fields) < 4:
+                        raise ValueError("a vertex needs three coordinates")
                     vertices.append([float(value) for value in fields[1:4]])
                 elif fields[0] == "f":
                     corners = [int(corner.split("/")[0]) for corner in fields[1:]]

@@ -25,6 +25,8 @@ import numpy as np
 
 from .errors import MeshError
 
+#: Bytes of samples :func:`merge_pc2` reads and writes at a time.
+MERGE_BLOCK_BYTES = 16 << 20
 PC2_MAGIC = b"POINTCACHE2\0"
 PC2_HEADER = struct.Struct("<12siiffi")
 MDD_HEADER = struct.Struct(">ii")
@@ -119,6 +121,23 @@ def pc2_header(n_points: int, n_samples: int, start: float = 0.0, sampling: floa
     return PC2_HEADER.pack(PC2_MAGIC, 1, int(n_points), float(start), float(sampling), int(n_samples))
 
 
+def check_pc2_timing(start: float, sampling: float) -> None:
+    """Raise :class:`MeshError` unless ``start`` and ``sampling`` fit a PC2 header: finite in
+    single precision, the sampling positive."""
+    with np.errstate(over="ignore"):
+        fits = np.isfinite(np.float32(start)) and np.isfinite(np.float32(sampling))
+    if not (fits and sampling > 0):
+        raise MeshError(f"A PC2 file's start frame must be a finite single-precision number and its sampling "
+                        f"positive; got start {start}, sampling {sampling}.")
+
+
+def check_pc2_name(path) -> None:
+    """Raise :class:`MeshError` for an output named ``.mdd``: the writers here write PC2, which a
+    reader would take for an MDD by its name."""
+    if Path(path).suffix.lower() == ".mdd":
+        raise MeshError(f"'{path}' is named as an MDD file, but the output is PC2: name it .pc2.")
+
+
 def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0) -> Path:
     """Write float ``(samples, points, 3)`` positions (or one ``(points, 3)`` pose) as a PC2 file.
 
@@ -126,8 +145,8 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0) -> 
     appears complete or not at all. Returns the path.
     """
     array = _positions_array(positions)
-    if not (np.isfinite(start) and np.isfinite(sampling) and sampling > 0):
-        raise MeshError(f"PC2 start must be finite and sampling positive; got {start}, {sampling}.")
+    check_pc2_timing(start, sampling)
+    check_pc2_name(path)
     _write_atomically(path, [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()])
     return Path(path)
 
@@ -144,20 +163,27 @@ def _file_size_check(path: Path, expected: int, what: str) -> None:
 def read_pc2(path) -> PointCache:
     """Read a PC2 file; positions are a read-only float32 memory map ``(samples, points, 3)``."""
     path = Path(path)
+    n_points, start, sampling, n_samples = read_pc2_header(path)
+    positions = (np.memmap(path, dtype="<f4", mode="r", offset=PC2_HEADER.size, shape=(n_samples, n_points, 3))
+                 if n_samples else np.empty((0, n_points, 3), dtype="<f4"))
+    return PointCache(positions, start, sampling)
+
+
+def read_pc2_header(path) -> tuple[int, float, float, int]:
+    """``(points, start, sampling, samples)`` of a PC2 file, its header checked against its size."""
+    path = Path(path)
     with open(path, "rb") as stream:
         header = stream.read(PC2_HEADER.size)
     if len(header) < PC2_HEADER.size or header[:11] != PC2_MAGIC[:11]:
         raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2').")
     _magic, version, n_points, start, sampling, n_samples = PC2_HEADER.unpack(header)
-    if version != 1 or n_points <= 0 or n_samples < 0 or not np.isfinite([start, sampling]).all():
+    if version != 1 or n_points <= 0 or n_samples < 0 or not np.isfinite([start, sampling]).all() or sampling <= 0:
         raise MeshError(
             f"'{path}' has an invalid PC2 header (version {version}, {n_points} points, {n_samples} "
             f"samples, start {start}, sampling {sampling})."
         )
     _file_size_check(path, PC2_HEADER.size + 12 * n_points * n_samples, "PC2 file")
-    positions = (np.memmap(path, dtype="<f4", mode="r", offset=PC2_HEADER.size, shape=(n_samples, n_points, 3))
-                 if n_samples else np.empty((0, n_points, 3), dtype="<f4"))
-    return PointCache(positions, float(start), float(sampling))
+    return n_points, float(start), float(sampling), n_samples
 
 
 def read_mdd(path) -> PointCache:
@@ -206,27 +232,38 @@ def merge_pc2(parts, path) -> Path:
     """Concatenate PC2 files whose samples follow one another (chunks of one job) into ``path``.
 
     Every part must have the same point count and sampling, and each must start where the one
-    before ends; parts without samples are allowed. The samples are copied byte for byte.
+    before ends (within a hundredth of a sample: the starts are single precision, a missing part
+    is a whole sample or more); parts without samples are allowed. The samples are copied byte
+    for byte, :data:`MERGE_BLOCK_BYTES` at a time.
     """
+    check_pc2_name(path)
     refuse_overwriting(path, {part: "one of the parts to merge" for part in parts})
-    caches = [(Path(part), read_pc2(part)) for part in parts]
-    if not caches:
+    headers = [(Path(part), *read_pc2_header(part)) for part in parts]  # (path, points, start, sampling, samples)
+    if not headers:
         raise MeshError("Nothing to merge: give at least one PC2 file.")
-    first_path, first = caches[0]
-    expected_start = first.start
-    for part, cache in caches:
-        if cache.n_points != first.n_points or cache.sampling != first.sampling:
+    first_path, n_points, first_start, sampling, _ = headers[0]
+    expected_start = first_start
+    for part, points, start, part_sampling, samples in headers:
+        if points != n_points or part_sampling != sampling:
             raise MeshError(
-                f"'{part}' has {cache.n_points} points at sampling {cache.sampling}, but '{first_path}' has "
-                f"{first.n_points} at {first.sampling}: these are not chunks of one cache."
+                f"'{part}' has {points} points at sampling {part_sampling}, but '{first_path}' has "
+                f"{n_points} at {sampling}: these are not chunks of one cache."
             )
-        if np.float32(cache.start) != np.float32(expected_start):
+        if abs(start - expected_start) > 0.01 * sampling:
             raise MeshError(
-                f"'{part}' starts at frame {cache.start:g}, expected {expected_start:g} (where the part before "
+                f"'{part}' starts at frame {start:g}, expected {expected_start:g} (where the part before "
                 "ends): give the chunks in order, with none missing."
             )
-        expected_start = cache.start + cache.n_samples * cache.sampling
-    n_samples = sum(cache.n_samples for _, cache in caches)
-    header = pc2_header(first.n_points, n_samples, first.start, first.sampling)
-    _write_atomically(path, [header, *(cache.positions.tobytes() for _, cache in caches)])
+        expected_start = start + samples * sampling
+    header = pc2_header(n_points, sum(samples for *_, samples in headers), first_start, sampling)
+
+    def blocks():  # the parts' samples read a block at a time: never the whole output in memory
+        yield header
+        for part, *_ in headers:
+            with open(part, "rb") as stream:
+                stream.seek(PC2_HEADER.size)
+                while block := stream.read(MERGE_BLOCK_BYTES):
+                    yield block
+
+    _write_atomically(path, blocks())
     return Path(path)

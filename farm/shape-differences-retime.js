@@ -44,6 +44,9 @@ function compileJob(job) {
   if (!(chunks >= 1)) {
     throw "chunks must be at least 1";
   }
+  if (settings.runner === "python" && !settings.core_directory) {
+    throw "runner python needs core_directory: the folder that holds the extension's core/ package";
+  }
   const chunkFile = (index) => settings.chunk_directory + "/chunk" + index + ".pc2";
 
   const chunkTasks = [];

@@ -229,3 +229,75 @@ def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
             assert code == 2 and expected in err and not (tmp_path / "out.pc2").exists()
         else:
             assert code == 0 and np.isfinite(read_pc2(tmp_path / "out.pc2").positions).all()
+
+
+def test_chunks_of_a_cache_sampled_in_tenths_merge_into_the_single_run(tmp_path):
+    """A cache starting at frame 1.1, one sample every 0.1 frame: seven chunks merge into the
+    single run's file byte for byte (before, a chunk's single-precision start read one step off
+    the sum of the ones before, and the merge refused the chunks as out of order); a chunk folder
+    with '#' in its name (shot#12/) is not renumbered with the chunks."""
+    source, triangles = rolling_sheet(n_frames=41, nx=5)  # 10 gaps: every chunk has one
+    cache = write_pc2(tmp_path / "in.pc2", source, start=1.1, sampling=0.1)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5", "-q"]
+    assert main([*common, "-o", str(tmp_path / "whole.pc2")]) == 0
+    folder = tmp_path / "shot#12"
+    for i in range(1, 8):
+        assert main([*common, "--chunk", f"{i}/7", "-o", str(folder / f"chunk{i}.pc2")]) == 0
+    assert main(["merge", "--numbered", str(folder / "chunk#.pc2"), "--count", "7",
+                 "-o", str(tmp_path / "merged.pc2")]) == 0
+    assert (tmp_path / "merged.pc2").read_bytes() == (tmp_path / "whole.pc2").read_bytes()
+    # a missing chunk is still a whole sample or more off
+    parts = [str(folder / f"chunk{i}.pc2") for i in (1, 2, 4)]
+    assert main(["merge", *parts, "-o", str(tmp_path / "gap.pc2")]) == 2
+
+
+def test_command_inputs_checked_before_any_work(tmp_path, capsys):
+    """What a retime cannot write or read is refused in one line before the in-betweens are
+    computed (before, after all of them, or as a traceback)."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "2", "-q"]
+    raw = cache.read_bytes()
+    (tmp_path / "still.pc2").write_bytes(raw[:24] + np.float32(0.0).tobytes() + raw[28:])  # sampling 0
+    (tmp_path / "flat.obj").write_text("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    cases = [([*common, "--start", "1e39", "-o", str(tmp_path / "a.pc2")], "finite single-precision"),
+             ([*common, "-o", str(tmp_path / "a.mdd")], "named as an MDD file"),
+             (["retime", str(tmp_path / "still.pc2"), *common[2:], "-o", str(tmp_path / "a.pc2")],
+              "invalid PC2 header"),
+             (["retime", str(cache), "--topology", str(tmp_path / "flat.obj"), "--step", "2", "-o",
+               str(tmp_path / "a.pc2")], "line 1 cannot be read (a vertex needs three coordinates)"),
+             (["merge", str(cache), "--count", "2", "-o", str(tmp_path / "a.pc2")], "--count N goes with --numbered")]
+    for argv, message in cases:
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert message in err and "retime: sample" not in err, (argv, err)
+        assert not (tmp_path / "a.pc2").exists() and not (tmp_path / "a.mdd").exists()
+
+
+def test_obj_with_a_byte_order_mark(tmp_path):
+    vertices, triangles = grid(3)
+    path = write_obj(tmp_path / "sheet.obj", vertices, triangles)
+    (tmp_path / "bom.obj").write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
+    read_vertices, read_triangles = read_obj(tmp_path / "bom.obj")
+    np.testing.assert_allclose(read_vertices, vertices, atol=1e-9)
+    np.testing.assert_array_equal(read_triangles, triangles)
+
+
+def test_info_and_retime_read_an_mdds_own_times(tmp_path, capsys):
+    """``info`` prints an MDD's times (before: "start 0, sampling 1", read as a second per frame);
+    a retime of one whose frames are unevenly spaced says it retimes them as if they were not."""
+    import struct
+
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    for name, times in (("even.mdd", np.arange(1, 10) / 24.0), ("uneven.mdd", np.r_[np.arange(1, 6) / 24.0, 0.5, 1, 2, 3])):
+        data = struct.pack(">ii", 9, source.shape[1]) + times.astype(">f4").tobytes() + source.astype(">f4").tobytes()
+        (tmp_path / name).write_bytes(data)
+        assert main(["info", str(tmp_path / name)]) == 0
+        out = capsys.readouterr().out
+        assert "times 0.0416667 to" in out and ("every 0.0416667 s" in out) == (name == "even.mdd")
+        assert main(["retime", str(tmp_path / name), "--topology", str(topology), "--step", "4", "-q",
+                     "-o", str(tmp_path / f"{name}.pc2")]) == 0
+        assert ("not evenly spaced" in capsys.readouterr().err) == (name == "uneven.mdd")

@@ -61,17 +61,22 @@ def test_openjd_template_checks():
 
 @pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
 def test_openjd_two_chunks_equal_the_single_process(job):
+    """... from a studio's long path (the job name once held it, past OpenJD's 128 characters)
+    into a chunk folder with '#' in its name (once renumbered by the merge with the chunks)."""
     folder, cache, topology, single = job
-    (folder / "chunks").mkdir()
-    parameters = dict(InputCache=cache, Topology=topology, OutputCache=folder / "farm.pc2",
-                      ChunkDirectory=folder / "chunks", ExtensionDirectory=ROOT, Python=sys.executable,
+    shot = folder / ("shot_" + "x" * 100)
+    chunks = shot / "take#12"
+    chunks.mkdir(parents=True)
+    long_cache = shutil.copy(cache, shot / "in.pc2")
+    parameters = dict(InputCache=long_cache, Topology=topology, OutputCache=folder / "farm.pc2",
+                      ChunkDirectory=chunks, ExtensionDirectory=ROOT, Python=sys.executable,
                       Step=4, Speed=0.5, Chunks=2)
     command = [OPENJD, "run", str(TEMPLATE), "--step", "Merge", "--run-dependencies"]
     for key, value in parameters.items():
         command += ["-p", f"{key}={value}"]
     result = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert sorted(p.name for p in (folder / "chunks").iterdir()) == ["chunk1.pc2", "chunk2.pc2"]
+    assert sorted(p.name for p in chunks.iterdir()) == ["chunk1.pc2", "chunk2.pc2"]
     _same_frames(folder / "farm.pc2", single)
 
 
@@ -123,6 +128,10 @@ def test_flamenco_job_runs_chunks_then_merge(job):
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stderr
     _same_frames(folder / "flamenco.pc2", single)
+
+    without = subprocess.run([NODE, "-e", HARNESS, str(JOB_TYPE), json.dumps(dict(settings, core_directory=""))],
+                             capture_output=True, text=True, timeout=60)
+    assert without.returncode != 0 and "runner python needs core_directory" in without.stderr
 
     blender = compile_flamenco_job(dict(settings, runner="blender"))
     command = blender[0]["commands"][0]
