@@ -420,6 +420,7 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
     obj = None
     try:
         mesh.name = name
+        forget_analysis(mesh)
         obj = bpy.data.objects.new(name, mesh)
         if mesh.shape_keys is not None:
             obj.shape_key_clear()
@@ -450,6 +451,21 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
             bpy.data.objects.remove(obj)  # a shared action stays: it is the source's
         bpy.data.meshes.remove(mesh)
         raise
+
+
+#: Name prefixes of the attributes the analysis operators write (distortion maps: colours "SD …",
+#: values "sd_…").
+ANALYSIS_ATTRIBUTE_PREFIXES = ("SD ", "sd_")
+
+
+def forget_analysis(mesh: bpy.types.Mesh) -> None:
+    """Remove from ``mesh`` (a copy of a source's mesh, for a new object playing other poses) the
+    distortion maps of the source's poses and every custom property (a pipeline's asset tags
+    stay with the source; the frame maps' list would show the source's maps on the new object)."""
+    for attribute in [a.name for a in mesh.attributes if a.name.startswith(ANALYSIS_ATTRIBUTE_PREFIXES)]:
+        mesh.attributes.remove(mesh.attributes[attribute])
+    for key in list(mesh.keys()):
+        del mesh[key]
 
 
 def parent_deform_modifier(source: bpy.types.Object, obj: bpy.types.Object) -> None:

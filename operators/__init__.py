@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import analysis
+from . import analysis, output
 from .analysis import classes as analysis_classes
 from .base import shutdown_worker
 from .frames import (SHAPE_DIFFERENCES_OT_frames_to_shape_keys, SHAPE_DIFFERENCES_OT_inbetween_frames,
@@ -28,9 +28,11 @@ _register_classes, _unregister_classes = bpy.utils.register_classes_factory(clas
 def register():
     _register_classes()
     analysis.register_handlers()
+    output.register_handlers()
 
 
 def unregister():
+    output.unregister_handlers()
     analysis.unregister_handlers()
     _unregister_classes()
     shutdown_worker()

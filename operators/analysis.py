@@ -343,14 +343,35 @@ def follow_frame(scene, _depsgraph=None):
             mesh.color_attributes.active_color = attribute
 
 
+@bpy.app.handlers.persistent
+def redraw_shape_spaces(*_):
+    """After a .blend is opened: draw the image of each shape space stored on its objects again
+    from the stored coordinates (a generated image is not saved with the file: it came back
+    missing, or blank where something held it)."""
+    for obj in bpy.data.objects:
+        data = bridge.stored_shape_space(obj)
+        if data is None or obj.library is not None:
+            continue
+        try:
+            selected = int(data.get("selected", -1))
+            shape_space_image(obj, data, highlight=selected if selected >= 0 else None)
+        except (KeyError, TypeError, ValueError) as error:  # a property edited by hand: leave it
+            print(f"Shape Differences: the shape space stored on '{obj.name}' cannot be drawn ({error})")
+
+
+HANDLERS = ((bpy.app.handlers.frame_change_post, follow_frame), (bpy.app.handlers.load_post, redraw_shape_spaces))
+
+
 def register_handlers():
-    if follow_frame not in bpy.app.handlers.frame_change_post:
-        bpy.app.handlers.frame_change_post.append(follow_frame)
+    for handlers, handler in HANDLERS:
+        if handler not in handlers:
+            handlers.append(handler)
 
 
 def unregister_handlers():
-    if follow_frame in bpy.app.handlers.frame_change_post:
-        bpy.app.handlers.frame_change_post.remove(follow_frame)
+    for handlers, handler in HANDLERS:
+        if handler in handlers:
+            handlers.remove(handler)
 
 
 classes = (

@@ -16,6 +16,7 @@ a Mesh Cache modifier on a new object. Any operator that writes poses uses this 
 from __future__ import annotations
 
 import os
+import shutil
 from pathlib import Path
 
 import bpy
@@ -195,13 +196,94 @@ def require_local(obj, data, what: str, advice: str = "Make") -> None:
         f"{advice} it local first (Object › Relations › Make Local › Selected Objects and Data)")
 
 
+def cache_files_in_use() -> set[str]:
+    """The files (real paths) the Mesh Cache modifiers of every object in the file play, linked
+    objects' resolved against their library."""
+    used = set()
+    for obj in bpy.data.objects:
+        for modifier in obj.modifiers:
+            if modifier.type == 'MESH_CACHE' and modifier.filepath:
+                used.add(os.path.realpath(bpy.path.abspath(modifier.filepath, library=obj.library)))
+    return used
+
+
 def unique_file(path: Path) -> Path:
-    """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists."""
+    """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists or a
+    Mesh Cache modifier in the file plays it (a .blend copied without its caches: the old
+    object's path, empty on disk, would otherwise be taken and the old object play the new poses)."""
+    used = cache_files_in_use()
     candidate, number = path, 0
-    while candidate.exists():
+    while candidate.exists() or os.path.realpath(candidate) in used:
         number += 1
         candidate = path.with_name(f"{path.stem}.{number:03d}{path.suffix}")
     return candidate
+
+
+def in_session_folder(path: str) -> bool:
+    """Whether ``path`` lies in Blender's temporary folder of this session, which Blender deletes
+    when it quits."""
+    folder = bpy.app.tempdir
+    return bool(folder) and os.path.realpath(path).startswith(os.path.realpath(folder).rstrip(os.sep) + os.sep)
+
+
+#: Mesh Cache modifiers pointed at copies by :func:`keep_session_caches`: {(object, modifier):
+#: their path before}, restored after a save that was a copy (:func:`restore_after_copy`).
+_MOVED_FOR_SAVE: dict[tuple[str, str], str] = {}
+
+
+@bpy.app.handlers.persistent
+def keep_session_caches(filepath, *_):
+    """Before a save to ``filepath``: a cache written while the .blend had never been saved went
+    to Blender's temporary folder (:meth:`PoseWriter.cache_path`), which Blender deletes when it
+    quits; it is copied into ``caches/`` beside the .blend being saved and its Mesh Cache modifier
+    pointed there (relative), so the saved file keeps it."""
+    _MOVED_FOR_SAVE.clear()
+    if not filepath:
+        return
+    folder = Path(filepath).parent / CACHE_FOLDER
+    for obj in bpy.data.objects:
+        if obj.library is not None:
+            continue
+        for modifier in obj.modifiers:
+            source = bpy.path.abspath(modifier.filepath) if modifier.type == 'MESH_CACHE' and modifier.filepath else ""
+            if not source or not in_session_folder(source) or not os.path.isfile(source):
+                continue
+            try:
+                folder.mkdir(parents=True, exist_ok=True)
+                target = unique_file(folder / Path(source).name)
+                shutil.copy2(source, target)
+            except OSError as error:
+                print(f"Shape Differences: could not copy the cache '{source}' beside '{filepath}': {error}")
+                continue
+            _MOVED_FOR_SAVE[(obj.name, modifier.name)] = modifier.filepath
+            modifier.filepath = f"//{CACHE_FOLDER}/{target.name}"
+
+
+@bpy.app.handlers.persistent
+def restore_after_copy(filepath, *_):
+    """After a save: where it was a copy (*Save Copy*: this session's .blend is another or none),
+    the session's modifiers point back to the caches they played (the copy keeps its own)."""
+    if os.path.realpath(bpy.data.filepath or "") != os.path.realpath(filepath or ""):
+        for (name, modifier_name), path in _MOVED_FOR_SAVE.items():
+            obj = bpy.data.objects.get(name)
+            modifier = obj.modifiers.get(modifier_name) if obj is not None else None
+            if modifier is not None:
+                modifier.filepath = path
+    _MOVED_FOR_SAVE.clear()
+
+
+def register_handlers():
+    for handlers, handler in ((bpy.app.handlers.save_pre, keep_session_caches),
+                              (bpy.app.handlers.save_post, restore_after_copy)):
+        if handler not in handlers:
+            handlers.append(handler)
+
+
+def unregister_handlers():
+    for handlers, handler in ((bpy.app.handlers.save_pre, keep_session_caches),
+                              (bpy.app.handlers.save_post, restore_after_copy)):
+        if handler in handlers:
+            handlers.remove(handler)
 
 
 class PoseWriter:
@@ -219,6 +301,7 @@ class PoseWriter:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
+            self.cache_path(source.name, report=False)  # a path the system refuses: before any work
             return
         require_local(source, source.data, "shape keys added to it are",
                       "Choose Output › Point Cache (a new object), or make")
@@ -263,25 +346,42 @@ class PoseWriter:
                                      f"of '{source.name}': disable those to play them as captured, "
                                      "or use Output › Point Cache (a new object)")
 
-    def cache_path(self, object_name: str) -> tuple[Path, str]:
-        """The PC2 file to write (never an existing one) and the path to store in the modifier
-        (relative to the .blend when the user gave a relative path or none)."""
+    def given_path(self) -> str:
+        """The Cache File as given, a plain relative path (``caches/x.pc2``) taken relative to the
+        saved .blend (``//caches/x.pc2``) rather than to the folder Blender was started from, which
+        differs from run to run."""
+        given = self.filepath
+        if given and not given.startswith("//") and not os.path.isabs(given) and bpy.data.filepath:
+            return "//" + given
+        return given
+
+    def cache_path(self, object_name: str, report: bool = True) -> tuple[Path, str]:
+        """The PC2 file to write (never an existing one, nor one a Mesh Cache in the file plays)
+        and the path to store in the modifier (relative to the .blend when the user gave a
+        relative path or none). Raises :class:`InputError` for a path the system cannot use
+        (a name too long, a folder that cannot be read)."""
         base_name = bpy.path.clean_name(object_name) + ".pc2"
-        if self.filepath:
-            path = Path(bpy.path.abspath(self.filepath))
-            if self.filepath.endswith(("/", "\\")) or path.is_dir():
-                path = path / base_name
-            elif path.suffix.lower() != ".pc2":
-                path = path.with_name(path.name + ".pc2")
-        elif bpy.data.filepath:
-            path = Path(bpy.path.abspath(f"//{CACHE_FOLDER}")) / base_name
-        else:
-            path = Path(bpy.app.tempdir or os.path.realpath(".")) / base_name
-            self.report({'WARNING'}, "The .blend is not saved, so the cache went to a temporary "
-                                     f"folder ({path.parent}): save the .blend or set a Cache File "
-                                     "to keep it")
-        path = unique_file(path)
-        relative = bpy.data.filepath and (not self.filepath or self.filepath.startswith("//"))
+        given = self.given_path()
+        try:
+            if given:
+                path = Path(os.path.abspath(bpy.path.abspath(given)))
+                if given.endswith(("/", "\\")) or path.is_dir():
+                    path = path / base_name
+                elif path.suffix.lower() != ".pc2":
+                    path = path.with_name(path.name + ".pc2")
+            elif bpy.data.filepath:
+                path = Path(bpy.path.abspath(f"//{CACHE_FOLDER}")) / base_name
+            else:
+                path = Path(bpy.app.tempdir or os.path.realpath(".")) / base_name
+                if report:
+                    self.report({'WARNING'}, "The .blend is not saved, so the cache went to Blender's temporary "
+                                             f"folder ({path.parent}), deleted when Blender quits: saving the .blend "
+                                             f"copies it into {CACHE_FOLDER}/ beside it")
+            path = unique_file(path)
+        except OSError as error:
+            raise InputError(f"Cannot use the Cache File '{self.filepath or path}': {error.strerror or error}. "
+                             "Pick another Cache File") from None
+        relative = bpy.data.filepath and (not given or given.startswith("//"))
         return path, (bpy.path.relpath(str(path)) if relative else str(path))
 
     def write_poses(self, context, source, poses, *, names: list[str], frames: list[float],
