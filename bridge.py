@@ -201,6 +201,10 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             f"The modifier '{missing[0]}' of '{obj.name}' reads '{missing[1]}', which does not exist (moved "
             "or renamed?), so every frame would read its mesh at rest. Point the modifier to the file and "
             "run again")
+    if all(other != obj for other in scene.objects):
+        raise NotEvaluated(
+            f"'{obj.name}' is not in the scene '{scene.name}', whose frames would be read: run the operator "
+            "in a scene that holds it (or link it into this one)")
     if not obj.evaluated_get(context.evaluated_depsgraph_get()).is_evaluated:
         raise NotEvaluated(
             f"'{obj.name}' is disabled in viewports (its own Disable in Viewports, or its "

@@ -114,6 +114,16 @@ def test_an_object_disabled_in_viewports_is_refused(bpy_empty, extension, disabl
     assert set(bpy.data.objects.keys()) == names
 
 
+def test_an_object_of_another_scene_is_refused_as_such(bpy_empty, extension):
+    """Run on an object that is in another scene than the context's: said so (before: "disabled in
+    viewports"), nothing changed."""
+    strip = armature_scene()
+    other = bpy.data.scenes.new("Layout")
+    with bpy.context.temp_override(scene=other, active_object=strip, object=strip, selected_objects=[strip]):
+        fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.inbetween_frames,
+                             "is not in the scene 'Layout'", frame_start=1, frame_end=9, frame_step=4)
+
+
 @pytest.mark.parametrize("operator", ["inbetween_frames", "retime", "frames_to_shape_keys", "distortion_maps"])
 def test_a_cache_modifier_whose_file_is_gone_is_refused(bpy_empty, extension, operator, tmp_path):
     """A Mesh Cache modifier whose PC2 file was moved (or a temporary cache gone after a restart):
