@@ -191,7 +191,7 @@ class _Relative:
         def value(name):
             here, there = (_splined(r, name) for r in (self, origin))
             return there + factor * (here - there)
-        return _Relative._extrapolated(value, self.nonrigidity)
+        return _Relative._extrapolated(value, self.nonrigidity, ((1.0 - factor, origin), (factor, self)))
 
     @staticmethod
     def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
@@ -207,14 +207,33 @@ class _Relative:
         nonrigidity = np.maximum(previous.nonrigidity, current.nonrigidity)
         if farther is not None:
             nonrigidity = np.maximum(nonrigidity, farther.nonrigidity)
-        return _Relative._extrapolated(value, nonrigidity)
+        recipe = ((3.0, current), (-3.0, previous), (1.0, farther)) if farther is not None else \
+            ((2.0, current), (-1.0, previous))
+        return _Relative._extrapolated(value, nonrigidity, recipe)
+
+    #: An end condition's positions as weights of the relatives they extrapolate ((weight,
+    #: relative), …; :meth:`positions_of`), None for a key.
+    recipe = None
+
+    def positions_of(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Where the points ``points`` (r, 3) of the base key, carried by the rigid motions of
+        the components ``rows`` (r,), are in this key — for an end condition, extrapolated from
+        the keys' by the rule its other positions were (:attr:`recipe`)."""
+        if self.recipe is not None:
+            return sum(weight * relative.positions_of(points, rows) for weight, relative in self.recipe)
+        motion = getattr(self, "motion", None)
+        if motion is None:  # the base key itself
+            return points.copy()
+        return np.einsum("rab,rb->ra", motion[0][rows], points) + motion[1][rows]
 
     @staticmethod
-    def _extrapolated(value, nonrigidity) -> "_Relative":
+    def _extrapolated(value, nonrigidity, recipe=None) -> "_Relative":
         """An end condition (:attr:`extrapolated`) with ``value(name)`` for each splined quantity
-        (:data:`SPLINED`) and the metric of its log-stretch (positive definite)."""
+        (:data:`SPLINED`) and the metric of its log-stretch (positive definite); ``recipe``: its
+        positions' weights of the relatives it extrapolates (:meth:`positions_of`)."""
         out = _Relative.__new__(_Relative)
         out.extrapolated = True
+        out.recipe = recipe
         for name in SPLINED:
             setattr(out, name, value(name))
         out.metric = df.exp_stretch(2.0 * out.log_stretch)

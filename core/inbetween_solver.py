@@ -131,6 +131,14 @@ HELD_ANCHOR_WEIGHT = 1e-3
 #: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
 #: the gap's keys / the component's bounding-box diagonal) relative to this scale.
 RIGID_PLACEMENT_SCALE = 1e-3
+#: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
+#: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
+FLYING_MIN_TURN = 1e-6
+#: Largest difference (third, or second with one key beside the gap; :func:`flying_groups`), as a
+#: fraction of the piece's bounding-box diagonal, of the positions of the point a rigid piece is
+#: turned about: a point of a hinge's axis or a flying body's centre meets it to round-off (1e-15
+#: of the size; a single-precision cache 1e-7).
+FLYING_TOLERANCE = 1e-4
 #: Free flight up to an impact. The Catmull–Rom tangent at a gap's end key averages the velocity
 #: over the gap and the next one; when something stops the cloth right after that key (a sheet
 #: landing on a collider) it is too slow for the gap before, which is still in free flight, and
@@ -445,6 +453,17 @@ class _Gap(LocalGlobalFit):
         # between the keys the stretch comes from the metrics G = U² (see stretch)
         spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
+        rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
+        self.flying = flying_groups(topo, relatives, rigid)  # before any motion is asked for
+        if self.flying is not None:  # each flying group's point at the keys (the pieces' centroids elsewhere)
+            labels, points = self.flying
+            rows = np.flatnonzero(labels >= 0)
+            at_keys = []
+            for r in relatives:
+                where = r.centroids.copy()
+                where[rows] = r.positions_of(points[labels[rows]], rows)
+                at_keys.append(where)
+            spline["flying"] = hermite("centroids", at_keys)
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
@@ -825,8 +844,15 @@ class _Gap(LocalGlobalFit):
 
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
-        translations (C, 3)."""
+        translations (C, 3); the flying pieces (:func:`flying_groups`) turned about their group's
+        point on the spline of its positions at the keys."""
         motion = df.rigid_exps(self.splines["screw"].at(s))
+        if self.flying is not None:  # turned about each group's point, which follows its spline
+            labels, points = self.flying
+            rotations, translations = motion
+            rows = np.flatnonzero(labels >= 0)
+            translations[rows] = self.splines["flying"].at(s)[rows] - np.einsum(
+                "cab,cb->ca", rotations[rows], points[labels[rows]])
         if self.joints is None:
             return motion
         return composed(*self.joints, *motion, df.rigid_exps(self.splines["joint_screw"].at(s)))
@@ -924,6 +950,71 @@ class _Gap(LocalGlobalFit):
             self.place(result[0], s, self.motion(s), partly=True)
         self.carried.place(result[0], s)
         return result
+
+
+def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rigid pieces of a sequence's gap turned about the point of theirs whose path the keys
+    say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
+    rigid motion from the gap's base key to its next, to 1e-6) or −1, and each group's point in
+    the base key; None where no piece has a key before or after the gap to tell.
+
+    A rigid piece's screw motion (:meth:`_Gap.motion`) turns it about one axis, which a door on
+    its hinge or a wheel on its axle does; a body thrown while it spins turns about its centre as
+    the centre flies on, and the screw swings it along a helix around an axis far from its path (a
+    box flying and spinning 10° a frame, keys 16 frames apart: 14 × the linear blend's error).
+    Over the keys around the gap, the point of the piece (in the base key) whose positions have
+    the smallest third difference (constant acceleration; with a key on one side only, the second:
+    constant velocity) is a point of the hinge's axis for a door, whatever its speed, and the
+    centre of a thrown body, under gravity too: the piece turns about it while it follows the
+    spline of its positions at the keys. Of the points equally simple (along a hinge's axis) the
+    one nearest the group's centroid. Where no point of the piece's reach follows such a path to
+    :data:`FLYING_TOLERANCE` of its size (one key beside the gap and the body accelerating; a body
+    that orbits while it spins), the group's centroid: a flying body's centre of mass follows its
+    own path (a box thrown under gravity, keys 8 apart: 0.15 × the blend's error, the screw's
+    0.50 ×, the best point of a constant-velocity test 1.32 × Catmull–Rom's, its centroid 0.27 ×)."""
+    before, base, nxt, after = relatives
+    known = [r for r in (before, after) if not r.extrapolated and getattr(r, "motion", None) is not None]
+    if not rigid.any() or not known or getattr(nxt, "motion", None) is None:
+        return None
+    rotations, translations = nxt.motion
+    candidates = np.flatnonzero(rigid & (np.linalg.norm(df.rotation_vectors(rotations), axis=1) > FLYING_MIN_TURN))
+    if candidates.size == 0:
+        return None
+    diagonals = topo.diagonals(base.vertices)
+    scale = max(float(np.max(diagonals)), float(np.max(np.ptp(base.centroids, axis=0))), np.finfo(float).tiny)
+    motions = np.concatenate([rotations[candidates].reshape(-1, 9), translations[candidates] / scale], axis=1)
+    _, group = np.unique(np.round(motions, 6), axis=0, return_inverse=True)
+    group = group.ravel()
+    count = int(group.max()) + 1
+    mass = topo.component_mass[candidates]
+    first = candidates[np.unique(group, return_index=True)[1]]  # a member's motion stands for its group's
+    centroid = np.stack([np.bincount(group, mass * base.centroids[candidates, d], count) for d in range(3)],
+                        axis=1) / np.bincount(group, mass, count)[:, None]
+    reach = np.zeros(count)
+    np.maximum.at(reach, group, diagonals[candidates])
+    # the differences of a body point p's positions R_j p + t_j over the keys: A p + b
+    eye = np.broadcast_to(np.eye(3), (count, 3, 3))
+    r1, t1 = rotations[first], translations[first]
+    if len(known) == 2:
+        r0, t0 = before.motion[0][first], before.motion[1][first]
+        r2, t2 = after.motion[0][first], after.motion[1][first]
+        a, b = r2 - 3.0 * r1 + 3.0 * eye - r0, t2 - 3.0 * t1 - t0
+    elif after in known:
+        r2, t2 = after.motion[0][first], after.motion[1][first]
+        a, b = r2 - 2.0 * r1 + eye, t2 - 2.0 * t1
+    else:
+        r0, t0 = before.motion[0][first], before.motion[1][first]
+        a, b = r1 - 2.0 * eye + r0, t1 + t0
+    residual = np.einsum("gab,gb->ga", a, centroid) + b
+    # 3 × 3 least squares per group, all at once: the minimum-norm move from the centroid
+    move = -np.einsum("gab,gb->ga", np.linalg.pinv(a, rcond=1e-9), residual)
+    point = centroid + move
+    simple = (np.linalg.norm(move, axis=1) <= reach) & (
+        np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)
+    points = np.where(simple[:, None], point, centroid)
+    labels = np.full(len(topo.components), -1, dtype=np.intp)
+    labels[candidates] = group
+    return labels, points
 
 
 class _FramesByRows:
