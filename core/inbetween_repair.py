@@ -244,15 +244,17 @@ class Repair:
         if best is None or int(folds.sum()) < best[0]:
             system = (gap.topo.factor(FALLBACK_ANCHOR_WEIGHT), np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
             y = gap.fit(blend.copy(), stretch, None, blend, s, motion, REPAIR_ITERATIONS, system=system)
+            # the fit hands back its start when no step improves on it: then it is the blend, said so
+            fitted = "the linear blend (no fit near it improved on it)" if np.array_equal(y, blend) else \
+                "the interpolated metric fitted near the linear blend"
             if self.problem(y, s, None, stretch) is None:
-                return y, f"{problem}; used the interpolated metric fitted near the linear blend instead"
+                return y, f"{problem}; used {fitted} instead"
             if not (folds | self.crushed(blend, stretch)).any():
                 return blend, f"{problem}; the metric fit near the linear blend failed too, returned the linear blend"
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
-                return y, (f"{problem}; every repair and fallback has defects too, returned the interpolated "
-                           f"metric fitted near the linear blend, which has the fewest ({count} flipped or "
-                           "collapsed triangle(s))")
+                return y, (f"{problem}; every repair and fallback has defects too, returned {fitted}, which "
+                           f"has the fewest ({count} flipped or collapsed triangle(s))")
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
         return best[1], self.kept_message(problem, best[0])

@@ -1276,3 +1276,25 @@ def test_pins_on_an_object_turning_past_a_half_turn_over_two_gaps_keep_turning()
     for gap in (1, 2):
         for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, [0.25, 0.5, 0.75])):
             np.testing.assert_allclose(x[row], pose(gap + s)[row], atol=1e-9)
+
+
+def test_a_fallback_that_returns_the_blend_says_so():
+    """A sheet crumpled at random (noise 0.05 of its width): where the fit near the linear blend
+    makes no step, the pose returned is the blend and the warning says the blend (before: "the
+    interpolated metric fitted near the linear blend" for the blend itself)."""
+    n = 25
+    a = np.array([[i / (n - 1), j / (n - 1), 0.0] for j in range(n) for i in range(n)])
+    tri = np.array([[j * n + i, j * n + i + 1, (j + 1) * n + i + 1] for j in range(n - 1) for i in range(n - 1)]
+                   + [[j * n + i, (j + 1) * n + i + 1, (j + 1) * n + i] for j in range(n - 1) for i in range(n - 1)])
+    b = a + 0.05 * np.random.default_rng(0).standard_normal(a.shape)
+    interpolator = Interpolator(a, b, tri)
+    said = 0
+    for factor in (0.75, 1.5, 2.0):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            x = interpolator.pose(factor)
+        text = " ".join(str(w.message) for w in caught)
+        if np.allclose(x, (1 - factor) * a + factor * b, rtol=0, atol=1e-12):
+            assert "fitted near the linear blend" not in text
+            said += "the linear blend" in text
+    assert said  # the case arose
