@@ -736,8 +736,8 @@ class _Gap(LocalGlobalFit):
         return np.maximum(weight, GAUGE_WEIGHT), co_moving
 
     def aliased_blend(self) -> np.ndarray:
-        """Vertices (bool (n,)) of a triangle whose edges the linear blend turns more than a
-        quarter turn away from the interpolated field's half-way (:data:`ALIASED_BLEND_COSINE`):
+        """Vertices (bool (n,)) of a triangle whose edges the linear blend turns nearly opposite
+        (over 143°: :data:`ALIASED_BLEND_COSINE`) to the interpolated field's half-way:
         a part turning by nearly a whole turn between the keys (a sheet rolled into a tube, its
         free edge turned by 315°), whose edges the blend barely shortens (a turn of 315° reads as
         one of −45°) while it cuts straight across the turn. Anchored there, the in-between of a
@@ -978,8 +978,9 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
     one nearest the group's centroid. Where no point of the piece's reach follows such a path to
     :data:`FLYING_TOLERANCE` of its size (one key beside the gap and the body accelerating; a body
     that orbits while it spins), the group's centroid: a flying body's centre of mass follows its
-    own path (a box thrown under gravity, keys 8 apart: 0.15 × the blend's error, the screw's
-    0.50 ×, the best point of a constant-velocity test 1.32 × Catmull–Rom's, its centroid 0.27 ×)."""
+    own path (a box thrown under gravity, keys 8 apart, its two end gaps so: 0.23 × Catmull–Rom's
+    error over the sequence; with the screw there 4.4 ×, with the best point of the constant-velocity
+    test 1.32 ×)."""
     before, base, nxt, after = relatives
     known = [r for r in (before, after) if not r.extrapolated and getattr(r, "motion", None) is not None]
     if not rigid.any() or not known or getattr(nxt, "motion", None) is None:
