@@ -10,7 +10,6 @@ import copy
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.sparse.csgraph import connected_components
 
 from . import deformation_fields as df
 from .geometry import coordinate_dot, grouped_medians
@@ -83,8 +82,6 @@ class _Relative:
         frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
         self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
-        if not unwrap:  # a turn past a half turn across the mesh (a curl at two creases) continues
-            self.rotvec = spatially_unwrapped(topo, self.rotvec, self.log_stretch)
         self.metric = df.squared_stretch(stretch) if log_stretch is None else df.exp_stretch(2.0 * log_stretch)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
@@ -263,76 +260,6 @@ def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, 
     """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
     vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_logs`)."""
     return df.rigid_logs(rotations, translations, turns, unwrap)
-
-
-#: Rotation residuals (radians) from which a triangle's may have been read the short way round
-#: (:func:`spatially_unwrapped`): two neighbours' can differ by a whole turn only where one at
-#: least turns past a quarter turn.
-UNWRAP_FROM = 0.5 * np.pi
-#: Largest difference (radians) between two neighbouring triangles' turns in a region kept
-#: unwrapped (:func:`spatially_unwrapped`): a bend spread over a few rows of triangles turns by
-#: far less between neighbours, a cloth fold by more.
-UNWRAP_SMOOTH = 0.25 * np.pi
-#: ... or largest strain (norm of the log-stretch) of its triangles: moved rigidly, to the rounding
-#: of single-precision caches (1e-7).
-UNWRAP_STRAIN = 1e-5
-
-
-def spatially_unwrapped(topo: _Topology, rotvec: np.ndarray, log_stretch: np.ndarray) -> np.ndarray:
-    """Per-triangle rotation vectors (m, 3), those turning past :data:`UNWRAP_FROM` taken as the
-    representative ``ω + 2πk ω̂`` nearest the mean of their neighbours' (triangles sharing an
-    edge), walked out from the triangles turning less (or, in a region that turns past it
-    throughout, from its least turned triangle), in each connected region of such turns that the
-    walk leaves smooth (no two neighbours' turns differ by more than :data:`UNWRAP_SMOOTH`: a bend
-    over a few rows of triangles) or that moves rigidly piece by piece (every triangle's strain,
-    the norm of ``log_stretch`` (m, 3), under :data:`UNWRAP_STRAIN`: segments turned at creases).
-    A rotation is read as its shortest turn, so a strip curled by 120° at
-    each of two joints read its tip's 240° as −120°, and its in-betweens turned the tip back the
-    other way (half-way 0.5 of the diagonal off, 320 of 1,280 triangles facing against the half
-    curl). Cloth folds stay as read (unwrapped, the fields stay rough there, and the 105 pairs of
-    35 cloths came out farther from the simulation: the banner's edge deviation at g = 16 went from
-    6.5 to 8.1 %, the curtain's error at g = 8 from 0.92 to 1.16 × the blend's)."""
-    angle = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
-    region = angle > UNWRAP_FROM
-    if not region.any():
-        return rotvec
-    first, second = topo.triangle_pairs[region[topo.triangle_pairs].any(axis=1)].T
-    raw = np.linalg.norm(rotvec[first] - rotvec[second], axis=1)
-    if not (raw > np.pi).any():
-        return rotvec  # no two neighbours read a whole turn apart: nothing to unwrap
-    strain = np.sqrt(log_stretch[:, 0] ** 2 + 2.0 * log_stretch[:, 1] ** 2 + log_stretch[:, 2] ** 2)
-    if ((raw > UNWRAP_SMOOTH) & (raw <= np.pi)).any() and (strain[region] >= UNWRAP_STRAIN).any():
-        return rotvec  # stretched and rough without the whole turns: no unwrapping would be kept (cloth)
-    near = topo.triangle_neighbours
-    rows = np.flatnonzero(region)
-    pairs = near[rows].tocoo()  # the region's triangles (by row) and their neighbours
-    around = near[rows]
-    out = rotvec.copy()
-    done = ~region
-    while not done.all():
-        reach = around @ done.astype(np.float64)
-        reached = ~done[rows] & (reach > 0)
-        if not reached.any():  # a region turning past a quarter turn throughout: from its least turned
-            rest = np.flatnonzero(~done)
-            done[rest[np.argmin(angle[rest])]] = True
-            continue
-        step = rows[reached]
-        reference = (around[reached] @ (out * done[:, None])) / reach[reached][:, None]
-        out[step] = df.unwrapped_rotation_vectors(rotvec[step], reference)
-        done[step] = True
-    if not np.any(out[rows] != rotvec[rows]):
-        return rotvec
-    # each connected region of turns past a quarter turn is kept unwrapped only where it came out smooth
-    count, labels = connected_components(near[rows][:, rows], directed=False)
-    jump = np.linalg.norm(out[rows[pairs.row]] - out[pairs.col], axis=1)
-    rough = np.zeros(count, dtype=bool)
-    np.logical_or.at(rough, labels[pairs.row], jump > UNWRAP_SMOOTH)
-    stretched = np.zeros(count, dtype=bool)
-    np.logical_or.at(stretched, labels, strain[rows] >= UNWRAP_STRAIN)
-    keep = ~(rough & stretched)[labels]
-    result = rotvec.copy()
-    result[rows[keep]] = out[rows[keep]]
-    return result
 
 
 def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

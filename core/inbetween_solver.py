@@ -313,16 +313,8 @@ class _Topology:
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
-        self.triangle_pairs = topo.edge_triangles[topo.interior_edges]  # (e, 2): the two triangles of each inner edge
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
-
-    @cached_property
-    def triangle_neighbours(self) -> sp.csr_matrix:
-        """(m, m) float: 1 where two triangles share an edge (``triangle_pairs`` both ways)."""
-        first, second = self.triangle_pairs.T
-        m = len(self.triangle_component)
-        return sp.csr_matrix((np.ones(2 * first.size), (np.r_[first, second], np.r_[second, first])), shape=(m, m))
 
     def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None) -> SPDFactor:
         """The factor of the symmetric positive definite ``DᵀD + diag(w · mass)`` for per-vertex
