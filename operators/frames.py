@@ -234,6 +234,9 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
             context, obj, retimed, names=[f"Retime {speed}x"] * plan.n_out,
             tails=[f" frame {frame:g}" for frame in out_frames], frames=out_frames, keyframe=True,
             label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
+        if self.frame_step > 1 and self.speed < 1.0:  # slow motion from every n-th frame only
+            self.summary += (f"; frames between every {self.frame_step}th are rebuilt, not read: Step 1 keeps "
+                             "every frame of the source")
         shown = playback_range(context.scene)[1]
         if out_frames[-1] > shown:  # the scene's range is the user's to change
             which = "preview range" if context.scene.use_preview_range else "scene"

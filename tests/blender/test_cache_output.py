@@ -66,8 +66,10 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
                                      filepath=str(path))
     # the scene's range is left as it was, and the run says how far the motion now runs
     assert bpy.context.scene.frame_end == end
+    out = capfd.readouterr().out
     assert (f"runs to frame {2 * end - 1}, past the end of playback at frame {end}: set the scene's End to "
-            f"{2 * end - 1}") in capfd.readouterr().out
+            f"{2 * end - 1}") in out
+    assert "frames between every 4th are rebuilt, not read: Step 1 keeps every frame" in out
     first = new_object(names)
     assert first.name == f"{source.name} Retime 0.50x step 4"
     assert_cache_object(first, source, path)
