@@ -138,6 +138,12 @@ WARN_MATCHED_FRACTION = 0.5
 #: target edge lengths the meshes are elsewhere (a remeshed copy placed beside the original),
 #: and the transfer is refused: it returned a flat sheet with warnings about the recovery.
 OVERLAP_EDGES = 2.0
+#: ... and it warns when more than this share of them is that far (the meshes overlap in part).
+PARTLY_BESIDE = 0.1
+#: Smallest spread of the target positions a given correspondence matches, along each of their two
+#: widest axes, as a share of the target's own (:meth:`Transfer._check_spread`): a map onto a point
+#: or a line is refused; a map onto part of the target (a head on a body) spreads over far more.
+MIN_MAP_SPREAD = 0.01
 #: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
 #: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
 #: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
@@ -300,6 +306,8 @@ class Transfer:
         partial = not matched.all()
         if partial:
             self._check_matched_fraction(matched)
+        if correspondence is not None:
+            self._check_spread(rest_used[compact[used_map[matched]]], rest_used)
         seeds = np.where(matched, compact[used_map], 0)
         if correspondence is None:
             points = reference.base_positions  # the meshes overlap: project the base itself
@@ -407,13 +415,37 @@ class Transfer:
         surface: their median distance to their ``nearest`` target vertices over :data:`OVERLAP_EDGES`
         target edge lengths (``target_edges`` (E, 2) of positions ``target``)."""
         edge = float(np.mean(np.linalg.norm(target[target_edges[:, 0]] - target[target_edges[:, 1]], axis=1)))
-        apart = float(np.median(np.linalg.norm(base - nearest, axis=1)))
+        distances = np.linalg.norm(base - nearest, axis=1)
+        apart = float(np.median(distances))
+        beside = float(np.mean(distances > OVERLAP_EDGES * edge))
+        if apart <= OVERLAP_EDGES * edge and beside > PARTLY_BESIDE:
+            warnings.warn(
+                f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
+                "from the target at rest: the meshes overlap only in part, and there closest points match the "
+                "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
+                "base is, or give a correspondence (in Blender: Map › Attribute or File)",
+                ShapeDifferenceWarning, stacklevel=3)
         if apart > OVERLAP_EDGES * edge:
             raise MeshError(
                 f"The two meshes do not overlap at rest: half of the base's vertices are more than {apart:.3g} "
                 f"from the target's ({apart / edge:.1f} of its edge lengths), and closest points match only "
                 "meshes laid on each other. Place the target's rest pose where the base is, or give a "
                 "correspondence (in Blender: Map › Attribute or File)")
+
+    @staticmethod
+    def _check_spread(images, target) -> None:
+        """Raise :class:`MeshError` when a given correspondence lays the base on a point or a line
+        of the target: the matched target positions ``images`` (k, 3) spread, along either of
+        their two widest axes, less than :data:`MIN_MAP_SPREAD` of the target's rest positions
+        ``target`` (n, 3) do (RMS) — an attribute created and never filled holds 0 for every vertex,
+        and the transfer squashed the target to that one vertex with warnings about its faces."""
+        spread = [np.linalg.svd(x - x.mean(axis=0), compute_uv=False)[:2] / np.sqrt(len(x)) for x in (images, target)]
+        if len(images) < 3 or (spread[0] < MIN_MAP_SPREAD * spread[1]).any():
+            raise MeshError(
+                f"The correspondence lays the base on {'a point' if spread[0][0] < MIN_MAP_SPREAD * spread[1][0] else 'a line'} "
+                f"of the target ({len(np.unique(images, axis=0))} distinct target vertices for "
+                f"{len(images)} matched base vertices): it is not a map of the surface. Check it (an attribute "
+                "created and never filled holds 0 for every vertex)")
 
     @staticmethod
     def _check_matched_fraction(matched):

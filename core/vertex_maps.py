@@ -31,10 +31,12 @@ def read_vertex_map(path) -> np.ndarray:
     ``.npy`` array. Indices are returned as stored (no change of base); raises
     :class:`MeshError` for a missing, empty or malformed file."""
     path = os.fspath(path)
+    if os.path.isdir(path):
+        raise MeshError(f"The map file '{path}' is a folder: give the map file in it.")
     if not os.path.isfile(path):
         raise MeshError(f"The map file '{path}' does not exist.")
-    try:
-        values = np.load(path) if path.lower().endswith(".npy") else np.loadtxt(path, ndmin=1)
+    try:  # utf-8-sig: a byte-order mark (Notepad's) is not part of the first index
+        values = np.load(path) if path.lower().endswith(".npy") else np.loadtxt(path, ndmin=1, encoding="utf-8-sig")
     except ValueError as error:
         raise MeshError(f"The map file '{path}' is not a list of vertex indices, one per line ({error}).") from error
     values = np.asarray(values)

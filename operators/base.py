@@ -240,8 +240,10 @@ class GeneratorOperator:
 class CoreSettingsProperties(CoreSettings):
     """Core settings of an operator: each one not set is taken from the scene settings."""
 
-    def core_options(self, context, vertex_count: int) -> dict:
-        """Keyword arguments for the core facade, from this operator or the scene settings.
+    def core_options(self, context, vertex_count: int, target_count: int | None = None) -> dict:
+        """Keyword arguments for the core facade, from this operator or the scene settings;
+        ``target_count``: the vertices of the mesh k_N is the basis of, where it is another than
+        the base's (a transfer's source), else the base's ``vertex_count``.
 
         Resolved values are written back to the operator so the Redo panel shows them.
         """
@@ -249,12 +251,13 @@ class CoreSettingsProperties(CoreSettings):
         for name in ("k_m", "k_n", "offset", "use_extrinsic"):
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
-        # Both bases live on meshes with the base's vertices (the offset surfaces have more).
-        for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
-            if k >= vertex_count:
+        # Both bases live on meshes with the base's vertices (the offset surfaces have more), or
+        # k_N on the other mesh of a transfer.
+        for label, k, count in (("k_M", self.k_m, vertex_count), ("k_N", self.k_n, target_count or vertex_count)):
+            if k >= count:
                 raise InputError(
-                    f"{label} = {k} is too large for a mesh with {vertex_count} vertices: "
-                    f"use at most {vertex_count - 1}, or 0 for the full basis")
+                    f"{label} = {k} is too large for a mesh with {count} vertices: "
+                    f"use at most {count - 1}, or 0 for the full basis")
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=self.offset or None,

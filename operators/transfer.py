@@ -34,7 +34,7 @@ def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
     """The integer point attribute ``name`` of the active mesh: each vertex's matched vertex of
     the source mesh."""
     attribute = obj.data.attributes.get(name)
-    if attribute is None or attribute.domain != 'POINT' or attribute.data_type != 'INT':
+    if attribute is None or attribute.domain != 'POINT' or attribute.data_type not in {'INT', 'INT8'}:
         raise InputError(
             f"'{obj.name}' has no integer vertex attribute '{name}' holding the matched source vertex "
             "of each vertex: import the map as an Integer / Vertex attribute, or choose Closest Points")
@@ -135,10 +135,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
 
     def _basis_sizes(self, options, n_base: int, n_source: int):
         k_m = options["k_M"] or min(DEFAULT_K_M, n_base - 1)
-        k_n = options["k_N"] or min(DEFAULT_K_N, n_source - 1)
-        if k_n >= n_source:
-            raise InputError(f"k_N = {k_n} is too large for the source mesh with {n_source} vertices: "
-                             f"use at most {n_source - 1}")
+        k_n = options["k_N"] or min(DEFAULT_K_N, n_source - 1)  # a set k_N is checked by core_options
         return k_m, k_n
 
     def _source_poses(self, context, source):
@@ -171,7 +168,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         triangles = surface_triangles(obj)
         source_triangles = surface_triangles(source)
         n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
-        options = self.core_options(context, n_base)
+        options = self.core_options(context, n_base, n_source)
         k_m, k_n = self._basis_sizes(options, n_base, n_source)
         self.check_output(obj)
         correspondence = None

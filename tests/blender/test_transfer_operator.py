@@ -44,6 +44,15 @@ def test_transfer_keys_by_closest_points(pair, core):
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(rest, truth)
 
 
+def test_k_n_is_the_sources_basis(pair, core):
+    """k_N is checked against the source's 225 vertices, not the 121 of the active mesh (before:
+    "k_N = 140 is too large for a mesh with 121 vertices", while 0 chose 200)."""
+    source, target, bridge = pair
+    assert bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=140) == {'FINISHED'}
+    with pytest.raises(RuntimeError, match="k_N = 225 is too large for a mesh with 225 vertices"):
+        bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=225)
+
+
 def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
     source, target, bridge = pair
     from scipy.spatial import cKDTree
@@ -61,6 +70,12 @@ def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
     attribute.data[3].value = int(matched[3])
     bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map", k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Source Bend"]
+    # an 8-bit integer attribute is read as one (before: "no integer vertex attribute"); this one,
+    # never filled, maps every vertex to source vertex 0: refused (before: the sheet squashed to it)
+    small = target.data.attributes.new("map8", 'INT8', 'POINT')
+    small.data.foreach_set("value", np.zeros(len(matched), dtype=np.int32))
+    with pytest.raises(RuntimeError, match="lays the base on a point of the target"):
+        bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map8", k_m=16, k_n=32)
 
 
 def test_transfer_with_map_files(pair, core, tmp_path):
@@ -82,7 +97,12 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     with pytest.raises(RuntimeError, match=r"The Map File has 225 entries but 'Sheet' has 121 vertices"):
         np.savetxt(tmp_path / "long.txt", np.arange(1, 226), fmt="%d")
         run(map_file=str(tmp_path / "long.txt"))
+    with pytest.raises(RuntimeError, match="is a folder"):
+        run(map_file=str(tmp_path))
     assert target.data.shape_keys is None
+    (tmp_path / "bom.txt").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "map1.txt").read_bytes())  # saved by Notepad
+    run(map_file=str(tmp_path / "bom.txt"))
+    target.shape_key_clear()
     run(map_file=str(tmp_path / "map1.txt"))
     run(map_file=str(tmp_path / "map0.txt"), one_based=False)
     keys = target.data.shape_keys.key_blocks

@@ -122,6 +122,16 @@ def test_errors_in_the_users_terms(sheets):
         Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20)
     nearest = np.argmin(np.linalg.norm(base[:, None] - target[None], axis=2), axis=1)
     Transfer(base, base_tris, beside, target_tris, k_M=10, k_N=20, correspondence=nearest)
+    # placed half beside: transferred, with the reason its result is distorted (before: only
+    # warnings about degenerate faces and k)
+    with pytest.warns(ShapeDifferenceWarning, match=r"\d+ % of the base's vertices .* overlap only in part"):
+        Transfer(base, base_tris, target + [0.5, 0.0, 0.0], target_tris, k_M=10, k_N=20, use_extrinsic=False)
+    # a map onto one vertex (an attribute never filled) or one row: refused (before: the target
+    # squashed to that vertex, with warnings about its faces)
+    row = np.flatnonzero(np.isclose(target[:, 1], target[:, 1].min()))
+    for onto, what in ((np.zeros(len(base), dtype=int), "a point"), (row[np.arange(len(base)) % len(row)], "a line")):
+        with pytest.raises(MeshError, match=f"lays the base on {what} of the target"):
+            Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, correspondence=onto)
 
 
 @pytest.fixture(scope="module")
