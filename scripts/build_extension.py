@@ -36,6 +36,12 @@ STAGE_IGNORE = shutil.ignore_patterns(".git", ".venv", "wheels", "dist", "build"
                                       "__pycache__", "*.pyc", ".pytest_cache")
 
 
+def version() -> str:
+    """The extension's version, from its manifest."""
+    import tomllib
+    return tomllib.loads((ROOT / "blender_manifest.toml").read_text(encoding="utf-8"))["version"]
+
+
 def blender_cli() -> tuple[Path, Path]:
     """Paths of Blender's extension CLI and of its list of valid tags, inside ``bpy``."""
     import bpy
@@ -108,7 +114,7 @@ def build(platforms: list[str], output_dir: Path) -> list[Path]:
         validate(stage)
         run_cli("build", "--source-dir", str(stage), "--output-dir", str(output_dir),
                 "--split-platforms")
-        zips += output_dir.glob(f"{EXTENSION_ID}-*-{platform.replace('-', '_')}.zip")
+        zips += output_dir.glob(f"{EXTENSION_ID}-{version()}-{platform.replace('-', '_')}.zip")  # not older builds
     for path in zips:
         print(f"{path.name}: {path.stat().st_size / 2**20:.1f} MiB")
     return zips

@@ -51,7 +51,10 @@ class VIEW3D_PT_shape_differences_poses(ShapeDiffPanel, bpy.types.Panel):
         settings = context.scene.shape_differences
         shape_keys = shape_keys_of(context)
         if shape_keys is None:
-            layout.label(text="The active mesh has no shape keys", icon='INFO')
+            obj = context.active_object
+            text = ("The active mesh has no shape keys" if obj is not None and obj.type == 'MESH'
+                    else "Select a mesh with shape keys: the active object is not a mesh")
+            layout.label(text=text, icon='INFO')
             return
 
         def key_picker(column, name):

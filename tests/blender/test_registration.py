@@ -81,7 +81,7 @@ class RecordingLayout:
     key picker and operator the panel draws exists, and records the operators' settings."""
 
     def __init__(self):
-        self.operators = []
+        self.operators, self.labels = [], []
 
     def column(self, align=False):
         return self
@@ -89,7 +89,7 @@ class RecordingLayout:
     row = column
 
     def label(self, text="", icon='NONE'):
-        pass
+        self.labels.append(text)
 
     def separator(self):
         pass
@@ -119,9 +119,9 @@ class OperatorButton:
         self.settings[name] = value
 
 
-def draw_panels(extension):
+def draw_panels(extension, layout=None):
     """Draw every Shape Diff panel into a RecordingLayout; return the operator buttons."""
-    layout = RecordingLayout()
+    layout = RecordingLayout() if layout is None else layout
     for name in ("VIEW3D_PT_shape_differences", "VIEW3D_PT_shape_differences_poses",
                  "VIEW3D_PT_shape_differences_animation", "VIEW3D_PT_shape_differences_analysis"):
         panel = getattr(bpy.types, name)
@@ -158,6 +158,18 @@ def test_panel_draws_settings_and_operators(bpy_empty, extension):
     assert buttons["shape_differences.exaggerate"]["output"] == 'CACHE'
     assert buttons["shape_differences.retime"]["speed"] == 0.25
     assert buttons["shape_differences.exaggerate"]["factor"] == 2.0
+
+
+def test_poses_panel_says_what_is_missing(bpy_empty, extension):
+    """No mesh active: the Poses panel says so (before: "The active mesh has no shape keys" for a
+    camera or for nothing at all)."""
+    for make, expected in ((lambda: None, "the active object is not a mesh"),
+                           (lambda: bpy.ops.object.camera_add(), "the active object is not a mesh"),
+                           (lambda: bpy.ops.mesh.primitive_grid_add(), "The active mesh has no shape keys")):
+        make()
+        layout = RecordingLayout()
+        draw_panels(extension, layout)
+        assert any(expected in text for text in layout.labels), layout.labels
 
 
 def test_properties_are_declared_once(bpy_empty):
