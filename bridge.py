@@ -215,9 +215,18 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     vertex_count = len(obj.data.vertices)
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
     aside = [modifier for modifier in set_aside if modifier.show_viewport]
+    # a modifier switched and evaluated at a frame past a simulation's start marks its baked cache
+    # outdated (Blender then offers to compute it again): switched and evaluated at its start frame
+    # it is not
+    caches = [m.point_cache.frame_start for m in obj.modifiers if m.type in {'CLOTH', 'SOFT_BODY'}]
+    switch_frame = min(caches) if aside and caches else None
     try:
+        if switch_frame is not None:
+            scene.frame_set(switch_frame)
         for modifier in aside:
             modifier.show_viewport = False
+        if switch_frame is not None:
+            context.view_layer.update()
         first = frames[0] if first_visit is None else min(first_visit, frames[0])
         visits = range(first, frames[-1] + 1) if every_frame else frames
         for frame in visits:
@@ -229,8 +238,12 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
                 _refuse_vertex_count(obj, frame, len(positions), vertex_count)
             yield frame, positions
     finally:
+        if switch_frame is not None:
+            scene.frame_set(switch_frame)
         for modifier in aside:
             modifier.show_viewport = True
+        if switch_frame is not None:
+            context.view_layer.update()
         scene.frame_set(original_frame, subframe=original_subframe)
 
 

@@ -89,6 +89,26 @@ def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
     np.testing.assert_allclose(played(bridge, cloth, [9])[9], shown, atol=TOLERANCE)
 
 
+def test_a_baked_cache_is_not_left_outdated(bpy_empty, extension, tmp_path):
+    """Run from the middle of the range, switching the Subdivision off and on while the frames are
+    read left the bake marked outdated (Blender offers to compute it again): now switched at the
+    cache's start frame, the bake's state is as it was."""
+    from blender_scenes import grid_object
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 9
+    cloth = grid_object(8, name="Cloth")
+    cache = cloth.modifiers.new("Cloth", 'CLOTH').point_cache
+    cache.frame_end = 9
+    cloth.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(5)
+    assert cache.is_baked and not cache.is_outdated
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path) + "/")
+    assert cache.is_baked and not cache.is_outdated and bpy.context.scene.frame_current == 5
+
+
 @pytest.mark.parametrize("subdivided", [True, False], ids=["subdivision", "alone"])
 def test_shade_auto_smooth_after_the_motion_goes_with_the_new_object(bpy_empty, extension, subdivided, tmp_path):
     """*Shade Auto Smooth* (Blender 4.1+) ends the stack with a *Smooth by Angle* Geometry Nodes
