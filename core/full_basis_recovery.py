@@ -129,11 +129,11 @@ def _heron(topology, squared_lengths):
 
 
 def _spd_factor(matrix):
-    """SuperLU of a symmetric positive definite matrix: minimum degree on its pattern and no
-    pivoting (faster and sparser than the default COLAMD on normal matrices)."""
-    from scipy.sparse.linalg import splu
+    """The factor of a symmetric positive definite matrix (:class:`core.sparse_cholesky.SPDFactor`:
+    CHOLMOD's supernodal Cholesky, or SuperLU without it)."""
+    from .sparse_cholesky import SPDFactor
 
-    return splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    return SPDFactor(matrix)
 
 
 def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference, what):
