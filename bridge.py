@@ -120,6 +120,11 @@ def scene_time(scene: bpy.types.Scene, frame: float) -> float:
     return frame * scene.render.frame_map_old / scene.render.frame_map_new
 
 
+#: Modifiers that simulate and keep a point cache (emptied when the object's mesh data changes,
+#: marked outdated when its modifiers change at a frame past its start).
+SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
+
+
 class FrameReadError(ValueError):
     """The frames of an object cannot be read as the poses of its mesh (the message says why)."""
 
@@ -218,7 +223,7 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     # a modifier switched and evaluated at a frame past a simulation's start marks its baked cache
     # outdated (Blender then offers to compute it again): switched and evaluated at its start frame
     # it is not
-    caches = [m.point_cache.frame_start for m in obj.modifiers if m.type in {'CLOTH', 'SOFT_BODY'}]
+    caches = [m.point_cache.frame_start for m in obj.modifiers if m.type in SIMULATION_MODIFIERS]
     switch_frame = min(caches) if aside and caches else None
     try:
         if switch_frame is not None:

@@ -26,7 +26,7 @@ from .. import bridge
 from .base import InputError
 
 # Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
-SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
+SIMULATION_MODIFIERS = bridge.SIMULATION_MODIFIERS
 CACHE_FOLDER = "caches"
 # Modifiers that do not move the mesh they are on.
 PASSIVE_MODIFIERS = {'COLLISION'}
