@@ -453,7 +453,8 @@ class _Gap(LocalGlobalFit):
         # between the keys the stretch comes from the metrics G = U² (see stretch)
         spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
-        rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
+        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)  # per component, over the keys
+        rigid = nonrigidity < RIGID_PLACEMENT_SCALE
         self.flying = flying_groups(topo, relatives, rigid)  # before any motion is asked for
         if self.flying is not None:  # each flying group's point at the keys (the pieces' centroids elsewhere)
             labels, points = self.flying
@@ -478,7 +479,6 @@ class _Gap(LocalGlobalFit):
         # rigid pieces jointed to each other move relative to the piece they hang from
         self.joints = None
         if len(topo.components) > 1:
-            rigid = np.max([r.nonrigidity for r in relatives], axis=0) < RIGID_PLACEMENT_SCALE
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge)
         if self.joints is not None:
@@ -497,7 +497,6 @@ class _Gap(LocalGlobalFit):
                     0.5 * (base.vertices + nxt.vertices), reference) + METRIC_TOLERANCE:
                 self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.change_tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
         self.select(0.5)
-        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
         # the splines' conditions for free flight and impacts act on the world spline: not there
         self._arc_candidates = np.full(len(topo.components), cubic and not anchored)
@@ -1007,8 +1006,7 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
         r0, t0 = before.motion[0][first], before.motion[1][first]
         a, b = r1 - 2.0 * eye + r0, t1 + t0
     residual = np.einsum("gab,gb->ga", a, centroid) + b
-    # 3 × 3 least squares per group, all at once: the minimum-norm move from the centroid
-    move = -np.einsum("gab,gb->ga", np.linalg.pinv(a, rcond=1e-9), residual)
+    move = df.least_squares_3x3(a, -residual)  # the minimum-norm move from the centroid, all groups at once
     point = centroid + move
     simple = (np.linalg.norm(move, axis=1) <= reach) & (
         np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)
