@@ -65,6 +65,9 @@ CG_MAX_ITERATIONS = 2000
 #: projected-gradient tolerance relative to the largest scaled right-hand side.
 BOUNDED_MAX_ITERATIONS = 2000
 BOUNDED_GRADIENT_TOLERANCE = 1e-10
+#: A line search that can no longer decrease the quadratic (L-BFGS-B's ABNORMAL, round-off) is
+#: converged when the projected gradient is within the CG solve's own relative tolerance.
+BOUNDED_STALL_TOLERANCE = CG_TOLERANCE
 #: The edge Gram's pivoted Cholesky factor stops at this fraction of the trace left.
 EDGE_GRAM_TOLERANCE = 3e-6
 #: Keep eigenvalues λ of the edge Gram with λ‖B_µ‖² above this fraction of ε′.
@@ -298,13 +301,16 @@ class TruncatedRecovery:
             normal = normal_matvec(mu)
             return 0.5 * float(mu @ normal) - float(rhs @ mu), (normal - rhs) / scale
 
-        gradient_tolerance = BOUNDED_GRADIENT_TOLERANCE * float(np.abs(rhs / scale).max())
+        gradient_scale = float(np.abs(rhs / scale).max())
         result = minimize(objective, np.maximum(start, 0.0) * scale, jac=True, method="L-BFGS-B",
                           bounds=[(0.0, None)] * reference.size,
-                          options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0, "gtol": gradient_tolerance})
+                          options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0, "gtol": BOUNDED_GRADIENT_TOLERANCE * gradient_scale})
         if not np.all(np.isfinite(result.x)):
             raise RecoveryError(f"The bounded area program of the {self.layer.name} failed ({result.message}).")
-        if not result.success:
+        gradient = objective(result.x)[1]
+        projected = np.abs(np.where(result.x > 0.0, gradient, np.minimum(gradient, 0.0))).max()
+        stalled_at_optimum = result.status == 2 and projected <= BOUNDED_STALL_TOLERANCE * gradient_scale
+        if not result.success and not stalled_at_optimum:
             warnings.warn(
                 f"The bounded area program of the {self.layer.name} stopped before convergence "
                 f"({result.message}); the areas are its last iterate.",
