@@ -30,7 +30,7 @@ import warnings
 
 from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
 from .offset_surface import check_offset_pose, default_offset
-from .reference_shape import RecoveredMetric, ReferenceShape, ShapeDifferences
+from .reference_shape import RecoveredMetric, ReferenceShape, ShapeDifferences, differences_reference
 from .validation import (
     check_basis_sizes,
     check_factor,
@@ -38,8 +38,6 @@ from .validation import (
     check_mesh,
     check_offset,
     check_pose,
-    check_triangles,
-    check_vertices,
     numerical_failures,
 )
 
@@ -209,15 +207,7 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
     (:class:`MeshError` otherwise). Warns (:class:`ShapeDifferenceWarning`) when the returned
     pose does not realize the recovered edge lengths (full basis).
     """
-    if not isinstance(differences, ShapeDifferences):
-        raise MeshError(
-            f"differences must be the ShapeDifferences returned by core.shape_differences; got "
-            f"{type(differences).__name__}."
-        )
-    reference = differences.reference
-    base = check_vertices(base_vertices, name="base_vertices")
-    tris = check_triangles(triangles, base.shape[0])
-    _check_same_mesh(reference, base, tris)
+    reference = differences_reference(base_vertices, triangles, differences)
     with numerical_failures("Reconstructing the pose"):
         metric = reference.recover_metric(differences)
         _check_recovered_metric(metric, differences)
@@ -227,39 +217,6 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
             _warn_unrealized(reference, metric, placed)
             _warn_undetermined(embedding.unresolved_choices)
         return reference.expand_pose(placed)
-
-
-def _check_same_mesh(reference: ReferenceShape, base: np.ndarray, tris: np.ndarray) -> None:
-    """MeshError unless ``(base, tris)`` is the mesh the differences were computed on."""
-    computed_on = (
-        f"These shape differences were computed on a mesh with {reference.n_vertices} vertices and "
-        f"{reference.triangles.shape[0]} triangles"
-    )
-    fix = "Pass the base_vertices and triangles given to shape_differences."
-    if base.shape[0] != reference.n_vertices or tris.shape != reference.triangles.shape:
-        raise MeshError(
-            f"{computed_on}, but base_vertices has {base.shape[0]} vertices and triangles has "
-            f"{tris.shape[0]} rows. {fix}"
-        )
-    if not np.array_equal(tris, reference.triangles):
-        same_corners = np.array_equal(np.sort(tris, axis=1), np.sort(reference.triangles, axis=1))
-        differ = np.flatnonzero((tris != reference.triangles).any(axis=1))
-        t = int(differ[0])
-        if same_corners:
-            raise MeshError(
-                f"{computed_on}; the triangles given list the same corners in another order "
-                f"(triangle {t}: {tris[t].tolist()}, was {reference.triangles[t].tolist()}), which "
-                f"reverses or rotates them ({differ.size} in all). {fix}"
-            )
-        raise MeshError(f"{computed_on}; triangle {t} differs ({tris[t].tolist()}, was "
-                        f"{reference.triangles[t].tolist()}; {differ.size} in all). {fix}")
-    if not np.array_equal(base, reference.vertices):
-        moved = np.linalg.norm(base - reference.vertices, axis=1)
-        v = int(np.argmax(moved))
-        raise MeshError(
-            f"{computed_on} from another base pose: vertex {v} of base_vertices is {moved[v]:.3g} "
-            f"away from where it was ({int(np.count_nonzero(moved))} vertices differ). {fix}"
-        )
 
 
 def _check_recovered_metric(metric: RecoveredMetric, differences: ShapeDifferences) -> None:

@@ -282,12 +282,11 @@ def pull_back(base_vertices, triangles, differences) -> PulledBackMetric:
 
     ``base_vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``; ``differences`` from
     :func:`core.shape_differences` (full basis: exact linear recovery; truncated ``k_M``/``k_N``:
-    the convex programs of §7). Only the intrinsic pair is used.
+    the convex programs of §7). Only the intrinsic pair is used. ``base_vertices`` and
+    ``triangles`` must be those ``differences`` were computed from (:class:`MeshError` otherwise).
     """
-    from .reference_shape import ReferenceShape
+    from .reference_shape import differences_reference
 
-    reference = differences.reference
-    if not reference.matches(base_vertices, triangles):
-        reference = ReferenceShape(base_vertices, triangles, offset=differences.offset, use_extrinsic=False)
+    reference = differences_reference(base_vertices, triangles, differences)
     metric = reference.base.recover(differences.area, differences.conformal)
     return PulledBackMetric(reference, metric.areas, metric.squared_lengths)

@@ -30,7 +30,7 @@ from .shape_difference import (
     reduced_differences,
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
-from .validation import check_basis_sizes, check_flag, check_offset
+from .validation import check_basis_sizes, check_flag, check_offset, check_triangles
 
 
 @dataclass(frozen=True, eq=False)
@@ -239,10 +239,12 @@ class ReferenceShape:
         out[self.used_vertices] = compact
         return out
 
-    def basis_sizes(self, k_M, k_N) -> tuple[int | None, int | None]:
+    def basis_sizes(self, k_M, k_N, *, full_basis: bool = True) -> tuple[int | None, int | None]:
         """``k_M``, ``k_N`` normalized and checked against this mesh: below its vertex count (in
-        triangles), above its number of connected parts (:func:`core.validation.check_basis_sizes`)."""
-        return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0])
+        triangles), above its number of connected parts (:func:`core.validation.check_basis_sizes`;
+        ``full_basis=False`` where a truncated ``k_M`` is needed)."""
+        return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0],
+                                 full_basis=full_basis)
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None) -> ShapeDifferences:
         """The four differences (§6) of a target pose ``(n, 3)`` relative to this base."""
@@ -350,3 +352,51 @@ class ReferenceShape:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection)."""
         return align_components(positions, target, self.vertex_components, weights=self.vertex_weights)
+
+
+def differences_reference(base_vertices, triangles, differences) -> ReferenceShape:
+    """The prepared base of ``differences`` (from :func:`core.shape_differences`), checked to be
+    the mesh ``base_vertices`` ``(n, 3)``, ``triangles`` ``(m, 3)``: :class:`MeshError` for anything
+    else than shape differences, or differences of another mesh or base pose."""
+    if not isinstance(differences, ShapeDifferences):
+        raise MeshError(
+            f"differences must be the ShapeDifferences returned by core.shape_differences; got "
+            f"{type(differences).__name__}."
+        )
+    reference = differences.reference
+    base = check_vertices(base_vertices, name="base_vertices")
+    _check_same_mesh(reference, base, check_triangles(triangles, base.shape[0]))
+    return reference
+
+
+def _check_same_mesh(reference: ReferenceShape, base: np.ndarray, tris: np.ndarray) -> None:
+    """MeshError unless ``(base, tris)`` is the mesh the differences were computed on."""
+    computed_on = (
+        f"These shape differences were computed on a mesh with {reference.n_vertices} vertices and "
+        f"{reference.triangles.shape[0]} triangles"
+    )
+    fix = "Pass the base_vertices and triangles given to shape_differences."
+    if base.shape[0] != reference.n_vertices or tris.shape != reference.triangles.shape:
+        raise MeshError(
+            f"{computed_on}, but base_vertices has {base.shape[0]} vertices and triangles has "
+            f"{tris.shape[0]} rows. {fix}"
+        )
+    if not np.array_equal(tris, reference.triangles):
+        same_corners = np.array_equal(np.sort(tris, axis=1), np.sort(reference.triangles, axis=1))
+        differ = np.flatnonzero((tris != reference.triangles).any(axis=1))
+        t = int(differ[0])
+        if same_corners:
+            raise MeshError(
+                f"{computed_on}; the triangles given list the same corners in another order "
+                f"(triangle {t}: {tris[t].tolist()}, was {reference.triangles[t].tolist()}), which "
+                f"reverses or rotates them ({differ.size} in all). {fix}"
+            )
+        raise MeshError(f"{computed_on}; triangle {t} differs ({tris[t].tolist()}, was "
+                        f"{reference.triangles[t].tolist()}; {differ.size} in all). {fix}")
+    if not np.array_equal(base, reference.vertices):
+        moved = np.linalg.norm(base - reference.vertices, axis=1)
+        v = int(np.argmax(moved))
+        raise MeshError(
+            f"{computed_on} from another base pose: vertex {v} of base_vertices is {moved[v]:.3g} "
+            f"away from where it was ({int(np.count_nonzero(moved))} vertices differ). {fix}"
+        )

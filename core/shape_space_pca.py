@@ -34,11 +34,16 @@ import warnings
 
 from .concurrency import single_threaded_blas
 from .errors import MeshError, ShapeDifferenceWarning
+from .seams import relative_round_off
+from .validation import check_count
 
 #: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
 #: the differences' Frobenius norm is round-off, not a difference between poses: identical poses
 #: spread 5e-17 of it, poses moved by 1e-9 of the mesh's size 3e-9.
 ROUND_OFF_SPREAD = 1e-12
+#: ... or at most this many relative round-offs of the poses' edge lengths (``ShapeSpace.round_off``)
+#: times √N: 3 to 12 float32 copies of a turned and moved sphere spread up to 0.034 of them.
+ROUNDING_SPREAD = 1.0
 #: The four kinds of shape difference, in the order the paper plots them.
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
 KIND_LABELS = {
@@ -47,6 +52,13 @@ KIND_LABELS = {
     "offset_area": "Area-based (with offset)",
     "offset_conformal": "Conformal (with offset)",
 }
+
+
+def check_kind(kind) -> str:
+    """``kind`` if it is one of :data:`KINDS`, else :class:`MeshError`."""
+    if not isinstance(kind, str) or kind not in KINDS:
+        raise MeshError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}.")
+    return kind
 
 
 @dataclass(frozen=True, eq=False)
@@ -61,23 +73,24 @@ class ShapeSpace:
     k_M: int
     k_N: int | None
     offset: float
+    #: The relative change of an edge length that the rounding of the poses' coordinates alone
+    #: makes (:func:`core.seams.relative_round_off`): float32 copies of one pose spread up to
+    #: about this much (times √N), not zero.
+    round_off: float = 0.0
     _pca: dict = field(default_factory=dict, repr=False)
 
     @property
     def n_poses(self) -> int:
         return int(next(iter(self.features.values())).shape[0])
 
-    def _check_kind(self, kind: str) -> None:
-        if kind not in KINDS:
-            raise ValueError(f"kind must be one of {', '.join(KINDS)}; got {kind!r}.")
-
     def _decomposition(self, kind: str):
-        self._check_kind(kind)
+        check_kind(kind)
         if kind not in self._pca:
             data = self.features[kind]
             centered = data - data.mean(axis=0)
             u, s, vt = np.linalg.svd(centered, full_matrices=False)
-            s = np.where(s > ROUND_OFF_SPREAD * np.linalg.norm(data), s, 0.0)  # round-off axes: no spread
+            noise = max(ROUND_OFF_SPREAD * np.linalg.norm(data), ROUNDING_SPREAD * self.round_off * np.sqrt(len(data)))
+            s = np.where(s > noise, s, 0.0)  # round-off axes: no spread
             # Deterministic signs: each axis points towards its largest coordinate.
             scores = u * s
             flip = np.sign(scores[np.argmax(np.abs(scores), axis=0), np.arange(scores.shape[1])])
@@ -88,8 +101,7 @@ class ShapeSpace:
     def coordinates(self, kind: str, dims: int = 2) -> np.ndarray:
         """PCA coordinates float64 ``(N, dims)`` of every pose (row ``i`` is ``poses[i]``) for one
         kind of difference; axes ordered by decreasing variance, zero beyond the rank."""
-        if int(dims) != dims or dims < 1:
-            raise ValueError(f"dims must be a positive integer; got {dims!r}.")
+        dims = check_count(dims, "dims", minimum=1)
         scores, _, _ = self._decomposition(kind)
         out = np.zeros((self.n_poses, int(dims)))
         used = min(int(dims), scores.shape[1])
@@ -106,6 +118,7 @@ class ShapeSpace:
 
     def components(self, kind: str, count: int = 2) -> np.ndarray:
         """The principal directions as difference matrices, float64 ``(count, k_M, k_M)``."""
+        count = check_count(count, "count")
         _, _, vt = self._decomposition(kind)
         return vt[:count].reshape(-1, self.k_M, self.k_M)
 
@@ -169,7 +182,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     if k_N is not None and k_N < k_M:
         raise MeshError(f"k_N (target basis, {k_N}) must be at least k_M (base basis, {k_M}).")
     reference = ReferenceShape(poses[0], triangles, offset=offset)
-    reference.basis_sizes(k_M, k_N)  # against the mesh: its vertices, its connected parts
+    reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     with single_threaded_blas():
         for index, pose in enumerate(poses):
@@ -180,7 +193,8 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                 for kind, difference in zip(kinds, pose_differences(layer, positions, k_M, k_N)):
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
-    space = ShapeSpace(features, k_M, k_N, reference.offset)
+    compact = [reference.compact_pose(pose) for pose in poses]
+    space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compact, reference.topology.edges))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
         warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",

@@ -187,12 +187,25 @@ def _whole_number(value, name: str, *, allow_none: bool = False):
     raise MeshError(f"{name} must be a whole number; got {_describe(value)}.")
 
 
-def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1) -> tuple[int | None, int | None]:
+def check_count(value, name: str, *, minimum: int = 0) -> int:
+    """``value`` as a Python int if it is a whole number of at least ``minimum`` (how many
+    eigenfunctions or axes to return); MeshError otherwise."""
+    count = _whole_number(value, name)
+    if count < minimum:
+        raise MeshError(f"{name} must be at least {minimum}; got {count}.")
+    return count
+
+
+def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1, *,
+                      full_basis: bool = True) -> tuple[int | None, int | None]:
     """Basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the sidebar's
     convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
     (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
     ``n_components`` eigenfunctions are constant per connected component and carry no conformal
-    information); ``k_N`` (target basis) needs ``k_M``."""
+    information); ``k_N`` (target basis) needs ``k_M``. ``full_basis=False``: a caller that needs
+    a truncated ``k_M`` (the shape space, the distortion maps' eigenfunctions) — the messages do
+    not offer the full basis."""
+    full = ", or 0 / None for the full basis" if full_basis else ""
     sizes = []
     for label, k in (("k_M (base basis size)", k_M), ("k_N (target basis size)", k_N)):
         k = _whole_number(k, label, allow_none=True)
@@ -202,14 +215,13 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
             raise MeshError(
                 f"{label} is {k}, but the first {n_components} Laplace–Beltrami eigenfunctions of this "
                 f"mesh ({n_components} connected part(s)) are constant on each part, so the conformal "
-                f"difference would be empty. Use at least {n_components + 1} (typically 50–300), or 0 / "
-                "None for the full basis."
+                f"difference would be empty. Use at least {n_components + 1} (typically 50–300){full}."
             )
         if k and n_vertices is not None and k >= n_vertices:
             raise MeshError(
                 f"{label} is {k}, but the mesh has {n_vertices} vertices in triangles, so at most "
-                f"{n_vertices - 1} Laplace–Beltrami eigenfunctions exist. Lower it, or use 0 / None "
-                "for the full basis (exact, and faster than a basis this large)."
+                f"{n_vertices - 1} Laplace–Beltrami eigenfunctions exist. Lower it"
+                + (f"{full} (exact, and faster than a basis this large)." if full_basis else ".")
             )
         sizes.append(k or None)
     if sizes[1] is not None and sizes[0] is None:

@@ -4,6 +4,8 @@ written as attributes. Neither changes positions, shape keys or animation: the s
 an image and custom properties, the distortion maps write mesh attributes only.
 """
 
+import re
+
 import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
@@ -35,20 +37,21 @@ class AnalysisBasisProperties(AnalysisBasis):
     def resolved_offset(self, context):
         return self.offset or context.scene.shape_differences.offset or None
 
-    def check_sizes(self, triangles):
+    def check_sizes(self, triangles, *, uses_k_n: bool = True):
         """Refuse sizes the mesh of ``triangles`` cannot have; the defaults (sizes not given) shrink
         to a small mesh (k_N to its vertex count less one, k_M to k_N), written back for the Redo
-        panel. Its vertex count is of those in triangles: loose vertices have no eigenfunctions."""
+        panel. Its vertex count is of those in triangles: loose vertices have no eigenfunctions.
+        ``uses_k_n=False``: only k_M is used (the distortion maps' eigenfunctions), k_N is ignored."""
         vertex_count = int(np.unique(triangles).size)
-        if not self.properties.is_property_set("k_n"):
+        if uses_k_n and not self.properties.is_property_set("k_n"):
             self.k_n = min(self.k_n, vertex_count - 1)
         if not self.properties.is_property_set("k_m"):
-            self.k_m = max(2, min(self.k_m, self.k_n or vertex_count - 1))
-        for label, k in (("k_M", self.k_m), ("k_N", self.k_n)):
+            self.k_m = max(2, min(self.k_m, (self.k_n if uses_k_n else 0) or vertex_count - 1))
+        for label, k in (("k_M", self.k_m), ("k_N", self.k_n))[:2 if uses_k_n else 1]:
             if k >= vertex_count:
                 raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices in faces: "
                                  f"use at most {vertex_count - 1}")
-        if self.k_n and self.k_n < self.k_m:
+        if uses_k_n and self.k_n and self.k_n < self.k_m:
             raise InputError(f"k_N = {self.k_n} must be at least k_M = {self.k_m} (or 0)")
 
 
@@ -205,6 +208,8 @@ DISTORTION_SOURCE_ITEMS = [
     ("FRAMES", "Frames", "The evaluated mesh at every frame of the range against the rest mesh; "
                          "one set of attributes per frame, named with the frame"),
 ]
+#: The kinds' names in the eigenfunction maps' attribute names ("SD Eigen Offset Area 2").
+EIGEN_TITLES = {kind: kind.replace("_", " ").title() for kind in KINDS}
 #: (name, per-vertex attribute of core.Distortion, per-face attribute, diverging map, centre)
 MAPS = (
     ("Area", "area_change_vertices", "area_change_faces", True, 0.0),
@@ -236,7 +241,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         mesh = obj.data
         require_local(obj, mesh, "maps written to it as attributes are")
         triangles = surface_triangles(obj)
-        self.check_sizes(triangles)
+        self.check_sizes(triangles, uses_k_n=False)
         key = mesh.shape_keys
         base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))
         if self.source == 'ACTIVE_KEY':
@@ -263,25 +268,25 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             pairs = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)
                      for kind in KINDS} if self.eigenfunctions else {}
             results.append((distortion, {kind: functions for kind, (_, functions) in pairs.items()}))
-            stretch = max((np.abs(np.log(np.maximum(np.abs(values), np.finfo(float).tiny))).max()
-                           for values, _ in pairs.values()), default=np.inf)
-            if stretch <= UNCHANGED_STRETCH:
+            if distortion_size(distortion) <= max(UNCHANGED_STRETCH, distortion.round_off):
                 unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
         if unchanged:
             self.report({'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
                                      f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "
-                                     "difference is the identity to 1e-9): the maps show no distortion, and the "
+                                     "map is zero to the rounding of its coordinates): the maps show no distortion, and the "
                                      "eigenfunction maps are arbitrary (every function is an eigenfunction of "
                                      "the identity)")
         if self.source == 'FRAMES':
             # The frame handler shows the map of the frame being played (see follow_frame).
             mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}
         what = f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"{len(poses)} frames"
+        written = sum(functions.shape[1] for _, eigen in results[:1] for functions in eigen.values())
         self.summary = (f"Wrote distortion maps of {what}: colour attributes "
                         f"{', '.join('SD ' + name + labels[0] for name, *_ in MAPS)}"
-                        + (f" and {4 * self.eigenfunctions} eigenfunction maps" if self.eigenfunctions else ""))
+                        + (f" and {written} eigenfunction maps" + (" per frame" if len(poses) > 1 else "")
+                           if written else ""))
 
     @staticmethod
     def _write(mesh, triangles, base, labels, results):
@@ -300,24 +305,39 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 if vertex_values is None:
                     continue
                 bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
-                                scalar_colors(vertex_values, diverging=diverging, floor=centre), color=True)
+                                scalar_colors(vertex_values, diverging=diverging, floor=centre,
+                                              round_off=distortion.round_off), color=True)
                 first = first or f"SD {name}{label}"
                 bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
                 per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
                 bridge.write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
+            # eigenfunction maps of this label from an earlier run (another key, more functions)
+            # would read as this pose's
+            stale = re.compile(rf"SD Eigen ({'|'.join(EIGEN_TITLES.values())}) \d+{re.escape(label)}")
+            for name in [a.name for a in mesh.attributes if stale.fullmatch(a.name)]:
+                mesh.attributes.remove(mesh.attributes[name])
             for kind, functions in eigen.items():
                 for i in range(functions.shape[1]):
-                    title = kind.replace("_", " ").title()
-                    bridge.write_attribute(mesh, f"SD Eigen {title} {i + 1}{label}", 'POINT',
+                    bridge.write_attribute(mesh, f"SD Eigen {EIGEN_TITLES[kind]} {i + 1}{label}", 'POINT',
                                     scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
         if first is not None:  # by name: references to attributes go stale as others are added
             mesh.color_attributes.active_color = mesh.color_attributes[first]
         mesh.update()
 
 
-#: A pose whose difference operators' eigenvalues all have |log ν| at most this does not change
-#: the base: its leading eigenfunctions are arbitrary.
+#: A pose whose maps are all at most this (or the size of the coordinates' rounding,
+#: ``core.Distortion.round_off``) does not change the base: its leading eigenfunctions are arbitrary.
 UNCHANGED_STRETCH = 1e-9
+
+
+def distortion_size(distortion) -> float:
+    """The largest per-face value of ``distortion``'s maps (a ``core.Distortion``), each measured
+    from its neutral value (area change and bending 0, conformal ratio 1)."""
+    sizes = [np.abs(distortion.area_change_faces).max(initial=0.0),
+             np.abs(distortion.conformal_faces - 1.0).max(initial=0.0)]
+    if distortion.bending_faces is not None:
+        sizes.append(np.abs(distortion.bending_faces).max(initial=0.0))
+    return float(max(sizes))
 
 #: Custom property (on the mesh) listing the frames that have distortion maps.
 FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"

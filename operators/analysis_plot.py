@@ -56,28 +56,32 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
     return np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
 
 
-#: The smallest value range a map's colours span: a pose that does not change the base has
-#: distortions of round-off size (1e-16), which scaled to their own 98th percentile came out as
-#: full-contrast noise; below this they stay at the neutral colour.
+#: A map whose values (98th percentile) span less than this is round-off and drawn in its neutral
+#: colour: a pose that does not change the base has distortions of round-off size (1e-16 in double
+#: precision, 1e-6 from Blender's single-precision keys), which scaled to their own 98th
+#: percentile came out as full-contrast noise.
 MIN_COLOUR_RANGE = 1e-6
 
 
-def scalar_colors(values: np.ndarray, *, diverging: bool, floor: float | None = None) -> np.ndarray:
+def scalar_colors(values: np.ndarray, *, diverging: bool, floor: float | None = None,
+                  round_off: float = 0.0) -> np.ndarray:
     """Linear RGBA ``(n, 4)`` for a distortion map: diverging maps are symmetric about 0 (or about
     ``floor``) and scaled to the 98th percentile of the magnitude so one outlier does not wash the
-    map out; sequential maps run from ``floor`` (default the minimum) to the 98th percentile; either
-    spans at least :data:`MIN_COLOUR_RANGE`."""
+    map out; sequential maps run from ``floor`` (default the minimum) to the 98th percentile. A map
+    whose span is at most :data:`MIN_COLOUR_RANGE` or ``round_off`` (the size of the values that
+    the rounding of the coordinates alone makes: ``core.Distortion.round_off``) is all neutral."""
+    least = max(MIN_COLOUR_RANGE, round_off)
     values = np.asarray(values, dtype=np.float64)
     finite = values[np.isfinite(values)]
     if diverging:
         centre = 0.0 if floor is None else floor
         scale = np.percentile(np.abs(finite - centre), 98) if finite.size else 0.0
-        t = 0.5 + 0.5 * (values - centre) / max(scale, MIN_COLOUR_RANGE)
+        t = 0.5 + 0.5 * (values - centre) / scale if scale > least else np.full(values.shape, 0.5)
         rgb = colormap(t, "diverging")
     else:
         low = (finite.min() if finite.size else 0.0) if floor is None else floor
         high = np.percentile(finite, 98) if finite.size else low
-        t = (values - low) / max(high - low, MIN_COLOUR_RANGE)
+        t = (values - low) / (high - low) if high - low > least else np.zeros(values.shape)
         rgb = colormap(t, "viridis")
     rgba = np.ones(values.shape + (4,))
     rgba[..., :3] = srgb_to_linear(rgb)

@@ -83,3 +83,40 @@ def test_bad_kind_and_pose(sheet):
         core.distortion(v, v, t).eigenfunctions("volume")
     with pytest.raises(core.MeshError):
         core.distortion(v, v[:-1], t)
+
+
+def test_a_rigid_copy_in_single_precision_is_round_off():
+    """A shape key that only turns and moves its mesh, stored in float32 as Blender stores keys,
+    changes edge lengths by the coordinates' rounding (1e-7 to 1e-5, not 0): every map stays
+    within ``round_off`` (the operator draws such maps in their neutral colour, before: the
+    round-off stretched to full contrast), and ``round_off`` stays far below a real distortion."""
+    from scipy.spatial.transform import Rotation
+
+    v, t = icosphere(3)
+    turned = v @ Rotation.from_rotvec([0.4, -1.1, 0.7]).as_matrix().T + [3.0, -10.0, 0.5]
+    single = [x.astype(np.float32).astype(np.float64) for x in (v, turned)]
+    d = core.distortion(*single, t)
+    assert 0.0 < d.round_off < 1e-3
+    assert np.abs(d.area_change_faces).max() <= d.round_off
+    assert np.abs(d.conformal_faces - 1.0).max() <= d.round_off
+    assert np.abs(d.bending_faces).max() <= d.round_off
+    assert np.abs(core.distortion(v, 1.01 * v, t).area_change_faces).min() > 100 * d.round_off
+
+
+def test_arguments_are_checked(sheet):
+    """Basis sizes and counts the maps cannot have are refused in the user's terms (before: k = 1
+    gave a conformal eigenvalue of −0.5, k = 10⁶ and 2.5 were accepted, count −1 returned every
+    function but one)."""
+    v, t = sheet
+    for k, message in ((0, "positive number"), (1, "constant on each part"), (2.5, "whole number"),
+                       (10**6, "Lower it.")):
+        with pytest.raises(core.MeshError, match=message):
+            core.distortion(v, v, t, k=k)
+    d = core.distortion(v, v, t, k=10)
+    for count, message in ((-1, "at least 0"), (2.5, "whole number")):
+        with pytest.raises(core.MeshError, match=message):
+            d.eigenfunctions("area", count)
+    with pytest.raises(core.MeshError, match="kind must be one of"):
+        d.eigenfunctions("volume")
+    small, triangles = grid(4)  # 16 vertices: the default basis (50) shrinks to 15
+    assert core.distortion(small, 1.1 * small, triangles).eigenfunctions("area", 20)[1].shape == (16, 15)

@@ -138,3 +138,17 @@ def test_bad_source_vertex():
     with pytest.raises(core.MeshError, match="vertex index"):
         pulled.geodesic_distances(len(v))
     assert np.isinf(pulled.geodesic_distances(0)[-1])
+
+
+def test_differences_of_another_mesh_are_refused():
+    """As ``core.reconstruct``: differences of another mesh or anything else than differences is a
+    MeshError in the user's terms (before: SciPy's IndexError, an AttributeError on a string)."""
+    v, t = grid(5)
+    differences = core.shape_differences(v, 1.2 * v, t)
+    with pytest.raises(core.MeshError, match="computed on a mesh with 25 vertices"):
+        core.pull_back(*grid(6), differences)
+    with pytest.raises(core.MeshError, match="from another base pose"):
+        core.pull_back(v + 0.1, t, differences)
+    with pytest.raises(core.MeshError, match="must be the ShapeDifferences"):
+        core.pull_back(v, t, "differences")
+
