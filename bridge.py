@@ -64,11 +64,64 @@ def vertex_group_weights(obj: bpy.types.Object, group: bpy.types.VertexGroup) ->
 
 
 def mesh_triangles(mesh: bpy.types.Mesh) -> np.ndarray:
-    """The loop triangles of ``mesh`` (n-gons triangulated) as int64 ``(m, 3)`` vertex indices."""
+    """The loop triangles of ``mesh`` (n-gons triangulated) as int64 ``(m, 3)`` vertex indices,
+    with the n-gons Blender triangulated into zero-area triangles triangulated again about their
+    own centre (see :func:`_retriangulated`)."""
     mesh.calc_loop_triangles()
     buffer = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", buffer)
-    return buffer.reshape(-1, 3).astype(np.int64)
+    triangles = buffer.reshape(-1, 3).astype(np.int64)
+    if len(triangles) > len(mesh.polygons):  # n-gons
+        triangles = _retriangulated(mesh, triangles)
+    return triangles
+
+
+def _retriangulated(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
+    """``triangles`` with every n-gon that Blender split into a zero-area triangle (an n-gon with
+    collinear corners, as Dissolve leaves) split again by Blender's *Beauty* triangulation
+    (``bmesh.ops.triangulate``) in coordinates about the n-gon's centre, where the result has no
+    such triangle: the loop triangles' ear clipping may cut an ear between collinear corners (at
+    1e5 units from the origin, where single precision rounds them onto one line, it did). The
+    n-gon's triangles keep their rows (c − 2 for c corners either way) and its winding."""
+    import bmesh
+
+    from .core.mesh_topology import DEGENERATE_TRIANGLE_RATIO
+
+    def flat(rows):
+        return _doubled_areas(positions, rows) <= DEGENERATE_TRIANGLE_RATIO * _longest(positions, rows)
+
+    positions = vertex_positions(mesh)
+    degenerate = np.flatnonzero(flat(triangles))
+    if not degenerate.size:
+        return triangles
+    polygons = loop_triangle_polygons(mesh)
+    triangles = triangles.copy()
+    for polygon in np.unique(polygons[degenerate]):
+        corners = np.array(mesh.polygons[polygon].vertices, dtype=np.int64)
+        rows = np.flatnonzero(polygons == polygon)
+        bm = bmesh.new()
+        try:
+            verts = [bm.verts.new(p) for p in positions[corners] - positions[corners].mean(axis=0)]
+            bm.verts.index_update()
+            bmesh.ops.triangulate(bm, faces=[bm.faces.new(verts)], quad_method='BEAUTY', ngon_method='BEAUTY')
+            candidate = corners[np.array([[v.index for v in face.verts] for face in bm.faces], dtype=np.int64)]
+        except ValueError:  # a face Blender cannot rebuild (repeated corners): keep its triangles
+            continue
+        finally:
+            bm.free()
+        if len(candidate) == len(rows) and not flat(candidate).any():
+            triangles[rows] = candidate
+    return triangles
+
+
+def _doubled_areas(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    a, b, c = (positions[triangles[:, k]] for k in range(3))
+    return np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def _longest(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    a, b, c = (positions[triangles[:, k]] for k in range(3))
+    return np.max([np.einsum("ij,ij->i", p - q, p - q) for p, q in ((a, b), (b, c), (c, a))], axis=0)
 
 
 def evaluated_positions(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> np.ndarray:

@@ -203,7 +203,8 @@ class ReferenceShape:
         )
         self.topology = topology
         self.triangles = full_topology.triangles
-        base_positions = topology.check_pose(vertices[self.used_vertices], name="base vertices")
+        self._full_topology = full_topology  # poses are checked in the user's numbering
+        base_positions = full_topology.check_pose(vertices, name="base vertices")[self.used_vertices]
         self.offset = float(default_offset(base_positions, topology.triangles) if offset is None else offset)
         if not (np.isfinite(self.offset) and self.offset > 0):
             raise MeshError(f"The offset distance t must be a positive number; got {offset!r}.")
@@ -229,8 +230,7 @@ class ReferenceShape:
 
     def compact_pose(self, vertices, *, name: str = "target vertices") -> np.ndarray:
         """Validate a pose ``(n, 3)`` of this mesh and return its used vertices ``(n_used, 3)``."""
-        full = check_vertices(vertices, self.n_vertices, name=name)
-        return self.topology.check_pose(full[self.used_vertices], name=name)
+        return self._full_topology.check_pose(vertices, name=name)[self.used_vertices]
 
     def expand_pose(self, compact: np.ndarray, loose_positions: np.ndarray | None = None) -> np.ndarray:
         """Scatter used-vertex positions ``(n_used, 3)`` back to ``(n, 3)``; loose vertices take

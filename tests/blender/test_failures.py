@@ -245,6 +245,43 @@ def test_degenerate_pose(bpy_empty, extension, core):
                          "shape key 'Collapsed': .*zero area", key_a="Collapsed", key_b="Bend")
 
 
+@pytest.mark.parametrize("offset", [0.0, 1e5])
+def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension, offset):
+    """A sheet whose middle is one n-gon with four corners on each straight side (as Dissolve
+    Faces leaves it), 1e5 units out: Blender's loop triangles cut two zero-area ears there, which
+    were refused as degenerate faces the mesh does not have ("Degenerate Dissolve" did not help);
+    the n-gon is triangulated again about its centre and the in-between is the rigid lift's."""
+    import bmesh
+
+    n = 12
+    verts = [(2 * i / (n - 1) - 1 + offset, 2 * j / (n - 1) - 1, 0.05 * np.sin(3 * i / n))
+             for j in range(n) for i in range(n)]
+    faces = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i)
+             for j in range(n - 1) for i in range(n - 1) if not (4 <= i <= 6 and 4 <= j <= 6)]
+    ring = ([(i, 4) for i in range(4, 8)] + [(7, j) for j in range(5, 8)] + [(i, 7) for i in range(6, 3, -1)]
+            + [(4, j) for j in range(6, 4, -1)])
+    faces.append(tuple(j * n + i for i, j in ring))
+    mesh = bpy.data.meshes.new("Ngon")
+    mesh.from_pydata(verts, [], faces)
+    bm = bmesh.new()
+    bm.from_mesh(mesh)
+    bmesh.ops.delete(bm, geom=[v for v in bm.verts if not v.link_faces], context='VERTS')
+    bm.to_mesh(mesh)
+    bm.free()
+    obj = bpy.data.objects.new("Ngon", mesh)
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    rest = extension.bridge.vertex_positions(mesh)
+    add_key(obj, "Lifted", rest + [0.0, 0.0, 0.5])
+    triangles = extension.bridge.mesh_triangles(mesh)
+    corners = rest[triangles]
+    assert np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1).min() > 1e-3
+    bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Lifted", count=1, output='SHAPE_KEYS')
+    middle = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
+    tolerance = 2 * np.spacing(np.float32(offset + 1.0)) + 1e-6  # single-precision keys
+    assert np.abs(middle - (rest + [0.0, 0.0, 0.25])).max() <= tolerance
+
+
 def test_non_manifold_mesh(bpy_empty, extension, core):
     """Three triangles sharing one edge: core rejects the mesh, the operator reports it."""
     mesh = bpy.data.meshes.new("Fin")

@@ -221,6 +221,17 @@ def test_9_loose_vertices_keep_the_users_numbering(sheet):
     stray[6] += 1e6
     with pytest.warns(ShapeDifferenceWarning, match=r"vertices \[.*\b6\b.*\]"):
         core.shape_differences(loose, stray, t + 1)
+    # a degenerate triangle is named by its corners in the user's numbering by every entry point
+    # (before, ReferenceShape, distortion and shape_space named them one lower)
+    flat = loose.copy()
+    corners = t[3] + 1
+    flat[corners[2]] = 0.5 * (flat[corners[0]] + flat[corners[1]])
+    message = rf"triangle 3 \(vertices \[{', '.join(str(c) for c in corners)}\]\) has zero area"
+    for call in (lambda: core.ReferenceShape(flat, t + 1), lambda: core.distortion(flat, loose, t + 1),
+                 lambda: core.shape_space([flat, loose], t + 1, k_M=5, k_N=None),
+                 lambda: core.ReferenceShape(loose, t + 1).shape_differences(flat)):
+        with pytest.raises(MeshError, match=message):
+            call()
 
 
 # -- item 10: no silent coercions ---------------------------------------------------------------
