@@ -315,6 +315,9 @@ class _Topology:
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
+        #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there
+        #: (:func:`core.inbetween_keys.rigid_fits`).
+        self.pinned: np.ndarray | None = None
 
     def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None) -> SPDFactor:
         """The factor of the symmetric positive definite ``DᵀD + diag(w · mass)`` for per-vertex

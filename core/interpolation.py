@@ -203,6 +203,7 @@ class SequenceInterpolator:
             keys = [k - origin for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
+        self._topo.pinned = np.flatnonzero(still) if still.any() else None
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates)
         self._riding = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still,

@@ -74,6 +74,36 @@ def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray,
     return rotations, x_mean - np.einsum("gab,gb->ga", rotations, s_mean)
 
 
+#: Pivots span a line, or a plane, where their spread across it (RMS distance from their line;
+#: the second singular value read the same way) exceeds this fraction of the source's diagonal.
+PIVOT_SPREAD = 1e-4
+
+
+def pivoted_alignment(source: np.ndarray, target: np.ndarray, pivots: np.ndarray,
+                      weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The rigid motion (rotation (3, 3), translation (3,)) taking ``source`` (n, 3) closest to
+    ``target`` (n, 3) (least squares weighted by ``weights`` (n,)) among those that keep the points
+    ``pivots`` (p, 3) where they are: none where they span a plane, the best turn about their line,
+    or about their point (:data:`PIVOT_SPREAD`). Pins of a cloth, a seam two pieces are joined along."""
+    from scipy.spatial.transform import Rotation
+
+    centre = pivots.mean(axis=0)
+    _, spread, directions = np.linalg.svd(pivots - centre, full_matrices=False)
+    spread = spread / np.sqrt(len(pivots))
+    size = PIVOT_SPREAD * np.linalg.norm(np.ptp(source, axis=0))
+    if spread.size > 1 and spread[1] > size:  # a plane: nothing turns
+        return np.eye(3), np.zeros(3)
+    x, y = source - centre, target - centre
+    if spread[0] > size:  # a line: the turn about it that best takes x to y
+        axis = directions[0]
+        u, v = x - np.outer(x @ axis, axis), y - np.outer(y @ axis, axis)
+        angle = np.arctan2(weights @ (np.cross(u, v) @ axis), weights @ np.einsum("ij,ij->i", u, v))
+        rotation = Rotation.from_rotvec(angle * axis).as_matrix()
+    else:  # a point: the best turn about it
+        rotation = nearest_rotations((y.T * weights) @ x)
+    return rotation, centre - rotation @ centre
+
+
 def align_rigidly(source, target, weights=None) -> np.ndarray:
     """``source`` ``(n, 3)`` moved by :func:`rigid_alignment` onto ``target`` ``(n, 3)``."""
     rotation, translation = rigid_alignment(source, target, weights)
