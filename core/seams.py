@@ -142,3 +142,57 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None)
     if (np.diff(np.sort(triangles, axis=1), axis=1) == 0).any():
         raise MeshError("welding the coincident vertices would collapse a triangle")
     return SeamWeld(kept, copies, triangles, mesh_topology(triangles, kept.size))
+
+
+def seam_twins(base: np.ndarray, topology) -> tuple[np.ndarray, np.ndarray] | None:
+    """Pairs of vertices ``(a, b)`` (int (p,) each) of different pieces that :func:`seam_weld` joins
+    in the pose ``base`` (n, 3) of ``topology``: each vertex paired with the first of its copies;
+    None without seams (or where joining them would not give a valid mesh)."""
+    try:
+        weld = seam_weld([base], topology)
+    except MeshError:
+        return None
+    if weld is None:
+        return None
+    first = weld.kept[weld.copies]
+    twin = np.flatnonzero(first != np.arange(first.size))
+    return (twin, first[twin]) if twin.size else None
+
+
+def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: np.ndarray):
+    """Pieces (rows of equal ``labels`` (n,)) of ``positions`` (n, 3), each placed on its own, moved
+    rigidly so that the ``twins`` (pairs from :func:`seam_twins`) meet, piece by piece outward from
+    the heaviest (``weights`` (n,)): each piece's twins fitted onto their partners, then the turn
+    about them that the twins leave free (about a straight seam, a single point) chosen to keep the
+    rest of the piece nearest where it was (:func:`core.rigid_alignment.pivoted_alignment`). Returns
+    the moved positions, the labels with glued pieces sharing one, and the pairs of labels joined
+    along a straight seam or at a point (their angle there is the one their own placements gave,
+    not the pose's: shape differences are computed per piece)."""
+    from .rigid_alignment import PIVOT_SPREAD, pivoted_alignment, rigid_alignment
+
+    out, labels = positions.copy(), labels.copy()
+    a, b = twins
+    pieces = np.unique(labels)
+    mass = {piece: weights[labels == piece].sum() for piece in pieces}
+    placed = {max(pieces, key=lambda piece: mass[piece])}
+    hinges = []
+    while True:
+        # pairs from a placed piece to one not placed yet (either way round)
+        fixed_a, fixed_b = np.isin(labels[a], list(placed)), np.isin(labels[b], list(placed))
+        across = fixed_a ^ fixed_b
+        if not across.any():
+            return out, labels, hinges
+        moving, partner = np.where(fixed_a, b, a)[across], np.where(fixed_a, a, b)[across]
+        piece = labels[moving[0]]
+        moving, partner = moving[labels[moving] == piece], partner[labels[moving] == piece]
+        rows = np.flatnonzero(labels == piece)
+        rotation, translation = rigid_alignment(out[moving], out[partner])
+        joined = out[rows] @ rotation.T + translation
+        turn, shift = pivoted_alignment(joined, out[rows], out[partner], weights[rows])
+        out[rows] = joined @ turn.T + shift
+        seam = out[partner] - out[partner].mean(axis=0)
+        spread = np.linalg.svd(seam, compute_uv=False) / np.sqrt(partner.size)
+        if spread.size < 2 or spread[1] <= PIVOT_SPREAD * np.linalg.norm(np.ptp(out[rows], axis=0)):
+            hinges.append((int(labels[partner[0]]), int(piece)))
+        labels[rows] = labels[partner[0]]
+        placed.add(piece)

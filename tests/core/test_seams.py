@@ -7,6 +7,7 @@ import warnings
 import numpy as np
 import pytest
 
+import core
 from core.errors import ShapeDifferenceWarning
 from core.interpolation import Interpolator, SequenceInterpolator
 from core.seams import seam_weld
@@ -129,3 +130,43 @@ def test_pieces_touching_at_a_point_are_not_a_seam():
     np.testing.assert_array_equal(poses[0][seam], poses[0][copies])
     weld = seam_weld(flap, mesh_topology(flap_tri, len(flap[0])))
     assert weld.copies[n] != weld.copies[corner]
+
+
+def _two_panels(jitter):
+    """A 21 × 21 sheet cut along its middle column into two panels that do not share vertices
+    there (as Edge Split or an unwelded export leaves it): vertices, triangles, the column and its
+    copies."""
+    v0, f0 = grid(21, jitter=jitter)
+    n, column = len(v0), np.arange(10, len(v0), 21)
+    copies = np.arange(n, n + column.size)
+    remap = np.arange(n + column.size)
+    remap[column] = copies
+    f = f0.copy()
+    right = v0[f0].mean(axis=1)[:, 0] > v0[column[0], 0]
+    f[right] = remap[f0[right]]
+    return np.vstack([v0, v0[column]]), f, column, copies
+
+
+def _curled(p, amount):
+    radius, theta = 1.0 / amount, (p[:, 0] - 0.5) * amount
+    return np.stack([radius * np.sin(theta), p[:, 1], radius * (1 - np.cos(theta)) + p[:, 2]], axis=1)
+
+
+@pytest.mark.parametrize("amount", [1.5, 5.0])
+def test_reconstruction_keeps_a_seam_closed(amount):
+    """Two unwelded panels rolled together: the reconstruction puts them together along their
+    seam and is the pose (before, each panel was placed near the base on its own: the seam open by
+    0.9 % / 11 % of the diagonal, 7 % / 28 % off, no warning). A straight seam leaves the angle
+    between the panels free: closed, and a warning says the angle is not determined."""
+    from core.rigid_alignment import rigid_alignment
+
+    v, f, column, copies = _two_panels(0.3)
+    target = _curled(v, amount)
+    pose = core.reconstruct(v, f, core.shape_differences(v, target, f))
+    rotation, translation = rigid_alignment(pose, target)
+    diagonal = np.linalg.norm(np.ptp(target, axis=0))
+    assert np.abs(pose @ rotation.T + translation - target).max() < 1e-8 * diagonal
+    v, f, column, copies = _two_panels(0.0)
+    with pytest.warns(core.ShapeDifferenceWarning, match="straight seam"):
+        pose = core.reconstruct(v, f, core.shape_differences(v, _curled(v, amount), f))
+    assert np.abs(pose[column] - pose[copies]).max() < 1e-8 * diagonal
