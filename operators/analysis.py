@@ -111,7 +111,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
     def run(self, context):
         obj = context.active_object
         require_local(obj, obj, "the shape space stored on it is")
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         self.check_sizes(triangles)
         frames = None
         if self.source == 'KEYS':
@@ -240,7 +240,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         obj = context.active_object
         mesh = obj.data
         require_local(obj, mesh, "maps written to it as attributes are")
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         self.check_sizes(triangles, uses_k_n=False)
         key = mesh.shape_keys
         base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))

@@ -47,7 +47,29 @@ def name_poses(message: str, pose_names) -> str:
     return POSE_REFERENCE.sub(named, message)
 
 
-def reported_error(error: BaseException, pose_names=()) -> str | None:
+# The core numbers triangles in the order it was given them: Blender's loop triangles.
+TRIANGLE_REFERENCE = re.compile(r"\b([Tt]riangles?) (\d+)(?: and (\d+))?\b")
+
+
+def name_faces(message: str, triangle_faces) -> str:
+    """``message`` with each of the core's "triangle i" (or "triangles i and j") followed by the
+    face it is part of (``triangle_faces``: the face of every loop triangle, or None where every
+    face is a triangle and the numbers are the faces'), which Blender shows (Indices overlay)."""
+    if triangle_faces is None:
+        return message
+
+    def face(index: str) -> str:
+        return str(triangle_faces[int(index)]) if int(index) < len(triangle_faces) else "?"
+
+    def named(match):
+        if match.group(3) is None:
+            return f"{match.group(0)} (of face {face(match.group(2))})"
+        return f"{match.group(0)} (of faces {face(match.group(2))} and {face(match.group(3))})"
+
+    return TRIANGLE_REFERENCE.sub(named, message)
+
+
+def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
     if isinstance(error, (InputError, bridge.FrameReadError)):
         return str(error)
@@ -57,7 +79,7 @@ def reported_error(error: BaseException, pose_names=()) -> str | None:
                 "zip built for your platform (it bundles SciPy and threadpoolctl), then restart Blender.")
     core = load_core()
     if isinstance(error, core.ShapeDifferenceError):
-        return name_poses(str(error), pose_names)
+        return name_faces(name_poses(str(error), pose_names), triangle_faces)
     return None
 
 
@@ -136,6 +158,7 @@ class GeneratorOperator:
         self._warnings: list[str] = []
         self.summary = ""
         self.pose_names = ()
+        self.triangle_faces = None
 
     def _step(self) -> tuple[str | None, float]:
         """Advance the job by one step: (final status or None while running, progress)."""
@@ -148,7 +171,7 @@ class GeneratorOperator:
                 except StopIteration:
                     return 'FINISHED', 1.0
                 except Exception as error:
-                    message = reported_error(error, self.pose_names)
+                    message = reported_error(error, self.pose_names, self.triangle_faces)
                     if message is None:
                         raise
                     self.report({'ERROR'}, message)
@@ -164,7 +187,7 @@ class GeneratorOperator:
                 warnings.showwarning(warning.message, warning.category, warning.filename,
                                      warning.lineno)
                 continue
-            message = name_poses(str(warning.message), self.pose_names)
+            message = name_faces(name_poses(str(warning.message), self.pose_names), self.triangle_faces)
             if message not in self._warnings:
                 self._warnings.append(message)
 
@@ -274,11 +297,15 @@ def playback_range(scene) -> tuple[int, int]:
 
 # -- shape key lookup -------------------------------------------------------------------------
 
-def surface_triangles(obj):
-    """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error."""
+def surface_triangles(obj, operator=None):
+    """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error.
+    ``operator`` (a :class:`GeneratorOperator`): where the mesh has faces of more than three
+    corners, it keeps the face of every triangle so that core messages name faces too."""
     triangles = bridge.mesh_triangles(obj.data)
     if len(triangles) == 0:
         raise InputError(f"'{obj.name}' has no faces: shape differences need a surface mesh")
+    if operator is not None and len(triangles) > len(obj.data.polygons):
+        operator.triangle_faces = bridge.loop_triangle_polygons(obj.data)
     return triangles
 
 

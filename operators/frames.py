@@ -124,7 +124,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         obj = context.active_object
         require_count(self.count, "in-betweens per gap")
         frames = self.frames(context)
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
         end = self.frame_range(context)[1]
@@ -214,7 +214,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(self.speed)}",
                      "raise the speed or retime a shorter range")
         key_frames = [start + int(key) for key in plan.keys]
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
         self.pose_names = [f"frame {frame}" for frame in key_frames]

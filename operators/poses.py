@@ -54,7 +54,7 @@ class KeyPairProperties:
         require_distinct(start, end, *labels)
         setattr(self, first, start.name)
         setattr(self, second, end.name)
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_output(obj)
         self.pose_names = (f"shape key '{start.name}'", f"shape key '{end.name}'")
@@ -127,7 +127,7 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
             raise InputError(f"'{key.name}' is the Basis, which the differences are measured "
                              "from: pick another shape key to reconstruct")
         self.key = key.name
-        triangles = surface_triangles(obj)
+        triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_output(obj)
         self.pose_names = (f"shape key '{key_blocks[0].name}'", f"shape key '{key.name}'")

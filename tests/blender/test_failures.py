@@ -295,6 +295,20 @@ def test_non_manifold_mesh(bpy_empty, extension, core):
                          "manifold")
 
 
+def test_messages_about_triangles_of_quads_name_their_faces(bpy_empty, extension):
+    """A quad grid with one face flipped: the core's triangle numbers are Blender's loop triangles,
+    which no editor shows; the message names the faces too (Indices overlay), here face 10."""
+    obj = posed_grid(extension.bridge, 6)
+    obj.data.polygons[10].flip()
+    obj.data.update()
+    triangles = extension.bridge.mesh_triangles(obj.data)
+    faces = extension.bridge.loop_triangle_polygons(obj.data)
+    assert len(triangles) == 2 * len(obj.data.polygons)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.exaggerate,
+                         r"[Tt]riangles \d+ and \d+ .*\(of faces (10 and \d+|\d+ and 10)\)")
+    assert 10 in faces
+
+
 @pytest.mark.parametrize("with_keys", [False, True], ids=["no keys yet", "existing keys"])
 def test_writing_is_all_or_nothing(bpy_empty, extension, with_keys):
     """If writing fails half-way, the keys written so far (and a Basis made for them) go."""
