@@ -261,12 +261,19 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
 
         proportions = bridge.WorldProportions(obj)  # distortion as the world shows it
         base, poses = proportions.to(base), [proportions.to(pose) for pose in poses]
-        analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m)
+        # bending lives on the offset surface, which needs an edge shared by two faces
+        edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+        extrinsic = bool((np.unique(edges, axis=0, return_counts=True)[1] > 1).any())
+        if not extrinsic:
+            self.report({'WARNING'}, f"'{obj.name}' has no edge shared by two faces: no offset surface, so no "
+                                     "bending map and no offset eigenfunction maps")
+        analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m,
+                                      use_extrinsic=extrinsic)
         results, unchanged = [], []
         for index, pose in enumerate(poses):
             distortion = analyzer.pose(pose)
             pairs = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)
-                     for kind in KINDS} if self.eigenfunctions else {}
+                     for kind in (KINDS if extrinsic else KINDS[:2])} if self.eigenfunctions else {}
             results.append((distortion, {kind: functions for kind, (_, functions) in pairs.items()}))
             if distortion_size(distortion) <= max(UNCHANGED_STRETCH, distortion.round_off):
                 unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
@@ -284,7 +291,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         what = f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"{len(poses)} frames"
         written = sum(functions.shape[1] for _, eigen in results[:1] for functions in eigen.values())
         self.summary = (f"Wrote distortion maps of {what}: colour attributes "
-                        f"{', '.join('SD ' + name + labels[0] for name, *_ in MAPS)}"
+                        f"{', '.join('SD ' + name + labels[0] for name, field, *_ in MAPS if getattr(results[0][0], field) is not None)}"
                         + (f" and {written} eigenfunction maps" + (" per frame" if len(poses) > 1 else "")
                            if written else ""))
 

@@ -212,3 +212,24 @@ def test_keys_that_only_move_the_mesh_and_stale_eigenfunction_maps(bpy_empty, ex
     # k_M = 2: the constant and one more function; the conformal kinds drop the constant
     assert eigen == ["SD Eigen Area 1", "SD Eigen Conformal 1", "SD Eigen Offset Area 1", "SD Eigen Offset Conformal 1"]
     assert "and 4 eigenfunction maps" in out and "does not change" not in out
+
+
+def test_maps_of_faces_that_share_no_edge(bpy_empty, extension, capfd):
+    """Three separate triangles (no edge shared, so no offset surface): the area and conformal maps
+    are written and a warning says there is no bending map (before: refused with advice to turn off
+    extrinsic differences, a setting this operator does not have)."""
+    mesh = bpy.data.meshes.new("Scraps")
+    vertices = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (2, 0, 0), (3, 0, 0), (2, 1, 0), (4, 0, 0), (5, 0, 0), (4, 1, 0)],
+                        dtype=float)
+    mesh.from_pydata(vertices.tolist(), [], [(0, 1, 2), (3, 4, 5), (6, 7, 8)])
+    obj = bpy.data.objects.new("Scraps", mesh)
+    bpy.context.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    add_key(obj, "Stretched", vertices * [1.5, 1.0, 1.0])
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Stretched", eigenfunctions=1, k_m=5)
+    out = capfd.readouterr().out
+    assert "no bending map" in out and "SD Bending" not in out.split("Wrote")[-1]
+    values = np.zeros(len(vertices))
+    mesh.attributes["sd_area"].data.foreach_get("value", values)
+    assert np.allclose(values, np.log(1.5), atol=1e-6)
+    assert "SD Bending" not in mesh.attributes
