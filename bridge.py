@@ -103,15 +103,32 @@ def _retriangulated(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
         try:
             verts = [bm.verts.new(p) for p in positions[corners] - positions[corners].mean(axis=0)]
             bm.verts.index_update()
-            bmesh.ops.triangulate(bm, faces=[bm.faces.new(verts)], quad_method='BEAUTY', ngon_method='BEAUTY')
+            face = bm.faces.new(verts)
+            face.normal_update()  # triangulate projects along the face normal, (0, 0, 0) until computed
+            bmesh.ops.triangulate(bm, faces=[face], quad_method='BEAUTY', ngon_method='BEAUTY')
             candidate = corners[np.array([[v.index for v in face.verts] for face in bm.faces], dtype=np.int64)]
         except ValueError:  # a face Blender cannot rebuild (repeated corners): keep its triangles
             continue
         finally:
             bm.free()
-        if len(candidate) == len(rows) and not flat(candidate).any():
+        if len(candidate) == len(rows) and not flat(candidate).any() and _covers(positions, candidate, triangles[rows]):
             triangles[rows] = candidate
     return triangles
+
+
+def _covers(positions: np.ndarray, candidate: np.ndarray, original: np.ndarray) -> bool:
+    """Whether the triangles ``candidate`` of an n-gon cover it as its loop triangles ``original``
+    do: the same vector area (their area-weighted normals sum to the face's), every one facing
+    the face's way, none overlapping (their areas add up to no more than the loop triangles')."""
+    def vector_areas(rows):
+        a, b, c = (positions[rows[:, k]] for k in range(3))
+        return np.cross(b - a, c - a)
+
+    ours, theirs = vector_areas(candidate), vector_areas(original)
+    total = theirs.sum(axis=0)
+    scale = np.linalg.norm(theirs, axis=1).sum()
+    return bool(np.linalg.norm(ours.sum(axis=0) - total) <= 1e-6 * scale and (ours @ total > 0).all()
+                and np.linalg.norm(ours, axis=1).sum() <= (1 + 1e-6) * scale)
 
 
 def _doubled_areas(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:

@@ -245,22 +245,45 @@ def test_degenerate_pose(bpy_empty, extension, core):
                          "shape key 'Collapsed': .*zero area", key_a="Collapsed", key_b="Bend")
 
 
-@pytest.mark.parametrize("offset", [0.0, 1e5])
-def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension, offset):
-    """A sheet whose middle is one n-gon with four corners on each straight side (as Dissolve
-    Faces leaves it), 1e5 units out: Blender's loop triangles cut two zero-area ears there, which
-    were refused as degenerate faces the mesh does not have ("Degenerate Dissolve" did not help);
-    the n-gon is triangulated again about its centre and the in-between is the rigid lift's."""
-    import bmesh
-
-    n = 12
+def _sheet_with_an_ngon(n: int, cells: set, offset: float):
+    """An n × n grid of quads (slightly wavy) whose ``cells`` are one n-gon keeping every grid
+    corner on its boundary (collinear corners, as Dissolve Faces leaves them), ``offset`` along x."""
+    def vid(i, j):
+        return j * n + i
     verts = [(2 * i / (n - 1) - 1 + offset, 2 * j / (n - 1) - 1, 0.05 * np.sin(3 * i / n))
              for j in range(n) for i in range(n)]
-    faces = [(j * n + i, j * n + i + 1, (j + 1) * n + i + 1, (j + 1) * n + i)
-             for j in range(n - 1) for i in range(n - 1) if not (4 <= i <= 6 and 4 <= j <= 6)]
-    ring = ([(i, 4) for i in range(4, 8)] + [(7, j) for j in range(5, 8)] + [(i, 7) for i in range(6, 3, -1)]
-            + [(4, j) for j in range(6, 4, -1)])
-    faces.append(tuple(j * n + i for i, j in ring))
+    faces = [(vid(i, j), vid(i + 1, j), vid(i + 1, j + 1), vid(i, j + 1))
+             for j in range(n - 1) for i in range(n - 1) if (i, j) not in cells]
+    boundary = {}
+    for i, j in cells:
+        for a, b in ((vid(i, j), vid(i + 1, j)), (vid(i + 1, j), vid(i + 1, j + 1)),
+                     (vid(i + 1, j + 1), vid(i, j + 1)), (vid(i, j + 1), vid(i, j))):
+            if boundary.pop((b, a), None) is None:
+                boundary[(a, b)] = True
+    following = dict(boundary)  # (a, b) → True: each boundary vertex's next one
+    following = {a: b for a, b in following}
+    loop = [next(iter(following))]
+    while following[loop[-1]] != loop[0]:
+        loop.append(following[loop[-1]])
+    faces.append(tuple(loop))
+    return verts, faces
+
+
+SQUARE = {(i, j) for i in range(4, 7) for j in range(4, 7)}
+
+
+@pytest.mark.parametrize("cells", [SQUARE, SQUARE - {(5, 5), (5, 6)}], ids=["square", "U-shaped"])
+@pytest.mark.parametrize("offset", [0.0, 1e5])
+def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension, offset, cells):
+    """A sheet whose middle is one n-gon with several corners on each straight side (as Dissolve
+    Faces leaves it), 1e5 units out: Blender's loop triangles cut zero-area ears there, which were
+    refused as degenerate faces the mesh does not have ("Degenerate Dissolve" did not help); the
+    n-gon is triangulated again about its centre (a concave one too: its triangles cover it once,
+    where a face normal left uncomputed folded them over each other) and the in-between is the
+    rigid lift's."""
+    import bmesh
+
+    verts, faces = _sheet_with_an_ngon(12, cells, offset)
     mesh = bpy.data.meshes.new("Ngon")
     mesh.from_pydata(verts, [], faces)
     bm = bmesh.new()
@@ -274,8 +297,15 @@ def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension
     rest = extension.bridge.vertex_positions(mesh)
     add_key(obj, "Lifted", rest + [0.0, 0.0, 0.5])
     triangles = extension.bridge.mesh_triangles(mesh)
-    corners = rest[triangles]
-    assert np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1).min() > 1e-3
+    polygons = extension.bridge.loop_triangle_polygons(mesh)
+    corners = rest[triangles] - rest.mean(axis=0)
+    vector_areas = 0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    ngon = len(mesh.polygons) - 1
+    ring = rest[list(mesh.polygons[ngon].vertices)] - rest.mean(axis=0)
+    face_area = 0.5 * np.cross(ring, np.roll(ring, -1, axis=0)).sum(axis=0)  # Newell
+    own = vector_areas[polygons == ngon]
+    assert (own @ face_area > 0).all()  # all facing the face's way ...
+    assert np.linalg.norm(own, axis=1).sum() == pytest.approx(np.linalg.norm(face_area), rel=1e-3)  # ... once (it is not flat)
     bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Lifted", count=1, output='SHAPE_KEYS')
     middle = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
     tolerance = 2 * np.spacing(np.float32(offset + 1.0)) + 1e-6  # single-precision keys
