@@ -305,7 +305,8 @@ def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension
     face_area = 0.5 * np.cross(ring, np.roll(ring, -1, axis=0)).sum(axis=0)  # Newell
     own = vector_areas[polygons == ngon]
     assert (own @ face_area > 0).all()  # all facing the face's way ...
-    assert np.linalg.norm(own, axis=1).sum() == pytest.approx(np.linalg.norm(face_area), rel=1e-3)  # ... once (it is not flat)
+    # ... once (folded over itself: 70 % more; the wavy face is not flat, a few 1e-3 more)
+    assert np.linalg.norm(own, axis=1).sum() == pytest.approx(np.linalg.norm(face_area), rel=1e-2)
     bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Lifted", count=1, output='SHAPE_KEYS')
     middle = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
     tolerance = 2 * np.spacing(np.float32(offset + 1.0)) + 1e-6  # single-precision keys
