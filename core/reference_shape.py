@@ -350,25 +350,27 @@ class ReferenceShape:
                                       initial_damping=damping, stagnation=stagnation, tolerance=tolerance)
         return result
 
-    def place_near(self, positions: np.ndarray, target: np.ndarray) -> np.ndarray:
+    def place_near(self, positions: np.ndarray, target: np.ndarray, *, glue_seams: bool = False) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection).
-        Pieces that meet along seams in the base (:func:`core.seams.seam_twins`: panels exported
-        unwelded, vertices split along UV seams) are put together along them first and placed as
-        one (each placed on its own, a rolled sheet cut in two opened by 0.9–11 % of its diagonal);
-        a warning names pieces joined along a straight seam, whose angle about it the
-        differences do not hold."""
+        ``glue_seams`` (where ``target`` says nothing of where the pieces sit: the base, for a
+        reconstruction): pieces that meet along seams in the base (:func:`core.seams.seam_twins`:
+        panels exported unwelded, vertices split along UV seams) are put together along them
+        first and placed as one (each placed on its own, a rolled sheet cut in two opened by
+        0.9–11 % of its diagonal); a warning names pieces joined along a seam too straight to
+        hold the angle between them, which the differences (per piece) do not hold either."""
         labels = self.vertex_components
         placed = align_components(positions, target, labels, weights=self.vertex_weights)
-        if self.seam_twins is None:
+        if not glue_seams or self.seam_twins is None:
             return placed
         glued, labels, hinges = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights)
         if hinges:
             warnings.warn(
-                f"{len(hinges)} piece(s) of the mesh meet another along a straight seam: the shape "
-                "differences are computed piece by piece, so the angle between them about the seam is "
-                "not determined; it is the one closest to the base. Weld the seams (Merge by Distance) "
-                "for a reconstruction that holds it.", ShapeDifferenceWarning, stacklevel=3)
+                f"{len(hinges)} piece(s) of the mesh meet another along a seam that is straight (or "
+                "straight to within the reconstruction's error): the shape differences are computed "
+                "piece by piece, so the angle between them about the seam is not determined; it is "
+                "the one closest to the base. Weld the seams (Merge by Distance) for a reconstruction "
+                "that holds it.", ShapeDifferenceWarning, stacklevel=3)
         return align_components(glued, target, labels, weights=self.vertex_weights)
 
     @cached_property
