@@ -29,17 +29,17 @@ import scipy.linalg as sla
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
-from .seams import relative_round_off
+from .seams import coordinate_rounding, triangle_round_off
 from .shape_space_pca import KINDS, check_kind
 from .validation import check_count
 
 #: Default basis size for the eigenfunctions of the difference operators.
 DEFAULT_EIGEN_BASIS = 50
-#: Distortion values per relative round-off of an edge length: a log area ratio moves by two of
-#: them, the conformal ratio and bending (offset areas, whose normals turn by the roundings over an
-#: edge) by about as much: float32 copies of a turned or moved 2,000-vertex sphere and of a
-#: falling, turning sheet reached 2.6 of them (per face; 1.7 per vertex).
-ROUND_OFF_VALUES = 8.0
+#: Distortion values per relative change of a triangle's shortest edge from the coordinates'
+#: rounding (:func:`core.seams.triangle_round_off`): float32 copies of a 2,000-vertex sphere and a
+#: 1,600-vertex sheet, turned and moved up to 1,000 units, reached 1.8 of them (area, conformal,
+#: bending; per face and per vertex, against the vertex's largest face's).
+ROUND_OFF_VALUES = 3.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,10 +53,12 @@ class Distortion:
     conformal_vertices: np.ndarray
     bending_faces: np.ndarray | None
     bending_vertices: np.ndarray | None
-    #: Size of the values that the rounding of the coordinates alone makes
-    #: (:func:`core.seams.relative_round_off` times :data:`ROUND_OFF_VALUES`): a pose that only
-    #: moves its mesh has maps and eigenvalue logs of at most about this size, not zero.
-    round_off: float
+    #: Per face (m,) and per vertex (n,): the size of the values that the rounding of the
+    #: coordinates alone makes (:func:`core.seams.triangle_round_off` times
+    #: :data:`ROUND_OFF_VALUES`; a vertex: the largest of its faces'): a pose that only moves its
+    #: mesh has maps of at most about this size, not zero.
+    round_off_faces: np.ndarray
+    round_off_vertices: np.ndarray
     _analyzer: "DistortionAnalyzer" = field(repr=False)
     _pose: np.ndarray = field(repr=False)
 
@@ -73,7 +75,10 @@ class DistortionAnalyzer:
     of many poses: ``DistortionAnalyzer(base, triangles).pose(vertices)``."""
 
     def __init__(self, base_vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True,
-                 k: int | None = None):
+                 k: int | None = None, single_precision: bool | None = None):
+        """``single_precision``: whether the poses' coordinates were stored in single precision
+        (Blender's keys and frames, also after a transform in double precision); ``None``: where
+        every coordinate is a float32. It sizes :attr:`Distortion.round_off_faces`."""
         from .reference_shape import ReferenceShape
 
         self.reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
@@ -85,6 +90,7 @@ class DistortionAnalyzer:
             if self.k is None:
                 raise MeshError("k (the basis of the eigenfunctions) must be a positive number of "
                                 f"eigenfunctions (default {DEFAULT_EIGEN_BASIS}); got {k}.")
+        self.single_precision = single_precision
         self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:
@@ -120,6 +126,10 @@ class DistortionAnalyzer:
                 bending_faces = np.where(base_face_sum > 0, np.log(face_sum / base_face_sum), 0.0)
             bending_vertices = np.where(base_vertex_sum > 0, bending_vertices - area_vertices, 0.0)
             bending_faces = np.where(base_face_sum > 0, bending_faces - area_faces, 0.0)
+        rounding = coordinate_rounding([ref.base.positions, pose], self.single_precision)
+        round_off = ROUND_OFF_VALUES * triangle_round_off(ref.base.positions, topo.triangles, rounding)
+        round_off_vertices = np.zeros(topo.n_vertices)
+        np.maximum.at(round_off_vertices, topo.triangles.ravel(), np.repeat(round_off, 3))
         return Distortion(
             area_change_faces=area_faces,
             area_change_vertices=_scatter(ref, area_vertices),
@@ -127,7 +137,8 @@ class DistortionAnalyzer:
             conformal_vertices=_scatter(ref, conformal_vertices),
             bending_faces=bending_faces,
             bending_vertices=None if bending_vertices is None else _scatter(ref, bending_vertices),
-            round_off=ROUND_OFF_VALUES * relative_round_off([ref.base.positions, pose], topo.edges),
+            round_off_faces=round_off,
+            round_off_vertices=_scatter(ref, round_off_vertices),
             _analyzer=self,
             _pose=pose,
         )
@@ -187,13 +198,14 @@ class DistortionAnalyzer:
 
 
 def distortion(base_vertices, pose_vertices, triangles, *, offset: float | None = None,
-               use_extrinsic: bool = True, k: int | None = None) -> Distortion:
+               use_extrinsic: bool = True, k: int | None = None, single_precision: bool | None = None) -> Distortion:
     """Distortion maps of ``pose_vertices`` ``(n, 3)`` against ``base_vertices`` ``(n, 3)`` with
     ``triangles`` ``(m, 3)`` (see :mod:`core.distortion_maps`); ``offset`` the offset distance t
     (``None``: half the mean edge length), ``k`` the basis size for :meth:`Distortion.eigenfunctions`
     (``None``: :data:`DEFAULT_EIGEN_BASIS`, at most the vertex count less one).
     For many poses of one base, reuse a :class:`DistortionAnalyzer`."""
-    return DistortionAnalyzer(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic, k=k).pose(pose_vertices)
+    return DistortionAnalyzer(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic, k=k,
+                              single_precision=single_precision).pose(pose_vertices)
 
 
 # -- helpers -----------------------------------------------------------------------------------

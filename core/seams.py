@@ -59,20 +59,41 @@ def rounding_scale(poses: list[np.ndarray]) -> float:
     return max((float(np.linalg.norm(np.ptp(pose, axis=0))) for pose in poses if pose.size), default=0.0)
 
 
-def relative_round_off(poses: list[np.ndarray], edges: np.ndarray) -> float:
-    """The relative change of a short edge's length that the rounding of the coordinates of
-    ``poses`` (list of (n, 3)) alone makes, with ``edges`` (E, 2): the rounding of the largest
-    coordinate (float32 where every coordinate is one, as Blender stores keys; else float64) over
-    the 5th percentile of the first pose's edge lengths. A shape key that only moves its mesh,
-    stored in single precision, has shape differences of this size (1e-7 to 1e-5), not zero."""
-    if not len(edges) or not poses:
+def coordinate_rounding(poses: list[np.ndarray], single: bool | None = None) -> float:
+    """The rounding of the largest coordinate of ``poses`` (list of (n, 3)): single precision
+    where ``single`` (``None``: where every coordinate is a float32, as Blender stores keys), else
+    double. Shape keys that only move their mesh, stored in single precision, have shape
+    differences of about this over their edge lengths (1e-7 to 1e-5), not zero."""
+    if not poses:
         return 0.0
-    single = all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses)
-    eps = np.finfo(np.float32 if single else np.float64).eps
+    if single is None:
+        single = all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses)
     largest = max(float(np.max(np.abs(pose), initial=0.0)) for pose in poses)
-    lengths = np.linalg.norm(poses[0][edges[:, 0]] - poses[0][edges[:, 1]], axis=1)
-    short = float(np.percentile(lengths, 5))
-    return float(eps * largest / short) if short > 0 else 0.0
+    return float(np.finfo(np.float32 if single else np.float64).eps * largest)
+
+
+def triangle_round_off(pose: np.ndarray, triangles: np.ndarray, rounding: float) -> np.ndarray:
+    """Per triangle (m,) of ``pose`` (n, 3), the relative change of its shortest edge that a
+    coordinate ``rounding`` (:func:`coordinate_rounding`) makes: what its areas and angles can
+    change by from the rounding alone."""
+    a, b, c = (pose[triangles[:, k]] for k in range(3))
+    shortest = np.min([np.linalg.norm(p - q, axis=1) for p, q in ((a, b), (b, c), (c, a))], axis=0)
+    with np.errstate(divide="ignore"):
+        return np.where(shortest > 0, rounding / shortest, np.inf)
+
+
+def relative_round_off(poses: list[np.ndarray], triangles: np.ndarray, single: bool | None = None) -> float:
+    """The area-weighted mean of :func:`triangle_round_off` over the triangles of the first of
+    ``poses``: the size of the shape differences (averages over the mesh) that the rounding of the
+    coordinates alone makes."""
+    if not poses or not len(triangles):
+        return 0.0
+    first = poses[0]
+    a, b, c = (first[triangles[:, k]] for k in range(3))
+    areas = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    noise = triangle_round_off(first, triangles, coordinate_rounding(poses, single))
+    finite = np.isfinite(noise)
+    return float(areas[finite] @ noise[finite] / areas[finite].sum()) if areas[finite].sum() > 0 else 0.0
 
 
 def coincidence_tolerance(first: np.ndarray, edges: np.ndarray, scale: float | None = None) -> float:

@@ -42,7 +42,7 @@ from .validation import check_count
 #: spread 5e-17 of it, poses moved by 1e-9 of the mesh's size 3e-9.
 ROUND_OFF_SPREAD = 1e-12
 #: ... or at most this many relative round-offs of the poses' edge lengths (``ShapeSpace.round_off``)
-#: times √N: 3 to 12 float32 copies of a turned and moved sphere spread up to 0.034 of them.
+#: times √N: 3 to 12 float32 copies of a turned and moved sphere spread up to 0.045 of them.
 ROUNDING_SPREAD = 1.0
 #: The four kinds of shape difference, in the order the paper plots them.
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -73,9 +73,9 @@ class ShapeSpace:
     k_M: int
     k_N: int | None
     offset: float
-    #: The relative change of an edge length that the rounding of the poses' coordinates alone
-    #: makes (:func:`core.seams.relative_round_off`): float32 copies of one pose spread up to
-    #: about this much (times √N), not zero.
+    #: The relative change of the edge lengths that the rounding of the poses' coordinates alone
+    #: makes, area-weighted over the triangles (:func:`core.seams.relative_round_off`): float32
+    #: copies of one pose spread up to about this much (times √N), not zero.
     round_off: float = 0.0
     _pca: dict = field(default_factory=dict, repr=False)
 
@@ -162,7 +162,8 @@ def pose_differences(layer, positions: np.ndarray, k_M: int, k_N: int | None):
     return functional_map_differences(base_basis, LaplaceBasis(basis.eigenvalues[:cut], basis.functions[:, :cut]), mass)
 
 
-def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None):
+def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None,
+                      single_precision: bool | None = None):
     """:func:`shape_space` as a generator yielding progress in ``[0, 1]`` after each pose; its
     return value (``StopIteration.value``, or ``yield from``) is the :class:`ShapeSpace`."""
     from .laplace_basis import basis_sizes
@@ -194,7 +195,8 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
     compact = [reference.compact_pose(pose) for pose in poses]
-    space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compact, reference.topology.edges))
+    space = ShapeSpace(features, k_M, k_N, reference.offset,
+                       relative_round_off(compact, reference.topology.triangles, single_precision))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
         warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",
@@ -202,18 +204,21 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     return space
 
 
-def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None) -> ShapeSpace:
+def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None,
+                single_precision: bool | None = None) -> ShapeSpace:
     """PCA embedding of a collection of poses of one mesh by their shape differences (§8.1).
 
     ``poses``: a sequence of float64 ``(n, 3)`` arrays (or one ``(N, n, 3)`` array), ``poses[0]``
     the base every other pose is compared with; ``triangles`` int ``(m, 3)``. ``k_M``: base basis
     size (the differences are ``k_M × k_M``); ``k_N``: the pose's basis size of eq. (6), or
     ``None`` for eq. (5) (no per-pose eigensolve — much faster, exact in the base basis);
-    ``offset``: the offset distance t (``None``: half the base's mean edge length).
+    ``offset``: the offset distance t (``None``: half the base's mean edge length);
+    ``single_precision``: whether the poses were stored in single precision (Blender's keys and
+    frames; ``None``: where every coordinate is a float32), which sizes ``ShapeSpace.round_off``.
     Raises :class:`~core.errors.MeshError` for fewer than two poses, a mismatched pose (its index
     is named) or basis sizes the mesh cannot have.
     """
-    steps = shape_space_steps(poses, triangles, k_M=k_M, k_N=k_N, offset=offset)
+    steps = shape_space_steps(poses, triangles, k_M=k_M, k_N=k_N, offset=offset, single_precision=single_precision)
     while True:
         try:
             next(steps)

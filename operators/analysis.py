@@ -129,7 +129,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         poses = [proportions.to(pose) for pose in poses]
         space = yield from _drive(
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
-                              offset=self.resolved_offset(context)), 0.1, 0.85)
+                              offset=self.resolved_offset(context), single_precision=True), 0.1, 0.85)
         data = {
             "source": self.source,
             "poses": names,
@@ -268,14 +268,14 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             self.report({'WARNING'}, f"'{obj.name}' has no edge shared by two faces: no offset surface, so no "
                                      "bending map and no offset eigenfunction maps")
         analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m,
-                                      use_extrinsic=extrinsic)
+                                      use_extrinsic=extrinsic, single_precision=True)  # Blender's coordinates
         results, unchanged = [], []
         for index, pose in enumerate(poses):
             distortion = analyzer.pose(pose)
             pairs = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)
                      for kind in (KINDS if extrinsic else KINDS[:2])} if self.eigenfunctions else {}
             results.append((distortion, {kind: functions for kind, (_, functions) in pairs.items()}))
-            if distortion_size(distortion) <= max(UNCHANGED_STRETCH, distortion.round_off):
+            if unchanged_pose(distortion):
                 unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
@@ -313,7 +313,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                     continue
                 bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
                                 scalar_colors(vertex_values, diverging=diverging, floor=centre,
-                                              round_off=distortion.round_off), color=True)
+                                              round_off=distortion.round_off_vertices), color=True)
                 first = first or f"SD {name}{label}"
                 bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
                 per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
@@ -333,18 +333,17 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
 
 
 #: A pose whose maps are all at most this (or the size of the coordinates' rounding,
-#: ``core.Distortion.round_off``) does not change the base: its leading eigenfunctions are arbitrary.
+#: ``core.Distortion.round_off_faces``) does not change the base: its leading eigenfunctions are arbitrary.
 UNCHANGED_STRETCH = 1e-9
 
 
-def distortion_size(distortion) -> float:
-    """The largest per-face value of ``distortion``'s maps (a ``core.Distortion``), each measured
-    from its neutral value (area change and bending 0, conformal ratio 1)."""
-    sizes = [np.abs(distortion.area_change_faces).max(initial=0.0),
-             np.abs(distortion.conformal_faces - 1.0).max(initial=0.0)]
-    if distortion.bending_faces is not None:
-        sizes.append(np.abs(distortion.bending_faces).max(initial=0.0))
-    return float(max(sizes))
+def unchanged_pose(distortion) -> bool:
+    """Whether every per-face value of ``distortion``'s maps (a ``core.Distortion``), measured from
+    its neutral value (area change and bending 0, conformal ratio 1), is within
+    :data:`UNCHANGED_STRETCH` or the face's round-off (``round_off_faces``)."""
+    limit = np.maximum(distortion.round_off_faces, UNCHANGED_STRETCH)
+    maps = [distortion.area_change_faces, distortion.conformal_faces - 1.0, distortion.bending_faces]
+    return all(bool(np.all(np.abs(values) <= limit)) for values in maps if values is not None)
 
 #: Custom property (on the mesh) listing the frames that have distortion maps.
 FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"

@@ -57,32 +57,38 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
 
 
 #: A map whose values (98th percentile) span less than this is round-off and drawn in its neutral
-#: colour: a pose that does not change the base has distortions of round-off size (1e-16 in double
-#: precision, 1e-6 from Blender's single-precision keys), which scaled to their own 98th
-#: percentile came out as full-contrast noise.
+#: colour, as one whose every value is within its round-off (``scalar_colors``): a pose that does
+#: not change the base has distortions of round-off size (1e-16 in double precision, 1e-6 from
+#: Blender's single-precision keys), which scaled to their own 98th percentile came out as
+#: full-contrast noise.
 MIN_COLOUR_RANGE = 1e-6
 
 
 def scalar_colors(values: np.ndarray, *, diverging: bool, floor: float | None = None,
-                  round_off: float = 0.0) -> np.ndarray:
+                  round_off: np.ndarray | float = 0.0) -> np.ndarray:
     """Linear RGBA ``(n, 4)`` for a distortion map: diverging maps are symmetric about 0 (or about
     ``floor``) and scaled to the 98th percentile of the magnitude so one outlier does not wash the
-    map out; sequential maps run from ``floor`` (default the minimum) to the 98th percentile. A map
-    whose span is at most :data:`MIN_COLOUR_RANGE` or ``round_off`` (the size of the values that
-    the rounding of the coordinates alone makes: ``core.Distortion.round_off``) is all neutral."""
-    least = max(MIN_COLOUR_RANGE, round_off)
+    map out; sequential maps run from ``floor`` (default the minimum) to the 98th percentile. The
+    percentile is of the values beyond ``round_off`` (per value, or one size: what the rounding of
+    the coordinates alone makes, ``core.Distortion.round_off_vertices``); a map with none, or a
+    span of at most :data:`MIN_COLOUR_RANGE`, is all neutral."""
     values = np.asarray(values, dtype=np.float64)
-    finite = values[np.isfinite(values)]
-    if diverging:
-        centre = 0.0 if floor is None else floor
-        scale = np.percentile(np.abs(finite - centre), 98) if finite.size else 0.0
-        t = 0.5 + 0.5 * (values - centre) / scale if scale > least else np.full(values.shape, 0.5)
-        rgb = colormap(t, "diverging")
+    finite = np.isfinite(values)
+    if floor is not None:
+        centre = floor
     else:
-        low = (finite.min() if finite.size else 0.0) if floor is None else floor
-        high = np.percentile(finite, 98) if finite.size else low
-        t = (values - low) / (high - low) if high - low > least else np.zeros(values.shape)
-        rgb = colormap(t, "viridis")
+        centre = 0.0 if diverging or not finite.any() else float(values[finite].min())
+    offsets = values[finite] - centre
+    magnitudes = np.abs(offsets) if diverging else offsets
+    # the values beyond their round-off set the scale: a swell on 0.6 % of a sheet is the map, not
+    # the round-off around it (scaled with it, it was neutral)
+    real = magnitudes[magnitudes > np.broadcast_to(round_off, values.shape)[finite]]
+    scale = float(np.percentile(real, 98)) if real.size else 0.0
+    if scale <= MIN_COLOUR_RANGE:
+        t = np.full(values.shape, 0.5 if diverging else 0.0)
+    else:
+        t = 0.5 + 0.5 * (values - centre) / scale if diverging else (values - centre) / scale
+    rgb = colormap(t, "diverging" if diverging else "viridis")
     rgba = np.ones(values.shape + (4,))
     rgba[..., :3] = srgb_to_linear(rgb)
     return rgba

@@ -233,3 +233,34 @@ def test_maps_of_faces_that_share_no_edge(bpy_empty, extension, capfd):
     mesh.attributes["sd_area"].data.foreach_get("value", values)
     assert np.allclose(values, np.log(1.5), atol=1e-6)
     assert "SD Bending" not in mesh.attributes
+
+
+def test_round_off_neither_hides_a_small_swell_nor_shows_as_noise(bpy_empty, extension, capfd):
+    """A swell over 0.6 % of a sheet is coloured (before, the whole map was neutral when its 98th
+    percentile was within the round-off); on an object scaled (1.3, 1, 0.7), not applied, 1,000
+    units out, a key that only moves the mesh gives neutral maps and the warning (before, the
+    world's proportions, computed in double precision, read as double-precision keys: 152
+    colours of noise)."""
+    obj = grid_object(40)
+    rest = extension.bridge.vertex_positions(obj.data)
+    swell = rest.copy()
+    r = np.linalg.norm(rest[:, :2] - [0.3, -0.4], axis=1)
+    swell[:, 2] += 0.08 * np.clip(1 - r / 0.09, 0, None) ** 2  # 0.6 % of the sheet
+    add_key(obj, "Swell", swell)
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Swell", eigenfunctions=0)
+    colours = np.zeros(len(rest) * 4)
+    obj.data.color_attributes["SD Area"].data.foreach_get("color", colours)
+    assert len(np.unique(colours.reshape(-1, 4), axis=0)) > 1
+    capfd.readouterr()
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=20, y_subdivisions=20, size=2.0, location=(1000.0, 0.0, 0.0))
+    skewed = bpy.context.active_object
+    skewed.scale = (1.3, 1.0, 0.7)
+    bpy.context.view_layer.update()
+    rest = extension.bridge.vertex_positions(skewed.data)
+    add_key(skewed, "Moved", rest + [0.25, -0.5, 0.3])
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Moved", eigenfunctions=0)
+    assert "'Moved' does not change the base" in capfd.readouterr().out
+    for name in ("SD Area", "SD Conformal", "SD Bending"):
+        colours = np.zeros(len(rest) * 4)
+        skewed.data.color_attributes[name].data.foreach_get("color", colours)
+        assert len(np.unique(colours.reshape(-1, 4), axis=0)) == 1, name
