@@ -302,11 +302,12 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, tra
     (:func:`core.rigid_alignment.pivoted_alignment`) when that leaves its triangles less turn to
     make — a median angle of their rotations from ``base`` to ``other`` (``turn``: their in-plane
     polar turns) with the piece's rotation undone smaller by :data:`PIN_FIT_MARGIN`, and fewer of
-    them near a half turn (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its four centre vertices, folded into a bundle that looks alike after a
-    half turn, turned 176° about its pins between keys 8 frames apart, leaving its triangles 110°
-    (median; 13 % past 150°) where they turned 82° (4 %): splined, 4,488 flipped triangles at the
-    middle of the gap. A sheet rolled by 191° about its still half keeps the free fit (28°), which
-    leaves 4 % of its triangles past 150° where the pins' would leave 12.5 %."""
+    them near a half turn (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its
+    four centre vertices, folded into a bundle that looks alike after a half turn, turned 176°
+    about its pins between keys 8 frames apart, leaving its triangles 110° (median; 13 % past 150°)
+    where they turned 82° (4 %): splined, 4,488 flipped triangles at the middle of the gap. A sheet
+    rolled by 191° about its still half keeps the free fit (28°), which leaves 4 % of its triangles
+    past 150° where the pins' would leave 12.5 %."""
     pinned = np.zeros(topo.n, dtype=bool)
     pinned[topo.pinned] = True
     held_rotations, held_translations = rotations.copy(), translations.copy()
@@ -331,7 +332,8 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, tra
     use = held & (held_median < free_median - PIN_FIT_MARGIN) & (held_near < free_near)
     if not use.any():
         return rotations, translations, misfits
-    rotations, translations = np.where(use[:, None, None], held_rotations, rotations), np.where(use[:, None], held_translations, translations)
+    rotations = np.where(use[:, None, None], held_rotations, rotations)
+    translations = np.where(use[:, None], held_translations, translations)
     return rotations, translations, fit_misfits(topo, base.vertices, other.vertices, rotations, translations)
 
 

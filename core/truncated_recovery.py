@@ -304,7 +304,8 @@ class TruncatedRecovery:
         gradient_scale = float(np.abs(rhs / scale).max())
         result = minimize(objective, np.maximum(start, 0.0) * scale, jac=True, method="L-BFGS-B",
                           bounds=[(0.0, None)] * reference.size,
-                          options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0, "gtol": BOUNDED_GRADIENT_TOLERANCE * gradient_scale})
+                          options={"maxiter": BOUNDED_MAX_ITERATIONS, "ftol": 0.0,
+                                   "gtol": BOUNDED_GRADIENT_TOLERANCE * gradient_scale})
         if not np.all(np.isfinite(result.x)):
             raise RecoveryError(f"The bounded area program of the {self.layer.name} failed ({result.message}).")
         gradient = objective(result.x)[1]

@@ -290,8 +290,12 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}
         what = f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"{len(poses)} frames"
         written = sum(functions.shape[1] for _, eigen in results[:1] for functions in eigen.values())
+
+        def written_map(field):  # bending is not written without an offset surface
+            return getattr(results[0][0], field) is not None
+
         self.summary = (f"Wrote distortion maps of {what}: colour attributes "
-                        f"{', '.join('SD ' + name + labels[0] for name, field, *_ in MAPS if getattr(results[0][0], field) is not None)}"
+                        f"{', '.join('SD ' + name + labels[0] for name, field, *_ in MAPS if written_map(field))}"
                         + (f" and {written} eigenfunction maps" + (" per frame" if len(poses) > 1 else "")
                            if written else ""))
 
