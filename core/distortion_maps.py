@@ -83,13 +83,10 @@ class DistortionAnalyzer:
 
         self.reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
         ref = self.reference
-        if k is None:  # the default shrinks to a small mesh; a size given is checked
-            self.k = min(DEFAULT_EIGEN_BASIS, ref.topology.n_vertices - 1)
-        else:
-            self.k = ref.basis_sizes(k, None, full_basis=False)[0]
-            if self.k is None:
-                raise MeshError("k (the basis of the eigenfunctions) must be a positive number of "
-                                f"eigenfunctions (default {DEFAULT_EIGEN_BASIS}); got {k}.")
+        # the default shrinks to a small mesh; a size given is checked against the mesh where the
+        # eigenfunctions are asked for (the maps do not use it)
+        self.k = min(DEFAULT_EIGEN_BASIS, ref.topology.n_vertices - 1) if k is None else check_count(k, "k", minimum=1)
+        self._k_given = k is not None
         self.single_precision = single_precision
         self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
@@ -162,7 +159,8 @@ class DistortionAnalyzer:
             layer, positions = ref.offset_layer, ref.surface.positions(pose, ref.offset)
         else:
             layer, positions = ref.base, pose
-        basis = layer.basis(min(self.k, layer.topology.n_vertices - 1))
+        k = ref.basis_sizes(self.k, None, full_basis=False)[0] if self._k_given else self.k
+        basis = layer.basis(min(k, layer.topology.n_vertices - 1))
         _, _, mass, conformal = pose_products(layer.assembler, positions)
         phi = basis.functions
         if kind.endswith("area"):

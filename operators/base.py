@@ -47,24 +47,28 @@ def name_poses(message: str, pose_names) -> str:
     return POSE_REFERENCE.sub(named, message)
 
 
-# The core numbers triangles in the order it was given them: Blender's loop triangles.
-TRIANGLE_REFERENCE = re.compile(r"\b([Tt]riangles?) (\d+)(?: and (\d+))?\b")
+# The core numbers the mesh's triangles in the order it was given them, Blender's loop triangles
+# (those of its offset surface too, "triangle 57 of the offset surface": not the mesh's).
+TRIANGLE_REFERENCE = re.compile(r"\b([Tt]riangles?) (\d+)(?: and (\d+))?\b(?! of the offset surface)(?: \(([^()]*)\))?")
 
 
 def name_faces(message: str, triangle_faces) -> str:
-    """``message`` with each of the core's "triangle i" (or "triangles i and j") followed by the
-    face it is part of (``triangle_faces``: the face of every loop triangle, or None where every
+    """``message`` with each of the core's "triangle i" (or "triangles i and j") of the mesh followed
+    by the face it is part of (``triangle_faces``: the face of every loop triangle, or None where every
     face is a triangle and the numbers are the faces'), which Blender shows (Indices overlay)."""
     if triangle_faces is None:
         return message
 
     def face(index: str) -> str:
-        return str(triangle_faces[int(index)]) if int(index) < len(triangle_faces) else "?"
+        return str(triangle_faces[int(index)])
 
     def named(match):
-        if match.group(3) is None:
-            return f"{match.group(0)} (of face {face(match.group(2))})"
-        return f"{match.group(0)} (of faces {face(match.group(2))} and {face(match.group(3))})"
+        if any(index is not None and int(index) >= len(triangle_faces) for index in match.group(2, 3)):
+            return match.group(0)  # not one of the mesh's
+        word, first, second, aside = match.groups()
+        text = f"{word} {first}" + (f" and {second}" if second else "")
+        faces = f"of face {face(first)}" if second is None else f"of faces {face(first)} and {face(second)}"
+        return f"{text} ({faces}" + (f"; {aside})" if aside else ")")
 
     return TRIANGLE_REFERENCE.sub(named, message)
 

@@ -118,12 +118,20 @@ def test_a_rigid_copy_in_single_precision_is_round_off():
 def test_arguments_are_checked(sheet):
     """Basis sizes and counts the maps cannot have are refused in the user's terms (before: k = 1
     gave a conformal eigenvalue of −0.5, k = 10⁶ and 2.5 were accepted, count −1 returned every
-    function but one)."""
+    function but one); a basis the mesh cannot have is refused where eigenfunctions are asked
+    for, not for the maps, which do not use it (60 separate patches: maps with k = 50)."""
     v, t = sheet
-    for k, message in ((0, "positive number"), (1, "constant on each part"), (2.5, "whole number"),
-                       (10**6, "Lower it.")):
+    for k, message in ((0, "at least 1"), (2.5, "whole number")):
         with pytest.raises(core.MeshError, match=message):
             core.distortion(v, v, t, k=k)
+    for k, message in ((1, "constant on each part"), (10**6, "Lower it.")):
+        with pytest.raises(core.MeshError, match=message):
+            core.distortion(v, 1.1 * v, t, k=k).eigenfunctions("area", 2)
+    patch, patch_triangles = grid(3)
+    patches = np.vstack([patch + [3.0 * i, 0.0, 0.0] for i in range(60)])
+    many = np.vstack([patch_triangles + len(patch) * i for i in range(60)])
+    maps = core.distortion(patches, 1.2 * patches, many, k=50)
+    assert np.allclose(maps.area_change_faces, 2 * np.log(1.2))
     d = core.distortion(v, v, t, k=10)
     for count, message in ((-1, "at least 0"), (2.5, "whole number")):
         with pytest.raises(core.MeshError, match=message):
