@@ -35,11 +35,16 @@ from .validation import check_count
 
 #: Default basis size for the eigenfunctions of the difference operators.
 DEFAULT_EIGEN_BASIS = 50
-#: Distortion values per relative change of a triangle's shortest edge from the coordinates'
-#: rounding (:func:`core.seams.triangle_round_off`): float32 copies of a 2,000-vertex sphere and a
-#: 1,600-vertex sheet, turned and moved up to 1,000 units, reached 1.8 of them (area, conformal,
-#: bending; per face and per vertex, against the vertex's largest face's).
-ROUND_OFF_VALUES = 3.0
+#: Area change and conformal distortion per relative change of a triangle from the coordinates'
+#: rounding (:func:`core.seams.triangle_round_off`): float32 copies of a 2,000-vertex sphere, a
+#: 1,600-vertex sheet and cylinders of 32–128 sides with fan caps, turned and moved up to 1,000
+#: units, reached 1.2 of them (per face and per vertex).
+ROUND_OFF_VALUES = 2.5
+#: Bending per relative change of a triangle times ``1 + t / h`` (offset t, the triangle's smallest
+#: height h): the offset surface's triangles lie t out along normals that the rounding turns by
+#: its size over h, so a thin triangle's bending noise grows with t / h² (a 128-sided cylinder's
+#: fan caps: 13.8 times the area's bound, 1.1 times this one; the sphere and sheet 0.5).
+BENDING_ROUND_OFF_VALUES = 2.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,12 +58,15 @@ class Distortion:
     conformal_vertices: np.ndarray
     bending_faces: np.ndarray | None
     bending_vertices: np.ndarray | None
-    #: Per face (m,) and per vertex (n,): the size of the values that the rounding of the
-    #: coordinates alone makes (:func:`core.seams.triangle_round_off` times
-    #: :data:`ROUND_OFF_VALUES`; a vertex: the largest of its faces'): a pose that only moves its
-    #: mesh has maps of at most about this size, not zero.
+    #: Per face (m,) and per vertex (n,): the size of the area and conformal maps' values that the
+    #: rounding of the coordinates alone makes (:func:`core.seams.triangle_round_off` times
+    #: :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and the same for
+    #: bending (:data:`BENDING_ROUND_OFF_VALUES`; None without the offset surface): a pose that only
+    #: moves its mesh has maps of at most about this size, not zero.
     round_off_faces: np.ndarray
     round_off_vertices: np.ndarray
+    bending_round_off_faces: np.ndarray | None
+    bending_round_off_vertices: np.ndarray | None
     _analyzer: "DistortionAnalyzer" = field(repr=False)
     _pose: np.ndarray = field(repr=False)
 
@@ -124,9 +132,18 @@ class DistortionAnalyzer:
             bending_vertices = np.where(base_vertex_sum > 0, bending_vertices - area_vertices, 0.0)
             bending_faces = np.where(base_face_sum > 0, bending_faces - area_faces, 0.0)
         rounding = coordinate_rounding([ref.base.positions, pose], self.single_precision)
-        round_off = ROUND_OFF_VALUES * triangle_round_off(ref.base.positions, topo.triangles, rounding)
-        round_off_vertices = np.zeros(topo.n_vertices)
-        np.maximum.at(round_off_vertices, topo.triangles.ravel(), np.repeat(round_off, 3))
+        relative = triangle_round_off(ref.base.positions, topo.triangles, rounding)  # rounding / h
+
+        def per_vertex(per_face):  # a vertex's values are base-area-weighted over its faces: so is their round-off
+            return _scatter(ref, lumped_vertex_areas(topo.triangles, ref.base.areas * per_face,
+                                                     topo.n_vertices) / self._base_vertex_area)
+
+        round_off = ROUND_OFF_VALUES * relative
+        bending_round_off = None
+        if ref.use_extrinsic and rounding > 0:  # 1 + t / h
+            bending_round_off = BENDING_ROUND_OFF_VALUES * relative * (1.0 + ref.offset * relative / rounding)
+        elif ref.use_extrinsic:
+            bending_round_off = np.zeros_like(relative)
         return Distortion(
             area_change_faces=area_faces,
             area_change_vertices=_scatter(ref, area_vertices),
@@ -135,7 +152,9 @@ class DistortionAnalyzer:
             bending_faces=bending_faces,
             bending_vertices=None if bending_vertices is None else _scatter(ref, bending_vertices),
             round_off_faces=round_off,
-            round_off_vertices=_scatter(ref, round_off_vertices),
+            round_off_vertices=per_vertex(round_off),
+            bending_round_off_faces=bending_round_off,
+            bending_round_off_vertices=None if bending_round_off is None else per_vertex(bending_round_off),
             _analyzer=self,
             _pose=pose,
         )

@@ -77,6 +77,8 @@ class ShapeSpace:
     #: makes, area-weighted over the triangles (:func:`core.seams.relative_round_off`): float32
     #: copies of one pose spread up to about this much (times √N), not zero.
     round_off: float = 0.0
+    #: The same for the offset surface's kinds (:func:`core.seams.relative_round_off` with the offset).
+    offset_round_off: float = 0.0
     _pca: dict = field(default_factory=dict, repr=False)
 
     @property
@@ -89,7 +91,8 @@ class ShapeSpace:
             data = self.features[kind]
             centered = data - data.mean(axis=0)
             u, s, vt = np.linalg.svd(centered, full_matrices=False)
-            noise = max(ROUND_OFF_SPREAD * np.linalg.norm(data), ROUNDING_SPREAD * self.round_off * np.sqrt(len(data)))
+            round_off = self.offset_round_off if kind.startswith("offset") else self.round_off
+            noise = max(ROUND_OFF_SPREAD * np.linalg.norm(data), ROUNDING_SPREAD * round_off * np.sqrt(len(data)))
             s = np.where(s > noise, s, 0.0)  # round-off axes: no spread
             # Deterministic signs: each axis points towards its largest coordinate.
             scores = u * s
@@ -195,8 +198,9 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
     compact = [reference.compact_pose(pose) for pose in poses]
-    space = ShapeSpace(features, k_M, k_N, reference.offset,
-                       relative_round_off(compact, reference.topology.triangles, single_precision))
+    faces = reference.topology.triangles
+    space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compact, faces, single_precision),
+                       relative_round_off(compact, faces, single_precision, reference.offset))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
         warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",

@@ -210,11 +210,12 @@ DISTORTION_SOURCE_ITEMS = [
 ]
 #: The kinds' names in the eigenfunction maps' attribute names ("SD Eigen Offset Area 2").
 EIGEN_TITLES = {kind: kind.replace("_", " ").title() for kind in KINDS}
-#: (name, per-vertex attribute of core.Distortion, per-face attribute, diverging map, centre)
+#: (name, per-vertex attribute of core.Distortion, per-face attribute, diverging map, centre,
+#: per-vertex and per-face round-off attributes)
 MAPS = (
-    ("Area", "area_change_vertices", "area_change_faces", True, 0.0),
-    ("Conformal", "conformal_vertices", "conformal_faces", False, 1.0),
-    ("Bending", "bending_vertices", "bending_faces", True, 0.0),
+    ("Area", "area_change_vertices", "area_change_faces", True, 0.0, "round_off_vertices", "round_off_faces"),
+    ("Conformal", "conformal_vertices", "conformal_faces", False, 1.0, "round_off_vertices", "round_off_faces"),
+    ("Bending", "bending_vertices", "bending_faces", True, 0.0, "bending_round_off_vertices", "bending_round_off_faces"),
 )
 
 
@@ -310,14 +311,14 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         polygon_weight[polygon_weight == 0] = 1.0
         first = None
         for label, (distortion, eigen) in zip(labels, results):
-            for name, vertex_field, face_field, diverging, centre in MAPS:
+            for name, vertex_field, face_field, diverging, centre, vertex_round_off, _ in MAPS:
                 vertex_values = getattr(distortion, vertex_field)
                 face_values = getattr(distortion, face_field)
                 if vertex_values is None:
                     continue
                 bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
                                 scalar_colors(vertex_values, diverging=diverging, floor=centre,
-                                              round_off=distortion.round_off_vertices), color=True)
+                                              round_off=getattr(distortion, vertex_round_off)), color=True)
                 first = first or f"SD {name}{label}"
                 bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
                 per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
@@ -345,9 +346,12 @@ def unchanged_pose(distortion) -> bool:
     """Whether every per-face value of ``distortion``'s maps (a ``core.Distortion``), measured from
     its neutral value (area change and bending 0, conformal ratio 1), is within
     :data:`UNCHANGED_STRETCH` or the face's round-off (``round_off_faces``)."""
-    limit = np.maximum(distortion.round_off_faces, UNCHANGED_STRETCH)
-    maps = [distortion.area_change_faces, distortion.conformal_faces - 1.0, distortion.bending_faces]
-    return all(bool(np.all(np.abs(values) <= limit)) for values in maps if values is not None)
+    for _, _, face_field, _, centre, _, round_off in MAPS:
+        values = getattr(distortion, face_field)
+        if values is not None and not np.all(np.abs(values - centre) <= np.maximum(getattr(distortion, round_off),
+                                                                                     UNCHANGED_STRETCH)):
+            return False
+    return True
 
 #: Custom property (on the mesh) listing the frames that have distortion maps.
 FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"

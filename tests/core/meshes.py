@@ -149,3 +149,18 @@ def random_rotation(seed: int = 0) -> np.ndarray:
     q, r = np.linalg.qr(np.random.default_rng(seed).normal(size=(3, 3)))
     q = q * np.sign(np.diag(r))
     return q if np.linalg.det(q) > 0 else -q
+
+
+def capped_cylinder(sides: int = 64):
+    """A closed cylinder (radius 1, height 2) whose caps are fans from one rim vertex, as Blender
+    splits an n-gon cap: long flat triangles. Vertices (2·sides, 3), triangles."""
+    angle = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    ring = np.c_[np.cos(angle), np.sin(angle)]
+    vertices = np.vstack([np.c_[ring, np.full(sides, -1.0)], np.c_[ring, np.full(sides, 1.0)]])
+    triangles = []
+    for i in range(sides):
+        j = (i + 1) % sides
+        triangles += [[i, j, sides + j], [i, sides + j, sides + i]]
+    for i in range(1, sides - 1):
+        triangles += [[0, i + 1, i], [sides, sides + i, sides + i + 1]]
+    return vertices, np.array(triangles)
