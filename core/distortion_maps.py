@@ -108,9 +108,10 @@ class DistortionAnalyzer:
             self._base_offset_vertex = self._offset_sums(ref.offset_layer.areas)
 
     # -- per-face and per-vertex maps ---------------------------------------------------------
-    def pose(self, pose_vertices) -> Distortion:
+    def pose(self, pose_vertices, *, name: str = "pose vertices") -> Distortion:
+        """The maps of one pose ``(n, 3)`` (``name``: what errors about it call it)."""
         ref = self.reference
-        pose = ref.compact_pose(pose_vertices, name="pose vertices")
+        pose = ref.compact_pose(pose_vertices, name=name)
         topo = ref.topology
         areas = triangle_areas(pose, topo.triangles)
         squared = topo.squared_edge_lengths(pose)

@@ -190,7 +190,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     with single_threaded_blas():
         for index, pose in enumerate(poses):
-            compact = reference.compact_pose(pose, name=f"pose {index}")
+            compact = reference.compact_pose(pose, name=f"key pose {index}")
             layers = [(reference.base, compact, KINDS[:2]),
                       (reference.offset_layer, reference.surface.positions(compact, reference.offset), KINDS[2:])]
             for layer, positions, kinds in layers:

@@ -117,11 +117,13 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(obj, 2)
             names = [key_block.name for key_block in key_blocks]
+            self.pose_names = [f"shape key '{name}'" for name in names]
             poses = [bridge.shape_key_positions(key_block, obj) for key_block in key_blocks]
             yield 0.0
         else:
             frames = self.frames(context)
             names = [frame_key_name(frame) for frame in frames]
+            self.pose_names = [f"frame {frame}" for frame in frames]
             poses = yield from self.read_frames(context, obj, frames, 0.1)
         from ..core.shape_space_pca import shape_space_steps
 
@@ -242,7 +244,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         mesh = obj.data
         require_local(obj, mesh, "maps written to it as attributes are")
         triangles = surface_triangles(obj, self)
-        self.check_sizes(triangles, uses_k_n=False)
+        if self.eigenfunctions:  # the basis is of the eigenfunction maps only
+            self.check_sizes(triangles, uses_k_n=False)
         key = mesh.shape_keys
         base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))
         if self.source == 'ACTIVE_KEY':
@@ -272,7 +275,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                                       use_extrinsic=extrinsic, single_precision=True)  # Blender's coordinates
         results, unchanged = [], []
         for index, pose in enumerate(poses):
-            distortion = analyzer.pose(pose)
+            distortion = analyzer.pose(pose, name=f"shape key '{self.key}'" if self.source == 'ACTIVE_KEY'
+                                       else f"frame {frames[index]}")
             pairs = {kind: distortion.eigenfunctions(kind, self.eigenfunctions)
                      for kind in (KINDS if extrinsic else KINDS[:2])} if self.eigenfunctions else {}
             results.append((distortion, {kind: functions for kind, (_, functions) in pairs.items()}))
@@ -283,9 +287,9 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         if unchanged:
             self.report({'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
                                      f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "
-                                     "map is zero to the rounding of its coordinates): the maps show no distortion, and the "
-                                     "eigenfunction maps are arbitrary (every function is an eigenfunction of "
-                                     "the identity)")
+                                     "map is zero to the rounding of its coordinates): the maps show no distortion"
+                                     + (", and the eigenfunction maps are arbitrary (every function is an "
+                                        "eigenfunction of the identity)" if self.eigenfunctions else ""))
         if self.source == 'FRAMES':
             # The frame handler shows the map of the frame being played (see follow_frame).
             mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}

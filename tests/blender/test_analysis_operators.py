@@ -264,3 +264,19 @@ def test_round_off_neither_hides_a_small_swell_nor_shows_as_noise(bpy_empty, ext
         colours = np.zeros(len(rest) * 4)
         skewed.data.color_attributes[name].data.foreach_get("color", colours)
         assert len(np.unique(colours.reshape(-1, 4), axis=0)) == 1, name
+
+
+def test_messages_name_the_key_or_frame_and_maps_need_no_basis(bpy_empty, extension, capfd):
+    """A key with a non-finite coordinate: Distortion Maps and Shape Space name it (before: "pose
+    vertices", "pose 2"); maps without eigenfunctions are written whatever k_M is (before:
+    "k_M = 100 is too large for a mesh with 49 vertices" for a basis they do not use)."""
+    obj = posed_grid(extension.bridge, 6)
+    broken = extension.bridge.vertex_positions(obj.data)
+    broken[5, 2] = np.nan
+    add_key(obj, "Broken", broken)
+    with pytest.raises(RuntimeError, match="shape key 'Broken': vertex 5"):
+        bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Broken", eigenfunctions=0)
+    with pytest.raises(RuntimeError, match="shape key 'Broken': vertex 5"):
+        bpy.ops.shape_differences.shape_space(source='KEYS', k_m=10, k_n=0)
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Bend", eigenfunctions=0, k_m=100)
+    assert "sd_area" in obj.data.attributes
