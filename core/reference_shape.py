@@ -363,7 +363,12 @@ class ReferenceShape:
         placed = align_components(positions, target, labels, weights=self.vertex_weights)
         if not glue_seams or self.seam_twins is None:
             return placed
-        glued, labels, hinges = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights)
+        glued, labels, hinges, opened = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights)
+        if opened:
+            warnings.warn(
+                f"{len(opened)} piece(s) of the mesh meet another along a seam in the base whose two sides "
+                "differ in this pose (the seam opens): they are placed on their own, nearest the base.",
+                ShapeDifferenceWarning, stacklevel=3)
         if hinges:
             warnings.warn(
                 f"{len(hinges)} piece(s) of the mesh meet another along a seam that is straight (or "

@@ -189,6 +189,11 @@ def seam_twins(base: np.ndarray, topology) -> tuple[np.ndarray, np.ndarray] | No
     return (twin, first[twin]) if twin.size else None
 
 
+#: A seam whose two sides, fitted onto each other, stay apart by more than this share of its length
+#: (RMS) differs in the pose: it opens there (a strip along a body that widens under it: 15 % of
+#: the diagonal), and its pieces are placed on their own.
+SEAM_OPEN_SHARE = 0.05
+
 #: A seam holds the angle between the pieces it joins where its twins' spread across their line
 #: exceeds this many times the RMS misfit of the twins' fit (the pieces' own reconstruction error):
 #: two panels folded 90° about a seam straight to 3e-4 of the diagonal, reconstructed in a
@@ -203,15 +208,17 @@ def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: 
     fitted onto their partners, then the turn about them that the twins leave free (about a
     straight seam, a single point) chosen to keep the rest of the piece nearest where it was
     (:func:`core.rigid_alignment.pivoted_alignment`). Returns the moved positions, the labels with
-    glued pieces sharing one, and the pairs of labels joined along a seam straight to within
+    glued pieces sharing one, the pairs of labels joined along a seam straight to within
     :data:`SEAM_HOLD_MISFITS` of the twins' misfit (their angle there is the one their own
-    placements gave, not the pose's: shape differences are computed per piece)."""
+    placements gave, not the pose's: shape differences are computed per piece), and the pairs
+    left apart because the seam's sides differ in the pose (:data:`SEAM_OPEN_SHARE`)."""
     from .rigid_alignment import PIVOT_SPREAD, pivoted_alignment, rigid_alignment
 
     out, labels = positions.copy(), labels.copy()
+    pieces = labels.copy()  # each vertex's own piece (``labels`` join as pieces are glued)
     a, b = twins
     mass = {piece: weights[labels == piece].sum() for piece in np.unique(labels)}
-    placed, hinges = set(), []
+    placed, hinges, roots, opened = set(), [], set(), []
     while True:
         # pairs from a placed piece to one not placed yet (either way round); none: start the next
         # group from its heaviest piece
@@ -220,8 +227,11 @@ def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: 
         if not across.any():
             free = {int(piece) for piece in np.unique(labels[np.r_[a, b]]) if piece not in placed}
             if not free:
-                return out, labels, hinges
-            placed.add(max(free, key=lambda piece: mass[piece]))
+                _close_rings(out, pieces, a, b, roots)
+                return out, labels, hinges, opened
+            root = max(free, key=lambda piece: mass[piece])
+            placed.add(root)
+            roots.add(root)
             continue
         moving, partner = np.where(fixed_a, b, a)[across], np.where(fixed_a, a, b)[across]
         piece = labels[moving[0]]
@@ -232,6 +242,11 @@ def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: 
         misfit = np.sqrt(np.mean(np.sum((joined[np.searchsorted(rows, moving)] - out[partner]) ** 2, axis=1)))
         seam = out[partner] - out[partner].mean(axis=0)
         spread = np.linalg.svd(seam, compute_uv=False) / np.sqrt(partner.size)
+        if _seam_opens(out, pieces, moving, partner):  # the two sides differ: the seam opens in the pose
+            opened.append((int(labels[partner[0]]), int(piece)))
+            placed.add(int(piece))
+            roots.add(int(piece))
+            continue
         held = spread.size > 1 and spread[1] > max(PIVOT_SPREAD * np.linalg.norm(np.ptp(out[rows], axis=0)),
                                                    SEAM_HOLD_MISFITS * misfit)
         # a seam that does not hold the angle: its line (or point) is the pivot of the turn left free
@@ -252,3 +267,61 @@ def _line_through(points: np.ndarray, spread: np.ndarray) -> np.ndarray:
         return centre[None]
     direction = np.linalg.svd(points - centre, full_matrices=False)[2][0]
     return np.stack([centre - spread[0] * direction, centre + spread[0] * direction])
+
+
+#: Sweeps of :func:`_close_rings` at most, and the change of the seams' largest gap (relative to
+#: the largest gap) under which they stop.
+RING_SWEEPS, RING_TOLERANCE = 200, 1e-10
+
+
+def _close_rings(out: np.ndarray, pieces: np.ndarray, a: np.ndarray, b: np.ndarray, roots: set) -> None:
+    """Where glued pieces close a ring (a tube of panels: the last one meets the first along a
+    seam the gluing piece by piece could not hold), move each piece but the groups' first, in
+    place, to fit its twins onto all their partners at once, sweep after sweep (each piece held
+    by its seams on both sides: two lines, which fix it), until the gaps stop closing. Pieces
+    whose twins all lie on one line keep their place (their turn about it is not determined)."""
+    from .rigid_alignment import rigid_alignment
+
+    gaps = np.linalg.norm(out[a] - out[b], axis=1)
+    if not len(gaps) or gaps.max() <= 0:
+        return
+    movable = []
+    for piece in np.unique(pieces[np.r_[a, b]]):
+        if piece in roots:
+            continue
+        mine_a, mine_b = pieces[a] == piece, pieces[b] == piece
+        own = np.r_[a[mine_a & ~mine_b], b[mine_b & ~mine_a]]
+        partner = np.r_[b[mine_a & ~mine_b], a[mine_b & ~mine_a]]
+        spread = np.linalg.svd(out[own] - out[own].mean(axis=0), compute_uv=False)
+        if spread.size > 1 and spread[1] > 1e-3 * spread[0]:  # not one line: the twins fix the piece
+            movable.append((np.flatnonzero(pieces == piece), own, partner))
+    if not movable:
+        return
+    largest = gaps.max()
+    for _ in range(RING_SWEEPS):
+        for rows, own, partner in movable:
+            rotation, translation = rigid_alignment(out[own], out[partner])
+            out[rows] = out[rows] @ rotation.T + translation
+        now = np.linalg.norm(out[a] - out[b], axis=1).max()
+        if abs(largest - now) <= RING_TOLERANCE * max(largest, now) or now <= 1e-14:
+            return
+        largest = now
+
+
+def _seam_opens(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partner: np.ndarray) -> bool:
+    """Whether, along any one seam between the piece of the twins ``moving`` and a piece of their
+    ``partner`` twins, the two sides fitted onto each other stay apart by more than
+    :data:`SEAM_OPEN_SHARE` of the seam's length (RMS): its sides differ in the pose. Seam by seam:
+    a piece closing a ring meets two pieces whose places may not fit it yet."""
+    from .rigid_alignment import rigid_alignment
+
+    for other in np.unique(pieces[partner]):
+        mine = pieces[partner] == other
+        source, target = out[moving[mine]], out[partner[mine]]
+        rotation, translation = rigid_alignment(source, target)
+        misfit = np.sqrt(np.mean(np.sum((source @ rotation.T + translation - target) ** 2, axis=1)))
+        length = np.sqrt(np.mean(np.sum((target - target.mean(axis=0)) ** 2, axis=1)))
+        if misfit > SEAM_OPEN_SHARE * length:
+            return True
+    return False
+
