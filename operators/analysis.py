@@ -365,8 +365,10 @@ FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"
 def follow_frame(scene, _depsgraph=None):
     """After a frame change, make each mesh's distortion map of that frame (or of the last mapped
     frame before it) the active colour attribute, so playback shows the maps frame by frame. Only
-    which colour attribute is active changes. The map shown is the one whose prefix the active
-    colour attribute has (SD Area, SD Conformal, SD Bending), so picking one in the list sticks."""
+    which colour attribute is active changes, and only while a frame's map is the active one: the
+    map shown is the one whose prefix it has (SD Area, SD Conformal, SD Bending), so picking one in
+    the list sticks, and picking any other colour attribute (the user's own, a map of a key) stops
+    the following until a frame's map is picked again."""
     for obj in scene.objects:
         mesh = obj.data if obj.type == 'MESH' else None
         if mesh is None or FRAME_MAPS_PROPERTY not in mesh:
@@ -374,8 +376,10 @@ def follow_frame(scene, _depsgraph=None):
         frames = sorted(int(frame) for frame in mesh[FRAME_MAPS_PROPERTY]["frames"])
         shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
         active = mesh.color_attributes.active_color
-        kind = next((name for name, *_ in MAPS if active is not None and active.name.startswith(f"SD {name} f")),
-                    mesh[FRAME_MAPS_PROPERTY]["map"])
+        kind = next((name for name, *_ in MAPS if active is not None
+                     and re.fullmatch(rf"SD {name} f-?\d+", active.name)), None)
+        if kind is None:  # another colour attribute was picked: leave it
+            continue
         attribute = mesh.color_attributes.get(f"SD {kind} f{shown[-1]}")
         if attribute is not None and (active is None or active.name != attribute.name):
             mesh.color_attributes.active_color = attribute

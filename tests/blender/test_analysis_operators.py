@@ -109,6 +109,11 @@ def test_distortion_maps_of_frames(bpy_empty, extension):
     bpy.context.scene.frame_set(1)
     assert obj.data.color_attributes.active_color.name == "SD Bending f1"
     assert_unchanged(dict(before, frame=1), snapshot(bridge, obj))
+    # a colour attribute of the user's picked: it stays (before, a frame change replaced it by "SD Area f3")
+    own = obj.data.color_attributes.new("Col", 'FLOAT_COLOR', 'POINT')
+    obj.data.color_attributes.active_color = own
+    bpy.context.scene.frame_set(3)
+    assert obj.data.color_attributes.active_color.name == "Col"
 
 
 def test_errors_change_nothing(keyed):
