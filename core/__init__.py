@@ -212,7 +212,8 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
         metric = reference.recover_metric(differences)
         _check_recovered_metric(metric, differences)
         embedding = reference.embed_result(metric)
-        placed = reference.place_near(embedding.base_vertices, reference.base_positions, glue_seams=True)
+        placed = reference.place_near(embedding.base_vertices, reference.base_positions, glue_seams=True,
+                                      exact=differences.k_M is None)
         if differences.k_M is None:  # exact lengths: a miss or an undecided mirror is real
             _warn_unrealized(reference, metric, placed)
             _warn_undetermined(embedding.unresolved_choices)

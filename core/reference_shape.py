@@ -350,7 +350,8 @@ class ReferenceShape:
                                       initial_damping=damping, stagnation=stagnation, tolerance=tolerance)
         return result
 
-    def place_near(self, positions: np.ndarray, target: np.ndarray, *, glue_seams: bool = False) -> np.ndarray:
+    def place_near(self, positions: np.ndarray, target: np.ndarray, *, glue_seams: bool = False,
+                   exact: bool = False) -> np.ndarray:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection).
         ``glue_seams`` (where ``target`` says nothing of where the pieces sit: the base, for a
@@ -358,16 +359,19 @@ class ReferenceShape:
         panels exported unwelded, vertices split along UV seams) are put together along them
         first and placed as one (each placed on its own, a rolled sheet cut in two opened by
         0.9–11 % of its diagonal); a warning names pieces joined along a seam too straight to
-        hold the angle between them, which the differences (per piece) do not hold either."""
+        hold the angle between them, which the differences (per piece) do not hold either; where
+        ``exact`` (``positions`` from exact differences), a seam whose sides differ is left apart."""
         labels = self.vertex_components
         placed = align_components(positions, target, labels, weights=self.vertex_weights)
         if not glue_seams or self.seam_twins is None:
             return placed
-        glued, labels, hinges, opened = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights)
+        glued, labels, hinges, opened = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights,
+                                                         find_opened=exact)
         if opened:
             warnings.warn(
-                f"{len(opened)} piece(s) of the mesh meet another along a seam in the base whose two sides "
-                "differ in this pose (the seam opens): they are placed on their own, nearest the base.",
+                f"{len(opened)} seam(s) between pieces of the mesh in the base have two sides that differ in "
+                "this pose (the seam opens): they are left apart, the pieces placed by their other seams or "
+                "nearest the base.",
                 ShapeDifferenceWarning, stacklevel=3)
         if hinges:
             warnings.warn(

@@ -201,7 +201,8 @@ SEAM_OPEN_SHARE = 0.05
 SEAM_HOLD_MISFITS = 10.0
 
 
-def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: np.ndarray):
+def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: np.ndarray, *,
+                     find_opened: bool = True):
     """Pieces (rows of equal ``labels`` (n,)) of ``positions`` (n, 3), each placed on its own, moved
     rigidly so that the ``twins`` (pairs from :func:`seam_twins`) meet, piece by piece outward from
     the heaviest of each group of pieces joined by seams (``weights`` (n,)): each piece's twins
@@ -210,8 +211,10 @@ def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: 
     (:func:`core.rigid_alignment.pivoted_alignment`). Returns the moved positions, the labels with
     glued pieces sharing one, the pairs of labels joined along a seam straight to within
     :data:`SEAM_HOLD_MISFITS` of the twins' misfit (their angle there is the one their own
-    placements gave, not the pose's: shape differences are computed per piece), and the pairs
-    left apart because the seam's sides differ in the pose (:data:`SEAM_OPEN_SHARE`)."""
+    placements gave, not the pose's: shape differences are computed per piece), and the pairs of
+    pieces whose seam is dropped because its sides differ in the pose (:data:`SEAM_OPEN_SHARE`;
+    only where ``find_opened``: an exact reconstruction, whose misfits are the pose's, not its own
+    error's)."""
     from .rigid_alignment import PIVOT_SPREAD, pivoted_alignment, rigid_alignment
 
     out, labels = positions.copy(), labels.copy()
@@ -236,17 +239,20 @@ def glue_along_seams(positions: np.ndarray, labels: np.ndarray, twins, weights: 
         moving, partner = np.where(fixed_a, b, a)[across], np.where(fixed_a, a, b)[across]
         piece = labels[moving[0]]
         moving, partner = moving[labels[moving] == piece], partner[labels[moving] == piece]
+        if find_opened:  # seams whose two sides differ in the pose: their pairs are dropped
+            gone = _opened_seams(out, pieces, moving, partner)
+            if gone:
+                opened += [(int(other), int(pieces[moving[0]])) for other in gone]
+                keep = ~(np.isin(pieces[a], gone) & np.isin(pieces[b], pieces[moving[0]])
+                         | np.isin(pieces[b], gone) & np.isin(pieces[a], pieces[moving[0]]))
+                a, b = a[keep], b[keep]
+                continue
         rows = np.flatnonzero(labels == piece)
         rotation, translation = rigid_alignment(out[moving], out[partner])
         joined = out[rows] @ rotation.T + translation
         misfit = np.sqrt(np.mean(np.sum((joined[np.searchsorted(rows, moving)] - out[partner]) ** 2, axis=1)))
         seam = out[partner] - out[partner].mean(axis=0)
         spread = np.linalg.svd(seam, compute_uv=False) / np.sqrt(partner.size)
-        if _seam_opens(out, pieces, moving, partner):  # the two sides differ: the seam opens in the pose
-            opened.append((int(labels[partner[0]]), int(piece)))
-            placed.add(int(piece))
-            roots.add(int(piece))
-            continue
         held = spread.size > 1 and spread[1] > max(PIVOT_SPREAD * np.linalg.norm(np.ptp(out[rows], axis=0)),
                                                    SEAM_HOLD_MISFITS * misfit)
         # a seam that does not hold the angle: its line (or point) is the pivot of the turn left free
@@ -308,13 +314,13 @@ def _close_rings(out: np.ndarray, pieces: np.ndarray, a: np.ndarray, b: np.ndarr
         largest = now
 
 
-def _seam_opens(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partner: np.ndarray) -> bool:
-    """Whether, along any one seam between the piece of the twins ``moving`` and a piece of their
-    ``partner`` twins, the two sides fitted onto each other stay apart by more than
-    :data:`SEAM_OPEN_SHARE` of the seam's length (RMS): its sides differ in the pose. Seam by seam:
-    a piece closing a ring meets two pieces whose places may not fit it yet."""
+def _opened_seams(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partner: np.ndarray) -> list:
+    """The pieces of the ``partner`` twins whose seam with the piece of the ``moving`` twins opens:
+    its two sides, fitted onto each other, stay apart by more than :data:`SEAM_OPEN_SHARE` of the
+    seam's length (RMS). Seam by seam: one seam that opens leaves the piece's others glued."""
     from .rigid_alignment import rigid_alignment
 
+    gone = []
     for other in np.unique(pieces[partner]):
         mine = pieces[partner] == other
         source, target = out[moving[mine]], out[partner[mine]]
@@ -322,6 +328,5 @@ def _seam_opens(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partner
         misfit = np.sqrt(np.mean(np.sum((source @ rotation.T + translation - target) ** 2, axis=1)))
         length = np.sqrt(np.mean(np.sum((target - target.mean(axis=0)) ** 2, axis=1)))
         if misfit > SEAM_OPEN_SHARE * length:
-            return True
-    return False
-
+            gone.append(int(other))
+    return gone
