@@ -217,7 +217,8 @@ EIGEN_TITLES = {kind: kind.replace("_", " ").title() for kind in KINDS}
 MAPS = (
     ("Area", "area_change_vertices", "area_change_faces", True, 0.0, "round_off_vertices", "round_off_faces"),
     ("Conformal", "conformal_vertices", "conformal_faces", False, 1.0, "round_off_vertices", "round_off_faces"),
-    ("Bending", "bending_vertices", "bending_faces", True, 0.0, "bending_round_off_vertices", "bending_round_off_faces"),
+    ("Bending", "bending_vertices", "bending_faces", True, 0.0,
+     "bending_round_off_vertices", "bending_round_off_faces"),
 )
 
 
