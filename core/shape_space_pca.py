@@ -185,7 +185,13 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     k_M, k_N = basis_sizes(k_M, k_N)
     if k_N is not None and k_N < k_M:
         raise MeshError(f"k_N (target basis, {k_N}) must be at least k_M (base basis, {k_M}).")
-    reference = ReferenceShape(poses[0], triangles, offset=offset)
+    try:
+        reference = ReferenceShape(poses[0], triangles, offset=offset)
+    except MeshError as error:
+        if "no edge shared by two triangles" not in str(error):
+            raise
+        raise MeshError("A shape space compares the poses' offset surfaces too, which need an edge shared by "
+                        "two triangles; no triangles of this mesh share an edge. Use a connected surface.") from None
     reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     with single_threaded_blas():

@@ -121,6 +121,10 @@ def test_bad_inputs_name_the_problem(bump_collection):
         space.coordinates("volume")
     with pytest.raises(core.MeshError, match="dims must be at least 1"):
         space.coordinates("area", 0)
+    # faces that share no edge: no offset surface, and no advice to turn off what cannot be turned off
+    scraps = np.array([(0, 0, 0), (1, 0, 0), (0, 1, 0), (2, 0, 0), (3, 0, 0), (2, 1, 0)], dtype=float)
+    with pytest.raises(core.MeshError, match="no triangles of this mesh share an edge. Use a connected surface.$"):
+        core.shape_space([scraps, 1.1 * scraps], [[0, 1, 2], [3, 4, 5]], k_M=3, k_N=None)
     # a basis too large for the mesh: no advice to use the full basis, which a shape space refuses
     with pytest.raises(core.MeshError, match=r"at most 195 .* exist\. Lower it\.$"):
         core.shape_space(poses[:3], t, k_M=400, k_N=500)
