@@ -374,13 +374,15 @@ def follow_frame(scene, _depsgraph=None):
         mesh = obj.data if obj.type == 'MESH' else None
         if mesh is None or FRAME_MAPS_PROPERTY not in mesh:
             continue
-        frames = sorted(int(frame) for frame in mesh[FRAME_MAPS_PROPERTY]["frames"])
-        shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
         active = mesh.color_attributes.active_color
         kind = next((name for name, *_ in MAPS if active is not None
                      and re.fullmatch(rf"SD {name} f-?\d+", active.name)), None)
         if kind is None:  # another colour attribute was picked: leave it
             continue
+        # the frames mapped, by any run (an earlier run's maps stay beside a later one's)
+        found = (re.fullmatch(rf"SD {kind} f(-?\d+)", attribute.name) for attribute in mesh.color_attributes)
+        frames = sorted(int(match.group(1)) for match in found if match)
+        shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
         attribute = mesh.color_attributes.get(f"SD {kind} f{shown[-1]}")
         if attribute is not None and (active is None or active.name != attribute.name):
             mesh.color_attributes.active_color = attribute

@@ -109,6 +109,13 @@ def test_distortion_maps_of_frames(bpy_empty, extension):
     bpy.context.scene.frame_set(1)
     assert obj.data.color_attributes.active_color.name == "SD Bending f1"
     assert_unchanged(dict(before, frame=1), snapshot(bridge, obj))
+    # maps of a second run (frames 2 and 4) beside the first's: playback follows all of them (before,
+    # only the last run's frames: picking f1 at frame 1 and playing to 3 showed f4's)
+    bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=2, frame_end=4, frame_step=2,
+                                              k_m=15, eigenfunctions=0)
+    obj.data.color_attributes.active_color = obj.data.color_attributes["SD Area f1"]
+    bpy.context.scene.frame_set(3)
+    assert obj.data.color_attributes.active_color.name == "SD Area f3"
     # a colour attribute of the user's picked: it stays (before, a frame change replaced it by "SD Area f3")
     own = obj.data.color_attributes.new("Col", 'FLOAT_COLOR', 'POINT')
     obj.data.color_attributes.active_color = own
