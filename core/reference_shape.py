@@ -363,9 +363,13 @@ class ReferenceShape:
         ``exact`` (``positions`` from exact differences), a seam whose sides differ is left apart."""
         labels = self.vertex_components
         placed = align_components(positions, target, labels, weights=self.vertex_weights)
-        if not glue_seams or self.seam_twins is None:
+        twins, problem = self.seam_twins
+        if glue_seams and problem is not None:
+            warnings.warn(f"Some pieces of the mesh touch along seams but cannot be joined there ({problem}); "
+                          "they are placed on their own and the seams may open.", ShapeDifferenceWarning, stacklevel=3)
+        if not glue_seams or twins is None:
             return placed
-        glued, labels, hinges, opened = glue_along_seams(placed, labels, self.seam_twins, self.vertex_weights,
+        glued, labels, hinges, opened = glue_along_seams(placed, labels, twins, self.vertex_weights,
                                                          find_opened=exact)
         if opened:
             warnings.warn(
@@ -385,9 +389,9 @@ class ReferenceShape:
     @cached_property
     def seam_twins(self):
         """Pairs of vertices (compact indices) of different pieces that meet along seams in the
-        base (:func:`core.seams.seam_twins`), or None."""
+        base, or None, and why they cannot be joined, or None (:func:`core.seams.seam_twins`)."""
         if len(np.unique(self.vertex_components)) < 2:
-            return None
+            return None, None
         return seam_twins(self.base.positions, self.topology)
 
 
