@@ -29,16 +29,16 @@ import scipy.linalg as sla
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
-from .seams import coordinate_rounding, triangle_round_off
+from .seams import coordinate_rounding, inverse_heights
 from .shape_space_pca import KINDS, check_kind
 from .validation import check_count
 
 #: Default basis size for the eigenfunctions of the difference operators.
 DEFAULT_EIGEN_BASIS = 50
 #: Area change and conformal distortion per relative change of a triangle from the coordinates'
-#: rounding (:func:`core.seams.triangle_round_off`): float32 copies of a 2,000-vertex sphere, a
-#: 1,600-vertex sheet and cylinders of 32–128 sides with fan caps, turned and moved up to 1,000
-#: units, reached 1.2 of them (per face and per vertex).
+#: rounding (the rounding times :func:`core.seams.inverse_heights`): float32 copies of a
+#: 2,000-vertex sphere, a 1,600-vertex sheet and cylinders of 32–128 sides with fan caps, turned
+#: and moved up to 1,000 units, reached 1.2 of them (per face and per vertex).
 ROUND_OFF_VALUES = 2.5
 #: Bending per relative change of a triangle times ``1 + t / h`` (offset t, the triangle's smallest
 #: height h): the offset surface's triangles lie t out along normals that the rounding turns by
@@ -59,8 +59,8 @@ class Distortion:
     bending_faces: np.ndarray | None
     bending_vertices: np.ndarray | None
     #: Per face (m,) and per vertex (n,): the size of the area and conformal maps' values that the
-    #: rounding of the coordinates alone makes (:func:`core.seams.triangle_round_off` times
-    #: :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and the same for
+    #: rounding of the coordinates alone makes (the rounding times :func:`core.seams.inverse_heights`
+    #: times :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and the same for
     #: bending (:data:`BENDING_ROUND_OFF_VALUES`; None without the offset surface): a pose that only
     #: moves its mesh has maps of at most about this size, not zero.
     round_off_faces: np.ndarray
@@ -96,6 +96,7 @@ class DistortionAnalyzer:
         self.k = min(DEFAULT_EIGEN_BASIS, ref.topology.n_vertices - 1) if k is None else check_count(k, "k", minimum=1)
         self._k_given = k is not None
         self.single_precision = single_precision
+        self._inverse_heights = inverse_heights(ref.base.positions, ref.topology.triangles)  # the base's, every pose
         self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:
@@ -133,7 +134,7 @@ class DistortionAnalyzer:
             bending_vertices = np.where(base_vertex_sum > 0, bending_vertices - area_vertices, 0.0)
             bending_faces = np.where(base_face_sum > 0, bending_faces - area_faces, 0.0)
         rounding = coordinate_rounding([ref.base.positions, pose], self.single_precision)
-        relative = triangle_round_off(ref.base.positions, topo.triangles, rounding)  # rounding / h
+        relative = rounding * self._inverse_heights  # rounding / h
 
         def per_vertex(per_face):  # a vertex's values are base-area-weighted over its faces: so is their round-off
             return _scatter(ref, lumped_vertex_areas(topo.triangles, ref.base.areas * per_face,

@@ -102,9 +102,7 @@ class _Relative:
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
         against the median angle of the triangles' whole rotations from ``base`` to ``other``
         (from the trace of each rotation: three dot products per triangle)."""
-        frames, columns = df.plane_turned_frames(other.column_rows, self.turn), base.column_rows
-        trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
-        whole = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+        whole = _rotation_angles(df.plane_turned_frames(other.column_rows, self.turn), base.column_rows)
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
         pieces, count = topo.triangle_component, len(topo.components)
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
@@ -323,8 +321,7 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, tra
     frames, columns, pieces = df.plane_turned_frames(other.column_rows, turn), base.column_rows, topo.triangle_component
 
     def left_to_turn(fitted):  # per component: the triangles' rotations, the fit undone: median angle, near half turns
-        trace = sum(np.einsum("ij,ji->i", df.turned_rows(columns[c].T, fitted, pieces), frames[c]) for c in range(3))
-        angles = np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+        angles = _rotation_angles(frames, [df.turned_rows(columns[c].T, fitted, pieces).T for c in range(3)])
         count = len(topo.components)
         return grouped_medians(angles, pieces, count), np.bincount(pieces, angles > NEAR_HALF_TURN, count)
 
@@ -335,6 +332,13 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, tra
     rotations = np.where(use[:, None, None], held_rotations, rotations)
     translations = np.where(use[:, None], held_translations, translations)
     return rotations, translations, fit_misfits(topo, base.vertices, other.vertices, rotations, translations)
+
+
+def _rotation_angles(frames, columns) -> np.ndarray:
+    """The angle (m,) of each triangle's rotation taking the frame ``columns`` to ``frames`` (both
+    stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle."""
+    trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
+    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
 def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:

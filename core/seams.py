@@ -73,22 +73,24 @@ def coordinate_rounding(poses: list[np.ndarray], single: bool | None = None) -> 
     return float(np.finfo(np.float32 if single else np.float64).eps * largest)
 
 
-def triangle_round_off(pose: np.ndarray, triangles: np.ndarray, rounding: float) -> np.ndarray:
-    """Per triangle (m,) of ``pose`` (n, 3), what a coordinate ``rounding``
-    (:func:`coordinate_rounding`) can change its area and angles by, relatively: the rounding over
-    its smallest height (its longest edge over its doubled area). The height, not the shortest
-    edge: a long flat triangle (an n-gon's cap cut into a fan) turns by the rounding over its
-    height; over its shortest edge, a turned cylinder's caps read as distortion (21 of 252 faces)."""
+def inverse_heights(pose: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Per triangle (m,) of ``pose`` (n, 3), one over its smallest height (its longest edge over
+    its doubled area; inf for a flat one): times a coordinate rounding
+    (:func:`coordinate_rounding`), what the rounding can change its area and angles by,
+    relatively. The height, not the shortest edge: a long flat triangle (an n-gon's cap cut into
+    a fan) turns by the rounding over its height; over its shortest edge, a turned cylinder's caps
+    read as distortion (21 of 252 faces)."""
     a, b, c = (pose[triangles[:, k]] for k in range(3))
     longest = np.max([np.linalg.norm(p - q, axis=1) for p, q in ((a, b), (b, c), (c, a))], axis=0)
     doubled = np.linalg.norm(np.cross(b - a, c - a), axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(doubled > 0, rounding * longest / doubled, np.inf)
+        return np.where(doubled > 0, longest / doubled, np.inf)
 
 
 def relative_round_off(poses: list[np.ndarray], triangles: np.ndarray, single: bool | None = None,
                        offset: float | None = None) -> float:
-    """The area-weighted mean of :func:`triangle_round_off` over the triangles of the first of
+    """The area-weighted mean of the relative round-off (:func:`inverse_heights` times
+    :func:`coordinate_rounding`) over the triangles of the first of
     ``poses``: the size of the shape differences (averages over the mesh) that the rounding of the
     coordinates alone makes; with ``offset`` t, of the offset surface's (each triangle's times
     ``1 + t / h``, h its smallest height: the offset points lie t out along normals that the
@@ -99,7 +101,7 @@ def relative_round_off(poses: list[np.ndarray], triangles: np.ndarray, single: b
     a, b, c = (first[triangles[:, k]] for k in range(3))
     areas = np.linalg.norm(np.cross(b - a, c - a), axis=1)
     rounding = coordinate_rounding(poses, single)
-    noise = triangle_round_off(first, triangles, rounding)
+    noise = rounding * inverse_heights(first, triangles)
     if offset is not None and rounding > 0:
         noise = noise * (1.0 + offset * noise / rounding)
     finite = np.isfinite(noise)

@@ -194,19 +194,20 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                         "two triangles; no triangles of this mesh share an edge. Use a connected surface.") from None
     reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
+    compacts = []
     with single_threaded_blas():
         for index, pose in enumerate(poses):
             compact = reference.compact_pose(pose, name=f"key pose {index}")
+            compacts.append(compact)
             layers = [(reference.base, compact, KINDS[:2]),
                       (reference.offset_layer, reference.surface.positions(compact, reference.offset), KINDS[2:])]
             for layer, positions, kinds in layers:
                 for kind, difference in zip(kinds, pose_differences(layer, positions, k_M, k_N)):
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
-    compact = [reference.compact_pose(pose) for pose in poses]
     faces = reference.topology.triangles
-    space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compact, faces, single_precision),
-                       relative_round_off(compact, faces, single_precision, reference.offset))
+    space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compacts, faces, single_precision),
+                       relative_round_off(compacts, faces, single_precision, reference.offset))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
         warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",
