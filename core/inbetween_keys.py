@@ -316,6 +316,10 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, tra
             held[c] = True
             held_rotations[c], held_translations[c] = pivoted_alignment(base.vertices[rows], other.vertices[rows],
                                                                         base.vertices[pins], topo.weights[rows])
+    # a triangle's angle left to turn changes by at most the angle between the two fits (the
+    # triangle inequality of rotation angles), so pieces whose fits differ by PIN_FIT_MARGIN or less
+    # cannot take the pins' one: measured only where some piece's differ by more
+    held &= np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1) > PIN_FIT_MARGIN
     if not held.any():
         return rotations, translations, misfits
     frames, columns, pieces = df.plane_turned_frames(other.column_rows, turn), base.column_rows, topo.triangle_component

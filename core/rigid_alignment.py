@@ -96,8 +96,13 @@ def pivoted_alignment(source: np.ndarray, target: np.ndarray, pivots: np.ndarray
     x, y = source - centre, target - centre
     if spread[0] > size:  # a line: the turn about it that best takes x to y
         axis = directions[0]
-        u, v = x - np.outer(x @ axis, axis), y - np.outer(y @ axis, axis)
-        angle = np.arctan2(weights @ (np.cross(u, v) @ axis), weights @ np.einsum("ij,ij->i", u, v))
+        # with the parts along the axis taken out, u × v · axis = det(axis, x, y) and
+        # u · v = x · y − (x · axis)(y · axis): the weighted sums from the weighted cross-covariance
+        covariance = (x.T * weights) @ y  # Σ w x yᵀ (3, 3)
+        along = axis @ covariance @ axis
+        sine = axis @ np.array([covariance[1, 2] - covariance[2, 1], covariance[2, 0] - covariance[0, 2],
+                                covariance[0, 1] - covariance[1, 0]])
+        angle = np.arctan2(sine, np.trace(covariance) - along)
         rotation = Rotation.from_rotvec(angle * axis).as_matrix()
     else:  # a point: the best turn about it
         rotation = nearest_rotations((y.T * weights) @ x)
