@@ -200,6 +200,37 @@ def test_a_head_thrown_while_it_spins_flies_on_its_path(gravity, step):
             assert np.abs(seq.pose(gap, s) - frame(step * (gap + s))).max() < 1e-9 * diagonal
 
 
+def _teeth(count=8, sides=8, radius=0.06, height=0.2):
+    """Separate prisms on a half circle of radius 1 about the z axis (teeth on a jaw)."""
+    ring = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    ring = np.c_[radius * np.cos(ring), radius * np.sin(ring)]
+    j = np.arange(sides)
+    k = (j + 1) % sides
+    one = np.r_[np.c_[j, k, sides + k], np.c_[j, sides + k, sides + j],
+                np.c_[np.full(sides, 2 * sides), k, j], np.c_[np.full(sides, 2 * sides + 1), sides + j, sides + k]]
+    vertices, triangles = [], []
+    for i, t in enumerate(np.linspace(0.0, np.pi, count)):
+        prism = np.r_[np.c_[ring, np.zeros(sides)], np.c_[ring, np.full(sides, height)], [[0, 0, 0], [0, 0, height]]]
+        vertices.append(prism + [np.cos(t), np.sin(t), 0.0])
+        triangles.append(one + i * (2 * sides + 2))
+    return np.vstack(vertices), np.vstack(triangles)
+
+
+@pytest.mark.parametrize("step", [30.0, 120.0])
+def test_separate_pieces_turning_together_about_an_axis_outside_each_turn_rigidly(step):
+    """Teeth turning with their jaw at constant speed about its axis, which passes through none of
+    them: the in-betweens of a sequence are the turn (before, a group's reach was its largest
+    piece's diagonal, the axis lay beyond it and the group followed its centroid's spline instead:
+    0.1 of the diagonal off at 120° per key)."""
+    a, tri = _teeth()
+    turn = lambda degrees: Rotation.from_rotvec(np.radians(degrees) * np.array([0.0, 0.0, 1.0])).as_matrix()
+    keys = [a @ turn(k * step).T for k in range(5)]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    for gap in range(len(keys) - 1):
+        assert np.abs(seq.pose(gap, 0.5) - a @ turn((gap + 0.5) * step).T).max() < 1e-9 * diagonal
+
+
 def test_a_swing_that_reverses_at_a_key_keeps_its_turning_direction():
     """Keys of a rigid mesh swinging about a pivot, the turn reversing at key 1 (angles 0.3, 0.5,
     0.4, 0.1 rad): the in-betweens of gap 1 are the rigid turns by the cubic Hermite spline of
