@@ -186,12 +186,14 @@ class ReferenceShape:
     ``vertices`` float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``; ``offset`` the distance t of
     the offset surface (``None``: :func:`default_offset`, half the mean edge length);
     ``use_extrinsic`` builds the offset layer. Loose vertices (in no triangle) are allowed: they
-    are left out of every computation and kept in place in results.
+    are left out of every computation and kept in place in results. ``name``: what error messages
+    call the vertices (an operator passes the pose's name).
     """
 
-    def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True):
+    def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True,
+                 name: str = "base vertices"):
         offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
-        vertices = check_vertices(vertices, name="base vertices")
+        vertices = check_vertices(vertices, name=name)
         full_topology = mesh_topology(triangles, vertices.shape[0])
         self.n_vertices = vertices.shape[0]
         self.vertices = vertices
@@ -206,7 +208,7 @@ class ReferenceShape:
         self.topology = topology
         self.triangles = full_topology.triangles
         self._full_topology = full_topology  # poses are checked in the user's numbering
-        base_positions = full_topology.check_pose(vertices, name="base vertices")[self.used_vertices]
+        base_positions = full_topology.check_pose(vertices, name=name)[self.used_vertices]
         self.offset = float(default_offset(base_positions, topology.triangles) if offset is None else offset)
         if not (np.isfinite(self.offset) and self.offset > 0):
             raise MeshError(f"The offset distance t must be a positive number; got {offset!r}.")
@@ -248,10 +250,12 @@ class ReferenceShape:
         return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0],
                                  full_basis=full_basis)
 
-    def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None) -> ShapeDifferences:
-        """The four differences (§6) of a target pose ``(n, 3)`` relative to this base."""
+    def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None,
+                          name: str = "target vertices") -> ShapeDifferences:
+        """The four differences (§6) of a target pose ``(n, 3)`` relative to this base (``name``:
+        what error messages call the pose)."""
         k_M, k_N = self.basis_sizes(k_M, k_N)
-        target = self.compact_pose(target_vertices)
+        target = self.compact_pose(target_vertices, name=name)
         area, conformal = self.base.differences(target, k_M, k_N)
         offset_area = offset_conformal = None
         if self.use_extrinsic:

@@ -135,10 +135,10 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         core = load_core()
         base = bridge.shape_key_positions(key_blocks[0], obj)
         use_extrinsic = options.pop("use_extrinsic")
-        reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles,
+        reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles, name="key pose 0",
                                             offset=options.pop("offset"), use_extrinsic=use_extrinsic)
         differences = yield from self.compute(0.2, reference.shape_differences,
-                                              bridge.shape_key_positions(key, obj), **options)
+                                              bridge.shape_key_positions(key, obj), name="key pose 1", **options)
         pose = yield from self.compute(0.5, core.reconstruct, base, triangles, differences)
         tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"
         self.summary = self.write_poses(

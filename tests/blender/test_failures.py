@@ -243,6 +243,19 @@ def test_degenerate_pose(bpy_empty, extension, core):
                          "shape key 'Collapsed': .*zero area .* Degenerate Dissolve", key_b="Collapsed")
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
                          "shape key 'Collapsed': .*zero area", key_a="Collapsed", key_b="Bend")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "shape key 'Collapsed': .*zero area", key="Collapsed")
+
+
+def test_reconstruct_names_the_shape_key_of_a_broken_pose(bpy_empty, extension):
+    """Reconstruct's messages name the shape key, as the other operators' do (before: "target
+    vertices", "base vertices")."""
+    obj = posed_grid(extension.bridge, 6)
+    broken = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks["Bend"])
+    broken[3, 0] = np.nan
+    add_key(obj, "Broken Pose", broken)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "shape key 'Broken Pose': vertex 3 has a non-finite coordinate", key="Broken Pose")
 
 
 def _sheet_with_an_ngon(n: int, cells: set, offset: float):
