@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 
+from . import deformation_fields as df
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
@@ -97,7 +98,7 @@ class DistortionAnalyzer:
         self._k_given = k is not None
         self.single_precision = single_precision
         self._inverse_heights = inverse_heights(ref.base.positions, ref.topology.triangles)  # the base's, every pose
-        self._base_local = _layouts(ref.base.squared_lengths[ref.topology.triangle_edges])
+        self._base_inverse = df.inverse_edge_rows(_tangent_coordinates(ref.base.positions, ref.topology.triangles))
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:
             surface = ref.surface
@@ -115,10 +116,9 @@ class DistortionAnalyzer:
         pose = ref.compact_pose(pose_vertices, name=name)
         topo = ref.topology
         areas = triangle_areas(pose, topo.triangles)
-        squared = topo.squared_edge_lengths(pose)
         area_faces = np.log(areas / ref.base.areas)
         area_vertices = np.log(lumped_vertex_areas(topo.triangles, areas, topo.n_vertices) / self._base_vertex_area)
-        conformal_faces = _conformal_ratio(self._base_local, squared[topo.triangle_edges])
+        conformal_faces = _conformal_ratio(self._base_inverse, _tangent_coordinates(pose, topo.triangles))
         # Base-area-weighted mean over each vertex's triangles (the thirds cancel).
         conformal_vertices = lumped_vertex_areas(topo.triangles, ref.base.areas * conformal_faces,
                                                  topo.n_vertices) / self._base_vertex_area
@@ -233,22 +233,20 @@ def _scatter(reference, values):
     return expand_vertex_values(reference.used_vertices, values, reference.n_vertices)
 
 
-def _layouts(squared):
-    """Edge vectors ``(m, 3, 2)`` of each triangle laid out in the plane (edge ``c`` opposite
-    corner ``c``, from corner c+1 to corner c+2)."""
-    from .pulled_back_metric import planar_layouts
-
-    corners = planar_layouts(squared)
-    return corners[:, [2, 0, 1]] - corners[:, [1, 2, 0]]
+def _tangent_coordinates(positions, triangles):
+    """Corner edges of each triangle in its own tangent basis (2, 3 corners, m), from the
+    positions: a triangle whose height is 1e-9 of its edges keeps it (laid out from its squared
+    edge lengths it came out flat and its conformal ratio's solve was singular)."""
+    return df.tangent_frame_rows(df.corner_edges(positions, triangles).transpose(2, 1, 0))[1]
 
 
-def _conformal_ratio(base_edges, pose_squared):
-    """σ₁/σ₂ of the map between two triangles known by their edges: the metric tensor G of the
-    pose in the base triangle's coordinates solves ``eᵀ G e = ℓ²`` for the three edges."""
-    ex, ey = base_edges[..., 0], base_edges[..., 1]
-    system = np.stack([ex * ex, 2.0 * ex * ey, ey * ey], axis=-1)  # (m, 3, 3)
-    g11, g12, g22 = np.moveaxis(np.linalg.solve(system, pose_squared[..., None])[..., 0], -1, 0)
-    half_trace = 0.5 * (g11 + g22)
-    root = np.sqrt(np.maximum(half_trace**2 - (g11 * g22 - g12 * g12), 0.0))
-    largest, smallest = half_trace + root, np.maximum(half_trace - root, DIVISION_FLOOR)
-    return np.sqrt(largest / smallest)
+def _conformal_ratio(base_inverse, pose_coordinates):
+    """σ₁/σ₂ (m,) of the deformation gradients ``J`` from the base triangles (``base_inverse``:
+    their inverse edge matrices, :func:`core.deformation_fields.inverse_edge_rows`) to the pose's
+    (``pose_coordinates``: :func:`_tangent_coordinates`): ``σ₁² / det J`` with ``σ₁²`` the larger
+    root of ``σ² − |J|²σ + det² = 0`` (no difference of nearly equal numbers)."""
+    a, b, c, d = df.planar_map_entries(pose_coordinates, base_inverse)
+    squared = a * a + b * b + c * c + d * d
+    det = np.abs(a * d - b * c)
+    largest = 0.5 * (squared + np.sqrt(np.maximum(squared * squared - 4.0 * det * det, 0.0)))
+    return largest / np.maximum(det, DIVISION_FLOOR * largest)

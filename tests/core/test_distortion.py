@@ -43,6 +43,20 @@ def test_a_stretch_along_x_is_conformal_distortion_two(sheet):
     assert np.allclose(d.area_change_faces, np.log(2.0), atol=1e-12)
 
 
+@pytest.mark.parametrize("height", [1e-3, 5e-10])
+def test_conformal_distortion_of_a_thin_triangle_is_its_singular_value_ratio(height):
+    """A triangle whose height is 5e-10 of its base passes the mesh checks; its conformal ratio is
+    that of the singular values of its deformation gradient (before: laid out from its squared
+    edge lengths it came out flat and the solve raised numpy's LinAlgError)."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0.5, height, 0], [0.5, 1, 0], [0.5, -1, 0.0]])
+    t = np.array([[0, 1, 2], [0, 2, 3], [2, 1, 3], [0, 4, 1]])
+    shear = np.array([[1.0, 0.3, 0.0], [0.0, 1.1, 0.0], [0.0, 0.0, 1.0]])
+    pose = v @ shear.T
+    d = core.distortion(v, pose, t)
+    singular = np.linalg.svd(shear[:2, :2], compute_uv=False)  # the same map on every triangle
+    assert np.allclose(d.conformal_faces, singular[0] / singular[1], rtol=1e-6)
+
+
 def test_mirror_image_bumps_have_the_same_metric_and_opposite_bending(sheet):
     v, t = sheet
     analyzer = DistortionAnalyzer(v, t)
