@@ -170,6 +170,8 @@ class WorldProportions:
         linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
         sigma = np.linalg.svd(linear, compute_uv=False)
         skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
+        if np.linalg.det(linear) < 0:  # mirrored: mirrored back in the world (an isometry there), so
+            linear[0] = -linear[0]     # the triangles keep their side (offset surfaces, bending's sign)
         self.matrix = linear.T if skewed else None  # row vectors: x ↦ x Lᵀ
         self.inverse = np.linalg.inv(linear).T if skewed else None
 

@@ -177,6 +177,29 @@ def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, ex
     assert np.abs(values).max() < 1e-5  # float32 keys
 
 
+def test_bending_of_a_swell_keeps_its_sign_on_a_mirrored_stretched_object(bpy_empty, extension):
+    """A sphere swelling outward near its top bends the same way on an object scaled (2, 1, 1)
+    and (−2, 1, 1) (before, the mirrored one was measured in world coordinates with its triangles
+    inside out: bending +0.31 against −0.52)."""
+    bending = []
+    for scale in ((2.0, 1.0, 1.0), (-2.0, 1.0, 1.0)):
+        bpy.ops.wm.read_homefile(use_empty=True)
+        bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.0)
+        obj = bpy.context.active_object
+        obj.scale = scale
+        bpy.context.view_layer.update()
+        rest = extension.bridge.vertex_positions(obj.data)
+        add_key(obj, "Swell", rest * (1.0 + 0.15 * np.exp(-8.0 * np.sum((rest - [0, 0, 1]) ** 2, axis=1)))[:, None])
+        obj.active_shape_key_index = 1
+        bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', eigenfunctions=0)
+        values = np.zeros(len(rest))
+        obj.data.attributes["sd_bending"].data.foreach_get("value", values)
+        bending.append(values)
+    top = np.argmax(rest[:, 2])
+    assert bending[0][top] > 0.1
+    assert np.allclose(bending[1], bending[0], atol=1e-5)
+
+
 def test_default_sizes_shrink_to_the_vertices_in_faces(bpy_empty, extension):
     """A 49-vertex sheet with 5 loose vertices: the default sizes shrink to 48 (before, to 53, which
     the core refused: "must be between 1 and 48; got 50" for sizes nobody set)."""
