@@ -16,8 +16,10 @@ it is; otherwise an in-between of a sequence (three keys or more, factor strictl
 is the metric fit with the fewest defects — a repair that leaves fewer counts only if it moves the
 pose by at most :data:`MAX_PARTIAL_REPAIR_MOVE` mean edge lengths: its neighbours in time are fits
 too, and a whole-pose substitute (the blend, a fit near it) or a large partial repair would jump
-away from them and back. Two poses and extrapolations try the metric fitted near the linear blend
-(strongly anchored), then the linear blend — two poses are held to the blend's error — and the first
+away from them and back; so is an extrapolation (beyond the keys the "blend" is the linear
+extrapolation, which lengthens whatever turns). The in-betweens of two poses try the metric fitted
+near the linear blend (strongly anchored), then the linear blend — they are held to the blend's
+error — and the first
 without defects is returned (the blend's defects include the triangles it crushes below
 :data:`CRUSHED_AREA` of their interpolated area where neither key has them so: a cloth turning
 between the keys, whose every chord the blend cuts); if none is, the metric fit with the fewest
@@ -234,7 +236,10 @@ class Repair:
             return looser, None
         if gap.use_extrinsic and x0 is not x and self.problem(x0, s, frames, stretch) is None:
             return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
-        if best is not None and self.in_sequence(s):  # keeps the metric, as its neighbours in time do
+        if best is not None and (self.in_sequence(s) or not 0.0 <= s <= 1.0):
+            # keeps the metric, as its neighbours in time do; beyond the keys the "blend" is the
+            # linear extrapolation, which lengthens whatever turns (×2 of a 100° elbow: a forearm
+            # 1.94 × its length held near it, "the interpolated metric fitted near the blend")
             return best[1], self.kept_message(problem, best[0])
         folds = self.defects(blend, s, None, stretch)
         # a fit held near a folded blend keeps its folds: tried only where the blend has fewer
