@@ -178,27 +178,33 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None)
 
 
 def seam_twins(base: np.ndarray, topology):
-    """Pairs of vertices ``(a, b)`` (int (p,) each) of different pieces that :func:`seam_weld` joins
-    in the pose ``base`` (n, 3) of ``topology``, and a problem (str) or None. All copies of a welded
-    vertex are paired with each other; a pair of pieces joined by a single pair (panels meeting
-    only at a corner, as the diagonal ones of four around one vertex do) is not a seam: glued by a
-    point, a 2 × 2 split sheet came back 0.55 % off. None without seams; with the problem where
-    joining them would not give a valid mesh (reversed panels, a triangle it would collapse)."""
+    """Pairs of vertices ``(a, b)`` (int (p,) each) of different pieces that meet along a seam in
+    the pose ``base`` (n, 3) of ``topology``, and a problem (str) or None: every pair of boundary
+    vertices of two pieces at one place (:func:`coincidence_tolerance`), also where the two sides
+    number their vertices differently (a T-junction: 9 vertices on one side, 5 on the other, each
+    of those on one of the 9; the edges do not match end for end, which :func:`seam_weld` needs,
+    and the panels were placed apart, the seam 0.37 open). Two pieces joined by a single pair
+    (panels meeting only at a corner, as the diagonal ones of four around one vertex do) are not
+    seamed: glued by a point, a 2 × 2 split sheet came back 0.55 % off. None without seams; with
+    the problem where welding them would not give a valid mesh (reversed panels, a triangle it
+    would collapse)."""
+    from scipy.spatial import cKDTree
+
     try:
-        weld = seam_weld([base], topology)
+        seam_weld([base], topology)
     except MeshError as error:
         return None, str(error)
-    if weld is None:
+    boundary = np.unique(topology.edges[topology.boundary_edges])
+    if boundary.size < 2:
         return None, None
+    pairs = cKDTree(base[boundary]).query_pairs(coincidence_tolerance(base, topology.edges), output_type="ndarray")
     _, labels = topology.components()
     piece = vertex_labels(topology.triangles, labels, topology.n_vertices)
-    order = np.argsort(weld.copies, kind="stable")
-    groups = np.split(order, np.flatnonzero(np.diff(weld.copies[order])) + 1)
-    pairs = np.array([(p, q) for group in groups if group.size > 1 for i, p in enumerate(group) for q in group[i + 1:]
-                      if piece[p] != piece[q]], dtype=np.int64).reshape(-1, 2)
+    pairs = boundary[pairs].reshape(-1, 2)
+    pairs = pairs[piece[pairs[:, 0]] != piece[pairs[:, 1]]]
     if not len(pairs):
         return None, None
-    ends = np.sort(np.stack([piece[pairs[:, 0]], piece[pairs[:, 1]]], axis=1), axis=1)
+    ends = np.sort(piece[pairs], axis=1)
     _, which, count = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
     pairs = pairs[count[which.ravel()] >= 2]
     return ((pairs[:, 0], pairs[:, 1]), None) if len(pairs) else (None, None)
