@@ -986,8 +986,15 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
     diagonals = topo.diagonals(base.vertices)
     scale = max(float(np.max(diagonals)), float(np.max(np.ptp(base.centroids, axis=0))), np.finfo(float).tiny)
     motions = np.concatenate([rotations[candidates].reshape(-1, 9), translations[candidates] / scale], axis=1)
-    _, group = np.unique(np.round(motions, 6), axis=0, return_inverse=True)
-    group = group.ravel()
+    # pieces whose motions are within 1e-6 of each other, linked: rounding them to 6 decimals split
+    # equal motions of float32 keys across a rounding boundary (a character's hat, spun rigidly with
+    # it, was turned about another point: 1.9e-2 off at the middle of one gap)
+    from scipy.spatial import cKDTree
+
+    from .seams import vertex_groups
+
+    pairs = cKDTree(motions).query_pairs(1e-6, output_type="ndarray")
+    group = vertex_groups(pairs[:, 0], pairs[:, 1], len(candidates))
     count = int(group.max()) + 1
     mass = topo.component_mass[candidates]
     first = candidates[np.unique(group, return_index=True)[1]]  # a member's motion stands for its group's
