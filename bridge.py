@@ -600,6 +600,10 @@ def copy_object_look(source: bpy.types.Object, obj: bpy.types.Object) -> None:
             setattr(obj, setting, getattr(source, setting))
 
 
+#: The largest scale of an NLA strip (Blender clamps it): an action plays at most this many times slower.
+NLA_MAX_SCALE = 1000.0
+
+
 def copy_object_motion(source: bpy.types.Object, obj: bpy.types.Object, start: float = 0.0,
                        speed: float = 1.0, source_end: float | None = None) -> None:
     """Give the new object ``obj`` what moves ``source`` as a whole, so that object-space

@@ -12,7 +12,8 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, playback_range,
                    require_count, surface_triangles)
-from .output import PoseWriter, frames_depend_on_earlier, modifiers_set_aside, unbaked_simulations
+from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion,
+                     unbaked_simulations)
 from .poses import format_factor, inbetween_name
 
 
@@ -210,8 +211,16 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         obj = context.active_object
         retime = load_core_retime()
         start, end = self.frame_range(context)
-        plan = retime.plan_retime(end - start + 1, self.frame_step, self.speed)
-        check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(self.speed)}",
+        # Blender keeps the speed in single precision (0.3 arrives as 0.30000001192): its shortest
+        # decimal, or 24 frames at 0.3 give 80 samples instead of 81 and the keys land off the frames
+        speed = float(str(np.float32(self.speed)))
+        plan = retime.plan_retime(end - start + 1, self.frame_step, speed)
+        if self.output != 'SHAPE_KEYS' and speed * bridge.NLA_MAX_SCALE < 1.0 and "keyframed" in object_motion(obj):
+            raise InputError(f"At speed {speed:g} the keyframed transform of '{obj.name}' would play "
+                             f"{1.0 / speed:g} times slower on the new object, and Blender's NLA slows an action "
+                             f"down {bridge.NLA_MAX_SCALE:g} times at most: use a speed of {1.0 / bridge.NLA_MAX_SCALE:g} "
+                             "or more")
+        check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(speed)}",
                      "raise the speed or retime a shorter range")
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj, self)
@@ -229,12 +238,12 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
             _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
             retimed.append(space.back(pose).astype(np.float32))  # what shape keys and point caches store
         out_frames = [float(start + k) for k in range(plan.n_out)]
-        speed = format_factor(self.speed)
+        shown_speed = format_factor(speed)
         self.summary = self.write_poses(
-            context, obj, retimed, names=[f"Retime {speed}x"] * plan.n_out,
+            context, obj, retimed, names=[f"Retime {shown_speed}x"] * plan.n_out,
             tails=[f" frame {frame:g}" for frame in out_frames], frames=out_frames, keyframe=True,
-            label=f"Retime {speed}x step {self.frame_step}", speed=self.speed)
-        if self.frame_step > 1 and self.speed < 1.0:  # slow motion from every n-th frame only
+            label=f"Retime {shown_speed}x step {self.frame_step}", speed=speed)
+        if self.frame_step > 1 and speed < 1.0:  # slow motion from every n-th frame only
             self.summary += (f"; frames between every {self.frame_step}th are rebuilt, not read: Step 1 keeps "
                              "every frame of the source")
         shown = playback_range(context.scene)[1]

@@ -301,7 +301,10 @@ class PoseWriter:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
-            self.cache_path(source.name, report=False)  # a path the system refuses: before any work
+            path, _ = self.cache_path(source.name, report=False)  # a path the system refuses: before any work
+            reason = unwritable(path)
+            if reason:
+                raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File")
             return
         require_local(source, source.data, "shape keys added to it are",
                       "Choose Output › Point Cache (a new object), or make")
@@ -427,8 +430,8 @@ class PoseWriter:
             from ..core.point_cache import write_pc2
             write_pc2(path, np.asarray(poses), start=start, sampling=sampling)
         except OSError as error:
-            raise InputError(f"Cannot write the cache file '{path}': {error.strerror or error}. "
-                             "Pick another Cache File") from None
+            reason = unwritable(path) or error.strerror or str(error)
+            raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File") from None
         modifiers, left_out = modifiers_under_keys(source) if keyed else (trailing_generators(source), [])
         try:
             obj = bridge.add_cache_object(context, source, name, stored_path, start, sampling,
@@ -479,6 +482,19 @@ def _own_motion(obj) -> dict[str, str]:
     if obj.constraints:
         out["constraints"] = "its constraints"
     return out
+
+
+def unwritable(path: Path) -> str | None:
+    """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
+    words, or None: the nearest existing folder on its way is a file, or not writable."""
+    existing = path.parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        return f"'{existing}' is a file, not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        return f"the folder '{existing}' is not writable (Permission denied)"
+    return None
 
 
 def object_motion(obj) -> dict[str, str]:

@@ -128,6 +128,39 @@ def test_retime_original_timing_and_faster(bpy_empty, extension, core, speed, fr
         np.testing.assert_allclose(playback[out_frame], source_frames[int(time)], atol=tolerance)
 
 
+def test_retime_at_a_speed_single_precision_cannot_hold_plays_every_frame(bpy_empty, extension, core, tmp_path):
+    """Speed 0.3 (kept by Blender as 0.30000001192) over 25 frames: 81 frames, the last one the
+    source's last (before: 80, the source's frame 25 never played, keys off by 7e-9)."""
+    from core.point_cache import read_pc2
+
+    source = armature_scene(frames=25)
+    last = evaluated_frames(extension.bridge, source, [25])[25]
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=25, frame_step=4, speed=0.3,
+                                     filepath=str(tmp_path / "out.pc2"))
+    new_object(names)
+    cache = read_pc2(tmp_path / "out.pc2")
+    assert cache.positions.shape[0] == 81
+    np.testing.assert_allclose(cache.positions[-1], last, atol=TOLERANCE)
+
+
+def test_cache_files_that_cannot_be_written_are_refused_before_any_work(bpy_empty, extension, core, tmp_path):
+    """A Cache File under a file (not a folder), or past Blender's NLA when the source's transform
+    is keyframed (speed under 0.001): refused before anything is computed, nothing added."""
+    source = armature_scene(frames=9)
+    (tmp_path / "afile").write_text("x")
+    names = set(bpy.data.objects.keys())
+    with pytest.raises(RuntimeError, match="afile' is a file, not a folder"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
+                                         filepath=str(tmp_path / "afile" / "out.pc2"))
+    source.animation_data_create().action = bpy.data.actions.new("Move")
+    source.keyframe_insert("location", frame=1)
+    with pytest.raises(RuntimeError, match="NLA slows an action down 1000 times at most"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.0005,
+                                         filepath=str(tmp_path / "slow.pc2"))
+    assert set(bpy.data.objects.keys()) == names
+
+
 def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
     """Frames 1–12 keyed every 4th: the last gap (9 → 12) is three frames long and keyed by its own
     sequence on frames 3, 6, 9, 12 (core.retime.short_gap_keys), which the operators read too.
