@@ -44,6 +44,9 @@ class FrameRangeProperties:
         for name, frame in zip(("frame_start", "frame_end"), playback_range(context.scene)):
             if not self.properties.is_property_set(name):
                 setattr(self, name, frame)
+        if self.frame_start > self.frame_end:
+            raise InputError(f"The frame range starts at {self.frame_start}, after its end at {self.frame_end}: "
+                             "swap Start and End")
         return self.frame_start, self.frame_end
 
     def frames(self, context) -> list[int]:

@@ -178,6 +178,12 @@ def test_an_object_hidden_with_the_eye_icon_runs(bpy_empty, extension):
     assert np.abs(extension.bridge.stored_key_positions(key) - extension.bridge.vertex_positions(strip.data)).max() > 0.1
 
 
+def test_a_range_that_starts_after_its_end(bpy_empty, extension):
+    source = armature_scene(frames=9)
+    fails_without_change(extension.bridge, source, bpy.ops.shape_differences.retime,
+                         "starts at 9, after its end at 1: swap Start and End", frame_start=9, frame_end=1)
+
+
 @pytest.mark.parametrize("operator", ["inbetween", "inbetween_frames"])
 def test_count_zero_is_an_error(bpy_empty, extension, operator):
     obj = posed_grid(extension.bridge, 5)
