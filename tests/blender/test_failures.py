@@ -84,7 +84,7 @@ def test_too_few_frames(bpy_empty, extension):
     fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.inbetween_frames,
                          "give 1 frame, at least 2", frame_start=3, frame_end=3)
     fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.frames_to_shape_keys,
-                         "give 0 frames", frame_start=5, frame_end=2)
+                         "starts at 5, after its end at 2", frame_start=5, frame_end=2)
 
 
 @pytest.mark.parametrize("disabled", ["object", "collection", "excluded"])
