@@ -30,7 +30,7 @@ from . import deformation_fields as df
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
-from .seams import coordinate_rounding, inverse_heights
+from .seams import across_edges, coordinate_rounding, inverse_heights
 from .shape_space_pca import KINDS, check_kind
 from .validation import check_count
 
@@ -65,9 +65,10 @@ class Distortion:
     bending_vertices: np.ndarray | None
     #: Per face (m,) and per vertex (n,): the size of the area and conformal maps' values that the
     #: rounding of the coordinates alone makes (the rounding times :func:`core.seams.inverse_heights`
-    #: times :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and the same for
-    #: bending (:data:`BENDING_ROUND_OFF_VALUES`; None without the offset surface): a pose that only
-    #: moves its mesh has maps of at most about this size, not zero.
+    #: times :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and for
+    #: bending (:data:`BENDING_ROUND_OFF_VALUES`, from the thinnest of the face and the faces across
+    #: its edges, :func:`core.seams.across_edges`; None without the offset surface): a pose that
+    #: only moves its mesh has maps of at most about this size, not zero.
     round_off_faces: np.ndarray
     round_off_vertices: np.ndarray
     bending_round_off_faces: np.ndarray | None
@@ -102,12 +103,7 @@ class DistortionAnalyzer:
         self._k_given = k is not None
         self.single_precision = single_precision
         self._inverse_heights = inverse_heights(ref.base.positions, ref.topology.triangles)  # the base's, every pose
-        # a face's bending reads the offset surface's points above it and above the faces across its
-        # edges, each moved along its face's normal: their round-off is the thinnest one's
-        edges = ref.topology.triangle_edges
-        across = np.zeros(int(edges.max()) + 1 if edges.size else 0)
-        np.maximum.at(across, edges, self._inverse_heights[:, None])
-        self._ring_inverse_heights = across[edges].max(axis=1) if edges.size else self._inverse_heights
+        self._ring_inverse_heights = across_edges(self._inverse_heights, ref.topology.triangles)  # bending's
         self._base_inverse = df.inverse_edge_rows(_tangent_coordinates(ref.base.positions, ref.topology.triangles))
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:

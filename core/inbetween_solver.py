@@ -988,7 +988,7 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
     motions = np.concatenate([rotations[candidates].reshape(-1, 9), translations[candidates] / scale], axis=1)
     # pieces whose motions are within 1e-6 of each other, linked: rounding them to 6 decimals split
     # equal motions of float32 keys across a rounding boundary (a character's hat, spun rigidly with
-    # it, was turned about another point: 1.9e-2 off at the middle of one gap)
+    # it, was turned about another point: 1.5–1.9e-2 off at the middle of one gap)
     from scipy.spatial import cKDTree
 
     from .seams import vertex_groups

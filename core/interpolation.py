@@ -446,6 +446,14 @@ class SequenceInterpolator:
         with three or more in-betweens the reconstruction is solved at one to three of them and the
         others are predicted from those (:mod:`core.inbetween_prediction`, which gives the
         measurements against solving each); :meth:`pose` solves every pose."""
+        out, problems = self._poses(gap_index, factors)
+        for message in problems:
+            _warn(message)
+        return out
+
+    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[str]]:
+        """:meth:`poses` and the warnings' messages, not yet given (the caller warns: a warning
+        filter changed around the call would be the process's, not this thread's)."""
         gap_index, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
         gap = int(gap_index)
         if not 0 <= gap < len(self):
@@ -460,7 +468,7 @@ class SequenceInterpolator:
                 out[k] = self._given[gap + int(s)]
         if not between or self._hold(gap):  # a hold: the pose at every factor
             out[between] = self._given[gap]
-            return out if self._copies is None else out[:, self._copies]
+            return (out if self._copies is None else out[:, self._copies]), []
         # BLAS single-threaded meanwhile: its calls here are (n, 3) × (3, 3) products, which a
         # second BLAS thread does not speed up; its workers spin on the core the other half of the
         # work needs (10k hanging sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread)
@@ -468,13 +476,14 @@ class SequenceInterpolator:
             segment = self._gap(gap)
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
+        problems = []
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
             if self._origin is not None and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit
             if problem:
-                _warn(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
-        return out if self._copies is None else out[:, self._copies]
+                problems.append(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
+        return (out if self._copies is None else out[:, self._copies]), problems
 
     def pose_at(self, time: float) -> np.ndarray:
         """The pose at global ``time``: in the keys' own times where ``key_times`` was given, else
@@ -518,8 +527,8 @@ class Interpolator:
         self._squared = [np.sum((p[edges[:, 1]] - p[edges[:, 0]]) ** 2, axis=1) for p in poses]
 
     def _whole_sequence(self) -> SequenceInterpolator:
-        """The same keys with every piece's rotations taken whole; it shares the first's keys,
-        topology and factorizations, not its gaps."""
+        """The same keys with every piece's rotations taken whole; it shares the first's keys and
+        topology (its gap, and the gap's anchored system, are its own)."""
         if self._whole is None:
             whole = copy.copy(self._sequence)
             whole._whole_rotations = True
@@ -541,15 +550,15 @@ class Interpolator:
         by :data:`WHOLE_FIT_MARGIN`; the warnings are the kept fit's."""
         factor = check_factor(factor)
         first = self._sequence
-        if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic:
+        if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
             return first.pose(0, factor)
-        x, said = _with_warnings(first.pose, 0, factor)
+        (x,), said = first._poses(0, [factor])
         if not first._gap(0).whole_rotations.all():
-            y, other = _with_warnings(self._whole_sequence().pose, 0, factor)
+            (y,), other = self._whole_sequence()._poses(0, [factor])
             if self._misfit(y, factor) < self._misfit(x, factor) - WHOLE_FIT_MARGIN:
                 x, said = y, other
-        for warning in said:
-            warnings.warn_explicit(warning.message, warning.category, warning.filename, warning.lineno)
+        for message in said:
+            _warn(message)
         return x
 
 
@@ -564,14 +573,6 @@ class Interpolator:
 #: 16; worse: lifted sheet g = 16 0.934 → 0.962 (one of its 9 pairs); nine other cloths within
 #: ±0.001. Rigid motions, half turns and bends keep the first fit (their misfits are equal).
 WHOLE_FIT_MARGIN = 0.005
-
-
-def _with_warnings(function, *arguments):
-    """``function(*arguments)`` and the warnings it raised (not shown)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        out = function(*arguments)
-    return out, caught
 
 
 def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,

@@ -87,14 +87,29 @@ def inverse_heights(pose: np.ndarray, triangles: np.ndarray) -> np.ndarray:
         return np.where(doubled > 0, longest / doubled, np.inf)
 
 
+def across_edges(values: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Per triangle (m,), the largest of ``values`` (m,) over it and the triangles sharing an edge
+    with it: the offset surface's points above a triangle and above those across its edges move
+    with their normals, so its bending's round-off is the thinnest one's
+    (:func:`inverse_heights`)."""
+    if not len(triangles):
+        return np.asarray(values, dtype=float)
+    ends = np.sort(triangles[:, [[0, 1], [1, 2], [2, 0]]], axis=2).reshape(-1, 2)
+    edge = np.unique(ends, axis=0, return_inverse=True)[1].reshape(-1, 3)
+    largest = np.full(int(edge.max()) + 1, -np.inf)
+    np.maximum.at(largest, edge, np.asarray(values, dtype=float)[:, None])
+    return largest[edge].max(axis=1)
+
+
 def relative_round_off(poses: list[np.ndarray], triangles: np.ndarray, single: bool | None = None,
                        offset: float | None = None) -> float:
     """The area-weighted mean of the relative round-off (:func:`inverse_heights` times
     :func:`coordinate_rounding`) over the triangles of the first of
     ``poses``: the size of the shape differences (averages over the mesh) that the rounding of the
     coordinates alone makes; with ``offset`` t, of the offset surface's (each triangle's times
-    ``1 + t / h``, h its smallest height: the offset points lie t out along normals that the
-    rounding turns by its size over h)."""
+    ``1 + t / h``, h the smallest height of it and the triangles across its edges,
+    :func:`across_edges`: the offset points lie t out along normals that the rounding turns by its
+    size over h)."""
     if not poses or not len(triangles):
         return 0.0
     first = poses[0]
@@ -103,6 +118,7 @@ def relative_round_off(poses: list[np.ndarray], triangles: np.ndarray, single: b
     rounding = coordinate_rounding(poses, single)
     noise = rounding * inverse_heights(first, triangles)
     if offset is not None and rounding > 0:
+        noise = rounding * across_edges(noise / rounding, triangles)
         noise = noise * (1.0 + offset * noise / rounding)
     finite = np.isfinite(noise)
     return float(areas[finite] @ noise[finite] / areas[finite].sum()) if areas[finite].sum() > 0 else 0.0
@@ -343,9 +359,9 @@ def _close_rings(out: np.ndarray, pieces: np.ndarray, a: np.ndarray, b: np.ndarr
 def _opened_seams(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partner: np.ndarray):
     """Which of the twins ``moving`` / ``partner`` (p,) part in the pose (bool (p,)), and the pieces
     of the ``partner`` twins whose whole seam with the piece of the ``moving`` twins opens (list).
-    Seam by seam, its two sides fitted onto each other, the twins farthest apart are let go one by
-    one while they stay apart by over :data:`SEAM_OPEN_SHARE` of the seam's length; where that
-    would let most of them go the seam opens. A sewn seam whose pieces also touch at a few points
+    Seam by seam, its two sides fitted onto each other, the twins farthest apart are let go while
+    they stay apart by over :data:`SEAM_OPEN_SHARE` of the seam's length; where that would let
+    most of them go, or leave a single twin, the seam opens. A sewn seam whose pieces also touch at a few points
     that part (the corners of a vent) stays glued where it is sewn; one seam that opens leaves the
     piece's others glued."""
     from .rigid_alignment import rigid_alignment
@@ -359,13 +375,18 @@ def _opened_seams(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partn
             rotation, translation = rigid_alignment(source, target)
             apart = np.linalg.norm(out[moving[seam]] @ rotation.T + translation - out[partner[seam]], axis=1)
             length = np.sqrt(np.mean(np.sum((target - target.mean(axis=0)) ** 2, axis=1)))
-            worst = int(np.argmax(np.where(kept, apart, -np.inf)))
-            if apart[worst] <= SEAM_OPEN_SHARE * length:
+            if np.max(apart[kept]) <= SEAM_OPEN_SHARE * length:
                 parting[seam[~kept]] = True
                 break
-            if 2 * (np.count_nonzero(~kept) + 1) > seam.size:  # most of it parts: the seam opens
+            # let go the farthest tenth of the twins apart by more than that (at least the farthest:
+            # a seam of thousands that opens costs a few fits, not one per twin); where most of it
+            # would part, or a single twin stay (a point is no seam), the seam opens
+            apart_kept = np.where(kept, apart, -np.inf)
+            over = np.count_nonzero(apart_kept > SEAM_OPEN_SHARE * length)
+            let_go = np.argsort(apart_kept)[::-1][:max(1, over // 10)]
+            if 2 * (np.count_nonzero(~kept) + let_go.size) > seam.size or np.count_nonzero(kept) - let_go.size < 2:
                 parting[seam] = True
                 gone.append(int(other))
                 break
-            kept[worst] = False
+            kept[let_go] = False
     return parting, gone

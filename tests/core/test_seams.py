@@ -222,6 +222,25 @@ def test_a_sewn_seam_stays_glued_where_its_pieces_also_touch_at_points_that_part
     _reconstructs_without_warning(v, f, _bent_and_rolled(q))
 
 
+def test_a_seam_of_two_twins_whose_sides_differ_opens():
+    """Two triangles joined by a seam of two twins, its sides 1.0 and 1.1 long in the pose: the
+    seam opens (letting one twin go would glue them by a point, which is no seam), and a seam of
+    4,000 twins that opens is found with a few fits, not one per twin."""
+    from core.seams import glue_along_seams
+
+    pose = np.array([[0, 0, 0], [1, 0, 0], [0.5, -1, 0], [0, 0.3, 0], [1.1, 0.3, 0], [0.5, 1.3, 0]], float)
+    labels = np.array([0, 0, 0, 1, 1, 1])
+    _, _, hinges, opened = glue_along_seams(pose, labels, (np.array([0, 1]), np.array([3, 4])), np.ones(6))
+    assert opened == [(0, 1)] and not hinges
+    t = np.linspace(0.0, 1.0, 4000)
+    side = np.c_[t, np.zeros_like(t), np.zeros_like(t)]
+    pose = np.r_[side, side * [1.2, 1.0, 1.0] + [0.0, 0.5, 0.0]]  # the second side 20 % longer
+    labels = np.repeat([0, 1], t.size)
+    _, _, _, opened = glue_along_seams(pose, labels, (np.arange(t.size), t.size + np.arange(t.size)),
+                                       np.ones(2 * t.size))
+    assert opened == [(0, 1)]
+
+
 def test_reconstruction_glues_every_garment_and_warns_where_a_seam_holds_no_angle():
     """Two garments of two panels each in one mesh: both seams are closed (before, only the group
     of the heaviest panel was glued; the other seam stayed open by 3 % of the diagonal, silently).
