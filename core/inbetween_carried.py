@@ -39,9 +39,14 @@ CARRIER_NEIGHBOURS = 3
 #: a piece that moves on its own misses by more than its size).
 CARRIED_TOLERANCE = 0.25
 #: Fewest carriers, and their least spread: the second singular value of their centred positions
-#: over the piece's diagonal (collinear carriers leave a turn about their line free).
+#: over their first (collinear carriers leave a turn about their line free) and over the piece's
+#: diagonal (a turn read off a speck moves the piece's far end by the speck's error times their
+#: ratio). Until session 51 one test, 0.05 of the piece's diagonal: a sword 0.70 long in a hand whose
+#: 16 carriers spread 0.035 / 0.032 was not carried, and ×2 of a wave left it 0.11 from the hand
+#: (the simulated 0.008); carried, 0.009 (its offset from the hand 0.18 → 0.026 off).
 MIN_CARRIERS = 4
 MIN_CARRIER_SPREAD = 0.05
+MIN_CARRIER_SIZE = 0.01
 
 
 class CarriedPieces:
@@ -130,10 +135,10 @@ class CarriedPieces:
         for a in range(3):
             for b in range(3):
                 scatter[:, a, b] = np.bincount(seat_piece, centred[:, a] * centred[:, b], minlength=count)
-        # the second singular value of the centred carriers
-        spread = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter)[:, 1], 0.0))
-        usable = (diagonal > 0) & (counts >= MIN_CARRIERS) \
-            & (spread / np.sqrt(np.maximum(counts, 1)) >= MIN_CARRIER_SPREAD * diagonal)
+        # the singular values of the centred carriers (RMS over them): second against first and size
+        singular = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter), 0.0) / np.maximum(counts, 1)[:, None])
+        usable = (diagonal > 0) & (counts >= MIN_CARRIERS) & (singular[:, 1] >= MIN_CARRIER_SPREAD * singular[:, 2]) \
+            & (singular[:, 1] >= MIN_CARRIER_SIZE * diagonal)
         rotations, translations = rigid_alignments(seated, nxt[carriers], seat_piece, count)
         moved = np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece]
         miss = np.abs(moved - nxt[rows]).max(axis=1)

@@ -309,6 +309,29 @@ def _arm_with_hand(angle):
     return np.vstack([x, hand]), np.vstack([tri, hand_tri + len(straight)]), end, len(straight) + np.arange(len(hand))
 
 
+@pytest.mark.parametrize("factor", [0.5, 2.0])
+def test_a_long_piece_held_at_the_forearms_end_stays_on_it(factor):
+    """A sword (a separate box 2.0 long, as long as the arm) whose hilt lies on the end of a
+    forearm bent by 100°: carried by the forearm's end, whose spread is small against the sword (before, carriers
+    had to spread 5 % of the piece's own diagonal: not carried, the sword on its own screw motion,
+    as a probe's rigged character's 0.70 sword in its hand, 0.11 from the hand at ×2)."""
+    straight, tri = _arm(0.0)
+    box = np.array([[x, y, z] for x in (1.8, 3.8) for y in (-0.1, 0.1) for z in (0.01, 0.05)])
+    faces = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    end = np.flatnonzero(straight[:, 0] > 1.7)
+
+    def posed(angle):
+        x = _arm(angle)[0]
+        rotation, translation = rigid_alignment(straight[end], x[end])
+        return np.vstack([x, box @ rotation.T + translation])
+
+    t = np.vstack([tri, faces + len(straight)])
+    a, b = posed(0.0), posed(np.radians(100.0))
+    sword = len(straight) + np.arange(len(box))
+    assert _hand_off_the_forearm(a, Interpolator(a, b, t).pose(factor), end, sword) < 1e-4
+
+
 def _hand_off_the_forearm(rest, pose, end, hand):
     """Largest distance (÷ the diagonal) of the ``hand``'s vertices from where the forearm
     ``end``'s best rigid motion from ``rest`` to ``pose`` takes them."""
