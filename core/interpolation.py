@@ -553,9 +553,11 @@ class Interpolator:
         if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
             return first.pose(0, factor)
         (x,), said = first._poses(0, [factor])
-        if not first._gap(0).whole_rotations.all():
+        misfit = self._misfit(x, factor)
+        # a first fit within the margin of the metric cannot be bettered by it: no second fit
+        if misfit > WHOLE_FIT_MARGIN and not first._gap(0).whole_rotations.all():
             (y,), other = self._whole_sequence()._poses(0, [factor])
-            if self._misfit(y, factor) < self._misfit(x, factor) - WHOLE_FIT_MARGIN:
+            if self._misfit(y, factor) < misfit - WHOLE_FIT_MARGIN:
                 x, said = y, other
         for message in said:
             _warn(message)
