@@ -360,8 +360,9 @@ def _opened_seams(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partn
     """Which of the twins ``moving`` / ``partner`` (p,) part in the pose (bool (p,)), and the pieces
     of the ``partner`` twins whose whole seam with the piece of the ``moving`` twins opens (list).
     Seam by seam, its two sides fitted onto each other, the twins farthest apart are let go while
-    they stay apart by over :data:`SEAM_OPEN_SHARE` of the seam's length; where that would let
-    most of them go, or leave a single twin, the seam opens. A sewn seam whose pieces also touch at a few points
+    they stay apart by over :data:`SEAM_OPEN_SHARE` of the seam's length, and those the fit of the
+    rest brings within it taken back; where most of them go, or a single twin would stay, the seam
+    opens. A sewn seam whose pieces also touch at a few points
     that part (the corners of a vent) stays glued where it is sewn; one seam that opens leaves the
     piece's others glued."""
     from .rigid_alignment import rigid_alignment
@@ -370,23 +371,28 @@ def _opened_seams(out: np.ndarray, pieces: np.ndarray, moving: np.ndarray, partn
     for other in np.unique(pieces[partner]):
         seam = np.flatnonzero(pieces[partner] == other)
         kept = np.ones(seam.size, dtype=bool)
-        while True:
+        for _ in range(100):  # each round lets twins go or takes some back (a few rounds in practice)
             source, target = out[moving[seam[kept]]], out[partner[seam[kept]]]
             rotation, translation = rigid_alignment(source, target)
             apart = np.linalg.norm(out[moving[seam]] @ rotation.T + translation - out[partner[seam]], axis=1)
             length = np.sqrt(np.mean(np.sum((target - target.mean(axis=0)) ** 2, axis=1)))
-            if np.max(apart[kept]) <= SEAM_OPEN_SHARE * length:
-                parting[seam[~kept]] = True
+            meet = apart <= SEAM_OPEN_SHARE * length
+            if meet[kept].all():
+                if (meet & ~kept).any():  # twins let go while the fit was pulled by the others
+                    kept |= meet
+                    continue
                 break
-            # let go the farthest tenth of the twins apart by more than that (at least the farthest:
-            # a seam of thousands that opens costs a few fits, not one per twin); where most of it
-            # would part, or a single twin stay (a point is no seam), the seam opens
+            # let go the farthest tenth of those apart (at least the farthest: a seam of thousands
+            # that opens costs a few fits, not one per twin)
             apart_kept = np.where(kept, apart, -np.inf)
-            over = np.count_nonzero(apart_kept > SEAM_OPEN_SHARE * length)
-            let_go = np.argsort(apart_kept)[::-1][:max(1, over // 10)]
-            if 2 * (np.count_nonzero(~kept) + let_go.size) > seam.size or np.count_nonzero(kept) - let_go.size < 2:
-                parting[seam] = True
-                gone.append(int(other))
+            let_go = np.argsort(apart_kept)[::-1][:max(1, np.count_nonzero(kept & ~meet) // 10)]
+            if np.count_nonzero(kept) - let_go.size < 2:  # a single twin is no seam
+                kept[:] = False
                 break
             kept[let_go] = False
+        if 2 * np.count_nonzero(~kept) > seam.size:  # most of it parts: the seam opens
+            parting[seam] = True
+            gone.append(int(other))
+        else:
+            parting[seam[~kept]] = True
     return parting, gone

@@ -241,6 +241,22 @@ def test_a_seam_of_two_twins_whose_sides_differ_opens():
     assert opened == [(0, 1)]
 
 
+@pytest.mark.parametrize("amount", [0.3, 3.0])
+def test_a_seam_opening_over_less_than_half_its_length_stays_sewn_below(amount):
+    """Two panels sewn along x = 1 (41 twins), the pose opening the top 18 twins (44 %): the 23
+    below stay sewn and the pose is exact (letting the twins go a tenth at a time, the fit pulled
+    by the opening let sewn twins go too and the whole seam "opened": 0.15 of the diagonal off)."""
+    (left, left_tri), (right, right_tri) = grid(9, 41), grid(9, 41)
+    left[:, 1] /= left[:, 1].max()
+    right[:, 1] /= right[:, 1].max()
+    right[:, 0] += 1.0
+    v, f = np.vstack([left, right]), np.vstack([left_tri, right_tri + len(left)])
+    q = v.copy()
+    on_right = np.arange(len(v)) >= len(left)
+    q[on_right, 0] += amount * np.clip(q[on_right, 1] - 0.55, 0, None) * np.exp(-3 * (q[on_right, 0] - 1))
+    _reconstructs_without_warning(v, f, _bent_and_rolled(q))
+
+
 def test_reconstruction_glues_every_garment_and_warns_where_a_seam_holds_no_angle():
     """Two garments of two panels each in one mesh: both seams are closed (before, only the group
     of the heaviest panel was glued; the other seam stayed open by 3 % of the diagonal, silently).
