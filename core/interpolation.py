@@ -548,7 +548,8 @@ class Interpolator:
         """0 → a, 1 → b, 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
         in-between of the full basis is fitted twice, with the rotations as residuals to each
         piece's rigid motion and taken whole, and the second kept where it keeps the metric better
-        by :data:`WHOLE_FIT_MARGIN`; the warnings are the kept fit's."""
+        by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
+        (:data:`WHOLE_FIT_BLEND_RATIO`); the warnings are the kept fit's."""
         factor = check_factor(factor)
         first = self._sequence
         if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
@@ -586,6 +587,7 @@ WHOLE_FIT_BLEND_RATIO = 1.25
 
 
 def _rms(d: np.ndarray) -> float:
+    """RMS over the rows of ``d`` (n, 3) of their lengths."""
     return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
 
 
