@@ -257,6 +257,21 @@ def test_a_seam_opening_over_less_than_half_its_length_stays_sewn_below(amount):
     _reconstructs_without_warning(v, f, _bent_and_rolled(q))
 
 
+def test_a_seam_whose_top_moved_off_as_a_block_stays_sewn_below():
+    """A curved seam of 2,000 twins whose top 30 % moved off as a block (keeping its own
+    distances): the 70 % below stay sewn (fits that let the farthest twins go were pulled by the
+    block and let sewn twins go too: the whole seam "opened")."""
+    from core.seams import glue_along_seams
+
+    t = np.linspace(0.0, 1.0, 2000)
+    side = np.c_[t, 0.2 * np.sin(3 * t), 0.1 * t ** 2]
+    other = side + np.where(t > 0.7, 1.0, 0.0)[:, None] * [0.0, 0.01, 0.003]
+    labels = np.repeat([0, 1], t.size)
+    _, glued, _, opened = glue_along_seams(np.r_[side, other], labels, (np.arange(t.size), t.size + np.arange(t.size)),
+                                           np.ones(2 * t.size))
+    assert not opened and len(np.unique(glued)) == 1
+
+
 def test_reconstruction_glues_every_garment_and_warns_where_a_seam_holds_no_angle():
     """Two garments of two panels each in one mesh: both seams are closed (before, only the group
     of the heaviest panel was glued; the other seam stayed open by 3 % of the diagonal, silently).
