@@ -103,7 +103,7 @@ class DistortionAnalyzer:
         self._k_given = k is not None
         self.single_precision = single_precision
         self._inverse_heights = inverse_heights(ref.base.positions, ref.topology.triangles)  # the base's, every pose
-        self._ring_inverse_heights = across_edges(self._inverse_heights, ref.topology.triangles)  # bending's
+        self._across_inverse_heights = across_edges(self._inverse_heights, ref.topology.triangles)  # bending's
         self._base_inverse = df.inverse_edge_rows(_tangent_coordinates(ref.base.positions, ref.topology.triangles))
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         if ref.use_extrinsic:
@@ -149,8 +149,8 @@ class DistortionAnalyzer:
         round_off = ROUND_OFF_VALUES * relative
         bending_round_off = None
         if ref.use_extrinsic and rounding > 0:  # 1 + t / h
-            ring = rounding * self._ring_inverse_heights
-            bending_round_off = BENDING_ROUND_OFF_VALUES * ring * (1.0 + ref.offset * ring / rounding)
+            across = rounding * self._across_inverse_heights
+            bending_round_off = BENDING_ROUND_OFF_VALUES * across * (1.0 + ref.offset * across / rounding)
         elif ref.use_extrinsic:
             bending_round_off = np.zeros_like(relative)
         return Distortion(

@@ -568,6 +568,9 @@ class _Gap(LocalGlobalFit):
                 if self.static is not None:  # still in both keys: held there as firmly as in sequences
                     weights = self.pinned_weights(weights)
                     co_moving = co_moving & ~self.static
+                # by value: the two fits of an Interpolator (core.interpolation) share their topology
+                # and mostly their weights, and then one factorization
+                key = ("anchored", weights.tobytes())
             else:  # sequences: one pattern for the whole sequence, factorized once
                 # the spline in the world where a component deforms, with its interpolated rigid
                 # motion undone where it moves rigidly (exact for rigid motions; mixed by its
