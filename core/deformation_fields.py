@@ -42,6 +42,16 @@ MAX_LOG_STRETCH = 30.0
 #: Rotations within this angle (radians) of a half turn may turn either way: both are as short.
 #: Far above rounding (1e-15) and far below any motion meant to turn one way.
 HALF_TURN_TOLERANCE = 1e-6
+#: A piece's rotation fitted to keys that are not exactly rigid is known to about its RMS misfit
+#: over its size (radians); this many times that is its ``spread`` (:func:`rigid_logs`), within
+#: which of a half turn it may turn either way too and of none it is none: float32 keys as Blender
+#: keeps them read a 0.2-wide piece 100 units out ~1e-5 rad "short of a half turn the other way"
+#: (turned against the rest of its mesh) and a card keyed two half turns on ~1e-6 rad about an
+#: axis of rounding (continued a whole turn about it, off its circle); 300 cards of 4 vertices 10
+#: units out: their angles' errors up to 30 × their misfit over size ...
+TURN_NOISE = 100.0
+#: ... but never more than this (radians): a piece deforming more turns the short way.
+TURN_SPREAD = 1e-2
 #: Rotations within this angle (radians) of none are the identity when a turn is continued
 #: (``unwrap``): the identity's representatives are ``2πk u`` for every axis ``u``, and the axis
 #: of a rotation vector of length ~1e-16 is rounding noise (a sheet keyed every half turn: its key
@@ -369,15 +379,16 @@ def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarr
 
 
 def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.ndarray | None = None,
-               unwrap: bool = False) -> np.ndarray:
+               unwrap: bool = False, spread: np.ndarray | float = 0.0) -> np.ndarray:
     """Screw coordinates ``(ω, v)`` (P, 6) of the rigid motions ``x ↦ R x + t`` (rotations
     (P, 3, 3), translations (P, 3)), the short way round. With ``references`` (rotation vectors
     (P, 3), or screw coordinates (P, 6) whose first three are one): a half turn (within
-    :data:`HALF_TURN_TOLERANCE` of π: both directions are as short) turns the way nearer to its
+    :data:`HALF_TURN_TOLERANCE` of π, or the row's ``spread`` (radians, per row or one for all: what
+    its rotation is known to), both directions are as short) turns the way nearer to its
     row, and with ``unwrap`` the representative ``ω + 2πk ω̂`` nearest to it is taken (a motion
     continuing across keys; k = −1 is the same rotation the other way round, ``−ω`` would be its
     inverse). A rotation within :data:`ZERO_TURN_TOLERANCE` of none continued a whole turn about
-    its reference's axis takes the part of ``v`` that no translation fixes there (``V(2πû)`` maps
+    its reference's axis (or within its ``spread``) takes the part of ``v`` that no translation fixes there (``V(2πû)`` maps
     it to zero) from a reference screw: the continuation of a turn about a fixed axis stays about
     that axis. ``v`` is the least-squares (minimum-norm) solution of ``V(ω) v = t``."""
     w = rotation_vectors(rotations)
@@ -388,11 +399,14 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
         turn = references[:, :3]
         theta = np.linalg.norm(w, axis=1)
         if unwrap:  # every row (a half turn with a null reference goes the first way, k = −1)
-            still = theta <= ZERO_TURN_TOLERANCE
+            # within its spread of none only where the reference is a whole turn or more (a
+            # small real turn continuing a small reference stays what it is)
+            still = (theta <= ZERO_TURN_TOLERANCE) | (
+                (theta <= spread) & (np.einsum("ij,ij->i", turn, turn) >= np.pi ** 2))
             w = _nearest_representatives(w, theta, turn, np.flatnonzero(still), np.flatnonzero(~still))
             whole_turn = still & w.any(axis=1)
         else:
-            half = (np.abs(theta - np.pi) < HALF_TURN_TOLERANCE) & (np.einsum("ij,ij->i", w, turn) < 0)
+            half = (np.abs(theta - np.pi) < np.maximum(HALF_TURN_TOLERANCE, spread)) & (np.einsum("ij,ij->i", w, turn) < 0)
             w = np.where(half[:, None], -w, w)
     a, b = _screw_coefficients(np.sqrt(np.einsum("ij,ij->i", w, w)))
     h = _hats(w)  # V(ω) = I + a [ω] + b [ω]²: the translation part of SE(3)'s exponential
@@ -412,13 +426,13 @@ def _hats(w: np.ndarray) -> np.ndarray:
     return h
 
 
-def least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+def least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray, cutoff: np.ndarray | float = SCREW_CUTOFF) -> np.ndarray:
     """The minimum-norm least-squares solutions (P, 3) of ``matrices`` (P, 3, 3) ``x = rhs``
-    (P, 3), singular values below :data:`SCREW_CUTOFF` times the largest dropped, by one batched
+    (P, 3), singular values below ``cutoff`` (per row or one) times the largest dropped, by one batched
     SVD. ``V(2πkû) = ûûᵀ`` has rank one: its two zero singular values come out at round-off
     (2e-16–3e-16 for k = 3), within a factor of three of NumPy's ``lstsq`` cutoff (3 ε)."""
     u, sigma, vt = np.linalg.svd(matrices)
-    cutoff = SCREW_CUTOFF * sigma[:, :1]
+    cutoff = np.reshape(cutoff, (-1, 1)) * sigma[:, :1]
     inverse = np.where(sigma > cutoff, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
     return np.einsum("pji,pj->pi", vt, inverse * np.einsum("pji,pj->pi", u, rhs))
 
@@ -467,11 +481,12 @@ def screw_left_jacobians(screws: np.ndarray) -> np.ndarray:
     return expm(block)[:, :6, 6:]
 
 
-def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple) -> np.ndarray:
+def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple, spread: np.ndarray | float = 0.0) -> np.ndarray:
     """Screw coordinates (P, 6) to stand in a Catmull–Rom spline of screws for keys two steps on,
     whose next keys are ``screws`` (P, 6) (the rigid motions ``motions``: rotations (P, 3, 3),
     translations (P, 3)) and which are the rigid motions ``farther``: ``J(S)⁻¹ (S + T)``, ``T``
-    the step from the next key on (the short way round; a half turn the way ``S`` turns). Half of
+    the step from the next key on (the short way round; a half turn, to within ``spread`` as
+    :func:`rigid_logs` takes it, the way ``S`` turns). Half of
     it, the spline's tangent at the next key, is there the velocity ``(S + T)/2`` that the next gap
     starts with, so the two meet with one velocity; and a piece that turns by nearly a whole turn
     over the two steps is never taken as one screw, whose ``V(ω)`` is nearly singular there (a ball
@@ -479,7 +494,7 @@ def continued_screws(screws: np.ndarray, motions: tuple, farther: tuple) -> np.n
     rotations, translations = motions
     step_rotations = matmul(farther[0], transpose(rotations))
     step_translations = farther[1] - np.einsum("pab,pb->pa", step_rotations, translations)
-    steps = rigid_logs(step_rotations, step_translations, screws)
+    steps = rigid_logs(step_rotations, step_translations, screws, spread=spread)
     return np.linalg.solve(screw_left_jacobians(screws), (screws + steps)[..., None])[..., 0]
 
 

@@ -258,7 +258,7 @@ class Repair:
                 return blend, f"{problem}; the metric fit near the linear blend failed too, returned the linear blend"
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
-                return y, (f"{problem}; every repair and fallback has defects too, returned {fitted}, which "
+                return y, (f"{problem}; no repair or fallback removed them all, returned {fitted}, which "
                            f"has the fewest ({count} flipped or collapsed triangle(s))")
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
@@ -277,7 +277,7 @@ class Repair:
     @staticmethod
     def kept_message(problem: str, count: int) -> str:
         """The warning's text when the metric fit with the fewest defects (``count``) is returned."""
-        return (f"{problem}; every repair and fallback has defects too, returned the metric fit with "
+        return (f"{problem}; no repair or fallback removed them all, returned the metric fit with "
                 f"the fewest ({count} flipped or collapsed triangle(s))")
 
     def imposed_fields(self, s, frames, stretch, blend):

@@ -21,7 +21,7 @@ from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, ver
 from .inbetween_carried import CarriedPieces
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, fit_tolerances
 from .inbetween_joints import JOINT_REACH, composed, joint_screws, joint_tree
-from .inbetween_keys import _Key, _Relative
+from .inbetween_keys import _Key, _Relative, _spread
 from .inbetween_repair import Region, Repair
 from .rigid_alignment import rigid_alignment
 from .sparse_cholesky import SPDFactor
@@ -458,7 +458,7 @@ class _Gap(LocalGlobalFit):
         self.splines = spline
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)  # per component, over the keys
         rigid = nonrigidity < RIGID_PLACEMENT_SCALE
-        self.flying = flying_groups(topo, relatives, rigid)  # before any motion is asked for
+        self.flying = flying_groups(topo, relatives, rigid, nonrigidity)  # before any motion is asked for
         if self.flying is not None:  # each flying group's point at the keys (the pieces' centroids elsewhere)
             labels, points = self.flying
             rows = np.flatnonzero(labels >= 0)
@@ -957,11 +957,13 @@ class _Gap(LocalGlobalFit):
         return result
 
 
-def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
+                  nonrigidity: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """The rigid pieces of a sequence's gap turned about the point of theirs whose path the keys
     say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
-    rigid motion from the gap's base key to its next, to 1e-6) or −1, and each group's point in
-    the base key; None where no piece has a key before or after the gap to tell.
+    rigid motion from the gap's base key to its next, to 1e-6 or what their fits are known to:
+    ``nonrigidity`` (C,) as :data:`~core.deformation_fields.TURN_NOISE` says) or −1, and each
+    group's point in the base key; None where no piece has a key before or after the gap to tell.
 
     A rigid piece's screw motion (:meth:`_Gap.motion`) turns it about one axis, which a door on
     its hinge or a wheel on its axle does; a body thrown while it spins turns about its centre as
@@ -996,7 +998,13 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
 
     from .seams import vertex_groups
 
-    pairs = cKDTree(motions).query_pairs(1e-6, output_type="ndarray")
+    # ... and within what the fits are known to: float32 keys of 300 cards, 10 units out and keyed
+    # every half turn, differ by ~1e-5, and each card alone turned about its centroid, off its circle
+    spread = np.maximum(_spread(nonrigidity[candidates]), 0.5e-6)
+    pairs = cKDTree(motions).query_pairs(2.0 * float(spread.max()), output_type="ndarray")
+    if len(pairs):
+        pairs = pairs[np.linalg.norm(motions[pairs[:, 0]] - motions[pairs[:, 1]], axis=1)
+                      <= spread[pairs[:, 0]] + spread[pairs[:, 1]]]
     group = vertex_groups(pairs[:, 0], pairs[:, 1], len(candidates))
     count = int(group.max()) + 1
     mass = topo.component_mass[candidates]
@@ -1027,7 +1035,11 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray) -> tuple[
         r0, t0 = before.motion[0][first], before.motion[1][first]
         a, b = r1 - 2.0 * eye + r0, t1 + t0
     residual = np.einsum("gab,gb->ga", a, centroid) + b
-    move = df.least_squares_3x3(a, -residual)  # the minimum-norm move from the centroid, all groups at once
+    # the minimum-norm move from the centroid, all groups at once; directions the keys fix only to
+    # within their fits' spread left out (a noisy half turn's axis: 1e-5 there sent the point 1e6 off)
+    group_spread = np.zeros(count)
+    np.maximum.at(group_spread, group, spread)
+    move = df.least_squares_3x3(a, -residual, np.maximum(df.SCREW_CUTOFF, group_spread))
     point = centroid + move
     simple = (np.linalg.norm(move, axis=1) <= reach) & (
         np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)

@@ -131,6 +131,28 @@ def test_rigid_sequence_is_reproduced_at_every_time():
             np.testing.assert_allclose(pose, _screw(a, step, translation, gap + factor), atol=1e-6)
 
 
+def test_a_turn_past_a_half_turn_between_keys_goes_on_the_way_its_neighbours_turn():
+    """Keys of the head spinning about a fixed axis by 100°, 190° and 170°: the middle gap's short
+    way round is 170° backwards, but the gaps before and after turn forwards, and so does it: at
+    every factor the mesh is turned about the axis (rigidly), forwards from the gap's first key by
+    between 0 and 190° (the screws' Catmull–Rom spline of the angles 0, 100, 290, 460: 190.6° at
+    the middle). The short way made the spin reverse for one gap."""
+    a, tri = _head_with_eyes()
+    axis, pivot = np.array([0.0, 0.3, 1.0]) / np.linalg.norm([0.0, 0.3, 1.0]), np.array([1.0, 0.5, 0.0])
+    angles = np.radians([0.0, 100.0, 290.0, 460.0])
+    keys = [_rigid(a, Rotation.from_rotvec(angle * axis).as_matrix(), pivot) for angle in angles]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    factors = (0.25, 0.5, 0.75)
+    for s, x in zip(factors, seq.poses(1, factors)):
+        rotation, translation = rigid_alignment(a, x)
+        np.testing.assert_allclose(a @ rotation.T + translation, x, atol=1e-6)
+        turn = Rotation.from_matrix(rotation).as_rotvec()
+        forward = (np.degrees(np.linalg.norm(turn)) * np.sign(turn @ axis) - 100.0) % 360.0
+        assert 0.0 < forward < 190.0 + 1e-6, (s, forward)
+        if s == 0.5:
+            assert abs(forward - 90.6) < 1.0, forward
+
+
 def test_a_tiny_rigid_turn_in_a_sequence_stays_the_rigid_turn():
     """Keys of the head turning by 0.2° per key (every vertex moves far less than the still gaps'
     limit, core.inbetween_prediction.STILL_MOVE mean edges): a rigid motion, however small, is not
@@ -704,6 +726,60 @@ def test_a_sheet_keyed_every_half_turn_turns_about_its_axis(keys):
             np.testing.assert_allclose(np.hypot(x[:, 0], x[:, 1]), radius, atol=1e-9)
             turned = np.angle((x[far, 0] + 1j * x[far, 1]) / (sheet[far, 0] + 1j * sheet[far, 1]))
             assert np.ptp(np.unwrap(turned)) < 1e-9
+
+
+def _float32_rounding(*keys):
+    """What float32 keys are known to, as a fraction of the first key's diagonal: single
+    precision's rounding at the largest coordinate (Blender keeps positions so)."""
+    largest = max(float(np.abs(k).max()) for k in keys)
+    return np.finfo(np.float32).eps * largest / float(np.linalg.norm(np.ptp(keys[0], axis=0)))
+
+
+@pytest.mark.parametrize("offset", [10.0, 100.0])
+def test_a_half_turn_in_single_precision_turns_every_piece_one_way(offset):
+    """A head, two eyes and a single-triangle piece turned exactly 180° about an axis through none
+    of them, the keys in float32 and ``offset`` units from the origin: every factor is one rigid
+    turn of them all, to float32's rounding. Rounding reads the small triangle's angle ~1e-5 rad
+    off π, "short of a half turn the other way": it turned against the rest (0.50 of the
+    diagonal off half-way)."""
+    head, tri = _head_with_eyes()
+    rest = np.vstack([head, [[1.5, 0.0, 0.0], [1.7, 0.0, 0.0], [1.5, 0.2, 0.05]]])
+    tri = np.vstack([tri, [[len(head), len(head) + 1, len(head) + 2]]])
+    axis, pivot = np.array([0.2, 1.0, 0.3]) / np.linalg.norm([0.2, 1.0, 0.3]), np.array([0.4, -1.3, 0.1])
+    a = (rest + offset).astype(np.float32)
+    b = (_rigid(rest, Rotation.from_rotvec(np.pi * axis).as_matrix(), pivot) + offset).astype(np.float32)
+    tolerance = 100 * _float32_rounding(a, b)
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    interpolator = Interpolator(a, b, tri)
+    for s in (0.25, 0.5):
+        x = interpolator.pose(s) - offset
+        errors = [np.abs(x - _rigid(rest, Rotation.from_rotvec(sign * s * np.pi * axis).as_matrix(), pivot)).max()
+                  for sign in (1, -1)]
+        assert min(errors) / diagonal < tolerance, (s, errors)
+
+
+def test_cards_keyed_every_half_turn_in_single_precision_stay_one_rigid_body():
+    """300 cards (separate quads) scattered around a vertical axis through none of them, keyed
+    every half turn in float32 10 units out: the middle of every gap is all of them turned a
+    quarter turn about the axis, one way (the keys cannot tell which). Rounding (~1e-5 rad on a
+    card) split them: cards alone turned about their centroids (off their circle, 0.36 of the
+    diagonal), steps read as half turns the other way continued nowhere, and the group's point on
+    the axis was sent 1e6 away along it."""
+    rng = np.random.default_rng(1)
+    quad = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.05
+    rest = np.vstack([quad @ Rotation.random(random_state=i).as_matrix().T + rng.uniform(-1, 1, 3) for i in range(300)])
+    tri = np.vstack([np.array([[0, 1, 2], [0, 2, 3]]) + 4 * i for i in range(300)])
+    pivot = np.array([0.0123, -0.0377, 0.0])
+    def turned(angle):
+        return _rigid(rest, Rotation.from_rotvec([0.0, 0.0, angle]).as_matrix(), pivot)
+    keys = np.array([(turned(k * np.pi) + 10.0).astype(np.float32) for k in range(4)])
+    tolerance = 100 * _float32_rounding(*keys)
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(len(sequence)):
+        x = sequence.pose(gap, 0.5) - 10.0
+        errors = [np.abs(x - turned((gap + 0.5 * sign) * np.pi)).max() for sign in (1, -1)]
+        assert min(errors) / diagonal < tolerance, (gap, errors)
 
 
 @pytest.mark.parametrize("degrees", [100.0, 178.0])

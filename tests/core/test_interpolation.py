@@ -1308,3 +1308,22 @@ def test_a_fallback_that_returns_the_blend_says_so(monkeypatch, strip):
     text = " ".join(str(w.message) for w in caught)
     np.testing.assert_allclose(x, blend)
     assert "the linear blend (no fit near it improved on it)" in text and "fitted near" not in text
+
+
+def test_a_reversed_sliver_that_swells_is_warned():
+    """A sheet bent in its second pose, where one triangle is also left a sliver 1e-7 off its
+    line: reversing the motion (factor −0.5) swells that corner (the sliver's metric grows by the
+    factor's power), which is warned, naming how much longer the edges are than in either pose;
+    with the corner left a triangle of sound shape (a 0.01 sliver: no edge past twice its length
+    in either pose) nothing is said of it."""
+    a, tri = grid(6, 6)
+    for height, swells in ((1e-7, True), (1e-2, False)):
+        b = a.copy()
+        b[:, 2] += 0.1 * a[:, 0] ** 2
+        b[7] = 0.5 * (b[1] + b[6])
+        b[7, 2] += height
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            Interpolator(a, b, tri).pose(-0.5)
+        said = [str(w.message) for w in caught if "as long as in either pose" in str(w.message)]
+        assert bool(said) == swells, (height, said)
