@@ -530,3 +530,47 @@ def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     turned = np.cross(w, v)
     translations = v + a[:, None] * turned + b[:, None] * np.cross(w, turned)
     return Rotation.from_rotvec(w).as_matrix().reshape(-1, 3, 3), translations
+
+
+def similarity_paths(rotvec: np.ndarray, log_scales: np.ndarray, translations: np.ndarray, points: np.ndarray,
+                     s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``S^s``, the power ``s`` (``exp(s log S)``) of each similarity ``S: x ↦ e^λ R x + t``
+    (rotation vectors ``rotvec`` ω (P, 3), so ``R = exp([ω])``; log-scales λ (P,); translations
+    (P, 3)), takes ``points`` (P, 3), one point per similarity: ``(positions (P, 3), ok (P,))``.
+    ``ok`` is False where the logarithm has no translation part to speak of (a whole turn with no
+    scale: ``S`` is a translation along its axis only if ``t`` lies along it; the positions there
+    are those of the chord ``x + s t``).
+
+    The rotation and the uniform scale commute: along the axis ``û`` the map scales by ``e^{sλ}``,
+    across it, taken as the complex plane (``i`` ≡ ``û ×``), it multiplies by ``e^{s(λ + iθ)}``. Its
+    translation at ``s`` is ``∫₀ˢ e^{τ(λ I + [ω])} dτ`` times the logarithm's, i.e. ``t`` times
+    ``expm1(sλ) / expm1(λ)`` along the axis and ``expm1(s z) / expm1(z)`` across it (``z = λ +
+    iθ``; both ``s`` in the limit of a translation). For λ = 0 this is the screw motion
+    (:func:`rigid_exps` of ``s`` times :func:`rigid_logs`); for a rigid motion with a uniform scale
+    the spiral that takes a piece, and everything scaled and turned with it, along one motion."""
+    rotvec = np.asarray(rotvec, dtype=np.float64)
+    log_scales = np.asarray(log_scales, dtype=np.float64)
+    translations = np.asarray(translations, dtype=np.float64)
+    points = np.asarray(points, dtype=np.float64)
+    theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
+    axis = np.where((theta > 0)[:, None], rotvec / np.where(theta > 0, theta, 1.0)[:, None], [0.0, 0.0, 1.0])
+    z = log_scales + 1j * theta
+
+    def ratio(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # expm1(s v) / expm1(v), s where v → 0
+        whole = np.expm1(values)
+        small = np.abs(values) < 1e-12
+        ok = small | (np.abs(whole) > 1e-6 * np.abs(values))  # not a whole turn (expm1(2πki) = 0)
+        safe = np.where(ok & ~small, whole, 1.0)
+        return np.where(small, s, np.expm1(s * values) / safe), ok
+
+    along, _ = ratio(log_scales.astype(complex))
+    across, ok = ratio(z)
+    along = along.real
+    parallel = np.einsum("ij,ij->i", translations, axis)[:, None] * axis
+    perpendicular = translations - parallel
+    moved_translation = (along[:, None] * parallel + across.real[:, None] * perpendicular
+                         + across.imag[:, None] * np.cross(axis, perpendicular))
+    rotations = Rotation.from_rotvec(s * rotvec).as_matrix().reshape(-1, 3, 3)
+    out = np.exp(s * log_scales)[:, None] * np.einsum("pab,pb->pa", rotations, points) + moved_translation
+    chord = points + s * translations
+    return np.where(ok[:, None], out, chord), ok

@@ -6,11 +6,12 @@ next to it follows its fields and the keys' spline: the two paths part between t
 piece that sits on another one leaves it. Where it sits is read in the first key: its seat is the
 nearest vertices of deforming components there (the cloth under a button, the socket around an
 eye). In a gap where the seat's best rigid motion from the base key to the next takes the piece
-near where it is in the next key, or where the piece touches its seat and turns about a point of
-their contact (a hand at the wrist of a bending forearm, :func:`core.inbetween_joints.joint_offset`),
-the seat carries it: at every factor the piece takes the seat's best rigid motion from the base key
-to the pose, times the part of its own motion the seat misses (interpolated, so that both keys are
-met exactly). Elsewhere the piece keeps its own motion.
+near where it is in the next key (against its size or its own move), or where the piece touches
+its seat and turns about a point of their contact (a hand at the wrist of a bending forearm,
+:func:`core.inbetween_joints.joint_offset`), the seat carries it: at every factor the piece takes
+the seat's best rigid motion from the base key to the pose, times the part of its own motion the
+seat misses (interpolated, so that both keys are met exactly). Elsewhere the piece keeps its own
+motion.
 
 Measured (docs/inbetweens.md, *Pieces carried by deforming ones*): a hand (a separate sphere) on a
 forearm bent by 100°, two poses: off the forearm's end by 0.37–0.57 % of the diagonal in-between
@@ -38,12 +39,26 @@ CARRIER_NEIGHBOURS = 3
 #: keys 16 apart, median distance off the cloth: 0.05: 2.69 mean edge lengths, 0.25: 0.11, 0.5: 0.10;
 #: a piece that moves on its own misses by more than its size).
 CARRIED_TOLERANCE = 0.25
+#: ... or within this fraction of the piece's own move between the keys (its vertices' largest):
+#: a small piece on a part that turns far in a gap is missed by more than its size by a seat that
+#: still carries all but a little of its move — a belt buckle on a character's hips turning 91°
+#: between keys 8 frames apart, the skin under it weighted to the spine and thighs too, missed by
+#: 0.48 of the buckle's diagonal but 0.07 of its move; kept on its own screw its offset from the
+#: hips was 0.065 off, the linear blend's 0.009. A piece that moves on its own (off the seat, or
+#: turning on it) is missed by about all of its move.
+CARRIED_SHARE = 0.25
 #: Fewest carriers, and their least spread: the second singular value of their centred positions
 #: over their first (collinear carriers leave a turn about their line free) and over the piece's
 #: diagonal (a turn read off a speck moves the piece's far end by the speck's error times their
 #: ratio). Until session 51 one test, 0.05 of the piece's diagonal: a sword 0.70 long in a hand whose
 #: 16 carriers spread 0.035 / 0.032 was not carried, and ×2 of a wave left it 0.11 from the hand
 #: (the simulated 0.008); carried, 0.009 (its offset from the hand 0.18 → 0.026 off).
+#: Carriers come only from deforming components whose bounding-box diagonal (first key) is at
+#: least this share of the piece's own: a button rides on its cloth, a hand or a sword as long as
+#: the arm on the forearm, never a head on its eyes (a head turned rigidly with two noisy eyes, each
+#: 0.2 of its diagonal, followed their fit: 5.4e-2 of the diagonal off at 0.5 and 0.45 at ×2; kept
+#: on its own motion, exact).
+CARRIER_SIZE = 0.5
 MIN_CARRIERS = 4
 MIN_CARRIER_SPREAD = 0.05
 MIN_CARRIER_SIZE = 0.01
@@ -78,8 +93,15 @@ class CarriedPieces:
         chosen = rigid[labels]
         rows, piece = order[chosen], np.searchsorted(pieces, labels[chosen])  # piece: index among ``pieces``
         own = rigid_alignments(base[rows], nxt[rows], piece, pieces.size)
+        # deforming components much smaller than the piece carry none of it (CARRIER_SIZE)
+        size = topo.diagonals(topo.first_pose)
+        large = size[topo.vertex_component[deforming]] >= CARRIER_SIZE * size[pieces].min()
+        deforming = deforming[large]
+        if not deforming.size:
+            return
         seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming,
-                            cKDTree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge)
+                            cKDTree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge,
+                            (size[topo.vertex_component[deforming]], CARRIER_SIZE * size[pieces]))
         groups = np.split(rows, np.flatnonzero(np.diff(piece)) + 1)
         kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats) if carriers is not None]
         if not kept:
@@ -104,7 +126,7 @@ class CarriedPieces:
         self._screws = np.array(screws)
 
     @staticmethod
-    def _seats(first, base, nxt, rows, piece, count, deforming, tree, own, reach) -> list:
+    def _seats(first, base, nxt, rows, piece, count, deforming, tree, own, reach, sizes=None) -> list:
         """Per rigid piece (``rows`` (r,) their vertices, ``piece`` (r,) which of the ``count``
         pieces each is, consecutive), ``(carriers (j,), (rotation, translation))``: the vertices of
         deforming pieces that carry it with their best rigid motion from the gap's base key to the
@@ -114,7 +136,9 @@ class CarriedPieces:
         arm, :func:`_jointed`; ``own``: the pieces' best rigid motions between the keys, rotations
         (count, 3, 3) and translations (count, 3)). They are sought (with ``tree``, over the
         ``deforming`` vertices) where the piece sits in the first key (``first``: positions (n, 3)),
-        the same seat for every gap (see :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`)."""
+        the same seat for every gap (see :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`,
+        :data:`CARRIED_SHARE`), among those of components no smaller than ``sizes[1]`` (per piece;
+        ``sizes[0]``: per ``deforming`` vertex, its component's diagonal; :data:`CARRIER_SIZE`)."""
         starts = np.flatnonzero(np.r_[True, np.diff(piece) != 0])
         extent = np.maximum.reduceat(base[rows], starts) - np.minimum.reduceat(base[rows], starts)
         diagonal = np.sqrt(np.einsum("ij,ij->i", extent, extent))
@@ -124,6 +148,8 @@ class CarriedPieces:
         # the nearest few within the largest reach, then within each piece's own (the same sets)
         distance, nearest = tree.query(first[rows], k=CARRIER_NEIGHBOURS, distance_upper_bound=reachable.max())
         found = np.isfinite(distance) & (distance < reachable[piece][:, None])
+        if sizes is not None:
+            found[found] = sizes[0][nearest[found]] >= sizes[1][piece[np.nonzero(found)[0]]]
         pair = np.unique(piece[:, None].repeat(CARRIER_NEIGHBOURS, axis=1)[found] * deforming.size + nearest[found])
         # by piece, then in the order ``deforming`` lists them
         seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]
@@ -143,6 +169,8 @@ class CarriedPieces:
         moved = np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece]
         miss = np.abs(moved - nxt[rows]).max(axis=1)
         worst = np.maximum.reduceat(miss, starts)
+        travel = np.maximum.reduceat(np.linalg.norm(nxt[rows] - base[rows], axis=1), starts)
+        allowed = np.maximum(CARRIED_TOLERANCE * diagonal, CARRIED_SHARE * travel)
         groups = np.split(carriers, np.cumsum(counts)[:-1])
         ends = np.r_[starts[1:], rows.size]
         out = []
@@ -151,7 +179,7 @@ class CarriedPieces:
                 out.append((None, None))
                 continue
             motion = (rotations[k], translations[k])
-            if worst[k] > CARRIED_TOLERANCE * diagonal[k] and not _jointed(
+            if worst[k] > allowed[k] and not _jointed(
                     base, rows[starts[k]:ends[k]], groups[k], motion, (own[0][k], own[1][k]), reach):
                 out.append((None, None))
                 continue

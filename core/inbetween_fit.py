@@ -109,14 +109,23 @@ class LocalGlobalFit:
         :meth:`core.inbetween_solver._Topology.corner_edge_rows`."""
         return self.topo.corner_edge_rows(x, dtype)
 
-    def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None)) -> dict:
+    def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None), coordinates=None) -> dict:
         """The interpolated target edges ``R_T U_T e`` (r, 3, 3) of the triangles ``rows`` (a
-        repair region; ``frames`` (k ≥ 2, r, 3) and ``stretch`` (r, 3) given for those)."""
-        coordinates = self.base.coordinates[rows]
-        x, y = coordinates[..., 0], coordinates[..., 1]
+        repair region; ``frames`` (k ≥ 2, r, 3) and ``stretch`` (r, 3) given for those;
+        ``coordinates``: the base's tangent coordinates ``x``, ``y`` (r, 3 corners) of the rows' corner
+        edges if the caller has them)."""
+        if coordinates is None:
+            coordinates = self.base.coordinates[rows]
+            coordinates = coordinates[..., 0], coordinates[..., 1]
+        x, y = coordinates  # (r, 3 corners) each
         s11, s12, s22 = (stretch[:, k, None] for k in range(3))
-        u, v = s11 * x + s12 * y, s12 * x + s22 * y
-        return {"edges": u[:, :, None] * frames[0][:, None, :] + v[:, :, None] * frames[1][:, None, :]}
+        u = s11 * x
+        u += s12 * y
+        v = s12 * x
+        v += s22 * y
+        edges = u[:, :, None] * frames[0][:, None, :]
+        edges += v[:, :, None] * frames[1][:, None, :]
+        return {"edges": edges}
 
     def fit_targets(self, frames: np.ndarray | None, stretch: np.ndarray) -> dict:
         """What the Poisson solve and the local steps at one factor share, by coordinate: the

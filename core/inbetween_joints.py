@@ -75,7 +75,7 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-               moves: np.ndarray, reach: float):
+               moves: np.ndarray, reach: float, loose: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -83,7 +83,11 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``moves``: how far each piece
     moves over the gap's keys (C,), the piece of a group that moves least is its root (in a chain
     the motions add up from the piece fixed to the world; a turn would alias past a half turn);
-    ``reach``: the joint distance."""
+    ``reach``: the joint distance; ``loose``: bool (C,), pieces only nearly rigid (non-rigidity
+    over half :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`: noise, rounding), which root a
+    group only where none of its pieces is firmly rigid (a head turned exactly rigidly hung from one
+    of its two noisy eyes, which moved less, and left its own motion by the eye's noise: 3e-5 of the
+    diagonal at 0.5 for noise of 1e-4 of it)."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -125,7 +129,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         neighbours.setdefault(int(v), []).append(int(u))
     parents = np.full(len(topo.components), -1)
     order, seen = [], set()
-    for root in sorted(neighbours, key=lambda k: moves[pieces[k]]):  # the piece of each group that moves least first
+    loose = np.zeros(len(topo.components), dtype=bool) if loose is None else loose
+    # the firmly rigid piece of each group that moves least first
+    for root in sorted(neighbours, key=lambda k: (bool(loose[pieces[k]]), moves[pieces[k]])):
         if root in seen:
             continue
         seen.add(root)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .concurrency import concurrently
-from .inbetween_fit import METRIC_TOLERANCE
+from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_repair import REPAIR_RINGS
 
 
@@ -80,6 +80,11 @@ MIDDLE_SOLVED_BATCH = 3
 TRIMMED_TOLERANCE_BATCH = FULL_SAMPLE_BATCH
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
+#: With this many solved in-betweens or more (keys 9 frames apart or more), the predictions get one
+#: local/global step toward the interpolated metric, anchored to themselves, at the middle of each
+#: span between the solved factors and the keys, and its displacement spread over the span
+#: (:func:`_relaxed_correction`; session 52).
+RELAXED_SOLVED = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
 #: solved correction predicted from the others; above it the gap's in-betweens are all solved.
 #: Measured with keys 16 frames apart: 0.01–0.38 on the benchmark cloths, 0.76 in the gap where the
@@ -160,6 +165,8 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
         finally:
             del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
     stubborn = any(problem for _, problem in solved.values())
+    if len(solved) >= RELAXED_SOLVED and not stubborn:
+        correction = _relaxed_correction(gap, correction, sorted(solved))
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
     predicted = [s for s in interior if s not in solved]
     solved.update(zip(predicted, _per_factor(gap, lambda s: _predicted(gap, s, correction, rings), predicted)))
@@ -327,13 +334,22 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
     had none left), the pose solved at ``s`` instead if it has fewer."""
-    x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
+    motion = gap.motion(s)
+    x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion)
     if not np.isfinite(x).all():
         return gap.pose(s)
     x = _pins_in_place(gap, x, s)
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
     scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)
+    if defects.any() and isinstance(correction, _RelaxedCorrection):
+        # the relaxation is kept only where it adds no defect to the plain prediction
+        plain = _pins_in_place(gap, gap.topo.apply_motion(
+            gap.splines["vertices"].at(s) + correction.correction(s), *motion), s)
+        gap.carried.place(plain, s)
+        fewer = gap.repair.defects(plain, s, None, None, scale=scale)
+        if fewer.sum() < defects.sum():
+            x, defects = plain, fewer
     if not defects.any():
         return gap.finished((x, None), s)
     result = gap.repaired(x, s, rings, defects)
@@ -347,3 +363,40 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     # with the weak anchor if they were (see _solved)
     solved = gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
     return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, None, scale=scale).sum()))
+
+
+def _relaxation(gap, s: float, correction) -> np.ndarray:
+    """The co-moving displacement (n, 3) that one local/global step toward the interpolated metric
+    gives the prediction at ``s``: each triangle's metric turned by its own rotation in the
+    prediction (the polar factor, no limit about the interpolated rotations), the positions solved
+    with the gap's anchor pulling toward the prediction itself (not the spline: its long
+    wavelengths stay, its short ones take the metric's lengths)."""
+    motion = gap.motion(s)
+    x = _pins_in_place(gap, gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion), s)
+    targets = gap.local_step_targets(gap.fit_targets(None, gap.stretch(s)))
+    y = gap.solve(gap.fitted_edges(gap.edges_of(x, LOCAL_STEP_DTYPE), targets), x)
+    return gap.topo.undo_motion(y - x, motion[0], np.zeros((len(motion[0]), 3)))
+
+
+def _relaxed_correction(gap, correction, factors: list) -> "_RelaxedCorrection":
+    """``correction`` plus the relaxations (:func:`_relaxation`) at the middle of each span
+    between the keys and the solved ``factors``, each spread over its span by a parabola (one at the
+    middle, zero at the span's ends, where the keys and the solved poses already are fits)."""
+    knots = [0.0, *factors, 1.0]
+    middles = [0.5 * (a + b) for a, b in zip(knots[:-1], knots[1:])]
+    return _RelaxedCorrection(correction, knots, _per_factor(gap, lambda s: _relaxation(gap, s, correction), middles))
+
+
+class _RelaxedCorrection:
+    """``D(s)`` of a :class:`_CorrectionPolynomial` plus relaxations spread over the spans
+    between ``knots`` (see :func:`_relaxed_correction`)."""
+
+    def __init__(self, correction, knots: list, displacements: list):
+        self.correction, self.knots, self.displacements = correction, knots, displacements
+
+    def __call__(self, s: float) -> np.ndarray:
+        out = self.correction(s)
+        span = min(max(int(np.searchsorted(self.knots, s, side="right")) - 1, 0), len(self.displacements) - 1)
+        a, b = self.knots[span], self.knots[span + 1]
+        u = (2.0 * s - a - b) / (b - a)
+        return out + (1.0 - u * u) * self.displacements[span] if abs(u) < 1.0 else out

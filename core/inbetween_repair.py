@@ -32,6 +32,7 @@ the benchmark cloths it repaired none of the 24 poses whose blend was defective,
 
 from __future__ import annotations
 
+import threading
 import weakref
 
 import numpy as np
@@ -112,21 +113,22 @@ class Repair:
         self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._move_limits: tuple[float, float] | None = None
         self._far_move: float | None = None  # mean squared move: see moved_far
+        self._local = threading.local()  # see _rows_of
 
     # --- defects
 
     def flipped(self, cross: np.ndarray, length: np.ndarray, s: float, frames: np.ndarray | None,
-                rows=slice(None), sides=None) -> np.ndarray:
+                rows=slice(None), sides=None, normals=None) -> np.ndarray:
         """Triangles (bool (r,)) among ``rows`` whose normal ``cross`` (3 coordinates, r; its
         lengths ``length`` (r,)) opposes both keys' unit normals (in-betweens, 0 ≤ s ≤ 1) or, for
         extrapolations, the interpolated normal ``R_T(s) n_T`` (``frames``: (3, m, 3) of every
         triangle, ``frames[2]`` the normals; without them: the nearer key's normal), by more than
-        :data:`FLIP_COSINE`."""
+        :data:`FLIP_COSINE` (``normals``: the keys' normals on ``rows``, if the caller has them)."""
         gap = self.gap
         slack = -FLIP_COSINE * length
         if 0.0 <= s <= 1.0:
-            flipped = ((coordinate_dot(cross, gap.base.normal_rows[:, rows]) < slack)
-                       & (coordinate_dot(cross, gap.next.normal_rows[:, rows]) < slack))
+            base, nxt = normals or (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows])
+            flipped = (coordinate_dot(cross, base) < slack) & (coordinate_dot(cross, nxt) < slack)
             if frames is not None and sides is not None and sides[2] is not None and flipped.any():
                 flipped[self._turned_away(cross, slack, frames, rows, np.flatnonzero(flipped), sides)] = False
             return flipped
@@ -146,8 +148,9 @@ class Repair:
             edges = self.gap.edges_of(x)  # by coordinate (3, 3, m)
             e1, e2 = edges[:, 0], -edges[:, 2]
             rows = slice(None)
+            normals = None
         else:
-            t = self.gap.topo.triangles[rows]
+            t, normals, areas = self._rows_of(rows)
             e1, e2 = (x[t[:, 1]] - x[t[:, 0]]).T, (x[t[:, 2]] - x[t[:, 0]]).T
         cross = coordinate_cross(e1, e2)
         if scale is None:
@@ -155,10 +158,22 @@ class Repair:
             scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
         else:
             scale = scale[rows]
-        target = self.gap.base.areas[rows] * scale
+        target = (self.gap.base.areas if normals is None else areas) * scale
         length = np.sqrt(coordinate_dot(cross, cross))
         collapsed = 0.5 * length < COLLAPSE_RATIO * target
-        return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch)) | collapsed
+        return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+
+    def _rows_of(self, rows: np.ndarray) -> tuple:
+        """The corners (r, 3), the keys' normals (two (3, r)) and the base's areas (r,) of the
+        triangles ``rows``: a repair round checks each field's fit on the same region, so the last
+        rows asked (per thread: a gap's in-betweens are repaired concurrently) keep them."""
+        cached = getattr(self._local, "rows", None)
+        if cached is None or cached[0] is not rows:
+            gap = self.gap
+            cached = self._local.rows = (rows, gap.topo.triangles[rows],
+                                         (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows]),
+                                         gap.base.areas[rows])
+        return cached[1:]
 
     def _turned_away(self, cross, slack, frames, rows, candidates: np.ndarray, sides) -> np.ndarray:
         """Those of the ``candidates`` (positions among ``rows``) facing away from both keys that
@@ -177,14 +192,19 @@ class Repair:
         normal = coordinate_cross(columns[0].T, columns[1].T)  # (3 coordinates, r) of the interpolated R_T t1, R_T t2
         base, nxt = self.gap.base.normal_rows[:, triangles], self.gap.next.normal_rows[:, triangles]
         away = (coordinate_dot(normal, base) < 0) & (coordinate_dot(normal, nxt) < 0)
-        follows = coordinate_dot(cross[:, candidates], normal) > -slack[candidates]
-        # ... and whose edges keep the interpolated metric (a part turning whole; a fold does not)
+        away &= coordinate_dot(cross[:, candidates], normal) > -slack[candidates]  # ... that follow it
+        # ... and whose edges keep the interpolated metric (a part turning whole; a fold does not),
+        # measured on those only: most candidates face along the interpolated rotation (a fold)
+        # and the metric's target edges were most of the check's cost
+        candidates, triangles, columns = candidates[away], triangles[away], columns[:, away]
+        if not candidates.size:
+            return candidates
         e1, e2 = sides[0][:, candidates], sides[1][:, candidates]
         target = np.linalg.norm(self.gap.local_targets(columns, sides[2][triangles], triangles)["edges"], axis=2)
         third = e2 - e1  # corner edges 0, 1, 2: e1, e2 − e1, −e2
         lengths = np.sqrt(np.stack([coordinate_dot(e1, e1), coordinate_dot(third, third), coordinate_dot(e2, e2)], axis=1))
         kept = np.mean(np.abs(lengths / target - 1.0), axis=1) < METRIC_TOLERANCE
-        return candidates[away & follows & kept]
+        return candidates[kept]
 
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:
         """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""
@@ -292,12 +312,27 @@ class Repair:
         def interpolated(rows):
             return frames[:, rows], stretch[rows]
 
+        m = len(t)
+
         def mesh_field(positions):  # the local geometry of a mesh: integrable
+            # per triangle, so each triangle's is computed once for the growing regions of the rounds
+            # (and once for the two fields that read the blend's): positions, frames (2, m, 3), stretches, done
+            memo = []
+
             def field(rows):
-                edges = df.corner_edges(positions, t[rows]).transpose(2, 1, 0)  # by coordinate
-                columns, coordinates = df.tangent_frame_rows(edges)
-                turn, mesh_stretch = df.planar_polar(*df.planar_map_entries(coordinates, gap.base.inverse_rows[:, rows]))
-                return df.plane_turned_frames(columns, turn).transpose(0, 2, 1), mesh_stretch
+                if not memo:
+                    points = positions() if callable(positions) else positions
+                    memo.extend((points, np.empty((2, m, 3)), np.empty((m, 3)), np.zeros(m, dtype=bool)))
+                points, frames_of, stretches_of, done = memo
+                new = rows[~done[rows]]
+                if new.size:
+                    edges = df.corner_edges(points, t[new]).transpose(2, 1, 0)  # by coordinate
+                    columns, coordinates = df.tangent_frame_rows(edges)
+                    turn, mesh_stretch = df.planar_polar(*df.planar_map_entries(coordinates, gap.base.inverse_rows[:, new]))
+                    frames_of[:, new] = df.plane_turned_frames(columns, turn)[:2].transpose(0, 2, 1)  # t1, t2: all a fit reads
+                    stretches_of[new] = mesh_stretch
+                    done[new] = True
+                return frames_of[:, rows], stretches_of[rows]
             return field
 
         def key_field(index):
@@ -307,16 +342,18 @@ class Repair:
         keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
         blend_field = mesh_field(blend)
         return [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
-                (mesh_field(gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
+                (mesh_field(lambda: gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
 
     def key_geometry(self, index: int) -> tuple[np.ndarray, np.ndarray]:
-        """The rotations (frames (3, m, 3)) and stretches (m, 3) of the gap's key ``index`` (1:
+        """The rotations (frames (2, m, 3): the images of t1, t2) and stretches (m, 3) of the gap's key ``index`` (1:
         the base key, 2: the next one) seen from the base key: the same for every factor, so
         computed once per gap."""
         if index not in self._keys:
             key = self.gap.relatives[index]
             rotations = df.rigid_exps(key.screw)[0]
-            self._keys[index] = (self.gap.key_frames(key.rotvec, rotations), df.exp_stretch(key.log_stretch))
+            # the images of t1 and t2 only (all a fit reads), contiguous: the rounds gather their rows
+            self._keys[index] = (np.ascontiguousarray(self.gap.key_frames(key.rotvec, rotations, columns=2)),
+                                 df.exp_stretch(key.log_stretch))
         return self._keys[index]
 
     def rounds(self, x, defects, s, frames, stretch, guide, blend, best, rings=REPAIR_RINGS):
@@ -395,6 +432,8 @@ class Region:
     def __init__(self, gap, force: np.ndarray):
         topo = gap.topo
         self.rows = np.flatnonzero(force)
+        self.coordinates = None  # the base's tangent coordinates on rows, once a fit needs them
+        self._pull = None  # (guide, the anchor's pull toward it on the free vertices): see solve
         corners = topo.triangles[self.rows]
         used = np.zeros(topo.n, dtype=bool)  # the region's vertices in order, without a sort
         used[corners] = True
@@ -414,16 +453,22 @@ class Region:
         start, end = ends.ravel(), ends[:, [1, 2, 0]].ravel()  # edge 3t + c runs from corner c to c + 1
         free_index = np.cumsum(is_free) - 1  # touched vertex → free index (where free)
         start_free, end_free = is_free[start], is_free[end]
-        self.free_t = sp.csr_matrix((np.r_[np.ones(end_free.sum()), -np.ones(start_free.sum())],
-                                     (np.r_[free_index[end[end_free]], free_index[start[start_free]]],
-                                      np.r_[np.flatnonzero(end_free), np.flatnonzero(start_free)])),
-                                    shape=(self.free.size, start.size))  # D_fᵀ: +1 at each edge's free end, −1 at its free start
+        # D_f by rows (edge 3t + c: −1 at its free start, +1 at its free end), so D_fᵀ is its CSC
+        # view: no sort (a product with it adds each row's terms in the order of the edges, as a
+        # CSR D_fᵀ with sorted columns did)
+        per_edge = start_free.astype(np.intp) + end_free
+        indptr = np.zeros(start.size + 1, dtype=np.intp)
+        np.cumsum(per_edge, out=indptr[1:])
+        columns, values = np.empty(indptr[-1], dtype=np.intp), np.empty(indptr[-1])
+        first = indptr[:-1]
+        columns[first[start_free]], values[first[start_free]] = free_index[start[start_free]], -1.0
+        last = first + start_free
+        columns[last[end_free]], values[last[end_free]] = free_index[end[end_free]], 1.0
+        self.free_t = sp.csr_matrix((values, columns, indptr), shape=(start.size, self.free.size)).T
         self._held_starts = (np.flatnonzero(~start_free), touched[start[~start_free]])
         self._held_ends = (np.flatnonzero(~end_free), touched[end[~end_free]])
-        block = topo.laplacian[self.free][:, self.free]
-        block.setdiag(block.diagonal() + self.anchor)
-        self.lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                            options={"SymmetricMode": True})
+        self.lu = spla.splu(_principal_block(topo.laplacian, self.free, self.anchor), permc_spec="MMD_AT_PLUS_A",
+                            diag_pivot_thresh=0.0, options={"SymmetricMode": True})
 
     def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
         """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)
@@ -432,6 +477,27 @@ class Region:
         residual[self._held_ends[0]] -= x[self._held_ends[1]]
         residual[self._held_starts[0]] += x[self._held_starts[1]]
         rhs = self.free_t @ residual
-        rhs += self.anchor[:, None] * guide[self.free]
+        if self._pull is None or self._pull[0] is not guide:  # the same guide for every field of a round
+            self._pull = (guide, self.anchor[:, None] * guide[self.free])
+        rhs += self._pull[1]
         return self.lu.solve(np.asfortranarray(rhs))
 
+
+def _principal_block(matrix: sp.csc_matrix, rows: np.ndarray, diagonal: np.ndarray) -> sp.csc_matrix:
+    """``matrix[rows][:, rows]`` with ``diagonal`` (len(rows),) added to its diagonal (``matrix``:
+    symmetric CSC with sorted indices and every diagonal entry stored; ``rows`` ascending), gathered
+    from index arrays (SciPy's two fancy-indexing passes cost about as much as a region's
+    factorization)."""
+    starts = matrix.indptr[rows]
+    counts = matrix.indptr[rows + 1] - starts
+    offsets = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+    inside = np.full(matrix.shape[0], -1, dtype=np.intp)
+    inside[rows] = np.arange(rows.size)
+    position = inside[matrix.indices[offsets]]
+    kept = position >= 0
+    column = np.repeat(np.arange(rows.size), counts)[kept]
+    indices, data = position[kept], matrix.data[offsets[kept]]
+    data[indices == column] += diagonal
+    indptr = np.zeros(rows.size + 1, dtype=np.intp)
+    np.cumsum(np.bincount(column, minlength=rows.size), out=indptr[1:])
+    return sp.csc_matrix((data, indices, indptr), shape=(rows.size, rows.size))

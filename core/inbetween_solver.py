@@ -131,6 +131,19 @@ HELD_ANCHOR_WEIGHT = 1e-3
 #: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
 #: the gap's keys / the component's bounding-box diagonal) relative to this scale.
 RIGID_PLACEMENT_SCALE = 1e-3
+#: ... except where the piece's best similarity (its best rigid motion times a uniform scale, the
+#: scale fitted too) between the two keys leaves a misfit well under how far its centroid's path
+#: along that similarity (the spiral ``exp(s log S)``; a screw motion for a rigid one) departs from
+#: the centroid spline half-way: a piece turned 60° whose vertices carry noise or the rounding of a
+#: single-precision cache (non-rigidity over RIGID_PLACEMENT_SCALE) was placed on the chord of its
+#: arc, 5.4e-2 of the diagonal off at 0.5 and 0.45 at ×2 for noise of 5e-4 of it; a head scaled by
+#: 1.02 with its eyes, each on its own chord, had the eyes 2e-2 out of their sockets. There the
+#: centroid follows the similarity by the share ``1 − (ARC_PLACEMENT_MISFIT · misfit / departure)²``
+#: (at least 0): noise of RMS ε leaves the centroid at most ARC_PLACEMENT_MISFIT · ε off the arc
+#: (less the smaller ε), while a cloth that deforms by as much as half its centroid's departure
+#: from the chord keeps the spline (docs/inbetweens.md, *Nearly rigid and similar pieces, and what
+#: carries what*).
+ARC_PLACEMENT_MISFIT = 2.0
 #: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
 #: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
 FLYING_MIN_TURN = 1e-6
@@ -483,7 +496,8 @@ class _Gap(LocalGlobalFit):
         self.joints = None
         if len(topo.components) > 1:
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
-                                     self.piece_moves(relatives), JOINT_REACH * self.mean_edge)
+                                     self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
+                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE)
         if self.joints is not None:
             spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
                                                                   [r.extrapolated for r in relatives],
@@ -883,11 +897,114 @@ class _Gap(LocalGlobalFit):
             return x
         topo = self.topo
         rigid = np.einsum("cab,cb->ca", rotations, self.base.centroids) + translations
-        target = self.rigidity[:, None] * rigid + (1.0 - self.rigidity[:, None]) * self.splines["centroids"].at(s)
+        spline = self.splines["centroids"].at(s)
+        trust = self.similar_placement[0]
+        if (trust > 0.0).any():  # nearly rigid or similar pieces: along their similarity (ARC_PLACEMENT_MISFIT)
+            spline = trust[:, None] * self.similarity_path(s) + (1.0 - trust[:, None]) * spline
+        seated, seat, miss = self.seated_placement
+        if seated.any():  # deforming pieces sitting on a rigid one: with it (CarriedPieces, the other way)
+            k = seat[seated]
+            offset = self.base.centroids[seated] - self.base.centroids[k]
+            spline[seated] = rigid[k] + np.einsum("cab,cb->ca", rotations[k], offset) + s * miss[seated]
+        target = self.rigidity[:, None] * rigid + (1.0 - self.rigidity[:, None]) * spline
         move = np.where(moved[:, None], share[:, None] * (target - topo.centroids(x)), 0.0)
         rows = topo.component_vertices[moved[topo.component_labels]]
         x[rows] += move[topo.vertex_component[rows]]
         return x
+
+    @cached_property
+    def similar_placement(self) -> tuple[np.ndarray, tuple]:
+        """Per component, the share (C,) of its centroid placement taken along the path of its best
+        similarity from the base key to the next (:data:`ARC_PLACEMENT_MISFIT`) and that similarity:
+        rotation vectors (C, 3) (its best rigid motion's, as the screw spline turns it), log-scales
+        (C,) and translations (C, 3). The scale of the best similarity with the rigid motion's
+        rotation (the same rotation is the best for both) is ``Σ w (R b̃)·õ / Σ w |b̃|²`` over the
+        vertices' offsets from their centroids ``b̃`` (base) and ``õ`` (next)."""
+        topo, count = self.topo, len(self.topo.components)
+        none = np.zeros(count)
+        nxt = self.relatives[2]
+        rotations = getattr(nxt, "motion", (None,))[0]
+        if not count or rotations is None or getattr(nxt, "extrapolated", False):
+            return none, (np.zeros((count, 3)), none, np.zeros((count, 3)))
+        owner = np.maximum(topo.vertex_owner, 0)
+        c0, c1 = self.base.centroids, nxt.centroids
+        b = self.base.vertices - c0[owner]
+        o = self.next.vertices - c1[owner]
+        turned = topo.apply_motion(b, rotations, np.zeros((count, 3)))
+        spread = topo.component_sums(np.einsum("ij,ij->i", b, b))
+        scale = topo.component_sums(np.einsum("ij,ij->i", turned, o)) / np.maximum(spread, np.finfo(float).tiny)
+        positive = scale > 0.0
+        scale = np.where(positive, scale, 1.0)
+        residual = scale[owner][:, None] * turned - o
+        misfit = np.sqrt(topo.component_sums(np.einsum("ij,ij->i", residual, residual)) / topo.component_mass)
+        rotvec = np.asarray(nxt.screw)[:, :3] if len(np.shape(nxt.screw)) == 2 else df.rotation_vectors(rotations)
+        rotated = np.einsum("cab,cb->ca", df.rigid_exps(np.c_[rotvec, np.zeros((count, 3))])[0], c0)
+        similarity = (rotvec, np.log(scale), c1 - scale[:, None] * rotated)
+        half, ok = df.similarity_paths(*similarity, c0, 0.5)
+        departure = np.linalg.norm(half - self.splines["centroids"].at(0.5), axis=1)
+        ratio = ARC_PLACEMENT_MISFIT * misfit / np.maximum(departure, np.finfo(float).tiny)
+        trust = np.where(positive & ok & np.isfinite(ratio), np.clip(1.0 - ratio**2, 0.0, 1.0), 0.0)
+        return trust, similarity
+
+    @cached_property
+    def seated_placement(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per component, whether its centroid placement follows a rigid piece it sits on (bool
+        (C,)), that piece (C,) and what of its own centroid's move that piece's rigid motion misses
+        between the keys (C, 3; :meth:`place` adds that share ``s`` of it): an eye that deforms
+        (blinks) in a head turned rigidly, a garment's separate piece on a rigid body, placed
+        otherwise on its centroid's spline (two poses: the chord of the head's arc; an eye squashed
+        to 0.6 of its height in a head turned 60° came 1.9e-2 of the diagonal out of its socket at
+        0.5 and 0.15 at ×2). The seat is read in the first pose as the carriers of
+        :class:`core.inbetween_carried.CarriedPieces` are: the component of rigid pieces (``rigidity``
+        > 0, not much smaller than the piece: :data:`core.inbetween_carried.CARRIER_SIZE`) holding most
+        of the nearest vertices of other pieces within the piece's diagonal; it seats the piece in a
+        gap where its rigid motion takes the piece's centroid within
+        :data:`core.inbetween_carried.CARRIED_TOLERANCE` of the piece's diagonal of where it is in
+        the next key."""
+        from . import inbetween_carried as carried  # noqa: PLC0415
+
+        topo, count = self.topo, len(self.topo.components)
+        seated, seat, miss = np.zeros(count, dtype=bool), np.zeros(count, dtype=int), np.zeros((count, 3))
+        rigid = self.rigidity > 0.0
+        deforming = ~rigid
+        if count < 2 or not rigid.any() or not deforming.any():
+            return seated, seat, miss
+        from scipy.spatial import cKDTree  # noqa: PLC0415
+
+        first = topo.first_pose
+        size = topo.diagonals(first)
+        holders = topo.component_vertices[rigid[topo.component_labels]]
+        rows = topo.component_vertices[deforming[topo.component_labels]]
+        label = topo.vertex_component[rows]
+        reach = carried.CARRIER_REACH * size
+        # every deforming piece's vertices at once (meshes of many pieces: no loop per piece)
+        distance, nearest = cKDTree(first[holders]).query(first[rows], k=carried.CARRIER_NEIGHBOURS,
+                                                          distance_upper_bound=float(reach[deforming].max()))
+        found = np.isfinite(distance) & (distance < reach[label][:, None])
+        piece = np.broadcast_to(label[:, None], found.shape)[found]
+        owner = topo.vertex_component[holders[nearest[found]]]
+        large = size[owner] >= carried.CARRIER_SIZE * size[piece]
+        piece, owner = piece[large], owner[large]
+        if piece.size == 0:
+            return seated, seat, miss
+        pairs, votes = np.unique(piece * count + owner, return_counts=True)
+        pair_piece, pair_owner = np.divmod(pairs, count)
+        best = np.lexsort((-votes, pair_piece))  # per piece, the owner holding most of its nearest first
+        first_of = best[np.r_[True, pair_piece[best][1:] != pair_piece[best][:-1]]]
+        pieces, owners = pair_piece[first_of], pair_owner[first_of]
+        enough = np.bincount(piece, minlength=count)[pieces] >= carried.MIN_CARRIERS
+        pieces, owners = pieces[enough], owners[enough]
+        rotations, translations = self.relatives[2].motion
+        c0, c1 = self.base.centroids, self.relatives[2].centroids
+        missed = c1[pieces] - (np.einsum("cab,cb->ca", rotations[owners], c0[pieces]) + translations[owners])
+        held = np.linalg.norm(missed, axis=1) <= carried.CARRIED_TOLERANCE * self.base.diagonals[pieces]
+        seated[pieces[held]], seat[pieces[held]], miss[pieces[held]] = True, owners[held], missed[held]
+        return seated, seat, miss
+
+    def similarity_path(self, s: float) -> np.ndarray:
+        """Each component's centroid (C, 3) at factor ``s`` along its best similarity between the
+        keys (:attr:`similar_placement`; :func:`core.deformation_fields.similarity_paths`)."""
+        return df.similarity_paths(*self.similar_placement[1], self.base.centroids, s)[0]
 
     def region(self, force: np.ndarray) -> Region:
         """The vertices all of whose triangles are in ``force`` (bool (m,)) with their block of
@@ -901,7 +1018,10 @@ class _Gap(LocalGlobalFit):
         solve is the fit."""
         out = x.copy()
         if region.free.size:
-            edges = self.local_targets(frames, stretch, region.rows)["edges"]
+            if region.coordinates is None:  # the base's, shared by the fields imposed on the region
+                coordinates = self.base.coordinates[region.rows]
+                region.coordinates = np.ascontiguousarray(coordinates[..., 0]), np.ascontiguousarray(coordinates[..., 1])
+            edges = self.local_targets(frames, stretch, region.rows, region.coordinates)["edges"]
             out[region.free] = region.solve(edges, x, guide)
         return out
 
@@ -1056,9 +1176,20 @@ class _FramesByRows:
 
     def __init__(self, gap: _Gap, rotvec: np.ndarray, rotations: np.ndarray, columns: int = 3):
         self.gap, self.rotvec, self.rotations, self.columns = gap, rotvec, rotations, columns
+        # each triangle's frames computed once: the repair rounds' growing regions and their
+        # defect checks ask for overlapping rows again and again
+        self._frames = np.empty((columns, len(rotvec), 3))
+        self._done = np.zeros(len(rotvec), dtype=bool)
 
     def __getitem__(self, index):
         columns, rows = index
         if columns != slice(None):
             raise IndexError("frames by rows are indexed as [:, rows]")
-        return self.gap.key_frames(self.rotvec[rows], self.rotations, rows, self.columns)
+        rows = np.arange(len(self._done))[rows] if isinstance(rows, slice) else np.asarray(rows)
+        if rows.dtype == bool:
+            rows = np.flatnonzero(rows)
+        new = np.unique(rows[~self._done[rows]])
+        if new.size:
+            self._frames[:, new] = self.gap.key_frames(self.rotvec[new], self.rotations, new, self.columns)
+            self._done[new] = True
+        return self._frames[:, rows]

@@ -165,3 +165,28 @@ def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
         assert np.allclose(screw[:3], 2 * np.pi * turns * axis)
         v = reference[3:]
         assert np.allclose(screw[3:], v + axis * (axis @ (t - v)), rtol=1e-9, atol=1e-9)
+
+
+def test_similarity_paths_are_the_powers_of_the_similarity():
+    """``exp(s log S)`` of a rigid motion times a uniform scale (SciPy's matrix logarithm and
+    exponential of the 4 × 4 matrix) at factors in and beyond [0, 1], and for a rigid motion the
+    screw motion of :func:`rigid_exps`."""
+    rng = np.random.default_rng(3)
+    for scale in (1.0, 1.3, 0.6):
+        for angle in (0.0, 1e-7, 0.4, 2.9):
+            w = rng.standard_normal(3)
+            w *= angle / np.linalg.norm(w)
+            t, p = rng.standard_normal(3), rng.standard_normal(3)
+            matrix = np.eye(4)
+            matrix[:3, :3], matrix[:3, 3] = scale * Rotation.from_rotvec(w).as_matrix(), t
+            for s in (0.5, 2.0, -0.5):
+                x, ok = df.similarity_paths(w[None], np.array([np.log(scale)]), t[None], p[None], s)
+                if scale == 1.0:
+                    screw = df.rigid_logs(matrix[None, :3, :3], t[None])
+                    rotation, translation = df.rigid_exps(s * screw)
+                    expected = rotation[0] @ p + translation[0]
+                else:
+                    power = np.real(expm(s * logm(matrix)))
+                    expected = power[:3, :3] @ p + power[:3, 3]
+                assert ok.all()
+                np.testing.assert_allclose(x[0], expected, atol=1e-12)
