@@ -14,6 +14,16 @@ that moves least over the gap's keys (a fixed base stays the root; measured by i
 moves, since a link turning past a half turn reads as a small turn the other way). At the keys the composed
 motions are the pieces' own, and a rigid motion of the whole mesh has identity
 relative motions, so it is reproduced exactly either way.
+
+A rigid piece with a pinned vertex (still in the keys, or riding on an animated object:
+:mod:`core.pins`) hangs from the world: its rigid motion fixes that vertex, so its own screw
+motion keeps it put at every factor, where a parent's motion composed with the relative one does
+not, and the pins then pull against it. Two cabinet doors 0.02 apart, each turning about its own
+hinge (90° and 40°), were jointed (their relative motion's axis runs near their contact) and the
+child door came back bent between its hinge's pins and its composed motion: 0.12 of the diagonal
+off at 0.5, edges 4 % off, 0.24 and 60 % at × 2; now exact. Such pieces are joined to a world
+node before any joint in the spanning tree, which is traversed from it first: they are roots, and
+other pieces may hang from them.
 """
 
 from __future__ import annotations
@@ -75,7 +85,7 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-               moves: np.ndarray, reach: float, loose: np.ndarray | None = None):
+               moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -87,7 +97,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     over half :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`: noise, rounding), which root a
     group only where none of its pieces is firmly rigid (a head turned exactly rigidly hung from one
     of its two noisy eyes, which moved less, and left its own motion by the eye's noise: 3e-5 of the
-    diagonal at 0.5 for noise of 1e-4 of it)."""
+    diagonal at 0.5 for noise of 1e-4 of it); ``held``: bool (C,), the pieces with a pinned vertex
+    (still in the keys, :mod:`core.pins`), which hang from the world: roots, never children (see
+    the module's note)."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -122,7 +134,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     apart = np.minimum.reduceat(np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1), first)
     weights = offsets[jointed] + apart[jointed] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
     u, v = u[jointed], v[jointed]
-    tree = minimum_spanning_tree(sp.csr_matrix((weights, (u, v)), shape=(pieces.size,) * 2)).tocoo()
+    world = pieces.size  # a node for the world, which the pinned pieces hang from (the module's note)
+    pinned = np.flatnonzero(held[pieces]) if held is not None else np.zeros(0, dtype=np.intp)
+    if pinned.size:
+        u, v = np.r_[u, np.full(pinned.size, world)], np.r_[v, pinned]
+        weights = np.r_[weights, np.full(pinned.size, 0.5 * weights.min())]  # before any joint
+    tree = minimum_spanning_tree(sp.csr_matrix((weights, (u, v)), shape=(world + 1,) * 2)).tocoo()
     neighbours: dict[int, list[int]] = {}
     for u, v in zip(tree.row, tree.col):
         neighbours.setdefault(int(u), []).append(int(v))
@@ -130,20 +147,25 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     parents = np.full(len(topo.components), -1)
     order, seen = [], set()
     loose = np.zeros(len(topo.components), dtype=bool) if loose is None else loose
-    # the firmly rigid piece of each group that moves least first
-    for root in sorted(neighbours, key=lambda k: (bool(loose[pieces[k]]), moves[pieces[k]])):
+    # the world's group first, then the firmly rigid piece of each other group that moves least
+    for root in sorted(neighbours, key=lambda k: (False, -np.inf) if k == world else
+                       (bool(loose[pieces[k]]), moves[pieces[k]])):
         if root in seen:
             continue
         seen.add(root)
         queue = deque([root])
         while queue:
             k = queue.popleft()
-            order.append(int(pieces[k]))
+            if k != world:
+                order.append(int(pieces[k]))
             for other in neighbours[k]:
                 if other not in seen:
                     seen.add(other)
-                    parents[pieces[other]] = pieces[k]
+                    if k != world:  # the world's children are roots
+                        parents[pieces[other]] = pieces[k]
                     queue.append(other)
+    if not (parents >= 0).any():
+        return None
     return parents, order
 
 

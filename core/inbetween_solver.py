@@ -38,7 +38,9 @@ GAUGE_WEIGHT = 1e-7
 #: blend keeps the edge lengths (the neighbourhood translates) it is accurate, so parts that do not
 #: move stay put, translating parts sit where the blend puts them, and parts turning about them
 #: hang from them; where the blend shortens edges (rotating parts: it cuts the chord; 10 % is a
-#: turn of ~50°) the weight vanishes and the interpolated rotations alone decide.
+#: turn of ~50°) the weight vanishes and the interpolated rotations alone decide. In a component
+#: that keeps its edge lengths and has pins, a translating part hangs from them instead
+#: (:meth:`_Gap.hung_from_pins`): its translation comes from the turns between them.
 BLEND_ANCHOR_WEIGHT = 0.1
 BLEND_SHORTENING_SCALE = 0.01
 BLEND_SHORTENING_CUTOFF = 0.1
@@ -495,9 +497,11 @@ class _Gap(LocalGlobalFit):
         # rigid pieces jointed to each other move relative to the piece they hang from
         self.joints = None
         if len(topo.components) > 1:
+            held = None if static is None else np.bincount(topo.component_labels, static[topo.component_vertices],
+                                                           minlength=len(topo.components)) > 0
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
-                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE)
+                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held)
         if self.joints is not None:
             spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
                                                                   [r.extrapolated for r in relatives],
@@ -731,7 +735,14 @@ class _Gap(LocalGlobalFit):
         world_change = per_vertex(np.linalg.norm(b - a, axis=1) / length_a)
         drift = np.linalg.norm(undone - self.base.vertices, axis=1) / self.base.diagonals[topo.vertex_owner]
         loose = topo.edges_per_vertex == 0  # no edge to judge by: with their owner where it takes them
-        co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & ((co_moving_change < world_change) | loose)
+        # a jointed piece's motion is its parent's composed with the relative one (core.inbetween_joints):
+        # with it undone the blend follows the joints, where in the world it is their linear blend
+        # (the last of three links bent +60° / −60° only translates: 4.5e-2 of the diagonal off at 0.5)
+        child = np.zeros(topo.n, dtype=bool)
+        if self.joints is not None:
+            owner = topo.vertex_owner
+            child = (owner >= 0) & (self.joints[0] >= 0)[np.maximum(owner, 0)]
+        co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & ((co_moving_change < world_change) | loose | child)
                      & (drift < CO_MOVING_DRIFT))
         if between:
             change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
@@ -739,12 +750,38 @@ class _Gap(LocalGlobalFit):
             change = np.where(co_moving, co_moving_change, world_change)
         falloff = (BLEND_SHORTENING_SCALE / np.maximum(change, BLEND_SHORTENING_SCALE)) ** 2
         weight = BLEND_ANCHOR_WEIGHT * falloff * np.maximum(0.0, 1.0 - change / BLEND_SHORTENING_CUTOFF) ** 2
+        stretch = per_vertex(np.abs(np.linalg.norm(b, axis=1) / length_a - 1.0))
         if between:
-            weight *= self.chord_falloff(change, co_moving, per_vertex(length_a),
-                                         per_vertex(np.abs(np.linalg.norm(b, axis=1) / length_a - 1.0)))
+            weight *= self.chord_falloff(change, co_moving, per_vertex(length_a), stretch)
             if self.use_extrinsic:
                 weight[self.aliased_blend()] = 0.0
+        weight[self.hung_from_pins(stretch, co_moving)] = 0.0
         return np.maximum(weight, GAUGE_WEIGHT), co_moving
+
+    def hung_from_pins(self, stretch: np.ndarray, co_moving: np.ndarray) -> np.ndarray:
+        """Vertices (bool (n,)) whose blend anchor in the world is let go because what joins them
+        to the pins turns: the moving vertices (not pinned, not co-moving, in an edge) of a
+        component that has a pinned vertex (:mod:`core.pins`: still in both keys) and keeps its
+        edge lengths between the keys everywhere (``stretch``, each vertex's mean relative change
+        of its edges' lengths, under :data:`~core.inbetween_fit.METRIC_TOLERANCE`). Such a component
+        moves only by turning about its pins, so a part of it whose edge vectors do not change
+        translates along the arcs of the turns between it and the pins, not along the blend's
+        straight line (a strip folded +60° and −60° at two joints, base still: its end only
+        translates, and anchored to the blend it was 3.7e-2 of the diagonal off at 0.5 with
+        edges 6.6 % off, 0.28 at × 2); let go it hangs from the pins by the interpolated
+        rotations. Parts that turn, mostly let go by the blend's shortening and
+        :meth:`chord_falloff` already, are let go wholly (an arm bent 10° at the elbow of a still
+        upper arm, the anchor its forearm kept: 2.7e-4 → 1.4e-6 of the diagonal off half-way).
+        Cloth keeps its anchor: every edge of it changes length."""
+        topo = self.topo
+        if self.static is None or not topo.components:
+            return np.zeros(topo.n, dtype=bool)
+        rows, labels, count = topo.component_vertices, topo.component_labels, len(topo.components)
+        worst = np.maximum.reduceat(stretch[topo.component_order], topo.component_starts)
+        hung = (np.bincount(labels, self.static[rows], minlength=count) > 0) & (worst < METRIC_TOLERANCE)
+        owner = topo.vertex_component
+        return ((owner >= 0) & hung[np.maximum(owner, 0)] & ~co_moving & ~self.static
+                & (topo.edges_per_vertex > 0))
 
     def aliased_blend(self) -> np.ndarray:
         """Vertices (bool (n,)) of a triangle whose edges the linear blend turns nearly opposite

@@ -733,6 +733,76 @@ def test_a_lid_turned_by_a_half_turn_on_a_fixed_box_stays_rigid():
         assert min(errors) < 1e-6, (s, errors)
 
 
+def _doors(left, right, gap=0.05):
+    """Two cabinet doors (1 × 1.67 panels, separate pieces ``gap`` apart, nearer than an edge),
+    the left one turned by ``left`` about its left edge, the right one by ``right`` about its
+    right edge (radians; both swing toward +z): each door's hinge vertices still."""
+    panel, panel_triangles = grid(4, 6, size=1.0)
+    a = np.vstack([panel, panel + [1.0 + gap, 0.0, 0.0]])
+    out, n = a.copy(), len(panel)
+    for rows, angle, hinge in ((slice(0, n), -left, [0.0, 0.0, 0.0]), (slice(n, 2 * n), right, [2.0 + gap, 0.0, 0.0])):
+        out[rows] = _rigid(a[rows], Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix(), np.array(hinge))
+    return out, np.vstack([panel_triangles, panel_triangles + n])
+
+
+@pytest.mark.parametrize("degrees", [(90.0, 40.0), (40.0, 90.0), (120.0, 30.0)])
+def test_neighbouring_doors_each_turn_about_their_own_hinge(degrees):
+    """Two doors side by side, each turning rigidly about its own hinge, whose vertices stay
+    still: every factor of two poses (and every time of a sequence) is each door turned by that
+    factor of its angle, to 1e-6. They touch (within an edge) and their relative motion's axis
+    runs near the contact, so the joint tree had hung one from the other: moved by the other's
+    motion composed with the relative one while its hinge's pins held it, it bent between the two
+    (0.31 off at ×2, edges 60 % off). A piece with a pinned vertex hangs from the world."""
+    left, right = np.radians(degrees)
+    a, tri = _doors(0.0, 0.0)
+    interpolator = Interpolator(a, _doors(left, right)[0], tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _doors(s * left, s * right)[0], atol=1e-6)
+    sequence = SequenceInterpolator([_doors(k * left / 3, k * right / 3)[0] for k in range(4)], tri, start="keys")
+    for gap in range(3):
+        for factor in (0.25, 0.5, 0.75):
+            np.testing.assert_allclose(sequence.pose(gap, factor),
+                                       _doors((gap + factor) * left / 3, (gap + factor) * right / 3)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_links_bent_back_carry_the_last_link_round_the_joints(degrees):
+    """Three links (separate pieces) on a fixed first link, the second bent by ``degrees`` and the
+    third bent back by as much: the last link only translates between the keys, along the arc the
+    second one turns. Every factor of two poses is the arm bent by that factor of the angles, to
+    1e-6. Anchored to the linear blend in the world it stayed on the straight line (60°: 0.79 off
+    at ×2, its joint opened); a jointed piece's blend is taken with its composed motion undone."""
+    a, tri = _chain((0.0,) * 3)
+    angles = np.radians([0.0, degrees, -degrees])
+    interpolator = Interpolator(a, _chain(angles)[0], tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _chain(s * angles)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_a_strip_folded_back_at_two_joints_hangs_its_end_from_its_fixed_base(degrees):
+    """A strip on a still base folded by ``degrees`` at one joint and back by as much at the next
+    (a Z): its end only translates between the keys. At −0.5, 0.5 and ×2 it is the strip folded
+    by that factor of the angles to 1e-3 of the diagonal (RMS; the joints' chords shorten a little
+    as they curl), its edges within 1 % of their lengths and its base fixed to 1e-6. Anchored to
+    the linear blend, the end stayed on the blend's straight line: 60° half-way 4.2e-2 of the
+    diagonal off with edges 8 % off, ×2 0.31 and 41 %. A component that keeps its edge lengths
+    and has pins moves only by turning about them: its parts hang from the pins."""
+    a, tri = _curled_strip((0.0, 0.0))
+    angles = np.radians([degrees, -degrees])
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    edges = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    rest = np.linalg.norm(a[edges[:, 1]] - a[edges[:, 0]], axis=1)
+    fixed = a[:, 0] < 0.85
+    interpolator = Interpolator(a, _curled_strip(angles)[0], tri)
+    for factor in (-0.5, 0.5, 2.0):
+        x = interpolator.pose(factor)
+        truth, _ = _curled_strip(factor * angles)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal, factor
+        assert np.abs(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0).max() < 1e-2, factor
+        assert np.abs(x[fixed] - a[fixed]).max() < 1e-6 * diagonal, factor
+
+
 @pytest.mark.parametrize("keys", [3, 4])
 def test_a_sheet_keyed_every_half_turn_turns_about_its_axis(keys):
     """A draped sheet turning about the vertical axis through its middle, keyed every half turn
