@@ -39,14 +39,15 @@ CARRIER_NEIGHBOURS = 3
 #: keys 16 apart, median distance off the cloth: 0.05: 2.69 mean edge lengths, 0.25: 0.11, 0.5: 0.10;
 #: a piece that moves on its own misses by more than its size).
 CARRIED_TOLERANCE = 0.25
-#: ... or within this fraction of the piece's own move between the keys (its vertices' largest):
-#: a small piece on a part that turns far in a gap is missed by more than its size by a seat that
-#: still carries all but a little of its move — a belt buckle on a character's hips turning 91°
-#: between keys 8 frames apart, the skin under it weighted to the spine and thighs too, missed by
-#: 0.48 of the buckle's diagonal but 0.07 of its move; kept on its own screw its offset from the
-#: hips was 0.065 off, the linear blend's 0.009. A piece that moves on its own (off the seat, or
-#: turning on it) is missed by about all of its move.
-CARRIED_SHARE = 0.25
+#: ... plus this share of the piece's diagonal per radian its seat turns between the keys: a seat
+#: fitted to skin weighted to several bones misses by more the farther it turns — a belt buckle
+#: 0.104 across on a character's hips turning 91° between keys 8 frames apart, missed by 0.050
+#: (0.48 of its diagonal; allowed now 0.25 + 1.0 × 1.59 = 1.84; its offset 0.007 off, at 0.25 per
+#: radian 0.014); kept on its own screw its offset
+#: from the hips was 0.065 off, the linear blend's 0.009. Independent of where the mesh is and how
+#: far it travels (a share of the piece's own move, tried first, carried a ball moving 0.6 on its
+#: own along a strip that translated 20).
+CARRIED_SHARE = 1.0
 #: Fewest carriers, and their least spread: the second singular value of their centred positions
 #: over their first (collinear carriers leave a turn about their line free) and over the piece's
 #: diagonal (a turn read off a speck moves the piece's far end by the speck's error times their
@@ -169,8 +170,9 @@ class CarriedPieces:
         moved = np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece]
         miss = np.abs(moved - nxt[rows]).max(axis=1)
         worst = np.maximum.reduceat(miss, starts)
-        travel = np.maximum.reduceat(np.linalg.norm(nxt[rows] - base[rows], axis=1), starts)
-        allowed = np.maximum(CARRIED_TOLERANCE * diagonal, CARRIED_SHARE * travel)
+        # a seat turning far is fitted to carriers that deform with it: its miss may grow with the turn
+        turned = np.linalg.norm(df.rotation_vectors(rotations), axis=1)
+        allowed = (CARRIED_TOLERANCE + CARRIED_SHARE * turned) * diagonal
         groups = np.split(carriers, np.cumsum(counts)[:-1])
         ends = np.r_[starts[1:], rows.size]
         out = []

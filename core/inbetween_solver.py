@@ -146,6 +146,10 @@ RIGID_PLACEMENT_SCALE = 1e-3
 #: from the chord keeps the spline (docs/inbetweens.md, *Nearly rigid and similar pieces, and what
 #: carries what*).
 ARC_PLACEMENT_MISFIT = 2.0
+#: ... and wholly only where its best similarity misses it by at most the first share of its size
+#: (noise, rounding), not at all from the second on (linearly between): a piece missed by that much
+#: deforms, and its centroid keeps its own path however far it travels (free-falling cloth, above).
+SIMILAR_SHAPE_MISFIT = (5e-3, 2e-2)
 #: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
 #: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
 FLYING_MIN_TURN = 1e-6
@@ -980,7 +984,12 @@ class _Gap(LocalGlobalFit):
         half, ok = df.similarity_paths(*similarity, c0, 0.5)
         departure = np.linalg.norm(half - self.splines["centroids"].at(0.5), axis=1)
         ratio = ARC_PLACEMENT_MISFIT * misfit / np.maximum(departure, np.finfo(float).tiny)
-        trust = np.where(positive & ok & np.isfinite(ratio), np.clip(1.0 - ratio**2, 0.0, 1.0), 0.0)
+        # ... and only pieces nearly similar in shape: the departure grows with how far a piece
+        # travels, its misfit does not (a sheet crumpling while thrown 10 units and turning 60°,
+        # misfit 0.038 of its diagonal, was pulled onto the arc, 0.65 of its size off its path)
+        low, high = SIMILAR_SHAPE_MISFIT
+        shape = np.clip((high - misfit / np.maximum(self.base.diagonals, np.finfo(float).tiny)) / (high - low), 0.0, 1.0)
+        trust = np.where(positive & ok & np.isfinite(ratio), np.clip(1.0 - ratio**2, 0.0, 1.0) * shape, 0.0)
         return trust, similarity
 
     @cached_property
@@ -1029,7 +1038,7 @@ class _Gap(LocalGlobalFit):
         best = np.lexsort((-votes, pair_piece))  # per piece, the owner holding most of its nearest first
         first_of = best[np.r_[True, pair_piece[best][1:] != pair_piece[best][:-1]]]
         pieces, owners = pair_piece[first_of], pair_owner[first_of]
-        enough = np.bincount(piece, minlength=count)[pieces] >= carried.MIN_CARRIERS
+        enough = votes[first_of] >= carried.MIN_CARRIERS  # nearest vertices on the chosen seat itself
         pieces, owners = pieces[enough], owners[enough]
         rotations, translations = self.relatives[2].motion
         c0, c1 = self.base.centroids, self.relatives[2].centroids

@@ -619,10 +619,13 @@ class Interpolator:
         shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
         if grown.any() or shrunk.any():
             rows = np.flatnonzero(grown | shrunk) // 3
-            ratio = np.sqrt(np.max(np.where(grown, lengths / np.maximum(longest, np.finfo(float).tiny),
-                                            shortest / np.maximum(lengths, np.finfo(float).tiny))))
+            tiny = np.finfo(float).tiny
+            growth = np.where(grown, lengths / np.maximum(longest, tiny), 0.0)
+            shrinking = np.where(shrunk, shortest / np.maximum(lengths, tiny), 0.0)
+            longer = growth.max() >= shrinking.max()
+            ratio = np.sqrt(max(growth.max(), shrinking.max()))
             _warn(f"at factor {factor:g}, {int(np.unique(rows).size)} triangle(s) (e.g. triangle {int(rows[0])}) "
-                  f"have edges {ratio:.3g} × as {'long' if grown.any() else 'short'} as in either pose: "
+                  f"have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
                   "an exaggerated or reversed metric grows each stretch by the factor's power, so a triangle "
                   "nearly collapsed (or stretched) in one pose swells (or shrinks) the other way; use a "
                   "factor nearer the poses, or give such triangles their size in the poses")

@@ -190,3 +190,18 @@ def test_similarity_paths_are_the_powers_of_the_similarity():
                     expected = power[:3, :3] @ p + power[:3, 3]
                 assert ok.all()
                 np.testing.assert_allclose(x[0], expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("short_of_half", [1e-7, 1e-3, 9e-3])
+def test_a_turn_taken_the_long_way_within_its_spread_is_the_same_motion(short_of_half):
+    """A rotation just short of a half turn, whose reference turns the other way, is taken the long
+    way round within its spread: its screw is the same rigid motion (the inverse rotation, −ω,
+    missed it by 2 (π − θ))."""
+    axis = np.array([0.0, 0.0, 1.0])
+    rotation = Rotation.from_rotvec((np.pi - short_of_half) * axis).as_matrix()[None]
+    translation = np.array([[0.3, -0.2, 0.5]])
+    screw = df.rigid_logs(rotation, translation, -axis[None], spread=0.01)
+    assert screw[0, :3] @ axis < 0  # the reference's way
+    back_rotation, back_translation = df.rigid_exps(screw)
+    np.testing.assert_allclose(back_rotation, rotation, atol=1e-12)
+    np.testing.assert_allclose(back_translation, translation, atol=1e-12)
