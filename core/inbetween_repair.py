@@ -43,6 +43,11 @@ from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot
 from .inbetween_fit import METRIC_TOLERANCE
 
+#: Pieces whose rigid fits miss them by less than this share of their size (noise, rounding) may
+#: turn away from both keys with their edges off the interpolated metric by the gap's tolerance
+#: (:meth:`Repair._turned_away`).
+NOISY_TURN_NONRIGIDITY = 3e-2
+
 #: A triangle whose area dropped below this fraction of its interpolated target area is collapsed.
 COLLAPSE_RATIO = 1e-3
 #: A triangle is flipped where its normal opposes the keys' (or the interpolated) normal by more
@@ -203,7 +208,13 @@ class Repair:
         target = np.linalg.norm(self.gap.local_targets(columns, sides[2][triangles], triangles)["edges"], axis=2)
         third = e2 - e1  # corner edges 0, 1, 2: e1, e2 − e1, −e2
         lengths = np.sqrt(np.stack([coordinate_dot(e1, e1), coordinate_dot(third, third), coordinate_dot(e2, e2)], axis=1))
-        kept = np.mean(np.abs(lengths / target - 1.0), axis=1) < METRIC_TOLERANCE
+        # pieces nearly rigid but noisy keep the metric only to the gap's tolerance (a card with
+        # noise 2e-3 of its size turning 185° between keys: its side faces read as flipped and a
+        # repair tore it, edges 3–15 × their length); cloth keeps the strict one (above)
+        gap = self.gap
+        nearly_rigid = np.asarray(gap.nonrigidity)[gap.topo.triangle_component[triangles]] < NOISY_TURN_NONRIGIDITY
+        tolerance = np.where(nearly_rigid, max(METRIC_TOLERANCE, gap.tolerance), METRIC_TOLERANCE)
+        kept = np.mean(np.abs(lengths / target - 1.0), axis=1) < tolerance
         return candidates[kept]
 
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:

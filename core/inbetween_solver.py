@@ -149,7 +149,7 @@ ARC_PLACEMENT_MISFIT = 2.0
 #: ... and wholly only where its best similarity misses it by at most the first share of its size
 #: (noise, rounding), not at all from the second on (linearly between): a piece missed by that much
 #: deforms, and its centroid keeps its own path however far it travels (free-falling cloth, above).
-SIMILAR_SHAPE_MISFIT = (5e-3, 2e-2)
+SIMILAR_SHAPE_MISFIT = (1e-2, 3e-2)
 #: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
 #: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
 FLYING_MIN_TURN = 1e-6
@@ -523,6 +523,7 @@ class _Gap(LocalGlobalFit):
                 self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.change_tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
         self.select(0.5)
         self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
+        self.nonrigidity = nonrigidity
         # the splines' conditions for free flight and impacts act on the world spline: not there
         self._arc_candidates = np.full(len(topo.components), cubic and not anchored)
         for condition in (free, impact, None if entry is None else entry[0]):
@@ -1011,7 +1012,9 @@ class _Gap(LocalGlobalFit):
 
         topo, count = self.topo, len(self.topo.components)
         seated, seat, miss = np.zeros(count, dtype=bool), np.zeros(count, dtype=int), np.zeros((count, 3))
-        rigid = self.rigidity > 0.0
+        # seats: pieces rigid to within noise (a head whose keys carry noise 6e-4 of the diagonal
+        # has rigidity 0, and its blinking eyes went on their chords, 5.5e-2 off at 0.5)
+        rigid = (self.rigidity > 0.0) | (self.nonrigidity < SIMILAR_SHAPE_MISFIT[0])
         deforming = ~rigid
         if count < 2 or not rigid.any() or not deforming.any():
             return seated, seat, miss
