@@ -42,12 +42,17 @@ CARRIED_TOLERANCE = 0.25
 #: ... plus this share of the piece's diagonal per radian its seat turns between the keys: a seat
 #: fitted to skin weighted to several bones misses by more the farther it turns — a belt buckle
 #: 0.104 across on a character's hips turning 91° between keys 8 frames apart, missed by 0.050
-#: (0.48 of its diagonal; allowed now 0.25 + 1.0 × 1.59 = 1.84; its offset 0.007 off, at 0.25 per
-#: radian 0.014); kept on its own screw its offset
+#: (0.48 of its diagonal; allowed now 0.25 + 1.0 × 1.59 = 1.84 of it); kept on its own screw its offset
 #: from the hips was 0.065 off, the linear blend's 0.009. Independent of where the mesh is and how
 #: far it travels (a share of the piece's own move, tried first, carried a ball moving 0.6 on its
 #: own along a strip that translated 20).
 CARRIED_SHARE = 1.0
+#: ... and, beyond a quarter of its diagonal, at most this share of how far the seat's turn moves the
+#: piece about the carriers' centroid: a ball on the axis of a sheet spinning 170° beside it, moving
+#: 0.6 on its own, was missed by less than the turn's allowance and swung along the sheet's arc
+#: (0.66 of its diagonal off half-way). The buckle: 0.014 off at keys 8 apart (0.007 without this
+#: limit, the blend 0.009).
+CARRIED_TURN_SHARE = 0.5
 #: Fewest carriers, and their least spread: the second singular value of their centred positions
 #: over their first (collinear carriers leave a turn about their line free) and over the piece's
 #: diagonal (a turn read off a speck moves the piece's far end by the speck's error times their
@@ -170,9 +175,15 @@ class CarriedPieces:
         moved = np.einsum("rab,rb->ra", rotations[piece], base[rows]) + translations[piece]
         miss = np.abs(moved - nxt[rows]).max(axis=1)
         worst = np.maximum.reduceat(miss, starts)
-        # a seat turning far is fitted to carriers that deform with it: its miss may grow with the turn
+        # a seat turning far is fitted to carriers that deform with it: its miss may grow with the
+        # turn, while staying a small share of how far the turn itself moves the piece about the
+        # carriers (a piece moving on its own is missed by about all of that, wherever it is)
         turned = np.linalg.norm(df.rotation_vectors(rotations), axis=1)
-        allowed = (CARRIED_TOLERANCE + CARRIED_SHARE * turned) * diagonal
+        about = base[rows] - (sums / np.maximum(counts, 1)[:, None])[piece]
+        swung = np.maximum.reduceat(np.linalg.norm(
+            np.einsum("rab,rb->ra", rotations[piece], about) - about, axis=1), starts)
+        allowed = np.maximum(CARRIED_TOLERANCE * diagonal, np.minimum(
+            (CARRIED_TOLERANCE + CARRIED_SHARE * turned) * diagonal, CARRIED_TURN_SHARE * swung))
         groups = np.split(carriers, np.cumsum(counts)[:-1])
         ends = np.r_[starts[1:], rows.size]
         out = []

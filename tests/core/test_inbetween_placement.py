@@ -1637,3 +1637,24 @@ def test_a_noisy_piece_turning_past_a_half_turn_stays_whole():
     x = SequenceInterpolator(keys, tri).pose(1, 0.5)
     low, high = np.minimum(lengths(keys[1]), lengths(keys[2])), np.maximum(lengths(keys[1]), lengths(keys[2]))
     assert np.max(np.maximum(lengths(x) / low, high / lengths(x))) < 1.25
+
+
+@pytest.mark.parametrize("degrees", [60.0, 170.0])
+def test_a_piece_moving_on_its_own_by_a_seat_spinning_about_it_is_not_carried(degrees):
+    """A rigid ball above the middle of a rippling sheet that spins about the axis through the ball:
+    the ball only translates 0.6 (1.4 of its diagonal), on its own; the sheet's turn barely moves
+    it, so nothing carries it: it stays on its straight path at every factor. An allowance growing
+    with the seat's turn alone carried it along the sheet's arc (0.66 of its diagonal off at 0.5
+    for 170°)."""
+    sheet, tri = grid(31, 31, size=2.0)
+    sheet = sheet - np.array([1.0, 1.0, 0.0])
+    ball, ball_triangles = icosphere(1, radius=0.12)
+    ball = ball + np.array([0.0, 0.0, 0.15])
+    rippled = sheet.copy()
+    rippled[:, 2] = 0.04 * np.sin(3 * sheet[:, 0]) * np.cos(2 * sheet[:, 1])
+    spun = rippled @ Rotation.from_rotvec(np.radians(degrees) * np.array([0.0, 0.0, 1.0])).as_matrix().T
+    move = np.array([0.6, 0.0, 0.0])
+    a, b = np.vstack([sheet, ball]), np.vstack([spun, ball + move])
+    interpolator = Interpolator(a, b, np.vstack([tri, ball_triangles + len(sheet)]))
+    for s in (0.25, 0.5, 1.5):
+        np.testing.assert_allclose(interpolator.pose(s)[len(sheet):], ball + s * move, atol=1e-6)
