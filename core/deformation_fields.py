@@ -409,7 +409,7 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
             half = (np.abs(theta - np.pi) < np.maximum(HALF_TURN_TOLERANCE, spread)) & (np.einsum("ij,ij->i", w, turn) < 0)
             # the same rotation the long way round, ω − 2π ω̂ (−ω, its inverse, differs from it by
             # 2(π − θ): within a spread of 1e-2 a piece jumped at every key, 4.8e-2 of its diagonal)
-            w = np.where(half[:, None], w - (2.0 * np.pi / np.where(half, theta, 1.0))[:, None] * w, w)
+            w = np.where(half[:, None], the_other_way(w, theta), w)
     a, b = _screw_coefficients(np.sqrt(np.einsum("ij,ij->i", w, w)))
     h = _hats(w)  # V(ω) = I + a [ω] + b [ω]²: the translation part of SE(3)'s exponential
     matrices = np.eye(3) + a[:, None, None] * h + b[:, None, None] * (h @ h)
@@ -418,6 +418,13 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
     base = np.where(held[:, None], references[:, 3:], 0.0) if held.any() else np.zeros_like(translations)
     rhs = translations - np.einsum("pab,pb->pa", matrices, base)
     return np.concatenate([w, base + least_squares_3x3(matrices, rhs)], axis=1)
+
+
+def the_other_way(w: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """The rotation vectors (P, 3) of the rotations ``w`` (P, 3; angles ``theta`` (P,)) taken the
+    other way round, ``ω − 2π ω̂``: the same rotations (``−ω`` is their inverse); rows with a zero
+    angle are left as they are."""
+    return w - (2.0 * np.pi / np.where(theta > 0, theta, np.inf))[:, None] * w
 
 
 def _hats(w: np.ndarray) -> np.ndarray:

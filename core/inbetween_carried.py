@@ -6,7 +6,7 @@ next to it follows its fields and the keys' spline: the two paths part between t
 piece that sits on another one leaves it. Where it sits is read in the first key: its seat is the
 nearest vertices of deforming components there (the cloth under a button, the socket around an
 eye). In a gap where the seat's best rigid motion from the base key to the next takes the piece
-near where it is in the next key (against its size or its own move), or where the piece touches
+near where it is in the next key (against its size, more for a seat that turns far), or where the piece touches
 its seat and turns about a point of their contact (a hand at the wrist of a bending forearm,
 :func:`core.inbetween_joints.joint_offset`), the seat carries it: at every factor the piece takes
 the seat's best rigid motion from the base key to the pose, times the part of its own motion the
@@ -162,7 +162,8 @@ class CarriedPieces:
         counts = np.bincount(seat_piece, minlength=count)
         seated = base[carriers]
         sums = np.stack([np.bincount(seat_piece, seated[:, d], minlength=count) for d in range(3)], axis=1)
-        centred = seated - (sums / np.maximum(counts, 1)[:, None])[seat_piece]
+        centre = sums / np.maximum(counts, 1)[:, None]  # the carriers' centroid, per piece
+        centred = seated - centre[seat_piece]
         scatter = np.zeros((count, 3, 3))
         for a in range(3):
             for b in range(3):
@@ -179,7 +180,7 @@ class CarriedPieces:
         # turn, while staying a small share of how far the turn itself moves the piece about the
         # carriers (a piece moving on its own is missed by about all of that, wherever it is)
         turned = np.linalg.norm(df.rotation_vectors(rotations), axis=1)
-        about = base[rows] - (sums / np.maximum(counts, 1)[:, None])[piece]
+        about = base[rows] - centre[piece]
         swung = np.maximum.reduceat(np.linalg.norm(
             np.einsum("rab,rb->ra", rotations[piece], about) - about, axis=1), starts)
         allowed = np.maximum(CARRIED_TOLERANCE * diagonal, np.minimum(

@@ -80,7 +80,7 @@ class _Relative:
             whole = rotations[0] if len(topo.components) == 1 else \
                 rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
-        self.screw = _screws(rotations, translations, turns, unwrap, self.nonrigidity)
+        self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
@@ -131,7 +131,7 @@ class _Relative:
         rotations, translations = self.motion
         inverse_rotations = df.transpose(rotations)
         inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
-        out.screw = _screws(inverse_rotations, inverse_translations, turns, True, self.nonrigidity)
+        out.screw = component_screws(inverse_rotations, inverse_translations, turns, True, self.nonrigidity)
         out.misfits = list(self.misfits)
         out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
@@ -150,10 +150,10 @@ class _Relative:
         constructor had been given ``turns`` (C, 3), its triangles' turns continued toward
         ``rotvec`` (:meth:`continue_turns`); with the relative ``nxt`` of the key between, the
         screws a spline takes for this key two steps on (:attr:`continued_screw`)."""
-        self.screw = _screws(*self.motion, turns, True, self.nonrigidity)
+        self.screw = component_screws(*self.motion, turns, True, self.nonrigidity)
         if nxt is not None:
             self._continued = df.continued_screws(nxt.screw, nxt.motion, self.motion,
-                                                  _spread(np.maximum(self.nonrigidity, nxt.nonrigidity)))
+                                                  turn_spread(np.maximum(self.nonrigidity, nxt.nonrigidity)))
         return self.continue_turns(rotvec)
 
     _continued = None
@@ -258,15 +258,15 @@ def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
                      sin * sin * a11 + 2 * cos * sin * a12 + cos * cos * a22], axis=1)
 
 
-def _screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool,
-            nonrigidity) -> np.ndarray:
+def component_screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool,
+                     nonrigidity) -> np.ndarray:
     """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
     vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_logs`), to
     within what the components' ``nonrigidity`` (C,) says their fits are known to."""
-    return df.rigid_logs(rotations, translations, turns, unwrap, _spread(nonrigidity))
+    return df.rigid_logs(rotations, translations, turns, unwrap, turn_spread(nonrigidity))
 
 
-def _spread(nonrigidity) -> np.ndarray:
+def turn_spread(nonrigidity) -> np.ndarray:
     """The angles (radians, (C,)) the components' rotations are known to, from their
     ``nonrigidity`` (C,) (see :data:`core.deformation_fields.TURN_NOISE`)."""
     return np.minimum(df.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), df.TURN_SPREAD)

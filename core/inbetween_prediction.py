@@ -335,7 +335,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
     had none left), the pose solved at ``s`` instead if it has fewer."""
     motion = gap.motion(s)
-    x = gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion)
+    x = _predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
         return gap.pose(s)
     x = _pins_in_place(gap, x, s)
@@ -344,8 +344,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     defects = gap.repair.defects(x, s, None, None, scale=scale)
     if defects.any() and isinstance(correction, _RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
-        plain = _pins_in_place(gap, gap.topo.apply_motion(
-            gap.splines["vertices"].at(s) + correction.correction(s), *motion), s)
+        plain = _pins_in_place(gap, _predicted_positions(gap, s, correction.correction, motion), s)
         gap.carried.place(plain, s)
         fewer = gap.repair.defects(plain, s, None, None, scale=scale)
         if fewer.sum() < defects.sum():
@@ -365,6 +364,12 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None) -> 
     return min((solved, result), key=lambda r: int(gap.repair.defects(r[0], s, None, None, scale=scale).sum()))
 
 
+def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:
+    """The prediction at ``s`` before its pins and carried pieces: the co-moving spline plus the
+    ``correction`` at ``s``, moved by the gap's interpolated rigid ``motion`` there."""
+    return gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion)
+
+
 def _relaxation(gap, s: float, correction) -> np.ndarray:
     """The co-moving displacement (n, 3) that one local/global step toward the interpolated metric
     gives the prediction at ``s``: each triangle's metric turned by its own rotation in the
@@ -372,7 +377,7 @@ def _relaxation(gap, s: float, correction) -> np.ndarray:
     with the gap's anchor pulling toward the prediction itself (not the spline: its long
     wavelengths stay, its short ones take the metric's lengths)."""
     motion = gap.motion(s)
-    x = _pins_in_place(gap, gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion), s)
+    x = _pins_in_place(gap, _predicted_positions(gap, s, correction, motion), s)
     targets = gap.local_step_targets(gap.fit_targets(None, gap.stretch(s)))
     y = gap.solve(gap.fitted_edges(gap.edges_of(x, LOCAL_STEP_DTYPE), targets), x)
     return gap.topo.undo_motion(y - x, motion[0], np.zeros((len(motion[0]), 3)))

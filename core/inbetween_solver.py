@@ -21,7 +21,7 @@ from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, ver
 from .inbetween_carried import CarriedPieces
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, fit_tolerances
 from .inbetween_joints import JOINT_REACH, composed, joint_screws, joint_tree
-from .inbetween_keys import _Key, _Relative, _spread
+from .inbetween_keys import _Key, _Relative, turn_spread
 from .inbetween_repair import Region, Repair
 from .rigid_alignment import rigid_alignment
 from .sparse_cholesky import SPDFactor
@@ -1014,7 +1014,7 @@ class _Gap(LocalGlobalFit):
         seated, seat, miss = np.zeros(count, dtype=bool), np.zeros(count, dtype=int), np.zeros((count, 3))
         # seats: pieces rigid to within noise (a head whose keys carry noise 6e-4 of the diagonal
         # has rigidity 0, and its blinking eyes went on their chords, 5.5e-2 off at 0.5)
-        rigid = (self.rigidity > 0.0) | (self.nonrigidity < SIMILAR_SHAPE_MISFIT[0])
+        rigid = self.nonrigidity < SIMILAR_SHAPE_MISFIT[0]
         deforming = ~rigid
         if count < 2 or not rigid.any() or not deforming.any():
             return seated, seat, miss
@@ -1169,7 +1169,7 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
 
     # ... and within what the fits are known to: float32 keys of 300 cards, 10 units out and keyed
     # every half turn, differ by ~1e-5, and each card alone turned about its centroid, off its circle
-    spread = np.maximum(_spread(nonrigidity[candidates]), 0.5e-6)
+    spread = np.maximum(turn_spread(nonrigidity[candidates]), 0.5e-6)
     pairs = cKDTree(motions).query_pairs(2.0 * float(spread.max()), output_type="ndarray")
     if len(pairs):
         pairs = pairs[np.linalg.norm(motions[pairs[:, 0]] - motions[pairs[:, 1]], axis=1)

@@ -52,9 +52,9 @@ from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from .deformation_fields import rotation_vectors
+from .deformation_fields import rotation_vectors, the_other_way
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
-from .inbetween_keys import _screws as screws
+from .inbetween_keys import component_screws
 from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
@@ -312,10 +312,10 @@ class SequenceInterpolator:
             return relative
         told = ~np.all(np.isnan(steps), axis=(0, 2))
         expected = np.where(told[:, None], np.nanmean(np.where(told[None, :, None], steps, 0.0), axis=0), 0.0)
-        other_way = w - (2.0 * np.pi / np.where(near, theta, 1.0))[:, None] * w
+        other_way = the_other_way(w, theta)
         swap = near & told & (np.linalg.norm(other_way - expected, axis=1) < np.linalg.norm(w - expected, axis=1))
         if swap.any():
-            relative.screw = screws(*relative.motion, np.where(swap[:, None], other_way, w), True, relative.nonrigidity)
+            relative.screw = component_screws(*relative.motion, np.where(swap[:, None], other_way, w), True, relative.nonrigidity)
         return relative
 
     def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
@@ -561,7 +561,7 @@ class Interpolator:
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         self._edges = edges
-        self._squared = [np.sum((p[edges[:, 1]] - p[edges[:, 0]]) ** 2, axis=1) for p in poses]
+        self._squared = [self._squared_lengths(p) for p in poses]
         self._given_poses = poses
 
     def _whole_sequence(self) -> SequenceInterpolator:
@@ -574,11 +574,15 @@ class Interpolator:
             self._whole = whole
         return self._whole
 
+    def _squared_lengths(self, x: np.ndarray) -> np.ndarray:
+        """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
+        return np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
+
     def _misfit(self, x: np.ndarray, factor: float) -> float:
         """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
         (squared lengths linear in ``factor``)."""
         target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
-        lengths = np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
+        lengths = self._squared_lengths(x)
         return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
 
     def pose(self, factor: float) -> np.ndarray:
@@ -609,11 +613,10 @@ class Interpolator:
                   f"{message} (its edge lengths {100 * misfit:.1f} % off the interpolated ones on average)")
         return x
 
-
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
         """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`
         times as long as in either pose, or under its inverse times as short."""
-        lengths = np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
+        lengths = self._squared_lengths(x)
         longest, shortest = np.maximum(*self._squared), np.minimum(*self._squared)
         grown = lengths > EXTRAPOLATED_GROWTH ** 2 * longest
         shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
