@@ -175,6 +175,8 @@ class SequenceInterpolator:
         """The constructor once its arguments are checked (``topology``: that of the triangles)."""
         self.start = start
         self._key_times = key_times
+        # the keys as messages name them (the caller's names: the operators name frames or shape keys)
+        self._key_names = [f"key pose {i}" for i in range(len(key_poses))]
         # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
@@ -519,7 +521,8 @@ class SequenceInterpolator:
             if self._origin is not None and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit
             if problem:
-                problems.append(f"pose at factor {factors[k]:g} of gap {gap}: {problem}")
+                problems.append(f"pose at factor {factors[k]:g} between {self._key_names[gap]} and "
+                                f"{self._key_names[gap + 1]}: {problem}")
         return (out if self._copies is None else out[:, self._copies]), problems
 
     def pose_at(self, time: float) -> np.ndarray:
@@ -557,6 +560,7 @@ class Interpolator:
             [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
         self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False)
+        self._sequence._key_names = ["vertices_a", "vertices_b"]
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)

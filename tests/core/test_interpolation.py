@@ -519,15 +519,18 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
                         real_fit(self, x, *args, **kwargs))
     monkeypatch.setattr(repair.Repair, "problem", problem)
     monkeypatch.setattr(repair.Repair, "defects", defects)
-    with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
+    # the warnings name the gap by its keys, as the caller named them (the operators' frames)
+    with pytest.warns(ShapeDifferenceWarning, match="at factor 0.5 between key pose 0 and key pose 1: .*metric fit "
+                      "with the fewest"):
         x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
     assert near_blend and not any(near_blend)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
-    with pytest.warns(ShapeDifferenceWarning, match="returned the linear blend"):
+    with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b: .*returned the linear blend"):
         x = Interpolator(a, b, tri).pose(0.5)
     np.testing.assert_allclose(x, blend)
     assert any(near_blend)
-    with pytest.warns(ShapeDifferenceWarning, match="metric fit with the fewest"):
+    with pytest.warns(ShapeDifferenceWarning, match="at factor 1.5 between vertices_a and vertices_b: .*metric fit "
+                      "with the fewest"):
         x = Interpolator(a, b, tri).pose(1.5)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(extrapolation, flat, tri).mean()
 
