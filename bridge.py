@@ -248,6 +248,31 @@ def still_frames(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
               "outside this range)")
 
 
+def frames_outside_simulation(obj: bpy.types.Object, frames: list[int]) -> str | None:
+    """A warning when some of ``frames`` lie outside the frame range of an enabled cloth or soft
+    body of ``obj`` (its cache's start to end): Blender holds the simulation's last frame after its
+    end and its first before its start, so the poses read there stand still; None otherwise."""
+    for modifier in obj.modifiers:
+        if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
+            continue
+        cache = modifier.point_cache
+        before = [f for f in frames if f < cache.frame_start]
+        after = [f for f in frames if f > cache.frame_end]
+        if before or after:
+            parts = ([f"{_frame_span(before)} before its start"] if before else []) + \
+                    ([f"{_frame_span(after)} after its end"] if after else [])
+            return (f"'{obj.name}' is simulated by '{modifier.name}' over frames {cache.frame_start}–"
+                    f"{cache.frame_end}, and the range reads {' and '.join(parts)}: Blender holds the "
+                    "simulation still outside its frames, so the poses read there do not move. Fit the "
+                    "frame range to the simulation's, or widen the simulation's (its Cache panel)")
+    return None
+
+
+def _frame_span(frames: list[int]) -> str:
+    """"frame 7" or "frames 50–65" for the ascending ``frames``."""
+    return f"frame {frames[0]}" if len(frames) == 1 else f"frames {frames[0]}–{frames[-1]}"
+
+
 def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph) -> int:
     """The number of vertices of ``obj``'s evaluated mesh (after its modifiers) at the depsgraph's
     current frame."""

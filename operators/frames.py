@@ -86,9 +86,9 @@ class FrameRangeProperties:
             for frame, positions in frame_reader:
                 poses.append(positions)
                 yield progress_share * len(poses) / len(frames)
-        still = bridge.still_frames(obj, frames, poses)
-        if still:
-            self.report({'WARNING'}, still)
+        for warning in (bridge.frames_outside_simulation(obj, frames), bridge.still_frames(obj, frames, poses)):
+            if warning:
+                self.report({'WARNING'}, warning)
         return poses
 
 

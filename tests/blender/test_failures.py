@@ -427,3 +427,22 @@ def test_frames_that_never_move_are_said_to(bpy_empty, extension, tmp_path, capf
         bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
     out = capfd.readouterr().out
     assert "frames read from 'Cloth' (1–9) are all the same pose (Cloth cache: '0 frames on disk" in out
+
+
+def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, extension, capfd, tmp_path):
+    """Keys read after the end of a cloth's frame range are its last frame held: the run says so
+    (a probe's range 1–65 over a cloth simulated 1–49 in-betweened a still cape over 49–65,
+    silently); a range inside the simulation's says nothing of it."""
+    from blender_scenes import pinned_cloth_scene
+
+    cloth = pinned_cloth_scene(frames=9, bake=True)
+    bpy.context.scene.frame_end = 13
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        capfd.readouterr()
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=13, frame_step=4, count=1,
+                                                   filepath=str(tmp_path / "past.pc2"))
+        out = capfd.readouterr().out
+        assert "'Flag' is simulated by 'Cloth' over frames 1–9, and the range reads frame 13 after its end" in out
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                                   filepath=str(tmp_path / "inside.pc2"))
+        assert "is simulated by" not in capfd.readouterr().out
