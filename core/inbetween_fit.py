@@ -74,16 +74,26 @@ def _stops(misfits: list, tolerance: float) -> bool:
         and (misfits[-1] < STALL_NEAR * tolerance or misfits[-1] > (1.0 - FLAT_FRACTION) * misfits[-3])
 
 
-def fit_tolerances(base_lengths: np.ndarray, next_lengths: np.ndarray) -> tuple[float, float]:
-    """(the fit's tolerance, the whole change's) of a gap between keys with corner edge lengths
+def change_tolerance(base_lengths: np.ndarray, next_lengths: np.ndarray) -> float:
+    """The whole change's tolerance of a gap between keys with corner edge lengths
     ``base_lengths`` and ``next_lengths`` (any matching shape): :data:`KEY_VARIATION_FRACTION` ×
-    the mean relative change of the edges without its :data:`TOLERANCE_TRIM` largest share, and
-    with it, each at least :data:`METRIC_TOLERANCE`."""
-    change = np.abs(next_lengths / base_lengths - 1.0).ravel()
+    the mean relative change of the edges, at least :data:`METRIC_TOLERANCE`."""
+    return max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * float(np.mean(_key_changes(base_lengths, next_lengths))))
+
+
+def trimmed_tolerance(base_lengths: np.ndarray, next_lengths: np.ndarray) -> float:
+    """The fit's tolerance of the gap of :func:`change_tolerance`: the same without the
+    :data:`TOLERANCE_TRIM` largest share of the edges' changes (a partial sort of them: asked for
+    only by batches that trim, see :data:`core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH`)."""
+    change = _key_changes(base_lengths, next_lengths)
     kept = int(len(change) * (1.0 - TOLERANCE_TRIM))
     trimmed = float(np.mean(np.partition(change, kept - 1)[:kept])) if kept > 0 else 0.0
-    return (max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * trimmed),
-            max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * float(np.mean(change))))
+    return max(METRIC_TOLERANCE, KEY_VARIATION_FRACTION * trimmed)
+
+
+def _key_changes(base_lengths: np.ndarray, next_lengths: np.ndarray) -> np.ndarray:
+    """The edges' relative changes ``|ℓ₁ / ℓ₀ − 1|`` between two keys (flat)."""
+    return np.abs(next_lengths / base_lengths - 1.0).ravel()
 
 
 class LocalGlobalFit:

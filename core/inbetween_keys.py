@@ -7,6 +7,7 @@ rigid motions undone — what :mod:`core.inbetween_solver` splines over a gap.
 from __future__ import annotations
 
 import copy
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -71,8 +72,11 @@ class _Relative:
     def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None):
         rotations, translations, self.misfits = rigid_fits(topo, base.vertices, other.vertices)
         turn, stretch = df.planar_polar(*df.planar_map_entries(other.tangent_rows, base.inverse_rows))
+        # the triangles' whole rotations from the base as images of its frames: read by the pins'
+        # fits, the residuals below and residuals_add_turn
+        plane = df.plane_turned_frames(other.column_rows, turn)
         if topo.pinned is not None:
-            rotations, translations, self.misfits = pin_held_fits(topo, base, other, turn, rotations, translations,
+            rotations, translations, self.misfits = pin_held_fits(topo, base, other, plane, rotations, translations,
                                                                   self.misfits)
         unwrap = turns is not None  # the continuation of the next key's turn
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
@@ -82,9 +86,14 @@ class _Relative:
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
         self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
         # the triangles' rotations as images of the base frames, with their component's rotation undone
-        frames = df.turned_frame_rows(other.column_rows, turn, df.transpose(rotations), topo.triangle_component)
+        frames = df.turned_coordinate_rows(plane, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
-        self.log_stretch = df.log_stretch(stretch) if log_stretch is None else log_stretch
+        if not unwrap:  # a key ahead of its gap's base: residuals_add_turn reads them next
+            self._plane_frames = plane
+        if log_stretch is None:
+            self._make_log = partial(_log_stretch_rows, stretch)
+        else:
+            self.log_stretch = log_stretch
         self.metric = df.squared_stretch(stretch) if log_stretch is None else df.exp_stretch(2.0 * log_stretch)
         self.vertices = topo.undo_motion(other.vertices, rotations, translations)
         self.world = other.vertices
@@ -96,13 +105,55 @@ class _Relative:
     #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
     #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
     whole = np.zeros(0, dtype=bool)
+    #: The triangles' whole rotations from the base key as images of its frames (3 columns, 3
+    #: coordinates, m), kept by the constructor for :meth:`residuals_add_turn`, which lets them go
+    #: (72 bytes per triangle, not held for the gap's life), or None.
+    _plane_frames = None
+    #: The log-stretches once made, and what makes them (a function of the triangles asked for,
+    #: an index array or None for all; see log_stretch).
+    _log = None
+    _make_log = None
+
+    @property
+    def log_stretch(self) -> np.ndarray:
+        """Log-stretches (m, 3), made when first read: between the keys a gap interpolates the
+        metrics, and their logarithms only where the metrics' spline is not positive definite or
+        outside the keys (:meth:`core.inbetween_solver._Gap.stretch`)."""
+        if self._log is None:
+            make = self._make_log
+            if make is not None:  # None: made meanwhile by another thread (it sets _log first)
+                self._log, self._make_log = make(None), None
+        return self._log
+
+    @log_stretch.setter
+    def log_stretch(self, value: np.ndarray) -> None:
+        self._log, self._make_log = value, None
+
+    def log_stretch_rows(self, rows: np.ndarray) -> np.ndarray:
+        """:attr:`log_stretch` on the triangles ``rows`` (index array), the others' not made (each
+        triangle's from its own stretch: the same values as the whole array's)."""
+        return self._log_source()(rows)
+
+    def _log_source(self):
+        """A function of the triangles asked for (an index array, or None for all) giving
+        :attr:`log_stretch` there, without holding this relative."""
+        log = self._log
+        if log is None:
+            make = self._make_log
+            if make is not None:
+                return make
+            log = self._log  # made meanwhile by another thread
+        return partial(_rows_of, log)
 
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
         against the median angle of the triangles' whole rotations from ``base`` to ``other``
         (from the trace of each rotation: three dot products per triangle)."""
-        whole = _rotation_angles(df.plane_turned_frames(other.column_rows, self.turn), base.column_rows)
+        frames = self.__dict__.pop("_plane_frames", None)
+        if frames is None:
+            frames = df.plane_turned_frames(other.column_rows, self.turn)
+        whole = _rotation_angles(frames, base.column_rows)
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
         pieces, count = topo.triangle_component, len(topo.components)
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
@@ -136,7 +187,7 @@ class _Relative:
         out.nonrigidity = _nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
         cos, sin = self.turn
-        out.log_stretch = -_turned(self.log_stretch, cos, sin)
+        out._make_log = partial(_inverse_log_stretch, self._log_source(), cos, sin)
         g11, g12, g22 = _turned(self.metric, cos, sin).T  # the metric of the inverse: its inverse
         out.metric = np.stack([g22, -g12, g11], axis=1) / (g11 * g22 - g12 * g12)[:, None]
         out.vertices = topo.apply_motion(other.vertices, rotations, translations)
@@ -249,6 +300,24 @@ def _splined(relative: "_Relative", name: str) -> np.ndarray:
     return relative.continued_screw if name == "screw" else getattr(relative, name)
 
 
+def _log_stretch_rows(stretch: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """The log-stretches of the packed ``stretch`` (m, 3) on the triangles ``rows`` (None: all)."""
+    return df.log_stretch(stretch if rows is None else stretch[rows])
+
+
+def _inverse_log_stretch(forward, cos: np.ndarray, sin: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    """The log-stretches of :meth:`_Relative.inverse` on the triangles ``rows`` (None: all):
+    ``−Q(θ) L Q(θ)ᵀ`` of those ``forward(rows)`` gives (the relative inverted), ``θ`` given by its
+    cosines and sines (m,)."""
+    if rows is not None:
+        cos, sin = cos[rows], sin[rows]
+    return -_turned(forward(rows), cos, sin)
+
+
+def _rows_of(values: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
+    return values if rows is None else values[rows]
+
+
 def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
     """``Q(θ) A Q(θ)ᵀ`` of symmetric 2×2 matrices ``A`` packed (m, 3), ``θ`` given by its cosines
     and sines (m,)."""
@@ -302,36 +371,38 @@ NEAR_HALF_TURN = 5 * np.pi / 6
 #: gap 4 % of RMS (the sequence's median 2.2 %); the handkerchief's fit that turned 176° left 28° more.
 PIN_FIT_MARGIN = np.pi / 36
 
-def pin_held_fits(topo: _Topology, base: _Key, other: _Key, turn, rotations, translations, misfits):
+def pin_held_fits(topo: _Topology, base: _Key, other: _Key, frames, rotations, translations, misfits):
     """The pieces' rigid motions (``rotations`` (C, 3, 3), ``translations`` (C, 3), ``misfits`` (C,)
     from :func:`rigid_fits`), where a piece holds pins (``topo.pinned``: vertices at one place in
     every key) replaced by its best rigid motion that keeps them there
     (:func:`core.rigid_alignment.pivoted_alignment`) when that leaves its triangles less turn to
-    make — a median angle of their rotations from ``base`` to ``other`` (``turn``: their in-plane
-    polar turns) with the piece's rotation undone smaller by :data:`PIN_FIT_MARGIN`, and fewer of
-    them near a half turn (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its
-    four centre vertices, folded into a bundle that looks alike after a half turn, turned 176°
-    about its pins between keys 8 frames apart, leaving its triangles 110° (median; 13 % past 150°)
-    where they turned 82° (4 %): splined, 4,488 flipped triangles at the middle of the gap. A sheet
-    rolled by 191° about its still half keeps the free fit (28°), which leaves 4 % of its triangles
-    past 150° where the pins' would leave 12.5 %."""
+    make — a median angle of their rotations from ``base`` to ``other`` (``frames``: the images of
+    the base's frames under them, stored by coordinate (3 columns, 3 coordinates, m)) with the
+    piece's rotation undone smaller by :data:`PIN_FIT_MARGIN`, and fewer of them near a half turn
+    (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its four centre vertices,
+    folded into a bundle that looks alike after a half turn, turned 176° about its pins between keys
+    8 frames apart, leaving its triangles 110° (median; 13 % past 150°) where they turned 82° (4 %):
+    splined, 4,488 flipped triangles at the middle of the gap. A sheet rolled by 191° about its
+    still half keeps the free fit (28°), which leaves 4 % of its triangles past 150° where the pins'
+    would leave 12.5 %."""
     pinned = np.zeros(topo.n, dtype=bool)
     pinned[topo.pinned] = True
     held_rotations, held_translations = rotations.copy(), translations.copy()
     held = np.zeros(len(topo.components), dtype=bool)
-    for c, rows in enumerate(topo.components):
+    # each piece's rows selected by a view where they are consecutive (no (n, 3) copies)
+    for c, (rows, selected) in enumerate(zip(topo.components, topo.component_rows)):
         pins = rows[pinned[rows]]
         if pins.size:
             held[c] = True
-            held_rotations[c], held_translations[c] = pivoted_alignment(base.vertices[rows], other.vertices[rows],
-                                                                        base.vertices[pins], topo.weights[rows])
+            held_rotations[c], held_translations[c] = pivoted_alignment(
+                base.vertices[selected], other.vertices[selected], base.vertices[pins], topo.weights[selected])
     # a triangle's angle left to turn changes by at most the angle between the two fits (the
     # triangle inequality of rotation angles), so pieces whose fits differ by PIN_FIT_MARGIN or less
     # cannot take the pins' one: measured only where some piece's differ by more
     held &= np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1) > PIN_FIT_MARGIN
     if not held.any():
         return rotations, translations, misfits
-    frames, columns, pieces = df.plane_turned_frames(other.column_rows, turn), base.column_rows, topo.triangle_component
+    columns, pieces = base.column_rows, topo.triangle_component
 
     def left_to_turn(fitted):  # per component: the triangles' rotations, the fit undone: median angle, near half turns
         angles = _rotation_angles(frames, [df.turned_rows(columns[c].T, fitted, pieces).T for c in range(3)])

@@ -10,16 +10,16 @@ of a gap; both in :mod:`core.inbetween_keys`) → ``_Gap`` (splines of the relat
 
 from __future__ import annotations
 
-from functools import cached_property
+from functools import cached_property, partial
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
-from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, vertex_labels
+from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
 from .inbetween_carried import CarriedPieces
-from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, fit_tolerances
+from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE, LocalGlobalFit, change_tolerance, trimmed_tolerance
 from .inbetween_joints import JOINT_REACH, composed, joint_screws, joint_tree
 from .inbetween_keys import _Key, _Relative, turn_spread
 from .inbetween_repair import Region, Repair
@@ -369,8 +369,13 @@ class _Topology:
         m = len(self.triangles)
         incidence = self.incidence(dtype)
         if np.dtype(dtype) != np.float64:  # edges are differences: taken about the middle, float32
-            x = x - x.mean(axis=0)  # keeps their digits far from the origin too (1e3 units out: 1e-3 of an edge)
-        coordinates = np.ascontiguousarray(x.T, dtype=dtype)
+            # keeps their digits far from the origin too (1e3 units out: 1e-3 of an edge); on
+            # contiguous coordinate rows (3× faster than across (n, 3) rows)
+            centred = np.ascontiguousarray(x.T)
+            centred -= x.mean(axis=0)[:, None]
+            coordinates = centred.astype(dtype)
+        else:
+            coordinates = np.ascontiguousarray(x.T)
         out = np.empty((3, 3 * m), dtype=dtype)
         for d in range(3):
             out[d] = incidence @ coordinates[d]
@@ -417,7 +422,8 @@ class _Topology:
         """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices:
         their owner's, ``vertex_owner``)."""
         if self.all_in_one:
-            return x @ rotations[0].T + translations[0]
+            out = x @ rotations[0].T
+            return shifted(out, translations[0], out=out)
         if not self.components:
             return x.copy()
         c = self.vertex_owner
@@ -435,6 +441,33 @@ class _Topology:
         """The inverse of :meth:`apply_motion`."""
         inverse = np.transpose(rotations, (0, 2, 1))
         return self.apply_motion(x, inverse, -np.einsum("cab,cb->ca", inverse, translations))
+
+
+class _Splines(dict):
+    """A gap's splines by name, those of ``later`` ({name: function of nothing making it}) made
+    when first read."""
+
+    def __init__(self, later: dict):
+        super().__init__()
+        self._later = later
+
+    def __missing__(self, name: str) -> HermiteGap:
+        if name not in self._later:
+            raise KeyError(name)
+        spline = self[name] = self._later[name]()  # made twice at worst by two threads: the same spline
+        return spline
+
+
+def _log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.ndarray | None = None) -> HermiteGap:
+    """The spline of the ``relatives``' log-stretches (``options``: the gap's for it) on the
+    triangles ``rows`` (index array; None: all). Per element: on some rows, the whole spline's
+    values there."""
+    if rows is None:
+        return HermiteGap([r.log_stretch for r in relatives], cubic, **options)
+    options = {name: value[rows] if isinstance(value, np.ndarray) else value for name, value in options.items()}
+    if options["entry"] is not None:
+        options["entry"] = tuple(part[rows] for part in options["entry"])
+    return HermiteGap([r.log_stretch_rows(rows) for r in relatives], cubic, **options)
 
 
 class _Gap(LocalGlobalFit):
@@ -458,15 +491,22 @@ class _Gap(LocalGlobalFit):
             moves = np.linalg.norm(np.diff([r.centroids for r in relatives[:3]], axis=0), axis=2)  # (2, C)
             impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit)
 
-        def hermite(name: str, values: list) -> HermiteGap:
+        def options(name: str) -> dict:
             # a piece that swings back inside the gap keeps its turn's tangent, as a point does (onward)
-            return HermiteGap(values, cubic, rows=name in POSITIONS, limit=limit, onward=name == "screw",
-                              parabolic_end=None if free is None else self.per_element(name, free),
-                              parabolic_start=None if impact is None else self.per_element(name, impact),
-                              entry=None if entry is None or name not in entry[1] else
-                              (self.per_element(name, entry[0]), entry[1][name]))
-        spline = {name: hermite(name, [getattr(r, name) for r in relatives])
-                  for name in ("log_stretch", "vertices", "world", "centroids")}
+            return dict(rows=name in POSITIONS, limit=limit, onward=name == "screw",
+                        parabolic_end=None if free is None else self.per_element(name, free),
+                        parabolic_start=None if impact is None else self.per_element(name, impact),
+                        entry=None if entry is None or name not in entry[1] else
+                        (self.per_element(name, entry[0]), entry[1][name]))
+
+        def hermite(name: str, values: list) -> HermiteGap:
+            return HermiteGap(values, cubic, **options(name))
+        # the log-stretches' spline when first read (see stretch; its function holds the
+        # relatives, not the gap)
+        self._log_options = options("log_stretch")
+        spline = _Splines({"log_stretch": partial(_log_stretch_spline, relatives, cubic, self._log_options)})
+        for name in ("vertices", "world", "centroids"):
+            spline[name] = hermite(name, [getattr(r, name) for r in relatives])
         # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
         spline["screw"] = hermite("screw", [r.screw for r in relatives[:3]] + [relatives[3].continued_screw])
         # the rotation residuals splined in each triangle's base frame (t1, t2, n), where their
@@ -510,14 +550,19 @@ class _Gap(LocalGlobalFit):
             spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
                                                                   [r.extrapolated for r in relatives],
                                                                   [getattr(r, "motion", None) for r in relatives]))
+        self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
-        # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH)
-        self.trimmed_tolerance, self.change_tolerance = fit_tolerances(base.lengths, nxt.lengths)
+        # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH; computed then)
+        self.change_tolerance = change_tolerance(base.lengths, nxt.lengths)
         self.tolerance = self.change_tolerance
         self.anchor_weight = SEQUENCE_ANCHOR_WEIGHT
+        # the world spline's strains at the middle of the gap per triangle, kept for
+        # turning_as_a_whole (the same measure against the same reference)
+        self._mid_world_strains = None
         if not anchored and max(relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
-            reference = np.maximum(0.5 * (base.lengths + nxt.lengths).T, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
-            strain = self.mid_gap_strain(spline["world"].at(0.5), reference)
+            reference = self.mid_gap_reference()
+            self._mid_world_strains = self._triangle_strains(spline["world"].at(0.5), reference)
+            strain = float(np.mean(self._mid_world_strains))
             if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(
                     0.5 * (base.vertices + nxt.vertices), reference) + METRIC_TOLERANCE:
                 self.anchor_weight = SMOOTH_ANCHOR_WEIGHT if strain < self.change_tolerance else SMOOTH_NEAR_ANCHOR_WEIGHT
@@ -553,6 +598,8 @@ class _Gap(LocalGlobalFit):
         coordinates those limits depend on the world's axes, and a scene turned by a general
         rotation came back up to 5e-2 of its diagonal off the unturned scene's in-betweens (a
         balloon, keys 16 apart; 1e-6 in these frames)."""
+        if not rotvec.any():  # the base key's own (no turn): zero in any frame
+            return np.zeros_like(rotvec)
         w = np.ascontiguousarray(rotvec.T)
         return np.stack([coordinate_dot(self.base.column_rows[c], w) for c in range(3)], axis=1)
 
@@ -624,6 +671,12 @@ class _Gap(LocalGlobalFit):
             shares[partly] = np.maximum(0.0, 1.0 - held[partly] / CENTROID_ANCHOR_SHARE) ** 2
         return shares
 
+    def mid_gap_reference(self) -> np.ndarray:
+        """The corner edge lengths (3 corners, m) :meth:`mid_gap_strain` measures against: the mean of
+        the two keys', in the local steps' precision."""
+        mean = 0.5 * (self.base.lengths + self.next.lengths).T
+        return np.maximum(mean, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
+
     def mid_gap_strain(self, x: np.ndarray, reference: np.ndarray) -> float:
         """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
         ``reference`` (3 corners, m; the mean of the two keys', see :data:`SMOOTH_SPLINE_STRAIN`),
@@ -635,6 +688,11 @@ class _Gap(LocalGlobalFit):
         edges = self.edges_of(x, LOCAL_STEP_DTYPE)
         lengths = np.sqrt(coordinate_dot(edges, edges))
         return np.mean(np.abs(lengths / reference - 1.0), axis=0, dtype=np.float64)
+
+    @cached_property
+    def trimmed_tolerance(self) -> float:
+        """The fit's tolerance for batches that trim (:func:`core.inbetween_fit.trimmed_tolerance`)."""
+        return trimmed_tolerance(self.base.lengths, self.next.lengths)
 
     @cached_property
     def arc_guided(self) -> np.ndarray:
@@ -651,13 +709,15 @@ class _Gap(LocalGlobalFit):
         at the middle of the gap by over :data:`ARC_GUIDE_STRAIN_RATIO` × as much as its co-moving
         spline does, plus :data:`METRIC_TOLERANCE` (see there)."""
         topo = self.topo
-        reference = np.maximum(0.5 * (self.base.lengths + self.next.lengths).T,
-                               np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
+        reference = self.mid_gap_reference()
         counts = np.maximum(topo.piece_sizes, 1)
-        world, moving = (np.bincount(topo.triangle_component, self._triangle_strains(x, reference),
-                                     minlength=len(counts)) / counts
-                         for x in (self.splines["world"].at(0.5),
-                                   topo.apply_motion(self.splines["vertices"].at(0.5), *self.motion(0.5))))
+        world = self._mid_world_strains  # measured by the constructor where it chose the anchor
+        if world is None:
+            world = self._triangle_strains(self.splines["world"].at(0.5), reference)
+        co_moving = topo.apply_motion(self.splines["vertices"].at(0.5), *self.motion(0.5))
+        moving = self._triangle_strains(co_moving, reference)
+        world, moving = (np.bincount(topo.triangle_component, strains, minlength=len(counts)) / counts
+                         for strains in (world, moving))
         return world > ARC_GUIDE_STRAIN_RATIO * moving + METRIC_TOLERANCE
 
     def held(self, misfits: list) -> bool:
@@ -846,12 +906,12 @@ class _Gap(LocalGlobalFit):
         shortens late, as cloth does, where the spline of ``log U`` shortens it early (numbers in
         docs/inbetweens.md, *What is interpolated*). The log spline where that metric is not
         positive definite, and outside the keys, where exaggerations need it to stay so."""
-        log = self.splines["log_stretch"]
         if not 0.0 < s < 1.0:
-            return df.exp_stretch(log.at(s))
+            return df.exp_stretch(self.splines["log_stretch"].at(s))
         stretch, ok = df.sqrt_stretch(self.splines["metric"].at(s))
         if not ok.all():
-            stretch[~ok] = df.exp_stretch(log.at(s)[~ok])
+            rows = np.flatnonzero(~ok)
+            stretch[rows] = df.exp_stretch(self.log_stretch_rows(s, rows))
         return stretch
 
     def area_scale(self, s: float) -> np.ndarray:
@@ -863,9 +923,18 @@ class _Gap(LocalGlobalFit):
             return np.exp(log[:, 0] + log[:, 2])
         scale, ok = df.sqrt_det(self.splines["metric"].at(s))
         if not ok.all():
-            log = self.splines["log_stretch"].at(s)[~ok]
-            scale[~ok] = np.exp(log[:, 0] + log[:, 2])
+            rows = np.flatnonzero(~ok)
+            log = self.log_stretch_rows(s, rows)
+            scale[rows] = np.exp(log[:, 0] + log[:, 2])
         return scale
+
+    def log_stretch_rows(self, s: float, rows: np.ndarray) -> np.ndarray:
+        """The log-stretches' spline at factor ``s`` on the triangles ``rows`` (index array): the
+        whole spline's where it is made, else a spline of those rows alone (a few triangles where
+        the metrics' spline is not positive definite: the keys' other log-stretches not made)."""
+        if "log_stretch" in self.splines:
+            return self.splines["log_stretch"].at(s)[rows]
+        return _log_stretch_spline(self.relatives, self.cubic, self._log_options, rows).at(s)
 
     def guide(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """The anchor's guide positions (n, 3) at factor ``s`` (``motion``: :meth:`motion` there):
@@ -900,13 +969,22 @@ class _Gap(LocalGlobalFit):
             else:  # by rigidity, or wholly where the component turns as a whole (ARC_GUIDE_STRAIN_RATIO)
                 share = np.maximum(self.rigidity, self.arc_guided) if arcs else self.rigidity
                 mix = self.co_moving * share[self.topo.vertex_owner]
-            offset *= (1.0 - mix)[:, None]
+            keep = 1.0 - mix
+            for d in range(3):  # per coordinate column: 3× faster than broadcasting across (n, 3) rows
+                offset[:, d] *= keep
         return base, offset
 
     def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
         translations (C, 3); the flying pieces (:func:`flying_groups`) turned about their group's
-        point on the spline of its positions at the keys."""
+        point on the spline of its positions at the keys. Computed once per factor (a pose, its
+        guide, checks and predictions ask for the same few; copies: callers may change them)."""
+        known = self._motions.get(s)
+        if known is None:
+            known = self._motions[s] = self._motion(s)
+        return known[0].copy(), known[1].copy()
+
+    def _motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         motion = df.rigid_exps(self.splines["screw"].at(s))
         if self.flying is not None:  # turned about each group's point, which follows its spline
             labels, points = self.flying

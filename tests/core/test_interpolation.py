@@ -999,15 +999,14 @@ def test_fit_tolerance_leaves_out_the_edges_a_fold_collapses():
     """Keys whose edges all change by 2 % but for 0.5 % of them that collapse by 60 %: the fit's
     tolerance is half the 2 % (TOLERANCE_TRIM drops the largest 1 %), the whole change's includes
     them; no change gives the METRIC_TOLERANCE floor."""
-    from core.inbetween_fit import METRIC_TOLERANCE, fit_tolerances
+    from core.inbetween_fit import METRIC_TOLERANCE, change_tolerance, trimmed_tolerance
 
     base = np.random.default_rng(5).uniform(0.5, 2.0, size=(3, 20000))
     change = np.full(base.shape, 0.02)
     change.ravel()[::200] = -0.6
-    fit, whole = fit_tolerances(base, base * (1.0 + change))
-    assert fit == pytest.approx(0.5 * 0.02, rel=1e-12)
-    assert whole == pytest.approx(0.5 * (0.995 * 0.02 + 0.005 * 0.6), rel=1e-12)
-    assert fit_tolerances(base, base.copy()) == (METRIC_TOLERANCE, METRIC_TOLERANCE)
+    assert trimmed_tolerance(base, base * (1.0 + change)) == pytest.approx(0.5 * 0.02, rel=1e-12)
+    assert change_tolerance(base, base * (1.0 + change)) == pytest.approx(0.5 * (0.995 * 0.02 + 0.005 * 0.6), rel=1e-12)
+    assert trimmed_tolerance(base, base.copy()) == change_tolerance(base, base.copy()) == METRIC_TOLERANCE
 
 
 def test_a_stalled_fit_returns_its_best_step(monkeypatch, strip):
@@ -1181,7 +1180,8 @@ def test_stretch_falls_back_to_the_log_spline_where_the_metric_spline_is_not_pos
 
     monkeypatch.setattr(spline, "at", at)
     u = gap.stretch(0.4)
-    np.testing.assert_allclose(u[broken], df.exp_stretch(gap.splines["log_stretch"].at(0.4)[broken]), rtol=1e-12)
+    assert "log_stretch" not in gap.splines  # the log spline of the broken rows alone: the same values
+    np.testing.assert_array_equal(u[broken], df.exp_stretch(gap.splines["log_stretch"].at(0.4)[broken]))
     np.testing.assert_allclose(u[~broken], df.sqrt_stretch(real_at(0.4))[0][~broken], rtol=1e-12)
     np.testing.assert_allclose(gap.area_scale(0.4), u[:, 0] * u[:, 2] - u[:, 1] ** 2, rtol=1e-12)
 
@@ -1330,3 +1330,43 @@ def test_a_reversed_sliver_that_swells_is_warned():
             Interpolator(a, b, tri).pose(-0.5)
         said = [str(w.message) for w in caught if "as long as in either pose" in str(w.message)]
         assert bool(said) == swells, (height, said)
+
+
+def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
+    """The middle gap of a bending strip, three in-betweens: each factor's rigid motion is computed
+    once however many times the solve, checks and predictions ask for it; the trimmed tolerance
+    (a partial sort of the edges' changes, read by batches of TRIMMED_TOLERANCE_BATCH or more) is
+    not computed; nor, while the metrics' spline stays positive definite at the factors, the
+    log-stretches' spline, nor its keys' log-stretches; the relatives keep no turned frames. What
+    is made on demand is what would have been made up front."""
+    import core.deformation_fields as df
+    import core.inbetween_solver as solver
+    from core.inbetween_prediction import TRIMMED_TOLERANCE_BATCH
+
+    flat, tri = strip
+    rng = np.random.default_rng(11)
+    keys = [_bend(flat, a) + 0.002 * rng.normal(size=flat.shape) for a in (0.0, 0.5, 1.0, 1.5, 2.0)]
+    factors = [0.25, 0.5, 0.75]
+    assert len(factors) < TRIMMED_TOLERANCE_BATCH
+    seq = SequenceInterpolator(keys, tri)
+    asked, made = set(), []
+    real_motion, real_exps = solver._Gap.motion, df.rigid_exps
+    monkeypatch.setattr(solver._Gap, "motion", lambda self, s: asked.add(s) or real_motion(self, s))
+    monkeypatch.setattr(df, "rigid_exps", lambda screws: made.append(1) or real_exps(screws))
+    seq.poses(2, factors)
+    gap = seq._gap(2)
+    assert len(asked) >= 3 and len(made) == len(asked)
+    assert "trimmed_tolerance" not in gap.__dict__
+    assert all(df.sqrt_det(gap.splines["metric"].at(s))[1].all() for s in factors)
+    assert "log_stretch" not in gap.splines
+    assert all(r._log is None for r in gap.relatives if not r.extrapolated and r.rotvec.any())
+    assert all(r._plane_frames is None for r in gap.relatives)  # the constructor's frames let go once read
+    # made when read: the spline of the keys' log-stretches, the tolerance of the partial sort
+    from core.inbetween_fit import trimmed_tolerance
+    from core.splines import HermiteGap
+
+    spline = gap.splines["log_stretch"]
+    assert isinstance(spline, HermiteGap)
+    np.testing.assert_array_equal(spline.at(0.0), gap.relatives[1].log_stretch)
+    np.testing.assert_allclose(spline.at(1.0), gap.relatives[2].log_stretch, rtol=1e-12, atol=1e-15)
+    assert gap.trimmed_tolerance == trimmed_tolerance(gap.base.lengths, gap.next.lengths)
