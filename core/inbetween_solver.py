@@ -208,6 +208,20 @@ IMPACT_SLOWDOWN = 2.0
 CENTROID_ANCHOR_SHARE = 0.2
 
 
+#: Two poses: a set of vertices that translates rigidly between them (pinned to an animated object
+#: that does not turn, :func:`core.pins.riding_vertices`) lies on the linear blend at every factor,
+#: where the blend anchor holds it; the move of a piece the anchor barely holds onto its centroid
+#: (:data:`CENTROID_ANCHOR_SHARE`) carries it along with the rest of the piece. Where the two
+#: disagree the interpolated shape of the piece does not reach the set (a sheet whipped by its
+#: pinned corner, whose stretch at the corner relaxes between the keys: that corner 0.53 off, 23 %
+#: of the sheet's diagonal, keys 4 frames apart), and holding the set there instead costs edge
+#: length and flipped triangles elsewhere (docs/inbetweens.md, *A pinned corner off its path*).
+#: An in-between whose set ends farther than this share of its piece's diagonal from the blend
+#: says so in its warning: the whipped sheet's pairs miss by 0–46 %, the carried banner's pole by
+#: 0–9.5 %.
+HOOK_MISS_NOTED = 0.1
+
+
 #: The splines of positions (their tangents are limited per point, see :class:`core.splines.HermiteGap`).
 POSITIONS = ("vertices", "world", "centroids")
 
@@ -478,7 +492,8 @@ class _Gap(LocalGlobalFit):
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, start_limit: float | None = None,
-                 whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None):
+                 whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
+                 hooked: list[np.ndarray] | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
         self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations
@@ -532,6 +547,7 @@ class _Gap(LocalGlobalFit):
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
         # the base key (screws whose turns continue across the keys: df.key_screws)
         self.riding = riding
+        self.hooked = hooked  # two poses: the sets translating rigidly between them (HOOK_MISS_NOTED)
         if riding is not None:
             screws = df.key_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
                                    cubic and not relatives[3].extrapolated)
@@ -1200,8 +1216,28 @@ class _Gap(LocalGlobalFit):
             result[0][self.static] = self.pinned_positions(s)
         if ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any():
             self.place(result[0], s, self.motion(s), partly=True)
+        if self.hooked is not None and 0.0 < s < 1.0:
+            said = self.off_their_paths(result[0], s)
+            if said is not None:
+                result = (result[0], said if result[1] is None else f"{result[1]}; {said}")
         self.carried.place(result[0], s)
         return result
+
+    def off_their_paths(self, x: np.ndarray, s: float) -> str | None:
+        """What to say where a set of an in-between ``x`` (n, 3) of two poses that translates
+        rigidly between them (``hooked``) is farther than :data:`HOOK_MISS_NOTED` of its piece's
+        diagonal from its path, the linear blend at factor ``s``; None elsewhere."""
+        base, nxt, owner = self.base.vertices, self.next.vertices, self.topo.vertex_owner
+        misses = [np.linalg.norm(np.mean((1.0 - s) * base[rows] + s * nxt[rows] - x[rows], axis=0)) for rows in self.hooked]
+        shares = [miss / self.base.diagonals[owner[rows[0]]] for miss, rows in zip(misses, self.hooked)]
+        worst = int(np.argmax(shares))
+        if shares[worst] <= HOOK_MISS_NOTED:
+            return None
+        return (f"{len(self.hooked[worst])} vertices that translate as one between the poses (pinned to an animated "
+                f"object?) are {misses[worst]:.3g} ({100 * shares[worst]:.0f} % of their piece's diagonal) off their "
+                "path, the linear blend: the interpolated shape of the rest of the piece does not reach them there "
+                "(its keys differ too much, e.g. a stretch that relaxes between them), and the piece was placed by "
+                "its centroid")
 
 
 def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,

@@ -210,9 +210,12 @@ class SequenceInterpolator:
         self._topo = _Topology(topology, keys[0])
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
-        # motion (found in the keys as given: their float32 rounding is that of the given coordinates)
-        self._riding = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still,
-                                       rounding) or None
+        # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
+        # two keys tell only sets that translate, and those are not held: the blend anchor holds
+        # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED)
+        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding) or None
+        self._riding = moving if len(keys) >= 3 else None
+        self._hooked = moving if len(keys) == 2 else None
         if self._riding is not None:
             still = still.copy()
             still[np.concatenate(self._riding)] = True
@@ -408,7 +411,8 @@ class SequenceInterpolator:
         segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                        self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
                        whole_rotations=whole, steady=self._steady(gap) if cubic else None,
-                       entry=self._entry(gap, prev.nonrigidity) if cubic else None)
+                       entry=self._entry(gap, prev.nonrigidity) if cubic else None,
+                       hooked=self._hooked if self._anchored else None)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

@@ -53,18 +53,23 @@ def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
 def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray,
                     still: np.ndarray, scale: float | None = None) -> list[np.ndarray]:
     """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
-    (list of K ≥ 3 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
+    (list of K ≥ 2 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
     by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding of ``scale``
     (:data:`RIDING_ULPS`; :func:`core.seams.rounding_scale`, by default the keys' largest
-    coordinate), moves as one rigid body to that precision in every key, is not a whole
+    coordinate), moves as one rigid body to that precision in every key (with two keys, translates
+    as one), is not a whole
     piece (``component`` (n,): each vertex's piece, −1 for loose vertices; whole rigid pieces
     follow their screw motions) in a piece keeping no more than :data:`MAX_RIDING_SHARE` of its
     edges so, and is not all ``still`` (n,)."""
     n = keys[0].shape[0]
     riding: list[np.ndarray] = []
-    if len(keys) < 3 or not len(edges):
+    if len(keys) < 2 or not len(edges):
         return riding
     first = keys[0]
+    # two keys: only sets that translate; a set that turns between two keys cannot be told from
+    # cloth that happens to keep its edges over them (a sheet swung on a pinned corner: 17 such sets
+    # of 6–9 vertices in a pair 4 frames apart, turned 15° or, along a line, 180°)
+    moved = _translated if len(keys) == 2 else align_rigidly
     largest = max(float(np.max(np.abs(key))) for key in keys) if scale is None else scale
     a, b = edges[:, 0], edges[:, 1]
     candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
@@ -95,7 +100,12 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
         pieces = np.unique(component[rows])
         if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
             continue
-        if all(np.max(np.linalg.norm(align_rigidly(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
+        if all(np.max(np.linalg.norm(moved(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
                for key in keys[1:]):
             riding.append(rows)
     return riding
+
+
+def _translated(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """``source`` (k, 3) moved by the mean of ``target − source``: its best translation onto ``target``."""
+    return source + np.mean(target - source, axis=0)

@@ -1329,6 +1329,36 @@ def test_vertices_riding_on_an_animated_pole_follow_its_motion():
             assert np.isfinite(x).all()
 
 
+@pytest.mark.parametrize("swing, far_off", [(150.0, True), (60.0, False)])
+def test_two_poses_say_where_a_translating_pinned_patch_ends_off_its_path(swing, far_off):
+    """A sheet pinned at a 3 × 3-vertex corner patch that only translates between two poses while
+    the rest of the sheet swirls about it (turned the more the farther from the patch: strained,
+    as a sheet whipped by its pinned corner). The blend anchor holds the patch on the linear blend
+    (exact for it), but it holds under 5 % of the sheet, which is then moved onto its centroid's
+    path and carries the patch along. Swung 150°, the patch ends 13 % of the sheet's diagonal off
+    its path; the in-between now says so, naming how far (before: no warning). Swung 60° it ends
+    0.8 % off, under :data:`~core.inbetween_solver.HOOK_MISS_NOTED`: nothing is said."""
+    a, tri = grid(16, 12, size=1.5)
+    patch = (a[:, 0] < 0.25) & (a[:, 1] < 0.25)
+    distance = np.linalg.norm(a, axis=1)
+    turn = np.radians(swing) * np.clip((distance - 0.29) / 1.6, 0.0, 1.0)  # 0 on the patch
+    c, s = np.cos(turn), np.sin(turn)
+    shift = np.array([0.3, 0.05, 0.1])
+    b = np.stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1], a[:, 2]], axis=1) + shift
+    assert np.array_equal(b[patch], a[patch] + shift)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        x = Interpolator(a, b, tri).pose(0.5)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    miss = np.linalg.norm(np.mean(x[patch] - 0.5 * (a[patch] + b[patch]), axis=0)) / diagonal
+    said = [str(w.message) for w in caught if "translate as one" in str(w.message)]
+    assert (miss > solver.HOOK_MISS_NOTED) == far_off
+    if far_off:
+        assert len(said) == 1 and "9 vertices" in said[0] and f"{100 * miss:.0f} % of their piece's diagonal" in said[0]
+    else:
+        assert not said
+
+
 @pytest.mark.parametrize("distance", [1e3, 1e5])
 def test_in_betweens_far_from_the_origin_are_those_near_it_moved_there(distance):
     """A swinging, waving sheet keyed 1e3 or 1e5 units from the origin (a scene laid out far from
