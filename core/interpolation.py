@@ -379,13 +379,28 @@ class SequenceInterpolator:
                 self._gaps.popitem(last=False)
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
-        ident = _Relative.identity(topo, base)
-        cubic = self.smooth and last >= 2
-        others = [gap + 1, gap + 2] if cubic and gap + 2 <= last else [gap + 1]
+        others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
+        segment = self._segment(gap, ahead, others, whole)
+        # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
+        against = segment.rotations_against_guide()
+        if against.any():
+            segment = self._segment(gap, ahead, others, whole | against)
+        with self._cache_lock:
+            self._gaps[gap] = segment
+        return segment
+
+    def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray) -> _Gap:
+        """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
+        in a cubic sequence, the one after), with the triangles' whole rotations in the components
+        ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`)."""
+        topo, base = self._topo, self._key(gap)
+        last = len(self._raw) - 1
+        ident = _Relative.identity(topo, base)
+        cubic = self.smooth and last >= 2
         if whole.any():
             ahead = [r.whole_rotations(topo, base, self._key(k), whole) for r, k in zip(ahead, others)]
         nxt = ahead[0]
@@ -408,14 +423,11 @@ class SequenceInterpolator:
             after = after if after is not None else _Relative.phantom(ident, nxt)
         else:
             prev = after = ident
-        segment = _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                       self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
-                       whole_rotations=whole, steady=self._steady(gap) if cubic else None,
-                       entry=self._entry(gap, prev.nonrigidity) if cubic else None,
-                       hooked=self._hooked if self._anchored else None)
-        with self._cache_lock:
-            self._gaps[gap] = segment
-        return segment
+        return _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
+                    self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
+                    whole_rotations=whole, steady=self._steady(gap) if cubic else None,
+                    entry=self._entry(gap, prev.nonrigidity) if cubic else None,
+                    hooked=self._hooked if self._anchored else None)
 
     def _steady(self, gap: int) -> np.ndarray | None:
         """Per component (C,), whether its centroid moved at constant acceleration over keys
