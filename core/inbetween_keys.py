@@ -88,7 +88,7 @@ class _Relative:
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_coordinate_rows(plane, df.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
-        if not unwrap:  # a key ahead of its gap's base: residuals_add_turn reads them next
+        if not unwrap:  # a key ahead of its gap's base: residuals_add_turn or whole_rotations reads them next
             self._plane_frames = plane
         if log_stretch is None:
             self._make_log = partial(_log_stretch_rows, stretch)
@@ -106,8 +106,9 @@ class _Relative:
     #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
     whole = np.zeros(0, dtype=bool)
     #: The triangles' whole rotations from the base key as images of its frames (3 columns, 3
-    #: coordinates, m), kept by the constructor for :meth:`residuals_add_turn`, which lets them go
-    #: (72 bytes per triangle, not held for the gap's life), or None.
+    #: coordinates, m), kept by the constructor for :meth:`residuals_add_turn` and
+    #: :meth:`whole_rotations`, which let them go (72 bytes per triangle, not held for the gap's
+    #: life), or None.
     _plane_frames = None
     #: The log-stretches once made, and what makes them (a function of the triangles asked for,
     #: an index array or None for all; see log_stretch).
@@ -162,9 +163,13 @@ class _Relative:
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
         the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
         components' rigid rotations not undone."""
+        # the constructor's turned frames where it kept them (the same values), let go here: the
+        # copy keeps none
+        plane = self.__dict__.pop("_plane_frames", None)
         out = copy.copy(self)
         rows = np.flatnonzero(components[topo.triangle_component])
-        frames = df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
+        frames = df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows])) \
+            if plane is None else plane[:, :, rows]
         out.rotvec = self.rotvec.copy()
         out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
         out.whole = components

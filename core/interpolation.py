@@ -160,6 +160,11 @@ class SequenceInterpolator:
     that of the parabola through the first three keys, at most the first gap's (exact for motion
     at constant velocity or acceleration). Where the source's frames between the keys are at hand
     (the operators, :func:`core.retime.retime`), :func:`start_of_motion` chooses.
+
+    :attr:`key_names`: the keys as warnings name them, ``"key pose i"`` by default; a sequence
+    keyed on some of another's keys names them as that one does (:func:`core.retime.iter_retime`'s
+    short last gap), so that a caller naming ``"key pose i"`` (the operators: by frame) reads one
+    numbering.
     """
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
@@ -176,7 +181,7 @@ class SequenceInterpolator:
         self.start = start
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
-        self._key_names = [f"key pose {i}" for i in range(len(key_poses))]
+        self.key_names = [f"key pose {i}" for i in range(len(key_poses))]
         # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
@@ -537,8 +542,8 @@ class SequenceInterpolator:
             if self._origin is not None and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit
             if problem:
-                problems.append(f"pose at factor {factors[k]:g} between {self._key_names[gap]} and "
-                                f"{self._key_names[gap + 1]}: {problem}")
+                problems.append(f"pose at factor {factors[k]:g} between {self.key_names[gap]} and "
+                                f"{self.key_names[gap + 1]}: {problem}")
         return (out if self._copies is None else out[:, self._copies]), problems
 
     def pose_at(self, time: float) -> np.ndarray:
@@ -576,7 +581,7 @@ class Interpolator:
             [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
         self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False)
-        self._sequence._key_names = ["vertices_a", "vertices_b"]
+        self._sequence.key_names = ["vertices_a", "vertices_b"]
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)

@@ -181,6 +181,11 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
         tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options)
+        # its keys named as the plan's, as the main sequence's warnings name them (its last gap is
+        # the plan's last, "between key pose K − 2 and key pose K − 1"; the samples before it are
+        # no keys of the plan)
+        position = {int(key): i for i, key in enumerate(plan.keys)}
+        tail.key_names = [f"key pose {position[int(s)]}" if int(s) in position else f"sample {int(s)}" for s in plan.tail]
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]

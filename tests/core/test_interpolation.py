@@ -1388,3 +1388,50 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     np.testing.assert_array_equal(spline.at(0.0), gap.relatives[1].log_stretch)
     np.testing.assert_allclose(spline.at(1.0), gap.relatives[2].log_stretch, rtol=1e-12, atol=1e-15)
     assert gap.trimmed_tolerance == trimmed_tolerance(gap.base.lengths, gap.next.lengths)
+
+
+def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
+    """Two poses bent far apart: the second fit (rotations taken whole, WHOLE_FIT_MARGIN) takes
+    its relative's rotations whole without asking whether the residuals add turn, so its
+    whole_rotations lets the constructor's turned frames go (72 bytes per triangle held for the
+    interpolator's life otherwise), with the same rotations as frames turned anew."""
+    import core.deformation_fields as df
+
+    flat, tri = strip
+    rng = np.random.default_rng(0)
+    a, b = _bend(flat, 0.2) + 0.01 * rng.normal(size=flat.shape), _bend(flat, 5.5) + 0.01 * rng.normal(size=flat.shape)
+    pair = Interpolator(a, b, tri)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        pair.pose(0.5)
+    assert pair._whole is not None  # the second fit was made
+    gap = pair._whole_sequence()._gap(0)
+    assert gap.whole_rotations.all()
+    assert all(r._plane_frames is None for r in gap.relatives)
+    relative, key, other = gap.relatives[2], gap.base, gap.next
+    frames = df.plane_turned_frames(other.column_rows, relative.turn)
+    np.testing.assert_array_equal(relative.rotvec, df.frame_rows_rotation_vectors(frames, key.column_rows))
+
+
+def test_a_gap_keeps_the_rigid_motions_of_a_bounded_number_of_factors(monkeypatch, strip):
+    """A gap lives as long as its interpolator: two poses asked for one factor after another keep
+    at most MOTION_CACHE factors' rigid motions (each pose ask kept before, 29 MB after 300
+    factors at 1,000 pieces), and a batch larger than the cache gives the poses it gives with
+    every factor's motion kept."""
+    import core.inbetween_solver as solver
+
+    flat, tri = strip
+    pair = Interpolator(_bend(flat, 0.3), _bend(flat, 1.5), tri)
+    factors = np.linspace(0.01, 0.99, 64)
+    for s in factors:
+        pair.pose(float(s))
+    held = len(pair._sequence._gap(0)._motions)
+    assert 0 < held < len(factors), held  # not one per factor ever asked for
+    assert held <= solver.MOTION_CACHE
+    np.testing.assert_array_equal(pair.pose(float(factors[0])), Interpolator(_bend(flat, 0.3), _bend(flat, 1.5), tri)
+                                  .pose(float(factors[0])))
+    keys = [_bend(flat, a) for a in (0.0, 0.5, 1.0, 1.5)]
+    batch = [float(s) for s in np.linspace(0.01, 0.99, 2 * solver.MOTION_CACHE)]
+    bounded = SequenceInterpolator(keys, tri).poses(1, batch)
+    monkeypatch.setattr(solver, "MOTION_CACHE", 10 ** 6)
+    np.testing.assert_array_equal(bounded, SequenceInterpolator(keys, tri).poses(1, batch))

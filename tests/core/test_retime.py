@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 
-from core import MeshError, SequenceInterpolator
+from core import MeshError, SequenceInterpolator, ShapeDifferenceWarning
 from core.__main__ import main
 from core.obj_file import read_obj, write_obj
 from core.point_cache import read_pc2, write_pc2
@@ -301,3 +301,31 @@ def test_info_and_retime_read_an_mdds_own_times(tmp_path, capsys):
         assert main(["retime", str(tmp_path / name), "--topology", str(topology), "--step", "4", "-q",
                      "-o", str(tmp_path / f"{name}.pc2")]) == 0
         assert ("not evenly spaced" in capsys.readouterr().err) == (name == "uneven.mdd")
+
+
+def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
+    """The short last gap is in-betweened by a sequence of its own, keyed on the plan's tail: its
+    warnings name its keys as the plan numbers them, as the main sequence's do ("between key pose
+    3 and key pose 4" for keys 0, 8, 16, 24, 29; its own numbering said key poses 2 and 3, which
+    the Retime operator reads as the frames of keys 16 and 24 where the gap runs from 24 to 29).
+    Every solved in-between reports a problem here, naming the samples its gap lies between."""
+    import core.interpolation as interpolation
+
+    source, triangles = rolling_sheet(n_frames=30, nx=5)
+    source = source.astype(np.float64)
+    plan = plan_retime(len(source), 8, 0.5)
+    assert plan.keys.tolist() == [0, 8, 16, 24, 29] and plan.tail.tolist() == [14, 19, 24, 29]
+    real = interpolation.gap_poses
+
+    def gap_poses(gap, factors):
+        moved = gap.next.vertices - gap.base.vertices
+        first, second = next((i, j) for i in range(len(source)) for j in range(i + 1, len(source))
+                             if np.allclose(source[j] - source[i], moved, rtol=0.0, atol=1e-9))
+        return [(x, f"samples {first}-{second}") for x, _ in real(gap, factors)]
+
+    monkeypatch.setattr(interpolation, "gap_poses", gap_poses)
+    with pytest.warns(ShapeDifferenceWarning) as caught:
+        list(iter_retime(source, triangles, plan))
+    named = {re.search(r"between (.*): (samples \d+-\d+)", str(w.message)).groups() for w in caught}
+    keys = [int(k) for k in plan.keys]
+    assert named == {(f"key pose {g} and key pose {g + 1}", f"samples {keys[g]}-{keys[g + 1]}") for g in range(4)}
