@@ -124,7 +124,7 @@ ARC_GUIDE_STRAIN_RATIO = 2.0
 #: middle in-between (the simulated frame: 2,093 and 3.6 %); numbers in docs/inbetweens.md.
 AGAINST_GUIDE_SHARE = 0.1
 #: ... measured only on pieces whose rigid fit turns by more than this between the gap's keys
-#: (radians; the check costs 3 ms per gap of a 10k cloth): where it took pieces whole they turned
+#: (radians; the check costs 4–5 ms per gap of the 15k curtain): where it took pieces whole they turned
 #: 99–195°, and below a quarter turn no piece of the 16 benchmark cloths (keys 4, 8 and 16 frames
 #: apart) or of six others (keys 16 apart) turned over 5.5 % of its triangles more against the guide
 #: than its whole rotations did.
@@ -1294,11 +1294,14 @@ class _Gap(LocalGlobalFit):
         worst = int(np.argmax(shares))
         if shares[worst] <= HOOK_MISS_NOTED:
             return None
+        # the centroid move (CENTROID_ANCHOR_SHARE) named only where it was made: a piece with a
+        # still vertex, or one the anchor holds enough of, keeps the place its fit gives it
+        moved = self.by_centroid[owner[self.hooked[worst][0]]] > 0.0
         return (f"{len(self.hooked[worst])} vertices that translate as one between the poses (pinned to an animated "
                 f"object?) are {misses[worst]:.3g} ({100 * shares[worst]:.0f} % of their piece's diagonal) off their "
                 "path, the linear blend: the interpolated shape of the rest of the piece does not reach them there "
-                "(its keys differ too much, e.g. a stretch that relaxes between them), and the piece was placed by "
-                "its centroid")
+                "(its keys differ too much, e.g. a stretch that relaxes between them)"
+                + (", and the piece was placed by its centroid" if moved else ""))
 
 
 def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,

@@ -393,6 +393,7 @@ class SequenceInterpolator:
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
+            segment = None  # let the first build go before the second is made (one gap held, not two)
             segment = self._segment(gap, ahead, others, whole | against)
         with self._cache_lock:
             self._gaps[gap] = segment

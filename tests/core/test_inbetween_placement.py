@@ -1359,6 +1359,34 @@ def test_two_poses_say_where_a_translating_pinned_patch_ends_off_its_path(swing,
         assert not said
 
 
+@pytest.mark.parametrize("still", [False, True])
+def test_a_translating_patch_off_its_path_names_the_centroid_move_only_where_it_was_made(still):
+    """The swirled sheet above (swung 150°), its far corner held still in both poses or not. A
+    piece with a still vertex keeps the place its fit gives it (no move onto its centroid's path,
+    :data:`~core.inbetween_solver.CENTROID_ANCHOR_SHARE`); its patch still ends far off its path
+    (77 % of the diagonal) and the in-between says so, but not that the piece was placed by its
+    centroid (before: said of every piece). Without the still corner it was moved (share 0.6) and
+    says so."""
+    a, tri = grid(16, 12, size=1.5)
+    distance = np.linalg.norm(a, axis=1)
+    turn = np.radians(150.0) * np.clip((distance - 0.29) / 1.6, 0.0, 1.0)
+    c, s = np.cos(turn), np.sin(turn)
+    b = np.stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1], a[:, 2]], axis=1) + np.array([0.3, 0.05, 0.1])
+    corner = int(np.argmax(distance))
+    if still:
+        b[corner] = a[corner]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        interpolator = Interpolator(a, b, tri)
+        interpolator.pose(0.5)
+    said = [str(w.message) for w in caught if "translate as one" in str(w.message)]
+    gap = interpolator._sequence._gap(0)
+    gap.select(0.5)
+    assert len(said) == 1
+    assert (gap.by_centroid[0] > 0.0) is not still
+    assert ("placed by its centroid" in said[0]) is not still
+
+
 @pytest.mark.parametrize("distance", [1e3, 1e5])
 def test_in_betweens_far_from_the_origin_are_those_near_it_moved_there(distance):
     """A swinging, waving sheet keyed 1e3 or 1e5 units from the origin (a scene laid out far from

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -1250,6 +1251,27 @@ def test_rotations_that_pull_against_the_guide_are_taken_whole():
     assert _flipped(x, a, b, triangles) <= _flipped(middle, a, b, triangles)
     nearer_key = min(np.sqrt(np.mean(np.sum((k - middle) ** 2, axis=1))) for k in (a, b))
     assert np.sqrt(np.mean(np.sum((x - middle) ** 2, axis=1))) < nearer_key
+
+
+def test_a_gap_prepared_again_lets_its_first_build_go_first(monkeypatch):
+    """The spinning sheet's gap 3 is built twice (its whole rotations taken, AGAINST_GUIDE_SHARE):
+    the first build is let go before the second is made, so that preparing it holds one gap's
+    data, not two (before: both at once)."""
+    data = np.load(Path(__file__).parent / "data" / "spinning_sheet.npz")
+    keys, triangles = data["keys"].astype(np.float64), data["triangles"]
+    sequence = SequenceInterpolator(keys, triangles)
+    built, alive = [], []
+    segment = SequenceInterpolator._segment
+
+    def recorded(self, *args):
+        alive.append([ref() is not None for ref in built])
+        gap = segment(self, *args)
+        built.append(weakref.ref(gap))
+        return gap
+
+    monkeypatch.setattr(SequenceInterpolator, "_segment", recorded)
+    sequence._prepare(3)
+    assert alive == [[], [False]]
 
 
 def _turning_sheet(wobble):
