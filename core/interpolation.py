@@ -176,8 +176,10 @@ class SequenceInterpolator:
         key_times = check_key_times(key_times, len(key_poses))
         self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times)
 
-    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None):
-        """The constructor once its arguments are checked (``topology``: that of the triangles)."""
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None,
+               two_poses=False):
+        """The constructor once its arguments are checked (``topology``: that of the triangles;
+        ``two_poses``: for an :class:`Interpolator`)."""
         self.start = start
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
@@ -218,9 +220,10 @@ class SequenceInterpolator:
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
         # two keys tell only sets that translate, and those are not held: the blend anchor holds
         # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED)
-        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding) or None
+        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding) or None \
+            if len(keys) >= 3 or two_poses else None
         self._riding = moving if len(keys) >= 3 else None
-        self._hooked = moving if len(keys) == 2 else None
+        self._hooked = moving if two_poses else None
         if self._riding is not None:
             still = still.copy()
             still[np.concatenate(self._riding)] = True
@@ -581,7 +584,7 @@ class Interpolator:
         poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
             [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
-        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False)
+        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True)
         self._sequence.key_names = ["vertices_a", "vertices_b"]
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
