@@ -1279,8 +1279,8 @@ class _Gap(LocalGlobalFit):
             self.place(result[0], s, self.motion(s), partly=True)
         if self.hooked is not None and 0.0 < s < 1.0:
             said = self.off_their_paths(result[0], s)
-            if said is not None:
-                result = (result[0], said if result[1] is None else f"{result[1]}; {said}")
+            if said is not None:  # before a fallback's message, which Interpolator.pose may follow with its misfit
+                result = (result[0], said if result[1] is None else f"{said}; {result[1]}")
         self.carried.place(result[0], s)
         return result
 
