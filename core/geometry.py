@@ -42,6 +42,15 @@ def shifted(points: np.ndarray, offset: np.ndarray, out: np.ndarray | None = Non
     return out
 
 
+def scaled(points: np.ndarray, factors: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """``points * factors[:, None]`` for points ``(n, 3)`` and one factor per point ``(n,)`` (into
+    ``out``, which may be ``points``), one column per coordinate as :func:`shifted`."""
+    out = np.empty_like(points) if out is None else out
+    for d in range(3):
+        np.multiply(points[:, d], factors, out=out[:, d])
+    return out
+
+
 def normalize(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vectors along the last axis of ``v`` ``(…, d)`` and their former lengths ``(…)``
     (zero vectors stay zero)."""

@@ -120,10 +120,8 @@ class _Relative:
         """Log-stretches (m, 3), made when first read: between the keys a gap interpolates the
         metrics, and their logarithms only where the metrics' spline is not positive definite or
         outside the keys (:meth:`core.inbetween_solver._Gap.stretch`)."""
-        if self._log is None:
-            make = self._make_log
-            if make is not None:  # None: made meanwhile by another thread (it sets _log first)
-                self._log, self._make_log = make(None), None
+        if self._log is None:  # the maker let go once they are made (it holds the stretches)
+            self._log, self._make_log = self._log_source()(None), None
         return self._log
 
     @log_stretch.setter

@@ -183,7 +183,7 @@ class SequenceInterpolator:
         self.start = start
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
-        self.key_names = [f"key pose {i}" for i in range(len(key_poses))]
+        self.key_names = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
         # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]
@@ -436,7 +436,7 @@ class SequenceInterpolator:
                     self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
-                    hooked=self._hooked if self._anchored else None)
+                    hooked=self._hooked)
 
     def _steady(self, gap: int) -> np.ndarray | None:
         """Per component (C,), whether its centroid moved at constant acceleration over keys
@@ -585,7 +585,6 @@ class Interpolator:
             [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
         self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True)
-        self._sequence.key_names = ["vertices_a", "vertices_b"]
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ShapeDifferenceError
-from .geometry import nearest_rotations, shifted
+from .geometry import nearest_rotations, scaled, shifted
 
 
 def rigid_alignment(source, target, weights=None) -> tuple[np.ndarray, np.ndarray]:
@@ -54,9 +54,9 @@ def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray,
     if n_groups == 1 and w.sum() > 0:  # one group: matrix products (a call per piece costs a third of the sums below)
         w = w / w.sum()
         s_mean, x_mean = w @ source, w @ target
-        x_centred, s_weighted = shifted(target, -x_mean), shifted(source, -s_mean)
-        for d in range(3):  # per coordinate column, as shifted
-            s_weighted[:, d] *= w
+        x_centred = shifted(target, -x_mean)
+        s_weighted = shifted(source, -s_mean)
+        scaled(s_weighted, w, out=s_weighted)
         rotation = nearest_rotations(x_centred.T @ s_weighted)  # Σ w x̃ s̃ᵀ
         return rotation[None], (x_mean - rotation @ s_mean)[None]
 
