@@ -61,7 +61,7 @@ ZERO_TURN_TOLERANCE = 1e-9
 #: view of its rows or columns where they are consecutive, ~5 µs of Python each), more pieces by
 #: gathered 3×3 blocks per vertex or triangle: here in :func:`turned_coordinate_rows` (two pieces of
 #: 10k triangles 3.6 → 0.14 ms) and in the sequences' rigid motions
-#: (``core.inbetween_solver._Topology.apply_motion``: two 5k sheets 2.17 → 0.14 ms per call).
+#: (``core.inbetween_topology._Topology.apply_motion``: two 5k sheets 2.17 → 0.14 ms per call).
 SLICED_PIECES = 64
 
 

@@ -1,7 +1,7 @@
 """Rigid pieces carried by deforming ones: an eye in a bending head, a button on a cloth.
 
 A connected component that moves rigidly between a gap's keys is placed by its own interpolated
-rigid motion (:data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`), while a deforming component
+rigid motion (:data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), while a deforming component
 next to it follows its fields and the keys' spline: the two paths part between the keys, and a
 piece that sits on another one leaves it. Where it sits is read in the first key: its seat is the
 nearest vertices of deforming components there (the cloth under a button, the socket around an

@@ -3,7 +3,7 @@ the Poisson solve of target corner edges with the gap's anchor, and the local st
 each triangle's rotation to the current positions while keeping the interpolated metric.
 
 Edges are stored by coordinate — arrays (3 coordinates, 3 corners, m) whose (m,) rows are
-contiguous, from the corner-major incidence ``Dc`` of :class:`core.inbetween_solver._Topology`
+contiguous, from the corner-major incidence ``Dc`` of :class:`core.inbetween_topology._Topology`
 — because NumPy's element-wise work on rows of three interleaved numbers is 3–5× slower.
 :class:`LocalGlobalFit` is mixed into :class:`core.inbetween_solver._Gap`, which provides
 ``topo``, ``base`` (a :class:`core.inbetween_keys._Key`), ``system`` (factor, anchor),
@@ -37,7 +37,7 @@ KEY_VARIATION_FRACTION = 0.5
 #: simulation collapses between the keys (folds forming) otherwise set it (10k drape, keys 16
 #: apart: a tolerance of 3.61 % with them, 0.85 % without, and every fit stopped at its Poisson
 #: solve). The whole change still sets the gap's anchor (see
-#: :data:`core.inbetween_solver.SMOOTH_ANCHOR_WEIGHT`), and a fit that ends with defects no repair
+#: :data:`core.inbetween_anchor.SMOOTH_ANCHOR_WEIGHT`), and a fit that ends with defects no repair
 #: removes falls back to its step at that looser tolerance where the step is free of them.
 TOLERANCE_TRIM = 0.01
 #: The fit also stops when its misfit is below STALL_NEAR × the tolerance and fell by less than
@@ -116,7 +116,7 @@ class LocalGlobalFit:
     def edges_of(self, x: np.ndarray, dtype=np.float64) -> np.ndarray:
         """Corner edge vectors of positions ``x`` (n, 3) by coordinate (3 coordinates, 3 corners,
         m) in ``dtype`` (the local steps': :data:`LOCAL_STEP_DTYPE`); see
-        :meth:`core.inbetween_solver._Topology.corner_edge_rows`."""
+        :meth:`core.inbetween_topology._Topology.corner_edge_rows`."""
         return self.topo.corner_edge_rows(x, dtype)
 
     def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None), coordinates=None) -> dict:

@@ -6,7 +6,7 @@ A link turning about a joint on a moving parent goes round the joint, not round 
 its own world motion: three links of an arm each bent 60° came apart at their joints by up to
 half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Two pieces are
 jointed in a gap when both are rigid over its keys (non-rigidity under
-:data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`), they touch in its base key (vertices within
+:data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), they touch in its base key (vertices within
 :data:`JOINT_REACH` mean edge lengths) and the child's motion relative to the parent's holds the
 contact (:func:`joint_offset`: a hinge's axis runs through it). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
@@ -87,14 +87,14 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
                moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
-    ``core.inbetween_solver._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
+    ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
     two pieces are jointed. ``motions``: the pieces' best rigid motions from ``base`` to ``nxt``
     (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``moves``: how far each piece
     moves over the gap's keys (C,), the piece of a group that moves least is its root (in a chain
     the motions add up from the piece fixed to the world; a turn would alias past a half turn);
     ``reach``: the joint distance; ``loose``: bool (C,), pieces only nearly rigid (non-rigidity
-    over half :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE`: noise, rounding), which root a
+    over half :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`: noise, rounding), which root a
     group only where none of its pieces is firmly rigid (a head turned exactly rigidly hung from one
     of its two noisy eyes, which moved less, and left its own motion by the eye's noise: 3e-5 of the
     diagonal at 0.5 for noise of 1e-4 of it); ``held``: bool (C,), the pieces with a pinned vertex

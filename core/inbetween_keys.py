@@ -17,7 +17,7 @@ from .geometry import coordinate_dot, grouped_medians
 from .rigid_alignment import pivoted_alignment, rigid_alignment, rigid_alignments
 
 if TYPE_CHECKING:
-    from .inbetween_solver import _Topology
+    from .inbetween_topology import _Topology
 
 
 #: A piece's rotation fields in a gap are taken whole (each triangle's own rotation from the base key,
@@ -119,7 +119,7 @@ class _Relative:
     def log_stretch(self) -> np.ndarray:
         """Log-stretches (m, 3), made when first read: between the keys a gap interpolates the
         metrics, and their logarithms only where the metrics' spline is not positive definite or
-        outside the keys (:meth:`core.inbetween_solver._Gap.stretch`)."""
+        outside the keys (:meth:`core.inbetween_field.InterpolatedField.stretch`)."""
         if self._log is None:  # the maker let go once they are made (it holds the stretches)
             self._log, self._make_log = self._log_source()(None), None
         return self._log

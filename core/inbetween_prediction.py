@@ -189,7 +189,7 @@ def _nearly_still(gap) -> bool:
 
 def _moved_rigidly(gap, factors) -> dict | None:
     """In a gap of a sequence whose components all move rigidly across its keys (non-rigidity
-    under :data:`core.inbetween_solver.RIGID_PLACEMENT_SCALE` toward each of them: a cloth in free
+    under :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE` toward each of them: a cloth in free
     flight, one lying still), the in-betweens {factor: (positions, None)} without a solve: the keys'
     co-moving spline moved by the interpolated rigid motions, ``M(s) V(s)``, which is what the
     solve returns for a rigid motion (the fields then are the rigid rotations, the stretches one)
@@ -209,7 +209,7 @@ def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:
     concurrently, once the gap's in-between anchor is selected (each solve reads it; the
     extrapolations' anchor differs, so those are solved one after the other). When some of them
     were solved with the weak anchor (held off the metric, see
-    :data:`core.inbetween_solver.HELD_MISFIT`), the others are solved with it too: the one nearest
+    :data:`core.inbetween_anchor.HELD_MISFIT`), the others are solved with it too: the one nearest
     the middle of the gap is solved first and, if it was held, the others with the weak anchor
     straight away (the same poses, without their fits with the gap's own anchor)."""
     interior = [s for s in dict.fromkeys(factors) if 0.0 < s < 1.0 and s not in known]
@@ -257,7 +257,7 @@ def _key_slope(gap, s: float) -> np.ndarray:
     gap's guide there: ``M(s)⁻¹ (G'(s) − (M V)'(s))`` (``D(s) = 0`` at a key), by a one-sided
     difference inside the gap (:data:`SLOPE_STEP`) of the guide's offset from ``M V``, which is
     zero at the key. On components that turn as a whole (guided by ``M V``,
-    :data:`core.inbetween_solver.ARC_GUIDE_STRAIN_RATIO`) the world spline's velocity, which the
+    :data:`core.inbetween_guide.ARC_GUIDE_STRAIN_RATIO`) the world spline's velocity, which the
     gaps on either side of the key share, except at a sequence's last key."""
     step = SLOPE_STEP if s == 0.0 else -SLOPE_STEP
     rotations, _ = gap.motion(s)

@@ -145,7 +145,7 @@ class Repair:
         """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
         ``rows``); all of them if ``x`` is not finite. The interpolated areas come from
         ``stretch`` (packed (m, 3)) or, if given instead, their ratios to the base's ``scale``
-        (m,; :meth:`core.inbetween_solver._Gap.area_scale`)."""
+        (m,; :meth:`core.inbetween_field.InterpolatedField.area_scale`)."""
         m = len(self.gap.topo.triangles)
         if not np.isfinite(x).all():
             return np.ones(m if rows is None else len(rows), dtype=bool)

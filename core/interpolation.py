@@ -27,10 +27,10 @@ Reconstruction (§7.3 in local/global form): positions minimizing
 a Poisson solve whose matrix depends on the topology and the anchor weights only, factorized once
 (sparse LU, symmetric ordering) and reused for every in-between, then a few local/global
 (as-rigid-as-possible) steps re-fitting each triangle's rotation while keeping its interpolated
-metric. The anchor ``w`` is a gauge (:data:`core.inbetween_solver.GAUGE_WEIGHT`) except in two-pose interpolation,
+metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation,
 where vertices whose neighbourhood only translates between the keys are anchored to the linear
 blend (exact for them, at every factor: parts that do not move stay put); see
-:data:`core.inbetween_solver.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
+:data:`core.inbetween_anchor.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
 centroid, moved by the interpolated rigid motion of the whole mesh plus the interpolated residual
 of the component (pieces of a mesh move as one).
 
@@ -55,7 +55,9 @@ from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .deformation_fields import rotation_vectors, the_other_way
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws
-from .inbetween_solver import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, _Gap, _Topology, free_flight
+from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, free_flight
+from .inbetween_solver import _Gap
+from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
 from .seams import coincidence_tolerance, rounding_scale, seam_weld
@@ -452,7 +454,7 @@ class SequenceInterpolator:
         return jerk < FREE_FLIGHT_JERK * np.linalg.norm(c[3] - c[2], axis=1)
 
     def _entry(self, gap: int, back: np.ndarray) -> tuple | None:
-        """Where the gap before ends in free flight (:func:`core.inbetween_solver.free_flight`, its
+        """Where the gap before ends in free flight (:func:`core.inbetween_flight.free_flight`, its
         splines on the parabola through its start), this gap starts with that parabola's velocity
         at the key, so that the two meet with one velocity: ``(per component (C,), {"world": (n,
         3), "centroids": (C, 3)})`` — the positions in the world, which place a deforming piece —

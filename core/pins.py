@@ -9,15 +9,16 @@ Two kinds are found in the keys of a sequence and held by the in-betweens
   that is carried, a cape's collar on a moving character): sets of six or more vertices joined
   by edges that keep their lengths to single-precision rounding in every key, which no cloth does,
   moving as one rigid body that is only part of its piece. Each set follows the spline of its
-  rigid motion through the keys as a screw, its turn continued across them
+  rigid motion (:func:`riding_motions`) through the keys as a screw, its turn continued across them
   (:func:`core.deformation_fields.key_screws`), as the object's animation curves carry it.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from .rigid_alignment import align_rigidly
+from .rigid_alignment import align_rigidly, rigid_alignment
 from .seams import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
@@ -104,6 +105,31 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
                for key in keys[1:]):
             riding.append(rows)
     return riding
+
+
+def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Each riding set's (:mod:`core.pins`) rigid motion from positions ``base`` to ``key`` (n, 3):
+    rotations (S, 3, 3) and translations (S, 3) of ``x ↦ R x + t``, its turn about its centroid
+    the short way round — for a set along a line (a pole) the least turn taking the line to the
+    key's, since a turn about the line moves none of its vertices — and its centroid onto the
+    key's."""
+    rotations, translations = np.zeros((len(sets), 3, 3)), np.zeros((len(sets), 3))
+    for k, rows in enumerate(sets):
+        start, end = base[rows].mean(axis=0), key[rows].mean(axis=0)
+        a, b = base[rows] - start, key[rows] - end
+        _, spread, axes = np.linalg.svd(a, full_matrices=False)
+        if spread[1] <= 1e-6 * spread[0]:  # along a line
+            d0 = axes[0]
+            d1 = np.linalg.svd(b, full_matrices=False)[2][0]
+            d1 = d1 if d1 @ (b.T @ (a @ d0)) >= 0.0 else -d1
+            axis, cosine = np.cross(d0, d1), float(np.clip(d0 @ d1, -1.0, 1.0))
+            norm = np.linalg.norm(axis)
+            turn = axis / norm * np.arctan2(norm, cosine) if norm > 0.0 else np.zeros(3)
+            rotations[k] = Rotation.from_rotvec(turn).as_matrix()
+        else:
+            rotations[k] = rigid_alignment(a, b)[0]
+        translations[k] = end - rotations[k] @ start
+    return rotations, translations
 
 
 def _translated(source: np.ndarray, target: np.ndarray) -> np.ndarray:

@@ -64,14 +64,14 @@ class HermiteGap:
     ``2 (v₁ − v₀) − t₀`` (exact for constant acceleration; ``(3v₁ − 4v₀ + v₋₁)/2`` with an
     unlimited start tangent, ``2 (v₁ − v₀)`` from rest), instead of the Catmull–Rom one, which
     takes the velocity at the gap's end from the next gap: for motion that something stops
-    right after the end (see :data:`core.inbetween_solver.FREE_FLIGHT_NONRIGIDITY`).
+    right after the end (see :data:`core.inbetween_flight.FREE_FLIGHT_NONRIGIDITY`).
     ``entry``: ``(mask, tangent)`` or None: where ``mask`` the start tangent is ``tangent`` (the
     velocity the gap before ends with on its parabola, so that the two meet with one velocity),
     limited as any start tangent.
     ``parabolic_start``: bool like ``parabolic_end``, or None: where True the start tangent is the
     one of the parabola through the end (value and tangent) and the start, ``2 (v₁ − v₀) − t₁``,
     limited as any start tangent: for motion that something stopped right before the start (see
-    :data:`core.inbetween_solver.IMPACT_SLOWDOWN`).
+    :data:`core.inbetween_flight.IMPACT_SLOWDOWN`).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,

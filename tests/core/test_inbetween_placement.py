@@ -12,6 +12,7 @@ import pytest
 from scipy.linalg import expm, logm
 from scipy.spatial.transform import Rotation
 
+import core.inbetween_anchor as anchor
 import core.inbetween_solver as solver
 from core.errors import ShapeDifferenceWarning
 from core.interpolation import Interpolator, SequenceInterpolator
@@ -449,7 +450,7 @@ def test_a_piece_the_blend_barely_holds_is_moved_toward_the_blends_centroid(monk
     lengths only on a narrow strip (its anchor holds ~4 % of the sheet), from which the
     interpolated rotations would hang the whole sheet (its centroid then 4 % of the diagonal off the
     blend's). The sheet is moved most of the way onto the blend's centroid (measured: 1.5 %; what is
-    left is the anchor's share, ``core.inbetween_solver.CENTROID_ANCHOR_SHARE``), as a whole: its
+    left is the anchor's share, ``core.inbetween_anchor.CENTROID_ANCHOR_SHARE``), as a whole: its
     shape is the same."""
     a, b, tri = _accordion()
     b = b + np.array([0.5, 0.3, 1.5])
@@ -464,7 +465,7 @@ def test_a_piece_the_blend_barely_holds_is_moved_toward_the_blends_centroid(monk
         return np.linalg.norm(x.mean(axis=0) - 0.5 * (a + b).mean(axis=0)) / diagonal
 
     moved = in_between()
-    monkeypatch.setattr(solver, "CENTROID_ANCHOR_SHARE", 1e-12)  # the strip alone places the sheet
+    monkeypatch.setattr(anchor, "CENTROID_ANCHOR_SHARE", 1e-12)  # the strip alone places the sheet
     hanging = in_between()
     assert centroid_offset(hanging) > 0.02
     assert centroid_offset(moved) < 0.5 * centroid_offset(hanging)
@@ -1180,7 +1181,7 @@ def _relative(base_vertices, other_vertices, triangles):
     """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (topology, base key,
     other key, relative)."""
     from core.inbetween_keys import _Key, _Relative
-    from core.inbetween_solver import _Topology
+    from core.inbetween_topology import _Topology
     from core.mesh_topology import mesh_topology
 
     topo = _Topology(mesh_topology(triangles, len(base_vertices)), base_vertices)
@@ -1363,7 +1364,7 @@ def test_two_poses_say_where_a_translating_pinned_patch_ends_off_its_path(swing,
 def test_a_translating_patch_off_its_path_names_the_centroid_move_only_where_it_was_made(still):
     """The swirled sheet above (swung 150°), its far corner held still in both poses or not. A
     piece with a still vertex keeps the place its fit gives it (no move onto its centroid's path,
-    :data:`~core.inbetween_solver.CENTROID_ANCHOR_SHARE`); its patch still ends far off its path
+    :data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`); its patch still ends far off its path
     (77 % of the diagonal) and the in-between says so, but not that the piece was placed by its
     centroid (before: said of every piece). Without the still corner it was moved (share 0.6) and
     says so."""

@@ -843,16 +843,17 @@ def test_rigidly_moving_sequence_factorizes_once(monkeypatch, strip):
     default spline anchor, as the gaps where the sheet bends fast do: one factorization for the
     whole sequence, and at most one more for the weak anchor of fits the spline holds off the
     metric (the fast bends)."""
-    import core.inbetween_solver as solver
+    import core.inbetween_anchor as anchor
+    import core.inbetween_topology as topology
 
     built = []
 
-    class Counting(solver.SPDFactor):
+    class Counting(topology.SPDFactor):
         def __init__(self, matrix):
             super().__init__(matrix)
             built.append(self)
 
-    monkeypatch.setattr(solver, "SPDFactor", Counting)
+    monkeypatch.setattr(topology, "SPDFactor", Counting)
     flat, tri = strip
     turns = Rotation.from_rotvec(np.outer(np.arange(5), [0.0, 0.3, 0.1])).as_matrix()
     keys = [flat @ r.T + np.array([0.0, 0.0, -0.2 * k * k]) for k, r in enumerate(turns)]
@@ -863,8 +864,8 @@ def test_rigidly_moving_sequence_factorizes_once(monkeypatch, strip):
     for gap in range(len(seq)):
         seq.poses(gap, [0.25, 0.5, 0.75])
     factors = set(seq._topo._uniform)
-    assert factors <= {("sequence", solver.SEQUENCE_ANCHOR_WEIGHT), ("sequence", solver.HELD_ANCHOR_WEIGHT)}
-    assert ("sequence", solver.SEQUENCE_ANCHOR_WEIGHT) in factors
+    assert factors <= {("sequence", anchor.SEQUENCE_ANCHOR_WEIGHT), ("sequence", anchor.HELD_ANCHOR_WEIGHT)}
+    assert ("sequence", anchor.SEQUENCE_ANCHOR_WEIGHT) in factors
     assert len(built) == len(factors)
 
 
@@ -1243,7 +1244,7 @@ def test_rotations_that_pull_against_the_guide_are_taken_whole():
     diagonal; its triangles' residuals to it turn 96°, median). Composed with the interpolated rigid
     turn, the residuals turned 71 triangles of the in-between half-way against both keys (the
     simulated frame: 25), their normals against the keys' per-vertex spline that anchors the fit
-    (``core.inbetween_solver.AGAINST_GUIDE_SHARE``); the whole rotations are splined there instead."""
+    (``core.inbetween_guide.AGAINST_GUIDE_SHARE``); the whole rotations are splined there instead."""
     data = np.load(Path(__file__).parent / "data" / "spinning_sheet.npz")
     keys, middle, triangles = data["keys"].astype(np.float64), data["middle"].astype(np.float64), data["triangles"]
     a, b = keys[3], keys[4]
@@ -1290,7 +1291,7 @@ def test_a_sheet_turning_as_a_whole_is_turned_between_the_keys():
     """A sheet turning 100° between keys while it sags and lifts by a few percent (so it is not
     rigid): the keys' per-vertex spline cuts the chords of its arcs (a cloth on a turntable, keys 16
     frames apart: 37 % of its edge lengths at mid-gap), so the anchor's guide is its co-moving
-    spline there (``core.inbetween_solver.ARC_GUIDE_STRAIN_RATIO``); the in-betweens follow the
+    spline there (``core.inbetween_guide.ARC_GUIDE_STRAIN_RATIO``); the in-betweens follow the
     turn to a fifth of the wobble's amplitude (0.035 off the 2-unit sheet before, the blend 0.3).
     """
     pose, triangles = _turning_sheet(lambda t: np.outer(0.03 * np.sin(2 * t) * np.ones(441), [0.0, 0.0, 1.0])
@@ -1440,7 +1441,7 @@ def test_a_gap_keeps_the_rigid_motions_of_a_bounded_number_of_factors(monkeypatc
     at most MOTION_CACHE factors' rigid motions (each pose ask kept before, 29 MB after 300
     factors at 1,000 pieces), and a batch larger than the cache gives the poses it gives with
     every factor's motion kept."""
-    import core.inbetween_solver as solver
+    import core.inbetween_motion as motion
 
     flat, tri = strip
     pair = Interpolator(_bend(flat, 0.3), _bend(flat, 1.5), tri)
@@ -1449,11 +1450,11 @@ def test_a_gap_keeps_the_rigid_motions_of_a_bounded_number_of_factors(monkeypatc
         pair.pose(float(s))
     held = len(pair._sequence._gap(0)._motions)
     assert 0 < held < len(factors), held  # not one per factor ever asked for
-    assert held <= solver.MOTION_CACHE
+    assert held <= motion.MOTION_CACHE
     np.testing.assert_array_equal(pair.pose(float(factors[0])), Interpolator(_bend(flat, 0.3), _bend(flat, 1.5), tri)
                                   .pose(float(factors[0])))
     keys = [_bend(flat, a) for a in (0.0, 0.5, 1.0, 1.5)]
-    batch = [float(s) for s in np.linspace(0.01, 0.99, 2 * solver.MOTION_CACHE)]
+    batch = [float(s) for s in np.linspace(0.01, 0.99, 2 * motion.MOTION_CACHE)]
     bounded = SequenceInterpolator(keys, tri).poses(1, batch)
-    monkeypatch.setattr(solver, "MOTION_CACHE", 10 ** 6)
+    monkeypatch.setattr(motion, "MOTION_CACHE", 10 ** 6)
     np.testing.assert_array_equal(bounded, SequenceInterpolator(keys, tri).poses(1, batch))

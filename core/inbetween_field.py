@@ -1,0 +1,170 @@
+"""The interpolated field of a gap at one factor (paper §7.3): the splines of its keys' relatives
+by name, the rotations' frames (in the triangles' base frames, whole or composed with their
+pieces' rigid motions) and the stretches (from the metrics' spline between the keys, the
+log-stretches' outside them). Mixed into :class:`core.inbetween_solver._Gap`,
+whose data it reads (``topo``, ``base``, ``relatives``, ``cubic``, ``whole_rotations``,
+``splines``, ``_log_options``) with the pieces' ``motion`` and the
+``guide`` (:mod:`core.inbetween_guide`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import deformation_fields as df
+from .geometry import coordinate_dot
+from .splines import HermiteGap
+
+if TYPE_CHECKING:
+    from .inbetween_solver import _Gap
+
+
+class _Splines(dict):
+    """A gap's splines by name, those of ``later`` ({name: function of nothing making it}) made
+    when first read."""
+
+    def __init__(self, later: dict):
+        super().__init__()
+        self._later = later
+
+    def __missing__(self, name: str) -> HermiteGap:
+        if name not in self._later:
+            raise KeyError(name)
+        spline = self[name] = self._later[name]()  # made twice at worst by two threads: the same spline
+        return spline
+
+
+def _log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.ndarray | None = None) -> HermiteGap:
+    """The spline of the ``relatives``' log-stretches (``options``: the gap's for it) on the
+    triangles ``rows`` (index array; None: all). Per element: on some rows, the whole spline's
+    values there."""
+    if rows is None:
+        return HermiteGap([r.log_stretch for r in relatives], cubic, **options)
+    options = {name: value[rows] if isinstance(value, np.ndarray) else value for name, value in options.items()}
+    if options["entry"] is not None:
+        options["entry"] = tuple(part[rows] for part in options["entry"])
+    return HermiteGap([r.log_stretch_rows(rows) for r in relatives], cubic, **options)
+
+
+class InterpolatedField:
+    """The field's part of a gap: its rotations' frames, stretches and area scales at a factor."""
+
+    def local_rotvec(self, rotvec: np.ndarray) -> np.ndarray:
+        """Per-triangle rotation vectors (m, 3) in world coordinates → in the triangle's frame
+        ``(t1, t2, n)`` in the base key (m, 3). The splines limit tangents per element; in world
+        coordinates those limits depend on the world's axes, and a scene turned by a general
+        rotation came back up to 5e-2 of its diagonal off the unturned scene's in-betweens (a
+        balloon, keys 16 apart; 1e-6 in these frames)."""
+        if not rotvec.any():  # the base key's own (no turn): zero in any frame
+            return np.zeros_like(rotvec)
+        w = np.ascontiguousarray(rotvec.T)
+        return np.stack([coordinate_dot(self.base.column_rows[c], w) for c in range(3)], axis=1)
+
+    def world_rotvec(self, local: np.ndarray) -> np.ndarray:
+        """Rotation vectors (m, 3) in the triangles' base frames → in world coordinates (m, 3):
+        the inverse of :meth:`local_rotvec` (a view of coordinate rows, as the frames take them)."""
+        columns = self.base.column_rows
+        out = columns[0] * local[:, 0]
+        out += columns[1] * local[:, 1]
+        out += columns[2] * local[:, 2]
+        return out.T
+
+    def per_element(self, name: str, per_component: np.ndarray) -> np.ndarray:
+        """``per_component`` (C,) spread to the rows of spline ``name`` (a column, to broadcast):
+        vertices for positions, components for rigid motions and centroids, triangles for fields
+        (loose vertices: their owner's, ``_Topology.vertex_owner``)."""
+        topo = self.topo
+        if name in ("vertices", "world"):
+            rows = per_component[topo.vertex_owner] if topo.components else np.zeros(topo.n, dtype=bool)
+        elif name in ("screw", "centroids"):
+            rows = per_component
+        else:
+            rows = per_component[topo.triangle_component]
+        return rows[:, None]
+
+    def targets(self, s: float, by_rows: bool = False):
+        """Interpolated rotations as the images of the base's tangent frames (``frames`` (k, m, 3):
+        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``; with ``by_rows``, a
+        :class:`_FramesByRows` that computes ``frames[:, rows]`` when asked), stretches (packed
+        (m, 3)), the components' rigid motions (rotations (C, 3, 3), translations (C, 3)) and the
+        guide positions (n, 3) at factor ``s``."""
+        motion = self.motion(s)
+        rotvec = self.world_rotvec(self.splines["rotvec"].at(s))
+        columns = 2 if 0.0 < s < 1.0 else 3  # the normals only for extrapolations' flip checks
+        frames = _FramesByRows(self, rotvec, motion[0], columns) if by_rows else \
+            self.key_frames(rotvec, motion[0], columns=columns)
+        return frames, self.stretch(s), motion, self.guide(s, motion)
+
+    def stretch(self, s: float) -> np.ndarray:
+        """The interpolated stretches (packed (m, 3)) at factor ``s``. Between the keys, the square
+        root of the spline of the metrics ``G = U²`` (the first fundamental form in the base's
+        tangent bases, linear in squared edge lengths): an edge a fold collapses between the keys
+        shortens late, as cloth does, where the spline of ``log U`` shortens it early (numbers in
+        docs/inbetweens.md, *What is interpolated*). The log spline where that metric is not
+        positive definite, and outside the keys, where exaggerations need it to stay so."""
+        if not 0.0 < s < 1.0:
+            return df.exp_stretch(self.splines["log_stretch"].at(s))
+        stretch, ok = df.sqrt_stretch(self.splines["metric"].at(s))
+        if not ok.all():
+            rows = np.flatnonzero(~ok)
+            stretch[rows] = df.exp_stretch(self.log_stretch_rows(s, rows))
+        return stretch
+
+    def area_scale(self, s: float) -> np.ndarray:
+        """``det U`` (m,) of the stretches :meth:`stretch` gives at factor ``s``, without them:
+        ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
+        outside them and where that ``G`` is not positive definite."""
+        if not 0.0 < s < 1.0:
+            log = self.splines["log_stretch"].at(s)
+            return np.exp(log[:, 0] + log[:, 2])
+        scale, ok = df.sqrt_det(self.splines["metric"].at(s))
+        if not ok.all():
+            rows = np.flatnonzero(~ok)
+            log = self.log_stretch_rows(s, rows)
+            scale[rows] = np.exp(log[:, 0] + log[:, 2])
+        return scale
+
+    def log_stretch_rows(self, s: float, rows: np.ndarray) -> np.ndarray:
+        """The log-stretches' spline at factor ``s`` on the triangles ``rows`` (index array): the
+        whole spline's where it is made, else a spline of those rows alone (a few triangles where
+        the metrics' spline is not positive definite: the keys' other log-stretches not made)."""
+        if "log_stretch" in self.splines:
+            return self.splines["log_stretch"].at(s)[rows]
+        return _log_stretch_spline(self.relatives, self.cubic, self._log_options, rows).at(s)
+
+    def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
+        """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals
+        (r, 3) of the triangles ``rows``, ``rotations``: the components' (C, 3, 3)): the images of
+        the base's ``t1``, ``t2`` and, with ``columns=3``, ``n``; in the components of
+        ``whole_rotations``, ``exp(rotvec)`` alone)."""
+        if self.whole_rotations.any():
+            rotations = np.where(self.whole_rotations[:, None, None], np.eye(3), rotations)
+        return df.rotated_frames(rotvec, rotations, self.topo.triangle_component[rows],
+                                 self.base.column_rows[:columns, :, rows])
+
+
+class _FramesByRows:
+    """The interpolated rotations' frames of a gap at one factor, computed only for the triangles
+    asked, ``frames[:, rows]`` → (k, r, 3): a repair of a predicted in-between needs them on its
+    regions only (the full set costs 12 ms at 100k triangles)."""
+
+    def __init__(self, gap: _Gap, rotvec: np.ndarray, rotations: np.ndarray, columns: int = 3):
+        self.gap, self.rotvec, self.rotations, self.columns = gap, rotvec, rotations, columns
+        # each triangle's frames computed once: the repair rounds' growing regions and their
+        # defect checks ask for overlapping rows again and again
+        self._frames = np.empty((columns, len(rotvec), 3))
+        self._done = np.zeros(len(rotvec), dtype=bool)
+
+    def __getitem__(self, index):
+        columns, rows = index
+        if columns != slice(None):
+            raise IndexError("frames by rows are indexed as [:, rows]")
+        rows = np.arange(len(self._done))[rows] if isinstance(rows, slice) else np.asarray(rows)
+        if rows.dtype == bool:
+            rows = np.flatnonzero(rows)
+        new = np.unique(rows[~self._done[rows]])
+        if new.size:
+            self._frames[:, new] = self.gap.key_frames(self.rotvec[new], self.rotations, new, self.columns)
+            self._done[new] = True
+        return self._frames[:, rows]

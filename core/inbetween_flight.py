@@ -1,0 +1,185 @@
+"""Free flight, impacts and flying bodies across a gap of a sequence: the conditions under which a
+gap's splines end on the parabola through its start (free flight up to an impact), start on the
+one through its end (after an impact), and the point each rigid piece turns about (a hinge's
+axis, a thrown body's centre), all read from the keys around the gap."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import deformation_fields as df
+from .inbetween_keys import turn_spread
+from .splines import REST_START_LIMIT
+
+if TYPE_CHECKING:
+    from .inbetween_topology import _Topology
+
+#: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
+#: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
+FLYING_MIN_TURN = 1e-6
+#: Largest difference (third, or second with one key beside the gap; :func:`flying_groups`), as a
+#: fraction of the piece's bounding-box diagonal, of the positions of the point a rigid piece is
+#: turned about: a point of a hinge's axis or a flying body's centre meets it to round-off (1e-15
+#: of the size; a single-precision cache 1e-7).
+FLYING_TOLERANCE = 1e-4
+#: Free flight up to an impact. The Catmull–Rom tangent at a gap's end key averages the velocity
+#: over the gap and the next one; when something stops the cloth right after that key (a sheet
+#: landing on a collider) it is too slow for the gap before, which is still in free flight, and
+#: the in-betweens there lag and bulge toward the landed shape. A component in free flight through
+#: the gap — rigid (non-rigidity, as RIGID_PLACEMENT_SCALE, under FREE_FLIGHT_NONRIGIDITY) from the
+#: key before it, or from rest at a sequence's first key, to the gap's end key, its centroid at
+#: constant acceleration over the four keys up to that end (third difference under
+#: FREE_FLIGHT_JERK × the gap's move: a sheet that hit a ramp flat in the gap before fails it) —
+#: and deformed at the key after (non-rigidity over 2 × FREE_FLIGHT_NONRIGIDITY and over
+#: FREE_FLIGHT_JUMP × the flight's: more than steady deformation from rest gives) ends the gap on
+#: the parabola through its start instead (every spline of it: ``parabolic_end`` of
+#: :class:`core.splines.HermiteGap`), exact for constant acceleration. RMS ÷ the linear blend's,
+#: keys 8 frames apart: 14k tablecloth 0.638 → 0.353, 10k drape 0.912 → 0.549, unseen irregular
+#: 10k mesh 0.913 → 0.493, unseen 30k tablecloth 0.618 → 0.317; of 93 sequence cells on 31 cloths
+#: 27 closer, two farther (a 10k sheet hanging from two corners at g = 4, 0.164 → 0.184; a sheet
+#: landing flat on a ramp, g = 16, 0.909 → 0.937); other scales in docs/inbetweens.md, *Free flight
+#: up to an impact*.
+FREE_FLIGHT_NONRIGIDITY = 5e-3
+FREE_FLIGHT_JUMP = 4.0
+FREE_FLIGHT_JERK = 0.5
+#: After an impact. The mirror case: where the cloth hit something inside the gap before, the
+#: Catmull–Rom tangent at this gap's start key averages the fast fall before it with the slow
+#: settling after it, and the in-betweens overshoot the landed shape (a drape on a sphere, keys 4,
+#: 20 and 36: 2.26 × the blend's RMS in the gap after the landing). A component deformed across
+#: the gap before — the key before seen from this gap's start key, non-rigidity over 2 ×
+#: FREE_FLIGHT_NONRIGIDITY and over FREE_FLIGHT_JUMP × this gap's own — whose centroid moved over
+#: IMPACT_SLOWDOWN × as far in the gap before as in this one starts the gap on the parabola
+#: through its end (value and tangent) instead (``parabolic_start`` of
+#: :class:`core.splines.HermiteGap`): constant deceleration. Keys cut from the middle of a fall
+#: (40 cells of 8 cloths): 13 → 6 above a peer (drape on a sphere, keys 16 apart from frame 4:
+#: 1.651 → 0.874 × the blend); from frame 0 it moves four of 87 sequence cells, all closer (a 10k
+#: drape at g = 8 0.548 → 0.472 × the blend, a shrinking sheet at g = 4 1.065 → 0.928); a swing's
+#: turning point fails the deformation test, and at a slowdown of 2 a hanging sheet and a soft
+#: flag keep every digit (numbers in docs/inbetweens.md, *After an impact*).
+IMPACT_SLOWDOWN = 2.0
+
+
+def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarray | None) -> np.ndarray | None:
+    """Per component (C,), whether it is in free flight through a gap and hit right after it (see
+    :data:`FREE_FLIGHT_NONRIGIDITY`), from the non-rigidity (C,) of the keys before the gap, at its
+    end and after it, each seen from its start key; or None if no component is. A first gap
+    (``start_limit`` set) counts from rest only (its key before is an end condition); a later one
+    needs ``steady`` (C,): the centroid at constant acceleration up to the gap's end."""
+    before, nxt, after = np.asarray(before), np.asarray(nxt), np.asarray(after)
+    if start_limit is None and steady is not None:
+        flight = np.where(steady, np.maximum(before, nxt), np.inf)
+    elif start_limit == REST_START_LIMIT:
+        flight = nxt
+    else:
+        return None
+    free = ((flight < FREE_FLIGHT_NONRIGIDITY) & (after > 2.0 * FREE_FLIGHT_NONRIGIDITY)
+            & (after > FREE_FLIGHT_JUMP * flight))
+    return free if free.any() else None
+
+
+def after_impact(before, nxt, incoming, outgoing, start_limit: float | None) -> np.ndarray | None:
+    """Per component (C,), whether a gap starts right after an impact (see :data:`IMPACT_SLOWDOWN`),
+    from the non-rigidity (C,) of the keys before the gap and at its end, seen from its start key,
+    and the distances (C,) its centroid moved over the gap before (``incoming``) and over this one
+    (``outgoing``); or None if no component does. Not in a sequence's first gap (``start_limit``
+    set), whose key before is an end condition."""
+    if start_limit is not None:
+        return None
+    before, nxt = np.asarray(before), np.asarray(nxt)
+    hit = ((before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > FREE_FLIGHT_JUMP * nxt)
+           & (np.asarray(incoming) > IMPACT_SLOWDOWN * np.asarray(outgoing)))
+    return hit if hit.any() else None
+
+
+def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
+                  nonrigidity: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The rigid pieces of a sequence's gap turned about the point of theirs whose path the keys
+    say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
+    rigid motion from the gap's base key to its next, to 1e-6 or what their fits are known to:
+    ``nonrigidity`` (C,) as :data:`~core.deformation_fields.TURN_NOISE` says) or −1, and each
+    group's point in the base key; None where no piece has a key before or after the gap to tell.
+
+    A rigid piece's screw motion (:meth:`~core.inbetween_motion.PieceMotion.motion`) turns it about one axis, which a door on
+    its hinge or a wheel on its axle does; a body thrown while it spins turns about its centre as
+    the centre flies on, and the screw swings it along a helix around an axis far from its path (a
+    box flying and spinning 10° a frame, keys 16 frames apart: 14 × the linear blend's error).
+    Over the keys around the gap, the point of the piece (in the base key) whose positions have
+    the smallest third difference (constant acceleration; with a key on one side only, the second:
+    constant velocity) is a point of the hinge's axis for a door, whatever its speed, and the
+    centre of a thrown body, under gravity too: the piece turns about it while it follows the
+    spline of its positions at the keys. Of the points equally simple (along a hinge's axis) the
+    one nearest the group's centroid. Where no point of the piece's reach follows such a path to
+    :data:`FLYING_TOLERANCE` of its size (one key beside the gap and the body accelerating; a body
+    that orbits while it spins), the group's centroid: a flying body's centre of mass follows its
+    own path (a box thrown under gravity, keys 8 apart, its two end gaps so: 0.23 × Catmull–Rom's
+    error over the sequence; with the screw there 4.4 ×, with the best point of the constant-velocity
+    test 1.32 ×)."""
+    before, base, nxt, after = relatives
+    known = [r for r in (before, after) if not r.extrapolated and getattr(r, "motion", None) is not None]
+    if not rigid.any() or not known or getattr(nxt, "motion", None) is None:
+        return None
+    rotations, translations = nxt.motion
+    candidates = np.flatnonzero(rigid & (np.linalg.norm(df.rotation_vectors(rotations), axis=1) > FLYING_MIN_TURN))
+    if candidates.size == 0:
+        return None
+    diagonals = topo.diagonals(base.vertices)
+    scale = max(float(np.max(diagonals)), float(np.max(np.ptp(base.centroids, axis=0))), np.finfo(float).tiny)
+    motions = np.concatenate([rotations[candidates].reshape(-1, 9), translations[candidates] / scale], axis=1)
+    # pieces whose motions are within 1e-6 of each other, linked: rounding them to 6 decimals split
+    # equal motions of float32 keys across a rounding boundary (a character's hat, spun rigidly with
+    # it, was turned about another point: 1.5–1.9e-2 off at the middle of one gap)
+    from scipy.spatial import cKDTree
+
+    from .seams import vertex_groups
+
+    # ... and within what the fits are known to: float32 keys of 300 cards, 10 units out and keyed
+    # every half turn, differ by ~1e-5, and each card alone turned about its centroid, off its circle
+    spread = np.maximum(turn_spread(nonrigidity[candidates]), 0.5e-6)
+    pairs = cKDTree(motions).query_pairs(2.0 * float(spread.max()), output_type="ndarray")
+    if len(pairs):
+        pairs = pairs[np.linalg.norm(motions[pairs[:, 0]] - motions[pairs[:, 1]], axis=1)
+                      <= spread[pairs[:, 0]] + spread[pairs[:, 1]]]
+    group = vertex_groups(pairs[:, 0], pairs[:, 1], len(candidates))
+    count = int(group.max()) + 1
+    mass = topo.component_mass[candidates]
+    first = candidates[np.unique(group, return_index=True)[1]]  # a member's motion stands for its group's
+    centroid = np.stack([np.bincount(group, mass * base.centroids[candidates, d], count) for d in range(3)],
+                        axis=1) / np.bincount(group, mass, count)[:, None]
+    # a group's reach: the diagonal of its members' bounding box (teeth turning about the jaw's
+    # axis: a tooth's own diagonal missed the axis, 0.1 of the diagonal off at 120° per key)
+    of_vertex = np.full(len(topo.components), -1, dtype=np.intp)
+    of_vertex[candidates] = group
+    of_vertex = of_vertex[topo.vertex_owner]
+    rows = of_vertex >= 0
+    low, high = np.full((count, 3), np.inf), np.full((count, 3), -np.inf)
+    np.minimum.at(low, of_vertex[rows], base.vertices[rows])
+    np.maximum.at(high, of_vertex[rows], base.vertices[rows])
+    reach = np.linalg.norm(high - low, axis=1)
+    # the differences of a body point p's positions R_j p + t_j over the keys: A p + b
+    eye = np.broadcast_to(np.eye(3), (count, 3, 3))
+    r1, t1 = rotations[first], translations[first]
+    if len(known) == 2:
+        r0, t0 = before.motion[0][first], before.motion[1][first]
+        r2, t2 = after.motion[0][first], after.motion[1][first]
+        a, b = r2 - 3.0 * r1 + 3.0 * eye - r0, t2 - 3.0 * t1 - t0
+    elif after in known:
+        r2, t2 = after.motion[0][first], after.motion[1][first]
+        a, b = r2 - 2.0 * r1 + eye, t2 - 2.0 * t1
+    else:
+        r0, t0 = before.motion[0][first], before.motion[1][first]
+        a, b = r1 - 2.0 * eye + r0, t1 + t0
+    residual = np.einsum("gab,gb->ga", a, centroid) + b
+    # the minimum-norm move from the centroid, all groups at once; directions the keys fix only to
+    # within their fits' spread left out (a noisy half turn's axis: 1e-5 there sent the point 1e6 off)
+    group_spread = np.zeros(count)
+    np.maximum.at(group_spread, group, spread)
+    move = df.least_squares_3x3(a, -residual, np.maximum(df.SCREW_CUTOFF, group_spread))
+    point = centroid + move
+    simple = (np.linalg.norm(move, axis=1) <= reach) & (
+        np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)
+    points = np.where(simple[:, None], point, centroid)
+    labels = np.full(len(topo.components), -1, dtype=np.intp)
+    labels[candidates] = group
+    return labels, points

@@ -1,0 +1,172 @@
+"""The anchor's guide (paper §7.3, where the reconstruction is pulled toward): the keys' per-vertex
+spline (two poses: the linear blend) in the world, or moved by each piece's interpolated rigid
+motion where the piece moves rigidly or turns as a whole, and the triangles whose whole rotations
+are splined because their residuals would turn them against it. Mixed into
+:class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``next``,
+``relatives``, ``splines``, ``cubic``, ``anchored``, ``whole_rotations``, ``riding``, ``rigidity``,
+``_mid_world_strains``, ``_arc_candidates``) with its other parts: the anchor (``weights``,
+``co_moving``, ``ride``), the field's ``world_rotvec``, the fit's ``edges_of`` and the pieces'
+``motion``."""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from . import deformation_fields as df
+from .geometry import coordinate_cross, coordinate_dot, scaled
+from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
+
+#: The sequence anchor's guide is the keys' per-vertex spline in the world where a component
+#: deforms; where it turns as a whole that spline cuts the chords of its arcs (a cloth on a
+#: turntable, 120° between keys 16 apart: its edges 37 % off the keys' at the middle of the gap,
+#: the in-betweens 5.9 % and 0.596 × the blend's RMS). A component whose world spline's mid-gap
+#: strain is over ARC_GUIDE_STRAIN_RATIO × that of its co-moving spline (the keys' shapes splined
+#: with its rigid motion undone, moved by the interpolated rigid motion; 0.27 % there) plus
+#: METRIC_TOLERANCE takes the co-moving spline as its guide; predicted in-betweens still leave
+#: an inner key with the world spline's velocity, which the gaps on either side share
+#: (:func:`core.inbetween_prediction._key_slope`; with the co-moving velocity, which each gap
+#: takes from its own rigid fits, a sheet hanging from two corners jumped 2.67 × the
+#: simulation's largest frame-to-frame acceleration at a key), and a sequence's last key with the
+#: guide's. Components under a free-flight or impact condition (which act on the world spline)
+#: keep it. Turntable 0.596 → 0.285 × the blend and edge deviation 2.39 → 0.65 % (bound 0.85 %);
+#: 10k sheet hanging from two corners at g = 16 0.816 → 0.681 × Catmull–Rom; numbers in
+#: docs/inbetweens.md, *Cloth that turns as a whole*.
+ARC_GUIDE_STRAIN_RATIO = 2.0
+#: A sequence's piece whose anchor follows the keys' spline in the world (not its co-moving
+#: spline, :data:`ARC_GUIDE_STRAIN_RATIO`) has its triangles' whole rotations splined instead of
+#: their residuals to its rigid rotation (:meth:`Guide.rotations_against_guide`) where, at the
+#: middle of the gap, the residuals composed with its interpolated rigid rotation turn more of its
+#: triangles against that guide (normals more than 90° apart) than the whole rotations taken
+#: half-way do, by over this share of its triangles. The world spline does not turn with the
+#: rigid fit; where the piece deforms so much that the fit explains little of its triangles' turns,
+#: the composed rotations and the guide pull the in-between two ways and the fit crumples. A sheet
+#: hanging from a keyframed corner and spinning 193° about it between keys 16 frames apart
+#: (residuals 96°, whole rotations 116°, median): composed, 48 % of its triangles against the
+#: guide half-way (whole: 2 %), 6,117 facing away from both keys and 17 % edge deviation in the
+#: middle in-between (the simulated frame: 2,093 and 3.6 %); numbers in docs/inbetweens.md.
+AGAINST_GUIDE_SHARE = 0.1
+#: ... measured only on pieces whose rigid fit turns by more than this between the gap's keys
+#: (radians; the check costs 4–5 ms per gap of the 15k curtain): where it took pieces whole they turned
+#: 99–195°, and below a quarter turn no piece of the 16 benchmark cloths (keys 4, 8 and 16 frames
+#: apart) or of six others (keys 16 apart) turned over 5.5 % of its triangles more against the guide
+#: than its whole rotations did.
+AGAINST_GUIDE_TURN = np.pi / 2
+
+
+class Guide:
+    """The guide's part of a gap: its positions at a factor and what decides them."""
+
+    def guide(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        """The anchor's guide positions (n, 3) at factor ``s`` (``motion``: :meth:`~core.inbetween_motion.PieceMotion.motion` there):
+        the keys' per-vertex spline (two poses: the linear blend), with each component's
+        interpolated rigid motion undone where the anchor pattern says so (``co_moving``), mixed
+        by rigidity in sequences; with no anchor but the gauge, the spline with the rigid motions
+        undone."""
+        base, offset = self._guide_parts(s, motion)
+        guide = base if offset is None else base + offset
+        return guide if self.riding is None else self.ride(guide, s)  # riding sets: their own motion
+
+    def guide_offset(self, s: float, motion: tuple[np.ndarray, np.ndarray], arcs: bool = False) -> np.ndarray:
+        """The guide (:meth:`guide`) less ``M(s) V(s)``, the keys' co-moving spline moved by the
+        components' interpolated rigid motions (n, 3): zero at both keys, which both pass through;
+        without ``arcs``, the world spline's offset on the components that turn as a whole."""
+        base, offset = self._guide_parts(s, motion, arcs=arcs)
+        return np.zeros_like(base) if offset is None else offset
+
+    def _guide_parts(self, s: float, motion, arcs: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+        """``M(s) V(s)`` (n, 3) and the guide's offset from it (n, 3; None: no offset): the
+        world spline's where no vertex moves with its component's rigid motion, otherwise that
+        times one less each vertex's share of the co-moving spline: its component's rigidity, or
+        all of it where the component turns as a whole (:data:`ARC_GUIDE_STRAIN_RATIO`) unless
+        ``arcs`` is False (the world spline there: the velocity a key's two gaps share)."""
+        base = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        if self.weights is None:
+            return base, None
+        offset = self.splines["world"].at(s) - base
+        if self.co_moving.any():
+            if self.anchored:
+                mix = self.co_moving.astype(float)
+            else:  # by rigidity, or wholly where the component turns as a whole (ARC_GUIDE_STRAIN_RATIO)
+                share = np.maximum(self.rigidity, self.arc_guided) if arcs else self.rigidity
+                mix = self.co_moving * share[self.topo.vertex_owner]
+            scaled(offset, 1.0 - mix, out=offset)  # per coordinate column: 3× faster than broadcasting
+        return base, offset
+
+    def mid_gap_reference(self) -> np.ndarray:
+        """The corner edge lengths (3 corners, m) :meth:`mid_gap_strain` measures against: the mean of
+        the two keys', in the local steps' precision."""
+        mean = 0.5 * (self.base.lengths + self.next.lengths).T
+        return np.maximum(mean, np.finfo(float).tiny).astype(LOCAL_STEP_DTYPE)
+
+    def mid_gap_strain(self, x: np.ndarray, reference: np.ndarray) -> float:
+        """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
+        ``reference`` (3 corners, m; the mean of the two keys', see :data:`~core.inbetween_anchor.SMOOTH_SPLINE_STRAIN`),
+        in the local steps' precision (the thresholds are 1e-3 and above)."""
+        return float(np.mean(self._triangle_strains(x, reference)))
+
+    def _triangle_strains(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """Per triangle (m,), :meth:`mid_gap_strain` of its three corner edges."""
+        edges = self.edges_of(x, LOCAL_STEP_DTYPE)
+        lengths = np.sqrt(coordinate_dot(edges, edges))
+        return np.mean(np.abs(lengths / reference - 1.0), axis=0, dtype=np.float64)
+
+    @cached_property
+    def arc_guided(self) -> np.ndarray:
+        """Per component (bool (C,)) of a sequence, whether the anchor's guide is its co-moving
+        spline because it turns as a whole (:meth:`turning_as_a_whole`; not under a free-flight or
+        impact condition). Computed when a guide is first asked for: a gap whose in-betweens need
+        no solve (:func:`core.inbetween_prediction.gap_poses`) does without it."""
+        if not self._arc_candidates.any():
+            return self._arc_candidates
+        return self.turning_as_a_whole() & self._arc_candidates
+
+    def turning_as_a_whole(self) -> np.ndarray:
+        """Per component (bool (C,)), whether the keys' per-vertex spline in the world strains it
+        at the middle of the gap by over :data:`ARC_GUIDE_STRAIN_RATIO` × as much as its co-moving
+        spline does, plus :data:`~core.inbetween_fit.METRIC_TOLERANCE` (see there)."""
+        topo = self.topo
+        reference = self.mid_gap_reference()
+        counts = np.maximum(topo.piece_sizes, 1)
+        world = self._mid_world_strains  # measured by the constructor where it chose the anchor
+        if world is None:
+            world = self._triangle_strains(self.splines["world"].at(0.5), reference)
+        co_moving = topo.apply_motion(self.splines["vertices"].at(0.5), *self.motion(0.5))
+        moving = self._triangle_strains(co_moving, reference)
+        world, moving = (np.bincount(topo.triangle_component, strains, minlength=len(counts)) / counts
+                         for strains in (world, moving))
+        return world > ARC_GUIDE_STRAIN_RATIO * moving + METRIC_TOLERANCE
+
+    def rotations_against_guide(self) -> np.ndarray:
+        """Per component (bool (C,)) of a sequence, whether its rotation residuals, composed with
+        its interpolated rigid rotation, turn over :data:`AGAINST_GUIDE_SHARE` more of its triangles
+        against the anchor's guide at the middle of the gap (normals more than 90° apart) than its
+        triangles' whole rotations from the base key to the next, taken half-way, do; only pieces
+        whose guide is the world spline (not :attr:`arc_guided`), whose rotations are residuals and
+        whose rigid fit turns by more than :data:`AGAINST_GUIDE_TURN` between the keys."""
+        topo, count = self.topo, len(self.topo.components)
+        turns = np.linalg.norm(self.relatives[2].screw[:, :3], axis=1)
+        candidates = ~self.whole_rotations & (turns > AGAINST_GUIDE_TURN)
+        if not (self.cubic and not self.anchored and candidates.any()):
+            return np.zeros(count, dtype=bool)
+        candidates &= ~self.arc_guided
+        if not candidates.any():
+            return candidates
+        motion = self.motion(0.5)
+        guide = self.edges_of(self.guide(0.5, motion))
+        guide_normals = coordinate_cross(guide[:, 0], -guide[:, 2])  # (3 coordinates, m)
+        pieces = topo.triangle_component
+        counts = np.maximum(np.bincount(pieces, minlength=count), 1)
+
+        def against(rotvec, rotations):  # per component, the share of its triangles turned against the guide
+            normals = df.rotated_frames(rotvec, rotations, pieces, self.base.column_rows[2:])[0]  # (m, 3)
+            opposed = coordinate_dot(guide_normals, np.ascontiguousarray(normals.T)) < 0.0
+            return np.bincount(pieces, opposed, minlength=count) / counts
+
+        composed = against(self.world_rotvec(self.splines["rotvec"].at(0.5)), motion[0])
+        candidates &= composed > AGAINST_GUIDE_SHARE  # the whole rotations' share is at least zero
+        if not candidates.any():
+            return candidates
+        whole = self.relatives[2].whole_rotations(topo, self.base, self.next, candidates).rotvec
+        return candidates & (composed > against(0.5 * whole, np.tile(np.eye(3), (count, 1, 1))) + AGAINST_GUIDE_SHARE)

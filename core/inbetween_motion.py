@@ -1,0 +1,217 @@
+"""The pieces' rigid motions across a gap and their placement (paper §7.3 fixes shapes up to a rigid
+motion): each component's interpolated screw motion (flying bodies turned about their point,
+jointed pieces about their joints), and where the Poisson solve leaves a component free, its
+centroid placed along that motion, its keys' centroid spline, its best similarity's path or with
+the rigid piece it sits on. Mixed into :class:`core.inbetween_solver._Gap`,
+whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``flying``,
+``joints``, ``rigidity``, ``nonrigidity``, ``_motions``) with the anchor's ``by_centroid``."""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import numpy as np
+
+from . import deformation_fields as df
+from .inbetween_joints import composed
+
+#: Components without anchored vertices are placed by their centroid: along the screw motion of
+#: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
+#: about a common pivot stay together), along the spline of the keys' centroids where they deform
+#: (free-falling cloth: the centroid follows its own trajectory, not the rotation's arc), mixed
+#: linearly in between by the component's non-rigidity (RMS misfit of the best rigid motion over
+#: the gap's keys / the component's bounding-box diagonal) relative to this scale.
+RIGID_PLACEMENT_SCALE = 1e-3
+#: ... except where the piece's best similarity (its best rigid motion times a uniform scale, the
+#: scale fitted too) between the two keys leaves a misfit well under how far its centroid's path
+#: along that similarity (the spiral ``exp(s log S)``; a screw motion for a rigid one) departs from
+#: the centroid spline half-way: a piece turned 60° whose vertices carry noise or the rounding of a
+#: single-precision cache (non-rigidity over RIGID_PLACEMENT_SCALE) was placed on the chord of its
+#: arc, 5.4e-2 of the diagonal off at 0.5 and 0.45 at ×2 for noise of 5e-4 of it; a head scaled by
+#: 1.02 with its eyes, each on its own chord, had the eyes 2e-2 out of their sockets. There the
+#: centroid follows the similarity by the share ``1 − (ARC_PLACEMENT_MISFIT · misfit / departure)²``
+#: (at least 0): noise of RMS ε leaves the centroid at most ARC_PLACEMENT_MISFIT · ε off the arc
+#: (less the smaller ε), while a cloth that deforms by as much as half its centroid's departure
+#: from the chord keeps the spline (docs/inbetweens.md, *Nearly rigid and similar pieces, and what
+#: carries what*).
+ARC_PLACEMENT_MISFIT = 2.0
+#: ... and wholly only where its best similarity misses it by at most the first share of its size
+#: (noise, rounding), not at all from the second on (linearly between): a piece missed by that much
+#: deforms, and its centroid keeps its own path however far it travels (free-falling cloth, above).
+SIMILAR_SHAPE_MISFIT = (1e-2, 3e-2)
+
+#: Factors whose rigid motions a gap keeps (:meth:`PieceMotion.motion`): a batch of in-betweens asks for
+#: its factors, 0, 1, 1e-4, 1 − 1e-4 and 0.5 (20 at keys 16 apart). The cache is emptied when
+#: full: it holds C × 96 bytes per factor, and a gap lives as long as its interpolator (two
+#: poses asked for 300 factors held 29 MB at 1,000 pieces).
+MOTION_CACHE = 32
+
+
+class PieceMotion:
+    """The rigid motions' part of a gap: the pieces' motions at a factor and their placement."""
+
+    def piece_moves(self, relatives: list) -> np.ndarray:
+        """How far each component (C,) moves over the gap's keys: the sum over ``relatives`` of
+        its vertices' RMS move from the base key, in the world. Positions do not alias as turns
+        do: a link turning 300° between keys reads as a turn of 60° the other way, but its
+        vertices still sweep round."""
+        topo, base = self.topo, self.base.vertices
+        owner = topo.vertex_owner
+        counts = np.maximum(np.bincount(owner[owner >= 0], minlength=len(topo.components)), 1)
+        total = np.zeros(len(topo.components))
+        for r in relatives:
+            moved = np.einsum("ij,ij->i", r.world - base, r.world - base)
+            total += np.sqrt(np.bincount(owner[owner >= 0], moved[owner >= 0], minlength=len(topo.components)) / counts)
+        return total
+
+    def motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The components' interpolated rigid motions at factor ``s``: rotations (C, 3, 3),
+        translations (C, 3); the flying pieces (:func:`~core.inbetween_flight.flying_groups`) turned about their group's
+        point on the spline of its positions at the keys. Computed once per factor (a pose, its
+        guide, checks and predictions ask for the same few; copies: callers may change them), at
+        most :data:`MOTION_CACHE` factors held."""
+        known = self._motions.get(s)
+        if known is None:
+            if len(self._motions) >= MOTION_CACHE:
+                self._motions.clear()  # one call (threads share the cache): a factor asked again is recomputed
+            known = self._motions[s] = self._motion(s)
+        return known[0].copy(), known[1].copy()
+
+    def _motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        motion = df.rigid_exps(self.splines["screw"].at(s))
+        if self.flying is not None:  # turned about each group's point, which follows its spline
+            labels, points = self.flying
+            rotations, translations = motion
+            rows = np.flatnonzero(labels >= 0)
+            translations[rows] = self.splines["flying"].at(s)[rows] - np.einsum(
+                "cab,cb->ca", rotations[rows], points[labels[rows]])
+        if self.joints is None:
+            return motion
+        return composed(*self.joints, *motion, df.rigid_exps(self.splines["joint_screw"].at(s)))
+
+    def place(self, x: np.ndarray, s: float, motion, partly: bool = False) -> np.ndarray:
+        """Components without anchored vertices moved to their interpolated centroid (see
+        :data:`RIGID_PLACEMENT_SCALE`); with ``partly``, instead those the anchor barely holds,
+        by their share ``by_centroid`` of the way (see :meth:`~core.inbetween_anchor.Anchor.centroid_placement`)."""
+        rotations, translations = motion
+        share = self.by_centroid
+        moved = ((0.0 < share) & (share < 1.0)) if partly else share == 1.0
+        if not moved.any():
+            return x
+        topo = self.topo
+        rigid = np.einsum("cab,cb->ca", rotations, self.base.centroids) + translations
+        spline = self.splines["centroids"].at(s)
+        trust = self.similar_placement[0]
+        if (trust > 0.0).any():  # nearly rigid or similar pieces: along their similarity (ARC_PLACEMENT_MISFIT)
+            spline = trust[:, None] * self.similarity_path(s) + (1.0 - trust[:, None]) * spline
+        seated, seat, miss = self.seated_placement
+        if seated.any():  # deforming pieces sitting on a rigid one: with it (CarriedPieces, the other way)
+            k = seat[seated]
+            offset = self.base.centroids[seated] - self.base.centroids[k]
+            spline[seated] = rigid[k] + np.einsum("cab,cb->ca", rotations[k], offset) + s * miss[seated]
+        target = self.rigidity[:, None] * rigid + (1.0 - self.rigidity[:, None]) * spline
+        move = np.where(moved[:, None], share[:, None] * (target - topo.centroids(x)), 0.0)
+        rows = topo.component_vertices[moved[topo.component_labels]]
+        x[rows] += move[topo.vertex_component[rows]]
+        return x
+
+    @cached_property
+    def similar_placement(self) -> tuple[np.ndarray, tuple]:
+        """Per component, the share (C,) of its centroid placement taken along the path of its best
+        similarity from the base key to the next (:data:`ARC_PLACEMENT_MISFIT`) and that similarity:
+        rotation vectors (C, 3) (its best rigid motion's, as the screw spline turns it), log-scales
+        (C,) and translations (C, 3). The scale of the best similarity with the rigid motion's
+        rotation (the same rotation is the best for both) is ``Σ w (R b̃)·õ / Σ w |b̃|²`` over the
+        vertices' offsets from their centroids ``b̃`` (base) and ``õ`` (next)."""
+        topo, count = self.topo, len(self.topo.components)
+        none = np.zeros(count)
+        nxt = self.relatives[2]
+        rotations = getattr(nxt, "motion", (None,))[0]
+        if not count or rotations is None or getattr(nxt, "extrapolated", False):
+            return none, (np.zeros((count, 3)), none, np.zeros((count, 3)))
+        owner = np.maximum(topo.vertex_owner, 0)
+        c0, c1 = self.base.centroids, nxt.centroids
+        b = self.base.vertices - c0[owner]
+        o = self.next.vertices - c1[owner]
+        turned = topo.apply_motion(b, rotations, np.zeros((count, 3)))
+        spread = topo.component_sums(np.einsum("ij,ij->i", b, b))
+        scale = topo.component_sums(np.einsum("ij,ij->i", turned, o)) / np.maximum(spread, np.finfo(float).tiny)
+        positive = scale > 0.0
+        scale = np.where(positive, scale, 1.0)
+        residual = scale[owner][:, None] * turned - o
+        misfit = np.sqrt(topo.component_sums(np.einsum("ij,ij->i", residual, residual)) / topo.component_mass)
+        rotvec = np.asarray(nxt.screw)[:, :3] if len(np.shape(nxt.screw)) == 2 else df.rotation_vectors(rotations)
+        rotated = np.einsum("cab,cb->ca", df.rigid_exps(np.c_[rotvec, np.zeros((count, 3))])[0], c0)
+        similarity = (rotvec, np.log(scale), c1 - scale[:, None] * rotated)
+        half, ok = df.similarity_paths(*similarity, c0, 0.5)
+        departure = np.linalg.norm(half - self.splines["centroids"].at(0.5), axis=1)
+        ratio = ARC_PLACEMENT_MISFIT * misfit / np.maximum(departure, np.finfo(float).tiny)
+        # ... and only pieces nearly similar in shape: the departure grows with how far a piece
+        # travels, its misfit does not (a sheet crumpling while thrown 10 units and turning 60°,
+        # misfit 0.038 of its diagonal, was pulled onto the arc, 0.65 of its size off its path)
+        low, high = SIMILAR_SHAPE_MISFIT
+        shape = np.clip((high - misfit / np.maximum(self.base.diagonals, np.finfo(float).tiny)) / (high - low), 0.0, 1.0)
+        trust = np.where(positive & ok & np.isfinite(ratio), np.clip(1.0 - ratio**2, 0.0, 1.0) * shape, 0.0)
+        return trust, similarity
+
+    @cached_property
+    def seated_placement(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per component, whether its centroid placement follows a rigid piece it sits on (bool
+        (C,)), that piece (C,) and what of its own centroid's move that piece's rigid motion misses
+        between the keys (C, 3; :meth:`place` adds that share ``s`` of it): an eye that deforms
+        (blinks) in a head turned rigidly, a garment's separate piece on a rigid body, placed
+        otherwise on its centroid's spline (two poses: the chord of the head's arc; an eye squashed
+        to 0.6 of its height in a head turned 60° came 1.9e-2 of the diagonal out of its socket at
+        0.5 and 0.15 at ×2). The seat is read in the first pose as the carriers of
+        :class:`core.inbetween_carried.CarriedPieces` are: the component of rigid pieces (``rigidity``
+        > 0, not much smaller than the piece: :data:`core.inbetween_carried.CARRIER_SIZE`) holding most
+        of the nearest vertices of other pieces within the piece's diagonal; it seats the piece in a
+        gap where its rigid motion takes the piece's centroid within
+        :data:`core.inbetween_carried.CARRIED_TOLERANCE` of the piece's diagonal of where it is in
+        the next key."""
+        from . import inbetween_carried as carried  # noqa: PLC0415
+
+        topo, count = self.topo, len(self.topo.components)
+        seated, seat, miss = np.zeros(count, dtype=bool), np.zeros(count, dtype=int), np.zeros((count, 3))
+        # seats: pieces rigid to within noise (a head whose keys carry noise 6e-4 of the diagonal
+        # has rigidity 0, and its blinking eyes went on their chords, 5.5e-2 off at 0.5)
+        rigid = self.nonrigidity < SIMILAR_SHAPE_MISFIT[0]
+        deforming = ~rigid
+        if count < 2 or not rigid.any() or not deforming.any():
+            return seated, seat, miss
+        from scipy.spatial import cKDTree  # noqa: PLC0415
+
+        first = topo.first_pose
+        size = topo.diagonals(first)
+        holders = topo.component_vertices[rigid[topo.component_labels]]
+        rows = topo.component_vertices[deforming[topo.component_labels]]
+        label = topo.vertex_component[rows]
+        reach = carried.CARRIER_REACH * size
+        # every deforming piece's vertices at once (meshes of many pieces: no loop per piece)
+        distance, nearest = cKDTree(first[holders]).query(first[rows], k=carried.CARRIER_NEIGHBOURS,
+                                                          distance_upper_bound=float(reach[deforming].max()))
+        found = np.isfinite(distance) & (distance < reach[label][:, None])
+        piece = np.broadcast_to(label[:, None], found.shape)[found]
+        owner = topo.vertex_component[holders[nearest[found]]]
+        large = size[owner] >= carried.CARRIER_SIZE * size[piece]
+        piece, owner = piece[large], owner[large]
+        if piece.size == 0:
+            return seated, seat, miss
+        pairs, votes = np.unique(piece * count + owner, return_counts=True)
+        pair_piece, pair_owner = np.divmod(pairs, count)
+        best = np.lexsort((-votes, pair_piece))  # per piece, the owner holding most of its nearest first
+        first_of = best[np.r_[True, pair_piece[best][1:] != pair_piece[best][:-1]]]
+        pieces, owners = pair_piece[first_of], pair_owner[first_of]
+        enough = votes[first_of] >= carried.MIN_CARRIERS  # nearest vertices on the chosen seat itself
+        pieces, owners = pieces[enough], owners[enough]
+        rotations, translations = self.relatives[2].motion
+        c0, c1 = self.base.centroids, self.relatives[2].centroids
+        missed = c1[pieces] - (np.einsum("cab,cb->ca", rotations[owners], c0[pieces]) + translations[owners])
+        held = np.linalg.norm(missed, axis=1) <= carried.CARRIED_TOLERANCE * self.base.diagonals[pieces]
+        seated[pieces[held]], seat[pieces[held]], miss[pieces[held]] = True, owners[held], missed[held]
+        return seated, seat, miss
+
+    def similarity_path(self, s: float) -> np.ndarray:
+        """Each component's centroid (C, 3) at factor ``s`` along its best similarity between the
+        keys (:attr:`similar_placement`; :func:`core.deformation_fields.similarity_paths`)."""
+        return df.similarity_paths(*self.similar_placement[1], self.base.centroids, s)[0]
