@@ -21,6 +21,10 @@ The offset layers need their own correspondence: a lifted base vertex goes to th
 vertex of its matched vertex (or the nearest lifted one, at the corners of a boundary, which have
 no offset vertex), a base face center to the target face center nearest to the mean of its
 corners' matches — both measured on the target's rest pose.
+
+The target's layers, with their eigenbases per pose and the offset layers' correspondence, are in
+:mod:`core.transfer_layers`; what a transfer refuses or warns about in the meshes and the
+correspondence is in :mod:`core.transfer_checks`.
 """
 
 from __future__ import annotations
@@ -28,41 +32,19 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-import scipy.sparse as sp
 
 from .delaunay_flips import MAX_DIHEDRAL_DEGREES, delaunay_flips
 from .embedding import FRAMES_NEARLY_EXACT
 from .errors import MeshError, ShapeDifferenceWarning
-from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, functional_map,
-                             locally_affine_images, nearest_matched, project_near, pull_back_matrix,
-                             push_forward_matrix, walk_near)
-from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, basis_sizes, laplace_basis, warm_laplace_basis
+from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, locally_affine_images,
+                             nearest_matched, project_near, pull_back_matrix, push_forward_matrix, walk_near)
+from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+from .transfer_checks import (WELD_DISTANCE, check_matched_fraction, check_overlap, check_spread, coincident_vertices,
+                              degenerate_at_rest, warn_non_manifold)
+from .transfer_layers import TargetLayer, offset_surfaces_pull_back
 
 
-#: Target eigenbases after the first pose: warm-started subspace iterations from the previous
-#: pose's functions, SUBSPACE_MARGIN × k_N of them (the extra ones speed up convergence of the k_N
-#: wanted).
-SUBSPACE_MARGIN = 1.5
-#: ... exactly this many iterations (one gave differences 4.6e-5 off instead of 1e-5 in the
-#: identity-map test), accepted when every wanted Ritz pair's residual is at most
-#: WARM_RESIDUAL × λ_k (else ARPACK). Far looser than a converged basis needs
-#: (:data:`~core.laplace_basis.WARM_TOLERANCE`): the target's functions only serve as the space the
-#: pushed base functions are fitted in, and its top eigenpairs matter little. Measured on the
-#: re-meshed drape (1,296 / 3,743 target vertices, k_N = 200, frames 20 → 40 and 20 → 21): residuals
-#: 1e-2 (mesh) and 5e-2 (offset surface) after two iterations, the four differences within
-#: 1.5e-3 (relative) of those with ARPACK's bases, both eigenbases 2.1–3.4× faster than ARPACK's;
-#: converging to 1e-6 would take more iterations than ARPACK costs. A start far from the pose
-#: (residual ≈ λ_k) still falls back.
-SUBSPACE_ITERATIONS = 2
-WARM_RESIDUAL = 0.1
-#: ... and up to this many iterations while the residual test fails, before ARPACK: the first pose
-#: of a transfer starts from the basis of the base's rest carried onto the target (computed for the
-#: meshing correction), which may be far. On the 5k limb, frame 38 (joints bent 70° and 80°):
-#: residual / λ_k 0.16 / 0.12 / 0.087 after 1 / 2 / 3 iterations on the mesh, 0.19 / 0.15 / 0.13 /
-#: 0.11 / 0.078 after 1–5 on the offset surface (3.5 s each), against 45 s for ARPACK's bases.
-SUBSPACE_MAX_ITERATIONS = 6
 #: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
 #: for transferred differences, instead of the same-mesh 1e-6 / 1e-5: their data carry the
 #: change of mesh and the k_N truncation at the 1e-2 level. Measured on the re-meshed drape
@@ -124,79 +106,6 @@ EMBEDDING_STAGNATION = 1e-2
 #: against 1.27 / 1.96 / 2.67 / 3.20 %, hostile 1.40 / 1.50 / 1.91 / 2.80 % against 1.73 / 1.91 /
 #: 2.20 / 2.72 %; 3–7 Levenberg–Marquardt steps instead of 13–40 (3e-3 lay in between).
 INTRINSIC_EMBEDDING_TOLERANCE = 1e-2
-#: A partial correspondence (entries UNMATCHED, -1: base vertices no map entry lands on, as when
-#: two template maps are composed) must match at least this fraction of the base vertices, and
-#: warns below the second: the unmatched ones get their images from the local affine fit of
-#: matched neighbours (:func:`~core.functional_map.locally_affine_images`, rings widened until they
-#: hold enough matches). Measured (random subsets of a nearest-vertex map; docs/transfer.md): 73 %
-#: matched costs a few tenths of a point of Hausdorff / diagonal, 43 % 0.4–1.1 point, 21 % about a
-#: point on the 1k limb (frame 40 3.62 → 3.99 / 4.02 / 4.63 %).
-MIN_MATCHED_FRACTION = 0.1
-WARN_MATCHED_FRACTION = 0.5
-#: Closest points match two meshes that overlap at rest: a base vertex is then within about half a
-#: target edge of its nearest target vertex. When the median distance is more than this many
-#: target edge lengths the meshes are elsewhere (a remeshed copy placed beside the original),
-#: and the transfer is refused: it returned a flat sheet with warnings about the recovery.
-OVERLAP_EDGES = 2.0
-#: ... and it warns when more than this share of them is that far (the meshes overlap in part).
-PARTLY_BESIDE = 0.1
-#: Smallest spread of the target positions a given correspondence matches, along each of their two
-#: widest axes, as a share of the target's own (:meth:`Transfer._check_spread`): a map onto a point
-#: or a line is refused; a map onto part of the target (a head on a body) spreads over far more.
-MIN_MAP_SPREAD = 0.01
-#: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
-#: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
-#: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
-#: the recovery fail).
-WELD_DISTANCE = 1e-7
-
-
-class _TargetLayer:
-    """One layer of the target (N or N_t): topology, product assembler, and the push-forward
-    ``Q`` ``(n_N, n_M)`` of functions from the matching base layer."""
-
-    def __init__(self, name, topology, push):
-        self.name = name
-        self.topology = topology
-        self.assembler = ProductAssembler(topology)
-        self.push = push
-        self._pushed = {}
-        self._subspace = None  # (k_N, functions (n, p)) of the last pose, the next one's start
-
-    def basis(self, mass, conformal, k: int, start=None):
-        """The first ``k`` eigenpairs of this pose (§6.2). The first pose gets ARPACK's
-        (:func:`~core.laplace_basis.laplace_basis`) with :data:`SUBSPACE_MARGIN` × ``k`` functions,
-        or starts from ``start`` ``(n, p)`` when given (functions of a nearby surface); every later
-        pose, :func:`~core.laplace_basis.warm_laplace_basis` started from the previous
-        pose's functions (:data:`SUBSPACE_ITERATIONS` to :data:`SUBSPACE_MAX_ITERATIONS`,
-        :data:`WARM_RESIDUAL`) — a pose of the same
-        mesh, whose eigenspaces move little (measured ARPACK at k = 200: 95 % of its time in its own
-        re-orthogonalization)."""
-        n = mass.shape[0]
-        p = min(n - 1, int(np.ceil(SUBSPACE_MARGIN * k)))
-        if self._subspace is None and start is not None and start.shape == (n, p) and p > k:
-            self._subspace = (k, start)
-        if self._subspace is None or self._subspace[0] != k or p <= k:
-            full = laplace_basis(mass, conformal, p if p > k else k, what=f"target {self.name}")
-        else:
-            full = warm_laplace_basis(mass, conformal, k, self._subspace[1], iterations=SUBSPACE_MAX_ITERATIONS,
-                                      min_iterations=SUBSPACE_ITERATIONS,
-                                      tolerance=WARM_RESIDUAL, what=f"target {self.name}")
-        self._subspace = (k, full.functions)
-        return LaplaceBasis(full.eigenvalues[:k], full.functions[:, :k])
-
-    def differences(self, base_layer, positions, k_M, k_N, start=None):
-        """Eq. (6) differences ``(area, conformal)`` of a pose ``positions`` of this layer on
-        ``base_layer``'s k_M functions (``start``: as for :meth:`basis`)."""
-        from .shape_difference import map_differences
-
-        base_basis = base_layer.basis(k_M)
-        _, _, mass, conformal = pose_products(self.assembler, positions)
-        target_basis = self.basis(mass, conformal, k_N, start)
-        if k_M not in self._pushed:  # Q Φ_M depends on the base and the map only
-            self._pushed = {k_M: np.asarray(self.push @ base_basis.functions)}
-        fmap = functional_map(target_basis.functions, mass, self._pushed[k_M])
-        return map_differences(base_basis, target_basis.eigenvalues, fmap)
 
 
 class Transfer:
@@ -210,7 +119,7 @@ class Transfer:
     warning. ``correspondence`` int ``(n_M,)``: for every base vertex its matched target vertex,
     or -1 (:data:`~core.functional_map.UNMATCHED`) where the map has none — a partial map, such as
     :func:`core.template_correspondence` composes from two template maps; unmatched vertices take
-    their images from matched neighbours (:data:`MIN_MATCHED_FRACTION`). ``None``: the nearest
+    their images from matched neighbours (:data:`~core.transfer_checks.MIN_MATCHED_FRACTION`). ``None``: the nearest
     target vertex of ``target_rest_vertices``, for meshes that overlap at rest. ``k_M`` / ``k_N``: base and target basis sizes (required: a functional map between
     two meshes lives in truncated bases). ``offset``, ``use_extrinsic``: as for
     :class:`~core.reference_shape.ReferenceShape`. ``reference``: an existing prepared base to
@@ -218,7 +127,7 @@ class Transfer:
     iterations (recovery programs, embedding) from the previous call's solutions, which pays for
     the frames of an animation taken in order; results then depend, within the solvers'
     tolerances, on the poses rebuilt before (the target eigenbases always do, see
-    :data:`SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
+    :data:`~core.transfer_layers.SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
     embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
 
     ``use_extrinsic=False`` (the default here, unlike the same-mesh pipeline): only the intrinsic
@@ -256,18 +165,18 @@ class Transfer:
         topology = mesh_topology(target_triangles, self.n_target, allow_non_manifold=True)
         # Coincident copies of a vertex (split along UV seams or sharp edges by an exporter) are
         # welded: the surface is one piece there, and its Laplacian must see it so.
-        self._welded = _coincident_vertices(rest, topology.used_vertices)
+        self._welded = coincident_vertices(rest, topology.used_vertices)
         kept = topology.triangles
         if self._welded is not None:
             kept = self._welded[kept]
             kept = kept[(kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])]
-        flat = self._degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
+        flat = degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
         # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
         # target's eigenbasis needs its surface, not its triangles.
         kept = delaunay_flips(rest, np.delete(kept, flat, axis=0), max_dihedral_degrees=MAX_DIHEDRAL_DEGREES)
         if not np.array_equal(kept, topology.triangles):
             topology = mesh_topology(kept, self.n_target, allow_non_manifold=True)
-        self._warn_non_manifold(topology)
+        warn_non_manifold(topology)
         # Target vertices in no triangle are left out (compact numbering, as for the base).
         self.target_used = topology.used_vertices
         compact = np.full(self.n_target, -1, dtype=np.int64)
@@ -283,7 +192,7 @@ class Transfer:
         base_used = reference.used_vertices
         if correspondence is None:
             nearest = closest_point_correspondence(reference.base_positions, rest_used)
-            self._check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
+            check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
             matched = self.target_used[nearest]
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
             self.correspondence[base_used] = matched
@@ -305,9 +214,9 @@ class Transfer:
             matched[loose] = False
         partial = not matched.all()
         if partial:
-            self._check_matched_fraction(matched)
+            check_matched_fraction(matched)
         if correspondence is not None:
-            self._check_spread(rest_used[compact[used_map[matched]]], rest_used)
+            check_spread(rest_used[compact[used_map[matched]]], rest_used)
         seeds = np.where(matched, compact[used_map], 0)
         if correspondence is None:
             points = reference.base_positions  # the meshes overlap: project the base itself
@@ -330,7 +239,7 @@ class Transfer:
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
         self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
         push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
-        self.layers = [_TargetLayer("mesh", topology, push)]
+        self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None
         if reference.use_extrinsic:
             from .offset_surface import offset_surface
@@ -343,10 +252,10 @@ class Transfer:
                     "use_extrinsic=False (intrinsic differences only) or repair the target."
                 ) from error
             offset_rest = self.target_surface.positions(rest_used, reference.offset)
-            offset_pull_back = _offset_pull_back(reference.surface, self.target_surface, image_triangles, weights,
-                                                 seeds, rest_used)
+            offset_pull_back = offset_surfaces_pull_back(reference.surface, self.target_surface, image_triangles,
+                                                         weights, seeds, rest_used)
             push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
-            self.layers.append(_TargetLayer("offset surface", self.target_surface.topology, push))
+            self.layers.append(TargetLayer("offset surface", self.target_surface.topology, push))
         self.discretization_error = self._discretization_error() if correct_discretization else None
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
@@ -383,105 +292,6 @@ class Transfer:
         from .edge_length_fit import relative_residuals, rms
 
         return rms(relative_residuals(vertices, self.reference.topology.edges, metric.base.squared_lengths))
-
-    @staticmethod
-    def _degenerate_at_rest(rest, triangles) -> np.ndarray:
-        """Indices of the target triangles of zero area at rest (as
-        :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning:
-        a decimated or remeshed target may carry a few collinear slivers, which add nothing to its
-        surface but would make its Laplacian infinite. A target pose where a kept triangle
-        collapses is still an error."""
-        from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
-
-        corners = rest[triangles]
-        sides = corners[:, [1, 2, 0]] - corners[:, [2, 0, 1]]
-        doubled_area = np.linalg.norm(np.cross(sides[:, 0], sides[:, 1]), axis=1)
-        flat = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * np.einsum("tki,tki->tk", sides, sides).max(axis=1)))
-        if flat.size == triangles.shape[0]:
-            raise MeshError("target rest vertices: every triangle of the target has zero area.")
-        if flat.size:
-            warnings.warn(
-                f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
-                f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
-                "Dissolve removes them).",
-                ShapeDifferenceWarning,
-                stacklevel=3,
-            )
-        return flat
-
-    @staticmethod
-    def _check_overlap(base, nearest, target, target_edges) -> None:
-        """Raise :class:`MeshError` when the base positions (n, 3) are not on the target's rest
-        surface: their median distance to their ``nearest`` target vertices over :data:`OVERLAP_EDGES`
-        target edge lengths (``target_edges`` (E, 2) of positions ``target``)."""
-        edge = float(np.mean(np.linalg.norm(target[target_edges[:, 0]] - target[target_edges[:, 1]], axis=1)))
-        distances = np.linalg.norm(base - nearest, axis=1)
-        apart = float(np.median(distances))
-        beside = float(np.mean(distances > OVERLAP_EDGES * edge))
-        if apart <= OVERLAP_EDGES * edge and beside > PARTLY_BESIDE:
-            warnings.warn(
-                f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
-                "from the target at rest: the meshes overlap only in part, and there closest points match the "
-                "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
-                "base is, or give a correspondence (in Blender: Map › Attribute or File)",
-                ShapeDifferenceWarning, stacklevel=3)
-        if apart > OVERLAP_EDGES * edge:
-            raise MeshError(
-                f"The two meshes do not overlap at rest: half of the base's vertices are more than {apart:.3g} "
-                f"from the target's ({apart / edge:.1f} of its edge lengths), and closest points match only "
-                "meshes laid on each other. Place the target's rest pose where the base is, or give a "
-                "correspondence (in Blender: Map › Attribute or File)")
-
-    @staticmethod
-    def _check_spread(images, target) -> None:
-        """Raise :class:`MeshError` when a given correspondence lays the base on a point or a line
-        of the target: the matched target positions ``images`` (k, 3) spread, along either of
-        their two widest axes, less than :data:`MIN_MAP_SPREAD` of the target's rest positions
-        ``target`` (n, 3) do (RMS) — an attribute created and never filled holds 0 for every vertex,
-        and the transfer squashed the target to that one vertex with warnings about its faces."""
-        spread = [np.linalg.svd(x - x.mean(axis=0), compute_uv=False)[:2] / np.sqrt(len(x)) for x in (images, target)]
-        if len(images) < 3 or (spread[0] < MIN_MAP_SPREAD * spread[1]).any():
-            raise MeshError(
-                f"The correspondence lays the base on {'a point' if spread[0][0] < MIN_MAP_SPREAD * spread[1][0] else 'a line'} "
-                f"of the target ({len(np.unique(images, axis=0))} distinct target vertices for "
-                f"{len(images)} matched base vertices): it is not a map of the surface. Check it (an attribute "
-                "created and never filled holds 0 for every vertex)")
-
-    @staticmethod
-    def _check_matched_fraction(matched):
-        """A partial map must match at least :data:`MIN_MATCHED_FRACTION` of the base vertices
-        (:class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns."""
-        fraction = float(matched.mean())
-        if fraction < MIN_MATCHED_FRACTION:
-            raise MeshError(
-                f"The correspondence matches only {100 * fraction:.0f} % of the base vertices "
-                f"({int(matched.sum())} of {matched.size}); at least {100 * MIN_MATCHED_FRACTION:.0f} % "
-                "are needed: the unmatched ones take their images from matched neighbours, which must be "
-                "close enough to describe the map at the scale of the k_M basis. Use a denser map."
-            )
-        if fraction < WARN_MATCHED_FRACTION:
-            warnings.warn(
-                f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
-                f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
-                "typically costs about a point of accuracy (Hausdorff / diagonal).",
-                ShapeDifferenceWarning,
-                stacklevel=4,
-            )
-
-    @staticmethod
-    def _warn_non_manifold(topology):
-        counts = np.bincount(topology.triangle_edges.ravel(), minlength=topology.n_edges)
-        hinged = (topology.edge_triangles >= 0).sum(axis=1)
-        odd = np.flatnonzero((counts > 2) | ((counts == 2) & (hinged < 2)))
-        if odd.size:
-            named = ", ".join(str(tuple(int(v) for v in topology.edges[e])) for e in odd[:5])
-            warnings.warn(
-                f"The target mesh has {odd.size} non-manifold or inconsistently oriented edge(s) "
-                f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
-                "matrix; its offset surface (extrinsic differences) is cut open along them.",
-                ShapeDifferenceWarning,
-                stacklevel=3,
-            )
 
     # -- per pose ---------------------------------------------------------------------------
     def _target_positions(self, target_vertices) -> np.ndarray:
@@ -710,80 +520,6 @@ class Transfer:
         self._last_carried = carried_points if np.isfinite(carried_points).all() else None
         self._last_embedding = result
         return result
-
-
-def _coincident_vertices(rest, used) -> np.ndarray | None:
-    """For every target vertex ``(n_N,)`` the vertex it is welded to: the lowest-numbered of the
-    ``used`` vertices within :data:`WELD_DISTANCE` × the bounding-box diagonal of it at ``rest``
-    ``(n_N, 3)`` (itself where none is); ``None`` when no two used vertices coincide."""
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
-
-    points = rest[used]
-    scale = np.linalg.norm(np.ptp(points, axis=0))
-    pairs = cKDTree(points).query_pairs(WELD_DISTANCE * scale, output_type="ndarray")
-    if not len(pairs):
-        return None
-    n = used.size
-    _, labels = connected_components(sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
-                                     directed=False)
-    first = np.full(labels.max() + 1, n, dtype=np.int64)
-    np.minimum.at(first, labels, np.arange(n))
-    welded = np.arange(rest.shape[0])
-    welded[used] = used[first[labels]]
-    return welded
-
-
-def _offset_pull_back(base_surface, target_surface, image_triangles, weights, seeds, target_rest):
-    """``Π_t`` ``(n_Mt, n_Nt)`` between the offset surfaces from the base layer's point-to-surface
-    map (each base vertex's image: target triangle ``image_triangles`` ``(n_M,)``, barycentric
-    ``weights`` ``(n_M, 3)``; ``seeds`` its matched target vertex) and the target's rest pose.
-
-    A lifted base vertex takes its vertex's weights on the lifted target vertices at the corners
-    (renormalized; the nearest lifted vertex where no corner is lifted). A base face center maps
-    to the point above the mean of its corners' images: projected onto the target surface near
-    the first corner's match, in target triangle ``T`` at weights ``w``, it is written on the
-    vertices of the offset surface above ``T`` — ``3 min(w)`` on the face center of ``T`` (above
-    its barycenter) and ``w − min(w)`` on the lifted corners (a convex combination of nearby
-    offset vertices, exact for functions that are affine there)."""
-    from scipy.spatial import cKDTree
-
-    target = target_surface.base
-    n_lifted = target_surface.lifted_vertices.size
-    lift = target_surface.lift_of_vertex
-    center = target_surface.center_of_triangle
-
-    def rows(corner_lifts, corner_weights, centers, center_weights, fallback_points):
-        w = np.where(corner_lifts >= 0, corner_weights, 0.0)
-        c = np.where(centers >= 0, center_weights, 0.0)
-        total = w.sum(axis=1) + c
-        lost = ~(total > 1e-12)
-        if lost.any():  # no offset vertex above the image: the nearest lifted one
-            _, nearest = cKDTree(target_rest[target_surface.lifted_vertices]).query(fallback_points[lost])
-            corner_lifts, w = corner_lifts.copy(), w.copy()
-            corner_lifts[lost, 0], w[lost] = nearest, [1.0, 0.0, 0.0]
-            total[lost] = 1.0
-        columns = np.concatenate([np.maximum(corner_lifts, 0), np.maximum(centers, 0)[:, None]], axis=1)
-        values = np.concatenate([w, c[:, None]], axis=1) / total[:, None]
-        return columns, values
-
-    corners = target.triangles[image_triangles]  # (n_M, 3)
-    lifted = base_surface.lifted_vertices
-    images = np.einsum("nk,nki->ni", weights, target_rest[corners])
-    lift_cols, lift_vals = rows(lift[corners[lifted]], weights[lifted], np.full(lifted.size, -1), np.zeros(lifted.size),
-                                images[lifted])
-
-    base_corners = base_surface.base.triangles[base_surface.centered_triangles]  # (m_c, 3) base vertices
-    q = images[base_corners].mean(axis=1)
-    triangles, w = project_near(q, seeds[base_corners[:, 0]], target_rest, target.triangles)
-    low = w.min(axis=1)
-    center_cols, center_vals = rows(lift[target.triangles[triangles]], w - low[:, None], center[triangles], 3.0 * low, q)
-
-    columns = np.concatenate([lift_cols, center_cols])
-    values = np.concatenate([lift_vals, center_vals])
-    n_rows = columns.shape[0]
-    return sp.csr_matrix((values.ravel(), (np.repeat(np.arange(n_rows), 4), columns.ravel())),
-                         shape=(n_rows, target_surface.topology.n_vertices))
 
 
 def transferred_keys(base_vertices, triangles, key_poses, target_triangles, *, correspondence=None,

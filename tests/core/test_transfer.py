@@ -275,13 +275,13 @@ def test_offset_surface_basis_of_the_carried_rest_starts_from_the_mesh_basis(she
     """Preparation solves one eigenproblem from scratch (the target mesh's); the target offset
     surface's eigenbasis starts from it, lifted, and agrees with a direct eigensolve of that
     surface: the same eigenvalues (Rayleigh quotients) within the warm solver's residual test."""
-    import core.transfer as transfer_module
+    import core.transfer_layers as layers_module
     from core.inner_products import pose_products
     from core.laplace_basis import laplace_basis
 
     base, base_tris, target, target_tris = sheets
     cold = []
-    monkeypatch.setattr(transfer_module, "laplace_basis",
+    monkeypatch.setattr(layers_module, "laplace_basis",
                         lambda *args, **kwargs: cold.append(kwargs.get("what")) or laplace_basis(*args, **kwargs))
     k = 32
     with warnings.catch_warnings():
@@ -298,7 +298,7 @@ def test_offset_surface_basis_of_the_carried_rest_starts_from_the_mesh_basis(she
                                                                                    mass @ functions)
     # A Ritz value is within its residual of an eigenvalue, which the warm solver bounds by
     # WARM_RESIDUAL × λ_k (Bauer–Fike).
-    assert np.abs(quotients - exact).max() <= transfer_module.WARM_RESIDUAL * exact[-1]
+    assert np.abs(quotients - exact).max() <= layers_module.WARM_RESIDUAL * exact[-1]
 
 
 def test_partial_map_fills_unmatched_vertices_from_matched_neighbours(sheets):

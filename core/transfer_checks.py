@@ -1,0 +1,162 @@
+"""What a :class:`~core.transfer.Transfer` refuses or warns about in the meshes and the
+correspondence it is given (paper §6.3 needs a map of the surface): a target's zero-area
+triangles, non-manifold edges and vertices split along seams (welded), and a correspondence that
+matches too few base vertices, lays the base on a point or a line, or (closest points) matches
+meshes that do not overlap at rest."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import MeshError, ShapeDifferenceWarning
+
+#: A partial correspondence (entries UNMATCHED, -1: base vertices no map entry lands on, as when
+#: two template maps are composed) must match at least this fraction of the base vertices, and
+#: warns below the second: the unmatched ones get their images from the local affine fit of
+#: matched neighbours (:func:`~core.functional_map.locally_affine_images`, rings widened until they
+#: hold enough matches). Measured (random subsets of a nearest-vertex map; docs/transfer.md): 73 %
+#: matched costs a few tenths of a point of Hausdorff / diagonal, 43 % 0.4–1.1 point, 21 % about a
+#: point on the 1k limb (frame 40 3.62 → 3.99 / 4.02 / 4.63 %).
+MIN_MATCHED_FRACTION = 0.1
+WARN_MATCHED_FRACTION = 0.5
+#: Closest points match two meshes that overlap at rest: a base vertex is then within about half a
+#: target edge of its nearest target vertex. When the median distance is more than this many
+#: target edge lengths the meshes are elsewhere (a remeshed copy placed beside the original),
+#: and the transfer is refused: it returned a flat sheet with warnings about the recovery.
+OVERLAP_EDGES = 2.0
+#: ... and it warns when more than this share of them is that far (the meshes overlap in part).
+PARTLY_BESIDE = 0.1
+#: Smallest spread of the target positions a given correspondence matches, along each of their two
+#: widest axes, as a share of the target's own (:func:`check_spread`): a map onto a point
+#: or a line is refused; a map onto part of the target (a head on a body) spreads over far more.
+MIN_MAP_SPREAD = 0.01
+#: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
+#: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
+#: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
+#: the recovery fail).
+WELD_DISTANCE = 1e-7
+
+
+def degenerate_at_rest(rest, triangles) -> np.ndarray:
+    """Indices of the target triangles of zero area at rest (as
+    :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning:
+    a decimated or remeshed target may carry a few collinear slivers, which add nothing to its
+    surface but would make its Laplacian infinite. A target pose where a kept triangle
+    collapses is still an error."""
+    from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
+
+    corners = rest[triangles]
+    sides = corners[:, [1, 2, 0]] - corners[:, [2, 0, 1]]
+    doubled_area = np.linalg.norm(np.cross(sides[:, 0], sides[:, 1]), axis=1)
+    flat = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * np.einsum("tki,tki->tk", sides, sides).max(axis=1)))
+    if flat.size == triangles.shape[0]:
+        raise MeshError("target rest vertices: every triangle of the target has zero area.")
+    if flat.size:
+        warnings.warn(
+            f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
+            f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
+            "Dissolve removes them).",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )
+    return flat
+
+
+def check_overlap(base, nearest, target, target_edges) -> None:
+    """Raise :class:`MeshError` when the base positions (n, 3) are not on the target's rest
+    surface: their median distance to their ``nearest`` target vertices over :data:`OVERLAP_EDGES`
+    target edge lengths (``target_edges`` (E, 2) of positions ``target``)."""
+    edge = float(np.mean(np.linalg.norm(target[target_edges[:, 0]] - target[target_edges[:, 1]], axis=1)))
+    distances = np.linalg.norm(base - nearest, axis=1)
+    apart = float(np.median(distances))
+    beside = float(np.mean(distances > OVERLAP_EDGES * edge))
+    if apart <= OVERLAP_EDGES * edge and beside > PARTLY_BESIDE:
+        warnings.warn(
+            f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
+            "from the target at rest: the meshes overlap only in part, and there closest points match the "
+            "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
+            "base is, or give a correspondence (in Blender: Map › Attribute or File)",
+            ShapeDifferenceWarning, stacklevel=3)
+    if apart > OVERLAP_EDGES * edge:
+        raise MeshError(
+            f"The two meshes do not overlap at rest: half of the base's vertices are more than {apart:.3g} "
+            f"from the target's ({apart / edge:.1f} of its edge lengths), and closest points match only "
+            "meshes laid on each other. Place the target's rest pose where the base is, or give a "
+            "correspondence (in Blender: Map › Attribute or File)")
+
+
+def check_spread(images, target) -> None:
+    """Raise :class:`MeshError` when a given correspondence lays the base on a point or a line
+    of the target: the matched target positions ``images`` (k, 3) spread, along either of
+    their two widest axes, less than :data:`MIN_MAP_SPREAD` of the target's rest positions
+    ``target`` (n, 3) do (RMS) — an attribute created and never filled holds 0 for every vertex,
+    and the transfer squashed the target to that one vertex with warnings about its faces."""
+    spread = [np.linalg.svd(x - x.mean(axis=0), compute_uv=False)[:2] / np.sqrt(len(x)) for x in (images, target)]
+    if len(images) < 3 or (spread[0] < MIN_MAP_SPREAD * spread[1]).any():
+        raise MeshError(
+            f"The correspondence lays the base on {'a point' if spread[0][0] < MIN_MAP_SPREAD * spread[1][0] else 'a line'} "
+            f"of the target ({len(np.unique(images, axis=0))} distinct target vertices for "
+            f"{len(images)} matched base vertices): it is not a map of the surface. Check it (an attribute "
+            "created and never filled holds 0 for every vertex)")
+
+
+def check_matched_fraction(matched):
+    """A partial map must match at least :data:`MIN_MATCHED_FRACTION` of the base vertices
+    (:class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns."""
+    fraction = float(matched.mean())
+    if fraction < MIN_MATCHED_FRACTION:
+        raise MeshError(
+            f"The correspondence matches only {100 * fraction:.0f} % of the base vertices "
+            f"({int(matched.sum())} of {matched.size}); at least {100 * MIN_MATCHED_FRACTION:.0f} % "
+            "are needed: the unmatched ones take their images from matched neighbours, which must be "
+            "close enough to describe the map at the scale of the k_M basis. Use a denser map."
+        )
+    if fraction < WARN_MATCHED_FRACTION:
+        warnings.warn(
+            f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
+            f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
+            "typically costs about a point of accuracy (Hausdorff / diagonal).",
+            ShapeDifferenceWarning,
+            stacklevel=4,
+        )
+
+
+def warn_non_manifold(topology):
+    counts = np.bincount(topology.triangle_edges.ravel(), minlength=topology.n_edges)
+    hinged = (topology.edge_triangles >= 0).sum(axis=1)
+    odd = np.flatnonzero((counts > 2) | ((counts == 2) & (hinged < 2)))
+    if odd.size:
+        named = ", ".join(str(tuple(int(v) for v in topology.edges[e])) for e in odd[:5])
+        warnings.warn(
+            f"The target mesh has {odd.size} non-manifold or inconsistently oriented edge(s) "
+            f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
+            "matrix; its offset surface (extrinsic differences) is cut open along them.",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )
+
+
+def coincident_vertices(rest, used) -> np.ndarray | None:
+    """For every target vertex ``(n_N,)`` the vertex it is welded to: the lowest-numbered of the
+    ``used`` vertices within :data:`WELD_DISTANCE` × the bounding-box diagonal of it at ``rest``
+    ``(n_N, 3)`` (itself where none is); ``None`` when no two used vertices coincide."""
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    points = rest[used]
+    scale = np.linalg.norm(np.ptp(points, axis=0))
+    pairs = cKDTree(points).query_pairs(WELD_DISTANCE * scale, output_type="ndarray")
+    if not len(pairs):
+        return None
+    n = used.size
+    _, labels = connected_components(sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
+                                     directed=False)
+    first = np.full(labels.max() + 1, n, dtype=np.int64)
+    np.minimum.at(first, labels, np.arange(n))
+    welded = np.arange(rest.shape[0])
+    welded[used] = used[first[labels]]
+    return welded
+
