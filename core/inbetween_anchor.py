@@ -161,10 +161,11 @@ class Anchor:
         self.weights, self.co_moving, self.system, self.by_centroid = self._anchors[between]
 
     def centroid_placement(self, weights: np.ndarray, between: bool) -> np.ndarray:
-        """Per component (C,), the share of the move onto its placed centroid (:meth:`~core.inbetween_motion.PieceMotion.place`) under
-        anchor ``weights`` (n,): 1 without an anchored vertex; for the in-betweens of two poses,
-        ``(1 − a / CENTROID_ANCHOR_SHARE)²`` up to that anchored share ``a`` of a component with no
-        still vertex (see :data:`CENTROID_ANCHOR_SHARE`); 0 otherwise."""
+        """Per component (C,), the share of the move onto its placed centroid
+        (:meth:`~core.inbetween_motion.PieceMotion.place`) under anchor ``weights`` (n,): 1 without
+        an anchored vertex; for the in-betweens of two poses, ``(1 − a / CENTROID_ANCHOR_SHARE)²``
+        up to that anchored share ``a`` of a component with no still vertex (see
+        :data:`CENTROID_ANCHOR_SHARE`); 0 otherwise."""
         topo = self.topo
         rows, labels, count = topo.component_vertices, topo.component_labels, len(topo.components)
         anchored = np.bincount(labels, weights[rows] > GAUGE_WEIGHT, minlength=count) > 0

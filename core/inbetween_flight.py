@@ -101,10 +101,11 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     ``nonrigidity`` (C,) as :data:`~core.deformation_fields.TURN_NOISE` says) or −1, and each
     group's point in the base key; None where no piece has a key before or after the gap to tell.
 
-    A rigid piece's screw motion (:meth:`~core.inbetween_motion.PieceMotion.motion`) turns it about one axis, which a door on
-    its hinge or a wheel on its axle does; a body thrown while it spins turns about its centre as
-    the centre flies on, and the screw swings it along a helix around an axis far from its path (a
-    box flying and spinning 10° a frame, keys 16 frames apart: 14 × the linear blend's error).
+    A rigid piece's screw motion (:meth:`~core.inbetween_motion.PieceMotion.motion`) turns it about
+    one axis, which a door on its hinge or a wheel on its axle does; a body thrown while it spins
+    turns about its centre as the centre flies on, and the screw swings it along a helix around an
+    axis far from its path (a box flying and spinning 10° a frame, keys 16 frames apart: 14 × the
+    linear blend's error).
     Over the keys around the gap, the point of the piece (in the base key) whose positions have
     the smallest third difference (constant acceleration; with a key on one side only, the second:
     constant velocity) is a point of the hinge's axis for a door, whatever its speed, and the

@@ -59,11 +59,11 @@ class Guide:
     """The guide's part of a gap: its positions at a factor and what decides them."""
 
     def guide(self, s: float, motion: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-        """The anchor's guide positions (n, 3) at factor ``s`` (``motion``: :meth:`~core.inbetween_motion.PieceMotion.motion` there):
-        the keys' per-vertex spline (two poses: the linear blend), with each component's
-        interpolated rigid motion undone where the anchor pattern says so (``co_moving``), mixed
-        by rigidity in sequences; with no anchor but the gauge, the spline with the rigid motions
-        undone."""
+        """The anchor's guide positions (n, 3) at factor ``s`` (``motion``:
+        :meth:`~core.inbetween_motion.PieceMotion.motion` there): the keys' per-vertex spline (two
+        poses: the linear blend), with each component's interpolated rigid motion undone where the
+        anchor pattern says so (``co_moving``), mixed by rigidity in sequences; with no anchor but
+        the gauge, the spline with the rigid motions undone."""
         base, offset = self._guide_parts(s, motion)
         guide = base if offset is None else base + offset
         return guide if self.riding is None else self.ride(guide, s)  # riding sets: their own motion
@@ -102,8 +102,9 @@ class Guide:
 
     def mid_gap_strain(self, x: np.ndarray, reference: np.ndarray) -> float:
         """Mean relative deviation of the corner edge lengths of positions ``x`` (n, 3) from
-        ``reference`` (3 corners, m; the mean of the two keys', see :data:`~core.inbetween_anchor.SMOOTH_SPLINE_STRAIN`),
-        in the local steps' precision (the thresholds are 1e-3 and above)."""
+        ``reference`` (3 corners, m; the mean of the two keys', see
+        :data:`~core.inbetween_anchor.SMOOTH_SPLINE_STRAIN`), in the local steps' precision (the
+        thresholds are 1e-3 and above)."""
         return float(np.mean(self._triangle_strains(x, reference)))
 
     def _triangle_strains(self, x: np.ndarray, reference: np.ndarray) -> np.ndarray:

@@ -50,11 +50,12 @@ if TYPE_CHECKING:
 #: Two poses: a set of vertices that translates rigidly between them (pinned to an animated object
 #: that does not turn, :func:`core.pins.riding_vertices`) lies on the linear blend at every factor,
 #: where the blend anchor holds it; the move of a piece the anchor barely holds onto its centroid
-#: (:data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`) carries it along with the rest of the piece. Where the two
-#: disagree the interpolated shape of the piece does not reach the set (a sheet whipped by its
-#: pinned corner, whose stretch at the corner relaxes between the keys: that corner 0.53 off, 23 %
-#: of the sheet's diagonal, keys 4 frames apart), and holding the set there instead costs edge
-#: length and flipped triangles elsewhere (docs/inbetweens.md, *A pinned corner off its path*).
+#: (:data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`) carries it along with the rest of the
+#: piece. Where the two disagree the interpolated shape of the piece does not reach the set (a
+#: sheet whipped by its pinned corner, whose stretch at the corner relaxes between the keys: that
+#: corner 0.53 off, 23 % of the sheet's diagonal, keys 4 frames apart), and holding the set there
+#: instead costs edge length and flipped triangles elsewhere (docs/inbetweens.md, *A pinned corner
+#: off its path*).
 #: An in-between whose set ends farther than this share of its piece's diagonal from the blend
 #: says so in its warning: the whipped sheet's pairs miss by 0–46 %, the carried banner's pole by
 #: 0–9.5 %.
@@ -191,9 +192,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
     def pose(self, s: float, weak: bool | None = None) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback, (positions, what happened). ``weak``: an
-        in-between of a sequence fitted with the anchor at :data:`~core.inbetween_anchor.HELD_ANCHOR_WEIGHT` (True), with
-        the gap's own (False), or with the gap's own and again with the weak one if the first fit
-        is held off the metric (None; what was used is kept in ``self.held_factors[s]``)."""
+        in-between of a sequence fitted with the anchor at
+        :data:`~core.inbetween_anchor.HELD_ANCHOR_WEIGHT` (True), with the gap's own (False), or
+        with the gap's own and again with the weak one if the first fit is held off the metric
+        (None; what was used is kept in ``self.held_factors[s]``)."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s)
         fitted = frames if self.use_extrinsic else None
