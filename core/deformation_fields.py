@@ -461,6 +461,90 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     return _nearest_representatives(rotvec, theta, reference, identity, rows)
 
 
+def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None) -> np.ndarray:
+    """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3) of a mesh's triangles, continuous
+    across its edges past a half turn: ``pairs`` (E, 2) are the triangles sharing an edge. A part
+    that turns by more than a half turn while the part it hangs from does not (a strip curled by
+    240° on one arc: its tip turns by 240°, which the principal rotation vector, at most π, takes
+    as 120° the other way) has its rotation vectors jump where their angle passes π; the
+    in-between turns every triangle by its vector times the factor, so the part beyond the jump
+    went the other way round. Across such a jump (a neighbour's other representative
+    ``ω ± 2π ω̂`` nearer than its own: :func:`_jumps`) the mesh is cut into
+    regions; in each connected set of regions the one holding the least-turned triangle keeps its
+    vectors, and each region reached from it across a jump takes the representatives continuous
+    across it. ``pieces``: each triangle's connected piece of the mesh (m,). ``turned``: a function returning how far each triangle turns (m,) when that is not
+    the angle of ``rotvec`` (residuals to a rigid motion: the part that stays put is the one whose
+    whole rotation is least, whatever its residual), called only where there is a jump.
+
+    A connected piece left with a jump (its jumps do not close up: crumpled cloth, around whose
+    folds the rotations wind by a whole turn) keeps its principal vectors: taken across the mesh
+    there, two poses of a banner 8 / 16 frames apart went 0.747 / 0.832 → 0.792 / 0.923 × the
+    blend's error (edge deviation 3.53 / 6.15 → 4.21 / 7.04 %). Rotations that never come near a
+    half turn are returned as they are."""
+    if not len(pairs):
+        return rotvec
+    jumps = _jumps(rotvec, pairs)
+    if not jumps.any():
+        return rotvec
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components
+
+    m = len(rotvec)
+    joined = pairs[~jumps]
+    count, region = connected_components(coo_matrix((np.ones(len(joined)), (joined[:, 0], joined[:, 1])), shape=(m, m)),
+                                         directed=False)
+    across = pairs[jumps]
+    within = region[across[:, 0]] == region[across[:, 1]]
+    if within.any():  # a jump inside one region cannot be undone: its piece is left as it is
+        across = across[~np.isin(pieces[across[:, 0]], pieces[across[within, 0]])]
+    if not across.size:
+        return rotvec
+    # the regions linked by jumps, one jump per linked pair of regions ((region, region) → its jump)
+    ends = np.sort(region[across], axis=1)
+    _, first = np.unique(ends, axis=0, return_index=True)
+    links = coo_matrix((np.ones(len(first)), (ends[first, 0], ends[first, 1])), shape=(count, count)).tocsr()
+    link = dict(zip(map(tuple, ends[first].tolist()), first.tolist()))
+    theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
+    least = np.full(count, np.inf)
+    np.minimum.at(least, region, theta if turned is None else turned())
+    turns = np.zeros(count)  # whole turns added per region
+    done = np.zeros(count, dtype=bool)
+    axis = rotvec / np.where(theta > 0, theta, 1.0)[:, None]
+    for root in np.argsort(least, kind="stable"):
+        if done[root]:
+            continue
+        order, parent = breadth_first_order(links, root, directed=False, return_predecessors=True)
+        done[order] = True
+        for r in order[1:]:
+            pair = across[link[(min(parent[r], r), max(parent[r], r))]]
+            inside, outside = (pair[0], pair[1]) if region[pair[1]] == r else (pair[1], pair[0])
+            reached = rotvec[inside] + 2.0 * np.pi * turns[parent[r]] * axis[inside]
+            turns[r] = np.round(np.dot(reached - rotvec[outside], axis[outside]) / (2.0 * np.pi))
+    if not turns.any():
+        return rotvec
+    out = rotvec + (2.0 * np.pi * turns[region])[:, None] * axis
+    left = _jumps(out, pairs)
+    if left.any():  # the pieces with a jump left keep their principal vectors
+        kept = np.isin(pieces, pieces[pairs[left, 0]])
+        out[kept] = rotvec[kept]
+    return out
+
+
+def _jumps(rotvec: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Per pair of neighbouring triangles (bool (E,)), whether the second's rotation vector jumps
+    past a half turn from the first's: another of its representatives is nearer the first's."""
+    theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
+    near = np.flatnonzero(theta[pairs[:, 0]] + theta[pairs[:, 1]] > np.pi)  # only these can jump
+    out = np.zeros(len(pairs), dtype=bool)
+    if near.size:
+        first, second = rotvec[pairs[near, 0]], rotvec[pairs[near, 1]]
+        whole = (2.0 * np.pi / np.maximum(theta[pairs[near, 1]], ZERO_TURN_TOLERANCE))[:, None] * second
+        gap = second - first
+        # |gap ± whole|² = |gap|² ± 2 gap·whole + |whole|²: below |gap|² where |2 gap·whole| > |whole|²
+        out[near] = 2.0 * np.abs(np.einsum("ij,ij->i", gap, whole)) > np.einsum("ij,ij->i", whole, whole)
+    return out
+
+
 def _nearest_representatives(rotvec, theta, reference, identity, rows) -> np.ndarray:
     """``rotvec`` (m, 3) (angles ``theta``) with the ``identity`` rows replaced by the whole turns
     nearest their ``reference`` rows and the ``rows`` by the representative ``ω + 2πk ω̂``

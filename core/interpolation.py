@@ -217,6 +217,8 @@ class SequenceInterpolator:
             keys = [k - origin for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
+        # two poses: the triangles' rotations taken continuous across the mesh (_Relative)
+        self._across = self._topo.triangle_pairs if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
@@ -297,7 +299,7 @@ class SequenceInterpolator:
 
     def _relative(self, base: int, other: int, turn: np.ndarray | None = None) -> _Relative:
         log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
-        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn)
+        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across)
         return self._turning_on(base, relative) if turn is None and other == base + 1 else relative
 
     def _turning_on(self, base: int, relative: _Relative) -> _Relative:
@@ -341,7 +343,8 @@ class SequenceInterpolator:
             return [self._relative(base, k) for k in others]
         topo, key = self._topo, self._key(base)
         keys = [self._key(k) for k in others]
-        relatives = concurrently(lambda other: _Relative(topo, key, other), keys, worth_it=topo.n >= CONCURRENT_VERTICES)
+        relatives = concurrently(lambda other: _Relative(topo, key, other, across=self._across), keys,
+                                 worth_it=topo.n >= CONCURRENT_VERTICES)
         return [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
 
     def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> _Relative:

@@ -694,6 +694,27 @@ def test_a_strip_curled_past_a_half_turn_keeps_curling_the_same_way():
     assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
+@pytest.mark.parametrize("degrees", [220.0, 270.0])
+def test_a_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_same_way(degrees):
+    """Curled at one joint by more than a half turn, the tip turns further from the strip's best
+    rigid motion than a half turn, whose principal rotation vector goes the other way round: the
+    triangles past that point turned back (240°: 21 % of the diagonal off the strip curled by
+    120° half-way, 152 of 960 triangles facing against it, no warning). Taken continuous across
+    the strip, every in-between, exaggeration and reversal is the strip curled by the factor times
+    the angle."""
+    a, tri = _curled_strip((0.0,), joints=(0.9,))
+    b, _ = _curled_strip((np.radians(degrees),), joints=(0.9,))
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    it = Interpolator(a, b, tri)
+    for factor in (-0.5, 0.3, 0.5, 0.75, 1.5):
+        truth, _ = _curled_strip((factor * np.radians(degrees),), joints=(0.9,))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            x = it.pose(factor)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal
+        assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
+
 def _rolled(vertices, angle):
     """A sheet rolled about the y axis from its x = min edge into an arc of ``angle`` radians."""
     x = vertices[:, 0] - vertices[:, 0].min()
