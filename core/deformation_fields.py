@@ -502,24 +502,31 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     # the regions linked by jumps, one jump per linked pair of regions ((region, region) → its jump)
     ends = np.sort(region[across], axis=1)
     _, first = np.unique(ends, axis=0, return_index=True)
-    links = coo_matrix((np.ones(len(first)), (ends[first, 0], ends[first, 1])), shape=(count, count)).tocsr()
+    links = coo_matrix((np.ones(len(first)), (ends[first, 0], ends[first, 1])), shape=(count, count))
     link = dict(zip(map(tuple, ends[first].tolist()), first.tolist()))
     theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
     least = np.full(count, np.inf)
     np.minimum.at(least, region, theta if turned is None else turned())
-    turns = np.zeros(count)  # whole turns added per region
-    done = np.zeros(count, dtype=bool)
+    # each linked set's least-turned region (the first in the order of least turn) is its root; one
+    # search from a node joined to the roots reaches every linked region (a search from each root
+    # costs a pass over all regions: 0.4 s at 3,000 pieces with a single jump)
+    by_least = np.argsort(least, kind="stable")
+    _, sets = connected_components(links, directed=False)
+    _, firsts = np.unique(sets[by_least], return_index=True)
+    roots = by_least[firsts]
+    roots = roots[np.isin(roots, ends[first])]  # a region with no link has nothing to take
+    tails, heads = np.r_[ends[first, 0], np.full(len(roots), count)], np.r_[ends[first, 1], roots]
+    graph = coo_matrix((np.ones(len(tails)), (tails, heads)), shape=(count + 1, count + 1))
+    order, parent = breadth_first_order(graph.tocsr(), count, directed=False, return_predecessors=True)
+    turns = np.zeros(count + 1)  # whole turns added per region (and the joining node's: none)
     axis = rotvec / np.where(theta > 0, theta, 1.0)[:, None]
-    for root in np.argsort(least, kind="stable"):
-        if done[root]:
+    for r in order[1:]:
+        if parent[r] == count:  # a root keeps its vectors
             continue
-        order, parent = breadth_first_order(links, root, directed=False, return_predecessors=True)
-        done[order] = True
-        for r in order[1:]:
-            pair = across[link[(min(parent[r], r), max(parent[r], r))]]
-            inside, outside = (pair[0], pair[1]) if region[pair[1]] == r else (pair[1], pair[0])
-            reached = rotvec[inside] + 2.0 * np.pi * turns[parent[r]] * axis[inside]
-            turns[r] = np.round(np.dot(reached - rotvec[outside], axis[outside]) / (2.0 * np.pi))
+        pair = across[link[(min(parent[r], r), max(parent[r], r))]]
+        inside, outside = (pair[0], pair[1]) if region[pair[1]] == r else (pair[1], pair[0])
+        reached = rotvec[inside] + 2.0 * np.pi * turns[parent[r]] * axis[inside]
+        turns[r] = np.round(np.dot(reached - rotvec[outside], axis[outside]) / (2.0 * np.pi))
     if not turns.any():
         return rotvec
     out = rotvec + (2.0 * np.pi * turns[region])[:, None] * axis

@@ -7,7 +7,7 @@ contiguous, from the corner-major incidence ``Dc`` of :class:`core.inbetween_top
 — because NumPy's element-wise work on rows of three interleaved numbers is 3–5× slower.
 :class:`LocalGlobalFit` is mixed into :class:`core.inbetween_solver._Gap`, which provides
 ``topo``, ``base`` (a :class:`core.inbetween_keys._Key`), ``system`` (factor, anchor),
-``tolerance``, ``mean_edge`` and ``place``.
+``tolerance``, ``change_tolerance``, ``mean_edge`` and ``place``.
 """
 
 from __future__ import annotations

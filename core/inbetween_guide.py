@@ -162,11 +162,11 @@ class Guide:
         """Per component (bool (C,)), whether its best rigid motions over keys k − 1 … k + 2 compose
         (gap k): the fit from the first to the third key of each three within
         :data:`ARC_FIT_COMPOSITION` of the fit from the first to the second followed by the one from
-        the second to the third. A neighbour the spline extrapolates (a sequence's end, a key
-        unevenly spaced) is left out."""
+        the second to the third. A neighbour past a sequence's end (extrapolated) is left out; an
+        unevenly spaced one, which the spline moves to where an evenly spaced key would be, is
+        taken as the key it is (the fits are of the poses, whatever their times)."""
         relatives, topo = self.relatives, self.topo
-        keys = [None if r.extrapolated else r.world for r in (relatives[0], relatives[3])]
-        keys = [keys[0], self.base.vertices, self.next.vertices, keys[1]]
+        keys = [relatives[0].key_world, self.base.vertices, self.next.vertices, relatives[3].key_world]
         fits: dict = {}
 
         def fit(i, j):  # rotations (C, 3, 3) of the best rigid motions from keys[i] to keys[j], each made once

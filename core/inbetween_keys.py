@@ -259,7 +259,9 @@ class _Relative:
         def value(name):
             here, there = (_splined(r, name) for r in (self, origin))
             return there + factor * (here - there)
-        return _Relative._extrapolated(value, self.nonrigidity, ((1.0 - factor, origin), (factor, self)))
+        out = _Relative._extrapolated(value, self.nonrigidity, ((1.0 - factor, origin), (factor, self)))
+        out.rescaled_from = self
+        return out
 
     @staticmethod
     def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
@@ -282,6 +284,17 @@ class _Relative:
     #: An end condition's positions as weights of the relatives they extrapolate ((weight,
     #: relative), …; :meth:`positions_of`), None for a key.
     recipe = None
+    #: The key's own relative of an end condition that stands for a key (:meth:`rescaled`), else None.
+    rescaled_from = None
+
+    @property
+    def key_world(self) -> np.ndarray | None:
+        """The positions (n, 3) of the key this relative stands for — a rescaled key's are the
+        key's own (:attr:`rescaled_from`) — or None for an end condition past the keys
+        (:meth:`phantom`)."""
+        if not self.extrapolated:
+            return self.world
+        return None if self.rescaled_from is None else self.rescaled_from.world
 
     def positions_of(self, points: np.ndarray, rows: np.ndarray) -> np.ndarray:
         """Where the points ``points`` (r, 3) of the base key, carried by the rigid motions of

@@ -83,7 +83,6 @@ class _Topology:
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
-        self.triangle_pairs = topo.edge_triangles[topo.interior_edges]  # (E, 2): triangles sharing an edge
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
         #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there

@@ -217,8 +217,9 @@ class SequenceInterpolator:
             keys = [k - origin for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        # two poses: the triangles' rotations taken continuous across the mesh (_Relative)
-        self._across = self._topo.triangle_pairs if two_poses else None
+        # two poses: the triangles' rotations taken continuous across the mesh (_Relative), over
+        # the pairs of triangles sharing an edge (E, 2; sequences do not hold them)
+        self._across = topology.edge_triangles[topology.interior_edges] if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates);

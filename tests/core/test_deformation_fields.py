@@ -205,3 +205,26 @@ def test_a_turn_taken_the_long_way_within_its_spread_is_the_same_motion(short_of
     back_rotation, back_translation = df.rigid_exps(screw)
     np.testing.assert_allclose(back_rotation, rotation, atol=1e-12)
     np.testing.assert_allclose(back_translation, translation, atol=1e-12)
+
+
+def test_rotations_are_taken_continuous_on_many_pieces_in_one_search(monkeypatch):
+    """3,000 pieces of two triangles, one of them with its second triangle's rotation vector past a
+    half turn from its first's (3 rad about y, then −3 rad: the same way round, 2π − 3 on): that
+    triangle takes its continuous representative and every other piece is left as it is, found by
+    one breadth-first search over the regions the jumps link (a search from every region took a
+    pass over all regions each: 0.33 s CPU here, 1.2 s at 10,000 pieces)."""
+    import scipy.sparse.csgraph as csgraph
+
+    pieces_count = 3000
+    pairs = np.stack([2 * np.arange(pieces_count), 2 * np.arange(pieces_count) + 1], axis=1)
+    pieces = np.repeat(np.arange(pieces_count), 2)
+    rotvec = np.zeros((2 * pieces_count, 3))
+    rotvec[0, 1], rotvec[1, 1] = 3.0, -3.0
+    rotvec[2::2, 1], rotvec[3::2, 1] = 0.5, 0.6  # the other pieces turn without a jump
+    searches = []
+    search = csgraph.breadth_first_order
+    monkeypatch.setattr(csgraph, "breadth_first_order", lambda *a, **k: searches.append(1) or search(*a, **k))
+    out = df.continuous_rotation_vectors(rotvec, pairs, pieces)
+    np.testing.assert_allclose(out[:2], [[0.0, 3.0, 0.0], [0.0, 2.0 * np.pi - 3.0, 0.0]], rtol=0.0, atol=1e-12)
+    np.testing.assert_array_equal(out[2:], rotvec[2:])
+    assert len(searches) == 1
