@@ -56,8 +56,8 @@ CARRIED_TURN_SHARE = 0.5
 #: Fewest carriers, and their least spread: the second singular value of their centred positions
 #: over their first (collinear carriers leave a turn about their line free) and over the piece's
 #: diagonal (a turn read off a speck moves the piece's far end by the speck's error times their
-#: ratio). Until session 51 one test, 0.05 of the piece's diagonal: a sword 0.70 long in a hand whose
-#: 16 carriers spread 0.035 / 0.032 was not carried, and ×2 of a wave left it 0.11 from the hand
+#: ratio). One test of 0.05 of the piece's diagonal instead would miss a sword 0.70 long in a hand whose
+#: 16 carriers spread 0.035 / 0.032: ×2 of a wave would leave it 0.11 from the hand
 #: (the simulated 0.008); carried, 0.009 (its offset from the hand 0.18 → 0.026 off).
 #: Carriers come only from deforming components whose bounding-box diagonal (first key) is at
 #: least this share of the piece's own: a button rides on its cloth, a hand or a sword as long as

@@ -83,7 +83,7 @@ MIN_PREDICTED_BATCH = 3
 #: With this many solved in-betweens or more (keys 9 frames apart or more), the predictions get one
 #: local/global step toward the interpolated metric, anchored to themselves, at the middle of each
 #: span between the solved factors and the keys, and its displacement spread over the span
-#: (:func:`_relaxed_correction`; session 52).
+#: (:func:`_relaxed_correction`).
 RELAXED_SOLVED = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
 #: solved correction predicted from the others; above it the gap's in-betweens are all solved.

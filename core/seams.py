@@ -229,9 +229,9 @@ def seam_twins(base: np.ndarray, topology):
 #: Twins of a seam that, its two sides fitted onto each other, stay apart by more than this share
 #: of the seam's length (RMS spread) part in the pose (an exact reconstruction's twins meet to
 #: ~1e-10): they are let go, and where most of a seam's twins part the seam opens (a strip along a
-#: body that widens under it: 15 % of the diagonal) and its pieces are placed on their own. Until
-#: session 51 one RMS test of a whole seam at 5 %: a seam opening by 0.5 % was glued, 4.6e-3 off,
-#: and two touching points that part (a vent's corners) let a sewn seam's 5 twins go with them.
+#: body that widens under it: 15 % of the diagonal) and its pieces are placed on their own. One RMS
+#: test of a whole seam at 5 % instead glues a seam opening by 0.5 % (4.6e-3 off), and two touching
+#: points that part (a vent's corners) let a sewn seam's 5 twins go with them.
 SEAM_OPEN_SHARE = 1e-3
 
 #: A seam holds the angle between the pieces it joins where its twins' spread across their line
