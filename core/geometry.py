@@ -28,8 +28,14 @@ def coordinate_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def coordinate_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of 3-vectors stored by coordinate: ``(3, …)``, ``(3, …)`` → ``(3, …)``."""
-    return np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+    """Cross products of 3-vectors stored by coordinate: ``(3, …)``, ``(3, …)`` → ``(3, …)``
+    (each coordinate written in place: no stack of three temporaries)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
+    for d in range(3):
+        i, j = (d + 1) % 3, (d + 2) % 3
+        np.multiply(a[i], b[j], out=out[d])
+        out[d] -= a[j] * b[i]
+    return out
 
 
 def shifted(points: np.ndarray, offset: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:

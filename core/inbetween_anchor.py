@@ -4,9 +4,9 @@ for two poses, the keys' spline for sequences, the pins firmly — their factori
 weaker anchor of fits it holds off the metric. Mixed into :class:`core.inbetween_solver._Gap`,
 whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``anchored``,
 ``static``, ``riding``, ``riding_screws``, ``joints``, ``use_extrinsic``, ``tolerance``,
-``change_tolerance``, ``_anchors``) with its other parts: the field (``world_rotvec``,
-``key_frames``, ``stretch``), the fit (``edges_of``, ``local_targets``), the pieces' ``motion`` and
-the guide's mid-gap strains. It sets ``weights``, ``co_moving``, ``system``, ``by_centroid``,
+``change_tolerance``, ``_anchors``, ``_riding_motions``) with its other parts: the field
+(``world_rotvec``, ``key_frames``, ``stretch``), the fit (``edges_of``, ``local_targets``), the
+pieces' ``motion`` and the guide's mid-gap strains. It sets ``weights``, ``co_moving``, ``system``, ``by_centroid``,
 ``anchor_weight`` and ``_mid_world_strains``."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 
 from . import deformation_fields as df
 from .inbetween_fit import METRIC_TOLERANCE
-from .inbetween_motion import RIGID_PLACEMENT_SCALE
+from .inbetween_motion import RIGID_PLACEMENT_SCALE, per_factor
 from .inbetween_topology import GAUGE_WEIGHT
 
 #: Two-pose interpolation anchors vertex ``v`` to the linear blend with weight
@@ -213,9 +213,10 @@ class Anchor:
 
     def ride(self, x: np.ndarray, s: float) -> np.ndarray:
         """``x`` (n, 3) with each riding set (:mod:`core.pins`) where the spline of its rigid motion
-        puts it at factor ``s`` (in place; returned)."""
+        puts it at factor ``s`` (in place; returned). The motions are computed once per factor (a
+        pose's guide, its pins' prediction and its finish ask for the same)."""
         base = self.base.vertices
-        rotations, translations = df.rigid_exps(self.riding_screws.at(s))
+        rotations, translations = per_factor(self._riding_motions, s, lambda f: df.rigid_exps(self.riding_screws.at(f)))
         for rows, rotation, translation in zip(self.riding, rotations, translations):
             x[rows] = base[rows] @ rotation.T + translation
         return x

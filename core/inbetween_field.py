@@ -8,16 +8,11 @@ whose data it reads (``topo``, ``base``, ``relatives``, ``cubic``, ``whole_rotat
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from . import deformation_fields as df
 from .geometry import coordinate_dot
 from .splines import HermiteGap
-
-if TYPE_CHECKING:
-    from .inbetween_solver import _Gap
 
 
 class _Splines(dict):
@@ -61,10 +56,11 @@ class InterpolatedField:
         w = np.ascontiguousarray(rotvec.T)
         return np.stack([coordinate_dot(self.base.column_rows[c], w) for c in range(3)], axis=1)
 
-    def world_rotvec(self, local: np.ndarray) -> np.ndarray:
-        """Rotation vectors (m, 3) in the triangles' base frames → in world coordinates (m, 3):
-        the inverse of :meth:`local_rotvec` (a view of coordinate rows, as the frames take them)."""
-        columns = self.base.column_rows
+    def world_rotvec(self, local: np.ndarray, rows=slice(None)) -> np.ndarray:
+        """Rotation vectors (r, 3) in the base frames of the triangles ``rows`` (all by default) →
+        in world coordinates (r, 3): the inverse of :meth:`local_rotvec` (a view of coordinate
+        rows, as the frames take them)."""
+        columns = self.base.column_rows[:, :, rows]
         out = columns[0] * local[:, 0]
         out += columns[1] * local[:, 1]
         out += columns[2] * local[:, 2]
@@ -85,30 +81,42 @@ class InterpolatedField:
 
     def targets(self, s: float, by_rows: bool = False):
         """Interpolated rotations as the images of the base's tangent frames (``frames`` (k, m, 3):
-        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``; with ``by_rows``, a
-        :class:`_FramesByRows` that computes ``frames[:, rows]`` when asked), stretches (packed
+        ``R_T t1``, ``R_T t2`` and, for extrapolations (k = 3), ``R_T n``), stretches (packed
         (m, 3)), the components' rigid motions (rotations (C, 3, 3), translations (C, 3)) and the
-        guide positions (n, 3) at factor ``s``."""
+        guide positions (n, 3) at factor ``s``. With ``by_rows`` (in-betweens, 0 < s < 1) the frames
+        and stretches are :class:`_ByRows`, computing ``frames[:, rows]`` and ``stretch[rows]``
+        when asked: a repair of a predicted in-between reads them on its regions only."""
         motion = self.motion(s)
-        rotvec = self.world_rotvec(self.splines["rotvec"].at(s))
         columns = 2 if 0.0 < s < 1.0 else 3  # the normals only for extrapolations' flip checks
-        frames = _FramesByRows(self, rotvec, motion[0], columns) if by_rows else \
-            self.key_frames(rotvec, motion[0], columns=columns)
+        if by_rows:
+            m = len(self.topo.triangles)
+
+            def frames_of(rows):
+                return self.key_frames(self.world_rotvec(self.splines["rotvec"].at(s, rows), rows), motion[0], rows, columns)
+
+            frames = _ByRows(frames_of, (columns, m, 3), 1)
+            stretch = _ByRows(lambda rows: self.stretch(s, rows), (m, 3), 0)
+            return frames, stretch, motion, self.guide(s, motion)
+        frames = self.key_frames(self.world_rotvec(self.splines["rotvec"].at(s)), motion[0], columns=columns)
         return frames, self.stretch(s), motion, self.guide(s, motion)
 
-    def stretch(self, s: float) -> np.ndarray:
-        """The interpolated stretches (packed (m, 3)) at factor ``s``. Between the keys, the square
+    def stretch(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
+        """The interpolated stretches (packed (m, 3), or (r, 3) of the triangles ``rows`` alone: per
+        element, the same values) at factor ``s``. Between the keys, the square
         root of the spline of the metrics ``G = U²`` (the first fundamental form in the base's
         tangent bases, linear in squared edge lengths): an edge a fold collapses between the keys
         shortens late, as cloth does, where the spline of ``log U`` shortens it early (numbers in
         docs/inbetweens.md, *What is interpolated*). The log spline where that metric is not
         positive definite, and outside the keys, where exaggerations need it to stay so."""
+        def at(name):  # the spline on the rows, or whole
+            return self.splines[name].at(s) if rows is None else self.splines[name].at(s, rows)
+
         if not 0.0 < s < 1.0:
-            return df.exp_stretch(self.splines["log_stretch"].at(s))
-        stretch, ok = df.sqrt_stretch(self.splines["metric"].at(s))
+            return df.exp_stretch(at("log_stretch"))
+        stretch, ok = df.sqrt_stretch(at("metric"))
         if not ok.all():
-            rows = np.flatnonzero(~ok)
-            stretch[rows] = df.exp_stretch(self.log_stretch_rows(s, rows))
+            bad = np.flatnonzero(~ok)
+            stretch[bad] = df.exp_stretch(self.log_stretch_rows(s, bad if rows is None else rows[bad]))
         return stretch
 
     def area_scale(self, s: float) -> np.ndarray:
@@ -144,27 +152,35 @@ class InterpolatedField:
                                  self.base.column_rows[:columns, :, rows])
 
 
-class _FramesByRows:
-    """The interpolated rotations' frames of a gap at one factor, computed only for the triangles
-    asked, ``frames[:, rows]`` → (k, r, 3): a repair of a predicted in-between needs them on its
-    regions only (the full set costs 12 ms at 100k triangles)."""
+class _ByRows:
+    """Per-triangle values of a gap at one factor computed only for the triangles asked:
+    ``values[rows]`` (``axis`` 0: stretches (r, 3)) or ``values[:, rows]`` (``axis`` 1: frames
+    (k, r, 3)), ``rows`` an index array, a bool mask or a slice. A repair of a predicted in-between
+    needs them on its regions only (the full set costs 12 ms at 100k triangles), and each
+    triangle's are computed once: the repair rounds' growing regions and their defect checks ask
+    for overlapping rows again and again. ``compute(rows)`` gives them for an ascending index array
+    (per triangle, the values it would give among all)."""
 
-    def __init__(self, gap: _Gap, rotvec: np.ndarray, rotations: np.ndarray, columns: int = 3):
-        self.gap, self.rotvec, self.rotations, self.columns = gap, rotvec, rotations, columns
-        # each triangle's frames computed once: the repair rounds' growing regions and their
-        # defect checks ask for overlapping rows again and again
-        self._frames = np.empty((columns, len(rotvec), 3))
-        self._done = np.zeros(len(rotvec), dtype=bool)
+    def __init__(self, compute, shape: tuple, axis: int):
+        self.compute, self.axis = compute, axis
+        self._values = np.empty(shape)
+        self._done = np.zeros(shape[axis], dtype=bool)
 
     def __getitem__(self, index):
-        columns, rows = index
-        if columns != slice(None):
-            raise IndexError("frames by rows are indexed as [:, rows]")
+        if self.axis:
+            columns, rows = index
+            if columns != slice(None):
+                raise IndexError("frames by rows are indexed as [:, rows]")
+        elif isinstance(index, tuple):
+            raise IndexError("values by rows are indexed as [rows]")
+        else:
+            rows = index
         rows = np.arange(len(self._done))[rows] if isinstance(rows, slice) else np.asarray(rows)
         if rows.dtype == bool:
             rows = np.flatnonzero(rows)
         new = np.unique(rows[~self._done[rows]])
+        values = self._values if self.axis == 0 else self._values.transpose(1, 0, 2)  # triangles first
         if new.size:
-            self._frames[:, new] = self.gap.key_frames(self.rotvec[new], self.rotations, new, self.columns)
+            values[new] = self.compute(new) if self.axis == 0 else self.compute(new).transpose(1, 0, 2)
             self._done[new] = True
-        return self._frames[:, rows]
+        return self._values[rows] if self.axis == 0 else self._values[:, rows]

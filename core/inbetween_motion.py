@@ -40,11 +40,23 @@ ARC_PLACEMENT_MISFIT = 2.0
 #: deforms, and its centroid keeps its own path however far it travels (free-falling cloth, above).
 SIMILAR_SHAPE_MISFIT = (1e-2, 3e-2)
 
-#: Factors whose rigid motions a gap keeps (:meth:`PieceMotion.motion`): a batch of in-betweens asks for
-#: its factors, 0, 1, 1e-4, 1 − 1e-4 and 0.5 (20 at keys 16 apart). The cache is emptied when
-#: full: it holds C × 96 bytes per factor, and a gap lives as long as its interpolator (two
-#: poses asked for 300 factors held 29 MB at 1,000 pieces).
+#: Factors whose rigid motions a gap keeps (:meth:`PieceMotion.motion`, and its riding sets' in
+#: :meth:`~core.inbetween_anchor.Anchor.ride`): a batch of in-betweens asks for its factors, 0,
+#: 1, 1e-4, 1 − 1e-4 and 0.5 (20 at keys 16 apart). The cache is emptied when full: it holds
+#: C × 96 bytes per factor, and a gap lives as long as its interpolator (two poses asked for 300
+#: factors held 29 MB at 1,000 pieces).
 MOTION_CACHE = 32
+
+
+def per_factor(cache: dict, s: float, compute):
+    """``compute(s)``, kept in ``cache`` {factor: value} (emptied when it holds
+    :data:`MOTION_CACHE` factors; one call, as threads share it: a factor asked again is recomputed)."""
+    known = cache.get(s)
+    if known is None:
+        if len(cache) >= MOTION_CACHE:
+            cache.clear()
+        known = cache[s] = compute(s)
+    return known
 
 
 class PieceMotion:
@@ -70,11 +82,7 @@ class PieceMotion:
         point on the spline of its positions at the keys. Computed once per factor (a pose, its
         guide, checks and predictions ask for the same few; copies: callers may change them), at
         most :data:`MOTION_CACHE` factors held."""
-        known = self._motions.get(s)
-        if known is None:
-            if len(self._motions) >= MOTION_CACHE:
-                self._motions.clear()  # one call (threads share the cache): a factor asked again is recomputed
-            known = self._motions[s] = self._motion(s)
+        known = per_factor(self._motions, s, self._motion)
         return known[0].copy(), known[1].copy()
 
     def _motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:

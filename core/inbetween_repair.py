@@ -150,13 +150,13 @@ class Repair:
         if not np.isfinite(x).all():
             return np.ones(m if rows is None else len(rows), dtype=bool)
         if rows is None:
-            edges = self.gap.edges_of(x)  # by coordinate (3, 3, m)
-            e1, e2 = edges[:, 0], -edges[:, 2]
+            e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
             rows = slice(None)
             normals = None
         else:
-            t, normals, areas = self._rows_of(rows)
-            e1, e2 = (x[t[:, 1]] - x[t[:, 0]]).T, (x[t[:, 2]] - x[t[:, 0]]).T
+            corners, normals, areas = self._rows_of(rows)
+            p = np.take(x, corners, axis=0)  # (3 corners, r, 3) in one gather
+            e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
         cross = coordinate_cross(e1, e2)
         if scale is None:
             st = stretch[rows]
@@ -169,13 +169,14 @@ class Repair:
         return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
 
     def _rows_of(self, rows: np.ndarray) -> tuple:
-        """The corners (r, 3), the keys' normals (two (3, r)) and the base's areas (r,) of the
-        triangles ``rows``: a repair round checks each field's fit on the same region, so the last
-        rows asked (per thread: a gap's in-betweens are repaired concurrently) keep them."""
+        """The corners (3, r: each corner's vertices contiguous), the keys' normals (two (3, r)) and
+        the base's areas (r,) of the triangles ``rows``: a repair round checks each field's fit on
+        the same region, so the last rows asked (per thread: a gap's in-betweens are repaired
+        concurrently) keep them."""
         cached = getattr(self._local, "rows", None)
         if cached is None or cached[0] is not rows:
             gap = self.gap
-            cached = self._local.rows = (rows, gap.topo.triangles[rows],
+            cached = self._local.rows = (rows, np.ascontiguousarray(gap.topo.triangles[rows].T),
                                          (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows]),
                                          gap.base.areas[rows])
         return cached[1:]
@@ -231,8 +232,11 @@ class Repair:
         adjacency = topo.vertex_triangles
         out = triangles.copy()
         rows = np.flatnonzero(out)
+        used = np.empty(topo.n, dtype=bool)
         for _ in range(rings):
-            vertices = np.unique(topo.triangles[rows])
+            used[:] = False  # the rows' vertices, ascending, by a mask (a sort of their corners costs more)
+            used[topo.triangles[rows]] = True
+            vertices = np.flatnonzero(used)
             starts, stops = adjacency.indptr[vertices], adjacency.indptr[vertices + 1]
             counts = stops - starts
             offsets = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
@@ -299,8 +303,7 @@ class Repair:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the
         interpolated area (``stretch``: packed (m, 3) at the pose's factor) where neither key's is."""
         gap = self.gap
-        edges = gap.edges_of(x)
-        cross = coordinate_cross(edges[:, 0], -edges[:, 2])
+        cross = coordinate_cross(*gap.topo.triangle_sides(x))
         target = CRUSHED_AREA * gap.base.areas * (stretch[:, 0] * stretch[:, 2] - stretch[:, 1] ** 2)
         return (0.5 * np.sqrt(coordinate_dot(cross, cross)) < target) & (gap.base.areas >= target) \
             & (gap.next.areas >= target)
@@ -346,9 +349,11 @@ class Repair:
                 return frames_of[:, rows], stretches_of[rows]
             return field
 
-        def key_field(index):
-            frames, stretches = self.key_geometry(index)
-            return lambda rows: (frames[:, rows], stretches[rows])
+        def key_field(index):  # the key's geometry made when a round first imposes it
+            def field(rows):
+                frames, stretches = self.key_geometry(index)
+                return frames[:, rows], stretches[rows]
+            return field
 
         keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
         blend_field = mesh_field(blend)
@@ -391,7 +396,7 @@ class Repair:
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:
                     continue
                 z = gap.local_fit(x, region, *field(region.rows), guide)
-                if not np.isfinite(z).all():
+                if not np.isfinite(z[region.free]).all():  # the rest is x's, finite
                     continue
                 move = np.sum((z[region.free] - x[region.free]) ** 2)
                 if move > limit:
@@ -445,6 +450,7 @@ class Region:
         self.rows = np.flatnonzero(force)
         self.coordinates = None  # the base's tangent coordinates on rows, once a fit needs them
         self._pull = None  # (guide, the anchor's pull toward it on the free vertices): see solve
+        self._held = None  # (x, the held vertices' part of the region's edges in x): see solve
         corners = topo.triangles[self.rows]
         used = np.zeros(topo.n, dtype=bool)  # the region's vertices in order, without a sort
         used[corners] = True
@@ -466,16 +472,17 @@ class Region:
         start_free, end_free = is_free[start], is_free[end]
         # D_f by rows (edge 3t + c: −1 at its free start, +1 at its free end), so D_fᵀ is its CSC
         # view: no sort (a product with it adds each row's terms in the order of the edges, as a
-        # CSR D_fᵀ with sorted columns did)
-        per_edge = start_free.astype(np.intp) + end_free
-        indptr = np.zeros(start.size + 1, dtype=np.intp)
+        # CSR D_fᵀ with sorted columns did). Its index arrays are made in SciPy's int32 (given
+        # wider ones, SciPy scans them for their range and copies them)
+        per_edge = start_free.astype(np.int32) + end_free
+        indptr = np.zeros(start.size + 1, dtype=np.int32)
         np.cumsum(per_edge, out=indptr[1:])
-        columns, values = np.empty(indptr[-1], dtype=np.intp), np.empty(indptr[-1])
+        columns, values = np.empty(indptr[-1], dtype=np.int32), np.empty(indptr[-1])
         first = indptr[:-1]
         columns[first[start_free]], values[first[start_free]] = free_index[start[start_free]], -1.0
         last = first + start_free
         columns[last[end_free]], values[last[end_free]] = free_index[end[end_free]], 1.0
-        self.free_t = sp.csr_matrix((values, columns, indptr), shape=(start.size, self.free.size)).T
+        self.free_t = sp.csc_matrix((values, columns, indptr), shape=(self.free.size, start.size))
         self._held_starts = (np.flatnonzero(~start_free), touched[start[~start_free]])
         self._held_ends = (np.flatnonzero(~end_free), touched[end[~end_free]])
         self.lu = spla.splu(_principal_block(topo.laplacian, self.free, self.anchor), permc_spec="MMD_AT_PLUS_A",
@@ -484,9 +491,15 @@ class Region:
     def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
         """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)
         with the held vertices at ``x``."""
-        residual = np.array(edges, dtype=float).reshape(-1, 3)  # the edges less their held ends' part
-        residual[self._held_ends[0]] -= x[self._held_ends[1]]
-        residual[self._held_starts[0]] += x[self._held_starts[1]]
+        if self._held is None or self._held[0] is not x:  # the same pose for every field of a round
+            # per edge, its held end less its held start: an edge with a free end has one of them
+            # (with both ends held it has no entry in D_fᵀ), so the edge less this is the edge less
+            # its held end's position or plus its held start's, as it would be one at a time
+            held = np.zeros((self.free_t.shape[1], 3))
+            held[self._held_ends[0]] = x[self._held_ends[1]]
+            held[self._held_starts[0]] -= x[self._held_starts[1]]
+            self._held = (x, held)
+        residual = np.asarray(edges, dtype=float).reshape(-1, 3) - self._held[1]
         rhs = self.free_t @ residual
         if self._pull is None or self._pull[0] is not guide:  # the same guide for every field of a round
             self._pull = (guide, self.anchor[:, None] * guide[self.free])
@@ -507,8 +520,8 @@ def _principal_block(matrix: sp.csc_matrix, rows: np.ndarray, diagonal: np.ndarr
     position = inside[matrix.indices[offsets]]
     kept = position >= 0
     column = np.repeat(np.arange(rows.size), counts)[kept]
-    indices, data = position[kept], matrix.data[offsets[kept]]
+    indices, data = position[kept].astype(np.int32), matrix.data[offsets[kept]]  # SciPy's index type: taken as is
     data[indices == column] += diagonal
-    indptr = np.zeros(rows.size + 1, dtype=np.intp)
+    indptr = np.zeros(rows.size + 1, dtype=np.int32)
     np.cumsum(np.bincount(column, minlength=rows.size), out=indptr[1:])
     return sp.csc_matrix((data, indices, indptr), shape=(rows.size, rows.size))

@@ -149,6 +149,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                                                                   [r.extrapolated for r in relatives],
                                                                   [getattr(r, "motion", None) for r in relatives]))
         self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
+        self._riding_motions: dict[float, tuple] = {}  # see ride
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
         # (core.inbetween_prediction.TRIMMED_TOLERANCE_BATCH; computed then)
         self.change_tolerance = change_tolerance(base.lengths, nxt.lengths)

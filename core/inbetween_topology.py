@@ -132,6 +132,25 @@ class _Topology:
             out[d] = incidence @ coordinates[d]
         return out.reshape(3, 3, m)
 
+    @cached_property
+    def _side_incidence(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """The rows of ``Dc`` of corner edges 0 and 2 (each triangle's sides from its first corner)."""
+        m = len(self.triangles)
+        return self.Dc[:m], self.Dc[2 * m:]
+
+    def triangle_sides(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The sides ``x1 − x0`` and ``x2 − x0`` of every triangle of positions ``x`` (n, 3), by
+        coordinate (3, m) each: corner edges 0 and −2 of :meth:`corner_edge_rows`, the same
+        values without corner edge 1 (a check of normals and areas reads these two only)."""
+        first, last = self._side_incidence
+        coordinates = np.ascontiguousarray(x.T)
+        e1, e2 = np.empty((3, len(self.triangles))), np.empty((3, len(self.triangles)))
+        for d in range(3):
+            e1[d] = first @ coordinates[d]
+            e2[d] = last @ coordinates[d]
+        np.negative(e2, out=e2)
+        return e1, e2
+
     def component_sums(self, values: np.ndarray) -> np.ndarray:
         """Per component (C, …), the sums of the mass-weighted ``values`` (n, …) of its vertices."""
         flat = values.reshape(self.n, -1)

@@ -107,15 +107,17 @@ class HermiteGap:
                 self.t0 = np.where(parabolic_start, _limited(2.0 * self.secant - self.t1, limit, start_bound, rows),
                                    self.t0)
 
-    def at(self, s: float) -> np.ndarray:
-        """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated)."""
+    def at(self, s: float, rows=None) -> np.ndarray:
+        """The interpolated value at factor ``s`` (0 → start, 1 → end; outside: extrapolated); on
+        the rows ``rows`` (an index array) alone if given: per element, the same values."""
+        start, secant = (self.start, self.secant) if rows is None else (self.start[rows], self.secant[rows])
         if not self.cubic:
-            return self.start + s * self.secant
+            return start + s * secant
         s2, s3 = s * s, s * s * s
-        out = (3 * s2 - 2 * s3) * self.secant
-        out += self.start
-        out += (s3 - 2 * s2 + s) * self.t0
-        out += (s3 - s2) * self.t1
+        out = (3 * s2 - 2 * s3) * secant
+        out += start
+        out += (s3 - 2 * s2 + s) * (self.t0 if rows is None else self.t0[rows])
+        out += (s3 - s2) * (self.t1 if rows is None else self.t1[rows])
         return out
 
 

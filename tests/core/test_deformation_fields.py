@@ -146,6 +146,11 @@ def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
     back_rotations, back_translations = df.rigid_exps(screws)
     assert np.abs(back_rotations - rotations).max() < 1e-12
     assert np.abs(back_translations - translations).max() < 1e-9
+    # the translation V(ω) v with NumPy's cross products, bit for bit
+    w, v = screws[:, :3], screws[:, 3:]
+    a, b = df._screw_coefficients(np.linalg.norm(w, axis=1))
+    turned = np.cross(w, v)
+    np.testing.assert_array_equal(back_translations, v + a[:, None] * turned + b[:, None] * np.cross(w, turned))
     assert np.allclose(df.rigid_log(rotations[7], translations[7]), screws[7], rtol=1e-12, atol=1e-12)
 
     half = Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix()[None]

@@ -5,6 +5,7 @@ import pytest
 
 from core.geometry import (
     connected_components,
+    coordinate_cross,
     expand_vertex_values,
     grouped_medians,
     heron,
@@ -125,3 +126,14 @@ def test_rigid_alignments_of_many_groups_are_each_groups_alignment():
         assert np.allclose(batched[0][g], rotation, atol=1e-12) and np.allclose(batched[1][g], translation, atol=1e-8)
     empty = rigid_alignments(source, target, labels, 501, weights)
     assert np.array_equal(empty[0][500], np.eye(3)) and np.array_equal(empty[1][500], np.zeros(3))
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_coordinate_cross_is_numpys_cross_by_coordinate(dtype):
+    """Cross products of vectors stored by coordinate are NumPy's, bit for bit, in the arrays'
+    precision (the fits' checks compare them with thresholds)."""
+    rng = np.random.default_rng(3)
+    a, b = (rng.normal(size=(3, 2, 500)).astype(dtype) for _ in range(2))
+    cross = coordinate_cross(a, b)
+    assert cross.dtype == dtype
+    np.testing.assert_array_equal(cross, np.moveaxis(np.cross(np.moveaxis(a, 0, -1), np.moveaxis(b, 0, -1)), -1, 0))

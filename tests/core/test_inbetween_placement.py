@@ -1210,6 +1210,20 @@ def _relative(base_vertices, other_vertices, triangles):
     return topo, base, other, _Relative(topo, base, other)
 
 
+def test_triangle_sides_are_the_corner_edges_from_the_first_corner():
+    """The sides ``x1 − x0`` and ``x2 − x0`` the checks read are the corner edges 0 and −2 of
+    the fits' ``corner_edge_rows``, bit for bit (the same incidence rows)."""
+    flat, tri = grid(15, 11, size=1.0)
+    bent = flat.copy()
+    bent[:, 2] = 0.3 * np.sin(2.5 * flat[:, 0]) * flat[:, 1]
+    topo = _relative(flat, bent, tri)[0]
+    edges = topo.corner_edge_rows(bent)
+    e1, e2 = topo.triangle_sides(bent)
+    np.testing.assert_array_equal(e1, edges[:, 0])
+    np.testing.assert_array_equal(e2, -edges[:, 2])
+    np.testing.assert_allclose(e1, (bent[tri[:, 1]] - bent[tri[:, 0]]).T, rtol=0, atol=1e-15)
+
+
 def test_whole_rotations_are_the_same_rotations_as_rigid_motion_and_residuals():
     """A relative's triangle rotations taken whole equal its component's rigid rotation composed
     with the residuals (both map each base triangle's frame onto the other key's triangle)."""
@@ -1344,11 +1358,18 @@ def test_vertices_riding_on_an_animated_pole_follow_its_motion():
     keys = [key(t) for t in range(6)]
     seq = SequenceInterpolator(keys, tri, start="keys")  # cut from a motion at constant speed
     factors = np.arange(1, 8) / 8
+    # each factor's riding motion is computed once (a pose's guide, its pins' prediction and its
+    # finish ask for the same)
+    first = seq._gap(0)
+    spline, asked = first.riding_screws, []
+    real_at = spline.at
+    spline.at = lambda s: asked.append(s) or real_at(s)
     for gap in range(len(seq)):
         batch = seq.poses(gap, factors)
         for s, x in zip(factors, batch):
             np.testing.assert_allclose(x[pole], carried(local[pole], gap + s), atol=1e-9)
             assert np.isfinite(x).all()
+    assert len(asked) >= len(factors) and len(asked) == len(set(asked))
 
 
 @pytest.mark.parametrize("swing, far_off", [(150.0, True), (60.0, False)])

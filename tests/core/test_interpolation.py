@@ -402,7 +402,8 @@ def test_fallback_warns(monkeypatch, strip):
 
 def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     """A reconstruction with a folded-over vertex is re-fitted with the interpolated rotations
-    imposed around the defect (growing rings, only that region solved), not handed to a fallback."""
+    imposed around the defect (growing rings, only that region solved), not handed to a fallback;
+    the keys' local geometry, imposed only after the other fields, is not made for it."""
     import core.interpolation as ci
 
     flat, tri = strip
@@ -430,6 +431,7 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     assert _flipped(x, a, b, tri) == 0
     assert forced and len(tri) // 2 in forced[0] and 1 < forced[0].size < len(tri) // 2
     assert np.abs(x - clean).max() < 1e-3 * np.ptp(clean, axis=0).max()
+    assert not it._sequence._gap(0).repair._keys
 
 
 def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
@@ -1453,6 +1455,23 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     np.testing.assert_array_equal(spline.at(0.0), gap.relatives[1].log_stretch)
     np.testing.assert_allclose(spline.at(1.0), gap.relatives[2].log_stretch, rtol=1e-12, atol=1e-15)
     assert gap.trimmed_tolerance == trimmed_tolerance(gap.base.lengths, gap.next.lengths)
+
+
+def test_targets_by_rows_are_the_targets_on_those_rows(strip):
+    """The frames and stretches a repair of a predicted in-between reads on its regions alone are
+    the whole targets' on those rows, bit for bit, whatever the order the rows are asked in."""
+    flat, tri = strip
+    rng = np.random.default_rng(5)
+    keys = [_bend(flat, a) + 0.002 * rng.normal(size=flat.shape) for a in (0.0, 0.7, 1.4, 2.1)]
+    gap = SequenceInterpolator(keys, tri)._gap(1)
+    for s in (0.3, 0.5):
+        frames, stretch = gap.targets(s)[:2]
+        by_rows, stretch_rows = gap.targets(s, by_rows=True)[:2]
+        for rows in (np.array([40, 3, 17, 3]), np.arange(10, 60), len(tri) // 2 + np.arange(5)):
+            np.testing.assert_array_equal(by_rows[:, rows], frames[:, rows])
+            np.testing.assert_array_equal(stretch_rows[rows], stretch[rows])
+        np.testing.assert_array_equal(by_rows[:, slice(None)], frames)
+        np.testing.assert_array_equal(stretch_rows[np.ones(len(tri), dtype=bool)], stretch)
 
 
 def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
