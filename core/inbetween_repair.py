@@ -192,31 +192,84 @@ class Repair:
         condition two poses 16 frames apart on the banner had 2,564 → 11,463 triangles facing
         against both keys (4,272 with the gap's tolerance instead), in sequences 166 → 745 at
         g = 16; with it every pair and sequence cell of six cloths is unchanged, and an arm of
-        three jointed links turning 80° per key at each joint (its last link 240°) is exact."""
+        three jointed links turning 80° per key at each joint (its last link 240°) is exact. In a
+        check of the whole mesh, the candidates of a piece that turns as the interpolated field
+        says are all kept, to the gap's tolerance (:meth:`_turning_pieces`)."""
         triangles = candidates if isinstance(rows, slice) else np.asarray(rows)[candidates]
         columns = frames[:, triangles]
         normal = coordinate_cross(columns[0].T, columns[1].T)  # (3 coordinates, r) of the interpolated R_T t1, R_T t2
         base, nxt = self.gap.base.normal_rows[:, triangles], self.gap.next.normal_rows[:, triangles]
+        following = coordinate_dot(cross[:, candidates], normal)
         away = (coordinate_dot(normal, base) < 0) & (coordinate_dot(normal, nxt) < 0)
-        away &= coordinate_dot(cross[:, candidates], normal) > -slack[candidates]  # ... that follow it
+        away &= following > -slack[candidates]  # ... that follow it
+        # a whole mesh's check first keeps the pieces that turn whole; the rest, one by one (below)
+        turning = self._turning_pieces(cross[:, candidates], normal, following, base, nxt, columns, sides,
+                                       candidates) if isinstance(rows, slice) else None
+        kept_whole = None
+        if turning is not None:
+            kept_whole = candidates[turning]
+            away &= ~turning
         # ... and whose edges keep the interpolated metric (a part turning whole; a fold does not),
         # measured on those only: most candidates face along the interpolated rotation (a fold)
         # and the metric's target edges were most of the check's cost
         candidates, triangles, columns = candidates[away], triangles[away], columns[:, away]
         if not candidates.size:
-            return candidates
-        e1, e2 = sides[0][:, candidates], sides[1][:, candidates]
-        target = np.linalg.norm(self.gap.local_targets(columns, sides[2][triangles], triangles)["edges"], axis=2)
-        third = e2 - e1  # corner edges 0, 1, 2: e1, e2 − e1, −e2
-        lengths = np.sqrt(np.stack([coordinate_dot(e1, e1), coordinate_dot(third, third), coordinate_dot(e2, e2)], axis=1))
+            return candidates if kept_whole is None else kept_whole
+        deviation = self._metric_deviation(columns, sides, candidates, triangles)
         # pieces nearly rigid but noisy keep the metric only to the gap's tolerance (a card with
         # noise 2e-3 of its size turning 185° between keys: its side faces read as flipped and a
         # repair tore it, edges 3–15 × their length); cloth keeps the strict one (above)
         gap = self.gap
         nearly_rigid = np.asarray(gap.nonrigidity)[gap.topo.triangle_component[triangles]] < NOISY_TURN_NONRIGIDITY
         tolerance = np.where(nearly_rigid, max(METRIC_TOLERANCE, gap.tolerance), METRIC_TOLERANCE)
-        kept = np.mean(np.abs(lengths / target - 1.0), axis=1) < tolerance
-        return candidates[kept]
+        kept = candidates[deviation < tolerance]
+        return kept if kept_whole is None else np.sort(np.concatenate([kept_whole, kept]))
+
+    def _metric_deviation(self, columns, sides, candidates, triangles) -> np.ndarray:
+        """The mean relative deviation (r,) of the edge lengths of the ``candidates`` (positions
+        among the checked rows; ``triangles``: their indices, ``columns``: their interpolated frames
+        (3, r, 3), ``sides`` as in :meth:`_turned_away`) from the interpolated metric."""
+        e1, e2 = sides[0][:, candidates], sides[1][:, candidates]
+        target = np.linalg.norm(self.gap.local_targets(columns, sides[2][triangles], triangles)["edges"], axis=2)
+        third = e2 - e1  # corner edges 0, 1, 2: e1, e2 − e1, −e2
+        lengths = np.sqrt(np.stack([coordinate_dot(e1, e1), coordinate_dot(third, third), coordinate_dot(e2, e2)], axis=1))
+        return np.mean(np.abs(lengths / target - 1.0), axis=1)
+
+    def _turning_pieces(self, cross, normal, following, base, nxt, columns, sides, candidates) -> np.ndarray | None:
+        """Which of the ``candidates`` (bool (r,); triangles facing away from both keys, all of
+        the mesh's; ``cross`` their normals, ``normal`` their interpolated normals, ``following``
+        the products of the two, ``base`` / ``nxt`` the keys' unit normals, ``columns`` their
+        interpolated frames) lie in a piece where every candidate turns as the interpolated field
+        says, or None if no piece does: a piece is turning where each candidate's normal is within
+        the gap's tolerance (radians: edges off their targets by a relative δ turn by about δ) of
+        its interpolated normal, that normal is within the same angle of facing away from both
+        keys, and the edges keep the interpolated metric to the gap's tolerance (the fit's own
+        stop).
+        A closed tube (a finger) curled 120° at each of two knuckles bends its cross-sections, so
+        its fit keeps the metric to 0.2–0.7 % where it turns away half-way, not to
+        :data:`~core.inbetween_fit.METRIC_TOLERANCE`, and triangles edge-on to a key there face
+        away by 1e-3 of their length where their interpolated normal does not: read as flipped,
+        a repair replaces the curl by a pose 11–15 % of the diagonal off it. A cloth fold has
+        other flipped triangles in its piece (compressed, or facing against the interpolated
+        normal): on six benchmark cloths no piece was turning."""
+        gap = self.gap
+        tolerance = max(METRIC_TOLERANCE, gap.tolerance)
+        sine = np.sin(tolerance)
+        unit = normal / np.sqrt(coordinate_dot(normal, normal))
+        near = following >= np.cos(tolerance) * np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
+        near &= (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
+        pieces = gap.topo.triangle_component[candidates]
+        count = len(gap.topo.piece_sizes)
+        per_piece = np.bincount(pieces, minlength=count)
+        turning = (np.bincount(pieces[near], minlength=count) == per_piece) & (per_piece > 0)
+        if not turning.any():
+            return None
+        inside = turning[pieces]
+        deviation = self._metric_deviation(columns[:, inside], sides, candidates[inside], candidates[inside])
+        # a piece with a candidate off the metric is not turning: its candidates go to the rule below
+        off = np.bincount(pieces[inside][deviation >= tolerance], minlength=count) > 0
+        turning &= ~off
+        return turning[pieces] if turning.any() else None
 
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:
         """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""

@@ -164,3 +164,24 @@ def capped_cylinder(sides: int = 64):
     for i in range(1, sides - 1):
         triangles += [[0, i + 1, i], [sides, sides + i, sides + i + 1]]
     return vertices, np.array(triangles)
+
+
+def closed_tube(rings: int, sides: int, *, length: float = 1.0, radius: float = 0.07):
+    """A closed tube along x ∈ [0, length] (a finger): ``rings`` rings of ``sides`` vertices, each
+    cap a fan around a centre vertex, triangles facing outward. Vertices (rings·sides + 2, 3),
+    triangles."""
+    angle = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
+    x = np.repeat(np.linspace(0.0, length, rings), sides)
+    vertices = np.c_[x, radius * np.tile(np.cos(angle), rings), radius * np.tile(np.sin(angle), rings)]
+    vertices = np.vstack([vertices, [[0.0, 0.0, 0.0], [length, 0.0, 0.0]]])
+    triangles = []
+    for k in range(rings - 1):
+        for i in range(sides):
+            j = (i + 1) % sides
+            a, b, c, d = k * sides + i, k * sides + j, (k + 1) * sides + j, (k + 1) * sides + i
+            triangles += [[a, b, c], [a, c, d]]
+    start, end = rings * sides, rings * sides + 1
+    for i in range(sides):
+        j = (i + 1) % sides
+        triangles += [[start, j, i], [end, (rings - 1) * sides + i, (rings - 1) * sides + j]]
+    return vertices, np.array(triangles)
