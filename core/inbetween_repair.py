@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -106,6 +107,15 @@ FALLBACK_ANCHOR_WEIGHT = 1e-1
 #: one (a skirt on a twisting waist, 1.040 → 1.129: a fit with one flipped triangle instead of a
 #: blend 17 % short; 1.007 in both over every second start frame).
 CRUSHED_AREA = 0.5
+
+
+class Outcome(NamedTuple):
+    """What :meth:`Repair.checked` returned at one factor: the count of its flipped or collapsed
+    triangles, and whether it is the linear blend or the interpolated metric fitted near it (a
+    fallback from a fit whose defects no repair removed)."""
+
+    defects: int
+    near_blend: bool
 
 
 class Repair:
@@ -302,33 +312,44 @@ class Repair:
 
     def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
                 looser=None) -> tuple[np.ndarray, str | None]:
-        """``(x, None)`` if the fit ``x`` is defect-free, else a repair or a fallback with the
-        message saying which (``x0``: the Poisson solve of the interpolated field, or ``x`` itself
-        when there is none; ``rings``: the repair rounds, :data:`REPAIR_RINGS` or fewer;
-        ``defects``: :meth:`defects` of ``x`` if the caller has them; ``looser``: the fit's step
-        within the whole key-to-key change's tolerance, or None (see
-        :data:`core.inbetween_fit.TOLERANCE_TRIM`): where the repairs fail it is returned if it has
-        no defect, a fit as the fit's stop allowed before)."""
+        """:meth:`outcome`'s pose and message; the rest of it is kept in the gap's ``outcomes[s]``
+        (two poses choose between their fits by it: ``core.interpolation.Interpolator.pose``)."""
+        x, message, count, near_blend = self.outcome(x, x0, s, frames, stretch, guide, motion, rings, defects,
+                                                     looser)
+        self.gap.outcomes[s] = Outcome(count, near_blend)
+        return x, message
+
+    def outcome(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
+                looser=None) -> tuple[np.ndarray, str | None, int, bool]:
+        """``(x, None, 0, False)`` if the fit ``x`` is defect-free, else a repair or a fallback with
+        the message saying which, the count of its flipped or collapsed triangles and whether it is
+        the linear blend or the metric fitted near it (``x0``: the Poisson solve of the
+        interpolated field, or ``x`` itself when there is none; ``rings``: the repair rounds,
+        :data:`REPAIR_RINGS` or fewer; ``defects``: :meth:`defects` of ``x`` if the caller has
+        them; ``looser``: the fit's step within the whole key-to-key change's tolerance, or None
+        (see :data:`core.inbetween_fit.TOLERANCE_TRIM`): where the repairs fail it is returned if
+        it has no defect, a fit as the fit's stop allowed before)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
-            return x, None
+            return x, None, 0, False
         gap = self.gap
         best = (int(defects.sum()), x) if np.isfinite(x).all() else None  # the last resort: fewest defects
         blend = (1.0 - s) * gap.base.vertices + s * gap.next.vertices
         if gap.use_extrinsic and best is not None:
             z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings)
             if z is not None:
-                return z, None
+                return z, None, 0, False
         if looser is not None and self.problem(looser, s, frames, stretch) is None:
-            return looser, None
+            return looser, None, 0, False
         if gap.use_extrinsic and x0 is not x and self.problem(x0, s, frames, stretch) is None:
-            return x0, f"{problem}; returned the interpolated rotation field's Poisson solve without metric fit"
+            return x0, (f"{problem}; returned the interpolated rotation field's Poisson solve without metric "
+                        "fit"), 0, False
         if best is not None and (self.in_sequence(s) or not 0.0 <= s <= 1.0):
             # keeps the metric, as its neighbours in time do; beyond the keys the "blend" is the
             # linear extrapolation, which lengthens whatever turns (×2 of a 100° elbow: a forearm
             # 1.94 × its length held near it, "the interpolated metric fitted near the blend")
-            return best[1], self.kept_message(problem, best[0])
+            return best[1], self.kept_message(problem, best[0]), best[0], False
         folds = self.defects(blend, s, None, stretch)
         # a fit held near a folded blend keeps its folds: tried only where the blend has fewer
         # folds than the metric fit (two poses of a cloth folding over as it is dragged by a
@@ -341,16 +362,17 @@ class Repair:
             fitted = "the linear blend (no fit near it improved on it)" if np.array_equal(y, blend) else \
                 "the interpolated metric fitted near the linear blend"
             if self.problem(y, s, None, stretch) is None:
-                return y, f"{problem}; used {fitted} instead"
+                return y, f"{problem}; used {fitted} instead", 0, True
             if not (folds | self.crushed(blend, stretch)).any():
-                return blend, f"{problem}; the metric fit near the linear blend failed too, returned the linear blend"
+                return blend, (f"{problem}; the metric fit near the linear blend failed too, returned the "
+                               "linear blend"), 0, True
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
                 return y, (f"{problem}; no repair or fallback removed them all, returned {fitted}, which "
-                           f"has the fewest ({count} flipped or collapsed triangle(s))")
+                           f"has the fewest ({count} flipped or collapsed triangle(s))"), count, True
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
-        return best[1], self.kept_message(problem, best[0])
+        return best[1], self.kept_message(problem, best[0]), best[0], False
 
     def crushed(self, x: np.ndarray, stretch: np.ndarray) -> np.ndarray:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the

@@ -39,7 +39,7 @@ from .inbetween_flight import after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, PieceMotion
-from .inbetween_repair import Region, Repair
+from .inbetween_repair import Outcome, Region, Repair
 from .pins import riding_motions
 from .splines import TANGENT_LIMIT, HermiteGap
 
@@ -165,6 +165,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                 self._arc_candidates &= ~np.asarray(condition, dtype=bool)
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
+        self.outcomes: dict[float, Outcome] = {}  # what the checks of each factor's in-between returned
         self.carried = CarriedPieces(self)
 
     @cached_property

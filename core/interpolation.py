@@ -624,7 +624,9 @@ class Interpolator:
         in-between of the full basis is fitted twice, with the rotations as residuals to each
         piece's rigid motion and taken whole, and the second kept where it keeps the metric better
         by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
-        (:data:`WHOLE_FIT_BLEND_RATIO`); the warnings are the kept fit's."""
+        (:data:`WHOLE_FIT_BLEND_RATIO`), or where the first fell back to the blend (or the metric
+        fitted near it) and the second has fewer flipped or collapsed triangles within
+        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's."""
         factor = check_factor(factor)
         first = self._sequence
         if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
@@ -636,11 +638,20 @@ class Interpolator:
         misfit = self._misfit(x, factor)
         # a first fit within the margin of the metric cannot be bettered by it: no second fit
         if misfit > WHOLE_FIT_MARGIN and not first._gap(0).whole_rotations.all():
-            (y,), other = self._whole_sequence()._poses(0, [factor])
+            second = self._whole_sequence()
+            (y,), other = second._poses(0, [factor])
             blend = (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
             other_misfit = self._misfit(y, factor)
-            if other_misfit < misfit - WHOLE_FIT_MARGIN and \
-                    _rms(y - blend) <= WHOLE_FIT_BLEND_RATIO * _rms(x - blend):
+            nearer_metric = other_misfit < misfit - WHOLE_FIT_MARGIN and \
+                _rms(y - blend) <= WHOLE_FIT_BLEND_RATIO * _rms(x - blend)
+            # a first fit held near the blend by a fallback has no distance from it to compare
+            # with: there the second is kept where it has fewer flipped or collapsed triangles and
+            # lies within WHOLE_FIT_HELD_REACH of the keys' distance from the blend
+            held, kept = first._gap(0).outcomes.get(factor), second._gap(0).outcomes.get(factor)
+            fewer_defects = held is not None and held.near_blend and kept is not None and \
+                kept.defects < held.defects and \
+                _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
+            if nearer_metric or fewer_defects:
                 x, said, misfit = y, other, other_misfit
         for message in said:  # a fallback's edges, said where they are far from the metric (a crushed blend)
             _warn(message if misfit <= FALLBACK_MISFIT_NOTED else
@@ -695,8 +706,17 @@ WHOLE_FIT_MARGIN = 0.005
 #: ... and where it is no farther from the linear blend than this many times the first fit: a fit
 #: nearer the metric is not always nearer the motion (a flag at g = 16, frames 24 → 40: misfit 6.1 →
 #: 0.4 %, but 1.085 → 1.435 × the blend's error, 0.80 → 1.06 of it away from the blend; a sheet on a
-#: swinging hook whose first fit fell back to the blend: 1.00 → 1.20 ×).
+#: swinging hook whose first fit fell back to the blend: 1.00 → 1.20 ×). A first fit held near the
+#: blend by a fallback gives no distance to compare with: there the fit with fewer flipped or
+#: collapsed triangles is kept (a flag draped over a sphere, g = 16: 2,829 → 104 flipped, 1.000 →
+#: 1.054 × the blend's error; a tablecloth pulled off a table, g = 8: 144 → 0, 1.000 → 0.886 ×) ...
 WHOLE_FIT_BLEND_RATIO = 1.25
+#: ... where it lies within this share of the keys' RMS distance from each other from the blend: a
+#: sheet whipped by a keyframed corner, keys 8 frames apart, had second fits 0.23–0.24 of it away
+#: with 25 and 7 flipped triangles where the first's fallbacks had 550 and 849, and 2.07 / 1.61 ×
+#: the blend's error (the cell's median 0.961 → 1.074 ×); those kept, 0.01–0.13 of it away (0.08
+#: on the flag, 0.12 on the banner), are 0.85–1.05 × (one at 0.20, 0.98 → 0.79 ×, is left out).
+WHOLE_FIT_HELD_REACH = 0.15
 
 
 def _rms(d: np.ndarray) -> float:

@@ -491,6 +491,67 @@ def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fe
     assert _edge_deviation(x, flat, tri).mean() < 0.7 * _edge_deviation(blend, flat, tri).mean()
 
 
+@pytest.mark.parametrize("second_defects, reach, second_kept", [(1, None, True), (3, None, False), (1, 0.0, False)])
+def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(monkeypatch, strip, second_defects,
+                                                                               reach, second_kept):
+    """Two poses whose first fit (residual rotations) fell back to the metric fitted near the blend
+    with defects left: its distance from the blend says nothing of the motion, so the second fit
+    (whole rotations), farther from the blend than WHOLE_FIT_BLEND_RATIO × it, is kept where it has
+    fewer flipped or collapsed triangles (a flag draped over a sphere, keys 16 frames apart: 2,829
+    → 104 flipped, 1.000 → 1.054 × the blend's RMS; a tablecloth pulled off a table, 8 apart: 144
+    → 0, 1.000 → 0.886 ×), and not where it has more or strays farther from the blend than
+    WHOLE_FIT_HELD_REACH of the keys' distance."""
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+    import core.interpolation as interpolation
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+    blend = 0.5 * (a + b)
+    near = []  # the fits near the blend (the fallback's anchor system)
+    original_fit = solver._Gap.fit
+
+    def fit(self, *args, **kwargs):
+        x = original_fit(self, *args, **kwargs)
+        if "system" in kwargs:
+            near.append(x.copy())
+        return x
+
+    def defects(self, x, *args, rows=None):
+        if self.gap.whole_rotations.all():  # the second fit: every candidate alike
+            count = second_defects
+        else:  # the first: the blend has the fewest, the metric fitted near it fewer than the fit
+            inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)
+            count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
+        out = np.zeros(len(tri), dtype=bool)
+        out[:count] = True
+        return out if rows is None else out[rows]
+
+    monkeypatch.setattr(solver._Gap, "fit", fit)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "some triangle(s) flipped")
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    if reach is not None:
+        monkeypatch.setattr(interpolation, "WHOLE_FIT_HELD_REACH", reach)
+    pair = Interpolator(a, b, tri)
+    with pytest.warns(ShapeDifferenceWarning) as caught:
+        x = pair.pose(0.5)
+    assert pair._whole is not None  # the second fit was made ...
+    origin = pair._sequence._origin
+    held = near[-1] if origin is None else near[-1] + origin  # the first fit, in the poses' coordinates
+    message = str(caught[0].message)
+    if second_kept:  # ... farther from the blend than the guard allows a fit nearer the metric
+        distance = [interpolation._rms(y - blend) for y in (held, x)]
+        assert distance[1] > interpolation.WHOLE_FIT_BLEND_RATIO * distance[0]
+        assert distance[1] <= interpolation.WHOLE_FIT_HELD_REACH * interpolation._rms(b - a)
+        assert "metric fit with the fewest" in message and "near the linear blend" not in message
+        assert _edge_deviation(x, flat, tri).mean() < 0.5 * _edge_deviation(held, flat, tri).mean()
+    else:
+        np.testing.assert_array_equal(x, pair._sequence._poses(0, [0.5])[0][0])  # the first fit
+        assert "fitted near the linear blend, which has the fewest (2 " in message
+    first, second = pair._sequence._gap(0).outcomes[0.5], pair._whole_sequence()._gap(0).outcomes[0.5]
+    assert first == (2, True) and second == (second_defects, False)
+
+
 def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(monkeypatch, strip):
     """An in-between of a sequence whose repairs all keep defects is the metric fit with the
     fewest, even when the linear blend has none: its neighbours in time are fits, and the blend
