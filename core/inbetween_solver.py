@@ -71,6 +71,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     the relatives at key times −1, 0, 1, 2, the target edges' constant factors, the anchor and
     its factorization. :meth:`poses` answers any factors."""
 
+    #: The largest share of a piece's area turning past a half turn from the rest of it between the
+    #: keys, as the sequence that prepared the gap found it (see
+    #: :data:`core.interpolation.TURNED_PART_SHARE`; two poses take such turns continuous across the mesh).
+    turned_part = 0.0
+
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, start_limit: float | None = None,

@@ -756,6 +756,33 @@ def test_a_closed_tube_curled_past_a_half_turn_keeps_curling_the_same_way(degree
         assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
+@pytest.mark.parametrize("degrees", [60.0, 120.0])
+def test_a_closed_tube_curling_past_a_half_turn_per_key_is_right_or_warned(degrees):
+    """Keys of a closed tube curling at two joints by ``degrees`` per key at each (its tip turning
+    twice that per gap): at 60° every in-between is the tube curled by the interpolated angles to
+    1 % of the diagonal, every triangle facing as in it, with no word of a half turn. At 120° (its
+    tip 240° per gap, a quarter of its area past a half turn) two keys do not tell which way it
+    curled: each in-between is right or the sequence says so (it was 9–12 % of the diagonal off
+    with up to 146 triangles facing against the curl, at 0.3 and 0.7 silently)."""
+    angles = np.radians([degrees, degrees])
+    joints, spread = (0.25, 0.6), 0.35
+    keys = [_curled_tube(k * angles, joints, spread)[0] for k in range(3)]
+    _, tri = _curled_tube(0.0 * angles, joints, spread)
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(2):
+        for factor in (0.3, 0.5, 0.7):
+            truth, _ = _curled_tube((gap + factor) * angles, joints, spread)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                x = sequence.pose(gap, factor)
+            right = np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-2 * diagonal and \
+                (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+            said = any("past a half turn" in str(w.message) for w in caught)
+            assert right or said
+            assert said == (degrees > 90.0)
+
+
 def _rolled(vertices, angle):
     """A sheet rolled about the y axis from its x = min edge into an arc of ``angle`` radians."""
     x = vertices[:, 0] - vertices[:, 0].min()
