@@ -28,13 +28,15 @@ def coordinate_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def coordinate_cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross products of 3-vectors stored by coordinate: ``(3, …)``, ``(3, …)`` → ``(3, …)``
-    (each coordinate written in place: no stack of three temporaries)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype=np.result_type(a, b))
+    """Cross products of 3-vectors stored by coordinate: ``(3, …)``, ``(3, …)`` → ``(3, …)``, the
+    ``…`` broadcast (one vector ``(3,)`` against many) (each coordinate written in place: no stack
+    of three temporaries)."""
+    out = np.empty((3,) + np.broadcast_shapes(a.shape[1:], b.shape[1:]), dtype=np.result_type(a, b))
     for d in range(3):
         i, j = (d + 1) % 3, (d + 2) % 3
-        np.multiply(a[i], b[j], out=out[d])
-        out[d] -= a[j] * b[i]
+        row = out[d, ...]  # a view also where the vectors are single ((3,): a 0-d row)
+        np.multiply(a[i], b[j], out=row)
+        row -= a[j] * b[i]
     return out
 
 

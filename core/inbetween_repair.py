@@ -251,10 +251,11 @@ class Repair:
         the products of the two, ``base`` / ``nxt`` the keys' unit normals, ``columns`` their
         interpolated frames) lie in a piece where every candidate turns as the interpolated field
         says, or None if no piece does: a piece is turning where each candidate's normal is within
-        the gap's tolerance (radians: edges off their targets by a relative δ turn by about δ) of
-        its interpolated normal, that normal is within the same angle of facing away from both
-        keys, and the edges keep the interpolated metric to the gap's tolerance (the fit's own
-        stop).
+        the angle ``arctan δ`` of its interpolated normal (δ the gap's tolerance: a side whose end
+        is a relative δ off its target across it turns by that angle; about δ where δ is small,
+        and below a right angle however large the tolerance of a strongly stretching gap is), that
+        normal is within the same angle of facing away from both keys, and the edges keep the
+        interpolated metric to the gap's tolerance (the fit's own stop).
         A closed tube (a finger) curled 120° at each of two knuckles bends its cross-sections, so
         its fit keeps the metric to 0.2–0.7 % where it turns away half-way, not to
         :data:`~core.inbetween_fit.METRIC_TOLERANCE`, and triangles edge-on to a key there face
@@ -264,9 +265,10 @@ class Repair:
         normal): on six benchmark cloths no piece was turning."""
         gap = self.gap
         tolerance = max(METRIC_TOLERANCE, gap.tolerance)
-        sine = np.sin(tolerance)
+        angle = np.arctan(tolerance)
+        sine = np.sin(angle)
         unit = normal / np.sqrt(coordinate_dot(normal, normal))
-        near = following >= np.cos(tolerance) * np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
+        near = following >= np.cos(angle) * np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
         near &= (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
         pieces = gap.topo.triangle_component[candidates]
         count = len(gap.topo.piece_sizes)
@@ -350,6 +352,9 @@ class Repair:
             # linear extrapolation, which lengthens whatever turns (×2 of a 100° elbow: a forearm
             # 1.94 × its length held near it, "the interpolated metric fitted near the blend")
             return best[1], self.kept_message(problem, best[0]), best[0], False
+        # the fallbacks fit and check the whole mesh: its stretches whole (a repair of a predicted
+        # in-between is given them by rows, core.inbetween_field._ByRows; [:] computes the rest)
+        stretch = stretch[:]
         folds = self.defects(blend, s, None, stretch)
         # a fit held near a folded blend keeps its folds: tried only where the blend has fewer
         # folds than the metric fit (two poses of a cloth folding over as it is dragged by a

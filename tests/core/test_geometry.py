@@ -137,3 +137,13 @@ def test_coordinate_cross_is_numpys_cross_by_coordinate(dtype):
     cross = coordinate_cross(a, b)
     assert cross.dtype == dtype
     np.testing.assert_array_equal(cross, np.moveaxis(np.cross(np.moveaxis(a, 0, -1), np.moveaxis(b, 0, -1)), -1, 0))
+
+
+def test_coordinate_cross_of_single_vectors_and_one_against_many():
+    """Single vectors ``(3,)`` and one vector against many ``(3, m)`` are NumPy's cross products
+    by coordinate too (the ``…`` of ``(3, …)`` broadcast)."""
+    rng = np.random.default_rng(4)
+    u, v, many = rng.normal(size=3), rng.normal(size=3), rng.normal(size=(3, 7))
+    np.testing.assert_array_equal(coordinate_cross(u, v), np.cross(u, v))
+    np.testing.assert_array_equal(coordinate_cross(u, many), np.cross(u, many.T).T)
+    np.testing.assert_array_equal(coordinate_cross(many, v), np.cross(many.T, v).T)

@@ -1535,6 +1535,56 @@ def test_targets_by_rows_are_the_targets_on_those_rows(strip):
         np.testing.assert_array_equal(stretch_rows[np.ones(len(tri), dtype=bool)], stretch)
 
 
+def test_a_repair_by_rows_falls_back_as_a_whole_pose_does(strip):
+    """A predicted in-between of a gap between two keys (not a sequence's: the fallbacks near the
+    linear blend apply) whose repairs all fail reaches the fit near the blend, which reads the
+    whole mesh's stretches: the repair given the targets by rows returns what it returns given
+    them whole, bit for bit."""
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+    gap = SequenceInterpolator([a, b], tri, start="keys")._gap(0)
+    assert not gap.cubic
+    s = 0.5
+    crumpled = 0.5 * (gap.base.vertices + gap.next.vertices) + \
+        np.random.default_rng(0).normal(scale=0.1, size=a.shape)
+    x, message = gap.repaired(crumpled, s)
+    assert message is not None and "near the linear blend" in message
+    frames, stretch, motion, guide = gap.targets(s)
+    whole = gap.finished(gap.repair.checked(crumpled, crumpled, s, frames, stretch, guide, motion), s)
+    np.testing.assert_array_equal(x, whole[0])
+    assert message == whole[1]
+
+
+def test_a_triangle_tipped_against_the_turn_of_a_strongly_stretching_gap_is_flipped(strip):
+    """Keys five times apart in size and a quarter turn apart: the gap's tolerance is 2, which
+    read as an angle would let a triangle facing away from both keys and 107° off its interpolated
+    normal pass as turning with its piece. The angle is arctan of the tolerance (63°), so it is
+    flipped."""
+    flat, tri = strip
+    b = 5.0 * flat @ Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix().T
+    gap = SequenceInterpolator([flat, b], tri, start="keys")._gap(0)
+    assert gap.tolerance >= 1.0
+    s = 0.5
+    x = gap.pose(s)[0]
+    frames, stretch = gap.targets(s)[:2]
+    assert not gap.repair.defects(x, s, frames, stretch).any()
+    t = len(tri) // 2
+    i, j, k = tri[t]
+    base, nxt = gap.base.normal_rows[:, t], gap.next.normal_rows[:, t]
+    interpolated = np.cross(frames[0][t], frames[1][t])
+    # its third corner moved across its first side so that it faces mostly sideways and a little
+    # away from both keys
+    facing = 0.9 * np.cross(base, nxt) - 0.2 * (base + nxt)
+    side = x[j] - x[i]
+    across = np.cross(facing, side)
+    x[k] = x[i] + 0.5 * side + np.linalg.norm(x[k] - x[i]) * across / np.linalg.norm(across)
+    normal = np.cross(x[j] - x[i], x[k] - x[i])
+    normal /= np.linalg.norm(normal)
+    assert normal @ base < 0 and normal @ nxt < 0
+    assert np.degrees(np.arccos(normal @ interpolated / np.linalg.norm(interpolated))) > 100.0
+    assert gap.repair.defects(x, s, frames, stretch)[t]
+
+
 def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
     """Two poses bent far apart: the second fit (rotations taken whole, WHOLE_FIT_MARGIN) takes
     its relative's rotations whole without asking whether the residuals add turn, so its
