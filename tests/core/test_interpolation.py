@@ -455,18 +455,11 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
 
 
-def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fewer_defects(monkeypatch, strip):
-    """Two poses whose metric fit keeps more flipped triangles than the linear blend has (a cloth
-    folding over as a corner drags it, keys 16 frames apart: 713 against the blend's 59): the
-    interpolated metric fitted near the blend is tried and, having fewer than the fit (243 there;
-    1.61 → 1.00 × the blend's RMS), returned with a warning that says so."""
-    import core.inbetween_repair as repair
+def _record_fits_near_the_blend(monkeypatch) -> list:
+    """The fits made with the fallback's anchor system (near the blend), appended as they are made."""
     import core.inbetween_solver as solver
 
-    flat, tri = strip
-    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
-    blend = 0.5 * (a + b)
-    near = []  # the fits near the blend (the fallback's anchor system)
+    near = []
     original_fit = solver._Gap.fit
 
     def fit(self, *args, **kwargs):
@@ -475,6 +468,22 @@ def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fe
             near.append(x.copy())
         return x
 
+    monkeypatch.setattr(solver._Gap, "fit", fit)
+    return near
+
+
+def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fewer_defects(monkeypatch, strip):
+    """Two poses whose metric fit keeps more flipped triangles than the linear blend has (a cloth
+    folding over as a corner drags it, keys 16 frames apart: 713 against the blend's 59): the
+    interpolated metric fitted near the blend is tried and, having fewer than the fit (243 there;
+    1.61 → 1.00 × the blend's RMS), returned with a warning that says so."""
+    import core.inbetween_repair as repair
+
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+    blend = 0.5 * (a + b)
+    near = _record_fits_near_the_blend(monkeypatch)
+
     def defects(self, x, *args, rows=None):
         inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
         count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
@@ -482,7 +491,6 @@ def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fe
         out[:count] = True
         return out if rows is None else out[rows]
 
-    monkeypatch.setattr(solver._Gap, "fit", fit)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
     with pytest.warns(ShapeDifferenceWarning, match="fitted near the linear blend, which has the fewest"):
@@ -502,20 +510,12 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     → 0, 1.000 → 0.886 ×), and not where it has more or strays farther from the blend than
     WHOLE_FIT_HELD_REACH of the keys' distance."""
     import core.inbetween_repair as repair
-    import core.inbetween_solver as solver
     import core.interpolation as interpolation
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 2.0)
     blend = 0.5 * (a + b)
-    near = []  # the fits near the blend (the fallback's anchor system)
-    original_fit = solver._Gap.fit
-
-    def fit(self, *args, **kwargs):
-        x = original_fit(self, *args, **kwargs)
-        if "system" in kwargs:
-            near.append(x.copy())
-        return x
+    near = _record_fits_near_the_blend(monkeypatch)
 
     def defects(self, x, *args, rows=None):
         if self.gap.whole_rotations.all():  # the second fit: every candidate alike
@@ -527,7 +527,6 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
         out[:count] = True
         return out if rows is None else out[rows]
 
-    monkeypatch.setattr(solver._Gap, "fit", fit)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "some triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
     if reach is not None:
