@@ -154,15 +154,44 @@ class _Relative:
             log = self._log  # made meanwhile by another thread
         return partial(_rows_of, log)
 
+    def _turned_frames(self, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
+        """The triangles' whole rotations from the base to ``other`` (the key this relative was
+        built from) as images of the base's frames, on the triangles ``rows`` (3 columns × (3, r)):
+        the constructor's where it kept them (let go unless ``keep``), else made again."""
+        plane = self.__dict__.get("_plane_frames") if keep else self.__dict__.pop("_plane_frames", None)
+        if plane is None:
+            return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
+        return plane[:, :, rows]
+
+    def turned_part(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray) -> float:
+        """The largest share of a piece's area (0 … 1) that turns past a half turn from the rest
+        of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs`` (E, 2):
+        the triangles sharing an edge): where the triangles' whole rotations taken continuous
+        across the mesh turn by over π more than the least-turned triangle of the piece (see
+        :data:`core.interpolation.TURNED_PART_SHARE`). Read before :meth:`residuals_add_turn`,
+        which lets the constructor's frames go."""
+        whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
+        pieces, count = topo.triangle_component, len(topo.components)
+        continued = df.continuous_rotation_vectors(whole, pairs, pieces)
+        if continued is whole:  # no part past a half turn from its neighbours
+            return 0.0
+        # past a half turn from the least-turned part of its piece (a piece spinning by about a
+        # half turn as a whole, its parts a little either side of it, turns as its rigid fit says)
+        angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
+        least = np.full(count, np.inf)
+        np.minimum.at(least, pieces, angles)
+        turned = angles - least[pieces] > np.pi
+        if not turned.any():
+            return 0.0
+        area = np.maximum(np.bincount(pieces, base.areas, minlength=count), np.finfo(float).tiny)
+        return float(np.max(np.bincount(pieces[turned], base.areas[turned], minlength=count) / area))
+
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
         against the median angle of the triangles' whole rotations from ``base`` to ``other``
         (from the trace of each rotation: three dot products per triangle)."""
-        frames = self.__dict__.pop("_plane_frames", None)
-        if frames is None:
-            frames = df.plane_turned_frames(other.column_rows, self.turn)
-        whole = _rotation_angles(frames, base.column_rows)
+        whole = _rotation_angles(self._turned_frames(other), base.column_rows)
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
         pieces, count = topo.triangle_component, len(topo.components)
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
@@ -171,13 +200,9 @@ class _Relative:
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
         the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
         components' rigid rotations not undone."""
-        # the constructor's turned frames where it kept them (the same values), let go here: the
-        # copy keeps none
-        plane = self.__dict__.pop("_plane_frames", None)
-        out = copy.copy(self)
         rows = np.flatnonzero(components[topo.triangle_component])
-        frames = df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows])) \
-            if plane is None else plane[:, :, rows]
+        frames = self._turned_frames(other, rows)  # let go before the copy: it keeps none
+        out = copy.copy(self)
         out.rotvec = self.rotvec.copy()
         out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
         if self._across is not None:

@@ -52,7 +52,6 @@ from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from . import deformation_fields as df
 from .deformation_fields import rotation_vectors, the_other_way
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws
@@ -234,7 +233,7 @@ class SequenceInterpolator:
         self._topo = _Topology(topology, keys[0])
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (_Relative); a sequence reads there which parts turn past a half
-        # turn per gap (_turned_part)
+        # turn per gap (_Relative.turned_part)
         self._edge_pairs = topology.edge_triangles[topology.interior_edges]
         self._across = self._edge_pairs if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
@@ -412,7 +411,8 @@ class SequenceInterpolator:
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        turned = self._turned_part(gap, ahead[0]) if self._across is None else 0.0
+        turned = 0.0 if self._across is not None else \
+            ahead[0].turned_part(topo, base, self._key(gap + 1), self._edge_pairs)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
@@ -426,32 +426,6 @@ class SequenceInterpolator:
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
-
-    def _turned_part(self, gap: int, nxt: _Relative) -> float:
-        """The largest share of a piece's area (0 … 1) that turns past a half turn from the rest
-        of it between keys ``gap`` and ``gap + 1`` (``nxt``: the relative of the second seen from
-        the first, before its rotation fields are read by :meth:`_Relative.residuals_add_turn`):
-        where the triangles' whole rotations taken continuous across the mesh turn by over π more
-        than the least-turned triangle of the piece (see :data:`TURNED_PART_SHARE`)."""
-        topo, base = self._topo, self._key(gap)
-        frames = nxt.__dict__.get("_plane_frames")
-        if frames is None:
-            frames = df.plane_turned_frames(self._key(gap + 1).column_rows, nxt.turn)
-        whole = df.frame_rows_rotation_vectors(frames, base.column_rows)
-        pieces, count = topo.triangle_component, len(topo.components)
-        continued = df.continuous_rotation_vectors(whole, self._edge_pairs, pieces)
-        if continued is whole:  # no part past a half turn from its neighbours
-            return 0.0
-        # past a half turn from the least-turned part of its piece (a piece spinning by about a
-        # half turn as a whole, its parts a little either side of it, turns as its rigid fit says)
-        angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
-        least = np.full(count, np.inf)
-        np.minimum.at(least, pieces, angles)
-        turned = angles - least[pieces] > np.pi
-        if not turned.any():
-            return 0.0
-        area = np.maximum(np.bincount(pieces, base.areas, minlength=count), np.finfo(float).tiny)
-        return float(np.max(np.bincount(pieces[turned], base.areas[turned], minlength=count) / area))
 
     def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray) -> _Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,

@@ -472,6 +472,23 @@ def _record_fits_near_the_blend(monkeypatch) -> list:
     return near
 
 
+def _counted_defects(near: list, m: int, second_defects: int | None = None):
+    """A stand-in for ``Repair.defects`` (m triangles): the linear blend has 1 flipped triangle,
+    the fits near it (``near``) 2, any other fit 10 — and with ``second_defects``, every candidate
+    of a whole-rotation fit that many."""
+    def defects(self, x, *args, rows=None):
+        if second_defects is not None and self.gap.whole_rotations.all():
+            count = second_defects
+        else:
+            inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
+            count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
+        out = np.zeros(m, dtype=bool)
+        out[:count] = True
+        return out if rows is None else out[rows]
+
+    return defects
+
+
 def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fewer_defects(monkeypatch, strip):
     """Two poses whose metric fit keeps more flipped triangles than the linear blend has (a cloth
     folding over as a corner drags it, keys 16 frames apart: 713 against the blend's 59): the
@@ -484,13 +501,7 @@ def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fe
     blend = 0.5 * (a + b)
     near = _record_fits_near_the_blend(monkeypatch)
 
-    def defects(self, x, *args, rows=None):
-        inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
-        count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
-        out = np.zeros(len(tri), dtype=bool)
-        out[:count] = True
-        return out if rows is None else out[rows]
-
+    defects = _counted_defects(near, len(tri))
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
     with pytest.warns(ShapeDifferenceWarning, match="fitted near the linear blend, which has the fewest"):
@@ -517,16 +528,7 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     blend = 0.5 * (a + b)
     near = _record_fits_near_the_blend(monkeypatch)
 
-    def defects(self, x, *args, rows=None):
-        if self.gap.whole_rotations.all():  # the second fit: every candidate alike
-            count = second_defects
-        else:  # the first: the blend has the fewest, the metric fitted near it fewer than the fit
-            inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)
-            count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
-        out = np.zeros(len(tri), dtype=bool)
-        out[:count] = True
-        return out if rows is None else out[rows]
-
+    defects = _counted_defects(near, len(tri), second_defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "some triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
     if reach is not None:
