@@ -90,8 +90,9 @@ class _Relative:
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
         # two poses (``across``: the mesh's triangle pairs sharing an edge): taken continuous across
         # the mesh, so that a part turning past a half turn from the rest turns on the same way; a
-        # sequence's neighbouring keys tell the way instead (continue_turns): taken across the mesh
-        # too, a flag whipping in wind (keys 16 frames apart) jumped 2.58 → 5.45 × the simulation
+        # sequence's neighbouring keys tell the way instead (continue_turns) but in the pieces where
+        # a part turns past a half turn (core.interpolation.TURNED_PART_SHARE): taken across the
+        # whole mesh, a flag whipping in wind (keys 16 frames apart) jumped 2.58 → 5.45 × the simulation
         self._across = across
         if across is not None:  # the part that stays is the one whose whole rotation is least
             self.rotvec = df.continuous_rotation_vectors(self.rotvec, across, topo.triangle_component,
@@ -163,18 +164,19 @@ class _Relative:
             return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
         return plane[:, :, rows]
 
-    def turned_part(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray) -> float:
-        """The largest share of a piece's area (0 … 1) that turns past a half turn from the rest
+    def turned_part(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray) -> np.ndarray:
+        """Per piece (C,), the share of its area (0 … 1) that turns past a half turn from the rest
         of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs`` (E, 2):
         the triangles sharing an edge): where the triangles' whole rotations taken continuous
         across the mesh turn by over π more than the least-turned triangle of the piece (see
-        :data:`core.interpolation.TURNED_PART_SHARE`). Read before :meth:`residuals_add_turn`,
-        which lets the constructor's frames go."""
+        :data:`core.interpolation.TURNED_PART_SHARE`); none in a piece with a jump past a half turn
+        at a crease (:data:`core.deformation_fields.WRAP_CREASE`). Read before
+        :meth:`residuals_add_turn`, which lets the constructor's frames go."""
         whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
         pieces, count = topo.triangle_component, len(topo.components)
-        continued = df.continuous_rotation_vectors(whole, pairs, pieces)
+        continued = df.continuous_rotation_vectors(whole, pairs, pieces, crease=df.WRAP_CREASE)
         if continued is whole:  # no part past a half turn from its neighbours
-            return 0.0
+            return np.zeros(count)
         # past a half turn from the least-turned part of its piece (a piece spinning by about a
         # half turn as a whole, its parts a little either side of it, turns as its rigid fit says)
         angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
@@ -182,9 +184,9 @@ class _Relative:
         np.minimum.at(least, pieces, angles)
         turned = angles - least[pieces] > np.pi
         if not turned.any():
-            return 0.0
+            return np.zeros(count)
         area = np.maximum(np.bincount(pieces, base.areas, minlength=count), np.finfo(float).tiny)
-        return float(np.max(np.bincount(pieces[turned], base.areas[turned], minlength=count) / area))
+        return np.bincount(pieces[turned], base.areas[turned], minlength=count) / area
 
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
@@ -196,17 +198,20 @@ class _Relative:
         pieces, count = topo.triangle_component, len(topo.components)
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
 
-    def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray) -> "_Relative":
+    def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray,
+                        across: np.ndarray | None = None) -> "_Relative":
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
         the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
-        components' rigid rotations not undone."""
+        components' rigid rotations not undone; taken continuous across the mesh past a half turn
+        across this relative's triangle pairs (two poses) or ``across`` (E, 2)."""
         rows = np.flatnonzero(components[topo.triangle_component])
         frames = self._turned_frames(other, rows)  # let go before the copy: it keeps none
         out = copy.copy(self)
         out.rotvec = self.rotvec.copy()
         out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
-        if self._across is not None:
-            out.rotvec = df.continuous_rotation_vectors(out.rotvec, self._across, topo.triangle_component)
+        across = self._across if across is None else across
+        if across is not None:
+            out.rotvec = df.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component)
         out.whole = components
         return out
 

@@ -71,17 +71,15 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     the relatives at key times −1, 0, 1, 2, the target edges' constant factors, the anchor and
     its factorization. :meth:`poses` answers any factors."""
 
-    #: The largest share of a piece's area turning past a half turn from the rest of it between the
-    #: keys, as the sequence that prepared the gap found it (see
-    #: :data:`core.interpolation.TURNED_PART_SHARE`; two poses take such turns continuous across the mesh).
-    turned_part = 0.0
-
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, start_limit: float | None = None,
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
-                 hooked: list[np.ndarray] | None = None):
+                 hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
+        # per component: a part of it turns past a half turn from the rest between the keys
+        # (core.interpolation.TURNED_PART_SHARE): not anchored to the keys' spline
+        self.turning = turning if turning is not None and turning.any() else None
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
         self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations
         self.relatives = relatives

@@ -102,18 +102,19 @@ def _warn(message: str) -> None:
 #: with three or more see :func:`start_of_motion`.
 REST_START_FRACTION = 0.25
 
-#: A sequence warns of a gap where a part of a piece over this share of its area turns past a
-#: half turn from the rest of it between the keys (the triangles' whole rotations, taken
-#: continuous across the mesh, are past π there: :func:`core.deformation_fields.continuous_rotation_vectors`).
-#: Two keys do not tell which way such a part went, and the way the sequence's neighbouring keys
-#: suggest may be the other: a closed tube and a bent arm curling 180–340° per gap at the tip
-#: (20–48 % of their area past a half turn) came out 9–34 % of the diagonal off, with up to 307
-#: triangles facing against the curl, mostly silently, where 120° per gap is right. Taking those
-#: parts' turns continuous across the mesh instead made a wind-blown flag's largest jump 2.58 →
-#: 5.45 × the simulation's (keys 16 frames apart; at most 2.6 % of its area past a half turn, none of
-#: the other benchmark scenes' at keys 4, 8 or 16 frames apart); a sheet swinging off a rod that
-#: stops dead has 26 % and 73 % in one gap at keys 4 and 8 frames apart, where its in-betweens are
-#: right (0.60 and 0.49 × the linear blend's error): the warning says "may".
+#: A sequence's gap where a part of a piece over this share of its area turns past a half turn
+#: from the rest of it between the keys (the triangles' whole rotations, taken continuous across
+#: the mesh where no jump joins a fold's crease, are past π there:
+#: :func:`core.deformation_fields.continuous_rotation_vectors`, :data:`~core.deformation_fields.WRAP_CREASE`)
+#: takes that piece's rotations whole, the next key's continuous across the mesh, and does not
+#: anchor it to the keys' per-vertex spline (:meth:`core.inbetween_anchor.Anchor.spline_weights`).
+#: Residuals to the piece's rigid fit wrap past π where that fit does not take up the curl, and
+#: the spline cuts its chord: read as residuals and anchored, a closed tube and a bent arm curling
+#: 200–340° per gap at the tip (20–48 % of their area past a half turn) came out 9–34 % of the
+#: diagonal off, with up to 307 triangles facing against the curl; as here, within 0.2 %, none
+#: against it. Applied to every gap those changes moved 17 of 18 benchmark sequence cells (a
+#: wind-blown flag's largest jump 2.58 → 3.63–5.45 × the simulation's, keys 16 frames apart); no
+#: gap of theirs has over 2.6 % of a piece's area past a half turn.
 TURNED_PART_SHARE = 0.1
 
 
@@ -233,7 +234,7 @@ class SequenceInterpolator:
         self._topo = _Topology(topology, keys[0])
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (_Relative); a sequence reads there which parts turn past a half
-        # turn per gap (_Relative.turned_part)
+        # turn per gap (_Relative.turned_part) and takes those parts' turns continuous across them
         self._edge_pairs = topology.edge_triangles[topology.interior_edges]
         self._across = self._edge_pairs if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
@@ -411,32 +412,40 @@ class SequenceInterpolator:
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        turned = 0.0 if self._across is not None else \
-            ahead[0].turned_part(topo, base, self._key(gap + 1), self._edge_pairs)
+        # the pieces a part of which turns past a half turn from the rest of them (TURNED_PART_SHARE;
+        # two poses take every piece's turns continuous across the mesh)
+        turning = np.zeros(len(topo.components), dtype=bool) if self._across is not None else \
+            ahead[0].turned_part(topo, base, self._key(gap + 1), self._edge_pairs) > TURNED_PART_SHARE
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
+        # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole)
+        segment = self._segment(gap, ahead, others, whole | turning, turning)
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | against)
-        segment.turned_part = turned
+            segment = self._segment(gap, ahead, others, whole | turning | against, turning)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
 
-    def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray) -> _Gap:
+    def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray,
+                 turning: np.ndarray) -> _Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
-        ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`)."""
+        ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), those of the next key taken
+        continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
+        them turns past a half turn from the rest, :data:`TURNED_PART_SHARE`)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
         cubic = self.smooth and last >= 2
         if whole.any():
-            ahead = [r.whole_rotations(topo, base, self._key(k), whole) for r, k in zip(ahead, others)]
+            pairs = self._edge_pairs
+            across = pairs[turning[topo.triangle_component[pairs[:, 0]]]] if turning.any() else None
+            ahead = [r.whole_rotations(topo, base, self._key(k), whole, across if k == gap + 1 else None)
+                     for r, k in zip(ahead, others)]
         nxt = ahead[0]
         if cubic:
             # keys unevenly spaced: the neighbours' times in units of this gap (1 when even)
@@ -461,7 +470,7 @@ class SequenceInterpolator:
                     self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
-                    hooked=self._hooked)
+                    hooked=self._hooked, turning=turning)
 
     def _steady(self, gap: int) -> np.ndarray | None:
         """Per component (C,), whether its centroid moved at constant acceleration over keys
@@ -566,11 +575,6 @@ class SequenceInterpolator:
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
         problems = []
-        if segment.turned_part > TURNED_PART_SHARE:
-            problems.append(f"between {self.key_names[gap]} and {self.key_names[gap + 1]}, "
-                            f"{100 * segment.turned_part:.0f} % of a piece's area turns past a half turn from "
-                            "the rest of it: the in-betweens may turn it the other way round (keys closer "
-                            "together tell which way it went)")
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
             if self._origin is not None and self._static is not None:

@@ -130,6 +130,33 @@ def test_unwrapped_rotation_vectors_continue_a_turn_past_a_half_turn():
     assert np.array_equal(df.unwrapped_rotation_vectors(small, 2 * 0.2 * axes), small)
 
 
+def test_unwrapped_rotation_vectors_continue_a_turn_past_three_half_turns():
+    """A part of an arm turning 300° per gap is continued to 600° at the key after, which the
+    representatives k = −1, 0, 1 of its principal vector (−120°) do not reach: the one nearest
+    the reference is taken whatever its k."""
+    axes = np.eye(3)
+    turned = np.radians(600.0) * axes
+    short = Rotation.from_rotvec(turned).as_rotvec()
+    np.testing.assert_allclose(df.unwrapped_rotation_vectors(short, 2 * np.radians(300.0) * axes), turned, atol=1e-12)
+
+
+def test_rotations_are_not_taken_continuous_across_a_crease():
+    """A chain of triangles turning about y by up to 260°, in steps of 0.2 rad (a part curling
+    smoothly past a half turn) is taken continuous; in steps of 1 rad (57°: the jump past the half
+    turn joins triangles at a fold's crease) it keeps its principal vectors with ``crease``
+    (:data:`~core.deformation_fields.WRAP_CREASE`) and is continued without."""
+    for step, continued in ((0.2, True), (1.0, False)):
+        angles = np.arange(0.0, np.radians(260.0), step)
+        turned = np.outer(angles, [0.0, 1.0, 0.0])
+        rotvec = Rotation.from_rotvec(turned).as_rotvec()
+        assert not np.allclose(rotvec, turned)  # past a half turn: the principal vectors jump
+        pairs = np.stack([np.arange(len(angles) - 1), np.arange(1, len(angles))], axis=1)
+        pieces = np.zeros(len(angles), dtype=int)
+        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, crease=df.WRAP_CREASE)
+        np.testing.assert_allclose(out, turned if continued else rotvec, atol=1e-12)
+        np.testing.assert_allclose(df.continuous_rotation_vectors(rotvec, pairs, pieces), turned, atol=1e-12)
+
+
 def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
     """Screw coordinates of 300 rigid motions at once (angles 0 … π, translations up to 1e3) are
     each the single motion's, and the exponential gives the motions back; a half turn goes the
