@@ -1,13 +1,18 @@
-"""Factor once, solve many times: a sparse symmetric positive definite matrix's factor.
+"""Factor once per anchor weight, solve many times: a sparse symmetric positive definite matrix.
 
 The in-betweens solve the same normal matrix (graph Laplacian plus a diagonal anchor) a few times
-per pose and factor it once per topology, so the solve is what counts. CHOLMOD's supernodal
-Cholesky factor (through ``cholespy``, which ships it in wheels for Linux, macOS and Windows)
-keeps one triangular factor and solves several right-hand sides per pass over it: on the
-99,856-vertex sheet it solves three in 15 ms, SuperLU's LU in symmetric mode in 34 ms (its
-factorization: 0.87 s against 0.64 s, once per topology). Without ``cholespy`` the same
-matrix is factored by SuperLU with a minimum-degree ordering of ``A + Aᵀ`` and no pivoting; both
-give the solution to round-off (tests/core/test_sparse_cholesky.py).
+per pose and factor it once per anchor weight a sequence uses (one to three on the benchmark's
+sequences), so the solve is what counts. ``cholespy`` (wheels for Linux, macOS and Windows) runs
+CHOLMOD's simplicial LLᵀ after a nested-dissection ordering (METIS) and solves several right-hand
+sides per pass over the factor: on the 99,856-vertex sheet three in 13–19 ms, SuperLU's LU in
+symmetric mode 31–34 ms (factorizations 0.76–1.01 s against 0.58–0.64 s). About two thirds of a
+factorization is that ordering (15,400 vertices: 54 of 72–95 ms), redone for every weight, since
+cholespy has no separate analysis; QDLDL's numeric update, CVXOPT's CHOLMOD given a permutation
+and SuperLU given one reuse an ordering but solve three right-hand sides 2–3 × slower: on the
+benchmark's sequences 1–4 % of the CPU saved where each factor serves few solves, 2–10 % lost
+where it serves many (measured in docs/inbetweens.md). Without
+``cholespy`` the same matrix is factored by SuperLU with a minimum-degree ordering of ``A + Aᵀ``
+and no pivoting; both give the solution to round-off (tests/core/test_sparse_cholesky.py).
 """
 
 from __future__ import annotations
