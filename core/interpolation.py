@@ -114,7 +114,10 @@ REST_START_FRACTION = 0.25
 #: diagonal off, with up to 307 triangles facing against the curl; as here, within 0.2 %, none
 #: against it. Applied to every gap those changes moved 17 of 18 benchmark sequence cells (a
 #: wind-blown flag's largest jump 2.58 → 3.63–5.45 × the simulation's, keys 16 frames apart); no
-#: gap of theirs has over 2.6 % of a piece's area past a half turn.
+#: gap of theirs has over 2.6 % of a piece's area past a half turn. So does a piece that bends
+#: without a crease where over this share of it turns past a right angle from the rest
+#: (:data:`core.inbetween_keys.BENT_TURN`: an arm of one skin bent 70–90° per key, 1.2–12.7 % off
+#: anchored to the spline, within 1e-4 so).
 TURNED_PART_SHARE = 0.1
 
 
@@ -234,7 +237,7 @@ class SequenceInterpolator:
         self._topo = _Topology(topology, keys[0])
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (_Relative); a sequence reads there which parts turn past a half
-        # turn per gap (_Relative.turned_part) and takes those parts' turns continuous across them
+        # turn per gap (_Relative.turning) and takes those parts' turns continuous across them
         self._edge_pairs = topology.edge_triangles[topology.interior_edges]
         self._across = self._edge_pairs if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
@@ -412,10 +415,11 @@ class SequenceInterpolator:
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        # the pieces a part of which turns past a half turn from the rest of them (TURNED_PART_SHARE;
-        # two poses take every piece's turns continuous across the mesh)
+        # the pieces a part of which turns past a half turn from the rest of them, or past a right
+        # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
+        # turns continuous across the mesh)
         turning = np.zeros(len(topo.components), dtype=bool) if self._across is not None else \
-            ahead[0].turned_part(topo, base, self._key(gap + 1), self._edge_pairs) > TURNED_PART_SHARE
+            ahead[0].turning(topo, base, self._key(gap + 1), self._edge_pairs, TURNED_PART_SHARE)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \

@@ -757,17 +757,19 @@ def test_a_closed_tube_curled_past_a_half_turn_keeps_curling_the_same_way(degree
 
 
 @pytest.mark.parametrize("degrees, joints, spread, radius, count", [
-    (60.0, (0.25, 0.6), 0.35, 0.07, 3), (120.0, (0.25, 0.6), 0.35, 0.07, 3),
-    (100.0, (0.15, 0.5), 0.3, 0.03, 4), (170.0, (0.15, 0.5), 0.3, 0.03, 4)])
+    (60.0, (0.25, 0.6), 0.35, 0.07, 3), (90.0, (0.25, 0.6), 0.35, 0.07, 3), (120.0, (0.25, 0.6), 0.35, 0.07, 3),
+    (80.0, (0.15, 0.5), 0.3, 0.03, 4), (100.0, (0.15, 0.5), 0.3, 0.03, 4), (170.0, (0.15, 0.5), 0.3, 0.03, 4)])
 def test_a_tube_curling_past_a_half_turn_per_key_keeps_curling_the_same_way(degrees, joints, spread, radius, count):
     """Keys of a closed tube curling at two joints by ``degrees`` per key at each: a finger (its
-    tip turning 120° / 240° per gap) and a thin arm (200° / 340°). Past a half turn a part of the
-    tube turns that far from the rest in every gap; its rotations are then taken whole and
-    continuous across the mesh, and the tube is not anchored to the keys' per-vertex spline (a
-    chord of the curl). Every in-between is the tube curled by the interpolated angles to the
-    gap's tolerance (a fit whose edges are off by a relative δ sits off by about δ of its size),
-    with every triangle facing as in it (before, the finger at 120° was 9–12 % of the diagonal off
-    with up to 146 triangles facing against the curl, the arm 12–34 %, up to 307)."""
+    tip turning 120° / 180° / 240° per gap) and a thin arm (160° / 200° / 340°). Past a half turn
+    a part of the tube turns that far from the rest in every gap, past a right angle at least
+    without a crease; its rotations are then taken whole and continuous across the mesh, and the
+    tube is not anchored to the keys' per-vertex spline (a chord of the curl). Every in-between
+    is the tube curled by the interpolated angles to the gap's tolerance (a fit whose edges are
+    off by a relative δ sits off by about δ of its size), with every triangle facing as in it
+    (before, the finger at 120° was 9–12 % of the diagonal off with up to 146 triangles facing
+    against the curl, the arm 12–34 %, up to 307; the finger at 90° 3.1–6.7 %, the arm at 80°
+    1.7–8.9 %, silently)."""
     angles = np.radians([degrees, degrees])
     keys = [_curled_tube(k * angles, joints, spread, radius)[0] for k in range(count)]
     _, tri = _curled_tube(0.0 * angles, joints, spread, radius)
