@@ -458,7 +458,7 @@ def least_squares_3x3(matrices: np.ndarray, rhs: np.ndarray, cutoff: np.ndarray 
 
 def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3), each the representative
-    ``ω + 2πk ω̂`` (k = −1, 0, 1, and further where the reference is past 3π) nearest its row of
+    ``ω + 2πk ω̂`` (k = −1, 0, 1, and further where the reference is past 2π) nearest its row of
     ``reference`` (m, 3): a turn continuing across keys past a half turn (the per-row counterpart
     of :func:`rigid_log`'s ``unwrap``). Only rows
     with ``|ω| + |reference| > π`` can change (elsewhere ``ω`` is within π of the reference and the
@@ -586,15 +586,16 @@ def _nearest_representatives(rotvec, theta, reference, identity, rows) -> np.nda
     """``rotvec`` (m, 3) (angles ``theta``) with the ``identity`` rows replaced by the whole turns
     nearest their ``reference`` rows and the ``rows`` by the representative ``ω + 2πk ω̂``
     (k = −1, 0, 1, the first of equally near ones) nearest theirs; k = ±2 … as well where a
-    reference reaches past 3π (the nearest representative along the axis is within π of it: a part
-    of an arm turning 340° per gap, continued to 680° at the key after)."""
+    reference reaches past 2π (the nearest is ``k = round((r − θ) / 2π)``, ``r`` the reference along
+    the axis, so ``|k| ≤ |r| / 2π + 1``: a part of an arm turning 280° per gap continued to 560° at
+    the key after, its principal axis reversed past 3π, needs ``k = −2`` from a reference of 2.9π)."""
     out = rotvec.copy()
     out[identity] = _unwrapped_identity(reference[identity])
     if not rows.size:
         return out
     axis = rotvec[rows] / theta[rows, None]
     reach = np.sqrt(np.max(np.einsum("ij,ij->i", reference[rows], reference[rows])))
-    turns = max(1, int(np.ceil((reach + np.pi) / (2 * np.pi))) - 1)
+    turns = int(reach // (2 * np.pi)) + 1
     candidates = np.stack([(theta[rows] + 2 * np.pi * k)[:, None] * axis for k in range(-turns, turns + 1)])
     distance = np.einsum("krj,krj->kr", candidates - reference[rows], candidates - reference[rows])
     out[rows] = candidates[np.argmin(distance, axis=0), np.arange(rows.size)]

@@ -177,7 +177,7 @@ class _Relative:
             return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
         return plane[:, :, rows]
 
-    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float) -> np.ndarray:
+    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float) -> tuple:
         """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
         (E, 2): the triangles sharing an edge; see :data:`core.interpolation.TURNED_PART_SHARE`):
@@ -186,7 +186,8 @@ class _Relative:
         at a crease (:data:`core.deformation_fields.WRAP_CREASE`) — or, in a piece that bends
         without a crease (no two neighbours' rotations more than ``WRAP_CREASE`` apart), by over
         :data:`BENT_TURN`. Read before :meth:`residuals_add_turn`, which lets the constructor's
-        frames go."""
+        frames go. Also the triangles (bool (m,)) of those pieces that turn less than
+        ``WRAP_CREASE`` from the least-turned one: the part the rest turns from."""
         whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
         pieces, count = topo.triangle_component, len(topo.components)
         continued = df.continuous_rotation_vectors(whole, pairs, pieces, crease=df.WRAP_CREASE)
@@ -207,7 +208,7 @@ class _Relative:
             within = pairs[bent[pieces[pairs[:, 0]]]]
             creased = df.creased(whole, within, df.WRAP_CREASE)
             out |= bent & (np.bincount(pieces[within[creased, 0]], minlength=count) == 0)
-        return out
+        return out, out[pieces] & (beyond < df.WRAP_CREASE)
 
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than

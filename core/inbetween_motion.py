@@ -118,7 +118,19 @@ class PieceMotion:
             offset = self.base.centroids[seated] - self.base.centroids[k]
             spline[seated] = rigid[k] + np.einsum("cab,cb->ca", rotations[k], offset) + s * miss[seated]
         target = self.rigidity[:, None] * rigid + (1.0 - self.rigidity[:, None]) * spline
-        move = np.where(moved[:, None], share[:, None] * (target - topo.centroids(x)), 0.0)
+        move = target - topo.centroids(x)
+        root = self.turning_root
+        if root is not None:
+            # a piece a part of which turns past a half turn from the rest: the keys' centroids
+            # sample a loop (its tip curls 180-340 degrees per gap), which their spline cuts; the
+            # part the rest turns from moves as the keys' per-vertex spline in the world says
+            rows = np.flatnonzero(root)
+            owner, mass = topo.vertex_owner[rows], topo.mass[rows]
+            offset = (self.splines["world"].at(s, rows) - x[rows]) * mass[:, None]
+            held = np.bincount(owner, mass, minlength=len(move))
+            sums = np.stack([np.bincount(owner, offset[:, k], minlength=len(move)) for k in range(3)], axis=1)
+            move[held > 0] = sums[held > 0] / held[held > 0, None]
+        move = np.where(moved[:, None], share[:, None] * move, 0.0)
         rows = topo.component_vertices[moved[topo.component_labels]]
         x[rows] += move[topo.vertex_component[rows]]
         return x

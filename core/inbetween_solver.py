@@ -75,11 +75,17 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, start_limit: float | None = None,
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
-                 hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None):
+                 hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
+                 root: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # per component: a part of it turns past a half turn from the rest between the keys
         # (core.interpolation.TURNED_PART_SHARE): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
+        # ... and the vertices of the part of those the rest turns from (placed by it: PieceMotion.place)
+        self.turning_root = None
+        if self.turning is not None and root is not None and root.any():
+            self.turning_root = np.zeros(topo.n, dtype=bool)
+            self.turning_root[topo.triangles[root]] = True
         # per component: the relatives' rotvec are whole rotations, not residuals to the rigid motion
         self.whole_rotations = np.zeros(len(topo.components), dtype=bool) if whole_rotations is None else whole_rotations
         self.relatives = relatives

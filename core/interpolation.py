@@ -418,29 +418,30 @@ class SequenceInterpolator:
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
-        turning = np.zeros(len(topo.components), dtype=bool) if self._across is not None else \
+        turning, root = (np.zeros(len(topo.components), dtype=bool), None) if self._across is not None else \
             ahead[0].turning(topo, base, self._key(gap + 1), self._edge_pairs, TURNED_PART_SHARE)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole | turning, turning)
+        segment = self._segment(gap, ahead, others, whole | turning, turning, root)
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | turning | against, turning)
+            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
 
     def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray,
-                 turning: np.ndarray) -> _Gap:
+                 turning: np.ndarray, root: np.ndarray | None = None) -> _Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
         ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), those of the next key taken
         continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
-        them turns past a half turn from the rest, :data:`TURNED_PART_SHARE`)."""
+        them turns past a half turn from the rest, :data:`TURNED_PART_SHARE`; ``root``: their
+        triangles that the rest turns from, bool (m,), or None)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
@@ -474,7 +475,7 @@ class SequenceInterpolator:
                     self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
-                    hooked=self._hooked, turning=turning)
+                    hooked=self._hooked, turning=turning, root=root)
 
     def _steady(self, gap: int) -> np.ndarray | None:
         """Per component (C,), whether its centroid moved at constant acceleration over keys

@@ -140,6 +140,19 @@ def test_unwrapped_rotation_vectors_continue_a_turn_past_three_half_turns():
     np.testing.assert_allclose(df.unwrapped_rotation_vectors(short, 2 * np.radians(300.0) * axes), turned, atol=1e-12)
 
 
+def test_unwrapped_rotation_vectors_take_the_turn_nearest_the_reference_however_far():
+    """Turns about an axis of 0 … 5π, each with a reference within 0.9π of it along the axis (a
+    curl continued from the key before: 520° for 560°), come back whole from their principal
+    vectors, whichever way round those point (past 3π the principal axis is the reverse)."""
+    axis = np.array([[0.0, 0.0, 1.0]])
+    for true in np.linspace(0.05, 5.0 * np.pi, 101):  # one at a time: the farthest reference sets the reach
+        turned = true * axis
+        short = Rotation.from_rotvec(turned).as_rotvec()
+        for offset in (-0.9 * np.pi, -0.5 * np.pi, 0.0, 0.5 * np.pi, 0.9 * np.pi):
+            out = df.unwrapped_rotation_vectors(short, (true + offset) * axis)
+            np.testing.assert_allclose(out, turned, atol=1e-9)
+
+
 def test_rotations_are_not_taken_continuous_across_a_crease():
     """A chain of triangles turning about y by up to 260°, in steps of 0.2 rad (a part curling
     smoothly past a half turn) is taken continuous; in steps of 1 rad (57°: the jump past the half
