@@ -481,7 +481,7 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     as 120° the other way) has its rotation vectors jump where their angle passes π; the
     in-between turns every triangle by its vector times the factor, so the part beyond the jump
     went the other way round. Across such a jump (a neighbour's other representative
-    ``ω ± 2π ω̂`` nearer than its own: :func:`_jumps`) the mesh is cut into
+    ``ω ± 2π ω̂`` nearer than its own: :func:`jumping_pairs`) the mesh is cut into
     regions; in each connected set of regions the one holding the least-turned triangle keeps its
     vectors, and each region reached from it across a jump takes the representatives continuous
     across it. ``pieces``: each triangle's connected piece of the mesh (m,). ``turned``: a function returning how far each triangle turns (m,) when that is not
@@ -497,7 +497,7 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     never come near a half turn are returned as they are."""
     if not len(pairs):
         return rotvec
-    jumps = _jumps(rotvec, pairs)
+    jumps = jumping_pairs(rotvec, pairs)
     if not jumps.any():
         return rotvec
     from scipy.sparse import coo_matrix
@@ -546,7 +546,7 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     if not turns.any():
         return rotvec
     out = rotvec + (2.0 * np.pi * turns[region])[:, None] * axis
-    left = _jumps(out, pairs)
+    left = jumping_pairs(out, pairs)
     if left.any():  # the pieces with a jump left keep their principal vectors
         kept = np.isin(pieces, pieces[pairs[left, 0]])
         out[kept] = rotvec[kept]
@@ -567,7 +567,7 @@ def creased(rotvec: np.ndarray, pairs: np.ndarray, crease: float) -> np.ndarray:
     return np.abs(np.einsum("ij,ij->i", first, second)) < np.cos(0.5 * crease)
 
 
-def _jumps(rotvec: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+def jumping_pairs(rotvec: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """Per pair of neighbouring triangles (bool (E,)), whether the second's rotation vector jumps
     past a half turn from the first's: another of its representatives is nearer the first's."""
     theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))

@@ -182,15 +182,16 @@ class _Relative:
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
         (E, 2): the triangles sharing an edge; see :data:`core.interpolation.TURNED_PART_SHARE`):
         where the triangles' whole rotations taken continuous across the mesh turn by over π more
-        than the least-turned triangle of the piece — none in a piece with a jump past a half turn
+        than the least-turned triangle of the piece — but for a piece with a jump past a half turn
         at a crease (:data:`core.deformation_fields.WRAP_CREASE`) — or, in a piece that bends
         without a crease (no two neighbours' rotations more than ``WRAP_CREASE`` apart), by over
         :data:`BENT_TURN`. Read before :meth:`residuals_add_turn`, which lets the constructor's
         frames go. Also the triangles (bool (m,)) of those pieces that turn less than
-        ``WRAP_CREASE`` from the least-turned one: the part the rest turns from."""
+        ``WRAP_CREASE`` from the least-turned one (the part the rest turns from), and per piece
+        whether it turns past a half turn with a jump at a crease: which way it went is not known."""
         whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
         pieces, count = topo.triangle_component, len(topo.components)
-        continued = df.continuous_rotation_vectors(whole, pairs, pieces, crease=df.WRAP_CREASE)
+        continued = df.continuous_rotation_vectors(whole, pairs, pieces)
         # from the least-turned part of its piece (a piece spinning by about a half turn as a
         # whole, its parts a little either side of it, turns as its rigid fit says)
         angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
@@ -202,13 +203,20 @@ class _Relative:
         def over_share(turned: np.ndarray) -> np.ndarray:
             return np.bincount(pieces[turned], base.areas[turned], minlength=count) / area > share
 
-        out = over_share(beyond > np.pi)
-        bent = over_share(beyond > BENT_TURN) & ~out
+        def with_crease(candidates: np.ndarray) -> np.ndarray:
+            creased = df.creased(whole, candidates, df.WRAP_CREASE)
+            return np.bincount(pieces[candidates[creased, 0]], minlength=count) > 0
+
+        past = over_share(beyond > np.pi)
+        folded = np.zeros(count, dtype=bool)
+        if past.any():  # ... with a jump at a crease
+            inside = pairs[past[pieces[pairs[:, 0]]]]
+            folded = with_crease(inside[df.jumping_pairs(whole, inside)])
+        out = past & ~folded
+        bent = over_share(beyond > BENT_TURN) & ~past
         if bent.any():  # ... those without a crease
-            within = pairs[bent[pieces[pairs[:, 0]]]]
-            creased = df.creased(whole, within, df.WRAP_CREASE)
-            out |= bent & (np.bincount(pieces[within[creased, 0]], minlength=count) == 0)
-        return out, out[pieces] & (beyond < df.WRAP_CREASE)
+            out |= bent & ~with_crease(pairs[bent[pieces[pairs[:, 0]]]])
+        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded
 
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than

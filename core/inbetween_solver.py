@@ -71,6 +71,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     the relatives at key times −1, 0, 1, 2, the target edges' constant factors, the anchor and
     its factorization. :meth:`poses` answers any factors."""
 
+    #: Whether a part of a piece turns past a half turn from the rest between the keys with a jump
+    #: of its rotations at a fold's crease, as the sequence that prepared the gap found it
+    #: (:meth:`core.inbetween_keys._Relative.turning`): the way round is not known, the gap warns.
+    folded_turn = False
+
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, start_limit: float | None = None,

@@ -117,7 +117,11 @@ REST_START_FRACTION = 0.25
 #: gap of theirs has over 2.6 % of a piece's area past a half turn. So does a piece that bends
 #: without a crease where over this share of it turns past a right angle from the rest
 #: (:data:`core.inbetween_keys.BENT_TURN`: an arm of one skin bent 70–90° per key, 1.2–12.7 % off
-#: anchored to the spline, within 1e-4 so).
+#: anchored to the spline, within 1e-4 so). A piece past a half turn whose rotations jump at a
+#: fold's crease is left as it is and its gap warns that the in-betweens may turn it the other
+#: way round: a coarse arm (13 rings, 41.7° between them) curled 150° per key is 10–33 % off, a
+#: sheet swinging off a rod that stops dead (keys 4 / 8 frames apart, 26 / 73 % past a half turn)
+#: is right (0.57 / 0.49 × the linear blend's error).
 TURNED_PART_SHARE = 0.1
 
 
@@ -418,7 +422,8 @@ class SequenceInterpolator:
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
-        turning, root = (np.zeros(len(topo.components), dtype=bool), None) if self._across is not None else \
+        none = np.zeros(len(topo.components), dtype=bool)
+        turning, root, folded = (none, None, none) if self._across is not None else \
             ahead[0].turning(topo, base, self._key(gap + 1), self._edge_pairs, TURNED_PART_SHARE)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         # and in the turning ones
@@ -430,6 +435,7 @@ class SequenceInterpolator:
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
             segment = self._segment(gap, ahead, others, whole | turning | against, turning, root)
+        segment.folded_turn = bool(folded.any())
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
@@ -580,6 +586,11 @@ class SequenceInterpolator:
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
         problems = []
+        if segment.folded_turn:
+            problems.append(f"between {self.key_names[gap]} and {self.key_names[gap + 1]}, over "
+                            f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest "
+                            "of it across a fold: the in-betweens may turn it the other way round (keys closer "
+                            "together tell which way it went)")
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
             if self._origin is not None and self._static is not None:

@@ -722,11 +722,11 @@ def test_a_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_same_way
         assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
-def _curled_tube(angles, joints, spread, radius=0.07):
+def _curled_tube(angles, joints, spread, radius=0.07, rings=61, sides=10):
     """A closed tube (a finger: radius 0.07, length 1, 1,220 triangles) curled about y at the
     ``joints`` by ``angles`` (radians), each bend spread over ``spread`` of its length: each
     cross-section stays a circle normal to the curled centre line."""
-    tube, tri = meshes.closed_tube(61, 10, radius=radius)
+    tube, tri = meshes.closed_tube(rings, sides, radius=radius)
     x, z, turn = _curled_line(tube[:, 0], angles, joints, spread)
     out = tube.copy()
     out[:, 0], out[:, 2] = x - np.sin(turn) * tube[:, 2], z + np.cos(turn) * tube[:, 2]
@@ -784,6 +784,31 @@ def test_a_tube_curling_past_a_half_turn_per_key_keeps_curling_the_same_way(degr
             tolerance = sequence._gap(gap).tolerance
             assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < tolerance * diagonal
             assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
+
+def test_a_coarse_tube_curling_past_a_half_turn_per_key_is_right_or_warned():
+    """The thin arm of the test above on 13 rings of 6 sides, curled 150° per key at each joint:
+    its neighbouring rings turn over 30° apart, a crease to the turn test
+    (:data:`core.deformation_fields.WRAP_CREASE`), so the way round is not known there. Every
+    in-between is the curl to the gap's tolerance with every triangle facing as in it, or its
+    gap warns (before, 10–33 % of the diagonal off with 28–34 triangles against the curl and no
+    warning of the turn)."""
+    angles, joints = np.radians([150.0, 150.0]), (0.15, 0.5)
+    keys = [_curled_tube(k * angles, joints, 0.3, 0.03, rings=13, sides=6)[0] for k in range(4)]
+    _, tri = _curled_tube(0.0 * angles, joints, 0.3, 0.03, rings=13, sides=6)
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(3):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            poses = sequence.poses(gap, (0.3, 0.5, 0.7))
+        warned = any("turns past a half turn" in str(w.message) for w in caught)
+        tolerance = sequence._gap(gap).tolerance
+        for x, factor in zip(poses, (0.3, 0.5, 0.7)):
+            truth, _ = _curled_tube((gap + factor) * angles, joints, 0.3, 0.03, rings=13, sides=6)
+            right = np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < tolerance * diagonal and \
+                (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+            assert right or warned
 
 
 @pytest.mark.parametrize("degrees", [100.0, 170.0])
