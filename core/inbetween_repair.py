@@ -251,17 +251,24 @@ class Repair:
         the products of the two, ``base`` / ``nxt`` the keys' unit normals, ``columns`` their
         interpolated frames) lie in a piece where every candidate turns as the interpolated field
         says, or None if no piece does: a piece is turning where each candidate's normal is within
-        :data:`~core.inbetween_fit.MAX_ROTATION_DEVIATION` of its interpolated normal (the fit's
-        local steps turn a triangle that far off its interpolated rotation, no farther), that
-        normal is within the angle ``arctan δ`` of facing away from both keys (δ the gap's
-        tolerance: a side whose end is a relative δ off its target across it turns by that angle),
-        and the candidates' edges keep the interpolated metric to the gap's tolerance on average
-        (the fit's own stop, a mean over its edges). A thin arm curled 95–170° per key at each
-        of two joints has its fit within 0.15 % of the diagonal of the true curl half-way, where
-        the interpolated field's normals are up to 18.6° off that curl's and the fit's 1.3–14.5°
-        off them, single candidates 1.1–1.3 × the tolerance off the metric; held to ``arctan δ``
+        the angle ``arctan δ`` of its interpolated normal (δ the gap's tolerance: a side whose end
+        is a relative δ off its target across it turns by that angle; about δ where δ is small,
+        and below a right angle however large the tolerance of a strongly stretching gap is), that
+        normal is within the same angle of facing away from both keys, and the edges keep the
+        interpolated metric to the gap's tolerance (the fit's own stop). In a piece a sequence
+        found turning far from the rest of it (``gap.turning``: its rotations taken whole, not
+        anchored to the keys' spline) the normal may stray up to
+        :data:`~core.inbetween_fit.MAX_ROTATION_DEVIATION` (the fit's local steps turn a triangle
+        that far off its interpolated rotation, no farther) and the metric is held on the
+        candidates' mean (as the fit's stop is): a thin arm curled 95–170° per key at each of two
+        joints has its fit within 0.15 % of the diagonal of the true curl half-way, where the
+        interpolated field's normals are up to 18.6° off that curl's and the fit's 1.3–14.5° off
+        them, single candidates 1.1–1.3 × the tolerance off the metric; held to ``arctan δ``
         (0.8–1.8°) and to the tolerance per candidate, 28–63 of them read as flipped and a repair
-        took the pose 0.02 → 0.47–0.51 % of the diagonal off, with a warning.
+        took the pose 0.02 → 0.47–0.51 % of the diagonal off, with a warning. Elsewhere that
+        allowance would pass a part the interpolated field turns the wrong way round as a whole
+        (a skinned arm twisting 156° between keys 8 frames apart, read the long way, 204°: 8,232
+        triangles facing against the truth, warned only under the tight limit).
         A closed tube (a finger) curled 120° at each of two knuckles bends its cross-sections, so
         its fit keeps the metric to 0.2–0.7 % where it turns away half-way, not to
         :data:`~core.inbetween_fit.METRIC_TOLERANCE`, and triangles edge-on to a key there face
@@ -271,21 +278,25 @@ class Repair:
         normal): on six benchmark cloths no piece was turning."""
         gap = self.gap
         tolerance = max(METRIC_TOLERANCE, gap.tolerance)
-        sine = np.sin(np.arctan(tolerance))
-        unit = normal / np.sqrt(coordinate_dot(normal, normal))
-        near = following >= np.cos(MAX_ROTATION_DEVIATION) * np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
-        near &= (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
+        angle = np.arctan(tolerance)
+        sine = np.sin(angle)
         pieces = gap.topo.triangle_component[candidates]
         count = len(gap.topo.piece_sizes)
+        far = np.zeros(count, dtype=bool) if gap.turning is None else gap.turning[:count]
+        unit = normal / np.sqrt(coordinate_dot(normal, normal))
+        limit = np.where(far[pieces], np.cos(MAX_ROTATION_DEVIATION), np.cos(angle))
+        near = following >= limit * np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
+        near &= (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
         per_piece = np.bincount(pieces, minlength=count)
         turning = (np.bincount(pieces[near], minlength=count) == per_piece) & (per_piece > 0)
         if not turning.any():
             return None
         inside = turning[pieces]
         deviation = self._metric_deviation(columns[:, inside], sides, candidates[inside], candidates[inside])
-        # a piece whose candidates are off the metric on average is not turning: its candidates go
-        # to the rule below (the fit's stop is on the mean deviation too)
-        off = np.bincount(pieces[inside], deviation, minlength=count) >= tolerance * per_piece
+        # a piece with a candidate off the metric (far-turning pieces: off on average, as the fit's
+        # stop is) is not turning: its candidates go to the rule below
+        off = np.where(far, np.bincount(pieces[inside], deviation, minlength=count) >= tolerance * per_piece,
+                       np.bincount(pieces[inside][deviation >= tolerance], minlength=count) > 0)
         turning &= ~off
         return turning[pieces] if turning.any() else None
 
