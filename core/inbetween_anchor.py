@@ -199,8 +199,9 @@ class Anchor:
     def spline_weights(self, weight: float) -> np.ndarray:
         """Per-vertex weights (n,) anchoring a sequence to the keys' per-vertex spline (in the
         co-moving frame): ``weight``, :data:`STATIC_ANCHOR_WEIGHT` where the vertex is pinned, and
-        the gauge alone on the pieces of ``turning`` (a part of them turns past a half turn from
-        the rest between the keys), which their interpolated rotations place: the spline cuts
+        the gauge alone on the pieces of ``turning`` (a part of them turns far from the rest
+        between the keys: :meth:`core.inbetween_keys._Relative.turning`), which their interpolated
+        rotations place: the spline cuts
         the chord of their curl (a closed tube curled 240° per gap at the tip, anchored at
         :data:`SEQUENCE_ANCHOR_WEIGHT`: 9–11 % of the diagonal off, at 1e-4 0.2–0.3 %, 1e-3 2 %)."""
         w = np.full(self.topo.n, weight)

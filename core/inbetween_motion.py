@@ -121,8 +121,8 @@ class PieceMotion:
         move = target - topo.centroids(x)
         root = self.turning_root
         if root is not None:
-            # a piece a part of which turns past a half turn from the rest: the keys' centroids
-            # sample a loop (its tip curls 180-340 degrees per gap), which their spline cuts; the
+            # a piece a part of which turns far from the rest (gap.turning): the keys' centroids
+            # sample a loop (its tip curls 140-340 degrees per gap), which their spline cuts; the
             # part the rest turns from moves as the keys' per-vertex spline in the world says
             rows = np.flatnonzero(root)
             owner, mass = topo.vertex_owner[rows], topo.mass[rows]

@@ -146,7 +146,7 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
             return _solved(gap, factors, moved)
     trimmed = not gap.anchored and len(interior) >= TRIMMED_TOLERANCE_BATCH
     gap.tolerance = gap.trimmed_tolerance if trimmed else gap.change_tolerance
-    # a piece turning past a half turn from the rest is not anchored to the per-vertex spline, whose
+    # a piece a part of which turns far from the rest (gap.turning) is not anchored to the per-vertex spline, whose
     # chord of its curl a correction polynomial does not bend back onto the arc: solved at every factor
     if gap.anchored or len(interior) < MIN_PREDICTED_BATCH or gap.turning is not None:
         return _solved(gap, factors, {})

@@ -83,8 +83,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
-        # per component: a part of it turns past a half turn from the rest between the keys
-        # (core.interpolation.TURNED_PART_SHARE): not anchored to the keys' spline
+        # per component: a part of it turns far from the rest between the keys (past a half turn,
+        # or past a right angle without a crease: _Relative.turning): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
         # ... and the vertices of the part of those the rest turns from (placed by it: PieceMotion.place)
         self.turning_root = None

@@ -446,7 +446,7 @@ class SequenceInterpolator:
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
         ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), those of the next key taken
         continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
-        them turns past a half turn from the rest, :data:`TURNED_PART_SHARE`; ``root``: their
+        them turns far from the rest, :meth:`_Relative.turning`; ``root``: their
         triangles that the rest turns from, bool (m,), or None)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
