@@ -224,7 +224,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                 x0 = self.place(guide.copy(), s, motion)
             misfits, looser = [], []
             x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits, looser=looser)
-            weak = weak is None and between and self.held(misfits)
+            weak = weak is None and between and self.held(misfits) \
+                and self.released(targets.get("edges"), guide, targets)
         if between and weak:
             system = self.weak_system()
             x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
