@@ -472,8 +472,7 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     return _nearest_representatives(rotvec, theta, reference, identity, rows)
 
 
-def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None,
-                                crease: float | None = None) -> np.ndarray:
+def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3) of a mesh's triangles, continuous
     across its edges past a half turn: ``pairs`` (E, 2) are the triangles sharing an edge. A part
     that turns by more than a half turn while the part it hangs from does not (a strip curled by
@@ -491,10 +490,10 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     A connected piece left with a jump (its jumps do not close up: crumpled cloth, around whose
     folds the rotations wind by a whole turn) keeps its principal vectors: taken across the mesh
     there, two poses of a banner 8 / 16 frames apart went 0.747 / 0.832 → 0.792 / 0.923 × the
-    blend's error (edge deviation 3.53 / 6.15 → 4.21 / 7.04 %). With ``crease`` (radians), so
-    does a piece with a jump between neighbours whose rotations differ by more than it (a fold's
-    crease, not a smooth part wrapping past a half turn: see :data:`WRAP_CREASE`). Rotations that
-    never come near a half turn are returned as they are."""
+    blend's error (edge deviation 3.53 / 6.15 → 4.21 / 7.04 %). Whether a jump joins a fold's
+    crease rather than a smooth part wrapping past a half turn is the caller's to tell
+    (:func:`creased` on :func:`jumping_pairs`, :data:`WRAP_CREASE`). Rotations that never come near
+    a half turn are returned as they are."""
     if not len(pairs):
         return rotvec
     jumps = jumping_pairs(rotvec, pairs)
@@ -509,8 +508,6 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
                                          directed=False)
     across = pairs[jumps]
     within = region[across[:, 0]] == region[across[:, 1]]
-    if crease is not None:  # ... nor one across a crease
-        within |= creased(rotvec, across, crease)
     if within.any():  # a jump inside one region cannot be undone: its piece is left as it is
         across = across[~np.isin(pieces[across[:, 0]], pieces[across[within, 0]])]
     if not across.size:
