@@ -111,6 +111,19 @@ def worker():
     return _worker
 
 
+def edit_mode_problem(obj) -> str | None:
+    """Why the mesh of ``obj`` cannot be read or written now, or None: in Edit Mode, its own or
+    that of another object sharing the mesh (a linked duplicate), Blender holds the mesh's
+    vertices in its edit mesh and the mesh itself has none until Edit Mode is left."""
+    if obj.mode != 'OBJECT':
+        return f"'{obj.name}' is in {obj.mode.replace('_', ' ').title()} Mode: switch to Object Mode first"
+    if obj.type == 'MESH' and obj.data.is_editmode:
+        editors = [other.name for other in bpy.data.objects if other.data == obj.data and other.mode == 'EDIT']
+        by = f" through '{editors[0]}', which shares it" if editors else ""
+        return f"The mesh of '{obj.name}' is in Edit Mode{by}: switch to Object Mode first"
+    return None
+
+
 class GeneratorOperator:
     """Mixin for operators whose work is the generator ``run(context)``.
 
@@ -126,8 +139,9 @@ class GeneratorOperator:
         if obj is None or obj.type != 'MESH':
             cls.poll_message_set("Select a mesh object: the active object must be a mesh")
             return False
-        if obj.mode != 'OBJECT':
-            cls.poll_message_set("Switch to Object Mode first")
+        editing = edit_mode_problem(obj)
+        if editing:
+            cls.poll_message_set(editing)
             return False
         return True
 

@@ -76,8 +76,9 @@ class FrameRangeProperties:
         start = start_of_motion([read[f] for f in first], read[keys[1]], step, third) if len(keys) > 1 else "keys"
         return [read[f] for f in keys], start, read
 
-    def read_frames(self, context, obj, frames: list[int], progress_share: float):
-        """Yield progress while reading the evaluated mesh at ``frames``; returns the positions."""
+    def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None):
+        """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
+        ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
         poses = []
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(obj),
                                         every_frame=frames_depend_on_earlier(context.scene),
@@ -85,6 +86,8 @@ class FrameRangeProperties:
         with closing(reader) as frame_reader:
             for frame, positions in frame_reader:
                 poses.append(positions)
+                if matrices is not None:
+                    matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
         for warning in (bridge.frames_outside_simulation(obj, frames), bridge.still_frames(obj, frames, poses)):
             if warning:

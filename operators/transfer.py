@@ -1,17 +1,15 @@
 """Transfer poses from a differently meshed object onto the active mesh (issue 21, paper Fig. 15)."""
 
-from contextlib import closing
-
 import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, key_blocks_of, load_core,
-                   surface_triangles)
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, edit_mode_problem, key_blocks_of,
+                   load_core, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
-from .output import PoseWriter, modifiers_set_aside
+from .output import PoseWriter
 
 #: Basis sizes used when the settings ask for the full basis (0), which a map between two
 #: meshes cannot use (paper §6.3; the paper's Figs. 11 and 14).
@@ -131,6 +129,9 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             raise InputError(
                 f"Select exactly one other mesh as the source of the poses ({len(others)} selected besides "
                 "the active mesh)")
+        editing = edit_mode_problem(others[0])
+        if editing:
+            raise InputError(f"{editing} (the source of the poses)")
         return others[0]
 
     def _basis_sizes(self, options, n_base: int, n_source: int):
@@ -139,9 +140,11 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         return k_m, k_n
 
     def _source_poses(self, context, source):
-        """(names, frames, rest positions, poses), in object space of the source, and the source's
-        world matrix with each pose (frames: at that frame, so that a source moved as a whole by
-        its keyframes, constraints or parent is transferred with that motion)."""
+        """Yield progress while reading the poses; returns (names, frames, rest positions, poses),
+        in object space of the source, and the source's world matrix with each pose (frames: at
+        that frame, so that a source moved as a whole by its keyframes, constraints or parent is
+        transferred with that motion). Frames are read as the frame operators read them: an unbaked
+        simulation computed from its start, its generators after the motion set aside."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
             rest = bridge.shape_key_positions(key_blocks[0], source)
@@ -150,15 +153,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
                     [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]],
                     [source.matrix_world.copy()] * len(names))
         frames = self.frames(context)
-        poses, matrices = [], []
-        with closing(bridge.frame_positions(context, source, frames,
-                                            set_aside=modifiers_set_aside(context, source))) as reader:
-            for _frame, positions in reader:
-                poses.append(positions)
-                matrices.append(source.matrix_world.copy())
-        still = bridge.still_frames(source, frames, poses)
-        if still:
-            self.report({'WARNING'}, still)
+        matrices = []
+        poses = yield from self.read_frames(context, source, frames, 0.05, matrices)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
                 poses, matrices)
 
@@ -176,7 +172,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             correspondence = read_correspondence(obj, self.map_attribute, n_source)
         elif self.matching == 'FILE':
             correspondence = read_map_files(obj, source, self.map_file, self.source_map_file, self.one_based)
-        names, frames, rest, poses, matrices = self._source_poses(context, source)
+        names, frames, rest, poses, matrices = yield from self._source_poses(context, source)
         if not poses:
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05

@@ -446,3 +446,22 @@ def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, 
         bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
                                                    filepath=str(tmp_path / "inside.pc2"))
         assert "is simulated by" not in capfd.readouterr().out
+
+
+def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, extension):
+    """The active object is in Object Mode but its mesh is in Edit Mode through a linked duplicate
+    (Alt+D): the mesh has no vertices until Edit Mode is left, so the operators are unavailable and
+    say why (before: a KeyError traceback from reading its positions)."""
+    obj = posed_grid(extension.bridge, 4)
+    twin = bpy.data.objects.new("Twin", obj.data)
+    bpy.context.scene.collection.objects.link(twin)
+    bpy.context.view_layer.objects.active = twin
+    bpy.ops.object.mode_set(mode='EDIT')
+    bpy.context.view_layer.objects.active = obj
+    assert obj.mode == 'OBJECT' and obj.data.is_editmode
+    for operator in ("inbetween", "exaggerate", "distortion_maps"):
+        with pytest.raises(RuntimeError, match="The mesh of 'Sheet' is in Edit Mode through 'Twin', which shares it"):
+            getattr(bpy.ops.shape_differences, operator)()
+    bpy.context.view_layer.objects.active = twin
+    bpy.ops.object.mode_set(mode='OBJECT')
+    assert [k.name for k in obj.data.shape_keys.key_blocks] == ["Basis", "Curl", "Bend"]
