@@ -13,7 +13,7 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, playback_range,
                    require_count, surface_triangles)
 from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion,
-                     unbaked_simulations)
+                     render_only_motion, unbaked_simulations)
 from .poses import format_factor, inbetween_name
 
 
@@ -89,7 +89,8 @@ class FrameRangeProperties:
                 if matrices is not None:
                     matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
-        for warning in (bridge.frames_outside_simulation(obj, frames), bridge.still_frames(obj, frames, poses)):
+        for warning in (render_only_motion(obj), bridge.frames_outside_simulation(obj, frames),
+                        bridge.still_frames(obj, frames, poses)):
             if warning:
                 self.report({'WARNING'}, warning)
         return poses

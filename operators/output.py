@@ -90,6 +90,28 @@ def _still(modifier) -> bool:
     return modifier.type in STILL_MODIFIERS or attribute_only(modifier)
 
 
+def moves_vertices(modifier) -> bool:
+    """Whether ``modifier`` may move the mesh's vertices without adding or removing any (a cloth,
+    an armature, a deform, a smooth): not a generator, a collider or a modifier that moves nothing."""
+    return modifier.type not in PASSIVE_MODIFIERS and modifier.type not in GENERATE_MODIFIERS and not _still(modifier)
+
+
+def render_only_motion(obj) -> str | None:
+    """A warning when modifiers of ``obj`` that move its vertices are on for renders and off in the
+    viewport (a heavy cloth kept off while animating): frames are read as the viewport evaluates
+    them, so the poses lack their motion, which renders show; None otherwise. Those at the end that
+    go with the new object (:func:`trailing_generators`) are not counted."""
+    copied = set(modifier.name for modifier in trailing_generators(obj))
+    names = [f"'{m.name}'" for m in obj.modifiers
+             if m.show_render and not m.show_viewport and moves_vertices(m) and m.name not in copied]
+    if not names:
+        return None
+    return (f"{', '.join(names)} of '{obj.name}' {'is' if len(names) == 1 else 'are'} on for renders only (off in "
+            "the viewport), and frames are read as the viewport shows them: the poses read lack "
+            f"{'its' if len(names) == 1 else 'their'} motion. Turn {'it' if len(names) == 1 else 'them'} on in the "
+            "viewport (the monitor icon in the modifier's header) and run again")
+
+
 def trailing_generators(obj) -> list:
     """The enabled modifiers at the end of ``obj``'s stack from its first generator on, when only
     generators and touch-ups follow it: what turns the moving mesh (after the cloth, armature,
@@ -337,8 +359,7 @@ class PoseWriter:
         if self.output != 'SHAPE_KEYS':
             return
         # generators are set aside while reading (or change no vertex): they do not add twice
-        movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and m.type not in PASSIVE_MODIFIERS
-                  and m.type not in GENERATE_MODIFIERS and not _still(m)]
+        movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and moves_vertices(m)]
         key = source.data.shape_keys
         # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
         if key is not None and key.use_relative and key.animation_data is not None and (

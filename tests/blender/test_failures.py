@@ -465,3 +465,26 @@ def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, ex
     bpy.context.view_layer.objects.active = twin
     bpy.ops.object.mode_set(mode='OBJECT')
     assert [k.name for k in obj.data.shape_keys.key_blocks] == ["Basis", "Curl", "Bend"]
+
+
+def test_a_cloth_on_for_renders_only_is_said_to_be_missing_from_the_frames(bpy_empty, extension, capfd, tmp_path):
+    """A baked cloth switched off in the viewport and on for renders (a heavy simulation kept off
+    while animating): frames are read as the viewport shows them, the rest mesh, so the run names
+    that modifier and how to include it (before: only "all the same pose … a baked cache whose
+    files are gone, a simulation outside this range", neither of which was the cause). A Subdivision
+    on for renders only after the cloth goes with the new object and is not named."""
+    from blender_scenes import cloth_scene
+
+    cloth = cloth_scene(6, frames=9)
+    cloth.modifiers["Cloth"].show_viewport = False
+    cloth.modifiers.new("Subdivision", 'SUBSURF').show_viewport = False
+    expected = ("'Cloth' of 'Cloth' is on for renders only (off in the viewport), and frames are read as the "
+                "viewport shows them: the poses read lack its motion")
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        capfd.readouterr()
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+        out = capfd.readouterr().out
+        assert expected in out and "'Subdivision'" not in out
+        cloth.modifiers["Cloth"].show_viewport = True
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+        assert "on for renders only" not in capfd.readouterr().out
