@@ -12,7 +12,7 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, playback_range,
                    require_count, surface_triangles)
-from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion,
+from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion, objects_moving,
                      render_only_motion, unbaked_simulations)
 from .poses import format_factor, inbetween_name
 
@@ -22,9 +22,11 @@ def frame_key_name(frame: int) -> str:
 
 
 def simulation_start(obj) -> int | None:
-    """The first frame of ``obj``'s unbaked simulations: reading frames starts there, so that a
-    simulation that is not baked is computed from its start, one frame at a time."""
-    starts = [obj.modifiers[name].point_cache.frame_start for name in unbaked_simulations(obj)]
+    """The first frame of the unbaked simulations of ``obj`` and of the objects that move it (a
+    cloth proxy driving it through a Surface Deform: :func:`objects_moving`): reading frames starts
+    there, so that a simulation that is not baked is computed from its start, one frame at a time."""
+    starts = [mover.modifiers[name].point_cache.frame_start for mover in objects_moving(obj)
+              for name in unbaked_simulations(mover)]
     return min(starts) if starts else None
 
 

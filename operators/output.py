@@ -39,6 +39,25 @@ def unbaked_simulations(obj) -> list[str]:
             and not modifier.point_cache.is_baked]
 
 
+def objects_moving(obj) -> list:
+    """``obj`` and the objects whose motion may reach its evaluated mesh: its parents and the
+    objects its modifiers (Geometry Nodes inputs too) and constraints point to — a Surface Deform's
+    cloth proxy, a Mesh Deform cage, an Armature — and theirs in turn."""
+    found, pending = [], [obj]
+    while pending:
+        current = pending.pop()
+        if current is None or current in found:
+            continue
+        found.append(current)
+        pending.append(current.parent)
+        for item in (*current.modifiers, *current.constraints):
+            pending += [getattr(item, prop.identifier) for prop in item.bl_rna.properties
+                        if prop.type == 'POINTER' and getattr(prop.fixed_type, "identifier", None) == 'Object']
+            if item.type == 'NODES':
+                pending += [value for value in item.values() if isinstance(value, bpy.types.Object)]
+    return found
+
+
 #: Modifiers that add or remove vertices (Blender's Generate category; Geometry Nodes apart, which
 #: may carry the motion itself).
 GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',

@@ -264,3 +264,29 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
         name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
         made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
+
+
+def test_a_mesh_moved_by_an_unbaked_cloth_proxy_reads_it_from_its_start(bpy_empty, extension):
+    """A render mesh bound by a Surface Deform to a hanging cloth proxy whose memory cache a
+    settings change emptied: reading frames 7–13 simulates the proxy from its start frame, so the
+    keys are the frames as played from frame 1 (before, the proxy was simulated from frame 7 and
+    frame 7 came out 0.016 off, a quarter of its motion)."""
+    from blender_scenes import grid_object, pinned_cloth_scene
+
+    bridge = extension.bridge
+    proxy = pinned_cloth_scene(8, frames=13)  # played into its memory cache
+    mesh = grid_object(16, name="Render")
+    mesh.rotation_euler.x = proxy.rotation_euler.x
+    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
+    bind.target = proxy
+    with bpy.context.temp_override(object=mesh, active_object=mesh):
+        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+    played = evaluated_frames(bridge, mesh, [7, 10, 13])
+    cloth = proxy.modifiers["Cloth"]
+    cloth.settings.mass = cloth.settings.mass  # any settings change empties the cache
+    bpy.context.view_layer.update()
+    assert cloth.point_cache.info.startswith("0 frames")
+    bpy.ops.shape_differences.inbetween_frames(frame_start=7, frame_end=13, frame_step=3, count=1,
+                                               output='SHAPE_KEYS')
+    for frame in (7, 10, 13):
+        np.testing.assert_allclose(positions_of(bridge, mesh, f"Frame {frame}"), played[frame], atol=1e-6)
