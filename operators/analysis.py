@@ -314,6 +314,9 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         weights = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
         polygon_weight = np.bincount(polygons, weights, len(mesh.polygons))
         polygon_weight[polygon_weight == 0] = 1.0
+        # the colour attribute renders and exporters use where none is named: the first colour
+        # attribute added becomes it, and the maps are for the viewport only
+        render_color = mesh.color_attributes.default_color_name
         first = None
         for label, (distortion, eigen) in zip(labels, results):
             for name, vertex_field, face_field, diverging, centre, vertex_round_off, _ in MAPS:
@@ -339,6 +342,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                                     scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
         if first is not None:  # by name: references to attributes go stale as others are added
             mesh.color_attributes.active_color = mesh.color_attributes[first]
+        mesh.color_attributes.default_color_name = render_color  # "" keeps none
         mesh.update()
 
 
