@@ -10,6 +10,7 @@ from .base import (CoreSettingsProperties, GeneratorOperator, InputError, edit_m
                    load_core, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
+from .poses import scene_frames
 
 #: Basis sizes used when the settings ask for the full basis (0), which a map between two
 #: meshes cannot use (paper §6.3; the paper's Figs. 11 and 14).
@@ -143,13 +144,14 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         """Yield progress while reading the poses; returns (names, frames, rest positions, poses),
         in object space of the source, and the source's world matrix with each pose (frames: at
         that frame, so that a source moved as a whole by its keyframes, constraints or parent is
-        transferred with that motion). Frames are read as the frame operators read them: an unbaked
+        transferred with that motion; keys: played one a frame from the start of playback, as the
+        other operators' keys are). Frames are read as the frame operators read them: an unbaked
         simulation computed from its start, its generators after the motion set aside."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
             rest = bridge.shape_key_positions(key_blocks[0], source)
             names = [kb.name for kb in key_blocks[1:]]
-            return (names, [float(i) for i in range(1, len(names) + 1)], rest,
+            return (names, scene_frames(context, len(names)), rest,
                     [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]],
                     [source.matrix_world.copy()] * len(names))
         frames = self.frames(context)

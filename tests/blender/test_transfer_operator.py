@@ -227,3 +227,22 @@ def test_frames_of_an_unbaked_cloth_are_simulated_from_its_start(bpy_empty, exte
 
     for emptied, played in zip(transferred(True), transferred(False)):
         np.testing.assert_allclose(emptied, played, atol=1e-6)
+
+
+def test_transferred_keys_in_a_cache_play_from_the_start_of_the_shot(pair, tmp_path):
+    """A shot from frame 1001: the cache of transferred keys plays them one a frame from 1001, as
+    In-between's and Exaggerate's caches do (before, at frames 1 and 2, so that the whole shot
+    showed the last key held)."""
+    source, target, bridge = pair
+    add_key(source, "Curl", rolled(bridge.vertex_positions(source.data), 2.0))
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1001, 1100
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)  # the same poses as shape keys
+    keys = {name: bridge.stored_key_positions(target.data.shape_keys.key_blocks[name])
+            for name in ("Source Bend", "Source Curl")}
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32, output='CACHE', filepath=str(tmp_path / "shot.pc2"))
+    cached = bpy.data.objects["Sheet Transfer Source"]
+    for frame, name in ((1001, "Source Bend"), (1002, "Source Curl")):
+        scene.frame_set(frame)
+        played = bridge.evaluated_positions(cached, bpy.context.evaluated_depsgraph_get())
+        np.testing.assert_allclose(played, keys[name], atol=1e-6)
