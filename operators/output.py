@@ -167,6 +167,19 @@ def modifiers_under_keys(obj) -> tuple[list, list]:
             [modifier for modifier in enabled if modifier.type in NOT_COPIED_UNDER_KEYS - PASSIVE_MODIFIERS])
 
 
+#: Modifiers that add what renders beside the mesh (hair, emitted particles): the poses read from
+#: the evaluated mesh do not hold it, and a new object playing them does not get it.
+ADDING_MODIFIERS = {'PARTICLE_SYSTEM'}
+
+
+def modifiers_under_frames(obj) -> tuple[list, list]:
+    """(modifiers to copy, modifiers left out) for a new object playing poses read from ``obj``'s
+    evaluated mesh: its generators after the motion (:func:`trailing_generators`); left out, what
+    renders beside the mesh (:data:`ADDING_MODIFIERS`, enabled in the viewport or for rendering)."""
+    return trailing_generators(obj), [modifier for modifier in obj.modifiers if modifier.type in ADDING_MODIFIERS
+                                      and (modifier.show_viewport or modifier.show_render)]
+
+
 def modifiers_set_aside(context, obj) -> list:
     """The modifiers to switch off while the frames of ``obj`` are read: its trailing generators
     (:func:`trailing_generators`) when its evaluated mesh has other vertices than its mesh (the
@@ -472,7 +485,7 @@ class PoseWriter:
         except OSError as error:
             reason = unwritable(path) or error.strerror or str(error)
             raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File") from None
-        modifiers, left_out = modifiers_under_keys(source) if keyed else (trailing_generators(source), [])
+        modifiers, left_out = modifiers_under_keys(source) if keyed else modifiers_under_frames(source)
         try:
             obj = bridge.add_cache_object(context, source, name, stored_path, start, sampling,
                                           modifiers=modifiers, speed=speed,
@@ -482,9 +495,11 @@ class PoseWriter:
             path.unlink(missing_ok=True)
             raise
         if left_out:
+            advice = ("use Output › Shape Keys to see them under it" if keyed else "copy them to it by hand if it "
+                      "should render them (Particle Properties › Copy Active to Selected Objects)")
             self.report({'WARNING'}, f"'{obj.name}' plays the poses without {', '.join(repr(m.name) for m in left_out)} "
-                                     f"of '{source.name}' (a simulation or a cache is not copied): use "
-                                     "Output › Shape Keys to see them under it")
+                                     f"of '{source.name}' (a simulation, a cache or a particle system is not copied): "
+                                     f"{advice}")
         # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)

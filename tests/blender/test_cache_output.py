@@ -592,6 +592,21 @@ def test_a_cache_object_of_shape_key_poses_names_the_simulation_it_leaves_out(bp
     assert "plays the poses without 'Wind cloth'" in capfd.readouterr().out
 
 
+def test_a_cache_object_of_frames_names_the_hair_it_leaves_out(bpy_empty, extension, core, tmp_path, capfd):
+    """Hair on an armature-bent strip renders beside the mesh and is not in the poses read: the new
+    object that plays the in-betweens has none, and the run says so with how to add it (before,
+    silently: the cache object rendered bald; the shape-key poses' cache said it)."""
+    strip = armature_scene(frames=9)
+    hair = strip.modifiers.new("Hair", 'PARTICLE_SYSTEM')
+    hair.particle_system.settings.type = 'HAIR'
+    names = set(bpy.data.objects.keys())
+    capfd.readouterr()
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    obj = new_object(names)
+    assert [m.type for m in obj.modifiers] == ['MESH_CACHE'] and not obj.particle_systems
+    assert (f"'{obj.name}' plays the poses without 'Hair' of '{strip.name}' (a simulation, a cache or a particle "
+            "system is not copied): copy them to it by hand") in capfd.readouterr().out
+
 def _world_shown(bridge, obj, frame):
     bpy.context.scene.frame_set(frame)
     depsgraph = bpy.context.evaluated_depsgraph_get()
