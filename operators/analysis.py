@@ -222,6 +222,15 @@ MAPS = (
 )
 
 
+def map_bytes_per_vertex(mesh, eigenfunctions: int) -> int:
+    """Bytes per vertex of one pose's maps as attributes of ``mesh`` (at most: the offset surface's
+    maps counted too): RGBA single-precision colours of the three maps and of ``eigenfunctions``
+    per kind of difference, three single-precision values per vertex and three per face."""
+    colours = len(MAPS) + len(KINDS) * eigenfunctions
+    per_face = 4 * len(MAPS) * len(mesh.polygons) / max(len(mesh.vertices), 1)
+    return int(np.ceil(16 * colours + 4 * len(MAPS) + per_face))
+
+
 class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep, FrameRangeProperties, GeneratorOperator,
                                            bpy.types.Operator):
     """Write distortion maps of a pose against its base as mesh attributes: area change,
@@ -260,6 +269,11 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             yield 0.0
         else:
             frames = self.frames(context)
+            from ..core.validation import check_output_memory
+
+            check_output_memory(len(frames), len(mesh.vertices), "The output of Maps of Frames",
+                                "raise Step, narrow the frame range or write fewer Eigenfunctions",
+                                bytes_per_point=map_bytes_per_vertex(mesh, self.eigenfunctions))
             labels = [f" f{frame}" for frame in frames]
             poses = yield from self.read_frames(context, obj, frames, 0.3)
         from ..core.distortion_maps import DistortionAnalyzer
