@@ -92,7 +92,6 @@ def test_distortion_maps_of_the_active_key(keyed, core):
     assert mesh.color_attributes.active_color.name == "SD Area"
 
 
-
 @pytest.mark.parametrize("own_color", [False, True], ids=["no colour attribute", "the user's colour attribute"])
 def test_distortion_maps_leave_the_render_colour_attribute(keyed, own_color):
     """The maps become the active colour attribute, which the viewport shows, and leave the one
@@ -106,6 +105,7 @@ def test_distortion_maps_leave_the_render_colour_attribute(keyed, own_color):
     assert before == ("Col" if own_color else "")
     bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', k_m=20, eigenfunctions=1)
     assert colors.active_color_name == "SD Area" and colors.default_color_name == before
+
 
 def test_distortion_maps_of_frames(bpy_empty, extension):
     obj = armature_scene(frames=5)

@@ -607,6 +607,7 @@ def test_a_cache_object_of_frames_names_the_hair_it_leaves_out(bpy_empty, extens
     assert (f"'{obj.name}' plays the poses without 'Hair' of '{strip.name}' (a simulation, a cache or a particle "
             "system is not copied): copy them to it by hand") in capfd.readouterr().out
 
+
 def _world_shown(bridge, obj, frame):
     bpy.context.scene.frame_set(frame)
     depsgraph = bpy.context.evaluated_depsgraph_get()

@@ -413,6 +413,7 @@ def test_maps_of_more_frames_than_memory_holds_are_refused_before_any_work(bpy_e
                          source='FRAMES')
     assert not [a.name for a in strip.data.attributes if a.name.startswith(("SD ", "sd_"))]
 
+
 def test_frames_that_never_move_are_said_to(bpy_empty, extension, tmp_path, capfd):
     """A cloth baked to a disk cache whose files are gone (the .blend moved without its
     blendcache folder): Blender plays the rest mesh at every frame, "baked", 0 frames on disk.
