@@ -248,23 +248,27 @@ def still_frames(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
               "outside this range)")
 
 
-def frames_outside_simulation(obj: bpy.types.Object, frames: list[int]) -> str | None:
+def frames_outside_simulation(obj: bpy.types.Object, frames: list[int], movers: list) -> str | None:
     """A warning when some of ``frames`` lie outside the frame range of an enabled cloth or soft
-    body of ``obj`` (its cache's start to end): Blender holds the simulation's last frame after its
-    end and its first before its start, so the poses read there stand still; None otherwise."""
-    for modifier in obj.modifiers:
-        if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
-            continue
-        cache = modifier.point_cache
-        before = [f for f in frames if f < cache.frame_start]
-        after = [f for f in frames if f > cache.frame_end]
-        if before or after:
-            parts = ([f"{_frame_span(before)} before its start"] if before else []) + \
-                    ([f"{_frame_span(after)} after its end"] if after else [])
-            return (f"'{obj.name}' is simulated by '{modifier.name}' over frames {cache.frame_start}–"
-                    f"{cache.frame_end}, and the range reads {' and '.join(parts)}: Blender holds the "
-                    "simulation still outside its frames, so the poses read there do not move. Fit the "
-                    "frame range to the simulation's, or widen the simulation's (its Cache panel)")
+    body (its cache's start to end) of one of ``movers``, the objects whose motion reaches the
+    mesh of ``obj`` (``obj`` and, say, the cloth proxy its Surface Deform follows): Blender holds
+    the simulation's last frame after its end and its first before its start, so the poses read
+    there stand still; None otherwise."""
+    for mover in movers:
+        for modifier in mover.modifiers:
+            if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
+                continue
+            cache = modifier.point_cache
+            before = [f for f in frames if f < cache.frame_start]
+            after = [f for f in frames if f > cache.frame_end]
+            if before or after:
+                parts = ([f"{_frame_span(before)} before its start"] if before else []) + \
+                        ([f"{_frame_span(after)} after its end"] if after else [])
+                subject = f"'{obj.name}' is" if mover == obj else f"'{obj.name}' is moved by '{mover.name}',"
+                return (f"{subject} simulated by '{modifier.name}' over frames {cache.frame_start}–"
+                        f"{cache.frame_end}, and the range reads {' and '.join(parts)}: Blender holds the "
+                        "simulation still outside its frames, so the poses read there do not move. Fit the "
+                        "frame range to the simulation's, or widen the simulation's (its Cache panel)")
     return None
 
 

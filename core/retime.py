@@ -96,7 +96,9 @@ class RetimePlan:
 
 
 def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
-    """Plan the retime of ``n_source`` samples keyed every ``step``-th, played at ``speed``."""
+    """Plan the retime of ``n_source`` samples keyed every ``step``-th, played at ``speed``: at
+    least two output samples (a speed of at most ``n_source − 1``) and at most
+    :data:`MAX_OUTPUT_SAMPLES`, else :class:`MeshError`."""
     if int(step) != step or step < 1:
         raise MeshError(f"The frame step must be a whole number of at least 1; got {step}.")
     if not (np.isfinite(speed) and speed > 0):
@@ -119,6 +121,10 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
                         f"{MAX_OUTPUT_SAMPLES:,} (the last frame Blender plays): raise the speed (0.5 = twice "
                         "as slow) or retime a shorter range.")
     n_out = math.floor(span) + 1
+    if n_out < 2:  # a speed above F − 1 (Blender's largest, 3.4e38, too) shows only the first key
+        raise MeshError(f"Speed {speed:g} over {n_source} frames gives one output frame (the first), and a "
+                        f"retime needs at least two: use a speed of at most {last} (the range played in two "
+                        "frames) or retime a longer range.")
     times = np.arange(n_out) * speed
     whole = np.round(times)
     snap = np.abs(times - whole) <= WHOLE_SAMPLE_TOLERANCE * np.maximum(1.0, whole)

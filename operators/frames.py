@@ -91,7 +91,7 @@ class FrameRangeProperties:
                 if matrices is not None:
                     matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
-        for warning in (render_only_motion(obj), bridge.frames_outside_simulation(obj, frames),
+        for warning in (render_only_motion(obj), bridge.frames_outside_simulation(obj, frames, objects_moving(obj)),
                         bridge.still_frames(obj, frames, poses)):
             if warning:
                 self.report({'WARNING'}, warning)

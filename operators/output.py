@@ -415,7 +415,8 @@ class PoseWriter:
         """The PC2 file to write (never an existing one, nor one a Mesh Cache in the file plays)
         and the path to store in the modifier (relative to the .blend when the user gave a
         relative path or none). Raises :class:`InputError` for a path the system cannot use
-        (a name too long, a folder that cannot be read)."""
+        (a name too long, a folder that cannot be read) and for a device or special file
+        (``/dev/null``, a named pipe: neither a cache to write nor a name to add ``.pc2`` to)."""
         base_name = bpy.path.clean_name(object_name) + ".pc2"
         given = self.given_path()
         try:
@@ -423,6 +424,9 @@ class PoseWriter:
                 path = Path(os.path.abspath(bpy.path.abspath(given)))
                 if given.endswith(("/", "\\")) or path.is_dir():
                     path = path / base_name
+                elif path.exists() and not path.is_file():  # a device (/dev/null), a named pipe, a socket
+                    raise InputError(f"The Cache File '{self.filepath}' is a device or special file, not a "
+                                     "file or folder: pick a .pc2 file or a folder to write the cache in")
                 elif path.suffix.lower() != ".pc2":
                     path = path.with_name(path.name + ".pc2")
             elif bpy.data.filepath:

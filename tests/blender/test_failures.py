@@ -201,6 +201,50 @@ def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, m
                          **properties)
 
 
+@pytest.mark.parametrize("speed", [100.0, float("inf")])
+def test_retime_to_fewer_than_two_frames_is_refused(bpy_empty, extension, core, speed, tmp_path):
+    """Frames 1–9 at speed 100, or at an infinite speed (Blender keeps the largest float32,
+    3.4e38), play the first frame alone: refused with the largest speed that plays two, nothing
+    added or written (before, a one-pose "retime" object was added, at infinite speed named
+    "Grid Retime 340282349999999991754788743781432688640.00x step 4")."""
+    strip = armature_scene(frames=9)
+    objects = set(bpy.data.objects.keys())
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                         r"Speed [0-9.e+]+ over 9 frames gives one output frame \(the first\), and a retime "
+                         "needs at least two: use a speed of at most 8 ", frame_start=1, frame_end=9,
+                         frame_step=4, speed=speed, filepath=str(tmp_path) + "/")
+    assert set(bpy.data.objects.keys()) == objects and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("special", ["named pipe", "null device"])
+def test_a_cache_file_that_is_a_device_or_special_file_is_refused(bpy_empty, extension, special, tmp_path):
+    """A Cache File that exists and is neither a file nor a folder (``/dev/null``, a named pipe)
+    is refused before any work, nothing written (before, ``.pc2`` was added to its name and the
+    cache written beside it: ``/dev/null.pc2``)."""
+    import os
+
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("named pipes and /dev/null are POSIX")
+    if special == "named pipe":
+        path = str(tmp_path / "pipe")
+        os.mkfifo(path)
+    else:
+        path = "/dev/null"
+    folder = os.path.dirname(path)
+    before = set(os.listdir(folder))
+    strip = armature_scene(frames=9)
+    try:
+        fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                             f"The Cache File '{path}' is a device or special file, not a file or folder",
+                             frame_step=4, speed=0.5, filepath=path)
+    finally:
+        # the cache the old behaviour wrote beside it (null.pc2, null.001.pc2): not left in /dev
+        written = {name for name in set(os.listdir(folder)) - before if name.startswith(os.path.basename(path))}
+        for name in written:
+            os.remove(os.path.join(folder, name))
+    assert not written
+
+
 def test_relative_cache_file_without_a_saved_blend(bpy_empty, extension):
     strip = armature_scene(frames=5)
     fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
@@ -461,6 +505,31 @@ def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, 
         bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
                                                    filepath=str(tmp_path / "inside.pc2"))
         assert "is simulated by" not in capfd.readouterr().out
+
+
+def test_frames_past_a_cloth_proxys_simulation_say_the_proxy_stands_still_there(bpy_empty, extension, capfd):
+    """A render mesh bound by a Surface Deform to a cloth proxy simulated over frames 1–9, read over
+    1–13: the proxy holds still after frame 9 and so does the mesh; the run names the proxy and its
+    range (before, only the mesh's own modifiers were looked at: nothing was said); a range inside
+    the proxy's says nothing of it."""
+    from blender_scenes import pinned_cloth_scene
+
+    proxy = pinned_cloth_scene(8, frames=9, bake=True)
+    bpy.context.scene.frame_end = 13
+    mesh = grid_object(12, name="Render")
+    mesh.rotation_euler.x = proxy.rotation_euler.x
+    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
+    bind.target = proxy
+    with bpy.context.temp_override(object=mesh, active_object=mesh, selected_objects=[mesh]):
+        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+        capfd.readouterr()
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=4,
+                                                       output='SHAPE_KEYS')
+        assert ("'Render' is moved by 'Flag', simulated by 'Cloth' over frames 1–9, and the range reads "
+                "frame 13 after its end") in capfd.readouterr().out
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
+                                                       output='SHAPE_KEYS')
+        assert "simulated by" not in capfd.readouterr().out
 
 
 def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, extension):

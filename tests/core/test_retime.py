@@ -106,6 +106,17 @@ def test_plan_refuses_more_frames_than_blender_plays(speed, count):
     assert plan_retime(9, 4, 8 / 1_048_573).n_out == 1_048_574
 
 
+@pytest.mark.parametrize("speed", [8.001, 100.0, float(np.finfo(np.float32).max)])
+def test_plan_refuses_a_speed_that_leaves_one_output_frame(speed):
+    """Over 9 samples a speed above 8 plays the first sample alone (the largest float32, what
+    Blender keeps for an infinite speed, too): refused, naming the largest speed that plays two
+    (before, a one-frame "retime" was planned)."""
+    with pytest.raises(MeshError, match=re.escape("gives one output frame (the first), and a retime needs at "
+                                                  "least two: use a speed of at most 8 ")):
+        plan_retime(9, 4, speed)
+    assert plan_retime(9, 4, 8.0).n_out == 2
+
+
 def test_kept_frames_exact_and_inbetweens_from_the_sequence():
     source, triangles = rolling_sheet()
     result = retime(source, triangles, step=4, speed=0.5)
