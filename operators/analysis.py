@@ -67,6 +67,16 @@ def _drive(steps, start: float, share: float):
 
 # -- shape space ------------------------------------------------------------------------------------
 
+#: What each shape-space image was last drawn from (:func:`drawn_from`), by the image's
+#: ``session_uid``, which undo and redo keep: Python state, so undo does not restore it with the file.
+_DRAWN: dict[int, str] = {}
+
+
+def drawn_from(data: dict, highlight: int | None) -> str:
+    """The stored coordinates, variance and highlighted pose a shape-space image shows, as text to compare."""
+    return repr((data["coordinates"], data["variance"], highlight))
+
+
 def shape_space_image(obj, data: dict, highlight: int | None = None):
     """Draw the stored shape space of ``obj`` into the image ``data['image']`` (created or resized)."""
     from .analysis_plot import shape_space_image as draw
@@ -83,6 +93,7 @@ def shape_space_image(obj, data: dict, highlight: int | None = None):
     image.pixels.foreach_set(pixels.ravel())
     image.update()
     image.preview_ensure().reload()  # the sidebar shows the preview (drawing may not create it)
+    _DRAWN[image.session_uid] = drawn_from(data, highlight)
     return image
 
 
@@ -408,21 +419,28 @@ def follow_frame(scene, _depsgraph=None):
 
 @bpy.app.handlers.persistent
 def redraw_shape_spaces(*_):
-    """After a .blend is opened: draw the image of each shape space stored on its objects again
-    from the stored coordinates (a generated image is not saved with the file: it came back
-    missing, or blank where something held it)."""
+    """After a .blend is opened, and after undo and redo: draw the image of each shape space stored
+    on its objects again from the stored coordinates and selection where it does not show them or
+    holds no pixels. A generated image is not saved with the file (it came back missing, or blank
+    where something held it), and undo and redo restore the stored shape space but not an image's
+    pixels (an undone Select Pose stayed highlighted, a redone Shape Space came back blank)."""
     for obj in bpy.data.objects:
         data = bridge.stored_shape_space(obj)
         if data is None or obj.library is not None:
             continue
         try:
             selected = int(data.get("selected", -1))
-            shape_space_image(obj, data, highlight=selected if selected >= 0 else None)
+            highlight = selected if selected >= 0 else None
+            image = bpy.data.images.get(data["image"])
+            if image is not None and image.has_data and _DRAWN.get(image.session_uid) == drawn_from(data, highlight):
+                continue  # it shows them: drawing takes some 50 ms, and undo runs this at every step
+            shape_space_image(obj, data, highlight=highlight)
         except (KeyError, TypeError, ValueError) as error:  # a property edited by hand: leave it
             print(f"Shape Differences: the shape space stored on '{obj.name}' cannot be drawn ({error})")
 
 
-HANDLERS = ((bpy.app.handlers.frame_change_post, follow_frame), (bpy.app.handlers.load_post, redraw_shape_spaces))
+HANDLERS = ((bpy.app.handlers.frame_change_post, follow_frame), (bpy.app.handlers.load_post, redraw_shape_spaces),
+            (bpy.app.handlers.undo_post, redraw_shape_spaces), (bpy.app.handlers.redo_post, redraw_shape_spaces))
 
 
 def register_handlers():
