@@ -280,6 +280,10 @@ def in_session_folder(path: str) -> bool:
     return bool(folder) and os.path.realpath(path).startswith(os.path.realpath(folder).rstrip(os.sep) + os.sep)
 
 
+#: The cache file the last run of each operator (by idname) wrote, None for shape keys: Python
+#: state, which undo leaves as it is (:meth:`PoseWriter.drop_undone_cache`).
+_LAST_CACHE: dict[str, str | None] = {}
+
 #: Mesh Cache modifiers pointed at copies by :func:`keep_session_caches`: {(object, modifier):
 #: their path before}, restored after a save that was a copy (:func:`restore_after_copy`).
 _MOVED_FOR_SAVE: dict[tuple[str, str], str] = {}
@@ -471,8 +475,24 @@ class PoseWriter:
                                          f"{', '.join(motion.values())}, at its own speed while the new "
                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
                                          "object) to retime its keyframed transform too")
+            self.drop_undone_cache(None)
             return added_summary(added)
         return self.write_cache_object(context, source, poses, frames, label, speed, keyed)
+
+    def drop_undone_cache(self, written: Path | None) -> None:
+        """Remember the cache file this run wrote (``written``; None: shape keys) and, where the run
+        repeats the last one from the Redo panel (Adjust Last Operation), delete the file that one
+        wrote: Blender undid it first, so nothing plays the file any more, and each change of a
+        setting there would leave one more on disk. Called once the new poses are written, since a
+        repeat that fails brings the undone run back; a file a Mesh Cache in the file plays stays
+        (Repeat Last runs again without undoing)."""
+        previous = _LAST_CACHE.get(self.bl_idname) if self.is_repeat() else None
+        _LAST_CACHE[self.bl_idname] = None if written is None else str(written)
+        if previous and os.path.isfile(previous) and os.path.realpath(previous) not in cache_files_in_use():
+            try:
+                os.remove(previous)
+            except OSError as error:  # left on disk: the new poses are written all the same
+                print(f"Shape Differences: could not delete the undone cache '{previous}': {error}")
 
     def write_cache_object(self, context, source, poses, frames: list[float], label: str,
                            speed: float = 1.0, keyed: bool = False) -> str:
@@ -515,6 +535,7 @@ class PoseWriter:
         if speed != 1.0 and own_speed:
             self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
                                      f"{' and '.join(own_speed)} move it at the scene's own speed")
+        self.drop_undone_cache(path)
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
