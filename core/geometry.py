@@ -74,13 +74,14 @@ def heron(squared: np.ndarray) -> np.ndarray:
     return 2.0 * (a * b + b * c + c * a) - a * a - b * b - c * c
 
 
-def nearest_rotations(matrices: np.ndarray) -> np.ndarray:
+def nearest_rotations(matrices: np.ndarray, singular_values: bool = False):
     """The proper rotation nearest (Frobenius) each of ``matrices`` ``(…, 3, 3)``: ``U Vᵀ`` from
-    the SVD, with the last column of ``U`` negated where that product would be a reflection."""
-    u, _, vt = np.linalg.svd(matrices)
+    the SVD, with the last column of ``U`` negated where that product would be a reflection. With
+    ``singular_values``, also the matrices' singular values ``(…, 3)``, largest first."""
+    u, sigma, vt = np.linalg.svd(matrices)
     flip = np.linalg.det(u @ vt) < 0
     u[..., :, 2] *= np.where(flip, -1.0, 1.0)[..., None]
-    return u @ vt
+    return (u @ vt, sigma) if singular_values else u @ vt
 
 
 #: Up to this many groups :func:`grouped_medians` takes each group's median by a partition (two

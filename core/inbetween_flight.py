@@ -116,7 +116,9 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     that orbits while it spins), the group's centroid: a flying body's centre of mass follows its
     own path (a box thrown under gravity, keys 8 apart, its two end gaps so: 0.23 × Catmull–Rom's
     error over the sequence; with the screw there 4.4 ×, with the best point of the constant-velocity
-    test 1.32 ×)."""
+    test 1.32 ×). A point beyond the reach is taken where it lies on an axis line that every key
+    around the gap turns the group about and moves only along itself (:func:`_on_common_axis`): a
+    body going round a far axis, at any speed."""
     before, base, nxt, after = relatives
     known = [r for r in (before, after) if not r.extrapolated and getattr(r, "motion", None) is not None]
     if not rigid.any() or not known or getattr(nxt, "motion", None) is None:
@@ -180,7 +182,39 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     point = centroid + move
     simple = (np.linalg.norm(move, axis=1) <= reach) & (
         np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)
+    # beyond the reach, a point on an axis line every key around the gap turns the group about
+    # (and shifts it along): a car on a curve, a carousel's horse, a body on a far screw; turned
+    # about it the group follows that turn exactly, where its centroid's spline cuts the arc
+    # (a head turning 30° a key about an axis 3 diagonals away: 5.5e-2 of its diagonal off)
+    distance = np.linalg.norm(move, axis=1)
+    far = ~simple & (distance > reach)
+    if far.any():
+        far[far] = _on_common_axis([nxt.motion] + [r.motion for r in known], first[far], point[far], reach[far],
+                                   distance[far])
+    simple |= far
     points = np.where(simple[:, None], point, centroid)
     labels = np.full(len(topo.components), -1, dtype=np.intp)
     labels[candidates] = group
     return labels, points
+
+
+def _on_common_axis(motions: list, first: np.ndarray, point: np.ndarray, reach: np.ndarray,
+                    distance: np.ndarray) -> np.ndarray:
+    """Per group (G,), whether every one of ``motions`` (rigid motions ``(rotations (C, 3, 3),
+    translations (C, 3))`` of the keys around a gap seen from its base key, the gap's own first;
+    each group's read at its member ``first`` (G,)) turns the group about the axis line through its
+    ``point`` (G, 3) along the first motion's axis and moves that line only along itself, to
+    :data:`FLYING_TOLERANCE` of the group's ``reach`` (G,): the axis within it of the size at the
+    group's ends, the line within it of the size plus the line's ``distance`` (G,) from the group
+    (a turn known to δ moves a point that far away by δ × distance)."""
+    g, p, size = first, point, reach
+    axis = df.rotation_vectors(motions[0][0][g])
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)  # turns over FLYING_MIN_TURN: not zero
+    ok = np.ones(len(g), dtype=bool)
+    for rotations, translations in motions:
+        moved = np.einsum("gab,gb->ga", rotations[g], p) + translations[g] - p
+        across = moved - np.einsum("ga,ga->g", moved, axis)[:, None] * axis
+        tilted = np.einsum("gab,gb->ga", rotations[g], axis) - axis
+        ok &= (np.linalg.norm(across, axis=1) <= FLYING_TOLERANCE * (size + distance)) & (
+            np.linalg.norm(tilted, axis=1) <= FLYING_TOLERANCE)
+    return ok

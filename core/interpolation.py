@@ -55,11 +55,13 @@ from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .deformation_fields import rotation_vectors, the_other_way
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws
+from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
 from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, free_flight
 from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .pins import riding_vertices, still_vertices
+from .rigid_alignment import mirror_misfits
 from .seams import coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_real,
@@ -94,6 +96,15 @@ def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarra
 def _warn(message: str) -> None:
     warnings.warn(f"Shape-difference interpolation: {message}.", ShapeDifferenceWarning, stacklevel=3)
 
+
+#: A piece is said to be mirrored between two keys where the best reflection (improper orthogonal
+#: map) takes it onto the next key within this fraction of its diagonal (RMS; as a rigid motion
+#: is told by :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`) ...
+MIRROR_FIT = RIGID_PLACEMENT_SCALE
+#: ... and the best rigid motion misses it by over this fraction: it would have to deform
+#: visibly (:data:`core.inbetween_motion.SIMILAR_SHAPE_MISFIT`'s upper end). A flat piece is its
+#: mirror image turned over, and passes (both fit it).
+MIRROR_MISS = SIMILAR_SHAPE_MISFIT[1]
 
 #: A motion starts from rest at its first key when its velocity there — from the first three frames
 #: of the source, one frame apart (the parabola through them) — is below this fraction of its mean
@@ -239,6 +250,7 @@ class SequenceInterpolator:
             keys = [k - origin for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
+        self._warn_mirrored()
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (_Relative); a sequence reads there which parts turn past a half
         # turn per gap (_Relative.turning) and takes those parts' turns continuous across them
@@ -269,6 +281,28 @@ class SequenceInterpolator:
         self.use_extrinsic = bool(use_extrinsic)
         self.smooth = bool(smooth)
         self._anchored = False  # two-pose interpolation (Interpolator) anchors to the blend
+
+    def _warn_mirrored(self) -> None:
+        """Warn where a piece is its own mirror image from one key to the next: a reflection (a
+        negative scale, a mirrored copy) fits it within :data:`MIRROR_FIT` of its diagonal and no
+        rigid motion within :data:`MIRROR_MISS`. No motion turns a shape into its mirror image, so
+        the in-betweens deform it through a flattened shape (tetrahedra mirrored: flat at 0.5,
+        edges 18 % off, silently)."""
+        topo, keys = self._topo, self._raw
+        rows, count = topo.component_vertices, len(topo.components)
+        labels = None if count == 1 else topo.component_labels
+        for i in range(len(keys) - 1):
+            base = keys[i]
+            rotation, reflection = mirror_misfits(base[rows], keys[i + 1][rows], labels, count, topo.weights[rows])
+            size = topo.diagonals(base)
+            fit, miss = (np.sqrt(m / topo.component_mass) for m in (reflection, rotation))
+            mirrored = np.flatnonzero((fit <= MIRROR_FIT * size) & (miss > MIRROR_MISS * size))
+            if mirrored.size:
+                first = int(topo.component_vertices[topo.component_labels == mirrored[0]][0])
+                _warn(f"{mirrored.size} piece(s) of the mesh (e.g. the one with vertex {first}) are the mirror "
+                      f"image of themselves from {self.key_names[i]} to {self.key_names[i + 1]} (a reflection, as a "
+                      "negative scale gives), which no motion makes: the in-betweens deform them through a "
+                      "flattened shape. Check that key (apply the scale, or mirror the mesh back)")
 
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`Interpolator`, see :data:`WHOLE_FIT_MARGIN`).
