@@ -171,7 +171,9 @@ class PieceMotion:
         # misfit 0.038 of its diagonal, was pulled onto the arc, 0.65 of its size off its path)
         low, high = SIMILAR_SHAPE_MISFIT
         shape = np.clip((high - misfit / np.maximum(self.base.diagonals, np.finfo(float).tiny)) / (high - low), 0.0, 1.0)
-        trust = np.where(positive & ok & np.isfinite(ratio), np.clip(1.0 - ratio**2, 0.0, 1.0) * shape, 0.0)
+        # ratio ≥ 1 gives no share (capped first: a centroid that does not depart at all, as a piece
+        # mirrored about it, made the square overflow)
+        trust = np.where(positive & ok & np.isfinite(ratio), (1.0 - np.minimum(ratio, 1.0) ** 2) * shape, 0.0)
         return trust, similarity
 
     @cached_property

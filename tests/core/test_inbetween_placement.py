@@ -1981,6 +1981,11 @@ def test_pieces_mirrored_between_keys_are_warned(sequence):
 
     said = warned(a @ mirror.T)
     assert len(said) == 1 and "3 piece(s)" in said[0], said
+    one, faces = a[:4] - a[:4].mean(axis=0), tri[:4]
+    with warnings.catch_warnings(record=True) as caught:  # mirrored about its centroid, which stays
+        warnings.simplefilter("always")
+        Interpolator(one, one @ mirror.T, faces).pose(0.5)
+    assert [w.category for w in caught] == [ShapeDifferenceWarning], [str(w.message) for w in caught]
     assert not warned(a @ turn.T + 0.5)
     assert not warned(flat @ mirror.T, flat, np.array([[0, 1, 2]]))
 
