@@ -137,6 +137,92 @@ def group_covariances(source: np.ndarray, target: np.ndarray, labels: np.ndarray
     return covariance, s_mean, x_mean, s_centred, x_centred
 
 
+def reflected_fits(source: np.ndarray, target: np.ndarray, labels: np.ndarray | None, n_groups: int,
+                   weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The groups of rows (as :func:`group_covariances`; ``labels`` None for one group) whose best
+    orthogonal map taking ``source`` onto ``target`` is a reflection (int (k,)), and for each the
+    weighted sums of squared distances left by the best rotation and by that reflection (k,) each:
+    ``Σ w (|s̃|² + |x̃|²) − 2 (σ₁ + σ₂ ∓ σ₃)`` for the cross-covariance's singular values (Kabsch:
+    the reflection's ``U Vᵀ`` is improper, the rotation negates its last singular direction)."""
+    if labels is None:  # one group: matrix products (a cloth's check per pair of keys)
+        total = weights.sum()
+        s, x = shifted(source, -(weights @ source) / total), shifted(target, -(weights @ target) / total)
+        covariance = ((x.T * weights) @ s)[None]
+    else:
+        covariance, _, _, s, x = group_covariances(source, target, labels, n_groups, weights)
+    u, sigma, vt = np.linalg.svd(covariance)
+    groups = np.flatnonzero(np.linalg.det(u @ vt) < 0)
+    if not groups.size:
+        return groups, np.zeros(0), np.zeros(0)
+    squares = weights * (np.einsum("ij,ij->i", s, s) + np.einsum("ij,ij->i", x, x))
+    spread = np.array([squares.sum()]) if labels is None else np.bincount(labels, squares, minlength=n_groups)
+    top = spread[groups] - 2.0 * (sigma[groups, 0] + sigma[groups, 1])
+    return groups, np.maximum(top + 2.0 * sigma[groups, 2], 0.0), np.maximum(top - 2.0 * sigma[groups, 2], 0.0)
+
+
+#: Kabsch's rotation about a group's long axis is known to round-off over the share
+#: ``(σ₂ + σ₃) / σ₁`` of its cross-covariance's singular values (squared lengths: a needle's
+#: ``(H / ℓ)²``); where that is below this, Kabsch may lose over ε / THIN_SPREAD ≈ 1e-10 rad
+#: there and the rotation is refined on the positions (:func:`_refined_rotation`). A sliver
+#: triangle 1e-7 wide for 1 long, a piece of its own, came out turned 1.7 rad the wrong way.
+THIN_SPREAD = 1e-6
+#: Most Gauss–Newton steps of the refinement (each within round-off of the optimum's
+#: neighbourhood once Kabsch's well-determined directions hold: two or three steps from a turn
+#: 1.7 rad off about the long axis).
+REFINE_STEPS = 8
+
+
+def _thin(sigma: np.ndarray) -> np.ndarray:
+    """Per row of singular values (G, 3), whether Kabsch's rotation is ill-conditioned there (see
+    :data:`THIN_SPREAD`; a group without spread keeps its identity)."""
+    return (sigma[:, 1] + sigma[:, 2] < THIN_SPREAD * sigma[:, 0]) & (sigma[:, 0] > 0)
+
+
+def _refined_rotation(rotation: np.ndarray, source: np.ndarray, target: np.ndarray,
+                      weights: np.ndarray) -> np.ndarray:
+    """``rotation`` (3, 3) refined to the minimizer of ``Σ w |R s − x|²`` for the centred rows
+    ``source``, ``target`` (r, 3) and ``weights`` (r,) by Gauss–Newton steps ``R ← exp(ω) R``, each
+    ``ω`` the linear least-squares solution of ``ω × (R s) = x − R s`` weighted by ``√w`` (solved
+    by an orthogonal factorization of the positions, whose conditioning is the group's aspect
+    ``ℓ / H``, not the cross-covariance's ``(ℓ / H)²``)."""
+    from scipy.spatial.transform import Rotation
+
+    root = np.sqrt(weights)[:, None]
+    for _ in range(REFINE_STEPS):
+        y = source @ rotation.T
+        # ω × y = −[y]× ω, stacked over the rows: (3r, 3)
+        cross = np.zeros((len(y), 3, 3))
+        cross[:, 0, 1], cross[:, 0, 2], cross[:, 1, 2] = y[:, 2], -y[:, 1], y[:, 0]
+        cross[:, 1, 0], cross[:, 2, 0], cross[:, 2, 1] = -y[:, 2], y[:, 1], -y[:, 0]
+        step = np.linalg.lstsq((cross * root[:, :, None]).reshape(-1, 3), ((target - y) * root).reshape(-1),
+                               rcond=None)[0]
+        rotation = Rotation.from_rotvec(step).as_matrix() @ rotation
+        if not np.linalg.norm(step) > np.finfo(float).eps:
+            break
+    return rotation
+
+
+def group_covariances(source: np.ndarray, target: np.ndarray, labels: np.ndarray, n_groups: int,
+                      weights: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Per group of rows (``labels`` int (n,), 0 ≤ g < ``n_groups``) of ``source`` and ``target``
+    (n, 3), weighted by ``weights`` (n,): the cross-covariances ``Σ w x̃ s̃ᵀ`` (G, 3, 3) of the rows
+    about their weighted means, those means (G, 3) each, and the rows about them ``s̃``, ``x̃`` (n, 3)."""
+    def sums(values):  # per-group sums of w · values (n,)
+        return np.bincount(labels, weights * values, minlength=n_groups)
+
+    total = sums(np.ones(source.shape[0]))
+    total = np.where(total > 0, total, 1.0)
+    s_mean = np.stack([sums(source[:, d]) for d in range(3)], axis=1) / total[:, None]
+    x_mean = np.stack([sums(target[:, d]) for d in range(3)], axis=1) / total[:, None]
+    # about each group's mean: no cancellation far from the origin
+    s_centred, x_centred = source - s_mean[labels], target - x_mean[labels]
+    covariance = np.empty((n_groups, 3, 3))
+    for a in range(3):
+        for b in range(3):
+            covariance[:, a, b] = sums(x_centred[:, a] * s_centred[:, b])
+    return covariance, s_mean, x_mean, s_centred, x_centred
+
+
 def mirror_misfits(source: np.ndarray, target: np.ndarray, labels: np.ndarray, n_groups: int,
                    weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per group of rows (as :func:`group_covariances`), the weighted sums of squared distances
