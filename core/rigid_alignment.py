@@ -57,9 +57,11 @@ def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray,
         x_centred = shifted(target, -x_mean)
         s_weighted = shifted(source, -s_mean)
         scaled(s_weighted, w, out=s_weighted)
-        rotation, sigma = nearest_rotations(x_centred.T @ s_weighted, singular_values=True)  # Σ w x̃ s̃ᵀ
+        covariance = x_centred.T @ s_weighted  # Σ w x̃ s̃ᵀ
+        rotation, sigma = nearest_rotations(covariance, singular_values=True)
         if _thin(sigma[None])[0]:
-            rotation = _refined_rotation(rotation, shifted(source, -s_mean), x_centred, w)
+            rotation = _turned_about_long_axes(rotation[None], covariance[None], shifted(source, -s_mean)[None],
+                                               x_centred[None], w[None])[0]
         return rotation[None], (x_mean - rotation @ s_mean)[None]
 
     covariance, s_mean, x_mean, s_centred, x_centred = group_covariances(source, target, labels, n_groups, w)
@@ -67,23 +69,26 @@ def rigid_alignments(source: np.ndarray, target: np.ndarray, labels: np.ndarray,
     thin = np.flatnonzero(_thin(sigma))
     if thin.size:
         order = np.argsort(labels, kind="stable")
-        ends = np.cumsum(np.bincount(labels, minlength=n_groups))
-        for g in thin:
-            rows = order[ends[g] - np.count_nonzero(labels == g):ends[g]]
-            rotations[g] = _refined_rotation(rotations[g], s_centred[rows], x_centred[rows], w[rows])
+        counts = np.bincount(labels, minlength=n_groups)
+        ends = np.cumsum(counts)
+        for size in np.unique(counts[thin]):  # groups of one size at once (debris of slivers: all)
+            groups = thin[counts[thin] == size]
+            rows = order[(ends[groups] - size)[:, None] + np.arange(size)]  # (k, size)
+            rotations[groups] = _turned_about_long_axes(rotations[groups], covariance[groups], s_centred[rows],
+                                                        x_centred[rows], w[rows])
     return rotations, x_mean - np.einsum("gab,gb->ga", rotations, s_mean)
 
 
 #: Kabsch's rotation about a group's long axis is known to round-off over the share
 #: ``(σ₂ + σ₃) / σ₁`` of its cross-covariance's singular values (squared lengths: a needle's
 #: ``(H / ℓ)²``); where that is below this, Kabsch may lose over ε / THIN_SPREAD ≈ 1e-10 rad
-#: there and the rotation is refined on the positions (:func:`_refined_rotation`). A sliver
-#: triangle 1e-7 wide for 1 long, a piece of its own, came out turned 1.7 rad the wrong way.
+#: there, and the turn about that axis is solved again on the positions
+#: (:func:`_turned_about_long_axes`). A sliver triangle 1e-7 wide for 1 long, a piece of its own,
+#: came out turned 1.7 rad the wrong way.
 THIN_SPREAD = 1e-6
-#: Most Gauss–Newton steps of the refinement (each within round-off of the optimum's
-#: neighbourhood once Kabsch's well-determined directions hold: two or three steps from a turn
-#: 1.7 rad off about the long axis).
-REFINE_STEPS = 8
+#: ... unless its spread across that axis is under this fraction of its size (RMS): collinear to
+#: round-off (the mesh check's thinnest triangle, :data:`core.mesh_topology.DEGENERATE_TRIANGLE_RATIO`).
+COLLINEAR_SPREAD = 1e-10
 
 
 def _thin(sigma: np.ndarray) -> np.ndarray:
@@ -92,28 +97,29 @@ def _thin(sigma: np.ndarray) -> np.ndarray:
     return (sigma[:, 1] + sigma[:, 2] < THIN_SPREAD * sigma[:, 0]) & (sigma[:, 0] > 0)
 
 
-def _refined_rotation(rotation: np.ndarray, source: np.ndarray, target: np.ndarray,
-                      weights: np.ndarray) -> np.ndarray:
-    """``rotation`` (3, 3) refined to the minimizer of ``Σ w |R s − x|²`` for the centred rows
-    ``source``, ``target`` (r, 3) and ``weights`` (r,) by Gauss–Newton steps ``R ← exp(ω) R``, each
-    ``ω`` the linear least-squares solution of ``ω × (R s) = x − R s`` weighted by ``√w`` (solved
-    by an orthogonal factorization of the positions, whose conditioning is the group's aspect
-    ``ℓ / H``, not the cross-covariance's ``(ℓ / H)²``)."""
+def _turned_about_long_axes(rotations: np.ndarray, covariances: np.ndarray, source: np.ndarray,
+                            target: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """``rotations`` (k, 3, 3), Kabsch's for thin groups, each turned about its group's long axis
+    (the cross-covariance's ``covariances`` (k, 3, 3) first left singular vector: the target's
+    principal direction, which Kabsch gets to round-off) by the turn that best takes the turned
+    ``source`` onto ``target`` (centred rows (k, r, 3), ``weights`` (k, r)): ``atan2(Σ w u·(p⊥ ×
+    x⊥), Σ w p⊥·x⊥)`` over the rows' parts across the axis, formed before their products (so the
+    turn is known to ε ℓ / H, the positions' own precision, where Kabsch's sums of products lose
+    ε (ℓ / H)²; the closed form also undoes Kabsch's half turns, where Gauss–Newton steps stall)."""
     from scipy.spatial.transform import Rotation
 
-    root = np.sqrt(weights)[:, None]
-    for _ in range(REFINE_STEPS):
-        y = source @ rotation.T
-        # ω × y = −[y]× ω, stacked over the rows: (3r, 3)
-        cross = np.zeros((len(y), 3, 3))
-        cross[:, 0, 1], cross[:, 0, 2], cross[:, 1, 2] = y[:, 2], -y[:, 1], y[:, 0]
-        cross[:, 1, 0], cross[:, 2, 0], cross[:, 2, 1] = -y[:, 2], y[:, 1], -y[:, 0]
-        step = np.linalg.lstsq((cross * root[:, :, None]).reshape(-1, 3), ((target - y) * root).reshape(-1),
-                               rcond=None)[0]
-        rotation = Rotation.from_rotvec(step).as_matrix() @ rotation
-        if not np.linalg.norm(step) > np.finfo(float).eps:
-            break
-    return rotation
+    axes = np.linalg.svd(covariances)[0][:, :, 0]  # (k, 3)
+    p = np.einsum("kab,krb->kra", rotations, source)
+    p_across = p - np.einsum("kra,ka->kr", p, axes)[:, :, None] * axes[:, None, :]
+    x_across = target - np.einsum("kra,ka->kr", target, axes)[:, :, None] * axes[:, None, :]
+    sine = np.einsum("kr,kr->k", weights, np.einsum("kra,ka->kr", np.cross(p_across, x_across), axes))
+    cosine = np.einsum("kr,kr->k", weights, np.einsum("kra,kra->kr", p_across, x_across))
+    # groups collinear to round-off (across the axis under COLLINEAR_SPREAD of along it) have no
+    # turn about it to find: Kabsch's choice stays
+    across = np.einsum("kr,kr->k", weights, np.einsum("kra,kra->kr", x_across, x_across))
+    along = np.einsum("kr,kr->k", weights, np.einsum("kra,kra->kr", target, target))
+    angle = np.where(across > COLLINEAR_SPREAD**2 * along, np.arctan2(sine, cosine), 0.0)
+    return Rotation.from_rotvec(angle[:, None] * axes).as_matrix() @ rotations
 
 
 def group_covariances(source: np.ndarray, target: np.ndarray, labels: np.ndarray, n_groups: int,
