@@ -121,8 +121,8 @@ def test_rigid_alignment_recovers_motion_without_reflection():
 
 @pytest.mark.parametrize("width", [1e-5, 1e-8])
 def test_rigid_alignment_of_a_sliver_recovers_its_turn_about_its_long_side(width):
-    """A sliver triangle (and a thin group of them, fitted together and in a batch) ``width`` across
-    for a length of 1, moved rigidly: its rotation comes back to within 100 ε × length / width
+    """A sliver triangle ``width`` across for a length of 1 (alone, and with a copy of it as two
+    groups of one batch), moved rigidly: its rotation comes back to within 100 ε × length / width
     (what its positions tell about the turn about its long side) and its vertices to 1e-9.
     Kabsch alone resolves that turn only to ε × (length / width)², from the cross-covariance:
     the first sliver 1.1e-6 off at 1e-5 across, 1.2e-2 at 1e-8."""
