@@ -168,7 +168,7 @@ def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference,
         stacked = sp.vstack([matrix, weight @ jacobian]).tocsc()
         try:
             step = _spd_factor((stacked.T @ stacked).tocsc()).solve(-(stacked.T @ residual))
-        except RuntimeError as error:
+        except (RuntimeError, np.linalg.LinAlgError) as error:  # singular, or not positive definite in round-off
             raise _singular_length_system(what) from error
         if not np.all(np.isfinite(step)):
             raise _singular_length_system(what)
@@ -183,5 +183,6 @@ def _singular_length_system(what: str) -> RecoveryError:
         f"The conformal shape difference of the {what} does not determine its edge lengths for "
         "these triangle areas: the linear system of Prop. 2 is singular (as for two tetrahedra "
         "glued at their bases with equal areas, paper Fig. 2) and Heron's formula does not "
-        "resolve it. Perturb the mesh slightly or remesh it."
+        "resolve it (a nearly flat triangle, a sliver, can also make it so numerically). Perturb the mesh "
+        "slightly or remesh it."
     )

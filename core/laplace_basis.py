@@ -68,7 +68,7 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
     if not 1 <= k < n:
         raise MeshError(
             f"The {what} has {n} vertices, so the number of Laplace–Beltrami eigenfunctions must be "
-            f"between 1 and {n - 1}; got {k}. Lower k, or use 0 / None for the full basis."
+            f"between 1 and {n - 1}; got {k}. Lower k."
         )
     if n <= DENSE_EIGEN_LIMIT or (k >= DENSE_EIGEN_FRACTION * n and n <= DENSE_EIGEN_MAX_VERTICES):
         from scipy.linalg import LinAlgError, eigh

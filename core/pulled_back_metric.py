@@ -234,7 +234,8 @@ class PulledBackMetric:
 
     # -- vertex numbering --------------------------------------------------------------------------
     def _compact_vertex(self, vertex: int) -> int:
-        if int(vertex) != vertex or not 0 <= vertex < self.reference.n_vertices:
+        if isinstance(vertex, (bool, np.bool_)) or int(vertex) != vertex \
+                or not 0 <= vertex < self.reference.n_vertices:  # True is no vertex index
             raise MeshError(
                 f"source_vertex must be a vertex index in 0..{self.reference.n_vertices - 1}; got {vertex!r}."
             )

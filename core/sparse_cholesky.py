@@ -37,7 +37,9 @@ def _release():
 
 class SPDFactor:
     """The factor of a sparse symmetric positive definite ``matrix`` (n, n); :meth:`solve` takes
-    right-hand sides (n,) or (n, k). Safe to share between threads (solves are serialized)."""
+    right-hand sides (n,) or (n, k). Safe to share between threads (solves are serialized).
+    A matrix CHOLMOD finds not positive definite raises ``numpy.linalg.LinAlgError``; SuperLU
+    raises ``RuntimeError`` for an exactly singular one."""
 
     def __init__(self, matrix: sp.spmatrix):
         self.shape = matrix.shape
@@ -53,8 +55,11 @@ class SPDFactor:
             return
         coo = sp.coo_matrix(matrix)
         self._superlu = None
-        self._cholmod = CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
-                                        coo.data.astype(np.float64), MatrixType.COO)
+        try:
+            self._cholmod = CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
+                                            coo.data.astype(np.float64), MatrixType.COO)
+        except ValueError as error:  # cholespy's "Matrix is not positive definite!": NumPy's error for it
+            raise np.linalg.LinAlgError(f"{error} (CHOLMOD, {matrix.shape[0]} unknowns)") from error
         _live.add(self)
 
     @property

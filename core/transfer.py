@@ -43,6 +43,7 @@ from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
 from .transfer_checks import (WELD_DISTANCE, check_matched_fraction, check_overlap, check_spread, coincident_vertices,
                               degenerate_at_rest, warn_non_manifold)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
+from .validation import check_basis_sizes
 
 
 #: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
@@ -188,6 +189,8 @@ class Transfer:
         self.target_triangles = np.asarray(target_triangles, dtype=np.int64)
         rest_used = rest[self.target_used]
         check_nondegenerate(rest_used, topology.triangles, name="target rest vertices")
+        # k_N against the target's eigenbasis, before any work (the base's k_M was checked above)
+        check_basis_sizes(self.k_M, self.k_N, None, full_basis=False, target_vertices=int(self.target_used.size))
 
         base_used = reference.used_vertices
         if correspondence is None:

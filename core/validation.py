@@ -197,17 +197,21 @@ def check_count(value, name: str, *, minimum: int = 0) -> int:
 
 
 def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1, *,
-                      full_basis: bool = True) -> tuple[int | None, int | None]:
+                      full_basis: bool = True, target_vertices: int | None = None) -> tuple[int | None, int | None]:
     """Basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the sidebar's
     convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
     (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
     ``n_components`` eigenfunctions are constant per connected component and carry no conformal
     information); ``k_N`` (target basis) needs ``k_M``. ``full_basis=False``: a caller that needs
     a truncated ``k_M`` (the shape space, the distortion maps' eigenfunctions) — the messages do
-    not offer the full basis."""
+    not offer the full basis. ``target_vertices``: vertices in triangles of another mesh whose
+    basis ``k_N`` is (a cross-mesh transfer's target); ``k_N`` is then checked against it."""
     full = ", or 0 / None for the full basis" if full_basis else ""
     sizes = []
-    for label, k in (("k_M (base basis size)", k_M), ("k_N (target basis size)", k_N)):
+    target = n_vertices if target_vertices is None else target_vertices
+    for label, k, mesh, count in (("k_M (base basis size)", k_M, "mesh", n_vertices),
+                                  ("k_N (target basis size)", k_N, "mesh" if target_vertices is None
+                                   else "target mesh", target)):
         k = _whole_number(k, label, allow_none=True)
         if k is not None and k < 0:
             raise MeshError(f"{label} must be 0 / None (full basis) or a positive number of eigenfunctions; got {k}.")
@@ -217,10 +221,10 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
                 f"mesh ({n_components} connected part(s)) are constant on each part, so the conformal "
                 f"difference would be empty. Use at least {n_components + 1} (typically 50–300){full}."
             )
-        if k and n_vertices is not None and k >= n_vertices:
+        if k and count is not None and k >= count:
             raise MeshError(
-                f"{label} is {k}, but the mesh has {n_vertices} vertices in triangles, so at most "
-                f"{n_vertices - 1} Laplace–Beltrami eigenfunctions exist. Lower it"
+                f"{label} is {k}, but the {mesh} has {count} vertices in triangles, so at most "
+                f"{count - 1} Laplace–Beltrami eigenfunctions exist. Lower it"
                 + (f"{full} (exact, and faster than a basis this large)." if full_basis else ".")
             )
         sizes.append(k or None)

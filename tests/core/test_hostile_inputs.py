@@ -147,6 +147,20 @@ def test_6_solver_failure_is_a_recovery_error():
             np.linalg.solve(np.zeros((2, 2)), np.ones(2))
 
 
+def test_6_sliver_the_length_solve_cannot_resolve_is_a_recovery_error(sheet):
+    """A target triangle squashed to 1e-8 of its height (accepted: above the degenerate limit)
+    makes the Gauss–Newton normal matrix of the length recovery indefinite in round-off; CHOLMOD's
+    refusal escaped ``reconstruct`` as a raw ``ValueError``."""
+    v, t, target = sheet
+    a, b, c = t[10]
+    sliver = target.copy()
+    middle = 0.5 * (sliver[a] + sliver[b])
+    sliver[c] = middle + 1e-8 * (sliver[c] - middle)
+    differences = core.shape_differences(v, sliver, t)
+    with pytest.raises(RecoveryError, match="edge lengths.*sliver"):
+        core.reconstruct(v, t, differences)
+
+
 # -- item 7: accepted extreme input is warned about ---------------------------------------------
 def test_7_stray_vertex_far_away_warns_about_precision(sheet):
     v, t, target = sheet
@@ -251,6 +265,20 @@ def test_10_no_silent_coercion(sheet, sequence, call, message):
     v, t, target = sheet
     with pytest.raises(MeshError, match=message):
         call(v, t, target, sequence)
+
+
+def test_pulled_back_metric_takes_vertex_indices_and_basis_sizes_only(sheet):
+    """``True`` is no source vertex (it was read as vertex 1), and a basis size out of range is
+    not answered with the full basis, which the pulled-back metric does not offer."""
+    v, t, target = sheet
+    pulled = core.pull_back(v, t, core.shape_differences(v, target, t, use_extrinsic=False))
+    for source in (True, np.True_, -1, 1.5, len(v)):
+        with pytest.raises(MeshError, match="source_vertex must be a vertex index"):
+            pulled.geodesic_distances(source)
+    assert np.array_equal(pulled.geodesic_distances(np.int32(1)), pulled.geodesic_distances(1))
+    for k in (0, len(v)):
+        with pytest.raises(MeshError, match=r"between 1 and \d+; got \d+\. Lower k\.$"):
+            pulled.laplacian_eigenvalues(k)
 
 
 def test_gap_index_errors_are_also_index_errors(sequence):

@@ -113,6 +113,12 @@ def test_errors_in_the_users_terms(sheets):
     with pytest.raises(MeshError, match=rf"\({a}, {b}\).*Non Manifold"):
         core.shape_differences(np.vstack([base, [[0, 0, 1.0]]]), target, np.vstack([base_tris, [[a, b, len(base)]]]),
                                target_triangles=target_tris, k_M=10, k_N=20)
+    # k_N beyond the target's eigenfunctions: refused before any work, in the target's terms (before:
+    # a warning that its connectivity could not be laid on the base, then the error at the first
+    # pose, advising the full basis, which a transfer refuses)
+    n = len(target)
+    with pytest.raises(MeshError, match=rf"k_N .* is {n}, but the target mesh has {n} vertices.* Lower it\.$"):
+        Transfer(base, base_tris, target, target_tris, k_M=10, k_N=n)
     transfer = Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, use_extrinsic=False)
     with pytest.raises(MeshError, match="same target mesh"):
         transfer.differences(target[:-1])
