@@ -62,6 +62,11 @@ def _indices(values, what: str) -> np.ndarray:
         if not whole.all():
             first = int(np.flatnonzero(~whole)[0])
             raise MeshError(f"{what} holds a value that is not a whole vertex index (entry {first}: {array[first]}).")
+        # int64 cannot hold these: the cast would wrap them to another (negative) index
+        beyond = np.abs(array) >= 2.0**63
+        if beyond.any():
+            first = int(np.flatnonzero(beyond)[0])
+            raise MeshError(f"{what} holds {array[first]:g} at entry {first}, beyond any vertex index.")
     return array.astype(np.int64)
 
 

@@ -379,6 +379,12 @@ def test_template_maps_compose_to_the_direct_map(tmp_path):
         core.read_vertex_map(tmp_path / "bad.vts")
     with pytest.raises(MeshError, match="does not exist"):
         core.read_vertex_map(tmp_path / "missing.vts")
+    # a whole number beyond int64 (it was cast to -2**63, silently; composed: 2**63 − 1)
+    (tmp_path / "huge.vts").write_text("1\n2\n1e20\n")
+    with pytest.raises(MeshError, match=r"holds 1e\+20 at entry 2, beyond any vertex index"):
+        core.read_vertex_map(tmp_path / "huge.vts")
+    with pytest.raises(MeshError, match=r"target's template map holds 1e\+20 at entry 2"):
+        core.template_correspondence([1, 2, 3], [1.0, 2.0, 1e20], 5)
 
 
 def test_split_seams_slivers_and_loose_target_vertices(sheets):
