@@ -29,8 +29,9 @@ import numpy as np
 import warnings
 
 from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
-from .offset_surface import check_offset_pose, default_offset
-from .reference_shape import RecoveredMetric, ReferenceShape, ShapeDifferences, differences_reference
+from .offset_surface import default_offset
+from .reference_shape import (OFFSET_RANGE, PRECISION_TOLERANCE, RecoveredMetric, ReferenceShape, ShapeDifferences,
+                              differences_reference)
 from .validation import (
     check_basis_sizes,
     check_factor,
@@ -114,64 +115,8 @@ def shape_differences(
     offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
     with numerical_failures("Computing the shape differences"):
         reference = ReferenceShape(base, topology.triangles, offset=offset, use_extrinsic=use_extrinsic)
-        for name, pose in (("base_vertices", base), ("target_vertices", target)):
-            _warn_precision(reference, pose[reference.used_vertices], name)
-            if use_extrinsic:
-                check_offset_pose(reference.surface, pose[reference.used_vertices], reference.offset, name=name,
-                                  vertex_ids=reference.used_vertices)
-        if use_extrinsic:
-            _warn_offset_scale(reference)
-        return reference.shape_differences(target, k_M=k_M, k_N=k_N)
-
-
-#: shape_differences warns when round-off alone may change recovered squared edge lengths by
-#: more than this (relative). The cotangent weights of eq. (2), (ℓ_k² − ℓ_i² − ℓ_j²)/(8µ), cancel
-#: terms of size ℓ²_max(T) to resolve ℓ²_min(T) and 2µ(T), so they lose a factor
-#: κ_T = ℓ²_max / min(ℓ²_min, 2µ) of precision (measured: one vertex of a 0.2-edge sheet pulled
-#: 1e6 away, κ ≈ 2.5e13, recovered squared lengths 1e-3 off in the full basis; 1e3 away, 1e-8).
-PRECISION_TOLERANCE = 1e-4
-
-
-def _warn_precision(reference: ReferenceShape, pose: np.ndarray, name: str) -> None:
-    topology = reference.topology
-    squared = topology.squared_edge_lengths(pose)[topology.triangle_edges]  # (m, 3)
-    from .mesh_topology import triangle_areas
-
-    doubled = 2.0 * triangle_areas(pose, topology.triangles)
-    kappa = squared.max(axis=1) / np.minimum(squared.min(axis=1), doubled)
-    worst = int(np.argmax(kappa))
-    loss = np.finfo(np.float64).eps * kappa[worst]
-    if loss > PRECISION_TOLERANCE:
-        corners = reference.triangles[worst]  # same order as the compact topology's
-        edges = np.sqrt(squared[worst])
-        warnings.warn(
-            f"{name}: triangle {worst} (vertices {corners.tolist()}) has edges from {edges.min():.3g} to "
-            f"{edges.max():.3g} long (or is nearly flat); recovering its edge lengths from the "
-            f"differences loses precision (relative error up to about {loss:.1g}). The pose may be "
-            "an extreme stretch or a stray vertex: check it, or remesh.",
-            ShapeDifferenceWarning,
-            stacklevel=3,
-        )
-
-
-#: The extrinsic differences stay accurate for offsets between these multiples of the mean edge
-#: length (thickening lengths are t² + O(ℓ²): far above, the edge information drowns in t²'s
-#: round-off; far below, the offset surface's lengths differ from the base's at round-off).
-OFFSET_RANGE = (1e-3, 1e3)
-
-
-def _warn_offset_scale(reference: ReferenceShape) -> None:
-    mean_edge = float(np.mean(np.sqrt(reference.base.squared_lengths)))
-    ratio = reference.offset / mean_edge
-    low, high = OFFSET_RANGE
-    if not low <= ratio <= high:
-        warnings.warn(
-            f"offset {reference.offset:g} is {ratio:.3g} × the mean edge length {mean_edge:.3g}; "
-            f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
-            "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
-            ShapeDifferenceWarning,
-            stacklevel=3,
-        )
+        reference.check_faithful(base[reference.used_vertices], "base_vertices", stacklevel=2)
+        return reference.shape_differences(target, k_M=k_M, k_N=k_N, name="target_vertices", stacklevel=2)
 
 
 #: reconstruct warns when the returned pose misses the recovered edge lengths by more than this

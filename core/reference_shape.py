@@ -22,7 +22,7 @@ from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
 from .laplace_basis import LaplaceBasis, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
-from .offset_surface import OffsetSurface, default_offset, offset_surface
+from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
 from .seams import glue_along_seams, seam_twins
 from .shape_difference import (
@@ -33,6 +33,18 @@ from .shape_difference import (
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
 from .validation import check_basis_sizes, check_flag, check_offset, check_triangles
+
+
+#: Shape differences warn when round-off alone may change recovered squared edge lengths by
+#: more than this (relative). The cotangent weights of eq. (2), (ℓ_k² − ℓ_i² − ℓ_j²)/(8µ), cancel
+#: terms of size ℓ²_max(T) to resolve ℓ²_min(T) and 2µ(T), so they lose a factor
+#: κ_T = ℓ²_max / min(ℓ²_min, 2µ) of precision (measured: one vertex of a 0.2-edge sheet pulled
+#: 1e6 away, κ ≈ 2.5e13, recovered squared lengths 1e-3 off in the full basis; 1e3 away, 1e-8).
+PRECISION_TOLERANCE = 1e-4
+#: The extrinsic differences stay accurate for offsets between these multiples of the mean edge
+#: length (thickening lengths are t² + O(ℓ²): far above, the edge information drowns in t²'s
+#: round-off; far below, the offset surface's lengths differ from the base's at round-off).
+OFFSET_RANGE = (1e-3, 1e3)
 
 
 @dataclass(frozen=True, eq=False)
@@ -251,17 +263,67 @@ class ReferenceShape:
                                  full_basis=full_basis)
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None,
-                          name: str = "target vertices") -> ShapeDifferences:
+                          name: str = "target vertices", stacklevel: int = 1) -> ShapeDifferences:
         """The four differences (§6) of a target pose ``(n, 3)`` relative to this base (``name``:
-        what error messages call the pose)."""
+        what error messages call the pose). Warns (:class:`ShapeDifferenceWarning`) where they
+        cannot represent the pose faithfully (:meth:`check_faithful`) and where the offset is
+        outside :data:`OFFSET_RANGE` × the mean edge length (``stacklevel``: their frame, 1 for the
+        caller)."""
         k_M, k_N = self.basis_sizes(k_M, k_N)
         target = self.compact_pose(target_vertices, name=name)
+        self.check_faithful(target, name, stacklevel=stacklevel + 1)
+        if self.use_extrinsic:
+            self._warn_offset_scale(stacklevel + 1)
         area, conformal = self.base.differences(target, k_M, k_N)
         offset_area = offset_conformal = None
         if self.use_extrinsic:
             offset_target = self.surface.positions(target, self.offset)
             offset_area, offset_conformal = self.offset_layer.differences(offset_target, k_M, k_N)
         return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.offset, k_M, k_N, self)
+
+    def check_faithful(self, pose: np.ndarray, name: str, *, stacklevel: int = 1) -> None:
+        """Checks of a pose's used vertices ``(n_used, 3)`` that depend on what the differences
+        resolve: a :class:`ShapeDifferenceWarning` where round-off alone may move its recovered
+        squared edge lengths by more than :data:`PRECISION_TOLERANCE`, and (with the offset
+        surface) a :class:`MeshError` where its offset surface collapses over an edge.
+        ``stacklevel``: the warning's frame, 1 for the caller of this method."""
+        self._warn_precision(pose, name, stacklevel + 1)
+        if self.use_extrinsic:
+            check_offset_pose(self.surface, pose, self.offset, name=name, vertex_ids=self.used_vertices)
+
+    def _warn_precision(self, pose: np.ndarray, name: str, stacklevel: int) -> None:
+        topology = self.topology
+        squared = topology.squared_edge_lengths(pose)[topology.triangle_edges]  # (m, 3)
+        from .mesh_topology import triangle_areas
+
+        doubled = 2.0 * triangle_areas(pose, topology.triangles)
+        kappa = squared.max(axis=1) / np.minimum(squared.min(axis=1), doubled)
+        worst = int(np.argmax(kappa))
+        loss = np.finfo(np.float64).eps * kappa[worst]
+        if loss > PRECISION_TOLERANCE:
+            corners = self.triangles[worst]  # same order as the compact topology's
+            edges = np.sqrt(squared[worst])
+            warnings.warn(
+                f"{name}: triangle {worst} (vertices {corners.tolist()}) has edges from {edges.min():.3g} to "
+                f"{edges.max():.3g} long (or is nearly flat); recovering its edge lengths from the "
+                f"differences loses precision (relative error up to about {loss:.1g}). The pose may be "
+                "an extreme stretch or a stray vertex: check it, or remesh.",
+                ShapeDifferenceWarning,
+                stacklevel=stacklevel + 1,
+            )
+
+    def _warn_offset_scale(self, stacklevel: int) -> None:
+        mean_edge = float(np.mean(np.sqrt(self.base.squared_lengths)))
+        ratio = self.offset / mean_edge
+        low, high = OFFSET_RANGE
+        if not low <= ratio <= high:
+            warnings.warn(
+                f"offset {self.offset:g} is {ratio:.3g} × the mean edge length {mean_edge:.3g}; "
+                f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
+                "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
+                ShapeDifferenceWarning,
+                stacklevel=stacklevel + 1,
+            )
 
     def recover_metric(self, differences: ShapeDifferences, *, warm: list | None = None,
                        tolerance: float | None = None, rho_scale: float | None = None) -> RecoveredMetric:

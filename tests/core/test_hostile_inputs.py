@@ -168,8 +168,14 @@ def test_7_stray_vertex_far_away_warns_about_precision(sheet):
     stray[5] += 1e6
     with pytest.warns(ShapeDifferenceWarning, match="loses precision"):
         core.shape_differences(v, stray, t)
+    reference = core.ReferenceShape(v, t)  # a base prepared for many targets warns the same (it was silent)
+    with pytest.warns(ShapeDifferenceWarning, match="target vertices: .* loses precision"):
+        reference.shape_differences(stray)
+    with pytest.warns(ShapeDifferenceWarning, match="mean edge length"):
+        core.ReferenceShape(v, t, offset=1e12).shape_differences(target)
     stray[5] = target[5] + 1e3  # far, but within precision: no warning
     _no_warnings(core.shape_differences, v, stray, t)
+    _no_warnings(reference.shape_differences, stray)
 
 
 def test_7_offset_far_from_the_mesh_scale_warns(sheet):
