@@ -234,6 +234,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if between:
             self.held_factors[s] = bool(weak)
         checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None)
+        if self.anchored and 0.0 < s < 1.0 and self.use_extrinsic:  # two poses (sequences keep their fits)
+            checked = self.repair.nearer_the_metric(checked, s, stretch, motion, targets)
         return self.finished(checked, s)
 
     def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:
