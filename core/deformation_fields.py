@@ -472,7 +472,8 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     return _nearest_representatives(rotvec, theta, reference, identity, rows)
 
 
-def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None) -> np.ndarray:
+def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None,
+                                toward=None) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3) of a mesh's triangles, continuous
     across its edges past a half turn: ``pairs`` (E, 2) are the triangles sharing an edge. A part
     that turns by more than a half turn while the part it hangs from does not (a strip curled by
@@ -486,6 +487,19 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     across it. ``pieces``: each triangle's connected piece of the mesh (m,). ``turned``: a function returning how far each triangle turns (m,) when that is not
     the angle of ``rotvec`` (residuals to a rigid motion: the part that stays put is the one whose
     whole rotation is least, whatever its residual), called only where there is a jump.
+    ``toward``: the rotation vectors (m, 3) of the rigid motion each triangle's piece makes and the
+    triangles' weights (m,) (their areas), or None. Continued from either end, a part turning by
+    a whole turn more than the other end has the same turns between neighbours: the two readings
+    differ by a whole turn of the entire piece (a tail whose root turns −60° and tip −300° read
+    from the tip as +300° / +60°), and where both ends turn about as little the least-turned
+    triangle picks one by the mesh's tessellation. With ``toward``, a linked set of regions whose
+    least turns exceed its root's by no more than the root's own (a root that turns so is not
+    known to stay) plus the step of the turn from either least-turned triangle to its neighbours
+    (the mesh samples the turn no finer) is continued from the one of them whose reading
+    is nearest the rigid motion's, in the weighted least squares along each triangle's axis (the
+    piece as a whole turning as its rigid fit): the rigid fit's principal rotation does not tell
+    the way round past a half turn itself (a strip held at one end and curled by 220° fits +129°
+    the other way), so it only breaks the tie.
 
     A connected piece left with a jump (its jumps do not close up: crumpled cloth, around whose
     folds the rotations wind by a whole turn) keeps its principal vectors: taken across the mesh
@@ -519,7 +533,8 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     link = dict(zip(map(tuple, ends[first].tolist()), first.tolist()))
     theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
     least = np.full(count, np.inf)
-    np.minimum.at(least, region, theta if turned is None else turned())
+    amount = theta if turned is None else turned()
+    np.minimum.at(least, region, amount)
     # each linked set's least-turned region (the first in the order of least turn) is its root; one
     # search from a node joined to the roots reaches every linked region (a search from each root
     # costs a pass over all regions: 0.4 s at 3,000 pieces with a single jump)
@@ -540,6 +555,44 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
         inside, outside = (pair[0], pair[1]) if region[pair[1]] == r else (pair[1], pair[0])
         reached = rotvec[inside] + 2.0 * np.pi * turns[parent[r]] * axis[inside]
         turns[r] = np.round(np.dot(reached - rotvec[outside], axis[outside]) / (2.0 * np.pi))
+    if toward is not None:
+        reference, weights = toward
+        linked = np.zeros(count + 1, dtype=bool)
+        linked[ends[first].ravel()] = True
+        rows = np.flatnonzero(linked[region])
+        # a region's continued vectors (θ + 2π·turns) â point along u = ±â (θ ≤ π, â the principal
+        # axis: the reverse where turns < 0), continuous across the mesh; a whole turn k more of
+        # the entire set adds 2π k u, and k = −turns·sign makes a region the root. The k nearest
+        # the rigid motion (minimising Σ w (|θ + 2π·turns| + 2πk − reference · u)² over the set)
+        direction = np.where(turns[:count] >= 0, 1.0, -1.0)
+        along = direction[region[rows]] * np.einsum("ij,ij->i", reference[rows], axis[rows])
+        off = along - np.abs(theta[rows] + 2.0 * np.pi * turns[region[rows]])
+        owner = sets[region[rows]]
+        total = np.bincount(owner, weights[rows], minlength=len(sets))
+        nearest = np.bincount(owner, weights[rows] * off, minlength=len(sets)) \
+            / (2.0 * np.pi * np.maximum(total, np.finfo(float).tiny))
+        # ... among the regions whose least turn exceeds the root's by no more than the root's
+        # own (a root turning by that much is not known to be the part that stays) plus the step
+        # of the turn from their least-turned triangle, or the root's, to its joined neighbours
+        # (the mesh samples the rotations no finer there); elsewhere the root stays
+        step = np.zeros(m)
+        change = np.abs(amount[joined[:, 0]] - amount[joined[:, 1]])
+        np.maximum.at(step, joined[:, 0], change)
+        np.maximum.at(step, joined[:, 1], change)
+        by_turn = np.lexsort((amount, region))
+        _, lowest_row = np.unique(region[by_turn], return_index=True)
+        resolution = step[by_turn[lowest_row]]  # per region: the step at its least-turned triangle
+        root_of = np.zeros(len(sets), dtype=np.int64)
+        root_of[sets[roots]] = roots
+        root = root_of[sets]
+        margin = least[root] + np.maximum(resolution, resolution[root])
+        tied = np.flatnonzero(linked[:count] & (least - least[root] <= margin))
+        candidate = -turns[tied] * direction[tied]
+        order = np.lexsort((np.abs(candidate - nearest[sets[tied]]), sets[tied]))
+        _, best = np.unique(sets[tied[order]], return_index=True)
+        shift = np.zeros(len(sets))
+        shift[sets[tied[order[best]]]] = candidate[order[best]]
+        turns[:count] += np.where(linked[:count], shift[sets] * direction, 0.0)
     if not turns.any():
         return rotvec
     out = rotvec + (2.0 * np.pi * turns[region])[:, None] * axis

@@ -191,7 +191,7 @@ class _Relative:
         whether it turns past a half turn with a jump at a crease: which way it went is not known."""
         whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
         pieces, count = topo.triangle_component, len(topo.components)
-        continued = df.continuous_rotation_vectors(whole, pairs, pieces)
+        continued = df.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base))
         # from the least-turned part of its piece (a piece spinning by about a half turn as a
         # whole, its parts a little either side of it, turns as its rigid fit says)
         angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
@@ -218,6 +218,13 @@ class _Relative:
             out |= bent & ~with_crease(pairs[bent[pieces[pairs[:, 0]]]])
         return out, out[pieces] & (beyond < df.WRAP_CREASE), folded
 
+    def _rigid_turns(self, topo: _Topology, base: _Key) -> tuple:
+        """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
+        sequence reads it) and the triangles' areas in ``base``: what the whole rotations taken
+        continuous across a piece turn nearest (``toward`` of
+        :func:`core.deformation_fields.continuous_rotation_vectors`)."""
+        return self.screw[topo.triangle_component, :3], base.areas
+
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
@@ -241,7 +248,8 @@ class _Relative:
         out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
         across = self._across if across is None else across
         if across is not None:
-            out.rotvec = df.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component)
+            out.rotvec = df.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
+                                                        toward=self._rigid_turns(topo, base))
         out.whole = components
         return out
 

@@ -171,6 +171,36 @@ def test_rotations_are_not_taken_continuous_across_a_crease():
         np.testing.assert_allclose(df.continuous_rotation_vectors(rotvec, pairs, pieces), turned, atol=1e-12)
 
 
+def test_rotations_taken_continuous_turn_as_the_rigid_motion_where_both_ends_turn_as_little():
+    """A chain of triangles turning about z from −60.5° at one end to −300.5° at the other in steps
+    of 2° (a tail wagging: its root turns 60.5°, each joint 60° more): the tip's principal vector,
+    59.5° the other way, is the least-turned one, so the chain continued from it reads +299.5° …
+    +59.5°, a whole turn more of the entire chain. The two ends' least turns are 1° apart, under
+    the 2° step between neighbours: taken toward the chain's rigid motion (−130° about z), it reads
+    −60.5° … −300.5°, toward +130° the other way. A chain from 0° to −220° (a strip held at one end
+    and curled) reads so whatever the rigid motion (its principal rotation +129°): its tip's 140° the
+    other way is far from the held end's 0°."""
+    def chain(first, last):
+        angles = -np.radians(np.arange(first, last + 1.0, 2.0))
+        turned = np.outer(angles, [0.0, 0.0, 1.0])
+        pairs = np.stack([np.arange(len(angles) - 1), np.arange(1, len(angles))], axis=1)
+        return turned, Rotation.from_rotvec(turned).as_rotvec(), pairs, np.zeros(len(angles), dtype=int)
+
+    def toward(rigid, m):
+        return np.tile([0.0, 0.0, np.radians(rigid)], (m, 1)), np.ones(m)
+
+    turned, rotvec, pairs, pieces = chain(60.5, 300.5)
+    whole = [0.0, 0.0, 2.0 * np.pi]
+    np.testing.assert_allclose(df.continuous_rotation_vectors(rotvec, pairs, pieces), turned + whole, atol=1e-12)
+    for rigid, expected in ((-130.0, turned), (130.0, turned + whole)):
+        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
+        np.testing.assert_allclose(out, expected, atol=1e-12)
+    turned, rotvec, pairs, pieces = chain(0.0, 220.0)
+    for rigid in (129.0, -129.0):
+        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
+        np.testing.assert_allclose(out, turned, atol=1e-12)
+
+
 def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
     """Screw coordinates of 300 rigid motions at once (angles 0 … π, translations up to 1e3) are
     each the single motion's, and the exponential gives the motions back; a half turn goes the

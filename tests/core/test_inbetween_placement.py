@@ -811,6 +811,40 @@ def test_a_coarse_tube_curling_past_a_half_turn_per_key_is_right_or_warned():
             assert right or warned
 
 
+def _wagged_tail(wag, rings=101, sides=12):
+    """A tail (a closed tube of radius 0.03 and length 1) wagged about y by ``wag``: its root bone
+    (x < 0.2) turned by 31° × ``wag`` about the root, each of its four joints (x = 0.2, 0.4, 0.6,
+    0.8, each bend over 0.1) by 30° × ``wag`` more."""
+    tube, tri = _curled_tube(np.radians([30.0 * wag] * 4), (0.2, 0.4, 0.6, 0.8), 0.1, 0.03, rings=rings, sides=sides)
+    return Rotation.from_rotvec([0.0, -np.radians(31.0 * wag), 0.0]).apply(tube), tri
+
+
+def test_a_tail_wagging_past_a_half_turn_per_key_turns_the_way_its_rigid_motion_does():
+    """Keys of a tail wagged ±1 (its root turning 62° per gap, its tip 302°): the tip's whole
+    rotation, 58° the other way round, is less than the root's, so the rotations taken
+    continuous from there read the root as turning 298° and every in-between came out spun by a
+    whole turn times the factor (130 % of the diagonal off half-way, 921–1,294 triangles facing
+    against the tail, silently). Read as the tail's rigid motion turns (130° per gap), every
+    in-between has every triangle facing as in the tail at the interpolated angles and is closer
+    to it than the linear blend, and half-way through the middle gap (the keys either side
+    mirror each other) it is the straight tail to the gap's tolerance."""
+    wag = (1.0, -1.0, 1.0, -1.0)
+    keys = [_wagged_tail(w)[0] for w in wag]
+    _, tri = _wagged_tail(0.0)
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(len(keys) - 1):
+        factors = (0.25, 0.5, 0.75)
+        for x, factor in zip(sequence.poses(gap, factors), factors):
+            truth, _ = _wagged_tail(wag[gap] + factor * (wag[gap + 1] - wag[gap]))
+            blend = (1.0 - factor) * keys[gap] + factor * keys[gap + 1]
+            assert np.sum((x - truth) ** 2) < np.sum((blend - truth) ** 2)
+            assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+    x = sequence.pose(1, 0.5)
+    straight, _ = _wagged_tail(0.0)
+    assert np.sqrt(np.mean(np.sum((x - straight) ** 2, axis=1))) < sequence._gap(1).tolerance * diagonal
+
+
 @pytest.mark.parametrize("degrees", [100.0, 170.0])
 def test_a_tube_curling_past_a_half_turn_per_key_in_a_batch_is_solved_at_every_factor(degrees):
     """The thin arm of the test above through ``poses`` (keys 8 frames apart: seven in-betweens
