@@ -58,6 +58,18 @@ def posed_grid(bridge, subdivisions: int = 12):
     return obj
 
 
+def transfer_pair(bridge, source_subdivisions: int, target_subdivisions: int):
+    """A "Source" grid with a "Bend" key and a "Sheet" grid (active) over it, both selected: the
+    selection Transfer reads (the source beside the active target)."""
+    source = grid_object(source_subdivisions, name="Source")
+    add_key(source, "Bend", rolled(bridge.vertex_positions(source.data), 1.0))
+    target = grid_object(target_subdivisions, name="Sheet")
+    source.select_set(True)
+    target.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    return source, target
+
+
 def cloth_scene(subdivisions: int = 14, frames: int = 13):
     """A grid falling onto a sphere with a Cloth modifier, baked for ``frames`` frames."""
     scene = bpy.context.scene

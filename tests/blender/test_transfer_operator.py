@@ -6,7 +6,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import add_key, cloth_scene, grid_object, key_names, rolled, snapshot  # noqa: E402
+from blender_scenes import add_key, cloth_scene, grid_object, key_names, rolled, snapshot, transfer_pair  # noqa: E402
 
 TOLERANCE = 1e-4  # float32 storage of a ~2 unit mesh
 
@@ -21,12 +21,7 @@ def hausdorff(a, b):
 def pair(bpy_empty, extension, core):
     """A 15 × 15 source grid with a "Bend" key and an 11 × 11 grid (active) over it, both selected."""
     bridge = extension.bridge
-    source = grid_object(14, name="Source")
-    add_key(source, "Bend", rolled(bridge.vertex_positions(source.data), 1.0))
-    target = grid_object(10, name="Sheet")
-    source.select_set(True)
-    target.select_set(True)
-    bpy.context.view_layer.objects.active = target
+    source, target = transfer_pair(bridge, 14, 10)
     return source, target, bridge
 
 

@@ -16,7 +16,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import add_key, armature_scene, grid_object, posed_grid, rolled  # noqa: E402
+from blender_scenes import armature_scene, posed_grid, transfer_pair  # noqa: E402
 from dev_extension import MODULE  # noqa: E402
 
 
@@ -56,12 +56,7 @@ def _animated(bridge):
 
 
 def _transfer_pair(bridge):
-    source = grid_object(8, name="Source")
-    add_key(source, "Bend", rolled(bridge.vertex_positions(source.data), 1.0))
-    target = grid_object(6, name="Sheet")
-    source.select_set(True)
-    target.select_set(True)
-    bpy.context.view_layer.objects.active = target
+    transfer_pair(bridge, 8, 6)
 
 
 def _shape_space_drawn(bridge):
