@@ -1223,11 +1223,12 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
                     & (np.sum(normals(x) * normals(keys[3]), axis=1) < 0)).any()
 
 
-def test_rough_corrections_are_solved_not_predicted(monkeypatch):
-    """Corrections that vary smoothly with the factor are predicted; when the middle solved one is
-    far from what the others predict (a flap between the keys), every in-between of the gap is
-    solved instead, all with the wide rotation limit (the three solved first too: kept at the
-    narrow one among neighbours at the wide one, they stood out)."""
+def test_rough_corrections_are_solved_densely_and_predicted_between(monkeypatch):
+    """Corrections that vary smoothly with the factor are predicted from three solved ones; when the
+    middle solved one is far from what the others predict (a flap between the keys), the gap is
+    solved again at every eighth, all with the wide rotation limit (the three solved first too: kept
+    at the narrow one among neighbours at the wide one, they stood out), and each in-between left
+    is predicted from the two solved around it, never more than a sixteenth of the gap away."""
     import core.inbetween_prediction as prediction
 
     flat, tri = grid(12, 9, size=1.0)
@@ -1247,10 +1248,39 @@ def test_rough_corrections_are_solved_not_predicted(monkeypatch):
     monkeypatch.setattr(prediction, "_inconsistent", lambda gap, solved: True)
     monkeypatch.setattr(type(gap), "pose", lambda self, s, **kw: solved.append((s, self.rotation_limit)) or
                         real_pose(self, s, **kw))
-    SequenceInterpolator(keys, tri).poses(2, np.arange(1, 16) / 16)  # three solved, then all
-    wide = [s for s, limit in solved if limit == prediction.ROUGH_ROTATION_DEVIATION]
-    assert sorted(wide) == list(np.arange(1, 16) / 16)
+    factors = np.arange(1, 16) / 16
+    batch = SequenceInterpolator(keys, tri).poses(2, factors)  # three solved, then every eighth
+    assert sorted(s for s, limit in solved if limit == prediction.ROUGH_ROTATION_DEVIATION) == list(np.arange(1, 8) / 8)
     assert sorted(s for s, limit in solved if limit != prediction.ROUGH_ROTATION_DEVIATION) == [0.25, 0.5, 0.75]
+    assert np.isfinite(batch).all()
+    # a predicted in-between lies between its solved neighbours: within the larger of their moves
+    for j in range(0, 15, 2):  # 1/16, 3/16, ..., 15/16: predicted
+        before = keys[2] if j == 0 else batch[j - 1]
+        after = keys[3] if j == 14 else batch[j + 1]
+        reach = max(np.abs(after - before).max(), 1e-12)
+        assert np.abs(batch[j] - 0.5 * (before + after)).max() <= reach
+
+
+@pytest.mark.parametrize("knots", [(0.25, 0.5, 0.75), tuple(np.arange(1, 8) / 8), (0.2, 0.3, 0.9)])
+def test_rough_gap_correction_is_the_chord_between_neighbouring_knots(knots):
+    """The correction of a rough gap is zero at the keys, the solved value at each solved factor,
+    and on the chord of the two knots around any other factor: it reproduces a correction linear
+    in the factor between knots and never leaves the range of the two it joins."""
+    from core.inbetween_prediction import _PiecewiseLinearCorrection
+
+    rng = np.random.default_rng(3)
+    values = {s: rng.normal(size=(7, 3)) for s in knots}
+    correction = _PiecewiseLinearCorrection(values)
+    nodes = [0.0, *knots, 1.0]
+    data = [np.zeros((7, 3)), *(values[s] for s in knots), np.zeros((7, 3))]
+    assert np.array_equal(correction(0.0), data[0]) and np.allclose(correction(1.0), data[-1], atol=0)
+    for s in knots:
+        assert np.allclose(correction(s), values[s], rtol=0, atol=1e-15)
+    for a, b, da, db in zip(nodes[:-1], nodes[1:], data[:-1], data[1:]):
+        for w in (0.1, 0.5, 0.9):
+            s = a + w * (b - a)
+            assert np.allclose(correction(s), (1 - w) * da + w * db, rtol=0, atol=1e-14)
+            assert (correction(s) <= np.maximum(da, db) + 1e-15).all() and (correction(s) >= np.minimum(da, db) - 1e-15).all()
 
 
 def test_pinned_vertices_stay_put_in_sequences():

@@ -1122,7 +1122,9 @@ def test_a_rough_gap_is_solved_with_the_wide_rotation_limit_and_gives_it_back(mo
     first = seq.poses(1, factors)
     before, after = limits[:checked[0]], limits[checked[0]:]
     assert len(before) >= 3 and set(before) == {inbetween_fit.MAX_ROTATION_DEVIATION}
-    assert len(after) >= 12 and set(after) == {inbetween_prediction.ROUGH_ROTATION_DEVIATION}
+    # every eighth solved after the check (the rest predicted, or solved where their repair fails)
+    assert len(after) >= len(inbetween_prediction.ROUGH_SOLVED_FACTORS)
+    assert set(after) == {inbetween_prediction.ROUGH_ROTATION_DEVIATION}
     assert seq._gap(1).rotation_limit == inbetween_fit.MAX_ROTATION_DEVIATION
     np.testing.assert_allclose(seq.poses(1, factors), first, atol=1e-12)
 
