@@ -116,16 +116,18 @@ def moves_vertices(modifier) -> bool:
 
 
 def render_only_motion(obj) -> str | None:
-    """A warning when modifiers of ``obj`` that move its vertices are on for renders and off in the
-    viewport (a heavy cloth kept off while animating): frames are read as the viewport evaluates
-    them, so the poses lack their motion, which renders show; None otherwise. Those at the end that
-    go with the new object (:func:`trailing_generators`) are not counted."""
+    """A warning when modifiers that move the vertices of ``obj`` — its own or those of an object
+    that moves it (:func:`objects_moving`: a cloth proxy through a Surface Deform) — are on for
+    renders and off in the viewport (a heavy cloth kept off while animating): frames are read as
+    the viewport evaluates them, so the poses lack their motion, which renders show; None otherwise.
+    Those at the end of ``obj``'s stack that go with the new object (:func:`trailing_generators`)
+    are not counted."""
     copied = set(modifier.name for modifier in trailing_generators(obj))
-    names = [f"'{m.name}'" for m in obj.modifiers
-             if m.show_render and not m.show_viewport and moves_vertices(m) and m.name not in copied]
+    names = [f"'{m.name}' of '{mover.name}'" for mover in objects_moving(obj) for m in mover.modifiers
+             if m.show_render and not m.show_viewport and moves_vertices(m) and not (mover == obj and m.name in copied)]
     if not names:
         return None
-    return (f"{', '.join(names)} of '{obj.name}' {'is' if len(names) == 1 else 'are'} on for renders only (off in "
+    return (f"{', '.join(names)} {'is' if len(names) == 1 else 'are'} on for renders only (off in "
             "the viewport), and frames are read as the viewport shows them: the poses read lack "
             f"{'its' if len(names) == 1 else 'their'} motion. Turn {'it' if len(names) == 1 else 'them'} on in the "
             "viewport (the monitor icon in the modifier's header) and run again")

@@ -572,3 +572,28 @@ def test_a_cloth_on_for_renders_only_is_said_to_be_missing_from_the_frames(bpy_e
         cloth.modifiers["Cloth"].show_viewport = True
         bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
         assert "on for renders only" not in capfd.readouterr().out
+
+
+def test_a_cloth_proxy_on_for_renders_only_is_said_to_be_missing_from_the_frames(bpy_empty, extension, capfd,
+                                                                                 tmp_path):
+    """A render mesh bound by a Surface Deform to a cloth proxy whose cloth is off in the viewport
+    and on for renders: frames are read as the viewport shows them, the proxy at rest, so the run
+    names the proxy's modifier (before, only the render mesh's own modifiers were looked at)."""
+    from blender_scenes import grid_object, pinned_cloth_scene
+
+    proxy = pinned_cloth_scene(8, frames=9)
+    mesh = grid_object(16, name="Render")
+    mesh.rotation_euler.x = proxy.rotation_euler.x
+    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
+    bind.target = proxy
+    with bpy.context.temp_override(object=mesh, active_object=mesh):
+        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+    proxy.modifiers["Cloth"].show_viewport = False
+    expected = f"'Cloth' of '{proxy.name}' is on for renders only (off in the viewport)"
+    with bpy.context.temp_override(active_object=mesh, object=mesh, selected_objects=[mesh]):
+        capfd.readouterr()
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+        assert expected in capfd.readouterr().out
+        proxy.modifiers["Cloth"].show_viewport = True
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+        assert "on for renders only" not in capfd.readouterr().out
