@@ -70,6 +70,18 @@ def transfer_pair(bridge, source_subdivisions: int, target_subdivisions: int):
     return source, target
 
 
+def bound_to(proxy, subdivisions: int = 16, name: str = "Render"):
+    """A grid (the render mesh) placed as ``proxy`` and bound to it by a Surface Deform: it moves
+    as the proxy's evaluated mesh does."""
+    mesh = grid_object(subdivisions, name=name)
+    mesh.rotation_euler.x = proxy.rotation_euler.x
+    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
+    bind.target = proxy
+    with bpy.context.temp_override(object=mesh, active_object=mesh):
+        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+    return mesh
+
+
 def cloth_scene(subdivisions: int = 14, frames: int = 13):
     """A grid falling onto a sphere with a Cloth modifier, baked for ``frames`` frames."""
     scene = bpy.context.scene

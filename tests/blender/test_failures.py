@@ -512,16 +512,12 @@ def test_frames_past_a_cloth_proxys_simulation_say_the_proxy_stands_still_there(
     1–13: the proxy holds still after frame 9 and so does the mesh; the run names the proxy and its
     range (before, only the mesh's own modifiers were looked at: nothing was said); a range inside
     the proxy's says nothing of it."""
-    from blender_scenes import pinned_cloth_scene
+    from blender_scenes import bound_to, pinned_cloth_scene
 
     proxy = pinned_cloth_scene(8, frames=9, bake=True)
     bpy.context.scene.frame_end = 13
-    mesh = grid_object(12, name="Render")
-    mesh.rotation_euler.x = proxy.rotation_euler.x
-    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
-    bind.target = proxy
+    mesh = bound_to(proxy, 12)
     with bpy.context.temp_override(object=mesh, active_object=mesh, selected_objects=[mesh]):
-        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
         capfd.readouterr()
         bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=4,
                                                        output='SHAPE_KEYS')
@@ -579,15 +575,10 @@ def test_a_cloth_proxy_on_for_renders_only_is_said_to_be_missing_from_the_frames
     """A render mesh bound by a Surface Deform to a cloth proxy whose cloth is off in the viewport
     and on for renders: frames are read as the viewport shows them, the proxy at rest, so the run
     names the proxy's modifier (before, only the render mesh's own modifiers were looked at)."""
-    from blender_scenes import grid_object, pinned_cloth_scene
+    from blender_scenes import bound_to, pinned_cloth_scene
 
     proxy = pinned_cloth_scene(8, frames=9)
-    mesh = grid_object(16, name="Render")
-    mesh.rotation_euler.x = proxy.rotation_euler.x
-    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
-    bind.target = proxy
-    with bpy.context.temp_override(object=mesh, active_object=mesh):
-        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+    mesh = bound_to(proxy)
     proxy.modifiers["Cloth"].show_viewport = False
     expected = f"'Cloth' of '{proxy.name}' is on for renders only (off in the viewport)"
     with bpy.context.temp_override(active_object=mesh, object=mesh, selected_objects=[mesh]):

@@ -271,16 +271,11 @@ def test_a_mesh_moved_by_an_unbaked_cloth_proxy_reads_it_from_its_start(bpy_empt
     settings change emptied: reading frames 7–13 simulates the proxy from its start frame, so the
     keys are the frames as played from frame 1 (before, the proxy was simulated from frame 7 and
     frame 7 came out 0.016 off, a quarter of its motion)."""
-    from blender_scenes import grid_object, pinned_cloth_scene
+    from blender_scenes import bound_to, pinned_cloth_scene
 
     bridge = extension.bridge
     proxy = pinned_cloth_scene(8, frames=13)  # played into its memory cache
-    mesh = grid_object(16, name="Render")
-    mesh.rotation_euler.x = proxy.rotation_euler.x
-    bind = mesh.modifiers.new("Surface Deform", 'SURFACE_DEFORM')
-    bind.target = proxy
-    with bpy.context.temp_override(object=mesh, active_object=mesh):
-        bpy.ops.object.surfacedeform_bind(modifier=bind.name)
+    mesh = bound_to(proxy)
     played = evaluated_frames(bridge, mesh, [7, 10, 13])
     cloth = proxy.modifiers["Cloth"]
     cloth.settings.mass = cloth.settings.mass  # any settings change empties the cache
