@@ -460,13 +460,20 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
         # a clean repair that moves the pose by more than the cloth deforms: the solve, if clean
         solved = _solved_instead(gap, s)
         return solved if solved[1] is None else result
-    count = lambda r: int(gap.repair.defects(r[0], s, None, None, scale=scale).sum())
-    if result[1] is None or (rings is not None and (allowed is None or count(result) <= allowed)):
+    if result[1] is None or (rings is not None and allowed is None):
+        return result
+
+    def count(pose):
+        return int(gap.repair.defects(pose, s, None, None, scale=scale).sum())
+
+    kept = count(result[0])  # once: it decides the solve and then weighs against it
+    if rings is not None and kept <= allowed:
         return result
     # no repair cleans this prediction where the gap's solved in-betweens are clean, or it keeps more
-    # defects than ``allowed``: solve it too, with the weak anchor if they were (see _solved)
+    # defects than ``allowed``: solve it too, with the weak anchor if they were (see _solved); the
+    # solve where it has no more defects
     solved = _solved_instead(gap, s)
-    return min((solved, result), key=count)
+    return solved if count(solved[0]) <= kept else result
 
 
 def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:

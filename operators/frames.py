@@ -21,11 +21,11 @@ def frame_key_name(frame: int) -> str:
     return f"Frame {frame}"
 
 
-def simulation_start(obj) -> int | None:
-    """The first frame of the unbaked simulations of ``obj`` and of the objects that move it (a
-    cloth proxy driving it through a Surface Deform: :func:`objects_moving`): reading frames starts
-    there, so that a simulation that is not baked is computed from its start, one frame at a time."""
-    starts = [mover.modifiers[name].point_cache.frame_start for mover in objects_moving(obj)
+def simulation_start(movers: list) -> int | None:
+    """The first frame of the unbaked simulations of ``movers``, an object and the objects that move
+    it (a cloth proxy driving it through a Surface Deform: :func:`objects_moving`): reading frames
+    starts there, so that a simulation that is not baked is computed from its start, one frame at a time."""
+    starts = [mover.modifiers[name].point_cache.frame_start for mover in movers
               for name in unbaked_simulations(mover)]
     return min(starts) if starts else None
 
@@ -82,7 +82,8 @@ class FrameRangeProperties:
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
         ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
         poses = []
-        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(obj),
+        movers = objects_moving(obj)
+        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(movers),
                                         every_frame=frames_depend_on_earlier(context.scene),
                                         set_aside=modifiers_set_aside(context, obj))
         with closing(reader) as frame_reader:
@@ -91,7 +92,7 @@ class FrameRangeProperties:
                 if matrices is not None:
                     matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
-        for warning in (render_only_motion(obj), bridge.frames_outside_simulation(obj, frames, objects_moving(obj)),
+        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers),
                         bridge.still_frames(obj, frames, poses)):
             if warning:
                 self.report({'WARNING'}, warning)

@@ -115,15 +115,15 @@ def moves_vertices(modifier) -> bool:
     return modifier.type not in PASSIVE_MODIFIERS and modifier.type not in GENERATE_MODIFIERS and not _still(modifier)
 
 
-def render_only_motion(obj) -> str | None:
-    """A warning when modifiers that move the vertices of ``obj`` — its own or those of an object
-    that moves it (:func:`objects_moving`: a cloth proxy through a Surface Deform) — are on for
+def render_only_motion(obj, movers: list) -> str | None:
+    """A warning when modifiers that move the vertices of ``obj`` — those of ``movers``, itself and
+    the objects that move it (:func:`objects_moving`: a cloth proxy through a Surface Deform) — are on for
     renders and off in the viewport (a heavy cloth kept off while animating): frames are read as
     the viewport evaluates them, so the poses lack their motion, which renders show; None otherwise.
     Those at the end of ``obj``'s stack that go with the new object (:func:`trailing_generators`)
     are not counted."""
     copied = set(modifier.name for modifier in trailing_generators(obj))
-    names = [f"'{m.name}' of '{mover.name}'" for mover in objects_moving(obj) for m in mover.modifiers
+    names = [f"'{m.name}' of '{mover.name}'" for mover in movers for m in mover.modifiers
              if m.show_render and not m.show_viewport and moves_vertices(m) and not (mover == obj and m.name in copied)]
     if not names:
         return None
