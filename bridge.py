@@ -213,6 +213,11 @@ class CacheFileMissing(FrameReadError):
     """A cache modifier of the object reads a file that is not there: every frame is its rest mesh."""
 
 
+class BakeFilesMissing(FrameReadError):
+    """A cloth or soft body baked to disk plays none of its frames: its files are not where Blender
+    looks, and every frame is the rest mesh."""
+
+
 def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
     """``(modifier name, path)`` of the first enabled Mesh Cache or Mesh Sequence Cache (Alembic,
     USD) modifier of ``obj`` whose file does not exist, or None. A file sequence (numbered files)
@@ -233,12 +238,52 @@ def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
     return None
 
 
+def _all_the_same(poses: list[np.ndarray]) -> bool:
+    """Whether there are two or more ``poses`` and all are the same, to the bit."""
+    return len(poses) >= 2 and all(np.array_equal(pose, poses[0]) for pose in poses[1:])
+
+
+def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray], movers: list) -> str | None:
+    """The error when every pose read from ``obj`` at ``frames`` is the same (:func:`_all_the_same`)
+    while two or more of ``frames`` lie inside the frames a cloth or soft body of ``movers`` (the
+    objects whose motion reaches ``obj``) is baked over to a disk cache: Blender found none of the
+    bake's files (a .blend moved, or sent to a farm, without its cache folder) and plays the rest
+    mesh at every frame; None otherwise. (A simulation that Blender plays moves some vertex between
+    two of its frames, if only by round-off: the same pose to the bit is one it does not play.)"""
+    if not _all_the_same(poses):
+        return None
+    for mover in movers:
+        for modifier in mover.modifiers:
+            if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
+                continue
+            cache = modifier.point_cache
+            inside = [f for f in frames if cache.frame_start <= f <= cache.frame_end]
+            if not (cache.is_baked and cache.use_disk_cache and len(inside) >= 2):
+                continue
+            # a linked object's bake is looked for beside its library, unless told to use this file's path
+            library = mover.library if cache.use_library_path else None
+            if cache.use_external:
+                folder = bpy.path.abspath(cache.filepath, library=library)
+            else:  # Blender's own folder for disk caches, beside the file the object comes from
+                blend = library.filepath if library else bpy.data.filepath
+                folder = bpy.path.abspath(f"//blendcache_{os.path.splitext(os.path.basename(blend))[0]}",
+                                          library=library)
+            what = (f"its modifier '{modifier.name}'" if mover == obj else
+                    f"the modifier '{modifier.name}' of '{mover.name}', which moves it,")
+            return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
+                    f"though {what} is baked to disk over frames {cache.frame_start}–"
+                    f"{cache.frame_end} (its cache: '{cache.info}'): Blender finds none of the bake's files in "
+                    f"'{folder}' and plays the mesh at rest. Copy the cache folder with the .blend (or bake "
+                    "again) and run again")
+    return None
+
+
 def still_frames(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray]) -> str | None:
     """A warning when every pose read from ``obj`` at ``frames`` (two or more) is the same, to the
-    bit: a motion that never reached the mesh (a baked disk cache whose files are gone reads the
-    rest mesh at every frame, its cache saying "0 frames on disk") rather than a still object,
-    which is rarely worth in-betweening; None otherwise."""
-    if len(poses) < 2 or any(not np.array_equal(pose, poses[0]) for pose in poses[1:]):
+    bit: a motion that never reached the mesh (outside a simulation's frames, or a baked cache of
+    another kind than :func:`missing_bake` refuses) rather than a still object, which is rarely
+    worth in-betweening; None otherwise."""
+    if not _all_the_same(poses):
         return None
     caches = [f"{m.name} cache: '{m.point_cache.info}'" for m in obj.modifiers
               if m.show_viewport and hasattr(m, "point_cache")]

@@ -17,9 +17,14 @@ errors print one line and exit with status 2.
 from __future__ import annotations
 
 import argparse
+import hashlib
+import json
 import os
+import signal
 import sys
+import threading
 import time
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -105,6 +110,21 @@ def _even_times(times: np.ndarray) -> bool:
     return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
 
 
+def _job_fingerprint(cache, samples_read, triangles, args) -> str:
+    """What makes two chunks parts of one retime (:func:`core.point_cache.check_stamps`): the
+    input's header and the samples the retime reads, the faces, and every setting that changes the
+    output (not file names: workers may see a share under other paths)."""
+    digest = hashlib.sha256(json.dumps([
+        cache.n_points, cache.n_samples, cache.start, cache.sampling, args.step, args.speed, args.start,
+        args.k_m, args.k_n, args.intrinsic, args.linear]).encode())
+    if cache.times is not None:
+        digest.update(np.ascontiguousarray(cache.times, dtype="<f8").tobytes())
+    for sample in samples_read:
+        digest.update(np.ascontiguousarray(cache.positions[sample], dtype="<f4").tobytes())
+    digest.update(np.ascontiguousarray(triangles, dtype="<i8").tobytes())
+    return digest.hexdigest()
+
+
 def _retime(args) -> int:
     check_pc2_name(args.output)
     refuse_overwriting(args.output, {args.cache: "the input cache", args.topology: "the topology OBJ"})
@@ -154,14 +174,43 @@ def _retime(args) -> int:
                   f"{done}/{len(outputs)} of this part, {time.monotonic() - began:.1f} s",
                   file=sys.stderr, flush=True)
     start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
-    write_pc2(args.output, poses, start=start, sampling=cache.sampling)
+    stamp = None
+    if args.chunk is not None or args.gaps is not None:  # a part of a job: merge checks what it is
+        stamp = dict(job=_job_fingerprint(cache, read, triangles, args), gaps=[gaps.start, gaps.stop],
+                     key_gaps=plan.n_gaps, input=str(args.cache), step=args.step, speed=args.speed)
+    write_pc2(args.output, poses, start=start, sampling=cache.sampling, stamp=stamp)
     print(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
           f"of {plan.n_gaps}), {cache.n_points} points")
     return 0
 
 
+def _terminated(signum, _frame):
+    raise SystemExit(128 + signum)
+
+
+@contextmanager
+def _stop_cleanly_on_sigterm():
+    """SIGTERM (how a farm cancels a task before it kills it) raised as :class:`SystemExit` while
+    in the block, so that a file being written is removed (``point_cache._write_atomically``)
+    rather than left half written beside the output, and the exit status is 128 + 15. Python's own
+    handling of SIGTERM ends the process on the spot."""
+    if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
+    with _stop_cleanly_on_sigterm():
+        return _run(args)
+
+
+def _run(args) -> int:
     try:
         if args.command == "retime":
             return _retime(args)

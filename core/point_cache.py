@@ -15,6 +15,8 @@ A bad or truncated file raises :class:`core.MeshError` naming the file and what 
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import struct
 import tempfile
@@ -27,6 +29,9 @@ from .errors import MeshError
 
 #: Bytes of samples :func:`merge_pc2` reads and writes at a time.
 MERGE_BLOCK_BYTES = 16 << 20
+#: Added to a chunk's file name for its stamp (:func:`write_pc2`, ``stamp=``): the retime it is part
+#: of, its key gaps and the SHA-256 of its bytes, which :func:`merge_pc2` checks.
+STAMP_SUFFIX = ".json"
 PC2_MAGIC = b"POINTCACHE2\0"
 PC2_HEADER = struct.Struct("<12siiffi")
 MDD_HEADER = struct.Struct(">ii")
@@ -138,17 +143,79 @@ def check_pc2_name(path) -> None:
         raise MeshError(f"'{path}' is named as an MDD file, but the output is PC2: name it .pc2.")
 
 
-def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0) -> Path:
+def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, stamp: dict | None = None) -> Path:
     """Write float ``(samples, points, 3)`` positions (or one ``(points, 3)`` pose) as a PC2 file.
 
     ``start`` is the frame of the first sample, ``sampling`` the frames between samples. The file
     appears complete or not at all. Returns the path.
+
+    ``stamp``: for a chunk of a job, ``{"job": fingerprint, "gaps": [a, b], "key_gaps": n, ...}``,
+    written after the file to ``path + STAMP_SUFFIX`` with the SHA-256 of the bytes written here
+    (not read back: another job writing the same name meanwhile would be vouched for).
+    :func:`merge_pc2` refuses chunks whose stamps disagree.
     """
     array = _positions_array(positions)
     check_pc2_timing(start, sampling)
     check_pc2_name(path)
-    _write_atomically(path, [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()])
+    blocks = [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()]
+    _write_atomically(path, blocks)
+    if stamp is not None:
+        digest = hashlib.sha256()
+        for block in blocks:
+            digest.update(block)
+        text = json.dumps({**stamp, "sha256": digest.hexdigest()}, indent=1) + "\n"
+        _write_atomically(stamp_path(path), [text.encode()])
     return Path(path)
+
+
+def stamp_path(path) -> Path:
+    """The stamp file of the chunk ``path``."""
+    return Path(f"{path}{STAMP_SUFFIX}")
+
+
+def read_stamp(path) -> dict | None:
+    """The stamp of the chunk ``path`` (:func:`write_pc2`), or None where it has none."""
+    try:
+        text = stamp_path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        return None
+    try:
+        stamp = json.loads(text)
+        job, (first, stop), key_gaps, sha256 = stamp["job"], stamp["gaps"], stamp["key_gaps"], stamp["sha256"]
+        if not (isinstance(job, str) and isinstance(sha256, str) and 0 <= first <= stop <= key_gaps):
+            raise ValueError
+    except (ValueError, TypeError, KeyError):
+        raise MeshError(f"'{stamp_path(path)}' is not the stamp of a chunk (cut off, or edited?): run the "
+                        f"chunk that writes '{path}' again.") from None
+    return stamp
+
+
+def check_stamps(parts, stamps) -> None:
+    """Raise :class:`MeshError` unless the chunks ``parts`` with their ``stamps`` (None for a file
+    without one) are all the chunks of one job, in order: one job fingerprint, key gaps that follow
+    one another from the first to the last. Files without stamps (caches not written as chunks)
+    are not checked here; a mix of both is refused."""
+    if all(stamp is None for stamp in stamps):
+        return
+    unstamped = [part for part, stamp in zip(parts, stamps) if stamp is None]
+    if unstamped:
+        raise MeshError(f"'{unstamped[0]}' has no stamp ('{stamp_path(unstamped[0])}') as the other parts do: "
+                        "it is no chunk of their job. Run its chunk again.")
+    first = stamps[0]
+    expected = 0
+    for part, stamp in zip(parts, stamps):
+        if stamp["job"] != first["job"] or stamp["key_gaps"] != first["key_gaps"]:
+            raise MeshError(
+                f"'{part}' is a chunk of another retime than '{parts[0]}' (another input, topology or "
+                "setting): two jobs wrote into one chunk folder? Give each job a chunk folder of its own "
+                "and run its chunks again.")
+        if stamp["gaps"][0] != expected:
+            raise MeshError(f"'{part}' holds key gaps {stamp['gaps'][0]}:{stamp['gaps'][1]}, but the parts "
+                            f"before it end at gap {expected}: give every chunk once, in order.")
+        expected = stamp["gaps"][1]
+    if expected != first["key_gaps"]:
+        raise MeshError(f"The parts hold key gaps 0:{expected} of the retime's {first['key_gaps']}: the "
+                        "last chunk(s) are missing. Give every chunk, in order.")
 
 
 def _file_size_check(path: Path, expected: int, what: str) -> None:
@@ -233,12 +300,16 @@ def merge_pc2(parts, path) -> Path:
 
     Every part must have the same point count and sampling, and each must start where the one
     before ends (within a hundredth of a sample: the starts are single precision, a missing part
-    is a whole sample or more); parts without samples are allowed. The samples are copied byte
-    for byte, :data:`MERGE_BLOCK_BYTES` at a time.
+    is a whole sample or more); parts without samples are allowed. Chunks written with stamps
+    (``python -m core retime --chunk``) must be every chunk of one job, in order
+    (:func:`check_stamps`), each with the bytes its stamp names. The samples are copied byte for
+    byte, :data:`MERGE_BLOCK_BYTES` at a time.
     """
     check_pc2_name(path)
     refuse_overwriting(path, {part: "one of the parts to merge" for part in parts})
     headers = [(Path(part), *read_pc2_header(part)) for part in parts]  # (path, points, start, sampling, samples)
+    stamps = [read_stamp(part) for part in parts]
+    check_stamps(parts, stamps)
     if not headers:
         raise MeshError("Nothing to merge: give at least one PC2 file.")
     first_path, n_points, first_start, sampling, _ = headers[0]
@@ -259,11 +330,17 @@ def merge_pc2(parts, path) -> Path:
 
     def blocks():  # the parts' samples read a block at a time: never the whole output in memory
         yield header
-        for part, *_ in headers:
+        for (part, *_), stamp in zip(headers, stamps):
+            digest = hashlib.sha256()
             with open(part, "rb") as stream:
-                stream.seek(PC2_HEADER.size)
+                digest.update(stream.read(PC2_HEADER.size))
                 while block := stream.read(MERGE_BLOCK_BYTES):
+                    digest.update(block)
                     yield block
+            if stamp is not None and digest.hexdigest() != stamp["sha256"]:  # the output is not kept
+                raise MeshError(f"'{part}' is not the file its stamp '{stamp_path(part)}' describes: it was "
+                                "written again since (by another job sharing the chunk folder?). Give each "
+                                "job a chunk folder of its own and run its chunks again.")
 
     _write_atomically(path, blocks())
     return Path(path)

@@ -20,7 +20,7 @@ const JOB_TYPE = {
     { key: "output_cache", type: "string", subtype: "file_path", required: true,
       description: "PC2 file to write" },
     { key: "chunk_directory", type: "string", subtype: "dir_path", required: true,
-      description: "Shared folder for the chunk files" },
+      description: "Folder every worker sees, for the chunk files and their stamps (one folder per job)" },
     { key: "step", type: "int32", default: 4, required: true,
       description: "Key every step-th sample of the input" },
     { key: "speed", type: "float", default: 0.5, required: true,

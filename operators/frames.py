@@ -92,6 +92,9 @@ class FrameRangeProperties:
                 if matrices is not None:
                     matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
+        lost = bridge.missing_bake(obj, frames, poses, movers)
+        if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
+            raise bridge.BakeFilesMissing(lost)
         for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers),
                         bridge.still_frames(obj, frames, poses)):
             if warning:

@@ -458,11 +458,11 @@ def test_maps_of_more_frames_than_memory_holds_are_refused_before_any_work(bpy_e
     assert not [a.name for a in strip.data.attributes if a.name.startswith(("SD ", "sd_"))]
 
 
-def test_frames_that_never_move_are_said_to(bpy_empty, extension, tmp_path, capfd):
-    """A cloth baked to a disk cache whose files are gone (the .blend moved without its
-    blendcache folder): Blender plays the rest mesh at every frame, "baked", 0 frames on disk.
-    The in-betweens of a still pose are that pose, but the run says the frames never move and
-    quotes the cache (before: reported done, nothing else)."""
+def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_path):
+    """A cloth baked to a disk cache whose files are gone (the .blend moved, or sent to a farm,
+    without its blendcache folder): Blender plays the rest mesh at every frame, "baked", 0 frames on
+    disk. Refused, naming the folder Blender looks in, and nothing written (before: a still
+    sheet's in-betweens written with a warning, and a batch exited 0: a farm saw success)."""
     import shutil
 
     from blender_scenes import grid_object
@@ -481,11 +481,13 @@ def test_frames_that_never_move_are_said_to(bpy_empty, extension, tmp_path, capf
     shutil.rmtree(tmp_path / "blendcache_shot")
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
     cloth = bpy.data.objects["Cloth"]
+    objects = set(bpy.data.objects)
     with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
-        capfd.readouterr()
-        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
-    out = capfd.readouterr().out
-    assert "frames read from 'Cloth' (1–9) are all the same pose (Cloth cache: '0 frames on disk" in out
+        with pytest.raises(RuntimeError, match="Blender finds none of the bake's files in "
+                                               f"'{tmp_path / 'blendcache_shot'}'"):
+            bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    assert set(bpy.data.objects) == objects
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["shot.blend", "shot.blend1"]
 
 
 def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, extension, capfd, tmp_path):

@@ -76,8 +76,93 @@ def test_openjd_two_chunks_equal_the_single_process(job):
         command += ["-p", f"{key}={value}"]
     result = subprocess.run(command, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    assert sorted(p.name for p in chunks.iterdir()) == ["chunk1.pc2", "chunk2.pc2"]
+    assert sorted(p.name for p in chunks.iterdir()) == ["chunk1.pc2", "chunk1.pc2.json", "chunk2.pc2",
+                                                         "chunk2.pc2.json"]
     _same_frames(folder / "farm.pc2", single)
+
+
+def test_jobs_sharing_a_chunk_folder_are_refused_not_mixed(job, capsys):
+    """Two takes of one cloth (same mesh and frames, other motion) retimed by two jobs that share a
+    chunk folder, their tasks interleaved as a farm runs them: before, the merge succeeded with the
+    other take's chunk in it (a probe's two takes of a 36-vertex sheet: 15 and 17 of 33 samples
+    wrong, up to 0.17 and 0.41 of the sheet's width); now it is refused, and so is a chunk file
+    another job wrote over after its stamp, and a set of chunks without its last."""
+    folder, cache, topology, single = job
+    other = read_pc2(cache).positions.copy()
+    other[1:, :, 2] *= 1.5  # another take: the same mesh and frames, the sheet rolled further
+    take_b = write_pc2(folder / "take_b.pc2", other, start=1.0)
+    chunks = folder / "shared"
+
+    def chunk(take, index, count=2, into=chunks):
+        return main(["retime", str(take), "--topology", str(topology), "--step", "4", "--speed", "0.5",
+                     "--chunk", f"{index}/{count}", "-q", "-o", str(into / f"chunk{index}.pc2")])
+
+    def merge(name, count=2):
+        return main(["merge", "--numbered", str(chunks / "chunk#.pc2"), "--count", str(count),
+                     "-o", str(folder / name)])
+
+    assert chunk(cache, 1) == chunk(take_b, 1) == chunk(take_b, 2) == chunk(cache, 2) == 0
+    capsys.readouterr()
+    assert merge("take_a_farm.pc2") == 2
+    assert "is a chunk of another retime" in capsys.readouterr().err
+    assert not (folder / "take_a_farm.pc2").exists()
+
+    assert chunk(cache, 1) == 0 and merge("take_a_farm.pc2") == 0  # the job's own chunks, re-run
+    _same_frames(folder / "take_a_farm.pc2", single)
+    assert chunk(take_b, 2, into=folder) == 0
+    shutil.copy(folder / "chunk2.pc2", chunks / "chunk2.pc2")  # written over by another job, stamp left
+    capsys.readouterr()
+    assert merge("written_over.pc2") == 2
+    assert "is not the file its stamp" in capsys.readouterr().err
+    assert not (folder / "written_over.pc2").exists()
+
+    assert chunk(cache, 1, 3) == chunk(cache, 2, 3) == 0
+    capsys.readouterr()
+    assert merge("missing_last.pc2") == 2  # chunks 1 and 2 of 3: before, merged without the last gap
+    assert "the last chunk(s) are missing" in capsys.readouterr().err
+
+
+CANCELLED_MERGE = """
+import os, signal, sys
+import core.point_cache as point_cache
+from core.__main__ import main
+
+point_cache.MERGE_BLOCK_BYTES = 64  # many small blocks: the merge is cancelled with some written
+write = point_cache._write_atomically
+
+def cancelled_midway(path, blocks):
+    def sent():
+        for index, block in enumerate(blocks):
+            if index == 3:
+                os.kill(os.getpid(), signal.SIGTERM)  # a farm cancelling the task
+            yield block
+    return write(path, sent())
+
+point_cache._write_atomically = cancelled_midway
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_a_cancelled_merge_leaves_no_partial_file(job, tmp_path):
+    """SIGTERM while the output is being written (how a farm cancels a task, with the template's
+    NOTIFY_THEN_TERMINATE): the command exits non-zero and removes its temporary file (before,
+    Python died on the spot and left a hidden half-written '.out.pc2.*' beside the output, up to
+    the output's size)."""
+    folder, cache, topology, single = job
+    output = tmp_path / "out" / "shot.pc2"
+    result = subprocess.run([sys.executable, "-c", CANCELLED_MERGE, "merge", str(single), "-o", str(output)],
+                            cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 128 + 15, result.stderr
+    assert list(output.parent.iterdir()) == []
+
+
+def test_openjd_tasks_are_cancelled_with_sigterm_first():
+    """Every action of the template is cancelled with SIGTERM before SIGKILL (OpenJD's default,
+    TERMINATE, kills at once, so the command cannot remove what it was writing)."""
+    yaml = pytest.importorskip("yaml", reason="PyYAML comes with openjd-cli (requirements-dev.txt)")
+    template = yaml.safe_load(TEMPLATE.read_text())
+    actions = [step["script"]["actions"]["onRun"] for step in template["steps"]]
+    assert [action.get("cancelation", {}).get("mode") for action in actions] == ["NOTIFY_THEN_TERMINATE"] * 2
 
 
 HARNESS = """
