@@ -593,9 +593,22 @@ class SequenceInterpolator:
     def _hold(self, gap: int) -> bool:
         """Whether gap ``gap``'s two keys are the same pose (a hold: its in-betweens are that pose;
         the keys' spline would swing out and back through it toward the keys around it)."""
+        return bool(self._held(gap).all())
+
+    def _held(self, gap: int) -> np.ndarray:
+        """Per vertex (n,), whether its piece (the piece that carries it, for a loose vertex) sits
+        in the same place in both keys of gap ``gap``: a hold of that piece, which stays there at
+        every factor as a hold of the whole pose does (a prop set down in one key and picked up
+        after the next: the keys' spline would move it toward where it goes later)."""
         if gap not in self._holds:
             a, b = self._given[gap], self._given[gap + 1]
-            self._holds[gap] = bool(np.max(np.abs(a - b), initial=0.0) <= self._hold_tolerance)
+            moved = np.any(np.abs(a - b) > self._hold_tolerance, axis=1)
+            if not self._topo.components:  # no triangle: the pose is one piece
+                moved = np.full(moved.shape, moved.any())
+            elif not moved.all():  # where every vertex moves no piece is held (a cloth, most gaps)
+                owner = self._topo.vertex_owner
+                moved = np.bincount(owner, moved, minlength=len(self._topo.components))[owner] > 0
+            self._holds[gap] = ~moved
         return self._holds[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
@@ -643,10 +656,13 @@ class SequenceInterpolator:
                             f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest "
                             "of it across a fold: the in-betweens may turn it the other way round (keys closer "
                             "together tell which way it went)")
+        held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
             if self._origin is not None and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit
+            if held.any():  # pieces held in this gap
+                out[k][held] = self._given[gap][held]
             if problem:
                 problems.append(f"pose at factor {factors[k]:g} between {self.key_names[gap]} and "
                                 f"{self.key_names[gap + 1]}: {problem}")

@@ -410,6 +410,30 @@ def test_a_small_piece_that_slides_a_little_on_a_far_turning_carrier_stays_on_it
     assert np.abs(x[rows] - expected).max() / np.linalg.norm(np.ptp(a, axis=0)) < 1e-4
 
 
+def test_a_piece_that_sits_still_between_two_keys_stays_there_in_a_sequence():
+    """A ball lying on the floor while a hand (a separate sphere) moves around it, then carried off
+    after the third key (a prop a Child Of constraint hands over): in the gaps where it sits in the
+    same place in both keys it stays there at every factor, as a hold of the whole pose does (the
+    keys' spline borrowed the velocity of the pickup in the next gap: a probe's ball picked up by a
+    rigged arm moved 2.7 % of the diagonal before it was touched, as the per-vertex Catmull–Rom
+    spline does)."""
+    hand, hand_tri = icosphere(1, radius=0.2)
+    ball, ball_tri = icosphere(1, radius=0.15)
+    path = [(-1.0, 0.0, 0.5), (-0.4, 0.3, 0.4), (0.2, 0.0, 0.3), (0.0, 0.0, 0.4), (0.5, 0.5, 1.0)]
+    lift = [(0.0, 0.0, 0.0)] * 3 + [(0.0, 0.0, 0.25), (0.5, 0.5, 0.85)]
+    keys = [np.vstack([hand + h, ball + b]) for h, b in zip(path, lift)]
+    tri = np.vstack([hand_tri, ball_tri + len(hand)])
+    rows = len(hand) + np.arange(len(ball))
+    seq = SequenceInterpolator(keys, tri)
+    factors = np.arange(1, 8) / 8
+    for gap in (0, 1):
+        poses = seq.poses(gap, factors)
+        assert np.array_equal(poses[:, rows], np.broadcast_to(keys[0][rows], poses[:, rows].shape))
+        assert np.abs(poses[3, :len(hand)] - keys[gap][:len(hand)]).max() > 0.1  # the hand moves on
+    moved = seq.poses(2, factors)[:, rows]  # lifted in the next gap: not held there
+    assert np.abs(moved[-1] - keys[2][rows]).max() > 0.1
+
+
 @pytest.mark.parametrize("shift", [0.0, 20.0])
 def test_a_rigid_piece_that_moves_on_its_own_is_not_carried(shift):
     """A ball next to the forearm's end that slides sideways while the arm bends (and the whole
