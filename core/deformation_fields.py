@@ -473,7 +473,7 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
 
 
 def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None,
-                                toward=None) -> np.ndarray:
+                                toward=None, free=None) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations ``rotvec`` (m, 3) of a mesh's triangles, continuous
     across its edges past a half turn: ``pairs`` (E, 2) are the triangles sharing an edge. A part
     that turns by more than a half turn while the part it hangs from does not (a strip curled by
@@ -499,7 +499,9 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
     is nearest the rigid motion's, in the weighted least squares along each triangle's axis (the
     piece as a whole turning as its rigid fit): the rigid fit's principal rotation does not tell
     the way round past a half turn itself (a strip held at one end and curled by 220° fits +129°
-    the other way), so it only breaks the tie.
+    the other way), so it only breaks the tie. ``free``: per triangle (bool (m,)) or None, whether
+    its linked set's least-turned region is not known to stay (the readings of a sequence's
+    gaps disagree there): every region of such a set is tied, and the rigid motion picks.
 
     A connected piece left with a jump (its jumps do not close up: crumpled cloth, around whose
     folds the rotations wind by a whole turn) keeps its principal vectors: taken across the mesh
@@ -575,10 +577,7 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
         # own (a root turning by that much is not known to be the part that stays) plus the step
         # of the turn from their least-turned triangle, or the root's, to its joined neighbours
         # (the mesh samples the rotations no finer there); elsewhere the root stays
-        step = np.zeros(m)
-        change = np.abs(amount[joined[:, 0]] - amount[joined[:, 1]])
-        np.maximum.at(step, joined[:, 0], change)
-        np.maximum.at(step, joined[:, 1], change)
+        step = turn_steps(amount, joined)
         by_turn = np.lexsort((amount, region))
         _, lowest_row = np.unique(region[by_turn], return_index=True)
         resolution = step[by_turn[lowest_row]]  # per region: the step at its least-turned triangle
@@ -586,7 +585,10 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
         root_of[sets[roots]] = roots
         root = root_of[sets]
         margin = least[root] + np.maximum(resolution, resolution[root])
-        tied = np.flatnonzero(linked[:count] & (least - least[root] <= margin))
+        loose = np.zeros(len(sets), dtype=bool)
+        if free is not None:
+            loose[sets[region[free]]] = True
+        tied = np.flatnonzero(linked[:count] & ((least - least[root] <= margin) | loose[sets]))
         candidate = -turns[tied] * direction[tied]
         order = np.lexsort((np.abs(candidate - nearest[sets[tied]]), sets[tied]))
         _, best = np.unique(sets[tied[order]], return_index=True)
@@ -601,6 +603,16 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
         kept = np.isin(pieces, pieces[pairs[left, 0]])
         out[kept] = rotvec[kept]
     return out
+
+
+def turn_steps(amount: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Per triangle (m,), the largest change of its turn ``amount`` (m,) to a neighbour across
+    ``pairs`` (E, 2): how finely the mesh samples the turn there."""
+    step = np.zeros(len(amount))
+    change = np.abs(amount[pairs[:, 0]] - amount[pairs[:, 1]])
+    np.maximum.at(step, pairs[:, 0], change)
+    np.maximum.at(step, pairs[:, 1], change)
+    return step
 
 
 def creased(rotvec: np.ndarray, pairs: np.ndarray, crease: float) -> np.ndarray:

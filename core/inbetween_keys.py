@@ -177,7 +177,8 @@ class _Relative:
             return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
         return plane[:, :, rows]
 
-    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float) -> tuple:
+    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float,
+                free: np.ndarray | None = None) -> tuple:
         """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
         (E, 2): the triangles sharing an edge; see :data:`core.interpolation.TURNED_PART_SHARE`):
@@ -188,10 +189,13 @@ class _Relative:
         :data:`BENT_TURN`. Read before :meth:`residuals_add_turn`, which lets the constructor's
         frames go. Also the triangles (bool (m,)) of those pieces that turn less than
         ``WRAP_CREASE`` from the least-turned one (the part the rest turns from), and per piece
-        whether it turns past a half turn with a jump at a crease: which way it went is not known."""
-        whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
+        whether it turns past a half turn with a jump at a crease: which way it went is not known;
+        the whole rotations taken continuous (:meth:`continued_turns`, ``free`` as there); and per
+        piece whether it turns far with its part that stays not held still (turning by more than
+        the mesh resolves there) while read from the part nearest its rigid turn it turns a whole
+        turn otherwise: which end stays is not known."""
+        whole, continued = self.continued_turns(topo, base, other, pairs, free)
         pieces, count = topo.triangle_component, len(topo.components)
-        continued = df.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base))
         # from the least-turned part of its piece (a piece spinning by about a half turn as a
         # whole, its parts a little either side of it, turns as its rigid fit says)
         angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
@@ -216,7 +220,38 @@ class _Relative:
         bent = over_share(beyond > BENT_TURN) & ~past
         if bent.any():  # ... those without a crease
             out |= bent & ~with_crease(pairs[bent[pieces[pairs[:, 0]]]])
-        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded
+        # a turning piece whose part that stays itself turns by more than the mesh resolves there
+        # (not held still) and whose rigid turn reads it the other way round: which end stays is
+        # not known (a strip held at one end, 0°, is; a tail whose tip turns 13° the short way
+        # round, 347° the long way, and whose root turns 71°, is not)
+        contested = np.zeros(count, dtype=bool)
+        if out.any():
+            nearest = df.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base),
+                                                     free=out[pieces])
+            other = over_share(np.sqrt(np.einsum("ij,ij->i", nearest - continued, nearest - continued)) > np.pi)
+            amount = np.sqrt(np.einsum("ij,ij->i", whole, whole))
+            step = df.turn_steps(amount, pairs[~df.jumping_pairs(whole, pairs)])
+            stays = np.full(count, -1)
+            order = np.lexsort((angles, pieces))
+            first = np.r_[True, pieces[order][1:] != pieces[order][:-1]]
+            stays[pieces[order[first]]] = order[first]  # each piece's least-turned triangle
+            held = np.zeros(count, dtype=bool)
+            held[stays >= 0] = angles[stays[stays >= 0]] <= step[stays[stays >= 0]]
+            contested = out & other & ~held
+        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded, continued, contested
+
+    def continued_turns(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray,
+                        free: np.ndarray | None = None) -> tuple:
+        """The triangles' whole rotation vectors (m, 3) from ``base`` to ``other`` (the keys this
+        relative was built from), the short way round, and the same taken continuous across the
+        triangle pairs ``pairs`` (E, 2) from each piece's part that stays (the reading of which way
+        round a part turns, :meth:`turning`), or, on the triangles ``free`` (bool (m,) or None),
+        from the part nearest the rigid motion's turn
+        (:func:`core.deformation_fields.continuous_rotation_vectors`)."""
+        whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
+        continued = df.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
+                                                   toward=self._rigid_turns(topo, base), free=free)
+        return whole, continued
 
     def _rigid_turns(self, topo: _Topology, base: _Key) -> tuple:
         """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
@@ -236,11 +271,12 @@ class _Relative:
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
 
     def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray,
-                        across: np.ndarray | None = None) -> "_Relative":
+                        across: np.ndarray | None = None, free: np.ndarray | None = None) -> "_Relative":
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
         the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
         components' rigid rotations not undone; taken continuous across the mesh past a half turn
-        across this relative's triangle pairs (two poses) or ``across`` (E, 2)."""
+        across this relative's triangle pairs (two poses) or ``across`` (E, 2), from the part
+        nearest the rigid motion's turn on the triangles ``free`` (:meth:`continued_turns`)."""
         rows = np.flatnonzero(components[topo.triangle_component])
         frames = self._turned_frames(other, rows)  # let go before the copy: it keeps none
         out = copy.copy(self)
@@ -249,7 +285,7 @@ class _Relative:
         across = self._across if across is None else across
         if across is not None:
             out.rotvec = df.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
-                                                        toward=self._rigid_turns(topo, base))
+                                                        toward=self._rigid_turns(topo, base), free=free)
         out.whole = components
         return out
 

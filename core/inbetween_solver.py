@@ -75,6 +75,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: of its rotations at a fold's crease, as the sequence that prepared the gap found it
     #: (:meth:`core.inbetween_keys._Relative.turning`): the way round is not known, the gap warns.
     folded_turn = False
+    #: Whether a part of a piece turns past a half turn from the rest between the keys and the way
+    #: round read from them and from a neighbouring gap's keys disagree
+    #: (:meth:`core.interpolation.SequenceInterpolator._unsure`), or its part that stays is not
+    #: held still and its rigid turn reads it the other way round (``_Relative.turning``): the gap warns.
+    unsure_turn = False
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

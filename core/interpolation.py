@@ -47,12 +47,13 @@ import warnings
 from collections import OrderedDict
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from .deformation_fields import rotation_vectors, the_other_way
+from .deformation_fields import jumping_pairs, rotation_vectors, the_other_way
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
@@ -276,6 +277,12 @@ class SequenceInterpolator:
         self._keys: OrderedDict[int, _Key] = OrderedDict()
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
+        # which way round each gap reads its parts' turns (_reading: the last few), which pieces turn
+        # far per gap, whether the readings of two gaps add up (per first gap) and are unsure (per gap)
+        self._readings: OrderedDict[tuple, tuple] = OrderedDict()
+        self._turnings: dict = {}
+        self._agreements: dict = {}
+        self._unsures: dict = {}
         self._cache_lock = threading.RLock()  # the caches are also filled by that preparation
         self._references: dict = {}
         self.k_M, self.k_N = basis_sizes(k_M, k_N)
@@ -475,31 +482,152 @@ class SequenceInterpolator:
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
         none = np.zeros(len(topo.components), dtype=bool)
-        turning, root, folded = (none, None, none) if self._across is not None else \
-            ahead[0].turning(topo, base, self._key(gap + 1), self._edge_pairs, TURNED_PART_SHARE)
+        turning, root, folded, free, unsure = none, None, none, None, none
+        if self._across is None:
+            turning, root, folded, _, contested = self._reading(gap, relative=ahead[0])
+            if turning.any():
+                # where the readings of the gaps around disagree, from the part nearest the rigid turn
+                turning, root, folded, _, contested = self._reading(gap, final=True, relative=ahead[0])
+                free = self._unsure(gap)[topo.triangle_component]
+                unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
+                free = free if free.any() else None
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole | turning, turning, root)
+        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free)
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root)
+            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free)
         segment.folded_turn = bool(folded.any())
+        segment.unsure_turn = bool(unsure.any())
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
 
+    def _reading(self, gap: int, final: bool = False, relative: _Relative | None = None) -> tuple:
+        """Which way round gap ``gap`` reads its parts' turns: :meth:`_Relative.turning`'s answers
+        (per component whether a part of it turns far from the rest, the triangles that the rest
+        turns from, whether a turn is at a crease, the whole rotations (m, 3) from key ``gap`` to
+        the next taken continuous across the mesh, and whether which end stays is contested).
+        Each gap reads it from its own keys: from the part that turns least, or, ``final``, in the
+        pieces where the readings of the gaps around disagree (:meth:`_unsure`), from the part
+        nearest the piece's rigid turn. ``relative``: key ``gap + 1`` seen from key ``gap``, if
+        made. The last few readings are kept where a piece turns or a neighbouring gap asked for
+        one."""
+        with self._cache_lock:
+            known = self._readings.get((gap, final))
+        if known is not None:
+            return known
+        free = None
+        if final:
+            unsure = self._unsure(gap)
+            if not unsure.any():
+                return self._reading(gap, relative=relative)
+            free = unsure[self._topo.triangle_component]
+        topo, base, nxt = self._topo, self._key(gap), self._key(gap + 1)
+        # the gap's own relative: its rigid turn unwrapped as the gap takes it (_turning_on)
+        made = relative is None  # asked for by a neighbouring gap
+        relative = self._turning_on(gap, _Relative(topo, base, nxt)) if made else relative
+        known = relative.turning(topo, base, nxt, self._edge_pairs, TURNED_PART_SHARE, free)
+        with self._cache_lock:
+            if not final:
+                self._turnings[gap] = known[0]
+            if known[0].any() or made:  # a gap with no turning piece asks for no neighbour's
+                self._readings[(gap, final)] = known
+                while len(self._readings) > 2 * GAP_CACHE + 2:
+                    self._readings.popitem(last=False)
+        return known
+
+    def _turning(self, gap: int) -> np.ndarray:
+        """Per component (bool (C,)), whether a part of it turns far from the rest in gap ``gap``
+        (read from its own keys: :meth:`_reading`)."""
+        with self._cache_lock:
+            turning = self._turnings.get(gap)
+        return self._reading(gap)[0] if turning is None else turning
+
+    def _readings_disagree(self, first: int, final: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Per component (bool (C,) each), whether the turn from key ``first`` to key ``first + 2``
+        is short across it (no jump past a half turn between neighbouring triangles: its own way
+        round is not in question), and whether there the readings (:meth:`_reading`, ``final`` as
+        there) of gaps ``first`` and ``first + 1`` add up to a whole turn more or less than it over
+        more than :data:`TURNED_PART_SHARE` of the piece's area (kept: a few booleans per pair)."""
+        with self._cache_lock:
+            known = self._agreements.get((first, final))
+        if known is not None:
+            return known
+        topo = self._topo
+        pieces, count = topo.triangle_component, len(topo.components)
+        a, b = self._reading(first, final)[3], self._reading(first + 1, final)[3]
+        span = (Rotation.from_rotvec(b) * Rotation.from_rotvec(a)).as_rotvec()  # key first → first + 2
+        pairs = self._edge_pairs
+        short = np.bincount(pieces[pairs[jumping_pairs(span, pairs), 0]], minlength=count) == 0
+        areas = self._key(first).areas
+        area = np.maximum(np.bincount(pieces, areas, minlength=count), np.finfo(float).tiny)
+        off = np.linalg.norm(a + b - span, axis=1) > np.pi
+        known = short, short & (np.bincount(pieces[off], areas[off], minlength=count) / area > TURNED_PART_SHARE)
+        with self._cache_lock:
+            self._agreements[(first, final)] = known
+        return known
+
+    def _wagging(self, gap: int) -> np.ndarray:
+        """Per component (bool (C,)), whether the keys either side of key ``gap`` or of key
+        ``gap + 1`` are a short turn apart across it (:meth:`_readings_disagree`): the piece goes
+        back about the way it came. There a turning piece whose part that stays is contested
+        (:meth:`_Relative.turning`) warns: both its ends turn, and its rigid turn reads it the
+        other way round (a tail wagged 1, −1.3, 1: 87–130 % of the diagonal off). A piece that
+        keeps curling with its part that stays turning a little about another axis (an arm curled
+        150° per key at two joints while turning 10° per key about a third axis) is right to 3.3 %
+        and its rigid turn reads it the other way round too: it does not warn."""
+        last = len(self._raw) - 1
+        out = np.zeros(len(self._topo.components), dtype=bool)
+        for first in (gap - 1, gap):
+            if 0 <= first and first + 2 <= last:
+                out |= self._readings_disagree(first, False)[0]
+        return out
+
+    def _unsure(self, gap: int, final: bool = False) -> np.ndarray:
+        """Per component (bool (C,)), among those of gap ``gap`` where a part turns past a half
+        turn from the rest (:meth:`_Relative.turning`), whether the way round it is read
+        (:meth:`_reading`, ``final`` as there) may be wrong. Where the keys either side of a key
+        are a short turn apart the readings of the gaps around that key must add up to that turn
+        (:meth:`_readings_disagree`); walked from this gap through the neighbouring gaps so linked
+        where the piece turns far too, a pair that does not makes every reading of the run unsure
+        (one side of it is wrong, and so is each reading that adds up with a wrong one). A tail
+        wagged 1, −1, 1.2, −1 (root 62° then 68° per gap, tip 302° then 332°, the tip read the
+        short way, −28°) was read from the root in the first gap and from the tip, a whole turn
+        of the tail off, in the two after."""
+        with self._cache_lock:
+            known = self._unsures.get((gap, final))
+        if known is not None:
+            return known
+        last, turning = len(self._raw) - 1, self._turning(gap)
+        out = np.zeros_like(turning)
+        for step in (-1, 1):
+            pieces, k = turning.copy(), gap
+            while pieces.any():
+                first = k - 1 if step < 0 else k
+                if first < 0 or first + 2 > last:
+                    break
+                linked, disagree = self._readings_disagree(first, final)
+                out |= pieces & disagree
+                k += step
+                pieces &= linked & self._turning(k)  # on through a neighbour where it turns far too
+        with self._cache_lock:
+            self._unsures[(gap, final)] = out
+        return out
+
     def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray,
-                 turning: np.ndarray, root: np.ndarray | None = None) -> _Gap:
+                 turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None) -> _Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
         ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), those of the next key taken
         continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
         them turns far from the rest, :meth:`_Relative.turning`; ``root``: their
-        triangles that the rest turns from, bool (m,), or None)."""
+        triangles that the rest turns from, bool (m,), or None; ``free``: the triangles whose
+        turns are read from the part nearest their piece's rigid turn, :meth:`_reading`)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = _Relative.identity(topo, base)
@@ -507,7 +635,7 @@ class SequenceInterpolator:
         if whole.any():
             pairs = self._edge_pairs
             across = pairs[turning[topo.triangle_component[pairs[:, 0]]]] if turning.any() else None
-            ahead = [r.whole_rotations(topo, base, self._key(k), whole, across if k == gap + 1 else None)
+            ahead = [r.whole_rotations(topo, base, self._key(k), whole, *((across, free) if k == gap + 1 else ()))
                      for r, k in zip(ahead, others)]
         nxt = ahead[0]
         if cubic:
@@ -651,11 +779,16 @@ class SequenceInterpolator:
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
         problems = []
+        turned = (f"between {self.key_names[gap]} and {self.key_names[gap + 1]}, over "
+                  f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest of it")
         if segment.folded_turn:
-            problems.append(f"between {self.key_names[gap]} and {self.key_names[gap + 1]}, over "
-                            f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest "
-                            "of it across a fold: the in-betweens may turn it the other way round (keys closer "
+            problems.append(f"{turned} across a fold: the in-betweens may turn it the other way round (keys closer "
                             "together tell which way it went)")
+        if segment.unsure_turn:
+            problems.append(f"{turned}, and which way round it went is not told by these keys (the gaps next to it "
+                            "read it differently, or its rigid motion reads it the other way round): the "
+                            "in-betweens may turn it the other way round (keys closer together tell which way "
+                            "it went)")
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin

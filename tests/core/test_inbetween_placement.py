@@ -869,6 +869,60 @@ def test_a_tail_wagging_past_a_half_turn_per_key_turns_the_way_its_rigid_motion_
     assert np.sqrt(np.mean(np.sum((x - straight) ** 2, axis=1))) < sequence._gap(1).tolerance * diagonal
 
 
+@pytest.mark.parametrize("wag", [(1.0, -1.0, 1.2, -1.0), (1.2, -1.0, 1.0, -1.0)])
+def test_a_tail_wagging_unevenly_past_a_half_turn_per_key_turns_the_way_its_rigid_motion_does(wag):
+    """Keys of the tail above wagged unevenly: gaps of 2 (root 62°, tip 302° per gap) and 2.2
+    (root 68°, tip 332°, whose whole rotation, 28° the other way round, is less than the root's).
+    Each gap read from its own keys takes the even gaps from the root and the uneven ones from
+    the tip, a whole turn of the tail apart, and the keys either side of a key are 0–30° apart:
+    the readings do not add up across the key, so where they disagree the tail turns as its
+    rigid motion does (before, the uneven gaps were 88–141 % of the diagonal off with up to
+    1,130 triangles facing against the tail, silently). Every in-between is closer to the tail at
+    the interpolated angles than the linear blend, with every triangle facing as in it, and no
+    gap warns."""
+    keys = [_wagged_tail(w)[0] for w in wag]
+    _, tri = _wagged_tail(0.0)
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(len(keys) - 1):
+        factors = (0.25, 0.5, 0.75)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            poses = sequence.poses(gap, factors)
+        for x, factor in zip(poses, factors):
+            truth, _ = _wagged_tail(wag[gap] + factor * (wag[gap + 1] - wag[gap]))
+            blend = (1.0 - factor) * keys[gap] + factor * keys[gap + 1]
+            assert np.sum((x - truth) ** 2) < np.sum((blend - truth) ** 2)
+            assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
+
+@pytest.mark.parametrize("wag", [(1.0, -1.0, 1.4, -1.0), (1.0, -1.3, 1.0)])
+def test_a_tail_whose_way_round_the_keys_do_not_tell_is_right_or_warned(wag):
+    """Keys of the tail above wagged 1, −1, 1.4, −1: the uneven gaps turn its tip 362° (root
+    74°), past a whole turn, where neither its rigid motion nor its ends tell which way it went,
+    and the readings of the gaps still do not add up across their keys; and wagged 1, −1.3, 1:
+    both gaps turn its tip 347° (root 71°), both are read from the tip, 13° the other way round,
+    and add up, but the tip is not held still and the tail's rigid motion reads it the other way
+    round. Every in-between is closer to the tail at the interpolated angles than the linear
+    blend with every triangle facing as in it, or its gap warns that it may turn the tail the
+    other way round (before, 86–130 % of the diagonal off, up to 1,042 triangles against the
+    tail, silently)."""
+    keys = [_wagged_tail(w)[0] for w in wag]
+    _, tri = _wagged_tail(0.0)
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(len(keys) - 1):
+        factors = (0.25, 0.5, 0.75)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            poses = sequence.poses(gap, factors)
+        warned = any("other way round" in str(w.message) for w in caught)
+        for x, factor in zip(poses, factors):
+            truth, _ = _wagged_tail(wag[gap] + factor * (wag[gap + 1] - wag[gap]))
+            blend = (1.0 - factor) * keys[gap] + factor * keys[gap + 1]
+            right = np.sum((x - truth) ** 2) < np.sum((blend - truth) ** 2) and \
+                (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+            assert right or warned
+
+
 def _skinned_tail(wag, rings=101, sides=24):
     """A tail (a closed tube of radius 0.03 and length 1) skinned to five bones by linear blend
     skinning, each vertex's weights ramping from one bone to the next over 0.12 about each joint
