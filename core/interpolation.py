@@ -865,7 +865,7 @@ class Interpolator:
         return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
 
     def pose(self, factor: float) -> np.ndarray:
-        """0 → a, 1 → b, 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
+        """0 → a, 1 → b (as given), 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
         in-between of the full basis is fitted twice, with the rotations as residuals to each
         piece's rigid motion and taken whole, and the second kept where it keeps the metric better
         by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
@@ -873,6 +873,8 @@ class Interpolator:
         fitted near it) and the second has fewer flipped or collapsed triangles within
         :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's."""
         factor = check_factor(factor)
+        if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
+            return self._given_poses[int(factor)].copy()
         first = self._sequence
         if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
             x = first.pose(0, factor)
