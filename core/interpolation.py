@@ -388,8 +388,9 @@ class SequenceInterpolator:
 
     def _turning_on(self, base: int, relative: _Relative) -> _Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past
-        :data:`~core.inbetween_keys.NEAR_HALF_TURN` between the keys taken the way round nearer the
-        turns of the steps before and after (per unit of time), where the short way is not: a
+        :data:`~core.inbetween_keys.NEAR_HALF_TURN` between the keys taken the other way round where
+        that is nearer the turns of the steps before and after (per unit of time) by more than it
+        turns the gap's middle further than the short way: a
         skirt spun 3.134 rad between keys 16 frames apart, turning on the same way before and
         after, was turned back the short way (rounding picked it), its waist one way and its hem
         the other (1.65 × the blend's error, 14.7 % edge deviation); a sheet flipped over a rod,
@@ -414,7 +415,13 @@ class SequenceInterpolator:
         told = ~np.all(np.isnan(steps), axis=(0, 2))
         expected = np.where(told[:, None], np.nanmean(np.where(told[None, :, None], steps, 0.0), axis=0), 0.0)
         other_way = the_other_way(w, theta)
-        swap = near & told & (np.linalg.norm(other_way - expected, axis=1) < np.linalg.norm(w - expected, axis=1))
+        # the other way is taken where it is nearer the steps' turn by more than it turns the gap's
+        # middle further than the short way does (π − θ): a step that barely favours it does not
+        # outweigh the short way (a flag turning 160° after a step of 52° about another axis is 16°
+        # nearer the steps' turn the other way round, against 20°: taken so, it went 0.76 of its
+        # diagonal the wrong way round); at a half turn itself (a skirt spun 179.5°) any step decides
+        nearer = np.linalg.norm(w - expected, axis=1) - np.linalg.norm(other_way - expected, axis=1)
+        swap = near & told & (nearer > np.pi - theta)
         if swap.any():
             relative.screw = component_screws(*relative.motion, np.where(swap[:, None], other_way, w), True, relative.nonrigidity)
         return relative

@@ -154,6 +154,28 @@ def test_a_turn_past_a_half_turn_between_keys_goes_on_the_way_its_neighbours_tur
             assert abs(forward - 90.6) < 1.0, forward
 
 
+def test_a_turn_near_a_half_turn_after_a_step_about_another_axis_goes_the_short_way():
+    """Keys of the head turned 52° about an axis 123° from z, then 160° about z (a carried flag
+    tilted, then swinging back round its pole): the last gap's short way round is 160° forwards
+    about z. The other way round (200° backwards) is 16° nearer the step before's turn, but turns
+    the gap's middle 20° further: so little evidence does not outweigh the short way, and the head
+    turns forwards about z from the gap's first key, by between 0 and 160° at every factor (the
+    other way round went backwards from the start, 38° at a quarter of the gap)."""
+    a, tri = _head_with_eyes()
+    tilt = np.radians(123.0)
+    step = Rotation.from_rotvec(np.radians(52.0) * np.array([np.sin(tilt), 0.0, np.cos(tilt)])).as_matrix()
+    swing = Rotation.from_rotvec(np.radians(160.0) * np.array([0.0, 0.0, 1.0])).as_matrix()
+    pivot = np.array([1.0, -0.5, 0.0])
+    keys = [a, _rigid(a, step, pivot)]
+    keys.append(_rigid(keys[1], swing, pivot))
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    for s, x in zip((0.25, 0.5, 0.75), seq.poses(1, (0.25, 0.5, 0.75))):
+        rotation, translation = rigid_alignment(keys[1], x)
+        np.testing.assert_allclose(keys[1] @ rotation.T + translation, x, atol=1e-6)
+        turn = np.degrees(Rotation.from_matrix(rotation).as_rotvec())
+        assert 0.0 < turn[2] and np.linalg.norm(turn) < 160.0, (s, turn)
+
+
 def test_a_tiny_rigid_turn_in_a_sequence_stays_the_rigid_turn():
     """Keys of the head turning by 0.2° per key (every vertex moves far less than the still gaps'
     limit, core.inbetween_prediction.STILL_MOVE mean edges): a rigid motion, however small, is not
