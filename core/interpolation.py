@@ -61,9 +61,10 @@ from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, free_fl
 from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
+from .mesh_topology import check_manifold_vertices
 from .pins import riding_vertices, still_vertices
 from .rigid_alignment import reflected_fits
-from .seams import coincidence_tolerance, rounding_scale, seam_weld
+from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
 from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_real,
                          check_sequence, check_start, check_time)
@@ -231,15 +232,20 @@ class SequenceInterpolator:
         # at one place (seams, still vertices, holds): within this distance in every key
         rounding = rounding_scale(keys)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
-        try:  # pieces that touch along seams are interpolated as one (core.seams)
-            weld = seam_weld(keys, topology, tolerance)
+        try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seams)
+            weld = seam_weld(keys, topology, tolerance, orient=True)
         except MeshError as error:
-            weld = None
+            check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
+            weld = seam_weld(keys, topology, tolerance, seams=False)
             _warn(f"some pieces touch along seams but cannot be joined there ({error}); they are "
                   "interpolated apart and the seams may open")
+        if weld is None:
+            check_manifold_vertices(topology)
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys, tolerance)
+        # loose vertices near the surface follow a triangle there, not their piece's rigid motion
+        self._attached = attached_loose(keys, topology, still)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         # interpolated about the middle of the first key, the results moved back: the splines of the
@@ -806,6 +812,12 @@ class SequenceInterpolator:
             if problem:
                 problems.append(f"pose at factor {factors[k]:g} between {self.key_names[gap]} and "
                                 f"{self.key_names[gap + 1]}: {problem}")
+        attached = self._attached
+        if attached is not None:  # in their triangles' frames, their coordinates there blended between the keys
+            moving = ~held[attached.vertices]  # held ones stay as the key has them
+            for k in between:
+                local = (1.0 - factors[k]) * attached.local[gap] + factors[k] * attached.local[gap + 1]
+                out[k][attached.vertices[moving]] = attached.placed(out[k], local)[moving]
         return (out if self._copies is None else out[:, self._copies]), problems
 
     def pose_at(self, time: float) -> np.ndarray:

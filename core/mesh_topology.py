@@ -149,7 +149,8 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
         )
 
 
-def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = False) -> MeshTopology:
+def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = False,
+                  allow_bow_ties: bool = False) -> MeshTopology:
     """Validate ``triangles`` (int ``(m, 3)``) of a mesh with ``n_vertices`` vertices and build its
     topology: edges, triangle→edge and edge→triangle incidence, boundary.
 
@@ -162,6 +163,8 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
     by more than two triangles or traversed twice in one direction are kept (the mass and
     conformal matrices are sums over triangles, well defined) but get no ``edge_triangles``
     (``-1, -1``: neither interior nor a hinge of the offset surface); bow-tie vertices pass.
+    ``allow_bow_ties`` (for a mesh split along seams, checked once welded: the in-betweens): bow-tie
+    vertices pass (:func:`check_manifold_vertices` refuses them later where the weld leaves them).
     """
     tris = check_triangles(triangles, n_vertices)
 
@@ -207,9 +210,8 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         )
     else:
         edge_triangles[edge_of_halfedge, slot] = owner
-        _check_manifold_vertices(tris, edges, edge_triangles, n_vertices)
 
-    return MeshTopology(
+    topology = MeshTopology(
         n_vertices=int(n_vertices),
         triangles=tris,
         edges=edges,
@@ -217,14 +219,20 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
         edge_triangles=edge_triangles,
         used_vertices=np.flatnonzero(np.bincount(tris.ravel(), minlength=n_vertices)),
     )
+    if not (allow_non_manifold or allow_bow_ties):
+        check_manifold_vertices(topology)
+    return topology
 
 
-def _check_manifold_vertices(tris: np.ndarray, edges: np.ndarray, edge_triangles: np.ndarray, n_vertices: int) -> None:
-    """Raise :class:`MeshError` naming the vertices whose triangles form more than one fan
-    ("bow-tie" vertices, where two sheets touch at a single vertex). Corners of one vertex are
-    joined when their triangles share an edge at that vertex; a manifold vertex has one group."""
+def check_manifold_vertices(topology: MeshTopology) -> None:
+    """Raise :class:`MeshError` naming the vertices of ``topology`` whose triangles form more than
+    one fan ("bow-tie" vertices, where two sheets touch at a single vertex). Corners of one vertex
+    are joined when their triangles share an edge at that vertex; a manifold vertex has one group."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
+
+    tris, edges, edge_triangles, n_vertices = (topology.triangles, topology.edges, topology.edge_triangles,
+                                               topology.n_vertices)
 
     inner = np.flatnonzero((edge_triangles >= 0).all(axis=1))
     t1, t2 = edge_triangles[inner, 0], edge_triangles[inner, 1]

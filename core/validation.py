@@ -140,15 +140,15 @@ def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> n
     return tris
 
 
-def check_mesh(vertices, triangles, *, name: str = "vertices"):
+def check_mesh(vertices, triangles, *, name: str = "vertices", allow_bow_ties: bool = False):
     """Validate a mesh: :func:`check_vertices`, :func:`check_triangles`, its topology (manifold
     edges and vertices, consistent orientation), its size and its triangles (none degenerate).
     Returns ``(vertices float64 (n, 3), topology)`` with the topology of
-    :func:`core.mesh_topology.mesh_topology`."""
+    :func:`core.mesh_topology.mesh_topology` (``allow_bow_ties``: as there)."""
     from .mesh_topology import mesh_topology
 
     array = check_vertices(vertices, name=name)
-    topology = mesh_topology(triangles, array.shape[0])
+    topology = mesh_topology(triangles, array.shape[0], allow_bow_ties=allow_bow_ties)
     check_pose(array, topology, name=name)
     return array, topology
 
@@ -359,11 +359,14 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     """Everything the in-between constructors take, checked once: every pose (count, finite,
     range, size, no degenerate triangle), the topology, the basis sizes against the used vertex
     count, the offset and the flag. Returns ``(poses list of float64 (n, 3), k_M, k_N, offset,
-    use_extrinsic)`` normalized and the topology (:func:`core.mesh_topology.mesh_topology`).
+    use_extrinsic)`` normalized and the topology (:func:`core.mesh_topology.mesh_topology`). Bow-tie
+    vertices pass here: a mesh split along seams has them where its importer shared one vertex
+    between fans alike on both sides, and the in-betweens refuse them only where welding the
+    seams leaves them (:func:`core.mesh_topology.check_manifold_vertices`).
 
     ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``)."""
     names = names or [f"key pose {i}" for i in range(len(poses))]
-    first, topology = check_mesh(poses[0], triangles, name=names[0])
+    first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True)
     checked = [first] + [check_pose(pose, topology, name=name) for pose, name in zip(poses[1:], names[1:])]
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
     return checked, k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
