@@ -178,6 +178,7 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
     edge_of_halfedge = edge_of_halfedge.reshape(-1)
     non_manifold = counts > 2
     if non_manifold.any() and not allow_non_manifold:
+        _check_duplicate_triangles(tris)  # the usual cause, named as such
         bad = np.flatnonzero(non_manifold)
         e = int(bad[0])
         owners = np.flatnonzero(edge_of_halfedge == e) // 3
@@ -222,6 +223,20 @@ def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = Fals
     if not (allow_non_manifold or allow_bow_ties):
         check_manifold_vertices(topology)
     return topology
+
+
+def _check_duplicate_triangles(tris: np.ndarray) -> None:
+    """Raise :class:`MeshError` naming the triangles of ``tris`` (m, 3) that use the same three
+    vertices as an earlier one (a face duplicated in place, as a scan's or an importer's doubles
+    leave: each of its edges is then shared by three or more triangles)."""
+    _, first, inverse = np.unique(np.sort(tris, axis=1), axis=0, return_index=True, return_inverse=True)
+    repeated = np.flatnonzero(first[inverse.ravel()] != np.arange(len(tris)))
+    if repeated.size:
+        t = int(repeated[0])
+        raise MeshError(
+            f"Triangle {t} uses the same three vertices as triangle {int(first[inverse.ravel()[t]])}: "
+            f"{repeated.size} triangle(s) duplicate another in place. In Blender, Edit Mode, "
+            "Select > Select All by Trait > Interior Faces selects them: delete one of each pair.")
 
 
 def check_manifold_vertices(topology: MeshTopology) -> None:

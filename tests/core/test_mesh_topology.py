@@ -115,3 +115,15 @@ def test_loose_vertices_are_allowed_and_kept_in_place():
     exact = differences.reference.pose_metric(target)
     assert np.allclose(metric.base.areas, exact.base.areas, rtol=1e-10)
     assert differences.reference.expand_pose(differences.reference.base_positions)[-2:].tolist() == loose.tolist()
+
+
+def test_a_duplicated_face_is_named_as_such():
+    """A face repeated in place (a scan's or an importer's doubles) makes each of its edges shared
+    by three triangles: the error names the duplicate and its original, not only the edges."""
+    _, tri = grid(4, 4)
+    doubled = np.vstack([tri, tri[5][::-1]])
+    with pytest.raises(core.MeshError, match=f"Triangle {len(tri)} uses the same three vertices as triangle 5"):
+        mesh_topology(doubled, int(tri.max()) + 1)
+    three = np.vstack([tri, [[1, 4, 99]]])  # a third triangle on an edge, not a duplicate: the edge message
+    with pytest.raises(core.MeshError, match="shared by 3 triangles"):
+        mesh_topology(three, 100)
