@@ -718,6 +718,22 @@ def _unwrapped_identity(reference: np.ndarray) -> np.ndarray:
     return reference * (2 * np.pi * turns / np.where(reach > 0, reach, 1.0))[:, None]
 
 
+def framed_screws(screws: np.ndarray, axes: np.ndarray, origins: np.ndarray) -> np.ndarray:
+    """Screw coordinates ``(ω, v)`` (P, 6) of motions ``x ↦ R x + t`` in world coordinates → the
+    same motions' in each row's frame ``y = A (x − o)`` (``axes`` A: rows of rotations (P, 3, 3),
+    ``origins`` o (P, 3)): the adjoint ``(A ω, A (v − o × ω))``, exact for every representative of
+    a turn (linear, as the exponential is equivariant)."""
+    w, v = screws[:, :3], screws[:, 3:]
+    return np.concatenate([np.einsum("pab,pb->pa", axes, w),
+                           np.einsum("pab,pb->pa", axes, v - np.cross(origins, w))], axis=1)
+
+
+def world_screws(framed: np.ndarray, axes: np.ndarray, origins: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`framed_screws`: ``(Aᵀ ω', Aᵀ v' + o × Aᵀ ω')``."""
+    w = np.einsum("pba,pb->pa", axes, framed[:, :3])
+    return np.concatenate([w, np.einsum("pba,pb->pa", axes, framed[:, 3:]) + np.cross(origins, w)], axis=1)
+
+
 def rigid_exps(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rotations (P, 3, 3) and translations (P, 3) of screw coordinates ``(ω, v)`` (P, 6), the
     inverse of :func:`rigid_log` row by row: the translation ``V(ω) v = v + a ω × v + b ω × (ω ×

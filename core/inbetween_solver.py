@@ -41,7 +41,8 @@ from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, PieceMotion
 from .inbetween_repair import Outcome, Region, Repair
 from .pins import riding_motions
-from .splines import TANGENT_LIMIT, HermiteGap
+from .rigid_alignment import principal_frames
+from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
 
 if TYPE_CHECKING:
     from .inbetween_keys import _Key, _Relative
@@ -117,6 +118,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
         def hermite(name: str, values: list) -> HermiteGap:
             return HermiteGap(values, cubic, **options(name))
+
+        # the pieces' screws splined in their principal frames in the base key, about their
+        # centroids (see ScrewGap); a linear spline limits nothing and stays in the world's
+        pieces = principal_frames(base.vertices[topo.component_vertices], topo.component_labels,
+                                  len(topo.components), topo.weights[topo.component_vertices]) if cubic else None
         # the log-stretches' spline when first read (see stretch; its function holds the
         # relatives, not the gap)
         self._log_options = options("log_stretch")
@@ -124,7 +130,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         for name in ("vertices", "world", "centroids"):
             spline[name] = hermite(name, [getattr(r, name) for r in relatives])
         # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
-        spline["screw"] = hermite("screw", [r.screw for r in relatives[:3]] + [relatives[3].continued_screw])
+        spline["screw"] = ScrewGap([r.screw for r in relatives[:3]] + [relatives[3].continued_screw], pieces, cubic,
+                                   **options("screw"))
         # the rotation residuals splined in each triangle's base frame (t1, t2, n), where their
         # tangents' per-element limits do not depend on how the scene is turned (see local_rotvec)
         spline["rotvec"] = hermite("rotvec", [self.local_rotvec(r.rotvec) for r in relatives])
@@ -152,7 +159,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if riding is not None:
             screws = df.key_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
                                    cubic and not relatives[3].extrapolated)
-            self.riding_screws = HermiteGap(screws, cubic, limit=limit, onward=True)
+            frames = principal_frames(base.vertices[np.concatenate(riding)],
+                                      np.repeat(np.arange(len(riding)), [len(rows) for rows in riding]), len(riding),
+                                      np.ones(sum(len(rows) for rows in riding))) if cubic else None
+            self.riding_screws = ScrewGap(screws, frames, cubic, limit=limit, onward=True)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from
@@ -164,9 +174,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
                                      nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held)
         if self.joints is not None:
-            spline["joint_screw"] = hermite("screw", joint_screws(self.joints[0], [r.screw for r in relatives],
-                                                                  [r.extrapolated for r in relatives],
-                                                                  [getattr(r, "motion", None) for r in relatives]))
+            spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
+                                                          [r.extrapolated for r in relatives],
+                                                          [getattr(r, "motion", None) for r in relatives]),
+                                             pieces, cubic, **options("screw"))
         self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
         self._riding_motions: dict[float, tuple] = {}  # see ride
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one

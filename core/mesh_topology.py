@@ -142,11 +142,39 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
         t = int(bad[0])
         raise MeshError(
             f"{name}: triangle {t} (vertices {triangles[t].tolist()}) has zero area "
-            f"({bad.size} degenerate triangle(s) in all). Remove degenerate faces: in Blender use "
-            "Mesh > Clean Up > Degenerate Dissolve, or Merge by Distance. If only this pose "
-            "flattens them (a shape key that scales a part to a point, a frame that crushes "
-            "the cloth), scale that part to a small size instead of zero, or leave that pose out."
+            f"({bad.size} degenerate triangle(s) in all). "
+            + (_far_out_advice(by_coordinate, squared) or
+               "Remove degenerate faces: in Blender use Mesh > Clean Up > Degenerate Dissolve, or Merge "
+               "by Distance. If only this pose flattens them (a shape key that scales a part to a "
+               "point, a frame that crushes the cloth), scale that part to a small size instead of "
+               "zero, or leave that pose out.")
         )
+
+
+#: Rounding of the coordinates, as a share of the median edge length, above which a mesh's flat
+#: triangles are blamed on the precision of coordinates far from the origin: a triangle less high
+#: than the rounding can land on one line of the coordinate grid (a 1,000-vertex flag 1e6 units out
+#: in single precision, rounded to 0.12 against edges of 0.06: 592 triangles flat; at the origin a
+#: sliver of the mesh itself, rounded to 1e-7 of its edges).
+FAR_OUT_ROUNDING = 1e-2
+
+
+def _far_out_advice(by_coordinate: np.ndarray, squared: list[np.ndarray]) -> str | None:
+    """The advice for flat triangles where the coordinates' own rounding (single precision where
+    every coordinate is a float32, as Blender stores them) reaches :data:`FAR_OUT_ROUNDING` of the
+    median edge of the mesh (``squared``: the corners' squared edge lengths, 3 arrays (m,)), else
+    None: there the mesh is too far from its origin for its triangles, not degenerate itself."""
+    from .seams import coordinate_rounding
+
+    rounding = coordinate_rounding([by_coordinate.T])
+    median_edge = float(np.sqrt(np.median(np.concatenate(squared))))
+    if not rounding >= FAR_OUT_ROUNDING * median_edge:
+        return None
+    largest = float(np.max(np.abs(by_coordinate)))
+    return (f"The mesh lies {largest:.3g} units from its origin, where its coordinates are rounded in steps of up to "
+            f"{rounding:.2g} ({rounding / median_edge:.0%} of its median edge, {median_edge:.2g}): "
+            "triangles less high than that read as flat. Move the mesh's origin near it (in Blender: "
+            "Object > Set Origin > Origin to Geometry, then bake the simulation again).")
 
 
 def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = False,

@@ -25,7 +25,12 @@ from .seams import vertex_groups
 #: more than RIDING_ULPS float32 spacings of the keys' largest coordinate. A pole carried by its
 #: object keeps them to 0.9 spacing (the float32 object matrix is orthogonal only to rounding);
 #: cloth edges that happen to keep theirs over every key were found in sets of 3–9 vertices at
-#: 4.8–40 spacings (a 10k sheet falling flat, keys 8 and 16 apart; the 50k sheet, 16).
+#: 4.8–40 spacings (a 10k sheet falling flat, keys 8 and 16 apart; the 50k sheet, 16). Each
+#: set's best rigid motion must put it within the same tolerance in every key: a pole or rod
+#: misses by at most 1 spacing, rounding of a rigid set by at most √3; far from the origin, where
+#: the spacing is coarse, cloth beside a rod that stops dead kept its edges to 2 spacings and
+#: missed its rigid motion by 5–11 (a sheet 100 units out, keys 8 and 16 apart: taken as riding
+#: at four times the tolerance, 3,554 triangles flipped, 0.27 of its diagonal off).
 MIN_RIDING_VERTICES = 6
 RIDING_ULPS = 3.0
 #: ... and in a piece at most this share of whose edges keep their lengths so: cloth around a held
@@ -101,7 +106,7 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
         pieces = np.unique(component[rows])
         if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
             continue
-        if all(np.max(np.linalg.norm(moved(first[rows], key[rows]) - key[rows], axis=1)) <= 4 * tolerance
+        if all(np.max(np.linalg.norm(moved(first[rows], key[rows]) - key[rows], axis=1)) <= tolerance
                for key in keys[1:]):
             riding.append(rows)
     return riding

@@ -143,6 +143,19 @@ def group_covariances(source: np.ndarray, target: np.ndarray, labels: np.ndarray
     return covariance, s_mean, x_mean, s_centred, x_centred
 
 
+def principal_frames(points: np.ndarray, labels: np.ndarray, n_groups: int,
+                     weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per group of rows (``labels`` int (n,), 0 ≤ g < ``n_groups``) of ``points`` (n, 3),
+    weighted by ``weights`` (n,): its principal axes (G, 3, 3), the rows of a proper rotation (the
+    eigenvectors of ``Σ w x̃ x̃ᵀ``, smallest spread first), and its weighted centroid (G, 3). The
+    frame turns and moves with the group; where two spreads are equal (a square sheet) its axes
+    in their plane are whichever the eigensolver returns."""
+    covariance, mean = group_covariances(points, points, labels, n_groups, weights)[:2]
+    axes = np.swapaxes(np.linalg.eigh(covariance)[1], 1, 2)
+    axes[np.linalg.det(axes) < 0, 2] *= -1.0  # a rotation, not a reflection: screws keep their sense
+    return axes, mean
+
+
 def reflected_fits(source: np.ndarray, target: np.ndarray, labels: np.ndarray | None, n_groups: int,
                    weights: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The groups of rows (as :func:`group_covariances`; ``labels`` None for one group) whose best

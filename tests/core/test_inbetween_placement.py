@@ -1827,6 +1827,30 @@ def test_in_betweens_of_a_turned_scene_are_the_turned_in_betweens():
         np.testing.assert_allclose(back, upright.poses(gap, factors), atol=1e-9 * diagonal)
 
 
+def test_in_betweens_of_a_turned_swinging_sheet_are_the_turned_in_betweens():
+    """A bending sheet that swings about a tilted axis and drifts, stops short and swings back
+    (its rigid motion's secant over a gap far below the tangent it comes in with, so the pieces'
+    screw splines limit their tangents), turned by a general rotation and moved off, gets the
+    unturned sheet's in-betweens turned and moved, to round-off: the screws are splined in the
+    sheet's principal frame about its centroid. Limited per world coordinate, the two came
+    1.4e-3 of the diagonal apart."""
+    flat, tri = grid(21, size=2.0)
+    x, y = 1.6 * (flat[:, 0] - 1.0), flat[:, 1] - 1.0  # longer than wide: its principal axes are its own
+    axis = np.array([0.2, 0.9, 0.3]) / np.linalg.norm([0.2, 0.9, 0.3])
+    keys = []
+    for k, (angle, way) in enumerate(zip((0.0, 0.5, 1.0, 1.05, 1.07, 0.9, 0.5), (0.0, 0.4, 0.8, 0.82, 0.83, 0.7, 0.4))):
+        z = 0.25 * np.sin(0.9 * k) * np.cos(np.pi * x / 3.2) * np.cos(np.pi * y / 2)
+        keys.append(Rotation.from_rotvec(angle * axis).apply(np.stack([x, y, z], axis=1)) + way * np.array([1.0, 0.5, -0.3]))
+    turn, shift = Rotation.from_rotvec([0.3, -0.7, 0.4]), np.array([40.0, -25.0, 10.0])
+    factors = np.arange(1, 8) / 8
+    upright = SequenceInterpolator(keys, tri)
+    turned = SequenceInterpolator([turn.apply(k) + shift for k in keys], tri)
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    for gap in range(len(upright)):
+        back = turn.inv().apply(turned.poses(gap, factors).reshape(-1, 3) - shift).reshape(len(factors), -1, 3)
+        np.testing.assert_allclose(back, upright.poses(gap, factors), atol=1e-9 * diagonal)
+
+
 def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     """Keys in double precision 2e4 units from the origin are not rounded to float32 there, so the
     tolerances that allow for rounding (still vertices, riding sets: ``core.seams.rounding_scale``)
@@ -2220,3 +2244,32 @@ def test_sliver_pieces_moved_rigidly_move_by_that_motion():
     for s in FACTORS:
         truth = _rigid(a, Rotation.from_rotvec(s * np.radians(60.0) * axis).as_matrix(), pivot)
         assert np.abs(interpolator.pose(s) - truth).max() < 1e-6 * diagonal, s
+
+
+def test_cloth_beside_a_pole_far_out_is_not_taken_for_riding():
+    """100 units out, single-precision keys are spaced 7.6e-6 apart: a chain of cloth vertices
+    that keeps its edges exactly but bends by up to 1.2e-3 rad (missing its best rigid motion by
+    up to eight spacings, as cloth beside a rod that stops dead did) is cloth, a row carried rigidly is riding. A rigid set rounded misses by under
+    two spacings; the chain passed at four times the tolerance (3 spacings) and was held rigid."""
+    from core.mesh_topology import mesh_topology
+    from core.pins import riding_vertices
+    from core.seams import rounding_scale
+
+    flat, tri = grid(20, size=1.0)
+    rows = flat[:, 1].argsort(kind="stable").reshape(20, 20)  # rows of equal y, x ascending
+    pole, chain = rows[19], rows[10, 5:13]
+    edges = mesh_topology(tri, len(flat)).edges
+
+    def key(k):
+        x = flat + (flat - 0.5) * [0.01 * k, 0.01 * k, 0.0]  # the cloth stretches: its edges change
+        x[pole] = flat[pole] + [0.1 * k, 0.0, 0.05 * k]  # carried rigidly
+        bent = Rotation.from_rotvec([0.0, 0.0, 4e-4 * k])  # the chain bends at its middle, edges kept
+        x[chain] = flat[chain]
+        x[chain[4:]] = bent.apply(flat[chain[4:]] - flat[chain[3]]) + flat[chain[3]]
+        return x
+
+    for shift in (0.0, 100.0):
+        keys = [(key(k) + shift).astype(np.float32).astype(np.float64) for k in range(4)]
+        found = riding_vertices(keys, edges, np.zeros(len(flat), dtype=int), np.zeros(len(flat), dtype=bool),
+                                rounding_scale(keys))
+        assert [sorted(rows.tolist()) for rows in found] == [sorted(pole.tolist())]

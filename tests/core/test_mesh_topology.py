@@ -57,6 +57,22 @@ def test_zero_area_triangle():
     assert "zero area" in message and "Clean Up" in message
 
 
+def test_triangles_flattened_by_the_rounding_far_from_the_origin_say_so():
+    # a 20 x 20 grid of edges 1/19 moved 1e6 out in single precision (Blender's coordinates): its
+    # coordinates fall on a grid of 0.0625, so triangles land on lines; the mesh is not to blame
+    vertices, triangles = grid(20)
+    far = (vertices + 1e6).astype(np.float32).astype(np.float64)
+    message = _error(far, triangles)
+    assert "zero area" in message and "from its origin" in message and "Origin to Geometry" in message
+    assert "Degenerate Dissolve" not in message
+    # the same mesh's own sliver at the origin is the mesh's: cleaning it up is the advice
+    sliver = vertices.astype(np.float32).astype(np.float64)
+    a, b, c = triangles[4]
+    sliver[c] = 0.5 * (sliver[a] + sliver[b])
+    message = _error(sliver, triangles)
+    assert "Degenerate Dissolve" in message and "from its origin" not in message
+
+
 def test_degenerate_target_is_rejected_too():
     vertices, triangles = grid(4)
     target = vertices.copy()
