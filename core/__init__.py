@@ -162,6 +162,8 @@ def reconstruct(base_vertices, triangles, differences: ShapeDifferences) -> np.n
         if differences.k_M is None:  # exact lengths: a miss or an undecided mirror is real
             _warn_unrealized(reference, metric, placed)
             _warn_undetermined(embedding.unresolved_choices)
+        if metric.offset is None:
+            _warn_bending_free(reference, placed)
         return reference.expand_pose(placed)
 
 
@@ -204,6 +206,66 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
             ShapeDifferenceWarning,
             stacklevel=2,
         )
+
+
+def _warn_bending_free(reference: ReferenceShape, placed: np.ndarray) -> None:
+    """ShapeDifferenceWarning where intrinsic differences alone (no offset surface) leave the pose
+    undetermined. They fix the edge lengths (§4, Propositions 1–2), and the lengths fix a pose
+    only where the surface cannot bend without changing them (§2; the extrinsic pair is what makes
+    the description complete, §5.3): a part with a boundary bends freely (a sheet draped or flat,
+    the same lengths), and on a closed part a vertex whose reflection through the plane of its
+    neighbours keeps its edges to :data:`REALIZATION_TOLERANCE` (a valence-3 vertex exactly, a
+    nearly flat star nearly) can sit on either side, as can caps of such vertices. Counted on the
+    returned pose ``placed`` ``(n_used, 3)``: reflections that move a vertex by less than that
+    tolerance of the diagonal leave the pose as it is to the precision it is realized to."""
+    topology = reference.topology
+    edges = topology.edges
+    open_parts = 0
+    boundary = topology.boundary_edges
+    if boundary.size:
+        labels = topology.components()[1]
+        open_parts = np.unique(labels[topology.edge_triangles[boundary, 0]]).size
+    # each vertex's neighbours, their centroid and best-fitting plane (normal: the covariance's
+    # eigenvector of the least eigenvalue), the vertex reflected through it
+    n = len(placed)
+    source, other = np.concatenate([edges[:, 0], edges[:, 1]]), np.concatenate([edges[:, 1], edges[:, 0]])
+    count = np.bincount(source, minlength=n)
+    centroid = np.stack([np.bincount(source, placed[other, d], minlength=n) for d in range(3)], axis=1)
+    centroid /= np.maximum(count, 1)[:, None]
+    spread = placed[other] - centroid[source]
+    covariance = np.zeros((n, 3, 3))
+    np.add.at(covariance, source, spread[:, :, None] * spread[:, None, :])
+    normal = np.linalg.eigh(covariance)[1][:, :, 0]
+    height = np.einsum("ij,ij->i", placed - centroid, normal)
+    reflected = placed - 2.0 * height[:, None] * normal
+    before = np.linalg.norm(placed[source] - placed[other], axis=1)
+    after = np.linalg.norm(reflected[source] - placed[other], axis=1)
+    change = np.zeros(n)
+    np.maximum.at(change, source, np.abs(after / before - 1.0))
+    on_boundary = np.zeros(n, dtype=bool)
+    on_boundary[edges[boundary].ravel()] = True
+    diagonal = float(np.linalg.norm(np.ptp(placed, axis=0)))
+    move = 2.0 * np.abs(height)
+    either_side = np.flatnonzero(~on_boundary & (count >= 3) & (change < REALIZATION_TOLERANCE)
+                                 & (move > REALIZATION_TOLERANCE * diagonal))
+    if not open_parts and not either_side.size:
+        return
+    causes = []
+    if open_parts:
+        causes.append(f"{open_parts} part(s) with a boundary, which bend without changing their edge lengths")
+    if either_side.size:
+        causes.append(
+            f"{either_side.size} vertex(es) (first: {int(reference.used_vertices[either_side[0]])}) that could sit "
+            f"on the other side of their neighbours, up to {100 * move[either_side].max() / diagonal:.2g} % of the "
+            f"diagonal away, with their edges changing by less than {100 * REALIZATION_TOLERANCE:g} %")
+    warnings.warn(
+        "The pose was rebuilt from intrinsic differences only (use_extrinsic=False), which fix its edge "
+        f"lengths but not how it bends: the mesh has {' and '.join(causes)}. The pose has the target's edge "
+        "lengths, bent as near the base as they allow, and may differ from the target there; the extrinsic "
+        "differences (use_extrinsic=True) determine it.",
+        ShapeDifferenceWarning,
+        stacklevel=3,
+    )
 
 
 def _warn_undetermined(choices: int) -> None:

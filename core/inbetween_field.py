@@ -133,6 +133,23 @@ class InterpolatedField:
             scale[rows] = np.exp(log[:, 0] + log[:, 2])
         return scale
 
+    def metric_lengths(self, s: float) -> np.ndarray:
+        """Lengths (3 corners, m) of the base's corner edges under the interpolated metric at
+        factor ``s``: ``√(eᵀ G e)`` of the metric's spline ``G`` between the keys, without its square
+        root ``U`` (the lengths ``|U e|`` of :meth:`stretch`'s fit targets, to rounding); ``U²`` of
+        :meth:`stretch` where that ``G`` is not positive definite, and outside the keys."""
+        if 0.0 < s < 1.0:
+            metric = self.splines["metric"].at(s)
+            ok = df.sqrt_det(metric)[1]
+            if not ok.all():
+                bad = np.flatnonzero(~ok)
+                metric[bad] = df.squared_stretch(self.stretch(s, bad))
+        else:
+            metric = df.squared_stretch(self.stretch(s))
+        x, y = self.base.tangent_rows
+        g11, g12, g22 = np.ascontiguousarray(metric.T)
+        return np.sqrt(g11 * (x * x) + 2.0 * g12 * (x * y) + g22 * (y * y))
+
     def log_stretch_rows(self, s: float, rows: np.ndarray) -> np.ndarray:
         """The log-stretches' spline at factor ``s`` on the triangles ``rows`` (index array): the
         whole spline's where it is made, else a spline of those rows alone (a few triangles where

@@ -183,8 +183,6 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
             "basis (k_M = 0 / None) would give |V| × |V| matrices per pose."
         )
     k_M, k_N = basis_sizes(k_M, k_N)
-    if k_N is not None and k_N < k_M:
-        raise MeshError(f"k_N (target basis, {k_N}) must be at least k_M (base basis, {k_M}).")
     try:
         reference = ReferenceShape(poses[0], triangles, offset=offset)
     except MeshError as error:

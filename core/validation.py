@@ -202,10 +202,11 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
     convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
     (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
     ``n_components`` eigenfunctions are constant per connected component and carry no conformal
-    information); ``k_N`` (target basis) needs ``k_M``. ``full_basis=False``: a caller that needs
-    a truncated ``k_M`` (the shape space, the distortion maps' eigenfunctions) — the messages do
-    not offer the full basis. ``target_vertices``: vertices in triangles of another mesh whose
-    basis ``k_N`` is (a cross-mesh transfer's target); ``k_N`` is then checked against it."""
+    information); ``k_N`` (target basis) needs ``k_M`` and is at least ``k_M``.
+    ``full_basis=False``: a caller that needs a truncated ``k_M`` (the shape space, the distortion
+    maps' eigenfunctions) — the messages do not offer the full basis. ``target_vertices``:
+    vertices in triangles of another mesh whose basis ``k_N`` is (a cross-mesh transfer's target);
+    ``k_N`` is then checked against it."""
     full = ", or 0 / None for the full basis" if full_basis else ""
     sizes = []
     target = n_vertices if target_vertices is None else target_vertices
@@ -230,6 +231,16 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
         sizes.append(k or None)
     if sizes[1] is not None and sizes[0] is None:
         raise MeshError("k_N (target basis size) needs k_M (base basis size); set both or neither.")
+    if sizes[1] is not None and sizes[1] < sizes[0]:
+        # Eq. (6)'s map F is k_N × k_M: with k_N < k_M it has rank k_N at most, so the k_M × k_M
+        # differences FᵀF, Fᵀ diag(λ_N) F are singular and the recovery has nothing to fit in the
+        # other directions; the paper's recovery assumes k_N ≥ k_M (§8.2).
+        raise MeshError(
+            f"k_N (target basis size) is {sizes[1]}, below k_M (base basis size) {sizes[0]}: the "
+            f"target's {sizes[1]} functions cannot represent the base's {sizes[0]}, and the pose "
+            f"would not be recoverable. Use k_N of at least k_M (about 2 × k_M recovers well, "
+            f"e.g. k_M = {sizes[0]}, k_N = {2 * sizes[0]})."
+        )
     return sizes[0], sizes[1]
 
 

@@ -13,8 +13,8 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
 from .output import require_local
-from .base import (GeneratorOperator, InputError, default_pose_key, key_blocks_of, resolve_key,
-                   surface_triangles)
+from .base import (GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of,
+                   resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -51,8 +51,8 @@ class AnalysisBasisProperties(AnalysisBasis):
             if k >= vertex_count:
                 raise InputError(f"{label} = {k} is too large for a mesh with {vertex_count} vertices in faces: "
                                  f"use at most {vertex_count - 1}")
-        if uses_k_n and self.k_n and self.k_n < self.k_m:
-            raise InputError(f"k_N = {self.k_n} must be at least k_M = {self.k_m} (or 0)")
+        if uses_k_n:
+            check_basis_order(self.k_m, self.k_n)
 
 
 def _drive(steps, start: float, share: float):

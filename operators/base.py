@@ -301,8 +301,16 @@ class CoreSettingsProperties(CoreSettings):
                     f"use at most {count - 1}, or 0 for the full basis")
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
+        check_basis_order(self.k_m, self.k_n)
         return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=self.offset or None,
                     use_extrinsic=self.use_extrinsic)
+
+
+def check_basis_order(k_m: int, k_n: int) -> None:
+    """Refuse a target basis k_N (0: none) smaller than the base's k_M, as the core does
+    (:func:`core.validation.check_basis_sizes`), before any work."""
+    if k_n and k_n < k_m:
+        raise InputError(f"k_N = {k_n} must be at least k_M = {k_m} (or 0)")
 
 
 def playback_range(scene) -> tuple[int, int]:

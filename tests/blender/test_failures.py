@@ -77,6 +77,8 @@ def test_k_larger_than_the_mesh_allows(bpy_empty, extension):
                          f"k_N = {vertex_count} is too large", k_m=10, k_n=vertex_count)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
                          "k_N = 12 needs k_M", k_m=0, k_n=12)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
+                         "k_N = 8 must be at least k_M = 10", k_m=10, k_n=8)
 
 
 def test_too_few_frames(bpy_empty, extension):

@@ -39,6 +39,26 @@ def test_transfer_keys_by_closest_points(pair, core):
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(rest, truth)
 
 
+def test_default_bases_of_a_source_smaller_than_the_base_basis(bpy_empty, extension, core):
+    """A 64-vertex source onto a 225-vertex mesh with the default sizes: k_N is the source's 63 and
+    k_M at most that (before: k_M = 100 against k_N = 63, which the core now refuses: the k_N × k_M
+    map has rank 63 at most and leaves the differences singular; a tapering stretch came back
+    0.24 off the rebuild at k_M = 63)."""
+    bridge = extension.bridge
+    source, target = transfer_pair(bridge, 7, 14)
+    rest = bridge.vertex_positions(source.data)
+    taper = rest.copy()
+    taper[:, 1] *= 1.0 + 0.3 * (rest[:, 0] - rest[:, 0].min())
+    add_key(source, "Taper", taper)
+    assert bpy.ops.shape_differences.transfer_poses() == {'FINISHED'}
+    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Source Taper"])
+    transfer = core.Transfer(bridge.vertex_positions(target.data), bridge.mesh_triangles(target.data), rest,
+                             bridge.mesh_triangles(source.data), k_M=63, k_N=63)
+    transfer.pose(bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))  # the poses in turn
+    expected = transfer.pose(taper)
+    np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)
+
+
 def test_k_n_is_the_sources_basis(pair, core):
     """k_N is checked against the source's 225 vertices, not the 121 of the active mesh (before:
     "k_N = 140 is too large for a mesh with 121 vertices", while 0 chose 200)."""

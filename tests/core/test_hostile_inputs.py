@@ -7,11 +7,12 @@ import warnings
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 import core
 from core import MeshError, RecoveryError, ShapeDifferenceWarning
 
-from meshes import drape, grid
+from meshes import drape, grid, icosphere
 
 
 @pytest.fixture(scope="module")
@@ -313,6 +314,66 @@ def test_basis_of_constants_only_is_rejected(sheet):
     with pytest.raises(MeshError, match="constant"):
         core.interpolate(v, target, t, 0.5, k_M=1)
     assert core.shape_differences(two_v, two_target, two_t, k_M=3, use_extrinsic=False).k_M == 3
+
+
+def test_target_basis_smaller_than_the_base_basis_is_rejected(sheet):
+    # Eq. (6)'s map F is k_N × k_M: with k_N < k_M it has rank k_N at most, so the area difference
+    # FᵀF is singular (a pose rebuilt from it was 0.33–0.41 of the diagonal off, silently); the
+    # paper's recovery assumes k_N ≥ k_M. Every entry point refuses it; k_N = k_M is accepted.
+    v, t, target = sheet
+    reference = core.ReferenceShape(v, t)
+    builds = (lambda k_M, k_N: core.shape_differences(v, target, t, k_M=k_M, k_N=k_N),
+              lambda k_M, k_N: reference.shape_differences(target, k_M=k_M, k_N=k_N),
+              lambda k_M, k_N: core.Interpolator(v, target, t, k_M=k_M, k_N=k_N),
+              lambda k_M, k_N: core.SequenceInterpolator([v, target], t, k_M=k_M, k_N=k_N),
+              lambda k_M, k_N: core.shape_space([v, target], t, k_M=k_M, k_N=k_N),
+              lambda k_M, k_N: core.Transfer(v, t, v, t, k_M=k_M, k_N=k_N))
+    for build in builds:
+        with pytest.raises(MeshError, match="k_N .* is 9, below k_M .* 10.*at least k_M"):
+            build(10, 9)
+    differences = core.shape_differences(v, target, t, k_M=10, k_N=10, use_extrinsic=False)
+    assert differences.area.matrix.shape == (10, 10) and np.linalg.matrix_rank(differences.area.matrix) == 10
+
+
+def test_intrinsic_only_reconstruction_warns_where_the_lengths_leave_the_pose_free():
+    # Intrinsic differences fix the edge lengths (Propositions 1-2), not the pose: a sphere with one
+    # vertex pushed in (a dimple, its edges within 0.1 % of the sphere's) came back without the
+    # dimple, and a draped sheet flat-ish (another shape with the same lengths), silently.
+    def rebuilt(v, t, target, use_extrinsic):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            pose = core.reconstruct(v, t, core.shape_differences(v, target, t, use_extrinsic=use_extrinsic))
+        return pose, [str(w.message) for w in caught if issubclass(w.category, ShapeDifferenceWarning)]
+
+    def off(pose, target):  # largest distance after the best rigid motion (the differences' gauge)
+        a, b = pose - pose.mean(axis=0), target - target.mean(axis=0)
+        return np.abs(Rotation.align_vectors(b, a)[0].apply(a) - b).max()
+
+    v, t = icosphere(3)
+    k = 100  # a valence-6 vertex reflected through the plane of its neighbours
+    ring = np.unique(t[(t == k).any(axis=1)])
+    ring = ring[ring != k]
+    centre = v[ring].mean(axis=0)
+    normal = np.linalg.svd(v[ring] - centre)[2][2]
+    dimpled = v.copy()
+    dimpled[k] -= 2.0 * ((v[k] - centre) @ normal) * normal
+    pose, caught = rebuilt(v, t, dimpled, False)
+    assert len(caught) == 1 and "intrinsic differences only" in caught[0] and "other side" in caught[0]
+    side = lambda x: (x[k] - x[ring].mean(axis=0)) @ x[k]  # > 0: the vertex out of its ring, as on the sphere
+    assert side(dimpled) < 0 < side(pose)  # the lengths allowed both: the returned one is not the target's
+    pose, caught = rebuilt(v, t, dimpled, True)  # the extrinsic pair determines it
+    assert not caught and off(pose, dimpled) < 1e-6
+
+    sheet, sheet_t = grid(8, jitter=0.2)
+    pose, caught = rebuilt(sheet, sheet_t, drape(sheet, 1.0), False)
+    assert any("1 part(s) with a boundary" in message for message in caught)
+
+    # a coarse closed mesh bent so that no star can flip without changing its edges: the lengths pin
+    # it (the icosphere itself can: each valence-5 vertex's neighbours lie in a plane)
+    v, t = icosphere(1)
+    target = v @ np.array([[1.2, 0.1, 0.0], [0.0, 0.9, 0.2], [0.1, 0.0, 1.0]]).T + 0.1 * np.sin(2.0 * v[:, [1, 2, 0]])
+    pose, caught = rebuilt(v, t, target, False)
+    assert not caught and off(pose, target) < 1e-6
 
 
 # -- inputs are never modified, also on failure --------------------------------------------------

@@ -1352,6 +1352,29 @@ def test_stretch_falls_back_to_the_log_spline_where_the_metric_spline_is_not_pos
 
 
 
+def test_metric_lengths_are_the_lengths_of_the_stretched_edges(monkeypatch, strip):
+    """The lengths a gap's predictions are checked against where the keys keep one metric
+    (√(eᵀ G e) of the metric's spline, without its square root U) are the fit targets' |U e|, between
+    the keys and outside them, and the log spline's where the metric's spline is not positive
+    definite."""
+    flat, tri = strip
+    keys = [_bend(flat, 0.0), 1.1 * _bend(flat, 0.8), _bend(flat, 1.6)]
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    for s in (0.3, 0.5, 1.5, -0.5):
+        np.testing.assert_allclose(gap.metric_lengths(s), gap.fit_targets(None, gap.stretch(s))["lengths"], rtol=1e-12)
+    spline, real_at = gap.splines["metric"], gap.splines["metric"].at
+    broken = np.zeros(len(tri), dtype=bool)
+    broken[::7] = True
+
+    def at(s, rows=None):
+        g = real_at(s) if rows is None else real_at(s, rows)
+        g[broken if rows is None else broken[rows]] = (1.0, 2.0, 1.0)  # eigenvalues 3 and −1
+        return g
+
+    monkeypatch.setattr(spline, "at", at)
+    np.testing.assert_allclose(gap.metric_lengths(0.4), gap.fit_targets(None, gap.stretch(0.4))["lengths"], rtol=1e-12)
+
+
 def test_a_hold_stays_put_and_the_motion_after_it_starts_from_rest():
     """A sheet swings up to a pose, holds it for a gap (two equal keys: an animator's held pose, a
     cache that holds a pose), then falls from rest (p₀ + ½at²): the held gap's in-betweens are the
