@@ -84,7 +84,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
-                 riding: list[np.ndarray] | None = None, start_limit: float | None = None,
+                 riding: list[np.ndarray] | None = None, riding_tolerance: float = 0.0,
+                 start_limit: float | None = None,
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None):
@@ -153,12 +154,13 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
-        # the base key (screws whose turns continue across the keys: df.key_screws)
+        # the base key (screws whose turns continue across the keys: df.key_screws; a set within the
+        # keys' rounding, riding_tolerance, of a line takes the least turn onto each key's line)
         self.riding = riding
         self.hooked = hooked  # two poses: the sets translating rigidly between them (HOOK_MISS_NOTED)
         if riding is not None:
-            screws = df.key_screws([riding_motions(base.vertices, r.world, riding) for r in relatives],
-                                   cubic and not relatives[3].extrapolated)
+            screws = df.key_screws([riding_motions(base.vertices, r.world, riding, riding_tolerance)
+                                    for r in relatives], cubic and not relatives[3].extrapolated)
             frames = principal_frames(base.vertices[np.concatenate(riding)],
                                       np.repeat(np.arange(len(riding)), [len(rows) for rows in riding]), len(riding),
                                       np.ones(sum(len(rows) for rows in riding))) if cubic else None

@@ -62,7 +62,7 @@ from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
-from .pins import riding_vertices, still_vertices
+from .pins import riding_tolerance, riding_vertices, still_vertices
 from .rigid_alignment import reflected_fits
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
@@ -270,8 +270,9 @@ class SequenceInterpolator:
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
         # two keys tell only sets that translate, and those are not held: the blend anchor holds
         # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED)
-        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding) or None \
-            if len(keys) >= 3 or two_poses else None
+        self._riding_tolerance = riding_tolerance(self._given, topology.edges, still, rounding)
+        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding,
+                                 self._riding_tolerance) or None if len(keys) >= 3 or two_poses else None
         self._riding = moving if len(keys) >= 3 else None
         self._hooked = moving if two_poses else None
         if self._riding is not None:
@@ -671,7 +672,8 @@ class SequenceInterpolator:
         else:
             prev = after = ident
         return _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                    self._anchored, self._static, self._riding, start_limit=self._start_limit(gap),
+                    self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance,
+                    start_limit=self._start_limit(gap),
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root)

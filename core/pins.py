@@ -56,14 +56,29 @@ def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
     return still
 
 
+def riding_tolerance(keys: list[np.ndarray], edges: np.ndarray, still: np.ndarray, scale: float | None = None) -> float:
+    """The rounding to which riding sets keep their edges' lengths and their rigid motion in ``keys``
+    (list of (n, 3)): :data:`RIDING_ULPS` single-precision spacings of ``scale``
+    (:func:`core.seams.rounding_scale`, by default the keys' largest coordinate), at most a
+    thousandth of the mean length of the ``edges`` (E, 2) not between two ``still`` vertices (far
+    from the origin the roundings outgrow it)."""
+    first = keys[0]
+    largest = max(float(np.max(np.abs(key))) for key in keys) if scale is None else scale
+    a, b = edges[:, 0], edges[:, 1]
+    moving = ~(still[a] & still[b])
+    if not moving.any():
+        return 0.0
+    length = np.linalg.norm(first[a[moving]] - first[b[moving]], axis=1)
+    return min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
+
+
 def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray,
-                    still: np.ndarray, scale: float | None = None) -> list[np.ndarray]:
+                    still: np.ndarray, scale: float | None = None, tolerance: float | None = None) -> list[np.ndarray]:
     """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
     (list of K ≥ 2 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
     by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding of ``scale``
-    (:data:`RIDING_ULPS`; :func:`core.seams.rounding_scale`, by default the keys' largest
-    coordinate), moves as one rigid body to that precision in every key (with two keys, translates
-    as one), is not a whole
+    (:func:`riding_tolerance`, unless given), moves as one rigid body to that precision in every key
+    (with two keys, translates as one), is not a whole
     piece (``component`` (n,): each vertex's piece, −1 for loose vertices; whole rigid pieces
     follow their screw motions) in a piece keeping no more than :data:`MAX_RIDING_SHARE` of its
     edges so, and is not all ``still`` (n,)."""
@@ -76,14 +91,13 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     # cloth that happens to keep its edges over them (a sheet swung on a pinned corner: 17 such sets
     # of 6–9 vertices in a pair 4 frames apart, turned 15° or, along a line, 180°)
     moved = _translated if len(keys) == 2 else align_rigidly
-    largest = max(float(np.max(np.abs(key))) for key in keys) if scale is None else scale
     a, b = edges[:, 0], edges[:, 1]
     candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
     if not candidates.size:
         return riding
     length = np.linalg.norm(first[a[candidates]] - first[b[candidates]], axis=1)
-    # roundings, at most a thousandth of the mean edge (far from the origin they outgrow it)
-    tolerance = min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
+    if tolerance is None:
+        tolerance = riding_tolerance(keys, edges, still, scale)
     for key in keys[1:]:
         close = np.abs(np.linalg.norm(key[a[candidates]] - key[b[candidates]], axis=1) - length) <= tolerance
         candidates, length = candidates[close], length[close]
@@ -112,19 +126,26 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     return riding
 
 
-def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray],
+                   tolerance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Each riding set's (:mod:`core.pins`) rigid motion from positions ``base`` to ``key`` (n, 3):
     rotations (S, 3, 3) and translations (S, 3) of ``x ↦ R x + t``, its turn about its centroid
-    the short way round — for a set along a line (a pole) the least turn taking the line to the
-    key's, since a turn about the line moves none of its vertices — and its centroid onto the
-    key's."""
+    the short way round — for a set along a line (a pole; every vertex within the rounding
+    ``tolerance``, :func:`riding_tolerance`, of it, as a set's rigid fit is) the least turn taking
+    the line to the key's, since a turn about the line moves none of its vertices by more than that
+    and the keys do not tell it — and its centroid onto the key's. A row of a sheet's vertices that
+    goal springs carry along (graded pins under a shaken hook) is a line to the rounding: fitted as
+    a body, its turn about the row is the rounding's (5–169° between keys 4 frames apart on a 19.6k
+    sheet), and the spline of such turns swings rows of 7–14 vertices up to 0.24 (a sixth of the
+    sheet) off their path, folding the cloth around them."""
     rotations, translations = np.zeros((len(sets), 3, 3)), np.zeros((len(sets), 3))
     for k, rows in enumerate(sets):
         start, end = base[rows].mean(axis=0), key[rows].mean(axis=0)
         a, b = base[rows] - start, key[rows] - end
         _, spread, axes = np.linalg.svd(a, full_matrices=False)
-        if spread[1] <= 1e-6 * spread[0]:  # along a line
-            d0 = axes[0]
+        d0 = axes[0]
+        off_line = a - np.outer(a @ d0, d0)
+        if spread[1] <= 1e-6 * spread[0] or np.max(np.linalg.norm(off_line, axis=1)) <= tolerance:
             d1 = np.linalg.svd(b, full_matrices=False)[2][0]
             d1 = d1 if d1 @ (b.T @ (a @ d0)) >= 0.0 else -d1
             axis, cosine = np.cross(d0, d1), float(np.clip(d0 @ d1, -1.0, 1.0))
