@@ -201,6 +201,27 @@ def test_rotations_taken_continuous_turn_as_the_rigid_motion_where_both_ends_tur
         np.testing.assert_allclose(out, turned, atol=1e-12)
 
 
+def test_rotations_taken_continuous_turn_from_the_part_whose_reading_keeps_the_axes_together():
+    """A chain of triangles turning 20° about z (an arm's part that stays, turning with the whole
+    arm), the rest curling on from it about y by up to 340° in steps of 2°: each triangle turns by
+    the turn about z composed with its curl. The curling end's principal rotation (28°) is within
+    the tie of the still end's 20°, and continued from the curling end every triangle takes a
+    whole turn about its own axis, which parts where the axes swing from z to y: the chain's
+    rotations at a factor are then not a turn of it (neighbours turned more than WRAP_CREASE
+    apart). Whatever the rigid motion (the arm's fit reads the curl the other way round: +2 rad
+    about y), it reads from the end turning 20° (toward +2 rad about y, it read the chain from
+    the curling end: the part that stays 340° round)."""
+    curl = np.radians(np.r_[np.zeros(10), np.arange(0.0, 340.0 + 1e-9, 2.0)])
+    turns = Rotation.from_rotvec([0.0, 0.0, np.radians(20.0)]) * Rotation.from_rotvec(np.outer(-curl, [0.0, 1.0, 0.0]))
+    rotvec, m = turns.as_rotvec(), len(curl)
+    pairs, pieces = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1), np.zeros(m, dtype=int)
+    from_still = df.continuous_rotation_vectors(rotvec, pairs, pieces)
+    np.testing.assert_allclose(from_still[:10], rotvec[:10], atol=1e-12)
+    for rigid in ([0.0, 2.0, 0.0], [0.0, -2.0, 0.0], [0.0, 0.0, 0.35]):
+        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=(np.tile(rigid, (m, 1)), np.ones(m)))
+        np.testing.assert_allclose(out, from_still, atol=1e-12)
+
+
 def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
     """Screw coordinates of 300 rigid motions at once (angles 0 … π, translations up to 1e3) are
     each the single motion's, and the exponential gives the motions back; a half turn goes the
