@@ -197,6 +197,15 @@ def scene_time(scene: bpy.types.Scene, frame: float) -> float:
 SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
 
 
+def simulations(objects):
+    """``(object, modifier)`` for each cloth or soft body modifier of ``objects`` enabled in the
+    viewport (the ones that move the mesh the frames are read from)."""
+    for obj in objects:
+        for modifier in obj.modifiers:
+            if modifier.type in SIMULATION_MODIFIERS and modifier.show_viewport:
+                yield obj, modifier
+
+
 class FrameReadError(ValueError):
     """The frames of an object cannot be read as the poses of its mesh (the message says why)."""
 
@@ -252,29 +261,26 @@ def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
     two of its frames, if only by round-off: the same pose to the bit is one it does not play.)"""
     if not _all_the_same(poses):
         return None
-    for mover in movers:
-        for modifier in mover.modifiers:
-            if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
-                continue
-            cache = modifier.point_cache
-            inside = [f for f in frames if cache.frame_start <= f <= cache.frame_end]
-            if not (cache.is_baked and cache.use_disk_cache and len(inside) >= 2):
-                continue
-            # a linked object's bake is looked for beside its library, unless told to use this file's path
-            library = mover.library if cache.use_library_path else None
-            if cache.use_external:
-                folder = bpy.path.abspath(cache.filepath, library=library)
-            else:  # Blender's own folder for disk caches, beside the file the object comes from
-                blend = library.filepath if library else bpy.data.filepath
-                folder = bpy.path.abspath(f"//blendcache_{os.path.splitext(os.path.basename(blend))[0]}",
-                                          library=library)
-            what = (f"its modifier '{modifier.name}'" if mover == obj else
-                    f"the modifier '{modifier.name}' of '{mover.name}', which moves it,")
-            return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
-                    f"though {what} is baked to disk over frames {cache.frame_start}–"
-                    f"{cache.frame_end} (its cache: '{cache.info}'): Blender finds none of the bake's files in "
-                    f"'{folder}' and plays the mesh at rest. Copy the cache folder with the .blend (or bake "
-                    "again) and run again")
+    for mover, modifier in simulations(movers):
+        cache = modifier.point_cache
+        inside = [f for f in frames if cache.frame_start <= f <= cache.frame_end]
+        if not (cache.is_baked and cache.use_disk_cache and len(inside) >= 2):
+            continue
+        # a linked object's bake is looked for beside its library, unless told to use this file's path
+        library = mover.library if cache.use_library_path else None
+        if cache.use_external:
+            folder = bpy.path.abspath(cache.filepath, library=library)
+        else:  # Blender's own folder for disk caches, beside the file the object comes from
+            blend = library.filepath if library else bpy.data.filepath
+            folder = bpy.path.abspath(f"//blendcache_{os.path.splitext(os.path.basename(blend))[0]}",
+                                      library=library)
+        what = (f"its modifier '{modifier.name}'" if mover == obj else
+                f"the modifier '{modifier.name}' of '{mover.name}', which moves it,")
+        return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
+                f"though {what} is baked to disk over frames {cache.frame_start}–"
+                f"{cache.frame_end} (its cache: '{cache.info}'): Blender finds none of the bake's files in "
+                f"'{folder}' and plays the mesh at rest. Copy the cache folder with the .blend (or bake "
+                "again) and run again")
     return None
 
 
@@ -299,21 +305,18 @@ def frames_outside_simulation(obj: bpy.types.Object, frames: list[int], movers: 
     mesh of ``obj`` (``obj`` and, say, the cloth proxy its Surface Deform follows): Blender holds
     the simulation's last frame after its end and its first before its start, so the poses read
     there stand still; None otherwise."""
-    for mover in movers:
-        for modifier in mover.modifiers:
-            if modifier.type not in SIMULATION_MODIFIERS or not modifier.show_viewport:
-                continue
-            cache = modifier.point_cache
-            before = [f for f in frames if f < cache.frame_start]
-            after = [f for f in frames if f > cache.frame_end]
-            if before or after:
-                parts = ([f"{_frame_span(before)} before its start"] if before else []) + \
-                        ([f"{_frame_span(after)} after its end"] if after else [])
-                subject = f"'{obj.name}' is" if mover == obj else f"'{obj.name}' is moved by '{mover.name}',"
-                return (f"{subject} simulated by '{modifier.name}' over frames {cache.frame_start}–"
-                        f"{cache.frame_end}, and the range reads {' and '.join(parts)}: Blender holds the "
-                        "simulation still outside its frames, so the poses read there do not move. Fit the "
-                        "frame range to the simulation's, or widen the simulation's (its Cache panel)")
+    for mover, modifier in simulations(movers):
+        cache = modifier.point_cache
+        before = [f for f in frames if f < cache.frame_start]
+        after = [f for f in frames if f > cache.frame_end]
+        if before or after:
+            parts = ([f"{_frame_span(before)} before its start"] if before else []) + \
+                    ([f"{_frame_span(after)} after its end"] if after else [])
+            subject = f"'{obj.name}' is" if mover == obj else f"'{obj.name}' is moved by '{mover.name}',"
+            return (f"{subject} simulated by '{modifier.name}' over frames {cache.frame_start}–"
+                    f"{cache.frame_end}, and the range reads {' and '.join(parts)}: Blender holds the "
+                    "simulation still outside its frames, so the poses read there do not move. Fit the "
+                    "frame range to the simulation's, or widen the simulation's (its Cache panel)")
     return None
 
 

@@ -387,7 +387,7 @@ class Anchor:
         motion = self.motion(0.5)
         frames = self.key_frames(self.world_rotvec(self.splines["rotvec"].at(0.5)), motion[0], columns=2)
         target = self.local_targets(frames, self.stretch(0.5))["edges"]  # (m, 3 corners, 3)
-        blend = self.edges_of(0.5 * (self.base.vertices + self.next.vertices)).transpose(2, 1, 0)
+        blend = self.edges_of(self.linear_blend(0.5)).transpose(2, 1, 0)
         cosine = np.einsum("mcd,mcd->mc", target, blend) / np.maximum(
             np.linalg.norm(target, axis=2) * np.linalg.norm(blend, axis=2), np.finfo(float).tiny)
         aliased = (cosine < ALIASED_BLEND_COSINE).any(axis=1)

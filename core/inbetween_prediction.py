@@ -147,7 +147,7 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     and predicted, concurrently (:func:`core.concurrency.concurrently`)."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
     if interior and not gap.anchored and _nearly_still(gap):
-        blend = {s: gap.finished(((1.0 - s) * gap.base.vertices + s * gap.next.vertices, None), s) for s in interior}
+        blend = {s: gap.finished((gap.linear_blend(s), None), s) for s in interior}
         return _solved(gap, factors, blend)
     if interior and not gap.anchored and (gap.rigidity > 0.0).all():
         moved = _moved_rigidly(gap, interior)

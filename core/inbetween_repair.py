@@ -399,7 +399,7 @@ class Repair:
             return x, None, 0, False
         gap = self.gap
         best = (int(defects.sum()), x) if np.isfinite(x).all() else None  # the last resort: fewest defects
-        blend = (1.0 - s) * gap.base.vertices + s * gap.next.vertices
+        blend = gap.linear_blend(s)
         if gap.use_extrinsic and best is not None:
             z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings)
             if z is not None:
@@ -463,7 +463,7 @@ class Repair:
         misfit = gap.misfit(gap.edges_of(result[0], LOCAL_STEP_DTYPE), targets)
         if misfit <= gap.tolerance:
             return result
-        blend = (1.0 - s) * gap.base.vertices + s * gap.next.vertices
+        blend = gap.linear_blend(s)
         if misfit <= gap.misfit(gap.edges_of(blend, LOCAL_STEP_DTYPE), targets):
             return result
         stretch = stretch[:]

@@ -161,9 +161,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if riding is not None:
             screws = df.key_screws([riding_motions(base.vertices, r.world, riding, riding_tolerance)
                                     for r in relatives], cubic and not relatives[3].extrapolated)
-            frames = principal_frames(base.vertices[np.concatenate(riding)],
-                                      np.repeat(np.arange(len(riding)), [len(rows) for rows in riding]), len(riding),
-                                      np.ones(sum(len(rows) for rows in riding))) if cubic else None
+            sizes = [len(rows) for rows in riding]
+            frames = principal_frames(base.vertices[np.concatenate(riding)], np.repeat(np.arange(len(riding)), sizes),
+                                      len(riding), np.ones(sum(sizes))) if cubic else None
             self.riding_screws = ScrewGap(screws, frames, cubic, limit=limit, onward=True)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
@@ -223,6 +223,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             edges = self.local_targets(frames, stretch, region.rows, region.coordinates)["edges"]
             out[region.free] = region.solve(edges, x, guide)
         return out
+
+    def linear_blend(self, s: float) -> np.ndarray:
+        """The linear blend (n, 3) of the gap's two keys at factor ``s``."""
+        return (1.0 - s) * self.base.vertices + s * self.next.vertices
 
     def pose(self, s: float, weak: bool | None = None) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback, (positions, what happened). ``weak``: an

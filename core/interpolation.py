@@ -232,15 +232,17 @@ class SequenceInterpolator:
         # at one place (seams, still vertices, holds): within this distance in every key
         rounding = rounding_scale(keys)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
+        apart = None  # why the seams cannot be joined
         try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seams)
             weld = seam_weld(keys, topology, tolerance, orient=True)
         except MeshError as error:
-            check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
-            weld = seam_weld(keys, topology, tolerance, seams=False)
-            _warn(f"some pieces touch along seams but cannot be joined there ({error}); they are "
-                  "interpolated apart and the seams may open")
+            weld, apart = None, error
         if weld is None:
-            check_manifold_vertices(topology)
+            check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
+        if apart is not None:
+            weld = seam_weld(keys, topology, tolerance, seams=False)  # the loose copies alone
+            _warn(f"some pieces touch along seams but cannot be joined there ({apart}); they are "
+                  "interpolated apart and the seams may open")
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys, tolerance)

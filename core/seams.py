@@ -225,17 +225,23 @@ def loose_copies(poses: list[np.ndarray], topology, tolerance: float) -> tuple[n
     each): a duplicate Merge by Distance would remove, or a point an object is parented to. Carried
     by their piece's rigid motion, a loose copy of the hand of an arm bent 100° left the hand by
     18 % of the diagonal half-way and 114 % at ×2."""
+    return _loose_near(poses, topology, topology.loose_vertices, tolerance)
+
+
+def _loose_near(poses: list[np.ndarray], topology, loose: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Of the vertices ``loose`` (int (p,)), those within ``reach`` of their nearest vertex of a
+    triangle of ``topology`` (nearest in the first of ``poses``) in every pose, and that vertex."""
     from scipy.spatial import cKDTree
 
-    loose, used = topology.loose_vertices, topology.used_vertices
+    used = topology.used_vertices
     if not loose.size or not used.size:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    distance, nearest = cKDTree(poses[0][used]).query(poses[0][loose], distance_upper_bound=tolerance)
+    distance, nearest = cKDTree(poses[0][used]).query(poses[0][loose], distance_upper_bound=reach)
     found = np.isfinite(distance)
     loose, near = loose[found], used[nearest[found]]
     together = np.ones(loose.size, dtype=bool)
     for pose in poses[1:]:
-        together &= np.linalg.norm(pose[loose] - pose[near], axis=1) <= tolerance
+        together &= np.linalg.norm(pose[loose] - pose[near], axis=1) <= reach
     return loose[together], near[together]
 
 
@@ -279,21 +285,14 @@ def attached_loose(poses: list[np.ndarray], topology, still: np.ndarray | None =
     of that vertex; None where there are none. ``still`` (bool (n,)): vertices held where they are
     (pins), left out. Carried by their piece's rigid motion, a point 0.1 % of the diagonal off the
     hand of an arm bent 100° left it by 18 % of the diagonal half-way."""
-    from scipy.spatial import cKDTree
-
-    loose, used = topology.loose_vertices, topology.used_vertices
+    loose = topology.loose_vertices
     if still is not None:
         loose = loose[~still[loose]]
-    if not loose.size or not used.size:
+    if not loose.size or not topology.used_vertices.size:
         return None
     first = poses[0]
     reach = ATTACH_REACH * float(np.mean(np.linalg.norm(first[topology.edges[:, 0]] - first[topology.edges[:, 1]], axis=1)))
-    distance, nearest = cKDTree(first[used]).query(first[loose], distance_upper_bound=reach)
-    found = np.isfinite(distance)
-    loose, near = loose[found], used[nearest[found]]
-    for pose in poses[1:]:
-        close = np.linalg.norm(pose[loose] - pose[near], axis=1) <= reach
-        loose, near = loose[close], near[close]
+    loose, near = _loose_near(poses, topology, loose, reach)
     if not loose.size:
         return None
     triangles = topology.triangles

@@ -34,9 +34,7 @@ PASSIVE_MODIFIERS = {'COLLISION'}
 
 def unbaked_simulations(obj) -> list[str]:
     """Names of ``obj``'s enabled cloth / soft body modifiers whose cache is not baked."""
-    return [modifier.name for modifier in obj.modifiers
-            if modifier.type in SIMULATION_MODIFIERS and modifier.show_viewport
-            and not modifier.point_cache.is_baked]
+    return [modifier.name for _, modifier in bridge.simulations([obj]) if not modifier.point_cache.is_baked]
 
 
 def objects_moving(obj) -> list:
