@@ -8,6 +8,7 @@ always in object space. Nothing else in the extension converts.
 from __future__ import annotations
 
 import os
+import re
 from dataclasses import dataclass
 
 import bpy
@@ -624,16 +625,19 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         raise
 
 
-#: Name prefixes of the attributes the analysis operators write (distortion maps: colours "SD …",
-#: values "sd_…").
-ANALYSIS_ATTRIBUTE_PREFIXES = ("SD ", "sd_")
+#: The names of the attributes the analysis operators write (operators/analysis.py, distortion
+#: maps): colours "SD Area", "SD Conformal", "SD Bending", "SD Eigen Offset Area 2", values
+#: "sd_area", "sd_area_face", each alone (a key's) or with the frame mapped (" f12"). Exact names,
+#: not prefixes: a user's own "sd_mask" or "SD Paint" is no map.
+ANALYSIS_ATTRIBUTE = re.compile(r"(SD (Area|Conformal|Bending|Eigen (Offset )?(Area|Conformal) \d+)"
+                                r"|sd_(area|conformal|bending)(_face)?)( f-?\d+)?")
 
 
 def forget_analysis(mesh: bpy.types.Mesh) -> None:
     """Remove from ``mesh`` (a copy of a source's mesh, for a new object playing other poses) the
     distortion maps of the source's poses and every custom property (a pipeline's asset tags
     stay with the source; the frame maps' list would show the source's maps on the new object)."""
-    for attribute in [a.name for a in mesh.attributes if a.name.startswith(ANALYSIS_ATTRIBUTE_PREFIXES)]:
+    for attribute in [a.name for a in mesh.attributes if ANALYSIS_ATTRIBUTE.fullmatch(a.name)]:
         mesh.attributes.remove(mesh.attributes[attribute])
     for key in list(mesh.keys()):
         del mesh[key]

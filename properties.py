@@ -16,18 +16,20 @@ PATH_OPTIONS = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
 
 
 class CoreSettings:
-    """The core's settings: the scene settings and each core operator have them."""
+    """The core's settings: the scene settings and each core operator have them. Sizes and the
+    offset have soft limits only: Blender would clamp a script's −5 to 0 (the full basis, the
+    automatic offset) silently; the core reports them (``core.validation``)."""
 
     k_m: IntProperty(
-        name="k_M", min=0, default=0,
+        name="k_M", soft_min=0, default=0,
         description="Basis size on the base pose: Laplacian eigenfunctions of the base mesh and of its "
                     "offset surface (eqs. 5-6); 0 = full basis, exact")
     k_n: IntProperty(
-        name="k_N", min=0, default=0,
+        name="k_N", soft_min=0, default=0,
         description="Basis size on the target pose (functional map from the vertex correspondence, "
                     "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
     offset: FloatProperty(
-        name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
+        name="Offset t", soft_min=0.0, default=0.0, subtype='DISTANCE',
         description="Distance of the offset surface that carries the extrinsic information; "
                     "0 = automatic (scales with the mesh)")
     use_extrinsic: BoolProperty(
@@ -37,14 +39,15 @@ class CoreSettings:
 
 class AnalysisBasis:
     """Basis sizes and offset of the analysis operators. The shape space needs a truncated basis, so
-    they do not follow the scene's k_M / k_N, whose default is the full basis."""
+    they do not follow the scene's k_M / k_N, whose default is the full basis. Soft limits only, as
+    in :class:`CoreSettings`."""
 
-    k_m: IntProperty(name="k_M", min=2, default=50,
+    k_m: IntProperty(name="k_M", soft_min=2, default=50,
                      description="Basis size on the base: the differences compared are k_M × k_M")
-    k_n: IntProperty(name="k_N", min=0, default=100,
+    k_n: IntProperty(name="k_N", soft_min=0, default=100,
                      description="Basis size on each pose (eq. 6); 0 = differences in the base's basis "
                                  "only (eq. 5), much faster")
-    offset: FloatProperty(name="Offset t", min=0.0, default=0.0, subtype='DISTANCE',
+    offset: FloatProperty(name="Offset t", soft_min=0.0, default=0.0, subtype='DISTANCE',
                           description="Offset surface distance; 0 = the scene setting, or automatic")
 
 
@@ -78,11 +81,15 @@ class ExaggeratedPose(PoseKey):
                           description="1 = the key itself, above 1 exaggerates, below 1 tones down")
 
 
+def _step_property(default: int, description: str):
+    # No hard minimum: Blender would clamp 0 (or a negative step) to 1 silently; the operators report steps below 1.
+    return IntProperty(name="Step", soft_min=1, default=default, description=description)
+
+
 class KeyStep:
     """Key poses every n-th frame of the animation."""
 
-    frame_step: IntProperty(name="Step", min=1, default=4,
-                            description="Take every n-th frame from the start as a key pose")
+    frame_step: _step_property(4, "Take every n-th frame from the start as a key pose")
 
 
 _PER_GAP = "In-between poses per gap between two key frames"
@@ -103,8 +110,7 @@ class FrameInbetweens:
 class CaptureStep:
     """Frames to capture: every n-th."""
 
-    frame_step: IntProperty(name="Step", min=1, default=1,
-                            description="Take every n-th frame from the start")
+    frame_step: _step_property(1, "Take every n-th frame from the start")
 
 
 class Speed:

@@ -38,10 +38,13 @@ from .errors import MeshError
 # An output time this close to a whole sample (relative) is that sample: k · speed in floating
 # point misses integers by a few ulps (3 · 0.1 = 0.30000000000000004).
 WHOLE_SAMPLE_TOLERANCE = 1e-9
-#: Most output samples a retime plans: Blender's last frame (MAXFRAME). A longer retime plays
-#: nowhere, and its plan alone (four arrays per output sample) would fill the memory (speed 1e-7
-#: over 96 samples: 950 million samples, the process killed by the system).
-MAX_OUTPUT_SAMPLES = 1_048_574
+#: Blender's last frame (MAXFRAME); its first (MINAFRAME) is the negative. A scene set to a frame
+#: beyond them shows the nearest of the two.
+MAX_FRAME = 1_048_574
+#: Most output samples a retime plans: Blender's last frame. A longer retime plays nowhere, and
+#: its plan alone (four arrays per output sample) would fill the memory (speed 1e-7 over 96
+#: samples: 950 million samples, the process killed by the system).
+MAX_OUTPUT_SAMPLES = MAX_FRAME
 
 
 @dataclass(frozen=True)

@@ -12,9 +12,9 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
-from .output import require_local
-from .base import (GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of,
-                   resolve_key, surface_triangles)
+from .output import refuse_emptying_caches, require_local, simulations_emptied_by
+from .base import (GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of, key_pose,
+                   mesh_pose, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -129,7 +129,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             key_blocks = key_blocks_of(obj, 2)
             names = [key_block.name for key_block in key_blocks]
             self.pose_names = [f"shape key '{name}'" for name in names]
-            poses = [bridge.shape_key_positions(key_block, obj) for key_block in key_blocks]
+            poses = [key_pose(key_block, obj) for key_block in key_blocks]
             yield 0.0
         else:
             frames = self.frames(context)
@@ -187,28 +187,35 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
     def execute(self, context):
         obj = context.active_object
         data = bridge.stored_shape_space(obj)
-        first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
-        order = np.argsort(first_axis, kind="stable")
-        if self.rank >= 0:
-            rank = min(self.rank, len(order) - 1)
-        else:
-            current = int(data.get("selected", -1))
-            now = int(np.flatnonzero(order == current)[0]) if current >= 0 else -1
-            rank = int(np.clip(now + self.step, 0, len(order) - 1))
-        pose = int(order[rank])
-        name = data["poses"][pose]
-        if data["source"] == 'KEYS':
+        try:  # read and drawn before anything changes
+            first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
+            order = np.argsort(first_axis, kind="stable")
+            if self.rank >= 0:
+                rank = min(self.rank, len(order) - 1)
+            else:
+                current = int(data.get("selected", -1))
+                now = int(np.flatnonzero(order == current)[0]) if current >= 0 else -1
+                rank = int(np.clip(now + self.step, 0, len(order) - 1))
+            pose = int(order[rank])
+            name = data["poses"][pose]
             key = obj.data.shape_keys
-            index = key.key_blocks.find(name) if key else -1
-            if index < 0:
+            index = (key.key_blocks.find(name) if key else -1) if data["source"] == 'KEYS' else None
+            frame = int(data["frames"][pose]) if index is None else None
+            if index is not None and index < 0:
                 self.report({'ERROR'}, f"The shape key '{name}' no longer exists: run Shape Space again")
                 return {'CANCELLED'}
-            obj.active_shape_key_index = index
+            data["selected"] = pose
+            image = shape_space_image(obj, data, highlight=pose)
+        except (KeyError, IndexError, TypeError, ValueError) as error:  # edited by hand, as redraw_shape_spaces says
+            self.report({'ERROR'}, f"The shape space stored on '{obj.name}' cannot be read ({error!r}): run Shape "
+                                   "Space again")
+            return {'CANCELLED'}
+        if index is None:
+            context.scene.frame_set(frame)
         else:
-            context.scene.frame_set(int(data["frames"][pose]))
-        data["selected"] = pose
+            obj.active_shape_key_index = index
         obj[bridge.SHAPE_SPACE_PROPERTY] = data
-        show_image(context, shape_space_image(obj, data, highlight=pose))
+        show_image(context, image)
         self.report({'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
                               f"{self.kind.replace('_', ' ')} axis")
         return {'FINISHED'}
@@ -264,11 +271,12 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         obj = context.active_object
         mesh = obj.data
         require_local(obj, mesh, "maps written to it as attributes are")
+        refuse_emptying_caches(context.scene, obj, "distortion maps written to")
         triangles = surface_triangles(obj, self)
         if self.eigenfunctions:  # the basis is of the eigenfunction maps only
             self.check_sizes(triangles, uses_k_n=False)
         key = mesh.shape_keys
-        base = (bridge.shape_key_positions(key.key_blocks[0], obj) if key else bridge.vertex_positions(mesh))
+        base = key_pose(key.key_blocks[0], obj) if key else mesh_pose(obj)
         if self.source == 'ACTIVE_KEY':
             key_blocks = key_blocks_of(obj, 2)
             pose_key = resolve_key(obj, self.key, "Key", default_pose_key(obj))
@@ -276,7 +284,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 raise InputError(f"'{pose_key.name}' is the Basis, which the maps are measured from: "
                                  "pick another shape key")
             self.key = pose_key.name
-            labels, poses = [""], [bridge.shape_key_positions(pose_key, obj)]
+            labels, poses = [""], [key_pose(pose_key, obj)]
             yield 0.0
         else:
             frames = self.frames(context)
@@ -398,7 +406,10 @@ def follow_frame(scene, _depsgraph=None):
     which colour attribute is active changes, and only while a frame's map is the active one: the
     map shown is the one whose prefix it has (SD Area, SD Conformal, SD Bending), so picking one in
     the list sticks, and picking any other colour attribute (the user's own, a map of a key) stops
-    the following until a frame's map is picked again."""
+    the following until a frame's map is picked again. A mesh whose change would empty the cache of
+    an unbaked simulation (its own cloth after its bake was freed, one reacting to it as a collider:
+    :func:`~.output.simulations_emptied_by`) keeps the map it shows: a change of its active colour
+    attribute marks that cache outdated, and Blender empties it at the simulation's start."""
     for obj in scene.objects:
         mesh = obj.data if obj.type == 'MESH' else None
         if mesh is None or FRAME_MAPS_PROPERTY not in mesh:
@@ -413,8 +424,11 @@ def follow_frame(scene, _depsgraph=None):
         frames = sorted(int(match.group(1)) for match in found if match)
         shown = [frame for frame in frames if frame <= scene.frame_current] or frames[:1]
         attribute = mesh.color_attributes.get(f"SD {kind} f{shown[-1]}")
-        if attribute is not None and (active is None or active.name != attribute.name):
-            mesh.color_attributes.active_color = attribute
+        if attribute is None or (active is not None and active.name == attribute.name):
+            continue
+        if any(simulations_emptied_by(scene, obj)):  # switching would empty their caches: the map stays
+            continue
+        mesh.color_attributes.active_color = attribute
 
 
 @bpy.app.handlers.persistent

@@ -335,6 +335,28 @@ def surface_triangles(obj, operator=None):
     return triangles
 
 
+def finite_pose(positions, what: str):
+    """``positions`` read from Blender, refused by the core's check (``core.validation.check_vertices``:
+    a NaN or infinite coordinate, as a simulation that exploded or a broken cache file leaves, or one
+    too large) with ``what`` naming the pose as the user knows it ("frame 12 of 'Cloth'", "shape key
+    'Smile' of 'Face'"): the core names only what it was given ("target vertices", "base vertices")."""
+    from ..core.validation import check_vertices
+
+    check_vertices(positions, name=what)
+    return positions
+
+
+def key_pose(key_block, obj):
+    """The pose shape key ``key_block`` of ``obj`` shows at value 1 (:func:`bridge.shape_key_positions`),
+    checked by :func:`finite_pose`."""
+    return finite_pose(bridge.shape_key_positions(key_block, obj), f"shape key '{key_block.name}' of '{obj.name}'")
+
+
+def mesh_pose(obj):
+    """The positions of ``obj``'s mesh (:func:`bridge.vertex_positions`), checked by :func:`finite_pose`."""
+    return finite_pose(bridge.vertex_positions(obj.data), f"the mesh of '{obj.name}'")
+
+
 def key_blocks_of(obj, needed: int = 2):
     """The shape keys of ``obj``, requiring at least ``needed`` of them."""
     key = obj.data.shape_keys

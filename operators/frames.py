@@ -10,8 +10,8 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, load_core, playback_range,
-                   require_count, surface_triangles)
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
+                   playback_range, require_count, surface_triangles)
 from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion, objects_moving,
                      render_only_motion, unbaked_simulations)
 from .poses import format_factor, inbetween_name
@@ -42,13 +42,22 @@ class FrameRangeProperties:
     minimum_frames = 1
 
     def frame_range(self, context) -> tuple[int, int]:
-        """Start and end frame; resolved values are written back for the Redo panel."""
+        """Start and end frame; resolved values are written back for the Redo panel. The step is
+        checked here too: every operator reading frames asks for its range first."""
         for name, frame in zip(("frame_start", "frame_end"), playback_range(context.scene)):
             if not self.properties.is_property_set(name):
                 setattr(self, name, frame)
+        if self.frame_step < 1:
+            raise InputError(f"Step is {self.frame_step}: take every frame (Step 1) or every n-th (Step n)")
         if self.frame_start > self.frame_end:
             raise InputError(f"The frame range starts at {self.frame_start}, after its end at {self.frame_end}: "
                              "swap Start and End")
+        from ..core.retime import MAX_FRAME
+
+        beyond = next((frame for frame in (self.frame_start, self.frame_end) if abs(frame) > MAX_FRAME), None)
+        if beyond is not None:  # the scene would show the nearest frame Blender has, under this one's name
+            raise InputError(f"Frame {beyond:,} is beyond Blender's frames ({-MAX_FRAME:,} to {MAX_FRAME:,}): "
+                             "pick a frame range within them")
         return self.frame_start, self.frame_end
 
     def frames(self, context) -> list[int]:
@@ -92,6 +101,10 @@ class FrameRangeProperties:
                 if matrices is not None:
                     matrices.append(obj.matrix_world.copy())
                 yield progress_share * len(poses) / len(frames)
+        # named by frame and object (the core names only its argument); a NaN captured into a key
+        # would hide its vertex wherever the key plays
+        for frame, positions in zip(frames, poses):
+            finite_pose(positions, f"frame {frame} of '{obj.name}'")
         lost = bridge.missing_bake(obj, frames, poses, movers)
         if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
             raise bridge.BakeFilesMissing(lost)
@@ -112,6 +125,8 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
 
     def run(self, context):
         obj = context.active_object
+        if not len(obj.data.vertices):
+            raise InputError(f"The mesh of '{obj.name}' has no vertices: there is nothing to capture")
         frames = self.frames(context)
         self.check_captured_output(obj)
         poses = yield from self.read_frames(context, obj, frames, 1.0)

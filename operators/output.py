@@ -180,6 +180,68 @@ def modifiers_under_frames(obj) -> tuple[list, list]:
                                       and (modifier.show_viewport or modifier.show_render)]
 
 
+def acts_on_simulations(obj) -> bool:
+    """Whether ``obj`` is a collider (an enabled Collision modifier) or a force field: the cloths
+    and soft bodies of other objects react to it, and Blender empties their unbaked caches when it
+    changes."""
+    field = getattr(obj, "field", None)
+    return field is not None and field.type != 'NONE' or any(
+        modifier.type == 'COLLISION' and modifier.show_viewport for modifier in obj.modifiers)
+
+
+def reacting_simulations(scene, objects) -> list[tuple]:
+    """``(object, unbaked simulation names)`` for each other object of ``scene`` with unbaked
+    simulations, where one of ``objects`` is a collider or force field they may react to
+    (:func:`acts_on_simulations`); empty otherwise."""
+    if not any(acts_on_simulations(obj) for obj in objects):
+        return []
+    return [(other, unbaked_simulations(other)) for other in scene.objects
+            if other not in objects and unbaked_simulations(other)]
+
+
+def _simulations_named(simulations) -> str:
+    """"'Cape' ('Cloth'), …" for ``(object, simulation names)`` pairs."""
+    return ", ".join(f"'{obj.name}' ({', '.join(repr(name) for name in names)})" for obj, names in simulations)
+
+
+def simulations_emptied_by(scene, obj) -> tuple[list, list]:
+    """The unbaked simulations whose caches Blender empties when the mesh of ``obj`` changes (shape
+    keys or attributes added; it computes them again from their start): ``(object, simulation
+    names)`` pairs of ``obj`` and the objects sharing its mesh (linked duplicates), and of the other
+    objects of ``scene`` where one of those is a collider or force field (:func:`reacting_simulations`)."""
+    users = [obj] + [other for other in bpy.data.objects if other.data == obj.data and other != obj]
+    sharing = [(user, unbaked_simulations(user)) for user in users if unbaked_simulations(user)]
+    return sharing, reacting_simulations(scene, users)
+
+
+def refuse_emptying_caches(scene, obj, what: str, alternative: str = "") -> None:
+    """Raise :class:`InputError` where changing the mesh of ``obj`` (``what``: "shape keys added
+    to", "distortion maps written to") would empty an unbaked simulation's cache
+    (:func:`simulations_emptied_by`), before any work. ``alternative``: another way to the result,
+    offered first."""
+    def either(*advice):
+        options = ([alternative] if alternative else []) + list(advice)
+        return options[0] if len(options) == 1 else ", ".join(options[:-1]) + ", or " + options[-1]
+
+    change = what[0].upper() + what[1:]
+    sharing, others = simulations_emptied_by(scene, obj)
+    for user, names in sharing:
+        unbaked = ", ".join(repr(name) for name in names)
+        if user == obj:
+            raise InputError(f"{change} '{obj.name}' would empty the unbaked cache of its {unbaked} simulation: "
+                             + either("bake the simulation first (Physics › Cache › Bake)"))
+        raise InputError(
+            f"'{obj.name}' shares its mesh with '{user.name}', and {what} that mesh would empty the unbaked "
+            f"cache of the {unbaked} simulation of '{user.name}': "
+            + either("bake that simulation first (Physics › Cache › Bake)", "give this object its own mesh "
+                     "(Object › Relations › Make Single User › Object & Data)"))
+    if others:
+        raise InputError(
+            f"{change} '{obj.name}' would empty the unbaked cache of {_simulations_named(others)}, which may "
+            f"react to '{obj.name}' as a collider or force field (Blender simulates them again when it changes): "
+            + either("bake those first (Physics › Cache › Bake)"))
+
+
 def modifiers_set_aside(context, obj) -> list:
     """The modifiers to switch off while the frames of ``obj`` are read: its trailing generators
     (:func:`trailing_generators`) when its evaluated mesh has other vertices than its mesh (the
@@ -193,14 +255,10 @@ def modifiers_set_aside(context, obj) -> list:
     if aside and not unbaked:
         # switching a modifier of a collider or force field off and on empties the caches of
         # the unbaked simulations it acts on
-        field = getattr(obj, "field", None)
-        acts = field is not None and field.type != 'NONE' or any(
-            modifier.type == 'COLLISION' and modifier.show_viewport for modifier in obj.modifiers)
-        others = [other for other in context.scene.objects if other != obj and unbaked_simulations(other)] if acts else []
+        others = reacting_simulations(context.scene, [obj])
         if others:
             names = ", ".join(repr(modifier.name) for modifier in aside)
-            simulations = ", ".join(f"'{other.name}' ({', '.join(repr(n) for n in unbaked_simulations(other))})"
-                                    for other in others)
+            simulations = _simulations_named(others)
             raise InputError(
                 f"{names} after the motion changes the vertex count of '{obj.name}' and is set aside while "
                 f"the frames are read, which would empty the unbaked cache of {simulations}: '{obj.name}' "
@@ -349,8 +407,10 @@ class PoseWriter:
 
     def check_output(self, source, *, keyframed: bool = False) -> None:
         """Refuse what the writing step would fail on or harm (call it in the validation step,
-        before any work): shape keys on an object with an unbaked simulation, or whose mesh another
-        object with one shares (they would empty its cache), or on a mesh linked from a library (or overridden: they would not be saved),
+        before any work): shape keys on a mesh linked from a library (or overridden: they would not
+        be saved), or that would empty an unbaked simulation's cache (the object's, another's
+        sharing its mesh, or one reacting to it as a collider or force field:
+        :func:`refuse_emptying_caches`),
         keyframed shape keys on absolute ones (``keyframed``: Blender plays those by their
         Evaluation Time, never by the values keyed), a cache file relative to a .blend that was
         never saved."""
@@ -372,21 +432,8 @@ class PoseWriter:
                              "off): Blender plays them by Evaluation Time and ignores the key values this "
                              "would keyframe, so the new keys would never play. Choose Output › Point "
                              "Cache (a new object), or turn Relative on")
-        # the mesh's other users (linked duplicates) lose their unbaked caches as well
-        for user in [source] + [obj for obj in bpy.data.objects if obj.data == source.data and obj != source]:
-            unbaked = ", ".join(repr(name) for name in unbaked_simulations(user))
-            if unbaked and user == source:
-                raise InputError(
-                    f"Adding shape keys to '{source.name}' would empty the unbaked cache of its "
-                    f"{unbaked} simulation: choose Output › Point Cache (a new object; this one stays "
-                    "as it is), or bake the simulation first (Physics › Cache › Bake)")
-            if unbaked:
-                raise InputError(
-                    f"'{source.name}' shares its mesh with '{user.name}', and shape keys added to that "
-                    f"mesh would empty the unbaked cache of the {unbaked} simulation of '{user.name}': "
-                    "choose Output › Point Cache (a new object), bake that simulation first (Physics › "
-                    "Cache › Bake), or give this object its own mesh (Object › Relations › Make Single "
-                    "User › Object & Data)")
+        refuse_emptying_caches(bpy.context.scene, source, "shape keys added to",
+                               "choose Output › Point Cache (a new object; this one stays as it is)")
 
     def check_captured_output(self, source, *, keyframed: bool = False) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to
@@ -398,9 +445,14 @@ class PoseWriter:
         movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and moves_vertices(m)]
         key = source.data.shape_keys
         # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
-        if key is not None and key.use_relative and key.animation_data is not None and (
-                key.animation_data.action is not None or len(key.animation_data.drivers)):
-            movers.append("its animated shape keys")
+        if key is not None and key.use_relative:
+            if key.animation_data is not None and (
+                    key.animation_data.action is not None or len(key.animation_data.drivers)):
+                movers.append("its animated shape keys")
+            else:  # a key left at a value is in every captured pose, and adds its change once more
+                held = [f"'{kb.name}' at {kb.value:g}" for kb in key.key_blocks[1:] if kb.value and not kb.mute]
+                if held:
+                    movers.append(f"its shape key{'s' if len(held) > 1 else ''} {', '.join(held)}")
         if movers:
             self.report({'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
                                      f"of '{source.name}': disable those to play them as captured, "

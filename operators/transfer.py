@@ -4,10 +4,9 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
-from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, edit_mode_problem, key_blocks_of,
-                   load_core, surface_triangles)
+                   key_pose, load_core, mesh_pose, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -149,15 +148,15 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         simulation computed from its start, its generators after the motion set aside."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
-            rest = bridge.shape_key_positions(key_blocks[0], source)
+            rest = key_pose(key_blocks[0], source)
             names = [kb.name for kb in key_blocks[1:]]
             return (names, scene_frames(context, len(names)), rest,
-                    [bridge.shape_key_positions(kb, source) for kb in key_blocks[1:]],
+                    [key_pose(kb, source) for kb in key_blocks[1:]],
                     [source.matrix_world.copy()] * len(names))
         frames = self.frames(context)
         matrices = []
         poses = yield from self.read_frames(context, source, frames, 0.05, matrices)
-        return ([frame_key_name(f) for f in frames], [float(f) for f in frames], bridge.vertex_positions(source.data),
+        return ([frame_key_name(f) for f in frames], [float(f) for f in frames], mesh_pose(source),
                 poses, matrices)
 
     def run(self, context):
@@ -179,7 +178,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
         core = load_core()
-        base = _world(obj, bridge.vertex_positions(obj.data))
+        base = _world(obj, mesh_pose(obj))
         # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
         # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
         transfer = yield from self.compute(

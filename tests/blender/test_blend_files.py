@@ -90,14 +90,21 @@ def test_a_cache_file_the_system_refuses_is_said_before_any_work(bpy_empty, exte
 
 def test_a_cache_object_does_not_inherit_its_sources_analysis(bpy_empty, extension, tmp_path):
     """Distortion maps of the source's frames and the mesh's custom properties stay on the source
-    (before, a retimed object showed the map of another pose at each frame, and took the asset tags)."""
+    (before, a retimed object showed the map of another pose at each frame, and took the asset tags);
+    the user's own attributes go along, whatever their names (before, any named "sd_…" or "SD …"
+    was dropped from the new object)."""
     strip = armature_scene(frames=9)
     strip.data["asset_id"] = "chr_cape_v3"
+    own = {"sd_mask": ('FLOAT', 'POINT'), "SD Paint": ('FLOAT_COLOR', 'CORNER')}  # the user's: they go along
+    for name, (kind, domain) in own.items():
+        strip.data.attributes.new(name, kind, domain)
     bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=1, frame_end=9, frame_step=4,
-                                              eigenfunctions=0)
-    assert any(name.startswith("SD ") for name in strip.data.attributes.keys())
+                                              eigenfunctions=1)
+    bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=-3, frame_end=-3, eigenfunctions=1)
+    maps = [name for name in strip.data.attributes.keys() if name.startswith(("SD ", "sd_")) and name not in own]
+    assert "SD Eigen Offset Conformal 1 f5" in maps and "sd_bending_face f-3" in maps
     obj = _inbetween_frames(filepath=str(tmp_path) + "/")
-    assert not [name for name in obj.data.attributes.keys() if name.startswith(("SD ", "sd_"))]
+    assert {name for name in obj.data.attributes.keys() if name.startswith(("SD ", "sd_"))} == set(own)
     assert not obj.data.keys() and strip.data["asset_id"] == "chr_cape_v3"
 
 

@@ -642,3 +642,74 @@ def test_outputs_play_at_the_frames_read_under_time_stretching(bpy_empty, extens
         for frame in kept:  # a retime shows source frame F at 1 + (F − 1) / speed
             np.testing.assert_allclose(_world_shown(bridge, obj, round(1 + (frame - 1) / speed)), shown[frame],
                                        atol=1e-5, err_msg=f"{operator} {properties['output']} frame {frame}")
+
+
+def _collider_under_unbaked_cloth():
+    """A sphere with a "Squash" key (the active one) and a Collision modifier, under a grid whose
+    Cloth is not baked and has been played (its memory cache holds frames 1–9)."""
+    from blender_scenes import grid_object
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.6, segments=16, ring_count=8)
+    ball = bpy.context.active_object
+    ball.modifiers.new("Collision", 'COLLISION')
+    rest = np.array([v.co[:] for v in ball.data.vertices])
+    add_key(ball, "Squash", rest * np.array([1.2, 1.2, 0.7]))
+    ball.active_shape_key_index = 1
+    sheet = grid_object(8, name="Cloth")
+    sheet.location.z = 1.0
+    cloth = sheet.modifiers.new("Cloth", 'CLOTH')
+    cloth.point_cache.frame_start, cloth.point_cache.frame_end = 1, 9
+    for frame in range(1, 10):
+        bpy.context.scene.frame_set(frame)
+    bpy.context.scene.frame_set(1)
+    sheet.select_set(False)
+    ball.select_set(True)
+    bpy.context.view_layer.objects.active = ball
+    return ball, cloth.point_cache
+
+
+@pytest.mark.parametrize("operator, properties, match", [
+    ("inbetween", dict(count=1, output='SHAPE_KEYS'), "Shape keys added to 'Sphere' would empty"),
+    ("exaggerate", dict(output='SHAPE_KEYS'), "Shape keys added to 'Sphere' would empty"),
+    ("distortion_maps", dict(eigenfunctions=0, k_m=10), "Distortion maps written to 'Sphere' would empty")])
+def test_writes_to_a_collider_keep_the_unbaked_cache_of_a_cloth_reacting_to_it(bpy_empty, extension, core, tmp_path,
+                                                                              operator, properties, match):
+    """Shape keys or attributes added to a collider's mesh make Blender simulate the cloths reacting
+    to it again from their start (before: written, the cloth's 9 cached frames gone): refused
+    before any work, naming the cloth; the cache as it was. Point Cache output writes nothing to it."""
+    ball, cache = _collider_under_unbaked_cloth()
+    cached = cache.info
+    assert cached.startswith("9 frames")
+    before = snapshot(extension.bridge, ball)
+    with pytest.raises(RuntimeError, match=match + r" the unbaked cache of 'Cloth' \('Cloth'\), which may react"):
+        getattr(bpy.ops.shape_differences, operator)(**properties)
+    assert_unchanged(before, snapshot(extension.bridge, ball))
+    bpy.context.evaluated_depsgraph_get()
+    assert cache.info == cached
+    if operator == "inbetween":
+        bpy.ops.shape_differences.inbetween(count=1, output='CACHE', filepath=str(tmp_path) + "/")
+        bpy.context.evaluated_depsgraph_get()
+        assert cache.info == cached
+
+
+@pytest.mark.parametrize("twin", [False, True], ids=["own", "linked duplicate"])
+def test_distortion_maps_keep_an_unbaked_cloth_cache(bpy_empty, extension, twin):
+    """Attributes written to the mesh of a cloth not baked (its own, or a linked duplicate's) empty
+    its cache as shape keys do (before: the maps written, 13 cached frames gone): refused as shape
+    keys are, nothing changed."""
+    source = pinned_cloth_scene(frames=9)
+    cache = source.modifiers["Cloth"].point_cache
+    cached = cache.info
+    target = source
+    if twin:
+        target = bpy.data.objects.new("Twin", source.data)
+        bpy.context.scene.collection.objects.link(target)
+        bpy.context.view_layer.objects.active = target
+    before = snapshot(extension.bridge, target)
+    match = ("shares its mesh with 'Flag', and distortion maps written to that mesh would empty" if twin else
+             "Distortion maps written to 'Flag' would empty the unbaked cache of its 'Cloth' simulation")
+    with pytest.raises(RuntimeError, match=match):
+        bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_step=4, eigenfunctions=0, k_m=10)
+    assert_unchanged(before, snapshot(extension.bridge, target))
+    bpy.context.evaluated_depsgraph_get()
+    assert cache.info == cached and not cache.is_outdated

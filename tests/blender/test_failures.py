@@ -592,3 +592,108 @@ def test_a_cloth_proxy_on_for_renders_only_is_said_to_be_missing_from_the_frames
         proxy.modifiers["Cloth"].show_viewport = True
         bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
         assert "on for renders only" not in capfd.readouterr().out
+
+
+@pytest.mark.parametrize("operator, options", [
+    ("frames_to_shape_keys", dict(output='SHAPE_KEYS')), ("frames_to_shape_keys", dict(output='CACHE')),
+    ("inbetween_frames", dict(frame_step=4, count=1)), ("shape_space", dict(source='FRAMES', k_m=10, k_n=20)),
+    ("distortion_maps", dict(source='FRAMES', k_m=10, eigenfunctions=0))])
+def test_a_frame_with_a_nan_is_refused_by_its_number(bpy_empty, extension, tmp_path, operator, options):
+    """A cache frame holding a NaN (a simulation that exploded): Frames to Shape Keys wrote it into a
+    key (the vertex gone wherever the key plays) or a PC2 file; the others named the core's
+    "key_poses" or "base vertices". Refused, naming the frame and the object; nothing changed."""
+    import importlib
+
+    sheet = grid_object(6)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    frames = np.array([rest + [0.0, 0.0, 0.1 * k * k] for k in range(9)])
+    frames[4, 7, 2] = np.nan
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = tmp_path / "exploded.pc2"
+    with open(path, "wb") as stream:  # write_pc2 refuses a NaN: the header, then the samples as they are
+        stream.write(point_cache.pc2_header(rest.shape[0], len(frames), 1.0, 1.0))
+        stream.write(frames.astype("<f4").tobytes())
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath, modifier.frame_start = 'PC2', str(path), 1.0
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    if "output" in options or operator == "inbetween_frames":
+        options = dict(options, filepath=str(tmp_path) + "/")
+    names = set(bpy.data.objects.keys())
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"frame 5 of 'Sheet': vertex 7 has a non-finite coordinate", **options)
+    assert set(bpy.data.objects.keys()) == names and sorted(p.name for p in tmp_path.iterdir()) == ["exploded.pc2"]
+
+
+@pytest.mark.parametrize("where, named", [("Bend", "shape key 'Bend' of 'Source'"),
+                                          ("Basis", "shape key 'Basis' of 'Source'"),
+                                          ("target", "the mesh of 'Sheet'")])
+def test_transfer_names_the_mesh_and_key_holding_a_nan(bpy_empty, extension, where, named):
+    """A NaN in the source's key was reported as the core's "target vertices" (the core's target
+    is the source object, so a user looked at the other mesh): the key and its object are named."""
+    from blender_scenes import transfer_pair
+
+    bridge = extension.bridge
+    source, target = transfer_pair(bridge, 8, 6)
+    if where == "target":
+        positions = bridge.vertex_positions(target.data)
+        positions[3, 0] = np.nan
+        target.data.attributes["position"].data.foreach_set("vector", positions.astype(np.float32).ravel())
+        target.data.update()
+    else:
+        key_block = source.data.shape_keys.key_blocks[where]
+        positions = bridge.stored_key_positions(key_block)
+        positions[3, 0] = np.inf
+        key_block.data.foreach_set("co", positions.astype(np.float32).ravel())
+    with pytest.raises(RuntimeError, match=rf"{named}: vertex 3 has a non-finite coordinate"):
+        bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
+    assert target.data.shape_keys is None
+
+
+def test_frames_beyond_blenders_last_frame_are_refused(bpy_empty, extension):
+    """Blender shows its last frame (1,048,574) for any later one: frames 1,048,575–1,048,580 were
+    captured as keys named after them holding frame 1,048,574 (a typo in a batch script). Refused."""
+    strip = armature_scene(frames=9)
+    for start, end in ((1_048_570, 1_048_580), (-1_048_580, -1_048_570)):
+        fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.frames_to_shape_keys,
+                             r"Frame -?1,048,580 is beyond Blender's frames \(-1,048,574 to 1,048,574\)",
+                             frame_start=start, frame_end=end, output='SHAPE_KEYS')
+
+
+@pytest.mark.parametrize("operator", ["frames_to_shape_keys", "inbetween_frames", "retime", "shape_space",
+                                      "distortion_maps"])
+@pytest.mark.parametrize("step", [0, -4])
+def test_a_step_below_one_is_an_error(bpy_empty, extension, operator, step):
+    """A script's Step of 0 (or below) was clamped to 1 by Blender without a word, and every frame
+    was read (In-between Frames: three in-betweens per frame): reported, as a Count of 0 is."""
+    strip = armature_scene(frames=9)
+    options = dict(source='FRAMES') if operator in ("shape_space", "distortion_maps") else {}
+    fails_without_change(extension.bridge, strip, getattr(bpy.ops.shape_differences, operator),
+                         rf"Step is {step}: take every frame \(Step 1\)", frame_step=step, **options)
+
+
+@pytest.mark.parametrize("output", ['SHAPE_KEYS', 'CACHE'])
+def test_a_mesh_without_vertices_has_nothing_to_capture(bpy_empty, extension, output, tmp_path):
+    """A mesh with no vertex at all (a new mesh made by a script) has no position
+    attribute: Frames to Shape Keys ended in a KeyError traceback. Refused in the user's words."""
+    obj = bpy.data.objects.new("Empty", bpy.data.meshes.new("Empty"))
+    bpy.context.scene.collection.objects.link(obj)
+    bpy.context.view_layer.objects.active = obj
+    names = set(bpy.data.objects.keys())
+    with pytest.raises(RuntimeError, match="The mesh of 'Empty' has no vertices: there is nothing to capture") as failure:
+        bpy.ops.shape_differences.frames_to_shape_keys(output=output, filepath=str(tmp_path) + "/")
+    assert "Traceback" not in str(failure.value)
+    assert set(bpy.data.objects.keys()) == names and obj.data.shape_keys is None and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("operator, properties, match", [
+    ("inbetween", dict(k_m=-5), r"k_M \(base basis size\) must be 0 / None \(full basis\) or a positive number"),
+    ("reconstruct", dict(k_m=20, k_n=-5), "k_N = -5 must be at least k_M = 20"),
+    ("exaggerate", dict(offset=-0.5), "offset .* must be positive; got -0.5"),
+    ("shape_space", dict(k_m=1), "k_M .* is 1, but the first 1 Laplace–Beltrami eigenfunctions"),
+    ("distortion_maps", dict(offset=-1.0), "offset .* must be positive; got -1.0")])
+def test_sizes_and_offsets_below_their_range_are_errors(bpy_empty, extension, core, operator, properties, match):
+    """A script's negative basis size or offset was clamped by Blender without a word (k_M −5 ran
+    with the full basis, an offset −0.5 with the automatic one, the shape space's k_M 1 with 2): the
+    core's checks report them, as they do for every other size."""
+    obj = posed_grid(extension.bridge, 6)
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator), match, **properties)

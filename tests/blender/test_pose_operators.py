@@ -162,6 +162,21 @@ def test_captured_keys_warn_about_double_deformation(bpy_empty, extension, capfd
     assert f"deformed again by 'Armature' of '{strip.name}':" in capfd.readouterr().out
 
 
+def test_captured_keys_warn_about_a_shape_key_left_at_a_value(bpy_empty, extension, capfd):
+    """A relative key left at 0.5 is in every captured pose and adds its change once more when the
+    new keys play (0.1 off at frame 1, the armature at rest): said beside the armature (before, only
+    the armature was named, and disabling it left the key's change doubled)."""
+    from blender_scenes import armature_scene
+    strip = armature_scene(frames=3)
+    rest = extension.bridge.vertex_positions(strip.data)
+    add_key(strip, "Bump", rest + [0.0, 0.0, 0.2]).value = 0.5
+    add_key(strip, "Muted", rest + [0.0, 0.0, 0.3]).mute = True
+    strip.data.shape_keys.key_blocks["Muted"].value = 1.0
+    bpy.ops.shape_differences.frames_to_shape_keys(output='SHAPE_KEYS')
+    assert (f"deformed again by 'Armature', its shape key 'Bump' at 0.5 of '{strip.name}':"
+            in capfd.readouterr().out)
+
+
 @pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 1.5)])
 def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, extension, operator, factor):
     """A sheet scaled (2, 1, 0.5) in Object Mode and not applied, whose key turns it rigidly by 80°
