@@ -414,6 +414,15 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int):
             "or a mesh remeshed or built frame by frame), and shape differences need one mesh whose "
             "vertices persist. Pick a frame range where the vertex count stays the same, or export "
             "the cache with a fixed topology.")
+    # an Ocean makes its own grid by default (Geometry › Generate): the motion and the new
+    # vertices are the same modifier, which cannot be disabled or applied for the frames' sake
+    oceans = [m for m in obj.modifiers if m.type == 'OCEAN' and m.geometry_mode == 'GENERATE' and m.show_viewport]
+    if oceans:
+        raise VertexCountChanged(
+            f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+            f"{vertex_count}: the Ocean modifier '{oceans[0].name}' makes its own grid (Geometry › "
+            "Generate), whose vertices are not the mesh's. Set its Geometry to Displace, on a mesh "
+            "with as many vertices (a Grid, or a plane with a Subdivision applied), and run again.")
     raise VertexCountChanged(
         f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
         f"{vertex_count}: a modifier before the motion (or a Geometry Nodes modifier) changes the "

@@ -930,23 +930,41 @@ class Interpolator:
 
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
         """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`
-        times as long as in either pose, or under its inverse times as short."""
+        times as long as in either pose, or under its inverse times as short. Those triangles are
+        told apart by what makes them so: the extrapolated metric itself (its corner lengths beyond
+        those bounds too: a triangle nearly collapsed or stretched in one pose), or the fit alone,
+        whose extrapolated rotations and stretches do not fit together there (a shear, a swirl) and
+        which stretches or crushes the triangles to close them."""
         lengths = self._squared_lengths(x)
         longest, shortest = np.maximum(*self._squared), np.minimum(*self._squared)
         grown = lengths > EXTRAPOLATED_GROWTH ** 2 * longest
         shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
-        if grown.any() or shrunk.any():
-            rows = np.flatnonzero(grown | shrunk) // 3
-            tiny = np.finfo(float).tiny
-            growth = np.where(grown, lengths / np.maximum(longest, tiny), 0.0)
-            shrinking = np.where(shrunk, shortest / np.maximum(lengths, tiny), 0.0)
-            longer = growth.max() >= shrinking.max()
-            ratio = np.sqrt(max(growth.max(), shrinking.max()))
-            _warn(f"at factor {factor:g}, {int(np.unique(rows).size)} triangle(s) (e.g. triangle {int(rows[0])}) "
-                  f"have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
-                  "an exaggerated or reversed metric grows each stretch by the factor's power, so a triangle "
-                  "nearly collapsed (or stretched) in one pose swells (or shrinks) the other way; use a "
-                  "factor nearer the poses, or give such triangles their size in the poses")
+        if not (grown.any() or shrunk.any()):
+            return
+        tiny = np.finfo(float).tiny
+        growth = np.where(grown, lengths / np.maximum(longest, tiny), 0.0).reshape(-1, 3).max(axis=1)
+        shrinking = np.where(shrunk, shortest / np.maximum(lengths, tiny), 0.0).reshape(-1, 3).max(axis=1)
+        sequence = self._sequence
+        metric = sequence._gap(0).metric_lengths(factor)  # (3 corners, m), the keys' corner order
+        first, second = sequence._key(0).lengths.T, sequence._key(1).lengths.T
+        by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
+                     (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
+        flagged = (growth > 0) | (shrinking > 0)
+        for rows, cause in ((np.flatnonzero(flagged & by_metric),
+                             "an exaggerated or reversed metric grows each stretch by the factor's power, so a "
+                             "triangle nearly collapsed (or stretched) in one pose swells (or shrinks) the other "
+                             "way; use a factor nearer the poses, or give such triangles their size in the poses"),
+                            (np.flatnonzero(flagged & ~by_metric),
+                             f"the extrapolated metric keeps them within {EXTRAPOLATED_GROWTH:g} ×, but the "
+                             "extrapolated rotations and stretches do not fit together there (a shear or a swirl "
+                             "the pose cannot follow) and the fit stretches or crushes them to close the mesh; "
+                             "use a factor nearer the poses")):
+            if not rows.size:
+                continue
+            longer = growth[rows].max() >= shrinking[rows].max()
+            ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
+            _warn(f"at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle {int(rows[0])}) have edges "
+                  f"{ratio:.3g} × as {'long' if longer else 'short'} as in either pose: {cause}")
 
 
 #: A two-pose in-between's warnings add how far its edges are from the interpolated metric where

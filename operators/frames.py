@@ -12,8 +12,8 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
                    playback_range, require_count, surface_triangles)
-from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, object_motion, objects_moving,
-                     render_only_motion, unbaked_simulations)
+from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, motion_set_aside, object_motion,
+                     objects_moving, render_only_motion, unbaked_simulations)
 from .poses import format_factor, inbetween_name
 
 
@@ -92,9 +92,9 @@ class FrameRangeProperties:
         ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
         poses = []
         movers = objects_moving(obj)
+        aside = modifiers_set_aside(context, obj)
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(movers),
-                                        every_frame=frames_depend_on_earlier(context.scene),
-                                        set_aside=modifiers_set_aside(context, obj))
+                                        every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
         with closing(reader) as frame_reader:
             for frame, positions in frame_reader:
                 poses.append(positions)
@@ -108,8 +108,10 @@ class FrameRangeProperties:
         lost = bridge.missing_bake(obj, frames, poses, movers)
         if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
             raise bridge.BakeFilesMissing(lost)
-        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers),
-                        bridge.still_frames(obj, frames, poses)):
+        still = bridge.still_frames(obj, frames, poses)
+        if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
+            still = motion_set_aside(context, obj, frames, aside) or still
+        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers), still):
             if warning:
                 self.report({'WARNING'}, warning)
         return poses

@@ -274,6 +274,37 @@ def modifiers_set_aside(context, obj) -> list:
     return aside
 
 
+def motion_set_aside(context, obj, frames: list[int], aside: list) -> str | None:
+    """A warning when the modifiers ``aside`` — set aside while ``obj``'s frames were read
+    (:func:`modifiers_set_aside`) — carry its motion: its evaluated mesh, with them, differs
+    between the first and last of ``frames`` (a Displace following a moving empty, or with its
+    strength keyframed, after a Subdivision). Call it where every pose read is the same: nothing
+    of that motion was read or in-betweened, and a new object plays it again only through its
+    copies of those modifiers. None otherwise. The scene's current frame is restored."""
+    if not aside or len(frames) < 2:
+        return None
+    scene = context.scene
+    current, subframe = scene.frame_current, scene.frame_subframe
+    shown = []
+    try:
+        for frame in (frames[0], frames[-1]):
+            scene.frame_set(frame)
+            shown.append(bridge.evaluated_positions(obj, context.evaluated_depsgraph_get()))
+    finally:
+        scene.frame_set(current, subframe=subframe)
+    if shown[0].shape == shown[1].shape and np.array_equal(shown[0], shown[1]):
+        return None
+    generators = [modifier for modifier in aside if modifier.type in GENERATE_MODIFIERS]
+    moving = [modifier for modifier in aside if modifier not in generators] or aside
+    names = ", ".join(repr(modifier.name) for modifier in moving)
+    before = ", ".join(repr(modifier.name) for modifier in generators) or "the generator before it"
+    return (f"The {len(frames)} frames read from '{obj.name}' ({frames[0]}–{frames[-1]}) are all the same pose: "
+            f"its motion comes from {names}, set aside with {before} while the frames are read ({before} "
+            "changing the vertex count, and the poses being of the mesh's own vertices). Nothing of that motion "
+            "is read or in-betweened: a new object only plays it again through its copies of them. Apply "
+            f"{before} first, so that {names} moves the mesh's own vertices, and run again")
+
+
 #: Modifiers whose result at a frame may depend on the frames before it and whose bakes are not
 #: checked here: particles, dynamic paint, fluids, and geometry nodes (a simulation zone).
 SEQUENTIAL_MODIFIERS = {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'NODES'}

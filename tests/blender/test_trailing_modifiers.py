@@ -232,3 +232,56 @@ def test_a_collider_under_a_subdivision_keeps_other_unbaked_cloth(bpy_empty, ext
                              r"'Subdivision' .* empty the unbaked cache of 'Cape' \('Cloth'\)", output='CACHE')
     bpy.context.evaluated_depsgraph_get()
     assert cloth.point_cache.info == cached
+
+
+def test_an_animated_displace_after_a_subdivision_is_named_as_the_motion_set_aside(bpy_empty, extension, capfd,
+                                                                                  tmp_path):
+    """A Displace whose strength is keyframed, after a Subdivision (a procedural surface): both are
+    set aside while the frames are read (the Subdivision changes the vertex count), so every pose
+    read is the mesh at rest. The run says that the motion is in the modifiers set aside and how to
+    read it (before: "all the same pose … a baked cache whose files are gone, a simulation outside
+    this range", neither of which was the cause). Without the Displace's keyframes the usual
+    warning of a still object stays."""
+    from blender_scenes import grid_object
+
+    sheet = grid_object(4)
+    sheet.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    displace = sheet.modifiers.new("Displace", 'DISPLACE')
+    for frame, strength in ((1, 0.0), (9, 0.5)):
+        displace.strength = strength
+        sheet.keyframe_insert('modifiers["Displace"].strength', frame=frame)
+    bpy.context.scene.frame_set(1)
+    expected = ("its motion comes from 'Displace', set aside with 'Subdivision' while the frames are read")
+    capfd.readouterr()
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                               filepath=str(tmp_path) + "/")
+    out = capfd.readouterr().out
+    assert expected in out and "a baked cache whose files are gone" not in out
+    assert bpy.context.scene.frame_current == 1
+    sheet.animation_data_clear()
+    displace.strength = 0.5
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4, output='CACHE',
+                                                   filepath=str(tmp_path) + "/")
+    out = capfd.readouterr().out
+    assert "are all the same pose" in out and "its motion comes from" not in out
+
+
+def test_an_ocean_making_its_own_grid_is_named(bpy_empty, extension):
+    """An Ocean modifier in its default Geometry › Generate replaces the mesh with its own grid,
+    and it is the motion itself: the refusal names it and its Displace setting (before: "a modifier
+    before the motion … Disable modifiers that add or remove geometry there (Subdivision, …)", which
+    the Ocean alone on a plane is not)."""
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    sea = bpy.context.active_object
+    ocean = sea.modifiers.new("Ocean", 'OCEAN')
+    ocean.resolution = 2
+    ocean.time = 1.0
+    sea.keyframe_insert('modifiers["Ocean"].time', frame=1)
+    ocean.time = 2.0
+    sea.keyframe_insert('modifiers["Ocean"].time', frame=9)
+    bpy.context.scene.frame_set(1)  # the animated settings as at the current frame
+    for operator in (bpy.ops.shape_differences.frames_to_shape_keys,
+                     bpy.ops.shape_differences.inbetween_frames):
+        fails_without_change(extension.bridge, sea, operator,
+                             "the Ocean modifier 'Ocean' makes its own grid .* Set its Geometry to Displace",
+                             frame_start=1, frame_end=9, frame_step=4)
