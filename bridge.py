@@ -223,6 +223,11 @@ class CacheFileMissing(FrameReadError):
     """A cache modifier of the object reads a file that is not there: every frame is its rest mesh."""
 
 
+class CacheFileUnfit(FrameReadError):
+    """A Mesh Cache modifier of the object reads a file that Blender cannot play on its mesh (a
+    cache of another mesh, a damaged file): every frame is its rest mesh."""
+
+
 class BakeFilesMissing(FrameReadError):
     """A cloth or soft body baked to disk plays none of its frames: its files are not where Blender
     looks, and every frame is the rest mesh."""
@@ -235,17 +240,129 @@ def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
     for modifier in obj.modifiers:
         if not modifier.show_viewport:
             continue
-        if modifier.type == 'MESH_CACHE':  # a path relative to the file the object comes from
-            path, library = modifier.filepath, modifier.id_data.library
+        if modifier.type == 'MESH_CACHE':
+            path = modifier.filepath
+            absolute = mesh_cache_file(modifier) if path else ""
         elif modifier.type == 'MESH_SEQUENCE_CACHE' and modifier.cache_file is not None \
                 and not modifier.cache_file.is_sequence:  # relative to the Cache File's own
-            path, library = modifier.cache_file.filepath, modifier.cache_file.library
+            path = modifier.cache_file.filepath
+            absolute = bpy.path.abspath(path, library=modifier.cache_file.library) if path else ""
         else:
             continue
-        absolute = bpy.path.abspath(path, library=library) if path else ""
         if not path or not os.path.isfile(absolute):
             return modifier.name, absolute or "(no file)"
     return None
+
+
+def mesh_cache_file(modifier: bpy.types.MeshCacheModifier) -> str:
+    """The absolute path of the file the Mesh Cache ``modifier`` plays (a relative path is relative
+    to the file its object comes from)."""
+    return bpy.path.abspath(modifier.filepath, library=modifier.id_data.library)
+
+
+def mesh_cache_header(modifier: bpy.types.MeshCacheModifier) -> tuple[int, int, np.ndarray | None]:
+    """``(samples, points, times)`` of the PC2 or MDD file the Mesh Cache ``modifier`` plays, read
+    as its Format says (as Blender reads it: bytes after the samples do not count); ``times``: an
+    MDD's frame times in seconds, None for a PC2. Raises ``core.MeshError`` for a file that is not a
+    cache of that kind or is shorter than its header says."""
+    from .core.point_cache import read_mdd_header, read_pc2_header
+
+    path = mesh_cache_file(modifier)
+    if modifier.cache_format == 'PC2':
+        points, _start, _sampling, samples = read_pc2_header(path, whole=False)
+        return samples, points, None
+    points, times = read_mdd_header(path, whole=False)
+    return len(times), points, times
+
+
+def frames_outside_cache(scene: bpy.types.Scene, obj: bpy.types.Object, frames: list[int],
+                         movers: list) -> str | None:
+    """A warning when some of ``frames`` play a time before the first or after the last sample of
+    the file of an enabled Mesh Cache modifier (Play Mode Scene) of one of ``movers`` (``obj`` and
+    the objects whose motion reaches its mesh): Blender holds the file's first sample before it and
+    its last after it, so the poses read there stand still (a cache shorter than the frame range, or
+    exported at another frame offset); None otherwise. At the scene time ``t`` (:func:`scene_time`)
+    the modifier plays, with Time Mode Frame, sample ``t · Frame Scale − Frame Start``; with Time
+    Mode Seconds, an MDD's frame at ``t / fps · Frame Scale − Frame Start`` seconds (a PC2 there is
+    not checked). Where it takes the nearest sample (Interpolation None), half a sample's spacing
+    outside still plays the end sample at its due time."""
+    from .core.errors import MeshError
+
+    fps = scene.render.fps / scene.render.fps_base
+    for mover in movers:
+        for modifier in mover.modifiers:
+            if (modifier.type != 'MESH_CACHE' or not modifier.show_viewport or modifier.play_mode != 'SCENE'
+                    or not os.path.isfile(mesh_cache_file(modifier))):
+                continue
+            try:
+                samples, _points, times = mesh_cache_header(modifier)
+            except MeshError:  # refused where the frames are read (operators.output.unfit_mesh_cache)
+                continue
+            if samples == 0:
+                continue
+            if modifier.time_mode == 'FRAME':
+                first, last, per_frame = 0.0, samples - 1.0, 1.0
+            elif modifier.time_mode == 'TIME' and times is not None:
+                first, last, per_frame = times[0], times[-1], 1.0 / fps
+            else:
+                continue
+            spacing = (last - first) / (samples - 1) if samples > 1 else 1.0
+            margin = 0.5 * spacing if modifier.interpolation == 'NONE' else 0.0
+            played = {frame: scene_time(scene, frame) * per_frame * modifier.frame_scale - modifier.frame_start
+                      for frame in frames}
+            before = [f for f in frames if played[f] < first - margin - 1e-4 * spacing]
+            after = [f for f in frames if played[f] > last + margin + 1e-4 * spacing]
+            if not (before or after):
+                continue
+            parts = ([f"{_frame_span(before)} before its first sample"] if before else []) + \
+                    ([f"{_frame_span(after)} after its last"] if after else [])
+            subject = f"'{obj.name}' is" if mover == obj else f"'{obj.name}' is moved by '{mover.name}', which is"
+            held = ('first and last samples' if before and after else 'first sample' if before else 'last sample')
+            return (f"{subject} played by the Mesh Cache '{modifier.name}' from "
+                    f"'{os.path.basename(mesh_cache_file(modifier))}' ({samples} sample{'s' if samples != 1 else ''}; "
+                    f"Frame Start {modifier.frame_start:g}, Frame Scale {modifier.frame_scale:g}), and the range "
+                    f"reads {' and '.join(parts)}: Blender holds the cache's {held} there, so the poses read do "
+                    "not move and the motion next to them is cut short. Fit the frame range to the cache's "
+                    "frames, or check the modifier's Frame Start and Frame Scale")
+    return None
+
+
+def frames_held_by_cache(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray],
+                         movers: list) -> str | None:
+    """A warning when ``obj`` is played by an enabled Mesh Sequence Cache (Alembic, USD) of one of
+    ``movers`` (``obj`` and the objects whose motion reaches its mesh) and the first two or more, or
+    the last two or more, of the ``poses`` read at ``frames`` are the same to the bit while the
+    others move: Blender holds such a cache's first sample before its first frame and its last
+    after its end, and its file's frame range is not known here, so a run of identical poses at an
+    end of the range stands for it (a cache that ends one read frame before the range does reads
+    no such run and is not seen); None otherwise, or when every pose is the same
+    (:func:`still_frames` says so)."""
+    caches = [(mover, m) for mover in movers for m in mover.modifiers
+              if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
+    if not caches or len(poses) < 3 or _all_the_same(poses):
+        return None
+
+    def held(indices) -> list[int]:
+        run = [indices[0]]
+        for index in indices[1:]:
+            if not np.array_equal(poses[index], poses[run[0]]):
+                break
+            run.append(index)
+        return sorted(frames[index] for index in run) if len(run) >= 2 else []
+
+    before, after = held(range(len(poses))), held(range(len(poses) - 1, -1, -1))
+    if not (before or after):
+        return None
+    parts = ([f"its start ({_frame_span(before)})"] if before else []) + \
+            ([f"its end ({_frame_span(after)})"] if after else [])
+    mover, modifier = caches[0]
+    source = f" from '{os.path.basename(modifier.cache_file.filepath)}'" if modifier.cache_file is not None else ""
+    subject = f"'{obj.name}' is" if mover == obj else f"'{obj.name}' is moved by '{mover.name}', which is"
+    return (f"{subject} played by the Mesh Sequence Cache '{modifier.name}'{source}, and the range reads "
+            f"the same pose, to the bit, at {' and '.join(parts)}, as Blender plays a cache before its first "
+            "frame and after its last (it holds the end samples; the in-betweens next to a held key slow to a "
+            "stop). If the cache is shorter than the range, fit the frame range to the cache's frames (or check "
+            "the Cache File's Frame Offset); a hold in the animation itself needs nothing")
 
 
 def _all_the_same(poses: list[np.ndarray]) -> bool:

@@ -218,9 +218,10 @@ def check_stamps(parts, stamps) -> None:
                         "last chunk(s) are missing. Give every chunk, in order.")
 
 
-def _file_size_check(path: Path, expected: int, what: str) -> None:
+def _file_size_check(path: Path, expected: int, what: str, at_least: bool = False) -> None:
+    """Raise :class:`MeshError` unless ``path`` has ``expected`` bytes (``at_least``: or more)."""
     size = path.stat().st_size
-    if size != expected:
+    if size < expected or (size > expected and not at_least):
         raise MeshError(
             f"'{path}' is not a complete {what}: its header promises {expected} bytes, the file has "
             f"{size}. Export the cache again (the file may have been cut off while copying)."
@@ -236,8 +237,9 @@ def read_pc2(path) -> PointCache:
     return PointCache(positions, start, sampling)
 
 
-def read_pc2_header(path) -> tuple[int, float, float, int]:
-    """``(points, start, sampling, samples)`` of a PC2 file, its header checked against its size."""
+def read_pc2_header(path, whole: bool = True) -> tuple[int, float, float, int]:
+    """``(points, start, sampling, samples)`` of a PC2 file, its header checked against its size
+    (``whole=False``: bytes after the samples are allowed, as Blender's Mesh Cache ignores them)."""
     path = Path(path)
     with open(path, "rb") as stream:
         header = stream.read(PC2_HEADER.size)
@@ -249,13 +251,14 @@ def read_pc2_header(path) -> tuple[int, float, float, int]:
             f"'{path}' has an invalid PC2 header (version {version}, {n_points} points, {n_samples} "
             f"samples, start {start}, sampling {sampling})."
         )
-    _file_size_check(path, PC2_HEADER.size + 12 * n_points * n_samples, "PC2 file")
+    _file_size_check(path, PC2_HEADER.size + 12 * n_points * n_samples, "PC2 file", at_least=not whole)
     return n_points, float(start), float(sampling), n_samples
 
 
-def read_mdd(path) -> PointCache:
-    """Read an MDD file (big-endian); ``times`` are its per-frame times in seconds and
-    ``positions`` float32 ``(frames, points, 3)`` in native byte order."""
+def read_mdd_header(path, whole: bool = True) -> tuple[int, np.ndarray]:
+    """``(points, times)`` of an MDD file: its point count and its frames' times (seconds, float64),
+    the header checked against the file's size (``whole=False``: bytes after the frames are
+    allowed, as Blender's Mesh Cache ignores them)."""
     path = Path(path)
     with open(path, "rb") as stream:
         header = stream.read(MDD_HEADER.size)
@@ -264,10 +267,27 @@ def read_mdd(path) -> PointCache:
         n_frames, n_points = MDD_HEADER.unpack(header)
         if n_frames < 0 or n_points <= 0:
             raise MeshError(f"'{path}' has an invalid MDD header ({n_frames} frames, {n_points} points).")
-        _file_size_check(path, MDD_HEADER.size + 4 * n_frames + 12 * n_points * n_frames, "MDD file")
-        times = np.frombuffer(stream.read(4 * n_frames), dtype=">f4").astype(np.float64)
+        _file_size_check(path, MDD_HEADER.size + 4 * n_frames + 12 * n_points * n_frames, "MDD file",
+                         at_least=not whole)
+        return n_points, np.frombuffer(stream.read(4 * n_frames), dtype=">f4").astype(np.float64)
+
+
+def read_mdd(path) -> PointCache:
+    """Read an MDD file (big-endian); ``times`` are its per-frame times in seconds and
+    ``positions`` float32 ``(frames, points, 3)`` in native byte order."""
+    path = Path(path)
+    n_points, times = read_mdd_header(path)
+    n_frames = len(times)
+    with open(path, "rb") as stream:
+        stream.seek(MDD_HEADER.size + 4 * n_frames)
         positions = np.frombuffer(stream.read(), dtype=">f4").reshape(n_frames, n_points, 3).astype("<f4")
     return PointCache(positions, times=times)
+
+
+def has_pc2_signature(path) -> bool:
+    """Whether the file ``path`` starts as a PC2 does (``'POINTCACHE2'``; MDD has no signature)."""
+    with open(path, "rb") as stream:
+        return stream.read(11) == PC2_MAGIC[:11]
 
 
 def read_point_cache(path) -> PointCache:
@@ -276,11 +296,9 @@ def read_point_cache(path) -> PointCache:
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
-    with open(path, "rb") as stream:
-        signature = stream.read(11)
-    if not signature:
+    if path.stat().st_size == 0:
         raise MeshError(f"'{path}' is empty: export the cache again.")
-    if signature == PC2_MAGIC[:11]:
+    if has_pc2_signature(path):
         return read_pc2(path)
     if path.suffix.lower() == ".pc2":  # named PC2 but not one: say so rather than read it as MDD
         raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2'): "

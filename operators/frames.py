@@ -13,7 +13,7 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
                    playback_range, require_count, surface_triangles)
 from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, motion_set_aside, object_motion,
-                     objects_moving, render_only_motion, unbaked_simulations)
+                     objects_moving, render_only_motion, unbaked_simulations, unfit_mesh_cache)
 from .poses import format_factor, inbetween_name
 
 
@@ -92,6 +92,9 @@ class FrameRangeProperties:
         ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
         poses = []
         movers = objects_moving(obj)
+        unfit = unfit_mesh_cache(obj, movers)
+        if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
+            raise bridge.CacheFileUnfit(unfit)
         aside = modifiers_set_aside(context, obj)
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(movers),
                                         every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
@@ -111,7 +114,9 @@ class FrameRangeProperties:
         still = bridge.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
-        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers), still):
+        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers),
+                        bridge.frames_outside_cache(context.scene, obj, frames, movers),
+                        bridge.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:
                 self.report({'WARNING'}, warning)
         return poses

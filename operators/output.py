@@ -113,6 +113,49 @@ def moves_vertices(modifier) -> bool:
     return modifier.type not in PASSIVE_MODIFIERS and modifier.type not in GENERATE_MODIFIERS and not _still(modifier)
 
 
+def unfit_mesh_cache(obj, movers: list) -> str | None:
+    """Why Blender cannot play the file of an enabled Mesh Cache modifier of one of ``movers``
+    (``obj`` and the meshes whose motion reaches it, :func:`objects_moving`) on that mesh, in the
+    user's words, or None: the file is not a PC2 / MDD of the modifier's Format or is cut short
+    (Blender shows the rest mesh at every frame, or from where the samples stop), or it holds
+    another number of points than the mesh has vertices (a cache of another mesh: Blender leaves
+    that mesh at rest at every frame, 'Vertex count mismatch' on the modifier). A file that is not there is left to ``bridge.missing_cache_file``;
+    a modifier after one that adds or removes vertices (a generator, Geometry Nodes) is not checked
+    against the mesh's count."""
+    from ..core.errors import MeshError
+    from ..core.point_cache import has_pc2_signature
+
+    for mover in movers:
+        if mover.type != 'MESH':
+            continue
+        owner = f"'{mover.name}'" + (f", which moves '{obj.name}'," if mover != obj else "")
+        changed = False  # whether a modifier above changes the vertex count the next one gets
+        for modifier in mover.modifiers:
+            if not modifier.show_viewport:
+                continue
+            if modifier.type == 'MESH_CACHE' and os.path.isfile(bridge.mesh_cache_file(modifier)):
+                path = bridge.mesh_cache_file(modifier)
+                if modifier.cache_format == 'MDD' and has_pc2_signature(path):  # Blender's default Format is MDD
+                    return (f"The Mesh Cache '{modifier.name}' of {owner} reads '{path}' as MDD (its Format), but it "
+                            "is a PC2 file: Blender cannot read it so and shows the mesh at rest at every frame. Set "
+                            "the modifier's Format to PC2")
+                try:
+                    _samples, points, _times = bridge.mesh_cache_header(modifier)
+                except MeshError as error:
+                    return (f"The Mesh Cache '{modifier.name}' of {owner} cannot play its file as "
+                            f"{modifier.cache_format} (its Format): {error} Blender shows the mesh at rest wherever "
+                            "it cannot read a sample: check the modifier's Format (PC2 or MDD)")
+                if points != len(mover.data.vertices) and not changed:
+                    return (f"The Mesh Cache '{modifier.name}' of {owner} plays '{path}', "
+                            f"which holds {points} points for the mesh's {len(mover.data.vertices)} vertices: Blender "
+                            "leaves the mesh at rest at every frame ('Vertex count mismatch' on the modifier). Export "
+                            "the cache from this mesh (its vertices, in the same order), or point the modifier to "
+                            "the cache made for it")
+            changed = changed or modifier.type in GENERATE_MODIFIERS or (
+                modifier.type == 'NODES' and not attribute_only(modifier))
+    return None
+
+
 def render_only_motion(obj, movers: list) -> str | None:
     """A warning when modifiers that move the vertices of ``obj`` — those of ``movers``, itself and
     the objects that move it (:func:`objects_moving`: a cloth proxy through a Surface Deform) — are on for
@@ -616,8 +659,9 @@ class PoseWriter:
                                      "add those to it by hand if it should follow them")
         own_speed = [words for kind, words in motion.items() if kind in ("constraints", "parent")]
         if speed != 1.0 and own_speed:
+            verb = "moves" if own_speed == [motion.get("parent")] else "move"  # "its constraints" is plural
             self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
-                                     f"{' and '.join(own_speed)} move it at the scene's own speed")
+                                     f"{' and '.join(own_speed)} {verb} it at the scene's own speed")
         self.drop_undone_cache(path)
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")

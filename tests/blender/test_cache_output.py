@@ -430,6 +430,10 @@ def test_a_retimed_cache_object_plays_its_sources_keyframed_transform_at_the_new
     assert f"plays the motion at 0.5x, but its constraints and its parent '{rig.name}' move it at the scene's own speed" in out
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5, output='SHAPE_KEYS')
     assert f"by its keyframed transform, its constraints, its parent '{rig.name}', at its own speed" in capfd.readouterr().out
+    source.constraints.clear()  # the moving parent alone (an Alembic's Transform Cache on it, say)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
+                                     filepath=str(tmp_path / "slow3.pc2"))
+    assert f"plays the motion at 0.5x, but its parent '{rig.name}' moves it at the scene's own speed" in capfd.readouterr().out
 
 
 def test_drivers_on_the_source_transform_are_named_as_left_out(bpy_empty, extension, core, tmp_path, capfd):

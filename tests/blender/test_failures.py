@@ -1,6 +1,8 @@
 """Bad selections, settings and meshes: a report that says what is wrong and how to fix it, and
 nothing changes (shape keys, vertices, modifiers, animation, current frame)."""
 
+import struct
+
 import numpy as np
 import pytest
 
@@ -530,6 +532,132 @@ def test_frames_past_a_cloth_proxys_simulation_say_the_proxy_stands_still_there(
         bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
                                                        output='SHAPE_KEYS')
         assert "simulated by" not in capfd.readouterr().out
+
+
+def sheet_played_by_a_cache(extension, tmp_path, samples: int, extra_points: int = 0, **modifier_settings):
+    """A 7 × 7 grid 'Sheet' played by a Mesh Cache of ``samples`` PC2 samples (sample k: the grid
+    lifted by 0.1 k, plus ``extra_points`` points of another mesh), sample 0 at frame 1."""
+    import importlib
+
+    sheet = grid_object(6)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    poses = np.array([np.concatenate([rest, rest[:extra_points]]) + [0.0, 0.0, 0.1 * k] for k in range(samples)])
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.frame_start = 'PC2', 1.0
+    modifier.filepath = str(point_cache.write_pc2(tmp_path / "shot.pc2", poses, start=1.0))
+    for name, value in modifier_settings.items():
+        setattr(modifier, name, value)
+    return sheet
+
+
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime", "frames_to_shape_keys", "distortion_maps"])
+def test_a_mesh_cache_that_does_not_fit_the_mesh_is_refused(bpy_empty, extension, operator, tmp_path):
+    """A Mesh Cache playing a PC2 of another mesh (5 points more: Blender says 'Vertex count
+    mismatch' on the modifier and leaves the mesh at rest), or a PC2 read as MDD (its Format set
+    wrong): every frame is the rest mesh, and every operator reading frames made a still result and
+    reported it done (with at most a warning that the frames are all the same); a PC2 cut short
+    plays the rest mesh after the cut, and the poses read jumped there. Refused, saying what does
+    not fit; nothing changed. A file with bytes after its samples plays whole and runs."""
+    options = dict(source='FRAMES', k_m=10, k_n=0) if operator == "distortion_maps" else dict(frame_step=4)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    sheet = sheet_played_by_a_cache(extension, tmp_path, 9, extra_points=5)
+    names = set(bpy.data.objects.keys())
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"The Mesh Cache 'Mesh Cache' of 'Sheet' plays '.*shot\.pc2', which holds 54 points for "
+                         r"the mesh's 49 vertices: Blender leaves the mesh at rest", **options)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    sheet = sheet_played_by_a_cache(extension, tmp_path, 9, cache_format='MDD')
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"The Mesh Cache 'Mesh Cache' of 'Sheet' reads '.*shot\.pc2' as MDD \(its Format\), but it "
+                         r"is a PC2 file: .* Set the modifier's Format to PC2", **options)
+    assert set(bpy.data.objects.keys()) == names
+    modifier = sheet.modifiers["Mesh Cache"]
+    modifier.cache_format = 'PC2'  # read as what it is, but cut short: Blender plays the rest mesh past the cut
+    path = tmp_path / "shot.pc2"
+    whole = path.read_bytes()
+    path.write_bytes(whole[:len(whole) // 2])
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"cannot play its file as PC2 \(its Format\): '.*shot\.pc2' is not a complete PC2 file.* "
+                         r"Blender shows the mesh at rest wherever it cannot read a sample", **options)
+    assert set(bpy.data.objects.keys()) == names
+    path.write_bytes(whole + bytes(100))  # bytes after the samples: Blender plays every sample, and it runs
+    getattr(bpy.ops.shape_differences, operator)(**options)
+
+
+def test_a_mesh_cache_that_does_not_fit_its_proxy_is_refused(bpy_empty, extension, tmp_path):
+    """A render mesh bound by a Surface Deform to a proxy whose Mesh Cache plays a PC2 of another
+    mesh: the proxy stays at rest, and so does the render mesh. Refused, naming the proxy; nothing
+    changed."""
+    from blender_scenes import bound_to
+
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    proxy = sheet_played_by_a_cache(extension, tmp_path, 9, extra_points=5)
+    mesh = bound_to(proxy, 8)
+    with bpy.context.temp_override(object=mesh, active_object=mesh, selected_objects=[mesh]):
+        fails_without_change(extension.bridge, mesh, bpy.ops.shape_differences.inbetween_frames,
+                             r"The Mesh Cache 'Mesh Cache' of 'Sheet', which moves 'Render', plays '.*shot\.pc2', "
+                             "which holds 54 points for the mesh's 49 vertices", frame_step=4)
+
+
+def test_frames_past_a_mesh_cache_say_it_stands_still_there(bpy_empty, extension, capfd, tmp_path):
+    """Frames after the last sample of a Mesh Cache's file play that sample, held (a PC2 of frames
+    1–9 read over 1–13, or an MDD in Time Mode Seconds whose frames end before the range does):
+    the run says so (before: nothing, and the in-betweens next to the held key slowed to a stop,
+    in a probe 2.4e-3 → 2.8e-2 from the frames there, on a sheet 2 wide); a range inside the cache's
+    says nothing of it."""
+    bridge = extension.bridge
+    sheet = sheet_played_by_a_cache(extension, tmp_path, 9)
+    held = dict(bridge.frame_positions(bpy.context, sheet, [9, 13]))
+    np.testing.assert_array_equal(held[13], held[9])  # what the warning says: the last sample, held
+    capfd.readouterr()
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=4, output='SHAPE_KEYS')
+    assert ("'Sheet' is played by the Mesh Cache 'Mesh Cache' from 'shot.pc2' (9 samples; Frame Start 1, Frame "
+            "Scale 1), and the range reads frame 13 after its last: Blender holds the cache's last sample there"
+            in capfd.readouterr().out)
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4, output='SHAPE_KEYS')
+    assert "played by the Mesh Cache" not in capfd.readouterr().out
+    # an MDD played by its times (seconds): frames 0–8 at 24 fps, read over 0–12
+    rest = bridge.vertex_positions(sheet.data)
+    path = tmp_path / "shot.mdd"
+    path.write_bytes(struct.pack(">ii", 9, len(rest)) + (np.arange(9) / 24.0).astype(">f4").tobytes()
+                     + np.array([rest + [0.0, 0.0, 0.1 * k] for k in range(9)]).astype(">f4").tobytes())
+    modifier = sheet.modifiers["Mesh Cache"]
+    modifier.cache_format, modifier.filepath, modifier.time_mode, modifier.frame_start = 'MDD', str(path), 'TIME', 0.0
+    bpy.context.scene.render.fps = 24
+    held = dict(bridge.frame_positions(bpy.context, sheet, [8, 12]))
+    np.testing.assert_array_equal(held[12], held[8])
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=0, frame_end=12, frame_step=4, output='SHAPE_KEYS')
+    assert "the range reads frame 12 after its last: Blender holds" in capfd.readouterr().out
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=0, frame_end=8, frame_step=4, output='SHAPE_KEYS')
+    assert "played by the Mesh Cache" not in capfd.readouterr().out
+
+
+def test_frames_past_an_alembic_cache_say_it_stands_still_there(bpy_empty, extension, capfd, tmp_path):
+    """An Alembic cache of frames 3–9 imported into a shot of frames 1–13 (its importer's frame range
+    off): Blender holds the first sample before frame 3 and the last after frame 9, so the poses
+    read there are the same to the bit; the run says so (before: nothing, and in a probe the
+    in-betweens next to the held key slowed to a stop, 2.4e-3 → 2.8e-2 from the cache's frames on a
+    sheet 2 wide); a range inside the cache's says nothing of it."""
+    armature_scene(frames=9)
+    bpy.ops.wm.alembic_export(filepath=str(tmp_path / "strip.abc"), start=3, end=9)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 13
+    bpy.ops.wm.alembic_import(filepath=str(tmp_path / "strip.abc"), as_background_job=False, set_frame_range=False)
+    strip = next(obj for obj in bpy.data.objects if obj.type == 'MESH')
+    poses = dict(extension.bridge.frame_positions(bpy.context, strip, [1, 2, 3, 9, 10, 13]))
+    np.testing.assert_array_equal(poses[1], poses[3])  # what the warning says: the ends held
+    np.testing.assert_array_equal(poses[13], poses[9])
+    assert not np.array_equal(poses[3], poses[9])
+    with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip]):
+        capfd.readouterr()
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=1, output='SHAPE_KEYS')
+        assert ("is played by the Mesh Sequence Cache 'MeshSequenceCache' from 'strip.abc', and the range reads the "
+                "same pose, to the bit, at its start (frames 1–3) and its end (frames 9–13)"
+                in capfd.readouterr().out)
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=3, frame_end=9, frame_step=2, output='SHAPE_KEYS')
+        assert "Mesh Sequence Cache" not in capfd.readouterr().out
 
 
 def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, extension):
