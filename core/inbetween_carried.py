@@ -68,6 +68,17 @@ CARRIER_SIZE = 0.5
 MIN_CARRIERS = 4
 MIN_CARRIER_SPREAD = 0.05
 MIN_CARRIER_SIZE = 0.01
+#: A deforming piece the anchor leaves to its centroid's placement (wholly or in part, ``by_centroid``:
+#: an eye or a tooth squashed with a head, exaggerated) rides on deforming pieces at least this
+#: many times its size (bounding-box diagonal, first key), its seat chosen and checked as a rigid
+#: piece's is: its centroid goes where the seat's best similarity from the base key to the pose
+#: takes it, plus the share ``s`` of where it sits against the seat in the next key, instead of
+#: along the keys' straight line, which the seat's interpolated shape leaves (its own shape is
+#: kept; :meth:`core.inbetween_motion.PieceMotion.place_riders`). A squashed head's eyes were
+#: 7.2e-3 / 1.8e-2 of the diagonal off their sockets at ×1.5 / ×2 (the slider 5.1e-4 / 1.3e-3).
+#: Never on a piece about as large (the two sheets of a cloth lying on each other, 2.72 and 2.47
+#: across: each would be placed by the other).
+RIDER_SIZE = 2.0
 
 
 class CarriedPieces:
@@ -78,11 +89,18 @@ class CarriedPieces:
     def __init__(self, gap):
         self.pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         topo, base, nxt = gap.topo, gap.base.vertices, gap.next.vertices
+        self.riding = np.zeros(len(topo.components), dtype=bool)  # the components of the riders kept
         self.base = base
         if len(topo.components) < 2:
             return
         rigid = gap.rigidity > 0.0  # moves rigidly across the gap's keys (RIGID_PLACEMENT_SCALE)
-        if rigid.all() or not rigid.any():
+        if rigid.all():
+            return
+        # deforming pieces that may ride on a deforming one at least RIDER_SIZE × their size (not
+        # those a rigid piece seats: PieceMotion.seated_placement places them)
+        size = topo.diagonals(topo.first_pose)
+        riders = ~rigid & ~gap.seated_placement[0] & (RIDER_SIZE * size <= size[~rigid].max())
+        if not (rigid.any() or riders.any()):
             return
         from scipy.spatial import cKDTree  # noqa: PLC0415 (only meshes with rigid and deforming pieces)
 
@@ -93,23 +111,26 @@ class CarriedPieces:
         if gap.static is not None:  # still in every key: pinned where it is
             still = np.bincount(labels, gap.static[order], minlength=rigid.size)
             rigid = rigid & (still < np.bincount(labels, minlength=rigid.size))
-        pieces = np.flatnonzero(rigid)
+        pieces = np.flatnonzero(rigid | riders)
         if not pieces.size:
             return
-        chosen = rigid[labels]
+        chosen = (rigid | riders)[labels]
         rows, piece = order[chosen], np.searchsorted(pieces, labels[chosen])  # piece: index among ``pieces``
         own = rigid_alignments(base[rows], nxt[rows], piece, pieces.size)
-        # deforming components much smaller than the piece carry none of it (CARRIER_SIZE)
-        size = topo.diagonals(topo.first_pose)
-        large = size[topo.vertex_component[deforming]] >= CARRIER_SIZE * size[pieces].min()
+        # deforming components much smaller than a rigid piece carry none of it (CARRIER_SIZE), a
+        # rider only those at least RIDER_SIZE × its size
+        least = np.where(riders[pieces], RIDER_SIZE, CARRIER_SIZE) * size[pieces]
+        large = size[topo.vertex_component[deforming]] >= least.min()
         deforming = deforming[large]
         if not deforming.size:
             return
         seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming,
                             cKDTree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge,
-                            (size[topo.vertex_component[deforming]], CARRIER_SIZE * size[pieces]))
+                            (size[topo.vertex_component[deforming]], least))
         groups = np.split(rows, np.flatnonzero(np.diff(piece)) + 1)
-        kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats) if carriers is not None]
+        ridden = self._ridden(gap, base, nxt, own) & rigid[pieces]
+        kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats)
+                if carriers is not None and not ridden[k]]
         if not kept:
             return
         index = np.array([k for k, _, _ in kept])
@@ -130,6 +151,36 @@ class CarriedPieces:
         self._base_mean = np.add.reduceat(seated, self._starts, axis=0) / self._counts[:, None]
         self._base_centred = seated - np.repeat(self._base_mean, self._counts, axis=0)
         self._screws = np.array(screws)
+        # riders (their index among the pieces kept and their component): their centroid about their
+        # seat's mean in the base key, and its move to where their centroid in the next key sits in
+        # the coordinates of their seat's best similarity from the base key to it
+        self._riders = np.flatnonzero(riders[pieces[index]])
+        self._rider_components = pieces[index[self._riders]]
+        self.riding[self._rider_components] = True
+        self._rigid_rows = ~riders[pieces[index]][self._row_piece]
+        if self._riders.size:
+            _, rotations, scales, means = self._seat_similarities(nxt)
+            rotations, scales, means = rotations[self._riders], scales[self._riders], means[self._riders]
+            self._rider_starts = gap.base.centroids[self._rider_components] - self._base_mean[self._riders]
+            ends = topo.centroids(nxt)[self._rider_components] - means
+            self._rider_offsets = np.einsum("pji,pj->pi", rotations, ends) / scales[:, None] - self._rider_starts
+
+    @staticmethod
+    def _ridden(gap, base: np.ndarray, nxt: np.ndarray, own) -> np.ndarray:
+        """Per piece (P,), whether its own best rigid motion between the gap's keys (``own``:
+        rotations (P, 3, 3), translations (P, 3)) takes one of the gap's riding sets (:mod:`core.pins`,
+        held on their screws) to its place in the next key within the rounding the sets were
+        found to: the piece moves on the bone or object the set rides on (the lower teeth and the
+        skin of an opening jaw, :func:`core.pins.witnessed_riding`) and keeps its own screw with
+        the set, not carried by the skin around it (whose fields missed the teeth's place in a
+        jaw opened 22° by 5.7e-3 of the diagonal half-way)."""
+        ridden = np.zeros(len(own[0]), dtype=bool)
+        if gap.riding is None:
+            return ridden
+        for rows in gap.riding:
+            moved = np.einsum("pab,rb->pra", own[0], base[rows]) + own[1][:, None]
+            ridden |= np.max(np.linalg.norm(moved - nxt[rows], axis=2), axis=1) <= gap.riding_tolerance
+        return ridden
 
     @staticmethod
     def _seats(first, base, nxt, rows, piece, count, deforming, tree, own, reach, sizes=None) -> list:
@@ -201,26 +252,48 @@ class CarriedPieces:
         return out
 
     def place(self, x: np.ndarray, s: float) -> np.ndarray:
-        """``x`` (n, 3), a pose at factor ``s``, with each carried piece moved by its carriers' best
-        rigid motion from the base key to ``x``, times its residual motion at ``s``: every piece
-        at once (one batched Kabsch fit: meshes with hundreds of carried pieces)."""
-        if not self.pieces:
+        """``x`` (n, 3), a pose at factor ``s``, with each carried rigid piece moved by its carriers'
+        best rigid motion from the base key to ``x``, times its residual motion at ``s``: every
+        piece at once (one batched Kabsch fit: meshes with hundreds of carried pieces)."""
+        if not self.pieces or not self._rigid_rows.any():
             return x
-        moved = x[self._carriers]
-        if not np.isfinite(moved).all():
+        if not np.isfinite(x[self._carriers]).all():
             return x  # a failed solve: reported as it is
+        translations, rotations, _, _ = self._seat_similarities(x)
+        residual_rotations, residual_translations = df.rigid_exps(s * self._screws)
+        total = rotations @ residual_rotations
+        shift = np.einsum("pij,pj->pi", rotations, residual_translations) + translations
+        rows, piece = self._rows[self._rigid_rows], self._row_piece[self._rigid_rows]
+        x[rows] = np.einsum("kij,kj->ki", total[piece], self.base[rows]) + shift[piece]
+        return x
+
+    def rider_places(self, x: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The riders' components (R,) and where their centroids (R, 3) go in ``x`` (n, 3), a pose
+        at factor ``s``: where their seat's best similarity from the base key to ``x`` takes their
+        centroid in the base key, moved by the share ``s`` of its offset in the next key (in the
+        seat's coordinates; :data:`RIDER_SIZE`); None without riders or where a seat is not finite."""
+        if not self.riding.any() or not np.isfinite(x[self._carriers]).all():
+            return None
+        _, rotations, scales, means = self._seat_similarities(x)
+        k = self._riders
+        local = self._rider_starts + s * self._rider_offsets
+        return self._rider_components, means[k] + scales[k, None] * np.einsum("pij,pj->pi", rotations[k], local)
+
+    def _seat_similarities(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Each seat's best rigid motion from the base key to ``x`` (n, 3), translations (P, 3) and
+        rotations (P, 3, 3), that rotation's best scale (P,) (``Σ (R b̃)·x̃ / Σ |b̃|²`` over the
+        carriers about their means: with it, their best similarity) and the carriers' means (P, 3)
+        in ``x``."""
+        moved = x[self._carriers]
         counts = self._counts[:, None]
         mean = np.add.reduceat(moved, self._starts, axis=0) / counts
         centred = moved - np.repeat(mean, self._counts, axis=0)
         covariance = np.add.reduceat(centred[:, :, None] * self._base_centred[:, None, :], self._starts, axis=0)
         rotations = nearest_rotations(covariance)  # (P, 3, 3): Σ x̃ b̃ᵀ → R
         translations = mean - np.einsum("pij,pj->pi", rotations, self._base_mean)
-        residual_rotations, residual_translations = df.rigid_exps(s * self._screws)
-        total = rotations @ residual_rotations
-        shift = np.einsum("pij,pj->pi", rotations, residual_translations) + translations
-        piece = self._row_piece
-        x[self._rows] = np.einsum("kij,kj->ki", total[piece], self.base[self._rows]) + shift[piece]
-        return x
+        spread = np.add.reduceat(np.einsum("ij,ij->i", self._base_centred, self._base_centred), self._starts)
+        scales = np.einsum("pij,pij->p", rotations, covariance) / np.maximum(spread, np.finfo(float).tiny)
+        return translations, rotations, scales, mean
 
 
 def _jointed(base: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, own, reach: float) -> bool:

@@ -100,10 +100,12 @@ class PieceMotion:
     def place(self, x: np.ndarray, s: float, motion, partly: bool = False) -> np.ndarray:
         """Components without anchored vertices moved to their interpolated centroid (see
         :data:`RIGID_PLACEMENT_SCALE`); with ``partly``, instead those the anchor barely holds,
-        by their share ``by_centroid`` of the way (see :meth:`~core.inbetween_anchor.Anchor.centroid_placement`)."""
+        by their share ``by_centroid`` of the way (see :meth:`~core.inbetween_anchor.Anchor.centroid_placement`),
+        but for the riders of :class:`core.inbetween_carried.CarriedPieces`, which their seat places."""
         rotations, translations = motion
         share = self.by_centroid
-        moved = ((0.0 < share) & (share < 1.0)) if partly else share == 1.0
+        # partly: riders are moved by their share toward their seat's place instead (place_riders)
+        moved = ((0.0 < share) & (share < 1.0) & ~self.carried.riding) if partly else share == 1.0
         if not moved.any():
             return x
         topo = self.topo
@@ -131,6 +133,32 @@ class PieceMotion:
             sums = np.stack([np.bincount(owner, offset[:, k], minlength=len(move)) for k in range(3)], axis=1)
             move[held > 0] = sums[held > 0] / held[held > 0, None]
         move = np.where(moved[:, None], share[:, None] * move, 0.0)
+        rows = topo.component_vertices[moved[topo.component_labels]]
+        x[rows] += move[topo.vertex_component[rows]]
+        return x
+
+    def place_riders(self, x: np.ndarray, s: float) -> np.ndarray:
+        """``x`` (n, 3), a pose at factor ``s``, with the riders of
+        :class:`core.inbetween_carried.CarriedPieces` (deforming pieces sitting on larger deforming
+        ones) translated by their share ``by_centroid`` of the way to their centroid's place: along
+        their best similarity by the share that :attr:`similar_placement` trusts it (exact for a
+        piece scaled with its seat), where their seat puts them for the rest (instead of their
+        centroid's spline, which the seat's shape leaves: :data:`core.inbetween_carried.RIDER_SIZE`)."""
+        placed = self.carried.rider_places(x, s)
+        if placed is None:
+            return x
+        components, seated = placed
+        share = self.by_centroid[components]
+        if not (share > 0.0).any():  # held by the anchor (sequences)
+            return x
+        trust = self.similar_placement[0][components]
+        if (trust > 0.0).any():
+            seated = trust[:, None] * self.similarity_path(s)[components] + (1.0 - trust[:, None]) * seated
+        topo = self.topo
+        moved = np.zeros(len(topo.components), dtype=bool)
+        moved[components[share > 0.0]] = True
+        move = np.zeros((len(topo.components), 3))
+        move[components] = share[:, None] * (seated - topo.centroids(x)[components])
         rows = topo.component_vertices[moved[topo.component_labels]]
         x[rows] += move[topo.vertex_component[rows]]
         return x

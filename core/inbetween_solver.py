@@ -157,6 +157,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # the base key (screws whose turns continue across the keys: df.key_screws; a set within the
         # keys' rounding, riding_tolerance, of a line takes the least turn onto each key's line)
         self.riding = riding
+        self.riding_tolerance = riding_tolerance
         self.hooked = hooked  # two poses: the sets translating rigidly between them (HOOK_MISS_NOTED)
         if riding is not None:
             screws = df.key_screws([riding_motions(base.vertices, r.world, riding, riding_tolerance)
@@ -272,10 +273,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
     def finished(self, result, s: float):
         """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit
-        in the keys and the rigid pieces that deforming ones carry moved with them
-        (:mod:`core.inbetween_carried`), after the pieces the anchor barely holds are moved toward
-        their centroid (:data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`; a translation each, after the fit and its
-        repairs, which it leaves as they are)."""
+        in the keys, the deforming pieces that ride on larger ones placed by them and the rigid
+        pieces that deforming ones carry moved with them (:mod:`core.inbetween_carried`), after the
+        pieces the anchor barely holds are moved toward their centroid
+        (:data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`; a translation each, after the fit and
+        its repairs, which it leaves as they are)."""
         if self.static is not None:
             result[0][self.static] = self.pinned_positions(s)
         if ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any():
@@ -284,6 +286,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             said = self.off_their_paths(result[0], s)
             if said is not None:  # before a fallback's message, which Interpolator.pose may follow with its misfit
                 result = (result[0], said if result[1] is None else f"{said}; {result[1]}")
+        self.place_riders(result[0], s)
         self.carried.place(result[0], s)
         return result
 

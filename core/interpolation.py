@@ -62,7 +62,7 @@ from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
-from .pins import riding_tolerance, riding_vertices, still_vertices
+from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .rigid_alignment import reflected_fits
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
@@ -271,12 +271,20 @@ class SequenceInterpolator:
         # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
         # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
         # two keys tell only sets that translate, and those are not held: the blend anchor holds
-        # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED)
+        # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED);
+        # but sets moved by the same rigid motion as a whole rigid piece are held (witnessed_riding)
         self._riding_tolerance = riding_tolerance(self._given, topology.edges, still, rounding)
         moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding,
                                  self._riding_tolerance) or None if len(keys) >= 3 or two_poses else None
         self._riding = moving if len(keys) >= 3 else None
         self._hooked = moving if two_poses else None
+        if two_poses:
+            self._riding = witnessed_riding(self._given, topology.edges, self._topo.vertex_component, still,
+                                            self._riding_tolerance) or None
+            if self._riding is not None and self._hooked is not None:  # held: no longer only noted
+                held = np.zeros(len(still), dtype=bool)
+                held[np.concatenate(self._riding)] = True
+                self._hooked = [rows for rows in self._hooked if not held[rows].any()] or None
         if self._riding is not None:
             still = still.copy()
             still[np.concatenate(self._riding)] = True

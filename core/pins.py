@@ -11,6 +11,9 @@ Two kinds are found in the keys of a sequence and held by the in-betweens
   moving as one rigid body that is only part of its piece. Each set follows the spline of its
   rigid motion (:func:`riding_motions`) through the keys as a screw, its turn continued across them
   (:func:`core.deformation_fields.key_screws`), as the object's animation curves carry it.
+
+Two keys (:class:`core.interpolation.Interpolator`) tell a riding set only by a whole rigid piece of
+the mesh that moves with it (:func:`witnessed_riding`: the skin of a jaw with its teeth).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .rigid_alignment import align_rigidly, rigid_alignment
+from .rigid_alignment import align_rigidly, rigid_alignment, rigid_alignments
 from .seams import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
@@ -126,6 +129,60 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     return riding
 
 
+def witnessed_riding(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray, still: np.ndarray,
+                     tolerance: float) -> list[np.ndarray]:
+    """Two keys (``keys``: two (n, 3)): the sets of vertices of deforming pieces that ride on the
+    same bone or object as a whole rigid piece of the mesh (the lower teeth and the skin of the jaw
+    that opens with them): at least :data:`MIN_RIDING_VERTICES` vertices joined by ``edges`` (E, 2)
+    that keep their lengths to ``tolerance`` (:func:`riding_tolerance`), not a whole piece nor all
+    ``still`` (n,), that the best rigid motion of a piece (``component`` (n,), −1 for loose
+    vertices) moving rigidly to ``tolerance`` takes to the second key within ``tolerance``. Two
+    keys alone cannot tell a set that turns from cloth that happens to keep its edges over them
+    (:func:`riding_vertices` takes only sets that translate); a separate piece moved by the same
+    rigid motion to rounding can: no simulated cloth follows a body's motion that closely. Sets
+    along a line are left out (a sheet rolled onto a cylinder keeps each ruling's lengths, and the
+    motion of a sequin on it takes the ruling through its centre to its place to rounding). Such
+    a set is held on that motion's screw in-between and beyond (a jaw opened 22° by skinning, two
+    poses: 3–4.4 × the slider's error, 5.4e-3 of the diagonal at 0.5 and 4.2e-2 at ×2, its band
+    of ramping weights interpolated by fields that turn the whole jaw; held, with the teeth on
+    their own screw, 7.1e-4 and 6.7e-3, the slider 1.2e-3 and 9.7e-3)."""
+    first, second = keys
+    n = first.shape[0]
+    used = np.flatnonzero(component >= 0)
+    count = int(component.max()) + 1 if used.size else 0
+    if count < 2 or not len(edges):
+        return []
+    rotations, translations = rigid_alignments(first[used], second[used], component[used], count)
+    miss = np.linalg.norm(np.einsum("vab,vb->va", rotations[component[used]], first[used])
+                          + translations[component[used]] - second[used], axis=1)
+    worst = np.zeros(count)
+    np.maximum.at(worst, component[used], miss)
+    moves = np.bincount(component[used], ~still[used], minlength=count) > 0
+    rigid = (worst <= tolerance) & moves
+    if not rigid.any() or rigid[component[used]].all():
+        return []
+    a, b = edges[:, 0], edges[:, 1]
+    kept = (component[a] >= 0) & ~rigid[np.maximum(component[a], 0)] & ~(still[a] & still[b])
+    kept &= np.abs(np.linalg.norm(second[a] - second[b], axis=1) - np.linalg.norm(first[a] - first[b], axis=1)) <= tolerance
+    if not kept.any():
+        return []
+    labels = vertex_groups(a[kept], b[kept], n)
+    sizes, piece_sizes = np.bincount(labels), np.bincount(component[used], minlength=count)
+    witnesses = np.flatnonzero(rigid)
+    sets = []
+    for label in np.flatnonzero(sizes >= MIN_RIDING_VERTICES):
+        rows = np.flatnonzero(labels == label)
+        pieces = np.unique(component[rows])
+        if pieces.size != 1 or pieces[0] < 0 or rows.size == piece_sizes[pieces[0]] or still[rows].all():
+            continue
+        if _line(first[rows] - first[rows].mean(axis=0), tolerance) is not None:
+            continue  # a line's own motion leaves a turn about it free: a ruling of a rolled sheet meets that of a sequin on it
+        moved = np.einsum("wab,rb->wra", rotations[witnesses], first[rows]) + translations[witnesses][:, None]
+        if np.min(np.max(np.linalg.norm(moved - second[rows], axis=2), axis=1)) <= tolerance:
+            sets.append(rows)
+    return sets
+
+
 def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray],
                    tolerance: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Each riding set's (:mod:`core.pins`) rigid motion from positions ``base`` to ``key`` (n, 3):
@@ -142,10 +199,8 @@ def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray],
     for k, rows in enumerate(sets):
         start, end = base[rows].mean(axis=0), key[rows].mean(axis=0)
         a, b = base[rows] - start, key[rows] - end
-        _, spread, axes = np.linalg.svd(a, full_matrices=False)
-        d0 = axes[0]
-        off_line = a - np.outer(a @ d0, d0)
-        if spread[1] <= 1e-6 * spread[0] or np.max(np.linalg.norm(off_line, axis=1)) <= tolerance:
+        d0 = _line(a, tolerance)
+        if d0 is not None:
             d1 = np.linalg.svd(b, full_matrices=False)[2][0]
             d1 = d1 if d1 @ (b.T @ (a @ d0)) >= 0.0 else -d1
             axis, cosine = np.cross(d0, d1), float(np.clip(d0 @ d1, -1.0, 1.0))
@@ -156,6 +211,16 @@ def riding_motions(base: np.ndarray, key: np.ndarray, sets: list[np.ndarray],
             rotations[k] = rigid_alignment(a, b)[0]
         translations[k] = end - rotations[k] @ start
     return rotations, translations
+
+
+def _line(centred: np.ndarray, tolerance: float) -> np.ndarray | None:
+    """The direction (3,) of the line the points ``centred`` (k, 3; about their mean) lie along,
+    every one within ``tolerance`` of it (or collinear to round-off); None if they do not."""
+    _, spread, axes = np.linalg.svd(centred, full_matrices=False)
+    off_line = centred - np.outer(centred @ axes[0], axes[0])
+    if spread[1] <= 1e-6 * spread[0] or np.max(np.linalg.norm(off_line, axis=1)) <= tolerance:
+        return axes[0]
+    return None
 
 
 def _translated(source: np.ndarray, target: np.ndarray) -> np.ndarray:
