@@ -174,19 +174,20 @@ class _Topology:
         return self.component_sums(x) / self.component_mass[:, None]
 
     def diagonals(self, x: np.ndarray) -> np.ndarray:
-        """Each component's bounding-box diagonal (C,) in positions ``x`` (n, 3) (at least the
-        smallest float; extents along contiguous coordinate rows: reductions across (n, 3) rows
-        are 5× slower)."""
+        """Each component's size (C,) in positions ``x`` (n, 3): the diagonal of the box whose
+        sides have the component's mass-weighted second moments about its centroid,
+        sqrt(12 · trace of the covariance) (at least the smallest float): the bounding box's diagonal
+        of a flat rectangle or a sphere (of a cube's surface 1.29 ×), and the same however the mesh
+        is turned, so the tolerances scaled by it decide alike on a turned scene (the box along the
+        world's axes did not: a sheet hanging from a rod that stops, turned, came out 1.016 × the
+        Catmull–Rom spline's error instead of 0.924 ×; along the principal axes, a square sheet's
+        are any in its plane)."""
         if not self.components:
             return np.zeros(0)
-        by_coordinate = np.ascontiguousarray(x.T)
-        if self.all_in_one:
-            extent = np.ptp(by_coordinate, axis=1)[None]
-        else:
-            ordered = by_coordinate if self.pieces_in_order else by_coordinate[:, self.component_order]
-            starts = self.component_starts
-            extent = (np.maximum.reduceat(ordered, starts, axis=1) - np.minimum.reduceat(ordered, starts, axis=1)).T
-        return np.maximum(np.sqrt(np.einsum("ij,ij->i", extent, extent)), np.finfo(float).tiny)
+        centroids = self.centroids(x)
+        centred = x - centroids[self.vertex_owner]  # loose vertices: their owner's (they weigh nothing)
+        spread = self.component_sums(np.einsum("ij,ij->i", centred, centred)) / self.component_mass
+        return np.maximum(np.sqrt(12.0 * spread), np.finfo(float).tiny)
 
     def apply_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:
         """``x`` (n, 3) with each component's rigid motion (C, 3, 3), (C, 3) applied (loose vertices:
