@@ -71,18 +71,23 @@ class FrameRangeProperties:
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
 
-    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float, also=()):
+    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float, also=(),
+                            matrices: dict | None = None):
         """Yield progress while reading the evaluated mesh at the key frames ``keys``, the two
         frames after the first and the frames ``also``; returns the keys' positions, the
         sequence's ``start`` (``core.interpolation.start_of_motion``: whether the motion leaves the
         first key from rest, as a simulation from its first frame does) and {frame: positions}
-        of every frame read."""
+        of every frame read. ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of
+        every frame read."""
         from ..core.interpolation import start_of_motion
 
         step = keys[1] - keys[0] if len(keys) > 1 else 1
         first = [keys[0] + i for i in range(3)] if step >= 2 else []  # with step 2 the third is a key
         frames = sorted(set(keys) | set(first) | set(also))
-        read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share))))
+        read_matrices = [] if matrices is not None else None
+        read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share, read_matrices))))
+        if matrices is not None:
+            matrices.update(zip(frames, read_matrices))
         third = read[keys[2]] if len(keys) > 2 else None
         start = start_of_motion([read[f] for f in first], read[keys[1]], step, third) if len(keys) > 1 else "keys"
         return [read[f] for f in keys], start, read
@@ -173,9 +178,13 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
-        _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail)
-        space = bridge.WorldProportions(obj)
-        scaled = {frame: space.to(positions) for frame, positions in read.items()}
+        matrices = {}
+        _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail,
+                                                                             matrices=matrices)
+        # an object scaled differently at different frames: interpolated in the world, where the simulation ran
+        space = (bridge.WorldFrames(context, obj, matrices) if bridge.proportions_change(matrices.values())
+                 else bridge.WorldProportions(obj))
+        scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
@@ -201,8 +210,9 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
-                all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors)))
-                                 .astype(np.float32))
+                times = [frame + factor * (next_frame - frame) for factor in gap_factors]
+                all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors)),
+                                            times).astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)

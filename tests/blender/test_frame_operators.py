@@ -266,6 +266,49 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
 
 
+def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(bpy_empty, extension, tmp_path):
+    """A sheet turning rigidly in the world at a steady 15° per frame, played by a Mesh Cache on an
+    object whose (unapplied) scale is keyframed 1 → 2 linearly over frames 1–9: every in-between
+    of In-between Frames, shown under the object's scale at its frame, is that turn to the float32
+    of shape keys (before, the keys were interpolated in the object's own coordinates, where the
+    turning sheet also shrinks to half its size, and came out up to 5.7e-2 off, at frame 3, on a
+    sheet 2 wide)."""
+    from scipy.spatial.transform import Rotation
+
+    from blender_scenes import _fcurves, grid_object
+
+    bridge = extension.bridge
+    sheet = grid_object(8)
+    rest = bridge.vertex_positions(sheet.data)
+
+    def scale(frame):
+        return 1.0 + 0.125 * (frame - 1)
+
+    def world(frame):  # the sheet as the world shows it at ``frame``
+        turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
+        return rest @ turn.T
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([world(f) / scale(f) for f in range(1, 10)]),
+                                 start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    modifier.frame_start = 1.0
+    for frame in (1, 9):
+        sheet.scale = (scale(frame),) * 3
+        sheet.keyframe_insert("scale", frame=frame)
+    for fcurve in _fcurves(sheet.animation_data):
+        for point in fcurve.keyframe_points:
+            point.interpolation = 'LINEAR'
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
+    for frame in (2, 3, 4, 6, 7, 8):
+        gap = 0 if frame < 5 else 1
+        name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        np.testing.assert_allclose(made * scale(frame), world(frame), atol=1e-6)
+
+
 def test_a_mesh_moved_by_an_unbaked_cloth_proxy_reads_it_from_its_start(bpy_empty, extension):
     """A render mesh bound by a Surface Deform to a hanging cloth proxy whose memory cache a
     settings change emptied: reading frames 7–13 simulates the proxy from its start frame, so the
