@@ -30,8 +30,8 @@ import numpy as np
 
 from .errors import ShapeDifferenceError
 from .obj_file import read_obj
-from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_point_cache, refuse_overwriting,
-                          write_pc2)
+from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_pc2_header, read_point_cache,
+                          refuse_overwriting, write_pc2)
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory, check_working_memory
 
@@ -180,7 +180,7 @@ def _retime(args) -> int:
                      key_gaps=plan.n_gaps, input=str(args.cache), step=args.step, speed=args.speed)
     write_pc2(args.output, poses, start=start, sampling=cache.sampling, stamp=stamp)
     print(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
-          f"of {plan.n_gaps}), {cache.n_points} points")
+          f"of {plan.n_gaps}), {cache.n_points} points, {time.monotonic() - began:.1f} s")
     return 0
 
 
@@ -220,8 +220,11 @@ def _run(args) -> int:
                 raise ShapeDifferenceError("--count N goes with --numbered PATTERN (the parts it numbers)")
             if args.numbered:
                 parts += _numbered(args.numbered, args.count)
+            began = time.monotonic()
             merge_pc2(parts, args.output)
-            print(f"wrote {args.output} from {len(parts)} part(s)")
+            n_points, start, sampling, n_samples = read_pc2_header(args.output)
+            print(f"wrote {args.output}: {n_samples} samples from frame {start:g} every {sampling:g}, "
+                  f"{n_points} points, from {len(parts)} part(s), {time.monotonic() - began:.1f} s")
             return 0
         cache = read_point_cache(args.cache)
         if cache.times is None:

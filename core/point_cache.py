@@ -18,6 +18,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import struct
 import tempfile
 from dataclasses import dataclass
@@ -27,11 +28,19 @@ import numpy as np
 
 from .errors import MeshError
 
+try:  # POSIX: a temporary file is locked while it is written (not on Windows, which keeps it open instead)
+    import fcntl
+except ImportError:
+    fcntl = None
+
 #: Bytes of samples :func:`merge_pc2` reads and writes at a time.
 MERGE_BLOCK_BYTES = 16 << 20
 #: Added to a chunk's file name for its stamp (:func:`write_pc2`, ``stamp=``): the retime it is part
 #: of, its key gaps and the SHA-256 of its bytes, which :func:`merge_pc2` checks.
 STAMP_SUFFIX = ".json"
+#: Ends the name of the temporary file an output is written to, ``.<output name>.<random>.part``
+#: beside it (:func:`_write_atomically`).
+PART_SUFFIX = ".part"
 PC2_MAGIC = b"POINTCACHE2\0"
 PC2_HEADER = struct.Struct("<12siiffi")
 MDD_HEADER = struct.Struct(">ii")
@@ -75,9 +84,60 @@ def _positions_array(positions) -> np.ndarray:
     return np.ascontiguousarray(array, dtype="<f4")
 
 
-def _write_atomically(path: Path, chunks) -> None:
+def _open_part(path: Path) -> tuple[int, str]:
+    """A new temporary file for ``path``, ``.<name>.<random>.part`` beside it, opened for writing
+    and, on POSIX, locked (``flock``) for as long as this process lives: the system drops the lock
+    of a process that dies, which is how :func:`_remove_abandoned_parts` tells a file a live writer
+    holds from one left by a writer killed with SIGKILL."""
+    while True:
+        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=PART_SUFFIX, dir=path.parent)
+        if fcntl is None:
+            return handle, temporary
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX)  # waits for a cleaner that took it before this process
+        except OSError:  # a file system without locks: written unlocked (and never taken for abandoned)
+            return handle, temporary
+        if os.fstat(handle).st_nlink:
+            return handle, temporary
+        os.close(handle)  # a cleaner took it for abandoned between its creation and the lock: another
+
+
+def _remove_abandoned_parts(path: Path) -> None:
+    """Delete the temporary files of ``path`` (:func:`_open_part`) no live writer holds: those of a
+    writer killed before it could remove its own (SIGKILL, a node lost), as large as the part it had
+    written. A file another writer is writing stays (locked on POSIX; open, so not removable, on
+    Windows), and so does every file on a file system without locks."""
+    own = re.compile(re.escape(f".{path.name}.") + r"[^.]+" + re.escape(PART_SUFFIX))
+    try:
+        names = [name for name in os.listdir(path.parent) if own.fullmatch(name)]
+    except OSError:
+        return
+    for name in names:
+        part = path.parent / name
+        try:
+            if fcntl is None:
+                os.unlink(part)
+                continue
+            handle = os.open(part, os.O_RDONLY)
+        except OSError:  # gone meanwhile, or held open by its writer (Windows)
+            continue
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            os.unlink(part)
+        except OSError:  # locked: its writer is alive
+            pass
+        finally:
+            os.close(handle)
+
+
+def _write_atomically(path: Path, chunks, *, exclusive: bool = False) -> None:
     """Write ``chunks`` (bytes-like) to a temporary file beside ``path`` and rename it into place,
-    so that a reader (or a failed write) never sees half a file."""
+    so that a reader (or a failed write) never sees half a file. Temporary files of ``path`` that
+    writers killed before they could remove them left are deleted first.
+
+    ``exclusive``: never replace an existing ``path``: the complete file is linked to the name,
+    which raises :class:`FileExistsError` if another process took it meanwhile (checking first and
+    then renaming would let two processes writing one new name keep only the later file)."""
     given = path
     path = Path(path)
     if not str(given).strip():
@@ -86,20 +146,43 @@ def _write_atomically(path: Path, chunks) -> None:
         raise MeshError(f"'{given}' is a folder, not a file: give the output a file name (such as out.pc2).")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        _remove_abandoned_parts(path)
+        handle, temporary = _open_part(path)
     except OSError as error:  # said of the user's path, not of the temporary file
         raise OSError(error.errno, error.strerror, str(given)) from None
     try:
         os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; a cache is shared like any file
+        publish = _link_new if exclusive else os.replace
         with os.fdopen(handle, "wb") as stream:
             for chunk in chunks:
                 stream.write(chunk)
-        os.replace(temporary, path)
+            stream.flush()
+            if fcntl is not None:  # named while still locked: never taken for abandoned before
+                publish(temporary, path)
+        if fcntl is None:  # Windows renames closed files only
+            publish(temporary, path)
     except BaseException as error:
-        os.unlink(temporary)
-        if isinstance(error, OSError):
+        if os.path.lexists(temporary):
+            os.unlink(temporary)
+        if isinstance(error, OSError) and not isinstance(error, FileExistsError):
             raise OSError(error.errno, error.strerror, str(given)) from None
         raise
+
+
+def _link_new(temporary: str, path: Path) -> None:
+    """Give the complete file ``temporary`` the name ``path`` unless a file has it (then
+    :class:`FileExistsError`), and remove the temporary name. A file system without hard links
+    (FAT, some network shares) gets a rename after a check instead."""
+    try:
+        os.link(temporary, path)
+    except FileExistsError:
+        raise
+    except OSError:
+        if os.path.lexists(path):
+            raise FileExistsError(f"'{path}' exists") from None
+        os.replace(temporary, path)
+        return
+    os.unlink(temporary)
 
 
 def refuse_overwriting(path, inputs: dict) -> None:
@@ -143,7 +226,8 @@ def check_pc2_name(path) -> None:
         raise MeshError(f"'{path}' is named as an MDD file, but the output is PC2: name it .pc2.")
 
 
-def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, stamp: dict | None = None) -> Path:
+def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, stamp: dict | None = None,
+              exclusive: bool = False) -> Path:
     """Write float ``(samples, points, 3)`` positions (or one ``(points, 3)`` pose) as a PC2 file.
 
     ``start`` is the frame of the first sample, ``sampling`` the frames between samples. The file
@@ -153,12 +237,15 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
     written after the file to ``path + STAMP_SUFFIX`` with the SHA-256 of the bytes written here
     (not read back: another job writing the same name meanwhile would be vouched for).
     :func:`merge_pc2` refuses chunks whose stamps disagree.
+
+    ``exclusive``: raise :class:`FileExistsError` rather than replace a file at ``path``, checked
+    when the file is complete (:func:`_write_atomically`).
     """
     array = _positions_array(positions)
     check_pc2_timing(start, sampling)
     check_pc2_name(path)
     blocks = [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()]
-    _write_atomically(path, blocks)
+    _write_atomically(path, blocks, exclusive=exclusive)
     if stamp is not None:
         digest = hashlib.sha256()
         for block in blocks:

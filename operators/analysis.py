@@ -240,6 +240,11 @@ MAPS = (
 )
 
 
+#: Most eigenfunction maps Distortion Maps writes of each difference (each one a colour attribute
+#: per difference and pose).
+MAX_EIGENFUNCTION_MAPS = 8
+
+
 def map_bytes_per_vertex(mesh, eigenfunctions: int) -> int:
     """Bytes per vertex of one pose's maps as attributes of ``mesh`` (at most: the offset surface's
     maps counted too): RGBA single-precision colours of the three maps and of ``eigenfunctions``
@@ -261,7 +266,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
 
     source: EnumProperty(name="Poses", items=DISTORTION_SOURCE_ITEMS, default='ACTIVE_KEY')
     key: StringProperty(name="Key", description="Pose to map (empty: the active key)")
-    eigenfunctions: IntProperty(name="Eigenfunctions", min=0, max=8, default=2,
+    # soft limits only: Blender would clamp a script's 20 to 8 (or -1 to 0) silently; run() refuses them
+    eigenfunctions: IntProperty(name="Eigenfunctions", soft_min=0, soft_max=MAX_EIGENFUNCTION_MAPS, default=2,
                                 description="Leading eigenfunctions of each of the four differences "
                                             "to write (colour attributes 'SD Eigen <kind> <i>')")
 
@@ -270,6 +276,9 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
     def run(self, context):
         obj = context.active_object
         mesh = obj.data
+        if not 0 <= self.eigenfunctions <= MAX_EIGENFUNCTION_MAPS:
+            raise InputError(f"Eigenfunctions is {self.eigenfunctions}: write 0 to {MAX_EIGENFUNCTION_MAPS} "
+                             f"(each a colour attribute per difference and pose)")
         require_local(obj, mesh, "maps written to it as attributes are")
         refuse_emptying_caches(context.scene, obj, "distortion maps written to")
         triangles = surface_triangles(obj, self)

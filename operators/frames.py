@@ -1,6 +1,8 @@
 """Operators on the evaluated animation of the active mesh (cloth, armature, any modifiers):
 capture frames, in-between every n-th frame, retime."""
 
+import math
+import time
 from contextlib import closing
 
 import bpy
@@ -101,6 +103,10 @@ class FrameRangeProperties:
         if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
             raise bridge.CacheFileUnfit(unfit)
         aside = modifiers_set_aside(context, obj)
+        # what the unbaked caches hold before ("0 frames in memory"): it grows where frames are simulated
+        unbaked = {(mover, modifier): modifier.point_cache.info for mover, modifier in bridge.simulations(movers)
+                   if not modifier.point_cache.is_baked}
+        began = time.monotonic()
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(movers),
                                         every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
         with closing(reader) as frame_reader:
@@ -124,6 +130,15 @@ class FrameRangeProperties:
                         bridge.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:
                 self.report({'WARNING'}, warning)
+        simulated = [(mover, modifier) for (mover, modifier), held in unbaked.items()
+                     if modifier.point_cache.info != held]
+        if simulated:  # a farm task or batch simulates them again, which at 100k vertices takes hours
+            named = ", ".join(f"'{modifier.name}' of '{mover.name}'" for mover, modifier in simulated)
+            self.report({'WARNING'}, f"{named} {'is' if len(simulated) == 1 else 'are'} not baked, and "
+                                     f"frames {frames[0]}–{frames[-1]} were simulated for this run where its "
+                                     f"cache held none (reading took {time.monotonic() - began:.1f} s): bake it "
+                                     "(Physics › Cache › Bake) before sending the file to a farm or batch, so "
+                                     "that tasks read the frames instead")
         return poses
 
 
@@ -260,6 +275,12 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         # decimal, or 24 frames at 0.3 give 80 samples instead of 81 and the keys land off the frames
         speed = float(str(np.float32(self.speed)))
         plan = retime.plan_retime(end - start + 1, self.frame_step, speed)
+        last = start + plan.n_out - 1
+        if last > retime.MAX_FRAME:  # frames past it play nowhere: the scene's End cannot reach them
+            slowest = (end - start) / (retime.MAX_FRAME - start)
+            raise InputError(f"At speed {speed:g} the retimed motion runs to frame {last:,}, past Blender's last "
+                             f"frame {retime.MAX_FRAME:,}, where nothing plays: use a speed of "
+                             f"{math.ceil(slowest * 1e4) / 1e4:g} or more, or retime frames that start earlier")
         if self.output != 'SHAPE_KEYS' and speed * bridge.NLA_MAX_SCALE < 1.0 and "keyframed" in object_motion(obj):
             raise InputError(f"At speed {speed:g} the keyframed transform of '{obj.name}' would play "
                              f"{1.0 / speed:g} times slower on the new object, and Blender's NLA slows an action "

@@ -393,16 +393,66 @@ def cache_files_in_use() -> set[str]:
     return used
 
 
-def unique_file(path: Path) -> Path:
-    """``path``, or ``name.001.pc2``, ``name.002.pc2``, ... if a file of that name exists or a
-    Mesh Cache modifier in the file plays it (a .blend copied without its caches: the old
-    object's path, empty on disk, would otherwise be taken and the old object play the new poses)."""
+def numbered_files(path: Path):
+    """``path``, then ``name.001.pc2``, ``name.002.pc2``, …, leaving out those a Mesh Cache modifier
+    in the file plays (a .blend copied without its caches: the old object's path, empty on disk,
+    would otherwise be taken and the old object play the new poses)."""
     used = cache_files_in_use()
     candidate, number = path, 0
-    while candidate.exists() or os.path.realpath(candidate) in used:
+    while True:
+        if os.path.realpath(candidate) not in used:
+            yield candidate
         number += 1
         candidate = path.with_name(f"{path.stem}.{number:03d}{path.suffix}")
-    return candidate
+
+
+def unique_file(path: Path) -> Path:
+    """The first of :func:`numbered_files` that no file has."""
+    return next(candidate for candidate in numbered_files(path) if not candidate.exists())
+
+
+def holds_poses(path: Path, poses: np.ndarray, start: float, sampling: float) -> bool:
+    """Whether the file ``path`` is a PC2 of ``poses`` at ``start`` / ``sampling``: the same run
+    made again (a farm task retried, a batch run twice on the saved shot), whose file no object of
+    this .blend plays. Coordinates agree to 1e-6 of the poses' size: the same computation on
+    another machine may round the last bit of a float32 otherwise (NumPy and OpenBLAS pick their
+    kernels by memory alignment)."""
+    from ..core.errors import MeshError
+    from ..core.point_cache import read_pc2
+
+    try:
+        cache = read_pc2(path)
+    except (MeshError, OSError):  # not a point cache (or unreadable): another file
+        return False
+    poses = np.asarray(poses, dtype=np.float32)
+    if (cache.positions.shape != poses.shape or cache.start != np.float32(start)
+            or cache.sampling != np.float32(sampling)):
+        return False
+    size = float(np.abs(poses).max()) if poses.size else 0.0
+    return all(np.abs(cache.positions[i] - poses[i]).max() <= 1e-6 * size for i in range(len(poses)))
+
+
+def write_new_cache(path: Path, poses, start: float, sampling: float) -> tuple[Path, bool]:
+    """Write the PC2 of ``poses`` to ``path``, or to the first free name of :func:`numbered_files`
+    (an existing file is never overwritten), and return the file and whether this call wrote it.
+    A file there that holds these poses already (:func:`holds_poses`) is the file, not written
+    again: a retried farm task or a batch run again plays the first run's file instead of leaving
+    it beside a copy. The name is taken only once the
+    file is whole, and only if no file has it then (``exclusive``): two Blender processes writing
+    one name at once (two shots in one folder with the same default cache name) keep a file each
+    (before, the later replaced the earlier, and one shot played the other's cache)."""
+    from ..core.point_cache import write_pc2
+
+    poses = np.asarray(poses)
+    for candidate in numbered_files(path):
+        if candidate.exists():
+            if holds_poses(candidate, poses, start, sampling):
+                return candidate, False
+            continue
+        try:
+            return write_pc2(candidate, poses, start=start, sampling=sampling, exclusive=True), True
+        except FileExistsError:  # another process took the name meanwhile
+            continue
 
 
 def in_session_folder(path: str) -> bool:
@@ -541,10 +591,10 @@ class PoseWriter:
             return "//" + given
         return given
 
-    def cache_path(self, object_name: str, report: bool = True) -> tuple[Path, str]:
-        """The PC2 file to write (never an existing one, nor one a Mesh Cache in the file plays)
-        and the path to store in the modifier (relative to the .blend when the user gave a
-        relative path or none). Raises :class:`InputError` for a path the system cannot use
+    def cache_path(self, object_name: str, report: bool = True, check_free: bool = True) -> tuple[Path, str]:
+        """The PC2 file to write (never an existing one, nor one a Mesh Cache in the file plays;
+        ``check_free=False``: the name asked for, before that check) and the path to store in the
+        modifier (:meth:`stored_path`). Raises :class:`InputError` for a path the system cannot use
         (a name too long, a folder that cannot be read) and for a device or special file
         (``/dev/null``, a named pipe: neither a cache to write nor a name to add ``.pc2`` to)."""
         base_name = bpy.path.clean_name(object_name) + ".pc2"
@@ -567,12 +617,19 @@ class PoseWriter:
                     self.report({'WARNING'}, "The .blend is not saved, so the cache went to Blender's temporary "
                                              f"folder ({path.parent}), deleted when Blender quits: saving the .blend "
                                              f"copies it into {CACHE_FOLDER}/ beside it")
-            path = unique_file(path)
+            if check_free:
+                path = unique_file(path)
         except OSError as error:
             raise InputError(f"Cannot use the Cache File '{self.filepath or path}': {error.strerror or error}. "
                              "Pick another Cache File") from None
+        return path, self.stored_path(path)
+
+    def stored_path(self, path: Path) -> str:
+        """The path of the cache file ``path`` for the Mesh Cache modifier: relative to the .blend
+        when the user gave a relative Cache File or none."""
+        given = self.given_path()
         relative = bpy.data.filepath and (not given or given.startswith("//"))
-        return path, (bpy.path.relpath(str(path)) if relative else str(path))
+        return bpy.path.relpath(str(path)) if relative else str(path)
 
     def write_poses(self, context, source, poses, *, names: list[str], frames: list[float],
                     label: str, tails: list[str] | None = None, keyframe: bool = False,
@@ -614,7 +671,8 @@ class PoseWriter:
         (Repeat Last runs again without undoing)."""
         previous = _LAST_CACHE.get(self.bl_idname) if self.is_repeat() else None
         _LAST_CACHE[self.bl_idname] = None if written is None else str(written)
-        if previous and os.path.isfile(previous) and os.path.realpath(previous) not in cache_files_in_use():
+        if (previous and previous != str(written) and os.path.isfile(previous)
+                and os.path.realpath(previous) not in cache_files_in_use()):
             try:
                 os.remove(previous)
             except OSError as error:  # left on disk: the new poses are written all the same
@@ -628,13 +686,13 @@ class PoseWriter:
         # the Mesh Cache and the object's animation play the scene's time, not its frame number
         start, sampling = bridge.scene_time(context.scene, frames[0]), bridge.scene_time(context.scene, sampling)
         name = bridge.unique_name(source.name, f" {label}", bpy.data.objects.keys())
-        path, stored_path = self.cache_path(name)
+        path, _ = self.cache_path(name, check_free=False)
         try:
-            from ..core.point_cache import write_pc2
-            write_pc2(path, np.asarray(poses), start=start, sampling=sampling)
+            path, written = write_new_cache(path, poses, start, sampling)
         except OSError as error:
             reason = unwritable(path) or error.strerror or str(error)
             raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File") from None
+        stored_path = self.stored_path(path)
         modifiers, left_out = modifiers_under_keys(source) if keyed else modifiers_under_frames(source)
         try:
             obj = bridge.add_cache_object(context, source, name, stored_path, start, sampling,
@@ -642,7 +700,8 @@ class PoseWriter:
                                           source_end=start + sampling * (len(frames) - 1) * speed,
                                           deformed_by_parent=keyed)
         except BaseException:
-            path.unlink(missing_ok=True)
+            if written:
+                path.unlink(missing_ok=True)
             raise
         if left_out:
             advice = ("use Output › Shape Keys to see them under it" if keyed else "copy them to it by hand if it "
@@ -666,7 +725,7 @@ class PoseWriter:
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
-                f"({span}) from {path}")
+                f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
 
 
 def _transform_drivers(animation) -> bool:

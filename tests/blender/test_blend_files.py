@@ -21,8 +21,8 @@ def _new_object(names: set):
 
 def _inbetween_frames(**properties):
     names = set(bpy.data.objects.keys())
-    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3, output='CACHE',
-                                               **properties)
+    bpy.ops.shape_differences.inbetween_frames(**{**dict(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                                         output='CACHE'), **properties})
     return _new_object(names)
 
 
@@ -124,3 +124,56 @@ def test_the_shape_space_image_is_drawn_again_when_the_blend_is_opened(bpy_empty
     image = bpy.data.images.get(name)
     assert image is not None
     np.testing.assert_array_equal(np.array(image.pixels[:]), pixels)
+
+
+def test_a_run_made_again_plays_its_earlier_file(bpy_empty, extension, tmp_path):
+    """A farm task retried, or a batch run again, on the saved shot: the first run's file (no object
+    of the shot plays it, as the shot was opened again unsaved) holds exactly these poses, so the new
+    object plays it (before, each run wrote `cloth.001.pc2`, `cloth.002.pc2`, … beside it: 0.6 GB each
+    at 100k vertices x 500 frames). Other poses under that name still go to a new file, and an earlier
+    file a Mesh Cache of the shot plays is never taken (test above)."""
+    armature_scene(frames=9)
+    shot = tmp_path / "shot.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(shot))
+    _inbetween_frames(filepath="//caches/cloth.pc2")
+    written = (tmp_path / "caches" / "cloth.pc2").read_bytes()
+    for _ in range(2):  # the task again, twice
+        bpy.ops.wm.open_mainfile(filepath=str(shot))
+        bpy.context.view_layer.objects.active = bpy.data.objects["Grid"]
+        again = _inbetween_frames(filepath="//caches/cloth.pc2")
+        assert again.modifiers["Mesh Cache"].filepath == "//caches/cloth.pc2"
+    assert sorted(os.listdir(tmp_path / "caches")) == ["cloth.pc2"]
+    assert (tmp_path / "caches" / "cloth.pc2").read_bytes() == written
+
+    bpy.ops.wm.open_mainfile(filepath=str(shot))
+    bpy.context.view_layer.objects.active = bpy.data.objects["Grid"]
+    other = _inbetween_frames(filepath="//caches/cloth.pc2", count=2)  # other poses, same name
+    assert other.modifiers["Mesh Cache"].filepath == "//caches/cloth.001.pc2"
+    assert (tmp_path / "caches" / "cloth.pc2").read_bytes() == written
+
+
+def test_two_processes_writing_one_cache_name_keep_a_file_each(bpy_empty, extension, tmp_path, monkeypatch):
+    """Two shots in one folder, each with an object of the same name, retimed on one machine at once:
+    both pick the free name `caches/cloth.pc2`, and another process's file lands there while this
+    one is writing. The name is taken only if still free once the file is whole: this run's poses go
+    to `cloth.001.pc2` and the other file stays (before, the later write replaced the earlier, and
+    one shot played the other's cloth)."""
+    armature_scene(frames=9)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot_a.blend"))
+    other_shot = b"the other shot's cache"
+    target = tmp_path / "caches" / "cloth.pc2"
+
+    def landing_first(rename):
+        def call(source, destination, *args, **kwargs):
+            if Path(destination) == target and not target.exists():
+                target.write_bytes(other_shot)
+            return rename(source, destination, *args, **kwargs)
+        return call
+
+    monkeypatch.setattr(os, "replace", landing_first(os.replace))
+    monkeypatch.setattr(os, "link", landing_first(os.link))
+    obj = _inbetween_frames(filepath="//caches/cloth.pc2")
+    monkeypatch.undo()
+    assert target.read_bytes() == other_shot
+    assert obj.modifiers["Mesh Cache"].filepath == "//caches/cloth.001.pc2"
+    assert sorted(os.listdir(tmp_path / "caches")) == ["cloth.001.pc2", "cloth.pc2"]  # no temporary file left

@@ -4,6 +4,7 @@ source object stays bit for bit as it was, the new object plays the source at th
 and core's in-betweens elsewhere, and a second run never touches the first."""
 
 import importlib
+import re
 from pathlib import Path
 
 import numpy as np
@@ -717,3 +718,25 @@ def test_distortion_maps_keep_an_unbaked_cloth_cache(bpy_empty, extension, twin)
     assert_unchanged(before, snapshot(extension.bridge, target))
     bpy.context.evaluated_depsgraph_get()
     assert cache.info == cached and not cache.is_outdated
+
+
+def test_a_cloth_simulated_for_the_run_is_said(bpy_empty, extension, capfd, tmp_path):
+    """An unbaked cloth sent to a farm or batch with no frames in its cache is simulated by the task
+    itself (hours at 100k vertices on every node): said in a warning naming it, the frames and the
+    time (before, not a word). A cache already holding the frames (played and saved, or baked)
+    reads without simulating, and without the warning."""
+    from blender_scenes import grid_object
+
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 9
+    obj = grid_object(8, name="Flag")
+    obj.rotation_euler.x = 1.2
+    obj.modifiers.new("Cloth", 'CLOTH').point_cache.frame_end = 9
+    bpy.context.view_layer.objects.active = obj
+    capfd.readouterr()
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5, filepath=str(tmp_path) + "/")
+    assert re.search(r"'Cloth' of 'Flag' is not baked, and frames 1–9 were simulated for this run where its cache "
+                     r"held none \(reading took [0-9.]+ s\)", capfd.readouterr().out)
+    bpy.context.view_layer.objects.active = obj
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5, filepath=str(tmp_path) + "/")
+    assert "not baked" not in capfd.readouterr().out  # the frames are in its memory cache now

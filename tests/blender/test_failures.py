@@ -787,6 +787,26 @@ def test_frames_beyond_blenders_last_frame_are_refused(bpy_empty, extension):
                              frame_start=start, frame_end=end, output='SHAPE_KEYS')
 
 
+def test_a_retime_past_blenders_last_frame_is_refused(bpy_empty, extension):
+    """Frames 1,048,566–1,048,574 at half speed run to frame 1,048,582: Blender plays nothing past
+    1,048,574, yet the retime was written and its warning asked for an End frame Blender cannot
+    set. Refused before any frame is read, with the slowest speed that fits (8 / 8 = 1)."""
+    strip = armature_scene(frames=9)
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime,
+                         r"runs to frame 1,048,582, past Blender's last frame 1,048,574, where nothing plays: "
+                         r"use a speed of 1 or more", frame_start=1_048_566, frame_end=1_048_574, frame_step=4,
+                         speed=0.5)
+
+
+@pytest.mark.parametrize("count", [20, -1])
+def test_eigenfunctions_outside_their_range_are_errors(bpy_empty, extension, count):
+    """A script's Eigenfunctions 20 was clamped to 8 by Blender without a word (8 maps of each
+    difference written, the summary saying 32), and -1 to 0: reported, as Step and k_M are."""
+    obj = posed_grid(extension.bridge, 6)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.distortion_maps,
+                         rf"Eigenfunctions is {count}: write 0 to 8", eigenfunctions=count)
+
+
 @pytest.mark.parametrize("operator", ["frames_to_shape_keys", "inbetween_frames", "retime", "shape_space",
                                       "distortion_maps"])
 @pytest.mark.parametrize("step", [0, -4])

@@ -1,12 +1,15 @@
 """PC2 and MDD files: written samples read back exactly, headers as Blender's Mesh Cache modifier
 reads them, chunks merged byte for byte, and bad files rejected with MeshError."""
 
+import os
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from core import MeshError
+from core import point_cache
 from core.point_cache import merge_pc2, read_mdd, read_pc2, read_point_cache, write_pc2
 
 
@@ -101,3 +104,38 @@ def test_a_file_that_is_no_point_cache_is_said_to_be_none(tmp_path):
     (tmp_path / "cut.mdd").write_bytes(obj.read_bytes())
     with pytest.raises(MeshError, match="not a complete MDD file"):
         read_point_cache(tmp_path / "cut.mdd")
+
+
+def test_a_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path):
+    """A writer killed with SIGKILL (OpenJD's default cancellation, a lost node) leaves its temporary
+    file beside the output, as large as what it had written; the next write of that output (the
+    task retried) removes it (before, every kill left one more). A temporary file a live writer
+    holds stays, and so do other outputs' temporary files."""
+    out = tmp_path / "out.pc2"
+    killed = tmp_path / ".out.pc2.k1ll3d_x.part"
+    killed.write_bytes(b"\0" * 4096)  # no process holds it: its writer died
+    others = tmp_path / ".other.pc2.k1ll3d_x.part"
+    others.write_bytes(b"\0")
+    write_pc2(out, np.zeros((2, 3, 3)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["out.pc2", others.name])
+
+    handle, live = point_cache._open_part(out)  # another writer of out.pc2, alive and writing
+    try:
+        write_pc2(out, np.zeros((2, 3, 3)))
+        assert Path(live).exists()
+    finally:
+        os.close(handle)
+        os.unlink(live)
+
+
+def test_an_exclusive_write_never_replaces_a_file(tmp_path):
+    """``exclusive=True`` (a new cache from Blender) takes the name only if no file has it once the
+    file is whole: a file that appeared meanwhile is kept and the write raises FileExistsError,
+    leaving no temporary file."""
+    out = tmp_path / "out.pc2"
+    out.write_bytes(b"another process's cache")
+    with pytest.raises(FileExistsError):
+        write_pc2(out, np.zeros((2, 3, 3)), exclusive=True)
+    assert out.read_bytes() == b"another process's cache"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.pc2"]
+    assert read_pc2(write_pc2(tmp_path / "new.pc2", np.ones((2, 3, 3)), exclusive=True)).positions.sum() == 18
