@@ -388,6 +388,12 @@ def rigid_log(rotation: np.ndarray, translation: np.ndarray, reference: np.ndarr
     return rigid_logs(rotation[None], np.asarray(translation)[None], references, unwrap)[0]
 
 
+def either_way(theta: np.ndarray, spread: np.ndarray | float = 0.0) -> np.ndarray:
+    """Whether rotations of angles ``theta`` (radians) are half turns as short either way round:
+    within :data:`HALF_TURN_TOLERANCE` of π, or within their ``spread`` (what each is known to)."""
+    return np.abs(np.asarray(theta) - np.pi) < np.maximum(HALF_TURN_TOLERANCE, spread)
+
+
 def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.ndarray | None = None,
                unwrap: bool = False, spread: np.ndarray | float = 0.0) -> np.ndarray:
     """Screw coordinates ``(ω, v)`` (P, 6) of the rigid motions ``x ↦ R x + t`` (rotations
@@ -416,7 +422,7 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
             w = _nearest_representatives(w, theta, turn, np.flatnonzero(still), np.flatnonzero(~still))
             whole_turn = still & w.any(axis=1)
         else:
-            half = (np.abs(theta - np.pi) < np.maximum(HALF_TURN_TOLERANCE, spread)) & (np.einsum("ij,ij->i", w, turn) < 0)
+            half = either_way(theta, spread) & (np.einsum("ij,ij->i", w, turn) < 0)
             # the same rotation the long way round, ω − 2π ω̂ (−ω, its inverse, differs from it by
             # 2(π − θ): within a spread of 1e-2 a piece jumped at every key, 4.8e-2 of its diagonal)
             w = np.where(half[:, None], the_other_way(w, theta), w)

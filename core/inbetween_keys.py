@@ -97,6 +97,7 @@ class _Relative:
             whole = rotations[0] if len(topo.components) == 1 else \
                 rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
             turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
+            self.whole_tells = bool(whole_tells(turns[0]))
         self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_coordinate_rows(plane, df.transpose(rotations), topo.triangle_component)
@@ -124,6 +125,12 @@ class _Relative:
 
     #: The triangle pairs across which the rotations are taken continuous (two poses), or None.
     _across = None
+    #: Per component (bool (C,)), whether its half turn's way round is not told by the keys
+    #: (set by ``core.interpolation.SequenceInterpolator._turning_on``).
+    untold_half_turn = np.zeros(0, dtype=bool)
+    #: Whether the whole mesh's turn from the base key, which the pieces' half turns take the way
+    #: of, has a way round itself (:func:`whole_tells`).
+    whole_tells = False
     #: Whether this is a sequence's end condition, extrapolated from the keys (:meth:`phantom`).
     extrapolated = False
     #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
@@ -193,7 +200,10 @@ class _Relative:
         the whole rotations taken continuous (:meth:`continued_turns`, ``free`` as there); and per
         piece whether it turns far with its part that stays not held still (turning by more than
         the mesh resolves there) while read from the part nearest its rigid turn it turns a whole
-        turn otherwise: which end stays is not known."""
+        turn otherwise: which end stays is not known; and, per piece, the triangle read as held
+        still where that alone keeps the piece from being contested (-1 elsewhere), with the
+        triangles (bool (m,)) turning less than the mesh resolves at them, for the neighbouring
+        gaps' readings to tell whether that part is held there too."""
         whole, continued = self.continued_turns(topo, base, other, pairs, free)
         pieces, count = topo.triangle_component, len(topo.components)
         # from the least-turned part of its piece (a piece spinning by about a half turn as a
@@ -225,6 +235,7 @@ class _Relative:
         # not known (a strip held at one end, 0°, is; a tail whose tip turns 13° the short way
         # round, 347° the long way, and whose root turns 71°, is not)
         contested = np.zeros(count, dtype=bool)
+        held_only, still = np.full(count, -1), None
         if out.any():
             nearest = df.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base),
                                                      free=out[pieces])
@@ -235,10 +246,12 @@ class _Relative:
             order = np.lexsort((angles, pieces))
             first = np.r_[True, pieces[order][1:] != pieces[order][:-1]]
             stays[pieces[order[first]]] = order[first]  # each piece's least-turned triangle
+            still = angles <= step
             held = np.zeros(count, dtype=bool)
-            held[stays >= 0] = angles[stays[stays >= 0]] <= step[stays[stays >= 0]]
+            held[stays >= 0] = still[stays[stays >= 0]]
             contested = out & other & ~held
-        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded, continued, contested
+            held_only = np.where(out & other & held, stays, -1)
+        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded, continued, contested, held_only, still
 
     def continued_turns(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray,
                         free: np.ndarray | None = None) -> tuple:
@@ -465,6 +478,16 @@ def component_screws(rotations: np.ndarray, translations: np.ndarray, turns: np.
     vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_logs`), to
     within what the components' ``nonrigidity`` (C,) says their fits are known to."""
     return df.rigid_logs(rotations, translations, turns, unwrap, turn_spread(nonrigidity))
+
+
+def whole_tells(turn: np.ndarray) -> bool:
+    """Whether a whole mesh's rotation vector ``turn`` (3,) has a way round to give its pieces'
+    half turns: neither a turn within :data:`~core.deformation_fields.TURN_SPREAD` (the coarsest a
+    fit is taken to be known) of none, whose axis may be rounding (an engine's fixed block and its
+    crank turning 180°: the whole mesh's turn is 1e-7 rad), nor itself a half turn as short either
+    way round within it (a mesh of one piece: its own turn)."""
+    theta = float(np.linalg.norm(turn))
+    return theta > df.TURN_SPREAD and not df.either_way(theta, df.TURN_SPREAD)
 
 
 def turn_spread(nonrigidity) -> np.ndarray:

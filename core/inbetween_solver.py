@@ -81,6 +81,14 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: (:meth:`core.interpolation.SequenceInterpolator._unsure`), or its part that stays is not
     #: held still and its rigid turn reads it the other way round (``_Relative.turning``): the gap warns.
     unsure_turn = False
+    #: How many pieces turn a half turn between the keys, as short either way round, with nothing
+    #: in the keys to tell which way (``SequenceInterpolator._untold_half_turns``): the gap warns.
+    untold_half_turns = 0
+    #: For a gap with a turning piece, the largest share of a piece's area whose turn half-way as
+    #: interpolated and as the turn of its part that stays composed with its own are over
+    #: ``WRAP_CREASE`` apart (``SequenceInterpolator._composed_apart``): past
+    #: ``TURNED_PART_SHARE`` the gap warns.
+    composed_apart = 0.0
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

@@ -53,9 +53,10 @@ from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
-from .deformation_fields import jumping_pairs, rotation_vectors, the_other_way
+from .deformation_fields import WRAP_CREASE, either_way, jumping_pairs, rotation_vectors, the_other_way
+from .deformation_fields import unwrapped_rotation_vectors
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
-from .inbetween_keys import component_screws
+from .inbetween_keys import component_screws, turn_spread
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
 from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, free_flight
 from .inbetween_solver import _Gap
@@ -412,11 +413,17 @@ class SequenceInterpolator:
         after, was turned back the short way (rounding picked it), its waist one way and its hem
         the other (1.65 × the blend's error, 14.7 % edge deviation); a sheet flipped over a rod,
         −189° between keys, went +171° under it. Depends on the keys alone (every gap that uses
-        this relative sees the same)."""
+        this relative sees the same). Sets ``relative.untold_half_turn`` (bool (C,)): the pieces
+        that turn a half turn, as short either way round to within what their fits are known to
+        (:func:`~core.deformation_fields.either_way`), whose way neither the whole mesh's turn
+        (:func:`~core.inbetween_keys.whole_tells`) nor such a step tells (two poses have no
+        steps): the keys do not tell which way round they went (a crank turning 180° per gap on a
+        fixed block: its keys alternate between two poses)."""
         last = len(self._raw) - 1
         w = relative.screw[:, :3]
         theta = np.linalg.norm(w, axis=1)
         near = theta > NEAR_HALF_TURN
+        relative.untold_half_turn = either_way(theta, turn_spread(relative.nonrigidity)) & (not relative.whole_tells)
         if not near.any() or not self.smooth or last < 2:
             return relative
         d = self._durations
@@ -430,6 +437,7 @@ class SequenceInterpolator:
         if not steps:
             return relative
         told = ~np.all(np.isnan(steps), axis=(0, 2))
+        relative.untold_half_turn &= ~told
         expected = np.where(told[:, None], np.nanmean(np.where(told[None, :, None], steps, 0.0), axis=0), 0.0)
         other_way = the_other_way(w, theta)
         # the other way is taken where it is nearer the steps' turn by more than it turns the gap's
@@ -442,6 +450,25 @@ class SequenceInterpolator:
         if swap.any():
             relative.screw = component_screws(*relative.motion, np.where(swap[:, None], other_way, w), True, relative.nonrigidity)
         return relative
+
+    def _untold_half_turns(self, segment: _Gap, nxt: _Relative) -> np.ndarray:
+        """Per component (bool (C,)), whether its half turn in gap ``segment`` (key ``base + 1``
+        seen from the base: ``nxt``) goes a way the keys do not tell: a jointed piece moves
+        relative to its parent (:mod:`core.inbetween_joints`), whose relative motion the gap takes
+        the short way round, told by nothing where it is a half turn as short either way (a crank
+        turning 180° about its bearing in a fixed block); any other piece as
+        :meth:`_turning_on` found (an arm's link turning 180° in the world, 90° from the link it
+        hangs from, is told by that joint)."""
+        untold = nxt.untold_half_turn.copy()
+        if segment.joints is not None:
+            parents = segment.joints[0]
+            children = np.flatnonzero(parents >= 0)
+            rotations = nxt.motion[0]
+            relative = np.transpose(rotations[parents[children]], (0, 2, 1)) @ rotations[children]
+            spread = turn_spread(nxt.nonrigidity)
+            untold[children] = either_way(np.linalg.norm(rotation_vectors(relative), axis=1),
+                                          np.maximum(spread[children], spread[parents[children]]))
+        return untold
 
     def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
         """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
@@ -506,12 +533,15 @@ class SequenceInterpolator:
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
         none = np.zeros(len(topo.components), dtype=bool)
-        turning, root, folded, free, unsure = none, None, none, None, none
+        turning, root, folded, free, unsure, apart = none, None, none, None, none, np.zeros(len(topo.components))
         if self._across is None:
-            turning, root, folded, _, contested = self._reading(gap, relative=ahead[0])
+            turning, root, folded, _, contested, *_ = self._reading(gap, relative=ahead[0])
             if turning.any():
                 # where the readings of the gaps around disagree, from the part nearest the rigid turn
-                turning, root, folded, _, contested = self._reading(gap, final=True, relative=ahead[0])
+                turning, root, folded, continued, contested, held_only, _ = self._reading(gap, final=True,
+                                                                                          relative=ahead[0])
+                contested = contested | self._held_alone(gap, held_only)
+                apart = self._composed_apart(gap, turning, root, continued)
                 free = self._unsure(gap)[topo.triangle_component]
                 unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
                 free = free if free.any() else None
@@ -527,6 +557,8 @@ class SequenceInterpolator:
             segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free)
         segment.folded_turn = bool(folded.any())
         segment.unsure_turn = bool(unsure.any())
+        segment.untold_half_turns = int(np.count_nonzero(self._untold_half_turns(segment, ahead[0])))
+        segment.composed_apart = float(apart.max(initial=0.0))
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
@@ -564,6 +596,49 @@ class SequenceInterpolator:
                 while len(self._readings) > 2 * GAP_CACHE + 2:
                     self._readings.popitem(last=False)
         return known
+
+    def _composed_apart(self, gap: int, turning: np.ndarray, root: np.ndarray, continued: np.ndarray) -> np.ndarray:
+        """Per component (C,), the share of its area whose whole rotation (``continued``, (m, 3),
+        :meth:`_reading`) interpolated as one turn, as the in-betweens take it, is half-way through
+        gap ``gap`` more than :data:`~core.deformation_fields.WRAP_CREASE` from the turn of the
+        part that stays (``root``, bool (m,): its mean rotation vector) composed with its own turn
+        from there (zero but in the ``turning`` pieces). Both join the keys; they differ by the two
+        turns' commutator where the part that stays turns about another axis than the rest curls
+        (an arm curling 170° per key at two joints while it turns 20° per key about z: its forearm
+        up to 89° apart, tilted 88–90° off the curl in every gap; 10° per key: 53°; 150° turning
+        10°: 18°), and there the keys do not tell which of them a part went."""
+        topo = self._topo
+        pieces, count = topo.triangle_component, len(topo.components)
+        areas = self._key(gap).areas
+        held = np.where(root, areas, 0.0)
+        stays = np.stack([np.bincount(pieces, held * continued[:, k], minlength=count) for k in range(3)], axis=1)
+        stays /= np.maximum(np.bincount(pieces, held, minlength=count), np.finfo(float).tiny)[:, None]
+        rows = np.flatnonzero(turning[pieces])
+        rest = stays[pieces[rows]]
+        own = (Rotation.from_rotvec(rest).inv() * Rotation.from_rotvec(continued[rows])).as_rotvec()
+        own = unwrapped_rotation_vectors(own, continued[rows] - rest)
+        composed = Rotation.from_rotvec(0.5 * rest) * Rotation.from_rotvec(0.5 * own)
+        apart = rows[(composed.inv() * Rotation.from_rotvec(0.5 * continued[rows])).magnitude() > WRAP_CREASE]
+        total = np.maximum(np.bincount(pieces, areas, minlength=count), np.finfo(float).tiny)
+        return np.bincount(pieces[apart], areas[apart], minlength=count) / total
+
+    def _held_alone(self, gap: int, held_only: np.ndarray) -> np.ndarray:
+        """Per component (bool (C,)), whether the triangle its reading of gap ``gap`` holds still
+        (``held_only``: per piece, the one whose hold alone keeps it from being contested, or -1;
+        :meth:`_Relative.turning`) turns more than the mesh resolves in a neighbouring gap's
+        reading. A part held in one gap alone tells no end that stays: every continuous turn
+        crosses a whole turn somewhere, and a triangle there reads as held (a tail wagged 1, −1.2,
+        1.2, −1.3: the tip winds 362° and 378° in the middle gaps and a ring near it reads 0.7°,
+        held, the root read a whole turn off, 88–131 % of the diagonal off, silently) where a
+        part held in every gap (a strip's pinned end) reads held in each."""
+        last, out = len(self._raw) - 1, np.zeros(held_only.shape, dtype=bool)
+        pieces = np.flatnonzero(held_only >= 0)
+        for k in (gap - 1, gap + 1):
+            if pieces.size and 0 <= k < last:
+                still = self._reading(k)[6]  # None where no piece turns far there: it tells nothing
+                if still is not None:
+                    out[pieces] |= ~still[held_only[pieces]]
+        return out
 
     def _turning(self, gap: int) -> np.ndarray:
         """Per component (bool (C,)), whether a part of it turns far from the rest in gap ``gap``
@@ -814,6 +889,16 @@ class SequenceInterpolator:
                             "read it differently, or its rigid motion reads it the other way round): the "
                             "in-betweens may turn it the other way round (keys closer together tell which way "
                             "it went)")
+        if segment.composed_apart > TURNED_PART_SHARE:
+            problems.append(f"{turned} while the rest turns about another axis: the in-betweens turn each part as "
+                            f"one turn, {100 * segment.composed_apart:.0f} % of the piece's area over "
+                            f"{np.degrees(WRAP_CREASE):.0f}° half-way from the rest's turn composed with the part's "
+                            "own, and the keys do not tell which it went (keys closer together bring the two nearer)")
+        if segment.untold_half_turns:
+            problems.append(f"between {self.key_names[gap]} and {self.key_names[gap + 1]}, "
+                            f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "
+                            "tell, and nothing in them tells which way round: the in-betweens may turn them the "
+                            "other way round (keys closer together tell which way they went)")
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
