@@ -232,7 +232,7 @@ def pullback(k_m=100, k_n=200):
           f"pulled back mean {100 * rel(ours).mean():.2f} % (max {100 * rel(ours).max():.2f}); "
           f"ratio {rel(ours).mean() / rel(own).mean():.3f}")
     mass = np.bincount(t.ravel(), np.repeat(core.ReferenceShape(target, t, use_extrinsic=False).base.areas / 3, 3))
-    solver = pp3d.MeshHeatMethodDistanceSolver(target, t, use_robust=False)
+    solver = pp3d.MeshHeatMethodDistanceSolver(target, t, use_robust=True)
     err = lambda d, ref: np.sqrt(np.sum(mass * (d - ref) ** 2) / np.sum(mass * ref**2))  # noqa: E731
     rows = []
     for source in (0, 100, 300, 500):
