@@ -180,6 +180,9 @@ class WorldProportions:
         """Positions (…, n, 3) in the world's proportions (the same at every ``time``)."""
         return positions if self.matrix is None else positions @ self.matrix
 
+    def read(self, times) -> None:
+        """Nothing to read: the proportions are the same at every time (as :meth:`WorldFrames.read`)."""
+
     def back(self, positions: np.ndarray, times=None) -> np.ndarray:
         """Positions (…, n, 3) in the world's proportions back in the mesh's coordinates (the same at
         every time of ``times``)."""
@@ -244,13 +247,28 @@ class WorldFrames:
         matrix = self.matrices[time]
         return positions @ matrix[:3, :3].T + matrix[:3, 3]
 
-    def back(self, positions: np.ndarray, times) -> np.ndarray:
-        """World positions (k, n, 3) of the poses at ``times`` (k) in the mesh's coordinates."""
-        missing = [time for time in times if time not in self.matrices]
+    def read(self, times) -> None:
+        """Read the object's matrix at each of ``times`` not read yet (one pass over the scene's
+        frames for all of them, rather than one per call of :meth:`back`)."""
+        missing = sorted(set(time for time in times if time not in self.matrices))
         for time, matrix in zip(missing, world_matrices(self.context, self.obj, missing)):
             self.matrices[time] = _unmirrored(matrix)
+
+    def back(self, positions: np.ndarray, times) -> np.ndarray:
+        """World positions (k, n, 3) of the poses at ``times`` (k) in the mesh's coordinates."""
+        self.read(times)
         return np.stack([(pose - self.matrices[time][:3, 3]) @ np.linalg.inv(self.matrices[time][:3, :3]).T
                          for pose, time in zip(positions, times)])
+
+
+def frames_space(context: bpy.types.Context, obj: bpy.types.Object, matrices: dict):
+    """Where to interpolate frames of ``obj`` read with its world matrices ``matrices`` ({frame:
+    (4, 4)}): the world through each frame's matrix (:class:`WorldFrames`) where they stretch the
+    mesh differently (:func:`proportions_change`: its scale keyframed), else the world's
+    proportions, the same at every frame (:class:`WorldProportions`)."""
+    if proportions_change(matrices.values()):
+        return WorldFrames(context, obj, matrices)
+    return WorldProportions(obj)
 
 
 def scene_time(scene: bpy.types.Scene, frame: float) -> float:

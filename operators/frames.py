@@ -197,8 +197,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail,
                                                                              matrices=matrices)
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
-        space = (bridge.WorldFrames(context, obj, matrices) if bridge.proportions_change(matrices.values())
-                 else bridge.WorldProportions(obj))
+        space = bridge.frames_space(context, obj, matrices)
         scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
@@ -294,16 +293,26 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         self.check_captured_output(obj, keyframed=True)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
         # the keys and, where the last gap is shorter than a step, the samples keying it (core.retime)
+        matrices = {}
         _poses, options["start"], read = yield from self.read_keys_and_start(
-            context, obj, key_frames, 0.1, also=[start + sample for sample in plan.samples_read])
-        space = bridge.WorldProportions(obj)
-        samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample]) for sample in plan.samples_read})
+            context, obj, key_frames, 0.1, also=[start + sample for sample in plan.samples_read], matrices=matrices)
+        out_frames = [float(start + k) for k in range(plan.n_out)]
+        # each pose is shown under the object's matrix of a frame: a new object plays the source's
+        # keyframed transform retimed, at the pose's source time; shape keys play under the source's
+        # own transform, at the output frame
+        shown_at = out_frames if self.output == 'SHAPE_KEYS' else (start + plan.times).tolist()
+        # an object scaled differently at different frames: interpolated in the world, where the simulation
+        # ran; the matrices of the frames shown read in one pass
+        space = bridge.frames_space(context, obj, matrices)
+        space.read(shown_at)
+        samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample], start + sample)
+                                             for sample in plan.samples_read})
         poses_out = retime.iter_retime(samples, triangles, plan, **options)
         retimed = []
         for index in range(plan.n_out):
             _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
-            retimed.append(space.back(pose).astype(np.float32))  # what shape keys and point caches store
-        out_frames = [float(start + k) for k in range(plan.n_out)]
+            # kept as float32, what shape keys and point caches store
+            retimed.append(space.back(pose[None], shown_at[index:index + 1])[0].astype(np.float32))
         shown_speed = format_factor(speed)
         self.summary = self.write_poses(
             context, obj, retimed, names=[f"Retime {shown_speed}x"] * plan.n_out,

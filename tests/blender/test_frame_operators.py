@@ -266,23 +266,19 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
 
 
-def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(bpy_empty, extension, tmp_path):
+def _turning_sheet_scale_keyframed(extension, tmp_path):
     """A sheet turning rigidly in the world at a steady 15° per frame, played by a Mesh Cache on an
-    object whose (unapplied) scale is keyframed 1 → 2 linearly over frames 1–9: every in-between
-    of In-between Frames, shown under the object's scale at its frame, is that turn to the float32
-    of shape keys (before, the keys were interpolated in the object's own coordinates, where the
-    turning sheet also shrinks to half its size, and came out up to 5.7e-2 off, at frame 3, on a
-    sheet 2 wide)."""
+    object whose (unapplied) scale is keyframed 1 → 2 linearly over frames 1–9 (held after): the
+    sheet, its scale and its world positions as functions of the (fractional) frame."""
     from scipy.spatial.transform import Rotation
 
     from blender_scenes import _fcurves, grid_object
 
-    bridge = extension.bridge
     sheet = grid_object(8)
-    rest = bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.vertex_positions(sheet.data)
 
     def scale(frame):
-        return 1.0 + 0.125 * (frame - 1)
+        return 1.0 + 0.125 * (min(frame, 9) - 1)
 
     def world(frame):  # the sheet as the world shows it at ``frame``
         turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
@@ -301,12 +297,51 @@ def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(
         for point in fcurve.keyframe_points:
             point.interpolation = 'LINEAR'
     bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    return sheet, scale, world
+
+
+def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(bpy_empty, extension, tmp_path):
+    """The turning sheet on an object whose scale is keyframed: every in-between of In-between
+    Frames, shown under the object's scale at its frame, is that turn to the float32 of shape keys
+    (before, the keys were interpolated in the object's own coordinates, where the turning sheet
+    also shrinks to half its size, and came out up to 5.7e-2 off, at frame 3, on a sheet 2 wide)."""
+    bridge = extension.bridge
+    sheet, scale, world = _turning_sheet_scale_keyframed(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
         gap = 0 if frame < 5 else 1
         name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
         made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
         np.testing.assert_allclose(made * scale(frame), world(frame), atol=1e-6)
+
+
+@pytest.mark.parametrize("output", ['CACHE', 'SHAPE_KEYS'])
+@pytest.mark.parametrize("speed", [1.0, 0.5])
+def test_a_retime_of_an_object_whose_scale_is_keyframed_plays_the_world_motion(bpy_empty, extension, tmp_path,
+                                                                               output, speed):
+    """The turning sheet on an object whose scale is keyframed, retimed from every 4th frame: the
+    mesh shown at every output frame ``f`` is the turn at the source's time ``1 + (f − 1) · speed``,
+    to float32. A new object plays the source's scale retimed; shape keys play under the source's
+    own scale at ``f`` (before, the poses were interpolated in the object's own coordinates, where
+    the turning sheet also shrinks to half its size, and came out 4.7e-2 off at frame 2 on a sheet
+    2 wide at speed 1, 9.0e-2 as shape keys at half speed)."""
+    bridge = extension.bridge
+    sheet, scale, world = _turning_sheet_scale_keyframed(extension, tmp_path)
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=speed, output=output,
+                                     filepath=str(tmp_path / "retimed.pc2"))
+    shown = sheet if output == 'SHAPE_KEYS' else next(o for o in bpy.data.objects if o.name not in names)
+    out_frames = range(1, round(8 / speed) + 2)
+    for frame in out_frames:
+        bpy.context.scene.frame_set(frame)
+        if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
+            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime {speed:.2f}x frame {frame}"])
+        else:
+            made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
+        matrix = np.array(shown.matrix_world)
+        np.testing.assert_allclose(made @ matrix[:3, :3].T + matrix[:3, 3], world(1 + (frame - 1) * speed),
+                                   atol=1e-6)
+    bpy.context.scene.frame_set(1)
 
 
 def test_a_mesh_moved_by_an_unbaked_cloth_proxy_reads_it_from_its_start(bpy_empty, extension):
