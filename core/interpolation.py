@@ -52,7 +52,7 @@ from scipy.spatial.transform import Rotation
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
-from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
+from .inbetween_prediction import CONCURRENT_VERTICES, STILL_RIGIDITY, gap_poses
 from .deformation_fields import WRAP_CREASE, either_way, jumping_pairs, rotation_vectors, the_other_way
 from .deformation_fields import unwrapped_rotation_vectors
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
@@ -958,6 +958,7 @@ class Interpolator:
         self._edges = edges
         self._squared = [self._squared_lengths(p) for p in poses]
         self._given_poses = poses
+        self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
 
     def _whole_sequence(self) -> SequenceInterpolator:
         """The same keys with every piece's rotations taken whole; it shares the first's keys and
@@ -968,6 +969,35 @@ class Interpolator:
             whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
             self._whole = whole
         return self._whole
+
+    def _chattering(self) -> bool:
+        """Whether every piece's triangles turn between the two poses with no coherence across
+        the mesh: neighbouring triangles' turns differ from each other (RMS over the pairs sharing
+        an edge of the angle of one's rotation relative to the other's) by at least as much as
+        the triangles turn (RMS of their rotations' residuals to the piece's rigid motion), and
+        those turns are at least the piece's rigid turn, in pieces that do not move rigidly
+        (:data:`~core.inbetween_prediction.STILL_RIGIDITY`). Such keys are wrinkles changing from
+        one to the other, not a motion they resolve: the frames between them have wrinkles of
+        their own, not the half turns of the keys' (see :data:`CHATTER_COHERENCE`), so the linear
+        blend, their average, is the in-between. A piece turning as a body more than its
+        wrinkles (a cushion sliding off a bar, a head turned with its keys' rounding as residuals)
+        keeps its fit: the blend would cut the chord of that turn."""
+        if self._chatter is None:
+            topo, relative = self._sequence._topo, self._sequence._gap(0).relatives[2]
+            pairs = self._sequence._edge_pairs
+            rotations = Rotation.from_rotvec(relative.rotvec)
+            relative_turns = (rotations[pairs[:, 0]] * rotations[pairs[:, 1]].inv()).magnitude()
+            turns = np.einsum("ij,ij->i", relative.rotvec, relative.rotvec)
+            count, labels = len(topo.components), topo.triangle_component
+            pair_labels = labels[pairs[:, 0]]  # a pair sharing an edge lies in one piece
+            turned = np.bincount(labels, turns, minlength=count) / np.maximum(np.bincount(labels, minlength=count), 1)
+            differing = np.bincount(pair_labels, relative_turns ** 2, minlength=count) / \
+                np.maximum(np.bincount(pair_labels, minlength=count), 1)
+            rigid_turns = Rotation.from_matrix(relative.motion[0]).magnitude()
+            deforming = np.asarray(relative.nonrigidity) > STILL_RIGIDITY
+            wrinkling = (differing >= CHATTER_COHERENCE ** 2 * turned) & (turned >= rigid_turns ** 2)
+            self._chatter = bool((deforming & wrinkling).all())
+        return self._chatter
 
     def _squared_lengths(self, x: np.ndarray) -> np.ndarray:
         """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
@@ -987,7 +1017,8 @@ class Interpolator:
         by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
         (:data:`WHOLE_FIT_BLEND_RATIO`), or where the first fell back to the blend (or the metric
         fitted near it) and the second has fewer flipped or collapsed triangles within
-        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's."""
+        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's. Poses that
+        differ by wrinkles only (:meth:`_chattering`) give their linear blend."""
         factor = check_factor(factor)
         if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
             return self._given_poses[int(factor)].copy()
@@ -997,6 +1028,8 @@ class Interpolator:
             if not 0.0 <= factor <= 1.0:
                 self._warn_grown(x, factor)
             return x
+        if self._chattering():
+            return (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
         (x,), said = first._poses(0, [factor])
         misfit = self._misfit(x, factor)
         # a first fit within the margin of the metric cannot be bettered by it: no second fit
@@ -1058,6 +1091,18 @@ class Interpolator:
             ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
             _warn(f"at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle {int(rows[0])}) have edges "
                   f"{ratio:.3g} × as {'long' if longer else 'short'} as in either pose: {cause}")
+
+
+#: Two poses whose triangles' turns are no more alike between neighbours than this times the
+#: turns themselves (RMS ratio; 1: neighbours' turns correlate by at most a half) are wrinkles that
+#: change between the keys (:meth:`Interpolator._chattering`): a sewn garment lying on the floor,
+#: keys 4–16 frames apart, its triangles turning 11–25° with the neighbours' turns differing
+#: 1.00–1.11 × that, had in-betweens 1.00–1.08 × the blend's RMS error (its simulated middle
+#: frames 6 × farther from the keys' half turns than the fitted pose); the tablecloth settling on
+#: its table, keys 4 apart from frames 20 and 22, 1.014 / 1.050 × at a ratio of 1.002 / 1.001, where
+#: its later pairs, at 0.92–0.996, keep their fits (0.85–1.035 ×). The soft flags' first pairs (1.08–1.13)
+#: lose their fits' gain there (one pair 0.959 → 1.000 ×; *Two poses whose keys differ by wrinkles only*).
+CHATTER_COHERENCE = 1.0
 
 
 #: A two-pose in-between's warnings add how far its edges are from the interpolated metric where

@@ -716,6 +716,32 @@ def test_two_poses_end_no_farther_from_the_interpolated_metric_than_the_blend():
     assert np.sqrt(np.mean(np.sum((x - middle) ** 2, axis=1))) < np.sqrt(np.mean(np.sum((blend - middle) ** 2, axis=1)))
 
 
+def test_two_poses_that_differ_by_wrinkles_only_are_blended():
+    """Two poses of a sheet lying flat with different small wrinkles (heights of 0.3 mean edges,
+    drawn independently per vertex): the keys' triangles turn with no coherence between
+    neighbours, so half their turns is no motion of the sheet (a fit of it lay 1.23 × as far as
+    the keys' linear blend from a third such frame). The in-between of such poses is the blend;
+    a quarter-turn bend under the same wrinkles keeps its fit (nearer the bend's middle than half
+    the blend's distance from it)."""
+    flat, triangles = grid(40)
+    edge = 1.0 / 39
+
+    def wrinkled(seed, base=flat):
+        out = base.copy()
+        out[:, 2] += 0.3 * edge * np.random.default_rng(seed).standard_normal(len(base))
+        return out
+
+    def rms(x, y):
+        return np.sqrt(np.mean(np.sum((x - y) ** 2, axis=1)))
+
+    a, b = wrinkled(1), wrinkled(2)
+    assert np.array_equal(Interpolator(a, b, triangles).pose(0.5), 0.5 * (a + b))
+    strip = flat * [2.0, 1.0, 1.0]
+    a, b = wrinkled(1, strip), wrinkled(2, _bend(strip, np.pi / 2))
+    folded = _bend(strip, np.pi / 4)
+    assert rms(Interpolator(a, b, triangles).pose(0.5), folded) < 0.5 * rms(0.5 * (a + b), folded)
+
+
 def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     """The repair rounds do not impose fields on regions beyond ``MAX_REPAIR_FRACTION`` of the
     triangles of any one piece of the mesh after the first round (that would replace the piece's
