@@ -611,13 +611,10 @@ def test_frames_past_a_mesh_cache_say_it_stands_still_there(bpy_empty, extension
     sheet = sheet_played_by_a_cache(extension, tmp_path, 9)
     held = dict(bridge.frame_positions(bpy.context, sheet, [9, 13]))
     np.testing.assert_array_equal(held[13], held[9])  # what the warning says: the last sample, held
-    capfd.readouterr()
-    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=4, output='SHAPE_KEYS')
-    assert ("'Sheet' is played by the Mesh Cache 'Mesh Cache' from 'shot.pc2' (9 samples; Frame Start 1, Frame "
-            "Scale 1), and the range reads frame 13 after its last: Blender holds the cache's last sample there"
-            in capfd.readouterr().out)
-    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4, output='SHAPE_KEYS')
-    assert "played by the Mesh Cache" not in capfd.readouterr().out
+    _said_only_past_the_cache(capfd, (1, 13, 4), (1, 9, 4), "played by the Mesh Cache",
+                              "'Sheet' is played by the Mesh Cache 'Mesh Cache' from 'shot.pc2' (9 samples; Frame "
+                              "Start 1, Frame Scale 1), and the range reads frame 13 after its last: Blender holds "
+                              "the cache's last sample there")
     # an MDD played by its times (seconds): frames 0–8 at 24 fps, read over 0–12
     rest = bridge.vertex_positions(sheet.data)
     path = tmp_path / "shot.mdd"
@@ -628,10 +625,19 @@ def test_frames_past_a_mesh_cache_say_it_stands_still_there(bpy_empty, extension
     bpy.context.scene.render.fps = 24
     held = dict(bridge.frame_positions(bpy.context, sheet, [8, 12]))
     np.testing.assert_array_equal(held[12], held[8])
-    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=0, frame_end=12, frame_step=4, output='SHAPE_KEYS')
-    assert "the range reads frame 12 after its last: Blender holds" in capfd.readouterr().out
-    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=0, frame_end=8, frame_step=4, output='SHAPE_KEYS')
-    assert "played by the Mesh Cache" not in capfd.readouterr().out
+    _said_only_past_the_cache(capfd, (0, 12, 4), (0, 8, 4), "played by the Mesh Cache",
+                              "the range reads frame 12 after its last: Blender holds")
+
+
+def _said_only_past_the_cache(capfd, past, within, kind: str, said: str) -> None:
+    """Frames to Shape Keys over the frames ``past`` (start, end, step) reports ``said``; over
+    ``within`` nothing of the ``kind``."""
+    capfd.readouterr()
+    for (start, end, step), expected in ((past, True), (within, False)):
+        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=start, frame_end=end, frame_step=step,
+                                                       output='SHAPE_KEYS')
+        out = capfd.readouterr().out
+        assert (said in out) if expected else (kind not in out)
 
 
 def test_frames_past_an_alembic_cache_say_it_stands_still_there(bpy_empty, extension, capfd, tmp_path):
@@ -651,13 +657,10 @@ def test_frames_past_an_alembic_cache_say_it_stands_still_there(bpy_empty, exten
     np.testing.assert_array_equal(poses[13], poses[9])
     assert not np.array_equal(poses[3], poses[9])
     with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip]):
-        capfd.readouterr()
-        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=13, frame_step=1, output='SHAPE_KEYS')
-        assert ("is played by the Mesh Sequence Cache 'MeshSequenceCache' from 'strip.abc', and the range reads the "
-                "same pose, to the bit, at its start (frames 1–3) and its end (frames 9–13)"
-                in capfd.readouterr().out)
-        bpy.ops.shape_differences.frames_to_shape_keys(frame_start=3, frame_end=9, frame_step=2, output='SHAPE_KEYS')
-        assert "Mesh Sequence Cache" not in capfd.readouterr().out
+        _said_only_past_the_cache(capfd, (1, 13, 1), (3, 9, 2), "Mesh Sequence Cache",
+                                  "is played by the Mesh Sequence Cache 'MeshSequenceCache' from 'strip.abc', and the "
+                                  "range reads the same pose, to the bit, at its start (frames 1–3) and its end "
+                                  "(frames 9–13)")
 
 
 def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, extension):

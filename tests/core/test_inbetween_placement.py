@@ -2207,6 +2207,25 @@ def test_pieces_turned_and_scaled_as_one_stay_together(scale):
             assert np.abs(x - truth).max() < 1e-6 * diagonal, (factor, np.abs(x - truth).max() / diagonal)
 
 
+def _blinking_head_turned(bulge: float = 0.0):
+    """The head with eyes of :func:`_head_with_eyes` (``a``, ``tri``) and a pose ``b`` of it: the
+    eyes squashed to 0.6 of their height about their centres (a blink), the back of the head
+    bulged out by ``bulge`` of its radius, all turned 60° about a tilted axis through ``pivot``;
+    with the head's and an eye's vertex counts and that ``rotation`` (3, 3)."""
+    a, tri = _head_with_eyes()
+    n_head, n_eye = len(icosphere(2)[0]), len(icosphere(1)[0])
+    posed = a.copy()
+    back = np.exp(-np.sum((a[:n_head] - [0.0, -1.0, 0.0]) ** 2, axis=1) / 0.3)
+    posed[:n_head] += bulge * back[:, None] * a[:n_head]
+    for k, centre in enumerate(((0.35, 0.85, 0.3), (-0.35, 0.85, 0.3))):
+        rows = slice(n_head + k * n_eye, n_head + (k + 1) * n_eye)
+        posed[rows] = (a[rows] - centre) * [1.0, 0.6, 1.0] + centre
+    axis = np.array([0.2, 1.0, 0.3]) / np.linalg.norm([0.2, 1.0, 0.3])
+    rotation = Rotation.from_rotvec(np.radians(60.0) * axis).as_matrix()
+    pivot = np.array([0.4, -1.3, 0.1])
+    return a, tri, _rigid(posed, rotation, pivot), n_head, n_eye, rotation, pivot
+
+
 @pytest.mark.parametrize("factor", [0.5, 2.0])
 def test_a_rigid_head_with_deforming_eyes_turns_rigidly_and_keeps_them(factor):
     """A head turned 60° rigidly while its eyes (separate pieces) squash to 0.6 of their height
@@ -2214,16 +2233,7 @@ def test_a_rigid_head_with_deforming_eyes_turns_rigidly_and_keeps_them(factor):
     eyes do not carry it (before: 4.3e-2 of the diagonal off at 0.5, 0.33 at ×2) — and the eyes'
     centroids follow the head's motion, whose seat they are in (before, on their chords: 2.4e-2 /
     4.6e-2 out of their sockets at 0.5)."""
-    a, tri = _head_with_eyes()
-    n_head, n_eye = len(icosphere(2)[0]), len(icosphere(1)[0])
-    squashed = a.copy()
-    for k, centre in enumerate(((0.35, 0.85, 0.3), (-0.35, 0.85, 0.3))):
-        rows = slice(n_head + k * n_eye, n_head + (k + 1) * n_eye)
-        squashed[rows] = (a[rows] - centre) * [1.0, 0.6, 1.0] + centre
-    axis = np.array([0.2, 1.0, 0.3]) / np.linalg.norm([0.2, 1.0, 0.3])
-    rotation = Rotation.from_rotvec(np.radians(60.0) * axis).as_matrix()
-    pivot = np.array([0.4, -1.3, 0.1])
-    b = _rigid(squashed, rotation, pivot)
+    a, tri, b, n_head, n_eye, rotation, pivot = _blinking_head_turned()
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
     x = Interpolator(a, b, tri).pose(factor)
     truth = _screw(a, rotation, pivot - rotation @ pivot, factor)
@@ -2241,18 +2251,7 @@ def test_deforming_eyes_ride_in_the_sockets_of_a_deforming_head(factor):
     it — each within the largest error of the head's front (the seat, whose best similarity
     places them). Before, on their chords: 3.5e-2 / 4.6e-2 of the diagonal off the turn at 0.25 /
     0.5, 0.35 at ×2 and 0.14 at −0.5, with the front within 3e-3."""
-    a, tri = _head_with_eyes()
-    n_head, n_eye = len(icosphere(2)[0]), len(icosphere(1)[0])
-    posed = a.copy()
-    back = np.exp(-np.sum((a[:n_head] - [0.0, -1.0, 0.0]) ** 2, axis=1) / 0.3)
-    posed[:n_head] += 0.3 * back[:, None] * a[:n_head]
-    for k, centre in enumerate(((0.35, 0.85, 0.3), (-0.35, 0.85, 0.3))):
-        rows = slice(n_head + k * n_eye, n_head + (k + 1) * n_eye)
-        posed[rows] = (a[rows] - centre) * [1.0, 0.6, 1.0] + centre
-    axis = np.array([0.2, 1.0, 0.3]) / np.linalg.norm([0.2, 1.0, 0.3])
-    rotation = Rotation.from_rotvec(np.radians(60.0) * axis).as_matrix()
-    pivot = np.array([0.4, -1.3, 0.1])
-    b = _rigid(posed, rotation, pivot)
+    a, tri, b, n_head, n_eye, rotation, pivot = _blinking_head_turned(bulge=0.3)
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
     x = Interpolator(a, b, tri).pose(factor)
     truth = _screw(a, rotation, pivot - rotation @ pivot, factor)  # the eyes' centroids and the front
