@@ -3,15 +3,17 @@
     python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 -o out.pc2
     python -m core retime in.pc2 --topology mesh.obj --step 4 --speed 0.5 --chunk 2/8 -o part2.pc2
     python -m core merge part1.pc2 part2.pc2 ... -o out.pc2
-    python -m core merge --numbered 'parts/chunk#.pc2' --count 8 -o out.pc2
+    python -m core merge --numbered 'parts/chunk#.pc2' --count 8 -o out.pc2 \
+        --retime in.pc2 --topology mesh.obj --step 4 --speed 0.5
     python -m core info in.pc2
 
 ``retime`` reads a PC2 or MDD cache (exported by any package) and the mesh's faces from an OBJ
 with the same vertices in the same order, keys every ``--step``-th sample and writes a PC2 that
 plays the motion at ``--speed`` (see :mod:`core.retime`). ``--chunk I/N`` (1-based) or
 ``--gaps A:B`` computes only the output samples of some key gaps; ``merge`` concatenates the
-chunk files into exactly (bit for bit) the file one process writes. Progress goes to stderr;
-errors print one line and exit with status 2.
+chunk files into exactly (bit for bit) the file one process writes; given the retime's input
+and settings (``--retime``), it refuses chunks of any other retime, such as another job's written
+into a shared chunk folder. Progress goes to stderr; errors print one line and exit with status 2.
 """
 
 from __future__ import annotations
@@ -60,22 +62,10 @@ def _parser() -> argparse.ArgumentParser:
 
     retime = commands.add_parser("retime", help="retime a PC2/MDD cache from every step-th sample")
     retime.add_argument("cache", help="input PC2 or MDD file")
-    retime.add_argument("--topology", required=True, help="OBJ file with the mesh's faces (same vertex order)")
-    retime.add_argument("--step", type=int, required=True, help="key every step-th sample")
-    retime.add_argument("--speed", type=float, default=1.0,
-                        help="0.5 = twice as slow, 1 = original timing (dropped samples rebuilt), 2 = twice as fast")
+    _add_retime_settings(retime, required=True)
     part = retime.add_mutually_exclusive_group()
     part.add_argument("--chunk", type=_chunk, help="compute chunk I of N (1-based) of the key gaps")
     part.add_argument("--gaps", type=_gap_range, help="compute key gaps A to B (0-based, B excluded)")
-    retime.add_argument("--k-m", type=int, default=0, help="base basis size (0 = full basis)")
-    retime.add_argument("--k-n", type=int, default=0, help="target basis size (0 = not truncated)")
-    retime.add_argument("--offset", type=float, default=0.0,
-                        help="no effect: in-betweens use no offset surface (the rotations come from the "
-                             "keys); accepted so that older job scripts run")
-    retime.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
-    retime.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
-    retime.add_argument("--start", type=float,
-                        help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)")
     retime.add_argument("-o", "--output", required=True, help="output PC2 file")
     retime.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
@@ -86,10 +76,33 @@ def _parser() -> argparse.ArgumentParser:
                             "replaced by 1..COUNT (for farm jobs)")
     merge.add_argument("--count", type=int, help="number of numbered chunk files")
     merge.add_argument("-o", "--output", required=True, help="output PC2 file")
+    merge.add_argument("--retime", metavar="CACHE",
+                       help="the input cache of the retime whose chunks these are, with that retime's "
+                            "--topology, --step, --speed and other settings: chunks of any other retime "
+                            "(another job's, in a shared chunk folder) are refused")
+    _add_retime_settings(merge, required=False)
 
     info = commands.add_parser("info", help="print a cache's header")
     info.add_argument("cache", help="PC2 or MDD file")
     return parser
+
+
+def _add_retime_settings(parser: argparse.ArgumentParser, required: bool) -> None:
+    """The options that say what a retime computes besides its input cache: ``retime`` takes them,
+    and ``merge --retime`` the same, to know which retime its chunks must be of."""
+    parser.add_argument("--topology", required=required, help="OBJ file with the mesh's faces (same vertex order)")
+    parser.add_argument("--step", type=int, required=required, help="key every step-th sample")
+    parser.add_argument("--speed", type=float, default=1.0,
+                        help="0.5 = twice as slow, 1 = original timing (dropped samples rebuilt), 2 = twice as fast")
+    parser.add_argument("--k-m", type=int, default=0, help="base basis size (0 = full basis)")
+    parser.add_argument("--k-n", type=int, default=0, help="target basis size (0 = not truncated)")
+    parser.add_argument("--offset", type=float, default=0.0,
+                        help="no effect: in-betweens use no offset surface (the rotations come from the "
+                             "keys); accepted so that older job scripts run")
+    parser.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
+    parser.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
+    parser.add_argument("--start", type=float,
+                        help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)")
 
 
 def _numbered(pattern: str, count: int | None) -> list[str]:
@@ -110,6 +123,11 @@ def _even_times(times: np.ndarray) -> bool:
     return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
 
 
+def _samples_read(cache, plan) -> np.ndarray:
+    """The input samples a retime by ``plan`` reads: its keys, and samples 1 and 2 (the start's)."""
+    return np.asarray(sorted(set(plan.samples_read) | {i for i in (1, 2) if i < cache.n_samples}), dtype=int)
+
+
 def _job_fingerprint(cache, samples_read, triangles, args) -> str:
     """What makes two chunks parts of one retime (:func:`core.point_cache.check_stamps`): the
     input's header and the samples the retime reads, the faces, and every setting that changes the
@@ -123,6 +141,25 @@ def _job_fingerprint(cache, samples_read, triangles, args) -> str:
         digest.update(np.ascontiguousarray(cache.positions[sample], dtype="<f4").tobytes())
     digest.update(np.ascontiguousarray(triangles, dtype="<i8").tobytes())
     return digest.hexdigest()
+
+
+def _merged_job(args) -> str | None:
+    """The fingerprint of the retime ``merge --retime`` names (the one its chunks' stamps must
+    carry), computed from the input cache's contents and the settings as ``retime`` computes it,
+    or None without ``--retime``."""
+    if args.retime is None:
+        given = [f"--{name}" for name in ("topology", "step") if getattr(args, name) is not None]
+        if given:
+            raise ShapeDifferenceError(f"{given[0]} goes with --retime CACHE (the input of the retime whose "
+                                       "chunks are merged)")
+        return None
+    if args.topology is None or args.step is None:
+        raise ShapeDifferenceError("--retime CACHE needs the retime's --topology and --step (and its --speed "
+                                   "and other settings) to know which retime the chunks must be of")
+    cache = read_point_cache(args.retime)
+    _, triangles = read_obj(args.topology)
+    plan = plan_retime(cache.n_samples, args.step, args.speed)
+    return _job_fingerprint(cache, _samples_read(cache, plan), triangles, args)
 
 
 def _retime(args) -> int:
@@ -142,7 +179,7 @@ def _retime(args) -> int:
             "export the OBJ from the same mesh, without modifiers that change its vertices."
         )
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    read = np.asarray(sorted(set(plan.samples_read) | {i for i in (1, 2) if i < cache.n_samples}), dtype=int)  # and the start's
+    read = _samples_read(cache, plan)
     broken = read[~np.isfinite(cache.positions[read]).all(axis=(1, 2))]
     if broken.size:  # said here in the cache's own samples and frames, not as a key pose's index
         first = int(broken[0])
@@ -221,7 +258,7 @@ def _run(args) -> int:
             if args.numbered:
                 parts += _numbered(args.numbered, args.count)
             began = time.monotonic()
-            merge_pc2(parts, args.output)
+            merge_pc2(parts, args.output, job=_merged_job(args))
             n_points, start, sampling, n_samples = read_pc2_header(args.output)
             print(f"wrote {args.output}: {n_samples} samples from frame {start:g} every {sampling:g}, "
                   f"{n_points} points, from {len(parts)} part(s), {time.monotonic() - began:.1f} s")

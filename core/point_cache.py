@@ -277,11 +277,24 @@ def read_stamp(path) -> dict | None:
     return stamp
 
 
-def check_stamps(parts, stamps) -> None:
+def check_stamps(parts, stamps, job: str | None = None) -> None:
     """Raise :class:`MeshError` unless the chunks ``parts`` with their ``stamps`` (None for a file
     without one) are all the chunks of one job, in order: one job fingerprint, key gaps that follow
     one another from the first to the last. Files without stamps (caches not written as chunks)
-    are not checked here; a mix of both is refused."""
+    are not checked here; a mix of both is refused.
+
+    ``job``: the fingerprint of the retime the merge is for (``python -m core merge --retime``);
+    every part must then be a stamped chunk of it. Without it the parts need only agree among
+    themselves, which another job's complete set of chunks in a shared folder does."""
+    if job is not None:
+        for part, stamp in zip(parts, stamps):
+            if stamp is None or stamp["job"] != job:
+                folder = Path(part).parent
+                raise MeshError(
+                    f"'{part}' is not a chunk of this job's retime ("
+                    + ("it has no stamp" if stamp is None else "another input cache, topology or setting")
+                    + f"): another job has written into the chunk folder '{folder}'. Give each job a chunk "
+                    "folder of its own (one per shot and take) and run this job's chunks again.")
     if all(stamp is None for stamp in stamps):
         return
     unstamped = [part for part, stamp in zip(parts, stamps) if stamp is None]
@@ -400,21 +413,22 @@ def read_point_cache(path) -> PointCache:
                         "nor MDD (its header does not match its size). Give a .pc2 or .mdd file.") from None
 
 
-def merge_pc2(parts, path) -> Path:
+def merge_pc2(parts, path, job: str | None = None) -> Path:
     """Concatenate PC2 files whose samples follow one another (chunks of one job) into ``path``.
 
     Every part must have the same point count and sampling, and each must start where the one
     before ends (within a hundredth of a sample: the starts are single precision, a missing part
     is a whole sample or more); parts without samples are allowed. Chunks written with stamps
     (``python -m core retime --chunk``) must be every chunk of one job, in order
-    (:func:`check_stamps`), each with the bytes its stamp names. The samples are copied byte for
-    byte, :data:`MERGE_BLOCK_BYTES` at a time.
+    (:func:`check_stamps`), each with the bytes its stamp names; given the ``job`` fingerprint,
+    chunks of that job only. The samples are copied byte for byte, :data:`MERGE_BLOCK_BYTES` at a
+    time.
     """
     check_pc2_name(path)
     refuse_overwriting(path, {part: "one of the parts to merge" for part in parts})
     headers = [(Path(part), *read_pc2_header(part)) for part in parts]  # (path, points, start, sampling, samples)
     stamps = [read_stamp(part) for part in parts]
-    check_stamps(parts, stamps)
+    check_stamps(parts, stamps, job)
     if not headers:
         raise MeshError("Nothing to merge: give at least one PC2 file.")
     first_path, n_points, first_start, sampling, _ = headers[0]

@@ -48,15 +48,19 @@ function compileJob(job) {
     throw "runner python needs core_directory: the folder that holds the extension's core/ package";
   }
   const chunkFile = (index) => settings.chunk_directory + "/chunk" + index + ".pc2";
+  // What the retime computes from its input: the chunks take it, and the merge too, which refuses
+  // chunks of any other retime (another job's, written into the same chunk folder).
+  const retimeSettings = [
+    "--topology", settings.topology,
+    "--step", String(settings.step),
+    "--speed", String(settings.speed),
+  ];
 
   const chunkTasks = [];
   for (let index = 1; index <= chunks; index++) {
     const task = author.Task("retime-" + index + "-of-" + chunks, "misc");
     task.addCommand(coreCommand(settings, [
-      "retime", settings.input_cache,
-      "--topology", settings.topology,
-      "--step", String(settings.step),
-      "--speed", String(settings.speed),
+      "retime", settings.input_cache, ...retimeSettings,
       "--chunk", index + "/" + chunks,
       "-o", chunkFile(index),
     ]));
@@ -68,6 +72,7 @@ function compileJob(job) {
   merge.addCommand(coreCommand(settings, [
     "merge", "--numbered", settings.chunk_directory + "/chunk#.pc2",
     "--count", String(chunks), "-o", settings.output_cache,
+    "--retime", settings.input_cache, ...retimeSettings,
   ]));
   for (const task of chunkTasks) {
     merge.addDependency(task);

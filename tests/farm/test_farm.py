@@ -53,6 +53,13 @@ def _same_frames(path, single):
     np.testing.assert_allclose(farm.positions, whole.positions, rtol=0, atol=1e-6)
 
 
+def _openjd_command(parameters: dict, step="Merge", dependencies=True) -> list[str]:
+    command = [OPENJD, "run", str(TEMPLATE), "--step", step] + (["--run-dependencies"] if dependencies else [])
+    for key, value in parameters.items():
+        command += ["-p", f"{key}={value}"]
+    return command
+
+
 @pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
 def test_openjd_template_checks():
     result = subprocess.run([OPENJD, "check", str(TEMPLATE)], capture_output=True, text=True, timeout=120)
@@ -71,10 +78,7 @@ def test_openjd_two_chunks_equal_the_single_process(job):
     parameters = dict(InputCache=long_cache, Topology=topology, OutputCache=folder / "farm.pc2",
                       ChunkDirectory=chunks, ExtensionDirectory=ROOT, Python=sys.executable,
                       Step=4, Speed=0.5, Chunks=2)
-    command = [OPENJD, "run", str(TEMPLATE), "--step", "Merge", "--run-dependencies"]
-    for key, value in parameters.items():
-        command += ["-p", f"{key}={value}"]
-    result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    result = subprocess.run(_openjd_command(parameters), capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert sorted(p.name for p in chunks.iterdir()) == ["chunk1.pc2", "chunk1.pc2.json", "chunk2.pc2",
                                                          "chunk2.pc2.json"]
@@ -120,6 +124,76 @@ def test_jobs_sharing_a_chunk_folder_are_refused_not_mixed(job, capsys):
     capsys.readouterr()
     assert merge("missing_last.pc2") == 2  # chunks 1 and 2 of 3: before, merged without the last gap
     assert "the last chunk(s) are missing" in capsys.readouterr().err
+
+
+def _other_jobs_chunks(cache, topology, chunks, count):
+    """The complete chunk set of another job on the same cache (speed 0.25 instead of 0.5) in ``chunks``:
+    what a job sharing the folder leaves there when it runs all its chunks between this job's chunks
+    and this job's merge."""
+    chunks.mkdir()
+    for index in range(1, count + 1):
+        assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.25",
+                     "--chunk", f"{index}/{count}", "-q", "-o", str(chunks / f"chunk{index}.pc2")]) == 0
+
+
+@pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
+def test_openjd_merge_refuses_another_jobs_whole_chunk_set(job):
+    """Two jobs sharing a chunk folder, the other job's chunks replacing every one of this job's before
+    its merge: those chunks agree among themselves, so before, the merge wrote the other job's retime
+    and exited 0 (two `openjd run` at once, speeds 0.5 and 0.25: 97 samples instead of 49). The merge
+    now gets the job's input and settings and refuses chunks of any other retime, naming the folder."""
+    folder, cache, topology, single = job
+    chunks = folder / "shared by two jobs"
+    _other_jobs_chunks(cache, topology, chunks, 2)
+    output = folder / "openjd_other.pc2"
+    parameters = dict(InputCache=cache, Topology=topology, OutputCache=output, ChunkDirectory=chunks,
+                      ExtensionDirectory=ROOT, Python=sys.executable, Step=4, Speed=0.5, Chunks=2)
+    result = subprocess.run(_openjd_command(parameters, dependencies=False), capture_output=True, text=True,
+                            timeout=600)
+    log = result.stdout + result.stderr
+    assert result.returncode != 0, log[-3000:]
+    assert f"another job has written into the chunk folder '{chunks}'" in log, log[-3000:]
+    assert not output.exists()
+
+
+def test_merge_knows_its_retime(job, capsys):
+    """`merge --retime CACHE` with the retime's settings: its own chunks merge into the single
+    process's file, also with the input and the OBJ seen under other paths (a farm's path mapping
+    gives each worker its own); another retime's complete chunk set (same cache, another speed), a
+    plain cache given as a part, and settings without --retime are refused with exit status 2 and
+    no output."""
+    folder, cache, topology, single = job
+    own, other = folder / "own", folder / "other"
+    own.mkdir()
+    for index in (1, 2):
+        assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5",
+                     "--chunk", f"{index}/2", "-q", "-o", str(own / f"chunk{index}.pc2")]) == 0
+    _other_jobs_chunks(cache, topology, other, 2)
+
+    def merge(chunks, name, *extra):
+        return main(["merge", "--numbered", str(chunks / "chunk#.pc2"), "--count", "2", "-o", str(folder / name),
+                     *extra])
+
+    job_of = ["--retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    assert merge(own, "own.pc2", *job_of) == 0
+    _same_frames(folder / "own.pc2", single)
+    mapped = folder / "mapped"
+    mapped.mkdir()
+    assert merge(own, "mapped.pc2", "--retime", str(shutil.copy(cache, mapped / "cloth.pc2")), "--topology",
+                 str(shutil.copy(topology, mapped / "cloth.obj")), *job_of[4:]) == 0
+    assert (folder / "mapped.pc2").read_bytes() == (folder / "own.pc2").read_bytes()
+    capsys.readouterr()
+    assert merge(other, "other.pc2", *job_of) == 2
+    error = capsys.readouterr().err
+    assert "another input cache, topology or setting" in error and f"chunk folder '{other}'" in error
+    assert not (folder / "other.pc2").exists()
+    assert main(["merge", str(single), "-o", str(folder / "plain.pc2"), *job_of]) == 2
+    assert "it has no stamp" in capsys.readouterr().err
+    assert merge(own, "no_retime.pc2", *job_of[2:]) == 2  # settings without the input they belong to
+    assert "--topology goes with --retime" in capsys.readouterr().err
+    assert merge(own, "no_step.pc2", *job_of[:4]) == 2
+    assert "needs the retime's --topology and --step" in capsys.readouterr().err
+    assert not any((folder / name).exists() for name in ("plain.pc2", "no_retime.pc2", "no_step.pc2"))
 
 
 CANCELLED_MERGE = """
@@ -212,6 +286,14 @@ def test_flamenco_job_runs_chunks_then_merge(job):
         result = subprocess.run([command["parameters"]["exe"], *command["parameters"]["args"]],
                                 capture_output=True, text=True, timeout=300)
         assert result.returncode == 0, result.stderr
+    _same_frames(folder / "flamenco.pc2", single)
+
+    shutil.rmtree(folder / "flamenco")  # another job's whole chunk set in the folder: the merge refuses it
+    _other_jobs_chunks(cache, topology, folder / "flamenco", 3)
+    (command,) = tasks[-1]["commands"]
+    result = subprocess.run([command["parameters"]["exe"], *command["parameters"]["args"]],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2 and "another job has written into the chunk folder" in result.stderr
     _same_frames(folder / "flamenco.pc2", single)
 
     without = subprocess.run([NODE, "-e", HARNESS, str(JOB_TYPE), json.dumps(dict(settings, core_directory=""))],
