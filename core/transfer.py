@@ -40,8 +40,8 @@ from .functional_map import (UNMATCHED, check_correspondence, closest_point_corr
                              nearest_matched, project_near, pull_back_matrix, push_forward_matrix, walk_near)
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
-from .transfer_checks import (WELD_DISTANCE, check_matched_fraction, check_overlap, check_spread, coincident_vertices,
-                              degenerate_at_rest, warn_non_manifold)
+from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_overlap, check_spread,
+                              coincident_vertices, degenerate_at_rest, warn_non_manifold)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
 from .validation import check_basis_sizes
 
@@ -195,7 +195,7 @@ class Transfer:
         base_used = reference.used_vertices
         if correspondence is None:
             nearest = closest_point_correspondence(reference.base_positions, rest_used)
-            check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
+            partly = check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
             matched = self.target_used[nearest]
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
             self.correspondence[base_used] = matched
@@ -235,6 +235,8 @@ class Transfer:
             start = seeds[nearest_matched(reference.base_positions, reference.topology.edges, matched)[unmatched]]
             seeds[unmatched] = walk_near(points[unmatched], start, rest_used, topology.triangles)
         image_triangles, weights = project_near(points, seeds, rest_used, topology.triangles)
+        if correspondence is None and not partly:  # a part beside the target is warned already
+            check_covered(points, reference.topology, rest_used, topology, image_triangles, weights)
         if correspondence is not None and not refine_map:
             snapped = (topology.triangles[image_triangles] == seeds[:, None]).astype(np.float64)
             weights = np.where(matched[:, None], snapped, weights)

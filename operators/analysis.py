@@ -124,7 +124,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         require_local(obj, obj, "the shape space stored on it is")
         triangles = surface_triangles(obj, self)
         self.check_sizes(triangles)
-        frames = None
+        frames, matrices = None, []
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(obj, 2)
             names = [key_block.name for key_block in key_blocks]
@@ -135,11 +135,13 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             frames = self.frames(context)
             names = [frame_key_name(frame) for frame in frames]
             self.pose_names = [f"frame {frame}" for frame in frames]
-            poses = yield from self.read_frames(context, obj, frames, 0.1)
+            poses = yield from self.read_frames(context, obj, frames, 0.1, matrices)
         from ..core.shape_space_pca import shape_space_steps
 
-        proportions = bridge.WorldProportions(obj)  # measured as the world shows them
-        poses = [proportions.to(pose) for pose in poses]
+        # measured as the world shows them: each frame through its own matrix where the object's scale
+        # is keyframed (shape differences do not see the rigid part), else the world's proportions
+        space = bridge.frames_space(context, obj, dict(zip(frames or [], matrices)))
+        poses = [space.to(pose, time) for pose, time in zip(poses, frames or [None] * len(poses))]
         space = yield from _drive(
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
                               offset=self.resolved_offset(context), single_precision=True), 0.1, 0.85)
@@ -286,6 +288,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             self.check_sizes(triangles, uses_k_n=False)
         key = mesh.shape_keys
         base = key_pose(key.key_blocks[0], obj) if key else mesh_pose(obj)
+        times, matrices = [None], []
         if self.source == 'ACTIVE_KEY':
             key_blocks = key_blocks_of(obj, 2)
             pose_key = resolve_key(obj, self.key, "Key", default_pose_key(obj))
@@ -303,11 +306,14 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                                 "raise Step, narrow the frame range or write fewer Eigenfunctions",
                                 bytes_per_point=map_bytes_per_vertex(mesh, self.eigenfunctions))
             labels = [f" f{frame}" for frame in frames]
-            poses = yield from self.read_frames(context, obj, frames, 0.3)
+            poses = yield from self.read_frames(context, obj, frames, 0.3, matrices)
+            times = frames
         from ..core.distortion_maps import DistortionAnalyzer
 
-        proportions = bridge.WorldProportions(obj)  # distortion as the world shows it
-        base, poses = proportions.to(base), [proportions.to(pose) for pose in poses]
+        # distortion as the world shows it: each frame through its own matrix where the object's scale is
+        # keyframed, the rest mesh through the first frame's, else all in the world's proportions
+        space = bridge.frames_space(context, obj, dict(zip(times, matrices)))
+        base, poses = space.to(base, times[0]), [space.to(pose, time) for pose, time in zip(poses, times)]
         # bending lives on the offset surface, which needs an edge shared by two faces
         edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         extrinsic = bool((np.unique(edges, axis=0, return_counts=True)[1] > 1).any())

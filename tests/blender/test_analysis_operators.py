@@ -192,6 +192,46 @@ def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, ex
     assert np.abs(values).max() < 1e-5  # float32 keys
 
 
+def test_maps_of_frames_of_an_object_whose_scale_is_keyframed_measure_the_world(bpy_empty, extension, tmp_path):
+    """A sheet turning rigidly in the world while its object's scale is keyframed 1 → 2 (its own
+    coordinates shrink to half): no area change at any frame, to float32 (before, every frame was
+    measured in the object's own coordinates: area changes of 0.81 and 1.39 in log at frames 5
+    and 9, the shrink)."""
+    from blender_scenes import turning_sheet_scale_keyframed
+
+    sheet, _scale, _world = turning_sheet_scale_keyframed(extension, tmp_path)
+    bpy.context.scene.frame_set(1)
+    bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=1, frame_end=9, frame_step=4,
+                                              eigenfunctions=0)
+    for frame in (1, 5, 9):
+        values = np.zeros(len(sheet.data.vertices))
+        sheet.data.attributes[f"sd_area f{frame}"].data.foreach_get("value", values)
+        assert np.abs(values).max() < 1e-5, frame
+
+
+def test_shape_space_of_frames_of_an_object_whose_scale_is_keyframed_is_that_of_the_world(bpy_empty, extension,
+                                                                                          tmp_path):
+    """A sheet stretching and turning in the world while its object's scale is keyframed 1 → 2: its
+    shape space is that of the same world motion on an object whose scale is not keyed (the
+    distances between its points the same, to float32; before, the frames' shrink in the object's
+    own coordinates was measured too: the area embeddings' distances 0.69 of the largest off)."""
+    from blender_scenes import turning_sheet_scale_keyframed
+
+    spaces = []
+    for keyed in (True, False):
+        sheet, _scale, _world = turning_sheet_scale_keyframed(extension, tmp_path, stretch=0.05, scale_keyed=keyed)
+        bpy.context.view_layer.objects.active = sheet
+        bpy.context.scene.frame_set(1)
+        bpy.ops.shape_differences.shape_space(source='FRAMES', frame_start=1, frame_end=9, frame_step=2,
+                                              k_m=15, k_n=30)
+        data = sheet["shape_space"].to_dict()
+        points = {kind: np.reshape(data["coordinates"][kind], (-1, 2)) for kind in data["coordinates"]}
+        spaces.append({kind: np.linalg.norm(xy[:, None] - xy[None], axis=2) for kind, xy in points.items()})
+    for kind, distances in spaces[1].items():
+        assert distances.max() > 1e-2, kind  # the stretch is seen
+        np.testing.assert_allclose(spaces[0][kind], distances, atol=1e-4 * distances.max(), err_msg=kind)
+
+
 def test_bending_of_a_swell_keeps_its_sign_on_a_mirrored_stretched_object(bpy_empty, extension):
     """A sphere swelling outward near its top bends the same way on an object scaled (2, 1, 1)
     and (−2, 1, 1) (before, the mirrored one was measured in world coordinates with its triangles

@@ -10,7 +10,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
-                            key_names, snapshot)
+                            key_names, snapshot, turning_sheet_scale_keyframed)
 
 TOLERANCE = 1e-4
 
@@ -266,47 +266,13 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
 
 
-def _turning_sheet_scale_keyframed(extension, tmp_path):
-    """A sheet turning rigidly in the world at a steady 15° per frame, played by a Mesh Cache on an
-    object whose (unapplied) scale is keyframed 1 → 2 linearly over frames 1–9 (held after): the
-    sheet, its scale and its world positions as functions of the (fractional) frame."""
-    from scipy.spatial.transform import Rotation
-
-    from blender_scenes import _fcurves, grid_object
-
-    sheet = grid_object(8)
-    rest = extension.bridge.vertex_positions(sheet.data)
-
-    def scale(frame):
-        return 1.0 + 0.125 * (min(frame, 9) - 1)
-
-    def world(frame):  # the sheet as the world shows it at ``frame``
-        turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
-        return rest @ turn.T
-
-    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
-    path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([world(f) / scale(f) for f in range(1, 10)]),
-                                 start=1.0)
-    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
-    modifier.cache_format, modifier.filepath = 'PC2', str(path)
-    modifier.frame_start = 1.0
-    for frame in (1, 9):
-        sheet.scale = (scale(frame),) * 3
-        sheet.keyframe_insert("scale", frame=frame)
-    for fcurve in _fcurves(sheet.animation_data):
-        for point in fcurve.keyframe_points:
-            point.interpolation = 'LINEAR'
-    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
-    return sheet, scale, world
-
-
 def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(bpy_empty, extension, tmp_path):
     """The turning sheet on an object whose scale is keyframed: every in-between of In-between
     Frames, shown under the object's scale at its frame, is that turn to the float32 of shape keys
     (before, the keys were interpolated in the object's own coordinates, where the turning sheet
     also shrinks to half its size, and came out up to 5.7e-2 off, at frame 3, on a sheet 2 wide)."""
     bridge = extension.bridge
-    sheet, scale, world = _turning_sheet_scale_keyframed(extension, tmp_path)
+    sheet, scale, world = turning_sheet_scale_keyframed(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
         gap = 0 if frame < 5 else 1
@@ -326,7 +292,7 @@ def test_a_retime_of_an_object_whose_scale_is_keyframed_plays_the_world_motion(b
     the turning sheet also shrinks to half its size, and came out 4.7e-2 off at frame 2 on a sheet
     2 wide at speed 1, 9.0e-2 as shape keys at half speed)."""
     bridge = extension.bridge
-    sheet, scale, world = _turning_sheet_scale_keyframed(extension, tmp_path)
+    sheet, scale, world = turning_sheet_scale_keyframed(extension, tmp_path)
     names = set(bpy.data.objects.keys())
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=speed, output=output,
                                      filepath=str(tmp_path / "retimed.pc2"))

@@ -143,6 +143,32 @@ def test_errors_in_the_users_terms(sheets):
             Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, correspondence=onto)
 
 
+def test_a_target_with_a_hole_where_the_base_is_closed_is_warned(sheets):
+    """A closed sphere's target at rest is the sphere, meshed otherwise, with a cap of 5 % of its
+    area cut out: closest points lay the base over the cap on its rim, and the transfer says so with
+    the share of the base's area there (at most the cap's; before, silent: the overlap check counts
+    only base vertices more than two target edges off). The whole sphere, and two sheets with one
+    boundary meshed differently, are not warned."""
+    from meshes import icosphere, random_rotation
+
+    base, base_tris = icosphere(3)
+    target, target_tris = icosphere(3)
+    target = target @ random_rotation(2).T  # other vertices on the same sphere
+    cap = 0.05  # a cap of height h has area 2πh: a share h / 2 of the sphere's
+    kept = target_tris[target[target_tris].mean(axis=1)[:, 2] < 1 - 2 * cap]
+    pattern = r"(\d+\.\d) % of the base's area \(\d+ vertices\) lies over a hole in the target"
+    cases = (((base, base_tris, target, target_tris), False), ((base, base_tris, target, kept), True),
+             (sheets, False))
+    for meshes, warned in cases:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            Transfer(*meshes, k_M=10, k_N=20, use_extrinsic=False)
+        shares = [float(m.group(1)) for w in caught if (m := re.search(pattern, str(w.message)))]
+        assert bool(shares) == warned
+        if warned:
+            assert 0 < shares[0] <= 100 * cap
+
+
 @pytest.fixture(scope="module")
 def limb():
     """A closed limb (benchmarks/limb_scenes.py) meshed twice independently (400 / 520 vertices)
