@@ -971,12 +971,13 @@ class Interpolator:
         return self._whole
 
     def _chattering(self) -> bool:
-        """Whether every piece's triangles turn between the two poses with no coherence across
-        the mesh: neighbouring triangles' turns differ from each other (RMS over the pairs sharing
-        an edge of the angle of one's rotation relative to the other's) by at least as much as
-        the triangles turn (RMS of their rotations' residuals to the piece's rigid motion), and
-        those turns are at least the piece's rigid turn, in pieces that do not move rigidly
-        (:data:`~core.inbetween_prediction.STILL_RIGIDITY`). Such keys are wrinkles changing from
+        """Whether every piece of the mesh deforms (none moves rigidly:
+        :data:`~core.inbetween_prediction.STILL_RIGIDITY`; a rigid piece's turn is no wrinkle, and
+        the blend would cut its chord) and its triangles turn between the two poses with no
+        coherence across it: neighbouring triangles' turns differ from each other (RMS over the
+        pairs sharing an edge of the angle of one's rotation relative to the other's) by at least
+        as much as the triangles turn (RMS of their rotations' residuals to the piece's rigid
+        motion), and those turns are at least the piece's rigid turn. Such keys are wrinkles changing from
         one to the other, not a motion they resolve: the frames between them have wrinkles of
         their own, not the half turns of the keys' (see :data:`CHATTER_COHERENCE`), so the linear
         blend, their average, is the in-between. A piece turning as a body more than its
