@@ -18,7 +18,8 @@ PATH_OPTIONS = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
 class CoreSettings:
     """The core's settings: the scene settings and each core operator have them. Sizes and the
     offset have soft limits only: Blender would clamp a script's −5 to 0 (the full basis, the
-    automatic offset) silently; the core reports them (``core.validation``)."""
+    automatic offset) silently; the core reports them (``core.validation``), and the operators a
+    negative offset by its label (``operators.base.offset_option``)."""
 
     k_m: IntProperty(
         name="k_M", soft_min=0, default=0,

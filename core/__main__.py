@@ -87,22 +87,25 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_retime_settings(parser: argparse.ArgumentParser, required: bool) -> None:
+def _add_retime_settings(parser: argparse.ArgumentParser, required: bool) -> list[argparse.Action]:
     """The options that say what a retime computes besides its input cache: ``retime`` takes them,
-    and ``merge --retime`` the same, to know which retime its chunks must be of."""
-    parser.add_argument("--topology", required=required, help="OBJ file with the mesh's faces (same vertex order)")
-    parser.add_argument("--step", type=int, required=required, help="key every step-th sample")
-    parser.add_argument("--speed", type=float, default=1.0,
-                        help="0.5 = twice as slow, 1 = original timing (dropped samples rebuilt), 2 = twice as fast")
-    parser.add_argument("--k-m", type=int, default=0, help="base basis size (0 = full basis)")
-    parser.add_argument("--k-n", type=int, default=0, help="target basis size (0 = not truncated)")
-    parser.add_argument("--offset", type=float, default=0.0,
-                        help="no effect: in-betweens use no offset surface (the rotations come from the "
-                             "keys); accepted so that older job scripts run")
-    parser.add_argument("--intrinsic", action="store_true", help="intrinsic shape differences only")
-    parser.add_argument("--linear", action="store_true", help="linear instead of cubic interpolation between keys")
-    parser.add_argument("--start", type=float,
-                        help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)")
+    and ``merge --retime`` the same, to know which retime its chunks must be of. Returns them."""
+    add = parser.add_argument
+    return [
+        add("--topology", required=required, help="OBJ file with the mesh's faces (same vertex order)"),
+        add("--step", type=int, required=required, help="key every step-th sample"),
+        add("--speed", type=float, default=1.0,
+            help="0.5 = twice as slow, 1 = original timing (dropped samples rebuilt), 2 = twice as fast"),
+        add("--k-m", type=int, default=0, help="base basis size (0 = full basis)"),
+        add("--k-n", type=int, default=0, help="target basis size (0 = not truncated)"),
+        add("--offset", type=float, default=0.0,
+            help="no effect: in-betweens use no offset surface (the rotations come from the "
+                 "keys); accepted so that older job scripts run"),
+        add("--intrinsic", action="store_true", help="intrinsic shape differences only"),
+        add("--linear", action="store_true", help="linear instead of cubic interpolation between keys"),
+        add("--start", type=float,
+            help="frame of the output's first sample (default: the input PC2's start; 0 for MDD)"),
+    ]
 
 
 def _numbered(pattern: str, count: int | None) -> list[str]:
@@ -148,10 +151,15 @@ def _merged_job(args) -> str | None:
     carry), computed from the input cache's contents and the settings as ``retime`` computes it,
     or None without ``--retime``."""
     if args.retime is None:
-        given = [f"--{name}" for name in ("topology", "step") if getattr(args, name) is not None]
+        # A setting away from its default names a retime, which only --retime checks the chunks against:
+        # without it the setting would be ignored, so it is refused.
+        given = [setting.option_strings[0] for setting in _add_retime_settings(argparse.ArgumentParser(), False)
+                 if getattr(args, setting.dest) != setting.default]
         if given:
-            raise ShapeDifferenceError(f"{given[0]} goes with --retime CACHE (the input of the retime whose "
-                                       "chunks are merged)")
+            raise ShapeDifferenceError(
+                f"{given[0]} goes with --retime CACHE (the input of the retime whose chunks are merged): "
+                "--retime turns on the check that the chunks are of the retime these settings describe; "
+                "without it they have no effect")
         return None
     if args.topology is None or args.step is None:
         raise ShapeDifferenceError("--retime CACHE needs the retime's --topology and --step (and its --speed "

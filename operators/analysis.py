@@ -13,8 +13,8 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
 from .output import refuse_emptying_caches, require_local, simulations_emptied_by
-from .base import (GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of, key_pose,
-                   mesh_pose, resolve_key, surface_triangles)
+from .base import (SCENE_OFFSET, GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of,
+                   key_pose, mesh_pose, offset_option, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -35,7 +35,9 @@ class AnalysisBasisProperties(AnalysisBasis):
     """The analysis operators' basis sizes (declared in :mod:`properties`) and their checks."""
 
     def resolved_offset(self, context):
-        return self.offset or context.scene.shape_differences.offset or None
+        if self.offset:
+            return offset_option(self.offset)
+        return offset_option(context.scene.shape_differences.offset, SCENE_OFFSET)
 
     def check_sizes(self, triangles, *, uses_k_n: bool = True):
         """Refuse sizes the mesh of ``triangles`` cannot have; the defaults (sizes not given) shrink
@@ -188,6 +190,11 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
 
     def execute(self, context):
         obj = context.active_object
+        try:  # the active key and the selection stored on the object are written to it
+            require_local(obj, obj, "the pose selected on it is")
+        except InputError as error:
+            self.report({'ERROR'}, str(error))
+            return {'CANCELLED'}
         data = bridge.stored_shape_space(obj)
         try:  # read and drawn before anything changes
             first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]

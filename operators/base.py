@@ -73,6 +73,34 @@ def name_faces(message: str, triangle_faces) -> str:
     return TRIANGLE_REFERENCE.sub(named, message)
 
 
+# The core's remedy for a pose with a NaN or infinite coordinate (core.validation.check_vertices) is to
+# remove that frame; a shape key named so is removed (by its name), and a mesh has no frame to remove.
+NON_FINITE_KEY = re.compile(r"(shape key '(.*?)'(?: of '.*?')?: vertex \d+ has a non-finite coordinate .*?) "
+                            r"or remove that frame\.")
+NON_FINITE_MESH = re.compile(r"(the mesh of '.*?': vertex \d+ has a non-finite coordinate .*?) or remove that frame\.")
+
+
+def name_remedies(message: str) -> str:
+    """``message`` with the core's "remove that frame" said of a shape key as "remove shape key 'X'",
+    and left out for a mesh (fixing it is the remedy)."""
+    return NON_FINITE_MESH.sub(r"\1.", NON_FINITE_KEY.sub(r"\1 or remove shape key '\2'.", message))
+
+
+def offset_option(offset: float, where: str = "") -> float | None:
+    """The core's ``offset`` for an Offset t setting (``where`` says which one, if not the
+    operator's): None (automatic) for 0, else the distance. A negative one (typed past the soft
+    minimum) is refused in the setting's terms; the core's message is for scripts (its ``offset``
+    argument, None for automatic)."""
+    if not offset >= 0:
+        raise InputError(f"Offset t{where} = {offset:g} must be positive, or 0 for the automatic distance (half "
+                         "the mean edge length)")
+    return offset or None
+
+
+#: Where the scene's Offset t is set, for :func:`offset_option`.
+SCENE_OFFSET = " (the scene's, in the sidebar's Shape Diff tab)"
+
+
 def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
     if isinstance(error, (InputError, bridge.FrameReadError)):
@@ -83,7 +111,7 @@ def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> 
                 "zip built for your platform (it bundles SciPy and threadpoolctl), then restart Blender.")
     core = load_core()
     if isinstance(error, core.ShapeDifferenceError):
-        return name_faces(name_poses(str(error), pose_names), triangle_faces)
+        return name_faces(name_remedies(name_poses(str(error), pose_names)), triangle_faces)
     return None
 
 
@@ -124,6 +152,15 @@ def edit_mode_problem(obj) -> str | None:
     return None
 
 
+def instance_hint(obj) -> str:
+    """How to reach the meshes ``obj`` shows as a collection instance (an Empty drawing a collection,
+    as linking or appending one makes: its meshes are not objects of the scene to select), else ""."""
+    if obj is None or obj.instance_type != 'COLLECTION' or obj.instance_collection is None:
+        return ""
+    return (f" ('{obj.name}' is an instance of the collection '{obj.instance_collection.name}': make its "
+            "objects real with Object › Apply › Make Instances Real, then select one of its meshes)")
+
+
 class GeneratorOperator:
     """Mixin for operators whose work is the generator ``run(context)``.
 
@@ -137,7 +174,7 @@ class GeneratorOperator:
     def poll(cls, context):
         obj = context.active_object
         if obj is None or obj.type != 'MESH':
-            cls.poll_message_set("Select a mesh object: the active object must be a mesh")
+            cls.poll_message_set("Select a mesh object: the active object must be a mesh" + instance_hint(obj))
             return False
         editing = edit_mode_problem(obj)
         if editing:
@@ -289,6 +326,7 @@ class CoreSettingsProperties(CoreSettings):
         Resolved values are written back to the operator so the Redo panel shows them.
         """
         settings = context.scene.shape_differences
+        offset_where = "" if self.properties.is_property_set("offset") else SCENE_OFFSET
         for name in ("k_m", "k_n", "offset", "use_extrinsic"):
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
@@ -302,7 +340,7 @@ class CoreSettingsProperties(CoreSettings):
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         check_basis_order(self.k_m, self.k_n)
-        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=self.offset or None,
+        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=offset_option(self.offset, offset_where),
                     use_extrinsic=self.use_extrinsic)
 
 

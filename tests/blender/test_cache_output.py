@@ -446,13 +446,15 @@ def test_drivers_on_the_source_transform_are_named_as_left_out(bpy_empty, extens
     assert f"is not moved by drivers of '{source.name}'" in capfd.readouterr().out
 
 
-def _linked_sheet(bridge, tmp_path, override: bool):
-    """The posed grid saved in a library .blend inside a collection "Chars", linked into a fresh
-    file (the collection linked into the scene, or overridden through a collection instance)."""
+def _linked_sheet(bridge, tmp_path, override: bool, prepare=lambda sheet: None):
+    """The posed grid saved in a library .blend inside a collection "Chars" (after ``prepare`` of
+    it), linked into a fresh file (the collection linked into the scene, or overridden through a
+    collection instance)."""
     from blender_scenes import posed_grid
     collection = bpy.data.collections.new("Chars")
     bpy.context.scene.collection.children.link(collection)
     sheet = posed_grid(bridge, 5)
+    prepare(sheet)
     for owner in sheet.users_collection:
         owner.objects.unlink(sheet)
     collection.objects.link(sheet)
@@ -508,6 +510,23 @@ def test_analysis_of_a_linked_source_is_refused(bpy_empty, extension, core, over
         with pytest.raises(RuntimeError, match=match):
             getattr(bpy.ops.shape_differences, operator)()
     assert set(sheet.data.attributes.keys()) == attributes and "shape_space" not in sheet
+
+
+@pytest.mark.parametrize("override", [False, True], ids=["linked", "overridden"])
+def test_selecting_a_pose_of_a_linked_source_is_refused(bpy_empty, extension, core, override, tmp_path):
+    """Select Pose writes the active shape key and the selection into the stored shape space: on
+    a linked or overridden character neither would be saved with the file, so it is refused and
+    changes nothing."""
+    def shape_space(sheet):
+        with bpy.context.temp_override(active_object=sheet, object=sheet, selected_objects=[sheet]):
+            bpy.ops.shape_differences.shape_space()
+
+    sheet = _linked_sheet(extension.bridge, tmp_path, override, prepare=shape_space)
+    active, stored = sheet.active_shape_key_index, sheet["shape_space"].to_dict()
+    with bpy.context.temp_override(active_object=sheet, object=sheet, selected_objects=[sheet]):
+        with pytest.raises(RuntimeError, match="the pose selected on it is not saved"):
+            bpy.ops.shape_differences.shape_space_select(rank=0)
+    assert sheet.active_shape_key_index == active and sheet["shape_space"].to_dict() == stored
 
 
 @pytest.mark.parametrize("parent_type, vertices", [("VERTEX", (4, 0, 0)), ("VERTEX_3", (3, 5, 7))])

@@ -33,6 +33,19 @@ def test_active_object_is_not_a_mesh(bpy_empty):
         bpy.ops.shape_differences.frames_to_shape_keys()
 
 
+def test_a_collection_instance_is_told_how_to_reach_its_meshes(bpy_empty):
+    """An Empty instancing a collection (as linking one makes) shows meshes that are not objects:
+    the message says how to make them real."""
+    collection = bpy.data.collections.new("Chars")
+    collection.objects.link(grid_object(4))
+    bpy.context.scene.collection.objects.unlink(collection.objects[0])
+    bpy.ops.object.collection_instance_add(collection=collection.name)
+    assert bpy.context.active_object.instance_collection == collection
+    with pytest.raises(RuntimeError, match=r"must be a mesh \('Chars' is an instance of the collection 'Chars': "
+                                           r"make its objects real with Object › Apply › Make Instances Real"):
+        bpy.ops.shape_differences.inbetween()
+
+
 def test_edit_mode(bpy_empty):
     grid_object(4)
     bpy.ops.object.mode_set(mode='EDIT')
@@ -303,13 +316,29 @@ def test_degenerate_pose(bpy_empty, extension, core):
 
 def test_reconstruct_names_the_shape_key_of_a_broken_pose(bpy_empty, extension):
     """Reconstruct's messages name the shape key, as the other operators' do (before: "target
-    vertices", "base vertices")."""
+    vertices", "base vertices"), and the remedy is said of it (the core's "remove that frame" is
+    said of the frames and arrays it is given)."""
     obj = posed_grid(extension.bridge, 6)
     broken = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks["Bend"])
     broken[3, 0] = np.nan
     add_key(obj, "Broken Pose", broken)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
-                         "shape key 'Broken Pose': vertex 3 has a non-finite coordinate", key="Broken Pose")
+                         r"shape key 'Broken Pose': vertex 3 has a non-finite coordinate .* or remove shape key "
+                         r"'Broken Pose'\.$", key="Broken Pose")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.distortion_maps,  # checked before the core
+                         r"shape key 'Broken Pose' of 'Sheet': vertex 3 .* or remove shape key 'Broken Pose'\.$",
+                         key="Broken Pose")
+
+
+@pytest.mark.parametrize("operator", ["inbetween", "shape_space"])
+def test_a_negative_scene_offset_is_named_as_the_scenes(bpy_empty, extension, operator):
+    """The scene's Offset t, taken where the operator's is not set, negative: refused as the scene's
+    setting (the core said "Use None for the automatic distance", which no setting can be)."""
+    obj = posed_grid(extension.bridge, 6)
+    bpy.context.scene.shape_differences.offset = -0.1
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
+                         r"Offset t \(the scene's, in the sidebar's Shape Diff tab\) = -0.1 must be positive, or 0 "
+                         "for the automatic distance")
 
 
 def _sheet_with_an_ngon(n: int, cells: set, offset: float):
@@ -760,7 +789,8 @@ def test_a_frame_with_a_nan_is_refused_by_its_number(bpy_empty, extension, tmp_p
                                           ("target", "the mesh of 'Sheet'")])
 def test_transfer_names_the_mesh_and_key_holding_a_nan(bpy_empty, extension, where, named):
     """A NaN in the source's key was reported as the core's "target vertices" (the core's target
-    is the source object, so a user looked at the other mesh): the key and its object are named."""
+    is the source object, so a user looked at the other mesh): the key and its object are named, and
+    the core's "remove that frame" is said of the key (a mesh: fixing it is the remedy)."""
     from blender_scenes import transfer_pair
 
     bridge = extension.bridge
@@ -775,7 +805,8 @@ def test_transfer_names_the_mesh_and_key_holding_a_nan(bpy_empty, extension, whe
         positions = bridge.stored_key_positions(key_block)
         positions[3, 0] = np.inf
         key_block.data.foreach_set("co", positions.astype(np.float32).ravel())
-    with pytest.raises(RuntimeError, match=rf"{named}: vertex 3 has a non-finite coordinate"):
+    remedy = r"exploded\)\." if where == "target" else f"or remove shape key '{where}'\\."
+    with pytest.raises(RuntimeError, match=rf"{named}: vertex 3 has a non-finite coordinate .*{remedy}$"):
         bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
     assert target.data.shape_keys is None
 
@@ -839,12 +870,12 @@ def test_a_mesh_without_vertices_has_nothing_to_capture(bpy_empty, extension, ou
 @pytest.mark.parametrize("operator, properties, match", [
     ("inbetween", dict(k_m=-5), r"k_M \(base basis size\) must be 0 / None \(full basis\) or a positive number"),
     ("reconstruct", dict(k_m=20, k_n=-5), "k_N = -5 must be at least k_M = 20"),
-    ("exaggerate", dict(offset=-0.5), "offset .* must be positive; got -0.5"),
+    ("exaggerate", dict(offset=-0.5), "Offset t = -0.5 must be positive, or 0 for the automatic distance"),
     ("shape_space", dict(k_m=1), "k_M .* is 1, but the first 1 Laplace–Beltrami eigenfunctions"),
-    ("distortion_maps", dict(offset=-1.0), "offset .* must be positive; got -1.0")])
+    ("distortion_maps", dict(offset=-1.0), "Offset t = -1 must be positive, or 0 for the automatic distance")])
 def test_sizes_and_offsets_below_their_range_are_errors(bpy_empty, extension, core, operator, properties, match):
     """A script's negative basis size or offset was clamped by Blender without a word (k_M −5 ran
     with the full basis, an offset −0.5 with the automatic one, the shape space's k_M 1 with 2): the
-    core's checks report them, as they do for every other size."""
+    core's checks report them, as they do for every other size (the offset the operators, by its label)."""
     obj = posed_grid(extension.bridge, 6)
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator), match, **properties)

@@ -191,6 +191,10 @@ def test_merge_knows_its_retime(job, capsys):
     assert "it has no stamp" in capsys.readouterr().err
     assert merge(own, "no_retime.pc2", *job_of[2:]) == 2  # settings without the input they belong to
     assert "--topology goes with --retime" in capsys.readouterr().err
+    for setting in (["--speed", "0.5"], ["--k-m", "20"], ["--k-n", "20"], ["--intrinsic"], ["--linear"],
+                    ["--start", "3"], ["--offset", "0.1"]):  # ignored without --retime, so refused
+        assert merge(own, "no_retime.pc2", *setting) == 2
+        assert f"{setting[0]} goes with --retime" in capsys.readouterr().err
     assert merge(own, "no_step.pc2", *job_of[:4]) == 2
     assert "needs the retime's --topology and --step" in capsys.readouterr().err
     assert not any((folder / name).exists() for name in ("plain.pc2", "no_retime.pc2", "no_step.pc2"))
