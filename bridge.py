@@ -171,8 +171,7 @@ class WorldProportions:
         linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
         sigma = np.linalg.svd(linear, compute_uv=False)
         skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
-        if np.linalg.det(linear) < 0:  # mirrored: mirrored back in the world (an isometry there), so
-            linear[0] = -linear[0]     # the triangles keep their side (offset surfaces, bending's sign)
+        linear = _unmirrored(linear)
         self.matrix = linear.T if skewed else None  # row vectors: x ↦ x Lᵀ
         self.inverse = np.linalg.inv(linear).T if skewed else None
 
@@ -190,8 +189,9 @@ class WorldProportions:
 
 
 def _unmirrored(matrix: np.ndarray) -> np.ndarray:
-    """The world matrix (4, 4) ``matrix`` with its first row's linear part negated where it mirrors,
-    so that triangles keep their side in the world (as :class:`WorldProportions` does)."""
+    """The world matrix ``matrix`` (4, 4), or its linear part (3, 3), with its first row's linear
+    part negated where it mirrors: mirrored back in the world (an isometry there), so that the
+    triangles keep their side (offset surfaces, bending's sign)."""
     matrix = np.array(matrix, dtype=np.float64)
     if np.linalg.det(matrix[:3, :3]) < 0:
         matrix[0, :3] = -matrix[0, :3]
@@ -212,20 +212,22 @@ def proportions_change(matrices) -> bool:
     return bool(spread > SIMILARITY_TOLERANCE * max(np.abs(stretch).max() for stretch in stretches))
 
 
-def world_matrices(context: bpy.types.Context, obj: bpy.types.Object, times) -> list[np.ndarray]:
-    """``obj``'s world matrix (4, 4) at each of the scene ``times`` (frames; a fraction is a
-    sub-frame), the scene's current frame restored afterwards."""
-    scene = context.scene
+def at_times(scene: bpy.types.Scene, times):
+    """Set ``scene`` to each of ``times`` (frames; a fraction is a sub-frame) in turn, yielding
+    it; the scene's current frame and sub-frame restored afterwards."""
     original_frame, original_subframe = scene.frame_current, scene.frame_subframe
-    matrices = []
     try:
         for time in times:
             whole = int(np.floor(time))
             scene.frame_set(whole, subframe=float(time - whole))
-            matrices.append(np.array(obj.matrix_world, dtype=np.float64))
+            yield time
     finally:
         scene.frame_set(original_frame, subframe=original_subframe)
-    return matrices
+
+
+def world_matrices(context: bpy.types.Context, obj: bpy.types.Object, times) -> list[np.ndarray]:
+    """``obj``'s world matrix (4, 4) at each of the scene ``times`` (:func:`at_times`)."""
+    return [np.array(obj.matrix_world, dtype=np.float64) for _ in at_times(context.scene, times)]
 
 
 class WorldFrames:

@@ -326,15 +326,8 @@ def motion_set_aside(context, obj, frames: list[int], aside: list) -> str | None
     copies of those modifiers. None otherwise. The scene's current frame is restored."""
     if not aside or len(frames) < 2:
         return None
-    scene = context.scene
-    current, subframe = scene.frame_current, scene.frame_subframe
-    shown = []
-    try:
-        for frame in (frames[0], frames[-1]):
-            scene.frame_set(frame)
-            shown.append(bridge.evaluated_positions(obj, context.evaluated_depsgraph_get()))
-    finally:
-        scene.frame_set(current, subframe=subframe)
+    shown = [bridge.evaluated_positions(obj, context.evaluated_depsgraph_get())
+             for _ in bridge.at_times(context.scene, (frames[0], frames[-1]))]
     if shown[0].shape == shown[1].shape and np.array_equal(shown[0], shown[1]):
         return None
     generators = [modifier for modifier in aside if modifier.type in GENERATE_MODIFIERS]
