@@ -165,10 +165,11 @@ class WorldProportions:
     sheared there and in-betweens computed there keep the wrong lengths (a flag keyed every 8th
     frame, scaled (2, 1, 1): edge deviation 0.79 → 2.80 %, RMS error ×2; the linear blend does not
     care). Poses go through :meth:`to` before the core and :meth:`back` after; for a similarity
-    (any rotation, one scale) nothing is done."""
+    (any rotation, one scale) nothing is done. ``matrix``: the world matrix (4, 4) the poses were
+    shown under (frames read: one of theirs), else ``obj``'s at the current frame (its shape keys)."""
 
-    def __init__(self, obj: bpy.types.Object):
-        linear = np.array(obj.matrix_world.to_3x3(), dtype=np.float64)
+    def __init__(self, obj: bpy.types.Object, matrix: np.ndarray | None = None):
+        linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
         sigma = np.linalg.svd(linear, compute_uv=False)
         skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
         linear = _unmirrored(linear)
@@ -198,14 +199,28 @@ def _unmirrored(matrix: np.ndarray) -> np.ndarray:
     return matrix
 
 
+def _polar(matrix) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, S)`` of the linear part ``L = R S`` of the world matrix ``matrix`` (4, 4): ``R`` orthogonal
+    (a rotation, or a rotation and a mirror), ``S`` the symmetric stretch."""
+    u, sigma, vt = np.linalg.svd(np.asarray(matrix, dtype=np.float64)[:3, :3])
+    return u @ vt, (vt.T * sigma) @ vt
+
+
+def with_proportions(placement, proportions) -> np.ndarray:
+    """The world matrix (4, 4) that places an object where ``placement`` (4, 4) does (its turn,
+    mirror and translation) and stretches it as ``proportions`` (4, 4) does (:func:`_polar`'s ``S``):
+    ``placement`` itself where the two stretch alike (:func:`proportions_change`)."""
+    matrix = np.array(placement, dtype=np.float64)
+    if proportions_change([placement, proportions]):
+        matrix[:3, :3] = _polar(placement)[0] @ _polar(proportions)[1]
+    return matrix
+
+
 def proportions_change(matrices) -> bool:
     """Whether the world matrices (4, 4) ``matrices`` stretch the mesh differently: the symmetric
-    factors ``S`` of their linear parts (``L = R S``, a rotation times a stretch) differ by more
-    than :data:`SIMILARITY_TOLERANCE` of the largest scale (an object whose scale is keyframed)."""
-    stretches = []
-    for matrix in matrices:
-        _, sigma, vt = np.linalg.svd(np.asarray(matrix, dtype=np.float64)[:3, :3])
-        stretches.append((vt.T * sigma) @ vt)
+    factors ``S`` of their linear parts (``L = R S``, :func:`_polar`) differ by more than
+    :data:`SIMILARITY_TOLERANCE` of the largest scale (an object whose scale is keyframed)."""
+    stretches = [_polar(matrix)[1] for matrix in matrices]
     if not stretches:
         return False
     spread = max(np.abs(stretch - stretches[0]).max() for stretch in stretches)
@@ -267,10 +282,12 @@ def frames_space(context: bpy.types.Context, obj: bpy.types.Object, matrices: di
     """Where to interpolate frames of ``obj`` read with its world matrices ``matrices`` ({frame:
     (4, 4)}): the world through each frame's matrix (:class:`WorldFrames`) where they stretch the
     mesh differently (:func:`proportions_change`: its scale keyframed), else the world's
-    proportions, the same at every frame (:class:`WorldProportions`)."""
+    proportions, the same at every frame read (:class:`WorldProportions`, those of the frames' matrices:
+    the current frame, outside them, may show the object under another scale). Without ``matrices``,
+    those of the current frame."""
     if proportions_change(matrices.values()):
         return WorldFrames(context, obj, matrices)
-    return WorldProportions(obj)
+    return WorldProportions(obj, next(iter(matrices.values()), None))
 
 
 def scene_time(scene: bpy.types.Scene, frame: float) -> float:

@@ -15,7 +15,8 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
                    playback_range, require_count, surface_triangles)
 from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, motion_set_aside, object_motion,
-                     objects_moving, render_only_motion, unbaked_simulations, unfit_mesh_cache)
+                     objects_moving, render_only_motion, simulation_zone_start, unbaked_simulations,
+                     unfit_mesh_cache)
 from .poses import format_factor, inbetween_name
 
 
@@ -23,12 +24,16 @@ def frame_key_name(frame: int) -> str:
     return f"Frame {frame}"
 
 
-def simulation_start(movers: list) -> int | None:
+def simulation_start(scene, movers: list) -> int | None:
     """The first frame of the unbaked simulations of ``movers``, an object and the objects that move
-    it (a cloth proxy driving it through a Surface Deform: :func:`objects_moving`): reading frames
-    starts there, so that a simulation that is not baked is computed from its start, one frame at a time."""
+    it (a cloth proxy driving it through a Surface Deform: :func:`objects_moving`), and of their
+    Geometry Nodes simulation zones (:func:`simulation_zone_start`; baked or not, which the Python API
+    does not tell): reading frames starts there, so that a simulation that is not baked is computed
+    from its start, one frame at a time."""
     starts = [mover.modifiers[name].point_cache.frame_start for mover in movers
               for name in unbaked_simulations(mover)]
+    starts += [start for mover in movers for modifier in mover.modifiers if modifier.show_viewport
+               for start in [simulation_zone_start(scene, modifier)] if start is not None]
     return min(starts) if starts else None
 
 
@@ -107,7 +112,7 @@ class FrameRangeProperties:
         unbaked = {(mover, modifier): modifier.point_cache.info for mover, modifier in bridge.simulations(movers)
                    if not modifier.point_cache.is_baked}
         began = time.monotonic()
-        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(movers),
+        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(context.scene, movers),
                                         every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
         with closing(reader) as frame_reader:
             for frame, positions in frame_reader:

@@ -82,25 +82,45 @@ ATTRIBUTE_NODES = {
 }
 
 
-def attribute_only(modifier) -> bool:
-    """Whether ``modifier`` is a Geometry Nodes modifier whose node group (and the groups in it)
-    has only :data:`ATTRIBUTE_NODES`."""
-    if modifier.type != 'NODES' or modifier.node_group is None:
-        return False
-    trees, seen = [modifier.node_group], set()
+def group_nodes(tree):
+    """Every node of the node tree ``tree`` and of the groups in it (each group once)."""
+    trees, seen = [tree], set()
     while trees:
         tree = trees.pop()
         if tree.name_full in seen:
             continue
         seen.add(tree.name_full)
         for node in tree.nodes:
-            if node.bl_idname not in ATTRIBUTE_NODES:
-                return False
-            if node.bl_idname == 'GeometryNodeGroup':
-                if node.node_tree is None:
-                    return False
+            yield node
+            if node.bl_idname == 'GeometryNodeGroup' and node.node_tree is not None:
                 trees.append(node.node_tree)
-    return True
+
+
+def attribute_only(modifier) -> bool:
+    """Whether ``modifier`` is a Geometry Nodes modifier whose node group (and the groups in it)
+    has only :data:`ATTRIBUTE_NODES` (and no group node without a group)."""
+    if modifier.type != 'NODES' or modifier.node_group is None:
+        return False
+    return all(node.bl_idname in ATTRIBUTE_NODES
+               and not (node.bl_idname == 'GeometryNodeGroup' and node.node_tree is None)
+               for node in group_nodes(modifier.node_group))
+
+
+def simulation_zone_start(scene, modifier) -> int | None:
+    """The first frame of the simulation zones of the Geometry Nodes ``modifier`` (its node group and
+    the groups in it), None where it has none: a zone simulates from the scene's start, or from the
+    start of its own range where its bake settings give one (Simulation Bake › Custom Range). Blender
+    steps a zone that is not baked once per frame shown, from the state it last computed, so a frame
+    is the zone's only when every frame from that start was shown in order."""
+    if modifier.type != 'NODES' or modifier.node_group is None or not any(
+            node.bl_idname == 'GeometryNodeSimulationOutput' for node in group_nodes(modifier.node_group)):
+        return None
+    # the bake settings of the zones (those of Bake nodes left out where a setting names its node)
+    zones = [bake for bake in getattr(modifier, "bakes", ())
+             if getattr(bake, "node", None) is None or bake.node.bl_idname == 'GeometryNodeSimulationOutput']
+    starts = [bake.frame_start if getattr(bake, "use_custom_simulation_frame_range", False) else scene.frame_start
+              for bake in zones]
+    return min(starts, default=scene.frame_start)
 
 
 def _still(modifier) -> bool:
@@ -194,10 +214,12 @@ def trailing_generators(obj) -> list:
     return [modifier for modifier in enabled[start:] if modifier.type not in PASSIVE_MODIFIERS]
 
 
+#: Modifiers that replace the positions of their mesh with poses of their own (a simulation's frames,
+#: a cache's samples): the mesh's shape keys do not show under them.
+POSE_REPLACING_MODIFIERS = SIMULATION_MODIFIERS | {'MESH_CACHE', 'MESH_SEQUENCE_CACHE'}
 #: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
 #: simulate again from its own start) and what reads a cache (it would replace the poses).
-NOT_COPIED_UNDER_KEYS = SIMULATION_MODIFIERS | {'MESH_CACHE', 'MESH_SEQUENCE_CACHE', 'PARTICLE_SYSTEM',
-                                                'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
+NOT_COPIED_UNDER_KEYS = POSE_REPLACING_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
 
 
 def modifiers_under_keys(obj) -> tuple[list, list]:
@@ -247,12 +269,18 @@ def _simulations_named(simulations) -> str:
     return ", ".join(f"'{obj.name}' ({', '.join(repr(name) for name in names)})" for obj, names in simulations)
 
 
+def sharing_mesh(obj) -> list:
+    """The other objects whose data is the mesh of ``obj`` (linked duplicates): they show its shape
+    keys and attributes too."""
+    return [other for other in bpy.data.objects if other.data == obj.data and other != obj]
+
+
 def simulations_emptied_by(scene, obj) -> tuple[list, list]:
     """The unbaked simulations whose caches Blender empties when the mesh of ``obj`` changes (shape
     keys or attributes added; it computes them again from their start): ``(object, simulation
     names)`` pairs of ``obj`` and the objects sharing its mesh (linked duplicates), and of the other
     objects of ``scene`` where one of those is a collider or force field (:func:`reacting_simulations`)."""
-    users = [obj] + [other for other in bpy.data.objects if other.data == obj.data and other != obj]
+    users = [obj] + sharing_mesh(obj)
     sharing = [(user, unbaked_simulations(user)) for user in users if unbaked_simulations(user)]
     return sharing, reacting_simulations(scene, users)
 
@@ -645,6 +673,18 @@ class PoseWriter:
                         for name, pose, tail in zip(names, poses, tails)]
             times = [bridge.scene_time(context.scene, frame) for frame in frames]
             added = bridge.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
+            # the keyed values are the mesh's: its other objects play the new keys as well, unless
+            # their own simulation or cache replaces what the keys show
+            others = [other for other in (sharing_mesh(source) if keyframe else [])
+                      if not any(modifier.show_viewport and modifier.type in POSE_REPLACING_MODIFIERS
+                                 for modifier in other.modifiers)]
+            if others:
+                named = ", ".join(f"'{other.name}'" for other in others)
+                self.report({'WARNING'}, f"{named} {'shares' if len(others) == 1 else 'share'} the mesh of "
+                                         f"'{source.name}' and now {'plays' if len(others) == 1 else 'play'} the "
+                                         "new keyframed shape keys too: give "
+                                         f"'{source.name}' its own mesh first (Object › Relations › Make Single "
+                                         "User › Object & Data), or use Output › Point Cache (a new object)")
             motion = object_motion(source) if speed != 1.0 else {}
             if motion:
                 self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "

@@ -4,6 +4,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
+from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, edit_mode_problem, key_blocks_of,
                    key_pose, load_core, mesh_pose, surface_triangles)
@@ -141,23 +142,27 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
 
     def _source_poses(self, context, source):
         """Yield progress while reading the poses; returns (names, frames, rest positions, poses),
-        in object space of the source, and the source's world matrix with each pose (frames: at
+        in object space of the source, the source's world matrix with each pose (frames: at
         that frame, so that a source moved as a whole by its keyframes, constraints or parent is
         transferred with that motion; keys: played one a frame from the start of playback, as the
-        other operators' keys are). Frames are read as the frame operators read them: an unbaked
-        simulation computed from its start, its generators after the motion set aside."""
+        other operators' keys are) and the one its rest is laid in the world with: placed as at
+        the current frame (where the target is laid on it for closest points), and of frames
+        stretched as the first frame is (a source whose scale is keyframed is measured against its
+        rest in the proportions its frames show, whatever the current frame's). Frames are read as
+        the frame operators read them: an unbaked simulation computed from its start, its
+        generators after the motion set aside."""
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(source)
             rest = key_pose(key_blocks[0], source)
             names = [kb.name for kb in key_blocks[1:]]
             return (names, scene_frames(context, len(names)), rest,
                     [key_pose(kb, source) for kb in key_blocks[1:]],
-                    [source.matrix_world.copy()] * len(names))
+                    [source.matrix_world.copy()] * len(names), source.matrix_world.copy())
         frames = self.frames(context)
         matrices = []
         poses = yield from self.read_frames(context, source, frames, 0.05, matrices)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], mesh_pose(source),
-                poses, matrices)
+                poses, matrices, bridge.with_proportions(source.matrix_world, matrices[0]))
 
     def run(self, context):
         obj = context.active_object
@@ -173,7 +178,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             correspondence = read_correspondence(obj, self.map_attribute, n_source)
         elif self.matching == 'FILE':
             correspondence = read_map_files(obj, source, self.map_file, self.source_map_file, self.one_based)
-        names, frames, rest, poses, matrices = yield from self._source_poses(context, source)
+        names, frames, rest, poses, matrices, rest_matrix = yield from self._source_poses(context, source)
         if not poses:
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
@@ -182,7 +187,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
         # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
         transfer = yield from self.compute(
-            0.1, core.Transfer, base, triangles, _world(source, rest), source_triangles,
+            0.1, core.Transfer, base, triangles, _world(source, rest, rest_matrix), source_triangles,
             correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"])
         rebuilt = []
         for i, pose in enumerate(poses):

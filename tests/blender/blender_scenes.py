@@ -66,6 +66,73 @@ def turning_sheet_scale_keyframed(extension, tmp_path, stretch: float = 0.0, sca
     return sheet, scale, world
 
 
+def turning_stretched_sheet(extension, tmp_path, first: int = 1, last: int = 9):
+    """A sheet scaled (2, 1, 0.5) in Object Mode and not applied, played by a Mesh Cache that turns it
+    rigidly in the world at a steady 15° per frame from frame ``first`` on (scene frames 1–``last``):
+    (the sheet, the linear part of its world matrix, its turn at a frame in the mesh's coordinates)."""
+    import importlib
+
+    from scipy.spatial.transform import Rotation
+
+    sheet, linear, rest = stretched_sheet(extension.bridge)
+
+    def turned(frame):
+        turn = Rotation.from_rotvec(np.radians(15.0 * (frame - first)) * np.array([0.0, 0.8, 0.6])).as_matrix()
+        return world_turned(rest, linear, turn)
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([turned(f) for f in range(1, last + 1)]), start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    modifier.frame_start = 1.0  # sample 0 at frame 1 (the modifier reads sample frame − frame_start)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, last
+    return sheet, linear, turned
+
+
+def turning_sheet_stretched_before_its_frames(extension, tmp_path):
+    """:func:`turning_stretched_sheet` turning from frame 3, its scale keyframed from 1 at frame 1 to
+    (2, 1, 0.5) at frame 3 (held after): frames 3–11 all show it under the one stretch, the scene's
+    current frame 1 under none. (the sheet, the linear part of its world matrix from frame 3 on, its
+    turn at a frame from 3 on in the mesh's coordinates)."""
+    sheet, linear, turned = turning_stretched_sheet(extension, tmp_path, first=3, last=11)
+    stretch = tuple(sheet.scale)
+    for frame, scale in ((1, (1.0, 1.0, 1.0)), (3, stretch)):
+        sheet.scale = scale
+        sheet.keyframe_insert("scale", frame=frame)
+    bpy.context.scene.frame_set(1)
+    return sheet, linear, turned
+
+
+def simulation_zone_scene(frames: int = 17):
+    """A grid whose Geometry Nodes simulation zone (not baked) turns it 6° about z and lifts it by 0.05
+    at each step, from the state of the frame before; scene frames 1 to ``frames``, at frame 1."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    obj = grid_object(6, name="Simulated")
+    group = bpy.data.node_groups.new("Turn and lift", 'GeometryNodeTree')
+    group.interface.new_socket("Geometry", in_out='INPUT', socket_type='NodeSocketGeometry')
+    group.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+    nodes, links = group.nodes, group.links
+    given, result = nodes.new('NodeGroupInput'), nodes.new('NodeGroupOutput')
+    zone_in, zone_out = nodes.new('GeometryNodeSimulationInput'), nodes.new('GeometryNodeSimulationOutput')
+    zone_in.pair_with_output(zone_out)
+    move, position = nodes.new('GeometryNodeSetPosition'), nodes.new('GeometryNodeInputPosition')
+    turn = nodes.new('ShaderNodeVectorRotate')
+    turn.rotation_type, turn.inputs["Angle"].default_value = 'Z_AXIS', np.radians(6.0)
+    lift = nodes.new('ShaderNodeVectorMath')
+    lift.operation, lift.inputs[1].default_value = 'ADD', (0.0, 0.0, 0.05)
+    links.new(given.outputs[0], zone_in.inputs[0])
+    links.new(zone_in.outputs[1], move.inputs["Geometry"])
+    links.new(position.outputs[0], turn.inputs["Vector"])
+    links.new(turn.outputs[0], lift.inputs[0])
+    links.new(lift.outputs[0], move.inputs["Position"])
+    links.new(move.outputs[0], zone_out.inputs[1])
+    links.new(zone_out.outputs[0], result.inputs[0])
+    obj.modifiers.new("Simulation", 'NODES').node_group = group
+    scene.frame_set(1)
+    return obj
+
+
 def rolled(positions: np.ndarray, angle: float) -> np.ndarray:
     """The grid rolled about the y axis into an arc of ``angle`` radians (a bending pose)."""
     x, y = positions[:, 0], positions[:, 1]

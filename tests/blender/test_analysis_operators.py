@@ -209,6 +209,22 @@ def test_maps_of_frames_of_an_object_whose_scale_is_keyframed_measure_the_world(
         assert np.abs(values).max() < 1e-5, frame
 
 
+def test_maps_of_frames_measure_the_proportions_of_the_frames_read(bpy_empty, extension, tmp_path):
+    """A sheet stretched (2, 1, 0.5) over frames 3–11, turning rigidly in the world, measured while
+    the scene is at frame 1, where its keyframed scale is 1: no area change at any frame read, to
+    float32 (before, the world's proportions were taken at the current frame: log area changes up to
+    1.06 where there are none)."""
+    from blender_scenes import turning_sheet_stretched_before_its_frames
+
+    sheet, _linear, _turned = turning_sheet_stretched_before_its_frames(extension, tmp_path)
+    bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=3, frame_end=11, frame_step=4,
+                                              eigenfunctions=0)
+    for frame in (3, 7, 11):
+        values = np.zeros(len(sheet.data.vertices))
+        sheet.data.attributes[f"sd_area f{frame}"].data.foreach_get("value", values)
+        assert np.abs(values).max() < 1e-5, frame
+
+
 def test_shape_space_of_frames_of_an_object_whose_scale_is_keyframed_is_that_of_the_world(bpy_empty, extension,
                                                                                           tmp_path):
     """A sheet stretching and turning in the world while its object's scale is keyframed 1 → 2: its

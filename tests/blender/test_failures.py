@@ -879,3 +879,33 @@ def test_sizes_and_offsets_below_their_range_are_errors(bpy_empty, extension, co
     core's checks report them, as they do for every other size (the offset the operators, by its label)."""
     obj = posed_grid(extension.bridge, 6)
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator), match, **properties)
+
+
+def test_keyframed_shape_keys_on_a_shared_mesh_say_its_other_objects_play_them(bpy_empty, extension, capfd):
+    """A baked cloth whose mesh a linked duplicate 'Twin' shares: In-between Frames to shape keys
+    keys their values on the mesh, so Twin plays the cloth's motion too (0.64 in its world at frame
+    13); that is said, naming Twin (before, nothing was). Keys that play nowhere (Frames to Shape Keys),
+    keys written from Twin that the cloth's bake hides, and an object with a mesh of its own are not
+    warned."""
+    from blender_scenes import cloth_scene
+
+    cloth = cloth_scene(10, frames=13)
+    twin = cloth.copy()
+    twin.name = "Twin"
+    twin.modifiers.clear()
+    bpy.context.scene.collection.objects.link(twin)
+    still = bpy.context.scene.frame_current
+    capfd.readouterr()
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_step=4, output='SHAPE_KEYS')
+    assert "Twin" not in capfd.readouterr().out
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    assert ("'Twin' shares the mesh of 'Cloth' and now plays the new keyframed shape keys too" in
+            capfd.readouterr().out)
+    assert bpy.context.scene.frame_current == still
+    bpy.context.view_layer.objects.active = twin  # keys from Twin: the cloth's baked frames hide them on it
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    assert "shares the mesh" not in capfd.readouterr().out
+    bpy.context.view_layer.objects.active = cloth
+    twin.data = twin.data.copy()  # a mesh of its own: nothing to say
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    assert "Twin" not in capfd.readouterr().out

@@ -10,7 +10,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
-                            key_names, snapshot, turning_sheet_scale_keyframed)
+                            key_names, simulation_zone_scene, snapshot, turning_sheet_scale_keyframed,
+                            turning_sheet_stretched_before_its_frames)
 
 TOLERANCE = 1e-4
 
@@ -239,25 +240,10 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
     the world at a steady 15° per frame: every in-between of In-between Frames is that turn at its
     frame (before, computed in the mesh's stretched coordinates: up to 0.77 off in the world, on a
     sheet 4 wide)."""
-    import importlib
-
-    from scipy.spatial.transform import Rotation
-
-    from blender_scenes import stretched_sheet, world_turned
+    from blender_scenes import turning_stretched_sheet
 
     bridge = extension.bridge
-    sheet, linear, rest = stretched_sheet(bridge)
-
-    def turned(frame):  # the world turn at ``frame``, in the mesh's coordinates
-        turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
-        return world_turned(rest, linear, turn)
-
-    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
-    path = point_cache.write_pc2(tmp_path / "turn.pc2", np.array([turned(f) for f in range(1, 10)]), start=1.0)
-    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
-    modifier.cache_format, modifier.filepath = 'PC2', str(path)
-    modifier.frame_start = 1.0  # sample 0 at frame 1 (the modifier reads sample frame − frame_start)
-    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    sheet, linear, turned = turning_stretched_sheet(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
         gap = 0 if frame < 5 else 1
@@ -329,3 +315,47 @@ def test_a_mesh_moved_by_an_unbaked_cloth_proxy_reads_it_from_its_start(bpy_empt
                                                output='SHAPE_KEYS')
     for frame in (7, 10, 13):
         np.testing.assert_allclose(positions_of(bridge, mesh, f"Frame {frame}"), played[frame], atol=1e-6)
+
+
+@pytest.mark.parametrize("output", ['CACHE', 'SHAPE_KEYS'])
+def test_in_betweens_are_in_the_proportions_of_the_frames_read(bpy_empty, extension, tmp_path, output):
+    """A sheet stretched (2, 1, 0.5) over frames 3–11, turning rigidly in the world, read while the
+    scene is at frame 1, where its keyframed scale is 1: every in-between is the turn at its frame,
+    to float32 (before, the world's proportions were taken at the current frame, and the in-betweens
+    were computed in the mesh's stretched coordinates: 0.77 off in the world on a sheet 4 wide)."""
+    bridge = extension.bridge
+    sheet, linear, turned = turning_sheet_stretched_before_its_frames(extension, tmp_path)
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=3, frame_end=11, frame_step=4, count=3, output=output,
+                                               filepath=str(tmp_path / "inbetweens.pc2"))
+    shown = next((o for o in bpy.data.objects if o.name not in names), None)
+    for frame in (4, 5, 6, 8, 9, 10):
+        if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
+            gap = 0 if frame < 7 else 1
+            name = f"Inbetween Frame {3 + 4 * gap}-Frame {7 + 4 * gap} {(frame - 3 - 4 * gap) / 4:.2f}"
+            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        else:
+            made = bridge.evaluated_positions(shown, _depsgraph_at(frame))
+        np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
+    bpy.context.scene.frame_set(1)
+
+
+def _depsgraph_at(frame):
+    bpy.context.scene.frame_set(frame)
+    return bpy.context.evaluated_depsgraph_get()
+
+
+def test_a_simulation_zone_not_baked_is_read_from_its_start(bpy_empty, extension):
+    """A Geometry Nodes simulation zone that is not baked, read over frames 9–17 while the scene is
+    at its start: the keys are the frames as played from the start (before, Blender stepped the zone
+    once from frame 1 to frame 9, and frame 9 came out 0.99 off, on a sheet 2 wide)."""
+    bridge = extension.bridge
+    obj = simulation_zone_scene(frames=17)
+    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    turn = obj.modifiers["Simulation"].node_group.nodes["Vector Rotate"]
+    turn.inputs["Angle"].default_value = turn.inputs["Angle"].default_value  # any change empties the zone's cache
+    bpy.context.scene.frame_set(1)
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=9, frame_end=17, frame_step=4, output='SHAPE_KEYS')
+    for frame in (9, 13, 17):
+        np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), played[frame], atol=1e-6)
+    assert bpy.context.scene.frame_current == 1

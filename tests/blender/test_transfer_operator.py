@@ -261,3 +261,32 @@ def test_transferred_keys_in_a_cache_play_from_the_start_of_the_shot(pair, tmp_p
         scene.frame_set(frame)
         played = bridge.evaluated_positions(cached, bpy.context.evaluated_depsgraph_get())
         np.testing.assert_allclose(played, keys[name], atol=1e-6)
+
+
+@pytest.mark.parametrize("current", [1, 9])
+def test_frames_of_a_source_whose_scale_is_keyframed_are_measured_in_their_proportions(bpy_empty, extension, core,
+                                                                                        tmp_path, current):
+    """A sheet turning rigidly in the world while its object's scale is keyframed 1 → 2, its frames
+    transferred onto a finer grid laid on its rest with the scene at frame 1 or 9: every transferred
+    frame keeps the grid's areas (a turn), to the float32 of shape keys, wherever the current frame
+    is (before, the rest was laid in the world through the current frame's matrix: at frame 9, the
+    sheet twice its size, and the areas came out up to 12.4 times the grid's)."""
+    from blender_scenes import turning_sheet_scale_keyframed
+
+    bridge = extension.bridge
+    source, _scale, _world = turning_sheet_scale_keyframed(extension, tmp_path)
+    target = grid_object(10, name="Target")
+    source.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    bpy.context.scene.frame_set(current)
+    bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=1, frame_end=9, frame_step=4, k_m=16, k_n=32)
+    triangles = bridge.mesh_triangles(target.data)
+
+    def areas(positions):
+        a, b, c = (positions[triangles[:, k]] for k in range(3))
+        return np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+    rest = areas(bridge.vertex_positions(target.data))
+    for frame in (1, 5, 9):
+        moved = areas(bridge.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame {frame}"]))
+        np.testing.assert_allclose(moved / rest, 1.0, atol=1e-4, err_msg=f"frame {frame}")
