@@ -329,8 +329,9 @@ class CacheFileMissing(FrameReadError):
 
 
 class CacheFileUnfit(FrameReadError):
-    """A Mesh Cache modifier of the object reads a file that Blender cannot play on its mesh (a
-    cache of another mesh, a damaged file): every frame is its rest mesh."""
+    """A cache modifier of the object reads a file that Blender cannot play on its mesh: a Mesh
+    Cache of another vertex count or a damaged file (every frame is its rest mesh), or a cache whose
+    frames are another mesh's vertices or this one's in another order (played scrambled)."""
 
 
 class BakeFilesMissing(FrameReadError):
@@ -470,6 +471,54 @@ def frames_held_by_cache(obj: bpy.types.Object, frames: list[int], poses: list[n
             "the Cache File's Frame Offset); a hold in the animation itself needs nothing")
 
 
+def face_edges(mesh: bpy.types.Mesh) -> np.ndarray:
+    """The edges of ``mesh`` that bound a face, int64 ``(E, 2)`` vertex indices (loose edges left out)."""
+    loop_edges = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("edge_index", loop_edges)
+    edges = np.empty(len(mesh.edges) * 2, dtype=np.int32)
+    mesh.edges.foreach_get("vertices", edges)
+    return edges.reshape(-1, 2)[np.unique(loop_edges)].astype(np.int64)
+
+
+def frames_of_another_mesh(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray],
+                           movers: list) -> str | None:
+    """The error when ``obj`` is played by an enabled Mesh Cache or Mesh Sequence Cache of one of
+    ``movers`` (``obj`` and the objects whose motion reaches its mesh) and a pose read at one of
+    ``frames`` cannot be its mesh in its vertex order: its edges grew, against the size of the
+    parts they make up, over :data:`core.vertex_order.FOREIGN_GROWTH` times as much as any motion
+    of a mesh gives (``core.vertex_order``: the median over the edges; folding and crumpling reach
+    about 3). Blender plays such a file (a cache exported from another mesh with as many
+    vertices, or from this one with its vertices renumbered) scrambled, without a word; None
+    otherwise. Only objects a cache moves are checked: no other motion brings another order."""
+    from .core.vertex_order import FOREIGN_GROWTH, EdgeSpread
+
+    caches = [(mover, m) for mover in movers for m in mover.modifiers
+              if m.type in ('MESH_CACHE', 'MESH_SEQUENCE_CACHE') and m.show_viewport]
+    if not caches or not poses:
+        return None
+    spread = EdgeSpread(vertex_positions(obj.data), face_edges(obj.data))
+    for frame, pose in zip(frames, poses):
+        growth = spread.growth(pose)
+        if growth > FOREIGN_GROWTH:
+            break
+    else:
+        return None
+    mover, modifier = caches[0]
+    if modifier.type == 'MESH_CACHE':
+        source = f"the Mesh Cache '{modifier.name}' from '{os.path.basename(mesh_cache_file(modifier))}'"
+    else:
+        path = modifier.cache_file.filepath if modifier.cache_file is not None else ""
+        source = (f"the Mesh Sequence Cache '{modifier.name}' from '{os.path.basename(path)}' (object path "
+                  f"'{modifier.object_path}')")
+    subject = f"'{obj.name}' is played by" if mover == obj else f"'{obj.name}' is moved by '{mover.name}', played by"
+    return (f"{subject} {source}, whose frames are not this mesh's vertices in their order: at frame {frame} "
+            f"its edges are {growth:.0f} times as long, against the size of the mesh, as at rest (a motion "
+            "stretches or folds them by 3 at most), so its neighbouring vertices are scattered and Blender "
+            "plays it scrambled. The cache was made from another mesh with as many vertices, or from this one "
+            "with its vertices renumbered (sorted, re-imported, remeshed): export it from this mesh, or point "
+            "the modifier to the cache made for it")
+
+
 def _all_the_same(poses: list[np.ndarray]) -> bool:
     """Whether there are two or more ``poses`` and all are the same, to the bit."""
     return len(poses) >= 2 and all(np.array_equal(pose, poses[0]) for pose in poses[1:])
@@ -504,6 +553,28 @@ def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
                 f"{cache.frame_end} (its cache: '{cache.info}'): Blender finds none of the bake's files in "
                 f"'{folder}' and plays the mesh at rest. Copy the cache folder with the .blend (or bake "
                 "again) and run again")
+    return None
+
+
+def cache_reads_no_positions(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray],
+                             movers: list) -> str | None:
+    """The error when every pose read from ``obj`` at ``frames`` is the same (:func:`_all_the_same`)
+    while an enabled Mesh Sequence Cache (Alembic, USD) of one of ``movers`` (``obj`` and the
+    objects whose motion reaches its mesh) has Vertices off in its Read Data: it then reads no
+    positions from its file, and Blender shows the mesh as it was imported at every frame; None
+    otherwise (with other motion on the mesh, Vertices may be off on purpose)."""
+    if not _all_the_same(poses):
+        return None
+    for mover in movers:
+        for modifier in mover.modifiers:
+            if modifier.type == 'MESH_SEQUENCE_CACHE' and modifier.show_viewport and 'VERT' not in modifier.read_data:
+                what = f"'{obj.name}'" if mover == obj else f"'{mover.name}', which moves '{obj.name}',"
+                source = (f" from '{os.path.basename(modifier.cache_file.filepath)}'"
+                          if modifier.cache_file is not None else "")
+                return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}): "
+                        f"the Mesh Sequence Cache '{modifier.name}' of {what} reads no vertex positions{source} "
+                        "(Vertices is off in its Read Data), so Blender shows the mesh as imported at every "
+                        "frame. Turn Vertices on in the modifier's Read Data and run again")
     return None
 
 

@@ -13,8 +13,9 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
 from .output import refuse_emptying_caches, require_local, simulations_emptied_by
-from .base import (SCENE_OFFSET, GeneratorOperator, InputError, check_basis_order, default_pose_key, key_blocks_of,
-                   key_pose, mesh_pose, offset_option, resolve_key, surface_triangles)
+from .base import (SCENE_SETTING, GeneratorOperator, InputError, check_basis_order, check_basis_size,
+                   default_pose_key, key_blocks_of, key_pose, mesh_pose, offset_option, resolve_key,
+                   surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -37,13 +38,17 @@ class AnalysisBasisProperties(AnalysisBasis):
     def resolved_offset(self, context):
         if self.offset:
             return offset_option(self.offset)
-        return offset_option(context.scene.shape_differences.offset, SCENE_OFFSET)
+        return offset_option(context.scene.shape_differences.offset, SCENE_SETTING)
 
     def check_sizes(self, triangles, *, uses_k_n: bool = True):
         """Refuse sizes the mesh of ``triangles`` cannot have; the defaults (sizes not given) shrink
         to a small mesh (k_N to its vertex count less one, k_M to k_N), written back for the Redo
         panel. Its vertex count is of those in triangles: loose vertices have no eigenfunctions.
         ``uses_k_n=False``: only k_M is used (the distortion maps' eigenfunctions), k_N is ignored."""
+        # negative sizes first, in the settings' terms: k_M must be a size here (the analysis needs a truncated basis)
+        check_basis_size("k_M", self.k_m)
+        if uses_k_n:
+            check_basis_size("k_N", self.k_n, zero="0 for the differences in the base's basis only")
         vertex_count = int(np.unique(triangles).size)
         if uses_k_n and not self.properties.is_property_set("k_n"):
             self.k_n = min(self.k_n, vertex_count - 1)

@@ -97,8 +97,22 @@ def offset_option(offset: float, where: str = "") -> float | None:
     return offset or None
 
 
-#: Where the scene's Offset t is set, for :func:`offset_option`.
-SCENE_OFFSET = " (the scene's, in the sidebar's Shape Diff tab)"
+#: Where the scene's settings are, for a setting taken from there (:func:`offset_option`,
+#: :func:`check_basis_size`).
+SCENE_SETTING = " (the scene's, in the sidebar's Shape Diff tab)"
+
+#: What 0 means for each basis size, where it may be 0 (:func:`check_basis_size`).
+BASIS_ZERO = {"k_M": "0 for the full basis", "k_N": "0 for the target not truncated"}
+
+
+def check_basis_size(label: str, k: int, where: str = "", zero: str | None = None) -> None:
+    """Refuse a negative basis size ``k`` (typed past the soft minimum) in the setting's terms:
+    its ``label``, ``where`` it is set if not on the operator, and what it may be — a positive
+    number of eigenfunctions, or ``zero`` (what 0 means there; None where a size is needed). The
+    core's message is for scripts (its arguments, None for the full basis)."""
+    if k < 0:
+        allowed = f"{zero}, or a positive number of eigenfunctions" if zero else "a positive number of eigenfunctions"
+        raise InputError(f"{label}{where} = {k} must be {allowed} (typically 50–300)")
 
 
 def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> str | None:
@@ -326,10 +340,13 @@ class CoreSettingsProperties(CoreSettings):
         Resolved values are written back to the operator so the Redo panel shows them.
         """
         settings = context.scene.shape_differences
-        offset_where = "" if self.properties.is_property_set("offset") else SCENE_OFFSET
+        where = {name: "" if self.properties.is_property_set(name) else SCENE_SETTING
+                 for name in ("k_m", "k_n", "offset")}
         for name in ("k_m", "k_n", "offset", "use_extrinsic"):
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
+        for label, name in (("k_M", "k_m"), ("k_N", "k_n")):
+            check_basis_size(label, getattr(self, name), where[name], BASIS_ZERO[label])
         # Both bases live on meshes with the base's vertices (the offset surfaces have more), or
         # k_N on the other mesh of a transfer.
         for label, k, count in (("k_M", self.k_m, vertex_count), ("k_N", self.k_n, target_count or vertex_count)):
@@ -340,7 +357,7 @@ class CoreSettingsProperties(CoreSettings):
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         check_basis_order(self.k_m, self.k_n)
-        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=offset_option(self.offset, offset_where),
+        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=offset_option(self.offset, where["offset"]),
                     use_extrinsic=self.use_extrinsic)
 
 

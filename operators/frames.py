@@ -124,9 +124,16 @@ class FrameRangeProperties:
         # would hide its vertex wherever the key plays
         for frame, positions in zip(frames, poses):
             finite_pose(positions, f"frame {frame} of '{obj.name}'")
+        # an error, as for a cache of another vertex count: the frames are not this mesh's poses
+        foreign = bridge.frames_of_another_mesh(obj, frames, poses, movers)
+        if foreign:
+            raise bridge.CacheFileUnfit(foreign)
         lost = bridge.missing_bake(obj, frames, poses, movers)
         if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
             raise bridge.BakeFilesMissing(lost)
+        unread = bridge.cache_reads_no_positions(obj, frames, poses, movers)
+        if unread:  # the same: the cache plays the mesh at rest
+            raise bridge.CacheFileUnfit(unread)
         still = bridge.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
@@ -278,6 +285,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         # Blender keeps the speed in single precision (0.3 arrives as 0.30000001192): its shortest
         # decimal, or 24 frames at 0.3 give 80 samples instead of 81 and the keys land off the frames
         speed = float(str(np.float32(self.speed)))
+        if not speed > 0:  # typed past the soft minimum; the core's message is for scripts (its argument)
+            raise InputError(f"Speed = {speed:g} must be positive: 0.5 plays the motion twice as slow, 2 twice as fast")
         plan = retime.plan_retime(end - start + 1, self.frame_step, speed)
         last = start + plan.n_out - 1
         if last > retime.MAX_FRAME:  # frames past it play nowhere: the scene's End cannot reach them

@@ -209,7 +209,8 @@ def test_count_zero_is_an_error(bpy_empty, extension, operator):
 
 
 @pytest.mark.parametrize("properties, match", [
-    (dict(speed=0.0), "speed must be a positive number; got 0"),
+    (dict(speed=0.0), r"Speed = 0 must be positive: 0\.5 plays the motion twice as slow, 2 twice as fast"),
+    (dict(speed=-1.0), r"Speed = -1 must be positive: 0\.5 plays the motion twice as slow"),
     (dict(frame_start=1, frame_end=4, frame_step=4), "4 frames with step 4 give fewer than two key poses"),
 ])
 def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, match):
@@ -339,6 +340,20 @@ def test_a_negative_scene_offset_is_named_as_the_scenes(bpy_empty, extension, op
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
                          r"Offset t \(the scene's, in the sidebar's Shape Diff tab\) = -0.1 must be positive, or 0 "
                          "for the automatic distance")
+
+
+@pytest.mark.parametrize("setting, value, match", [
+    ("k_m", -5, r"k_M \(the scene's, in the sidebar's Shape Diff tab\) = -5 must be 0 for the full basis, or a "
+                r"positive number of eigenfunctions"),
+    ("k_n", -5, r"k_N \(the scene's, in the sidebar's Shape Diff tab\) = -5 must be 0 for the target not "
+                r"truncated")])
+def test_a_negative_scene_basis_size_is_named_as_the_scenes(bpy_empty, extension, setting, value, match):
+    """The scene's k_M or k_N, taken where the operator's is not set, negative: refused as the scene's
+    setting (the core said "0 / None (full basis)", its terms for scripts; a negative k_N alone was
+    told it "needs k_M")."""
+    obj = posed_grid(extension.bridge, 6)
+    setattr(bpy.context.scene.shape_differences, setting, value)
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween, match)
 
 
 def _sheet_with_an_ngon(n: int, cells: set, offset: float):
@@ -630,6 +645,85 @@ def test_a_mesh_cache_that_does_not_fit_its_proxy_is_refused(bpy_empty, extensio
                              "which holds 54 points for the mesh's 49 vertices", frame_step=4)
 
 
+def _rolled(positions):
+    """Nine samples of ``positions`` (a flat sheet) rolled up about y, more at each sample."""
+    return np.array([np.stack([np.sin(a * positions[:, 0]) / a, positions[:, 1], (1.0 - np.cos(a * positions[:, 0])) / a],
+                              axis=1) for a in 0.2 + 0.15 * np.arange(9)])
+
+
+def _renumbered_grid(bridge, subdivisions: int):
+    """The rest positions of a grid whose vertices Blender sorted (Sort Mesh Elements › Randomize),
+    as a re-imported or remeshed copy is numbered: the copy is removed."""
+    copy = grid_object(subdivisions, name="Copy")
+    bpy.ops.object.mode_set(mode='EDIT')
+    bpy.ops.mesh.sort_elements(type='RANDOMIZE', elements={'VERT'}, seed=3)
+    bpy.ops.object.mode_set(mode='OBJECT')
+    positions = bridge.vertex_positions(copy.data)
+    bpy.data.objects.remove(copy)
+    return positions
+
+
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime", "frames_to_shape_keys", "shape_space",
+                                      "distortion_maps"])
+def test_a_cache_in_another_vertex_order_is_refused(bpy_empty, extension, operator, tmp_path):
+    """A PC2 with as many points as the mesh has vertices, exported from a copy whose vertices
+    Blender sorted (a renumbered copy, as re-importing or remeshing to the same count makes):
+    Blender plays it on the mesh scrambled, and every operator reading frames keyed, in-betweened
+    or measured it without a word. Refused, saying the cache is not this mesh's vertices in their
+    order; nothing changed. The same motion in the mesh's order, in centimetres, or reversed (on a
+    grid, the grid turned half round) runs."""
+    import importlib
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    options = dict(frame_step=4) if operator in ("inbetween_frames", "retime", "frames_to_shape_keys") else \
+        dict(source='FRAMES', frame_step=4, k_m=10, **({"k_n": 20} if operator == "shape_space" else {}))
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    renumbered = _renumbered_grid(extension.bridge, 24)
+    sheet = grid_object(24)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.frame_start = 'PC2', 1.0
+    modifier.filepath = str(point_cache.write_pc2(tmp_path / "copy.pc2", _rolled(renumbered), start=1.0))
+    names = set(bpy.data.objects.keys())
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"'Sheet' is played by the Mesh Cache 'Mesh Cache' from 'copy\.pc2', whose frames are not "
+                         r"this mesh's vertices in their order: at frame 1 its edges are \d+ times as long, against "
+                         r"the size of the mesh, as at rest .* export it from this mesh, or point the modifier to the "
+                         r"cache made for it", **options)
+    assert set(bpy.data.objects.keys()) == names
+    for name, poses in (("own", _rolled(rest)), ("cm", 100.0 * _rolled(rest)), ("reversed", _rolled(rest)[:, ::-1])):
+        modifier.filepath = str(point_cache.write_pc2(tmp_path / f"{name}.pc2", poses, start=1.0))
+        getattr(bpy.ops.shape_differences, operator)(**options)
+
+
+def test_an_alembic_cache_of_another_vertex_order_is_refused(bpy_empty, extension, tmp_path):
+    """An Alembic exported from a renumbered copy of the mesh, read on the mesh by a Mesh Sequence
+    Cache: refused as the PC2 is, naming the file and the object path in it; nothing changed."""
+    import importlib
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    renumbered = _renumbered_grid(extension.bridge, 24)
+    copy = grid_object(24, name="Copy")
+    modifier = copy.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.frame_start = 'PC2', 1.0
+    modifier.filepath = str(point_cache.write_pc2(tmp_path / "copy.pc2", _rolled(renumbered), start=1.0))
+    bpy.ops.wm.alembic_export(filepath=str(tmp_path / "copy.abc"), start=1, end=9)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    bpy.ops.wm.alembic_import(filepath=str(tmp_path / "copy.abc"), as_background_job=False)
+    imported = next(obj for obj in bpy.data.objects if obj.type == 'MESH')
+    cache_file, object_path = imported.modifiers["MeshSequenceCache"].cache_file, imported.modifiers[
+        "MeshSequenceCache"].object_path
+    bpy.data.objects.remove(imported)
+    sheet = grid_object(24)
+    cache = sheet.modifiers.new("MeshSequenceCache", 'MESH_SEQUENCE_CACHE')
+    cache.cache_file, cache.object_path = cache_file, object_path
+    fails_without_change(extension.bridge, sheet, bpy.ops.shape_differences.inbetween_frames,
+                         r"'Sheet' is played by the Mesh Sequence Cache 'MeshSequenceCache' from 'copy\.abc' \(object "
+                         r"path '/Copy/Grid[^']*'\), whose frames are not this mesh's vertices in their order", frame_step=4)
+
+
 def test_frames_past_a_mesh_cache_say_it_stands_still_there(bpy_empty, extension, capfd, tmp_path):
     """Frames after the last sample of a Mesh Cache's file play that sample, held (a PC2 of frames
     1–9 read over 1–13, or an MDD in Time Mode Seconds whose frames end before the range does):
@@ -690,6 +784,34 @@ def test_frames_past_an_alembic_cache_say_it_stands_still_there(bpy_empty, exten
                                   "is played by the Mesh Sequence Cache 'MeshSequenceCache' from 'strip.abc', and the "
                                   "range reads the same pose, to the bit, at its start (frames 1–3) and its end "
                                   "(frames 9–13)")
+
+
+@pytest.mark.parametrize("operator", ["inbetween_frames", "frames_to_shape_keys"])
+def test_an_alembic_cache_reading_no_positions_is_refused(bpy_empty, extension, operator, tmp_path):
+    """A Mesh Sequence Cache with Vertices off in its Read Data reads no positions from its file:
+    Blender shows the mesh as imported at every frame, and the operators wrote that still mesh as
+    the motion, saying only that the frames were the same ("check what moves it (a baked cache
+    whose files are gone, ...)"), a batch exiting 0. Refused, naming the setting; nothing changed.
+    With other motion on the mesh (a Wave after the cache) Vertices may be off on purpose: it runs."""
+    armature_scene(frames=9)
+    bpy.ops.wm.alembic_export(filepath=str(tmp_path / "strip.abc"), start=1, end=9)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    bpy.ops.wm.alembic_import(filepath=str(tmp_path / "strip.abc"), as_background_job=False)
+    strip = next(obj for obj in bpy.data.objects if obj.type == 'MESH')
+    cache = strip.modifiers["MeshSequenceCache"]
+    cache.read_data = {'POLY', 'UV', 'COLOR'}
+    names = set(bpy.data.objects.keys())
+    with bpy.context.temp_override(active_object=strip, object=strip, selected_objects=[strip]):
+        fails_without_change(extension.bridge, strip, getattr(bpy.ops.shape_differences, operator),
+                             r"'Grid' reads the same pose at all \d frames read \(1–9\): the Mesh Sequence Cache "
+                             r"'MeshSequenceCache' of 'Grid' reads no vertex positions from 'strip\.abc' \(Vertices "
+                             r"is off in its Read Data\), .* Turn Vertices on in the modifier's Read Data",
+                             frame_step=4, output='SHAPE_KEYS')
+        assert set(bpy.data.objects.keys()) == names
+        wave = strip.modifiers.new("Wave", 'WAVE')
+        wave.height, wave.speed = 0.2, 0.1
+        getattr(bpy.ops.shape_differences, operator)(frame_step=4, output='SHAPE_KEYS')
 
 
 def test_a_mesh_in_edit_mode_through_a_linked_duplicate_is_refused(bpy_empty, extension):
@@ -868,15 +990,22 @@ def test_a_mesh_without_vertices_has_nothing_to_capture(bpy_empty, extension, ou
 
 
 @pytest.mark.parametrize("operator, properties, match", [
-    ("inbetween", dict(k_m=-5), r"k_M \(base basis size\) must be 0 / None \(full basis\) or a positive number"),
-    ("reconstruct", dict(k_m=20, k_n=-5), "k_N = -5 must be at least k_M = 20"),
+    ("inbetween", dict(k_m=-5), r"k_M = -5 must be 0 for the full basis, or a positive number of eigenfunctions"),
+    ("inbetween", dict(k_n=-5), r"k_N = -5 must be 0 for the target not truncated, or a positive number of "),
+    ("shape_space", dict(k_m=-5), r"k_M = -5 must be a positive number of eigenfunctions \(typically"),
+    ("shape_space", dict(k_n=-5), r"k_N = -5 must be 0 for the differences in the base's basis only, or a positive"),
+    ("distortion_maps", dict(k_m=-5), r"k_M = -5 must be a positive number of eigenfunctions \(typically"),
+    ("reconstruct", dict(k_m=20, k_n=10), "k_N = 10 must be at least k_M = 20"),
     ("exaggerate", dict(offset=-0.5), "Offset t = -0.5 must be positive, or 0 for the automatic distance"),
     ("shape_space", dict(k_m=1), "k_M .* is 1, but the first 1 Laplace–Beltrami eigenfunctions"),
     ("distortion_maps", dict(offset=-1.0), "Offset t = -1 must be positive, or 0 for the automatic distance")])
 def test_sizes_and_offsets_below_their_range_are_errors(bpy_empty, extension, core, operator, properties, match):
     """A script's negative basis size or offset was clamped by Blender without a word (k_M −5 ran
     with the full basis, an offset −0.5 with the automatic one, the shape space's k_M 1 with 2): the
-    core's checks report them, as they do for every other size (the offset the operators, by its label)."""
+    core's checks report them, as they do for every other size; negative sizes and offsets the
+    operators, by their labels and what 0 means there (before, the core's "0 / None (full basis)"
+    for scripts, "k_N = -5 needs k_M", the full basis offered to the shape space, which has none,
+    and "k must be at least 1" for the distortion maps' k_M)."""
     obj = posed_grid(extension.bridge, 6)
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator), match, **properties)
 

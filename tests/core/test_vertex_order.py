@@ -1,0 +1,65 @@
+"""Positions in another vertex order than the mesh's (a cache of another mesh with as many
+vertices, or of this one renumbered) against any motion of the mesh (core.vertex_order)."""
+
+from pathlib import Path
+
+import numpy as np
+
+from core.vertex_order import FOREIGN_GROWTH, EdgeSpread, edge_growth
+
+from meshes import grid, icosphere, random_rotation
+
+HANDKERCHIEF = Path(__file__).parent / "data" / "pinned_handkerchief.npz"
+
+
+def _edges(triangles):
+    pairs = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    return np.unique(pairs, axis=0)
+
+
+def test_moving_turning_or_scaling_the_parts_leaves_the_edges_as_they_were():
+    """Two parts, each turned, moved and scaled on its own (a cache in centimetres, pieces flying
+    apart): the edges against their parts' sizes do not change, to rounding."""
+    sheet, sheet_triangles = grid(12)
+    ball, ball_triangles = icosphere(2)
+    rest = np.concatenate([sheet, ball + 3.0])
+    edges = _edges(np.concatenate([sheet_triangles, ball_triangles + len(sheet)]))
+    moved = np.concatenate([100.0 * sheet @ random_rotation(1).T + 7.0, 0.01 * ball @ random_rotation(2).T - 40.0])
+    assert abs(edge_growth(rest, moved, edges) - 1.0) < 1e-9
+
+
+def test_a_folded_sheet_and_a_crumpled_cloth_stay_below_the_limit_a_random_order_passes():
+    """A sheet folded double (half its size, its edges kept) and Blender's cloth crumpling onto a
+    pin grow the edges against their sizes by at most about 2; the same positions in a random
+    vertex order, or reversed on a sphere, by far more than FOREIGN_GROWTH."""
+    sheet, triangles = grid(30)
+    edges = _edges(triangles)
+    folded = sheet.copy()
+    far = folded[:, 0] > 0.5
+    folded[far, 0], folded[far, 2] = 1.0 - folded[far, 0], 0.01
+    spread = EdgeSpread(sheet, edges)
+    assert 1.2 < spread.growth(folded) < 2.0
+    shuffled = folded[np.random.default_rng(0).permutation(len(sheet))]
+    assert spread.growth(shuffled) > 2 * FOREIGN_GROWTH
+
+    data = np.load(HANDKERCHIEF)
+    keys, edges = data["keys"], _edges(data["triangles"])
+    spread = EdgeSpread(keys[0], edges)
+    growths = [spread.growth(key) for key in keys]
+    assert max(growths) < FOREIGN_GROWTH / 2
+    assert spread.growth(keys[-1][np.random.default_rng(1).permutation(keys.shape[1])]) > 5 * FOREIGN_GROWTH
+
+    ball, ball_triangles = icosphere(3)
+    assert edge_growth(ball, ball[::-1], _edges(ball_triangles)) > FOREIGN_GROWTH
+
+
+def test_parts_without_size_are_left_out():
+    """A part whose vertices all coincide (at rest, or collapsed in a frame) has no size to compare
+    with: it is left out, and a mesh with nothing left reads 1."""
+    sheet, triangles = grid(6)
+    point = np.zeros((3, 3))
+    rest = np.concatenate([sheet, point])
+    edges = _edges(np.concatenate([triangles, [[len(sheet), len(sheet) + 1, len(sheet) + 2]]]))
+    assert abs(edge_growth(rest, 2.0 * rest, edges) - 1.0) < 1e-12
+    collapsed = np.concatenate([np.zeros_like(sheet), [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    assert edge_growth(rest, collapsed, edges) == 1.0
