@@ -487,10 +487,11 @@ def frames_of_another_mesh(obj: bpy.types.Object, frames: list[int], poses: list
     ``frames`` cannot be its mesh in its vertex order: its edges grew, against the size of the
     parts they make up, over :data:`core.vertex_order.FOREIGN_GROWTH` times as much as any motion
     of a mesh gives (``core.vertex_order``: the median over the edges; folding and crumpling reach
-    about 3). Blender plays such a file (a cache exported from another mesh with as many
+    about 3), to as long as the parts (``EdgeSpread.scattered``: a part wound up tight keeps its
+    edges short). Blender plays such a file (a cache exported from another mesh with as many
     vertices, or from this one with its vertices renumbered) scrambled, without a word; None
     otherwise. Only objects a cache moves are checked: no other motion brings another order."""
-    from .core.vertex_order import FOREIGN_GROWTH, EdgeSpread
+    from .core.vertex_order import EdgeSpread
 
     caches = [(mover, m) for mover in movers for m in mover.modifiers
               if m.type in ('MESH_CACHE', 'MESH_SEQUENCE_CACHE') and m.show_viewport]
@@ -498,8 +499,8 @@ def frames_of_another_mesh(obj: bpy.types.Object, frames: list[int], poses: list
         return None
     spread = EdgeSpread(vertex_positions(obj.data), face_edges(obj.data))
     for frame, pose in zip(frames, poses):
-        growth = spread.growth(pose)
-        if growth > FOREIGN_GROWTH:
+        if spread.scattered(pose):
+            growth = spread.growth(pose)
             break
     else:
         return None

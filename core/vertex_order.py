@@ -16,6 +16,13 @@ apart as two vertices taken at random, ``|edge|² ≈ S``: the growth is then ab
 edges across a part (9–10 on a 400-vertex sheet, 30–100 at 10k). :data:`FOREIGN_GROWTH` lies
 between; a mesh whose parts are too coarse to exceed it (under about 150 vertices, or many small
 rigid pieces) cannot be told this way.
+
+Growth alone also rises where a long part is wound up tight (a rope coiled three times 5.6, a
+carpet rolled up 6–8): its edges keep their length while its size shrinks many times. Such a part
+still has edges far shorter than its size, which no other order keeps: :meth:`EdgeSpread.scattered`
+asks, besides, that the edges' median ``|edge|² / S`` in the positions read be at least
+:data:`SCATTERED_SPAN` (a rope packed into a ball ~``V^(-2/3)``, under 0.01 at a few thousand vertices;
+two random vertices of a line 0.5, of a sheet about 0.8).
 """
 
 from __future__ import annotations
@@ -28,6 +35,10 @@ from .geometry import connected_components
 #: cannot be the mesh's vertices in its order. Above the most a motion gave (2.9), below what a
 #: random order gives on a part of 400 vertices (9).
 FOREIGN_GROWTH = 5.0
+
+#: The median ``|edge|² / S`` (:meth:`EdgeSpread.scattered`) from which edges are as long as the
+#: parts they make up: a third of the part's spread; two vertices taken at random give 0.5 or more.
+SCATTERED_SPAN = 0.1
 
 #: Edges whose growth is measured, at most (a fixed sample of them: the median of 30,000 is within
 #: about 1 % of all edges'), so that a frame of a 100k-vertex mesh costs a few milliseconds.
@@ -67,6 +78,19 @@ class EdgeSpread:
         terms = self._terms(np.asarray(positions, dtype=np.float64))
         kept = np.isfinite(terms) & (self.rest_terms > 0)
         return float(np.sqrt(np.median(terms[kept] / self.rest_terms[kept]))) if kept.any() else 1.0
+
+    def scattered(self, positions: np.ndarray) -> bool:
+        """Whether ``positions`` ``(n, 3)`` put the mesh's neighbours as far apart as vertices
+        taken at random: edges grown over :data:`FOREIGN_GROWTH` times more than their parts
+        (:meth:`growth`) and, in ``positions``, as long as those parts (the median
+        ``|edge|² / S`` at least :data:`SCATTERED_SPAN`; a part wound up tight grows its edges
+        without that)."""
+        positions = np.asarray(positions, dtype=np.float64)
+        if self.growth(positions) <= FOREIGN_GROWTH:
+            return False
+        terms = self._terms(positions)
+        terms = terms[np.isfinite(terms)]
+        return bool(terms.size) and float(np.median(terms)) >= SCATTERED_SPAN
 
 
 def edge_growth(rest: np.ndarray, positions: np.ndarray, edges: np.ndarray) -> float:

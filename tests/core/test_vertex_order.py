@@ -4,6 +4,7 @@ vertices, or of this one renumbered) against any motion of the mesh (core.vertex
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from core.vertex_order import FOREIGN_GROWTH, EdgeSpread, edge_growth
 
@@ -51,6 +52,34 @@ def test_a_folded_sheet_and_a_crumpled_cloth_stay_below_the_limit_a_random_order
 
     ball, ball_triangles = icosphere(3)
     assert edge_growth(ball, ball[::-1], _edges(ball_triangles)) > FOREIGN_GROWTH
+
+
+def _rolled_carpet(inner: float):
+    """A carpet 10 × 1 (200 × 20 vertices) and the same rolled up on an Archimedean spiral from
+    radius ``inner``, 0.02 between its turns, its edges kept: (rest, rolled, edges)."""
+    sheet, triangles = grid(200, 20)
+    rest = (sheet - sheet.min(axis=0)) / np.ptp(sheet, axis=0).clip(1e-12) * np.array([10.0, 1.0, 0.0])
+    arc = rest[:, 0]
+    order = np.argsort(arc, kind="stable")
+    turn = np.zeros(len(arc))
+    for previous, vertex in zip(order[:-1], order[1:]):  # the angle wound up to each arc length
+        radius = inner + 0.02 * turn[previous] / (2 * np.pi)
+        turn[vertex] = turn[previous] + (arc[vertex] - arc[previous]) / radius
+    radius = inner + 0.02 * turn / (2 * np.pi)
+    rolled = np.stack([radius * np.cos(turn), rest[:, 1], radius * np.sin(turn)], axis=1)
+    return rest, rolled, _edges(triangles)
+
+
+@pytest.mark.parametrize("inner", [0.3, 0.05])
+def test_a_carpet_rolled_up_is_not_scattered_though_its_edges_grow(inner):
+    """Rolled up, a long carpet's size shrinks many times while its edges keep their length: growth
+    over FOREIGN_GROWTH (6–8), yet its edges stay far shorter than its size, so it is not scattered;
+    the same positions in a random vertex order are."""
+    rest, rolled, edges = _rolled_carpet(inner)
+    spread = EdgeSpread(rest, edges)
+    assert spread.growth(rolled) > FOREIGN_GROWTH
+    assert not spread.scattered(rolled)
+    assert spread.scattered(rolled[np.random.default_rng(2).permutation(len(rolled))])
 
 
 def test_parts_without_size_are_left_out():
