@@ -335,8 +335,9 @@ class CacheFileUnfit(FrameReadError):
 
 
 class BakeFilesMissing(FrameReadError):
-    """A cloth or soft body baked to disk plays none of its frames: its files are not where Blender
-    looks, and every frame is the rest mesh."""
+    """A cloth or soft body baked to disk plays none of its frames (its files are not where Blender
+    looks, and every frame is the rest mesh), or holds one of its frames over frames read whose
+    files are missing (a copy of the folder cut short)."""
 
 
 def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:
@@ -449,12 +450,7 @@ def frames_held_by_cache(obj: bpy.types.Object, frames: list[int], poses: list[n
         return None
 
     def held(indices) -> list[int]:
-        run = [indices[0]]
-        for index in indices[1:]:
-            if not np.array_equal(poses[index], poses[run[0]]):
-                break
-            run.append(index)
-        return sorted(frames[index] for index in run) if len(run) >= 2 else []
+        return sorted(frames[index] for index in _held_run(poses, indices))
 
     before, after = held(range(len(poses))), held(range(len(poses) - 1, -1, -1))
     if not (before or after):
@@ -520,23 +516,68 @@ def frames_of_another_mesh(obj: bpy.types.Object, frames: list[int], poses: list
             "the modifier to the cache made for it")
 
 
+def _held_run(poses: list[np.ndarray], indices) -> list[int]:
+    """The first of ``indices`` and those following it (in the order given) whose ``poses`` are the
+    same to the bit as its pose, when they are two or more; else empty."""
+    run = [indices[0]]
+    for index in indices[1:]:
+        if not np.array_equal(poses[index], poses[run[0]]):
+            break
+        run.append(index)
+    return run if len(run) >= 2 else []
+
+
 def _all_the_same(poses: list[np.ndarray]) -> bool:
     """Whether there are two or more ``poses`` and all are the same, to the bit."""
     return len(poses) >= 2 and all(np.array_equal(pose, poses[0]) for pose in poses[1:])
 
 
-def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray], movers: list) -> str | None:
-    """The error when every pose read from ``obj`` at ``frames`` is the same (:func:`_all_the_same`)
-    while two or more of ``frames`` lie inside the frames a cloth or soft body of ``movers`` (the
-    objects whose motion reaches ``obj``) is baked over to a disk cache: Blender found none of the
-    bake's files (a .blend moved, or sent to a farm, without its cache folder) and plays the rest
-    mesh at every frame; None otherwise. (A simulation that Blender plays moves some vertex between
-    two of its frames, if only by round-off: the same pose to the bit is one it does not play.)"""
-    if not _all_the_same(poses):
+def bake_files_lacking(cache, owner: bpy.types.Object, folder: str, frames: list[int]) -> list[int] | None:
+    """The ``frames`` whose file the disk cache ``cache`` of ``owner`` lacks in ``folder`` (where
+    Blender looks for it), by the names Blender gives them (``<name>_<frame:06>_<index:02>.bphys``,
+    the name the cache's own or the object's in hex); None where no frame of the bake has a file of
+    such a name there (the folder gone or empty, or files named otherwise), which the poses read
+    then tell (:func:`missing_bake`)."""
+    try:
+        names = set(os.listdir(folder))
+    except OSError:
         return None
+    if cache.name or cache.use_external:
+        stem = cache.name
+    else:
+        stem = "".join(f"{byte:02X}" for byte in owner.name.encode())
+    if cache.index < 0 and not cache.use_external:  # no index given yet: the names are not known
+        return None
+    index = f"_{cache.index:02d}" if cache.index >= 0 else ""
+
+    def name(frame: int) -> str:
+        return f"{stem}_{frame:06d}{index}.bphys"
+
+    if not any(name(frame) in names for frame in range(cache.frame_start, cache.frame_end + 1)):
+        return None
+    return [frame for frame in frames if name(frame) not in names]
+
+
+def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray], movers: list) -> str | None:
+    """The error when a cloth or soft body of ``movers`` (the objects whose motion reaches ``obj``)
+    is baked to a disk cache over two or more of ``frames`` and Blender plays files there that are
+    not there; None otherwise:
+
+    - the folder lacks the files of some frames read (:func:`bake_files_lacking`; a copy of the
+      folder cut short, or with gaps): Blender plays those frames interpolated between the files it
+      finds, or holds the nearest one;
+    - where no file of the bake is found by its name, every pose read the same
+      (:func:`_all_the_same`): Blender found none of the bake's files (a .blend moved, or sent to a
+      farm, without its cache folder) and plays the rest mesh; or two or more frames read in a row
+      inside the bake the same pose while others move: Blender holds the nearest frame it found.
+
+    A simulation that Blender plays moves some vertex between two of its frames, if only by
+    round-off (cloths settled on a sphere, on the ground and hanging from pins still moved 3e-4 to
+    1.2e-3 from frame 199 to 200): the same pose to the bit is one it does not play."""
+    everything = _all_the_same(poses)
     for mover, modifier in simulations(movers):
         cache = modifier.point_cache
-        inside = [f for f in frames if cache.frame_start <= f <= cache.frame_end]
+        inside = [i for i, f in enumerate(frames) if cache.frame_start <= f <= cache.frame_end]
         if not (cache.is_baked and cache.use_disk_cache and len(inside) >= 2):
             continue
         # a linked object's bake is looked for beside its library, unless told to use this file's path
@@ -549,11 +590,29 @@ def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
                                       library=library)
         what = (f"its modifier '{modifier.name}'" if mover == obj else
                 f"the modifier '{modifier.name}' of '{mover.name}', which moves it,")
-        return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
-                f"though {what} is baked to disk over frames {cache.frame_start}–"
-                f"{cache.frame_end} (its cache: '{cache.info}'): Blender finds none of the bake's files in "
-                f"'{folder}' and plays the mesh at rest. Copy the cache folder with the .blend (or bake "
-                "again) and run again")
+        baked = (f"{what} is baked to disk over frames {cache.frame_start}–{cache.frame_end} (its cache: "
+                 f"'{cache.info}')")
+        lacking = bake_files_lacking(cache, mover, folder, [frames[i] for i in inside])
+        if lacking:
+            listed = ", ".join(str(frame) for frame in lacking[:8]) + (", …" if len(lacking) > 8 else "")
+            return (f"'{obj.name}': {baked}, but '{folder}' holds no file for {len(lacking)} of the {len(inside)} "
+                    f"frames read there ({listed}): Blender plays them interpolated between the files it finds, "
+                    "or holds the nearest one (a copy of the folder cut short, or with gaps?). Copy the whole "
+                    "cache folder with the .blend (or bake again) and run again")
+        if lacking is not None:  # the files of every frame read are there
+            continue
+        # the first run of frames read in a row inside the bake with the same pose
+        held = [] if everything else next((run for k in range(len(inside) - 1) if (run := _held_run(poses, inside[k:]))), [])
+        if everything or len(held) == len(inside):
+            return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
+                    f"though {baked}: Blender finds none of the bake's files in '{folder}' and plays the mesh at "
+                    "rest. Copy the cache folder with the .blend (or bake again) and run again")
+        if held:
+            return (f"'{obj.name}' reads the same pose, to the bit, at {len(held)} frames read in a row inside its "
+                    f"bake ({_frame_span([frames[i] for i in held])}) while other frames move, though {baked}: "
+                    f"Blender finds a file of the bake in '{folder}' for one of those frames at most (a copy of the "
+                    "folder cut short?) and holds the nearest one it finds at the others. Copy the whole cache "
+                    "folder with the .blend (or bake again) and run again")
     return None
 
 

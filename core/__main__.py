@@ -131,17 +131,36 @@ def _samples_read(cache, plan) -> np.ndarray:
     return np.asarray(sorted(set(plan.samples_read) | {i for i in (1, 2) if i < cache.n_samples}), dtype=int)
 
 
-def _job_fingerprint(cache, samples_read, triangles, args) -> str:
+class _SamplesRead:
+    """The input samples a retime reads (:func:`_samples_read`), copied from the file once and
+    indexed by sample as the cache's positions are: the in-betweens and the chunk's stamp
+    (:func:`_job_fingerprint`) are then of the same data even where the file is written over in
+    place while the task runs (a simulation cached again under its name: the memory map would show
+    the new bytes to the stamp, or stop the process with SIGBUS where the new file is shorter)."""
+
+    def __init__(self, cache, read):
+        self._count = cache.n_samples
+        self._samples = {int(sample): np.array(cache.positions[sample]) for sample in read}
+
+    def __len__(self) -> int:
+        return self._count
+
+    def __getitem__(self, sample) -> np.ndarray:
+        return self._samples[int(sample)]
+
+
+def _job_fingerprint(cache, samples, samples_read, triangles, args) -> str:
     """What makes two chunks parts of one retime (:func:`core.point_cache.check_stamps`): the
-    input's header and the samples the retime reads, the faces, and every setting that changes the
-    output (not file names: workers may see a share under other paths)."""
+    input's header and the samples the retime reads (``samples[i]``: sample ``i``'s positions), the
+    faces, and every setting that changes the output (not file names: workers may see a share under
+    other paths)."""
     digest = hashlib.sha256(json.dumps([
         cache.n_points, cache.n_samples, cache.start, cache.sampling, args.step, args.speed, args.start,
         args.k_m, args.k_n, args.intrinsic, args.linear]).encode())
     if cache.times is not None:
         digest.update(np.ascontiguousarray(cache.times, dtype="<f8").tobytes())
     for sample in samples_read:
-        digest.update(np.ascontiguousarray(cache.positions[sample], dtype="<f4").tobytes())
+        digest.update(np.ascontiguousarray(samples[sample], dtype="<f4").tobytes())
     digest.update(np.ascontiguousarray(triangles, dtype="<i8").tobytes())
     return digest.hexdigest()
 
@@ -167,7 +186,7 @@ def _merged_job(args) -> str | None:
     cache = read_point_cache(args.retime)
     _, triangles = read_obj(args.topology)
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    return _job_fingerprint(cache, _samples_read(cache, plan), triangles, args)
+    return _job_fingerprint(cache, cache.positions, _samples_read(cache, plan), triangles, args)
 
 
 def _retime(args) -> int:
@@ -188,7 +207,8 @@ def _retime(args) -> int:
         )
     plan = plan_retime(cache.n_samples, args.step, args.speed)
     read = _samples_read(cache, plan)
-    broken = read[~np.isfinite(cache.positions[read]).all(axis=(1, 2))]
+    samples = _SamplesRead(cache, read)
+    broken = read[[not np.isfinite(samples[sample]).all() for sample in read]]
     if broken.size:  # said here in the cache's own samples and frames, not as a key pose's index
         first = int(broken[0])
         raise ShapeDifferenceError(
@@ -212,7 +232,7 @@ def _retime(args) -> int:
                         "split it across processes with --chunk I/N (and merge the parts), or raise --speed")
     poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)
     began = time.monotonic()
-    for done, (index, pose) in enumerate(iter_retime(cache.positions, triangles, plan, gaps, **options), 1):
+    for done, (index, pose) in enumerate(iter_retime(samples, triangles, plan, gaps, **options), 1):
         poses[index - outputs.start] = pose
         if not args.quiet:
             print(f"retime: sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps}), "
@@ -221,12 +241,20 @@ def _retime(args) -> int:
     start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
     stamp = None
     if args.chunk is not None or args.gaps is not None:  # a part of a job: merge checks what it is
-        stamp = dict(job=_job_fingerprint(cache, read, triangles, args), gaps=[gaps.start, gaps.stop],
+        stamp = dict(job=_job_fingerprint(cache, samples, read, triangles, args), gaps=[gaps.start, gaps.stop],
                      key_gaps=plan.n_gaps, input=str(args.cache), step=args.step, speed=args.speed)
     write_pc2(args.output, poses, start=start, sampling=cache.sampling, stamp=stamp)
-    print(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
-          f"of {plan.n_gaps}), {cache.n_points} points, {time.monotonic() - began:.1f} s")
+    _say(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
+         f"of {plan.n_gaps}), {cache.n_points} points, {time.monotonic() - began:.1f} s")
     return 0
+
+
+def _say(text: str) -> None:
+    """Print ``text`` on stdout with what its encoding cannot hold escaped, as Python escapes it on
+    stderr: a file name whose bytes are no text in the system's encoding (a Latin-1 name on a UTF-8
+    worker) would otherwise end the command with a traceback and status 1 after its file is written."""
+    encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
+    print(text.encode(encoding, "backslashreplace").decode(encoding))
 
 
 def _terminated(signum, _frame):
@@ -265,11 +293,16 @@ def _run(args) -> int:
                 raise ShapeDifferenceError("--count N goes with --numbered PATTERN (the parts it numbers)")
             if args.numbered:
                 parts += _numbered(args.numbered, args.count)
+            # the retime's input and faces are read, never written: an output naming one (a job's
+            # OutputCache set to its InputCache) would replace the simulation with its retime
+            refuse_overwriting(args.output, {path: what for path, what in (
+                (args.retime, "the input cache of the retime (--retime)"), (args.topology, "the topology OBJ"))
+                if path is not None})
             began = time.monotonic()
             merge_pc2(parts, args.output, job=_merged_job(args))
             n_points, start, sampling, n_samples = read_pc2_header(args.output)
-            print(f"wrote {args.output}: {n_samples} samples from frame {start:g} every {sampling:g}, "
-                  f"{n_points} points, from {len(parts)} part(s), {time.monotonic() - began:.1f} s")
+            _say(f"wrote {args.output}: {n_samples} samples from frame {start:g} every {sampling:g}, "
+                 f"{n_points} points, from {len(parts)} part(s), {time.monotonic() - began:.1f} s")
             return 0
         cache = read_point_cache(args.cache)
         if cache.times is None:
@@ -281,7 +314,7 @@ def _run(args) -> int:
             spacing = (f", every {np.mean(np.diff(times)):.6g} s" if _even_times(times) else
                        ", not evenly spaced") if times.size > 1 else ""
             timing = f"MDD, times {times[0]:.6g} to {times[-1]:.6g} s{spacing}"
-        print(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, {timing}")
+        _say(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, {timing}")
         return 0
     except ShapeDifferenceError as error:
         print(f"error: {error}", file=sys.stderr)

@@ -235,8 +235,9 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
 
     ``stamp``: for a chunk of a job, ``{"job": fingerprint, "gaps": [a, b], "key_gaps": n, ...}``,
     written after the file to ``path + STAMP_SUFFIX`` with the SHA-256 of the bytes written here
-    (not read back: another job writing the same name meanwhile would be vouched for).
-    :func:`merge_pc2` refuses chunks whose stamps disagree.
+    (not read back: another job writing the same name meanwhile would be vouched for); where the
+    stamp cannot be written (a full disk) the file is removed again, so that a failed or cancelled
+    chunk leaves nothing. :func:`merge_pc2` refuses chunks whose stamps disagree.
 
     ``exclusive``: raise :class:`FileExistsError` rather than replace a file at ``path``, checked
     when the file is complete (:func:`_write_atomically`).
@@ -251,7 +252,11 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
         for block in blocks:
             digest.update(block)
         text = json.dumps({**stamp, "sha256": digest.hexdigest()}, indent=1) + "\n"
-        _write_atomically(stamp_path(path), [text.encode()])
+        try:
+            _write_atomically(stamp_path(path), [text.encode()])
+        except BaseException:  # a disk full, SIGTERM: a chunk without its stamp is not left as if written
+            Path(path).unlink(missing_ok=True)
+            raise
     return Path(path)
 
 
@@ -293,8 +298,11 @@ def check_stamps(parts, stamps, job: str | None = None) -> None:
                 raise MeshError(
                     f"'{part}' is not a chunk of this job's retime ("
                     + ("it has no stamp" if stamp is None else "another input cache, topology or setting")
-                    + f"): another job has written into the chunk folder '{folder}'. Give each job a chunk "
-                    "folder of its own (one per shot and take) and run this job's chunks again.")
+                    + f"): another job has written into the chunk folder '{folder}'"
+                    + ("" if stamp is None else ", or the input cache or topology was written over since the "
+                       "chunk was computed")
+                    + ". Give each job a chunk folder of its own (one per shot and take) and run this job's "
+                    "chunks again.")
     if all(stamp is None for stamp in stamps):
         return
     unstamped = [part for part, stamp in zip(parts, stamps) if stamp is None]
@@ -417,8 +425,9 @@ def merge_pc2(parts, path, job: str | None = None) -> Path:
     """Concatenate PC2 files whose samples follow one another (chunks of one job) into ``path``.
 
     Every part must have the same point count and sampling, and each must start where the one
-    before ends (within a hundredth of a sample: the starts are single precision, a missing part
-    is a whole sample or more); parts without samples are allowed. Chunks written with stamps
+    before ends (within a hundredth of a sample and one single-precision step at the frame's size:
+    the starts are single precision, a missing part is a whole sample or more); parts without
+    samples are allowed. Chunks written with stamps
     (``python -m core retime --chunk``) must be every chunk of one job, in order
     (:func:`check_stamps`), each with the bytes its stamp names; given the ``job`` fingerprint,
     chunks of that job only. The samples are copied byte for byte, :data:`MERGE_BLOCK_BYTES` at a
@@ -433,17 +442,29 @@ def merge_pc2(parts, path, job: str | None = None) -> Path:
         raise MeshError("Nothing to merge: give at least one PC2 file.")
     first_path, n_points, first_start, sampling, _ = headers[0]
     expected_start = first_start
-    for part, points, start, part_sampling, samples in headers:
+    for (part, points, start, part_sampling, samples), stamp in zip(headers, stamps):
         if points != n_points or part_sampling != sampling:
             raise MeshError(
                 f"'{part}' has {points} points at sampling {part_sampling}, but '{first_path}' has "
                 f"{n_points} at {sampling}: these are not chunks of one cache."
             )
-        if abs(start - expected_start) > 0.01 * sampling:
+        # Both starts are single-precision roundings of their frames (this one's, and the part
+        # before's, from which the expected one is counted), so they may differ by one
+        # single-precision step at their size (0.0078 at frame 100,000) on top of the hundredth of
+        # a sample the sampling's own rounding adds up to; a missing or repeated sample is a whole one.
+        step = float(np.spacing(np.float32(max(abs(start), abs(expected_start)))))
+        slack = 0.01 * sampling + step
+        if abs(start - expected_start) > slack:
             raise MeshError(
-                f"'{part}' starts at frame {start:g}, expected {expected_start:g} (where the part before "
+                f"'{part}' starts at frame {start:.8g}, expected {expected_start:.8g} (where the part before "
                 "ends): give the chunks in order, with none missing."
             )
+        if stamp is None and sampling - step <= slack:  # a sample missing would be within the slack
+            raise MeshError(
+                f"'{part}' starts at frame {start:.8g}, where a PC2's single-precision start frame cannot tell "
+                f"one sample from the next (every {sampling:.8g} frames), so whether a part is missing cannot "
+                "be checked: merge the chunks `retime --chunk` writes (with their stamps), or retime with an "
+                "earlier --start.")
         expected_start = start + samples * sampling
     header = pc2_header(n_points, sum(samples for *_, samples in headers), first_start, sampling)
 

@@ -695,16 +695,20 @@ class PoseWriter:
             return added_summary(added)
         return self.write_cache_object(context, source, poses, frames, label, speed, keyed)
 
-    def drop_undone_cache(self, written: Path | None) -> None:
-        """Remember the cache file this run wrote (``written``; None: shape keys) and, where the run
+    def drop_undone_cache(self, played: Path | None, written: bool = False) -> None:
+        """Remember the cache file this run plays (``played``; None: shape keys) where it is the
+        operator's own — ``written`` by this run, or by the run it repeats — and, where the run
         repeats the last one from the Redo panel (Adjust Last Operation), delete the file that one
         wrote: Blender undid it first, so nothing plays the file any more, and each change of a
         setting there would leave one more on disk. Called once the new poses are written, since a
         repeat that fails brings the undone run back; a file a Mesh Cache in the file plays stays
-        (Repeat Last runs again without undoing)."""
+        (Repeat Last runs again without undoing), and so does an earlier run's file a run played
+        again without writing it (:func:`write_new_cache`: another .blend in the folder, a version
+        saved before, may play it)."""
         previous = _LAST_CACHE.get(self.bl_idname) if self.is_repeat() else None
-        _LAST_CACHE[self.bl_idname] = None if written is None else str(written)
-        if (previous and previous != str(written) and os.path.isfile(previous)
+        own = played is not None and (written or previous == str(played))
+        _LAST_CACHE[self.bl_idname] = str(played) if own else None
+        if (previous and previous != str(played) and os.path.isfile(previous)
                 and os.path.realpath(previous) not in cache_files_in_use()):
             try:
                 os.remove(previous)
@@ -754,7 +758,7 @@ class PoseWriter:
             verb = "moves" if own_speed == [motion.get("parent")] else "move"  # "its constraints" is plural
             self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
                                      f"{' and '.join(own_speed)} {verb} it at the scene's own speed")
-        self.drop_undone_cache(path)
+        self.drop_undone_cache(path, written)
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
@@ -785,13 +789,17 @@ def _own_motion(obj) -> dict[str, str]:
 
 def unwritable(path: Path) -> str | None:
     """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
-    words, or None: the nearest existing folder on its way is a file, or not writable."""
+    words, or None: the nearest existing folder on its way is a file, not writable, or on a
+    read-only file system (where its permissions say it is writable)."""
     existing = path.parent
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent
     if not existing.is_dir():
         return f"'{existing}' is a file, not a folder"
     if not os.access(existing, os.W_OK | os.X_OK):
+        # a folder on a read-only mount (a farm's asset share, a snapshot) has its permissions all the same
+        if hasattr(os, "statvfs") and os.statvfs(existing).f_flag & os.ST_RDONLY:
+            return f"the folder '{existing}' is on a read-only file system"
         return f"the folder '{existing}' is not writable (Permission denied)"
     return None
 

@@ -145,15 +145,33 @@ def test_retime_at_a_speed_single_precision_cannot_hold_plays_every_frame(bpy_em
     np.testing.assert_allclose(cache.positions[-1], last, atol=TOLERANCE)
 
 
-def test_cache_files_that_cannot_be_written_are_refused_before_any_work(bpy_empty, extension, core, tmp_path):
-    """A Cache File under a file (not a folder), or past Blender's NLA when the source's transform
-    is keyframed (speed under 0.001): refused before anything is computed, nothing added."""
+def test_cache_files_that_cannot_be_written_are_refused_before_any_work(bpy_empty, extension, core, tmp_path,
+                                                                       monkeypatch):
+    """A Cache File under a file (not a folder), in a folder on a read-only file system (said as
+    such: its permissions allow writing, and "Permission denied" sent users to them), or past
+    Blender's NLA when the source's transform is keyframed (speed under 0.001): refused before
+    anything is computed, nothing added."""
+    import os
+
     source = armature_scene(frames=9)
     (tmp_path / "afile").write_text("x")
     names = set(bpy.data.objects.keys())
     with pytest.raises(RuntimeError, match="afile' is a file, not a folder"):
         bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
                                          filepath=str(tmp_path / "afile" / "out.pc2"))
+    mount = tmp_path / "share"  # as a read-only mount shows it: writable by its mode, refused by the system
+    mount.mkdir()
+    access, statvfs = os.access, os.statvfs
+
+    def read_only(call, result):
+        return lambda path, *args, **kw: result(path) if os.fspath(path) == str(mount) else call(path, *args, **kw)
+
+    monkeypatch.setattr(os, "access", read_only(access, lambda path: False))
+    monkeypatch.setattr(os, "statvfs", read_only(statvfs, lambda path: type("Flags", (), {"f_flag": os.ST_RDONLY})))
+    with pytest.raises(RuntimeError, match=f"the folder '{mount}' is on a read-only file system. Pick another"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5,
+                                         filepath=str(mount / "caches" / "out.pc2"))
+    monkeypatch.undo()
     source.animation_data_create().action = bpy.data.actions.new("Move")
     source.keyframe_insert("location", frame=1)
     with pytest.raises(RuntimeError, match="NLA slows an action down 1000 times at most"):

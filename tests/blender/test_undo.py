@@ -134,3 +134,30 @@ def test_adjusting_the_last_run_leaves_only_the_cache_it_plays(bpy_empty, extens
     with bpy.context.temp_override(window=window, screen=window.screen, area=area, region=region):
         assert bpy.ops.ed.undo_redo('EXEC_DEFAULT', True) == {'FINISHED'}
     assert not list(tmp_path.iterdir())
+
+
+def test_adjusting_a_run_that_played_an_earlier_file_keeps_that_file(bpy_empty, extension, core, tmp_path):
+    """A run whose poses an earlier run's file already holds plays that file without writing it
+    (another version of the shot in the folder plays it: here shot_v1.blend); changing a setting in
+    the Redo panel then writes the new run's file and leaves that one alone (before, it was deleted
+    as the undone run's own, and shot_v1.blend played a file that was gone)."""
+    armature_scene(frames=9)
+    folder = str(tmp_path / "caches") + "/"
+    bpy.ops.shape_differences.retime(frame_step=4, speed=0.5, filepath=folder)
+    earlier = next(tmp_path.joinpath("caches").iterdir())
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot_v1.blend"))
+    bpy.data.objects.remove(bpy.data.objects["Grid Retime 0.50x step 4"])
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot_v2.blend"))
+    bpy.ops.ed.undo_push(message="before")
+    bpy.ops.shape_differences.retime('EXEC_DEFAULT', True, frame_step=4, speed=0.5, filepath=folder)
+    played = [m.filepath for obj in bpy.data.objects for m in obj.modifiers if m.type == 'MESH_CACHE']
+    assert [bpy.path.abspath(path) for path in played] == [str(earlier)]  # the earlier run's file, played again
+    window = bpy.context.window
+    area = next(area for area in window.screen.areas if area.type == 'VIEW_3D')
+    region = next(region for region in area.regions if region.type == 'WINDOW')
+    last = bpy.context.window_manager.operators[-1]
+    last.properties.speed = 0.25
+    with bpy.context.temp_override(window=window, screen=window.screen, area=area, region=region):
+        assert bpy.ops.ed.undo_redo('EXEC_DEFAULT', True) == {'FINISHED'}
+    assert bpy.data.objects["Grid Retime 0.25x step 4"]
+    assert earlier.is_file() and len(list(tmp_path.joinpath("caches").iterdir())) == 2

@@ -67,6 +67,54 @@ def test_merge_rejects_gaps_and_mismatches(tmp_path):
     assert not (tmp_path / "out.pc2").exists()
 
 
+@pytest.mark.parametrize("start", [100_000.0, -100_000.0])
+def test_merge_of_parts_far_from_frame_zero(tmp_path, start):
+    """Parts of a cache sampled in tenths from frame ±100,000 merge into the whole file byte for byte: each part's start is the single-precision rounding of its frame
+    (0.0078 apart at 100,000), which the check allows (before, the merge refused in-order parts as
+    "starts at frame 100000.1, expected 100000.1"); a part left out is still refused."""
+    data, sampling = samples(12), 0.1
+    whole = write_pc2(tmp_path / "whole.pc2", data, start=start, sampling=sampling)
+    bounds = [(0, 1), (1, 3), (3, 7), (7, 12)]
+    parts = [write_pc2(tmp_path / f"part{i}.pc2", data[a:b], start=start + a * sampling, sampling=sampling)
+             for i, (a, b) in enumerate(bounds)]
+    assert merge_pc2(parts, tmp_path / "merged.pc2").read_bytes() == whole.read_bytes()
+    for left_out in (1, 2):  # a middle part (the first or last left out makes a shorter cache)
+        with pytest.raises(MeshError, match="give the chunks in order, with none missing"):
+            merge_pc2(parts[:left_out] + parts[left_out + 1:], tmp_path / "gap.pc2")
+    assert not (tmp_path / "gap.pc2").exists()
+
+
+def test_merge_refuses_parts_whose_starts_cannot_tell_a_missing_sample(tmp_path):
+    """At frame 800,000 a PC2's single-precision start frame is 0.0625 frames coarse, six samples of
+    a cache sampled in hundredths: without stamps a missing part cannot be told from the starts, so
+    the merge refuses, saying why, rather than merge parts it cannot check (chunks written with
+    their stamps say which key gaps they hold, :func:`test_command_chunks_far_from_frame_zero`)."""
+    data = samples(4)
+    parts = [write_pc2(tmp_path / f"part{i}.pc2", data[a:b], start=800_000 + a * 0.01, sampling=0.01)
+             for i, (a, b) in enumerate([(0, 2), (2, 4)])]
+    with pytest.raises(MeshError, match="cannot tell one sample from the next .* whether a part is missing"):
+        merge_pc2(parts, tmp_path / "merged.pc2")
+    assert not (tmp_path / "merged.pc2").exists()
+
+
+@pytest.mark.parametrize("failure", [OSError(28, "No space left on device"), SystemExit(143)])
+def test_a_chunk_whose_stamp_cannot_be_written_is_not_left(tmp_path, monkeypatch, failure):
+    """A chunk is written, then its stamp: a disk that fills up in between (or a SIGTERM there)
+    removes the chunk again, so that the failed or cancelled task leaves nothing written (before,
+    the chunk stayed without its stamp, and the merge blamed another job for it)."""
+    write = point_cache._write_atomically
+
+    def full_at_the_stamp(path, chunks, **options):
+        if str(path).endswith(point_cache.STAMP_SUFFIX):
+            raise failure
+        return write(path, chunks, **options)
+
+    monkeypatch.setattr(point_cache, "_write_atomically", full_at_the_stamp)
+    with pytest.raises(type(failure)):
+        write_pc2(tmp_path / "chunk1.pc2", samples(3), stamp=dict(job="j", gaps=[0, 1], key_gaps=2))
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.parametrize("damage, match", [
     (lambda raw: b"NOTACACHE!!!" + raw[12:], "is not a PC2 point cache .* give an MDD file its .mdd name"),
     (lambda raw: raw[:-4], "not a complete PC2 file"),

@@ -2,6 +2,7 @@
 exactly the source's, in-betweens those of SequenceInterpolator, chunks concatenating bit for
 bit into the single-process result, and the headless command (python -m core)."""
 
+import os
 import re
 import subprocess
 import sys
@@ -261,6 +262,106 @@ def test_chunks_of_a_cache_sampled_in_tenths_merge_into_the_single_run(tmp_path)
     # a missing chunk is still a whole sample or more off
     parts = [str(folder / f"chunk{i}.pc2") for i in (1, 2, 4)]
     assert main(["merge", *parts, "-o", str(tmp_path / "gap.pc2")]) == 2
+
+
+@pytest.mark.parametrize("start, sampling", [(100_000.0, 0.1), (800_000.0, 0.01)])
+def test_command_chunks_far_from_frame_zero(tmp_path, start, sampling):
+    """Chunks of a cache sampled in tenths from frame 100,000, or in hundredths from 800,000 (where
+    a PC2's single-precision start frame is six samples coarse): their stamps say which key gaps
+    they hold, and they merge into the single run's file byte for byte (before, the merge refused
+    them as out of order: "'chunk2.pc2' starts at frame 100002, expected 100002")."""
+    source, triangles = rolling_sheet(n_frames=33, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source, start=start, sampling=sampling)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    settings = [str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    assert main(["retime", *settings, "-q", "-o", str(tmp_path / "whole.pc2")]) == 0
+    for i in (1, 2, 3):
+        assert main(["retime", *settings, "-q", "--chunk", f"{i}/3", "-o", str(tmp_path / f"chunk{i}.pc2")]) == 0
+    assert main(["merge", "--numbered", str(tmp_path / "chunk#.pc2"), "--count", "3", "-o",
+                 str(tmp_path / "merged.pc2"), "--retime", *settings]) == 0
+    assert (tmp_path / "merged.pc2").read_bytes() == (tmp_path / "whole.pc2").read_bytes()
+
+
+def test_a_chunk_is_stamped_with_the_samples_it_was_computed_from(tmp_path, monkeypatch, capsys):
+    """An input cache written over in place while a chunk is computed (a simulation cached again
+    under its name while the job runs; exporters rewrite the file): the chunk's stamp is of the
+    samples its in-betweens were computed from, so the merge given the new cache refuses it beside
+    chunks computed from that (before, the stamp was read from the file after the work, the new
+    take's: a merge of two chunks run before and two after wrote 32 samples of one take and 33 of
+    the other, exit 0)."""
+    import core.__main__ as command
+
+    take_a, triangles = rolling_sheet(n_frames=17, nx=5)
+    take_b = take_a * np.array([1, 1, -1], dtype=np.float32)  # the sheet rolling the other way
+    cache = write_pc2(tmp_path / "cloth.pc2", take_a)
+    topology = write_obj(tmp_path / "cloth.obj", take_a[0], triangles)
+    settings = [str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    chunks = [str(tmp_path / f"chunk{i}.pc2") for i in (1, 2)]
+    computing = command.iter_retime
+
+    def cached_again_meanwhile(*args, **options):
+        for done, output in enumerate(computing(*args, **options)):
+            if done == 1:
+                with open(cache, "r+b") as stream:  # the same file, written over
+                    stream.seek(32)
+                    stream.write(take_b.tobytes())
+            yield output
+
+    monkeypatch.setattr(command, "iter_retime", cached_again_meanwhile)
+    assert main(["retime", *settings, "-q", "--chunk", "1/2", "-o", chunks[0]]) == 0
+    monkeypatch.undo()
+    np.testing.assert_array_equal(read_pc2(cache).positions, take_b)
+    assert main(["retime", *settings, "-q", "--chunk", "2/2", "-o", chunks[1]]) == 0
+    assert main(["merge", *chunks, "-o", str(tmp_path / "out.pc2"), "--retime", *settings]) == 2
+    assert "or the input cache or topology was written over since the chunk was computed" in capsys.readouterr().err
+    assert not (tmp_path / "out.pc2").exists()
+
+
+def test_merge_refuses_to_write_over_the_retimes_input(tmp_path, capsys):
+    """A merge whose output names the input cache or the OBJ of the retime it checks the chunks
+    against (a job's OutputCache set to its InputCache, directly or through a link): refused,
+    nothing written (before, the simulation was replaced by its retime, exit 0)."""
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    (tmp_path / "link.pc2").symlink_to(cache)
+    settings = [str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    chunks = [str(tmp_path / f"chunk{i}.pc2") for i in (1, 2)]
+    for i, chunk in enumerate(chunks, 1):
+        assert main(["retime", *settings, "-q", "--chunk", f"{i}/2", "-o", chunk]) == 0
+    before = {path: path.read_bytes() for path in (cache, topology)}
+    for output, what in ((cache, "the input cache of the retime"), (tmp_path / "link.pc2", "the input cache"),
+                         (topology, "the topology OBJ")):
+        assert main(["merge", *chunks, "-o", str(output), "--retime", *settings]) == 2
+        assert f"is {what}" in capsys.readouterr().err
+    assert {path: path.read_bytes() for path in (cache, topology)} == before
+
+
+def test_command_output_names_that_are_no_text(tmp_path, monkeypatch):
+    """A file name whose bytes are not text in the system's encoding (a Latin-1 'café' on a UTF-8
+    worker): the commands print it escaped, as Python prints it on stderr, and exit 0 (before,
+    printing it on a stdout that refuses such characters raised UnicodeEncodeError after the file
+    was written: a traceback, status 1, and the farm task failed on every retry)."""
+    import io
+
+    source, triangles = rolling_sheet(n_frames=5, nx=4)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    name = os.fsdecode(os.fsencode(str(tmp_path)) + b"/caf\xe9.pc2")
+    if "\udce9" not in name:
+        pytest.skip("this system decodes every file name")
+    stdout = io.TextIOWrapper(io.BytesIO(), encoding="utf-8", errors="strict")  # a UTF-8 locale's stdout
+    monkeypatch.setattr(sys, "stdout", stdout)
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q", "-o", name]) == 0
+    assert main(["info", name]) == 0
+    assert main(["merge", name, "-o", name[:-4] + " merged.pc2"]) == 0
+    stdout.flush()
+    printed = stdout.buffer.getvalue().decode()
+    assert "wrote " + str(tmp_path) + "/caf\\udce9.pc2: 5 of 5 samples" in printed
+    assert str(tmp_path) + "/caf\\udce9.pc2: 5 samples" in printed
+    assert "caf\\udce9 merged.pc2: 5 samples from frame 0" in printed
+    assert sorted(os.listdir(os.fsencode(str(tmp_path)))) == [b"caf\xe9 merged.pc2", b"caf\xe9.pc2", b"in.pc2",
+                                                               b"sheet.obj"]
 
 
 def test_command_inputs_checked_before_any_work(tmp_path, capsys):

@@ -3,6 +3,7 @@ chunked run (`openjd run`, two chunks, then the merge) writes the single-process
 the Flamenco job type is valid JavaScript and the commands it authors, run in order, do too."""
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -69,8 +70,18 @@ def test_openjd_template_checks():
 @pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
 def test_openjd_two_chunks_equal_the_single_process(job):
     """... from a studio's long path (the job name once held it, past OpenJD's 128 characters)
-    into a chunk folder with '#' in its name (once renumbered by the merge with the chunks)."""
+    into a chunk folder with '#' in its name (once renumbered by the merge with the chunks), on a
+    worker whose PYTHONPATH its Python needs (where a studio's Python finds NumPy and SciPy): every
+    task's Python still sees it (before, the job set PYTHONPATH to the extension's folder, replacing
+    the worker's, and a Python finding NumPy there failed every task: "No module named 'numpy'")."""
     folder, cache, topology, single = job
+    worker = folder / "worker site-packages"  # stands for the worker's own module path
+    worker.mkdir()
+    (worker / "sitecustomize.py").write_text(  # Python imports it at start-up from its module path
+        "import pathlib, sys\n"
+        "with open(pathlib.Path(__file__).with_name('started.txt'), 'a') as log:\n"
+        "    log.write(' '.join(sys.orig_argv[1:]) + '\\n')\n")
+    paths = [str(worker)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])
     shot = folder / ("shot_" + "x" * 100)
     chunks = shot / "take#12"
     chunks.mkdir(parents=True)
@@ -78,11 +89,15 @@ def test_openjd_two_chunks_equal_the_single_process(job):
     parameters = dict(InputCache=long_cache, Topology=topology, OutputCache=folder / "farm.pc2",
                       ChunkDirectory=chunks, ExtensionDirectory=ROOT, Python=sys.executable,
                       Step=4, Speed=0.5, Chunks=2)
-    result = subprocess.run(_openjd_command(parameters), capture_output=True, text=True, timeout=600)
+    result = subprocess.run(_openjd_command(parameters), capture_output=True, text=True, timeout=600,
+                            env={**os.environ, "PYTHONPATH": os.pathsep.join(paths)})
     assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
     assert sorted(p.name for p in chunks.iterdir()) == ["chunk1.pc2", "chunk1.pc2.json", "chunk2.pc2",
                                                          "chunk2.pc2.json"]
     _same_frames(folder / "farm.pc2", single)
+    started = (worker / "started.txt").read_text().splitlines()
+    assert sorted(command for line in started for command in ("retime", "merge") if f" {command} " in line) == \
+        ["merge", "retime", "retime"], started
 
 
 def test_jobs_sharing_a_chunk_folder_are_refused_not_mixed(job, capsys):
