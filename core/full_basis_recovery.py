@@ -13,10 +13,12 @@ Props. 1–2, appendix): two sparse linear solves.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import RecoveryError
+from .errors import RecoveryError, ShapeDifferenceWarning
 from .geometry import heron, vertex_labels
 from .inner_products import ProductAssembler
 from .mesh_topology import MeshTopology
@@ -25,7 +27,8 @@ from .mesh_topology import MeshTopology
 #: (``B_µ`` singular or ill conditioned) Gauss–Newton on both sets of equations polishes it.
 HERON_CHECK = 1e-8
 #: That Gauss–Newton runs until its residual stops shrinking (the rounding floor) and succeeds if
-#: the residual is then below this fraction of the data's size.
+#: the residual is then below this fraction of the data's size; above it the data are no mesh's and
+#: its last iterate is their least-squares fit (returned with a warning).
 HERON_ACCEPTED_RESIDUAL = 1e-7
 MAX_HERON_ITERATIONS = 30
 #: Without a direct solution the Gauss–Newton starts from the solution of ``B_µ ℓ² = c`` nearest
@@ -90,8 +93,10 @@ def recover_squared_lengths(
     sparse Gauss–Newton solve of both sets of equations, started from the direct solution (or,
     if there is none, from the Tikhonov solution nearest ``reference_squared_lengths``),
     recovers ℓ²; one step usually suffices, since the error of the direct solution lies in the
-    near-kernel of ``B_µ``. :class:`RecoveryError` if even that system is singular or does not
-    converge.
+    near-kernel of ``B_µ``. Data that are no mesh's (differences edited, blended, rounded or
+    noisy) leave a residual: the least-squares fit is returned with a
+    :class:`ShapeDifferenceWarning` giving its misfit. :class:`RecoveryError` if even that system
+    is singular, or the fit breaks a triangle inequality.
     """
     if not (np.all(np.isfinite(areas)) and np.all(areas > 0)):
         bad = int(np.flatnonzero(~(areas > 0))[0])
@@ -174,7 +179,27 @@ def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference,
             raise _singular_length_system(what)
         x = x + step
     if not previous <= HERON_ACCEPTED_RESIDUAL * data_size:
-        raise _singular_length_system(what)
+        # Gauss–Newton settled above the rounding floor: no squared lengths satisfy both sets of
+        # equations, so the data are not those of a mesh with these areas (differences edited,
+        # blended as in §8.4, or noisy). Its last iterate is the closest fit (least squares over
+        # both), which is what the differences can still tell when it describes triangles.
+        value, _ = _heron(topology, best)
+        misfit = np.linalg.norm(matrix @ best - edge_values) / np.linalg.norm(edge_values)
+        broken = np.any(best[topology.triangle_edges] <= 0, axis=1) | (value <= 0)
+        if broken.any():
+            raise RecoveryError(
+                f"The conformal shape difference of the {what} is not that of any mesh with the "
+                f"recovered triangle areas (differences edited, blended or noisy): the closest edge "
+                f"lengths, {misfit:.2g} off its entries, break the triangle inequality in "
+                f"{int(broken.sum())} of {broken.size} triangles."
+            )
+        warnings.warn(
+            f"The conformal shape difference of the {what} is not exactly that of a mesh with the "
+            f"recovered triangle areas (differences edited, blended or noisy): the edge lengths are "
+            f"the closest fit, {misfit:.2g} off its entries (a mesh's differences: round-off).",
+            ShapeDifferenceWarning,
+            stacklevel=4,
+        )
     return best
 
 

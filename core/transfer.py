@@ -40,8 +40,8 @@ from .functional_map import (UNMATCHED, check_correspondence, closest_point_corr
                              nearest_matched, project_near, pull_back_matrix, push_forward_matrix, walk_near)
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
-from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_overlap, check_spread,
-                              coincident_vertices, degenerate_at_rest, warn_non_manifold)
+from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation, check_overlap,
+                              check_spread, coincident_vertices, degenerate_at_rest, warn_non_manifold)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
 from .validation import check_basis_sizes
 
@@ -243,6 +243,8 @@ class Transfer:
         n_used = self.target_used.size
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
         self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
+        if correspondence is not None:  # closest points keep the base's sides
+            check_orientation(reference.base_positions, reference.topology, pull_back @ rest_used)
         push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
         self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None

@@ -1,8 +1,9 @@
 """What a :class:`~core.transfer.Transfer` refuses or warns about in the meshes and the
 correspondence it is given (paper §6.3 needs a map of the surface): a target's zero-area
 triangles, non-manifold edges and vertices split along seams (welded), and a correspondence that
-matches too few base vertices, lays the base on a point or a line, or (closest points) matches
-meshes that do not overlap at rest."""
+matches too few base vertices, lays the base on a point or a line, turns a closed part of the
+base inside out (a left/right flip of a symmetric shape), or (closest points) matches meshes that
+do not overlap at rest."""
 
 from __future__ import annotations
 
@@ -35,6 +36,12 @@ PARTLY_BESIDE = 0.1
 #: fraction of a target edge of the target surface, so this leaves out the rounding of two
 #: polylines along a boundary both meshes have.
 UNCOVERED_EDGES = 0.5
+#: A closed part of the base counts as turned inside out by a correspondence (:func:`check_orientation`)
+#: where the signed volume of its triangles placed on the target's matched positions has the other
+#: sign than at rest and is at least this share of the sum of the absolute volumes of its
+#: tetrahedra (to the part's centre): a convex part, carried either way, gives all of it, so the
+#: sign is not decided by a few triangles an imprecise map folds.
+INSIDE_OUT_SHARE = 0.5
 #: Smallest spread of the target positions a given correspondence matches, along each of their two
 #: widest axes, as a share of the target's own (:func:`check_spread`): a map onto a point
 #: or a line is refused; a map onto part of the target (a head on a body) spreads over far more.
@@ -212,3 +219,45 @@ def coincident_vertices(rest, used) -> np.ndarray | None:
     welded[used] = used[first[labels]]
     return welded
 
+
+
+def _signed_volumes(positions, triangles, labels, count):
+    """Per connected part: the signed volume enclosed by its triangles and the sum of the absolute
+    volumes of their tetrahedra to the part's centre (its triangle corners' mean), ``(count,)`` each."""
+    corners = positions[triangles]  # (m, 3, 3)
+    sizes = np.bincount(labels, minlength=count)[:, None]
+    centres = np.stack([np.bincount(labels, corners[:, :, d].mean(axis=1), minlength=count)
+                        for d in range(3)], axis=1) / np.maximum(sizes, 1)
+    relative = corners - centres[labels][:, None, :]
+    tetrahedra = np.einsum("ij,ij->i", relative[:, 0], np.cross(relative[:, 1], relative[:, 2])) / 6.0
+    return np.bincount(labels, tetrahedra, minlength=count), np.bincount(labels, np.abs(tetrahedra), minlength=count)
+
+
+def check_orientation(base, base_topology, carried) -> None:
+    """ShapeDifferenceWarning where a correspondence turns closed parts of the base inside out:
+    ``carried`` ``(n, 3)`` are the target rest positions it matches to the base's vertices ``base``
+    ``(n, 3)``. A map that reverses orientation (a symmetric shape matched left to right, as
+    functional maps often do) places the base's triangles on the target facing the other way, and
+    every transferred pose follows it: the same surface as the target's pose, inside out and with
+    its sides exchanged. Only closed parts have an inside (:data:`INSIDE_OUT_SHARE`)."""
+    count, labels = base_topology.components()
+    closed = np.ones(count, dtype=bool)
+    boundary = base_topology.boundary_edges
+    if boundary.size:
+        closed[labels[base_topology.edge_triangles[boundary, 0]]] = False
+    if not closed.any():
+        return
+    triangles = base_topology.triangles
+    at_rest, _ = _signed_volumes(base, triangles, labels, count)
+    volume, total = _signed_volumes(carried, triangles, labels, count)
+    inside_out = np.flatnonzero(closed & (volume * at_rest < 0) & (np.abs(volume) >= INSIDE_OUT_SHARE * total))
+    if inside_out.size:
+        first = int(np.flatnonzero(labels == inside_out[0])[0])
+        warnings.warn(
+            f"The correspondence turns {inside_out.size} of {int(closed.sum())} closed part(s) of the base "
+            f"inside out (first: the part of triangle {first}): it matches them to the target mirrored, "
+            "as a left/right flip of a symmetric shape does, so every transferred pose is the target's "
+            "surface inside out with its sides exchanged. Check the map (its left and right).",
+            ShapeDifferenceWarning,
+            stacklevel=3,
+        )

@@ -70,6 +70,18 @@ def test_pivoted_cholesky_of_the_edge_gram_matches_its_eigendecomposition():
     assert np.allclose(low.values[:50], exact[::-1][:50], rtol=1e-6)
 
 
+def test_pivoted_cholesky_reserves_memory_for_the_rank_it_finds():
+    # The edge program passes the number of edges as the rank bound; a Gram of rank 5 over 100,000
+    # points needs a 100,000 × 5 factor. A buffer sized for the bound (N × N float64, 80 GB) was
+    # requested up front: MemoryError (a 10k-vertex offset surface's 92,160 edges: 63 GiB).
+    f = np.random.default_rng(0).normal(size=(100_000, 5))
+    factor = randomly_pivoted_cholesky(lambda s: f @ f[s].T, np.einsum("ij,ij->i", f, f), tolerance=1e-12,
+                                       max_rank=f.shape[0])
+    assert factor.shape == f.shape
+    probe = np.random.default_rng(1).normal(size=(f.shape[0], 3))
+    assert np.allclose(factor @ (factor.T @ probe), f @ (f.T @ probe), rtol=1e-8, atol=1e-8 * np.abs(f).max() ** 2)
+
+
 @pytest.fixture(scope="module")
 def small_sheet():
     v, t = grid(10, jitter=0.3)
