@@ -141,9 +141,10 @@ def _output_property(default: str):
 _FILEPATH = StringProperty(
     name="Cache File", subtype='FILE_PATH', default="", options=PATH_OPTIONS,
     description="PC2 file for Point Cache output (an existing file is never overwritten: a "
-                "numbered name is used); empty = a file named after the object in a 'caches' "
-                "folder beside the .blend; a relative path is taken beside the saved .blend (the "
-                "folder Blender was started from while the .blend is unsaved)")
+                "numbered name is used); empty = a file named after the new object in a 'caches' "
+                "folder beside the .blend (Blender's temporary folder while the .blend is unsaved); "
+                "a relative path is taken beside the saved .blend (the folder Blender was started "
+                "from while the .blend is unsaved)")
 
 
 class PoseOutput:

@@ -33,7 +33,7 @@ import numpy as np
 from .errors import ShapeDifferenceError
 from .obj_file import read_obj
 from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_pc2_header, read_point_cache,
-                          refuse_overwriting, write_pc2)
+                          refuse_overwriting, unwritable, write_pc2)
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory, check_working_memory
 
@@ -192,6 +192,9 @@ def _merged_job(args) -> str | None:
 def _retime(args) -> int:
     check_pc2_name(args.output)
     refuse_overwriting(args.output, {args.cache: "the input cache", args.topology: "the topology OBJ"})
+    reason = unwritable(args.output)  # said before the in-betweens, which it would waste
+    if reason:
+        raise ShapeDifferenceError(f"Cannot write '{args.output}': {reason}. Give another output file.")
     cache = read_point_cache(args.cache)
     check_pc2_timing(cache.start if args.start is None else args.start, cache.sampling)  # before any work
     if args.offset and not args.quiet:

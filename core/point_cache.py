@@ -140,10 +140,6 @@ def _write_atomically(path: Path, chunks, *, exclusive: bool = False) -> None:
     then renaming would let two processes writing one new name keep only the later file)."""
     given = path
     path = Path(path)
-    if not str(given).strip():
-        raise MeshError("The output file name is empty: give one (such as out.pc2).")
-    if str(given).endswith(("/", os.sep)) or path.is_dir():
-        raise MeshError(f"'{given}' is a folder, not a file: give the output a file name (such as out.pc2).")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         _remove_abandoned_parts(path)
@@ -219,9 +215,31 @@ def check_pc2_timing(start: float, sampling: float) -> None:
                         f"positive; got start {start}, sampling {sampling}.")
 
 
+def unwritable(path) -> str | None:
+    """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
+    words, or None: the nearest existing folder on its way is a file, not writable, or on a
+    read-only file system (where its permissions say it is writable)."""
+    existing = Path(path).parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        return f"'{existing}' is a file, not a folder"
+    if not os.access(existing, os.W_OK | os.X_OK):
+        # a folder on a read-only mount (a farm's asset share, a snapshot) has its permissions all the same
+        if hasattr(os, "statvfs") and os.statvfs(existing).f_flag & os.ST_RDONLY:
+            return f"the folder '{existing}' is on a read-only file system"
+        return f"the folder '{existing}' is not writable (Permission denied)"
+    return None
+
+
 def check_pc2_name(path) -> None:
-    """Raise :class:`MeshError` for an output named ``.mdd``: the writers here write PC2, which a
-    reader would take for an MDD by its name."""
+    """Raise :class:`MeshError` for an output name no PC2 can be written to: empty, a folder, or
+    named ``.mdd`` (the writers here write PC2, which a reader would take for an MDD by its name).
+    The writers call it, and so does a command before its work, which these names would waste."""
+    if not str(path).strip():
+        raise MeshError("The output file name is empty: give one (such as out.pc2).")
+    if str(path).endswith(("/", os.sep)) or Path(path).is_dir():
+        raise MeshError(f"'{path}' is a folder, not a file: give the output a file name (such as out.pc2).")
     if Path(path).suffix.lower() == ".mdd":
         raise MeshError(f"'{path}' is named as an MDD file, but the output is PC2: name it .pc2.")
 

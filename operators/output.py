@@ -564,6 +564,8 @@ class PoseWriter:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
+            from ..core.point_cache import unwritable
+
             path, _ = self.cache_path(source.name, report=False)  # a path the system refuses: before any work
             reason = unwritable(path)
             if reason:
@@ -727,6 +729,8 @@ class PoseWriter:
         try:
             path, written = write_new_cache(path, poses, start, sampling)
         except OSError as error:
+            from ..core.point_cache import unwritable
+
             reason = unwritable(path) or error.strerror or str(error)
             raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File") from None
         stored_path = self.stored_path(path)
@@ -785,23 +789,6 @@ def _own_motion(obj) -> dict[str, str]:
     if obj.constraints:
         out["constraints"] = "its constraints"
     return out
-
-
-def unwritable(path: Path) -> str | None:
-    """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
-    words, or None: the nearest existing folder on its way is a file, not writable, or on a
-    read-only file system (where its permissions say it is writable)."""
-    existing = path.parent
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if not existing.is_dir():
-        return f"'{existing}' is a file, not a folder"
-    if not os.access(existing, os.W_OK | os.X_OK):
-        # a folder on a read-only mount (a farm's asset share, a snapshot) has its permissions all the same
-        if hasattr(os, "statvfs") and os.statvfs(existing).f_flag & os.ST_RDONLY:
-            return f"the folder '{existing}' is on a read-only file system"
-        return f"the folder '{existing}' is not writable (Permission denied)"
-    return None
 
 
 def object_motion(obj) -> dict[str, str]:

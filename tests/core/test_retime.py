@@ -386,6 +386,13 @@ def test_command_inputs_checked_before_any_work(tmp_path, capsys):
         err = capsys.readouterr().err
         assert message in err and "retime: sample" not in err, (argv, err)
         assert not (tmp_path / "a.pc2").exists() and not (tmp_path / "a.mdd").exists()
+    # an output no file can be written to: said before the first in-between (whose progress, not
+    # silenced here, would show it computed)
+    for output, message in ((str(tmp_path) + "/", "is a folder, not a file"), (" ", "file name is empty"),
+                            (str(topology / "out.pc2"), "is a file, not a folder")):
+        assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-o", output]) == 2
+        err = capsys.readouterr().err
+        assert message in err and "retime: sample" not in err, (output, err)
 
 
 def test_obj_with_a_byte_order_mark(tmp_path):
