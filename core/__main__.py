@@ -197,6 +197,9 @@ def _retime(args) -> int:
         raise ShapeDifferenceError(f"Cannot write '{args.output}': {reason}. Give another output file.")
     cache = read_point_cache(args.cache)
     check_pc2_timing(cache.start if args.start is None else args.start, cache.sampling)  # before any work
+    if not (np.isfinite(args.offset) and args.offset >= 0):
+        raise ShapeDifferenceError(f"--offset {args.offset:g} must be 0 or positive (it has no effect: "
+                                   "in-betweens use no offset surface).")
     if args.offset and not args.quiet:
         print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
     if cache.times is not None and not _even_times(cache.times):
@@ -330,6 +333,9 @@ def _run(args) -> int:
         where = f"'{error.filename}': " if error.filename else ""
         print(f"error: {where}{error.strerror or error}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:  # Ctrl+C: a user's stop, not a failure to report (the writes are atomic)
+        print(f"{args.command}: interrupted (Ctrl+C), nothing written", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

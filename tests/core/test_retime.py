@@ -380,7 +380,9 @@ def test_command_inputs_checked_before_any_work(tmp_path, capsys):
               "invalid PC2 header"),
              (["retime", str(cache), "--topology", str(tmp_path / "flat.obj"), "--step", "2", "-o",
                str(tmp_path / "a.pc2")], "line 1 cannot be read (a vertex needs three coordinates)"),
-             (["merge", str(cache), "--count", "2", "-o", str(tmp_path / "a.pc2")], "--count N goes with --numbered")]
+             (["merge", str(cache), "--count", "2", "-o", str(tmp_path / "a.pc2")], "--count N goes with --numbered"),
+             ([*common, "--offset", "-1", "-o", str(tmp_path / "a.pc2")], "--offset -1 must be 0 or positive"),
+             ([*common, "--offset", "nan", "-o", str(tmp_path / "a.pc2")], "--offset nan must be 0 or positive")]
     for argv, message in cases:
         assert main(argv) == 2
         err = capsys.readouterr().err
@@ -448,3 +450,24 @@ def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
     named = {re.search(r"between (.*): (samples \d+-\d+)", str(w.message)).groups() for w in caught}
     keys = [int(k) for k in plan.keys]
     assert named == {(f"key pose {g} and key pose {g + 1}", f"samples {keys[g]}-{keys[g + 1]}") for g in range(4)}
+
+
+def test_ctrl_c_stops_a_command_in_one_line_with_nothing_written(tmp_path, capsys, monkeypatch):
+    """Ctrl+C during the in-betweens: exit 130 (as a shell reports SIGINT), one line saying so and
+    no traceback (the one failure the docs ask users to report), no output file."""
+    import core.__main__ as command
+
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+        yield
+
+    monkeypatch.setattr(command, "iter_retime", interrupted)
+    output = tmp_path / "out.pc2"
+    assert command.main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q", "-o", str(output)]) == 130
+    err = capsys.readouterr().err
+    assert "interrupted (Ctrl+C), nothing written" in err and "Traceback" not in err
+    assert not output.exists()
