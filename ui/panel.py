@@ -49,6 +49,11 @@ class VIEW3D_PT_shape_differences_poses(ShapeDiffPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.split_layout()
         settings = context.scene.shape_differences
+        # the output first: Transfer Keys (Animation panel) follows it onto a target that has no
+        # shape keys yet
+        layout.prop(settings, "pose_output")
+        if settings.pose_output == 'CACHE':
+            layout.prop(settings, "filepath")
         shape_keys = shape_keys_of(context)
         if shape_keys is None:
             obj = context.active_object
@@ -59,10 +64,6 @@ class VIEW3D_PT_shape_differences_poses(ShapeDiffPanel, bpy.types.Panel):
 
         def key_picker(column, name):
             column.prop_search(settings, name, shape_keys, "key_blocks", icon='SHAPEKEY_DATA')
-
-        layout.prop(settings, "pose_output")
-        if settings.pose_output == 'CACHE':
-            layout.prop(settings, "filepath")
 
         column = layout.column()
         key_picker(column, "key_a")

@@ -81,7 +81,7 @@ class RecordingLayout:
     key picker and operator the panel draws exists, and records the operators' settings."""
 
     def __init__(self):
-        self.operators, self.labels = [], []
+        self.operators, self.labels, self.props = [], [], []
 
     def column(self, align=False):
         return self
@@ -96,6 +96,7 @@ class RecordingLayout:
 
     def prop(self, data, name, **_options):
         assert name in data.bl_rna.properties, name
+        self.props.append(name)
 
     def prop_search(self, data, name, search_data, search_name, **_options):
         assert name in data.bl_rna.properties and search_name in search_data.bl_rna.properties
@@ -134,6 +135,11 @@ def draw_panels(extension, layout=None):
 def test_panel_draws_settings_and_operators(bpy_empty, extension):
     from blender_scenes import posed_grid
     bpy.ops.mesh.primitive_grid_add()
+    # a mesh without shape keys (a transfer's target): the Poses panel still shows the output that
+    # Transfer Keys follows
+    layout = RecordingLayout()
+    draw_panels(extension, layout)
+    assert "The active mesh has no shape keys" in layout.labels and "pose_output" in layout.props
     assert [idname for idname, _ in draw_panels(extension)] == [
         "shape_differences.frames_to_shape_keys", "shape_differences.inbetween_frames",
         "shape_differences.retime", *["shape_differences.transfer_poses"] * 2, *["shape_differences.shape_space"] * 2,
