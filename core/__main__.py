@@ -126,9 +126,9 @@ def _even_times(times: np.ndarray) -> bool:
     return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
 
 
-def _samples_read(cache, plan) -> np.ndarray:
-    """The input samples a retime by ``plan`` reads: its keys, and samples 1 and 2 (the start's)."""
-    return np.asarray(sorted(set(plan.samples_read) | {i for i in (1, 2) if i < cache.n_samples}), dtype=int)
+def _samples_read(plan) -> np.ndarray:
+    """The input samples a retime by ``plan`` reads (:attr:`core.retime.RetimePlan.samples_read`)."""
+    return np.asarray(plan.samples_read, dtype=int)
 
 
 class _SamplesRead:
@@ -186,7 +186,7 @@ def _merged_job(args) -> str | None:
     cache = read_point_cache(args.retime)
     _, triangles = read_obj(args.topology)
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    return _job_fingerprint(cache, cache.positions, _samples_read(cache, plan), triangles, args)
+    return _job_fingerprint(cache, cache.positions, _samples_read(plan), triangles, args)
 
 
 def _retime(args) -> int:
@@ -212,7 +212,7 @@ def _retime(args) -> int:
             "export the OBJ from the same mesh, without modifiers that change its vertices."
         )
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    read = _samples_read(cache, plan)
+    read = _samples_read(plan)
     samples = _SamplesRead(cache, read)
     broken = read[[not np.isfinite(samples[sample]).all() for sample in read]]
     if broken.size:  # said here in the cache's own samples and frames, not as a key pose's index

@@ -93,7 +93,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, riding_tolerance: float = 0.0,
-                 start_limit: float | None = None,
+                 start_limit: float | None = None, rest_end: bool = False,
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None):
@@ -119,7 +119,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
         def options(name: str) -> dict:
             # a piece that swings back inside the gap keeps its turn's tangent, as a point does (onward)
-            return dict(rows=name in POSITIONS, limit=limit, onward=name == "screw",
+            return dict(rows=name in POSITIONS, limit=limit, onward=name == "screw", rest_end=rest_end,
                         parabolic_end=None if free is None else self.per_element(name, free),
                         parabolic_start=None if impact is None else self.per_element(name, impact),
                         entry=None if entry is None or name not in entry[1] else
@@ -173,7 +173,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             sizes = [len(rows) for rows in riding]
             frames = principal_frames(base.vertices[np.concatenate(riding)], np.repeat(np.arange(len(riding)), sizes),
                                       len(riding), np.ones(sum(sizes))) if cubic else None
-            self.riding_screws = ScrewGap(screws, frames, cubic, limit=limit, onward=True)
+            self.riding_screws = ScrewGap(screws, frames, cubic, limit=limit, onward=True, rest_end=rest_end)
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from

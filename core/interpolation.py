@@ -66,9 +66,9 @@ from .mesh_topology import check_manifold_vertices
 from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .rigid_alignment import reflected_fits
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
-from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
+from .splines import END_TANGENT_LIMIT, REST_START_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, _limited
 from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_real,
-                         check_sequence, check_start, check_time)
+                         check_end, check_sequence, check_start, check_time)
 
 __all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
 
@@ -111,13 +111,6 @@ MIRROR_MISS = SIMILAR_SHAPE_MISFIT[1]
 #: Vertices of each piece the check reads (evenly along its vertex order).
 MIRROR_SAMPLES = 256
 
-#: A motion starts from rest at its first key when its velocity there — from the first three frames
-#: of the source, one frame apart (the parabola through them) — is below this fraction of its mean
-#: velocity over the first gap (RMS over the vertices): free fall from rest gives 0 (exact for
-#: constant acceleration), motion at constant velocity 1. Used where the sequence has two keys;
-#: with three or more see :func:`start_of_motion`.
-REST_START_FRACTION = 0.25
-
 #: A sequence's gap where a part of a piece over this share of its area turns past a half turn
 #: from the rest of it between the keys (the triangles' whole rotations, taken continuous across
 #: the mesh where no jump joins a fold's crease, are past π there:
@@ -141,33 +134,64 @@ REST_START_FRACTION = 0.25
 TURNED_PART_SHARE = 0.1
 
 
-def start_of_motion(frames, next_key, step: int, third_key=None) -> str:
-    """``"rest"`` or ``"keys"`` (the ``start`` of :class:`SequenceInterpolator`) for keys every
-    ``step``-th frame of a dense source: ``frames`` its first three frames (3, n, 3) — the first key
-    and the two frames after it — ``next_key`` (n, 3) the second key (frame ``step``) and
-    ``third_key`` (n, 3) the third (frame ``2·step``), if the sequence has one. With fewer than
-    three frames or a step below 2 the keys are the source: ``"keys"``.
+def start_of_motion(keys, middle, factor: float, durations=None) -> str:
+    """``"rest"`` or ``"keys"`` (the ``start`` of :class:`SequenceInterpolator`) for a sequence's
+    first gap, from its first three keys ``keys`` (3, n, 3) and the source's frame ``middle``
+    (n, 3) inside the first gap at ``factor`` of it (0 < factor < 1; the middle frame).
+    ``durations``: the first two gaps' lengths (keys unevenly spaced), or None (even).
 
-    The velocity at the first key, from the frames, is compared with what each start gives it:
-    ``"keys"`` where it is nearer (RMS over the vertices) the velocity of the parabola through the
-    three keys, limited per element to the first gap's secant as the splines limit it
-    (:data:`core.splines.START_TANGENT_LIMIT`), than zero; without a third key, ``"keys"`` where it
-    is above :data:`REST_START_FRACTION` of the first gap's mean. Over 35 baked cloths keyed 4, 8
-    and 16 frames apart (105 first gaps) the start chosen so was the one closer to the source in
-    101; the mean-velocity rule alone chose wrong in 13, among them first gaps 2–6.6 × further from
-    the source than the other start's (docs/inbetweens.md, *How a motion leaves its first key*)."""
-    frames = [np.asarray(f, dtype=np.float64) for f in frames]
-    if step < 2 or len(frames) < 3:
-        return "keys"
-    velocity = 0.5 * (-3.0 * frames[0] + 4.0 * frames[1] - frames[2])  # per frame, at the first key
-    secant = (np.asarray(next_key, dtype=np.float64) - frames[0]) / step
+    Each start's per-vertex spline over the first gap — the end tangent the mean of the two
+    secants per unit time (at most :data:`~core.splines.END_TANGENT_LIMIT` × the gap's secant per
+    point), the start tangent zero (``"rest"``) or the parabola's through the three keys, at most
+    the secant (``"keys"``, :data:`~core.splines.START_TANGENT_LIMIT`) — is compared with the
+    frame: the nearer one (RMS over the vertices). The velocity at the first key does not tell
+    them apart: a rig walking from rest is at rest there and at full pace two frames on, and a
+    spline from rest spreads that ease over the whole gap (keys 16 frames apart: 9.2 % of the
+    diagonal off, from the keys' parabola 4.1 %); a cloth falling from rest and landing in the
+    second gap has the walk's keys (docs/inbetweens.md, *How a motion leaves its first key*)."""
+    first, second, third = (np.asarray(k, dtype=np.float64) for k in keys)
+    first_gap, second_gap = (1.0, 1.0) if durations is None else (float(d) for d in durations)
+    secant = second - first
+    squared = np.einsum("ij,ij->i", secant, secant)
+    onward = (third - second) * (first_gap / second_gap)  # the next move per unit of this gap
+    end = _limited(0.5 * (secant + onward), END_TANGENT_LIMIT, squared, rows=True)
+    parabola = _limited(1.5 * secant - 0.5 * onward, START_TANGENT_LIMIT, squared, rows=True)
+    return "keys" if _nearer(middle, factor, first, secant, (np.zeros_like(secant), end), (parabola, end)) else "rest"
+
+
+def end_of_motion(keys, middle, factor: float, durations=None) -> str:
+    """``"keys"`` or ``"rest"`` (the ``end`` of :class:`SequenceInterpolator`) for a sequence's
+    last gap, from its last three keys ``keys`` (3, n, 3), oldest first, and the source's frame
+    ``middle`` (n, 3) inside the last gap at ``factor`` of it (0 < factor < 1; the middle frame).
+    ``durations``: the last two gaps' lengths (keys unevenly spaced), or None (even).
+
+    Each end's per-vertex spline over the last gap — the start tangent the mean of the two
+    secants per unit time (at most :data:`~core.splines.TANGENT_LIMIT` × the gap's secant per
+    point, as the positions' spline limits it), the end tangent the gap's secant (``"keys"``) or
+    zero (``"rest"``) — is compared with the frame: the nearer one (RMS over the vertices). How
+    far an ease into the last key reaches back depends on how long it is against the gap, which
+    the velocity at the key does not say: a hopping character keyed in Blender (auto-clamped
+    Bézier handles) slows in its last two frames, the rest end right with keys 4 frames apart and
+    wrong with keys 8 apart; the frame in the middle tells both (docs/inbetweens.md, *How a motion
+    reaches its last key*)."""
+    before, start, end = (np.asarray(k, dtype=np.float64) for k in keys)
+    back, last = (1.0, 1.0) if durations is None else (float(d) for d in durations)
+    secant = end - start
+    tangent = _limited(0.5 * ((start - before) * (last / back) + secant), TANGENT_LIMIT,
+                       np.einsum("ij,ij->i", secant, secant), rows=True)
+    return "rest" if _nearer(middle, factor, start, secant, (tangent, secant), (tangent, np.zeros_like(secant))) \
+        else "keys"
+
+
+def _nearer(middle, factor: float, start: np.ndarray, secant: np.ndarray, tangents: tuple, other: tuple) -> bool:
+    """Whether the per-vertex cubic Hermite spline from ``start`` over ``secant`` with the start
+    and end tangents ``other`` is nearer (RMS over the vertices) the pose ``middle`` at ``factor``
+    than the one with ``tangents``."""
+    s = float(factor)
+    at = lambda t0, t1: start + (3 * s * s - 2 * s ** 3) * secant + (s ** 3 - 2 * s * s + s) * t0 + (s ** 3 - s * s) * t1  # noqa: E731
+    middle = np.asarray(middle, dtype=np.float64)
     rms = lambda v: float(np.sqrt(np.mean(np.sum(v * v, axis=1))))  # noqa: E731
-    if third_key is None:
-        return "rest" if rms(velocity) <= REST_START_FRACTION * rms(secant) else "keys"
-    keys = 0.5 * (-3.0 * frames[0] + 4.0 * np.asarray(next_key, dtype=np.float64)
-                  - np.asarray(third_key, dtype=np.float64)) / step  # per frame, the keys' parabola
-    bound = START_TANGENT_LIMIT * np.abs(secant)
-    return "keys" if rms(velocity - np.clip(keys, -bound, bound)) < rms(velocity) else "rest"
+    return rms(at(*other) - middle) < rms(at(*tangents) - middle)
 
 
 class SequenceInterpolator:
@@ -199,7 +223,15 @@ class SequenceInterpolator:
     with zero velocity. ``"keys"``: keys cut from the middle of a motion — the start velocity is
     that of the parabola through the first three keys, at most the first gap's (exact for motion
     at constant velocity or acceleration). Where the source's frames between the keys are at hand
-    (the operators, :func:`core.retime.retime`), :func:`start_of_motion` chooses.
+    (the operators, :func:`core.retime.retime`), :func:`start_of_motion` chooses from the frame in
+    the middle of the first gap.
+
+    ``end``: how the motion reaches the last key. ``"keys"`` (the default): at the last gap's mean
+    velocity (the linear extrapolation past the last key, as Catmull–Rom's end condition), as a
+    simulation stopped at any frame. ``"rest"``: it comes to rest there, as an animation easing
+    into its last keyframe — the last gap ends with zero velocity (every spline's end tangent;
+    exact for motion at constant deceleration to a stop). :func:`end_of_motion` chooses from the
+    source's frame in the middle of the last gap.
 
     :attr:`key_names`: the keys as warnings name them, ``"key pose i"`` by default; a sequence
     keyed on some of another's keys names them as that one does (:func:`core.retime.iter_retime`'s
@@ -209,18 +241,18 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
-                 key_times=None):
+                 key_times=None, end: str = "keys"):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
-        start = check_start(start)
+        start, end = check_start(start), check_end(end)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
         key_times = check_key_times(key_times, len(key_poses))
-        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times)
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end)
 
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None,
-               two_poses=False):
+               two_poses=False, end="keys"):
         """The constructor once its arguments are checked (``topology``: that of the triangles;
         ``two_poses``: for an :class:`Interpolator`)."""
-        self.start = start
+        self.start, self.end = start, end
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
         self.key_names = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
@@ -749,6 +781,7 @@ class SequenceInterpolator:
                 after = after.rescaled(nxt, 1.0 / (ahead_time - 1.0))
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
+            # (or at rest: end="rest", which sets the last gap's end tangents to zero)
             prev = self._previous(gap, -back_time * turn, whole).continue_turns(-back_time * nxt.rotvec) \
                 if gap >= 1 else _Relative.phantom(nxt, ident, after)
             if back_time != 1.0:
@@ -758,7 +791,7 @@ class SequenceInterpolator:
             prev = after = ident
         return _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                     self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance,
-                    start_limit=self._start_limit(gap),
+                    start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root)

@@ -76,9 +76,26 @@ class RetimePlan:
 
     @property
     def samples_read(self) -> list[int]:
-        """The source samples the in-betweens need (the keys and the tail's), in order; the
-        start of the motion needs the two after the first key too (:func:`iter_retime`)."""
-        return sorted(set(self.keys.tolist()) | set(self.tail.tolist()))
+        """The source samples the in-betweens need (the keys, the tail's and the middles of the
+        first and last gaps, :attr:`start_samples` and :attr:`end_samples`), in order."""
+        middles = {ends[3] for ends in (self.start_samples, self.end_samples) if ends and ends[3] is not None}
+        return sorted(set(self.keys.tolist()) | set(self.tail.tolist()) | middles)
+
+    @property
+    def start_samples(self) -> tuple | None:
+        """The samples telling how the motion leaves the first key
+        (:func:`core.interpolation.start_of_motion`): the first three keys and the sample in the
+        middle of the first gap (None where the keys are one sample apart); None with fewer than
+        three keys."""
+        if len(self.keys) < 3:
+            return None
+        first, second, third = (int(k) for k in self.keys[:3])
+        return first, second, third, first + (second - first) // 2 if second - first >= 2 else None
+
+    @property
+    def end_samples(self) -> tuple[int, int, int, int] | None:
+        """:func:`end_samples` of this plan's keys and tail."""
+        return end_samples(self.keys, self.tail)
 
     @property
     def n_out(self) -> int:
@@ -152,6 +169,20 @@ def short_gap_keys(last_key: int, last: int) -> np.ndarray:
     return np.array([last_key - j * short for j in (2, 1) if last_key - j * short >= 0] + [last_key, last], dtype=np.int64)
 
 
+def end_samples(keys, tail) -> tuple[int, int, int, int] | None:
+    """The samples (or frames) telling how the motion reaches the last key
+    (:func:`core.interpolation.end_of_motion`), for a sequence keyed on ``keys`` whose shorter last
+    gap, if any, is keyed by its own sequence on ``tail`` (:func:`short_gap_keys`): the last three
+    keys of the sequence that makes the last gap (the tail's, evenly spaced, where it has them)
+    and the sample in the middle of that gap; None with fewer than three keys or a last gap
+    shorter than two samples."""
+    keys = tail if len(tail) >= 3 else keys
+    if len(keys) < 3 or keys[-1] - keys[-2] < 2:
+        return None
+    before, start, end = (int(k) for k in keys[-3:])
+    return before, start, end, start + (end - start) // 2
+
+
 def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
     (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
@@ -167,13 +198,14 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     (default: all), in order.
 
     ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only
-    :attr:`RetimePlan.samples_read` and the two samples after the first are read).
-    ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``, ``smooth``, ``start``
-    of :class:`core.SequenceInterpolator`; ``start`` by default from the source's first frames
-    (:func:`core.interpolation.start_of_motion`); the shorter last gap's sequence starts inside the
-    motion (``start="keys"``).
+    :attr:`RetimePlan.samples_read` are read).
+    ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``, ``smooth``, ``start``,
+    ``end`` of :class:`core.SequenceInterpolator`; ``start`` by default from the middle of the first gap
+    (:func:`core.interpolation.start_of_motion`), ``end`` from the middle of the last gap
+    (:func:`core.interpolation.end_of_motion`); the shorter last gap's sequence starts inside the
+    motion (``start="keys"``) and ends as the whole one.
     """
-    from .interpolation import SequenceInterpolator, start_of_motion
+    from .interpolation import SequenceInterpolator, end_of_motion, start_of_motion
 
     if len(samples) != plan.n_source:
         raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")
@@ -181,11 +213,17 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
     key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
-    if "start" not in interpolator_options:
-        step = int(plan.keys[1] - plan.keys[0])
-        first = [samples[int(plan.keys[0]) + i] for i in range(3)] if step >= 2 else []
-        third = key_poses[2] if len(key_poses) > 2 else None
-        interpolator_options = {**interpolator_options, "start": start_of_motion(first, key_poses[1], step, third)}
+    starts = plan.start_samples
+    if "start" not in interpolator_options and starts is not None:
+        first, second, third, middle = starts
+        interpolator_options = {**interpolator_options, "start": "keys" if middle is None else start_of_motion(
+            key_poses[:3], samples[middle], (middle - first) / (second - first), (second - first, third - second))}
+    ends = plan.end_samples
+    if "end" not in interpolator_options and ends is not None:
+        before, start, end, middle = ends
+        interpolator_options = {**interpolator_options, "end": end_of_motion(
+            [samples[before], samples[start], samples[end]], samples[middle], (middle - start) / (end - start),
+            (start - before, end - start))}
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:

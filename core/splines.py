@@ -74,11 +74,13 @@ class HermiteGap:
     one of the parabola through the end (value and tangent) and the start, ``2 (v₁ − v₀) − t₁``,
     limited as any start tangent: for motion that something stopped right before the start (see
     :data:`core.inbetween_flight.IMPACT_SLOWDOWN`).
+    ``rest_end``: the end tangent is zero (a sequence's last gap whose motion comes to rest at the
+    last key: ``end="rest"`` of :class:`core.SequenceInterpolator`).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
                  parabolic_end: np.ndarray | None = None, entry: tuple | None = None,
-                 parabolic_start: np.ndarray | None = None, onward: bool = False):
+                 parabolic_start: np.ndarray | None = None, onward: bool = False, rest_end: bool = False):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -103,6 +105,8 @@ class HermiteGap:
             self.t1 *= 0.5
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
+            if rest_end:
+                self.t1 = np.zeros_like(self.t1)
             if limit == REST_START_LIMIT or (starts_here and rows):  # see END_TANGENT_LIMIT
                 self.t1 = _limited(self.t1, END_TANGENT_LIMIT, bound, rows)
             if parabolic_start is not None:

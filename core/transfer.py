@@ -556,7 +556,7 @@ def _sequence_class():
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
                      smooth=True, start="rest", key_times=None, base_vertices=None, target_triangles=None,
-                     correspondence=None, target_rest_vertices=None):
+                     correspondence=None, target_rest_vertices=None, end="keys"):
             if target_triangles is not None:
                 if base_vertices is None:
                     raise MeshError("Key poses of another mesh need base_vertices: the pose of the mesh to move.")
@@ -566,7 +566,7 @@ def _sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth, start=start, key_times=key_times)
+                             smooth=smooth, start=start, key_times=key_times, end=end)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

@@ -328,9 +328,22 @@ START_MODES = ("rest", "keys")
 
 def check_start(value) -> str:
     """A sequence's ``start``: one of :data:`START_MODES`; anything else is a MeshError."""
-    if isinstance(value, str) and value in START_MODES:
+    return _check_mode("start", value, START_MODES)
+
+
+#: How a sequence's last gap ends (see :class:`core.SequenceInterpolator`).
+END_MODES = ("keys", "rest")
+
+
+def check_end(value) -> str:
+    """A sequence's ``end``: one of :data:`END_MODES`; anything else is a MeshError."""
+    return _check_mode("end", value, END_MODES)
+
+
+def _check_mode(name: str, value, modes: tuple) -> str:
+    if isinstance(value, str) and value in modes:
         return value
-    raise MeshError(f"start must be one of {', '.join(repr(m) for m in START_MODES)}; got {_describe(value)}.")
+    raise MeshError(f"{name} must be one of {', '.join(repr(m) for m in modes)}; got {_describe(value)}.")
 
 
 def check_key_times(value, count: int) -> np.ndarray | None:

@@ -80,8 +80,8 @@ class FrameRangeProperties:
 
     def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float, also=(),
                             matrices: dict | None = None):
-        """Yield progress while reading the evaluated mesh at the key frames ``keys``, the two
-        frames after the first and the frames ``also``; returns the keys' positions, the
+        """Yield progress while reading the evaluated mesh at the key frames ``keys``, the frame
+        in the middle of the first gap and the frames ``also``; returns the keys' positions, the
         sequence's ``start`` (``core.interpolation.start_of_motion``: whether the motion leaves the
         first key from rest, as a simulation from its first frame does) and {frame: positions}
         of every frame read. ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of
@@ -89,14 +89,15 @@ class FrameRangeProperties:
         from ..core.interpolation import start_of_motion
 
         step = keys[1] - keys[0] if len(keys) > 1 else 1
-        first = [keys[0] + i for i in range(3)] if step >= 2 else []  # with step 2 the third is a key
-        frames = sorted(set(keys) | set(first) | set(also))
+        # with fewer than three keys the sequence is linear; with keys one frame apart they are the source
+        middle = keys[0] + step // 2 if len(keys) > 2 and step >= 2 else None
+        frames = sorted(set(keys) | ({middle} if middle is not None else set()) | set(also))
         read_matrices = [] if matrices is not None else None
         read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share, read_matrices))))
         if matrices is not None:
             matrices.update(zip(frames, read_matrices))
-        third = read[keys[2]] if len(keys) > 2 else None
-        start = start_of_motion([read[f] for f in first], read[keys[1]], step, third) if len(keys) > 1 else "keys"
+        start = "keys" if middle is None else start_of_motion(
+            [read[f] for f in keys[:3]], read[middle], (middle - keys[0]) / step, (step, keys[2] - keys[1]))
         return [read[f] for f in keys], start, read
 
     def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None):
@@ -205,14 +206,21 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
         self.pose_names = [f"frame {frame}" for frame in frames]
+        # the last frame keys the sequence too, at its time (the gap before sees it so)
+        keyed = frames + ([end] if tail else [])
+        # how the motion reaches the last key: told by the frame in the middle of the last gap
+        ends = retime.end_samples(keyed, tail)
         matrices = {}
-        _poses, options["start"], read = yield from self.read_keys_and_start(context, obj, frames, 0.2, also=tail,
-                                                                             matrices=matrices)
+        _poses, options["start"], read = yield from self.read_keys_and_start(
+            context, obj, frames, 0.2, also=tail + ([ends[3]] if ends else []), matrices=matrices)
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = bridge.frames_space(context, obj, matrices)
         scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
-        # the last frame keys the sequence too, at its time (the gap before sees it so)
-        keyed = frames + ([end] if tail else [])
+        if ends:
+            before, start, last, middle = ends
+            options["end"] = load_core().interpolation.end_of_motion(
+                [scaled[before], scaled[start], scaled[last]], scaled[middle], (middle - start) / (last - start),
+                (start - before, last - start))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed)
         names, tails, all_poses, timeline = [], [], [], []

@@ -90,10 +90,14 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
         bpy.context.scene.frame_set(frame)
         np.testing.assert_allclose(np.array(first.matrix_world), np.array(source.matrix_world), atol=1e-6)
     bpy.context.scene.frame_set(1)
-    start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
-        [source_frames[1], source_frames[2], source_frames[3]], source_frames[5], 4, source_frames[9])
-    sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data), start=start)
+    interpolation = importlib.import_module(core.__name__ + ".interpolation")
+    start = interpolation.start_of_motion([source_frames[1], source_frames[5], source_frames[9]], source_frames[3], 0.5)
     plan = importlib.import_module(core.__name__ + ".retime").plan_retime(end, 4, 0.5)
+    # how the motion reaches the last key: the sample in the middle of the last gap (sample i: frame i + 1)
+    before_key, start_key, last_key, middle = plan.end_samples
+    ends = interpolation.end_of_motion([source_frames[k + 1] for k in (before_key, start_key, last_key)],
+                                       source_frames[middle + 1], 0.5)
+    sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data), start=start, end=ends)
     for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5
         gap = int(plan.gaps[out_frame - 1])  # each gap's in-betweens are computed together
         rows = [i for i in range(plan.n_out) if plan.gaps[i] == gap and plan.exact_keys[i] < 0]
@@ -185,7 +189,8 @@ def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
     sequence on frames 3, 6, 9, 12 (core.retime.short_gap_keys), which the operators read too.
     Retime writes what core.retime gives for the evaluated source; In-between Frames with one
     in-between per gap plays every 2nd frame, so the short gap adds frame 11 and the last frame,
-    off that spacing, is left out of its cache."""
+    off that spacing, is left out of its cache. Both read frame 10 too, in the short gap, for how the
+    motion reaches the last frame."""
     source = armature_scene(frames=12)
     bridge = extension.bridge
     source_frames = evaluated_frames(bridge, source, range(1, 13))
@@ -206,7 +211,11 @@ def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
     cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(tmp_path / "inbetween.pc2")
     assert (cache.n_samples, cache.start, cache.sampling) == (6, 1.0, 2.0)
     np.testing.assert_allclose(cache.positions[4], source_frames[9], atol=TOLERANCE)
-    short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], triangles, start="keys")
+    # ending as frame 10, a third of the way through the short gap, says (core.retime.end_samples)
+    assert retime.end_samples([1, 5, 9, 12], [3, 6, 9, 12]) == (6, 9, 12, 10)
+    end = importlib.import_module(core.__name__ + ".interpolation").end_of_motion(
+        [source_frames[f] for f in (6, 9, 12)], source_frames[10], 1 / 3, (3, 3))
+    short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], triangles, start="keys", end=end)
     np.testing.assert_allclose(cache.positions[5], short.pose(2, 2 / 3), atol=TOLERANCE)
 
 

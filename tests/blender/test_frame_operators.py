@@ -72,7 +72,8 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     bridge = extension.bridge
     before = snapshot(bridge, obj)
     frames = [1, 5, 9]
-    poses = evaluated_frames(bridge, obj, [1, 2, 3, 5, 9])  # 2, 3: how the motion leaves the first key
+    # 3: how the motion leaves the first key; 7: how it reaches the last one
+    poses = evaluated_frames(bridge, obj, [1, 3, 5, 7, 9])
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
                                                output='SHAPE_KEYS')
 
@@ -84,10 +85,11 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     expected_names.append("Frame 9")
     assert key_names(obj) == expected_names
 
-    start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
-        [poses[1], poses[2], poses[3]], poses[5], 4, poses[9])
+    interpolation = importlib.import_module(core.__name__ + ".interpolation")
+    start = interpolation.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
+    end = interpolation.end_of_motion([poses[1], poses[5], poses[9]], poses[7], 0.5)
     sequence = core.SequenceInterpolator([poses[f] for f in frames],
-                                         bridge.mesh_triangles(obj.data), start=start)
+                                         bridge.mesh_triangles(obj.data), start=start, end=end)
     for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
         np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), poses[frame],
                                    atol=TOLERANCE)
@@ -151,16 +153,20 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
     retime = importlib.import_module(core.__name__ + ".retime")
     tail = (1 + retime.short_gap_keys(8, 10)).tolist()
     assert tail == [5, 7, 9, 11]
-    short = core.SequenceInterpolator([poses[f] for f in tail], bridge.mesh_triangles(obj.data), start="keys")
+    # how the motion reaches the last frame: told by frame 10, in the middle of the short gap
+    assert retime.end_samples([1, 5, 9, 11], tail) == (7, 9, 11, 10)
+    interpolation = importlib.import_module(core.__name__ + ".interpolation")
+    end = interpolation.end_of_motion([poses[7], poses[9], poses[11]], poses[10], 0.5, (2, 2))
+    short = core.SequenceInterpolator([poses[f] for f in tail], bridge.mesh_triangles(obj.data), start="keys",
+                                      end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 9-Frame 11 0.50"),
                                short.pose(len(short) - 1, 0.5), atol=TOLERANCE)
     fcurve = bridge.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
     assert fcurve.evaluate(10) == pytest.approx(1.0) and fcurve.evaluate(11) == pytest.approx(0.0)
     # the whole gaps: the sequence of the keys and the last frame, at their frames
-    start = importlib.import_module(core.__name__ + ".interpolation").start_of_motion(
-        [poses[1], poses[2], poses[3]], poses[5], 4, poses[9])
+    start = interpolation.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
     sequence = core.SequenceInterpolator([poses[f] for f in (1, 5, 9, 11)], bridge.mesh_triangles(obj.data),
-                                         start=start, key_times=[1, 5, 9, 11])
+                                         start=start, key_times=[1, 5, 9, 11], end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 5-Frame 9 0.50"),
                                sequence.poses(1, [0.25, 0.5, 0.75])[1], atol=TOLERANCE)
 
@@ -198,7 +204,8 @@ def test_reading_keys_visits_only_the_key_frames_of_a_baked_simulation(bpy_empty
     from blender_scenes import pinned_cloth_scene
 
     pinned_cloth_scene(frames=9, bake=bake)
-    expected = [1, 2, 3, 5, 9] if bake else list(range(1, 10))  # keys 1, 5, 9 and frames 2, 3 (start of motion)
+    # keys 1, 5, 9 and frames 3 and 7, in the middle of the first and last gaps (how the motion starts and ends)
+    expected = [1, 3, 5, 7, 9] if bake else list(range(1, 10))
     assert frames_visited_by_inbetween_frames(tmp_path) == expected
 
 
@@ -228,7 +235,7 @@ def test_smooth_by_angle_does_not_make_every_frame_read(bpy_empty, extension, tm
             bpy.ops.object.shade_auto_smooth()
     assert [m.type for m in flag.modifiers][-1] == 'NODES'
     bpy.context.view_layer.objects.active = flag
-    assert frames_visited_by_inbetween_frames(tmp_path) == [1, 2, 3, 5, 9]
+    assert frames_visited_by_inbetween_frames(tmp_path) == [1, 3, 5, 7, 9]
     group = other.modifiers[-1].node_group.copy()  # the same group with a Set Position added
     group.nodes.new("GeometryNodeSetPosition")
     other.modifiers[-1].node_group = group

@@ -402,28 +402,70 @@ def test_unevenly_spaced_keys_keep_the_timing_of_every_gap(times):
 
 
 def test_start_of_motion_tells_rest_from_motion():
-    """The first three frames of a dense source say how the motion leaves the first key: a fall
-    from rest (zero velocity) or one at constant velocity (the keys' own), whatever the step."""
+    """The frame in the middle of the first gap says how the motion leaves the first key: a fall
+    from rest (zero velocity; the keys' parabola gives it too), one at constant velocity (the
+    keys' own), or a walk that is at rest at the first frame and at its pace a frame later (the
+    keys', which a spline from rest would spread over the whole gap), whatever the step, and with
+    keys unevenly spaced; a fall from rest that lands in the second gap is told from the walk,
+    whose keys it has."""
     from core.interpolation import start_of_motion
 
     flat, _ = grid(6, 6)
-    fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(9)]
-    drift = [flat + [0.3 * t, 0.0, 0.0] for t in range(9)]
-    for step in (2, 4, 8):
-        assert start_of_motion(fall[:3], fall[step], step) == "rest"
-        assert start_of_motion(drift[:3], drift[step], step) == "keys"
-    assert start_of_motion(fall[:1], fall[1], 1) == "keys"  # no frames between the keys
-    for step in (2, 4):  # with a third key: the start whose velocity the frames' is nearer
-        assert start_of_motion(fall[:3], fall[step], step, fall[2 * step]) == "rest"
-        assert start_of_motion(drift[:3], drift[step], step, drift[2 * step]) == "keys"
-    # moving at the first key (0.3 per frame), nearly stopped at the second (0.2 from the first)
-    # and far on at the third (2.0): the keys' parabola leaves the first key backwards, further
-    # from the frames' velocity than rest (the mean-velocity rule alone said "keys")
-    swing = {t: flat + [x, 0.0, 0.0] for t, x in {0: 0.0, 1: 0.3, 2: 0.6, 8: 0.2, 16: 2.0}.items()}
-    assert start_of_motion([swing[0], swing[1], swing[2]], swing[8], 8) == "keys"
-    assert start_of_motion([swing[0], swing[1], swing[2]], swing[8], 8, swing[16]) == "rest"
+    for step in (4, 8, 16):
+        T = 2 * step
+        fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(T + 1)]
+        drift = [flat + [0.3 * t, 0.0, 0.1 * t] for t in range(T + 1)]
+        walk = [flat + [0.3 * max(t - 0.5, 0.0), 0.0, 0.0] for t in range(T + 1)]  # at pace from frame 1 on
+        # falls from rest to the second key, then lies there: its keys advance as the walk's
+        land = [flat + [0.0, 0.0, -0.15 * min(t, step) ** 2 / step] for t in range(T + 1)]
+        for frames, expected in ((fall, "rest"), (drift, "keys"), (walk, "keys"), (land, "rest")):
+            assert start_of_motion(frames[::step][:3], frames[step // 2], 0.5) == expected
+    fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(15)]  # keys 0, 8, 14: the second gap 6 long
+    assert start_of_motion([fall[0], fall[8], fall[14]], fall[4], 0.5, (8, 6)) == "rest"
     with pytest.raises(MeshError):
         SequenceInterpolator(fall[::4], grid(6, 6)[1], start="still")
+
+
+def test_a_motion_easing_into_its_last_key_ends_there_at_rest(strip):
+    """A sheet sliding and sinking at constant deceleration to a stop at its last key,
+    p(t) = p₀ + v·(t − t²/(2T)): with ``end="rest"`` the last gap ends with zero velocity and is
+    exact (as the interior gaps are with Catmull–Rom tangents, exact for quadratic motion); the
+    default end, the linear extrapolation past the last key, arrives at the last gap's mean
+    velocity, off by exactly (s³ − s²) × the gap's secant at factor s."""
+    flat, tri = strip
+    velocity, T = np.array([0.4, 0.1, -0.3]), 4.0
+    keys = [flat + velocity * (t - t * t / (2 * T)) for t in range(5)]
+    at_rest, linear = SequenceInterpolator(keys, tri, end="rest"), SequenceInterpolator(keys, tri)
+    gap, secant = len(at_rest) - 1, keys[-1] - keys[-2]
+    for s in (0.25, 0.5, 0.75):
+        truth = flat + velocity * ((gap + s) - (gap + s) ** 2 / (2 * T))
+        np.testing.assert_allclose(at_rest.pose(gap, s), truth, atol=1e-9)
+        np.testing.assert_allclose(linear.pose(gap, s) - truth, (s ** 3 - s * s) * secant, atol=1e-9)
+    for k in range(gap):  # the other gaps do not see the end
+        np.testing.assert_array_equal(at_rest.poses(k, [0.25, 0.5]), linear.poses(k, [0.25, 0.5]))
+    with pytest.raises(MeshError, match="end must be"):
+        SequenceInterpolator(keys, tri, end="stop")
+
+
+def test_end_of_motion_tells_an_ease_into_the_last_key_from_motion_through_it():
+    """The frame in the middle of the last gap says whether the motion comes to rest at the last
+    key (a constant deceleration to a stop there) or goes on through it (at constant velocity, or
+    falling), whatever the step, and with keys unevenly spaced."""
+    from core.interpolation import end_of_motion
+
+    flat, _ = grid(6, 6)
+    for step in (4, 8):
+        T = 3 * step
+        ease = [flat + [0.3 * (t - t * t / (2 * T)), 0.0, 0.0] for t in range(T + 1)]
+        drift = [flat + [0.3 * t, 0.0, 0.1 * t] for t in range(T + 1)]
+        fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(T + 1)]
+        for frames, expected in ((ease, "rest"), (drift, "keys"), (fall, "keys")):
+            keys = frames[::step]
+            assert end_of_motion(keys[-3:], frames[T - step // 2], 0.5) == expected
+    # keys unevenly spaced (a range that is not whole steps): the last gap 6 frames, the one before 8
+    T = 22
+    ease = [flat + [0.3 * (t - t * t / (2 * T)), 0.0, 0.0] for t in range(T + 1)]
+    assert end_of_motion([ease[8], ease[16], ease[22]], ease[19], 0.5, (8, 6)) == "rest"
 
 
 def test_no_nan_or_flip_on_unrealizable_targets():

@@ -55,13 +55,37 @@ def test_plan(n_source, step, speed, n_out, keys):
     assert plan.times[0] == 0 and plan.exact_keys[-1] == (len(keys) - 1 if plan.times[-1] == n_source - 1 else -1)
 
 
-@pytest.mark.parametrize("n_source, step, tail", [
-    (25, 4, []), (23, 5, [16, 18, 20, 22]), (18, 4, [14, 15, 16, 17]), (12, 4, [2, 5, 8, 11]), (8, 4, [1, 4, 7]),
+@pytest.mark.parametrize("n_source, step, tail, middle", [
+    (25, 4, [], 22), (23, 5, [16, 18, 20, 22], 21), (18, 4, [14, 15, 16, 17], None), (12, 4, [2, 5, 8, 11], 9),
+    (8, 4, [1, 4, 7], 5),
 ])
-def test_plan_keys_a_shorter_last_gap_on_its_own_step(n_source, step, tail):
+def test_plan_keys_a_shorter_last_gap_on_its_own_step(n_source, step, tail, middle):
+    """The keys, the short last gap's own keys and the samples in the middle of the first gap (how
+    the motion starts) and of the last gap (where it is at least two samples long and has two keys
+    before it: how the motion ends)."""
     plan = plan_retime(n_source, step, 1.0)
     assert plan.tail.tolist() == tail
-    assert plan.samples_read == sorted(set(plan.keys.tolist()) | set(tail))
+    assert plan.start_samples[3] == step // 2
+    assert (plan.end_samples or (None,) * 4)[3] == middle
+    assert plan.samples_read == sorted(set(plan.keys.tolist()) | set(tail) | {step // 2} | ({middle} if middle else set()))
+
+
+@pytest.mark.parametrize("n_source", [17, 19])
+def test_a_retime_ends_at_rest_where_the_source_eases_into_its_last_frame(n_source):
+    """A sheet sliding at constant deceleration to a stop at the last sample, keyed every 4th
+    (19 samples: a last gap of 2, keyed by its own sequence): the sample in the middle of the last
+    gap tells the retime to end at rest (``end_of_motion``), and the last gap's half samples are
+    the motion to float32 rounding; the linear end would be off by (s³ − s²) × the gap's move."""
+    flat, triangles = grid(5, 5)
+    last = n_source - 1
+    velocity = np.array([0.4, 0.1, -0.3])
+    source = np.array([flat + velocity * (t - t * t / (2 * last)) for t in range(n_source)])
+    out = retime(source, triangles, step=4, speed=0.5)
+    half = 2 * (last - 1) + 1  # output sample at source time last − 0.5
+    truth = flat + velocity * ((last - 0.5) - (last - 0.5) ** 2 / (2 * last))
+    np.testing.assert_allclose(out[half], truth, atol=1e-6)
+    linear = retime(source, triangles, step=4, speed=0.5, end="keys")[half]
+    assert np.abs(linear - truth).max() > 100 * np.abs(out[half] - truth).max()
 
 
 @pytest.mark.parametrize("n_source", [18, 19, 20, 23])
@@ -126,7 +150,7 @@ def test_kept_frames_exact_and_inbetweens_from_the_sequence():
         if frame % 4 == 0:
             np.testing.assert_array_equal(result[2 * k], source[frame])
     # the sheet is already rolling at its first frame: the start is taken from the keys
-    assert start_of_motion(source[:3], source[4], 4) == "keys"
+    assert start_of_motion([source[0], source[4], source[8]], source[2], 0.5) == "keys"
     sequence = SequenceInterpolator([source[f].astype(np.float64) for f in (0, 4, 8)], triangles, start="keys")
     factors = np.arange(1, 8) / 8  # each gap's seven in-betweens, asked together
     # to round-off (see test_chunks_concatenate_to_round_off): float32 of the same poses
@@ -230,7 +254,7 @@ def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
     topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
     raw = write_pc2(tmp_path / "good.pc2", source, start=10.0).read_bytes()
     header, data = raw[:32], np.frombuffer(raw[32:], dtype="<f4").reshape(source.shape).copy()
-    for sample, expected in ((4, "sample 5 (frame 14) has non-finite"), (6, None)):
+    for sample, expected in ((4, "sample 5 (frame 14) has non-finite"), (5, None)):
         broken = data.copy()
         broken[sample, 3] = np.nan
         (tmp_path / "bad.pc2").write_bytes(header + broken.tobytes())
