@@ -8,7 +8,9 @@ half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Tw
 jointed in a gap when both are rigid over its keys (non-rigidity under
 :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), they touch in its base key (vertices within
 :data:`JOINT_REACH` mean edge lengths) and the child's motion relative to the parent's holds the
-contact (:func:`joint_offset`: a hinge's axis runs through it). The joints are a minimum
+contact (:func:`joint_offset`: a hinge's axis runs through it), their nearest vertices within the
+finer piece's own mean edge length too (a gap wider than a small piece's edges is no contact,
+whatever the mesh's other pieces make its mean edge). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
 that moves least over the gap's keys (a fixed base stays the root; measured by its vertices'
 moves, since a link turning past a half turn reads as a small turn the other way). At the keys the composed
@@ -85,7 +87,8 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-               moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None):
+               moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None,
+               edges: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -99,7 +102,10 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     of its two noisy eyes, which moved less, and left its own motion by the eye's noise: 3e-5 of the
     diagonal at 0.5 for noise of 1e-4 of it); ``held``: bool (C,), the pieces with a pinned vertex
     (still in the keys, :mod:`core.pins`), which hang from the world: roots, never children (see
-    the module's note)."""
+    the module's note); ``edges``: each piece's mean edge length (C,), two pieces touching only where
+    their nearest vertices are within the finer one's (a lash 0.057 from a ball, both of edges about
+    0.04, was the ball's joint where a coarse body elsewhere made the mesh's mean edge 0.080, and
+    moved with the ball's turn: 2.8e-2 of the diagonal off its own at ×2)."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -128,6 +134,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                             inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u]),
                             reach)
     jointed = offsets <= reach
+    if edges is not None:  # touching within the finer piece's edges
+        nearest = np.minimum.reduceat(np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1), first)
+        jointed &= nearest <= JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]])
     if not jointed.any():
         return None
     # the closest the touching vertices stay at the next key: 0 where a joint is a shared point

@@ -181,9 +181,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if len(topo.components) > 1:
             held = None if static is None else np.bincount(topo.component_labels, static[topo.component_vertices],
                                                            minlength=len(topo.components)) > 0
+            piece_edges = np.bincount(topo.triangle_component, base.lengths.sum(axis=1),
+                                      minlength=len(topo.components)) / (3 * topo.piece_sizes)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
-                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held)
+                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held, piece_edges)
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],

@@ -2522,3 +2522,30 @@ def test_cloth_beside_a_pole_far_out_is_not_taken_for_riding():
         found = riding_vertices(keys, edges, np.zeros(len(flat), dtype=int), np.zeros(len(flat), dtype=bool),
                                 rounding_scale(keys))
         assert [sorted(rows.tolist()) for rows in found] == [sorted(pole.tolist())]
+
+
+def test_a_small_piece_near_a_turning_ball_is_no_joint_of_it_whatever_else_the_mesh_holds():
+    """A ball (radius 0.14) turning 25° about its vertical axis and a lash in front of it (one thin
+    triangle 0.06 long, 0.06 from the ball: as far as it is long) turning 40° about the ball's
+    horizontal axis, beside a coarse still body whose edges make the mesh's mean edge longer than
+    the lash. Each piece moves by its own rigid motion, so every factor is each piece's rotation by
+    that factor, to 1e-6. The lash was taken for a joint of the ball (touching within one of the
+    mesh's mean edges, its relative motion's axis within two of them of the contact) and moved
+    with the ball's turn composed with its own relative to it: 3.1e-3 of the diagonal off at 0.5,
+    2.8e-2 at ×2, while without the body elsewhere in the mesh it was exact."""
+    ball, ball_triangles = icosphere(2, radius=0.14)
+    body, body_triangles = icosphere(1, radius=0.4)
+    base = np.array([0.130, -0.123, 0.075])
+    lash = np.array([base, base + [0.006, 0.0, 0.0], base + [0.003, -0.05, 0.03]])
+    parts = [ball, lash, body + [0.0, 0.7, 0.0]]
+    a = np.vstack(parts)
+    tri = np.vstack([ball_triangles, np.array([[0, 1, 2]]) + len(ball), body_triangles + len(ball) + 3])
+    turns = [np.array([0.0, 0.0, -np.radians(25.0)]), np.array([np.radians(40.0), 0.0, 0.0]), np.zeros(3)]
+    piece = np.repeat(np.arange(3), [len(p) for p in parts])
+
+    def pose(s):  # every piece turns about the ball's centre, the origin
+        return np.einsum("nij,nj->ni", Rotation.from_rotvec(s * np.array(turns)[piece]).as_matrix(), a)
+
+    interpolator = Interpolator(a, pose(1.0), tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), pose(s), atol=1e-6)
