@@ -483,8 +483,9 @@ def frames_of_another_mesh(obj: bpy.types.Object, frames: list[int], poses: list
     ``frames`` cannot be its mesh in its vertex order: its edges grew, against the size of the
     parts they make up, over :data:`core.vertex_order.FOREIGN_GROWTH` times as much as any motion
     of a mesh gives (``core.vertex_order``: the median over the edges; folding and crumpling reach
-    about 3), to as long as the parts (``EdgeSpread.scattered``: a part wound up tight keeps its
-    edges short). Blender plays such a file (a cache exported from another mesh with as many
+    about 3), to as long as the parts, and with their lengths changed unevenly
+    (``EdgeSpread.scattered``: a part wound up tight keeps its edges short, or, if narrow, each
+    as long as it was). Blender plays such a file (a cache exported from another mesh with as many
     vertices, or from this one with its vertices renumbered) scrambled, without a word; None
     otherwise. Only objects a cache moves are checked: no other motion brings another order."""
     from .core.vertex_order import EdgeSpread
@@ -532,12 +533,12 @@ def _all_the_same(poses: list[np.ndarray]) -> bool:
     return len(poses) >= 2 and all(np.array_equal(pose, poses[0]) for pose in poses[1:])
 
 
-def bake_files_lacking(cache, owner: bpy.types.Object, folder: str, frames: list[int]) -> list[int] | None:
-    """The ``frames`` whose file the disk cache ``cache`` of ``owner`` lacks in ``folder`` (where
-    Blender looks for it), by the names Blender gives them (``<name>_<frame:06>_<index:02>.bphys``,
-    the name the cache's own or the object's in hex); None where no frame of the bake has a file of
-    such a name there (the folder gone or empty, or files named otherwise), which the poses read
-    then tell (:func:`missing_bake`)."""
+def bake_frames_on_disk(cache, owner: bpy.types.Object, folder: str) -> set[int] | None:
+    """The frames of the disk cache ``cache`` of ``owner`` (its start to end) that have a file in
+    ``folder`` (where Blender looks for them), by the names Blender gives them
+    (``<name>_<frame:06>_<index:02>.bphys``, the name the cache's own or the object's in hex); None
+    where no frame of the bake has a file of such a name there (the folder gone or empty, or files
+    named otherwise), which the poses read then tell (:func:`missing_bake`)."""
     try:
         names = set(os.listdir(folder))
     except OSError:
@@ -549,13 +550,33 @@ def bake_files_lacking(cache, owner: bpy.types.Object, folder: str, frames: list
     if cache.index < 0 and not cache.use_external:  # no index given yet: the names are not known
         return None
     index = f"_{cache.index:02d}" if cache.index >= 0 else ""
+    found = {frame for frame in range(cache.frame_start, cache.frame_end + 1)
+             if f"{stem}_{frame:06d}{index}.bphys" in names}
+    return found or None
 
-    def name(frame: int) -> str:
-        return f"{stem}_{frame:06d}{index}.bphys"
 
-    if not any(name(frame) in names for frame in range(cache.frame_start, cache.frame_end + 1)):
-        return None
-    return [frame for frame in frames if name(frame) not in names]
+def bakes_of_other_names(cache, owner: bpy.types.Object, folder: str) -> list[str]:
+    """The object names whose bakes ``folder`` holds in the files Blender would read for ``cache``
+    of ``owner`` were it named so (``<name in hex>_<frame:06>_<index:02>.bphys``, the cache's index),
+    ``owner``'s own left out: an object renamed after its bake, whose files keep the old name (Blender
+    looks for the new one's and plays the rest mesh). Empty where the cache has its own name (its
+    files do not follow the object's) or ``folder`` cannot be read."""
+    if cache.name or cache.use_external or cache.index < 0:
+        return []
+    try:
+        files = os.listdir(folder)
+    except OSError:
+        return []
+    pattern = re.compile(rf"((?:[0-9A-F]{{2}})+)_\d{{6}}_{cache.index:02d}\.bphys")
+    names = set()
+    for file in files:
+        match = pattern.fullmatch(file)
+        if match:
+            try:
+                names.add(bytes.fromhex(match.group(1)).decode())
+            except UnicodeDecodeError:
+                continue
+    return sorted(names - {owner.name})
 
 
 def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarray], movers: list) -> str | None:
@@ -563,9 +584,12 @@ def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
     is baked to a disk cache over two or more of ``frames`` and Blender plays files there that are
     not there; None otherwise:
 
-    - the folder lacks the files of some frames read (:func:`bake_files_lacking`; a copy of the
+    - the folder lacks the files of some frames read (:func:`bake_frames_on_disk`; a copy of the
       folder cut short, or with gaps): Blender plays those frames interpolated between the files it
-      finds, or holds the nearest one;
+      finds, or holds the nearest one. Where they all come after its last file, Blender holds that
+      one over them, as it does after a simulation's end, and the message says so (a bake made
+      with Current Cache to Bake from a cache played part of the way ends there too; the folder
+      cannot tell it from a copy cut short);
     - where no file of the bake is found by its name, every pose read the same
       (:func:`_all_the_same`): Blender found none of the bake's files (a .blend moved, or sent to a
       farm, without its cache folder) and plays the rest mesh; or two or more frames read in a row
@@ -592,21 +616,34 @@ def missing_bake(obj: bpy.types.Object, frames: list[int], poses: list[np.ndarra
                 f"the modifier '{modifier.name}' of '{mover.name}', which moves it,")
         baked = (f"{what} is baked to disk over frames {cache.frame_start}–{cache.frame_end} (its cache: "
                  f"'{cache.info}')")
-        lacking = bake_files_lacking(cache, mover, folder, [frames[i] for i in inside])
+        on_disk = bake_frames_on_disk(cache, mover, folder)
+        lacking = [frames[i] for i in inside if frames[i] not in on_disk] if on_disk else []
         if lacking:
             listed = ", ".join(str(frame) for frame in lacking[:8]) + (", …" if len(lacking) > 8 else "")
+            last = max(on_disk)
+            if min(lacking) > last:  # the files stop before the frames lacking them: the bake's last held
+                return (f"'{obj.name}': {baked}, but '{folder}' holds its files up to frame {last} only, and "
+                        f"{len(lacking)} of the {len(inside)} frames read there {'comes' if len(lacking) == 1 else 'come'} "
+                        f"after it ({listed}): Blender "
+                        f"holds frame {last} over them (a bake made with Current Cache to Bake from a cache played "
+                        f"to frame {last}, or a copy of the folder cut short?). End the frame range at frame {last}, "
+                        "bake the whole range, or copy the whole cache folder with the .blend, and run again")
             return (f"'{obj.name}': {baked}, but '{folder}' holds no file for {len(lacking)} of the {len(inside)} "
                     f"frames read there ({listed}): Blender plays them interpolated between the files it finds, "
                     "or holds the nearest one (a copy of the folder cut short, or with gaps?). Copy the whole "
                     "cache folder with the .blend (or bake again) and run again")
-        if lacking is not None:  # the files of every frame read are there
+        if on_disk is not None:  # the files of every frame read are there
             continue
         # the first run of frames read in a row inside the bake with the same pose
         held = [] if everything else next((run for k in range(len(inside) - 1) if (run := _held_run(poses, inside[k:]))), [])
         if everything or len(held) == len(inside):
+            others = bakes_of_other_names(cache, mover, folder)
+            advice = (f"'{folder}' holds the bake of an object named {', '.join(repr(name) for name in others)}: "
+                      f"if '{mover.name}' was renamed after its bake, name it so again (or bake again)" if others else
+                      "Copy the cache folder with the .blend (or bake again)")
             return (f"'{obj.name}' reads the same pose at all {len(frames)} frames read ({frames[0]}–{frames[-1]}), "
                     f"though {baked}: Blender finds none of the bake's files in '{folder}' and plays the mesh at "
-                    "rest. Copy the cache folder with the .blend (or bake again) and run again")
+                    f"rest. {advice} and run again")
         if held:
             return (f"'{obj.name}' reads the same pose, to the bit, at {len(held)} frames read in a row inside its "
                     f"bake ({_frame_span([frames[i] for i in held])}) while other frames move, though {baked}: "

@@ -23,11 +23,23 @@ still has edges far shorter than its size, which no other order keeps: :meth:`Ed
 asks, besides, that the edges' median ``|edge|² / S`` in the positions read be at least
 :data:`SCATTERED_SPAN` (a rope packed into a ball ~``V^(-2/3)``, under 0.01 at a few thousand vertices;
 two random vertices of a line 0.5, of a sheet about 0.8).
+
+A narrow part wound up tight enough passes both: a low-poly strap two or four vertices wide rolled
+round an inner turn one edge across (a tape measure retracting, a scroll rolled up) packs its
+vertices within a few edges of each other, so its edges are a third of its size and more (median
+``|edge|² / S`` 0.11–0.18, growth 6–8), as in another order. What a motion keeps there, and another
+order does not, is each edge's length against the others': :meth:`EdgeSpread.scattered` asks, last,
+that the edges' lengths changed unevenly, the median over the edges of ``|log(|edge| / |edge at
+rest|)|`` from its part's median at least :data:`UNEVEN_LENGTHS` (such straps 0.002–0.09, the most
+with their vertices jittered by a tenth of an edge; a ball squashed to a fifth 0.11; the same
+positions in a random order 0.27–0.37, as the distances between random vertices of a roll or a
+ball spread, and 0.35–0.44 on a sheet).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 
 from .geometry import connected_components
 
@@ -39,6 +51,13 @@ FOREIGN_GROWTH = 5.0
 #: The median ``|edge|² / S`` (:meth:`EdgeSpread.scattered`) from which edges are as long as the
 #: parts they make up: a third of the part's spread; two vertices taken at random give 0.5 or more.
 SCATTERED_SPAN = 0.1
+
+#: The median ``|log(|edge| / |edge at rest|)|`` from its part's median (:meth:`EdgeSpread.scattered`)
+#: from which the edges' lengths changed as unevenly as another order changes them: between what a
+#: motion winding a part up tight gives (a cloth stretches its edges a few per cent; 0.09 with the
+#: vertices jittered by a tenth of an edge) and the spread of the distances between random vertices
+#: of a part (0.27 and more on a tight roll or a ball, the least spread; more on a sheet or a line).
+UNEVEN_LENGTHS = 0.15
 
 #: Edges whose growth is measured, at most (a fixed sample of them: the median of 30,000 is within
 #: about 1 % of all edges'), so that a frame of a 100k-vertex mesh costs a few milliseconds.
@@ -58,6 +77,11 @@ class EdgeSpread:
         if len(self.edges) > SAMPLED_EDGES:
             self.edges = self.edges[np.random.default_rng(0).choice(len(self.edges), SAMPLED_EDGES, replace=False)]
         self.rest_terms = self._terms(rest)
+        self.rest_squared = self._squared(rest)
+
+    def _squared(self, positions: np.ndarray) -> np.ndarray:
+        """The squared length of each edge in ``positions``."""
+        return ((positions[self.edges[:, 0]] - positions[self.edges[:, 1]]) ** 2).sum(axis=1)
 
     def _terms(self, positions: np.ndarray) -> np.ndarray:
         """|edge|² / the mean squared distance between two vertices of its part (twice the trace
@@ -66,7 +90,7 @@ class EdgeSpread:
         centred = positions - np.stack([np.bincount(self.labels, positions[:, d], self.count)
                                         for d in range(3)], axis=1)[self.labels] / counts[self.labels, None]
         sizes = 2.0 * np.bincount(self.labels, (centred ** 2).sum(axis=1), self.count) / counts
-        squared = ((positions[self.edges[:, 0]] - positions[self.edges[:, 1]]) ** 2).sum(axis=1)
+        squared = self._squared(positions)
         size = sizes[self.labels[self.edges[:, 0]]]
         with np.errstate(divide='ignore', invalid='ignore'):
             return np.where(size > 0, squared / size, np.nan)
@@ -82,15 +106,33 @@ class EdgeSpread:
     def scattered(self, positions: np.ndarray) -> bool:
         """Whether ``positions`` ``(n, 3)`` put the mesh's neighbours as far apart as vertices
         taken at random: edges grown over :data:`FOREIGN_GROWTH` times more than their parts
-        (:meth:`growth`) and, in ``positions``, as long as those parts (the median
-        ``|edge|² / S`` at least :data:`SCATTERED_SPAN`; a part wound up tight grows its edges
-        without that)."""
+        (:meth:`growth`), in ``positions`` as long as those parts (the median ``|edge|² / S`` at
+        least :data:`SCATTERED_SPAN`; a part wound up tight grows its edges without that), and
+        their lengths changed unevenly (:meth:`uneven_lengths` at least :data:`UNEVEN_LENGTHS`; a
+        narrow strip wound up tight has its edges as long as its size, each as long as it was)."""
         positions = np.asarray(positions, dtype=np.float64)
         if self.growth(positions) <= FOREIGN_GROWTH:
             return False
         terms = self._terms(positions)
         terms = terms[np.isfinite(terms)]
-        return bool(terms.size) and float(np.median(terms)) >= SCATTERED_SPAN
+        if not terms.size or float(np.median(terms)) < SCATTERED_SPAN:
+            return False
+        return self.uneven_lengths(positions) >= UNEVEN_LENGTHS
+
+    def uneven_lengths(self, positions: np.ndarray) -> float:
+        """How unevenly the edges' lengths changed from the rest mesh to ``positions`` ``(n, 3)``:
+        the median over the edges of ``|log(|edge| / |edge at rest|)|`` from the median of its
+        part's (a part moved, turned, scaled or wound up with its edges kept reads 0; another
+        vertex order, the spread of the distances between random vertices). Edges of length 0 in
+        either are left out; 0.0 where none is left."""
+        with np.errstate(divide='ignore', invalid='ignore'):
+            logs = 0.5 * np.log(self._squared(np.asarray(positions, dtype=np.float64)) / self.rest_squared)
+        kept = np.isfinite(logs)
+        if not kept.any():
+            return 0.0
+        parts = self.labels[self.edges[kept, 0]]
+        medians = np.asarray(ndimage.median(logs[kept], labels=parts, index=np.arange(self.count)))
+        return float(np.median(np.abs(logs[kept] - medians[parts])))
 
 
 def edge_growth(rest: np.ndarray, positions: np.ndarray, edges: np.ndarray) -> float:

@@ -517,7 +517,8 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
     holds the nearest frame it finds over them, or interpolates between two; refused too, naming
     the frames read without a file (before: written without a word; a retime of a 41-frame bake
     without frames 21–41 came up to 0.56 off on a sheet 2 wide, without 1–10 0.37, without 10–15
-    0.075). Where the files' names are not known (``names_known=False``: another Blender's naming),
+    0.075). Where the files stop before the frames lacking them (6–9), Blender holds the last one
+    over them and the message says so, with the range that has files. Where the files' names are not known (``names_known=False``: another Blender's naming),
     frames read in a row with the same pose to the bit tell a hold."""
     import re
 
@@ -540,7 +541,7 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
     for path in files:
         path.unlink()
     if not names_known:
-        monkeypatch.setattr(extension.bridge, "bake_files_lacking", lambda *args: None)
+        monkeypatch.setattr(extension.bridge, "bake_frames_on_disk", lambda *args: None)
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
     cloth = bpy.data.objects["Cloth"]
     objects = set(bpy.data.objects)
@@ -549,6 +550,9 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
     cache = f"'Cloth' is baked to disk over frames 1–9 (its cache: '{9 - len(lost)} frames on disk.')"
     if len(lost) == 9:
         said = f"Blender finds none of the bake's files in '{folder}'"
+    elif names_known and lost.stop == 10:  # the files stop at frame 5: Blender holds it after
+        said = (f"'Cloth': its modifier {cache}, but '{folder}' holds its files up to frame 5 only, and 1 of the 5 "
+                "frames read there comes after it (9): Blender holds frame 5 over them")
     elif names_known:
         said = (f"'Cloth': its modifier {cache}, but '{folder}' holds no file for {len(read)} of the 5 frames read "
                 f"there ({', '.join(map(str, read))}): Blender plays them interpolated between the files it finds")
@@ -563,6 +567,68 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
             bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
     assert set(bpy.data.objects) == objects
     assert sorted(path.name for path in tmp_path.iterdir()) == ["blendcache_shot", "shot.blend", "shot.blend1"]
+
+
+def test_a_bake_from_a_cache_played_part_of_the_way_is_said_to_end_there(bpy_empty, extension, tmp_path):
+    """A cloth simulated over 1–17, played to frame 9 and baked to disk from that cache (Current
+    Cache to Bake): its bake holds frames 1–9, and Blender holds frame 9 over 10–17, as after a
+    simulation's end. In-between Frames over 1–17 is refused as a copy cut short is (the folder
+    cannot tell them apart), but saying where the files stop and to end the range there (before:
+    'Copy the whole cache folder', which is whole); over 1–9 it runs."""
+    import re
+
+    from blender_scenes import pinned_cloth_scene
+
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    cloth = pinned_cloth_scene(frames=17)
+    cache = cloth.modifiers["Cloth"].point_cache
+    cache.use_disk_cache = True
+    for frame in range(1, 10):
+        bpy.context.scene.frame_set(frame)
+    with bpy.context.temp_override(scene=bpy.context.scene, point_cache=cache):
+        bpy.ops.ptcache.bake_from_cache()
+    assert cache.is_baked and cache.info == "9 frames on disk."
+    played = dict(extension.bridge.frame_positions(bpy.context, cloth, [9, 17]))
+    np.testing.assert_array_equal(played[17], played[9])  # what the message says: frame 9, held
+    folder = tmp_path / "blendcache_shot"
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        with pytest.raises(RuntimeError, match=re.escape(
+                f"'{folder}' holds its files up to frame 9 only, and 2 of the 7 frames read there come after it "
+                "(13, 17): Blender holds frame 9 over them (a bake made with Current Cache to Bake from a cache "
+                "played to frame 9, or a copy of the folder cut short?). End the frame range at frame 9")):
+            bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=17, frame_step=4, count=1,
+                                                       filepath=str(tmp_path / "whole.pc2"))
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                                   filepath=str(tmp_path / "baked.pc2"))
+    assert (tmp_path / "baked.pc2").is_file() and not (tmp_path / "whole.pc2").exists()
+
+
+def test_a_cloth_renamed_after_its_disk_bake_is_told_by_the_name_its_files_keep(bpy_empty, extension, tmp_path):
+    """A cloth 'Flag' baked to disk, then renamed 'Cape' (its files keep the old name in hex; Blender
+    looks for the new one's, finds none and plays the rest mesh): refused as a
+    lost bake is, naming the name the files are under and to name the object so again (before:
+    'Copy the cache folder with the .blend', which is there); named 'Flag' again, it runs."""
+    import re
+
+    from blender_scenes import pinned_cloth_scene
+
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    cloth = pinned_cloth_scene(frames=9)
+    cloth.modifiers["Cloth"].point_cache.use_disk_cache = True
+    with bpy.context.temp_override(scene=bpy.context.scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    cloth.name = "Cape"
+    bpy.ops.wm.save_mainfile()
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
+    cloth = bpy.data.objects["Cape"]
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        with pytest.raises(RuntimeError, match=re.escape(
+                f"plays the mesh at rest. '{tmp_path / 'blendcache_shot'}' holds the bake of an object named 'Flag': "
+                "if 'Cape' was renamed after its bake, name it so again (or bake again) and run again")):
+            bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path / "cape.pc2"))
+        cloth.name = "Flag"
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path / "flag.pc2"))
+    assert (tmp_path / "flag.pc2").is_file() and not (tmp_path / "cape.pc2").exists()
 
 
 def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, extension, capfd, tmp_path):
@@ -722,6 +788,59 @@ def test_a_cache_in_another_vertex_order_is_refused(bpy_empty, extension, operat
     for name, poses in (("own", _rolled(rest)), ("cm", 100.0 * _rolled(rest)), ("reversed", _rolled(rest)[:, ::-1])):
         modifier.filepath = str(point_cache.write_pc2(tmp_path / f"{name}.pc2", poses, start=1.0))
         getattr(bpy.ops.shape_differences, operator)(**options)
+
+
+def _strap_winding_up(length: int = 50) -> tuple[np.ndarray, list, np.ndarray]:
+    """A strap of 2 × ``length`` vertices 1 apart and nine samples of it winding up from its far
+    end, its edges kept to 4 %, onto an Archimedean spiral 0.3 between turns whose inner radius
+    shrinks from 41 to 1 (an inner turn about six edges round: a tape measure retracting):
+    (rest, quads, samples)."""
+    along, across = np.meshgrid(np.arange(length, dtype=float), np.arange(2.0), indexing="ij")
+    rest = np.stack([along.ravel(), across.ravel(), np.zeros(along.size)], axis=1)
+    quads = [(2 * i, 2 * i + 2, 2 * i + 3, 2 * i + 1) for i in range(length - 1)]
+    angle = np.linspace(0.0, 40 * np.pi, 100_001)
+    samples = []
+    for k in range(9):
+        radius = 1.0 + 40.0 * (1.0 - k / 8) ** 2 + 0.3 * angle / (2 * np.pi)
+        arc = np.concatenate([[0.0], np.cumsum(np.diff(angle) * 0.5 * (radius[1:] + radius[:-1]))])
+        turn = np.interp(rest[:, 0].max() - rest[:, 0], arc, angle)  # the angle at each vertex's arc length
+        wound = np.interp(turn, angle, radius)
+        samples.append(np.stack([wound * np.cos(turn), rest[:, 1], wound * np.sin(turn)], axis=1))
+    return rest, quads, np.array(samples)
+
+
+def test_a_narrow_strap_wound_up_tight_by_a_cache_is_played(bpy_empty, extension, tmp_path):
+    """A low-poly strap (2 × 50 vertices) a Mesh Cache winds up tight (a tape measure retracting):
+    at the last sample its vertices lie within a few edges of each other, so its edges are as long
+    against its size as another order's would be (grown 8 times), and In-between Frames refused it
+    as a cache of another mesh. Each edge keeps its length, so it is played; the same samples in a
+    random vertex order are still refused."""
+    import importlib
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    rest, quads, samples = _strap_winding_up()
+    mesh = bpy.data.meshes.new("Strap")
+    mesh.from_pydata(rest.tolist(), [], quads)
+    strap = bpy.data.objects.new("Strap", mesh)
+    bpy.context.scene.collection.objects.link(strap)
+    bpy.context.view_layer.objects.active = strap
+    strap.select_set(True)
+    modifier = strap.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.frame_start = 'PC2', 1.0
+    modifier.filepath = str(point_cache.write_pc2(tmp_path / "strap.pc2", samples, start=1.0))
+    played = dict(extension.bridge.frame_positions(bpy.context, strap, [9]))[9]
+    edges = np.array([(a, b) for quad in quads for a, b in zip(quad, quad[1:] + quad[:1])])
+    kept = np.linalg.norm(played[edges[:, 0]] - played[edges[:, 1]], axis=1)
+    assert 0.95 < kept.min() and kept.max() < 1.0 + 1e-5  # wound, not stretched
+    with bpy.context.temp_override(active_object=strap, object=strap, selected_objects=[strap]):
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path / "wound.pc2"))
+    assert (tmp_path / "wound.pc2").is_file()
+    scrambled = samples[:, np.random.default_rng(0).permutation(len(rest))]
+    modifier.filepath = str(point_cache.write_pc2(tmp_path / "scrambled.pc2", scrambled, start=1.0))
+    fails_without_change(extension.bridge, strap, bpy.ops.shape_differences.inbetween_frames,
+                         r"'Strap' is played by the Mesh Cache 'Mesh Cache' from 'scrambled\.pc2', whose frames are "
+                         r"not this mesh's vertices in their order", frame_step=4)
 
 
 def test_an_alembic_cache_of_another_vertex_order_is_refused(bpy_empty, extension, tmp_path):

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.vertex_order import FOREIGN_GROWTH, EdgeSpread, edge_growth
+from core.vertex_order import FOREIGN_GROWTH, SCATTERED_SPAN, UNEVEN_LENGTHS, EdgeSpread, edge_growth
 
 from meshes import grid, icosphere, random_rotation
 
@@ -54,32 +54,56 @@ def test_a_folded_sheet_and_a_crumpled_cloth_stay_below_the_limit_a_random_order
     assert edge_growth(ball, ball[::-1], _edges(ball_triangles)) > FOREIGN_GROWTH
 
 
-def _rolled_carpet(inner: float):
-    """A carpet 10 × 1 (200 × 20 vertices) and the same rolled up on an Archimedean spiral from
-    radius ``inner``, 0.02 between its turns, its edges kept: (rest, rolled, edges)."""
-    sheet, triangles = grid(200, 20)
-    rest = (sheet - sheet.min(axis=0)) / np.ptp(sheet, axis=0).clip(1e-12) * np.array([10.0, 1.0, 0.0])
+def _rolled_strip(vertices: tuple[int, int], size: tuple[float, float], inner: float, gap: float):
+    """A strip of ``vertices`` (along, across) spanning ``size`` and the same rolled up along its
+    length on an Archimedean spiral from radius ``inner``, ``gap`` between its turns, its edges
+    kept: (rest, rolled, edges)."""
+    sheet, triangles = grid(*vertices)
+    rest = (sheet - sheet.min(axis=0)) / np.ptp(sheet, axis=0).clip(1e-12) * np.array([*size, 0.0])
     arc = rest[:, 0]
     order = np.argsort(arc, kind="stable")
     turn = np.zeros(len(arc))
     for previous, vertex in zip(order[:-1], order[1:]):  # the angle wound up to each arc length
-        radius = inner + 0.02 * turn[previous] / (2 * np.pi)
+        radius = inner + gap * turn[previous] / (2 * np.pi)
         turn[vertex] = turn[previous] + (arc[vertex] - arc[previous]) / radius
-    radius = inner + 0.02 * turn / (2 * np.pi)
+    radius = inner + gap * turn / (2 * np.pi)
     rolled = np.stack([radius * np.cos(turn), rest[:, 1], radius * np.sin(turn)], axis=1)
     return rest, rolled, _edges(triangles)
 
 
 @pytest.mark.parametrize("inner", [0.3, 0.05])
 def test_a_carpet_rolled_up_is_not_scattered_though_its_edges_grow(inner):
-    """Rolled up, a long carpet's size shrinks many times while its edges keep their length: growth
-    over FOREIGN_GROWTH (6–8), yet its edges stay far shorter than its size, so it is not scattered;
-    the same positions in a random vertex order are."""
-    rest, rolled, edges = _rolled_carpet(inner)
+    """Rolled up, a long carpet (10 × 1, 200 × 20 vertices, 0.02 between its turns) shrinks its
+    size many times while its edges keep their length: growth over FOREIGN_GROWTH (6–8), yet its
+    edges stay far shorter than its size, so it is not scattered; the same positions in a random
+    vertex order are."""
+    rest, rolled, edges = _rolled_strip((200, 20), (10.0, 1.0), inner, 0.02)
     spread = EdgeSpread(rest, edges)
     assert spread.growth(rolled) > FOREIGN_GROWTH
     assert not spread.scattered(rolled)
     assert spread.scattered(rolled[np.random.default_rng(2).permutation(len(rolled))])
+
+
+@pytest.mark.parametrize("vertices, inner, gap", [((50, 2), 1.0, 0.3), ((60, 4), 1.0, 0.25), ((45, 3), 1.5, 0.2)])
+def test_a_narrow_strap_rolled_up_tight_keeps_its_edges_lengths_and_is_not_scattered(vertices, inner, gap):
+    """A low-poly strap (edges 1 long, 2–4 vertices across) rolled up tight round an inner turn
+    one edge across (a tape measure retracting): its vertices lie within a few edges of each other,
+    so its edges grow 6–8 times against its size and are over a third of it (median |edge|² / S
+    0.11–0.18), as in another order; but each keeps its length (to 4 %), which another order's
+    do not (their lengths spread as the distances between random vertices do, 0.27–0.33:
+    over 1.5 times UNEVEN_LENGTHS). Not scattered; the same positions in a random vertex order are."""
+    rest, rolled, edges = _rolled_strip(vertices, (vertices[0] - 1.0, vertices[1] - 1.0), inner, gap)
+    kept = np.linalg.norm(rolled[edges[:, 0]] - rolled[edges[:, 1]], axis=1) / np.linalg.norm(
+        rest[edges[:, 0]] - rest[edges[:, 1]], axis=1)
+    assert 0.95 < kept.min() and kept.max() < 1.0 + 1e-9  # a winding, not a stretch
+    spread = EdgeSpread(rest, edges)
+    terms = spread._terms(rolled)
+    assert spread.growth(rolled) > FOREIGN_GROWTH and np.median(terms) > SCATTERED_SPAN
+    assert spread.uneven_lengths(rolled) < UNEVEN_LENGTHS / 10
+    assert not spread.scattered(rolled)
+    shuffled = rolled[np.random.default_rng(2).permutation(len(rolled))]
+    assert spread.uneven_lengths(shuffled) > 1.5 * UNEVEN_LENGTHS
+    assert spread.scattered(shuffled)
 
 
 def test_parts_without_size_are_left_out():
