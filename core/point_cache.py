@@ -69,19 +69,37 @@ class PointCache:
         return self.positions.shape[1]
 
 
-def _positions_array(positions) -> np.ndarray:
-    """``positions`` as float32 ``(samples, points, 3)``; a single pose ``(points, 3)`` is one sample."""
-    array = np.asarray(positions)
-    if array.ndim == 2:
-        array = array[None]
-    if array.ndim != 3 or array.shape[2] != 3:
-        raise MeshError(f"Point cache positions must have shape (samples, points, 3); got {array.shape}.")
-    if array.shape[1] == 0:
+def _check_samples_shape(shape: tuple) -> None:
+    """Raise :class:`MeshError` unless ``shape`` is ``(samples, points, 3)`` with points."""
+    if len(shape) != 3 or shape[2] != 3:
+        raise MeshError(f"Point cache positions must have shape (samples, points, 3); got {shape}.")
+    if shape[1] == 0:
         raise MeshError("A point cache needs at least one point; got 0.")
-    if not np.isfinite(array).all():
-        sample = int(np.flatnonzero(~np.isfinite(array).all(axis=(1, 2)))[0])
-        raise MeshError(f"Point cache sample {sample} has non-finite coordinates (NaN or inf).")
-    return np.ascontiguousarray(array, dtype="<f4")
+
+
+def _samples(positions) -> tuple[list, int]:
+    """The samples of ``positions`` — a float ``(samples, points, 3)`` array, a sequence of
+    ``(points, 3)`` poses, or one pose (one sample) — and their point count, checked (shape, one
+    point count, finite coordinates) without copying them: the writer converts one sample at a
+    time, so an output is not held twice while it is written."""
+    if isinstance(positions, np.ndarray) or not len(positions) or np.ndim(positions[0]) != 2:
+        array = np.asarray(positions)
+        if array.ndim == 2:
+            array = array[None]
+        shape = array.shape
+        _check_samples_shape(shape)
+        samples = list(array)  # views of the array
+    else:
+        samples = [np.asarray(pose) for pose in positions]
+        shapes = {sample.shape for sample in samples}
+        if len(shapes) > 1:
+            raise MeshError(f"Point cache samples must all have one shape (points, 3); got {sorted(shapes)}.")
+        shape = (len(samples), *samples[0].shape)
+        _check_samples_shape(shape)
+    for index, sample in enumerate(samples):
+        if not np.isfinite(sample).all():
+            raise MeshError(f"Point cache sample {index} has non-finite coordinates (NaN or inf).")
+    return samples, shape[1]
 
 
 def _open_part(path: Path) -> tuple[int, str]:
@@ -246,7 +264,8 @@ def check_pc2_name(path) -> None:
 
 def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, stamp: dict | None = None,
               exclusive: bool = False) -> Path:
-    """Write float ``(samples, points, 3)`` positions (or one ``(points, 3)`` pose) as a PC2 file.
+    """Write float ``(samples, points, 3)`` positions (an array or a sequence of ``(points, 3)``
+    poses; or one ``(points, 3)`` pose) as a PC2 file, one sample at a time.
 
     ``start`` is the frame of the first sample, ``sampling`` the frames between samples. The file
     appears complete or not at all. Returns the path.
@@ -260,15 +279,23 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
     ``exclusive``: raise :class:`FileExistsError` rather than replace a file at ``path``, checked
     when the file is complete (:func:`_write_atomically`).
     """
-    array = _positions_array(positions)
+    samples, n_points = _samples(positions)
     check_pc2_timing(start, sampling)
     check_pc2_name(path)
-    blocks = [pc2_header(array.shape[1], array.shape[0], start, sampling), array.tobytes()]
-    _write_atomically(path, blocks, exclusive=exclusive)
+    digest = hashlib.sha256() if stamp is not None else None
+
+    def blocks():  # the header, then each sample as little-endian float32 (one copy at a time)
+        yield pc2_header(n_points, len(samples), start, sampling)
+        for sample in samples:
+            yield memoryview(np.ascontiguousarray(sample, dtype="<f4")).cast("B")
+
+    def hashed(chunks):  # the chunks as written, their SHA-256 taken on the way
+        for chunk in chunks:
+            digest.update(chunk)
+            yield chunk
+
+    _write_atomically(path, blocks() if digest is None else hashed(blocks()), exclusive=exclusive)
     if stamp is not None:
-        digest = hashlib.sha256()
-        for block in blocks:
-            digest.update(block)
         text = json.dumps({**stamp, "sha256": digest.hexdigest()}, indent=1) + "\n"
         try:
             _write_atomically(stamp_path(path), [text.encode()])

@@ -432,7 +432,7 @@ def unique_file(path: Path) -> Path:
     return next(candidate for candidate in numbered_files(path) if not candidate.exists())
 
 
-def holds_poses(path: Path, poses: np.ndarray, start: float, sampling: float) -> bool:
+def holds_poses(path: Path, poses, start: float, sampling: float) -> bool:
     """Whether the file ``path`` is a PC2 of ``poses`` at ``start`` / ``sampling``: the same run
     made again (a farm task retried, a batch run twice on the saved shot), whose file no object of
     this .blend plays. Coordinates agree to 1e-6 of the poses' size: the same computation on
@@ -445,12 +445,13 @@ def holds_poses(path: Path, poses: np.ndarray, start: float, sampling: float) ->
         cache = read_pc2(path)
     except (MeshError, OSError):  # not a point cache (or unreadable): another file
         return False
-    poses = np.asarray(poses, dtype=np.float32)
-    if (cache.positions.shape != poses.shape or cache.start != np.float32(start)
-            or cache.sampling != np.float32(sampling)):
+    # compared pose by pose, as float32 (what the file holds), without a copy of them all
+    shape = (len(poses), *np.shape(poses[0])) if len(poses) else (0,)
+    if cache.positions.shape != shape or cache.start != np.float32(start) or cache.sampling != np.float32(sampling):
         return False
-    size = float(np.abs(poses).max()) if poses.size else 0.0
-    return all(np.abs(cache.positions[i] - poses[i]).max() <= 1e-6 * size for i in range(len(poses)))
+    size = max((float(np.abs(np.asarray(pose, dtype=np.float32)).max()) for pose in poses), default=0.0)
+    return all(np.abs(cache.positions[i] - np.asarray(pose, dtype=np.float32)).max() <= 1e-6 * size
+               for i, pose in enumerate(poses))
 
 
 def write_new_cache(path: Path, poses, start: float, sampling: float) -> tuple[Path, bool]:
@@ -464,7 +465,6 @@ def write_new_cache(path: Path, poses, start: float, sampling: float) -> tuple[P
     (before, the later replaced the earlier, and one shot played the other's cache)."""
     from ..core.point_cache import write_pc2
 
-    poses = np.asarray(poses)
     for candidate in numbered_files(path):
         if candidate.exists():
             if holds_poses(candidate, poses, start, sampling):

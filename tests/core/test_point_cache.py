@@ -142,6 +142,32 @@ def test_missing_file_and_bad_positions(tmp_path):
     assert not list(tmp_path.iterdir())
 
 
+def test_a_pc2_is_written_one_sample_at_a_time(tmp_path):
+    """Writing holds at most one sample's float32 copy (and its finiteness mask) besides the poses
+    given, not a copy of the whole output: an operator's poses (float64 keys among float32
+    in-betweens) made into one float64 array, a float32 one and its bytes take four times the 12
+    bytes per point that check_output_memory allows for. The file holds every sample as float32,
+    and a list of poses writes the same bytes as their array."""
+    import tracemalloc
+
+    n_samples, n_points = 40, 5000
+    poses = [np.full((n_points, 3), i / 7, dtype=np.float64 if i % 4 == 0 else np.float32) for i in range(n_samples)]
+    one_sample = n_points * 3 * 4
+    tracemalloc.start()
+    try:
+        tracemalloc.reset_peak()
+        path = write_pc2(tmp_path / "poses.pc2", poses, start=1.0)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2 * one_sample  # the whole output is 40 samples
+    assert read_pc2(path).positions.tobytes() == np.asarray(poses, dtype="<f4").tobytes()
+    assert write_pc2(tmp_path / "array.pc2", np.asarray(poses, dtype=np.float32), start=1.0).read_bytes() == \
+        path.read_bytes()
+    with pytest.raises(MeshError, match="one shape"):
+        write_pc2(tmp_path / "mixed.pc2", [np.zeros((3, 3)), np.zeros((4, 3))])
+
+
 def test_a_file_that_is_no_point_cache_is_said_to_be_none(tmp_path):
     """An OBJ given as the cache (the arguments swapped): "not a point cache" (it read as an MDD
     whose header "promises 18439727604560280776 bytes"); a damaged .mdd keeps the MDD message."""
