@@ -9,10 +9,12 @@ dihedral angle allowed) and improves the basis: re-meshed 1k limb, frame 40 rebu
 quadric-decimated target 6.7 % → 3.8 % (Hausdorff / diagonal; the Poisson-disk target 3.6 %).
 
 Written out (greedy passes of non-adjacent flips, a few lines): SciPy and the extension's other
-dependencies offer no surface edge flips. The same passes flip a surface known by its edge lengths
-only (:func:`intrinsic_delaunay`, for the heat method of a pulled-back metric): there a flipped
-edge's length comes from its two triangles unfolded into the plane, which keeps the metric
-exactly. The transfer's target keeps its embedded flips: its functional map projects points onto
+dependencies offer no surface edge flips. A surface known by its edge lengths only (the heat
+method of a pulled-back metric) is flipped by :func:`intrinsic_delaunay`, on a gluing of triangle
+sides rather than vertex pairs (an intrinsic triangulation may join two vertices twice, or a
+vertex to itself), usually that of the mesh's tufted cover (:func:`tufted_cover`), where boundary
+edges are flippable too: there a flipped edge's length comes from its two triangles unfolded
+into the plane, which keeps the metric exactly. The transfer's target keeps its embedded flips: its functional map projects points onto
 the target's triangles in space.
 """
 
@@ -91,48 +93,107 @@ def delaunay_flips(vertices: np.ndarray, triangles: np.ndarray, *, max_dihedral_
     return _flip_passes(np.array(triangles, dtype=np.int64), len(vertices), excess, lambda *_: None, max_passes)
 
 
-def intrinsic_delaunay(triangles: np.ndarray, corner_squared_lengths: np.ndarray, n_vertices: int, *,
-                       max_passes: int = 100) -> tuple[np.ndarray, np.ndarray]:
+def side_twins(topology) -> np.ndarray:
+    """The gluing of a manifold mesh's triangle sides: int64 ``(3m,)``, side ``3t + k`` (the edge
+    opposite corner ``k`` of triangle ``t``) → the side of the other triangle at that edge, ``-1``
+    on the boundary. ``topology``: its :class:`~core.mesh_topology.MeshTopology`."""
+    twins = np.full(3 * topology.triangles.shape[0], -1, dtype=np.int64)
+    inner = np.flatnonzero((topology.edge_triangles >= 0).all(axis=1))
+    t1, t2 = topology.edge_triangles[inner, 0], topology.edge_triangles[inner, 1]
+    s1 = 3 * t1 + np.argmax(topology.triangle_edges[t1] == inner[:, None], axis=1)
+    s2 = 3 * t2 + np.argmax(topology.triangle_edges[t2] == inner[:, None], axis=1)
+    twins[s1], twins[s2] = s2, s1
+    return twins
+
+
+def tufted_cover(triangles: np.ndarray, corner_squared_lengths: np.ndarray, twins: np.ndarray):
+    """The intrinsic tufted cover of a triangulation (Sharp & Crane 2020, "A Laplacian for
+    Nonmanifold Triangle Meshes"): every triangle twice, the copy with reversed orientation,
+    copies glued to copies across interior edges and each boundary side glued to its own copy —
+    a surface without boundary on the same vertices, whose geodesics are the mesh's (a path
+    through the copy folds back onto the mesh with the same length). Its boundary edges become
+    interior and so flippable, which the intrinsic Delaunay flips need where an obtuse triangle
+    lies along the boundary (the hull of a random-point triangulation, a trimmed scan). Returns
+    the cover's triangles ``(2m, 3)`` (the copies last), their corner squared lengths and gluing."""
+    m = triangles.shape[0]
+    reverse = np.array([0, 2, 1])  # the copy (v0, v2, v1): side k of the triangle is side reverse[k]
+    sides = np.arange(3 * m)
+    copy = 3 * (m + sides // 3) + reverse[sides % 3]
+    glued = twins >= 0
+    cover_twins = np.empty(6 * m, dtype=np.int64)
+    cover_twins[sides] = np.where(glued, twins, copy)
+    cover_twins[copy] = np.where(glued, copy[np.where(glued, twins, 0)], sides)
+    return (np.concatenate([triangles, triangles[:, reverse]]),
+            np.concatenate([corner_squared_lengths, corner_squared_lengths[:, reverse]]), cover_twins)
+
+
+def intrinsic_delaunay(triangles: np.ndarray, corner_squared_lengths: np.ndarray, twins: np.ndarray, *,
+                       max_passes: int = 100) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Intrinsic Delaunay triangulation of a surface known by its edge lengths only (Fisher et
-    al. 2007; Sharp, Soliman, Crane 2019): ``triangles`` int ``(m, 3)`` and their squared edge
-    lengths ``corner_squared_lengths`` ``(m, 3)`` (column ``k`` the edge opposite corner ``k``),
-    interior edges flipped until none violates the Delaunay criterion. A flipped edge's length
-    is the distance between the two opposite corners with both triangles unfolded into the plane,
-    so the metric — the surface — is exactly the same; only its triangulation changes, to the
-    one whose cotangent weights are all non-negative (where no flip is blocked by an edge that
-    exists already). Returns the flipped triangles int64 ``(m, 3)`` and their corner squared
-    lengths ``(m, 3)``."""
+    al. 2007; Sharp, Soliman, Crane 2019): ``triangles`` int ``(m, 3)`` (consistently oriented),
+    their squared edge lengths ``corner_squared_lengths`` ``(m, 3)`` (column ``k`` the edge
+    opposite corner ``k``) and their gluing ``twins`` ``(3m,)`` (:func:`side_twins`,
+    :func:`tufted_cover`), glued sides flipped until none violates the Delaunay criterion
+    (opposite angles summing to more than π by over 1e-9). The triangulation is kept as a gluing
+    of triangle sides, not as vertex pairs, so a flip may make an edge that joins two vertices
+    joined already, or a vertex to itself — an intrinsic triangulation allows both, and every
+    non-Delaunay edge can then be flipped. A flipped edge's length is the distance between the
+    two opposite corners with both triangles unfolded into the plane, so the metric — the
+    surface — is exactly the same; only its triangulation changes, to one whose cotangent
+    weights are all non-negative. Greedy passes flip the worst edges first, at most one per
+    triangle per pass. Returns the flipped triangles int64 ``(m, 3)``, their corner squared
+    lengths ``(m, 3)`` and gluing ``(3m,)``."""
     from .geometry import heron
 
     tris = np.array(triangles, dtype=np.int64)
     lengths = np.array(corner_squared_lengths, dtype=np.float64)
-    state = {}
+    twins = np.array(twins, dtype=np.int64)
+    for _ in range(max_passes):
+        s = np.flatnonzero(twins > np.arange(twins.size))  # each glued pair once
+        o = twins[s]
+        f, k, g, r = s // 3, s % 3, o // 3, o % 3
 
-    def excess(a, b, c, d, t1, k1, t2, k2):
-        # cot of the angle opposite the edge in each triangle: (x_p + x_q − x_edge) / (4 area)
-        def cot(t, k):
+        def cot(t, c):  # cot of the angle at corner c: (x_p + x_q − x_c) / (4 area)
             x = lengths[t]
-            edge = x[np.arange(len(t)), k]
-            return (x.sum(axis=1) - 2.0 * edge) / np.sqrt(np.maximum(heron(x), np.finfo(float).tiny))
-        state.update(a=a, b=b, t1=t1, k1=k1, t2=t2, k2=k2)
-        return -np.arctan(cot(t1, k1)) - np.arctan(cot(t2, k2))  # α + β − π, with angle = π/2 − arctan(cot)
+            return (x.sum(axis=1) - 2.0 * x[np.arange(len(t)), c]) / np.sqrt(np.maximum(heron(x), np.finfo(float).tiny))
 
-    def flip(i, t1, t2):
-        k1, k2 = state["k1"][i], state["k2"][i]
-        edge = lengths[t1, k1]
-        # t1 = (a, b, c): squared lengths |bc|² opposite a, |ca|² opposite b; t2 = (b, a, d): |ad|²
-        # opposite b, |db|² opposite a. Unfolded with a at the origin and b on the x axis, c above
-        # and d below it; the new edge is |c − d|.
-        ca, bc = lengths[t1, (k1 + 2) % 3], lengths[t1, (k1 + 1) % 3]
-        ad, db = lengths[t2, (k2 + 1) % 3], lengths[t2, (k2 + 2) % 3]
+        over = -np.arctan(cot(f, k)) - np.arctan(cot(g, r))  # α + β − π, with angle = π/2 − arctan(cot)
+        over[f == g] = 0.0  # two sides of one triangle: no quadrilateral to flip in
+        used = np.zeros(len(tris), dtype=bool)
+        chosen = []
+        for i in np.argsort(-over):
+            if over[i] <= 1e-9:
+                break
+            if used[f[i]] or used[g[i]]:
+                continue
+            used[f[i]] = used[g[i]] = True
+            chosen.append(i)
+        if not chosen:
+            break
+        f, k, g, r = f[chosen], k[chosen], g[chosen], r[chosen]
+        k1, k2, r1, r2 = (k + 1) % 3, (k + 2) % 3, (r + 1) % 3, (r + 2) % 3
+        # f = (a, b, c) with the edge a → b opposite c; g = (b, a, d) with it b → a opposite d.
+        a, b, c, d = tris[f, k1], tris[f, k2], tris[f, k], tris[g, r]
+        edge, bc, ca = lengths[f, k], lengths[f, k1], lengths[f, k2]
+        ad, db = lengths[g, r1], lengths[g, r2]
+        # Unfolded with a at the origin and b on the x axis, c above and d below it; the new edge is |c − d|.
         ab = np.sqrt(edge)
         cx = (ca + edge - bc) / (2.0 * ab)
         dx = (ad + edge - db) / (2.0 * ab)
-        cy = np.sqrt(max(ca - cx * cx, 0.0))
-        dy = -np.sqrt(max(ad - dx * dx, 0.0))
+        cy = np.sqrt(np.maximum(ca - cx * cx, 0.0))
+        dy = -np.sqrt(np.maximum(ad - dx * dx, 0.0))
         cd = (cx - dx) ** 2 + (cy - dy) ** 2
-        lengths[t1] = (cd, ca, ad)  # (a, d, c)
-        lengths[t2] = (cd, db, bc)  # (b, c, d)
-
-    tris = _flip_passes(tris, n_vertices, excess, flip, max_passes)
-    return tris, lengths
+        tris[f] = np.stack([a, d, c], axis=1)
+        tris[g] = np.stack([b, c, d], axis=1)
+        lengths[f] = np.stack([cd, ca, ad], axis=1)
+        lengths[g] = np.stack([cd, db, bc], axis=1)
+        # The sides move with the flip: c → a to side 1 of f, a → d to side 2 of f, d → b to side 1
+        # of g, b → c to side 2 of g, the new edge d → c / c → d to side 0 of both.
+        moved = np.arange(twins.size)
+        moved[3 * f + k], moved[3 * f + k2], moved[3 * g + r1] = 3 * f, 3 * f + 1, 3 * f + 2
+        moved[3 * g + r], moved[3 * g + r2], moved[3 * f + k1] = 3 * g, 3 * g + 1, 3 * g + 2
+        glued = np.flatnonzero(twins >= 0)
+        new = np.full(twins.size, -1, dtype=np.int64)
+        new[moved[glued]] = moved[twins[glued]]
+        twins = new
+    return tris, lengths, twins
