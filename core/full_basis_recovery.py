@@ -2,9 +2,13 @@
 Props. 1–2, appendix): two sparse linear solves.
 
 - Areas µ from ``A = A(µ)``: the off-diagonal entries of ``A`` are sums of the areas of the
-  triangles around an edge (``/12``); the diagonal ones are implied by them. The least-squares system is singular exactly when a closed
-  connected component has only even-valence vertices (its dual graph is bipartite, so alternating
-  ±1 areas are invisible) — Prop. 1's condition — which is checked combinatorially.
+  triangles around an edge (``/12``); the diagonal ones are implied by them. The least-squares
+  system is singular exactly when a closed connected component has a bipartite dual graph (its
+  triangles two-coloured so that every edge joins both colours): areas changed by +ε on one colour
+  and −ε on the other leave every edge sum unchanged. Every vertex then has even valence (Prop. 1's
+  sufficient condition fails); on a sphere the converse holds too, but on a closed surface of
+  genus ≥ 1 an odd cycle of triangles can go around a handle with all valences even, and then the
+  areas are recoverable. The exact condition is checked combinatorially.
 - Squared lengths ℓ² from the per-edge entries of ``C = C(ℓ²; µ)`` with µ fixed: a square sparse
   system ``B_µ ℓ² = c``. It is singular for rare area distributions (Fig. 2: two tetrahedra glued
   at their bases with equal areas, and every flat regular grid); Heron's formula, with the known
@@ -19,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import RecoveryError, ShapeDifferenceWarning
-from .geometry import heron, vertex_labels
+from .geometry import heron
 from .inner_products import ProductAssembler
 from .mesh_topology import MeshTopology
 
@@ -53,25 +57,39 @@ class AreaRecovery:
 
 
 def check_area_recoverable(topology: MeshTopology) -> None:
-    """Raise :class:`RecoveryError` if some connected component is closed and all its vertices
-    have even valence (Prop. 1: then ``A(µ)`` does not determine µ)."""
+    """Raise :class:`RecoveryError` if some connected component is closed and its dual graph is
+    bipartite (then ``A(µ)`` does not determine µ: the kernel of µ ↦ edge entries is ±1 on the two
+    colours). Otherwise the areas are determined: a boundary edge's entry is one triangle's area,
+    and an odd cycle of triangles, along which a kernel vector would alternate in sign, forces it
+    to vanish; flood fill along the edge sums then fixes the whole component. This is the exact
+    condition; Prop. 1's (a boundary or an odd-valence vertex) is sufficient only."""
+    from scipy.sparse.csgraph import connected_components
+
     count, labels = topology.components()
     has_boundary = np.zeros(count, dtype=bool)
     boundary_triangles = topology.edge_triangles[topology.boundary_edges].max(axis=1)
     has_boundary[labels[boundary_triangles]] = True
-    valence = np.bincount(topology.edges.ravel(), minlength=topology.n_vertices)
-    odd_vertex = valence % 2 == 1
-    has_odd = np.zeros(count, dtype=bool)
-    vertex_component = vertex_labels(topology.triangles, labels, topology.n_vertices)
-    has_odd[vertex_component[odd_vertex & (vertex_component >= 0)]] = True
-    bad = np.flatnonzero(~has_boundary & ~has_odd)
+    # Bipartite double cover: triangle t has copies t and t + m, and each interior edge joins
+    # opposite copies. A component is bipartite exactly when its two copies stay disconnected.
+    m = topology.n_triangles
+    inner = topology.edge_triangles[topology.interior_edges]
+    cover = sp.coo_matrix(
+        (np.ones(2 * len(inner)), (np.concatenate([inner[:, 0], inner[:, 0] + m]),
+                                   np.concatenate([inner[:, 1] + m, inner[:, 1]]))),
+        shape=(2 * m, 2 * m),
+    )
+    _, cover_labels = connected_components(cover, directed=False)
+    bipartite = np.zeros(count, dtype=bool)
+    bipartite[labels[cover_labels[:m] != cover_labels[m:]]] = True
+    bad = np.flatnonzero(~has_boundary & bipartite)
     if bad.size:
         first = int(np.flatnonzero(labels == bad[0])[0])
         raise RecoveryError(
-            f"The closed part of the mesh containing triangle {first} has only even-valence "
-            "vertices, so its triangle areas cannot be recovered from the area-based shape "
-            "difference (paper Prop. 1; e.g. an octahedron). Triangulate it differently (any "
-            "vertex of odd valence suffices), e.g. flip one edge (Mesh > Edge > Rotate Edge)."
+            f"The closed part of the mesh containing triangle {first} has triangles in two "
+            "alternating colours (neighbours across every edge differ; all its vertices have even "
+            "valence, e.g. an octahedron), so its triangle areas cannot be recovered from the "
+            "area-based shape difference (paper Prop. 1). Triangulate it differently (any vertex "
+            "of odd valence suffices), e.g. flip one edge (Mesh > Edge > Rotate Edge)."
         )
 
 

@@ -185,3 +185,29 @@ def closed_tube(rings: int, sides: int, *, length: float = 1.0, radius: float = 
         j = (i + 1) % sides
         triangles += [[start, j, i], [end, (rings - 1) * sides + i, (rings - 1) * sides + j]]
     return vertices, np.array(triangles)
+
+
+def twisted_torus(n: int, m: int, *, shift: int = 0, alternate: bool = True, major: float = 3.0, minor: float = 1.0):
+    """A torus of revolution cut into ``n`` (around the axis) × ``m`` (around the tube) quads, the
+    tube's seam glued with a twist of ``shift`` quads: quad ``(i, m)`` is quad ``(i + shift, 0)``.
+    Quads are split along alternating diagonals (``alternate``: valences 4 and 8 when n, m and
+    shift allow it) or all along the same one (valence 6); outward counter-clockwise triangles.
+    Vertices (n·m, 3), triangles (2·n·m, 3)."""
+    i, j = np.meshgrid(np.arange(n), np.arange(m), indexing="ij")
+    u = 2.0 * np.pi * (i + shift * j / m) / n  # the twist spread evenly along the tube
+    v = 2.0 * np.pi * j / m
+    ring = major + minor * np.cos(v)
+    vertices = np.stack([ring * np.cos(u), ring * np.sin(u), minor * np.sin(v)], axis=-1).reshape(-1, 3)
+
+    def index(a, b):
+        return (a + shift * (b // m)) % n * m + b % m
+
+    triangles = []
+    for a in range(n):
+        for b in range(m):
+            p, q, r, s = index(a, b), index(a + 1, b), index(a + 1, b + 1), index(a, b + 1)
+            if (a + b) % 2 and alternate:
+                triangles += [[p, q, s], [q, r, s]]
+            else:
+                triangles += [[p, q, r], [p, r, s]]
+    return vertices, np.array(triangles, dtype=np.int64)

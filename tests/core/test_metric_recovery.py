@@ -5,7 +5,7 @@ import pytest
 
 import core
 from core.shape_difference import FullDifference
-from meshes import cube, cube_with_bump, drape, grid, icosphere, stretch_and_bend
+from meshes import cube, cube_with_bump, drape, grid, icosphere, stretch_and_bend, twisted_torus
 
 CASES = {
     "cloth draped (large isometric motion)": (grid(16, jitter=0.3), lambda v: drape(v, 4.0)),
@@ -55,11 +55,42 @@ def _octahedron():
     return vertices, triangles
 
 
-def test_even_valence_closed_mesh_is_reported_as_not_recoverable():
-    vertices, triangles = _octahedron()  # every vertex has valence 4 (Prop. 1 fails)
-    differences = core.shape_differences(vertices, 1.1 * vertices, triangles, use_extrinsic=False)
-    with pytest.raises(core.RecoveryError, match="even-valence"):
-        differences.reference.recover_metric(differences)
+def _singular_values(reference):
+    """Singular values of Prop. 1's map µ ↦ edge entries of A(µ) (dense: small meshes only)."""
+    return np.linalg.svd(reference.base.assembler.area_map().toarray(), compute_uv=False)
+
+
+# Closed meshes whose triangles two-colour (every edge between the colours): an octahedron, and a
+# torus (genus 1) whose quads alternate their diagonals, glued without a twist.
+BIPARTITE = {"octahedron": _octahedron, "torus, alternating diagonals": lambda: twisted_torus(12, 12)}
+
+
+@pytest.mark.parametrize("mesh", BIPARTITE)
+def test_closed_mesh_with_two_coloured_triangles_is_reported_as_not_recoverable(mesh):
+    vertices, triangles = BIPARTITE[mesh]()
+    reference = core.ReferenceShape(vertices, triangles, use_extrinsic=False)
+    singular = _singular_values(reference)
+    assert singular[-1] < 1e-12 * singular[0]  # ±1 areas on the two colours: A(µ) unchanged
+    differences = reference.shape_differences(1.1 * vertices)
+    with pytest.raises(core.RecoveryError, match="two alternating colours"):
+        reference.recover_metric(differences)
+
+
+def test_even_valence_torus_with_an_odd_cycle_of_triangles_is_recoverable():
+    """Prop. 1's condition (a boundary or an odd-valence vertex) is sufficient, not necessary: on
+    a torus glued with a twist of one quad every vertex has even valence, but a ring of triangles
+    around the twisted seam is an odd cycle, so no alternating ±1 areas hide in A(µ)."""
+    vertices, triangles = twisted_torus(12, 12, shift=1)
+    target = stretch_and_bend(vertices)
+    differences = core.shape_differences(vertices, target, triangles, use_extrinsic=False)
+    reference = differences.reference
+    topology = reference.base.assembler.topology
+    assert np.all(np.bincount(topology.edges.ravel()) % 2 == 0)
+    singular = _singular_values(reference)
+    assert singular[-1] > 1e-8 * singular[0]  # full rank (a kernel would sit at round-off, 1e-16)
+    recovered, exact = reference.recover_metric(differences).base, reference.pose_metric(target).base
+    assert _relative(recovered.areas, exact.areas) <= 1e-8
+    assert _relative(recovered.squared_lengths, exact.squared_lengths) <= 1e-8
 
 
 def _bipyramid():
