@@ -83,14 +83,8 @@ class RetimePlan:
 
     @property
     def start_samples(self) -> tuple | None:
-        """The samples telling how the motion leaves the first key
-        (:func:`core.interpolation.start_of_motion`): the first three keys and the sample in the
-        middle of the first gap (None where the keys are one sample apart); None with fewer than
-        three keys."""
-        if len(self.keys) < 3:
-            return None
-        first, second, third = (int(k) for k in self.keys[:3])
-        return first, second, third, first + (second - first) // 2 if second - first >= 2 else None
+        """:func:`start_samples` of this plan's keys."""
+        return start_samples(self.keys)
 
     @property
     def end_samples(self) -> tuple[int, int, int, int] | None:
@@ -183,6 +177,48 @@ def end_samples(keys, tail) -> tuple[int, int, int, int] | None:
     return before, start, end, start + (end - start) // 2
 
 
+def start_samples(keys) -> tuple | None:
+    """The samples (or frames) telling how the motion leaves the first key
+    (:func:`core.interpolation.start_of_motion`), for a sequence keyed on ``keys``: the first three
+    keys and the sample in the middle of the first gap (None where the keys are one sample apart);
+    None with fewer than three keys."""
+    if len(keys) < 3:
+        return None
+    first, second, third = (int(k) for k in keys[:3])
+    return first, second, third, first + (second - first) // 2 if second - first >= 2 else None
+
+
+def motion_ends(samples, keys, tail, chosen=()) -> dict:
+    """``start`` and ``end`` of the :class:`core.SequenceInterpolator` keyed on ``keys`` (and of
+    the shorter last gap's, keyed on ``tail``), chosen from the source: ``samples[i]`` the positions
+    at sample (or frame) ``i`` of :func:`start_samples` and :func:`end_samples` (an array or a
+    dict), in the space the sequence interpolates. ``start`` from the middle of the first gap
+    (:func:`core.interpolation.start_of_motion`; ``"keys"`` where the keys are the source, one
+    sample apart), ``end`` from the middle of the last (:func:`core.interpolation.end_of_motion`);
+    neither where the keys do not tell, nor those named in ``chosen`` (the caller's). MeshError where
+    a middle sample is no pose of the keys' mesh (a non-finite coordinate would make both choices'
+    distances NaN, and the comparison choose silently)."""
+    from .interpolation import end_of_motion, start_of_motion
+    from .validation import check_vertices
+
+    def middle_pose(sample, key):
+        return check_vertices(samples[sample], len(samples[key]), name=f"sample {sample}")
+
+    options = {}
+    starts = start_samples(keys)
+    if "start" not in chosen and starts is not None:
+        first, second, third, middle = starts
+        options["start"] = "keys" if middle is None else start_of_motion(
+            [samples[first], samples[second], samples[third]], middle_pose(middle, first),
+            (middle - first) / (second - first), (second - first, third - second))
+    ends = end_samples(keys, tail)
+    if "end" not in chosen and ends is not None:
+        before, start, end, middle = ends
+        options["end"] = end_of_motion([samples[before], samples[start], samples[end]], middle_pose(middle, start),
+                                       (middle - start) / (end - start), (start - before, end - start))
+    return options
+
+
 def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
     (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
@@ -205,7 +241,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     (:func:`core.interpolation.end_of_motion`); the shorter last gap's sequence starts inside the
     motion (``start="keys"``) and ends as the whole one.
     """
-    from .interpolation import SequenceInterpolator, end_of_motion, start_of_motion
+    from .interpolation import SequenceInterpolator
 
     if len(samples) != plan.n_source:
         raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")
@@ -213,17 +249,8 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
     key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
-    starts = plan.start_samples
-    if "start" not in interpolator_options and starts is not None:
-        first, second, third, middle = starts
-        interpolator_options = {**interpolator_options, "start": "keys" if middle is None else start_of_motion(
-            key_poses[:3], samples[middle], (middle - first) / (second - first), (second - first, third - second))}
-    ends = plan.end_samples
-    if "end" not in interpolator_options and ends is not None:
-        before, start, end, middle = ends
-        interpolator_options = {**interpolator_options, "end": end_of_motion(
-            [samples[before], samples[start], samples[end]], samples[middle], (middle - start) / (end - start),
-            (start - before, end - start))}
+    interpolator_options = {**interpolator_options,
+                            **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:

@@ -78,27 +78,16 @@ class FrameRangeProperties:
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
 
-    def read_keys_and_start(self, context, obj, keys: list[int], progress_share: float, also=(),
-                            matrices: dict | None = None):
-        """Yield progress while reading the evaluated mesh at the key frames ``keys``, the frame
-        in the middle of the first gap and the frames ``also``; returns the keys' positions, the
-        sequence's ``start`` (``core.interpolation.start_of_motion``: whether the motion leaves the
-        first key from rest, as a simulation from its first frame does) and {frame: positions}
-        of every frame read. ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of
-        every frame read."""
-        from ..core.interpolation import start_of_motion
-
-        step = keys[1] - keys[0] if len(keys) > 1 else 1
-        # with fewer than three keys the sequence is linear; with keys one frame apart they are the source
-        middle = keys[0] + step // 2 if len(keys) > 2 and step >= 2 else None
-        frames = sorted(set(keys) | ({middle} if middle is not None else set()) | set(also))
+    def read_keys(self, context, obj, keys: list[int], progress_share: float, also=(), matrices: dict | None = None):
+        """Yield progress while reading the evaluated mesh at the key frames ``keys`` and the frames
+        ``also``; returns the keys' positions and {frame: positions} of every frame read.
+        ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of every frame read."""
+        frames = sorted(set(keys) | set(also))
         read_matrices = [] if matrices is not None else None
         read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share, read_matrices))))
         if matrices is not None:
             matrices.update(zip(frames, read_matrices))
-        start = "keys" if middle is None else start_of_motion(
-            [read[f] for f in keys[:3]], read[middle], (middle - keys[0]) / step, (step, keys[2] - keys[1]))
-        return [read[f] for f in keys], start, read
+        return [read[f] for f in keys], read
 
     def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
@@ -208,19 +197,17 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         self.pose_names = [f"frame {frame}" for frame in frames]
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
-        # how the motion reaches the last key: told by the frame in the middle of the last gap
-        ends = retime.end_samples(keyed, tail)
+        # how the motion leaves the first key and reaches the last: told by the frames in the middle
+        # of the first and last gaps of the sequence keyed (core.retime.motion_ends)
+        middles = [ends[3] for ends in (retime.start_samples(keyed), retime.end_samples(keyed, tail))
+                   if ends and ends[3] is not None]
         matrices = {}
-        _poses, options["start"], read = yield from self.read_keys_and_start(
-            context, obj, frames, 0.2, also=tail + ([ends[3]] if ends else []), matrices=matrices)
+        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles, matrices=matrices)
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = bridge.frames_space(context, obj, matrices)
         scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
-        if ends:
-            before, start, last, middle = ends
-            options["end"] = load_core().interpolation.end_of_motion(
-                [scaled[before], scaled[start], scaled[last]], scaled[middle], (middle - start) / (last - start),
-                (start - before, last - start))
+        # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
+        options.update(retime.motion_ends(scaled, keyed, tail))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed)
         names, tails, all_poses, timeline = [], [], [], []
@@ -314,10 +301,12 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
         self.pose_names = [f"frame {frame}" for frame in key_frames]
-        # the keys and, where the last gap is shorter than a step, the samples keying it (core.retime)
+        # the keys and the other samples the retime reads (core.retime.RetimePlan.samples_read: the shorter
+        # last gap's keys, the middles of the first and last gaps)
         matrices = {}
-        _poses, options["start"], read = yield from self.read_keys_and_start(
-            context, obj, key_frames, 0.1, also=[start + sample for sample in plan.samples_read], matrices=matrices)
+        _poses, read = yield from self.read_keys(context, obj, key_frames, 0.1,
+                                                 also=[start + sample for sample in plan.samples_read],
+                                                 matrices=matrices)
         out_frames = [float(start + k) for k in range(plan.n_out)]
         # each pose is shown under the object's matrix of a frame: a new object plays the source's
         # keyframed transform retimed, at the pose's source time; shape keys play under the source's

@@ -66,6 +66,40 @@ def turning_sheet_scale_keyframed(extension, tmp_path, stretch: float = 0.0, sca
     return sheet, scale, world
 
 
+def sheet_easing_off_scale_keyframed(extension, tmp_path, lift: float = 0.003, scale_keyed: bool = True):
+    """A flat sheet rising in the world as ``lift · (f − 1)³`` (from rest, speeding up), played by
+    a Mesh Cache on an object whose (unapplied) scale is keyframed 1 → 2 linearly over frames 1–9,
+    or held at 1 where not ``scale_keyed``: the sheet, its scale and its world positions as
+    functions of the frame. In the object's own coordinates a sheet scaled up shrinks from frame 1
+    on, so it leaves its first frame moving; in the world it leaves it from rest."""
+    import importlib
+
+    sheet = grid_object(8)
+    rest = extension.bridge.vertex_positions(sheet.data)
+
+    def scale(frame):
+        return 1.0 + 0.125 * (min(frame, 9) - 1) if scale_keyed else 1.0
+
+    def world(frame):
+        return rest + np.array([0.0, 0.0, lift * (frame - 1) ** 3])
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / f"rise_{sheet.name}.pc2",
+                                 np.array([world(f) / scale(f) for f in range(1, 10)]), start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    modifier.frame_start = 1.0
+    if scale_keyed:
+        for frame in (1, 9):
+            sheet.scale = (scale(frame),) * 3
+            sheet.keyframe_insert("scale", frame=frame)
+        for fcurve in _fcurves(sheet.animation_data):
+            for point in fcurve.keyframe_points:
+                point.interpolation = 'LINEAR'
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    return sheet, scale, world
+
+
 def turning_stretched_sheet(extension, tmp_path, first: int = 1, last: int = 9):
     """A sheet scaled (2, 1, 0.5) in Object Mode and not applied, played by a Mesh Cache that turns it
     rigidly in the world at a steady 15° per frame from frame ``first`` on (scene frames 1–``last``):

@@ -10,7 +10,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
-                            key_names, simulation_zone_scene, snapshot, turning_sheet_scale_keyframed,
+                            key_names, sheet_easing_off_scale_keyframed, simulation_zone_scene, snapshot,
+                            turning_sheet_scale_keyframed,
                             turning_sheet_stretched_before_its_frames)
 
 TOLERANCE = 1e-4
@@ -272,6 +273,68 @@ def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(
         name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
         made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
         np.testing.assert_allclose(made * scale(frame), world(frame), atol=1e-6)
+
+
+def easing_off_in_the_world(extension, core, tmp_path, last: int = 9, scale_keyed: bool = True):
+    """The sheet rising from rest in the world (:func:`sheet_easing_off_scale_keyframed`, its scale
+    keyframed or not), keys every 4th frame from frame 1 to ``last``: the sheet, its scale, its world
+    positions and the sequence of its world keys starting from rest, the start the frame in the
+    middle of the first gap gives in the world; in the object's own coordinates, shrinking from
+    frame 1 on where its scale is keyframed, that frame gives the keys' parabola."""
+    sheet, scale, world = sheet_easing_off_scale_keyframed(extension, tmp_path, scale_keyed=scale_keyed)
+    interpolation = importlib.import_module(core.__name__ + ".interpolation")
+    keyed = sorted({*range(1, last + 1, 4), last})
+    durations = (4, keyed[2] - 5)
+    assert interpolation.start_of_motion([world(f) for f in keyed[:3]], world(3), 0.5, durations) == "rest"
+    own = interpolation.start_of_motion([world(f) / scale(f) for f in keyed[:3]], world(3) / scale(3), 0.5, durations)
+    assert own == ("keys" if scale_keyed else "rest")
+    sequence = core.SequenceInterpolator([world(f) for f in keyed], extension.bridge.mesh_triangles(sheet.data),
+                                         start="rest", key_times=keyed)
+    return sheet, scale, world, sequence
+
+
+@pytest.mark.parametrize("last, scale_keyed", [(9, True), (7, True), (7, False)])
+def test_in_between_frames_choose_the_start_from_the_middle_of_the_first_gap_in_the_world(
+        bpy_empty, extension, core, tmp_path, last, scale_keyed):
+    """How the motion leaves the first key is told by the frame in the middle of the first gap, in
+    the space the keys are interpolated in (the world, for an object whose scale is keyframed), also
+    where two whole-step keys and the last frame key the sequence (frames 1, 5, 7): the first gap's
+    in-betweens are the world keys' sequence from rest, to the float32 of shape keys (before, the
+    start was chosen in the object's own coordinates, the keys' parabola, 6.3e-2 off at frame 2 on
+    a sheet 2 wide, and with two whole-step keys it was the keys' parabola unread: 2.4e-2 off)."""
+    bridge = extension.bridge
+    sheet, scale, world, sequence = easing_off_in_the_world(extension, core, tmp_path, last, scale_keyed)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=last, frame_step=4, count=3,
+                                               output='SHAPE_KEYS')
+    expected = sequence.poses(0, [0.25, 0.5, 0.75])
+    for frame in (2, 3, 4):
+        name = f"Inbetween Frame 1-Frame 5 {(frame - 1) / 4:.2f}"
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        np.testing.assert_allclose(made * scale(frame), expected[frame - 2], atol=1e-6)
+
+
+@pytest.mark.parametrize("output", ['CACHE', 'SHAPE_KEYS'])
+def test_a_retime_chooses_the_start_in_the_world_of_an_object_whose_scale_is_keyframed(bpy_empty, extension, core,
+                                                                                       tmp_path, output):
+    """Retime at speed 1 from every 4th frame of the sheet rising from rest on an object whose scale
+    is keyframed: the first gap's frames are the world keys' sequence from rest, to float32 (before,
+    its start was chosen in the object's own coordinates: 7.2e-2 off at frame 3)."""
+    bridge = extension.bridge
+    sheet, scale, world, sequence = easing_off_in_the_world(extension, core, tmp_path)
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=1.0, output=output,
+                                     filepath=str(tmp_path / "retimed.pc2"))
+    shown = sheet if output == 'SHAPE_KEYS' else next(o for o in bpy.data.objects if o.name not in names)
+    expected = sequence.poses(0, [0.25, 0.5, 0.75])
+    for frame in (2, 3, 4):
+        bpy.context.scene.frame_set(frame)
+        if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
+            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime 1.00x frame {frame}"])
+        else:
+            made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
+        matrix = np.array(shown.matrix_world)
+        np.testing.assert_allclose(made @ matrix[:3, :3].T + matrix[:3, 3], expected[frame - 2], atol=1e-6)
+    bpy.context.scene.frame_set(1)
 
 
 @pytest.mark.parametrize("output", ['CACHE', 'SHAPE_KEYS'])

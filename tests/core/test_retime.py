@@ -109,6 +109,19 @@ def test_a_shorter_last_gap_keeps_the_timing_of_a_steady_motion(n_source):
     np.testing.assert_allclose(result, moved[list(last_two)], rtol=0, atol=1e-6)
 
 
+@pytest.mark.parametrize("middle", [2, 6])
+def test_a_middle_sample_that_is_no_pose_is_refused(middle):
+    """Samples 2 and 6 of 9 keyed every 4th tell how the motion leaves the first key and reaches
+    the last: one that is no pose (a non-finite coordinate) is refused, naming it, as a key is
+    (before, its NaN distance to both choices chose the start from rest and the end at the keys'
+    velocity without a word)."""
+    samples, triangles = rolling_sheet()
+    samples = samples.copy()
+    samples[middle, 3, 0] = np.nan
+    with pytest.raises(MeshError, match=f"sample {middle}: vertex 3 has a non-finite coordinate"):
+        retime(samples, triangles, step=4, speed=1.0)
+
+
 def test_plan_snaps_whole_frames():
     plan = plan_retime(4, 1, 0.1)  # 30 * 0.1 is 3.0000000000000004 in floating point
     assert plan.n_out == 31 and plan.exact_keys[30] == 3 and plan.exact_keys[10] == 1
