@@ -29,14 +29,33 @@ def world_turned(positions: np.ndarray, linear: np.ndarray, turn: np.ndarray) ->
     return positions @ linear.T @ turn.T @ np.linalg.inv(linear).T
 
 
+def _played_under_keyed_scale(extension, path, sheet, scale, world, scale_keyed: bool):
+    """Play ``sheet`` by a Mesh Cache at ``path`` whose frames 1–9 show ``world(f)`` in the world under
+    the object scale ``scale(f)``, keyframed linearly at frames 1 and 9 where ``scale_keyed``; scene
+    frames 1–9."""
+    import importlib
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(path, np.array([world(f) / scale(f) for f in range(1, 10)]), start=1.0)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath = 'PC2', str(path)
+    modifier.frame_start = 1.0
+    if scale_keyed:
+        for frame in (1, 9):
+            sheet.scale = (scale(frame),) * 3
+            sheet.keyframe_insert("scale", frame=frame)
+        for fcurve in _fcurves(sheet.animation_data):
+            for point in fcurve.keyframe_points:
+                point.interpolation = 'LINEAR'
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+
+
 def turning_sheet_scale_keyframed(extension, tmp_path, stretch: float = 0.0, scale_keyed: bool = True):
     """A sheet turning rigidly in the world at a steady 15° per frame (and stretched along its x
     axis by ``stretch`` more per frame), played by a Mesh Cache on an object whose (unapplied)
     scale is keyframed 1 → 2 linearly over frames 1–9 (held after), or held at 1 where not
     ``scale_keyed``: the sheet, its scale and its world positions as functions of the (fractional)
     frame."""
-    import importlib
-
     from scipy.spatial.transform import Rotation
 
     sheet = grid_object(8)
@@ -49,20 +68,7 @@ def turning_sheet_scale_keyframed(extension, tmp_path, stretch: float = 0.0, sca
         turn = Rotation.from_rotvec(np.radians(15.0 * (frame - 1)) * np.array([0.0, 0.8, 0.6])).as_matrix()
         return rest * np.array([1.0 + stretch * (frame - 1), 1.0, 1.0]) @ turn.T
 
-    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
-    path = point_cache.write_pc2(tmp_path / f"turn_{sheet.name}.pc2",
-                                 np.array([world(f) / scale(f) for f in range(1, 10)]), start=1.0)
-    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
-    modifier.cache_format, modifier.filepath = 'PC2', str(path)
-    modifier.frame_start = 1.0
-    if scale_keyed:
-        for frame in (1, 9):
-            sheet.scale = (scale(frame),) * 3
-            sheet.keyframe_insert("scale", frame=frame)
-        for fcurve in _fcurves(sheet.animation_data):
-            for point in fcurve.keyframe_points:
-                point.interpolation = 'LINEAR'
-    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    _played_under_keyed_scale(extension, tmp_path / f"turn_{sheet.name}.pc2", sheet, scale, world, scale_keyed)
     return sheet, scale, world
 
 
@@ -72,8 +78,6 @@ def sheet_easing_off_scale_keyframed(extension, tmp_path, lift: float = 0.003, s
     or held at 1 where not ``scale_keyed``: the sheet, its scale and its world positions as
     functions of the frame. In the object's own coordinates a sheet scaled up shrinks from frame 1
     on, so it leaves its first frame moving; in the world it leaves it from rest."""
-    import importlib
-
     sheet = grid_object(8)
     rest = extension.bridge.vertex_positions(sheet.data)
 
@@ -83,20 +87,7 @@ def sheet_easing_off_scale_keyframed(extension, tmp_path, lift: float = 0.003, s
     def world(frame):
         return rest + np.array([0.0, 0.0, lift * (frame - 1) ** 3])
 
-    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
-    path = point_cache.write_pc2(tmp_path / f"rise_{sheet.name}.pc2",
-                                 np.array([world(f) / scale(f) for f in range(1, 10)]), start=1.0)
-    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
-    modifier.cache_format, modifier.filepath = 'PC2', str(path)
-    modifier.frame_start = 1.0
-    if scale_keyed:
-        for frame in (1, 9):
-            sheet.scale = (scale(frame),) * 3
-            sheet.keyframe_insert("scale", frame=frame)
-        for fcurve in _fcurves(sheet.animation_data):
-            for point in fcurve.keyframe_points:
-                point.interpolation = 'LINEAR'
-    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    _played_under_keyed_scale(extension, tmp_path / f"rise_{sheet.name}.pc2", sheet, scale, world, scale_keyed)
     return sheet, scale, world
 
 
