@@ -28,43 +28,60 @@ import numpy as np
 MAX_DIHEDRAL_DEGREES = 45.0
 
 
-def _flip_passes(triangles: np.ndarray, n_vertices: int, excess, flip, max_passes: int) -> np.ndarray:
+def _interior_sides(topology) -> tuple[np.ndarray, ...]:
+    """Each interior edge of ``topology`` (a :class:`~core.mesh_topology.MeshTopology`) with its
+    two triangles and their corners opposite it: ``(edges, t1, k1, t2, k2)``, int arrays (E,)."""
+    inner = np.flatnonzero((topology.edge_triangles >= 0).all(axis=1))
+    t1, t2 = topology.edge_triangles[inner, 0], topology.edge_triangles[inner, 1]
+    k1 = np.argmax(topology.triangle_edges[t1] == inner[:, None], axis=1)
+    k2 = np.argmax(topology.triangle_edges[t2] == inner[:, None], axis=1)
+    return inner, t1, k1, t2, k2
+
+
+def _worst_first(over: np.ndarray, t1: np.ndarray, t2: np.ndarray, n_triangles: int,
+                 new_ends: tuple | None = None, existing: set | None = None) -> list[int]:
+    """The edges of one greedy pass, indices into ``over`` (how far each violates the Delaunay
+    criterion, between triangles ``t1`` and ``t2``): worst first, those over 1e-9, at most one per
+    triangle; with ``new_ends`` (the vertices ``(c, d)`` each flip would join) never an edge in
+    ``existing`` (the mesh's, as sorted vertex pairs; added to as edges are chosen)."""
+    used = np.zeros(n_triangles, dtype=bool)
+    chosen = []
+    for i in np.argsort(-over):
+        if over[i] <= 1e-9:
+            break
+        if used[t1[i]] or used[t2[i]]:
+            continue
+        if new_ends is not None:
+            edge = tuple(sorted((int(new_ends[0][i]), int(new_ends[1][i]))))
+            if edge in existing:
+                continue
+            existing.add(edge)
+        used[t1[i]] = used[t2[i]] = True
+        chosen.append(i)
+    return chosen
+
+
+def _flip_passes(triangles: np.ndarray, n_vertices: int, excess, max_passes: int) -> np.ndarray:
     """Greedy passes of edge flips on ``triangles`` (int64 ``(m, 3)``, modified in place and
     returned). Each pass finds every interior edge ``a → b`` of triangle ``t1 = (a, b, c)`` and
-    ``t2 = (b, a, d)``, asks ``excess(a, b, c, d, t1, k1, t2, k2)`` (``k1`` / ``k2`` the corners
-    of ``t1`` / ``t2`` opposite the edge) how far each violates the Delaunay criterion (opposite
-    angles summing to more than π by that much; ≤ 0 keeps it), and flips the worst first, at most
-    one edge per triangle per pass, never creating an edge that exists already: ``t1`` becomes
-    ``(a, d, c)`` and ``t2`` ``(b, c, d)``, orientation kept, after ``flip(i, t1, t2)`` is told
-    (``i`` the edge's index among that pass's interior edges). Stops when a pass flips nothing."""
+    ``t2 = (b, a, d)``, asks ``excess(a, b, c, d)`` how far each violates the Delaunay criterion
+    (opposite angles summing to more than π by that much; ≤ 0 keeps it), and flips the worst
+    first (:func:`_worst_first`), never creating an edge that exists already: ``t1`` becomes
+    ``(a, d, c)`` and ``t2`` ``(b, c, d)``, orientation kept. Stops when a pass flips nothing."""
     from .mesh_topology import mesh_topology
 
     tris = triangles
     for _ in range(max_passes):
         topo = mesh_topology(tris, n_vertices, allow_non_manifold=True)
-        inner = np.flatnonzero((topo.edge_triangles >= 0).all(axis=1))
-        t1, t2 = topo.edge_triangles[inner, 0], topo.edge_triangles[inner, 1]
-        k1 = np.argmax(topo.triangle_edges[t1] == inner[:, None], axis=1)  # corner of t1 opposite the edge
-        k2 = np.argmax(topo.triangle_edges[t2] == inner[:, None], axis=1)
+        _, t1, k1, t2, k2 = _interior_sides(topo)
         c, d = tris[t1, k1], tris[t2, k2]
         a, b = tris[t1, (k1 + 1) % 3], tris[t1, (k1 + 2) % 3]
-        over = excess(a, b, c, d, t1, k1, t2, k2)
         existing = set(map(tuple, np.sort(topo.edges, axis=1).tolist()))
-        used = np.zeros(len(tris), dtype=bool)
-        flipped = 0
-        for i in np.argsort(-over):
-            if over[i] <= 1e-9:
-                break
-            if used[t1[i]] or used[t2[i]] or tuple(sorted((int(c[i]), int(d[i])))) in existing:
-                continue
-            used[t1[i]] = used[t2[i]] = True
-            existing.add(tuple(sorted((int(c[i]), int(d[i])))))
-            flip(i, t1[i], t2[i])
-            tris[t1[i]] = (a[i], d[i], c[i])
-            tris[t2[i]] = (b[i], c[i], d[i])
-            flipped += 1
-        if not flipped:
+        chosen = _worst_first(excess(a, b, c, d), t1, t2, len(tris), (c, d), existing)
+        if not chosen:
             break
+        tris[t1[chosen]] = np.stack([a[chosen], d[chosen], c[chosen]], axis=1)
+        tris[t2[chosen]] = np.stack([b[chosen], c[chosen], d[chosen]], axis=1)
     return tris
 
 
@@ -81,7 +98,7 @@ def delaunay_flips(vertices: np.ndarray, triangles: np.ndarray, *, max_dihedral_
         u, v = vertices[p] - vertices[apex], vertices[q] - vertices[apex]
         return np.arctan2(np.linalg.norm(np.cross(u, v), axis=1), np.einsum("ij,ij->i", u, v))
 
-    def excess(a, b, c, d, *_):
+    def excess(a, b, c, d):
         over = angle(c, a, b) + angle(d, a, b) - np.pi
         n1 = np.cross(vertices[a] - vertices[c], vertices[b] - vertices[c])
         n2 = np.cross(vertices[b] - vertices[d], vertices[a] - vertices[d])
@@ -90,7 +107,7 @@ def delaunay_flips(vertices: np.ndarray, triangles: np.ndarray, *, max_dihedral_
         over[cosine < cos_limit] = 0.0
         return over
 
-    return _flip_passes(np.array(triangles, dtype=np.int64), len(vertices), excess, lambda *_: None, max_passes)
+    return _flip_passes(np.array(triangles, dtype=np.int64), len(vertices), excess, max_passes)
 
 
 def side_twins(topology) -> np.ndarray:
@@ -98,10 +115,8 @@ def side_twins(topology) -> np.ndarray:
     opposite corner ``k`` of triangle ``t``) → the side of the other triangle at that edge, ``-1``
     on the boundary. ``topology``: its :class:`~core.mesh_topology.MeshTopology`."""
     twins = np.full(3 * topology.triangles.shape[0], -1, dtype=np.int64)
-    inner = np.flatnonzero((topology.edge_triangles >= 0).all(axis=1))
-    t1, t2 = topology.edge_triangles[inner, 0], topology.edge_triangles[inner, 1]
-    s1 = 3 * t1 + np.argmax(topology.triangle_edges[t1] == inner[:, None], axis=1)
-    s2 = 3 * t2 + np.argmax(topology.triangle_edges[t2] == inner[:, None], axis=1)
+    _, t1, k1, t2, k2 = _interior_sides(topology)
+    s1, s2 = 3 * t1 + k1, 3 * t2 + k2
     twins[s1], twins[s2] = s2, s1
     return twins
 
@@ -159,15 +174,7 @@ def intrinsic_delaunay(triangles: np.ndarray, corner_squared_lengths: np.ndarray
 
         over = -np.arctan(cot(f, k)) - np.arctan(cot(g, r))  # α + β − π, with angle = π/2 − arctan(cot)
         over[f == g] = 0.0  # two sides of one triangle: no quadrilateral to flip in
-        used = np.zeros(len(tris), dtype=bool)
-        chosen = []
-        for i in np.argsort(-over):
-            if over[i] <= 1e-9:
-                break
-            if used[f[i]] or used[g[i]]:
-                continue
-            used[f[i]] = used[g[i]] = True
-            chosen.append(i)
+        chosen = _worst_first(over, f, g, len(tris))
         if not chosen:
             break
         f, k, g, r = f[chosen], k[chosen], g[chosen], r[chosen]
