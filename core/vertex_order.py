@@ -99,7 +99,10 @@ class EdgeSpread:
         """How many times more the edges grew than their parts, from the rest mesh to
         ``positions`` ``(n, 3)``: the median over the edges of parts with a size in both (a few
         edges a simulation tangles do not count), :func:`edge_growth`; 1.0 where there is none."""
-        terms = self._terms(np.asarray(positions, dtype=np.float64))
+        return self._growth(self._terms(np.asarray(positions, dtype=np.float64)))
+
+    def _growth(self, terms: np.ndarray) -> float:
+        """:meth:`growth` from the positions' :meth:`_terms`."""
         kept = np.isfinite(terms) & (self.rest_terms > 0)
         return float(np.sqrt(np.median(terms[kept] / self.rest_terms[kept]))) if kept.any() else 1.0
 
@@ -111,9 +114,9 @@ class EdgeSpread:
         their lengths changed unevenly (:meth:`uneven_lengths` at least :data:`UNEVEN_LENGTHS`; a
         narrow strip wound up tight has its edges as long as its size, each as long as it was)."""
         positions = np.asarray(positions, dtype=np.float64)
-        if self.growth(positions) <= FOREIGN_GROWTH:
-            return False
         terms = self._terms(positions)
+        if self._growth(terms) <= FOREIGN_GROWTH:
+            return False
         terms = terms[np.isfinite(terms)]
         if not terms.size or float(np.median(terms)) < SCATTERED_SPAN:
             return False
