@@ -126,14 +126,9 @@ def _even_times(times: np.ndarray) -> bool:
     return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
 
 
-def _samples_read(plan) -> np.ndarray:
-    """The input samples a retime by ``plan`` reads (:attr:`core.retime.RetimePlan.samples_read`)."""
-    return np.asarray(plan.samples_read, dtype=int)
-
-
 class _SamplesRead:
-    """The input samples a retime reads (:func:`_samples_read`), copied from the file once and
-    indexed by sample as the cache's positions are: the in-betweens and the chunk's stamp
+    """The input samples a retime reads (:attr:`core.retime.RetimePlan.samples_read`), copied from
+    the file once and indexed by sample as the cache's positions are: the in-betweens and the chunk's stamp
     (:func:`_job_fingerprint`) are then of the same data even where the file is written over in
     place while the task runs (a simulation cached again under its name: the memory map would show
     the new bytes to the stamp, or stop the process with SIGBUS where the new file is shorter)."""
@@ -186,7 +181,7 @@ def _merged_job(args) -> str | None:
     cache = read_point_cache(args.retime)
     _, triangles = read_obj(args.topology)
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    return _job_fingerprint(cache, cache.positions, _samples_read(plan), triangles, args)
+    return _job_fingerprint(cache, cache.positions, np.asarray(plan.samples_read, dtype=int), triangles, args)
 
 
 def _retime(args) -> int:
@@ -212,7 +207,7 @@ def _retime(args) -> int:
             "export the OBJ from the same mesh, without modifiers that change its vertices."
         )
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    read = _samples_read(plan)
+    read = np.asarray(plan.samples_read, dtype=int)
     samples = _SamplesRead(cache, read)
     broken = read[[not np.isfinite(samples[sample]).all() for sample in read]]
     if broken.size:  # said here in the cache's own samples and frames, not as a key pose's index
