@@ -192,6 +192,13 @@ def test_maps_of_an_object_scaled_along_one_axis_measure_the_world(bpy_empty, ex
     assert np.abs(values).max() < 1e-5  # float32 keys
 
 
+def _area_map(obj, frame: int) -> np.ndarray:
+    """The area distortion Distortion Maps stored on ``obj``'s mesh for ``frame``, per vertex."""
+    values = np.zeros(len(obj.data.vertices))
+    obj.data.attributes[f"sd_area f{frame}"].data.foreach_get("value", values)
+    return values
+
+
 def test_maps_of_frames_of_an_object_whose_scale_is_keyframed_measure_the_world(bpy_empty, extension, tmp_path):
     """A sheet turning rigidly in the world while its object's scale is keyframed 1 → 2 (its own
     coordinates shrink to half): no area change at any frame, to float32 (before, every frame was
@@ -204,9 +211,7 @@ def test_maps_of_frames_of_an_object_whose_scale_is_keyframed_measure_the_world(
     bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=1, frame_end=9, frame_step=4,
                                               eigenfunctions=0)
     for frame in (1, 5, 9):
-        values = np.zeros(len(sheet.data.vertices))
-        sheet.data.attributes[f"sd_area f{frame}"].data.foreach_get("value", values)
-        assert np.abs(values).max() < 1e-5, frame
+        assert np.abs(_area_map(sheet, frame)).max() < 1e-5, frame
 
 
 def test_maps_of_frames_measure_the_proportions_of_the_frames_read(bpy_empty, extension, tmp_path):
@@ -220,9 +225,7 @@ def test_maps_of_frames_measure_the_proportions_of_the_frames_read(bpy_empty, ex
     bpy.ops.shape_differences.distortion_maps(source='FRAMES', frame_start=3, frame_end=11, frame_step=4,
                                               eigenfunctions=0)
     for frame in (3, 7, 11):
-        values = np.zeros(len(sheet.data.vertices))
-        sheet.data.attributes[f"sd_area f{frame}"].data.foreach_get("value", values)
-        assert np.abs(values).max() < 1e-5, frame
+        assert np.abs(_area_map(sheet, frame)).max() < 1e-5, frame
 
 
 def test_shape_space_of_frames_of_an_object_whose_scale_is_keyframed_is_that_of_the_world(bpy_empty, extension,

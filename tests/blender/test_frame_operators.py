@@ -243,6 +243,12 @@ def test_smooth_by_angle_does_not_make_every_frame_read(bpy_empty, extension, tm
     assert frames_visited_by_inbetween_frames(tmp_path) == list(range(1, 10))
 
 
+def _inbetween_of_frames_1_5_9(frame: int) -> str:
+    """The shape key In-between Frames names for ``frame`` (2–4, 6–8) of keys 1, 5 and 9."""
+    gap = 0 if frame < 5 else 1
+    return f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
+
+
 def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, extension, tmp_path):
     """A sheet scaled (2, 1, 0.5) and not applied, played by a Mesh Cache that turns it rigidly in
     the world at a steady 15° per frame: every in-between of In-between Frames is that turn at its
@@ -254,9 +260,7 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
     sheet, linear, turned = turning_stretched_sheet(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
-        gap = 0 if frame < 5 else 1
-        name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
 
 
@@ -269,9 +273,7 @@ def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(
     sheet, scale, world = turning_sheet_scale_keyframed(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
-        gap = 0 if frame < 5 else 1
-        name = f"Inbetween Frame {1 + 4 * gap}-Frame {5 + 4 * gap} {(frame - 1 - 4 * gap) / 4:.2f}"
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
         np.testing.assert_allclose(made * scale(frame), world(frame), atol=1e-6)
 
 
