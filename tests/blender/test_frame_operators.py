@@ -315,6 +315,19 @@ def test_in_between_frames_choose_the_start_from_the_middle_of_the_first_gap_in_
         np.testing.assert_allclose(made * scale(frame), expected[frame - 2], atol=1e-6)
 
 
+def _retimed_in_the_world(bridge, sheet, shown, output: str, speed: float, frame: int) -> np.ndarray:
+    """What Retime at ``speed`` shows at ``frame`` in the world: the shape key it added to ``sheet``
+    (``output`` SHAPE_KEYS: the Mesh Cache after the keys replaces them in the evaluated mesh) or the
+    new object ``shown`` as evaluated (CACHE), through ``shown``'s world matrix. Sets the frame."""
+    bpy.context.scene.frame_set(frame)
+    if output == 'SHAPE_KEYS':
+        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime {speed:.2f}x frame {frame}"])
+    else:
+        made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
+    matrix = np.array(shown.matrix_world)
+    return made @ matrix[:3, :3].T + matrix[:3, 3]
+
+
 @pytest.mark.parametrize("output", ['CACHE', 'SHAPE_KEYS'])
 def test_a_retime_chooses_the_start_in_the_world_of_an_object_whose_scale_is_keyframed(bpy_empty, extension, core,
                                                                                        tmp_path, output):
@@ -329,13 +342,8 @@ def test_a_retime_chooses_the_start_in_the_world_of_an_object_whose_scale_is_key
     shown = sheet if output == 'SHAPE_KEYS' else next(o for o in bpy.data.objects if o.name not in names)
     expected = sequence.poses(0, [0.25, 0.5, 0.75])
     for frame in (2, 3, 4):
-        bpy.context.scene.frame_set(frame)
-        if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
-            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime 1.00x frame {frame}"])
-        else:
-            made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
-        matrix = np.array(shown.matrix_world)
-        np.testing.assert_allclose(made @ matrix[:3, :3].T + matrix[:3, 3], expected[frame - 2], atol=1e-6)
+        np.testing.assert_allclose(_retimed_in_the_world(bridge, sheet, shown, output, 1.0, frame),
+                                   expected[frame - 2], atol=1e-6)
     bpy.context.scene.frame_set(1)
 
 
@@ -357,14 +365,8 @@ def test_a_retime_of_an_object_whose_scale_is_keyframed_plays_the_world_motion(b
     shown = sheet if output == 'SHAPE_KEYS' else next(o for o in bpy.data.objects if o.name not in names)
     out_frames = range(1, round(8 / speed) + 2)
     for frame in out_frames:
-        bpy.context.scene.frame_set(frame)
-        if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
-            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime {speed:.2f}x frame {frame}"])
-        else:
-            made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
-        matrix = np.array(shown.matrix_world)
-        np.testing.assert_allclose(made @ matrix[:3, :3].T + matrix[:3, 3], world(1 + (frame - 1) * speed),
-                                   atol=1e-6)
+        np.testing.assert_allclose(_retimed_in_the_world(bridge, sheet, shown, output, speed, frame),
+                                   world(1 + (frame - 1) * speed), atol=1e-6)
     bpy.context.scene.frame_set(1)
 
 
