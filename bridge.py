@@ -337,7 +337,8 @@ class CacheFileUnfit(FrameReadError):
 class BakeFilesMissing(FrameReadError):
     """A cloth or soft body baked to disk plays none of its frames (its files are not where Blender
     looks, and every frame is the rest mesh), or holds one of its frames over frames read whose
-    files are missing (a copy of the folder cut short)."""
+    files are missing (a copy of the folder cut short); or a Geometry Nodes simulation zone baked to
+    disk has none of its files where Blender looks, and would be simulated again."""
 
 
 def missing_cache_file(obj: bpy.types.Object) -> tuple[str, str] | None:

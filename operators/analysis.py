@@ -14,7 +14,7 @@ from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
 from .output import refuse_emptying_caches, require_local, simulations_emptied_by
 from .base import (SCENE_SETTING, GeneratorOperator, InputError, check_basis_order, check_basis_size,
-                   default_pose_key, key_blocks_of, key_pose, mesh_pose, offset_option, resolve_key,
+                   default_pose_key, key_blocks_of, key_pose, mesh_pose, offset_option, report, resolve_key,
                    surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
@@ -198,7 +198,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
         try:  # the active key and the selection stored on the object are written to it
             require_local(obj, obj, "the pose selected on it is")
         except InputError as error:
-            self.report({'ERROR'}, str(error))
+            report(self, {'ERROR'}, str(error))
             return {'CANCELLED'}
         data = bridge.stored_shape_space(obj)
         try:  # read and drawn before anything changes
@@ -216,13 +216,13 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
             index = (key.key_blocks.find(name) if key else -1) if data["source"] == 'KEYS' else None
             frame = int(data["frames"][pose]) if index is None else None
             if index is not None and index < 0:
-                self.report({'ERROR'}, f"The shape key '{name}' no longer exists: run Shape Space again")
+                report(self, {'ERROR'}, f"The shape key '{name}' no longer exists: run Shape Space again")
                 return {'CANCELLED'}
             data["selected"] = pose
             image = shape_space_image(obj, data, highlight=pose)
         except (KeyError, IndexError, TypeError, ValueError) as error:  # edited by hand, as redraw_shape_spaces says
-            self.report({'ERROR'}, f"The shape space stored on '{obj.name}' cannot be read ({error!r}): run Shape "
-                                   "Space again")
+            report(self, {'ERROR'}, f"The shape space stored on '{obj.name}' cannot be read ({error!r}): run Shape "
+                                    "Space again")
             return {'CANCELLED'}
         if index is None:
             context.scene.frame_set(frame)
@@ -230,8 +230,8 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
             obj.active_shape_key_index = index
         obj[bridge.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)
-        self.report({'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
-                              f"{self.kind.replace('_', ' ')} axis")
+        report(self, {'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
+                               f"{self.kind.replace('_', ' ')} axis")
         return {'FINISHED'}
 
 
@@ -330,8 +330,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         extrinsic = bool((np.unique(edges, axis=0, return_counts=True)[1] > 1).any())
         if not extrinsic:
-            self.report({'WARNING'}, f"'{obj.name}' has no edge shared by two faces: no offset surface, so no "
-                                     "bending map and no offset eigenfunction maps")
+            report(self, {'WARNING'}, f"'{obj.name}' has no edge shared by two faces: no offset surface, so no "
+                                      "bending map and no offset eigenfunction maps")
         analyzer = DistortionAnalyzer(base, triangles, offset=self.resolved_offset(context), k=self.k_m,
                                       use_extrinsic=extrinsic, single_precision=True)  # Blender's coordinates
         results, unchanged = [], []
@@ -346,11 +346,11 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
         if unchanged:
-            self.report({'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
-                                     f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "
-                                     "map is zero to the rounding of its coordinates): the maps show no distortion"
-                                     + (", and the eigenfunction maps are arbitrary (every function is an "
-                                        "eigenfunction of the identity)" if self.eigenfunctions else ""))
+            report(self, {'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
+                                      f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "
+                                      "map is zero to the rounding of its coordinates): the maps show no distortion"
+                                      + (", and the eigenfunction maps are arbitrary (every function is an "
+                                         "eigenfunction of the identity)" if self.eigenfunctions else ""))
         if self.source == 'FRAMES':
             # The frame handler shows the map of the frame being played (see follow_frame).
             mesh[FRAME_MAPS_PROPERTY] = {"frames": frames, "map": "Area"}

@@ -175,6 +175,14 @@ def instance_hint(obj) -> str:
             "objects real with Object › Apply › Make Instances Real, then select one of its meshes)")
 
 
+def report(operator, kind: set[str], message: str) -> None:
+    """``operator.report(kind, message)`` with what UTF-8 cannot hold escaped as Python prints it
+    (``caf\\udce9``): a file name whose bytes are no text (a Latin-1 folder on a UTF-8 system)
+    comes to Python with such characters, and Blender cannot take them into a report: it drops
+    the message ("Python: (null)") and fails the operator, also after its work is written."""
+    operator.report(kind, message.encode("utf-8", "backslashreplace").decode("utf-8"))
+
+
 class GeneratorOperator:
     """Mixin for operators whose work is the generator ``run(context)``.
 
@@ -243,7 +251,7 @@ class GeneratorOperator:
                     message = reported_error(error, self.pose_names, self.triangle_faces)
                     if message is None:
                         raise
-                    self.report({'ERROR'}, message)
+                    report(self, {'ERROR'}, message)
                     return 'CANCELLED', 1.0
         finally:
             # After the recording ends: showing a foreign warning inside it would record it again.
@@ -262,9 +270,9 @@ class GeneratorOperator:
 
     def _finish(self, status: str) -> set[str]:
         for message in self._warnings:
-            self.report({'WARNING'}, message)
+            report(self, {'WARNING'}, message)
         if status == 'FINISHED' and self.summary:
-            self.report({'INFO'}, self.summary)
+            report(self, {'INFO'}, self.summary)
         return {status}
 
     def execute(self, context):
@@ -308,7 +316,7 @@ class GeneratorOperator:
         try:
             if event.type == 'ESC':
                 self._job.close()  # runs the job's clean-up; nothing has been written yet
-                self.report({'WARNING'}, "Cancelled: nothing was changed")
+                report(self, {'WARNING'}, "Cancelled: nothing was changed")
                 status = 'CANCELLED'
             elif event.type == 'TIMER':
                 status, progress = self._step()

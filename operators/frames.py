@@ -13,9 +13,9 @@ from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
-                   playback_range, require_count, surface_triangles)
-from .output import (PoseWriter, frames_depend_on_earlier, modifiers_set_aside, motion_set_aside, object_motion,
-                     objects_moving, render_only_motion, simulation_zone_start, unbaked_simulations,
+                   playback_range, report, require_count, surface_triangles)
+from .output import (PoseWriter, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside, motion_set_aside,
+                     object_motion, objects_moving, render_only_motion, simulation_zone_start, unbaked_simulations,
                      unfit_mesh_cache)
 from .poses import format_factor, inbetween_name
 
@@ -97,6 +97,9 @@ class FrameRangeProperties:
         unfit = unfit_mesh_cache(obj, movers)
         if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
             raise bridge.CacheFileUnfit(unfit)
+        lost = missing_zone_bake(obj, movers)
+        if lost:  # before any frame: reading would simulate the zone again
+            raise bridge.BakeFilesMissing(lost)
         aside = modifiers_set_aside(context, obj)
         # what the unbaked caches hold before ("0 frames in memory"): it grows where frames are simulated
         unbaked = {(mover, modifier): modifier.point_cache.info for mover, modifier in bridge.simulations(movers)
@@ -131,16 +134,16 @@ class FrameRangeProperties:
                         bridge.frames_outside_cache(context.scene, obj, frames, movers),
                         bridge.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:
-                self.report({'WARNING'}, warning)
+                report(self, {'WARNING'}, warning)
         simulated = [(mover, modifier) for (mover, modifier), held in unbaked.items()
                      if modifier.point_cache.info != held]
         if simulated:  # a farm task or batch simulates them again, which at 100k vertices takes hours
             named = ", ".join(f"'{modifier.name}' of '{mover.name}'" for mover, modifier in simulated)
-            self.report({'WARNING'}, f"{named} {'is' if len(simulated) == 1 else 'are'} not baked, and "
-                                     f"frames {frames[0]}–{frames[-1]} were simulated for this run where its "
-                                     f"cache held none (reading took {time.monotonic() - began:.1f} s): bake it "
-                                     "(Physics › Cache › Bake) before sending the file to a farm or batch, so "
-                                     "that tasks read the frames instead")
+            report(self, {'WARNING'}, f"{named} {'is' if len(simulated) == 1 else 'are'} not baked, and "
+                                      f"frames {frames[0]}–{frames[-1]} were simulated for this run where its "
+                                      f"cache held none (reading took {time.monotonic() - began:.1f} s): bake it "
+                                      "(Physics › Cache › Bake) before sending the file to a farm or batch, so "
+                                      "that tasks read the frames instead")
         return poses
 
 
@@ -335,9 +338,9 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         shown = playback_range(context.scene)[1]
         if out_frames[-1] > shown:  # the scene's range is the user's to change
             which = "preview range" if context.scene.use_preview_range else "scene"
-            self.report({'WARNING'}, f"The retimed motion runs to frame {out_frames[-1]:g}, past the end of "
-                                     f"playback at frame {shown}: set the {which}'s End to {out_frames[-1]:g} "
-                                     "to play all of it")
+            report(self, {'WARNING'}, f"The retimed motion runs to frame {out_frames[-1]:g}, past the end of "
+                                      f"playback at frame {shown}: set the {which}'s End to {out_frames[-1]:g} "
+                                      "to play all of it")
 
 
 def check_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:

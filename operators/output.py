@@ -23,7 +23,7 @@ import bpy
 import numpy as np
 
 from .. import bridge
-from .base import InputError
+from .base import InputError, report
 
 # Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
 SIMULATION_MODIFIERS = bridge.SIMULATION_MODIFIERS
@@ -115,12 +115,77 @@ def simulation_zone_start(scene, modifier) -> int | None:
     if modifier.type != 'NODES' or modifier.node_group is None or not any(
             node.bl_idname == 'GeometryNodeSimulationOutput' for node in group_nodes(modifier.node_group)):
         return None
-    # the bake settings of the zones (those of Bake nodes left out where a setting names its node)
-    zones = [bake for bake in getattr(modifier, "bakes", ())
-             if getattr(bake, "node", None) is None or bake.node.bl_idname == 'GeometryNodeSimulationOutput']
     starts = [bake.frame_start if getattr(bake, "use_custom_simulation_frame_range", False) else scene.frame_start
-              for bake in zones]
+              for bake in zone_bakes(modifier)]
     return min(starts, default=scene.frame_start)
+
+
+def zone_bakes(modifier) -> list:
+    """The bake settings of the simulation zones of the Geometry Nodes ``modifier`` (those of Bake
+    nodes left out where a setting names its node)."""
+    return [bake for bake in getattr(modifier, "bakes", ())
+            if getattr(bake, "node", None) is None or bake.node.bl_idname == 'GeometryNodeSimulationOutput']
+
+
+def bake_folder(obj, modifier, bake) -> str | None:
+    """The folder holding the disk bake of ``bake`` (a bake setting of the Geometry Nodes
+    ``modifier`` of ``obj``), as Blender looks for it: the bake's Custom Path where it has one, else
+    the modifier's Bake Path and the bake's id in it (relative paths beside the file ``obj`` comes
+    from); None where the bake is not kept on disk (Packed, its own or the modifier's Bake Target)
+    or no path is set (Blender has nowhere to look: the zone was never baked to disk)."""
+    # Blender before 4.3 keeps every bake on disk and has no Bake Target
+    target = getattr(bake, "bake_target", 'INHERIT')
+    if target == 'INHERIT':
+        target = getattr(modifier, "bake_target", 'DISK')
+    if target != 'DISK':
+        return None
+    path = bake.directory if bake.use_custom_path else modifier.bake_directory
+    if not path:
+        return None
+    folder = bpy.path.abspath(path, library=obj.library)
+    return folder if bake.use_custom_path else os.path.join(folder, str(bake.bake_id))
+
+
+def _holds_bake(folder: str) -> bool:
+    """Whether ``folder`` holds a Geometry Nodes bake: a frame's description in its ``meta`` folder
+    (Blender writes one ``.json`` per frame baked, beside the data in ``blobs``)."""
+    try:
+        return any(name.endswith(".json") for name in os.listdir(os.path.join(folder, "meta")))
+    except OSError:
+        return False
+
+
+def missing_zone_bake(obj, movers: list) -> str | None:
+    """The error when a Geometry Nodes simulation zone of one of ``movers`` (``obj`` and the objects
+    whose motion reaches its mesh, :func:`objects_moving`) is set to bake to disk and Blender finds
+    none of its files where it looks (:func:`bake_folder`; the .blend moved, or sent to a farm,
+    without its bake folder); None otherwise. Blender then simulates the zone again while the
+    frames are read, from the node tree as it is now: other frames than the bake's wherever an
+    input changed after baking (a bake keeps playing as baked), and a farm task simulating what the
+    bake was made to spare. The Python API does not tell whether a zone is baked, so a path set
+    with nothing there is read as a bake gone: Delete Bake leaves the path set, and a modifier
+    where another zone's files are there is taken as one whose other zones were never baked."""
+    for mover in movers:
+        for modifier in mover.modifiers:
+            if modifier.type != 'NODES' or not modifier.show_viewport:
+                continue
+            folders = [(bake, bake_folder(mover, modifier, bake)) for bake in zone_bakes(modifier)]
+            folders = [(bake, folder) for bake, folder in folders if folder is not None]
+            if not folders or any(_holds_bake(folder) for _, folder in folders):
+                continue
+            bake, folder = folders[0]
+            zone = (f"the simulation zone '{bake.node.name}'" if getattr(bake, "node", None) is not None
+                    else "a simulation zone in a node group inside")
+            owner = f"'{mover.name}'" + (f", which moves '{obj.name}'," if mover != obj else "")
+            where = ("clear the zone's Custom Path (its Simulation Bake settings)" if bake.use_custom_path else
+                     "clear the modifier's Bake Path (Manage › Bake)")
+            return (f"The Geometry Nodes modifier '{modifier.name}' of {owner} bakes {zone} to disk in '{folder}', "
+                    "which holds none of the bake's files (the folder moved, or not copied with the .blend?): "
+                    "Blender would simulate the zone again while the frames are read, from the nodes as they are "
+                    "now, which gives other frames than the bake's wherever an input changed after baking. Copy "
+                    f"the bake folder with the .blend (or bake again) and run again; if the bake was deleted on "
+                    f"purpose, {where} to read the zone as simulated now")
+    return None
 
 
 def _still(modifier) -> bool:
@@ -566,7 +631,7 @@ class PoseWriter:
                                  "absolute path")
             from ..core.point_cache import unwritable
 
-            path, _ = self.cache_path(source.name, report=False)  # a path the system refuses: before any work
+            path, _ = self.cache_path(source.name, warn=False)  # a path the system refuses: before any work
             reason = unwritable(path)
             if reason:
                 raise InputError(f"Cannot write the cache file '{path}': {reason}. Pick another Cache File")
@@ -601,9 +666,9 @@ class PoseWriter:
                 if held:
                     movers.append(f"its shape key{'s' if len(held) > 1 else ''} {', '.join(held)}")
         if movers:
-            self.report({'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
-                                     f"of '{source.name}': disable those to play them as captured, "
-                                     "or use Output › Point Cache (a new object)")
+            report(self, {'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
+                                      f"of '{source.name}': disable those to play them as captured, "
+                                      "or use Output › Point Cache (a new object)")
 
     def given_path(self) -> str:
         """The Cache File as given, a plain relative path (``caches/x.pc2``) taken relative to the
@@ -614,7 +679,7 @@ class PoseWriter:
             return "//" + given
         return given
 
-    def cache_path(self, object_name: str, report: bool = True, check_free: bool = True) -> tuple[Path, str]:
+    def cache_path(self, object_name: str, warn: bool = True, check_free: bool = True) -> tuple[Path, str]:
         """The PC2 file to write (never an existing one, nor one a Mesh Cache in the file plays;
         ``check_free=False``: the name asked for, before that check) and the path to store in the
         modifier (:meth:`stored_path`). Raises :class:`InputError` for a path the system cannot use
@@ -636,10 +701,10 @@ class PoseWriter:
                 path = Path(bpy.path.abspath(f"//{CACHE_FOLDER}")) / base_name
             else:
                 path = Path(bpy.app.tempdir or os.path.realpath(".")) / base_name
-                if report:
-                    self.report({'WARNING'}, "The .blend is not saved, so the cache went to Blender's temporary "
-                                             f"folder ({path.parent}), deleted when Blender quits: saving the .blend "
-                                             f"copies it into {CACHE_FOLDER}/ beside it")
+                if warn:
+                    report(self, {'WARNING'}, "The .blend is not saved, so the cache went to Blender's temporary "
+                                              f"folder ({path.parent}), deleted when Blender quits: saving the .blend "
+                                              f"copies it into {CACHE_FOLDER}/ beside it")
             if check_free:
                 path = unique_file(path)
         except OSError as error:
@@ -682,17 +747,17 @@ class PoseWriter:
                                  for modifier in other.modifiers)]
             if others:
                 named = ", ".join(f"'{other.name}'" for other in others)
-                self.report({'WARNING'}, f"{named} {'shares' if len(others) == 1 else 'share'} the mesh of "
-                                         f"'{source.name}' and now {'plays' if len(others) == 1 else 'play'} the "
-                                         "new keyframed shape keys too: give "
-                                         f"'{source.name}' its own mesh first (Object › Relations › Make Single "
-                                         "User › Object & Data), or use Output › Point Cache (a new object)")
+                report(self, {'WARNING'}, f"{named} {'shares' if len(others) == 1 else 'share'} the mesh of "
+                                          f"'{source.name}' and now {'plays' if len(others) == 1 else 'play'} the "
+                                          "new keyframed shape keys too: give "
+                                          f"'{source.name}' its own mesh first (Object › Relations › Make Single "
+                                          "User › Object & Data), or use Output › Point Cache (a new object)")
             motion = object_motion(source) if speed != 1.0 else {}
             if motion:
-                self.report({'WARNING'}, f"'{source.name}' is moved as a whole by "
-                                         f"{', '.join(motion.values())}, at its own speed while the new "
-                                         f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
-                                         "object) to retime its keyframed transform too")
+                report(self, {'WARNING'}, f"'{source.name}' is moved as a whole by "
+                                          f"{', '.join(motion.values())}, at its own speed while the new "
+                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
+                                          "object) to retime its keyframed transform too")
             self.drop_undone_cache(None)
             return added_summary(added)
         return self.write_cache_object(context, source, poses, frames, label, speed, keyed)
@@ -747,21 +812,21 @@ class PoseWriter:
         if left_out:
             advice = ("use Output › Shape Keys to see them under it" if keyed else "copy them to it by hand if it "
                       "should render them (Particle Properties › Copy Active to Selected Objects)")
-            self.report({'WARNING'}, f"'{obj.name}' plays the poses without {', '.join(repr(m.name) for m in left_out)} "
-                                     f"of '{source.name}' (a simulation, a cache or a particle system is not copied): "
-                                     f"{advice}")
+            report(self, {'WARNING'},
+                   f"'{obj.name}' plays the poses without {', '.join(repr(m.name) for m in left_out)} "
+                   f"of '{source.name}' (a simulation, a cache or a particle system is not copied): {advice}")
         # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)
         missing = [words for kind, words in motion.items() if kind in ("nla", "drivers")]
         if missing:
-            self.report({'WARNING'}, f"'{obj.name}' is not moved by {' and '.join(missing)} of '{source.name}': "
-                                     "add those to it by hand if it should follow them")
+            report(self, {'WARNING'}, f"'{obj.name}' is not moved by {' and '.join(missing)} of '{source.name}': "
+                                      "add those to it by hand if it should follow them")
         own_speed = [words for kind, words in motion.items() if kind in ("constraints", "parent")]
         if speed != 1.0 and own_speed:
             verb = "moves" if own_speed == [motion.get("parent")] else "move"  # "its constraints" is plural
-            self.report({'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
-                                     f"{' and '.join(own_speed)} {verb} it at the scene's own speed")
+            report(self, {'WARNING'}, f"'{obj.name}' plays the motion at {speed:g}x, but "
+                                      f"{' and '.join(own_speed)} {verb} it at the scene's own speed")
         self.drop_undone_cache(path, written)
         span = (f"frame {frames[0]:g}" if len(frames) == 1
                 else f"frames {frames[0]:g}-{frames[-1]:g}")

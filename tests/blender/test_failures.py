@@ -631,6 +631,89 @@ def test_a_cloth_renamed_after_its_disk_bake_is_told_by_the_name_its_files_keep(
     assert (tmp_path / "flag.pc2").is_file() and not (tmp_path / "cape.pc2").exists()
 
 
+@pytest.mark.parametrize("custom_path", [False, True])
+def test_a_simulation_zone_whose_disk_bake_is_gone_is_refused(bpy_empty, extension, tmp_path, custom_path):
+    """A Geometry Nodes simulation zone baked to disk (in the modifier's Bake Path, which Blender
+    sets on the first bake, or in the zone's own Custom Path), its lift then changed (Blender keeps
+    playing the bake), the .blend reopened without the bake folder: Blender simulates the zone
+    again from the nodes as they are now. Refused before a frame is read, naming the modifier, the
+    zone and the folder (before: read and written without a word; keys 0.27–0.51 off the bake, the
+    in-betweens 0.75, on a sheet 2 wide). With the path cleared (a bake deleted on purpose) the
+    zone is read as simulated now."""
+    import re
+    import shutil
+
+    from blender_scenes import simulation_zone_scene
+
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    obj = simulation_zone_scene(frames=9)
+    modifier = obj.modifiers["Simulation"]
+    bake = modifier.bakes[0]
+    modifier.bake_target = 'DISK'
+    if custom_path:
+        bake.use_custom_path, bake.directory = True, "//zone bake"
+    with bpy.context.temp_override(object=obj, active_object=obj):
+        bpy.ops.object.geometry_node_bake_single(session_uid=obj.session_uid, modifier_name=modifier.name,
+                                                 bake_id=bake.bake_id)
+    folder = (tmp_path / "zone bake" if custom_path else
+              tmp_path / "blendcache_shot" / "Simulated_Simulation" / str(bake.bake_id))
+    assert sorted(path.name for path in (folder / "meta").iterdir())[-1] == "00009_00000.json"  # where Blender baked it
+    modifier.node_group.nodes["Vector Math"].inputs[1].default_value = (0.0, 0.0, 0.08)
+    bpy.ops.wm.save_mainfile()
+    shutil.rmtree(tmp_path / ("zone bake" if custom_path else "blendcache_shot"))
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
+    obj = bpy.data.objects["Simulated"]
+    objects = set(bpy.data.objects)
+    with bpy.context.temp_override(active_object=obj, object=obj, selected_objects=[obj]):
+        with pytest.raises(RuntimeError, match=re.escape(
+                f"The Geometry Nodes modifier 'Simulation' of 'Simulated' bakes the simulation zone 'Simulation "
+                f"Output' to disk in '{folder}', which holds none of the bake's files")):
+            bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path / "lost.pc2"))
+        assert set(bpy.data.objects) == objects and not (tmp_path / "lost.pc2").exists()
+        if custom_path:
+            obj.modifiers["Simulation"].bakes[0].directory = ""
+        else:
+            obj.modifiers["Simulation"].bake_directory = ""
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path / "now.pc2"))
+    assert (tmp_path / "now.pc2").is_file()
+
+
+def test_file_names_that_are_no_text_are_written_and_told_escaped(bpy_empty, extension, tmp_path):
+    """A folder whose name is Latin-1 bytes on a UTF-8 system ('caf\\xe9 shot'): Python gets the
+    name with a surrogate (caf\\udce9), which Blender cannot take into a report. Before, In-between
+    Frames wrote its cache there and then failed reporting it (a RuntimeError after the work: a
+    batch exited non-zero with its file written), and a refusal naming the folder came out as
+    "Python: (null)", its message lost. Now the run succeeds, and the refusal is read with the
+    name escaped as Python prints it."""
+    import os
+    import shutil
+
+    from blender_scenes import pinned_cloth_scene
+
+    folder = tmp_path / os.fsdecode(b"caf\xe9 shot")
+    folder.mkdir()
+    bpy.ops.wm.save_as_mainfile(filepath=str(folder / "shot.blend"))
+    cloth = pinned_cloth_scene(frames=9)
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='CACHE',
+                                                   filepath=str(folder / "out.pc2"))
+    assert (folder / "out.pc2").is_file()
+    cloth.modifiers["Cloth"].point_cache.use_disk_cache = True
+    with bpy.context.temp_override(scene=bpy.context.scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    bpy.ops.wm.save_mainfile()
+    shutil.rmtree(folder / "blendcache_shot")
+    bpy.ops.wm.open_mainfile(filepath=str(folder / "shot.blend"))
+    cloth = bpy.data.objects["Flag"]
+    with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
+        with pytest.raises(RuntimeError) as refusal:
+            bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='CACHE',
+                                                       filepath=str(folder / "lost.pc2"))
+    escaped = f"{tmp_path}/caf\\udce9 shot/blendcache_shot"  # as Python prints the name
+    assert f"Blender finds none of the bake's files in '{escaped}'" in str(refusal.value)
+    assert not (folder / "lost.pc2").exists()
+
+
 def test_frames_past_the_simulation_say_the_cloth_stands_still_there(bpy_empty, extension, capfd, tmp_path):
     """Keys read after the end of a cloth's frame range are its last frame held: the run says so
     (a probe's range 1–65 over a cloth simulated 1–49 in-betweened a still cape over 49–65,

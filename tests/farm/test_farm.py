@@ -100,6 +100,33 @@ def test_openjd_two_chunks_equal_the_single_process(job):
         ["merge", "retime", "retime"], started
 
 
+@pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
+def test_openjd_takes_a_folder_that_is_no_text_through_a_link_named_in_utf8(job, tmp_path):
+    """A shot folder whose name is Latin-1 bytes on a UTF-8 system ('caf\\xe9 shot'): an OpenJD job
+    is Unicode text and cannot hold the name, and openjd-cli stops with a traceback and exit
+    status 1 before any task runs, writing nothing (what pipeline.md says). Through a symbolic
+    link with a UTF-8 name to the folder (the way out it gives) the job runs, and its output is
+    the single process's."""
+    folder, cache, topology, single = job
+    shot = Path(os.fsdecode(bytes(tmp_path) + b"/caf\xe9 shot"))
+    (shot / "chunks").mkdir(parents=True)
+    shutil.copy(cache, shot / "in.pc2")
+    shutil.copy(topology, shot / "sheet.obj")
+    link = tmp_path / "cafe_shot"
+    link.symlink_to(shot, target_is_directory=True)
+    for where, status in ((shot, 1), (link, 0)):
+        parameters = dict(InputCache=where / "in.pc2", Topology=where / "sheet.obj", OutputCache=where / "out.pc2",
+                          ChunkDirectory=where / "chunks", ExtensionDirectory=ROOT, Python=sys.executable,
+                          Step=4, Speed=0.5, Chunks=2)
+        result = subprocess.run(_openjd_command(parameters), capture_output=True, timeout=600)
+        assert result.returncode == status, result.stdout[-3000:] + result.stderr[-3000:]
+        if status:
+            assert b"UnicodeEncodeError" in result.stdout + result.stderr
+            assert sorted(p.name for p in shot.iterdir()) == ["chunks", "in.pc2", "sheet.obj"]
+            assert not list((shot / "chunks").iterdir())
+    _same_frames(shot / "out.pc2", single)
+
+
 def test_jobs_sharing_a_chunk_folder_are_refused_not_mixed(job, capsys):
     """Two takes of one cloth (same mesh and frames, other motion) retimed by two jobs that share a
     chunk folder, their tasks interleaved as a farm runs them: before, the merge succeeded with the
