@@ -6,8 +6,9 @@ A link turning about a joint on a moving parent goes round the joint, not round 
 its own world motion: three links of an arm each bent 60° came apart at their joints by up to
 half a link length at 0.5 and 2.6 link lengths at ×2 along their own screws. Two pieces are
 jointed in a gap when both are rigid over its keys (non-rigidity under
-:data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), they touch in its base key (vertices within
-:data:`JOINT_REACH` mean edge lengths) and the child's motion relative to the parent's holds the
+:data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), they touch in both its keys (vertices within
+:data:`JOINT_REACH` mean edge lengths: pieces that have come apart in the next key are held by no
+joint) and the child's motion relative to the parent's holds the
 contact (:func:`joint_offset`: a hinge's axis runs through it), their nearest vertices within the
 finer piece's own mean edge length too (a gap wider than a small piece's edges is no contact,
 whatever the mesh's other pieces make its mean edge). The joints are a minimum
@@ -86,6 +87,29 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     return np.where(held, 0.0, np.where(hinged, np.maximum(0.0, distance - radius - reach), np.inf))
 
 
+def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
+    """The pairs of vertices ``index`` of different pieces (``label``: each vertex's piece, of
+    ``count``) within ``reach`` of each other at positions ``x``: ``(key, ends, first)``, each pair's
+    pieces ``a < b`` as ``a · count + b`` (sorted), its two vertices (rows of ``ends``) and where each
+    pair of pieces' run begins in them."""
+    from scipy.spatial import cKDTree
+
+    pairs = cKDTree(x[index]).query_pairs(reach, output_type="ndarray")
+    pairs = pairs[label[pairs[:, 0]] != label[pairs[:, 1]]]
+    a, b = np.sort(label[pairs], axis=1).T
+    order = np.argsort(a * count + b, kind="stable")
+    key = (a * count + b)[order]
+    return key, index[pairs[order]].reshape(-1, 2), np.flatnonzero(np.diff(key, prepend=-1))  # keys are >= 0
+
+
+def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
+    """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
+    at positions ``x``."""
+    if not first.size:
+        return np.zeros(0)
+    return np.minimum.reduceat(np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1), first)
+
+
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
                moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None,
                edges: np.ndarray | None = None):
@@ -103,30 +127,22 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     diagonal at 0.5 for noise of 1e-4 of it); ``held``: bool (C,), the pieces with a pinned vertex
     (still in the keys, :mod:`core.pins`), which hang from the world: roots, never children (see
     the module's note); ``edges``: each piece's mean edge length (C,), two pieces touching only where
-    their nearest vertices are within the finer one's (a lash 0.057 from a ball, both of edges about
+    their nearest vertices are within the finer one's, in both keys (a lash 0.057 from a ball, both of edges about
     0.04, was the ball's joint where a coarse body elsewhere made the mesh's mean edge 0.080, and
     moved with the ball's turn: 2.8e-2 of the diagonal off its own at ×2)."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
-    from scipy.spatial import cKDTree
-
     rows = [topo.components[c] for c in pieces]
     label = np.concatenate([np.full(r.size, k) for k, r in enumerate(rows)])
     index = np.concatenate(rows)
-    pairs = cKDTree(base[index]).query_pairs(reach, output_type="ndarray")
-    pairs = pairs[label[pairs[:, 0]] != label[pairs[:, 1]]]
-    if not pairs.size:
+    key, ends, first = _touching(base, index, label, pieces.size, reach)
+    if not key.size:
         return None
     # per pair of touching pieces, whether the child's motion relative to the parent's holds their
     # contact (a joint); a spanning tree of the best held contacts (a chain curled onto itself
     # touches another link only in passing, and its relative motion turns about another point)
     rotations, translations = motions[0][pieces], motions[1][pieces]
-    a, b = np.sort(label[pairs], axis=1).T
-    key = a * pieces.size + b
-    order = np.argsort(key, kind="stable")
-    key, ends = key[order], index[pairs[order]]
-    first = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
     u, v = np.divmod(key[first], pieces.size)
     inverse = np.transpose(rotations[u], (0, 2, 1))  # v's motion relative to u's (relative_motion, every pair)
     contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
@@ -134,13 +150,22 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                             inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u]),
                             reach)
     jointed = offsets <= reach
-    if edges is not None:  # touching within the finer piece's edges
-        nearest = np.minimum.reduceat(np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1), first)
-        jointed &= nearest <= JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]])
+    # touching within the finer piece's edges, and in the next key too: a joint keeps its pieces
+    # together (cubes of a shattered block that touch in the base key and have flown apart in the
+    # next are no joints, wherever their relative motions' axes run)
+    finer = reach if edges is None else np.minimum(reach, JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]]))
+    jointed &= _nearest(base, ends, first) <= finer
+    if jointed.any():
+        kept = np.isin(label, np.r_[u[jointed], v[jointed]])
+        later, later_ends, later_first = _touching(nxt, index[kept], label[kept], pieces.size, reach)
+        nearest_later = np.full(first.size, np.inf)
+        _, here, there = np.intersect1d(key[first], later[later_first], assume_unique=True, return_indices=True)
+        nearest_later[here] = _nearest(nxt, later_ends, later_first)[there]
+        jointed &= nearest_later <= finer
     if not jointed.any():
         return None
     # the closest the touching vertices stay at the next key: 0 where a joint is a shared point
-    apart = np.minimum.reduceat(np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1), first)
+    apart = _nearest(nxt, ends, first)
     weights = offsets[jointed] + apart[jointed] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
     u, v = u[jointed], v[jointed]
     world = pieces.size  # a node for the world, which the pinned pieces hang from (the module's note)
