@@ -392,7 +392,15 @@ def surface_triangles(obj, operator=None):
     corners, it keeps the face of every triangle so that core messages name faces too."""
     triangles = bridge.mesh_triangles(obj.data)
     if len(triangles) == 0:
-        raise InputError(f"'{obj.name}' has no faces: shape differences need a surface mesh")
+        # faces its modifiers make (Geometry Nodes instances realized on a point) are not the mesh's
+        # own: their vertices are no fixed set the poses and the results can be written on
+        makers = [modifier.name for modifier in obj.modifiers if modifier.show_viewport]
+        raise InputError(f"'{obj.name}' has no faces" + (
+            f" of its own (those shown are made by its modifier{'s' if len(makers) > 1 else ''} "
+            f"{', '.join(repr(name) for name in makers)}): shape differences need a surface mesh whose vertices "
+            "the poses move. Export the object as Alembic and import it (a mesh played by a Mesh Sequence Cache), "
+            "or convert a copy to a mesh (Object › Convert › Mesh) for a single pose" if makers else
+            ": shape differences need a surface mesh"))
     if operator is not None and len(triangles) > len(obj.data.polygons):
         operator.triangle_faces = bridge.loop_triangle_polygons(obj.data)
     return triangles

@@ -1,6 +1,7 @@
 """Bad selections, settings and meshes: a report that says what is wrong and how to fix it, and
 nothing changes (shape keys, vertices, modifiers, animation, current frame)."""
 
+import re
 import struct
 
 import numpy as np
@@ -277,6 +278,25 @@ def test_mesh_without_faces(bpy_empty, extension):
     bpy.ops.object.mode_set(mode='OBJECT')
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
                          "has no faces")
+
+
+def test_an_object_whose_faces_its_modifiers_make_is_told_so(bpy_empty, extension):
+    """A Geometry Nodes modifier realizing cubes on a mesh of one point shows faces its mesh does
+    not have: the refusal names the modifier and how to get a mesh the poses move."""
+    mesh = bpy.data.meshes.new("point")
+    mesh.from_pydata([(0.0, 0.0, 0.0)], [], [])
+    obj = bpy.data.objects.new("shatter", mesh)
+    bpy.context.collection.objects.link(obj)
+    tree = bpy.data.node_groups.new("cubes", 'GeometryNodeTree')
+    tree.interface.new_socket("Geometry", in_out='OUTPUT', socket_type='NodeSocketGeometry')
+    cube, out = tree.nodes.new('GeometryNodeMeshCube'), tree.nodes.new('NodeGroupOutput')
+    tree.links.new(cube.outputs["Mesh"], out.inputs[0])
+    obj.modifiers.new("Shatter", 'NODES').node_group = tree
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    assert len(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()).data.polygons) == 6
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween_frames,
+                         re.escape("has no faces of its own (those shown are made by its modifier 'Shatter')"))
 
 
 def test_a_cache_whose_topology_changes(bpy_empty, extension, tmp_path):
