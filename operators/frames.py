@@ -16,7 +16,7 @@ from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite
                    playback_range, report, require_count, surface_triangles)
 from .output import (PoseWriter, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside, motion_set_aside,
                      object_motion, objects_moving, render_only_motion, simulation_zone_start, unbaked_simulations,
-                     unfit_mesh_cache)
+                     unfit_mesh_cache, viewport_only_motion)
 from .poses import format_factor, inbetween_name
 
 
@@ -130,7 +130,8 @@ class FrameRangeProperties:
         still = bridge.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
-        for warning in (render_only_motion(obj, movers), bridge.frames_outside_simulation(obj, frames, movers),
+        for warning in (render_only_motion(obj, movers), viewport_only_motion(obj, movers),
+                        bridge.frames_outside_simulation(obj, frames, movers),
                         bridge.frames_outside_cache(context.scene, obj, frames, movers),
                         bridge.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:

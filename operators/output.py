@@ -241,22 +241,45 @@ def unfit_mesh_cache(obj, movers: list) -> str | None:
     return None
 
 
+def _shown_in_one_only(obj, movers: list, viewport: bool) -> list[str]:
+    """The modifiers that move vertices of ``movers`` (``obj`` and the objects that move it,
+    :func:`objects_moving`) and are on in the viewport only (``viewport``) or for renders only,
+    named with their object; those at the end of ``obj``'s stack that go with the new object
+    (:func:`trailing_generators`, copied with their settings) are not counted."""
+    copied = set(modifier.name for modifier in trailing_generators(obj))
+    return [f"'{m.name}' of '{mover.name}'" for mover in movers for m in mover.modifiers
+            if (m.show_viewport, m.show_render) == (viewport, not viewport) and moves_vertices(m)
+            and not (mover == obj and m.name in copied)]
+
+
 def render_only_motion(obj, movers: list) -> str | None:
     """A warning when modifiers that move the vertices of ``obj`` — those of ``movers``, itself and
     the objects that move it (:func:`objects_moving`: a cloth proxy through a Surface Deform) — are on for
     renders and off in the viewport (a heavy cloth kept off while animating): frames are read as
-    the viewport evaluates them, so the poses lack their motion, which renders show; None otherwise.
-    Those at the end of ``obj``'s stack that go with the new object (:func:`trailing_generators`)
-    are not counted."""
-    copied = set(modifier.name for modifier in trailing_generators(obj))
-    names = [f"'{m.name}' of '{mover.name}'" for mover in movers for m in mover.modifiers
-             if m.show_render and not m.show_viewport and moves_vertices(m) and not (mover == obj and m.name in copied)]
+    the viewport evaluates them, so the poses lack their motion, which renders show; None otherwise."""
+    names = _shown_in_one_only(obj, movers, viewport=False)
     if not names:
         return None
     return (f"{', '.join(names)} {'is' if len(names) == 1 else 'are'} on for renders only (off in "
             "the viewport), and frames are read as the viewport shows them: the poses read lack "
             f"{'its' if len(names) == 1 else 'their'} motion. Turn {'it' if len(names) == 1 else 'them'} on in the "
             "viewport (the monitor icon in the modifier's header) and run again")
+
+
+def viewport_only_motion(obj, movers: list) -> str | None:
+    """A warning when modifiers that move the vertices of ``obj`` (of ``movers``, as in
+    :func:`render_only_motion`) are on in the viewport and off for renders (a preview deform):
+    frames are read as the viewport evaluates them, so the poses carry their deformation, which a
+    new object playing them renders and ``obj``'s renders lack; None otherwise."""
+    names = _shown_in_one_only(obj, movers, viewport=True)
+    if not names:
+        return None
+    one = len(names) == 1
+    return (f"{', '.join(names)} {'is' if one else 'are'} on in the viewport only (off for renders), and "
+            "frames are read as the viewport shows them: the poses read carry "
+            f"{'its' if one else 'their'} deformation, which renders of '{obj.name}' lack. Turn "
+            f"{'it' if one else 'them'} on for renders (the camera icon in the modifier's header) or off in the "
+            "viewport and run again")
 
 
 def trailing_generators(obj) -> list:
@@ -622,8 +645,8 @@ class PoseWriter:
         sharing its mesh, or one reacting to it as a collider or force field:
         :func:`refuse_emptying_caches`),
         keyframed shape keys on absolute ones (``keyframed``: Blender plays those by their
-        Evaluation Time, never by the values keyed), a cache file relative to a .blend that was
-        never saved."""
+        Evaluation Time, never by the values keyed) or on keys whose NLA strip is being edited (tweak
+        mode), a cache file relative to a .blend that was never saved."""
         if self.output != 'SHAPE_KEYS':
             if self.filepath.startswith("//") and not bpy.data.filepath:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
@@ -644,6 +667,12 @@ class PoseWriter:
                              "off): Blender plays them by Evaluation Time and ignores the key values this "
                              "would keyframe, so the new keys would never play. Choose Output › Point "
                              "Cache (a new object), or turn Relative on")
+        if keyframed and key is not None and key.animation_data is not None and key.animation_data.use_tweak_mode:
+            # Blender files keyframes inserted in tweak mode in the edited strip's action, at its own time
+            raise InputError(f"An NLA strip of the shape keys of '{source.name}' is being edited (tweak mode): the "
+                             "new keys' keyframes would go into that strip's action and play through its timing, "
+                             "scale and repeats rather than at the frames written. Leave tweak mode (Tab in the NLA "
+                             "editor) and run again, or choose Output › Point Cache (a new object)")
         refuse_emptying_caches(bpy.context.scene, source, "shape keys added to",
                                "choose Output › Point Cache (a new object; this one stays as it is)")
 
@@ -658,8 +687,10 @@ class PoseWriter:
         key = source.data.shape_keys
         # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
         if key is not None and key.use_relative:
-            if key.animation_data is not None and (
-                    key.animation_data.action is not None or len(key.animation_data.drivers)):
+            animation = key.animation_data
+            # an action, NLA strips (an action pushed down: no active one left) or drivers play the values
+            if animation is not None and (animation.action is not None or _plays_nla(animation)
+                                          or len(animation.drivers)):
                 movers.append("its animated shape keys")
             else:  # a key left at a value is in every captured pose, and adds its change once more
                 held = [f"'{kb.name}' at {kb.value:g}" for kb in key.key_blocks[1:] if kb.value and not kb.mute]
@@ -834,6 +865,11 @@ class PoseWriter:
                 f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
 
 
+def _plays_nla(animation) -> bool:
+    """Whether ``animation`` (an ID's animation data) plays NLA strips: a track that is not muted."""
+    return any(not track.mute for track in animation.nla_tracks)
+
+
 def _transform_drivers(animation) -> bool:
     """Whether ``animation`` (an object's animation data) drives its transform."""
     return any(driver.data_path in bridge.TRANSFORM_CHANNELS for driver in animation.drivers)
@@ -847,7 +883,7 @@ def _own_motion(obj) -> dict[str, str]:
     if animation is not None:
         if animation.action is not None:
             out["keyframed"] = "its keyframed transform"
-        if any(not track.mute for track in animation.nla_tracks):
+        if _plays_nla(animation):
             out["nla"] = "its NLA tracks"
         if _transform_drivers(animation):
             out["drivers"] = "drivers"

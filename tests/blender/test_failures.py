@@ -1126,6 +1126,35 @@ def test_a_cloth_proxy_on_for_renders_only_is_said_to_be_missing_from_the_frames
         assert "on for renders only" not in capfd.readouterr().out
 
 
+def test_a_deform_on_in_the_viewport_only_is_said_to_be_in_the_frames(bpy_empty, extension, capfd, tmp_path):
+    """A Displace after the armature on in the viewport and off for renders (a preview deform):
+    frames are read as the viewport shows them, so the new object plays and renders the displaced
+    mesh, which the source's renders lack (before, nothing was said); a Displace on for both, and
+    one in the run that goes with the new object, are not named."""
+    from blender_scenes import armature_scene
+
+    strip = armature_scene(frames=9)
+    preview = strip.modifiers.new("Preview", 'DISPLACE')
+    preview.strength, preview.show_render = 0.3, False
+    expected = (f"'Preview' of '{strip.name}' is on in the viewport only (off for renders), and frames are read "
+                "as the viewport shows them: the poses read carry its deformation")
+    names = set(bpy.data.objects.keys())
+    capfd.readouterr()
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    assert expected in capfd.readouterr().out
+    [copy] = [o for o in bpy.data.objects if o.name not in names]
+    assert [m.type for m in copy.modifiers] == ['MESH_CACHE']  # the displaced poses render as they are
+    preview.show_render = True
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    assert "viewport only" not in capfd.readouterr().out
+    preview.show_render = False
+    strip.modifiers.new("Subdivision", 'SUBSURF')  # before the Displace: the run set aside and copied
+    strip.modifiers.move(2, 1)
+    assert [m.name for m in strip.modifiers] == ["Armature", "Subdivision", "Preview"]
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, filepath=str(tmp_path) + "/")
+    assert "viewport only" not in capfd.readouterr().out
+
+
 @pytest.mark.parametrize("operator, options", [
     ("frames_to_shape_keys", dict(output='SHAPE_KEYS')), ("frames_to_shape_keys", dict(output='CACHE')),
     ("inbetween_frames", dict(frame_step=4, count=1)), ("shape_space", dict(source='FRAMES', k_m=10, k_n=20)),

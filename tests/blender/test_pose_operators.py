@@ -177,6 +177,49 @@ def test_captured_keys_warn_about_a_shape_key_left_at_a_value(bpy_empty, extensi
             in capfd.readouterr().out)
 
 
+def test_captured_keys_warn_about_shape_keys_played_by_nla_strips(bpy_empty, extension, capfd):
+    """Shape-key values played by an NLA strip (the action pushed down, none active) move the new
+    keys' mesh again on playback, as an active action does: the keyframed frames play the bend
+    twice (before, nothing was said)."""
+    from blender_scenes import driven_keys_scene
+    obj = driven_keys_scene(frames=9)
+    obj.data.shape_keys.key_blocks["Curl"].driver_remove("value")  # the strip alone moves the keys
+    animation = obj.data.shape_keys.animation_data
+    animation.nla_tracks.new().strips.new("Bend", 1, animation.action)
+    animation.action = None
+    bridge = extension.bridge
+    [(_, bent)] = list(bridge.frame_positions(bpy.context, obj, [9]))
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=8, count=1,
+                                               output='SHAPE_KEYS')
+    assert f"deformed again by its animated shape keys of '{obj.name}':" in capfd.readouterr().out
+    [(_, played)] = list(bridge.frame_positions(bpy.context, obj, [9]))
+    rest = bridge.vertex_positions(obj.data)
+    np.testing.assert_allclose(played - rest, 2 * (bent - rest), atol=1e-5)  # what the warning is about
+
+
+@pytest.mark.parametrize("operator, options", [("inbetween_frames", dict(count=1)), ("retime", dict(speed=1.0))])
+def test_keyframed_keys_are_refused_while_an_nla_strip_of_the_keys_is_edited(bpy_empty, extension, operator,
+                                                                             options):
+    """With the shape keys' NLA strip in tweak mode, keyframes inserted go into that strip's action at
+    its own time, so its scale and repeats replay them elsewhere (a strip scaled 2x and repeated
+    twice: the last key, frame 9, not played) and the user's action gains the new keys' curves:
+    refused before any work, naming tweak mode (before, written)."""
+    from blender_scenes import assert_unchanged, driven_keys_scene
+    obj = driven_keys_scene(frames=9)
+    obj.data.shape_keys.key_blocks["Curl"].driver_remove("value")
+    animation = obj.data.shape_keys.animation_data
+    strip = animation.nla_tracks.new().strips.new("Bend", 1, animation.action)
+    strip.scale, strip.repeat = 2.0, 2.0
+    animation.action = None
+    animation.use_tweak_mode = True
+    before = snapshot(extension.bridge, obj)
+    with pytest.raises(RuntimeError, match=r"An NLA strip of the shape keys of 'Driven' is being edited \(tweak mode\)"):
+        getattr(bpy.ops.shape_differences, operator)(frame_start=1, frame_end=9, frame_step=4, output='SHAPE_KEYS',
+                                                     **options)
+    assert_unchanged(before, snapshot(extension.bridge, obj))
+    assert key_names(obj) == ["Basis", "Bend", "Curl"]
+
+
 @pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 1.5)])
 def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, extension, operator, factor):
     """A sheet scaled (2, 1, 0.5) in Object Mode and not applied, whose key turns it rigidly by 80°
