@@ -226,34 +226,11 @@ class PieceMotion:
         # seats: pieces rigid to within noise (a head whose keys carry noise 6e-4 of the diagonal
         # has rigidity 0, and its blinking eyes went on their chords, 5.5e-2 off at 0.5)
         rigid = self.nonrigidity < SIMILAR_SHAPE_MISFIT[0]
-        deforming = ~rigid
-        if count < 2 or not rigid.any() or not deforming.any():
+        if count < 2 or not rigid.any() or rigid.all():
             return seated, seat, miss
-        from scipy.spatial import cKDTree  # noqa: PLC0415
-
-        first = topo.first_pose
-        size = topo.diagonals(first)
-        holders = topo.component_vertices[rigid[topo.component_labels]]
-        rows = topo.component_vertices[deforming[topo.component_labels]]
-        label = topo.vertex_component[rows]
-        reach = carried.CARRIER_REACH * size
-        # every deforming piece's vertices at once (meshes of many pieces: no loop per piece)
-        distance, nearest = cKDTree(first[holders]).query(first[rows], k=carried.CARRIER_NEIGHBOURS,
-                                                          distance_upper_bound=float(reach[deforming].max()))
-        found = np.isfinite(distance) & (distance < reach[label][:, None])
-        piece = np.broadcast_to(label[:, None], found.shape)[found]
-        owner = topo.vertex_component[holders[nearest[found]]]
-        large = size[owner] >= carried.CARRIER_SIZE * size[piece]
-        piece, owner = piece[large], owner[large]
-        if piece.size == 0:
+        pieces, owners = seat_candidates(topo, rigid)
+        if pieces.size == 0:
             return seated, seat, miss
-        pairs, votes = np.unique(piece * count + owner, return_counts=True)
-        pair_piece, pair_owner = np.divmod(pairs, count)
-        best = np.lexsort((-votes, pair_piece))  # per piece, the owner holding most of its nearest first
-        first_of = best[np.r_[True, pair_piece[best][1:] != pair_piece[best][:-1]]]
-        pieces, owners = pair_piece[first_of], pair_owner[first_of]
-        enough = votes[first_of] >= carried.MIN_CARRIERS  # nearest vertices on the chosen seat itself
-        pieces, owners = pieces[enough], owners[enough]
         rotations, translations = self.relatives[2].motion
         c0, c1 = self.base.centroids, self.relatives[2].centroids
         missed = c1[pieces] - (np.einsum("cab,cb->ca", rotations[owners], c0[pieces]) + translations[owners])
@@ -265,3 +242,46 @@ class PieceMotion:
         """Each component's centroid (C, 3) at factor ``s`` along its best similarity between the
         keys (:attr:`similar_placement`; :func:`core.deformation_fields.similarity_paths`)."""
         return df.similarity_paths(*self.similar_placement[1], self.base.centroids, s)[0]
+
+
+def seat_candidates(topo, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The deforming pieces that may sit on a rigid one and that piece, index arrays (p,) each,
+    for the components ``rigid`` (bool (C,); some rigid, some not) of ``topo``
+    (:attr:`PieceMotion.seated_placement`): per deforming piece, the rigid piece (not much smaller:
+    :data:`core.inbetween_carried.CARRIER_SIZE`) holding most of the nearest vertices of rigid
+    pieces to its vertices within its diagonal in the first pose, where they are at least
+    :data:`core.inbetween_carried.MIN_CARRIERS`. Read in the first pose alone, the same in every gap
+    whose rigid pieces are these: kept on ``topo`` per set of rigid pieces (the search from one
+    sheet to another lying apart over it, 5k vertices each, takes 110–150 ms)."""
+    known = topo.seat_candidates.get(rigid.tobytes())
+    if known is not None:
+        return known
+    from scipy.spatial import cKDTree  # noqa: PLC0415
+
+    from . import inbetween_carried as carried  # noqa: PLC0415
+
+    count = len(topo.components)
+    first = topo.first_pose
+    size = topo.diagonals(first)
+    holders = topo.component_vertices[rigid[topo.component_labels]]
+    rows = topo.component_vertices[~rigid[topo.component_labels]]
+    label = topo.vertex_component[rows]
+    reach = carried.CARRIER_REACH * size
+    # every deforming piece's vertices at once (meshes of many pieces: no loop per piece)
+    distance, nearest = cKDTree(first[holders]).query(first[rows], k=carried.CARRIER_NEIGHBOURS,
+                                                      distance_upper_bound=float(reach[~rigid].max()))
+    found = np.isfinite(distance) & (distance < reach[label][:, None])
+    piece = np.broadcast_to(label[:, None], found.shape)[found]
+    owner = topo.vertex_component[holders[nearest[found]]]
+    large = size[owner] >= carried.CARRIER_SIZE * size[piece]
+    piece, owner = piece[large], owner[large]
+    pieces = owners = np.zeros(0, dtype=int)
+    if piece.size:
+        pairs, votes = np.unique(piece * count + owner, return_counts=True)
+        pair_piece, pair_owner = np.divmod(pairs, count)
+        best = np.lexsort((-votes, pair_piece))  # per piece, the owner holding most of its nearest first
+        first_of = best[np.r_[True, pair_piece[best][1:] != pair_piece[best][:-1]]]
+        enough = votes[first_of] >= carried.MIN_CARRIERS  # nearest vertices on the chosen seat itself
+        pieces, owners = pair_piece[first_of][enough], pair_owner[first_of][enough]
+    topo.seat_candidates[rigid.tobytes()] = pieces, owners
+    return pieces, owners

@@ -85,6 +85,9 @@ class _Topology:
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
         self.edges_per_vertex = np.bincount(self.i, minlength=n_vertices) + np.bincount(self.j, minlength=n_vertices)
         self._uniform: dict[float, object] = {}
+        #: Per set of rigid components (their mask's bytes), the deforming pieces that may sit on
+        #: them and where (:func:`core.inbetween_motion.seat_candidates`: read in the first pose).
+        self.seat_candidates: dict[bytes, tuple] = {}
         #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there
         #: (:func:`core.inbetween_keys.rigid_fits`).
         self.pinned: np.ndarray | None = None

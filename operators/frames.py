@@ -224,7 +224,14 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                                                   if i * spacing < short * (1 - 1e-9)]))
             # a point cache plays evenly spaced frames: the last frame only if it is one of them
             ends = self.output == 'SHAPE_KEYS' or abs(short / spacing - round(short / spacing)) < 1e-9
-        for gap, frame, next_frame, gap_factors in spans:
+        # each in-between's time, and the object's matrix there where its scale is keyframed: read
+        # in one pass over the frames, before the gaps' poses go back through them
+        spans = [(gap, frame, after, gap_factors, [frame + factor * (after - frame) for factor in gap_factors])
+                 for gap, frame, after, gap_factors in spans]
+        with closing(space.reading([time for *_, times in spans for time in times])) as reading:
+            for _ in reading:
+                yield 0.2
+        for gap, frame, next_frame, gap_factors, times in spans:
             names.append(frame_key_name(frame)), tails.append(""), all_poses.append(read[frame])
             timeline.append(frame)
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
@@ -235,13 +242,12 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
-                times = [frame + factor * (next_frame - frame) for factor in gap_factors]
                 all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors)),
                                             times).astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)
-                timeline.append(frame + factor * (next_frame - frame))
+            timeline.extend(times)
         last = spans[-1][2]
         if ends:
             names.append(frame_key_name(last)), tails.append(""), all_poses.append(read[last])
@@ -319,7 +325,9 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         # an object scaled differently at different frames: interpolated in the world, where the simulation
         # ran; the matrices of the frames shown read in one pass
         space = bridge.frames_space(context, obj, matrices)
-        space.read(shown_at)
+        with closing(space.reading(shown_at)) as reading:
+            for _ in reading:
+                yield 0.1
         samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample], start + sample)
                                              for sample in plan.samples_read})
         poses_out = retime.iter_retime(samples, triangles, plan, **options)
