@@ -14,9 +14,9 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
                    playback_range, report, require_count, surface_triangles)
-from .output import (PoseWriter, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside, motion_set_aside,
-                     object_motion, objects_moving, render_only_motion, simulation_zone_start, unbaked_simulations,
-                     unfit_mesh_cache, viewport_only_motion)
+from .output import (PoseWriter, dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake,
+                     modifiers_set_aside, motion_set_aside, object_motion, objects_moving, render_only_motion,
+                     simulation_zone_start, unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
 from .poses import format_factor, inbetween_name
 
 
@@ -26,14 +26,16 @@ def frame_key_name(frame: int) -> str:
 
 def simulation_start(scene, movers: list) -> int | None:
     """The first frame of the unbaked simulations of ``movers``, an object and the objects that move
-    it (a cloth proxy driving it through a Surface Deform: :func:`objects_moving`), and of their
+    it (a cloth proxy driving it through a Surface Deform: :func:`objects_moving`), of their
     Geometry Nodes simulation zones (:func:`simulation_zone_start`; baked or not, which the Python API
-    does not tell): reading frames starts there, so that a simulation that is not baked is computed
-    from its start, one frame at a time."""
+    does not tell) and of their Dynamic Paint canvases (:func:`dynamic_paint_start`; baked or not, as
+    :func:`frames_depend_on_earlier` takes them): reading frames starts there, so that a simulation
+    that is not baked is computed from its start, one frame at a time."""
     starts = [mover.modifiers[name].point_cache.frame_start for mover in movers
               for name in unbaked_simulations(mover)]
     starts += [start for mover in movers for modifier in mover.modifiers if modifier.show_viewport
-               for start in [simulation_zone_start(scene, modifier)] if start is not None]
+               for start in (simulation_zone_start(scene, modifier), dynamic_paint_start(modifier))
+               if start is not None]
     return min(starts) if starts else None
 
 

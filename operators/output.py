@@ -106,6 +106,17 @@ def attribute_only(modifier) -> bool:
                for node in group_nodes(modifier.node_group))
 
 
+def dynamic_paint_start(modifier) -> int | None:
+    """The first frame of the active surfaces of the Dynamic Paint canvas ``modifier``, None for a
+    brush or a canvas without one: Blender computes a surface that is not baked one step per frame
+    shown, from the state it last computed, and resets it at its start frame, so a frame is the
+    surface's only when every frame from that start was shown in order."""
+    if modifier.type != 'DYNAMIC_PAINT' or modifier.canvas_settings is None:
+        return None
+    return min((surface.frame_start for surface in modifier.canvas_settings.canvas_surfaces if surface.is_active),
+               default=None)
+
+
 def simulation_zone_start(scene, modifier) -> int | None:
     """The first frame of the simulation zones of the Geometry Nodes ``modifier`` (its node group and
     the groups in it), None where it has none: a zone simulates from the scene's start, or from the

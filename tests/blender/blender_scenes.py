@@ -158,6 +158,32 @@ def simulation_zone_scene(frames: int = 17):
     return obj
 
 
+def dynamic_paint_wave_scene(frames: int = 17):
+    """A grid as a Dynamic Paint canvas with a Wave surface (not baked: it moves the vertices along
+    their normals, each frame stepped from the state of the frame before) and a sphere brush
+    sweeping through it from frame 1; scene frames 1 to ``frames``, at frame 1."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    canvas = grid_object(24, name="Pond")
+    canvas.modifiers.new("Dynamic Paint", 'DYNAMIC_PAINT').ui_type = 'CANVAS'
+    bpy.ops.dpaint.type_toggle(type='CANVAS')  # fills the modifier of the active object
+    surface = canvas.modifiers["Dynamic Paint"].canvas_settings.canvas_surfaces[0]
+    surface.surface_type = 'WAVE'
+    surface.frame_start, surface.frame_end = 1, frames
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.3, location=(-0.8, 0.0, 0.1))
+    brush = bpy.context.active_object
+    brush.modifiers.new("Dynamic Paint", 'DYNAMIC_PAINT').ui_type = 'BRUSH'
+    bpy.ops.dpaint.type_toggle(type='BRUSH')
+    brush.keyframe_insert("location", frame=1)
+    brush.location = (0.8, 0.0, 0.1)
+    brush.keyframe_insert("location", frame=frames)
+    for obj in scene.objects:
+        obj.select_set(obj == canvas)
+    bpy.context.view_layer.objects.active = canvas
+    scene.frame_set(1)
+    return canvas
+
+
 def rolled(positions: np.ndarray, angle: float) -> np.ndarray:
     """The grid rolled about the y axis into an arc of ``angle`` radians (a bending pose)."""
     x, y = positions[:, 0], positions[:, 1]

@@ -10,7 +10,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
-                            key_names, sheet_easing_off_scale_keyframed, simulation_zone_scene, snapshot,
+                            dynamic_paint_wave_scene, key_names, sheet_easing_off_scale_keyframed, simulation_zone_scene,
+                            snapshot,
                             turning_sheet_scale_keyframed,
                             turning_sheet_stretched_before_its_frames)
 
@@ -457,6 +458,23 @@ def test_in_betweens_are_in_the_proportions_of_the_frames_read(bpy_empty, extens
 def _depsgraph_at(frame):
     bpy.context.scene.frame_set(frame)
     return bpy.context.evaluated_depsgraph_get()
+
+
+def test_a_dynamic_paint_wave_not_baked_is_read_from_its_start(bpy_empty, extension):
+    """A Dynamic Paint wave surface that is not baked, read over frames 9–17 while the scene is at
+    its start: the keys are the frames as played from the surface's start (a jump from frame 1 to
+    frame 9 steps the surface once and shows another wave, 0.18 off on a grid 2 wide)."""
+    bridge = extension.bridge
+    obj = dynamic_paint_wave_scene(frames=17)
+    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    surface = obj.modifiers["Dynamic Paint"].canvas_settings.canvas_surfaces[0]
+    surface.wave_speed = surface.wave_speed  # any change empties the surface's cache
+    bpy.context.scene.frame_set(1)
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=9, frame_end=17, frame_step=4, output='SHAPE_KEYS')
+    assert np.abs(played[9][:, 2]).max() > 0.01  # the brush made waves by frame 9
+    for frame in (9, 13, 17):
+        np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), played[frame], atol=1e-6)
+    assert bpy.context.scene.frame_current == 1
 
 
 def test_a_simulation_zone_not_baked_is_read_from_its_start(bpy_empty, extension):
