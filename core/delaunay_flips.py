@@ -22,9 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-#: Flip only where the two triangles of the edge meet at a dihedral angle (between normals) of
-#: at most this many degrees: a flip across a crease or fold would change the surface. On the
-#: decimated 1k limb (frame 40, cold): 30° 4.18 %, 45° 3.84 %, 60° 3.84 %, any 3.65 %.
+#: Flip only where the flip moves the surface no farther than between two triangles mirrored
+#: about their edge at this dihedral angle (between normals), :func:`delaunay_flips`: a flip across
+#: a crease or fold would change the surface. On the decimated 1k limb (frame 40, cold, measured
+#: as the angle between the two triangles' normals): 30° 4.18 %, 45° 3.84 %, 60° 3.84 %, any 3.65 %.
 MAX_DIHEDRAL_DEGREES = 45.0
 
 
@@ -90,9 +91,15 @@ def delaunay_flips(vertices: np.ndarray, triangles: np.ndarray, *, max_dihedral_
     """``triangles`` ``(m, 3)`` of a consistently oriented surface ``vertices`` ``(n, 3)`` with
     its interior edges flipped until none violates the Delaunay criterion (opposite angles summing
     to more than π), orientation kept: int64 ``(m, 3)``. ``max_dihedral_degrees``: flip only
-    edges whose triangles' normals differ by at most this (``None``: any). Boundary and
-    non-manifold edges (no two triangles) are never flipped."""
-    cos_limit = -1.0 if max_dihedral_degrees is None else np.cos(np.radians(max_dihedral_degrees))
+    where the flip moves the surface no farther than it would between two triangles mirrored
+    about their edge at this dihedral angle (between normals): the distance between the edge ``ab``
+    and the flipped edge ``cd`` at most ``tan(angle / 2) / 2`` of ``cd``'s length, which for such a
+    pair is exactly their dihedral angle. A sliver (its corner ``c`` next to the edge ``ab``, its
+    normal meaningless) is flipped whatever the angle between the normals: the surface moves by
+    its height (a Limited Dissolve's fans on a curved surface: 6 % of the triangles kept over
+    170° by a test of the normals, none by this). ``None``: any. Boundary and non-manifold
+    edges (no two triangles) are never flipped."""
+    gap_limit = None if max_dihedral_degrees is None else np.tan(np.radians(max_dihedral_degrees) / 2) / 2
 
     def angle(apex, p, q):
         u, v = vertices[p] - vertices[apex], vertices[q] - vertices[apex]
@@ -100,11 +107,12 @@ def delaunay_flips(vertices: np.ndarray, triangles: np.ndarray, *, max_dihedral_
 
     def excess(a, b, c, d):
         over = angle(c, a, b) + angle(d, a, b) - np.pi
-        n1 = np.cross(vertices[a] - vertices[c], vertices[b] - vertices[c])
-        n2 = np.cross(vertices[b] - vertices[d], vertices[a] - vertices[d])
-        cosine = np.einsum("ij,ij->i", n1, n2) / np.maximum(
-            np.linalg.norm(n1, axis=1) * np.linalg.norm(n2, axis=1), np.finfo(float).tiny)
-        over[cosine < cos_limit] = 0.0
+        if gap_limit is not None:
+            # distance between the lines of ab and cd (the tetrahedron abcd's thickness), against cd's length
+            edge, flipped = vertices[b] - vertices[a], vertices[d] - vertices[c]
+            normal = np.cross(edge, flipped)
+            gap = np.abs(np.einsum("ij,ij->i", vertices[c] - vertices[a], normal))
+            over[gap > gap_limit * np.linalg.norm(normal, axis=1) * np.linalg.norm(flipped, axis=1)] = 0.0
         return over
 
     return _flip_passes(np.array(triangles, dtype=np.int64), len(vertices), excess, max_passes)

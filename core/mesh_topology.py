@@ -116,8 +116,8 @@ class MeshTopology:
         return check_pose(vertices, self, name=name)
 
 
-def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices") -> None:
-    """Raise :class:`MeshError` naming the first triangle whose area is (numerically) zero."""
+def _triangle_measures(vertices: np.ndarray, triangles: np.ndarray):
+    """``(by_coordinate (3, n), doubled areas (m,), squared side lengths [3 × (m,)], longest (m,))``."""
     from .geometry import coordinate_cross, coordinate_dot
 
     by_coordinate = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)  # contiguous rows: 3× faster
@@ -128,6 +128,20 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
         doubled_area = np.sqrt(coordinate_dot(cross, cross))
         squared = [coordinate_dot(a - b, a - b) for a, b in ((p1, p2), (p2, p0), (p0, p1))]
         longest = np.maximum(np.maximum(squared[0], squared[1]), squared[2])
+    return by_coordinate, doubled_area, squared, longest
+
+
+def zero_area_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """Indices of the ``triangles`` whose area is (numerically) zero, as :func:`check_nondegenerate`
+    finds them (one that overflows counts too)."""
+    _, doubled_area, _, longest = _triangle_measures(vertices, triangles)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * longest))
+
+
+def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices") -> None:
+    """Raise :class:`MeshError` naming the first triangle whose area is (numerically) zero."""
+    by_coordinate, doubled_area, squared, longest = _triangle_measures(vertices, triangles)
     with np.errstate(over="ignore", invalid="ignore"):
         overflow = ~np.isfinite(doubled_area) | ~np.isfinite(longest)
     if overflow.any():

@@ -39,7 +39,7 @@ from .errors import MeshError, ShapeDifferenceWarning
 from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, locally_affine_images,
                              nearest_matched, project_near, pull_back_matrix, push_forward_matrix, walk_near)
 from .laplace_basis import basis_sizes
-from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology
+from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology, zero_area_triangles
 from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation, check_overlap,
                               check_spread, coincident_vertices, degenerate_at_rest, warn_non_manifold)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
@@ -130,6 +130,8 @@ class Transfer:
     tolerances, on the poses rebuilt before (the target eigenbases always do, see
     :data:`~core.transfer_layers.SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
     embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
+    ``size``: the target's size relative to the base through the map (:func:`target_size`);
+    :meth:`pose` rebuilds at the base's size and scales back by it.
 
     ``use_extrinsic=False`` (the default here, unlike the same-mesh pipeline): only the intrinsic
     pair is transferred, and the pose is the base mesh fitted to the recovered edge lengths from
@@ -195,7 +197,8 @@ class Transfer:
         base_used = reference.used_vertices
         if correspondence is None:
             nearest = closest_point_correspondence(reference.base_positions, rest_used)
-            partly = check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges)
+            partly = check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges,
+                                   reference.vertex_components)
             matched = self.target_used[nearest]
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
             self.correspondence[base_used] = matched
@@ -243,8 +246,10 @@ class Transfer:
         n_used = self.target_used.size
         pull_back = pull_back_matrix(topology.triangles[image_triangles], weights, n_used)
         self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
+        laid = pull_back @ rest_used  # the base laid on the target's rest through the map
         if correspondence is not None:  # closest points keep the base's sides
-            check_orientation(reference.base_positions, reference.topology, pull_back @ rest_used)
+            check_orientation(reference.base_positions, reference.topology, laid)
+        self.size = target_size(reference.base_positions, laid, reference.topology.triangles)
         push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
         self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None
@@ -395,8 +400,19 @@ class Transfer:
         pose's differences; ``None`` (with a warning) where the carried rest pose folds."""
         ref = self.reference
         on_base = np.asarray(self.layers[0].push @ ref.base_positions)
+        triangles = self.layers[0].topology.triangles
+        collapsed = zero_area_triangles(on_base, triangles)
+        if collapsed.size:  # the map's doing, not the target's: its triangles have area at rest
+            warnings.warn(
+                f"The map collapses {collapsed.size} of the target's triangles (first: the one of target vertices "
+                f"{self.target_used[triangles[collapsed[0]]].tolist()}) when the target is laid on the base through "
+                "it: outlying matches, or a part of the target the base does not have (a fin). The differences are "
+                "not corrected for the change of meshing and are less accurate; check the map there.",
+                ShapeDifferenceWarning,
+                stacklevel=3,
+            )
+            return None
         try:
-            check_nondegenerate(on_base, self.layers[0].topology.triangles, name="target mesh laid on the base")
             carried = self._rest_layer_differences(on_base)
         except MeshError as error:
             warnings.warn(
@@ -438,15 +454,16 @@ class Transfer:
     def pose(self, target_vertices) -> np.ndarray:
         """The target pose ``(n_N, 3)`` rebuilt on the base mesh, float64 ``(n_M, 3)``: recovered
         from its shape differences and placed by the rigid motion that brings each component
-        closest to the base vertices' images on the target (the map)."""
+        closest to the base vertices' images on the target (the map). A target of another size
+        keeps it (:attr:`size`): the pose is rebuilt at the base's size and scaled."""
         ref = self.reference
-        positions = self._target_positions(target_vertices)
+        positions = self._target_positions(target_vertices) / self.size  # at the base's size
         differences = self._differences(positions)
         metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
                                     tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
         carried = np.asarray(self._pull_back @ positions)  # each base vertex's image on this pose
         embedded = self._embed(metric, carried)
-        placed = ref.place_near(embedded.base_vertices, carried)
+        placed = ref.place_near(embedded.base_vertices, carried) * self.size
         return ref.expand_pose(placed)
 
     def _projected(self, vertices) -> np.ndarray:
@@ -527,6 +544,26 @@ class Transfer:
         self._last_carried = carried_points if np.isfinite(carried_points).all() else None
         self._last_embedding = result
         return result
+
+
+def target_size(base, laid, triangles) -> float:
+    """The size of a target relative to the base: the median over the base's ``triangles``
+    ``(m, 3)`` of the square root of each one's area laid on the target's rest through the map
+    (``laid`` ``(n, 3)``) over its area on the base ``base`` ``(n, 3)`` (a median: a few outlying
+    matches lay long triangles across the target).
+
+    A target modelled in other units (a scan in millimetres, a character in centimetres) has
+    shape differences of that size, areas × size², which the recovery does not follow: at 1 % of
+    the base's size they are past its area floor (:data:`~core.truncated_recovery.AREA_FLOOR`; the
+    pose came out 3.8 × too large, 39 % of its diagonal off), and even 5 % larger the test sheet's
+    pose was 3.8 % off against 1.7 % (the meshing correction, tolerances and floors are set at the
+    base's size). :meth:`Transfer.pose` divides the target's poses by this, rebuilds them at the
+    base's size and scales the result back. Measured through the map, not on the whole target, so
+    a map onto part of a larger target (a head on a body) gives the part's size."""
+    from .mesh_topology import triangle_areas
+
+    ratio = np.median(triangle_areas(laid, triangles) / triangle_areas(base, triangles))
+    return float(np.sqrt(ratio)) if np.isfinite(ratio) and ratio > 0 else 1.0
 
 
 def transferred_keys(base_vertices, triangles, key_poses, target_triangles, *, correspondence=None,

@@ -83,29 +83,50 @@ def mean_edge_length(positions, edges) -> float:
     return float(np.mean(np.linalg.norm(positions[edges[:, 0]] - positions[edges[:, 1]], axis=1)))
 
 
-def check_overlap(base, nearest, target, target_edges) -> bool:
+def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
     """Raise :class:`MeshError` when the base positions (n, 3) are not on the target's rest
     surface: their median distance to their ``nearest`` target vertices over :data:`OVERLAP_EDGES`
-    target edge lengths (``target_edges`` (E, 2) of positions ``target``). Returns whether they
-    are on it only in part (warned)."""
+    target edge lengths (``target_edges`` (E, 2) of positions ``target``). Warns when they are on
+    it only in part: more than :data:`PARTLY_BESIDE` of them that far, or a whole connected part
+    of the base (``parts``: each base vertex's part, (n,)) that far by its median — a part the
+    target does not have (a hat, a button, an eye), which closest points squash onto the target's
+    nearest surface, and the transfer with it. Returns whether either was warned."""
     edge = mean_edge_length(target, target_edges)
     distances = np.linalg.norm(base - nearest, axis=1)
     apart = float(np.median(distances))
-    beside = float(np.mean(distances > OVERLAP_EDGES * edge))
-    if apart <= OVERLAP_EDGES * edge and beside > PARTLY_BESIDE:
-        warnings.warn(
-            f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
-            "from the target at rest: the meshes overlap only in part, and there closest points match the "
-            "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
-            "base is, or give a correspondence (in Blender: Map › Attribute or File)",
-            ShapeDifferenceWarning, stacklevel=3)
     if apart > OVERLAP_EDGES * edge:
         raise MeshError(
             f"The two meshes do not overlap at rest: half of the base's vertices are more than {apart:.3g} "
             f"from the target's ({apart / edge:.1f} of its edge lengths), and closest points match only "
             "meshes laid on each other. Place the target's rest pose where the base is, or give a "
             "correspondence (in Blender: Map › Attribute or File)")
-    return beside > PARTLY_BESIDE
+    beside = float(np.mean(distances > OVERLAP_EDGES * edge))
+    if beside > PARTLY_BESIDE:
+        warnings.warn(
+            f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
+            "from the target at rest: the meshes overlap only in part, and there closest points match the "
+            "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
+            "base is, or give a correspondence (in Blender: Map › Attribute or File)",
+            ShapeDifferenceWarning, stacklevel=3)
+        return True
+    if parts is None:
+        return False
+    order = np.argsort(parts, kind="stable")
+    starts = np.flatnonzero(np.r_[True, np.diff(parts[order]) != 0])
+    medians = np.array([np.median(d) for d in np.split(distances[order], starts[1:])])
+    off = np.flatnonzero(medians > OVERLAP_EDGES * edge)
+    if not off.size:
+        return False
+    first = int(order[starts[off[0]]])
+    warnings.warn(
+        f"{off.size} connected part(s) of the base (first: the part of vertex {first}, "
+        f"{int(np.sum(parts == parts[first]))} vertices) lie off the target at rest, a median "
+        f"{medians[off[0]] / edge:.1f} target edge lengths away: the target has no such part there, and "
+        "closest points squash it onto the target's nearest surface, which distorts the transfer. Give the "
+        "target that part, leave it out of the base (in Blender: Mesh › Separate), or give a correspondence "
+        "(in Blender: Map › Attribute or File)",
+        ShapeDifferenceWarning, stacklevel=3)
+    return True
 
 
 def check_covered(base, base_topology, target, target_topology, image_triangles, weights) -> None:
