@@ -1009,8 +1009,11 @@ def add_cache_object(context: bpy.types.Context, source: bpy.types.Object, name:
         if mesh.shape_keys is not None:
             obj.shape_key_clear()
         # the source's collections that take new objects (not linked from a library, not
-        # overridden), else the scene's own
-        editable = [c for c in source.users_collection if c.library is None and c.override_library is None]
+        # overridden, not a rigid body world's: Blender makes every object in that one a rigid body
+        # of its simulation), else the scene's own
+        simulated = rigid_body_collections()
+        editable = [c for c in source.users_collection
+                    if c.library is None and c.override_library is None and c not in simulated]
         for collection in editable or (context.scene.collection,):
             collection.objects.link(obj)
         copy_object_motion(source, obj, start, speed, source_end)
@@ -1091,6 +1094,28 @@ def copy_object_look(source: bpy.types.Object, obj: bpy.types.Object) -> None:
     for setting in LOOK_SETTINGS:
         if hasattr(source, setting):
             setattr(obj, setting, getattr(source, setting))
+
+
+def _rigid_body_worlds() -> list:
+    """The rigid body worlds of the file's scenes."""
+    return [scene.rigidbody_world for scene in bpy.data.scenes if scene.rigidbody_world is not None]
+
+
+def rigid_body_collections() -> list:
+    """The collections of the scenes' rigid body worlds (their bodies and their constraints):
+    Blender gives every object linked to the first a rigid body and simulates it with the others."""
+    return [c for world in _rigid_body_worlds() for c in (world.collection, world.constraints) if c is not None]
+
+
+def simulated_rigid_body(obj: bpy.types.Object) -> bool:
+    """Whether ``obj`` is moved as a whole by a rigid body simulation: an active rigid body that is
+    dynamic and not animated, of a scene's rigid body world that is on (the simulation sets its
+    world matrix; its transform channels and mesh stay as they are)."""
+    body = obj.rigid_body
+    if body is None or body.type != 'ACTIVE' or not body.enabled or body.kinematic:
+        return False
+    return any(world.enabled and world.collection is not None and obj.name in world.collection.all_objects
+               for world in _rigid_body_worlds())
 
 
 #: The largest scale of an NLA strip (Blender clamps it): an action plays at most this many times slower.

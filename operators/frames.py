@@ -132,6 +132,10 @@ class FrameRangeProperties:
         still = bridge.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
+        if still and "rigid_body" in object_motion(obj):  # a simulation that moves no vertex of the mesh
+            still = (f"The {len(frames)} frames read from '{obj.name}' ({frames[0]}–{frames[-1]}) are all the same "
+                     "pose: its rigid body simulation moves it as a whole (its place in the world, not the "
+                     "vertices of its mesh), so there is no deformation to read or in-between")
         for warning in (render_only_motion(obj, movers), viewport_only_motion(obj, movers),
                         bridge.frames_outside_simulation(obj, frames, movers),
                         bridge.frames_outside_cache(context.scene, obj, frames, movers),

@@ -796,10 +796,12 @@ class PoseWriter:
                                           "User › Object & Data), or use Output › Point Cache (a new object)")
             motion = object_motion(source) if speed != 1.0 else {}
             if motion:
+                # a new object retimes a keyframed transform, not a simulation's
+                advice = (f"bake it to keyframes ({BAKE_RIGID_BODY}) and " if "rigid_body" in motion else "")
                 report(self, {'WARNING'}, f"'{source.name}' is moved as a whole by "
                                           f"{', '.join(motion.values())}, at its own speed while the new "
-                                          f"shape keys play at {speed:g}x: use Output › Point Cache (a new "
-                                          "object) to retime its keyframed transform too")
+                                          f"shape keys play at {speed:g}x: {advice}use Output › Point Cache "
+                                          "(a new object) to retime its keyframed transform too")
             self.drop_undone_cache(None)
             return added_summary(added)
         return self.write_cache_object(context, source, poses, frames, label, speed, keyed)
@@ -860,6 +862,11 @@ class PoseWriter:
         # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)
+        if "rigid_body" in motion:  # the simulation moves the source alone: the new object stays put
+            report(self, {'WARNING'}, f"'{obj.name}' stands still where '{source.name}' is moved as a whole by its "
+                                      f"rigid body simulation (the poses are in its own coordinates): bake that "
+                                      f"motion to keyframes ({BAKE_RIGID_BODY}) and run again, so that the new "
+                                      "object takes it over")
         missing = [words for kind, words in motion.items() if kind in ("nla", "drivers")]
         if missing:
             report(self, {'WARNING'}, f"'{obj.name}' is not moved by {' and '.join(missing)} of '{source.name}': "
@@ -886,11 +893,17 @@ def _transform_drivers(animation) -> bool:
     return any(driver.data_path in bridge.TRANSFORM_CHANNELS for driver in animation.drivers)
 
 
+#: Where a user turns a rigid body's motion into keyframes, which a new object takes over.
+BAKE_RIGID_BODY = "Object › Rigid Body › Bake To Keyframes"
+
+
 def _own_motion(obj) -> dict[str, str]:
-    """What of ``obj``'s own moves it as a whole: {kind: the user's words} ("keyframed", "nla",
-    "drivers", "constraints")."""
+    """What of ``obj``'s own moves it as a whole: {kind: the user's words} ("rigid_body",
+    "keyframed", "nla", "drivers", "constraints")."""
     animation = obj.animation_data
     out = {}
+    if bridge.simulated_rigid_body(obj):
+        out["rigid_body"] = "its rigid body simulation"
     if animation is not None:
         if animation.action is not None:
             out["keyframed"] = "its keyframed transform"

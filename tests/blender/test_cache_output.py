@@ -786,3 +786,120 @@ def test_a_cloth_simulated_for_the_run_is_said(bpy_empty, extension, capfd, tmp_
     bpy.context.view_layer.objects.active = obj
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=9, frame_step=4, speed=0.5, filepath=str(tmp_path) + "/")
     assert "not baked" not in capfd.readouterr().out  # the frames are in its memory cache now
+
+
+def _rigid_body_scene(kind: str, frames: int = 17, wave: bool = True):
+    """A grid 2 above a passive floor, a rigid body of ``kind`` ('ACTIVE': it falls and tumbles,
+    'PASSIVE': it stays) whose relative shape key "Wave" plays 0 → 1 over ``frames`` (it deforms
+    while the simulation moves it; none without ``wave``); the rigid body world not baked. Returns
+    the grid, the selected active object."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    bpy.ops.rigidbody.object_add(type='PASSIVE')
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=8, y_subdivisions=8, size=1.0, location=(0, 0, 2),
+                                    rotation=(0.5, 0.3, 0))
+    grid = bpy.context.active_object
+    bpy.ops.rigidbody.object_add(type=kind)
+    grid.rigid_body.collision_shape = 'CONVEX_HULL'
+    for obj in scene.objects:
+        obj.select_set(obj == grid)
+    bpy.context.view_layer.objects.active = grid
+    if not wave:
+        return grid
+    grid.shape_key_add(name="Basis")
+    wave = grid.shape_key_add(name="Wave")
+    for point in wave.data:
+        point.co.z += 0.2 * np.sin(3 * point.co.x)
+    for frame, value in ((1, 0.0), (frames, 1.0)):
+        wave.value = value
+        wave.keyframe_insert("value", frame=frame)
+    return grid
+
+
+def _shown(bridge, obj, frames) -> dict:
+    """World positions of ``obj``'s evaluated mesh at each of ``frames``, visited in order (an
+    unbaked rigid body simulation steps one frame at a time); the scene is left at frame 1."""
+    result = {}
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        matrix = np.array(obj.matrix_world)
+        result[frame] = (bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+                         @ matrix[:3, :3].T + matrix[:3, 3])
+    bpy.context.scene.frame_set(1)
+    return result
+
+
+def _bake_to_keyframes(obj, frames):
+    """What Object › Rigid Body › Bake To Keyframes does (its operator needs a 3D View's context):
+    ``obj``'s simulated placement keyframed at each of ``frames``, its rigid body removed."""
+    placed = {}
+    for frame in frames:
+        bpy.context.scene.frame_set(frame)
+        placed[frame] = obj.matrix_world.copy()
+    bpy.ops.rigidbody.object_remove()
+    for frame in frames:
+        obj.matrix_world = placed[frame]
+        obj.keyframe_insert("location", frame=frame)
+        obj.keyframe_insert("rotation_euler", frame=frame)
+    bpy.context.scene.frame_set(1)
+
+
+@pytest.mark.parametrize("kind", ['ACTIVE', 'PASSIVE'])
+def test_a_new_object_stays_out_of_the_rigid_body_simulation(bpy_empty, extension, core, tmp_path, capfd, kind):
+    """The new object is not linked into the rigid body world's collection, where Blender makes every
+    object an active rigid body of the user's simulation (before: the copy of a passive grid fell
+    6.7 below it; the copies of a falling grid collided with it and moved it 2.7 off its own
+    motion, and the world's unbaked cache was simulated again: 5 → 8 KiB). A source moved by its
+    simulation is named with the fix (Bake To Keyframes), after which the new object follows it."""
+    grid = _rigid_body_scene(kind)
+    world = bpy.context.scene.rigidbody_world
+    frames = range(1, 18)
+    shown = _shown(extension.bridge, grid, frames)
+    info = world.point_cache.info
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=17, frame_step=8, count=7,
+                                               output='CACHE', filepath=str(tmp_path / "first.pc2"))
+    obj = new_object(names)
+    out = capfd.readouterr().out
+    assert obj.rigid_body is None and obj.name not in world.collection.objects
+    assert world.point_cache.info == info
+    after = _shown(extension.bridge, grid, frames)
+    for frame in frames:  # the user's simulation plays as before
+        np.testing.assert_array_equal(after[frame], shown[frame])
+    new = _shown(extension.bridge, obj, frames)
+
+    def assert_follows(new):
+        """The new object shows the grid where it is: its keys (every 8th frame) to float32, the
+        in-betweens within the wave's blend (0.2 high)"""
+        for frame in frames:
+            np.testing.assert_allclose(new[frame], shown[frame], atol=0.02 if (frame - 1) % 8 else 1e-4)
+
+    if kind == 'PASSIVE':  # it does not move
+        assert "rigid body" not in out
+        assert_follows(new)
+        return
+    assert (f"'{obj.name}' stands still where '{grid.name}' is moved as a whole by its rigid body simulation"
+            in out and "Object › Rigid Body › Bake To Keyframes" in out)
+    assert np.abs(new[17] - shown[17]).max() > 1.0  # it fell; the new object stays
+    _bake_to_keyframes(grid, frames)  # the fix the warning names
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=17, frame_step=8, count=7,
+                                               output='CACHE', filepath=str(tmp_path / "baked.pc2"))
+    obj = new_object(names)
+    assert "rigid body" not in capfd.readouterr().out
+    assert_follows(_shown(extension.bridge, obj, frames))  # the keyframed transform taken over
+
+
+def test_a_rigid_body_moving_the_source_is_named(bpy_empty, extension, core, capfd):
+    """A falling grid that does not deform, retimed to shape keys: its frames are the same pose,
+    said to be moved as a whole by its rigid body (before: "check what moves it (a baked cache
+    whose files are gone …)"), and the simulation keeps its own speed, with the fix named (before:
+    no warning about its motion)."""
+    grid = _rigid_body_scene('ACTIVE', wave=False)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=17, frame_step=8, speed=0.5, output='SHAPE_KEYS')
+    out = capfd.readouterr().out
+    assert ("are all the same pose: its rigid body simulation moves it as a whole (its place in the world, not "
+            "the vertices of its mesh)") in out
+    assert (f"'{grid.name}' is moved as a whole by its rigid body simulation, at its own speed while the new shape "
+            "keys play at 0.5x: bake it to keyframes (Object › Rigid Body › Bake To Keyframes)") in out
