@@ -1118,6 +1118,18 @@ def simulated_rigid_body(obj: bpy.types.Object) -> bool:
                for world in _rigid_body_worlds())
 
 
+def unbaked_rigid_body_shape(obj: bpy.types.Object) -> bool:
+    """Whether ``obj`` is a rigid body of a rigid body world that is not baked, with a collision
+    shape read from its deformed mesh (Convex Hull or Mesh from Deform or Final): shape keys added
+    to it change the shapes the simulation collides, and so the simulation, when it is played
+    again."""
+    body = obj.rigid_body
+    if body is None or body.collision_shape not in {'CONVEX_HULL', 'MESH'} or body.mesh_source == 'BASE':
+        return False
+    return any(world.collection is not None and obj.name in world.collection.all_objects
+               and not world.point_cache.is_baked for world in _rigid_body_worlds())
+
+
 #: The largest scale of an NLA strip (Blender clamps it): an action plays at most this many times slower.
 NLA_MAX_SCALE = 1000.0
 

@@ -384,10 +384,12 @@ def simulations_emptied_by(scene, obj) -> tuple[list, list]:
     return sharing, reacting_simulations(scene, users)
 
 
-def refuse_emptying_caches(scene, obj, what: str, alternative: str = "") -> None:
+def refuse_emptying_caches(scene, obj, what: str, alternative: str = "", shapes: bool = False) -> None:
     """Raise :class:`InputError` where changing the mesh of ``obj`` (``what``: "shape keys added
     to", "distortion maps written to") would empty an unbaked simulation's cache
-    (:func:`simulations_emptied_by`), before any work. ``alternative``: another way to the result,
+    (:func:`simulations_emptied_by`), or, where it changes the mesh's shape (``shapes``: shape keys),
+    an unbaked rigid body simulation colliding that shape (:func:`bridge.unbaked_rigid_body_shape`),
+    before any work. ``alternative``: another way to the result,
     offered first."""
     def either(*advice):
         options = ([alternative] if alternative else []) + list(advice)
@@ -410,6 +412,14 @@ def refuse_emptying_caches(scene, obj, what: str, alternative: str = "") -> None
             f"{change} '{obj.name}' would empty the unbaked cache of {_simulations_named(others)}, which may "
             f"react to '{obj.name}' as a collider or force field (Blender simulates them again when it changes): "
             + either("bake those first (Physics › Cache › Bake)"))
+    for user in ([obj] + sharing_mesh(obj)) if shapes else ():
+        if bridge.unbaked_rigid_body_shape(user):
+            raise InputError(
+                f"{change} '{user.name}' would change its rigid body simulation, which is not baked: its collision "
+                f"shape ({user.rigid_body.collision_shape.replace('_', ' ').title()}) is read from its deformed "
+                "mesh, and Blender simulates the world again from the shapes the mesh shows then: "
+                + either("bake the simulation first (Scene › Rigid Body World › Cache › Bake)",
+                         "read the shape from the mesh's Base (Physics › Rigid Body › Collisions › Source)"))
 
 
 def modifiers_set_aside(context, obj) -> list:
@@ -685,7 +695,7 @@ class PoseWriter:
                              "scale and repeats rather than at the frames written. Leave tweak mode (Tab in the NLA "
                              "editor) and run again, or choose Output › Point Cache (a new object)")
         refuse_emptying_caches(bpy.context.scene, source, "shape keys added to",
-                               "choose Output › Point Cache (a new object; this one stays as it is)")
+                               "choose Output › Point Cache (a new object; this one stays as it is)", shapes=True)
 
     def check_captured_output(self, source, *, keyframed: bool = False) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to

@@ -897,9 +897,27 @@ def test_a_rigid_body_moving_the_source_is_named(bpy_empty, extension, core, cap
     whose files are gone …)"), and the simulation keeps its own speed, with the fix named (before:
     no warning about its motion)."""
     grid = _rigid_body_scene('ACTIVE', wave=False)
+    grid.rigid_body.mesh_source = 'BASE'  # keys added leave its collision shape, and so its simulation
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=17, frame_step=8, speed=0.5, output='SHAPE_KEYS')
     out = capfd.readouterr().out
     assert ("are all the same pose: its rigid body simulation moves it as a whole (its place in the world, not "
             "the vertices of its mesh)") in out
     assert (f"'{grid.name}' is moved as a whole by its rigid body simulation, at its own speed while the new shape "
             "keys play at 0.5x: bake it to keyframes (Object › Rigid Body › Bake To Keyframes)") in out
+
+
+@pytest.mark.parametrize("kind", ['ACTIVE', 'PASSIVE'])
+def test_shape_keys_are_refused_on_a_rigid_body_whose_unbaked_simulation_reads_its_deformed_mesh(
+        bpy_empty, extension, core, kind):
+    """Shape keys added to a rigid body of an unbaked world whose convex hull is read from its deformed
+    mesh change what the simulation collides (keys holding frame 9's pose from frame 1 moved a fall's
+    end from z = -5.27 to 0.46): refused before any work, naming the fixes; nothing changes."""
+    grid = _rigid_body_scene(kind)
+    world = bpy.context.scene.rigidbody_world
+    before, info = snapshot(extension.bridge, grid), world.point_cache.info
+    with pytest.raises(RuntimeError, match="would change its rigid body simulation, which is not baked"):
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=17, frame_step=8, output='SHAPE_KEYS')
+    assert_unchanged(before, snapshot(extension.bridge, grid))
+    assert world.point_cache.info == info
+    grid.rigid_body.mesh_source = 'BASE'  # the fix the message names
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=17, frame_step=8, output='SHAPE_KEYS')
