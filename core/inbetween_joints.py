@@ -27,6 +27,13 @@ child door came back bent between its hinge's pins and its composed motion: 0.12
 off at 0.5, edges 4 % off, 0.24 and 60 % at × 2; now exact. Such pieces are joined to a world
 node before any joint in the spanning tree, which is traversed from it first: they are roots, and
 other pieces may hang from them.
+
+Pieces that each turn about their own axis and touch in the same place in both keys (hair cards
+on their roots, meshing gears on their axles without a vertex there) move along their own screws,
+which are their motions: their relative motion turns about their contact too (the pitch point of
+two gears), and composed on it a card or gear left its root or axle. They are told from a joint
+by their contact, which a joint's moving parent carries between the keys and which their own
+screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`).
 """
 
 from __future__ import annotations
@@ -42,6 +49,15 @@ from . import deformation_fields as df
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
 JOINT_REACH = 1.0
+#: Two touching pieces are not jointed where the contact stays put in the world between the keys
+#: (its closest point moves by at most this share of how far either piece's motion carries it)...
+CONTACT_CARRIED = 0.5
+#: ... and their own screw motions keep them in contact at these factors (Exaggerate's 2 and −1,
+#: their in-betweens at 0.5; the farthest first, which parts most pairs that part)...
+OWN_SCREW_FACTORS = (2.0, -1.0, 0.5)
+#: ... to within this share of the finer piece's mean edge length of how close they are in the
+#: keys (the closer of the two).
+OWN_CONTACT_SLACK = 0.3
 
 
 def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
@@ -102,6 +118,19 @@ def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, r
     return key, index[pairs[order]].reshape(-1, 2), np.flatnonzero(np.diff(key, prepend=-1))  # keys are >= 0
 
 
+def _closest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
+    at positions ``x`` and their midpoint."""
+    nearest = _nearest(x, ends, first)
+    if not first.size:
+        return nearest, np.zeros((0, 3))
+    gap = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1)
+    counts = np.diff(np.r_[first, len(ends)])
+    # each run's first pair at its least distance (a reduction: sorting the pairs cost more than the rest)
+    closest = np.minimum.reduceat(np.where(gap == np.repeat(nearest, counts), np.arange(len(ends)), len(ends)), first)
+    return nearest, 0.5 * (x[ends[closest, 0]] + x[ends[closest, 1]])
+
+
 def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
     """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
     at positions ``x``."""
@@ -110,9 +139,40 @@ def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
     return np.minimum.reduceat(np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1), first)
 
 
+def _nearest_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
+                   asked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces ``keys`` (as :func:`_touching` names them), the distance of its closest two
+    vertices ``index`` at positions ``x`` where it is ``asked`` (bool) and they are within ``reach``,
+    else inf (only the asked pairs' pieces searched), and their midpoint (nan where none)."""
+    kept = np.isin(label, np.divmod(keys[asked], count))
+    found, ends, first = _touching(x, index[kept], label[kept], count, reach)
+    nearest, where = np.full(keys.size, np.inf), np.full((keys.size, 3), np.nan)
+    _, here, there = np.intersect1d(keys, found[first], assume_unique=True, return_indices=True)
+    distance, midpoint = _closest(x, ends, first)
+    nearest[here], where[here] = distance[there], midpoint[there]
+    return np.where(asked, nearest, np.inf), where
+
+
+def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: np.ndarray,
+                    relative: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Per pair, a bound on how far its ``relative`` rigid motion (rotations (P, 3, 3), translations
+    (P, 3)) moves the vertices at ``x`` of its ``child`` piece (vertices ``index`` in runs per piece,
+    ``label``): the move of the piece's centroid plus its radius times the chord ``2 sin(θ/2)`` of
+    the turn by θ."""
+    counts = np.bincount(label)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    centres = np.add.reduceat(x[index], starts) / counts[:, None]
+    radii = np.sqrt(np.maximum.reduceat(np.sum((x[index] - centres[label]) ** 2, axis=1), starts))
+    rotations, translations = relative
+    centre = centres[child]
+    shift = np.linalg.norm(np.einsum("pab,pb->pa", rotations, centre) + translations - centre, axis=1)
+    chord = np.linalg.norm(rotations - np.eye(3), axis=(1, 2)) / np.sqrt(2.0)  # ‖R − I‖_F = 2√2 sin(θ/2)
+    return shift + chord * radii[child]
+
+
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
                moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None,
-               edges: np.ndarray | None = None):
+               edges: np.ndarray | None = None, screws: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -129,7 +189,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     the module's note); ``edges``: each piece's mean edge length (C,), two pieces touching only where
     their nearest vertices are within the finer one's, in both keys (a lash 0.057 from a ball, both of edges about
     0.04, was the ball's joint where a coarse body elsewhere made the mesh's mean edge 0.080, and
-    moved with the ball's turn: 2.8e-2 of the diagonal off its own at ×2)."""
+    moved with the ball's turn: 2.8e-2 of the diagonal off its own at ×2); ``screws``: the pieces'
+    own screw coordinates from ``base`` to ``nxt`` (C, 6), without which pieces that turn about
+    their own axes touching in the same place are jointed too."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -145,10 +207,10 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     rotations, translations = motions[0][pieces], motions[1][pieces]
     u, v = np.divmod(key[first], pieces.size)
     inverse = np.transpose(rotations[u], (0, 2, 1))  # v's motion relative to u's (relative_motion, every pair)
+    relative = inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u])
     contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
     offsets = joint_offsets(contact, np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size])), first,
-                            inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u]),
-                            reach)
+                            *relative, reach)
     jointed = offsets <= reach
     # touching within the finer piece's edges, and in the next key too: a joint keeps its pieces
     # together (cubes of a shattered block that touch in the base key and have flown apart in the
@@ -156,12 +218,50 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     finer = reach if edges is None else np.minimum(reach, JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]]))
     jointed &= _nearest(base, ends, first) <= finer
     if jointed.any():
-        kept = np.isin(label, np.r_[u[jointed], v[jointed]])
-        later, later_ends, later_first = _touching(nxt, index[kept], label[kept], pieces.size, reach)
-        nearest_later = np.full(first.size, np.inf)
-        _, here, there = np.intersect1d(key[first], later[later_first], assume_unique=True, return_indices=True)
-        nearest_later[here] = _nearest(nxt, later_ends, later_first)[there]
+        nearest_later, contact_later = _nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
         jointed &= nearest_later <= finer
+    if jointed.any() and screws is not None:
+        # no joint where the pieces turn about their own axes, touching in the same place: their own
+        # screws are then their motions (hair cards turning about their roots, meshing gears about
+        # their axles: composed on a neighbour's motion, gears left their axles by 0.2 of the
+        # diagonal at ×2 and turned the long way round at 60° a key, 0.8 off). A joint stays where
+        # - the pieces move as one (their relative motion moves no vertex of the child farther than
+        #   their contact's reach): the parent's motion is the child's, where their own screws,
+        #   each splined in its own frame, part a little (an eye left a turning head by 0.055);
+        # - either turns a half turn, whose way round its own screw does not tell: the joint's
+        #   relative turn tells it, or warns that nothing does (a crank keyed every 180°);
+        # - the contact moves with the pieces between the keys (a joint carried by a moving
+        #   parent; a gear's teeth roll through the same place);
+        # - their own screws part them (OWN_SCREW_FACTORS): anywhere beyond how close they are in
+        #   the keys, or where the same two vertices touch in both keys, those two (the links of an
+        #   arm folded onto each other stay close along their own screws where their joint parts)
+        together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
+        half = df.either_way(np.linalg.norm(screws[pieces, :3], axis=1), df.TURN_SPREAD)
+        together &= ~(half[u] | half[v])
+        nearest_base, contact_base = _closest(base, ends, first)
+        carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
+                                              - contact_base, axis=1) for k in (u, v)))
+        together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
+        if together.any():
+            slack = OWN_CONTACT_SLACK * finer
+            kept = np.minimum(nearest_base, nearest_later) + slack
+            run = np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size]))
+            apart = np.maximum(np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1),
+                               np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1))
+            same = apart <= slack[run]  # the vertex pairs (nearly) shared in both keys
+            position = np.empty(len(base), dtype=np.intp)
+            position[index] = np.arange(index.size)
+        for s in OWN_SCREW_FACTORS:
+            if not together.any():
+                break
+            rotations_s, translations_s = df.rigid_exps(s * screws[pieces])
+            moved = np.einsum("kab,kb->ka", rotations_s[label], base[index]) + translations_s[label]
+            together &= _nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
+                                       key[first], together)[0] <= kept
+            parted = same & (np.linalg.norm(moved[position[ends[:, 0]]] - moved[position[ends[:, 1]]], axis=1)
+                             > apart + finer[run])
+            together &= np.bincount(run[parted], minlength=first.size) == 0
+        jointed &= ~together
     if not jointed.any():
         return None
     # the closest the touching vertices stay at the next key: 0 where a joint is a shared point

@@ -185,7 +185,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                                       minlength=len(topo.components)) / (3 * topo.piece_sizes)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
-                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held, piece_edges)
+                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held, piece_edges,
+                                     relatives[2].screw)
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],
