@@ -416,7 +416,7 @@ def frames_outside_cache(scene: bpy.types.Scene, obj: bpy.types.Object, frames: 
                 continue
             try:
                 samples, _points, times = mesh_cache_header(modifier)
-            except MeshError:  # refused where the frames are read (operators.output.unfit_mesh_cache)
+            except MeshError:  # refused where the frames are read (operators.motion_sources.unfit_mesh_cache)
                 continue
             if samples == 0:
                 continue
@@ -745,7 +745,7 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     simulations that are not baked still advance one frame at a time; without it only ``frames``
     are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
     ``set_aside``: modifiers of ``obj`` switched off in the viewport while the frames are read
-    (the generators after the motion, :func:`operators.output.modifiers_set_aside`). Raises
+    (the generators after the motion, :func:`operators.motion_sources.modifiers_set_aside`). Raises
     :class:`NotEvaluated` for an object the depsgraph leaves out (disabled in viewports) and
     :class:`CacheFileMissing` for one whose cache modifier's file is gone, before anything is
     changed, and :class:`VertexCountChanged` for a frame whose mesh has other vertices.

@@ -57,7 +57,8 @@ if str(ROOT) not in sys.path:
 
 from benchmarks.cloth_scenes import SCENES, load_scene  # noqa: E402
 from core.errors import ShapeDifferenceWarning  # noqa: E402
-from core.interpolation import Interpolator, SequenceInterpolator  # noqa: E402
+from core.sequence_inbetweens import SequenceInterpolator  # noqa: E402
+from core.two_pose_inbetweens import Interpolator  # noqa: E402
 
 QUICK_SCENES = ["drape_sphere", "fall_box", "tablecloth"]
 LARGE_SCENES = ["drape_sphere_hd", "tablecloth", "sheet_cube_50k", "sheet_cube_100k", "hang_10k", "flag_soft_10k",
@@ -248,7 +249,7 @@ import sys, warnings
 sys.path.insert(0, {str(ROOT)!r})
 import numpy as np
 from benchmarks.cloth_scenes import load_scene
-from core.interpolation import SequenceInterpolator
+from core.sequence_inbetweens import SequenceInterpolator
 from benchmarks.bench_inbetween import _poses
 scene = load_scene({name!r})
 keys = np.ascontiguousarray(scene.frames[::{gap}]); triangles = scene.triangles
@@ -277,7 +278,7 @@ def analytic_sheet_memory(side: int = 317, n_keys: int = 6, gap: int = 16) -> tu
 import sys, time, warnings
 sys.path.insert(0, {str(ROOT)!r})
 import numpy as np
-from core.interpolation import SequenceInterpolator
+from core.sequence_inbetweens import SequenceInterpolator
 def peak():
     for line in open("/proc/self/status"):
         if line.startswith("VmHWM:"):

@@ -303,7 +303,7 @@ def interpolate(
     the mesh of ``vertices_a`` (:class:`Transfer`, ``k_M`` / ``k_N``, ``correspondence`` and
     ``target_rest_vertices`` as in :func:`shape_differences`; intrinsic, its default), then
     in-betweened in the full basis (``use_extrinsic`` applies to the in-between)."""
-    from .interpolation import Interpolator
+    from .two_pose_inbetweens import Interpolator
 
     factor = check_factor(factor)
     if target_triangles is not None:
@@ -335,8 +335,8 @@ def __getattr__(name: str):
         from .transfer import Transfer
 
         return Transfer
-    if name in ("Interpolator", "SequenceInterpolator"):
-        from . import interpolation
+    if name == "Interpolator":  # SequenceInterpolator is made above
+        from .two_pose_inbetweens import Interpolator
 
-        return getattr(interpolation, name)
+        return Interpolator
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import deformation_fields as df
+from . import screw_motions
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, per_factor
 from .inbetween_topology import GAUGE_WEIGHT
@@ -159,7 +159,7 @@ class Anchor:
                 if self.static is not None:  # still in both keys: held there as firmly as in sequences
                     weights = self.pinned_weights(weights)
                     co_moving = co_moving & ~self.static
-                # by value: the two fits of an Interpolator (core.interpolation) share their topology
+                # by value: the two fits of an Interpolator (core.two_pose_inbetweens) share their topology
                 # and mostly their weights, and then one factorization
                 key = ("anchored", weights.tobytes())
             else:  # sequences: one pattern for the whole sequence, factorized once
@@ -284,7 +284,7 @@ class Anchor:
         puts it at factor ``s`` (in place; returned). The motions are computed once per factor (a
         pose's guide, its pins' prediction and its finish ask for the same)."""
         base = self.base.vertices
-        rotations, translations = per_factor(self._riding_motions, s, lambda f: df.rigid_exps(self.riding_screws.at(f)))
+        rotations, translations = per_factor(self._riding_motions, s, lambda f: screw_motions.rigid_exps(self.riding_screws.at(f)))
         for rows, rotation, translation in zip(self.riding, rotations, translations):
             x[rows] = base[rows] @ rotation.T + translation
         return x

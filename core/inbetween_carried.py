@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import deformation_fields as df
+from . import screw_motions
 from .geometry import nearest_rotations
 from .inbetween_joints import JOINT_REACH, joint_offset, relative_motion
 from .rigid_alignment import rigid_alignments
@@ -139,7 +140,7 @@ class CarriedPieces:
         # each piece's own motion after its carriers' undone: applied in part at each factor
         inverse = np.transpose(seat_rotations, (0, 2, 1))
         relative = (inverse @ own[0][index], np.einsum("pab,pb->pa", inverse, own[1][index] - seat_translations))
-        screws = df.rigid_logs(*relative)
+        screws = screw_motions.rigid_logs(*relative)
         self.pieces = [(groups[k], carriers, screw) for (k, carriers, _), screw in zip(kept, screws)]
         rows, carriers, screws = zip(*self.pieces)  # concatenated for place(): vertices, carriers, base fit
         self._rows = np.concatenate(rows)
@@ -260,7 +261,7 @@ class CarriedPieces:
         if not np.isfinite(x[self._carriers]).all():
             return x  # a failed solve: reported as it is
         translations, rotations, _, _ = self._seat_similarities(x)
-        residual_rotations, residual_translations = df.rigid_exps(s * self._screws)
+        residual_rotations, residual_translations = screw_motions.rigid_exps(s * self._screws)
         total = rotations @ residual_rotations
         shift = np.einsum("pij,pj->pi", rotations, residual_translations) + translations
         rows, piece = self._rows[self._rigid_rows], self._row_piece[self._rigid_rows]

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import deformation_fields as df
+from . import screw_motions
 from .inbetween_keys import turn_spread
 from .splines import REST_START_LIMIT
 
@@ -98,7 +99,7 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     """The rigid pieces of a sequence's gap turned about the point of theirs whose path the keys
     say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
     rigid motion from the gap's base key to its next, to 1e-6 or what their fits are known to:
-    ``nonrigidity`` (C,) as :data:`~core.deformation_fields.TURN_NOISE` says) or −1, and each
+    ``nonrigidity`` (C,) as :data:`~core.screw_motions.TURN_NOISE` says) or −1, and each
     group's point in the base key; None where no piece has a key before or after the gap to tell.
 
     A rigid piece's screw motion (:meth:`~core.inbetween_motion.PieceMotion.motion`) turns it about
@@ -178,7 +179,7 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     # within their fits' spread left out (a noisy half turn's axis: 1e-5 there sent the point 1e6 off)
     group_spread = np.zeros(count)
     np.maximum.at(group_spread, group, spread)
-    move = df.least_squares_3x3(a, -residual, np.maximum(df.SCREW_CUTOFF, group_spread))
+    move = screw_motions.least_squares_3x3(a, -residual, np.maximum(screw_motions.SCREW_CUTOFF, group_spread))
     point = centroid + move
     simple = (np.linalg.norm(move, axis=1) <= reach) & (
         np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)

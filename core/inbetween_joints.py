@@ -45,6 +45,8 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import minimum_spanning_tree
 
 from . import deformation_fields as df
+from . import rotation_continuity
+from . import screw_motions
 
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
@@ -94,7 +96,7 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     axis = turn / np.where(angle > 0, angle, 1.0)[:, None]
     slide = np.einsum("pa,pa->p", translations, axis)
     hinged = ~held & (angle >= 1e-9) & (np.abs(slide) <= reach)
-    pivot = df.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)  # a point of the axis
+    pivot = screw_motions.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)  # a point of the axis
     counts = np.diff(np.r_[starts, len(contact)])
     centre = np.add.reduceat(contact, starts) / counts[:, None]
     radius = np.maximum.reduceat(np.linalg.norm(contact - centre[pair], axis=1), starts)
@@ -236,7 +238,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   the keys, or where the same two vertices touch in both keys, those two (the links of an
         #   arm folded onto each other stay close along their own screws where their joint parts)
         together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
-        half = df.either_way(np.linalg.norm(screws[pieces, :3], axis=1), df.TURN_SPREAD)
+        half = rotation_continuity.either_way(np.linalg.norm(screws[pieces, :3], axis=1), screw_motions.TURN_SPREAD)
         together &= ~(half[u] | half[v])
         nearest_base, contact_base = _closest(base, ends, first)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
@@ -254,7 +256,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         for s in OWN_SCREW_FACTORS:
             if not together.any():
                 break
-            rotations_s, translations_s = df.rigid_exps(s * screws[pieces])
+            rotations_s, translations_s = screw_motions.rigid_exps(s * screws[pieces])
             moved = np.einsum("kab,kb->ka", rotations_s[label], base[index]) + translations_s[label]
             together &= _nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
                                        key[first], together)[0] <= kept
@@ -306,24 +308,24 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
 def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list | None = None) -> list:
     """Per key (the gap's relatives' ``screws``, (C, 6) each, key times −1, 0, 1, 2), each jointed
     piece's screw coordinates relative to its parent's motion (rows of roots and unjointed pieces
-    unchanged), as the pieces' own (:func:`core.deformation_fields.key_screws`). Where ``phantom`` says
+    unchanged), as the pieces' own (:func:`core.screw_motions.key_screws`). Where ``phantom`` says
     the key before or after is a sequence's end condition (extrapolated screws), the relative
     screws are extrapolated the same way (linearly) instead of taken from the extrapolated ones.
     ``motions``: per key, the pieces' rigid motions (rotations (C, 3, 3), translations (C, 3)) where
     known, else None (then those of ``screws``: a whole turn's screw does not hold a translation
-    across its axis, see :func:`core.deformation_fields.rigid_log`)."""
+    across its axis, see :func:`core.screw_motions.rigid_log`)."""
     children = np.flatnonzero(parents >= 0)
     motions = [None] * len(screws) if motions is None else motions
 
     def local(k):  # each child's rigid motion relative to its parent's at key k (relative_motion, every child at once)
-        rotations, translations = df.rigid_exps(screws[k]) if motions[k] is None else motions[k]
+        rotations, translations = screw_motions.rigid_exps(screws[k]) if motions[k] is None else motions[k]
         inverse = np.transpose(rotations[parents[children]], (0, 2, 1))
         return (inverse @ rotations[children],
                 np.einsum("cab,cb->ca", inverse, translations[children] - translations[parents[children]]))
 
     out = [screw.copy() for screw in screws]  # roots and unjointed pieces: their own
     if children.size:
-        before, start, onward, after = df.key_screws([local(k) for k in range(4)], not phantom[3])
+        before, start, onward, after = screw_motions.key_screws([local(k) for k in range(4)], not phantom[3])
         if phantom[0]:
             before = 2.0 * start - onward
         if phantom[3]:

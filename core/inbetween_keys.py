@@ -13,6 +13,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import deformation_fields as df
+from . import rotation_continuity
+from . import screw_motions
+from . import small_matrices
 from .geometry import coordinate_dot, grouped_medians
 from .rigid_alignment import pivoted_alignment, rigid_alignment, rigid_alignments
 
@@ -35,8 +38,8 @@ if TYPE_CHECKING:
 #: the dragged cloth's 21°); numbers in docs/inbetweens.md.
 SPURIOUS_RIGID_TURN = np.pi / 6
 #: A sequence's piece that bends without a crease (no two neighbouring triangles' whole rotations
-#: between the keys more than :data:`~core.deformation_fields.WRAP_CREASE` apart: a limb of one
-#: skin, not cloth) where over :data:`core.interpolation.TURNED_PART_SHARE` of its area turns past
+#: between the keys more than :data:`~core.rotation_continuity.WRAP_CREASE` apart: a limb of one
+#: skin, not cloth) where over :data:`core.sequence_inbetweens.TURNED_PART_SHARE` of its area turns past
 #: this angle (radians) from the rest of it per gap is treated as one turning past a half turn
 #: (:meth:`_Relative.turning`): the keys' per-vertex spline cuts the chord of its curl already.
 #: A thin arm bent 70 / 80 / 90° per key at two joints (its tip 140–180° per gap, 42–52 % of its
@@ -100,17 +103,17 @@ class _Relative:
             self.whole_tells = bool(whole_tells(turns[0]))
         self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
         # the triangles' rotations as images of the base frames, with their component's rotation undone
-        frames = df.turned_coordinate_rows(plane, df.transpose(rotations), topo.triangle_component)
+        frames = df.turned_coordinate_rows(plane, small_matrices.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
         # two poses (``across``: the mesh's triangle pairs sharing an edge): taken continuous across
         # the mesh, so that a part turning past a half turn from the rest turns on the same way; a
         # sequence's neighbouring keys tell the way instead (continue_turns) but in the pieces where
-        # a part turns past a half turn (core.interpolation.TURNED_PART_SHARE): taken across the
+        # a part turns past a half turn (core.sequence_inbetweens.TURNED_PART_SHARE): taken across the
         # whole mesh, a flag whipping in wind (keys 16 frames apart) jumped 2.58 → 5.45 × the simulation
         self._across = across
         if across is not None:  # the part that stays is the one whose whole rotation is least
-            self.rotvec = df.continuous_rotation_vectors(self.rotvec, across, topo.triangle_component,
-                                                         partial(_rotation_angles, plane, base.column_rows))
+            self.rotvec = rotation_continuity.continuous_rotation_vectors(self.rotvec, across, topo.triangle_component,
+                                                                          partial(_rotation_angles, plane, base.column_rows))
         if not unwrap:  # a key ahead of its gap's base: residuals_add_turn or whole_rotations reads them next
             self._plane_frames = plane
         if log_stretch is None:
@@ -126,7 +129,7 @@ class _Relative:
     #: The triangle pairs across which the rotations are taken continuous (two poses), or None.
     _across = None
     #: Per component (bool (C,)), whether its half turn's way round is not told by the keys
-    #: (set by ``core.interpolation.SequenceInterpolator._turning_on``).
+    #: (set by ``core.sequence_inbetweens.SequenceInterpolator._turning_on``).
     untold_half_turn = np.zeros(0, dtype=bool)
     #: Whether the whole mesh's turn from the base key, which the pieces' half turns take the way
     #: of, has a way round itself (:func:`whole_tells`).
@@ -188,10 +191,10 @@ class _Relative:
                 free: np.ndarray | None = None) -> tuple:
         """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
-        (E, 2): the triangles sharing an edge; see :data:`core.interpolation.TURNED_PART_SHARE`):
+        (E, 2): the triangles sharing an edge; see :data:`core.sequence_inbetweens.TURNED_PART_SHARE`):
         where the triangles' whole rotations taken continuous across the mesh turn by over π more
         than the least-turned triangle of the piece — but for a piece with a jump past a half turn
-        at a crease (:data:`core.deformation_fields.WRAP_CREASE`) — or, in a piece that bends
+        at a crease (:data:`core.rotation_continuity.WRAP_CREASE`) — or, in a piece that bends
         without a crease (no two neighbours' rotations more than ``WRAP_CREASE`` apart), by over
         :data:`BENT_TURN`. Read before :meth:`residuals_add_turn`, which lets the constructor's
         frames go. Also the triangles (bool (m,)) of those pieces that turn less than
@@ -218,14 +221,14 @@ class _Relative:
             return np.bincount(pieces[turned], base.areas[turned], minlength=count) / area > share
 
         def with_crease(candidates: np.ndarray) -> np.ndarray:
-            creased = df.creased(whole, candidates, df.WRAP_CREASE)
+            creased = rotation_continuity.creased(whole, candidates, rotation_continuity.WRAP_CREASE)
             return np.bincount(pieces[candidates[creased, 0]], minlength=count) > 0
 
         past = over_share(beyond > np.pi)
         folded = np.zeros(count, dtype=bool)
         if past.any():  # ... with a jump at a crease
             inside = pairs[past[pieces[pairs[:, 0]]]]
-            folded = with_crease(inside[df.jumping_pairs(whole, inside)])
+            folded = with_crease(inside[rotation_continuity.jumping_pairs(whole, inside)])
         out = past & ~folded
         bent = over_share(beyond > BENT_TURN) & ~past
         if bent.any():  # ... those without a crease
@@ -237,11 +240,11 @@ class _Relative:
         contested = np.zeros(count, dtype=bool)
         held_only, still = np.full(count, -1), None
         if out.any():
-            nearest = df.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base),
-                                                     free=out[pieces])
+            nearest = rotation_continuity.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base),
+                                                                      free=out[pieces])
             other = over_share(np.sqrt(np.einsum("ij,ij->i", nearest - continued, nearest - continued)) > np.pi)
             amount = np.sqrt(np.einsum("ij,ij->i", whole, whole))
-            step = df.turn_steps(amount, pairs[~df.jumping_pairs(whole, pairs)])
+            step = rotation_continuity.turn_steps(amount, pairs[~rotation_continuity.jumping_pairs(whole, pairs)])
             stays = np.full(count, -1)
             order = np.lexsort((angles, pieces))
             first = np.r_[True, pieces[order][1:] != pieces[order][:-1]]
@@ -251,7 +254,7 @@ class _Relative:
             held[stays >= 0] = still[stays[stays >= 0]]
             contested = out & other & ~held
             held_only = np.where(out & other & held, stays, -1)
-        return out, out[pieces] & (beyond < df.WRAP_CREASE), folded, continued, contested, held_only, still
+        return out, out[pieces] & (beyond < rotation_continuity.WRAP_CREASE), folded, continued, contested, held_only, still
 
     def continued_turns(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray,
                         free: np.ndarray | None = None) -> tuple:
@@ -260,17 +263,17 @@ class _Relative:
         triangle pairs ``pairs`` (E, 2) from each piece's part that stays (the reading of which way
         round a part turns, :meth:`turning`), or, on the triangles ``free`` (bool (m,) or None),
         from the part nearest the rigid motion's turn
-        (:func:`core.deformation_fields.continuous_rotation_vectors`)."""
+        (:func:`core.rotation_continuity.continuous_rotation_vectors`)."""
         whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
-        continued = df.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
-                                                   toward=self._rigid_turns(topo, base), free=free)
+        continued = rotation_continuity.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
+                                                                    toward=self._rigid_turns(topo, base), free=free)
         return whole, continued
 
     def _rigid_turns(self, topo: _Topology, base: _Key) -> tuple:
         """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
         sequence reads it) and the triangles' areas in ``base``: what the whole rotations taken
         continuous across a piece turn nearest (``toward`` of
-        :func:`core.deformation_fields.continuous_rotation_vectors`)."""
+        :func:`core.rotation_continuity.continuous_rotation_vectors`)."""
         return self.screw[topo.triangle_component, :3], base.areas
 
     def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
@@ -297,8 +300,8 @@ class _Relative:
         out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
         across = self._across if across is None else across
         if across is not None:
-            out.rotvec = df.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
-                                                        toward=self._rigid_turns(topo, base), free=free)
+            out.rotvec = rotation_continuity.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
+                                                                         toward=self._rigid_turns(topo, base), free=free)
         out.whole = components
         return out
 
@@ -312,7 +315,7 @@ class _Relative:
         (unwrapped)."""
         out = _Relative.__new__(_Relative)
         rotations, translations = self.motion
-        inverse_rotations = df.transpose(rotations)
+        inverse_rotations = small_matrices.transpose(rotations)
         inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
         out.screw = component_screws(inverse_rotations, inverse_translations, turns, True, self.nonrigidity)
         out.misfits = list(self.misfits)
@@ -335,8 +338,8 @@ class _Relative:
         screws a spline takes for this key two steps on (:attr:`continued_screw`)."""
         self.screw = component_screws(*self.motion, turns, True, self.nonrigidity)
         if nxt is not None:
-            self._continued = df.continued_screws(nxt.screw, nxt.motion, self.motion,
-                                                  turn_spread(np.maximum(self.nonrigidity, nxt.nonrigidity)))
+            self._continued = screw_motions.continued_screws(nxt.screw, nxt.motion, self.motion,
+                                                             turn_spread(np.maximum(self.nonrigidity, nxt.nonrigidity)))
         return self.continue_turns(rotvec)
 
     _continued = None
@@ -344,14 +347,14 @@ class _Relative:
     @property
     def continued_screw(self) -> np.ndarray:
         """Screw coordinates (C, 6) a Catmull–Rom spline takes for this key when it is two steps
-        on (:func:`core.deformation_fields.continued_screws`, set by :meth:`unwrap`), else ``screw``."""
+        on (:func:`core.screw_motions.continued_screws`, set by :meth:`unwrap`), else ``screw``."""
         return self.screw if self._continued is None else self._continued
 
     def continue_turns(self, rotvec: np.ndarray) -> "_Relative":
         """This relative with each triangle's rotation vector the representative nearest its row
         of ``rotvec`` (m, 3) (the continuation of a neighbouring key's: a triangle turning past a
         half turn between keys keeps turning the same way)."""
-        self.rotvec = df.unwrapped_rotation_vectors(self.rotvec, rotvec)
+        self.rotvec = rotation_continuity.unwrapped_rotation_vectors(self.rotvec, rotvec)
         return self
 
     @classmethod
@@ -475,25 +478,25 @@ def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
 def component_screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool,
                      nonrigidity) -> np.ndarray:
     """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
-    vector taken nearest its ``turns`` row (see :func:`core.deformation_fields.rigid_logs`), to
+    vector taken nearest its ``turns`` row (see :func:`core.screw_motions.rigid_logs`), to
     within what the components' ``nonrigidity`` (C,) says their fits are known to."""
-    return df.rigid_logs(rotations, translations, turns, unwrap, turn_spread(nonrigidity))
+    return screw_motions.rigid_logs(rotations, translations, turns, unwrap, turn_spread(nonrigidity))
 
 
 def whole_tells(turn: np.ndarray) -> bool:
     """Whether a whole mesh's rotation vector ``turn`` (3,) has a way round to give its pieces'
-    half turns: neither a turn within :data:`~core.deformation_fields.TURN_SPREAD` (the coarsest a
+    half turns: neither a turn within :data:`~core.screw_motions.TURN_SPREAD` (the coarsest a
     fit is taken to be known) of none, whose axis may be rounding (an engine's fixed block and its
     crank turning 180°: the whole mesh's turn is 1e-7 rad), nor itself a half turn as short either
     way round within it (a mesh of one piece: its own turn)."""
     theta = float(np.linalg.norm(turn))
-    return theta > df.TURN_SPREAD and not df.either_way(theta, df.TURN_SPREAD)
+    return theta > screw_motions.TURN_SPREAD and not rotation_continuity.either_way(theta, screw_motions.TURN_SPREAD)
 
 
 def turn_spread(nonrigidity) -> np.ndarray:
     """The angles (radians, (C,)) the components' rotations are known to, from their
-    ``nonrigidity`` (C,) (see :data:`core.deformation_fields.TURN_NOISE`)."""
-    return np.minimum(df.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), df.TURN_SPREAD)
+    ``nonrigidity`` (C,) (see :data:`core.screw_motions.TURN_NOISE`)."""
+    return np.minimum(screw_motions.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), screw_motions.TURN_SPREAD)
 
 
 def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

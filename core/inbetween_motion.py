@@ -13,6 +13,7 @@ from functools import cached_property
 import numpy as np
 
 from . import deformation_fields as df
+from . import screw_motions
 from .inbetween_joints import composed
 
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
@@ -86,7 +87,7 @@ class PieceMotion:
         return known[0].copy(), known[1].copy()
 
     def _motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
-        motion = df.rigid_exps(self.splines["screw"].at(s))
+        motion = screw_motions.rigid_exps(self.splines["screw"].at(s))
         if self.flying is not None:  # turned about each group's point, which follows its spline
             labels, points = self.flying
             rotations, translations = motion
@@ -95,7 +96,7 @@ class PieceMotion:
                 "cab,cb->ca", rotations[rows], points[labels[rows]])
         if self.joints is None:
             return motion
-        return composed(*self.joints, *motion, df.rigid_exps(self.splines["joint_screw"].at(s)))
+        return composed(*self.joints, *motion, screw_motions.rigid_exps(self.splines["joint_screw"].at(s)))
 
     def place(self, x: np.ndarray, s: float, motion, partly: bool = False) -> np.ndarray:
         """Components without anchored vertices moved to their interpolated centroid (see
@@ -189,9 +190,9 @@ class PieceMotion:
         residual = scale[owner][:, None] * turned - o
         misfit = np.sqrt(topo.component_sums(np.einsum("ij,ij->i", residual, residual)) / topo.component_mass)
         rotvec = np.asarray(nxt.screw)[:, :3] if len(np.shape(nxt.screw)) == 2 else df.rotation_vectors(rotations)
-        rotated = np.einsum("cab,cb->ca", df.rigid_exps(np.c_[rotvec, np.zeros((count, 3))])[0], c0)
+        rotated = np.einsum("cab,cb->ca", screw_motions.rigid_exps(np.c_[rotvec, np.zeros((count, 3))])[0], c0)
         similarity = (rotvec, np.log(scale), c1 - scale[:, None] * rotated)
-        half, ok = df.similarity_paths(*similarity, c0, 0.5)
+        half, ok = screw_motions.similarity_paths(*similarity, c0, 0.5)
         departure = np.linalg.norm(half - self.splines["centroids"].at(0.5), axis=1)
         ratio = ARC_PLACEMENT_MISFIT * misfit / np.maximum(departure, np.finfo(float).tiny)
         # ... and only pieces nearly similar in shape: the departure grows with how far a piece
@@ -240,8 +241,8 @@ class PieceMotion:
 
     def similarity_path(self, s: float) -> np.ndarray:
         """Each component's centroid (C, 3) at factor ``s`` along its best similarity between the
-        keys (:attr:`similar_placement`; :func:`core.deformation_fields.similarity_paths`)."""
-        return df.similarity_paths(*self.similar_placement[1], self.base.centroids, s)[0]
+        keys (:attr:`similar_placement`; :func:`core.screw_motions.similarity_paths`)."""
+        return screw_motions.similarity_paths(*self.similar_placement[1], self.base.centroids, s)[0]
 
 
 def seat_candidates(topo, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

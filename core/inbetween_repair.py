@@ -44,6 +44,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from . import deformation_fields as df
+from . import screw_motions
 from .geometry import coordinate_cross, coordinate_dot
 from .inbetween_fit import LOCAL_STEP_DTYPE, MAX_ROTATION_DEVIATION, METRIC_TOLERANCE
 
@@ -377,7 +378,7 @@ class Repair:
     def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
                 looser=None) -> tuple[np.ndarray, str | None]:
         """:meth:`outcome`'s pose and message; the rest of it is kept in the gap's ``outcomes[s]``
-        (two poses choose between their fits by it: ``core.interpolation.Interpolator.pose``)."""
+        (two poses choose between their fits by it: ``core.two_pose_inbetweens.Interpolator.pose``)."""
         x, message, count, near_blend = self.outcome(x, x0, s, frames, stretch, guide, motion, rings, defects,
                                                      looser)
         self.gap.outcomes[s] = Outcome(count, near_blend)
@@ -543,7 +544,7 @@ class Repair:
         computed once per gap."""
         if index not in self._keys:
             key = self.gap.relatives[index]
-            rotations = df.rigid_exps(key.screw)[0]
+            rotations = screw_motions.rigid_exps(key.screw)[0]
             # the images of t1 and t2 only (all a fit reads), contiguous: the rounds gather their rows
             self._keys[index] = (np.ascontiguousarray(self.gap.key_frames(key.rotvec, rotations, columns=2)),
                                  df.exp_stretch(key.log_stretch))

@@ -20,7 +20,7 @@ the anchor and the reconstruction of a pose at any factor.
 - :mod:`core.inbetween_repair`: checks and repairs; :mod:`core.inbetween_carried`: rigid pieces
   that deforming ones carry; :mod:`core.inbetween_joints`: jointed rigid pieces.
 
-The public classes live in :mod:`core.interpolation`.
+The public classes live in :mod:`core.sequence_inbetweens` and :mod:`core.two_pose_inbetweens`.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import deformation_fields as df
+from . import screw_motions
 from .inbetween_anchor import Anchor
 from .inbetween_carried import CarriedPieces
 from .inbetween_field import InterpolatedField, _log_stretch_spline, _Splines
@@ -78,7 +78,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     folded_turn = False
     #: Whether a part of a piece turns past a half turn from the rest between the keys and the way
     #: round read from them and from a neighbouring gap's keys disagree
-    #: (:meth:`core.interpolation.SequenceInterpolator._unsure`), or its part that stays is not
+    #: (:meth:`core.sequence_inbetweens.SequenceInterpolator._unsure`), or its part that stays is not
     #: held still and its rigid turn reads it the other way round (``_Relative.turning``): the gap warns.
     unsure_turn = False
     #: How many pieces turn a half turn between the keys, as short either way round, with nothing
@@ -168,8 +168,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.riding_tolerance = riding_tolerance
         self.hooked = hooked  # two poses: the sets translating rigidly between them (HOOK_MISS_NOTED)
         if riding is not None:
-            screws = df.key_screws([riding_motions(base.vertices, r.world, riding, riding_tolerance)
-                                    for r in relatives], cubic and not relatives[3].extrapolated)
+            screws = screw_motions.key_screws([riding_motions(base.vertices, r.world, riding, riding_tolerance)
+                                               for r in relatives], cubic and not relatives[3].extrapolated)
             sizes = [len(rows) for rows in riding]
             frames = principal_frames(base.vertices[np.concatenate(riding)], np.repeat(np.arange(len(riding)), sizes),
                                       len(riding), np.ones(sum(sizes))) if cubic else None

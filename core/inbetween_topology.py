@@ -11,6 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import deformation_fields as df
+from . import small_matrices
 from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
 from .sparse_cholesky import SPDFactor
 
@@ -202,13 +203,13 @@ class _Topology:
             return x.copy()
         c = self.vertex_owner
         if len(self.components) > df.SLICED_PIECES:
-            return df.matmul(rotations[c], x[:, :, None])[:, :, 0] + translations[c]
+            return small_matrices.matmul(rotations[c], x[:, :, None])[:, :, 0] + translations[c]
         out = np.empty_like(x)
         for k, rows in enumerate(self.component_rows):  # one product per piece, on a view where its rows are consecutive
             out[rows] = x[rows] @ rotations[k].T + translations[k]
         if self.loose.size:
             loose = self.loose
-            out[loose] = df.matmul(rotations[c[loose]], x[loose, :, None])[:, :, 0] + translations[c[loose]]
+            out[loose] = small_matrices.matmul(rotations[c[loose]], x[loose, :, None])[:, :, 0] + translations[c[loose]]
         return out
 
     def undo_motion(self, x: np.ndarray, rotations: np.ndarray, translations: np.ndarray) -> np.ndarray:

@@ -1,7 +1,7 @@
 """Pins: vertices a simulation holds rather than moves (Blender's pinned cloth).
 
 Two kinds are found in the keys of a sequence and held by the in-betweens
-(:class:`core.interpolation.SequenceInterpolator`) instead of being reconstructed with the cloth:
+(:class:`core.sequence_inbetweens.SequenceInterpolator`) instead of being reconstructed with the cloth:
 
 - **still** vertices (:func:`still_vertices`) sit where they are in every key (a curtain's rod, a
   flag's pole that does not move): they stay exactly where the first key has them;
@@ -10,9 +10,9 @@ Two kinds are found in the keys of a sequence and held by the in-betweens
   by edges that keep their lengths to single-precision rounding in every key, which no cloth does,
   moving as one rigid body that is only part of its piece. Each set follows the spline of its
   rigid motion (:func:`riding_motions`) through the keys as a screw, its turn continued across them
-  (:func:`core.deformation_fields.key_screws`), as the object's animation curves carry it.
+  (:func:`core.screw_motions.key_screws`), as the object's animation curves carry it.
 
-Two keys (:class:`core.interpolation.Interpolator`) tell a riding set only by a whole rigid piece of
+Two keys (:class:`core.two_pose_inbetweens.Interpolator`) tell a riding set only by a whole rigid piece of
 the mesh that moves with it (:func:`witnessed_riding`: the skin of a jaw with its teeth).
 """
 

@@ -165,7 +165,7 @@ def short_gap_keys(last_key: int, last: int) -> np.ndarray:
 
 def end_samples(keys, tail) -> tuple[int, int, int, int] | None:
     """The samples (or frames) telling how the motion reaches the last key
-    (:func:`core.interpolation.end_of_motion`), for a sequence keyed on ``keys`` whose shorter last
+    (:func:`core.motion_ends.end_of_motion`), for a sequence keyed on ``keys`` whose shorter last
     gap, if any, is keyed by its own sequence on ``tail`` (:func:`short_gap_keys`): the last three
     keys of the sequence that makes the last gap (the tail's, evenly spaced, where it has them)
     and the sample in the middle of that gap; None with fewer than three keys or a last gap
@@ -179,7 +179,7 @@ def end_samples(keys, tail) -> tuple[int, int, int, int] | None:
 
 def start_samples(keys) -> tuple | None:
     """The samples (or frames) telling how the motion leaves the first key
-    (:func:`core.interpolation.start_of_motion`), for a sequence keyed on ``keys``: the first three
+    (:func:`core.motion_ends.start_of_motion`), for a sequence keyed on ``keys``: the first three
     keys and the sample in the middle of the first gap (None where the keys are one sample apart);
     None with fewer than three keys."""
     if len(keys) < 3:
@@ -193,12 +193,12 @@ def motion_ends(samples, keys, tail, chosen=()) -> dict:
     the shorter last gap's, keyed on ``tail``), chosen from the source: ``samples[i]`` the positions
     at sample (or frame) ``i`` of :func:`start_samples` and :func:`end_samples` (an array or a
     dict), in the space the sequence interpolates. ``start`` from the middle of the first gap
-    (:func:`core.interpolation.start_of_motion`; ``"keys"`` where the keys are the source, one
-    sample apart), ``end`` from the middle of the last (:func:`core.interpolation.end_of_motion`);
+    (:func:`core.motion_ends.start_of_motion`; ``"keys"`` where the keys are the source, one
+    sample apart), ``end`` from the middle of the last (:func:`core.motion_ends.end_of_motion`);
     neither where the keys do not tell, nor those named in ``chosen`` (the caller's). MeshError where
     a middle sample is no pose of the keys' mesh (a non-finite coordinate would make both choices'
     distances NaN, and the comparison choose silently)."""
-    from .interpolation import end_of_motion, start_of_motion
+    from .motion_ends import end_of_motion, start_of_motion
     from .validation import check_vertices
 
     def middle_pose(sample, key):
@@ -223,7 +223,7 @@ def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
     (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
     motion; its last gap is the short gap."""
-    from .interpolation import SequenceInterpolator
+    from .sequence_inbetweens import SequenceInterpolator
 
     return SequenceInterpolator([np.asarray(samples[key], dtype=np.float64) for key in tail], triangles,
                                 **{**interpolator_options, "start": "keys"})
@@ -237,11 +237,11 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     :attr:`RetimePlan.samples_read` are read).
     ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``, ``smooth``, ``start``,
     ``end`` of :class:`core.SequenceInterpolator`; ``start`` by default from the middle of the first gap
-    (:func:`core.interpolation.start_of_motion`), ``end`` from the middle of the last gap
-    (:func:`core.interpolation.end_of_motion`); the shorter last gap's sequence starts inside the
+    (:func:`core.motion_ends.start_of_motion`), ``end`` from the middle of the last gap
+    (:func:`core.motion_ends.end_of_motion`); the shorter last gap's sequence starts inside the
     motion (``start="keys"``) and ends as the whole one.
     """
-    from .interpolation import SequenceInterpolator
+    from .sequence_inbetweens import SequenceInterpolator
 
     if len(samples) != plan.n_source:
         raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import deformation_fields as df
+from . import screw_motions
 
 #: The spline's tangent at the start of a gap is at most this multiple of the secant over the gap,
 #: per element (Fritsch–Carlson's monotonicity bound): the velocity a gap inherits from the
@@ -142,7 +142,7 @@ def _limited(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -
 
 class ScrewGap:
     """A :class:`HermiteGap` of bodies' screw coordinates (P, 6) splined in a frame per body
-    (``frames``: axes (P, 3, 3) and origins (P, 3), see :func:`core.deformation_fields.framed_screws`;
+    (``frames``: axes (P, 3, 3) and origins (P, 3), see :func:`core.screw_motions.framed_screws`;
     :func:`core.rigid_alignment.principal_frames` gives ones that turn and move with the bodies),
     evaluated in world coordinates. Its tangents are limited per element: in world coordinates
     those limits depend on the world's axes and origin, and a scene turned by a general rotation
@@ -154,10 +154,10 @@ class ScrewGap:
     def __init__(self, values, frames: tuple | None, cubic: bool, **options):
         self.frames = frames
         if frames is not None:
-            values = [df.framed_screws(value, *frames) for value in values]
+            values = [screw_motions.framed_screws(value, *frames) for value in values]
         self.gap = HermiteGap(values, cubic, **options)
 
     def at(self, s: float) -> np.ndarray:
         """The interpolated screws (P, 6) at factor ``s``, in world coordinates."""
         value = self.gap.at(s)
-        return value if self.frames is None else df.world_screws(value, *self.frames)
+        return value if self.frames is None else screw_motions.world_screws(value, *self.frames)

@@ -581,10 +581,10 @@ def transferred_keys(base_vertices, triangles, key_poses, target_triangles, *, c
 
 
 def _sequence_class():
-    from .interpolation import SequenceInterpolator
+    from .sequence_inbetweens import SequenceInterpolator
 
     class TransferSequenceInterpolator(SequenceInterpolator):
-        """:class:`~core.interpolation.SequenceInterpolator` that also takes key poses of another
+        """:class:`~core.sequence_inbetweens.SequenceInterpolator` that also takes key poses of another
         mesh: with ``target_triangles`` the keys are poses of that target mesh, first rebuilt on
         the base mesh (``base_vertices`` on ``triangles``) by a :class:`Transfer` with ``k_M`` /
         ``k_N`` (``correspondence``, ``target_rest_vertices`` as there; intrinsic, its default),

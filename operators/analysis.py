@@ -12,7 +12,8 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
-from .output import refuse_emptying_caches, require_local, simulations_emptied_by
+from .motion_sources import refuse_emptying_caches, simulations_emptied_by
+from .output import require_local
 from .base import (SCENE_SETTING, GeneratorOperator, InputError, check_basis_order, check_basis_size,
                    default_pose_key, key_blocks_of, key_pose, mesh_pose, offset_option, report, resolve_key,
                    surface_triangles)
@@ -435,7 +436,7 @@ def follow_frame(scene, _depsgraph=None):
     the list sticks, and picking any other colour attribute (the user's own, a map of a key) stops
     the following until a frame's map is picked again. A mesh whose change would empty the cache of
     an unbaked simulation (its own cloth after its bake was freed, one reacting to it as a collider:
-    :func:`~.output.simulations_emptied_by`) keeps the map it shows: a change of its active colour
+    :func:`~.motion_sources.simulations_emptied_by`) keeps the map it shows: a change of its active colour
     attribute marks that cache outdated, and Blender empties it at the simulation's start."""
     for obj in scene.objects:
         mesh = obj.data if obj.type == 'MESH' else None

@@ -14,9 +14,10 @@ from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeySte
                           Speed)
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
                    playback_range, report, require_count, surface_triangles)
-from .output import (PoseWriter, dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake,
-                     modifiers_set_aside, motion_set_aside, object_motion, objects_moving, render_only_motion,
-                     simulation_zone_start, unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
+from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside,
+                             motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
+                             unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
+from .output import PoseWriter
 from .poses import format_factor, inbetween_name
 
 

@@ -90,13 +90,13 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
         bpy.context.scene.frame_set(frame)
         np.testing.assert_allclose(np.array(first.matrix_world), np.array(source.matrix_world), atol=1e-6)
     bpy.context.scene.frame_set(1)
-    interpolation = importlib.import_module(core.__name__ + ".interpolation")
-    start = interpolation.start_of_motion([source_frames[1], source_frames[5], source_frames[9]], source_frames[3], 0.5)
+    motion_ends = importlib.import_module(core.__name__ + ".motion_ends")
+    start = motion_ends.start_of_motion([source_frames[1], source_frames[5], source_frames[9]], source_frames[3], 0.5)
     plan = importlib.import_module(core.__name__ + ".retime").plan_retime(end, 4, 0.5)
     # how the motion reaches the last key: the sample in the middle of the last gap (sample i: frame i + 1)
     before_key, start_key, last_key, middle = plan.end_samples
-    ends = interpolation.end_of_motion([source_frames[k + 1] for k in (before_key, start_key, last_key)],
-                                       source_frames[middle + 1], 0.5)
+    ends = motion_ends.end_of_motion([source_frames[k + 1] for k in (before_key, start_key, last_key)],
+                                     source_frames[middle + 1], 0.5)
     sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data), start=start, end=ends)
     for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5
         gap = int(plan.gaps[out_frame - 1])  # each gap's in-betweens are computed together
@@ -213,7 +213,7 @@ def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
     np.testing.assert_allclose(cache.positions[4], source_frames[9], atol=TOLERANCE)
     # ending as frame 10, a third of the way through the short gap, says (core.retime.end_samples)
     assert retime.end_samples([1, 5, 9, 12], [3, 6, 9, 12]) == (6, 9, 12, 10)
-    end = importlib.import_module(core.__name__ + ".interpolation").end_of_motion(
+    end = importlib.import_module(core.__name__ + ".motion_ends").end_of_motion(
         [source_frames[f] for f in (6, 9, 12)], source_frames[10], 1 / 3, (3, 3))
     short = core.SequenceInterpolator([source_frames[f] for f in (3, 6, 9, 12)], triangles, start="keys", end=end)
     np.testing.assert_allclose(cache.positions[5], short.pose(2, 2 / 3), atol=TOLERANCE)

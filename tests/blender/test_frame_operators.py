@@ -87,9 +87,9 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     expected_names.append("Frame 9")
     assert key_names(obj) == expected_names
 
-    interpolation = importlib.import_module(core.__name__ + ".interpolation")
-    start = interpolation.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
-    end = interpolation.end_of_motion([poses[1], poses[5], poses[9]], poses[7], 0.5)
+    motion_ends = importlib.import_module(core.__name__ + ".motion_ends")
+    start = motion_ends.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
+    end = motion_ends.end_of_motion([poses[1], poses[5], poses[9]], poses[7], 0.5)
     sequence = core.SequenceInterpolator([poses[f] for f in frames],
                                          bridge.mesh_triangles(obj.data), start=start, end=end)
     for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
@@ -157,8 +157,8 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
     assert tail == [5, 7, 9, 11]
     # how the motion reaches the last frame: told by frame 10, in the middle of the short gap
     assert retime.end_samples([1, 5, 9, 11], tail) == (7, 9, 11, 10)
-    interpolation = importlib.import_module(core.__name__ + ".interpolation")
-    end = interpolation.end_of_motion([poses[7], poses[9], poses[11]], poses[10], 0.5, (2, 2))
+    motion_ends = importlib.import_module(core.__name__ + ".motion_ends")
+    end = motion_ends.end_of_motion([poses[7], poses[9], poses[11]], poses[10], 0.5, (2, 2))
     short = core.SequenceInterpolator([poses[f] for f in tail], bridge.mesh_triangles(obj.data), start="keys",
                                       end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 9-Frame 11 0.50"),
@@ -166,7 +166,7 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
     fcurve = bridge.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
     assert fcurve.evaluate(10) == pytest.approx(1.0) and fcurve.evaluate(11) == pytest.approx(0.0)
     # the whole gaps: the sequence of the keys and the last frame, at their frames
-    start = interpolation.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
+    start = motion_ends.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
     sequence = core.SequenceInterpolator([poses[f] for f in (1, 5, 9, 11)], bridge.mesh_triangles(obj.data),
                                          start=start, key_times=[1, 5, 9, 11], end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 5-Frame 9 0.50"),
@@ -325,11 +325,11 @@ def easing_off_in_the_world(extension, core, tmp_path, last: int = 9, scale_keye
     middle of the first gap gives in the world; in the object's own coordinates, shrinking from
     frame 1 on where its scale is keyframed, that frame gives the keys' parabola."""
     sheet, scale, world = sheet_easing_off_scale_keyframed(extension, tmp_path, scale_keyed=scale_keyed)
-    interpolation = importlib.import_module(core.__name__ + ".interpolation")
+    motion_ends = importlib.import_module(core.__name__ + ".motion_ends")
     keyed = sorted({*range(1, last + 1, 4), last})
     durations = (4, keyed[2] - 5)
-    assert interpolation.start_of_motion([world(f) for f in keyed[:3]], world(3), 0.5, durations) == "rest"
-    own = interpolation.start_of_motion([world(f) / scale(f) for f in keyed[:3]], world(3) / scale(3), 0.5, durations)
+    assert motion_ends.start_of_motion([world(f) for f in keyed[:3]], world(3), 0.5, durations) == "rest"
+    own = motion_ends.start_of_motion([world(f) / scale(f) for f in keyed[:3]], world(3) / scale(3), 0.5, durations)
     assert own == ("keys" if scale_keyed else "rest")
     sequence = core.SequenceInterpolator([world(f) for f in keyed], extension.bridge.mesh_triangles(sheet.data),
                                          start="rest", key_times=keyed)

@@ -6,6 +6,8 @@ from scipy.linalg import expm, logm, polar, sqrtm
 from scipy.spatial.transform import Rotation
 
 import core.deformation_fields as df
+from core import rotation_continuity
+from core import screw_motions
 
 
 def _random_triangles(count=200, seed=0):
@@ -123,11 +125,11 @@ def test_unwrapped_rotation_vectors_continue_a_turn_past_a_half_turn():
     turned = np.radians(200.0) * axes  # continuing a turn of 100° per key past the half turn
     short = Rotation.from_rotvec(turned).as_rotvec()  # the same rotations, the short way (−160°)
     reference = 2 * np.radians(100.0) * axes
-    out = df.unwrapped_rotation_vectors(short, reference)
+    out = rotation_continuity.unwrapped_rotation_vectors(short, reference)
     assert np.allclose(out, turned, atol=1e-12)
     assert np.allclose(Rotation.from_rotvec(out).as_matrix(), Rotation.from_rotvec(short).as_matrix(), atol=1e-12)
     small = 0.3 * axes  # turns far from the half turn continuing small ones: left as they are
-    assert np.array_equal(df.unwrapped_rotation_vectors(small, 2 * 0.2 * axes), small)
+    assert np.array_equal(rotation_continuity.unwrapped_rotation_vectors(small, 2 * 0.2 * axes), small)
 
 
 def test_unwrapped_rotation_vectors_continue_a_turn_past_three_half_turns():
@@ -137,7 +139,7 @@ def test_unwrapped_rotation_vectors_continue_a_turn_past_three_half_turns():
     axes = np.eye(3)
     turned = np.radians(600.0) * axes
     short = Rotation.from_rotvec(turned).as_rotvec()
-    np.testing.assert_allclose(df.unwrapped_rotation_vectors(short, 2 * np.radians(300.0) * axes), turned, atol=1e-12)
+    np.testing.assert_allclose(rotation_continuity.unwrapped_rotation_vectors(short, 2 * np.radians(300.0) * axes), turned, atol=1e-12)
 
 
 def test_unwrapped_rotation_vectors_take_the_turn_nearest_the_reference_however_far():
@@ -149,15 +151,15 @@ def test_unwrapped_rotation_vectors_take_the_turn_nearest_the_reference_however_
         turned = true * axis
         short = Rotation.from_rotvec(turned).as_rotvec()
         for offset in (-0.9 * np.pi, -0.5 * np.pi, 0.0, 0.5 * np.pi, 0.9 * np.pi):
-            out = df.unwrapped_rotation_vectors(short, (true + offset) * axis)
+            out = rotation_continuity.unwrapped_rotation_vectors(short, (true + offset) * axis)
             np.testing.assert_allclose(out, turned, atol=1e-9)
 
 
 def test_rotations_are_not_taken_continuous_across_a_crease():
     """A chain of triangles turning about y by up to 260°, in steps of 0.2 rad (a part curling
     smoothly past a half turn) is taken continuous; in steps of 1 rad (57°: the jump past the half
-    turn joins triangles at a fold's crease: :func:`~core.deformation_fields.creased` at
-    :data:`~core.deformation_fields.WRAP_CREASE` on the jump) it is told apart, and the mesh's
+    turn joins triangles at a fold's crease: :func:`~core.rotation_continuity.creased` at
+    :data:`~core.rotation_continuity.WRAP_CREASE` on the jump) it is told apart, and the mesh's
     continuity alone continues both."""
     for step, continued in ((0.2, True), (1.0, False)):
         angles = np.arange(0.0, np.radians(260.0), step)
@@ -166,9 +168,9 @@ def test_rotations_are_not_taken_continuous_across_a_crease():
         assert not np.allclose(rotvec, turned)  # past a half turn: the principal vectors jump
         pairs = np.stack([np.arange(len(angles) - 1), np.arange(1, len(angles))], axis=1)
         pieces = np.zeros(len(angles), dtype=int)
-        jumps = pairs[df.jumping_pairs(rotvec, pairs)]
-        assert len(jumps) == 1 and df.creased(rotvec, jumps, df.WRAP_CREASE).all() != continued
-        np.testing.assert_allclose(df.continuous_rotation_vectors(rotvec, pairs, pieces), turned, atol=1e-12)
+        jumps = pairs[rotation_continuity.jumping_pairs(rotvec, pairs)]
+        assert len(jumps) == 1 and rotation_continuity.creased(rotvec, jumps, rotation_continuity.WRAP_CREASE).all() != continued
+        np.testing.assert_allclose(rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces), turned, atol=1e-12)
 
 
 def test_rotations_taken_continuous_turn_as_the_rigid_motion_where_both_ends_turn_as_little():
@@ -191,13 +193,13 @@ def test_rotations_taken_continuous_turn_as_the_rigid_motion_where_both_ends_tur
 
     turned, rotvec, pairs, pieces = chain(60.5, 300.5)
     whole = [0.0, 0.0, 2.0 * np.pi]
-    np.testing.assert_allclose(df.continuous_rotation_vectors(rotvec, pairs, pieces), turned + whole, atol=1e-12)
+    np.testing.assert_allclose(rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces), turned + whole, atol=1e-12)
     for rigid, expected in ((-130.0, turned), (130.0, turned + whole)):
-        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
+        out = rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
         np.testing.assert_allclose(out, expected, atol=1e-12)
     turned, rotvec, pairs, pieces = chain(0.0, 220.0)
     for rigid in (129.0, -129.0):
-        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
+        out = rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces, toward=toward(rigid, len(rotvec)))
         np.testing.assert_allclose(out, turned, atol=1e-12)
 
 
@@ -215,10 +217,10 @@ def test_rotations_taken_continuous_turn_from_the_part_whose_reading_keeps_the_a
     turns = Rotation.from_rotvec([0.0, 0.0, np.radians(20.0)]) * Rotation.from_rotvec(np.outer(-curl, [0.0, 1.0, 0.0]))
     rotvec, m = turns.as_rotvec(), len(curl)
     pairs, pieces = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1), np.zeros(m, dtype=int)
-    from_still = df.continuous_rotation_vectors(rotvec, pairs, pieces)
+    from_still = rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces)
     np.testing.assert_allclose(from_still[:10], rotvec[:10], atol=1e-12)
     for rigid in ([0.0, 2.0, 0.0], [0.0, -2.0, 0.0], [0.0, 0.0, 0.35]):
-        out = df.continuous_rotation_vectors(rotvec, pairs, pieces, toward=(np.tile(rigid, (m, 1)), np.ones(m)))
+        out = rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces, toward=(np.tile(rigid, (m, 1)), np.ones(m)))
         np.testing.assert_allclose(out, from_still, atol=1e-12)
 
 
@@ -234,29 +236,29 @@ def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
     angles = rng.choice([0.0, 1e-7, 0.5, 2.0, 3.0, np.pi - 1e-3], 300)
     rotations = Rotation.from_rotvec(axes * angles[:, None]).as_matrix()
     translations = rng.normal(size=(300, 3)) * rng.choice([0.0, 1.0, 1e3], (300, 1))
-    screws = df.rigid_logs(rotations, translations)
-    back_rotations, back_translations = df.rigid_exps(screws)
+    screws = screw_motions.rigid_logs(rotations, translations)
+    back_rotations, back_translations = screw_motions.rigid_exps(screws)
     assert np.abs(back_rotations - rotations).max() < 1e-12
     assert np.abs(back_translations - translations).max() < 1e-9
     # the translation V(ω) v with NumPy's cross products, bit for bit
     w, v = screws[:, :3], screws[:, 3:]
-    a, b = df._screw_coefficients(np.linalg.norm(w, axis=1))
+    a, b = screw_motions._screw_coefficients(np.linalg.norm(w, axis=1))
     turned = np.cross(w, v)
     np.testing.assert_array_equal(back_translations, v + a[:, None] * turned + b[:, None] * np.cross(w, turned))
-    assert np.allclose(df.rigid_log(rotations[7], translations[7]), screws[7], rtol=1e-12, atol=1e-12)
+    assert np.allclose(screw_motions.rigid_log(rotations[7], translations[7]), screws[7], rtol=1e-12, atol=1e-12)
 
     half = Rotation.from_rotvec([0.0, 0.0, np.pi]).as_matrix()[None]
     for sign in (1.0, -1.0):
-        assert df.rigid_logs(half, np.zeros((1, 3)), np.array([[0.0, 0.0, sign]]))[0, 2] == pytest.approx(sign * np.pi)
+        assert screw_motions.rigid_logs(half, np.zeros((1, 3)), np.array([[0.0, 0.0, sign]]))[0, 2] == pytest.approx(sign * np.pi)
     past = Rotation.from_rotvec([0.0, 0.0, -2.0]).as_matrix()[None]  # 2π − 2 the other way round
-    continued = df.rigid_logs(past, np.zeros((1, 3)), np.array([[0.0, 0.0, 4.0]]), unwrap=True)[0]
+    continued = screw_motions.rigid_logs(past, np.zeros((1, 3)), np.array([[0.0, 0.0, 4.0]]), unwrap=True)[0]
     assert continued[2] == pytest.approx(2 * np.pi - 2.0)
 
     references = np.array([np.r_[2 * np.pi * np.array([0.6, 0.0, 0.8]) + 0.01, 0.3, -0.2, 0.5],
                            [-10.689591752508218, 2.87024259229626, 11.60761500054216,
                             -10.035689726411743, 6.439175502723993, -1.4630745878746887]])
     shifts = np.array([[0.2, 0.1, 0.4], [-1702.633218528604, -1206.8897435037434, -779.3230025985741]])
-    whole = df.rigid_logs(np.repeat(np.eye(3)[None], 2, axis=0), shifts, references, unwrap=True)
+    whole = screw_motions.rigid_logs(np.repeat(np.eye(3)[None], 2, axis=0), shifts, references, unwrap=True)
     for turns, screw, reference, t in zip((1, 3), whole, references, shifts):
         axis = reference[:3] / np.linalg.norm(reference[:3])
         assert np.allclose(screw[:3], 2 * np.pi * turns * axis)
@@ -277,10 +279,10 @@ def test_similarity_paths_are_the_powers_of_the_similarity():
             matrix = np.eye(4)
             matrix[:3, :3], matrix[:3, 3] = scale * Rotation.from_rotvec(w).as_matrix(), t
             for s in (0.5, 2.0, -0.5):
-                x, ok = df.similarity_paths(w[None], np.array([np.log(scale)]), t[None], p[None], s)
+                x, ok = screw_motions.similarity_paths(w[None], np.array([np.log(scale)]), t[None], p[None], s)
                 if scale == 1.0:
-                    screw = df.rigid_logs(matrix[None, :3, :3], t[None])
-                    rotation, translation = df.rigid_exps(s * screw)
+                    screw = screw_motions.rigid_logs(matrix[None, :3, :3], t[None])
+                    rotation, translation = screw_motions.rigid_exps(s * screw)
                     expected = rotation[0] @ p + translation[0]
                 else:
                     power = np.real(expm(s * logm(matrix)))
@@ -297,9 +299,9 @@ def test_a_turn_taken_the_long_way_within_its_spread_is_the_same_motion(short_of
     axis = np.array([0.0, 0.0, 1.0])
     rotation = Rotation.from_rotvec((np.pi - short_of_half) * axis).as_matrix()[None]
     translation = np.array([[0.3, -0.2, 0.5]])
-    screw = df.rigid_logs(rotation, translation, -axis[None], spread=0.01)
+    screw = screw_motions.rigid_logs(rotation, translation, -axis[None], spread=0.01)
     assert screw[0, :3] @ axis < 0  # the reference's way
-    back_rotation, back_translation = df.rigid_exps(screw)
+    back_rotation, back_translation = screw_motions.rigid_exps(screw)
     np.testing.assert_allclose(back_rotation, rotation, atol=1e-12)
     np.testing.assert_allclose(back_translation, translation, atol=1e-12)
 
@@ -321,7 +323,7 @@ def test_rotations_are_taken_continuous_on_many_pieces_in_one_search(monkeypatch
     searches = []
     search = csgraph.breadth_first_order
     monkeypatch.setattr(csgraph, "breadth_first_order", lambda *a, **k: searches.append(1) or search(*a, **k))
-    out = df.continuous_rotation_vectors(rotvec, pairs, pieces)
+    out = rotation_continuity.continuous_rotation_vectors(rotvec, pairs, pieces)
     np.testing.assert_allclose(out[:2], [[0.0, 3.0, 0.0], [0.0, 2.0 * np.pi - 3.0, 0.0]], rtol=0.0, atol=1e-12)
     np.testing.assert_array_equal(out[2:], rotvec[2:])
     assert len(searches) == 1

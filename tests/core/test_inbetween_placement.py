@@ -16,7 +16,8 @@ from scipy.spatial.transform import Rotation
 import core.inbetween_anchor as anchor
 import core.inbetween_solver as solver
 from core.errors import ShapeDifferenceWarning
-from core.interpolation import Interpolator, SequenceInterpolator
+from core.sequence_inbetweens import SequenceInterpolator
+from core.two_pose_inbetweens import Interpolator
 from core.rigid_alignment import rigid_alignment
 
 import meshes
@@ -887,7 +888,7 @@ def test_a_tube_curling_past_a_half_turn_per_key_keeps_curling_the_same_way(degr
 def test_a_coarse_tube_curling_past_a_half_turn_per_key_is_right_or_warned():
     """The thin arm of the test above on 13 rings of 6 sides, curled 150° per key at each joint:
     its neighbouring rings turn over 30° apart, a crease to the turn test
-    (:data:`core.deformation_fields.WRAP_CREASE`), so the way round is not known there. Every
+    (:data:`core.rotation_continuity.WRAP_CREASE`), so the way round is not known there. Every
     in-between is the curl to the gap's tolerance with every triangle facing as in it, or its
     gap warns (before, 10–33 % of the diagonal off with 28–34 triangles against the curl and no
     warning of the turn)."""

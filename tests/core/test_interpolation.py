@@ -1,4 +1,5 @@
-"""In-betweens and exaggerations (core.interpolation, issue 3) on analytic motions; no bpy."""
+"""In-betweens and exaggerations (core.sequence_inbetweens, core.two_pose_inbetweens,
+core.motion_ends; issue 3) on analytic motions; no bpy."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from core.errors import MeshError, ShapeDifferenceWarning
-from core.interpolation import Interpolator, SequenceInterpolator, interpolate
+from core.sequence_inbetweens import SequenceInterpolator
+from core.two_pose_inbetweens import Interpolator, interpolate
 
 from meshes import drape, grid
 
@@ -408,7 +410,7 @@ def test_start_of_motion_tells_rest_from_motion():
     keys', which a spline from rest would spread over the whole gap), whatever the step, and with
     keys unevenly spaced; a fall from rest that lands in the second gap is told from the walk,
     whose keys it has."""
-    from core.interpolation import start_of_motion
+    from core.motion_ends import start_of_motion
 
     flat, _ = grid(6, 6)
     for step in (4, 8, 16):
@@ -451,7 +453,7 @@ def test_end_of_motion_tells_an_ease_into_the_last_key_from_motion_through_it():
     """The frame in the middle of the last gap says whether the motion comes to rest at the last
     key (a constant deceleration to a stop there) or goes on through it (at constant velocity, or
     falling), whatever the step, and with keys unevenly spaced."""
-    from core.interpolation import end_of_motion
+    from core.motion_ends import end_of_motion
 
     flat, _ = grid(6, 6)
     for step in (4, 8):
@@ -484,33 +486,33 @@ def test_no_nan_or_flip_on_unrealizable_targets():
 
 
 def test_fallback_warns(monkeypatch, strip):
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     it = Interpolator(a, b, tri)
-    real = ci._Gap.fit
+    real = sequence_inbetweens._Gap.fit
 
     def broken(self, x, *args, **kwargs):
         return np.full_like(x, np.nan)
 
-    monkeypatch.setattr(ci._Gap, "fit", broken)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", broken)
     with pytest.warns(ShapeDifferenceWarning, match="non-finite"):
         x = it.pose(0.5)
     assert np.isfinite(x).all()
-    monkeypatch.setattr(ci._Gap, "fit", real)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", real)
 
 
 def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     """A reconstruction with a folded-over vertex is re-fitted with the interpolated rotations
     imposed around the defect (growing rings, only that region solved), not handed to a fallback;
     the keys' local geometry, imposed only after the other fields, is not made for it."""
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     clean = Interpolator(a, b, tri).pose(0.5)
-    real_fit, real_local = ci._Gap.fit, ci._Gap.local_fit
+    real_fit, real_local = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit
     forced = []
 
     def folding_fit(self, x, *args, **kwargs):
@@ -523,8 +525,8 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
         forced.append(region.rows.copy())
         return real_local(self, x, region, frames, stretch, guide)
 
-    monkeypatch.setattr(ci._Gap, "fit", folding_fit)
-    monkeypatch.setattr(ci._Gap, "local_fit", recording_local_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", recording_local_fit)
     it = Interpolator(a, b, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
@@ -622,7 +624,7 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     → 0, 1.000 → 0.886 ×), and not where it has more or strays farther from the blend than
     WHOLE_FIT_HELD_REACH of the keys' distance."""
     import core.inbetween_repair as repair
-    import core.interpolation as interpolation
+    from core import two_pose_inbetweens
 
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 2.0)
@@ -633,7 +635,7 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "some triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
     if reach is not None:
-        monkeypatch.setattr(interpolation, "WHOLE_FIT_HELD_REACH", reach)
+        monkeypatch.setattr(two_pose_inbetweens, "WHOLE_FIT_HELD_REACH", reach)
     pair = Interpolator(a, b, tri)
     with pytest.warns(ShapeDifferenceWarning) as caught:
         x = pair.pose(0.5)
@@ -642,9 +644,9 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     held = near[-1] if origin is None else near[-1] + origin  # the first fit, in the poses' coordinates
     message = str(caught[0].message)
     if second_kept:  # ... farther from the blend than the guard allows a fit nearer the metric
-        distance = [interpolation._rms(y - blend) for y in (held, x)]
-        assert distance[1] > interpolation.WHOLE_FIT_BLEND_RATIO * distance[0]
-        assert distance[1] <= interpolation.WHOLE_FIT_HELD_REACH * interpolation._rms(b - a)
+        distance = [two_pose_inbetweens._rms(y - blend) for y in (held, x)]
+        assert distance[1] > two_pose_inbetweens.WHOLE_FIT_BLEND_RATIO * distance[0]
+        assert distance[1] <= two_pose_inbetweens.WHOLE_FIT_HELD_REACH * two_pose_inbetweens._rms(b - a)
         assert "metric fit with the fewest" in message and "near the linear blend" not in message
         assert _edge_deviation(x, flat, tri).mean() < 0.5 * _edge_deviation(held, flat, tri).mean()
     else:
@@ -789,13 +791,13 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     triangles of any one piece of the mesh after the first round (that would replace the piece's
     pose, not repair it), and still try every round below it."""
     import core.inbetween_repair as repair
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
     flat, tri = strip
     two = np.vstack([flat, flat + [0.0, 2.0, 0.0]])  # two strips side by side: two pieces
     tris = np.vstack([tri, tri + len(flat)])
     a, b = _bend(two, 0.0), _bend(two, 1.0)
-    regions, real_local = [], ci._Gap.local_fit
+    regions, real_local = [], sequence_inbetweens._Gap.local_fit
 
     def defects(self, x, *args, rows=None):
         out = np.zeros(len(tris), dtype=bool)
@@ -808,7 +810,7 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
-    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
         Interpolator(a, b, tris).pose(0.5)
     assert regions and max(regions) <= repair.MAX_REPAIR_FRACTION * len(tri)
@@ -827,7 +829,7 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
     defect-free: the neighbouring in-betweens would not follow. A small one is; two poses take
     either."""
     import core.inbetween_repair as repair
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
     flat, tri = strip
     a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
@@ -850,7 +852,7 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if moved(x) else "1 triangle(s) flipped")
-    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShapeDifferenceWarning)
         x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
@@ -868,7 +870,7 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
     ``MAX_PARTIAL_REPAIR_MOVE`` mean edge lengths (RMS), however far the keys move: the
     neighbouring in-betweens choose their own, and a larger one is a jump away from them."""
     import core.inbetween_repair as repair
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
     flat, tri = strip
     travel = np.array([0.0, 0.0, 30.0])  # keys 30 apart: a tenth of their move would allow the lift
@@ -899,7 +901,7 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, s, frames, stretch, defects=None: "flipped")
-    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     assert moved(run()) == kept
     monkeypatch.setattr(repair, "MAX_PARTIAL_REPAIR_MOVE", np.inf)  # the limit is what refused it
     assert moved(run())
@@ -934,22 +936,22 @@ def _folding_repairs(monkeypatch, tri, keep_fold):
     and after every repair fit for which ``keep_fold(frames, rows)`` is true (``frames``
     (k ≥ 2, r, 3): the imposed rotations' images of the base frames of the region's triangles
     ``rows``)."""
-    import core.interpolation as ci
+    from core import sequence_inbetweens
 
-    real_fit, real_local = ci._Gap.fit, ci._Gap.local_fit
+    real_fit, real_local = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit
     i, j, k = tri[len(tri) // 2]
 
     def fold(out):
         out[i] = out[j] + out[k] - out[i]
         return out
 
-    monkeypatch.setattr(ci._Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
 
     def local_fit(self, x, region, frames, stretch, guide):
         out = real_local(self, x, region, frames, stretch, guide)
         return fold(out) if keep_fold(frames, region.rows) else out
 
-    monkeypatch.setattr(ci._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
 
 
 def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeypatch, strip):
@@ -1032,7 +1034,7 @@ def test_truncated_sequence_prepares_each_key_once(monkeypatch, strip):
 def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
     """Gap k reads keys k − 1 … k + 2: visited in order, every key's frames are built once."""
     import core.inbetween_keys as keys_module
-    import core.interpolation as interpolation
+    from core import sequence_inbetweens
 
     built = []
 
@@ -1041,7 +1043,7 @@ def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
             super().__init__(topo, vertices)
             built.append(self)
 
-    monkeypatch.setattr(interpolation, "_Key", Counting)
+    monkeypatch.setattr(sequence_inbetweens, "_Key", Counting)
     flat, tri = strip
     keys = [_bend(flat, 0.3 * k) + np.array([0.0, 0.0, -0.1 * k * k]) for k in range(7)]
     seq = SequenceInterpolator(keys, tri)
@@ -1141,10 +1143,10 @@ def test_evicted_gaps_are_freed_at_once(strip):
     import gc
     import weakref
 
-    from core import interpolation
+    from core import sequence_inbetweens
 
     flat, tri = strip
-    keys = [_bend(flat, 0.3 * k) for k in range(interpolation.GAP_CACHE + 3)]
+    keys = [_bend(flat, 0.3 * k) for k in range(sequence_inbetweens.GAP_CACHE + 3)]
     seq = SequenceInterpolator(keys, tri)
     seq.poses(0, [0.25, 0.5, 0.75])
     first = weakref.ref(seq._gaps[0])
@@ -1701,6 +1703,7 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     log-stretches' spline, nor its keys' log-stretches; the relatives keep no turned frames. What
     is made on demand is what would have been made up front."""
     import core.deformation_fields as df
+    from core import screw_motions
     import core.inbetween_solver as solver
     from core.inbetween_prediction import TRIMMED_TOLERANCE_BATCH
 
@@ -1711,9 +1714,9 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     assert len(factors) < TRIMMED_TOLERANCE_BATCH
     seq = SequenceInterpolator(keys, tri)
     asked, made = set(), []
-    real_motion, real_exps = solver._Gap.motion, df.rigid_exps
+    real_motion, real_exps = solver._Gap.motion, screw_motions.rigid_exps
     monkeypatch.setattr(solver._Gap, "motion", lambda self, s: asked.add(s) or real_motion(self, s))
-    monkeypatch.setattr(df, "rigid_exps", lambda screws: made.append(1) or real_exps(screws))
+    monkeypatch.setattr(screw_motions, "rigid_exps", lambda screws: made.append(1) or real_exps(screws))
     seq.poses(2, factors)
     gap = seq._gap(2)
     assert len(asked) >= 3 and len(made) == len(asked)
@@ -1806,6 +1809,7 @@ def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
     whole_rotations lets the constructor's turned frames go (72 bytes per triangle held for the
     interpolator's life otherwise), with the same rotations as frames turned anew."""
     import core.deformation_fields as df
+    from core import rotation_continuity
 
     flat, tri = strip
     rng = np.random.default_rng(0)
@@ -1821,8 +1825,8 @@ def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
     relative, key, other = gap.relatives[2], gap.base, gap.next
     frames = df.plane_turned_frames(other.column_rows, relative.turn)
     # taken continuous across the strip (past a half turn) as the relative takes them, to rounding
-    turned = df.continuous_rotation_vectors(df.frame_rows_rotation_vectors(frames, key.column_rows),
-                                            relative._across, gap.topo.triangle_component)
+    turned = rotation_continuity.continuous_rotation_vectors(df.frame_rows_rotation_vectors(frames, key.column_rows),
+                                                             relative._across, gap.topo.triangle_component)
     np.testing.assert_allclose(relative.rotvec, turned, rtol=0.0, atol=1e-12)
 
 

@@ -14,7 +14,7 @@ from core import MeshError, SequenceInterpolator, ShapeDifferenceWarning
 from core.__main__ import main
 from core.obj_file import read_obj, write_obj
 from core.point_cache import read_pc2, write_pc2
-from core.interpolation import start_of_motion
+from core.motion_ends import start_of_motion
 from core.retime import iter_retime, plan_retime, retime
 from meshes import grid
 
@@ -467,13 +467,13 @@ def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
     3 and key pose 4" for keys 0, 8, 16, 24, 29; its own numbering said key poses 2 and 3, which
     the Retime operator reads as the frames of keys 16 and 24 where the gap runs from 24 to 29).
     Every solved in-between reports a problem here, naming the samples its gap lies between."""
-    import core.interpolation as interpolation
+    from core import sequence_inbetweens
 
     source, triangles = rolling_sheet(n_frames=30, nx=5)
     source = source.astype(np.float64)
     plan = plan_retime(len(source), 8, 0.5)
     assert plan.keys.tolist() == [0, 8, 16, 24, 29] and plan.tail.tolist() == [14, 19, 24, 29]
-    real = interpolation.gap_poses
+    real = sequence_inbetweens.gap_poses
 
     def gap_poses(gap, factors):
         moved = gap.next.vertices - gap.base.vertices
@@ -481,7 +481,7 @@ def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
                              if np.allclose(source[j] - source[i], moved, rtol=0.0, atol=1e-9))
         return [(x, f"samples {first}-{second}") for x, _ in real(gap, factors)]
 
-    monkeypatch.setattr(interpolation, "gap_poses", gap_poses)
+    monkeypatch.setattr(sequence_inbetweens, "gap_poses", gap_poses)
     with pytest.warns(ShapeDifferenceWarning) as caught:
         list(iter_retime(source, triangles, plan))
     named = {re.search(r"between (.*): (samples \d+-\d+)", str(w.message)).groups() for w in caught}

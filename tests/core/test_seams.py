@@ -9,7 +9,8 @@ import pytest
 
 import core
 from core.errors import ShapeDifferenceWarning
-from core.interpolation import Interpolator, SequenceInterpolator
+from core.sequence_inbetweens import SequenceInterpolator
+from core.two_pose_inbetweens import Interpolator
 from core.seams import seam_weld
 from core.mesh_topology import mesh_topology
 

@@ -13,7 +13,7 @@ import scipy.sparse.linalg as spla
 import core.concurrency as concurrency
 import core.inbetween_prediction as prediction
 from core.concurrency import concurrently
-from core.interpolation import SequenceInterpolator
+from core.sequence_inbetweens import SequenceInterpolator
 from core.sparse_cholesky import SPDFactor
 
 from meshes import grid

@@ -1,13 +1,10 @@
-"""In-betweens and exaggerations of poses of one mesh (paper §8.4, Figs. 14–15).
+"""In-betweens for every gap of K key poses of one mesh (paper §8.4, Figs. 14–15).
 
-Public API (re-exported by :mod:`core`):
-
-- :func:`interpolate` ``(vertices_a, vertices_b, triangles, factor)`` — one pose; ``factor`` 0 gives
-  ``a``, 1 gives ``b``, 0.5 an in-between, 1.5 an exaggeration, negative values reverse the motion.
-- :class:`Interpolator` — the same with the preparation done once for many factors.
-- :class:`SequenceInterpolator` ``(key_poses, triangles)`` — in-betweens for every gap of K key
-  poses: ``pose(gap_index, factor)``, ``poses(gap_index, factors)`` (all in-betweens of a gap at
-  once) and ``pose_at(time)``; C¹-smooth across keys.
+:class:`SequenceInterpolator` ``(key_poses, triangles)`` (re-exported by :mod:`core`) — ``pose(gap_index,
+factor)``, ``poses(gap_index, factors)`` (all in-betweens of a gap at once) and ``pose_at(time)``;
+C¹-smooth across keys. Two poses (:class:`~core.two_pose_inbetweens.Interpolator`) are a two-key
+sequence interpolated linearly; how a sequence leaves its first key and reaches its last:
+:mod:`core.motion_ends`.
 
 What is interpolated
 --------------------
@@ -41,7 +38,6 @@ that fails a documented fallback is returned with a :class:`~core.errors.ShapeDi
 
 from __future__ import annotations
 
-import copy
 import threading
 import warnings
 from collections import OrderedDict
@@ -52,9 +48,10 @@ from scipy.spatial.transform import Rotation
 from .allocator import keep_heap
 from .errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from .concurrency import concurrently, in_background, result, single_threaded_blas
-from .inbetween_prediction import CONCURRENT_VERTICES, STILL_RIGIDITY, gap_poses
-from .deformation_fields import WRAP_CREASE, either_way, jumping_pairs, rotation_vectors, the_other_way
-from .deformation_fields import unwrapped_rotation_vectors
+from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
+from .deformation_fields import rotation_vectors
+from .rotation_continuity import WRAP_CREASE, either_way, jumping_pairs, the_other_way
+from .rotation_continuity import unwrapped_rotation_vectors
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws, turn_spread
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
@@ -66,11 +63,11 @@ from .mesh_topology import check_manifold_vertices
 from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .rigid_alignment import reflected_fits
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
-from .splines import END_TANGENT_LIMIT, REST_START_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, _limited
-from .validation import (check_factor, check_gap_index, check_interpolation, check_key_times, check_real,
-                         check_end, check_sequence, check_start, check_time)
+from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
+from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
+                         check_start, check_time)
 
-__all__ = ["interpolate", "Interpolator", "SequenceInterpolator"]
+__all__ = ["SequenceInterpolator"]
 
 #: Gaps whose prepared data (splines, relatives) SequenceInterpolator keeps: a gap's previous-key
 #: relative comes from the gap before it, so two serve in-order visits (each holds ~70 MB at 100k
@@ -114,7 +111,7 @@ MIRROR_SAMPLES = 256
 #: A sequence's gap where a part of a piece over this share of its area turns past a half turn
 #: from the rest of it between the keys (the triangles' whole rotations, taken continuous across
 #: the mesh where no jump joins a fold's crease, are past π there:
-#: :func:`core.deformation_fields.continuous_rotation_vectors`, :data:`~core.deformation_fields.WRAP_CREASE`)
+#: :func:`core.rotation_continuity.continuous_rotation_vectors`, :data:`~core.rotation_continuity.WRAP_CREASE`)
 #: takes that piece's rotations whole, the next key's continuous across the mesh, and does not
 #: anchor it to the keys' per-vertex spline (:meth:`core.inbetween_anchor.Anchor.spline_weights`).
 #: Residuals to the piece's rigid fit wrap past π where that fit does not take up the curl, and
@@ -134,66 +131,6 @@ MIRROR_SAMPLES = 256
 TURNED_PART_SHARE = 0.1
 
 
-def start_of_motion(keys, middle, factor: float, durations=None) -> str:
-    """``"rest"`` or ``"keys"`` (the ``start`` of :class:`SequenceInterpolator`) for a sequence's
-    first gap, from its first three keys ``keys`` (3, n, 3) and the source's frame ``middle``
-    (n, 3) inside the first gap at ``factor`` of it (0 < factor < 1; the middle frame).
-    ``durations``: the first two gaps' lengths (keys unevenly spaced), or None (even).
-
-    Each start's per-vertex spline over the first gap — the end tangent the mean of the two
-    secants per unit time (at most :data:`~core.splines.END_TANGENT_LIMIT` × the gap's secant per
-    point), the start tangent zero (``"rest"``) or the parabola's through the three keys, at most
-    the secant (``"keys"``, :data:`~core.splines.START_TANGENT_LIMIT`) — is compared with the
-    frame: the nearer one (RMS over the vertices). The velocity at the first key does not tell
-    them apart: a rig walking from rest is at rest there and at full pace two frames on, and a
-    spline from rest spreads that ease over the whole gap (keys 16 frames apart: 9.2 % of the
-    diagonal off, from the keys' parabola 4.1 %); a cloth falling from rest and landing in the
-    second gap has the walk's keys (docs/inbetweens.md, *How a motion leaves its first key*)."""
-    first, second, third = (np.asarray(k, dtype=np.float64) for k in keys)
-    first_gap, second_gap = (1.0, 1.0) if durations is None else (float(d) for d in durations)
-    secant = second - first
-    squared = np.einsum("ij,ij->i", secant, secant)
-    onward = (third - second) * (first_gap / second_gap)  # the next move per unit of this gap
-    end = _limited(0.5 * (secant + onward), END_TANGENT_LIMIT, squared, rows=True)
-    parabola = _limited(1.5 * secant - 0.5 * onward, START_TANGENT_LIMIT, squared, rows=True)
-    return "keys" if _nearer(middle, factor, first, secant, (np.zeros_like(secant), end), (parabola, end)) else "rest"
-
-
-def end_of_motion(keys, middle, factor: float, durations=None) -> str:
-    """``"keys"`` or ``"rest"`` (the ``end`` of :class:`SequenceInterpolator`) for a sequence's
-    last gap, from its last three keys ``keys`` (3, n, 3), oldest first, and the source's frame
-    ``middle`` (n, 3) inside the last gap at ``factor`` of it (0 < factor < 1; the middle frame).
-    ``durations``: the last two gaps' lengths (keys unevenly spaced), or None (even).
-
-    Each end's per-vertex spline over the last gap — the start tangent the mean of the two
-    secants per unit time (at most :data:`~core.splines.TANGENT_LIMIT` × the gap's secant per
-    point, as the positions' spline limits it), the end tangent the gap's secant (``"keys"``) or
-    zero (``"rest"``) — is compared with the frame: the nearer one (RMS over the vertices). How
-    far an ease into the last key reaches back depends on how long it is against the gap, which
-    the velocity at the key does not say: a hopping character keyed in Blender (auto-clamped
-    Bézier handles) slows in its last two frames, the rest end right with keys 4 frames apart and
-    wrong with keys 8 apart; the frame in the middle tells both (docs/inbetweens.md, *How a motion
-    reaches its last key*)."""
-    before, start, end = (np.asarray(k, dtype=np.float64) for k in keys)
-    back, last = (1.0, 1.0) if durations is None else (float(d) for d in durations)
-    secant = end - start
-    tangent = _limited(0.5 * ((start - before) * (last / back) + secant), TANGENT_LIMIT,
-                       np.einsum("ij,ij->i", secant, secant), rows=True)
-    return "rest" if _nearer(middle, factor, start, secant, (tangent, secant), (tangent, np.zeros_like(secant))) \
-        else "keys"
-
-
-def _nearer(middle, factor: float, start: np.ndarray, secant: np.ndarray, tangents: tuple, other: tuple) -> bool:
-    """Whether the per-vertex cubic Hermite spline from ``start`` over ``secant`` with the start
-    and end tangents ``other`` is nearer (RMS over the vertices) the pose ``middle`` at ``factor``
-    than the one with ``tangents``."""
-    s = float(factor)
-    at = lambda t0, t1: start + (3 * s * s - 2 * s ** 3) * secant + (s ** 3 - 2 * s * s + s) * t0 + (s ** 3 - s * s) * t1  # noqa: E731
-    middle = np.asarray(middle, dtype=np.float64)
-    rms = lambda v: float(np.sqrt(np.mean(np.sum(v * v, axis=1))))  # noqa: E731
-    return rms(at(*other) - middle) < rms(at(*tangents) - middle)
-
-
 class SequenceInterpolator:
     """In-betweens for every gap of K ≥ 2 key poses of one mesh (e.g. every 4th simulation frame).
 
@@ -209,7 +146,7 @@ class SequenceInterpolator:
     :class:`core.splines.HermiteGap`). The topology and its factorization are built once; each
     gap's data on first use (the last few gaps are cached). A gap's results depend only on the
     keys, the gap and the factors asked for. ``k_M``/``k_N``/``offset``/``use_extrinsic`` as for
-    :class:`Interpolator`.
+    :class:`~core.two_pose_inbetweens.Interpolator`.
 
     ``key_times``: the time (frame) of each key, strictly increasing, or None (evenly spaced). The
     splines' tangent at a key is the mean of its two neighbouring secants per unit time, so steady
@@ -223,14 +160,14 @@ class SequenceInterpolator:
     with zero velocity. ``"keys"``: keys cut from the middle of a motion — the start velocity is
     that of the parabola through the first three keys, at most the first gap's (exact for motion
     at constant velocity or acceleration). Where the source's frames between the keys are at hand
-    (the operators, :func:`core.retime.retime`), :func:`start_of_motion` chooses from the frame in
+    (the operators, :func:`core.retime.retime`), :func:`~core.motion_ends.start_of_motion` chooses from the frame in
     the middle of the first gap.
 
     ``end``: how the motion reaches the last key. ``"keys"`` (the default): at the last gap's mean
     velocity (the linear extrapolation past the last key, as Catmull–Rom's end condition), as a
     simulation stopped at any frame. ``"rest"``: it comes to rest there, as an animation easing
     into its last keyframe — the last gap ends with zero velocity (every spline's end tangent;
-    exact for motion at constant deceleration to a stop). :func:`end_of_motion` chooses from the
+    exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the
     source's frame in the middle of the last gap.
 
     :attr:`key_names`: the keys as warnings name them, ``"key pose i"`` by default; a sequence
@@ -251,7 +188,7 @@ class SequenceInterpolator:
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None,
                two_poses=False, end="keys"):
         """The constructor once its arguments are checked (``topology``: that of the triangles;
-        ``two_poses``: for an :class:`Interpolator`)."""
+        ``two_poses``: for an :class:`~core.two_pose_inbetweens.Interpolator`)."""
         self.start, self.end = start, end
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
@@ -380,7 +317,7 @@ class SequenceInterpolator:
                       "flattened shape. Check that key (apply the scale, or mirror the mesh back)")
 
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
-    #: :class:`Interpolator`, see :data:`WHOLE_FIT_MARGIN`).
+    #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
     _whole_rotations = False
 
     def __len__(self) -> int:
@@ -447,7 +384,7 @@ class SequenceInterpolator:
         −189° between keys, went +171° under it. Depends on the keys alone (every gap that uses
         this relative sees the same). Sets ``relative.untold_half_turn`` (bool (C,)): the pieces
         that turn a half turn, as short either way round to within what their fits are known to
-        (:func:`~core.deformation_fields.either_way`), whose way neither the whole mesh's turn
+        (:func:`~core.rotation_continuity.either_way`), whose way neither the whole mesh's turn
         (:func:`~core.inbetween_keys.whole_tells`) nor such a step tells (two poses have no
         steps): the keys do not tell which way round they went (a crank turning 180° per gap on a
         fixed block: its keys alternate between two poses)."""
@@ -632,7 +569,7 @@ class SequenceInterpolator:
     def _composed_apart(self, gap: int, turning: np.ndarray, root: np.ndarray, continued: np.ndarray) -> np.ndarray:
         """Per component (C,), the share of its area whose whole rotation (``continued``, (m, 3),
         :meth:`_reading`) interpolated as one turn, as the in-betweens take it, is half-way through
-        gap ``gap`` more than :data:`~core.deformation_fields.WRAP_CREASE` from the turn of the
+        gap ``gap`` more than :data:`~core.rotation_continuity.WRAP_CREASE` from the turn of the
         part that stays (``root``, bool (m,): its mean rotation vector) composed with its own turn
         from there (zero but in the ``turning`` pieces). Both join the keys; they differ by the two
         turns' commutator where the part that stays turns about another axis than the rest curls
@@ -964,229 +901,3 @@ class SequenceInterpolator:
         factor = (value - times[gap]) / (times[gap + 1] - times[gap])
         check_time(gap + factor, len(self))  # the same bound on extrapolation, in gaps
         return self.pose(gap, float(factor))
-
-
-class Interpolator:
-    """Poses between (and beyond) two poses ``vertices_a`` (factor 0) and ``vertices_b`` (factor 1)
-    of one mesh, prepared once: ``pose(factor)`` returns float64 ``(n, 3)``.
-
-    ``k_M``/``k_N``: interpolate truncated shape differences (the metric of ``b`` is the one
-    recovered from them); ``None`` = full basis. ``offset``: offset distance of the extrinsic
-    differences (the truncated recovery here needs only the intrinsic metric, the rotations come
-    from the poses). ``use_extrinsic=False`` interpolates the intrinsic metric only (bending then
-    follows the linear blend). Vertices whose neighbourhood only translates from ``a`` to ``b``
-    are anchored to the linear blend: parts that do not move stay where they are at every factor.
-    """
-
-    def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
-                 offset: float | None = None, use_extrinsic: bool = True):
-        keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
-        poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
-            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
-        self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
-        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True)
-        self._sequence._anchored = True
-        self._whole = None  # the second fit's (made when first asked)
-        edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-        self._edges = edges
-        self._squared = [self._squared_lengths(p) for p in poses]
-        self._given_poses = poses
-        self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
-
-    def _whole_sequence(self) -> SequenceInterpolator:
-        """The same keys with every piece's rotations taken whole; it shares the first's keys and
-        topology (its gap, and the gap's anchored system, are its own)."""
-        if self._whole is None:
-            whole = copy.copy(self._sequence)
-            whole._whole_rotations = True
-            whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
-            self._whole = whole
-        return self._whole
-
-    def _chattering(self) -> bool:
-        """Whether every piece of the mesh deforms (none moves rigidly:
-        :data:`~core.inbetween_prediction.STILL_RIGIDITY`; a rigid piece's turn is no wrinkle, and
-        the blend would cut its chord) and its triangles turn between the two poses with no
-        coherence across it: neighbouring triangles' turns differ from each other (RMS over the
-        pairs sharing an edge of the angle of one's rotation relative to the other's) by at least
-        as much as the triangles turn (RMS of their rotations' residuals to the piece's rigid
-        motion), and those turns are at least the piece's rigid turn. Such keys are wrinkles changing from
-        one to the other, not a motion they resolve: the frames between them have wrinkles of
-        their own, not the half turns of the keys' (see :data:`CHATTER_COHERENCE`), so the linear
-        blend, their average, is the in-between. A piece turning as a body more than its
-        wrinkles (a cushion sliding off a bar, a head turned with its keys' rounding as residuals)
-        keeps its fit: the blend would cut the chord of that turn."""
-        if self._chatter is None:
-            topo, relative = self._sequence._topo, self._sequence._gap(0).relatives[2]
-            pairs = self._sequence._edge_pairs
-            rotations = Rotation.from_rotvec(relative.rotvec)
-            relative_turns = (rotations[pairs[:, 0]] * rotations[pairs[:, 1]].inv()).magnitude()
-            turns = np.einsum("ij,ij->i", relative.rotvec, relative.rotvec)
-            count, labels = len(topo.components), topo.triangle_component
-            pair_labels = labels[pairs[:, 0]]  # a pair sharing an edge lies in one piece
-            turned = np.bincount(labels, turns, minlength=count) / np.maximum(np.bincount(labels, minlength=count), 1)
-            differing = np.bincount(pair_labels, relative_turns ** 2, minlength=count) / \
-                np.maximum(np.bincount(pair_labels, minlength=count), 1)
-            rigid_turns = Rotation.from_matrix(relative.motion[0]).magnitude()
-            deforming = np.asarray(relative.nonrigidity) > STILL_RIGIDITY
-            wrinkling = (differing >= CHATTER_COHERENCE ** 2 * turned) & (turned >= rigid_turns ** 2)
-            self._chatter = bool((deforming & wrinkling).all())
-        return self._chatter
-
-    def _squared_lengths(self, x: np.ndarray) -> np.ndarray:
-        """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
-        return np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
-
-    def _misfit(self, x: np.ndarray, factor: float) -> float:
-        """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
-        (squared lengths linear in ``factor``)."""
-        target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
-        lengths = self._squared_lengths(x)
-        return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
-
-    def pose(self, factor: float) -> np.ndarray:
-        """0 → a, 1 → b (as given), 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
-        in-between of the full basis is fitted twice, with the rotations as residuals to each
-        piece's rigid motion and taken whole, and the second kept where it keeps the metric better
-        by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
-        (:data:`WHOLE_FIT_BLEND_RATIO`), or where the first fell back to the blend (or the metric
-        fitted near it) and the second has fewer flipped or collapsed triangles within
-        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's. Poses that
-        differ by wrinkles only (:meth:`_chattering`) give their linear blend."""
-        factor = check_factor(factor)
-        if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
-            return self._given_poses[int(factor)].copy()
-        first = self._sequence
-        if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
-            x = first.pose(0, factor)
-            if not 0.0 <= factor <= 1.0:
-                self._warn_grown(x, factor)
-            return x
-        if self._chattering():
-            return (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
-        (x,), said = first._poses(0, [factor])
-        misfit = self._misfit(x, factor)
-        # a first fit within the margin of the metric cannot be bettered by it: no second fit
-        if misfit > WHOLE_FIT_MARGIN and not first._gap(0).whole_rotations.all():
-            second = self._whole_sequence()
-            (y,), other = second._poses(0, [factor])
-            blend = (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
-            other_misfit = self._misfit(y, factor)
-            nearer_metric = other_misfit < misfit - WHOLE_FIT_MARGIN and \
-                _rms(y - blend) <= WHOLE_FIT_BLEND_RATIO * _rms(x - blend)
-            # a first fit held near the blend by a fallback has no distance from it to compare
-            # with: there the second is kept where it has fewer flipped or collapsed triangles and
-            # lies within WHOLE_FIT_HELD_REACH of the keys' distance from the blend
-            held, kept = first._gap(0).outcomes.get(factor), second._gap(0).outcomes.get(factor)
-            fewer_defects = held is not None and held.near_blend and kept is not None and \
-                kept.defects < held.defects and \
-                _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
-            if nearer_metric or fewer_defects:
-                x, said, misfit = y, other, other_misfit
-        for message in said:  # a fallback's edges, said where they are far from the metric (a crushed blend)
-            _warn(message if misfit <= FALLBACK_MISFIT_NOTED else
-                  f"{message} (its edge lengths {100 * misfit:.1f} % off the interpolated ones on average)")
-        return x
-
-    def _warn_grown(self, x: np.ndarray, factor: float) -> None:
-        """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`
-        times as long as in either pose, or under its inverse times as short. Those triangles are
-        told apart by what makes them so: the extrapolated metric itself (its corner lengths beyond
-        those bounds too: a triangle nearly collapsed or stretched in one pose), or the fit alone,
-        whose extrapolated rotations and stretches do not fit together there (a shear, a swirl) and
-        which stretches or crushes the triangles to close them."""
-        lengths = self._squared_lengths(x)
-        longest, shortest = np.maximum(*self._squared), np.minimum(*self._squared)
-        grown = lengths > EXTRAPOLATED_GROWTH ** 2 * longest
-        shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
-        if not (grown.any() or shrunk.any()):
-            return
-        tiny = np.finfo(float).tiny
-        growth = np.where(grown, lengths / np.maximum(longest, tiny), 0.0).reshape(-1, 3).max(axis=1)
-        shrinking = np.where(shrunk, shortest / np.maximum(lengths, tiny), 0.0).reshape(-1, 3).max(axis=1)
-        sequence = self._sequence
-        metric = sequence._gap(0).metric_lengths(factor)  # (3 corners, m), the keys' corner order
-        first, second = sequence._key(0).lengths.T, sequence._key(1).lengths.T
-        by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
-                     (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
-        flagged = (growth > 0) | (shrinking > 0)
-        for rows, cause in ((np.flatnonzero(flagged & by_metric),
-                             "an exaggerated or reversed metric grows each stretch by the factor's power, so a "
-                             "triangle nearly collapsed (or stretched) in one pose swells (or shrinks) the other "
-                             "way; use a factor nearer the poses, or give such triangles their size in the poses"),
-                            (np.flatnonzero(flagged & ~by_metric),
-                             f"the extrapolated metric keeps them within {EXTRAPOLATED_GROWTH:g} ×, but the "
-                             "extrapolated rotations and stretches do not fit together there (a shear or a swirl "
-                             "the pose cannot follow) and the fit stretches or crushes them to close the mesh; "
-                             "use a factor nearer the poses")):
-            if not rows.size:
-                continue
-            longer = growth[rows].max() >= shrinking[rows].max()
-            ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
-            _warn(f"at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle {int(rows[0])}) have edges "
-                  f"{ratio:.3g} × as {'long' if longer else 'short'} as in either pose: {cause}")
-
-
-#: Two poses whose triangles' turns are no more alike between neighbours than this times the
-#: turns themselves (RMS ratio; 1: neighbours' turns correlate by at most a half) are wrinkles that
-#: change between the keys (:meth:`Interpolator._chattering`): a sewn garment lying on the floor,
-#: keys 4–16 frames apart, its triangles turning 11–25° with the neighbours' turns differing
-#: 1.00–1.11 × that, had in-betweens 1.00–1.08 × the blend's RMS error (its simulated middle
-#: frames 6 × farther from the keys' half turns than the fitted pose); the tablecloth settling on
-#: its table, keys 4 apart from frames 20 and 22, 1.014 / 1.050 × at a ratio of 1.002 / 1.001, where
-#: its later pairs, at 0.92–0.996, keep their fits (0.85–1.035 ×). The soft flags' first pairs (1.08–1.13)
-#: lose their fits' gain there (one pair 0.959 → 1.000 ×; *Two poses whose keys differ by wrinkles only*).
-CHATTER_COHERENCE = 1.0
-
-
-#: A two-pose in-between's warnings add how far its edges are from the interpolated metric where
-#: that is over this (mean relative deviation): a sheet flipping over a rod, two poses 16 frames
-#: apart, fell back to the metric fitted near the blend, 14–23 % off (the simulation's own 0.3–0.9
-#: %), and the warning said only "used the interpolated metric fitted near the linear blend".
-FALLBACK_MISFIT_NOTED = 0.02
-
-
-#: An extrapolated pose warns where an edge comes out over this many times as long (or its inverse
-#: as short) as in either pose: a sheet whose triangle is a 1e-7 sliver in one pose reversed to −0.5
-#: was 3.94 × as wide, an edge 16 × its length, with no warning; ×2 of a 100° bend stays within 1.1.
-EXTRAPOLATED_GROWTH = 2.0
-
-
-#: Two poses: an in-between is fitted again with every triangle's whole rotation (not its residual
-#: to its piece's rigid motion) and that fit kept where its edge lengths are nearer the
-#: interpolated metric by more than this (mean relative deviation): cloth whipping or crumpling
-#: between the keys, whose residuals the fit cannot follow (a sheet swung ±60° on a hook: the
-#: whole sheet turns 50–110°, its triangles' residuals 60–100°; the fit turned the free edge 15–19°
-#: where the field says 44–57°). Pairs of frames g apart (stride 4), RMS ÷ the blend's: curtain
-#: g = 16 1.128 → 0.891 (edge deviation 7.97 → 5.30 %, flipped 745 → 301), balloon g = 16 0.993 →
-#: 0.952, two sheets g = 16 0.831 → 0.787, the hooked sheet 1.100 / 1.206 → 1.028 / 1.146 at g = 8 /
-#: 16; worse: lifted sheet g = 16 0.934 → 0.962 (one of its 9 pairs); nine other cloths within
-#: ±0.001. Rigid motions, half turns and bends keep the first fit (their misfits are equal).
-WHOLE_FIT_MARGIN = 0.005
-#: ... and where it is no farther from the linear blend than this many times the first fit: a fit
-#: nearer the metric is not always nearer the motion (a flag at g = 16, frames 24 → 40: misfit 6.1 →
-#: 0.4 %, but 1.085 → 1.435 × the blend's error, 0.80 → 1.06 of it away from the blend; a sheet on a
-#: swinging hook whose first fit fell back to the blend: 1.00 → 1.20 ×). A first fit held near the
-#: blend by a fallback gives no distance to compare with: there the fit with fewer flipped or
-#: collapsed triangles is kept (a flag draped over a sphere, g = 16: 2,829 → 104 flipped, 1.000 →
-#: 1.054 × the blend's error; a tablecloth pulled off a table, g = 8: 144 → 0, 1.000 → 0.886 ×) ...
-WHOLE_FIT_BLEND_RATIO = 1.25
-#: ... where it lies within this share of the keys' RMS distance from each other from the blend: a
-#: sheet whipped by a keyframed corner, keys 8 frames apart, had second fits 0.23–0.24 of it away
-#: with 25 and 7 flipped triangles where the first's fallbacks had 550 and 849, and 2.07 / 1.61 ×
-#: the blend's error (the cell's median 0.961 → 1.074 ×); those kept, 0.01–0.13 of it away (0.08
-#: on the flag, 0.12 on the banner), are 0.85–1.05 × (one at 0.20, 0.98 → 0.79 ×, is left out).
-WHOLE_FIT_HELD_REACH = 0.15
-
-
-def _rms(d: np.ndarray) -> float:
-    """RMS over the rows of ``d`` (n, 3) of their lengths."""
-    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
-
-
-def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,
-                k_N: int | None = None, offset: float | None = None, use_extrinsic: bool = True) -> np.ndarray:
-    """One pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1); see :class:`Interpolator`."""
-    factor = check_factor(factor)
-    return Interpolator(vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset,
-                        use_extrinsic=use_extrinsic).pose(factor)

@@ -1,0 +1,256 @@
+"""In-betweens and exaggerations of two poses of one mesh (paper §8.4, Figs. 14–15).
+
+Public API (re-exported by :mod:`core`):
+
+- :func:`interpolate` ``(vertices_a, vertices_b, triangles, factor)`` — one pose; ``factor`` 0 gives
+  ``a``, 1 gives ``b``, 0.5 an in-between, 1.5 an exaggeration, negative values reverse the motion.
+- :class:`Interpolator` — the same with the preparation done once for many factors.
+
+Both run a two-key :class:`~core.sequence_inbetweens.SequenceInterpolator` (what is interpolated and
+how the poses are rebuilt: :mod:`core.sequence_inbetweens`), interpolated linearly, with the parts
+that only translate between the poses anchored to their linear blend; an in-between of the full
+basis is fitted a second time with every triangle's whole rotation where that keeps the metric
+better, and poses that differ by wrinkles only give their linear blend.
+"""
+
+from __future__ import annotations
+
+import copy
+import threading
+from collections import OrderedDict
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .allocator import keep_heap
+from .inbetween_prediction import STILL_RIGIDITY
+from .validation import check_factor, check_interpolation
+from .sequence_inbetweens import SequenceInterpolator, _warn
+
+__all__ = ["interpolate", "Interpolator"]
+
+
+class Interpolator:
+    """Poses between (and beyond) two poses ``vertices_a`` (factor 0) and ``vertices_b`` (factor 1)
+    of one mesh, prepared once: ``pose(factor)`` returns float64 ``(n, 3)``.
+
+    ``k_M``/``k_N``: interpolate truncated shape differences (the metric of ``b`` is the one
+    recovered from them); ``None`` = full basis. ``offset``: offset distance of the extrinsic
+    differences (the truncated recovery here needs only the intrinsic metric, the rotations come
+    from the poses). ``use_extrinsic=False`` interpolates the intrinsic metric only (bending then
+    follows the linear blend). Vertices whose neighbourhood only translates from ``a`` to ``b``
+    are anchored to the linear blend: parts that do not move stay where they are at every factor.
+    """
+
+    def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
+                 offset: float | None = None, use_extrinsic: bool = True):
+        keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
+        poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
+            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
+        self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
+        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True)
+        self._sequence._anchored = True
+        self._whole = None  # the second fit's (made when first asked)
+        edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+        self._edges = edges
+        self._squared = [self._squared_lengths(p) for p in poses]
+        self._given_poses = poses
+        self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
+
+    def _whole_sequence(self) -> SequenceInterpolator:
+        """The same keys with every piece's rotations taken whole; it shares the first's keys and
+        topology (its gap, and the gap's anchored system, are its own)."""
+        if self._whole is None:
+            whole = copy.copy(self._sequence)
+            whole._whole_rotations = True
+            whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
+            self._whole = whole
+        return self._whole
+
+    def _chattering(self) -> bool:
+        """Whether every piece of the mesh deforms (none moves rigidly:
+        :data:`~core.inbetween_prediction.STILL_RIGIDITY`; a rigid piece's turn is no wrinkle, and
+        the blend would cut its chord) and its triangles turn between the two poses with no
+        coherence across it: neighbouring triangles' turns differ from each other (RMS over the
+        pairs sharing an edge of the angle of one's rotation relative to the other's) by at least
+        as much as the triangles turn (RMS of their rotations' residuals to the piece's rigid
+        motion), and those turns are at least the piece's rigid turn. Such keys are wrinkles changing from
+        one to the other, not a motion they resolve: the frames between them have wrinkles of
+        their own, not the half turns of the keys' (see :data:`CHATTER_COHERENCE`), so the linear
+        blend, their average, is the in-between. A piece turning as a body more than its
+        wrinkles (a cushion sliding off a bar, a head turned with its keys' rounding as residuals)
+        keeps its fit: the blend would cut the chord of that turn."""
+        if self._chatter is None:
+            topo, relative = self._sequence._topo, self._sequence._gap(0).relatives[2]
+            pairs = self._sequence._edge_pairs
+            rotations = Rotation.from_rotvec(relative.rotvec)
+            relative_turns = (rotations[pairs[:, 0]] * rotations[pairs[:, 1]].inv()).magnitude()
+            turns = np.einsum("ij,ij->i", relative.rotvec, relative.rotvec)
+            count, labels = len(topo.components), topo.triangle_component
+            pair_labels = labels[pairs[:, 0]]  # a pair sharing an edge lies in one piece
+            turned = np.bincount(labels, turns, minlength=count) / np.maximum(np.bincount(labels, minlength=count), 1)
+            differing = np.bincount(pair_labels, relative_turns ** 2, minlength=count) / \
+                np.maximum(np.bincount(pair_labels, minlength=count), 1)
+            rigid_turns = Rotation.from_matrix(relative.motion[0]).magnitude()
+            deforming = np.asarray(relative.nonrigidity) > STILL_RIGIDITY
+            wrinkling = (differing >= CHATTER_COHERENCE ** 2 * turned) & (turned >= rigid_turns ** 2)
+            self._chatter = bool((deforming & wrinkling).all())
+        return self._chatter
+
+    def _squared_lengths(self, x: np.ndarray) -> np.ndarray:
+        """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
+        return np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
+
+    def _misfit(self, x: np.ndarray, factor: float) -> float:
+        """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
+        (squared lengths linear in ``factor``)."""
+        target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
+        lengths = self._squared_lengths(x)
+        return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
+
+    def pose(self, factor: float) -> np.ndarray:
+        """0 → a, 1 → b (as given), 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
+        in-between of the full basis is fitted twice, with the rotations as residuals to each
+        piece's rigid motion and taken whole, and the second kept where it keeps the metric better
+        by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
+        (:data:`WHOLE_FIT_BLEND_RATIO`), or where the first fell back to the blend (or the metric
+        fitted near it) and the second has fewer flipped or collapsed triangles within
+        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's. Poses that
+        differ by wrinkles only (:meth:`_chattering`) give their linear blend."""
+        factor = check_factor(factor)
+        if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
+            return self._given_poses[int(factor)].copy()
+        first = self._sequence
+        if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
+            x = first.pose(0, factor)
+            if not 0.0 <= factor <= 1.0:
+                self._warn_grown(x, factor)
+            return x
+        if self._chattering():
+            return (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
+        (x,), said = first._poses(0, [factor])
+        misfit = self._misfit(x, factor)
+        # a first fit within the margin of the metric cannot be bettered by it: no second fit
+        if misfit > WHOLE_FIT_MARGIN and not first._gap(0).whole_rotations.all():
+            second = self._whole_sequence()
+            (y,), other = second._poses(0, [factor])
+            blend = (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
+            other_misfit = self._misfit(y, factor)
+            nearer_metric = other_misfit < misfit - WHOLE_FIT_MARGIN and \
+                _rms(y - blend) <= WHOLE_FIT_BLEND_RATIO * _rms(x - blend)
+            # a first fit held near the blend by a fallback has no distance from it to compare
+            # with: there the second is kept where it has fewer flipped or collapsed triangles and
+            # lies within WHOLE_FIT_HELD_REACH of the keys' distance from the blend
+            held, kept = first._gap(0).outcomes.get(factor), second._gap(0).outcomes.get(factor)
+            fewer_defects = held is not None and held.near_blend and kept is not None and \
+                kept.defects < held.defects and \
+                _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
+            if nearer_metric or fewer_defects:
+                x, said, misfit = y, other, other_misfit
+        for message in said:  # a fallback's edges, said where they are far from the metric (a crushed blend)
+            _warn(message if misfit <= FALLBACK_MISFIT_NOTED else
+                  f"{message} (its edge lengths {100 * misfit:.1f} % off the interpolated ones on average)")
+        return x
+
+    def _warn_grown(self, x: np.ndarray, factor: float) -> None:
+        """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`
+        times as long as in either pose, or under its inverse times as short. Those triangles are
+        told apart by what makes them so: the extrapolated metric itself (its corner lengths beyond
+        those bounds too: a triangle nearly collapsed or stretched in one pose), or the fit alone,
+        whose extrapolated rotations and stretches do not fit together there (a shear, a swirl) and
+        which stretches or crushes the triangles to close them."""
+        lengths = self._squared_lengths(x)
+        longest, shortest = np.maximum(*self._squared), np.minimum(*self._squared)
+        grown = lengths > EXTRAPOLATED_GROWTH ** 2 * longest
+        shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
+        if not (grown.any() or shrunk.any()):
+            return
+        tiny = np.finfo(float).tiny
+        growth = np.where(grown, lengths / np.maximum(longest, tiny), 0.0).reshape(-1, 3).max(axis=1)
+        shrinking = np.where(shrunk, shortest / np.maximum(lengths, tiny), 0.0).reshape(-1, 3).max(axis=1)
+        sequence = self._sequence
+        metric = sequence._gap(0).metric_lengths(factor)  # (3 corners, m), the keys' corner order
+        first, second = sequence._key(0).lengths.T, sequence._key(1).lengths.T
+        by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
+                     (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
+        flagged = (growth > 0) | (shrinking > 0)
+        for rows, cause in ((np.flatnonzero(flagged & by_metric),
+                             "an exaggerated or reversed metric grows each stretch by the factor's power, so a "
+                             "triangle nearly collapsed (or stretched) in one pose swells (or shrinks) the other "
+                             "way; use a factor nearer the poses, or give such triangles their size in the poses"),
+                            (np.flatnonzero(flagged & ~by_metric),
+                             f"the extrapolated metric keeps them within {EXTRAPOLATED_GROWTH:g} ×, but the "
+                             "extrapolated rotations and stretches do not fit together there (a shear or a swirl "
+                             "the pose cannot follow) and the fit stretches or crushes them to close the mesh; "
+                             "use a factor nearer the poses")):
+            if not rows.size:
+                continue
+            longer = growth[rows].max() >= shrinking[rows].max()
+            ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
+            _warn(f"at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle {int(rows[0])}) have edges "
+                  f"{ratio:.3g} × as {'long' if longer else 'short'} as in either pose: {cause}")
+
+
+#: Two poses whose triangles' turns are no more alike between neighbours than this times the
+#: turns themselves (RMS ratio; 1: neighbours' turns correlate by at most a half) are wrinkles that
+#: change between the keys (:meth:`Interpolator._chattering`): a sewn garment lying on the floor,
+#: keys 4–16 frames apart, its triangles turning 11–25° with the neighbours' turns differing
+#: 1.00–1.11 × that, had in-betweens 1.00–1.08 × the blend's RMS error (its simulated middle
+#: frames 6 × farther from the keys' half turns than the fitted pose); the tablecloth settling on
+#: its table, keys 4 apart from frames 20 and 22, 1.014 / 1.050 × at a ratio of 1.002 / 1.001, where
+#: its later pairs, at 0.92–0.996, keep their fits (0.85–1.035 ×). The soft flags' first pairs (1.08–1.13)
+#: lose their fits' gain there (one pair 0.959 → 1.000 ×; *Two poses whose keys differ by wrinkles only*).
+CHATTER_COHERENCE = 1.0
+
+
+#: A two-pose in-between's warnings add how far its edges are from the interpolated metric where
+#: that is over this (mean relative deviation): a sheet flipping over a rod, two poses 16 frames
+#: apart, fell back to the metric fitted near the blend, 14–23 % off (the simulation's own 0.3–0.9
+#: %), and the warning said only "used the interpolated metric fitted near the linear blend".
+FALLBACK_MISFIT_NOTED = 0.02
+
+
+#: An extrapolated pose warns where an edge comes out over this many times as long (or its inverse
+#: as short) as in either pose: a sheet whose triangle is a 1e-7 sliver in one pose reversed to −0.5
+#: was 3.94 × as wide, an edge 16 × its length, with no warning; ×2 of a 100° bend stays within 1.1.
+EXTRAPOLATED_GROWTH = 2.0
+
+
+#: Two poses: an in-between is fitted again with every triangle's whole rotation (not its residual
+#: to its piece's rigid motion) and that fit kept where its edge lengths are nearer the
+#: interpolated metric by more than this (mean relative deviation): cloth whipping or crumpling
+#: between the keys, whose residuals the fit cannot follow (a sheet swung ±60° on a hook: the
+#: whole sheet turns 50–110°, its triangles' residuals 60–100°; the fit turned the free edge 15–19°
+#: where the field says 44–57°). Pairs of frames g apart (stride 4), RMS ÷ the blend's: curtain
+#: g = 16 1.128 → 0.891 (edge deviation 7.97 → 5.30 %, flipped 745 → 301), balloon g = 16 0.993 →
+#: 0.952, two sheets g = 16 0.831 → 0.787, the hooked sheet 1.100 / 1.206 → 1.028 / 1.146 at g = 8 /
+#: 16; worse: lifted sheet g = 16 0.934 → 0.962 (one of its 9 pairs); nine other cloths within
+#: ±0.001. Rigid motions, half turns and bends keep the first fit (their misfits are equal).
+WHOLE_FIT_MARGIN = 0.005
+#: ... and where it is no farther from the linear blend than this many times the first fit: a fit
+#: nearer the metric is not always nearer the motion (a flag at g = 16, frames 24 → 40: misfit 6.1 →
+#: 0.4 %, but 1.085 → 1.435 × the blend's error, 0.80 → 1.06 of it away from the blend; a sheet on a
+#: swinging hook whose first fit fell back to the blend: 1.00 → 1.20 ×). A first fit held near the
+#: blend by a fallback gives no distance to compare with: there the fit with fewer flipped or
+#: collapsed triangles is kept (a flag draped over a sphere, g = 16: 2,829 → 104 flipped, 1.000 →
+#: 1.054 × the blend's error; a tablecloth pulled off a table, g = 8: 144 → 0, 1.000 → 0.886 ×) ...
+WHOLE_FIT_BLEND_RATIO = 1.25
+#: ... where it lies within this share of the keys' RMS distance from each other from the blend: a
+#: sheet whipped by a keyframed corner, keys 8 frames apart, had second fits 0.23–0.24 of it away
+#: with 25 and 7 flipped triangles where the first's fallbacks had 550 and 849, and 2.07 / 1.61 ×
+#: the blend's error (the cell's median 0.961 → 1.074 ×); those kept, 0.01–0.13 of it away (0.08
+#: on the flag, 0.12 on the banner), are 0.85–1.05 × (one at 0.20, 0.98 → 0.79 ×, is left out).
+WHOLE_FIT_HELD_REACH = 0.15
+
+
+def _rms(d: np.ndarray) -> float:
+    """RMS over the rows of ``d`` (n, 3) of their lengths."""
+    return float(np.sqrt(np.mean(np.sum(d * d, axis=1))))
+
+
+def interpolate(vertices_a, vertices_b, triangles, factor: float, *, k_M: int | None = None,
+                k_N: int | None = None, offset: float | None = None, use_extrinsic: bool = True) -> np.ndarray:
+    """One pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1); see :class:`Interpolator`."""
+    factor = check_factor(factor)
+    return Interpolator(vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset,
+                        use_extrinsic=use_extrinsic).pose(factor)
