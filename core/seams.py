@@ -3,7 +3,7 @@
 Garments exported panel by panel (Marvelous Designer's "unweld", OBJ and FBX writers that split
 vertices along UV seams, an Edge Split applied before caching) arrive as pieces that touch along
 seams without sharing vertices. Per-vertex interpolation keeps coincident vertices together; the
-in-betweens (:mod:`core.interpolation`) reconstruct each piece from its own rotations and
+in-betweens (:mod:`core.sequence_inbetweens`, :mod:`core.two_pose_inbetweens`) reconstruct each piece from its own rotations and
 stretches, and a piece has no reason to meet its neighbour there: a 10k sheet cut in two along a
 row of coincident vertices opened by 1–13 mean edge lengths at keys 8 and 16 frames apart. Such
 vertices are welded for the interpolation and written back to every copy.
