@@ -9,7 +9,7 @@ of their covariance), and each edge counts ``|edge|² / S``: how long it is agai
 positions read and in the mesh at rest: how many times more the edges grew than the parts they make
 up. Moving, turning or scaling a part leaves it at 1; a surface that stretches grows its part with
 it; one that folds or crumples shrinks its part while its edges keep their length, and that is all
-a motion can do to it: in 230 cloth, rig and deformer sequences measured (docs/pipeline.md) at most
+a motion can do to it: in 124 cloth, rig and deformer sequences measured (docs/pipeline.md) at most
 2.4 against any of their frames as rest, and 2.9 where Blender's cloth collapsed a shrinking tube
 onto its axis for one frame. Positions in another vertex order put the two ends of an edge as far
 apart as two vertices taken at random, ``|edge|² ≈ S``: the growth is then about the number of
