@@ -123,10 +123,10 @@ def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, r
 def _closest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
     at positions ``x`` and their midpoint."""
-    nearest = _nearest(x, ends, first)
     if not first.size:
-        return nearest, np.zeros((0, 3))
+        return np.zeros(0), np.zeros((0, 3))
     gap = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1)
+    nearest = np.minimum.reduceat(gap, first)
     counts = np.diff(np.r_[first, len(ends)])
     # each run's first pair at its least distance (a reduction: sorting the pairs cost more than the rest)
     closest = np.minimum.reduceat(np.where(gap == np.repeat(nearest, counts), np.arange(len(ends)), len(ends)), first)
@@ -211,14 +211,15 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     inverse = np.transpose(rotations[u], (0, 2, 1))  # v's motion relative to u's (relative_motion, every pair)
     relative = inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u])
     contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
-    offsets = joint_offsets(contact, np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size])), first,
-                            *relative, reach)
+    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size]))  # each vertex pair's pair of pieces
+    offsets = joint_offsets(contact, run, first, *relative, reach)
     jointed = offsets <= reach
     # touching within the finer piece's edges, and in the next key too: a joint keeps its pieces
     # together (cubes of a shattered block that touch in the base key and have flown apart in the
     # next are no joints, wherever their relative motions' axes run)
     finer = reach if edges is None else np.minimum(reach, JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]]))
-    jointed &= _nearest(base, ends, first) <= finer
+    nearest_base, contact_base = _closest(base, ends, first)
+    jointed &= nearest_base <= finer
     if jointed.any():
         nearest_later, contact_later = _nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
         jointed &= nearest_later <= finer
@@ -240,14 +241,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
         half = rotation_continuity.either_way(np.linalg.norm(screws[pieces, :3], axis=1), screw_motions.TURN_SPREAD)
         together &= ~(half[u] | half[v])
-        nearest_base, contact_base = _closest(base, ends, first)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
         if together.any():
             slack = OWN_CONTACT_SLACK * finer
             kept = np.minimum(nearest_base, nearest_later) + slack
-            run = np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size]))
             apart = np.maximum(np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1),
                                np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1))
             same = apart <= slack[run]  # the vertex pairs (nearly) shared in both keys

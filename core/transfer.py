@@ -250,7 +250,7 @@ class Transfer:
         if correspondence is not None:  # closest points keep the base's sides
             check_orientation(reference.base_positions, reference.topology, laid)
         self.size = target_size(reference.base_positions, laid, reference.topology.triangles)
-        push = push_forward_matrix(rest_used, pull_back @ rest_used, reference.topology.triangles)
+        push = push_forward_matrix(rest_used, laid, reference.topology.triangles)
         self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None
         if reference.use_extrinsic:
