@@ -117,6 +117,48 @@ def _retriangulated(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
     return triangles
 
 
+def area_recoverable_triangles(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
+    """``triangles`` (:func:`mesh_triangles` of ``mesh``, int64 ``(m, 3)``) with one quad split
+    along its other diagonal in every closed part whose triangles two-colour
+    (:func:`core.full_basis_recovery.two_colour_parts`: full-basis differences cannot determine
+    its areas, Prop. 1): how Blender splits a quad is its choice, not the user's, and a quad mesh
+    with a handle (the Torus primitive) is split into such triangles, every vertex of even
+    valence. The other diagonal gives four vertices odd valence. A quad is re-split only where its
+    two new triangles face its way and cover it (:func:`_covers`), neither is flat and its other
+    diagonal is not already an edge (the mesh would not stay a manifold); a part
+    without such a quad, or a mesh the core refuses, keeps its triangles (the core says why)."""
+    from .core.errors import MeshError
+    from .core.full_basis_recovery import two_colour_parts
+    from .core.mesh_topology import DEGENERATE_TRIANGLE_RATIO, mesh_topology
+
+    try:
+        topology = mesh_topology(triangles, len(mesh.vertices))
+    except MeshError:
+        return triangles
+    labels, bad = two_colour_parts(topology)
+    if not bad.size:
+        return triangles
+    edges = set(map(tuple, topology.edges.tolist()))
+    positions = vertex_positions(mesh)
+    polygons = loop_triangle_polygons(mesh)
+    triangles = triangles.copy()
+    for part in bad:
+        for polygon in np.unique(polygons[labels == part]):
+            corners = np.array(mesh.polygons[polygon].vertices, dtype=np.int64)
+            if corners.size != 4:
+                continue
+            rows = np.flatnonzero(polygons == polygon)
+            splits = corners[np.array([[[0, 1, 2], [0, 2, 3]], [[0, 1, 3], [1, 2, 3]]])]
+            used = set(map(tuple, np.sort(triangles[rows], axis=1).tolist()))
+            candidate = splits[1] if used == set(map(tuple, np.sort(splits[0], axis=1).tolist())) else splits[0]
+            diagonal = tuple(sorted(set(candidate[0].tolist()) & set(candidate[1].tolist())))
+            flat = _doubled_areas(positions, candidate) <= DEGENERATE_TRIANGLE_RATIO * _longest(positions, candidate)
+            if diagonal not in edges and not flat.any() and _covers(positions, candidate, triangles[rows]):
+                triangles[rows] = candidate
+                break
+    return triangles
+
+
 def _covers(positions: np.ndarray, candidate: np.ndarray, original: np.ndarray) -> bool:
     """Whether the triangles ``candidate`` of an n-gon cover it as its loop triangles ``original``
     do: the same vector area (their area-weighted normals sum to the face's), every one facing

@@ -30,7 +30,7 @@ from . import deformation_fields as df
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
-from .seams import across_edges, coordinate_rounding, inverse_heights
+from .seams import across_edges, coordinate_rounding, inverse_heights, seam_sides, warn_seam_folds
 from .shape_space_pca import KINDS, check_kind
 from .validation import check_count
 
@@ -106,6 +106,8 @@ class DistortionAnalyzer:
         self._across_inverse_heights = across_edges(self._inverse_heights, ref.topology.triangles)  # bending's
         self._base_inverse = df.inverse_edge_rows(_tangent_coordinates(ref.base.positions, ref.topology.triangles))
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
+        self._seam_sides = seam_sides([ref.base.positions], ref.topology)  # pieces apart along seams
+        self._seam_folds_told = False
         if ref.use_extrinsic:
             surface = ref.surface
             offset_tris = surface.topology.triangles
@@ -139,6 +141,10 @@ class DistortionAnalyzer:
                 bending_faces = np.where(base_face_sum > 0, np.log(face_sum / base_face_sum), 0.0)
             bending_vertices = np.where(base_vertex_sum > 0, bending_vertices - area_vertices, 0.0)
             bending_faces = np.where(base_face_sum > 0, bending_faces - area_faces, 0.0)
+        if len(self._seam_sides) and not self._seam_folds_told:  # once: the first pose that folds them
+            self._seam_folds_told = warn_seam_folds(
+                ref.base.positions, [pose], topo.triangles, self._seam_sides, self.single_precision, name,
+                "the maps compare each piece on its own, so they show no bending along those seams")
         rounding = coordinate_rounding([ref.base.positions, pose], self.single_precision)
         relative = rounding * self._inverse_heights  # rounding / h
 

@@ -56,13 +56,10 @@ class AreaRecovery:
         return self._factor.solve(self._map.T @ edge_values)
 
 
-def check_area_recoverable(topology: MeshTopology) -> None:
-    """Raise :class:`RecoveryError` if some connected component is closed and its dual graph is
-    bipartite (then ``A(µ)`` does not determine µ: the kernel of µ ↦ edge entries is ±1 on the two
-    colours). Otherwise the areas are determined: a boundary edge's entry is one triangle's area,
-    and an odd cycle of triangles, along which a kernel vector would alternate in sign, forces it
-    to vanish; flood fill along the edge sums then fixes the whole component. This is the exact
-    condition; Prop. 1's (a boundary or an odd-valence vertex) is sufficient only."""
+def two_colour_parts(topology: MeshTopology) -> tuple[np.ndarray, np.ndarray]:
+    """The connected parts of ``topology`` whose areas full-basis differences cannot determine:
+    (each triangle's part, int64 ``(m,)``; those parts, int64 ``(p,)``), the parts closed and with a
+    bipartite dual graph (see :func:`check_area_recoverable`)."""
     from scipy.sparse.csgraph import connected_components
 
     count, labels = topology.components()
@@ -81,7 +78,17 @@ def check_area_recoverable(topology: MeshTopology) -> None:
     _, cover_labels = connected_components(cover, directed=False)
     bipartite = np.zeros(count, dtype=bool)
     bipartite[labels[cover_labels[:m] != cover_labels[m:]]] = True
-    bad = np.flatnonzero(~has_boundary & bipartite)
+    return labels, np.flatnonzero(~has_boundary & bipartite)
+
+
+def check_area_recoverable(topology: MeshTopology) -> None:
+    """Raise :class:`RecoveryError` if some connected component is closed and its dual graph is
+    bipartite (then ``A(µ)`` does not determine µ: the kernel of µ ↦ edge entries is ±1 on the two
+    colours). Otherwise the areas are determined: a boundary edge's entry is one triangle's area,
+    and an odd cycle of triangles, along which a kernel vector would alternate in sign, forces it
+    to vanish; flood fill along the edge sums then fixes the whole component. This is the exact
+    condition; Prop. 1's (a boundary or an odd-valence vertex) is sufficient only."""
+    labels, bad = two_colour_parts(topology)
     if bad.size:
         first = int(np.flatnonzero(labels == bad[0])[0])
         raise RecoveryError(

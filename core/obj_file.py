@@ -9,19 +9,22 @@ from pathlib import Path
 import numpy as np
 
 from .errors import MeshError
+from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
 
 
 def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     """Vertices float64 ``(n, 3)`` and triangles int64 ``(m, 3)`` of an OBJ file.
 
-    Polygons are split into a fan of triangles from their first corner; ``v/vt/vn`` corners and
-    negative (relative) indices are understood; other statements (normals, groups, materials)
-    are ignored. A missing file, a bad index or a file without faces raises :class:`MeshError`.
+    Polygons are split into a fan of triangles from their first corner, or, where that fan has a
+    zero-area or inverted triangle, from the corner whose fan's worst triangle is the largest
+    (:func:`fan_corners`); ``v/vt/vn`` corners and negative (relative) indices are understood;
+    other statements (normals, groups, materials, lines) are ignored. A missing file, a bad index
+    or a file without faces raises :class:`MeshError`.
     """
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
-    vertices, triangles = [], []
+    vertices, polygons = [], []
     with open(path, encoding="utf-8-sig", errors="replace") as stream:  # -sig: a byte-order mark is no text
         for line_number, line in enumerate(stream, 1):
             fields = line.split()
@@ -37,12 +40,50 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
                     corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
                     if len(corners) < 3 or min(corners) < 0 or max(corners) >= len(vertices):
                         raise ValueError("a face needs three corners that name earlier vertices")
-                    triangles += [[corners[0], corners[i], corners[i + 1]] for i in range(1, len(corners) - 1)]
+                    polygons.append(corners)
             except ValueError as error:
                 raise MeshError(f"'{path}' line {line_number} cannot be read ({error}): {line.strip()!r}") from None
-    if not triangles:
+    if not polygons:
         raise MeshError(f"'{path}' has no faces: a topology needs a surface mesh.")
-    return np.array(vertices, dtype=np.float64).reshape(-1, 3), np.array(triangles, dtype=np.int64)
+    vertices = np.array(vertices, dtype=np.float64).reshape(-1, 3)
+    triangles = []
+    for corners, first in zip(polygons, fan_corners(vertices, polygons)):
+        corners = corners[first:] + corners[:first]
+        triangles += [[corners[0], corners[i], corners[i + 1]] for i in range(1, len(corners) - 1)]
+    return vertices, np.array(triangles, dtype=np.int64)
+
+
+def fan_corners(vertices: np.ndarray, polygons: list[list[int]]) -> np.ndarray:
+    """For each polygon (a list of vertex indices into ``vertices`` float64 ``(n, 3)``), the corner
+    its fan of triangles starts from, int ``(len(polygons),)``: 0 where every triangle of that fan
+    has an area above the degenerate threshold of :mod:`core.mesh_topology` and faces the
+    polygon's way (its normal by Newell's formula), else the corner whose fan's smallest such
+    area (signed, relative to its longest squared edge) is the largest. Exporters write n-gons
+    with corners on one line (what Dissolve leaves, a T-junction's vertex) and concave quads,
+    whose fan from the first corner can have a zero-area triangle, refused as degenerate, or an
+    inverted one, which folds the surface over; Blender triangulates them without either."""
+    first = np.zeros(len(polygons), dtype=np.int64)
+    sizes = np.array([len(corners) for corners in polygons])
+    for size in np.unique(sizes[sizes > 3]):
+        rows = np.flatnonzero(sizes == size)
+        corners = np.array([polygons[row] for row in rows], dtype=np.int64)  # (k, c)
+        points = vertices[corners]
+        points = points - points.mean(axis=1, keepdims=True)
+        normal = np.cross(points, np.roll(points, -1, axis=1)).sum(axis=1)  # Newell: 2 × vector area
+        length = np.linalg.norm(normal, axis=1)
+        normal = np.divide(normal, length[:, None], out=np.zeros_like(normal), where=length[:, None] > 0)
+        # the fan from corner a: triangles (a, a + i, a + i + 1) for i = 1 .. c − 2
+        apex = np.arange(size)[:, None]
+        steps = np.arange(1, size - 1)[None, :]
+        a = points[:, np.broadcast_to(apex, (size, size - 2))]  # (k, c, c − 2, 3)
+        b = points[:, (apex + steps) % size]
+        c = points[:, (apex + steps + 1) % size]
+        signed = np.einsum("kftd,kd->kft", np.cross(b - a, c - a), normal)
+        longest = np.max([np.einsum("...d,...d->...", p - q, p - q) for p, q in ((a, b), (b, c), (c, a))], axis=0)
+        score = (signed / np.where(longest > 0, longest, 1.0)).min(axis=2)  # (k, c)
+        fine = score[:, 0] > DEGENERATE_TRIANGLE_RATIO
+        first[rows] = np.where(fine | (length == 0), 0, np.argmax(score, axis=1))
+    return first
 
 
 def write_obj(path, vertices, triangles) -> Path:

@@ -34,7 +34,7 @@ import warnings
 
 from .concurrency import single_threaded_blas
 from .errors import MeshError, ShapeDifferenceWarning
-from .seams import relative_round_off
+from .seams import relative_round_off, seam_sides, warn_seam_folds
 from .validation import check_count
 
 #: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
@@ -204,6 +204,11 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                     features[kind][index] = difference.matrix.ravel()
             yield (index + 1) / len(poses)
     faces = reference.topology.triangles
+    sides = seam_sides(compacts, reference.topology)
+    if len(sides):
+        warn_seam_folds(compacts[0], compacts[1:], faces, sides, single_precision, "the poses",
+                        "the shape differences describe each piece on its own, so the shape space does "
+                        "not see those folds")
     space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compacts, faces, single_precision),
                        relative_round_off(compacts, faces, single_precision, reference.offset))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):

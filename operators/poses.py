@@ -129,6 +129,8 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         self.key = key.name
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
+        if options["k_M"] is None:  # the full basis recovers areas exactly where the triangles allow it
+            triangles = bridge.area_recoverable_triangles(obj.data, triangles)
         self.check_output(obj)
         self.pose_names = (f"shape key '{key_blocks[0].name}'", f"shape key '{key.name}'")
         yield 0.0

@@ -1,5 +1,7 @@
 """Distortion maps: area change, conformal distortion, bending and the difference eigenfunctions."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -200,3 +202,63 @@ def test_a_turned_cylinder_with_fan_caps_is_round_off(sides):
     with pytest.warns(core.ShapeDifferenceWarning, match="same shape differences"):
         core.shape_space(keys, t, k_M=10, k_N=None)
 
+
+
+def split_along_middle(vertices, triangles):
+    """``vertices`` (n, 3), ``triangles`` (m, 3) of a grid cut along its middle column of vertices
+    into two pieces that do not share them (as an export split at a UV seam leaves it): the
+    vertices with the seam's copies appended, the triangles, the seam's vertices and their copies."""
+    middle = np.unique(np.round(vertices[:, 0], 9))
+    middle = middle[len(middle) // 2]
+    seam = np.flatnonzero(np.isclose(vertices[:, 0], middle))
+    copies = len(vertices) + np.arange(seam.size)
+    renumber = np.arange(len(vertices))
+    renumber[seam] = copies
+    right = vertices[triangles].mean(axis=1)[:, 0] > middle
+    split = triangles.copy()
+    split[right] = renumber[triangles[right]]
+    return np.concatenate([vertices, vertices[seam]]), split, seam, copies
+
+
+def folded(vertices, degrees, hinge):
+    """``vertices`` with those beyond x = ``hinge`` turned up about that line by ``degrees``."""
+    out = vertices.copy()
+    beyond = out[:, 0] > hinge + 1e-9
+    distance, angle = out[beyond, 0] - hinge, np.radians(degrees)
+    out[beyond, 0], out[beyond, 2] = hinge + distance * np.cos(angle), distance * np.sin(angle)
+    return out
+
+
+def test_a_fold_along_a_seam_the_pieces_do_not_see_is_warned():
+    """Pieces of a mesh split along a seam have their maps each on its own: a fold along the seam
+    is bending the welded mesh shows there and the split one cannot (0 everywhere), so it warns,
+    naming the fold's angle; an in-plane stretch, a rigid motion in single precision far out and
+    the welded mesh fold nothing the maps miss."""
+    v, t = grid(12)
+    hinge = np.unique(np.round(v[:, 0], 9))[len(np.unique(np.round(v[:, 0], 9))) // 2]
+    split, triangles, seam, copies = split_along_middle(v, t)
+    welded = core.distortion(v, folded(v, 60.0, hinge), t)
+    assert np.abs(welded.bending_vertices[seam]).min() > 0.1  # the fold, on the welded mesh
+    with pytest.warns(core.ShapeDifferenceWarning, match=r"split along seams \(11 seam edge.*11 of them fold by "
+                                                         r"up to 60° in pose vertices.*Merge by Distance"):
+        apart = core.distortion(split, folded(split, 60.0, hinge), triangles)
+    assert np.abs(apart.bending_vertices).max() < 1e-6  # none but round-off: what the warning is about
+    turn = np.linalg.qr(np.random.default_rng(2).normal(size=(3, 3)))[0]
+    quiet = [split * [1.0, 1.3, 1.0], (split @ turn.T + 1000.0).astype(np.float32).astype(np.float64)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", core.ShapeDifferenceWarning)
+        for pose in quiet:
+            core.distortion(split, pose, triangles)
+        core.distortion(v, folded(v, 60.0, hinge), t)
+
+
+def test_a_shape_space_of_folds_along_a_seam_warns():
+    """Poses that differ only by a fold along a seam have the same differences piece by piece: the
+    shape space of the split mesh has no spread, and says why."""
+    v, t = grid(12)
+    hinge = np.unique(np.round(v[:, 0], 9))[len(np.unique(np.round(v[:, 0], 9))) // 2]
+    split, triangles, _, _ = split_along_middle(v, t)
+    poses = [folded(split, degrees, hinge) for degrees in (0.0, 30.0, 60.0, 90.0)]
+    with pytest.warns(core.ShapeDifferenceWarning, match=r"split along seams.*up to 90° in the poses: the shape "
+                                                         r"differences describe each piece on its own"):
+        core.shape_space(poses, triangles, k_M=20, k_N=40)

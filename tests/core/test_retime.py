@@ -443,6 +443,68 @@ def test_obj_with_a_byte_order_mark(tmp_path):
     np.testing.assert_array_equal(read_triangles, triangles)
 
 
+def exported_sheet(nx=6):
+    """An OBJ export of a sheet as modellers leave it: quads, a hexagon whose first three corners
+    are on one line (two quads joined by Dissolve) and a concave quad whose second corner is
+    reflex. (rest ``(n, 3)``, polygons: lists of vertex indices, the hexagon first, the concave
+    quad second.)"""
+    x, y = np.meshgrid(np.linspace(0.0, 1.0, nx), np.linspace(0.0, 1.0, nx))
+    rest = np.stack([x.ravel(), y.ravel(), np.zeros(nx * nx)], axis=1)
+    quads = [[j * nx + i, j * nx + i + 1, (j + 1) * nx + i + 1, (j + 1) * nx + i]
+             for j in range(nx - 1) for i in range(nx - 1)]
+    hexagon = [0, 1, 2, nx + 2, nx + 1, nx]  # quads 0 and 1 without their shared edge
+    concave = quads[2 * (nx - 1) + 2]
+    a, b, c, d = (rest[i] for i in concave)
+    rest[concave[1]] = 0.2 * a + 0.2 * c + 0.6 * d  # past the diagonal a–c: b is reflex
+    return rest, [hexagon, concave] + [q for q in quads[2:] if q != concave]
+
+
+def test_obj_polygons_are_split_without_flat_or_inverted_triangles(tmp_path):
+    """Each polygon's triangles face its way, none with zero area, and cover it exactly (their
+    areas add up to the polygon's, by the shoelace formula): a fan from the first corner of the
+    hexagon has a triangle on its straight side, and one of the concave quad is inverted."""
+    rest, polygons = exported_sheet()
+    path = tmp_path / "export.obj"
+    path.write_text("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in rest) + "vn 0 0 1\n"
+                    + "".join("f " + " ".join(f"{i + 1}//1" for i in polygon) + "\n" for polygon in polygons))
+    vertices, triangles = read_obj(path)
+    np.testing.assert_array_equal(vertices, rest)
+    a, b, c = (vertices[triangles[:, k]] for k in range(3))
+    doubled = np.cross(b - a, c - a)[:, 2]  # the sheet lies in z = 0, every polygon facing +z
+    start = 0
+    for polygon in polygons:
+        rows = slice(start, start + len(polygon) - 2)
+        start = rows.stop
+        assert set(triangles[rows].ravel()) == set(polygon)
+        corners = rest[polygon]
+        shoelace = np.sum(corners[:, 0] * np.roll(corners[:, 1], -1) - np.roll(corners[:, 0], -1) * corners[:, 1])
+        assert doubled[rows].min() > 1e-3 * shoelace
+        np.testing.assert_allclose(doubled[rows].sum(), shoelace, rtol=1e-12)
+    assert start == len(triangles)
+    # a convex quad keeps the fan from its first corner
+    assert triangles[-2:].tolist() == [[polygons[-1][0], *polygons[-1][1:3]], [polygons[-1][0], *polygons[-1][2:4]]]
+
+
+def test_command_retimes_a_cache_on_an_exported_topology_with_ngons(tmp_path):
+    """The retime runs on an OBJ whose hexagon has corners on one line (refused as a zero-area
+    triangle when split from its first corner), its kept frames exactly the source's."""
+    rest, polygons = exported_sheet()
+    frames = [rest]  # flat at first, where the hexagon's straight side is straight, then rolling up
+    for t in np.linspace(0.25, 2.0, 8):
+        radius = 1.0 / t
+        theta = rest[:, 0] / radius
+        frames.append(np.stack([radius * np.sin(theta), rest[:, 1], radius * (1 - np.cos(theta))], axis=1))
+    source = np.array(frames, dtype=np.float32)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = tmp_path / "export.obj"
+    topology.write_text("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in rest)
+                        + "".join("f " + " ".join(str(i + 1) for i in polygon) + "\n" for polygon in polygons))
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5", "-q",
+                 "-o", str(tmp_path / "out.pc2")]) == 0
+    out = read_pc2(tmp_path / "out.pc2").positions
+    np.testing.assert_array_equal(out[::8], source[::4])
+
+
 def test_info_and_retime_read_an_mdds_own_times(tmp_path, capsys):
     """``info`` prints an MDD's times (before: "start 0, sampling 1", read as a second per frame);
     a retime of one whose frames are unevenly spaced says it retimes them as if they were not."""
