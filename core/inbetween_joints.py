@@ -9,7 +9,10 @@ jointed in a gap when both are rigid over its keys (non-rigidity under
 :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`), they touch in both its keys (vertices within
 :data:`JOINT_REACH` mean edge lengths: pieces that have come apart in the next key are held by no
 joint) and the child's motion relative to the parent's holds the
-contact (:func:`joint_offset`: a hinge's axis runs through it), their nearest vertices within the
+contact (:func:`joint_offset`: a hinge's axis runs through it) without sliding along that axis,
+to within what the pieces' rigid fits resolve (:data:`JOINT_SLIDE`: a joint holds a point, where
+pieces touching by chance — hair cards each turning about its own root, tumbling debris — turn
+relative to each other about an axis that slides), their nearest vertices within the
 finer piece's own mean edge length too (a gap wider than a small piece's edges is no contact,
 whatever the mesh's other pieces make its mean edge). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
@@ -26,14 +29,20 @@ hinge (90° and 40°), were jointed (their relative motion's axis runs near thei
 child door came back bent between its hinge's pins and its composed motion: 0.12 of the diagonal
 off at 0.5, edges 4 % off, 0.24 and 60 % at × 2; now exact. Such pieces are joined to a world
 node before any joint in the spanning tree, which is traversed from it first: they are roots, and
-other pieces may hang from them.
+other pieces may hang from them. A pinned piece that a piece jointed to it keeps still (whose
+motion keeps its pinned vertices where they are) is left to the tree, and hangs from a parent only
+where that parent's motion keeps its pins: a robot's link rolling about its own axis, on which the
+next joint lies, keeps that joint's point and the next link's still vertex there, and the next
+link, hung from the world, had left its forward kinematics (0.36 of a link's size at 0.5).
 
 Pieces that each turn about their own axis and touch in the same place in both keys (hair cards
 on their roots, meshing gears on their axles without a vertex there) move along their own screws,
 which are their motions: their relative motion turns about their contact too (the pitch point of
 two gears), and composed on it a card or gear left its root or axle. They are told from a joint
 by their contact, which a joint's moving parent carries between the keys and which their own
-screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`).
+screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`), unless both
+turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
+the point but not the turn relative to the link below).
 """
 
 from __future__ import annotations
@@ -51,6 +60,12 @@ from . import screw_motions
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
 JOINT_REACH = 1.0
+#: A joint holds a point of the contact fixed: the relative motion of two pieces that turn about it
+#: slides along its axis by at most this many times the two pieces' RMS rigid misfits over the gap's
+#: keys (plus the coordinates' rounding), unless they move as one. Pieces that touch by chance in both
+#: keys turn relative to each other about an axis that slides (hair cards each turning about its own
+#: root, tumbling debris), and moved by a neighbour's motion composed with that they left their own.
+JOINT_SLIDE = 3.0
 #: Two touching pieces are not jointed where the contact stays put in the world between the keys
 #: (its closest point moves by at most this share of how far either piece's motion carries it)...
 CONTACT_CARRIED = 0.5
@@ -91,18 +106,34 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     50,000 touching pairs: 4 s per gap one by one)."""
     moved = np.einsum("kab,kb->ka", rotations[pair], contact) + translations[pair]
     held = np.maximum.reduceat(np.linalg.norm(moved - contact, axis=1), starts) <= reach
-    turn = df.rotation_vectors(rotations)
-    angle = np.linalg.norm(turn, axis=1)
-    axis = turn / np.where(angle > 0, angle, 1.0)[:, None]
-    slide = np.einsum("pa,pa->p", translations, axis)
+    angle, axis, slide = _screw_axes(rotations, translations)
     hinged = ~held & (angle >= 1e-9) & (np.abs(slide) <= reach)
-    pivot = screw_motions.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)  # a point of the axis
+    pivot = np.zeros_like(translations)  # a point of each hinge's axis (only theirs: one small SVD each)
+    if hinged.any():
+        pivot[hinged] = _axis_points(rotations[hinged], translations[hinged], axis[hinged], slide[hinged])
     counts = np.diff(np.r_[starts, len(contact)])
     centre = np.add.reduceat(contact, starts) / counts[:, None]
     radius = np.maximum.reduceat(np.linalg.norm(contact - centre[pair], axis=1), starts)
     offset = centre - pivot
     distance = np.linalg.norm(offset - np.einsum("pa,pa->p", offset, axis)[:, None] * axis, axis=1)
     return np.where(held, 0.0, np.where(hinged, np.maximum(0.0, distance - radius - reach), np.inf))
+
+
+def _screw_axes(rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per rigid motion ``x ↦ R x + t`` (``rotations`` (P, 3, 3), ``translations`` (P, 3)) its turn's
+    angle (P,), the unit direction of its screw axis (P, 3; any where it does not turn) and how far
+    it slides along that axis (P,, signed; the whole translation's component along it)."""
+    turn = df.rotation_vectors(rotations)
+    angle = np.linalg.norm(turn, axis=1)
+    axis = turn / np.where(angle > 0, angle, 1.0)[:, None]
+    return angle, axis, np.einsum("pa,pa->p", translations, axis)
+
+
+def _axis_points(rotations: np.ndarray, translations: np.ndarray, axis: np.ndarray, slide: np.ndarray) -> np.ndarray:
+    """A point (P, 3) of the screw axis of each rigid motion ``x ↦ R x + t`` (``rotations``
+    (P, 3, 3), ``translations`` (P, 3); ``axis`` and ``slide`` from :func:`_screw_axes`): the least-
+    squares solution of ``(I − R) p = t − slide · axis``."""
+    return screw_motions.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)
 
 
 def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
@@ -173,8 +204,8 @@ def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: 
 
 
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-               moves: np.ndarray, reach: float, loose: np.ndarray | None = None, held: np.ndarray | None = None,
-               edges: np.ndarray | None = None, screws: np.ndarray | None = None):
+               moves: np.ndarray, reach: float, loose: np.ndarray | None = None, pins: np.ndarray | None = None,
+               edges: np.ndarray | None = None, screws: np.ndarray | None = None, misfits: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -186,14 +217,17 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     over half :data:`core.inbetween_motion.RIGID_PLACEMENT_SCALE`: noise, rounding), which root a
     group only where none of its pieces is firmly rigid (a head turned exactly rigidly hung from one
     of its two noisy eyes, which moved less, and left its own motion by the eye's noise: 3e-5 of the
-    diagonal at 0.5 for noise of 1e-4 of it); ``held``: bool (C,), the pieces with a pinned vertex
-    (still in the keys, :mod:`core.pins`), which hang from the world: roots, never children (see
-    the module's note); ``edges``: each piece's mean edge length (C,), two pieces touching only where
-    their nearest vertices are within the finer one's, in both keys (a lash 0.057 from a ball, both of edges about
-    0.04, was the ball's joint where a coarse body elsewhere made the mesh's mean edge 0.080, and
-    moved with the ball's turn: 2.8e-2 of the diagonal off its own at ×2); ``screws``: the pieces'
+    diagonal at 0.5 for noise of 1e-4 of it); ``pins``: bool (n,), the pinned vertices (still in
+    the keys, :mod:`core.pins`): a piece with one hangs from the world, a root, unless the piece it
+    is jointed to keeps them still (see the module's note); ``edges``: each piece's mean edge length
+    (C,), two pieces touching only where their nearest vertices are within the finer one's, in both
+    keys (a lash 0.057 from a ball, both of edges about 0.04, was the ball's joint where a coarse
+    body elsewhere made the mesh's mean edge 0.080, and moved with the ball's turn: 2.8e-2 of the
+    diagonal off its own at ×2); ``screws``: the pieces'
     own screw coordinates from ``base`` to ``nxt`` (C, 6), without which pieces that turn about
-    their own axes touching in the same place are jointed too."""
+    their own axes touching in the same place are jointed too; ``misfits``: each piece's RMS misfit
+    of its best rigid motion over the gap's keys (C,, lengths; 0 where None), what a joint's slide
+    is measured against (:data:`JOINT_SLIDE`)."""
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
@@ -223,6 +257,14 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     if jointed.any():
         nearest_later, contact_later = _nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
         jointed &= nearest_later <= finer
+    if jointed.any():
+        # a joint's relative motion turns about an axis through the contact without sliding along it
+        # (to within what the pieces' rigid fits resolve; pieces moving as one neither turn nor slide)
+        misfit = np.zeros(pieces.size) if misfits is None else misfits[pieces]
+        rounding = 1e-9 * (max(np.abs(base[index]).max(), np.abs(nxt[index]).max()) + reach)
+        precision = JOINT_SLIDE * (misfit[u] + misfit[v]) + rounding
+        _, axis, slide = _screw_axes(*relative)
+        jointed &= np.abs(slide) <= precision
     if jointed.any() and screws is not None:
         # no joint where the pieces turn about their own axes, touching in the same place: their own
         # screws are then their motions (hair cards turning about their roots, meshing gears about
@@ -241,6 +283,18 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
         half = rotation_continuity.either_way(np.linalg.norm(screws[pieces, :3], axis=1), screw_motions.TURN_SPREAD)
         together &= ~(half[u] | half[v])
+        # - both turn about the joint's point (of its axis, nearest the contact), which stays put to
+        #   within the same precision: a rig's joint on a parent turning about it (a robot's shoulder
+        #   pitching on the yaw axis of the link below), whose own screws keep that point too but
+        #   not the child's turn relative to its parent
+        if together.any():
+            t = np.flatnonzero(together)
+            pivot = _axis_points(relative[0][t], relative[1][t], axis[t], slide[t])
+            offset = np.add.reduceat(contact, first)[t] / np.diff(np.r_[first, key.size])[t, None] - pivot
+            point = pivot + np.einsum("pa,pa->p", offset, axis[t])[:, None] * axis[t]
+            drift = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k[t]], point) + translations[k[t]]
+                                                - point, axis=1) for k in (u, v)))
+            together[t] = drift > precision[t]
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
@@ -270,7 +324,14 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     weights = offsets[jointed] + apart[jointed] + 1e-3 * reach  # > 0: a zero is no edge to SciPy
     u, v = u[jointed], v[jointed]
     world = pieces.size  # a node for the world, which the pinned pieces hang from (the module's note)
-    pinned = np.flatnonzero(held[pieces]) if held is not None else np.zeros(0, dtype=np.intp)
+    # per joint, whether each piece's motion keeps the other's pins still (to the joints' precision):
+    # keeps[parent, child]; a pinned piece that no piece jointed to it keeps still hangs from the
+    # world, before any joint
+    has_pins, kept_u, kept_v = _pins_kept(base, index, label, pieces.size, pins, (u, v), (rotations, translations),
+                                          precision[jointed])
+    keeps = {**dict(zip(zip(v.tolist(), u.tolist()), kept_u.tolist())),
+             **dict(zip(zip(u.tolist(), v.tolist()), kept_v.tolist()))}
+    pinned = np.flatnonzero(has_pins & (np.bincount(np.r_[u, v], np.r_[kept_u, kept_v], minlength=pieces.size) == 0))
     if pinned.size:
         u, v = np.r_[u, np.full(pinned.size, world)], np.r_[v, pinned]
         weights = np.r_[weights, np.full(pinned.size, 0.5 * weights.min())]  # before any joint
@@ -296,12 +357,53 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             for other in neighbours[k]:
                 if other not in seen:
                     seen.add(other)
-                    if k != world:  # the world's children are roots
+                    # the world's children are roots, and so is a pinned piece whose parent's
+                    # motion would move its pins
+                    if k != world and (not has_pins[other] or keeps[k, other]):
                         parents[pieces[other]] = pieces[k]
                     queue.append(other)
     if not (parents >= 0).any():
         return None
     return parents, order
+
+
+def _pins_kept(base: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, pins: np.ndarray | None,
+               pair: tuple[np.ndarray, np.ndarray], motions: tuple[np.ndarray, np.ndarray],
+               precision: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per rigid piece (``count`` of them, vertices ``index`` at ``base`` with their ``label``)
+    whether it has a pinned vertex (``pins``: bool (n,), or None: none), and per jointed pair
+    (``pair``: pieces ``u``, ``v`` (P,)) whether ``v``'s rigid motion (``motions``: rotations,
+    translations per piece) keeps ``u``'s pinned vertices within ``precision`` (P,) of where they
+    are, and whether ``u``'s keeps ``v``'s (each True where that piece has none). A rigid motion
+    keeps a set of points still if it keeps three of them: their centroid, the one farthest from it
+    and the one farthest from the line through those two."""
+    u, v = pair
+    on = np.zeros(index.size, dtype=bool) if pins is None else pins[index]
+    rows, owner = index[on], label[on]
+    counts = np.bincount(owner, minlength=count)
+    if not rows.size:
+        return counts > 0, np.ones(u.size, dtype=bool), np.ones(u.size, dtype=bool)
+    centre = np.stack([np.bincount(owner, base[rows, d], minlength=count) for d in range(3)], axis=1)
+    centre /= np.maximum(counts, 1)[:, None]
+    offset = base[rows] - centre[owner]
+
+    def farthest(distance):  # per piece, its pin of the largest distance (the order puts it last)
+        last = np.lexsort((distance, owner))
+        out = np.zeros(count, dtype=np.intp)
+        out[owner[last]] = rows[last]
+        return base[out]
+
+    away = farthest(np.linalg.norm(offset, axis=1))
+    line = (away - centre) / np.maximum(np.linalg.norm(away - centre, axis=1), np.finfo(float).tiny)[:, None]
+    across = offset - np.einsum("ka,ka->k", offset, line[owner])[:, None] * line[owner]
+    points = (centre, away, farthest(np.linalg.norm(across, axis=1)))
+    rotations, translations = motions
+    kept = []
+    for mover, still in ((v, u), (u, v)):
+        moved = np.max([np.linalg.norm(np.einsum("pab,pb->pa", rotations[mover], x[still]) + translations[mover]
+                                       - x[still], axis=1) for x in points], axis=0)
+        kept.append((counts[still] == 0) | (moved <= precision))
+    return counts > 0, kept[0], kept[1]
 
 
 def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list | None = None) -> list:

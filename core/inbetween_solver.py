@@ -179,14 +179,12 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # rigid pieces jointed to each other move relative to the piece they hang from
         self.joints = None
         if len(topo.components) > 1:
-            held = None if static is None else np.bincount(topo.component_labels, static[topo.component_vertices],
-                                                           minlength=len(topo.components)) > 0
             piece_edges = np.bincount(topo.triangle_component, base.lengths.sum(axis=1),
                                       minlength=len(topo.components)) / (3 * topo.piece_sizes)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
-                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, held, piece_edges,
-                                     relatives[2].screw)
+                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, static, piece_edges,
+                                     relatives[2].screw, nonrigidity * base.diagonals)
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],
