@@ -13,7 +13,8 @@ plays the motion at ``--speed`` (see :mod:`core.retime`). ``--chunk I/N`` (1-bas
 ``--gaps A:B`` computes only the output samples of some key gaps; ``merge`` concatenates the
 chunk files into exactly (bit for bit) the file one process writes; given the retime's input
 and settings (``--retime``), it refuses chunks of any other retime, such as another job's written
-into a shared chunk folder. Progress goes to stderr; errors print one line and exit with status 2.
+into a shared chunk folder. Progress goes to stderr; warnings print one line each
+(``retime: warning: …``, exit status 0), errors one line and exit with status 2.
 """
 
 from __future__ import annotations
@@ -26,11 +27,13 @@ import signal
 import sys
 import threading
 import time
+import warnings
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 
-from .errors import ShapeDifferenceError
+from .errors import ShapeDifferenceError, ShapeDifferenceWarning
 from .obj_file import read_obj
 from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_pc2_header, read_point_cache,
                           refuse_overwriting, unwritable, write_pc2)
@@ -198,8 +201,8 @@ def _retime(args) -> int:
     if args.offset and not args.quiet:
         print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
     if cache.times is not None and not _even_times(cache.times):
-        print(f"retime: warning: the frame times of '{args.cache}' are not evenly spaced (or not finite); "
-              "its frames are retimed as if they were", file=sys.stderr)
+        _warning("retime", f"the frame times of '{args.cache}' are not evenly spaced (or not finite); "
+                 "its frames are retimed as if they were")
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -258,8 +261,39 @@ def _say(text: str) -> None:
     print(text.encode(encoding, "backslashreplace").decode(encoding))
 
 
+def _warning(command: str, text: str) -> None:
+    """Print the warning ``text`` on stderr as one line a farm's log search finds,
+    ``<command>: warning: <text>``: the output is written (exit status 0), but worth a look."""
+    print(f"{command}: warning: {' '.join(text.split())}", file=sys.stderr, flush=True)
+
+
+@contextmanager
+def _warnings_as_lines(command: str):
+    """The core's :class:`ShapeDifferenceWarning` (a fallback, a mirrored piece) said as the
+    command's own warnings (:func:`_warning`) while in the block, each message once, whatever
+    Python's warning filters say: ``PYTHONWARNINGS=error`` in a studio's environment would
+    otherwise end a finished retime with a traceback and status 1, and Python's own format
+    (a source file, a line number, a line of code) is not what a farm's log search looks for."""
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, ShapeDifferenceWarning):
+            _warning(command, str(message))
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", ShapeDifferenceWarning)
+        warnings.showwarning = show
+        yield
+
+
+class _Cancelled(SystemExit):
+    """SIGTERM received: the command stops (:func:`_stop_cleanly_on_sigterm`)."""
+
+
 def _terminated(signum, _frame):
-    raise SystemExit(128 + signum)
+    raise _Cancelled(128 + signum)
 
 
 @contextmanager
@@ -280,12 +314,41 @@ def _stop_cleanly_on_sigterm():
 
 def main(argv=None) -> int:
     args = _parser().parse_args(argv)
-    with _stop_cleanly_on_sigterm():
+    with _stop_cleanly_on_sigterm(), _warnings_as_lines(args.command):
         return _run(args)
+
+
+def _local_path(text: str) -> str:
+    """The file name ``text`` given on the command line as this command opens it: a leading ``~``
+    (``~/caches/x.pc2``, ``~anna/…``) is the home folder, as in a shell, since a job runner passes
+    its arguments without one. Raises :class:`ShapeDifferenceError` for a name no shell or job
+    means as it reads: a path relative to a saved .blend (``//caches/x.pc2``, Blender's notation;
+    on Linux and macOS it names a folder at the root of the disk), and one with a folder named
+    ``~`` that does not exist (a ``~`` not expanded: OpenJD makes ``~/x.pc2`` into
+    ``<its working folder>/~/x.pc2``; written, it would make a folder named ``~`` there)."""
+    if os.name != "nt" and text.startswith("//"):  # on Windows, //server/share is a network path
+        raise ShapeDifferenceError(
+            f"'{text}' is relative to a saved .blend (Blender's '//'), and `python -m core` has no .blend: "
+            f"here it would name '/{text.lstrip('/')}' at the root of the disk. Give the path from the working "
+            "folder or in full.")
+    path = os.path.expanduser(text)
+    parts = Path(path).parts
+    for index, part in enumerate(parts):
+        if part == "~" and not os.path.lexists(os.path.join(*parts[:index + 1])):
+            raise ShapeDifferenceError(
+                f"'{text}' has a folder named '~' that does not exist: the '~' was not made the home folder "
+                "(a job template or script passed it without a shell, or without HOME set). Give the path "
+                "in full.")
+    return path
 
 
 def _run(args) -> int:
     try:
+        for name in ("cache", "topology", "output", "retime", "numbered"):
+            if getattr(args, name, None) is not None:
+                setattr(args, name, _local_path(getattr(args, name)))
+        if args.command == "merge":
+            args.parts = [_local_path(part) for part in args.parts]
         if args.command == "retime":
             return _retime(args)
         if args.command == "merge":
@@ -331,6 +394,9 @@ def _run(args) -> int:
     except KeyboardInterrupt:  # Ctrl+C: a user's stop, not a failure to report (the writes are atomic)
         print(f"{args.command}: interrupted (Ctrl+C), nothing written", file=sys.stderr)
         return 130
+    except _Cancelled as cancelled:  # SIGTERM: a farm's cancel, said in the task's log (the writes are atomic)
+        print(f"{args.command}: cancelled (SIGTERM), nothing written", file=sys.stderr, flush=True)
+        return cancelled.code
 
 
 if __name__ == "__main__":

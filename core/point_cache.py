@@ -371,14 +371,31 @@ def check_stamps(parts, stamps, job: str | None = None) -> None:
                         "last chunk(s) are missing. Give every chunk, in order.")
 
 
-def _file_size_check(path: Path, expected: int, what: str, at_least: bool = False) -> None:
-    """Raise :class:`MeshError` unless ``path`` has ``expected`` bytes (``at_least``: or more)."""
+def _file_size_check(path: Path, header: int, coordinates: int, what: str, at_least: bool = False,
+                     counts: str = "") -> None:
+    """Raise :class:`MeshError` unless ``path`` has the ``header`` bytes and the ``coordinates``
+    bytes (float32) its header promises (``at_least``: or more). The message says what the size
+    points to: a file cut short; coordinates in double precision (twice the bytes: a package's
+    float64 export, which PC2 and MDD do not hold); or more data than the header counts
+    (``counts``: the header's counts in words, such as "9 samples of 25 points")."""
+    expected = header + coordinates
     size = path.stat().st_size
-    if size < expected or (size > expected and not at_least):
+    if size == expected or (size > expected and at_least):
+        return
+    if size < expected:
         raise MeshError(
             f"'{path}' is not a complete {what}: its header promises {expected} bytes, the file has "
             f"{size}. Export the cache again (the file may have been cut off while copying)."
         )
+    if coordinates and size == header + 2 * coordinates:
+        raise MeshError(
+            f"'{path}' holds its coordinates in double precision (8 bytes each: the file has {size} bytes, "
+            f"twice the {coordinates} of its {counts} in single precision), but {what}s hold them in single "
+            "precision (float32): export the cache again as float32.")
+    raise MeshError(
+        f"'{path}' is longer than its header says: {counts} take {expected} bytes, the file has {size}. "
+        "The header's counts are wrong (a writer that stopped before updating them?) or the file is of "
+        "another kind: export the cache again.")
 
 
 def read_pc2(path) -> PointCache:
@@ -399,12 +416,17 @@ def read_pc2_header(path, whole: bool = True) -> tuple[int, float, float, int]:
     if len(header) < PC2_HEADER.size or header[:11] != PC2_MAGIC[:11]:
         raise MeshError(f"'{path}' is not a PC2 point cache (it does not start with 'POINTCACHE2').")
     _magic, version, n_points, start, sampling, n_samples = PC2_HEADER.unpack(header)
+    if version != 1 and struct.unpack(">i", header[12:16])[0] == 1:
+        raise MeshError(f"'{path}' is a PC2 file written big-endian (its header reads version 1 byte-swapped), but "
+                        "PC2 files are little-endian, as Blender, Maya and 3ds Max read and write them: export it "
+                        "again as a standard PC2.")
     if version != 1 or n_points <= 0 or n_samples < 0 or not np.isfinite([start, sampling]).all() or sampling <= 0:
         raise MeshError(
             f"'{path}' has an invalid PC2 header (version {version}, {n_points} points, {n_samples} "
             f"samples, start {start}, sampling {sampling})."
         )
-    _file_size_check(path, PC2_HEADER.size + 12 * n_points * n_samples, "PC2 file", at_least=not whole)
+    _file_size_check(path, PC2_HEADER.size, 12 * n_points * n_samples, "PC2 file", at_least=not whole,
+                     counts=f"{n_samples} samples of {n_points} points")
     return n_points, float(start), float(sampling), n_samples
 
 
@@ -418,11 +440,24 @@ def read_mdd_header(path, whole: bool = True) -> tuple[int, np.ndarray]:
         if len(header) < MDD_HEADER.size:
             raise MeshError(f"'{path}' is not an MDD point cache (shorter than its 8-byte header).")
         n_frames, n_points = MDD_HEADER.unpack(header)
+        swapped = struct.unpack("<ii", header)
+        if not _mdd_fits(path, n_frames, n_points, whole) and _mdd_fits(path, *swapped, whole):
+            raise MeshError(f"'{path}' is an MDD file written little-endian (its header fits the file only read "
+                            f"so: {swapped[0]} frames of {swapped[1]} points), but MDD files are big-endian, as "
+                            "Blender, Maya and LightWave read and write them: export it again as a standard MDD.")
         if n_frames < 0 or n_points <= 0:
             raise MeshError(f"'{path}' has an invalid MDD header ({n_frames} frames, {n_points} points).")
-        _file_size_check(path, MDD_HEADER.size + 4 * n_frames + 12 * n_points * n_frames, "MDD file",
-                         at_least=not whole)
+        _file_size_check(path, MDD_HEADER.size + 4 * n_frames, 12 * n_points * n_frames, "MDD file",
+                         at_least=not whole, counts=f"{n_frames} frames of {n_points} points")
         return n_points, np.frombuffer(stream.read(4 * n_frames), dtype=">f4").astype(np.float64)
+
+
+def _mdd_fits(path: Path, n_frames: int, n_points: int, whole: bool) -> bool:
+    """Whether an MDD header of ``n_frames`` frames of ``n_points`` points fits the size of ``path``."""
+    if n_frames < 0 or n_points <= 0:
+        return False
+    expected, size = MDD_HEADER.size + 4 * n_frames + 12 * n_points * n_frames, path.stat().st_size
+    return size == expected or (size > expected and not whole)
 
 
 def read_mdd(path) -> PointCache:

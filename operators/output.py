@@ -259,8 +259,9 @@ class PoseWriter:
     def given_path(self) -> str:
         """The Cache File as given, a plain relative path (``caches/x.pc2``) taken relative to the
         saved .blend (``//caches/x.pc2``) rather than to the folder Blender was started from, which
-        differs from run to run."""
-        given = self.filepath
+        differs from run to run, and a leading ``~`` (``~/caches/x.pc2`` in a script) the home
+        folder, as in a shell and in ``python -m core``, rather than a folder named ``~``."""
+        given = os.path.expanduser(self.filepath) if self.filepath.startswith("~") else self.filepath
         if given and not given.startswith("//") and not os.path.isabs(given) and bpy.data.filepath:
             return "//" + given
         return given

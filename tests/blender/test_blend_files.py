@@ -65,6 +65,18 @@ def test_a_plain_relative_cache_file_is_beside_the_blend(bpy_empty, extension, t
     assert (tmp_path / "shots" / "caches" / "out.pc2").is_file() and not (tmp_path / "caches").exists()
 
 
+def test_a_cache_file_under_a_tilde_is_in_the_home_folder(bpy_empty, extension, tmp_path, monkeypatch):
+    """``~/caches/out.pc2`` given in a script is in the home folder, as a shell and ``python -m core``
+    take it, and stored in full (before: a folder named ``~`` beside the saved .blend)."""
+    armature_scene(frames=9)
+    (tmp_path / "shots").mkdir()
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shots" / "shot.blend"))
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    obj = _inbetween_frames(filepath="~/caches/out.pc2")
+    assert obj.modifiers["Mesh Cache"].filepath == str(tmp_path / "home" / "caches" / "out.pc2")
+    assert (tmp_path / "home" / "caches" / "out.pc2").is_file() and not (tmp_path / "shots" / "~").exists()
+
+
 def test_a_new_cache_never_takes_a_file_another_object_plays(bpy_empty, extension, tmp_path):
     """A .blend copied to a new version without its caches: the old object's path is free on disk,
     but a new run with the same Cache File takes another name (before, both objects played the

@@ -213,3 +213,47 @@ def test_an_exclusive_write_never_replaces_a_file(tmp_path):
     assert out.read_bytes() == b"another process's cache"
     assert [p.name for p in tmp_path.iterdir()] == ["out.pc2"]
     assert read_pc2(write_pc2(tmp_path / "new.pc2", np.ones((2, 3, 3)), exclusive=True)).positions.sum() == 18
+
+
+def _pc2_of(data: np.ndarray, order: str = "<", dtype: str = "f4", n_samples: int | None = None) -> bytes:
+    """A PC2 file's bytes of ``data`` (samples, points, 3), written in byte ``order`` with
+    coordinates of ``dtype`` and a header counting ``n_samples`` (default: the samples given)."""
+    count = len(data) if n_samples is None else n_samples
+    header = struct.pack(order + "12siiffi", b"POINTCACHE2\0", 1, data.shape[1], 1.0, 1.0, count)
+    return header + data.astype(order + dtype).tobytes()
+
+
+def _mdd_of(data: np.ndarray, order: str = ">", dtype: str = "f4") -> bytes:
+    """An MDD file's bytes of ``data`` in byte ``order`` with coordinates of ``dtype``."""
+    times = np.arange(len(data), dtype=order + "f4") / 24
+    return struct.pack(order + "ii", *data.shape[:2]) + times.tobytes() + data.astype(order + dtype).tobytes()
+
+
+@pytest.mark.parametrize("name, raw, match", [
+    # another package's export in double precision: twice the bytes the header counts (it read "cut off")
+    ("f64.pc2", lambda data: _pc2_of(data, dtype="f8"), r"holds its coordinates in double precision .* "
+     r"twice the 420 of its 5 samples of 7 points .* export the cache again as float32"),
+    ("f64.mdd", lambda data: _mdd_of(data, dtype="f8"), r"holds its coordinates in double precision .* "
+     r"5 frames of 7 points"),
+    # written byte-swapped: the PC2 read as a header of version 16777216, the MDD as ~1e18 bytes promised
+    ("big.pc2", lambda data: _pc2_of(data, order=">"), r"is a PC2 file written big-endian .* PC2 files are "
+     r"little-endian"),
+    ("little.mdd", lambda data: _mdd_of(data, order="<"), r"is an MDD file written little-endian .* 5 frames "
+     r"of 7 points\), but MDD files are big-endian"),
+    # a header counting fewer samples than the file holds (it read "cut off while copying")
+    ("short_count.pc2", lambda data: _pc2_of(data, n_samples=3), r"is longer than its header says: 3 samples "
+     r"of 7 points take 284 bytes, the file has 452"),
+])
+def test_a_cache_of_another_layout_is_named_as_such(tmp_path, name, raw, match):
+    """Caches other packages write in a layout PC2 and MDD do not have (double precision, the
+    other byte order, a header counting less than the file holds) are refused saying so, not as a
+    file cut off while copying or a header of absurd numbers; the standard layouts of the same
+    samples read back exactly."""
+    data = samples()
+    path = tmp_path / name
+    path.write_bytes(raw(data))
+    with pytest.raises(MeshError, match=match):
+        read_point_cache(path)
+    standard = tmp_path / ("standard" + path.suffix)
+    standard.write_bytes(_pc2_of(data) if path.suffix == ".pc2" else _mdd_of(data))
+    np.testing.assert_array_equal(read_point_cache(standard).positions, data)

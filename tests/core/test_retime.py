@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -570,3 +571,68 @@ def test_ctrl_c_stops_a_command_in_one_line_with_nothing_written(tmp_path, capsy
     err = capsys.readouterr().err
     assert "interrupted (Ctrl+C), nothing written" in err and "Traceback" not in err
     assert not output.exists()
+
+
+@pytest.mark.skipif(os.name == "nt", reason="on Windows, //server/share is a network path")
+def test_command_refuses_a_path_relative_to_a_blend(tmp_path, capsys):
+    """`//…` is Blender's path relative to the saved .blend, which the command has none of: on
+    Linux and macOS it names a folder at the root of the disk (`//caches/x.pc2` made `/caches`
+    and wrote the retime there). Refused, naming that folder, before anything is written."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    output = tmp_path / "out.pc2"
+    common = ["retime", "--topology", str(topology), "--step", "2", "-q"]
+    assert main([*common, str(cache), "-o", "/" + str(output)]) == 2
+    err = capsys.readouterr().err
+    assert f"error: '/{output}' is relative to a saved .blend (Blender's '//')" in err
+    assert f"here it would name '{output}' at the root of the disk" in err
+    assert not output.exists()
+    assert main([*common, "/" + str(cache), "-o", str(output)]) == 2  # an input too
+    assert f"error: '/{cache}' is relative to a saved .blend" in capsys.readouterr().err
+    assert main([*common, str(cache), "-o", str(output)]) == 0
+
+
+def test_command_paths_under_a_tilde(tmp_path, capsys, monkeypatch):
+    """A job runner passes its arguments without a shell, so `~` reaches the command as it is:
+    a leading `~` is the home folder, as in a shell; a folder named `~` that does not exist is a
+    `~` nobody expanded (OpenJD makes `~/x.pc2` into `<its working folder>/~/x.pc2`) and is
+    refused rather than made (the command made a folder `~` in the working folder and wrote there)."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("USERPROFILE", str(tmp_path / "home"))  # what Windows reads for ~
+    monkeypatch.chdir(tmp_path)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "2", "-q"]
+    assert main([*common, "-o", "~/caches/out.pc2"]) == 0
+    assert read_pc2(tmp_path / "home" / "caches" / "out.pc2").n_samples == 5
+    assert not (tmp_path / "~").exists()
+    unexpanded = tmp_path / "work" / "~" / "out.pc2"
+    assert main([*common, "-o", str(unexpanded)]) == 2
+    assert f"error: '{unexpanded}' has a folder named '~' that does not exist" in capsys.readouterr().err
+    assert not (tmp_path / "work").exists()
+    (tmp_path / "work" / "~").mkdir(parents=True)  # a folder really named so is a folder like any other
+    assert main([*common, "-o", str(unexpanded)]) == 0
+
+
+def test_command_says_the_core_s_warnings_in_one_line_and_succeeds(tmp_path, capsys):
+    """A warning of the in-betweens (a piece mirrored between two keys) is said as the command's
+    own, `retime: warning: …` on one line, and the retime is written with exit status 0, also
+    where Python's warning filters turn warnings into errors (`PYTHONWARNINGS=error` in a studio's
+    environment ended the finished retime with a traceback and status 1)."""
+    rest, triangles = grid(5)
+    rest[:, 2] = np.random.default_rng(0).normal(0, 0.2, len(rest))  # no mirror symmetry
+    source = np.repeat(rest[None], 9, axis=0) + np.arange(9)[:, None, None] * np.array([0.1, 0, 0])
+    source[5:, :, 0] *= -1  # key 8 is the mirror image of key 4
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", rest, triangles)
+    output = tmp_path / "out.pc2"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "-q", "-o", str(output)]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert [line[:72] for line in lines] == [
+        "retime: warning: Shape-difference interpolation: 1 piece(s) of the mesh "]
+    assert "mirror image of themselves from key pose 1 to key pose 2" in lines[0]
+    assert read_pc2(output).n_samples == 9

@@ -267,13 +267,14 @@ def test_a_cancelled_merge_leaves_no_partial_file(job, tmp_path):
     """SIGTERM while the output is being written (how a farm cancels a task, with the template's
     NOTIFY_THEN_TERMINATE): the command exits non-zero and removes its temporary file (before,
     Python died on the spot and left a hidden half-written '.out.pc2.*' beside the output, up to
-    the output's size)."""
+    the output's size). The task's log says so in one line, as for Ctrl+C (it said nothing)."""
     folder, cache, topology, single = job
     output = tmp_path / "out" / "shot.pc2"
     result = subprocess.run([sys.executable, "-c", CANCELLED_MERGE, "merge", str(single), "-o", str(output)],
                             cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert result.returncode == 128 + 15, result.stderr
     assert list(output.parent.iterdir()) == []
+    assert result.stderr.splitlines() == ["merge: cancelled (SIGTERM), nothing written"]
 
 
 def test_openjd_tasks_are_cancelled_with_sigterm_first():
