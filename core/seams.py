@@ -11,11 +11,13 @@ vertices are welded for the interpolation and written back to every copy.
 :func:`seam_weld` finds them: boundary edges whose ends sit within :func:`coincidence_tolerance`
 of another boundary edge's in every pose (pieces touching at a single point are not seams), and
 loose vertices at a vertex of the mesh. Pieces wound against the ones they are welded to are turned
-over in the weld (:func:`oriented_pieces`). The weld is used only where the welded mesh is a valid
-one (manifold, orientable, no triangle losing a corner); otherwise the pieces stay apart and a
-warning says the seams may open. The analyses (distortion maps, shape space) compare the pieces
-each on its own: :func:`seam_folds` measures how far a pose folds a seam, which they cannot see,
-and :func:`warn_seam_folds` says so.
+over in the weld (:func:`oriented_pieces`). Where two sewn sides meet at a corner, a triangle whose
+three corners are all on seams would lie on its twin once welded: its corners stay apart and the
+seams are welded up to them (:func:`_stacked_corners`). The weld is used only where the welded
+mesh is a valid one (manifold, orientable, no triangle losing a corner); otherwise the pieces stay
+apart and a warning says the seams may open. The analyses (distortion maps, shape space) compare
+the pieces each on its own: :func:`seam_folds` measures how far a pose folds a seam, which they
+cannot see, and :func:`warn_seam_folds` says so.
 """
 
 from __future__ import annotations
@@ -169,6 +171,9 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None,
     if tolerance is None:
         tolerance = coincidence_tolerance(poses[0], topology.edges)
     a, b = _seam_pairs(poses, topology, tolerance) if seams else (np.zeros(0, dtype=np.int64),) * 2
+    stacked = _stacked_corners(a, b, topology)
+    if stacked.size:  # those corners apart, and the seams again without them
+        a, b = _seam_pairs(poses, topology, tolerance, apart=stacked)
     loose, used = loose_copies(poses, topology, tolerance)
     if not a.size and not loose.size:
         return None
@@ -182,12 +187,31 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None,
     return SeamWeld(kept, copies, triangles, mesh_topology(triangles, kept.size))
 
 
-def _seam_pairs(poses: list[np.ndarray], topology, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
+def _stacked_corners(a: np.ndarray, b: np.ndarray, topology) -> np.ndarray:
+    """The vertices (int (q,)) of the triangles of ``topology`` that welding the seam pairs ``a``,
+    ``b`` (:func:`_seam_pairs`) would lay onto another triangle: a triangle with all three corners
+    on seams, at a corner where two sewn sides of two panels meet (front and back panels sewn
+    along three sides, as Blender's sewing springs pull them together), has the same three welded
+    vertices as its twin on the other panel, and the welded mesh would not be a manifold. Empty
+    where there are none."""
+    if not a.size:
+        return a
+    triangles = topology.triangles
+    welded = np.sort(vertex_groups(a, b, topology.n_vertices)[triangles], axis=1)
+    _, first, inverse = np.unique(welded, axis=0, return_index=True, return_inverse=True)
+    twin = first[inverse.ravel()]
+    stacked = np.flatnonzero(twin != np.arange(len(triangles)))
+    return np.unique(triangles[np.r_[stacked, twin[stacked]]])
+
+
+def _seam_pairs(poses: list[np.ndarray], topology, tolerance: float,
+                apart: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of vertices (``a``, ``b``, int (p,) each) that :func:`seam_weld` joins along seams:
     the matching ends of two boundary edges whose ends are within ``tolerance`` of each other in
     every one of ``poses`` and that coincide with no third. Only ends of such edges: a piece whose
     seam vertex merely touches another's (Suzanne's eyes against her head, both split at UV seams)
-    is not joined by it, which would make the welded mesh a bow-tie."""
+    is not joined by it, which would make the welded mesh a bow-tie. ``apart``: vertices (int (q,))
+    joined to none (:func:`_stacked_corners`: the seams run up to them; their panels carry them)."""
     from scipy.spatial import cKDTree
 
     none = np.zeros(0, dtype=np.int64)
@@ -203,6 +227,8 @@ def _seam_pairs(poses: list[np.ndarray], topology, tolerance: float) -> tuple[np
     together = np.ones(len(a), dtype=bool)
     for pose in poses[1:]:
         together &= np.linalg.norm(pose[a] - pose[b], axis=1) <= tolerance
+    if apart is not None:
+        together &= ~(np.isin(a, apart) | np.isin(b, apart))
     if not together.any():
         return none, none
     n = topology.n_vertices
