@@ -18,7 +18,8 @@ rebuilt on the base (``core.Transfer``, k_M = 100, k_N = 200) and compared with 
 
     python -m benchmarks.bench_transfer [--scene drape|drape5k|limb|limb5k] [--frames 20,40,60] [--third]
                                         [--same-mesh all|first|none] [--target sampled|decimated|hostile]
-                                        [--map nearest|template] [--matched 0.7] [--extrinsic]
+                                        [--map nearest|template|closest] [--matched 0.7] [--extrinsic]
+                                        [--hole 0.08] [--stray 0.01] [--slide 0.02]
     python -m benchmarks.bench_transfer --picture docs/images/transfer_cloth.png
     python -m benchmarks.bench_transfer --scene limb --frames 10,20,30,40 --picture docs/images/transfer_limb.png
 
@@ -178,12 +179,13 @@ def aligned(pose, target, correspondence):
     return pose @ rotation.T + translation
 
 
-def prepare(scene_name: str, third: bool, target: str = "sampled"):
+def prepare(scene_name: str, third: bool, target: str = "sampled", hole: float = 0.0):
     """(scene, base frames, base triangles, target frames, target triangles). ``target``:
     ``sampled`` (the simulated surface or the limb sampled at an independent Delaunay-like
     triangulation), ``decimated`` (subdivided, then quadric edge collapse; on the sheet from
     points of varying density) or ``hostile`` (decimated, with holes, a tiny floating component,
-    a seam of duplicated vertices and unreferenced vertices: ``benchmarks/remeshed_targets.py``)."""
+    a seam of duplicated vertices and unreferenced vertices: ``benchmarks/remeshed_targets.py``).
+    ``hole``: that share of the target's area cut out at its middle (:func:`remeshed_targets.cut_hole`)."""
     if scene_name in LIMBS:
         if third:
             raise SystemExit("--third applies to the cloth scenes only")
@@ -209,6 +211,9 @@ def prepare(scene_name: str, third: bool, target: str = "sampled"):
     if target == "hostile":
         _, target_tris, source = remeshed_targets.hostile(target_frames[0], target_tris, seed=5)
         target_frames = np.stack([remeshed_targets.hostile_pose(f, source, target_frames[0]) for f in target_frames])
+    if hole:
+        _, target_tris, kept = remeshed_targets.cut_hole(target_frames[0], target_tris, hole)
+        target_frames = target_frames[:, kept]
     return scene, base_frames, base_tris, target_frames, target_tris
 
 
@@ -220,10 +225,14 @@ def template_rest(scene_name: str, scene, base_frames):
     return remesh(scene, 1.0, seed=3)[0][0]
 
 
-def correspondence(scene_name, scene, base, target_rest, how: str, matched: float, log):
+def correspondence(scene_name, scene, base, target_rest, how: str, matched: float, log, stray: float = 0.0):
     """The map given to the transfer: ``nearest`` (the nearest target vertex of each base vertex
-    at rest) or ``template`` (two ``.vts``-style maps of a third mesh, composed); then only a
-    random ``matched`` fraction of its entries kept (the others -1, unmatched)."""
+    at rest), ``template`` (two ``.vts``-style maps of a third mesh, composed) or ``closest``
+    (none: the transfer's closest points); then only a random ``matched`` fraction of its entries
+    kept (the others -1, unmatched), and a ``stray`` fraction sent to random target vertices."""
+    if how == "closest":
+        log("map: closest points at rest")
+        return None
     if how == "template":
         base_vts, target_vts = remeshed_targets.template_maps(template_rest(scene_name, scene, [base]), base,
                                                               target_rest)
@@ -234,25 +243,35 @@ def correspondence(scene_name, scene, base, target_rest, how: str, matched: floa
         rng = np.random.default_rng(11)
         vertex_map = vertex_map.copy()
         vertex_map[rng.random(len(base)) >= matched] = -1
+    if stray:
+        vertex_map = remeshed_targets.stray_matches(vertex_map, len(target_rest), stray, seed=12)
     log(f"map: {how}, {100 * np.mean(vertex_map >= 0):.1f} % of the base vertices matched")
     return vertex_map
 
 
 def run(scene_name="drape", frames=(20, 40, 60), *, third=False, k_m=100, k_n=200, same_mesh="all", target="sampled",
-        map_kind="nearest", matched=1.0, use_extrinsic=False, log=print):
-    scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third, target)
+        map_kind="nearest", matched=1.0, use_extrinsic=False, hole=0.0, stray=0.0, slide=0.0, log=print):
+    scene, base_frames, base_tris, target_frames, target_tris = prepare(scene_name, third, target, hole)
     base, target_rest = base_frames[0], target_frames[0]
     vertex_map = closest_point_correspondence(base, target_rest)  # to align the results for the errors
-    given_map = correspondence(scene_name, scene, base, target_rest, map_kind, matched, log)
+    given_map = correspondence(scene_name, scene, base, target_rest, map_kind, matched, log, stray)
+    if slide:  # the target's rest placed off the base along its longest axis (its frames where they are)
+        axis = np.linalg.svd(target_rest - target_rest.mean(axis=0), full_matrices=False)[2][0]
+        target_rest = target_rest + slide * np.linalg.norm(np.ptp(target_rest, axis=0)) * axis
     log(f"{scene_name}{' (third triangulation)' if third else ''}: base {len(base)} vertices, target "
         f"{len(target_rest)} vertices ({target}), k_M = {k_m}, k_N = {k_n}")
     rows = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", core.ShapeDifferenceWarning)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", core.ShapeDifferenceWarning)
         t0 = time.perf_counter()
         transfer = core.Transfer(base, base_tris, target_rest, target_tris, correspondence=given_map, k_M=k_m,
                                  k_N=k_n, use_extrinsic=use_extrinsic)
         prep = time.perf_counter() - t0
+    for warning in caught:  # what the transfer says about the meshes and the map
+        if issubclass(warning.category, core.ShapeDifferenceWarning):
+            log(f"  warned: {str(warning.message)[:160]}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", core.ShapeDifferenceWarning)
         for f in frames:
             target = target_frames[f]
             t0 = time.perf_counter()
@@ -328,16 +347,22 @@ def main(argv=None):
                         help="frames that also get the same-mesh reference reconstruction (timed)")
     parser.add_argument("--target", choices=["sampled", "decimated", "hostile"], default="sampled",
                         help="how the target is re-meshed (benchmarks/remeshed_targets.py)")
-    parser.add_argument("--map", choices=["nearest", "template"], default="nearest",
-                        help="nearest target vertex at rest, or two .vts-style template maps composed")
+    parser.add_argument("--map", choices=["nearest", "template", "closest"], default="nearest",
+                        help="nearest target vertex at rest, two .vts-style template maps composed, or none "
+                             "(the transfer's closest points)")
     parser.add_argument("--matched", type=float, default=1.0, help="keep this random fraction of the map")
+    parser.add_argument("--hole", type=float, default=0.0, help="cut this share of the target's area out")
+    parser.add_argument("--stray", type=float, default=0.0, help="send this share of the map to random vertices")
+    parser.add_argument("--slide", type=float, default=0.0,
+                        help="place the target's rest off the base by this share of its diagonal, along its long axis")
     parser.add_argument("--extrinsic", action="store_true",
                         help="also transfer the offset layer and embed the thickening (Transfer(use_extrinsic=True))")
     parser.add_argument("--picture", help="write a Fig. 15-style picture to this path")
     args = parser.parse_args(argv)
     frames = tuple(int(f) for f in args.frames.split(","))
     result = run(args.scene, frames, third=args.third, same_mesh=args.same_mesh, target=args.target,
-                 map_kind=args.map, matched=args.matched, use_extrinsic=args.extrinsic)
+                 map_kind=args.map, matched=args.matched, use_extrinsic=args.extrinsic, hole=args.hole,
+                 stray=args.stray, slide=args.slide)
     if args.picture:
         picture(args.picture, result)
 

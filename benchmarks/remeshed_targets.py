@@ -12,7 +12,9 @@
 - :func:`nearest_vertex_map` and :func:`template_maps`: the map as data sets ship it — the nearest
   target vertex of each base vertex at rest, or ``.vts``-style template maps (for each vertex of
   a third mesh, the 1-based index of its nearest vertex on each shape) composed by
-  :func:`core.template_correspondence`.
+  :func:`core.template_correspondence`;
+- what goes wrong in real data (the transfer's probes): :func:`cut_hole` (a scan that missed a
+  patch) and :func:`stray_matches` (a map with a few entries anywhere on the target).
 """
 
 from __future__ import annotations
@@ -196,3 +198,29 @@ def template_maps(template_rest, base_rest, target_rest):
     """``.vts``-style maps of a template: for each template vertex the 1-based index of its nearest
     vertex on the base and on the target, at rest: (base_vts, target_vts)."""
     return nearest_vertex_map(template_rest, base_rest) + 1, nearest_vertex_map(template_rest, target_rest) + 1
+
+
+def cut_hole(vertices, triangles, share: float):
+    """A round patch of ``share`` of the mesh's area cut out (the triangles whose centroids are
+    nearest to the vertex nearest the mesh's centroid), vertices left in no triangle dropped:
+    (vertices (n', 3), triangles (m', 3), kept (n',): each new vertex's old index)."""
+    from core.mesh_topology import triangle_areas
+
+    v, t = np.asarray(vertices, dtype=np.float64), np.asarray(triangles, dtype=np.int64)
+    centre = v[cKDTree(v).query(v.mean(axis=0))[1]]
+    areas = triangle_areas(v, t)
+    order = np.argsort(np.linalg.norm(v[t].mean(axis=1) - centre, axis=1))
+    cut = order[: np.searchsorted(np.cumsum(areas[order]), share * areas.sum())]
+    kept, compact = np.unique(np.delete(t, cut, axis=0), return_inverse=True)
+    return v[kept], compact.reshape(-1, 3), kept
+
+
+def stray_matches(vertex_map, n_target: int, fraction: float, seed: int):
+    """``vertex_map`` (n,) with a random ``fraction`` of its matched entries sent to random
+    target vertices (of ``n_target``), as a map file or a functional map's conversion may hold."""
+    rng = np.random.default_rng(seed)
+    strayed = np.array(vertex_map, dtype=np.int64)
+    matched = np.flatnonzero(strayed >= 0)
+    pick = rng.choice(matched, int(round(fraction * matched.size)), replace=False)
+    strayed[pick] = rng.integers(0, n_target, pick.size)
+    return strayed

@@ -1,9 +1,10 @@
 """What a :class:`~core.transfer.Transfer` refuses or warns about in the meshes and the
 correspondence it is given (paper §6.3 needs a map of the surface): a target's zero-area
 triangles, non-manifold edges and vertices split along seams (welded), and a correspondence that
-matches too few base vertices, lays the base on a point or a line, turns a closed part of the
-base inside out (a left/right flip of a symmetric shape), or (closest points) matches meshes that
-do not overlap at rest."""
+matches too few base vertices, holds matches its neighbours contradict, lays the base on a point
+or a line, turns a closed part of the base inside out (a left/right flip of a symmetric shape), lays
+the base over a hole of the target, or (closest points) matches meshes that do not overlap at rest
+or lie off each other."""
 
 from __future__ import annotations
 
@@ -36,6 +37,17 @@ PARTLY_BESIDE = 0.1
 #: fraction of a target edge of the target surface, so this leaves out the rounding of two
 #: polylines along a boundary both meshes have.
 UNCOVERED_EDGES = 0.5
+#: Closest points of meshes laid on each other are within a fraction of a target edge of the base
+#: (at most 0.6 edge on the benchmark's re-meshed targets, sampled, decimated and hostile); a base
+#: vertex farther than this many target edges from the target's surface, off its boundary, shows
+#: meshes out of place (a limb's target slid along its axis by 5 % of its length: 7.9 % of the
+#: base's area over 1 edge off, 2.4 % RMS of the diagonal off against 1.2 %; by 2 %: none, 1.2 %).
+OFF_SURFACE_EDGES = 1.0
+#: ... and either check warns once those vertices hold at least this share of the base's area: the few missing
+#: fans of a hostile re-mesh (0.1–0.5 % of the base's area on the benchmark's hostile targets)
+#: cost no accuracy there (the hostile targets' frames are rebuilt as well as the decimated ones'),
+#: while a hole of 8 % of a limb's area (6 % of the base's over it) costs 1.0–2.6 points of RMS.
+UNCOVERED_SHARE = 0.01
 #: A closed part of the base counts as turned inside out by a correspondence (:func:`check_orientation`)
 #: where the signed volume of its triangles placed on the target's matched positions has the other
 #: sign than at rest and is at least this share of the sum of the absolute volumes of its
@@ -46,6 +58,14 @@ INSIDE_OUT_SHARE = 0.5
 #: widest axes, as a share of the target's own (:func:`check_spread`): a map onto a point
 #: or a line is refused; a map onto part of the target (a head on a body) spreads over far more.
 MIN_MAP_SPREAD = 0.01
+#: A target resolves about this many Laplace–Beltrami eigenfunctions per vertex
+#: (:func:`check_target_resolution`): beyond, its functions are at the scale of its edges and the
+#: base's k_M functions come back roughly through them. Limb base (992 vertices) onto coarser
+#: sampled targets, bent pose, RMS of the diagonal off (k_N from 2 k_M to the target's vertex count):
+#: 131-vertex target, k_M = 20 / 30 / 40 / 60 / 100: 1.19–1.24 / 1.36–1.41 / 1.44–1.61 / 1.49–1.94 /
+#: 2.23–2.40 %; 97 vertices, k_M = 20 / 30 / 40: 1.75–2.03 / 1.98–2.23 / 2.39–2.60 %; 385 vertices,
+#: k_M = 50 / 100 / 150: 1.11–1.16 / 1.25–1.30 / 1.58–1.62 %; 1,273 vertices, k_M = 100: 0.90–1.33 %.
+TARGET_FUNCTIONS_PER_VERTEX = 1 / 3
 #: Target vertices closer than this fraction of the bounding-box diagonal at rest are one vertex
 #: (welded): exporters split vertices along UV seams and sharp edges, which would otherwise cut
 #: the target surface open there (on the re-meshed 1k limb a seam of 10 split vertices made
@@ -129,7 +149,8 @@ def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
     return True
 
 
-def check_covered(base, base_topology, target, target_topology, image_triangles, weights) -> None:
+def check_covered(base, base_topology, target, target_topology, image_triangles, weights, *,
+                  given_map: bool = False) -> None:
     """Warn where the target's rest surface has a hole (or ends) over a part of the base that goes on:
     base vertices ``base`` (n, 3), off the base's boundary (``base_topology``), whose closest points
     on the target (positions ``target``, ``target_topology``; in its triangles ``image_triangles``
@@ -138,7 +159,18 @@ def check_covered(base, base_topology, target, target_topology, image_triangles,
     the hole are laid on its rim, and the pulled-back metric and the transfer measure a stretch
     and squash the base does not have (a sphere's target with a cap of 1 % of its area cut out:
     the median edge near the hole 3.4 → 4.8 % off, eigenvalues 3.3 → 3.7 %; 15 %: 16 %, 7.3 %),
-    which the overlap check does not see (the base is within a few target edges of the rim)."""
+    which the overlap check does not see (the base is within a few target edges of the rim).
+    Either way a warning needs :data:`UNCOVERED_SHARE` of the base's area.
+
+    Closest points (not ``given_map``) also warn where base vertices off the target's boundary lie
+    more than :data:`OFF_SURFACE_EDGES` from the target's surface: the meshes are not on each other
+    there (a target slid along the base), and closest points match other points than their own.
+
+    ``given_map``: ``base`` are then the base vertices' images by a given correspondence, smoothed
+    by the local affine fit of their neighbours' matches
+    (:func:`~core.functional_map.locally_affine_images`): over a hole the matches are on its rim
+    (a nearest-vertex map) or missing (a template map), and the fit of a ring spread around the
+    rim, or extrapolated from it, lies inside the hole, off the target's surface."""
     corners = target_topology.triangles[image_triangles]
     boundary = np.zeros(target_topology.n_vertices, dtype=bool)
     boundary[target_topology.edges[target_topology.boundary_edges]] = True
@@ -149,22 +181,37 @@ def check_covered(base, base_topology, target, target_topology, image_triangles,
     base_boundary = np.zeros(base_topology.n_vertices, dtype=bool)
     base_boundary[base_topology.edges[base_topology.boundary_edges]] = True
     images = np.einsum("nk,nki->ni", weights, target[corners])
-    margin = UNCOVERED_EDGES * mean_edge_length(target, target_topology.edges)
-    uncovered = on_rim & ~base_boundary & (np.linalg.norm(base - images, axis=1) > margin)
-    if not uncovered.any():
+    edge = mean_edge_length(target, target_topology.edges)
+    distances = np.linalg.norm(base - images, axis=1)
+    uncovered = on_rim & ~base_boundary & (distances > UNCOVERED_EDGES * edge)
+    off = ~on_rim & (distances > OFF_SURFACE_EDGES * edge) if not given_map else np.zeros_like(on_rim)
+    if not (uncovered.any() or off.any()):
         return
     from .geometry import lumped_vertex_areas
     from .mesh_topology import triangle_areas
 
     vertex_area = lumped_vertex_areas(base_topology.triangles, triangle_areas(base, base_topology.triangles),
                                       base_topology.n_vertices)
+    off_share = float(vertex_area[off].sum() / vertex_area.sum())
+    if off_share >= UNCOVERED_SHARE:
+        warnings.warn(
+            f"{100 * off_share:.1f} % of the base's area ({int(off.sum())} vertices) lies more than a target edge "
+            f"length off the target's surface at rest (up to {distances[off].max():.3g}, "
+            f"{distances[off].max() / edge:.1f} edge lengths): the meshes are not laid on each other there (one slid "
+            "or turned against the other, or shaped otherwise), and closest points match the base to other points "
+            "of the target than its own, which distorts the transfer. Place the target's rest pose exactly where "
+            "the base is, or give a correspondence (in Blender: Map › Attribute or File)",
+            ShapeDifferenceWarning, stacklevel=3)
     share = float(vertex_area[uncovered].sum() / vertex_area.sum())
+    if share < UNCOVERED_SHARE:
+        return
+    how, advice = (("the correspondence lays", "") if given_map else
+                   ("closest points lay", ", or give a correspondence (in Blender: Map › Attribute or File)"))
     warnings.warn(
-        f"{max(100 * share, 0.1):.1f} % of the base's area ({int(uncovered.sum())} vertices) lies over a hole in "
-        "the target at rest (or past its edge) where the base goes on: closest points lay it on the hole's rim, "
+        f"{100 * share:.1f} % of the base's area ({int(uncovered.sum())} vertices) lies over a hole in "
+        f"the target at rest (or past its edge) where the base goes on: {how} it on the hole's rim, "
         "which stretches and squashes the transfer and the pulled-back metric there. Fill the target's holes "
-        "(in Blender: Mesh › Clean Up › Fill Holes), or give a correspondence (in Blender: Map › Attribute or "
-        "File)",
+        f"(in Blender: Mesh › Clean Up › Fill Holes){advice}",
         ShapeDifferenceWarning, stacklevel=3)
 
 
@@ -183,9 +230,33 @@ def check_spread(images, target) -> None:
             "created and never filled holds 0 for every vertex)")
 
 
-def check_matched_fraction(matched):
+def resolved_functions(n_target: int) -> int:
+    """How many of the base's eigenfunctions a target of ``n_target`` vertices (in triangles)
+    carries faithfully: :data:`TARGET_FUNCTIONS_PER_VERTEX` of them, at least 1."""
+    return max(int(TARGET_FUNCTIONS_PER_VERTEX * n_target), 1)
+
+
+def check_target_resolution(k_M: int, n_target: int) -> None:
+    """Warn when the base's ``k_M`` eigenfunctions are more than a target of ``n_target``
+    vertices (in triangles) resolves (:func:`resolved_functions`): a coarse target carries the
+    base's higher functions only through its own at the scale of its edges."""
+    if k_M <= resolved_functions(n_target):
+        return
+    warnings.warn(
+        f"k_M is {k_M} base eigenfunctions, but the target mesh has only {n_target} vertices: a mesh resolves "
+        f"about {TARGET_FUNCTIONS_PER_VERTEX:.2g} × as many functions as it has vertices, and the base's detail "
+        "beyond that comes back roughly (a limb target of 131 vertices: 2.2–2.4 % RMS of the diagonal off at "
+        f"k_M = 100 against 1.2 % at k_M = 20). Lower k_M to {resolved_functions(n_target)} "
+        "or less, or transfer from a finer target.",
+        ShapeDifferenceWarning,
+        stacklevel=3,
+    )
+
+
+def check_matched_fraction(matched, *, warn: bool = True):
     """A partial map must match at least :data:`MIN_MATCHED_FRACTION` of the base vertices
-    (:class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns."""
+    (``matched`` bool (n,); :class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns
+    (when ``warn``)."""
     fraction = float(matched.mean())
     if fraction < MIN_MATCHED_FRACTION:
         raise MeshError(
@@ -194,7 +265,7 @@ def check_matched_fraction(matched):
             "are needed: the unmatched ones take their images from matched neighbours, which must be "
             "close enough to describe the map at the scale of the k_M basis. Use a denser map."
         )
-    if fraction < WARN_MATCHED_FRACTION:
+    if warn and fraction < WARN_MATCHED_FRACTION:
         warnings.warn(
             f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
             f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
@@ -202,6 +273,23 @@ def check_matched_fraction(matched):
             ShapeDifferenceWarning,
             stacklevel=4,
         )
+
+
+def warn_outlying_matches(outlying, n_matched: int) -> None:
+    """Say which matches of a given correspondence were left out as outlying (base vertex indices
+    ``outlying`` (k,), k ≥ 1, of ``n_matched`` matched; :func:`~core.functional_map.reject_outlying_matches`):
+    they take their images from their neighbours' matches, as unmatched vertices do."""
+    from .functional_map import OUTLIER_EDGES
+
+    warnings.warn(
+        f"{len(outlying)} of the correspondence's {n_matched} matches ({100 * len(outlying) / n_matched:.1f} %; first: "
+        f"base vertex {int(outlying[0])}) lie more than {OUTLIER_EDGES:g} target edge lengths from where their "
+        "neighbours' matches put them (stray matches, which would pull their neighbours across the target): they "
+        "are left out, and those base vertices are placed on the target from their neighbours' matches, as "
+        "unmatched ones are. Check the map near them.",
+        ShapeDifferenceWarning,
+        stacklevel=3,
+    )
 
 
 def warn_non_manifold(topology):

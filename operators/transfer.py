@@ -137,7 +137,10 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
 
     def _basis_sizes(self, options, n_base: int, n_source: int):
         k_n = options["k_N"] or min(DEFAULT_K_N, n_source - 1)  # a set k_N is checked by core_options
-        k_m = options["k_M"] or min(DEFAULT_K_M, n_base - 1, k_n)  # k_N ≥ k_M (core.validation.check_basis_sizes)
+        from ..core.transfer_checks import resolved_functions
+
+        # k_N ≥ k_M (core.validation.check_basis_sizes), and no more than the source resolves
+        k_m = options["k_M"] or min(DEFAULT_K_M, n_base - 1, k_n, resolved_functions(n_source))
         return k_m, k_n
 
     def _source_poses(self, context, source):

@@ -41,9 +41,10 @@ def test_transfer_keys_by_closest_points(pair, core):
 
 def test_default_bases_of_a_source_smaller_than_the_base_basis(bpy_empty, extension, core):
     """A 64-vertex source onto a 225-vertex mesh with the default sizes: k_N is the source's 63 and
-    k_M at most that (before: k_M = 100 against k_N = 63, which the core now refuses: the k_N × k_M
-    map has rank 63 at most and leaves the differences singular; a tapering stretch came back
-    0.24 off the rebuild at k_M = 63)."""
+    k_M what the source resolves, 21 (core.transfer_checks.resolved_functions; before: k_M = 100
+    against k_N = 63, which the core now refuses: the k_N × k_M map has rank 63 at most and leaves
+    the differences singular; a tapering stretch came back 0.24 off the rebuild at k_M = 63, and
+    k_M = 63 on 64 source vertices is warned as more than the source resolves)."""
     bridge = extension.bridge
     source, target = transfer_pair(bridge, 7, 14)
     rest = bridge.vertex_positions(source.data)
@@ -53,7 +54,7 @@ def test_default_bases_of_a_source_smaller_than_the_base_basis(bpy_empty, extens
     assert bpy.ops.shape_differences.transfer_poses() == {'FINISHED'}
     rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Source Taper"])
     transfer = core.Transfer(bridge.vertex_positions(target.data), bridge.mesh_triangles(target.data), rest,
-                             bridge.mesh_triangles(source.data), k_M=63, k_N=63)
+                             bridge.mesh_triangles(source.data), k_M=21, k_N=63)
     transfer.pose(bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))  # the poses in turn
     expected = transfer.pose(bridge.stored_key_positions(source.data.shape_keys.key_blocks["Taper"]))  # as stored
     np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)

@@ -5,8 +5,9 @@ import pytest
 from meshes import drape, grid
 
 from core.errors import MeshError
-from core.functional_map import (check_correspondence, closest_point_correspondence, closest_points_on_triangles,
-                                 functional_map, locally_affine_images, project_near, push_forward_matrix)
+from core.functional_map import (OUTLIER_EDGES, check_correspondence, closest_point_correspondence,
+                                 closest_points_on_triangles, functional_map, locally_affine_images, project_near,
+                                 push_forward_matrix, reject_outlying_matches)
 from core.mesh_topology import mesh_topology
 from core.reference_shape import ReferenceShape
 from core.shape_difference import functional_map as same_mesh_functional_map
@@ -65,6 +66,31 @@ def test_locally_affine_images_keep_affine_maps_and_reduce_snapping():
     triangles, weights = project_near(smoothed, seeds, target, target_tris)
     on_surface = np.einsum("nk,nki->ni", weights, target[target_tris[triangles]])
     assert np.allclose(on_surface[:, 2], 0.0) and error(on_surface) <= error(smoothed) + 1e-12
+
+
+def test_outlying_matches_are_found_and_the_affine_map_recovered_without_them():
+    """An affine map of a sheet (a stretch and a turn) with 5 of its matches moved 6–26 target
+    edges away: the 5, and no other, are left out — the one on the boundary, 26 edges off, pulls
+    the fits of its neighbours past the bound, and they come back once it is out — and every
+    vertex's image, theirs included, is the affine map's exactly (the fit is exact for affine
+    maps, to round-off)."""
+    from meshes import random_rotation
+
+    v, t = grid(14, jitter=0.3)
+    edges = mesh_topology(t, len(v)).edges
+    images = v @ (random_rotation(3) @ np.diag([1.3, 0.8, 1.0])).T + [0.2, -0.1, 0.5]
+    spacing = 1.0 / 13  # the edge length of the images, about
+    stray = np.array([1, 20, 21, 100, 150])  # 20 and 21 neighbours, 1 on the boundary
+    moved = images.copy()
+    moved[stray] += [[0.0, 0.0, 2.0], [0.6, 0.0, 0.0], [0.0, 0.6, 0.0], [0.0, 0.0, 0.7], [0.5, 0.5, 0.0]]
+    first = np.linalg.norm(locally_affine_images(v, edges, moved) - moved, axis=1) > OUTLIER_EDGES * spacing
+    assert set(np.flatnonzero(first)) > set(stray)  # the case in point: good neighbours pulled past the bound
+    points, kept = reject_outlying_matches(v, edges, moved, np.ones(len(v), bool), spacing)
+    assert np.array_equal(np.flatnonzero(~kept), stray)
+    assert np.abs(points - images).max() < 1e-9
+    # a clean map keeps every match and gives locally_affine_images' result, bit for bit
+    points, kept = reject_outlying_matches(v, edges, images, np.ones(len(v), bool), spacing)
+    assert kept.all() and np.array_equal(points, locally_affine_images(v, edges, images))
 
 
 def test_correspondence_is_checked():

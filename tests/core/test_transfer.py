@@ -82,21 +82,46 @@ def test_fanned_slivers_of_a_curved_target_are_flipped_away():
     assert errors[1] <= 2 * errors[0], errors
 
 
-def test_a_target_in_other_units_is_rebuilt_at_its_size(sheets):
+def test_a_target_in_other_units_is_rebuilt_at_its_size(sheets, monkeypatch):
     # Shape differences carry the target's size (areas × size²); at 1 % of the base's size they
     # were past the recovery's area floor and the pose came out several times too large, and 5 %
     # larger the pose was twice as far off. Rebuilt at the base's size and scaled, the pose scales
-    # with the target (to round-off, through the iterative solvers).
+    # with the target (to round-off, through the iterative solvers): the same pose as the target at
+    # the base's size rebuilt at the size measured for it (0.3 % off 1 through this map).
     base, base_tris, target, target_tris = sheets
     vertex_map = core.transfer.closest_point_correspondence(base, target)
     poses = {}
     for size in (1.0, 1.05, 0.01, 100.0):
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), monkeypatch.context() as patch:
             warnings.simplefilter("ignore", ShapeDifferenceWarning)
+            if size == 1.0:  # the size as measured, not taken as the base's
+                patch.setattr(core.transfer, "SIZE_TOLERANCE", 0.0, raising=False)
             transfer = Transfer(base, base_tris, size * target, target_tris, correspondence=vertex_map, k_M=16, k_N=32)
             poses[size] = transfer.pose(size * drape(target, 1.0)) / size
     for size, pose in poses.items():
         assert np.abs(pose - poses[1.0]).max() <= 1e-6, size
+
+
+def test_a_target_of_the_base_size_is_rebuilt_as_without_scaling(sheets, monkeypatch):
+    """Measured through a vertex map, a target of the base's own size is a fraction of a percent
+    off 1; within core.transfer.SIZE_TOLERANCE it is taken as 1, so the pose is bit for bit the one
+    rebuilt with no size normalization at all (before: rescaled by the measured 1.0034, 1e-3 off)."""
+    base, base_tris, target, target_tris = sheets
+    vertex_map = core.transfer.closest_point_correspondence(base, target)
+    poses, sizes = [], []
+    for how in ("measured", "default", "none"):
+        with warnings.catch_warnings(), monkeypatch.context() as patch:
+            warnings.simplefilter("ignore", ShapeDifferenceWarning)
+            if how == "measured":
+                patch.setattr(core.transfer, "SIZE_TOLERANCE", 0.0, raising=False)
+            elif how == "none":
+                patch.setattr(core.transfer, "target_size", lambda *args: 1.0)
+            transfer = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=16, k_N=32)
+            poses.append(transfer.pose(drape(target, 1.0)))
+            sizes.append(transfer.size)
+    assert sizes[0] != 1.0 and abs(sizes[0] - 1.0) <= 0.01  # the case in point: within SIZE_TOLERANCE
+    assert not np.array_equal(poses[0], poses[2])  # scaling by it changes the pose
+    assert sizes[1] == 1.0 and np.array_equal(poses[1], poses[2])
 
 
 def test_a_part_of_the_base_the_target_does_not_have_is_warned(sheets):
@@ -236,8 +261,13 @@ def test_a_target_with_a_hole_where_the_base_is_closed_is_warned(sheets):
     """A closed sphere's target at rest is the sphere, meshed otherwise, with a cap of 5 % of its
     area cut out: closest points lay the base over the cap on its rim, and the transfer says so with
     the share of the base's area there (at most the cap's; before, silent: the overlap check counts
-    only base vertices more than two target edges off). The whole sphere, and two sheets with one
-    boundary meshed differently, are not warned."""
+    only base vertices more than two target edges off). A given correspondence (each base vertex's
+    nearest target vertex, as a map made without the hole in mind; or unmatched over the hole, as a
+    template map leaves it) lays them on the rim as well and is warned the same way (before,
+    silent). The whole sphere, and two sheets with one boundary meshed differently, are not warned,
+    with or without a map."""
+    from scipy.spatial import cKDTree
+
     from meshes import icosphere, random_rotation
 
     base, base_tris = icosphere(3)
@@ -245,17 +275,104 @@ def test_a_target_with_a_hole_where_the_base_is_closed_is_warned(sheets):
     target = target @ random_rotation(2).T  # other vertices on the same sphere
     cap = 0.05  # a cap of height h has area 2πh: a share h / 2 of the sphere's
     kept = target_tris[target[target_tris].mean(axis=1)[:, 2] < 1 - 2 * cap]
+    used = np.unique(kept)  # the holed target's vertices: the map points to none of the cap's
+    nearest = used[cKDTree(target[used]).query(base)[1]]
+    unmatched = np.where(base[:, 2] < 1 - 2 * cap, nearest, -1)
     pattern = r"(\d+\.\d) % of the base's area \(\d+ vertices\) lies over a hole in the target"
-    cases = (((base, base_tris, target, target_tris), False), ((base, base_tris, target, kept), True),
-             (sheets, False))
-    for meshes, warned in cases:
+    sheet_map = core.transfer.closest_point_correspondence(sheets[0], sheets[2])
+    cases = (((base, base_tris, target, target_tris), None, False),
+             ((base, base_tris, target, target_tris), cKDTree(target).query(base)[1], False),
+             ((base, base_tris, target, kept), None, True), ((base, base_tris, target, kept), nearest, True),
+             ((base, base_tris, target, kept), unmatched, True), (sheets, None, False), (sheets, sheet_map, False))
+    for meshes, correspondence, warned in cases:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            Transfer(*meshes, k_M=10, k_N=20, use_extrinsic=False)
+            Transfer(*meshes, correspondence=correspondence, k_M=10, k_N=20, use_extrinsic=False)
         shares = [float(m.group(1)) for w in caught if (m := re.search(pattern, str(w.message)))]
-        assert bool(shares) == warned
+        assert bool(shares) == warned, correspondence
         if warned:
             assert 0 < shares[0] <= 100 * cap
+
+
+def test_a_target_slid_against_the_base_is_warned():
+    """Closest points of a closed target slid against the base (a sphere moved by 1.7 of its edge
+    lengths: less than the two edges the overlap check counts) match the base to other points of
+    the target than its own, and the transfer says so: the share of the base's area more than a
+    target edge off the target's surface (where that distance exceeds an edge, about 1 − 1 / 1.7
+    of the sphere's area) and how far, at most the slide (and the depth of the target's triangles
+    under the sphere; before, silent). In place, the same
+    target is not warned."""
+    from core.transfer_checks import mean_edge_length
+    from meshes import icosphere, random_rotation
+
+    base, base_tris = icosphere(3)
+    target, target_tris = icosphere(3)
+    target = target @ random_rotation(2).T
+    edge = mean_edge_length(target, mesh_topology(target_tris, len(target)).edges)
+    pattern = r"(\d+\.\d) % of the base's area \(\d+ vertices\) lies more than a target edge length off the " \
+              r"target's surface at rest \(up to ([\d.e-]+),"
+    for slide, warned in ((0.0, False), (1.7 * edge, True)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            Transfer(base, base_tris, target + [slide, 0.0, 0.0], target_tris, k_M=10, k_N=20)
+        found = [m for w in caught if (m := re.search(pattern, str(w.message)))]
+        assert bool(found) == warned
+        if warned:
+            share, farthest = float(found[0].group(1)), float(found[0].group(2))
+            assert 0.5 * (1 - 1 / 1.7) <= share / 100 <= 1.5 * (1 - 1 / 1.7)
+            assert edge < farthest <= slide + edge ** 2 / 2  # and the target's chords under the sphere
+
+
+def test_outlying_matches_of_a_given_map_are_left_out(sheets):
+    """A vertex map with 3 of its 100 entries sent to random far target vertices (stray matches,
+    as a map file or a functional map's conversion holds): those matches are found — no other —
+    and left out, so every base vertex is laid on the target within a target edge of where the
+    clean map lays it (the affine fit of its neighbours), and the pose is as close to the truth as
+    the clean map's (before: the stray matches pulled their neighbours' fits across the target,
+    silently)."""
+    base, base_tris, target, target_tris = sheets
+    clean = core.transfer.closest_point_correspondence(base, target)
+    rng = np.random.default_rng(1)
+    stray = rng.choice(np.flatnonzero(np.linalg.norm(base[:, :2] - 0.5, axis=1) < 0.35), 3, replace=False)
+    noisy = clean.copy()
+    for i in stray:  # a target vertex over half the sheet away
+        noisy[i] = rng.choice(np.flatnonzero(np.linalg.norm(target - base[i], axis=1) > 0.5))
+    posed, truth = drape(target, 1.0), drape(base, 1.0)
+    images, errors, caught_messages = [], [], []
+    for vertex_map in (clean, noisy):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            transfer = Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=16, k_N=32)
+            errors.append(hausdorff_over_diagonal(align_rigidly(transfer.pose(posed), truth), truth))
+        images.append(np.asarray(transfer._pull_back @ target[transfer.target_used]))
+        caught_messages.append([str(w.message) for w in caught if "from where their neighbours' matches" in str(w.message)])
+    assert not caught_messages[0]
+    assert len(caught_messages[1]) == 1 and caught_messages[1][0].startswith("3 of the correspondence's 100 matches")
+    assert f"base vertex {min(stray)})" in caught_messages[1][0]
+    edge = 1.0 / 11  # the target grid's spacing
+    assert np.linalg.norm(images[1] - images[0], axis=1).max() < edge
+    unchanged = hausdorff_over_diagonal(align_rigidly(base, truth), truth)
+    assert errors[1] < 1.5 * errors[0] and errors[1] < 0.5 * unchanged
+
+
+def test_a_basis_larger_than_a_coarse_target_resolves_is_warned(limb):
+    """k_M base functions through a target of fewer than 3 k_M vertices (the 400-vertex limb onto
+    a 97-vertex sampling of it) are warned, with the k_M the target resolves; that k_M is not."""
+    from benchmarks import limb_scenes
+
+    base, base_tris = limb[:2]
+    target, target_tris = limb_scenes.sampled_capsule(100, seed=1)
+    n = len(np.unique(target_tris))
+    pattern = rf"k_M is (\d+) base eigenfunctions, but the target mesh has only {n} vertices.*Lower k_M to (\d+) or less"
+    advised = []
+    for k_M in (40, n // 3):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            Transfer(base, base_tris, target, target_tris, k_M=k_M, k_N=2 * k_M)
+        found = [m for w in caught if (m := re.search(pattern, str(w.message)))]
+        assert bool(found) == (k_M > n / 3), k_M
+        advised += [int(m.group(2)) for m in found]
+    assert advised == [n // 3]
 
 
 def test_a_correspondence_that_turns_the_base_inside_out_is_warned():
