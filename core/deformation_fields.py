@@ -260,17 +260,36 @@ def rotation_vectors(rotations: np.ndarray) -> np.ndarray:
     quaternions by Shepperd's method (the largest of the four candidate components is divided by,
     stable at every angle including half turns); the same as SciPy's ``Rotation.as_rotvec``,
     whose ``from_matrix`` re-orthogonalizes each matrix and costs 20× more."""
-    return _rotation_vectors_of_entries([[rotations[:, a, b] for b in range(3)] for a in range(3)])
+    return rotation_vectors_of_entries([[rotations[:, a, b] for b in range(3)] for a in range(3)])
 
 
 def frame_rows_rotation_vectors(frames: np.ndarray, columns: np.ndarray) -> np.ndarray:
     """Rotation vectors (m, 3) of the rotations taking frames ``columns`` to ``frames``, both
-    stored by coordinate (3 columns, 3 coordinates, m): the nine entries of ``R = Σ_c f_c b_cᵀ``
-    formed on contiguous (m,) rows, no (m, 3, 3) array (3× faster than :func:`rotation_vectors`
-    of the products)."""
+    stored by coordinate (3 columns, 3 coordinates, m): :func:`rotation_vectors_of_entries` of
+    :func:`frame_rows_rotation_entries` (3× faster than :func:`rotation_vectors` of the products)."""
+    return rotation_vectors_of_entries(frame_rows_rotation_entries(frames, columns))
+
+
+def frame_rows_rotation_entries(frames: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """The nine entries (3, 3, m) of the rotations ``R = Σ_c f_c b_cᵀ`` taking frames ``columns``
+    to ``frames``, both stored by coordinate (3 columns, 3 coordinates, m): ``[a, b]`` is entry
+    ``R_ab`` of every triangle, formed on contiguous (m,) rows (no (m, 3, 3) array)."""
     f, b = frames, columns
-    return _rotation_vectors_of_entries([[f[0, a] * b[0, c] + f[1, a] * b[1, c] + f[2, a] * b[2, c]
-                                          for c in range(3)] for a in range(3)])
+    out = np.empty((3, 3) + f.shape[2:], dtype=np.result_type(f, b))
+    product = np.empty(f.shape[2:], dtype=out.dtype)
+    for a in range(3):
+        for c in range(3):  # (f0a b0c + f1a b1c) + f2a b2c, summed in place
+            entry = out[a, c]
+            np.multiply(f[0, a], b[0, c], out=entry)
+            entry += np.multiply(f[1, a], b[1, c], out=product)
+            entry += np.multiply(f[2, a], b[2, c], out=product)
+    return out
+
+
+def entries_rotation_angles(entries: np.ndarray) -> np.ndarray:
+    """The angles (m,) of rotations given by their entries (3, 3, m) (as
+    :func:`frame_rows_rotation_entries` gives them), from the trace."""
+    return np.arccos(np.clip(0.5 * (entries[0, 0] + entries[1, 1] + entries[2, 2] - 1.0), -1.0, 1.0))
 
 
 def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], rotations: np.ndarray,
@@ -281,8 +300,9 @@ def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], 
     return turned_coordinate_rows(plane_turned_frames(columns, turn), rotations, components)
 
 
-def _rotation_vectors_of_entries(r) -> np.ndarray:
-    """Shepperd's method on the entries ``r[a][b]`` ((m,) each) of rotation matrices: the
+def rotation_vectors_of_entries(r) -> np.ndarray:
+    """Rotation vectors (m, 3) (angle ≤ π) of rotation matrices given by their entries ``r[a][b]``
+    ((m,) each; a nested list or an array (3, 3, m)), by Shepperd's method: the
     quaternion from the trace for every row (the common case: turns below ~120°), re-done from
     the largest diagonal entry on the rows where that entry exceeds the trace."""
     trace = r[0][0] + r[1][1] + r[2][2]
@@ -307,7 +327,9 @@ def _rotation_vectors_of_entries(r) -> np.ndarray:
             q[j, rows] = (e[j][i] + e[i][j]) / big4
             q[l, rows] = (e[l][i] + e[i][l]) / big4
             q[3, rows] = (e[l][j] - e[j][l]) / big4
-    q *= np.where(q[3] < 0, -1.0, 1.0)  # w ≥ 0: angle ≤ π
+    flip = np.flatnonzero(q[3] < 0)  # w ≥ 0: angle ≤ π (only rows re-done above can have w < 0)
+    if flip.size:
+        q[:, flip] *= -1.0
     sin_half = np.sqrt(coordinate_dot(q[:3], q[:3]))
     angle = 2.0 * np.arctan2(sin_half, q[3])
     scale = np.where(sin_half > SERIES_THRESHOLD, angle / np.where(sin_half > 0, sin_half, 1.0), 2.0)

@@ -54,7 +54,10 @@ class InterpolatedField:
         if not rotvec.any():  # the base key's own (no turn): zero in any frame
             return np.zeros_like(rotvec)
         w = np.ascontiguousarray(rotvec.T)
-        return np.stack([coordinate_dot(self.base.column_rows[c], w) for c in range(3)], axis=1)
+        out = np.empty(rotvec.shape)
+        for c in range(3):
+            out[:, c] = coordinate_dot(self.base.column_rows[c], w)
+        return out
 
     def world_rotvec(self, local: np.ndarray, rows=slice(None)) -> np.ndarray:
         """Rotation vectors (r, 3) in the base frames of the triangles ``rows`` (all by default) →

@@ -89,11 +89,12 @@ class _Relative:
         rotations, translations, self.misfits = rigid_fits(topo, base.vertices, other.vertices)
         turn, stretch = df.planar_polar(*df.planar_map_entries(other.tangent_rows, base.inverse_rows))
         # the triangles' whole rotations from the base as images of its frames: read by the pins'
-        # fits, the residuals below and residuals_add_turn
-        plane = df.plane_turned_frames(other.column_rows, turn)
+        # fits (their entries, made once: _whole_entries), the residuals below and residuals_add_turn
+        plane = self._plane_frames = df.plane_turned_frames(other.column_rows, turn)
         if topo.pinned is not None:
-            rotations, translations, self.misfits = pin_held_fits(topo, base, other, plane, rotations, translations,
-                                                                  self.misfits)
+            rotations, translations, self.misfits = pin_held_fits(
+                topo, base, other, partial(self._whole_entries, base, other, keep=True), rotations, translations,
+                self.misfits)
         unwrap = turns is not None  # the continuation of the next key's turn
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
         if turns is None:  # every piece's half turn goes the way the whole mesh turns
@@ -114,8 +115,9 @@ class _Relative:
         if across is not None:  # the part that stays is the one whose whole rotation is least
             self.rotvec = rotation_continuity.continuous_rotation_vectors(self.rotvec, across, topo.triangle_component,
                                                                           partial(_rotation_angles, plane, base.column_rows))
-        if not unwrap:  # a key ahead of its gap's base: residuals_add_turn or whole_rotations reads them next
-            self._plane_frames = plane
+        if unwrap:  # kept for a key ahead of its gap's base alone: residuals_add_turn or whole_rotations reads them
+            self.__dict__.pop("_plane_frames", None)
+            self.__dict__.pop("_whole", None)
         if log_stretch is None:
             self._make_log = partial(_log_stretch_rows, stretch)
         else:
@@ -142,8 +144,12 @@ class _Relative:
     #: The triangles' whole rotations from the base key as images of its frames (3 columns, 3
     #: coordinates, m), kept by the constructor for :meth:`residuals_add_turn` and
     #: :meth:`whole_rotations`, which let them go (72 bytes per triangle, not held for the gap's
-    #: life), or None.
+    #: life), or None; :meth:`_whole_entries` lets them go for the entries it makes of them.
     _plane_frames = None
+    #: The entries (3, 3, m) of the triangles' whole rotations from the base key, made from
+    #: ``_plane_frames`` where two readers ask for them (:meth:`_whole_entries`; the frames let go
+    #: then, and these as they would be), or None.
+    _whole = None
     #: The log-stretches once made, and what makes them (a function of the triangles asked for,
     #: an index array or None for all; see log_stretch).
     _log = None
@@ -186,6 +192,20 @@ class _Relative:
         if plane is None:
             return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
         return plane[:, :, rows]
+
+    def _whole_entries(self, base: _Key, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
+        """The entries (3, 3, r) of the triangles' whole rotations from ``base`` to ``other`` (the
+        keys this relative was built from) on the triangles ``rows``
+        (:func:`~core.deformation_fields.frame_rows_rotation_entries` of :meth:`_turned_frames`):
+        made once where the pins' fits and :meth:`turning` read them (``keep``, all rows), which
+        lets the frames go; let go unless ``keep`` (72 bytes per triangle either)."""
+        whole = self.__dict__.get("_whole") if keep else self.__dict__.pop("_whole", None)
+        if whole is not None:
+            return whole[:, :, rows]
+        whole = df.frame_rows_rotation_entries(self._turned_frames(other, rows), base.column_rows[:, :, rows])
+        if keep:
+            self._whole = whole
+        return whole
 
     def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float,
                 free: np.ndarray | None = None) -> tuple:
@@ -264,7 +284,7 @@ class _Relative:
         round a part turns, :meth:`turning`), or, on the triangles ``free`` (bool (m,) or None),
         from the part nearest the rigid motion's turn
         (:func:`core.rotation_continuity.continuous_rotation_vectors`)."""
-        whole = df.frame_rows_rotation_vectors(self._turned_frames(other, keep=True), base.column_rows)
+        whole = df.rotation_vectors_of_entries(self._whole_entries(base, other, keep=True))
         continued = rotation_continuity.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
                                                                     toward=self._rigid_turns(topo, base), free=free)
         return whole, continued
@@ -280,8 +300,11 @@ class _Relative:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
         against the median angle of the triangles' whole rotations from ``base`` to ``other``
-        (from the trace of each rotation: three dot products per triangle)."""
-        whole = _rotation_angles(self._turned_frames(other), base.column_rows)
+        (from the trace of each rotation: of its entries where the pins' fits or :meth:`turning`
+        made them, :meth:`_whole_entries`, else three dot products per triangle)."""
+        made = self.__dict__.pop("_whole", None)  # the entries, where the pins' fits or turning made them
+        whole = _rotation_angles(self._turned_frames(other), base.column_rows) if made is None else \
+            df.entries_rotation_angles(made)
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
         pieces, count = topo.triangle_component, len(topo.components)
         return grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
@@ -294,10 +317,10 @@ class _Relative:
         across this relative's triangle pairs (two poses) or ``across`` (E, 2), from the part
         nearest the rigid motion's turn on the triangles ``free`` (:meth:`continued_turns`)."""
         rows = np.flatnonzero(components[topo.triangle_component])
-        frames = self._turned_frames(other, rows)  # let go before the copy: it keeps none
+        entries = self._whole_entries(base, other, rows)  # let go before the copy: it keeps none
         out = copy.copy(self)
         out.rotvec = self.rotvec.copy()
-        out.rotvec[rows] = df.frame_rows_rotation_vectors(frames, base.column_rows[:, :, rows])
+        out.rotvec[rows] = df.rotation_vectors_of_entries(entries)
         across = self._across if across is None else across
         if across is not None:
             out.rotvec = rotation_continuity.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
@@ -529,13 +552,13 @@ NEAR_HALF_TURN = 5 * np.pi / 6
 #: gap 4 % of RMS (the sequence's median 2.2 %); the handkerchief's fit that turned 176° left 28° more.
 PIN_FIT_MARGIN = np.pi / 36
 
-def pin_held_fits(topo: _Topology, base: _Key, other: _Key, frames, rotations, translations, misfits):
+def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, translations, misfits):
     """The pieces' rigid motions (``rotations`` (C, 3, 3), ``translations`` (C, 3), ``misfits`` (C,)
     from :func:`rigid_fits`), where a piece holds pins (``topo.pinned``: vertices at one place in
     every key) replaced by its best rigid motion that keeps them there
     (:func:`core.rigid_alignment.pivoted_alignment`) when that leaves its triangles less turn to
-    make — a median angle of their rotations from ``base`` to ``other`` (``frames``: the images of
-    the base's frames under them, stored by coordinate (3 columns, 3 coordinates, m)) with the
+    make — a median angle of their rotations from ``base`` to ``other`` (``whole``: a function
+    giving their entries (3, 3, m), asked only where a piece's two fits differ) with the
     piece's rotation undone smaller by :data:`PIN_FIT_MARGIN`, and fewer of them near a half turn
     (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its four centre vertices,
     folded into a bundle that looks alike after a half turn, turned 176° about its pins between keys
@@ -560,10 +583,10 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, frames, rotations, t
     held &= np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1) > PIN_FIT_MARGIN
     if not held.any():
         return rotations, translations, misfits
-    columns, pieces = base.column_rows, topo.triangle_component
+    entries, pieces = whole(), topo.triangle_component
 
     def left_to_turn(fitted):  # per component: the triangles' rotations, the fit undone: median angle, near half turns
-        angles = _rotation_angles(frames, [df.turned_rows(columns[c].T, fitted, pieces).T for c in range(3)])
+        angles = _fit_undone_angles(entries, fitted, pieces)
         count = len(topo.components)
         return grouped_medians(angles, pieces, count), np.bincount(pieces, angles > NEAR_HALF_TURN, count)
 
@@ -574,6 +597,15 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, frames, rotations, t
     rotations = np.where(use[:, None, None], held_rotations, rotations)
     translations = np.where(use[:, None], held_translations, translations)
     return rotations, translations, fit_misfits(topo, base.vertices, other.vertices, rotations, translations)
+
+
+def _fit_undone_angles(entries: np.ndarray, rotations: np.ndarray, pieces: np.ndarray) -> np.ndarray:
+    """The angle (m,) of each triangle's rotation ``W`` (its entries (3, 3, m)) with its piece's
+    rotation ``R`` (``rotations`` (C, 3, 3), ``pieces`` (m,)) undone, ``Rᵀ W``: from its trace
+    ``Σ_ab R_ab W_ab``, nine products per triangle."""
+    r = rotations[0] if len(rotations) == 1 else np.moveaxis(rotations[pieces], 0, -1)  # (3, 3) or (3, 3, m)
+    trace = sum(r[a, b] * entries[a, b] for a in range(3) for b in range(3))
+    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
 def _rotation_angles(frames, columns) -> np.ndarray:

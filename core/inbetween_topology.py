@@ -33,8 +33,6 @@ class _Topology:
         m = t.shape[0]
         self.i, self.j = t.ravel(), t[:, [1, 2, 0]].ravel()  # corner edge c of triangle k: row 3k + c
         rows = np.arange(3 * m)
-        self.D = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)], (np.r_[rows, rows], np.r_[self.i, self.j])),
-                               shape=(3 * m, n_vertices))
         # the same incidence with rows corner-major (row c·m + k), for the fit's component-wise
         # arrays (3 coordinates, 3 corners, m): contiguous per coordinate and corner
         self.Dc = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)],
@@ -92,6 +90,14 @@ class _Topology:
         #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there
         #: (:func:`core.inbetween_keys.rigid_fits`).
         self.pinned: np.ndarray | None = None
+
+    @cached_property
+    def D(self) -> sp.csr_matrix:
+        """Corner edges × vertices incidence (3m, n), row ``3k + c`` corner edge ``c`` of triangle
+        ``k`` (two poses' blend anchor reads it; made when first asked for)."""
+        rows = np.arange(3 * len(self.triangles))
+        return sp.csr_matrix((np.r_[-np.ones(rows.size), np.ones(rows.size)],
+                              (np.r_[rows, rows], np.r_[self.i, self.j])), shape=(rows.size, self.n))
 
     def factor(self, weights: np.ndarray | float = GAUGE_WEIGHT, key=None) -> SPDFactor:
         """The factor of the symmetric positive definite ``DᵀD + diag(w · mass)`` for per-vertex

@@ -91,6 +91,25 @@ def test_rotation_vectors_of_frames_match_scipy_at_every_angle():
     assert np.allclose(turned, expected.transpose(2, 1, 0), atol=1e-13)
 
 
+def test_rotation_entries_of_frames_are_the_products_and_give_their_vectors_and_angles():
+    """The entries of ``R = Σ_c f_c b_cᵀ`` on coordinate rows against the product written out,
+    from small (series branch of the vectors) to half turns; their rotation vectors are
+    :func:`frame_rows_rotation_vectors`' (the same values: one formula), their angles from the
+    trace the vectors' lengths (to arccos's rounding near 0 and π, √ε)."""
+    rng = np.random.default_rng(5)
+    angles = np.r_[np.linspace(0, np.pi, 60), [1e-9, np.pi - 1e-9]]
+    axes = rng.normal(size=(len(angles), 3))
+    rotvecs = angles[:, None] * axes / np.linalg.norm(axes, axis=1, keepdims=True)
+    columns = np.ascontiguousarray(Rotation.random(len(angles), random_state=6).as_matrix().transpose(2, 1, 0))
+    frames = np.ascontiguousarray(np.einsum("mab,cbm->cam", Rotation.from_rotvec(rotvecs).as_matrix(), columns))
+    entries = df.frame_rows_rotation_entries(frames, columns)
+    matrices = Rotation.from_rotvec(rotvecs).as_matrix()
+    np.testing.assert_allclose(entries, matrices.transpose(1, 2, 0), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(entries, np.einsum("cam,cbm->abm", frames, columns), rtol=0, atol=1e-15)
+    assert np.array_equal(df.rotation_vectors_of_entries(entries), df.frame_rows_rotation_vectors(frames, columns))
+    np.testing.assert_allclose(df.entries_rotation_angles(entries), angles, rtol=0, atol=1e-7)
+
+
 def test_rotated_frames_of_several_components_match_the_matrices():
     """Rodrigues on coordinate rows against SciPy's matrices, small (series branch) to large angles."""
     rng = np.random.default_rng(5)

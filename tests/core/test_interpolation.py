@@ -1700,7 +1700,8 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     once however many times the solve, checks and predictions ask for it; the trimmed tolerance
     (a partial sort of the edges' changes, read by batches of TRIMMED_TOLERANCE_BATCH or more) is
     not computed; nor, while the metrics' spline stays positive definite at the factors, the
-    log-stretches' spline, nor its keys' log-stretches; the relatives keep no turned frames. What
+    log-stretches' spline, nor its keys' log-stretches, nor the corner-major incidence of two
+    poses' blend anchor; the relatives keep no turned frames nor their rotations' entries. What
     is made on demand is what would have been made up front."""
     import core.deformation_fields as df
     from core import screw_motions
@@ -1725,6 +1726,8 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     assert "log_stretch" not in gap.splines
     assert all(r._log is None for r in gap.relatives if not r.extrapolated and r.rotvec.any())
     assert all(r._plane_frames is None for r in gap.relatives)  # the constructor's frames let go once read
+    assert all(r._whole is None for r in gap.relatives)  # ... and the entries made from them
+    assert "D" not in seq._topo.__dict__  # two poses' incidence: a sequence never reads it
     # made when read: the spline of the keys' log-stretches, the tolerance of the partial sort
     from core.inbetween_fit import trimmed_tolerance
     from core.splines import HermiteGap

@@ -37,6 +37,47 @@ def test_pivoted_alignment_keeps_the_pivots_and_finds_a_turn_about_them(pivots, 
     assert np.allclose(points @ rotation.T + translation, points, atol=1e-10)
 
 
+@pytest.mark.parametrize("count", [1, 3])
+def test_the_pin_fits_measure_the_turn_left_to_each_triangle(count):
+    """The angle each triangle's rotation ``W`` still turns once its piece's rigid rotation ``R``
+    is undone (``Rᵀ W``), from the nine products of the entries, against SciPy's angle of the
+    composed matrices (to arccos's rounding near 0 and π), one piece and several."""
+    from core.inbetween_keys import _fit_undone_angles
+
+    rng = np.random.default_rng(count)
+    whole = Rotation.random(300, random_state=count).as_matrix()
+    rotations = Rotation.random(count, random_state=10 + count).as_matrix()
+    pieces = rng.integers(0, count, size=len(whole))
+    whole[:5] = rotations[pieces[:5]]  # nothing left to turn
+    expected = Rotation.from_matrix(np.transpose(rotations[pieces], (0, 2, 1)) @ whole).magnitude()
+    angles = _fit_undone_angles(np.ascontiguousarray(whole.transpose(1, 2, 0)), rotations, pieces)
+    np.testing.assert_allclose(angles, expected, rtol=0, atol=1e-7)
+
+
+def test_a_pinned_gap_makes_its_whole_rotations_once_per_relative(monkeypatch):
+    """A gap of the pinned handkerchief: the pins' fits, the reading of which way its parts turn
+    and the test whether its residuals add turn all read the triangles' whole rotations from the
+    base key; each relative forms rotations' entries on all its triangles twice at most (its
+    residuals' and, once for all those readers, its whole rotations'), and none keeps them (nor
+    the frames they are made from) once the gap is prepared."""
+    import core.deformation_fields as df
+    import core.inbetween_keys as keys_module
+
+    data = np.load(DATA)
+    keys, triangles = data["keys"].astype(np.float64), data["triangles"]
+    seq = core.SequenceInterpolator(keys, triangles, start="keys")
+    made, relatives = [], []
+    real_entries, real_init = df.frame_rows_rotation_entries, keys_module._Relative.__init__
+    monkeypatch.setattr(df, "frame_rows_rotation_entries", lambda f, b: made.append(f.shape[-1]) or real_entries(f, b))
+    monkeypatch.setattr(keys_module._Relative, "__init__",
+                        lambda self, *args, **kw: relatives.append(self) or real_init(self, *args, **kw))
+    gap = seq._gap(1)
+    assert seq._topo.pinned is not None and relatives
+    full = [rows for rows in made if rows == len(triangles)]
+    assert len(full) <= 2 * len(relatives), (len(full), len(relatives))
+    assert all(r.__dict__.get("_whole") is None and r.__dict__.get("_plane_frames") is None for r in gap.relatives)
+
+
 def test_a_handkerchief_pinned_at_its_centre_is_not_turned_half_round():
     """Keys 8 frames apart of a Blender cloth pinned at its four centre vertices and blown by
     turbulence into a bundle that looks alike after a half turn (frames 8, 16, 24, 32 and the
