@@ -2,12 +2,15 @@
 
 A defect-free fit is returned as it is. Otherwise the fit is repaired where the defects are:
 rotations and stretches are imposed on the defective triangles and a neighbourhood that grows while
-defects remain (:data:`REPAIR_RINGS`); in each neighbourhood, in turn, the interpolated rotations,
-the linear blend's rotations (integrable: they come from a mesh), the blend's rotations and
-stretches (its local geometry spliced in, where the interpolated metric cannot be realized without a
-fold), the local geometry of the keys' per-vertex spline, and each key's own local geometry (nearer
-key first); the first defect-free one is kept, so a repair changes as small a region as it can.
-Regions stop growing once they cover :data:`MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
+defects remain (:data:`REPAIR_RINGS`); in each connected part of a neighbourhood, in turn, the
+interpolated rotations, the linear blend's rotations (integrable: they come from a mesh), the
+blend's rotations and stretches (its local geometry spliced in, where the interpolated metric cannot
+be realized without a fold), the local geometry of the keys' per-vertex spline, and each key's own
+local geometry (nearer key first); the first that leaves the part defect-free is kept, so a repair
+changes as small a region as it can, and only the parts left defective grow further (folds apart
+from each other are repaired each by its own field and region; two poses and extrapolations take a
+neighbourhood whole, see :meth:`Repair.rounds`). Regions stop growing once they
+cover :data:`MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
 sequence's in-between, once a round of 4 rings or more removed no defect (:data:`STALLED_ROUND`),
 and a repair of a sequence's in-between that moves the pose by more than :data:`MAX_REPAIR_MOVE` of the
 keys' move is not taken: either would replace the pose rather than repair it, and the neighbouring
@@ -42,6 +45,7 @@ from typing import NamedTuple
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
+from scipy.sparse.csgraph import connected_components
 
 from . import deformation_fields as df
 from . import screw_motions
@@ -586,14 +590,20 @@ class Repair:
         return self._keys[index]
 
     def rounds(self, x, defects, s, frames, stretch, guide, blend, best, rings=REPAIR_RINGS):
-        """Regions growing by ``rings`` (:data:`REPAIR_RINGS`) around the ``defects`` (bool (m,)) of ``x``; in
-        each, the fields of :meth:`imposed_fields` imposed in turn (the smallest region that
-        any field repairs wins: a repair changes as little as it can). Returns the first
-        defect-free fit (or None) and the fit with the fewest defects so far ``best``
-        (count, positions). Only the region's vertices move, so only its triangles are checked."""
+        """Regions growing by ``rings`` (:data:`REPAIR_RINGS`) around the ``defects`` (bool (m,)) of ``x``,
+        each connected part of a region repaired on its own (:meth:`Region.parts`: their free
+        vertices share no triangle, so a field's fit of one does not depend on the others'): in
+        each part, the fields of :meth:`imposed_fields` imposed in turn, the first that leaves the
+        part defect-free kept (the smallest region that a field repairs wins: a repair changes as
+        little as it can), and only the parts still defective grow in the next round. Returns the
+        defect-free fit (or None) and the fit with the fewest defects so far ``best`` (count,
+        positions). Only the region's vertices move, so only its triangles are checked. A sequence's
+        in-between takes parts while their moves add up to at most :meth:`move_limits`' (the
+        defect-free one, and for ``best`` the one leaving defects), counted from ``x``. Two poses
+        and extrapolations take each region whole, as one part."""
         gap = self.gap
         fields = self.imposed_fields(s, frames, stretch, blend)
-        force = defects
+        start, force, left = x, defects, defects.copy()  # left: the defects of x, the pose with the parts taken
         limit, partial_limit = self.move_limits(s) or (np.inf, np.inf)
         pieces = gap.topo.triangle_component
         largest = MAX_REPAIR_FRACTION * gap.topo.piece_sizes
@@ -604,21 +614,56 @@ class Repair:
             if round_index and (np.bincount(pieces[force], minlength=largest.size) > largest).any():
                 break  # most of a piece: a replacement, not a repair
             region = gap.region(force)
-            stalled = True
-            for field, whole in fields:
+            # a sequence's in-between by parts; two poses and extrapolations whole (their fallbacks
+            # are the blend's, which a part-by-part repair cleaner of defects but farther from it skips)
+            row_part, free_part, count = region.parts() if self.in_sequence(s) else region.whole()
+            free = region.free
+            # per part: the squared move from the start its free vertices already have in x, the
+            # field taken (−1: none repairs it yet) and the fewest defects a field leaves there
+            # (x's own to begin with) with that field's positions
+            had = np.bincount(free_part, np.sum((x[free] - start[free]) ** 2, axis=1), minlength=count)
+            own = np.bincount(row_part[left[region.rows]], minlength=count)
+            fewest = own.copy()
+            taken, partial = np.full(count, -1), np.full(count, -1)
+            fits = {}  # field index: its positions on the free vertices
+            budget = limit - float(np.sum((x - start) ** 2))  # what the parts taken may add
+            for index, (field, whole) in enumerate(fields):
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:
                     continue
-                z = gap.local_fit(x, region, *field(region.rows), guide)
-                if not np.isfinite(z[region.free]).all():  # the rest is x's, finite
-                    continue
-                move = np.sum((z[region.free] - x[region.free]) ** 2)
-                if move > limit:
-                    continue  # the pose would jump away from its neighbours in time
-                count = int(self.defects(z, s, frames, stretch, rows=region.rows).sum())
-                if count == 0:
-                    return z, best
-                if count < best[0] and move <= partial_limit:
-                    best, stalled = (count, z), False
+                fitted = gap.local_fit(x, region, *field(region.rows), guide)
+                z = fits[index] = fitted[free]
+                infinite = ~np.isfinite(z).all(axis=1)
+                finite = np.bincount(free_part[infinite], minlength=count) == 0
+                if infinite.any():  # checked with x's positions there (the rest is x's, finite)
+                    fitted[free[~finite[free_part]]] = x[free[~finite[free_part]]]
+                moves = np.bincount(free_part, np.sum((fitted[free] - start[free]) ** 2, axis=1), minlength=count) - had
+                counts = np.bincount(row_part[self.defects(fitted, s, frames, stretch, rows=region.rows)],
+                                     minlength=count)
+                for part in np.flatnonzero((taken < 0) & finite & (counts == 0)):
+                    if moves[part] <= budget:  # else the pose would jump away from its neighbours in time
+                        taken[part], budget = index, budget - moves[part]
+                better = (taken < 0) & finite & (counts < fewest)
+                fewest[better], partial[better] = counts[better], index
+                if (taken >= 0).all():
+                    break
+            out = _with_parts(x, free, free_part, taken, fits)
+            if (taken >= 0).all():
+                return out, best
+            # the parts taken, and where no field repairs a part the field that leaves it the fewest
+            # defects (else x's own): a candidate for the fit with the fewest
+            stalled = True
+            waiting = taken < 0
+            fewer = _with_parts(out, free, free_part, np.where(waiting, partial, -1), fits)
+            for candidate, total in ((fewer, int(fewest[waiting].sum())), (out, int(own[waiting].sum()))):
+                if total < best[0] and float(np.sum((candidate - start) ** 2)) <= partial_limit:
+                    best, stalled = (total, candidate), False
+                    break
+            # the parts taken are repaired; the others grow from what they cover
+            done = taken[row_part] >= 0
+            left[region.rows[done]] = False
+            force = np.zeros_like(force)
+            force[region.rows[~done]] = True
+            x = out
         return None, best
 
     def in_sequence(self, s: float) -> bool:
@@ -652,6 +697,16 @@ class Repair:
         return self._move_limits
 
 
+def _with_parts(x: np.ndarray, free: np.ndarray, free_part: np.ndarray, chosen: np.ndarray, fits: dict) -> np.ndarray:
+    """``x`` (n, 3) with the ``free`` vertices of each part ``p`` (``free_part``: each one's part)
+    taken from the fit ``fits[chosen[p]]`` (positions on ``free``), where ``chosen[p]`` ≥ 0."""
+    out = x.copy()
+    for index in np.unique(chosen[chosen >= 0]):
+        rows = chosen[free_part] == index
+        out[free[rows]] = fits[index][rows]
+    return out
+
+
 class Region:
     """A repair's region: the triangles ``rows`` (r,) of a mask, the vertices ``free`` all of whose
     triangles are in it, and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
@@ -673,6 +728,7 @@ class Region:
         local = slot[corners].ravel()  # (3r,) each corner's vertex among the touched ones
         is_free = np.bincount(local, minlength=touched.size) == topo.triangles_per_vertex[touched]
         self.free = touched[is_free]
+        self._parts = (local, touched.size, is_free)  # see parts
         self.anchor = gap.repair_anchor(self.free)
         if not self.free.size:
             return
@@ -700,6 +756,27 @@ class Region:
         self._held_ends = (np.flatnonzero(~end_free), touched[end[~end_free]])
         self.lu = spla.splu(_principal_block(topo.laplacian, self.free, self.anchor), permc_spec="MMD_AT_PLUS_A",
                             diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+
+    def parts(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """The region's connected parts (triangles joined where they share a vertex): each row's
+        part (r,), each free vertex's part (f,) and their count. A free vertex's triangles all lie
+        in its part, so the free vertices of two parts share no triangle: the region's system is
+        one block per part, and a fit of one part does not move or read the free vertices of
+        another (only the held vertices, which stay)."""
+        local, touched, is_free = self._parts
+        r = self.rows.size
+        # triangles 0 … r − 1 and their vertices r … r + touched − 1, joined by their corners: each
+        # triangle's row lists its three, so the matrix is made without a sort (SciPy's own
+        # int32 indices and float64 values, which its graph routines take as they are)
+        indptr = np.full(r + touched + 1, 3 * r, dtype=np.int32)
+        indptr[:r + 1] = np.arange(0, 3 * r + 1, 3, dtype=np.int32)
+        graph = sp.csr_matrix((np.ones(local.size), (r + local).astype(np.int32), indptr), shape=(r + touched,) * 2)
+        count, labels = connected_components(graph, connection="weak")  # every vertex node has a triangle
+        return labels[:r], labels[r:][is_free], count
+
+    def whole(self) -> tuple[np.ndarray, np.ndarray, int]:
+        """The region as one part, as :meth:`parts` gives its parts."""
+        return np.zeros(self.rows.size, dtype=np.intp), np.zeros(self.free.size, dtype=np.intp), 1
 
     def solve(self, edges: np.ndarray, x: np.ndarray, guide: np.ndarray) -> np.ndarray:
         """Positions (f, 3) of the free vertices fitting the region's corner ``edges`` (r, 3, 3)

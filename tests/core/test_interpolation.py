@@ -985,6 +985,61 @@ def test_a_key_geometry_is_spliced_where_the_blend_folds_too(monkeypatch, strip)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(0.5 * (a + b), flat, tri).mean()
 
 
+@pytest.mark.parametrize("sequence", [True, False])
+def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, sequence):
+    """Two folds far apart on a sequence's in-between, one that only the interpolated rotations
+    remove and one that only the linear blend's rotations remove: each part of the repair region
+    takes the first field that repairs it, so both go in the first round, without a warning (a
+    field imposed on the whole region leaves one of them, whichever it is). Two poses take the
+    region whole (their fallbacks are the blend's): there no field repairs both, and a fallback
+    warns."""
+    import core.inbetween_repair as repair
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
+    middle = flat[tri].mean(axis=1)
+    ends = [tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))] for x in (0.3, 1.7)]
+    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+        repair.Repair.imposed_fields
+    imposed = []  # the index of the field last imposed (0: the interpolated rotations, 1: the blend's)
+
+    def fold(out, corners, free=None):
+        i, j, k = corners
+        if free is None or i in free:
+            out[i] = out[j] + out[k] - out[i]  # a corner reflected across its opposite edge
+        return out
+
+    def fields(self, *args):
+        def tagged(index, field):
+            return lambda rows: imposed.append(index) or field(rows)
+        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = real_local(self, x, region, frames, stretch, guide)
+        for removes, corners in enumerate(ends):  # the first end's fold stays but for field 0, the other's but for 1
+            if imposed[-1] != removes:
+                fold(out, corners, region.free)
+        return out
+
+    def folding_fit(self, x, *args, **kwargs):
+        return fold(fold(real_fit(self, x, *args, **kwargs), ends[0]), ends[1])
+
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
+    if not sequence:
+        with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+            Interpolator(a, b, tri).pose(0.5)
+        assert max(imposed) > 1  # every field tried on the whole region
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert imposed and _flipped(x, a, b, tri) == 0
+    assert max(imposed) == 1  # no field after the blend's rotations was needed
+
+
 def test_sequence_does_not_overshoot_after_an_abrupt_stop(strip):
     """Keys moving at constant speed, then (almost) at rest, as cloth landing on a collider: the
     gap after the stop stays near its keys instead of carrying the earlier speed on."""
