@@ -111,7 +111,8 @@ def shape_differences(
         return transfer.differences(target_vertices)
     base, topology = check_mesh(base_vertices, triangles, name="base_vertices")
     target = check_pose(target_vertices, topology, name="target_vertices")
-    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
+    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0],
+                                 geometry=(base, topology))
     offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
     with numerical_failures("Computing the shape differences"):
         reference = ReferenceShape(base, topology.triangles, offset=offset, use_extrinsic=use_extrinsic)

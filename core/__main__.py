@@ -70,6 +70,10 @@ def _parser() -> argparse.ArgumentParser:
     part.add_argument("--chunk", type=_chunk, help="compute chunk I of N (1-based) of the key gaps")
     part.add_argument("--gaps", type=_gap_range, help="compute key gaps A to B (0-based, B excluded)")
     retime.add_argument("-o", "--output", required=True, help="output PC2 file")
+    retime.add_argument("--merged-output", metavar="PC2",
+                        help="with --chunk/--gaps: the file the chunks will be merged into, checked as -o is "
+                             "before any work (a farm job's output: a path the merge cannot write fails "
+                             "every chunk at once, not after all of them)")
     retime.add_argument("-q", "--quiet", action="store_true", help="no progress on stderr")
 
     merge = commands.add_parser("merge", help="concatenate retimed chunks (in order) into one PC2")
@@ -187,12 +191,51 @@ def _merged_job(args) -> str | None:
     return _job_fingerprint(cache, cache.positions, np.asarray(plan.samples_read, dtype=int), triangles, args)
 
 
+def _check_output(path: str, inputs: dict, what: str = "") -> None:
+    """Refuse, before any work, an output ``path`` no PC2 can be written to
+    (:func:`core.point_cache.check_pc2_name`, :func:`~core.point_cache.unwritable`), one of the
+    files ``inputs`` ({path: what it is}) the job reads, and one not named ``.pc2``: the Cache File
+    of the operators gets ``.pc2`` added, but the name a command is given is the one the next step
+    of a script or job reads, so it is not changed. ``what``: the option the path came from, when
+    not ``-o``, for the messages."""
+    try:
+        check_pc2_name(path)
+        refuse_overwriting(path, inputs)
+        if Path(path).suffix.lower() != ".pc2":
+            raise ShapeDifferenceError(f"'{path}' is not named .pc2, and the output is a PC2 file: name it "
+                                       f"'{path}.pc2' (or another name ending in .pc2).")
+        reason = unwritable(path)
+        if reason:
+            raise ShapeDifferenceError(f"Cannot write '{path}': {reason}. Give another output file.")
+    except ShapeDifferenceError as error:
+        if not what:
+            raise
+        raise ShapeDifferenceError(f"{what}: {error}") from None
+
+
+def _check_parts_exist(parts: list[str]) -> None:
+    """Name the first of the chunk files ``parts`` (in chunk order) that does not exist, and the
+    retime task that writes it."""
+    missing = [index for index, part in enumerate(parts, 1) if not os.path.lexists(part)]
+    if missing:
+        index, count = missing[0], len(parts)
+        others = f" ({len(missing)} of the {count} are missing)" if len(missing) > 1 else ""
+        raise ShapeDifferenceError(
+            f"Chunk {index} of {count}, '{parts[index - 1]}', does not exist{others}: the retime task "
+            f"`python -m core retime ... --chunk {index}/{count} -o {parts[index - 1]}` writes it (in "
+            f"farm/retime.openjd.yaml, task Chunk={index} of step RetimeChunk). Run that task (again, if "
+            "it failed or was cancelled), or check the chunk names and --count, then merge.")
+
+
 def _retime(args) -> int:
-    check_pc2_name(args.output)
-    refuse_overwriting(args.output, {args.cache: "the input cache", args.topology: "the topology OBJ"})
-    reason = unwritable(args.output)  # said before the in-betweens, which it would waste
-    if reason:
-        raise ShapeDifferenceError(f"Cannot write '{args.output}': {reason}. Give another output file.")
+    inputs = {args.cache: "the input cache", args.topology: "the topology OBJ"}
+    _check_output(args.output, inputs)  # said before the in-betweens, which it would waste
+    if args.merged_output is not None:
+        if args.chunk is None and args.gaps is None:
+            raise ShapeDifferenceError("--merged-output goes with --chunk I/N or --gaps A:B (a part of a job "
+                                       "whose chunks are merged into it); a whole retime writes -o itself.")
+        _check_output(args.merged_output, {**inputs, args.output: "this chunk's output (-o)"},
+                      "--merged-output (the file the chunks will be merged into)")
     cache = read_point_cache(args.cache)
     check_pc2_timing(cache.start if args.start is None else args.start, cache.sampling)  # before any work
     if not (np.isfinite(args.offset) and args.offset >= 0):
@@ -236,7 +279,10 @@ def _retime(args) -> int:
                         "split it across processes with --chunk I/N (and merge the parts), or raise --speed")
     poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)
     began = time.monotonic()
-    for done, (index, pose) in enumerate(iter_retime(samples, triangles, plan, gaps, **options), 1):
+    def named(sample: int) -> str:  # the core's warnings name the keys as the messages here name samples
+        return f"sample {sample + 1} (frame {cache.start + sample * cache.sampling:g})"
+
+    for done, (index, pose) in enumerate(iter_retime(samples, triangles, plan, gaps, sample_names=named, **options), 1):
         poses[index - outputs.start] = pose
         if not args.quiet:
             print(f"retime: sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps}), "
@@ -344,7 +390,7 @@ def _local_path(text: str) -> str:
 
 def _run(args) -> int:
     try:
-        for name in ("cache", "topology", "output", "retime", "numbered"):
+        for name in ("cache", "topology", "output", "merged_output", "retime", "numbered"):
             if getattr(args, name, None) is not None:
                 setattr(args, name, _local_path(getattr(args, name)))
         if args.command == "merge":
@@ -362,6 +408,8 @@ def _run(args) -> int:
             refuse_overwriting(args.output, {path: what for path, what in (
                 (args.retime, "the input cache of the retime (--retime)"), (args.topology, "the topology OBJ"))
                 if path is not None})
+            _check_output(args.output, {})
+            _check_parts_exist(parts)
             began = time.monotonic()
             merge_pc2(parts, args.output, job=_merged_job(args))
             n_points, start, sampling, n_samples = read_pc2_header(args.output)

@@ -172,6 +172,13 @@ class LocalGlobalFit:
         re-fitted to them (the orthonormal polar factor ``W = G (GᵀG)^-½`` of the 3×2 map ``G``
         from the base's tangent plane), or by the interpolated rotation where the two differ by
         more than :attr:`rotation_limit` or where ``force`` (bool (m,)) is set."""
+        # a pose exaggerated far past its keys (×1000) has single-precision squared edges beyond
+        # float32's range: the overflow is silenced here, and the caller warns about that pose
+        with np.errstate(over="ignore", invalid="ignore"):
+            return self._fitted_edges(edges, targets, force)
+
+    def _fitted_edges(self, edges: np.ndarray, targets: dict, force) -> np.ndarray:
+        """:meth:`fitted_edges`, floating-point errors as they are."""
         i00, i01, i11 = targets["inverse"]  # upper triangular
         e1, e2 = edges[:, 0], -edges[:, 2]
         g0 = e1 * i00
@@ -204,7 +211,8 @@ class LocalGlobalFit:
     @staticmethod
     def misfit(edges: np.ndarray, targets: dict) -> float:
         """Mean relative deviation of the lengths of corner ``edges`` (3, 3, m) from the metric's."""
-        lengths = np.sqrt(coordinate_dot(edges, edges))
+        with np.errstate(over="ignore"):  # float32 squares of a pose exaggerated far past its keys (fitted_edges)
+            lengths = np.sqrt(coordinate_dot(edges, edges))
         return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0), dtype=np.float64))
 
     def fit(self, x, stretch, frames, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,

@@ -24,7 +24,7 @@ from .laplace_basis import LaplaceBasis, laplace_basis
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
-from .seams import glue_along_seams, seam_twins
+from .seams import glue_along_seams, seam_twins, weld_advice
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -228,7 +228,13 @@ class ReferenceShape:
         self.surface: OffsetSurface | None = None
         self.offset_layer: SurfaceLayer | None = None
         if use_extrinsic:
-            self.surface = offset_surface(topology)
+            try:
+                self.surface = offset_surface(topology)
+            except MeshError as error:  # no edge shared by two triangles: say to weld where faces touch
+                advice = weld_advice(base_positions, topology)
+                if not advice:
+                    raise
+                raise MeshError(f"{error}{advice}") from None
             self.offset_layer = SurfaceLayer(
                 "offset surface", self.surface.topology, self.surface.positions(base_positions, self.offset)
             )
@@ -260,7 +266,7 @@ class ReferenceShape:
         triangles), above its number of connected parts (:func:`core.validation.check_basis_sizes`;
         ``full_basis=False`` where a truncated ``k_M`` is needed)."""
         return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0],
-                                 full_basis=full_basis)
+                                 full_basis=full_basis, geometry=(self.base_positions, self.topology))
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None,
                           name: str = "target vertices", stacklevel: int = 1) -> ShapeDifferences:

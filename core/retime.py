@@ -229,9 +229,13 @@ def short_gap_sequence(samples, triangles, tail, **interpolator_options):
                                 **{**interpolator_options, "start": "keys"})
 
 
-def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, **interpolator_options):
+def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, *, sample_names=None,
+                **interpolator_options):
     """Yield ``(output index, positions float64 (n, 3))`` for the output samples in ``gaps``
     (default: all), in order.
+
+    ``sample_names``: a function of a source sample's index giving its name in warnings (such as
+    its frame); by default the keys are ``"key pose i"`` (the i-th of :attr:`RetimePlan.keys`).
 
     ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only
     :attr:`RetimePlan.samples_read` are read).
@@ -251,15 +255,17 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
     interpolator_options = {**interpolator_options,
                             **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
-    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys)
+    names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]
+    sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys, key_names=names)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
-        tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options)
         # its keys named as the plan's, as the main sequence's warnings name them (its last gap is
         # the plan's last, "between key pose K − 2 and key pose K − 1"; the samples before it are
         # no keys of the plan)
         position = {int(key): i for i, key in enumerate(plan.keys)}
-        tail.key_names = [f"key pose {position[int(s)]}" if int(s) in position else f"sample {int(s)}" for s in plan.tail]
+        names = [sample_names(int(s)) if sample_names is not None else
+                 f"key pose {position[int(s)]}" if int(s) in position else f"sample {int(s)}" for s in plan.tail]
+        tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options, key_names=names)
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]

@@ -145,6 +145,28 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray, scale: float | N
     return float(tolerance)
 
 
+def weld_advice(positions: np.ndarray, topology) -> str:
+    """A sentence (str, with a leading space) telling the user to weld where vertices of different
+    connected parts of ``topology`` (a :class:`core.mesh_topology.MeshTopology`) sit at one place
+    in ``positions`` (n, 3) (:func:`coincidence_tolerance`): the faces were split apart where they
+    meet (a triangle soup, as some exporters write every face on its own), which makes one
+    surface many parts, and Merge by Distance is the fix. Empty where no two parts touch so."""
+    from scipy.spatial import cKDTree
+
+    used = topology.used_vertices
+    if used.size < 2:
+        return ""
+    piece = vertex_labels(topology.triangles, topology.components()[1], topology.n_vertices)
+    pairs = used[cKDTree(positions[used]).query_pairs(coincidence_tolerance(positions, topology.edges),
+                                                      output_type="ndarray")].reshape(-1, 2)
+    apart = pairs[piece[pairs[:, 0]] != piece[pairs[:, 1]]]
+    if not len(apart):
+        return ""
+    return (f" {np.unique(apart).size} of its {used.size} vertices sit at the place of a vertex of another "
+            "part: its faces are split apart where they meet (as some exporters write them). Weld them: in "
+            "Blender, Edit Mode, select all and use Mesh > Clean Up > Merge by Distance.")
+
+
 def vertex_groups(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
     """The group (n,) of each of ``n`` vertices joined by the pairs ``a``, ``b`` (each (p,)): the
     connected components of the graph of those pairs."""
@@ -456,13 +478,14 @@ def seam_twins(base: np.ndarray, topology):
     of those on one of the 9; the edges do not match end for end, which :func:`seam_weld` needs,
     and the panels were placed apart, the seam 0.37 open). Two pieces joined by a single pair
     (panels meeting only at a corner, as the diagonal ones of four around one vertex do) are not
-    seamed: glued by a point, a 2 × 2 split sheet came back 0.55 % off. None without seams; with
-    the problem where welding them would not give a valid mesh (reversed panels, a triangle it
-    would collapse)."""
+    seamed: glued by a point, a 2 × 2 split sheet came back 0.55 % off. Panels wound against the
+    ones they meet are turned over in the weld, as the in-betweens' are (:func:`oriented_pieces`).
+    None without seams; with the problem where welding them would not give a valid mesh (panels no
+    choice of windings joins consistently, a triangle it would collapse)."""
     from scipy.spatial import cKDTree
 
     try:
-        seam_weld([base], topology)
+        seam_weld([base], topology, orient=True)
     except MeshError as error:
         return None, str(error)
     boundary = np.unique(topology.edges[topology.boundary_edges])

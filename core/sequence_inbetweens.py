@@ -170,7 +170,8 @@ class SequenceInterpolator:
     exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the
     source's frame in the middle of the last gap.
 
-    :attr:`key_names`: the keys as warnings name them, ``"key pose i"`` by default; a sequence
+    :attr:`key_names`: the keys as warnings name them: ``key_names`` (K strings, such as the
+    frames of a cache's samples, :func:`core.retime.iter_retime`), else ``"key pose i"``; a sequence
     keyed on some of another's keys names them as that one does (:func:`core.retime.iter_retime`'s
     short last gap), so that a caller naming ``"key pose i"`` (the operators: by frame) reads one
     numbering.
@@ -178,21 +179,25 @@ class SequenceInterpolator:
 
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
-                 key_times=None, end: str = "keys"):
+                 key_times=None, end: str = "keys", key_names=None):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start, end = check_start(start), check_end(end)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
         key_times = check_key_times(key_times, len(key_poses))
-        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end)
+        if key_names is not None and len(key_names) != len(key_poses):
+            raise MeshError(f"key_names must name each of the {len(key_poses)} key poses; got {len(key_names)}.")
+        self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end,
+                    key_names=key_names)
 
     def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None,
-               two_poses=False, end="keys"):
+               two_poses=False, end="keys", key_names=None):
         """The constructor once its arguments are checked (``topology``: that of the triangles;
         ``two_poses``: for an :class:`~core.two_pose_inbetweens.Interpolator`)."""
         self.start, self.end = start, end
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
-        self.key_names = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
+        default = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
+        self.key_names = default if key_names is None else [str(name) for name in key_names]
         # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]

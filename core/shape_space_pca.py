@@ -188,8 +188,13 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     except MeshError as error:
         if "no edge shared by two triangles" not in str(error):
             raise
+        from .mesh_topology import mesh_topology
+        from .seams import weld_advice
+
+        first = np.asarray(poses[0], dtype=np.float64)  # checked by ReferenceShape before its offset surface
         raise MeshError("A shape space compares the poses' offset surfaces too, which need an edge shared by "
-                        "two triangles; no triangles of this mesh share an edge. Use a connected surface.") from None
+                        "two triangles; no triangles of this mesh share an edge. Use a connected surface."
+                        + weld_advice(first, mesh_topology(triangles, len(first)))) from None
     reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     compacts = []

@@ -40,6 +40,7 @@ from .functional_map import (UNMATCHED, check_correspondence, closest_point_corr
                              project_near, pull_back_matrix, push_forward_matrix, reject_outlying_matches, walk_near)
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology, zero_area_triangles
+from .seams import oriented_pieces
 from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation, check_overlap,
                               check_spread, check_target_resolution, coincident_vertices, degenerate_at_rest,
                               mean_edge_length, warn_non_manifold, warn_outlying_matches)
@@ -182,7 +183,9 @@ class Transfer:
         kept = topology.triangles
         if self._welded is not None:
             kept = self._welded[kept]
-            kept = kept[(kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])]
+            whole = (kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])
+            # pieces wound against the ones they are welded to are turned over, as the in-betweens'
+            kept = oriented_pieces(kept[whole], topology.components()[1][whole])
         flat = degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
         # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
         # target's eigenbasis needs its surface, not its triangles.
@@ -620,7 +623,7 @@ def _sequence_class():
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
                      smooth=True, start="rest", key_times=None, base_vertices=None, target_triangles=None,
-                     correspondence=None, target_rest_vertices=None, end="keys"):
+                     correspondence=None, target_rest_vertices=None, end="keys", key_names=None):
             if target_triangles is not None:
                 if base_vertices is None:
                     raise MeshError("Key poses of another mesh need base_vertices: the pose of the mesh to move.")
@@ -630,7 +633,7 @@ def _sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth, start=start, key_times=key_times, end=end)
+                             smooth=smooth, start=start, key_times=key_times, end=end, key_names=key_names)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

@@ -197,7 +197,8 @@ def check_count(value, name: str, *, minimum: int = 0) -> int:
 
 
 def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int = 1, *,
-                      full_basis: bool = True, target_vertices: int | None = None) -> tuple[int | None, int | None]:
+                      full_basis: bool = True, target_vertices: int | None = None,
+                      geometry=None) -> tuple[int | None, int | None]:
     """Basis sizes of eqs. (5)–(6): ``None`` or ``0`` means the full basis (the sidebar's
     convention). Each must be a whole number in ``n_components + 1..n_vertices − 1``
     (``n_vertices``: vertices in at least one triangle, unchecked when ``None``; the first
@@ -206,7 +207,9 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
     ``full_basis=False``: a caller that needs a truncated ``k_M`` (the shape space, the distortion
     maps' eigenfunctions) — the messages do not offer the full basis. ``target_vertices``:
     vertices in triangles of another mesh whose basis ``k_N`` is (a cross-mesh transfer's target);
-    ``k_N`` is then checked against it."""
+    ``k_N`` is then checked against it. ``geometry``: its positions ``(n, 3)`` and topology, where a
+    refusal for too few eigenfunctions says to weld parts whose vertices coincide
+    (:func:`core.seams.weld_advice`)."""
     full = ", or 0 / None for the full basis" if full_basis else ""
     sizes = []
     target = n_vertices if target_vertices is None else target_vertices
@@ -217,10 +220,13 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
         if k is not None and k < 0:
             raise MeshError(f"{label} must be 0 / None (full basis) or a positive number of eigenfunctions; got {k}.")
         if k and k <= n_components:
+            from .seams import weld_advice
+
             raise MeshError(
                 f"{label} is {k}, but the first {n_components} Laplace–Beltrami eigenfunctions of this "
                 f"mesh ({n_components} connected part(s)) are constant on each part, so the conformal "
                 f"difference would be empty. Use at least {n_components + 1} (typically 50–300){full}."
+                + (weld_advice(*geometry) if geometry is not None else "")
             )
         if k and count is not None and k >= count:
             raise MeshError(
@@ -392,7 +398,8 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     names = names or [f"key pose {i}" for i in range(len(poses))]
     first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True)
     checked = [first] + [check_pose(pose, topology, name=name) for pose, name in zip(poses[1:], names[1:])]
-    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0])
+    k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0],
+                                 geometry=(first, topology))
     return checked, k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
 
 

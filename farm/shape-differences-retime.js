@@ -63,6 +63,8 @@ function compileJob(job) {
       "retime", settings.input_cache, ...retimeSettings,
       "--chunk", index + "/" + chunks,
       "-o", chunkFile(index),
+      // the merge's output, checked before the in-betweens: a path it cannot write fails every chunk at once
+      "--merged-output", settings.output_cache,
     ]));
     job.addTask(task);
     chunkTasks.push(task);

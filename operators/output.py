@@ -233,8 +233,10 @@ class PoseWriter:
 
     def check_captured_output(self, source, *, keyframed: bool = False) -> None:
         """``check_output`` for poses captured from the evaluated mesh: shape keys added to
-        ``source`` are deformed again by what moved it, so say so (the work still runs)."""
+        ``source`` are deformed again by what moved it, so say so (the work still runs) once they
+        are written (:meth:`write_poses`), after any refusal of the run."""
         self.check_output(source, keyframed=keyframed)
+        self.deformed_again = None
         if self.output != 'SHAPE_KEYS':
             return
         # generators are set aside while reading (or change no vertex): they do not add twice
@@ -252,9 +254,9 @@ class PoseWriter:
                 if held:
                     movers.append(f"its shape key{'s' if len(held) > 1 else ''} {', '.join(held)}")
         if movers:
-            report(self, {'WARNING'}, f"The new shape keys are deformed again by {', '.join(movers)} "
-                                      f"of '{source.name}': disable those to play them as captured, "
-                                      "or use Output › Point Cache (a new object)")
+            self.deformed_again = (f"The new shape keys are deformed again by {', '.join(movers)} "
+                                   f"of '{source.name}': disable those to play them as captured, "
+                                   "or use Output › Point Cache (a new object)")
 
     def given_path(self) -> str:
         """The Cache File as given, a plain relative path (``caches/x.pc2``) taken relative to the
@@ -327,6 +329,8 @@ class PoseWriter:
                         for name, pose, tail in zip(names, poses, tails)]
             times = [bridge.scene_time(context.scene, frame) for frame in frames]
             added = bridge.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
+            if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
+                report(self, {'WARNING'}, self.deformed_again)
             # the keyed values are the mesh's: its other objects play the new keys as well, unless
             # their own simulation or cache replaces what the keys show
             others = [other for other in (sharing_mesh(source) if keyframe else [])

@@ -198,6 +198,30 @@ def test_captured_keys_warn_about_shape_keys_played_by_nla_strips(bpy_empty, ext
 
 
 @pytest.mark.parametrize("operator, options", [("inbetween_frames", dict(count=1)), ("retime", dict(speed=1.0))])
+def test_a_refused_capture_says_nothing_of_the_keys_it_did_not_write(bpy_empty, extension, capfd, operator,
+                                                                      options):
+    """Keyframed shape keys that would be deformed again by the animated keys, refused by the core
+    (the last frame collapses the mesh to a point): the refusal alone is said, not the warning about
+    keys that were never written (before, that warning came first, then the refusal)."""
+    from blender_scenes import driven_keys_scene
+    obj = driven_keys_scene(frames=9)
+    rest = extension.bridge.vertex_positions(obj.data)
+    keys = obj.data.shape_keys.key_blocks
+    bend, curl = (np.array([point.co[:] for point in keys[name].data]) for name in ("Bend", "Curl"))
+    # at frame 9 Bend and Curl are at 1 (Curl = Bend²): with Flat at 1 too every vertex is at the origin
+    flat = add_key(obj, "Flat", 2 * rest - bend - curl)
+    for frame, value in ((1, 0.0), (9, 1.0)):
+        flat.value = value
+        flat.keyframe_insert("value", frame=frame)
+    capfd.readouterr()
+    with pytest.raises(RuntimeError, match="frame 9"):
+        getattr(bpy.ops.shape_differences, operator)(frame_start=1, frame_end=9, frame_step=4, output='SHAPE_KEYS',
+                                                     **options)
+    assert "deformed again" not in capfd.readouterr().out
+    assert key_names(obj) == ["Basis", "Bend", "Curl", "Flat"]
+
+
+@pytest.mark.parametrize("operator, options", [("inbetween_frames", dict(count=1)), ("retime", dict(speed=1.0))])
 def test_keyframed_keys_are_refused_while_an_nla_strip_of_the_keys_is_edited(bpy_empty, extension, operator,
                                                                              options):
     """With the shape keys' NLA strip in tweak mode, keyframes inserted go into that strip's action at

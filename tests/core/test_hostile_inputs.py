@@ -410,3 +410,51 @@ def test_two_pose_interpolation_computes_in_float64_whatever_the_dtype(dtype):
     for factor in (0.5, 1.0):
         np.testing.assert_allclose(given.pose(factor), expected.pose(factor), atol=1e-9)
     np.testing.assert_allclose(given.pose(1.0), b, atol=1e-9)
+
+
+def test_a_triangle_soup_is_told_to_weld(sheet):
+    """Every face split apart (a triangle soup, as some exporters write) is refused by the analyses
+    with the advice to weld (Merge by Distance), naming the vertices that sit at another part's
+    vertex: for the full basis and the offset surface, a truncated basis below the parts' count,
+    the shape space and the distortion maps (they said only "use a connected surface" or "use
+    k_M of at least <the number of faces + 1>"). Faces that only lie apart get no such advice."""
+    from core.distortion_maps import DistortionAnalyzer
+
+    v, t, target = sheet
+    soup, soup_t = v[t].reshape(-1, 3), np.arange(3 * len(t)).reshape(-1, 3)
+    pose = target[t].reshape(-1, 3)
+    # the vertices at another face's vertex: all but the corners in a single triangle
+    shared = int(np.count_nonzero(np.bincount(t.ravel(), minlength=len(v))[t.ravel()] > 1))
+    calls = (lambda: core.shape_differences(soup, pose, soup_t),
+             lambda: core.shape_differences(soup, pose, soup_t, k_M=10, use_extrinsic=False),
+             lambda: core.shape_space([soup, pose], soup_t, k_M=10),
+             lambda: core.distortion(soup, pose, soup_t),
+             lambda: DistortionAnalyzer(soup, soup_t, use_extrinsic=False, k=10).pose(pose).eigenfunctions())
+    for call in calls:
+        with pytest.raises(MeshError, match=rf" {shared} of its {soup.size // 3} vertices sit at the place of a "
+                                            r"vertex of another part.*Merge by Distance\.$"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", ShapeDifferenceWarning)  # the distortion pose's seam folds, said apart
+            call()
+    apart = soup + 0.1 * np.repeat(np.arange(len(t)), 3)[:, None]  # the faces moved away from each other
+    for call in (lambda: core.shape_differences(apart, apart, soup_t),
+                 lambda: core.shape_differences(apart, apart, soup_t, k_M=10, use_extrinsic=False)):
+        with pytest.raises(MeshError) as error:
+            call()
+        assert "Merge by Distance" not in str(error.value)
+
+
+@pytest.mark.parametrize("factor", [1000.0, -1000.0])
+def test_an_exaggeration_far_past_the_keys_leaks_no_numpy_warning(sheet, factor):
+    """Exaggerated ×1000 (two poses and a sequence), the single-precision local steps of the fit
+    overflow: the pose is finite and warned about as a ShapeDifferenceWarning, and no NumPy
+    RuntimeWarning leaks to the caller (they did, from core/inbetween_fit.py)."""
+    v, t, target = sheet
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        poses = [core.Interpolator(v, target, t).pose(factor),
+                 core.SequenceInterpolator([v, target, drape(v, 1.5)], t).poses(0, [factor])[0]]
+    assert all(np.isfinite(pose).all() for pose in poses)
+    categories = {w.category for w in caught}
+    assert ShapeDifferenceWarning in categories
+    assert categories == {ShapeDifferenceWarning}, [str(w.message) for w in caught
+                                                    if w.category is not ShapeDifferenceWarning]

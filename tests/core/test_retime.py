@@ -634,5 +634,64 @@ def test_command_says_the_core_s_warnings_in_one_line_and_succeeds(tmp_path, cap
     lines = capsys.readouterr().err.splitlines()
     assert [line[:72] for line in lines] == [
         "retime: warning: Shape-difference interpolation: 1 piece(s) of the mesh "]
-    assert "mirror image of themselves from key pose 1 to key pose 2" in lines[0]
+    assert "mirror image of themselves from sample 5 (frame 4) to sample 9 (frame 8)" in lines[0]
     assert read_pc2(output).n_samples == 9
+
+
+def test_merge_names_a_missing_chunk_and_the_task_that_writes_it(tmp_path, capsys):
+    """A chunk file missing from a merge (its task failed or never ran) is named with its place
+    among the chunks and the retime task that writes it (before: only "No such file or
+    directory"); nothing is written."""
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    settings = [str(cache), "--topology", str(topology), "--step", "2", "--speed", "0.5"]
+    for i in (1, 3):
+        assert main(["retime", *settings, "-q", "--chunk", f"{i}/3", "-o", str(tmp_path / f"chunk{i}.pc2")]) == 0
+    capsys.readouterr()
+    output = tmp_path / "out.pc2"
+    assert main(["merge", "--numbered", str(tmp_path / "chunk#.pc2"), "--count", "3", "-o", str(output)]) == 2
+    err = capsys.readouterr().err
+    assert f"Chunk 2 of 3, '{tmp_path / 'chunk2.pc2'}', does not exist" in err
+    assert "--chunk 2/3" in err and "task Chunk=2 of step RetimeChunk" in err
+    assert not output.exists()
+
+
+def test_commands_refuse_an_output_not_named_pc2(tmp_path, capsys):
+    """``-o out`` (no suffix) or another suffix: refused before any work, with the name to give
+    (before, a PC2 file named 'out' was written, where the operators write 'out.pc2'); the same
+    name ending in .pc2 is written."""
+    source, triangles = rolling_sheet(n_frames=5, nx=4)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "2", "-q"]
+    for name in ("out", "out.cache"):
+        output = str(tmp_path / name)
+        for argv in ([*common, "-o", output], ["merge", str(cache), "-o", output]):
+            assert main(argv) == 2
+            err = capsys.readouterr().err
+            assert f"'{output}' is not named .pc2" in err and f"name it '{output}.pc2'" in err, (argv, err)
+            assert not os.path.exists(output)
+    assert main([*common, "-o", str(tmp_path / "out.pc2")]) == 0
+    assert main(["merge", str(tmp_path / "out.pc2"), "-o", str(tmp_path / "merged.PC2")]) == 0
+    np.testing.assert_array_equal(read_pc2(tmp_path / "merged.PC2").positions, read_pc2(tmp_path / "out.pc2").positions)
+
+
+def test_command_warnings_name_the_keys_by_the_inputs_samples_and_frames(tmp_path, capsys):
+    """A core warning about the keys of a retime (a piece mirrored from one key to the next) names
+    them by the input's samples and frames, as the command's own messages do (before: "key pose 1"
+    and "key pose 2", indices into the keys a user never sees); the sequence refuses names that
+    are not one per key."""
+    vertices, triangles = grid(6, jitter=0.3, seed=1)
+    vertices = np.c_[vertices[:, :2], 0.3 * vertices[:, 0] ** 2 + 0.1 * vertices[:, 1]]
+    frames = np.array([vertices + [0.01 * k, 0.0, 0.0] for k in range(9)])
+    frames[4] *= [-1.0, 1.0, 1.0]  # sample 5 mirrored: the keys of samples 3 → 5 and 5 → 7 reflect it
+    cache = write_pc2(tmp_path / "in.pc2", frames, start=10.0)
+    topology = write_obj(tmp_path / "sheet.obj", vertices, triangles)
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q",
+                 "-o", str(tmp_path / "out.pc2")]) == 0
+    err = capsys.readouterr().err
+    assert "mirror image of themselves from sample 3 (frame 12) to sample 5 (frame 14)" in err, err
+    assert "from sample 5 (frame 14) to sample 7 (frame 16)" in err and "key pose" not in err, err
+    with pytest.raises(MeshError, match="key_names must name each of the 5 key poses; got 2"):
+        SequenceInterpolator(list(frames[::2]), triangles, key_names=["a", "b"])

@@ -109,7 +109,7 @@ def test_panels_wound_opposite_ways_are_welded_as_the_whole_sheet():
 
 def test_a_moebius_strip_of_two_panels_stays_apart_with_a_warning():
     """Panels that no choice of windings joins consistently (a Möbius strip cut in two) are
-    interpolated apart, with a warning that says the seams may open."""
+    interpolated and reconstructed apart, with a warning that says the seams may open."""
     flat, tri = grid(24, 4, size=1.0)
     u, w = flat[:, 0] * 2 * np.pi, flat[:, 1] / flat[:, 1].max() - 0.5
 
@@ -128,6 +128,9 @@ def test_a_moebius_strip_of_two_panels_stays_apart_with_a_warning():
     cut_keys = [np.concatenate([k, k[middle]]) for k in keys]
     with pytest.warns(ShapeDifferenceWarning, match="seams may open"):
         pose = Interpolator(cut_keys[0], cut_keys[1], cut).pose(0.5)
+    assert np.isfinite(pose).all()
+    with pytest.warns(ShapeDifferenceWarning, match="cannot be joined there.*seams may open"):
+        pose = core.reconstruct(cut_keys[0], cut, core.shape_differences(cut_keys[0], cut_keys[1], cut))
     assert np.isfinite(pose).all()
 
 
@@ -546,8 +549,8 @@ def test_panels_meeting_at_a_corner_are_not_glued_by_it():
     """A sheet cut into 2 × 2 panels (four copies of the middle vertex): diagonal panels meet only
     at that vertex, which is no seam (before, where the gluing started from a panel that did not
     hold the vertex's first copy, a diagonal panel was glued by that point: a probe's 2 × 2 sheet
-    0.55 % off with a false straight-seam warning, a 6 × 6 one 22 %); the result is exact. Panels
-    that cannot be welded (one reversed) are placed apart with a warning (before: silently)."""
+    0.55 % off with a false straight-seam warning, a 6 × 6 one 22 %); the result is exact, also
+    with one panel reversed (turned over in the weld)."""
     from core.rigid_alignment import rigid_alignment
 
     v0, f0 = grid(21, jitter=0.0)
@@ -563,16 +566,15 @@ def test_panels_meeting_at_a_corner_are_not_glued_by_it():
     v, f = np.array(vertices), np.array(triangles)
     v[:, 2] = 0.3 * np.sin(2 * v[:, 0]) * np.cos(1.5 * v[:, 1])  # curved seams
     pose = _curled(v, 2.0)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        result = core.reconstruct(v, f, core.shape_differences(v, pose, f))
-    assert not caught
-    rotation, translation = rigid_alignment(result, pose)
-    assert np.abs(result @ rotation.T + translation - pose).max() < 1e-8 * np.linalg.norm(np.ptp(pose, axis=0))
     flipped = f.copy()
-    flipped[: len(f) // 4] = flipped[: len(f) // 4, ::-1]  # one panel reversed: no valid weld
-    with pytest.warns(ShapeDifferenceWarning, match="cannot be joined there"):
-        core.reconstruct(v, flipped, core.shape_differences(v, pose, flipped))
+    flipped[: len(f) // 4] = flipped[: len(f) // 4, ::-1]  # one panel reversed
+    for triangles in (f, flipped):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            result = core.reconstruct(v, triangles, core.shape_differences(v, pose, triangles))
+        assert not caught
+        rotation, translation = rigid_alignment(result, pose)
+        assert np.abs(result @ rotation.T + translation - pose).max() < 1e-8 * np.linalg.norm(np.ptp(pose, axis=0))
 
 
 def _pillowcase(nx=9, ny=7, n_keys=4):
@@ -647,3 +649,41 @@ def test_reconstruction_glues_panels_sewn_round_a_corner():
             result = core.reconstruct(keys[0], tri, core.shape_differences(keys[0], pose, tri))
         rotation, translation = rigid_alignment(result, pose)
         assert np.abs(result @ rotation.T + translation - pose).max() < 1e-8 * np.linalg.norm(np.ptp(pose, axis=0))
+
+
+def _reversed_right_panel(v, f, column):
+    """``f`` with the triangles right of the seam ``column`` reversed (wound the same way as the
+    left panel's once folded over, facing inward once welded: exported with opposite normals)."""
+    right = v[f].mean(axis=1)[:, 0] > v[column[0], 0]
+    flipped = f.copy()
+    flipped[right] = flipped[right][:, ::-1]
+    return flipped
+
+
+def test_reconstruction_turns_a_reversed_panel_over_to_close_its_seam():
+    """Two panels sewn along a seam, one wound against the other: the reconstruction welds them
+    with that panel turned over, as the in-betweens do (:func:`core.seams.oriented_pieces`), and
+    is the pose, with no warning (refused as inconsistently oriented, the panels were placed on
+    their own and came back 7.5 % of the diagonal off)."""
+    v, f, column, copies = _two_panels(0.3)
+    _reconstructs_without_warning(v, _reversed_right_panel(v, f, column), _bent_and_rolled(v))
+
+
+def test_a_transfer_turns_a_reversed_target_panel_over_where_it_welds_the_seam():
+    """A target of two panels sewn along a seam, one wound against the other, gives the
+    same differences as with both wound alike, with no warning (welded without turning it over,
+    the seam's edges were inconsistently oriented and the extrinsic differences refused)."""
+    v, f, column, copies = _two_panels(0.3)
+    base, base_tri = grid(15, jitter=0.2, seed=3)
+    target = _bent_and_rolled(v)
+
+    def differences(triangles):
+        return core.shape_differences(base, target, base_tri, target_triangles=triangles, target_rest_vertices=v,
+                                      k_M=30, k_N=60, use_extrinsic=True)
+
+    expected = differences(f)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        got = differences(_reversed_right_panel(v, f, column))
+    for name in ("area", "conformal", "offset_area", "offset_conformal"):
+        np.testing.assert_allclose(getattr(got, name).matrix, getattr(expected, name).matrix, rtol=0, atol=1e-10)

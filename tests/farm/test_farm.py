@@ -327,6 +327,9 @@ def test_flamenco_job_runs_chunks_then_merge(job):
     tasks = compile_flamenco_job(settings)
     assert [task["name"] for task in tasks] == ["retime-1-of-3", "retime-2-of-3", "retime-3-of-3", "merge"]
     assert tasks[-1]["dependencies"] == ["retime-1-of-3", "retime-2-of-3", "retime-3-of-3"]
+    for task in tasks[:-1]:  # each chunk checks the merge's output before its in-betweens
+        script = task["commands"][0]["parameters"]["args"][-1]  # the command's arguments as a JSON list
+        assert json.dumps(["--merged-output", settings["output_cache"]], separators=(",", ":"))[1:-1] in script
     for task in tasks:  # what the workers would run, in dependency order
         (command,) = task["commands"]
         assert command["type"] == "exec"
@@ -351,3 +354,47 @@ def test_flamenco_job_runs_chunks_then_merge(job):
     command = blender[0]["commands"][0]
     assert command["type"] == "blender-render" and command["parameters"]["exe"] == "{blender}"
     assert "bl_ext.user_default.shape_differences.core.__main__" in command["parameters"]["args"][1]
+
+
+@pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
+def test_openjd_refuses_a_bad_output_before_any_chunk_is_computed(job, tmp_path):
+    """An OutputCache the merge cannot write (under a file) or that is the job's input: the first
+    chunk task refuses it before its in-betweens, naming it (before, every chunk was computed and
+    only the Merge refused it); no chunk is written, the input is unchanged."""
+    folder, cache, topology, single = job
+    before = cache.read_bytes()
+    for output, message in ((cache / "out.pc2", "is a file, not a folder"),
+                            (cache, "is the input cache")):
+        chunks = tmp_path / f"chunks_{len(message)}"
+        chunks.mkdir()
+        parameters = dict(InputCache=cache, Topology=topology, OutputCache=output, ChunkDirectory=chunks,
+                          ExtensionDirectory=ROOT, Python=sys.executable, Step=4, Speed=0.5, Chunks=2)
+        result = subprocess.run(_openjd_command(parameters), capture_output=True, text=True, timeout=600)
+        log = result.stdout + result.stderr
+        assert result.returncode != 0, log[-3000:]
+        assert "--merged-output (the file the chunks will be merged into)" in log and message in log, log[-3000:]
+        assert "retime: sample" not in log  # no in-between computed
+        assert not list(chunks.iterdir())
+    assert cache.read_bytes() == before
+
+
+def test_a_chunk_checks_the_merged_output_first(job, capsys):
+    """`retime --chunk I/N --merged-output PC2` refuses, with exit status 2 and no chunk written, a
+    merged output that cannot be written, is the input, is the chunk itself or is not named .pc2;
+    a good one changes nothing in the chunk; without --chunk/--gaps the option is refused."""
+    folder, cache, topology, single = job
+    settings = ["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5", "-q"]
+    chunk = folder / "checked_chunk1.pc2"
+    for merged, message in ((cache / "out.pc2", "is a file, not a folder"), (cache, "is the input cache"),
+                            (chunk, "is this chunk's output (-o)"), (folder / "out", "is not named .pc2")):
+        assert main([*settings, "--chunk", "1/2", "-o", str(chunk), "--merged-output", str(merged)]) == 2
+        err = capsys.readouterr().err
+        assert "--merged-output (the file the chunks will be merged into)" in err and message in err, err
+        assert not chunk.exists()
+    assert main([*settings, "-o", str(folder / "whole.pc2"), "--merged-output", str(folder / "out.pc2")]) == 2
+    assert "--merged-output goes with --chunk I/N or --gaps A:B" in capsys.readouterr().err
+    plain = folder / "plain_chunk1.pc2"
+    assert main([*settings, "--chunk", "1/2", "-o", str(plain)]) == 0
+    assert main([*settings, "--chunk", "1/2", "-o", str(chunk), "--merged-output", str(folder / "out.pc2")]) == 0
+    assert chunk.read_bytes() == plain.read_bytes()
+    assert not (folder / "out.pc2").exists()
