@@ -39,6 +39,8 @@ def _log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.nd
     options = {name: value[rows] if isinstance(value, np.ndarray) else value for name, value in options.items()}
     if options["entry"] is not None:
         options["entry"] = tuple(part[rows] for part in options["entry"])
+    if options.get("exit") is not None:
+        options["exit"] = tuple(None if part is None else part[rows] for part in options["exit"])
     return HermiteGap([r.log_stretch_rows(rows) for r in relatives], cubic, **options)
 
 

@@ -95,6 +95,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  riding: list[np.ndarray] | None = None, riding_tolerance: float = 0.0,
                  start_limit: float | None = None, rest_end: bool = False,
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
+                 exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
@@ -123,7 +124,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                         parabolic_end=None if free is None else self.per_element(name, free),
                         parabolic_start=None if impact is None else self.per_element(name, impact),
                         entry=None if entry is None or name not in entry[1] else
-                        (self.per_element(name, entry[0]), entry[1][name]))
+                        (self.per_element(name, entry[0]), entry[1][name]),
+                        # where the gap after starts after an impact: its positions' start velocity,
+                        # the next gap's secant for the other splines (see SequenceInterpolator._exit)
+                        exit=None if exit is None else
+                        (self.per_element(name, exit[0]), exit[1].get(name)))
 
         def hermite(name: str, values: list) -> HermiteGap:
             return HermiteGap(values, cubic, **options(name))

@@ -55,7 +55,7 @@ from .rotation_continuity import unwrapped_rotation_vectors
 from .inbetween_keys import NEAR_HALF_TURN, _Key, _log_stretch_from_lengths, _Relative, rigid_fits
 from .inbetween_keys import component_screws, turn_spread
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
-from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, free_flight
+from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, IMPACT_SLOWDOWN, after_impact, free_flight
 from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
@@ -63,7 +63,7 @@ from .mesh_topology import check_manifold_vertices
 from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .rigid_alignment import reflected_fits
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
-from .splines import REST_START_LIMIT, START_TANGENT_LIMIT
+from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time)
 
@@ -736,6 +736,7 @@ class SequenceInterpolator:
                     start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
+                    exit=self._exit(gap) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root)
 
     def _steady(self, gap: int) -> np.ndarray | None:
@@ -779,6 +780,39 @@ class SequenceInterpolator:
             return free, {"world": 2.0 * scale * (x[gap] - x[k]), "centroids": 2.0 * scale * (c[gap] - c[k])}
         return free, {"world": scale * (1.5 * x[gap] - 2.0 * x[k] + 0.5 * x[k - 1]),
                       "centroids": scale * (1.5 * c[gap] - 2.0 * c[k] + 0.5 * c[k - 1])}
+
+    def _exit(self, gap: int) -> tuple | None:
+        """Where the gap after starts right after an impact (:func:`core.inbetween_flight.after_impact`:
+        the cloth landed inside this gap, and the gap after starts on the parabola through its
+        end), this gap ends with the velocity the gap after starts with: ``(per component (C,),
+        {"world": (n, 3), "centroids": (C, 3)})`` — the positions' start tangents of the gap
+        after, which place the piece; its other splines end with the next gap's secant
+        (``exit`` of :class:`core.splines.HermiteGap`) — or None. The Catmull–Rom tangent
+        carries the fall's speed into the key, where the gap after drops it at once: a kink
+        the simulation, whose cloth slowed inside this gap, does not have (numbers in
+        docs/inbetweens.md, *Kinks at impact keys*). Keys evenly spaced around the key (the
+        tangents are per unit of this gap)."""
+        k, last = gap + 1, len(self._raw) - 1
+        if k + 1 > last or self._start_limit(k) is not None:
+            return None
+        d = self._durations
+        if np.ptp(d[gap:min(k + 2, last)]) > 0:
+            return None
+        c = self._centroids
+        incoming, outgoing = np.linalg.norm(c[k] - c[gap], axis=1), np.linalg.norm(c[k + 1] - c[k], axis=1)
+        if not (incoming > IMPACT_SLOWDOWN * outgoing).any():  # no slowdown: the rigid fits are not needed
+            return None
+        impact = after_impact(self._nonrigidity(k, gap), self._nonrigidity(k, k + 1), incoming, outgoing, None)
+        if impact is None:
+            return None
+        rest_end = self.end == "rest" and k == last - 1
+
+        def start_velocity(x):  # the gap after's start tangent: its HermiteGap's under parabolic_start
+            after = x[k + 2] if k + 2 <= last else 2.0 * x[k + 1] - x[k]
+            return HermiteGap((x[gap], x[k], x[k + 1], after), True, rows=True, parabolic_start=np.bool_(True),
+                              rest_end=rest_end).t0
+
+        return impact, {"world": start_velocity(self._raw), "centroids": start_velocity(c)}
 
     def _nonrigidity(self, base: int, other: int) -> np.ndarray:
         """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have

@@ -70,6 +70,11 @@ class HermiteGap:
     ``entry``: ``(mask, tangent)`` or None: where ``mask`` the start tangent is ``tangent`` (the
     velocity the gap before ends with on its parabola, so that the two meet with one velocity),
     limited as any start tangent.
+    ``exit``: ``(mask, tangent)`` or None: where ``mask`` the end tangent is ``tangent`` (the
+    velocity the gap after starts with after an impact, so that the two meet with one velocity),
+    or, with ``tangent`` None, the one-sided tangent ``v₂ − v₁`` (the next gap's secant: the
+    velocity the next gap's keys give, without this gap's; see
+    :data:`core.inbetween_flight.IMPACT_SLOWDOWN`).
     ``parabolic_start``: bool like ``parabolic_end``, or None: where True the start tangent is the
     one of the parabola through the end (value and tangent) and the start, ``2 (v₁ − v₀) − t₁``,
     limited as any start tangent: for motion that something stopped right before the start (see
@@ -80,7 +85,8 @@ class HermiteGap:
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
                  parabolic_end: np.ndarray | None = None, entry: tuple | None = None,
-                 parabolic_start: np.ndarray | None = None, onward: bool = False, rest_end: bool = False):
+                 parabolic_start: np.ndarray | None = None, onward: bool = False, rest_end: bool = False,
+                 exit: tuple | None = None):
         before, start, end, after = values
         self.start = start
         self.secant = end - start
@@ -105,6 +111,8 @@ class HermiteGap:
             self.t1 *= 0.5
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
+            if exit is not None:
+                self.t1 = np.where(exit[0], after - end if exit[1] is None else exit[1], self.t1)
             if rest_end:
                 self.t1 = np.zeros_like(self.t1)
             if limit == REST_START_LIMIT or (starts_here and rows):  # see END_TANGENT_LIMIT

@@ -352,6 +352,26 @@ def test_the_gap_after_an_impact_starts_on_the_parabola_through_its_end(strip):
         np.testing.assert_allclose(seq.pose(2, s), bent + s * drift, atol=1e-9)
 
 
+def test_the_gap_of_a_landing_arrives_with_the_velocity_the_gap_after_leaves_with(strip):
+    """The same keys: the sheet lands inside the gap before the bent key, so it arrives there at
+    the slide's velocity, the one the gap after leaves with (Catmull–Rom's end tangent, the mean of
+    the fall and the slide, arrives at 0.8 per gap, 40 × the slide's speed, and stops at once: a
+    kink at the key); the arrival never passes below the landed shape."""
+    flat, tri = strip
+    bent = _bend(flat, 1.5)
+    drift = np.array([0.02, 0.0, 0.0])
+    keys = [flat + [0.0, 0.0, 3.0], flat + [0.0, 0.0, 2.0], bent, bent + drift, bent + 2.0 * drift]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    eps = 1e-4
+    leaving = (seq.pose(2, eps) - seq.pose(2, 0.0)) / eps
+    arriving = (seq.pose(1, 1.0) - seq.pose(1, 1.0 - eps)) / eps
+    np.testing.assert_allclose(leaving, np.broadcast_to(drift, leaving.shape), atol=1e-6)
+    # one-sided differences: within ε × the gap's deceleration (about 6 here) of each other
+    assert np.linalg.norm(arriving - leaving, axis=1).max() < 1e-3
+    for s in np.linspace(0.05, 0.95, 19):
+        assert (seq.pose(1, s)[:, 2] >= bent[:, 2] - 1e-9).all()
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
