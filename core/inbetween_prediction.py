@@ -71,6 +71,21 @@ SLOPE_STEP = 1e-4
 #: RMS of solving the quarter points; with keys 8 apart the middle alone lost (10k hanging sheet
 #: 0.783 → 0.834, the balloon's edge deviation 1.56 → 2.00 %).
 MIDDLE_SOLVED_BATCH = 3
+#: Largest difference, in mean edge lengths (RMS over the vertices, at any predicted factor), between
+#: the two corrections the middle alone supports (:data:`MIDDLE_SOLVED_BATCH`) in the gap of a
+#: sequence of two keys: the quartic with the keys' slopes and the parabola without them. The slopes
+#: give the prediction the guide's velocity at the keys, and with two keys that is their chord's,
+#: which neither key tells. Where a part turns about a joint (a limb of a rig) the chord is short of
+#: the arc, the two corrections part, and the prediction misses the pose solved at its factor by about
+#: as much as they part (skinned arm, spine, root and a bent tube: 0.9–1.0 ×); above this the other
+#: in-betweens of the gap are solved too. Two keys 4 frames apart: 0.92–3.4 mean edges on skinned
+#: characters (arm bent 100°: 1.8e-2 → 5.6e-3 of the diagonal off the rig's poses, spine twisted 90°
+#: 8.9e-3 → 3.1e-3, root moving with arm and head 1.13e-2 → 8.7e-3), 0.42 on a tube bent 100°, 0.15 bent
+#: 60° (predicted as before). With three keys or more the check is not made: in the end gaps of 12
+#: cloths it reaches 0.29 mean edges, and solving the curtain's last gap raised its RMS at g = 4
+#: (÷ Catmull–Rom 0.847 → 0.903) and its CPU by a quarter (numbers in docs/inbetweens.md,
+#: *Two keys of a skinned character*).
+MAX_SLOPE_DISAGREEMENT = 0.25
 #: Batches with three solved factors (:data:`FULL_SAMPLE_BATCH` in-betweens or more: keys 9
 #: frames apart or more) fit to the tolerance without the largest key-to-key changes
 #: (:data:`core.inbetween_fit.TOLERANCE_TRIM`); smaller ones to the whole change's. Where one
@@ -169,6 +184,9 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     solved = dict(zip(solved_factors, _solved(gap, solved_factors, {})))
     positions = {s: x for s, (x, _) in solved.items()}
     correction = _correction(gap, positions)
+    predicted = [s for s in interior if s not in solved]
+    if len(solved) == 1 and _slopes_disagree(gap, correction, positions, predicted):
+        return _solved(gap, factors, solved)  # the keys' slopes and the middle tell different in-betweens
     if len(solved) >= 3 and _inconsistent(gap, positions):  # too rough to predict from three: every eighth solved, all at the wide limit
         gap.rotation_limit = ROUGH_ROTATION_DEVIATION
         try:
@@ -179,7 +197,6 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     if len(solved) >= RELAXED_SOLVED and not stubborn:
         correction = _relaxed_correction(gap, correction, sorted(solved))
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
-    predicted = [s for s in interior if s not in solved]
     solved.update(zip(predicted, _per_factor(gap, lambda s: _predicted(gap, s, correction, rings), predicted)))
     _solve_off_metric(gap, solved, solved_factors, predicted)
     return _solved(gap, factors, solved)
@@ -401,6 +418,21 @@ class _PiecewiseLinearCorrection:
             if value is not None:
                 out += weight * value
         return out
+
+
+def _slopes_disagree(gap, correction: "_CorrectionPolynomial", solved: dict, factors: list) -> bool:
+    """Whether ``gap`` joins the only two keys of a sequence (the keys' spline is their chord) and
+    ``correction`` (the quartic through the keys' zeros and slopes and the one ``solved`` pose
+    {factor: positions}) and the parabola through the keys' zeros and that pose alone differ by
+    more than :data:`MAX_SLOPE_DISAGREEMENT` mean edge lengths (RMS over the vertices) at one of
+    ``factors``: the slopes, which no key tells, then decide the predictions there, not the solved
+    pose."""
+    if gap.cubic:  # three keys or more: the slope at an inner key is the neighbouring keys' central difference
+        return False
+    (s, x), = solved.items()
+    parabola = _CorrectionPolynomial({s: _co_moving_correction(gap, s, x)})
+    limit = (MAX_SLOPE_DISAGREEMENT * gap.mean_edge) ** 2
+    return any(np.mean(np.sum((correction(f) - parabola(f)) ** 2, axis=1)) > limit for f in factors)
 
 
 def _inconsistent(gap, solved: dict) -> bool:
