@@ -32,7 +32,9 @@ FLYING_TOLERANCE = 1e-4
 #: the gap — rigid (non-rigidity, as RIGID_PLACEMENT_SCALE, under FREE_FLIGHT_NONRIGIDITY) from the
 #: key before it, or from rest at a sequence's first key, to the gap's end key, its centroid at
 #: constant acceleration over the four keys up to that end (third difference under
-#: FREE_FLIGHT_JERK × the gap's move: a sheet that hit a ramp flat in the gap before fails it) —
+#: FREE_FLIGHT_JERK × the gap's move: a sheet that hit a ramp flat in the gap before fails it) or
+#: still before a launch (the gap after moves it over IMPACT_SLOWDOWN × as far: a hanging curtain
+#: a ball hits right after the key, whose settling before fails the jerk test) —
 #: and deformed at the key after (non-rigidity over 2 × FREE_FLIGHT_NONRIGIDITY and over
 #: FREE_FLIGHT_JUMP × the flight's: more than steady deformation from rest gives) ends the gap on
 #: the parabola through its start instead (every spline of it: ``parabolic_end`` of

@@ -740,17 +740,27 @@ class SequenceInterpolator:
                     hooked=self._hooked, turning=turning, root=root)
 
     def _steady(self, gap: int) -> np.ndarray | None:
-        """Per component (C,), whether its centroid moved at constant acceleration over keys
-        ``gap − 2`` … ``gap + 1``: their third difference under :data:`FREE_FLIGHT_JERK` × the
-        gap's move (a first key at rest mirrors key 1 to key −1); None for the first gap and for
-        the second when the keys are cut from a motion (too few keys to tell)."""
+        """Per component (C,), whether the keys up to the gap's end tell its flight as the parabola
+        through its start: its centroid moved at constant acceleration over keys ``gap − 2`` …
+        ``gap + 1`` (their third difference under :data:`FREE_FLIGHT_JERK` × the gap's move; a
+        first key at rest mirrors key 1 to key −1), or it is still before a launch: the gap after
+        moves it over :data:`~core.inbetween_flight.IMPACT_SLOWDOWN` × as far as this gap (keys
+        evenly spaced), whatever slowed it before (a hanging curtain settling, hit by a ball after
+        the gap's end key; the parabola ends the gap at the small velocity its own keys give, where
+        Catmull–Rom's tangent took half the hit's move). None for the first gap and for the second
+        when the keys are cut from a motion (too few keys to tell)."""
         if gap < 1 or (gap == 1 and self.start != "rest"):
             return None
         if np.ptp(self._durations[max(gap - 2, 0):gap + 1]) > 0:  # the third difference: keys evenly spaced
             return None
         c = self._centroids[[abs(i) for i in range(gap - 2, gap + 2)]]
         jerk = np.linalg.norm(c[3] - 3.0 * c[2] + 3.0 * c[1] - c[0], axis=1)
-        return jerk < FREE_FLIGHT_JERK * np.linalg.norm(c[3] - c[2], axis=1)
+        move = np.linalg.norm(c[3] - c[2], axis=1)
+        steady = jerk < FREE_FLIGHT_JERK * move
+        if gap + 2 < len(self._raw) and self._durations[gap + 1] == self._durations[gap]:
+            # still before a launch: the gap after moves it over IMPACT_SLOWDOWN × as far
+            steady |= np.linalg.norm(self._centroids[gap + 2] - c[3], axis=1) > IMPACT_SLOWDOWN * move
+        return steady
 
     def _entry(self, gap: int, back: np.ndarray) -> tuple | None:
         """Where the gap before ends in free flight (:func:`core.inbetween_flight.free_flight`, its

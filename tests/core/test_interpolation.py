@@ -372,6 +372,33 @@ def test_the_gap_of_a_landing_arrives_with_the_velocity_the_gap_after_leaves_wit
         assert (seq.pose(1, s)[:, 2] >= bent[:, 2] - 1e-9).all()
 
 
+def test_a_still_sheet_hit_after_a_key_stays_still_in_the_gap_before(strip):
+    """A sheet settles from rest (it sinks 0.03, then 0.005) and is bent right after the key that
+    ends its still gap (a ball hitting a hanging curtain): the still gap ends on the parabola
+    through its start, the velocity its own keys give at the key, ``(3 x₂ − 4 x₁ + x₀) / 2``, so
+    its in-betweens stay within the cubic's bound (4/27 of the tangents' differences from the
+    secant, 3.7e-3 here) of the keys' blend. Catmull–Rom's end tangent, half the move to the
+    bent key, carried the hit back into it: 0.11 off the blend, arriving at 0.74 per gap."""
+    flat, tri = strip
+    down = np.array([0.0, 0.0, 1.0])
+    keys = [flat, flat - 0.03 * down, flat - 0.035 * down, _bend(flat, 1.5) - 0.035 * down,
+            _bend(flat, 2.5) - 0.035 * down]
+    seq = SequenceInterpolator(keys, tri)
+    start_tangent = 0.5 * (keys[2] - keys[0])  # Catmull–Rom's at key 1
+    secant = keys[2] - keys[1]
+    end_tangent = 2.0 * secant - start_tangent  # the parabola's at key 2
+    bound = 4.0 / 27.0 * (np.linalg.norm(start_tangent - secant, axis=1)
+                          + np.linalg.norm(end_tangent - secant, axis=1)).max()
+    for s in np.linspace(0.05, 0.95, 19):
+        blend = (1.0 - s) * keys[1] + s * keys[2]
+        assert np.linalg.norm(seq.pose(1, s) - blend, axis=1).max() <= bound + 1e-9
+    eps = 1e-4
+    arriving = (seq.pose(1, 1.0) - seq.pose(1, 1.0 - eps)) / eps
+    # one-sided difference of fitted poses: within ε × the gap's acceleration (2 (t₁ − t₀) ≈ 0.05
+    # here) and the fit's tolerance (~1e-8 of the positions) ÷ ε of it, against 0.74 of old
+    assert np.linalg.norm(arriving - end_tangent, axis=1).max() < 1e-3
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
