@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 SPURIOUS_RIGID_TURN = np.pi / 6
 #: A sequence's piece that bends without a crease (no two neighbouring triangles' whole rotations
 #: between the keys more than :data:`~core.rotation_continuity.WRAP_CREASE` apart: a limb of one
-#: skin, not cloth) where over :data:`core.sequence_inbetweens.TURNED_PART_SHARE` of its area turns past
+#: skin, not cloth) where over :data:`core.sequence_turn_readings.TURNED_PART_SHARE` of its area turns past
 #: this angle (radians) from the rest of it per gap is treated as one turning past a half turn
 #: (:meth:`_Relative.turning`): the keys' per-vertex spline cuts the chord of its curl already.
 #: A thin arm bent 70 / 80 / 90° per key at two joints (its tip 140–180° per gap, 42–52 % of its
@@ -109,7 +109,7 @@ class _Relative:
         # two poses (``across``: the mesh's triangle pairs sharing an edge): taken continuous across
         # the mesh, so that a part turning past a half turn from the rest turns on the same way; a
         # sequence's neighbouring keys tell the way instead (continue_turns) but in the pieces where
-        # a part turns past a half turn (core.sequence_inbetweens.TURNED_PART_SHARE): taken across the
+        # a part turns past a half turn (core.sequence_turn_readings.TURNED_PART_SHARE): taken across the
         # whole mesh, a flag whipping in wind (keys 16 frames apart) jumped 2.58 → 5.45 × the simulation
         self._across = across
         if across is not None:  # the part that stays is the one whose whole rotation is least
@@ -131,7 +131,7 @@ class _Relative:
     #: The triangle pairs across which the rotations are taken continuous (two poses), or None.
     _across = None
     #: Per component (bool (C,)), whether its half turn's way round is not told by the keys
-    #: (set by ``core.sequence_inbetweens.SequenceInterpolator._turning_on``).
+    #: (set by ``core.sequence_half_turns.HalfTurns._turning_on``).
     untold_half_turn = np.zeros(0, dtype=bool)
     #: Whether the whole mesh's turn from the base key, which the pieces' half turns take the way
     #: of, has a way round itself (:func:`whole_tells`).
@@ -211,7 +211,7 @@ class _Relative:
                 free: np.ndarray | None = None) -> tuple:
         """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
-        (E, 2): the triangles sharing an edge; see :data:`core.sequence_inbetweens.TURNED_PART_SHARE`):
+        (E, 2): the triangles sharing an edge; see :data:`core.sequence_turn_readings.TURNED_PART_SHARE`):
         where the triangles' whole rotations taken continuous across the mesh turn by over π more
         than the least-turned triangle of the piece — but for a piece with a jump past a half turn
         at a crease (:data:`core.rotation_continuity.WRAP_CREASE`) — or, in a piece that bends

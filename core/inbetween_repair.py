@@ -379,7 +379,7 @@ class Repair:
             known = np.zeros(len(gap.topo.piece_sizes), dtype=bool)
             if relative._across is not None:
                 # imported here: core.sequence_inbetweens imports this module
-                from .sequence_inbetweens import TURNED_PART_SHARE
+                from .sequence_turn_readings import TURNED_PART_SHARE
                 known = relative.turning(gap.topo, gap.base, gap.next, relative._across,
                                          TURNED_PART_SHARE)[0][:len(known)]
             self._far = known

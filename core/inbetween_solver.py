@@ -78,15 +78,15 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     folded_turn = False
     #: Whether a part of a piece turns past a half turn from the rest between the keys and the way
     #: round read from them and from a neighbouring gap's keys disagree
-    #: (:meth:`core.sequence_inbetweens.SequenceInterpolator._unsure`), or its part that stays is not
+    #: (:meth:`core.sequence_turn_readings.TurnReadings._unsure`), or its part that stays is not
     #: held still and its rigid turn reads it the other way round (``_Relative.turning``): the gap warns.
     unsure_turn = False
     #: How many pieces turn a half turn between the keys, as short either way round, with nothing
-    #: in the keys to tell which way (``SequenceInterpolator._untold_half_turns``): the gap warns.
+    #: in the keys to tell which way (``core.sequence_half_turns.untold_half_turns``): the gap warns.
     untold_half_turns = 0
     #: For a gap with a turning piece, the largest share of a piece's area whose turn half-way as
     #: interpolated and as the turn of its part that stays composed with its own are over
-    #: ``WRAP_CREASE`` apart (``SequenceInterpolator._composed_apart``): past
+    #: ``WRAP_CREASE`` apart (``core.sequence_turn_readings.composed_apart``): past
     #: ``TURNED_PART_SHARE`` the gap warns.
     composed_apart = 0.0
 

@@ -25,7 +25,8 @@ from scipy.spatial.transform import Rotation
 from .allocator import keep_heap
 from .inbetween_prediction import STILL_RIGIDITY
 from .validation import check_factor, check_interpolation
-from .sequence_inbetweens import SequenceInterpolator, _warn
+from .sequence_inbetweens import SequenceInterpolator
+from .sequence_warnings import _warn
 
 __all__ = ["interpolate", "Interpolator"]
 

@@ -123,7 +123,7 @@ def test_core_warnings_become_warning_reports(extension, core):
 
 def test_warnings_name_the_gap_by_the_frames_of_its_keys(extension, core):
     """A sequence's warning names its gap by its keys ("between key pose 3 and key pose 4",
-    tests/core/test_interpolation.py), which the operator names as the user knows them: frames
+    tests/core/test_sequence_inbetweens.py), which the operator names as the user knows them: frames
     25 and 33, not a 0-based gap index."""
     log = []
     warning = core.ShapeDifferenceWarning("pose at factor 0.5 between key pose 3 and key pose 4: 3 triangle(s) flipped")

@@ -259,7 +259,7 @@ def test_loose_vertices_near_the_surface_follow_it(degrees):
     from scipy.spatial.transform import Rotation
 
     from core.rigid_alignment import rigid_alignment
-    from test_inbetween_placement import _arm
+    from placement_helpers import _arm
 
     lift = 0.2 * 2.0 / 40  # a fifth of an edge, along the end's normal
     end = None

@@ -1,0 +1,233 @@
+"""The key poses of a :class:`~core.sequence_inbetweens.SequenceInterpolator`, prepared once and per key
+(paper §8.4; the stretch and rotation of §4.2 and §5.3 between two keys).
+
+:class:`SequenceKeys` (a mixin of the interpolator): ``_setup`` takes the checked keys (K arrays
+``(n, 3)``) and the topology of the triangles ``(m, 3)``: pieces sewn along seams are welded
+(:mod:`core.seams`), still and riding vertices found (:mod:`core.pins`), the keys moved about the
+middle of the first; ``_key`` keeps the per-key data (:class:`core.inbetween_keys._Key`) of the
+last :data:`KEY_CACHE` keys; ``_relative`` / ``_relatives`` / ``_previous`` give one key seen from
+another (:class:`core.inbetween_keys._Relative`), with the truncated recovery's metric
+(§7.1–7.2) where ``k_M`` is set."""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+
+import numpy as np
+
+from .errors import MeshError, RecoveryError
+from .concurrency import concurrently
+from .inbetween_prediction import CONCURRENT_VERTICES
+from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, rigid_fits
+from .inbetween_solver import _Gap
+from .inbetween_topology import _Topology
+from .laplace_basis import basis_sizes
+from .mesh_topology import check_manifold_vertices
+from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
+from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
+from .sequence_mirrors import warn_mirrored
+from .sequence_warnings import _warn
+
+#: Gaps whose prepared data (splines, relatives) SequenceInterpolator keeps: a gap's previous-key
+#: relative comes from the gap before it, so two serve in-order visits (each holds ~70 MB at 100k
+#: vertices).
+GAP_CACHE = 2
+
+#: Keys whose per-key data SequenceInterpolator keeps: preparing gap k reads keys k − 1 … k + 2,
+#: and the gap before it k − 2 … k + 1, so five serve in-order visits with no key built twice
+#: (with four, key k − 1 was rebuilt for every gap: 0.05 s at 100k vertices); ~50 MB each at
+#: 100k vertices.
+KEY_CACHE = 5
+
+
+def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
+    """A copy of ``x`` (n, 3) with ``rows`` (bool (n,)) taken from ``source`` (n, 3)."""
+    out = x.copy()
+    out[rows] = source[rows]
+    return out
+
+
+class SequenceKeys:
+    """The keys of a sequence as prepared once (seams, pins, origin), the per-key data of the last
+    few keys, and keys seen from each other (relatives); mixed into
+    :class:`~core.sequence_inbetweens.SequenceInterpolator`."""
+
+    def _setup(self, key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start="rest", key_times=None,
+               two_poses=False, end="keys", key_names=None):
+        """The constructor once its arguments are checked (``topology``: that of the triangles;
+        ``two_poses``: for an :class:`~core.two_pose_inbetweens.Interpolator`)."""
+        self.start, self.end = start, end
+        self._key_times = key_times
+        # the keys as messages name them (the caller's names: the operators name frames or shape keys)
+        default = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
+        self.key_names = default if key_names is None else [str(name) for name in key_names]
+        # each gap's duration (K − 1,); evenly spaced keys: all 1
+        self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
+        keys = [np.asarray(k) for k in key_poses]
+        if len(keys) < 2:
+            raise MeshError(f"A sequence needs at least two key poses; got {len(keys)}.")
+        self._triangles, self._copies = topology.triangles, None
+        # at one place (seams, still vertices, holds): within this distance in every key
+        rounding = rounding_scale(keys)
+        tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
+        apart = None  # why the seams cannot be joined
+        try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seams)
+            weld = seam_weld(keys, topology, tolerance, orient=True)
+        except MeshError as error:
+            weld, apart = None, error
+        if weld is None:
+            check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
+        if apart is not None:
+            weld = seam_weld(keys, topology, tolerance, seams=False)  # the loose copies alone
+            _warn(f"some pieces touch along seams but cannot be joined there ({apart}); they are "
+                  "interpolated apart and the seams may open")
+        if weld is not None:
+            keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
+        still = still_vertices(keys, tolerance)
+        # loose vertices near the surface follow a triangle there, not their piece's rigid motion
+        self._attached = attached_loose(keys, topology, still)
+        if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
+            keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
+        # interpolated about the middle of the first key, the results moved back: the splines of the
+        # pieces' screw motions limit their tangents per coordinate, which a translation changes
+        # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
+        self._given, self._still = keys, still
+        self._hold_tolerance, self._holds = tolerance, {}
+        origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
+        self._origin = origin if origin.any() else None
+        if self._origin is not None:
+            keys = [k - origin for k in keys]
+        self._raw = keys
+        self._topo = _Topology(topology, keys[0])
+        warn_mirrored(self._topo, self._raw, self.key_names, None if weld is None else weld.kept)
+        # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
+        # continuous across them (_Relative); a sequence reads there which parts turn past a half
+        # turn per gap (_Relative.turning) and takes those parts' turns continuous across them
+        self._edge_pairs = topology.edge_triangles[topology.interior_edges]
+        self._across = self._edge_pairs if two_poses else None
+        self._topo.pinned = np.flatnonzero(still) if still.any() else None
+        # pins (core.pins): still vertices stay put, riding sets follow the spline of their rigid
+        # motion (found in the keys as given: their float32 rounding is that of the given coordinates);
+        # two keys tell only sets that translate, and those are not held: the blend anchor holds
+        # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED);
+        # but sets moved by the same rigid motion as a whole rigid piece are held (witnessed_riding)
+        self._riding_tolerance = riding_tolerance(self._given, topology.edges, still, rounding)
+        moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding,
+                                 self._riding_tolerance) or None if len(keys) >= 3 or two_poses else None
+        self._riding = moving if len(keys) >= 3 else None
+        self._hooked = moving if two_poses else None
+        if two_poses:
+            self._riding = witnessed_riding(self._given, topology.edges, self._topo.vertex_component, still,
+                                            self._riding_tolerance) or None
+            if self._riding is not None and self._hooked is not None:  # held: no longer only noted
+                held = np.zeros(len(still), dtype=bool)
+                held[np.concatenate(self._riding)] = True
+                self._hooked = [rows for rows in self._hooked if not held[rows].any()] or None
+        if self._riding is not None:
+            still = still.copy()
+            still[np.concatenate(self._riding)] = True
+        self._static = still if still.any() else None
+        # the components' centroids in every key (K, C, 3): how steadily each piece moves
+        self._centroids = np.array([self._topo.centroids(k) for k in keys])
+        self._keys: OrderedDict[int, _Key] = OrderedDict()
+        self._gaps: OrderedDict[int, _Gap] = OrderedDict()
+        self._pending: dict = {}  # gap index → Future of its preparation in the background
+        # which way round each gap reads its parts' turns (_reading: the last few), which pieces turn
+        # far per gap, whether the readings of two gaps add up (per first gap) and are unsure (per gap)
+        self._readings: OrderedDict[tuple, tuple] = OrderedDict()
+        self._turnings: dict = {}
+        self._agreements: dict = {}
+        self._unsures: dict = {}
+        self._cache_lock = threading.RLock()  # the caches are also filled by that preparation
+        self._references: dict = {}
+        self.k_M, self.k_N = basis_sizes(k_M, k_N)
+        self.offset = offset
+        self.use_extrinsic = bool(use_extrinsic)
+        self.smooth = bool(smooth)
+        self._anchored = False  # two-pose interpolation (Interpolator) anchors to the blend
+
+    def __len__(self) -> int:
+        return len(self._raw) - 1
+
+    @property
+    def triangles(self) -> np.ndarray:
+        return self._triangles
+
+    def _key(self, index: int) -> _Key:
+        with self._cache_lock:
+            key = self._keys.get(index)
+            if key is not None:
+                self._keys.move_to_end(index)
+                return key
+        key = _Key(self._topo, self._raw[index])
+        with self._cache_lock:
+            self._keys[index] = key
+            while len(self._keys) > KEY_CACHE:
+                self._keys.popitem(last=False)
+        return key
+
+    def _reference(self, index: int):
+        """The truncated recovery's prepared base for key ``index`` (eigenbasis, Gram factor).
+        Only the intrinsic metric is recovered (rotations come from the poses): no offset surface."""
+        if index not in self._references:
+            from .reference_shape import ReferenceShape
+
+            self._references.clear()  # one base at a time: gaps are visited per base key
+            self._references[index] = ReferenceShape(self._raw[index], self._topo.triangles, offset=self.offset,
+                                                      use_extrinsic=False)
+        return self._references[index]
+
+    def _truncated_log_stretch(self, base: int, other: int) -> np.ndarray | None:
+        """Log-stretches (m, 3) toward key ``other`` whose edge lengths are those recovered from the
+        truncated intrinsic differences; None (with a warning) when the recovery fails."""
+        reference = self._reference(base)
+        try:
+            metric = reference.recover_metric(reference.shape_differences(self._raw[other], k_M=self.k_M, k_N=self.k_N))
+        except RecoveryError as error:
+            _warn(f"truncated recovery (k_M={self.k_M}, k_N={self.k_N}) failed ({error}); used the full-basis metric")
+            return None
+        squared = np.asarray(metric.base.squared_lengths, dtype=np.float64)
+        if not (np.isfinite(squared).all() and (squared > 0).all()):
+            _warn("truncated recovery returned non-positive squared lengths; used the full-basis metric")
+            return None
+        # corner edge c (corner c → c+1) is opposite corner c+2
+        corner_squared = squared[reference.topology.triangle_edges[:, [2, 0, 1]]]
+        return _log_stretch_from_lengths(self._key(base), corner_squared)
+
+    def _relative(self, base: int, other: int, turn: np.ndarray | None = None) -> _Relative:
+        log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
+        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across)
+        return self._turning_on(base, relative) if turn is None and other == base + 1 else relative
+
+    def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
+        """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
+        built first: the key cache is not shared with the threads) unless a truncated recovery,
+        which prepares one base shape for them all, makes the metric."""
+        if self.k_M is not None:
+            return [self._relative(base, k) for k in others]
+        topo, key = self._topo, self._key(base)
+        keys = [self._key(k) for k in others]
+        relatives = concurrently(lambda other: _Relative(topo, key, other, across=self._across), keys,
+                                 worth_it=topo.n >= CONCURRENT_VERTICES)
+        return [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
+
+    def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> _Relative:
+        """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
+        next key (the same whichever gaps were computed before), or, with a truncated basis (its
+        metric is recovered per base key), from the poses; with the triangles' whole rotations in
+        the components ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), from the poses."""
+        if self.k_M is not None or whole.any():
+            previous = self._relative(gap, gap - 1, turns)
+            return previous.whole_rotations(self._topo, self._key(gap), self._key(gap - 1), whole) \
+                if whole.any() else previous
+        cached = self._gaps.get(gap - 1)
+        forward = cached.relatives[2] if cached is not None and not cached.relatives[2].whole.any() else \
+            self._relative(gap - 1, gap)
+        return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
+
+    def _nonrigidity(self, base: int, other: int) -> np.ndarray:
+        """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have
+        it: RMS misfit of the best rigid motion ÷ the component's diagonal in ``base``)."""
+        topo = self._topo
+        return rigid_fits(topo, self._raw[base], self._raw[other])[2] / topo.diagonals(self._raw[base])

@@ -1,0 +1,83 @@
+"""Meshes and motions shared by the placement tests (test_placement_*.py, test_seams); no bpy."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.linalg import expm, logm
+
+from meshes import grid, icosphere
+
+
+#: What a half turn the keys do not tell the way of is said with.
+HALF_TURN_UNTOLD = r"turn a half turn \(180°\) to within what the keys tell"
+
+
+FACTORS = (-0.5, 0.25, 0.5, 0.75, 1.5, 2.0)
+
+
+def _rigid(vertices, rotation, pivot, shift=(0.0, 0.0, 0.0)):
+    return (vertices - pivot) @ rotation.T + pivot + np.asarray(shift)
+
+
+def _screw(vertices, rotation, translation, s):
+    """``x ↦ exp(s log T) x`` for the rigid motion ``T x = R x + t`` (the constant-velocity rigid
+    motion; SciPy's matrix logarithm and exponential, independent of the code under test)."""
+    t = np.eye(4)
+    t[:3, :3], t[:3, 3] = rotation, translation
+    moved = np.real(expm(s * logm(t)))
+    return vertices @ moved[:3, :3].T + moved[:3, 3]
+
+
+def _head_with_eyes():
+    """A head (sphere of radius 1) and two eyes (spheres of radius 0.2) in their sockets: three
+    connected components."""
+    head, tri = icosphere(2)
+    eye, eye_tri = icosphere(1, radius=0.2)
+    parts, triangles, offset = [head], [tri], len(head)
+    for center in ((0.35, 0.85, 0.3), (-0.35, 0.85, 0.3)):
+        parts.append(eye + np.array(center))
+        triangles.append(eye_tri + offset)
+        offset += len(eye)
+    return np.vstack(parts), np.vstack(triangles)
+
+
+def _arm(angle, n=41, width=7):
+    """A strip along x ∈ [0, 2] bent about y at the elbow (x = 1) by ``angle``: the upper arm
+    (x < 0.9) is fixed, the forearm turns rigidly, the elbow (0.9–1.1) bends isometrically."""
+    flat, tri = grid(n, width, size=2.0)
+    x = flat[:, 0]
+    radius = 0.2 / angle if angle else np.inf
+    out = flat.copy()
+    if angle:
+        bend = np.clip(x - 0.9, 0.0, 0.2)
+        theta = bend / radius
+        out[:, 0] = np.where(x < 0.9, x, 0.9 + radius * np.sin(theta))
+        out[:, 2] = np.where(x < 0.9, 0.0, radius * (1 - np.cos(theta)))
+        past = x > 1.1
+        along = x[past] - 1.1
+        out[past, 0] += along * np.cos(angle)
+        out[past, 2] += along * np.sin(angle)
+    return out, tri
+
+
+def _curled_line(u, angles, joints, spread):
+    """The points (x, z) at arc lengths ``u`` of a line along x curled about y at the ``joints``
+    (each bend spread over ``spread`` of its length) by ``angles`` (radians), and its turning
+    angle there: integrated from the turning angle, so the segments between the joints stay
+    straight and the line keeps its length."""
+    fine = np.linspace(0.0, u.max(), 20001)
+    turn = sum(angle * np.clip((fine - joint) / spread, 0.0, 1.0) for angle, joint in zip(angles, joints))
+    step = np.diff(fine)
+    x = np.concatenate([[0.0], np.cumsum(np.cos(turn[:-1]) * step)])
+    z = np.concatenate([[0.0], np.cumsum(np.sin(turn[:-1]) * step)])
+    return np.interp(u, fine, x), np.interp(u, fine, z), np.interp(u, fine, turn)
+
+
+def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
+    """A strip along x ∈ [0, 3] curled about y at the ``joints`` (each bend spread over 0.2 of
+    its length) by ``angles`` (radians): the segments between the joints stay straight and rigid
+    and the strip keeps its length."""
+    flat, tri = grid(n, width, size=length)
+    out = flat.copy()
+    out[:, 0], out[:, 2], _ = _curled_line(flat[:, 0], angles, joints, 0.2)
+    return out, tri

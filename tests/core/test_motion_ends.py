@@ -1,0 +1,56 @@
+"""How a sequence leaves its first key and reaches its last (core.motion_ends; issue 3) on analytic
+motions; no bpy."""
+
+from __future__ import annotations
+
+import pytest
+
+from core.errors import MeshError
+from core.sequence_inbetweens import SequenceInterpolator
+from meshes import grid
+
+
+def test_start_of_motion_tells_rest_from_motion():
+    """The frame in the middle of the first gap says how the motion leaves the first key: a fall
+    from rest (zero velocity; the keys' parabola gives it too), one at constant velocity (the
+    keys' own), or a walk that is at rest at the first frame and at its pace a frame later (the
+    keys', which a spline from rest would spread over the whole gap), whatever the step, and with
+    keys unevenly spaced; a fall from rest that lands in the second gap is told from the walk,
+    whose keys it has."""
+    from core.motion_ends import start_of_motion
+
+    flat, _ = grid(6, 6)
+    for step in (4, 8, 16):
+        T = 2 * step
+        fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(T + 1)]
+        drift = [flat + [0.3 * t, 0.0, 0.1 * t] for t in range(T + 1)]
+        walk = [flat + [0.3 * max(t - 0.5, 0.0), 0.0, 0.0] for t in range(T + 1)]  # at pace from frame 1 on
+        # falls from rest to the second key, then lies there: its keys advance as the walk's
+        land = [flat + [0.0, 0.0, -0.15 * min(t, step) ** 2 / step] for t in range(T + 1)]
+        for frames, expected in ((fall, "rest"), (drift, "keys"), (walk, "keys"), (land, "rest")):
+            assert start_of_motion(frames[::step][:3], frames[step // 2], 0.5) == expected
+    fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(15)]  # keys 0, 8, 14: the second gap 6 long
+    assert start_of_motion([fall[0], fall[8], fall[14]], fall[4], 0.5, (8, 6)) == "rest"
+    with pytest.raises(MeshError):
+        SequenceInterpolator(fall[::4], grid(6, 6)[1], start="still")
+
+
+def test_end_of_motion_tells_an_ease_into_the_last_key_from_motion_through_it():
+    """The frame in the middle of the last gap says whether the motion comes to rest at the last
+    key (a constant deceleration to a stop there) or goes on through it (at constant velocity, or
+    falling), whatever the step, and with keys unevenly spaced."""
+    from core.motion_ends import end_of_motion
+
+    flat, _ = grid(6, 6)
+    for step in (4, 8):
+        T = 3 * step
+        ease = [flat + [0.3 * (t - t * t / (2 * T)), 0.0, 0.0] for t in range(T + 1)]
+        drift = [flat + [0.3 * t, 0.0, 0.1 * t] for t in range(T + 1)]
+        fall = [flat + [0.0, 0.0, -0.5 * t * t] for t in range(T + 1)]
+        for frames, expected in ((ease, "rest"), (drift, "keys"), (fall, "keys")):
+            keys = frames[::step]
+            assert end_of_motion(keys[-3:], frames[T - step // 2], 0.5) == expected
+    # keys unevenly spaced (a range that is not whole steps): the last gap 6 frames, the one before 8
+    T = 22
+    ease = [flat + [0.3 * (t - t * t / (2 * T)), 0.0, 0.0] for t in range(T + 1)]
+    assert end_of_motion([ease[8], ease[16], ease[22]], ease[19], 0.5, (8, 6)) == "rest"

@@ -1,0 +1,451 @@
+"""Rigid pieces jointed to each other (core.inbetween_joints; issue 17 item 3): each turns about its
+joints, as links, doors, gears, hair cards and robot arms do; pieces that only touch are no
+joints. No bpy."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core.sequence_inbetweens import SequenceInterpolator
+from core.two_pose_inbetweens import Interpolator
+
+import meshes
+from meshes import cube, grid, icosphere
+from placement_helpers import FACTORS, _curled_strip, _rigid, _screw
+
+
+def _chain(angles):
+    """Three links (thin ellipsoids of length 1, each a separate piece) end to end along x from the
+    origin, each turned about y at its root joint by ``angles`` (radians) relative to the link
+    before it (the first about the origin): an arm rigged as separate rigid pieces."""
+    link, link_triangles = icosphere(2)
+    link = link * [0.5, 0.12, 0.12] + [0.5, 0.0, 0.0]
+    parts, joint, rotation = [], np.zeros(3), np.eye(3)
+    for angle in angles:
+        rotation = rotation @ Rotation.from_rotvec([0.0, -angle, 0.0]).as_matrix()
+        parts.append(link @ rotation.T + joint)
+        joint = joint + rotation @ [1.0, 0.0, 0.0]
+    triangles = np.vstack([link_triangles + k * len(link) for k in range(len(angles))])
+    return np.vstack(parts), triangles
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0, 100.0, 130.0])
+def test_jointed_rigid_pieces_turn_about_their_joints(degrees):
+    """Three links of an arm, separate pieces touching at their joints, each bent by the same angle:
+    every factor of two poses is the arm bent by that factor of the angles, to 1e-6 (each link
+    along its own screw motion: apart at the joints by up to 0.56 link lengths at 0.5 of 60° and
+    2.6 at ×2). At 100° and 130° the last link turns 300° and 390° in the world, which reads as a
+    small turn: the arm hangs from the link that moves least (it had hung from that last link, 2.2
+    link lengths off)."""
+    a, tri = _chain((0.0,) * 3)
+    b, _ = _chain((np.radians(degrees),) * 3)
+    interpolator = Interpolator(a, b, tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _chain((s * np.radians(degrees),) * 3)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("step", [40.0, 80.0])
+def test_jointed_rigid_pieces_in_a_sequence(step):
+    """The same arm's joints turning at constant speed, ``step`` degrees per key each (its last
+    link 3 × that in the world: 240° per gap at 80°): every in-between of every gap is the arm at
+    that time, to 1e-6."""
+    _, tri = _chain((0.0,) * 3)
+    keys = [_chain((np.radians(step * k),) * 3)[0] for k in range(5)]
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    factors = np.arange(1, 4) / 4
+    for gap in range(4):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(pose, _chain((np.radians(step * (gap + factor)),) * 3)[0], atol=1e-6)
+
+
+def test_jointed_rigid_pieces_whose_joints_speed_up():
+    """The arm's joints speeding up (60° per key + 15° per key², each): the in-betweens of the inner
+    gaps, whose Catmull–Rom splines of the joints' screws are exact for an angle quadratic in time,
+    are the arm at that time, to 1e-6 (before: 2.5 link lengths off where the last link's world turn
+    passed a half turn per key and the arm hung from it, 0.15 where the joints' spline took the key
+    after as a screw of a whole turn)."""
+    _, tri = _chain((0.0,) * 3)
+
+    def angle(t):
+        return np.radians(60.0 * t + 7.5 * t * t)
+
+    sequence = SequenceInterpolator([_chain((angle(k),) * 3)[0] for k in range(5)], tri, start="keys")
+    factors = np.arange(1, 4) / 4
+    for gap in (1, 2):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(pose, _chain((angle(gap + factor),) * 3)[0], atol=1e-6)
+
+
+def _gear(teeth, radius, hole, centre, phase):
+    """A flat gear of ``teeth`` teeth (0.08 above and below ``radius``, each a quarter of its pitch
+    at the tip and at the root) round a hole of radius ``hole``, about ``centre`` in the plane z = 0,
+    turned by ``phase``: no vertex on its axle. Returns vertices and triangles."""
+    count = 4 * teeth
+    angle = phase + 2.0 * np.pi * np.arange(count) / count
+    outer = radius + 0.08 * np.tile([1.0, 1.0, -1.0, -1.0], teeth)
+    ring = np.concatenate([np.stack([r * np.cos(angle), r * np.sin(angle), np.zeros(count)], axis=1)
+                           for r in (np.full(count, hole), outer)]) + centre
+    i = np.arange(count)
+    j = (i + 1) % count
+    return ring, np.concatenate([np.stack([i, j, count + j], axis=1), np.stack([i, count + j, count + i], axis=1)])
+
+
+def _gear_train(degrees, clearance=0.03):
+    """Two meshing gears with holes, 20 teeth about radius 1 at the origin and 10 about radius 0.5
+    beside it (tip to root ``clearance`` apart), the first turned by ``degrees`` about its axle and
+    the second twice as far the other way about its own: vertices, triangles, each gear's rows."""
+    pitch_a, pitch_b = 2.0 * np.pi / 20, 2.0 * np.pi / 10
+    axles = np.array([[0.0, 0.0, 0.0], [1.5 + clearance, 0.0, 0.0]])
+    a, a_tri = _gear(20, 1.0, 0.3, axles[0], -pitch_a / 8)  # a tip facing the other gear's root
+    b, b_tri = _gear(10, 0.5, 0.15, axles[1], np.pi - 5 * pitch_b / 8)
+    rows = [np.arange(len(a)), len(a) + np.arange(len(b))]
+    vertices = np.vstack([a, b])
+    for k, rate in enumerate((1.0, -2.0)):
+        turn = Rotation.from_rotvec([0.0, 0.0, rate * np.radians(degrees)]).as_matrix()
+        vertices[rows[k]] = _rigid(vertices[rows[k]], turn, axles[k])
+    return vertices, np.vstack([a_tri, b_tri + len(a)]), rows
+
+
+@pytest.mark.parametrize("degrees", [30.0, 45.0])
+def test_meshing_gears_turn_about_their_own_axles(degrees):
+    """Two meshing gears with holes (nothing on their axles), the large one turned by ``degrees``,
+    the small one twice as far the other way: every factor of two poses (exaggerations included)
+    is both gears turned by that factor about their own axles, to 1e-6. Their motion relative to
+    each other turns about where their teeth mesh, which jointed them: composed on the other's
+    motion, a gear left its axle by 2.9e-2 (30°) and 7.2e-2 (45°) of the pair's diagonal at 0.5,
+    0.20 and 0.40 at × 2."""
+    a, tri, _ = _gear_train(0.0)
+    interpolator = Interpolator(a, _gear_train(degrees)[0], tri)
+    for s in FACTORS + (-1.0, 3.0):
+        np.testing.assert_allclose(interpolator.pose(s), _gear_train(s * degrees)[0], atol=1e-6)
+
+
+def _forearm_and_hand(bend, swing, n=60, k=16, radius=0.1):
+    """A tube forearm (x ∈ [0, 2], radius 0.1) bent about y by ``bend`` over x ∈ [0.9, 1.5], and a
+    hand (an ellipsoid, a separate piece overlapping the tube's end) turned at the wrist by
+    ``swing`` more (radians). Returns positions, triangles and the forearm's vertex count."""
+    angle = np.linspace(0.0, 2.0 * np.pi, k, endpoint=False)
+    x = np.repeat(np.linspace(0.0, 2.0, n), k)
+    tube = np.stack([x, radius * np.tile(np.cos(angle), n), radius * np.tile(np.sin(angle), n)], axis=1)
+    i, j = np.meshgrid(np.arange(n - 1), np.arange(k), indexing="ij")
+    a, b, c, d = i * k + j, i * k + (j + 1) % k, (i + 1) * k + j, (i + 1) * k + (j + 1) % k
+    triangles = np.concatenate([np.stack([a, b, d], -1).reshape(-1, 3), np.stack([a, d, c], -1).reshape(-1, 3)])
+    out, wrist = tube.copy(), np.array([2.0, 0.0, 0.0])
+    if bend:
+        bent = 0.6 / bend
+        turn = np.clip(x - 0.9, 0.0, 0.6) / bent
+        out[:, 0] = np.where(x < 0.9, x, 0.9 + (bent - tube[:, 2]) * np.sin(turn))
+        out[:, 2] = np.where(x < 0.9, tube[:, 2], bent - (bent - tube[:, 2]) * np.cos(turn))
+        past = x > 1.5
+        out[past, 0] += (x[past] - 1.5) * np.cos(bend)
+        out[past, 2] += (x[past] - 1.5) * np.sin(bend)
+        wrist = np.array([0.9 + bent * np.sin(bend) + 0.5 * np.cos(bend), 0.0, bent * (1 - np.cos(bend)) + 0.5 * np.sin(bend)])
+    hand, hand_triangles = icosphere(2, radius=0.15)
+    hand = (hand * [1.5, 1.0, 1.0] + [0.2, 0.0, 0.0]) @ Rotation.from_rotvec([0.0, -(bend + swing), 0.0]).as_matrix().T + wrist
+    return np.vstack([out, hand]), np.vstack([triangles, hand_triangles + len(tube)]), len(tube)
+
+
+def test_a_hand_turning_at_the_wrist_of_a_bending_forearm_stays_on_it():
+    """A forearm bent by 90° while the hand (a separate rigid piece overlapping its end) turns 60°
+    more at the wrist: the forearm's end does not carry the hand (it turns further), but holds it
+    at a joint, so the hand turns about the wrist on the moving forearm. At 0.5 and ×2 the hand
+    is within 2e-3 and 1e-2 of the diagonal of where it belongs (the forearm's own error: 5e-4
+    and 3.4e-3); along its own screw it was 9.4e-2 and 0.50 off."""
+    a, tri, arm = _forearm_and_hand(0.0, 0.0)
+    b, _, _ = _forearm_and_hand(np.radians(90.0), np.radians(60.0))
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, b, tri)
+    for factor, bound in ((0.5, 2e-3), (2.0, 1e-2)):
+        x = interpolator.pose(factor)
+        truth, _, _ = _forearm_and_hand(factor * np.radians(90.0), factor * np.radians(60.0))
+        assert np.sqrt(np.mean(np.sum((x[arm:] - truth[arm:]) ** 2, axis=1))) < bound * diagonal
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_a_strip_curled_at_two_joints_is_exaggerated_about_its_joints(degrees):
+    """Two joints curled by the same angle: the middle segment turns as the whole strip's best
+    rigid motion does, but about its own joint. Exaggerated ×1.5 and ×2 it is the strip curled by
+    1.5 and 2 × the angles (to 1e-3 of the diagonal: the joints' chords shorten a little as they
+    curl further) with the first segment fixed; taken along the whole strip's screw motion instead,
+    the middle segment left its joint (×2 of 60° / 60°: 7 % of the diagonal, edges 62 % off)."""
+    a, tri = _curled_strip((0.0, 0.0))
+    b, _ = _curled_strip((np.radians(degrees),) * 2)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, b, tri)
+    fixed = a[:, 0] < 0.85
+    for factor in (1.5, 2.0):
+        x = interpolator.pose(factor)
+        truth, _ = _curled_strip((factor * np.radians(degrees),) * 2)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal
+        assert np.abs(x[fixed] - a[fixed]).max() < 1e-6 * diagonal
+
+
+def _doors(left, right, gap=0.05):
+    """Two cabinet doors (1 × 1.67 panels, separate pieces ``gap`` apart, nearer than an edge),
+    the left one turned by ``left`` about its left edge, the right one by ``right`` about its
+    right edge (radians; both swing toward +z): each door's hinge vertices still."""
+    panel, panel_triangles = grid(4, 6, size=1.0)
+    a = np.vstack([panel, panel + [1.0 + gap, 0.0, 0.0]])
+    out, n = a.copy(), len(panel)
+    for rows, angle, hinge in ((slice(0, n), -left, [0.0, 0.0, 0.0]), (slice(n, 2 * n), right, [2.0 + gap, 0.0, 0.0])):
+        out[rows] = _rigid(a[rows], Rotation.from_rotvec([0.0, angle, 0.0]).as_matrix(), np.array(hinge))
+    return out, np.vstack([panel_triangles, panel_triangles + n])
+
+
+@pytest.mark.parametrize("degrees", [(90.0, 40.0), (40.0, 90.0), (120.0, 30.0)])
+def test_neighbouring_doors_each_turn_about_their_own_hinge(degrees):
+    """Two doors side by side, each turning rigidly about its own hinge, whose vertices stay
+    still: every factor of two poses (and every time of a sequence) is each door turned by that
+    factor of its angle, to 1e-6. They touch (within an edge) and their relative motion's axis
+    runs near the contact, so the joint tree had hung one from the other: moved by the other's
+    motion composed with the relative one while its hinge's pins held it, it bent between the two
+    (0.31 off at ×2, edges 60 % off). A piece with a pinned vertex hangs from the world."""
+    left, right = np.radians(degrees)
+    a, tri = _doors(0.0, 0.0)
+    interpolator = Interpolator(a, _doors(left, right)[0], tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _doors(s * left, s * right)[0], atol=1e-6)
+    sequence = SequenceInterpolator([_doors(k * left / 3, k * right / 3)[0] for k in range(4)], tri, start="keys")
+    for gap in range(3):
+        for factor in (0.25, 0.5, 0.75):
+            np.testing.assert_allclose(sequence.pose(gap, factor),
+                                       _doors((gap + factor) * left / 3, (gap + factor) * right / 3)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_links_bent_back_carry_the_last_link_round_the_joints(degrees):
+    """Three links (separate pieces) on a fixed first link, the second bent by ``degrees`` and the
+    third bent back by as much: the last link only translates between the keys, along the arc the
+    second one turns. Every factor of two poses is the arm bent by that factor of the angles, to
+    1e-6. Anchored to the linear blend in the world it stayed on the straight line (60°: 0.79 off
+    at ×2, its joint opened); a jointed piece's blend is taken with its composed motion undone."""
+    a, tri = _chain((0.0,) * 3)
+    angles = np.radians([0.0, degrees, -degrees])
+    interpolator = Interpolator(a, _chain(angles)[0], tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _chain(s * angles)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [60.0, 90.0])
+def test_a_strip_folded_back_at_two_joints_hangs_its_end_from_its_fixed_base(degrees):
+    """A strip on a still base folded by ``degrees`` at one joint and back by as much at the next
+    (a Z): its end only translates between the keys. At −0.5, 0.5 and ×2 it is the strip folded
+    by that factor of the angles to 1e-3 of the diagonal (RMS; the joints' chords shorten a little
+    as they curl), its edges within 1 % of their lengths and its base fixed to 1e-6. Anchored to
+    the linear blend, the end stayed on the blend's straight line: 60° half-way 4.2e-2 of the
+    diagonal off with edges 8 % off, ×2 0.31 and 41 %. A component that keeps its edge lengths
+    and has pins moves only by turning about them: its parts hang from the pins."""
+    a, tri = _curled_strip((0.0, 0.0))
+    angles = np.radians([degrees, -degrees])
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    edges = tri[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    rest = np.linalg.norm(a[edges[:, 1]] - a[edges[:, 0]], axis=1)
+    fixed = a[:, 0] < 0.85
+    interpolator = Interpolator(a, _curled_strip(angles)[0], tri)
+    for factor in (-0.5, 0.5, 2.0):
+        x = interpolator.pose(factor)
+        truth, _ = _curled_strip(factor * angles)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal, factor
+        assert np.abs(np.linalg.norm(x[edges[:, 1]] - x[edges[:, 0]], axis=1) / rest - 1.0).max() < 1e-2, factor
+        assert np.abs(x[fixed] - a[fixed]).max() < 1e-6 * diagonal, factor
+
+
+def test_a_small_piece_near_a_turning_ball_is_no_joint_of_it_whatever_else_the_mesh_holds():
+    """A ball (radius 0.14) turning 25° about its vertical axis and a lash in front of it (one thin
+    triangle 0.06 long, 0.06 from the ball: as far as it is long) turning 40° about the ball's
+    horizontal axis, beside a coarse still body whose edges make the mesh's mean edge longer than
+    the lash. Each piece moves by its own rigid motion, so every factor is each piece's rotation by
+    that factor, to 1e-6. The lash was taken for a joint of the ball (touching within one of the
+    mesh's mean edges, its relative motion's axis within two of them of the contact) and moved
+    with the ball's turn composed with its own relative to it: 3.1e-3 of the diagonal off at 0.5,
+    2.8e-2 at ×2, while without the body elsewhere in the mesh it was exact."""
+    ball, ball_triangles = icosphere(2, radius=0.14)
+    body, body_triangles = icosphere(1, radius=0.4)
+    base = np.array([0.130, -0.123, 0.075])
+    lash = np.array([base, base + [0.006, 0.0, 0.0], base + [0.003, -0.05, 0.03]])
+    parts = [ball, lash, body + [0.0, 0.7, 0.0]]
+    a = np.vstack(parts)
+    tri = np.vstack([ball_triangles, np.array([[0, 1, 2]]) + len(ball), body_triangles + len(ball) + 3])
+    turns = [np.array([0.0, 0.0, -np.radians(25.0)]), np.array([np.radians(40.0), 0.0, 0.0]), np.zeros(3)]
+    piece = np.repeat(np.arange(3), [len(p) for p in parts])
+
+    def pose(s):  # every piece turns about the ball's centre, the origin
+        return np.einsum("nij,nj->ni", Rotation.from_rotvec(s * np.array(turns)[piece]).as_matrix(), a)
+
+    interpolator = Interpolator(a, pose(1.0), tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), pose(s), atol=1e-6)
+
+
+def test_pieces_of_a_shattered_block_that_fly_apart_are_no_joints():
+    """A block shattered into 3 × 3 × 3 cubes (separate pieces, neighbours' faces coincident in the
+    first key) that fly apart: each cube turns 60–150° about an axis through its centre while its
+    centre moves 2.5 × as far from the block's, so that no two cubes touch in the second key. Each
+    cube moves by its own rigid motion: every factor is each cube's screw motion by that factor, to
+    1e-6. Cubes touching in the first key were jointed where their relative motion's axis ran near
+    their contact, and moved with a neighbour's motion composed with their own relative to it,
+    although nothing held them together in the second key (the closest two 0.81 apart, the mesh's
+    mean edge 0.58): 16 of the 27 cubes up to 1.1 of the diagonal off at 0.5 and 1.4 at × 2."""
+    unit, unit_triangles = cube(2)
+    rng = np.random.default_rng(4)
+    cells = np.array([(i, j, k) for i in range(3) for j in range(3) for k in range(3)], dtype=float)
+    a = np.vstack([0.5 * unit + cell for cell in cells])
+    tri = np.vstack([unit_triangles + len(unit) * k for k in range(len(cells))])
+    middle = cells.mean(axis=0)
+    motions = []
+    for cell in cells:
+        axis = rng.normal(size=3)
+        rotation = Rotation.from_rotvec(np.radians(rng.uniform(60.0, 150.0)) * axis / np.linalg.norm(axis)).as_matrix()
+        motions.append((rotation, middle + 2.5 * (cell - middle) - rotation @ cell))
+    piece = np.repeat(np.arange(len(cells)), len(unit))
+
+    def pose(s):
+        return np.vstack([_screw(a[piece == k], *motions[k], s) for k in range(len(cells))])
+
+    interpolator = Interpolator(a, pose(1.0), tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), pose(s), atol=1e-6 * np.linalg.norm(np.ptp(a, axis=0)))
+
+
+def _hair(s, count=200, seed=0):
+    """A still scalp (a sphere of radius 1) and ``count`` hair cards (strips of 8 × 2 vertices, 0.35
+    long and 0.03 wide, separate pieces) rooted 0.08 above it at random on its upper part, combed
+    down with some spread, so that many lie along a neighbour; each card turned by ``s`` times its
+    own turn (20–50° about an axis of its own through its root, along the scalp). Vertices,
+    triangles."""
+    rng = np.random.default_rng(seed)
+    scalp, scalp_triangles = icosphere(3)
+    strip, strip_triangles = grid(8, 2, size=1.0)
+    strip = strip * [0.35, 0.21, 1.0]
+    parts, triangles = [scalp], [scalp_triangles]
+    while len(parts) <= count:
+        normal = rng.normal(size=3)
+        normal /= np.linalg.norm(normal)
+        if normal[2] < 0.2:
+            continue
+        down = np.array([0.0, 0.0, -1.0]) + 0.4 * rng.normal(size=3)
+        along = down - normal * (down @ normal)
+        along = along / np.linalg.norm(along) + 0.3 * normal
+        along /= np.linalg.norm(along)
+        across = np.cross(normal, along)
+        across /= np.linalg.norm(across)
+        root = 1.08 * normal
+        axis = rng.normal(size=3)
+        axis -= normal * (axis @ normal)
+        turn = np.radians(rng.uniform(20.0, 50.0)) * axis / np.linalg.norm(axis)
+        card = root + strip[:, :1] * along + (strip[:, 1:2] - 0.015) * across
+        triangles.append(strip_triangles + sum(len(p) for p in parts))
+        parts.append(_rigid(card, Rotation.from_rotvec(s * turn).as_matrix(), root))
+    return np.vstack(parts), np.vstack(triangles)
+
+
+def test_hair_cards_lying_along_each_other_turn_about_their_own_roots():
+    """200 hair cards on a still scalp, many lying along a neighbour in one key, each turning about
+    its own root: every factor of two poses, either way round (exaggerations included), is each card
+    turned by that factor about its root, to 1e-6 of the diagonal. Cards touching in both keys (at
+    least near their roots) whose relative motion held their contact to within the mesh's mean edge
+    were taken for joints: 77 of the 200 moved with a neighbour's motion composed with their relative
+    one, up to 0.13 of a card's size off at 0.5 and 0.84 at ×2, silently. The relative motion of two
+    cards turning about their own roots slides along its axis, which a joint's does not
+    (`JOINT_SLIDE`)."""
+    a, tri = _hair(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    for start, end in ((0.0, 1.0), (1.0, 0.0)):
+        interpolator = Interpolator(_hair(start)[0], _hair(end)[0], tri)
+        for s in FACTORS:
+            np.testing.assert_allclose(interpolator.pose(s), _hair(start + s * (end - start))[0], atol=1e-6 * diagonal)
+
+
+def _debris(count=(3, 3, 2), seed=2):
+    """Debris: ``count`` pieces (cubes and tetrahedra about 0.1 across, turned at random) in a
+    lattice 0.115 apart, most touching their neighbours, each tumbling 20–90° about its centre while
+    all fall 0.3 (each a little differently). Vertices, triangles, each piece's rigid motion
+    (rotation, translation) and each vertex's piece."""
+    rng = np.random.default_rng(seed)
+    box, box_triangles = cube(1)
+    tetrahedron = np.array([[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]]) / np.sqrt(3.0)
+    tetrahedron_triangles = np.array([[0, 1, 2], [0, 3, 1], [0, 2, 3], [1, 3, 2]])
+    parts, triangles, motions, offset = [], [], [], 0
+    for k, cell in enumerate(np.ndindex(*count)):
+        centre = 0.115 * np.array(cell, dtype=float)
+        piece, piece_triangles = (box, box_triangles) if k % 2 else (tetrahedron, tetrahedron_triangles)
+        parts.append(0.05 * piece @ Rotation.random(random_state=rng.integers(1 << 30)).as_matrix().T + centre)
+        triangles.append(piece_triangles + offset)
+        offset += len(piece)
+        axis = rng.normal(size=3)
+        rotation = Rotation.from_rotvec(np.radians(rng.uniform(20.0, 90.0)) * axis / np.linalg.norm(axis)).as_matrix()
+        motions.append((rotation, centre + [0.0, 0.0, -0.3] + rng.uniform(-0.01, 0.01, 3) - rotation @ centre))
+    piece = np.repeat(np.arange(len(parts)), [len(p) for p in parts])
+    return np.vstack(parts), np.vstack(triangles), motions, piece
+
+
+@pytest.mark.parametrize("sequence", [False, True])
+def test_tumbling_debris_that_touches_in_both_keys_moves_each_piece_by_its_own_motion(sequence):
+    """Debris tumbling as it falls, neighbours touching (within an edge, which is about a piece's
+    size) in both keys: every factor of two poses, and every in-between of a sequence tumbling at
+    constant speed, is each piece's own screw motion, to 1e-6 of the diagonal. Touching pairs whose
+    relative motion held their contact to within that edge were jointed: 17 of the 18 pieces moved
+    with a neighbour's motion composed with their relative one, up to 0.53 of a piece's size off at
+    0.5 and 3.1 at ×2 (the sequence's first gap 0.28), silently; a joint's relative motion turns
+    without sliding along its axis."""
+    a, tri, motions, piece = _debris()
+
+    def pose(s):
+        return np.vstack([_screw(a[piece == k], *motion, s) for k, motion in enumerate(motions)])
+
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    if not sequence:
+        interpolator = Interpolator(a, pose(1.0), tri)
+        for s in FACTORS:
+            np.testing.assert_allclose(interpolator.pose(s), pose(s), atol=1e-6 * diagonal)
+        return
+    keys = [pose(float(k)) for k in range(4)]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(3):
+        for s, x in zip((0.25, 0.5, 0.75), seq.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(x, pose(gap + s), atol=1e-6 * diagonal)
+
+
+def _robot(s, capped=True, angles=(58.0, 36.0, 22.0, 21.0, 69.0, 75.0), axes="xyyxyx"):
+    """A robot arm of seven tubes (0.6 long along x, radius 0.08, neighbours' end rings coincident;
+    ``capped``: each cap a fan about a vertex on the tube's axis, else open) on a fixed base link,
+    its joints at the links' roots turned about ``axes`` by ``s`` times ``angles`` (degrees): forward
+    kinematics. About x a link rolls on its own axis, on which the next joint lies, so that joint's
+    point (and the cap vertices there) stays still. Vertices, triangles."""
+    tube, tube_triangles = meshes.closed_tube(13, 12, length=0.6, radius=0.08)
+    if not capped:
+        tube, tube_triangles = tube[:-2], tube_triangles[np.all(tube_triangles < len(tube) - 2, axis=1)]
+    rotation, translation, parts = np.eye(3), np.zeros(3), [tube]
+    for k, (axis, angle) in enumerate(zip(axes, angles), start=1):
+        joint = np.array([0.6 * k, 0.0, 0.0])
+        turn = Rotation.from_rotvec(s * np.radians(angle) * np.eye(3)["xyz".index(axis)]).as_matrix()
+        translation = rotation @ (joint - turn @ joint) + translation
+        rotation = rotation @ turn
+        parts.append((tube + joint) @ rotation.T + translation)
+    return np.vstack(parts), np.vstack([tube_triangles + k * len(tube) for k in range(len(parts))])
+
+
+@pytest.mark.parametrize("capped", [True, False])
+def test_a_robot_arm_jointed_at_points_its_links_turn_about_is_its_forward_kinematics(capped):
+    """A robot arm whose first joint rolls its link about the axis the next joint lies on (a
+    shoulder pitching on the yaw axis below it): every factor of two poses (exaggerations included)
+    and every in-between of a sequence at constant joint speeds is the arm at that factor of its
+    angles, to 1e-6 of the diagonal. Capped, the links with a still vertex (on a rolling axis) hung
+    from the world, each on its own screw motion, although the link below keeps that vertex still
+    too: five links up to 0.29 of a link's size off at 0.5 and 0.86 at ×2 (the sequence 1e-2),
+    silently; a pinned piece hangs from the world only where the piece it is jointed to would move
+    its pins. Open, the shoulder's joint was taken for two pieces each turning about its own axis
+    (their contact stays put, their own screws keep it), as far off: both turn about the joint's
+    point, which stays put, and their own screws keep the point but not the turn of one relative
+    to the other."""
+    a, tri = _robot(0.0, capped)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, _robot(1.0, capped)[0], tri)
+    for s in FACTORS:
+        np.testing.assert_allclose(interpolator.pose(s), _robot(s, capped)[0], atol=1e-6 * diagonal)
+    sequence = SequenceInterpolator([_robot(k / 3, capped)[0] for k in range(4)], tri, start="keys")
+    for gap in range(3):
+        for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(x, _robot((gap + s) / 3, capped)[0], atol=1e-6 * diagonal)
