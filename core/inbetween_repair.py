@@ -205,8 +205,9 @@ class Repair:
         turn between the keys: a finger curled by 120° at each of two joints has its tip face away
         from both keys half-way), whose normal ``cross`` (``sides``: its two sides from the first
         corner by coordinate and the interpolated stretches, packed (m, 3)) follows it and whose
-        edges keep the interpolated metric within :data:`~core.inbetween_fit.METRIC_TOLERANCE`:
-        these are not flipped. Cloth folds the fit made turn away too: without the metric
+        edges keep the interpolated metric within :data:`~core.inbetween_fit.METRIC_TOLERANCE`,
+        in a part turning a whole ring of triangles (:meth:`_carrying_a_vertex`): these are not
+        flipped. Cloth folds the fit made turn away too: without the metric
         condition two poses 16 frames apart on the banner had 2,564 → 11,463 triangles facing
         against both keys (4,272 with the gap's tolerance instead), in sequences 166 → 745 at
         g = 16; with it every pair and sequence cell of six cloths is unchanged, and an arm of
@@ -248,8 +249,40 @@ class Repair:
         gap = self.gap
         nearly_rigid = np.asarray(gap.nonrigidity)[gap.topo.triangle_component[triangles]] < NOISY_TURN_NONRIGIDITY
         tolerance = np.where(nearly_rigid, max(METRIC_TOLERANCE, gap.tolerance), METRIC_TOLERANCE)
-        kept = candidates[deviation < tolerance]
+        kept = self._carrying_a_vertex(candidates[deviation < tolerance], rows, kept_whole)
         return kept if kept_whole is None else np.sort(np.concatenate([kept_whole, kept]))
+
+    def _carrying_a_vertex(self, kept: np.ndarray, rows, kept_whole) -> np.ndarray:
+        """Those of ``kept`` (positions among ``rows``: candidates turned away from both keys along
+        their interpolated rotation, edges on the metric) that lie in a part of them, joined where
+        triangles share a vertex, that turns a whole ring: a vertex off the mesh's boundary all of
+        whose triangles are kept (here or in ``kept_whole``). A part turning past a half turn
+        carries its vertices' rings with it; a triangle or two folded over in cloth do not (their
+        neighbours face a key), and a triangle keeps its edge lengths whatever its normal does, so
+        the metric alone cannot tell them apart: two 20:1 slivers of a hanging band folded 154°
+        between keys 16 frames apart, read the long way round by the interpolated rotations (their
+        neighbours turn the other way), face away from both keys half-way (the simulated frame and
+        the blend do not), and the metric rule alone keeps them, with no warning; repaired as
+        flipped, they turn back with the pose's RMS error unchanged."""
+        if not kept.size:
+            return kept
+        topo = self.gap.topo
+        positions = kept if kept_whole is None else np.concatenate([kept, kept_whole])
+        triangles = positions if isinstance(rows, slice) else np.asarray(rows)[positions]
+        corners = topo.triangles[triangles]
+        vertices, local = np.unique(corners, return_inverse=True)
+        local = local.reshape(-1, 3)
+        ring = (np.bincount(local.ravel(), minlength=vertices.size) == topo.triangles_per_vertex[vertices]) \
+            & topo.inner_vertices[vertices]
+        if not ring.any():
+            return kept[:0]
+        r = len(triangles)  # triangles 0 … r − 1 and their vertices r …, joined by their corners
+        graph = sp.csr_matrix((np.ones(3 * r), (np.repeat(np.arange(r), 3), r + local.ravel())),
+                              shape=(r + vertices.size,) * 2)
+        labels = connected_components(graph, connection="weak")[1]
+        carrying = np.zeros(labels.max() + 1, dtype=bool)
+        carrying[labels[r:][ring]] = True
+        return kept[carrying[labels[:kept.size]]]
 
     def _edge_on(self, cross, following, base, nxt, triangles) -> np.ndarray | None:
         """Which candidates (bool (r,); ``cross`` their normals, ``following`` its products with

@@ -79,6 +79,9 @@ class _Topology:
         self.component_rows = [slice(rows[0], rows[-1] + 1) if rows.size and rows[-1] - rows[0] + 1 == rows.size else rows
                                for rows in self.components]
         self.triangles_per_vertex = np.bincount(t.ravel(), minlength=n_vertices)
+        # vertices in a triangle and on no boundary edge: a closed ring of triangles around each
+        self.inner_vertices = self.triangles_per_vertex > 0
+        self.inner_vertices[topo.edges[topo.boundary_edges].ravel()] = False
         adjacency = sp.csr_matrix((np.ones(3 * m, dtype=bool), (t.ravel(), np.repeat(np.arange(m), 3))),
                                   shape=(n_vertices, m))
         self.vertex_triangles = adjacency  # (n, m): the triangles around each vertex
