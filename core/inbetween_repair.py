@@ -276,10 +276,8 @@ class Repair:
             & topo.inner_vertices[vertices]
         if not ring.any():
             return kept[:0]
-        r = len(triangles)  # triangles 0 … r − 1 and their vertices r …, joined by their corners
-        graph = sp.csr_matrix((np.ones(3 * r), (np.repeat(np.arange(r), 3), r + local.ravel())),
-                              shape=(r + vertices.size,) * 2)
-        labels = connected_components(graph, connection="weak")[1]
+        r = len(triangles)
+        labels = _corner_joined_parts(local.ravel(), vertices.size)[1]
         carrying = np.zeros(labels.max() + 1, dtype=bool)
         carrying[labels[r:][ring]] = True
         return kept[carrying[labels[:kept.size]]]
@@ -730,6 +728,20 @@ class Repair:
         return self._move_limits
 
 
+def _corner_joined_parts(local: np.ndarray, count: int) -> tuple[int, np.ndarray]:
+    """The connected parts of r triangles joined where they share a vertex: ``local`` (3r,), each
+    corner's vertex among ``count`` (triangle by triangle), gives (number of parts, each node's
+    part (r + count,): the triangles' labels first, then the vertices'). Triangles 0 … r − 1 and
+    vertices r … r + count − 1 are nodes joined by the corners; each triangle's row lists its three,
+    so the matrix is made without a sort (SciPy's own int32 indices and float64 values, which its
+    graph routines take as they are)."""
+    r = local.size // 3
+    indptr = np.full(r + count + 1, 3 * r, dtype=np.int32)
+    indptr[:r + 1] = np.arange(0, 3 * r + 1, 3, dtype=np.int32)
+    graph = sp.csr_matrix((np.ones(local.size), (r + local).astype(np.int32), indptr), shape=(r + count,) * 2)
+    return connected_components(graph, connection="weak")
+
+
 def _with_parts(x: np.ndarray, free: np.ndarray, free_part: np.ndarray, chosen: np.ndarray, fits: dict) -> np.ndarray:
     """``x`` (n, 3) with the ``free`` vertices of each part ``p`` (``free_part``: each one's part)
     taken from the fit ``fits[chosen[p]]`` (positions on ``free``), where ``chosen[p]`` ≥ 0."""
@@ -798,13 +810,7 @@ class Region:
         another (only the held vertices, which stay)."""
         local, touched, is_free = self._parts
         r = self.rows.size
-        # triangles 0 … r − 1 and their vertices r … r + touched − 1, joined by their corners: each
-        # triangle's row lists its three, so the matrix is made without a sort (SciPy's own
-        # int32 indices and float64 values, which its graph routines take as they are)
-        indptr = np.full(r + touched + 1, 3 * r, dtype=np.int32)
-        indptr[:r + 1] = np.arange(0, 3 * r + 1, 3, dtype=np.int32)
-        graph = sp.csr_matrix((np.ones(local.size), (r + local).astype(np.int32), indptr), shape=(r + touched,) * 2)
-        count, labels = connected_components(graph, connection="weak")  # every vertex node has a triangle
+        count, labels = _corner_joined_parts(local, touched)
         return labels[:r], labels[r:][is_free], count
 
     def whole(self) -> tuple[np.ndarray, np.ndarray, int]:
