@@ -638,6 +638,7 @@ class Repair:
         limit, partial_limit = self.move_limits(s) or (np.inf, np.inf)
         pieces = gap.topo.triangle_component
         largest = MAX_REPAIR_FRACTION * gap.topo.piece_sizes
+        stalled = False  # whether the last round left the fewest defects where they were
         for round_index, grown in enumerate(rings):
             if round_index > STALLED_ROUND and stalled and best[0] >= STALLED_DEFECTS and self.in_sequence(s):
                 break  # larger regions do not repair what this size did not improve

@@ -99,7 +99,6 @@ def offset_surfaces_pull_back(base_surface, target_surface, image_triangles, wei
     from scipy.spatial import cKDTree
 
     target = target_surface.base
-    n_lifted = target_surface.lifted_vertices.size
     lift = target_surface.lift_of_vertex
     center = target_surface.center_of_triangle
 
