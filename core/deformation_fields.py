@@ -289,7 +289,13 @@ def frame_rows_rotation_entries(frames: np.ndarray, columns: np.ndarray) -> np.n
 def entries_rotation_angles(entries: np.ndarray) -> np.ndarray:
     """The angles (m,) of rotations given by their entries (3, 3, m) (as
     :func:`frame_rows_rotation_entries` gives them), from the trace."""
-    return np.arccos(np.clip(0.5 * (entries[0, 0] + entries[1, 1] + entries[2, 2] - 1.0), -1.0, 1.0))
+    return trace_rotation_angles(entries[0, 0] + entries[1, 1] + entries[2, 2])
+
+
+def trace_rotation_angles(trace: np.ndarray) -> np.ndarray:
+    """The angles (m,) of rotations whose traces are ``trace`` (m,): ``tr R = 1 + 2 cos θ``
+    (clipped to the cosine's range against rounding)."""
+    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
 def turned_frame_rows(columns: np.ndarray, turn: tuple[np.ndarray, np.ndarray], rotations: np.ndarray,

@@ -605,14 +605,14 @@ def _fit_undone_angles(entries: np.ndarray, rotations: np.ndarray, pieces: np.nd
     ``Σ_ab R_ab W_ab``, nine products per triangle."""
     r = rotations[0] if len(rotations) == 1 else np.moveaxis(rotations[pieces], 0, -1)  # (3, 3) or (3, 3, m)
     trace = sum(r[a, b] * entries[a, b] for a in range(3) for b in range(3))
-    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+    return df.trace_rotation_angles(trace)
 
 
 def _rotation_angles(frames, columns) -> np.ndarray:
     """The angle (m,) of each triangle's rotation taking the frame ``columns`` to ``frames`` (both
     stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle."""
     trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
-    return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+    return df.trace_rotation_angles(trace)
 
 
 def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:

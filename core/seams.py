@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MeshError, ShapeDifferenceWarning
-from .geometry import vertex_labels
+from .geometry import normalize, vertex_labels
 
 #: Vertices closer than this fraction of the first pose's bounding-box diagonal (plus a few
 #: float32 roundings of their coordinates) count as one place: single-precision caches written
@@ -307,15 +307,14 @@ def seam_folds(base: np.ndarray, pose: np.ndarray, triangles: np.ndarray, sides:
     is real."""
     if not len(sides):
         return np.zeros(0)
+    sided = triangles[sides.ravel()]  # the seams' triangles only, two per seam edge
     angles = []
     for positions in (base, pose):
-        a, b, c = (positions[triangles[sides.ravel(), k]] for k in range(3))
-        normals = np.cross(b - a, c - a)
-        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), np.finfo(float).tiny)
-        normals = normals.reshape(-1, 2, 3)
+        a, b, c = (positions[sided[:, k]] for k in range(3))
+        normals = normalize(np.cross(b - a, c - a))[0].reshape(-1, 2, 3)
         angles.append(np.arccos(np.clip(np.einsum("sd,sd->s", normals[:, 0], normals[:, 1]), -1.0, 1.0)))
     rounding = coordinate_rounding([base, pose], single)
-    noise = 2.0 * rounding * sum(inverse_heights(positions, triangles)[sides].sum(axis=1) for positions in (base, pose))
+    noise = 2.0 * rounding * sum(inverse_heights(positions, sided).reshape(-1, 2).sum(axis=1) for positions in (base, pose))
     return np.abs(angles[1] - angles[0]) - SEAM_FOLD_TOLERANCE - noise
 
 
