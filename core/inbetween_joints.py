@@ -119,6 +119,40 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     return np.where(held, 0.0, np.where(hinged, np.maximum(0.0, distance - radius - reach), np.inf))
 
 
+def piece_vertices(topo, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The vertices (k,) of ``topo``'s components ``pieces`` (P,), piece by piece, and each one's
+    piece (k,; its index among ``pieces``)."""
+    rows = [topo.components[c] for c in pieces]
+    return np.concatenate(rows), np.concatenate([np.full(r.size, k) for k, r in enumerate(rows)])
+
+
+def relative_motions(rotations: np.ndarray, translations: np.ndarray, u: np.ndarray, v: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces ``u``, ``v`` (P,) of rigid motions ``rotations`` (C, 3, 3), ``translations``
+    (C, 3), ``v``'s motion relative to ``u``'s (:func:`relative_motion`, every pair at once):
+    rotations (P, 3, 3), translations (P, 3)."""
+    inverse = np.transpose(rotations[u], (0, 2, 1))
+    return inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u])
+
+
+def contact_reach(reach: float, edges: np.ndarray | None, u: np.ndarray, v: np.ndarray) -> np.ndarray | float:
+    """Per pair of pieces ``u``, ``v`` (P,; components), the farthest their nearest vertices may be
+    for a contact: ``reach``, and at most :data:`JOINT_REACH` of the finer piece's mean edge length
+    (``edges`` (C,), or None: ``reach`` alone)."""
+    return reach if edges is None else np.minimum(reach, JOINT_REACH * np.minimum(edges[u], edges[v]))
+
+
+def slide_precision(base: np.ndarray, nxt: np.ndarray, reach: float, misfits: np.ndarray | None, u: np.ndarray,
+                    v: np.ndarray) -> np.ndarray:
+    """Per pair of pieces ``u``, ``v`` (P,; components), how far their relative motion may slide and
+    still hold a point (:data:`JOINT_SLIDE`): what their rigid fits resolve (``misfits`` (C,), RMS
+    lengths, or None: exact) plus the coordinates' rounding (``base``, ``nxt``: the pieces' vertices
+    in the gap's keys; ``reach``: the joint distance)."""
+    misfit = np.zeros(max(u.max(initial=0), v.max(initial=0)) + 1) if misfits is None else misfits
+    rounding = 1e-9 * (max(np.abs(base).max(), np.abs(nxt).max()) + reach)
+    return JOINT_SLIDE * (misfit[u] + misfit[v]) + rounding
+
+
 def _screw_axes(rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per rigid motion ``x ↦ R x + t`` (``rotations`` (P, 3, 3), ``translations`` (P, 3)) its turn's
     angle (P,), the unit direction of its screw axis (P, 3; any where it does not turn) and how far
@@ -231,9 +265,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     pieces = np.flatnonzero(rigid)
     if pieces.size < 2:
         return None
-    rows = [topo.components[c] for c in pieces]
-    label = np.concatenate([np.full(r.size, k) for k, r in enumerate(rows)])
-    index = np.concatenate(rows)
+    index, label = piece_vertices(topo, pieces)
     key, ends, first = _touching(base, index, label, pieces.size, reach)
     if not key.size:
         return None
@@ -242,8 +274,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     # touches another link only in passing, and its relative motion turns about another point)
     rotations, translations = motions[0][pieces], motions[1][pieces]
     u, v = np.divmod(key[first], pieces.size)
-    inverse = np.transpose(rotations[u], (0, 2, 1))  # v's motion relative to u's (relative_motion, every pair)
-    relative = inverse @ rotations[v], np.einsum("pab,pb->pa", inverse, translations[v] - translations[u])
+    relative = relative_motions(rotations, translations, u, v)
     contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
     run = np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size]))  # each vertex pair's pair of pieces
     offsets = joint_offsets(contact, run, first, *relative, reach)
@@ -251,7 +282,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     # touching within the finer piece's edges, and in the next key too: a joint keeps its pieces
     # together (cubes of a shattered block that touch in the base key and have flown apart in the
     # next are no joints, wherever their relative motions' axes run)
-    finer = reach if edges is None else np.minimum(reach, JOINT_REACH * np.minimum(edges[pieces[u]], edges[pieces[v]]))
+    finer = contact_reach(reach, edges, pieces[u], pieces[v])
     nearest_base, contact_base = _closest(base, ends, first)
     jointed &= nearest_base <= finer
     if jointed.any():
@@ -260,9 +291,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     if jointed.any():
         # a joint's relative motion turns about an axis through the contact without sliding along it
         # (to within what the pieces' rigid fits resolve; pieces moving as one neither turn nor slide)
-        misfit = np.zeros(pieces.size) if misfits is None else misfits[pieces]
-        rounding = 1e-9 * (max(np.abs(base[index]).max(), np.abs(nxt[index]).max()) + reach)
-        precision = JOINT_SLIDE * (misfit[u] + misfit[v]) + rounding
+        precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
         _, axis, slide = _screw_axes(*relative)
         jointed &= np.abs(slide) <= precision
     if jointed.any() and screws is not None:

@@ -18,7 +18,8 @@ the anchor and the reconstruction of a pose at any factor.
   co-moving);
 - :mod:`core.inbetween_fit` (``LocalGlobalFit``): the Poisson solve and the local/global fit;
 - :mod:`core.inbetween_repair`: checks and repairs; :mod:`core.inbetween_carried`: rigid pieces
-  that deforming ones carry; :mod:`core.inbetween_joints`: jointed rigid pieces.
+  that deforming ones carry; :mod:`core.inbetween_joints`: jointed rigid pieces;
+  :mod:`core.inbetween_joint_doubts`: the pieces the joints cannot place faithfully (warned).
 
 The public classes live in :mod:`core.sequence_inbetweens` and :mod:`core.two_pose_inbetweens`.
 """
@@ -37,6 +38,7 @@ from .inbetween_field import InterpolatedField, _log_stretch_spline, _Splines
 from .inbetween_fit import LocalGlobalFit, change_tolerance, trimmed_tolerance
 from .inbetween_flight import after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
+from .inbetween_joint_doubts import joint_doubts
 from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, PieceMotion
 from .inbetween_repair import Outcome, Region, Repair
@@ -190,6 +192,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                                      self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
                                      nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, static, piece_edges,
                                      relatives[2].screw, nonrigidity * base.diagonals)
+        # what the joints leave untold (links apart, sliding joints, joints within rounding): the gap warns
+        self.joint_doubts = None if len(topo.components) < 2 else joint_doubts(
+            topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, JOINT_REACH * self.mean_edge, self.joints,
+            piece_edges, nonrigidity * base.diagonals, base.diagonals)
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],

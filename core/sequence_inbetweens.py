@@ -56,6 +56,7 @@ from .validation import (check_factor, check_gap_index, check_key_times, check_r
 from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
+from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .sequence_warnings import _warn
 
@@ -284,7 +285,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
             segment = self._gap(gap)
             self._prepare_in_background(gap + 1)
             solved = gap_poses(segment, [factors[k] for k in between])
-        problems = turn_warnings(segment, self.key_names, gap)
+        problems = turn_warnings(segment, self.key_names, gap) + joint_warnings(segment.joint_doubts, self.key_names, gap)
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin

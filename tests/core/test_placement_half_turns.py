@@ -124,6 +124,39 @@ def test_a_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_same_way
         assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
+
+@pytest.mark.parametrize("degrees, joints", [((120.0, 120.0), (0.9, 1.9)), ((270.0,), (0.9,))])
+def test_a_strip_one_triangle_wide_curled_past_a_half_turn_keeps_curling_the_same_way(degrees, joints):
+    """The strips above one triangle wide (121 × 2 vertices: no vertex off the boundary, so no
+    triangle carries a whole ring, :meth:`core.inbetween_repair.Repair._carrying_a_vertex`), their
+    tips turning 240° / 270° between two poses and 170° × 2 per key in a sequence: every
+    in-between, exaggeration and reversal of the two poses is the strip curled by the factor times
+    the angles (to 1e-3 of the diagonal, as the wide strip), every sequence in-between the curl at
+    its time (to the gap's tolerance), each triangle facing as in the truth, silently: a part
+    turning past a half turn as its piece's field says is kept by the check of the whole piece."""
+    angles = np.radians(degrees)
+    a, tri = _curled_strip(0.0 * angles, joints=joints, width=2)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, _curled_strip(angles, joints=joints, width=2)[0], tri)
+    for factor in (-0.5, 0.3, 0.5, 0.75, 1.5):
+        truth, _ = _curled_strip(factor * angles, joints=joints, width=2)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            x = interpolator.pose(factor)
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < 1e-3 * diagonal
+        assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+    step = np.radians([170.0] * len(joints))
+    sequence = SequenceInterpolator([_curled_strip(k * step, joints=joints, width=2)[0] for k in range(3)], tri,
+                                    start="keys")
+    for gap in range(2):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            poses = sequence.poses(gap, (0.3, 0.5, 0.7))
+        for x, factor in zip(poses, (0.3, 0.5, 0.7)):
+            truth, _ = _curled_strip((gap + factor) * step, joints=joints, width=2)
+            assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < sequence._gap(gap).tolerance * diagonal
+            assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
 def _curled_tube(angles, joints, spread, radius=0.07, rings=61, sides=10):
     """A closed tube (a finger: radius 0.07, length 1, 1,220 triangles) curled about y at the
     ``joints`` by ``angles`` (radians), each bend spread over ``spread`` of its length: each

@@ -4,10 +4,13 @@ joints. No bpy."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from core.errors import ShapeDifferenceWarning
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
 
@@ -449,3 +452,105 @@ def test_a_robot_arm_jointed_at_points_its_links_turn_about_is_its_forward_kinem
     for gap in range(3):
         for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
             np.testing.assert_allclose(x, _robot((gap + s) / 3, capped)[0], atol=1e-6 * diagonal)
+
+
+def _said(caught, words):
+    """Whether any caught ShapeDifferenceWarning's message contains ``words``."""
+    return any(issubclass(w.category, ShapeDifferenceWarning) and words in str(w.message) for w in caught)
+
+
+def _poses_and_warnings(interpolator, factors):
+    """The poses of ``interpolator`` at ``factors`` and the warnings they gave."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        poses = [interpolator.pose(s) for s in factors]
+    return poses, caught
+
+
+def _torus_chain(s, clearance, count=8, degrees=25.0):
+    """``count`` interlocked torus links (major radius 0.3, minor 0.06, 24 × 8 vertices: a mean edge
+    of 0.072), alternately in the xy and xz planes, each clearing the next by ``clearance``, every
+    joint (the midpoint of two links' centres) curled by ``s`` × ``degrees`` about z: forward
+    kinematics from the first, still link. Vertices, triangles, each vertex's link."""
+    link, link_triangles = meshes.twisted_torus(24, 8, major=0.3, minor=0.06)
+    flip = Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix()
+    step = 0.6 - 0.12 - clearance
+    rotation, translation, parts = np.eye(3), np.zeros(3), []
+    for k in range(count):
+        rest = link @ (flip.T if k % 2 else np.eye(3)) + [k * step, 0.0, 0.0]
+        if k:
+            joint = np.array([(k - 0.5) * step, 0.0, 0.0])
+            turn = Rotation.from_rotvec([0.0, 0.0, np.radians(s * degrees)]).as_matrix()
+            translation = rotation @ (joint - turn @ joint) + translation
+            rotation = rotation @ turn
+        parts.append(rest @ rotation.T + translation)
+    triangles = np.vstack([link_triangles + k * len(link) for k in range(count)])
+    return np.vstack(parts), triangles, np.repeat(np.arange(count), len(link))
+
+
+@pytest.mark.parametrize("clearance", [0.04, 0.08])
+def test_chain_links_clearing_each_other_are_jointed_or_warned(clearance):
+    """Eight interlocked links curled 25° at every joint. Clearing each other by 0.04 (0.6 of an
+    edge) they are jointed: every factor is the chain's forward kinematics to 1e-6 of the diagonal,
+    silently. Clearing by 0.08 (1.1 edges) no joint is found (contacts are sought within an edge)
+    and each link moves by its own screw, 0.64 of a link off at 0.5 and 2.65 at ×2: the in-betweens
+    warn that such links turn about a point between them as jointed links do (before, silently)."""
+    a, tri, _ = _torus_chain(0.0, clearance)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    poses, caught = _poses_and_warnings(Interpolator(a, _torus_chain(1.0, clearance)[0], tri), FACTORS)
+    right = all(np.abs(x - _torus_chain(s, clearance)[0]).max() <= 1e-6 * diagonal for x, s in zip(poses, FACTORS))
+    warned = _said(caught, "as jointed links do")
+    assert right != warned
+    if clearance < 0.072:
+        assert right
+
+
+def _gripper(s, slide):
+    """A hand (a box 0.4 × 0.2 × 0.1) and two fingers (boxes 0.05 × 0.04 × 0.15 under it), the hand
+    moving by ``s`` times the screw of a turn of 42° with a shift, the fingers sliding apart along
+    the hand by ``s`` × ``slide`` each (prismatic joints). Vertices, triangles."""
+    box, box_triangles = cube(4)
+    hand = box * [0.2, 0.1, 0.05]
+    finger = box * [0.025, 0.02, 0.075]
+    rest = [hand, finger + [-0.1, 0.0, -0.125], finger + [0.1, 0.0, -0.125]]
+    local = [rest[0], rest[1] - [s * slide, 0.0, 0.0], rest[2] + [s * slide, 0.0, 0.0]]
+    rotation = Rotation.from_rotvec([0.2, 0.3, np.radians(40.0)]).as_matrix()
+    moved = [_screw(part, rotation, np.array([0.3, 0.1, 0.2]), s) for part in local]
+    return np.vstack(moved), np.vstack([box_triangles + k * len(box) for k in range(3)])
+
+
+@pytest.mark.parametrize("slide", [0.01, 0.05])
+def test_fingers_sliding_in_a_turning_hand_are_placed_or_warned(slide):
+    """Two fingers sliding along a hand that turns and moves (their contact slides, so it holds no
+    point, and no joint is found): each finger moves by its own screw, 0.6 % / 3.0 % of a finger's
+    size off the sliding joint at 0.5 and 4.5 % / 23 % at ×2. Every factor is the hand's motion
+    composed with the fingers' slides to 1e-6 of the diagonal, or the in-betweens warn that the
+    fingers slide along a piece they touch (before, silently)."""
+    a, tri = _gripper(0.0, slide)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    poses, caught = _poses_and_warnings(Interpolator(a, _gripper(1.0, slide)[0], tri), FACTORS)
+    right = all(np.abs(x - _gripper(s, slide)[0]).max() <= 1e-6 * diagonal for x, s in zip(poses, FACTORS))
+    assert right != _said(caught, "slide along a piece they touch")
+
+
+@pytest.mark.parametrize("offset", [0.0, 1e3])
+def test_hair_cards_in_single_precision_are_right_or_warned(offset):
+    """The 200 hair cards above, their coordinates rounded to single precision ``offset`` from the
+    origin (as a mesh cached far from its object's origin). Neighbouring cards slide relative to
+    each other by 5e-6–4e-4 (median 2e-3), which rounding at 1,000 (6e-5) leaves unresolved: 18
+    cards were jointed, 4.1e-3 of the diagonal off at 0.5, silently. Every factor is each card
+    turned about its own root to 1e-3 of the diagonal (ten times what rounding at 1,000 moves a
+    vertex, against the diagonal), or the in-betweens warn that joints are told from chance
+    contacts only to the coordinates' precision; at the origin the cards are right, silently."""
+    def rounded(x):
+        return (x + offset).astype(np.float32).astype(np.float64)
+
+    a, tri = _hair(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    factors = (0.5, 2.0)
+    poses, caught = _poses_and_warnings(Interpolator(rounded(a), rounded(_hair(1.0)[0]), tri), factors)
+    right = all(np.abs(x - offset - _hair(s)[0]).max() <= 1e-3 * diagonal for x, s in zip(poses, factors))
+    warned = _said(caught, "told from pieces touching by chance")
+    assert right or warned
+    if offset == 0.0:
+        assert right and not warned

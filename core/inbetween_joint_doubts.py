@@ -1,0 +1,269 @@
+"""Rigid pieces the joint rules of :mod:`core.inbetween_joints` cannot place faithfully, which the
+gap warns of (a mesh of several pieces should move as one; where it cannot be told how, the user
+is told).
+
+:func:`core.inbetween_joints.joint_tree` joints two rigid pieces where they touch (nearest vertices
+within an edge) in both keys of a gap and the child's motion relative to the parent's turns about a
+point of their contact without sliding. Three kinds of pieces fall outside it, each moved by its own
+rigid motion, which can leave the other piece (numbers in docs/inbetweens.md, *Joints the keys do
+not tell*):
+
+- **links apart** (:data:`JOINT_NEAR`): pieces that turn relative to each other about a point in
+  the gap between them, near each other in both keys against their size but farther apart than the
+  finer one's edges (chain links clearing each other by more than an edge: 0.64 of a link off at
+  0.5);
+- **sliding joints**: pieces that touch in both keys and turn together while one slides along the
+  other (a finger sliding in a hand; the relative motion a translation, no joint point): no
+  prismatic joint is modelled (3.0e-2 of a finger off at 0.5 for a slide of 0.05);
+- **joints within rounding** (:data:`JOINT_DOUBT`): joints whose slide is told apart from a chance
+  contact's only to within the rigid fits' precision, a share of the pieces' size at which pieces
+  touching by chance pass as jointed (hair cards in single precision 1,000 from the origin: 18 of
+  200 cards jointed, 4.1e-3 of the diagonal off at 0.5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import screw_motions
+from .inbetween_joints import (JOINT_REACH, _closest, _nearest_pairs, _screw_axes, _touching, contact_reach,
+                               piece_vertices, relative_motions, slide_precision)
+
+#: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
+#: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
+#: by 0.08); farther apart than their contact reach, and turning relative to each other about a point
+#: in the gap between them (their relative screw axis within the gap's width of the midpoint of
+#: their nearest vertices, without sliding), they are links apart (the gap warns).
+JOINT_NEAR = 0.25
+#: A joint whose slide tolerance (:func:`core.inbetween_joints.slide_precision`) is at least this
+#: share of the smaller piece's size is told from pieces touching by chance only to within the
+#: coordinates' precision: neighbouring hair cards turning about their own roots slide relative to
+#: each other by 5e-6–4e-4 (median 2e-3) on cards 0.35 long, which single precision 1,000 from the
+#: origin (a tolerance of 2–8e-4, 7e-4 of a card) cannot resolve and at the origin (7e-7) can.
+JOINT_DOUBT = 1e-4
+#: A joint matters where it would move the child otherwise than the child's own motion does, half-way,
+#: by more than this many times the joint's slide tolerance: the composed and own motions of pieces
+#: moving as one part by up to 2.2 × it (5,000 tetrahedra turned as one in single precision 1,000
+#: from the origin), those of hair cards jointed by chance there by 5–79 ×.
+JOINT_STAKE = 3.0
+
+
+@dataclass
+class JointDoubts:
+    """What a gap's rigid pieces leave untold: per kind the pieces concerned and the farthest such a
+    piece's own rigid motion half-way is from where the pieces' joint would take it (a share of its
+    size), or for joints within rounding their tolerance (a share of the smaller piece's size)."""
+
+    apart: int = 0
+    apart_share: float = 0.0
+    apart_edges: float = 0.0  # the widest gap where links apart meet, in the finer piece's mean edge lengths
+    sliding: int = 0
+    sliding_share: float = 0.0
+    rounded: int = 0
+    rounded_share: float = 0.0
+
+    def __bool__(self) -> bool:
+        return bool(self.apart or self.sliding or self.rounded)
+
+
+def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
+                 reach: float, joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray
+                 ) -> JointDoubts | None:
+    """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
+    ``core.inbetween_topology._Topology``), or None where it has none. ``motions``: the pieces' best
+    rigid motions between the keys (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,);
+    ``reach``: the joint distance; ``joints``: :func:`core.inbetween_joints.joint_tree`'s answer
+    (``(parents (C,), order)`` or None); ``edges``: each piece's mean edge length (C,); ``misfits``:
+    each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
+    :meth:`~core.inbetween_topology._Topology.diagonals`). Only pairs of pieces in different joint
+    groups, and where the joint would move the child otherwise than its own motion does (a card
+    turning about its root above a still scalp moves as it would on it), count."""
+    pieces = np.flatnonzero(rigid)
+    if pieces.size < 2:
+        return None
+    doubts = JointDoubts()
+    parents = np.full(len(topo.components), -1) if joints is None else joints[0]
+    index, label = piece_vertices(topo, pieces)
+    rotations, translations = motions[0][pieces], motions[1][pieces]
+    size = sizes[pieces]
+    group = _groups(parents)[pieces]
+    stakes = _Stakes(base, index, label, rotations, translations)
+    children = np.flatnonzero(parents[pieces] >= 0)
+    if children.size:  # joints whose slide tolerance is a share of their pieces' size, where they move a piece
+        child = pieces[children]
+        precision = slide_precision(base[index], nxt[index], reach, misfits, parents[child], child)
+        share = precision / np.minimum(sizes[parents[child]], sizes[child])
+        doubtful = np.flatnonzero(share >= JOINT_DOUBT)
+        if doubtful.size:
+            stake = stakes.distances(np.searchsorted(pieces, parents[child[doubtful]]), children[doubtful])
+            doubtful = doubtful[stake > JOINT_STAKE * precision[doubtful]]
+            doubts.rounded = int(doubtful.size)
+            doubts.rounded_share = float(share[doubtful].max(initial=0.0))
+    key, ends, first = _touching(base, index, label, pieces.size, reach)
+    if key.size:  # touching in both keys and turning together, one sliding along the other
+        u, v = np.divmod(key[first], pieces.size)
+        nearest_base, _ = _closest(base, ends, first)
+        near = (nearest_base <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
+        relative = relative_motions(rotations, translations, u, v)
+        angle, _, _ = _screw_axes(*relative)
+        precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
+        smaller = np.minimum(size[u], size[v])
+        sliding = near & (angle * smaller <= precision) & (np.linalg.norm(relative[1], axis=1) > precision)
+        if sliding.any():
+            # still touching in the next key: a vertex sliding over the other piece's faces stays
+            # within that piece's edges of its vertices
+            coarser = JOINT_REACH * np.maximum(edges[pieces[u]], edges[pieces[v]])
+            sliding &= _nearest_pairs(nxt, index, label, pieces.size, float(coarser[sliding].max()), key[first],
+                                      sliding)[0] <= coarser
+        if sliding.any():
+            child = np.where(size[u] <= size[v], u, v)  # the smaller piece slides along the larger
+            parent = np.where(size[u] <= size[v], v, u)
+            stake = stakes.distances(parent[sliding], child[sliding])
+            off = stake > JOINT_STAKE * precision[sliding]
+            if off.any():
+                doubts.sliding = int(np.unique(child[sliding][off]).size)
+                doubts.sliding_share = float(np.max(stake[off] / size[child[sliding][off]]))
+    _links_apart(doubts, base, nxt, index, label, pieces, (rotations, translations), reach, edges, misfits, size,
+                 group, stakes)
+    return doubts if doubts else None
+
+
+def _groups(parents: np.ndarray) -> np.ndarray:
+    """Per piece (C,), its joint group: the root its parents (``parents`` (C,), −1 for roots) lead to."""
+    group = np.arange(parents.size)
+    for _ in range(parents.size):
+        step = np.where(parents[group] >= 0, parents[group], group)
+        if (step == group).all():
+            break
+        group = step
+    return group
+
+
+class _Stakes:
+    """How far a child's own rigid motion half-way (its screw at 0.5) is from its parent's composed
+    with the child's motion relative to it (both screws at 0.5), the farthest over the child's
+    vertices: what a joint between them would change."""
+
+    def __init__(self, base, index, label, rotations, translations):
+        self.points = base[index]  # the rigid pieces' vertices, piece by piece (``label`` ascending)
+        self.counts = np.bincount(label, minlength=len(rotations))
+        self.starts = np.r_[0, np.cumsum(self.counts)[:-1]]
+        self.motions = rotations, translations
+        self.half = screw_motions.rigid_exps(0.5 * screw_motions.rigid_logs(rotations, translations))
+
+    def distances(self, parent: np.ndarray, child: np.ndarray) -> np.ndarray:
+        """Per pair of pieces ``parent``, ``child`` (P,; indices among the rigid pieces), that distance."""
+        if not child.size:
+            return np.zeros(0)
+        local_rotations, local_translations = screw_motions.rigid_exps(
+            0.5 * screw_motions.rigid_logs(*relative_motions(*self.motions, parent, child)))
+        rotations, translations = self.half
+        counts = self.counts[child]
+        pair = np.repeat(np.arange(child.size), counts)  # every child vertex's pair, pair by pair
+        first = np.r_[0, np.cumsum(counts)[:-1]]
+        x = self.points[np.repeat(self.starts[child] - first, counts) + np.arange(counts.sum())]
+        c, p = child[pair], parent[pair]
+        own = np.einsum("kab,kb->ka", rotations[c], x) + translations[c]
+        local = np.einsum("kab,kb->ka", local_rotations[pair], x) + local_translations[pair]
+        joint = np.einsum("kab,kb->ka", rotations[p], local) + translations[p]
+        return np.maximum.reduceat(np.linalg.norm(own - joint, axis=1), first)
+
+
+def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, reach, edges, misfits, size,
+                 group, stakes: _Stakes) -> None:
+    """Count in ``doubts`` the rigid pieces (``pieces``, their vertices ``index`` with their ``label``;
+    ``motions``, ``size``, joint ``group``: theirs) that are links apart (:data:`JOINT_NEAR`): sought
+    among the pieces whose near distance exceeds their contact reach (the others are
+    :func:`core.inbetween_joints.joint_tree`'s), pair by pair over their vertices' KD-trees."""
+    from scipy.spatial import cKDTree  # noqa: PLC0415 (only meshes of several rigid pieces)
+
+    finest = contact_reach(reach, edges, pieces, pieces)
+    large = np.flatnonzero(JOINT_NEAR * size > finest)
+    if large.size < 2:
+        return
+    counts = np.bincount(label, minlength=pieces.size)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    centres = np.add.reduceat(base[index], starts) / counts[:, None]
+    radii = np.sqrt(np.maximum.reduceat(np.sum((base[index] - centres[label]) ** 2, axis=1), starts))
+    pairs = cKDTree(centres[large]).query_pairs(2.0 * radii[large].max() + JOINT_NEAR * size[large].max(),
+                                                output_type="ndarray")
+    if not pairs.size:
+        return
+    u, v = large[pairs[:, 0]], large[pairs[:, 1]]
+    smaller = np.minimum(size[u], size[v])
+    close = (np.linalg.norm(centres[u] - centres[v], axis=1) <= radii[u] + radii[v] + JOINT_NEAR * smaller) \
+        & (group[u] != group[v])
+    u, v, smaller = u[close], v[close], smaller[close]
+    relative_rotations, relative_translations = relative_motions(*motions, u, v)
+    angle, axis, slide = _screw_axes(relative_rotations, relative_translations)
+    precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
+    finer = contact_reach(reach, edges, pieces[u], pieces[v])
+    turning = np.flatnonzero((np.abs(slide) <= precision) & (angle * smaller > precision))
+    if not turning.size:
+        return
+    # what a joint would change (the smaller piece the child): nothing where the larger one is still
+    child = np.where(size[u] <= size[v], u, v)[turning]
+    parent = np.where(size[u] <= size[v], v, u)[turning]
+    stake = stakes.distances(parent, child)
+    trees: dict[tuple[int, int], cKDTree] = {}
+
+    def nearest(x, a, b, bound):  # the nearest vertices of pieces a and b in x (distance, midpoint) within bound
+        tree = trees.get((id(x), b))
+        if tree is None:
+            tree = trees[id(x), b] = cKDTree(x[index[label == b]])
+        points = x[index[label == a]]
+        distance, which = tree.query(points, distance_upper_bound=bound)
+        k = int(np.argmin(distance))
+        if not np.isfinite(distance[k]):
+            return np.inf, None
+        return float(distance[k]), 0.5 * (points[k] + tree.data[which[k]])
+
+    apart = set()
+    for p, a, b, risk in zip(turning, u[turning], v[turning], stake):
+        if not risk > JOINT_STAKE * precision[p]:
+            continue
+        bound = JOINT_NEAR * smaller[p]
+        gap_base, midpoint = nearest(base, a, b, bound)
+        if not finer[p] < gap_base <= bound:
+            continue
+        gap_next, _ = nearest(nxt, a, b, bound)
+        if not gap_next <= bound:
+            continue
+        # a point of the relative screw axis (x ↦ R x + t holds every p + λ · axis), in the base key
+        # as the midpoint is (the parent's motion undone)
+        held = np.linalg.lstsq(np.eye(3) - relative_rotations[p], relative_translations[p] - slide[p] * axis[p],
+                               rcond=None)[0]
+        offset = midpoint - held
+        if np.linalg.norm(offset - (offset @ axis[p]) * axis[p]) <= max(gap_base, gap_next) + precision[p]:
+            apart.update((int(a), int(b)))
+            doubts.apart_share = max(doubts.apart_share, float(risk / smaller[p]))
+            doubts.apart_edges = max(doubts.apart_edges, gap_base / float(min(edges[pieces[a]], edges[pieces[b]])))
+    doubts.apart = len(apart)
+
+
+def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -> list[str]:
+    """The warnings' messages (list of str) of gap ``gap`` of a sequence about its rigid pieces'
+    joints (:func:`joint_doubts`); ``key_names``: the keys as warnings name them."""
+    if not doubts:
+        return []
+    between = f"between {key_names[gap]} and {key_names[gap + 1]}"
+    problems = []
+    if doubts.apart:
+        problems.append(f"{between}, {doubts.apart} rigid piece(s) turn about a point between them and a piece "
+                        f"near them as jointed links do but stay up to {doubts.apart_edges:.1f} edge lengths from it "
+                        "where they meet (joints are found within one): each moves by its own rigid motion, up to "
+                        f"{100 * doubts.apart_share:.1f} % of its size off the joint's path half-way (links modelled "
+                        "within an edge length of each other where they meet are jointed)")
+    if doubts.sliding:
+        problems.append(f"{between}, {doubts.sliding} rigid piece(s) slide along a piece they touch while turning "
+                        "with it (as a finger sliding in a hand): sliding joints are not modelled, and each moves "
+                        f"by its own rigid motion, up to {100 * doubts.sliding_share:.1f} % of its size off the "
+                        "sliding joint's path half-way (keys closer together bring them nearer)")
+    if doubts.rounded:
+        problems.append(f"{between}, {doubts.rounded} joint(s) between rigid pieces are told from pieces touching "
+                        f"by chance only to {doubts.rounded_share:.1g} of their size (coordinates rounded in single "
+                        "precision far from the origin, or noise): pieces that merely touch (hair cards, debris) "
+                        "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)")
+    return problems
