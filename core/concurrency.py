@@ -4,24 +4,35 @@ The in-betweens of a gap and the embedding's raced starts (:mod:`core.embedding`
 independent computations whose time goes to NumPy array arithmetic and sparse products, which
 release Python's global lock, so two threads on two cores take less time than one piece after the
 other (numbers in docs/inbetweens.md and docs/design-decisions.md). The threads are kept for the
-life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between);
-each thread's BLAS is single-threaded meanwhile (two multithreaded BLAS calls at once
-oversubscribe the cores). A thread that hands out work does the first piece itself and, when it
-needs a result whose piece no thread has started, does that piece too (work stealing): no thread
-waits idle while work is queued, and work handed out from inside a piece (a gap prepared in the
-background computes its keys' relatives concurrently) cannot deadlock the pool. Every piece is
-computed as it would be alone: results depend on the number of threads only through the
-round-off of BLAS calls (~1e-14 relative), which a multithreaded BLAS sums in another order.
+life of the process (starting a pool costs milliseconds, as much as a small mesh's in-between).
+A thread that hands out work does the first piece itself and, when it needs a result whose piece
+no thread has started, does that piece too (work stealing): no thread waits idle while work is
+queued, and work handed out from inside a piece (a gap prepared in the background computes its
+keys' relatives concurrently) cannot deadlock the pool. Every piece is computed as it would be
+alone, with BLAS single-threaded (two multithreaded BLAS calls at once oversubscribe the cores; a
+multithreaded BLAS sums in another order, ~1e-14 relative), so the results do not depend on the
+number of threads.
+
+BLAS's thread count is the process's, not a thread's: :func:`single_threaded_blas` is one limit
+for the process, set by the first of its holders (of any thread: the in-betweens, the pieces,
+work handed to the background) and given back as it found it when the last lets go, so a
+computation inside it runs with one BLAS thread whatever else runs or ran before in the process
+(a gap still being prepared in the background included), and the process's own setting is back
+once no such work is left.
 """
 
 from __future__ import annotations
 
 import os
 import threading
+from contextlib import contextmanager
 
 _pool = None
 _pool_lock = threading.Lock()
 _controller = None  # see _blas_controller
+_limit_lock = threading.Lock()
+_limit_holders = 0  # the single_threaded_blas contexts open in the process
+_limiter = None  # threadpoolctl's limit while any is open (it gives back the original counts)
 
 
 def available_cores() -> int:
@@ -55,7 +66,14 @@ def in_background(function, *arguments):
     or None with a single core (the caller then does the work when it needs it)."""
     if available_cores() < 2:
         return None
-    return _shared_pool().submit(function, *arguments)
+    return _shared_pool().submit(_single_threaded, function, *arguments)
+
+
+def _single_threaded(function, *arguments):
+    """``function(*arguments)`` with BLAS single-threaded (work in the background holds the limit
+    itself: its caller may let go of its own before this work is done)."""
+    with single_threaded_blas():
+        return function(*arguments)
 
 
 def result(future, function, *arguments):
@@ -84,14 +102,29 @@ def _shared_pool():
         return _pool
 
 
+@contextmanager
 def single_threaded_blas():
-    """A context limiting BLAS to one thread (a no-op without threadpoolctl)."""
+    """A context limiting BLAS to one thread, shared by the process's threads (a no-op without
+    threadpoolctl): the first context opened sets the limit, the last one closed gives back the
+    counts the first found, whichever threads open and close them in whatever order. Also a
+    decorator (each call opens a context)."""
+    global _limit_holders, _limiter
     controller = _blas_controller()
     if controller is None:
-        from contextlib import nullcontext
-
-        return nullcontext()
-    return controller.limit(limits=1, user_api="blas")
+        yield
+        return
+    with _limit_lock:
+        if _limit_holders == 0:
+            _limiter = controller.limit(limits=1, user_api="blas")
+        _limit_holders += 1
+    try:
+        yield
+    finally:
+        with _limit_lock:
+            _limit_holders -= 1
+            if _limit_holders == 0:
+                _limiter.restore_original_limits()
+                _limiter = None
 
 
 def _blas_controller():

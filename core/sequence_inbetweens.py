@@ -46,7 +46,6 @@ from __future__ import annotations
 import numpy as np
 
 from .allocator import keep_heap
-from .errors import MeshError
 from .concurrency import in_background, result, single_threaded_blas
 from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
 from .inbetween_keys import _Relative
@@ -109,22 +108,21 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
     exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the
     source's frame in the middle of the last gap.
 
-    :attr:`key_names`: the keys as warnings name them: ``key_names`` (K strings, such as the
-    frames of a cache's samples, :func:`core.retime.iter_retime`), else ``"key pose i"``; a sequence
-    keyed on some of another's keys names them as that one does (:func:`core.retime.iter_retime`'s
-    short last gap), so that a caller naming ``"key pose i"`` (the operators: by frame) reads one
-    numbering.
+    :attr:`key_names`: the keys as errors and warnings name them: ``key_names`` (K strings, such as
+    the frames of a cache's samples, :func:`core.retime.iter_retime`, or the operators' frames),
+    else ``"key pose i"``; a sequence keyed on some of another's keys names them as that one does
+    (:func:`core.retime.iter_retime`'s short last gap).
     """
 
+    @single_threaded_blas()  # one BLAS thread, as in _poses: the same keys whatever ran before in the process
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
                  key_times=None, end: str = "keys", key_names=None):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start, end = check_start(start), check_end(end)
-        key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth)  # noqa: E501
+        key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(
+            key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth, key_names)
         key_times = check_key_times(key_times, len(key_poses))
-        if key_names is not None and len(key_names) != len(key_poses):
-            raise MeshError(f"key_names must name each of the {len(key_poses)} key poses; got {len(key_names)}.")
         self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end,
                     key_names=key_names)
 
@@ -260,6 +258,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
             _warn(message)
         return out
 
+    # BLAS single-threaded: its calls here are (n, 3) × (3, 3) products, which a second BLAS thread
+    # does not speed up; its workers spin on the core the other half of the work needs (10k hanging
+    # sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread). One thread also whatever
+    # ran before in the process: the same poses to the bit (core.concurrency).
+    @single_threaded_blas()
     def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[str]]:
         """:meth:`poses` and the warnings' messages, not yet given (the caller warns: a warning
         filter changed around the call would be the process's, not this thread's)."""
@@ -278,13 +281,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         if not between or self._hold(gap):  # a hold: the pose at every factor
             out[between] = self._given[gap]
             return (out if self._copies is None else out[:, self._copies]), []
-        # BLAS single-threaded meanwhile: its calls here are (n, 3) × (3, 3) products, which a
-        # second BLAS thread does not speed up; its workers spin on the core the other half of the
-        # work needs (10k hanging sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread)
-        with single_threaded_blas():
-            segment = self._gap(gap)
-            self._prepare_in_background(gap + 1)
-            solved = gap_poses(segment, [factors[k] for k in between])
+        segment = self._gap(gap)
+        self._prepare_in_background(gap + 1)
+        solved = gap_poses(segment, [factors[k] for k in between])
         problems = turn_warnings(segment, self.key_names, gap) + joint_warnings(segment.joint_doubts, self.key_names, gap)
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):

@@ -60,8 +60,8 @@ class SequenceKeys:
         self.start, self.end = start, end
         self._key_times = key_times
         # the keys as messages name them (the caller's names: the operators name frames or shape keys)
-        default = ["vertices_a", "vertices_b"] if two_poses else [f"key pose {i}" for i in range(len(key_poses))]
-        self.key_names = default if key_names is None else [str(name) for name in key_names]
+        self.key_names = [f"key pose {i}" for i in range(len(key_poses))] if key_names is None else \
+            [str(name) for name in key_names]
         # each gap's duration (K − 1,); evenly spaced keys: all 1
         self._durations = np.ones(len(key_poses) - 1) if key_times is None else np.diff(key_times)
         keys = [np.asarray(k) for k in key_poses]

@@ -35,7 +35,7 @@ import warnings
 from .concurrency import single_threaded_blas
 from .errors import MeshError, ShapeDifferenceWarning
 from .seams import relative_round_off, seam_sides, warn_seam_folds
-from .validation import check_count
+from .validation import check_count, check_key_names
 
 #: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
 #: the differences' Frobenius norm is round-off, not a difference between poses: identical poses
@@ -166,7 +166,7 @@ def pose_differences(layer, positions: np.ndarray, k_M: int, k_N: int | None):
 
 
 def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None,
-                      single_precision: bool | None = None):
+                      single_precision: bool | None = None, key_names=None):
     """:func:`shape_space` as a generator yielding progress in ``[0, 1]`` after each pose; its
     return value (``StopIteration.value``, or ``yield from``) is the :class:`ShapeSpace`."""
     from .laplace_basis import basis_sizes
@@ -177,6 +177,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     poses = list(poses)
     if len(poses) < 2:
         raise MeshError(f"A shape space needs at least two poses (a base and one more); got {len(poses)}.")
+    names = check_key_names(key_names, len(poses), [f"key pose {index}" for index in range(len(poses))])
     if not k_M:
         raise MeshError(
             "A shape space compares k_M × k_M difference matrices: set k_M (e.g. 50); the full "
@@ -184,7 +185,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
         )
     k_M, k_N = basis_sizes(k_M, k_N)
     try:
-        reference = ReferenceShape(poses[0], triangles, offset=offset)
+        reference = ReferenceShape(poses[0], triangles, offset=offset, name=names[0])
     except MeshError as error:
         if "no edge shared by two triangles" not in str(error):
             raise
@@ -200,7 +201,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     compacts = []
     with single_threaded_blas():
         for index, pose in enumerate(poses):
-            compact = reference.compact_pose(pose, name=f"key pose {index}")
+            compact = reference.compact_pose(pose, name=names[index])
             compacts.append(compact)
             layers = [(reference.base, compact, KINDS[:2]),
                       (reference.offset_layer, reference.surface.positions(compact, reference.offset), KINDS[2:])]
@@ -224,7 +225,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
 
 
 def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None,
-                single_precision: bool | None = None) -> ShapeSpace:
+                single_precision: bool | None = None, key_names=None) -> ShapeSpace:
     """PCA embedding of a collection of poses of one mesh by their shape differences (§8.1).
 
     ``poses``: a sequence of float64 ``(n, 3)`` arrays (or one ``(N, n, 3)`` array), ``poses[0]``
@@ -233,11 +234,14 @@ def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offse
     ``None`` for eq. (5) (no per-pose eigensolve — much faster, exact in the base basis);
     ``offset``: the offset distance t (``None``: half the base's mean edge length);
     ``single_precision``: whether the poses were stored in single precision (Blender's keys and
-    frames; ``None``: where every coordinate is a float32), which sizes ``ShapeSpace.round_off``.
-    Raises :class:`~core.errors.MeshError` for fewer than two poses, a mismatched pose (its index
-    is named) or basis sizes the mesh cannot have.
+    frames; ``None``: where every coordinate is a float32), which sizes ``ShapeSpace.round_off``;
+    ``key_names``: the poses as errors name them (one string per pose, such as the operators' shape
+    keys or frames; default ``"key pose i"``).
+    Raises :class:`~core.errors.MeshError` for fewer than two poses, a mismatched pose (its name
+    is given) or basis sizes the mesh cannot have.
     """
-    steps = shape_space_steps(poses, triangles, k_M=k_M, k_N=k_N, offset=offset, single_precision=single_precision)
+    steps = shape_space_steps(poses, triangles, k_M=k_M, k_N=k_N, offset=offset, single_precision=single_precision,
+                              key_names=key_names)
     while True:
         try:
             next(steps)

@@ -23,8 +23,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .allocator import keep_heap
+from .concurrency import single_threaded_blas
 from .inbetween_prediction import STILL_RIGIDITY
-from .validation import check_factor, check_interpolation
+from .validation import check_factor, check_interpolation, check_key_names
 from .sequence_inbetweens import SequenceInterpolator
 from .sequence_warnings import _warn
 
@@ -41,15 +42,20 @@ class Interpolator:
     from the poses). ``use_extrinsic=False`` interpolates the intrinsic metric only (bending then
     follows the linear blend). Vertices whose neighbourhood only translates from ``a`` to ``b``
     are anchored to the linear blend: parts that do not move stay where they are at every factor.
+    ``key_names``: the two poses as errors and warnings name them (such as the operators' shape
+    keys), else ``"vertices_a"`` and ``"vertices_b"``.
     """
 
+    @single_threaded_blas()  # as a sequence's (SequenceInterpolator): the same poses whatever ran before
     def __init__(self, vertices_a, vertices_b, triangles, *, k_M: int | None = None, k_N: int | None = None,
-                 offset: float | None = None, use_extrinsic: bool = True):
+                 offset: float | None = None, use_extrinsic: bool = True, key_names=None):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
+        key_names = check_key_names(key_names, 2, ["vertices_a", "vertices_b"])
         poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
-            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=("vertices_a", "vertices_b"))
+            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
-        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True)
+        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True,
+                              key_names=key_names)
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
@@ -109,6 +115,7 @@ class Interpolator:
         lengths = self._squared_lengths(x)
         return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
 
+    @single_threaded_blas()
     def pose(self, factor: float) -> np.ndarray:
         """0 → a, 1 → b (as given), 0.5 in-between, 1.5 exaggeration, negative: the motion reversed. An
         in-between of the full basis is fitted twice, with the rotations as residuals to each

@@ -9,7 +9,8 @@ number or ``"False"`` as a flag are errors, not conversions). Inputs are never m
 Checks: :func:`check_vertices`, :func:`check_triangles`, :func:`check_mesh` (both, plus the
 topology: manifold edges *and* vertices, consistent orientation), :func:`check_basis_sizes`,
 :func:`check_offset`, :func:`check_factor`, :func:`check_gap_index`, :func:`check_time`,
-:func:`check_flag`, :func:`check_key_poses`, :func:`check_output_memory`, :func:`check_working_memory`;
+:func:`check_flag`, :func:`check_key_poses`, :func:`check_key_names`, :func:`check_output_memory`,
+:func:`check_working_memory`;
 :func:`numerical_failures` turns a solver's raw
 exception into a :class:`~core.errors.RecoveryError`.
 """
@@ -371,17 +372,29 @@ def check_key_times(value, count: int) -> np.ndarray | None:
     return times
 
 
-def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses") -> list[np.ndarray]:
+def check_key_names(key_names, count: int, default: list[str], what: str = "poses") -> list:
+    """The names of ``count`` poses in messages: ``key_names`` (one per pose, such as the operators'
+    frames or shape keys), else ``default``. Raises :class:`MeshError` unless one per pose."""
+    if key_names is None:
+        return default
+    if len(key_names) != count:
+        raise MeshError(f"key_names must name each of the {count} {what}; got {len(key_names)}.")
+    return list(key_names)
+
+
+def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses", key_names=None) -> list[np.ndarray]:
     """Key poses as a list of float64 ``(n, 3)`` arrays with one vertex count (from a list of
-    arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate."""
+    arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate.
+    ``key_names``: the poses' names in messages (K strings; default ``key pose i of`` ``name``)."""
     if isinstance(key_poses, (str, bytes)) or not hasattr(key_poses, "__iter__"):
         raise MeshError(f"{name} must be a sequence of vertex arrays (n, 3); got {type(key_poses).__name__}.")
     poses = list(key_poses)
     if len(poses) < minimum:
         raise MeshError(f"A sequence needs at least {minimum} key poses; got {len(poses)}.")
-    first = check_vertices(poses[0], name=f"key pose 0 of {name}")
-    return [first] + [check_vertices(p, first.shape[0], name=f"key pose {i} of {name}") for i, p in
-                      enumerate(poses[1:], start=1)]
+    names = check_key_names(key_names, len(poses), [f"key pose {i} of {name}" for i in range(len(poses))],
+                            "key poses")
+    first = check_vertices(poses[0], name=names[0])
+    return [first] + [check_vertices(p, first.shape[0], name=n) for p, n in zip(poses[1:], names[1:])]
 
 
 def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, *,
@@ -454,10 +467,11 @@ def numerical_failures(what: str):
         ) from error
 
 
-def check_sequence(key_poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, smooth=True):
+def check_sequence(key_poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, smooth=True,
+                   key_names=None):
     """:func:`check_key_poses` and :func:`check_interpolation` for a sequence constructor, plus its
-    ``smooth`` flag. Returns ``(key_poses list of float64 (n, 3), k_M, k_N, offset, use_extrinsic,
-    smooth, topology)``."""
+    ``smooth`` flag; ``key_names``: the keys' names in messages (K strings, or None). Returns
+    ``(key_poses list of float64 (n, 3), k_M, k_N, offset, use_extrinsic, smooth, topology)``."""
     poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
-        check_key_poses(key_poses), triangles, k_M, k_N, offset, use_extrinsic)
+        check_key_poses(key_poses, key_names=key_names), triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
     return poses, k_M, k_N, offset, use_extrinsic, check_flag(smooth, "smooth"), topology

@@ -15,8 +15,8 @@ from ..properties import AnalysisBasis, CaptureStep
 from .motion_sources import refuse_emptying_caches, simulations_emptied_by
 from .output import require_local
 from .base import (SCENE_SETTING, GeneratorOperator, InputError, check_basis_order, check_basis_size,
-                   default_pose_key, key_blocks_of, key_pose, mesh_pose, offset_option, report, resolve_key,
-                   surface_triangles)
+                   default_pose_key, frame_name, key_blocks_of, key_pose, mesh_pose, offset_option, report,
+                   resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -136,13 +136,13 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         if self.source == 'KEYS':
             key_blocks = key_blocks_of(obj, 2)
             names = [key_block.name for key_block in key_blocks]
-            self.pose_names = [f"shape key '{name}'" for name in names]
+            pose_names = [f"shape key '{name}'" for name in names]
             poses = [key_pose(key_block, obj) for key_block in key_blocks]
             yield 0.0
         else:
             frames = self.frames(context)
             names = [frame_key_name(frame) for frame in frames]
-            self.pose_names = [f"frame {frame}" for frame in frames]
+            pose_names = [frame_name(frame) for frame in frames]
             poses = yield from self.read_frames(context, obj, frames, 0.1, matrices)
         from ..core.shape_space_pca import shape_space_steps
 
@@ -152,7 +152,8 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         poses = [space.to(pose, time) for pose, time in zip(poses, frames or [None] * len(poses))]
         space = yield from _drive(
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
-                              offset=self.resolved_offset(context), single_precision=True), 0.1, 0.85)
+                              offset=self.resolved_offset(context), single_precision=True, key_names=pose_names),
+            0.1, 0.85)
         data = {
             "source": self.source,
             "poses": names,

@@ -29,24 +29,6 @@ class InputError(Exception):
     """Bad selection or settings: the message says what is wrong and how to fix it."""
 
 
-# The core names poses "key pose i" (sequences) or "vertices_a" / "vertices_b" (two poses).
-POSE_REFERENCE = re.compile(r"\bkey pose (\d+)\b|\bvertices_([ab])\b")
-
-
-def name_poses(message: str, pose_names) -> str:
-    """``message`` with the core's "key pose i" (or "vertices_a" / "vertices_b") replaced by the
-    name of the i-th pose the operator passed (a shape key or a frame), so users read the names
-    they know."""
-    if not pose_names:
-        return message
-
-    def named(match):
-        index = int(match.group(1)) if match.group(1) else "ab".index(match.group(2))
-        return pose_names[index] if index < len(pose_names) else match.group(0)
-
-    return POSE_REFERENCE.sub(named, message)
-
-
 # The core numbers the mesh's triangles in the order it was given them, Blender's loop triangles
 # (those of its offset surface too, "triangle 57 of the offset surface": not the mesh's).
 TRIANGLE_REFERENCE = re.compile(r"\b([Tt]riangles?) (\d+)(?: and (\d+))?\b(?! of the offset surface)(?: \(([^()]*)\))?")
@@ -115,7 +97,7 @@ def check_basis_size(label: str, k: int, where: str = "", zero: str | None = Non
         raise InputError(f"{label}{where} = {k} must be {allowed} (typically 50–300)")
 
 
-def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> str | None:
+def reported_error(error: BaseException, triangle_faces=None) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
     if isinstance(error, (InputError, bridge.FrameReadError)):
         return str(error)
@@ -125,7 +107,7 @@ def reported_error(error: BaseException, pose_names=(), triangle_faces=None) -> 
                 "zip built for your platform (it bundles SciPy and threadpoolctl), then restart Blender.")
     core = load_core()
     if isinstance(error, core.ShapeDifferenceError):
-        return name_faces(name_remedies(name_poses(str(error), pose_names)), triangle_faces)
+        return name_faces(name_remedies(str(error)), triangle_faces)
     return None
 
 
@@ -184,11 +166,8 @@ def report(operator, kind: set[str], message: str) -> None:
 
 
 class GeneratorOperator:
-    """Mixin for operators whose work is the generator ``run(context)``.
-
-    ``run`` may set ``self.pose_names`` (the names of the poses it hands to the core, in order)
-    so that core messages about "key pose i" name them.
-    """
+    """Mixin for operators whose work is the generator ``run(context)``; the core calls it makes
+    name the poses they hand over (``key_names``: shape keys, frames) for the core's messages."""
 
     bl_options = {'REGISTER', 'UNDO'}
 
@@ -234,7 +213,6 @@ class GeneratorOperator:
         self._job = self.run(context)
         self._warnings: list[str] = []
         self.summary = ""
-        self.pose_names = ()
         self.triangle_faces = None
 
     def _step(self) -> tuple[str | None, float]:
@@ -248,7 +226,7 @@ class GeneratorOperator:
                 except StopIteration:
                     return 'FINISHED', 1.0
                 except Exception as error:
-                    message = reported_error(error, self.pose_names, self.triangle_faces)
+                    message = reported_error(error, self.triangle_faces)
                     if message is None:
                         raise
                     report(self, {'ERROR'}, message)
@@ -264,7 +242,7 @@ class GeneratorOperator:
                 warnings.showwarning(warning.message, warning.category, warning.filename,
                                      warning.lineno)
                 continue
-            message = name_faces(name_poses(str(warning.message), self.pose_names), self.triangle_faces)
+            message = name_faces(str(warning.message), self.triangle_faces)
             if message not in self._warnings:
                 self._warnings.append(message)
 
@@ -404,6 +382,12 @@ def surface_triangles(obj, operator=None):
     if operator is not None and len(triangles) > len(obj.data.polygons):
         operator.triangle_faces = bridge.loop_triangle_polygons(obj.data)
     return triangles
+
+
+def frame_name(frame) -> str:
+    """Frame ``frame`` as messages name a pose taken there ("frame 25"): the name the operators
+    hand the core with such poses (``key_names``, ``sample_names``)."""
+    return f"frame {frame}"
 
 
 def finite_pose(positions, what: str):

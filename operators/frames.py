@@ -12,7 +12,7 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, load_core,
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, frame_name, load_core,
                    playback_range, report, require_count, surface_triangles)
 from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside,
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
@@ -205,7 +205,6 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
-        self.pose_names = [f"frame {frame}" for frame in frames]
         # the last frame keys the sequence too, at its time (the gap before sees it so)
         keyed = frames + ([end] if tail else [])
         # how the motion leaves the first key and reaches the last: told by the frames in the middle
@@ -220,7 +219,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
-                                           triangles, **options, key_times=keyed)
+                                           triangles, **options, key_times=keyed,
+                                           key_names=[frame_name(f) for f in keyed])
         names, tails, all_poses, timeline = [], [], [], []
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
         spans = [(gap, frame, next_frame, factors) for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:]))]
@@ -243,9 +243,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             timeline.append(frame)
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
             if gap is None and gap_factors:
-                self.pose_names = [f"frame {frame}" for frame in tail]
                 sequence = yield from self.compute(progress, retime.short_gap_sequence, scaled, triangles, tail,
-                                                   **options)
+                                                   **options, key_names=[frame_name(f) for f in tail])
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
@@ -317,7 +316,6 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
-        self.pose_names = [f"frame {frame}" for frame in key_frames]
         # the keys and the other samples the retime reads (core.retime.RetimePlan.samples_read: the shorter
         # last gap's keys, the middles of the first and last gaps)
         matrices = {}
@@ -337,7 +335,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
                 yield 0.1
         samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample], start + sample)
                                              for sample in plan.samples_read})
-        poses_out = retime.iter_retime(samples, triangles, plan, **options)
+        poses_out = retime.iter_retime(samples, triangles, plan, **options,
+                                       sample_names=lambda sample: frame_name(start + sample))
         retimed = []
         for index in range(plan.n_out):
             _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)

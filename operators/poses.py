@@ -57,12 +57,12 @@ class KeyPairProperties:
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_output(obj)
-        self.pose_names = (f"shape key '{start.name}'", f"shape key '{end.name}'")
         yield 0.0
         space = bridge.WorldProportions(obj)
         interpolator = yield from self.compute(
             0.0, load_core().Interpolator, space.to(bridge.shape_key_positions(start, obj)),
-            space.to(bridge.shape_key_positions(end, obj)), triangles, **options)
+            space.to(bridge.shape_key_positions(end, obj)), triangles, **options,
+            key_names=(f"shape key '{start.name}'", f"shape key '{end.name}'"))
         return start, end, InWorldProportions(interpolator, space)
 
 
@@ -132,15 +132,16 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         if options["k_M"] is None:  # the full basis recovers areas exactly where the triangles allow it
             triangles = bridge.area_recoverable_triangles(obj.data, triangles)
         self.check_output(obj)
-        self.pose_names = (f"shape key '{key_blocks[0].name}'", f"shape key '{key.name}'")
         yield 0.0
         core = load_core()
         base = bridge.shape_key_positions(key_blocks[0], obj)
         use_extrinsic = options.pop("use_extrinsic")
-        reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles, name="key pose 0",
+        reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles,
+                                            name=f"shape key '{key_blocks[0].name}'",
                                             offset=options.pop("offset"), use_extrinsic=use_extrinsic)
         differences = yield from self.compute(0.2, reference.shape_differences,
-                                              bridge.shape_key_positions(key, obj), name="key pose 1", **options)
+                                              bridge.shape_key_positions(key, obj), name=f"shape key '{key.name}'",
+                                              **options)
         pose = yield from self.compute(0.5, core.reconstruct, base, triangles, differences)
         tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"
         self.summary = self.write_poses(

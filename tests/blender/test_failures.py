@@ -1185,6 +1185,51 @@ def test_a_frame_with_a_nan_is_refused_by_its_number(bpy_empty, extension, tmp_p
     assert set(bpy.data.objects.keys()) == names and sorted(p.name for p in tmp_path.iterdir()) == ["exploded.pc2"]
 
 
+@pytest.mark.parametrize("operator, collapsed, options", [
+    ("inbetween_frames", 10, dict(count=1)),  # the last frame, a key of the sequence past the whole steps
+    ("retime", 7, dict(speed=1.0))])  # a key of the shorter last gap only, no key of the plan
+def test_a_collapsed_frame_is_named_by_its_number(bpy_empty, extension, tmp_path, operator, collapsed, options):
+    """Ten frames keyed every 4th: the key poses the core checks include frames that are no step of
+    the range (the last frame; the keys of the shorter last gap), which the core names as the operator
+    names them: "frame 10" (In-between Frames) and "frame 7" (Retime), not "key pose 3" nor frame 1."""
+    import importlib
+
+    sheet = grid_object(6)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    frames = np.array([rest + [0.0, 0.0, 0.1 * k * k] for k in range(10)])
+    frames[collapsed - 1, :, 0] = 0.0  # the sheet squashed onto a line: every triangle has zero area
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "collapsing.pc2", frames)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath, modifier.frame_start = 'PC2', str(path), 1.0
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 10
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         rf"Error: frame {collapsed}: triangle \d+ .* has zero area", frame_step=4,
+                         output='SHAPE_KEYS', **options)
+
+
+def test_a_warning_names_the_keys_by_their_frames(bpy_empty, extension, tmp_path, capfd):
+    """The core's warnings about a sequence's keys name them as the operator hands them over, by
+    frame, the last frame of a range that is no whole steps included (a sheet mirrored between frames 9
+    and 10: "from frame 9 to frame 10", where "key pose 3" was said)."""
+    import importlib
+
+    sheet = grid_object(6)
+    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = np.c_[rest[:, :2], 0.3 * rest[:, 0] ** 2 + 0.1 * rest[:, 1]]  # no plane: its mirror image is no motion
+    frames = np.array([rest + [0.01 * k, 0.0, 0.0] for k in range(10)])
+    frames[9] *= [-1.0, 1.0, 1.0]
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    path = point_cache.write_pc2(tmp_path / "mirrored.pc2", frames)
+    modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    modifier.cache_format, modifier.filepath, modifier.frame_start = 'PC2', str(path), 1.0
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 10
+    capfd.readouterr()
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    out = capfd.readouterr().out
+    assert "mirror image of themselves from frame 9 to frame 10" in out and "key pose" not in out, out
+
+
 @pytest.mark.parametrize("where, named", [("Bend", "shape key 'Bend' of 'Source'"),
                                           ("Basis", "shape key 'Basis' of 'Source'"),
                                           ("target", "the mesh of 'Sheet'")])

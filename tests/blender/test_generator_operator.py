@@ -34,7 +34,7 @@ class FakeWindowManager:
         self.handlers += 1
 
 
-def make_job(extension, log, fail_with=None, warn=None, pose_names=()):
+def make_job(extension, log, fail_with=None, warn=None):
     base = extension.operators.base
 
     class Job(base.GeneratorOperator):
@@ -44,7 +44,6 @@ def make_job(extension, log, fail_with=None, warn=None, pose_names=()):
         def run(self, context):
             try:
                 log.append("validated")
-                self.pose_names = pose_names
                 yield 0.0
                 yield 0.5
                 if warn:
@@ -119,17 +118,6 @@ def test_core_warnings_become_warning_reports(extension, core):
     job = make_job(extension, log, warn=warning)
     assert job.execute(SimpleNamespace()) == {'FINISHED'}
     assert log[-2:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done")]
-
-
-def test_warnings_name_the_gap_by_the_frames_of_its_keys(extension, core):
-    """A sequence's warning names its gap by its keys ("between key pose 3 and key pose 4",
-    tests/core/test_sequence_inbetweens.py), which the operator names as the user knows them: frames
-    25 and 33, not a 0-based gap index."""
-    log = []
-    warning = core.ShapeDifferenceWarning("pose at factor 0.5 between key pose 3 and key pose 4: 3 triangle(s) flipped")
-    job = make_job(extension, log, warn=warning, pose_names=[f"frame {1 + 8 * i}" for i in range(5)])
-    assert job.execute(SimpleNamespace()) == {'FINISHED'}
-    assert log[-2] == ({'WARNING'}, "pose at factor 0.5 between frame 25 and frame 33: 3 triangle(s) flipped")
 
 
 def test_escape_is_answered_while_a_core_call_runs(extension):

@@ -10,15 +10,9 @@ from scipy.spatial.transform import Rotation
 
 import core
 from core.rigid_alignment import pivoted_alignment
+from inbetween_helpers import _flipped
 
 DATA = Path(__file__).parent / "data" / "pinned_handkerchief.npz"
-
-
-def _flipped(x, a, b, triangles):
-    def normals(p):
-        return np.cross(p[triangles[:, 1]] - p[triangles[:, 0]], p[triangles[:, 2]] - p[triangles[:, 0]])
-    n = normals(x)
-    return int(np.sum((np.einsum("ij,ij->i", n, normals(a)) < 0) & (np.einsum("ij,ij->i", n, normals(b)) < 0)))
 
 
 @pytest.mark.parametrize("pivots, free", [(3, 0), (2, 1), (1, 3)])

@@ -634,6 +634,105 @@ def test_blas_threads_are_given_back(strip):
     assert [info["num_threads"] for info in threadpoolctl.threadpool_info()] == before
 
 
+#: In-betweens of a 5,184-vertex draped sheet (over CONCURRENT_VERTICES: the next gap is prepared in the
+#: background): a sequence's at 0.5 of each gap, two poses' at 0.5 (:func:`test_same_in_betweens_whatever_ran_before`).
+_REPEATED = """
+import hashlib, sys
+sys.path[:0] = [{root!r}, {tests!r}]
+from core import Interpolator, SequenceInterpolator
+from meshes import drape, grid
+
+flat, triangles = grid(72, jitter=0.3)
+keys = [drape(flat, 0.2 + 0.4 * k) for k in range(5)]
+
+def sequence(gaps=4):
+    seq = SequenceInterpolator(keys, triangles)
+    return seq, hashlib.sha1(b"".join(seq.pose(k, 0.5).tobytes() for k in range(gaps))).hexdigest()
+
+def two_poses():
+    return hashlib.sha1(Interpolator(keys[1], keys[2], triangles).pose(0.5).tobytes()).hexdigest()
+"""
+
+
+def test_same_in_betweens_whatever_ran_before(monkeypatch):
+    """A sequence's in-betweens, and two poses' computed after it, are to the bit those of a fresh
+    process, also after or while a gap prepared in the background outlasts the in-betweens asked
+    for (slowed here): BLAS's thread count is the process's, and that work holds its own limit of
+    one thread (core.concurrency) instead of leaving the limit it found under what follows."""
+    import subprocess
+    import sys
+    import threading
+    import time
+    from concurrent.futures import wait
+
+    from core import concurrency, sequence_keys
+
+    if concurrency.available_cores() < 2:
+        pytest.skip("one core: no gap is prepared in the background")
+    tests = str(Path(__file__).resolve().parent)
+    code = _REPEATED.format(root=str(Path(tests).parents[1]), tests=tests)
+    fresh = subprocess.run([sys.executable, "-c", code + "print(two_poses()); print(sequence()[1])"],
+                           capture_output=True, text=True, timeout=300, check=True).stdout.split()
+    original = sequence_keys.concurrently
+
+    def slowed(function, items, **options):  # a background gap's relatives finish late
+        if threading.current_thread() is threading.main_thread():
+            return original(function, items, **options)
+        return original(lambda item: (function(item), time.sleep(0.2))[0], items, **options)
+
+    monkeypatch.setattr(sequence_keys, "concurrently", slowed)
+    scope: dict = {}
+    exec(code, scope)
+    assert scope["sequence"]()[1] == fresh[1]
+    assert scope["two_poses"]() == fresh[0]
+    seq, _ = scope["sequence"](gaps=1)
+    assert scope["two_poses"]() == fresh[0]  # the next gap being prepared meanwhile
+    wait(list(seq._pending.values()))
+    seq, _ = scope["sequence"](gaps=1)
+    wait(list(seq._pending.values()))  # ... and done
+    assert scope["two_poses"]() == fresh[0]
+
+
+def test_background_work_holds_its_own_blas_limit():
+    """Work handed to the background runs with one BLAS thread after its caller's limit is let go,
+    and the process's BLAS thread counts are back as they were once every holder has let go, in
+    whatever order (here the background work's own limit, taken inside the caller's, last)."""
+    import threading
+
+    pytest.importorskip("threadpoolctl")
+    from core import concurrency
+
+    if concurrency.available_cores() < 2:
+        pytest.skip("one core: no work in the background")
+    controller = concurrency._blas_controller()  # NumPy's and SciPy's BLAS (not those loaded later, as cvxpy's)
+
+    def counts():
+        return [info["num_threads"] for info in controller.info() if info["user_api"] == "blas"]
+
+    # work earlier tests left in the pool (a sequence's next gap prepared in the background) ends
+    # first: it holds the limit, which gives back the counts found when it was taken
+    cores = concurrency.available_cores()
+    idle = threading.Barrier(cores)
+    for future in [concurrency.in_background(idle.wait) for _ in range(cores)]:
+        future.result()
+    started, release = threading.Event(), threading.Event()
+
+    def work():
+        with concurrency.single_threaded_blas():  # as concurrently() does within a gap prepared there
+            started.set()
+            release.wait(60)
+        return counts()
+
+    with controller.limit(limits=2, user_api="blas"):  # the process's own setting
+        before = counts()
+        with concurrency.single_threaded_blas():
+            future = concurrency.in_background(work)
+            assert started.wait(60)
+        release.set()
+        assert future.result() == [1] * len(before)
+        assert counts() == before and max(before) == 2  # (a BLAS built single-threaded stays at 1)
+
+
 def test_intrinsic_only_and_input_errors(strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
@@ -645,6 +744,28 @@ def test_intrinsic_only_and_input_errors(strip):
         SequenceInterpolator([a], tri)
     with pytest.raises(IndexError):
         SequenceInterpolator([a, b], tri).pose(1, 0.5)
+
+
+def test_errors_name_the_keys_by_the_callers_names(strip):
+    """A key the in-betweens refuse is named by ``key_names`` (the operators' frames and shape
+    keys), a sequence's and two poses' alike; without them, by its place ("key pose 2",
+    "vertices_b")."""
+    flat, tri = strip
+    keys = [_bend(flat, 0.3 * k) for k in range(4)]
+    keys[2] = keys[2] * [0.0, 1.0, 0.0]  # squashed onto a line: every triangle has zero area
+    named = [f"frame {1 + 4 * k}" for k in range(4)]
+    with pytest.raises(MeshError, match="^frame 9: triangle .* zero area"):
+        SequenceInterpolator(keys, tri, key_names=named)
+    with pytest.raises(MeshError, match="^key pose 2: triangle .* zero area"):
+        SequenceInterpolator(keys, tri)
+    with pytest.raises(MeshError, match="^frame 5 has 179 vertices but"):
+        SequenceInterpolator([keys[0], keys[1][:-1]], tri, key_names=named[:2])
+    with pytest.raises(MeshError, match="^shape key 'Squashed': triangle .* zero area"):
+        Interpolator(keys[0], keys[2], tri, key_names=("shape key 'Basis'", "shape key 'Squashed'"))
+    with pytest.raises(MeshError, match="^vertices_b: triangle .* zero area"):
+        Interpolator(keys[0], keys[2], tri)
+    with pytest.raises(MeshError, match="key_names must name each of the 2 poses; got 3"):
+        Interpolator(keys[0], keys[1], tri, key_names=named[:3])
 
 
 def test_evicted_gaps_are_freed_at_once(strip):

@@ -116,6 +116,15 @@ def test_bad_inputs_name_the_problem(bump_collection):
         core.shape_space(poses[:3], t, k_M=None, k_N=None)
     with pytest.raises(core.MeshError, match="pose 2"):
         core.shape_space([poses[0], poses[1], poses[2][:-1]], t, k_M=10, k_N=20)
+    # named by the caller's names (the operators': shape keys, frames), the base pose too
+    named = ["frame 1", "frame 5", "frame 9"]
+    with pytest.raises(core.MeshError, match="^frame 9 has 195 vertices but"):
+        core.shape_space([poses[0], poses[1], poses[2][:-1]], t, k_M=10, k_N=20, key_names=named)
+    with pytest.raises(core.MeshError, match="^frame 1: .*non-finite"):
+        core.shape_space([np.where(np.arange(len(poses[0]))[:, None] == 3, np.nan, poses[0]), poses[1], poses[2]], t,
+                         k_M=10, k_N=20, key_names=named)
+    with pytest.raises(core.MeshError, match="key_names must name each of the 3 poses; got 2"):
+        core.shape_space(poses[:3], t, k_M=10, k_N=20, key_names=named[:2])
     space = core.shape_space(poses[:3], t, k_M=10, k_N=20)
     with pytest.raises(core.MeshError, match="kind must be one of"):
         space.coordinates("volume")

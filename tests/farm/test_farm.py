@@ -356,6 +356,63 @@ def test_flamenco_job_runs_chunks_then_merge(job):
     assert "bl_ext.user_default.shape_differences.core.__main__" in command["parameters"]["args"][1]
 
 
+#: What `blender -b --python-exit-code 2 --python-expr SCRIPT` does with the runner "blender"'s
+#: SCRIPT (argv[1]), for a plain Python: the extension is importable under its module name ("ext"),
+#: an uncaught exception exits 2, and sys.exit(code) exits with that code (Blender's bpy_atexit
+#: closes Blender, then Python exits). With argv[2] "cancel" the task is cancelled with SIGTERM,
+#: as a farm does, as its output is being written.
+BLENDER_PYTHON_EXPR = """
+import os, signal, sys, types
+extension = types.ModuleType("ext")
+extension.__path__ = [{root!r}]
+sys.modules["ext"] = extension
+if sys.argv[2:] == ["cancel"]:
+    import ext.core.point_cache as point_cache
+    write = point_cache._write_atomically
+
+    def cancelled(path, blocks, **options):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return write(path, blocks, **options)
+
+    point_cache._write_atomically = cancelled
+try:
+    exec(sys.argv[1], {{"__name__": "__main__"}})
+except Exception:
+    import traceback
+    traceback.print_exc()
+    sys.exit(2)
+"""
+
+
+@pytest.mark.skipif(NODE is None, reason="node is not installed")
+def test_flamenco_blender_runner_exits_with_the_command_s_status(job, tmp_path):
+    """The runner "blender"'s chunk task exits as the command does: 0 done, 2 refused, 143 when the
+    farm cancels it with SIGTERM (it said 2, through a failed assert, so a cancelled task read as a
+    failed one, with an AssertionError traceback in its log), the chunk file removed."""
+    folder, cache, topology, single = job
+    settings = dict(input_cache=str(cache), topology=str(topology), output_cache=str(tmp_path / "out.pc2"),
+                    chunk_directory=str(tmp_path), step=4, speed=0.5, chunks=2, runner="blender",
+                    extension_module="ext")
+    (command,) = compile_flamenco_job(settings)[0]["commands"]
+    assert command["parameters"]["argsBefore"] == ["--python-exit-code", "2"]
+    script = command["parameters"]["args"][1]
+    expr = BLENDER_PYTHON_EXPR.format(root=str(ROOT))
+
+    def run(script, *how):
+        return subprocess.run([sys.executable, "-c", expr, script, *how], cwd=tmp_path, capture_output=True,
+                              text=True, timeout=300)
+
+    cancelled = run(script, "cancel")
+    assert cancelled.returncode == 128 + 15, cancelled.stderr
+    assert cancelled.stderr.splitlines()[-1] == "retime: cancelled (SIGTERM), nothing written"
+    assert not (tmp_path / "chunk1.pc2").exists()
+    refused = run(script.replace(str(topology), str(tmp_path / "missing.obj")))
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr, refused.stderr
+    done = run(script)
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "chunk1.pc2").exists()
+
+
 @pytest.mark.skipif(OPENJD is None, reason="openjd-cli is not installed (requirements-dev.txt)")
 def test_openjd_refuses_a_bad_output_before_any_chunk_is_computed(job, tmp_path):
     """An OutputCache the merge cannot write (under a file) or that is the job's input: the first
