@@ -12,6 +12,7 @@ import numpy as np
 from . import deformation_fields as df
 from . import screw_motions
 from .inbetween_keys import turn_spread
+from .inbetween_motion import RIGID_PLACEMENT_SCALE
 from .splines import REST_START_LIMIT
 
 if TYPE_CHECKING:
@@ -25,6 +26,20 @@ FLYING_MIN_TURN = 1e-6
 #: turned about: a point of a hinge's axis or a flying body's centre meets it to round-off (1e-15
 #: of the size; a single-precision cache 1e-7).
 FLYING_TOLERANCE = 1e-4
+#: A deforming piece turning as a whole (non-rigidity, RMS misfit of its rigid fits over its size,
+#: over :data:`~core.inbetween_motion.RIGID_PLACEMENT_SCALE`, under the first share of
+#: :data:`~core.inbetween_motion.SIMILAR_SHAPE_MISFIT`; its guide is its interpolated rigid
+#: motion, :data:`core.inbetween_guide.ARC_GUIDE_STRAIN_RATIO`) turns about an axis line only where
+#: every key around the gap turns it about that line (:func:`_on_common_axis`: a cloth on a
+#: turntable) to this many times its non-rigidity (the fits' rotations and
+#: positions are known to about that; two keys' misses add up), else about its centroid, which
+#: follows its own path. Four rigid motions always have a point of zero third difference somewhere
+#: (the difference is an invertible map of the point but for a common axis), so a deforming body
+#: that tumbles and bounces (a cushion with internal springs falling onto a block: a point 1.1 of
+#: its size from its centre) would be turned about a point that is no hinge, as the screw turns it
+#: about an axis that is none (keys 16 frames apart: 1.164 × the blend's RMS; about its centre
+#: 1.014 ×, 0.957 × Catmull–Rom's). Numbers in docs/inbetweens.md, *Deforming bodies that tumble*.
+DEFORMING_AXIS_NOISE = 8.0
 #: Free flight up to an impact. The Catmull–Rom tangent at a gap's end key averages the velocity
 #: over the gap and the next one; when something stops the cloth right after that key (a sheet
 #: landing on a collider) it is too slow for the gap before, which is still in free flight, and
@@ -102,8 +117,9 @@ def after_impact(before, nxt, incoming, outgoing, start_limit: float | None) -> 
 
 def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
                   nonrigidity: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    """The rigid pieces of a sequence's gap turned about the point of theirs whose path the keys
-    say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
+    """The pieces ``rigid`` (bool (C,): the rigid ones, and deforming ones turning as a whole, see
+    :data:`DEFORMING_AXIS_NOISE`) of a sequence's gap turned about the point of theirs whose path
+    the keys say is simplest: ``(labels (C,), points (G, 3))``, each piece's group (pieces moving by one
     rigid motion from the gap's base key to its next, to 1e-6 or what their fits are known to:
     ``nonrigidity`` (C,) as :data:`~core.screw_motions.TURN_NOISE` says) or −1, and each
     group's point in the base key; None where no piece has a key before or after the gap to tell.
@@ -187,17 +203,22 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     np.maximum.at(group_spread, group, spread)
     move = screw_motions.least_squares_3x3(a, -residual, np.maximum(screw_motions.SCREW_CUTOFF, group_spread))
     point = centroid + move
-    simple = (np.linalg.norm(move, axis=1) <= reach) & (
+    # deforming groups (pieces turning as a whole: DEFORMING_AXIS_NOISE) take a point only on a common axis
+    noise = np.zeros(count)
+    np.maximum.at(noise, group, nonrigidity[candidates])
+    deforming = noise >= RIGID_PLACEMENT_SCALE
+    simple = ~deforming & (np.linalg.norm(move, axis=1) <= reach) & (
         np.linalg.norm(np.einsum("gab,gb->ga", a, point) + b, axis=1) <= FLYING_TOLERANCE * reach)
     # beyond the reach, a point on an axis line every key around the gap turns the group about
     # (and shifts it along): a car on a curve, a carousel's horse, a body on a far screw; turned
     # about it the group follows that turn exactly, where its centroid's spline cuts the arc
     # (a head turning 30° a key about an axis 3 diagonals away: 5.5e-2 of its diagonal off)
     distance = np.linalg.norm(move, axis=1)
-    far = ~simple & (distance > reach)
+    far = ~simple & ((distance > reach) | deforming)
     if far.any():
+        tolerance = np.where(deforming, np.maximum(FLYING_TOLERANCE, DEFORMING_AXIS_NOISE * noise), FLYING_TOLERANCE)
         far[far] = _on_common_axis([nxt.motion] + [r.motion for r in known], first[far], point[far], reach[far],
-                                   distance[far])
+                                   distance[far], tolerance[far])
     simple |= far
     points = np.where(simple[:, None], point, centroid)
     labels = np.full(len(topo.components), -1, dtype=np.intp)
@@ -206,14 +227,15 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
 
 
 def _on_common_axis(motions: list, first: np.ndarray, point: np.ndarray, reach: np.ndarray,
-                    distance: np.ndarray) -> np.ndarray:
+                    distance: np.ndarray, tolerance: np.ndarray) -> np.ndarray:
     """Per group (G,), whether every one of ``motions`` (rigid motions ``(rotations (C, 3, 3),
     translations (C, 3))`` of the keys around a gap seen from its base key, the gap's own first;
     each group's read at its member ``first`` (G,)) turns the group about the axis line through its
     ``point`` (G, 3) along the first motion's axis and moves that line only along itself, to
-    :data:`FLYING_TOLERANCE` of the group's ``reach`` (G,): the axis within it of the size at the
-    group's ends, the line within it of the size plus the line's ``distance`` (G,) from the group
-    (a turn known to δ moves a point that far away by δ × distance)."""
+    ``tolerance`` (G,; :data:`FLYING_TOLERANCE`, or :data:`DEFORMING_AXIS_NOISE` × the group's
+    non-rigidity) of the group's ``reach`` (G,): the axis within it of the size at the group's
+    ends, the line within it of the size plus the line's ``distance`` (G,) from the group (a turn
+    known to δ moves a point that far away by δ × distance)."""
     g, p, size = first, point, reach
     axis = df.rotation_vectors(motions[0][0][g])
     axis /= np.linalg.norm(axis, axis=1, keepdims=True)  # turns over FLYING_MIN_TURN: not zero
@@ -222,6 +244,6 @@ def _on_common_axis(motions: list, first: np.ndarray, point: np.ndarray, reach: 
         moved = np.einsum("gab,gb->ga", rotations[g], p) + translations[g] - p
         across = moved - np.einsum("ga,ga->g", moved, axis)[:, None] * axis
         tilted = np.einsum("gab,gb->ga", rotations[g], axis) - axis
-        ok &= (np.linalg.norm(across, axis=1) <= FLYING_TOLERANCE * (size + distance)) & (
-            np.linalg.norm(tilted, axis=1) <= FLYING_TOLERANCE)
+        ok &= (np.linalg.norm(across, axis=1) <= tolerance * (size + distance)) & (
+            np.linalg.norm(tilted, axis=1) <= tolerance)
     return ok

@@ -40,7 +40,7 @@ from .inbetween_flight import after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
 from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
-from .inbetween_motion import RIGID_PLACEMENT_SCALE, PieceMotion
+from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT, PieceMotion
 from .inbetween_repair import Outcome, Region, Repair
 from .pins import riding_motions
 from .rigid_alignment import principal_frames
@@ -156,16 +156,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.splines = spline
         nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)  # per component, over the keys
         rigid = nonrigidity < RIGID_PLACEMENT_SCALE
-        self.flying = flying_groups(topo, relatives, rigid, nonrigidity)  # before any motion is asked for
-        if self.flying is not None:  # each flying group's point at the keys (the pieces' centroids elsewhere)
-            labels, points = self.flying
-            rows = np.flatnonzero(labels >= 0)
-            at_keys = []
-            for r in relatives:
-                where = r.centroids.copy()
-                where[rows] = r.positions_of(points[labels[rows]], rows)
-                at_keys.append(where)
-            spline["flying"] = hermite("centroids", at_keys)
+        self._turn_about_points(rigid, nonrigidity, hermite)  # before any motion is asked for
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
@@ -220,6 +211,43 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.outcomes: dict[float, Outcome] = {}  # what the checks of each factor's in-between returned
         self.carried = CarriedPieces(self)
+        # deforming pieces turning as a whole are guided by their interpolated rigid motion
+        # (Guide.arc_guided): those that keep their shape to SIMILAR_SHAPE_MISFIT's first share of
+        # their size (beyond it their fits' turns are no body's) and are not held by pinned vertices
+        # (still, or riding on an object: they turn about those) turn about a common axis of the
+        # keys' turns or about their centroid, as rigid pieces do
+        # (core.inbetween_flight.DEFORMING_AXIS_NOISE), not about the screw's axis, which swings a
+        # tumbling body's centre off its path
+        loose = self._arc_candidates & ~rigid & (nonrigidity < SIMILAR_SHAPE_MISFIT[0]) & ~self.held_pieces()
+        if loose.any():
+            whole = self.arc_guided & loose
+            if whole.any():
+                self._turn_about_points(rigid | whole, nonrigidity, hermite)
+                self._motions.clear()  # the screw's motions, asked for by arc_guided (its turns are the same)
+
+    def held_pieces(self) -> np.ndarray:
+        """Per component (bool (C,)), whether it has a pinned vertex (:attr:`static`, or of a riding set)."""
+        topo = self.topo
+        pinned = np.zeros(topo.n, dtype=bool) if self.static is None else self.static.copy()
+        for rows in self.riding or ():
+            pinned[rows] = True
+        held = np.zeros(len(topo.components), dtype=bool)
+        held[topo.vertex_owner[pinned]] = True
+        return held
+
+    def _turn_about_points(self, pieces: np.ndarray, nonrigidity: np.ndarray, hermite) -> None:
+        """Set ``flying`` for the components ``pieces`` (bool (C,); :func:`~core.inbetween_flight.flying_groups`)
+        and the spline of each group's point at the keys (the pieces' centroids elsewhere)."""
+        self.flying = flying_groups(self.topo, self.relatives, pieces, nonrigidity)
+        if self.flying is not None:
+            labels, points = self.flying
+            rows = np.flatnonzero(labels >= 0)
+            at_keys = []
+            for r in self.relatives:
+                where = r.centroids.copy()
+                where[rows] = r.positions_of(points[labels[rows]], rows)
+                at_keys.append(where)
+            self.splines["flying"] = hermite("centroids", at_keys)
 
     @cached_property
     def trimmed_tolerance(self) -> float:

@@ -1219,6 +1219,25 @@ def test_a_sheet_turning_as_a_whole_is_turned_between_the_keys():
             assert _edge_deviation(x, truth, triangles).mean() < 0.1 * 0.03
 
 
+def test_a_sheet_keeping_its_shape_while_it_turns_about_an_axis_off_it_keeps_that_axis():
+    """The turning sheet with a wobble of a third of the amplitude (non-rigidity 0.1–1 % of its
+    size: it keeps its shape, so it is turned about the axis line the keys share or else about its
+    centroid, ``core.inbetween_flight.DEFORMING_AXIS_NOISE``): the keys turn it about one axis off
+    its centre, which is found, and the in-betweens follow the turn to a fifth of the wobble's
+    amplitude (about its centroid: its centre on the chord of its circle)."""
+    from core.inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
+
+    pose, triangles = _turning_sheet(lambda t: np.outer(0.01 * np.sin(2 * t) * np.ones(441), [0.0, 0.0, 1.0])
+                                     * np.cos(np.linspace(0, 6, 441))[:, None])
+    keys = [pose(k) for k in range(5)]
+    sequence = SequenceInterpolator(keys, triangles)
+    for gap in (1, 2):
+        assert RIGID_PLACEMENT_SCALE <= sequence._gap(gap).nonrigidity[0] < SIMILAR_SHAPE_MISFIT[0]
+        factors = np.arange(1, 8) / 8
+        for s, x in zip(factors, sequence.poses(gap, factors)):
+            assert np.sqrt(np.mean(np.sum((x - pose(gap + s)) ** 2, axis=1))) < 0.2 * 0.01
+
+
 def test_pins_on_an_object_turning_past_a_half_turn_over_two_gaps_keep_turning():
     """A sheet whose middle row keeps its length while the sheet turns 100° per key (the row is a
     riding set, :mod:`core.pins`: pinned to a moving object): its rigid motion is splined as a
