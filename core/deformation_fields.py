@@ -99,9 +99,10 @@ def planar_polar(a, b, c, d) -> tuple[tuple[np.ndarray, np.ndarray], np.ndarray]
     angle of ``(a + d, c − b)`` (normalized, no trigonometric function)."""
     x, y = a + d, c - b
     radius = _length(x, y)
-    zero = radius == 0  # the angle of (0, 0) is 0
-    radius = np.where(zero, 1.0, radius)
-    cos, sin = np.where(zero, 1.0, x / radius), y / radius
+    zero = np.flatnonzero(radius == 0)  # the angle of (0, 0) is 0 (rows set after: see sqrt_det)
+    radius[zero] = 1.0
+    cos, sin = x / radius, y / radius
+    cos[zero] = 1.0
     s11 = cos * a + sin * c
     s12 = 0.5 * (cos * b + sin * d + cos * c - sin * a)
     s22 = -sin * b + cos * d
@@ -159,10 +160,16 @@ def squared_stretch(u: np.ndarray) -> np.ndarray:
 
 def sqrt_det(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``√det G`` (m,) of symmetric 2×2 matrices ``(g11, g12, g22)`` (m, 3) and where they are
-    positive definite (bool (m,); elsewhere the root is 1): the eigenvalues are ``μ ± ρ``."""
+    positive definite (bool (m,); elsewhere the root is 1): the eigenvalues are ``μ ± ρ``. The
+    rows that are not (rare) are set before the root: the same values as ``np.where`` of the two,
+    which computes both on every row and costs more than the products (here and wherever a
+    degenerate row takes another value)."""
     mean, _, _, radius = _symmetric_parts(g)
-    ok = mean - radius > np.finfo(float).tiny
-    return np.sqrt(np.where(ok, (mean - radius) * (mean + radius), 1.0)), ok
+    low = mean - radius
+    ok = low > np.finfo(float).tiny
+    det = low * (mean + radius)
+    det[~ok] = 1.0
+    return np.sqrt(det), ok
 
 
 def sqrt_stretch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -170,9 +177,12 @@ def sqrt_stretch(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     and where they exist (bool (m,): positive definite): ``√G = (G + √det G · I) / √(tr G + 2 √det G)``
     (Cayley–Hamilton; the eigenvalues are ``μ ± ρ``). Rows that are not positive definite get I."""
     root_det, ok = sqrt_det(g)
-    scale = 1.0 / np.sqrt(np.where(ok, g[:, 0] + g[:, 2] + 2.0 * root_det, 4.0))
+    bad = ~ok
+    trace = g[:, 0] + g[:, 2] + 2.0 * root_det
+    trace[bad] = 4.0  # before the root (see sqrt_det)
+    scale = 1.0 / np.sqrt(trace)
     out = np.stack([(g[:, 0] + root_det) * scale, g[:, 1] * scale, (g[:, 2] + root_det) * scale], axis=1)
-    out[~ok] = (1.0, 0.0, 1.0)
+    out[bad] = (1.0, 0.0, 1.0)
     return out, ok
 
 

@@ -50,6 +50,16 @@ def shifted(points: np.ndarray, offset: np.ndarray, out: np.ndarray | None = Non
     return out
 
 
+def column_means(points: np.ndarray) -> np.ndarray:
+    """``points.mean(axis=0)`` (3,) of points ``(n, 3)``, the same values: on C-contiguous rows NumPy's
+    mean adds them one after the other into the three sums, and so does ``einsum`` without the
+    reduction machinery's overhead per row (0.17 against 0.04 ms at 10k points); other layouts
+    (a column-major view, summed pairwise down each column) and other types go to the mean itself."""
+    if not points.flags.c_contiguous or points.dtype != np.float64 or not len(points):
+        return points.mean(axis=0)
+    return np.einsum("ij->j", points) / len(points)
+
+
 def scaled(points: np.ndarray, factors: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """``points * factors[:, None]`` for points ``(n, 3)`` and one factor per point ``(n,)`` (into
     ``out``, which may be ``points``), one column per coordinate as :func:`shifted`."""

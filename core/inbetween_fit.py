@@ -189,7 +189,8 @@ class LocalGlobalFit:
         # (GᵀG)^½ = (C + √det C · I) / √(tr C + 2 √det C) = [[a, b], [b, d]]; W = G · its inverse
         a, b, d = (c11 + root_det) / scale, c12 / scale, (c22 + root_det) / scale
         det = a * d - b * b
-        inverse_det = 1.0 / np.where(det > 0, det, 1.0)
+        det[~(det > 0)] = 1.0  # before the division (see deformation_fields.sqrt_det)
+        inverse_det = 1.0 / det
         d, b, a = d * inverse_det, b * inverse_det, a * inverse_det  # per triangle before per coordinate
         w0 = g0 * d - g1 * b
         w1 = g1 * a - g0 * b

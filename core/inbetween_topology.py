@@ -12,7 +12,7 @@ import scipy.sparse as sp
 
 from . import deformation_fields as df
 from . import small_matrices
-from .geometry import coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
+from .geometry import column_means, coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
 from .sparse_cholesky import SPDFactor
 
 #: Anchor weight (per unit vertex mass, mean mass 1, relative to the unit edge terms) that only
@@ -136,7 +136,7 @@ class _Topology:
             # keeps their digits far from the origin too (1e3 units out: 1e-3 of an edge); on
             # contiguous coordinate rows (3× faster than across (n, 3) rows)
             centred = np.ascontiguousarray(x.T)
-            centred -= x.mean(axis=0)[:, None]
+            centred -= column_means(x)[:, None]
             coordinates = centred.astype(dtype)
         else:
             coordinates = np.ascontiguousarray(x.T)

@@ -123,10 +123,14 @@ def _triangle_measures(vertices: np.ndarray, triangles: np.ndarray):
     by_coordinate = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).T)  # contiguous rows: 3× faster
     # (3 coordinates, 3 corners, m) in one gather: 3× faster than a fancy index per corner
     p0, p1, p2 = np.moveaxis(np.take(by_coordinate, np.asarray(triangles).T, axis=1), 1, 0)
-    cross = coordinate_cross(p1 - p0, p2 - p0)
+    first, second = p1 - p0, p2 - p0
+    cross = coordinate_cross(first, second)
     with np.errstate(over="ignore", invalid="ignore"):
         doubled_area = np.sqrt(coordinate_dot(cross, cross))
-        squared = [coordinate_dot(a - b, a - b) for a, b in ((p1, p2), (p2, p0), (p0, p1))]
+        # the sides p2 − p0 and p0 − p1 are those of the cross product (a difference and its
+        # negation square alike): one more difference per coordinate, not six
+        opposite = p1 - p2
+        squared = [coordinate_dot(opposite, opposite), coordinate_dot(second, second), coordinate_dot(first, first)]
         longest = np.maximum(np.maximum(squared[0], squared[1]), squared[2])
     return by_coordinate, doubled_area, squared, longest
 

@@ -126,20 +126,27 @@ def group_covariances(source: np.ndarray, target: np.ndarray, labels: np.ndarray
                       weights: np.ndarray) -> tuple[np.ndarray, ...]:
     """Per group of rows (``labels`` int (n,), 0 ≤ g < ``n_groups``) of ``source`` and ``target``
     (n, 3), weighted by ``weights`` (n,): the cross-covariances ``Σ w x̃ s̃ᵀ`` (G, 3, 3) of the rows
-    about their weighted means, those means (G, 3) each, and the rows about them ``s̃``, ``x̃`` (n, 3)."""
+    about their weighted means, those means (G, 3) each, and the rows about them ``s̃``, ``x̃`` (n, 3).
+    A set with itself (``target is source``, :func:`principal_frames`): its mean and rows about it
+    once, and each symmetric entry once (the product of two coordinates is the same either way)."""
     def sums(values):  # per-group sums of w · values (n,)
         return np.bincount(labels, weights * values, minlength=n_groups)
 
+    itself = target is source
     total = sums(np.ones(source.shape[0]))
     total = np.where(total > 0, total, 1.0)
     s_mean = np.stack([sums(source[:, d]) for d in range(3)], axis=1) / total[:, None]
-    x_mean = np.stack([sums(target[:, d]) for d in range(3)], axis=1) / total[:, None]
+    x_mean = s_mean if itself else np.stack([sums(target[:, d]) for d in range(3)], axis=1) / total[:, None]
     # about each group's mean: no cancellation far from the origin
-    s_centred, x_centred = source - s_mean[labels], target - x_mean[labels]
+    s_centred = source - s_mean[labels]
+    x_centred = s_centred if itself else target - x_mean[labels]
     covariance = np.empty((n_groups, 3, 3))
     for a in range(3):
         for b in range(3):
-            covariance[:, a, b] = sums(x_centred[:, a] * s_centred[:, b])
+            if itself and b < a:
+                covariance[:, a, b] = covariance[:, b, a]
+            else:
+                covariance[:, a, b] = sums(x_centred[:, a] * s_centred[:, b])
     return covariance, s_mean, x_mean, s_centred, x_centred
 
 

@@ -346,3 +346,22 @@ def test_rotations_are_taken_continuous_on_many_pieces_in_one_search(monkeypatch
     np.testing.assert_allclose(out[:2], [[0.0, 3.0, 0.0], [0.0, 2.0 * np.pi - 3.0, 0.0]], rtol=0.0, atol=1e-12)
     np.testing.assert_array_equal(out[2:], rotvec[2:])
     assert len(searches) == 1
+
+
+def test_metrics_not_positive_definite_get_unit_roots_and_no_floating_point_error():
+    """The rows of sqrt_det and sqrt_stretch that are not positive definite are set to 1 and the
+    identity before their roots are taken: no invalid root is evaluated, the others are exact."""
+    good = np.array([[2.0, 0.5, 1.0], [1.0, 0.0, 1.0], [4.0, -1.0, 3.0]])
+    bad = np.array([[1.0, 2.0, 1.0], [0.0, 0.0, 0.0], [-1.0, 0.0, -1.0], [1.0, 0.0, -1e-3]])
+    g = np.concatenate([good, bad])[[0, 3, 1, 4, 5, 2, 6]]
+    with np.errstate(all="raise"):
+        root, ok = df.sqrt_det(g)
+        stretch, also = df.sqrt_stretch(g)
+    np.testing.assert_array_equal(ok, [True, False, True, False, False, True, False])
+    np.testing.assert_array_equal(also, ok)
+    np.testing.assert_array_equal(root[~ok], 1.0)
+    np.testing.assert_array_equal(stretch[~ok], np.tile([1.0, 0.0, 1.0], (4, 1)))
+    np.testing.assert_allclose(root[ok], np.sqrt(good[:, 0] * good[:, 2] - good[:, 1] ** 2), rtol=1e-15)
+    for s, m in zip(stretch[ok], good):
+        u = np.array([[s[0], s[1]], [s[1], s[2]]])
+        np.testing.assert_allclose(u @ u, [[m[0], m[1]], [m[1], m[2]]], rtol=1e-14, atol=1e-15)

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from core.geometry import (
+    column_means,
     connected_components,
     coordinate_cross,
     expand_vertex_values,
@@ -17,7 +18,7 @@ from core.geometry import (
 )
 from core.mesh_topology import triangle_areas
 from core.reference_shape import ReferenceShape
-from core.rigid_alignment import align_components, rigid_alignment, rigid_alignments
+from core.rigid_alignment import align_components, group_covariances, rigid_alignment, rigid_alignments
 from meshes import grid, icosphere, random_rotation
 
 
@@ -147,3 +148,38 @@ def test_coordinate_cross_of_single_vectors_and_one_against_many():
     np.testing.assert_array_equal(coordinate_cross(u, v), np.cross(u, v))
     np.testing.assert_array_equal(coordinate_cross(u, many), np.cross(u, many.T).T)
     np.testing.assert_array_equal(coordinate_cross(many, v), np.cross(many.T, v).T)
+
+
+def test_column_means_are_numpys_means_to_the_bit():
+    """The float32 local steps' edges are taken about these means: every in-between depends on
+    them, so they must be NumPy's to the last bit, far from the origin too and on any layout."""
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 7, 1000, 30_001):
+        for offset in (0.0, 1e3, -3.7e5):
+            points = rng.normal(size=(n, 3)) * rng.uniform(1e-3, 1e2) + offset
+            assert np.array_equal(column_means(points), points.mean(axis=0))
+            by_column = np.asfortranarray(points)  # NumPy sums these pairwise down each column
+            assert np.array_equal(column_means(by_column), by_column.mean(axis=0))
+            single = points.astype(np.float32)
+            assert np.array_equal(column_means(single), single.mean(axis=0))
+            rows = points[::2]  # a strided view
+            assert np.array_equal(column_means(rows), rows.mean(axis=0))
+
+
+def test_a_sets_covariance_with_itself_is_made_once_and_is_its_cross_covariance_with_a_copy():
+    """principal_frames' covariance: its mean and rows about it made once and shared, each
+    symmetric entry formed once, the values those of the general cross-covariance to the last bit
+    (and of the weighted sum of outer products, to round-off)."""
+    rng = np.random.default_rng(11)
+    points = rng.normal(size=(600, 3)) @ np.diag([3.0, 1.0, 0.2]) + 50.0
+    labels, weights = rng.integers(0, 3, 600), rng.uniform(0.1, 2.0, 600)
+    covariance, s_mean, x_mean, s_centred, x_centred = group_covariances(points, points, labels, 3, weights)
+    assert x_mean is s_mean and x_centred is s_centred
+    expected = group_covariances(points, points.copy(), labels, 3, weights)
+    assert np.array_equal(covariance, expected[0]) and np.array_equal(s_mean, expected[1])
+    assert np.array_equal(covariance, np.swapaxes(covariance, 1, 2))
+    for g in range(3):
+        rows = labels == g
+        mean = np.average(points[rows], axis=0, weights=weights[rows])
+        centred = points[rows] - mean
+        np.testing.assert_allclose(covariance[g], (centred.T * weights[rows]) @ centred, rtol=1e-12, atol=1e-9)

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import core
-from core.mesh_topology import mesh_topology
+from core.mesh_topology import _triangle_measures, mesh_topology
 from meshes import grid, icosphere
 
 
@@ -143,3 +143,18 @@ def test_a_duplicated_face_is_named_as_such():
     three = np.vstack([tri, [[1, 4, 99]]])  # a third triangle on an edge, not a duplicate: the edge message
     with pytest.raises(core.MeshError, match="shared by 3 triangles"):
         mesh_topology(three, 100)
+
+
+def test_triangle_measures_are_each_sides_square_and_the_doubled_area():
+    """The pose checks' measures (core.validation.check_pose): each side's squared length, exactly
+    the sum of its coordinates' squares whichever way the side is taken, the longest of them, and
+    twice the area (the cross product's length)."""
+    vertices, triangles = icosphere(2)
+    vertices = vertices * np.array([1.0, 0.4, 2.5]) + 1e3
+    _, doubled, squared, longest = _triangle_measures(vertices, triangles)
+    p = vertices[triangles]
+    for got, side in zip(squared, (p[:, 1] - p[:, 2], p[:, 2] - p[:, 0], p[:, 0] - p[:, 1])):
+        np.testing.assert_array_equal(got, side[:, 0] * side[:, 0] + side[:, 1] * side[:, 1] + side[:, 2] * side[:, 2])
+    np.testing.assert_array_equal(longest, np.max(squared, axis=0))
+    np.testing.assert_allclose(doubled, np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1),
+                               rtol=1e-12)
