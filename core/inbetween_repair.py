@@ -338,15 +338,20 @@ class Repair:
         100 × 40 tail had interpolated normals 1.8–4.4° on a key's side, their fits' 2.6–8.3° off
         them, and 734–2,274 triangles of five tessellations were read as flipped with the pose 1.2–1.3 %
         of the diagonal off the tail, none facing against it) and the metric is held on the
-        candidates' mean (as the fit's stop is): a thin arm curled 95–170° per key at each of two
-        joints has its fit within 0.15 % of the diagonal of the true curl half-way, where the
-        interpolated field's normals are up to 18.6° off that curl's and the fit's 1.3–14.5° off
-        them, single candidates 1.1–1.3 × the tolerance off the metric; held to ``arctan δ``
-        (0.8–1.8°) and to the tolerance per candidate, 28–63 of them read as flipped and a repair
-        took the pose 0.02 → 0.47–0.51 % of the diagonal off, with a warning. Elsewhere that
-        allowance would pass a part the interpolated field turns the wrong way round as a whole
-        (a skinned arm twisting 156° between keys 8 frames apart, read the long way, 204°: 8,232
-        triangles facing against the truth, warned only under the tight limit).
+        candidates' mean (as the fit's stop is), to the gap's tolerance or, where larger, the mean
+        relative change of the candidates' edges between the keys: the interpolated metric of
+        noisy keys holds their noise, which no fit removes (a strip curled 300° at one joint with
+        noise of 1e-4 of its length: its tip's fit 6.1e-3 off the metric on average, the gap's
+        tolerance 5.0e-3, its edges' change between the keys 9.6e-3; read as flipped, a repair
+        turned the tip the short way round, 0.63 of the diagonal off, silently): a thin arm curled
+        95–170° per key at each of two joints has its fit within 0.15 % of the diagonal of the true
+        curl half-way, where the interpolated field's normals are up to 18.6° off that curl's and
+        the fit's 1.3–14.5° off them, single candidates 1.1–1.3 × the tolerance off the metric;
+        held to ``arctan δ`` (0.8–1.8°) and to the tolerance per candidate, 28–63 of them read as
+        flipped and a repair took the pose 0.02 → 0.47–0.51 % of the diagonal off, with a warning.
+        Elsewhere that allowance would pass a part the interpolated field turns the wrong way
+        round as a whole (a skinned arm twisting 156° between keys 8 frames apart, read the long
+        way, 204°: 8,232 triangles facing against the truth, warned only under the tight limit).
         A closed tube (a finger) curled 120° at each of two knuckles bends its cross-sections, so
         its fit keeps the metric to 0.2–0.7 % where it turns away half-way, not to
         :data:`~core.inbetween_fit.METRIC_TOLERANCE`, and triangles edge-on to a key there face
@@ -386,8 +391,12 @@ class Repair:
         inside = turning[pieces]
         deviation = self._metric_deviation(columns[:, inside], sides, candidates[inside], candidates[inside])
         # a piece with a candidate off the metric (far-turning pieces: off on average, as the fit's
-        # stop is) is not turning: its candidates go to the rule below
-        off = np.where(far, np.bincount(pieces[inside], deviation, minlength=count) >= tolerance * per_piece,
+        # stop is, by more than the keys' own edges differ there: noisy keys' interpolated metric
+        # holds their noise, which no fit removes) is not turning: its candidates go to the rule below
+        rows = candidates[inside]
+        changes = np.mean(np.abs(gap.next.lengths[rows] / gap.base.lengths[rows] - 1.0), axis=1)
+        limit = np.maximum(tolerance, np.bincount(pieces[inside], changes, minlength=count) / np.maximum(per_piece, 1))
+        off = np.where(far, np.bincount(pieces[inside], deviation, minlength=count) >= limit * per_piece,
                        np.bincount(pieces[inside][deviation >= tolerance], minlength=count) > 0)
         turning &= ~off
         return turning[pieces] if turning.any() else None
@@ -402,7 +411,13 @@ class Repair:
         facing away from both keys, two of its 2,133 such triangles 1.29° and 1.38° off their
         interpolated normals: held to the ``arctan δ`` (1.25°) of a piece not known to turn far,
         they are read as flipped and a repair falls back to the metric fitted near the blend, 0.32
-        of the diagonal off the rig's own pose at 0.5 where 0.45 and 0.55 are within 1.3e-3."""
+        of the diagonal off the rig's own pose at 0.5 where 0.45 and 0.55 are within 1.3e-3. A part
+        past a half turn whose rotations jump at a crease counts too: a sequence leaves such a part
+        as it is, but two poses take its turns continuous across the crease all the same, and the
+        fit follows them only to the keys' noise (a strip curled 270° over four rings of triangles,
+        67.5° apart, with noise of 1e-4 of its length: its tip's fitted normals 0.4° off their
+        interpolated ones, 0.98° at most, where ``arctan δ`` is 0.30°; read as flipped, a repair
+        turned the tip the short way round, 0.61 of the diagonal off at 0.5, silently)."""
         known = self.__dict__.get("_far")
         if known is None:
             gap = self.gap
@@ -411,8 +426,8 @@ class Repair:
             if relative._across is not None:
                 # imported here: core.sequence_inbetweens imports this module
                 from .sequence_turn_readings import TURNED_PART_SHARE
-                known = relative.turning(gap.topo, gap.base, gap.next, relative._across,
-                                         TURNED_PART_SHARE)[0][:len(known)]
+                reading = relative.turning(gap.topo, gap.base, gap.next, relative._across, TURNED_PART_SHARE)
+                known = (reading[0] | reading[2])[:len(known)]  # past a half turn, without or with a crease
             self._far = known
         return known
 

@@ -125,6 +125,41 @@ def test_a_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_same_way
 
 
 
+
+@pytest.mark.parametrize("degrees, width, noise", [(270.0, 2, 3e-4), (270.0, 3, 3e-4), (270.0, 2, 1e-3),
+                                                   (270.0, 3, 1e-3), (300.0, 3, 3e-4), (220.0, 3, 1e-3)])
+def test_a_noisy_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_same_way(degrees, width, noise):
+    """The strip above, 61 × ``width`` vertices, curled 220°–300° at one joint over four rings of
+    triangles (55–75° between neighbouring rings: a crease by
+    :data:`~core.rotation_continuity.WRAP_CREASE`), with Gaussian noise of ``noise`` (1e-4–3.3e-4
+    of its length) on every coordinate of both poses. Half-way its tip faces away from both poses
+    as the field turns it, and the fit follows that field only to within the keys' noise (normals
+    up to 1° off their interpolated ones where ``arctan δ`` is 0.3°, edges 0.4–0.7 × the keys' own
+    change off the metric on average): read as flipped, a repair turned the tip the short way
+    round, 0.54–0.63 of the diagonal off with most of its triangles facing against the curl,
+    silently. Two poses take every piece's turns continuous across the mesh, creases included,
+    and so read its far-turning parts, whose edges keep the metric to the keys' own change there.
+    Where the strip's rigid fit turns the short way round its tip's residuals are within the noise
+    of none; continued by a whole turn about their noisy axes they jumped, and every factor went
+    the short way round (:meth:`core.inbetween_keys._Relative.residuals_add_turn` takes such a
+    piece's rotations whole). Each in-between and exaggeration is the noise-free strip curled by
+    the factor times the angle to the gap's tolerance, every triangle facing as in it, silently."""
+    angle = np.radians(degrees)
+    rng = np.random.default_rng(1)
+    a, tri = _curled_strip((0.0,), joints=(0.9,), width=width, n=61)
+    b, _ = _curled_strip((angle,), joints=(0.9,), width=width, n=61)
+    a, b = a + noise * rng.normal(size=a.shape), b + noise * rng.normal(size=b.shape)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, b, tri)
+    for factor in (0.3, 0.4, 0.5, 0.6, 0.7, 1.5):
+        truth, _ = _curled_strip((factor * angle,), joints=(0.9,), width=width, n=61)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", ShapeDifferenceWarning)
+            x = interpolator.pose(factor)
+        tolerance = interpolator._sequence._gap(0).tolerance
+        assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < tolerance * diagonal
+        assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
+
 @pytest.mark.parametrize("degrees, joints", [((120.0, 120.0), (0.9, 1.9)), ((270.0,), (0.9,))])
 def test_a_strip_one_triangle_wide_curled_past_a_half_turn_keeps_curling_the_same_way(degrees, joints):
     """The strips above one triangle wide (121 × 2 vertices: no vertex off the boundary, so no
