@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import screw_motions
+from .geometry import grouped_medians
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, per_factor
 from .inbetween_topology import GAUGE_WEIGHT
@@ -32,6 +33,20 @@ from .pcg import pcg
 BLEND_ANCHOR_WEIGHT = 0.1
 BLEND_SHORTENING_SCALE = 0.01
 BLEND_SHORTENING_CUTOFF = 0.1
+#: An extrapolation judges the change of the edge vectors around a vertex with the keys' noise
+#: taken out: noise and motion change them independently, so the change the motion makes is
+#: √(c² − ν²), ``c`` the measured change and ``ν`` the one the noise alone makes on a part that
+#: does not move, estimated as NOISE_CHANGE_RATIO × the median absolute deviation of the relative
+#: changes of the edge lengths of the vertex's piece between the keys (turns keep lengths, so their
+#: spread is the noise's; an even stretch is not taken for noise; noise-free keys give ν ≈ 0 and
+#: the plain rule). For isotropic noise of deviation σ per coordinate an edge vector changes by 2σ
+#: per coordinate: its length by a normal deviate (median |·| 0.674 · 2σ), the vector by a χ₃ one
+#: (mean 1.596 · 2σ), so a still vertex's mean change is 1.596 / 0.674 = 2.37 × the former.
+#: Judged on the plain change, the still part of a strip bent 100° with noise 3e-3 per coordinate
+#: (its edges 0.05 change by 15–30 %) lost its anchor and moved with the bent part, 0.21 / 0.51 of
+#: the diagonal off at × 1.5 / × 2; with the noise taken out it is 2.8e-3 / 4.0e-3 off. In-betweens judge
+#: the blend's shortening, second order in the noise, and keep the plain rule.
+NOISE_CHANGE_RATIO = 2.37
 #: ... and the blend is taken with the component's rigid motion undone only where that motion also
 #: takes the vertex to within this fraction of the component's diagonal of where it is: a part
 #: that turns as the whole component does but about another pivot (the middle segment of a finger
@@ -301,9 +316,9 @@ class Anchor:
 
     def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
         """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge
-        lengths (in-betweens) or, for extrapolations, where the edge vectors do not change (a
-        linear extrapolation is exact only for translating parts) (see
-        :data:`BLEND_ANCHOR_WEIGHT`), and per vertex whether the blend is taken in
+        lengths (in-betweens) or, for extrapolations, where the edge vectors do not change beyond
+        the keys' noise (a linear extrapolation is exact only for translating parts) (see
+        :data:`BLEND_ANCHOR_WEIGHT`, :data:`NOISE_CHANGE_RATIO`), and per vertex whether the blend is taken in
         the world or with its component's rigid motion undone (``self.co_moving``, bool (n,)):
         the latter where the vertex moves with that rigid motion (edge vectors around it within
         BLEND_SHORTENING_SCALE of the base's once it is undone) and the world leaves them less
@@ -339,7 +354,10 @@ class Anchor:
         if between:
             change = np.where(co_moving, per_vertex(shortening(c)), per_vertex(shortening(b)))
         else:
+            # the edge vectors' change with the keys' noise taken out in quadrature (noise and
+            # motion change them independently; see NOISE_CHANGE_RATIO)
             change = np.where(co_moving, co_moving_change, world_change)
+            change = np.sqrt(np.maximum(change ** 2 - self.noise_change(length_a, b) ** 2, 0.0))
         falloff = (BLEND_SHORTENING_SCALE / np.maximum(change, BLEND_SHORTENING_SCALE)) ** 2
         weight = BLEND_ANCHOR_WEIGHT * falloff * np.maximum(0.0, 1.0 - change / BLEND_SHORTENING_CUTOFF) ** 2
         stretch = per_vertex(np.abs(np.linalg.norm(b, axis=1) / length_a - 1.0))
@@ -349,6 +367,21 @@ class Anchor:
                 weight[self.aliased_blend()] = 0.0
         weight[self.hung_from_pins(stretch, co_moving)] = 0.0
         return np.maximum(weight, GAUGE_WEIGHT), co_moving
+
+    def noise_change(self, length_a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Per vertex (n,), the mean relative change the keys' noise alone makes to the edge vectors
+        around a vertex that does not move (see :data:`NOISE_CHANGE_RATIO`): that ratio × the
+        median absolute deviation, over the vertex's owning component, of its corner edges'
+        relative change of length from the base key's ``length_a`` (3m,) to the next key's corner
+        edges ``b`` (3m, 3); 0 on vertices with no owner."""
+        topo = self.topo
+        labels, count = topo.vertex_component[topo.i], len(topo.components)
+        change = np.linalg.norm(b, axis=1) / length_a - 1.0
+        deviation = np.abs(change - grouped_medians(change, labels, count)[labels])
+        noise = np.zeros(topo.n)
+        rows = topo.vertex_owner >= 0
+        noise[rows] = NOISE_CHANGE_RATIO * grouped_medians(deviation, labels, count)[topo.vertex_owner[rows]]
+        return noise
 
     def hung_from_pins(self, stretch: np.ndarray, co_moving: np.ndarray) -> np.ndarray:
         """Vertices (bool (n,)) whose blend anchor in the world is let go because what joins them

@@ -16,7 +16,8 @@ from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
 
 from meshes import grid, icosphere
-from placement_helpers import _arm
+from inbetween_helpers import _normals
+from placement_helpers import _arm, _curled_strip
 
 
 @pytest.mark.parametrize("factor", [0.5, 1.5, 2.0])
@@ -29,6 +30,39 @@ def test_fixed_upper_arm_stays_fixed(factor):
     upper = a[:, 0] < 0.85
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
     assert np.abs(x[upper] - a[upper]).max() < 1e-3 * diagonal
+
+
+
+@pytest.mark.parametrize("width", [2, 3])
+@pytest.mark.parametrize("noise", [1e-4, 3e-4, 1e-3, 3e-3])
+def test_a_fixed_part_stays_fixed_when_noisy_keys_are_exaggerated(width, noise):
+    """A strip of 61 × ``width`` vertices (edges 0.05) bent 100° at one joint, its first 0.85
+    fixed, with Gaussian noise of ``noise`` per coordinate on both poses (as scans and exported
+    caches carry; at 3e-3 the fixed part's edge vectors change by ~20 % between the keys): at every
+    factor, exaggerations and reversals included, the fixed part stays where it is to within the
+    noise. Its anchor pulls it toward the keys' linear extrapolation ``a + f (b − a)``, whose
+    points lie ``1.596 σ √((1 − f)² + f²)`` from the truth on average (σ per coordinate, χ₃);
+    the fixed part is held within twice that. The extrapolated noise read as motion let its anchor
+    go and the bent part's rigid fit moved it: 60–180 × that distance at 3e-3 (0.21 of the
+    diagonal at × 1.5, 0.51 at × 2). Up to × 2 (a bend of 200°) no triangle faces against the
+    noise-free strip."""
+    angle = np.radians(100.0)
+    a0, tri = _curled_strip((0.0,), joints=(0.9,), width=width, n=61)
+    b0, _ = _curled_strip((angle,), joints=(0.9,), width=width, n=61)
+    fixed = a0[:, 0] < 0.85
+    for seed in range(3):
+        rng = np.random.default_rng(seed)
+        a, b = a0 + noise * rng.normal(size=a0.shape), b0 + noise * rng.normal(size=b0.shape)
+        interpolator = Interpolator(a, b, tri)
+        for factor in (-0.5, 0.5, 1.5, 2.0, 3.0):
+            truth, _ = _curled_strip((factor * angle,), joints=(0.9,), width=width, n=61)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ShapeDifferenceWarning)
+                x = interpolator.pose(factor)
+            target = 1.596 * noise * np.hypot(1.0 - factor, factor)
+            assert np.linalg.norm(x[fixed] - truth[fixed], axis=1).mean() < 2.0 * target
+            if factor <= 2.0:
+                assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
 
 
 def test_a_piece_that_sits_still_between_two_keys_stays_there_in_a_sequence():
