@@ -32,11 +32,20 @@ class _Topology:
         t = self.triangles = topo.triangles
         m = t.shape[0]
         self.i, self.j = t.ravel(), t[:, [1, 2, 0]].ravel()  # corner edge c of triangle k: row 3k + c
-        rows = np.arange(3 * m)
         # the same incidence with rows corner-major (row c·m + k), for the fit's component-wise
-        # arrays (3 coordinates, 3 corners, m): contiguous per coordinate and corner
-        self.Dc = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)],
-                                 (np.r_[rows, rows], np.r_[t.T.ravel(), t[:, [1, 2, 0]].T.ravel()])),
+        # arrays (3 coordinates, 3 corners, m): contiguous per coordinate and corner. Made in CSR
+        # form directly, each row's two entries (−1 at its edge's start, +1 at its end) in column
+        # order as the conversion from coordinates sorts them (3× faster than that conversion)
+        start, end = t.T.ravel(), t[:, [1, 2, 0]].T.ravel()
+        ascending = start < end
+        index = np.int32 if max(6 * m, n_vertices) < np.iinfo(np.int32).max else np.int64
+        columns = np.empty((3 * m, 2), dtype=index)
+        columns[:, 0] = np.where(ascending, start, end)
+        columns[:, 1] = np.where(ascending, end, start)
+        signs = np.empty((3 * m, 2))
+        signs[:, 0] = np.where(ascending, -1.0, 1.0)
+        np.negative(signs[:, 0], out=signs[:, 1])
+        self.Dc = sp.csr_matrix((signs.ravel(), columns.ravel(), np.arange(0, 6 * m + 1, 2, dtype=index)),
                                 shape=(3 * m, n_vertices))
         self.Dct = self.Dc.T.tocsr()
         self.laplacian = (self.Dct @ self.Dc).tocsc()

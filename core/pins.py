@@ -22,6 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .rigid_alignment import align_rigidly, rigid_alignment, rigid_alignments
+from .geometry import edge_lengths
 from .seams import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
@@ -71,7 +72,7 @@ def riding_tolerance(keys: list[np.ndarray], edges: np.ndarray, still: np.ndarra
     moving = ~(still[a] & still[b])
     if not moving.any():
         return 0.0
-    length = np.linalg.norm(first[a[moving]] - first[b[moving]], axis=1)
+    length = edge_lengths(first, a[moving], b[moving])
     return min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
 
 
@@ -98,11 +99,11 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
     if not candidates.size:
         return riding
-    length = np.linalg.norm(first[a[candidates]] - first[b[candidates]], axis=1)
+    length = edge_lengths(first, a[candidates], b[candidates])
     if tolerance is None:
         tolerance = riding_tolerance(keys, edges, still, scale)
     for key in keys[1:]:
-        close = np.abs(np.linalg.norm(key[a[candidates]] - key[b[candidates]], axis=1) - length) <= tolerance
+        close = np.abs(edge_lengths(key, a[candidates], b[candidates]) - length) <= tolerance
         candidates, length = candidates[close], length[close]
         if not candidates.size:
             return riding

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MeshError, ShapeDifferenceWarning
-from .geometry import normalize, vertex_labels
+from .geometry import edge_lengths, normalize, vertex_labels
 
 #: Vertices closer than this fraction of the first pose's bounding-box diagonal (plus a few
 #: float32 roundings of their coordinates) count as one place: single-precision caches written
@@ -140,7 +140,7 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray, scale: float | N
     scale = np.max(np.abs(first), initial=0.0) if scale is None else scale
     tolerance = COINCIDENCE_TOLERANCE * np.linalg.norm(extent) + 8 * np.finfo(np.float32).eps * scale
     if len(edges):
-        mean_edge = float(np.mean(np.linalg.norm(first[edges[:, 0]] - first[edges[:, 1]], axis=1)))
+        mean_edge = float(np.mean(edge_lengths(first, edges[:, 0], edges[:, 1])))
         tolerance = min(tolerance, COINCIDENCE_EDGE_SHARE * mean_edge)
     return float(tolerance)
 

@@ -7,6 +7,7 @@ from core.geometry import (
     column_means,
     connected_components,
     coordinate_cross,
+    edge_lengths,
     expand_vertex_values,
     grouped_medians,
     heron,
@@ -164,6 +165,28 @@ def test_column_means_are_numpys_means_to_the_bit():
             assert np.array_equal(column_means(single), single.mean(axis=0))
             rows = points[::2]  # a strided view
             assert np.array_equal(column_means(rows), rows.mean(axis=0))
+
+
+def test_edge_lengths_are_numpys_norms_to_the_bit():
+    """Riding sets and the coincidence tolerance compare these lengths with tolerances of a few
+    float32 roundings: they must be those of ``np.linalg.norm`` to the last bit, on any layout and
+    type, and agree with an independent Euclidean distance to round-off."""
+    import math
+
+    rng = np.random.default_rng(5)
+    for n in (2, 9, 5000):
+        for offset in (0.0, 1e3, -3.7e5):
+            points = rng.normal(size=(n, 3)) * rng.uniform(1e-3, 1e2) + offset
+            a, b = rng.integers(0, n, 3 * n), rng.integers(0, n, 3 * n)
+            for pose in (points, np.asfortranarray(points), points.astype(np.float32), np.repeat(points, 2, axis=0)[::2]):
+                lengths = edge_lengths(pose, a, b)
+                assert lengths.dtype == pose.dtype
+                assert np.array_equal(lengths, np.linalg.norm(pose[a] - pose[b], axis=1))
+            for k in range(0, 3 * n, 97):
+                assert lengths[k] == pytest.approx(math.dist(points[a[k]], points[b[k]]), rel=1e-15, abs=1e-15 * abs(offset))
+    whole = np.arange(12).reshape(4, 3)  # integer positions are measured in double precision
+    assert np.array_equal(edge_lengths(whole, [0, 1], [3, 3]), np.linalg.norm(whole[[0, 1]] - whole[[3, 3]], axis=1))
+    assert edge_lengths(points, np.array([], dtype=int), np.array([], dtype=int)).shape == (0,)
 
 
 def test_a_sets_covariance_with_itself_is_made_once_and_is_its_cross_covariance_with_a_copy():

@@ -18,3 +18,29 @@ def test_fit_tolerance_leaves_out_the_edges_a_fold_collapses():
     assert trimmed_tolerance(base, base * (1.0 + change)) == pytest.approx(0.5 * 0.02, rel=1e-12)
     assert change_tolerance(base, base * (1.0 + change)) == pytest.approx(0.5 * (0.995 * 0.02 + 0.005 * 0.6), rel=1e-12)
     assert trimmed_tolerance(base, base.copy()) == change_tolerance(base, base.copy()) == METRIC_TOLERANCE
+
+
+def test_the_fits_incidence_is_the_corner_edges_difference_operator_in_canonical_form():
+    """``_Topology.Dc`` (made in CSR form directly) is the matrix the sparse conversion from
+    coordinates gives, to its index arrays and types (the factorizations depend on its layout),
+    and takes positions to the corner edges ``p[next corner] − p[corner]``, corner-major."""
+    import scipy.sparse as sp
+
+    from core.inbetween_topology import _Topology
+    from core.mesh_topology import mesh_topology
+    from meshes import grid, icosphere
+
+    for vertices, triangles in (grid(6, 5, jitter=0.2), icosphere(2)):
+        vertices = np.asarray(vertices, dtype=np.float64)
+        topo = _Topology(mesh_topology(triangles, len(vertices)), vertices)
+        m, rows = len(triangles), np.arange(3 * len(triangles))
+        expected = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)],
+                                  (np.r_[rows, rows], np.r_[triangles.T.ravel(), triangles[:, [1, 2, 0]].T.ravel()])),
+                                 shape=(3 * m, len(vertices)))
+        for part in ("data", "indices", "indptr"):
+            made, converted = getattr(topo.Dc, part), getattr(expected, part)
+            assert made.dtype == converted.dtype and np.array_equal(made, converted)
+        assert topo.Dc.has_canonical_format
+        edges = (topo.Dc @ vertices).reshape(3, m, 3)
+        for c in range(3):
+            assert np.array_equal(edges[c], vertices[triangles[:, (c + 1) % 3]] - vertices[triangles[:, c]])

@@ -158,3 +158,82 @@ def test_triangle_measures_are_each_sides_square_and_the_doubled_area():
     np.testing.assert_array_equal(longest, np.max(squared, axis=0))
     np.testing.assert_allclose(doubled, np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1),
                                rtol=1e-12)
+
+
+def _fans_by_walking(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
+    """Fans per vertex (n,), found independently: the triangles around each vertex, joined where
+    two of them share an edge at that vertex (two vertices in common), counted by a union-find."""
+    fans = np.zeros(n_vertices, dtype=int)
+    for v in range(n_vertices):
+        around = [t for t in range(len(triangles)) if v in triangles[t]]
+        parent = list(range(len(around)))
+
+        def root(i):
+            while parent[i] != i:
+                i = parent[i]
+            return i
+
+        for i in range(len(around)):
+            for j in range(i + 1, len(around)):
+                if len(set(triangles[around[i]]) & set(triangles[around[j]])) == 2:
+                    parent[root(i)] = root(j)
+        fans[v] = len({root(i) for i in range(len(around))})
+    return fans
+
+
+def test_bow_tie_vertices_are_those_whose_triangles_form_several_fans():
+    """check_manifold_vertices names exactly the vertices with more than one fan, as a walk
+    around each vertex counts them: sheets with triangles taken out at random (two missing around
+    an inner vertex part its fan), a sheet's vertex shared with another sheet (two fans) and with
+    a third (three)."""
+    from core.errors import MeshError
+    from core.mesh_topology import check_manifold_vertices
+
+    rng = np.random.default_rng(3)
+    vertices, triangles = grid(7, 6)
+    n = len(vertices)
+    refused = 0
+    for trial in range(12):
+        kept = triangles[rng.random(len(triangles)) >= (rng.uniform(0.1, 0.4) if trial % 4 else 0.0)]
+        if trial % 3 == 1:  # a second sheet sharing its vertex 8 with vertex 16 of the first
+            second = triangles + n
+            second[second == n + 8] = 16
+            kept = np.vstack([kept, second])
+        if trial % 3 == 2:  # and a third sharing it too
+            second, third = triangles + n, triangles + 2 * n
+            second[second == n + 8] = 16
+            third[third == 2 * n + 20] = 16
+            kept = np.vstack([kept, second, third])
+        n_vertices = 3 * n
+        fans = _fans_by_walking(kept, n_vertices)
+        expected = np.flatnonzero(fans > 1)
+        topology = mesh_topology(kept, n_vertices, allow_bow_ties=True)
+        if not expected.size:
+            check_manifold_vertices(topology)
+            continue
+        with pytest.raises(MeshError) as raised:
+            check_manifold_vertices(topology)
+        message = str(raised.value)
+        assert message.startswith(f"Vertices {expected[:10].tolist()}") and f"({expected.size} in all)" in message
+        refused += 1
+    assert 4 <= refused < 12  # both outcomes were exercised
+
+
+def test_components_are_found_once_per_topology_and_each_caller_gets_its_own_labels(monkeypatch):
+    """The input checks and the in-betweens' setup both ask a topology for its components: the
+    graph search runs once, and a caller changing its labels changes no one else's."""
+    import scipy.sparse.csgraph as csgraph
+
+    vertices, triangles = grid(5, 4)
+    pieces = np.vstack([triangles, triangles + len(vertices)])
+    topology = mesh_topology(pieces, 2 * len(vertices))
+    searches = []
+    search = csgraph.connected_components
+    monkeypatch.setattr(csgraph, "connected_components", lambda *a, **k: searches.append(1) or search(*a, **k))
+    count, labels = topology.components()
+    assert count == 2 and np.array_equal(labels, np.repeat([labels[0], labels[-1]], len(triangles)))
+    assert labels[0] != labels[-1]
+    labels[:] = 7
+    again = topology.components()
+    assert again[0] == 2 and again[1][0] != again[1][-1]
+    assert len(searches) == 1
