@@ -116,19 +116,22 @@ LOOPED_MEDIAN_GROUPS = 64
 
 
 def grouped_medians(values: np.ndarray, groups: np.ndarray, n_groups: int) -> np.ndarray:
-    """The median (n_groups,) of the finite ``values`` (r,) in each group (``groups`` int (r,),
-    every group non-empty), as ``np.median`` of each gives it."""
+    """The median (n_groups,) of the finite ``values`` (r,) in each group (``groups`` int (r,)
+    in ``[0, n_groups)``), as ``np.median`` of each gives it; NaN for a group with no values."""
     if n_groups == 1:
-        return np.array([np.median(values)])
+        return np.array([np.median(values) if len(values) else np.nan])
+    counts = np.bincount(groups, minlength=n_groups)
     if n_groups <= LOOPED_MEDIAN_GROUPS:
         order = np.argsort(groups, kind="stable")
-        ends = np.cumsum(np.bincount(groups, minlength=n_groups))[:-1]
-        return np.array([np.median(part) for part in np.split(values[order], ends)])
+        return np.array([np.median(part) if len(part) else np.nan
+                         for part in np.split(values[order], np.cumsum(counts)[:-1])])
     order = np.lexsort((values, groups))
-    counts = np.bincount(groups, minlength=n_groups)
     starts = np.cumsum(counts) - counts
-    ordered = values[order]
-    return (ordered[starts + (counts - 1) // 2] + ordered[starts + counts // 2]) / 2
+    ordered = np.append(values[order], np.nan)  # an empty group's rows point at the NaN past the end
+    empty = counts == 0
+    low = np.where(empty, len(values), starts + (counts - 1) // 2)
+    high = np.where(empty, len(values), starts + counts // 2)
+    return (ordered[low] + ordered[high]) / 2
 
 
 def connected_components(n_nodes: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import screw_motions
-from .inbetween_joints import (JOINT_REACH, _closest, _nearest_pairs, _screw_axes, _touching, contact_reach,
-                               piece_vertices, relative_motions, slide_precision)
+from .inbetween_joints import (JOINT_REACH, closest_pairs, contact_reach, nearest_pairs, piece_vertices,
+                               relative_motions, screw_axes, slide_precision, touching_pairs)
 
 #: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
 #: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
@@ -101,13 +101,13 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndar
             doubtful = doubtful[stake > JOINT_STAKE * precision[doubtful]]
             doubts.rounded = int(doubtful.size)
             doubts.rounded_share = float(share[doubtful].max(initial=0.0))
-    key, ends, first = _touching(base, index, label, pieces.size, reach)
+    key, ends, first = touching_pairs(base, index, label, pieces.size, reach)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         u, v = np.divmod(key[first], pieces.size)
-        nearest_base, _ = _closest(base, ends, first)
+        nearest_base, _ = closest_pairs(base, ends, first)
         near = (nearest_base <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         relative = relative_motions(rotations, translations, u, v)
-        angle, _, _ = _screw_axes(*relative)
+        angle, _, _ = screw_axes(*relative)
         precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
         smaller = np.minimum(size[u], size[v])
         sliding = near & (angle * smaller <= precision) & (np.linalg.norm(relative[1], axis=1) > precision)
@@ -115,7 +115,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndar
             # still touching in the next key: a vertex sliding over the other piece's faces stays
             # within that piece's edges of its vertices
             coarser = JOINT_REACH * np.maximum(edges[pieces[u]], edges[pieces[v]])
-            sliding &= _nearest_pairs(nxt, index, label, pieces.size, float(coarser[sliding].max()), key[first],
+            sliding &= nearest_pairs(nxt, index, label, pieces.size, float(coarser[sliding].max()), key[first],
                                       sliding)[0] <= coarser
         if sliding.any():
             child = np.where(size[u] <= size[v], u, v)  # the smaller piece slides along the larger
@@ -197,7 +197,7 @@ def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, 
         & (group[u] != group[v])
     u, v, smaller = u[close], v[close], smaller[close]
     relative_rotations, relative_translations = relative_motions(*motions, u, v)
-    angle, axis, slide = _screw_axes(relative_rotations, relative_translations)
+    angle, axis, slide = screw_axes(relative_rotations, relative_translations)
     precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
     finer = contact_reach(reach, edges, pieces[u], pieces[v])
     turning = np.flatnonzero((np.abs(slide) <= precision) & (angle * smaller > precision))

@@ -106,7 +106,7 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     50,000 touching pairs: 4 s per gap one by one)."""
     moved = np.einsum("kab,kb->ka", rotations[pair], contact) + translations[pair]
     held = np.maximum.reduceat(np.linalg.norm(moved - contact, axis=1), starts) <= reach
-    angle, axis, slide = _screw_axes(rotations, translations)
+    angle, axis, slide = screw_axes(rotations, translations)
     hinged = ~held & (angle >= 1e-9) & (np.abs(slide) <= reach)
     pivot = np.zeros_like(translations)  # a point of each hinge's axis (only theirs: one small SVD each)
     if hinged.any():
@@ -153,7 +153,7 @@ def slide_precision(base: np.ndarray, nxt: np.ndarray, reach: float, misfits: np
     return JOINT_SLIDE * (misfit[u] + misfit[v]) + rounding
 
 
-def _screw_axes(rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def screw_axes(rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per rigid motion ``x ↦ R x + t`` (``rotations`` (P, 3, 3), ``translations`` (P, 3)) its turn's
     angle (P,), the unit direction of its screw axis (P, 3; any where it does not turn) and how far
     it slides along that axis (P,, signed; the whole translation's component along it)."""
@@ -165,12 +165,12 @@ def _screw_axes(rotations: np.ndarray, translations: np.ndarray) -> tuple[np.nda
 
 def _axis_points(rotations: np.ndarray, translations: np.ndarray, axis: np.ndarray, slide: np.ndarray) -> np.ndarray:
     """A point (P, 3) of the screw axis of each rigid motion ``x ↦ R x + t`` (``rotations``
-    (P, 3, 3), ``translations`` (P, 3); ``axis`` and ``slide`` from :func:`_screw_axes`): the least-
+    (P, 3, 3), ``translations`` (P, 3); ``axis`` and ``slide`` from :func:`screw_axes`): the least-
     squares solution of ``(I − R) p = t − slide · axis``."""
     return screw_motions.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)
 
 
-def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
+def touching_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
     """The pairs of vertices ``index`` of different pieces (``label``: each vertex's piece, of
     ``count``) within ``reach`` of each other at positions ``x``: ``(key, ends, first)``, each pair's
     pieces ``a < b`` as ``a · count + b`` (sorted), its two vertices (rows of ``ends``) and where each
@@ -185,8 +185,8 @@ def _touching(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, r
     return key, index[pairs[order]].reshape(-1, 2), np.flatnonzero(np.diff(key, prepend=-1))  # keys are >= 0
 
 
-def _closest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
+def closest_pairs(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces of :func:`touching_pairs`, the distance of its closest two vertices ``ends``
     at positions ``x`` and their midpoint."""
     if not first.size:
         return np.zeros(0), np.zeros((0, 3))
@@ -199,23 +199,23 @@ def _closest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[np.nda
 
 
 def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
-    """Per pair of pieces of :func:`_touching`, the distance of its closest two vertices ``ends``
+    """Per pair of pieces of :func:`touching_pairs`, the distance of its closest two vertices ``ends``
     at positions ``x``."""
     if not first.size:
         return np.zeros(0)
     return np.minimum.reduceat(np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1), first)
 
 
-def _nearest_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
+def nearest_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
                    asked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per pair of pieces ``keys`` (as :func:`_touching` names them), the distance of its closest two
+    """Per pair of pieces ``keys`` (as :func:`touching_pairs` names them), the distance of its closest two
     vertices ``index`` at positions ``x`` where it is ``asked`` (bool) and they are within ``reach``,
     else inf (only the asked pairs' pieces searched), and their midpoint (nan where none)."""
     kept = np.isin(label, np.divmod(keys[asked], count))
-    found, ends, first = _touching(x, index[kept], label[kept], count, reach)
+    found, ends, first = touching_pairs(x, index[kept], label[kept], count, reach)
     nearest, where = np.full(keys.size, np.inf), np.full((keys.size, 3), np.nan)
     _, here, there = np.intersect1d(keys, found[first], assume_unique=True, return_indices=True)
-    distance, midpoint = _closest(x, ends, first)
+    distance, midpoint = closest_pairs(x, ends, first)
     nearest[here], where[here] = distance[there], midpoint[there]
     return np.where(asked, nearest, np.inf), where
 
@@ -266,7 +266,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     if pieces.size < 2:
         return None
     index, label = piece_vertices(topo, pieces)
-    key, ends, first = _touching(base, index, label, pieces.size, reach)
+    key, ends, first = touching_pairs(base, index, label, pieces.size, reach)
     if not key.size:
         return None
     # per pair of touching pieces, whether the child's motion relative to the parent's holds their
@@ -283,16 +283,16 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     # together (cubes of a shattered block that touch in the base key and have flown apart in the
     # next are no joints, wherever their relative motions' axes run)
     finer = contact_reach(reach, edges, pieces[u], pieces[v])
-    nearest_base, contact_base = _closest(base, ends, first)
+    nearest_base, contact_base = closest_pairs(base, ends, first)
     jointed &= nearest_base <= finer
     if jointed.any():
-        nearest_later, contact_later = _nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
+        nearest_later, contact_later = nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
         jointed &= nearest_later <= finer
     if jointed.any():
         # a joint's relative motion turns about an axis through the contact without sliding along it
         # (to within what the pieces' rigid fits resolve; pieces moving as one neither turn nor slide)
         precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
-        _, axis, slide = _screw_axes(*relative)
+        _, axis, slide = screw_axes(*relative)
         jointed &= np.abs(slide) <= precision
     if jointed.any() and screws is not None:
         # no joint where the pieces turn about their own axes, touching in the same place: their own
@@ -340,7 +340,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                 break
             rotations_s, translations_s = screw_motions.rigid_exps(s * screws[pieces])
             moved = np.einsum("kab,kb->ka", rotations_s[label], base[index]) + translations_s[label]
-            together &= _nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
+            together &= nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
                                        key[first], together)[0] <= kept
             parted = same & (np.linalg.norm(moved[position[ends[:, 0]]] - moved[position[ends[:, 1]]], axis=1)
                              > apart + finer[run])

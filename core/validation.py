@@ -377,6 +377,9 @@ def check_key_names(key_names, count: int, default: list[str], what: str = "pose
     frames or shape keys), else ``default``. Raises :class:`MeshError` unless one per pose."""
     if key_names is None:
         return default
+    if isinstance(key_names, (str, bytes)) or not hasattr(key_names, "__len__"):
+        raise MeshError(f"key_names must be a list of names, one for each of the {count} {what}; "
+                        f"got {type(key_names).__name__}.")
     if len(key_names) != count:
         raise MeshError(f"key_names must name each of the {count} {what}; got {len(key_names)}.")
     return list(key_names)

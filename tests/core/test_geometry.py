@@ -1,5 +1,6 @@
 """Shared geometry helpers (core/geometry.py) and per-component rigid placement."""
 
+import warnings
 import numpy as np
 import pytest
 
@@ -103,6 +104,21 @@ def test_grouped_medians_are_each_groups_median(count):
     values = rng.normal(size=groups.size) * 10.0 ** rng.integers(-8, 8, groups.size)
     expected = [np.median(values[groups == g]) for g in range(count)]
     assert np.array_equal(grouped_medians(values, groups, count), expected)
+
+
+@pytest.mark.parametrize("count", [1, 7, 100])  # one group, a partition each, one sort of all
+def test_grouped_medians_of_empty_groups_are_nan(count):
+    """A group with no values has no median (NaN, as ``np.median`` of an empty array), and the
+    other groups keep theirs, wherever the empty ones lie (first, inner, last)."""
+    rng = np.random.default_rng(5)
+    present = np.arange(count)[np.arange(count) % 3 == 1]  # groups 0, 2, 3, 5, … and the last left empty
+    groups = rng.choice(present, 50 * count) if present.size else np.zeros(0, dtype=np.int64)
+    values = rng.normal(size=groups.size)
+    expected = [np.median(values[groups == g]) if g in present else np.nan for g in range(count)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # NaN without NumPy's warning about an empty mean
+        out = grouped_medians(values, groups, count)
+    assert np.array_equal(out, expected, equal_nan=True)
 
 
 def test_rigid_alignments_of_many_groups_are_each_groups_alignment():

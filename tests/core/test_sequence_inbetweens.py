@@ -766,6 +766,13 @@ def test_errors_name_the_keys_by_the_callers_names(strip):
         Interpolator(keys[0], keys[2], tri)
     with pytest.raises(MeshError, match="key_names must name each of the 2 poses; got 3"):
         Interpolator(keys[0], keys[1], tri, key_names=named[:3])
+    # names that are not a list of names are refused as such, not read letter by letter or
+    # failing inside the check with a TypeError
+    for given in ("ab", iter(named[:2]), 2):
+        with pytest.raises(MeshError, match="key_names must be a list of names, one for each of the 2 poses"):
+            Interpolator(keys[0], keys[1], tri, key_names=given)
+    with pytest.raises(MeshError, match="one for each of the 4 key poses; got str"):
+        SequenceInterpolator(keys, tri, key_names="abcd")
 
 
 def test_evicted_gaps_are_freed_at_once(strip):
