@@ -266,7 +266,7 @@ class Anchor:
         """Per-vertex weights (n,) anchoring a sequence to the keys' per-vertex spline (in the
         co-moving frame): ``weight``, :data:`STATIC_ANCHOR_WEIGHT` where the vertex is pinned, and
         the gauge alone on the pieces of ``turning`` (a part of them turns far from the rest
-        between the keys: :meth:`core.inbetween_keys._Relative.turning`), which their interpolated
+        between the keys: :meth:`core.inbetween_whole_rotations.WholeRotations.turning`), which their interpolated
         rotations place: the spline cuts
         the chord of their curl (a closed tube curled 240° per gap at the tip, anchored at
         :data:`SEQUENCE_ANCHOR_WEIGHT`: 9–11 % of the diagonal off, at 1e-4 0.2–0.3 %, 1e-3 2 %)."""

@@ -9,9 +9,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from . import deformation_fields as df
-from . import screw_motions
-from .inbetween_keys import turn_spread
+from . import deformation_fields as df, screw_motions
+from .inbetween_rigid_fits import turn_spread
 from .inbetween_motion import RIGID_PLACEMENT_SCALE
 from .splines import REST_START_LIMIT
 

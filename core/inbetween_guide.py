@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 from . import deformation_fields as df
 from .geometry import coordinate_cross, coordinate_dot, scaled
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
-from .inbetween_keys import rigid_fits
+from .inbetween_rigid_fits import rigid_fits
 
 #: The sequence anchor's guide is the keys' per-vertex spline in the world where a component
 #: deforms; where it turns as a whole that spline cuts the chords of its arcs (a cloth on a

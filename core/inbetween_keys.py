@@ -2,11 +2,15 @@
 seen from the base key of a gap (``_Relative``): each component's rigid motion, the per-triangle
 rotation residuals and log-stretches of :mod:`core.deformation_fields`, and the vertices with the
 rigid motions undone — what :mod:`core.inbetween_solver` splines over a gap.
+
+Each piece's rigid motion between two keys (with pins held, its screw coordinates and how far it
+is known) is in :mod:`core.inbetween_rigid_fits`; the triangles' whole rotations between two keys
+and the turns read from them (parts turning past a half turn, rigid fits that add turn) in
+:mod:`core.inbetween_whole_rotations`, a mixin of ``_Relative``.
 """
 
 from __future__ import annotations
 
-import copy
 from functools import partial
 from typing import TYPE_CHECKING
 
@@ -16,40 +20,14 @@ from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
 from . import small_matrices
-from .geometry import coordinate_dot, grouped_medians
-from .rigid_alignment import pivoted_alignment, rigid_alignment, rigid_alignments
+from .geometry import coordinate_dot
+from .inbetween_rigid_fits import _nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells
+from .inbetween_whole_rotations import WholeRotations, _rotation_angles
+from .rigid_alignment import rigid_alignment
 
 if TYPE_CHECKING:
     from .inbetween_topology import _Topology
 
-
-#: A piece's rotation fields in a gap are taken whole (each triangle's own rotation from the base key,
-#: not the residual to the piece's best rigid rotation) when, toward the next key or the one after,
-#: its residuals' median angle exceeds the median angle of the triangles' whole rotations by more than
-#: this (radians): the rigid fit then adds turn instead of explaining it. A soft flag pinned at its
-#: pole, keys 16 frames apart: the best rigid rotation between two keys turns 161° about the pole,
-#: the residuals 130° (median), the triangles' normals 53°; splined, the residuals and the
-#: rigid motion compose to a third of the flag turned over at the middle of the gap (the simulated
-#: frame: 117 triangles of 40,000). A cloth dragged by a corner and folded over (keys 16 frames
-#: apart): best rigid rotation 171°, residuals 133°, whole rotations 91° (margin 42°); composed, 29 %
-#: of it turned over at the middle of the gap (the simulated frame: 2 %). A rigid motion (residuals
-#: zero) and cloth that does not turn as a whole keep the decomposition: on 23 other baked cloths
-#: the residuals' median exceeds the whole rotations' by 7° at most (the flags' other gaps 12–26°,
-#: the dragged cloth's 21°); numbers in docs/inbetweens.md.
-SPURIOUS_RIGID_TURN = np.pi / 6
-#: A sequence's piece that bends without a crease (no two neighbouring triangles' whole rotations
-#: between the keys more than :data:`~core.rotation_continuity.WRAP_CREASE` apart: a limb of one
-#: skin, not cloth) where over :data:`core.sequence_turn_readings.TURNED_PART_SHARE` of its area turns past
-#: this angle (radians) from the rest of it per gap is treated as one turning past a half turn
-#: (:meth:`_Relative.turning`): the keys' per-vertex spline cuts the chord of its curl already.
-#: A thin arm bent 70 / 80 / 90° per key at two joints (its tip 140–180° per gap, 42–52 % of its
-#: area past a right angle, neighbours 3.9–5.0° apart) came out 1.2–6.7 / 1.7–8.9 / 5.9–12.7 % of
-#: the diagonal off, anchored to that spline; so, within 0.01 %. 128 gaps of the benchmark's
-#: cloths and nine probe cloths (keys 4, 8, 16 frames apart) have over that share past a right
-#: angle (up to 99 % of a piece's area), each with neighbours 44–180° apart; treated so
-#: regardless, 101 of them had the in-between half-way farther from the simulation, up to 28 ×
-#: (a sheet swinging off a rod that stops dead).
-BENT_TURN = np.pi / 2
 
 #: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
 #: deformation (rotation residuals, stretches).
@@ -79,7 +57,7 @@ class _Key:
         self.diagonals = topo.diagonals(v)
 
 
-class _Relative:
+class _Relative(WholeRotations):
     """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
     (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
     log-stretches and metrics ``G = U²`` (packed 2×2 in the base's tangent bases (m, 3) each) and
@@ -134,22 +112,10 @@ class _Relative:
     #: (set by ``core.sequence_half_turns.HalfTurns._turning_on``).
     untold_half_turn = np.zeros(0, dtype=bool)
     #: Whether the whole mesh's turn from the base key, which the pieces' half turns take the way
-    #: of, has a way round itself (:func:`whole_tells`).
+    #: of, has a way round itself (:func:`~core.inbetween_rigid_fits.whole_tells`).
     whole_tells = False
     #: Whether this is a sequence's end condition, extrapolated from the keys (:meth:`phantom`).
     extrapolated = False
-    #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
-    #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
-    whole = np.zeros(0, dtype=bool)
-    #: The triangles' whole rotations from the base key as images of its frames (3 columns, 3
-    #: coordinates, m), kept by the constructor for :meth:`residuals_add_turn` and
-    #: :meth:`whole_rotations`, which let them go (72 bytes per triangle, not held for the gap's
-    #: life), or None; :meth:`_whole_entries` lets them go for the entries it makes of them.
-    _plane_frames = None
-    #: The entries (3, 3, m) of the triangles' whole rotations from the base key, made from
-    #: ``_plane_frames`` where two readers ask for them (:meth:`_whole_entries`; the frames let go
-    #: then, and these as they would be), or None.
-    _whole = None
     #: The log-stretches once made, and what makes them (a function of the triangles asked for,
     #: an index array or None for all; see log_stretch).
     _log = None
@@ -183,182 +149,6 @@ class _Relative:
                 return make
             log = self._log  # made meanwhile by another thread
         return partial(_rows_of, log)
-
-    def _turned_frames(self, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
-        """The triangles' whole rotations from the base to ``other`` (the key this relative was
-        built from) as images of the base's frames, on the triangles ``rows`` (3 columns × (3, r)):
-        the constructor's where it kept them (let go unless ``keep``), else made again."""
-        plane = self.__dict__.get("_plane_frames") if keep else self.__dict__.pop("_plane_frames", None)
-        if plane is None:
-            return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
-        return plane[:, :, rows]
-
-    def _whole_entries(self, base: _Key, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
-        """The entries (3, 3, r) of the triangles' whole rotations from ``base`` to ``other`` (the
-        keys this relative was built from) on the triangles ``rows``
-        (:func:`~core.deformation_fields.frame_rows_rotation_entries` of :meth:`_turned_frames`):
-        made once where the pins' fits and :meth:`turning` read them (``keep``, all rows), which
-        lets the frames go; let go unless ``keep`` (72 bytes per triangle either)."""
-        whole = self.__dict__.get("_whole") if keep else self.__dict__.pop("_whole", None)
-        if whole is not None:
-            return whole[:, :, rows]
-        whole = df.frame_rows_rotation_entries(self._turned_frames(other, rows), base.column_rows[:, :, rows])
-        if keep:
-            self._whole = whole
-        return whole
-
-    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float,
-                free: np.ndarray | None = None) -> tuple:
-        """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
-        rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
-        (E, 2): the triangles sharing an edge; see :data:`core.sequence_turn_readings.TURNED_PART_SHARE`):
-        where the triangles' whole rotations taken continuous across the mesh turn by over π more
-        than the least-turned triangle of the piece — but for a piece with a jump past a half turn
-        at a crease (:data:`core.rotation_continuity.WRAP_CREASE`) — or, in a piece that bends
-        without a crease (no two neighbours' rotations more than ``WRAP_CREASE`` apart), by over
-        :data:`BENT_TURN`. Read before :meth:`residuals_add_turn`, which lets the constructor's
-        frames go. Also the triangles (bool (m,)) of those pieces that turn less than
-        ``WRAP_CREASE`` from the least-turned one (the part the rest turns from), and per piece
-        whether it turns past a half turn with a jump at a crease: which way it went is not known;
-        the whole rotations taken continuous (:meth:`continued_turns`, ``free`` as there); and per
-        piece whether it turns far with its part that stays not held still (turning by more than
-        the mesh resolves there) while read from the part nearest its rigid turn it turns a whole
-        turn otherwise: which end stays is not known; and, per piece, the triangle read as held
-        still where that alone keeps the piece from being contested (-1 elsewhere), with the
-        triangles (bool (m,)) turning less than the mesh resolves at them, for the neighbouring
-        gaps' readings to tell whether that part is held there too."""
-        whole, continued = self.continued_turns(topo, base, other, pairs, free)
-        pieces, count = topo.triangle_component, len(topo.components)
-        # from the least-turned part of its piece (a piece spinning by about a half turn as a
-        # whole, its parts a little either side of it, turns as its rigid fit says)
-        angles = np.sqrt(np.einsum("ij,ij->i", continued, continued))
-        least = np.full(count, np.inf)
-        np.minimum.at(least, pieces, angles)
-        beyond = angles - least[pieces]
-        area = np.maximum(np.bincount(pieces, base.areas, minlength=count), np.finfo(float).tiny)
-
-        def over_share(turned: np.ndarray) -> np.ndarray:
-            return np.bincount(pieces[turned], base.areas[turned], minlength=count) / area > share
-
-        def with_crease(candidates: np.ndarray) -> np.ndarray:
-            creased = rotation_continuity.creased(whole, candidates, rotation_continuity.WRAP_CREASE)
-            return np.bincount(pieces[candidates[creased, 0]], minlength=count) > 0
-
-        past = over_share(beyond > np.pi)
-        folded = np.zeros(count, dtype=bool)
-        if past.any():  # ... with a jump at a crease
-            inside = pairs[past[pieces[pairs[:, 0]]]]
-            folded = with_crease(inside[rotation_continuity.jumping_pairs(whole, inside)])
-        out = past & ~folded
-        bent = over_share(beyond > BENT_TURN) & ~past
-        if bent.any():  # ... those without a crease
-            out |= bent & ~with_crease(pairs[bent[pieces[pairs[:, 0]]]])
-        # a turning piece whose part that stays itself turns by more than the mesh resolves there
-        # (not held still) and whose rigid turn reads it the other way round: which end stays is
-        # not known (a strip held at one end, 0°, is; a tail whose tip turns 13° the short way
-        # round, 347° the long way, and whose root turns 71°, is not)
-        contested = np.zeros(count, dtype=bool)
-        held_only, still = np.full(count, -1), None
-        if out.any():
-            nearest = rotation_continuity.continuous_rotation_vectors(whole, pairs, pieces, toward=self._rigid_turns(topo, base),
-                                                                      free=out[pieces])
-            other = over_share(np.sqrt(np.einsum("ij,ij->i", nearest - continued, nearest - continued)) > np.pi)
-            amount = np.sqrt(np.einsum("ij,ij->i", whole, whole))
-            step = rotation_continuity.turn_steps(amount, pairs[~rotation_continuity.jumping_pairs(whole, pairs)])
-            stays = np.full(count, -1)
-            order = np.lexsort((angles, pieces))
-            first = np.r_[True, pieces[order][1:] != pieces[order][:-1]]
-            stays[pieces[order[first]]] = order[first]  # each piece's least-turned triangle
-            still = angles <= step
-            held = np.zeros(count, dtype=bool)
-            held[stays >= 0] = still[stays[stays >= 0]]
-            contested = out & other & ~held
-            held_only = np.where(out & other & held, stays, -1)
-        return out, out[pieces] & (beyond < rotation_continuity.WRAP_CREASE), folded, continued, contested, held_only, still
-
-    def continued_turns(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray,
-                        free: np.ndarray | None = None) -> tuple:
-        """The triangles' whole rotation vectors (m, 3) from ``base`` to ``other`` (the keys this
-        relative was built from), the short way round, and the same taken continuous across the
-        triangle pairs ``pairs`` (E, 2) from each piece's part that stays (the reading of which way
-        round a part turns, :meth:`turning`), or, on the triangles ``free`` (bool (m,) or None),
-        from the part nearest the rigid motion's turn
-        (:func:`core.rotation_continuity.continuous_rotation_vectors`)."""
-        whole = df.rotation_vectors_of_entries(self._whole_entries(base, other, keep=True))
-        continued = rotation_continuity.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
-                                                                    toward=self._rigid_turns(topo, base), free=free)
-        return whole, continued
-
-    def _rigid_turns(self, topo: _Topology, base: _Key) -> tuple:
-        """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
-        sequence reads it) and the triangles' areas in ``base``: what the whole rotations taken
-        continuous across a piece turn nearest (``toward`` of
-        :func:`core.rotation_continuity.continuous_rotation_vectors`)."""
-        # one gather of whole rows (3–4× faster than indexing rows and columns together)
-        return np.take(self.screw[:, :3], topo.triangle_component, axis=0), base.areas
-
-    def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
-        """Per component (bool (C,)), whether this relative's rotation residuals turn further than
-        its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
-        against the median angle of the triangles' whole rotations from ``base`` to ``other``
-        (from the trace of each rotation: of its entries where the pins' fits or :meth:`turning`
-        made them, :meth:`_whole_entries`, else three dot products per triangle). Two poses, whose
-        residuals are taken continuous across the mesh (``_across``): also the pieces whose
-        residuals are left with a jump past a half turn there while their whole rotations, jumping
-        too, are taken continuous with none left. A residual within the keys' noise of none has an
-        axis that noise sets, and a whole turn about it parts neighbours by a whole turn times the
-        angle between their axes: a strip curled 270° at one joint, whose rigid fit turns 74° the
-        short way round (its tip's residuals 16°), 61 × 3 vertices with noise of 3e-4 of its length
-        had its tip's residuals continued about axes up to 60° apart, a jump left, and every
-        in-between and exaggeration turned the tip the short way round (0.50–0.61 of the diagonal
-        off, silently); taken whole, within 2.1e-3."""
-        made = self.__dict__.pop("_whole", None)  # the entries, where the pins' fits or turning made them
-        frames = self._turned_frames(other) if made is None else None
-        whole = _rotation_angles(frames, base.column_rows) if made is None else df.entries_rotation_angles(made)
-        residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
-        pieces, count = topo.triangle_component, len(topo.components)
-        out = grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
-        across = self._across
-        if across is None or not len(across):
-            return out
-        # two poses: a piece whose residuals are left with a jump past a half turn (taken continuous
-        # across the mesh, a part carrying a whole turn about axes its keys' noise sets: residuals
-        # within that noise of none) while its whole rotations continue across the mesh with none
-        left = rotation_continuity.jumping_pairs(self.rotvec, across)
-        stuck = ~out & (np.bincount(pieces[across[left, 0]], minlength=count) > 0)
-        if not stuck.any():
-            return out
-        vectors = df.frame_rows_rotation_vectors(frames, base.column_rows) if made is None else \
-            df.rotation_vectors_of_entries(made)
-        inside = across[stuck[pieces[across[:, 0]]]]
-        wrapped = np.bincount(pieces[inside[rotation_continuity.jumping_pairs(vectors, inside), 0]],
-                              minlength=count) > 0
-        if not (stuck & wrapped).any():
-            return out
-        continued = rotation_continuity.continuous_rotation_vectors(vectors, across, pieces,
-                                                                    toward=self._rigid_turns(topo, base))
-        unwound = np.bincount(pieces[inside[rotation_continuity.jumping_pairs(continued, inside), 0]],
-                              minlength=count) == 0
-        return out | (stuck & wrapped & unwound)
-
-    def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray,
-                        across: np.ndarray | None = None, free: np.ndarray | None = None) -> "_Relative":
-        """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
-        the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
-        components' rigid rotations not undone; taken continuous across the mesh past a half turn
-        across this relative's triangle pairs (two poses) or ``across`` (E, 2), from the part
-        nearest the rigid motion's turn on the triangles ``free`` (:meth:`continued_turns`)."""
-        rows = np.flatnonzero(components[topo.triangle_component])
-        entries = self._whole_entries(base, other, rows)  # let go before the copy: it keeps none
-        out = copy.copy(self)
-        out.rotvec = self.rotvec.copy()
-        out.rotvec[rows] = df.rotation_vectors_of_entries(entries)
-        across = self._across if across is None else across
-        if across is not None:
-            out.rotvec = rotation_continuity.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,
-                                                                         toward=self._rigid_turns(topo, base), free=free)
-        out.whole = components
-        return out
 
     def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
         """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
@@ -528,129 +318,6 @@ def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
     return np.stack([cos * cos * a11 - 2 * cos * sin * a12 + sin * sin * a22,
                      cos * sin * (a11 - a22) + (cos * cos - sin * sin) * a12,
                      sin * sin * a11 + 2 * cos * sin * a12 + cos * cos * a22], axis=1)
-
-
-def component_screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool,
-                     nonrigidity) -> np.ndarray:
-    """Screw coordinates (C, 6) of the components' rigid motions (C, 3, 3), (C, 3), each rotation
-    vector taken nearest its ``turns`` row (see :func:`core.screw_motions.rigid_logs`), to
-    within what the components' ``nonrigidity`` (C,) says their fits are known to."""
-    return screw_motions.rigid_logs(rotations, translations, turns, unwrap, turn_spread(nonrigidity))
-
-
-def whole_tells(turn: np.ndarray) -> bool:
-    """Whether a whole mesh's rotation vector ``turn`` (3,) has a way round to give its pieces'
-    half turns: neither a turn within :data:`~core.screw_motions.TURN_SPREAD` (the coarsest a
-    fit is taken to be known) of none, whose axis may be rounding (an engine's fixed block and its
-    crank turning 180°: the whole mesh's turn is 1e-7 rad), nor itself a half turn as short either
-    way round within it (a mesh of one piece: its own turn)."""
-    theta = float(np.linalg.norm(turn))
-    return theta > screw_motions.TURN_SPREAD and not rotation_continuity.either_way(theta, screw_motions.TURN_SPREAD)
-
-
-def turn_spread(nonrigidity) -> np.ndarray:
-    """The angles (radians, (C,)) the components' rotations are known to, from their
-    ``nonrigidity`` (C,) (see :data:`core.screw_motions.TURN_NOISE`)."""
-    return np.minimum(screw_motions.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), screw_motions.TURN_SPREAD)
-
-
-def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Each component's best rigid motion taking vertices ``base`` (n, 3) onto ``other``: rotations
-    (C, 3, 3), translations (C, 3) and the RMS misfits (C,) it leaves (mass-weighted)."""
-    if len(topo.components) <= df.SLICED_PIECES:  # few pieces: each on its rows (views where consecutive)
-        fits = [rigid_alignments(base[rows], other[rows], None, 1, topo.weights[rows]) for rows in topo.component_rows]
-        rotations = np.concatenate([fit[0] for fit in fits]).reshape(-1, 3, 3)
-        translations = np.concatenate([fit[1] for fit in fits]).reshape(-1, 3)
-    else:  # many: all at once (a loop took 0.1 s per call on 3,000 pieces)
-        rows = topo.component_vertices
-        rotations, translations = rigid_alignments(base[rows], other[rows], topo.component_labels,
-                                                   len(topo.components), topo.weights[rows])
-    return rotations, translations, fit_misfits(topo, base, other, rotations, translations)
-
-
-def fit_misfits(topo: _Topology, base: np.ndarray, other: np.ndarray, rotations, translations) -> np.ndarray:
-    """Each component's RMS misfit (C,) (mass-weighted) of its rigid motion taking ``base`` onto ``other``."""
-    residual = topo.apply_motion(base, rotations, translations) - other
-    return np.sqrt(topo.component_sums(np.einsum("ij,ij->i", residual, residual)) / topo.component_mass)
-
-
-#: A triangle's rotation past this angle (radians) is near a half turn, where its rotation vector's
-#: direction is lost to rounding and a spline of it may take the other way round.
-NEAR_HALF_TURN = 5 * np.pi / 6
-
-#: The pins' fit is taken only where it leaves the triangles' median rotation smaller by more than
-#: this (radians): a banner hung from two points and carried past a half turn had fits within 0.2°
-#: of each other (median 38.0° against 38.1°, 560 against 562 past 150°), and the switch cost its
-#: gap 4 % of RMS (the sequence's median 2.2 %); the handkerchief's fit that turned 176° left 28° more.
-PIN_FIT_MARGIN = np.pi / 36
-
-def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, translations, misfits):
-    """The pieces' rigid motions (``rotations`` (C, 3, 3), ``translations`` (C, 3), ``misfits`` (C,)
-    from :func:`rigid_fits`), where a piece holds pins (``topo.pinned``: vertices at one place in
-    every key) replaced by its best rigid motion that keeps them there
-    (:func:`core.rigid_alignment.pivoted_alignment`) when that leaves its triangles less turn to
-    make — a median angle of their rotations from ``base`` to ``other`` (``whole``: a function
-    giving their entries (3, 3, m), asked only where a piece's two fits differ) with the
-    piece's rotation undone smaller by :data:`PIN_FIT_MARGIN`, and fewer of them near a half turn
-    (:data:`NEAR_HALF_TURN`). The free fit of a handkerchief pinned at its four centre vertices,
-    folded into a bundle that looks alike after a half turn, turned 176° about its pins between keys
-    8 frames apart, leaving its triangles 110° (median; 13 % past 150°) where they turned 82° (4 %):
-    splined, 4,488 flipped triangles at the middle of the gap. A sheet rolled by 191° about its
-    still half keeps the free fit (28°), which leaves 4 % of its triangles past 150° where the pins'
-    would leave 12.5 %."""
-    pinned = np.zeros(topo.n, dtype=bool)
-    pinned[topo.pinned] = True
-    held_rotations, held_translations = rotations.copy(), translations.copy()
-    held = np.zeros(len(topo.components), dtype=bool)
-    # each piece's rows selected by a view where they are consecutive (no (n, 3) copies)
-    for c, (rows, selected) in enumerate(zip(topo.components, topo.component_rows)):
-        pins = rows[pinned[rows]]
-        if pins.size:
-            held[c] = True
-            held_rotations[c], held_translations[c] = pivoted_alignment(
-                base.vertices[selected], other.vertices[selected], base.vertices[pins], topo.weights[selected])
-    # a triangle's angle left to turn changes by at most the angle between the two fits (the
-    # triangle inequality of rotation angles), so pieces whose fits differ by PIN_FIT_MARGIN or less
-    # cannot take the pins' one: measured only where some piece's differ by more
-    held &= np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1) > PIN_FIT_MARGIN
-    if not held.any():
-        return rotations, translations, misfits
-    entries, pieces = whole(), topo.triangle_component
-
-    def left_to_turn(fitted):  # per component: the triangles' rotations, the fit undone: median angle, near half turns
-        angles = _fit_undone_angles(entries, fitted, pieces)
-        count = len(topo.components)
-        return grouped_medians(angles, pieces, count), np.bincount(pieces, angles > NEAR_HALF_TURN, count)
-
-    (held_median, held_near), (free_median, free_near) = left_to_turn(held_rotations), left_to_turn(rotations)
-    use = held & (held_median < free_median - PIN_FIT_MARGIN) & (held_near < free_near)
-    if not use.any():
-        return rotations, translations, misfits
-    rotations = np.where(use[:, None, None], held_rotations, rotations)
-    translations = np.where(use[:, None], held_translations, translations)
-    return rotations, translations, fit_misfits(topo, base.vertices, other.vertices, rotations, translations)
-
-
-def _fit_undone_angles(entries: np.ndarray, rotations: np.ndarray, pieces: np.ndarray) -> np.ndarray:
-    """The angle (m,) of each triangle's rotation ``W`` (its entries (3, 3, m)) with its piece's
-    rotation ``R`` (``rotations`` (C, 3, 3), ``pieces`` (m,)) undone, ``Rᵀ W``: from its trace
-    ``Σ_ab R_ab W_ab``, nine products per triangle."""
-    r = rotations[0] if len(rotations) == 1 else np.moveaxis(rotations[pieces], 0, -1)  # (3, 3) or (3, 3, m)
-    trace = sum(r[a, b] * entries[a, b] for a in range(3) for b in range(3))
-    return df.trace_rotation_angles(trace)
-
-
-def _rotation_angles(frames, columns) -> np.ndarray:
-    """The angle (m,) of each triangle's rotation taking the frame ``columns`` to ``frames`` (both
-    stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle."""
-    trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
-    return df.trace_rotation_angles(trace)
-
-
-def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:
-    """Each component's RMS misfit of its best rigid motion over its bounding-box diagonal in the
-    ``base`` key."""
-    return list(np.asarray(misfits, dtype=np.float64) / base.diagonals)
 
 
 def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:

@@ -28,7 +28,7 @@ import numpy as np
 
 from .concurrency import concurrently
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
-from .inbetween_repair import REPAIR_RINGS
+from .inbetween_repair_rounds import REPAIR_RINGS
 
 
 #: The factors solved in a gap when several in-betweens are asked together: those asked nearest

@@ -41,7 +41,8 @@ from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
 from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT, PieceMotion
-from .inbetween_repair import Outcome, Region, Repair
+from .inbetween_repair import Outcome, Repair
+from .inbetween_repair_regions import Region
 from .pins import riding_motions
 from .rigid_alignment import principal_frames
 from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
@@ -76,7 +77,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
 
     #: Whether a part of a piece turns past a half turn from the rest between the keys with a jump
     #: of its rotations at a fold's crease, as the sequence that prepared the gap found it
-    #: (:meth:`core.inbetween_keys._Relative.turning`): the way round is not known, the gap warns.
+    #: (:meth:`core.inbetween_whole_rotations.WholeRotations.turning`): the way round is not known, the gap warns.
     folded_turn = False
     #: Whether a part of a piece turns past a half turn from the rest between the keys and the way
     #: round read from them and from a neighbouring gap's keys disagree

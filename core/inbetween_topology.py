@@ -100,7 +100,7 @@ class _Topology:
         #: them and where (:func:`core.inbetween_motion.seat_candidates`: read in the first pose).
         self.seat_candidates: dict[bytes, tuple] = {}
         #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there
-        #: (:func:`core.inbetween_keys.rigid_fits`).
+        #: (:func:`core.inbetween_rigid_fits.rigid_fits`).
         self.pinned: np.ndarray | None = None
 
     @cached_property

@@ -28,7 +28,7 @@ ZERO_TURN_TOLERANCE = 1e-9
 #: a sheet swinging off a rod that stops dead, keys 4 / 8 frames apart, 22–55 / 37–58° (medians
 #: 50 / 53°): taken continuous there, its in-betweens went 0.54 / 0.50 → 5.7 / 1.4 × the linear
 #: blend's error. A piece none of whose neighbours' rotations are that far apart bends without a
-#: crease (:data:`core.inbetween_keys.BENT_TURN`).
+#: crease (:data:`core.inbetween_whole_rotations.BENT_TURN`).
 WRAP_CREASE = np.pi / 6
 
 

@@ -9,8 +9,8 @@ import numpy as np
 
 from .deformation_fields import rotation_vectors
 from .rotation_continuity import either_way, the_other_way
-from .inbetween_keys import NEAR_HALF_TURN, _Relative, rigid_fits
-from .inbetween_keys import component_screws, turn_spread
+from .inbetween_keys import _Relative
+from .inbetween_rigid_fits import NEAR_HALF_TURN, rigid_fits, component_screws, turn_spread
 from .inbetween_solver import _Gap
 
 
@@ -42,7 +42,7 @@ class HalfTurns:
 
     def _turning_on(self, base: int, relative: _Relative) -> _Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past
-        :data:`~core.inbetween_keys.NEAR_HALF_TURN` between the keys taken the other way round where
+        :data:`~core.inbetween_rigid_fits.NEAR_HALF_TURN` between the keys taken the other way round where
         that is nearer the turns of the steps before and after (per unit of time) by more than it
         turns the gap's middle further than the short way: a
         skirt spun 3.134 rad between keys 16 frames apart, turning on the same way before and
@@ -52,7 +52,7 @@ class HalfTurns:
         this relative sees the same). Sets ``relative.untold_half_turn`` (bool (C,)): the pieces
         that turn a half turn, as short either way round to within what their fits are known to
         (:func:`~core.rotation_continuity.either_way`), whose way neither the whole mesh's turn
-        (:func:`~core.inbetween_keys.whole_tells`) nor such a step tells (two poses have no
+        (:func:`~core.inbetween_rigid_fits.whole_tells`) nor such a step tells (two poses have no
         steps): the keys do not tell which way round they went (a crank turning 180° per gap on a
         fixed block: its keys alternate between two poses)."""
         last = len(self._raw) - 1

@@ -19,7 +19,8 @@ import numpy as np
 from .errors import MeshError, RecoveryError
 from .concurrency import concurrently
 from .inbetween_prediction import CONCURRENT_VERTICES
-from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative, rigid_fits
+from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
+from .inbetween_rigid_fits import rigid_fits
 from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes

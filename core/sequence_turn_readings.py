@@ -30,7 +30,7 @@ from .sequence_keys import GAP_CACHE
 #: wind-blown flag's largest jump 2.58 → 3.63–5.45 × the simulation's, keys 16 frames apart); no
 #: gap of theirs has over 2.6 % of a piece's area past a half turn. So does a piece that bends
 #: without a crease where over this share of it turns past a right angle from the rest
-#: (:data:`core.inbetween_keys.BENT_TURN`: an arm of one skin bent 70–90° per key, 1.2–12.7 % off
+#: (:data:`core.inbetween_whole_rotations.BENT_TURN`: an arm of one skin bent 70–90° per key, 1.2–12.7 % off
 #: anchored to the spline, within 1e-4 so). A piece past a half turn whose rotations jump at a
 #: fold's crease is left as it is and its gap warns that the in-betweens may turn it the other
 #: way round: a coarse arm (13 rings, 41.7° between them) curled 150° per key is 10–33 % off, a

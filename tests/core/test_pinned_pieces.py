@@ -1,5 +1,5 @@
 """Pinned pieces: a piece holding vertices still in every key (pins) is fitted rigid motions that
-keep them there where that leaves its triangles less to turn (core.inbetween_keys.pin_held_fits,
+keep them there where that leaves its triangles less to turn (core.inbetween_rigid_fits.pin_held_fits,
 core.rigid_alignment.pivoted_alignment)."""
 
 from pathlib import Path
@@ -36,7 +36,7 @@ def test_the_pin_fits_measure_the_turn_left_to_each_triangle(count):
     """The angle each triangle's rotation ``W`` still turns once its piece's rigid rotation ``R``
     is undone (``Rᵀ W``), from the nine products of the entries, against SciPy's angle of the
     composed matrices (to arccos's rounding near 0 and π), one piece and several."""
-    from core.inbetween_keys import _fit_undone_angles
+    from core.inbetween_rigid_fits import _fit_undone_angles
 
     rng = np.random.default_rng(count)
     whole = Rotation.random(300, random_state=count).as_matrix()

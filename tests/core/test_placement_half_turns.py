@@ -141,7 +141,7 @@ def test_a_noisy_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_sa
     and so read its far-turning parts, whose edges keep the metric to the keys' own change there.
     Where the strip's rigid fit turns the short way round its tip's residuals are within the noise
     of none; continued by a whole turn about their noisy axes they jumped, and every factor went
-    the short way round (:meth:`core.inbetween_keys._Relative.residuals_add_turn` takes such a
+    the short way round (:meth:`core.inbetween_whole_rotations.WholeRotations.residuals_add_turn` takes such a
     piece's rotations whole). Each in-between and exaggeration is the noise-free strip curled by
     the factor times the angle to the gap's tolerance, every triangle facing as in it, silently."""
     angle = np.radians(degrees)
@@ -157,7 +157,7 @@ def test_a_noisy_strip_curled_past_a_half_turn_at_one_joint_keeps_curling_the_sa
 @pytest.mark.parametrize("degrees, joints", [((120.0, 120.0), (0.9, 1.9)), ((270.0,), (0.9,))])
 def test_a_strip_one_triangle_wide_curled_past_a_half_turn_keeps_curling_the_same_way(degrees, joints):
     """The strips above one triangle wide (121 × 2 vertices: no vertex off the boundary, so no
-    triangle carries a whole ring, :meth:`core.inbetween_repair.Repair._carrying_a_vertex`), their
+    triangle carries a whole ring, :meth:`core.inbetween_turned_away.TurnedAway._carrying_a_vertex`), their
     tips turning 240° / 270° between two poses and 170° × 2 per key in a sequence: every
     in-between, exaggeration and reversal of the two poses is the strip curled by the factor times
     the angles (to 1e-3 of the diagonal, as the wide strip), every sequence in-between the curl at

@@ -388,6 +388,7 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     triangles of any one piece of the mesh after the first round (that would replace the piece's
     pose, not repair it), and still try every round below it."""
     import core.inbetween_repair as repair
+    from core import inbetween_repair_rounds
     from core import sequence_inbetweens
 
     flat, tri = strip
@@ -410,10 +411,10 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
         Interpolator(a, b, tris).pose(0.5)
-    assert regions and max(regions) <= repair.MAX_REPAIR_FRACTION * len(tri)
+    assert regions and max(regions) <= inbetween_repair_rounds.MAX_REPAIR_FRACTION * len(tri)
     # without the limit the schedule grows beyond it: the limit is what stopped it
     regions.clear()
-    monkeypatch.setattr(repair, "MAX_REPAIR_FRACTION", 1.0)
+    monkeypatch.setattr(inbetween_repair_rounds, "MAX_REPAIR_FRACTION", 1.0)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
         Interpolator(a, b, tris).pose(0.5)
     assert max(regions) > 0.5 * len(tri)

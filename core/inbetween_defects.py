@@ -1,0 +1,94 @@
+"""The defects of an in-between a repair removes (:mod:`core.inbetween_repair`): flipped triangles, whose
+normal opposes both keys' (or, beyond the keys, the interpolated normal) by more than
+:data:`FLIP_COSINE`, and collapsed ones, whose area dropped below :data:`COLLAPSE_RATIO` of the
+interpolated area; every triangle of a pose that is not finite. Positions ``x`` (n, 3), the
+triangles of the gap's topology (m, 3); in-betweens of paper §8.4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import coordinate_cross, coordinate_dot
+
+
+#: A triangle whose area dropped below this fraction of its interpolated target area is collapsed.
+COLLAPSE_RATIO = 1e-3
+#: A triangle is flipped where its normal opposes the keys' (or the interpolated) normal by more
+#: than this cosine: a piece half-way through an exact half turn has normals perpendicular to both
+#: keys' in exact arithmetic, and rounding (~1e-16) made some of them look flipped, so a repair
+#: bent a rigidly turning lid (edge lengths off by 56 %). Far below any fold one could see.
+FLIP_COSINE = 1e-9
+
+
+class DefectChecks:
+    """The flipped and collapsed triangles of a pose of one gap, and what is wrong with it in
+    words; mixed into :class:`~core.inbetween_repair.Repair`.
+
+    Of the Repair it is mixed into, it reads its ``_local``, ``gap`` and calls its ``_turned_away``."""
+
+    def flipped(self, cross: np.ndarray, length: np.ndarray, s: float, frames: np.ndarray | None,
+                rows=slice(None), sides=None, normals=None) -> np.ndarray:
+        """Triangles (bool (r,)) among ``rows`` whose normal ``cross`` (3 coordinates, r; its
+        lengths ``length`` (r,)) opposes both keys' unit normals (in-betweens, 0 ≤ s ≤ 1) or, for
+        extrapolations, the interpolated normal ``R_T(s) n_T`` (``frames``: (3, m, 3) of every
+        triangle, ``frames[2]`` the normals; without them: the nearer key's normal), by more than
+        :data:`FLIP_COSINE` (``normals``: the keys' normals on ``rows``, if the caller has them)."""
+        gap = self.gap
+        slack = -FLIP_COSINE * length
+        if 0.0 <= s <= 1.0:
+            base, nxt = normals or (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows])
+            flipped = (coordinate_dot(cross, base) < slack) & (coordinate_dot(cross, nxt) < slack)
+            if frames is not None and sides is not None and sides[2] is not None and flipped.any():
+                flipped[self._turned_away(cross, slack, frames, rows, np.flatnonzero(flipped), sides)] = False
+            return flipped
+        if frames is not None:
+            return coordinate_dot(cross, frames[2][rows].T) < slack
+        return coordinate_dot(cross, (gap.base if s < 0.5 else gap.next).normal_rows[:, rows]) < slack
+
+    def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None, scale=None) -> np.ndarray:
+        """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
+        ``rows``); all of them if ``x`` is not finite. The interpolated areas come from
+        ``stretch`` (packed (m, 3)) or, if given instead, their ratios to the base's ``scale``
+        (m,; :meth:`core.inbetween_field.InterpolatedField.area_scale`)."""
+        m = len(self.gap.topo.triangles)
+        if not np.isfinite(x).all():
+            return np.ones(m if rows is None else len(rows), dtype=bool)
+        if rows is None:
+            e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
+            rows = slice(None)
+            normals = None
+        else:
+            corners, normals, areas = self._rows_of(rows)
+            p = np.take(x, corners, axis=0)  # (3 corners, r, 3) in one gather
+            e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
+        cross = coordinate_cross(e1, e2)
+        if scale is None:
+            st = stretch[rows]
+            scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
+        else:
+            scale = scale[rows]
+        target = (self.gap.base.areas if normals is None else areas) * scale
+        length = np.sqrt(coordinate_dot(cross, cross))
+        collapsed = 0.5 * length < COLLAPSE_RATIO * target
+        return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+
+    def _rows_of(self, rows: np.ndarray) -> tuple:
+        """The corners (3, r: each corner's vertices contiguous), the keys' normals (two (3, r)) and
+        the base's areas (r,) of the triangles ``rows``: a repair round checks each field's fit on
+        the same region, so the last rows asked (per thread: a gap's in-betweens are repaired
+        concurrently) keep them."""
+        cached = getattr(self._local, "rows", None)
+        if cached is None or cached[0] is not rows:
+            gap = self.gap
+            cached = self._local.rows = (rows, np.ascontiguousarray(gap.topo.triangles[rows].T),
+                                         (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows]),
+                                         gap.base.areas[rows])
+        return cached[1:]
+
+    def problem(self, x, s, frames, stretch, defects=None) -> str | None:
+        """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""
+        if not np.isfinite(x).all():
+            return "the reconstruction produced non-finite coordinates"
+        count = int((self.defects(x, s, frames, stretch) if defects is None else defects).sum())
+        return f"{count} triangle(s) flipped or collapsed" if count else None

@@ -1,0 +1,352 @@
+"""Repairs of in-betweens of a sequence (core.inbetween_repair and its parts: the defects checked,
+parts turning away from both keys, repair rounds and regions; issue 17) on analytic motions; no
+bpy."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from core.errors import ShapeDifferenceWarning
+from core.sequence_inbetweens import SequenceInterpolator
+from core.two_pose_inbetweens import Interpolator
+from inbetween_helpers import _bend, _edge_deviation, _flipped
+
+
+def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(monkeypatch, strip):
+    """An in-between of a sequence whose repairs all keep defects is the metric fit with the
+    fewest, even when the linear blend has none: its neighbours in time are fits, and the blend
+    (or a fit held near it) would jump away from them and back. No fit near the blend is tried.
+    Two poses still fall back to the clean blend (they are held to its error); extrapolations keep
+    the metric fit too (beyond the keys the blend is the linear extrapolation, which lengthens
+    whatever turns)."""
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 2.0), _bend(flat, 3.0)
+    middle = 0.5 * (a.min(axis=0) + a.max(axis=0))  # keyed about the origin: sequences work about
+    a, b, c = a - middle, b - middle, c - middle  # the first key's middle, and the mocks see positions
+    blend, extrapolation = 0.5 * (a + b), -0.5 * a + 1.5 * b
+
+    def clean(x):  # only the blend (and the linear extrapolation at 1.5) are clean
+        return np.allclose(x, blend) or np.allclose(x, extrapolation)
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if clean(x) else 3] = True
+        return out if rows is None else out[rows]
+
+    def problem(self, x, *args):
+        return None if clean(x) else "3 triangle(s) flipped"
+
+    near_blend, real_fit = [], solver._Gap.fit  # fits started from the blend: the fallback's
+    monkeypatch.setattr(solver._Gap, "fit", lambda self, x, *args, **kwargs: near_blend.append(clean(x)) or
+                        real_fit(self, x, *args, **kwargs))
+    monkeypatch.setattr(repair.Repair, "problem", problem)
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    # the warnings name the gap by its keys, as the caller named them (the operators' frames)
+    with pytest.warns(ShapeDifferenceWarning, match="at factor 0.5 between key pose 0 and key pose 1: .*metric fit "
+                      "with the fewest"):
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert near_blend and not any(near_blend)
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
+    with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b: .*returned the linear blend"):
+        x = Interpolator(a, b, tri).pose(0.5)
+    np.testing.assert_allclose(x, blend)
+    assert any(near_blend)
+    with pytest.warns(ShapeDifferenceWarning, match="at factor 1.5 between vertices_a and vertices_b: .*metric fit "
+                      "with the fewest"):
+        x = Interpolator(a, b, tri).pose(1.5)
+    assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(extrapolation, flat, tri).mean()
+
+
+@pytest.mark.parametrize("shift, kept", [(1e-3, True), (5.0, False)])
+def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
+    """A repair of a sequence's in-between that moves the pose further than ``MAX_REPAIR_MOVE`` of
+    the keys' move across the gap (and more than a mean edge length) is not taken, even when
+    defect-free: the neighbouring in-betweens would not follow. A small one is; two poses take
+    either."""
+    import core.inbetween_repair as repair
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
+    offset = shift * np.ptp(flat, axis=0).max()  # the strip is 2 long: a 4 mm or a 10 m lift
+    fit = []  # the pose the repairs start from
+
+    def moved(x):
+        return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * offset
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[len(tri) // 2] = not moved(x)  # one defect, gone from any repair
+        return out if rows is None else out[rows]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        fit[:] = fit or [x.copy()]
+        z = x.copy()
+        z[region.free, 2] += offset  # the region lifted
+        return z
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if moved(x) else "1 triangle(s) flipped")
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert fit and moved(x) == kept and bool(caught) != kept
+    fit.clear()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        assert moved(Interpolator(a, b, tri).pose(0.5))
+
+
+@pytest.mark.parametrize("lift, kept", [(1e-3, True), (1.0, False)])
+def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
+    """When no repair of a sequence's in-between is defect-free, one that removes some defects is
+    kept as the fit with the fewest only if it moves the pose by at most
+    ``MAX_PARTIAL_REPAIR_MOVE`` mean edge lengths (RMS), however far the keys move: the
+    neighbouring in-betweens choose their own, and a larger one is a jump away from them."""
+    import core.inbetween_repair as repair
+    from core import inbetween_repair_rounds
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    travel = np.array([0.0, 0.0, 30.0])  # keys 30 apart: a tenth of their move would allow the lift
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0) + travel, _bend(flat, 1.5) + 2 * travel
+    middle = 0.5 * (a.min(axis=0) + a.max(axis=0))  # keyed about the origin: sequences work about
+    a, b, c = a - middle, b - middle, c - middle  # the first key's middle, and the mocks see positions
+    fit = []  # the pose the repairs start from
+
+    def moved(x):
+        return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * lift
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[len(tri) // 2] = True  # a defect no repair removes
+        out[len(tri) // 2 + 1] = not moved(x)  # and one every repair removes
+        return out if rows is None else out[rows]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        fit[:] = fit or [x.copy()]
+        z = x.copy()
+        z[region.free, 2] += lift
+        return z
+
+    def run():
+        fit.clear()
+        with pytest.warns(ShapeDifferenceWarning, match="fewest"):
+            return SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(repair.Repair, "problem", lambda self, x, s, frames, stretch, defects=None: "flipped")
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    assert moved(run()) == kept
+    monkeypatch.setattr(inbetween_repair_rounds, "MAX_PARTIAL_REPAIR_MOVE", np.inf)  # the limit is what refused it
+    assert moved(run())
+
+
+@pytest.mark.parametrize("sequence", [True, False])
+def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, sequence):
+    """Two folds far apart on a sequence's in-between, one that only the interpolated rotations
+    remove and one that only the linear blend's rotations remove: each part of the repair region
+    takes the first field that repairs it, so both go in the first round, without a warning (a
+    field imposed on the whole region leaves one of them, whichever it is). Two poses take the
+    region whole (their fallbacks are the blend's): there no field repairs both, and a fallback
+    warns."""
+    import core.inbetween_repair as repair
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
+    middle = flat[tri].mean(axis=1)
+    ends = [tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))] for x in (0.3, 1.7)]
+    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+        repair.Repair.imposed_fields
+    imposed = []  # the index of the field last imposed (0: the interpolated rotations, 1: the blend's)
+
+    def fold(out, corners, free=None):
+        i, j, k = corners
+        if free is None or i in free:
+            out[i] = out[j] + out[k] - out[i]  # a corner reflected across its opposite edge
+        return out
+
+    def fields(self, *args):
+        def tagged(index, field):
+            return lambda rows: imposed.append(index) or field(rows)
+        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = real_local(self, x, region, frames, stretch, guide)
+        for removes, corners in enumerate(ends):  # the first end's fold stays but for field 0, the other's but for 1
+            if imposed[-1] != removes:
+                fold(out, corners, region.free)
+        return out
+
+    def folding_fit(self, x, *args, **kwargs):
+        return fold(fold(real_fit(self, x, *args, **kwargs), ends[0]), ends[1])
+
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
+    if not sequence:
+        with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+            Interpolator(a, b, tri).pose(0.5)
+        assert max(imposed) > 1  # every field tried on the whole region
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    assert imposed and _flipped(x, a, b, tri) == 0
+    assert max(imposed) == 1  # no field after the blend's rotations was needed
+
+
+def test_a_fit_that_folds_past_the_whole_change_tolerance_falls_back_to_its_step_there(monkeypatch, strip):
+    """A sequence's fit that ends with defects no repair removes returns, without a warning, its
+    step where it would have stopped at the tolerance of the whole key-to-key change (see
+    TOLERANCE_TRIM) when that step is clean."""
+    import core.inbetween_repair as repair
+    from core import inbetween_fit
+
+    flat, tri = strip
+    seq = SequenceInterpolator([flat, _bend(flat, 0.6), _bend(flat, 1.2)], tri)
+    gap = seq._gap(0)
+    _ = gap.arc_guided  # computed on first use of the guide: before the fit's steps are recorded
+    gap.change_tolerance = 2.2 * gap.tolerance
+    script = [3.0, 2.0, 1.5, 1.2]  # × the tolerance: within the whole change's at the second step
+    steps = []
+
+    def scripted(self, edges, targets):
+        return script[min(len(steps), len(script)) - 1] * self.tolerance
+
+    real_edges = inbetween_fit.LocalGlobalFit.edges_of
+
+    def recording_edges(self, x, *args):
+        steps.append(x)
+        return real_edges(self, x, *args)
+
+    def defects(self, x, *args, rows=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if x is steps[1] else 3] = True
+        return out if rows is None else out[rows]
+
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "misfit", scripted)
+    monkeypatch.setattr(inbetween_fit.LocalGlobalFit, "edges_of", recording_edges)
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        x, problem = gap.pose(0.5)
+    assert problem is None and x is steps[1]
+
+
+def _predictions_flagged(monkeypatch, strip):
+    """A bending strip's first gap with seven in-betweens (two solved, five predicted): the keys
+    (about the first key's middle, where sequences work, so that a mock sees their positions), the
+    triangles, the factors, every in-between solved {factor: positions}, and ``Repair.defects``
+    mocked to flag three triangles of any pose but those solved ones."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_repair as repair
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
+    keys = [k - middle for k in keys]
+    factors = np.arange(1, 8) / 8
+    with monkeypatch.context() as every_one_solved:
+        every_one_solved.setattr(prediction, "MIN_PREDICTED_BATCH", len(factors) + 1)
+        solved = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    moving = flat[:, 0] > 0.0  # the still vertices (x = 0) are set exactly after the check
+
+    def defects(self, x, s, *args, rows=None, scale=None):
+        out = np.zeros(len(tri), dtype=bool)
+        out[:0 if np.allclose(x[moving], solved[s][moving], rtol=0, atol=1e-12) else 3] = True
+        return out if rows is None else out[rows]
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    return keys, tri, factors, solved, moving
+
+
+def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
+    """In a gap whose solved in-betweens are clean, a predicted in-between whose defects no repair
+    removes is solved: every in-between of the gap is then its solved pose, with no warning."""
+    keys, tri, factors, solved, _ = _predictions_flagged(monkeypatch, strip)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        poses = SequenceInterpolator(keys, tri).poses(0, factors)
+    np.testing.assert_allclose(poses, [solved[s] for s in factors], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("shift, solved_instead", [(10.0, True), (0.01, False)])
+def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch, strip, shift, solved_instead):
+    """A predicted in-between whose clean repair moves it by more than the cloth deforms across the
+    gap (a tenth of the keys' move with each piece's rigid motion taken out, at least a mean edge
+    length) is solved instead when the solve is clean: its neighbours in time are predictions and
+    would not follow the repair (a cape on a walking rig, keys 8 apart: a repair moved one
+    in-between 1.2 mean edge lengths RMS, within a tenth of the walk, and it jumped 2.25 × the
+    simulation's largest acceleration). A repair that moves it a little is kept."""
+    import core.inbetween_solver as solver
+
+    keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
+
+    def repaired(self, x, s, rings=None, defects=None):  # clean, moved by ``shift`` mean edges
+        return x + shift * self.mean_edge, None
+
+    monkeypatch.setattr(solver._Gap, "repaired", repaired)
+    poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    for s in factors:
+        if s not in (0.25, 0.75):  # the predicted ones
+            assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == solved_instead
+
+
+def test_a_repair_by_rows_falls_back_as_a_whole_pose_does(strip):
+    """A predicted in-between of a gap between two keys (not a sequence's: the fallbacks near the
+    linear blend apply) whose repairs all fail reaches the fit near the blend, which reads the
+    whole mesh's stretches: the repair given the targets by rows returns what it returns given
+    them whole, bit for bit."""
+    flat, tri = strip
+    a, b = _bend(flat, 0.0), _bend(flat, 2.0)
+    gap = SequenceInterpolator([a, b], tri, start="keys")._gap(0)
+    assert not gap.cubic
+    s = 0.5
+    crumpled = 0.5 * (gap.base.vertices + gap.next.vertices) + \
+        np.random.default_rng(0).normal(scale=0.1, size=a.shape)
+    x, message = gap.repaired(crumpled, s)
+    assert message is not None and "near the linear blend" in message
+    frames, stretch, motion, guide = gap.targets(s)
+    whole = gap.finished(gap.repair.checked(crumpled, crumpled, s, frames, stretch, guide, motion), s)
+    np.testing.assert_array_equal(x, whole[0])
+    assert message == whole[1]
+
+
+def test_a_triangle_tipped_against_the_turn_of_a_strongly_stretching_gap_is_flipped(strip):
+    """Keys five times apart in size and a quarter turn apart: the gap's tolerance is 2, which
+    read as an angle would let a triangle facing away from both keys and 107° off its interpolated
+    normal pass as turning with its piece. The angle is arctan of the tolerance (63°), so it is
+    flipped."""
+    flat, tri = strip
+    b = 5.0 * flat @ Rotation.from_rotvec([np.pi / 2, 0.0, 0.0]).as_matrix().T
+    gap = SequenceInterpolator([flat, b], tri, start="keys")._gap(0)
+    assert gap.tolerance >= 1.0
+    s = 0.5
+    x = gap.pose(s)[0]
+    frames, stretch = gap.targets(s)[:2]
+    assert not gap.repair.defects(x, s, frames, stretch).any()
+    t = len(tri) // 2
+    i, j, k = tri[t]
+    base, nxt = gap.base.normal_rows[:, t], gap.next.normal_rows[:, t]
+    interpolated = np.cross(frames[0][t], frames[1][t])
+    # its third corner moved across its first side so that it faces mostly sideways and a little
+    # away from both keys
+    facing = 0.9 * np.cross(base, nxt) - 0.2 * (base + nxt)
+    side = x[j] - x[i]
+    across = np.cross(facing, side)
+    x[k] = x[i] + 0.5 * side + np.linalg.norm(x[k] - x[i]) * across / np.linalg.norm(across)
+    normal = np.cross(x[j] - x[i], x[k] - x[i])
+    normal /= np.linalg.norm(normal)
+    assert normal @ base < 0 and normal @ nxt < 0
+    assert np.degrees(np.arccos(normal @ interpolated / np.linalg.norm(interpolated))) > 100.0
+    assert gap.repair.defects(x, s, frames, stretch)[t]
