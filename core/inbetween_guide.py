@@ -134,8 +134,9 @@ class Guide:
     def arc_guided(self) -> np.ndarray:
         """Per component (bool (C,)) of a sequence, whether the anchor's guide is its co-moving
         spline because it turns as a whole (:meth:`turning_as_a_whole`; not under a free-flight or
-        impact condition). Computed when a guide is first asked for: a gap whose in-betweens need
-        no solve (:func:`core.inbetween_prediction.gap_poses`) does without it."""
+        impact condition, nor deforming while it turns near a half turn:
+        :class:`core.inbetween_solver._Gap`). Computed when a guide is first asked for: a gap whose
+        in-betweens need no solve (:func:`core.inbetween_prediction.gap_poses`) does without it."""
         if not self._arc_candidates.any():
             return self._arc_candidates
         return self.turning_as_a_whole() & self._arc_candidates

@@ -43,6 +43,7 @@ from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT, PieceMotion
 from .inbetween_repair import Outcome, Repair
 from .inbetween_repair_regions import Region
+from .inbetween_rigid_fits import NEAR_HALF_TURN
 from .pins import riding_motions
 from .rigid_alignment import principal_frames
 from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
@@ -208,6 +209,16 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         for condition in (free, impact, None if entry is None else entry[0]):
             if condition is not None:
                 self._arc_candidates &= ~np.asarray(condition, dtype=bool)
+        # ... nor a piece that deforms (past SIMILAR_SHAPE_MISFIT's first share of its size over the
+        # gap's keys) while its rigid fit turns near a half turn (NEAR_HALF_TURN): the two ways round
+        # swing that arc to opposite sides of the chord, and a cloth folding over turns its parts
+        # both ways. A tablecloth yanked off a table, keys 16 frames apart (fit 184°, non-rigidity
+        # 0.14, its triangles 44-49 % about one way, the rest the other): guided along the arc it
+        # stood on its hooked edge, 1.72 × the blend's RMS in that gap, 34,065 triangles facing away
+        # from both keys; on its world spline 0.86 ×, 13. A sheet keeping its shape to 0.6 % while it
+        # turns over 170° keeps its arc (see ARC_GUIDE_STRAIN_RATIO)
+        near_half = np.linalg.norm(relatives[2].screw[:, :3], axis=1) > NEAR_HALF_TURN
+        self._arc_candidates &= ~(near_half & (nonrigidity > SIMILAR_SHAPE_MISFIT[0]))
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.outcomes: dict[float, Outcome] = {}  # what the checks of each factor's in-between returned
