@@ -263,7 +263,7 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                         "sliding joint's path half-way (keys closer together bring them nearer)")
     if doubts.rounded:
         problems.append(f"{between}, {doubts.rounded} joint(s) between rigid pieces are told from pieces touching "
-                        f"by chance only to {doubts.rounded_share:.1g} of their size (coordinates rounded in single "
+                        f"by chance only to {100 * doubts.rounded_share:.2g} % of their size (coordinates rounded in single "
                         "precision far from the origin, or noise): pieces that merely touch (hair cards, debris) "
                         "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)")
     return problems
