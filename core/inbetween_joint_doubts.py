@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import screw_motions
-from .inbetween_joints import (JOINT_REACH, closest_pairs, contact_reach, nearest_pairs, piece_vertices,
-                               relative_motions, screw_axes, slide_precision, touching_pairs)
+from .inbetween_joints import (JOINT_REACH, Contacts, contact_reach, nearest_pairs, relative_motions, screw_axes,
+                               slide_precision)
 
 #: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
 #: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
@@ -68,25 +68,23 @@ class JointDoubts:
         return bool(self.apart or self.sliding or self.rounded)
 
 
-def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
-                 reach: float, joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray
-                 ) -> JointDoubts | None:
+def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
+                 joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
-    ``core.inbetween_topology._Topology``), or None where it has none. ``motions``: the pieces' best
-    rigid motions between the keys (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,);
+    ``core.inbetween_topology._Topology``), or None where it has none. ``touching``: the rigid
+    pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
     ``reach``: the joint distance; ``joints``: :func:`core.inbetween_joints.joint_tree`'s answer
     (``(parents (C,), order)`` or None); ``edges``: each piece's mean edge length (C,); ``misfits``:
     each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
     :meth:`~core.inbetween_topology._Topology.diagonals`). Only pairs of pieces in different joint
     groups, and where the joint would move the child otherwise than its own motion does (a card
     turning about its root above a still scalp moves as it would on it), count."""
-    pieces = np.flatnonzero(rigid)
-    if pieces.size < 2:
+    if touching is None:
         return None
     doubts = JointDoubts()
     parents = np.full(len(topo.components), -1) if joints is None else joints[0]
-    index, label = piece_vertices(topo, pieces)
-    rotations, translations = motions[0][pieces], motions[1][pieces]
+    c = touching
+    pieces, index, label, rotations, translations = c.pieces, c.index, c.label, c.rotations, c.translations
     size = sizes[pieces]
     group = _groups(parents)[pieces]
     stakes = _Stakes(base, index, label, rotations, translations)
@@ -101,14 +99,10 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndar
             doubtful = doubtful[stake > JOINT_STAKE * precision[doubtful]]
             doubts.rounded = int(doubtful.size)
             doubts.rounded_share = float(share[doubtful].max(initial=0.0))
-    key, ends, first = touching_pairs(base, index, label, pieces.size, reach)
+    key, first, u, v, relative, precision = c.key, c.first, c.u, c.v, c.relative, c.precision
     if key.size:  # touching in both keys and turning together, one sliding along the other
-        u, v = np.divmod(key[first], pieces.size)
-        nearest_base, _ = closest_pairs(base, ends, first)
-        near = (nearest_base <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
-        relative = relative_motions(rotations, translations, u, v)
-        angle, _, _ = screw_axes(*relative)
-        precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
+        near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
+        angle = c.angle
         smaller = np.minimum(size[u], size[v])
         sliding = near & (angle * smaller <= precision) & (np.linalg.norm(relative[1], axis=1) > precision)
         if sliding.any():

@@ -48,6 +48,7 @@ the point but not the turn relative to the link below).
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -237,9 +238,55 @@ def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: 
     return shift + chord * radii[child]
 
 
+@dataclass
+class Contacts:
+    """The rigid pieces of a gap and the pairs of them touching in its base key, with what a joint
+    between each pair is judged by; :func:`joint_tree` and
+    :func:`core.inbetween_joint_doubts.joint_doubts` read the same (:func:`contacts`)."""
+
+    pieces: np.ndarray  # the rigid pieces (R,)
+    index: np.ndarray  # their vertices, piece by piece, and each one's piece among them (``label``)
+    label: np.ndarray
+    rotations: np.ndarray  # the pieces' rigid motions from the base key to the next (R, 3, 3), (R, 3)
+    translations: np.ndarray
+    key: np.ndarray  # :func:`touching_pairs`: the touching vertex pairs' piece-pair keys, their ends, each pair's first
+    ends: np.ndarray
+    first: np.ndarray
+    u: np.ndarray  # per touching pair of pieces (P,): the two pieces (among ``pieces``)
+    v: np.ndarray
+    relative: tuple  # v's motion relative to u's (rotations (P, 3, 3), translations (P, 3))
+    angle: np.ndarray  # its screw's angle, axis and slide along it (:func:`screw_axes`)
+    axis: np.ndarray
+    slide: np.ndarray
+    precision: np.ndarray  # the slide the pieces' rigid fits resolve (:func:`slide_precision`)
+    nearest: np.ndarray  # the closest two vertices' distance and midpoint in the base key (:func:`closest_pairs`)
+    nearest_at: np.ndarray
+
+
+def contacts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
+             reach: float, misfits: np.ndarray | None) -> Contacts | None:
+    """The :class:`Contacts` of the ``rigid`` (bool (C,)) pieces of ``topo`` between vertices ``base``
+    and ``nxt`` (n, 3), with their best rigid ``motions`` (rotations (C, 3, 3), translations (C, 3)),
+    the joint distance ``reach`` and each piece's rigid ``misfits`` (C,; see :func:`joint_tree`);
+    None with fewer than two rigid pieces."""
+    pieces = np.flatnonzero(rigid)
+    if pieces.size < 2:
+        return None
+    index, label = piece_vertices(topo, pieces)
+    rotations, translations = motions[0][pieces], motions[1][pieces]
+    key, ends, first = touching_pairs(base, index, label, pieces.size, reach)
+    u, v = np.divmod(key[first], pieces.size)
+    relative = relative_motions(rotations, translations, u, v)
+    angle, axis, slide = screw_axes(*relative)
+    precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
+    return Contacts(pieces, index, label, rotations, translations, key, ends, first, u, v, relative, angle, axis,
+                    slide, precision, *closest_pairs(base, ends, first))
+
+
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
                moves: np.ndarray, reach: float, loose: np.ndarray | None = None, pins: np.ndarray | None = None,
-               edges: np.ndarray | None = None, screws: np.ndarray | None = None, misfits: np.ndarray | None = None):
+               edges: np.ndarray | None = None, screws: np.ndarray | None = None, misfits: np.ndarray | None = None,
+               touching: Contacts | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -261,20 +308,17 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     own screw coordinates from ``base`` to ``nxt`` (C, 6), without which pieces that turn about
     their own axes touching in the same place are jointed too; ``misfits``: each piece's RMS misfit
     of its best rigid motion over the gap's keys (C,, lengths; 0 where None), what a joint's slide
-    is measured against (:data:`JOINT_SLIDE`)."""
-    pieces = np.flatnonzero(rigid)
-    if pieces.size < 2:
+    is measured against (:data:`JOINT_SLIDE`); ``touching``: :func:`contacts` of these arguments, where
+    the caller has them."""
+    touching = contacts(topo, base, nxt, motions, rigid, reach, misfits) if touching is None else touching
+    if touching is None or not touching.key.size:
         return None
-    index, label = piece_vertices(topo, pieces)
-    key, ends, first = touching_pairs(base, index, label, pieces.size, reach)
-    if not key.size:
-        return None
+    c = touching
+    pieces, index, label, key, ends, first, u, v = c.pieces, c.index, c.label, c.key, c.ends, c.first, c.u, c.v
+    rotations, translations, relative = c.rotations, c.translations, c.relative
     # per pair of touching pieces, whether the child's motion relative to the parent's holds their
     # contact (a joint); a spanning tree of the best held contacts (a chain curled onto itself
     # touches another link only in passing, and its relative motion turns about another point)
-    rotations, translations = motions[0][pieces], motions[1][pieces]
-    u, v = np.divmod(key[first], pieces.size)
-    relative = relative_motions(rotations, translations, u, v)
     contact = 0.5 * (base[ends[:, 0]] + base[ends[:, 1]])
     run = np.repeat(np.arange(first.size), np.diff(np.r_[first, key.size]))  # each vertex pair's pair of pieces
     offsets = joint_offsets(contact, run, first, *relative, reach)
@@ -283,7 +327,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     # together (cubes of a shattered block that touch in the base key and have flown apart in the
     # next are no joints, wherever their relative motions' axes run)
     finer = contact_reach(reach, edges, pieces[u], pieces[v])
-    nearest_base, contact_base = closest_pairs(base, ends, first)
+    nearest_base, contact_base = c.nearest, c.nearest_at
     jointed &= nearest_base <= finer
     if jointed.any():
         nearest_later, contact_later = nearest_pairs(nxt, index, label, pieces.size, reach, key[first], jointed)
@@ -291,8 +335,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     if jointed.any():
         # a joint's relative motion turns about an axis through the contact without sliding along it
         # (to within what the pieces' rigid fits resolve; pieces moving as one neither turn nor slide)
-        precision = slide_precision(base[index], nxt[index], reach, misfits, pieces[u], pieces[v])
-        _, axis, slide = screw_axes(*relative)
+        precision, axis, slide = c.precision, c.axis, c.slide
         jointed &= np.abs(slide) <= precision
     if jointed.any() and screws is not None:
         # no joint where the pieces turn about their own axes, touching in the same place: their own

@@ -39,7 +39,7 @@ from .inbetween_fit import LocalGlobalFit, change_tolerance, trimmed_tolerance
 from .inbetween_flight import after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
-from .inbetween_joints import JOINT_REACH, joint_screws, joint_tree
+from .inbetween_joints import JOINT_REACH, contacts, joint_screws, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT, PieceMotion
 from .inbetween_repair import Outcome, Repair
 from .inbetween_repair_regions import Region
@@ -177,18 +177,18 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self._anchors: dict[bool, tuple] = {}
         self.mean_edge = float(np.mean(base.lengths))
         # rigid pieces jointed to each other move relative to the piece they hang from
-        self.joints = None
+        self.joints = self.joint_doubts = None
         if len(topo.components) > 1:
             piece_edges = np.bincount(topo.triangle_component, base.lengths.sum(axis=1),
                                       minlength=len(topo.components)) / (3 * topo.piece_sizes)
+            reach, misfits = JOINT_REACH * self.mean_edge, nonrigidity * base.diagonals
+            touching = contacts(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, reach, misfits)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
-                                     self.piece_moves(relatives), JOINT_REACH * self.mean_edge,
-                                     nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE, static, piece_edges,
-                                     relatives[2].screw, nonrigidity * base.diagonals)
-        # what the joints leave untold (links apart, sliding joints, joints within rounding): the gap warns
-        self.joint_doubts = None if len(topo.components) < 2 else joint_doubts(
-            topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, JOINT_REACH * self.mean_edge, self.joints,
-            piece_edges, nonrigidity * base.diagonals, base.diagonals)
+                                     self.piece_moves(relatives), reach, nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE,
+                                     static, piece_edges, relatives[2].screw, misfits, touching)
+            # what the joints leave untold (links apart, sliding joints, joints within rounding): the gap warns
+            self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
+                                             piece_edges, misfits, base.diagonals)
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],
