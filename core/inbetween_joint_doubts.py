@@ -4,14 +4,20 @@ is told).
 
 :func:`core.inbetween_joints.joint_tree` joints two rigid pieces where they touch (nearest vertices
 within an edge) in both keys of a gap and the child's motion relative to the parent's turns about a
-point of their contact without sliding. Three kinds of pieces fall outside it, each moved by its own
-rigid motion, which can leave the other piece (numbers in docs/inbetweens.md, *Joints the keys do
-not tell*):
+point of their contact without sliding, one joint per piece (a spanning tree). Four kinds of pieces
+fall outside it, moved by their own rigid motions or by joints other than theirs, which can leave
+the other piece (numbers in docs/inbetweens.md, *Joints the keys do not tell*):
 
 - **links apart** (:data:`JOINT_NEAR`): pieces that turn relative to each other about a point in
   the gap between them, near each other in both keys against their size but farther apart than the
   finer one's edges (chain links clearing each other by more than an edge: 0.64 of a link off at
   0.5);
+- **joints in a loop**: pieces whose contact holds a joint as the joint tree's do, which the tree
+  joins through other pieces (each piece hangs from one other: of held contacts that close a loop
+  it keeps all but one), where the tree places them otherwise than their own joint would (a chain
+  curled so that links come within an edge of the next-but-one as of the links they hold: 5.4e-3 of
+  a link off in the in-betweens where the tree kept the passing contacts; the keys do not tell
+  which, so the gap warns where it kept the right ones too);
 - **sliding joints**: pieces that touch in both keys and turn together while one slides along the
   other (a finger sliding in a hand; the relative motion a translation, no joint point): no
   prismatic joint is modelled (3.0e-2 of a finger off at 0.5 for a slide of 0.05);
@@ -48,6 +54,10 @@ JOINT_DOUBT = 1e-4
 #: moving as one part by up to 2.2 × it (5,000 tetrahedra turned as one in single precision 1,000
 #: from the origin), those of hair cards jointed by chance there by 5–79 ×.
 JOINT_STAKE = 3.0
+#: Held contacts in a loop are warned only where the joint tree places a piece otherwise than its own
+#: joint by more than this share of the piece's size: below it the two placements are one to the eye
+#: (80 sequins overlapping on a rolled sheet: 1.6e-4; a curled chain taking passing links: 9e-3 and more).
+JOINT_LOOP_SHARE = 1e-3
 
 
 @dataclass
@@ -59,13 +69,15 @@ class JointDoubts:
     apart: int = 0
     apart_share: float = 0.0
     apart_edges: float = 0.0  # the widest gap where links apart meet, in the finer piece's mean edge lengths
+    looped: int = 0  # pieces of held contacts the joint tree joins through other pieces
+    looped_share: float = 0.0
     sliding: int = 0
     sliding_share: float = 0.0
     rounded: int = 0
     rounded_share: float = 0.0
 
     def __bool__(self) -> bool:
-        return bool(self.apart or self.sliding or self.rounded)
+        return bool(self.apart or self.looped or self.sliding or self.rounded)
 
 
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
@@ -77,7 +89,8 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     (``(parents (C,), order)`` or None); ``edges``: each piece's mean edge length (C,); ``misfits``:
     each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
     :meth:`~core.inbetween_topology._Topology.diagonals`). Only pairs of pieces in different joint
-    groups, and where the joint would move the child otherwise than its own motion does (a card
+    groups (in one group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`),
+    and where the joint would move the child otherwise than its own motion (or the tree) does (a card
     turning about its root above a still scalp moves as it would on it), count."""
     if touching is None:
         return None
@@ -100,6 +113,8 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
             doubts.rounded = int(doubtful.size)
             doubts.rounded_share = float(share[doubtful].max(initial=0.0))
     key, first, u, v, relative, precision = c.key, c.first, c.u, c.v, c.relative, c.precision
+    if joints is not None and c.held is not None:
+        _joints_in_loops(doubts, c, parents, group, size, stakes)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         angle = c.angle
@@ -122,6 +137,33 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     _links_apart(doubts, base, nxt, index, label, pieces, (rotations, translations), reach, edges, misfits, size,
                  group, stakes)
     return doubts if doubts else None
+
+
+def _joints_in_loops(doubts: JointDoubts, c: Contacts, parents: np.ndarray, group: np.ndarray, size: np.ndarray,
+                     stakes: _Stakes) -> None:
+    """Count in ``doubts`` the rigid pieces of the touching pairs of ``c`` whose contact holds a joint
+    (``c.held``) that the joint tree (``parents`` (C,); each rigid piece's joint ``group`` and
+    ``size`` (R,)) joins through other pieces instead, where the tree places the smaller piece
+    otherwise than their own joint would (:data:`JOINT_STAKE`): the held contacts close a loop, the
+    tree keeps all but one of them, and the keys do not tell which one the pieces do not hold (a
+    chain curled so that links meet the next-but-one as closely as the links they hold)."""
+    u, v = c.u, c.v
+    jointed = np.full(c.pieces.size, -1)  # per rigid piece, its parent's index among them (−1: a root)
+    has_parent = parents[c.pieces] >= 0
+    jointed[has_parent] = np.searchsorted(c.pieces, parents[c.pieces[has_parent]])
+    # pieces that turn relative to each other (those moving as one, as a pile turned whole, stay
+    # together whichever contacts the tree keeps)
+    turning = c.angle * np.minimum(size[u], size[v]) > c.precision
+    looped = np.flatnonzero(c.held & turning & (jointed[u] != v) & (jointed[v] != u) & (group[u] == group[v]))
+    if not looped.size:
+        return
+    child = np.where(size[u] <= size[v], u, v)[looped]  # the smaller piece hangs from the larger
+    parent = np.where(size[u] <= size[v], v, u)[looped]
+    stake = stakes.distances(parent, child, stakes.jointed(jointed))
+    off = (stake > JOINT_STAKE * c.precision[looped]) & (stake > JOINT_LOOP_SHARE * size[child])
+    if off.any():
+        doubts.looped = int(np.unique(np.r_[child[off], parent[off]]).size)
+        doubts.looped_share = float(np.max(stake[off] / size[child[off]]))
 
 
 def _groups(parents: np.ndarray) -> np.ndarray:
@@ -147,13 +189,14 @@ class _Stakes:
         self.motions = rotations, translations
         self.half = screw_motions.rigid_exps(0.5 * screw_motions.rigid_logs(rotations, translations))
 
-    def distances(self, parent: np.ndarray, child: np.ndarray) -> np.ndarray:
-        """Per pair of pieces ``parent``, ``child`` (P,; indices among the rigid pieces), that distance."""
+    def distances(self, parent: np.ndarray, child: np.ndarray, placed: tuple | None = None) -> np.ndarray:
+        """Per pair of pieces ``parent``, ``child`` (P,; indices among the rigid pieces), that distance;
+        ``placed``: the pieces' motions half-way to compare instead of their own screws' (rotations
+        (K, 3, 3), translations (K, 3); :meth:`jointed`)."""
         if not child.size:
             return np.zeros(0)
-        local_rotations, local_translations = screw_motions.rigid_exps(
-            0.5 * screw_motions.rigid_logs(*relative_motions(*self.motions, parent, child)))
-        rotations, translations = self.half
+        local_rotations, local_translations = self._local_halves(parent, child)
+        rotations, translations = self.half if placed is None else placed
         counts = self.counts[child]
         pair = np.repeat(np.arange(child.size), counts)  # every child vertex's pair, pair by pair
         first = np.r_[0, np.cumsum(counts)[:-1]]
@@ -163,6 +206,29 @@ class _Stakes:
         local = np.einsum("kab,kb->ka", local_rotations[pair], x) + local_translations[pair]
         joint = np.einsum("kab,kb->ka", rotations[p], local) + translations[p]
         return np.maximum.reduceat(np.linalg.norm(own - joint, axis=1), first)
+
+    def jointed(self, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The rigid pieces' motions half-way as the joint tree places them (rotations (K, 3, 3),
+        translations (K, 3)): a root by its own screw, a child by its parent's placement composed
+        with its screw relative to the parent (``parents`` (K,): each piece's parent among the rigid
+        pieces, −1 for a root), level by level down the tree."""
+        rotations, translations = (array.copy() for array in self.half)
+        children = np.flatnonzero(parents >= 0)
+        local_rotations, local_translations = self._local_halves(parents[children], children)
+        placed = parents < 0
+        for _ in range(children.size):
+            ready = np.flatnonzero(~placed[children] & placed[parents[children]])
+            if not ready.size:
+                break
+            c, p = children[ready], parents[children[ready]]
+            translations[c] = np.einsum("kab,kb->ka", rotations[p], local_translations[ready]) + translations[p]
+            rotations[c] = rotations[p] @ local_rotations[ready]
+            placed[c] = True
+        return rotations, translations
+
+    def _local_halves(self, parent: np.ndarray, child: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per pair (P,), the child's screw relative to the parent half-way (rotations, translations)."""
+        return screw_motions.rigid_exps(0.5 * screw_motions.rigid_logs(*relative_motions(*self.motions, parent, child)))
 
 
 def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, reach, edges, misfits, size,
@@ -250,6 +316,13 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                         "where they meet (joints are found within one): each moves by its own rigid motion, up to "
                         f"{100 * doubts.apart_share:.1f} % of its size off the joint's path half-way (links modelled "
                         "within an edge length of each other where they meet are jointed)")
+    if doubts.looped:
+        problems.append(f"{between}, {doubts.looped} rigid piece(s) touch and turn about a point where they meet "
+                        "as jointed pieces do, as well as the pieces the joints join them through (each piece "
+                        "hangs from one other: a loop of such contacts, as in a chain curled so that every other "
+                        "link comes as close to the next-but-one as to the links it holds): the joints place "
+                        f"them up to {100 * doubts.looped_share:.2g} % of a piece's size from where a joint "
+                        "between the two would half-way, and the keys do not tell which pieces hold each other")
     if doubts.sliding:
         problems.append(f"{between}, {doubts.sliding} rigid piece(s) slide along a piece they touch while turning "
                         "with it (as a finger sliding in a hand): sliding joints are not modelled, and each moves "

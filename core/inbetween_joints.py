@@ -261,6 +261,10 @@ class Contacts:
     precision: np.ndarray  # the slide the pieces' rigid fits resolve (:func:`slide_precision`)
     nearest: np.ndarray  # the closest two vertices' distance and midpoint in the base key (:func:`closest_pairs`)
     nearest_at: np.ndarray
+    # per touching pair (P,), whether its contact holds a joint (set by :func:`joint_tree`, whose
+    # spanning tree takes one joint per piece of those: where they close a loop, the keys do not
+    # tell which hold, :mod:`core.inbetween_joint_doubts`); None until then
+    held: np.ndarray | None = None
 
 
 def contacts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
@@ -309,7 +313,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     their own axes touching in the same place are jointed too; ``misfits``: each piece's RMS misfit
     of its best rigid motion over the gap's keys (C,, lengths; 0 where None), what a joint's slide
     is measured against (:data:`JOINT_SLIDE`); ``touching``: :func:`contacts` of these arguments, where
-    the caller has them."""
+    the caller has them; its ``held`` is set (the touching pairs whose contact holds a joint)."""
     touching = contacts(topo, base, nxt, motions, rigid, reach, misfits) if touching is None else touching
     if touching is None or not touching.key.size:
         return None
@@ -389,6 +393,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                              > apart + finer[run])
             together &= np.bincount(run[parted], minlength=first.size) == 0
         jointed &= ~together
+    touching.held = jointed
     if not jointed.any():
         return None
     # the closest the touching vertices stay at the next key: 0 where a joint is a shared point

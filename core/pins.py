@@ -60,24 +60,33 @@ def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
     return still
 
 
-def riding_tolerance(keys: list[np.ndarray], edges: np.ndarray, still: np.ndarray, scale: float | None = None) -> float:
+def moving_edges(first: np.ndarray, edges: np.ndarray, still: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The ``edges`` (E, 2) not between two ``still`` (n,) vertices (int indices (r,) into
+    ``edges``) and their lengths (r,) in ``first`` (n, 3): what :func:`riding_tolerance` and
+    :func:`riding_vertices` both read of a sequence's first key."""
+    a, b = edges[:, 0], edges[:, 1]
+    rows = np.flatnonzero(~(still[a] & still[b]))
+    return rows, edge_lengths(first, a[rows], b[rows])
+
+
+def riding_tolerance(keys: list[np.ndarray], edges: np.ndarray, still: np.ndarray, scale: float | None = None,
+                     moving: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The rounding to which riding sets keep their edges' lengths and their rigid motion in ``keys``
     (list of (n, 3)): :data:`RIDING_ULPS` single-precision spacings of ``scale``
     (:func:`core.seams.rounding_scale`, by default the keys' largest coordinate), at most a
     thousandth of the mean length of the ``edges`` (E, 2) not between two ``still`` vertices (far
-    from the origin the roundings outgrow it)."""
-    first = keys[0]
+    from the origin the roundings outgrow it); ``moving``: those edges and lengths
+    (:func:`moving_edges` of the first key) when the caller has them."""
     largest = max(float(np.max(np.abs(key))) for key in keys) if scale is None else scale
-    a, b = edges[:, 0], edges[:, 1]
-    moving = ~(still[a] & still[b])
-    if not moving.any():
+    _, length = moving_edges(keys[0], edges, still) if moving is None else moving
+    if not length.size:
         return 0.0
-    length = edge_lengths(first, a[moving], b[moving])
     return min(RIDING_ULPS * float(np.spacing(np.float32(largest))), 1e-3 * float(np.mean(length)))
 
 
 def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.ndarray,
-                    still: np.ndarray, scale: float | None = None, tolerance: float | None = None) -> list[np.ndarray]:
+                    still: np.ndarray, scale: float | None = None, tolerance: float | None = None,
+                    moving: tuple[np.ndarray, np.ndarray] | None = None) -> list[np.ndarray]:
     """The sets of vertices (list of index arrays) that ride on an animated object in ``keys``
     (list of K ≥ 2 arrays (n, 3)). Each has at least :data:`MIN_RIDING_VERTICES` vertices joined
     by ``edges`` (E, 2) whose lengths every key keeps to single-precision rounding of ``scale``
@@ -85,7 +94,8 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     (with two keys, translates as one), is not a whole
     piece (``component`` (n,): each vertex's piece, −1 for loose vertices; whole rigid pieces
     follow their screw motions) in a piece keeping no more than :data:`MAX_RIDING_SHARE` of its
-    edges so, and is not all ``still`` (n,)."""
+    edges so, and is not all ``still`` (n,). ``moving``: the edges not between two still vertices
+    and their lengths in the first key (:func:`moving_edges`) when the caller has them."""
     n = keys[0].shape[0]
     riding: list[np.ndarray] = []
     if len(keys) < 2 or not len(edges):
@@ -96,12 +106,12 @@ def riding_vertices(keys: list[np.ndarray], edges: np.ndarray, component: np.nda
     # of 6–9 vertices in a pair 4 frames apart, turned 15° or, along a line, 180°)
     moved = _translated if len(keys) == 2 else align_rigidly
     a, b = edges[:, 0], edges[:, 1]
-    candidates = np.flatnonzero(~(still[a] & still[b]))  # the edges left: each key is read only there
+    # the edges left, and their lengths in the first key: each key is read only there
+    candidates, length = moving_edges(first, edges, still) if moving is None else moving
     if not candidates.size:
         return riding
-    length = edge_lengths(first, a[candidates], b[candidates])
     if tolerance is None:
-        tolerance = riding_tolerance(keys, edges, still, scale)
+        tolerance = riding_tolerance(keys, edges, still, scale, (candidates, length))
     for key in keys[1:]:
         close = np.abs(edge_lengths(key, a[candidates], b[candidates]) - length) <= tolerance
         candidates, length = candidates[close], length[close]

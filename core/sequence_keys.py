@@ -25,7 +25,7 @@ from .inbetween_solver import _Gap
 from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
-from .pins import riding_tolerance, riding_vertices, still_vertices, witnessed_riding
+from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
@@ -113,9 +113,10 @@ class SequenceKeys:
         # two keys tell only sets that translate, and those are not held: the blend anchor holds
         # them, and an in-between says where they end far off it (core.inbetween_solver.HOOK_MISS_NOTED);
         # but sets moved by the same rigid motion as a whole rigid piece are held (witnessed_riding)
-        self._riding_tolerance = riding_tolerance(self._given, topology.edges, still, rounding)
+        lengths = moving_edges(self._given[0], topology.edges, still)  # read by both
+        self._riding_tolerance = riding_tolerance(self._given, topology.edges, still, rounding, lengths)
         moving = riding_vertices(self._given, topology.edges, self._topo.vertex_component, still, rounding,
-                                 self._riding_tolerance) or None if len(keys) >= 3 or two_poses else None
+                                 self._riding_tolerance, lengths) or None if len(keys) >= 3 or two_poses else None
         self._riding = moving if len(keys) >= 3 else None
         self._hooked = moving if two_poses else None
         if two_poses:

@@ -199,8 +199,11 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     compacts = []
-    with single_threaded_blas():
-        for index, pose in enumerate(poses):
+    for index, pose in enumerate(poses):
+        # the process-wide BLAS limit is held while a pose is computed, not across the yield: the
+        # caller's code between steps, and the process after a generator is abandoned (an operator
+        # cancelled), run with the process's own BLAS threads
+        with single_threaded_blas():
             compact = reference.compact_pose(pose, name=names[index])
             compacts.append(compact)
             layers = [(reference.base, compact, KINDS[:2]),
@@ -208,7 +211,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
             for layer, positions, kinds in layers:
                 for kind, difference in zip(kinds, pose_differences(layer, positions, k_M, k_N)):
                     features[kind][index] = difference.matrix.ravel()
-            yield (index + 1) / len(poses)
+        yield (index + 1) / len(poses)
     faces = reference.topology.triangles
     sides = seam_sides(compacts, reference.topology)
     if len(sides):

@@ -411,6 +411,46 @@ def test_tumbling_debris_that_touches_in_both_keys_moves_each_piece_by_its_own_m
             np.testing.assert_allclose(x, pose(gap + s), atol=1e-6 * diagonal)
 
 
+_FRESH = """
+import hashlib, sys
+import numpy as np
+sys.path.insert(0, {root!r})
+from core import Interpolator, SequenceInterpolator
+given = np.load({path!r})
+keys, triangles = list(given["keys"]), given["triangles"]
+digest = hashlib.sha1(Interpolator(keys[0], keys[1], triangles).pose(0.5).tobytes())
+digest.update(Interpolator(keys[0], keys[1], triangles).pose(2.0).tobytes())
+sequence = SequenceInterpolator(keys, triangles)
+for gap in range(len(keys) - 1):
+    digest.update(np.ascontiguousarray(sequence.poses(gap, [0.25, 0.5, 0.75])).tobytes())
+print(digest.hexdigest())
+"""
+
+
+def test_many_pieces_give_the_same_bits_in_every_fresh_process(tmp_path):
+    """Farm chunks of one job run in separate processes and must agree: tumbling debris (18 pieces,
+    joint contacts sought between them), as two poses and as a sequence, gives the same in-betweens
+    to the bit in fresh processes whatever Python's string hashing (PYTHONHASHSEED) and BLAS's
+    thread count. The keys are made once and handed to both: SciPy's matrix logarithm (which the
+    test's screw motions use) estimates norms from NumPy's unseeded global random numbers, so keys
+    made in each process differ at round-off (1e-15)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    a, tri, motions, piece = _debris()
+    keys = [np.vstack([_screw(a[piece == k], *motion, s) for k, motion in enumerate(motions)]) for s in (0, 1, 2)]
+    path = tmp_path / "keys.npz"
+    np.savez(path, keys=np.array(keys), triangles=tri)
+    code = _FRESH.format(root=str(Path(__file__).resolve().parents[2]), path=str(path))
+    digests = []
+    for seed, threads in (("0", "1"), ("1", "2")):
+        env = {**os.environ, "PYTHONHASHSEED": seed, "OMP_NUM_THREADS": threads, "OPENBLAS_NUM_THREADS": threads}
+        digests.append(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                                      timeout=300, check=True).stdout.strip())
+    assert digests[0] == digests[1]
+
 def _robot(s, capped=True, angles=(58.0, 36.0, 22.0, 21.0, 69.0, 75.0), axes="xyyxyx"):
     """A robot arm of seven tubes (0.6 long along x, radius 0.08, neighbours' end rings coincident;
     ``capped``: each cap a fan about a vertex on the tube's axis, else open) on a fixed base link,
@@ -504,6 +544,32 @@ def test_chain_links_clearing_each_other_are_jointed_or_warned(clearance):
     if clearance < 0.072:
         assert right
 
+
+@pytest.mark.parametrize("clearance", [0.04, 0.08])
+def test_a_chain_curling_through_a_sequence_is_right_or_warned_gap_by_gap(clearance):
+    """The eight interlocked links above as four keys, every joint curling 25° more per key. As the
+    chain curls, links come within an edge of the next-but-one as closely as of the links they
+    hold: their contacts hold a joint too and close loops, of which the joint tree keeps all but
+    one contact each. Clearing each other by 0.08 the tree of gaps 1 and 2 takes every other link's
+    passing contact (6.3e-5 and 5.4e-3 of a link off in the in-betweens): each gap's in-betweens
+    are the chain's forward kinematics to 1e-6 of the diagonal or warn (gap 0, no joint: links
+    apart; gaps 1 and 2: joints in a loop; before, gaps 1 and 2 silently). Clearing by 0.04 the
+    first two gaps, before any loop, are exact and silent."""
+    tri = _torus_chain(0.0, clearance)[1]
+    keys = [_torus_chain(float(k), clearance)[0] for k in range(4)]
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    factors = (0.25, 0.5, 0.75)
+    for gap in range(3):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, factors)
+        right = all(np.abs(x - _torus_chain(gap + s, clearance)[0]).max() <= 1e-6 * diagonal
+                    for x, s in zip(poses, factors))
+        warned = _said(caught, "as jointed")
+        assert right or warned
+        if clearance < 0.072 and gap < 2:
+            assert right and not warned
 
 def _gripper(s, slide):
     """A hand (a box 0.4 × 0.2 × 0.1) and two fingers (boxes 0.05 × 0.04 × 0.15 under it), the hand

@@ -183,3 +183,34 @@ def test_a_base_basis_of_constants_per_piece_is_refused():
     poses = [v2, v2 + np.where(np.arange(len(v2))[:, None] < len(v), [0.0, 0.0, 0.0], [0.0, 0.0, 0.5])]
     with pytest.raises(core.MeshError, match="2 connected part"):
         core.shape_space(poses, t2, k_M=2, k_N=None)
+
+
+def test_steps_hold_the_blas_limit_only_while_computing_a_pose(bump_collection, monkeypatch):
+    """The generator behind the shape space operator computes each pose with BLAS single-threaded
+    (core.concurrency's process-wide limit) and lets the limit go before it yields: the caller's
+    code between steps, and the process after the generator is abandoned half-way (an operator
+    cancelled) or closed, run with the process's own BLAS threads."""
+    from core import concurrency, shape_space_pca
+
+    poses, t = bump_collection
+    held_while_computing = []
+    original = shape_space_pca.pose_differences
+
+    def spied(*arguments):
+        held_while_computing.append(concurrency._limit_holders > 0)
+        return original(*arguments)
+
+    monkeypatch.setattr(shape_space_pca, "pose_differences", spied)
+    holders = concurrency._limit_holders
+    steps = shape_space_pca.shape_space_steps(poses[:4], t, k_M=8, k_N=None)
+    assert next(steps) == pytest.approx(0.25)
+    assert concurrency._limit_holders == holders  # between steps: released
+    assert next(steps) == pytest.approx(0.5)
+    assert concurrency._limit_holders == holders
+    steps.close()  # abandoned half-way
+    assert concurrency._limit_holders == holders
+    assert held_while_computing and all(held_while_computing)
+    abandoned = shape_space_pca.shape_space_steps(poses[:4], t, k_M=8, k_N=None)
+    next(abandoned)
+    del abandoned  # dropped without close
+    assert concurrency._limit_holders == holders
