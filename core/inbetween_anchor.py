@@ -201,12 +201,18 @@ class Anchor:
         anchored = np.bincount(labels, weights[rows] > GAUGE_WEIGHT, minlength=count) > 0
         shares = np.where(anchored, 0.0, 1.0)
         if self.anchored and between:
-            still = np.zeros(count, dtype=bool) if self.static is None else \
-                np.bincount(labels, self.static[rows], minlength=count) > 0
+            still = self.still_components()
             held = topo.component_sums(np.minimum(weights / BLEND_ANCHOR_WEIGHT, 1.0)) / topo.component_mass
             partly = anchored & ~still
             shares[partly] = np.maximum(0.0, 1.0 - held[partly] / CENTROID_ANCHOR_SHARE) ** 2
         return shares
+
+    def still_components(self) -> np.ndarray:
+        """Per component (C,), whether one of its vertices is still in every key (``static``)."""
+        topo, count = self.topo, len(self.topo.components)
+        if self.static is None:
+            return np.zeros(count, dtype=bool)
+        return np.bincount(topo.component_labels, self.static[topo.component_vertices], minlength=count) > 0
 
     def held(self, misfits: list) -> bool:
         """Whether a sequence's fit with these ``misfits`` (per step) was held off the metric by

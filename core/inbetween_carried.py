@@ -132,6 +132,18 @@ class CarriedPieces:
         ridden = self._ridden(gap, base, nxt, own) & rigid[pieces]
         kept = [(k, carriers, motion) for k, (carriers, motion) in enumerate(seats)
                 if carriers is not None and not ridden[k]]
+        if kept and gap.joints is not None:
+            # a piece jointed to a rigid one at least CARRIER_SIZE × its size that no deforming piece
+            # carries moves as one with it (an eye in the socket of a rigid head, whichever of them
+            # the joint tree hangs from the other), not with a deforming piece beside it (the other
+            # eye shrinking shut: 0.35–0.46 % of the diagonal off at 0.5, 0.6–4 % at ×2)
+            groups_of = _joint_roots(gap.joints[0])
+            chosen = np.zeros(len(groups_of), dtype=bool)
+            chosen[pieces[[k for k, _, _ in kept]]] = True
+            largest = np.zeros(len(groups_of))  # per joint group, its largest piece not carried
+            np.maximum.at(largest, groups_of[~chosen], size[~chosen])
+            kept = [(k, carriers, motion) for k, carriers, motion in kept
+                    if largest[groups_of[pieces[k]]] < CARRIER_SIZE * size[pieces[k]]]
         if not kept:
             return
         index = np.array([k for k, _, _ in kept])
@@ -295,6 +307,21 @@ class CarriedPieces:
         spread = np.add.reduceat(np.einsum("ij,ij->i", self._base_centred, self._base_centred), self._starts)
         scales = np.einsum("pij,pij->p", rotations, covariance) / np.maximum(spread, np.finfo(float).tiny)
         return translations, rotations, scales, mean
+
+
+def _joint_roots(parents: np.ndarray) -> np.ndarray:
+    """Per piece (C,), the root of its joint chain, which names its joint group: the piece itself
+    for roots and unjointed pieces (``parents`` (C,): each piece's parent, −1 for none, from
+    :func:`core.inbetween_joints.joint_tree`)."""
+    roots = np.arange(parents.size)
+    hanging = parents >= 0
+    roots[hanging] = parents[hanging]
+    while True:  # one level up per pass: chains are a spanning forest, so this ends
+        up = parents[roots]
+        climbing = up >= 0
+        if not climbing.any():
+            return roots
+        roots[climbing] = up[climbing]
 
 
 def _jointed(base: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, own, reach: float) -> bool:

@@ -340,7 +340,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         its repairs, which it leaves as they are)."""
         if self.static is not None:
             result[0][self.static] = self.pinned_positions(s)
-        if ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any():
+        partly = ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any()
+        if partly or (0.0 < s < 1.0 and self.held_on_seats().any()):
             self.place(result[0], s, self.motion(s), partly=True)
         if self.hooked is not None and 0.0 < s < 1.0:
             said = self.off_their_paths(result[0], s)

@@ -19,6 +19,11 @@ from .sparse_cholesky import SPDFactor
 #: fixes the translation gauge of the Poisson solve: small enough to leave shapes exact to ~1e-7
 #: of their size (placement is done afterwards), large enough to keep the matrix well conditioned.
 GAUGE_WEIGHT = 1e-7
+#: The vertices' areas (over their mean) the anchors weigh are at least this: the gauge
+#: ``GAUGE_WEIGHT × mass`` of a piece a millionth of its size in the first key (areas 1e-12 of the
+#: others') fell below what CHOLMOD resolves against the Laplacian's unit entries ("not positive
+#: definite"); no cloth has a vertex near it.
+MASS_FLOOR = 1e-6
 
 
 class _Topology:
@@ -55,7 +60,8 @@ class _Topology:
         areas = 0.5 * np.sqrt(coordinate_dot(cross, cross))
         mass = lumped_vertex_areas(t, areas, n_vertices)
         used = mass > 0
-        self.mass = np.where(used, mass / mass[used].mean(), 1.0)  # loose vertices follow the guide
+        # loose vertices follow the guide
+        self.mass = np.where(used, np.maximum(mass / mass[used].mean(), MASS_FLOOR), 1.0)
         self.weights = np.where(used, self.mass, 0.0)
         _, labels = topo.components()
         per_vertex = vertex_labels(t, labels, n_vertices)

@@ -58,6 +58,7 @@ from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .sequence_warnings import _warn
+from .rounded_slivers import rounded_sliver_warning, rounded_slivers
 
 __all__ = ["SequenceInterpolator"]
 
@@ -244,6 +245,15 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
                     exit=self._exit(gap) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root)
 
+    def _rounded_slivers(self, gap: int, segment: _Gap) -> int:
+        """How many triangles of gap ``gap`` (its data ``segment``) are thin against the keys'
+        rounding (:func:`core.rounded_slivers.rounded_slivers`; counted once per gap)."""
+        if gap not in self._sliver_counts:
+            keys = (segment.base, segment.next)
+            self._sliver_counts[gap] = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
+                                                           self._rounding).size)
+        return self._sliver_counts[gap]
+
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
         return self.poses(gap_index, [factor])[0]
@@ -285,6 +295,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         self._prepare_in_background(gap + 1)
         solved = gap_poses(segment, [factors[k] for k in between])
         problems = turn_warnings(segment, self.key_names, gap) + joint_warnings(segment.joint_doubts, self.key_names, gap)
+        problems += rounded_sliver_warning(self._rounded_slivers(gap, segment), self._rounding,
+                                           (self.key_names[gap], self.key_names[gap + 1]))
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin

@@ -26,7 +26,7 @@ from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
 from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
-from .seams import attached_loose, coincidence_tolerance, rounding_scale, seam_weld
+from .seams import attached_loose, coincidence_tolerance, coordinate_rounding, rounding_scale, seam_weld
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
 
@@ -71,6 +71,9 @@ class SequenceKeys:
         self._triangles, self._copies = topology.triangles, None
         # at one place (seams, still vertices, holds): within this distance in every key
         rounding = rounding_scale(keys)
+        # the keys' rounding (single precision where every coordinate is a float32), read before the
+        # keys are moved: slivers within two of it are reshaped by it (core.rounded_slivers)
+        self._rounding = coordinate_rounding(keys)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
         apart = None  # why the seams cannot be joined
         try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seams)
@@ -94,6 +97,7 @@ class SequenceKeys:
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
+        self._sliver_counts: dict[int, int] = {}  # per gap, how many (SequenceInterpolator._rounded_slivers)
         self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None

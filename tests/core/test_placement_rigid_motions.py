@@ -4,6 +4,8 @@ turned scene; the same in-betweens on a turned scene are the turned ones. No bpy
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -13,7 +15,7 @@ from core.rigid_alignment import rigid_alignment
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
 
-from meshes import cube, grid
+from meshes import cube, grid, icosphere
 from placement_helpers import FACTORS, HALF_TURN_UNTOLD, _head_with_eyes, _rigid, _screw
 
 
@@ -367,3 +369,61 @@ def test_a_box_bouncing_while_it_tumbles_is_not_turned_about_a_point_outside_it(
                                  + (3.0 * start - before - 3.0 * end + after) * s ** 3)
             spline += rms(catmull_rom, truth)
         assert ours < min(blend, spline), (gap, ours, blend, spline)
+
+
+def _slivered_sphere(height: float, count: int = 4, seed: int = 0):
+    """An icosphere of radius 1 with ``count`` of its triangles each split in three about a point
+    ``height`` from the middle of one edge, toward the opposite corner: one sliver that high each."""
+    vertices, triangles = icosphere(2)
+    vertices, triangles = list(vertices), [tuple(t) for t in triangles]
+    for k in np.random.default_rng(seed).choice(len(triangles), count, replace=False):
+        a, b, c = triangles[k]
+        middle = 0.5 * (vertices[a] + vertices[b])
+        vertices.append(middle + height * (vertices[c] - middle) / np.linalg.norm(vertices[c] - middle))
+        q = len(vertices) - 1
+        triangles[k] = (a, b, q)
+        triangles += [(b, c, q), (c, a, q)]
+    return np.array(vertices), np.array(triangles)
+
+
+@pytest.mark.parametrize("height", [1e-5, 3e-5, 1e-4])
+def test_slivers_thinner_than_the_keys_rounding_are_warned_or_turned_rigidly(height):
+    """A sphere with four slivers ``height`` high, turned rigidly 60° 1,000 units from the origin in
+    single precision (the keys' coordinates rounded to 1.2e-4): the rounding alone reshapes the
+    slivers, and the in-betweens bend the sphere around them (before, silently: 1.2e-4–1.0e-3 of
+    the diagonal off at 0.5, 0.17–2 % at ×2, the keys' own rounding 1.7e-5 of it). Either the
+    in-betweens are the rigid motion to a few roundings or the gap warns of the slivers."""
+    vertices, triangles = _slivered_sphere(height)
+    a = vertices + 1000.0
+    rotation = Rotation.from_rotvec(np.radians(60.0) * np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]))
+    pivot = np.full(3, 1000.0)
+    translation = pivot - rotation.as_matrix() @ pivot + np.array([0.3, 0.1, -0.2])
+    b = _screw(a, rotation.as_matrix(), translation, 1.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    rounding = np.finfo(np.float32).eps * np.abs(b).max()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        interpolator = Interpolator(a.astype(np.float32), b.astype(np.float32), triangles)
+        off = max(np.abs(interpolator.pose(s) - _screw(a, rotation.as_matrix(), translation, s)).max()
+                  for s in (0.5, 2.0))
+    said = any("less high than twice the rounding" in str(w.message) for w in caught)
+    assert said or off < 10 * rounding, (off / diagonal, said)
+
+
+def test_slivers_well_above_the_keys_rounding_turn_rigidly_and_silently():
+    """The same sphere with slivers 1e-3 high (eight roundings) 1,000 units out in single
+    precision: the rigid motion to a few of the keys' roundings, and no warning of slivers."""
+    vertices, triangles = _slivered_sphere(1e-3)
+    a = vertices + 1000.0
+    rotation = Rotation.from_rotvec(np.radians(60.0) * np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]))
+    pivot = np.full(3, 1000.0)
+    translation = pivot - rotation.as_matrix() @ pivot + np.array([0.3, 0.1, -0.2])
+    b = _screw(a, rotation.as_matrix(), translation, 1.0)
+    rounding = np.finfo(np.float32).eps * np.abs(b).max()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        interpolator = Interpolator(a.astype(np.float32), b.astype(np.float32), triangles)
+        off = max(np.abs(interpolator.pose(s) - _screw(a, rotation.as_matrix(), translation, s)).max()
+                  for s in (0.5, 2.0))
+    assert not any("less high than twice the rounding" in str(w.message) for w in caught)
+    assert off < 10 * rounding

@@ -1,0 +1,46 @@
+"""Triangles the keys' rounding reshapes: slivers less high than twice the rounding of the keys'
+coordinates (:func:`core.seams.coordinate_rounding`: single precision where every coordinate is a
+float32, as Blender stores shape keys and caches; large far from the origin). The in-betweens
+(paper §8.4) read each triangle's stretch and turn between the keys; a sliver that high is
+stretched, squashed or turned over by the rounding alone, and the fit bends the mesh around what
+the rounding made: a sphere 3.5 across with four slivers 1e-5–1e-4 high, turned rigidly 1,000
+units from the origin in single precision (rounding 1.2e-4), came 1.2e-4–1.0e-3 of its diagonal
+off at 0.5 and 0.17–2 % at ×2 (the keys' own rounding: 1.7e-5 of it); slivers 1e-3 high, 9.4e-6.
+Such slivers are counted, so that the gap warns of them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: A triangle is thin against the rounding ``r`` (machine epsilon times the largest coordinate: one
+#: to two steps of the coordinates' grid) where its smallest height is at most ``r / ROUNDED_SLIVER``:
+#: rounding each corner's coordinates by up to half a step moves it by up to 0.87 of a step, which
+#: changes such a height by a fifth or more.
+ROUNDED_SLIVER = 0.5
+
+
+def rounded_slivers(lengths: list[np.ndarray], areas: list[np.ndarray], rounding: float) -> np.ndarray:
+    """Indices (k,) of the triangles thin against the ``rounding`` (:data:`ROUNDED_SLIVER`)
+    in any of the keys whose edge ``lengths`` ((m, 3) each) and ``areas`` ((m,) each) are given:
+    the keys do not tell their shape nor which way they face."""
+    if not rounding > 0.0 or not lengths or not len(lengths[0]):
+        return np.zeros(0, dtype=np.int64)
+    thin = np.zeros(len(lengths[0]), dtype=bool)
+    for length, area in zip(lengths, areas):
+        # smallest height = 2 area / longest edge ≤ rounding / ROUNDED_SLIVER
+        thin |= 2.0 * ROUNDED_SLIVER * area <= rounding * length.max(axis=1)
+    return np.flatnonzero(thin)
+
+
+def rounded_sliver_warning(count: int, rounding: float, names: tuple[str, str]) -> list[str]:
+    """The gap's warning (list of at most one message) for ``count`` triangles that
+    :func:`rounded_slivers` found in the keys ``names``, whose coordinates are rounded to
+    ``rounding``."""
+    if not count:
+        return []
+    return [f"between {names[0]} and {names[1]}, {count} triangle(s) are less high than twice the rounding "
+            f"of the keys' coordinates ({rounding:.2g}, their precision this far from the origin): "
+            "the keys do not tell their shape nor which way they face, and the in-betweens may bend the "
+            "mesh around what the rounding made of them (move the mesh's origin near it, or dissolve the "
+            "slivers: Mesh > Clean Up > Degenerate Dissolve)"]
