@@ -25,9 +25,11 @@ def vertex_positions(mesh: bpy.types.Mesh) -> np.ndarray:
 
 
 def stored_key_positions(key_block: bpy.types.ShapeKey) -> np.ndarray:
-    """Coordinates stored in a shape key, float64 ``(n, 3)``."""
-    buffer = np.empty(len(key_block.data) * 3, dtype=np.float32)
-    key_block.data.foreach_get("co", buffer)
+    """Coordinates stored in a shape key, float64 ``(n, 3)``. Read through ``points``, the shape
+    key's bulk access (``data`` copies point by point: 2 ms per key at 20k vertices, ``points``
+    0.03 ms)."""
+    buffer = np.empty(len(key_block.points) * 3, dtype=np.float32)
+    key_block.points.foreach_get("co", buffer)
     return buffer.reshape(-1, 3).astype(np.float64)
 
 
@@ -780,12 +782,14 @@ def evaluated_vertex_count(obj: bpy.types.Object, depsgraph: bpy.types.Depsgraph
 def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: list[int],
                     first_visit: int | None = None, every_frame: bool = True, set_aside=()):
     """Yield ``(frame, positions)`` for the evaluated mesh of ``obj`` at each of ``frames``
-    (ascending).
+    (ascending; yielded in the order visited).
 
     With ``every_frame`` (the default) every frame from the first (or from ``first_visit`` if
     earlier: where an unbaked simulation starts) to the last is visited in order, so that
     simulations that are not baked still advance one frame at a time; without it only ``frames``
-    are visited (a scene whose frames do not depend on the ones before: baked caches, animation).
+    are visited (a scene whose frames do not depend on the ones before: baked caches, animation),
+    the scene's current frame last where it is one of them, so that the scene is left there
+    without being set to it again.
     ``set_aside``: modifiers of ``obj`` switched off in the viewport while the frames are read
     (the generators after the motion, :func:`operators.motion_sources.modifiers_set_aside`). Raises
     :class:`NotEvaluated` for an object the depsgraph leaves out (disabled in viewports) and
@@ -820,6 +824,15 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
     # it is not
     caches = [m.point_cache.frame_start for m in obj.modifiers if m.type in SIMULATION_MODIFIERS]
     switch_frame = min(caches) if aside and caches else None
+    first = frames[0] if first_visit is None else min(first_visit, frames[0])
+    visits = list(range(first, frames[-1] + 1) if every_frame else frames)
+    if not every_frame and original_frame in wanted and not original_subframe:
+        # frames that do not depend on the ones before: the scene's own frame is read last and the
+        # scene stays there, rather than set to it once more afterwards (at a cloth's start frame,
+        # where a scene often is, Blender builds the cloth again: 90 ms at 20k vertices)
+        visits.remove(original_frame)
+        visits.append(original_frame)
+    shown = None  # the frame the scene was last set to here
     try:
         if switch_frame is not None:
             scene.frame_set(switch_frame)
@@ -827,10 +840,9 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             modifier.show_viewport = False
         if switch_frame is not None:
             context.view_layer.update()
-        first = frames[0] if first_visit is None else min(first_visit, frames[0])
-        visits = range(first, frames[-1] + 1) if every_frame else frames
         for frame in visits:
             scene.frame_set(frame)
+            shown = frame
             if frame not in wanted:
                 continue
             positions = evaluated_positions(obj, context.evaluated_depsgraph_get())
@@ -844,7 +856,9 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             modifier.show_viewport = True
         if switch_frame is not None:
             context.view_layer.update()
-        scene.frame_set(original_frame, subframe=original_subframe)
+        # a scene shown at its own frame with every modifier as it was is already restored
+        if aside or shown != original_frame or original_subframe:
+            scene.frame_set(original_frame, subframe=original_subframe)
 
 
 def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int):
@@ -945,7 +959,8 @@ def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
                                            from_mix=False)
             added.append(key_block)
             key_block.value = 0.0
-            key_block.data.foreach_set(
+            # ``points``: the bulk write (:func:`stored_key_positions`)
+            key_block.points.foreach_set(
                 "co", np.ascontiguousarray(new_key.positions, dtype=np.float32).ravel())
         names = [key_block.name for key_block in added]
         if keyframes is not None:

@@ -95,7 +95,7 @@ class FrameRangeProperties:
     def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
         ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
-        poses = []
+        read, shown = {}, {}
         movers = objects_moving(obj)
         unfit = unfit_mesh_cache(obj, movers)
         if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
@@ -111,11 +111,14 @@ class FrameRangeProperties:
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(context.scene, movers),
                                         every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
         with closing(reader) as frame_reader:
-            for frame, positions in frame_reader:
-                poses.append(positions)
+            for frame, positions in frame_reader:  # in the order visited (bridge.frame_positions)
+                read[frame] = positions
                 if matrices is not None:
-                    matrices.append(obj.matrix_world.copy())
-                yield progress_share * len(poses) / len(frames)
+                    shown[frame] = obj.matrix_world.copy()
+                yield progress_share * len(read) / len(frames)
+        poses = [read[frame] for frame in frames]
+        if matrices is not None:
+            matrices.extend(shown[frame] for frame in frames)
         # named by frame and object (the core names only its argument); a NaN captured into a key
         # would hide its vertex wherever the key plays
         for frame, positions in zip(frames, poses):
