@@ -178,34 +178,61 @@ class LocalGlobalFit:
             return self._fitted_edges(edges, targets, force)
 
     def _fitted_edges(self, edges: np.ndarray, targets: dict, force) -> np.ndarray:
-        """:meth:`fitted_edges`, floating-point errors as they are."""
+        """:meth:`fitted_edges`, floating-point errors as they are. Each product and sum is the
+        one of the formulas in the comments, in their order (the same values); the results go into
+        a few (m,) rows reused along the way, since a new array per operation costs the 100k sheet's
+        step a third more time (10–12 against 14–16 ms, docs/inbetweens.md)."""
         i00, i01, i11 = targets["inverse"]  # upper triangular
-        e1, e2 = edges[:, 0], -edges[:, 2]
+        e1, e2 = edges[:, 0], edges[:, 2]  # the second side is −e2
         g0 = e1 * i00
-        g1 = e1 * i01 + e2 * i11
+        g1 = e1 * i01
+        g1 -= e2 * i11  # e1 i01 + (−e2) i11
         c11, c12, c22 = coordinate_dot(g0, g0), coordinate_dot(g0, g1), coordinate_dot(g1, g1)
-        root_det = np.sqrt(np.maximum(c11 * c22 - c12 * c12, 0.0))
-        scale = np.sqrt(np.maximum(c11 + c22 + 2.0 * root_det, np.finfo(c11.dtype).tiny))
+        row = np.empty_like(c11)  # one (m,) row for the products of the sums below
         # (GᵀG)^½ = (C + √det C · I) / √(tr C + 2 √det C) = [[a, b], [b, d]]; W = G · its inverse
-        a, b, d = (c11 + root_det) / scale, c12 / scale, (c22 + root_det) / scale
-        det = a * d - b * b
+        root_det = np.multiply(c11, c22)
+        root_det -= np.multiply(c12, c12, out=row)
+        np.maximum(root_det, 0.0, out=root_det)
+        np.sqrt(root_det, out=root_det)
+        scale = np.add(c11, c22)
+        scale += np.multiply(2.0, root_det, out=row)
+        np.maximum(scale, np.finfo(c11.dtype).tiny, out=scale)
+        np.sqrt(scale, out=scale)
+        a = np.add(c11, root_det, out=c11)
+        a /= scale
+        b = np.divide(c12, scale, out=c12)
+        d = np.add(c22, root_det, out=c22)
+        d /= scale
+        det = np.multiply(a, d, out=root_det)
+        det -= np.multiply(b, b, out=row)
         det[~(det > 0)] = 1.0  # before the division (see deformation_fields.sqrt_det)
-        inverse_det = 1.0 / det
-        d, b, a = d * inverse_det, b * inverse_det, a * inverse_det  # per triangle before per coordinate
-        w0 = g0 * d - g1 * b
-        w1 = g1 * a - g0 * b
-        out = w0[:, None, :] * targets["u"]
-        out += w1[:, None, :] * targets["v"]
+        inverse_det = np.divide(1.0, det, out=scale)
+        d *= inverse_det  # per triangle before per coordinate
+        b *= inverse_det
+        a *= inverse_det
+        w0 = g0 * d
+        w0 -= g1 * b  # g0 d − g1 b
+        w1 = np.multiply(g1, a, out=g1)
+        w1 -= np.multiply(g0, b, out=g0)  # g1 a − g0 b
+        u, v = targets["u"], targets["v"]
+        out = np.empty((3,) + u.shape, dtype=np.result_type(w0, u))
+        corners = np.empty_like(u)
+        for k in range(3):  # w0 u + w1 v, coordinate k of every corner
+            np.multiply(w0[k], u, out=out[k])
+            out[k] += np.multiply(w1[k], v, out=corners)
         if targets["frames"] is None:
             return out
         f0, f1 = targets["frames"][:2]
         # trace of the turn from the interpolated rotation [f0, f1, f0×f1] to [w0, w1, w0×w1]; by
         # Binet–Cauchy (w0×w1)·(f0×f1) = (w0·f0)(w1·f1) − (w0·f1)(w1·f0), no cross product needed
         p, q = coordinate_dot(w0, f0), coordinate_dot(w1, f1)
-        trace = p + q + p * q - coordinate_dot(w0, f1) * coordinate_dot(w1, f0)
+        trace = p + q
+        trace += np.multiply(p, q, out=p)
+        trace -= np.multiply(coordinate_dot(w0, f1, out=q), coordinate_dot(w1, f0, out=c11), out=q)
         far = ~(0.5 * (trace - 1.0) > np.cos(self.rotation_limit))
         if force is not None:
             far |= force
+        far = np.flatnonzero(far)  # usually few: set by index (a mask over every triangle costs ~20× more)
         out[:, :, far] = targets["edges"][:, :, far]
         return out
 

@@ -44,3 +44,40 @@ def test_the_fits_incidence_is_the_corner_edges_difference_operator_in_canonical
         edges = (topo.Dc @ vertices).reshape(3, m, 3)
         for c in range(3):
             assert np.array_equal(edges[c], vertices[triangles[:, (c + 1) % 3]] - vertices[triangles[:, c]])
+
+
+@pytest.mark.parametrize("precision", ["double", "local steps"])
+def test_a_local_step_turns_each_triangle_by_its_own_rotation_within_the_limit(strip, precision):
+    """Current edges that are the interpolated target edges turned per triangle by a rotation
+    ``R_k`` (random axis; 10–40° or 50–80°) and scaled by ``c_k``: the polar factor of each
+    triangle's map is ``R_k`` times the interpolated rotation, so the local step gives back
+    ``R_k`` applied to the target edges where the turn is within the 45° limit and the target
+    edges themselves beyond it (independent formula: the rotations as made; the step's
+    closed-form 2×2 square root is not used), in double precision and in the local steps'."""
+    from scipy.spatial.transform import Rotation
+
+    from core.inbetween_fit import MAX_ROTATION_DEVIATION
+    from core.sequence_inbetweens import SequenceInterpolator
+    from inbetween_helpers import _bend
+
+    flat, tri = strip
+    gap = SequenceInterpolator([flat, _bend(flat, 0.6), _bend(flat, 1.2)], tri)._gap(0)
+    gap.select(0.5)
+    frames, stretch, _, _ = gap.targets(0.5)
+    targets = gap.fit_targets(frames, stretch)
+    m = targets["edges"].shape[2]
+    rng = np.random.default_rng(11)
+    angles = np.radians(np.where(rng.random(m) < 0.5, rng.uniform(10, 40, m), rng.uniform(50, 80, m)))
+    axes = rng.normal(size=(m, 3))
+    turns = Rotation.from_rotvec(axes / np.linalg.norm(axes, axis=1)[:, None] * angles[:, None]).as_matrix()
+    turned = np.einsum("kij,jck->ick", turns, targets["edges"]) * rng.uniform(0.5, 2.0, m)
+    expected = np.where(angles <= MAX_ROTATION_DEVIATION, np.einsum("kij,jck->ick", turns, targets["edges"]),
+                        targets["edges"])
+    assert 0.3 * m < np.count_nonzero(angles <= MAX_ROTATION_DEVIATION) < 0.7 * m
+    if precision == "double":
+        np.testing.assert_allclose(gap.fitted_edges(turned, targets), expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    else:  # float32: ~1e-7 relative per operation, a few dozen of them
+        local = gap.local_step_targets(targets)
+        out = gap.fitted_edges(turned.astype(np.float32), local)
+        assert out.dtype == np.float32
+        np.testing.assert_allclose(out, expected, rtol=0, atol=2e-5 * np.abs(expected).max())
