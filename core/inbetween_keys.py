@@ -20,6 +20,7 @@ from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
 from . import small_matrices
+from .concurrency import single_threaded_blas
 from .geometry import coordinate_dot
 from .inbetween_rigid_fits import _nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells
 from .inbetween_whole_rotations import WholeRotations, _rotation_angles
@@ -63,8 +64,12 @@ class _Relative(WholeRotations):
     log-stretches and metrics ``G = U²`` (packed 2×2 in the base's tangent bases (m, 3) each) and
     the vertices with their component's rigid motion undone (n, 3)."""
 
-    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None, across=None):
-        rotations, translations, self.misfits = rigid_fits(topo, base.vertices, other.vertices)
+    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None, across=None,
+                 fits=None):
+        # ``fits``: rigid_fits of these keys where the caller has them (a sequence keeps them per pair)
+        if fits is None:
+            fits = rigid_fits(topo, base.vertices, other.vertices)
+        rotations, translations, self.misfits = fits
         turn, stretch = df.planar_polar(*df.planar_map_entries(other.tangent_rows, base.inverse_rows))
         # the triangles' whole rotations from the base as images of its frames: read by the pins'
         # fits (their entries, made once: _whole_entries), the residuals below and residuals_add_turn
@@ -75,12 +80,10 @@ class _Relative(WholeRotations):
                 self.misfits)
         unwrap = turns is not None  # the continuation of the next key's turn
         self.nonrigidity = _nonrigidity(self.misfits, base, topo)
-        if turns is None:  # every piece's half turn goes the way the whole mesh turns
-            whole = rotations[0] if len(topo.components) == 1 else \
-                rigid_alignment(base.vertices, other.vertices, topo.weights)[0]
-            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
-            self.whole_tells = bool(whole_tells(turns[0]))
-        self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
+        if turns is None:  # every piece's half turn goes the way the whole mesh turns: made when first read
+            self._whole_of = (topo, base.vertices, other.vertices)
+        else:
+            self.screw = component_screws(rotations, translations, turns, unwrap, self.nonrigidity)
         # the triangles' rotations as images of the base frames, with their component's rotation undone
         frames = df.turned_coordinate_rows(plane, small_matrices.transpose(rotations), topo.triangle_component)
         self.rotvec = df.frame_rows_rotation_vectors(frames, base.column_rows)
@@ -106,14 +109,51 @@ class _Relative(WholeRotations):
         self.centroids = other.centroids
         self.turn, self.motion = turn, (rotations, translations)
 
+    @property
+    def screw(self) -> np.ndarray:
+        """Screw coordinates (C, 6) of the components' rigid motions. Built without ``turns``, each
+        piece's half turn goes the way the whole mesh turns (:meth:`_whole_turn`), made when first
+        read: a sequence's key two ahead of a gap has its screws taken anew (:meth:`unwrap`) before
+        anything reads them."""
+        screw = self.__dict__.get("_screw")
+        if screw is None:
+            screw = self._screw = component_screws(*self.motion, self._whole_turn()[0], False, self.nonrigidity)
+        return screw
+
+    @screw.setter
+    def screw(self, value: np.ndarray) -> None:
+        self._screw = value
+
+    @property
+    def whole_tells(self) -> bool:
+        """Whether the whole mesh's turn from the base key, which the pieces' half turns take the
+        way of, has a way round itself (:func:`~core.inbetween_rigid_fits.whole_tells`); False for
+        a relative built with ``turns``, or not from the poses."""
+        return False if self.__dict__.get("_whole_of") is None else self._whole_turn()[1]
+
+    def _whole_turn(self) -> tuple[np.ndarray, bool]:
+        """The whole mesh's rotation vector from the base key repeated per component (C, 3) (its
+        rigid fit; a mesh of one piece: that piece's), and :attr:`whole_tells`; made once."""
+        known = self.__dict__.get("_whole_known")
+        if known is None:
+            topo, base, other = self._whole_of
+            if len(topo.components) == 1:
+                whole = self.motion[0][0]
+            else:
+                with single_threaded_blas():  # the fit's products summed as where the relatives are built
+                    whole = rigid_alignment(base, other, topo.weights)[0]
+            turns = np.repeat(df.rotation_vectors(whole[None]), len(topo.components), axis=0)
+            known = self._whole_known = (turns, bool(whole_tells(turns[0])))
+        return known
+
     #: The triangle pairs across which the rotations are taken continuous (two poses), or None.
     _across = None
     #: Per component (bool (C,)), whether its half turn's way round is not told by the keys
     #: (set by ``core.sequence_half_turns.HalfTurns._turning_on``).
     untold_half_turn = np.zeros(0, dtype=bool)
-    #: Whether the whole mesh's turn from the base key, which the pieces' half turns take the way
-    #: of, has a way round itself (:func:`~core.inbetween_rigid_fits.whole_tells`).
-    whole_tells = False
+    #: The base key's and this key's positions (with the topology) that the whole mesh's turn is
+    #: read from (:meth:`_whole_turn`), for a relative built from the poses without ``turns``.
+    _whole_of = None
     #: Whether this is a sequence's end condition, extrapolated from the keys (:meth:`phantom`).
     extrapolated = False
     #: The log-stretches once made, and what makes them (a function of the triangles asked for,

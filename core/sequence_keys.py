@@ -42,6 +42,14 @@ GAP_CACHE = 2
 KEY_CACHE = 5
 
 
+#: Pairs of keys whose rigid fits (:func:`core.inbetween_rigid_fits.rigid_fits`) SequenceInterpolator
+#: keeps: a gap's relatives fit its key to the next two, and the gaps around it fit those pairs
+#: again where they start or end in free flight or at an impact (their non-rigidity: ``_entry``,
+#: ``_exit``). Each gap adds up to five pairs, the gap after reads them, and the one after that may
+#: be prepared meanwhile: sixteen serve in-order visits (13 floats per piece each).
+FIT_CACHE = 16
+
+
 def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
     """A copy of ``x`` (n, 3) with ``rows`` (bool (n,)) taken from ``source`` (n, 3)."""
     out = x.copy()
@@ -137,6 +145,7 @@ class SequenceKeys:
         # the components' centroids in every key (K, C, 3): how steadily each piece moves
         self._centroids = np.array([self._topo.centroids(k) for k in keys])
         self._keys: OrderedDict[int, _Key] = OrderedDict()
+        self._fitted: OrderedDict[tuple, tuple] = OrderedDict()  # (base, other) → rigid fits (see _fits)
         self._gaps: OrderedDict[int, _Gap] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
         # which way round each gap reads its parts' turns (_reading: the last few), which pieces turn
@@ -173,6 +182,24 @@ class SequenceKeys:
                 self._keys.popitem(last=False)
         return key
 
+    def _fits(self, base: int, other: int) -> tuple:
+        """:func:`~core.inbetween_rigid_fits.rigid_fits` of key ``other`` from key ``base`` (rotations
+        (C, 3, 3), translations (C, 3), misfits (C,); read-only: the relatives and the
+        non-rigidity share them), kept for the last :data:`FIT_CACHE` pairs."""
+        with self._cache_lock:
+            known = self._fitted.get((base, other))
+            if known is not None:
+                self._fitted.move_to_end((base, other))
+                return known
+        fits = rigid_fits(self._topo, self._raw[base], self._raw[other])
+        for value in fits:
+            value.flags.writeable = False
+        with self._cache_lock:
+            self._fitted[(base, other)] = fits
+            while len(self._fitted) > FIT_CACHE:
+                self._fitted.popitem(last=False)
+        return fits
+
     def _reference(self, index: int):
         """The truncated recovery's prepared base for key ``index`` (eigenbasis, Gram factor).
         Only the intrinsic metric is recovered (rotations come from the poses): no offset surface."""
@@ -203,7 +230,8 @@ class SequenceKeys:
 
     def _relative(self, base: int, other: int, turn: np.ndarray | None = None) -> _Relative:
         log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
-        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across)
+        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across,
+                             self._fits(base, other))
         return self._turning_on(base, relative) if turn is None and other == base + 1 else relative
 
     def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
@@ -214,8 +242,9 @@ class SequenceKeys:
             return [self._relative(base, k) for k in others]
         topo, key = self._topo, self._key(base)
         keys = [self._key(k) for k in others]
-        relatives = concurrently(lambda other: _Relative(topo, key, other, across=self._across), keys,
-                                 worth_it=topo.n >= CONCURRENT_VERTICES)
+        relatives = concurrently(lambda pair: _Relative(topo, key, pair[1], across=self._across,
+                                                        fits=self._fits(base, pair[0])),
+                                 zip(others, keys), worth_it=topo.n >= CONCURRENT_VERTICES)
         return [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
 
     def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> _Relative:
@@ -235,5 +264,7 @@ class SequenceKeys:
     def _nonrigidity(self, base: int, other: int) -> np.ndarray:
         """The non-rigidity (C,) of key ``other`` seen from key ``base`` (as a gap's relatives have
         it: RMS misfit of the best rigid motion ÷ the component's diagonal in ``base``)."""
-        topo = self._topo
-        return rigid_fits(topo, self._raw[base], self._raw[other])[2] / topo.diagonals(self._raw[base])
+        with self._cache_lock:
+            key = self._keys.get(base)  # its diagonals, where the key is at hand
+        size = self._topo.diagonals(self._raw[base]) if key is None else key.diagonals
+        return self._fits(base, other)[2] / size

@@ -99,7 +99,7 @@ class TurnReadings:
     :class:`~core.sequence_inbetweens.SequenceInterpolator`.
 
     Reads the interpolator's ``_agreements``, ``_cache_lock``, ``_edge_pairs``, ``_raw``,
-    ``_readings``, ``_topo``, ``_turnings``, ``_unsures`` and calls its ``_key``, ``_turning_on``."""
+    ``_readings``, ``_topo``, ``_turnings``, ``_unsures`` and calls its ``_fits``, ``_key``, ``_turning_on``."""
 
     def _reading(self, gap: int, final: bool = False, relative: _Relative | None = None) -> tuple:
         """Which way round gap ``gap`` reads its parts' turns: :meth:`_Relative.turning`'s answers
@@ -124,7 +124,8 @@ class TurnReadings:
         topo, base, nxt = self._topo, self._key(gap), self._key(gap + 1)
         # the gap's own relative: its rigid turn unwrapped as the gap takes it (_turning_on)
         made = relative is None  # asked for by a neighbouring gap
-        relative = self._turning_on(gap, _Relative(topo, base, nxt)) if made else relative
+        relative = self._turning_on(gap, _Relative(topo, base, nxt, fits=self._fits(gap, gap + 1))) if made \
+            else relative
         known = relative.turning(topo, base, nxt, self._edge_pairs, TURNED_PART_SHARE, free)
         with self._cache_lock:
             if not final:

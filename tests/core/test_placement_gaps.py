@@ -462,3 +462,37 @@ def test_the_rigid_fit_is_given_up_per_piece():
     first = topo.triangle_component == 0
     np.testing.assert_array_equal(whole.rotvec[first], relative.rotvec[first])
     assert not np.allclose(whole.rotvec[~first], relative.rotvec[~first])
+
+
+def test_a_relatives_screw_is_made_once_when_first_read_and_is_the_whole_meshs_turns(monkeypatch):
+    """A relative built without ``turns`` takes each piece's half turn the way the whole mesh turns
+    (§5.3 rigid part). Its screw is made when first read: the key two ahead of a sequence's gap has
+    its screw taken anew (``unwrap``) before anything reads it, so the constructor's would be made
+    for nothing. Read, it is the screw of the components' motions toward the whole mesh's best
+    rigid turn, to the bit, and ``whole_tells`` is that turn's."""
+    import core.inbetween_keys as keys
+    from core import deformation_fields as df
+    from core.inbetween_rigid_fits import component_screws, whole_tells
+    from core.rigid_alignment import rigid_alignment
+
+    flat, tri = grid(12, 6, size=1.0)
+    lifted = flat + [0.0, 0.0, 0.4]
+    vertices, triangles = np.vstack([flat, lifted]), np.vstack([tri, tri + len(flat)])  # two pieces
+    other = _rigid(vertices, Rotation.from_rotvec([0.3, -0.5, 2.9]).as_matrix(), np.array([0.2, 0.1, -0.3]))
+    other[len(flat):, 2] += 0.05 * np.sin(3.0 * flat[:, 0])  # the upper piece bends too
+    calls = []
+    monkeypatch.setattr(keys, "component_screws", lambda *a: calls.append(a) or component_screws(*a))
+    topo, base, nxt, relative = _relative(vertices, other, triangles)
+    assert calls == []  # made when first read, not by the constructor
+    whole = rigid_alignment(vertices, other, topo.weights)[0]
+    turns = np.repeat(df.rotation_vectors(whole[None]), 2, axis=0)
+    expected = component_screws(*relative.motion, turns, False, relative.nonrigidity)
+    assert np.array_equal(relative.screw, expected) and relative.screw is relative.screw
+    assert relative.whole_tells == bool(whole_tells(turns[0])) and relative.whole_tells
+    assert len(calls) == 1
+    calls.clear()
+    _, _, _, unwrapped = _relative(vertices, other, triangles)
+    unwrapped.unwrap(2.0 * expected[:, :3], np.zeros((len(triangles), 3)))
+    assert len(calls) == 1  # the unwrapped screw alone: the whole mesh's turn was never needed
+    assert np.array_equal(unwrapped.screw, component_screws(*unwrapped.motion, 2.0 * expected[:, :3], True,
+                                                            unwrapped.nonrigidity))

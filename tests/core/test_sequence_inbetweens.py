@@ -1107,3 +1107,38 @@ def test_a_gap_keeps_the_rigid_motions_of_a_bounded_number_of_factors(monkeypatc
     bounded = SequenceInterpolator(keys, tri).poses(1, batch)
     monkeypatch.setattr(motion, "MOTION_CACHE", 10 ** 6)
     np.testing.assert_array_equal(bounded, SequenceInterpolator(keys, tri).poses(1, batch))
+
+
+def test_each_pair_of_keys_is_fitted_rigidly_once_and_keeping_the_fits_changes_nothing(strip, monkeypatch):
+    """A sheet in free flight, then landing: the gaps' relatives fit each key to the next two, and
+    the gaps around read the non-rigidity of those pairs again where a gap starts in free flight or
+    ends at an impact (``_entry``, ``_exit``). Each pair of keys is fitted once (the sequence keeps
+    the fits: ``FIT_CACHE``), and the in-betweens are those made without keeping any, to the bit."""
+    import core.inbetween_keys as inbetween_keys
+    import core.sequence_keys as sequence_keys
+    from core.inbetween_rigid_fits import rigid_fits
+
+    flat, tri = strip
+    acceleration = np.array([0.05, 0.0, -1.0])
+    keys = [flat + 0.5 * acceleration * t * t for t in range(4)]
+    keys += [_bend(flat, 1.5) + 0.5 * acceleration * 3.5 ** 2] * 3
+    fitted = []
+
+    def counted(topo, base, other):
+        fitted.append((id(base), id(other)))
+        return rigid_fits(topo, base, other)
+
+    monkeypatch.setattr(inbetween_keys, "rigid_fits", counted)
+    monkeypatch.setattr(sequence_keys, "rigid_fits", counted)
+    factors = np.arange(1, 4) / 4
+    seq = SequenceInterpolator(keys, tri)
+    kept = [seq.poses(k, factors) for k in range(len(seq))]
+    assert len(set(fitted)) >= 2 * len(seq) - 1  # the relatives' pairs at least
+    assert len(fitted) == len(set(fitted))  # no pair twice
+    assert all(not value.flags.writeable for fits in seq._fitted.values() for value in fits)
+    monkeypatch.setattr(sequence_keys, "FIT_CACHE", 0)  # every fit made anew where it is asked for
+    fitted.clear()
+    again = SequenceInterpolator(keys, tri)
+    anew = [again.poses(k, factors) for k in range(len(again))]
+    assert len(fitted) > len(set(fitted))  # the gaps around do ask again
+    assert all(np.array_equal(a, b) for a, b in zip(kept, anew))
