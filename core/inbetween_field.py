@@ -153,7 +153,10 @@ class InterpolatedField:
             metric = df.squared_stretch(self.stretch(s))
         x, y = self.base.tangent_rows
         g11, g12, g22 = np.ascontiguousarray(metric.T)
-        return np.sqrt(g11 * (x * x) + 2.0 * g12 * (x * y) + g22 * (y * y))
+        # a metric extrapolated hundreds of gaps out overflows or cancels to NaN lengths, which no
+        # bound the callers compare them with holds
+        with np.errstate(over="ignore", invalid="ignore"):
+            return np.sqrt(g11 * (x * x) + 2.0 * g12 * (x * y) + g22 * (y * y))
 
     def log_stretch_rows(self, s: float, rows: np.ndarray) -> np.ndarray:
         """The log-stretches' spline at factor ``s`` on the triangles ``rows`` (index array): the

@@ -239,9 +239,11 @@ class LocalGlobalFit:
     @staticmethod
     def misfit(edges: np.ndarray, targets: dict) -> float:
         """Mean relative deviation of the lengths of corner ``edges`` (3, 3, m) from the metric's."""
-        with np.errstate(over="ignore"):  # float32 squares of a pose exaggerated far past its keys (fitted_edges)
+        # float32 squares of a pose exaggerated far past its keys (fitted_edges); a metric extrapolated
+        # so far that its shrinking lengths underflow to zero gives an infinite misfit
+        with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
             lengths = np.sqrt(coordinate_dot(edges, edges))
-        return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0), dtype=np.float64))
+            return float(np.mean(np.abs(lengths / targets["lengths"] - 1.0), dtype=np.float64))
 
     def fit(self, x, stretch, frames, guide, s, motion, iterations=ARAP_ITERATIONS, force=None, system=None,
             targets=None, misfits=None, looser=None):

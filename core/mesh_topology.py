@@ -197,8 +197,11 @@ def _far_out_advice(by_coordinate: np.ndarray, squared: list[np.ndarray]) -> str
     if not rounding >= FAR_OUT_ROUNDING * median_edge:
         return None
     largest = float(np.max(np.abs(by_coordinate)))
+    # a mesh whose coordinates all round to a few grid points has a median edge of zero
+    share = f"{rounding / median_edge:.0%} of its median edge, {median_edge:.2g}" if median_edge > 0 else \
+        "more than most of its edges are long"
     return (f"The mesh lies {largest:.3g} units from its origin, where its coordinates are rounded in steps of up to "
-            f"{rounding:.2g} ({rounding / median_edge:.0%} of its median edge, {median_edge:.2g}): "
+            f"{rounding:.2g} ({share}): "
             "triangles less high than that read as flat. Move the mesh's origin near it (in Blender: "
             "Object > Set Origin > Origin to Geometry, then bake the simulation again).")
 

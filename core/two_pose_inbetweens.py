@@ -25,7 +25,7 @@ from scipy.spatial.transform import Rotation
 from .allocator import keep_heap
 from .concurrency import single_threaded_blas
 from .inbetween_prediction import STILL_RIGIDITY
-from .validation import check_factor, check_interpolation, check_key_names
+from .validation import check_factor, check_interpolation, check_key_names, numerical_failures
 from .sequence_inbetweens import SequenceInterpolator
 from .sequence_warnings import _warn
 
@@ -54,8 +54,9 @@ class Interpolator:
         poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
             [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
-        self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True,
-                              key_names=key_names)
+        with numerical_failures(f"Preparing the in-betweens of {key_names[0]} and {key_names[1]}"):
+            self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True,
+                                  key_names=key_names)
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
@@ -128,6 +129,13 @@ class Interpolator:
         factor = check_factor(factor)
         if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
             return self._given_poses[int(factor)].copy()
+        names = self._sequence.key_names
+        # a raw failure of a solver is a RecoveryError naming the pose (the sequence's own solves say theirs)
+        with numerical_failures(f"The in-between at factor {factor:g} between {names[0]} and {names[1]}"):
+            return self._pose(factor)
+
+    def _pose(self, factor: float) -> np.ndarray:
+        """:meth:`pose` at a checked ``factor`` other than 0 and 1."""
         first = self._sequence
         if not 0.0 < factor < 1.0 or first.k_M is not None or not first.use_extrinsic or first._hold(0):
             x = first.pose(0, factor)

@@ -1362,3 +1362,21 @@ def test_keyframed_shape_keys_on_a_shared_mesh_say_its_other_objects_play_them(b
     twin.data = twin.data.copy()  # a mesh of its own: nothing to say
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
     assert "Twin" not in capfd.readouterr().out
+
+
+@pytest.mark.parametrize("operator, properties", [("inbetween", {}), ("exaggerate", {"factor": 1.5})])
+def test_a_solver_failure_in_the_in_betweens_is_reported_and_changes_nothing(bpy_empty, extension, monkeypatch,
+                                                                             operator, properties):
+    """A raw failure of the in-betweens' sparse solve (forced: no input found makes it fail) is the
+    core's RecoveryError, which the operator reports, not a traceback."""
+    import importlib
+
+    cholesky = importlib.import_module(f"{extension.__name__}.core.sparse_cholesky")
+
+    def failing(self, rhs):
+        raise np.linalg.LinAlgError("Matrix is not positive definite!")
+
+    monkeypatch.setattr(cholesky.SPDFactor, "solve", failing)
+    obj = posed_grid(extension.bridge, 6)
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
+                         r"between shape key 'Basis' and shape key '.*' failed numerically \(LinAlgError", **properties)
