@@ -86,6 +86,44 @@ class DefectChecks:
                                          gap.base.areas[rows])
         return cached[1:]
 
+    def against_the_field(self, x: np.ndarray, frames: np.ndarray) -> str | None:
+        """What to say where triangles of an in-between ``x`` (n, 3) of two poses face against
+        their interpolated normal ``R_T t1 × R_T t2`` (``frames``: (k ≥ 2, m, 3) of every triangle)
+        and against one key's normal (not both: those are :meth:`flipped`), each by more than
+        :data:`FLIP_COSINE`; None where none does. The check against both keys passes such a
+        triangle, turned over while facing the other key. Where the keys' normals face the same
+        way, the fit turned it over because the interpolated metric does not fit between parts the
+        fit holds (a head nodding on a still neck by ramped skin weights, whose stretch grows with
+        the square of the turn where the metric's is linear: 1–30 triangles of the ramp facing
+        90–147° from the rig, docs/inbetweens.md, *Heads nodding on a still neck*); where they are
+        more than a right angle apart, the triangle turns over between the keys, and two keys do
+        not tell which way (a skinned jaw's crease, right to 2°, or the same head nodding 140°,
+        8 of its triangles 96–139° from the rig). Said, not repaired: the keys cannot tell."""
+        gap = self.gap
+        cross = coordinate_cross(*gap.topo.triangle_sides(x))
+        normal = coordinate_cross(frames[0].T, frames[1].T)
+        length = np.sqrt(coordinate_dot(cross, cross))
+        slack = -FLIP_COSINE * length
+        against = coordinate_dot(cross, normal) < slack * np.sqrt(coordinate_dot(normal, normal))
+        against &= (coordinate_dot(cross, gap.base.normal_rows) < slack) != \
+            (coordinate_dot(cross, gap.next.normal_rows) < slack)
+        if not against.any():
+            return None
+        over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys
+        said = []
+        for rows, what in ((against & ~over, "face against their interpolated rotation and one pose, where "
+                            "the poses face the same way: the interpolated edge lengths do not fit there (a part "
+                            "that stretches between one held still and one that turns, such as a skinned joint's "
+                            "weight ramp: the two poses do not tell its lengths in between) and the fit turned "
+                            "them over; a key between the poses tells them"),
+                           (against & over, "turn over between the poses and face against their interpolated "
+                            "rotation: the two poses do not tell which way they go over (a crease a skin folds, a "
+                            "ramp turned far), and the in-between may turn them the other way; a key between the "
+                            "poses tells it")):
+            if rows.any():
+                said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {int(np.argmax(rows))}) {what}")
+        return "; ".join(said)
+
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:
         """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""
         if not np.isfinite(x).all():

@@ -290,7 +290,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         return (1.0 - s) * self.base.vertices + s * self.next.vertices
 
     def pose(self, s: float, weak: bool | None = None) -> tuple[np.ndarray, str | None]:
-        """(positions (n, 3), None) or, after a fallback, (positions, what happened). ``weak``: an
+        """(positions (n, 3), None) or, after a fallback (or, two poses, with triangles facing against
+        the field: :meth:`~core.inbetween_defects.DefectChecks.against_the_field`), (positions, what
+        happened). ``weak``: an
         in-between of a sequence fitted with the anchor at
         :data:`~core.inbetween_anchor.HELD_ANCHOR_WEIGHT` (True), with the gap's own (False), or
         with the gap's own and again with the weak one if the first fit is held off the metric
@@ -317,9 +319,12 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if between:
             self.held_factors[s] = bool(weak)
         checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None)
-        if self.anchored and 0.0 < s < 1.0 and self.use_extrinsic:  # two poses (sequences keep their fits)
-            checked = self.repair.nearer_the_metric(checked, s, stretch, motion, targets)
-        return self.finished(checked, s)
+        if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
+            return self.finished(checked, s)
+        # two poses (sequences keep their fits), which also say where triangles face against the field
+        x, said = self.finished(self.repair.nearer_the_metric(checked, s, stretch, motion, targets), s)
+        turned = self.repair.against_the_field(x, frames)
+        return x, said if turned is None else turned if said is None else f"{said}; {turned}"
 
     def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import expm, logm
+from scipy.spatial import ConvexHull
+from scipy.spatial.transform import Rotation
 
 from meshes import grid, icosphere
 
@@ -81,3 +83,29 @@ def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
     out = flat.copy()
     out[:, 0], out[:, 2], _ = _curled_line(flat[:, 0], angles, joints, 0.2)
     return out, tri
+
+
+def _scanned_head(points, seed):
+    """An ellipsoidal head (semi-axes 0.8, 1, 0.9 about (0, 1.6, 0)) triangulated irregularly, as a
+    scan re-meshed: the hull of ``points`` random directions (seeded), outward; or, with
+    ``points`` None, a regular icosphere of 2,562 vertices."""
+    if points is None:
+        unit, tri = icosphere(4)
+    else:
+        unit = np.random.default_rng(seed).normal(size=(points, 3))
+        unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+        tri = ConvexHull(unit).simplices
+        normals = np.cross(unit[tri[:, 1]] - unit[tri[:, 0]], unit[tri[:, 2]] - unit[tri[:, 0]])
+        inward = np.einsum("ij,ij->i", normals, unit[tri].mean(axis=1)) < 0
+        tri[inward] = tri[inward][:, [0, 2, 1]]
+    return unit * np.array([0.8, 1.0, 0.9]) + np.array([0.0, 1.6, 0.0]), tri
+
+
+def _nodded(vertices, degrees, s):
+    """``vertices`` of :func:`_scanned_head` nodded about x at the neck (0, 0.6, 0) by ``s`` ×
+    ``degrees``, as a skin with one bone does: each vertex turned by its weight's share, 0 below
+    y = 0.75 (the neck, still) ramping to 1 at y = 1.1 (the head, rigid)."""
+    weights = np.clip((vertices[:, 1] - 0.75) / 0.35, 0.0, 1.0)
+    turns = Rotation.from_rotvec(s * np.radians(degrees) * weights[:, None] * np.array([1.0, 0.0, 0.0]))
+    pivot = np.array([0.0, 0.6, 0.0])
+    return turns.apply(vertices - pivot) + pivot
