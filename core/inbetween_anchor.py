@@ -138,7 +138,7 @@ RELEASE_ITERATIONS = 50
 #: after the fit and its repairs (shapes, edge lengths and flipped triangles unchanged; moved at
 #: every fit step, some banner pairs fell back to the blend, 4.59 → 5.19 % edge deviation at g = 8).
 #: Two sheets at g = 16: 1.304 → 0.861 × the blend's RMS; numbers, losses (a swinging cape 0.922
-#: → 0.974) and other shares in docs/inbetweens.md, *Pieces the blend barely holds*.
+#: → 0.974) and other shares in docs/inbetween-measurements.md, *Pieces the blend barely holds*.
 CENTROID_ANCHOR_SHARE = 0.2
 
 

@@ -13,7 +13,7 @@ the seat's best rigid motion from the base key to the pose, times the part of it
 seat misses (interpolated, so that both keys are met exactly). Elsewhere the piece keeps its own
 motion.
 
-Measured (docs/inbetweens.md, *Pieces carried by deforming ones*): a hand (a separate sphere) on a
+Measured (docs/inbetween-measurements.md, *Pieces carried by deforming ones*): a hand (a separate sphere) on a
 forearm bent by 100°, two poses: off the forearm's end by 0.37–0.57 % of the diagonal in-between
 and 3.9 % at ×2, now 2e-8 / 2e-7; six buttons on benchmark cloths, keys 16 frames apart, median
 distance off the cloth under them: hanging sheet 1.53 → 0.004 mean edge lengths, banner 5.50 →

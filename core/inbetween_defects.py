@@ -95,7 +95,7 @@ class DefectChecks:
         way, the fit turned it over because the interpolated metric does not fit between parts the
         fit holds (a head nodding on a still neck by ramped skin weights, whose stretch grows with
         the square of the turn where the metric's is linear: 1–30 triangles of the ramp facing
-        90–147° from the rig, docs/inbetweens.md, *Heads nodding on a still neck*); where they are
+        90–147° from the rig, docs/inbetween-measurements.md, *Heads nodding on a still neck*); where they are
         more than a right angle apart, the triangle turns over between the keys, and two keys do
         not tell which way (a skinned jaw's crease, right to 2°, or the same head nodding 140°,
         8 of its triangles 96–139° from the rig). Said, not repaired: the keys cannot tell."""

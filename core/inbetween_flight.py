@@ -37,7 +37,7 @@ FLYING_TOLERANCE = 1e-4
 #: that tumbles and bounces (a cushion with internal springs falling onto a block: a point 1.1 of
 #: its size from its centre) would be turned about a point that is no hinge, as the screw turns it
 #: about an axis that is none (keys 16 frames apart: 1.164 × the blend's RMS; about its centre
-#: 1.014 ×, 0.957 × Catmull–Rom's). Numbers in docs/inbetweens.md, *Deforming bodies that tumble*.
+#: 1.014 ×, 0.957 × Catmull–Rom's). Numbers in docs/inbetween-measurements.md, *Deforming bodies that tumble*.
 DEFORMING_AXIS_NOISE = 8.0
 #: Free flight up to an impact. The Catmull–Rom tangent at a gap's end key averages the velocity
 #: over the gap and the next one; when something stops the cloth right after that key (a sheet
@@ -56,7 +56,7 @@ DEFORMING_AXIS_NOISE = 8.0
 #: keys 8 frames apart: 14k tablecloth 0.638 → 0.353, 10k drape 0.912 → 0.549, unseen irregular
 #: 10k mesh 0.913 → 0.493, unseen 30k tablecloth 0.618 → 0.317; of 93 sequence cells on 31 cloths
 #: 27 closer, two farther (a 10k sheet hanging from two corners at g = 4, 0.164 → 0.184; a sheet
-#: landing flat on a ramp, g = 16, 0.909 → 0.937); other scales in docs/inbetweens.md, *Free flight
+#: landing flat on a ramp, g = 16, 0.909 → 0.937); other scales in docs/inbetween-measurements.md, *Free flight
 #: up to an impact*.
 FREE_FLIGHT_NONRIGIDITY = 5e-3
 FREE_FLIGHT_JUMP = 4.0
@@ -74,7 +74,7 @@ FREE_FLIGHT_JERK = 0.5
 #: 1.651 → 0.874 × the blend); from frame 0 it moves four of 87 sequence cells, all closer (a 10k
 #: drape at g = 8 0.548 → 0.472 × the blend, a shrinking sheet at g = 4 1.065 → 0.928); a swing's
 #: turning point fails the deformation test, and at a slowdown of 2 a hanging sheet and a soft
-#: flag keep every digit (numbers in docs/inbetweens.md, *After an impact*). The gap before then
+#: flag keep every digit (numbers in docs/inbetween-measurements.md, *After an impact*). The gap before then
 #: ends with that start velocity (its positions; its other splines with the next gap's secant), so
 #: the two gaps meet with one velocity: the cloth landed inside the gap before and arrives slow (a
 #: 10k drape on a sphere, keys 8 apart: the second difference across the key 5.0 → 2.1 × the
@@ -251,7 +251,7 @@ def _told_by_keys(third: np.ndarray, second: np.ndarray, second_shift: np.ndarra
     within it. Elsewhere the group's centroid: a rigid box bouncing while it tumbles, keys 16 frames
     apart, had such a point 0.48 of its diagonal from its centre, outside it, and was 1.51 × the
     blend's error off across the bounce (0.38 × about its centroid); numbers in
-    docs/inbetweens.md, *Points no key tells*."""
+    docs/inbetween-measurements.md, *Points no key tells*."""
     lower = np.einsum("gab,gb->ga", second, point) + second_shift
     _, sigma, vt = np.linalg.svd(third)
     shared = sigma[:, 2] <= np.maximum(screw_motions.SCREW_CUTOFF, spread) * sigma[:, 0]

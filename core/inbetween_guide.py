@@ -35,7 +35,7 @@ from .inbetween_rigid_fits import rigid_fits
 #: guide's. Components under a free-flight or impact condition (which act on the world spline)
 #: keep it. Turntable 0.596 → 0.285 × the blend and edge deviation 2.39 → 0.65 % (bound 0.85 %);
 #: 10k sheet hanging from two corners at g = 16 0.816 → 0.681 × Catmull–Rom; numbers in
-#: docs/inbetweens.md, *Cloth that turns as a whole*.
+#: docs/inbetween-measurements.md, *Cloth that turns as a whole*.
 ARC_GUIDE_STRAIN_RATIO = 2.0
 #: ... provided its rigid fits compose: the best rigid motion from key k − 1 to key k + 1 (and
 #: from key k to key k + 2) within this angle (radians) of the one from k − 1 to k followed by the
@@ -48,7 +48,7 @@ ARC_GUIDE_STRAIN_RATIO = 2.0
 #: the simulated frames' fits, composed frame by frame, turned 134° about another axis: the
 #: interpolated rigid turn was 128–170° off the frames' over the second half of the gap), and its
 #: co-moving guide put the in-betweens at 1.3–1.8 × the Catmull–Rom spline's RMS there (the cell
-#: 1.137 → 1.035 ×, 1.027 → 0.935 × the blend's). Numbers in docs/inbetweens.md, *A whip's turns
+#: 1.137 → 1.035 ×, 1.027 → 0.935 × the blend's). Numbers in docs/inbetween-measurements.md, *A whip's turns
 #: that do not compose*.
 ARC_FIT_COMPOSITION = np.pi / 6
 #: A sequence's piece whose anchor follows the keys' spline in the world (not its co-moving
@@ -62,7 +62,8 @@ ARC_FIT_COMPOSITION = np.pi / 6
 #: hanging from a keyframed corner and spinning 193° about it between keys 16 frames apart
 #: (residuals 96°, whole rotations 116°, median): composed, 48 % of its triangles against the
 #: guide half-way (whole: 2 %), 6,117 facing away from both keys and 17 % edge deviation in the
-#: middle in-between (the simulated frame: 2,093 and 3.6 %); numbers in docs/inbetweens.md.
+#: middle in-between (the simulated frame: 2,093 and 3.6 %); numbers in
+#: docs/inbetween-measurements.md, *Rotations that pull against the guide*.
 AGAINST_GUIDE_SHARE = 0.1
 #: ... measured only on pieces whose rigid fit turns by more than this between the gap's keys
 #: (radians; the check costs 4–5 ms per gap of the 15k curtain): where it took pieces whole they turned

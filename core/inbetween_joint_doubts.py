@@ -6,7 +6,7 @@ is told).
 within an edge) in both keys of a gap and the child's motion relative to the parent's turns about a
 point of their contact without sliding, one joint per piece (a spanning tree). Four kinds of pieces
 fall outside it, moved by their own rigid motions or by joints other than theirs, which can leave
-the other piece (numbers in docs/inbetweens.md, *Joints the keys do not tell*):
+the other piece (numbers in docs/inbetween-measurements.md, *Joints the keys do not tell*):
 
 - **links apart** (:data:`JOINT_NEAR`): pieces that turn relative to each other about a point in
   the gap between them, near each other in both keys against their size but farther apart than the

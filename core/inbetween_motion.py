@@ -33,7 +33,7 @@ RIGID_PLACEMENT_SCALE = 1e-3
 #: centroid follows the similarity by the share ``1 − (ARC_PLACEMENT_MISFIT · misfit / departure)²``
 #: (at least 0): noise of RMS ε leaves the centroid at most ARC_PLACEMENT_MISFIT · ε off the arc
 #: (less the smaller ε), while a cloth that deforms by as much as half its centroid's departure
-#: from the chord keeps the spline (docs/inbetweens.md, *Nearly rigid and similar pieces, and what
+#: from the chord keeps the spline (docs/inbetween-measurements.md, *Nearly rigid and similar pieces, and what
 #: carries what*).
 ARC_PLACEMENT_MISFIT = 2.0
 #: ... and wholly only where its best similarity misses it by at most the first share of its size

@@ -52,7 +52,7 @@ FULL_SAMPLE_BATCH = 8
 #: gap, and so did the corrections. Keys 16 frames apart: largest frame-to-frame jump of the soft 20k
 #: flag 3.09 → 1.25 × the simulation's, the 1k flag 2.66 → 1.45 ×, the banner 1.39 → 0.98 ×; edge
 #: deviation down on the scenes that miss its bound (curtain 8.57 → 7.98 %, banner 6.00 → 5.51 %,
-#: balloon 2.95 → 2.66 %); RMS within −0.027 / +0.017 × Catmull–Rom (numbers in docs/inbetweens.md,
+#: balloon 2.95 → 2.66 %); RMS within −0.027 / +0.017 × Catmull–Rom (numbers in docs/inbetween-measurements.md,
 #: *Pops*). With two solved factors the slopes cost RMS (keys 8 apart: soft flags +0.012 / +0.015 ×
 #: Catmull–Rom) and the jumps there are 0.4–1.6 × already.
 KEY_SLOPE_SOLVED = 3
@@ -83,7 +83,7 @@ MIDDLE_SOLVED_BATCH = 3
 #: 8.9e-3 → 3.1e-3, root moving with arm and head 1.13e-2 → 8.7e-3), 0.42 on a tube bent 100°, 0.15 bent
 #: 60° (predicted as before). With three keys or more the check is not made: in the end gaps of 12
 #: cloths it reaches 0.29 mean edges, and solving the curtain's last gap raised its RMS at g = 4
-#: (÷ Catmull–Rom 0.847 → 0.903) and its CPU by a quarter (numbers in docs/inbetweens.md,
+#: (÷ Catmull–Rom 0.847 → 0.903) and its CPU by a quarter (numbers in docs/inbetween-measurements.md,
 #: *Two keys of a skinned character*).
 MAX_SLOPE_DISAGREEMENT = 0.25
 #: Batches with three solved factors (:data:`FULL_SAMPLE_BATCH` in-betweens or more: keys 9

@@ -34,13 +34,13 @@ WHOLE_GEOMETRY_ROUND = 2
 #: left the next round removed it (10k drape, keys 8 apart).
 STALLED_ROUND, STALLED_DEFECTS = 2, 2
 #: Largest repair region after the first round (fraction of the triangles of any one connected
-#: piece of the mesh): the rounds end at a region that would cover more (docs/inbetweens.md,
+#: piece of the mesh): the rounds end at a region that would cover more (docs/inbetween-measurements.md,
 #: *Pops*: a ball thrown through a 15k curtain, keys 16 frames apart, 66 → 42–56 ms per in-between,
 #: largest frame-to-frame jump 10.6 → 0.52 × the simulation's; the benchmark cloths unchanged).
 MAX_REPAIR_FRACTION = 0.5
 #: Largest move of a repair of a sequence's in-between, RMS over the vertices, as a fraction of the
 #: keys' RMS move across the gap (at least one mean edge length): a larger one jumps away from the
-#: neighbouring in-betweens, which do not follow (numbers in docs/inbetweens.md, *Pops*). A
+#: neighbouring in-betweens, which do not follow (numbers in docs/inbetween-measurements.md, *Pops*). A
 #: predicted in-between's clean repair that moves it by more than this fraction of the keys' move
 #: with the pieces' rigid motions taken out gives way to the solve if that is clean
 #: (:meth:`RepairRounds.moved_far`; a cape on a walking rig, whose walk is most of the keys' move).
@@ -49,7 +49,7 @@ MAX_REPAIR_MOVE = 0.1
 #: with the fewest defects when no repair is defect-free), RMS over the vertices, in mean edge
 #: lengths: each in-between chooses its own, so a larger one is a jump away from neighbours that
 #: chose another (a sphere lifting a sheet, keys 16 apart: largest frame-to-frame jump 10.6 →
-#: 0.80 × the simulation's; numbers in docs/inbetweens.md, *Pops*).
+#: 0.80 × the simulation's; numbers in docs/inbetween-measurements.md, *Pops*).
 MAX_PARTIAL_REPAIR_MOVE = 1.0
 
 

@@ -59,7 +59,7 @@ if TYPE_CHECKING:
 #: piece. Where the two disagree the interpolated shape of the piece does not reach the set (a
 #: sheet whipped by its pinned corner, whose stretch at the corner relaxes between the keys: that
 #: corner 0.53 off, 23 % of the sheet's diagonal, keys 4 frames apart), and holding the set there
-#: instead costs edge length and flipped triangles elsewhere (docs/inbetweens.md, *A pinned corner
+#: instead costs edge length and flipped triangles elsewhere (docs/inbetween-measurements.md, *A pinned corner
 #: off its path*).
 #: An in-between whose set ends farther than this share of its piece's diagonal from the blend
 #: says so in its warning: the whipped sheet's pairs miss by 0–46 %, the carried banner's pole by

@@ -2,7 +2,7 @@
 (``"rest"`` or ``"keys"``) and the ``end`` (``"keys"`` or ``"rest"``) of
 :class:`~core.sequence_inbetweens.SequenceInterpolator`, chosen from the source's frame in the middle
 of the first or the last gap (:func:`start_of_motion`, :func:`end_of_motion`; the operators and
-:mod:`core.retime` call them). docs/inbetweens.md, *How a motion leaves its first key* and *How a
+:mod:`core.retime` call them). docs/inbetween-measurements.md, *How a motion leaves its first key* and *How a
 motion reaches its last key*, has the measurements.
 """
 
@@ -27,7 +27,7 @@ def start_of_motion(keys, middle, factor: float, durations=None) -> str:
     them apart: a rig walking from rest is at rest there and at full pace two frames on, and a
     spline from rest spreads that ease over the whole gap (keys 16 frames apart: 9.2 % of the
     diagonal off, from the keys' parabola 4.1 %); a cloth falling from rest and landing in the
-    second gap has the walk's keys (docs/inbetweens.md, *How a motion leaves its first key*)."""
+    second gap has the walk's keys (docs/inbetween-measurements.md, *How a motion leaves its first key*)."""
     first, second, third = (np.asarray(k, dtype=np.float64) for k in keys)
     first_gap, second_gap = (1.0, 1.0) if durations is None else (float(d) for d in durations)
     secant = second - first
@@ -51,7 +51,7 @@ def end_of_motion(keys, middle, factor: float, durations=None) -> str:
     far an ease into the last key reaches back depends on how long it is against the gap, which
     the velocity at the key does not say: a hopping character keyed in Blender (auto-clamped
     Bézier handles) slows in its last two frames, the rest end right with keys 4 frames apart and
-    wrong with keys 8 apart; the frame in the middle tells both (docs/inbetweens.md, *How a motion
+    wrong with keys 8 apart; the frame in the middle tells both (docs/inbetween-measurements.md, *How a motion
     reaches its last key*)."""
     before, start, end = (np.asarray(k, dtype=np.float64) for k in keys)
     back, last = (1.0, 1.0) if durations is None else (float(d) for d in durations)

@@ -17,7 +17,7 @@ makes both gaps exact for steady motion; the short gap's in-betweens come from a
 keyed every ``r`` samples up to the last sample (:attr:`RetimePlan.tail`), which knows the motion
 just before it (on four cloths its in-betweens were as close to the source as the first
 sequence's in the median and never more than 1.34 × the blend's error, against 2.23 ×). Numbers in
-docs/inbetweens.md, *Retiming a range that is not whole steps*.
+docs/inbetween-measurements.md, *Retiming a range that is not whole steps*.
 
 Chunks: the in-betweens of a gap are asked together (:meth:`core.SequenceInterpolator.poses`
 shares the work between them), so the result for a gap depends only on the keys, the gap and the

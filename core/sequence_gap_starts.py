@@ -108,7 +108,7 @@ class GapStarts:
         (``exit`` of :class:`core.splines.HermiteGap`) — or None. The Catmull–Rom tangent
         carries the fall's speed into the key, where the gap after drops it at once: a kink
         the simulation, whose cloth slowed inside this gap, does not have (numbers in
-        docs/inbetweens.md, *Kinks at impact keys*). Keys evenly spaced around the key (the
+        docs/inbetween-measurements.md, *Kinks at impact keys*). Keys evenly spaced around the key (the
         tangents are per unit of this gap)."""
         k, last = gap + 1, len(self._raw) - 1
         if k + 1 > last or self._start_limit(k) is not None:
