@@ -27,7 +27,7 @@ import numpy as np
 from . import deformation_fields as df
 from . import screw_motions
 from .geometry import nearest_rotations
-from .inbetween_joints import JOINT_REACH, joint_offset, relative_motion
+from .inbetween_joints import JOINT_REACH, joint_groups, joint_offset, relative_motion
 from .rigid_alignment import rigid_alignments
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
@@ -137,7 +137,7 @@ class CarriedPieces:
             # carries moves as one with it (an eye in the socket of a rigid head, whichever of them
             # the joint tree hangs from the other), not with a deforming piece beside it (the other
             # eye shrinking shut: 0.35–0.46 % of the diagonal off at 0.5, 0.6–4 % at ×2)
-            groups_of = _joint_roots(gap.joints[0])
+            groups_of = joint_groups(gap.joints[0])
             chosen = np.zeros(len(groups_of), dtype=bool)
             chosen[pieces[[k for k, _, _ in kept]]] = True
             largest = np.zeros(len(groups_of))  # per joint group, its largest piece not carried
@@ -307,21 +307,6 @@ class CarriedPieces:
         spread = np.add.reduceat(np.einsum("ij,ij->i", self._base_centred, self._base_centred), self._starts)
         scales = np.einsum("pij,pij->p", rotations, covariance) / np.maximum(spread, np.finfo(float).tiny)
         return translations, rotations, scales, mean
-
-
-def _joint_roots(parents: np.ndarray) -> np.ndarray:
-    """Per piece (C,), the root of its joint chain, which names its joint group: the piece itself
-    for roots and unjointed pieces (``parents`` (C,): each piece's parent, −1 for none, from
-    :func:`core.inbetween_joints.joint_tree`)."""
-    roots = np.arange(parents.size)
-    hanging = parents >= 0
-    roots[hanging] = parents[hanging]
-    while True:  # one level up per pass: chains are a spanning forest, so this ends
-        up = parents[roots]
-        climbing = up >= 0
-        if not climbing.any():
-            return roots
-        roots[climbing] = up[climbing]
 
 
 def _jointed(base: np.ndarray, rows: np.ndarray, carriers: np.ndarray, seat, own, reach: float) -> bool:

@@ -181,7 +181,8 @@ class LocalGlobalFit:
         """:meth:`fitted_edges`, floating-point errors as they are. Each product and sum is the
         one of the formulas in the comments, in their order (the same values); the results go into
         a few (m,) rows reused along the way, since a new array per operation costs the 100k sheet's
-        step a third more time (10–12 against 14–16 ms, docs/inbetweens.md)."""
+        step a third more time (10–12 against 14–16 ms, docs/inbetween-measurements.md, *The 50k / 100k
+        sheets at g = 16*)."""
         i00, i01, i11 = targets["inverse"]  # upper triangular
         e1, e2 = edges[:, 0], edges[:, 2]  # the second side is −e2
         g0 = e1 * i00

@@ -34,8 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import screw_motions
-from .inbetween_joints import (JOINT_REACH, Contacts, contact_reach, nearest_pairs, relative_motions, screw_axes,
-                               slide_precision)
+from .inbetween_joints import (JOINT_REACH, Contacts, composed, contact_reach, joint_groups, nearest_pairs,
+                               relative_motions, screw_axes, slide_precision)
 
 #: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
 #: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
@@ -99,7 +99,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     c = touching
     pieces, index, label, rotations, translations = c.pieces, c.index, c.label, c.rotations, c.translations
     size = sizes[pieces]
-    group = _groups(parents)[pieces]
+    group = joint_groups(parents)[pieces]
     stakes = _Stakes(base, index, label, rotations, translations)
     children = np.flatnonzero(parents[pieces] >= 0)
     if children.size:  # joints whose slide tolerance is a share of their pieces' size, where they move a piece
@@ -114,7 +114,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
             doubts.rounded_share = float(share[doubtful].max(initial=0.0))
     key, first, u, v, relative, precision = c.key, c.first, c.u, c.v, c.relative, c.precision
     if joints is not None and c.held is not None:
-        _joints_in_loops(doubts, c, parents, group, size, stakes)
+        _joints_in_loops(doubts, c, joints, group, size, stakes)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         angle = c.angle
@@ -139,15 +139,16 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     return doubts if doubts else None
 
 
-def _joints_in_loops(doubts: JointDoubts, c: Contacts, parents: np.ndarray, group: np.ndarray, size: np.ndarray,
+def _joints_in_loops(doubts: JointDoubts, c: Contacts, joints: tuple, group: np.ndarray, size: np.ndarray,
                      stakes: _Stakes) -> None:
     """Count in ``doubts`` the rigid pieces of the touching pairs of ``c`` whose contact holds a joint
-    (``c.held``) that the joint tree (``parents`` (C,); each rigid piece's joint ``group`` and
+    (``c.held``) that the joint tree (``joints``: ``(parents (C,), order)``; each rigid piece's joint ``group`` and
     ``size`` (R,)) joins through other pieces instead, where the tree places the smaller piece
     otherwise than their own joint would (:data:`JOINT_STAKE`): the held contacts close a loop, the
     tree keeps all but one of them, and the keys do not tell which one the pieces do not hold (a
     chain curled so that links meet the next-but-one as closely as the links they hold)."""
     u, v = c.u, c.v
+    parents = joints[0]
     jointed = np.full(c.pieces.size, -1)  # per rigid piece, its parent's index among them (−1: a root)
     has_parent = parents[c.pieces] >= 0
     jointed[has_parent] = np.searchsorted(c.pieces, parents[c.pieces[has_parent]])
@@ -159,22 +160,11 @@ def _joints_in_loops(doubts: JointDoubts, c: Contacts, parents: np.ndarray, grou
         return
     child = np.where(size[u] <= size[v], u, v)[looped]  # the smaller piece hangs from the larger
     parent = np.where(size[u] <= size[v], v, u)[looped]
-    stake = stakes.distances(parent, child, stakes.jointed(jointed))
+    stake = stakes.distances(parent, child, stakes.jointed(jointed, np.searchsorted(c.pieces, joints[1])))
     off = (stake > JOINT_STAKE * c.precision[looped]) & (stake > JOINT_LOOP_SHARE * size[child])
     if off.any():
         doubts.looped = int(np.unique(np.r_[child[off], parent[off]]).size)
         doubts.looped_share = float(np.max(stake[off] / size[child[off]]))
-
-
-def _groups(parents: np.ndarray) -> np.ndarray:
-    """Per piece (C,), its joint group: the root its parents (``parents`` (C,), −1 for roots) lead to."""
-    group = np.arange(parents.size)
-    for _ in range(parents.size):
-        step = np.where(parents[group] >= 0, parents[group], group)
-        if (step == group).all():
-            break
-        group = step
-    return group
 
 
 class _Stakes:
@@ -207,24 +197,17 @@ class _Stakes:
         joint = np.einsum("kab,kb->ka", rotations[p], local) + translations[p]
         return np.maximum.reduceat(np.linalg.norm(own - joint, axis=1), first)
 
-    def jointed(self, parents: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def jointed(self, parents: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rigid pieces' motions half-way as the joint tree places them (rotations (K, 3, 3),
         translations (K, 3)): a root by its own screw, a child by its parent's placement composed
         with its screw relative to the parent (``parents`` (K,): each piece's parent among the rigid
-        pieces, −1 for a root), level by level down the tree."""
-        rotations, translations = (array.copy() for array in self.half)
+        pieces, −1 for a root; ``order``: the jointed ones among them, parents first), as
+        :func:`core.inbetween_joints.composed` composes the in-betweens' motions."""
+        local_rotations = np.repeat(np.eye(3)[None], parents.size, axis=0)
+        local_translations = np.zeros((parents.size, 3))
         children = np.flatnonzero(parents >= 0)
-        local_rotations, local_translations = self._local_halves(parents[children], children)
-        placed = parents < 0
-        for _ in range(children.size):
-            ready = np.flatnonzero(~placed[children] & placed[parents[children]])
-            if not ready.size:
-                break
-            c, p = children[ready], parents[children[ready]]
-            translations[c] = np.einsum("kab,kb->ka", rotations[p], local_translations[ready]) + translations[p]
-            rotations[c] = rotations[p] @ local_rotations[ready]
-            placed[c] = True
-        return rotations, translations
+        local_rotations[children], local_translations[children] = self._local_halves(parents[children], children)
+        return composed(parents, order, *self.half, (local_rotations, local_translations))
 
     def _local_halves(self, parent: np.ndarray, child: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Per pair (P,), the child's screw relative to the parent half-way (rotations, translations)."""

@@ -513,6 +513,18 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list
     return out
 
 
+def joint_groups(parents: np.ndarray) -> np.ndarray:
+    """Per piece (C,), its joint group: the root its parents (``parents`` (C,) from
+    :func:`joint_tree`, −1 for roots and unjointed pieces) lead to (a piece's own index for those)."""
+    group = np.arange(parents.size)
+    for _ in range(parents.size):  # one level up per pass; a tree is no deeper than its pieces
+        step = np.where(parents[group] >= 0, parents[group], group)
+        if (step == group).all():
+            break
+        group = step
+    return group
+
+
 def composed(parents: np.ndarray, order: list, rotations: np.ndarray, translations: np.ndarray,
              local: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     """The pieces' motions (rotations (C, 3, 3), translations (C, 3), the pieces' own) with each

@@ -277,13 +277,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
     def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[str]]:
         """:meth:`poses` and the warnings' messages, not yet given (the caller warns: a warning
         filter changed around the call would be the process's, not this thread's)."""
-        gap_index, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
-        gap = int(gap_index)
-        if not 0 <= gap < len(self):
-            raise IndexError(f"gap_index {gap_index} out of range for {len(self)} gap(s).")
-        factors = [float(f) for f in np.atleast_1d(factors)]
-        if not all(np.isfinite(factors)):
-            raise ValueError(f"factors must be finite numbers; got {factors!r}.")
+        # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
+        gap, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
         out = np.empty((len(factors), self._topo.n, 3))
         between = [k for k, s in enumerate(factors) if s not in (0.0, 1.0)]
         for k, s in enumerate(factors):

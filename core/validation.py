@@ -454,15 +454,16 @@ def check_working_memory(n_points: int, what: str, advice: str) -> None:
 def numerical_failures(what: str):
     """Turn a raw numerical exception escaping a solver (NumPy's LinAlgError, SciPy's "Factor is
     exactly singular" RuntimeError, overflow, division by zero) into a RecoveryError naming the
-    step ``what``; documented errors pass through unchanged."""
+    step ``what``; documented errors pass through unchanged, and so do errors of the code itself
+    (IndexError, TypeError, NotImplementedError, RecursionError: no input makes them, and a
+    RecoveryError would send the user to change a valid input)."""
     from .errors import ShapeDifferenceError
 
     try:
         yield
-    except ShapeDifferenceError:
+    except (ShapeDifferenceError, NotImplementedError, RecursionError):
         raise
-    except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError, RuntimeError,
-            IndexError, TypeError) as error:
+    except (np.linalg.LinAlgError, FloatingPointError, OverflowError, ZeroDivisionError, RuntimeError) as error:
         raise RecoveryError(
             f"{what} failed numerically ({type(error).__name__}: {error}). The input is valid but "
             "beyond what the solver can handle (e.g. nearly degenerate triangles or an extreme "

@@ -102,6 +102,29 @@ def test_a_failure_while_preparing_the_keys_is_a_recovery_error(two_pieces, monk
             core.SequenceInterpolator(keys, triangles)
 
 
+@pytest.mark.parametrize("error", [IndexError("index 72 is out of bounds for axis 0 with size 72"),
+                                   TypeError("unsupported operand type(s) for *: 'NoneType' and 'float'"),
+                                   NotImplementedError("a piece of no kind")], ids=lambda e: type(e).__name__)
+@pytest.mark.parametrize("two_poses", [True, False], ids=["Interpolator", "SequenceInterpolator"])
+def test_an_error_of_the_code_itself_is_not_passed_off_as_a_numerical_failure(two_pieces, monkeypatch, error,
+                                                                               two_poses):
+    """An IndexError or TypeError inside a solve comes from the code, not from the input (every
+    argument is checked before): it escapes as it is, not as a RecoveryError telling the user to
+    change a valid pose."""
+    keys, triangles, _ = two_pieces
+
+    def failing(segment, factors):
+        raise error
+
+    monkeypatch.setattr(sequence_inbetweens, "gap_poses", failing)
+    with pytest.raises(type(error)) as raised:
+        if two_poses:
+            core.Interpolator(keys[0], keys[1], triangles).pose(0.5)
+        else:
+            core.SequenceInterpolator(keys, triangles).poses(1, [0.25, 0.5])
+    assert raised.value is error
+
+
 def _poisoned(original, rows):
     """``gap_poses`` with NaN in ``rows`` of every pose it returns (what no fit or repair returns
     on any input found: the last net is reached only past them)."""

@@ -553,7 +553,7 @@ def test_a_chain_curling_through_a_sequence_is_right_or_warned_gap_by_gap(cleara
     one contact each. Clearing each other by 0.08 the tree of gaps 1 and 2 takes every other link's
     passing contact (6.3e-5 and 5.4e-3 of a link off in the in-betweens): each gap's in-betweens
     are the chain's forward kinematics to 1e-6 of the diagonal or warn (gap 0, no joint: links
-    apart; gaps 1 and 2: joints in a loop; before, gaps 1 and 2 silently). Clearing by 0.04 the
+    apart; gaps 1 and 2: joints in a loop). Clearing by 0.04 the
     first two gaps, before any loop, are exact and silent."""
     tri = _torus_chain(0.0, clearance)[1]
     keys = [_torus_chain(float(k), clearance)[0] for k in range(4)]

@@ -670,8 +670,8 @@ def test_an_eye_in_its_socket_turns_with_the_rigid_head_while_the_other_shrinks(
     """A head turned 30° rigidly while one eye (a separate piece) shrinks about its centre: the
     other eye, in its socket and jointed to the head, moves as one with the head — not carried by
     the shrinking eye beside it, the only deforming piece near it — also where the turn's axis
-    runs through it, so that the joint tree hangs the head from it (before: 0.35–0.46 % of the
-    diagonal off at 0.5, 0.6–4 % at ×2; turned about that eye, 0.7–1.6 % and 0.6–4 %)."""
+    runs through it, so that the joint tree hangs the head from it (carried by the shrinking eye it
+    was 0.35–0.46 % of the diagonal off at 0.5, 0.6–4 % at ×2; turned about that eye, 0.7–1.6 % and 0.6–4 %)."""
     a, tri, b, truth, (head, _, other) = _head_turned_with_an_eye_shrinking(scale, pivot=pivot)
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
     interpolator = Interpolator(a, b, tri)
@@ -687,7 +687,7 @@ def test_an_eye_in_its_socket_turns_with_the_rigid_head_while_the_other_shrinks(
 def test_an_eye_shrinking_in_a_turning_head_stays_in_its_socket_half_way(scale):
     """A head turned 30° rigidly while one eye shrinks about its centre: in-betweens put the eye's
     centroid where the head's rigid motion takes it (its seat's, exact), not partly on the chord
-    of that arc that the blend anchor holds it to (before: 0.43–0.45 % of the diagonal out of its
+    of that arc that the blend anchor holds it to (held there, it is 0.43–0.45 % of the diagonal out of its
     socket at 0.25 and 0.75, 0.57–0.60 % at 0.5, a tenth of its radius)."""
     a, tri, b, truth, (_, eye, _) = _head_turned_with_an_eye_shrinking(scale)
     diagonal = np.linalg.norm(np.ptp(a, axis=0))
@@ -700,8 +700,8 @@ def test_an_eye_shrinking_in_a_turning_head_stays_in_its_socket_half_way(scale):
 def test_a_piece_shrunk_to_a_speck_in_the_first_pose_leaves_the_rest_on_their_motion():
     """One eye a millionth of its size in the first pose (its triangles' areas 1e-12 of the
     others', accepted) while the head turns 30°: the in-betweens and exaggerations are made (the
-    anchor's gauge, weighted by the vertices' areas, is floored at MASS_FLOOR of their mean; before:
-    NumPy's LinAlgError from the factorization, "not positive definite") and the head and the other
+    anchor's gauge, weighted by the vertices' areas, is floored at MASS_FLOOR of their mean; unfloored,
+    the factorization fails, "not positive definite") and the head and the other
     eye are their rigid motion."""
     a, tri, b, truth, (head, _, other) = _head_turned_with_an_eye_shrinking(1e-6, in_first=True)
     diagonal = np.linalg.norm(np.ptp(a, axis=0))

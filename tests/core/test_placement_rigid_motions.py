@@ -410,7 +410,7 @@ def _sphere_turned_far_in_single_precision(height: float) -> tuple[float, bool, 
 def test_slivers_thinner_than_the_keys_rounding_are_warned_or_turned_rigidly(height):
     """A sphere with four slivers ``height`` high, turned rigidly 60° 1,000 units from the origin in
     single precision (the keys' coordinates rounded to 1.2e-4): the rounding alone reshapes the
-    slivers, and the in-betweens bend the sphere around them (before, silently: 1.2e-4–1.0e-3 of
+    slivers, and the in-betweens bend the sphere around them (1.2e-4–1.0e-3 of
     the diagonal off at 0.5, 0.17–2 % at ×2, the keys' own rounding 1.7e-5 of it). Either the
     in-betweens are the rigid motion to a few roundings or the gap warns of the slivers."""
     off, said, rounding = _sphere_turned_far_in_single_precision(height)
