@@ -163,9 +163,10 @@ class Interpolator:
                 _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
             if nearer_metric or fewer_defects:
                 x, said, misfit = y, other, other_misfit
-        for message in said:  # a fallback's edges, said where they are far from the metric (a crushed blend)
+        for message in said:  # the pose's edges, said where they are far from the metric (a crushed blend)
             _warn(message if misfit <= FALLBACK_MISFIT_NOTED else
-                  f"{message} (its edge lengths {100 * misfit:.1f} % off the interpolated ones on average)")
+                  f"{message} (the in-between's edge lengths {100 * misfit:.1f} % off the interpolated ones "
+                  "on average)")
         return x
 
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
