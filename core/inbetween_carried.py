@@ -28,6 +28,7 @@ from . import deformation_fields as df
 from . import screw_motions
 from .geometry import nearest_rotations
 from .inbetween_joints import JOINT_REACH, joint_groups, joint_offset, relative_motion
+from .nearest_points import nearest_points, point_tree
 from .rigid_alignment import rigid_alignments
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
@@ -103,8 +104,6 @@ class CarriedPieces:
         riders = ~rigid & ~gap.seated_placement[0] & (RIDER_SIZE * size <= size[~rigid].max())
         if not (rigid.any() or riders.any()):
             return
-        from scipy.spatial import cKDTree  # noqa: PLC0415 (only meshes with rigid and deforming pieces)
-
         # every piece at once, its vertices in component order (a loop cost ~0.6 ms per piece: 2,000
         # sequins on a dress, 1.2 s per gap)
         order, labels = topo.component_order, topo.vertex_component[topo.component_order]
@@ -126,7 +125,7 @@ class CarriedPieces:
         if not deforming.size:
             return
         seats = self._seats(topo.first_pose, base, nxt, rows, piece, pieces.size, deforming,
-                            cKDTree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge,
+                            point_tree(topo.first_pose[deforming]), own, JOINT_REACH * gap.mean_edge,
                             (size[topo.vertex_component[deforming]], least))
         groups = np.split(rows, np.flatnonzero(np.diff(piece)) + 1)
         ridden = self._ridden(gap, base, nxt, own) & rigid[pieces]
@@ -204,9 +203,10 @@ class CarriedPieces:
         from the gap's base key to the next nor hold it at a joint (it touches them, vertices within
         ``reach``, and turns about a point of the contact: a hand turning at the wrist of a bending
         arm, :func:`_jointed`; ``own``: the pieces' best rigid motions between the keys, rotations
-        (count, 3, 3) and translations (count, 3)). They are sought (with ``tree``, over the
-        ``deforming`` vertices) where the piece sits in the first key (``first``: positions (n, 3)),
-        the same seat for every gap (see :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`,
+        (count, 3, 3) and translations (count, 3)). They are sought (with ``tree``, a k-d tree over
+        the ``deforming`` vertices; equally near ones taken by index:
+        :func:`core.nearest_points.nearest_points`) where the piece sits in the first key (``first``:
+        positions (n, 3)), the same seat for every gap (see :data:`CARRIER_REACH`, :data:`CARRIED_TOLERANCE`,
         :data:`CARRIED_SHARE`), among those of components no smaller than ``sizes[1]`` (per piece;
         ``sizes[0]``: per ``deforming`` vertex, its component's diagonal; :data:`CARRIER_SIZE`)."""
         starts = np.flatnonzero(np.r_[True, np.diff(piece) != 0])
@@ -216,7 +216,7 @@ class CarriedPieces:
         if not reachable.max() > 0:
             return [(None, None)] * count
         # the nearest few within the largest reach, then within each piece's own (the same sets)
-        distance, nearest = tree.query(first[rows], k=CARRIER_NEIGHBOURS, distance_upper_bound=reachable.max())
+        distance, nearest = nearest_points(tree, first[rows], CARRIER_NEIGHBOURS, reachable.max())
         found = np.isfinite(distance) & (distance < reachable[piece][:, None])
         if sizes is not None:
             found[found] = sizes[0][nearest[found]] >= sizes[1][piece[np.nonzero(found)[0]]]

@@ -280,9 +280,8 @@ def seat_candidates(topo, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     known = topo.seat_candidates.get(rigid.tobytes())
     if known is not None:
         return known
-    from scipy.spatial import cKDTree  # noqa: PLC0415
-
     from . import inbetween_carried as carried  # noqa: PLC0415
+    from .nearest_points import nearest_points, point_tree  # noqa: PLC0415
 
     count = len(topo.components)
     first = topo.first_pose
@@ -291,9 +290,10 @@ def seat_candidates(topo, rigid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     rows = topo.component_vertices[~rigid[topo.component_labels]]
     label = topo.vertex_component[rows]
     reach = carried.CARRIER_REACH * size
-    # every deforming piece's vertices at once (meshes of many pieces: no loop per piece)
-    distance, nearest = cKDTree(first[holders]).query(first[rows], k=carried.CARRIER_NEIGHBOURS,
-                                                      distance_upper_bound=float(reach[~rigid].max()))
+    # every deforming piece's vertices at once (meshes of many pieces: no loop per piece); equally
+    # near holders taken by index, whatever the tree
+    distance, nearest = nearest_points(point_tree(first[holders]), first[rows], carried.CARRIER_NEIGHBOURS,
+                                       float(reach[~rigid].max()))
     found = np.isfinite(distance) & (distance < reach[label][:, None])
     piece = np.broadcast_to(label[:, None], found.shape)[found]
     owner = topo.vertex_component[holders[nearest[found]]]

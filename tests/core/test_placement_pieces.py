@@ -713,3 +713,67 @@ def test_a_piece_shrunk_to_a_speck_in_the_first_pose_leaves_the_rest_on_their_mo
         assert np.isfinite(x).all()
         assert np.abs(x[head] - truth(factor)[head]).max() < 1e-9 * diagonal
         assert np.abs(x[other] - truth(factor)[other]).max() < 1e-9 * diagonal
+
+
+def _exact_grid(nx, ny, height, offset=(0.0, 0.0)):
+    """An ``nx × ny`` grid of spacing 0.25 at ``height`` (coordinates exact in binary: vertices
+    exactly above each other are equally near to the last bit), its triangles."""
+    u, v = np.meshgrid(np.arange(nx), np.arange(ny))
+    points = np.stack([0.25 * u.ravel() + offset[0], 0.25 * v.ravel() + offset[1], np.full(u.size, height)], axis=1)
+    return points, grid(nx, ny)[1]
+
+
+@pytest.mark.parametrize("options", [{}, {"compact_nodes": False}, {"leafsize": 1}, {"leafsize": 64, "balanced_tree": False}])
+def test_a_plate_over_a_grid_is_seated_on_the_lowest_of_equally_near_vertices_whatever_the_tree(options):
+    """A rigid 4 × 4 plate 0.5 above a 12 × 10 cloth grid of the same spacing, vertex over vertex:
+    each plate vertex has one cloth vertex under it and four equally near around that one (to the
+    last bit), of which two are among its three nearest. Its carriers are those of a brute-force
+    search ordered by (distance, index), whichever way the k-d tree over the cloth was built."""
+    from scipy.spatial import cKDTree
+
+    import core.inbetween_carried as carried
+
+    cloth = _exact_grid(12, 10, 0.0)[0]
+    plate = _exact_grid(4, 4, 0.5, offset=(0.75, 0.5))[0]
+    first = np.vstack([cloth, plate])
+    rows, deforming = np.arange(len(cloth), len(first)), np.arange(len(cloth))
+    distance = np.linalg.norm(plate[:, None, :] - cloth[None, :, :], axis=2)
+    order = np.lexsort((np.broadcast_to(deforming, distance.shape), distance), axis=-1)
+    expected = np.unique(order[:, :carried.CARRIER_NEIGHBOURS])
+    assert expected.size > len(plate)  # ties decided: more than the vertices under the plate
+    still = (np.eye(3)[None], np.zeros((1, 3)))
+    seats = carried.CarriedPieces._seats(first, first, first, rows, np.zeros(len(rows), dtype=int), 1, deforming,
+                                         cKDTree(cloth, **options), still, 0.1)
+    np.testing.assert_array_equal(seats[0][0], expected)
+
+
+@pytest.mark.parametrize("options", [{}, {"compact_nodes": False}, {"leafsize": 1}, {"leafsize": 64, "balanced_tree": False}])
+@pytest.mark.parametrize("lower_first", [True, False])
+def test_a_grid_between_two_rigid_ones_is_seated_on_the_lower_numbered_whatever_the_tree(monkeypatch, options, lower_first):
+    """A deforming 6 × 6 grid halfway between two rigid ones (0.5 below and above, vertex over
+    vertex, coordinates exact): each of its vertices has one vertex of each rigid grid at 0.5 and
+    eight at √0.3125 (four of each), the third nearest taken by index. The seat is the rigid grid
+    listed first in the mesh (it holds two of each vertex's three nearest), whichever way the k-d
+    tree over the rigid grids' vertices was built."""
+    import scipy.spatial
+
+    from core.inbetween_motion import seat_candidates
+    from core.inbetween_topology import _Topology
+    from core.mesh_topology import mesh_topology
+
+    class Built(scipy.spatial.cKDTree):
+        def __init__(self, data, *args, **kwargs):
+            super().__init__(data, *args, **{**kwargs, **options})
+
+    monkeypatch.setattr(scipy.spatial, "cKDTree", Built)
+    (below, tri), above = _exact_grid(6, 6, 0.0), _exact_grid(6, 6, 1.0)[0]
+    middle = _exact_grid(6, 6, 0.5)[0]
+    first, second = (below, above) if lower_first else (above, below)
+    points = np.vstack([first, second, middle])
+    triangles = np.vstack([tri, tri + 36, tri + 72])
+    topo = _Topology(mesh_topology(triangles, len(points)), points)
+    piece = topo.vertex_component[[0, 36, 72]]  # the first-listed rigid grid, the other, the deforming one
+    rigid = np.ones(len(topo.components), dtype=bool)
+    rigid[piece[2]] = False
+    pieces, owners = seat_candidates(topo, rigid)
+    assert pieces.tolist() == [piece[2]] and owners.tolist() == [piece[0]]
