@@ -30,14 +30,6 @@ ZERO_TURN_TOLERANCE = 1e-9
 #: blend's error. A piece none of whose neighbours' rotations are that far apart bends without a
 #: crease (:data:`core.inbetween_whole_rotations.BENT_TURN`).
 WRAP_CREASE = np.pi / 6
-#: Residuals are taken the way round their triangle's whole rotation goes
-#: (:func:`residuals_turning_whole_way`) only where that whole rotation is more than this (radians)
-#: short of a half turn: nearer, its two ways round are nearly as short, and neighbours on either
-#: side of a half turn would be turned apart. A curtain flung over by a paddle (keys 16 frames
-#: apart, flaps turning 152° against the fit's 58°): at 15° / 30° 190 / 396 triangles face away
-#: from both keys (3,031 with the principal residuals), edge deviation 3.73 / 3.87 % (3.59 %); a
-#: curtain pushed by a ball, keys 8 frames apart: 0.517 / 0.513 × the blend's error (0.513).
-WHOLE_WAY_MARGIN = np.pi / 6
 
 
 def either_way(theta: np.ndarray, spread: np.ndarray | float = 0.0) -> np.ndarray:
@@ -67,47 +59,6 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     if not rows.size and not identity.size:
         return rotvec
     return _nearest_representatives(rotvec, theta, reference, identity, rows)
-
-
-def residuals_turning_whole_way(rotvec: np.ndarray, turns: np.ndarray, components: np.ndarray) -> np.ndarray:
-    """Rotation residuals (m, 3) ``q`` of a mesh's triangles to their pieces' rigid turns ``turns``
-    (C, 3; rotation vectors, past π where a piece's turn is continued across keys), each taken the
-    way round (``q`` or :func:`the_other_way`) whose in-between turns the triangle as a whole the way
-    its whole rotation ``W = exp(w) exp(q)`` goes: the short way, or as far past a half turn as its
-    piece's turn ``w`` goes past one (paper §5.3's rotations, interpolated as ``exp(s w) exp(s q)``).
-    The principal residual (at most π) is the short way relative to the piece's rigid fit, which is
-    not the triangle's way where the fit turns one way and a part of the piece turns near a half turn
-    the other (``|q| + |w| > π``): a curtain flung over by a paddle, keys 16 frames apart, fits 58°
-    while a flap of it turns 152° about an axis 134° from the fit's; its residuals of 168° about the
-    fit's side composed to the long way round (104° half-way against 76°), 154° from the
-    simulation's frames, 2,928 triangles facing away from both keys. Compared half-way (``s = ½``):
-    the other way is taken where its half-way rotation is nearer the whole rotation's half by more
-    than :data:`HALF_TURN_TOLERANCE` (a triangle turning a half turn as a whole goes either way, and
-    keeps its residual). ``components``: each triangle's piece (m,). Rows with
-    ``|q| + |w| ≤ π`` are returned as they are (the other way's half-way turns farther than any
-    whole rotation's half); rigid pieces (``q ≈ 0``) too."""
-    w = turns[components]
-    theta = np.sqrt(np.einsum("ij,ij->i", rotvec, rotvec))
-    reach = np.sqrt(np.einsum("ij,ij->i", w, w))
-    rows = np.flatnonzero((theta > ZERO_TURN_TOLERANCE) & (theta + reach > np.pi))
-    if not rows.size:
-        return rotvec
-    q, w = rotvec[rows], w[rows]
-    piece = Rotation.from_rotvec(w)
-    # the whole rotation's representative past a half turn only as far as the piece's own turn is
-    # (a piece tumbling 200° per key: its triangles' whole turns continue its way, not the short one)
-    beyond = w - piece.as_rotvec()
-    whole = unwrapped_rotation_vectors((piece * Rotation.from_rotvec(q)).as_rotvec(), beyond)
-    half, target = Rotation.from_rotvec(0.5 * w), Rotation.from_rotvec(-0.5 * whole)
-    other = the_other_way(q, theta[rows])
-    kept = (target * half * Rotation.from_rotvec(0.5 * q)).magnitude()
-    turned = (target * half * Rotation.from_rotvec(0.5 * other)).magnitude()
-    swap = (turned < kept - HALF_TURN_TOLERANCE) & (np.linalg.norm(whole, axis=1) < np.pi - WHOLE_WAY_MARGIN)
-    if not swap.any():
-        return rotvec
-    out = rotvec.copy()
-    out[rows[swap]] = other[swap]
-    return out
 
 
 def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: np.ndarray, turned=None,

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from .deformation_fields import rotation_vectors
-from .rotation_continuity import either_way, residuals_turning_whole_way, the_other_way
+from .rotation_continuity import either_way, the_other_way
 from .inbetween_keys import _Relative
 from .inbetween_rigid_fits import NEAR_HALF_TURN, rigid_fits, component_screws, turn_spread
 from .inbetween_solver import _Gap
@@ -41,18 +41,6 @@ class HalfTurns:
     Reads the interpolator's ``_durations``, ``_raw``, ``_topo``, ``smooth`` and calls its ``_key``."""
 
     def _turning_on(self, base: int, relative: _Relative) -> _Relative:
-        """``relative`` (key ``base + 1`` seen from key ``base``) with its pieces' near half turns
-        taken the way the steps around tell (:meth:`_pieces_turning_on`) and, in a sequence (two
-        poses take the residuals continuous across the mesh instead), its triangles' residuals the
-        way round their whole rotations go (:func:`~core.rotation_continuity.residuals_turning_whole_way`).
-        Depends on the keys alone."""
-        relative = self._pieces_turning_on(base, relative)
-        if relative._across is None:
-            relative.rotvec = residuals_turning_whole_way(relative.rotvec, relative.screw[:, :3],
-                                                          self._topo.triangle_component)
-        return relative
-
-    def _pieces_turning_on(self, base: int, relative: _Relative) -> _Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past
         :data:`~core.inbetween_rigid_fits.NEAR_HALF_TURN` between the keys taken the other way round where
         that is nearer the turns of the steps before and after (per unit of time) by more than it
