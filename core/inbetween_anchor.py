@@ -11,6 +11,8 @@ pieces' ``motion`` and the guide's mid-gap strains. It sets ``weights``, ``co_mo
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 
 from . import screw_motions
@@ -201,14 +203,16 @@ class Anchor:
         anchored = np.bincount(labels, weights[rows] > GAUGE_WEIGHT, minlength=count) > 0
         shares = np.where(anchored, 0.0, 1.0)
         if self.anchored and between:
-            still = self.still_components()
+            still = self.still_components
             held = topo.component_sums(np.minimum(weights / BLEND_ANCHOR_WEIGHT, 1.0)) / topo.component_mass
             partly = anchored & ~still
             shares[partly] = np.maximum(0.0, 1.0 - held[partly] / CENTROID_ANCHOR_SHARE) ** 2
         return shares
 
+    @cached_property
     def still_components(self) -> np.ndarray:
-        """Per component (C,), whether one of its vertices is still in every key (``static``)."""
+        """Per component (C,), whether one of its vertices is still in every key (``static``); made
+        once per gap (read by every pose's centroid placement and seat hold)."""
         topo, count = self.topo, len(self.topo.components)
         if self.static is None:
             return np.zeros(count, dtype=bool)

@@ -159,7 +159,7 @@ class PieceMotion:
             return np.zeros(len(seated), dtype=bool)
         size = self.base.diagonals
         seated = seated & (size[seat] >= RIDER_SIZE * size)
-        return seated & ~self.still_components() & (self.by_centroid < 1.0) & ~self.carried.riding
+        return seated & ~self.still_components & (self.by_centroid < 1.0) & ~self.carried.riding
 
     def place_riders(self, x: np.ndarray, s: float) -> np.ndarray:
         """``x`` (n, 3), a pose at factor ``s``, with the riders of
