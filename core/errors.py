@@ -4,6 +4,8 @@ Every error says what is wrong, the first offending index where there is one, an
 so that the Blender operators can show the message to the user unchanged.
 """
 
+from __future__ import annotations
+
 
 class ShapeDifferenceError(Exception):
     """Base class of every error raised by :mod:`core`."""
@@ -21,7 +23,13 @@ class RecoveryError(ShapeDifferenceError, ArithmeticError):
 
 class ShapeDifferenceWarning(UserWarning):
     """A result was computed, but through a documented fallback (e.g. an interpolated metric that
-    is not exactly realizable); the message says which and why."""
+    is not exactly realizable); the message says which and why.
+
+    ``kind``: what an in-between's warning is about, one of
+    :data:`core.sequence_warnings.KINDS` (``"pose"``, ``"turn"``, ``"joint"``, …), for a pipeline
+    to filter on (``w.message.kind`` of a recorded warning); None for the other warnings."""
+
+    kind: str | None = None
 
 
 class MeshIndexError(MeshError, IndexError):

@@ -111,15 +111,14 @@ class DefectChecks:
             return None
         over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys
         said = []
-        for rows, what in ((against & ~over, "face against their interpolated rotation and one pose, where "
-                            "the poses face the same way: the interpolated edge lengths do not fit there (a part "
-                            "that stretches between one held still and one that turns, such as a skinned joint's "
-                            "weight ramp: the two poses do not tell its lengths in between) and the fit turned "
-                            "them over; a key between the poses tells them"),
-                           (against & over, "turn over between the poses and face against their interpolated "
-                            "rotation: the two poses do not tell which way they go over (a crease a skin folds, a "
-                            "ramp turned far), and the in-between may turn them the other way; a key between the "
-                            "poses tells it")):
+        for rows, what in ((against & ~over, "are turned over in the in-between where both poses face them the "
+                            "same way (a part that stretches between one held still and one that turns, such as a "
+                            "skinned joint's weight ramp: two poses do not tell its edge lengths in between); add "
+                            "a key between the poses (they face against their interpolated rotation and one pose)"),
+                           (against & over, "turn over between the poses, and two poses do not tell which way they "
+                            "go over (a crease a skin folds, a ramp turned far): the in-between may turn them the "
+                            "other way; add a key between the poses (they face against their interpolated "
+                            "rotation)")):
             if rows.any():
                 said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {int(np.argmax(rows))}) {what}")
         return "; ".join(said)
@@ -127,6 +126,6 @@ class DefectChecks:
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:
         """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""
         if not np.isfinite(x).all():
-            return "the reconstruction produced non-finite coordinates"
+            return "the fit came out with non-finite coordinates (a numerical failure)"
         count = int((self.defects(x, s, frames, stretch) if defects is None else defects).sum())
         return f"{count} triangle(s) flipped or collapsed" if count else None

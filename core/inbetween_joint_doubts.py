@@ -305,7 +305,8 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                         "hangs from one other: a loop of such contacts, as in a chain curled so that every other "
                         "link comes as close to the next-but-one as to the links it holds): the joints place "
                         f"them up to {100 * doubts.looped_share:.2g} % of a piece's size from where a joint "
-                        "between the two would half-way, and the keys do not tell which pieces hold each other")
+                        "between the two would half-way, and the keys do not tell which pieces hold each other "
+                        "(keys closer together, before the pieces come that close, leave no loop)")
     if doubts.sliding:
         problems.append(f"{between}, {doubts.sliding} rigid piece(s) slide along a piece they touch while turning "
                         "with it (as a finger sliding in a hand): sliding joints are not modelled, and each moves "

@@ -129,8 +129,9 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         if looser is not None and self.problem(looser, s, frames, stretch) is None:
             return looser, None, 0, False
         if gap.use_extrinsic and x0 is not x and self.problem(x0, s, frames, stretch) is None:
-            return x0, (f"{problem}; returned the interpolated rotation field's Poisson solve without metric "
-                        "fit"), 0, False
+            return x0, (f"{problem}, and no repair removed them all: the in-between is the first solve "
+                        "instead, its edge lengths less exact; keys closer together here tell the motion better "
+                        "(the interpolated rotation field's Poisson solve without metric fit)"), 0, False
         if best is not None and (self.in_sequence(s) or not 0.0 <= s <= 1.0):
             # keeps the metric, as its neighbours in time do; beyond the keys the "blend" is the
             # linear extrapolation, which lengthens whatever turns (×2 of a 100° elbow: a forearm
@@ -147,17 +148,24 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         if best is None or int(folds.sum()) < best[0]:
             y = self.fitted_near_blend(blend, s, stretch, motion)
             # the fit hands back its start when no step improves on it: then it is the blend, said so
-            fitted = "the linear blend (no fit near it improved on it)" if np.array_equal(y, blend) else \
-                "the interpolated metric fitted near the linear blend"
+            unmoved = np.array_equal(y, blend)
+            fitted = "the keys' linear blend (no fit near it improved on it)" if unmoved else \
+                "a fit near the keys' linear blend"
+            tail = "the linear blend" if unmoved else "the interpolated metric fitted near the linear blend"
             if self.problem(y, s, None, stretch) is None:
-                return y, f"{problem}; used {fitted} instead", 0, True
+                return y, (f"{problem}, and no repair removed them all: the in-between is {fitted} instead, "
+                           f"which may shorten edges where the cloth turns; keys closer together here tell the "
+                           f"motion better ({tail})"), 0, True
             if not (folds | self.crushed(blend, stretch)).any():
-                return blend, (f"{problem}; the metric fit near the linear blend failed too, returned the "
-                               "linear blend"), 0, True
+                return blend, (f"{problem}, and no repair removed them all nor did a fit near the keys' linear "
+                               "blend: the in-between is the linear blend, which shortens edges where the cloth "
+                               "turns; keys closer together here tell the motion better (the metric fit near the "
+                               "blend failed too: returned the linear blend)"), 0, True
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
-                return y, (f"{problem}; no repair or fallback removed them all, returned {fitted}, which "
-                           f"has the fewest ({count} flipped or collapsed triangle(s))"), count, True
+                return y, (f"{problem}, and no repair or fallback removed them all: the in-between is {fitted}, "
+                           f"which has the fewest ({count} flipped or collapsed triangle(s)); keys closer "
+                           f"together here tell the motion better ({tail}, which has the fewest)"), count, True
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
         return best[1], self.kept_message(problem, best[0]), best[0], False
@@ -195,8 +203,10 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
             return result
         gap.outcomes[s] = Outcome(count, True)
         return y, None if not count else (
-            f"{count} triangle(s) flipped or collapsed; the fit ended farther from the interpolated metric than "
-            "the linear blend, returned the interpolated metric fitted near the linear blend")
+            f"{count} triangle(s) flipped or collapsed in a fit near the keys' linear blend, which keeps the edge "
+            "lengths better than the in-between's own fit; keys closer together here tell the motion better (the "
+            "fit ended farther from the interpolated metric than the blend: returned the interpolated metric "
+            "fitted near the linear blend)")
 
     def crushed(self, x: np.ndarray, stretch: np.ndarray) -> np.ndarray:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the
@@ -210,5 +220,6 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
     @staticmethod
     def kept_message(problem: str, count: int) -> str:
         """The warning's text when the metric fit with the fewest defects (``count``) is returned."""
-        return (f"{problem}; no repair or fallback removed them all, returned the metric fit with "
-                f"the fewest ({count} flipped or collapsed triangle(s))")
+        return (f"{problem}, and no repair or fallback removed them all: the in-between keeps the fit with "
+                f"the fewest ({count} flipped or collapsed triangle(s)); keys closer together here tell the motion "
+                "better, or fix those triangles by hand (the metric fit with the fewest defects)")

@@ -373,4 +373,4 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                 f"object?) are {misses[worst]:.3g} ({100 * shares[worst]:.0f} % of their piece's diagonal) off their "
                 "path, the linear blend: the interpolated shape of the rest of the piece does not reach them there "
                 "(its keys differ too much, e.g. a stretch that relaxes between them)"
-                + (", and the piece was placed by its centroid" if moved else ""))
+                + (", and the piece was placed by its centroid" if moved else "") + "; add a key between the poses")

@@ -57,7 +57,7 @@ from .sequence_half_turns import HalfTurns, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
-from .sequence_warnings import _warn
+from .sequence_warnings import _warn, gap_problems
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
 
 __all__ = ["SequenceInterpolator"]
@@ -246,14 +246,19 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
                     exit=self._exit(gap) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root)
 
-    def _rounded_slivers(self, gap: int, segment: _Gap) -> int:
-        """How many triangles of gap ``gap`` (its data ``segment``) are thin against the keys'
-        rounding (:func:`core.rounded_slivers.rounded_slivers`; counted once per gap)."""
-        if gap not in self._sliver_counts:
+    def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str]]:
+        """The warnings ``(kind, message)`` of gap ``gap`` (its data ``segment``) that hold for every
+        in-between of it: how its pieces turn, their joints, and the triangles thin against the
+        keys' rounding (:func:`core.rounded_slivers.rounded_slivers`). Made once per gap: they
+        depend on the keys only."""
+        if gap not in self._gap_messages:
+            names = self.key_names
             keys = (segment.base, segment.next)
-            self._sliver_counts[gap] = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
-                                                           self._rounding).size)
-        return self._sliver_counts[gap]
+            slivers = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys], self._rounding).size)
+            self._gap_messages[gap] = [("turn", m) for m in turn_warnings(segment, names, gap)] + \
+                [("joint", m) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
+                [("sliver", m) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]
+        return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
@@ -265,8 +270,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         others are predicted from those (:mod:`core.inbetween_prediction`, which gives the
         measurements against solving each); :meth:`pose` solves every pose."""
         out, problems = self._poses(gap_index, factors)
-        for message in problems:
-            _warn(message)
+        for kind, message in problems:
+            _warn(message, kind)
         return out
 
     # BLAS single-threaded: its calls here are (n, 3) × (3, 3) products, which a second BLAS thread
@@ -274,9 +279,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
     # sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread). One thread also whatever
     # ran before in the process: the same poses to the bit (core.concurrency).
     @single_threaded_blas()
-    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[str]]:
-        """:meth:`poses` and the warnings' messages, not yet given (the caller warns: a warning
-        filter changed around the call would be the process's, not this thread's)."""
+    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple[str, str]]]:
+        """:meth:`poses` and the warnings ``(kind, message)``, not yet given (the caller warns: a
+        warning filter changed around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
         out = np.empty((len(factors), self._topo.n, 3))
@@ -293,18 +298,18 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
             return self._solved_poses(gap, factors, out, between)
 
     def _solved_poses(self, gap: int, factors: list[float], out: np.ndarray,
-                      between: list[int]) -> tuple[np.ndarray, list[str]]:
+                      between: list[int]) -> tuple[np.ndarray, list[tuple[str, str]]]:
         """:meth:`_poses` once its arguments are checked: ``out`` (len(factors), n, 3) holds the keys
-        at factors 0 and 1, the rows ``between`` are solved here."""
+        at factors 0 and 1, the rows ``between`` are solved here. The warnings: the gap's
+        (:meth:`_gap_warnings`), then the in-betweens' own, one per kind of problem
+        (:func:`core.sequence_warnings.gap_problems`)."""
         if not between or self._hold(gap):  # a hold: the pose at every factor
             out[between] = self._given[gap]
             return (out if self._copies is None else out[:, self._copies]), []
         segment = self._gap(gap)
         self._prepare_in_background(gap + 1)
         solved = gap_poses(segment, [factors[k] for k in between])
-        problems = turn_warnings(segment, self.key_names, gap) + joint_warnings(segment.joint_doubts, self.key_names, gap)
-        problems += rounded_sliver_warning(self._rounded_slivers(gap, segment), self._rounding,
-                                           (self.key_names[gap], self.key_names[gap + 1]))
+        problems = []  # (factor, kind, what happened, defects kept) of each in-between with a problem
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
             out[k] = x if self._origin is None else x + self._origin
@@ -313,8 +318,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
             if held.any():  # pieces held in this gap
                 out[k][held] = self._given[gap][held]
             if problem:
-                problems.append(f"pose at factor {factors[k]:g} between {self.key_names[gap]} and "
-                                f"{self.key_names[gap + 1]}: {problem}")
+                outcome = segment.outcomes.get(factors[k])
+                problems.append((factors[k], "pose", problem, 0 if outcome is None else outcome.defects))
         attached = self._attached
         if attached is not None:  # in their triangles' frames, their coordinates there blended between the keys
             moving = ~held[attached.vertices]  # held ones stay as the key has them
@@ -324,8 +329,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         for k in between:
             problem = self._finite(out[k], gap, factors[k])
             if problem:
-                problems.append(problem)
-        return (out if self._copies is None else out[:, self._copies]), problems
+                problems.append((factors[k], "non_finite", problem, 0))
+        said = self._gap_warnings(gap, segment) + \
+            gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
+        return (out if self._copies is None else out[:, self._copies]), said
 
     def _finite(self, x: np.ndarray, gap: int, factor: float) -> str | None:
         """None where the pose ``x`` (n, 3) at ``factor`` in gap ``gap`` is finite (the check is
@@ -342,8 +349,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         rows = np.isin(owner, pieces) | bad
         x[rows] = (1.0 - factor) * self._given[gap][rows] + factor * self._given[gap + 1][rows]
         blend = "linear blend" if 0.0 <= factor <= 1.0 else "linear extrapolation"
-        return (f"pose at factor {factor:g} between {self.key_names[gap]} and {self.key_names[gap + 1]}: "
-                f"{int(np.count_nonzero(bad))} vertex(es) came out with non-finite coordinates (a numerical "
+        return (f"{int(np.count_nonzero(bad))} vertex(es) came out with non-finite coordinates (a numerical "
                 f"failure of the fit); their {pieces.size} piece(s) ({int(np.count_nonzero(rows))} vertices) are "
                 f"the keys' {blend} instead. Check the keys there (a piece nearly flat or far smaller than the "
                 "rest), or report it with the mesh")

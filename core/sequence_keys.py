@@ -92,8 +92,10 @@ class SequenceKeys:
             check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
         if apart is not None:
             weld = seam_weld(keys, topology, tolerance, seams=False)  # the loose copies alone
-            _warn(f"some pieces touch along seams but cannot be joined there ({apart}); they are "
-                  "interpolated apart and the seams may open")
+            _warn(f"some pieces touch along seams but cannot be joined there ({apart}): they are "
+                  "interpolated apart and the seams may open in the in-betweens; where they should stay closed, "
+                  "make the pieces' windings agree (Mesh > Normals > Recalculate Outside) and weld them "
+                  "(Mesh > Clean Up > Merge by Distance)", "seam")
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys, tolerance)
@@ -105,7 +107,7 @@ class SequenceKeys:
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
-        self._sliver_counts: dict[int, int] = {}  # per gap, how many (SequenceInterpolator._rounded_slivers)
+        self._gap_messages: dict[int, list] = {}  # per gap, its warnings (SequenceInterpolator._gap_warnings)
         self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None
@@ -211,6 +213,15 @@ class SequenceKeys:
                                                       use_extrinsic=False)
         return self._references[index]
 
+    def _warn_truncated(self, base: int, other: int, why: str) -> None:
+        """Warn that the stretch from key ``base`` toward key ``other`` is the keys' own, not the
+        one the truncated basis recovers (``why``: what failed)."""
+        _warn(f"between {self.key_names[base]} and {self.key_names[other]}, the edge lengths could not be "
+              f"recovered from the first {self.k_M} basis functions (k_M = {self.k_M}, k_N = {self.k_N}): the "
+              "in-betweens there follow the keys' exact edge lengths instead, as with the full basis, and may look "
+              "sharper than the other gaps; a larger k_M, or 0 for the full basis everywhere, keeps the gaps alike "
+              f"({why}; truncated recovery failed)", "truncated")
+
     def _truncated_log_stretch(self, base: int, other: int) -> np.ndarray | None:
         """Log-stretches (m, 3) toward key ``other`` whose edge lengths are those recovered from the
         truncated intrinsic differences; None (with a warning) when the recovery fails."""
@@ -218,11 +229,11 @@ class SequenceKeys:
         try:
             metric = reference.recover_metric(reference.shape_differences(self._raw[other], k_M=self.k_M, k_N=self.k_N))
         except RecoveryError as error:
-            _warn(f"truncated recovery (k_M={self.k_M}, k_N={self.k_N}) failed ({error}); used the full-basis metric")
+            self._warn_truncated(base, other, f"the recovery failed: {error}")
             return None
         squared = np.asarray(metric.base.squared_lengths, dtype=np.float64)
         if not (np.isfinite(squared).all() and (squared > 0).all()):
-            _warn("truncated recovery returned non-positive squared lengths; used the full-basis metric")
+            self._warn_truncated(base, other, "the recovery gave edges of no length")
             return None
         # corner edge c (corner c → c+1) is opposite corner c+2
         corner_squared = squared[reference.topology.triangle_edges[:, [2, 0, 1]]]

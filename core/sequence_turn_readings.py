@@ -76,15 +76,15 @@ def turn_warnings(segment: _Gap, key_names: list[str], gap: int) -> list[str]:
         problems.append(f"{turned} across a fold: the in-betweens may turn it the other way round (keys closer "
                         "together tell which way it went)")
     if segment.unsure_turn:
-        problems.append(f"{turned}, and which way round it went is not told by these keys (the gaps next to it "
-                        "read it differently, or its rigid motion reads it the other way round): the "
-                        "in-betweens may turn it the other way round (keys closer together tell which way "
-                        "it went)")
+        problems.append(f"{turned}, and these keys do not tell which way round it went: the in-betweens may "
+                        "turn it the other way round (keys closer together tell which way it went; the gaps next "
+                        "to it read the turn differently, or the piece's rigid motion reads it the other way "
+                        "round)")
     if segment.composed_apart > TURNED_PART_SHARE:
-        problems.append(f"{turned} while the rest turns about another axis: the in-betweens turn each part as "
-                        f"one turn, {100 * segment.composed_apart:.0f} % of the piece's area over "
-                        f"{np.degrees(WRAP_CREASE):.0f}° half-way from the rest's turn composed with the part's "
-                        "own, and the keys do not tell which it went (keys closer together bring the two nearer)")
+        problems.append(f"{turned} while the rest of it turns about another axis, and the keys do not tell "
+                        f"which path it took: half-way, {100 * segment.composed_apart:.0f} % of the piece's area "
+                        f"may be over {np.degrees(WRAP_CREASE):.0f}° off it (keys closer together bring the paths "
+                        "nearer; each part is turned as one turn, not as the rest's turn composed with its own)")
     if segment.untold_half_turns:
         problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, "
                         f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "

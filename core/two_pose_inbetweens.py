@@ -163,10 +163,10 @@ class Interpolator:
                 _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
             if nearer_metric or fewer_defects:
                 x, said, misfit = y, other, other_misfit
-        for message in said:  # the pose's edges, said where they are far from the metric (a crushed blend)
-            _warn(message if misfit <= FALLBACK_MISFIT_NOTED else
-                  f"{message} (the in-between's edge lengths {100 * misfit:.1f} % off the interpolated ones "
-                  "on average)")
+        for kind, message in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
+            _warn(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
+                  f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
+                  kind)
         return x
 
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
@@ -191,21 +191,24 @@ class Interpolator:
         by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
                      (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
         flagged = (growth > 0) | (shrinking > 0)
+        names = sequence.key_names
         for rows, cause in ((np.flatnonzero(flagged & by_metric),
-                             "an exaggerated or reversed metric grows each stretch by the factor's power, so a "
-                             "triangle nearly collapsed (or stretched) in one pose swells (or shrinks) the other "
-                             "way; use a factor nearer the poses, or give such triangles their size in the poses"),
+                             "exaggerating (or reversing) raises each triangle's stretch between the poses to the "
+                             "factor's power, so a triangle nearly collapsed (or stretched) in one pose swells (or "
+                             "shrinks) the other way; use a factor nearer the poses, or give those triangles their "
+                             "size in the poses (the extrapolated metric)"),
                             (np.flatnonzero(flagged & ~by_metric),
-                             f"the extrapolated metric keeps them within {EXTRAPOLATED_GROWTH:g} ×, but the "
-                             "extrapolated rotations and stretches do not fit together there (a shear or a swirl "
-                             "the pose cannot follow) and the fit stretches or crushes them to close the mesh; "
-                             "use a factor nearer the poses")):
+                             "the exaggerated (or reversed) turns and stretches of the triangles do not fit together "
+                             "there (a shear or a swirl the pose cannot follow), and the mesh is stretched or crushed "
+                             "to stay closed; use a factor nearer the poses (the extrapolated metric keeps them "
+                             f"within {EXTRAPOLATED_GROWTH:g} ×, the fit does not)")):
             if not rows.size:
                 continue
             longer = growth[rows].max() >= shrinking[rows].max()
             ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
-            _warn(f"at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle {int(rows[0])}) have edges "
-                  f"{ratio:.3g} × as {'long' if longer else 'short'} as in either pose: {cause}")
+            _warn(f"between {names[0]} and {names[1]}, at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle "
+                  f"{int(rows[0])}) have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
+                  f"{cause}", "extrapolation")
 
 
 #: Two poses whose triangles' turns are no more alike between neighbours than this times the

@@ -165,6 +165,48 @@ def report(operator, kind: set[str], message: str) -> None:
     operator.report(kind, message.encode("utf-8", "backslashreplace").decode("utf-8"))
 
 
+# The gap a core warning is about ("between frame 17 and frame 33,"), named in a summary of warnings alike.
+GAP_REFERENCE = re.compile(r"\bbetween .+? and .+?,")
+# ... and the factor of a warning about one in-between ("the in-between at factor 0.25:", "at factor 2,").
+FACTOR_REFERENCE = re.compile(r"(?:the (?:in-between|pose)|,) at factor (-?\d+(?:\.\d+)?(?:e[-+]?\d+)?)[:,]")
+# How many of the other gaps a summary names.
+SUMMARY_PLACES = 3
+
+
+def summarized(messages: list[str], label: str) -> list[str]:
+    """The warning reports of the ``messages`` an operator (``label``) collected: messages that say
+    the same problem for other gaps or in-betweens, differing only in their numbers (frames,
+    factors, counts: ``core.sequence_warnings.message_shape``), are reported once, the first of them
+    with how many more there are and the gaps of the first few, and those others are printed on the
+    system console in full (a retime of 40 gaps, each with flipped triangles, reports one warning,
+    not 40)."""
+    from ..core.sequence_warnings import message_shape
+
+    groups: dict[str, list[str]] = {}
+    for message in messages:
+        groups.setdefault(message_shape(message), []).append(message)
+    out = []
+    for alike in groups.values():
+        if len(alike) == 1:
+            out.append(alike[0])
+            continue
+        first, stop = (alike[0][:-1], ".") if alike[0].endswith(".") else (alike[0], "")
+        places: dict[str, list[str]] = {}  # each gap of the others, with the factors said there
+        for message in alike[1:]:
+            gap, factor = GAP_REFERENCE.search(message), FACTOR_REFERENCE.search(message)
+            if gap:
+                places.setdefault(gap.group(0).rstrip(","), []).extend([factor.group(1)] if factor else [])
+        where = [place + (f" (factor{'s' if len(factors) > 1 else ''} {', '.join(factors[:4])}"
+                          f"{', …' if len(factors) > 4 else ''})" if factors else "")
+                 for place, factors in places.items()]
+        where = "".join(f"; {place}" for place in where[:SUMMARY_PLACES]) + \
+            ("; …" if len(where) > SUMMARY_PLACES else "")
+        out.append(f"{first} (and {len(alike) - 1} more like it{where}; each in full in the system console){stop}")
+        for message in alike[1:]:
+            print(f"{label}: warning: {message}", file=sys.stderr, flush=True)
+    return out
+
+
 class GeneratorOperator:
     """Mixin for operators whose work is the generator ``run(context)``; the core calls it makes
     name the poses they hand over (``key_names``: shape keys, frames) for the core's messages."""
@@ -247,7 +289,7 @@ class GeneratorOperator:
                 self._warnings.append(message)
 
     def _finish(self, status: str) -> set[str]:
-        for message in self._warnings:
+        for message in summarized(self._warnings, getattr(self, "bl_label", type(self).__name__)):
             report(self, {'WARNING'}, message)
         if status == 'FINISHED' and self.summary:
             report(self, {'INFO'}, self.summary)

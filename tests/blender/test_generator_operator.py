@@ -120,6 +120,39 @@ def test_core_warnings_become_warning_reports(extension, core):
     assert log[-2:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done")]
 
 
+def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core, capsys):
+    """The same problem in every gap of a retime, or at every in-between of two keys (each one
+    :meth:`core.Interpolator.pose` call), is one warning report with how many more there are, the
+    others on the console; a different problem is reported on its own."""
+    log = []
+    messages = [f"Shape-difference interpolation: between frame {a} and frame {a + 8}, the in-between at factor "
+                f"0.5: {n} triangle(s) flipped or collapsed." for a, n in ((1, 3), (9, 12), (17, 1))]
+    other = "Shape-difference interpolation: 1 piece(s) of the mesh are the mirror image of themselves."
+
+    class Job(extension.operators.base.GeneratorOperator):
+        def report(self, kind, message):
+            log.append((set(kind), message))
+
+        def run(self, context):
+            yield 0.0
+            for message in messages + [other]:
+                warnings.warn(core.ShapeDifferenceWarning(message))
+            self.summary = "done"
+
+    assert Job().execute(SimpleNamespace()) == {'FINISHED'}
+    reports = [message for kind, message in log if kind == {'WARNING'}]
+    assert reports == [messages[0][:-1] + " (and 2 more like it; between frame 9 and frame 17 (factor 0.5); between "
+                       "frame 17 and frame 25 (factor 0.5); each in full in the system console).", other], reports
+    console = capsys.readouterr().err
+    assert messages[1] in console and messages[2] in console and messages[0] not in console
+    # two keys' in-betweens, one Interpolator.pose call each: their gap once, with the factors
+    pair = [f"Shape-difference interpolation: between shape key 'A' and shape key 'B', the in-between at factor "
+            f"{f}: {n} triangle(s) flipped or collapsed." for f, n in ((0.2, 1), (0.4, 5), (0.6, 2), (0.8, 1))]
+    assert extension.operators.base.summarized(pair, "In-between") == [
+        pair[0][:-1] + " (and 3 more like it; between shape key 'A' and shape key 'B' (factors 0.4, 0.6, 0.8); "
+        "each in full in the system console)."]
+
+
 def test_escape_is_answered_while_a_core_call_runs(extension):
     """A core call that takes seconds runs in the worker thread: each timer tick returns within
     a fraction of a second and Esc cancels at once, writing nothing."""

@@ -49,17 +49,18 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     monkeypatch.setattr(repair.Repair, "problem", problem)
     monkeypatch.setattr(repair.Repair, "defects", defects)
     # the warnings name the gap by its keys, as the caller named them (the operators' frames)
-    with pytest.warns(ShapeDifferenceWarning, match="at factor 0.5 between key pose 0 and key pose 1: .*metric fit "
-                      "with the fewest"):
+    with pytest.warns(ShapeDifferenceWarning, match="between key pose 0 and key pose 1, the in-between at factor "
+                      "0.5: 3 triangle.*keeps the fit with the fewest"):
         x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
     assert near_blend and not any(near_blend)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
-    with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b: .*returned the linear blend"):
+    with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b, the in-between at factor 0.5: "
+                      ".*the in-between is the linear blend"):
         x = Interpolator(a, b, tri).pose(0.5)
     np.testing.assert_allclose(x, blend)
     assert any(near_blend)
-    with pytest.warns(ShapeDifferenceWarning, match="at factor 1.5 between vertices_a and vertices_b: .*metric fit "
-                      "with the fewest"):
+    with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b, the pose at factor "
+                      "1.5: .*keeps the fit with the fewest"):
         x = Interpolator(a, b, tri).pose(1.5)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(extrapolation, flat, tri).mean()
 

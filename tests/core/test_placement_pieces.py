@@ -609,7 +609,8 @@ def test_pieces_mirrored_between_keys_are_warned(sequence):
         warnings.simplefilter("always")
         Interpolator(one, one @ mirror.T, faces).pose(0.5)
     said = [str(w.message) for w in caught]
-    assert [w.category for w in caught if "mirror image" in str(w.message)] == [ShapeDifferenceWarning], said
+    assert [(w.category, w.message.kind) for w in caught if "mirror image" in str(w.message)] == \
+        [(ShapeDifferenceWarning, "mirror")], said
     # its best rigid fit is a half turn to within rounding, said as such or not by the BLAS kernel's rounding
     assert all("mirror image" in m or re.search(HALF_TURN_UNTOLD, m) for m in said), said
     assert not warned(a @ turn.T + 0.5)

@@ -417,6 +417,30 @@ def test_slivers_thinner_than_the_keys_rounding_are_warned_or_turned_rigidly(hei
     assert said or off < 10 * rounding, (off, said)
 
 
+def test_a_gap_s_sliver_warning_is_made_once_and_said_at_each_call(monkeypatch):
+    """The slivered sphere turned 60° far from the origin, keyed in single precision: the warning
+    of its slivers under the keys' rounding holds for every in-between of the gap, so it is made
+    once per gap and interpolator (it was made again at every pose() call) and said at each call,
+    with the kind a pipeline filters on."""
+    import core.sequence_inbetweens as sequence_inbetweens
+
+    made, real = [], sequence_inbetweens.rounded_sliver_warning
+    monkeypatch.setattr(sequence_inbetweens, "rounded_sliver_warning", lambda *args: made.append(args) or real(*args))
+    vertices, triangles = _slivered_sphere(1e-5)
+    a = vertices + 1000.0
+    rotation = Rotation.from_rotvec(np.radians(30.0) * np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]))
+    keys = [_screw(a, rotation.as_matrix(), np.zeros(3), s).astype(np.float32) for s in (0.0, 1.0, 2.0)]
+    sequence = SequenceInterpolator(keys, triangles)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        sequence.pose(0, 0.25)
+        sequence.pose(0, 0.5)
+        sequence.poses(0, [0.25, 0.75])
+    said = [w.message for w in caught if "less high than twice the rounding" in str(w.message)]
+    assert len(said) == 3 and {m.kind for m in said} == {"sliver"}, [str(m) for m in said]
+    assert len(made) == 1, made
+
+
 def test_slivers_well_above_the_keys_rounding_turn_rigidly_and_silently():
     """The same sphere with slivers 1e-3 high (eight roundings) 1,000 units out in single
     precision: the rigid motion to a few of the keys' roundings, and no warning of slivers."""

@@ -353,6 +353,48 @@ def test_truncated_sequence_prepares_each_key_once(monkeypatch, strip):
     assert len(built) == len(seq) and not any(reference.use_extrinsic for reference in built)
 
 
+def test_a_failed_truncated_recovery_says_which_keys_and_uses_their_exact_lengths(monkeypatch, strip):
+    """Where the truncated recovery fails for a pair of keys, that gap follows the keys' exact edge
+    lengths (the full basis's in-betweens, to the bit), and the warning names the keys and k_M and
+    says what to do, with its kind."""
+    import core.reference_shape as rs
+    from core.errors import RecoveryError
+
+    def failing(self, *args, **kwargs):
+        raise RecoveryError("the program is infeasible")
+
+    flat, tri = strip
+    keys = [_bend(flat, angle) for angle in (0.0, 0.5, 1.0)]
+    full = SequenceInterpolator(keys, tri).pose(0, 0.5)
+    monkeypatch.setattr(rs.ReferenceShape, "recover_metric", failing)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        x = SequenceInterpolator(keys, tri, k_M=20, k_N=30, key_names=["frame 1", "frame 5", "frame 9"]).pose(0, 0.5)
+    np.testing.assert_array_equal(x, full)
+    said = [w.message for w in caught if getattr(w.message, "kind", None) == "truncated"]
+    assert said and all(isinstance(m, ShapeDifferenceWarning) for m in said), [str(w.message) for w in caught]
+    assert "between frame 1 and frame 5, the edge lengths could not be recovered from the first 20 basis " \
+           "functions (k_M = 20, k_N = 30)" in str(said[0]) and "a larger k_M, or 0 for the full basis" in str(said[0])
+
+
+def test_in_betweens_alike_are_said_once_with_the_worst():
+    """The problems of a gap's in-betweens asked together that differ only in their numbers are
+    one message with how many in-betweens have them and the one keeping the most flipped or
+    collapsed triangles; another problem is said on its own, and a lone one names its factor."""
+    from core.sequence_warnings import gap_problems
+
+    kept = "{} triangle(s) flipped or collapsed, and no repair removed them all: the fit keeps {}"
+    problems = [(0.25, "pose", kept.format(30, 1), 1), (0.5, "pose", kept.format(9, 7), 7),
+                (0.75, "pose", kept.format(4, 2), 2), (0.5, "non_finite", "1 vertex(es) came out non-finite", 0)]
+    said = gap_problems(problems, 3, ("frame 1", "frame 5"))
+    assert said == [("pose", "between frame 1 and frame 5, 3 of the 3 in-betweens (factors 0.25, 0.5, 0.75) alike, "
+                             "the worst at factor 0.5: " + kept.format(9, 7)),
+                    ("non_finite", "between frame 1 and frame 5, the in-between at factor 0.5: 1 vertex(es) came out "
+                                   "non-finite")], said
+    assert gap_problems(problems[:1], 1, ("a", "b")) == [("pose", "between a and b, the in-between at factor 0.25: "
+                                                          + kept.format(30, 1))]
+
+
 def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
     """Gap k reads keys k − 1 … k + 2: visited in order, every key's frames are built once."""
     import core.inbetween_keys as keys_module
