@@ -36,8 +36,9 @@ Metrics (per predicted frame, then median or mean over frames):
 - ``s/inb``: seconds per in-between, the preparation of the keys included (``seq``: the whole
   ``SequenceInterpolator`` construction and every gap's ``poses`` divided by the in-betweens;
   ``pair``: one ``Interpolator`` construction and ``pose``), and its ratio to Blender's cloth bake
-  per frame on the same mesh (``--rebake``: timed in this run, the default for the full run;
-  otherwise the time stored with the cached bake, marked "stored");
+  per frame on the same mesh (``--rebake``: timed in this run, the default for the large scenes of any run
+  but ``--quick``, which re-bakes them and rewrites their cached frames; ``--rebake`` with no
+  names keeps every stored bake; otherwise the time stored with the cached bake, marked "stored");
 - ``MB``: peak resident memory of a child process that prepares the keys and computes the
   in-betweens of the sequence (``--memory``).
 """
@@ -455,8 +456,9 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true",
                         help=f"scenes {' '.join(QUICK_SCENES)}, stored bake times, pairs at most 8 per gap")
     parser.add_argument("--rebake", nargs="*", default=None,
-                        help="scenes whose Blender bake is timed again in this run (default: the large "
-                             "scenes in a full run, none with --quick)")
+                        help="scenes whose Blender bake is timed again in this run, re-baked and re-cached "
+                             "(default: the large scenes among those run, none with --quick; "
+                             "no names: none)")
     parser.add_argument("--memory", action="store_true", help="peak memory of the sequence in a child process")
     parser.add_argument("--json", default=None, help="write the results as JSON")
     parser.add_argument("--plot", default=None, help="save the error/deviation-vs-gap plot (PNG)")
