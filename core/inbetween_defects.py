@@ -86,8 +86,9 @@ class DefectChecks:
                                          gap.base.areas[rows])
         return cached[1:]
 
-    def against_the_field(self, x: np.ndarray, frames: np.ndarray) -> str | None:
-        """What to say where triangles of an in-between ``x`` (n, 3) of two poses face against
+    def against_the_field(self, x: np.ndarray, frames: np.ndarray) -> tuple[str | None, tuple[int, int]]:
+        """(What to say, or None, and how many triangles: those where the keys face the same way,
+        and all) where triangles of an in-between ``x`` (n, 3) of two poses face against
         their interpolated normal ``R_T t1 × R_T t2`` (``frames``: (k ≥ 2, m, 3) of every triangle)
         and against one key's normal (not both: those are :meth:`flipped`), each by more than
         :data:`FLIP_COSINE`; None where none does. The check against both keys passes such a
@@ -108,7 +109,7 @@ class DefectChecks:
         against &= (coordinate_dot(cross, gap.base.normal_rows) < slack) != \
             (coordinate_dot(cross, gap.next.normal_rows) < slack)
         if not against.any():
-            return None
+            return None, (0, 0)
         over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys
         said = []
         for rows, what in ((against & ~over, "are turned over in the in-between where both poses face them the "
@@ -121,7 +122,7 @@ class DefectChecks:
                             "rotation)")):
             if rows.any():
                 said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {int(np.argmax(rows))}) {what}")
-        return "; ".join(said)
+        return "; ".join(said), (int(np.count_nonzero(against & ~over)), int(np.count_nonzero(against)))
 
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:
         """What is wrong with ``x`` in words, or None (``defects``: those of ``x``, if known)."""

@@ -1,8 +1,9 @@
 """The interpolated field of a gap at one factor (paper §7.3): the splines of its keys' relatives
 by name, the rotations' frames (in the triangles' base frames, whole or composed with their
 pieces' rigid motions) and the stretches (from the metrics' spline between the keys, the
-log-stretches' outside them). Mixed into :class:`core.inbetween_solver._Gap`,
-whose data it reads (``topo``, ``base``, ``relatives``, ``cubic``, ``whole_rotations``,
+log-stretches' outside them, and between them where the gap's ``log_metric`` says so). Mixed
+into :class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``relatives``,
+``cubic``, ``whole_rotations``, ``log_metric``,
 ``splines``, ``_log_options``) with the pieces' ``motion`` and the
 ``guide`` (:mod:`core.inbetween_guide`)."""
 
@@ -112,11 +113,13 @@ class InterpolatedField:
         tangent bases, linear in squared edge lengths): an edge a fold collapses between the keys
         shortens late, as cloth does, where the spline of ``log U`` shortens it early (numbers in
         docs/inbetweens.md, *What is interpolated*). The log spline where that metric is not
-        positive definite, and outside the keys, where exaggerations need it to stay so."""
+        positive definite, outside the keys, where exaggerations need it to stay so, and in a gap
+        whose ``log_metric`` is set (two poses whose fit of the metric turns triangles over:
+        :data:`core.two_pose_inbetweens.LOG_METRIC_FIT`)."""
         def at(name):  # the spline on the rows, or whole
             return self.splines[name].at(s) if rows is None else self.splines[name].at(s, rows)
 
-        if not 0.0 < s < 1.0:
+        if not 0.0 < s < 1.0 or self.log_metric:
             return df.exp_stretch(at("log_stretch"))
         stretch, ok = df.sqrt_stretch(at("metric"))
         if not ok.all():
@@ -127,8 +130,8 @@ class InterpolatedField:
     def area_scale(self, s: float) -> np.ndarray:
         """``det U`` (m,) of the stretches :meth:`stretch` gives at factor ``s``, without them:
         ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
-        outside them and where that ``G`` is not positive definite."""
-        if not 0.0 < s < 1.0:
+        outside them, where that ``G`` is not positive definite and with ``log_metric``."""
+        if not 0.0 < s < 1.0 or self.log_metric:
             log = self.splines["log_stretch"].at(s)
             return np.exp(log[:, 0] + log[:, 2])
         scale, ok = df.sqrt_det(self.splines["metric"].at(s))
@@ -142,8 +145,9 @@ class InterpolatedField:
         """Lengths (3 corners, m) of the base's corner edges under the interpolated metric at
         factor ``s``: ``√(eᵀ G e)`` of the metric's spline ``G`` between the keys, without its square
         root ``U`` (the lengths ``|U e|`` of :meth:`stretch`'s fit targets, to rounding); ``U²`` of
-        :meth:`stretch` where that ``G`` is not positive definite, and outside the keys."""
-        if 0.0 < s < 1.0:
+        :meth:`stretch` where that ``G`` is not positive definite, outside the keys and with
+        ``log_metric``."""
+        if 0.0 < s < 1.0 and not self.log_metric:
             metric = self.splines["metric"].at(s)
             ok = df.sqrt_det(metric)[1]
             if not ok.all():

@@ -88,6 +88,10 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: How many pieces turn a half turn between the keys, as short either way round, with nothing
     #: in the keys to tell which way (``core.sequence_half_turns.untold_half_turns``): the gap warns.
     untold_half_turns = 0
+    #: Whether the stretch between the keys is the log spline's (``exp(s log U)``), not the root
+    #: of the metric's spline (:meth:`core.inbetween_field.InterpolatedField.stretch`): the further
+    #: fit of two poses (:data:`core.two_pose_inbetweens.LOG_METRIC_FIT`).
+    log_metric = False
     #: For a gap with a turning piece, the largest share of a piece's area whose turn half-way as
     #: interpolated and as the turn of its part that stays composed with its own are over
     #: ``WRAP_CREASE`` apart (``core.sequence_turn_readings.composed_apart``): past
@@ -101,8 +105,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
-                 root: np.ndarray | None = None):
+                 root: np.ndarray | None = None, log_metric: bool = False):
         self.topo, self.base, self.next = topo, base, nxt
+        self.log_metric = log_metric
         # per component: a part of it turns far from the rest between the keys (past a half turn,
         # or past a right angle without a crease: _Relative.turning): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
@@ -222,6 +227,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
         self.outcomes: dict[float, Outcome] = {}  # what the checks of each factor's in-between returned
+        # two poses: how many triangles of each factor's in-between face against the field (the
+        # poses' normals facing the same way, and in all; DefectChecks.against_the_field)
+        self.against: dict[float, tuple[int, int]] = {}
         self.carried = CarriedPieces(self)
         # deforming pieces turning as a whole are guided by their interpolated rigid motion
         # (Guide.arc_guided): those that keep their shape to SIMILAR_SHAPE_MISFIT's first share of
@@ -323,7 +331,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             return self.finished(checked, s)
         # two poses (sequences keep their fits), which also say where triangles face against the field
         x, said = self.finished(self.repair.nearer_the_metric(checked, s, stretch, motion, targets), s)
-        turned = self.repair.against_the_field(x, frames)
+        turned, self.against[s] = self.repair.against_the_field(x, frames)
         return x, said if turned is None else turned if said is None else f"{said}; {turned}"
 
     def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:

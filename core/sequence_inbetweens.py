@@ -131,6 +131,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
     _whole_rotations = False
+    #: The stretch between the keys from the log spline (the third fit of
+    #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.LOG_METRIC_FIT`).
+    _log_metric = False
 
     def _gap(self, gap: int) -> _Gap:
         pending = self._pending.pop(gap, None)
@@ -244,7 +247,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     exit=self._exit(gap) if cubic else None,
-                    hooked=self._hooked, turning=turning, root=root)
+                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric)
 
     def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str]]:
         """The warnings ``(kind, message)`` of gap ``gap`` (its data ``segment``) that hold for every

@@ -10,7 +10,9 @@ Both run a two-key :class:`~core.sequence_inbetweens.SequenceInterpolator` (what
 how the poses are rebuilt: :mod:`core.sequence_inbetweens`), interpolated linearly, with the parts
 that only translate between the poses anchored to their linear blend; an in-between of the full
 basis is fitted a second time with every triangle's whole rotation where that keeps the metric
-better, and poses that differ by wrinkles only give their linear blend.
+better, and once more to the log-stretches' metric where the kept fit turns triangles over against
+their interpolated rotations (:data:`LOG_METRIC_FIT`); poses that differ by wrinkles only give their
+linear blend.
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ class Interpolator:
                                   key_names=key_names)
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
+        self._log = {}  # the log-stretches' fits', by whether their rotations are whole (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         self._edges = edges
         self._squared = [self._squared_lengths(p) for p in poses]
@@ -74,6 +77,17 @@ class Interpolator:
             whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
             self._whole = whole
         return self._whole
+
+    def _log_sequence(self, whole: bool) -> SequenceInterpolator:
+        """The same keys (with every piece's rotations taken whole, or not) with the stretches
+        between them from the log spline (:data:`LOG_METRIC_FIT`); it shares the first's keys and
+        topology (its gap, and the gap's anchored system, are its own)."""
+        if whole not in self._log:
+            log = copy.copy(self._whole_sequence() if whole else self._sequence)
+            log._log_metric = True
+            log._gaps, log._pending, log._cache_lock = OrderedDict(), {}, threading.RLock()
+            self._log[whole] = log
+        return self._log[whole]
 
     def _chattering(self) -> bool:
         """Whether every piece of the mesh deforms (none moves rigidly:
@@ -109,10 +123,14 @@ class Interpolator:
         """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
         return np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
 
-    def _misfit(self, x: np.ndarray, factor: float) -> float:
+    def _misfit(self, x: np.ndarray, factor: float, log: SequenceInterpolator | None = None) -> float:
         """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
-        (squared lengths linear in ``factor``)."""
-        target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
+        (squared lengths linear in ``factor``), or from the log-stretches' of the sequence ``log``
+        (:meth:`_log_sequence`)."""
+        if log is not None:  # the corner lengths (3 corners, m) in the order of self._edges
+            target = np.maximum(log._gap(0).metric_lengths(factor).T.reshape(-1) ** 2, np.finfo(float).tiny)
+        else:
+            target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
         lengths = self._squared_lengths(x)
         return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
 
@@ -124,8 +142,12 @@ class Interpolator:
         by :data:`WHOLE_FIT_MARGIN` without straying farther from the linear blend
         (:data:`WHOLE_FIT_BLEND_RATIO`), or where the first fell back to the blend (or the metric
         fitted near it) and the second has fewer flipped or collapsed triangles within
-        :data:`WHOLE_FIT_HELD_REACH` of the blend; the warnings are the kept fit's. Poses that
-        differ by wrinkles only (:meth:`_chattering`) give their linear blend."""
+        :data:`WHOLE_FIT_HELD_REACH` of the blend. Where the kept fit has triangles facing against
+        their interpolated rotation and one pose, mostly where the poses face the same way, it is
+        fitted again to the log-stretches' metric and that fit kept where it has fewer triangles against
+        the field and no more flipped or collapsed ones (:data:`LOG_METRIC_FIT`). The warnings are
+        the kept fit's. Poses that differ by wrinkles only (:meth:`_chattering`) give their linear
+        blend."""
         factor = check_factor(factor)
         if factor in (0.0, 1.0):  # the poses as given (the sequence holds vertices that barely move still)
             return self._given_poses[int(factor)].copy()
@@ -145,7 +167,7 @@ class Interpolator:
         if self._chattering():
             return (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
         (x,), said = first._poses(0, [factor])
-        misfit = self._misfit(x, factor)
+        misfit, chosen = self._misfit(x, factor), first
         # a first fit within the margin of the metric cannot be bettered by it: no second fit
         if misfit > WHOLE_FIT_MARGIN and not first._gap(0).whole_rotations.all():
             second = self._whole_sequence()
@@ -162,12 +184,32 @@ class Interpolator:
                 kept.defects < held.defects and \
                 _rms(y - blend) <= WHOLE_FIT_HELD_REACH * _rms(self._given_poses[1] - self._given_poses[0])
             if nearer_metric or fewer_defects:
-                x, said, misfit = y, other, other_misfit
+                x, said, misfit, chosen = y, other, other_misfit, second
+        x, said, misfit = self._log_fit(chosen, factor, x, said, misfit)
         for kind, message in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
             _warn(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
                   kind)
         return x
+
+    def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray, said: list[tuple[str, str]],
+                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str]], float]:
+        """``(x, said, misfit)`` of the fit of ``kept`` (the first or the whole-rotation sequence)
+        at ``factor``, or of the same fit to the log-stretches' metric where ``x`` has triangles
+        facing against their interpolated rotation and one pose, at least half of them where the
+        poses face the same way, and that fit has fewer facing against it and no more flipped or
+        collapsed triangles (:data:`LOG_METRIC_FIT`)."""
+        same_way, against = kept._gap(0).against.get(factor, (0, 0))
+        # most of them turned over by the metric, not by a turn over between the poses (a fold)
+        if not (LOG_METRIC_FIT and same_way and 2 * same_way >= against):
+            return x, said, misfit
+        log = self._log_sequence(kept is not self._sequence)
+        (y,), other = log._poses(0, [factor])
+        gap, first = log._gap(0), kept._gap(0)
+        held, logged = first.outcomes.get(factor), gap.outcomes.get(factor)
+        fewer = gap.against.get(factor, (0, 0))[1] < against and \
+            (held is None or logged is None or logged.defects <= held.defects)
+        return (y, other, self._misfit(y, factor, log)) if fewer else (x, said, misfit)
 
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
         """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`
@@ -261,6 +303,24 @@ WHOLE_FIT_BLEND_RATIO = 1.25
 #: the blend's error (the cell's median 0.961 → 1.074 ×); those kept, 0.01–0.13 of it away (0.08
 #: on the flag, 0.12 on the banner), are 0.85–1.05 × (one at 0.20, 0.98 → 0.79 ×, is left out).
 WHOLE_FIT_HELD_REACH = 0.15
+
+
+#: Two poses: where an in-between has triangles facing against their interpolated rotation and
+#: one pose, at least half of them where the poses face the same way (the fit turned them over to
+#: close the interpolated metric, not a fold turning them over between the poses:
+#: :meth:`core.inbetween_defects.DefectChecks.against_the_field`), it is fitted again to the
+#: metric of the log-stretches ``exp(s log U)`` and that fit kept where it has fewer triangles
+#: against the field (of either kind) and no more flipped or collapsed ones. A skin whose weights
+#: ramp between a part held still and one that turns (a head nodding on a still neck) stretches
+#: its ramp as ``F(s) = R(s w θ)(I + s θ (k × p) ∇wᵀ)``, whose metric is quadratic in ``s``: at
+#: 0.25–0.75 the metric linear in squared lengths gives the ramp's triangles 1.07–1.40 × the rig's
+#: area (median), the log-stretches' 1.00–1.03 ×, and the fit crushed some of the swollen ones
+#: over (scanned head, 60–140°: 155 → 95 triangles facing away from the rig). Only as a further
+#: fit: everywhere, it costs cloth pairs edge length (a collapsing fold's edges shorten early:
+#: tablecloth g = 16 3.56 → 3.81 %); as here it is kept on 2 of 640 benchmark pairs
+#: (docs/design-decisions.md, *Two poses: the log-stretches' metric where the fit turns
+#: triangles over*). False: never tried.
+LOG_METRIC_FIT = True
 
 
 def _rms(d: np.ndarray) -> float:

@@ -96,7 +96,7 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if moved(x) else "1 triangle(s) flipped")
     # the checks are the test's own: the lift stands for a repair, its border stretched, not turned over
-    monkeypatch.setattr(repair.Repair, "against_the_field", lambda self, x, frames: None)
+    monkeypatch.setattr(repair.Repair, "against_the_field", lambda self, x, frames: (None, (0, 0)))
     monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShapeDifferenceWarning)

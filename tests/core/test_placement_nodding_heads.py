@@ -65,3 +65,26 @@ def test_a_regular_head_nodding_on_a_still_neck_faces_the_rig_silently(degrees):
         np.testing.assert_array_equal(x[neck], head[neck])
         assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(rig, tri)) > 0).all()
         assert not said
+
+
+@pytest.mark.parametrize("points, degrees, factor", [(800, 100.0, 0.25), (400, 140.0, 0.75), (1600, 100.0, 0.5)])
+def test_a_head_nodding_on_a_still_neck_keeps_its_ramp_with_the_log_stretches_metric(points, degrees, factor):
+    """Irregular heads (800, 400, 1,600 points) nodding 100° / 140°: the metric linear in squared
+    lengths swells the weight ramp's triangles over the rig's area (a skin's stretch grows with
+    the square of the turn) and the fit crushed 1–5 of them over, 0.22–0.32 × the blend's RMS
+    error from the rig. Fitted again to the log-stretches' metric (within 3 % of the rig's area on
+    the ramp, median; LOG_METRIC_FIT), every triangle faces within a right angle of the rig's, the
+    neck stays exact and the pose is within 0.2 × the blend's error (0.15–0.16 measured; what is
+    left is the log metric's own misfit)."""
+    head, tri = _scanned_head(points, 0)
+    end, rig = _nodded(head, degrees, 1.0), _nodded(head, degrees, factor)
+    x = Interpolator(head, end, tri).pose(factor)
+    neck = head[:, 1] < 0.75
+    np.testing.assert_array_equal(x[neck], head[neck])
+    assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(rig, tri)) > 0).all()
+    blend = (1.0 - factor) * head + factor * end
+
+    def rms(d):
+        return np.sqrt(np.mean(np.sum(d * d, axis=1)))
+
+    assert rms(x - rig) <= 0.2 * rms(blend - rig)
