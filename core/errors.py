@@ -27,9 +27,12 @@ class ShapeDifferenceWarning(UserWarning):
 
     ``kind``: what an in-between's warning is about, one of
     :data:`core.sequence_warnings.KINDS` (``"pose"``, ``"turn"``, ``"joint"``, …), for a pipeline
-    to filter on (``w.message.kind`` of a recorded warning); None for the other warnings."""
+    to filter on (``w.message.kind`` of a recorded warning); None for the other warnings.
+    ``defects``: how many flipped or collapsed triangles the in-between it is about keeps (of the
+    in-betweens alike it speaks for, the worst); 0 where it keeps none or is about something else."""
 
     kind: str | None = None
+    defects: int = 0
 
 
 class MeshIndexError(MeshError, IndexError):

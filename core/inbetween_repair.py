@@ -219,7 +219,9 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
 
     @staticmethod
     def kept_message(problem: str, count: int) -> str:
-        """The warning's text when the metric fit with the fewest defects (``count``) is returned."""
-        return (f"{problem}, and no repair or fallback removed them all: the in-between keeps the fit with "
-                f"the fewest ({count} flipped or collapsed triangle(s)); keys closer together here tell the motion "
+        """The warning's text when the metric fit with the fewest defects (``count``) is returned;
+        ``problem``: what was wrong with the first fit. What the in-between keeps comes first, where a
+        report line cut to the status bar's width still shows it."""
+        return (f"it keeps {count} triangle(s) flipped or collapsed, the fewest of its fits (its first "
+                f"fit: {problem}; no repair or fallback removed them all); keys closer together here tell the motion "
                 "better, or fix those triangles by hand (the metric fit with the fewest defects)")

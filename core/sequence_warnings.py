@@ -33,16 +33,20 @@ KINDS = {
 
 #: The numbers in a message (counts, indices, factors, frames, shares), masked by
 #: :func:`message_shape` to tell messages that differ only in them.
-_NUMBER = re.compile(r"\d+(?:[.,]\d+)*(?:e[-+]?\d+)?")
+#: A minus sign belongs to the number where no word, digit or point comes before it ("at factor -0.5",
+#: not the range "samples 3-4").
+_NUMBER = re.compile(r"(?<![\w.])-?\d+(?:[.,]\d+)*(?:e[-+]?\d+)?|\d+(?:[.,]\d+)*(?:e[-+]?\d+)?")
 #: ... and a list of them, masked as one ("factors #, #, …, #").
 _NUMBERS = re.compile(r"#(?:(?:, | and |–|-)(?:…, )?#)+")
 
 
-def _warn(message: str, kind: str) -> None:
+def _warn(message: str, kind: str, defects: int = 0) -> None:
     """Warn with ``message`` (no final full stop), prefixed "Shape-difference interpolation: ",
-    its :attr:`~core.errors.ShapeDifferenceWarning.kind` ``kind`` (one of :data:`KINDS`)."""
+    its :attr:`~core.errors.ShapeDifferenceWarning.kind` ``kind`` (one of :data:`KINDS`) and
+    :attr:`~core.errors.ShapeDifferenceWarning.defects` ``defects`` (the flipped or collapsed
+    triangles the worst in-between it is about keeps)."""
     warning = ShapeDifferenceWarning(f"Shape-difference interpolation: {message}.")
-    warning.kind = kind
+    warning.kind, warning.defects = kind, int(defects)
     warnings.warn(warning, stacklevel=3)
 
 
@@ -60,14 +64,16 @@ def _factors(factors: list[float]) -> str:
 
 
 def gap_problems(problems: list[tuple[float, str, str, int]], asked: int,
-                 names: tuple[str, str]) -> list[tuple[str, str]]:
-    """The warnings ``(kind, message)`` of the in-betweens of one gap asked together: ``problems``
-    ``(factor, kind, what happened, flipped or collapsed triangles it keeps)`` of each in-between
-    with one, ``asked`` how many in-betweens were asked, ``names`` the gap's keys. In-betweens whose
-    problems differ in their numbers only (counts, triangle indices, shares) are said in one
-    message, which gives how many there are and the one that keeps the most flipped or collapsed
-    triangles (the first of them where none keeps any): "between frame 1 and frame 17, 7 of the 15
-    in-betweens (factors …) alike, the worst at factor 0.5: …"."""
+                 names: tuple[str, str]) -> list[tuple[str, str, int]]:
+    """The warnings ``(kind, message, flipped or collapsed triangles the worst keeps)`` of the
+    in-betweens of one gap asked together: ``problems`` ``(factor, kind, what happened, flipped or
+    collapsed triangles it keeps)`` of each in-between with one, ``asked`` how many in-betweens
+    were asked, ``names`` the gap's keys. In-betweens whose problems differ in their numbers only
+    (counts, triangle indices, shares) are said in one message, which gives how many there are and
+    the one that keeps the most flipped or collapsed triangles (the first of them where none keeps
+    any), what happened there next, and their factors at the end, where a report line cut to the
+    status bar's width loses them first: "between frame 1 and frame 17, 7 of the 15 in-betweens
+    alike, the worst at factor 0.5: …; in-betweens alike at factors …"."""
     groups: dict[tuple[str, str], list[tuple[float, str, int]]] = {}
     for factor, kind, what, kept in problems:
         groups.setdefault((kind, message_shape(what)), []).append((factor, what, kept))
@@ -77,12 +83,12 @@ def gap_problems(problems: list[tuple[float, str, str, int]], asked: int,
         # past the keys (an exaggeration, a reversal) a pose is no in-between
         poses = "in-between" if all(0.0 < f < 1.0 for f, *_ in members) else "pose"
         if len(members) == 1:
-            factor, what, _ = members[0]
-            out.append((kind, f"{between}, the {poses} at factor {factor:g}: {what}"))
+            factor, what, kept = members[0]
+            out.append((kind, f"{between}, the {poses} at factor {factor:g}: {what}", kept))
             continue
         worst = max(range(len(members)), key=lambda i: (members[i][2], -i))
         factor, what, kept = members[worst]
-        out.append((kind, f"{between}, {len(members)} of the {asked} {poses}s (factors "
-                          f"{_factors([f for f, *_ in members])}) alike, the {'worst' if kept else 'first'} at factor "
-                          f"{factor:g}: {what}"))
+        out.append((kind, f"{between}, {len(members)} of the {asked} {poses}s alike, the {'worst' if kept else 'first'} "
+                          f"at factor {factor:g}: {what}; {poses}s alike at factors "
+                          f"{_factors([f for f, *_ in members])}", kept))
     return out

@@ -186,14 +186,14 @@ class Interpolator:
             if nearer_metric or fewer_defects:
                 x, said, misfit, chosen = y, other, other_misfit, second
         x, said, misfit = self._log_fit(chosen, factor, x, said, misfit)
-        for kind, message in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
+        for kind, message, defects in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
             _warn(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
-                  kind)
+                  kind, defects)
         return x
 
-    def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray, said: list[tuple[str, str]],
-                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str]], float]:
+    def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray, said: list[tuple[str, str, int]],
+                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str, int]], float]:
         """``(x, said, misfit)`` of the fit of ``kept`` (the first or the whole-rotation sequence)
         at ``factor``, or of the same fit to the log-stretches' metric where ``x`` has triangles
         facing against their interpolated rotation and one pose, at least half of them where the

@@ -173,15 +173,17 @@ FACTOR_REFERENCE = re.compile(r"(?:the (?:in-between|pose)|,) at factor (-?\d+(?
 SUMMARY_PLACES = 3
 
 
-def summarized(messages: list[str], label: str) -> list[str]:
+def summarized(messages: list[str], label: str, defects: dict[str, int] | None = None) -> list[str]:
     """The warning reports of the ``messages`` an operator (``label``) collected: messages that say
     the same problem for other gaps or in-betweens, differing only in their numbers (frames,
-    factors, counts: ``core.sequence_warnings.message_shape``), are reported once, the first of them
-    with how many more there are and the gaps of the first few, and those others are printed on the
-    system console in full (a retime of 40 gaps, each with flipped triangles, reports one warning,
-    not 40)."""
+    factors, counts: ``core.sequence_warnings.message_shape``), are reported once, by the one
+    whose in-between keeps the most flipped or collapsed triangles (``defects``: per message, its
+    warning's ``defects``; the first of them on a tie), with how many more there are and the gaps
+    of the first few others, and those others are printed on the system console in full (a retime
+    of 40 gaps, each with flipped triangles, reports one warning, not 40: the gap to look at)."""
     from ..core.sequence_warnings import message_shape
 
+    defects = defects or {}
     groups: dict[str, list[str]] = {}
     for message in messages:
         groups.setdefault(message_shape(message), []).append(message)
@@ -190,9 +192,11 @@ def summarized(messages: list[str], label: str) -> list[str]:
         if len(alike) == 1:
             out.append(alike[0])
             continue
-        first, stop = (alike[0][:-1], ".") if alike[0].endswith(".") else (alike[0], "")
+        worst = max(range(len(alike)), key=lambda i: (defects.get(alike[i], 0), -i))
+        others = alike[:worst] + alike[worst + 1:]
+        first, stop = (alike[worst][:-1], ".") if alike[worst].endswith(".") else (alike[worst], "")
         places: dict[str, list[str]] = {}  # each gap of the others, with the factors said there
-        for message in alike[1:]:
+        for message in others:
             gap, factor = GAP_REFERENCE.search(message), FACTOR_REFERENCE.search(message)
             if gap:
                 places.setdefault(gap.group(0).rstrip(","), []).extend([factor.group(1)] if factor else [])
@@ -201,8 +205,8 @@ def summarized(messages: list[str], label: str) -> list[str]:
                  for place, factors in places.items()]
         where = "".join(f"; {place}" for place in where[:SUMMARY_PLACES]) + \
             ("; …" if len(where) > SUMMARY_PLACES else "")
-        out.append(f"{first} (and {len(alike) - 1} more like it{where}; each in full in the system console){stop}")
-        for message in alike[1:]:
+        out.append(f"{first} (and {len(others)} more like it{where}; each in full in the system console){stop}")
+        for message in others:
             print(f"{label}: warning: {message}", file=sys.stderr, flush=True)
     return out
 
@@ -254,6 +258,7 @@ class GeneratorOperator:
         self._modal = modal
         self._job = self.run(context)
         self._warnings: list[str] = []
+        self._defects: dict[str, int] = {}  # per message, its warning's flipped triangles kept (summarized)
         self.summary = ""
         self.triangle_faces = None
 
@@ -287,9 +292,10 @@ class GeneratorOperator:
             message = name_faces(str(warning.message), self.triangle_faces)
             if message not in self._warnings:
                 self._warnings.append(message)
+                self._defects[message] = getattr(warning.message, "defects", 0)
 
     def _finish(self, status: str) -> set[str]:
-        for message in summarized(self._warnings, getattr(self, "bl_label", type(self).__name__)):
+        for message in summarized(self._warnings, getattr(self, "bl_label", type(self).__name__), self._defects):
             report(self, {'WARNING'}, message)
         if status == 'FINISHED' and self.summary:
             report(self, {'INFO'}, self.summary)

@@ -153,6 +153,35 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
         "each in full in the system console)."]
 
 
+def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped_triangles(extension, core, capsys):
+    """Of warnings alike, the report line gives in full the one whose in-between keeps the most
+    flipped or collapsed triangles (its warning's ``defects``: the gap an artist fixes first, not
+    merely the first gap), the others named after it and printed on the console."""
+    log = []
+    messages = [f"Shape-difference interpolation: between frame {a} and frame {a + 8}, the in-between at factor "
+                f"0.5: {n} triangle(s) flipped or collapsed." for a, n in ((1, 3), (9, 12), (17, 1))]
+    kept = [1, 9, 1]
+
+    class Job(extension.operators.base.GeneratorOperator):
+        def report(self, kind, message):
+            log.append((set(kind), message))
+
+        def run(self, context):
+            yield 0.0
+            for message, defects in zip(messages, kept):
+                warning = core.ShapeDifferenceWarning(message)
+                warning.kind, warning.defects = "pose", defects
+                warnings.warn(warning)
+            self.summary = "done"
+
+    assert Job().execute(SimpleNamespace()) == {'FINISHED'}
+    reports = [message for kind, message in log if kind == {'WARNING'}]
+    assert reports == [messages[1][:-1] + " (and 2 more like it; between frame 1 and frame 9 (factor 0.5); between "
+                       "frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
+    console = capsys.readouterr().err
+    assert messages[0] in console and messages[2] in console and messages[1] not in console
+
+
 def test_escape_is_answered_while_a_core_call_runs(extension):
     """A core call that takes seconds runs in the worker thread: each timer tick returns within
     a fraction of a second and Esc cancels at once, writing nothing."""

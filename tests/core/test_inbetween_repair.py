@@ -50,8 +50,10 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     monkeypatch.setattr(repair.Repair, "defects", defects)
     # the warnings name the gap by its keys, as the caller named them (the operators' frames)
     with pytest.warns(ShapeDifferenceWarning, match="between key pose 0 and key pose 1, the in-between at factor "
-                      "0.5: 3 triangle.*keeps the fit with the fewest"):
+                      "0.5: it keeps 3 triangle.s. flipped or collapsed, the fewest of its fits") as said:
         x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
+    # the triangles it keeps flipped, for a pipeline (and the operators' summary) to rank by
+    assert [(w.message.kind, w.message.defects) for w in said if "keeps 3" in str(w.message)] == [("pose", 3)]
     assert near_blend and not any(near_blend)
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(blend, flat, tri).mean()
     with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b, the in-between at factor 0.5: "
@@ -60,8 +62,9 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     np.testing.assert_allclose(x, blend)
     assert any(near_blend)
     with pytest.warns(ShapeDifferenceWarning, match="between vertices_a and vertices_b, the pose at factor "
-                      "1.5: .*keeps the fit with the fewest"):
+                      "1.5: it keeps 3 triangle.s. flipped or collapsed, the fewest") as said:
         x = Interpolator(a, b, tri).pose(1.5)
+    assert [(w.message.kind, w.message.defects) for w in said if "keeps 3" in str(w.message)] == [("pose", 3)]
     assert _edge_deviation(x, flat, tri).mean() < 0.2 * _edge_deviation(extrapolation, flat, tri).mean()
 
 

@@ -380,19 +380,36 @@ def test_a_failed_truncated_recovery_says_which_keys_and_uses_their_exact_length
 def test_in_betweens_alike_are_said_once_with_the_worst():
     """The problems of a gap's in-betweens asked together that differ only in their numbers are
     one message with how many in-betweens have them and the one keeping the most flipped or
-    collapsed triangles; another problem is said on its own, and a lone one names its factor."""
+    collapsed triangles, what happened there before their factors (a report line cut to the status
+    bar's width keeps the problem), and that count for the operators to rank gaps by; another
+    problem is said on its own, and a lone one names its factor."""
     from core.sequence_warnings import gap_problems
 
     kept = "{} triangle(s) flipped or collapsed, and no repair removed them all: the fit keeps {}"
     problems = [(0.25, "pose", kept.format(30, 1), 1), (0.5, "pose", kept.format(9, 7), 7),
                 (0.75, "pose", kept.format(4, 2), 2), (0.5, "non_finite", "1 vertex(es) came out non-finite", 0)]
     said = gap_problems(problems, 3, ("frame 1", "frame 5"))
-    assert said == [("pose", "between frame 1 and frame 5, 3 of the 3 in-betweens (factors 0.25, 0.5, 0.75) alike, "
-                             "the worst at factor 0.5: " + kept.format(9, 7)),
+    assert said == [("pose", "between frame 1 and frame 5, 3 of the 3 in-betweens alike, the worst at factor 0.5: "
+                             + kept.format(9, 7) + "; in-betweens alike at factors 0.25, 0.5, 0.75", 7),
                     ("non_finite", "between frame 1 and frame 5, the in-between at factor 0.5: 1 vertex(es) came out "
-                                   "non-finite")], said
+                                   "non-finite", 0)], said
     assert gap_problems(problems[:1], 1, ("a", "b")) == [("pose", "between a and b, the in-between at factor 0.25: "
-                                                          + kept.format(30, 1))]
+                                                          + kept.format(30, 1), 1)]
+
+
+def test_message_shapes_mask_numbers_only():
+    """Messages of one shape differ only in their numbers: key names with digits, negative and
+    tiny factors, lists and ranges of numbers; words, and messages without numbers, stay."""
+    from core.sequence_warnings import message_shape
+
+    said = "between {} and {}, the pose at factor {}: 3 triangle(s) (e.g. triangle {}) flipped"
+    shapes = {message_shape(said.format(*place)) for place in
+              [("Key 12", "Key 13", 1.5, 7), ("Key 1", "Key 2", -0.5, 120), ("Key 017", "Key 033", 1e-05, 0),
+               ("Key 2.1", "Key 2.2", -2.5e-07, 3)]}
+    assert shapes == {"between Key # and Key #, the pose at factor #: # triangle(s) (e.g. triangle #) flipped"}, shapes
+    assert message_shape("samples 3-4: 0.25, 0.5, …, 0.75 of x-1") == "samples #: # of x-#"
+    assert message_shape("no numbers here") == "no numbers here"
+    assert message_shape("the in-between at factor 0.5: x") != message_shape("the pose at factor 0.5: x")
 
 
 def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
