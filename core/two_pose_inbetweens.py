@@ -74,7 +74,9 @@ class Interpolator:
         if self._whole is None:
             whole = copy.copy(self._sequence)
             whole._whole_rotations = True
+            # its own gaps and their warnings (a turn reads otherwise with whole rotations)
             whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
+            whole._gap_messages = {}
             self._whole = whole
         return self._whole
 
@@ -86,6 +88,7 @@ class Interpolator:
             log = copy.copy(self._whole_sequence() if whole else self._sequence)
             log._log_metric = True
             log._gaps, log._pending, log._cache_lock = OrderedDict(), {}, threading.RLock()
+            log._gap_messages = {}
             self._log[whole] = log
         return self._log[whole]
 
