@@ -97,6 +97,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: ``WRAP_CREASE`` apart (``core.sequence_turn_readings.composed_apart``): past
     #: ``TURNED_PART_SHARE`` the gap warns.
     composed_apart = 0.0
+    #: The largest share of a piece's area that spins past a half turn about the piece's turn axis
+    #: from the rest of it between the keys, read from patches of the mesh, in a piece whose turns the
+    #: gap does not take continuous across the mesh, and that piece's largest turn (radians)
+    #: (``core.spun_parts.SpunParts._spun``): past ``TURNED_PART_SHARE`` the gap warns.
+    spun_part = (0.0, 0.0)
 
     def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

@@ -38,7 +38,8 @@ that fails a documented fallback is returned with a :class:`~core.errors.ShapeDi
 The parts :class:`SequenceInterpolator` composes: its keys, their relatives and caches
 (:mod:`core.sequence_keys`), how each gap starts (:mod:`core.sequence_gap_starts`), near half turns
 (:mod:`core.sequence_half_turns`), parts turned past a half turn (:mod:`core.sequence_turn_readings`),
-mirrored keys (:mod:`core.sequence_mirrors`), its warnings (:mod:`core.sequence_warnings`).
+parts spun past a half turn through a wrung cloth (:mod:`core.spun_parts`), mirrored keys
+(:mod:`core.sequence_mirrors`), its warnings (:mod:`core.sequence_warnings`).
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .sequence_warnings import _warn, gap_problems
+from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
 
 __all__ = ["SequenceInterpolator"]
@@ -70,7 +72,7 @@ __all__ = ["SequenceInterpolator"]
 KEY_TIME_RATIO_LIMIT = 16.0
 
 
-class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
+class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, SpunParts):
     """In-betweens for every gap of K ≥ 2 key poses of one mesh (e.g. every 4th simulation frame).
 
     ``key_poses``: sequence of K arrays ``(n, 3)`` (or an array ``(K, n, 3)``); ``triangles`` int
@@ -184,6 +186,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
                 free = self._unsure(gap)[topo.triangle_component]
                 unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
                 free = free if free.any() else None
+        # parts spun past a half turn that the keys read the short way round: patches of the mesh
+        # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
+        # pieces read turning or folded above are taken so or warned of already)
+        spun = self._spun(gap, turning | folded) if self._across is None else (0.0, 0.0)
         # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
@@ -198,6 +204,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings):
         segment.unsure_turn = bool(unsure.any())
         segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
         segment.composed_apart = float(apart.max(initial=0.0))
+        segment.spun_part = spun
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

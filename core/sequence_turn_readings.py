@@ -68,7 +68,7 @@ def composed_apart(topo: _Topology, areas: np.ndarray, turning: np.ndarray, root
 def turn_warnings(segment: _Gap, key_names: list[str], gap: int) -> list[str]:
     """The warnings' messages (list of str) of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
-    ``untold_half_turns``); ``key_names``: the keys as warnings name them."""
+    ``spun_part``, ``untold_half_turns``); ``key_names``: the keys as warnings name them."""
     problems = []
     turned = (f"between {key_names[gap]} and {key_names[gap + 1]}, over "
               f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest of it")
@@ -85,6 +85,13 @@ def turn_warnings(segment: _Gap, key_names: list[str], gap: int) -> list[str]:
                         f"which path it took: half-way, {100 * segment.composed_apart:.0f} % of the piece's area "
                         f"may be over {np.degrees(WRAP_CREASE):.0f}° off it (keys closer together bring the paths "
                         "nearer; each part is turned as one turn, not as the rest's turn composed with its own)")
+    share, spun = segment.spun_part
+    if share > TURNED_PART_SHARE:
+        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, {100 * share:.0f} % of a piece's area "
+                        f"spins on more than a half turn (up to {np.degrees(spun):.0f}°) from the rest of it: the "
+                        "in-betweens may turn it the short way round, back against the rest (keys at least "
+                        f"{int(np.ceil(spun / np.pi))} times as often there tell which way it went; read from "
+                        "patches of the mesh turning about the piece's rigid turn axis)")
     if segment.untold_half_turns:
         problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, "
                         f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "
