@@ -149,7 +149,7 @@ class _Relative(WholeRotations):
     #: The triangle pairs across which the rotations are taken continuous (two poses), or None.
     _across = None
     #: Per component (bool (C,)), whether its half turn's way round is not told by the keys
-    #: (set by ``core.sequence_half_turns.HalfTurns._turning_on``).
+    #: (set by ``core.sequence_half_turns.HalfTurns._pieces_turning_on``).
     untold_half_turn = np.zeros(0, dtype=bool)
     #: The base key's and this key's positions (with the topology) that the whole mesh's turn is
     #: read from (:meth:`_whole_turn`), for a relative built from the poses without ``turns``.

@@ -8,10 +8,11 @@ from __future__ import annotations
 import numpy as np
 
 from .deformation_fields import rotation_vectors
-from .rotation_continuity import either_way, the_other_way
+from .rotation_continuity import either_way, residuals_turning_whole_way, the_other_way
 from .inbetween_keys import _Relative
 from .inbetween_rigid_fits import NEAR_HALF_TURN, rigid_fits, component_screws, turn_spread
 from .inbetween_solver import _Gap
+from .sequence_turn_readings import TURNED_PART_SHARE
 
 
 def untold_half_turns(segment: _Gap, nxt: _Relative) -> np.ndarray:
@@ -38,9 +39,23 @@ class HalfTurns:
     """The way round of near half turns between a sequence's keys, read from the steps around them;
     mixed into :class:`~core.sequence_inbetweens.SequenceInterpolator`.
 
-    Reads the interpolator's ``_durations``, ``_raw``, ``_topo``, ``smooth`` and calls its ``_key``."""
+    Reads the interpolator's ``_durations``, ``_edge_pairs``, ``_raw``, ``_topo``, ``smooth`` and calls its ``_key``."""
 
     def _turning_on(self, base: int, relative: _Relative) -> _Relative:
+        """``relative`` (key ``base + 1`` seen from key ``base``) with its pieces' near half turns
+        taken the way the steps around tell (:meth:`_pieces_turning_on`) and, in a sequence (two
+        poses take the residuals continuous across the mesh instead), the residuals of each part
+        over :data:`~core.sequence_turn_readings.TURNED_PART_SHARE` of its piece's area the way
+        round its whole rotation goes where its border joins the rest so
+        (:func:`~core.rotation_continuity.residuals_turning_whole_way`). Depends on the keys alone."""
+        relative = self._pieces_turning_on(base, relative)
+        if relative._across is None:
+            relative.rotvec = residuals_turning_whole_way(relative.rotvec, relative.screw[:, :3],
+                                                          self._topo.triangle_component, self._edge_pairs,
+                                                          self._key(base).areas, TURNED_PART_SHARE)
+        return relative
+
+    def _pieces_turning_on(self, base: int, relative: _Relative) -> _Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past
         :data:`~core.inbetween_rigid_fits.NEAR_HALF_TURN` between the keys taken the other way round where
         that is nearer the turns of the steps before and after (per unit of time) by more than it
