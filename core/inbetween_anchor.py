@@ -124,10 +124,13 @@ HELD_ANCHOR_WEIGHT = 1e-3
 #: estimated without its factorization: its difference from the gap's own solve by conjugate
 #: gradients preconditioned with the gap's factor (the two matrices differ by the anchors'
 #: diagonal: the preconditioned spectrum lies within [HELD_ANCHOR_WEIGHT ÷ the gap's weight, 1]) to
-#: a residual of RELEASE_TOLERANCE, at most RELEASE_ITERATIONS. Numbers in docs/inbetweens.md,
-#: *Reconstruction*.
+#: a residual of RELEASE_TOLERANCE, at most RELEASE_ITERATIONS. The estimate only decides against
+#: RELEASE_GAIN: at 3e-2 the ratio of the two misfits is within 8e-4 of its value at 1e-3 on the
+#: held fits of the benchmark (100k sheet at g = 16 0.6175 → 0.6174, 12 → 7 solves, 0.1 s; 10k
+#: hanging sheet 0.4282 / 0.6068 → 0.4288 / 0.6076, 9 / 8 → 6 / 6), at 1e-1 within 7e-3 (5 / 4 / 4).
+#: Numbers in docs/inbetweens.md, *Reconstruction*.
 RELEASE_GAIN = 0.01
-RELEASE_TOLERANCE = 1e-3
+RELEASE_TOLERANCE = 3e-2
 RELEASE_ITERATIONS = 50
 #: An in-between of two poses moves a deforming component toward its centroid too where the blend
 #: anchor holds only a small part of it: by the share ``(1 − a / CENTROID_ANCHOR_SHARE)²`` of the

@@ -95,6 +95,24 @@ MAX_SLOPE_DISAGREEMENT = 0.25
 TRIMMED_TOLERANCE_BATCH = FULL_SAMPLE_BATCH
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
+#: A prediction that no repair cleans (or, in a rough gap, that keeps more defects than the solved
+#: in-betweens around it) is solved in its place from the repaired prediction rather than from the
+#: Poisson solve of the field, with at most this many local/global steps (not
+#: :data:`~core.inbetween_fit.ARAP_ITERATIONS`): the prediction interpolates the corrections of the
+#: solved in-betweens around it, which are fits, so it is near the metric everywhere but where the
+#: folds are, and a few steps settle those (a fit from the Poisson solve starts 1.5–2.3 × the
+#: tolerance farther off). Where that fit ends within the tolerance with defects left, the
+#: prediction's defects are not the metric's doing and the pose is solved from the Poisson solve
+#: too (the one with fewer defects kept, that one on a tie). Keys 16 frames apart, six steps from
+#: the Poisson solve → this: 100k sheet edge deviation 3.33 → 3.30 %, flipped triangles 7 → 5, its
+#: two such solves 422 / 431 → 201 / 248 ms; 50k sheet 3.23 → 3.23 %, 4 → 4; two sheets 4.01 →
+#: 3.99 %, 15 → 14; curtain the same (its two fall back to the Poisson solve); keys 8 apart,
+#: curtain 4.12 → 4.10 %, 48 → 41; RMS the same to four digits in every cell. A fit from the
+#: Poisson solve with this many steps leaves the edges farther off (50k sheet 3.26 %, curtain at
+#: g = 8 4.13 %); six steps from the prediction cost as much as six from the Poisson solve for
+#: 0.00–0.02 point less (numbers in docs/inbetween-measurements.md, *Predictions solved in place
+#: from themselves*).
+SOLVED_INSTEAD_ITERATIONS = 3
 #: With this many solved in-betweens or more (keys 9 frames apart or more), the predictions get one
 #: local/global step toward the interpolated metric, anchored to themselves, at the middle of each
 #: span between the solved factors and the keys, and its displacement spread over the span
@@ -474,8 +492,8 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
                allowed: int | None = None) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
-    had none left), or more than ``allowed`` defects are left, the pose solved at ``s`` instead if
-    it has fewer."""
+    had none left), or more than ``allowed`` defects are left, the pose solved at ``s`` from the
+    repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`) instead if it has no more."""
     motion = gap.motion(s)
     x = _predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
@@ -508,10 +526,20 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     if rings is not None and kept <= allowed:
         return result
     # no repair cleans this prediction where the gap's solved in-betweens are clean, or it keeps more
-    # defects than ``allowed``: solve it too, with the weak anchor if they were (see _solved); the
-    # solve where it has no more defects
-    solved = _solved_instead(gap, s)
-    return solved if count(solved[0]) <= kept else result
+    # defects than ``allowed``: solve it too, with the weak anchor if they were (see _solved), from
+    # the repaired prediction (SOLVED_INSTEAD_ITERATIONS); the solve where it has no more defects
+    misfits = []
+    solved = gap.pose(s, weak=any(gap.held_factors.values()), start=result[0],
+                      iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits)
+    defects = count(solved[0])
+    if solved[1] is not None and misfits[-1] < gap.tolerance:
+        # the prediction fits the metric and its fit keeps defects: they are not the metric's doing,
+        # the solve from the field's Poisson solve is tried too, and kept on a tie
+        fresh = _solved_instead(gap, s)
+        fewer = count(fresh[0])
+        if fewer <= defects:
+            solved, defects = fresh, fewer
+    return solved if defects <= kept else result
 
 
 def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:

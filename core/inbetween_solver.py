@@ -35,7 +35,7 @@ from . import screw_motions
 from .inbetween_anchor import Anchor
 from .inbetween_carried import CarriedPieces
 from .inbetween_field import InterpolatedField, _log_stretch_spline, _Splines
-from .inbetween_fit import LocalGlobalFit, change_tolerance, trimmed_tolerance
+from .inbetween_fit import ARAP_ITERATIONS, LocalGlobalFit, change_tolerance, trimmed_tolerance
 from .inbetween_flight import after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
@@ -302,35 +302,53 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         """The linear blend (n, 3) of the gap's two keys at factor ``s``."""
         return (1.0 - s) * self.base.vertices + s * self.next.vertices
 
-    def pose(self, s: float, weak: bool | None = None) -> tuple[np.ndarray, str | None]:
+    def pose(self, s: float, weak: bool | None = None, start: np.ndarray | None = None,
+             iterations: int = ARAP_ITERATIONS, misfits: list | None = None) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback (or, two poses, with triangles facing against
         the field: :meth:`~core.inbetween_defects.DefectChecks.against_the_field`), (positions, what
         happened). ``weak``: an
         in-between of a sequence fitted with the anchor at
         :data:`~core.inbetween_anchor.HELD_ANCHOR_WEIGHT` (True), with the gap's own (False), or
         with the gap's own and again with the weak one if the first fit is held off the metric
-        (None; what was used is kept in ``self.held_factors[s]``)."""
+        (None; what was used is kept in ``self.held_factors[s]``). ``start``: positions (n, 3) the
+        fit starts from instead of the Poisson solve of the field (a sequence's in-between solved in
+        place of a prediction, :data:`core.inbetween_prediction.SOLVED_INSTEAD_ITERATIONS`); no
+        held test then (``weak`` None is the gap's own anchor: the test measures a fit's progress
+        from the Poisson solve). ``iterations``: the fit's local/global steps at most; ``misfits``:
+        a list that receives the misfit of each step of the fit whose pose is returned."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s)
         fitted = frames if self.use_extrinsic else None
         targets = self.fit_targets(fitted, stretch)  # shared by the Poisson solve and the fit
         between = 0.0 < s < 1.0 and not self.anchored
+        steps = []
         if not (between and weak):
-            if self.use_extrinsic:
+            if start is not None:
+                x0 = start.copy()
+            elif self.use_extrinsic:
                 x0 = self.place(self.solve(targets["edges"], guide), s, motion)
             else:
                 x0 = self.place(guide.copy(), s, motion)
-            misfits, looser = [], []
-            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, misfits=misfits, looser=looser)
-            weak = weak is None and between and self.held(misfits) \
+            looser = []
+            x = self.fit(x0, stretch, fitted, guide, s, motion, iterations, targets=targets, misfits=steps,
+                         looser=looser)
+            weak = weak is None and start is None and between and self.held(steps) \
                 and self.released(targets.get("edges"), guide, targets)
         if between and weak:
             system = self.weak_system()
-            x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
-            looser = []
-            x = self.fit(x0, stretch, fitted, guide, s, motion, targets=targets, system=system, looser=looser)
+            if start is not None:
+                x0 = start.copy()
+            else:
+                x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
+            looser, steps = [], []
+            x = self.fit(x0, stretch, fitted, guide, s, motion, iterations, targets=targets, system=system,
+                         misfits=steps, looser=looser)
         if between:
             self.held_factors[s] = bool(weak)
+        if misfits is not None:
+            misfits.extend(steps)
+        # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)
+        x0 = x0 if start is None else x
         checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None)
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
             return self.finished(checked, s)

@@ -286,6 +286,124 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
     np.testing.assert_allclose(poses, [solved[s] for s in factors], rtol=0, atol=1e-12)
 
 
+def _recorded_solves(monkeypatch):
+    """``_Gap.fit`` and ``_Gap.released`` recording each fit's start (a copy), its step limit and
+    its misfits, and each release test (the fits run as they are)."""
+    import core.inbetween_solver as solver
+
+    fits, releases = [], []
+    real_fit, real_released = solver._Gap.fit, solver._Gap.released
+
+    def fit(self, x, stretch, frames, guide, s, motion, iterations=6, *args, **kwargs):
+        misfits = kwargs.setdefault("misfits", [])
+        out = real_fit(self, x, stretch, frames, guide, s, motion, iterations, *args, **kwargs)
+        fits.append({"s": s, "start": x.copy(), "iterations": iterations, "misfits": list(misfits)})
+        return out
+
+    def released(self, *args):
+        releases.append(args)
+        return real_released(self, *args)
+
+    monkeypatch.setattr(solver._Gap, "fit", fit)
+    monkeypatch.setattr(solver._Gap, "released", released)
+    return fits, releases
+
+
+def test_a_pose_fitted_from_a_given_start_is_the_fit_from_there(strip):
+    """``pose(s, start=x, iterations=k)`` is the local/global fit from ``x`` with at most ``k``
+    steps (the fit run directly from a copy of ``x``, bit for bit), its misfits handed back, and
+    no held test (``weak`` None means the gap's own anchor there)."""
+    flat, tri = strip
+    seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.7, 1.4)], tri)
+    gap = seq._gap(0)
+    s = 0.375
+    start = gap.linear_blend(s)
+    misfits = []
+    x, _ = gap.pose(s, start=start.copy(), iterations=2, misfits=misfits)
+    frames, stretch, motion, guide = gap.targets(s)
+    direct = []
+    y = gap.fit(start.copy(), stretch, frames, guide, s, motion, 2, misfits=direct)
+    assert 1 <= len(misfits) <= 2 and misfits == direct
+    assert misfits[0] == gap.misfit(gap.edges_of(start, np.float32), gap.fit_targets(frames, stretch))
+    if gap.repair.defects(y, s, frames, stretch).any():
+        pytest.skip("the fit from the blend has defects: the pose is its repair")
+    np.testing.assert_array_equal(x, gap.finished((y, None), s)[0])
+    assert gap.held_factors[s] is False
+
+
+def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip):
+    """The in-between solved in place of a prediction no repair cleans starts its fit at the
+    repaired prediction, not at the Poisson solve of the field, takes at most
+    SOLVED_INSTEAD_ITERATIONS steps and makes no held test (a fit from there makes little
+    progress by design)."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_solver as solver
+
+    keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
+    repaired_poses = {}
+    real_repaired = solver._Gap.repaired
+
+    def repaired(self, x, s, rings=None, defects=None):  # what the repair hands on, kept to compare
+        out = real_repaired(self, x, s, rings, defects)
+        repaired_poses[s] = out[0].copy()
+        return out
+
+    monkeypatch.setattr(solver._Gap, "repaired", repaired)
+    fits, releases = _recorded_solves(monkeypatch)
+    seq = SequenceInterpolator(keys, tri)
+    seq.poses(0, factors)
+    predicted = [s for s in factors if s not in (0.25, 0.75)]
+    limit = prediction.SOLVED_INSTEAD_ITERATIONS
+    from_prediction = [f for f in fits if f["s"] in predicted and f["iterations"] == limit]
+    assert {f["s"] for f in from_prediction} == set(predicted)
+    for f in from_prediction:
+        np.testing.assert_array_equal(f["start"], repaired_poses[f["s"]])
+        assert len(f["misfits"]) <= limit < 6
+    assert len(releases) == 0 and not any(seq._gap(0).held_factors[s] for s in predicted)
+
+
+@pytest.mark.parametrize("at_the_metric", [True, False])
+def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(monkeypatch, strip, at_the_metric):
+    """Where the fit from the repaired prediction ends within the gap's tolerance with defects
+    left, the prediction's defects are not the metric's doing: the pose is solved from the Poisson
+    solve of the field too and the one with fewer defects kept (here the solved one, clean: every
+    in-between is then its solved pose). A fit that ends off the tolerance is kept without it."""
+    import core.inbetween_fit as fit
+    import core.inbetween_prediction as prediction
+
+    keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
+    fits, _ = _recorded_solves(monkeypatch)
+    real_misfit = fit.LocalGlobalFit.misfit
+    scale = 0.5 if at_the_metric else 4.0
+
+    def misfit(self, edges, targets):  # the fits from a prediction end within the tolerance or 4 × it
+        from_prediction = getattr(self, "_from_prediction", False)
+        return scale * self.tolerance if from_prediction else real_misfit(edges, targets)
+
+    import core.inbetween_solver as solver
+    pose = solver._Gap.pose
+
+    def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
+        self._from_prediction = start is not None
+        try:
+            return pose(self, s, weak, start, *args, **kwargs)
+        finally:
+            self._from_prediction = False
+
+    monkeypatch.setattr(fit.LocalGlobalFit, "misfit", misfit)
+    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    predicted = [s for s in factors if s not in (0.25, 0.75)]
+    limit = prediction.SOLVED_INSTEAD_ITERATIONS
+    fresh = [f["s"] for f in fits if f["s"] in predicted and f["iterations"] != limit]
+    for s in predicted:
+        assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == at_the_metric
+    assert sorted(fresh) == (predicted if at_the_metric else [])
+    assert (len(caught) == 0) == at_the_metric
+
+
 @pytest.mark.parametrize("shift, solved_instead", [(10.0, True), (0.01, False)])
 def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch, strip, shift, solved_instead):
     """A predicted in-between whose clean repair moves it by more than the cloth deforms across the
