@@ -14,7 +14,10 @@ plays the motion at ``--speed`` (see :mod:`core.retime`). ``--chunk I/N`` (1-bas
 chunk files into exactly (bit for bit) the file one process writes; given the retime's input
 and settings (``--retime``), it refuses chunks of any other retime, such as another job's written
 into a shared chunk folder. Progress goes to stderr; warnings print one line each
-(``retime: warning: …``, exit status 0), errors one line and exit with status 2.
+(``retime: warning [pose]: …`` with the in-between warning's kind, ``retime: warning: …`` for
+others; exit status 0) and a line of how many of each kind there were at the end
+(``retime: 3 warning(s): 3 pose; most flipped or collapsed triangles kept: 121, between …``),
+errors one line and exit with status 2.
 """
 
 from __future__ import annotations
@@ -244,8 +247,9 @@ def _retime(args) -> int:
     if args.offset and not args.quiet:
         print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
     if cache.times is not None and not _even_times(cache.times):
-        _warning("retime", f"the frame times of '{args.cache}' are not evenly spaced (or not finite); "
-                 "its frames are retimed as if they were")
+        # said as the core's warnings are (_warnings_as_lines), and counted with them
+        warnings.warn(ShapeDifferenceWarning(f"the frame times of '{args.cache}' are not evenly spaced (or not "
+                                             "finite); its frames are retimed as if they were"))
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -307,24 +311,51 @@ def _say(text: str) -> None:
     print(text.encode(encoding, "backslashreplace").decode(encoding))
 
 
-def _warning(command: str, text: str) -> None:
+def _warning(command: str, text: str, kind: str | None = None) -> None:
     """Print the warning ``text`` on stderr as one line a farm's log search finds,
-    ``<command>: warning: <text>``: the output is written (exit status 0), but worth a look."""
-    print(f"{command}: warning: {' '.join(text.split())}", file=sys.stderr, flush=True)
+    ``<command>: warning: <text>``, or ``<command>: warning [<kind>]: <text>`` for an in-between's
+    warning of that kind (:data:`core.sequence_warnings.KINDS`): the output is written (exit status
+    0), but worth a look."""
+    print(f"{command}: warning{f' [{kind}]' if kind else ''}: {' '.join(text.split())}", file=sys.stderr, flush=True)
+
+
+def _warnings_summary(command: str, shown: list[ShapeDifferenceWarning]) -> str | None:
+    """The line that ends a command's warnings ``shown`` (None for none): how many of each kind
+    (``other`` for those without one) and the gap whose in-between keeps the most flipped or
+    collapsed triangles, ``<command>: 3 warning(s): 3 pose; most flipped or collapsed triangles
+    kept: 121, between sample 17 (frame 16) and sample 33 (frame 32)``."""
+    if not shown:
+        return None
+    counts: dict[str, int] = {}
+    for warning in shown:
+        kind = getattr(warning, "kind", None) or "other"
+        counts[kind] = counts.get(kind, 0) + 1
+    line = f"{command}: {len(shown)} warning(s): {', '.join(f'{n} {kind}' for kind, n in counts.items())}"
+    worst = max(shown, key=lambda w: getattr(w, "defects", 0))  # the first of the most
+    if getattr(worst, "defects", 0) > 0:
+        gap = getattr(worst, "gap", None)
+        line += f"; most flipped or collapsed triangles kept: {worst.defects}" + \
+            (f", between {gap[0]} and {gap[1]}" if gap else "")
+    return line
 
 
 @contextmanager
 def _warnings_as_lines(command: str):
     """The core's :class:`ShapeDifferenceWarning` (a fallback, a mirrored piece) said as the
-    command's own warnings (:func:`_warning`) while in the block, each message once, whatever
-    Python's warning filters say: ``PYTHONWARNINGS=error`` in a studio's environment would
-    otherwise end a finished retime with a traceback and status 1, and Python's own format
-    (a source file, a line number, a line of code) is not what a farm's log search looks for."""
+    command's own warnings (:func:`_warning`, with the warning's ``kind``) while in the block,
+    each message once, whatever Python's warning filters say, and a line of how many of each kind
+    there were at its end (:func:`_warnings_summary`): ``PYTHONWARNINGS=error`` in a studio's
+    environment would otherwise end a finished retime with a traceback and status 1, and Python's
+    own format (a source file, a line number, a line of code) is not what a farm's log search
+    looks for."""
     shown = warnings.showwarning
+    said: list[ShapeDifferenceWarning] = []  # those shown, for the line that ends them
 
     def show(message, category, filename, lineno, file=None, line=None):
         if issubclass(category, ShapeDifferenceWarning):
-            _warning(command, str(message))
+            kind = getattr(message, "kind", None)
+            _warning(command, str(message), kind)
+            said.append(message)
         else:
             shown(message, category, filename, lineno, file, line)
 
@@ -332,6 +363,9 @@ def _warnings_as_lines(command: str):
         warnings.simplefilter("default", ShapeDifferenceWarning)
         warnings.showwarning = show
         yield
+    summary = _warnings_summary(command, said)
+    if summary:
+        print(summary, file=sys.stderr, flush=True)
 
 
 class _Cancelled(SystemExit):

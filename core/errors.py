@@ -29,10 +29,15 @@ class ShapeDifferenceWarning(UserWarning):
     :data:`core.sequence_warnings.KINDS` (``"pose"``, ``"turn"``, ``"joint"``, …), for a pipeline
     to filter on (``w.message.kind`` of a recorded warning); None for the other warnings.
     ``defects``: how many flipped or collapsed triangles the in-between it is about keeps (of the
-    in-betweens alike it speaks for, the worst); 0 where it keeps none or is about something else."""
+    in-betweens alike it speaks for, the worst); 0 where it keeps none or is about something else.
+    ``gap``: the names of the two keys of the gap it is about, as the message says them (None where
+    it is about no one gap); ``factors``: the factors of the in-betweens it is about (empty where
+    it holds for every in-between of the gap, or is about something else)."""
 
     kind: str | None = None
     defects: int = 0
+    gap: tuple[str, str] | None = None
+    factors: tuple[float, ...] = ()
 
 
 class MeshIndexError(MeshError, IndexError):

@@ -256,8 +256,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     exit=self._exit(gap) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric)
 
-    def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str, int]]:
-        """The warnings ``(kind, message, 0)`` of gap ``gap`` (its data ``segment``) that hold for every
+    def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
+        """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every
         in-between of it: how its pieces turn, their joints, and the triangles thin against the
         keys' rounding (:func:`core.rounded_slivers.rounded_slivers`). Made once per gap: they
         depend on the keys only."""
@@ -265,9 +265,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             names = self.key_names
             keys = (segment.base, segment.next)
             slivers = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys], self._rounding).size)
-            self._gap_messages[gap] = [("turn", m, 0) for m in turn_warnings(segment, names, gap)] + \
-                [("joint", m, 0) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
-                [("sliver", m, 0) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]
+            self._gap_messages[gap] = [("turn", m, 0, ()) for m in turn_warnings(segment, names, gap)] + \
+                [("joint", m, 0, ()) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
+                [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]
         return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
@@ -280,8 +280,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         others are predicted from those (:mod:`core.inbetween_prediction`, which gives the
         measurements against solving each); :meth:`pose` solves every pose."""
         out, problems = self._poses(gap_index, factors)
-        for kind, message, defects in problems:
-            _warn(message, kind, defects)
+        gap = (self.key_names[int(gap_index)], self.key_names[int(gap_index) + 1]) if problems else None  # checked
+        for kind, message, defects, about in problems:
+            _warn(message, kind, defects, gap, about)
         return out
 
     # BLAS single-threaded: its calls here are (n, 3) × (3, 3) products, which a second BLAS thread
@@ -289,8 +290,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     # sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread). One thread also whatever
     # ran before in the process: the same poses to the bit (core.concurrency).
     @single_threaded_blas()
-    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple[str, str, int]]]:
-        """:meth:`poses` and the warnings ``(kind, message, defects)``, not yet given (the caller warns: a
+    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]]]:
+        """:meth:`poses` and the warnings ``(kind, message, defects, factors)``, not yet given (the caller warns: a
         warning filter changed around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
@@ -308,7 +309,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return self._solved_poses(gap, factors, out, between)
 
     def _solved_poses(self, gap: int, factors: list[float], out: np.ndarray,
-                      between: list[int]) -> tuple[np.ndarray, list[tuple[str, str, int]]]:
+                      between: list[int]) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]]]:
         """:meth:`_poses` once its arguments are checked: ``out`` (len(factors), n, 3) holds the keys
         at factors 0 and 1, the rows ``between`` are solved here. The warnings: the gap's
         (:meth:`_gap_warnings`), then the in-betweens' own, one per kind of problem

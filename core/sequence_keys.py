@@ -220,7 +220,7 @@ class SequenceKeys:
               f"recovered from the first {self.k_M} basis functions (k_M = {self.k_M}, k_N = {self.k_N}): the "
               "in-betweens there follow the keys' exact edge lengths instead, as with the full basis, and may look "
               "sharper than the other gaps; a larger k_M, or 0 for the full basis everywhere, keeps the gaps alike "
-              f"({why}; truncated recovery failed)", "truncated")
+              f"({why}; truncated recovery failed)", "truncated", gap=(self.key_names[base], self.key_names[other]))
 
     def _truncated_log_stretch(self, base: int, other: int) -> np.ndarray | None:
         """Log-stretches (m, 3) toward key ``other`` whose edge lengths are those recovered from the

@@ -61,4 +61,5 @@ def warn_mirrored(topo: _Topology, keys: list[np.ndarray], key_names: list[str],
             _warn(f"{mirrored.size} piece(s) of the mesh (e.g. the one with vertex {first}) are the mirror "
                   f"image of themselves from {key_names[i]} to {key_names[i + 1]} (a reflection, as a "
                   "negative scale gives), which no motion makes: the in-betweens deform them through a "
-                  "flattened shape. Check that key (apply the scale, or mirror the mesh back)", "mirror")
+                  "flattened shape. Check that key (apply the scale, or mirror the mesh back)", "mirror",
+                  gap=(key_names[i], key_names[i + 1]))

@@ -40,32 +40,66 @@ _NUMBER = re.compile(r"(?<![\w.])-?\d+(?:[.,]\d+)*(?:e[-+]?\d+)?|\d+(?:[.,]\d+)*
 _NUMBERS = re.compile(r"#(?:(?:, | and |–|-)(?:…, )?#)+")
 
 
-def _warn(message: str, kind: str, defects: int = 0) -> None:
-    """Warn with ``message`` (no final full stop), prefixed "Shape-difference interpolation: ",
-    its :attr:`~core.errors.ShapeDifferenceWarning.kind` ``kind`` (one of :data:`KINDS`) and
-    :attr:`~core.errors.ShapeDifferenceWarning.defects` ``defects`` (the flipped or collapsed
-    triangles the worst in-between it is about keeps)."""
+def said_warning(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None,
+                 factors=()) -> ShapeDifferenceWarning:
+    """The :class:`~core.errors.ShapeDifferenceWarning` "Shape-difference interpolation: ``message``."
+    (``message`` without its final full stop) with its attributes: ``kind`` (one of :data:`KINDS`),
+    ``defects`` (the flipped or collapsed triangles the worst in-between it is about keeps), ``gap``
+    (the names of the gap's two keys, as the message says them; None where it is about no one gap)
+    and ``factors`` (the factors of the in-betweens it is about; empty where it holds for the whole
+    gap)."""
     warning = ShapeDifferenceWarning(f"Shape-difference interpolation: {message}.")
     warning.kind, warning.defects = kind, int(defects)
-    warnings.warn(warning, stacklevel=3)
+    warning.gap, warning.factors = (None if gap is None else (str(gap[0]), str(gap[1]))), tuple(float(f) for f in factors)
+    return warning
+
+
+def _warn(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
+    """Warn with :func:`said_warning` (same arguments)."""
+    warnings.warn(said_warning(message, kind, defects, gap, factors), stacklevel=3)
+
+
+#: How an in-between's own problem is placed in its gap's message (after "between A and B, "): one
+#: in-between, or several alike (:func:`gap_problems`), each as an in-between or a pose past the keys.
+#: :func:`message_shape` says each place in one way, so that the same problem has one shape whatever
+#: the count.
+_PLACES = [(f", the {p} at factor #: ", f", # of the # {p}s alike, the {w} at factor #: ", f", {p}(s) at factor #: ")
+           for p in ("in-between", "pose") for w in ("worst", "first")]
+#: ... and where the factors of several alike are listed, at the message's end.
+_ALIKE_TAIL = [f"; {p}s alike at factors " for p in ("in-between", "pose")]
 
 
 def message_shape(message: str) -> str:
-    """``message`` with its numbers masked: messages of one shape say the same problem, and differ
-    only in where (the keys, the factor) and how much (counts, indices, shares). The operators
-    report such messages once (``operators.base.summarized``)."""
-    return _NUMBERS.sub("#", _NUMBER.sub("#", message))
+    """``message`` with its numbers masked, and the place of an in-between's problem said in one way
+    whether one in-between or several alike have it (the list of their factors left out): messages
+    of one shape say the same problem, and differ only in where (the keys, the factors) and how
+    much (counts, indices, shares). The operators report such messages once
+    (``operators.base.summarized``)."""
+    shape = _NUMBER.sub("#", message)
+    for one, several, either in _PLACES:  # before lists are masked: a key's number and a count are no list
+        shape = shape.replace(one, either).replace(several, either)
+    shape = _NUMBERS.sub("#", shape)
+    for tail in _ALIKE_TAIL:
+        cut = shape.rfind(tail)
+        if cut >= 0:  # the list runs to the message's end, its full stop kept
+            shape = shape[:cut] + ("." if shape.endswith(".") else "")
+    return shape
 
 
-def _factors(factors: list[float]) -> str:
-    """``factors`` as a message lists them: all up to six, else the first three and the last."""
+def factor_list(factors) -> str:
+    """``factors`` as a message lists them: all up to six, else the first three and how many there
+    are from the least to the greatest ("0.3125, 0.375, 0.4375, … (8 factors from 0.3125 to
+    0.875)"), which says no more than is so where they are not one run of the factors asked."""
     shown = [f"{f:g}" for f in factors]
-    return ", ".join(shown) if len(shown) <= 6 else f"{', '.join(shown[:3])}, …, {shown[-1]}"
+    if len(shown) <= 6:
+        return ", ".join(shown)
+    return f"{', '.join(shown[:3])}, … ({len(shown)} factors from {min(factors):g} to {max(factors):g})"
 
 
 def gap_problems(problems: list[tuple[float, str, str, int]], asked: int,
-                 names: tuple[str, str]) -> list[tuple[str, str, int]]:
-    """The warnings ``(kind, message, flipped or collapsed triangles the worst keeps)`` of the
+                 names: tuple[str, str]) -> list[tuple[str, str, int, tuple[float, ...]]]:
+    """The warnings ``(kind, message, flipped or collapsed triangles the worst keeps, factors of the
+    in-betweens it is about)`` of the
     in-betweens of one gap asked together: ``problems`` ``(factor, kind, what happened, flipped or
     collapsed triangles it keeps)`` of each in-between with one, ``asked`` how many in-betweens
     were asked, ``names`` the gap's keys. In-betweens whose problems differ in their numbers only
@@ -84,11 +118,11 @@ def gap_problems(problems: list[tuple[float, str, str, int]], asked: int,
         poses = "in-between" if all(0.0 < f < 1.0 for f, *_ in members) else "pose"
         if len(members) == 1:
             factor, what, kept = members[0]
-            out.append((kind, f"{between}, the {poses} at factor {factor:g}: {what}", kept))
+            out.append((kind, f"{between}, the {poses} at factor {factor:g}: {what}", kept, (factor,)))
             continue
         worst = max(range(len(members)), key=lambda i: (members[i][2], -i))
         factor, what, kept = members[worst]
         out.append((kind, f"{between}, {len(members)} of the {asked} {poses}s alike, the {'worst' if kept else 'first'} "
                           f"at factor {factor:g}: {what}; {poses}s alike at factors "
-                          f"{_factors([f for f, *_ in members])}", kept))
+                          f"{factor_list([f for f, *_ in members])}", kept, tuple(f for f, *_ in members)))
     return out

@@ -189,14 +189,16 @@ class Interpolator:
             if nearer_metric or fewer_defects:
                 x, said, misfit, chosen = y, other, other_misfit, second
         x, said, misfit = self._log_fit(chosen, factor, x, said, misfit)
-        for kind, message, defects in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
+        names = first.key_names
+        for kind, message, defects, about in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
             _warn(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
-                  kind, defects)
+                  kind, defects, (names[0], names[1]), about)
         return x
 
-    def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray, said: list[tuple[str, str, int]],
-                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str, int]], float]:
+    def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray,
+                 said: list[tuple[str, str, int, tuple[float, ...]]],
+                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]], float]:
         """``(x, said, misfit)`` of the fit of ``kept`` (the first or the whole-rotation sequence)
         at ``factor``, or of the same fit to the log-stretches' metric where ``x`` has triangles
         facing against their interpolated rotation and one pose, at least half of them where the
@@ -253,7 +255,7 @@ class Interpolator:
             ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
             _warn(f"between {names[0]} and {names[1]}, at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle "
                   f"{int(rows[0])}) have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
-                  f"{cause}", "extrapolation")
+                  f"{cause}", "extrapolation", gap=(names[0], names[1]), factors=(factor,))
 
 
 #: Two poses whose triangles' turns are no more alike between neighbours than this times the

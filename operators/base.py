@@ -165,25 +165,24 @@ def report(operator, kind: set[str], message: str) -> None:
     operator.report(kind, message.encode("utf-8", "backslashreplace").decode("utf-8"))
 
 
-# The gap a core warning is about ("between frame 17 and frame 33,"), named in a summary of warnings alike.
-GAP_REFERENCE = re.compile(r"\bbetween .+? and .+?,")
-# ... and the factor of a warning about one in-between ("the in-between at factor 0.25:", "at factor 2,").
-FACTOR_REFERENCE = re.compile(r"(?:the (?:in-between|pose)|,) at factor (-?\d+(?:\.\d+)?(?:e[-+]?\d+)?)[:,]")
 # How many of the other gaps a summary names.
 SUMMARY_PLACES = 3
 
 
-def summarized(messages: list[str], label: str, defects: dict[str, int] | None = None) -> list[str]:
+def summarized(messages: list[str], label: str, about: dict | None = None) -> list[str]:
     """The warning reports of the ``messages`` an operator (``label``) collected: messages that say
     the same problem for other gaps or in-betweens, differing only in their numbers (frames,
-    factors, counts: ``core.sequence_warnings.message_shape``), are reported once, by the one
-    whose in-between keeps the most flipped or collapsed triangles (``defects``: per message, its
-    warning's ``defects``; the first of them on a tie), with how many more there are and the gaps
-    of the first few others, and those others are printed on the system console in full (a retime
-    of 40 gaps, each with flipped triangles, reports one warning, not 40: the gap to look at)."""
-    from ..core.sequence_warnings import message_shape
+    factors, counts) and in how many in-betweens of a gap have it
+    (``core.sequence_warnings.message_shape``), are reported once, by the one whose in-between
+    keeps the most flipped or collapsed triangles (the first of them on a tie), with how many more
+    there are and the gaps of the first few others, and those others are printed on the system
+    console in full (a retime of 40 gaps, each with flipped triangles, reports one warning, not 40:
+    the gap to look at). ``about``: per message, the core's warning it came from, whose ``defects``,
+    ``gap`` (its keys' names) and ``factors`` are used; a message without one counts as keeping
+    none and names no place."""
+    from ..core.sequence_warnings import factor_list, message_shape
 
-    defects = defects or {}
+    about = about or {}
     groups: dict[str, list[str]] = {}
     for message in messages:
         groups.setdefault(message_shape(message), []).append(message)
@@ -192,17 +191,18 @@ def summarized(messages: list[str], label: str, defects: dict[str, int] | None =
         if len(alike) == 1:
             out.append(alike[0])
             continue
-        worst = max(range(len(alike)), key=lambda i: (defects.get(alike[i], 0), -i))
+        worst = max(range(len(alike)), key=lambda i: (getattr(about.get(alike[i]), "defects", 0), -i))
         others = alike[:worst] + alike[worst + 1:]
         first, stop = (alike[worst][:-1], ".") if alike[worst].endswith(".") else (alike[worst], "")
-        places: dict[str, list[str]] = {}  # each gap of the others, with the factors said there
+        places: dict[tuple[str, str], list[float]] = {}  # each gap of the others, with their lone in-betweens' factors
         for message in others:
-            gap, factor = GAP_REFERENCE.search(message), FACTOR_REFERENCE.search(message)
-            if gap:
-                places.setdefault(gap.group(0).rstrip(","), []).extend([factor.group(1)] if factor else [])
-        where = [place + (f" (factor{'s' if len(factors) > 1 else ''} {', '.join(factors[:4])}"
-                          f"{', …' if len(factors) > 4 else ''})" if factors else "")
-                 for place, factors in places.items()]
+            warning = about.get(message)
+            gap, factors = getattr(warning, "gap", None), getattr(warning, "factors", ())
+            if gap is not None:  # a warning about several in-betweens lists their factors itself
+                places.setdefault(gap, []).extend(factors if len(factors) == 1 else ())
+        where = [f"between {gap[0]} and {gap[1]}" + (f" (factor{'s' if len(factors) > 1 else ''} "
+                                                      f"{factor_list(factors)})" if factors else "")
+                 for gap, factors in places.items()]
         where = "".join(f"; {place}" for place in where[:SUMMARY_PLACES]) + \
             ("; …" if len(where) > SUMMARY_PLACES else "")
         out.append(f"{first} (and {len(others)} more like it{where}; each in full in the system console){stop}")
@@ -258,7 +258,7 @@ class GeneratorOperator:
         self._modal = modal
         self._job = self.run(context)
         self._warnings: list[str] = []
-        self._defects: dict[str, int] = {}  # per message, its warning's flipped triangles kept (summarized)
+        self._about: dict[str, object] = {}  # per message, the core's warning it came from (summarized)
         self.summary = ""
         self.triangle_faces = None
 
@@ -292,10 +292,10 @@ class GeneratorOperator:
             message = name_faces(str(warning.message), self.triangle_faces)
             if message not in self._warnings:
                 self._warnings.append(message)
-                self._defects[message] = getattr(warning.message, "defects", 0)
+                self._about[message] = warning.message
 
     def _finish(self, status: str) -> set[str]:
-        for message in summarized(self._warnings, getattr(self, "bl_label", type(self).__name__), self._defects):
+        for message in summarized(self._warnings, getattr(self, "bl_label", type(self).__name__), self._about):
             report(self, {'WARNING'}, message)
         if status == 'FINISHED' and self.summary:
             report(self, {'INFO'}, self.summary)

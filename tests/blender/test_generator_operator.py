@@ -2,6 +2,7 @@
 timer events headless): progress is shown, Esc cancels before anything is written and runs the
 job's clean-up, errors become reports."""
 
+import importlib
 import warnings
 from types import SimpleNamespace
 
@@ -125,8 +126,10 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
     :meth:`core.Interpolator.pose` call), is one warning report with how many more there are, the
     others on the console; a different problem is reported on its own."""
     log = []
-    messages = [f"Shape-difference interpolation: between frame {a} and frame {a + 8}, the in-between at factor "
-                f"0.5: {n} triangle(s) flipped or collapsed." for a, n in ((1, 3), (9, 12), (17, 1))]
+    said = [core.sequence_warnings.said_warning(f"between frame {a} and frame {a + 8}, the in-between at factor 0.5: "
+                                                f"{n} triangle(s) flipped or collapsed", "pose", 0,
+                                                (f"frame {a}", f"frame {a + 8}"), (0.5,)) for a, n in ((1, 3), (9, 12), (17, 1))]
+    messages = [str(warning) for warning in said]
     other = "Shape-difference interpolation: 1 piece(s) of the mesh are the mirror image of themselves."
 
     class Job(extension.operators.base.GeneratorOperator):
@@ -135,8 +138,8 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
 
         def run(self, context):
             yield 0.0
-            for message in messages + [other]:
-                warnings.warn(core.ShapeDifferenceWarning(message))
+            for warning in said + [core.ShapeDifferenceWarning(other)]:
+                warnings.warn(warning)
             self.summary = "done"
 
     assert Job().execute(SimpleNamespace()) == {'FINISHED'}
@@ -146,10 +149,13 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
     console = capsys.readouterr().err
     assert messages[1] in console and messages[2] in console and messages[0] not in console
     # two keys' in-betweens, one Interpolator.pose call each: their gap once, with the factors
-    pair = [f"Shape-difference interpolation: between shape key 'A' and shape key 'B', the in-between at factor "
-            f"{f}: {n} triangle(s) flipped or collapsed." for f, n in ((0.2, 1), (0.4, 5), (0.6, 2), (0.8, 1))]
-    assert extension.operators.base.summarized(pair, "In-between") == [
-        pair[0][:-1] + " (and 3 more like it; between shape key 'A' and shape key 'B' (factors 0.4, 0.6, 0.8); "
+    pair = {str(warning): warning for warning in (
+        core.sequence_warnings.said_warning(f"between shape key 'A' and shape key 'B', the in-between at factor {f}: "
+                                            f"{n} triangle(s) flipped or collapsed", "pose", 0,
+                                            ("shape key 'A'", "shape key 'B'"), (f,))
+        for f, n in ((0.2, 1), (0.4, 5), (0.6, 2), (0.8, 1)))}
+    assert extension.operators.base.summarized(list(pair), "In-between", pair) == [
+        list(pair)[0][:-1] + " (and 3 more like it; between shape key 'A' and shape key 'B' (factors 0.4, 0.6, 0.8); "
         "each in full in the system console)."]
 
 
@@ -158,9 +164,11 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
     flipped or collapsed triangles (its warning's ``defects``: the gap an artist fixes first, not
     merely the first gap), the others named after it and printed on the console."""
     log = []
-    messages = [f"Shape-difference interpolation: between frame {a} and frame {a + 8}, the in-between at factor "
-                f"0.5: {n} triangle(s) flipped or collapsed." for a, n in ((1, 3), (9, 12), (17, 1))]
-    kept = [1, 9, 1]
+    said = [core.sequence_warnings.said_warning(f"between frame {a} and frame {a + 8}, the in-between at factor 0.5: "
+                                                f"{n} triangle(s) flipped or collapsed", "pose", kept,
+                                                (f"frame {a}", f"frame {a + 8}"), (0.5,))
+            for a, n, kept in ((1, 3, 1), (9, 12, 9), (17, 1, 1))]
+    messages = [str(warning) for warning in said]
 
     class Job(extension.operators.base.GeneratorOperator):
         def report(self, kind, message):
@@ -168,9 +176,7 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
 
         def run(self, context):
             yield 0.0
-            for message, defects in zip(messages, kept):
-                warning = core.ShapeDifferenceWarning(message)
-                warning.kind, warning.defects = "pose", defects
+            for warning in said:
                 warnings.warn(warning)
             self.summary = "done"
 
@@ -180,6 +186,55 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
                        "frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
     console = capsys.readouterr().err
     assert messages[0] in console and messages[2] in console and messages[1] not in console
+
+
+def test_a_problem_said_for_one_in_between_and_for_several_is_one_report_naming_each_gap_in_full(
+        extension, core, monkeypatch, capsys):
+    """A problem of one in-between in some gaps (``pose``) and of several in another (``poses``)
+    is one report, not one per wording, and the gaps it names are the keys' names in full, also
+    where a name holds a comma (shape keys named "Key 1, left"): the core's warnings carry their
+    gap's key names. Forced through a real sequence: its fits give NaN at one vertex (the safety
+    net's warning, as in tests/core/test_inbetween_numerical_failures.py)."""
+    import numpy as np
+
+    sequence_inbetweens = importlib.import_module(f"{core.__name__}.sequence_inbetweens")
+    solve = sequence_inbetweens.gap_poses
+
+    def poisoned(segment, factors):
+        solved = solve(segment, factors)
+        for x, _ in solved:
+            x[3] = np.nan
+        return solved
+
+    monkeypatch.setattr(sequence_inbetweens, "gap_poses", poisoned)
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, 6), np.linspace(0.0, 1.0, 6))
+    rest = np.c_[u.ravel(), v.ravel(), np.zeros(36)]
+    cells = [6 * j + i for j in range(5) for i in range(5)]
+    triangles = np.array([t for c in cells for t in ((c, c + 1, c + 7), (c, c + 7, c + 6))])
+    keys = [rest + np.c_[np.zeros((36, 2)), bend * (rest[:, 0] - 0.5) ** 2] for bend in (0.0, 0.3, 0.6, 0.9)]
+    names = [f"Key {k}, left" for k in range(1, 5)]
+    log = []
+
+    class Job(extension.operators.base.GeneratorOperator):
+        def report(self, kind, message):
+            log.append((set(kind), message))
+
+        def run(self, context):
+            yield 0.0
+            sequence = core.SequenceInterpolator(keys, triangles, key_names=names)
+            sequence.pose(0, 0.5)
+            sequence.pose(1, 0.5)
+            sequence.poses(2, [0.25, 0.5, 0.75])
+            self.summary = "done"
+
+    assert Job().execute(SimpleNamespace()) == {'FINISHED'}
+    reports = [message for kind, message in log if kind == {'WARNING'} and "non-finite" in message]
+    assert len(reports) == 1, reports
+    assert reports[0].startswith("Shape-difference interpolation: between Key 1, left and Key 2, left, the "
+                                 "in-between at factor 0.5: "), reports
+    assert reports[0].endswith(" (and 2 more like it; between Key 2, left and Key 3, left (factor 0.5); between "
+                               "Key 3, left and Key 4, left; each in full in the system console)."), reports
+    assert "between Key 3, left and Key 4, left, 3 of the 3 in-betweens alike" in capsys.readouterr().err
 
 
 def test_escape_is_answered_while_a_core_call_runs(extension):

@@ -164,6 +164,7 @@ def test_non_finite_coordinates_in_a_sequence_leave_the_other_pieces_as_they_wer
     # said once for the gap, with how many of its in-betweens it is about, not once per in-between
     said = [w.message for w in caught if "non-finite" in str(w.message)]
     assert len(said) == 1 and said[0].kind == "non_finite", [str(m) for m in said]
+    assert said[0].gap == ("key pose 1", "key pose 2") and said[0].factors == tuple(factors)
     assert re.search(r"between key pose 1 and key pose 2, 3 of the 3 in-betweens alike, the first at factor 0.25: "
                      r"1 vertex\(es\) came out with non-finite.*; in-betweens alike at factors 0.25, 0.5, 0.75\.$",
                      str(said[0]))

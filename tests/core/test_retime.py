@@ -635,10 +635,41 @@ def test_command_says_the_core_s_warnings_in_one_line_and_succeeds(tmp_path, cap
         warnings.simplefilter("error")
         assert main(["retime", str(cache), "--topology", str(topology), "--step", "4", "-q", "-o", str(output)]) == 0
     lines = capsys.readouterr().err.splitlines()
-    assert [line[:72] for line in lines] == [
-        "retime: warning: Shape-difference interpolation: 1 piece(s) of the mesh "]
+    assert [line[:81] for line in lines] == [
+        "retime: warning [mirror]: Shape-difference interpolation: 1 piece(s) of the mesh ",
+        "retime: 1 warning(s): 1 mirror"], lines
     assert "mirror image of themselves from sample 5 (frame 4) to sample 9 (frame 8)" in lines[0]
     assert read_pc2(output).n_samples == 9
+
+
+def test_command_warnings_end_with_how_many_of_each_kind_and_the_worst_gap(capsys):
+    """Each warning line of the command names its kind (a farm log greps `warning [pose]`), one
+    without a kind reads `warning:`; a last line counts them by kind and names the gap whose
+    in-between keeps the most flipped or collapsed triangles (the first of them on a tie)."""
+    from core.__main__ import _warnings_as_lines
+    from core.sequence_warnings import said_warning
+
+    gaps = [(f"sample {a} (frame {a - 1})", f"sample {a + 16} (frame {a + 15})") for a in (1, 17, 33)]
+    said = [said_warning(f"between {gaps[0][0]} and {gaps[0][1]}, the in-between at factor 0.5: it keeps 3 triangle(s) "
+                         "flipped or collapsed", "pose", 3, gaps[0], (0.5,)),
+            said_warning(f"between {gaps[1][0]} and {gaps[1][1]}, 8 of the 15 in-betweens alike, the worst at factor "
+                         "0.5: it keeps 121 triangle(s) flipped or collapsed", "pose", 121, gaps[1], (0.5,)),
+            said_warning(f"between {gaps[2][0]} and {gaps[2][1]}, 2 triangle(s) are less high than twice the rounding",
+                         "sliver", 0, gaps[2]),
+            said_warning(f"between {gaps[2][0]} and {gaps[2][1]}, the in-between at factor 0.25: it keeps 121 "
+                         "triangle(s) flipped or collapsed", "pose", 121, gaps[2], (0.25,)),
+            ShapeDifferenceWarning("the frame times are not evenly spaced")]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with _warnings_as_lines("retime"):
+            for warning in said:
+                warnings.warn(warning)
+    lines = capsys.readouterr().err.splitlines()
+    assert [line.split(": Shape-difference")[0] for line in lines[:4]] == \
+        ["retime: warning [pose]"] * 2 + ["retime: warning [sliver]", "retime: warning [pose]"], lines
+    assert lines[4] == "retime: warning: the frame times are not evenly spaced", lines
+    assert lines[5:] == ["retime: 5 warning(s): 3 pose, 1 sliver, 1 other; most flipped or collapsed triangles kept: "
+                         "121, between sample 17 (frame 16) and sample 33 (frame 32)"], lines
 
 
 def test_merge_names_a_missing_chunk_and_the_task_that_writes_it(tmp_path, capsys):

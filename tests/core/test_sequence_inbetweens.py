@@ -391,11 +391,44 @@ def test_in_betweens_alike_are_said_once_with_the_worst():
                 (0.75, "pose", kept.format(4, 2), 2), (0.5, "non_finite", "1 vertex(es) came out non-finite", 0)]
     said = gap_problems(problems, 3, ("frame 1", "frame 5"))
     assert said == [("pose", "between frame 1 and frame 5, 3 of the 3 in-betweens alike, the worst at factor 0.5: "
-                             + kept.format(9, 7) + "; in-betweens alike at factors 0.25, 0.5, 0.75", 7),
+                             + kept.format(9, 7) + "; in-betweens alike at factors 0.25, 0.5, 0.75", 7, (0.25, 0.5, 0.75)),
                     ("non_finite", "between frame 1 and frame 5, the in-between at factor 0.5: 1 vertex(es) came out "
-                                   "non-finite", 0)], said
+                                   "non-finite", 0, (0.5,))], said
     assert gap_problems(problems[:1], 1, ("a", "b")) == [("pose", "between a and b, the in-between at factor 0.25: "
-                                                          + kept.format(30, 1), 1)]
+                                                          + kept.format(30, 1), 1, (0.25,))]
+
+
+def test_a_problem_has_one_shape_whether_one_in_between_or_several_have_it():
+    """The same problem in two gaps, at one in-between of one and at several of the other, is one
+    shape (the operators report it once); another problem, or the same past the keys (a pose, not
+    an in-between), is another; the worst of several is still the one said."""
+    from core.sequence_warnings import gap_problems, message_shape
+
+    kept = "it keeps {} triangle(s) flipped or collapsed (e.g. triangle {})"
+    lone = gap_problems([(0.5, "pose", kept.format(3, 40), 3)], 15, ("frame 1", "frame 17"))[0][1]
+    several, = gap_problems([(f, "pose", kept.format(n, 7 * n), n) for f, n in ((0.25, 1), (0.5, 121), (0.5625, 4))],
+                            15, ("frame 17", "frame 33"))
+    assert "the in-between at factor 0.5:" in lone and "3 of the 15 in-betweens alike, the worst at factor 0.5: " \
+        "it keeps 121" in several[1], (lone, several)
+    assert message_shape(lone + ".") == message_shape(several[1] + "."), (lone, several)
+    assert several[2:] == (121, (0.25, 0.5, 0.5625))  # the worst's count, and the factors it speaks for
+    other = gap_problems([(0.5, "pose", "3 vertices are off their path", 0)], 15, ("frame 1", "frame 17"))[0][1]
+    past = gap_problems([(1.5, "pose", kept.format(3, 40), 3)], 1, ("frame 1", "frame 17"))[0][1]
+    assert len({message_shape(m) for m in (lone, other, past)}) == 3
+
+
+def test_a_long_list_of_factors_says_how_many_and_from_where_to_where():
+    """Factors alike beyond six, not one run of those asked, are not shortened as a run ("0.125,
+    0.25, 0.375, …, 0.9375" read as every factor between): the message gives how many there are
+    and their least and greatest, and is of one shape with a shorter list."""
+    from core.sequence_warnings import gap_problems, message_shape
+
+    factors = [0.125, 0.25, 0.375, 0.6875, 0.75, 0.8125, 0.9375]  # 7 of the 15, not 0.4375-0.625 nor 0.875
+    said = gap_problems([(f, "pose", "it keeps 2 triangle(s)", 2) for f in factors], 15, ("a", "b"))[0]
+    assert said[1].endswith("; in-betweens alike at factors 0.125, 0.25, 0.375, … (7 factors from 0.125 to 0.9375)"), said
+    short = gap_problems([(f, "pose", "it keeps 2 triangle(s)", 2) for f in factors[:2]], 15, ("a", "b"))[0][1]
+    assert short.endswith("at factors 0.125, 0.25") and message_shape(short) == message_shape(said[1])
+    assert said[3] == tuple(factors)
 
 
 def test_message_shapes_mask_numbers_only():
@@ -407,7 +440,7 @@ def test_message_shapes_mask_numbers_only():
     shapes = {message_shape(said.format(*place)) for place in
               [("Key 12", "Key 13", 1.5, 7), ("Key 1", "Key 2", -0.5, 120), ("Key 017", "Key 033", 1e-05, 0),
                ("Key 2.1", "Key 2.2", -2.5e-07, 3)]}
-    assert shapes == {"between Key # and Key #, the pose at factor #: # triangle(s) (e.g. triangle #) flipped"}, shapes
+    assert shapes == {"between Key # and Key #, pose(s) at factor #: # triangle(s) (e.g. triangle #) flipped"}, shapes
     assert message_shape("samples 3-4: 0.25, 0.5, …, 0.75 of x-1") == "samples #: # of x-#"
     assert message_shape("no numbers here") == "no numbers here"
     assert message_shape("the in-between at factor 0.5: x") != message_shape("the pose at factor 0.5: x")
