@@ -14,7 +14,9 @@ round there disagree with the mesh's own continuity, and the gap warns
 
 :func:`spin_patches` cuts a pose into patches (``vertices`` float64 (n, 3), ``triangles`` int
 (m, 3)); :func:`patch_turns` reads the patches' turns between two keys, :func:`spun_shares` the
-share of each piece spun past a half turn; :class:`SpunParts` reads them per gap of a sequence.
+share of each piece spun past a half turn, :func:`turned_back` the share an in-between turns back
+the short way round (two poses: :class:`~core.two_pose_inbetweens.Interpolator`);
+:class:`SpunParts` reads them per gap of a sequence.
 """
 
 from __future__ import annotations
@@ -84,6 +86,30 @@ def spun_shares(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
     return share, largest
 
 
+def turned_back(base: np.ndarray, other: np.ndarray, pose: np.ndarray, factor: float, weights: np.ndarray,
+                owner: np.ndarray, patches: tuple, rotations: np.ndarray,
+                translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per piece (C,), the share of its weight spun past a half turn from its least-turned part
+    between key ``base`` and key ``other`` (:func:`spun_shares`) that an in-between ``pose``
+    (vertices (n, 3)) at ``factor`` (0 < factor < 1) turns back the short way round: its patches
+    turned about the piece's rigid turn axis nearer ``factor`` × their turn less a whole turn than
+    ``factor`` × their turn (more than ``min(factor, 1 − factor)`` × π from it); and that part's
+    largest turn from the least-turned one (radians). Other arguments as :func:`patch_turns`."""
+    turn, least, known, piece, mass, _ = patch_turns(base, other, weights, owner, patches, rotations, translations)
+    labels, pairs, count = patches
+    # the pose's principal turns about the same axes (none taken across the mesh: only compared)
+    at, _, seen, *_ = patch_turns(base, pose, weights, owner, (labels, pairs[:0], count), rotations, translations)
+    beyond = np.abs(turn) - least
+    back = known & seen & (beyond > np.pi) & \
+        (np.abs(_wrapped(at - factor * turn)) > min(factor, 1.0 - factor) * np.pi)
+    pieces = len(rotations)
+    total = np.maximum(np.bincount(piece[known], mass[known], minlength=pieces), np.finfo(float).tiny)
+    share = np.bincount(piece[back], mass[back], minlength=pieces) / total
+    largest = np.zeros(pieces)
+    np.maximum.at(largest, piece[back], beyond[back])
+    return share, largest
+
+
 def patch_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner: np.ndarray, patches: tuple,
                 rotations: np.ndarray, translations: np.ndarray) -> tuple:
     """How far each patch turns about its piece's rigid turn axis from key ``base`` to key
@@ -92,8 +118,8 @@ def patch_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
     ``translations`` (C, 3): the pieces' rigid fits from ``base`` to ``other``. Each patch's
     weighted centroid turns about the axis of its piece's fit by an angle the keys give the short
     way round; those angles are taken continuous from patch to patch along the tree of the
-    smallest steps between neighbours, from each tree's least-turned patch. Returns the turns (P,;
-    radians, about the axes), the least turn's size in each patch's tree (P,; its own where it is
+    smallest steps between neighbours, each tree's weight-median patch within a half turn of
+    none. Returns the turns (P,; radians, about the axes), the least turn's size in each patch's tree (P,; its own where it is
     in none), whether each is read (bool (P,): a patch near the axis, of no
     weight or of a piece that does not turn is not), each patch's piece (P,; −1 in none), its
     weight (P,) and the pieces' unit axes (C, 3)."""
@@ -124,7 +150,7 @@ def patch_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
     known &= radius > SPIN_AXIS_NEAR * spread[np.maximum(piece, 0)]
     turn = np.arctan2(np.einsum("ij,ij->i", np.cross(offsets[0], offsets[1]), a),
                       np.einsum("ij,ij->i", offsets[0], offsets[1]))
-    turn, least = _continued(turn, pairs[known[pairs[:, 0]] & known[pairs[:, 1]]], count)
+    turn, least = _continued(turn, pairs[known[pairs[:, 0]] & known[pairs[:, 1]]], count, mass)
     return turn, least, known, piece, mass, axis
 
 
@@ -133,12 +159,12 @@ def _wrapped(angles: np.ndarray) -> np.ndarray:
     return (angles + np.pi) % (2 * np.pi) - np.pi
 
 
-def _continued(turn: np.ndarray, pairs: np.ndarray, count: int) -> tuple[np.ndarray, np.ndarray]:
+def _continued(turn: np.ndarray, pairs: np.ndarray, count: int, mass: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The patches' turns (``count``,; radians, principal) taken continuous across ``pairs`` (E, 2)
     along a minimum spanning tree of their principal steps (each patch the representative nearest
-    its parent's), each tree shifted by whole turns so that its least-turned patch is within a half
-    turn of none; patches in no pair as given, and so are the trees whose continued turns leave
-    two neighbours more than a half turn apart. Also the size of each tree's least turn
+    its parent's), each tree shifted by whole turns so that its weight-median patch (``mass``
+    (``count``,)) is within a half turn of none; patches in no pair as given, and so are the trees
+    whose continued turns leave two neighbours more than a half turn apart. Also the size of each tree's least turn
     (``count``,; a patch given as is its own)."""
     out = turn.copy()
     least = np.abs(turn)
@@ -153,9 +179,14 @@ def _continued(turn: np.ndarray, pairs: np.ndarray, count: int) -> tuple[np.ndar
         order, parent = csgraph.breadth_first_order(tree, np.flatnonzero(member == linked)[0], directed=False)
         for patch in order[1:]:
             out[patch] = out[parent[patch]] + _wrapped(turn[patch] - turn[parent[patch]])
-        nearest = order[np.argmin(np.abs(out[order]))]
-        out[order] -= 2 * np.pi * np.round(out[nearest] / (2 * np.pi))
-        least[order] = np.abs(out[nearest])
+        # whole turns the tree picks up along a chain of patches turning near a half turn (a flag's
+        # free end swinging across the axis) are no turn of the rest: the shift takes the
+        # weight-median patch, not the least-turned one, within a half turn of none
+        by_turn = order[np.argsort(out[order])]
+        running = np.cumsum(mass[by_turn])
+        middle = by_turn[min(np.searchsorted(running, 0.5 * running[-1]), len(by_turn) - 1)]
+        out[order] -= 2 * np.pi * np.round(out[middle] / (2 * np.pi))
+        least[order] = np.abs(out[order]).min()
     # a tree whose turns, so continued, leave neighbours more than a half turn apart winds round
     # (a crumpled bundle's loops of patches): its way round is not read, it keeps the principal turns
     wound = np.zeros(trees, dtype=bool)

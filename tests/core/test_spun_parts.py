@@ -90,3 +90,61 @@ def test_a_hem_spun_past_a_half_turn_through_wrinkles_is_right_or_warned():
             assert right or (len(spun) == 1 and f"between {names[1]} and {names[2]}" in spun[0])
         else:
             assert right and not spun
+
+
+def test_a_chain_of_patches_turning_round_through_a_half_turn_leaves_the_rest_read_as_it_turns():
+    """Twenty patches at one distance from a piece's turn axis, joined in a chain: seventeen turn
+    57° (the piece's rigid turn), and the chain's first three 164°, 196° and 273° from there on
+    (principal −164°, 164°, −87°: a flap swinging across the far side, as a banner's free end
+    does). Taken continuous along the chain, only the first patch (273°) is past a half turn
+    beyond the least-turned (57°): a share of 1/20. Read from the first patch's principal −87°,
+    the rest came out 57° − 360° and 17/20 of the piece past a half turn."""
+    turns = np.radians([-87.0, -164.0, 164.0] + [57.0] * 17)
+    base = np.stack([np.ones(20), np.zeros(20), np.zeros(20)], axis=1)
+    other = np.stack([np.cos(turns), np.sin(turns), np.zeros(20)], axis=1)
+    patches = (np.arange(20), np.stack([np.arange(19), np.arange(1, 20)], axis=1), 20)
+    angle = np.radians(57.0)
+    rotation = np.array([[np.cos(angle), -np.sin(angle), 0.0], [np.sin(angle), np.cos(angle), 0.0], [0.0, 0.0, 1.0]])
+    share, largest = spun_shares(base, other, np.ones(20), np.zeros(20, dtype=int), patches, rotation[None],
+                                 np.zeros((1, 3)))
+    assert np.isclose(share[0], 1 / 20)
+    assert np.isclose(largest[0], np.radians(273.0 - 57.0))
+
+
+def test_two_poses_of_a_hem_spun_past_a_half_turn_through_wrinkles_are_right_or_warned():
+    """Two poses of the wrinkled skirt (5 % radial wrinkles, a new pattern per pose) whose hem
+    turns 270° on from its waist between them: two poses take the triangles' turns continuous
+    across the mesh, which the wrinkles break, and the in-between turned the hem the short way
+    round (half-way −18° against 135°) with no warning. The in-between warns, naming the poses,
+    or turns the hem the way it went (half-way within 30° of the turn halved); two poses whose hem
+    turns 60° do not warn and are right, and nor do the same poses without wrinkles, whose
+    triangles' turns the mesh carries the way the hem went (20 % of its area spun past a half
+    turn from the waist)."""
+    from core.two_pose_inbetweens import Interpolator
+
+    spins = np.radians([0.0, 60.0, 330.0])
+    poses = [_skirt(spin, 0.05, seed)[0] for seed, spin in enumerate(spins)]
+    _, triangles, _ = _skirt(0.0)
+    hem = np.arange(len(poses[0]))[-60:]
+    for first in range(2):
+        names = [f"frame {16 * first + 1}", f"frame {16 * first + 17}"]
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            x = Interpolator(poses[first], poses[first + 1], triangles, key_names=names).pose(0.5)
+        spun = [str(w.message) for w in caught if "spins on more than a half turn" in str(w.message)]
+        turned = np.angle(np.mean(np.exp(1j * (np.arctan2(x[hem, 1], x[hem, 0])
+                                               - np.arctan2(poses[first][hem, 1], poses[first][hem, 0])))))
+        truth = 0.5 * (spins[first + 1] - spins[first])
+        right = abs(np.angle(np.exp(1j * (turned - truth)))) < np.radians(30.0)
+        if first == 1:
+            assert right or (len(spun) == 1 and f"between {names[0]} and {names[1]}" in spun[0])
+        else:
+            assert right and not spun
+    smooth = [_skirt(spin)[0] for spin in spins[1:]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        x = Interpolator(*smooth, triangles).pose(0.5)
+    turned = np.angle(np.mean(np.exp(1j * (np.arctan2(x[hem, 1], x[hem, 0]) - np.arctan2(smooth[0][hem, 1],
+                                                                                            smooth[0][hem, 0])))))
+    assert abs(np.angle(np.exp(1j * (turned - 0.5 * (spins[2] - spins[1]))))) < np.radians(30.0)
+    assert not [w for w in caught if "spins on more than a half turn" in str(w.message)]
