@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .concurrency import concurrently
-from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
+from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_repair_rounds import REPAIR_RINGS
 
 
@@ -93,6 +93,19 @@ MAX_SLOPE_DISAGREEMENT = 0.25
 #: cost 15–45 % per in-between on the cheapest 10k bakes, for edge deviation already within its
 #: bound there (numbers in docs/inbetweens.md, *Design numbers*).
 TRIMMED_TOLERANCE_BATCH = FULL_SAMPLE_BATCH
+#: In a gap above the tolerance's floor predicted from two solved factors (keys 5–8 frames apart),
+#: a middle prediction farther from the interpolated metric than the solved ones reached by more
+#: than this many times the keys' mean relative edge change has every prediction of the gap solved
+#: in its place (:func:`_stretched_predictions`): an in-between's metric lies between the keys', so
+#: a pose off it by twice the whole key-to-key change is stretched by the correction polynomial,
+#: not by the motion. Stiff cloth whose triangles turn far between keys 8 apart (Blender's denim
+#: and leather presets): a 12k denim flag's middle predictions 2.5 and 5.5 × its change past the
+#: solved ones' misfit in two of six gaps, a leather tablecloth's 7.1 ×; the benchmark cloths at
+#: most 1.6 × (the balloon's first gap). The whole gap, not only the predictions that are off: the
+#: denim flag's frames otherwise alternate between solves and predictions (largest frame-to-frame
+#: jump 3.18 × the simulation's with the off ones solved, 0.91 × with the gap; numbers in
+#: docs/inbetweens.md, *All the in-betweens of a gap at once*).
+STRETCHED_PREDICTION_CHANGES = 2.0
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: A prediction that no repair cleans (or, in a rough gap, that keeps more defects than the solved
@@ -248,16 +261,49 @@ def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | N
 
 
 def _solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
-    """In a gap whose keys are of one metric (the tolerance at its floor, see :func:`_off_metric`),
-    replaces in ``results`` {factor: (positions, problem)} the ``predicted`` factors' poses that end
-    off the metric the ``solved`` ones reached by their solves (unless that trades a clean
-    prediction for a solve with defects)."""
-    if gap.tolerance > METRIC_TOLERANCE:
+    """Replaces in ``results`` {factor: (positions, problem)} poses at ``predicted`` factors by
+    their solves: in a gap whose keys are of one metric (the tolerance at its floor), those that
+    end off the metric the ``solved`` ones reached (:func:`_off_metric`); in a gap above the floor
+    predicted from two solved factors, every one where the middle prediction is stretched
+    (:func:`_stretched_predictions`). A prediction that kept defects is replaced only where its
+    solve keeps no more, a clean one only by a clean solve."""
+    if gap.tolerance <= METRIC_TOLERANCE:
+        off = _off_metric(gap, {s: results[s][0] for s in solved}, {s: results[s][0] for s in predicted})
+    elif len(solved) == 2:
+        off = _stretched_predictions(gap, results, solved, predicted)
+    else:
         return
-    off = _off_metric(gap, {s: results[s][0] for s in solved}, {s: results[s][0] for s in predicted})
     for s, pose in zip(off, _per_factor(gap, lambda s: _solved_instead(gap, s), off)):
-        if pose[1] is None or results[s][1] is not None:  # not a clean prediction for a solve with defects
+        if pose[1] is None:
             results[s] = pose
+        elif results[s][1] is not None and _defect_count(gap, s, pose[0]) <= _defect_count(gap, s, results[s][0]):
+            results[s] = pose  # both keep defects: the solve where it keeps no more
+
+
+def _defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
+    """The flipped and collapsed triangles of positions ``x`` (n, 3) at factor ``s`` (``scale``:
+    the gap's ``area_scale(s)``, if made already)."""
+    scale = gap.area_scale(s) if scale is None else scale
+    return int(gap.repair.defects(x, s, None, None, scale=scale).sum())
+
+
+def _stretched_predictions(gap, results: dict, solved: list, predicted: list) -> list:
+    """All the ``predicted`` factors of ``results`` {factor: (positions, problem)} if the prediction
+    nearest the middle of the gap (the farthest from both ``solved`` factors: the cubic
+    correction's bulge) is farther from the interpolated metric than the two solved ones reached
+    by more than :data:`STRETCHED_PREDICTION_CHANGES` × the keys' mean relative edge change (the
+    gap's tolerance over :data:`~core.inbetween_fit.KEY_VARIATION_FRACTION` above its floor);
+    else none. The solved ones' misfits are measured only where the middle's exceeds that
+    excess."""
+    excess = STRETCHED_PREDICTION_CHANGES * gap.tolerance / KEY_VARIATION_FRACTION
+    middle = min(predicted, key=lambda s: abs(s - 0.5))
+    misfit = _misfit(gap, middle, results[middle][0])
+    if misfit <= excess:  # not off, whatever the solved reached (a misfit is not negative)
+        return []
+    limit = max(_misfit(gap, s, results[s][0]) for s in solved) + excess
+    if misfit <= limit:
+        return []
+    return list(predicted)
 
 
 def _misfit(gap, s: float, x: np.ndarray) -> float:
@@ -520,7 +566,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
         return result
 
     def count(pose):
-        return int(gap.repair.defects(pose, s, None, None, scale=scale).sum())
+        return _defect_count(gap, s, pose, scale)
 
     kept = count(result[0])  # once: it decides the solve and then weighs against it
     if rings is not None and kept <= allowed:

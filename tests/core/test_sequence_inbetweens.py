@@ -1235,3 +1235,80 @@ def test_each_pair_of_keys_is_fitted_rigidly_once_and_keeping_the_fits_changes_n
     anew = [again.poses(k, factors) for k in range(len(again))]
     assert len(fitted) > len(set(fitted))  # the gaps around do ask again
     assert all(np.array_equal(a, b) for a, b in zip(kept, anew))
+
+
+@pytest.mark.parametrize("changes, solved", [(3.0, True), (1.0, False)])
+def test_predictions_stretched_past_twice_the_keys_change_are_solved(monkeypatch, strip, changes, solved):
+    """Keys 8 frames apart whose edges change (a strip bending as it widens 2 % per key): two
+    in-betweens are solved, five predicted. Predictions made ``changes`` × the keys' mean edge
+    change longer (scaled about the corner that stays still: every edge that much farther from
+    the metric the solves reached) are solved in their place past
+    :data:`~core.inbetween_prediction.STRETCHED_PREDICTION_CHANGES` (2) ×, each the pose solved at
+    its factor, and kept below it."""
+    from core import inbetween_prediction
+    from core.inbetween_fit import KEY_VARIATION_FRACTION, METRIC_TOLERANCE
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.8, 1.6)]
+    for i, x in enumerate(keys):
+        x[:, 1] *= 1.0 + 0.02 * i
+    factors = list(np.arange(1, 8) / 8)
+    seq = SequenceInterpolator(keys, tri)
+    gap = seq._gap(0)
+    assert gap.tolerance > METRIC_TOLERANCE  # the keys' edges change: the tolerance above its floor
+    change = gap.tolerance / KEY_VARIATION_FRACTION
+    predicted_factors = [s for s in factors if s not in (0.25, 0.75)]
+    real = inbetween_prediction._predicted
+
+    def stretched(gap, s, correction, rings=None, allowed=None):
+        x, problem = real(gap, s, correction, rings, allowed)
+        return x[0] + (1.0 + changes * change) * (x - x[0]), problem  # about the corner that stays still
+
+    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
+    poses = dict(zip(factors, seq.poses(0, factors)))
+    for s in predicted_factors:
+        alone = seq.pose(0, s)
+        deviation = _edge_deviation(poses[s], alone, tri).mean()
+        if solved:
+            np.testing.assert_allclose(poses[s], alone, atol=1e-9)
+        else:  # the stretched prediction kept: its edges that much longer than the solve's
+            assert deviation > 0.5 * changes * change
+
+
+def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_more(monkeypatch, strip):
+    """Keys of one metric (a strip bending without stretch, the tolerance at its floor), in-betweens
+    8 frames apart: predictions made 1 % longer along the strip (ten tolerances) that keep a
+    defect no repair removed (said by their problem) are solved in their place only where the
+    solve keeps no more defects: a solve with triangles collapsed (two vertices merged) leaves
+    the prediction as it was."""
+    from core import inbetween_prediction
+    from core.inbetween_fit import METRIC_TOLERANCE
+
+    flat, tri = strip
+    factors = list(np.arange(1, 8) / 8)
+    seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
+    assert seq._gap(0).tolerance == METRIC_TOLERANCE
+    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction._solved_instead
+    made = {}
+
+    def stretched(gap, s, correction, rings=None, allowed=None):
+        x, _ = real_predicted(gap, s, correction, rings, allowed)
+        made[s] = x.copy()  # stretched along x from the edge x = 0, which stays still
+        made[s][:, 0] = x[0, 0] + (1.0 + 10.0 * METRIC_TOLERANCE) * (x[:, 0] - x[0, 0])
+        return made[s], "kept a defect"
+
+    def collapsed(gap, s):
+        x, _ = real_solve(gap, s)
+        x = x.copy()
+        a, b = tri[len(tri) // 2, :2]
+        x[a] = x[b]  # the triangles on that edge collapsed
+        return x, "kept defects"
+
+    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
+    monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        poses = dict(zip(factors, seq.poses(0, factors)))
+    assert set(made) == {s for s in factors if s not in (0.25, 0.75)}
+    for s, x in made.items():  # the prediction, in the caller's frame (the sequence's origin added back)
+        np.testing.assert_allclose(poses[s] - x, np.broadcast_to(poses[s][0] - x[0], x.shape), atol=1e-12)
