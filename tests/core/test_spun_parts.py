@@ -31,6 +31,18 @@ def _skirt(spin: float, wrinkle: float = 0.0, seed: int = 0, rings: int = 30, si
     return x.reshape(-1, 3), triangles, turn.ravel()
 
 
+
+def _spun_and_right(pose, reference: np.ndarray, hem: np.ndarray, truth: float) -> tuple[list[str], bool]:
+    """The spun-part warnings ``pose()`` gives, and whether the hem's vertices ``hem`` of the pose
+    turn about the vertical from ``reference`` (n, 3) by ``truth`` (radians) to within 30°."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        x = pose()
+    spun = [str(w.message) for w in caught if "spins on more than a half turn" in str(w.message)]
+    turned = np.angle(np.mean(np.exp(1j * (np.arctan2(x[hem, 1], x[hem, 0])
+                                           - np.arctan2(reference[hem, 1], reference[hem, 0])))))
+    return spun, bool(abs(np.angle(np.exp(1j * (turned - truth)))) < np.radians(30.0))
+
 def test_patches_of_a_tube_twisted_past_a_half_turn_read_its_rings_turns():
     """A tube whose hem is twisted 270° from its waist (the principal angle of its lower rings is
     the other way round, from −180° to −90°): every patch's turn read across the mesh lies within
@@ -78,14 +90,8 @@ def test_a_hem_spun_past_a_half_turn_through_wrinkles_is_right_or_warned():
     sequence = SequenceInterpolator(keys, triangles, start="keys", key_names=names)
     hem = np.arange(len(keys[0]))[-60:]
     for gap in range(3):
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ShapeDifferenceWarning)
-            x = sequence.pose(gap, 0.5)
-        spun = [str(w.message) for w in caught if "spins on more than a half turn" in str(w.message)]
-        turned = np.angle(np.mean(np.exp(1j * (np.arctan2(x[hem, 1], x[hem, 0])
-                                               - np.arctan2(keys[gap][hem, 1], keys[gap][hem, 0])))))
-        truth = 0.5 * (spins[gap + 1] - spins[gap])
-        right = abs(np.angle(np.exp(1j * (turned - truth)))) < np.radians(30.0)
+        spun, right = _spun_and_right(lambda: sequence.pose(gap, 0.5), keys[gap], hem,
+                                      0.5 * (spins[gap + 1] - spins[gap]))
         if gap == 1:
             assert right or (len(spun) == 1 and f"between {names[1]} and {names[2]}" in spun[0])
         else:
@@ -128,14 +134,9 @@ def test_two_poses_of_a_hem_spun_past_a_half_turn_through_wrinkles_are_right_or_
     hem = np.arange(len(poses[0]))[-60:]
     for first in range(2):
         names = [f"frame {16 * first + 1}", f"frame {16 * first + 17}"]
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ShapeDifferenceWarning)
-            x = Interpolator(poses[first], poses[first + 1], triangles, key_names=names).pose(0.5)
-        spun = [str(w.message) for w in caught if "spins on more than a half turn" in str(w.message)]
-        turned = np.angle(np.mean(np.exp(1j * (np.arctan2(x[hem, 1], x[hem, 0])
-                                               - np.arctan2(poses[first][hem, 1], poses[first][hem, 0])))))
-        truth = 0.5 * (spins[first + 1] - spins[first])
-        right = abs(np.angle(np.exp(1j * (turned - truth)))) < np.radians(30.0)
+        spun, right = _spun_and_right(
+            lambda: Interpolator(poses[first], poses[first + 1], triangles, key_names=names).pose(0.5),
+            poses[first], hem, 0.5 * (spins[first + 1] - spins[first]))
         if first == 1:
             assert right or (len(spun) == 1 and f"between {names[0]} and {names[1]}" in spun[0])
         else:
