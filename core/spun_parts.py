@@ -205,17 +205,21 @@ class SpunParts:
 
     _spin_patches = None  # spin_patches of the first key, made on first use
 
+    def _key_patches(self) -> tuple:
+        """:func:`spin_patches` of the first key (made once, on first use)."""
+        with self._cache_lock:
+            if self._spin_patches is None:
+                self._spin_patches = spin_patches(self._raw[0], self._topo.triangles)
+        return self._spin_patches
+
     def _spun(self, gap: int, skipped: np.ndarray) -> tuple[float, float]:
         """The largest share of a piece's area spun past a half turn from the rest of it between
         key ``gap`` and the next, and that piece's largest turn from its least-turned part
         (radians), over the pieces not ``skipped`` (bool (C,): the gap takes their turns continuous
         across the mesh, or warns that they turn past a half turn across a fold)."""
-        with self._cache_lock:
-            if self._spin_patches is None:
-                self._spin_patches = spin_patches(self._raw[0], self._topo.triangles)
         rotations, translations, _ = self._fits(gap, gap + 1)
         share, largest = spun_shares(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
-                                     self._spin_patches, rotations, translations)
+                                     self._key_patches(), rotations, translations)
         share[skipped] = 0.0
         worst = int(np.argmax(share))
         return float(share[worst]), float(largest[worst])

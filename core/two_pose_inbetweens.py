@@ -32,7 +32,7 @@ from .sequence_inbetweens import SequenceInterpolator
 from .rotation_continuity import jumping_pairs
 from .sequence_turn_readings import TURNED_PART_SHARE
 from .sequence_warnings import _warn
-from .spun_parts import spin_patches, turned_back
+from .spun_parts import turned_back
 
 __all__ = ["interpolate", "Interpolator"]
 
@@ -65,6 +65,7 @@ class Interpolator:
         self._sequence._anchored = True
         self._whole = None  # the second fit's (made when first asked)
         self._log = {}  # the log-stretches' fits', by whether their rotations are whole (made when first asked)
+        self._jumping = None  # per piece, whether its turns keep a jump (made when first asked)
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         self._edges = edges
         self._squared = [self._squared_lengths(p) for p in poses]
@@ -72,28 +73,29 @@ class Interpolator:
         self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
 
     def _whole_sequence(self) -> SequenceInterpolator:
-        """The same keys with every piece's rotations taken whole; it shares the first's keys and
-        topology (its gap, and the gap's anchored system, are its own)."""
+        """The same keys with every piece's rotations taken whole (:meth:`_variant`)."""
         if self._whole is None:
-            whole = copy.copy(self._sequence)
-            whole._whole_rotations = True
-            # its own gaps and their warnings (a turn reads otherwise with whole rotations)
-            whole._gaps, whole._pending, whole._cache_lock = OrderedDict(), {}, threading.RLock()
-            whole._gap_messages = {}
-            self._whole = whole
+            self._whole = self._variant(self._sequence, _whole_rotations=True)
         return self._whole
 
     def _log_sequence(self, whole: bool) -> SequenceInterpolator:
         """The same keys (with every piece's rotations taken whole, or not) with the stretches
-        between them from the log spline (:data:`LOG_METRIC_FIT`); it shares the first's keys and
-        topology (its gap, and the gap's anchored system, are its own)."""
+        between them from the log spline (:data:`LOG_METRIC_FIT`; :meth:`_variant`)."""
         if whole not in self._log:
-            log = copy.copy(self._whole_sequence() if whole else self._sequence)
-            log._log_metric = True
-            log._gaps, log._pending, log._cache_lock = OrderedDict(), {}, threading.RLock()
-            log._gap_messages = {}
-            self._log[whole] = log
+            self._log[whole] = self._variant(self._whole_sequence() if whole else self._sequence, _log_metric=True)
         return self._log[whole]
+
+    @staticmethod
+    def _variant(source: SequenceInterpolator, **flags) -> SequenceInterpolator:
+        """A copy of ``source`` with its class flags ``flags`` set: it shares the keys and topology,
+        and has its own gaps (with their anchored systems) and their warnings (a turn reads
+        otherwise with whole rotations)."""
+        variant = copy.copy(source)
+        for name, value in flags.items():
+            setattr(variant, name, value)
+        variant._gaps, variant._pending, variant._cache_lock = OrderedDict(), {}, threading.RLock()
+        variant._gap_messages = {}
+        return variant
 
     def _chattering(self) -> bool:
         """Whether every piece of the mesh deforms (none moves rigidly:
@@ -211,9 +213,6 @@ class Interpolator:
         the part goes the short way round (a twirled 40k skirt, poses 16 frames apart, its hem
         spun 219° on from its waist: 1.136 × the blend's error, 95 % of it over 90° off)."""
         sequence = self._sequence
-        with sequence._cache_lock:
-            if sequence._spin_patches is None:
-                sequence._spin_patches = spin_patches(sequence._raw[0], sequence._topo.triangles)
         rotations, translations, _ = sequence._fits(0, 1)
         origin = 0.0 if sequence._origin is None else sequence._origin
         topo = sequence._topo
@@ -222,14 +221,8 @@ class Interpolator:
             welded[sequence._copies] = x
             x = welded
         share, spun = turned_back(sequence._raw[0], sequence._raw[1], x - origin, factor, topo.weights,
-                                  topo.vertex_owner, sequence._spin_patches, rotations, translations)
-        # a piece whose turns the gap takes continuous across the mesh with no jump left carries the
-        # part the way it went (a sheet rolled 355° into a tube: its patches' centroids turn about
-        # the fit's axis unlike the roll, so their reading is no guide there)
-        edges = sequence._edge_pairs
-        pieces = topo.triangle_component
-        jumping = jumping_pairs(sequence._gap(0).relatives[2].rotvec, edges)
-        share[np.bincount(pieces[edges[jumping, 0]], minlength=len(share)) == 0] = 0.0
+                                  topo.vertex_owner, sequence._key_patches(), rotations, translations)
+        share[~self._jumping_pieces(len(share))] = 0.0
         worst = int(np.argmax(share))
         if share[worst] <= TURNED_PART_SHARE:
             return []
@@ -239,6 +232,19 @@ class Interpolator:
                  "of it, and the in-between turns it back the short way round, against the rest (a pose between "
                  "the two, interpolated with them as a sequence, tells which way it went; read from patches of "
                  "the mesh turning about the piece's rigid turn axis)", 0, (factor,))]
+
+    def _jumping_pieces(self, pieces: int) -> np.ndarray:
+        """Per piece (bool (``pieces``,)), whether the poses' triangles' turns, taken continuous
+        across the mesh, keep a jump past a half turn between neighbours in it (made once: the
+        poses' alone). A piece with none carries a part spun on the way it went (a sheet rolled
+        355° into a tube: its patches' centroids turn about the fit's axis unlike the roll, so
+        their reading is no guide there): :meth:`_spun_back` leaves it out."""
+        if self._jumping is None:
+            sequence = self._sequence
+            edges = sequence._edge_pairs
+            jumping = jumping_pairs(sequence._gap(0).relatives[2].rotvec, edges)
+            self._jumping = np.bincount(sequence._topo.triangle_component[edges[jumping, 0]], minlength=pieces) > 0
+        return self._jumping
 
     def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray,
                  said: list[tuple[str, str, int, tuple[float, ...]]],
