@@ -26,9 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
-import warnings
 
-from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning
+from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning, warn
 from .offset_surface import default_offset
 from .reference_shape import (OFFSET_RANGE, PRECISION_TOLERANCE, RecoveredMetric, ReferenceShape, ShapeDifferences,
                               differences_reference)
@@ -198,13 +197,13 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
     worst = int(np.argmax(error))
     if error[worst] > REALIZATION_TOLERANCE:
         a, b = (int(reference.used_vertices[i]) for i in reference.topology.edges[worst])
-        warnings.warn(
+        warn(
             f"The reconstructed pose misses the edge lengths the differences describe: edge ({a}, {b}) "
             f"is {100 * error[worst]:.3g} % off ({int(np.count_nonzero(error > REALIZATION_TOLERANCE))} "
             f"edges beyond {100 * REALIZATION_TOLERANCE:g} %). The embedding could not realize this "
             "pose (an extreme stretch, a sharp fold, or lengths beyond floating-point precision); "
             "check the result.",
-            ShapeDifferenceWarning,
+            "fit",
             stacklevel=2,
         )
 
@@ -259,12 +258,12 @@ def _warn_bending_free(reference: ReferenceShape, placed: np.ndarray) -> None:
             f"{either_side.size} vertex(es) (first: {int(reference.used_vertices[either_side[0]])}) that could sit "
             f"on the other side of their neighbours, up to {100 * move[either_side].max() / diagonal:.2g} % of the "
             f"diagonal away, with their edges changing by less than {100 * REALIZATION_TOLERANCE:g} %")
-    warnings.warn(
+    warn(
         "The pose was rebuilt from intrinsic differences only (use_extrinsic=False), which fix its edge "
         f"lengths but not how it bends: the mesh has {' and '.join(causes)}. The pose has the target's edge "
         "lengths, bent as near the base as they allow, and may differ from the target there; the extrinsic "
         "differences (use_extrinsic=True) determine it.",
-        ShapeDifferenceWarning,
+        "undetermined",
         stacklevel=3,
     )
 
@@ -272,12 +271,12 @@ def _warn_bending_free(reference: ReferenceShape, placed: np.ndarray) -> None:
 def _warn_undetermined(choices: int) -> None:
     """ShapeDifferenceWarning if the embedding had to pick a mirror image without evidence."""
     if choices:
-        warnings.warn(
+        warn(
             f"The differences leave part of the pose undetermined: {choices} mirror choice(s) of the "
             "embedding had no length to decide them (e.g. a fold along the only edge of a two-triangle "
             "strip, whose folded and flat shapes have the same lengths). That part may come back "
             "mirrored or flat; more triangles around the fold make it determined.",
-            ShapeDifferenceWarning,
+            "undetermined",
             stacklevel=3,
         )
 

@@ -14,8 +14,7 @@ plays the motion at ``--speed`` (see :mod:`core.retime`). ``--chunk I/N`` (1-bas
 chunk files into exactly (bit for bit) the file one process writes; given the retime's input
 and settings (``--retime``), it refuses chunks of any other retime, such as another job's written
 into a shared chunk folder. Progress goes to stderr; warnings print one line each
-(``retime: warning [pose]: …`` with the in-between warning's kind, ``retime: warning: …`` for
-others; exit status 0) and a line of how many of each kind there were at the end
+(``retime: warning [pose]: …`` with the warning's kind, :data:`core.errors.KINDS`; exit status 0) and a line of how many of each kind there were at the end
 (``retime: 3 warning(s): 3 pose; most flipped or collapsed triangles kept: 121, between …``),
 errors one line and exit with status 2.
 """
@@ -36,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ShapeDifferenceError, ShapeDifferenceWarning
+from .errors import ShapeDifferenceError, ShapeDifferenceWarning, warn
 from .obj_file import read_obj
 from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_pc2_header, read_point_cache,
                           refuse_overwriting, unwritable, write_pc2)
@@ -248,8 +247,8 @@ def _retime(args) -> int:
         print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
     if cache.times is not None and not _even_times(cache.times):
         # said as the core's warnings are (_warnings_as_lines), and counted with them
-        warnings.warn(ShapeDifferenceWarning(f"the frame times of '{args.cache}' are not evenly spaced (or not "
-                                             "finite); its frames are retimed as if they were"))
+        warn(f"the frame times of '{args.cache}' are not evenly spaced (or not finite); its frames are retimed "
+             "as if they were", "frame_times")
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -313,9 +312,9 @@ def _say(text: str) -> None:
 
 def _warning(command: str, text: str, kind: str | None = None) -> None:
     """Print the warning ``text`` on stderr as one line a farm's log search finds,
-    ``<command>: warning: <text>``, or ``<command>: warning [<kind>]: <text>`` for an in-between's
-    warning of that kind (:data:`core.sequence_warnings.KINDS`): the output is written (exit status
-    0), but worth a look."""
+    ``<command>: warning [<kind>]: <text>`` for a warning of that kind (:data:`core.errors.KINDS`;
+    ``<command>: warning: <text>`` for a warning without one, which the core does not give): the
+    output is written (exit status 0), but worth a look."""
     print(f"{command}: warning{f' [{kind}]' if kind else ''}: {' '.join(text.split())}", file=sys.stderr, flush=True)
 
 

@@ -22,7 +22,6 @@ and :attr:`EmbeddingResult.residual` reports how far from realizable the lengths
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +29,7 @@ import numpy as np
 from .concurrency import concurrently
 from .edge_length_fit import (DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, INITIAL_DAMPING, STAGNATION, EdgeLengthFit,
                               Fit, relative_residuals, rms)
-from .errors import RecoveryError, ShapeDifferenceWarning
+from .errors import RecoveryError, warn
 from .geometry import connected_components
 from .hinge_frames import hinge_frame_embedding
 from .mesh_topology import MeshTopology
@@ -270,11 +269,11 @@ class _Embedded:
 
 def _warn_unconverged(x, edges, squared, iterations):
     """The public embedders' warning for a fit that stopped before converging."""
-    warnings.warn(
-        f"Embedding: Levenberg–Marquardt stopped after {iterations} iterations without converging "
-        f"(RMS relative length residual {rms(relative_residuals(x, edges, squared)):.3g}); the result "
-        "is the best fit found. Increase max_iterations or check the recovered lengths.",
-        ShapeDifferenceWarning,
+    warn(
+        f"The pose's edges miss the recovered lengths by {rms(relative_residuals(x, edges, squared)):.3g} "
+        "(RMS, relative) in the best fit found: check the result, or raise max_iterations (the embedding's "
+        f"Levenberg–Marquardt stopped after {iterations} iterations without converging).",
+        "fit",
         stacklevel=3,
     )
 

@@ -6,6 +6,8 @@ so that the Blender operators can show the message to the user unchanged.
 
 from __future__ import annotations
 
+import warnings
+
 
 class ShapeDifferenceError(Exception):
     """Base class of every error raised by :mod:`core`."""
@@ -25,9 +27,9 @@ class ShapeDifferenceWarning(UserWarning):
     """A result was computed, but through a documented fallback (e.g. an interpolated metric that
     is not exactly realizable); the message says which and why.
 
-    ``kind``: what an in-between's warning is about, one of
-    :data:`core.sequence_warnings.KINDS` (``"pose"``, ``"turn"``, ``"joint"``, …), for a pipeline
-    to filter on (``w.message.kind`` of a recorded warning); None for the other warnings.
+    ``kind``: what the warning is about, one of :data:`KINDS` (``"pose"``, ``"turn"``,
+    ``"seam"``, ``"fit"``, …), for a pipeline to filter on (``w.message.kind`` of a recorded
+    warning); every warning the core gives has one (:func:`warn`).
     ``defects``: how many flipped or collapsed triangles the in-between it is about keeps (of the
     in-betweens alike it speaks for, the worst); 0 where it keeps none or is about something else.
     ``gap``: the names of the two keys of the gap it is about, as the message says them (None where
@@ -43,3 +45,52 @@ class ShapeDifferenceWarning(UserWarning):
 class MeshIndexError(MeshError, IndexError):
     """An index argument (e.g. a sequence's ``gap_index``) is out of range or not a whole number.
     Both a :class:`MeshError` and an ``IndexError``."""
+
+
+#: What each warning of the core is about (:attr:`ShapeDifferenceWarning.kind`): the one list,
+#: documented in docs/errors.md.
+KINDS = {
+    # the in-betweens, retiming and exaggeration (core.sequence_warnings words them)
+    "pose": "an in-between keeps flipped or collapsed triangles, or is a simpler fallback, or has triangles "
+            "facing against the motion, or pinned vertices off their path",
+    "non_finite": "a numerical failure: pieces of an in-between are the keys' linear blend",
+    "turn": "a part turns so far between the keys that they do not tell which way round it went",
+    "joint": "rigid pieces that move as jointed ones do, but are not placed as one",
+    "sliver": "triangles so thin that the keys' coordinate rounding reshapes them",
+    "mirror": "a piece is its own mirror image from one key to the next",
+    "extrapolation": "an exaggerated or reversed pose stretches or crushes triangles",
+    # any computation
+    "seam": "pieces touching along seams that cannot be joined there, that open, fold or hinge there",
+    "truncated": "a truncated basis (k_M) is too small for the deformation: areas or edge lengths not recovered",
+    "fit": "a solver stopped before converging, or its result misses what it was fitted to: the best fit is returned",
+    "precision": "a triangle or an offset so far out of scale that round-off moves the recovered edge lengths",
+    "inconsistent": "differences no mesh has exactly (edited, blended or noisy): the closest fit is returned",
+    "undetermined": "the differences leave part of the pose open (how it bends, a mirror image)",
+    "same_poses": "the poses have the same shape differences: no spread",
+    "correspondence": "a transfer's map lays the meshes on each other only in part, strays or turns parts inside out",
+    "target": "a transfer's target mesh has triangles, edges or vertices it cannot carry, or too few vertices",
+    "frame_times": "a point cache's frame times are not evenly spaced",
+}
+
+
+def shape_warning(message: str, kind: str) -> ShapeDifferenceWarning:
+    """A :class:`ShapeDifferenceWarning` saying ``message``, its :attr:`~ShapeDifferenceWarning.kind`
+    ``kind`` (a key of :data:`KINDS`; another is a mistake of the code: ``ValueError``)."""
+    warning = ShapeDifferenceWarning(message)
+    warning.kind = kind
+    _check_kind(warning)
+    return warning
+
+
+def warn(message: str | ShapeDifferenceWarning, kind: str | None = None, stacklevel: int = 1) -> None:
+    """Issue :func:`shape_warning` ``(message, kind)``, or the warning ``message`` made by it (its
+    other attributes set), as ``warnings.warn(…, stacklevel=stacklevel)`` would from the caller:
+    the one place the core warns, so that every warning has a kind."""
+    warning = shape_warning(message, kind) if isinstance(message, str) else message
+    _check_kind(warning)
+    warnings.warn(warning, stacklevel=stacklevel + 1)
+
+
+def _check_kind(warning: ShapeDifferenceWarning) -> None:
+    if warning.kind not in KINDS:
+        raise ValueError(f"{warning.kind!r} is no kind of warning (core.errors.KINDS)")

@@ -17,12 +17,11 @@ Props. 1–2, appendix): two sparse linear solves.
 
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import RecoveryError, ShapeDifferenceWarning
+from .errors import RecoveryError, warn
 from .geometry import heron
 from .inner_products import ProductAssembler
 from .mesh_topology import MeshTopology
@@ -218,11 +217,11 @@ def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference,
                 f"lengths, {misfit:.2g} off its entries, break the triangle inequality in "
                 f"{int(broken.sum())} of {broken.size} triangles."
             )
-        warnings.warn(
-            f"The conformal shape difference of the {what} is not exactly that of a mesh with the "
-            f"recovered triangle areas (differences edited, blended or noisy): the edge lengths are "
-            f"the closest fit, {misfit:.2g} off its entries (a mesh's differences: round-off).",
-            ShapeDifferenceWarning,
+        warn(
+            f"The differences of the {what} are not exactly those of any mesh (edited, blended or noisy): "
+            f"the edge lengths returned fit them closest, {misfit:.2g} off (a mesh's own differences: "
+            "round-off) (the conformal difference does not fit the recovered triangle areas).",
+            "inconsistent",
             stacklevel=4,
         )
     return best

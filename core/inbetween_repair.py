@@ -129,9 +129,10 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         if looser is not None and self.problem(looser, s, frames, stretch) is None:
             return looser, None, 0, False
         if gap.use_extrinsic and x0 is not x and self.problem(x0, s, frames, stretch) is None:
-            return x0, (f"{problem}, and no repair removed them all: the in-between is the first solve "
-                        "instead, its edge lengths less exact; keys closer together here tell the motion better "
-                        "(the interpolated rotation field's Poisson solve without metric fit)"), 0, False
+            return x0, (f"it is the first solve, with no triangle flipped or collapsed but its edge "
+                        f"lengths less exact (its fit: {problem}, which no repair removed); keys closer together "
+                        "here tell the motion better (the interpolated rotation field's Poisson solve without "
+                        "metric fit)"), 0, False
         if best is not None and (self.in_sequence(s) or not 0.0 <= s <= 1.0):
             # keeps the metric, as its neighbours in time do; beyond the keys the "blend" is the
             # linear extrapolation, which lengthens whatever turns (×2 of a 100° elbow: a forearm
@@ -153,19 +154,19 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
                 "a fit near the keys' linear blend"
             tail = "the linear blend" if unmoved else "the interpolated metric fitted near the linear blend"
             if self.problem(y, s, None, stretch) is None:
-                return y, (f"{problem}, and no repair removed them all: the in-between is {fitted} instead, "
-                           f"which may shorten edges where the cloth turns; keys closer together here tell the "
-                           f"motion better ({tail})"), 0, True
+                return y, (f"it is {fitted}, with no triangle flipped or collapsed but edges that may "
+                           f"be short where the cloth turns (its fit: {problem}, which no repair removed); keys "
+                           f"closer together here tell the motion better ({tail})"), 0, True
             if not (folds | self.crushed(blend, stretch)).any():
-                return blend, (f"{problem}, and no repair removed them all nor did a fit near the keys' linear "
-                               "blend: the in-between is the linear blend, which shortens edges where the cloth "
-                               "turns; keys closer together here tell the motion better (the metric fit near the "
-                               "blend failed too: returned the linear blend)"), 0, True
+                return blend, (f"it is the keys' linear blend, with no triangle flipped or collapsed but "
+                               f"edges short where the cloth turns (its fit: {problem}, which neither a repair nor "
+                               "a fit near the blend removed); keys closer together here tell the motion better "
+                               "(the metric fit near the blend failed too: returned the linear blend)"), 0, True
             count = int(self.defects(y, s, frames, stretch).sum())
             if best is None or count < best[0]:
-                return y, (f"{problem}, and no repair or fallback removed them all: the in-between is {fitted}, "
-                           f"which has the fewest ({count} flipped or collapsed triangle(s)); keys closer "
-                           f"together here tell the motion better ({tail}, which has the fewest)"), count, True
+                return y, (f"it is {fitted}, which keeps {count} triangle(s) flipped or collapsed, the "
+                           f"fewest of its fits (its fit: {problem}; no repair or fallback removed them all); keys "
+                           f"closer together here tell the motion better ({tail}, which has the fewest)"), count, True
         # No candidate is free of defects: the metric fit with the fewest rather than a candidate
         # that gives up the metric (the blend shortens edges by several percent: a visible pop).
         return best[1], self.kept_message(problem, best[0]), best[0], False
@@ -203,10 +204,10 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
             return result
         gap.outcomes[s] = Outcome(count, True)
         return y, None if not count else (
-            f"{count} triangle(s) flipped or collapsed in a fit near the keys' linear blend, which keeps the edge "
-            "lengths better than the in-between's own fit; keys closer together here tell the motion better (the "
-            "fit ended farther from the interpolated metric than the blend: returned the interpolated metric "
-            "fitted near the linear blend)")
+            f"it is a fit near the keys' linear blend, which keeps {count} triangle(s) flipped or "
+            "collapsed and the edge lengths better than its own fit; keys closer together here tell the motion "
+            "better (the fit ended farther from the interpolated metric than the blend: returned the interpolated "
+            "metric fitted near the linear blend)")
 
     def crushed(self, x: np.ndarray, stretch: np.ndarray) -> np.ndarray:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the

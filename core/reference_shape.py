@@ -10,13 +10,12 @@ embeddings.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
-from .errors import MeshError, ShapeDifferenceWarning
+from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
@@ -309,12 +308,12 @@ class ReferenceShape:
         if loss > PRECISION_TOLERANCE:
             corners = self.triangles[worst]  # same order as the compact topology's
             edges = np.sqrt(squared[worst])
-            warnings.warn(
+            warn(
                 f"{name}: triangle {worst} (vertices {corners.tolist()}) has edges from {edges.min():.3g} to "
                 f"{edges.max():.3g} long (or is nearly flat); recovering its edge lengths from the "
                 f"differences loses precision (relative error up to about {loss:.1g}). The pose may be "
                 "an extreme stretch or a stray vertex: check it, or remesh.",
-                ShapeDifferenceWarning,
+                "precision",
                 stacklevel=stacklevel + 1,
             )
 
@@ -323,11 +322,11 @@ class ReferenceShape:
         ratio = self.offset / mean_edge
         low, high = OFFSET_RANGE
         if not low <= ratio <= high:
-            warnings.warn(
+            warn(
                 f"offset {self.offset:g} is {ratio:.3g} × the mean edge length {mean_edge:.3g}; "
                 f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
                 "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
-                ShapeDifferenceWarning,
+                "precision",
                 stacklevel=stacklevel + 1,
             )
 
@@ -437,25 +436,25 @@ class ReferenceShape:
         placed = align_components(positions, target, labels, weights=self.vertex_weights)
         twins, problem = self.seam_twins
         if glue_seams and problem is not None:
-            warnings.warn(f"Some pieces of the mesh touch along seams but cannot be joined there ({problem}); "
-                          "they are placed on their own and the seams may open.", ShapeDifferenceWarning, stacklevel=3)
+            warn(f"Some pieces of the mesh touch along seams but cannot be joined there ({problem}); "
+                          "they are placed on their own and the seams may open.", "seam", stacklevel=3)
         if not glue_seams or twins is None:
             return placed
         glued, labels, hinges, opened = glue_along_seams(placed, labels, twins, self.vertex_weights,
                                                          find_opened=exact)
         if opened:
-            warnings.warn(
+            warn(
                 f"{len(opened)} seam(s) between pieces of the mesh in the base have two sides that differ in "
                 "this pose (the seam opens): they are left apart, the pieces placed by their other seams or "
                 "nearest the base.",
-                ShapeDifferenceWarning, stacklevel=3)
+                "seam", stacklevel=3)
         if hinges:
-            warnings.warn(
+            warn(
                 f"{len(hinges)} piece(s) of the mesh meet another along a seam that is straight (or "
                 "straight to within the reconstruction's error): the shape differences are computed "
                 "piece by piece, so the angle between them about the seam is not determined; it is "
                 "the one closest to the base. Weld the seams (Merge by Distance) for a reconstruction "
-                "that holds it.", ShapeDifferenceWarning, stacklevel=3)
+                "that holds it.", "seam", stacklevel=3)
         return align_components(glued, target, labels, weights=self.vertex_weights)
 
     @cached_property

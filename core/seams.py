@@ -22,12 +22,11 @@ cannot see, and :func:`warn_seam_folds` says so.
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import MeshError, ShapeDifferenceWarning
+from .errors import MeshError, warn
 from .geometry import edge_lengths, normalize, vertex_labels
 
 #: Vertices closer than this fraction of the first pose's bounding-box diagonal (plus a few
@@ -330,12 +329,12 @@ def warn_seam_folds(base: np.ndarray, poses: list[np.ndarray], triangles: np.nda
     if not folded.any():
         return False
     worst = float(np.degrees(folds.max() + SEAM_FOLD_TOLERANCE))
-    warnings.warn(
+    warn(
         f"The mesh is split along seams ({len(sides)} seam edge(s): pieces whose boundary vertices coincide, "
         "as exporters and importers leave a mesh split at UV seams or hard edges), and "
         f"{int(folded.sum())} of them fold by up to {worst:.3g}° in {name}: {consequence}. Weld the seams "
         "(Merge by Distance) to measure the mesh as one surface.",
-        ShapeDifferenceWarning, stacklevel=4)
+        "seam", stacklevel=4)
     return True
 
 

@@ -5,7 +5,7 @@ interpolation: …"), shared by :mod:`core.sequence_inbetweens` and :mod:`core.t
 Each message says where (the keys of the gap, the factors, how many triangles or pieces), what
 happened in the scene's terms and what to do, with the method's own words, where a developer needs
 them, at its end in brackets. Each warning's :attr:`~core.errors.ShapeDifferenceWarning.kind` is
-one of :data:`KINDS`, for a pipeline to filter on. The problems of the in-betweens asked together
+one of :data:`~core.errors.KINDS`, for a pipeline to filter on. The problems of the in-betweens asked together
 (:meth:`core.SequenceInterpolator.poses`) are said once per gap and kind of problem, with how many
 in-betweens have it (:func:`gap_problems`), not once per in-between.
 """
@@ -13,23 +13,8 @@ in-betweens have it (:func:`gap_problems`), not once per in-between.
 from __future__ import annotations
 
 import re
-import warnings
 
-from .errors import ShapeDifferenceWarning
-
-#: The kinds of the in-betweens' warnings (:attr:`ShapeDifferenceWarning.kind`), and what each is about.
-KINDS = {
-    "pose": "an in-between keeps flipped or collapsed triangles, or is a simpler fallback, or has triangles "
-            "facing against the motion, or pinned vertices off their path",
-    "non_finite": "a numerical failure: pieces of an in-between are the keys' linear blend",
-    "turn": "a part turns so far between the keys that they do not tell which way round it went",
-    "joint": "rigid pieces that move as jointed ones do, but are not placed as one",
-    "sliver": "triangles so thin that the keys' coordinate rounding reshapes them",
-    "mirror": "a piece is its own mirror image from one key to the next",
-    "seam": "pieces touching along seams that cannot be joined there",
-    "truncated": "the edge lengths of a truncated basis (k_M) could not be recovered",
-    "extrapolation": "an exaggerated or reversed pose stretches or crushes triangles",
-}
+from .errors import ShapeDifferenceWarning, shape_warning, warn
 
 #: The numbers in a message (counts, indices, factors, frames, shares), masked by
 #: :func:`message_shape` to tell messages that differ only in them.
@@ -43,20 +28,20 @@ _NUMBERS = re.compile(r"#(?:(?:, | and |–|-)(?:…, )?#)+")
 def said_warning(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None,
                  factors=()) -> ShapeDifferenceWarning:
     """The :class:`~core.errors.ShapeDifferenceWarning` "Shape-difference interpolation: ``message``."
-    (``message`` without its final full stop) with its attributes: ``kind`` (one of :data:`KINDS`),
+    (``message`` without its final full stop) with its attributes: ``kind`` (one of :data:`~core.errors.KINDS`),
     ``defects`` (the flipped or collapsed triangles the worst in-between it is about keeps), ``gap``
     (the names of the gap's two keys, as the message says them; None where it is about no one gap)
     and ``factors`` (the factors of the in-betweens it is about; empty where it holds for the whole
     gap)."""
-    warning = ShapeDifferenceWarning(f"Shape-difference interpolation: {message}.")
-    warning.kind, warning.defects = kind, int(defects)
+    warning = shape_warning(f"Shape-difference interpolation: {message}.", kind)
+    warning.defects = int(defects)
     warning.gap, warning.factors = (None if gap is None else (str(gap[0]), str(gap[1]))), tuple(float(f) for f in factors)
     return warning
 
 
 def _warn(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
     """Warn with :func:`said_warning` (same arguments)."""
-    warnings.warn(said_warning(message, kind, defects, gap, factors), stacklevel=3)
+    warn(said_warning(message, kind, defects, gap, factors), stacklevel=3)
 
 
 #: How an in-between's own problem is placed in its gap's message (after "between A and B, "): one

@@ -30,10 +30,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-import warnings
 
 from .concurrency import single_threaded_blas
-from .errors import MeshError, ShapeDifferenceWarning
+from .errors import MeshError, warn
 from .seams import relative_round_off, seam_sides, warn_seam_folds
 from .validation import check_count, check_key_names
 
@@ -221,9 +220,9 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     space = ShapeSpace(features, k_M, k_N, reference.offset, relative_round_off(compacts, faces, single_precision),
                        relative_round_off(compacts, faces, single_precision, reference.offset))
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
-        warnings.warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
+        warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",
-                      ShapeDifferenceWarning, stacklevel=2)
+                      "same_poses", stacklevel=2)
     return space
 
 

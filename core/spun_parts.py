@@ -70,12 +70,15 @@ def spin_patches(vertices: np.ndarray, triangles: np.ndarray, count: int | None 
 
 
 def spun_shares(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner: np.ndarray, patches: tuple,
-                rotations: np.ndarray, translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                rotations: np.ndarray, translations: np.ndarray,
+                keys: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per piece (C,), the share of its weight whose turn about the piece's rigid turn axis from
     key ``base`` to key ``other`` (vertices (n, 3) each) is past a half turn from its least-turned
-    part, and its largest turn from there (radians); arguments as :func:`patch_turns`. A piece that
+    part, and its largest turn from there (radians); arguments as :func:`patch_turns`, ``keys`` its
+    reading of ``base`` to ``other`` where the caller keeps it (None: read here). A piece that
     turns as one (a half turn included: its patches a rounding either side of it) has none."""
-    turn, least, known, piece, mass, _ = patch_turns(base, other, weights, owner, patches, rotations, translations)
+    turn, least, known, piece, mass, _ = patch_turns(base, other, weights, owner, patches, rotations, translations) \
+        if keys is None else keys
     pieces = len(rotations)
     beyond = np.abs(turn) - least
     past = known & (beyond > np.pi)
@@ -88,14 +91,15 @@ def spun_shares(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
 
 def turned_back(base: np.ndarray, other: np.ndarray, pose: np.ndarray, factor: float, weights: np.ndarray,
                 owner: np.ndarray, patches: tuple, rotations: np.ndarray,
-                translations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                translations: np.ndarray, keys: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Per piece (C,), the share of its weight spun past a half turn from its least-turned part
     between key ``base`` and key ``other`` (:func:`spun_shares`) that an in-between ``pose``
     (vertices (n, 3)) at ``factor`` (0 < factor < 1) turns back the short way round: its patches
     turned about the piece's rigid turn axis nearer ``factor`` × their turn less a whole turn than
     ``factor`` × their turn (more than ``min(factor, 1 − factor)`` × π from it); and that part's
-    largest turn from the least-turned one (radians). Other arguments as :func:`patch_turns`."""
-    turn, least, known, piece, mass, _ = patch_turns(base, other, weights, owner, patches, rotations, translations)
+    largest turn from the least-turned one (radians). Other arguments as :func:`spun_shares`."""
+    turn, least, known, piece, mass, _ = patch_turns(base, other, weights, owner, patches, rotations, translations) \
+        if keys is None else keys
     labels, pairs, count = patches
     # the pose's principal turns about the same axes (none taken across the mesh: only compared)
     at, _, seen, *_ = patch_turns(base, pose, weights, owner, (labels, pairs[:0], count), rotations, translations)
@@ -204,6 +208,7 @@ class SpunParts:
     Reads the interpolator's ``_cache_lock``, ``_raw``, ``_topo`` and calls its ``_fits``."""
 
     _spin_patches = None  # spin_patches of the first key, made on first use
+    _spin_turns = None  # per gap, patch_turns of its keys (a dict made on first use)
 
     def _key_patches(self) -> tuple:
         """:func:`spin_patches` of the first key (made once, on first use)."""
@@ -212,6 +217,22 @@ class SpunParts:
                 self._spin_patches = spin_patches(self._raw[0], self._topo.triangles)
         return self._spin_patches
 
+    def _key_turns(self, gap: int) -> tuple:
+        """:func:`patch_turns` of key ``gap`` to the next, read once per gap: the gap's spun check
+        and every in-between of two poses (:meth:`core.two_pose_inbetweens.Interpolator.pose`)
+        compare with it."""
+        with self._cache_lock:
+            if self._spin_turns is None:
+                self._spin_turns = {}
+            known = self._spin_turns.get(gap)
+        if known is None:
+            rotations, translations, _ = self._fits(gap, gap + 1)
+            known = patch_turns(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
+                                self._key_patches(), rotations, translations)
+            with self._cache_lock:
+                self._spin_turns[gap] = known
+        return known
+
     def _spun(self, gap: int, skipped: np.ndarray) -> tuple[float, float]:
         """The largest share of a piece's area spun past a half turn from the rest of it between
         key ``gap`` and the next, and that piece's largest turn from its least-turned part
@@ -219,7 +240,7 @@ class SpunParts:
         across the mesh, or warns that they turn past a half turn across a fold)."""
         rotations, translations, _ = self._fits(gap, gap + 1)
         share, largest = spun_shares(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
-                                     self._key_patches(), rotations, translations)
+                                     self._key_patches(), rotations, translations, self._key_turns(gap))
         share[skipped] = 0.0
         worst = int(np.argmax(share))
         return float(share[worst]), float(largest[worst])

@@ -29,13 +29,12 @@ correspondence is in :mod:`core.transfer_checks`.
 
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 
 from .delaunay_flips import MAX_DIHEDRAL_DEGREES, delaunay_flips
 from .embedding import FRAMES_NEARLY_EXACT
-from .errors import MeshError, ShapeDifferenceWarning
+from .errors import MeshError, warn
 from .functional_map import (UNMATCHED, check_correspondence, closest_point_correspondence, nearest_matched,
                              project_near, pull_back_matrix, push_forward_matrix, reject_outlying_matches, walk_near)
 from .laplace_basis import basis_sizes
@@ -224,11 +223,11 @@ class Transfer:
         loose = np.flatnonzero(matched & (compact[used_map] < 0))
         if loose.size:  # matched to a loose target vertex (a stray point of a scan): unmatched
             i = int(base_used[loose[0]])
-            warnings.warn(
+            warn(
                 f"The correspondence maps base vertex {i} to target vertex {int(self.correspondence[i])}, "
                 f"which is in no triangle of the target ({loose.size} such base vertices); these base "
                 "vertices are treated as unmatched.",
-                ShapeDifferenceWarning,
+                "correspondence",
                 stacklevel=2,
             )
             matched[loose] = False
@@ -346,11 +345,11 @@ class Transfer:
             scale = np.linalg.norm(np.ptp(positions, axis=0))
             if apart.max() > WELD_DISTANCE * scale:
                 i = int(copies[np.argmax(apart)])
-                warnings.warn(
+                warn(
                     f"Target vertices {i} and {int(self._welded[i])} coincide at rest and were welded, but this pose "
                     f"moves them {apart.max():.3g} apart; the pose is taken as if both were at vertex "
                     f"{int(self._welded[i])}.",
-                    ShapeDifferenceWarning,
+                    "target",
                     stacklevel=3,
                 )
         check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
@@ -429,22 +428,22 @@ class Transfer:
         triangles = self.layers[0].topology.triangles
         collapsed = zero_area_triangles(on_base, triangles)
         if collapsed.size:  # the map's doing, not the target's: its triangles have area at rest
-            warnings.warn(
+            warn(
                 f"The map collapses {collapsed.size} of the target's triangles (first: the one of target vertices "
                 f"{self.target_used[triangles[collapsed[0]]].tolist()}) when the target is laid on the base through "
                 "it: outlying matches, or a part of the target the base does not have (a fin). The differences are "
                 "not corrected for the change of meshing and are less accurate; check the map there.",
-                ShapeDifferenceWarning,
+                "correspondence",
                 stacklevel=3,
             )
             return None
         try:
             carried = self._rest_layer_differences(on_base)
         except MeshError as error:
-            warnings.warn(
+            warn(
                 f"The target's connectivity could not be laid on the base surface through the map ({error}); "
                 "the differences are not corrected for the change of meshing and are less accurate.",
-                ShapeDifferenceWarning,
+                "correspondence",
                 stacklevel=3,
             )
             return None

@@ -8,12 +8,11 @@ or lie off each other."""
 
 from __future__ import annotations
 
-import warnings
 
 import numpy as np
 import scipy.sparse as sp
 
-from .errors import MeshError, ShapeDifferenceWarning
+from .errors import MeshError, warn
 
 #: A partial correspondence (entries UNMATCHED, -1: base vertices no map entry lands on, as when
 #: two template maps are composed) must match at least this fraction of the base vertices, and
@@ -93,11 +92,11 @@ def degenerate_at_rest(rest, triangles) -> np.ndarray:
     if flat.size == triangles.shape[0]:
         raise MeshError("target rest vertices: every triangle of the target has zero area.")
     if flat.size:
-        warnings.warn(
+        warn(
             f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
             f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
             "Dissolve removes them).",
-            ShapeDifferenceWarning,
+            "target",
             stacklevel=3,
         )
     return flat
@@ -127,12 +126,12 @@ def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
             "correspondence (in Blender: Map › Attribute or File)")
     beside = float(np.mean(distances > OVERLAP_EDGES * edge))
     if beside > PARTLY_BESIDE:
-        warnings.warn(
+        warn(
             f"{100 * beside:.0f} % of the base's vertices are more than {OVERLAP_EDGES:g} target edge lengths "
             "from the target at rest: the meshes overlap only in part, and there closest points match the "
             "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
             "base is, or give a correspondence (in Blender: Map › Attribute or File)",
-            ShapeDifferenceWarning, stacklevel=3)
+            "correspondence", stacklevel=3)
         return True
     if parts is None:
         return False
@@ -143,14 +142,14 @@ def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
     if not off.size:
         return False
     first = int(order[starts[off[0]]])
-    warnings.warn(
+    warn(
         f"{off.size} connected part(s) of the base (first: the part of vertex {first}, "
         f"{int(np.sum(parts == parts[first]))} vertices) lie off the target at rest, a median "
         f"{medians[off[0]] / edge:.1f} target edge lengths away: the target has no such part there, and "
         "closest points squash it onto the target's nearest surface, which distorts the transfer. Give the "
         "target that part, leave it out of the base (in Blender: Mesh › Separate), or give a correspondence "
         "(in Blender: Map › Attribute or File)",
-        ShapeDifferenceWarning, stacklevel=3)
+        "correspondence", stacklevel=3)
     return True
 
 
@@ -203,25 +202,25 @@ def check_covered(base, base_topology, target, target_topology, image_triangles,
                                       base_topology.n_vertices)
     off_share = float(vertex_area[off].sum() / vertex_area.sum())
     if off_share >= UNCOVERED_SHARE:
-        warnings.warn(
+        warn(
             f"{100 * off_share:.1f} % of the base's area ({int(off.sum())} vertices) lies off the target's surface at "
             "rest, more than a target edge length from it or half of one past its edge (up to "
             f"{distances[off].max():.3g}, {distances[off].max() / edge:.1f} edge lengths): the meshes are not laid on "
             "each other there (one slid or turned against the other, or shaped otherwise), and closest points match "
             "the base to other points of the target than its own, which distorts the transfer. Place the target's "
             "rest pose exactly where the base is, or give a correspondence (in Blender: Map › Attribute or File)",
-            ShapeDifferenceWarning, stacklevel=3)
+            "correspondence", stacklevel=3)
     share = float(vertex_area[uncovered].sum() / vertex_area.sum())
     if share < UNCOVERED_SHARE:
         return
     how, advice = (("the correspondence lays", "") if given_map else
                    ("closest points lay", ", or give a correspondence (in Blender: Map › Attribute or File)"))
-    warnings.warn(
+    warn(
         f"{100 * share:.1f} % of the base's area ({int(uncovered.sum())} vertices) lies over a hole in "
         f"the target at rest (or past its edge) where the base goes on: {how} it on the hole's rim, "
         "which stretches and squashes the transfer and the pulled-back metric there. Fill the target's holes "
         f"(in Blender: Mesh › Clean Up › Fill Holes){advice}",
-        ShapeDifferenceWarning, stacklevel=3)
+        "correspondence", stacklevel=3)
 
 
 def check_spread(images, target) -> None:
@@ -251,13 +250,13 @@ def check_target_resolution(k_M: int, n_target: int) -> None:
     base's higher functions only through its own at the scale of its edges."""
     if k_M <= resolved_functions(n_target):
         return
-    warnings.warn(
+    warn(
         f"k_M is {k_M} base eigenfunctions, but the target mesh has only {n_target} vertices: a mesh resolves "
         f"about {TARGET_FUNCTIONS_PER_VERTEX:.2g} × as many functions as it has vertices, and the base's detail "
         "beyond that comes back roughly (a limb target of 131 vertices: 2.2–2.4 % RMS of the diagonal off at "
         f"k_M = 100 against 1.2 % at k_M = 20). Lower k_M to {resolved_functions(n_target)} "
         "or less, or transfer from a finer target.",
-        ShapeDifferenceWarning,
+        "target",
         stacklevel=3,
     )
 
@@ -275,11 +274,11 @@ def check_matched_fraction(matched, *, warn: bool = True):
             "close enough to describe the map at the scale of the k_M basis. Use a denser map."
         )
     if warn and fraction < WARN_MATCHED_FRACTION:
-        warnings.warn(
+        warn(
             f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
             f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
             "typically costs about a point of accuracy (Hausdorff / diagonal).",
-            ShapeDifferenceWarning,
+            "correspondence",
             stacklevel=4,
         )
 
@@ -290,13 +289,13 @@ def warn_outlying_matches(outlying, n_matched: int) -> None:
     they take their images from their neighbours' matches, as unmatched vertices do."""
     from .functional_map import OUTLIER_EDGES
 
-    warnings.warn(
+    warn(
         f"{len(outlying)} of the correspondence's {n_matched} matches ({100 * len(outlying) / n_matched:.1f} %; first: "
         f"base vertex {int(outlying[0])}) lie more than {OUTLIER_EDGES:g} target edge lengths from where their "
         "neighbours' matches put them (stray matches, which would pull their neighbours across the target): they "
         "are left out, and those base vertices are placed on the target from their neighbours' matches, as "
         "unmatched ones are. Check the map near them.",
-        ShapeDifferenceWarning,
+        "correspondence",
         stacklevel=3,
     )
 
@@ -307,11 +306,11 @@ def warn_non_manifold(topology):
     odd = np.flatnonzero((counts > 2) | ((counts == 2) & (hinged < 2)))
     if odd.size:
         named = ", ".join(str(tuple(int(v) for v in topology.edges[e])) for e in odd[:5])
-        warnings.warn(
+        warn(
             f"The target mesh has {odd.size} non-manifold or inconsistently oriented edge(s) "
             f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
             "matrix; its offset surface (extrinsic differences) is cut open along them.",
-            ShapeDifferenceWarning,
+            "target",
             stacklevel=3,
         )
 
@@ -371,11 +370,11 @@ def check_orientation(base, base_topology, carried) -> None:
     inside_out = np.flatnonzero(closed & (volume * at_rest < 0) & (np.abs(volume) >= INSIDE_OUT_SHARE * total))
     if inside_out.size:
         first = int(np.flatnonzero(labels == inside_out[0])[0])
-        warnings.warn(
+        warn(
             f"The correspondence turns {inside_out.size} of {int(closed.sum())} closed part(s) of the base "
             f"inside out (first: the part of triangle {first}): it matches them to the target mirrored, "
             "as a left/right flip of a symmetric shape does, so every transferred pose is the target's "
             "surface inside out with its sides exchanged. Check the map (its left and right).",
-            ShapeDifferenceWarning,
+            "correspondence",
             stacklevel=3,
         )

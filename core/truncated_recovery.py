@@ -40,13 +40,12 @@ How the programs are solved (the measurements behind each choice: docs/design-de
 
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from .admm import admm
-from .errors import RecoveryError, ShapeDifferenceWarning
+from .errors import RecoveryError, warn
 from .geometry import DIVISION_FLOOR, rows_dot
 from .low_rank import LowRankGram, SplitGram, low_rank_gram, randomly_pivoted_cholesky
 from .triangle_constraints import feasible_lengths, project_triangles, satisfied
@@ -263,11 +262,12 @@ class TruncatedRecovery:
             )
         if info > 0:
             residual = np.linalg.norm(normal.matvec(mu) - rhs) / max(np.linalg.norm(rhs), DIVISION_FLOOR)
-            warnings.warn(
-                f"The area program of the {self.layer.name} stopped after {info} conjugate-gradient "
-                f"iterations at relative residual {residual:.1e} (tolerance {CG_TOLERANCE:g}); the "
-                "areas are the last iterate.",
-                ShapeDifferenceWarning,
+            warn(
+                f"The triangle areas of the {self.layer.name} are recovered only to a relative residual of "
+                f"{residual:.1e}, not {CG_TOLERANCE:g}: check the result, or use the full basis (k_M = 0), "
+                f"which recovers them exactly (the area program stopped after {info} conjugate-gradient "
+                "iterations; its last iterate is used).",
+                "fit",
                 stacklevel=3,
             )
         if mu.min() < 0.0:
@@ -276,11 +276,13 @@ class TruncatedRecovery:
         lowest = AREA_FLOOR * reference
         low = (mu < lowest) if floor else np.zeros(m, dtype=bool)
         if low.any():
-            warnings.warn(
-                f"{int(low.sum())} recovered triangle areas of the {self.layer.name} were below "
-                f"{AREA_FLOOR:g} × their reference area (first: triangle {int(np.flatnonzero(low)[0])}) "
-                "and were raised to it so that edge lengths can be recovered; a larger k helps.",
-                ShapeDifferenceWarning,
+            warn(
+                f"{int(low.sum())} triangle(s) of the {self.layer.name} (first: triangle "
+                f"{int(np.flatnonzero(low)[0])}) came out with almost no area and were given {AREA_FLOOR:g} × "
+                "their rest area, so that their edge lengths can be recovered: the basis is too small for this "
+                f"deformation; a larger k_M helps (recovered areas below {AREA_FLOOR:g} × the reference raised "
+                "to it).",
+                "truncated",
                 stacklevel=3,
             )
             mu = np.maximum(mu, lowest)
@@ -312,10 +314,11 @@ class TruncatedRecovery:
         projected = np.abs(np.where(result.x > 0.0, gradient, np.minimum(gradient, 0.0))).max()
         stalled_at_optimum = result.status == 2 and projected <= BOUNDED_STALL_TOLERANCE * gradient_scale
         if not result.success and not stalled_at_optimum:
-            warnings.warn(
-                f"The bounded area program of the {self.layer.name} stopped before convergence "
-                f"({result.message}); the areas are its last iterate.",
-                ShapeDifferenceWarning,
+            warn(
+                f"The triangle areas of the {self.layer.name} may be inexact: check the result, or use the full "
+                f"basis (k_M = 0), which recovers them exactly (the bounded area program stopped before "
+                f"convergence: {result.message}; its last iterate is used).",
+                "fit",
                 stacklevel=4,
             )
         return np.maximum(result.x / scale, 0.0)
@@ -417,11 +420,11 @@ class TruncatedRecovery:
                     "The truncated differences may be inconsistent with the recovered areas; try a larger k."
                 )
         if not converged:
-            warnings.warn(
-                f"The edge-length program of the {self.layer.name} stopped after {iterations} "
-                "iterations before reaching its tolerance; the returned lengths satisfy every "
-                "constraint but may be less accurate.",
-                ShapeDifferenceWarning,
+            warn(
+                f"The edge lengths of the {self.layer.name} may be less accurate than the differences allow "
+                "(every triangle stays sound): a larger k_M, or the full basis (k_M = 0), helps (the edge-length "
+                f"program stopped after {iterations} iterations before reaching its tolerance).",
+                "fit",
                 stacklevel=3,
             )
         return LengthSolution(x, eps, program.rank, iterations, converged, state)

@@ -221,7 +221,8 @@ class Interpolator:
             welded[sequence._copies] = x
             x = welded
         share, spun = turned_back(sequence._raw[0], sequence._raw[1], x - origin, factor, topo.weights,
-                                  topo.vertex_owner, sequence._key_patches(), rotations, translations)
+                                  topo.vertex_owner, sequence._key_patches(), rotations, translations,
+                                  sequence._key_turns(0))
         share[~self._jumping_pieces(len(share))] = 0.0
         worst = int(np.argmax(share))
         if share[worst] <= TURNED_PART_SHARE:

@@ -161,7 +161,11 @@ def report(operator, kind: set[str], message: str) -> None:
     """``operator.report(kind, message)`` with what UTF-8 cannot hold escaped as Python prints it
     (``caf\\udce9``): a file name whose bytes are no text (a Latin-1 folder on a UTF-8 system)
     comes to Python with such characters, and Blender cannot take them into a report: it drops
-    the message ("Python: (null)") and fails the operator, also after its work is written."""
+    the message ("Python: (null)") and fails the operator, also after its work is written.
+    A warning is also kept in the operator's ``_warned`` (where it has one: :class:`GeneratorOperator`),
+    for the line that ends its run (:func:`look_first`)."""
+    if 'WARNING' in kind and isinstance(getattr(operator, "_warned", None), list):
+        operator._warned.append(message)
     operator.report(kind, message.encode("utf-8", "backslashreplace").decode("utf-8"))
 
 
@@ -209,6 +213,30 @@ def summarized(messages: list[str], label: str, about: dict | None = None) -> li
         for message in others:
             print(f"{label}: warning: {message}", file=sys.stderr, flush=True)
     return out
+
+
+# How much of a warning's opening a run's last line quotes, where the warning names no gap.
+LOOK_FIRST_CHARACTERS = 90
+
+
+def look_first(warned: list[str], about: dict | None = None) -> str:
+    """The last report of a run that gave the warning reports ``warned`` (in order), at level
+    WARNING: Blender's status bar shows only an operator's last report, so it says how many there
+    are, where they all are, and the one to look at first: the core's warning whose in-between keeps
+    the most flipped or collapsed triangles (``about``: per message, the core's warning it came
+    from), said by its gap and kind, else the first warning's opening words."""
+    about = about or {}
+    core = [warning for warning in about.values() if getattr(warning, "gap", None) is not None]
+    worst = max(core, key=lambda w: getattr(w, "defects", 0), default=None)
+    if worst is not None and worst.defects > 0:
+        first = (f"between {worst.gap[0]} and {worst.gap[1]}, {worst.defects} flipped or collapsed "
+                 f"triangle(s) kept [{worst.kind}]")
+    else:
+        text = warned[0].removeprefix("Shape-difference interpolation: ")
+        cut = min((i for i in (text.find(": "), text.find("; ")) if i > 0), default=len(text))
+        first = text[:cut] if cut <= LOOK_FIRST_CHARACTERS else text[:LOOK_FIRST_CHARACTERS].rsplit(" ", 1)[0] + " …"
+    count = len(warned)
+    return f"{count} warning{'s' if count > 1 else ''}, each in the Info editor; look first at: {first}"
 
 
 class GeneratorOperator:
@@ -259,6 +287,7 @@ class GeneratorOperator:
         self._job = self.run(context)
         self._warnings: list[str] = []
         self._about: dict[str, object] = {}  # per message, the core's warning it came from (summarized)
+        self._warned: list[str] = []  # the warning reports made (report), for the run's last line
         self.summary = ""
         self.triangle_faces = None
 
@@ -299,6 +328,8 @@ class GeneratorOperator:
             report(self, {'WARNING'}, message)
         if status == 'FINISHED' and self.summary:
             report(self, {'INFO'}, self.summary)
+            if self._warned:  # the status bar shows the last report: the warnings, not the summary
+                report(self, {'WARNING'}, look_first(self._warned, self._about))
         return {status}
 
     def execute(self, context):

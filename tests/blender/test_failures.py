@@ -1228,6 +1228,14 @@ def test_a_warning_names_the_keys_by_their_frames(bpy_empty, extension, tmp_path
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
     out = capfd.readouterr().out
     assert "mirror image of themselves from frame 9 to frame 10" in out and "key pose" not in out, out
+    # Blender's status bar shows an operator's last report: after the summary (Info), a warning
+    # line saying how many warnings there are and which to look at first; each warning a Warning
+    reports = [line for line in out.splitlines() if line.startswith(("Warning: ", "Info: ", "Error: "))]
+    assert [line.split(": ")[0] for line in reports] == ["Warning", "Warning", "Info", "Warning"], reports
+    assert reports[1].startswith("Warning: Shape-difference interpolation: 1 piece(s) of the mesh"), reports
+    assert reports[2].startswith("Info: Added 6 shape keys"), reports
+    assert reports[3] == "Warning: 2 warnings, each in the Info editor; look first at: The new shape keys are " \
+        "deformed again by 'Mesh Cache' of 'Sheet'", reports
 
 
 @pytest.mark.parametrize("where, named", [("Bend", "shape key 'Bend' of 'Source'"),

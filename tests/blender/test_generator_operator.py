@@ -118,7 +118,9 @@ def test_core_warnings_become_warning_reports(extension, core):
     warning = core.ShapeDifferenceWarning("Used the fallback")
     job = make_job(extension, log, warn=warning)
     assert job.execute(SimpleNamespace()) == {'FINISHED'}
-    assert log[-2:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done")]
+    # the summary, then a last line at WARNING: the status bar shows only the last report
+    assert log[-3:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done"),
+                        ({'WARNING'}, "1 warning, each in the Info editor; look first at: Used the fallback")]
 
 
 def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core, capsys):
@@ -144,8 +146,10 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
 
     assert Job().execute(SimpleNamespace()) == {'FINISHED'}
     reports = [message for kind, message in log if kind == {'WARNING'}]
-    assert reports == [messages[0][:-1] + " (and 2 more like it; between frame 9 and frame 17 (factor 0.5); between "
-                       "frame 17 and frame 25 (factor 0.5); each in full in the system console).", other], reports
+    assert reports[:-1] == [messages[0][:-1] + " (and 2 more like it; between frame 9 and frame 17 (factor 0.5); "
+                            "between frame 17 and frame 25 (factor 0.5); each in full in the system console).", other], reports
+    assert reports[-1] == "2 warnings, each in the Info editor; look first at: between frame 1 and frame 9, the " \
+        "in-between at factor 0.5", reports
     console = capsys.readouterr().err
     assert messages[1] in console and messages[2] in console and messages[0] not in console
     # two keys' in-betweens, one Interpolator.pose call each: their gap once, with the factors
@@ -182,8 +186,11 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
 
     assert Job().execute(SimpleNamespace()) == {'FINISHED'}
     reports = [message for kind, message in log if kind == {'WARNING'}]
-    assert reports == [messages[1][:-1] + " (and 2 more like it; between frame 1 and frame 9 (factor 0.5); between "
-                       "frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
+    assert reports[:-1] == [messages[1][:-1] + " (and 2 more like it; between frame 1 and frame 9 (factor 0.5); "
+                            "between frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
+    # the run's last line, which the status bar shows, points at the gap that keeps the most
+    assert log[-1] == ({'WARNING'}, "1 warning, each in the Info editor; look first at: between frame 9 and frame 17, "
+                                    "9 flipped or collapsed triangle(s) kept [pose]"), log
     console = capsys.readouterr().err
     assert messages[0] in console and messages[2] in console and messages[1] not in console
 

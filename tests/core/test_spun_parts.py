@@ -149,3 +149,34 @@ def test_two_poses_of_a_hem_spun_past_a_half_turn_through_wrinkles_are_right_or_
                                                                                             smooth[0][hem, 0])))))
     assert abs(np.angle(np.exp(1j * (turned - 0.5 * (spins[2] - spins[1]))))) < np.radians(30.0)
     assert not [w for w in caught if "spins on more than a half turn" in str(w.message)]
+
+
+def test_two_poses_read_their_keys_patch_turns_once_and_say_the_same(monkeypatch):
+    """Every in-between of two poses compares its patches' turns with the keys' (the spun check):
+    the keys' reading is made once per interpolator, not at each in-between, and each in-between
+    says what a fresh interpolator says of it (the wrinkled skirt whose hem spins 270° on)."""
+    import core.spun_parts as spun_parts
+    from core.two_pose_inbetweens import Interpolator
+
+    spins = np.radians([60.0, 330.0])
+    a, b = (_skirt(spin, 0.05, seed)[0] for seed, spin in enumerate(spins, 1))
+    _, triangles, _ = _skirt(0.0)
+    factors = (0.25, 0.5, 0.75)
+
+    def said(pair, factor):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            x = pair.pose(factor)
+        return x, [str(w.message) for w in caught if "spins on more than a half turn" in str(w.message)]
+
+    fresh = [said(Interpolator(a, b, triangles), factor) for factor in factors]
+    readings, real = [], spun_parts.patch_turns
+    # the keys' reading takes turns across the patches' pairs; a pose's is only compared (no pairs)
+    monkeypatch.setattr(spun_parts, "patch_turns", lambda base, other, weights, owner, patches, *args:
+                        readings.append(len(patches[1]) > 0) or real(base, other, weights, owner, patches, *args))
+    pair = Interpolator(a, b, triangles)
+    again = [said(pair, factor) for factor in factors]
+    assert sum(readings) == 1 and len(readings) == 1 + len(factors), readings  # the keys once, each pose once
+    for (x, words), (y, same) in zip(fresh, again):
+        np.testing.assert_array_equal(x, y)
+        assert words == same

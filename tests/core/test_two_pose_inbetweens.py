@@ -296,7 +296,10 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
         assert _edge_deviation(x, flat, tri).mean() < 0.5 * _edge_deviation(held, flat, tri).mean()
     else:
         np.testing.assert_array_equal(x, pair._sequence._poses(0, [0.5])[0][0])  # the first fit
-        assert "a fit near the keys' linear blend, which has the fewest (2 " in message
+        # what the in-between keeps first, the first fit's count after it
+        assert "the in-between at factor 0.5: it is a fit near the keys' linear blend, which keeps 2 triangle(s) " \
+            "flipped or collapsed, the fewest of its fits (its fit: some triangle(s) flipped; " in message, message
+        assert caught[0].message.defects == 2
     first, second = pair._sequence._gap(0).outcomes[0.5], pair._whole_sequence()._gap(0).outcomes[0.5]
     assert first == (2, True) and second == (second_defects, False)
 
