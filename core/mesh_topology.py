@@ -166,6 +166,15 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
     bad = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * longest))
     if bad.size:
         t = int(bad[0])
+        stray = _stray_vertex(t, doubled_area, squared, longest)
+        if stray is not None:
+            corner, edges = stray
+            raise MeshError(
+                f"{name}: vertex {int(triangles[t][corner])} lies {float(np.sqrt(longest[t])):.3g} from the other "
+                f"corners of triangle {t} (vertices {triangles[t].tolist()}), {edges:.3g} × the mesh's median edge, "
+                f"so its triangles are needles too thin to measure ({bad.size} degenerate triangle(s) in all). "
+                "Fix that vertex (a simulation that exploded there, a broken frame of a cache) or leave that pose out."
+            )
         raise MeshError(
             f"{name}: triangle {t} (vertices {triangles[t].tolist()}) has zero area "
             f"({bad.size} degenerate triangle(s) in all). "
@@ -175,6 +184,23 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
                "point, a frame that crushes the cloth), scale that part to a small size instead of "
                "zero, or leave that pose out.")
         )
+
+
+#: Length, in median edges of the mesh, past which a degenerate triangle's longest edge is told as
+#: a vertex gone astray rather than a flat face: a vertex shot 1e12 away on a 0.14-edge sheet
+#: makes needles of area/edge² ~1e-14 that were reported as of "zero area".
+STRAY_EDGES = 1e3
+
+
+def _stray_vertex(t: int, doubled_area: np.ndarray, squared: list[np.ndarray], longest: np.ndarray):
+    """``(corner, edges)`` where degenerate triangle ``t`` has an area and its longest edge is over
+    :data:`STRAY_EDGES` median edges of the mesh (``edges``: how many): its corner opposite the
+    shortest side lies far from the rest; else None (a flat face)."""
+    median = float(np.sqrt(np.median(np.concatenate(squared))))
+    if not (doubled_area[t] > 0 and np.isfinite(longest[t]) and np.sqrt(longest[t]) > STRAY_EDGES * median):
+        return None
+    corner = int(np.argmin([squared[k][t] for k in range(3)]))  # squared[k]: the side opposite corner k
+    return corner, float(np.sqrt(longest[t])) / median
 
 
 #: Rounding of the coordinates, as a share of the median edge length, above which a mesh's flat

@@ -219,6 +219,14 @@ def motion_ends(samples, keys, tail, chosen=()) -> dict:
     return options
 
 
+def _read_only(pose: np.ndarray) -> np.ndarray:
+    """``pose`` (n, 3) made read-only where it owns its memory (a sample converted to float64), so
+    the sequence keeps it as its key instead of a copy (:func:`core.validation.check_vertices`)."""
+    if pose.base is None:
+        pose.flags.writeable = False
+    return pose
+
+
 def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
     (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
@@ -252,7 +260,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     gaps = range(plan.n_gaps) if gaps is None else gaps
     if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
-    key_poses = [np.asarray(samples[key], dtype=np.float64) for key in plan.keys]
+    key_poses = [_read_only(np.asarray(samples[key], dtype=np.float64)) for key in plan.keys]
     interpolator_options = {**interpolator_options,
                             **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
     names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]

@@ -249,7 +249,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         else:
             prev = after = ident
         return _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                    self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance,
+                    self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance * self._unit,
                     start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
@@ -264,7 +264,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         if gap not in self._gap_messages:
             names = self.key_names
             keys = (segment.base, segment.next)
-            slivers = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys], self._rounding).size)
+            slivers = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
+                                          self._rounding * self._unit).size)  # the keys' lengths are the working keys
             self._gap_messages[gap] = [("turn", m, 0, ()) for m in turn_warnings(segment, names, gap)] + \
                 [("joint", m, 0, ()) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
                 [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]
@@ -323,8 +324,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         problems = []  # (factor, kind, what happened, defects kept) of each in-between with a problem
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
-            out[k] = x if self._origin is None else x + self._origin
-            if self._origin is not None and self._static is not None:
+            out[k] = self._from_working(x)
+            if (self._origin is not None or self._unit != 1.0) and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit
             if held.any():  # pieces held in this gap
                 out[k][held] = self._given[gap][held]

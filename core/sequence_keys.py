@@ -11,6 +11,7 @@ another (:class:`core.inbetween_keys._Relative`), with the truncated recovery's 
 
 from __future__ import annotations
 
+import math
 import threading
 from collections import OrderedDict
 
@@ -48,6 +49,26 @@ KEY_CACHE = 5
 #: ``_exit``). Each gap adds up to five pairs, the gap after reads them, and the one after that may
 #: be prepared meanwhile: sixteen serve in-order visits (13 floats per piece each).
 FIT_CACHE = 16
+
+#: The largest extent of keys the in-betweens work on as given (powers of two, ~1e-3 to 1e3
+#: units); keys larger or smaller are scaled by the power of two that brings it into [1, 2), and
+#: the in-betweens scaled back (both exact in floating point). Parts of the fits work in single
+#: precision (:data:`core.inbetween_guide.LOCAL_STEP_DTYPE`), whose range squared lengths and
+#: their products leave far from unit size (squares overflow past ~1e19, underflow below ~1e-19):
+#: a draped sheet keyed at 2^40 × its size came out 7e-8 of its diagonal off, at 2^70 × 4e-3 (NumPy
+#: overflow warnings), at 2^90 × 2.8 diagonals, at 2^-70 × 5e-4 (a hanging sheet: 8e-3), where
+#: scaling by 2^±10 keeps every in-between to the bit or to 2e-16 of the diagonal.
+WORKING_EXTENT = (2.0 ** -10, 2.0 ** 10)
+
+
+def working_unit(keys: list[np.ndarray]) -> float:
+    """The power of two the in-betweens scale the keys (list of (n, 3)) by: 1 where their largest
+    extent (over every key and coordinate) lies within :data:`WORKING_EXTENT`, else the one that
+    brings it into [1, 2)."""
+    extent = max((float(np.max(np.ptp(k, axis=0))) for k in keys if k.size), default=0.0)
+    if extent == 0.0 or WORKING_EXTENT[0] <= extent <= WORKING_EXTENT[1]:
+        return 1.0
+    return math.ldexp(1.0, 1 - math.frexp(extent)[1])
 
 
 def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
@@ -113,6 +134,10 @@ class SequenceKeys:
         self._origin = origin if origin.any() else None
         if self._origin is not None:
             keys = [k - origin for k in keys]
+        # sized near 1 where far larger or smaller (WORKING_EXTENT); the results scaled back
+        self._unit = working_unit(keys)
+        if self._unit != 1.0:
+            keys = [k * self._unit for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
         warn_mirrored(self._topo, self._raw, self.key_names, None if weld is None else weld.kept)
@@ -164,6 +189,17 @@ class SequenceKeys:
         self.smooth = bool(smooth)
         self._anchored = False  # two-pose interpolation (Interpolator) anchors to the blend
 
+    def _to_working(self, x: np.ndarray) -> np.ndarray:
+        """Positions ``x`` (n, 3) in the caller's place and units as the working keys have them
+        (moved about the first key's middle, scaled by :func:`working_unit`)."""
+        x = x if self._origin is None else x - self._origin
+        return x if self._unit == 1.0 else x * self._unit
+
+    def _from_working(self, x: np.ndarray) -> np.ndarray:
+        """Positions ``x`` (n, 3) of the working keys back in the caller's place and units."""
+        x = x if self._unit == 1.0 else x * (1.0 / self._unit)
+        return x if self._origin is None else x + self._origin
+
     def __len__(self) -> int:
         return len(self._raw) - 1
 
@@ -209,7 +245,8 @@ class SequenceKeys:
             from .reference_shape import ReferenceShape
 
             self._references.clear()  # one base at a time: gaps are visited per base key
-            self._references[index] = ReferenceShape(self._raw[index], self._topo.triangles, offset=self.offset,
+            offset = None if self.offset is None else self.offset * self._unit  # in the keys' working size
+            self._references[index] = ReferenceShape(self._raw[index], self._topo.triangles, offset=offset,
                                                       use_extrinsic=False)
         return self._references[index]
 

@@ -57,7 +57,7 @@ class Interpolator:
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         key_names = check_key_names(key_names, 2, ["vertices_a", "vertices_b"])
         poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
-            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
+            [vertices_a, vertices_b], triangles, k_M, k_N, offset, use_extrinsic, names=key_names, kept=True)
         self._sequence = SequenceInterpolator.__new__(SequenceInterpolator)
         with numerical_failures(f"Preparing the in-betweens of {key_names[0]} and {key_names[1]}"):
             self._sequence._setup(poses, topology, k_M, k_N, offset, use_extrinsic, False, two_poses=True,
@@ -136,7 +136,8 @@ class Interpolator:
         (squared lengths linear in ``factor``), or from the log-stretches' of the sequence ``log``
         (:meth:`_log_sequence`)."""
         if log is not None:  # the corner lengths (3 corners, m) in the order of self._edges
-            target = np.maximum(log._gap(0).metric_lengths(factor).T.reshape(-1) ** 2, np.finfo(float).tiny)
+            lengths = log._gap(0).metric_lengths(factor).T.reshape(-1) / log._unit  # in the poses' units
+            target = np.maximum(lengths ** 2, np.finfo(float).tiny)
         else:
             target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
         lengths = self._squared_lengths(x)
@@ -214,13 +215,12 @@ class Interpolator:
         spun 219° on from its waist: 1.136 × the blend's error, 95 % of it over 90° off)."""
         sequence = self._sequence
         rotations, translations, _ = sequence._fits(0, 1)
-        origin = 0.0 if sequence._origin is None else sequence._origin
         topo = sequence._topo
         if sequence._copies is not None:  # the caller's vertices back to the welded ones (copies alike)
             welded = np.empty((topo.n, 3))
             welded[sequence._copies] = x
             x = welded
-        share, spun = turned_back(sequence._raw[0], sequence._raw[1], x - origin, factor, topo.weights,
+        share, spun = turned_back(sequence._raw[0], sequence._raw[1], sequence._to_working(x), factor, topo.weights,
                                   topo.vertex_owner, sequence._key_patches(), rotations, translations,
                                   sequence._key_turns(0))
         share[~self._jumping_pieces(len(share))] = 0.0

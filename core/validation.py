@@ -70,11 +70,14 @@ def _real_array(values, name: str, what: str) -> np.ndarray:
     return array
 
 
-def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vertices") -> np.ndarray:
+def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vertices", kept: bool = False) -> np.ndarray:
     """``vertices`` as contiguous float64 ``(n, 3)`` (a copy is made only if needed; the input is
     never modified). MeshError on a non-numeric or complex array, a wrong shape, a vertex count
     different from ``n_vertices``, a non-finite coordinate or a magnitude beyond
-    :data:`MAX_COORDINATE`."""
+    :data:`MAX_COORDINATE`. ``kept``: the result is kept past the call (the in-betweens' keys), so
+    it is a copy wherever it would share memory with a caller's array the caller can write to
+    (a frame buffer filled again with the next frame would change the keys under the prepared
+    in-betweens); an array that owns its memory and is read-only is kept as it is."""
     array = _real_array(vertices, name, "vertex coordinates (n, 3)")
     if array.ndim != 2 or array.shape[1] != 3:
         raise MeshError(f"{name} must be an array of shape (n, 3); got shape {array.shape}.")
@@ -85,7 +88,10 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
             "the same mesh, and avoid modifiers that add or remove vertices (Subdivision, "
             "Decimate, Remesh) or apply them to every pose."
         )
-    array = np.ascontiguousarray(array, dtype=np.float64)
+    given, array = array, np.ascontiguousarray(array, dtype=np.float64)
+    if kept and not isinstance(vertices, (list, tuple)) and np.may_share_memory(array, given) and \
+            (array.flags.writeable or array.base is not None):
+        array = array.copy()
     if not np.isfinite(array).all():  # whole-array checks first: row-wise reductions are slow
         bad = int(np.flatnonzero(~np.isfinite(array).all(axis=1))[0])
         raise MeshError(
@@ -141,25 +147,27 @@ def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> n
     return tris
 
 
-def check_mesh(vertices, triangles, *, name: str = "vertices", allow_bow_ties: bool = False):
+def check_mesh(vertices, triangles, *, name: str = "vertices", allow_bow_ties: bool = False, kept: bool = False):
     """Validate a mesh: :func:`check_vertices`, :func:`check_triangles`, its topology (manifold
     edges and vertices, consistent orientation), its size and its triangles (none degenerate).
     Returns ``(vertices float64 (n, 3), topology)`` with the topology of
-    :func:`core.mesh_topology.mesh_topology` (``allow_bow_ties``: as there)."""
+    :func:`core.mesh_topology.mesh_topology` (``allow_bow_ties``: as there; ``kept``: as
+    :func:`check_vertices`)."""
     from .mesh_topology import mesh_topology
 
-    array = check_vertices(vertices, name=name)
+    array = check_vertices(vertices, name=name, kept=kept)
     topology = mesh_topology(triangles, array.shape[0], allow_bow_ties=allow_bow_ties)
     check_pose(array, topology, name=name)
     return array, topology
 
 
-def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices") -> np.ndarray:
+def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices", kept: bool = False) -> np.ndarray:
     """Validate one pose ``(n, 3)`` of a mesh of known topology: count, finite, range, size of the
-    used part (≥ :data:`MIN_EXTENT`), no degenerate triangle. Returns float64 ``(n, 3)``."""
+    used part (≥ :data:`MIN_EXTENT`), no degenerate triangle. Returns float64 ``(n, 3)``
+    (``kept``: as :func:`check_vertices`)."""
     from .mesh_topology import check_nondegenerate
 
-    array = check_vertices(vertices, topology.n_vertices, name=name)
+    array = check_vertices(vertices, topology.n_vertices, name=name, kept=kept)
     rows = np.ascontiguousarray(array.T)  # by coordinate: reductions along contiguous rows, 5× faster
     used = rows if topology.used_vertices.size == rows.shape[1] else rows[:, topology.used_vertices]
     extent = float(np.max(used.max(axis=1) - used.min(axis=1)))
@@ -385,10 +393,12 @@ def check_key_names(key_names, count: int, default: list[str], what: str = "pose
     return list(key_names)
 
 
-def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses", key_names=None) -> list[np.ndarray]:
+def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses", key_names=None,
+                    kept: bool = False) -> list[np.ndarray]:
     """Key poses as a list of float64 ``(n, 3)`` arrays with one vertex count (from a list of
     arrays or an array ``(K, n, 3)``); at least ``minimum``. Topology checks are separate.
-    ``key_names``: the poses' names in messages (K strings; default ``key pose i of`` ``name``)."""
+    ``key_names``: the poses' names in messages (K strings; default ``key pose i of`` ``name``);
+    ``kept``: as :func:`check_vertices`."""
     if isinstance(key_poses, (str, bytes)) or not hasattr(key_poses, "__iter__"):
         raise MeshError(f"{name} must be a sequence of vertex arrays (n, 3); got {type(key_poses).__name__}.")
     poses = list(key_poses)
@@ -396,12 +406,12 @@ def check_key_poses(key_poses, *, minimum: int = 2, name: str = "key_poses", key
         raise MeshError(f"A sequence needs at least {minimum} key poses; got {len(poses)}.")
     names = check_key_names(key_names, len(poses), [f"key pose {i} of {name}" for i in range(len(poses))],
                             "key poses")
-    first = check_vertices(poses[0], name=names[0])
-    return [first] + [check_vertices(p, first.shape[0], name=n) for p, n in zip(poses[1:], names[1:])]
+    first = check_vertices(poses[0], name=names[0], kept=kept)
+    return [first] + [check_vertices(p, first.shape[0], name=n, kept=kept) for p, n in zip(poses[1:], names[1:])]
 
 
 def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_extrinsic=True, *,
-                        names=None):
+                        names=None, kept: bool = False):
     """Everything the in-between constructors take, checked once: every pose (count, finite,
     range, size, no degenerate triangle), the topology, the basis sizes against the used vertex
     count, the offset and the flag. Returns ``(poses list of float64 (n, 3), k_M, k_N, offset,
@@ -410,10 +420,11 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     between fans alike on both sides, and the in-betweens refuse them only where welding the
     seams leaves them (:func:`core.mesh_topology.check_manifold_vertices`).
 
-    ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``)."""
+    ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``);
+    ``kept``: as :func:`check_vertices` (the caller's poses, not yet checked)."""
     names = names or [f"key pose {i}" for i in range(len(poses))]
-    first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True)
-    checked = [first] + [check_pose(pose, topology, name=name) for pose, name in zip(poses[1:], names[1:])]
+    first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True, kept=kept)
+    checked = [first] + [check_pose(pose, topology, name=name, kept=kept) for pose, name in zip(poses[1:], names[1:])]
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0],
                                  geometry=(first, topology))
     return checked, k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
@@ -477,5 +488,5 @@ def check_sequence(key_poses, triangles, k_M=None, k_N=None, offset=None, use_ex
     ``smooth`` flag; ``key_names``: the keys' names in messages (K strings, or None). Returns
     ``(key_poses list of float64 (n, 3), k_M, k_N, offset, use_extrinsic, smooth, topology)``."""
     poses, k_M, k_N, offset, use_extrinsic, topology = check_interpolation(
-        check_key_poses(key_poses, key_names=key_names), triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
+        check_key_poses(key_poses, key_names=key_names, kept=True), triangles, k_M, k_N, offset, use_extrinsic, names=key_names)
     return poses, k_M, k_N, offset, use_extrinsic, check_flag(smooth, "smooth"), topology

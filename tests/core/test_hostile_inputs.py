@@ -4,6 +4,7 @@ the user's own index; accepted input the method cannot represent faithfully gets
 ShapeDifferenceWarning; inputs are never modified. Numbered tests follow the issue's items."""
 
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -458,3 +459,77 @@ def test_an_exaggeration_far_past_the_keys_leaks_no_numpy_warning(sheet, factor)
     assert ShapeDifferenceWarning in categories
     assert categories == {ShapeDifferenceWarning}, [str(w.message) for w in caught
                                                     if w.category is not ShapeDifferenceWarning]
+
+
+# -- units: a scene modelled far larger or smaller than 1 ---------------------------------------
+
+
+def _data(name):
+    data = np.load(Path(__file__).parent / "data" / f"{name}.npz")
+    return {key: data[key] for key in data.files}
+
+
+@pytest.mark.parametrize("scale", [2.0 ** -70, 2.0 ** 70, 2.0 ** 96])
+def test_in_betweens_scale_with_the_keys(scale):
+    """Keys scaled by a power of two (1e-21, 1e21, 8e28: within the accepted 1e-30 to 1e30) give
+    the in-betweens and exaggerations of the keys as given, scaled by it: such a scaling changes
+    no digit of a coordinate, so they agree to 1e-9 of the diagonal (the fits' tolerances are
+    relative; the difference measured is 0), with no NumPy warning. Before, the fits' single-
+    precision steps under- and overflowed there: a sequence of pieces 3e-2 of its diagonal off at
+    2^70 and a RecoveryError at 2^96, a skinned tentacle 1.4e-2 off at 2^70 and 4.6e-4 at 2^-70."""
+    pieces, tentacle = _data("spun_pieces"), _data("skinned_tentacle")
+    factors = [0.25, 0.5, 0.75]
+    runs = [(pieces["keys"], lambda keys: core.SequenceInterpolator(keys, pieces["triangles"]).poses(1, factors)),
+            (np.stack([tentacle["rest"], tentacle["curled"]]),
+             lambda keys: np.stack([core.Interpolator(keys[0], keys[1], tentacle["triangles"]).pose(f)
+                                    for f in (0.5, 1.5, -0.5)]))]
+    for keys, in_betweens in runs:
+        diagonal = np.linalg.norm(np.ptp(keys.reshape(-1, 3), axis=0))
+        expected = in_betweens(keys)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            got = in_betweens(keys * scale)
+        np.testing.assert_allclose(got / scale, expected, rtol=0, atol=1e-9 * diagonal)
+
+
+def test_in_betweens_do_not_follow_the_callers_arrays_written_after(sheet):
+    """A caller's key arrays written over after the interpolators were made (a frame buffer filled
+    again with the next frame, a pose moved in place) change none of their results: the keys at
+    factors 0 and 1, and the in-betweens, are those of the keys as given. Before, the interpolators
+    kept the caller's float64 arrays themselves: the keys they returned followed the caller's
+    writes while the in-betweens stayed prepared from the old keys."""
+    v, t, target = sheet
+    a, b = v.copy(), target.copy()
+    keys = np.stack([v, target, drape(v, 1.5)])
+    pair, sequence = core.Interpolator(a, b, t), core.SequenceInterpolator(keys, t)
+    factors = [0.0, 0.5, 1.0]
+    expected = ([pair.pose(f) for f in factors], [sequence.poses(g, factors) for g in (0, 1)])
+    a += 1.0
+    b[:] = 0.0
+    keys[1] *= 2.0
+    got = ([pair.pose(f) for f in factors], [sequence.poses(g, factors) for g in (0, 1)])
+    for was, now in zip(expected[0] + expected[1], got[0] + got[1]):
+        np.testing.assert_array_equal(now, was)
+    np.testing.assert_array_equal(got[0][0], v)  # the key as given, not as written over
+
+
+def test_a_vertex_shot_far_away_is_named_not_called_a_zero_area(sheet):
+    """A pose with one vertex shot 1e12 away (a simulation that exploded there) makes needles too
+    thin to measure around it: the error names that vertex and how far it lies, in every entry
+    point that checks poses. Before, it said the needle triangles have "zero area" and advised
+    Degenerate Dissolve, which would not find them; a face flattened in place still says so."""
+    v, t, target = sheet
+    shot = target.copy()
+    shot[5] += [0.0, 0.0, 1e12]
+    message = r": vertex 5 lies 1e\+12 from the other corners of triangle \d+ .* needles too thin"
+    for call, name in ((lambda: core.Interpolator(v, shot, t), "vertices_b"),
+                       (lambda: core.shape_differences(v, shot, t), "target_vertices")):
+        with pytest.raises(MeshError, match=f"^{name}{message}"):
+            call()
+    with pytest.raises(MeshError, match=r"^key pose 1: vertex 5 lies 1e\+12"):
+        core.SequenceInterpolator([v, shot, target], t)
+    flat = target.copy()
+    a, b, c = t[3]
+    flat[c] = 0.5 * (flat[a] + flat[b])
+    with pytest.raises(MeshError, match="has zero area"):
+        core.Interpolator(v, flat, t)
