@@ -66,12 +66,13 @@ from core.two_pose_inbetweens import Interpolator  # noqa: E402
 
 QUICK_SCENES = ["drape_sphere", "fall_box", "tablecloth"]
 LARGE_SCENES = ["drape_sphere_hd", "tablecloth", "sheet_cube_50k", "sheet_cube_100k", "hang_10k", "flag_soft_10k",
-                "flag_soft_20k", "banner_10k", "curtain_ball_15k", "balloon_10k", "two_sheets_10k", "lift_10k"]
+                "flag_soft_20k", "banner_10k", "curtain_ball_15k", "balloon_10k", "two_sheets_10k", "lift_10k",
+                "flag_leather_12k", "flag_denim_12k", "sleeve_armature_12k"]
 #: Scenes whose two-pose protocol runs on 8 start frames per gap (a pair costs seconds there); the
 #: others on every ``--stride``-th start frame: with 8 of 24 the 10k drape's median at g = 16 was
 #: 1.049 × the blend's against 0.995 over all 24 (its pairs span two decades of RMS).
 PAIR_SAMPLED_SCENES = ["sheet_cube_50k", "sheet_cube_100k"]
-#: Scenes drawn by ``--plot`` (each gets one of the ten colours of Matplotlib's cycle; all sixteen
+#: Scenes drawn by ``--plot`` (each gets one of the ten colours of Matplotlib's cycle; all nineteen
 #: would crowd it): the quick ones, the 10k drape, the hanging sheet, the soft flag and the curtain.
 PLOT_SCENES = ["drape_sphere", "fall_box", "tablecloth", "drape_sphere_hd", "hang_10k", "flag_soft_10k", "curtain_ball_15k"]
 

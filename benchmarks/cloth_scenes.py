@@ -1,9 +1,10 @@
 """Ground truth for in-betweening: Blender cloth simulations baked headless with the PyPI ``bpy``
 module, returned as per-frame vertex arrays.
 
-Every scene is a subdivided grid with a Cloth modifier; frames are read from the evaluated mesh in
-world space after baking the point cache. A scene is cached as ``benchmarks/output/cloth_<name>.npz``
-(git-ignored) keyed by its parameters, so only the first call bakes.
+Every scene is a subdivided grid (the balloon an icosphere, the sleeve a tube) with a Cloth
+modifier; frames are read from the evaluated mesh in world space after baking the point cache. A
+scene is cached as ``benchmarks/output/cloth_<name>.npz`` (git-ignored) keyed by its parameters,
+so only the first call bakes.
 
     from benchmarks.cloth_scenes import load_scene, SCENES
     scene = load_scene("drape_sphere")      # ClothScene
@@ -41,6 +42,18 @@ Scenes (chosen to differ in resolution, boundary conditions and kind of motion):
   the icosphere's subdivision level).
 - ``lift_10k``: a 100×100 sheet (default cloth) lying on the floor, lifted by a sphere (radius
   0.4) rising under it and moving sideways (a collider that carries the cloth; added in session 34).
+- ``flag_leather_12k``, ``flag_denim_12k``: a 120×100 flag (1.5 × 1.0, 12,000 vertices) pinned at
+  its pole in a gusty wind (``_GUST``: noise 2.5, rising over frames 1–6, a gust of 2.2× in frames
+  24–30), with the settings of Blender's *Leather* and *Denim* presets (``CLOTH_PRESETS``): stiff,
+  heavy cloth that swings round its pole like a door (leather) or hangs and folds (denim); the
+  leather's edges stay within 0.9 % of rest, so the edge bound is tight.
+- ``sleeve_armature_12k``: an open tube sleeve (100 around × 120 rings, radius 0.105, 12,000
+  vertices, Blender's *Cotton* preset) pinned at its shoulder ring on an arm skinned to a two-bone
+  armature whose forearm bends 90° at the elbow over frames 5–45 (a collider driven by bones: the
+  sleeve is lifted with the forearm and bunches at the elbow).
+
+Material, wind and armature enter a scene's cache key only when set, so scenes without them keep
+the keys (and cached bakes) they had before those fields existed.
 
 Stiff scenes (tension/compression 80, bending 2–5, quality 10) keep edge lengths within ~0.2–0.6%
 of rest like the simulations in issue 3; default cloth (bending 0.5) wrinkles below the edge scale
@@ -50,6 +63,7 @@ and shortens edges by 1–2%.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import os
@@ -65,21 +79,95 @@ OUTPUT_DIR = Path(__file__).resolve().parent / "output"
 
 
 @dataclass(frozen=True)
+class Wind:
+    """A wind force field (Blender's *Wind* effector) whose strength follows a keyed schedule."""
+
+    location: tuple[float, float, float]
+    rotation: tuple[float, float, float]  # Euler XYZ (radians); the wind blows along the field's local z
+    strength: tuple[tuple[int, float], ...]  # (frame, strength) keys, Blender's default (Bézier) easing
+    noise: float = 0.0
+    seed: int = 0
+    flow: float = 0.0
+
+
+@dataclass(frozen=True)
+class Armature:
+    """An arm the cloth collides with: an open tube along +x (radius ``radius``, from ``extent[0]``
+    to ``extent[1]``, ``segments`` = vertices around × rings) skinned to a two-bone armature, the
+    upper bone from x = 0 to the elbow, the forearm from the elbow to ``extent[1]``, the skin
+    weights blending linearly over the elbow ± ``blend``; the forearm turns ``bend_degrees`` about
+    its bone's local x axis between the frames of ``bend_frames`` (Blender's default easing) and
+    holds."""
+
+    radius: float
+    extent: tuple[float, float]
+    segments: tuple[int, int]
+    elbow: float
+    blend: float
+    bend_degrees: float
+    bend_frames: tuple[int, int]
+
+
+#: The cloth settings Blender's presets set (``scripts/presets/cloth/*.py`` of Blender 5.0) that
+#: differ between them, as ``(quality, ((ClothSettings attribute, value), ...))``; the presets also
+#: switch internal springs and pressure off, which Blender's default cloth has off already.
+CLOTH_PRESETS = {
+    name: (quality, (("mass", mass), ("tension_stiffness", stiff), ("compression_stiffness", stiff),
+                     ("shear_stiffness", stiff), ("bending_stiffness", bending), ("tension_damping", damping),
+                     ("compression_damping", damping), ("shear_damping", damping), ("air_damping", 1.0)))
+    for name, quality, mass, stiff, bending, damping in [
+        ("silk", 5, 0.15, 5.0, 0.05, 0.0),
+        ("cotton", 5, 0.3, 15.0, 0.5, 5.0),
+        ("denim", 12, 1.0, 40.0, 10.0, 25.0),
+        ("leather", 15, 0.4, 80.0, 150.0, 25.0),
+        ("rubber", 7, 3.0, 15.0, 25.0, 25.0),
+    ]
+}
+
+
+def _preset(name: str) -> dict:
+    """``SceneSpec`` keywords for Blender's cloth preset ``name``: its quality and settings."""
+    quality, material = CLOTH_PRESETS[name]
+    return {"quality": quality, "material": material}
+
+
+@dataclass(frozen=True)
 class SceneSpec:
     name: str
-    kind: str  # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon", "two", "lift"
-    subdivisions: tuple[int, int]  # grid vertices along x, y
+    # "drape", "flag", "fall", "table", "edge", "hang", "carry", "ball", "balloon", "two", "lift", "sleeve"
+    kind: str
+    subdivisions: tuple[int, int]  # grid vertices along x, y (sleeve: vertices around, rings)
     size: float = 2.0
     frames: int = 96
     quality: int = 5
-    params: tuple = ()  # extra (key, value) pairs
+    # extra (key, value) pairs: "stiffness", "bending" (cloth settings), "height" (the grid's extent
+    # along y; default: square cells), "elevation" (a flag's centre height), "radius" and "start"
+    # (a sleeve's radius and shoulder x), "collision_distance" (the cloth's, default 0.01)
+    params: tuple = ()
+    material: tuple = ()  # (ClothSettings attribute, value) pairs set on the cloth (e.g. a preset's)
+    wind: Wind | None = None  # a flag's wind (default: the steady noisy wind of kind "flag")
+    armature: Armature | None = None  # a sleeve's arm
 
     def key(self) -> str:
-        blob = json.dumps([self.kind, self.subdivisions, self.size, self.frames, self.quality, self.params, _VERSION])
-        return hashlib.sha1(blob.encode()).hexdigest()[:12]
+        """The cache key: a hash of the parameters. The fields a spec leaves at their defaults
+        (material, wind, armature) do not enter it, so adding such a field keeps every earlier
+        scene's key and cached bake."""
+        fields = [self.kind, self.subdivisions, self.size, self.frames, self.quality, self.params, _VERSION]
+        extra = {name: value for name, value in (("material", self.material),
+                                                 ("wind", self.wind and dataclasses.asdict(self.wind)),
+                                                 ("armature", self.armature and dataclasses.asdict(self.armature)))
+                 if value}
+        if extra:
+            fields.append(extra)
+        return hashlib.sha1(json.dumps(fields).encode()).hexdigest()[:12]
 
 
 _VERSION = 3  # bump to invalidate caches when the scene construction changes
+
+#: The gusty wind of the preset flags: noise 2.5 along +x (turned 0.12 rad), rising over frames
+#: 1–6 and gusting to 2.2 × in frames 24–30; strong enough that a silk flag flies.
+_GUST = Wind(location=(-1.5, 0.0, 2.0), rotation=(0.0, np.pi / 2, 0.12), noise=2.5, seed=11,
+             strength=((1, 0.0), (6, 150000.0), (24, 150000.0), (27, 330000.0), (30, 150000.0), (49, 150000.0)))
 
 SCENES: dict[str, SceneSpec] = {
     s.name: s
@@ -105,6 +193,16 @@ SCENES: dict[str, SceneSpec] = {
         SceneSpec("balloon_10k", "balloon", (6, 6), frames=49),
         SceneSpec("two_sheets_10k", "two", (72, 72), size=1.4, frames=49),
         SceneSpec("lift_10k", "lift", (100, 100), size=2.0, frames=49),
+        # Blender's stiff presets in a gusty wind (cloth that barely stretches: a tight edge bound),
+        # and cotton on an arm bent by an armature (a collider driven by bones)
+        SceneSpec("flag_leather_12k", "flag", (120, 100), size=1.5, frames=49, **_preset("leather"),
+                  params=(("height", 1.0), ("elevation", 2.0)), wind=_GUST),
+        SceneSpec("flag_denim_12k", "flag", (120, 100), size=1.5, frames=49, **_preset("denim"),
+                  params=(("height", 1.0), ("elevation", 2.0)), wind=_GUST),
+        SceneSpec("sleeve_armature_12k", "sleeve", (100, 120), size=0.95, frames=49, **_preset("cotton"),
+                  params=(("radius", 0.105), ("start", 0.02), ("collision_distance", 0.006)),
+                  armature=Armature(radius=0.075, extent=(-0.02, 1.05), segments=(48, 43), elbow=0.5, blend=0.06,
+                                    bend_degrees=90.0, bend_frames=(5, 45))),
     ]
 }
 
@@ -162,7 +260,7 @@ def _import_bpy():
 def _grid(bpy, spec: SceneSpec, location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0)):
     nx, ny = spec.subdivisions
     sx = spec.size
-    sy = spec.size * (ny - 1) / (nx - 1)
+    sy = dict(spec.params).get("height", spec.size * (ny - 1) / (nx - 1))  # square cells unless given
     bpy.ops.mesh.primitive_grid_add(x_subdivisions=nx - 1, y_subdivisions=ny - 1, size=1.0)
     ob = bpy.context.active_object
     me = ob.data
@@ -202,6 +300,74 @@ def _collider(bpy, kind, **kw):
     return ob
 
 
+def _wind(bpy, wind: Wind):
+    """Add the wind field ``wind`` (strength keyed when its schedule has more than one key)."""
+    bpy.ops.object.effector_add(type="WIND", location=wind.location, rotation=wind.rotation)
+    field = bpy.context.active_object.field
+    field.noise, field.flow, field.seed = wind.noise, wind.flow, wind.seed
+    for frame, strength in wind.strength:
+        field.strength = strength
+        if len(wind.strength) > 1:
+            field.keyframe_insert("strength", frame=frame)
+    return field
+
+
+def _tube(bpy, name, around, rings, radius, extent):
+    """An open tube along +x (``around`` vertices around each of ``rings`` rings from x =
+    ``extent[0]`` to ``extent[1]``), quads facing outwards: ``(object, float32 (n, 3) coordinates)``."""
+    t = np.linspace(0.0, 2.0 * np.pi, around, endpoint=False)
+    x = np.linspace(extent[0], extent[1], rings)
+    T, X = np.meshgrid(t, x, indexing="xy")
+    co = np.stack([X.ravel(), radius * np.cos(T).ravel(), radius * np.sin(T).ravel()], axis=1).astype(np.float32)
+    a = (np.arange(rings - 1)[:, None] * around + np.arange(around)[None, :]).ravel()
+    b = (np.arange(rings - 1)[:, None] * around + (np.arange(around)[None, :] + 1) % around).ravel()
+    quads = np.stack([a, b, b + around, a + around], axis=1)
+    mesh = bpy.data.meshes.new(name)
+    mesh.vertices.add(len(co))
+    mesh.vertices.foreach_set("co", co.ravel())
+    mesh.loops.add(quads.size)
+    mesh.loops.foreach_set("vertex_index", quads.astype(np.int32).ravel())
+    mesh.polygons.add(len(quads))
+    mesh.polygons.foreach_set("loop_start", (np.arange(len(quads)) * 4).astype(np.int32))
+    mesh.update(calc_edges=True)
+    ob = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(ob)
+    return ob, co
+
+
+def _arm(bpy, arm: Armature):
+    """The collider of ``arm``: a tube skinned to a two-bone armature whose forearm bends (keyed)."""
+    tube, co = _tube(bpy, "Arm", *arm.segments, arm.radius, arm.extent)
+    bpy.ops.object.armature_add(location=(0.0, 0.0, 0.0))
+    rig = bpy.context.active_object
+    bpy.ops.object.mode_set(mode="EDIT")
+    upper = rig.data.edit_bones[0]
+    upper.name = "upper"
+    upper.head, upper.tail, upper.roll = (0.0, 0.0, 0.0), (arm.elbow, 0.0, 0.0), 0.0
+    fore = rig.data.edit_bones.new("fore")
+    fore.head, fore.tail, fore.roll = (arm.elbow, 0.0, 0.0), (arm.extent[1], 0.0, 0.0), 0.0
+    fore.parent, fore.use_connect = upper, True
+    bpy.ops.object.mode_set(mode="OBJECT")
+    weight = np.clip((co[:, 0] - arm.elbow + arm.blend) / (2.0 * arm.blend), 0.0, 1.0)  # the forearm's
+    upper_group, fore_group = tube.vertex_groups.new(name="upper"), tube.vertex_groups.new(name="fore")
+    for i, w in enumerate(weight):
+        if w < 1.0:
+            upper_group.add([i], float(1.0 - w), "REPLACE")
+        if w > 0.0:
+            fore_group.add([i], float(w), "REPLACE")
+    tube.modifiers.new("Armature", "ARMATURE").object = rig
+    tube.modifiers.new("Collision", "COLLISION")
+    bone = rig.pose.bones["fore"]
+    bone.rotation_mode = "XYZ"
+    start, end = arm.bend_frames
+    last = bpy.context.scene.frame_end
+    bend = np.radians(arm.bend_degrees)
+    for frame, angle in ((1, 0.0), (start, 0.0), (end, bend), (last, bend)):
+        bone.rotation_euler[0] = angle
+        bone.keyframe_insert("rotation_euler", index=0, frame=frame)
+    return tube
+
+
 @contextlib.contextmanager
 def _quiet_stdout():
     """Silence Blender's per-frame "bake: frame i :: n" lines (printed by C code to fd 1)."""
@@ -232,15 +398,15 @@ def build(spec: SceneSpec):
         _collider(bpy, "sphere", radius=0.7, location=(0.0, 0.0, 0.0))
     elif spec.kind == "flag":
         # Vertical flag in the xz plane, pinned along its left edge (x = min).
-        cloth, co = _grid(bpy, spec, location=(0.0, 0.0, 1.5), rotation=(np.pi / 2, 0.0, 0.0))
+        elevation = dict(spec.params).get("elevation", 1.5)
+        cloth, co = _grid(bpy, spec, location=(0.0, 0.0, elevation), rotation=(np.pi / 2, 0.0, 0.0))
         left = np.flatnonzero(np.isclose(co[:, 0], co[:, 0].min()))
         pin = _pin_group(cloth, left)
-        bpy.ops.object.effector_add(type="WIND", location=(-2.0, -0.5, 1.5), rotation=(0.0, np.pi / 2, 0.3))
-        wind = bpy.context.active_object
-        wind.field.strength = 600.0
-        wind.field.noise = 2.0
-        wind.field.flow = 0.0
-        wind.field.seed = 7
+        if spec.wind is None:
+            _wind(bpy, Wind(location=(-2.0, -0.5, 1.5), rotation=(0.0, np.pi / 2, 0.3), strength=((1, 600.0),),
+                            noise=2.0, seed=7))
+        else:
+            _wind(bpy, spec.wind)
     elif spec.kind == "fall":
         cloth, co = _grid(bpy, spec, location=(0.3, 0.2, 1.6), rotation=(0.35, 0.25, 0.5))
         _collider(bpy, "cube", size=0.8, location=(0.0, 0.0, 0.4), rotation=(0.0, 0.0, 0.6))
@@ -297,6 +463,12 @@ def build(spec: SceneSpec):
         bpy.ops.object.transform_apply(location=True, rotation=True, scale=True)
         _collider(bpy, "plane", size=8.0, location=(0.0, 0.0, 0.0))
         _collider(bpy, "cube", size=0.5, location=(0.3, 0.1, 0.25), rotation=(0.0, 0.0, 0.4))
+    elif spec.kind == "sleeve":
+        # An open tube sleeve along +x on an arm that bends at the elbow; its shoulder ring is pinned.
+        _arm(bpy, spec.armature)
+        p = dict(spec.params)
+        cloth, co = _tube(bpy, "Sleeve", nx, ny, p["radius"], (p["start"], p["start"] + spec.size))
+        pin = _pin_group(cloth, np.flatnonzero(np.isclose(co[:, 0], co[:, 0].min())))
     else:
         raise ValueError(spec.kind)
 
@@ -304,14 +476,16 @@ def build(spec: SceneSpec):
     mod = cloth.modifiers.new("Cloth", "CLOTH")
     settings = mod.settings
     settings.quality = spec.quality
-    if spec.kind in ("flag", "hang", "carry", "ball"):
+    for attribute, value in spec.material:
+        setattr(settings, attribute, value)
+    if spec.kind in ("flag", "hang", "carry", "ball", "sleeve"):
         settings.vertex_group_mass = pin
     if spec.kind == "balloon":
         settings.use_pressure = True
         settings.uniform_pressure_force = 8.0
     if spec.kind == "fall":
         mod.collision_settings.use_self_collision = True
-    mod.collision_settings.distance_min = 0.01
+    mod.collision_settings.distance_min = dict(spec.params).get("collision_distance", 0.01)
     mod.point_cache.frame_start = 1
     mod.point_cache.frame_end = spec.frames
 
