@@ -350,10 +350,26 @@ def continuous_rotation_vectors(rotvec: np.ndarray, pairs: np.ndarray, pieces: n
         return rotvec
     out = rotvec + (2.0 * np.pi * turns[region])[:, None] * axis
     left = jumping_pairs(out, pairs)
-    if left.any():  # the pieces with a jump left keep their principal vectors
+    if left.any():  # the pieces with a jump left keep their principal vectors (but at a lone triangle)
+        left &= ~lone_triangles(out, pairs)[pairs].any(axis=1)
         kept = np.isin(pieces, pieces[pairs[left, 0]])
         out[kept] = rotvec[kept]
     return out
+
+
+def lone_triangles(rotvec: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Per triangle (bool (m,)), whether its rotation (``rotvec`` (m, 3)) lies more than
+    :data:`WRAP_CREASE` from each of its neighbours' across ``pairs`` (E, 2): a triangle crushed in
+    a key (a skin's fold at a weight ramp's end, a sliver of a re-meshed scan) whose polar rotation
+    tells nothing of the way round the part around it turns. A jump past a half turn left at such a
+    triangle after :func:`continuous_rotation_vectors` is no fold the rotations wind around, and
+    does not keep its piece's principal vectors: an irregular tube skinned at two joints by 100°
+    and 150° (its tip 250°, ramps 0.6 long) has one triangle crushed to a fifth of its shape at the
+    second ramp's end, turning 121–128° from its three neighbours; counted, that jump alone turns
+    the tip the short way round in every in-between (0.58 of the diagonal off the rig half-way)."""
+    apart = creased(rotvec, pairs, WRAP_CREASE)
+    m = len(rotvec)
+    return np.bincount(pairs[apart].ravel(), minlength=m) == np.bincount(pairs.ravel(), minlength=m)
 
 
 def _creases_read(rotvec: np.ndarray, pairs: np.ndarray, region: np.ndarray, sets: np.ndarray, turns: np.ndarray,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.linalg import expm, logm
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, Delaunay
 from scipy.spatial.transform import Rotation
 
 from meshes import grid, icosphere
@@ -109,3 +109,65 @@ def _nodded(vertices, degrees, s):
     turns = Rotation.from_rotvec(s * np.radians(degrees) * weights[:, None] * np.array([1.0, 0.0, 0.0]))
     pivot = np.array([0.0, 0.6, 0.0])
     return turns.apply(vertices - pivot) + pivot
+
+
+def _remeshed_tube(points, seed, length=3.0, radius=0.15, density=10.0):
+    """A limb re-meshed irregularly, as a scan is: ``points`` random points (seeded) on a tube
+    along x ∈ [0, ``length``], their density rising ``density`` × along it, triangulated by
+    :class:`scipy.spatial.Delaunay` in the unrolled (x, arc length) domain (copies a turn either
+    side close the seam), each end ringed at the local spacing and closed by a fan around a centre
+    vertex; triangles facing outward. Slivers and valences from 3 to the caps' ~35 included."""
+    rng = np.random.default_rng(seed)
+    around = 2.0 * np.pi * radius
+    domain = []
+    while len(domain) < points:  # rejection sampling of the density ramp, point by point
+        point = rng.random(2) * (length, around)
+        if rng.random() < (1.0 + (density - 1.0) * point[0] / length) / density:
+            domain.append(point)
+    domain = np.array(domain)
+
+    def spacing(x):
+        return np.sqrt(length * around / points * density / (1.0 + (density - 1.0) * x / length) * 2.0 /
+                       (1.0 + density))
+
+    rings = []
+    for end in (0.0, length):
+        count = max(6, int(around / spacing(end)))
+        rings.append(np.c_[np.full(count, end), (np.arange(count) + rng.uniform(0.0, 1.0)) * around / count % around])
+    inside = (domain[:, 0] > 0.4 * spacing(0.0)) & (domain[:, 0] < length - 0.4 * spacing(length))
+    domain = np.vstack(rings + [domain[inside]])
+    m = len(domain)
+    wrapped = np.vstack([domain, domain + (0.0, around), domain - (0.0, around)])
+    tri = Delaunay(wrapped).simplices
+    centre = wrapped[tri].mean(axis=1)
+    tri = tri[(centre[:, 1] >= 0.0) & (centre[:, 1] < around)] % m
+    angle = domain[:, 1] / radius
+    vertices = np.vstack([np.c_[domain[:, 0], radius * np.cos(angle), radius * np.sin(angle)],
+                          [[0.0, 0.0, 0.0], [length, 0.0, 0.0]]])
+    first, last = len(rings[0]), np.argsort(rings[1][:, 1]) + len(rings[0])
+    start = np.argsort(rings[0][:, 1])
+    caps = [[m, start[(k + 1) % first], start[k]] for k in range(first)]
+    caps += [[m + 1, last[k], last[(k + 1) % len(last)]] for k in range(len(last))]
+    tri = np.vstack([tri, caps])
+    # outward: away from the axis on the side, along it on the caps
+    centre = vertices[tri].mean(axis=1)
+    away = centre - np.c_[np.clip(centre[:, 0], 0.0, length), np.zeros((len(tri), 2))]
+    capped = (centre[:, 0] < 1e-9) | (centre[:, 0] > length - 1e-9)
+    away[capped] = np.c_[np.sign(centre[capped, 0] - 0.5 * length), np.zeros((capped.sum(), 2))]
+    normals = np.cross(vertices[tri[:, 1]] - vertices[tri[:, 0]], vertices[tri[:, 2]] - vertices[tri[:, 0]])
+    inward = np.einsum("ij,ij->i", normals, away) < 0
+    tri[inward] = tri[inward][:, [0, 2, 1]]
+    return vertices, tri
+
+
+def _skinned_limb(vertices, angles, joints=(1.0, 2.0), ramp=0.6):
+    """``vertices`` of a limb along x bent about y at the ``joints`` by ``angles`` (radians), as a
+    skin with a bone per segment does: each vertex turned about each joint by its weight's share
+    of the angle, the weight ramping from 0 to 1 over ``ramp`` centred on the joint (the outer
+    joint turned first, then carried by the inner one)."""
+    out = vertices.copy()
+    for angle, joint in reversed(list(zip(angles, joints))):
+        weights = np.clip((vertices[:, 0] - joint + 0.5 * ramp) / ramp, 0.0, 1.0)
+        pivot = np.array([joint, 0.0, 0.0])
+        out = Rotation.from_rotvec(angle * weights[:, None] * np.array([0.0, 1.0, 0.0])).apply(out - pivot) + pivot
+    return out
