@@ -115,7 +115,7 @@ def shape_differences(
     offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
     with numerical_failures("Computing the shape differences"):
         reference = ReferenceShape(base, topology.triangles, offset=offset, use_extrinsic=use_extrinsic)
-        reference.check_faithful(base[reference.used_vertices], "base_vertices", stacklevel=2)
+        reference.check_faithful(reference.base_positions, "base_vertices", stacklevel=2)
         return reference.shape_differences(target, k_M=k_M, k_N=k_N, name="target_vertices", stacklevel=2)
 
 

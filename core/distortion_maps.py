@@ -95,7 +95,9 @@ class DistortionAnalyzer:
         every coordinate is a float32. It sizes :attr:`Distortion.round_off_faces`."""
         from .reference_shape import ReferenceShape
 
-        self.reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
+        # in the caller's units (unit 1): the maps neither recover nor embed, and report lengths as given
+        self.reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic,
+                                        unit=1.0)
         ref = self.reference
         # the default shrinks to a small mesh; a size given is checked against the mesh where the
         # eigenfunctions are asked for (the maps do not use it)

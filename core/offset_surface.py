@@ -186,12 +186,14 @@ def _thickening_tetrahedra(surface: OffsetSurface) -> np.ndarray:
 
 
 def check_offset_pose(surface: OffsetSurface, vertices: np.ndarray, offset: float, *, name: str = "vertices",
-                      vertex_ids: np.ndarray | None = None) -> None:
+                      vertex_ids: np.ndarray | None = None, unit: float = 1.0) -> None:
     """Raise :class:`MeshError`, naming the base mesh's edge, if the offset surface of a pose
     ``vertices (n, 3)`` at distance ``offset`` has a degenerate triangle (the offsets of two
     neighbouring triangles collapse onto each other, e.g. a fold much sharper than the offset
     distance). Offset triangle ``j`` lies over the base's ``j % E_inner``-th interior edge;
-    ``vertex_ids`` maps the base's vertex indices to the caller's (loose vertices removed)."""
+    ``vertex_ids`` maps the base's vertex indices to the caller's (loose vertices removed);
+    ``unit``: the scale of ``vertices`` and ``offset`` against the caller's units (the message quotes
+    the offset in the caller's)."""
     from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
 
     positions = surface.positions(vertices, offset)
@@ -206,7 +208,7 @@ def check_offset_pose(surface: OffsetSurface, vertices: np.ndarray, offset: floa
         if vertex_ids is not None:
             a, b = vertex_ids[a], vertex_ids[b]
         raise MeshError(
-            f"{name}: the offset surface at distance {offset:g} collapses over the edge ({a}, {b}) "
+            f"{name}: the offset surface at distance {offset / unit:g} collapses over the edge ({a}, {b}) "
             f"({bad.size} offset triangle(s) in all): the triangles on either side fold onto each "
             "other at this distance. Use a smaller offset, or turn off extrinsic differences."
         )

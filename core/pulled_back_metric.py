@@ -318,4 +318,7 @@ def pull_back(base_vertices, triangles, differences) -> PulledBackMetric:
 
     reference = differences_reference(base_vertices, triangles, differences)
     metric = reference.base.recover(differences.area, differences.conformal)
-    return PulledBackMetric(reference, metric.areas, metric.squared_lengths)
+    if reference.unit == 1.0:
+        return PulledBackMetric(reference, metric.areas, metric.squared_lengths)
+    square = reference.unit ** 2  # recovered in the reference's working units, returned in the caller's
+    return PulledBackMetric(reference, metric.areas / square, metric.squared_lengths / square)

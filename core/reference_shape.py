@@ -32,6 +32,7 @@ from .shape_difference import (
 )
 from .truncated_recovery import TruncatedRecovery, recover_truncated_metric
 from .validation import check_basis_sizes, check_flag, check_offset, check_triangles
+from .working_unit import working_unit
 
 
 #: Shape differences warn when round-off alone may change recovered squared edge lengths by
@@ -199,10 +200,19 @@ class ReferenceShape:
     ``use_extrinsic`` builds the offset layer. Loose vertices (in no triangle) are allowed: they
     are left out of every computation and kept in place in results. ``name``: what error messages
     call the vertices (an operator passes the pose's name).
+
+    Units: the base is worked on scaled by :attr:`unit`, the power of two
+    :func:`~core.working_unit.working_unit` picks from its extent (1 for a base of ~1e-3 to 1e3
+    units; ``unit``: a given one, 1.0 for positions already scaled), so the single-precision parts of
+    the truncated recovery stay in range whatever the caller's units. Everything prepared here
+    (:attr:`base_positions`, :attr:`offset`, the layers, recovered metrics, embeddings) is in those
+    working units; :meth:`compact_pose` takes a pose in the caller's units to them and
+    :meth:`expand_pose` brings one back, both exactly. :attr:`vertices`, :attr:`given_positions`,
+    :attr:`given_offset` and every message are in the caller's units.
     """
 
     def __init__(self, vertices, triangles, *, offset: float | None = None, use_extrinsic: bool = True,
-                 name: str = "base vertices"):
+                 name: str = "base vertices", unit: float | None = None):
         offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
         vertices = check_vertices(vertices, name=name)
         full_topology = mesh_topology(triangles, vertices.shape[0])
@@ -220,7 +230,11 @@ class ReferenceShape:
         self.triangles = full_topology.triangles
         self._full_topology = full_topology  # poses are checked in the user's numbering
         base_positions = full_topology.check_pose(vertices, name=name)[self.used_vertices]
-        self.offset = float(default_offset(base_positions, topology.triangles) if offset is None else offset)
+        self.unit = working_unit([base_positions]) if unit is None else float(unit)
+        if self.unit != 1.0:
+            base_positions = base_positions * self.unit
+        self.offset = float(default_offset(base_positions, topology.triangles) if offset is None
+                            else offset * self.unit)
         if not (np.isfinite(self.offset) and self.offset > 0):
             raise MeshError(f"The offset distance t must be a positive number; got {offset!r}.")
         self.base = SurfaceLayer("base mesh", topology, base_positions)
@@ -230,7 +244,7 @@ class ReferenceShape:
             try:
                 self.surface = offset_surface(topology)
             except MeshError as error:  # no edge shared by two triangles: say to weld where faces touch
-                advice = weld_advice(base_positions, topology)
+                advice = weld_advice(self.given_positions, topology)
                 if not advice:
                     raise
                 raise MeshError(f"{error}{advice}") from None
@@ -249,15 +263,23 @@ class ReferenceShape:
             v, self.vertices
         ) and np.array_equal(t, self.triangles)
 
+    @property
+    def given_offset(self) -> float:
+        """The offset distance t in the caller's units (:attr:`offset` is in the working units)."""
+        return self.offset if self.unit == 1.0 else self.offset / self.unit
+
     def compact_pose(self, vertices, *, name: str = "target vertices") -> np.ndarray:
-        """Validate a pose ``(n, 3)`` of this mesh and return its used vertices ``(n_used, 3)``."""
-        return self._full_topology.check_pose(vertices, name=name)[self.used_vertices]
+        """Validate a pose ``(n, 3)`` of this mesh in the caller's units and return its used
+        vertices ``(n_used, 3)`` in the working units (× :attr:`unit`)."""
+        compact = self._full_topology.check_pose(vertices, name=name)[self.used_vertices]
+        return compact if self.unit == 1.0 else compact * self.unit
 
     def expand_pose(self, compact: np.ndarray, loose_positions: np.ndarray | None = None) -> np.ndarray:
-        """Scatter used-vertex positions ``(n_used, 3)`` back to ``(n, 3)``; loose vertices take
-        ``loose_positions`` (default: the base pose)."""
+        """Scatter used-vertex positions ``(n_used, 3)`` in the working units back to ``(n, 3)`` in
+        the caller's units; loose vertices take ``loose_positions`` (the caller's units; default:
+        the base pose)."""
         out = np.array(self.vertices if loose_positions is None else loose_positions, dtype=np.float64)
-        out[self.used_vertices] = compact
+        out[self.used_vertices] = compact if self.unit == 1.0 else compact / self.unit
         return out
 
     def basis_sizes(self, k_M, k_N, *, full_basis: bool = True) -> tuple[int | None, int | None]:
@@ -265,15 +287,15 @@ class ReferenceShape:
         triangles), above its number of connected parts (:func:`core.validation.check_basis_sizes`;
         ``full_basis=False`` where a truncated ``k_M`` is needed)."""
         return check_basis_sizes(k_M, k_N, int(self.used_vertices.size), self.topology.components()[0],
-                                 full_basis=full_basis, geometry=(self.base_positions, self.topology))
+                                 full_basis=full_basis, geometry=(self.given_positions, self.topology))
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None,
                           name: str = "target vertices", stacklevel: int = 1) -> ShapeDifferences:
-        """The four differences (§6) of a target pose ``(n, 3)`` relative to this base (``name``:
-        what error messages call the pose). Warns (:class:`ShapeDifferenceWarning`) where they
-        cannot represent the pose faithfully (:meth:`check_faithful`) and where the offset is
-        outside :data:`OFFSET_RANGE` × the mean edge length (``stacklevel``: their frame, 1 for the
-        caller)."""
+        """The four differences (§6) of a target pose ``(n, 3)`` (the caller's units) relative to
+        this base (``name``: what error messages call the pose). Warns
+        (:class:`ShapeDifferenceWarning`) where they cannot represent the pose faithfully
+        (:meth:`check_faithful`) and where the offset is outside :data:`OFFSET_RANGE` × the mean
+        edge length (``stacklevel``: their frame, 1 for the caller)."""
         k_M, k_N = self.basis_sizes(k_M, k_N)
         target = self.compact_pose(target_vertices, name=name)
         self.check_faithful(target, name, stacklevel=stacklevel + 1)
@@ -284,7 +306,7 @@ class ReferenceShape:
         if self.use_extrinsic:
             offset_target = self.surface.positions(target, self.offset)
             offset_area, offset_conformal = self.offset_layer.differences(offset_target, k_M, k_N)
-        return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.offset, k_M, k_N, self)
+        return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.given_offset, k_M, k_N, self)
 
     def check_faithful(self, pose: np.ndarray, name: str, *, stacklevel: int = 1) -> None:
         """Checks of a pose's used vertices ``(n_used, 3)`` that depend on what the differences
@@ -294,7 +316,8 @@ class ReferenceShape:
         ``stacklevel``: the warning's frame, 1 for the caller of this method."""
         self._warn_precision(pose, name, stacklevel + 1)
         if self.use_extrinsic:
-            check_offset_pose(self.surface, pose, self.offset, name=name, vertex_ids=self.used_vertices)
+            check_offset_pose(self.surface, pose, self.offset, name=name, vertex_ids=self.used_vertices,
+                              unit=self.unit)
 
     def _warn_precision(self, pose: np.ndarray, name: str, stacklevel: int) -> None:
         topology = self.topology
@@ -307,7 +330,7 @@ class ReferenceShape:
         loss = np.finfo(np.float64).eps * kappa[worst]
         if loss > PRECISION_TOLERANCE:
             corners = self.triangles[worst]  # same order as the compact topology's
-            edges = np.sqrt(squared[worst])
+            edges = np.sqrt(squared[worst]) / self.unit  # in the caller's units
             warn(
                 f"{name}: triangle {worst} (vertices {corners.tolist()}) has edges from {edges.min():.3g} to "
                 f"{edges.max():.3g} long (or is nearly flat); recovering its edge lengths from the "
@@ -323,7 +346,7 @@ class ReferenceShape:
         low, high = OFFSET_RANGE
         if not low <= ratio <= high:
             warn(
-                f"offset {self.offset:g} is {ratio:.3g} × the mean edge length {mean_edge:.3g}; "
+                f"offset {self.given_offset:g} is {ratio:.3g} × the mean edge length {mean_edge / self.unit:.3g}; "
                 f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
                 "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
                 "precision",
@@ -366,7 +389,12 @@ class ReferenceShape:
     # -- embedding (§7.3) and placement ------------------------------------------------------
     @property
     def base_positions(self) -> np.ndarray:
-        """The base pose's used vertices, float64 ``(n_used, 3)``."""
+        """The base pose's used vertices in the working units, float64 ``(n_used, 3)``."""
+        return self.vertices[self.used_vertices] if self.unit == 1.0 else self.base.positions
+
+    @property
+    def given_positions(self) -> np.ndarray:
+        """The base pose's used vertices in the caller's units, float64 ``(n_used, 3)``."""
         return self.vertices[self.used_vertices]
 
     @cached_property

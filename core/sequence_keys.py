@@ -11,7 +11,6 @@ another (:class:`core.inbetween_keys._Relative`), with the truncated recovery's 
 
 from __future__ import annotations
 
-import math
 import threading
 from collections import OrderedDict
 
@@ -30,6 +29,7 @@ from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertice
 from .seams import attached_loose, coincidence_tolerance, coordinate_rounding, rounding_scale, seam_weld
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
+from .working_unit import working_unit
 
 #: Gaps whose prepared data (splines, relatives) SequenceInterpolator keeps: a gap's previous-key
 #: relative comes from the gap before it, so two serve in-order visits (each holds ~70 MB at 100k
@@ -49,26 +49,6 @@ KEY_CACHE = 5
 #: ``_exit``). Each gap adds up to five pairs, the gap after reads them, and the one after that may
 #: be prepared meanwhile: sixteen serve in-order visits (13 floats per piece each).
 FIT_CACHE = 16
-
-#: The largest extent of keys the in-betweens work on as given (powers of two, ~1e-3 to 1e3
-#: units); keys larger or smaller are scaled by the power of two that brings it into [1, 2), and
-#: the in-betweens scaled back (both exact in floating point). Parts of the fits work in single
-#: precision (:data:`core.inbetween_guide.LOCAL_STEP_DTYPE`), whose range squared lengths and
-#: their products leave far from unit size (squares overflow past ~1e19, underflow below ~1e-19):
-#: a draped sheet keyed at 2^40 × its size came out 7e-8 of its diagonal off, at 2^70 × 4e-3 (NumPy
-#: overflow warnings), at 2^90 × 2.8 diagonals, at 2^-70 × 5e-4 (a hanging sheet: 8e-3), where
-#: scaling by 2^±10 keeps every in-between to the bit or to 2e-16 of the diagonal.
-WORKING_EXTENT = (2.0 ** -10, 2.0 ** 10)
-
-
-def working_unit(keys: list[np.ndarray]) -> float:
-    """The power of two the in-betweens scale the keys (list of (n, 3)) by: 1 where their largest
-    extent (over every key and coordinate) lies within :data:`WORKING_EXTENT`, else the one that
-    brings it into [1, 2)."""
-    extent = max((float(np.max(np.ptp(k, axis=0))) for k in keys if k.size), default=0.0)
-    if extent == 0.0 or WORKING_EXTENT[0] <= extent <= WORKING_EXTENT[1]:
-        return 1.0
-    return math.ldexp(1.0, 1 - math.frexp(extent)[1])
 
 
 def _with_rows(x: np.ndarray, rows: np.ndarray, source: np.ndarray) -> np.ndarray:
@@ -134,7 +114,7 @@ class SequenceKeys:
         self._origin = origin if origin.any() else None
         if self._origin is not None:
             keys = [k - origin for k in keys]
-        # sized near 1 where far larger or smaller (WORKING_EXTENT); the results scaled back
+        # sized near 1 where far larger or smaller (core.working_unit.WORKING_EXTENT); the results scaled back
         self._unit = working_unit(keys)
         if self._unit != 1.0:
             keys = [k * self._unit for k in keys]
@@ -247,7 +227,7 @@ class SequenceKeys:
             self._references.clear()  # one base at a time: gaps are visited per base key
             offset = None if self.offset is None else self.offset * self._unit  # in the keys' working size
             self._references[index] = ReferenceShape(self._raw[index], self._topo.triangles, offset=offset,
-                                                      use_extrinsic=False)
+                                                      use_extrinsic=False, unit=1.0)  # keys already scaled
         return self._references[index]
 
     def _warn_truncated(self, base: int, other: int, why: str) -> None:

@@ -184,7 +184,8 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
         )
     k_M, k_N = basis_sizes(k_M, k_N)
     try:
-        reference = ReferenceShape(poses[0], triangles, offset=offset, name=names[0])
+        # in the caller's units (unit 1): the features are differences, the offset and round-off as given
+        reference = ReferenceShape(poses[0], triangles, offset=offset, name=names[0], unit=1.0)
     except MeshError as error:
         if "no edge shared by two triangles" not in str(error):
             raise

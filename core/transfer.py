@@ -208,9 +208,12 @@ class Transfer:
         check_target_resolution(self.k_M, int(self.target_used.size))
 
         base_used = reference.used_vertices
+        # The map is found in the caller's units (its checks quote distances); the target's layers
+        # below work in the reference's (ReferenceShape.unit).
+        base = reference.given_positions
         if correspondence is None:
-            nearest = closest_point_correspondence(reference.base_positions, rest_used)
-            partly = check_overlap(reference.base_positions, rest_used[nearest], rest_used, topology.edges,
+            nearest = closest_point_correspondence(base, rest_used)
+            partly = check_overlap(base, rest_used[nearest], rest_used, topology.edges,
                                    reference.vertex_components)
             matched = self.target_used[nearest]
             self.correspondence = np.zeros(reference.n_vertices, dtype=np.int64)
@@ -238,7 +241,7 @@ class Transfer:
         if correspondence is not None:
             check_spread(rest_used[seeds[matched]], rest_used)
             # Matches their neighbours contradict (a map's stray entries) count as unmatched.
-            fitted, kept = reject_outlying_matches(reference.base_positions, reference.topology.edges,
+            fitted, kept = reject_outlying_matches(base, reference.topology.edges,
                                                    rest_used[seeds], matched,
                                                    mean_edge_length(rest_used, topology.edges))
             stray = matched & ~kept
@@ -247,7 +250,7 @@ class Transfer:
                 check_matched_fraction(kept, warn=not partial)  # the warning once
                 matched, partial = kept, True
         if correspondence is None:
-            points = reference.base_positions  # the meshes overlap: project the base itself
+            points = base  # the meshes overlap: project the base itself
         elif refine_map or partial:
             points = fitted
         else:
@@ -256,7 +259,7 @@ class Transfer:
             # An unmatched vertex's image is found on the target by walking from the match of the
             # nearest matched vertex along the base.
             unmatched = np.flatnonzero(~matched)
-            start = seeds[nearest_matched(reference.base_positions, reference.topology.edges, matched)[unmatched]]
+            start = seeds[nearest_matched(base, reference.topology.edges, matched)[unmatched]]
             seeds[unmatched] = walk_near(points[unmatched], start, rest_used, topology.triangles)
         image_triangles, weights = project_near(points, seeds, rest_used, topology.triangles)
         if correspondence is not None:  # holes show in the fitted images (raw matches lie on the target)
@@ -273,8 +276,8 @@ class Transfer:
         self._pull_back = pull_back  # (n_M, n_N): each base vertex's image on the target
         laid = pull_back @ rest_used  # the base laid on the target's rest through the map
         if correspondence is not None:  # closest points keep the base's sides
-            check_orientation(reference.base_positions, reference.topology, laid)
-        self.size = target_size(reference.base_positions, laid, reference.topology.triangles)
+            check_orientation(base, reference.topology, laid)
+        self.size = target_size(base, laid, reference.topology.triangles)
         push = push_forward_matrix(rest_used, laid, reference.topology.triangles)
         self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None
@@ -288,7 +291,7 @@ class Transfer:
                     f"The target mesh has no usable offset surface ({error}) Transfer with "
                     "use_extrinsic=False (intrinsic differences only) or repair the target."
                 ) from error
-            offset_rest = self.target_surface.positions(rest_used, reference.offset)
+            offset_rest = self.target_surface.positions(rest_used * reference.unit, reference.offset)
             offset_pull_back = offset_surfaces_pull_back(reference.surface, self.target_surface, image_triangles,
                                                          weights, seeds, rest_used)
             push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
@@ -332,6 +335,8 @@ class Transfer:
 
     # -- per pose ---------------------------------------------------------------------------
     def _target_positions(self, target_vertices) -> np.ndarray:
+        """A target pose ``(n_N, 3)`` checked (messages in the caller's units), its used vertices
+        ``(n_N_used, 3)`` in the reference's working units (× ``reference.unit``)."""
         full = check_vertices(target_vertices, name="target vertices")
         if full.shape[0] != self.n_target:
             raise MeshError(
@@ -353,7 +358,7 @@ class Transfer:
                     stacklevel=3,
                 )
         check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
-        return positions
+        return positions if self.reference.unit == 1.0 else positions * self.reference.unit
 
     def _layer_differences(self, positions):
         """``[(area, conformal)]`` of eq. (6) per layer (mesh, offset surface) for a target pose of
@@ -474,7 +479,8 @@ class Transfer:
             ]
         (area, conformal), (offset_area, offset_conformal) = layers[0], (layers[1] if len(layers) > 1 else (None, None))
         ref = self.reference
-        return ShapeDifferences(area, conformal, offset_area, offset_conformal, ref.offset, self.k_M, self.k_N, ref)
+        return ShapeDifferences(area, conformal, offset_area, offset_conformal, ref.given_offset, self.k_M, self.k_N,
+                                ref)
 
     def pose(self, target_vertices) -> np.ndarray:
         """The target pose ``(n_N, 3)`` rebuilt on the base mesh, float64 ``(n_M, 3)``: recovered

@@ -492,6 +492,50 @@ def test_in_betweens_scale_with_the_keys(scale):
         np.testing.assert_allclose(got / scale, expected, rtol=0, atol=1e-9 * diagonal)
 
 
+@pytest.mark.parametrize("scale", [2.0 ** -70, 2.0 ** -40, 2.0 ** 40, 2.0 ** 70])
+def test_the_paper_pipeline_scales_with_the_mesh(scale):
+    """A base and target scaled by a power of two (1e-21 to 1e21) give the reconstruction of the
+    truncated differences (k_M 20 / k_N 40 on an icosphere; the full basis too), and the pose of
+    another mesh rebuilt by a transfer (intrinsic, core.interpolate with target_triangles, and
+    extrinsic), of the meshes as given, scaled by it: the base is worked on at unit size
+    (core.working_unit), which changes no digit of a coordinate, so they agree to 1e-9 of the
+    diagonal (every solver tolerance is relative; the difference measured is 0), with no NumPy
+    warning, and the differences' offset and the pulled-back metric's edge lengths (§8.3) are in the
+    caller's units. Before, the truncated
+    recovery's single-precision ADMM worked in the caller's units: reconstruct failed with SciPy's
+    "array must not contain infs or NaNs" at 2^-70 and came out 6.5e-2 of the diagonal off (warned)
+    at 2^70; a transfer failed so at 2^-70, 2^-40 and 2^70 and came out 7.5e-2 off, unwarned, at 2^40."""
+    v, t = icosphere(2)
+    target = v * [1.2, 1.0, 0.8] + 0.1 * np.sin(3 * v[:, [1, 2, 0]])
+    va, ta = grid(8)
+    vb, tb = grid(11, jitter=0.1, seed=2)
+    pb = drape(vb, 1.0)
+
+    def same_mesh(s, **basis):
+        differences = core.shape_differences(v * s, target * s, t, **basis)
+        return core.reconstruct(v * s, t, differences), differences.offset
+
+    def transfer(s):
+        pair = core.interpolate(va * s, pb * s, ta, 0.5, target_triangles=tb, target_rest_vertices=vb * s,
+                                k_M=20, k_N=40)
+        extrinsic = core.Transfer(va * s, ta, vb * s, tb, k_M=20, k_N=40, use_extrinsic=True).pose(pb * s)
+        return np.concatenate([pair, extrinsic]), 0.0
+
+    runs = [(v, lambda s: same_mesh(s, k_M=20, k_N=40)), (v, lambda s: same_mesh(s)), (va, transfer)]
+    for base, run in runs:
+        diagonal = np.linalg.norm(np.ptp(base, axis=0))
+        expected, offset = run(1.0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            got, scaled_offset = run(scale)
+        np.testing.assert_allclose(got / scale, expected, rtol=0, atol=1e-9 * diagonal)
+        assert scaled_offset == offset * scale
+    # the target's metric pulled back from truncated differences: edge lengths in the caller's units
+    lengths = [core.pull_back(v * s, t, core.shape_differences(v * s, target * s, t, k_M=20, k_N=40)).edge_lengths
+               for s in (1.0, scale)]
+    np.testing.assert_allclose(lengths[1] / scale, lengths[0], rtol=1e-9)
+
+
 def test_in_betweens_do_not_follow_the_callers_arrays_written_after(sheet):
     """A caller's key arrays written over after the interpolators were made (a frame buffer filled
     again with the next frame, a pose moved in place) change none of their results: the keys at
