@@ -10,10 +10,15 @@ output asked for, and its CPU time split into
 - core: the core calls the operator makes (``GeneratorOperator.compute``);
 - write: the shape keys or the point cache file and its object (``PoseWriter.write_poses``);
 - update: the view layer updates ``bpy.ops`` runs before and after an operator (Blender evaluating
-  what the operator changed, as a redraw of the UI would);
+  what the operator changed, as a redraw of the UI would; shape keys written on the cloth are
+  evaluated inside the operator instead, with the scene's return to its frame: in ``other``);
 - undo: an undo step pushed after the operator (``ed.undo_push``), as Blender pushes one after
   an operator declaring 'UNDO' run from the UI;
-- other: the rest of the operator (settings, triangles, world matrices, ...).
+- other: the rest of the operator (settings, triangles, world matrices, the scene set back to its
+  frame after writing shape keys, ...).
+
+Before the runs, Blender's own cost of setting the scene to a baked frame and to the cloth's start
+frame (where it builds the cloth anew) is printed: what reading and writing cost at least.
 
 Times are per in-between written (the poses that are not keys) and × the bake's time per frame;
 ``core alone`` is ``core.SequenceInterpolator`` on the same keys (its ``poses`` per gap), without
@@ -173,6 +178,20 @@ def run_operator(bpy, extension, obj, clock, name, kwargs, with_undo: bool, prof
     return total, parts, len(poses), digest
 
 
+def blender_frame_costs(scene, obj, repeat: int = 3) -> tuple[float, float]:
+    """CPU seconds (least of ``repeat``) of setting the scene to a baked frame of ``obj``'s cloth and to
+    its start frame, where Blender builds the cloth anew: what reading frames and writing on the
+    cloth cost at least. The scene is left at the start frame."""
+    first = next(m for m in obj.modifiers if m.type == "CLOTH").point_cache.frame_start
+    costs = {first + 4: [], first: []}
+    for _ in range(repeat):
+        for frame, spent in costs.items():
+            before = time.process_time()
+            scene.frame_set(frame)
+            spent.append(time.process_time() - before)
+    return min(costs[first + 4]), min(costs[first])
+
+
 def core_alone(core, frames: np.ndarray, triangles, step: int, count: int) -> float:
     """CPU seconds of ``core.SequenceInterpolator`` on the keys every ``step`` frames and all its
     in-betweens (``count`` per gap), as the operator asks for them."""
@@ -216,6 +235,9 @@ def main(argv=None):
         if not args.no_undo:
             bpy.ops.ed.undo_push(message="baked")
         print(f"\n{name}: {n} vertices, {spec.frames} frames baked, {bake * 1e3:.0f} ms CPU per frame", flush=True)
+        baked, start = blender_frame_costs(scene, obj)
+        print(f"Blender's own: a baked frame set {baked * 1e3:.1f} ms, the cloth's start frame set {start * 1e3:.0f} ms "
+              "(Blender builds the cloth there; as much again for each build after a change of its mesh)", flush=True)
         runs = [("inbetween_frames", output, dict(frame_start=1, frame_end=spec.frames, frame_step=step,
                                                    count=step - 1, output=output), step)
                 for step in args.steps for output in args.outputs]

@@ -3,7 +3,7 @@ capture frames, in-between every n-th frame, retime."""
 
 import math
 import time
-from contextlib import closing
+from contextlib import closing, contextmanager
 
 import bpy
 import numpy as np
@@ -81,20 +81,42 @@ class FrameRangeProperties:
                 f"{self.minimum_frames} are needed: widen the frame range or lower the step")
         return frames
 
-    def read_keys(self, context, obj, keys: list[int], progress_share: float, also=(), matrices: dict | None = None):
+    def read_keys(self, context, obj, keys: list[int], progress_share: float, also=(), matrices: dict | None = None,
+                  stay: bool = False):
         """Yield progress while reading the evaluated mesh at the key frames ``keys`` and the frames
         ``also``; returns the keys' positions and {frame: positions} of every frame read.
-        ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of every frame read."""
+        ``matrices``: a dict that gets {frame: ``obj``'s world matrix} of every frame read; ``stay``:
+        as for :meth:`read_frames`."""
         frames = sorted(set(keys) | set(also))
         read_matrices = [] if matrices is not None else None
-        read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share, read_matrices))))
+        read = dict(zip(frames, (yield from self.read_frames(context, obj, frames, progress_share, read_matrices,
+                                                             stay))))
         if matrices is not None:
             matrices.update(zip(frames, read_matrices))
         return [read[f] for f in keys], read
 
-    def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None):
+    @staticmethod
+    @contextmanager
+    def frame_set_back(context):
+        """Run the block, then set the scene back to the frame (and sub-frame) it is at now where it was
+        left at another, also when the block fails or the run is cancelled: around reading with
+        ``stay`` (:meth:`read_frames`) and writing shape keys on the object read."""
+        scene = context.scene
+        frame, subframe = scene.frame_current, scene.frame_subframe
+        try:
+            yield
+        finally:
+            if (scene.frame_current, scene.frame_subframe) != (frame, subframe):
+                scene.frame_set(frame, subframe=subframe)
+
+    def read_frames(self, context, obj, frames: list[int], progress_share: float, matrices: list | None = None,
+                    stay: bool = False):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
-        ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``."""
+        ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``. ``stay``: the scene
+        may be left at the last frame read (:func:`bridge.frame_positions`), for a run that writes shape
+        keys on ``obj`` next and sets the scene back after (inside :meth:`frame_set_back`): Blender then
+        evaluates the new keys and the return to the scene's frame at once, where a return first and the
+        keys after cost a cloth one more build at its start frame."""
         read, shown = {}, {}
         movers = objects_moving(obj)
         unfit = unfit_mesh_cache(obj, movers)
@@ -109,7 +131,8 @@ class FrameRangeProperties:
                    if not modifier.point_cache.is_baked}
         began = time.monotonic()
         reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(context.scene, movers),
-                                        every_frame=frames_depend_on_earlier(context.scene), set_aside=aside)
+                                        every_frame=frames_depend_on_earlier(context.scene), set_aside=aside,
+                                        stay=stay)
         with closing(reader) as frame_reader:
             for frame, positions in frame_reader:  # in the order visited (bridge.frame_positions)
                 read[frame] = positions
@@ -167,12 +190,16 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
     bl_label = "Frames to Shape Keys"
 
     def run(self, context):
+        with self.frame_set_back(context):
+            yield from self.capture(context)
+
+    def capture(self, context):
         obj = context.active_object
         if not len(obj.data.vertices):
             raise InputError(f"The mesh of '{obj.name}' has no vertices: there is nothing to capture")
         frames = self.frames(context)
         self.check_captured_output(obj)
-        poses = yield from self.read_frames(context, obj, frames, 1.0)
+        poses = yield from self.read_frames(context, obj, frames, 1.0, stay=self.output == 'SHAPE_KEYS')
         self.summary = self.write_poses(
             context, obj, poses, names=[frame_key_name(frame) for frame in frames],
             frames=[float(frame) for frame in frames],
@@ -193,6 +220,10 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
     minimum_frames = 2
 
     def run(self, context):
+        with self.frame_set_back(context):
+            yield from self.inbetween(context)
+
+    def inbetween(self, context):
         obj = context.active_object
         require_count(self.count, "in-betweens per gap")
         frames = self.frames(context)
@@ -215,7 +246,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         middles = [ends[3] for ends in (retime.start_samples(keyed), retime.end_samples(keyed, tail))
                    if ends and ends[3] is not None]
         matrices = {}
-        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles, matrices=matrices)
+        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles, matrices=matrices,
+                                                 stay=self.output == 'SHAPE_KEYS')
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = bridge.frames_space(context, obj, matrices)
         scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
@@ -293,6 +325,10 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
     bl_label = "Retime"
 
     def run(self, context):
+        with self.frame_set_back(context):
+            yield from self.retime(context)
+
+    def retime(self, context):
         obj = context.active_object
         retime = load_core_retime()
         start, end = self.frame_range(context)
@@ -324,7 +360,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         matrices = {}
         _poses, read = yield from self.read_keys(context, obj, key_frames, 0.1,
                                                  also=[start + sample for sample in plan.samples_read],
-                                                 matrices=matrices)
+                                                 matrices=matrices, stay=self.output == 'SHAPE_KEYS')
         out_frames = [float(start + k) for k in range(plan.n_out)]
         # each pose is shown under the object's matrix of a frame: a new object plays the source's
         # keyframed transform retimed, at the pose's source time; shape keys play under the source's

@@ -242,6 +242,72 @@ def test_a_baked_cloth_is_read_once_at_each_frame_the_scene_left_at_its_own(bpy_
     assert np.array_equal(played[0], played[1])
 
 
+OPERATORS_WRITING_KEYS = {
+    "frames_to_shape_keys": dict(frame_start=1, frame_end=9, frame_step=4),
+    "inbetween_frames": dict(frame_start=1, frame_end=9, frame_step=4, count=1),
+    "retime": dict(frame_start=1, frame_end=9, frame_step=4, speed=0.5),
+}
+
+
+@pytest.mark.parametrize("operator", sorted(OPERATORS_WRITING_KEYS))
+@pytest.mark.parametrize("current", [1, 5])
+def test_shape_keys_are_written_before_the_scene_returns_to_its_frame(bpy_empty, extension, tmp_path, operator,
+                                                                      current):
+    """Shape keys written on a baked cloth read at the scene's own frame: that frame is read as the
+    scene shows it, the others after it, and the scene goes back to its frame once the keys are
+    written, so that Blender evaluates the new keys and the return together (at the cloth's start
+    frame, frame 1 here, each costs a build of the cloth); the keys are the point cache's poses of the
+    same run, to the bit, and the scene ends at its frame."""
+    from blender_scenes import pinned_cloth_scene
+
+    point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
+    obj = pinned_cloth_scene(frames=9, bake=True)
+    scene = bpy.context.scene
+    run = getattr(bpy.ops.shape_differences, operator)
+    scene.frame_set(current)
+    run(**OPERATORS_WRITING_KEYS[operator], output='CACHE', filepath=str(tmp_path / "cloth.pc2"))
+    cached = point_cache.read_pc2(tmp_path / "cloth.pc2").positions
+    visits = []  # each frame set, with the shape keys the cloth has then
+
+    def count(scene, *_):
+        keys = obj.data.shape_keys
+        visits.append((scene.frame_current, len(keys.key_blocks) if keys else 0))
+
+    bpy.app.handlers.frame_change_pre.append(count)
+    try:
+        run(**OPERATORS_WRITING_KEYS[operator], output='SHAPE_KEYS')
+    finally:
+        bpy.app.handlers.frame_change_pre.remove(count)
+    written = obj.data.shape_keys.key_blocks[1:]
+    assert [frame for frame, _ in visits].count(current) == 1 and visits[-1] == (current, 1 + len(written))
+    assert all(keys == 0 for _, keys in visits[:-1])
+    assert scene.frame_current == current and scene.frame_subframe == 0.0
+    keys = np.array([extension.bridge.stored_key_positions(key_block) for key_block in written], dtype=np.float32)
+    assert np.array_equal(keys, cached)
+
+
+def test_a_run_failing_after_reading_sets_the_scene_back_to_its_frame(bpy_empty, extension, monkeypatch):
+    """In-between Frames to shape keys leaves the scene at the last frame read until it has written
+    them: a core error after the reading sets the scene back to its frame all the same, and nothing
+    is written."""
+    from blender_scenes import pinned_cloth_scene
+
+    obj = pinned_cloth_scene(frames=9, bake=True)
+    scene = bpy.context.scene
+    scene.frame_set(5)
+    core = extension.core
+
+    def failing(*_args, **_kwargs):
+        raise core.MeshError("the keys cannot be in-betweened")
+
+    monkeypatch.setattr(core, "SequenceInterpolator", failing)
+    with pytest.raises(RuntimeError, match="cannot be in-betweened"):
+        bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=1,
+                                                   output='SHAPE_KEYS')
+    assert scene.frame_current == 5 and scene.frame_subframe == 0.0
+    assert obj.data.shape_keys is None
+
+
 def test_geometry_nodes_anywhere_keep_reading_every_frame(bpy_empty, extension, tmp_path):
     """A geometry-nodes modifier may hold an unbaked simulation zone (its bakes are not checked):
     with one on another object, the keys of a baked cloth are read through every frame."""
