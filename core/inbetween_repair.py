@@ -10,7 +10,10 @@ spline, and each key's own local geometry (nearer key first); the first that lea
 defect-free is kept, so a repair changes as small a region as it can, and only the parts left
 defective grow further (folds apart from each other are repaired each by its own field and region;
 two poses and extrapolations take a neighbourhood whole, see
-:meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`). Regions stop growing once they cover
+:meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`). An in-between of a sequence that keeps
+defects after all that, in a gap whose outer solved in-betweens are clean, is repaired again with
+one more field, the local geometry of the pose those two predict
+(:func:`core.inbetween_prediction._repaired_near`). Regions stop growing once they cover
 :data:`~core.inbetween_repair_rounds.MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
 sequence's in-between, once a round of 4 rings or more removed no defect
 (:data:`~core.inbetween_repair_rounds.STALLED_ROUND`), and a repair of a sequence's in-between that
@@ -96,16 +99,16 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         self._local = threading.local()  # see _rows_of
 
     def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
-                looser=None) -> tuple[np.ndarray, str | None]:
+                looser=None, nearby=None) -> tuple[np.ndarray, str | None]:
         """:meth:`outcome`'s pose and message; the rest of it is kept in the gap's ``outcomes[s]``
         (two poses choose between their fits by it: ``core.two_pose_inbetweens.Interpolator.pose``)."""
         x, message, count, near_blend = self.outcome(x, x0, s, frames, stretch, guide, motion, rings, defects,
-                                                     looser)
+                                                     looser, nearby)
         self.gap.outcomes[s] = Outcome(count, near_blend)
         return x, message
 
     def outcome(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
-                looser=None) -> tuple[np.ndarray, str | None, int, bool]:
+                looser=None, nearby=None) -> tuple[np.ndarray, str | None, int, bool]:
         """``(x, None, 0, False)`` if the fit ``x`` is defect-free, else a repair or a fallback with
         the message saying which, the count of its flipped or collapsed triangles and whether it is
         the linear blend or the metric fitted near it (``x0``: the Poisson solve of the interpolated
@@ -114,7 +117,9 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         :meth:`~core.inbetween_defects.DefectChecks.defects` of ``x`` if the caller has them;
         ``looser``: the fit's step within the whole key-to-key change's tolerance, or None (see
         :data:`core.inbetween_fit.TOLERANCE_TRIM`): where the repairs fail it is returned if it has
-        no defect, a fit as the fit's stop allowed before)."""
+        no defect, a fit as the fit's stop allowed before; ``nearby``: positions (n, 3) of another pose
+        at ``s`` whose local geometry the rounds try last,
+        :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
@@ -123,7 +128,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         best = (int(defects.sum()), x) if np.isfinite(x).all() else None  # the last resort: fewest defects
         blend = gap.linear_blend(s)
         if gap.use_extrinsic and best is not None:
-            z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings)
+            z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings, nearby)
             if z is not None:
                 return z, None, 0, False
         if looser is not None and self.problem(looser, s, frames, stretch) is None:

@@ -91,12 +91,14 @@ class RepairRounds:
             rows = np.flatnonzero(out)
         return out
 
-    def imposed_fields(self, s, frames, stretch, blend):
+    def imposed_fields(self, s, frames, stretch, blend, nearby=None):
         """The fields imposed around defects, in the order tried: (function of triangle indices
         ``rows`` (r,) returning (frames (3, r, 3), packed stretches (r, 3)), whether it is whole
         geometry of a mesh) — the interpolated rotations, the linear blend's rotations
         (integrable: they come from a mesh), the blend's rotations and stretches, those of the
-        keys' per-vertex spline, each key's own local geometry (nearer key first)."""
+        keys' per-vertex spline, each key's own local geometry (nearer key first), and last the
+        local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given: see
+        :func:`core.inbetween_prediction._repaired_near`)."""
         gap = self.gap
         t = gap.topo.triangles
 
@@ -134,8 +136,9 @@ class RepairRounds:
 
         keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
         blend_field = mesh_field(blend)
-        return [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
-                (mesh_field(lambda: gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
+        fields = [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
+                  (mesh_field(lambda: gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
+        return fields if nearby is None else fields + [(mesh_field(nearby), True)]
 
     def key_geometry(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """The rotations (frames (2, m, 3): the images of t1, t2) and stretches (m, 3) of the gap's key ``index`` (1:
@@ -149,7 +152,7 @@ class RepairRounds:
                                  df.exp_stretch(key.log_stretch))
         return self._keys[index]
 
-    def rounds(self, x, defects, s, frames, stretch, guide, blend, best, rings=REPAIR_RINGS):
+    def rounds(self, x, defects, s, frames, stretch, guide, blend, best, rings=REPAIR_RINGS, nearby=None):
         """Regions growing by ``rings`` (:data:`REPAIR_RINGS`) around the ``defects`` (bool (m,)) of ``x``,
         each connected part of a region repaired on its own (:meth:`Region.parts`: their free
         vertices share no triangle, so a field's fit of one does not depend on the others'): in
@@ -160,9 +163,10 @@ class RepairRounds:
         positions). Only the region's vertices move, so only its triangles are checked. A sequence's
         in-between takes parts while their moves add up to at most :meth:`move_limits`' (the
         defect-free one, and for ``best`` the one leaving defects), counted from ``x``. Two poses
-        and extrapolations take each region whole, as one part."""
+        and extrapolations take each region whole, as one part. ``nearby``: positions (n, 3) of another
+        pose at ``s`` whose local geometry is the last field tried (:meth:`imposed_fields`)."""
         gap = self.gap
-        fields = self.imposed_fields(s, frames, stretch, blend)
+        fields = self.imposed_fields(s, frames, stretch, blend, nearby)
         start, force, left = x, defects, defects.copy()  # left: the defects of x, the pose with the parts taken
         limit, partial_limit = self.move_limits(s) or (np.inf, np.inf)
         pieces = gap.topo.triangle_component

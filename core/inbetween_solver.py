@@ -367,6 +367,22 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         rounds = {} if rings is None else {"rings": rings}
         return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, **rounds), s)
 
+    def repaired_near(self, x: np.ndarray, s: float, nearby: np.ndarray, rings=None,
+                      defects=None) -> tuple[np.ndarray, str | None]:
+        """``x`` (a finished in-between of a sequence at factor ``s`` that kept defects) repaired again
+        with the local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``) as the
+        rounds' last field (``rings``: the repair rounds, all of them by default; ``defects``: those
+        of ``x`` (bool (m,)) if known). Only the repair
+        regions move: the pieces keep the placement :meth:`finished` gave ``x``; the still vertices
+        are put back where they sit in the keys."""
+        self.select(s)
+        frames, stretch, motion, guide = self.targets(s, by_rows=True)
+        rounds = {} if rings is None else {"rings": rings}
+        out = self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, nearby=nearby, **rounds)
+        if self.static is not None:
+            out[0][self.static] = self.pinned_positions(s)
+        return out
+
     def finished(self, result, s: float):
         """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit
         in the keys, the deforming pieces that ride on larger ones placed by them and the rigid

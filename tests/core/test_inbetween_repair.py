@@ -477,3 +477,86 @@ def test_a_triangle_tipped_against_the_turn_of_a_strongly_stretching_gap_is_flip
     assert normal @ base < 0 and normal @ nxt < 0
     assert np.degrees(np.arccos(normal @ interpolated / np.linalg.norm(interpolated))) > 100.0
     assert gap.repair.defects(x, s, frames, stretch)[t]
+
+
+def _middle_folded(monkeypatch, strip, unfolds):
+    """Keys of a bending strip and its triangles, with the fit of the middle in-between (s = 1/2)
+    folding a triangle over (a corner reflected across its opposite edge) and every repair's
+    local fit folding it again unless the field imposed is one of ``unfolds`` (indices into
+    ``Repair.imposed_fields``); the fields imposed are recorded (the list returned)."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_repair as repair
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
+    middle = flat[tri].mean(axis=1)
+    corners = tri[np.argmin(np.linalg.norm(middle - [1.0, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
+    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+        repair.Repair.imposed_fields
+    imposed = []
+
+    def fold(out, free=None):
+        i, j, k = corners
+        if free is None or i in free:
+            out[i] = out[j] + out[k] - out[i]
+        return out
+
+    def fields(self, *args):
+        def tagged(index, field):
+            return lambda rows: imposed.append(index) or field(rows)
+        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = real_local(self, x, region, frames, stretch, guide)
+        return out if imposed[-1] in unfolds else fold(out, region.free)
+
+    def folding_fit(self, x, stretch, frames, guide, s, *args, **kwargs):
+        out = real_fit(self, x, stretch, frames, guide, s, *args, **kwargs)
+        return fold(out) if s == 0.5 else out
+
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
+    # the reflected corner is a large part of the bending strip's small correction: the gap would be
+    # found too rough to predict from three solved factors, and solved at every eighth instead
+    monkeypatch.setattr(prediction, "MAX_CROSS_VALIDATION", np.inf)
+    return keys, tri, imposed
+
+
+def test_a_middle_fold_no_field_removes_is_repaired_with_the_outer_solves_geometry(monkeypatch, strip):
+    """Keys 16 frames apart (three solved in-betweens): the middle one's fit folds a triangle over
+    that none of the repair's own fields unfolds, while the two solved a quarter of the gap away
+    are clean. The middle and the predictions made from it are repaired again with one more field,
+    the local geometry of the pose the outer two alone predict: every in-between of the gap ends
+    with no flipped triangle and no warning (without that field the middle keeps its fold, and
+    warns)."""
+    keys, tri, imposed = _middle_folded(monkeypatch, strip, unfolds={6})
+    factors = np.arange(1, 16) / 16
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        poses = SequenceInterpolator(keys, tri).poses(0, factors)
+    assert max(_flipped(x, keys[0], keys[1], tri) for x in poses) == 0
+    assert 6 in imposed and max(imposed) == 6  # the outer solves' geometry: the one field after each key's
+
+
+def test_a_middle_fold_the_outer_solves_geometry_keeps_too_is_kept_as_it_was(monkeypatch, strip):
+    """Where the outer solves' geometry unfolds nothing either, every in-between is the pose its own
+    repair left (as without that field, bit for bit), and what the gap keeps of its outcome, which
+    its warning counts from, is that pose's."""
+    import core.inbetween_prediction as prediction
+
+    keys, tri, imposed = _middle_folded(monkeypatch, strip, unfolds=set())
+    factors = np.arange(1, 16) / 16
+    seq = SequenceInterpolator(keys, tri)
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        poses = seq.poses(0, factors)
+    assert 6 in imposed
+    gap = seq._gap(0)
+    checked = [(s, x) for s, x in zip(factors, poses) if s in gap.outcomes]  # the clean predictions need no check
+    assert 0.5 in dict(checked)
+    for s, x in checked:
+        assert gap.outcomes[s].defects == int(gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).sum())
+    monkeypatch.setattr(prediction, "_outer_correction", lambda *args: None)
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), poses)
