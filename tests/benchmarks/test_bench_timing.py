@@ -8,6 +8,7 @@ import json
 import numpy as np
 import pytest
 
+from bench_helpers import steady_bend
 from benchmarks import bench_inbetween as bench
 from benchmarks import cloth_scenes
 
@@ -50,19 +51,6 @@ def test_cost_format():
 # A scene of 8 × 8 vertices bending about an axis, baked by a stub instead of Blender.
 
 
-def _grid_bend(frames=17, side=8):
-    u, v = np.meshgrid(np.linspace(0.0, 1.0, side), np.linspace(0.0, 1.0, side), indexing="ij")
-    i = np.arange(side - 1)[:, None] * side + np.arange(side - 1)[None, :]
-    quads = np.stack([i, i + side, i + side + 1, i + 1], axis=-1).reshape(-1, 4)
-    triangles = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]).astype(np.int64)
-    poses = []
-    for f in range(frames):
-        angle = 0.08 * f + 1e-9
-        r = 1.0 / angle
-        poses.append(np.stack([r * np.sin(u / r), v, r * (1.0 - np.cos(u / r)) + 0.01 * f], -1).reshape(-1, 3))
-    return np.stack(poses), triangles
-
-
 @pytest.fixture
 def fake_scene(monkeypatch, tmp_path):
     """Scene "fake" cached in a temporary directory; ``bakes`` lists the specs the stub baked."""
@@ -73,7 +61,7 @@ def fake_scene(monkeypatch, tmp_path):
 
     def stub_bake(spec):
         bakes.append(spec)
-        frames, triangles = _grid_bend(spec.frames)
+        frames, triangles = steady_bend(spec.frames)
         return frames, triangles, 3.2
 
     monkeypatch.setattr(cloth_scenes, "bake", stub_bake)

@@ -110,6 +110,26 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     assert_animation_untouched(before, snapshot(bridge, obj))
 
 
+def test_the_benchmarks_op_protocol_builds_the_sequence_the_operator_builds(bpy_empty, extension, core):
+    """The in-between benchmark's ``op`` protocol (benchmarks/bench_inbetween.py,
+    ``operator_options``) gives the sequence the ends and key times *In-between Frames* gives it,
+    so its row is what an artist gets from those keys."""
+    from benchmarks.bench_inbetween import operator_options
+    obj = armature_scene(frames=13)
+    bridge = extension.bridge
+    frames = [1, 5, 9, 13]
+    poses = evaluated_frames(bridge, obj, range(1, 14))
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=13, frame_step=4, count=3,
+                                               output='SHAPE_KEYS')
+    options = operator_options(poses, frames)
+    sequence = core.SequenceInterpolator([poses[f] for f in frames], bridge.mesh_triangles(obj.data), **options)
+    factors = (0.25, 0.5, 0.75)
+    for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            name = f"Inbetween Frame {frame}-Frame {next_frame} {factor:.2f}"
+            np.testing.assert_allclose(positions_of(bridge, obj, name), pose, atol=TOLERANCE)
+
+
 @pytest.mark.parametrize("operator", ["inbetween_frames", "retime"])
 def test_keyframed_shape_keys_on_absolute_keys_are_refused(bpy_empty, extension, operator):
     """Absolute shape keys play by the Key's Evaluation Time, never by the values In-between
