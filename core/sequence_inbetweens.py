@@ -58,6 +58,7 @@ from .sequence_half_turns import HalfTurns, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
+from .near_seams import seam_opening
 from .sequence_warnings import _warn, gap_problems
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
@@ -344,6 +345,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 problems.append((factors[k], "non_finite", problem, 0))
         said = self._gap_warnings(gap, segment) + \
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
+        if self._near_seams is not None:  # seams the keys keep closed, not welded: opened by the in-betweens?
+            opening = seam_opening(self._near_seams, [out[k] for k in between], [factors[k] for k in between],
+                                   (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices)
+            if opening is not None:
+                said.append(("seam", opening[0], 0, opening[1]))
         return (out if self._copies is None else out[:, self._copies]), said
 
     def _finite(self, x: np.ndarray, gap: int, factor: float) -> str | None:

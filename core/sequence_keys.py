@@ -27,6 +27,7 @@ from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
 from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
 from .seams import attached_loose, coincidence_tolerance, coordinate_rounding, rounding_scale, seam_weld
+from .near_seams import near_seams
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
 from .working_unit import working_unit
@@ -104,6 +105,10 @@ class SequenceKeys:
         self._attached = attached_loose(keys, topology, still)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
+        # pieces the keys keep together along a seam farther apart than the weld joins: the in-betweens
+        # say where they open it (core.near_seams)
+        self._near_seams = near_seams(keys, topology, tolerance)
+        self._welded_vertices = None if weld is None else weld.kept
         # interpolated about the middle of the first key, the results moved back: the splines of the
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)

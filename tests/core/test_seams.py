@@ -687,3 +687,85 @@ def test_a_transfer_turns_a_reversed_target_panel_over_where_it_welds_the_seam()
         got = differences(_reversed_right_panel(v, f, column))
     for name in ("area", "conformal", "offset_area", "offset_conformal"):
         np.testing.assert_allclose(getattr(got, name).matrix, getattr(expected, name).matrix, rtol=0, atol=1e-10)
+
+
+def _seam_warnings(record) -> list:
+    return [w.message for w in record if getattr(w.message, "kind", None) == "seam"]
+
+
+def _near_seam(keys, tri, apart):
+    """The waving sheet cut along its middle column (:func:`_cut`), the copies moved ``apart``
+    along x in every key: a seam left open by more than the weld joins (or less)."""
+    cut_keys, cut_tri, seam, copies = _cut(keys, tri)
+    return [np.concatenate([k[:copies[0]], k[copies] + [apart, 0.0, 0.0]]) for k in cut_keys], cut_tri, seam, copies
+
+
+def test_a_seam_left_apart_that_the_in_betweens_open_is_warned():
+    """A seam whose sides are 1e-4 apart in every key (0.15 % of an edge, under 1e-4 of the sheet's
+    size) is no weld (core.seams.COINCIDENCE_TOLERANCE); its pieces are interpolated each on its own
+    and part in the in-betweens. Every gap that parts them says so once, kind "seam", with the
+    gap's keys and the factors of the in-betweens it is about, and quotes the widest distance
+    the in-betweens put between the seam's sides, as measured on them here; two poses and an
+    exaggeration say so too."""
+    keys, tri = _waving_sheet()
+    near_keys, near_tri, seam, copies = _near_seam(keys, tri, 1e-4)
+    sequence = SequenceInterpolator(near_keys, near_tri)
+    factors = np.arange(1, 8) / 8
+    edge = np.mean(np.linalg.norm(keys[0][tri] - keys[0][np.roll(tri, 1, axis=1)], axis=2))
+    warned = 0
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, factors)
+        opened = np.linalg.norm(poses[:, seam] - poses[:, copies], axis=2).max(axis=1)
+        said = _seam_warnings(record)
+        if opened.max() > 1e-4 + 0.02 * edge:  # visibly opened: it must be said
+            assert len(said) == 1
+        if said:
+            warned += 1
+            (message,) = said
+            assert message.gap == (sequence.key_names[gap], sequence.key_names[gap + 1])
+            assert set(message.factors) <= set(factors)
+            widest = max(opened[list(factors).index(f)] for f in message.factors)
+            assert f"separate by up to {widest:.3g}" in str(message)
+            assert "Merge by Distance" in str(message)
+    assert warned >= 1
+    for factor in (0.5, 2.0):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            x = Interpolator(near_keys[0], near_keys[2], near_tri).pose(factor)
+        widest = np.linalg.norm(x[seam] - x[copies], axis=1).max()
+        (message,) = _seam_warnings(record)
+        assert f"separate by up to {widest:.3g}" in str(message)
+
+
+@pytest.mark.parametrize("apart", [0.0, 1e-9])
+def test_a_welded_seam_is_not_warned(apart):
+    """Sides within the weld's distance are welded: the seam stays closed, and nothing is said."""
+    keys, tri = _waving_sheet()
+    near_keys, near_tri, seam, copies = _near_seam(keys, tri, apart)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        sequence = SequenceInterpolator(near_keys, near_tri)
+        poses = [sequence.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(sequence))]
+        pair = Interpolator(near_keys[0], near_keys[2], near_tri).pose(0.5)
+    assert not _seam_warnings(record)
+    for x in poses + [pair[None]]:
+        assert np.abs(x[:, seam] - x[:, copies]).max() <= apart
+
+
+def test_stacked_sheets_that_move_together_are_not_warned():
+    """Two copies of the waving sheet 1e-4 apart (two layers, every boundary vertex a near-seam's):
+    moving together they stay 1e-4 apart in the in-betweens (each piece reconstructed alike,
+    placed by the same motion, to the solver's rounding), and nothing is said of seams."""
+    keys, tri = _waving_sheet()
+    n = len(keys[0])
+    layers = [np.concatenate([k, k + [0.0, 0.0, 1e-4]]) for k in keys]
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        sequence = SequenceInterpolator(layers, np.concatenate([tri, tri + n]))
+        poses = [sequence.poses(gap, np.arange(1, 8) / 8) for gap in range(len(sequence))]
+        poses.append(Interpolator(layers[0], layers[2], np.concatenate([tri, tri + n])).pose(0.5)[None])
+    assert not _seam_warnings(record)
+    for x in poses:
+        np.testing.assert_allclose(x[:, n:] - x[:, :n], np.broadcast_to([0.0, 0.0, 1e-4], x[:, n:].shape), atol=1e-9)

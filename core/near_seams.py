@@ -1,0 +1,142 @@
+"""Near-seams: boundary vertices of different pieces that every key keeps almost together, but
+farther apart than the weld joins (paper §8.4; the in-betweens reconstruct each piece on its own).
+
+:func:`core.seams.seam_weld` welds vertices within :func:`core.seams.coincidence_tolerance`
+(1e-5 of the diagonal): farther apart, welding would move the caller's keys, or join separate
+stacked layers. A seam left 1e-4 apart (7e-5 of the diagonal, 0.07 % of an edge) is then two
+pieces interpolated each on its own, which an 8 × 8 grid's in-between opened to 2.4e-3 of the
+diagonal (2.4 % of an edge) half-way. Such seams
+are found once per sequence (:func:`near_seams`: a KD-tree query over the boundary vertices) and
+each in-between is measured on them (:meth:`NearSeams.opening`: a gather), so that the
+in-betweens warn (kind ``seam``) where they open what the keys keep closed. Pieces that move
+together keep their distance and are not warned of, whatever their distance in the keys.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .sequence_warnings import factor_list
+
+#: Boundary vertices of different pieces closer than this share of their mean adjacent edge
+#: length in every key are the two sides of a seam the keys keep closed (cloth's collision
+#: distances, which keep layers apart, are a third of an edge or more).
+NEAR_SEAM_SHARE = 0.05
+#: An in-between opens such a seam where a pair lies farther apart than in any key by more than
+#: this share of its mean adjacent edge length (plus the weld's own distance, which covers the
+#: coordinates' rounding): a gap visible at the scale of the mesh's triangles.
+SEAM_OPENING_SHARE = 0.01
+#: Nearest boundary vertices looked at per boundary vertex: a seam vertex's partner on another
+#: piece is its nearest, or next to nearest where three pieces meet.
+NEAR_SEAM_NEIGHBOURS = 4
+
+
+@dataclass(frozen=True)
+class NearSeams:
+    """Pairs of boundary vertices (``a``, ``b``, int (p,) each, indices of the positions given to
+    :func:`near_seams`) of different pieces kept together by every key; ``apart`` (p,) their
+    largest distance over the keys, ``allowed`` (p,) the distance an in-between may reach
+    before it opens the seam (:data:`SEAM_OPENING_SHARE`)."""
+
+    a: np.ndarray
+    b: np.ndarray
+    apart: np.ndarray
+    allowed: np.ndarray
+
+    def opening(self, x: np.ndarray) -> tuple[int, float, int]:
+        """How pose ``x`` (n, 3) opens the seams: ``(pairs opened, the widest distance of an opened
+        pair, that pair's index)``; ``(0, 0.0, -1)`` where none opens."""
+        distance = np.linalg.norm(x[self.a] - x[self.b], axis=1)
+        opened = distance > self.allowed
+        if not opened.any():
+            return 0, 0.0, -1
+        worst = int(np.argmax(np.where(opened, distance, -np.inf)))
+        return int(np.count_nonzero(opened)), float(distance[worst]), worst
+
+
+def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams | None:
+    """The near-seams of ``keys`` (K arrays (n, 3)) of a mesh of ``topology`` (a
+    :class:`core.mesh_topology.MeshTopology`, its seams already welded): pairs of boundary vertices
+    of different pieces within :data:`NEAR_SEAM_SHARE` of their mean adjacent edge length in every
+    key. ``tolerance``: the weld's distance (:func:`core.seams.coincidence_tolerance`), added to
+    what an in-between may open them by. None where there are none (a single piece, pieces apart)."""
+    from scipy.spatial import cKDTree
+
+    edges = topology.edges
+    boundary = np.unique(edges[topology.boundary_edges])
+    if boundary.size < 2 or not len(edges):
+        return None
+    pieces = topology.components()[1]
+    piece = np.full(topology.n_vertices, -1)
+    piece[topology.triangles.ravel()] = np.repeat(pieces, 3)
+    if np.unique(piece[boundary]).size < 2:
+        return None
+    n = topology.n_vertices
+    lengths = np.linalg.norm(keys[0][edges[:, 0]] - keys[0][edges[:, 1]], axis=1)
+    local = np.bincount(edges.ravel(), np.repeat(lengths, 2), minlength=n) / \
+        np.maximum(np.bincount(edges.ravel(), minlength=n), 1)
+    first = keys[0][boundary]
+    reach = NEAR_SEAM_SHARE * float(local[boundary].max())
+    k = min(NEAR_SEAM_NEIGHBOURS + 1, boundary.size)
+    near = cKDTree(first).query(first, k=k, distance_upper_bound=reach)[1]
+    rows = np.repeat(np.arange(boundary.size), k)
+    near = near.ravel()
+    found = near < boundary.size  # no neighbour within reach: index boundary.size
+    a, b = boundary[rows[found]], boundary[near[found]]
+    keep = (a < b) & (piece[a] != piece[b])
+    a, b = a[keep], b[keep]
+    if not a.size:
+        return None
+    # per key, the mean length of the edges at each pair's vertices (only those edges are measured)
+    ends = np.unique(np.r_[a, b])
+    touching = np.flatnonzero(np.isin(edges, ends).any(axis=1))
+    inside = np.isin(edges[touching], ends)  # (t, 2): which ends of those edges are pair vertices
+    near_edges = np.searchsorted(ends, edges[touching])  # their rows in ends (read where inside)
+    rows_a, rows_b = np.searchsorted(ends, a), np.searchsorted(ends, b)
+    count = np.bincount(near_edges[inside], minlength=ends.size)
+    apart = np.zeros(a.size)
+    edge = np.full(a.size, np.inf)
+    together = np.ones(a.size, dtype=bool)
+    for key in keys:
+        lengths = np.linalg.norm(key[edges[touching, 0]] - key[edges[touching, 1]], axis=1)
+        mean = np.bincount(near_edges[inside], np.broadcast_to(lengths[:, None], inside.shape)[inside],
+                           minlength=ends.size) / np.maximum(count, 1)
+        scale = 0.5 * (mean[rows_a] + mean[rows_b])
+        gap = np.linalg.norm(key[a] - key[b], axis=1)
+        together &= gap < NEAR_SEAM_SHARE * scale
+        apart, edge = np.maximum(apart, gap), np.minimum(edge, scale)
+    if not together.any():
+        return None
+    a, b, apart, edge = a[together], b[together], apart[together], edge[together]
+    return NearSeams(a, b, apart, apart + SEAM_OPENING_SHARE * edge + tolerance)
+
+
+def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float], names: tuple[str, str],
+                 vertices: np.ndarray | None = None) -> tuple[str, tuple[float, ...]] | None:
+    """The warning's message and factors where the in-betweens ``poses`` (list of (n, 3), in the
+    positions' indices of ``seams``) at ``factors`` of the gap between the keys ``names`` open
+    the near-seams ``seams``, once for the gap; None where none opens. ``vertices``: the caller's
+    index of each vertex (int (n,)), where the poses' are welded ones, or None."""
+    opened = [(factor, *seams.opening(x)) for x, factor in zip(poses, factors)]
+    opened = [o for o in opened if o[1]]
+    if not opened:
+        return None
+    factor, count, widest, pair = max(opened, key=lambda o: o[2])
+    a, b = int(seams.a[pair]), int(seams.b[pair])
+    if vertices is not None:
+        a, b = int(vertices[a]), int(vertices[b])
+    keys = float(seams.apart.max())
+    pose = "in-between" if all(0.0 < o[0] < 1.0 for o in opened) else "pose"  # past the keys: no in-between
+    what = (f"the sides of a seam that is not welded (pieces whose boundary vertices are at most {keys:.3g} apart in "
+            f"every key, farther than the weld joins) separate by up to {widest:.3g} ({count} vertex pair(s), e.g. "
+            f"vertices {a} and {b}) in the {pose}s; weld them (Mesh > Clean Up > Merge by Distance) before "
+            "in-betweening")
+    between = f"between {names[0]} and {names[1]}"
+    if len(opened) == 1:
+        return f"{between}, the {pose} at factor {factor:g}: {what}", (factor,)
+    # worded as core.sequence_warnings.gap_problems words several in-betweens alike (one shape for the operators)
+    return (f"{between}, {len(opened)} of the {len(factors)} {pose}s alike, the worst at factor {factor:g}: {what}; "
+            f"{pose}s alike at factors {factor_list([o[0] for o in opened])}",
+            tuple(o[0] for o in opened))
