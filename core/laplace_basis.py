@@ -55,6 +55,68 @@ def basis_sizes(k_M, k_N, n_vertices: int | None = None) -> tuple[int | None, in
     return check_basis_sizes(k_M, k_N, n_vertices)
 
 
+#: Two consecutive eigenvalues closer than this (relative to the larger) count as one repeated
+#: eigenvalue for :func:`split_group`. Exactly repeated eigenvalues (an icosphere's, a regular
+#: grid's) come out of the eigensolvers within 1e-15 (dense, 162 vertices) and 1e-12 (ARPACK, 10k
+#: vertices) of each other; above this threshold a rounding-size change of the matrices (~1e-15
+#: relative) turns the first ``k`` functions of a group split by a relative gap ``g`` by about
+#: ``1e-15 / g`` ≤ 1e-5 rad (Davis–Kahan). Meshes without a symmetry have larger gaps: 5e-3 and
+#: 2.4e-4 at k 50 / 100 on a 10k-vertex cloth, 2.9e-7 and 2.5e-8 on square grids of 30² and 100²
+#: vertices jittered by 0.1 edge (the x ↔ y pairs of a square, split by the jitter only).
+REPEATED_GAP = 1e-10
+#: Eigenpairs computed past a truncated basis size ``k`` to see whether it splits a group
+#: (:func:`split_group`); more are computed only where the group reaches past them.
+SPLIT_LOOKAHEAD = 2
+
+
+def split_group(eigenvalues: np.ndarray, k: int, gap: float = REPEATED_GAP) -> tuple[int, int] | None:
+    """Whether the first ``k`` of ``eigenvalues`` (float64 ``(p,)`` ascending, ``p > k``) end inside
+    a group of equal ones (consecutive relative gaps at most ``gap``): its index range
+    ``(first, end)`` (``eigenvalues[first:end]``; ``end == p`` when it may go on past them), or
+    ``None`` where eigenvalue ``k`` is more than ``gap`` above eigenvalue ``k − 1``. A truncated
+    basis (paper §4–5) that splits a group holds an arbitrary part of its eigenspace."""
+    values = np.asarray(eigenvalues, dtype=np.float64)
+
+    def joined(i):  # eigenvalues i − 1 and i are one
+        return values[i] - values[i - 1] <= gap * abs(values[i])
+
+    if not 0 < k < values.size or not joined(k):
+        return None
+    first, end = k - 1, k + 1
+    while first > 0 and joined(first):
+        first -= 1
+    while end < values.size and joined(end):
+        end += 1
+    return first, end
+
+
+def checked_laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh"):
+    """:func:`laplace_basis` with :data:`SPLIT_LOOKAHEAD` more eigenpairs (up to ``n − 1``), and
+    :func:`split_group` of its eigenvalues at ``k`` computed to the group's end (more eigenpairs
+    only where the group reaches past those): ``(basis, group)``, ``basis`` the (larger) computed
+    one, ``group`` ``None`` or ``(first, end)``."""
+    n = mass.shape[0]
+    basis = laplace_basis(mass, conformal, max(k, min(k + SPLIT_LOOKAHEAD, n - 1)), what=what)
+    group = split_group(basis.eigenvalues, k)
+    while group is not None and group[1] == basis.size and basis.size < n - 1:
+        basis = laplace_basis(mass, conformal, min(basis.size + 2 * (group[1] - group[0]), n - 1), what=what)
+        group = split_group(basis.eigenvalues, k)
+    return basis, group
+
+
+def split_advice(label: str, k: int, splits, sizes) -> str:
+    """The warning for a basis size ``label = k`` that splits groups of equal eigenvalues:
+    ``splits`` ``[(what, (first, end)), …]`` (:func:`split_group` of each mesh ``what``), ``sizes``
+    the nearest sizes that split none (at most two, possibly none)."""
+    groups = " and ".join(f"a group of {end - first} equal frequencies (Laplace–Beltrami eigenvalues "
+                          f"{first + 1}–{end}) of the {what}" for what, (first, end) in splits)
+    use = " or ".join(str(size) for size in sizes)
+    return (f"{label} = {k} splits {groups} (a symmetric shape): the result depends on rounding"
+            + (f"; use {label} = {use} (the nearest size{'s' if len(sizes) > 1 else ''} that "
+               f"do{'' if len(sizes) > 1 else 'es'} not split {'it' if len(splits) == 1 else 'them'})." if sizes else
+               "; no other basis size avoids it: use the full basis."))
+
+
 def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh") -> LaplaceBasis:
     """The ``k`` smallest eigenpairs of ``(C, A)``: scipy ``eigsh`` in shift-invert mode about a
     small negative shift (so the factorized matrix ``C − σA`` is positive definite), or a dense

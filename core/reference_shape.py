@@ -19,7 +19,7 @@ from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, laplace_basis
+from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_advice, split_group
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
@@ -66,6 +66,7 @@ class SurfaceLayer:
         self.areas, self.squared_lengths, self.mass, self.conformal = pose_products(self.assembler, positions)
         self._bases: dict[int, LaplaceBasis] = {}
         self._truncated_solvers: dict[int, TruncatedRecovery] = {}
+        self._groups: dict[int, tuple[int, int] | None] = {}
 
     @property
     def metric(self) -> LayerMetric:
@@ -89,23 +90,51 @@ class SurfaceLayer:
 
     def basis(self, k: int) -> LaplaceBasis:
         """The first ``k`` eigenpairs of this layer's reference pose (cached; a larger cached
-        basis is truncated rather than recomputed)."""
+        basis is truncated rather than recomputed; computed with :func:`checked_laplace_basis`'s
+        few more, for :meth:`split_group`)."""
         larger = [size for size in self._bases if size >= k]
-        if larger:
-            cached = self._bases[min(larger)]
-            return cached if cached.size == k else LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
-        self._bases[k] = laplace_basis(self.mass, self.conformal, k, what=self.name)
-        return self._bases[k]
+        if not larger:
+            computed, self._groups[k] = checked_laplace_basis(self.mass, self.conformal, k, what=self.name)
+            self._bases[computed.size] = computed
+            larger = [computed.size]
+        cached = self._bases[min(larger)]
+        if cached.size != k:
+            cached = self._bases[k] = LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
+        return cached
 
-    def differences(self, target_positions: np.ndarray, k_M: int | None, k_N: int | None):
-        """Area and conformal differences from this layer's reference to a target pose of it."""
+    def split_group(self, k: int) -> tuple[int, int] | None:
+        """:func:`~core.laplace_basis.split_group` of this layer's eigenvalues at a basis size ``k``
+        (computing the eigenpairs it needs)."""
+        if k not in self._groups:
+            computed = self._bases[max(self._bases)] if self._bases else None
+            group = split_group(computed.eigenvalues, k) if computed is not None and computed.size > k else None
+            n = self.topology.n_vertices
+            if computed is None or computed.size <= k or (group is not None and group[1] == computed.size < n - 1):
+                computed, group = checked_laplace_basis(self.mass, self.conformal, k, what=self.name)
+                self._bases[computed.size] = computed
+            self._groups[k] = group
+        return self._groups[k]
+
+    def differences(self, target_positions: np.ndarray, k_M: int | None, k_N: int | None, *,
+                    smallest: int = 2, stacklevel: int = 1):
+        """Area and conformal differences from this layer's reference to a target pose of it. Warns
+        where ``k_M`` or ``k_N`` splits a group of equal eigenvalues of the reference or the target
+        (:func:`~core.laplace_basis.split_group`; ``smallest``: the smallest basis size allowed,
+        ``stacklevel``: the warning's frame, 1 for the caller)."""
         _, _, mass, conformal = pose_products(self.assembler, target_positions)
         if k_M is None:
             return FullDifference("area", self.mass, mass), FullDifference("conformal", self.conformal, conformal)
         base_basis = self.basis(k_M)
         if k_N is None:
             return reduced_differences(base_basis, mass, conformal)
-        target_basis = laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
+        target_basis, group = checked_laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
+        if group is not None:
+            first, end = group
+            sizes = [size for size in (first, end) if max(k_M, smallest) <= size < self.topology.n_vertices]
+            warn(split_advice("k_N", k_N, [(f"target pose's {self.name}", group)], sizes), "truncated",
+                 stacklevel=stacklevel + 1)
+        if target_basis.size != k_N:
+            target_basis = LaplaceBasis(target_basis.eigenvalues[:k_N], target_basis.functions[:, :k_N])
         return functional_map_differences(base_basis, target_basis, mass)
 
     def recover(self, area_difference, conformal_difference, warm: dict | None = None,
@@ -301,12 +330,40 @@ class ReferenceShape:
         self.check_faithful(target, name, stacklevel=stacklevel + 1)
         if self.use_extrinsic:
             self._warn_offset_scale(stacklevel + 1)
-        area, conformal = self.base.differences(target, k_M, k_N)
+        smallest = self.topology.components()[0] + 1
+        if k_M is not None:
+            self.warn_split(k_M, stacklevel=stacklevel + 1)
+        area, conformal = self.base.differences(target, k_M, k_N, smallest=smallest, stacklevel=stacklevel + 1)
         offset_area = offset_conformal = None
         if self.use_extrinsic:
             offset_target = self.surface.positions(target, self.offset)
-            offset_area, offset_conformal = self.offset_layer.differences(offset_target, k_M, k_N)
+            offset_area, offset_conformal = self.offset_layer.differences(
+                offset_target, k_M, k_N, smallest=smallest, stacklevel=stacklevel + 1)
         return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.given_offset, k_M, k_N, self)
+
+    def layers(self) -> list[SurfaceLayer]:
+        """The base layer and, with the offset surface, its layer."""
+        return [self.base] + ([self.offset_layer] if self.use_extrinsic else [])
+
+    def warn_split(self, k_M: int, *, stacklevel: int = 1) -> None:
+        """A ``truncated`` :class:`ShapeDifferenceWarning` where a base basis of ``k_M`` functions
+        splits a group of equal eigenvalues of a layer (:meth:`SurfaceLayer.split_group`: a
+        symmetric base), naming the nearest sizes below and above that split none in either layer."""
+        splits = [(layer.name, layer.split_group(k_M)) for layer in self.layers()]
+        splits = [(what, group) for what, group in splits if group is not None]
+        if not splits:
+            return
+        n, smallest = self.topology.n_vertices, self.topology.components()[0] + 1
+        sizes = []
+        for side in (0, 1):  # 0: down to the groups' first indices, 1: up to their ends
+            size = k_M
+            while smallest <= size < n:
+                groups = [group for group in (layer.split_group(size) for layer in self.layers()) if group is not None]
+                if not groups:
+                    sizes.append(size)
+                    break
+                size = min(g[0] for g in groups) if side == 0 else max(g[1] for g in groups)
+        warn(split_advice("k_M", k_M, splits, sizes), "truncated", stacklevel=stacklevel + 1)
 
     def check_faithful(self, pose: np.ndarray, name: str, *, stacklevel: int = 1) -> None:
         """Checks of a pose's used vertices ``(n_used, 3)`` that depend on what the differences
