@@ -19,6 +19,10 @@ from .inbetween_repair_regions import _corner_joined_parts
 #: turn away from both keys with their edges off the interpolated metric by the gap's tolerance
 #: (:meth:`TurnedAway._turned_away`).
 NOISY_TURN_NONRIGIDITY = 3e-2
+#: A piece turning far reads as turning with up to this share of its candidates off their
+#: interpolated normals by more than :data:`~core.inbetween_fit.MAX_ROTATION_DEVIATION`
+#: (:meth:`TurnedAway._turning_pieces`).
+DEVIANT_SHARE = 0.05
 
 
 class TurnedAway:
@@ -41,7 +45,8 @@ class TurnedAway:
         g = 16; with it every pair and sequence cell of six cloths is unchanged, and an arm of
         three jointed links turning 80° per key at each joint (its last link 240°) is exact. In a
         check of the whole mesh, the candidates of a piece that turns as the interpolated field
-        says are all kept, to the gap's tolerance (:meth:`_turning_pieces`), and those of a piece
+        says are kept, to the gap's tolerance, but for those of a far-turning piece that stray past
+        facing along their interpolated normal (:meth:`_turning_pieces`), and those of a piece
         turning far that are edge-on to a key to the fit's precision (:meth:`_edge_on`)."""
         triangles = candidates if isinstance(rows, slice) else np.asarray(rows)[candidates]
         columns = frames[:, triangles]
@@ -150,8 +155,8 @@ class TurnedAway:
         """Which of the ``candidates`` (bool (r,); triangles facing away from both keys, all of
         the mesh's; ``cross`` their normals, ``normal`` their interpolated normals, ``following``
         the products of the two, ``base`` / ``nxt`` the keys' unit normals, ``columns`` their
-        interpolated frames) lie in a piece where every candidate turns as the interpolated field
-        says, or None if no piece does: a piece is turning where each candidate's normal is within
+        interpolated frames) turn as the interpolated field says in a piece that does so, or None
+        if no piece does: a piece is turning where each candidate's normal is within
         the angle ``arctan δ`` of its interpolated normal (δ the gap's tolerance: a side whose end
         is a relative δ off its target across it turns by that angle; about δ where δ is small,
         and below a right angle however large the tolerance of a strongly stretching gap is), that
@@ -180,6 +185,16 @@ class TurnedAway:
         Elsewhere that allowance would pass a part the interpolated field turns the wrong way
         round as a whole (a skinned arm twisting 156° between keys 8 frames apart, read the long
         way, 204°: 8,232 triangles facing against the truth, warned only under the tight limit).
+        In a piece turning far, up to :data:`DEVIANT_SHARE` of the candidates may stray farther
+        (the fit's global steps carry a triangle past the local steps' limit where its neighbours
+        pull it, and a fold elsewhere in the piece faces against its field): those still facing
+        along their interpolated normal are kept with the rest, the others are judged one by one
+        (a limb re-meshed irregularly, skinned 100° + 150°, its tip facing away from both poses
+        half-way: of its ~1,300 candidates 1–5 on the crushed inner side of the second ramp's end
+        lie 46–69° off their interpolated normals, and on one mesh of eight two at the ramp's start
+        are folded 111–124° against them and against the rig; held to every candidate, the fit,
+        0.05 × the blend's error, was read as ~850 flipped triangles and the fallback returned a fit
+        near the blend, 1.00 ×, ~2,300 triangles facing against the rig, with a warning).
         A closed tube (a finger) curled 120° at each of two knuckles bends its cross-sections, so
         its fit keeps the metric to 0.2–0.7 % where it turns away half-way, not to
         :data:`~core.inbetween_fit.METRIC_TOLERANCE`, and triangles edge-on to a key there face
@@ -196,27 +211,36 @@ class TurnedAway:
         lengths = np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
         per_piece = np.bincount(pieces, minlength=count)
 
-        def whole_pieces(far_pieces: np.ndarray) -> np.ndarray:
-            # the pieces each of whose candidates has its normal within the piece's angle of its
-            # interpolated normal, and that one within the same angle of facing away from both keys
+        def whole_pieces(far: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            # the pieces (C,) each of whose candidates has its normal within the piece's angle of
+            # its interpolated normal, and that one within the same angle of facing away from both
+            # keys; of the pieces turning far (``far``, (C,)), all but DEVIANT_SHARE of them. The
+            # candidates (r,) that turn as the field says: those, and in a piece turning far those
+            # beyond the angle facing along their interpolated normal still (the others are judged
+            # one by one)
+            far_pieces = far[pieces]
             limit = np.where(far_pieces, np.cos(MAX_ROTATION_DEVIATION), np.cos(angle))
             sine = np.where(far_pieces, np.sin(MAX_ROTATION_DEVIATION), np.sin(angle))
-            near = following >= limit * lengths
-            near &= (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
-            return (np.bincount(pieces[near], minlength=count) == per_piece) & (per_piece > 0)
+            facing_away = (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
+            near = (following >= limit * lengths) & facing_away
+            near_count = np.bincount(pieces[near], minlength=count)
+            allowed = np.where(far, np.floor(DEVIANT_SHARE * per_piece), 0)
+            whole = (per_piece - near_count <= allowed) & (near_count > 0)
+            return whole, near | (far_pieces & facing_away & (following > 0.0))
 
         if gap.turning is not None:
             far = gap.turning[:count]
-        elif whole_pieces(np.ones(len(pieces), dtype=bool)).any():
-            # two poses read their far-turning parts only where a piece would pass as one (a cloth
-            # fold has candidates facing against their interpolated normals, and no piece does)
+        elif whole_pieces(np.ones(count, dtype=bool))[0].any():
+            # two poses read their far-turning parts only where a piece would pass as one if it
+            # turned far (a cloth fold has candidates facing against their interpolated normals)
             far = self._far_turning()
         else:
             return None
-        turning = whole_pieces(far[pieces])
+        turning, following_field = whole_pieces(far)
         if not turning.any():
             return None
-        inside = turning[pieces]
+        inside = turning[pieces] & following_field
+        per_piece = np.bincount(pieces[inside], minlength=count)
         deviation = self._metric_deviation(columns[:, inside], sides, candidates[inside], candidates[inside])
         # a piece with a candidate off the metric (far-turning pieces: off on average, as the fit's
         # stop is, by more than the keys' own edges differ there: noisy keys' interpolated metric
@@ -227,7 +251,7 @@ class TurnedAway:
         off = np.where(far, np.bincount(pieces[inside], deviation, minlength=count) >= limit * per_piece,
                        np.bincount(pieces[inside][deviation >= tolerance], minlength=count) > 0)
         turning &= ~off
-        return turning[pieces] if turning.any() else None
+        return turning[pieces] & following_field if turning.any() else None
 
     def _far_turning(self) -> np.ndarray:
         """Per piece (bool (C,)), whether a part of it turns far from the rest between the keys as

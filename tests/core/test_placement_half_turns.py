@@ -285,6 +285,32 @@ def test_an_irregular_limb_skinned_past_a_half_turn_at_two_joints_turns_its_tip_
         assert off.magnitude() < np.radians(2.0)
 
 
+@pytest.mark.parametrize("seed", [2, 6])
+def test_an_irregular_limb_whose_tip_faces_away_from_both_poses_half_way_is_not_read_as_flipped(seed):
+    """Limbs re-meshed as in the test above (other seeds), skinned 100° + 150°: half-way the tip
+    faces away from both poses, as its interpolated rotations turn it, and the fit follows them
+    (0.05 × the blend's error) but for a few triangles of the crushed inner side of the second
+    ramp's end, which their neighbours carry 46–64° off their interpolated normals (seed 6: two
+    more at the second ramp's start folded 111–124° against them and against the rig). The limb
+    was read as no turning piece, its ~850 turned-away triangles as flipped, and the fallback's
+    fit near the linear blend returned (1.00 × the blend's error, ~2,300 triangles facing against
+    the rig). Between 0.48 and 0.55 the pose is within 0.1 × the blend's error from the rig and
+    fewer than 0.5 % of its triangles face against the rig's."""
+    a, tri = _remeshed_tube(3000, seed)
+    angles = np.radians([100.0, 150.0])
+    b = _skinned_limb(a, angles)
+    interpolator = Interpolator(a, b, tri)
+    for factor in (0.48, 0.5, 0.55):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ShapeDifferenceWarning)
+            x = interpolator.pose(factor)
+        rig, blend = _skinned_limb(a, factor * angles), (1.0 - factor) * a + factor * b
+        rms, blend_rms = (np.sqrt(np.mean(np.sum((y - rig) ** 2, axis=1))) for y in (x, blend))
+        assert rms < 0.1 * blend_rms
+        against = np.einsum("ij,ij->i", _normals(x, tri), _normals(rig, tri)) <= 0.0
+        assert against.sum() < 0.005 * len(tri)
+
+
 @pytest.mark.parametrize("degrees, joints, spread, radius, count", [
     (60.0, (0.25, 0.6), 0.35, 0.07, 3), (90.0, (0.25, 0.6), 0.35, 0.07, 3), (120.0, (0.25, 0.6), 0.35, 0.07, 3),
     (80.0, (0.15, 0.5), 0.3, 0.03, 4), (100.0, (0.15, 0.5), 0.3, 0.03, 4), (170.0, (0.15, 0.5), 0.3, 0.03, 4)])
