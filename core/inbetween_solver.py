@@ -110,8 +110,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
-                 root: np.ndarray | None = None, log_metric: bool = False):
+                 root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0):
         self.topo, self.base, self.next = topo, base, nxt
+        # the power of two the keys were scaled by (core.working_unit): distances in messages are
+        # divided by it, so that they are in the caller's units
+        self.unit = unit
         self.log_metric = log_metric
         # per component: a part of it turns far from the rest between the keys (past a half turn,
         # or past a right angle without a crease: _Relative.turning): not anchored to the keys' spline
@@ -417,7 +420,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # still vertex, or one the anchor holds enough of, keeps the place its fit gives it
         moved = self.by_centroid[owner[self.hooked[worst][0]]] > 0.0
         return (f"{len(self.hooked[worst])} vertices that translate as one between the poses (pinned to an animated "
-                f"object?) are {misses[worst]:.3g} ({100 * shares[worst]:.0f} % of their piece's diagonal) off their "
-                "path, the linear blend: the interpolated shape of the rest of the piece does not reach them there "
-                "(its keys differ too much, e.g. a stretch that relaxes between them)"
+                f"object?) are {misses[worst] / self.unit:.3g} ({100 * shares[worst]:.0f} % of their piece's diagonal) "
+                "off their path, the linear blend: the interpolated shape of the rest of the piece does not reach them "
+                "there (its keys differ too much, e.g. a stretch that relaxes between them)"
                 + (", and the piece was placed by its centroid" if moved else "") + "; add a key between the poses")

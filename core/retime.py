@@ -219,10 +219,13 @@ def motion_ends(samples, keys, tail, chosen=()) -> dict:
     return options
 
 
-def _read_only(pose: np.ndarray) -> np.ndarray:
-    """``pose`` (n, 3) made read-only where it owns its memory (a sample converted to float64), so
-    the sequence keeps it as its key instead of a copy (:func:`core.validation.check_vertices`)."""
-    if pose.base is None:
+def _key_pose(sample) -> np.ndarray:
+    """A source ``sample`` as float64 ``(n, 3)``, made read-only where the conversion made an array
+    of its own (float32 samples, a memory map's rows), so the sequence keeps it as its key instead
+    of a copy (:func:`core.validation.check_vertices`); the caller's own float64 arrays (a list of
+    frames) are left as they are, writable."""
+    pose = np.asarray(sample, dtype=np.float64)
+    if pose is not sample and pose.base is None:
         pose.flags.writeable = False
     return pose
 
@@ -260,7 +263,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     gaps = range(plan.n_gaps) if gaps is None else gaps
     if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
-    key_poses = [_read_only(np.asarray(samples[key], dtype=np.float64)) for key in plan.keys]
+    key_poses = [_key_pose(samples[key]) for key in plan.keys]
     interpolator_options = {**interpolator_options,
                             **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
     names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]

@@ -255,7 +255,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     exit=self._exit(gap) if cubic else None,
-                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric)
+                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit)
 
     def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
         """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every

@@ -121,8 +121,8 @@ class SequenceKeys:
             keys = [k - origin for k in keys]
         # sized near 1 where far larger or smaller (core.working_unit.WORKING_EXTENT); the results scaled back
         self._unit = working_unit(keys)
-        if self._unit != 1.0:
-            keys = [k * self._unit for k in keys]
+        if self._unit != 1.0:  # in place where the keys are copies of this object's own already (moved above)
+            keys = [np.multiply(k, self._unit, out=k) if self._origin is not None else k * self._unit for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
         warn_mirrored(self._topo, self._raw, self.key_names, None if weld is None else weld.kept)

@@ -159,6 +159,16 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
     assert moved(run())
 
 
+def _recording_fields(real_fields, imposed: list):
+    """A stand-in for ``Repair.imposed_fields`` (``real_fields``) whose fields append their index in
+    its list to ``imposed`` each time one is imposed."""
+    def fields(self, *args):
+        def tagged(index, field):
+            return lambda rows: imposed.append(index) or field(rows)
+        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+    return fields
+
+
 @pytest.mark.parametrize("sequence", [True, False])
 def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, sequence):
     """Two folds far apart on a sequence's in-between, one that only the interpolated rotations
@@ -184,10 +194,7 @@ def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, s
             out[i] = out[j] + out[k] - out[i]  # a corner reflected across its opposite edge
         return out
 
-    def fields(self, *args):
-        def tagged(index, field):
-            return lambda rows: imposed.append(index) or field(rows)
-        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+    fields = _recording_fields(real_fields, imposed)
 
     def local_fit(self, x, region, frames, stretch, guide):
         out = real_local(self, x, region, frames, stretch, guide)
@@ -502,10 +509,7 @@ def _middle_folded(monkeypatch, strip, unfolds):
             out[i] = out[j] + out[k] - out[i]
         return out
 
-    def fields(self, *args):
-        def tagged(index, field):
-            return lambda rows: imposed.append(index) or field(rows)
-        return [(tagged(index, field), whole) for index, (field, whole) in enumerate(real_fields(self, *args))]
+    fields = _recording_fields(real_fields, imposed)
 
     def local_fit(self, x, region, frames, stretch, guide):
         out = real_local(self, x, region, frames, stretch, guide)

@@ -266,6 +266,30 @@ def test_two_poses_say_where_a_translating_pinned_patch_ends_off_its_path(swing,
         assert not said
 
 
+@pytest.mark.parametrize("scale", [1.0, 2.0 ** 20, 2.0 ** -20])
+def test_a_translating_patch_off_its_path_is_said_in_the_callers_units(scale):
+    """The swirled sheet above (swung 150°) given at ``scale`` × its size: keys outside
+    :data:`core.working_unit.WORKING_EXTENT` are worked on scaled by a power of two, and the
+    warning quotes how far the patch ends off its path as measured on the returned in-between, in
+    the units the keys are given in (2^±20: the same share of the diagonal, the distance scaled
+    with the keys)."""
+    a, tri = grid(16, 12, size=1.5)
+    patch = (a[:, 0] < 0.25) & (a[:, 1] < 0.25)
+    distance = np.linalg.norm(a, axis=1)
+    turn = np.radians(150.0) * np.clip((distance - 0.29) / 1.6, 0.0, 1.0)
+    c, s = np.cos(turn), np.sin(turn)
+    b = np.stack([c * a[:, 0] - s * a[:, 1], s * a[:, 0] + c * a[:, 1], a[:, 2]], axis=1) + np.array([0.3, 0.05, 0.1])
+    a, b = a * scale, b * scale
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        interpolator = Interpolator(a, b, tri)
+        x = interpolator.pose(0.5)
+    assert (interpolator._sequence._unit == 1.0) == (scale == 1.0)
+    miss = np.linalg.norm(np.mean(x[patch] - 0.5 * (a[patch] + b[patch]), axis=0))
+    said = [str(w.message) for w in caught if "translate as one" in str(w.message)]
+    assert len(said) == 1 and f"are {miss:.3g} (" in said[0]
+
+
 @pytest.mark.parametrize("still", [False, True])
 def test_a_translating_patch_off_its_path_names_the_centroid_move_only_where_it_was_made(still):
     """The swirled sheet above (swung 150°), its far corner held still in both poses or not. A

@@ -190,6 +190,18 @@ def test_chunks_concatenate_to_round_off(n_frames):
     assert indices == list(plan.outputs(range(2, 4)))
 
 
+def test_a_retime_leaves_the_callers_frames_writable():
+    """A source given as a list of the caller's float64 frames: the retime reads them and leaves
+    them as they were, writable (the caller fills them again with the next shot); float32 frames
+    are converted, and their conversions kept by the sequence without a copy of their own."""
+    source, triangles = rolling_sheet()
+    frames = [frame.astype(np.float64) for frame in source]
+    plan = plan_retime(len(frames), 4, 0.5)
+    dict(iter_retime(frames, triangles, plan))
+    assert all(frame.flags.writeable for frame in frames)
+    frames[0][0, 0] = 1.0  # the caller's array is still its own to write
+
+
 def test_obj_round_trip(tmp_path):
     vertices, triangles = grid(4)
     path = write_obj(tmp_path / "sheet.obj", vertices, triangles)
