@@ -258,16 +258,22 @@ def test_two_poses_fall_back_to_the_metric_near_the_blend_where_the_blend_has_fe
     assert _edge_deviation(x, flat, tri).mean() < 0.7 * _edge_deviation(blend, flat, tri).mean()
 
 
-@pytest.mark.parametrize("second_defects, reach, second_kept", [(1, None, True), (3, None, False), (1, 0.0, False)])
+@pytest.mark.parametrize("second_defects, reach, metric_reach, same_misfit, second_kept", [
+    (1, None, None, False, True), (3, None, None, False, False), (1, 0.0, 0.0, False, False),
+    (1, 0.0, None, False, True), (1, 0.0, None, True, False)])
 def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(monkeypatch, strip, second_defects,
-                                                                               reach, second_kept):
+                                                                               reach, metric_reach, same_misfit,
+                                                                               second_kept):
     """Two poses whose first fit (residual rotations) fell back to the metric fitted near the blend
     with defects left: its distance from the blend says nothing of the motion, so the second fit
     (whole rotations), farther from the blend than WHOLE_FIT_BLEND_RATIO × it, is kept where it has
     fewer flipped or collapsed triangles (a flag draped over a sphere, keys 16 frames apart: 2,829
     → 104 flipped, 1.000 → 1.054 × the blend's RMS; a tablecloth pulled off a table, 8 apart: 144
     → 0, 1.000 → 0.886 ×), and not where it has more or strays farther from the blend than
-    WHOLE_FIT_HELD_REACH of the keys' distance."""
+    WHOLE_FIT_HELD_REACH of the keys' distance — unless it is within WHOLE_FIT_HELD_METRIC_REACH
+    and nearer the interpolated metric than the held fit (a stiff flag swinging round its pole,
+    keys 16 frames apart: 196–454 → 0–9 flipped, 0.995–0.997 → 0.63–0.98 ×); a second fit no nearer
+    the metric (its misfit taken equal to the first's) is not kept beyond WHOLE_FIT_HELD_REACH."""
     import core.inbetween_repair as repair
     from core import two_pose_inbetweens
 
@@ -281,6 +287,10 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     monkeypatch.setattr(repair.Repair, "defects", defects)
     if reach is not None:
         monkeypatch.setattr(two_pose_inbetweens, "WHOLE_FIT_HELD_REACH", reach)
+    if metric_reach is not None:
+        monkeypatch.setattr(two_pose_inbetweens, "WHOLE_FIT_HELD_METRIC_REACH", metric_reach)
+    if same_misfit:  # both fits equally far from the metric (and beyond the margin: the second is made)
+        monkeypatch.setattr(Interpolator, "_misfit", lambda self, x, factor, log=None: 1.0)
     pair = Interpolator(a, b, tri)
     with pytest.warns(ShapeDifferenceWarning) as caught:
         x = pair.pose(0.5)
@@ -291,7 +301,12 @@ def test_two_poses_held_near_the_blend_keep_the_second_fit_with_fewer_defects(mo
     if second_kept:  # ... farther from the blend than the guard allows a fit nearer the metric
         distance = [two_pose_inbetweens._rms(y - blend) for y in (held, x)]
         assert distance[1] > two_pose_inbetweens.WHOLE_FIT_BLEND_RATIO * distance[0]
-        assert distance[1] <= two_pose_inbetweens.WHOLE_FIT_HELD_REACH * two_pose_inbetweens._rms(b - a)
+        keys = two_pose_inbetweens._rms(b - a)
+        if reach is None:
+            assert distance[1] <= two_pose_inbetweens.WHOLE_FIT_HELD_REACH * keys
+        else:  # beyond the reach of a fit with fewer defects alone: kept for its metric
+            assert distance[1] <= two_pose_inbetweens.WHOLE_FIT_HELD_METRIC_REACH * keys
+            assert pair._misfit(x, 0.5) < pair._misfit(held, 0.5) - two_pose_inbetweens.WHOLE_FIT_MARGIN
         assert "metric fit with the fewest" in message and "near the linear blend" not in message
         assert _edge_deviation(x, flat, tri).mean() < 0.5 * _edge_deviation(held, flat, tri).mean()
     else:
