@@ -279,6 +279,8 @@ def _repaired_near(gap, s: float, pose: tuple, outer, rings=None) -> tuple[np.nd
         return pose
     scale = gap.area_scale(s)
     defects = gap.repair.defects(pose[0], s, None, None, scale=scale)
+    if not defects.any():  # a fallback without flipped or collapsed triangles: nothing to repair
+        return pose
     nearby = _predicted_positions(gap, s, outer(), gap.motion(s))
     repaired = gap.repaired_near(pose[0], s, nearby, rings, defects)  # never more defects: the rounds start from pose
     return repaired if _defect_count(gap, s, repaired[0], scale) < int(defects.sum()) else pose
