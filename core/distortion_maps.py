@@ -110,6 +110,7 @@ class DistortionAnalyzer:
         self._base_vertex_area = lumped_vertex_areas(ref.topology.triangles, ref.base.areas, ref.topology.n_vertices)
         self._seam_sides = seam_sides([ref.base.positions], ref.topology)  # pieces apart along seams
         self._seam_folds_told = False
+        self._splits_told = set()  # basis sizes warned of splitting a group of equal eigenvalues
         if ref.use_extrinsic:
             surface = ref.surface
             offset_tris = surface.topology.triangles
@@ -196,7 +197,13 @@ class DistortionAnalyzer:
         else:
             layer, positions = ref.base, pose
         k = ref.basis_sizes(self.k, None, full_basis=False)[0] if self._k_given else self.k
-        basis = layer.basis(min(k, layer.topology.n_vertices - 1))
+        k = min(k, layer.topology.n_vertices - 1)
+        if k not in self._splits_told and layer.split_group(k) is not None:
+            # The operator restricted to the first k functions: ended inside a group of equal
+            # eigenvalues, its eigenpairs depend on which part of the group rounding picked.
+            self._splits_told.add(k)  # once per size: one warning names every layer's groups
+            ref.warn_split(k, label="k", stacklevel=3)
+        basis = layer.basis(k)
         _, _, mass, conformal = pose_products(layer.assembler, positions)
         phi = basis.functions
         if kind.endswith("area"):

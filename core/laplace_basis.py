@@ -96,12 +96,23 @@ def checked_laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, 
     only where the group reaches past those): ``(basis, group)``, ``basis`` the (larger) computed
     one, ``group`` ``None`` or ``(first, end)``."""
     n = mass.shape[0]
+    _check_size(n, k, what)  # k itself: the lookahead would make a basis of 0 functions one of 2
     basis = laplace_basis(mass, conformal, max(k, min(k + SPLIT_LOOKAHEAD, n - 1)), what=what)
     group = split_group(basis.eigenvalues, k)
     while group is not None and group[1] == basis.size and basis.size < n - 1:
         basis = laplace_basis(mass, conformal, min(basis.size + 2 * (group[1] - group[0]), n - 1), what=what)
         group = split_group(basis.eigenvalues, k)
     return basis, group
+
+
+def _check_size(n: int, k: int, what: str) -> None:
+    """:class:`MeshError` unless ``1 ≤ k < n`` (a basis of ``k`` eigenfunctions of a mesh ``what``
+    of ``n`` vertices)."""
+    if not 1 <= k < n:
+        raise MeshError(
+            f"The {what} has {n} vertices, so the number of Laplace–Beltrami eigenfunctions must be "
+            f"between 1 and {n - 1}; got {k}. Lower k."
+        )
 
 
 def split_advice(label: str, k: int, splits, sizes) -> str:
@@ -117,6 +128,43 @@ def split_advice(label: str, k: int, splits, sizes) -> str:
                "; no other basis size avoids it: use the full basis."))
 
 
+def split_warning(label: str, k: int, groups_at, smallest: int, limit: int) -> str | None:
+    """The :func:`split_advice` for a basis size ``label = k``, or ``None`` where it splits no
+    group: ``groups_at(size)`` lists ``[(what, (first, end)), …]``, the groups a size splits on each
+    mesh the size applies to (:func:`split_group`); the sizes offered are the nearest below and above
+    ``k`` that split none on any of them, within ``smallest..limit − 1`` (a candidate that splits
+    another mesh's group moves on past it)."""
+    splits = groups_at(k)
+    if not splits:
+        return None
+    sizes = []
+    for side in (0, 1):  # 0: down to the groups' first indices, 1: up to their ends
+        size = k
+        while smallest <= size < limit:
+            groups = [group for _, group in groups_at(size)]
+            if not groups:
+                sizes.append(size)
+                break
+            size = min(g[0] for g in groups) if side == 0 else max(g[1] for g in groups)
+    return split_advice(label, k, splits, sizes)
+
+
+def warn_eigenvalue_split(label: str, k: int, named_eigenvalues, smallest: int, limit: int, *,
+                          stacklevel: int = 1) -> None:
+    """A ``truncated`` :class:`~core.errors.ShapeDifferenceWarning` (:func:`split_warning`) where a
+    basis size ``label = k`` splits a group of equal eigenvalues of a mesh ``what`` of
+    ``named_eigenvalues`` ``[(what, eigenvalues float64 (p,) ascending, p > k), …]`` (computed
+    past ``k``, as :func:`checked_laplace_basis` does); ``stacklevel``: the warning's frame, 1 for
+    the caller."""
+    from .errors import warn
+
+    message = split_warning(label, k, lambda size: [(what, group) for what, values in named_eigenvalues
+                                                    if (group := split_group(values, size)) is not None],
+                            smallest, limit)
+    if message is not None:
+        warn(message, "truncated", stacklevel=stacklevel + 1)
+
+
 def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh") -> LaplaceBasis:
     """The ``k`` smallest eigenpairs of ``(C, A)``: scipy ``eigsh`` in shift-invert mode about a
     small negative shift (so the factorized matrix ``C − σA`` is positive definite), or a dense
@@ -127,11 +175,7 @@ def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: st
     ``1..n-1`` and :class:`RecoveryError` if the eigensolver fails.
     """
     n = mass.shape[0]
-    if not 1 <= k < n:
-        raise MeshError(
-            f"The {what} has {n} vertices, so the number of Laplace–Beltrami eigenfunctions must be "
-            f"between 1 and {n - 1}; got {k}. Lower k."
-        )
+    _check_size(n, k, what)
     if n <= DENSE_EIGEN_LIMIT or (k >= DENSE_EIGEN_FRACTION * n and n <= DENSE_EIGEN_MAX_VERTICES):
         from scipy.linalg import LinAlgError, eigh
 

@@ -1,14 +1,17 @@
-"""Near-seams: boundary vertices of different pieces that every key keeps almost together, but
-farther apart than the weld joins (paper §8.4; the in-betweens reconstruct each piece on its own).
+"""Near-seams: boundary vertices that every key keeps almost together, but farther apart than the
+weld joins, and that the mesh does not join: of different pieces, or of one piece and far apart
+along it, as the two sides of a tube cut open along one line (paper §8.4: the in-betweens
+reconstruct each piece on its own, and a piece's boundary is free).
 
 :func:`core.seams.seam_weld` welds vertices within :func:`core.seams.coincidence_tolerance`
 (1e-5 of the diagonal): farther apart, welding would move the caller's keys, or join separate
 stacked layers. A seam left 1e-4 apart (7e-5 of the diagonal, 0.07 % of an edge) is then two
 pieces interpolated each on its own, which an 8 × 8 grid's in-between opened to 2.4e-3 of the
-diagonal (2.4 % of an edge) half-way. Such seams
-are found once per sequence (:func:`near_seams`: a KD-tree query over the boundary vertices) and
-each in-between is measured on them (:meth:`NearSeams.opening`: a gather), so that the
-in-betweens warn (kind ``seam``) where they open what the keys keep closed. Pieces that move
+diagonal (2.4 % of an edge) half-way; a tube of one piece cut along its length, its sides 1e-4
+apart while it bends and twists, opened to 6 % of an edge in a sequence and 16 % between two poses.
+Such seams are found once per sequence (:func:`near_seams`: a KD-tree query over the boundary
+vertices) and each in-between is measured on them (:meth:`NearSeams.opening`: a gather), so that
+the in-betweens warn (kind ``seam``) where they open what the keys keep closed. Pieces that move
 together keep their distance and are not warned of, whatever their distance in the keys.
 """
 
@@ -31,6 +34,12 @@ SEAM_OPENING_SHARE = 0.01
 #: Nearest boundary vertices looked at per boundary vertex: a seam vertex's partner on another
 #: piece is its nearest, or next to nearest where three pieces meet.
 NEAR_SEAM_NEIGHBOURS = 4
+#: Two boundary vertices of one piece are the two sides of a seam only where every path between
+#: them along the mesh's edges (in the first key) is at least this many times their mean adjacent
+#: edge length: nearer, the mesh joins them itself (a sliver's corners; a hem folded flat brings
+#: boundary vertices two edges apart within 2–4 % of an edge in both keys of a pair in Blender's
+#: bakes). With 4, no pair in any of 40 baked scenes; a tube's cut is its circumference apart.
+SAME_PIECE_PATH = 4.0
 
 
 @dataclass(frozen=True)
@@ -59,24 +68,23 @@ class NearSeams:
 def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams | None:
     """The near-seams of ``keys`` (K arrays (n, 3)) of a mesh of ``topology`` (a
     :class:`core.mesh_topology.MeshTopology`, its seams already welded): pairs of boundary vertices
-    of different pieces within :data:`NEAR_SEAM_SHARE` of their mean adjacent edge length in every
-    key. ``tolerance``: the weld's distance (:func:`core.seams.coincidence_tolerance`), added to
-    what an in-between may open them by. None where there are none (a single piece, pieces apart)."""
+    within :data:`NEAR_SEAM_SHARE` of their mean adjacent edge length in every key, of different
+    pieces or of one piece and apart along it (:data:`SAME_PIECE_PATH`). ``tolerance``: the weld's
+    distance (:func:`core.seams.coincidence_tolerance`), added to what an in-between may open them
+    by. None where there are none (boundaries apart, no boundary)."""
     from scipy.spatial import cKDTree
 
     edges = topology.edges
     boundary = np.unique(edges[topology.boundary_edges])
     if boundary.size < 2 or not len(edges):
         return None
-    pieces = topology.components()[1]
-    piece = np.full(topology.n_vertices, -1)
-    piece[topology.triangles.ravel()] = np.repeat(pieces, 3)
-    if np.unique(piece[boundary]).size < 2:
-        return None
     n = topology.n_vertices
-    lengths = np.linalg.norm(keys[0][edges[:, 0]] - keys[0][edges[:, 1]], axis=1)
-    local = np.bincount(edges.ravel(), np.repeat(lengths, 2), minlength=n) / \
-        np.maximum(np.bincount(edges.ravel(), minlength=n), 1)
+    on_boundary = np.zeros(n, dtype=bool)
+    on_boundary[boundary] = True
+    at = edges[on_boundary[edges[:, 0]] | on_boundary[edges[:, 1]]]  # the edges at boundary vertices
+    lengths = np.linalg.norm(keys[0][at[:, 0]] - keys[0][at[:, 1]], axis=1)
+    local = np.bincount(at.ravel(), np.repeat(lengths, 2), minlength=n) / \
+        np.maximum(np.bincount(at.ravel(), minlength=n), 1)
     first = keys[0][boundary]
     reach = NEAR_SEAM_SHARE * float(local[boundary].max())
     k = min(NEAR_SEAM_NEIGHBOURS + 1, boundary.size)
@@ -85,8 +93,11 @@ def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams 
     near = near.ravel()
     found = near < boundary.size  # no neighbour within reach: index boundary.size
     a, b = boundary[rows[found]], boundary[near[found]]
-    keep = (a < b) & (piece[a] != piece[b])
+    keep = a < b
     a, b = a[keep], b[keep]
+    if a.size:  # ends of one edge are joined by it (a short boundary edge)
+        joined = np.isin(a * n + b, edges[:, 0] * n + edges[:, 1])  # edges[:, 0] < edges[:, 1]
+        a, b = a[~joined], b[~joined]
     if not a.size:
         return None
     # per key, the mean length of the edges at each pair's vertices (only those edges are measured)
@@ -107,10 +118,41 @@ def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams 
         gap = np.linalg.norm(key[a] - key[b], axis=1)
         together &= gap < NEAR_SEAM_SHARE * scale
         apart, edge = np.maximum(apart, gap), np.minimum(edge, scale)
+    pieces = topology.components()[1]
+    piece = np.full(n, -1)
+    piece[topology.triangles.ravel()] = np.repeat(pieces, 3)
+    same = together & (piece[a] == piece[b])
+    if same.any():
+        together[same] = _apart_along_mesh(keys[0], edges, a[same], b[same], SAME_PIECE_PATH * edge[same])
     if not together.any():
         return None
     a, b, apart, edge = a[together], b[together], apart[together], edge[together]
     return NearSeams(a, b, apart, apart + SEAM_OPENING_SHARE * edge + tolerance)
+
+
+def _apart_along_mesh(x: np.ndarray, edges: np.ndarray, a: np.ndarray, b: np.ndarray, length: np.ndarray) -> np.ndarray:
+    """Whether every path along ``edges`` (E, 2) in pose ``x`` (n, 3) from ``a[i]`` to ``b[i]`` (int
+    (p,) each) is at least ``length[i]`` long, bool (p,): Dijkstra's distances (scipy's csgraph),
+    over the vertices within ``length`` of a pair's vertex only — a shorter path cannot leave
+    them — so that its cost follows the pairs, not the mesh."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+    from scipy.spatial import cKDTree
+
+    reach = float(length.max())
+    ends = np.unique(np.r_[a, b])
+    box = np.flatnonzero(((x >= x[ends].min(axis=0) - reach) & (x <= x[ends].max(axis=0) + reach)).all(axis=1))
+    within = cKDTree(x[ends]).query_ball_point(x[box], r=reach, return_length=True) > 0
+    near = box[within]  # vertices within reach of a pair's vertex (a and b among them)
+    local = np.full(x.shape[0], -1)
+    local[near] = np.arange(near.size)
+    inner = (local[edges] >= 0).all(axis=1)
+    u, v = local[edges[inner, 0]], local[edges[inner, 1]]
+    weights = np.linalg.norm(x[edges[inner, 0]] - x[edges[inner, 1]], axis=1)
+    graph = csr_matrix((weights, (u, v)), shape=(near.size, near.size))
+    starts, rows = np.unique(local[a], return_inverse=True)
+    distances = dijkstra(graph, directed=False, indices=starts, limit=reach)
+    return distances[rows, local[b]] >= length
 
 
 def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float], names: tuple[str, str],
@@ -129,8 +171,8 @@ def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float]
         a, b = int(vertices[a]), int(vertices[b])
     keys = float(seams.apart.max())
     pose = "in-between" if all(0.0 < o[0] < 1.0 for o in opened) else "pose"  # past the keys: no in-between
-    what = (f"the sides of a seam that is not welded (pieces whose boundary vertices are at most {keys:.3g} apart in "
-            f"every key, farther than the weld joins) separate by up to {widest:.3g} ({count} vertex pair(s), e.g. "
+    what = (f"the sides of a seam that is not welded (boundary vertices at most {keys:.3g} apart in every key, "
+            f"farther than the weld joins, that the mesh does not join) separate by up to {widest:.3g} ({count} vertex pair(s), e.g. "
             f"vertices {a} and {b}) in the {pose}s; weld them (Mesh > Clean Up > Merge by Distance) before "
             "in-betweening")
     between = f"between {names[0]} and {names[1]}"

@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from .errors import MeshError, RecoveryError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, heron, lumped_vertex_areas, normalize, vertex_labels
-from .laplace_basis import LaplaceBasis, laplace_basis
+from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_group, warn_eigenvalue_split
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
 HEAT_TIME_FACTOR = 1.0
@@ -221,13 +221,29 @@ class PulledBackMetric:
         return self.reference.base.assembler.conformal_matrix(self.squared_lengths, self.areas)
 
     def laplace_basis(self, k: int) -> LaplaceBasis:
-        """The first ``k`` eigenpairs of the pulled-back Laplacian (on the used vertices)."""
+        """The first ``k`` eigenpairs of the pulled-back Laplacian (on the used vertices); computed
+        with :func:`~core.laplace_basis.checked_laplace_basis`'s few more (for :meth:`_warn_split`).
+        Eigenpairs within a group of equal eigenvalues are one arbitrary orthonormal choice of its
+        eigenspace, as from any eigensolver, at any ``k``."""
         larger = [size for size in self._bases if size >= k]
-        if larger:
-            cached = self._bases[min(larger)]
-            return LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
-        self._bases[k] = laplace_basis(self.mass_matrix(), self.laplacian(), k, what="pulled-back metric")
-        return self._bases[k]
+        if not larger:
+            computed, _ = checked_laplace_basis(self.mass_matrix(), self.laplacian(), k, what="pulled-back metric")
+            self._bases[computed.size] = computed
+            larger = [computed.size]
+        cached = self._bases[min(larger)]
+        return cached if cached.size == k else LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
+
+    def _warn_split(self, k: int, stacklevel: int) -> None:
+        """A ``truncated`` warning where the first ``k`` eigenpairs end inside a group of equal
+        eigenvalues (a symmetric metric): a sum over them that weighs a group's functions alike
+        (the WKS) holds an arbitrary part of it."""
+        n = self.reference.topology.n_vertices
+        values = self._bases[max(self._bases)].eigenvalues
+        group = split_group(values, k)
+        if group is not None and group[1] == values.size < n - 1:  # the group may go on: solve to its end
+            self.laplace_basis(min(values.size + 2 * (group[1] - group[0]), n - 1))
+            values = self._bases[max(self._bases)].eigenvalues
+        warn_eigenvalue_split("k", k, [("pulled-back metric", values)], 2, n, stacklevel=stacklevel + 1)
 
     def laplacian_eigenvalues(self, k: int) -> np.ndarray:
         """The ``k`` smallest eigenvalues ``(k,)`` of ``C(ℓ²; µ) φ = λ A(µ) φ`` (ascending)."""
@@ -252,7 +268,9 @@ class PulledBackMetric:
         the first ``k`` nonzero eigenpairs. ``energies``: a count (evenly spaced log-energies
         between the extreme log-eigenvalues, ``WKS_MARGIN`` widths inside) or explicit values (to
         compare several metrics at the same energies, see :meth:`wks_energies`)."""
-        basis = self.laplace_basis(min(k, self.reference.topology.n_vertices - 1))
+        k = min(k, self.reference.topology.n_vertices - 1)
+        basis = self.laplace_basis(k)
+        self._warn_split(k, stacklevel=2)
         return self._expand(wave_kernel_signature(basis, energies, variance=variance), 0.0)
 
     def wks_energies(self, count: int = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:

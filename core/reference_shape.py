@@ -19,7 +19,7 @@ from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_advice, split_group
+from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_group, split_warning, warn_eigenvalue_split
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
@@ -127,12 +127,9 @@ class SurfaceLayer:
         base_basis = self.basis(k_M)
         if k_N is None:
             return reduced_differences(base_basis, mass, conformal)
-        target_basis, group = checked_laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
-        if group is not None:
-            first, end = group
-            sizes = [size for size in (first, end) if max(k_M, smallest) <= size < self.topology.n_vertices]
-            warn(split_advice("k_N", k_N, [(f"target pose's {self.name}", group)], sizes), "truncated",
-                 stacklevel=stacklevel + 1)
+        target_basis, _ = checked_laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
+        warn_eigenvalue_split("k_N", k_N, [(f"target pose's {self.name}", target_basis.eigenvalues)],
+                              max(k_M, smallest), self.topology.n_vertices, stacklevel=stacklevel + 1)
         if target_basis.size != k_N:
             target_basis = LaplaceBasis(target_basis.eigenvalues[:k_N], target_basis.functions[:, :k_N])
         return functional_map_differences(base_basis, target_basis, mass)
@@ -345,25 +342,17 @@ class ReferenceShape:
         """The base layer and, with the offset surface, its layer."""
         return [self.base] + ([self.offset_layer] if self.use_extrinsic else [])
 
-    def warn_split(self, k_M: int, *, stacklevel: int = 1) -> None:
-        """A ``truncated`` :class:`ShapeDifferenceWarning` where a base basis of ``k_M`` functions
+    def warn_split(self, k: int, *, label: str = "k_M", stacklevel: int = 1) -> None:
+        """A ``truncated`` :class:`ShapeDifferenceWarning` where a base basis of ``k`` functions
         splits a group of equal eigenvalues of a layer (:meth:`SurfaceLayer.split_group`: a
-        symmetric base), naming the nearest sizes below and above that split none in either layer."""
-        splits = [(layer.name, layer.split_group(k_M)) for layer in self.layers()]
-        splits = [(what, group) for what, group in splits if group is not None]
-        if not splits:
-            return
-        n, smallest = self.topology.n_vertices, self.topology.components()[0] + 1
-        sizes = []
-        for side in (0, 1):  # 0: down to the groups' first indices, 1: up to their ends
-            size = k_M
-            while smallest <= size < n:
-                groups = [group for group in (layer.split_group(size) for layer in self.layers()) if group is not None]
-                if not groups:
-                    sizes.append(size)
-                    break
-                size = min(g[0] for g in groups) if side == 0 else max(g[1] for g in groups)
-        warn(split_advice("k_M", k_M, splits, sizes), "truncated", stacklevel=stacklevel + 1)
+        symmetric base), naming the nearest sizes below and above that split none in either layer
+        (:func:`~core.laplace_basis.split_warning`); ``label``: what the caller calls ``k``."""
+        message = split_warning(
+            label, k, lambda size: [(layer.name, group) for layer in self.layers()
+                                    if (group := layer.split_group(size)) is not None],
+            self.topology.components()[0] + 1, self.topology.n_vertices)
+        if message is not None:
+            warn(message, "truncated", stacklevel=stacklevel + 1)
 
     def check_faithful(self, pose: np.ndarray, name: str, *, stacklevel: int = 1) -> None:
         """Checks of a pose's used vertices ``(n_used, 3)`` that depend on what the differences

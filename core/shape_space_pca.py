@@ -197,6 +197,11 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
                         "two triangles; no triangles of this mesh share an edge. Use a connected surface."
                         + weld_advice(first, mesh_topology(triangles, len(first)))) from None
     reference.basis_sizes(k_M, k_N, full_basis=False)  # against the mesh: its vertices, its connected parts
+    # The features are the differences in the base's first k_M functions: ended inside a group of
+    # equal eigenvalues, they hold an arbitrary part of it and the poses' distances depend on
+    # rounding. k_N needs no check: the pose's basis is cut at a spectral gap (SPECTRAL_GAP), and
+    # eq. (6) is unchanged by any turn of a basis within its whole groups.
+    reference.warn_split(k_M, stacklevel=2)
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     compacts = []
     for index, pose in enumerate(poses):

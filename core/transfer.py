@@ -297,6 +297,13 @@ class Transfer:
             push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
             self.layers.append(TargetLayer("offset surface", self.target_surface.topology, push))
         self.discretization_error = self._discretization_error() if correct_discretization else None
+        # A k_M inside a group of equal eigenvalues of the base leaves the base functions the
+        # differences are written in to rounding: the transferred pose moves by 2–4e-2 of its diagonal
+        # under ×1e±3 or a 1e-9 rad turn of the inputs (icospheres, k_M = 20), 4e-4 at k_M = 16. k_N is not
+        # checked: a target basis ended inside a group (a symmetric target, the same icosphere) moved
+        # the pose no more than a size that ends a group does (1e-5–5e-3 against 2e-6–2e-2), with or
+        # without the meshing correction; the Transfer's solvers set that spread.
+        reference.warn_split(self.k_M, stacklevel=2)
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
         self._last_embedding = None  # the last pose's EmbeddingResult

@@ -82,3 +82,106 @@ def test_a_symmetric_target_warns_where_k_N_splits_its_equal_eigenvalues():
     assert len(found) == 1 and "k_N = 10" in found[0] and "target pose" in found[0]
     assert "use k_N = 9 or 11" in found[0]
     assert _split_warnings(jittered, triangles, regular, 5, 11, use_extrinsic=False) == []
+
+
+# -- the other paths that truncate a base (or pulled-back) basis at a size the user gives ---------
+
+def _turned(vertices, angle=1e-9):
+    """``vertices`` turned by ``angle`` rad about a fixed oblique axis (a rounding-size change)."""
+    from scipy.spatial.transform import Rotation
+
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    return vertices @ Rotation.from_rotvec(angle * axis).as_matrix().T
+
+
+def _splits(call):
+    """``(result, split warnings' messages)`` of ``call()``."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = call()
+    return result, [str(w.message) for w in caught
+                    if getattr(w.message, "kind", None) == "truncated" and "splits" in str(w.message)]
+
+
+def test_a_transfer_warns_where_k_M_splits_a_group_of_the_base():
+    """A Transfer writes the target's differences in the base's first k_M functions: from the
+    162-vertex icosphere to the 642-vertex one, k_M = 20 ends inside the base's five-fold group
+    (17–21; intrinsic, so the offset surface's groups do not count) and warns; 16 does not."""
+    from core.transfer import Transfer
+
+    base, triangles = icosphere(2)
+    target, target_triangles = icosphere(3)
+    _, found = _splits(lambda: Transfer(base, triangles, target, target_triangles, k_M=20, k_N=40))
+    assert len(found) == 1 and "k_M = 20 splits a group of 5 equal frequencies" in found[0]
+    assert "use k_M = 16 or 21" in found[0]
+    _, found = _splits(lambda: Transfer(base, triangles, target, target_triangles, k_M=16, k_N=40))
+    assert found == []
+
+
+def test_shape_space_warns_where_k_M_splits_and_not_where_k_N_cuts_a_group():
+    """The shape space's features are the differences in the base's first k_M functions: k_M = 20
+    splits the icosphere's five-fold group and warns. k_N = 38 ends inside a group of the base pose
+    (36–39) but the pose's basis is cut at a spectral gap, and eq. (6) is unchanged by a turn of
+    that basis within whole groups: no warning, and the coordinates of a 1e-9 rad turned copy of
+    every pose agree to round-off (measured 4e-14 of their largest)."""
+    from core.shape_space_pca import KINDS, shape_space
+
+    vertices, triangles = icosphere(2)
+    poses = [vertices, stretch_and_bend(vertices), stretch_and_bend(vertices, seed=2), vertices * [1.1, 1.0, 0.9]]
+    _, found = _splits(lambda: shape_space(poses, triangles, k_M=20, k_N=None))
+    assert len(found) == 1 and "k_M = 20" in found[0] and "use k_M = 16 or 25" in found[0]
+    space, found = _splits(lambda: shape_space(poses, triangles, k_M=25, k_N=38))
+    assert found == []
+    turned = shape_space([_turned(pose) for pose in poses], triangles, k_M=25, k_N=38)
+    for kind in KINDS:
+        coordinates = space.coordinates(kind, 3)
+        assert np.allclose(turned.coordinates(kind, 3), coordinates, rtol=0, atol=1e-10 * np.abs(coordinates).max())
+
+
+def test_distortion_eigenfunctions_warn_where_k_splits_the_layer_they_live_on():
+    """The eigenfunctions of a difference operator are those of its restriction to the first k
+    functions of their layer: k = 20 splits the icosphere's base group (17–21), not the offset
+    surface's (21–25), so the offset kinds do not warn and their eigenpairs agree with those of a
+    1e-9 rad turned copy to round-off (1e-13 measured); the intrinsic kinds warn, once."""
+    from core.distortion_maps import DistortionAnalyzer
+
+    vertices, triangles = icosphere(2)
+    pose = stretch_and_bend(vertices)
+    analyzer = DistortionAnalyzer(vertices, triangles, k=20)
+    turned = DistortionAnalyzer(_turned(vertices), triangles, k=20).pose(_turned(pose))
+    distortion = analyzer.pose(pose)
+    for kind in ("offset_area", "offset_conformal"):
+        (values, functions), found = _splits(lambda: distortion.eigenfunctions(kind, 4))
+        assert found == []
+        turned_values, turned_functions = turned.eigenfunctions(kind, 4)
+        assert np.allclose(turned_values, values, rtol=1e-10, atol=0)
+        # each function up to its sign: a turn may flip which of its extremes is the largest
+        apart = np.minimum(np.abs(turned_functions - functions), np.abs(turned_functions + functions)).max()
+        assert apart < 1e-9
+    _, found = _splits(lambda: [distortion.eigenfunctions(kind, 4) for kind in ("area", "conformal")])
+    assert len(found) == 1 and "k = 20 splits" in found[0] and "use k = 16 or 25" in found[0]
+    _, found = _splits(lambda: DistortionAnalyzer(vertices, triangles, k=25).pose(pose).eigenfunctions("area", 4))
+    assert found == []
+
+
+def test_the_wave_kernel_signature_warns_where_k_splits_and_the_eigenpairs_do_not():
+    """The WKS weighs a group's functions alike: a sum over the whole group is the same for any
+    orthonormal basis of it (at k = 25 the WKS of a 1e-9 rad turned copy agrees to round-off,
+    1e-14 measured), over part of it is not: k = 20 warns. The eigenvalues do not depend on where
+    the basis ends and eigenfunctions of a group are an arbitrary choice at any k: no warning."""
+    import core
+
+    vertices, triangles = icosphere(2)
+
+    def metric(base):  # a uniformly scaled sphere: the pulled-back metric keeps its symmetry
+        return core.pull_back(base, triangles, core.shape_differences(base, 1.5 * base, triangles))
+
+    pulled = metric(vertices)
+    _, found = _splits(lambda: (pulled.laplacian_eigenvalues(20), pulled.eigenfunctions(20)))
+    assert found == []
+    _, found = _splits(lambda: pulled.wave_kernel_signature(20, k=20))
+    assert len(found) == 1 and "k = 20 splits" in found[0] and "pulled-back metric" in found[0]
+    signature, found = _splits(lambda: pulled.wave_kernel_signature(20, k=25))
+    assert found == []
+    turned = metric(_turned(vertices)).wave_kernel_signature(20, k=25)
+    assert np.allclose(turned, signature, rtol=0, atol=1e-10 * signature.max())

@@ -87,7 +87,7 @@ def test_leading_area_eigenfunction_sits_where_the_pose_grows(sheet):
 def test_every_kind_has_eigenfunctions(kind):
     v, t = icosphere(2)
     pose = v * np.array([1.3, 1.0, 0.8])
-    values, functions = core.distortion(v, pose, t, k=20).eigenfunctions(kind, 4)
+    values, functions = core.distortion(v, pose, t, k=25).eigenfunctions(kind, 4)
     assert values.shape == (4,) and functions.shape == (len(v), 4)
     assert np.all(np.isfinite(functions)) and np.allclose(np.abs(functions).max(axis=0), 1.0)
     assert np.all(np.diff(np.abs(np.log(values))) <= 1e-12)

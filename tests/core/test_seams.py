@@ -769,3 +769,91 @@ def test_stacked_sheets_that_move_together_are_not_warned():
     assert not _seam_warnings(record)
     for x in poses:
         np.testing.assert_allclose(x[:, n:] - x[:, :n], np.broadcast_to([0.0, 0.0, 1e-4], x[:, n:].shape), atol=1e-9)
+
+
+def _cut_tube(apart, nx=24, ny=12, n_keys=5, radius=0.2):
+    """A grid rolled into a tube of one piece, its first and last columns (the cut, not shared)
+    ``apart`` apart round the tube in the rest pose, bent, squashed and twisted differently per key
+    (smooth maps of space, which keep the cut's sides about as near): keys, triangles, and the
+    cut's two sides (vertex indices, row by row)."""
+    flat, tri = grid(nx, ny, size=1.0)
+    x, z = flat[:, 0], flat[:, 1]
+    theta = 2 * np.pi * x * (1 - apart / (2 * np.pi * radius))
+    section = np.c_[radius * np.cos(theta), radius * np.sin(theta)]
+    keys = []
+    for k in range(n_keys):
+        bend, twist = 2.4 * np.sin(0.9 * k + 0.3), 1.8 * np.sin(0.5 * k) * z
+        squash = 1 + 0.9 * np.sin(0.7 * k) * z
+        px = squash * (section[:, 0] * np.cos(twist) - section[:, 1] * np.sin(twist))
+        py = section[:, 0] * np.sin(twist) + section[:, 1] * np.cos(twist)
+        keys.append(np.c_[px * np.cos(bend * z) + (1 - np.cos(bend * z)) / bend + 0.1 * k, py,
+                          -px * np.sin(bend * z) + np.sin(bend * z) / bend])
+    left, right = np.flatnonzero(np.isclose(x, 0.0)), np.flatnonzero(np.isclose(x, 1.0))
+    return keys, tri, left[np.argsort(z[left])], right[np.argsort(z[right])]
+
+
+def test_a_tube_of_one_piece_cut_open_that_the_in_betweens_open_is_warned():
+    """One piece whose own boundary closes a seam: a tube cut along its length, the cut's sides
+    1e-4 apart in the rest pose (0.2 % of an edge; at most 1.3e-4 in the keys) and not welded. The
+    cut's sides are the pairs found (:func:`core.near_seams.near_seams`, exactly those); each piece's
+    boundary is free in the in-betweens, which part them (to 6 % of an edge in the sequence, 16 %
+    between keys 0 and 2 here). Every gap that parts them visibly says so once, kind "seam",
+    quoting the widest distance measured on the in-betweens; two poses too."""
+    from core.near_seams import near_seams
+    from core.seams import coincidence_tolerance, rounding_scale
+
+    keys, tri, left, right = _cut_tube(1e-4)
+    topology = mesh_topology(tri, len(keys[0]))
+    seams = near_seams(keys, topology, coincidence_tolerance(keys[0], topology.edges, rounding_scale(keys)))
+    assert sorted(zip(seams.a.tolist(), seams.b.tolist())) == sorted(zip(left.tolist(), right.tolist()))
+    in_keys = max(np.linalg.norm(k[left] - k[right], axis=1).max() for k in keys)
+    edge = np.mean(np.linalg.norm(keys[0][tri] - keys[0][np.roll(tri, 1, axis=1)], axis=2))
+    sequence = SequenceInterpolator(keys, tri)
+    factors = np.arange(1, 8) / 8
+    warned = 0
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, factors)
+        opened = np.linalg.norm(poses[:, left] - poses[:, right], axis=2).max(axis=1)
+        said = _seam_warnings(record)
+        if opened.max() > in_keys + 0.02 * edge:  # visibly opened: it must be said
+            assert len(said) == 1
+        if said:
+            warned += 1
+            (message,) = said
+            widest = max(opened[list(factors).index(f)] for f in message.factors)
+            assert f"separate by up to {widest:.3g}" in str(message) and "Merge by Distance" in str(message)
+    assert warned >= 1
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        x = Interpolator(keys[0], keys[2], tri).pose(0.5)
+    (message,) = _seam_warnings(record)
+    assert f"separate by up to {np.linalg.norm(x[left] - x[right], axis=1).max():.3g}" in str(message)
+
+
+def test_boundary_vertices_of_one_piece_the_mesh_joins_are_no_seam():
+    """Two boundary vertices of one piece two edges apart along it (the boundary folded flat at
+    the vertex between them, as a crumpled hem) that every key keeps within 1 % of an edge are
+    not the sides of a seam (:data:`core.near_seams.SAME_PIECE_PATH`): nothing found, so nothing
+    can be warned; a tube whose cut is welded (sides 0 apart) has no boundary seam either and
+    its in-betweens say nothing of seams."""
+    from core.near_seams import near_seams
+
+    keys, tri = _waving_sheet()
+    topology = mesh_topology(tri, len(keys[0]))
+    bottom = np.flatnonzero(np.isclose(grid(16, 12, size=1.0)[0][:, 1], 0.0))
+    v, w = bottom[5], bottom[7]  # two edges apart along the boundary
+    folded = []
+    for key in keys:
+        key = key.copy()
+        key[w] = key[v] + 0.01 * np.linalg.norm(key[v] - key[bottom[6]]) * np.array([0.0, 0.0, 1.0])
+        folded.append(key)
+    assert near_seams(folded, topology, 1e-9) is None
+    keys, tri, left, right = _cut_tube(0.0)
+    with warnings.catch_warnings(record=True) as record:
+        warnings.simplefilter("always")
+        sequence = SequenceInterpolator(keys, tri)
+        poses = [sequence.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(sequence))]
+    assert not _seam_warnings(record)
+    assert max(np.abs(x[:, left] - x[:, right]).max() for x in poses) == 0.0
