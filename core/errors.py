@@ -61,7 +61,8 @@ KINDS = {
     "extrapolation": "an exaggerated or reversed pose stretches or crushes triangles",
     # any computation
     "seam": "pieces touching along seams that cannot be joined there, that open, fold or hinge there",
-    "truncated": "a truncated basis (k_M) is too small for the deformation: areas or edge lengths not recovered",
+    "truncated": ("a truncated basis (k_M, k_N, k) is too small for the deformation (areas or edge lengths not "
+                  "recovered) or ends inside a group of equal eigenvalues (the result depends on rounding)"),
     "fit": "a solver stopped before converging, or its result misses what it was fitted to: the best fit is returned",
     "precision": "a triangle or an offset so far out of scale that round-off moves the recovered edge lengths",
     "inconsistent": "differences no mesh has exactly (edited, blended or noisy): the closest fit is returned",
