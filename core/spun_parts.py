@@ -13,10 +13,13 @@ round there disagree with the mesh's own continuity, and the gap warns
 (:class:`SpunParts`; :func:`core.sequence_turn_readings.turn_warnings` words it).
 
 :func:`spin_patches` cuts a pose into patches (``vertices`` float64 (n, 3), ``triangles`` int
-(m, 3)); :func:`patch_turns` reads the patches' turns between two keys, :func:`spun_shares` the
+(m, 3)); :func:`patch_turns` reads the patches' turns between two keys (:func:`principal_turns`
+the short way round, :func:`continued_turns` continuous across the mesh), :func:`spun_shares` the
 share of each piece spun past a half turn, :func:`turned_back` the share an in-between turns back
 the short way round (two poses: :class:`~core.two_pose_inbetweens.Interpolator`);
-:class:`SpunParts` reads them per gap of a sequence.
+:class:`SpunParts` reads them per gap of a sequence, where patches that all turn less than a right
+angle (:func:`within_right_angle`: every gap of the benchmark's 10k cloths at keys 4 frames apart)
+decide it without the continuation.
 """
 
 from __future__ import annotations
@@ -121,12 +124,21 @@ def patch_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
     vertex's piece (n,; −1 in none); ``patches``: :func:`spin_patches`; ``rotations`` (C, 3, 3),
     ``translations`` (C, 3): the pieces' rigid fits from ``base`` to ``other``. Each patch's
     weighted centroid turns about the axis of its piece's fit by an angle the keys give the short
-    way round; those angles are taken continuous from patch to patch along the tree of the
+    way round (:func:`principal_turns`); those angles are taken continuous from patch to patch along the tree of the
     smallest steps between neighbours, each tree's weight-median patch within a half turn of
-    none. Returns the turns (P,; radians, about the axes), the least turn's size in each patch's tree (P,; its own where it is
+    none (:func:`continued_turns`). Returns the turns (P,; radians, about the axes), the least turn's size in each patch's tree (P,; its own where it is
     in none), whether each is read (bool (P,): a patch near the axis, of no
     weight or of a piece that does not turn is not), each patch's piece (P,; −1 in none), its
     weight (P,) and the pieces' unit axes (C, 3)."""
+    return continued_turns(principal_turns(base, other, weights, owner, patches, rotations, translations), patches)
+
+
+def principal_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner: np.ndarray, patches: tuple,
+                    rotations: np.ndarray, translations: np.ndarray) -> tuple:
+    """The first part of :func:`patch_turns` (same arguments): each patch's turn about its piece's
+    rigid turn axis the short way round (P,; radians, in [−π, π]), not yet taken continuous across
+    the mesh; then, as :func:`patch_turns` returns them, whether each is read, each patch's piece,
+    its weight and the pieces' unit axes."""
     labels, pairs, count = patches
     pieces = len(rotations)
     mass = np.bincount(labels, weights, minlength=count)
@@ -154,8 +166,28 @@ def patch_turns(base: np.ndarray, other: np.ndarray, weights: np.ndarray, owner:
     known &= radius > SPIN_AXIS_NEAR * spread[np.maximum(piece, 0)]
     turn = np.arctan2(np.einsum("ij,ij->i", np.cross(offsets[0], offsets[1]), a),
                       np.einsum("ij,ij->i", offsets[0], offsets[1]))
+    return turn, known, piece, mass, axis
+
+
+def continued_turns(principal: tuple, patches: tuple) -> tuple:
+    """:func:`patch_turns` from its first part ``principal`` (:func:`principal_turns`) of the same
+    ``patches``: the read patches' turns taken continuous across the pairs of read patches."""
+    turn, known, piece, mass, axis = principal
+    _, pairs, count = patches
     turn, least = _continued(turn, pairs[known[pairs[:, 0]] & known[pairs[:, 1]]], count, mass)
     return turn, least, known, piece, mass, axis
+
+
+def within_right_angle(principal: tuple) -> bool:
+    """Whether no read patch of :func:`principal_turns`' reading ``principal`` turns past a right
+    angle: then no part of any piece spins past a half turn from its least-turned part
+    (:func:`spun_shares` gives 0 for every piece), which is decided without taking the turns
+    continuous. Neighbours turning less than a right angle each way differ by less than a half
+    turn, so the continuation adds each step as it is (to rounding, 1e-15 per step), leaves every
+    turn its principal value and no tree a whole turn to shift: every turn stays within a right
+    angle of none, and so within a half turn of the least."""
+    turn, known = principal[0], principal[1]
+    return not (np.abs(turn[known]) >= 0.5 * np.pi).any()
 
 
 def _wrapped(angles: np.ndarray) -> np.ndarray:
@@ -209,6 +241,7 @@ class SpunParts:
 
     _spin_patches = None  # spin_patches of the first key, made on first use
     _spin_turns = None  # per gap, patch_turns of its keys (a dict made on first use)
+    _spin_principal = None  # per gap, principal_turns of its keys until patch_turns continues them
 
     def _key_patches(self) -> tuple:
         """:func:`spin_patches` of the first key (made once, on first use)."""
@@ -216,6 +249,21 @@ class SpunParts:
             if self._spin_patches is None:
                 self._spin_patches = spin_patches(self._raw[0], self._topo.triangles)
         return self._spin_patches
+
+    def _principal_turns(self, gap: int) -> tuple:
+        """:func:`principal_turns` of key ``gap`` to the next, read once per gap (kept until
+        :meth:`_key_turns` continues them)."""
+        with self._cache_lock:
+            if self._spin_principal is None:
+                self._spin_principal = {}
+            known = self._spin_principal.get(gap)
+        if known is None:
+            rotations, translations, _ = self._fits(gap, gap + 1)
+            known = principal_turns(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
+                                    self._key_patches(), rotations, translations)
+            with self._cache_lock:
+                self._spin_principal[gap] = known
+        return known
 
     def _key_turns(self, gap: int) -> tuple:
         """:func:`patch_turns` of key ``gap`` to the next, read once per gap: the gap's spun check
@@ -226,18 +274,23 @@ class SpunParts:
                 self._spin_turns = {}
             known = self._spin_turns.get(gap)
         if known is None:
-            rotations, translations, _ = self._fits(gap, gap + 1)
-            known = patch_turns(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
-                                self._key_patches(), rotations, translations)
+            known = continued_turns(self._principal_turns(gap), self._key_patches())
             with self._cache_lock:
                 self._spin_turns[gap] = known
+                self._spin_principal.pop(gap, None)
         return known
 
     def _spun(self, gap: int, skipped: np.ndarray) -> tuple[float, float]:
         """The largest share of a piece's area spun past a half turn from the rest of it between
         key ``gap`` and the next, and that piece's largest turn from its least-turned part
         (radians), over the pieces not ``skipped`` (bool (C,): the gap takes their turns continuous
-        across the mesh, or warns that they turn past a half turn across a fold)."""
+        across the mesh, or warns that they turn past a half turn across a fold). ``(0.0, 0.0)``
+        where no patch turns past a right angle (:func:`within_right_angle`: no share to warn of,
+        the turns not taken continuous)."""
+        with self._cache_lock:
+            continued = self._spin_turns is not None and gap in self._spin_turns
+        if not continued and within_right_angle(self._principal_turns(gap)):
+            return 0.0, 0.0
         rotations, translations, _ = self._fits(gap, gap + 1)
         share, largest = spun_shares(self._raw[gap], self._raw[gap + 1], self._topo.weights, self._topo.vertex_owner,
                                      self._key_patches(), rotations, translations, self._key_turns(gap))
