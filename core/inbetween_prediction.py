@@ -128,6 +128,17 @@ MIN_PREDICTED_BATCH = 3
 #: 0.00–0.02 point less (numbers in docs/inbetween-measurements.md, *Predictions solved in place
 #: from themselves*).
 SOLVED_INSTEAD_ITERATIONS = 3
+#: The solve of a prediction from itself (:data:`SOLVED_INSTEAD_ITERATIONS`) whose fit has more
+#: than this many times the flipped or collapsed triangles the prediction had before its repair is
+#: not repaired (its fallbacks are still tried): it is kept only with no more defects than the
+#: repaired prediction, and a repair leaves more defects the more its start has. Of 28 such solves
+#: in the sequences of 21 cloths at keys 4, 8 and 16 apart, the eight whose fits had 1.30–12.5 ×
+#: the prediction's defects all kept more after their repairs than the repaired prediction; the
+#: most a kept one had was 1.02 × (427 against 417, repaired to 8 against 9). The repairs not run
+#: were 0.30 s of the 4.6 s a waved 17.6k flag's sequence costs at keys 8 apart (0.94 × its CPU),
+#: every in-between the same bit for bit (numbers in docs/inbetween-measurements.md, *Solves of
+#: predictions not repaired where they cannot win*).
+UNREPAIRED_SOLVE_DEFECTS = 1.25
 #: With this many solved in-betweens or more (keys 9 frames apart or more), the predictions get one
 #: local/global step toward the interpolated metric, anchored to themselves, at the middle of each
 #: span between the solved factors and the keys, and its displacement spread over the span
@@ -592,7 +603,8 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
     had none left), or more than ``allowed`` defects are left, the pose solved at ``s`` from the
-    repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`) instead if it has no more."""
+    repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`; repaired only where its fit has at most
+    :data:`UNREPAIRED_SOLVE_DEFECTS` × the prediction's defects) instead if it has no more."""
     motion = gap.motion(s)
     x = _predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
@@ -626,10 +638,12 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
         return result
     # no repair cleans this prediction where the gap's solved in-betweens are clean, or it keeps more
     # defects than ``allowed``: solve it too, with the weak anchor if they were (see _solved), from
-    # the repaired prediction (SOLVED_INSTEAD_ITERATIONS); the solve where it has no more defects
+    # the repaired prediction (SOLVED_INSTEAD_ITERATIONS); the solve where it has no more defects,
+    # repaired only where its fit has at most UNREPAIRED_SOLVE_DEFECTS × the prediction's defects
     misfits = []
     solved = gap.pose(s, weak=any(gap.held_factors.values()), start=result[0],
-                      iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits)
+                      iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits,
+                      repairable=UNREPAIRED_SOLVE_DEFECTS * np.count_nonzero(defects))
     defects = count(solved[0])
     if solved[1] is not None and misfits[-1] < gap.tolerance:
         # the prediction fits the metric and its fit keeps defects: they are not the metric's doing,

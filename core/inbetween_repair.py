@@ -99,16 +99,16 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         self._local = threading.local()  # see _rows_of
 
     def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
-                looser=None, nearby=None) -> tuple[np.ndarray, str | None]:
+                looser=None, nearby=None, repairable=None) -> tuple[np.ndarray, str | None]:
         """:meth:`outcome`'s pose and message; the rest of it is kept in the gap's ``outcomes[s]``
         (two poses choose between their fits by it: ``core.two_pose_inbetweens.Interpolator.pose``)."""
         x, message, count, near_blend = self.outcome(x, x0, s, frames, stretch, guide, motion, rings, defects,
-                                                     looser, nearby)
+                                                     looser, nearby, repairable)
         self.gap.outcomes[s] = Outcome(count, near_blend)
         return x, message
 
     def outcome(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
-                looser=None, nearby=None) -> tuple[np.ndarray, str | None, int, bool]:
+                looser=None, nearby=None, repairable=None) -> tuple[np.ndarray, str | None, int, bool]:
         """``(x, None, 0, False)`` if the fit ``x`` is defect-free, else a repair or a fallback with
         the message saying which, the count of its flipped or collapsed triangles and whether it is
         the linear blend or the metric fitted near it (``x0``: the Poisson solve of the interpolated
@@ -119,7 +119,10 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         :data:`core.inbetween_fit.TOLERANCE_TRIM`): where the repairs fail it is returned if it has
         no defect, a fit as the fit's stop allowed before; ``nearby``: positions (n, 3) of another pose
         at ``s`` whose local geometry the rounds try last,
-        :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`)."""
+        :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`; ``repairable``: the most flipped or
+        collapsed triangles the fit may have for the rounds to run on it, or None for any: a fit with
+        more goes straight to the fallbacks, see
+        :data:`core.inbetween_prediction.UNREPAIRED_SOLVE_DEFECTS`)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
@@ -127,7 +130,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         gap = self.gap
         best = (int(defects.sum()), x) if np.isfinite(x).all() else None  # the last resort: fewest defects
         blend = gap.linear_blend(s)
-        if gap.use_extrinsic and best is not None:
+        if gap.use_extrinsic and best is not None and (repairable is None or best[0] <= repairable):
             z, best = self.rounds(x, defects, s, frames, stretch, guide, blend, best, rings, nearby)
             if z is not None:
                 return z, None, 0, False

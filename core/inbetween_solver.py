@@ -306,7 +306,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         return (1.0 - s) * self.base.vertices + s * self.next.vertices
 
     def pose(self, s: float, weak: bool | None = None, start: np.ndarray | None = None,
-             iterations: int = ARAP_ITERATIONS, misfits: list | None = None) -> tuple[np.ndarray, str | None]:
+             iterations: int = ARAP_ITERATIONS, misfits: list | None = None,
+             repairable: float | None = None) -> tuple[np.ndarray, str | None]:
         """(positions (n, 3), None) or, after a fallback (or, two poses, with triangles facing against
         the field: :meth:`~core.inbetween_defects.DefectChecks.against_the_field`), (positions, what
         happened). ``weak``: an
@@ -318,7 +319,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         place of a prediction, :data:`core.inbetween_prediction.SOLVED_INSTEAD_ITERATIONS`); no
         held test then (``weak`` None is the gap's own anchor: the test measures a fit's progress
         from the Poisson solve). ``iterations``: the fit's local/global steps at most; ``misfits``:
-        a list that receives the misfit of each step of the fit whose pose is returned."""
+        a list that receives the misfit of each step of the fit whose pose is returned; ``repairable``:
+        the most flipped or collapsed triangles the fit may have for the repair rounds to run on it
+        (None: any; :meth:`core.inbetween_repair.Repair.outcome`)."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s)
         fitted = frames if self.use_extrinsic else None
@@ -352,7 +355,8 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             misfits.extend(steps)
         # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)
         x0 = x0 if start is None else x
-        checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None)
+        checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None,
+                                      repairable=repairable)
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
             return self.finished(checked, s)
         # two poses (sequences keep their fits), which also say where triangles face against the field

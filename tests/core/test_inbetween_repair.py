@@ -414,6 +414,64 @@ def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(mo
     assert (len(caught) == 0) == at_the_metric
 
 
+@pytest.mark.parametrize("solve_defects", [3, 4])
+def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(monkeypatch, strip, solve_defects):
+    """The solve of a prediction no repair cleans, from the repaired prediction, is repaired only
+    where its fit has at most UNREPAIRED_SOLVE_DEFECTS × the defects the prediction had before its
+    repair (here 3: 1.25 × 3 = 3.75): a fit with 4 goes to the fallbacks without repair rounds (it
+    loses to the repaired prediction, with 3, as it does after rounds that leave its 4: the same
+    in-betweens as with every such solve repaired); a fit with 3 is repaired."""
+    import core.inbetween_fit as fit
+    import core.inbetween_prediction as prediction
+    import core.inbetween_repair as repair
+    import core.inbetween_solver as solver
+
+    keys, tri, factors, _, _ = _predictions_flagged(monkeypatch, strip)
+    flagged = repair.Repair.defects
+
+    def defects(self, x, s, *args, rows=None, scale=None):  # the fits from a prediction: solve_defects
+        out = flagged(self, x, s, *args, rows=None, scale=scale)
+        if getattr(self.gap, "_from_prediction", False) and out.any():
+            out[:solve_defects] = True
+        return out if rows is None else out[rows]
+
+    pose, real_misfit, real_rounds = solver._Gap.pose, fit.LocalGlobalFit.misfit, repair.Repair.rounds
+
+    def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
+        self._from_prediction = start is not None
+        try:
+            return pose(self, s, weak, start, *args, **kwargs)
+        finally:
+            self._from_prediction = False
+
+    def misfit(self, edges, targets):  # off the tolerance: no solve from the Poisson solve as well
+        return 4.0 * self.tolerance if getattr(self, "_from_prediction", False) else real_misfit(edges, targets)
+
+    rounds_from_prediction = []
+
+    def rounds(self, x, *args, **kwargs):
+        if getattr(self.gap, "_from_prediction", False):
+            rounds_from_prediction.append(args[1])
+        return real_rounds(self, x, *args, **kwargs)
+
+    monkeypatch.setattr(repair.Repair, "defects", defects)
+    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+    monkeypatch.setattr(fit.LocalGlobalFit, "misfit", misfit)
+    monkeypatch.setattr(repair.Repair, "rounds", rounds)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+        repaired_with_the_rule = sorted(rounds_from_prediction)
+        rounds_from_prediction.clear()
+        monkeypatch.setattr(prediction, "UNREPAIRED_SOLVE_DEFECTS", np.inf)  # every solve repaired
+        every_solve_repaired = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
+    predicted = [s for s in factors if s not in (0.25, 0.75)]
+    assert repaired_with_the_rule == (predicted if solve_defects == 3 else [])
+    assert sorted(rounds_from_prediction) == predicted
+    for s in predicted:  # the same in-betweens with the rule as without it
+        np.testing.assert_array_equal(poses[s], every_solve_repaired[s])
+
+
 @pytest.mark.parametrize("shift, solved_instead", [(10.0, True), (0.01, False)])
 def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch, strip, shift, solved_instead):
     """A predicted in-between whose clean repair moves it by more than the cloth deforms across the
