@@ -9,10 +9,14 @@ stacked layers. A seam left 1e-4 apart (7e-5 of the diagonal, 0.07 % of an edge)
 pieces interpolated each on its own, which an 8 × 8 grid's in-between opened to 2.4e-3 of the
 diagonal (2.4 % of an edge) half-way; a tube of one piece cut along its length, its sides 1e-4
 apart while it bends and twists, opened to 6 % of an edge in a sequence and 16 % between two poses.
-Such seams are found once per sequence (:func:`near_seams`: a KD-tree query over the boundary
-vertices) and each in-between is measured on them (:meth:`NearSeams.opening`: a gather), so that
-the in-betweens warn (kind ``seam``) where they open what the keys keep closed. Pieces that move
-together keep their distance and are not warned of, whatever their distance in the keys.
+So are panels that the motion sews together (Blender's sewing springs pull loose edges shut over
+the first frames of a bake): apart in the first keys, within a hundredth of an edge in the later
+ones, which the in-betweens of two sewn panels opened by up to 5 edges between keys 16 frames
+apart. Such seams are found once per sequence, gap by gap (:func:`near_seams`: a KD-tree query
+over the boundary vertices of each key), and each in-between is measured on its gap's
+(:meth:`NearSeams.opening`: a gather), so that the in-betweens warn (kind ``seam``) where they open
+what both keys of their gap keep closed. Pieces that move together keep their distance and are
+not warned of, whatever their distance in the keys.
 """
 
 from __future__ import annotations
@@ -24,11 +28,11 @@ import numpy as np
 from .sequence_warnings import factor_list
 
 #: Boundary vertices of different pieces closer than this share of their mean adjacent edge
-#: length in every key are the two sides of a seam the keys keep closed (cloth's collision
-#: distances, which keep layers apart, are a third of an edge or more).
+#: length in both keys of a gap are the two sides of a seam those keys keep closed (cloth's
+#: collision distances, which keep layers apart, are a third of an edge or more).
 NEAR_SEAM_SHARE = 0.05
-#: An in-between opens such a seam where a pair lies farther apart than in any key by more than
-#: this share of its mean adjacent edge length (plus the weld's own distance, which covers the
+#: An in-between opens such a seam where a pair lies farther apart than in either key of its gap
+#: (any key, for a seam every key keeps closed) by more than this share of its mean adjacent edge length (plus the weld's own distance, which covers the
 #: coordinates' rounding): a gap visible at the scale of the mesh's triangles.
 SEAM_OPENING_SHARE = 0.01
 #: Nearest boundary vertices looked at per boundary vertex: a seam vertex's partner on another
@@ -45,20 +49,25 @@ SAME_PIECE_PATH = 4.0
 @dataclass(frozen=True)
 class NearSeams:
     """Pairs of boundary vertices (``a``, ``b``, int (p,) each, indices of the positions given to
-    :func:`near_seams`) of different pieces kept together by every key; ``apart`` (p,) their
-    largest distance over the keys, ``allowed`` (p,) the distance an in-between may reach
-    before it opens the seam (:data:`SEAM_OPENING_SHARE`)."""
+    :func:`near_seams`) that the mesh does not join, kept together by both keys of at least one
+    gap; ``apart`` (G, p) their larger distance in the two keys of each of the G gaps, ``allowed``
+    (G, p) the distance an in-between of that gap may reach before it opens the seam
+    (:data:`SEAM_OPENING_SHARE`; infinite where a key of the gap has the pair apart), ``every``
+    (p,) whether every key keeps the pair together (a seam left unwelded, rather than one the
+    motion closes or opens)."""
 
     a: np.ndarray
     b: np.ndarray
     apart: np.ndarray
     allowed: np.ndarray
+    every: np.ndarray
 
-    def opening(self, x: np.ndarray) -> tuple[int, float, int]:
-        """How pose ``x`` (n, 3) opens the seams: ``(pairs opened, the widest distance of an opened
-        pair, that pair's index)``; ``(0, 0.0, -1)`` where none opens."""
+    def opening(self, x: np.ndarray, gap: int = 0) -> tuple[int, float, int]:
+        """How pose ``x`` (n, 3), an in-between of gap ``gap``, opens the seams its keys keep closed:
+        ``(pairs opened, the widest distance of an opened pair, that pair's index)``; ``(0, 0.0, -1)``
+        where none opens."""
         distance = np.linalg.norm(x[self.a] - x[self.b], axis=1)
-        opened = distance > self.allowed
+        opened = distance > self.allowed[gap]
         if not opened.any():
             return 0, 0.0, -1
         worst = int(np.argmax(np.where(opened, distance, -np.inf)))
@@ -68,33 +77,37 @@ class NearSeams:
 def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams | None:
     """The near-seams of ``keys`` (K arrays (n, 3)) of a mesh of ``topology`` (a
     :class:`core.mesh_topology.MeshTopology`, its seams already welded): pairs of boundary vertices
-    within :data:`NEAR_SEAM_SHARE` of their mean adjacent edge length in every key, of different
-    pieces or of one piece and apart along it (:data:`SAME_PIECE_PATH`). ``tolerance``: the weld's
-    distance (:func:`core.seams.coincidence_tolerance`), added to what an in-between may open them
-    by. None where there are none (boundaries apart, no boundary)."""
+    within :data:`NEAR_SEAM_SHARE` of their mean adjacent edge length in both keys of a gap (keys
+    k and k + 1), of different pieces or of one piece and apart along it
+    (:data:`SAME_PIECE_PATH`). ``tolerance``: the weld's distance
+    (:func:`core.seams.coincidence_tolerance`), added to what an in-between may open them by. None
+    where there are none (boundaries apart in every gap, no boundary)."""
     from scipy.spatial import cKDTree
 
     edges = topology.edges
     boundary = np.unique(edges[topology.boundary_edges])
-    if boundary.size < 2 or not len(edges):
+    if boundary.size < 2 or not len(edges) or len(keys) < 2:
         return None
     n = topology.n_vertices
     on_boundary = np.zeros(n, dtype=bool)
     on_boundary[boundary] = True
     at = edges[on_boundary[edges[:, 0]] | on_boundary[edges[:, 1]]]  # the edges at boundary vertices
-    lengths = np.linalg.norm(keys[0][at[:, 0]] - keys[0][at[:, 1]], axis=1)
-    local = np.bincount(at.ravel(), np.repeat(lengths, 2), minlength=n) / \
-        np.maximum(np.bincount(at.ravel(), minlength=n), 1)
-    first = keys[0][boundary]
-    reach = NEAR_SEAM_SHARE * float(local[boundary].max())
+    degree = np.maximum(np.bincount(at.ravel(), minlength=n), 1)
     k = min(NEAR_SEAM_NEIGHBOURS + 1, boundary.size)
-    near = cKDTree(first).query(first, k=k, distance_upper_bound=reach)[1]
-    rows = np.repeat(np.arange(boundary.size), k)
-    near = near.ravel()
-    found = near < boundary.size  # no neighbour within reach: index boundary.size
-    a, b = boundary[rows[found]], boundary[near[found]]
-    keep = a < b
-    a, b = a[keep], b[keep]
+    candidates = []
+    for key in keys:  # the pairs near in some key (each key's own edge lengths: a sheet that shrinks)
+        lengths = np.linalg.norm(key[at[:, 0]] - key[at[:, 1]], axis=1)
+        local = np.bincount(at.ravel(), np.repeat(lengths, 2), minlength=n) / degree
+        positions = key[boundary]
+        reach = NEAR_SEAM_SHARE * float(local[boundary].max())
+        near = cKDTree(positions).query(positions, k=k, distance_upper_bound=reach)[1].ravel()
+        rows = np.repeat(np.arange(boundary.size), k)
+        found = near < boundary.size  # no neighbour within reach: index boundary.size
+        a, b = boundary[rows[found]], boundary[near[found]]
+        keep = a < b
+        candidates.append(np.stack([a[keep], b[keep]], axis=1))
+    pairs = np.unique(np.concatenate(candidates), axis=0)
+    a, b = pairs[:, 0], pairs[:, 1]
     if a.size:  # ends of one edge are joined by it (a short boundary edge)
         joined = np.isin(a * n + b, edges[:, 0] * n + edges[:, 1])  # edges[:, 0] < edges[:, 1]
         a, b = a[~joined], b[~joined]
@@ -107,27 +120,33 @@ def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams 
     near_edges = np.searchsorted(ends, edges[touching])  # their rows in ends (read where inside)
     rows_a, rows_b = np.searchsorted(ends, a), np.searchsorted(ends, b)
     count = np.bincount(near_edges[inside], minlength=ends.size)
-    apart = np.zeros(a.size)
-    edge = np.full(a.size, np.inf)
-    together = np.ones(a.size, dtype=bool)
+    gaps, scales = [], []
     for key in keys:
         lengths = np.linalg.norm(key[edges[touching, 0]] - key[edges[touching, 1]], axis=1)
         mean = np.bincount(near_edges[inside], np.broadcast_to(lengths[:, None], inside.shape)[inside],
                            minlength=ends.size) / np.maximum(count, 1)
-        scale = 0.5 * (mean[rows_a] + mean[rows_b])
-        gap = np.linalg.norm(key[a] - key[b], axis=1)
-        together &= gap < NEAR_SEAM_SHARE * scale
-        apart, edge = np.maximum(apart, gap), np.minimum(edge, scale)
+        scales.append(0.5 * (mean[rows_a] + mean[rows_b]))
+        gaps.append(np.linalg.norm(key[a] - key[b], axis=1))
+    gaps, scales = np.array(gaps), np.array(scales)  # (K, p)
+    together = gaps < NEAR_SEAM_SHARE * scales
+    closed = together[:-1] & together[1:]  # (K - 1, p): both keys of the gap
+    used = closed.any(axis=0)
     pieces = topology.components()[1]
     piece = np.full(n, -1)
     piece[topology.triangles.ravel()] = np.repeat(pieces, 3)
-    same = together & (piece[a] == piece[b])
+    same = used & (piece[a] == piece[b])
     if same.any():
-        together[same] = _apart_along_mesh(keys[0], edges, a[same], b[same], SAME_PIECE_PATH * edge[same])
-    if not together.any():
+        used[same] = _apart_along_mesh(keys[0], edges, a[same], b[same], SAME_PIECE_PATH * scales[:, same].min(axis=0))
+    if not used.any():
         return None
-    a, b, apart, edge = a[together], b[together], apart[together], edge[together]
-    return NearSeams(a, b, apart, apart + SEAM_OPENING_SHARE * edge + tolerance)
+    a, b, gaps, scales, closed = a[used], b[used], gaps[:, used], scales[:, used], closed[:, used]
+    every = together[:, used].all(axis=0)
+    # a seam every key keeps closed is measured against every key (as far as any key has it apart),
+    # one the motion closes against its gap's two keys
+    apart = np.where(every, gaps.max(axis=0), np.maximum(gaps[:-1], gaps[1:]))
+    edge = np.where(every, scales.min(axis=0), np.minimum(scales[:-1], scales[1:]))
+    allowed = np.where(closed, apart + SEAM_OPENING_SHARE * edge + tolerance, np.inf)
+    return NearSeams(a, b, apart, allowed, every)
 
 
 def _apart_along_mesh(x: np.ndarray, edges: np.ndarray, a: np.ndarray, b: np.ndarray, length: np.ndarray) -> np.ndarray:
@@ -156,12 +175,13 @@ def _apart_along_mesh(x: np.ndarray, edges: np.ndarray, a: np.ndarray, b: np.nda
 
 
 def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float], names: tuple[str, str],
-                 vertices: np.ndarray | None = None) -> tuple[str, tuple[float, ...]] | None:
+                 vertices: np.ndarray | None = None, gap: int = 0) -> tuple[str, tuple[float, ...]] | None:
     """The warning's message and factors where the in-betweens ``poses`` (list of (n, 3), in the
-    positions' indices of ``seams``) at ``factors`` of the gap between the keys ``names`` open
-    the near-seams ``seams``, once for the gap; None where none opens. ``vertices``: the caller's
-    index of each vertex (int (n,)), where the poses' are welded ones, or None."""
-    opened = [(factor, *seams.opening(x)) for x, factor in zip(poses, factors)]
+    positions' indices of ``seams``) at ``factors`` of gap ``gap``, between the keys ``names``, open
+    the near-seams ``seams`` that both keys of the gap keep closed, once for the gap; None where
+    none opens. ``vertices``: the caller's index of each vertex (int (n,)), where the poses' are
+    welded ones, or None."""
+    opened = [(factor, *seams.opening(x, gap)) for x, factor in zip(poses, factors)]
     opened = [o for o in opened if o[1]]
     if not opened:
         return None
@@ -169,12 +189,18 @@ def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float]
     a, b = int(seams.a[pair]), int(seams.b[pair])
     if vertices is not None:
         a, b = int(vertices[a]), int(vertices[b])
-    keys = float(seams.apart.max())
+    keys = float(seams.apart[gap][np.isfinite(seams.allowed[gap])].max())
     pose = "in-between" if all(0.0 < o[0] < 1.0 for o in opened) else "pose"  # past the keys: no in-between
-    what = (f"the sides of a seam that is not welded (boundary vertices at most {keys:.3g} apart in every key, "
-            f"farther than the weld joins, that the mesh does not join) separate by up to {widest:.3g} ({count} vertex pair(s), e.g. "
-            f"vertices {a} and {b}) in the {pose}s; weld them (Mesh > Clean Up > Merge by Distance) before "
-            "in-betweening")
+    separate = f"separate by up to {widest:.3g} ({count} vertex pair(s), e.g. vertices {a} and {b}) in the {pose}s"
+    if seams.every[pair]:
+        what = (f"the sides of a seam that is not welded (boundary vertices at most {keys:.3g} apart in every key, "
+                f"farther than the weld joins, that the mesh does not join) {separate}; weld them (Mesh > Clean Up > "
+                "Merge by Distance) before in-betweening")
+    else:  # closed by the motion (sewing springs), open in other keys: no weld holds them for the whole range
+        what = (f"pieces that the motion brings together (boundary vertices at most {keys:.3g} apart in both keys of "
+                f"this gap but apart in other keys, as panels that sewing pulls shut) {separate}: no weld holds them "
+                "over the whole range, so each piece is interpolated on its own; keys closer together here keep "
+                "them nearer")
     between = f"between {names[0]} and {names[1]}"
     if len(opened) == 1:
         return f"{between}, the {pose} at factor {factor:g}: {what}", (factor,)

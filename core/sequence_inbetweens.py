@@ -345,9 +345,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 problems.append((factors[k], "non_finite", problem, 0))
         said = self._gap_warnings(gap, segment) + \
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
-        if self._near_seams is not None:  # seams the keys keep closed, not welded: opened by the in-betweens?
+        if self._near_seams is not None:  # seams the gap's keys keep closed, not welded: opened by the in-betweens?
             opening = seam_opening(self._near_seams, [out[k] for k in between], [factors[k] for k in between],
-                                   (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices)
+                                   (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices, gap)
             if opening is not None:
                 said.append(("seam", opening[0], 0, opening[1]))
         return (out if self._copies is None else out[:, self._copies]), said

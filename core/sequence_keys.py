@@ -105,8 +105,8 @@ class SequenceKeys:
         self._attached = attached_loose(keys, topology, still)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
-        # pieces the keys keep together along a seam farther apart than the weld joins: the in-betweens
-        # say where they open it (core.near_seams)
+        # pieces both keys of a gap keep together along a seam farther apart than the weld joins (left
+        # unwelded, or sewn by the motion): the in-betweens say where they open it (core.near_seams)
         self._near_seams = near_seams(keys, topology, tolerance)
         self._welded_vertices = None if weld is None else weld.kept
         # interpolated about the middle of the first key, the results moved back: the splines of the
