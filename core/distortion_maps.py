@@ -79,9 +79,34 @@ class Distortion:
     def eigenfunctions(self, kind: str = "area", count: int = 4) -> tuple[np.ndarray, np.ndarray]:
         """The ``count`` leading eigenpairs of one difference operator: eigenvalues ``ν`` ``(count,)``
         (ordered by ``|log ν|``, largest first) and functions float64 ``(n, count)`` on the base
-        vertices, each scaled to a maximum absolute value of 1 and signed so that it is largest
-        where positive."""
+        vertices, each scaled to a maximum absolute value of 1 and signed by
+        :func:`signed_unit_functions` (its sum of cubes positive; a tie, the first vertex not near
+        zero positive)."""
         return self._analyzer.eigenfunctions(self._pose, kind, count)
+
+
+#: :func:`signed_unit_functions` takes a function's sum of cubes as zero below this fraction of
+#: its sum of absolute cubes, and a vertex value as zero below this fraction of its largest: far
+#: above the eigensolver's rounding (~1e-13 of the largest value), far below what an asymmetric
+#: function has.
+SIGN_TIE = 1e-6
+
+
+def signed_unit_functions(functions: np.ndarray) -> np.ndarray:
+    """Functions ``(n, c)`` scaled to a largest absolute value of 1 and signed so that their sum of
+    cubes is positive (their larger excursions positive), or, where that sum is within
+    :data:`SIGN_TIE` of zero (a function odd under a symmetry of the mesh, whose maximum and minus
+    its minimum tie), so that the first vertex (in the mesh's numbering) whose value is not within
+    :data:`SIGN_TIE` of zero is positive. An eigenfunction's sign is arbitrary; this choice moves
+    continuously with the pose except where the sum of cubes crosses the tie band; the sign of the
+    largest value would flip under a 1e-9 rad turn wherever the maximum and minus the minimum tie."""
+    largest = np.abs(functions).max(axis=0)
+    unit = functions / np.where(largest == 0, 1.0, largest)
+    cubes = np.sum(unit ** 3, axis=0)
+    tied = np.abs(cubes) <= SIGN_TIE * np.sum(np.abs(unit) ** 3, axis=0)
+    first = np.argmax(np.abs(unit) > SIGN_TIE, axis=0)  # every nonzero unit function has a value of 1
+    sign = np.where(tied, np.sign(unit[first, np.arange(unit.shape[1])]), np.sign(cubes))
+    return unit * np.where(sign == 0, 1.0, sign)
 
 
 class DistortionAnalyzer:
@@ -217,9 +242,7 @@ class DistortionAnalyzer:
         functions = phi @ vectors[:, order]
         if kind.startswith("offset"):
             functions = self._on_base_vertices(functions)
-        scale = functions[np.argmax(np.abs(functions), axis=0), np.arange(functions.shape[1])]
-        functions = functions / np.where(scale == 0, 1.0, scale)
-        return values[order], _scatter(ref, functions)
+        return values[order], _scatter(ref, signed_unit_functions(functions))
 
     def _on_base_vertices(self, offset_values: np.ndarray) -> np.ndarray:
         """Offset-surface vertex values ``(n_t, c)`` at the base vertices ``(n, c)``: the lifted

@@ -299,10 +299,10 @@ class Transfer:
         self.discretization_error = self._discretization_error() if correct_discretization else None
         # A k_M inside a group of equal eigenvalues of the base leaves the base functions the
         # differences are written in to rounding: the transferred pose moves by 2–4e-2 of its diagonal
-        # under ×1e±3 or a 1e-9 rad turn of the inputs (icospheres, k_M = 20), 4e-4 at k_M = 16. k_N is not
-        # checked: a target basis ended inside a group (a symmetric target, the same icosphere) moved
-        # the pose no more than a size that ends a group does (1e-5–5e-3 against 2e-6–2e-2), with or
-        # without the meshing correction; the Transfer's solvers set that spread.
+        # under ×1e±3 or a 1e-9 rad turn of the inputs (icospheres, k_M = 20), 5e-5 at k_M = 16. k_N is not
+        # checked: a target basis ended inside a group (of the symmetric rest carried onto the target)
+        # moved the pose no more than the recovery's tolerance does at a size that ends a group
+        # (1.3e-5–1.7e-4 of the diagonal at k_N 14 and 18 against 1e-5–8e-5 at 16, 21 and 25).
         reference.warn_split(self.k_M, stacklevel=2)
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state

@@ -93,6 +93,46 @@ def test_every_kind_has_eigenfunctions(kind):
     assert np.all(np.diff(np.abs(np.log(values))) <= 1e-12)
 
 
+def test_eigenfunction_signs_do_not_depend_on_rounding():
+    # The icosphere stretched along its axes: several leading eigenfunctions are odd under a mirror
+    # of the pose, their maximum and minus their minimum equal; signed by the largest value, they
+    # flip (the whole function changes by 2) under a 1e-9 rad turn or other units of both meshes.
+    from meshes import stretch_and_bend
+
+    v, t = icosphere(2)
+    pose = stretch_and_bend(v)
+    axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    turn = np.eye(3) + np.sin(1e-9) * k + (1 - np.cos(1e-9)) * k @ k
+
+    def functions(transform):
+        d = DistortionAnalyzer(v @ transform.T, t, k=25).pose(pose @ transform.T)
+        return {kind: d.eigenfunctions(kind, 4)[1] for kind in core.distortion_maps.KINDS}
+
+    reference = functions(np.eye(3))
+    for changed in (functions(turn), functions(1e3 * np.eye(3)), functions(1e-3 * np.eye(3))):
+        for kind, f in reference.items():
+            # the eigenproblem's rounding (measured 6e-14–2e-11); an eigenvalue gap ≥ 1e-3 apart
+            assert np.abs(changed[kind] - f).max() <= 1e-9, kind
+
+
+def test_signed_unit_functions_pick_one_sign_for_both():
+    from core.distortion_maps import SIGN_TIE, signed_unit_functions
+
+    rng = np.random.default_rng(4)
+    odd = rng.standard_normal(20)
+    odd = np.concatenate([[0.0], odd, -odd])  # its cubes cancel: the first value not near zero decides
+    lopsided = np.concatenate([[1.0], -0.9 * np.ones(2), np.zeros(38)])  # largest value 1, cubes negative
+    functions = np.column_stack([odd, lopsided])
+    for scale in (1.0, -1.0, 3.0, -1e-3):
+        signed = signed_unit_functions(scale * functions)
+        assert np.allclose(np.abs(signed).max(axis=0), 1.0)
+        assert np.allclose(signed, signed_unit_functions(functions), rtol=0, atol=1e-15)
+    signed = signed_unit_functions(functions)
+    assert signed[1, 0] > 0 and abs(np.sum(signed[:, 0] ** 3)) <= SIGN_TIE
+    assert np.sum(signed[:, 1] ** 3) > 0 and signed[0, 1] == -1.0
+
+
 def test_bad_kind_and_pose(sheet):
     v, t = sheet
     with pytest.raises(ValueError, match="kind must be one of"):

@@ -50,6 +50,23 @@ def test_push_forward_interpolates_linear_functions_exactly():
     assert np.allclose(push.sum(axis=1), 1.0)
 
 
+def test_push_forward_keeps_a_preimage_on_an_inner_edge_of_a_curved_image():
+    # A ridge: two triangles meeting along the x axis, sloping down on both sides. A point above the
+    # ridge has its closest point on the shared edge, whichever triangle reports it; extrapolated in
+    # one triangle's plane instead, its preimage (and Q) jumped with the rounding that picked it.
+    ridge = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.5, 1.0, -0.5], [0.5, -1.0, -0.5]])
+    triangles = np.array([[0, 1, 2], [1, 0, 3]])
+    for side in (-1e-9, 0.0, 1e-9):
+        row = push_forward_matrix(np.array([[0.5, side, 0.1]]), ridge, triangles).toarray()[0]
+        assert np.allclose(row, [0.5, 0.5, 0.0, 0.0], rtol=0, atol=1e-8), (side, row)
+    # Past a boundary edge (0–2 lies on the boundary), in the triangle's plane: still extrapolated,
+    # exact for a function linear on that plane.
+    corner = np.array([[-0.05, 0.2, -0.1]])  # beyond edge 0–2 of triangle 0, in its plane z = -y / 2
+    row = push_forward_matrix(corner, ridge, triangles).toarray()[0]
+    assert row.min() < 0.0
+    assert np.allclose(row @ ridge, corner[0], atol=1e-12)
+
+
 def test_locally_affine_images_keep_affine_maps_and_reduce_snapping():
     v, t = grid(15, jitter=0.3)
     edges = mesh_topology(t, len(v)).edges
