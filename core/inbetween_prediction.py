@@ -110,6 +110,11 @@ TRIMMED_TOLERANCE_BATCH = FULL_SAMPLE_BATCH
 STRETCHED_PREDICTION_CHANGES = 2.0
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
+#: Most repairs of an in-between that kept defects, each from the last one's pose while it leaves
+#: fewer (:func:`_repaired_again`). The leather flag at keys 8 frames apart, the curtain and the
+#: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
+#: flipped triangles, with three 34, with five or more 33.
+REPAIR_PASSES = 8
 #: A prediction that no repair cleans (or, in a rough gap, that keeps more defects than the solved
 #: in-betweens around it) is solved in its place from the repaired prediction rather than from the
 #: Poisson solve of the field, with at most this many local/global steps (not
@@ -228,9 +233,9 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     solved = dict(zip(solved_factors, _solved(gap, solved_factors, {})))
     stubborn = any(problem for _, problem in solved.values())
     outer = _outer_correction(gap, solved)
-    if outer is not None:  # the middle, if it kept defects its repair did not remove
-        middle = solved_factors[1]
-        solved[middle] = _repaired_near(gap, middle, solved[middle], outer)
+    middle = solved_factors[1] if outer is not None else None
+    for s in solved_factors:  # those that kept defects their repair did not remove; the middle near the outer two
+        solved[s] = _repaired_again(gap, s, solved[s], outer if s == middle else None)
     positions = {s: x for s, (x, _) in solved.items()}
     correction = _correction(gap, positions)
     predicted = [s for s in interior if s not in solved]
@@ -247,8 +252,7 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
 
     def predict(s):
-        pose = _predicted(gap, s, correction, rings)
-        return pose if outer is None else _repaired_near(gap, s, pose, outer, rings)
+        return _repaired_again(gap, s, _predicted(gap, s, correction, rings), outer, rings)
 
     solved.update(zip(predicted, _per_factor(gap, predict, predicted)))
     _solve_off_metric(gap, solved, solved_factors, predicted)
@@ -259,7 +263,7 @@ def _outer_correction(gap, solved: dict):
     """Of three solved in-betweens ``solved`` {factor: (positions, problem)} whose outer two came
     out clean, the correction polynomial through the keys and those two alone
     (:func:`_correction`), made when first asked (a function of no arguments: most gaps never ask);
-    else None (:func:`_repaired_near`)."""
+    else None (:func:`_repaired_again`)."""
     if len(solved) != 3:
         return None
     first, _, last = sorted(solved)
@@ -269,32 +273,51 @@ def _outer_correction(gap, solved: dict):
     return functools.cache(lambda: _correction(gap, outer))
 
 
-def _repaired_near(gap, s: float, pose: tuple, outer, rings=None) -> tuple[np.ndarray, str | None]:
-    """``pose`` (positions, problem), an in-between at ``s`` that kept defects no repair removed, in
-    a gap whose outer two solved in-betweens are clean: repaired again with one more field, tried
-    last in every region, the local geometry of the pose that the correction polynomial through the
-    keys and those two alone (``outer()``, :func:`_outer_correction`) predicts at ``s``
-    (:meth:`core.inbetween_solver._Gap.repaired_near`; ``rings``: the repair rounds). Where the
-    keys fold triangles through, the middle's fit folds some of them the wrong way and no field of
-    its repair unfolds them (the interpolated rotations, the blend's, the keys' and their spline's
-    geometry fold them too), and the predictions made from it inherit them; the solves a quarter
-    of the gap away came out clean, and the pose they predict has folds of its own, elsewhere, but
-    not those. The repaired pose where it keeps fewer defects, else ``pose`` (the rounds start
-    from it: never more). Clean poses are returned as they are. Keys 16 frames apart: a sphere
-    lifting a 10k sheet keeps 18 flipped triangles instead of 65, a ball through a 15k curtain 104
-    instead of 294, the banner 2 instead of 15, two sheets 2 instead of 14, the 50k / 100k sheets
-    over a cube 0 / 4 instead of 4 / 5; RMS the same to four digits but the curtain's, 0.925 →
-    0.924 × Catmull–Rom (numbers in docs/inbetween-measurements.md, *Folds the outer solves do not
-    have*)."""
+def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple[np.ndarray, str | None]:
+    """``pose`` (positions, problem), an in-between at ``s`` that kept defects no repair removed,
+    repaired again from itself (:meth:`core.inbetween_solver._Gap.repaired_again`; ``rings``: the
+    repair rounds), and again from each repair that leaves fewer defects, up to
+    :data:`REPAIR_PASSES` times: a repair that fails keeps the fit with the fewest defects, whose
+    parts its rounds repaired partly by a field that left some, and grows its regions around what
+    the pose it started from kept, so it never tries again around the fewer left; a repair started
+    from that fit does. Its moves are counted from ``pose``: a pass that takes the pose farther
+    than one repair may move it (:meth:`~core.inbetween_repair_rounds.RepairRounds.move_limits`)
+    is not taken. In a gap whose outer two solved in-betweens are clean (``outer()``,
+    :func:`_outer_correction`), each pass has one more field, tried last in every region: the local
+    geometry of the pose that the correction polynomial through the keys and those two alone predicts
+    at ``s``. Where the keys fold triangles through, the middle's fit folds some of them the wrong
+    way and no field of its repair unfolds them (the interpolated rotations, the blend's, the keys'
+    and their spline's geometry fold them too), and the predictions made from it inherit them; the
+    solves a quarter of the gap away came out clean, and the pose they predict has folds of its own,
+    elsewhere, but not those. The last pose that kept fewer defects is returned, else ``pose`` (the
+    rounds start from it: never more). Clean poses are returned as they are. Keys 8 frames apart,
+    the leather flag swinging round its pole keeps 1 flipped triangle instead of 117 (the middle of
+    its fourth gap: 1,285 in the prediction, 115 after its repair, 29 after one more); keys 16
+    apart, the sphere lifting a 10k sheet keeps 10 instead of 18, the ball through the 15k curtain
+    33 instead of 104 (numbers in docs/inbetween-measurements.md, *Repairs again from the fewest
+    defects*)."""
     if pose[1] is None:
         return pose
     scale = gap.area_scale(s)
     defects = gap.repair.defects(pose[0], s, None, None, scale=scale)
-    if not defects.any():  # a fallback without flipped or collapsed triangles: nothing to repair
+    count = int(defects.sum())
+    if not count:  # a fallback without flipped or collapsed triangles: nothing to repair
         return pose
-    nearby = _predicted_positions(gap, s, outer(), gap.motion(s))
-    repaired = gap.repaired_near(pose[0], s, nearby, rings, defects)  # never more defects: the rounds start from pose
-    return repaired if _defect_count(gap, s, repaired[0], scale) < int(defects.sum()) else pose
+    nearby = None if outer is None else _predicted_positions(gap, s, outer(), gap.motion(s))
+    start, (limit, partial_limit) = pose[0], gap.repair.move_limits(s) or (np.inf, np.inf)  # none for two keys
+    outcome = gap.outcomes.get(s)
+    for _ in range(REPAIR_PASSES):
+        # never more defects: the rounds start from pose
+        repaired = gap.repaired_again(pose[0], s, nearby, rings, defects)
+        fewer = gap.repair.defects(repaired[0], s, None, None, scale=scale)
+        moved = float(np.sum((repaired[0] - start) ** 2))
+        if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
+            break
+        pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), gap.outcomes.get(s)
+        if not count:
+            break
+    _put_back(gap, s, outcome)
+    return pose
 
 
 def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | None]]:
@@ -337,11 +360,18 @@ def _solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None
         off = _stretched_predictions(gap, results, solved, predicted)
     else:
         return
-    for s, pose in zip(off, _per_factor(gap, lambda s: _solved_instead(gap, s), off)):
+    def solve(s):  # where both keep defects, the solve repaired again as the prediction was
+        pose = _solved_instead(gap, s)
+        return _repaired_again(gap, s, pose) if results[s][1] is not None else pose
+
+    before = {s: gap.outcomes.get(s) for s in off}  # the predictions' (their solves store their own)
+    for s, pose in zip(off, _per_factor(gap, solve, off)):
         if pose[1] is None:
             results[s] = pose
         elif results[s][1] is not None and _defect_count(gap, s, pose[0]) <= _defect_count(gap, s, results[s][0]):
             results[s] = pose  # both keep defects: the solve where it keeps no more
+        else:
+            _put_back(gap, s, before[s])
 
 
 def _defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
@@ -641,18 +671,34 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     # the repaired prediction (SOLVED_INSTEAD_ITERATIONS); the solve where it has no more defects,
     # repaired only where its fit has at most UNREPAIRED_SOLVE_DEFECTS × the prediction's defects
     misfits = []
+    repaired = gap.outcomes.get(s)  # each check below stores its own: the one of the pose returned is kept
     solved = gap.pose(s, weak=any(gap.held_factors.values()), start=result[0],
                       iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits,
                       repairable=UNREPAIRED_SOLVE_DEFECTS * np.count_nonzero(defects))
-    defects = count(solved[0])
+    defects, outcome = count(solved[0]), gap.outcomes.get(s)
     if solved[1] is not None and misfits[-1] < gap.tolerance:
         # the prediction fits the metric and its fit keeps defects: they are not the metric's doing,
         # the solve from the field's Poisson solve is tried too, and kept on a tie
         fresh = _solved_instead(gap, s)
         fewer = count(fresh[0])
         if fewer <= defects:
-            solved, defects = fresh, fewer
-    return solved if defects <= kept else result
+            solved, defects, outcome = fresh, fewer, gap.outcomes.get(s)
+    if defects <= kept:
+        _put_back(gap, s, outcome)
+        return solved
+    _put_back(gap, s, repaired)
+    return result
+
+
+def _put_back(gap, s: float, outcome) -> None:
+    """The gap's outcome at ``s`` set to ``outcome``, the one the check of the pose returned there
+    stored (None: that pose was not checked): a later check of a pose not taken stores its own, and
+    the in-between's warning counts the flipped or collapsed triangles from it
+    (:meth:`core.SequenceInterpolator.poses`)."""
+    if outcome is None:
+        gap.outcomes.pop(s, None)
+    else:
+        gap.outcomes[s] = outcome
 
 
 def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:

@@ -11,9 +11,9 @@ defect-free is kept, so a repair changes as small a region as it can, and only t
 defective grow further (folds apart from each other are repaired each by its own field and region;
 two poses and extrapolations take a neighbourhood whole, see
 :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`). An in-between of a sequence that keeps
-defects after all that, in a gap whose outer solved in-betweens are clean, is repaired again with
-one more field, the local geometry of the pose those two predict
-(:func:`core.inbetween_prediction._repaired_near`). Regions stop growing once they cover
+defects after all that is repaired again from the pose with the fewest, while that removes defects
+— in a gap whose outer solved in-betweens are clean, with one more field, the local geometry of the
+pose those two predict (:func:`core.inbetween_prediction._repaired_again`). Regions stop growing once they cover
 :data:`~core.inbetween_repair_rounds.MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
 sequence's in-between, once a round of 4 rings or more removed no defect
 (:data:`~core.inbetween_repair_rounds.STALLED_ROUND`), and a repair of a sequence's in-between that

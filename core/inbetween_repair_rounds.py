@@ -98,7 +98,7 @@ class RepairRounds:
         (integrable: they come from a mesh), the blend's rotations and stretches, those of the
         keys' per-vertex spline, each key's own local geometry (nearer key first), and last the
         local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given: see
-        :func:`core.inbetween_prediction._repaired_near`)."""
+        :func:`core.inbetween_prediction._repaired_again`)."""
         gap = self.gap
         t = gap.topo.triangles
 

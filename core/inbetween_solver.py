@@ -374,14 +374,13 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         rounds = {} if rings is None else {"rings": rings}
         return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, **rounds), s)
 
-    def repaired_near(self, x: np.ndarray, s: float, nearby: np.ndarray, rings=None,
-                      defects=None) -> tuple[np.ndarray, str | None]:
-        """``x`` (a finished in-between of a sequence at factor ``s`` that kept defects) repaired again
-        with the local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``) as the
-        rounds' last field (``rings``: the repair rounds, all of them by default; ``defects``: those
-        of ``x`` (bool (m,)) if known). Only the repair
-        regions move: the pieces keep the placement :meth:`finished` gave ``x``; the still vertices
-        are put back where they sit in the keys."""
+    def repaired_again(self, x: np.ndarray, s: float, nearby: np.ndarray | None = None, rings=None,
+                       defects=None) -> tuple[np.ndarray, str | None]:
+        """``x`` (a finished in-between of a sequence at factor ``s`` that kept defects) repaired again,
+        with the local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given) as
+        the rounds' last field (``rings``: the repair rounds, all of them by default; ``defects``: those
+        of ``x`` (bool (m,)) if known). Only the repair regions move: the pieces keep the placement
+        :meth:`finished` gave ``x``; the still vertices are put back where they sit in the keys."""
         self.select(s)
         frames, stretch, motion, guide = self.targets(s, by_rows=True)
         rounds = {} if rings is None else {"rings": rings}

@@ -622,3 +622,97 @@ def test_a_middle_fold_the_outer_solves_geometry_keeps_too_is_kept_as_it_was(mon
     monkeypatch.setattr(prediction, "_outer_correction", lambda *args: None)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
         np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), poses)
+
+
+def _two_folds(monkeypatch, strip, g):
+    """Keys of a bending strip, its triangles and the factors of the ``g`` − 1 in-betweens of a gap
+    keyed every ``g``-th frame, with the poses at s = 1/2 — the fit and the prediction — folding two
+    triangles over a vertex apart (a corner of each reflected across its opposite edge): a repair's
+    local fit folds the second again unless the field imposed is the blend's local geometry (field
+    2), and folds the first again wherever the pose it starts from has the second folded. A first
+    repair then leaves the first folded (the blend's geometry repairs the second there, but its
+    regions grow around the pose it started from, where both are); a repair from that pose unfolds
+    it. The fields imposed are recorded (the list returned last)."""
+    import core.inbetween_prediction as prediction
+    import core.inbetween_repair as repair
+    from core import sequence_inbetweens
+
+    flat, tri = strip
+    keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
+    middle = flat[tri].mean(axis=1)
+    first, second = (tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
+                     for x in (1.0, 1.15))
+    assert not set(first) & set(second)
+    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+        repair.Repair.imposed_fields
+    real_predicted = prediction._predicted_positions
+    imposed = []
+
+    def fold(out, corners, free=None):
+        i, j, k = corners
+        if free is None or i in free:
+            out[i] = out[j] + out[k] - out[i]
+        return out
+
+    def folded(x, corners):  # facing against the first key, as a fold across the bending strip does
+        i, j, k = corners
+        return np.cross(x[j] - x[i], x[k] - x[i]) @ np.cross(keys[0][j] - keys[0][i], keys[0][k] - keys[0][i]) < 0
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = real_local(self, x, region, frames, stretch, guide)
+        if folded(x, second):
+            fold(out, first, region.free)
+            if imposed[-1] != 2:
+                fold(out, second, region.free)
+        return out
+
+    def folding_fit(self, x, stretch, frames, guide, s, *args, **kwargs):
+        out = real_fit(self, x, stretch, frames, guide, s, *args, **kwargs)
+        return fold(fold(out, first), second) if s == 0.5 else out
+
+    def folding_prediction(gap, s, correction, motion):
+        out = real_predicted(gap, s, correction, motion)
+        return fold(fold(out, first), second) if s == 0.5 else out
+
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(repair.Repair, "imposed_fields", _recording_fields(real_fields, imposed))
+    monkeypatch.setattr(prediction, "_predicted_positions", folding_prediction)
+    return keys, tri, np.arange(1, g) / g, imposed
+
+
+@pytest.mark.parametrize("g", [4, 8])
+def test_a_fold_a_repair_leaves_fewer_of_is_repaired_again_from_there(monkeypatch, strip, g):
+    """Keys 4 frames apart (the middle solved) and 8 apart (the middle predicted from the two solved
+    a quarter of the gap away): the middle's fit or prediction folds two triangles, and its first
+    repair leaves one of them, which no field unfolds around the pose that repair started from. The
+    in-between is repaired again from the pose that repair left: every in-between of the gap ends
+    with no flipped triangle and no warning (a repair only once keeps the fold, and warns)."""
+    keys, tri, factors, imposed = _two_folds(monkeypatch, strip, g)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        poses = SequenceInterpolator(keys, tri).poses(0, factors)
+    assert max(_flipped(x, keys[0], keys[1], tri) for x in poses) == 0
+    assert 2 in imposed
+
+
+@pytest.mark.parametrize("g", [4, 8])
+def test_a_fold_a_repair_again_keeps_too_is_kept_with_its_count(monkeypatch, strip, g):
+    """Where no repair may move a pose (every move limit zero), the in-betweens keep their folds, and
+    each warning counts, in its words and its ``defects``, the flipped or collapsed triangles of the
+    poses returned — also where a solve tried after a prediction was not taken (its check stored its
+    own count; with keys 8 apart the old count was the solve's 8 beside the prediction's 4)."""
+    import core.inbetween_repair_rounds as rounds
+
+    keys, tri, factors, _ = _two_folds(monkeypatch, strip, g)
+    monkeypatch.setattr(rounds.RepairRounds, "move_limits", lambda self, s: (0.0, 0.0) if self.in_sequence(s) else None)
+    seq = SequenceInterpolator(keys, tri)
+    with pytest.warns(ShapeDifferenceWarning, match="keeps") as said:
+        poses = seq.poses(0, factors)
+    gap = seq._gap(0)
+    kept = [int(gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).sum()) for s, x in zip(factors, poses)]
+    assert kept[list(factors).index(0.5)] >= _flipped(poses[list(factors).index(0.5)], keys[0], keys[1], tri) > 0
+    # each warning names the factors it is about and counts the most any of them keeps, in its words too
+    for w in said:
+        most = max(kept[list(factors).index(f)] for f in w.message.factors)
+        assert w.message.defects == most and f"keeps {most} triangle" in str(w.message)

@@ -1280,7 +1280,8 @@ def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_mor
     8 frames apart: predictions made 1 % longer along the strip (ten tolerances) that keep a
     defect no repair removed (said by their problem) are solved in their place only where the
     solve keeps no more defects: a solve with triangles collapsed (two vertices merged) leaves
-    the prediction as it was."""
+    the prediction as it was. (The repairs again of a solve that kept defects are off here: this
+    stand-in's collapse, which no repair of its own went through, is what they remove.)"""
     from core import inbetween_prediction
     from core.inbetween_fit import METRIC_TOLERANCE
 
@@ -1306,9 +1307,49 @@ def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_mor
 
     monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
     monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    monkeypatch.setattr(inbetween_prediction, "REPAIR_PASSES", 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
         poses = dict(zip(factors, seq.poses(0, factors)))
     assert set(made) == {s for s in factors if s not in (0.25, 0.75)}
     for s, x in made.items():  # the prediction, in the caller's frame (the sequence's origin added back)
         np.testing.assert_allclose(poses[s] - x, np.broadcast_to(poses[s][0] - x[0], x.shape), atol=1e-12)
+
+
+def test_an_off_metric_solve_with_defects_is_repaired_again_before_it_is_weighed(monkeypatch, strip):
+    """The setting above with the repairs again on: the solve that replaces an off-metric
+    prediction kept defects (two vertices merged), so it is repaired again as any in-between that
+    keeps defects is, comes out with none, and is taken in the prediction's place."""
+    from core import inbetween_prediction
+    from core.inbetween_fit import METRIC_TOLERANCE
+
+    flat, tri = strip
+    factors = list(np.arange(1, 8) / 8)
+    seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
+    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction._solved_instead
+    made = {}
+
+    def stretched(gap, s, correction, rings=None, allowed=None):
+        x, _ = real_predicted(gap, s, correction, rings, allowed)
+        made[s] = x.copy()
+        made[s][:, 0] = x[0, 0] + (1.0 + 10.0 * METRIC_TOLERANCE) * (x[:, 0] - x[0, 0])
+        return made[s], "kept a defect"
+
+    def collapsed(gap, s):
+        x, _ = real_solve(gap, s)
+        x = x.copy()
+        a, b = tri[len(tri) // 2, :2]
+        x[a] = x[b]
+        return x, "kept defects"
+
+    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
+    monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        poses = dict(zip(factors, seq.poses(0, factors)))
+    gap = seq._gap(0)
+    assert set(made) == {s for s in factors if s not in (0.25, 0.75)}
+    for s, x in made.items():
+        assert not gap.repair.defects(seq._to_working(poses[s]), s, None, None, scale=gap.area_scale(s)).any()
+        # not the prediction (1 % longer): the solve, repaired
+        assert np.abs((poses[s] - x) - (poses[s][0] - x[0])).max() > METRIC_TOLERANCE * np.ptp(flat[:, 0])
