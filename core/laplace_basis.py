@@ -105,6 +105,20 @@ def checked_laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, 
     return basis, group
 
 
+def cached_split_group(bases: dict, k: int, n: int, compute) -> tuple[int, int] | None:
+    """:func:`split_group` at a basis size ``k`` of the largest basis in ``bases`` ({size:
+    :class:`LaplaceBasis`} of one mesh of ``n`` vertices), or of ``compute(k)`` (its
+    :func:`checked_laplace_basis` ``(basis, group)``, the basis added to ``bases``) where that one
+    has no eigenvalue past the first ``k`` (a cached basis of exactly ``k`` tells nothing of the
+    next) or the group reaches its last and may go on."""
+    computed = bases[max(bases)] if bases else None
+    group = split_group(computed.eigenvalues, k) if computed is not None and computed.size > k else None
+    if computed is None or computed.size <= k or (group is not None and group[1] == computed.size < n - 1):
+        computed, group = compute(k)
+        bases[computed.size] = computed
+    return group
+
+
 def _check_size(n: int, k: int, what: str) -> None:
     """:class:`MeshError` unless ``1 ≤ k < n`` (a basis of ``k`` eigenfunctions of a mesh ``what``
     of ``n`` vertices)."""

@@ -27,16 +27,17 @@ import numpy as np
 
 from .sequence_warnings import factor_list
 
-#: Boundary vertices of different pieces closer than this share of their mean adjacent edge
-#: length in both keys of a gap are the two sides of a seam those keys keep closed (cloth's
-#: collision distances, which keep layers apart, are a third of an edge or more).
+#: Boundary vertices closer than this share of their mean adjacent edge length in both keys of a
+#: gap (of different pieces, or of one piece and apart along it) are the two sides of a seam those
+#: keys keep closed (cloth's collision distances, which keep layers apart, are a third of an edge
+#: or more).
 NEAR_SEAM_SHARE = 0.05
 #: An in-between opens such a seam where a pair lies farther apart than in either key of its gap
 #: (any key, for a seam every key keeps closed) by more than this share of its mean adjacent edge length (plus the weld's own distance, which covers the
 #: coordinates' rounding): a gap visible at the scale of the mesh's triangles.
 SEAM_OPENING_SHARE = 0.01
-#: Nearest boundary vertices looked at per boundary vertex: a seam vertex's partner on another
-#: piece is its nearest, or next to nearest where three pieces meet.
+#: Nearest boundary vertices looked at per boundary vertex: a seam vertex's partner across the
+#: seam is its nearest, or next to nearest where three pieces meet.
 NEAR_SEAM_NEIGHBOURS = 4
 #: Two boundary vertices of one piece are the two sides of a seam only where every path between
 #: them along the mesh's edges (in the first key) is at least this many times their mean adjacent
@@ -44,6 +45,10 @@ NEAR_SEAM_NEIGHBOURS = 4
 #: boundary vertices two edges apart within 2–4 % of an edge in both keys of a pair in Blender's
 #: bakes). With 4, no pair in any of 40 baked scenes; a tube's cut is its circumference apart.
 SAME_PIECE_PATH = 4.0
+#: Pairs of one piece whose paths along the mesh are measured at once (:func:`_apart_along_mesh`):
+#: Dijkstra's distances are (pairs, vertices near them); the 32k pairs of a 100k-vertex sheet cut
+#: into a fringe would be 23 GiB at once, 64 at a time keep them to a few MB (1.1 s CPU in all).
+PATH_PAIRS_AT_ONCE = 64
 
 
 @dataclass(frozen=True)
@@ -151,27 +156,33 @@ def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams 
 
 def _apart_along_mesh(x: np.ndarray, edges: np.ndarray, a: np.ndarray, b: np.ndarray, length: np.ndarray) -> np.ndarray:
     """Whether every path along ``edges`` (E, 2) in pose ``x`` (n, 3) from ``a[i]`` to ``b[i]`` (int
-    (p,) each) is at least ``length[i]`` long, bool (p,): Dijkstra's distances (scipy's csgraph),
-    over the vertices within ``length`` of a pair's vertex only — a shorter path cannot leave
-    them — so that its cost follows the pairs, not the mesh."""
+    (p,) each) is at least ``length[i]`` long, bool (p,): Dijkstra's distances (scipy's csgraph)
+    from :data:`PATH_PAIRS_AT_ONCE` pairs at a time, each over the vertices within ``length`` of
+    those pairs' ``a`` only (a shorter path cannot leave them: each of its vertices is nearer ``a``
+    than the path is long), so that its cost and memory follow the pairs' neighbourhoods, not the
+    mesh or the number of pairs (the distances are (pairs, vertices) at once)."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
     from scipy.spatial import cKDTree
 
     reach = float(length.max())
-    ends = np.unique(np.r_[a, b])
-    box = np.flatnonzero(((x >= x[ends].min(axis=0) - reach) & (x <= x[ends].max(axis=0) + reach)).all(axis=1))
-    within = cKDTree(x[ends]).query_ball_point(x[box], r=reach, return_length=True) > 0
-    near = box[within]  # vertices within reach of a pair's vertex (a and b among them)
-    local = np.full(x.shape[0], -1)
-    local[near] = np.arange(near.size)
+    box = np.flatnonzero(((x >= x[a].min(axis=0) - reach) & (x <= x[a].max(axis=0) + reach)).all(axis=1))
+    local = np.full(x.shape[0], -1)  # each vertex's row in the box, -1 outside it
+    local[box] = np.arange(box.size)
     inner = (local[edges] >= 0).all(axis=1)
-    u, v = local[edges[inner, 0]], local[edges[inner, 1]]
     weights = np.linalg.norm(x[edges[inner, 0]] - x[edges[inner, 1]], axis=1)
-    graph = csr_matrix((weights, (u, v)), shape=(near.size, near.size))
-    starts, rows = np.unique(local[a], return_inverse=True)
-    distances = dijkstra(graph, directed=False, indices=starts, limit=reach)
-    return distances[rows, local[b]] >= length
+    graph = csr_matrix((weights, (local[edges[inner, 0]], local[edges[inner, 1]])), shape=(box.size, box.size))
+    tree = cKDTree(x[box])
+    apart = np.ones(a.size, dtype=bool)
+    order = cKDTree(x[a]).indices  # the pairs in the tree's leaf order: a batch's pairs lie together
+    for batch in np.array_split(order, -(-a.size // PATH_PAIRS_AT_ONCE)):
+        near = np.unique(np.concatenate(tree.query_ball_point(x[a[batch]], r=length[batch])).astype(int))
+        starts, rows = np.unique(np.searchsorted(near, local[a[batch]]), return_inverse=True)
+        distances = dijkstra(graph[near][:, near], directed=False, indices=starts, limit=float(length[batch].max()))
+        at = np.minimum(np.searchsorted(near, local[b[batch]]), near.size - 1)
+        reached = (local[b[batch]] >= 0) & (near[at] == local[b[batch]])  # b within the batch's neighbourhood
+        apart[batch[reached]] = distances[rows[reached], at[reached]] >= length[batch[reached]]
+    return apart
 
 
 def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float], names: tuple[str, str],

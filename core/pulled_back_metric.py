@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from .errors import MeshError, RecoveryError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, heron, lumped_vertex_areas, normalize, vertex_labels
-from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_group, warn_eigenvalue_split
+from .laplace_basis import LaplaceBasis, cached_split_group, checked_laplace_basis, warn_eigenvalue_split
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
 HEAT_TIME_FACTOR = 1.0
@@ -238,12 +238,10 @@ class PulledBackMetric:
         eigenvalues (a symmetric metric): a sum over them that weighs a group's functions alike
         (the WKS) holds an arbitrary part of it."""
         n = self.reference.topology.n_vertices
-        values = self._bases[max(self._bases)].eigenvalues
-        group = split_group(values, k)
-        if group is not None and group[1] == values.size < n - 1:  # the group may go on: solve to its end
-            self.laplace_basis(min(values.size + 2 * (group[1] - group[0]), n - 1))
-            values = self._bases[max(self._bases)].eigenvalues
-        warn_eigenvalue_split("k", k, [("pulled-back metric", values)], 2, n, stacklevel=stacklevel + 1)
+        cached_split_group(self._bases, k, n, lambda size: checked_laplace_basis(
+            self.mass_matrix(), self.laplacian(), size, what="pulled-back metric"))  # past k, to the group's end
+        warn_eigenvalue_split("k", k, [("pulled-back metric", self._bases[max(self._bases)].eigenvalues)], 2, n,
+                              stacklevel=stacklevel + 1)
 
     def laplacian_eigenvalues(self, k: int) -> np.ndarray:
         """The ``k`` smallest eigenvalues ``(k,)`` of ``C(ℓ²; µ) φ = λ A(µ) φ`` (ascending)."""

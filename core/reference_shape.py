@@ -19,7 +19,8 @@ from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
 from .inner_products import ProductAssembler, pose_products
-from .laplace_basis import LaplaceBasis, checked_laplace_basis, split_group, split_warning, warn_eigenvalue_split
+from .laplace_basis import (LaplaceBasis, cached_split_group, checked_laplace_basis, split_warning,
+                           warn_eigenvalue_split)
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
@@ -106,13 +107,9 @@ class SurfaceLayer:
         """:func:`~core.laplace_basis.split_group` of this layer's eigenvalues at a basis size ``k``
         (computing the eigenpairs it needs)."""
         if k not in self._groups:
-            computed = self._bases[max(self._bases)] if self._bases else None
-            group = split_group(computed.eigenvalues, k) if computed is not None and computed.size > k else None
-            n = self.topology.n_vertices
-            if computed is None or computed.size <= k or (group is not None and group[1] == computed.size < n - 1):
-                computed, group = checked_laplace_basis(self.mass, self.conformal, k, what=self.name)
-                self._bases[computed.size] = computed
-            self._groups[k] = group
+            self._groups[k] = cached_split_group(
+                self._bases, k, self.topology.n_vertices,
+                lambda size: checked_laplace_basis(self.mass, self.conformal, size, what=self.name))
         return self._groups[k]
 
     def differences(self, target_positions: np.ndarray, k_M: int | None, k_N: int | None, *,

@@ -185,3 +185,70 @@ def test_the_wave_kernel_signature_warns_where_k_splits_and_the_eigenpairs_do_no
     assert found == []
     turned = metric(_turned(vertices)).wave_kernel_signature(20, k=25)
     assert np.allclose(turned, signature, rtol=0, atol=1e-10 * signature.max())
+
+
+@pytest.mark.parametrize("path", ["shape_differences", "another mesh", "Transfer", "shape_space",
+                                  "shape_space_steps", "eigenfunctions", "wave_kernel_signature"])
+def test_the_split_warning_points_at_the_callers_line(path):
+    """Each path's warning is attributed to the line of the caller's own code that made the call
+    (the warning's filename and line), not to a line inside the library: the shape space's
+    generator advanced by :func:`shape_space`, and a Transfer built by ``shape_differences`` with
+    another target mesh, included."""
+    import core
+    from core.distortion_maps import DistortionAnalyzer
+    from core.shape_space_pca import shape_space_steps
+    from core.transfer import Transfer
+
+    vertices, triangles = icosphere(2)
+    target, target_triangles = icosphere(3)
+    pose = stretch_and_bend(vertices)
+    poses = [vertices, pose, vertices * [1.1, 1.0, 0.9]]
+    distortion = DistortionAnalyzer(vertices, triangles, k=20).pose(pose)
+    pulled = core.pull_back(vertices, triangles, core.shape_differences(vertices, 1.5 * vertices, triangles))
+
+    def steps():
+        for _ in shape_space_steps(poses, triangles, k_M=20, k_N=None):  # the caller advances the generator
+            pass
+
+    calls = {  # each call on a line of its own, with that line
+        "shape_differences": lambda: core.shape_differences(vertices, pose, triangles, k_M=20),
+        "another mesh": lambda: core.shape_differences(vertices, target, triangles, k_M=20, k_N=40,
+                                                       target_triangles=target_triangles),
+        "Transfer": lambda: Transfer(vertices, triangles, target, target_triangles, k_M=20, k_N=40),
+        "shape_space": lambda: core.shape_space(poses, triangles, k_M=20, k_N=None),
+        "shape_space_steps": steps,
+        "eigenfunctions": lambda: distortion.eigenfunctions("area", 4),
+        "wave_kernel_signature": lambda: pulled.wave_kernel_signature(20, k=20),
+    }
+    call = calls[path]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        call()
+    (warning,) = [w for w in caught if "splits" in str(w.message)]
+    code = call.__code__ if path != "shape_space_steps" else steps.__code__
+    line = code.co_firstlineno + (1 if path == "shape_space_steps" else 0)
+    assert (warning.filename, warning.lineno) == (__file__, line)
+
+
+def test_the_wave_kernel_signature_warns_whatever_was_computed_before():
+    """Whether a size splits a group does not depend on the calls before: the pulled-back metric of
+    a scaled icosphere has equal eigenvalues 37–39 (its indices 36–38), so k = 38 splits them,
+    fresh or after a call at k = 36 (whose basis, computed two past it, ends exactly at 38), and
+    k = 36, which ends a group, warns neither way."""
+    import core
+
+    vertices, triangles = icosphere(2)
+
+    def metric():
+        return core.pull_back(vertices, triangles, core.shape_differences(vertices, 1.5 * vertices, triangles))
+
+    values = metric().laplacian_eigenvalues(45)
+    assert split_group(values, 38) == (36, 39) and split_group(values, 36) is None
+    fresh = metric()
+    _, found = _splits(lambda: fresh.wave_kernel_signature(10, k=38))
+    assert len(found) == 1 and "k = 38 splits a group of 3" in found[0]
+    after = metric()
+    _, found = _splits(lambda: after.wave_kernel_signature(10, k=36))
+    assert found == []
+    _, found = _splits(lambda: after.wave_kernel_signature(10, k=38))
+    assert len(found) == 1 and "k = 38 splits a group of 3" in found[0]

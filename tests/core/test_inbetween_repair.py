@@ -372,6 +372,24 @@ def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip)
     assert len(releases) == 0 and not any(seq._gap(0).held_factors[s] for s in predicted)
 
 
+def _mark_solves_from_predictions(monkeypatch):
+    """Patch :meth:`core.inbetween_solver._Gap.pose` so that the gap's ``_from_prediction`` is True
+    while it solves from a given start (a prediction solved from itself), for patched checks to
+    tell those solves apart."""
+    import core.inbetween_solver as solver
+
+    pose = solver._Gap.pose
+
+    def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
+        self._from_prediction = start is not None
+        try:
+            return pose(self, s, weak, start, *args, **kwargs)
+        finally:
+            self._from_prediction = False
+
+    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+
+
 @pytest.mark.parametrize("at_the_metric", [True, False])
 def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(monkeypatch, strip, at_the_metric):
     """Where the fit from the repaired prediction ends within the gap's tolerance with defects
@@ -390,18 +408,8 @@ def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(mo
         from_prediction = getattr(self, "_from_prediction", False)
         return scale * self.tolerance if from_prediction else real_misfit(edges, targets)
 
-    import core.inbetween_solver as solver
-    pose = solver._Gap.pose
-
-    def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
-        self._from_prediction = start is not None
-        try:
-            return pose(self, s, weak, start, *args, **kwargs)
-        finally:
-            self._from_prediction = False
-
     monkeypatch.setattr(fit.LocalGlobalFit, "misfit", misfit)
-    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+    _mark_solves_from_predictions(monkeypatch)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShapeDifferenceWarning)
         poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
@@ -424,7 +432,6 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
     import core.inbetween_fit as fit
     import core.inbetween_prediction as prediction
     import core.inbetween_repair as repair
-    import core.inbetween_solver as solver
 
     keys, tri, factors, _, _ = _predictions_flagged(monkeypatch, strip)
     flagged = repair.Repair.defects
@@ -435,14 +442,7 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
             out[:solve_defects] = True
         return out if rows is None else out[rows]
 
-    pose, real_misfit, real_rounds = solver._Gap.pose, fit.LocalGlobalFit.misfit, repair.Repair.rounds
-
-    def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
-        self._from_prediction = start is not None
-        try:
-            return pose(self, s, weak, start, *args, **kwargs)
-        finally:
-            self._from_prediction = False
+    real_misfit, real_rounds = fit.LocalGlobalFit.misfit, repair.Repair.rounds
 
     def misfit(self, edges, targets):  # off the tolerance: no solve from the Poisson solve as well
         return 4.0 * self.tolerance if getattr(self, "_from_prediction", False) else real_misfit(edges, targets)
@@ -455,7 +455,7 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
         return real_rounds(self, x, *args, **kwargs)
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
-    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+    _mark_solves_from_predictions(monkeypatch)
     monkeypatch.setattr(fit.LocalGlobalFit, "misfit", misfit)
     monkeypatch.setattr(repair.Repair, "rounds", rounds)
     with warnings.catch_warnings():

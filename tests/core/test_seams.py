@@ -700,6 +700,31 @@ def _near_seam(keys, tri, apart):
     return [np.concatenate([k[:copies[0]], k[copies] + [apart, 0.0, 0.0]]) for k in cut_keys], cut_tri, seam, copies
 
 
+def _gaps_said_to_open(sequence, factors, side, other, visible) -> int:
+    """How many gaps of ``sequence`` warn (kind "seam") of the in-betweens at ``factors`` opening
+    the seam between vertices ``side`` and ``other``; checking on the way that every gap whose
+    in-betweens part them by more than ``visible`` says so, once, with the gap's keys and the
+    factors it is about, quoting the widest distance measured on those in-betweens."""
+    warned = 0
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, factors)
+        opened = np.linalg.norm(poses[:, side] - poses[:, other], axis=2).max(axis=1)
+        said = _seam_warnings(record)
+        if opened.max() > visible:  # visibly opened: it must be said
+            assert len(said) == 1
+        if said:
+            warned += 1
+            (message,) = said
+            assert message.gap == (sequence.key_names[gap], sequence.key_names[gap + 1])
+            assert set(message.factors) <= set(factors)
+            widest = max(opened[list(factors).index(f)] for f in message.factors)
+            assert f"separate by up to {widest:.3g}" in str(message)
+            assert "Merge by Distance" in str(message)
+    return warned
+
+
 def test_a_seam_left_apart_that_the_in_betweens_open_is_warned():
     """A seam whose sides are 1e-4 apart in every key (0.15 % of an edge, under 1e-4 of the sheet's
     size) is no weld (core.seams.COINCIDENCE_TOLERANCE); its pieces are interpolated each on its own
@@ -712,24 +737,7 @@ def test_a_seam_left_apart_that_the_in_betweens_open_is_warned():
     sequence = SequenceInterpolator(near_keys, near_tri)
     factors = np.arange(1, 8) / 8
     edge = np.mean(np.linalg.norm(keys[0][tri] - keys[0][np.roll(tri, 1, axis=1)], axis=2))
-    warned = 0
-    for gap in range(len(sequence)):
-        with warnings.catch_warnings(record=True) as record:
-            warnings.simplefilter("always")
-            poses = sequence.poses(gap, factors)
-        opened = np.linalg.norm(poses[:, seam] - poses[:, copies], axis=2).max(axis=1)
-        said = _seam_warnings(record)
-        if opened.max() > 1e-4 + 0.02 * edge:  # visibly opened: it must be said
-            assert len(said) == 1
-        if said:
-            warned += 1
-            (message,) = said
-            assert message.gap == (sequence.key_names[gap], sequence.key_names[gap + 1])
-            assert set(message.factors) <= set(factors)
-            widest = max(opened[list(factors).index(f)] for f in message.factors)
-            assert f"separate by up to {widest:.3g}" in str(message)
-            assert "Merge by Distance" in str(message)
-    assert warned >= 1
+    assert _gaps_said_to_open(sequence, factors, seam, copies, 1e-4 + 0.02 * edge) >= 1
     for factor in (0.5, 2.0):
         with warnings.catch_warnings(record=True) as record:
             warnings.simplefilter("always")
@@ -849,21 +857,7 @@ def test_a_tube_of_one_piece_cut_open_that_the_in_betweens_open_is_warned():
     edge = np.mean(np.linalg.norm(keys[0][tri] - keys[0][np.roll(tri, 1, axis=1)], axis=2))
     sequence = SequenceInterpolator(keys, tri)
     factors = np.arange(1, 8) / 8
-    warned = 0
-    for gap in range(len(sequence)):
-        with warnings.catch_warnings(record=True) as record:
-            warnings.simplefilter("always")
-            poses = sequence.poses(gap, factors)
-        opened = np.linalg.norm(poses[:, left] - poses[:, right], axis=2).max(axis=1)
-        said = _seam_warnings(record)
-        if opened.max() > in_keys + 0.02 * edge:  # visibly opened: it must be said
-            assert len(said) == 1
-        if said:
-            warned += 1
-            (message,) = said
-            widest = max(opened[list(factors).index(f)] for f in message.factors)
-            assert f"separate by up to {widest:.3g}" in str(message) and "Merge by Distance" in str(message)
-    assert warned >= 1
+    assert _gaps_said_to_open(sequence, factors, left, right, in_keys + 0.02 * edge) >= 1
     with warnings.catch_warnings(record=True) as record:
         warnings.simplefilter("always")
         x = Interpolator(keys[0], keys[2], tri).pose(0.5)
@@ -896,3 +890,68 @@ def test_boundary_vertices_of_one_piece_the_mesh_joins_are_no_seam():
         poses = [sequence.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(sequence))]
     assert not _seam_warnings(record)
     assert max(np.abs(x[:, left] - x[:, right]).max() for x in poses) == 0.0
+
+
+def _fringe(side=24, every=3, depth=22, apart=0.02):
+    """A square sheet of ``side`` × ``side`` quads cut into a fringe, one piece: every ``every``-th
+    column of vertices is split from the bottom up to row ``depth`` (the cuts' sides ``apart`` ×
+    the grid spacing apart, the right side a copy), bent differently per key. Keys, triangles, and
+    each cut's two sides (vertex indices: the left side, its copy)."""
+    h = 1.0 / side
+    column, row = np.divmod(np.arange((side + 1) ** 2), side + 1)
+    cut = (column % every == 0) & (column > 0) & (column < side) & (row < depth)
+    left = np.flatnonzero(cut)
+    copy = np.full(column.size, -1)
+    copy[left] = column.size + np.arange(left.size)
+    flat = np.r_[np.c_[column * h, row * h], np.c_[column[left] * h + apart * h, row[left] * h]]
+    i, j = np.divmod(np.arange(side * side), side)
+    corners = np.stack([i * (side + 1) + j, (i + 1) * (side + 1) + j, i * (side + 1) + j + 1,
+                        (i + 1) * (side + 1) + j + 1])  # (4, quads): left-bottom, right-bottom, left-top, right-top
+    for k in (0, 2):  # a quad right of a cut uses the cut's copy on its left side
+        corners[k] = np.where(copy[corners[k]] >= 0, copy[corners[k]], corners[k])
+    triangles = np.concatenate([corners[[0, 1, 3]].T, corners[[0, 3, 2]].T])
+    keys = [np.c_[flat[:, 0], flat[:, 1] * np.cos(bend * flat[:, 0]), flat[:, 1] * np.sin(bend * flat[:, 0])]
+            for bend in (0.0, 0.6, 1.2)]
+    return keys, triangles, left, copy[left]
+
+
+def test_the_cuts_of_a_fringe_are_found_with_the_paths_measured_a_few_pairs_at_a_time(monkeypatch):
+    """One piece cut into a fringe: its cuts' sides are near-seams exactly where the mesh's own
+    shortest path between them (scipy's Dijkstra over every edge: an independent measure) is at
+    least SAME_PIECE_PATH × their mean adjacent edge length, and the paths are measured at most
+    PATH_PAIRS_AT_ONCE pairs at a time, each batch over the vertices near it only (not every pair
+    against every vertex at once: 23 GiB of distances for a 100k-vertex fringe)."""
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    import core.near_seams as near_seams_module
+    from core.seams import coincidence_tolerance, rounding_scale
+
+    keys, tri, left, right = _fringe(48, 4, 44)
+    topology = mesh_topology(tri, len(keys[0]))
+    assert topology.components()[0] == 1 and left.size > 2 * near_seams_module.PATH_PAIRS_AT_ONCE
+    edges = topology.edges
+    graph = csr_matrix((np.linalg.norm(keys[0][edges[:, 0]] - keys[0][edges[:, 1]], axis=1),
+                        (edges[:, 0], edges[:, 1])), shape=(len(keys[0]),) * 2)
+    along = dijkstra(graph, directed=False, indices=left)[np.arange(left.size), right]
+    scale = np.full(len(keys[0]), np.inf)
+    for key in keys:  # the least over the keys of each vertex's mean adjacent edge length
+        lengths = np.linalg.norm(key[edges[:, 0]] - key[edges[:, 1]], axis=1)
+        mean = np.bincount(edges.ravel(), np.repeat(lengths, 2)) / np.bincount(edges.ravel())
+        scale = np.minimum(scale, mean)
+    expected = along >= near_seams_module.SAME_PIECE_PATH * 0.5 * (scale[left] + scale[right])
+    assert 0 < expected.sum() < left.size  # cuts' sides near their ends are joined round them
+    import scipy.sparse.csgraph as csgraph
+
+    shapes, real = [], csgraph.dijkstra
+
+    def recorded(*args, **kwargs):
+        out = real(*args, **kwargs)
+        shapes.append(out.shape)
+        return out
+
+    monkeypatch.setattr(csgraph, "dijkstra", recorded)
+    seams = near_seams_module.near_seams(keys, topology, coincidence_tolerance(keys[0], edges, rounding_scale(keys)))
+    assert sorted(zip(seams.a.tolist(), seams.b.tolist())) == sorted(zip(left[expected].tolist(), right[expected].tolist()))
+    assert len(shapes) > 1
+    assert all(rows <= near_seams_module.PATH_PAIRS_AT_ONCE and columns < len(keys[0]) / 2 for rows, columns in shapes)
