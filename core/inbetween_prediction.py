@@ -111,7 +111,8 @@ STRETCHED_PREDICTION_CHANGES = 2.0
 #: Batches of fewer in-betweens than this are all solved (prediction saves nothing then).
 MIN_PREDICTED_BATCH = 3
 #: Most repairs of an in-between that kept defects, each from the last one's pose while it leaves
-#: fewer (:func:`_repaired_again`). The leather flag at keys 8 frames apart, the curtain and the
+#: fewer (:func:`_repaired_again`; in gaps predicted from solved in-betweens: a gap solved at every
+#: factor keeps each in-between's first repair). The leather flag at keys 8 frames apart, the curtain and the
 #: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
 #: flipped triangles, with three 34, with five or more 33.
 REPAIR_PASSES = 8

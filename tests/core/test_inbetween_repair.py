@@ -716,3 +716,113 @@ def test_a_fold_a_repair_again_keeps_too_is_kept_with_its_count(monkeypatch, str
     for w in said:
         most = max(kept[list(factors).index(f)] for f in w.message.factors)
         assert w.message.defects == most and f"keeps {most} triangle" in str(w.message)
+
+
+@pytest.mark.parametrize("g", [4, 8])
+def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_count(monkeypatch, strip, g):
+    """The two folds above and a third triangle, away from both, that every fit, prediction and local
+    fit folds again (no repair removes it): the first repair of the middle leaves the first fold and
+    the third, the repair again from there the third alone, the next no fewer. The in-between kept is
+    the one with the third fold only, and the gap's warning counts, in its words and its ``defects``,
+    the flipped or collapsed triangles of the poses returned (a pass taken whose check stored its
+    own count, then a pass not taken whose check stored another)."""
+    import core.inbetween_prediction as prediction
+    from core import sequence_inbetweens
+
+    keys, tri, factors, _ = _two_folds(monkeypatch, strip, g)
+    flat, _ = strip
+    middle = flat[tri].mean(axis=1)
+    first, second, third = (tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
+                            for x in (1.0, 1.15, 0.4))  # _two_folds' two, and the third
+    folds_fit, folds_local, folds_predicted = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+        prediction._predicted_positions
+
+    def fold(out, free=None):
+        i, j, k = third
+        if free is None or i in free:
+            out[i] = out[j] + out[k] - out[i]
+        return out
+
+    def flipped(x, corners):
+        i, j, k = corners
+        return np.cross(x[j] - x[i], x[k] - x[i]) @ np.cross(keys[0][j] - keys[0][i], keys[0][k] - keys[0][i]) < 0
+
+    def local_fit(self, x, region, frames, stretch, guide):
+        out = folds_local(self, x, region, frames, stretch, guide)
+        return out if flipped(out, third) else fold(out, region.free)
+
+    def fit(self, x, stretch, frames, guide, s, *args, **kwargs):
+        out = folds_fit(self, x, stretch, frames, guide, s, *args, **kwargs)
+        return fold(out) if s == 0.5 else out
+
+    def predicted(gap, s, correction, motion):
+        out = folds_predicted(gap, s, correction, motion)
+        return fold(out) if s == 0.5 else out
+
+    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", fit)
+    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(prediction, "_predicted_positions", predicted)
+    seq = SequenceInterpolator(keys, tri)
+    with pytest.warns(ShapeDifferenceWarning, match="keeps") as said:
+        poses = seq.poses(0, factors)
+    gap = seq._gap(0)
+    kept = [int(gap.repair.defects(seq._to_working(x), s, None, None, scale=gap.area_scale(s)).sum())
+            for s, x in zip(factors, poses)]
+    half = poses[list(factors).index(0.5)]
+    assert flipped(half, third) and not flipped(half, first) and not flipped(half, second)
+    assert kept[list(factors).index(0.5)] >= _flipped(half, keys[0], keys[1], tri) > 0
+    for w in said:
+        most = max(kept[list(factors).index(f)] for f in w.message.factors)
+        assert w.message.defects == most and f"keeps {most} triangle" in str(w.message)
+
+
+class _ScriptedGap:
+    """A stand-in for a gap whose repairs of an in-between are scripted: ``passes`` (list of
+    positions (n, 3)) are what its successive repairs return, each stored with its count in
+    ``outcomes`` as :meth:`core.inbetween_repair.Repair.checked` does; a triangle is flipped where its
+    row of the positions has a negative first coordinate; ``limits`` the repairs' move limits."""
+
+    def __init__(self, passes, limits):
+        from core.inbetween_repair import Outcome
+
+        self.outcome_of = lambda x: Outcome(int((x[:, 0] < 0).sum()), False)
+        self.passes, self.outcomes = list(passes), {}
+
+        class Repair:
+            def defects(self, x, s, frames, stretch, scale=None):
+                return x[:, 0] < 0
+
+            def move_limits(self, s):
+                return limits
+
+        self.repair = Repair()
+
+    def area_scale(self, s):
+        return None
+
+    def repaired_again(self, x, s, nearby=None, rings=None, defects=None):
+        y = self.passes.pop(0)
+        self.outcomes[s] = self.outcome_of(y)
+        return y, "kept defects" if (y[:, 0] < 0).any() else None
+
+
+def test_a_repair_again_beyond_the_move_limit_from_the_first_pose_is_not_taken_and_its_count_not_kept(monkeypatch):
+    """Three defects, a repair that leaves two (a sum of squared moves of 1), then one that leaves
+    none (2 from where it starts, within the limit of 2.5; 3 from the first pose): the second is not
+    taken, and the gap's outcome at the factor, which the warning counts, is that of the pose
+    returned (two defects), not that of the repair not taken (none). With no passes, the pose as it
+    was and its outcome."""
+    from core import inbetween_prediction as prediction
+
+    first = np.array([[-1.0, 0, 0], [-1.0, 0, 0], [-1.0, 0, 0], [1.0, 0, 0]])
+    fewer = first.copy()
+    fewer[0, 0] = 0.0
+    clean = fewer.copy()
+    clean[1:3, 0] = 0.0
+    for passes, kept in ((prediction.REPAIR_PASSES, fewer), (0, first)):
+        monkeypatch.setattr(prediction, "REPAIR_PASSES", passes)
+        gap = _ScriptedGap([fewer, clean], (2.5, 2.5))
+        gap.outcomes[0.5] = gap.outcome_of(first)  # the first pose's own check
+        x, problem = prediction._repaired_again(gap, 0.5, (first, "kept defects"))
+        assert np.array_equal(x, kept) and problem is not None
+        assert gap.outcomes[0.5] == gap.outcome_of(kept)

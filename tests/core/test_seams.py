@@ -693,6 +693,17 @@ def _seam_warnings(record) -> list:
     return [w.message for w in record if getattr(w.message, "kind", None) == "seam"]
 
 
+def _opened_and_warned(sequence, factors, seam, copies):
+    """For each gap of ``sequence``, its in-betweens at ``factors`` asked together: ``(gap, opened,
+    said)``, ``opened`` (len(factors),) the widest distance between the sides ``seam`` and
+    ``copies`` in each, ``said`` the seam warnings given."""
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as record:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, factors)
+        yield gap, np.linalg.norm(poses[:, seam] - poses[:, copies], axis=2).max(axis=1), _seam_warnings(record)
+
+
 def _near_seam(keys, tri, apart):
     """The waving sheet cut along its middle column (:func:`_cut`), the copies moved ``apart``
     along x in every key: a seam left open by more than the weld joins (or less)."""
@@ -706,12 +717,7 @@ def _gaps_said_to_open(sequence, factors, side, other, visible) -> int:
     in-betweens part them by more than ``visible`` says so, once, with the gap's keys and the
     factors it is about, quoting the widest distance measured on those in-betweens."""
     warned = 0
-    for gap in range(len(sequence)):
-        with warnings.catch_warnings(record=True) as record:
-            warnings.simplefilter("always")
-            poses = sequence.poses(gap, factors)
-        opened = np.linalg.norm(poses[:, side] - poses[:, other], axis=2).max(axis=1)
-        said = _seam_warnings(record)
+    for gap, opened, said in _opened_and_warned(sequence, factors, side, other):
         if opened.max() > visible:  # visibly opened: it must be said
             assert len(said) == 1
         if said:
@@ -765,15 +771,10 @@ def test_a_seam_the_motion_closes_that_the_in_betweens_open_is_warned_in_the_gap
     factors = np.arange(1, 8) / 8
     edge = np.mean(np.linalg.norm(keys[0][tri] - keys[0][np.roll(tri, 1, axis=1)], axis=2))
     warned = 0
-    for gap in range(len(sequence)):
-        with warnings.catch_warnings(record=True) as record:
-            warnings.simplefilter("always")
-            poses = sequence.poses(gap, factors)
-        said = _seam_warnings(record)
+    for gap, opened, said in _opened_and_warned(sequence, factors, seam, copies):
         if gap < 2:  # a key of the gap has the panels apart: nothing to keep closed
             assert not said
             continue
-        opened = np.linalg.norm(poses[:, seam] - poses[:, copies], axis=2).max(axis=1)
         if opened.max() > 1e-4 + 0.02 * edge:
             assert len(said) == 1
         if said:
@@ -955,3 +956,33 @@ def test_the_cuts_of_a_fringe_are_found_with_the_paths_measured_a_few_pairs_at_a
     assert sorted(zip(seams.a.tolist(), seams.b.tolist())) == sorted(zip(left[expected].tolist(), right[expected].tolist()))
     assert len(shapes) > 1
     assert all(rows <= near_seams_module.PATH_PAIRS_AT_ONCE and columns < len(keys[0]) / 2 for rows, columns in shapes)
+
+
+@pytest.mark.parametrize("count", [2, 3, 5, 6])
+def test_near_seams_are_the_pairs_both_keys_of_a_gap_keep_closed(count):
+    """Twenty triangles each with a twin (its copy, a separate piece) 1e-3 of an edge away in some
+    of ``count`` keys and half an edge away in the others, the twins 10 edges apart from each
+    other: the near-seams are exactly the corners of the twins that both keys of some gap keep
+    closed, watched (a finite allowed distance) in exactly those gaps, and marked as kept closed
+    by every key exactly where each key has them closed — the closures drawn at random, among them
+    some in the first gap alone and some in the last alone."""
+    from core.near_seams import near_seams
+
+    rng = np.random.default_rng(count)
+    corner = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    twins = 20
+    closed = rng.random((twins, count)) < 0.5
+    closed[0], closed[1] = np.arange(count) < 2, np.arange(count) >= count - 2  # the first gap alone, the last
+    keys = []
+    for k in range(count):
+        at = np.arange(twins)[:, None, None] * [10.0, 0.0, 0.0] + [0.0, 0.0, k]
+        apart = np.where(closed[:, k], 1e-3, 0.5)[:, None, None] * [0.0, 0.0, 1.0]
+        keys.append(np.concatenate([(at + corner).reshape(-1, 3), (at + corner + apart).reshape(-1, 3)]))
+    triangles = np.arange(6 * twins).reshape(2 * twins, 3)
+    seams = near_seams(keys, mesh_topology(triangles, 6 * twins), 1e-12)
+    shut = closed[:, :-1] & closed[:, 1:]  # (twins, gaps)
+    expected = {(3 * t + c, 3 * twins + 3 * t + c) for t in np.flatnonzero(shut.any(axis=1)) for c in range(3)}
+    assert set(zip(seams.a.tolist(), seams.b.tolist())) == expected
+    twin = seams.a // 3
+    assert np.array_equal(np.isfinite(seams.allowed), shut[twin].T)
+    assert np.array_equal(seams.every, closed[twin].all(axis=1))

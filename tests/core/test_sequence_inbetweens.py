@@ -1275,18 +1275,16 @@ def test_predictions_stretched_past_twice_the_keys_change_are_solved(monkeypatch
             assert deviation > 0.5 * changes * change
 
 
-def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_more(monkeypatch, strip):
-    """Keys of one metric (a strip bending without stretch, the tolerance at its floor), in-betweens
-    8 frames apart: predictions made 1 % longer along the strip (ten tolerances) that keep a
-    defect no repair removed (said by their problem) are solved in their place only where the
-    solve keeps no more defects: a solve with triangles collapsed (two vertices merged) leaves
-    the prediction as it was. (The repairs again of a solve that kept defects are off here: this
-    stand-in's collapse, which no repair of its own went through, is what they remove.)"""
+def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
+    """Keys of one metric (a strip bending without stretch, the tolerance at its floor) and the
+    factors of in-betweens 8 frames apart, with predictions made 1 % longer along the strip (ten
+    tolerances) that keep a defect no repair removed (said by their problem) and solves in their
+    place with triangles collapsed (two vertices merged): ``(sequence, factors, made)``, ``made``
+    filled with the predictions {factor: positions} as they are made."""
     from core import inbetween_prediction
     from core.inbetween_fit import METRIC_TOLERANCE
 
     flat, tri = strip
-    factors = list(np.arange(1, 8) / 8)
     seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
     assert seq._gap(0).tolerance == METRIC_TOLERANCE
     real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction._solved_instead
@@ -1307,6 +1305,18 @@ def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_mor
 
     monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
     monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    return seq, list(np.arange(1, 8) / 8), made
+
+
+def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_more(monkeypatch, strip):
+    """In-betweens 8 frames apart of keys of one metric whose predictions end off it and keep a
+    defect (:func:`_off_metric_predictions_and_collapsed_solves`) are solved in their place only
+    where the solve keeps no more defects: a solve with triangles collapsed leaves the prediction
+    as it was. (The repairs again of a solve that kept defects are off here: this stand-in's
+    collapse, which no repair of its own went through, is what they remove.)"""
+    from core import inbetween_prediction
+
+    seq, factors, made = _off_metric_predictions_and_collapsed_solves(monkeypatch, strip)
     monkeypatch.setattr(inbetween_prediction, "REPAIR_PASSES", 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
@@ -1320,30 +1330,10 @@ def test_an_off_metric_solve_with_defects_is_repaired_again_before_it_is_weighed
     """The setting above with the repairs again on: the solve that replaces an off-metric
     prediction kept defects (two vertices merged), so it is repaired again as any in-between that
     keeps defects is, comes out with none, and is taken in the prediction's place."""
-    from core import inbetween_prediction
     from core.inbetween_fit import METRIC_TOLERANCE
 
-    flat, tri = strip
-    factors = list(np.arange(1, 8) / 8)
-    seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
-    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction._solved_instead
-    made = {}
-
-    def stretched(gap, s, correction, rings=None, allowed=None):
-        x, _ = real_predicted(gap, s, correction, rings, allowed)
-        made[s] = x.copy()
-        made[s][:, 0] = x[0, 0] + (1.0 + 10.0 * METRIC_TOLERANCE) * (x[:, 0] - x[0, 0])
-        return made[s], "kept a defect"
-
-    def collapsed(gap, s):
-        x, _ = real_solve(gap, s)
-        x = x.copy()
-        a, b = tri[len(tri) // 2, :2]
-        x[a] = x[b]
-        return x, "kept defects"
-
-    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
-    monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    flat, _ = strip
+    seq, factors, made = _off_metric_predictions_and_collapsed_solves(monkeypatch, strip)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
         poses = dict(zip(factors, seq.poses(0, factors)))
