@@ -236,7 +236,8 @@ def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     outer = _outer_correction(gap, solved)
     middle = solved_factors[1] if outer is not None else None
     for s in solved_factors:  # those that kept defects their repair did not remove; the middle near the outer two
-        solved[s] = _repaired_again(gap, s, solved[s], outer if s == middle else None)
+        with gap.repair.fields_kept():
+            solved[s] = _repaired_again(gap, s, solved[s], outer if s == middle else None)
     positions = {s: x for s, (x, _) in solved.items()}
     correction = _correction(gap, positions)
     predicted = [s for s in interior if s not in solved]
@@ -496,8 +497,13 @@ def _solved(gap, factors, known: dict) -> list[tuple[np.ndarray, str | None]]:
 
 
 def _per_factor(gap, function, factors) -> list:
-    """``[function(s) for s in factors]``, in threads on meshes of :data:`CONCURRENT_VERTICES` or more."""
-    return concurrently(function, factors, worth_it=gap.topo.n >= CONCURRENT_VERTICES)
+    """``[function(s) for s in factors]``, in threads on meshes of :data:`CONCURRENT_VERTICES` or more;
+    each call's repairs share the blend's and the spline's local geometry at its factor
+    (:meth:`~core.inbetween_repair_rounds.RepairRounds.fields_kept`)."""
+    def kept(s):
+        with gap.repair.fields_kept():
+            return function(s)
+    return concurrently(kept, factors, worth_it=gap.topo.n >= CONCURRENT_VERTICES)
 
 
 def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:

@@ -9,6 +9,8 @@ defect-free kept; the limits on a region's size (:data:`MAX_REPAIR_FRACTION`), o
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import numpy as np
 
 from . import deformation_fields as df
@@ -68,7 +70,7 @@ class RepairRounds:
     and the moves a repair of a sequence's in-between may make; mixed into
     :class:`~core.inbetween_repair.Repair`.
 
-    Of the Repair it is mixed into, it reads its ``_far_move``, ``_keys``, ``_move_limits``, ``gap``
+    Of the Repair it is mixed into, it reads its ``_far_move``, ``_keys``, ``_local``, ``_move_limits``, ``gap``
     and calls its ``defects``."""
 
     def grow(self, triangles: np.ndarray, rings: int) -> np.ndarray:
@@ -99,34 +101,8 @@ class RepairRounds:
         keys' per-vertex spline, each key's own local geometry (nearer key first), and last the
         local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given: see
         :func:`core.inbetween_prediction._repaired_again`)."""
-        gap = self.gap
-        t = gap.topo.triangles
-
         def interpolated(rows):
             return frames[:, rows], stretch[rows]
-
-        m = len(t)
-
-        def mesh_field(positions):  # the local geometry of a mesh: integrable
-            # per triangle, so each triangle's is computed once for the growing regions of the rounds
-            # (and once for the two fields that read the blend's): positions, frames (2, m, 3), stretches, done
-            memo = []
-
-            def field(rows):
-                if not memo:
-                    points = positions() if callable(positions) else positions
-                    memo.extend((points, np.empty((2, m, 3)), np.empty((m, 3)), np.zeros(m, dtype=bool)))
-                points, frames_of, stretches_of, done = memo
-                new = rows[~done[rows]]
-                if new.size:
-                    edges = df.corner_edges(points, t[new]).transpose(2, 1, 0)  # by coordinate
-                    columns, coordinates = df.tangent_frame_rows(edges)
-                    turn, mesh_stretch = df.planar_polar(*df.planar_map_entries(coordinates, gap.base.inverse_rows[:, new]))
-                    frames_of[:, new] = df.plane_turned_frames(columns, turn)[:2].transpose(0, 2, 1)  # t1, t2: all a fit reads
-                    stretches_of[new] = mesh_stretch
-                    done[new] = True
-                return frames_of[:, rows], stretches_of[rows]
-            return field
 
         def key_field(index):  # the key's geometry made when a round first imposes it
             def field(rows):
@@ -135,10 +111,66 @@ class RepairRounds:
             return field
 
         keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
-        blend_field = mesh_field(blend)
+        blend_field, spline_field = self.factor_fields(s, blend)
         fields = [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
-                  (mesh_field(lambda: gap.splines["world"].at(s)), False)] + [(key_field(k), True) for k in keys]
-        return fields if nearby is None else fields + [(mesh_field(nearby), True)]
+                  (spline_field, False)] + [(key_field(k), True) for k in keys]
+        return fields if nearby is None else fields + [(self.mesh_field(nearby), True)]
+
+    def mesh_field(self, positions):
+        """The local geometry of a mesh with vertices ``positions`` ((n, 3), or a function of no
+        arguments returning them, called when first needed; integrable): a function of triangle
+        indices ``rows`` (r,) returning (frames (2, r, 3): the images of t1, t2, all a fit reads;
+        packed stretches (r, 3)). Each triangle's is computed once, when first asked, so the growing
+        regions of the rounds (and the two fields that read the blend's) share it."""
+        gap = self.gap
+        t = gap.topo.triangles
+        m = len(t)
+        memo = []  # positions, frames (2, m, 3), stretches (m, 3), which triangles are done
+
+        def field(rows):
+            if not memo:
+                points = positions() if callable(positions) else positions
+                memo.extend((points, np.empty((2, m, 3)), np.empty((m, 3)), np.zeros(m, dtype=bool)))
+            points, frames_of, stretches_of, done = memo
+            new = rows[~done[rows]]
+            if new.size:
+                edges = df.corner_edges(points, t[new]).transpose(2, 1, 0)  # by coordinate
+                columns, coordinates = df.tangent_frame_rows(edges)
+                turn, mesh_stretch = df.planar_polar(*df.planar_map_entries(coordinates, gap.base.inverse_rows[:, new]))
+                frames_of[:, new] = df.plane_turned_frames(columns, turn)[:2].transpose(0, 2, 1)
+                stretches_of[new] = mesh_stretch
+                done[new] = True
+            return frames_of[:, rows], stretches_of[rows]
+        return field
+
+    def factor_fields(self, s: float, blend: np.ndarray) -> tuple:
+        """The :meth:`mesh_field` of the linear ``blend`` (n, 3) at factor ``s`` and that of the keys'
+        per-vertex spline there: inside :meth:`fields_kept`, those this thread already made for ``s``
+        (every repair of one in-between imposes them on overlapping regions: a prediction's repair,
+        the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction._repaired_again`),
+        else new ones."""
+        kept = getattr(self._local, "fields", None)
+        if kept is not None and s in kept:
+            return kept[s]
+        spline = self.gap.splines["world"]
+        made = self.mesh_field(blend), self.mesh_field(lambda: spline.at(s))
+        if kept is not None:
+            kept[s] = made
+        return made
+
+    @contextmanager
+    def fields_kept(self):
+        """A scope (one thread's work on one in-between) in which :meth:`factor_fields` keeps the
+        fields it makes, let go at its end (at 100k vertices the two fields of one factor hold
+        ~35 MB)."""
+        outer = getattr(self._local, "fields", None)  # a scope inside another keeps the outer's
+        if outer is None:
+            self._local.fields = {}
+        try:
+            yield
+        finally:
+            if outer is None:
+                del self._local.fields
 
     def key_geometry(self, index: int) -> tuple[np.ndarray, np.ndarray]:
         """The rotations (frames (2, m, 3): the images of t1, t2) and stretches (m, 3) of the gap's key ``index`` (1:

@@ -826,3 +826,61 @@ def test_a_repair_again_beyond_the_move_limit_from_the_first_pose_is_not_taken_a
         x, problem = prediction._repaired_again(gap, 0.5, (first, "kept defects"))
         assert np.array_equal(x, kept) and problem is not None
         assert gap.outcomes[0.5] == gap.outcome_of(kept)
+
+
+def test_the_repairs_of_one_in_between_share_the_blend_and_spline_geometry(monkeypatch, strip):
+    """The repairs of one in-between (a prediction's, the solve from it, the repairs again: one
+    scope, ``Repair.fields_kept``) compute each triangle's local geometry of the linear
+    blend and of the keys' spline at its factor once: a second repair at the factor computes none,
+    and each returns what it returns alone, bit for bit. Out of the scope nothing is kept."""
+    import core.deformation_fields as df
+
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s = 0.5
+    rng = np.random.default_rng(0)
+    crumpled = [gap.linear_blend(s) + rng.normal(scale=0.05, size=flat.shape) for _ in range(2)]
+    computed = []  # triangles whose mesh-field geometry each call computed
+    real = df.corner_edges
+    monkeypatch.setattr(df, "corner_edges", lambda points, triangles: computed.append(len(triangles))
+                        or real(points, triangles))
+
+    def repaired(x):
+        computed.clear()
+        out = gap.repaired(x.copy(), s)  # a pose that keeps its defects comes back as it is, its still vertices set
+        return out, sum(computed)
+
+    alone = [repaired(x) for x in crumpled]
+    assert all(count > 0 for _, count in alone)  # the rounds reach the mesh fields
+    with gap.repair.fields_kept():
+        first, first_count = repaired(crumpled[0])
+        again, again_count = repaired(crumpled[0])
+        other, _ = repaired(crumpled[1])
+    assert first_count > 0 and again_count == 0
+    for (x, message), (y, said) in zip((first, again, other), (alone[0][0], alone[0][0], alone[1][0])):
+        np.testing.assert_array_equal(x, y)
+        assert message == said
+    assert repaired(crumpled[0])[1] > 0  # let go at the scope's end
+
+
+def test_a_predictions_repairs_compute_the_blends_geometry_once(monkeypatch, strip):
+    """A predicted in-between no repair cleans is repaired, solved from its repair and that solve
+    repaired, at one factor: each triangle's local geometry of the linear blend (and of the
+    keys' spline) there is computed once for all of them (``_per_factor`` holds each factor's work
+    in ``Repair.fields_kept``), and the in-betweens are what each repair alone gives, bit for bit."""
+    import core.deformation_fields as df
+
+    keys, tri, factors, _, _ = _predictions_flagged(monkeypatch, strip)
+    alone = SequenceInterpolator(keys, tri).poses(0, factors)
+    computed: dict = {}  # the positions' bytes: the triangles whose geometry was computed there
+    real = df.corner_edges
+
+    def corner_edges(points, triangles):
+        computed.setdefault(points.tobytes(), []).extend(map(tuple, triangles))
+        return real(points, triangles)
+
+    monkeypatch.setattr(df, "corner_edges", corner_edges)
+    np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), alone)
+    blends = [computed.get(((1.0 - s) * keys[0] + s * keys[1]).tobytes()) for s in factors if s not in (0.25, 0.75)]
+    assert all(blends)  # every prediction's repairs imposed the blend's geometry
+    assert all(len(rows) == len(set(rows)) for rows in computed.values())
