@@ -13,6 +13,7 @@ from . import deformation_fields as df, screw_motions
 from .inbetween_rigid_fits import turn_spread
 from .inbetween_motion import RIGID_PLACEMENT_SCALE
 from .splines import REST_START_LIMIT
+from .spread_groups import spread_groups
 
 if TYPE_CHECKING:
     from .inbetween_topology import _Topology
@@ -157,18 +158,10 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     # pieces whose motions are within 1e-6 of each other, linked: rounding them to 6 decimals split
     # equal motions of float32 keys across a rounding boundary (a character's hat, spun rigidly with
     # it, was turned about another point: 1.5–1.9e-2 off at the middle of one gap)
-    from scipy.spatial import cKDTree
-
-    from .seams import vertex_groups
-
     # ... and within what the fits are known to: float32 keys of 300 cards, 10 units out and keyed
     # every half turn, differ by ~1e-5, and each card alone turned about its centroid, off its circle
     spread = np.maximum(turn_spread(nonrigidity[candidates]), 0.5e-6)
-    pairs = cKDTree(motions).query_pairs(2.0 * float(spread.max()), output_type="ndarray")
-    if len(pairs):
-        pairs = pairs[np.linalg.norm(motions[pairs[:, 0]] - motions[pairs[:, 1]], axis=1)
-                      <= spread[pairs[:, 0]] + spread[pairs[:, 1]]]
-    group = vertex_groups(pairs[:, 0], pairs[:, 1], len(candidates))
+    group = spread_groups(motions, spread)  # thousands of pieces moving as one: not every pair listed
     count = int(group.max()) + 1
     mass = topo.component_mass[candidates]
     first = candidates[np.unique(group, return_index=True)[1]]  # a member's motion stands for its group's

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 
 import numpy as np
-import scipy.sparse as sp
 
 from .errors import MeshError, warn
 
@@ -319,17 +318,15 @@ def coincident_vertices(rest, used) -> np.ndarray | None:
     """For every target vertex ``(n_N,)`` the vertex it is welded to: the lowest-numbered of the
     ``used`` vertices within :data:`WELD_DISTANCE` × the bounding-box diagonal of it at ``rest``
     ``(n_N, 3)`` (itself where none is); ``None`` when no two used vertices coincide."""
-    from scipy.sparse.csgraph import connected_components
-    from scipy.spatial import cKDTree
+    from .spread_groups import spread_groups
 
     points = rest[used]
     scale = np.linalg.norm(np.ptp(points, axis=0))
-    pairs = cKDTree(points).query_pairs(WELD_DISTANCE * scale, output_type="ndarray")
-    if not len(pairs):
-        return None
     n = used.size
-    _, labels = connected_components(sp.csr_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)),
-                                     directed=False)
+    # vertices within the weld distance linked, without listing every pair (thousands at one place)
+    labels = spread_groups(points, np.full(n, 0.5 * WELD_DISTANCE * scale))
+    if not n or labels.max() + 1 == n:
+        return None
     first = np.full(labels.max() + 1, n, dtype=np.int64)
     np.minimum.at(first, labels, np.arange(n))
     welded = np.arange(rest.shape[0])

@@ -1343,3 +1343,25 @@ def test_an_off_metric_solve_with_defects_is_repaired_again_before_it_is_weighed
         assert not gap.repair.defects(seq._to_working(poses[s]), s, None, None, scale=gap.area_scale(s)).any()
         # not the prediction (1 % longer): the solve, repaired
         assert np.abs((poses[s] - x) - (poses[s][0] - x[0])).max() > METRIC_TOLERANCE * np.ptp(flat[:, 0])
+
+
+def test_thousands_of_pieces_moving_as_one_are_in_betweened_as_one():
+    """6,000 separate triangles (a shattered plate, keyed before it breaks) thrown spinning as one
+    over three keys: every in-between is one rigid motion of the first key, to round-off of
+    its rigid fit (1e-6 of its 100-unit size), their group found without listing the 18 M pairs of
+    pieces (core.spread_groups)."""
+    rng = np.random.default_rng(0)
+    m = 6000
+    corners = np.repeat(np.c_[rng.uniform(0.0, 100.0, (m, 2)), np.zeros(m)], 3, axis=0)
+    flat = corners + np.tile([[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0]], (m, 1))
+    triangles = np.arange(3 * m).reshape(m, 3)
+    centre = np.array([50.0, 50.0, 0.0])  # spun about its centre as the centre flies on: no hinge
+    turns = Rotation.from_rotvec(np.outer(np.arange(3), [0.0, 0.1, 0.3]))
+    keys = [turns[k].apply(flat - centre) + centre + [20.0 * k, 5.0 * k, 10.0 * k] for k in range(3)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        seq = SequenceInterpolator(keys, triangles)
+        poses = [p for gap in range(2) for p in seq.poses(gap, [0.25, 0.5, 0.75])]
+    for x in poses:
+        rotation, _ = Rotation.align_vectors(x - x.mean(axis=0), flat - flat.mean(axis=0))
+        assert np.abs(rotation.apply(flat - flat.mean(axis=0)) - (x - x.mean(axis=0))).max() < 1e-6

@@ -780,3 +780,32 @@ def test_a_transfer_moves_under_rounding_no_more_than_its_recovery_tolerance():
     diagonal = np.linalg.norm(np.ptp(reference, axis=0))
     for changed in (rebuilt(1.0, 1e-9), rebuilt(1e3, 0.0), rebuilt(1e-3, 0.0)):
         assert np.abs(changed - reference).max() <= core.transfer.RECOVERY_TOLERANCE * diagonal
+
+
+def test_coincident_target_vertices_weld_to_the_lowest_of_their_cluster():
+    """Target vertices within the weld distance of each other, chains of them included, are welded
+    to the lowest-numbered one, as the components of the full distance matrix say; 3,000 of them at
+    one place (a part collapsed to a point) make one cluster, not 4.5 M pairs."""
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial.distance import cdist
+
+    from core.transfer_checks import WELD_DISTANCE, coincident_vertices
+
+    rng = np.random.default_rng(3)
+    rest = rng.uniform(0.0, 1.0, (6000, 3))
+    rest[::2] = rest[1] + 1e-12 * rng.standard_normal((3000, 3))  # every other vertex at one place
+    chain = np.array([5991, 5993, 5995, 5997])
+    rest[chain] = rest[5991] + np.outer(np.arange(4), [0.9, 0.0, 0.0]) * WELD_DISTANCE * np.sqrt(3.0)
+    used = np.arange(1, 6000)
+    points = rest[used]
+    reach = WELD_DISTANCE * np.linalg.norm(np.ptp(points, axis=0))
+    labels = connected_components(cdist(points, points) <= reach, directed=False)[1]
+    lowest = np.full(labels.max() + 1, len(used))
+    np.minimum.at(lowest, labels, np.arange(len(used)))
+    expected = np.arange(len(rest))
+    expected[used] = used[lowest[labels]]
+    welded = coincident_vertices(rest, used)
+    np.testing.assert_array_equal(welded, expected)
+    assert np.all(welded[chain] == 5991)  # a chain 0.9 of the weld distance a step, 2.7 end to end
+    assert np.all(welded[2::2] == 1)
+    assert coincident_vertices(rng.uniform(0.0, 1.0, (50, 3)), np.arange(50)) is None
