@@ -144,24 +144,45 @@ def coincidence_tolerance(first: np.ndarray, edges: np.ndarray, scale: float | N
     return float(tolerance)
 
 
+def near_another_part(points: np.ndarray, part: np.ndarray, tolerance: float) -> np.ndarray:
+    """Whether each of ``points`` (k, 3) lies within ``tolerance`` of a point of another ``part``
+    (int (k,)): bool (k,). Points at one exact place are taken together first and pairs listed
+    between places, so thousands of copies of one point (a part scaled to zero, a collapsed scan
+    region) cost one place rather than every pair among them."""
+    from scipy.spatial import cKDTree
+
+    places, at = np.unique(points, axis=0, return_inverse=True)
+    at = at.ravel()
+    # the smallest and largest part at each place: equal where one part alone sits there
+    low = np.full(len(places), np.iinfo(np.int64).max, dtype=np.int64)
+    high = np.full(len(places), np.iinfo(np.int64).min, dtype=np.int64)
+    np.minimum.at(low, at, part)
+    np.maximum.at(high, at, part)
+    mixed = low != high
+    near = mixed.copy()  # a place of two parts: each of its points has one of another part there
+    pairs = cKDTree(places).query_pairs(tolerance, output_type="ndarray").reshape(-1, 2)
+    for a, b in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
+        # another part sits at b when b holds two parts or its one part is not a's
+        near[a[mixed[b] | (low[b] != low[a])]] = True
+    return near[at]
+
+
 def weld_advice(positions: np.ndarray, topology) -> str:
     """A sentence (str, with a leading space) telling the user to weld where vertices of different
     connected parts of ``topology`` (a :class:`core.mesh_topology.MeshTopology`) sit at one place
     in ``positions`` (n, 3) (:func:`coincidence_tolerance`): the faces were split apart where they
     meet (a triangle soup, as some exporters write every face on its own), which makes one
     surface many parts, and Merge by Distance is the fix. Empty where no two parts touch so."""
-    from scipy.spatial import cKDTree
 
     used = topology.used_vertices
     if used.size < 2:
         return ""
     piece = vertex_labels(topology.triangles, topology.components()[1], topology.n_vertices)
-    pairs = used[cKDTree(positions[used]).query_pairs(coincidence_tolerance(positions, topology.edges),
-                                                      output_type="ndarray")].reshape(-1, 2)
-    apart = pairs[piece[pairs[:, 0]] != piece[pairs[:, 1]]]
-    if not len(apart):
+    touching = int(np.count_nonzero(near_another_part(positions[used], piece[used],
+                                                      coincidence_tolerance(positions, topology.edges))))
+    if not touching:
         return ""
-    return (f" {np.unique(apart).size} of its {used.size} vertices sit at the place of a vertex of another "
+    return (f" {touching} of its {used.size} vertices sit at the place of a vertex of another "
             "part: its faces are split apart where they meet (as some exporters write them). Weld them: in "
             "Blender, Edit Mode, select all and use Mesh > Clean Up > Merge by Distance.")
 
@@ -238,22 +259,27 @@ def _seam_pairs(poses: list[np.ndarray], topology, tolerance: float,
     none = np.zeros(0, dtype=np.int64)
     edges = topology.edges[topology.boundary_edges]
     boundary = np.unique(edges)
+    if apart is not None:
+        boundary = np.setdiff1d(boundary, apart)
     if boundary.size < 2:
         return none, none
-    first = poses[0]
-    pairs = cKDTree(first[boundary]).query_pairs(tolerance, output_type="ndarray")
-    if not len(pairs):
+    # vertices at one place in every pose are joined whatever the tolerance: each place is stood for
+    # by its first vertex and pairs are listed between places, so thousands of copies of one point
+    # (the centre of a fan exported face by face) cost one place rather than every pair among them
+    _, first_at, place = np.unique(np.concatenate([pose[boundary] for pose in poses], axis=1), axis=0,
+                                   return_index=True, return_inverse=True)
+    places = boundary[first_at]
+    pairs = cKDTree(poses[0][places]).query_pairs(tolerance, output_type="ndarray")
+    if not len(pairs) and len(places) == len(boundary):
         return none, none
-    a, b = boundary[pairs[:, 0]], boundary[pairs[:, 1]]
+    a, b = places[pairs[:, 0]], places[pairs[:, 1]]
     together = np.ones(len(a), dtype=bool)
     for pose in poses[1:]:
         together &= np.linalg.norm(pose[a] - pose[b], axis=1) <= tolerance
-    if apart is not None:
-        together &= ~(np.isin(a, apart) | np.isin(b, apart))
-    if not together.any():
+    if not together.any() and len(places) == len(boundary):
         return none, none
     n = topology.n_vertices
-    a, b = a[together], b[together]
+    a, b = np.r_[a[together], boundary], np.r_[b[together], places[place.ravel()]]
     labels = vertex_groups(a, b, n)
     # only seams: boundary edges that coincide with exactly one other (pieces touching at a point
     # stay apart, three panels on one edge too: joined there the mesh would not be a manifold)

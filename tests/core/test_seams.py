@@ -986,3 +986,115 @@ def test_near_seams_are_the_pairs_both_keys_of_a_gap_keep_closed(count):
     twin = seams.a // 3
     assert np.array_equal(np.isfinite(seams.allowed), shut[twin].T)
     assert np.array_equal(seams.every, closed[twin].all(axis=1))
+
+
+def _brute_near_another_part(points, part, tolerance):
+    """Every pair's distance (the full matrix): whether each point has one of another part within."""
+    from scipy.spatial.distance import cdist
+
+    return ((cdist(points, points) <= tolerance) & (part[:, None] != part[None, :])).any(axis=1)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_near_another_part_agrees_with_the_full_distance_matrix(seed):
+    from core.seams import near_another_part
+
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(0.0, 1.0, (40, 3))
+    # clusters of exact copies (one part or several), clusters spread across the tolerance, loners
+    points = np.r_[np.repeat(centres[:20], rng.integers(1, 30, 20), axis=0),
+                   np.repeat(centres[20:], 8, axis=0) + rng.normal(0.0, 2e-3, (160, 3)),
+                   rng.uniform(0.0, 1.0, (200, 3))]
+    part = rng.integers(0, 1 + seed, len(points))
+    part[: len(points) // 3] = 7  # many points of one part, so single-part places occur
+    order = rng.permutation(len(points))
+    points, part = points[order], part[order]
+    for tolerance in (0.0, 1e-3, 4e-3, 0.05):
+        assert np.array_equal(near_another_part(points, part, tolerance),
+                              _brute_near_another_part(points, part, tolerance))
+
+
+def test_weld_advice_counts_the_vertices_of_a_part_collapsed_to_one_point():
+    """A triangle soup (every face its own part) with 10,000 faces scaled to one point: listing the
+    pairs of their 30,000 vertices would take 450 M pairs; each of them sits on a vertex of another
+    face, as every copy of the soup grid's vertices does but the two corners one face alone holds."""
+    from core.seams import weld_advice
+
+    m = 10
+    index = np.arange((m + 1) ** 2).reshape(m + 1, m + 1)
+    quads = np.stack([index[:-1, :-1], index[1:, :-1], index[1:, 1:], index[:-1, 1:]], -1).reshape(-1, 4)
+    shared = np.r_[quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]
+    plane = np.stack(np.meshgrid(np.arange(m + 1.0), np.arange(m + 1.0)), -1).reshape(-1, 2)
+    collapsed = 10_000
+    positions = np.r_[np.c_[plane, np.zeros(len(plane))][shared.ravel()], np.full((3 * collapsed, 3), 3.5)]
+    triangles = np.arange(len(positions)).reshape(-1, 3)
+    advice = weld_advice(positions, mesh_topology(triangles, len(positions)))
+    assert f" {6 * m * m - 2 + 3 * collapsed} of its {len(positions)} vertices sit at the place" in advice
+
+
+def _fan_soup(n, lift=0.0, turn=0.0):
+    """A disc filled as a fan of ``n`` triangles written face by face (every face its own part): ``n``
+    copies of its centre at one place; the rim raised by ``lift`` (a cone) and turned by ``turn``."""
+    angle = np.linspace(0.0, 2.0 * np.pi, n, endpoint=False) + turn
+    disc = np.r_[np.zeros((1, 3)), np.c_[np.cos(angle), np.sin(angle), np.full(n, lift)]]
+    fan = np.c_[np.zeros(n, dtype=int), 1 + np.arange(n), 1 + (np.arange(n) + 1) % n]
+    return disc[fan.ravel()], np.arange(3 * n).reshape(-1, 3)
+
+
+def _seam_pairs_of_every_pair(poses, topology, tolerance, apart):
+    """The seam pairs from the full distance matrix of the boundary vertices in every pose."""
+    from scipy.spatial.distance import cdist
+
+    from core.seams import vertex_groups
+
+    edges = topology.edges[topology.boundary_edges]
+    boundary = np.unique(edges)
+    near = np.all([cdist(pose[boundary], pose[boundary]) <= tolerance for pose in poses], axis=0)
+    near[np.isin(boundary, apart)] = False
+    near[:, np.isin(boundary, apart)] = False
+    a, b = np.nonzero(np.triu(near, 1))
+    labels = vertex_groups(boundary[a], boundary[b], topology.n_vertices)
+    ends = np.sort(labels[edges], axis=1)
+    _, group, count = np.unique(ends, axis=0, return_inverse=True, return_counts=True)
+    group = group.ravel()
+    seams = np.flatnonzero((count[group] == 2) & (ends[:, 0] != ends[:, 1]))
+    return {frozenset(map(int, ends[s])) for s in seams}, labels
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_seam_pairs_agree_with_the_full_distance_matrix(seed):
+    """Copies at one place in every pose (a fan's centre), copies that part in a later pose (a rim
+    vertex pulled off), some vertices kept apart: the same seams and the same vertex groups as every
+    pair's distances give."""
+    from core.seams import _seam_pairs, coincidence_tolerance
+
+    rng = np.random.default_rng(seed)
+    first, triangles = _fan_soup(24)
+    second, _ = _fan_soup(24, lift=0.3, turn=0.2)
+    second = second.copy()
+    torn = rng.choice(len(second), 6, replace=False)
+    second[torn] += rng.normal(0.0, 0.1, (6, 3))  # copies that part after the first pose
+    topology = mesh_topology(triangles, len(first))
+    tolerance = coincidence_tolerance(first, topology.edges)
+    apart = rng.choice(len(first), 4, replace=False)
+    for poses in ([first], [first, second]):
+        for kept_apart in (None, apart):
+            a, b = _seam_pairs(poses, topology, tolerance, apart=kept_apart)
+            expected, labels = _seam_pairs_of_every_pair(poses, topology, tolerance,
+                                                         np.zeros(0, int) if kept_apart is None else kept_apart)
+            assert len(a) == 2 * len(expected)
+            # the ends of each seam edge pair land in one group of every pair's distances
+            assert np.array_equal(labels[a], labels[b])
+            assert {frozenset(map(int, labels[e])) for e in a.reshape(-1, 2)} == expected
+
+
+def test_a_fan_of_thousands_of_faces_written_face_by_face_welds_into_one_disc():
+    """30,000 copies of a fan's centre at one place in every key: listing every pair of them would take
+    450 M pairs; the weld makes the soup the disc, its centre one vertex."""
+    first, triangles = _fan_soup(30_000)
+    second, _ = _fan_soup(30_000, lift=0.3, turn=0.2)
+    topology = mesh_topology(triangles, len(first))
+    weld = seam_weld([first, second], topology)
+    assert len(weld.kept) == 30_001 and len(weld.triangles) == 30_000
+    assert np.all(weld.copies[np.arange(0, 3 * 30_000, 3)] == weld.copies[0])
+    assert weld.topology.boundary_edges.size == 30_000  # the rim only
