@@ -6,7 +6,13 @@ so that the Blender operators can show the message to the user unchanged.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import sys
 import warnings
+
+#: The core package's folder (with a trailing separator): frames of files under it are the library's.
+_CORE = os.path.dirname(os.path.abspath(__file__)) + os.sep
 
 
 class ShapeDifferenceError(Exception):
@@ -85,11 +91,29 @@ def shape_warning(message: str, kind: str) -> ShapeDifferenceWarning:
 
 def warn(message: str | ShapeDifferenceWarning, kind: str | None = None, stacklevel: int = 1) -> None:
     """Issue :func:`shape_warning` ``(message, kind)``, or the warning ``message`` made by it (its
-    other attributes set), as ``warnings.warn(…, stacklevel=stacklevel)`` would from the caller:
-    the one place the core warns, so that every warning has a kind."""
+    other attributes set), as ``warnings.warn(…, stacklevel=stacklevel)`` would from the caller,
+    and further up past the core's own frames: the one place the core warns, so that every warning
+    has a kind and points at the line of the code that called the core (a script's, an
+    operator's), where ``warnings.filterwarnings(…, module=…)`` and the printed location find it
+    whatever the core's calls in between."""
     warning = shape_warning(message, kind) if isinstance(message, str) else message
     _check_kind(warning)
-    warnings.warn(warning, stacklevel=stacklevel + 1)
+    warnings.warn(warning, stacklevel=_outside_core(stacklevel) + 1)
+
+
+def _outside_core(stacklevel: int) -> int:
+    """The ``stacklevel`` (1: the caller of :func:`warn`) of the frame that called the core's
+    outermost frame on the stack, or ``stacklevel`` where that is further up. A ``contextlib``
+    wrapper that calls a frame of the core (an entry point decorated with
+    :func:`core.concurrency.single_threaded_blas`) is the core's. In a pool thread the core's
+    outermost frame is the pool's work: the in-betweens issue their warnings in the caller's thread."""
+    frame, level, outermost = sys._getframe(2), 1, 0  # warn's caller
+    while frame is not None:
+        name = frame.f_code.co_filename
+        if name.startswith(_CORE) or (name == contextlib.__file__ and outermost == level - 1):
+            outermost = level
+        frame, level = frame.f_back, level + 1
+    return max(stacklevel, outermost + 1)
 
 
 def _check_kind(warning: ShapeDifferenceWarning) -> None:

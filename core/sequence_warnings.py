@@ -40,8 +40,9 @@ def said_warning(message: str, kind: str, defects: int = 0, gap: tuple[str, str]
 
 
 def _warn(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
-    """Warn with :func:`said_warning` (same arguments)."""
-    warn(said_warning(message, kind, defects, gap, factors), stacklevel=3)
+    """Warn with :func:`said_warning` (same arguments), at the caller's line outside the core
+    (:func:`core.errors.warn`)."""
+    warn(said_warning(message, kind, defects, gap, factors))
 
 
 #: How an in-between's own problem is placed in its gap's message (after "between A and B, "): one
