@@ -106,7 +106,7 @@ def shape_differences(
 
         rest = target_vertices if target_rest_vertices is None else target_rest_vertices
         transfer = Transfer(base_vertices, triangles, rest, target_triangles, correspondence=correspondence,
-                            k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic, stacklevel=2)
+                            k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic)
         return transfer.differences(target_vertices)
     base, topology = check_mesh(base_vertices, triangles, name="base_vertices")
     target = check_pose(target_vertices, topology, name="target_vertices")

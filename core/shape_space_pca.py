@@ -165,10 +165,9 @@ def pose_differences(layer, positions: np.ndarray, k_M: int, k_N: int | None):
 
 
 def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offset: float | None = None,
-                      single_precision: bool | None = None, key_names=None, stacklevel: int = 1):
+                      single_precision: bool | None = None, key_names=None):
     """:func:`shape_space` as a generator yielding progress in ``[0, 1]`` after each pose; its
-    return value (``StopIteration.value``, or ``yield from``) is the :class:`ShapeSpace`.
-    ``stacklevel``: the frame its warnings point at, 1 for the code that advances the generator."""
+    return value (``StopIteration.value``, or ``yield from``) is the :class:`ShapeSpace`."""
     from .laplace_basis import basis_sizes
     from .reference_shape import ReferenceShape
 
@@ -202,7 +201,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     # equal eigenvalues, they hold an arbitrary part of it and the poses' distances depend on
     # rounding. k_N needs no check: the pose's basis is cut at a spectral gap (SPECTRAL_GAP), and
     # eq. (6) is unchanged by any turn of a basis within its whole groups.
-    reference.warn_split(k_M, stacklevel=stacklevel + 1)
+    reference.warn_split(k_M)
     features = {kind: np.empty((len(poses), k_M * k_M)) for kind in KINDS}
     compacts = []
     for index, pose in enumerate(poses):
@@ -229,7 +228,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
     if not any(space.explained_variance_ratio(kind).any() for kind in KINDS):
         warn(f"The {len(poses)} poses have the same shape differences (they differ by round-off "
                       "only): the shape space has no spread, every pose is at its origin.",
-                      "same_poses", stacklevel=stacklevel + 1)
+                      "same_poses")
     return space
 
 
@@ -250,7 +249,7 @@ def shape_space(poses, triangles, *, k_M: int = 50, k_N: int | None = 100, offse
     is given) or basis sizes the mesh cannot have.
     """
     steps = shape_space_steps(poses, triangles, k_M=k_M, k_N=k_N, offset=offset, single_precision=single_precision,
-                              key_names=key_names, stacklevel=2)
+                              key_names=key_names)
     while True:
         try:
             next(steps)

@@ -141,8 +141,7 @@ class Transfer:
     :data:`~core.transfer_layers.SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
     embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
     ``size``: the target's size relative to the base through the map (:func:`target_size`);
-    :meth:`pose` rebuilds at the base's size and scales back by it. ``stacklevel``: the frame the
-    construction's warnings point at, 1 for the caller.
+    :meth:`pose` rebuilds at the base's size and scales back by it.
 
     ``use_extrinsic=False`` (the default here, unlike the same-mesh pipeline): only the intrinsic
     pair is transferred, and the pose is the base mesh fitted to the recovered edge lengths from
@@ -160,7 +159,7 @@ class Transfer:
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
                  k_M: int | None = 100, k_N: int | None = 200, offset: float | None = None,
                  use_extrinsic: bool = False, reference=None, refine_map: bool = True,
-                 correct_discretization: bool = True, warm_start: bool = True, stacklevel: int = 1):
+                 correct_discretization: bool = True, warm_start: bool = True):
         from .reference_shape import ReferenceShape
 
         k_M, k_N = basis_sizes(k_M, k_N)
@@ -232,7 +231,6 @@ class Transfer:
                 f"which is in no triangle of the target ({loose.size} such base vertices); these base "
                 "vertices are treated as unmatched.",
                 "correspondence",
-                stacklevel=stacklevel + 1,
             )
             matched[loose] = False
         partial = not matched.all()
@@ -304,7 +302,7 @@ class Transfer:
         # checked: a target basis ended inside a group (of the symmetric rest carried onto the target)
         # moved the pose no more than the recovery's tolerance does at a size that ends a group
         # (1.3e-5–1.7e-4 of the diagonal at k_N 14 and 18 against 1e-5–8e-5 at 16, 21 and 25).
-        reference.warn_split(self.k_M, stacklevel=stacklevel + 1)
+        reference.warn_split(self.k_M)
         self.warm_start = bool(warm_start)
         self._warm_recovery = [{}, {}]  # per layer: the last pose's areas and ADMM state
         self._last_embedding = None  # the last pose's EmbeddingResult
