@@ -163,20 +163,18 @@ def split_warning(label: str, k: int, groups_at, smallest: int, limit: int) -> s
     return split_advice(label, k, splits, sizes)
 
 
-def warn_eigenvalue_split(label: str, k: int, named_eigenvalues, smallest: int, limit: int, *,
-                          stacklevel: int = 1) -> None:
+def warn_eigenvalue_split(label: str, k: int, named_eigenvalues, smallest: int, limit: int) -> None:
     """A ``truncated`` :class:`~core.errors.ShapeDifferenceWarning` (:func:`split_warning`) where a
     basis size ``label = k`` splits a group of equal eigenvalues of a mesh ``what`` of
     ``named_eigenvalues`` ``[(what, eigenvalues float64 (p,) ascending, p > k), …]`` (computed
-    past ``k``, as :func:`checked_laplace_basis` does); ``stacklevel``: the warning's frame, 1 for
-    the caller."""
+    past ``k``, as :func:`checked_laplace_basis` does)."""
     from .errors import warn
 
     message = split_warning(label, k, lambda size: [(what, group) for what, values in named_eigenvalues
                                                     if (group := split_group(values, size)) is not None],
                             smallest, limit)
     if message is not None:
-        warn(message, "truncated", stacklevel=stacklevel + 1)
+        warn(message, "truncated")
 
 
 def laplace_basis(mass: sp.spmatrix, conformal: sp.spmatrix, k: int, *, what: str = "mesh") -> LaplaceBasis:

@@ -233,15 +233,14 @@ class PulledBackMetric:
         cached = self._bases[min(larger)]
         return cached if cached.size == k else LaplaceBasis(cached.eigenvalues[:k], cached.functions[:, :k])
 
-    def _warn_split(self, k: int, stacklevel: int) -> None:
+    def _warn_split(self, k: int) -> None:
         """A ``truncated`` warning where the first ``k`` eigenpairs end inside a group of equal
         eigenvalues (a symmetric metric): a sum over them that weighs a group's functions alike
         (the WKS) holds an arbitrary part of it."""
         n = self.reference.topology.n_vertices
         cached_split_group(self._bases, k, n, lambda size: checked_laplace_basis(
             self.mass_matrix(), self.laplacian(), size, what="pulled-back metric"))  # past k, to the group's end
-        warn_eigenvalue_split("k", k, [("pulled-back metric", self._bases[max(self._bases)].eigenvalues)], 2, n,
-                              stacklevel=stacklevel + 1)
+        warn_eigenvalue_split("k", k, [("pulled-back metric", self._bases[max(self._bases)].eigenvalues)], 2, n)
 
     def laplacian_eigenvalues(self, k: int) -> np.ndarray:
         """The ``k`` smallest eigenvalues ``(k,)`` of ``C(ℓ²; µ) φ = λ A(µ) φ`` (ascending)."""
@@ -268,7 +267,7 @@ class PulledBackMetric:
         compare several metrics at the same energies, see :meth:`wks_energies`)."""
         k = min(k, self.reference.topology.n_vertices - 1)
         basis = self.laplace_basis(k)
-        self._warn_split(k, stacklevel=2)
+        self._warn_split(k)
         return self._expand(wave_kernel_signature(basis, energies, variance=variance), 0.0)
 
     def wks_energies(self, count: int = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:

@@ -113,11 +113,10 @@ class SurfaceLayer:
         return self._groups[k]
 
     def differences(self, target_positions: np.ndarray, k_M: int | None, k_N: int | None, *,
-                    smallest: int = 2, stacklevel: int = 1):
+                    smallest: int = 2):
         """Area and conformal differences from this layer's reference to a target pose of it. Warns
         where ``k_M`` or ``k_N`` splits a group of equal eigenvalues of the reference or the target
-        (:func:`~core.laplace_basis.split_group`; ``smallest``: the smallest basis size allowed,
-        ``stacklevel``: the warning's frame, 1 for the caller)."""
+        (:func:`~core.laplace_basis.split_group`; ``smallest``: the smallest basis size allowed)."""
         _, _, mass, conformal = pose_products(self.assembler, target_positions)
         if k_M is None:
             return FullDifference("area", self.mass, mass), FullDifference("conformal", self.conformal, conformal)
@@ -126,7 +125,7 @@ class SurfaceLayer:
             return reduced_differences(base_basis, mass, conformal)
         target_basis, _ = checked_laplace_basis(mass, conformal, k_N, what=f"target {self.name}")
         warn_eigenvalue_split("k_N", k_N, [(f"target pose's {self.name}", target_basis.eigenvalues)],
-                              max(k_M, smallest), self.topology.n_vertices, stacklevel=stacklevel + 1)
+                              max(k_M, smallest), self.topology.n_vertices)
         if target_basis.size != k_N:
             target_basis = LaplaceBasis(target_basis.eigenvalues[:k_N], target_basis.functions[:, :k_N])
         return functional_map_differences(base_basis, target_basis, mass)
@@ -327,12 +326,12 @@ class ReferenceShape:
         smallest = self.topology.components()[0] + 1
         if k_M is not None:
             self.warn_split(k_M, stacklevel=stacklevel + 1)
-        area, conformal = self.base.differences(target, k_M, k_N, smallest=smallest, stacklevel=stacklevel + 1)
+        area, conformal = self.base.differences(target, k_M, k_N, smallest=smallest)
         offset_area = offset_conformal = None
         if self.use_extrinsic:
             offset_target = self.surface.positions(target, self.offset)
             offset_area, offset_conformal = self.offset_layer.differences(
-                offset_target, k_M, k_N, smallest=smallest, stacklevel=stacklevel + 1)
+                offset_target, k_M, k_N, smallest=smallest)
         return ShapeDifferences(area, conformal, offset_area, offset_conformal, self.given_offset, k_M, k_N, self)
 
     def layers(self) -> list[SurfaceLayer]:
