@@ -30,14 +30,15 @@ from . import deformation_fields as df
 from .errors import MeshError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, lumped_vertex_areas
 from .mesh_topology import triangle_areas
-from .seams import across_edges, coordinate_rounding, inverse_heights, seam_sides, warn_seam_folds
+from .coordinate_rounding import across_edges, coordinate_rounding, inverse_heights
+from .seam_folds import seam_sides, warn_seam_folds
 from .shape_space_pca import KINDS, check_kind
 from .validation import check_count
 
 #: Default basis size for the eigenfunctions of the difference operators.
 DEFAULT_EIGEN_BASIS = 50
 #: Area change and conformal distortion per relative change of a triangle from the coordinates'
-#: rounding (the rounding times :func:`core.seams.inverse_heights`): float32 copies of a
+#: rounding (the rounding times :func:`core.coordinate_rounding.inverse_heights`): float32 copies of a
 #: 2,000-vertex sphere, a 1,600-vertex sheet and cylinders of 32–128 sides with fan caps, turned
 #: and moved up to 1,000 units, reached 1.2 of them (per face and per vertex).
 ROUND_OFF_VALUES = 2.5
@@ -64,10 +65,10 @@ class Distortion:
     bending_faces: np.ndarray | None
     bending_vertices: np.ndarray | None
     #: Per face (m,) and per vertex (n,): the size of the area and conformal maps' values that the
-    #: rounding of the coordinates alone makes (the rounding times :func:`core.seams.inverse_heights`
+    #: rounding of the coordinates alone makes (the rounding times :func:`core.coordinate_rounding.inverse_heights`
     #: times :data:`ROUND_OFF_VALUES`; a vertex: its faces', weighted as its values are), and for
     #: bending (:data:`BENDING_ROUND_OFF_VALUES`, from the thinnest of the face and the faces across
-    #: its edges, :func:`core.seams.across_edges`; None without the offset surface): a pose that
+    #: its edges, :func:`core.coordinate_rounding.across_edges`; None without the offset surface): a pose that
     #: only moves its mesh has maps of at most about this size, not zero.
     round_off_faces: np.ndarray
     round_off_vertices: np.ndarray

@@ -29,7 +29,7 @@ from .inbetween_rigid_fits import rigid_fits
 #: with its rigid motion undone, moved by the interpolated rigid motion; 0.27 % there) plus
 #: METRIC_TOLERANCE takes the co-moving spline as its guide; predicted in-betweens still leave
 #: an inner key with the world spline's velocity, which the gaps on either side share
-#: (:func:`core.inbetween_prediction._key_slope`; with the co-moving velocity, which each gap
+#: (:func:`core.inbetween_corrections._key_slope`; with the co-moving velocity, which each gap
 #: takes from its own rigid fits, a sheet hanging from two corners jumped 2.67 × the
 #: simulation's largest frame-to-frame acceleration at a key), and a sequence's last key with the
 #: guide's. Components under a free-flight or impact condition (which act on the world spline)

@@ -13,7 +13,7 @@ two poses and extrapolations take a neighbourhood whole, see
 :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`). An in-between of a sequence that keeps
 defects after all that is repaired again from the pose with the fewest, while that removes defects
 — in a gap whose outer solved in-betweens are clean, with one more field, the local geometry of the
-pose those two predict (:func:`core.inbetween_prediction._repaired_again`). Regions stop growing once they cover
+pose those two predict (:func:`core.inbetween_prediction_repairs._repaired_again`). Regions stop growing once they cover
 :data:`~core.inbetween_repair_rounds.MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
 sequence's in-between, once a round of 4 rings or more removed no defect
 (:data:`~core.inbetween_repair_rounds.STALLED_ROUND`), and a repair of a sequence's in-between that
@@ -122,7 +122,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`; ``repairable``: the most flipped or
         collapsed triangles the fit may have for the rounds to run on it, or None for any: a fit with
         more goes straight to the fallbacks, see
-        :data:`core.inbetween_prediction.UNREPAIRED_SOLVE_DEFECTS`)."""
+        :data:`core.inbetween_prediction_repairs.UNREPAIRED_SOLVE_DEFECTS`)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:

@@ -100,7 +100,7 @@ class RepairRounds:
         (integrable: they come from a mesh), the blend's rotations and stretches, those of the
         keys' per-vertex spline, each key's own local geometry (nearer key first), and last the
         local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given: see
-        :func:`core.inbetween_prediction._repaired_again`)."""
+        :func:`core.inbetween_prediction_repairs._repaired_again`)."""
         def interpolated(rows):
             return frames[:, rows], stretch[rows]
 
@@ -147,7 +147,7 @@ class RepairRounds:
         """The :meth:`mesh_field` of the linear ``blend`` (n, 3) at factor ``s`` and that of the keys'
         per-vertex spline there: inside :meth:`fields_kept`, those this thread already made for ``s``
         (every repair of one in-between imposes them on overlapping regions: a prediction's repair,
-        the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction._repaired_again`),
+        the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction_repairs._repaired_again`),
         else new ones."""
         kept = getattr(self._local, "fields", None)
         if kept is not None and s in kept:

@@ -316,7 +316,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         with the gap's own and again with the weak one if the first fit is held off the metric
         (None; what was used is kept in ``self.held_factors[s]``). ``start``: positions (n, 3) the
         fit starts from instead of the Poisson solve of the field (a sequence's in-between solved in
-        place of a prediction, :data:`core.inbetween_prediction.SOLVED_INSTEAD_ITERATIONS`); no
+        place of a prediction, :data:`core.inbetween_prediction_repairs.SOLVED_INSTEAD_ITERATIONS`); no
         held test then (``weak`` None is the gap's own anchor: the test measures a fit's progress
         from the Poisson solve). ``iterations``: the fit's local/global steps at most; ``misfits``:
         a list that receives the misfit of each step of the fit whose pose is returned; ``repairable``:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .coordinate_rounding import coordinate_rounding
 from .errors import MeshError
 from .validation import check_triangles, check_vertices  # noqa: F401 (re-exported)
 
@@ -216,8 +217,6 @@ def _far_out_advice(by_coordinate: np.ndarray, squared: list[np.ndarray]) -> str
     every coordinate is a float32, as Blender stores them) reaches :data:`FAR_OUT_ROUNDING` of the
     median edge of the mesh (``squared``: the corners' squared edge lengths, 3 arrays (m,)), else
     None: there the mesh is too far from its origin for its triangles, not degenerate itself."""
-    from .seams import coordinate_rounding
-
     rounding = coordinate_rounding([by_coordinate.T])
     median_edge = float(np.sqrt(np.median(np.concatenate(squared))))
     if not rounding >= FAR_OUT_ROUNDING * median_edge:

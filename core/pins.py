@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from .rigid_alignment import align_rigidly, rigid_alignment, rigid_alignments
 from .geometry import edge_lengths
-from .seams import vertex_groups
+from .seam_welds import vertex_groups
 
 #: Riding sets have at least this many vertices, joined by edges whose lengths no key changes by
 #: more than RIDING_ULPS float32 spacings of the keys' largest coordinate. A pole carried by its
@@ -46,7 +46,7 @@ MAX_RIDING_SHARE = 0.05
 def still_vertices(keys: list[np.ndarray], tolerance: float) -> np.ndarray:
     """Whether each vertex sits still in every one of ``keys`` (list of (n, 3); bool (n,)): no key
     moves it from its place in the first further than ``tolerance``
-    (:func:`core.seams.coincidence_tolerance`).
+    (:func:`core.seam_welds.coincidence_tolerance`).
     Such vertices (pinned cloth) stay exactly where the first key has them. Compared exactly, the
     pins of a cache written in single precision through an object transform (moved by rounding)
     were taken for moving vertices: a 10k sheet pinned at two corners, its keys off by 1e-7 of
@@ -73,7 +73,7 @@ def riding_tolerance(keys: list[np.ndarray], edges: np.ndarray, still: np.ndarra
                      moving: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """The rounding to which riding sets keep their edges' lengths and their rigid motion in ``keys``
     (list of (n, 3)): :data:`RIDING_ULPS` single-precision spacings of ``scale``
-    (:func:`core.seams.rounding_scale`, by default the keys' largest coordinate), at most a
+    (:func:`core.coordinate_rounding.rounding_scale`, by default the keys' largest coordinate), at most a
     thousandth of the mean length of the ``edges`` (E, 2) not between two ``still`` vertices (far
     from the origin the roundings outgrow it); ``moving``: those edges and lengths
     (:func:`moving_edges` of the first key) when the caller has them."""

@@ -24,7 +24,8 @@ from .laplace_basis import (LaplaceBasis, cached_split_group, checked_laplace_ba
 from .mesh_topology import MeshTopology, check_vertices, mesh_topology
 from .offset_surface import OffsetSurface, check_offset_pose, default_offset, offset_surface
 from .rigid_alignment import align_components
-from .seams import glue_along_seams, seam_twins, weld_advice
+from .seam_gluing import glue_along_seams, seam_twins
+from .seam_welds import weld_advice
 from .shape_difference import (
     FullDifference,
     ReducedDifference,
@@ -496,7 +497,7 @@ class ReferenceShape:
         """Rigidly move each connected component of ``positions`` ``(n_used, 3)`` as close as
         possible to ``target`` ``(n_used, 3)`` (vertex-area-weighted least squares, no reflection).
         ``glue_seams`` (where ``target`` says nothing of where the pieces sit: the base, for a
-        reconstruction): pieces that meet along seams in the base (:func:`core.seams.seam_twins`:
+        reconstruction): pieces that meet along seams in the base (:func:`core.seam_gluing.seam_twins`:
         panels exported unwelded, vertices split along UV seams) are put together along them
         first and placed as one (each placed on its own, a rolled sheet cut in two opened by
         0.9–11 % of its diagonal); a warning names pieces joined along a seam too straight to
@@ -530,7 +531,7 @@ class ReferenceShape:
     @cached_property
     def seam_twins(self):
         """Pairs of vertices (compact indices) of different pieces that meet along seams in the
-        base, or None, and why they cannot be joined, or None (:func:`core.seams.seam_twins`)."""
+        base, or None, and why they cannot be joined, or None (:func:`core.seam_gluing.seam_twins`)."""
         if len(np.unique(self.vertex_components)) < 2:
             return None, None
         return seam_twins(self.base.positions, self.topology)

@@ -1,5 +1,5 @@
 """Triangles the keys' rounding reshapes: slivers less high than twice the rounding of the keys'
-coordinates (:func:`core.seams.coordinate_rounding`: single precision where every coordinate is a
+coordinates (:func:`core.coordinate_rounding.coordinate_rounding`: single precision where every coordinate is a
 float32, as Blender stores shape keys and caches; large far from the origin). The in-betweens
 (paper §8.4) read each triangle's stretch and turn between the keys; a sliver that high is
 stretched, squashed or turned over by the rounding alone, and the fit bends the mesh around what

@@ -48,9 +48,10 @@ import numpy as np
 
 from .allocator import keep_heap
 from .concurrency import in_background, result, single_threaded_blas
-from .inbetween_prediction import CONCURRENT_VERTICES, gap_poses
+from .inbetween_prediction import gap_poses
 from .inbetween_keys import _Relative
 from .inbetween_solver import _Gap
+from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time, numerical_failures)
 from .sequence_gap_starts import GapStarts

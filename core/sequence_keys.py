@@ -3,7 +3,7 @@
 
 :class:`SequenceKeys` (a mixin of the interpolator): ``_setup`` takes the checked keys (K arrays
 ``(n, 3)``) and the topology of the triangles ``(m, 3)``: pieces sewn along seams are welded
-(:mod:`core.seams`), still and riding vertices found (:mod:`core.pins`), the keys moved about the
+(:mod:`core.seam_welds`), still and riding vertices found (:mod:`core.pins`), the keys moved about the
 middle of the first; ``_key`` keeps the per-key data (:class:`core.inbetween_keys._Key`) of the
 last :data:`KEY_CACHE` keys; ``_relative`` / ``_relatives`` / ``_previous`` give one key seen from
 another (:class:`core.inbetween_keys._Relative`), with the truncated recovery's metric
@@ -18,7 +18,7 @@ import numpy as np
 
 from .errors import MeshError, RecoveryError
 from .concurrency import concurrently
-from .inbetween_prediction import CONCURRENT_VERTICES
+from .inbetween_threads import CONCURRENT_VERTICES
 from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
 from .inbetween_rigid_fits import rigid_fits
 from .inbetween_solver import _Gap
@@ -26,7 +26,9 @@ from .inbetween_topology import _Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
 from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
-from .seams import attached_loose, coincidence_tolerance, coordinate_rounding, rounding_scale, seam_weld
+from .coordinate_rounding import coordinate_rounding, rounding_scale
+from .loose_vertices import attached_loose
+from .seam_welds import coincidence_tolerance, seam_weld
 from .near_seams import near_seams
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
@@ -86,7 +88,7 @@ class SequenceKeys:
         self._rounding = coordinate_rounding(keys)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
         apart = None  # why the seams cannot be joined
-        try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seams)
+        try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seam_welds)
             weld = seam_weld(keys, topology, tolerance, orient=True)
         except MeshError as error:
             weld, apart = None, error

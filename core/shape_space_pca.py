@@ -33,7 +33,8 @@ import numpy as np
 
 from .concurrency import single_threaded_blas
 from .errors import MeshError, warn
-from .seams import relative_round_off, seam_sides, warn_seam_folds
+from .coordinate_rounding import relative_round_off
+from .seam_folds import seam_sides, warn_seam_folds
 from .validation import check_count, check_key_names
 
 #: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
@@ -73,10 +74,10 @@ class ShapeSpace:
     k_N: int | None
     offset: float
     #: The relative change of the edge lengths that the rounding of the poses' coordinates alone
-    #: makes, area-weighted over the triangles (:func:`core.seams.relative_round_off`): float32
+    #: makes, area-weighted over the triangles (:func:`core.coordinate_rounding.relative_round_off`): float32
     #: copies of one pose spread up to about this much (times √N), not zero.
     round_off: float = 0.0
-    #: The same for the offset surface's kinds (:func:`core.seams.relative_round_off` with the offset).
+    #: The same for the offset surface's kinds (:func:`core.coordinate_rounding.relative_round_off` with the offset).
     offset_round_off: float = 0.0
     _pca: dict = field(default_factory=dict, repr=False)
 
@@ -190,7 +191,7 @@ def shape_space_steps(poses, triangles, *, k_M: int = 50, k_N: int | None = 100,
         if "no edge shared by two triangles" not in str(error):
             raise
         from .mesh_topology import mesh_topology
-        from .seams import weld_advice
+        from .seam_welds import weld_advice
 
         first = np.asarray(poses[0], dtype=np.float64)  # checked by ReferenceShape before its offset surface
         raise MeshError("A shape space compares the poses' offset surfaces too, which need an edge shared by "

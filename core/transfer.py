@@ -39,7 +39,7 @@ from .functional_map import (UNMATCHED, check_correspondence, closest_point_corr
                              project_near, pull_back_matrix, push_forward_matrix, reject_outlying_matches, walk_near)
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology, zero_area_triangles
-from .seams import oriented_pieces
+from .seam_welds import oriented_pieces
 from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation, check_overlap,
                               check_spread, check_target_resolution, coincident_vertices, degenerate_at_rest,
                               mean_edge_length, warn_non_manifold, warn_outlying_matches)

@@ -218,7 +218,7 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
     vertices in triangles of another mesh whose basis ``k_N`` is (a cross-mesh transfer's target);
     ``k_N`` is then checked against it. ``geometry``: its positions ``(n, 3)`` and topology, where a
     refusal for too few eigenfunctions says to weld parts whose vertices coincide
-    (:func:`core.seams.weld_advice`)."""
+    (:func:`core.seam_welds.weld_advice`)."""
     full = ", or 0 / None for the full basis" if full_basis else ""
     sizes = []
     target = n_vertices if target_vertices is None else target_vertices
@@ -229,7 +229,7 @@ def check_basis_sizes(k_M, k_N, n_vertices: int | None = None, n_components: int
         if k is not None and k < 0:
             raise MeshError(f"{label} must be 0 / None (full basis) or a positive number of eigenfunctions; got {k}.")
         if k and k <= n_components:
-            from .seams import weld_advice
+            from .seam_welds import weld_advice
 
             raise MeshError(
                 f"{label} is {k}, but the first {n_components} Laplace–Beltrami eigenfunctions of this "

@@ -346,7 +346,7 @@ def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip)
     repaired prediction, not at the Poisson solve of the field, takes at most
     SOLVED_INSTEAD_ITERATIONS steps and makes no held test (a fit from there makes little
     progress by design)."""
-    import core.inbetween_prediction as prediction
+    import core.inbetween_prediction_repairs as prediction_repairs
     import core.inbetween_solver as solver
 
     keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
@@ -363,7 +363,7 @@ def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip)
     seq = SequenceInterpolator(keys, tri)
     seq.poses(0, factors)
     predicted = [s for s in factors if s not in (0.25, 0.75)]
-    limit = prediction.SOLVED_INSTEAD_ITERATIONS
+    limit = prediction_repairs.SOLVED_INSTEAD_ITERATIONS
     from_prediction = [f for f in fits if f["s"] in predicted and f["iterations"] == limit]
     assert {f["s"] for f in from_prediction} == set(predicted)
     for f in from_prediction:
@@ -397,7 +397,7 @@ def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(mo
     solve of the field too and the one with fewer defects kept (here the solved one, clean: every
     in-between is then its solved pose). A fit that ends off the tolerance is kept without it."""
     import core.inbetween_fit as fit
-    import core.inbetween_prediction as prediction
+    import core.inbetween_prediction_repairs as prediction_repairs
 
     keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
     fits, _ = _recorded_solves(monkeypatch)
@@ -414,7 +414,7 @@ def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(mo
         warnings.simplefilter("always", ShapeDifferenceWarning)
         poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
     predicted = [s for s in factors if s not in (0.25, 0.75)]
-    limit = prediction.SOLVED_INSTEAD_ITERATIONS
+    limit = prediction_repairs.SOLVED_INSTEAD_ITERATIONS
     fresh = [f["s"] for f in fits if f["s"] in predicted and f["iterations"] != limit]
     for s in predicted:
         assert np.allclose(poses[s][moving], solved[s][moving], rtol=0, atol=1e-12) == at_the_metric
@@ -430,7 +430,7 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
     loses to the repaired prediction, with 3, as it does after rounds that leave its 4: the same
     in-betweens as with every such solve repaired); a fit with 3 is repaired."""
     import core.inbetween_fit as fit
-    import core.inbetween_prediction as prediction
+    import core.inbetween_prediction_repairs as prediction_repairs
     import core.inbetween_repair as repair
 
     keys, tri, factors, _, _ = _predictions_flagged(monkeypatch, strip)
@@ -463,7 +463,7 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
         poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
         repaired_with_the_rule = sorted(rounds_from_prediction)
         rounds_from_prediction.clear()
-        monkeypatch.setattr(prediction, "UNREPAIRED_SOLVE_DEFECTS", np.inf)  # every solve repaired
+        monkeypatch.setattr(prediction_repairs, "UNREPAIRED_SOLVE_DEFECTS", np.inf)  # every solve repaired
         every_solve_repaired = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
     predicted = [s for s in factors if s not in (0.25, 0.75)]
     assert repaired_with_the_rule == (predicted if solve_defects == 3 else [])
@@ -549,7 +549,7 @@ def _middle_folded(monkeypatch, strip, unfolds):
     folding a triangle over (a corner reflected across its opposite edge) and every repair's
     local fit folding it again unless the field imposed is one of ``unfolds`` (indices into
     ``Repair.imposed_fields``); the fields imposed are recorded (the list returned)."""
-    import core.inbetween_prediction as prediction
+    import core.inbetween_corrections as corrections
     import core.inbetween_repair as repair
     from core import sequence_inbetweens
 
@@ -582,7 +582,7 @@ def _middle_folded(monkeypatch, strip, unfolds):
     monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
     # the reflected corner is a large part of the bending strip's small correction: the gap would be
     # found too rough to predict from three solved factors, and solved at every eighth instead
-    monkeypatch.setattr(prediction, "MAX_CROSS_VALIDATION", np.inf)
+    monkeypatch.setattr(corrections, "MAX_CROSS_VALIDATION", np.inf)
     return keys, tri, imposed
 
 
@@ -633,7 +633,7 @@ def _two_folds(monkeypatch, strip, g):
     repair then leaves the first folded (the blend's geometry repairs the second there, but its
     regions grow around the pose it started from, where both are); a repair from that pose unfolds
     it. The fields imposed are recorded (the list returned last)."""
-    import core.inbetween_prediction as prediction
+    import core.inbetween_prediction_repairs as prediction_repairs
     import core.inbetween_repair as repair
     from core import sequence_inbetweens
 
@@ -645,7 +645,7 @@ def _two_folds(monkeypatch, strip, g):
     assert not set(first) & set(second)
     real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
         repair.Repair.imposed_fields
-    real_predicted = prediction._predicted_positions
+    real_predicted = prediction_repairs._predicted_positions
     imposed = []
 
     def fold(out, corners, free=None):
@@ -677,7 +677,7 @@ def _two_folds(monkeypatch, strip, g):
     monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
     monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     monkeypatch.setattr(repair.Repair, "imposed_fields", _recording_fields(real_fields, imposed))
-    monkeypatch.setattr(prediction, "_predicted_positions", folding_prediction)
+    monkeypatch.setattr(prediction_repairs, "_predicted_positions", folding_prediction)
     return keys, tri, np.arange(1, g) / g, imposed
 
 
@@ -726,7 +726,7 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
     the one with the third fold only, and the gap's warning counts, in its words and its ``defects``,
     the flipped or collapsed triangles of the poses returned (a pass taken whose check stored its
     own count, then a pass not taken whose check stored another)."""
-    import core.inbetween_prediction as prediction
+    import core.inbetween_prediction_repairs as prediction_repairs
     from core import sequence_inbetweens
 
     keys, tri, factors, _ = _two_folds(monkeypatch, strip, g)
@@ -735,7 +735,7 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
     first, second, third = (tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
                             for x in (1.0, 1.15, 0.4))  # _two_folds' two, and the third
     folds_fit, folds_local, folds_predicted = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
-        prediction._predicted_positions
+        prediction_repairs._predicted_positions
 
     def fold(out, free=None):
         i, j, k = third
@@ -761,7 +761,7 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
 
     monkeypatch.setattr(sequence_inbetweens._Gap, "fit", fit)
     monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
-    monkeypatch.setattr(prediction, "_predicted_positions", predicted)
+    monkeypatch.setattr(prediction_repairs, "_predicted_positions", predicted)
     seq = SequenceInterpolator(keys, tri)
     with pytest.warns(ShapeDifferenceWarning, match="keeps") as said:
         poses = seq.poses(0, factors)
@@ -812,18 +812,18 @@ def test_a_repair_again_beyond_the_move_limit_from_the_first_pose_is_not_taken_a
     taken, and the gap's outcome at the factor, which the warning counts, is that of the pose
     returned (two defects), not that of the repair not taken (none). With no passes, the pose as it
     was and its outcome."""
-    from core import inbetween_prediction as prediction
+    from core import inbetween_prediction_repairs as prediction_repairs
 
     first = np.array([[-1.0, 0, 0], [-1.0, 0, 0], [-1.0, 0, 0], [1.0, 0, 0]])
     fewer = first.copy()
     fewer[0, 0] = 0.0
     clean = fewer.copy()
     clean[1:3, 0] = 0.0
-    for passes, kept in ((prediction.REPAIR_PASSES, fewer), (0, first)):
-        monkeypatch.setattr(prediction, "REPAIR_PASSES", passes)
+    for passes, kept in ((prediction_repairs.REPAIR_PASSES, fewer), (0, first)):
+        monkeypatch.setattr(prediction_repairs, "REPAIR_PASSES", passes)
         gap = _ScriptedGap([fewer, clean], (2.5, 2.5))
         gap.outcomes[0.5] = gap.outcome_of(first)  # the first pose's own check
-        x, problem = prediction._repaired_again(gap, 0.5, (first, "kept defects"))
+        x, problem = prediction_repairs._repaired_again(gap, 0.5, (first, "kept defects"))
         assert np.array_equal(x, kept) and problem is not None
         assert gap.outcomes[0.5] == gap.outcome_of(kept)
 

@@ -325,7 +325,7 @@ def test_cloth_beside_a_pole_far_out_is_not_taken_for_riding():
     two spacings; the chain passed at four times the tolerance (3 spacings) and was held rigid."""
     from core.mesh_topology import mesh_topology
     from core.pins import riding_vertices
-    from core.seams import rounding_scale
+    from core.coordinate_rounding import rounding_scale
 
     flat, tri = grid(20, size=1.0)
     rows = flat[:, 1].argsort(kind="stable").reshape(20, 20)  # rows of equal y, x ascending

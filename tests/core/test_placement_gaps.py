@@ -1,6 +1,6 @@
-"""How the gaps of a sequence are solved and joined (core.inbetween_prediction, core.inbetween_keys,
-core.splines; issue 17 items 1 and 3): predicted in-betweens and their corrections, the keys'
-relatives, the velocities at the keys. No bpy."""
+"""How the gaps of a sequence are solved and joined (core.inbetween_prediction,
+core.inbetween_corrections, core.inbetween_keys, core.splines; issue 17 items 1 and 3): predicted
+in-betweens and their corrections, the keys' relatives, the velocities at the keys. No bpy."""
 
 from __future__ import annotations
 
@@ -189,6 +189,7 @@ def test_rough_corrections_are_solved_densely_and_predicted_between(monkeypatch)
     solved again at every eighth, all with the wide rotation limit (the three solved first too: kept
     at the narrow one among neighbours at the wide one, they stood out), and each in-between left
     is predicted from the two solved around it, never more than a sixteenth of the gap away."""
+    import core.inbetween_corrections as corrections
     import core.inbetween_prediction as prediction
 
     flat, tri = grid(12, 9, size=1.0)
@@ -200,8 +201,8 @@ def test_rough_corrections_are_solved_densely_and_predicted_between(monkeypatch)
         return {s: gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
                 for s in (0.25, 0.5, 0.75)}
 
-    assert not prediction._inconsistent(gap, posed(lambda s: s * (1 - s) * bump))  # smooth: predicted
-    assert prediction._inconsistent(gap, posed(lambda s: (1 if s != 0.5 else -1) * s * (1 - s) * bump))
+    assert not corrections._inconsistent(gap, posed(lambda s: s * (1 - s) * bump))  # smooth: predicted
+    assert corrections._inconsistent(gap, posed(lambda s: (1 if s != 0.5 else -1) * s * (1 - s) * bump))
 
     solved = []
     real_pose = type(gap).pose
@@ -226,7 +227,7 @@ def test_rough_gap_correction_is_the_chord_between_neighbouring_knots(knots):
     """The correction of a rough gap is zero at the keys, the solved value at each solved factor,
     and on the chord of the two knots around any other factor: it reproduces a correction linear
     in the factor between knots and never leaves the range of the two it joins."""
-    from core.inbetween_prediction import _PiecewiseLinearCorrection
+    from core.inbetween_corrections import _PiecewiseLinearCorrection
 
     rng = np.random.default_rng(3)
     values = {s: rng.normal(size=(7, 3)) for s in knots}
@@ -250,7 +251,7 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
     that degree vanishing at both keys exactly."""
     from scipy.interpolate import BarycentricInterpolator
 
-    from core.inbetween_prediction import _CorrectionPolynomial
+    from core.inbetween_corrections import _CorrectionPolynomial
 
     rng = np.random.default_rng(3)
     coefficients = rng.normal(size=(len(factors), 7, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
@@ -273,7 +274,7 @@ def test_correction_polynomial_takes_the_keys_slopes(factors):
     slopes exactly, and has the slopes asked for."""
     from scipy.interpolate import KroghInterpolator
 
-    from core.inbetween_prediction import _CorrectionPolynomial
+    from core.inbetween_corrections import _CorrectionPolynomial
 
     rng = np.random.default_rng(4)
     coefficients = rng.normal(size=(len(factors) + 2, 5, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
@@ -302,7 +303,7 @@ def test_sequence_gaps_meet_at_a_key_with_one_velocity(monkeypatch):
     predicted): the poses leaving a key into the next gap and arriving at it from the previous one
     move with the same velocity (the keys' slopes of the predicted corrections); without the slopes
     they do not."""
-    import core.inbetween_prediction as prediction
+    import core.inbetween_corrections as corrections
 
     flat, tri = grid(24, 6, size=2.0)
 
@@ -325,7 +326,7 @@ def test_sequence_gaps_meet_at_a_key_with_one_velocity(monkeypatch):
         return max(out)
 
     assert mismatch() < 2e-3  # h and the slopes' one-sided differences
-    monkeypatch.setattr(prediction, "KEY_SLOPE_SOLVED", 99)  # without the slopes
+    monkeypatch.setattr(corrections, "KEY_SLOPE_SOLVED", 99)  # without the slopes
     assert mismatch() > 5e-3
 
 

@@ -237,7 +237,7 @@ def test_in_betweens_of_a_turned_swinging_sheet_are_the_turned_in_betweens():
 
 def test_double_precision_keys_far_out_keep_the_roundings_of_their_size():
     """Keys in double precision 2e4 units from the origin are not rounded to float32 there, so the
-    tolerances that allow for rounding (still vertices, riding sets: ``core.seams.rounding_scale``)
+    tolerances that allow for rounding (still vertices, riding sets: ``core.coordinate_rounding.rounding_scale``)
     are those of the sheet's size: a vertex 3e-4 off the axis a sheet turns about (100° per key)
     was taken for still (float32 roundings of 2e4: 0.02 units, capped at 1 % of the mean edge)
     and held, 5.6e-4 off the in-betweens near the origin; keys that are float32 numbers keep the

@@ -11,7 +11,7 @@ import core
 from core.errors import ShapeDifferenceWarning
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
-from core.seams import seam_weld
+from core.seam_welds import seam_weld
 from core.mesh_topology import mesh_topology
 
 from meshes import grid
@@ -387,7 +387,7 @@ def test_a_seam_of_two_twins_whose_sides_differ_opens():
     """Two triangles joined by a seam of two twins, its sides 1.0 and 1.1 long in the pose: the
     seam opens (letting one twin go would glue them by a point, which is no seam), and a seam of
     4,000 twins that opens is found with a few fits, not one per twin."""
-    from core.seams import glue_along_seams
+    from core.seam_gluing import glue_along_seams
 
     pose = np.array([[0, 0, 0], [1, 0, 0], [0.5, -1, 0], [0, 0.3, 0], [1.1, 0.3, 0], [0.5, 1.3, 0]], float)
     labels = np.array([0, 0, 0, 1, 1, 1])
@@ -422,7 +422,7 @@ def test_a_seam_whose_top_moved_off_as_a_block_stays_sewn_below():
     """A curved seam of 2,000 twins whose top 30 % moved off as a block (keeping its own
     distances): the 70 % below stay sewn (fits that let the farthest twins go were pulled by the
     block and let sewn twins go too: the whole seam "opened")."""
-    from core.seams import glue_along_seams
+    from core.seam_gluing import glue_along_seams
 
     t = np.linspace(0.0, 1.0, 2000)
     side = np.c_[t, 0.2 * np.sin(3 * t), 0.1 * t ** 2]
@@ -662,7 +662,7 @@ def _reversed_right_panel(v, f, column):
 
 def test_reconstruction_turns_a_reversed_panel_over_to_close_its_seam():
     """Two panels sewn along a seam, one wound against the other: the reconstruction welds them
-    with that panel turned over, as the in-betweens do (:func:`core.seams.oriented_pieces`), and
+    with that panel turned over, as the in-betweens do (:func:`core.seam_welds.oriented_pieces`), and
     is the pose, with no warning (refused as inconsistently oriented, the panels were placed on
     their own and came back 7.5 % of the diagonal off)."""
     v, f, column, copies = _two_panels(0.3)
@@ -733,7 +733,7 @@ def _gaps_said_to_open(sequence, factors, side, other, visible) -> int:
 
 def test_a_seam_left_apart_that_the_in_betweens_open_is_warned():
     """A seam whose sides are 1e-4 apart in every key (0.15 % of an edge, under 1e-4 of the sheet's
-    size) is no weld (core.seams.COINCIDENCE_TOLERANCE); its pieces are interpolated each on its own
+    size) is no weld (core.seam_welds.COINCIDENCE_TOLERANCE); its pieces are interpolated each on its own
     and part in the in-betweens. Every gap that parts them says so once, kind "seam", with the
     gap's keys and the factors of the in-betweens it is about, and quotes the widest distance
     the in-betweens put between the seam's sides, as measured on them here; two poses and an
@@ -848,7 +848,8 @@ def test_a_tube_of_one_piece_cut_open_that_the_in_betweens_open_is_warned():
     between keys 0 and 2 here). Every gap that parts them visibly says so once, kind "seam",
     quoting the widest distance measured on the in-betweens; two poses too."""
     from core.near_seams import near_seams
-    from core.seams import coincidence_tolerance, rounding_scale
+    from core.coordinate_rounding import rounding_scale
+    from core.seam_welds import coincidence_tolerance
 
     keys, tri, left, right = _cut_tube(1e-4)
     topology = mesh_topology(tri, len(keys[0]))
@@ -926,7 +927,8 @@ def test_the_cuts_of_a_fringe_are_found_with_the_paths_measured_a_few_pairs_at_a
     from scipy.sparse.csgraph import dijkstra
 
     import core.near_seams as near_seams_module
-    from core.seams import coincidence_tolerance, rounding_scale
+    from core.coordinate_rounding import rounding_scale
+    from core.seam_welds import coincidence_tolerance
 
     keys, tri, left, right = _fringe(48, 4, 44)
     topology = mesh_topology(tri, len(keys[0]))
@@ -997,7 +999,7 @@ def _brute_near_another_part(points, part, tolerance):
 
 @pytest.mark.parametrize("seed", range(4))
 def test_near_another_part_agrees_with_the_full_distance_matrix(seed):
-    from core.seams import near_another_part
+    from core.seam_welds import near_another_part
 
     rng = np.random.default_rng(seed)
     centres = rng.uniform(0.0, 1.0, (40, 3))
@@ -1018,7 +1020,7 @@ def test_weld_advice_counts_the_vertices_of_a_part_collapsed_to_one_point():
     """A triangle soup (every face its own part) with 10,000 faces scaled to one point: listing the
     pairs of their 30,000 vertices would take 450 M pairs; each of them sits on a vertex of another
     face, as every copy of the soup grid's vertices does but the two corners one face alone holds."""
-    from core.seams import weld_advice
+    from core.seam_welds import weld_advice
 
     m = 10
     index = np.arange((m + 1) ** 2).reshape(m + 1, m + 1)
@@ -1045,7 +1047,7 @@ def _seam_pairs_of_every_pair(poses, topology, tolerance, apart):
     """The seam pairs from the full distance matrix of the boundary vertices in every pose."""
     from scipy.spatial.distance import cdist
 
-    from core.seams import vertex_groups
+    from core.seam_welds import vertex_groups
 
     edges = topology.edges[topology.boundary_edges]
     boundary = np.unique(edges)
@@ -1066,7 +1068,7 @@ def test_seam_pairs_agree_with_the_full_distance_matrix(seed):
     """Copies at one place in every pose (a fan's centre), copies that part in a later pose (a rim
     vertex pulled off), some vertices kept apart: the same seams and the same vertex groups as every
     pair's distances give."""
-    from core.seams import _seam_pairs, coincidence_tolerance
+    from core.seam_welds import _seam_pairs, coincidence_tolerance
 
     rng = np.random.default_rng(seed)
     first, triangles = _fan_soup(24)

@@ -1243,7 +1243,7 @@ def test_predictions_stretched_past_twice_the_keys_change_are_solved(monkeypatch
     in-betweens are solved, five predicted. Predictions made ``changes`` × the keys' mean edge
     change longer (scaled about the corner that stays still: every edge that much farther from
     the metric the solves reached) are solved in their place past
-    :data:`~core.inbetween_prediction.STRETCHED_PREDICTION_CHANGES` (2) ×, each the pose solved at
+    :data:`~core.inbetween_prediction_repairs.STRETCHED_PREDICTION_CHANGES` (2) ×, each the pose solved at
     its factor, and kept below it."""
     from core import inbetween_prediction
     from core.inbetween_fit import KEY_VARIATION_FRACTION, METRIC_TOLERANCE
@@ -1281,13 +1281,13 @@ def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
     tolerances) that keep a defect no repair removed (said by their problem) and solves in their
     place with triangles collapsed (two vertices merged): ``(sequence, factors, made)``, ``made``
     filled with the predictions {factor: positions} as they are made."""
-    from core import inbetween_prediction
+    from core import inbetween_prediction, inbetween_prediction_repairs
     from core.inbetween_fit import METRIC_TOLERANCE
 
     flat, tri = strip
     seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
     assert seq._gap(0).tolerance == METRIC_TOLERANCE
-    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction._solved_instead
+    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction_repairs._solved_instead
     made = {}
 
     def stretched(gap, s, correction, rings=None, allowed=None):
@@ -1304,7 +1304,7 @@ def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
         return x, "kept defects"
 
     monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
-    monkeypatch.setattr(inbetween_prediction, "_solved_instead", collapsed)
+    monkeypatch.setattr(inbetween_prediction_repairs, "_solved_instead", collapsed)
     return seq, list(np.arange(1, 8) / 8), made
 
 
@@ -1314,10 +1314,10 @@ def test_an_off_metric_prediction_with_defects_is_kept_where_its_solve_keeps_mor
     where the solve keeps no more defects: a solve with triangles collapsed leaves the prediction
     as it was. (The repairs again of a solve that kept defects are off here: this stand-in's
     collapse, which no repair of its own went through, is what they remove.)"""
-    from core import inbetween_prediction
+    from core import inbetween_prediction_repairs
 
     seq, factors, made = _off_metric_predictions_and_collapsed_solves(monkeypatch, strip)
-    monkeypatch.setattr(inbetween_prediction, "REPAIR_PASSES", 0)
+    monkeypatch.setattr(inbetween_prediction_repairs, "REPAIR_PASSES", 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
         poses = dict(zip(factors, seq.poses(0, factors)))

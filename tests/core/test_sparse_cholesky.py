@@ -11,7 +11,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 import core.concurrency as concurrency
-import core.inbetween_prediction as prediction
+import core.inbetween_threads as inbetween_threads
 from core.concurrency import concurrently
 from core.sequence_inbetweens import SequenceInterpolator
 from core.sparse_cholesky import SPDFactor
@@ -85,7 +85,7 @@ def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
     keys = [np.c_[flat[:, 0], flat[:, 1] * np.cos(1.2 * t), flat[:, 1] * np.sin(1.2 * t) - 0.4 * t * t]
             + 0.05 * np.sin(3 * flat[:, [0]] + t) for t in times]
     factors = np.arange(1, 8) / 8
-    monkeypatch.setattr(prediction, "CONCURRENT_VERTICES", 0)  # this small mesh in threads too
+    monkeypatch.setattr(inbetween_threads, "CONCURRENT_VERTICES", 0)  # this small mesh in threads too
     results = {}
     for cores in (1, 2):
         monkeypatch.setattr(concurrency, "available_cores", lambda cores=cores: cores)
