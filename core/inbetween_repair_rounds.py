@@ -53,6 +53,16 @@ MAX_REPAIR_MOVE = 0.1
 #: chose another (a sphere lifting a sheet, keys 16 apart: largest frame-to-frame jump 10.6 →
 #: 0.80 × the simulation's; numbers in docs/inbetween-measurements.md, *Pops*).
 MAX_PARTIAL_REPAIR_MOVE = 1.0
+#: Largest move of any vertex by a repair of an extrapolated pose (a factor below 0 or above 1),
+#: in mean edge lengths. Beyond the keys the blend (the linear extrapolation) and the keys are no
+#: poses of the motion, and a region grown over a turning part takes their turn: a body remeshed
+#: and decimated in Blender, its elbow bent 100° (the neck nodded 10–40°), had one crease triangle
+#: at ×1.4 / ×1.5 repaired by a region holding the whole forearm, which the blend's field turned
+#: 115° / 117° (the linear extrapolation's) instead of 140° / 150°, 5.7–7.5 mean edges off,
+#: silently (2.8e-2 / 3.7e-2 of the diagonal off the rig, the fit 2.7e-3 / 3.5e-3); bent 120° and
+#: reversed to −0.5, 10.6 mean edges (4.9e-2). The repairs that removed crease defects moved no
+#: vertex by more than 0.31 mean edges on the same body (−0.5 … ×2, eight motions).
+MAX_EXTRAPOLATED_REPAIR_MOVE = 1.0
 
 
 def _with_parts(x: np.ndarray, free: np.ndarray, free_part: np.ndarray, chosen: np.ndarray, fits: dict) -> np.ndarray:
@@ -201,6 +211,8 @@ class RepairRounds:
         fields = self.imposed_fields(s, frames, stretch, blend, nearby)
         start, force, left = x, defects, defects.copy()  # left: the defects of x, the pose with the parts taken
         limit, partial_limit = self.move_limits(s) or (np.inf, np.inf)
+        # an extrapolation's parts are taken only where no vertex moves farther than this (squared)
+        reach = (MAX_EXTRAPOLATED_REPAIR_MOVE * gap.mean_edge) ** 2 if not 0.0 <= s <= 1.0 else None
         pieces = gap.topo.triangle_component
         largest = MAX_REPAIR_FRACTION * gap.topo.piece_sizes
         stalled = False  # whether the last round left the fewest defects where they were
@@ -233,7 +245,12 @@ class RepairRounds:
                 finite = np.bincount(free_part[infinite], minlength=count) == 0
                 if infinite.any():  # checked with x's positions there (the rest is x's, finite)
                     fitted[free[~finite[free_part]]] = x[free[~finite[free_part]]]
-                moves = np.bincount(free_part, np.sum((fitted[free] - start[free]) ** 2, axis=1), minlength=count) - had
+                squared = np.sum((fitted[free] - start[free]) ** 2, axis=1)
+                moves = np.bincount(free_part, squared, minlength=count) - had
+                if reach is not None:  # parts with a vertex moved too far are no candidates
+                    farthest = np.zeros(count)
+                    np.maximum.at(farthest, free_part, squared)
+                    finite &= farthest <= reach
                 counts = np.bincount(row_part[self.defects(fitted, s, frames, stretch, rows=region.rows)],
                                      minlength=count)
                 for part in np.flatnonzero((taken < 0) & finite & (counts == 0)):

@@ -26,6 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from .allocator import keep_heap
 from .concurrency import single_threaded_blas
+from .inbetween_fit import MISFIT_LENGTH_FLOOR, floored_deviations, short_edges
 from .inbetween_prediction import STILL_RIGIDITY
 from .validation import check_factor, check_interpolation, check_key_names, numerical_failures
 from .sequence_inbetweens import SequenceInterpolator
@@ -69,6 +70,8 @@ class Interpolator:
         edges = topology.triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
         self._edges = edges
         self._squared = [self._squared_lengths(p) for p in poses]
+        # the fits' floor of short edges, in the poses' units (core.inbetween_fit.MISFIT_LENGTH_FLOOR)
+        self._misfit_floor = MISFIT_LENGTH_FLOOR * float(np.mean(np.sqrt(self._squared[0])))
         self._given_poses = poses
         self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
 
@@ -134,14 +137,19 @@ class Interpolator:
     def _misfit(self, x: np.ndarray, factor: float, log: SequenceInterpolator | None = None) -> float:
         """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
         (squared lengths linear in ``factor``), or from the log-stretches' of the sequence ``log``
-        (:meth:`_log_sequence`)."""
+        (:meth:`_log_sequence`); an edge shorter than the fits' floor is measured over the floor
+        (:data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`), as the fits measure it."""
         if log is not None:  # the corner lengths (3 corners, m) in the order of self._edges
             lengths = log._gap(0).metric_lengths(factor).T.reshape(-1) / log._unit  # in the poses' units
             target = np.maximum(lengths ** 2, np.finfo(float).tiny)
         else:
             target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
         lengths = self._squared_lengths(x)
-        return float(np.mean(np.abs(np.sqrt(lengths / target) - 1.0)))
+        deviations = np.abs(np.sqrt(lengths / target) - 1.0)
+        target = np.sqrt(target)
+        floored_deviations(deviations, np.sqrt(lengths), target, self._misfit_floor,
+                           short_edges(target, self._misfit_floor))
+        return float(np.mean(deviations))
 
     @single_threaded_blas()
     def pose(self, factor: float) -> np.ndarray:
@@ -276,11 +284,15 @@ class Interpolator:
         told apart by what makes them so: the extrapolated metric itself (its corner lengths beyond
         those bounds too: a triangle nearly collapsed or stretched in one pose), or the fit alone,
         whose extrapolated rotations and stretches do not fit together there (a shear, a swirl) and
-        which stretches or crushes the triangles to close them."""
+        which stretches or crushes the triangles to close them. An edge shorter than the fits' floor
+        in the poses (:data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`: near-duplicate vertices) grows
+        from the floor and shrinks unsaid: no fit places its ends that finely."""
         lengths = self._squared_lengths(x)
-        longest, shortest = np.maximum(*self._squared), np.minimum(*self._squared)
+        # an edge far under the mesh's own (near-duplicate vertices) grows from the floor: no fit places it
+        floor = self._misfit_floor ** 2
+        longest, shortest = np.maximum(np.maximum(*self._squared), floor), np.minimum(*self._squared)
         grown = lengths > EXTRAPOLATED_GROWTH ** 2 * longest
-        shrunk = lengths * EXTRAPOLATED_GROWTH ** 2 < shortest
+        shrunk = (lengths * EXTRAPOLATED_GROWTH ** 2 < shortest) & (shortest >= floor)
         if not (grown.any() or shrunk.any()):
             return
         tiny = np.finfo(float).tiny

@@ -406,7 +406,7 @@ def test_a_prediction_at_the_metric_with_defects_is_solved_from_the_field_too(mo
 
     def misfit(self, edges, targets):  # the fits from a prediction end within the tolerance or 4 × it
         from_prediction = getattr(self, "_from_prediction", False)
-        return scale * self.tolerance if from_prediction else real_misfit(edges, targets)
+        return scale * self.tolerance if from_prediction else real_misfit(self, edges, targets)
 
     monkeypatch.setattr(fit.LocalGlobalFit, "misfit", misfit)
     _mark_solves_from_predictions(monkeypatch)
@@ -445,7 +445,7 @@ def test_a_solve_of_a_prediction_with_more_defects_than_it_had_is_not_repaired(m
     real_misfit, real_rounds = fit.LocalGlobalFit.misfit, repair.Repair.rounds
 
     def misfit(self, edges, targets):  # off the tolerance: no solve from the Poisson solve as well
-        return 4.0 * self.tolerance if getattr(self, "_from_prediction", False) else real_misfit(edges, targets)
+        return 4.0 * self.tolerance if getattr(self, "_from_prediction", False) else real_misfit(self, edges, targets)
 
     rounds_from_prediction = []
 
