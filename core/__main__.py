@@ -37,8 +37,8 @@ import numpy as np
 
 from .errors import ShapeDifferenceError, ShapeDifferenceWarning, warn
 from .obj_file import read_obj
-from .point_cache import (check_pc2_name, check_pc2_timing, merge_pc2, read_pc2_header, read_point_cache,
-                          refuse_overwriting, unwritable, write_pc2)
+from .point_cache import (check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, read_pc2_header,
+                          read_point_cache, refuse_overwriting, unwritable, write_pc2)
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory, check_working_memory
 
@@ -128,11 +128,15 @@ def _numbered(pattern: str, count: int | None) -> list[str]:
 
 
 def _even_times(times: np.ndarray) -> bool:
-    """Whether an MDD's frame ``times`` (seconds) are finite and evenly spaced (to 1e-3 of a step)."""
-    if times.size < 3:
-        return bool(np.isfinite(times).all())
+    """Whether an MDD's frame ``times`` (seconds) are finite, increasing and evenly spaced (to 1e-3
+    of a step): frames at one time, or going back in time, are retimed in the file's order as if
+    they were not."""
+    if not np.isfinite(times).all():
+        return False
+    if times.size < 2:
+        return True
     steps = np.diff(times)
-    return bool(np.isfinite(times).all() and np.ptp(steps) <= 1e-3 * abs(np.mean(steps)))
+    return bool(steps.min() > 0 and np.ptp(steps) <= 1e-3 * np.mean(steps))
 
 
 class _SamplesRead:
@@ -247,8 +251,8 @@ def _retime(args) -> int:
         print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
     if cache.times is not None and not _even_times(cache.times):
         # said as the core's warnings are (_warnings_as_lines), and counted with them
-        warn(f"the frame times of '{args.cache}' are not evenly spaced (or not finite); its frames are retimed "
-             "as if they were", "frame_times")
+        warn(f"the frame times of '{args.cache}' are not evenly spaced and increasing (or not finite); its frames "
+             "are retimed in the file's order as if they were", "frame_times")
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -404,12 +408,16 @@ def _local_path(text: str) -> str:
     means as it reads: a path relative to a saved .blend (``//caches/x.pc2``, Blender's notation;
     on Linux and macOS it names a folder at the root of the disk), and one with a folder named
     ``~`` that does not exist (a ``~`` not expanded: OpenJD makes ``~/x.pc2`` into
-    ``<its working folder>/~/x.pc2``; written, it would make a folder named ``~`` there)."""
+    ``<its working folder>/~/x.pc2``; written, it would make a folder named ``~`` there), and a
+    Windows path on Linux or macOS or a ``~user`` of no user (:func:`core.point_cache.foreign_path`)."""
     if os.name != "nt" and text.startswith("//"):  # on Windows, //server/share is a network path
         raise ShapeDifferenceError(
             f"'{text}' is relative to a saved .blend (Blender's '//'), and `python -m core` has no .blend: "
             f"here it would name '/{text.lstrip('/')}' at the root of the disk. Give the path from the working "
             "folder or in full.")
+    foreign = foreign_path(text)
+    if foreign:
+        raise ShapeDifferenceError(f"{foreign}.")
     path = os.path.expanduser(text)
     parts = Path(path).parts
     for index, part in enumerate(parts):
@@ -457,7 +465,7 @@ def _run(args) -> int:
         else:  # an MDD's own times, in seconds
             times = cache.times
             spacing = (f", every {np.mean(np.diff(times)):.6g} s" if _even_times(times) else
-                       ", not evenly spaced") if times.size > 1 else ""
+                       ", not evenly spaced and increasing") if times.size > 1 else ""
             timing = f"MDD, times {times[0]:.6g} to {times[-1]:.6g} s{spacing}"
         _say(f"{args.cache}: {cache.n_samples} samples, {cache.n_points} points, {timing}")
         return 0

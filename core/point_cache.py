@@ -233,6 +233,28 @@ def check_pc2_timing(start: float, sampling: float) -> None:
                         f"positive; got start {start}, sampling {sampling}.")
 
 
+#: The start of a Windows drive or network path (``C:\\caches``, ``D:/shots``, ``\\\\server\\share``).
+WINDOWS_PATH = re.compile(r"^(?:[A-Za-z]:[\\/]|\\\\)")
+
+
+def foreign_path(text: str, relative_to: str = "the current folder") -> str | None:
+    """Why the file name ``text``, as given, names on this machine another place than it says, in
+    the user's words, or None: a Windows drive or network path on Linux or macOS (``C:\\caches\\x.pc2``,
+    as a .blend or a script made on Windows keeps it, is there a file of that name in the current
+    folder), and a leading ``~user`` for a user this machine does not have (``~anna/x.pc2`` is
+    then a folder named ``~anna`` in the current folder). Written, either would put the file
+    where nobody looks, and report success. ``relative_to``: the folder a relative path is read
+    from, as the message names it."""
+    if os.name != "nt" and WINDOWS_PATH.match(text):
+        return (f"'{text}' is a Windows path, which this system reads as the name of a file in {relative_to}: "
+                "give a path of this machine")
+    if text.startswith("~") and os.path.expanduser(text) == text:
+        user = text[1:].split("/", 1)[0]
+        return (f"'{text}' starts in the home folder of '{user}', a user this machine does not have, so it would "
+                f"be a folder named '~{user}' in {relative_to}: give the path in full")
+    return None
+
+
 def unwritable(path) -> str | None:
     """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
     words, or None: the nearest existing folder on its way is a file, not writable, or on a

@@ -41,6 +41,13 @@ OUTPUT_MEMORY_SHARE = 0.5
 #: the benchmark's 100k-vertex sheets peak at 948 MB, the analytic one with 15 in-betweens per gap
 #: at 1,114 MB (docs/inbetweens.md).
 WORKING_BYTES_PER_VERTEX = 12_000
+#: The same for two poses (``Interpolator`` and its poses at 0.5 and 2): a grid rolled up, peak
+#: resident memory over the process's before, 5.5 / 4.6 / 4.5 kB per vertex at 10k / 40k / 100k.
+PAIR_WORKING_BYTES_PER_VERTEX = 6_000
+#: The same for rebuilding a pose from its differences with the full basis (``ReferenceShape``,
+#: ``shape_differences``, ``reconstruct``: the offset surface and the extrinsic embedding), measured
+#: so: 24 / 30 / 33 kB per vertex at 10k / 40k / 100k, growing with the mesh (sparse factors).
+RECONSTRUCT_WORKING_BYTES_PER_VERTEX = 40_000
 
 
 def _describe(value) -> str:
@@ -446,15 +453,18 @@ def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, 
                         f"and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
 
 
-def check_working_memory(n_points: int, what: str, advice: str) -> None:
+def check_working_memory(n_points: int, what: str, advice: str, *,
+                         bytes_per_vertex: int = WORKING_BYTES_PER_VERTEX) -> None:
     """Refuse (:class:`~core.errors.MeshError`) in-betweening a mesh of ``n_points`` vertices whose
-    working memory (:data:`WORKING_BYTES_PER_VERTEX` per vertex) exceeds the memory available now,
-    before any work: the system would kill the process when it runs out (Blender with the artist's
-    unsaved work). ``what`` names the job, ``advice`` the way out; unchecked where the system does
-    not say how much memory is available."""
+    working memory (``bytes_per_vertex`` per vertex: :data:`WORKING_BYTES_PER_VERTEX` for a
+    sequence, :data:`PAIR_WORKING_BYTES_PER_VERTEX` for two poses,
+    :data:`RECONSTRUCT_WORKING_BYTES_PER_VERTEX` for a reconstruction) exceeds the memory available
+    now, before any work: the system would kill the process when it runs out (Blender with the
+    artist's unsaved work). ``what`` names the job, ``advice`` the way out; unchecked where the
+    system does not say how much memory is available."""
     from .resources import available_memory
 
-    need = int(n_points) * WORKING_BYTES_PER_VERTEX
+    need = int(n_points) * int(bytes_per_vertex)
     free = available_memory()
     if free is not None and need > free:
         raise MeshError(f"{what} ({int(n_points):,} vertices) needs about {need / 1e9:.3g} GB of memory and this "

@@ -532,6 +532,27 @@ def require_count(count: int, what: str):
         raise InputError(f"Count is {count}: ask for at least 1 of the {what}")
 
 
+def check_memory(n_poses: int, n_vertices: int, what: str, advice: str, *, work: str | None = "sequence") -> None:
+    """Refuse, before any work, a job whose output of ``n_poses`` poses of ``n_vertices`` vertices
+    (``what``, made smaller as ``advice`` says) would take over half the memory available
+    (``core.validation.check_output_memory``), or whose computation needs more than there is
+    (``check_working_memory``): ``work`` is "sequence" (in-betweens of frames), "pair" (two shape
+    keys), "reconstruct", or None (poses read, nothing computed). Blender with the artist's unsaved
+    work would otherwise run until the system kills it (core is imported when an operator first runs)."""
+    from ..core import validation
+
+    if work is not None:
+        per_vertex = {"sequence": validation.WORKING_BYTES_PER_VERTEX,
+                      "pair": validation.PAIR_WORKING_BYTES_PER_VERTEX,
+                      "reconstruct": validation.RECONSTRUCT_WORKING_BYTES_PER_VERTEX}[work]
+        job = "Rebuilding a pose of this mesh" if work == "reconstruct" else "In-betweening this mesh"
+        validation.check_working_memory(n_vertices, job, "decimate it or split it into parts, or run it on a machine "
+                                        "with more memory" + (" (python -m core retime on a farm node)"
+                                                              if work == "sequence" else ""),
+                                        bytes_per_vertex=per_vertex)
+    validation.check_output_memory(n_poses, n_vertices, what, advice)
+
+
 def require_distinct(first, second, first_name: str, second_name: str):
     if first == second:
         raise InputError(f"{first_name} and {second_name} are both '{first.name}': "

@@ -12,8 +12,8 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, finite_pose, frame_name, load_core,
-                   playback_range, report, require_count, surface_triangles)
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, finite_pose, frame_name,
+                   load_core, playback_range, report, require_count, surface_triangles)
 from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside,
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
                              unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
@@ -199,6 +199,8 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
             raise InputError(f"The mesh of '{obj.name}' has no vertices: there is nothing to capture")
         frames = self.frames(context)
         self.check_captured_output(obj)
+        check_memory(len(frames), len(obj.data.vertices), "The output", "raise Step or narrow the frame range",
+                     work=None)
         poses = yield from self.read_frames(context, obj, frames, 1.0, stay=self.output == 'SHAPE_KEYS')
         self.summary = self.write_poses(
             context, obj, poses, names=[frame_key_name(frame) for frame in frames],
@@ -395,17 +397,6 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
             report(self, {'WARNING'}, f"The retimed motion runs to frame {out_frames[-1]:g}, past the end of "
                                       f"playback at frame {shown}: set the {which}'s End to {out_frames[-1]:g} "
                                       "to play all of it")
-
-
-def check_memory(n_poses: int, n_vertices: int, what: str, advice: str) -> None:
-    """``core.validation.check_working_memory`` of the in-betweens and ``check_output_memory`` of
-    the poses they give (core is imported when an operator first runs)."""
-    from ..core.validation import check_output_memory, check_working_memory
-
-    check_working_memory(n_vertices, "In-betweening this mesh",
-                         "decimate it or split it into parts, or run it on a machine with more memory "
-                         "(python -m core retime on a farm node)")
-    check_output_memory(n_poses, n_vertices, what, advice)
 
 
 def load_core_retime():

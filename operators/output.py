@@ -201,14 +201,19 @@ class PoseWriter:
         :func:`~.motion_sources.refuse_emptying_caches`),
         keyframed shape keys on absolute ones (``keyframed``: Blender plays those by their
         Evaluation Time, never by the values keyed) or on keys whose NLA strip is being edited (tweak
-        mode), a cache file relative to a .blend that was never saved."""
+        mode), a cache file relative to a .blend that was never saved, a Windows path on Linux or
+        macOS, a ``~user`` of no user (``core.point_cache.foreign_path``)."""
         if self.output != 'SHAPE_KEYS':
             if self.filepath.startswith("//") and not bpy.data.filepath:
                 raise InputError(f"The Cache File '{self.filepath}' is relative to the .blend, "
                                  "which is not saved yet: save the .blend first, or give an "
                                  "absolute path")
-            from ..core.point_cache import unwritable
+            from ..core.point_cache import foreign_path, unwritable
 
+            foreign = self.filepath and foreign_path(
+                self.filepath, "the .blend's folder" if bpy.data.filepath else "the current folder")
+            if foreign:
+                raise InputError(f"The Cache File {foreign}")
             path, _ = self.cache_path(source.name, warn=False)  # a path the system refuses: before any work
             reason = unwritable(path)
             if reason:

@@ -5,7 +5,7 @@ import bpy
 from .. import bridge
 from ..bridge import shorten
 from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, default_pose_key,
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, default_pose_key,
                    key_blocks_of, load_core, playback_range, require_count, require_distinct, resolve_key,
                    surface_triangles)
 from .output import PoseWriter
@@ -44,9 +44,12 @@ class KeyPairProperties:
     """Interpolation between two shape keys of the active object, the first defaulting to the
     Basis and the second to the active key."""
 
-    def pair_interpolator(self, context, first: str, second: str, labels: tuple[str, str]):
+    def pair_interpolator(self, context, first: str, second: str, labels: tuple[str, str], n_poses: int = 1,
+                          advice: str = "lower Count"):
         """Validate the keys named by properties ``first`` and ``second`` (writing the resolved
-        names back), yield once, and return ``(first key, second key, core.Interpolator)``."""
+        names back) and the memory of ``n_poses`` output poses and their computation
+        (:func:`check_memory`, ``advice`` how to make the output smaller), yield once, and return
+        ``(first key, second key, core.Interpolator)``."""
         obj = context.active_object
         key_blocks = key_blocks_of(obj)
         start = resolve_key(obj, getattr(self, first), labels[0], key_blocks[0])
@@ -57,6 +60,7 @@ class KeyPairProperties:
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_output(obj)
+        check_memory(n_poses, len(obj.data.vertices), "The output", advice, work="pair")
         yield 0.0
         space = bridge.WorldProportions(obj)
         interpolator = yield from self.compute(
@@ -78,7 +82,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
     def run(self, context):
         require_count(self.count, "in-betweens")
         key_a, key_b, interpolator = yield from self.pair_interpolator(
-            context, "key_a", "key_b", ("From", "To"))
+            context, "key_a", "key_b", ("From", "To"), n_poses=self.count + 2 * (self.output == 'CACHE'))
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
         poses = []
         for i, factor in enumerate(factors, 1):
@@ -103,7 +107,7 @@ class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProper
 
     def run(self, context):
         reference, key, interpolator = yield from self.pair_interpolator(
-            context, "reference", "key", ("Reference", "Key"))
+            context, "reference", "key", ("Reference", "Key"), advice="decimate the mesh")
         pose = yield from self.compute(0.5, interpolator.pose, self.factor)
         tail = f" {format_factor(self.factor)} from {shorten(reference.name, 20)}"
         self.summary = self.write_poses(
@@ -132,6 +136,7 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         if options["k_M"] is None:  # the full basis recovers areas exactly where the triangles allow it
             triangles = bridge.area_recoverable_triangles(obj.data, triangles)
         self.check_output(obj)
+        check_memory(1, len(obj.data.vertices), "The output", "decimate the mesh", work="reconstruct")
         yield 0.0
         core = load_core()
         base = bridge.shape_key_positions(key_blocks[0], obj)

@@ -6,8 +6,8 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, edit_mode_problem, key_blocks_of,
-                   key_pose, load_core, mesh_pose, surface_triangles)
+from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, edit_mode_problem,
+                   key_blocks_of, key_pose, load_core, mesh_pose, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -162,6 +162,9 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
                     [key_pose(kb, source) for kb in key_blocks[1:]],
                     [source.matrix_world.copy()] * len(names), source.matrix_world.copy())
         frames = self.frames(context)
+        # the frames read (the source's vertices) and the poses written (the active mesh's)
+        check_memory(len(frames), max(len(source.data.vertices), len(context.active_object.data.vertices)),
+                     "The output", "raise Step or narrow the frame range", work=None)
         matrices = []
         poses = yield from self.read_frames(context, source, frames, 0.05, matrices)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], mesh_pose(source),

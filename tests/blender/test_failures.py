@@ -270,6 +270,23 @@ def test_relative_cache_file_without_a_saved_blend(bpy_empty, extension):
                          "relative to the .blend, which is not saved yet", filepath="//cache.pc2")
 
 
+@pytest.mark.skipif(__import__("os").name == "nt", reason="a Windows path is a path there")
+@pytest.mark.parametrize("filepath, named", [("C:\\shots\\caches\\", "a Windows path, which this system reads as "
+                                                                       "the name of a file in the .blend's folder"),
+                                             ("~no_such_user_here/x.pc2", "a user this machine does not have")])
+def test_a_cache_file_of_another_machine_is_refused(bpy_empty, extension, tmp_path, filepath, named):
+    """A Windows path on Linux or macOS (a sidebar's Cache File saved with the .blend on a Windows
+    workstation, a script written there) and a `~user` of no user are names inside the .blend's
+    folder there: refused before any work, nothing written (before: a folder `C:\\shots\\caches\\`
+    beside the .blend, and a new object playing it)."""
+    strip = armature_scene(frames=5)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))
+    fails_without_change(extension.bridge, strip, bpy.ops.shape_differences.retime, re.escape(named),
+                         filepath=filepath)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["shot.blend"]
+    assert len(bpy.data.objects) == 2
+
+
 def test_mesh_without_faces(bpy_empty, extension):
     obj = posed_grid(extension.bridge, 5)
     bpy.ops.object.mode_set(mode='EDIT')
@@ -509,6 +526,49 @@ def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, cor
         fails_without_change(extension.bridge, strip, operator,
                              f"In-betweening this mesh \\({len(strip.data.vertices)} vertices\\) needs about",
                              frame_step=4)
+
+
+def test_two_pose_captured_and_transferred_outputs_too_large_are_refused_before_any_work(bpy_empty, extension,
+                                                                                          core, monkeypatch):
+    """The In-between of two shape keys asked for 2,147,483,647 in-betweens (Count's largest: before,
+    it built their factors one property read at a time, in one step that Esc does not interrupt, then
+    filled the memory until the system killed Blender), In-between, Exaggerate and Reconstruct on a
+    mesh whose computation needs more memory than there is, and Frames to Shape Keys and a Transfer of
+    frames whose poses would take over half of it: refused before any work, nothing changed."""
+    import importlib
+
+    resources = importlib.import_module(core.__name__ + ".resources")
+    validation = importlib.import_module(core.__name__ + ".validation")
+    bridge = extension.bridge
+    sheet = posed_grid(bridge, 8)
+    n = len(sheet.data.vertices)
+    monkeypatch.setattr(resources, "available_memory", lambda: 10**9)
+    fails_without_change(bridge, sheet, bpy.ops.shape_differences.inbetween,
+                         f"The output is 2,147,483,647 poses of {n} vertices, .* GB of memory available: lower Count",
+                         count=2**31 - 1)
+    for operator, work, per_vertex in (
+            (bpy.ops.shape_differences.inbetween, "In-betweening", validation.PAIR_WORKING_BYTES_PER_VERTEX),
+            (bpy.ops.shape_differences.exaggerate, "In-betweening", validation.PAIR_WORKING_BYTES_PER_VERTEX),
+            (bpy.ops.shape_differences.reconstruct, "Rebuilding a pose of",
+             validation.RECONSTRUCT_WORKING_BYTES_PER_VERTEX)):
+        monkeypatch.setattr(resources, "available_memory", lambda: per_vertex * n - 1)
+        fails_without_change(bridge, sheet, operator, f"{work} this mesh \\({n} vertices\\) needs about")
+    # 9 frames of the strip: refused where they would take over half the memory available
+    bpy.ops.wm.read_homefile(use_empty=True)
+    strip = armature_scene(frames=9)
+    need = 9 * len(strip.data.vertices) * 12
+    monkeypatch.setattr(resources, "available_memory", lambda: 2 * need - 1)
+    fails_without_change(bridge, strip, bpy.ops.shape_differences.frames_to_shape_keys,
+                         f"The output is 9 poses of {len(strip.data.vertices)} vertices, .* raise Step")
+    target = grid_object(4, name="Target")
+    strip.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    fails_without_change(bridge, target, bpy.ops.shape_differences.transfer_poses,
+                         f"The output is 9 poses of {len(strip.data.vertices)} vertices, .* raise Step",
+                         source='FRAMES')
+    monkeypatch.setattr(resources, "available_memory", lambda: 2 * need)  # just enough: it runs
+    bpy.ops.shape_differences.frames_to_shape_keys(output='CACHE')
+    assert len(bpy.data.objects) == 4
 
 
 def test_maps_of_more_frames_than_memory_holds_are_refused_before_any_work(bpy_empty, extension, core, monkeypatch):

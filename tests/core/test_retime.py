@@ -538,6 +538,26 @@ def test_info_and_retime_read_an_mdds_own_times(tmp_path, capsys):
         assert ("retime: 1 warning(s): 1 frame_times" in err) == (name == "uneven.mdd"), err
 
 
+@pytest.mark.parametrize("times", [np.zeros(9), np.arange(9, 0, -1) / 24.0], ids=["all_at_one_time", "backwards"])
+def test_an_mdd_whose_times_do_not_increase_is_warned(tmp_path, capsys, times):
+    """Frames at one time (all zeros) or going back in time are evenly spaced by their differences
+    alone (before: no warning, retimed in the file's order as a forward motion); they are said as
+    uneven times are, by ``info`` and by a retime."""
+    import struct
+
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    path = tmp_path / "odd.mdd"
+    path.write_bytes(struct.pack(">ii", 9, source.shape[1]) + times.astype(">f4").tobytes()
+                     + source.astype(">f4").tobytes())
+    assert main(["info", str(path)]) == 0
+    assert "not evenly spaced and increasing" in capsys.readouterr().out
+    assert main(["retime", str(path), "--topology", str(topology), "--step", "4", "-q",
+                 "-o", str(tmp_path / "out.pc2")]) == 0
+    err = capsys.readouterr().err
+    assert "retime: warning [frame_times]: the frame times of" in err and "1 frame_times" in err, err
+
+
 def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
     """The short last gap is in-betweened by a sequence of its own, keyed on the plan's tail: its
     warnings name its keys as the plan numbers them, as the main sequence's do ("between key pose
@@ -631,6 +651,25 @@ def test_command_paths_under_a_tilde(tmp_path, capsys, monkeypatch):
     assert not (tmp_path / "work").exists()
     (tmp_path / "work" / "~").mkdir(parents=True)  # a folder really named so is a folder like any other
     assert main([*common, "-o", str(unexpanded)]) == 0
+
+
+@pytest.mark.skipif(os.name == "nt", reason="a Windows path is a path there")
+@pytest.mark.parametrize("output, named", [("C:\\caches\\out.pc2", "a Windows path"),
+                                           ("D:/shots/out.pc2", "a Windows path"),
+                                           ("\\\\farm\\caches\\out.pc2", "a Windows path"),
+                                           ("~no_such_user_here/out.pc2", "a user this machine does not have")])
+def test_command_paths_of_another_machine_are_refused(tmp_path, capsys, monkeypatch, output, named):
+    """A Windows path on Linux or macOS (a job made on a Windows workstation, without path mapping)
+    and a `~user` of no user are names in the working folder there: refused, nothing written
+    (before: a file `C:\\caches\\out.pc2`, or a folder `~no_such_user_here`, in the working folder,
+    exit status 0)."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    monkeypatch.chdir(tmp_path)
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q", "-o", output]) == 2
+    assert f"error: '{output}' " in (err := capsys.readouterr().err) and named in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.pc2", "sheet.obj"]
 
 
 def test_command_says_the_core_s_warnings_in_one_line_and_succeeds(tmp_path, capsys):
