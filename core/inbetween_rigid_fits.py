@@ -75,6 +75,11 @@ NEAR_HALF_TURN = 5 * np.pi / 6
 #: of each other (median 38.0° against 38.1°, 560 against 562 past 150°), and the switch cost its
 #: gap 4 % of RMS (the sequence's median 2.2 %); the handkerchief's fit that turned 176° left 28° more.
 PIN_FIT_MARGIN = np.pi / 36
+#: What the triangles' angles under the two fits, each from an arc cosine of a trace, may miss the
+#: triangle inequality between them by (radians; an arc cosine near zero amplifies the trace's
+#: rounding to ~2e-8): the bound that spares measuring the pins' fit where it cannot win
+#: (:func:`pin_held_fits`) is loosened by this much.
+PIN_BOUND_ROUNDING = 1e-6
 
 
 def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, translations, misfits):
@@ -105,7 +110,8 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, tr
     # a triangle's angle left to turn changes by at most the angle between the two fits (the
     # triangle inequality of rotation angles), so pieces whose fits differ by PIN_FIT_MARGIN or less
     # cannot take the pins' one: measured only where some piece's differ by more
-    held &= np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1) > PIN_FIT_MARGIN
+    apart = np.linalg.norm(df.rotation_vectors(np.einsum("cji,cjk->cik", held_rotations, rotations)), axis=1)
+    held &= apart > PIN_FIT_MARGIN
     if not held.any():
         return rotations, translations, misfits
     entries, pieces = whole(), topo.triangle_component
@@ -115,7 +121,16 @@ def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, tr
         count = len(topo.components)
         return grouped_medians(angles, pieces, count), np.bincount(pieces, angles > NEAR_HALF_TURN, count)
 
-    (held_median, held_near), (free_median, free_near) = left_to_turn(held_rotations), left_to_turn(rotations)
+    free_median, free_near = left_to_turn(rotations)
+    # the pins' fit is measured only on the pieces where it can win: it must leave fewer triangles
+    # near a half turn than the free fit (so the free fit must leave some) and a median smaller by
+    # the margin, while each triangle's angle under it is at least ``apart`` less its angle under
+    # the free fit (the triangle inequality), so its median at least ``apart − free_median`` (to
+    # PIN_BOUND_ROUNDING); elsewhere ``use`` below is False whatever the pins' fit measures
+    held &= (free_near > 0) & (np.maximum(apart - free_median, 0.0) - PIN_BOUND_ROUNDING < free_median - PIN_FIT_MARGIN)
+    if not held.any():
+        return rotations, translations, misfits
+    held_median, held_near = left_to_turn(held_rotations)
     use = held & (held_median < free_median - PIN_FIT_MARGIN) & (held_near < free_near)
     if not use.any():
         return rotations, translations, misfits

@@ -205,15 +205,28 @@ class WholeRotations:
         short way round (its tip's residuals 16°), 61 × 3 vertices with noise of 3e-4 of its length
         had its tip's residuals continued about axes up to 60° apart, a jump left, and every
         in-between and exaggeration turned the tip the short way round (0.50–0.61 of the diagonal
-        off, silently); taken whole, within 2.1e-3."""
+        off, silently); taken whole, within 2.1e-3.
+
+        Where the rotations are not taken continuous across the mesh (sequences), the whole
+        rotations' angles are measured only where a piece's residuals' median exceeds
+        :data:`SPURIOUS_RIGID_TURN` itself: angles are never negative, so elsewhere the residuals
+        cannot exceed them by that much (keys 4 frames apart: 14–31 of the 23–31 relatives of a 10k
+        flag, balloon, hanging sheet or banner are decided so, and their traces, arc cosines and
+        medians per triangle are not made)."""
         made = self.__dict__.pop("_whole", None)  # the entries, where the pins' fits or turning made them
-        frames = self._turned_frames(other) if made is None else None
-        whole = _rotation_angles(frames, base.column_rows) if made is None else df.entries_rotation_angles(made)
         residual = np.sqrt(np.einsum("ij,ij->i", self.rotvec, self.rotvec))
         pieces, count = topo.triangle_component, len(topo.components)
-        out = grouped_medians(residual, pieces, count) > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
+        residual_medians = grouped_medians(residual, pieces, count)
         across = self._across
-        if across is None or not len(across):
+        across_mesh = across is not None and len(across) > 0
+        if not across_mesh and not (residual_medians > SPURIOUS_RIGID_TURN).any():
+            if made is None:
+                self.__dict__.pop("_plane_frames", None)  # let go, as measuring them would
+            return np.zeros(count, dtype=bool)
+        frames = self._turned_frames(other) if made is None else None
+        whole = _rotation_angles(frames, base.column_rows) if made is None else df.entries_rotation_angles(made)
+        out = residual_medians > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
+        if not across_mesh:
             return out
         # two poses: a piece whose residuals are left with a jump past a half turn (taken continuous
         # across the mesh, a part carrying a whole turn about axes its keys' noise sets: residuals

@@ -72,6 +72,63 @@ def test_a_pinned_gap_makes_its_whole_rotations_once_per_relative(monkeypatch):
     assert all(r.__dict__.get("_whole") is None and r.__dict__.get("_plane_frames") is None for r in gap.relatives)
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_the_pins_fit_is_measured_only_where_it_can_win_and_chosen_as_when_always_measured(monkeypatch, seed):
+    """Each piece's pins' fit is taken where it leaves its triangles' median angle smaller by
+    PIN_FIT_MARGIN and fewer of them near a half turn; a triangle's angle under it is at least the
+    two fits' angle apart less its angle under the free fit, so where that bound (or no triangle
+    near a half turn under the free fit) rules it out, its angles are not measured. Over pieces
+    whose triangles turn little about the free fit, little about the pins' one, or anywhere, the
+    fits chosen are those of measuring both, with angles from SciPy; the first two seeds are the
+    extremes (every triangle on the free fit: the pins' fit not measured; on the pins' one, turned
+    170° from the free fit: measured and taken)."""
+    import core.inbetween_rigid_fits as fits_module
+    from core.inbetween_keys import _Key
+    from core.inbetween_rigid_fits import NEAR_HALF_TURN, PIN_FIT_MARGIN, pin_held_fits
+    from core.inbetween_topology import _Topology
+    from core.mesh_topology import mesh_topology
+    from meshes import grid
+
+    rng = np.random.default_rng(seed)
+    sheet, tri = grid(9, 9, size=1.0)
+    count = 1 if seed < 2 else 3
+    vertices = np.vstack([sheet + [2.0 * c, 0.0, 0.0] for c in range(count)])
+    triangles = np.vstack([tri + c * len(sheet) for c in range(count)])
+    topo = _Topology(mesh_topology(triangles, len(vertices)), vertices)
+    topo.pinned = np.array([c * len(sheet) for c in range(count)])
+    key = _Key(topo, vertices)
+    free = Rotation.random(count, random_state=seed).as_matrix()
+    held = (Rotation.from_rotvec(rng.normal(size=(count, 3)) * rng.uniform(0.2, 3.0, size=(count, 1)))
+            * Rotation.from_matrix(free)).as_matrix()
+    if seed == 1:
+        held = (Rotation.from_rotvec([[0.0, 0.0, np.radians(170.0)]]) * Rotation.from_matrix(free)).as_matrix()
+    pieces = topo.triangle_component
+    spread = [0.0, 0.0, 0.3, 3.0][min(seed, 3)]
+    around = np.where((rng.random(count) < 0.5)[pieces, None, None], held[pieces], free[pieces])
+    around = held[pieces] if seed == 1 else free[pieces] if seed == 0 else around
+    whole = (Rotation.from_rotvec(spread * rng.normal(size=(len(pieces), 3))) * Rotation.from_matrix(around)).as_matrix()
+    entries = np.ascontiguousarray(whole.transpose(1, 2, 0))
+    calls = iter(range(count))
+    monkeypatch.setattr(fits_module, "pivoted_alignment", lambda *a: (held[next(calls)], np.zeros(3)))
+    measured = []
+    real = fits_module._fit_undone_angles
+    monkeypatch.setattr(fits_module, "_fit_undone_angles", lambda e, r, p: measured.append(r.copy()) or real(e, r, p))
+    rotations, _, _ = pin_held_fits(topo, key, key, lambda: entries, free, np.zeros((count, 3)), np.zeros(count))
+
+    def left(fits):  # per piece: the median angle and the count near a half turn, with the fit undone
+        angles = (Rotation.from_matrix(fits[pieces]).inv() * Rotation.from_matrix(whole)).magnitude()
+        return (np.array([np.median(angles[pieces == c]) for c in range(count)]),
+                np.bincount(pieces, angles > NEAR_HALF_TURN, count))
+    apart = (Rotation.from_matrix(held).inv() * Rotation.from_matrix(free)).magnitude()
+    (held_median, held_near), (free_median, free_near) = left(held), left(free)
+    use = (apart > PIN_FIT_MARGIN) & (held_median < free_median - PIN_FIT_MARGIN) & (held_near < free_near)
+    np.testing.assert_array_equal(rotations, np.where(use[:, None, None], held, free))
+    if seed == 0:
+        assert len(measured) == 1 and not use.any()
+    if seed == 1:
+        assert len(measured) == 2 and use.all()
+
+
 def test_a_handkerchief_pinned_at_its_centre_is_not_turned_half_round():
     """Keys 8 frames apart of a Blender cloth pinned at its four centre vertices and blown by
     turbulence into a bundle that looks alike after a half turn (frames 8, 16, 24, 32 and the

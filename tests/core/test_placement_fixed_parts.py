@@ -266,6 +266,28 @@ def test_two_poses_say_where_a_translating_pinned_patch_ends_off_its_path(swing,
         assert not said
 
 
+def test_the_working_unit_reads_each_keys_largest_extent_as_numpys_peak_to_peak():
+    """The keys' largest extent, which sets the working unit, reduced along contiguous coordinate
+    rows, is NumPy's ``ptp`` along the first axis to the bit (contiguous keys, views of every other
+    row, single precision, sizes from 2^-40 to 2^40 and a mesh flat in one coordinate), and so is
+    the unit."""
+    import math
+
+    from core.working_unit import WORKING_EXTENT, _largest_extent, working_unit
+
+    rng = np.random.default_rng(3)
+    for exponent in (-40, -12, 0, 12, 40):
+        keys = [rng.normal(size=(500, 3)) * 2.0 ** exponent + rng.normal(size=3) for _ in range(3)]
+        keys[1] = keys[1][::2]
+        keys[2] = keys[2].astype(np.float32)
+        keys.append(np.column_stack([keys[0][:, :2], np.zeros(500)]))
+        for k in keys:
+            assert _largest_extent(k) == float(np.max(np.ptp(k, axis=0)))
+        extent = max(float(np.max(np.ptp(k, axis=0))) for k in keys)
+        expected = 1.0 if WORKING_EXTENT[0] <= extent <= WORKING_EXTENT[1] else math.ldexp(1.0, 1 - math.frexp(extent)[1])
+        assert working_unit(keys) == expected
+
+
 @pytest.mark.parametrize("scale", [1.0, 2.0 ** 20, 2.0 ** -20])
 def test_a_translating_patch_off_its_path_is_said_in_the_callers_units(scale):
     """The swirled sheet above (swung 150°) given at ``scale`` × its size: keys outside

@@ -465,6 +465,39 @@ def test_the_rigid_fit_is_given_up_per_piece():
     assert not np.allclose(whole.rotvec[~first], relative.rotvec[~first])
 
 
+@pytest.mark.parametrize("degrees, halves", [(20.0, False), (170.0, False), (0.0, True)])
+def test_residuals_add_turn_measures_the_whole_rotations_only_where_the_residuals_can_exceed_them(
+        monkeypatch, degrees, halves):
+    """The whole rotations' angles are never negative, so a piece whose residuals' median is within
+    SPURIOUS_RIGID_TURN cannot have residuals that exceed them by that much: there the test answers
+    without measuring them (a bent sheet turned 20° or 170°: residuals' median 10°), and lets their
+    frames go as measuring them would; elsewhere (a strip whose halves trade places) it measures
+    them. Every answer agrees with the medians of the angles SciPy gives for the residuals and for
+    the whole rotations (the component's rigid rotation composed with them)."""
+    import core.inbetween_whole_rotations as whole_module
+    from core.inbetween_whole_rotations import SPURIOUS_RIGID_TURN
+
+    flat, tri = grid(41, 5, size=2.0)
+    other = flat.copy()
+    if halves:
+        other[:, 0] = np.where(flat[:, 0] < 1.0, flat[:, 0] + 1.0, flat[:, 0] - 1.0)
+        other[:, 2] = 0.2 * np.sin(np.pi * flat[:, 0])
+    else:
+        other[:, 2] = 0.1 * np.sin(3.0 * flat[:, 0])
+        other = _rigid(other, Rotation.from_rotvec([0.0, 0.0, np.radians(degrees)]).as_matrix(), np.zeros(3))
+    topo, base, other_key, relative = _relative(flat, other, tri)
+    measured = []
+    real = whole_module._rotation_angles
+    monkeypatch.setattr(whole_module, "_rotation_angles", lambda *a: measured.append(1) or real(*a))
+    residual = Rotation.from_rotvec(relative.rotvec)
+    whole = Rotation.from_matrix(relative.motion[0][topo.triangle_component]) * residual
+    expected = np.median(residual.magnitude()) > np.median(whole.magnitude()) + SPURIOUS_RIGID_TURN
+    answer = relative.residuals_add_turn(topo, base, other_key)
+    assert answer.tolist() == [expected] == [halves]
+    assert bool(measured) == (np.median(residual.magnitude()) > SPURIOUS_RIGID_TURN) == halves
+    assert relative.__dict__.get("_plane_frames") is None and relative.__dict__.get("_whole") is None
+
+
 def test_a_relatives_screw_is_made_once_when_first_read_and_is_the_whole_meshs_turns(monkeypatch):
     """A relative built without ``turns`` takes each piece's half turn the way the whole mesh turns
     (§5.3 rigid part). Its screw is made when first read: the key two ahead of a sequence's gap has
