@@ -319,7 +319,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         (:func:`core.sequence_warnings.gap_problems`)."""
         if not between or self._hold(gap):  # a hold: the pose at every factor
             out[between] = self._given[gap]
-            return (out if self._copies is None else out[:, self._copies]), []
+            return self._caller_poses(out, gap, [0.0 if k in between else f for k, f in enumerate(factors)]), []
         segment = self._gap(gap)
         self._prepare_in_background(gap + 1)
         solved = gap_poses(segment, [factors[k] for k in between])
@@ -351,7 +351,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                    (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices, gap)
             if opening is not None:
                 said.append(("seam", opening[0], 0, opening[1]))
-        return (out if self._copies is None else out[:, self._copies]), said
+        return self._caller_poses(out, gap, factors), said
 
     def _finite(self, x: np.ndarray, gap: int, factor: float) -> str | None:
         """None where the pose ``x`` (n, 3) at ``factor`` in gap ``gap`` is finite (the check is

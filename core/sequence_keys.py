@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from dataclasses import replace
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertice
 from .coordinate_rounding import coordinate_rounding, rounding_scale
 from .loose_vertices import attached_loose
 from .seam_welds import coincidence_tolerance, seam_weld
+from .near_duplicates import near_duplicates
 from .near_seams import near_seams
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import _warn
@@ -103,6 +105,14 @@ class SequenceKeys:
         if weld is not None:
             keys, topology, self._copies = [k[weld.kept] for k in keys], weld.topology, weld.copies
         still = still_vertices(keys, tolerance)
+        # vertices far closer than the fits resolve in every key are solved as one (core.near_duplicates)
+        self._near = near_duplicates(keys, topology)
+        kept = None if weld is None else weld.kept  # the caller's index of each vertex solved
+        if self._near is not None:
+            if still[self._near.members].any():  # those stay where the first key has them, as the others
+                self._near = replace(self._near, still=still[self._near.members])
+            keys, topology, still = [k[self._near.kept] for k in keys], self._near.topology, still[self._near.kept]
+            kept = self._near.kept if kept is None else kept[self._near.kept]
         # loose vertices near the surface follow a triangle there, not their piece's rigid motion
         self._attached = attached_loose(keys, topology, still)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
@@ -110,7 +120,7 @@ class SequenceKeys:
         # pieces both keys of a gap keep together along a seam farther apart than the weld joins (left
         # unwelded, or sewn by the motion): the in-betweens say where they open it (core.near_seams)
         self._near_seams = near_seams(keys, topology, tolerance)
-        self._welded_vertices = None if weld is None else weld.kept
+        self._welded_vertices = kept
         # interpolated about the middle of the first key, the results moved back: the splines of the
         # pieces' screw motions limit their tangents per coordinate, which a translation changes
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
@@ -127,7 +137,7 @@ class SequenceKeys:
             keys = [np.multiply(k, self._unit, out=k) if self._origin is not None else k * self._unit for k in keys]
         self._raw = keys
         self._topo = _Topology(topology, keys[0])
-        warn_mirrored(self._topo, self._raw, self.key_names, None if weld is None else weld.kept)
+        warn_mirrored(self._topo, self._raw, self.key_names, kept)
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (_Relative); a sequence reads there which parts turn past a half
         # turn per gap (_Relative.turning) and takes those parts' turns continuous across them
@@ -186,6 +196,15 @@ class SequenceKeys:
         """Positions ``x`` (n, 3) of the working keys back in the caller's place and units."""
         x = x if self._unit == 1.0 else x * (1.0 / self._unit)
         return x if self._origin is None else x + self._origin
+
+    def _caller_poses(self, out: np.ndarray, gap: int, factors: list[float]) -> np.ndarray:
+        """Poses ``out`` (len(factors), n_solved, 3) of gap ``gap`` at ``factors`` for every vertex of
+        the caller's mesh: near-duplicate vertices placed about the one solved
+        (:meth:`core.near_duplicates.NearDuplicates.place`), seams' copies at their welded vertex."""
+        if self._near is not None:
+            keys = (self._given[gap], self._given[gap + 1])
+            out = np.stack([self._near.place(x, keys, gap, f) for x, f in zip(out, factors)])
+        return out if self._copies is None else out[:, self._copies]
 
     def __len__(self) -> int:
         return len(self._raw) - 1

@@ -227,10 +227,8 @@ class Interpolator:
         sequence = self._sequence
         rotations, translations, _ = sequence._fits(0, 1)
         topo = sequence._topo
-        if sequence._copies is not None:  # the caller's vertices back to the welded ones (copies alike)
-            welded = np.empty((topo.n, 3))
-            welded[sequence._copies] = x
-            x = welded
+        if sequence._welded_vertices is not None:  # the caller's vertices back to the solved ones
+            x = x[sequence._welded_vertices]
         share, spun = turned_back(sequence._raw[0], sequence._raw[1], sequence._to_working(x), factor, topo.weights,
                                   topo.vertex_owner, sequence._key_patches(), rotations, translations,
                                   sequence._key_turns(0))
@@ -304,6 +302,11 @@ class Interpolator:
         by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
                      (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
         flagged = (growth > 0) | (shrinking > 0)
+        near = sequence._near
+        if near is not None:  # the solved triangles' (by_metric) among the caller's; the others are placed, not fitted
+            flagged &= near.whole
+            solved, by_metric = by_metric, np.zeros(len(flagged), dtype=bool)
+            by_metric[near.whole] = solved
         names = sequence.key_names
         for rows, cause in ((np.flatnonzero(flagged & by_metric),
                              "exaggerating (or reversing) raises each triangle's stretch between the poses to the "
