@@ -21,6 +21,7 @@ from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, per_factor
 from .inbetween_topology import GAUGE_WEIGHT
 from .pcg import pcg
+from .sewn_seams import sewn_factor
 
 #: Two-pose interpolation anchors vertex ``v`` to the linear blend with weight
 #: BLEND_ANCHOR_WEIGHT · (BLEND_SHORTENING_SCALE / max(c, scale))² · max(0, 1 − c / CUTOFF)², where
@@ -191,7 +192,7 @@ class Anchor:
             if weights is not None and not (weights > GAUGE_WEIGHT).any():
                 weights = None
             w = np.full(topo.n, GAUGE_WEIGHT) if weights is None else weights
-            system = (topo.factor(GAUGE_WEIGHT if weights is None else w, key), w * topo.mass)
+            system = (sewn_factor(topo, GAUGE_WEIGHT if weights is None else w, key, self.sewn), w * topo.mass)
             self._anchors[between] = (weights, co_moving, system, self.centroid_placement(w, between))
         self.weights, self.co_moving, self.system, self.by_centroid = self._anchors[between]
 
@@ -249,13 +250,16 @@ class Anchor:
         factor, anchor = self.system
         weak = self.spline_weights(HELD_ANCHOR_WEIGHT) * self.topo.mass
         change = (weak - anchor)[:, None] * (guide - own)
+        change = change if self.sewn is None else factor.project(change)
         laplacian = self.topo.laplacian
 
         # the three coordinates as one system (the same matrix on each: its spectrum), so that each
         # iteration solves with the factor once for all three
         def weak_matrix(p):
             p = p.reshape(-1, 3)
-            return (laplacian @ p + weak[:, None] * p).ravel()
+            product = laplacian @ p + weak[:, None] * p
+            # a sewn gap's solves keep its groups together: the iteration runs among such positions
+            return (product if self.sewn is None else factor.project(product)).ravel()
 
         def preconditioner(r):
             return factor.solve(r.reshape(-1, 3)).ravel()
@@ -267,7 +271,7 @@ class Anchor:
         """(factor, per-vertex anchor) of the sequence's anchor at :data:`HELD_ANCHOR_WEIGHT` (pinned
         vertices as firmly as ever), factorized once per sequence."""
         w = self.spline_weights(HELD_ANCHOR_WEIGHT)
-        return self.topo.factor(w, self.spline_key(HELD_ANCHOR_WEIGHT)), w * self.topo.mass
+        return sewn_factor(self.topo, w, self.spline_key(HELD_ANCHOR_WEIGHT), self.sewn), w * self.topo.mass
 
     def sequence_weights(self) -> np.ndarray:
         """Per-vertex anchor weights (n,) of a sequence: the gap's ``anchor_weight``

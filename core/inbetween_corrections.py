@@ -216,7 +216,7 @@ def _relaxation(gap, s: float, correction) -> np.ndarray:
     motion = gap.motion(s)
     x = _pins_in_place(gap, _predicted_positions(gap, s, correction, motion), s)
     targets = gap.local_step_targets(gap.fit_targets(None, gap.stretch(s)))
-    y = gap.solve(gap.fitted_edges(gap.edges_of(x, LOCAL_STEP_DTYPE), targets), x)
+    y = gap.solve(gap.fitted_edges(gap.edges_of(x, LOCAL_STEP_DTYPE), targets), x, s=s)
     return gap.topo.undo_motion(y - x, motion[0], np.zeros((len(motion[0]), 3)))
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import coordinate_dot
+from .sewn_seams import sewn_offsets
 
 #: Local/global iterations after the Poisson solve, at most. They bring the edge lengths onto the
 #: interpolated metric where the interpolated rotations are not integrable (crumpling cloth); the
@@ -141,14 +142,15 @@ class LocalGlobalFit:
     #: (:data:`core.inbetween_prediction.ROUGH_ROTATION_DEVIATION`).
     rotation_limit = MAX_ROTATION_DEVIATION
 
-    def solve(self, edges: np.ndarray, guide: np.ndarray, system=None) -> np.ndarray:
+    def solve(self, edges: np.ndarray, guide: np.ndarray, system=None, s: float | None = None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (3 coordinates, 3 corners, m) and the anchor
-        to ``guide`` (``system``: (factor, per-vertex anchor) other than the gap's own)."""
+        to ``guide`` (``system``: (factor, per-vertex anchor) other than the gap's own); in a gap
+        with sewn seams, their groups together as at factor ``s`` (:mod:`core.sewn_seams`)."""
         lu, anchor = system or self.system
         rhs = np.empty((self.topo.n, 3))
         for d in range(3):
             rhs[:, d] = self.topo.Dct @ edges[d].ravel() + anchor * guide[:, d]
-        return lu.solve(rhs)
+        return lu.solve(rhs) if s is None or self.sewn is None else lu.solve(rhs, sewn_offsets(self, s))
 
     def edges_of(self, x: np.ndarray, dtype=np.float64) -> np.ndarray:
         """Corner edge vectors of positions ``x`` (n, 3) by coordinate (3 coordinates, 3 corners,
@@ -316,7 +318,7 @@ class LocalGlobalFit:
             if looser is not None and not looser and _stops(misfits, self.change_tolerance):
                 looser.append(x)
             local = self.local_step_targets(targets) if local is None else local
-            image = self.solve(self.fitted_edges(edges, local, force), guide, system)
+            image = self.solve(self.fitted_edges(edges, local, force), guide, system, s)
             image = image if system is not None else self.place(image, s, motion)
             residual = image - x
             step = np.max(np.abs(residual))

@@ -15,6 +15,7 @@ import numpy as np
 from .inbetween_corrections import _CorrectionPolynomial, _RelaxedCorrection, _pins_in_place, _predicted_positions
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_threads import per_factor
+from .sewn_seams import sewn_together
 
 
 #: In a gap above the tolerance's floor predicted from two solved factors (keys 5–8 frames apart),
@@ -83,13 +84,14 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     x = _predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
         return gap.pose(s)
-    x = _pins_in_place(gap, x, s)
+    x = sewn_together(gap, _pins_in_place(gap, x, s), s)  # one piece's motion each: sewn seams joined again
     gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
     scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)
     if defects.any() and isinstance(correction, _RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
         plain = _pins_in_place(gap, _predicted_positions(gap, s, correction.correction, motion), s)
+        plain = sewn_together(gap, plain, s)
         gap.carried.place(plain, s)
         fewer = gap.repair.defects(plain, s, None, None, scale=scale)
         if fewer.sum() < defects.sum():

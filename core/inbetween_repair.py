@@ -58,6 +58,7 @@ from .inbetween_defects import DefectChecks
 from .inbetween_fit import LOCAL_STEP_DTYPE
 from .inbetween_repair_rounds import REPAIR_RINGS, RepairRounds
 from .inbetween_turned_away import TurnedAway
+from .sewn_seams import sewn_factor
 
 
 #: Local/global iterations of the fallback that fits the metric near the linear blend.
@@ -184,7 +185,8 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         ``blend`` with every vertex anchored to it at :data:`FALLBACK_ANCHOR_WEIGHT` (no rotation
         limit: the blend's own turns are the start)."""
         gap = self.gap
-        system = (gap.topo.factor(FALLBACK_ANCHOR_WEIGHT), np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
+        system = (sewn_factor(gap.topo, FALLBACK_ANCHOR_WEIGHT, None, gap.sewn),
+                  np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
         return gap.fit(blend.copy(), stretch, None, blend, s, motion, REPAIR_ITERATIONS, system=system)
 
     def nearer_the_metric(self, result, s, stretch, motion, targets) -> tuple[np.ndarray, str | None]:

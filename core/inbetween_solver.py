@@ -110,8 +110,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
-                 root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0):
+                 root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0, sewn=None):
         self.topo, self.base, self.next = topo, base, nxt
+        # groups of vertices both keys keep together along a seam, each one unknown in every solve
+        # (core.sewn_seams.SewnGroups), or None
+        self.sewn = sewn
         # the power of two the keys were scaled by (core.working_unit): distances in messages are
         # divided by it, so that they are in the caller's units
         self.unit = unit
@@ -332,7 +335,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             if start is not None:
                 x0 = start.copy()
             elif self.use_extrinsic:
-                x0 = self.place(self.solve(targets["edges"], guide), s, motion)
+                x0 = self.place(self.solve(targets["edges"], guide, s=s), s, motion)
             else:
                 x0 = self.place(guide.copy(), s, motion)
             looser = []
@@ -345,7 +348,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             if start is not None:
                 x0 = start.copy()
             else:
-                x0 = self.solve(targets["edges"], guide, system) if self.use_extrinsic else guide.copy()
+                x0 = self.solve(targets["edges"], guide, system, s) if self.use_extrinsic else guide.copy()
             looser, steps = [], []
             x = self.fit(x0, stretch, fitted, guide, s, motion, iterations, targets=targets, system=system,
                          misfits=steps, looser=looser)

@@ -15,8 +15,10 @@ ones, which the in-betweens of two sewn panels opened by up to 5 edges between k
 apart. Such seams are found once per sequence, gap by gap (:func:`near_seams`: a KD-tree query
 over the boundary vertices of every other key, which meets every gap), and each in-between is measured on its gap's
 (:meth:`NearSeams.opening`: a gather), so that the in-betweens warn (kind ``seam``) where they open
-what both keys of their gap keep closed. Pieces that move together keep their distance and are
-not warned of, whatever their distance in the keys.
+what both keys of their gap keep closed. Each gap's solves keep those pairs at their keys' offsets
+(:mod:`core.sewn_seams`); the warning is for pairs a gap cannot join (joined, a triangle would
+collapse). Pieces that move together keep their distance and are not warned of, whatever their
+distance in the keys.
 """
 
 from __future__ import annotations

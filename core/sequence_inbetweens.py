@@ -60,6 +60,7 @@ from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
+from .sewn_seams import gap_groups, sewn_offsets
 from .sequence_warnings import _warn, gap_problems
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
@@ -256,7 +257,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     exit=self._exit(gap) if cubic else None,
-                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit)
+                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit,
+                    sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit))
 
     def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
         """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every
@@ -326,6 +328,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         problems = []  # (factor, kind, what happened, defects kept) of each in-between with a problem
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):
+            if segment.sewn is not None:  # what a repair moved apart (core.sewn_seams)
+                offsets = sewn_offsets(segment, factors[k])
+                if segment.sewn.opening(x, offsets) > 0.0:
+                    x = segment.sewn.join(x.copy(), offsets, self._topo.mass, segment.static)
             out[k] = self._from_working(x)
             if (self._origin is not None or self._unit != 1.0) and self._static is not None:
                 out[k][self._still] = self._given[0][self._still]  # exactly where they sit

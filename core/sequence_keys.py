@@ -118,7 +118,8 @@ class SequenceKeys:
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
             keys = [k if np.array_equal(k[still], keys[0][still]) else _with_rows(k, still, keys[0]) for k in keys]
         # pieces both keys of a gap keep together along a seam farther apart than the weld joins (left
-        # unwelded, or sewn by the motion): the in-betweens say where they open it (core.near_seams)
+        # unwelded, or sewn by the motion): each gap's solves keep them as its keys have them
+        # (core.sewn_seams), and the in-betweens say where they still open (core.near_seams)
         self._near_seams = near_seams(keys, topology, tolerance)
         self._welded_vertices = kept
         # interpolated about the middle of the first key, the results moved back: the splines of the
