@@ -58,33 +58,41 @@ class DefectChecks:
             e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
             rows = slice(None)
             normals = None
+            target = self.gap.base.areas * self._area_scale(stretch, scale, rows)
         else:
-            corners, normals, areas = self._rows_of(rows)
+            corners, normals, target = self._rows_of(rows, stretch, scale)
             p = np.take(x, corners, axis=0)  # (3 corners, r, 3) in one gather
             e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
         cross = coordinate_cross(e1, e2)
-        if scale is None:
-            st = stretch[rows]
-            scale = st[:, 0] * st[:, 2] - st[:, 1] ** 2
-        else:
-            scale = scale[rows]
-        target = (self.gap.base.areas if normals is None else areas) * scale
         length = np.sqrt(coordinate_dot(cross, cross))
         collapsed = 0.5 * length < COLLAPSE_RATIO * target
         return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
 
-    def _rows_of(self, rows: np.ndarray) -> tuple:
+    @staticmethod
+    def _area_scale(stretch, scale, rows) -> np.ndarray:
+        """The interpolated areas' ratios to the base's on ``rows``: ``scale`` there if given, else
+        the determinants of the packed ``stretch`` (m, 3)."""
+        if scale is not None:
+            return scale[rows]
+        st = stretch[rows]
+        return st[:, 0] * st[:, 2] - st[:, 1] ** 2
+
+    def _rows_of(self, rows: np.ndarray, stretch, scale) -> tuple:
         """The corners (3, r: each corner's vertices contiguous), the keys' normals (two (3, r)) and
-        the base's areas (r,) of the triangles ``rows``: a repair round checks each field's fit on
-        the same region, so the last rows asked (per thread: a gap's in-betweens are repaired
-        concurrently) keep them."""
+        the collapse check's target areas (r,: the base's times :meth:`_area_scale`) of the
+        triangles ``rows``: a repair round checks each field's fit on the same region with the same
+        stretches, so the last rows asked (per thread: a gap's in-betweens are repaired
+        concurrently) keep them, the target areas while the same ``stretch`` and ``scale`` are
+        given."""
         cached = getattr(self._local, "rows", None)
         if cached is None or cached[0] is not rows:
             gap = self.gap
-            cached = self._local.rows = (rows, np.ascontiguousarray(gap.topo.triangles[rows].T),
+            cached = self._local.rows = [rows, np.ascontiguousarray(gap.topo.triangles[rows].T),
                                          (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows]),
-                                         gap.base.areas[rows])
-        return cached[1:]
+                                         gap.base.areas[rows], None]
+        if cached[4] is None or cached[4][0] is not stretch or cached[4][1] is not scale:
+            cached[4] = (stretch, scale, cached[3] * self._area_scale(stretch, scale, rows))
+        return cached[1], cached[2], cached[4][2]
 
     def against_the_field(self, x: np.ndarray, frames: np.ndarray) -> tuple[str | None, tuple[int, int]]:
         """(What to say, or None, and how many triangles: those where the keys face the same way,

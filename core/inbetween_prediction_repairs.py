@@ -184,7 +184,7 @@ def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple
     for _ in range(REPAIR_PASSES):
         # never more defects: the rounds start from pose
         repaired = gap.repaired_again(pose[0], s, nearby, rings, defects)
-        fewer = gap.repair.defects(repaired[0], s, None, None, scale=scale)
+        fewer = _defects_after(gap, s, pose[0], defects, repaired[0], scale)
         moved = float(np.sum((repaired[0] - start) ** 2))
         if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
             break
@@ -193,6 +193,20 @@ def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple
             break
     _put_back(gap, s, outcome)
     return pose
+
+
+def _defects_after(gap, s: float, x: np.ndarray, defects: np.ndarray, y: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """The flipped and collapsed triangles (bool (m,)) of positions ``y`` (n, 3) at factor ``s``,
+    a repair of ``x`` whose are ``defects``: checked again only on the triangles with a vertex the
+    repair moved (its regions), each of them as a check of the whole mesh checks it (``scale``:
+    the gap's ``area_scale(s)``)."""
+    if not np.isfinite(y).all():
+        return gap.repair.defects(y, s, None, None, scale=scale)
+    moved = (y != x).any(axis=1)
+    rows = np.flatnonzero(moved[gap.topo.triangles].any(axis=1))
+    out = defects.copy()
+    out[rows] = gap.repair.defects(y, s, None, None, rows=rows, scale=scale)
+    return out
 
 
 def _solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:

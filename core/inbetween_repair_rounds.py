@@ -124,7 +124,15 @@ class RepairRounds:
         blend_field, spline_field = self.factor_fields(s, blend)
         fields = [(interpolated, False), (lambda rows: (blend_field(rows)[0], stretch[rows]), False), (blend_field, True),
                   (spline_field, False)] + [(key_field(k), True) for k in keys]
-        return fields if nearby is None else fields + [(self.mesh_field(nearby), True)]
+        return fields if nearby is None else fields + [(self.nearby_field(nearby), True)]
+
+    def nearby_field(self, nearby: np.ndarray):
+        """The :meth:`mesh_field` of ``nearby`` (positions (n, 3) of another pose): inside
+        :meth:`fields_kept`, the one this thread already made of this very array (the repairs again
+        of one in-between pass the same pose to each of their passes,
+        :func:`core.inbetween_prediction_repairs._repaired_again`), else a new one."""
+        # the array is kept with its field: its identity stays its own while the scope lasts
+        return self._kept(("nearby", id(nearby)), lambda: (nearby, self.mesh_field(nearby)))[1]
 
     def mesh_field(self, positions):
         """The local geometry of a mesh with vertices ``positions`` ((n, 3), or a function of no
@@ -159,20 +167,32 @@ class RepairRounds:
         (every repair of one in-between imposes them on overlapping regions: a prediction's repair,
         the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction_repairs._repaired_again`),
         else new ones."""
-        kept = getattr(self._local, "fields", None)
-        if kept is not None and s in kept:
-            return kept[s]
         spline = self.gap.splines["world"]
-        made = self.mesh_field(blend), self.mesh_field(lambda: spline.at(s))
-        if kept is not None:
-            kept[s] = made
-        return made
+        return self._kept(s, lambda: (self.mesh_field(blend), self.mesh_field(lambda: spline.at(s))))
+
+    def factor_targets(self, s: float) -> tuple:
+        """The gap's targets at in-between factor ``s`` by rows
+        (:meth:`core.inbetween_field.InterpolatedField.targets` with ``by_rows``: frames and stretches
+        computed on the rows a repair reads, the rigid motions, the guide): inside :meth:`fields_kept`,
+        those this thread already made for ``s`` (a prediction's repair and each pass of its repairs
+        again read them on overlapping regions), else new ones."""
+        return self._kept(("targets", s), lambda: self.gap.targets(s, by_rows=True))
+
+    def _kept(self, key, make):
+        """``make()``, or inside :meth:`fields_kept` what it returned for ``key`` in this thread's
+        scope, kept there the first time."""
+        kept = getattr(self._local, "fields", None)
+        if kept is None:
+            return make()
+        if key not in kept:
+            kept[key] = make()
+        return kept[key]
 
     @contextmanager
     def fields_kept(self):
-        """A scope (one thread's work on one in-between) in which :meth:`factor_fields` keeps the
-        fields it makes, let go at its end (at 100k vertices the two fields of one factor hold
-        ~35 MB)."""
+        """A scope (one thread's work on one in-between) in which :meth:`factor_fields`,
+        :meth:`factor_targets` and :meth:`nearby_field` keep what they make, let go at its end (at
+        100k vertices the two fields of one factor hold ~35 MB, its targets by rows ~17 MB)."""
         outer = getattr(self._local, "fields", None)  # a scope inside another keeps the outer's
         if outer is None:
             self._local.fields = {}

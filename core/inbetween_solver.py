@@ -373,7 +373,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         the repair rounds, all of them by default; ``defects``: those of ``x`` (bool (m,)) if known)."""
         self.select(s)
         # in-betweens' checks use the keys' normals: the repairs need the frames on their regions only
-        frames, stretch, motion, guide = self.targets(s, by_rows=0.0 < s < 1.0)
+        frames, stretch, motion, guide = self.repair.factor_targets(s) if 0.0 < s < 1.0 else self.targets(s)
         rounds = {} if rings is None else {"rings": rings}
         return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, **rounds), s)
 
@@ -385,7 +385,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         of ``x`` (bool (m,)) if known). Only the repair regions move: the pieces keep the placement
         :meth:`finished` gave ``x``; the still vertices are put back where they sit in the keys."""
         self.select(s)
-        frames, stretch, motion, guide = self.targets(s, by_rows=True)
+        frames, stretch, motion, guide = self.repair.factor_targets(s)
         rounds = {} if rings is None else {"rings": rings}
         out = self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, nearby=nearby, **rounds)
         if self.static is not None:

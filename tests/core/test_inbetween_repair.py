@@ -780,17 +780,23 @@ class _ScriptedGap:
     """A stand-in for a gap whose repairs of an in-between are scripted: ``passes`` (list of
     positions (n, 3)) are what its successive repairs return, each stored with its count in
     ``outcomes`` as :meth:`core.inbetween_repair.Repair.checked` does; a triangle is flipped where its
-    row of the positions has a negative first coordinate; ``limits`` the repairs' move limits."""
+    row of the positions has a negative first coordinate (triangle i: vertex i thrice); ``limits`` the
+    repairs' move limits."""
 
     def __init__(self, passes, limits):
+        from types import SimpleNamespace
+
         from core.inbetween_repair import Outcome
 
         self.outcome_of = lambda x: Outcome(int((x[:, 0] < 0).sum()), False)
         self.passes, self.outcomes = list(passes), {}
+        n = len(self.passes[0])
+        self.topo = SimpleNamespace(triangles=np.repeat(np.arange(n)[:, None], 3, axis=1))
 
         class Repair:
-            def defects(self, x, s, frames, stretch, scale=None):
-                return x[:, 0] < 0
+            def defects(self, x, s, frames, stretch, rows=None, scale=None):
+                flipped = x[:, 0] < 0
+                return flipped if rows is None else flipped[rows]
 
             def move_limits(self, s):
                 return limits
@@ -861,6 +867,102 @@ def test_the_repairs_of_one_in_between_share_the_blend_and_spline_geometry(monke
         np.testing.assert_array_equal(x, y)
         assert message == said
     assert repaired(crumpled[0])[1] > 0  # let go at the scope's end
+
+
+def test_the_repairs_again_of_one_in_between_share_its_targets_and_the_nearby_geometry(monkeypatch, strip):
+    """An in-between's repair and its repairs again at one factor (one scope, ``Repair.fields_kept``)
+    read the gap's interpolated rotations and stretches by rows from one set of targets, and each
+    triangle's local geometry of the pose passed as ``nearby`` is computed once for all the passes
+    given that very array: each repair returns what it returns alone, bit for bit (a pass computes
+    no value it would not compute alone), and out of the scope nothing is kept."""
+    import core.deformation_fields as df
+    from core import inbetween_solver
+
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s = 0.5
+    rng = np.random.default_rng(1)
+    crumpled = gap.linear_blend(s) + rng.normal(scale=0.05, size=flat.shape)
+    nearby = gap.linear_blend(s) + rng.normal(scale=0.01, size=flat.shape)
+    made, real_targets = [], inbetween_solver._Gap.targets
+    monkeypatch.setattr(inbetween_solver._Gap, "targets",
+                        lambda self, s, by_rows=False: made.append(by_rows) or real_targets(self, s, by_rows))
+    of_nearby = []  # triangles whose local geometry of ``nearby`` was computed
+    real_edges = df.corner_edges
+    monkeypatch.setattr(df, "corner_edges", lambda points, triangles: (points is nearby and of_nearby.extend(
+        map(tuple, triangles))) or real_edges(points, triangles))
+
+    def chain():  # a repair, then two repairs again from its pose with the same nearby pose
+        first = gap.repaired(crumpled.copy(), s)
+        return [first] + [gap.repaired_again(first[0].copy(), s, nearby) for _ in range(2)]
+
+    alone = chain()
+    # alone, each call makes its own targets and each pass the geometry of its regions
+    assert made.count(True) == 3 and len(of_nearby) > len(set(of_nearby))
+    made.clear(), of_nearby.clear()
+    with gap.repair.fields_kept():
+        kept = chain()
+    assert made.count(True) == 1 and of_nearby and len(of_nearby) == len(set(of_nearby))
+    for (x, message), (y, said) in zip(kept, alone):
+        np.testing.assert_array_equal(x, y)
+        assert message == said
+    made.clear()
+    gap.repaired_again(alone[0][0].copy(), s, nearby)
+    assert made.count(True) == 1  # let go at the scope's end
+
+
+def test_the_defects_of_a_repair_again_are_the_whole_meshs_checked_where_it_moved(strip):
+    """A pass of the repairs again checks its pose only on the triangles with a vertex it moved,
+    the rest keeping the defects of the pose it started from: equal, triangle by triangle, to the
+    check of the whole mesh, for moves that flip triangles, unflip them and collapse one (and
+    every triangle of a pose that is not finite)."""
+    from core.inbetween_prediction_repairs import _defects_after
+
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s, scale = 0.5, gap.area_scale(0.5)
+    rng = np.random.default_rng(2)
+    x = gap.linear_blend(s) + rng.normal(scale=0.03, size=flat.shape)
+
+    def whole(y):
+        return gap.repair.defects(y, s, None, None, scale=scale)
+
+    before = whole(x)
+    assert before.any() and not before.all()
+    edge = np.median(np.linalg.norm(flat[tri[:, 1]] - flat[tri[:, 0]], axis=1))
+    i, j, k = tri[len(tri) // 2]
+    for moved in (rng.choice(len(x), size=12, replace=False), np.unique(tri[before])):
+        y = x.copy()
+        y[moved] += rng.normal(scale=edge, size=(len(moved), 3))
+        after = whole(y)
+        assert (after != before).any()
+        np.testing.assert_array_equal(_defects_after(gap, s, x, before, y, scale), after)
+    collapsed = x.copy()
+    collapsed[i] = 0.5 * (x[j] + x[k])  # on the opposite side: the triangle's area is zero
+    assert whole(collapsed)[len(tri) // 2]
+    np.testing.assert_array_equal(_defects_after(gap, s, x, before, collapsed, scale), whole(collapsed))
+    broken = x.copy()
+    broken[i] = np.nan
+    assert _defects_after(gap, s, x, before, broken, scale).all()
+
+
+def test_a_regions_checks_follow_the_stretches_they_are_given(strip):
+    """The checks of one region keep its target areas while they are given the same stretches; given
+    others (another field's, or whole ones) on the same rows, they check against those: each equals
+    the whole mesh's check on the rows."""
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s = 0.5
+    x = gap.linear_blend(s)
+    rows = np.arange(0, len(tri), 3)
+    wide = gap.stretch(s).copy()
+    narrow = wide.copy()
+    narrow[:, 0] *= 1e4  # every interpolated area 10,000 × larger: each triangle collapsed against it
+    for stretch in (wide, narrow, wide):
+        expected = gap.repair.defects(x, s, None, stretch)[rows]
+        np.testing.assert_array_equal(gap.repair.defects(x, s, None, stretch, rows=rows), expected)
+    assert not gap.repair.defects(x, s, None, wide, rows=rows).any()
+    assert gap.repair.defects(x, s, None, narrow, rows=rows).all()
 
 
 def test_a_predictions_repairs_compute_the_blends_geometry_once(monkeypatch, strip):
