@@ -11,7 +11,7 @@ import numpy as np
 
 from . import deformation_fields as df, screw_motions
 from .inbetween_rigid_fits import turn_spread
-from .inbetween_motion import RIGID_PLACEMENT_SCALE
+from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
 from .splines import REST_START_LIMIT
 from .spread_groups import spread_groups
 
@@ -27,13 +27,22 @@ FLYING_MIN_TURN = 1e-6
 #: of the size; a single-precision cache 1e-7).
 FLYING_TOLERANCE = 1e-4
 #: A deforming piece turning as a whole (non-rigidity, RMS misfit of its rigid fits over its size,
-#: over :data:`~core.inbetween_motion.RIGID_PLACEMENT_SCALE`, under the first share of
-#: :data:`~core.inbetween_motion.SIMILAR_SHAPE_MISFIT`; its guide is its interpolated rigid
+#: over :data:`~core.inbetween_motion.RIGID_PLACEMENT_SCALE`; its guide is its interpolated rigid
 #: motion, :data:`core.inbetween_guide.ARC_GUIDE_STRAIN_RATIO`) turns about an axis line only where
 #: every key around the gap turns it about that line (:func:`_on_common_axis`: a cloth on a
 #: turntable) to this many times its non-rigidity (the fits' rotations and
-#: positions are known to about that; two keys' misses add up), else about its centroid, which
-#: follows its own path. Four rigid motions always have a point of zero third difference somewhere
+#: positions are known to about that; two keys' misses add up) — at most this many times the first
+#: share of :data:`~core.inbetween_motion.SIMILAR_SHAPE_MISFIT`: past it the fits' turns are no
+#: body's, and a tolerance growing with the non-rigidity would pass any four motions (a sheet
+#: tossed while it crumples, non-rigidity 0.23: 8 × that lets every key's axis through) — else
+#: about its centroid, which follows its own path. So a free cloth carried or thrown through a
+#: large turn (a napkin on a sliding, spinning tray; a tumbling sheet) keeps its centre on the
+#: spline of the keys' centroids, where the screw about its fixed axis swings it along a helix off
+#: that path (keys 16 frames apart, a 12k sheet tossed while it crumples: 1.103 × the blend's RMS
+#: and 1.457 × Catmull–Rom's with the screw, 0.722 × and 0.954 × about its centroid; a napkin on
+#: the tray 1.021 and 0.948 × Catmull–Rom's; numbers in docs/inbetween-measurements.md, *A napkin
+#: on a moving tray, a tossed sheet, a flag in turbulence, a sheet down a flight of steps*).
+#: Four rigid motions always have a point of zero third difference somewhere
 #: (the difference is an invertible map of the point but for a common axis), so a deforming body
 #: that tumbles and bounces (a cushion with internal springs falling onto a block: a point 1.1 of
 #: its size from its centre) would be turned about a point that is no hinge, as the screw turns it
@@ -217,7 +226,8 @@ def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
     distance = np.linalg.norm(move, axis=1)
     far = ~simple & ((distance > reach) | deforming)
     if far.any():
-        tolerance = np.where(deforming, np.maximum(FLYING_TOLERANCE, DEFORMING_AXIS_NOISE * noise), FLYING_TOLERANCE)
+        tolerance = np.where(deforming, np.clip(DEFORMING_AXIS_NOISE * noise, FLYING_TOLERANCE,
+                                                DEFORMING_AXIS_NOISE * SIMILAR_SHAPE_MISFIT[0]), FLYING_TOLERANCE)
         far[far] = _on_common_axis([nxt.motion] + [r.motion for r in known], first[far], point[far], reach[far],
                                    distance[far], tolerance[far])
     simple |= far

@@ -243,13 +243,11 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.against: dict[float, tuple[int, int]] = {}
         self.carried = CarriedPieces(self)
         # deforming pieces turning as a whole are guided by their interpolated rigid motion
-        # (Guide.arc_guided): those that keep their shape to SIMILAR_SHAPE_MISFIT's first share of
-        # their size (beyond it their fits' turns are no body's) and are not held by pinned vertices
-        # (still, or riding on an object: they turn about those) turn about a common axis of the
-        # keys' turns or about their centroid, as rigid pieces do
-        # (core.inbetween_flight.DEFORMING_AXIS_NOISE), not about the screw's axis, which swings a
-        # tumbling body's centre off its path
-        loose = self._arc_candidates & ~rigid & (nonrigidity < SIMILAR_SHAPE_MISFIT[0]) & ~self.held_pieces()
+        # (Guide.arc_guided): those not held by pinned vertices (still, or riding on an object:
+        # they turn about those) turn about a common axis of the keys' turns or about their
+        # centroid, as rigid pieces do (core.inbetween_flight.DEFORMING_AXIS_NOISE), not about the
+        # screw's axis, which swings a tumbling or carried cloth's centre off its path
+        loose = self._arc_candidates & ~rigid & ~self.held_pieces()
         if loose.any():
             whole = self.arc_guided & loose
             if whole.any():
