@@ -36,6 +36,7 @@ import numpy as np
 from . import screw_motions
 from .inbetween_joints import (JOINT_REACH, Contacts, composed, contact_reach, joint_groups, nearest_pairs,
                                relative_motions, screw_axes, slide_precision)
+from .inbetween_rigid_fits import turn_spread
 
 #: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
 #: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
@@ -100,7 +101,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     pieces, index, label, rotations, translations = c.pieces, c.index, c.label, c.rotations, c.translations
     size = sizes[pieces]
     group = joint_groups(parents)[pieces]
-    stakes = _Stakes(base, index, label, rotations, translations)
+    stakes = _Stakes(base, index, label, rotations, translations, turn_spread(misfits[pieces] / size))
     children = np.flatnonzero(parents[pieces] >= 0)
     if children.size:  # joints whose slide tolerance is a share of their pieces' size, where they move a piece
         child = pieces[children]
@@ -170,14 +171,20 @@ def _joints_in_loops(doubts: JointDoubts, c: Contacts, joints: tuple, group: np.
 class _Stakes:
     """How far a child's own rigid motion half-way (its screw at 0.5) is from its parent's composed
     with the child's motion relative to it (both screws at 0.5), the farthest over the child's
-    vertices: what a joint between them would change."""
+    vertices: what a joint between them would change. A child turning a half turn (as short either
+    way, within its ``spread``: the angle its rotation is known to, per rigid piece) is taken the
+    way round its parent turns, as the in-betweens turn pieces that move as one: taken its own way,
+    pieces of a character turned half round as one rigid body (hair cards, buttons, chain links
+    beside the body) read up to 2.7 × their size off the joint's path, the opposite way round."""
 
-    def __init__(self, base, index, label, rotations, translations):
+    def __init__(self, base, index, label, rotations, translations, spread):
         self.points = base[index]  # the rigid pieces' vertices, piece by piece (``label`` ascending)
         self.counts = np.bincount(label, minlength=len(rotations))
         self.starts = np.r_[0, np.cumsum(self.counts)[:-1]]
         self.motions = rotations, translations
-        self.half = screw_motions.rigid_exps(0.5 * screw_motions.rigid_logs(rotations, translations))
+        self.logs = screw_motions.rigid_logs(rotations, translations)
+        self.half = screw_motions.rigid_exps(0.5 * self.logs)
+        self.spread = spread
 
     def distances(self, parent: np.ndarray, child: np.ndarray, placed: tuple | None = None) -> np.ndarray:
         """Per pair of pieces ``parent``, ``child`` (P,; indices among the rigid pieces), that distance;
@@ -186,16 +193,28 @@ class _Stakes:
         if not child.size:
             return np.zeros(0)
         local_rotations, local_translations = self._local_halves(parent, child)
-        rotations, translations = self.half if placed is None else placed
+        if placed is None:
+            rotations, translations = self.half
+            own_rotations, own_translations = self._own_halves(parent, child)
+        else:
+            rotations, translations = placed
+            own_rotations, own_translations = rotations[child], translations[child]
         counts = self.counts[child]
         pair = np.repeat(np.arange(child.size), counts)  # every child vertex's pair, pair by pair
         first = np.r_[0, np.cumsum(counts)[:-1]]
         x = self.points[np.repeat(self.starts[child] - first, counts) + np.arange(counts.sum())]
-        c, p = child[pair], parent[pair]
-        own = np.einsum("kab,kb->ka", rotations[c], x) + translations[c]
+        p = parent[pair]
+        own = np.einsum("kab,kb->ka", own_rotations[pair], x) + own_translations[pair]
         local = np.einsum("kab,kb->ka", local_rotations[pair], x) + local_translations[pair]
         joint = np.einsum("kab,kb->ka", rotations[p], local) + translations[p]
         return np.maximum.reduceat(np.linalg.norm(own - joint, axis=1), first)
+
+    def _own_halves(self, parent: np.ndarray, child: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per pair (P,), the child's own screw half-way (rotations, translations), a half turn
+        the way round its parent's screw turns."""
+        rotations, translations = self.motions
+        return screw_motions.rigid_exps(0.5 * screw_motions.rigid_logs(
+            rotations[child], translations[child], self.logs[parent, :3], spread=self.spread[child]))
 
     def jointed(self, parents: np.ndarray, order: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The rigid pieces' motions half-way as the joint tree places them (rotations (K, 3, 3),

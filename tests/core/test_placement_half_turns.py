@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from core.errors import ShapeDifferenceWarning
 from core.rigid_alignment import rigid_alignment
+from core import rotation_continuity
 from core.rotation_continuity import continuous_rotation_vectors, jumping_pairs, lone_triangles
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
@@ -826,3 +827,43 @@ def test_a_noisy_piece_turning_past_a_half_turn_stays_whole():
     x = SequenceInterpolator(keys, tri).pose(1, 0.5)
     low, high = np.minimum(lengths(keys[1]), lengths(keys[2])), np.maximum(lengths(keys[1]), lengths(keys[2]))
     assert np.max(np.maximum(lengths(x) / low, high / lengths(x))) < 1.25
+
+
+def test_a_skin_body_turned_half_round_reads_its_tied_regions_by_their_readings(monkeypatch):
+    """A Skin-modifier body (Blender's Rigify human meta-rig, Skin + Subdivision 1, 796 vertices)
+    turned half round by its root bone, in the rig's single precision: rounding cuts it into 155
+    regions tied in how many whole turns they take, read with two candidates between them.
+    :func:`~core.rotation_continuity._creases_read` counts each region's creases as counting it on
+    its own does (the reference below, per region), and the in-between is the half turn, rigid to
+    1e-6 of the diagonal. Counting per region takes minutes on the same body subdivided to 55,000
+    vertices (thousands of tied regions; measured in docs/inbetween-measurements.md)."""
+    data = np.load(Path(__file__).parent / "data" / "skin_body_half_turn.npz")
+    a, b, tri = data["vertices_a"].astype(float), data["vertices_b"].astype(float), data["triangles"]
+    seen = []
+    read = rotation_continuity._creases_read
+
+    def spy(rotvec, pairs, region, sets, turns, direction, axis, linked, tied, candidate):
+        counts = read(rotvec, pairs, region, sets, turns, direction, axis, linked, tied, candidate)
+        seen.append((rotvec, pairs, region, sets, turns, direction, axis, linked, tied, candidate, counts))
+        return counts
+
+    monkeypatch.setattr(rotation_continuity, "_creases_read", spy)
+    x = Interpolator(a, b, tri).pose(0.5)
+    rotation, translation = rigid_alignment(a, x)
+    diagonal = np.linalg.norm(a.max(axis=0) - a.min(axis=0))
+    assert np.abs(a @ rotation.T + translation - x).max() < 1e-6 * diagonal
+    assert np.isclose(Rotation.from_matrix(rotation).magnitude(), np.pi / 2, atol=1e-6)
+    assert seen
+    for rotvec, pairs, region, sets, turns, direction, axis, linked, tied, candidate, counts in seen:
+        several = np.bincount(sets[tied], minlength=len(sets)) > 1
+        assert len(np.unique(np.stack([sets[tied], candidate], axis=1), axis=0)) < len(tied)
+        for i, r in enumerate(tied):
+            expected = 0
+            if several[sets[r]]:
+                ends = pairs[(sets[region[pairs[:, 0]]] == sets[r]) & (sets[region[pairs[:, 1]]] == sets[r])
+                             & linked[region[pairs[:, 0]]] & linked[region[pairs[:, 1]]]]
+                whole = 2.0 * np.pi * (turns + candidate[i] * direction)[region[ends]]
+                vectors = rotvec[ends] + whole[:, :, None] * axis[ends]
+                expected = np.count_nonzero(np.linalg.norm(vectors[:, 0] - vectors[:, 1], axis=1)
+                                            > rotation_continuity.WRAP_CREASE)
+            assert counts[i] == expected
