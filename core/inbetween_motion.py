@@ -1,10 +1,11 @@
 """The pieces' rigid motions across a gap and their placement (paper §7.3 fixes shapes up to a rigid
 motion): each component's interpolated screw motion (flying bodies turned about their point,
-jointed pieces about their joints), and where the Poisson solve leaves a component free, its
-centroid placed along that motion, its keys' centroid spline, its best similarity's path or with
-the rigid piece it sits on. Mixed into :class:`core.inbetween_solver._Gap`,
-whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``flying``,
-``joints``, ``rigidity``, ``nonrigidity``, ``_motions``) with the anchor's ``by_centroid``."""
+jointed pieces about their joints, the pieces of one rigid body by one motion), and where the
+Poisson solve leaves a component free, its centroid placed along that motion, its keys' centroid
+spline, its best similarity's path or with the rigid piece it sits on. Mixed into
+:class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``next``,
+``relatives``, ``splines``, ``flying``, ``joints``, ``bodies``, ``body_members``, ``rigidity``,
+``nonrigidity``, ``_motions``) with the anchor's ``by_centroid``."""
 
 from __future__ import annotations
 
@@ -94,9 +95,13 @@ class PieceMotion:
             rows = np.flatnonzero(labels >= 0)
             translations[rows] = self.splines["flying"].at(s)[rows] - np.einsum(
                 "cab,cb->ca", rotations[rows], points[labels[rows]])
-        if self.joints is None:
-            return motion
-        return composed(*self.joints, *motion, screw_motions.rigid_exps(self.splines["joint_screw"].at(s)))
+        if self.joints is not None:
+            motion = composed(*self.joints, *motion, screw_motions.rigid_exps(self.splines["joint_screw"].at(s)))
+        if self.body_members is not None:  # the pieces of a turning rigid body: its leader's motion (core.rigid_bodies)
+            rotations, translations = motion
+            members, leaders = self.body_members, self.bodies[self.body_members]
+            rotations[members], translations[members] = rotations[leaders], translations[leaders]
+        return motion
 
     def place(self, x: np.ndarray, s: float, motion, partly: bool = False) -> np.ndarray:
         """Components without anchored vertices moved to their interpolated centroid (see

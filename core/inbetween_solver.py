@@ -31,12 +31,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from . import deformation_fields as df
 from . import screw_motions
 from .inbetween_anchor import Anchor
 from .inbetween_carried import CarriedPieces
 from .inbetween_field import InterpolatedField, _log_stretch_spline, _Splines
 from .inbetween_fit import ARAP_ITERATIONS, LocalGlobalFit, change_tolerance, trimmed_tolerance
-from .inbetween_flight import after_impact, flying_groups, free_flight
+from .inbetween_flight import FLYING_MIN_TURN, after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
 from .inbetween_joints import JOINT_REACH, contacts, joint_screws, joint_tree
@@ -46,6 +47,7 @@ from .inbetween_repair_regions import Region
 from .inbetween_rigid_fits import NEAR_HALF_TURN
 from .pins import riding_motions
 from .rigid_alignment import principal_frames
+from .rigid_bodies import rigid_bodies
 from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
 
 if TYPE_CHECKING:
@@ -205,6 +207,31 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             # what the joints leave untold (links apart, sliding joints, joints within rounding): the gap warns
             self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
                                              piece_edges, misfits, base.diagonals)
+        # firmly rigid pieces that move as one body in every key the gap reads, however far apart,
+        # take one motion (core.rigid_bodies): pieces nearer than an edge are jointed above, pinned
+        # ones hang from their pins; a piece deforming past half the rigid scale (a sheet falling
+        # while it barely creases, 7.7e-4) has turns known only to ~1e-2 rad, and is no body's part
+        self.bodies = None
+        firm = nonrigidity <= 0.5 * RIGID_PLACEMENT_SCALE
+        if len(topo.components) > 1 and firm.sum() > 1:
+            candidates = firm & ~self.held_pieces()
+            if self.joints is not None:
+                candidates[self.joints[0] >= 0] = False
+                candidates[self.joints[0][self.joints[0] >= 0]] = False
+            known = [r.motion for r in relatives[:1] + relatives[2:]
+                     if not r.extrapolated and getattr(r, "motion", None) is not None]
+            scale = max(float(np.max(base.diagonals)), float(np.max(np.ptp(base.centroids, axis=0))),
+                        np.finfo(float).tiny)
+            self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale)
+        # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
+        # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
+        # to within the turn's arc) keep their own, which are its translation to that arc
+        self.body_members = None
+        if self.bodies is not None:
+            turn = np.max([np.linalg.norm(df.rotation_vectors(rotations), axis=1) for rotations, _ in known], axis=0)
+            members = np.flatnonzero((self.bodies != np.arange(len(topo.components)))
+                                     & (turn[self.bodies] > FLYING_MIN_TURN))
+            self.body_members = members if members.size else None
         if self.joints is not None:
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],

@@ -1,0 +1,60 @@
+"""Rigid pieces that move as one body: separate rigid pieces of a mesh whose relative rigid motion is
+the identity in every key a gap's splines read (a low-poly sword's grip, guard and blade in a
+character's hand), given one interpolated rigid motion, whatever the distance between them.
+
+Each piece's own interpolated motion (its screw, its flying group's point, the deforming piece that
+carries it: :mod:`core.inbetween_carried`) is splined from its own fits, which agree with the
+others' only at the keys: a sword of three 8-vertex pieces on a 55,527-vertex character, each
+carried by the skin of the hand nearest it, parted by up to 1.5e-3 of the diagonal between keys 8
+frames apart. Pieces near each other are jointed (:mod:`core.inbetween_joints`), which composes
+their motions; pieces farther apart than an edge are not, and are joined here instead: all the
+members of a body take its leader's motion, so their relative placement is the base key's at every
+factor. The grouping reads the pieces' rigid motions from the base key to every other key the gap
+reads (not those extrapolated past a sequence's ends), so pieces that keep still relative to each
+other in two keys but move apart in the others are never joined."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .inbetween_rigid_fits import turn_spread
+from .spread_groups import spread_groups
+
+#: Least spread (radians; translations over the scene's size) of the rigid motions of two pieces of
+#: one body: keys exact to double precision agree to ~1e-15, a single-precision cache to ~1e-7 of
+#: the size (:func:`core.inbetween_flight.flying_groups` links the pieces turned about one point so).
+BODY_MOTION_SPREAD = 0.5e-6
+
+
+def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray, mass: np.ndarray,
+                 scale: float) -> np.ndarray | None:
+    """Per component (C,), the component whose interpolated rigid motion it takes (its body's
+    leader; its own index where it moves alone), or None where no two pieces move as one.
+
+    ``motions``: per key the gap reads other than its base (rotations (C, 3, 3), translations
+    (C, 3): each component's best rigid motion from the base key); ``candidates`` (bool (C,)): the
+    pieces that may join a body (rigid, unpinned, unjointed); ``nonrigidity`` (C,): each piece's
+    RMS rigid misfit over its size over the keys, what its motions are known to
+    (:func:`core.inbetween_rigid_fits.turn_spread`, at least :data:`BODY_MOTION_SPREAD`);
+    ``mass`` (C,): each piece's mass (the leader is a body's heaviest piece, its fits the best
+    known; the first of equals); ``scale``: the scene's size, which translations are measured
+    against. Two pieces are one body where their motions in all those keys together differ by at
+    most the sum of their spreads, and so is every chain of such pieces (:func:`core.spread_groups.spread_groups`)."""
+    rows = np.flatnonzero(candidates)
+    if rows.size < 2 or not motions:
+        return None
+    vectors = np.concatenate([np.concatenate([rotations[rows].reshape(-1, 9), translations[rows] / scale], axis=1)
+                              for rotations, translations in motions], axis=1)
+    spread = np.maximum(turn_spread(nonrigidity[rows]), BODY_MOTION_SPREAD)
+    group = spread_groups(vectors, spread)
+    counts = np.bincount(group)
+    if counts.max() < 2:
+        return None
+    # per group, its heaviest member (the first of equals: lexsort's last of the ascending order)
+    order = np.lexsort((-rows, mass[rows], group))
+    last = np.r_[np.flatnonzero(np.diff(group[order])), order.size - 1]
+    leaders = np.empty(counts.size, dtype=np.intp)
+    leaders[group[order[last]]] = rows[order[last]]
+    leader = np.arange(len(candidates))
+    leader[rows] = leaders[group]
+    return leader
