@@ -121,13 +121,13 @@ class DefectChecks:
         over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys
         said = []
         for rows, what in ((against & ~over, "are turned over in the in-between where both poses face them the "
-                            "same way (a part that stretches between one held still and one that turns, such as a "
-                            "skinned joint's weight ramp: two poses do not tell its edge lengths in between); add "
-                            "a key between the poses (they face against their interpolated rotation and one pose)"),
+                            "same way (where the surface stretches between a part that stays and one that turns, "
+                            "and two poses do not tell its edge lengths in between); add a key between the poses "
+                            "(they face against their interpolated rotation and one pose)"),
                            (against & over, "turn over between the poses, and two poses do not tell which way they "
-                            "go over (a crease a skin folds, a ramp turned far): the in-between may turn them the "
-                            "other way; add a key between the poses (they face against their interpolated "
-                            "rotation)")):
+                            "go over (where the surface folds over between the poses: a crease, a fold in the "
+                            "cloth, a bend turned far): the in-between may turn them the other way; add a key "
+                            "between the poses (they face against their interpolated rotation)")):
             if rows.any():
                 said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {int(np.argmax(rows))}) {what}")
         return "; ".join(said), (int(np.count_nonzero(against & ~over)), int(np.count_nonzero(against)))

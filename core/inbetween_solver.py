@@ -90,6 +90,9 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: How many pieces turn a half turn between the keys, as short either way round, with nothing
     #: in the keys to tell which way (``core.sequence_half_turns.untold_half_turns``): the gap warns.
     untold_half_turns = 0
+    #: Whether those are the whole mesh's half turn, every piece moving with it as one
+    #: (``core.sequence_half_turns.turning_as_one``): the gap warns of the mesh, not of pieces.
+    whole_half_turn = False
     #: Whether the stretch between the keys is the log spline's (``exp(s log U)``), not the root
     #: of the metric's spline (:meth:`core.inbetween_field.InterpolatedField.stretch`): the further
     #: fit of two poses (:data:`core.two_pose_inbetweens.LOG_METRIC_FIT`).

@@ -55,7 +55,7 @@ from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time, numerical_failures)
 from .sequence_gap_starts import GapStarts
-from .sequence_half_turns import HalfTurns, untold_half_turns
+from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
@@ -206,6 +206,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.folded_turn = bool(folded.any())
         segment.unsure_turn = bool(unsure.any())
         segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
+        segment.whole_half_turn = bool(segment.untold_half_turns) and turning_as_one(segment, ahead[0])
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
         with self._cache_lock:

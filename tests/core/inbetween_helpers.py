@@ -3,9 +3,14 @@ test_two_pose_inbetweens, test_motion_ends); no bpy."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 from meshes import grid
+
+#: Words of a character rig that a warning about any mesh (a cloth, a scan) does not use.
+RIG_WORDS = re.compile(r"skin|weight ramp|bone|\brig\b", re.IGNORECASE)
 
 
 def _edges(triangles):

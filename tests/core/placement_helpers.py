@@ -10,8 +10,9 @@ from scipy.spatial.transform import Rotation
 from meshes import grid, icosphere
 
 
-#: What a half turn the keys do not tell the way of is said with.
-HALF_TURN_UNTOLD = r"turn a half turn \(180°\) to within what the keys tell"
+#: What a half turn the keys do not tell the way of is said with (of pieces, or of the whole mesh
+#: turning as one).
+HALF_TURN_UNTOLD = r"turns? a half turn \(180°\)(?: as one)? to within what the keys tell"
 
 
 FACTORS = (-0.5, 0.25, 0.5, 0.75, 1.5, 2.0)

@@ -718,6 +718,34 @@ def test_a_crank_turning_a_half_turn_per_key_is_warned(degrees):
             Interpolator(keys[gap], keys[gap + 1], tri).pose(0.5)
         said = [str(w.message) for w in caught if "half turn" in str(w.message)]
         assert len(said) == (2 if degrees == 180.0 else 0), said
+        # the crank turns in its still block: its half turn is the crank's, not the whole mesh's
+        assert all("piece(s) turn a half turn" in message for message in said), said
+
+
+def test_pieces_turned_half_round_as_one_are_warned_of_as_the_whole_mesh():
+    """A head and two eyes (three pieces, the eyes jointed to the head in their sockets) turned
+    exactly 180° as one rigid body about an axis through none of them: nothing in the keys tells
+    which way round. Two poses, and a sequence keyed every half turn, say so once per gap, of the
+    whole mesh, not as a count of pieces: counting the pieces whose own half turn is untold, the
+    head alone (the eyes' turns are told by their joints), said "1 piece(s)" of the three (a rigged
+    character of 59 pieces turned so: 6 or 42 of 59). Each in-between is a rigid turn of the whole
+    mesh, one way round or the other."""
+    a, tri = _head_with_eyes()
+    axis, pivot = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]), np.array([0.5, -1.5, 0.2])
+    def turned(angle):
+        return _rigid(a, Rotation.from_rotvec(angle * axis).as_matrix(), pivot)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    sequence = SequenceInterpolator([turned(0.0), turned(np.pi), turned(2.0 * np.pi)], tri, start="keys")
+    for gap, pose in ((0, lambda: Interpolator(a, turned(np.pi), tri).pose(0.5)),
+                      (0, lambda: sequence.pose(0, 0.5)), (1, lambda: sequence.pose(1, 0.5))):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            x = pose()
+        said = [str(w.message) for w in caught if "half turn" in str(w.message)]
+        assert len(said) == 1 and "the whole mesh turns a half turn (180°) as one" in said[0], said
+        assert "piece(s)" not in said[0], said
+        errors = [np.abs(x - turned((gap + 0.5 * sign) * np.pi)).max() for sign in (1, -1)]
+        assert min(errors) < 1e-6 * diagonal, errors
 
 
 @pytest.mark.parametrize("keys", [3, 4])
