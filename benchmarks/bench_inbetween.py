@@ -250,6 +250,12 @@ def _timed(compute, *args):
     return out, time.perf_counter() - wall, time.process_time() - cpu
 
 
+def kept_keys(frames: np.ndarray, g: int) -> np.ndarray:
+    """The keys of the sequence protocol: every ``g``-th of ``frames`` (F, n, 3) from the first,
+    up to the last frame a whole number of gaps reaches."""
+    return frames[: (len(frames) - 1) // g * g + 1: g]
+
+
 def _fingerprint(arrays) -> str:
     """SHA-1 of the arrays' bytes: the repeats' in-betweens compared bit for bit."""
     h = hashlib.sha1()
@@ -337,7 +343,7 @@ def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), re
                             rows["sim"].append(metric(true, true, a, b))
                         count = len(starts)
                     else:
-                        keys = frames[: (len(frames) - 1) // g * g + 1 : g]
+                        keys = kept_keys(frames, g)
                         keyed = np.arange(len(keys)) * g  # the keys' frames
                         factors = np.arange(1, g) / g
                         options = operator_options(frames, keyed) if protocol == "op" else {}

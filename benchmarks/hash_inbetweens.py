@@ -8,18 +8,18 @@ writes one line per scene and gap g in 4, 8, 16: ``seq NAME gG HASH cpu SECONDS`
 to 30,000 vertices, ``pair NAME gG HASH`` for two poses g frames apart, every 4th start, at 0.5.
 Compare two files' first four columns (``cpu`` is the sequence's CPU time, for orientation only).
 The scenes are the cached bakes of :mod:`benchmarks.cloth_scenes` (all of them by default).
-Written by hand: a SHA-1 of the in-betweens' bytes is all it needs.
+The fingerprint is the benchmark's own (``bench_inbetween._fingerprint``).
 """
 
 from __future__ import annotations
 
 import argparse
-import hashlib
 import time
 import warnings
 
 import numpy as np
 
+from benchmarks.bench_inbetween import _fingerprint, kept_keys
 from benchmarks.cloth_scenes import SCENES, load_scene
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
@@ -33,20 +33,18 @@ def scene_lines(name: str):
     scene = load_scene(name)
     frames, triangles = scene.frames, scene.triangles
     for g in (4, 8, 16):
-        keys = frames[: (len(frames) - 1) // g * g + 1: g]
+        keys = kept_keys(frames, g)
         if len(keys) < 2:
             continue
         start = time.process_time()
         sequence = SequenceInterpolator(keys, triangles)
-        poses = np.stack([sequence.poses(k, np.arange(1, g) / g) for k in range(len(sequence))])
+        poses = [sequence.poses(k, np.arange(1, g) / g) for k in range(len(sequence))]
         cpu = time.process_time() - start
-        yield f"seq {name} g{g} {hashlib.sha1(poses.tobytes()).hexdigest()[:16]} cpu {cpu:.2f}"
+        yield f"seq {name} g{g} {_fingerprint(poses)[:16]} cpu {cpu:.2f}"
         if frames.shape[1] > PAIR_VERTICES:
             continue
-        digest = hashlib.sha1()
-        for i in range(0, len(frames) - g, 4):
-            digest.update(Interpolator(frames[i], frames[i + g], triangles).pose(0.5).tobytes())
-        yield f"pair {name} g{g} {digest.hexdigest()[:16]}"
+        pairs = (Interpolator(frames[i], frames[i + g], triangles).pose(0.5) for i in range(0, len(frames) - g, 4))
+        yield f"pair {name} g{g} {_fingerprint(pairs)[:16]}"
 
 
 def main(argv=None) -> None:
