@@ -326,20 +326,22 @@ def _bodies_carried(kept: list, body: np.ndarray, groups: list, base: np.ndarray
     grip and guard's skin carrying the whole sword, its median distance from the rig was the same
     (4.05e-3 against 4.07e-3 at keys 8 frames apart), the sword on its one screw 2.44e-3."""
     leaders = body[[k for k, _, _ in kept]]
-    if not (np.bincount(body)[np.unique(leaders)] > 1).any():
+    sizes = np.bincount(body)  # each body's pieces
+    if not (sizes[np.unique(leaders)] > 1).any():
         return kept, own
+    carried = np.bincount(leaders, minlength=sizes.size)  # each body's pieces carried
     rotations, translations = own[0].copy(), own[1].copy()
     out, done = [], set()
     for (k, carriers, motion), leader in zip(kept, leaders):
-        members = np.flatnonzero(body == leader)
-        if members.size == 1:
+        if sizes[leader] == 1:
             out.append((k, carriers, motion))
             continue
-        if sum(other == leader for other in leaders) < members.size:
+        if carried[leader] < sizes[leader]:
             continue  # a piece of it moves on its own: the body keeps its one motion
         if leader in done:
             continue
         done.add(leader)
+        members = np.flatnonzero(body == leader)
         seat = np.unique(np.concatenate([c for (j, c, _), other in zip(kept, leaders) if other == leader]))
         rows = np.concatenate([groups[j] for j in members])
         groups[k] = rows

@@ -61,30 +61,36 @@ class NearDuplicates:
     ring_of: np.ndarray
     still: np.ndarray | None = None
 
-    def place(self, merged: np.ndarray, keys: tuple[np.ndarray, np.ndarray], gap: int, factor: float) -> np.ndarray:
-        """The pose (n, 3) of every vertex from ``merged`` (n_kept, 3), an in-between at ``factor`` of
-        gap ``gap`` (between keys ``gap`` and ``gap + 1``, whose merged positions are ``keys``, each
-        (n_kept, 3)): each member at its representative plus its offset, blended linearly between
-        the two keys' in the frame of the representative's ring in key ``gap`` (the other key's
-        turned back by the ring's rigid turn between the keys) and turned by the ring's rigid turn
-        from key ``gap`` to ``merged``. At factors 0 and 1 the members as that key has them; still
-        members where the first key has them."""
-        out = merged[self.copies]
-        if factor in (0.0, 1.0):
-            out[self.members] = self.positions[gap + int(factor)]
+    def place(self, merged: np.ndarray, keys: tuple[np.ndarray, np.ndarray], gap: int, factors) -> np.ndarray:
+        """The poses (F, n, 3) of every vertex from ``merged`` (F, n_kept, 3), in-betweens at ``factors``
+        (F,) of gap ``gap`` (between keys ``gap`` and ``gap + 1``, whose merged positions are ``keys``,
+        each (n_kept, 3)): each member at its representative plus its offset, blended linearly
+        between the two keys' in the frame of the representative's ring in key ``gap`` (the other
+        key's turned back by the ring's rigid turn between the keys) and turned by the ring's rigid
+        turn from key ``gap`` to the in-between. At factors 0 and 1 the members as that key has them;
+        still members where the first key has them. The keys' offsets and turn are the gap's, read
+        once for all the factors."""
+        out = merged[:, self.copies]
+        inner = [k for k, factor in enumerate(factors) if factor not in (0.0, 1.0)]
+        for k, factor in enumerate(factors):
+            if factor in (0.0, 1.0):
+                out[k, self.members] = self.positions[gap + int(factor)]
+        if not inner:
             return out
+        # the gap's own: each key's offsets, the second key's turned back into the first's ring frame
         count = int(self.cluster.max()) + 1
         representative = self.copies[self.members]  # merged indices
         first = self.positions[gap] - keys[0][representative]
         second = self.positions[gap + 1] - keys[1][representative]
         base = keys[0][self.rings]
         between, _ = rigid_alignments(base, keys[1][self.rings], self.ring_of, count)
-        turned, _ = rigid_alignments(base, merged[self.rings], self.ring_of, count)
-        back = np.einsum("pba,pb->pa", between[self.cluster], second)  # the second key's in the first's frame
-        blended = (1.0 - factor) * first + factor * back
-        out[self.members] += np.einsum("pab,pb->pa", turned[self.cluster], blended)
-        if self.still is not None:  # exactly where they sit, as the still vertices solved
-            out[self.members[self.still]] = self.positions[0][self.still]
+        back = np.einsum("pba,pb->pa", between[self.cluster], second)
+        for k in inner:
+            turned, _ = rigid_alignments(base, merged[k][self.rings], self.ring_of, count)
+            blended = (1.0 - factors[k]) * first + factors[k] * back
+            out[k, self.members] += np.einsum("pab,pb->pa", turned[self.cluster], blended)
+            if self.still is not None:  # exactly where they sit, as the still vertices solved
+                out[k, self.members[self.still]] = self.positions[0][self.still]
         return out
 
 

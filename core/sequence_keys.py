@@ -203,8 +203,7 @@ class SequenceKeys:
         the caller's mesh: near-duplicate vertices placed about the one solved
         (:meth:`core.near_duplicates.NearDuplicates.place`), seams' copies at their welded vertex."""
         if self._near is not None:
-            keys = (self._given[gap], self._given[gap + 1])
-            out = np.stack([self._near.place(x, keys, gap, f) for x, f in zip(out, factors)])
+            out = self._near.place(out, (self._given[gap], self._given[gap + 1]), gap, factors)
         return out if self._copies is None else out[:, self._copies]
 
     def __len__(self) -> int:
