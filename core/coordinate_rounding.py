@@ -11,6 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 
+def _single_precision(poses: list[np.ndarray]) -> bool:
+    """Whether every coordinate of ``poses`` (list of (n, 3)) is a float32 (as Blender stores them)."""
+    return all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses)
+
+
 def rounding_scale(poses: list[np.ndarray]) -> float:
     """The magnitude whose single-precision rounding the coordinates of ``poses`` (list of (n, 3))
     carry: their largest coordinate where every one is a float32 (stored so: Blender, most
@@ -20,7 +25,7 @@ def rounding_scale(poses: list[np.ndarray]) -> float:
     origin in double precision had the roundings of float32 coordinates of 2e4 (0.02 units): a
     cloth on a turntable, whose edges keep their lengths to 0.1 %, took 36 of its vertices for
     still and six sets for riding, 0.22 of its diagonal off."""
-    if all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses):
+    if _single_precision(poses):
         return max((float(np.max(np.abs(pose), initial=0.0)) for pose in poses), default=0.0)
     return max((float(np.linalg.norm(np.ptp(pose, axis=0))) for pose in poses if pose.size), default=0.0)
 
@@ -33,7 +38,7 @@ def coordinate_rounding(poses: list[np.ndarray], single: bool | None = None) -> 
     if not poses:
         return 0.0
     if single is None:
-        single = all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses)
+        single = _single_precision(poses)
     largest = max(float(np.max(np.abs(pose), initial=0.0)) for pose in poses)
     return float(np.finfo(np.float32 if single else np.float64).eps * largest)
 

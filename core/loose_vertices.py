@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geometry import edge_lengths
+
 
 def loose_copies(poses: list[np.ndarray], topology, tolerance: float) -> tuple[np.ndarray, np.ndarray]:
     """The loose vertices of ``topology`` (in no triangle) that sit within ``tolerance`` of a
@@ -83,7 +85,7 @@ def attached_loose(poses: list[np.ndarray], topology, still: np.ndarray | None =
     if not loose.size or not topology.used_vertices.size:
         return None
     first = poses[0]
-    reach = ATTACH_REACH * float(np.mean(np.linalg.norm(first[topology.edges[:, 0]] - first[topology.edges[:, 1]], axis=1)))
+    reach = ATTACH_REACH * float(np.mean(edge_lengths(first, topology.edges[:, 0], topology.edges[:, 1])))
     loose, near = _loose_near(poses, topology, loose, reach)
     if not loose.size:
         return None
