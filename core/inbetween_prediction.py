@@ -33,7 +33,7 @@ import numpy as np
 from .inbetween_corrections import (RELAXED_SOLVED, _co_moving_correction, _correction, _inconsistent,
                                     _PiecewiseLinearCorrection, _relaxed_correction, _slopes_disagree)
 from .inbetween_fit import METRIC_TOLERANCE
-from .inbetween_prediction_repairs import REDUCED_ROUNDS, _predicted, _repaired_again, _solve_off_metric
+from .inbetween_prediction_repairs import REDUCED_ROUNDS, _defect_count, _predicted, _repaired_again, _solve_off_metric
 from .inbetween_repair_rounds import REPAIR_RINGS
 from .inbetween_threads import per_factor
 
@@ -193,8 +193,7 @@ def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | N
     correction = _PiecewiseLinearCorrection({s: _co_moving_correction(gap, s, x) for s, (x, _) in solved.items()})
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if any(problem for _, problem in solved.values()) else None
     # a prediction keeps no more defects than the solved in-betweens (or keys: none) it lies between
-    left = {0.0: 0, 1.0: 0, **{s: int(gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).sum())
-                               for s, (x, problem) in solved.items() if problem}}
+    left = {0.0: 0, 1.0: 0, **{s: _defect_count(gap, s, x) for s, (x, problem) in solved.items() if problem}}
     knots = sorted(left.keys() | solved.keys())
 
     def predict(s):

@@ -84,15 +84,12 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     x = _predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
         return gap.pose(s)
-    x = sewn_together(gap, _pins_in_place(gap, x, s), s)  # one piece's motion each: sewn seams joined again
-    gap.carried.place(x, s)  # carried pieces rigid before the check: their predicted shapes are not
+    x = _placed(gap, x, s)
     scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)
     if defects.any() and isinstance(correction, _RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
-        plain = _pins_in_place(gap, _predicted_positions(gap, s, correction.correction, motion), s)
-        plain = sewn_together(gap, plain, s)
-        gap.carried.place(plain, s)
+        plain = _placed(gap, _predicted_positions(gap, s, correction.correction, motion), s)
         fewer = gap.repair.defects(plain, s, None, None, scale=scale)
         if fewer.sum() < defects.sum():
             x, defects = plain, fewer
@@ -135,6 +132,16 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
         return solved
     _put_back(gap, s, repaired)
     return result
+
+
+def _placed(gap, x: np.ndarray, s: float) -> np.ndarray:
+    """Predicted positions ``x`` (n, 3) at factor ``s`` ready for the defect check: the pinned
+    vertices in place (:func:`~core.inbetween_corrections._pins_in_place`), the sewn seams joined
+    again (each piece has its own interpolated motion: :func:`core.sewn_seams.sewn_together`) and
+    the carried pieces rigid (their predicted shapes are not)."""
+    x = sewn_together(gap, _pins_in_place(gap, x, s), s)
+    gap.carried.place(x, s)
+    return x
 
 
 def _put_back(gap, s: float, outcome) -> None:
