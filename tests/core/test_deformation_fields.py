@@ -285,6 +285,36 @@ def test_rigid_logs_invert_the_exponential_and_take_the_reference_turn():
         assert np.allclose(screw[3:], v + axis * (axis @ (t - v)), rtol=1e-9, atol=1e-9)
 
 
+def test_framed_screws_are_the_motions_seen_in_each_frame_and_world_screws_undo_them():
+    """A screw taken into a frame ``y = A (x − o)`` (:func:`~core.screw_motions.framed_screws`)
+    moves the frame's points as the world screw moves the world's, for every representative of
+    its turn (past a half turn and a whole one included); :func:`~core.screw_motions.world_screws`
+    gives the world screw back; both with NumPy's cross products, bit for bit."""
+    rng = np.random.default_rng(11)
+    count = 40
+    axes = Rotation.random(count, random_state=12).as_matrix()
+    origins = rng.normal(size=(count, 3)) * rng.choice([1.0, 1e3], (count, 1))
+    turn_axes = rng.normal(size=(count, 3))
+    turn_axes /= np.linalg.norm(turn_axes, axis=1)[:, None]
+    angles = rng.choice([0.0, 0.4, 3.0, np.pi + 0.5, 2 * np.pi + 0.3], count)
+    screws = np.concatenate([turn_axes * angles[:, None], rng.normal(size=(count, 3))], axis=1)
+    framed = screw_motions.framed_screws(screws, axes, origins)
+    rotations, translations = screw_motions.rigid_exps(screws)
+    framed_rotations, framed_translations = screw_motions.rigid_exps(framed)
+    points = rng.normal(size=(count, 3))
+    moved_in_frame = np.einsum("pab,pb->pa", axes, np.einsum("pab,pb->pa", rotations, points) + translations - origins)
+    in_frame = np.einsum("pab,pb->pa", axes, points - origins)
+    seen = np.einsum("pab,pb->pa", framed_rotations, in_frame) + framed_translations
+    rounding = 1e-13 * (1.0 + np.abs(origins).max())  # a few ulps of the largest coordinates (origins × turns)
+    np.testing.assert_allclose(seen, moved_in_frame, atol=rounding)
+    np.testing.assert_allclose(screw_motions.world_screws(framed, axes, origins), screws, atol=rounding)
+    w, v = screws[:, :3], screws[:, 3:]
+    np.testing.assert_array_equal(framed[:, 3:], np.einsum("pab,pb->pa", axes, v - np.cross(origins, w)))
+    back = np.einsum("pba,pb->pa", axes, framed[:, :3])
+    np.testing.assert_array_equal(screw_motions.world_screws(framed, axes, origins)[:, 3:],
+                                  np.einsum("pba,pb->pa", axes, framed[:, 3:]) + np.cross(origins, back))
+
+
 def test_similarity_paths_are_the_powers_of_the_similarity():
     """``exp(s log S)`` of a rigid motion times a uniform scale (SciPy's matrix logarithm and
     exponential of the 4 × 4 matrix) at factors in and beyond [0, 1], and for a rigid motion the
