@@ -217,12 +217,26 @@ class CarriedPieces:
         reachable = CARRIER_REACH * diagonal
         if not reachable.max() > 0:
             return [(None, None)] * count
-        # the nearest few within the largest reach, then within each piece's own (the same sets)
-        distance, nearest = nearest_points(tree, first[rows], CARRIER_NEIGHBOURS, reachable.max())
-        found = np.isfinite(distance) & (distance < reachable[piece][:, None])
-        if sizes is not None:
-            found[found] = sizes[0][nearest[found]] >= sizes[1][piece[np.nonzero(found)[0]]]
-        pair = np.unique(piece[:, None].repeat(CARRIER_NEIGHBOURS, axis=1)[found] * deforming.size + nearest[found])
+        # the nearest few within the largest reach, then within each piece's own (the same sets);
+        # a piece with fewer than MIN_CARRIERS so, smaller than the edges under it (a scan's floater
+        # 0.15 of an edge across, 0.6 of one off the surface), and within an edge (``reach``) of a
+        # carrier, looks again within an edge beyond its nearest carrier, MIN_CARRIERS per vertex
+        distance, nearest = nearest_points(tree, first[rows], max(CARRIER_NEIGHBOURS, MIN_CARRIERS),
+                                           max(reachable.max(), 2.0 * reach))
+
+        def pairs(found):  # piece × deforming.size + carrier, of the usable neighbours ``found``
+            if sizes is not None:
+                found[found] = sizes[0][nearest[found]] >= sizes[1][piece[np.nonzero(found)[0]]]
+            return np.unique(np.broadcast_to(piece[:, None], found.shape)[found] * deforming.size + nearest[found])
+
+        within = np.isfinite(distance) & (distance < reachable[piece][:, None])
+        pair = pairs(within & (np.arange(distance.shape[1]) < CARRIER_NEIGHBOURS))
+        nearest_carrier = np.minimum.reduceat(distance[:, 0], starts)  # per piece (inf: none within the bound)
+        short = (np.bincount(pair // deforming.size, minlength=count) < MIN_CARRIERS) \
+            & (nearest_carrier <= np.maximum(reachable, reach))
+        if short.any():
+            pair = np.union1d(pair, pairs(np.isfinite(distance) & short[piece][:, None]
+                                          & (distance <= (nearest_carrier + reach)[piece][:, None])))
         # by piece, then in the order ``deforming`` lists them
         seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]
         counts = np.bincount(seat_piece, minlength=count)

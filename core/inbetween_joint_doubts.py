@@ -82,14 +82,17 @@ class JointDoubts:
 
 
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
-                 joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray) -> JointDoubts | None:
+                 joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
+                 bodies: np.ndarray | None = None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
     ``core.inbetween_topology._Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
     ``reach``: the joint distance; ``joints``: :func:`core.inbetween_joints.joint_tree`'s answer
     (``(parents (C,), order)`` or None); ``edges``: each piece's mean edge length (C,); ``misfits``:
     each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
-    :meth:`~core.inbetween_topology._Topology.diagonals`). Only pairs of pieces in different joint
+    :meth:`~core.inbetween_topology._Topology.diagonals`); ``bodies`` (C,): each piece's body
+    leader (:func:`core.rigid_bodies.rigid_bodies`, None: none), whose motion and joint group its
+    pieces take. Only pairs of pieces in different joint
     groups (in one group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`),
     and where the joint would move the child otherwise than its own motion (or the tree) does (a card
     turning about its root above a still scalp moves as it would on it), count."""
@@ -100,7 +103,8 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     c = touching
     pieces, index, label, rotations, translations = c.pieces, c.index, c.label, c.rotations, c.translations
     size = sizes[pieces]
-    group = joint_groups(parents)[pieces]
+    group = joint_groups(parents)
+    group = (group if bodies is None else group[bodies])[pieces]
     stakes = _Stakes(base, index, label, rotations, translations, turn_spread(misfits[pieces] / size))
     children = np.flatnonzero(parents[pieces] >= 0)
     if children.size:  # joints whose slide tolerance is a share of their pieces' size, where they move a piece

@@ -207,25 +207,33 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), reach, nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE,
                                      static, piece_edges, relatives[2].screw, misfits, touching)
-            # what the joints leave untold (links apart, sliding joints, joints within rounding): the gap warns
-            self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
-                                             piece_edges, misfits, base.diagonals)
         # firmly rigid pieces that move as one body in every key the gap reads, however far apart,
-        # take one motion (core.rigid_bodies): pieces nearer than an edge are jointed above, pinned
-        # ones hang from their pins; a piece deforming past half the rigid scale (a sheet falling
-        # while it barely creases, 7.7e-4) has turns known only to ~1e-2 rad, and is no body's part
+        # take one motion (core.rigid_bodies): a pinned piece's or a link's where the body holds
+        # one; a piece deforming past half the rigid scale (a sheet falling while it barely
+        # creases, 7.7e-4) has turns known only to ~1e-2 rad, and is no body's part
         self.bodies = None
         firm = nonrigidity <= 0.5 * RIGID_PLACEMENT_SCALE
         if len(topo.components) > 1 and firm.sum() > 1:
-            candidates = firm & ~self.held_pieces()
+            # pinned pieces and those others hang from lead a body (their motion keeps their pins,
+            # carries their joints), never join one; pieces hanging from another with none from
+            # them (leaves) join one, or lead one before unjointed pieces (core.rigid_bodies)
+            links, leaves = self.held_pieces(), None
             if self.joints is not None:
-                candidates[self.joints[0] >= 0] = False
-                candidates[self.joints[0][self.joints[0] >= 0]] = False
+                parents = self.joints[0]
+                links[parents[parents >= 0]] = True
+                leaves = (parents >= 0) & ~links & firm
+            links &= firm
+            candidates = firm & ~links
             known = [r.motion for r in relatives[:1] + relatives[2:]
                      if not r.extrapolated and getattr(r, "motion", None) is not None]
             scale = max(float(np.max(base.diagonals)), float(np.max(np.ptp(base.centroids, axis=0))),
                         np.finfo(float).tiny)
-            self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale)
+            self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, leaves)
+        if len(topo.components) > 1:
+            # what the joints leave untold (links apart, sliding joints, joints within rounding), the
+            # pieces of a body counted with its leader: the gap warns
+            self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
+                                             piece_edges, misfits, base.diagonals, self.bodies)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
         # to within the turn's arc) keep their own, which are its translation to that arc

@@ -11,7 +11,9 @@ their motions; pieces farther apart than an edge are not, and are joined here in
 members of a body take its leader's motion, so their relative placement is the base key's at every
 factor. The grouping reads the pieces' rigid motions from the base key to every other key the gap
 reads (not those extrapolated past a sequence's ends), so pieces that keep still relative to each
-other in two keys but move apart in the others are never joined."""
+other in two keys but move apart in the others are never joined. A body holding a pinned piece or
+one others are jointed to moves by that piece's motion (a pin nested in a robot arm's link moves
+with the link, which its joints turn), so pins and joints are kept."""
 
 from __future__ import annotations
 
@@ -27,21 +29,37 @@ BODY_MOTION_SPREAD = 0.5e-6
 
 
 def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray, mass: np.ndarray,
-                 scale: float) -> np.ndarray | None:
+                 scale: float, links: np.ndarray | None = None, leaves: np.ndarray | None = None) -> np.ndarray | None:
     """Per component (C,), the component whose interpolated rigid motion it takes (its body's
     leader; its own index where it moves alone), or None where no two pieces move as one.
 
     ``motions``: per key the gap reads other than its base (rotations (C, 3, 3), translations
     (C, 3): each component's best rigid motion from the base key); ``candidates`` (bool (C,)): the
-    pieces that may join a body (rigid, unpinned, unjointed); ``nonrigidity`` (C,): each piece's
+    pieces that may join a body (rigid, unpinned, no piece jointed to them); ``nonrigidity`` (C,): each piece's
     RMS rigid misfit over its size over the keys, what its motions are known to
     (:func:`core.inbetween_rigid_fits.turn_spread`, at least :data:`BODY_MOTION_SPREAD`);
-    ``mass`` (C,): each piece's mass (the leader is a body's heaviest piece, its fits the best
-    known; the first of equals); ``scale``: the scene's size, which translations are measured
+    ``mass`` (C,): each piece's mass (the leader is a body's heaviest piece of the first kind it
+    has of ``links``, ``leaves``, the rest: its fits the best known; the first of equals); ``scale``: the scene's size, which translations are measured
     against. Two pieces are one body where their motions in all those keys together differ by at
-    most the sum of their spreads, and so is every chain of such pieces (:func:`core.spread_groups.spread_groups`)."""
-    rows = np.flatnonzero(candidates)
-    if rows.size < 2 or not motions:
+    most the sum of their spreads, and so is every chain of such pieces (:func:`core.spread_groups.spread_groups`).
+
+    ``links`` (bool (C,), or None: none): firmly rigid pieces others are jointed to
+    (:mod:`core.inbetween_joints`), whose interpolated motion composes their joints' turns and
+    carries their children, or pinned (their motion keeps their pinned vertices): they lead a
+    body, never join one. A piece
+    that moves as one with a link in every key (a pin nested inside a robot arm's link, a bolt in a
+    plate that turns at a hinge) takes the link's motion, the heaviest link's where several agree;
+    the links keep their own. On its own screw a pin nested
+    in the wrist of an arm bent 40°, 120° and 170° at three hinges took the short way of its net
+    turn (18° half-way) while its link took the joints' (165°), a third of the arm's diagonal away.
+    ``leaves`` (bool (C,), or None: none): candidates jointed to a piece with none jointed to them,
+    which lead a body without a link before its other pieces, whose own screws would leave their
+    joints: a pin touching the link below it and nested in the one above, which turns a half turn
+    about their joint, takes that link's way round, not the other."""
+    links = np.zeros(len(candidates), dtype=bool) if links is None else np.asarray(links, dtype=bool) & ~candidates
+    leaves = np.zeros(len(candidates), dtype=bool) if leaves is None else np.asarray(leaves, dtype=bool) & candidates
+    rows = np.flatnonzero(candidates | links)
+    if not candidates.any() or rows.size < 2 or not motions:
         return None
     vectors = np.concatenate([np.concatenate([rotations[rows].reshape(-1, 9), translations[rows] / scale], axis=1)
                               for rotations, translations in motions], axis=1)
@@ -50,11 +68,15 @@ def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray,
     counts = np.bincount(group)
     if counts.max() < 2:
         return None
-    # per group, its heaviest member (the first of equals: lexsort's last of the ascending order)
-    order = np.lexsort((-rows, mass[rows], group))
+    # per group, its heaviest link, else its heaviest leaf, else its heaviest member (the first of
+    # equals: lexsort's last of the ascending order)
+    order = np.lexsort((-rows, mass[rows], leaves[rows], links[rows], group))
     last = np.r_[np.flatnonzero(np.diff(group[order])), order.size - 1]
     leaders = np.empty(counts.size, dtype=np.intp)
     leaders[group[order[last]]] = rows[order[last]]
     leader = np.arange(len(candidates))
-    leader[rows] = leaders[group]
+    joining = candidates[rows]
+    leader[rows[joining]] = leaders[group[joining]]
+    if (leader == np.arange(len(candidates))).all():
+        return None
     return leader

@@ -452,15 +452,23 @@ def test_many_pieces_give_the_same_bits_in_every_fresh_process(tmp_path):
                                       timeout=300, check=True).stdout.strip())
     assert digests[0] == digests[1]
 
-def _robot(s, capped=True, angles=(58.0, 36.0, 22.0, 21.0, 69.0, 75.0), axes="xyyxyx"):
+def _robot(s, capped=True, angles=(58.0, 36.0, 22.0, 21.0, 69.0, 75.0), axes="xyyxyx", pins=None):
     """A robot arm of seven tubes (0.6 long along x, radius 0.08, neighbours' end rings coincident;
     ``capped``: each cap a fan about a vertex on the tube's axis, else open) on a fixed base link,
     its joints at the links' roots turned about ``axes`` by ``s`` times ``angles`` (degrees): forward
     kinematics. About x a link rolls on its own axis, on which the next joint lies, so that joint's
-    point (and the cap vertices there) stays still. Vertices, triangles."""
+    point (and the cap vertices there) stays still. ``pins``: each link holds a separate pin (a closed
+    tube 0.2 long, radius 0.025) on its axis, nested in it without touching its wall (0.055 from
+    it) and moved with it, starting ``pins`` from the link's root (0.2: midway, more than an edge
+    from everything, so no joint; −0.1: a hinge pin through the joint, into the link below, which
+    it is jointed to; None: no pins). Vertices, triangles."""
     tube, tube_triangles = meshes.closed_tube(13, 12, length=0.6, radius=0.08)
     if not capped:
         tube, tube_triangles = tube[:-2], tube_triangles[np.all(tube_triangles < len(tube) - 2, axis=1)]
+    pin, pin_triangles = meshes.closed_tube(5, 8, length=0.2, radius=0.025)
+    if pins is not None:
+        tube_triangles = np.vstack([tube_triangles, pin_triangles + len(tube)])
+        tube = np.vstack([tube, pin + [pins, 0.0, 0.0]])
     rotation, translation, parts = np.eye(3), np.zeros(3), [tube]
     for k, (axis, angle) in enumerate(zip(axes, angles), start=1):
         joint = np.array([0.6 * k, 0.0, 0.0])
@@ -493,6 +501,38 @@ def test_a_robot_arm_jointed_at_points_its_links_turn_about_is_its_forward_kinem
     for gap in range(3):
         for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
             np.testing.assert_allclose(x, _robot((gap + s) / 3, capped)[0], atol=1e-6 * diagonal)
+
+
+@pytest.mark.parametrize(("angles", "pins"), [((40.0, 120.0, 100.0, 30.0, 170.0, 60.0), 0.2),
+                                             ((58.0, 36.0, 22.0, 21.0, 69.0, 75.0), 0.2),
+                                             ((0.0, 0.0, 60.0, 180.0, 0.0, 0.0), -0.1)])
+def test_pins_nested_in_a_robot_arms_links_move_with_their_links(angles, pins):
+    """The robot arm (:func:`_robot`) with a pin nested in each link: every factor of two poses
+    (exaggerations included) and every in-between of a sequence is the arm at that factor of its
+    angles, pins included, to 1e-6 of the diagonal, and no warning says a piece moves by its own
+    rigid motion off a joint's path. Each pin moves as one with its link in every key, so it takes
+    its link's motion, which its joints compose (core.rigid_bodies). Midway in its link, on its own
+    screw each pin took the short way of its net turn (a link turned 390° about y over the joints
+    below it: 30°) while its link took the joints' way: pins up to 0.6 of the diagonal out of their
+    links half-way and 0.8 at ×2 (the default angles: 0.1 and 1.0), in the sequences 0.1 (0.01).
+    Through the joint, jointed to the link below as its link is, the hinge pin of a link rolled
+    exactly half round took the other way round than its link: 1e-2 of the diagonal off."""
+    a, tri = _robot(0.0, angles=angles, pins=pins)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, _robot(1.0, angles=angles, pins=pins)[0], tri)
+    poses, caught = _poses_and_warnings(interpolator, FACTORS)
+    for s, x in zip(FACTORS, poses):
+        np.testing.assert_allclose(x, _robot(s, angles=angles, pins=pins)[0], atol=1e-6 * diagonal)
+    assert not _said(caught, "by its own rigid motion")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sequence = SequenceInterpolator([_robot(k / 3, angles=angles, pins=pins)[0] for k in range(4)], tri,
+                                        start="keys")
+        for gap in range(3):
+            for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+                np.testing.assert_allclose(x, _robot((gap + s) / 3, angles=angles, pins=pins)[0],
+                                           atol=1e-6 * diagonal)
+    assert not _said(caught, "by its own rigid motion")
 
 
 def _said(caught, words):
