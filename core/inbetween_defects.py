@@ -7,6 +7,8 @@ triangles of the gap's topology (m, 3); in-betweens of paper §8.4.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .geometry import coordinate_cross, coordinate_dot
@@ -83,15 +85,18 @@ class DefectChecks:
         triangles ``rows``: a repair round checks each field's fit on the same region with the same
         stretches, so the last rows asked (per thread: a gap's in-betweens are repaired
         concurrently) keep them, the target areas while the same ``stretch`` and ``scale`` are
-        given."""
+        given. ``stretch`` and ``scale`` are held by weak reference: a gap's stretches by rows
+        (:class:`core.inbetween_field._ByRows`) compute from the gap, which holds this repair, and a
+        strong reference here would keep a gap the sequence's cache let go (~150–200 MB at 100k
+        vertices) alive until a full garbage collection."""
         cached = getattr(self._local, "rows", None)
         if cached is None or cached[0] is not rows:
             gap = self.gap
             cached = self._local.rows = [rows, np.ascontiguousarray(gap.topo.triangles[rows].T),
                                          (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows]),
                                          gap.base.areas[rows], None]
-        if cached[4] is None or cached[4][0] is not stretch or cached[4][1] is not scale:
-            cached[4] = (stretch, scale, cached[3] * self._area_scale(stretch, scale, rows))
+        if cached[4] is None or not (_held(cached[4][0], stretch) and _held(cached[4][1], scale)):
+            cached[4] = (_weak(stretch), _weak(scale), cached[3] * self._area_scale(stretch, scale, rows))
         return cached[1], cached[2], cached[4][2]
 
     def against_the_field(self, x: np.ndarray, frames: np.ndarray) -> tuple[str | None, tuple[int, int]]:
@@ -138,3 +143,15 @@ class DefectChecks:
             return "the fit came out with non-finite coordinates (a numerical failure)"
         count = int((self.defects(x, s, frames, stretch) if defects is None else defects).sum())
         return f"{count} triangle(s) flipped or collapsed" if count else None
+
+
+def _weak(value):
+    """A weak reference to ``value`` (None stays None)."""
+    return None if value is None else weakref.ref(value)
+
+
+def _held(reference, value) -> bool:
+    """Whether the weak ``reference`` (:func:`_weak`) is to ``value`` itself, still alive."""
+    if reference is None or value is None:
+        return reference is None and value is None
+    return reference() is value

@@ -965,6 +965,33 @@ def test_a_regions_checks_follow_the_stretches_they_are_given(strip):
     assert gap.repair.defects(x, s, None, narrow, rows=rows).all()
 
 
+def test_a_gap_repaired_on_its_regions_is_freed_at_once(strip):
+    """A gap whose in-between a repair fixed region by region (the interpolated stretches computed by
+    rows, each region's checks keeping its target areas) is freed when the last reference to it
+    goes, not at the next full garbage collection: what the checks keep holds no reference back to
+    the gap. (A sequence otherwise kept each gap it let go alive for a while: a 100k-vertex sheet
+    keyed every 4th frame over 16 gaps peaked at 2.2 GB, 1.06 GB without it.)"""
+    import gc
+    import weakref
+
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s = 0.5
+    crumpled = gap.linear_blend(s) + np.random.default_rng(1).normal(scale=0.05, size=flat.shape)
+    assert gap.repair.defects(crumpled, s, None, None, scale=gap.area_scale(s)).any()
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        x, _ = gap.repaired(crumpled.copy(), s)
+        assert (x != crumpled).any()  # the repair moved its regions
+        freed = weakref.ref(gap)
+        del gap
+        assert freed() is None
+    finally:
+        if enabled:
+            gc.enable()
+
+
 def test_a_predictions_repairs_compute_the_blends_geometry_once(monkeypatch, strip):
     """A predicted in-between no repair cleans is repaired, solved from its repair and that solve
     repaired, at one factor: each triangle's local geometry of the linear blend (and of the
