@@ -36,6 +36,7 @@ from .inbetween_fit import METRIC_TOLERANCE
 from .inbetween_prediction_repairs import REDUCED_ROUNDS, _defect_count, _predicted, _repaired_again, _solve_off_metric
 from .inbetween_repair_rounds import REPAIR_RINGS
 from .inbetween_threads import per_factor
+from .inbetween_untangling import untangled_poses
 
 
 #: The factors solved in a gap when several in-betweens are asked together: those asked nearest
@@ -114,7 +115,14 @@ STILL_RIGIDITY = 1e-6
 def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     """``(positions (n, 3), problem or None)`` at each of ``factors`` (floats, extrapolations and
     keys included) of ``gap`` (a ``core.inbetween_solver._Gap``). The in-betweens are solved,
-    and predicted, concurrently (:func:`core.concurrency.concurrently`)."""
+    and predicted, concurrently (:func:`core.concurrency.concurrently`); those that keep flipped
+    or collapsed triangles after their repairs are untangled where that cleans them
+    (:func:`core.inbetween_untangling.untangled_poses`)."""
+    return untangled_poses(gap, factors, _gap_poses(gap, factors))
+
+
+def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
+    """:func:`gap_poses` before the untangling."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
     if interior and not gap.anchored and _nearly_still(gap):
         blend = {s: gap.finished((gap.linear_blend(s), None), s) for s in interior}

@@ -35,7 +35,7 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     def clean(x):  # only the blend (and the linear extrapolation at 1.5) are clean
         return np.allclose(x, blend) or np.allclose(x, extrapolation)
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, **kwargs):
         out = np.zeros(len(tri), dtype=bool)
         out[:0 if clean(x) else 3] = True
         return out if rows is None else out[rows]
@@ -88,7 +88,7 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
     def moved(x):
         return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * offset
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, **kwargs):
         out = np.zeros(len(tri), dtype=bool)
         out[len(tri) // 2] = not moved(x)  # one defect, gone from any repair
         return out if rows is None else out[rows]
@@ -134,7 +134,7 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
     def moved(x):
         return bool(fit) and np.abs(x - fit[0]).max() > 0.5 * lift
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, **kwargs):
         out = np.zeros(len(tri), dtype=bool)
         out[len(tri) // 2] = True  # a defect no repair removes
         out[len(tri) // 2 + 1] = not moved(x)  # and one every repair removes
@@ -245,7 +245,7 @@ def test_a_fit_that_folds_past_the_whole_change_tolerance_falls_back_to_its_step
         steps.append(x)
         return real_edges(self, x, *args)
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, **kwargs):
         out = np.zeros(len(tri), dtype=bool)
         out[:0 if x is steps[1] else 3] = True
         return out if rows is None else out[rows]
@@ -607,8 +607,11 @@ def test_a_middle_fold_the_outer_solves_geometry_keeps_too_is_kept_as_it_was(mon
     repair left (as without that field, bit for bit), and what the gap keeps of its outcome, which
     its warning counts from, is that pose's."""
     import core.inbetween_prediction as prediction
+    import core.inbetween_untangling as untangling
 
     keys, tri, imposed = _middle_folded(monkeypatch, strip, unfolds=set())
+    # the last untangling would unfold it (test_inbetween_untangling): what the repairs keep is asked here
+    monkeypatch.setattr(untangling, "untangled", lambda *args: None)
     factors = np.arange(1, 16) / 16
     seq = SequenceInterpolator(keys, tri)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
@@ -727,6 +730,7 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
     the flipped or collapsed triangles of the poses returned (a pass taken whose check stored its
     own count, then a pass not taken whose check stored another)."""
     import core.inbetween_prediction_repairs as prediction_repairs
+    import core.inbetween_untangling as untangling
     from core import sequence_inbetweens
 
     keys, tri, factors, _ = _two_folds(monkeypatch, strip, g)
@@ -762,6 +766,8 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
     monkeypatch.setattr(sequence_inbetweens._Gap, "fit", fit)
     monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
     monkeypatch.setattr(prediction_repairs, "_predicted_positions", predicted)
+    # the last untangling would unfold the third (test_inbetween_untangling): what the repairs keep is asked here
+    monkeypatch.setattr(untangling, "untangled", lambda *args: None)
     seq = SequenceInterpolator(keys, tri)
     with pytest.warns(ShapeDifferenceWarning, match="keeps") as said:
         poses = seq.poses(0, factors)

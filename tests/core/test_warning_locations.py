@@ -34,7 +34,7 @@ def every_fit_flips(monkeypatch, strip):
     in-between warns when it is solved, after the keys are prepared."""
     import core.inbetween_repair as repair
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, **kwargs):
         out = np.zeros(len(strip[1]), dtype=bool)
         out[:3] = True
         return out if rows is None else out[rows]
