@@ -75,7 +75,7 @@ MAX_CROSS_VALIDATION = 0.5
 def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
     """``M(s)⁻¹ x − V(s)`` (n, 3): positions ``x`` at factor ``s`` in the co-moving frame, less the
     keys' co-moving spline."""
-    return gap.topo.undo_motion(x, *gap.motion(s)) - gap.splines["vertices"].at(s)
+    return gap.topo.undo_motion(x, *gap.motion(s)) - gap.spline_at("vertices", s)
 
 
 def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
@@ -182,7 +182,7 @@ def _inconsistent(gap, solved: dict) -> bool:
 def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:
     """The prediction at ``s`` before its pins and carried pieces: the co-moving spline plus the
     ``correction`` at ``s``, moved by the gap's interpolated rigid ``motion`` there."""
-    return gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *motion)
+    return gap.topo.apply_motion(gap.spline_at("vertices", s) + correction(s), *motion)
 
 
 def _pins_in_place(gap, x: np.ndarray, s: float) -> np.ndarray:

@@ -50,13 +50,13 @@ class DefectChecks:
 
     def defects(self, x: np.ndarray, s: float, frames, stretch, rows=None, scale=None) -> np.ndarray:
         """Flipped or collapsed triangles of ``x`` (bool (m,), or (r,) for the triangle indices
-        ``rows``); all of them if ``x`` is not finite. The interpolated areas come from
-        ``stretch`` (packed (m, 3)) or, if given instead, their ratios to the base's ``scale``
-        (m,; :meth:`core.inbetween_field.InterpolatedField.area_scale`)."""
-        m = len(self.gap.topo.triangles)
-        if not np.isfinite(x).all():
-            return np.ones(m if rows is None else len(rows), dtype=bool)
+        ``rows``); all of them if ``x`` is not finite (with ``rows``: if a corner of theirs is not;
+        the rest of the pose is not read, as the check of a repair region's fit reads the region
+        alone). The interpolated areas come from ``stretch`` (packed (m, 3)) or, if given instead,
+        their ratios to the base's ``scale`` (m,; :meth:`core.inbetween_field.InterpolatedField.area_scale`)."""
         if rows is None:
+            if not np.isfinite(x).all():
+                return np.ones(len(self.gap.topo.triangles), dtype=bool)
             e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
             rows = slice(None)
             normals = None
@@ -64,6 +64,8 @@ class DefectChecks:
         else:
             corners, normals, target = self._rows_of(rows, stretch, scale)
             p = np.take(x, corners, axis=0)  # (3 corners, r, 3) in one gather
+            if not np.isfinite(p).all():
+                return np.ones(len(rows), dtype=bool)
             e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
         cross = coordinate_cross(e1, e2)
         length = np.sqrt(coordinate_dot(cross, cross))

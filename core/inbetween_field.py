@@ -48,6 +48,13 @@ def _log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.nd
 class InterpolatedField:
     """The field's part of a gap: its rotations' frames, stretches and area scales at a factor."""
 
+    def spline_at(self, name: str, s: float) -> np.ndarray:
+        """The spline ``name`` evaluated whole at factor ``s``, read-only once the gap has its repair
+        (:meth:`~core.inbetween_repair_rounds.RepairRounds.factor_spline`: kept for the in-between
+        a thread works on)."""
+        repair = self.__dict__.get("repair")
+        return self.splines[name].at(s) if repair is None else repair.factor_spline(name, s)
+
     def local_rotvec(self, rotvec: np.ndarray) -> np.ndarray:
         """Per-triangle rotation vectors (m, 3) in world coordinates → in the triangle's frame
         ``(t1, t2, n)`` in the base key (m, 3). The splines limit tangents per element; in world
@@ -103,7 +110,7 @@ class InterpolatedField:
             frames = _ByRows(frames_of, (columns, m, 3), 1)
             stretch = _ByRows(lambda rows: self.stretch(s, rows), (m, 3), 0)
             return frames, stretch, motion, self.guide(s, motion)
-        frames = self.key_frames(self.world_rotvec(self.splines["rotvec"].at(s)), motion[0], columns=columns)
+        frames = self.key_frames(self.world_rotvec(self.spline_at("rotvec", s)), motion[0], columns=columns)
         return frames, self.stretch(s), motion, self.guide(s, motion)
 
     def stretch(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
@@ -117,7 +124,7 @@ class InterpolatedField:
         whose ``log_metric`` is set (two poses whose fit of the metric turns triangles over:
         :data:`core.two_pose_inbetweens.LOG_METRIC_FIT`)."""
         def at(name):  # the spline on the rows, or whole
-            return self.splines[name].at(s) if rows is None else self.splines[name].at(s, rows)
+            return self.spline_at(name, s) if rows is None else self.splines[name].at(s, rows)
 
         if not 0.0 < s < 1.0 or self.log_metric:
             return df.exp_stretch(at("log_stretch"))
@@ -132,9 +139,9 @@ class InterpolatedField:
         ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
         outside them, where that ``G`` is not positive definite and with ``log_metric``."""
         if not 0.0 < s < 1.0 or self.log_metric:
-            log = self.splines["log_stretch"].at(s)
+            log = self.spline_at("log_stretch", s)
             return np.exp(log[:, 0] + log[:, 2])
-        scale, ok = df.sqrt_det(self.splines["metric"].at(s))
+        scale, ok = df.sqrt_det(self.spline_at("metric", s))
         if not ok.all():
             rows = np.flatnonzero(~ok)
             log = self.log_stretch_rows(s, rows)
@@ -167,7 +174,7 @@ class InterpolatedField:
         whole spline's where it is made, else a spline of those rows alone (a few triangles where
         the metrics' spline is not positive definite: the keys' other log-stretches not made)."""
         if "log_stretch" in self.splines:
-            return self.splines["log_stretch"].at(s)[rows]
+            return self.spline_at("log_stretch", s)[rows]
         return _log_stretch_spline(self.relatives, self.cubic, self._log_options, rows).at(s)
 
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:

@@ -99,10 +99,10 @@ class Guide:
         times one less each vertex's share of the co-moving spline: its component's rigidity, or
         all of it where the component turns as a whole (:data:`ARC_GUIDE_STRAIN_RATIO`) unless
         ``arcs`` is False (the world spline there: the velocity a key's two gaps share)."""
-        base = self.topo.apply_motion(self.splines["vertices"].at(s), *motion)
+        base = self.topo.apply_motion(self.spline_at("vertices", s), *motion)
         if self.weights is None:
             return base, None
-        offset = self.splines["world"].at(s) - base
+        offset = self.spline_at("world", s) - base
         if self.co_moving.any():
             if self.anchored:
                 mix = self.co_moving.astype(float)

@@ -238,7 +238,7 @@ def _moved_rigidly(gap, factors) -> dict | None:
     (then they are solved)."""
     out = {}
     for s in factors:
-        x = gap.topo.apply_motion(gap.splines["vertices"].at(s), *gap.motion(s))
+        x = gap.topo.apply_motion(gap.spline_at("vertices", s), *gap.motion(s))
         if not np.isfinite(x).all() or gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).any():
             return None
         out[s] = gap.finished((x, None), s)

@@ -85,7 +85,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     if not np.isfinite(x).all():
         return gap.pose(s)
     x = _placed(gap, x, s)
-    scale = gap.area_scale(s)  # the stretches themselves only if there is something to repair
+    scale = gap.repair.factor_area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)
     if defects.any() and isinstance(correction, _RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
@@ -180,7 +180,7 @@ def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple
     docs/inbetween-measurements.md, *Repairs again from the fewest defects*)."""
     if pose[1] is None:
         return pose
-    scale = gap.area_scale(s)
+    scale = gap.repair.factor_area_scale(s)
     defects = gap.repair.defects(pose[0], s, None, None, scale=scale)
     count = int(defects.sum())
     if not count:  # a fallback without flipped or collapsed triangles: nothing to repair
@@ -300,5 +300,5 @@ def _solved_instead(gap, s: float) -> tuple[np.ndarray, str | None]:
 def _defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
     """The flipped and collapsed triangles of positions ``x`` (n, 3) at factor ``s`` (``scale``:
     the gap's ``area_scale(s)``, if made already)."""
-    scale = gap.area_scale(s) if scale is None else scale
+    scale = gap.repair.factor_area_scale(s) if scale is None else scale
     return int(gap.repair.defects(x, s, None, None, scale=scale).sum())

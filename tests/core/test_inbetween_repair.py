@@ -807,10 +807,10 @@ class _ScriptedGap:
             def move_limits(self, s):
                 return limits
 
-        self.repair = Repair()
+            def factor_area_scale(self, s):
+                return None
 
-    def area_scale(self, s):
-        return None
+        self.repair = Repair()
 
     def repaired_again(self, x, s, nearby=None, rings=None, defects=None):
         y = self.passes.pop(0)
@@ -1019,3 +1019,84 @@ def test_a_predictions_repairs_compute_the_blends_geometry_once(monkeypatch, str
     blends = [computed.get(((1.0 - s) * keys[0] + s * keys[1]).tobytes()) for s in factors if s not in (0.25, 0.75)]
     assert all(blends)  # every prediction's repairs imposed the blend's geometry
     assert all(len(rows) == len(set(rows)) for rows in computed.values())
+
+
+def test_a_regions_check_reads_its_own_triangles_corners_alone(strip):
+    """A check on rows (a repair region's fit) equals the whole mesh's check there for a finite
+    pose; a corner of theirs that is not finite makes every one of them a defect, and a vertex
+    that is not finite elsewhere in the pose changes none of them (the region's check reads its
+    corners alone: a repair moves only its region's vertices)."""
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    s, scale = 0.5, gap.area_scale(0.5)
+    rng = np.random.default_rng(3)
+    x = gap.linear_blend(s) + rng.normal(scale=0.03, size=flat.shape)
+    rows = np.arange(0, len(tri) // 2)
+    whole = gap.repair.defects(x, s, None, None, scale=scale)
+    checked = gap.repair.defects(x, s, None, None, rows=rows, scale=scale)
+    assert whole[rows].any() and not whole[rows].all()
+    np.testing.assert_array_equal(checked, whole[rows])
+    inside, outside = tri[rows].ravel()[0], np.setdiff1d(np.arange(len(flat)), tri[rows])[0]
+    for vertex, expected in ((inside, np.ones(len(rows), dtype=bool)), (outside, checked)):
+        y = x.copy()
+        y[vertex] = np.nan
+        np.testing.assert_array_equal(gap.repair.defects(y, s, None, None, rows=rows, scale=scale), expected)
+    y[outside] = np.nan
+    assert gap.repair.defects(y, s, None, None, scale=scale).all()  # the whole mesh's check: all of them
+
+
+def test_an_in_betweens_reads_of_a_spline_at_its_factor_share_one_evaluation(monkeypatch, strip):
+    """Inside one in-between's scope (``Repair.fields_kept``) each spline of the gap is evaluated
+    whole at the factor once, however many readers (the prediction, the guide, the stretches, the
+    repairs' fields) ask, and so is the area scale of the defect checks; the values are the
+    spline's own, read-only (no reader may change what the others read), evaluated anew outside
+    the scope; and the in-betweens of a gap whose predictions are repaired are those made with
+    every reader evaluating its own, bit for bit."""
+    import core.inbetween_field as field
+    import core.inbetween_repair_rounds as rounds
+    import core.splines as splines
+
+    keys, tri, factors, _, _ = _predictions_flagged(monkeypatch, strip)
+    kept = SequenceInterpolator(keys, tri).poses(0, factors)
+    with monkeypatch.context() as each_its_own:
+        each_its_own.setattr(rounds.RepairRounds, "factor_spline", lambda self, name, s: self.gap.splines[name].at(s))
+        each_its_own.setattr(rounds.RepairRounds, "factor_area_scale", lambda self, s: self.gap.area_scale(s))
+        np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), kept)
+
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    s = 0.375
+    gap.select(s)  # the anchor of in-betweens: its guide reads the world spline
+    evaluated, real_at = [], splines.HermiteGap.at  # the splines evaluated whole at s
+
+    def at(self, u, rows=None):
+        if rows is None and u == s:
+            evaluated.append(id(self))
+        return real_at(self, u, rows)
+
+    monkeypatch.setattr(splines.HermiteGap, "at", at)
+    scales, real_scale = [], field.InterpolatedField.area_scale
+    monkeypatch.setattr(field.InterpolatedField, "area_scale", lambda self, s: scales.append(s) or real_scale(self, s))
+
+    def readers():  # the guide, the prediction's co-moving spline, the stretches, the checks' areas twice
+        motion = gap.motion(s)
+        return [gap.guide(s, motion), gap.spline_at("vertices", s), gap.stretch(s), gap.spline_at("world", s),
+                gap.repair.factor_area_scale(s), gap.repair.factor_area_scale(s)]
+
+    alone = readers()
+    vertices, world = id(gap.splines["vertices"]), id(gap.splines["world"])
+    assert evaluated.count(vertices) == 2 and evaluated.count(world) == 2 and len(scales) == 2
+    evaluated.clear(), scales.clear()
+    with gap.repair.fields_kept():
+        shared = readers()
+    assert evaluated.count(vertices) == 1 and evaluated.count(world) == 1 and len(scales) == 1
+    assert len(evaluated) == len(set(evaluated))
+    for a, b in zip(shared, alone):
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(shared[1], real_at(gap.splines["vertices"], s))
+    for value in (shared[1], shared[3], shared[4]):
+        assert not value.flags.writeable
+        with pytest.raises(ValueError):
+            value[0] = 0.0
+    evaluated.clear()
+    gap.spline_at("vertices", s)
+    assert evaluated == [vertices]  # let go at the scope's end
