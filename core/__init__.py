@@ -115,8 +115,8 @@ def shape_differences(
     offset, use_extrinsic = check_offset(offset), check_flag(use_extrinsic, "use_extrinsic")
     with numerical_failures("Computing the shape differences"):
         reference = ReferenceShape(base, topology.triangles, offset=offset, use_extrinsic=use_extrinsic)
-        reference.check_faithful(reference.base_positions, "base_vertices", stacklevel=2)
-        return reference.shape_differences(target, k_M=k_M, k_N=k_N, name="target_vertices", stacklevel=2)
+        reference.check_faithful(reference.base_positions, "base_vertices")
+        return reference.shape_differences(target, k_M=k_M, k_N=k_N, name="target_vertices")
 
 
 #: reconstruct warns when the returned pose misses the recovered edge lengths by more than this
@@ -204,7 +204,6 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
             "pose (an extreme stretch, a sharp fold, or lengths beyond floating-point precision); "
             "check the result.",
             "fit",
-            stacklevel=2,
         )
 
 
@@ -264,7 +263,6 @@ def _warn_bending_free(reference: ReferenceShape, placed: np.ndarray) -> None:
         "lengths, bent as near the base as they allow, and may differ from the target there; the extrinsic "
         "differences (use_extrinsic=True) determine it.",
         "undetermined",
-        stacklevel=3,
     )
 
 
@@ -277,7 +275,6 @@ def _warn_undetermined(choices: int) -> None:
             "strip, whose folded and flat shapes have the same lengths). That part may come back "
             "mirrored or flat; more triangles around the fold make it determined.",
             "undetermined",
-            stacklevel=3,
         )
 
 
@@ -327,9 +324,9 @@ def __getattr__(name: str):
         return getattr(importlib.import_module(_ANALYSIS[name], __name__), name)
     # Interpolation classes load on first use, keeping `import core` light.
     if name == "SequenceInterpolator":  # same-mesh, or key poses of another mesh (core.transfer)
-        from .transfer import _sequence_class
+        from .transfer import sequence_class
 
-        globals()[name] = _sequence_class()
+        globals()[name] = sequence_class()
         return globals()[name]
     if name == "Transfer":
         from .transfer import Transfer

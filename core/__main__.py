@@ -382,7 +382,7 @@ def _terminated(signum, _frame):
 @contextmanager
 def _stop_cleanly_on_sigterm():
     """SIGTERM (how a farm cancels a task before it kills it) raised as :class:`SystemExit` while
-    in the block, so that a file being written is removed (``point_cache._write_atomically``)
+    in the block, so that a file being written is removed (``core.atomic_files.write_atomically``)
     rather than left half written beside the output, and the exit status is 128 + 15. Python's own
     handling of SIGTERM ends the process on the spot."""
     if threading.current_thread() is not threading.main_thread():  # only the main thread may set handlers

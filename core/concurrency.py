@@ -11,7 +11,8 @@ queued, and work handed out from inside a piece (a gap prepared in the backgroun
 keys' relatives concurrently) cannot deadlock the pool. Every piece is computed as it would be
 alone, with BLAS single-threaded (two multithreaded BLAS calls at once oversubscribe the cores; a
 multithreaded BLAS sums in another order, ~1e-14 relative), so the results do not depend on the
-number of threads.
+number of threads. The two surface layers of a reconstruction or a transfer (the mesh and its
+offset surface) run in threads of their own (:func:`per_layer_threads`).
 
 BLAS's thread count is the process's, not a thread's: :func:`single_threaded_blas` is one limit
 for the process, set by the first of its holders (of any thread: the in-betweens, the pieces,
@@ -125,6 +126,26 @@ def single_threaded_blas():
             if _limit_holders == 0:
                 _limiter.restore_original_limits()
                 _limiter = None
+
+
+def per_layer_threads(calls, *, parallel: bool = True) -> list:
+    """``[call() for call in calls]`` — for the two layers' independent work — in one thread per
+    call, each with a single-threaded BLAS (their work is BLAS, LAPACK and sparse products, which
+    release the GIL; faster than one layer after the other with a multithreaded BLAS, and far
+    faster on a busy machine, see docs/design-decisions.md). Sequential without threadpoolctl or
+    a second core, or unless ``parallel``. Threads of its own, not the shared pool
+    (:func:`concurrently`): each layer's embedding still races its starts there."""
+    import importlib.util
+
+    parallel = (parallel and len(calls) > 1 and available_cores() > 1
+                and importlib.util.find_spec("threadpoolctl") is not None)
+    if not parallel:
+        return [call() for call in calls]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with single_threaded_blas(), ThreadPoolExecutor(len(calls)) as pool:
+        futures = [pool.submit(call) for call in calls]
+        return [future.result() for future in futures]
 
 
 def _blas_controller():

@@ -40,7 +40,7 @@ MAX_LOG_STRETCH = 30.0
 #: view of its rows or columns where they are consecutive, ~5 µs of Python each), more pieces by
 #: gathered 3×3 blocks per vertex or triangle: here in :func:`turned_coordinate_rows` (two pieces of
 #: 10k triangles 3.6 → 0.14 ms) and in the sequences' rigid motions
-#: (``core.inbetween_topology._Topology.apply_motion``: two 5k sheets 2.17 → 0.14 ms per call).
+#: (``core.inbetween_topology.Topology.apply_motion``: two 5k sheets 2.17 → 0.14 ms per call).
 SLICED_PIECES = 64
 
 

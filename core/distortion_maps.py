@@ -228,7 +228,7 @@ class DistortionAnalyzer:
             # The operator restricted to the first k functions: ended inside a group of equal
             # eigenvalues, its eigenpairs depend on which part of the group rounding picked.
             self._splits_told.add(k)  # once per size: one warning names every layer's groups
-            ref.warn_split(k, label="k", stacklevel=3)
+            ref.warn_split(k, label="k")
         basis = layer.basis(k)
         _, _, mass, conformal = pose_products(layer.assembler, positions)
         phi = basis.functions

@@ -274,7 +274,6 @@ def _warn_unconverged(x, edges, squared, iterations):
         "(RMS, relative) in the best fit found: check the result, or raise max_iterations (the embedding's "
         f"Levenberg–Marquardt stopped after {iterations} iterations without converging).",
         "fit",
-        stacklevel=3,
     )
 
 

@@ -89,31 +89,30 @@ def shape_warning(message: str, kind: str) -> ShapeDifferenceWarning:
     return warning
 
 
-def warn(message: str | ShapeDifferenceWarning, kind: str | None = None, stacklevel: int = 1) -> None:
+def warn(message: str | ShapeDifferenceWarning, kind: str | None = None) -> None:
     """Issue :func:`shape_warning` ``(message, kind)``, or the warning ``message`` made by it (its
-    other attributes set), as ``warnings.warn(…, stacklevel=stacklevel)`` would from the caller,
-    and further up past the core's own frames: the one place the core warns, so that every warning
-    has a kind and points at the line of the code that called the core (a script's, an
-    operator's), where ``warnings.filterwarnings(…, module=…)`` and the printed location find it
-    whatever the core's calls in between."""
+    other attributes set), from the frame that called the core's outermost frame on the stack: the
+    one place the core warns, so that every warning has a kind and points at the line of the code
+    that called the core (a script's, an operator's), where ``warnings.filterwarnings(…, module=…)``
+    and the printed location find it whatever the core's calls in between."""
     warning = shape_warning(message, kind) if isinstance(message, str) else message
     _check_kind(warning)
-    warnings.warn(warning, stacklevel=_outside_core(stacklevel) + 1)
+    warnings.warn(warning, stacklevel=_outside_core() + 1)
 
 
-def _outside_core(stacklevel: int) -> int:
+def _outside_core() -> int:
     """The ``stacklevel`` (1: the caller of :func:`warn`) of the frame that called the core's
-    outermost frame on the stack, or ``stacklevel`` where that is further up. A ``contextlib``
-    wrapper that calls a frame of the core (an entry point decorated with
-    :func:`core.concurrency.single_threaded_blas`) is the core's. In a pool thread the core's
-    outermost frame is the pool's work: the in-betweens issue their warnings in the caller's thread."""
+    outermost frame on the stack. A ``contextlib`` wrapper that calls a frame of the core (an entry
+    point decorated with :func:`core.concurrency.single_threaded_blas`) is the core's. In a pool
+    thread the core's outermost frame is the pool's work: the in-betweens issue their warnings in
+    the caller's thread."""
     frame, level, outermost = sys._getframe(2), 1, 0  # warn's caller
     while frame is not None:
         name = frame.f_code.co_filename
         if name.startswith(_CORE) or (name == contextlib.__file__ and outermost == level - 1):
             outermost = level
         frame, level = frame.f_back, level + 1
-    return max(stacklevel, outermost + 1)
+    return outermost + 1
 
 
 def _check_kind(warning: ShapeDifferenceWarning) -> None:

@@ -222,7 +222,6 @@ def _lengths_with_heron(assembler, matrix, areas, edge_values, start, reference,
             f"the edge lengths returned fit them closest, {misfit:.2g} off (a mesh's own differences: "
             "round-off) (the conformal difference does not fit the recovered triangle areas).",
             "inconsistent",
-            stacklevel=4,
         )
     return best
 

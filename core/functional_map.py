@@ -24,7 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import MeshError
-from .mesh_topology import mesh_topology
+from .mesh_topology import MeshTopology, mesh_topology
 
 #: Rings of base neighbours in the local affine fit that smooths a vertex map
 #: (:func:`locally_affine_images`), and the relative spread below which a direction of a ring
@@ -306,7 +306,8 @@ def walk_near(points: np.ndarray, seeds: np.ndarray, target_positions: np.ndarra
     return seeds
 
 
-def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base_triangles: np.ndarray) -> sp.csr_matrix:
+def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base_triangles: np.ndarray, *,
+                        topology: MeshTopology | None = None) -> sp.csr_matrix:
     """``Q`` float64 ``(n_N, n_M)``: ``(Q f)[j]`` is the base function ``f`` interpolated at the
     preimage of target vertex ``j``. The preimages are found on the *image mesh* — the base
     triangles ``(m_M, 3)`` at the images of the base vertices on the target, ``base_images``
@@ -319,7 +320,9 @@ def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base
     point whichever triangle around it reports it, so ``Q`` moves continuously with the inputs
     (extrapolated from one of the triangles that meet there, a preimage on a curved mesh would
     depend on which one rounding picks: ``Q`` would move by 4.5e-3 under a 1e-9 rad turn of an
-    icosphere)."""
+    icosphere). ``topology``: the base's :class:`~core.mesh_topology.MeshTopology` of
+    ``base_triangles`` on ``n_M`` vertices where the caller has it (its boundary is read), else
+    built here."""
     from scipy.spatial import cKDTree
 
     _, seeds = cKDTree(base_images).query(target_points)
@@ -328,7 +331,8 @@ def push_forward_matrix(target_points: np.ndarray, base_images: np.ndarray, base
     # from the nearest triangle instead of clamping onto its side: clamped, a row of target
     # vertices would land on one line and their triangles would collapse.
     # Only just outside (a fraction of a triangle): farther out, clamping is the safer guess.
-    topology = mesh_topology(base_triangles, base_images.shape[0], allow_non_manifold=True, allow_bow_ties=True)
+    if topology is None:
+        topology = mesh_topology(base_triangles, base_images.shape[0], allow_non_manifold=True, allow_bow_ties=True)
     clamped = (weights <= 0.0).any(axis=1) & _on_boundary(base_triangles[triangles], weights > 0.0,
                                                           topology.edges[topology.boundary_edges],
                                                           base_images.shape[0])

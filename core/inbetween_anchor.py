@@ -1,7 +1,7 @@
 """The anchor of a gap's Poisson solve and fit: per-vertex weights ``w`` pulling each vertex toward
 the guide (:mod:`core.inbetween_guide`) — the linear blend where it keeps the keys' edge lengths
 for two poses, the keys' spline for sequences, the pins firmly — their factorizations, and the
-weaker anchor of fits it holds off the metric. Mixed into :class:`core.inbetween_solver._Gap`,
+weaker anchor of fits it holds off the metric. Mixed into :class:`core.inbetween_solver.Gap`,
 whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``anchored``,
 ``static``, ``riding``, ``riding_screws``, ``joints``, ``use_extrinsic``, ``tolerance``,
 ``change_tolerance``, ``_anchors``, ``_riding_motions``) with its other parts: the field

@@ -84,7 +84,7 @@ RIDER_SIZE = 2.0
 
 
 class CarriedPieces:
-    """The rigid pieces of one gap (a ``core.inbetween_solver._Gap``) that deforming pieces carry:
+    """The rigid pieces of one gap (a ``core.inbetween_solver.Gap``) that deforming pieces carry:
     per piece its vertices (k,), its carriers (j,) and the residual rigid motion (screw (6,)) from
     the carriers' motion at the next key to the piece's own."""
 

@@ -2,16 +2,16 @@
 (:mod:`core.inbetween_prediction`), and the positions ``M(s) (V(s) + D(s))`` it predicts.
 
 A pose ``x`` solved at factor ``s_j`` is written in the co-moving frame, less the keys'
-co-moving spline: ``D_j = M(s_j)⁻¹ x − V(s_j)`` (:func:`_co_moving_correction`). :func:`_correction`
+co-moving spline: ``D_j = M(s_j)⁻¹ x − V(s_j)`` (:func:`co_moving_correction`). :func:`correction_polynomial`
 makes the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` and ``(1, 0)``
-(:class:`_CorrectionPolynomial`), with the slopes at the keys that give the pose the guide's
+(:class:`CorrectionPolynomial`), with the slopes at the keys that give the pose the guide's
 velocity there (:func:`_key_slope`, :data:`KEY_SLOPE_SOLVED`); a gap too rough for a polynomial
-has the chords between its solved corrections (:class:`_PiecewiseLinearCorrection`). Two checks
+has the chords between its solved corrections (:class:`PiecewiseLinearCorrection`). Two checks
 say when a polynomial is not to be predicted from: the keys' slopes and the middle alone tell
-different in-betweens (:func:`_slopes_disagree`), or the middle of three solved corrections is far
-from the one the other two predict (:func:`_inconsistent`). With three solved factors the
+different in-betweens (:func:`slopes_disagree`), or the middle of three solved corrections is far
+from the one the other two predict (:func:`inconsistent`). With three solved factors the
 correction takes one local/global step toward the interpolated metric per span
-(:func:`_relaxed_correction`). :func:`_predicted_positions` and :func:`_pins_in_place` turn a
+(:func:`relaxed_correction`). :func:`predicted_positions` and :func:`pins_in_place` turn a
 correction into positions.
 """
 
@@ -60,7 +60,7 @@ MAX_SLOPE_DISAGREEMENT = 0.25
 #: With this many solved in-betweens or more (keys 9 frames apart or more), the predictions get one
 #: local/global step toward the interpolated metric, anchored to themselves, at the middle of each
 #: span between the solved factors and the keys, and its displacement spread over the span
-#: (:func:`_relaxed_correction`).
+#: (:func:`relaxed_correction`).
 RELAXED_SOLVED = 3
 #: Largest relative miss (RMS over the vertices, against the correction's own RMS) of the middle
 #: solved correction predicted from the others; above it the gap is solved at every eighth
@@ -72,19 +72,19 @@ RELAXED_SOLVED = 3
 MAX_CROSS_VALIDATION = 0.5
 
 
-def _co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
+def co_moving_correction(gap, s: float, x: np.ndarray) -> np.ndarray:
     """``M(s)⁻¹ x − V(s)`` (n, 3): positions ``x`` at factor ``s`` in the co-moving frame, less the
     keys' co-moving spline."""
     return gap.topo.undo_motion(x, *gap.motion(s)) - gap.spline_at("vertices", s)
 
 
-def _correction(gap, solved: dict) -> "_CorrectionPolynomial":
+def correction_polynomial(gap, solved: dict) -> "CorrectionPolynomial":
     """The polynomial of the co-moving corrections ``D(s)`` (n, 3) through the keys (zero) and the
     ``solved`` poses {factor: positions}, with the keys' slopes (:data:`KEY_SLOPE_SOLVED`; with
     one solved pose too, :data:`~core.inbetween_prediction.MIDDLE_SOLVED_BATCH`)."""
-    values = {s: _co_moving_correction(gap, s, x) for s, x in solved.items()}
+    values = {s: co_moving_correction(gap, s, x) for s, x in solved.items()}
     slopes = (_key_slope(gap, 0.0), _key_slope(gap, 1.0)) if len(solved) >= KEY_SLOPE_SOLVED or len(solved) == 1 else None
-    return _CorrectionPolynomial(values, slopes)
+    return CorrectionPolynomial(values, slopes)
 
 
 def _key_slope(gap, s: float) -> np.ndarray:
@@ -101,7 +101,7 @@ def _key_slope(gap, s: float) -> np.ndarray:
     return gap.topo.undo_motion(change, rotations, np.zeros((len(rotations), 3)))
 
 
-class _CorrectionPolynomial:
+class CorrectionPolynomial:
     """``D(s)``: the polynomial through ``(0, 0)``, the ``(s_j, D_j)`` of ``values`` {factor:
     (n, 3)} and ``(1, 0)``, and with ``slopes`` ((n, 3) at s = 0 and at s = 1) those derivatives
     at the keys too — the sum of each condition's value times its cardinal polynomial, whose
@@ -130,7 +130,7 @@ class _CorrectionPolynomial:
         return out
 
 
-class _PiecewiseLinearCorrection:
+class PiecewiseLinearCorrection:
     """``D(s)`` (n, 3) of a rough gap: linear between the two knots around ``s`` among the keys
     (zero) and the solved corrections ``values`` {factor: (n, 3)}. Corrections that do not vary
     smoothly give no polynomial to trust between the knots; the chord never leaves the two it
@@ -151,7 +151,7 @@ class _PiecewiseLinearCorrection:
         return out
 
 
-def _slopes_disagree(gap, correction: "_CorrectionPolynomial", solved: dict, factors: list) -> bool:
+def slopes_disagree(gap, correction: "CorrectionPolynomial", solved: dict, factors: list) -> bool:
     """Whether ``gap`` joins the only two keys of a sequence (the keys' spline is their chord) and
     ``correction`` (the quartic through the keys' zeros and slopes and the one ``solved`` pose
     {factor: positions}) and the parabola through the keys' zeros and that pose alone differ by
@@ -161,31 +161,31 @@ def _slopes_disagree(gap, correction: "_CorrectionPolynomial", solved: dict, fac
     if gap.cubic:  # three keys or more: the slope at an inner key is the neighbouring keys' central difference
         return False
     (s, x), = solved.items()
-    parabola = _CorrectionPolynomial({s: _co_moving_correction(gap, s, x)})
+    parabola = CorrectionPolynomial({s: co_moving_correction(gap, s, x)})
     limit = (MAX_SLOPE_DISAGREEMENT * gap.mean_edge) ** 2
     return any(np.mean(np.sum((correction(f) - parabola(f)) ** 2, axis=1)) > limit for f in factors)
 
 
-def _inconsistent(gap, solved: dict) -> bool:
+def inconsistent(gap, solved: dict) -> bool:
     """Whether the corrections of the ``solved`` poses {factor: positions} (three or more) do not
     vary smoothly enough to predict from: the middle one, predicted from the others, misses it by
     more than :data:`MAX_CROSS_VALIDATION` of its size."""
     factors = sorted(solved)
     middle = factors[len(factors) // 2]
     others = {s: x for s, x in solved.items() if s != middle}
-    predicted = _correction(gap, others)(middle)
-    actual = _co_moving_correction(gap, middle, solved[middle])
+    predicted = correction_polynomial(gap, others)(middle)
+    actual = co_moving_correction(gap, middle, solved[middle])
     size = np.sqrt(np.mean(np.sum(actual ** 2, axis=1)))
     return bool(np.sqrt(np.mean(np.sum((predicted - actual) ** 2, axis=1))) > MAX_CROSS_VALIDATION * size)
 
 
-def _predicted_positions(gap, s: float, correction, motion) -> np.ndarray:
+def predicted_positions(gap, s: float, correction, motion) -> np.ndarray:
     """The prediction at ``s`` before its pins and carried pieces: the co-moving spline plus the
     ``correction`` at ``s``, moved by the gap's interpolated rigid ``motion`` there."""
     return gap.topo.apply_motion(gap.spline_at("vertices", s) + correction(s), *motion)
 
 
-def _pins_in_place(gap, x: np.ndarray, s: float) -> np.ndarray:
+def pins_in_place(gap, x: np.ndarray, s: float) -> np.ndarray:
     """Predicted positions ``x`` (n, 3) at factor ``s`` with the pinned vertices moved where they
     belong (``gap.pinned_positions``), and the miss spread around them by one solve of the gap's
     anchored system ``(L + A) δ = A_pinned · miss`` (δ is the miss at the pins and fades over
@@ -214,24 +214,24 @@ def _relaxation(gap, s: float, correction) -> np.ndarray:
     with the gap's anchor pulling toward the prediction itself (not the spline: its long
     wavelengths stay, its short ones take the metric's lengths)."""
     motion = gap.motion(s)
-    x = _pins_in_place(gap, _predicted_positions(gap, s, correction, motion), s)
+    x = pins_in_place(gap, predicted_positions(gap, s, correction, motion), s)
     targets = gap.local_step_targets(gap.fit_targets(None, gap.stretch(s)))
     y = gap.solve(gap.fitted_edges(gap.edges_of(x, LOCAL_STEP_DTYPE), targets), x, s=s)
     return gap.topo.undo_motion(y - x, motion[0], np.zeros((len(motion[0]), 3)))
 
 
-def _relaxed_correction(gap, correction, factors: list) -> "_RelaxedCorrection":
+def relaxed_correction(gap, correction, factors: list) -> "RelaxedCorrection":
     """``correction`` plus the relaxations (:func:`_relaxation`) at the middle of each span
     between the keys and the solved ``factors``, each spread over its span by a parabola (one at the
     middle, zero at the span's ends, where the keys and the solved poses already are fits)."""
     knots = [0.0, *factors, 1.0]
     middles = [0.5 * (a + b) for a, b in zip(knots[:-1], knots[1:])]
-    return _RelaxedCorrection(correction, knots, per_factor(gap, lambda s: _relaxation(gap, s, correction), middles))
+    return RelaxedCorrection(correction, knots, per_factor(gap, lambda s: _relaxation(gap, s, correction), middles))
 
 
-class _RelaxedCorrection:
-    """``D(s)`` of a :class:`_CorrectionPolynomial` plus relaxations spread over the spans
-    between ``knots`` (see :func:`_relaxed_correction`)."""
+class RelaxedCorrection:
+    """``D(s)`` of a :class:`CorrectionPolynomial` plus relaxations spread over the spans
+    between ``knots`` (see :func:`relaxed_correction`)."""
 
     def __init__(self, correction, knots: list, displacements: list):
         self.correction, self.knots, self.displacements = correction, knots, displacements

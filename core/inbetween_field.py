@@ -2,7 +2,7 @@
 by name, the rotations' frames (in the triangles' base frames, whole or composed with their
 pieces' rigid motions) and the stretches (from the metrics' spline between the keys, the
 log-stretches' outside them, and between them where the gap's ``log_metric`` says so). Mixed
-into :class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``relatives``,
+into :class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``relatives``,
 ``cubic``, ``whole_rotations``, ``log_metric``,
 ``splines``, ``_log_options``) with the pieces' ``motion`` and the
 ``guide`` (:mod:`core.inbetween_guide`)."""
@@ -16,7 +16,7 @@ from .geometry import coordinate_dot
 from .splines import HermiteGap
 
 
-class _Splines(dict):
+class Splines(dict):
     """A gap's splines by name, those of ``later`` ({name: function of nothing making it}) made
     when first read."""
 
@@ -31,7 +31,7 @@ class _Splines(dict):
         return spline
 
 
-def _log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.ndarray | None = None) -> HermiteGap:
+def log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.ndarray | None = None) -> HermiteGap:
     """The spline of the ``relatives``' log-stretches (``options``: the gap's for it) on the
     triangles ``rows`` (index array; None: all). Per element: on some rows, the whole spline's
     values there."""
@@ -82,7 +82,7 @@ class InterpolatedField:
     def per_element(self, name: str, per_component: np.ndarray) -> np.ndarray:
         """``per_component`` (C,) spread to the rows of spline ``name`` (a column, to broadcast):
         vertices for positions, components for rigid motions and centroids, triangles for fields
-        (loose vertices: their owner's, ``_Topology.vertex_owner``)."""
+        (loose vertices: their owner's, ``Topology.vertex_owner``)."""
         topo = self.topo
         if name in ("vertices", "world"):
             rows = per_component[topo.vertex_owner] if topo.components else np.zeros(topo.n, dtype=bool)
@@ -175,7 +175,7 @@ class InterpolatedField:
         the metrics' spline is not positive definite: the keys' other log-stretches not made)."""
         if "log_stretch" in self.splines:
             return self.spline_at("log_stretch", s)[rows]
-        return _log_stretch_spline(self.relatives, self.cubic, self._log_options, rows).at(s)
+        return log_stretch_spline(self.relatives, self.cubic, self._log_options, rows).at(s)
 
     def key_frames(self, rotvec: np.ndarray, rotations: np.ndarray, rows=slice(None), columns: int = 3) -> np.ndarray:
         """Frames (columns, r, 3) of the rotations ``M_c · exp(rotvec)`` (``rotvec``: residuals

@@ -3,10 +3,10 @@ the Poisson solve of target corner edges with the gap's anchor, and the local st
 each triangle's rotation to the current positions while keeping the interpolated metric.
 
 Edges are stored by coordinate — arrays (3 coordinates, 3 corners, m) whose (m,) rows are
-contiguous, from the corner-major incidence ``Dc`` of :class:`core.inbetween_topology._Topology`
+contiguous, from the corner-major incidence ``Dc`` of :class:`core.inbetween_topology.Topology`
 — because NumPy's element-wise work on rows of three interleaved numbers is 3–5× slower.
-:class:`LocalGlobalFit` is mixed into :class:`core.inbetween_solver._Gap`, which provides
-``topo``, ``base`` (a :class:`core.inbetween_keys._Key`), ``system`` (factor, anchor),
+:class:`LocalGlobalFit` is mixed into :class:`core.inbetween_solver.Gap`, which provides
+``topo``, ``base`` (a :class:`core.inbetween_keys.Key`), ``system`` (factor, anchor),
 ``tolerance``, ``change_tolerance``, ``mean_edge`` and ``place``.
 """
 
@@ -155,7 +155,7 @@ class LocalGlobalFit:
     def edges_of(self, x: np.ndarray, dtype=np.float64) -> np.ndarray:
         """Corner edge vectors of positions ``x`` (n, 3) by coordinate (3 coordinates, 3 corners,
         m) in ``dtype`` (the local steps': :data:`LOCAL_STEP_DTYPE`); see
-        :meth:`core.inbetween_topology._Topology.corner_edge_rows`."""
+        :meth:`core.inbetween_topology.Topology.corner_edge_rows`."""
         return self.topo.corner_edge_rows(x, dtype)
 
     def local_targets(self, frames: np.ndarray | None, stretch: np.ndarray, rows=slice(None), coordinates=None) -> dict:

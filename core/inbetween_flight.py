@@ -16,7 +16,7 @@ from .splines import REST_START_LIMIT
 from .spread_groups import spread_groups
 
 if TYPE_CHECKING:
-    from .inbetween_topology import _Topology
+    from .inbetween_topology import Topology
 
 #: Smallest turn (radians) over a gap for which a rigid piece's axis is asked whether it flies
 #: (:func:`flying_groups`); below it the screw is a translation to within the turn's arc.
@@ -124,7 +124,7 @@ def after_impact(before, nxt, incoming, outgoing, start_limit: float | None) -> 
     return hit if hit.any() else None
 
 
-def flying_groups(topo: _Topology, relatives: list, rigid: np.ndarray,
+def flying_groups(topo: Topology, relatives: list, rigid: np.ndarray,
                   nonrigidity: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """The pieces ``rigid`` (bool (C,): the rigid ones, and deforming ones turning as a whole, see
     :data:`DEFORMING_AXIS_NOISE`) of a sequence's gap turned about the point of theirs whose path

@@ -2,7 +2,7 @@
 spline (two poses: the linear blend) in the world, or moved by each piece's interpolated rigid
 motion where the piece moves rigidly or turns as a whole, and the triangles whose whole rotations
 are splined because their residuals would turn them against it. Mixed into
-:class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``next``,
+:class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``next``,
 ``relatives``, ``splines``, ``cubic``, ``anchored``, ``whole_rotations``, ``riding``, ``rigidity``,
 ``_mid_world_strains``, ``_arc_candidates``) with its other parts: the anchor (``weights``,
 ``co_moving``, ``ride``), the field's ``world_rotvec``, the fit's ``edges_of`` and the pieces'
@@ -136,7 +136,7 @@ class Guide:
         """Per component (bool (C,)) of a sequence, whether the anchor's guide is its co-moving
         spline because it turns as a whole (:meth:`turning_as_a_whole`; not under a free-flight or
         impact condition, nor deforming while it turns near a half turn:
-        :class:`core.inbetween_solver._Gap`). Computed when a guide is first asked for: a gap whose
+        :class:`core.inbetween_solver.Gap`). Computed when a guide is first asked for: a gap whose
         in-betweens need no solve (:func:`core.inbetween_prediction.gap_poses`) does without it."""
         if not self._arc_candidates.any():
             return self._arc_candidates

@@ -85,12 +85,12 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
                  joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
                  bodies: np.ndarray | None = None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
-    ``core.inbetween_topology._Topology``), or None where it has none. ``touching``: the rigid
+    ``core.inbetween_topology.Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
     ``reach``: the joint distance; ``joints``: :func:`core.inbetween_joints.joint_tree`'s answer
     (``(parents (C,), order)`` or None); ``edges``: each piece's mean edge length (C,); ``misfits``:
     each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
-    :meth:`~core.inbetween_topology._Topology.diagonals`); ``bodies`` (C,): each piece's body
+    :meth:`~core.inbetween_topology.Topology.diagonals`); ``bodies`` (C,): each piece's body
     leader (:func:`core.rigid_bodies.rigid_bodies`, None: none), whose motion and joint group its
     pieces take. Only pairs of pieces in different joint
     groups (in one group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`),

@@ -292,7 +292,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                edges: np.ndarray | None = None, screws: np.ndarray | None = None, misfits: np.ndarray | None = None,
                touching: Contacts | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
-    ``core.inbetween_topology._Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
+    ``core.inbetween_topology.Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
     two pieces are jointed. ``motions``: the pieces' best rigid motions from ``base`` to ``nxt``
     (rotations (C, 3, 3), translations (C, 3)); ``rigid``: bool (C,); ``moves``: how far each piece

@@ -1,12 +1,12 @@
-"""The keys of a gap for the in-between solver: per key its frames and edges (``_Key``), and a key
-seen from the base key of a gap (``_Relative``): each component's rigid motion, the per-triangle
+"""The keys of a gap for the in-between solver: per key its frames and edges (``Key``), and a key
+seen from the base key of a gap (``Relative``): each component's rigid motion, the per-triangle
 rotation residuals and log-stretches of :mod:`core.deformation_fields`, and the vertices with the
 rigid motions undone — what :mod:`core.inbetween_solver` splines over a gap.
 
 Each piece's rigid motion between two keys (with pins held, its screw coordinates and how far it
 is known) is in :mod:`core.inbetween_rigid_fits`; the triangles' whole rotations between two keys
 and the turns read from them (parts turning past a half turn, rigid fits that add turn) in
-:mod:`core.inbetween_whole_rotations`, a mixin of ``_Relative``.
+:mod:`core.inbetween_whole_rotations`, a mixin of ``Relative``.
 """
 
 from __future__ import annotations
@@ -22,29 +22,29 @@ from . import screw_motions
 from . import small_matrices
 from .concurrency import single_threaded_blas
 from .geometry import coordinate_dot
-from .inbetween_rigid_fits import _nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells
-from .inbetween_whole_rotations import WholeRotations, _rotation_angles
+from .inbetween_rigid_fits import component_nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells
+from .inbetween_whole_rotations import WholeRotations, rotation_angles
 from .rigid_alignment import rigid_alignment
 
 if TYPE_CHECKING:
-    from .inbetween_topology import _Topology
+    from .inbetween_topology import Topology
 
 
 #: What a relative holds of the motion (rigid motions, positions, centroids), as opposed to the
 #: deformation (rotation residuals, stretches).
 KINEMATIC = ("screw", "vertices", "world", "centroids")
 #: What of a relative the splines interpolate (the metric comes from the log-stretch where a key
-#: is extrapolated: :meth:`_Relative._extrapolated`).
+#: is extrapolated: :meth:`Relative._extrapolated`).
 SPLINED = ("rotvec", "log_stretch") + KINEMATIC
 
 
-class _Key:
+class Key:
     """Per-key data: positions, the corner edges' lengths (m, 3), their tangent coordinates
     stored by coordinate (2, 3 corners, m; ``coordinates``: the same as a (m, 3, 2) view), the
     inverse edge matrices' entries 00, 01, 11 (3, m), tangent frames (3 columns t1, t2, n;
     3 coordinates; m), normals (3, m), areas and component centroids."""
 
-    def __init__(self, topo: _Topology, vertices):
+    def __init__(self, topo: Topology, vertices):
         v = np.asarray(vertices, dtype=np.float64)  # checked at the public boundary
         self.vertices = v
         edges = topo.corner_edge_rows(v)  # (3 coordinates, 3 corners, m)
@@ -58,13 +58,13 @@ class _Key:
         self.diagonals = topo.diagonals(v)
 
 
-class _Relative(WholeRotations):
+class Relative(WholeRotations):
     """Key ``other`` seen from the base key of a gap: each connected component's rigid motion
     (screw coordinates (C, 6)), per-triangle rotation residuals to it (rotation vectors (m, 3)),
     log-stretches and metrics ``G = U²`` (packed 2×2 in the base's tangent bases (m, 3) each) and
     the vertices with their component's rigid motion undone (n, 3)."""
 
-    def __init__(self, topo: _Topology, base: _Key, other: _Key, log_stretch=None, turns=None, across=None,
+    def __init__(self, topo: Topology, base: Key, other: Key, log_stretch=None, turns=None, across=None,
                  fits=None):
         # ``fits``: rigid_fits of these keys where the caller has them (a sequence keeps them per pair)
         if fits is None:
@@ -79,7 +79,7 @@ class _Relative(WholeRotations):
                 topo, base, other, partial(self._whole_entries, base, other, keep=True), rotations, translations,
                 self.misfits)
         unwrap = turns is not None  # the continuation of the next key's turn
-        self.nonrigidity = _nonrigidity(self.misfits, base, topo)
+        self.nonrigidity = component_nonrigidity(self.misfits, base, topo)
         if turns is None:  # every piece's half turn goes the way the whole mesh turns: made when first read
             self._whole_of = (topo, base.vertices, other.vertices)
         else:
@@ -95,7 +95,7 @@ class _Relative(WholeRotations):
         self._across = across
         if across is not None:  # the part that stays is the one whose whole rotation is least
             self.rotvec = rotation_continuity.continuous_rotation_vectors(self.rotvec, across, topo.triangle_component,
-                                                                          partial(_rotation_angles, plane, base.column_rows))
+                                                                          partial(rotation_angles, plane, base.column_rows))
         if unwrap:  # kept for a key ahead of its gap's base alone: residuals_add_turn or whole_rotations reads them
             self.__dict__.pop("_plane_frames", None)
             self.__dict__.pop("_whole", None)
@@ -190,7 +190,7 @@ class _Relative(WholeRotations):
             log = self._log  # made meanwhile by another thread
         return partial(_rows_of, log)
 
-    def inverse(self, topo: _Topology, base: _Key, other: _Key, turns: np.ndarray) -> "_Relative":
+    def inverse(self, topo: Topology, base: Key, other: Key, turns: np.ndarray) -> "Relative":
         """The relative of ``other`` seen from ``base`` when this one is ``base`` seen from
         ``other`` (its log-stretch from the poses), in closed form instead of from the poses
         again: the rigid motions inverted, rotation residuals ``−R_c q`` (the residual's inverse
@@ -198,13 +198,13 @@ class _Relative(WholeRotations):
         map's inverse is ``S⁻¹ Q(−θ)``, whose stretch in the base's tangent basis is
         ``Q(θ) S⁻¹ Q(θ)ᵀ``), metrics ``(Q(θ) G Q(θ)ᵀ)⁻¹``. ``turns`` as for the constructor
         (unwrapped)."""
-        out = _Relative.__new__(_Relative)
+        out = Relative.__new__(Relative)
         rotations, translations = self.motion
         inverse_rotations = small_matrices.transpose(rotations)
         inverse_translations = -np.einsum("cab,cb->ca", inverse_rotations, translations)
         out.screw = component_screws(inverse_rotations, inverse_translations, turns, True, self.nonrigidity)
         out.misfits = list(self.misfits)
-        out.nonrigidity = _nonrigidity(self.misfits, base, topo)
+        out.nonrigidity = component_nonrigidity(self.misfits, base, topo)
         out.rotvec = -df.turned_rows(self.rotvec, rotations, topo.triangle_component)
         cos, sin = self.turn
         out._make_log = partial(_inverse_log_stretch, self._log_source(), cos, sin)
@@ -216,7 +216,7 @@ class _Relative(WholeRotations):
         out.turn, out.motion = (cos, -sin), (inverse_rotations, inverse_translations)
         return out
 
-    def unwrap(self, turns: np.ndarray, rotvec: np.ndarray, nxt: "_Relative | None" = None) -> "_Relative":
+    def unwrap(self, turns: np.ndarray, rotvec: np.ndarray, nxt: "Relative | None" = None) -> "Relative":
         """This relative (built without ``turns``) with its screw coordinates taken as if the
         constructor had been given ``turns`` (C, 3), its triangles' turns continued toward
         ``rotvec`` (:meth:`continue_turns`); with the relative ``nxt`` of the key between, the
@@ -235,7 +235,7 @@ class _Relative(WholeRotations):
         on (:func:`core.screw_motions.continued_screws`, set by :meth:`unwrap`), else ``screw``."""
         return self.screw if self._continued is None else self._continued
 
-    def continue_turns(self, rotvec: np.ndarray) -> "_Relative":
+    def continue_turns(self, rotvec: np.ndarray) -> "Relative":
         """This relative with each triangle's rotation vector the representative nearest its row
         of ``rotvec`` (m, 3) (the continuation of a neighbouring key's: a triangle turning past a
         half turn between keys keeps turning the same way)."""
@@ -243,7 +243,7 @@ class _Relative(WholeRotations):
         return self
 
     @classmethod
-    def identity(cls, topo: _Topology, base: _Key) -> "_Relative":
+    def identity(cls, topo: Topology, base: Key) -> "Relative":
         self = cls.__new__(cls)
         m = topo.triangles.shape[0]
         self.rotvec, self.log_stretch = np.zeros((m, 3)), np.zeros((m, 3))
@@ -254,7 +254,7 @@ class _Relative(WholeRotations):
         self.nonrigidity = [0.0] * len(topo.components)
         return self
 
-    def rescaled(self, origin: "_Relative", factor: float) -> "_Relative":
+    def rescaled(self, origin: "Relative", factor: float) -> "Relative":
         """The key ``origin + factor · (self − origin)`` in every splined quantity (the screw from
         :attr:`continued_screw`): a neighbouring key at another distance in time moved to where a
         spline with evenly spaced keys wants it (``factor``: the gap at hand's duration ÷ the
@@ -264,12 +264,12 @@ class _Relative(WholeRotations):
         def value(name):
             here, there = (_splined(r, name) for r in (self, origin))
             return there + factor * (here - there)
-        out = _Relative._extrapolated(value, self.nonrigidity, ((1.0 - factor, origin), (factor, self)))
+        out = Relative._extrapolated(value, self.nonrigidity, ((1.0 - factor, origin), (factor, self)))
         out.rescaled_from = self
         return out
 
     @staticmethod
-    def phantom(previous: "_Relative", current: "_Relative", farther: "_Relative | None" = None) -> "_Relative":
+    def phantom(previous: "Relative", current: "Relative", farther: "Relative | None" = None) -> "Relative":
         """The key one step beyond ``current`` (end condition of the spline): the linear
         extrapolation 2·current − previous, or with ``farther`` (the key before ``previous``) for
         the motion (:data:`KINEMATIC`) the parabola through the three, 3·current − 3·previous +
@@ -284,7 +284,7 @@ class _Relative(WholeRotations):
             nonrigidity = np.maximum(nonrigidity, farther.nonrigidity)
         recipe = ((3.0, current), (-3.0, previous), (1.0, farther)) if farther is not None else \
             ((2.0, current), (-1.0, previous))
-        return _Relative._extrapolated(value, nonrigidity, recipe)
+        return Relative._extrapolated(value, nonrigidity, recipe)
 
     #: An end condition's positions as weights of the relatives they extrapolate ((weight,
     #: relative), …; :meth:`positions_of`), None for a key.
@@ -313,11 +313,11 @@ class _Relative(WholeRotations):
         return np.einsum("rab,rb->ra", motion[0][rows], points) + motion[1][rows]
 
     @staticmethod
-    def _extrapolated(value, nonrigidity, recipe=None) -> "_Relative":
+    def _extrapolated(value, nonrigidity, recipe=None) -> "Relative":
         """An end condition (:attr:`extrapolated`) with ``value(name)`` for each splined quantity
         (:data:`SPLINED`) and the metric of its log-stretch (positive definite); ``recipe``: its
         positions' weights of the relatives it extrapolates (:meth:`positions_of`)."""
-        out = _Relative.__new__(_Relative)
+        out = Relative.__new__(Relative)
         out.extrapolated = True
         out.recipe = recipe
         for name in SPLINED:
@@ -327,9 +327,9 @@ class _Relative(WholeRotations):
         return out
 
 
-def _splined(relative: "_Relative", name: str) -> np.ndarray:
+def _splined(relative: "Relative", name: str) -> np.ndarray:
     """The value of ``relative`` a spline takes for quantity ``name`` (the screw: its
-    :attr:`_Relative.continued_screw`)."""
+    :attr:`Relative.continued_screw`)."""
     return relative.continued_screw if name == "screw" else getattr(relative, name)
 
 
@@ -339,7 +339,7 @@ def _log_stretch_rows(stretch: np.ndarray, rows: np.ndarray | None) -> np.ndarra
 
 
 def _inverse_log_stretch(forward, cos: np.ndarray, sin: np.ndarray, rows: np.ndarray | None) -> np.ndarray:
-    """The log-stretches of :meth:`_Relative.inverse` on the triangles ``rows`` (None: all):
+    """The log-stretches of :meth:`Relative.inverse` on the triangles ``rows`` (None: all):
     ``−Q(θ) L Q(θ)ᵀ`` of those ``forward(rows)`` gives (the relative inverted), ``θ`` given by its
     cosines and sines (m,)."""
     if rows is not None:
@@ -360,7 +360,7 @@ def _turned(packed: np.ndarray, cos: np.ndarray, sin: np.ndarray) -> np.ndarray:
                      sin * sin * a11 + 2 * cos * sin * a12 + cos * cos * a22], axis=1)
 
 
-def _log_stretch_from_lengths(base: _Key, corner_squared: np.ndarray) -> np.ndarray:
+def log_stretch_from_lengths(base: Key, corner_squared: np.ndarray) -> np.ndarray:
     """Packed log-stretches (m, 3) in the base's tangent bases whose metric ``U²`` gives the base's
     corner edges the squared lengths ``corner_squared`` (m, 3)."""
     a, b = base.coordinates[:, :, 0], base.coordinates[:, :, 1]

@@ -3,7 +3,7 @@ motion): each component's interpolated screw motion (flying bodies turned about 
 jointed pieces about their joints, the pieces of one rigid body by one motion), and where the
 Poisson solve leaves a component free, its centroid placed along that motion, its keys' centroid
 spline, its best similarity's path or with the rigid piece it sits on. Mixed into
-:class:`core.inbetween_solver._Gap`, whose data it reads (``topo``, ``base``, ``next``,
+:class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``next``,
 ``relatives``, ``splines``, ``flying``, ``joints``, ``bodies``, ``body_members``, ``rigidity``,
 ``nonrigidity``, ``_motions``) with the anchor's ``by_centroid``."""
 

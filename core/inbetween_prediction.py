@@ -1,7 +1,7 @@
 """All the in-betweens of one gap at once: the reconstruction solved at a few factors, the others
 predicted from them (the sequence part of "solving all in-betweens of a gap together").
 
-Between two keys the reconstruction ``N(s)`` of :meth:`core.inbetween_solver._Gap.pose` differs from
+Between two keys the reconstruction ``N(s)`` of :meth:`core.inbetween_solver.Gap.pose` differs from
 the gap's guide — the keys' per-vertex spline with each component's interpolated rigid motion
 undone, ``V(s)``, moved by that motion ``M(s)`` — by a correction that vanishes at both keys and
 varies smoothly with ``s``: the part of the motion a per-vertex spline cannot follow (arcs of
@@ -18,7 +18,7 @@ factor; a gap where every component moves rigidly (a cloth in free flight, one l
 (:data:`STILL_MOVE`) the linear blend of its keys. The correction ``D`` and the positions it
 predicts are :mod:`core.inbetween_corrections`; a predicted pose with a flipped or collapsed
 triangle is repaired where its defects are, as a solved pose is
-(:mod:`core.inbetween_prediction_repairs`, :meth:`core.inbetween_solver._Gap.repaired`; numbers in
+(:mod:`core.inbetween_prediction_repairs`, :meth:`core.inbetween_solver.Gap.repaired`; numbers in
 docs/inbetweens.md). Measured (docs/inbetweens.md): on the 14k tablecloth, the 1k drape and the
 576-vertex falling sheet with keys 4, 8 and 16 frames apart, median RMS within 1 % and mean edge
 deviation within 0.05 point of solving every in-between.
@@ -30,10 +30,10 @@ import functools
 
 import numpy as np
 
-from .inbetween_corrections import (RELAXED_SOLVED, _co_moving_correction, _correction, _inconsistent,
-                                    _PiecewiseLinearCorrection, _relaxed_correction, _slopes_disagree)
+from .inbetween_corrections import (RELAXED_SOLVED, PiecewiseLinearCorrection, co_moving_correction,
+                                    correction_polynomial, inconsistent, relaxed_correction, slopes_disagree)
 from .inbetween_fit import METRIC_TOLERANCE
-from .inbetween_prediction_repairs import REDUCED_ROUNDS, _defect_count, _predicted, _repaired_again, _solve_off_metric
+from .inbetween_prediction_repairs import REDUCED_ROUNDS, defect_count, repaired_in_passes, repaired_prediction, solve_off_metric
 from .inbetween_repair_rounds import REPAIR_RINGS
 from .inbetween_threads import per_factor
 from .inbetween_untangling import untangled_poses
@@ -90,7 +90,7 @@ ROUGH_ROTATION_DEVIATION = 3 * np.pi / 8
 #: The factors solved in a gap too rough to predict from three
 #: (:data:`~core.inbetween_corrections.MAX_CROSS_VALIDATION`): those asked nearest to these, with
 #: :data:`ROUGH_ROTATION_DEVIATION`; the others are predicted from the two solved around them
-#: (:class:`~core.inbetween_corrections._PiecewiseLinearCorrection`), 1/16 of the gap away at most,
+#: (:class:`~core.inbetween_corrections.PiecewiseLinearCorrection`), 1/16 of the gap away at most,
 #: and solved where their repair leaves more defects than both of those. Keys 16 frames apart,
 #: 18 → 10 solves per rough gap: a 40k denim sheet spun 124° by a fan in one gap 0.84 × the CPU per
 #: in-between, RMS the same, edge deviation +0.16 point in that gap, fewer flipped triangles
@@ -114,7 +114,7 @@ STILL_RIGIDITY = 1e-6
 
 def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     """``(positions (n, 3), problem or None)`` at each of ``factors`` (floats, extrapolations and
-    keys included) of ``gap`` (a ``core.inbetween_solver._Gap``). The in-betweens are solved,
+    keys included) of ``gap`` (a ``core.inbetween_solver.Gap``). The in-betweens are solved,
     and predicted, concurrently (:func:`core.concurrency.concurrently`); those that keep flipped
     or collapsed triangles after their repairs are untangled where that cleans them
     (:func:`core.inbetween_untangling.untangled_poses`)."""
@@ -150,67 +150,67 @@ def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     middle = solved_factors[1] if outer is not None else None
     for s in solved_factors:  # those that kept defects their repair did not remove; the middle near the outer two
         with gap.repair.fields_kept():
-            solved[s] = _repaired_again(gap, s, solved[s], outer if s == middle else None)
+            solved[s] = repaired_in_passes(gap, s, solved[s], outer if s == middle else None)
     positions = {s: x for s, (x, _) in solved.items()}
-    correction = _correction(gap, positions)
+    correction = correction_polynomial(gap, positions)
     predicted = [s for s in interior if s not in solved]
-    if len(solved) == 1 and _slopes_disagree(gap, correction, positions, predicted):
+    if len(solved) == 1 and slopes_disagree(gap, correction, positions, predicted):
         return _solved(gap, factors, solved)  # the keys' slopes and the middle tell different in-betweens
-    if len(solved) >= 3 and _inconsistent(gap, positions):  # too rough to predict from three: every eighth solved, all at the wide limit
+    if len(solved) >= 3 and inconsistent(gap, positions):  # too rough to predict from three: every eighth solved, all at the wide limit
         gap.rotation_limit = ROUGH_ROTATION_DEVIATION
         try:
             return _rough_poses(gap, factors, interior)
         finally:
             del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
     if len(solved) >= RELAXED_SOLVED and not stubborn:
-        correction = _relaxed_correction(gap, correction, sorted(solved))
+        correction = relaxed_correction(gap, correction, sorted(solved))
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
 
     def predict(s):
-        return _repaired_again(gap, s, _predicted(gap, s, correction, rings), outer, rings)
+        return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings), outer, rings)
 
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
-    _solve_off_metric(gap, solved, solved_factors, predicted)
+    solve_off_metric(gap, solved, solved_factors, predicted)
     return _solved(gap, factors, solved)
 
 
 def _outer_correction(gap, solved: dict):
     """Of three solved in-betweens ``solved`` {factor: (positions, problem)} whose outer two came
     out clean, the correction polynomial through the keys and those two alone
-    (:func:`core.inbetween_corrections._correction`), made when first asked (a function of no
-    arguments: most gaps never ask); else None (:func:`core.inbetween_prediction_repairs._repaired_again`)."""
+    (:func:`core.inbetween_corrections.correction_polynomial`), made when first asked (a function of no
+    arguments: most gaps never ask); else None (:func:`core.inbetween_prediction_repairs.repaired_in_passes`)."""
     if len(solved) != 3:
         return None
     first, _, last = sorted(solved)
     if solved[first][1] is not None or solved[last][1] is not None:
         return None
     outer = {first: solved[first][0], last: solved[last][0]}
-    return functools.cache(lambda: _correction(gap, outer))
+    return functools.cache(lambda: correction_polynomial(gap, outer))
 
 
 def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | None]]:
     """The poses at ``factors`` of a gap too rough to predict from three solved factors: those
     nearest :data:`ROUGH_SOLVED_FACTORS` solved, each other one predicted from the two solved
-    (or keys) around it (:class:`~core.inbetween_corrections._PiecewiseLinearCorrection`), repaired
+    (or keys) around it (:class:`~core.inbetween_corrections.PiecewiseLinearCorrection`), repaired
     as any prediction, and solved where it keeps more defects than both of those."""
     targets = sorted({min(interior, key=lambda s: abs(s - q)) for q in ROUGH_SOLVED_FACTORS})
     predicted = [s for s in interior if s not in targets]
     if not predicted:
         return _solved(gap, factors, {})
     solved = dict(zip(targets, _solved(gap, targets, {})))
-    correction = _PiecewiseLinearCorrection({s: _co_moving_correction(gap, s, x) for s, (x, _) in solved.items()})
+    correction = PiecewiseLinearCorrection({s: co_moving_correction(gap, s, x) for s, (x, _) in solved.items()})
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if any(problem for _, problem in solved.values()) else None
     # a prediction keeps no more defects than the solved in-betweens (or keys: none) it lies between
-    left = {0.0: 0, 1.0: 0, **{s: _defect_count(gap, s, x) for s, (x, problem) in solved.items() if problem}}
+    left = {0.0: 0, 1.0: 0, **{s: defect_count(gap, s, x) for s, (x, problem) in solved.items() if problem}}
     knots = sorted(left.keys() | solved.keys())
 
     def predict(s):
         after = int(np.searchsorted(knots, s))
         allowed = max(left.get(knots[after - 1], 0), left.get(knots[after], 0))
-        return _predicted(gap, s, correction, rings, allowed)
+        return repaired_prediction(gap, s, correction, rings, allowed)
 
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
-    _solve_off_metric(gap, solved, targets, predicted)
+    solve_off_metric(gap, solved, targets, predicted)
     return _solved(gap, factors, solved)
 
 

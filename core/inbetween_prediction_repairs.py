@@ -1,10 +1,10 @@
 """The repairs of the predicted in-betweens of a gap (:mod:`core.inbetween_prediction`).
 
 A prediction with a flipped or collapsed triangle is repaired where its defects are, as a solved
-pose is (:meth:`core.inbetween_solver._Gap.repaired`), and solved in its place where no repair
-cleans it (:func:`_predicted`); an in-between, solved or predicted, that kept defects is repaired
-again from each repair that leaves fewer (:func:`_repaired_again`); and predictions that end off
-the interpolated metric are solved in their place (:func:`_solve_off_metric`). Numbers in
+pose is (:meth:`core.inbetween_solver.Gap.repaired`), and solved in its place where no repair
+cleans it (:func:`repaired_prediction`); an in-between, solved or predicted, that kept defects is repaired
+again from each repair that leaves fewer (:func:`repaired_in_passes`); and predictions that end off
+the interpolated metric are solved in their place (:func:`solve_off_metric`). Numbers in
 docs/inbetweens.md and docs/inbetween-measurements.md.
 """
 
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .inbetween_corrections import _CorrectionPolynomial, _RelaxedCorrection, _pins_in_place, _predicted_positions
+from .inbetween_corrections import CorrectionPolynomial, RelaxedCorrection, pins_in_place, predicted_positions
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_threads import per_factor
 from .sewn_seams import sewn_together
@@ -32,7 +32,7 @@ from .sewn_seams import sewn_together
 #: docs/inbetweens.md, *All the in-betweens of a gap at once*).
 STRETCHED_PREDICTION_CHANGES = 2.0
 #: Most repairs of an in-between that kept defects, each from the last one's pose while it leaves
-#: fewer (:func:`_repaired_again`; in gaps predicted from solved in-betweens: a gap solved at every
+#: fewer (:func:`repaired_in_passes`; in gaps predicted from solved in-betweens: a gap solved at every
 #: factor keeps each in-between's first repair). The leather flag at keys 8 frames apart, the curtain and the
 #: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
 #: flipped triangles, with three 34, with five or more 33.
@@ -73,7 +73,7 @@ UNREPAIRED_SOLVE_DEFECTS = 1.25
 REDUCED_ROUNDS = 3
 
 
-def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
+def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=None,
                allowed: int | None = None) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
@@ -81,15 +81,15 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
     repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`; repaired only where its fit has at most
     :data:`UNREPAIRED_SOLVE_DEFECTS` × the prediction's defects) instead if it has no more."""
     motion = gap.motion(s)
-    x = _predicted_positions(gap, s, correction, motion)
+    x = predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
         return gap.pose(s)
     x = _placed(gap, x, s)
     scale = gap.repair.factor_area_scale(s)  # the stretches themselves only if there is something to repair
     defects = gap.repair.defects(x, s, None, None, scale=scale)
-    if defects.any() and isinstance(correction, _RelaxedCorrection):
+    if defects.any() and isinstance(correction, RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
-        plain = _placed(gap, _predicted_positions(gap, s, correction.correction, motion), s)
+        plain = _placed(gap, predicted_positions(gap, s, correction.correction, motion), s)
         fewer = gap.repair.defects(plain, s, None, None, scale=scale)
         if fewer.sum() < defects.sum():
             x, defects = plain, fewer
@@ -104,7 +104,7 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
         return result
 
     def count(pose):
-        return _defect_count(gap, s, pose, scale)
+        return defect_count(gap, s, pose, scale)
 
     kept = count(result[0])  # once: it decides the solve and then weighs against it
     if rings is not None and kept <= allowed:
@@ -136,10 +136,10 @@ def _predicted(gap, s: float, correction: _CorrectionPolynomial, rings=None,
 
 def _placed(gap, x: np.ndarray, s: float) -> np.ndarray:
     """Predicted positions ``x`` (n, 3) at factor ``s`` ready for the defect check: the pinned
-    vertices in place (:func:`~core.inbetween_corrections._pins_in_place`), the sewn seams joined
+    vertices in place (:func:`~core.inbetween_corrections.pins_in_place`), the sewn seams joined
     again (each piece has its own interpolated motion: :func:`core.sewn_seams.sewn_together`) and
     the carried pieces rigid (their predicted shapes are not)."""
-    x = sewn_together(gap, _pins_in_place(gap, x, s), s)
+    x = sewn_together(gap, pins_in_place(gap, x, s), s)
     gap.carried.place(x, s)
     return x
 
@@ -155,9 +155,9 @@ def _put_back(gap, s: float, outcome) -> None:
         gap.outcomes[s] = outcome
 
 
-def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple[np.ndarray, str | None]:
+def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple[np.ndarray, str | None]:
     """``pose`` (positions, problem), an in-between at ``s`` that kept defects no repair removed,
-    repaired again from itself (:meth:`core.inbetween_solver._Gap.repaired_again`; ``rings``: the
+    repaired again from itself (:meth:`core.inbetween_solver.Gap.repaired_again`; ``rings``: the
     repair rounds), and again from each repair that leaves fewer defects, up to
     :data:`REPAIR_PASSES` times: a repair that fails keeps the fit with the fewest defects, whose
     parts its rounds repaired partly by a field that left some, and grows its regions around what
@@ -185,7 +185,7 @@ def _repaired_again(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple
     count = int(defects.sum())
     if not count:  # a fallback without flipped or collapsed triangles: nothing to repair
         return pose
-    nearby = None if outer is None else _predicted_positions(gap, s, outer(), gap.motion(s))
+    nearby = None if outer is None else predicted_positions(gap, s, outer(), gap.motion(s))
     start, (limit, partial_limit) = pose[0], gap.repair.move_limits(s) or (np.inf, np.inf)  # none for two keys
     outcome = gap.outcomes.get(s)
     for _ in range(REPAIR_PASSES):
@@ -216,7 +216,7 @@ def _defects_after(gap, s: float, x: np.ndarray, defects: np.ndarray, y: np.ndar
     return out
 
 
-def _solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
+def solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
     """Replaces in ``results`` {factor: (positions, problem)} poses at ``predicted`` factors by
     their solves: in a gap whose keys are of one metric (the tolerance at its floor), those that
     end off the metric the ``solved`` ones reached (:func:`_off_metric`); in a gap above the floor
@@ -231,13 +231,13 @@ def _solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None
         return
     def solve(s):  # where both keep defects, the solve repaired again as the prediction was
         pose = _solved_instead(gap, s)
-        return _repaired_again(gap, s, pose) if results[s][1] is not None else pose
+        return repaired_in_passes(gap, s, pose) if results[s][1] is not None else pose
 
     before = {s: gap.outcomes.get(s) for s in off}  # the predictions' (their solves store their own)
     for s, pose in zip(off, per_factor(gap, solve, off)):
         if pose[1] is None:
             results[s] = pose
-        elif results[s][1] is not None and _defect_count(gap, s, pose[0]) <= _defect_count(gap, s, results[s][0]):
+        elif results[s][1] is not None and defect_count(gap, s, pose[0]) <= defect_count(gap, s, results[s][0]):
             results[s] = pose  # both keep defects: the solve where it keeps no more
         else:
             _put_back(gap, s, before[s])
@@ -297,7 +297,7 @@ def _solved_instead(gap, s: float) -> tuple[np.ndarray, str | None]:
     return gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
 
 
-def _defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
+def defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
     """The flipped and collapsed triangles of positions ``x`` (n, 3) at factor ``s`` (``scale``:
     the gap's ``area_scale(s)``, if made already)."""
     scale = gap.repair.factor_area_scale(s) if scale is None else scale

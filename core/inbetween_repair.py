@@ -13,7 +13,7 @@ two poses and extrapolations take a neighbourhood whole, see
 :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`). An in-between of a sequence that keeps
 defects after all that is repaired again from the pose with the fewest, while that removes defects
 — in a gap whose outer solved in-betweens are clean, with one more field, the local geometry of the
-pose those two predict (:func:`core.inbetween_prediction_repairs._repaired_again`). Regions stop growing once they cover
+pose those two predict (:func:`core.inbetween_prediction_repairs.repaired_in_passes`). Regions stop growing once they cover
 :data:`~core.inbetween_repair_rounds.MAX_REPAIR_FRACTION` of a piece of the mesh or, for a
 sequence's in-between, once a round of 4 rings or more removed no defect
 (:data:`~core.inbetween_repair_rounds.STALLED_ROUND`), and a repair of a sequence's in-between that
@@ -79,7 +79,7 @@ CRUSHED_AREA = 0.5
 
 
 class Outcome(NamedTuple):
-    """What :meth:`Repair.checked` returned at one factor: the count of its flipped or collapsed
+    """What :meth:`Repair.outcome` returned at one factor: the count of its flipped or collapsed
     triangles, and whether it is the linear blend or the interpolated metric fitted near it (a
     fallback from a fit whose defects no repair removed)."""
 
@@ -88,7 +88,7 @@ class Outcome(NamedTuple):
 
 
 class Repair(DefectChecks, TurnedAway, RepairRounds):
-    """Checks and repairs of the poses of one gap (a ``core.inbetween_solver._Gap``)."""
+    """Checks and repairs of the poses of one gap (a ``core.inbetween_solver.Gap``)."""
 
     def __init__(self, gap):
         # a weak reference: the gap owns its Repair, and a cycle would keep a gap the
@@ -98,15 +98,6 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         self._move_limits: tuple[float, float] | None = None
         self._far_move: float | None = None  # mean squared move: see moved_far
         self._local = threading.local()  # see _rows_of
-
-    def checked(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
-                looser=None, nearby=None, repairable=None) -> tuple[np.ndarray, str | None]:
-        """:meth:`outcome`'s pose and message; the rest of it is kept in the gap's ``outcomes[s]``
-        (two poses choose between their fits by it: ``core.two_pose_inbetweens.Interpolator.pose``)."""
-        x, message, count, near_blend = self.outcome(x, x0, s, frames, stretch, guide, motion, rings, defects,
-                                                     looser, nearby, repairable)
-        self.gap.outcomes[s] = Outcome(count, near_blend)
-        return x, message
 
     def outcome(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
                 looser=None, nearby=None, repairable=None) -> tuple[np.ndarray, str | None, int, bool]:
@@ -123,7 +114,8 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         :meth:`~core.inbetween_repair_rounds.RepairRounds.rounds`; ``repairable``: the most flipped or
         collapsed triangles the fit may have for the rounds to run on it, or None for any: a fit with
         more goes straight to the fallbacks, see
-        :data:`core.inbetween_prediction_repairs.UNREPAIRED_SOLVE_DEFECTS`)."""
+        :data:`core.inbetween_prediction_repairs.UNREPAIRED_SOLVE_DEFECTS`). The gap keeps what it
+        takes of it (:meth:`core.inbetween_solver.Gap.recorded`)."""
         defects = self.defects(x, s, frames, stretch) if defects is None else defects
         problem = self.problem(x, s, frames, stretch, defects)
         if problem is None:
@@ -189,35 +181,36 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
                   np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
         return gap.fit(blend.copy(), stretch, None, blend, s, motion, REPAIR_ITERATIONS, system=system)
 
-    def nearer_the_metric(self, result, s, stretch, motion, targets) -> tuple[np.ndarray, str | None]:
-        """An in-between of two poses ``result`` (positions, message: what :meth:`checked` returned
-        at factor ``s``), or the interpolated metric fitted near the linear blend where ``result``
+    def nearer_the_metric(self, result, s, stretch, motion, targets) -> tuple[np.ndarray, str | None, int, bool]:
+        """An in-between of two poses ``result`` (positions, message: what :meth:`outcome` returned
+        at factor ``s``, its outcome kept in the gap's ``outcomes[s]``) as :meth:`outcome` returns
+        it (with that outcome), or the interpolated metric fitted near the linear blend where ``result``
         ends farther from the interpolated metric than the blend itself and beyond the fit's
         tolerance (mean relative deviation of the edge lengths from ``targets``, the fit's): the
         interpolated rotations do not integrate there, and their fit failed at its own objective
         where the blend did not. The fit near the blend is taken only with no more flipped or
-        collapsed triangles than ``result`` (its outcome is kept in ``outcomes[s]``, as a fallback's).
+        collapsed triangles than ``result`` (its outcome that of a fallback near the blend).
         A sheet swinging off a rod that stops dead, two poses 4 frames apart: its fit 8.6 % off the
         metric where the blend is 5.0 % (the simulated frame 0.34 %), 4.06 × the blend's RMS error;
         the fit near the blend 2.8 % off, 0.96 ×."""
         gap = self.gap
+        kept = (*result, *gap.outcomes[s])
         misfit = gap.misfit(gap.edges_of(result[0], LOCAL_STEP_DTYPE), targets)
         if misfit <= gap.tolerance:
-            return result
+            return kept
         blend = gap.linear_blend(s)
         if misfit <= gap.misfit(gap.edges_of(blend, LOCAL_STEP_DTYPE), targets):
-            return result
+            return kept
         stretch = stretch[:]
         y = self.fitted_near_blend(blend, s, stretch, motion)
         count = int(self.defects(y, s, None, stretch).sum())
         if count > gap.outcomes[s].defects:
-            return result
-        gap.outcomes[s] = Outcome(count, True)
+            return kept
         return y, None if not count else (
             f"it is a fit near the keys' linear blend, which keeps {count} triangle(s) flipped or "
             "collapsed and the edge lengths better than its own fit; keys closer together here tell the motion "
             "better (the fit ended farther from the interpolated metric than the blend: returned the interpolated "
-            "metric fitted near the linear blend)")
+            "metric fitted near the linear blend)"), count, True
 
     def crushed(self, x: np.ndarray, stretch: np.ndarray) -> np.ndarray:
         """Triangles (bool (m,)) of ``x`` whose area is below :data:`CRUSHED_AREA` of the

@@ -2,7 +2,7 @@
 and its free vertices (those all of whose triangles are in it), which a repair re-fits against
 the others held, with the block of the Poisson system's normal matrix on them (paper §8.4)
 factorized once per region (:func:`_principal_block`); and the region's connected parts, joined
-where triangles share a vertex (:func:`_corner_joined_parts`), which a repair takes each on its
+where triangles share a vertex (:func:`corner_joined_parts`), which a repair takes each on its
 own.
 """
 
@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import connected_components
 
 
-def _corner_joined_parts(local: np.ndarray, count: int) -> tuple[int, np.ndarray]:
+def corner_joined_parts(local: np.ndarray, count: int) -> tuple[int, np.ndarray]:
     """The connected parts of r triangles joined where they share a vertex: ``local`` (3r,), each
     corner's vertex among ``count`` (triangle by triangle), gives (number of parts, each node's
     part (r + count,): the triangles' labels first, then the vertices'). Triangles 0 … r − 1 and
@@ -86,7 +86,7 @@ class Region:
         another (only the held vertices, which stay)."""
         local, touched, is_free = self._parts
         r = self.rows.size
-        count, labels = _corner_joined_parts(local, touched)
+        count, labels = corner_joined_parts(local, touched)
         return labels[:r], labels[r:][is_free], count
 
     def whole(self) -> tuple[np.ndarray, np.ndarray, int]:

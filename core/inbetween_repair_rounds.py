@@ -110,7 +110,7 @@ class RepairRounds:
         (integrable: they come from a mesh), the blend's rotations and stretches, those of the
         keys' per-vertex spline, each key's own local geometry (nearer key first), and last the
         local geometry of ``nearby`` (positions (n, 3) of another pose at ``s``, if given: see
-        :func:`core.inbetween_prediction_repairs._repaired_again`)."""
+        :func:`core.inbetween_prediction_repairs.repaired_in_passes`)."""
         def interpolated(rows):
             return frames[:, rows], stretch[rows]
 
@@ -130,7 +130,7 @@ class RepairRounds:
         """The :meth:`mesh_field` of ``nearby`` (positions (n, 3) of another pose): inside
         :meth:`fields_kept`, the one this thread already made of this very array (the repairs again
         of one in-between pass the same pose to each of their passes,
-        :func:`core.inbetween_prediction_repairs._repaired_again`), else a new one."""
+        :func:`core.inbetween_prediction_repairs.repaired_in_passes`), else a new one."""
         # the array is kept with its field: its identity stays its own while the scope lasts
         return self._kept(("nearby", id(nearby)), lambda: (nearby, self.mesh_field(nearby)))[1]
 
@@ -165,7 +165,7 @@ class RepairRounds:
         """The :meth:`mesh_field` of the linear ``blend`` (n, 3) at factor ``s`` and that of the keys'
         per-vertex spline there: inside :meth:`fields_kept`, those this thread already made for ``s``
         (every repair of one in-between imposes them on overlapping regions: a prediction's repair,
-        the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction_repairs._repaired_again`),
+        the solve from it and its repair, the repairs again: :func:`core.inbetween_prediction_repairs.repaired_in_passes`),
         else new ones."""
         return self._kept(s, lambda: (self.mesh_field(blend), self.mesh_field(lambda: self.factor_spline("world", s))))
 

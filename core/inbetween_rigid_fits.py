@@ -2,7 +2,7 @@
 of its vertices (n, 3) by mass (:func:`rigid_fits`), the fit that keeps its pins where they are
 when that leaves its triangles less to turn (:func:`pin_held_fits`), its screw coordinates
 (:func:`component_screws`: what the splines of paper §8.4's in-betweens take) and how well
-the fit is known from how rigid the piece is (:func:`turn_spread`, :func:`_nonrigidity`).
+the fit is known from how rigid the piece is (:func:`turn_spread`, :func:`component_nonrigidity`).
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ from .geometry import grouped_medians
 from .rigid_alignment import pivoted_alignment, rigid_alignments
 
 if TYPE_CHECKING:
-    from .inbetween_keys import _Key
-    from .inbetween_topology import _Topology
+    from .inbetween_keys import Key
+    from .inbetween_topology import Topology
 
 
 def component_screws(rotations: np.ndarray, translations: np.ndarray, turns: np.ndarray, unwrap: bool,
@@ -46,7 +46,7 @@ def turn_spread(nonrigidity) -> np.ndarray:
     return np.minimum(screw_motions.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), screw_motions.TURN_SPREAD)
 
 
-def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rigid_fits(topo: Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each component's best rigid motion taking vertices ``base`` (n, 3) onto ``other``: rotations
     (C, 3, 3), translations (C, 3) and the RMS misfits (C,) it leaves (mass-weighted)."""
     if len(topo.components) <= df.SLICED_PIECES:  # few pieces: each on its rows (views where consecutive)
@@ -60,7 +60,7 @@ def rigid_fits(topo: _Topology, base: np.ndarray, other: np.ndarray) -> tuple[np
     return rotations, translations, fit_misfits(topo, base, other, rotations, translations)
 
 
-def fit_misfits(topo: _Topology, base: np.ndarray, other: np.ndarray, rotations, translations) -> np.ndarray:
+def fit_misfits(topo: Topology, base: np.ndarray, other: np.ndarray, rotations, translations) -> np.ndarray:
     """Each component's RMS misfit (C,) (mass-weighted) of its rigid motion taking ``base`` onto ``other``."""
     residual = topo.apply_motion(base, rotations, translations) - other
     return np.sqrt(topo.component_sums(np.einsum("ij,ij->i", residual, residual)) / topo.component_mass)
@@ -82,7 +82,7 @@ PIN_FIT_MARGIN = np.pi / 36
 PIN_BOUND_ROUNDING = 1e-6
 
 
-def pin_held_fits(topo: _Topology, base: _Key, other: _Key, whole, rotations, translations, misfits):
+def pin_held_fits(topo: Topology, base: Key, other: Key, whole, rotations, translations, misfits):
     """The pieces' rigid motions (``rotations`` (C, 3, 3), ``translations`` (C, 3), ``misfits`` (C,)
     from :func:`rigid_fits`), where a piece holds pins (``topo.pinned``: vertices at one place in
     every key) replaced by its best rigid motion that keeps them there
@@ -148,7 +148,7 @@ def _fit_undone_angles(entries: np.ndarray, rotations: np.ndarray, pieces: np.nd
     return df.trace_rotation_angles(trace)
 
 
-def _nonrigidity(misfits, base: _Key, topo: _Topology) -> list[float]:
+def component_nonrigidity(misfits, base: Key, topo: Topology) -> list[float]:
     """Each component's RMS misfit of its best rigid motion over its bounding-box diagonal in the
     ``base`` key."""
     return list(np.asarray(misfits, dtype=np.float64) / base.diagonals)

@@ -2,10 +2,10 @@
 normal matrix, per key its frames, per gap the splines of the deformation fields between its keys,
 the anchor and the reconstruction of a pose at any factor.
 
-``_Topology`` (triangles only; :mod:`core.inbetween_topology`) → ``_Key`` (one pose) →
-``_Relative`` (a key seen from the base key of a gap; both in :mod:`core.inbetween_keys`) →
-``_Gap`` (here: splines of the relatives at key times −1, 0, 1, 2 (:mod:`core.splines`) and
-``pose(s)``), its parts one module per concept (the classes named are mixed into ``_Gap``):
+``Topology`` (triangles only; :mod:`core.inbetween_topology`) → ``Key`` (one pose) →
+``Relative`` (a key seen from the base key of a gap; both in :mod:`core.inbetween_keys`) →
+``Gap`` (here: splines of the relatives at key times −1, 0, 1, 2 (:mod:`core.splines`) and
+``pose(s)``), its parts one module per concept (the classes named are mixed into ``Gap``):
 
 - :mod:`core.inbetween_field` (``InterpolatedField``): the interpolated field at a factor (the
   rotations' frames, the stretches) and the splines by name;
@@ -35,7 +35,7 @@ from . import deformation_fields as df
 from . import screw_motions
 from .inbetween_anchor import Anchor
 from .inbetween_carried import CarriedPieces
-from .inbetween_field import InterpolatedField, _log_stretch_spline, _Splines
+from .inbetween_field import InterpolatedField, Splines, log_stretch_spline
 from .inbetween_fit import ARAP_ITERATIONS, LocalGlobalFit, change_tolerance, trimmed_tolerance
 from .inbetween_flight import FLYING_MIN_TURN, after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
@@ -51,8 +51,8 @@ from .rigid_bodies import rigid_bodies
 from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
 
 if TYPE_CHECKING:
-    from .inbetween_keys import _Key, _Relative
-    from .inbetween_topology import _Topology
+    from .inbetween_keys import Key, Relative
+    from .inbetween_topology import Topology
 
 #: Two poses: a set of vertices that translates rigidly between them (pinned to an animated object
 #: that does not turn, :func:`core.pins.riding_vertices`) lies on the linear blend at every factor,
@@ -73,7 +73,7 @@ HOOK_MISS_NOTED = 0.1
 POSITIONS = ("vertices", "world", "centroids")
 
 
-class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
+class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     """One gap between key ``base`` (s = 0) and key ``next`` (s = 1), prepared once: splines of
     the relatives at key times −1, 0, 1, 2, the target edges' constant factors, the anchor and
     its factorization. :meth:`poses` answers any factors."""
@@ -85,7 +85,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: Whether a part of a piece turns past a half turn from the rest between the keys and the way
     #: round read from them and from a neighbouring gap's keys disagree
     #: (:meth:`core.sequence_turn_readings.TurnReadings._unsure`), or its part that stays is not
-    #: held still and its rigid turn reads it the other way round (``_Relative.turning``): the gap warns.
+    #: held still and its rigid turn reads it the other way round (``Relative.turning``): the gap warns.
     unsure_turn = False
     #: How many pieces turn a half turn between the keys, as short either way round, with nothing
     #: in the keys to tell which way (``core.sequence_half_turns.untold_half_turns``): the gap warns.
@@ -108,7 +108,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: (``core.spun_parts.SpunParts._spun``): past ``TURNED_PART_SHARE`` the gap warns.
     spun_part = (0.0, 0.0)
 
-    def __init__(self, topo: _Topology, base: _Key, nxt: _Key, relatives: list[_Relative], cubic: bool,
+    def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,
                  riding: list[np.ndarray] | None = None, riding_tolerance: float = 0.0,
                  start_limit: float | None = None, rest_end: bool = False,
@@ -125,7 +125,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.unit = unit
         self.log_metric = log_metric
         # per component: a part of it turns far from the rest between the keys (past a half turn,
-        # or past a right angle without a crease: _Relative.turning): not anchored to the keys' spline
+        # or past a right angle without a crease: Relative.turning): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
         # ... and the vertices of the part of those the rest turns from (placed by it: PieceMotion.place)
         self.turning_root = None
@@ -165,7 +165,7 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # the log-stretches' spline when first read (see stretch; its function holds the
         # relatives, not the gap)
         self._log_options = options("log_stretch")
-        spline = _Splines({"log_stretch": partial(_log_stretch_spline, relatives, cubic, self._log_options)})
+        spline = Splines({"log_stretch": partial(log_stretch_spline, relatives, cubic, self._log_options)})
         for name in ("vertices", "world", "centroids"):
             spline[name] = hermite(name, [getattr(r, name) for r in relatives])
         # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
@@ -394,24 +394,21 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             misfits.extend(steps)
         # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)
         x0 = x0 if start is None else x
-        checked = self.repair.checked(x, x0, s, frames, stretch, guide, motion, looser=looser[0] if looser else None,
-                                      repairable=repairable)
+        checked = self.recorded(s, self.repair.outcome(x, x0, s, frames, stretch, guide, motion,
+                                                       looser=looser[0] if looser else None, repairable=repairable))
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
             return self.finished(checked, s)
         # two poses (sequences keep their fits), which also say where triangles face against the field
-        x, said = self.finished(self.repair.nearer_the_metric(checked, s, stretch, motion, targets), s)
+        x, said = self.finished(self.recorded(s, self.repair.nearer_the_metric(checked, s, stretch, motion, targets)), s)
         turned, self.against[s] = self.repair.against_the_field(x, frames)
         return x, said if turned is None else turned if said is None else f"{said}; {turned}"
 
     def repaired(self, x: np.ndarray, s: float, rings=None, defects=None) -> tuple[np.ndarray, str | None]:
         """``x`` (a pose at factor ``s`` with defects, e.g. a predicted one) repaired where the
         defects are, as :meth:`pose` repairs its fit (without solving the pose again; ``rings``:
-        the repair rounds, all of them by default; ``defects``: those of ``x`` (bool (m,)) if known)."""
-        self.select(s)
-        # in-betweens' checks use the keys' normals: the repairs need the frames on their regions only
-        frames, stretch, motion, guide = self.repair.factor_targets(s) if 0.0 < s < 1.0 else self.targets(s)
-        rounds = {} if rings is None else {"rings": rings}
-        return self.finished(self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, **rounds), s)
+        the repair rounds, all of them by default; ``defects``: those of ``x`` (bool (m,)) if known),
+        and :meth:`finished`."""
+        return self.finished(self._repaired(x, s, None, rings, defects), s)
 
     def repaired_again(self, x: np.ndarray, s: float, nearby: np.ndarray | None = None, rings=None,
                        defects=None) -> tuple[np.ndarray, str | None]:
@@ -420,13 +417,32 @@ class _Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         the rounds' last field (``rings``: the repair rounds, all of them by default; ``defects``: those
         of ``x`` (bool (m,)) if known). Only the repair regions move: the pieces keep the placement
         :meth:`finished` gave ``x``; the still vertices are put back where they sit in the keys."""
-        self.select(s)
-        frames, stretch, motion, guide = self.repair.factor_targets(s)
-        rounds = {} if rings is None else {"rings": rings}
-        out = self.repair.checked(x, x, s, frames, stretch, guide, motion, defects=defects, nearby=nearby, **rounds)
+        out = self._repaired(x, s, nearby, rings, defects)
         if self.static is not None:
             out[0][self.static] = self.pinned_positions(s)
         return out
+
+    def _repaired(self, x: np.ndarray, s: float, nearby, rings, defects) -> tuple[np.ndarray, str | None]:
+        """:meth:`repaired` and :meth:`repaired_again` before their placement: the check of ``x``
+        itself (no Poisson solve to fall back on), its outcome recorded."""
+        self.select(s)
+        # in-betweens' checks use the keys' normals: the repairs need the frames on their regions only
+        frames, stretch, motion, guide = self.repair.factor_targets(s) if 0.0 < s < 1.0 else self.targets(s)
+        rounds = {} if rings is None else {"rings": rings}
+        return self.recorded(s, self.repair.outcome(x, x, s, frames, stretch, guide, motion, defects=defects,
+                                                    nearby=nearby, **rounds))
+
+    def recorded(self, s: float, outcome: tuple) -> tuple[np.ndarray, str | None]:
+        """The pose and message of a check's ``outcome`` at factor ``s``
+        (:meth:`core.inbetween_repair.Repair.outcome`), the rest of it (the count of flipped or
+        collapsed triangles, whether it is the blend or a fit near it) kept in ``outcomes[s]``: the
+        in-between's warning counts from it, and two poses choose between their fits by it
+        (``core.two_pose_inbetweens.Interpolator.pose``). A check of a pose the caller does not take
+        records its own too: the caller puts back the outcome of the pose it returns
+        (:func:`core.inbetween_prediction_repairs._put_back`)."""
+        x, message, count, near_blend = outcome
+        self.outcomes[s] = Outcome(count, near_blend)
+        return x, message
 
     def finished(self, result, s: float):
         """``(x, problem)`` at factor ``s`` with the sequence's still vertices exactly where they sit

@@ -1,6 +1,6 @@
 """What the in-between solver keeps per triangle mesh (paper §7.3): corner-edge incidence, lumped
 vertex masses, connected components and the factorized normal matrices ``DᵀD + diag(w · mass)``
-of the Poisson solve (the first of :class:`_Topology` → ``_Key`` → ``_Relative`` → ``_Gap``, see
+of the Poisson solve (the first of :class:`Topology` → ``Key`` → ``Relative`` → ``Gap``, see
 :mod:`core.inbetween_solver`)."""
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ GAUGE_WEIGHT = 1e-7
 MASS_FLOOR = 1e-6
 
 
-class _Topology:
+class Topology:
     """What depends only on the triangles: edge incidence (``D``: corner edges × vertices), lumped
     vertex masses of the first pose (mean 1), components, and the factorized normal matrices."""
 

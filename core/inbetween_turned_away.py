@@ -12,7 +12,7 @@ import numpy as np
 
 from .geometry import coordinate_cross, coordinate_dot
 from .inbetween_fit import MAX_ROTATION_DEVIATION, METRIC_TOLERANCE
-from .inbetween_repair_regions import _corner_joined_parts
+from .inbetween_repair_regions import corner_joined_parts
 
 
 #: Pieces whose rigid fits miss them by less than this share of their size (noise, rounding) may
@@ -110,7 +110,7 @@ class TurnedAway:
         if not ring.any():
             return kept[:0]
         r = len(triangles)
-        labels = _corner_joined_parts(local.ravel(), vertices.size)[1]
+        labels = corner_joined_parts(local.ravel(), vertices.size)[1]
         carrying = np.zeros(labels.max() + 1, dtype=bool)
         carrying[labels[r:][ring]] = True
         return kept[carrying[labels[:kept.size]]]

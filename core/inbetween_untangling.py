@@ -1,5 +1,5 @@
 """A last local untangling of a sequence's in-between that keeps flipped or collapsed triangles
-after its repairs (:mod:`core.inbetween_repair`, :func:`core.inbetween_prediction_repairs._repaired_again`;
+after its repairs (:mod:`core.inbetween_repair`, :func:`core.inbetween_prediction_repairs.repaired_in_passes`;
 in-betweens of paper §8.4).
 
 The repairs impose a field (the interpolated rotations, the blend's, the spline's or a key's
@@ -25,7 +25,7 @@ from scipy import linalg
 
 from .geometry import coordinate_cross, coordinate_dot
 from .inbetween_repair import Outcome
-from .inbetween_repair_regions import _corner_joined_parts
+from .inbetween_repair_regions import corner_joined_parts
 from .inbetween_threads import per_factor
 
 
@@ -146,7 +146,7 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
 
 def untangled(gap, x: np.ndarray, s: float, defects: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
     """An in-between ``x`` (n, 3) of a sequence at factor ``s`` of ``gap`` (a
-    ``core.inbetween_solver._Gap``) with flipped or collapsed triangles ``defects`` (bool (m,))
+    ``core.inbetween_solver.Gap``) with flipped or collapsed triangles ``defects`` (bool (m,))
     untangled (:func:`untangle`) on the triangles within :data:`UNTANGLE_RINGS` rings of them: the
     defective ones to face the keys' mean unit normal (where the keys' normals are within 120°;
     else the key's their normal opposes least), by :data:`UNTANGLE_MARGIN` of twice their
@@ -166,7 +166,7 @@ def untangled(gap, x: np.ndarray, s: float, defects: np.ndarray, scale: np.ndarr
         movable = inside == topo.triangles_per_vertex[touched]
         if gap.static is not None:
             movable &= ~gap.static[touched]
-        count, labels = _corner_joined_parts(local.ravel(), touched.size)
+        count, labels = corner_joined_parts(local.ravel(), touched.size)
         sizes = np.bincount(labels[rows.size:][movable], minlength=count)
         if count and sizes.max() > UNTANGLE_FREE_VERTICES:
             return None  # a fold that wide is no local tangle

@@ -1,6 +1,6 @@
 """The triangles' whole rotations from the base key of a gap to another key (the rotation field of
 paper §8.4's in-betweens taken whole, not as residuals to each piece's rigid rotation), and what a relative
-(:class:`core.inbetween_keys._Relative`) reads from them: which pieces have a part turning past a
+(:class:`core.inbetween_keys.Relative`) reads from them: which pieces have a part turning past a
 half turn from the rest (:meth:`WholeRotations.turning`), whether a piece's rigid fit adds turn its
 triangles do not make (:data:`SPURIOUS_RIGID_TURN`), and the relative with a piece's rotations taken
 whole (:meth:`WholeRotations.whole_rotations`). Rotations of m triangles as images of the base's
@@ -19,8 +19,8 @@ from . import rotation_continuity
 from .geometry import coordinate_dot, grouped_medians
 
 if TYPE_CHECKING:
-    from .inbetween_keys import _Key, _Relative
-    from .inbetween_topology import _Topology
+    from .inbetween_keys import Key, Relative
+    from .inbetween_topology import Topology
 
 
 #: A piece's rotation fields in a gap are taken whole (each triangle's own rotation from the base key,
@@ -52,7 +52,7 @@ SPURIOUS_RIGID_TURN = np.pi / 6
 BENT_TURN = np.pi / 2
 
 
-def _rotation_angles(frames, columns) -> np.ndarray:
+def rotation_angles(frames, columns) -> np.ndarray:
     """The angle (m,) of each triangle's rotation taking the frame ``columns`` to ``frames`` (both
     stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle."""
     trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
@@ -61,9 +61,9 @@ def _rotation_angles(frames, columns) -> np.ndarray:
 
 class WholeRotations:
     """The triangles' whole rotations between a relative's two keys, made once and let go, and
-    the turns read from them; mixed into :class:`~core.inbetween_keys._Relative`.
+    the turns read from them; mixed into :class:`~core.inbetween_keys.Relative`.
 
-    Of the _Relative it is mixed into, it reads its ``_across``, ``rotvec``, ``screw``, ``turn``."""
+    Of the Relative it is mixed into, it reads its ``_across``, ``rotvec``, ``screw``, ``turn``."""
 
     #: Per component (bool (C,)), whether ``rotvec`` holds its triangles' whole rotations
     #: (:meth:`whole_rotations`) rather than their residuals to the component's rigid rotation.
@@ -78,7 +78,7 @@ class WholeRotations:
     #: then, and these as they would be), or None.
     _whole = None
 
-    def _turned_frames(self, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
+    def _turned_frames(self, other: Key, rows=slice(None), keep: bool = False) -> np.ndarray:
         """The triangles' whole rotations from the base to ``other`` (the key this relative was
         built from) as images of the base's frames, on the triangles ``rows`` (3 columns × (3, r)):
         the constructor's where it kept them (let go unless ``keep``), else made again."""
@@ -87,7 +87,7 @@ class WholeRotations:
             return df.plane_turned_frames(other.column_rows[:, :, rows], (self.turn[0][rows], self.turn[1][rows]))
         return plane[:, :, rows]
 
-    def _whole_entries(self, base: _Key, other: _Key, rows=slice(None), keep: bool = False) -> np.ndarray:
+    def _whole_entries(self, base: Key, other: Key, rows=slice(None), keep: bool = False) -> np.ndarray:
         """The entries (3, 3, r) of the triangles' whole rotations from ``base`` to ``other`` (the
         keys this relative was built from) on the triangles ``rows``
         (:func:`~core.deformation_fields.frame_rows_rotation_entries` of :meth:`_turned_frames`):
@@ -101,7 +101,7 @@ class WholeRotations:
             self._whole = whole
         return whole
 
-    def turning(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray, share: float,
+    def turning(self, topo: Topology, base: Key, other: Key, pairs: np.ndarray, share: float,
                 free: np.ndarray | None = None) -> tuple:
         """Per piece (bool (C,)), whether a part of it over ``share`` of its area turns far from the
         rest of it from ``base`` to ``other`` (the keys this relative was built from; ``pairs``
@@ -170,7 +170,7 @@ class WholeRotations:
             held_only = np.where(out & other & held, stays, -1)
         return out, out[pieces] & (beyond < rotation_continuity.WRAP_CREASE), folded, continued, contested, held_only, still
 
-    def continued_turns(self, topo: _Topology, base: _Key, other: _Key, pairs: np.ndarray,
+    def continued_turns(self, topo: Topology, base: Key, other: Key, pairs: np.ndarray,
                         free: np.ndarray | None = None) -> tuple:
         """The triangles' whole rotation vectors (m, 3) from ``base`` to ``other`` (the keys this
         relative was built from), the short way round, and the same taken continuous across the
@@ -183,7 +183,7 @@ class WholeRotations:
                                                                     toward=self._rigid_turns(topo, base), free=free)
         return whole, continued
 
-    def _rigid_turns(self, topo: _Topology, base: _Key) -> tuple:
+    def _rigid_turns(self, topo: Topology, base: Key) -> tuple:
         """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
         sequence reads it) and the triangles' areas in ``base``: what the whole rotations taken
         continuous across a piece turn nearest (``toward`` of
@@ -191,7 +191,7 @@ class WholeRotations:
         # one gather of whole rows (3–4× faster than indexing rows and columns together)
         return np.take(self.screw[:, :3], topo.triangle_component, axis=0), base.areas
 
-    def residuals_add_turn(self, topo: _Topology, base: _Key, other: _Key) -> np.ndarray:
+    def residuals_add_turn(self, topo: Topology, base: Key, other: Key) -> np.ndarray:
         """Per component (bool (C,)), whether this relative's rotation residuals turn further than
         its triangles themselves (see :data:`SPURIOUS_RIGID_TURN`): the residuals' median angle
         against the median angle of the triangles' whole rotations from ``base`` to ``other``
@@ -224,7 +224,7 @@ class WholeRotations:
                 self.__dict__.pop("_plane_frames", None)  # let go, as measuring them would
             return np.zeros(count, dtype=bool)
         frames = self._turned_frames(other) if made is None else None
-        whole = _rotation_angles(frames, base.column_rows) if made is None else df.entries_rotation_angles(made)
+        whole = rotation_angles(frames, base.column_rows) if made is None else df.entries_rotation_angles(made)
         out = residual_medians > grouped_medians(whole, pieces, count) + SPURIOUS_RIGID_TURN
         if not across_mesh:
             return out
@@ -248,8 +248,8 @@ class WholeRotations:
                               minlength=count) == 0
         return out | (stuck & wrapped & unwound)
 
-    def whole_rotations(self, topo: _Topology, base: _Key, other: _Key, components: np.ndarray,
-                        across: np.ndarray | None = None, free: np.ndarray | None = None) -> "_Relative":
+    def whole_rotations(self, topo: Topology, base: Key, other: Key, components: np.ndarray,
+                        across: np.ndarray | None = None, free: np.ndarray | None = None) -> "Relative":
         """A copy whose ``rotvec`` (m, 3) are, on the triangles of the ``components`` (bool (C,)),
         the triangles' whole rotations from ``base`` to ``other`` (the keys it was built from), the
         components' rigid rotations not undone; taken continuous across the mesh past a half turn

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .splines import END_TANGENT_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, _limited
+from .splines import END_TANGENT_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, limited_tangent
 
 
 def start_of_motion(keys, middle, factor: float, durations=None) -> str:
@@ -33,8 +33,8 @@ def start_of_motion(keys, middle, factor: float, durations=None) -> str:
     secant = second - first
     squared = np.einsum("ij,ij->i", secant, secant)
     onward = (third - second) * (first_gap / second_gap)  # the next move per unit of this gap
-    end = _limited(0.5 * (secant + onward), END_TANGENT_LIMIT, squared, rows=True)
-    parabola = _limited(1.5 * secant - 0.5 * onward, START_TANGENT_LIMIT, squared, rows=True)
+    end = limited_tangent(0.5 * (secant + onward), END_TANGENT_LIMIT, squared, rows=True)
+    parabola = limited_tangent(1.5 * secant - 0.5 * onward, START_TANGENT_LIMIT, squared, rows=True)
     return "keys" if _nearer(middle, factor, first, secant, (np.zeros_like(secant), end), (parabola, end)) else "rest"
 
 
@@ -56,7 +56,7 @@ def end_of_motion(keys, middle, factor: float, durations=None) -> str:
     before, start, end = (np.asarray(k, dtype=np.float64) for k in keys)
     back, last = (1.0, 1.0) if durations is None else (float(d) for d in durations)
     secant = end - start
-    tangent = _limited(0.5 * ((start - before) * (last / back) + secant), TANGENT_LIMIT,
+    tangent = limited_tangent(0.5 * ((start - before) * (last / back) + secant), TANGENT_LIMIT,
                        np.einsum("ij,ij->i", secant, secant), rows=True)
     return "rest" if _nearer(middle, factor, start, secant, (tangent, secant), (tangent, np.zeros_like(secant))) \
         else "keys"

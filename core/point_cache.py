@@ -20,27 +20,19 @@ import json
 import os
 import re
 import struct
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from .atomic_files import write_atomically
 from .errors import MeshError
-
-try:  # POSIX: a temporary file is locked while it is written (not on Windows, which keeps it open instead)
-    import fcntl
-except ImportError:
-    fcntl = None
 
 #: Bytes of samples :func:`merge_pc2` reads and writes at a time.
 MERGE_BLOCK_BYTES = 16 << 20
 #: Added to a chunk's file name for its stamp (:func:`write_pc2`, ``stamp=``): the retime it is part
 #: of, its key gaps and the SHA-256 of its bytes, which :func:`merge_pc2` checks.
 STAMP_SUFFIX = ".json"
-#: Ends the name of the temporary file an output is written to, ``.<output name>.<random>.part``
-#: beside it (:func:`_write_atomically`).
-PART_SUFFIX = ".part"
 PC2_MAGIC = b"POINTCACHE2\0"
 PC2_HEADER = struct.Struct("<12siiffi")
 MDD_HEADER = struct.Struct(">ii")
@@ -102,103 +94,6 @@ def _samples(positions) -> tuple[list, int]:
     return samples, shape[1]
 
 
-def _open_part(path: Path) -> tuple[int, str]:
-    """A new temporary file for ``path``, ``.<name>.<random>.part`` beside it, opened for writing
-    and, on POSIX, locked (``flock``) for as long as this process lives: the system drops the lock
-    of a process that dies, which is how :func:`_remove_abandoned_parts` tells a file a live writer
-    holds from one left by a writer killed with SIGKILL."""
-    while True:
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=PART_SUFFIX, dir=path.parent)
-        if fcntl is None:
-            return handle, temporary
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX)  # waits for a cleaner that took it before this process
-        except OSError:  # a file system without locks: written unlocked (and never taken for abandoned)
-            return handle, temporary
-        if os.fstat(handle).st_nlink:
-            return handle, temporary
-        os.close(handle)  # a cleaner took it for abandoned between its creation and the lock: another
-
-
-def _remove_abandoned_parts(path: Path) -> None:
-    """Delete the temporary files of ``path`` (:func:`_open_part`) no live writer holds: those of a
-    writer killed before it could remove its own (SIGKILL, a node lost), as large as the part it had
-    written. A file another writer is writing stays (locked on POSIX; open, so not removable, on
-    Windows), and so does every file on a file system without locks."""
-    own = re.compile(re.escape(f".{path.name}.") + r"[^.]+" + re.escape(PART_SUFFIX))
-    try:
-        names = [name for name in os.listdir(path.parent) if own.fullmatch(name)]
-    except OSError:
-        return
-    for name in names:
-        part = path.parent / name
-        try:
-            if fcntl is None:
-                os.unlink(part)
-                continue
-            handle = os.open(part, os.O_RDONLY)
-        except OSError:  # gone meanwhile, or held open by its writer (Windows)
-            continue
-        try:
-            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            os.unlink(part)
-        except OSError:  # locked: its writer is alive
-            pass
-        finally:
-            os.close(handle)
-
-
-def _write_atomically(path: Path, chunks, *, exclusive: bool = False) -> None:
-    """Write ``chunks`` (bytes-like) to a temporary file beside ``path`` and rename it into place,
-    so that a reader (or a failed write) never sees half a file. Temporary files of ``path`` that
-    writers killed before they could remove them left are deleted first.
-
-    ``exclusive``: never replace an existing ``path``: the complete file is linked to the name,
-    which raises :class:`FileExistsError` if another process took it meanwhile (checking first and
-    then renaming would let two processes writing one new name keep only the later file)."""
-    given = path
-    path = Path(path)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        _remove_abandoned_parts(path)
-        handle, temporary = _open_part(path)
-    except OSError as error:  # said of the user's path, not of the temporary file
-        raise OSError(error.errno, error.strerror, str(given)) from None
-    try:
-        os.chmod(temporary, 0o666 & ~_umask())  # mkstemp makes it private; a cache is shared like any file
-        publish = _link_new if exclusive else os.replace
-        with os.fdopen(handle, "wb") as stream:
-            for chunk in chunks:
-                stream.write(chunk)
-            stream.flush()
-            if fcntl is not None:  # named while still locked: never taken for abandoned before
-                publish(temporary, path)
-        if fcntl is None:  # Windows renames closed files only
-            publish(temporary, path)
-    except BaseException as error:
-        if os.path.lexists(temporary):
-            os.unlink(temporary)
-        if isinstance(error, OSError) and not isinstance(error, FileExistsError):
-            raise OSError(error.errno, error.strerror, str(given)) from None
-        raise
-
-
-def _link_new(temporary: str, path: Path) -> None:
-    """Give the complete file ``temporary`` the name ``path`` unless a file has it (then
-    :class:`FileExistsError`), and remove the temporary name. A file system without hard links
-    (FAT, some network shares) gets a rename after a check instead."""
-    try:
-        os.link(temporary, path)
-    except FileExistsError:
-        raise
-    except OSError:
-        if os.path.lexists(path):
-            raise FileExistsError(f"'{path}' exists") from None
-        os.replace(temporary, path)
-        return
-    os.unlink(temporary)
-
-
 def refuse_overwriting(path, inputs: dict) -> None:
     """Raise :class:`MeshError` if the output ``path`` is one of the files ``inputs`` ({path: what
     it is}) a job reads: writing it would replace what the job was run on."""
@@ -210,12 +105,6 @@ def refuse_overwriting(path, inputs: dict) -> None:
         if same or Path(os.path.abspath(path)) == Path(os.path.abspath(source)):
             raise MeshError(f"The output '{path}' is {what} ('{source}'): writing it would replace the "
                             "data the job reads. Give another output file.")
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def pc2_header(n_points: int, n_samples: int, start: float = 0.0, sampling: float = 1.0) -> bytes:
@@ -299,7 +188,7 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
     chunk leaves nothing. :func:`merge_pc2` refuses chunks whose stamps disagree.
 
     ``exclusive``: raise :class:`FileExistsError` rather than replace a file at ``path``, checked
-    when the file is complete (:func:`_write_atomically`).
+    when the file is complete (:func:`core.atomic_files.write_atomically`).
     """
     samples, n_points = _samples(positions)
     check_pc2_timing(start, sampling)
@@ -316,11 +205,11 @@ def write_pc2(path, positions, *, start: float = 0.0, sampling: float = 1.0, sta
             digest.update(chunk)
             yield chunk
 
-    _write_atomically(path, blocks() if digest is None else hashed(blocks()), exclusive=exclusive)
+    write_atomically(path, blocks() if digest is None else hashed(blocks()), exclusive=exclusive)
     if stamp is not None:
         text = json.dumps({**stamp, "sha256": digest.hexdigest()}, indent=1) + "\n"
         try:
-            _write_atomically(stamp_path(path), [text.encode()])
+            write_atomically(stamp_path(path), [text.encode()])
         except BaseException:  # a disk full, SIGTERM: a chunk without its stamp is not left as if written
             Path(path).unlink(missing_ok=True)
             raise
@@ -584,5 +473,5 @@ def merge_pc2(parts, path, job: str | None = None) -> Path:
                                 "written again since (by another job sharing the chunk folder?). Give each "
                                 "job a chunk folder of its own and run its chunks again.")
 
-    _write_atomically(path, blocks())
+    write_atomically(path, blocks())
     return Path(path)

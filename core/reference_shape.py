@@ -15,6 +15,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .concurrency import per_layer_threads
 from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths
 from .geometry import vertex_labels
@@ -160,28 +161,6 @@ def _recover_layers(jobs) -> list[LayerMetric]:
     return per_layer_threads(calls, parallel=not isinstance(jobs[0][1], FullDifference))
 
 
-def per_layer_threads(calls, *, parallel: bool = True) -> list:
-    """``[call() for call in calls]`` — for the two layers' independent work — in one thread per
-    call, each with a single-threaded BLAS (their work is BLAS, LAPACK and sparse products, which
-    release the GIL; faster than one layer after the other with a multithreaded BLAS, and far
-    faster on a busy machine, see docs/design-decisions.md). Sequential without threadpoolctl or
-    a second core, or unless ``parallel``. Threads of its own, not the shared pool of
-    :mod:`core.concurrency`: each layer's embedding still races its starts there."""
-    import importlib.util
-
-    from .concurrency import available_cores, single_threaded_blas
-
-    parallel = (parallel and len(calls) > 1 and available_cores() > 1
-                and importlib.util.find_spec("threadpoolctl") is not None)
-    if not parallel:
-        return [call() for call in calls]
-    from concurrent.futures import ThreadPoolExecutor
-
-    with single_threaded_blas(), ThreadPoolExecutor(len(calls)) as pool:
-        futures = [pool.submit(call) for call in calls]
-        return [future.result() for future in futures]
-
-
 @dataclass(frozen=True, eq=False)
 class ShapeDifferences:
     """The four shape differences of a target N relative to a base M (§6).
@@ -313,20 +292,20 @@ class ReferenceShape:
                                  full_basis=full_basis, geometry=(self.given_positions, self.topology))
 
     def shape_differences(self, target_vertices, *, k_M: int | None = None, k_N: int | None = None,
-                          name: str = "target vertices", stacklevel: int = 1) -> ShapeDifferences:
+                          name: str = "target vertices") -> ShapeDifferences:
         """The four differences (§6) of a target pose ``(n, 3)`` (the caller's units) relative to
         this base (``name``: what error messages call the pose). Warns
         (:class:`ShapeDifferenceWarning`) where they cannot represent the pose faithfully
         (:meth:`check_faithful`) and where the offset is outside :data:`OFFSET_RANGE` × the mean
-        edge length (``stacklevel``: their frame, 1 for the caller)."""
+        edge length."""
         k_M, k_N = self.basis_sizes(k_M, k_N)
         target = self.compact_pose(target_vertices, name=name)
-        self.check_faithful(target, name, stacklevel=stacklevel + 1)
+        self.check_faithful(target, name)
         if self.use_extrinsic:
-            self._warn_offset_scale(stacklevel + 1)
+            self._warn_offset_scale()
         smallest = self.topology.components()[0] + 1
         if k_M is not None:
-            self.warn_split(k_M, stacklevel=stacklevel + 1)
+            self.warn_split(k_M)
         area, conformal = self.base.differences(target, k_M, k_N, smallest=smallest)
         offset_area = offset_conformal = None
         if self.use_extrinsic:
@@ -339,7 +318,7 @@ class ReferenceShape:
         """The base layer and, with the offset surface, its layer."""
         return [self.base] + ([self.offset_layer] if self.use_extrinsic else [])
 
-    def warn_split(self, k: int, *, label: str = "k_M", stacklevel: int = 1) -> None:
+    def warn_split(self, k: int, *, label: str = "k_M") -> None:
         """A ``truncated`` :class:`ShapeDifferenceWarning` where a base basis of ``k`` functions
         splits a group of equal eigenvalues of a layer (:meth:`SurfaceLayer.split_group`: a
         symmetric base), naming the nearest sizes below and above that split none in either layer
@@ -349,20 +328,19 @@ class ReferenceShape:
                                     if (group := layer.split_group(size)) is not None],
             self.topology.components()[0] + 1, self.topology.n_vertices)
         if message is not None:
-            warn(message, "truncated", stacklevel=stacklevel + 1)
+            warn(message, "truncated")
 
-    def check_faithful(self, pose: np.ndarray, name: str, *, stacklevel: int = 1) -> None:
+    def check_faithful(self, pose: np.ndarray, name: str) -> None:
         """Checks of a pose's used vertices ``(n_used, 3)`` that depend on what the differences
         resolve: a :class:`ShapeDifferenceWarning` where round-off alone may move its recovered
         squared edge lengths by more than :data:`PRECISION_TOLERANCE`, and (with the offset
-        surface) a :class:`MeshError` where its offset surface collapses over an edge.
-        ``stacklevel``: the warning's frame, 1 for the caller of this method."""
-        self._warn_precision(pose, name, stacklevel + 1)
+        surface) a :class:`MeshError` where its offset surface collapses over an edge."""
+        self._warn_precision(pose, name)
         if self.use_extrinsic:
             check_offset_pose(self.surface, pose, self.offset, name=name, vertex_ids=self.used_vertices,
                               unit=self.unit)
 
-    def _warn_precision(self, pose: np.ndarray, name: str, stacklevel: int) -> None:
+    def _warn_precision(self, pose: np.ndarray, name: str) -> None:
         topology = self.topology
         squared = topology.squared_edge_lengths(pose)[topology.triangle_edges]  # (m, 3)
         from .mesh_topology import triangle_areas
@@ -380,10 +358,9 @@ class ReferenceShape:
                 f"differences loses precision (relative error up to about {loss:.1g}). The pose may be "
                 "an extreme stretch or a stray vertex: check it, or remesh.",
                 "precision",
-                stacklevel=stacklevel + 1,
             )
 
-    def _warn_offset_scale(self, stacklevel: int) -> None:
+    def _warn_offset_scale(self) -> None:
         mean_edge = float(np.mean(np.sqrt(self.base.squared_lengths)))
         ratio = self.offset / mean_edge
         low, high = OFFSET_RANGE
@@ -393,7 +370,6 @@ class ReferenceShape:
                 f"outside {low:g}–{high:g} × the extrinsic differences lose precision and the "
                 "reconstruction can be inaccurate. Use offset=None (half the mean edge length).",
                 "precision",
-                stacklevel=stacklevel + 1,
             )
 
     def recover_metric(self, differences: ShapeDifferences, *, warm: list | None = None,
@@ -508,7 +484,7 @@ class ReferenceShape:
         twins, problem = self.seam_twins
         if glue_seams and problem is not None:
             warn(f"Some pieces of the mesh touch along seams but cannot be joined there ({problem}); "
-                          "they are placed on their own and the seams may open.", "seam", stacklevel=3)
+                          "they are placed on their own and the seams may open.", "seam")
         if not glue_seams or twins is None:
             return placed
         glued, labels, hinges, opened = glue_along_seams(placed, labels, twins, self.vertex_weights,
@@ -518,14 +494,14 @@ class ReferenceShape:
                 f"{len(opened)} seam(s) between pieces of the mesh in the base have two sides that differ in "
                 "this pose (the seam opens): they are left apart, the pieces placed by their other seams or "
                 "nearest the base.",
-                "seam", stacklevel=3)
+                "seam")
         if hinges:
             warn(
                 f"{len(hinges)} piece(s) of the mesh meet another along a seam that is straight (or "
                 "straight to within the reconstruction's error): the shape differences are computed "
                 "piece by piece, so the angle between them about the seam is not determined; it is "
                 "the one closest to the base. Weld the seams (Merge by Distance) for a reconstruction "
-                "that holds it.", "seam", stacklevel=3)
+                "that holds it.", "seam")
         return align_components(glued, target, labels, weights=self.vertex_weights)
 
     @cached_property

@@ -68,7 +68,7 @@ def unwrapped_rotation_vectors(rotvec: np.ndarray, reference: np.ndarray) -> np.
     rows = np.flatnonzero((theta + reach > np.pi) & (theta > ZERO_TURN_TOLERANCE))
     if not rows.size and not identity.size:
         return rotvec
-    return _nearest_representatives(rotvec, theta, reference, identity, rows)
+    return nearest_representatives(rotvec, theta, reference, identity, rows)
 
 
 def residuals_turning_whole_way(rotvec: np.ndarray, turns: np.ndarray, components: np.ndarray, pairs: np.ndarray,
@@ -447,7 +447,7 @@ def jumping_pairs(rotvec: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     return out
 
 
-def _nearest_representatives(rotvec, theta, reference, identity, rows) -> np.ndarray:
+def nearest_representatives(rotvec, theta, reference, identity, rows) -> np.ndarray:
     """``rotvec`` (m, 3) (angles ``theta``) with the ``identity`` rows replaced by the whole turns
     nearest their ``reference`` rows and the ``rows`` by the representative ``ω + 2πk ω̂``
     (k = −1, 0, 1, the first of equally near ones) nearest theirs; k = ±2 … as well where a

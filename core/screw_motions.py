@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from .geometry import coordinate_cross
 from .deformation_fields import SERIES_THRESHOLD, rotation_vectors
-from .rotation_continuity import ZERO_TURN_TOLERANCE, either_way, _nearest_representatives, the_other_way
+from .rotation_continuity import ZERO_TURN_TOLERANCE, either_way, nearest_representatives, the_other_way
 from .small_matrices import matmul, transpose
 
 #: Relative cutoff of the singular values of ``V(ω)`` when solving for a screw's ``v``: far below
@@ -75,7 +75,7 @@ def rigid_logs(rotations: np.ndarray, translations: np.ndarray, references: np.n
             # (|reference| ≥ π; a small real turn continuing a small reference stays what it is)
             still = (theta <= ZERO_TURN_TOLERANCE) | (
                 (theta <= spread) & (np.einsum("ij,ij->i", turn, turn) >= np.pi ** 2))
-            w = _nearest_representatives(w, theta, turn, np.flatnonzero(still), np.flatnonzero(~still))
+            w = nearest_representatives(w, theta, turn, np.flatnonzero(still), np.flatnonzero(~still))
             whole_turn = still & w.any(axis=1)
         else:
             half = either_way(theta, spread) & (np.einsum("ij,ij->i", w, turn) < 0)

@@ -12,7 +12,7 @@ import numpy as np
 from .coordinate_rounding import coordinate_rounding, inverse_heights
 from .errors import warn
 from .geometry import normalize
-from .seam_welds import _seam_pairs, coincidence_tolerance
+from .seam_welds import coincidence_tolerance, seam_pairs
 
 
 #: The analyses that compare a mesh's pieces each on its own (distortion maps, shape space) warn
@@ -27,7 +27,7 @@ def seam_sides(poses: list[np.ndarray], topology) -> np.ndarray:
     :class:`core.mesh_topology.MeshTopology`) in ``poses`` (list of (n, 3)), int64 ``(s, 2)``: the
     boundary edges :func:`core.seam_welds.seam_weld` would join (coinciding end for end with exactly one other in
     every pose, within :func:`core.seam_welds.coincidence_tolerance` of the first), each with its one triangle."""
-    a, b = _seam_pairs(poses, topology, coincidence_tolerance(poses[0], topology.edges))
+    a, b = seam_pairs(poses, topology, coincidence_tolerance(poses[0], topology.edges))
     if not a.size:
         return np.zeros((0, 2), dtype=np.int64)
     n = topology.n_vertices
@@ -80,5 +80,5 @@ def warn_seam_folds(base: np.ndarray, poses: list[np.ndarray], triangles: np.nda
         "as exporters and importers leave a mesh split at UV seams or hard edges), and "
         f"{int(folded.sum())} of them fold by up to {worst:.3g}° in {name}: {consequence}. Weld the seams "
         "(Merge by Distance) to measure the mesh as one surface.",
-        "seam", stacklevel=4)
+        "seam")
     return True

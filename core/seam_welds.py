@@ -137,10 +137,10 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None,
 
     if tolerance is None:
         tolerance = coincidence_tolerance(poses[0], topology.edges)
-    a, b = _seam_pairs(poses, topology, tolerance) if seams else (np.zeros(0, dtype=np.int64),) * 2
+    a, b = seam_pairs(poses, topology, tolerance) if seams else (np.zeros(0, dtype=np.int64),) * 2
     stacked = _stacked_corners(a, b, topology)
     if stacked.size:  # those corners apart, and the seams again without them
-        a, b = _seam_pairs(poses, topology, tolerance, apart=stacked)
+        a, b = seam_pairs(poses, topology, tolerance, apart=stacked)
     loose, used = loose_copies(poses, topology, tolerance)
     if not a.size and not loose.size:
         return None
@@ -156,7 +156,7 @@ def seam_weld(poses: list[np.ndarray], topology, tolerance: float | None = None,
 
 def _stacked_corners(a: np.ndarray, b: np.ndarray, topology) -> np.ndarray:
     """The vertices (int (q,)) of the triangles of ``topology`` that welding the seam pairs ``a``,
-    ``b`` (:func:`_seam_pairs`) would lay onto another triangle: a triangle with all three corners
+    ``b`` (:func:`seam_pairs`) would lay onto another triangle: a triangle with all three corners
     on seams, at a corner where two sewn sides of two panels meet (front and back panels sewn
     along three sides, as Blender's sewing springs pull them together), has the same three welded
     vertices as its twin on the other panel, and the welded mesh would not be a manifold. Empty
@@ -171,7 +171,7 @@ def _stacked_corners(a: np.ndarray, b: np.ndarray, topology) -> np.ndarray:
     return np.unique(triangles[np.r_[stacked, twin[stacked]]])
 
 
-def _seam_pairs(poses: list[np.ndarray], topology, tolerance: float,
+def seam_pairs(poses: list[np.ndarray], topology, tolerance: float,
                 apart: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Pairs of vertices (``a``, ``b``, int (p,) each) that :func:`seam_weld` joins along seams:
     the matching ends of two boundary edges whose ends are within ``tolerance`` of each other in

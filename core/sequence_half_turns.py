@@ -11,15 +11,15 @@ import numpy as np
 
 from .deformation_fields import rotation_vectors
 from .rotation_continuity import either_way, residuals_turning_whole_way, the_other_way
-from .inbetween_keys import _Relative
+from .inbetween_keys import Relative
 from .inbetween_rigid_fits import NEAR_HALF_TURN, rigid_fits, component_screws, turn_spread
-from .inbetween_solver import _Gap
+from .inbetween_solver import Gap
 from .rigid_alignment import rigid_alignment
 from .screw_motions import TURN_SPREAD
 from .sequence_turn_readings import TURNED_PART_SHARE
 
 
-def untold_half_turns(segment: _Gap, nxt: _Relative) -> np.ndarray:
+def untold_half_turns(segment: Gap, nxt: Relative) -> np.ndarray:
     """Per component (bool (C,)), whether its half turn in gap ``segment`` (key ``base + 1``
     seen from the base: ``nxt``) goes a way the keys do not tell: a jointed piece moves
     relative to its parent (:mod:`core.inbetween_joints`), whose relative motion the gap takes
@@ -39,13 +39,13 @@ def untold_half_turns(segment: _Gap, nxt: _Relative) -> np.ndarray:
     return untold
 
 
-def turning_as_one(segment: _Gap, nxt: _Relative) -> bool:
+def turning_as_one(segment: Gap, nxt: Relative) -> bool:
     """Whether every piece of the mesh moves by the whole mesh's rigid motion between the keys of
     gap ``segment`` (key ``base + 1`` seen from the base: ``nxt``, its pieces' rigid motions) to
     within :data:`~core.screw_motions.TURN_SPREAD`, the coarsest a turn is taken to be known
     (:func:`~core.inbetween_rigid_fits.whole_tells`): each piece's rotation within that angle of the
     whole mesh's, and the two motions placing its centroid within that share of the mesh's size
-    (sqrt(12 · trace of the covariance), as :meth:`~core.inbetween_topology._Topology.diagonals`)
+    (sqrt(12 · trace of the covariance), as :meth:`~core.inbetween_topology.Topology.diagonals`)
     of each other. Where the keys leave some piece's half turn untold (:func:`untold_half_turns`)
     and this holds, the whole mesh turns that half turn and the gap says so of the mesh: the count
     of untold pieces leaves out those jointed to them (told by their parents), 6 or 42 of a rigged
@@ -71,7 +71,7 @@ class HalfTurns:
 
     Reads the interpolator's ``_durations``, ``_edge_pairs``, ``_raw``, ``_topo``, ``smooth`` and calls its ``_key``."""
 
-    def _turning_on(self, base: int, relative: _Relative) -> _Relative:
+    def _turning_on(self, base: int, relative: Relative) -> Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with its pieces' near half turns
         taken the way the steps around tell (:meth:`_pieces_turning_on`) and, in a sequence (two
         poses take the residuals continuous across the mesh instead), the residuals of each part
@@ -85,7 +85,7 @@ class HalfTurns:
                                                           self._key(base).areas, TURNED_PART_SHARE)
         return relative
 
-    def _pieces_turning_on(self, base: int, relative: _Relative) -> _Relative:
+    def _pieces_turning_on(self, base: int, relative: Relative) -> Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past
         :data:`~core.inbetween_rigid_fits.NEAR_HALF_TURN` between the keys taken the other way round where
         that is nearer the turns of the steps before and after (per unit of time) by more than it

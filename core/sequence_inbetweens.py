@@ -49,8 +49,8 @@ import numpy as np
 from .allocator import keep_heap
 from .concurrency import in_background, result, single_threaded_blas
 from .inbetween_prediction import gap_poses
-from .inbetween_keys import _Relative
-from .inbetween_solver import _Gap
+from .inbetween_keys import Relative
+from .inbetween_solver import Gap
 from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time, numerical_failures)
@@ -61,7 +61,7 @@ from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
-from .sequence_warnings import _warn, gap_problems
+from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
 
@@ -140,7 +140,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.LOG_METRIC_FIT`).
     _log_metric = False
 
-    def _gap(self, gap: int) -> _Gap:
+    def _gap(self, gap: int) -> Gap:
         pending = self._pending.pop(gap, None)
         if pending is not None:
             result(pending, self._prepare, gap)  # prepared in the background (or here if not begun): cached now
@@ -163,7 +163,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         if future is not None:
             self._pending[gap] = future
 
-    def _prepare(self, gap: int) -> _Gap:
+    def _prepare(self, gap: int) -> Gap:
         """Build gap ``gap``'s data and cache it (the least recently used gap is let go first, so
         that no more than GAP_CACHE gaps are held while it is built)."""
         with self._cache_lock:
@@ -213,18 +213,18 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             self._gaps[gap] = segment
         return segment
 
-    def _segment(self, gap: int, ahead: list[_Relative], others: list[int], whole: np.ndarray,
-                 turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None) -> _Gap:
+    def _segment(self, gap: int, ahead: list[Relative], others: list[int], whole: np.ndarray,
+                 turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None) -> Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
-        ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), those of the next key taken
+        ``whole`` (bool (C,); :meth:`Relative.whole_rotations`), those of the next key taken
         continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
-        them turns far from the rest, :meth:`_Relative.turning`; ``root``: their
+        them turns far from the rest, :meth:`Relative.turning`; ``root``: their
         triangles that the rest turns from, bool (m,), or None; ``free``: the triangles whose
         turns are read from the part nearest their piece's rigid turn, :meth:`_reading`)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
-        ident = _Relative.identity(topo, base)
+        ident = Relative.identity(topo, base)
         cubic = self.smooth and last >= 2
         if whole.any():
             pairs = self._edge_pairs
@@ -246,13 +246,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
             # (or at rest: end="rest", which sets the last gap's end tangents to zero)
             prev = self._previous(gap, -back_time * turn, whole).continue_turns(-back_time * nxt.rotvec) \
-                if gap >= 1 else _Relative.phantom(nxt, ident, after)
+                if gap >= 1 else Relative.phantom(nxt, ident, after)
             if back_time != 1.0:
                 prev = prev.rescaled(ident, 1.0 / back_time)
-            after = after if after is not None else _Relative.phantom(ident, nxt)
+            after = after if after is not None else Relative.phantom(ident, nxt)
         else:
             prev = after = ident
-        return _Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
+        return Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                     self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance * self._unit,
                     start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
@@ -261,7 +261,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit,
                     sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit))
 
-    def _gap_warnings(self, gap: int, segment: _Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
+    def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
         """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every
         in-between of it: how its pieces turn, their joints, and the triangles thin against the
         keys' rounding (:func:`core.rounded_slivers.rounded_slivers`). Made once per gap: they
@@ -288,7 +288,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         out, problems = self._poses(gap_index, factors)
         gap = (self.key_names[int(gap_index)], self.key_names[int(gap_index) + 1]) if problems else None  # checked
         for kind, message, defects, about in problems:
-            _warn(message, kind, defects, gap, about)
+            warn_said(message, kind, defects, gap, about)
         return out
 
     # BLAS single-threaded: its calls here are (n, 3) × (3, 3) products, which a second BLAS thread

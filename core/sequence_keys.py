@@ -4,9 +4,9 @@
 :class:`SequenceKeys` (a mixin of the interpolator): ``_setup`` takes the checked keys (K arrays
 ``(n, 3)``) and the topology of the triangles ``(m, 3)``: pieces sewn along seams are welded
 (:mod:`core.seam_welds`), still and riding vertices found (:mod:`core.pins`), the keys moved about the
-middle of the first; ``_key`` keeps the per-key data (:class:`core.inbetween_keys._Key`) of the
+middle of the first; ``_key`` keeps the per-key data (:class:`core.inbetween_keys.Key`) of the
 last :data:`KEY_CACHE` keys; ``_relative`` / ``_relatives`` / ``_previous`` give one key seen from
-another (:class:`core.inbetween_keys._Relative`), with the truncated recovery's metric
+another (:class:`core.inbetween_keys.Relative`), with the truncated recovery's metric
 (§7.1–7.2) where ``k_M`` is set."""
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ import numpy as np
 from .errors import MeshError, RecoveryError
 from .concurrency import concurrently
 from .inbetween_threads import CONCURRENT_VERTICES
-from .inbetween_keys import _Key, _log_stretch_from_lengths, _Relative
+from .inbetween_keys import Key, Relative, log_stretch_from_lengths
 from .inbetween_rigid_fits import rigid_fits
-from .inbetween_solver import _Gap
-from .inbetween_topology import _Topology
+from .inbetween_solver import Gap
+from .inbetween_topology import Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
 from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
@@ -33,7 +33,7 @@ from .seam_welds import coincidence_tolerance, seam_weld
 from .near_duplicates import near_duplicates
 from .near_seams import near_seams
 from .sequence_mirrors import warn_mirrored
-from .sequence_warnings import _warn
+from .sequence_warnings import warn_said
 from .working_unit import working_unit
 
 #: Gaps whose prepared data (splines, relatives) SequenceInterpolator keeps: a gap's previous-key
@@ -98,7 +98,7 @@ class SequenceKeys:
             check_manifold_vertices(topology)  # bow-tie vertices the seams do not join: refused in the caller's indices
         if apart is not None:
             weld = seam_weld(keys, topology, tolerance, seams=False)  # the loose copies alone
-            _warn(f"some pieces touch along seams but cannot be joined there ({apart}): they are "
+            warn_said(f"some pieces touch along seams but cannot be joined there ({apart}): they are "
                   "interpolated apart and the seams may open in the in-betweens; where they should stay closed, "
                   "make the pieces' windings agree (Mesh > Normals > Recalculate Outside) and weld them "
                   "(Mesh > Clean Up > Merge by Distance)", "seam")
@@ -137,11 +137,11 @@ class SequenceKeys:
         if self._unit != 1.0:  # in place where the keys are copies of this object's own already (moved above)
             keys = [np.multiply(k, self._unit, out=k) if self._origin is not None else k * self._unit for k in keys]
         self._raw = keys
-        self._topo = _Topology(topology, keys[0])
+        self._topo = Topology(topology, keys[0])
         warn_mirrored(self._topo, self._raw, self.key_names, kept)
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
-        # continuous across them (_Relative); a sequence reads there which parts turn past a half
-        # turn per gap (_Relative.turning) and takes those parts' turns continuous across them
+        # continuous across them (Relative); a sequence reads there which parts turn past a half
+        # turn per gap (Relative.turning) and takes those parts' turns continuous across them
         self._edge_pairs = topology.edge_triangles[topology.interior_edges]
         self._across = self._edge_pairs if two_poses else None
         self._topo.pinned = np.flatnonzero(still) if still.any() else None
@@ -169,9 +169,9 @@ class SequenceKeys:
         self._static = still if still.any() else None
         # the components' centroids in every key (K, C, 3): how steadily each piece moves
         self._centroids = np.array([self._topo.centroids(k) for k in keys])
-        self._keys: OrderedDict[int, _Key] = OrderedDict()
+        self._keys: OrderedDict[int, Key] = OrderedDict()
         self._fitted: OrderedDict[tuple, tuple] = OrderedDict()  # (base, other) → rigid fits (see _fits)
-        self._gaps: OrderedDict[int, _Gap] = OrderedDict()
+        self._gaps: OrderedDict[int, Gap] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
         # which way round each gap reads its parts' turns (_reading: the last few), which pieces turn
         # far per gap, whether the readings of two gaps add up (per first gap) and are unsure (per gap)
@@ -213,13 +213,13 @@ class SequenceKeys:
     def triangles(self) -> np.ndarray:
         return self._triangles
 
-    def _key(self, index: int) -> _Key:
+    def _key(self, index: int) -> Key:
         with self._cache_lock:
             key = self._keys.get(index)
             if key is not None:
                 self._keys.move_to_end(index)
                 return key
-        key = _Key(self._topo, self._raw[index])
+        key = Key(self._topo, self._raw[index])
         with self._cache_lock:
             self._keys[index] = key
             while len(self._keys) > KEY_CACHE:
@@ -259,7 +259,7 @@ class SequenceKeys:
     def _warn_truncated(self, base: int, other: int, why: str) -> None:
         """Warn that the stretch from key ``base`` toward key ``other`` is the keys' own, not the
         one the truncated basis recovers (``why``: what failed)."""
-        _warn(f"between {self.key_names[base]} and {self.key_names[other]}, the edge lengths could not be "
+        warn_said(f"between {self.key_names[base]} and {self.key_names[other]}, the edge lengths could not be "
               f"recovered from the first {self.k_M} basis functions (k_M = {self.k_M}, k_N = {self.k_N}): the "
               "in-betweens there follow the keys' exact edge lengths instead, as with the full basis, and may look "
               "sharper than the other gaps; a larger k_M, or 0 for the full basis everywhere, keeps the gaps alike "
@@ -280,15 +280,15 @@ class SequenceKeys:
             return None
         # corner edge c (corner c → c+1) is opposite corner c+2
         corner_squared = squared[reference.topology.triangle_edges[:, [2, 0, 1]]]
-        return _log_stretch_from_lengths(self._key(base), corner_squared)
+        return log_stretch_from_lengths(self._key(base), corner_squared)
 
-    def _relative(self, base: int, other: int, turn: np.ndarray | None = None) -> _Relative:
+    def _relative(self, base: int, other: int, turn: np.ndarray | None = None) -> Relative:
         log_stretch = self._truncated_log_stretch(base, other) if self.k_M is not None else None
-        relative = _Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across,
+        relative = Relative(self._topo, self._key(base), self._key(other), log_stretch, turn, self._across,
                              self._fits(base, other))
         return self._turning_on(base, relative) if turn is None and other == base + 1 else relative
 
-    def _relatives(self, base: int, others: list[int]) -> list[_Relative]:
+    def _relatives(self, base: int, others: list[int]) -> list[Relative]:
         """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
         built first: the key cache is not shared with the threads) unless a truncated recovery,
         which prepares one base shape for them all, makes the metric."""
@@ -296,16 +296,16 @@ class SequenceKeys:
             return [self._relative(base, k) for k in others]
         topo, key = self._topo, self._key(base)
         keys = [self._key(k) for k in others]
-        relatives = concurrently(lambda pair: _Relative(topo, key, pair[1], across=self._across,
+        relatives = concurrently(lambda pair: Relative(topo, key, pair[1], across=self._across,
                                                         fits=self._fits(base, pair[0])),
                                  zip(others, keys), worth_it=topo.n >= CONCURRENT_VERTICES)
         return [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
 
-    def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> _Relative:
+    def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
         next key (the same whichever gaps were computed before), or, with a truncated basis (its
         metric is recovered per base key), from the poses; with the triangles' whole rotations in
-        the components ``whole`` (bool (C,); :meth:`_Relative.whole_rotations`), from the poses."""
+        the components ``whole`` (bool (C,); :meth:`Relative.whole_rotations`), from the poses."""
         if self.k_M is not None or whole.any():
             previous = self._relative(gap, gap - 1, turns)
             return previous.whole_rotations(self._topo, self._key(gap), self._key(gap - 1), whole) \

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT
-from .inbetween_topology import _Topology
+from .inbetween_topology import Topology
 from .rigid_alignment import reflected_fits
-from .sequence_warnings import _warn
+from .sequence_warnings import warn_said
 
 #: A piece is said to be mirrored between two keys where the best reflection (improper orthogonal
 #: map) takes it onto the next key within this fraction of its diagonal (RMS; as a rigid motion
@@ -23,7 +23,7 @@ MIRROR_MISS = SIMILAR_SHAPE_MISFIT[1]
 MIRROR_SAMPLES = 256
 
 
-def warn_mirrored(topo: _Topology, keys: list[np.ndarray], key_names: list[str],
+def warn_mirrored(topo: Topology, keys: list[np.ndarray], key_names: list[str],
                   kept: np.ndarray | None) -> None:
     """Warn where a piece is its own mirror image from one key to the next: a reflection (a
     negative scale, a mirrored copy) fits it within :data:`MIRROR_FIT` of its diagonal and no
@@ -58,7 +58,7 @@ def warn_mirrored(topo: _Topology, keys: list[np.ndarray], key_names: list[str],
         if mirrored.size:
             first = int(topo.component_vertices[topo.component_labels == mirrored[0]][0])
             first = first if kept is None else int(kept[first])
-            _warn(f"{mirrored.size} piece(s) of the mesh (e.g. the one with vertex {first}) are the mirror "
+            warn_said(f"{mirrored.size} piece(s) of the mesh (e.g. the one with vertex {first}) are the mirror "
                   f"image of themselves from {key_names[i]} to {key_names[i + 1]} (a reflection, as a "
                   "negative scale gives), which no motion makes: the in-betweens deform them through a "
                   "flattened shape. Check that key (apply the scale, or mirror the mesh back)", "mirror",

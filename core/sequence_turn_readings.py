@@ -11,9 +11,9 @@ from scipy.spatial.transform import Rotation
 
 from .rotation_continuity import WRAP_CREASE, jumping_pairs
 from .rotation_continuity import unwrapped_rotation_vectors
-from .inbetween_keys import _Relative
-from .inbetween_solver import _Gap
-from .inbetween_topology import _Topology
+from .inbetween_keys import Relative
+from .inbetween_solver import Gap
+from .inbetween_topology import Topology
 from .sequence_keys import GAP_CACHE
 
 #: A sequence's gap where a part of a piece over this share of its area turns past a half turn
@@ -39,7 +39,7 @@ from .sequence_keys import GAP_CACHE
 TURNED_PART_SHARE = 0.1
 
 
-def composed_apart(topo: _Topology, areas: np.ndarray, turning: np.ndarray, root: np.ndarray,
+def composed_apart(topo: Topology, areas: np.ndarray, turning: np.ndarray, root: np.ndarray,
                    continued: np.ndarray) -> np.ndarray:
     """Per component (C,), the share of its area whose whole rotation (``continued``, (m, 3),
     :meth:`TurnReadings._reading`) interpolated as one turn, as the in-betweens take it, is half-way through
@@ -65,7 +65,7 @@ def composed_apart(topo: _Topology, areas: np.ndarray, turning: np.ndarray, root
     return np.bincount(pieces[apart], areas[apart], minlength=count) / total
 
 
-def turn_warnings(segment: _Gap, key_names: list[str], gap: int) -> list[str]:
+def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
     """The warnings' messages (list of str) of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
     ``spun_part``, ``untold_half_turns``, ``whole_half_turn``); ``key_names``: the keys as warnings name them."""
@@ -113,8 +113,8 @@ class TurnReadings:
     Reads the interpolator's ``_agreements``, ``_cache_lock``, ``_edge_pairs``, ``_raw``,
     ``_readings``, ``_topo``, ``_turnings``, ``_unsures`` and calls its ``_fits``, ``_key``, ``_turning_on``."""
 
-    def _reading(self, gap: int, final: bool = False, relative: _Relative | None = None) -> tuple:
-        """Which way round gap ``gap`` reads its parts' turns: :meth:`_Relative.turning`'s answers
+    def _reading(self, gap: int, final: bool = False, relative: Relative | None = None) -> tuple:
+        """Which way round gap ``gap`` reads its parts' turns: :meth:`Relative.turning`'s answers
         (per component whether a part of it turns far from the rest, the triangles that the rest
         turns from, whether a turn is at a crease, the whole rotations (m, 3) from key ``gap`` to
         the next taken continuous across the mesh, and whether which end stays is contested).
@@ -136,7 +136,7 @@ class TurnReadings:
         topo, base, nxt = self._topo, self._key(gap), self._key(gap + 1)
         # the gap's own relative: its rigid turn unwrapped as the gap takes it (_turning_on)
         made = relative is None  # asked for by a neighbouring gap
-        relative = self._turning_on(gap, _Relative(topo, base, nxt, fits=self._fits(gap, gap + 1))) if made \
+        relative = self._turning_on(gap, Relative(topo, base, nxt, fits=self._fits(gap, gap + 1))) if made \
             else relative
         known = relative.turning(topo, base, nxt, self._edge_pairs, TURNED_PART_SHARE, free)
         with self._cache_lock:
@@ -151,7 +151,7 @@ class TurnReadings:
     def _held_alone(self, gap: int, held_only: np.ndarray) -> np.ndarray:
         """Per component (bool (C,)), whether the triangle its reading of gap ``gap`` holds still
         (``held_only``: per piece, the one whose hold alone keeps it from being contested, or -1;
-        :meth:`_Relative.turning`) turns more than the mesh resolves in a neighbouring gap's
+        :meth:`Relative.turning`) turns more than the mesh resolves in a neighbouring gap's
         reading. A part held in one gap alone tells no end that stays: every continuous turn
         crosses a whole turn somewhere, and a triangle there reads as held (a tail wagged 1, −1.2,
         1.2, −1.3: the tip winds 362° and 378° in the middle gaps and a ring near it reads 0.7°,
@@ -201,7 +201,7 @@ class TurnReadings:
         """Per component (bool (C,)), whether the keys either side of key ``gap`` or of key
         ``gap + 1`` are a short turn apart across it (:meth:`_readings_disagree`): the piece goes
         back about the way it came. There a turning piece whose part that stays is contested
-        (:meth:`_Relative.turning`) warns: both its ends turn, and its rigid turn reads it the
+        (:meth:`Relative.turning`) warns: both its ends turn, and its rigid turn reads it the
         other way round (a tail wagged 1, −1.3, 1: 87–130 % of the diagonal off). A piece that
         keeps curling with its part that stays turning a little about another axis (an arm curled
         150° per key at two joints while turning 10° per key about a third axis) is right to 3.3 %
@@ -215,7 +215,7 @@ class TurnReadings:
 
     def _unsure(self, gap: int, final: bool = False) -> np.ndarray:
         """Per component (bool (C,)), among those of gap ``gap`` where a part turns past a half
-        turn from the rest (:meth:`_Relative.turning`), whether the way round it is read
+        turn from the rest (:meth:`Relative.turning`), whether the way round it is read
         (:meth:`_reading`, ``final`` as there) may be wrong. Where the keys either side of a key
         are a short turn apart the readings of the gaps around that key must add up to that turn
         (:meth:`_readings_disagree`); walked from this gap through the neighbouring gaps so linked

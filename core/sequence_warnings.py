@@ -39,7 +39,7 @@ def said_warning(message: str, kind: str, defects: int = 0, gap: tuple[str, str]
     return warning
 
 
-def _warn(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
+def warn_said(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
     """Warn with :func:`said_warning` (same arguments), at the caller's line outside the core
     (:func:`core.errors.warn`)."""
     warn(said_warning(message, kind, defects, gap, factors))

@@ -270,7 +270,7 @@ def _added_joins(known: SewnGroups, groups: SewnGroups) -> sp.csr_matrix | None:
 
 
 def sewn_factor(topo, weights, key, groups: SewnGroups | None):
-    """The factor of ``DᵀD + diag(w · mass)`` of ``topo`` (a :class:`core.inbetween_topology._Topology`)
+    """The factor of ``DᵀD + diag(w · mass)`` of ``topo`` (a :class:`core.inbetween_topology.Topology`)
     for ``weights`` (see its ``factor``): its own where ``groups`` is None, else a :class:`SewnFactor`
     with those groups, kept with the topology's factors per ``key`` and groups (a gap whose keys sew
     the same vertices as the gap before reuses it), or an :class:`AddedJoins` on one made for fewer
@@ -307,7 +307,7 @@ OFFSET_CACHE = 8
 
 
 def sewn_offsets(gap, s: float) -> np.ndarray:
-    """The offsets (n, 3) of the sewn vertices of ``gap`` (a :class:`core.inbetween_solver._Gap`
+    """The offsets (n, 3) of the sewn vertices of ``gap`` (a :class:`core.inbetween_solver.Gap`
     with ``sewn`` groups) from their group's first vertex at factor ``s`` (zero elsewhere), the
     keys' own at s = 0 and 1: where both keys have the same offset in the world (within their
     rounding: a seam left 1e-4 open, stacked layers moving together), that one; elsewhere blended
@@ -348,7 +348,7 @@ def sewn_offsets(gap, s: float) -> np.ndarray:
 
 
 def sewn_together(gap, x: np.ndarray, s: float) -> np.ndarray:
-    """Positions ``x`` (n, 3) of an in-between of ``gap`` (a :class:`core.inbetween_solver._Gap`)
+    """Positions ``x`` (n, 3) of an in-between of ``gap`` (a :class:`core.inbetween_solver.Gap`)
     at factor ``s`` with its sewn groups together (:func:`sewn_offsets`): ``x`` itself where they
     are (a solved pose), else the nearest such positions in the energy of the gap's normal matrix
     ``A`` (``P (Pᵀ A P)⁻¹ Pᵀ A (x − t) + t``: one solve with its sewn factor), so that the move that

@@ -106,7 +106,7 @@ class HermiteGap:
                 start_bound = np.maximum(bound, np.einsum("...i,...i->...", step, step) if rows else np.abs(step))
                 if starts_here:  # ... but a first gap cut from a motion starts at most TANGENT_LIMIT × its own secant
                     start_bound = np.minimum(start_bound, (TANGENT_LIMIT ** 2 if rows else TANGENT_LIMIT) * bound)
-            self.t0 = _limited(t0, limit, start_bound, rows)
+            self.t0 = limited_tangent(t0, limit, start_bound, rows)
             self.t1 = after - start
             self.t1 *= 0.5
             if parabolic_end is not None:
@@ -116,9 +116,9 @@ class HermiteGap:
             if rest_end:
                 self.t1 = np.zeros_like(self.t1)
             if limit == REST_START_LIMIT or (starts_here and rows):  # see END_TANGENT_LIMIT
-                self.t1 = _limited(self.t1, END_TANGENT_LIMIT, bound, rows)
+                self.t1 = limited_tangent(self.t1, END_TANGENT_LIMIT, bound, rows)
             if parabolic_start is not None:
-                self.t0 = np.where(parabolic_start, _limited(2.0 * self.secant - self.t1, limit, start_bound, rows),
+                self.t0 = np.where(parabolic_start, limited_tangent(2.0 * self.secant - self.t1, limit, start_bound, rows),
                                    self.t0)
 
     def at(self, s: float, rows=None) -> np.ndarray:
@@ -135,7 +135,7 @@ class HermiteGap:
         return out
 
 
-def _limited(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:
+def limited_tangent(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:
     """``tangent`` limited in place to ``limit`` × ``bound``: each row's length against the squared
     lengths ``bound`` (``rows``), or each element against the magnitudes ``bound``."""
     if rows:

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .concurrency import per_layer_threads
 from .delaunay_flips import MAX_DIHEDRAL_DEGREES, delaunay_flips
 from .embedding import FRAMES_NEARLY_EXACT
 from .errors import MeshError, warn
@@ -246,7 +247,7 @@ class Transfer:
             stray = matched & ~kept
             if stray.any():
                 warn_outlying_matches(base_used[stray], int(matched.sum()))
-                check_matched_fraction(kept, warn=not partial)  # the warning once
+                check_matched_fraction(kept, warns=not partial)  # the warning once
                 matched, partial = kept, True
         if correspondence is None:
             points = base  # the meshes overlap: project the base itself
@@ -277,7 +278,7 @@ class Transfer:
         if correspondence is not None:  # closest points keep the base's sides
             check_orientation(base, reference.topology, laid)
         self.size = target_size(base, laid, reference.topology.triangles)
-        push = push_forward_matrix(rest_used, laid, reference.topology.triangles)
+        push = push_forward_matrix(rest_used, laid, reference.topology.triangles, topology=reference.topology)
         self.layers = [TargetLayer("mesh", topology, push)]
         self.target_surface = None
         if reference.use_extrinsic:
@@ -293,7 +294,8 @@ class Transfer:
             offset_rest = self.target_surface.positions(rest_used * reference.unit, reference.offset)
             offset_pull_back = offset_surfaces_pull_back(reference.surface, self.target_surface, image_triangles,
                                                          weights, seeds, rest_used)
-            push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles)
+            push = push_forward_matrix(offset_rest, offset_pull_back @ offset_rest, reference.surface.topology.triangles,
+                                       topology=reference.surface.topology)
             self.layers.append(TargetLayer("offset surface", self.target_surface.topology, push))
         self.discretization_error = self._discretization_error() if correct_discretization else None
         # A k_M inside a group of equal eigenvalues of the base leaves the base functions the
@@ -361,7 +363,6 @@ class Transfer:
                     f"moves them {apart.max():.3g} apart; the pose is taken as if both were at vertex "
                     f"{int(self._welded[i])}.",
                     "target",
-                    stacklevel=3,
                 )
         check_nondegenerate(positions, self.layers[0].topology.triangles, name="target vertices")
         return positions if self.reference.unit == 1.0 else positions * self.reference.unit
@@ -369,8 +370,6 @@ class Transfer:
     def _layer_differences(self, positions):
         """``[(area, conformal)]`` of eq. (6) per layer (mesh, offset surface) for a target pose of
         used vertices ``(n_N_used, 3)``, uncorrected."""
-        from .reference_shape import per_layer_threads
-
         ref = self.reference
         calls = [lambda: self.layers[0].differences(ref.base, positions, self.k_M, self.k_N)]
         if ref.use_extrinsic:
@@ -391,8 +390,6 @@ class Transfer:
         offset layer's computes the offset surface's Gram factor (10 s) while it waits for the
         mesh's eigenbasis."""
         import threading
-
-        from .reference_shape import per_layer_threads
 
         ref = self.reference
         if not ref.use_extrinsic:
@@ -445,7 +442,6 @@ class Transfer:
                 "it: outlying matches, or a part of the target the base does not have (a fin). The differences are "
                 "not corrected for the change of meshing and are less accurate; check the map there.",
                 "correspondence",
-                stacklevel=3,
             )
             return None
         try:
@@ -455,7 +451,6 @@ class Transfer:
                 f"The target's connectivity could not be laid on the base surface through the map ({error}); "
                 "the differences are not corrected for the change of meshing and are less accurate.",
                 "correspondence",
-                stacklevel=3,
             )
             return None
         errors = []
@@ -542,8 +537,6 @@ class Transfer:
         def from_carried():
             # As carried, and projected on the base's k_M functions (what the lengths resolve):
             # both fitted (in two threads), the lower residual kept (the module constant).
-            from .reference_shape import per_layer_threads
-
             starts = [carried_points, thick(self._projected(carried))]
             starts = [s for s in starts if np.isfinite(s).all()]
             if not starts:
@@ -621,7 +614,7 @@ def transferred_keys(base_vertices, triangles, key_poses, target_triangles, *, c
     return [transfer.pose(key) for key in keys]
 
 
-def _sequence_class():
+def sequence_class():
     from .sequence_inbetweens import SequenceInterpolator
 
     class TransferSequenceInterpolator(SequenceInterpolator):

@@ -96,7 +96,6 @@ def degenerate_at_rest(rest, triangles) -> np.ndarray:
             f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
             "Dissolve removes them).",
             "target",
-            stacklevel=3,
         )
     return flat
 
@@ -130,7 +129,7 @@ def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
             "from the target at rest: the meshes overlap only in part, and there closest points match the "
             "base to the target's edge, which distorts the transfer. Place the target's rest pose where the "
             "base is, or give a correspondence (in Blender: Map › Attribute or File)",
-            "correspondence", stacklevel=3)
+            "correspondence")
         return True
     if parts is None:
         return False
@@ -148,7 +147,7 @@ def check_overlap(base, nearest, target, target_edges, parts=None) -> bool:
         "closest points squash it onto the target's nearest surface, which distorts the transfer. Give the "
         "target that part, leave it out of the base (in Blender: Mesh › Separate), or give a correspondence "
         "(in Blender: Map › Attribute or File)",
-        "correspondence", stacklevel=3)
+        "correspondence")
     return True
 
 
@@ -208,7 +207,7 @@ def check_covered(base, base_topology, target, target_topology, image_triangles,
             "each other there (one slid or turned against the other, or shaped otherwise), and closest points match "
             "the base to other points of the target than its own, which distorts the transfer. Place the target's "
             "rest pose exactly where the base is, or give a correspondence (in Blender: Map › Attribute or File)",
-            "correspondence", stacklevel=3)
+            "correspondence")
     share = float(vertex_area[uncovered].sum() / vertex_area.sum())
     if share < UNCOVERED_SHARE:
         return
@@ -219,7 +218,7 @@ def check_covered(base, base_topology, target, target_topology, image_triangles,
         f"the target at rest (or past its edge) where the base goes on: {how} it on the hole's rim, "
         "which stretches and squashes the transfer and the pulled-back metric there. Fill the target's holes "
         f"(in Blender: Mesh › Clean Up › Fill Holes){advice}",
-        "correspondence", stacklevel=3)
+        "correspondence")
 
 
 def check_spread(images, target) -> None:
@@ -256,14 +255,13 @@ def check_target_resolution(k_M: int, n_target: int) -> None:
         f"k_M = 100 against 1.2 % at k_M = 20). Lower k_M to {resolved_functions(n_target)} "
         "or less, or transfer from a finer target.",
         "target",
-        stacklevel=3,
     )
 
 
-def check_matched_fraction(matched, *, warn: bool = True):
+def check_matched_fraction(matched, *, warns: bool = True):
     """A partial map must match at least :data:`MIN_MATCHED_FRACTION` of the base vertices
     (``matched`` bool (n,); :class:`MeshError`); below :data:`WARN_MATCHED_FRACTION` it warns
-    (when ``warn``)."""
+    (when ``warns``)."""
     fraction = float(matched.mean())
     if fraction < MIN_MATCHED_FRACTION:
         raise MeshError(
@@ -272,13 +270,12 @@ def check_matched_fraction(matched, *, warn: bool = True):
             "are needed: the unmatched ones take their images from matched neighbours, which must be "
             "close enough to describe the map at the scale of the k_M basis. Use a denser map."
         )
-    if warn and fraction < WARN_MATCHED_FRACTION:
+    if warns and fraction < WARN_MATCHED_FRACTION:
         warn(
             f"The correspondence matches only {100 * fraction:.0f} % of the base vertices; the others "
             f"take their images from matched neighbours, which below {100 * WARN_MATCHED_FRACTION:.0f} % "
             "typically costs about a point of accuracy (Hausdorff / diagonal).",
             "correspondence",
-            stacklevel=4,
         )
 
 
@@ -295,7 +292,6 @@ def warn_outlying_matches(outlying, n_matched: int) -> None:
         "are left out, and those base vertices are placed on the target from their neighbours' matches, as "
         "unmatched ones are. Check the map near them.",
         "correspondence",
-        stacklevel=3,
     )
 
 
@@ -310,7 +306,6 @@ def warn_non_manifold(topology):
             f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
             "matrix; its offset surface (extrinsic differences) is cut open along them.",
             "target",
-            stacklevel=3,
         )
 
 
@@ -373,5 +368,4 @@ def check_orientation(base, base_topology, carried) -> None:
             "as a left/right flip of a symmetric shape does, so every transferred pose is the target's "
             "surface inside out with its sides exchanged. Check the map (its left and right).",
             "correspondence",
-            stacklevel=3,
         )

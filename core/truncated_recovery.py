@@ -268,7 +268,6 @@ class TruncatedRecovery:
                 f"which recovers them exactly (the area program stopped after {info} conjugate-gradient "
                 "iterations; its last iterate is used).",
                 "fit",
-                stacklevel=3,
             )
         if mu.min() < 0.0:
             mu = self._bounded_areas(normal.matvec, rhs, eps, mu)
@@ -283,7 +282,6 @@ class TruncatedRecovery:
                 f"deformation; a larger k_M helps (recovered areas below {AREA_FLOOR:g} × the reference raised "
                 "to it).",
                 "truncated",
-                stacklevel=3,
             )
             mu = np.maximum(mu, lowest)
         return AreaSolution(mu, eps, method)
@@ -319,7 +317,6 @@ class TruncatedRecovery:
                 f"basis (k_M = 0), which recovers them exactly (the bounded area program stopped before "
                 f"convergence: {result.message}; its last iterate is used).",
                 "fit",
-                stacklevel=4,
             )
         return np.maximum(result.x / scale, 0.0)
 
@@ -425,6 +422,5 @@ class TruncatedRecovery:
                 "(every triangle stays sound): a larger k_M, or the full basis (k_M = 0), helps (the edge-length "
                 f"program stopped after {iterations} iterations before reaching its tolerance).",
                 "fit",
-                stacklevel=3,
             )
         return LengthSolution(x, eps, program.rank, iterations, converged, state)

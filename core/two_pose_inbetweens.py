@@ -32,7 +32,7 @@ from .validation import check_factor, check_interpolation, check_key_names, nume
 from .sequence_inbetweens import SequenceInterpolator
 from .rotation_continuity import jumping_pairs
 from .sequence_turn_readings import TURNED_PART_SHARE
-from .sequence_warnings import _warn
+from .sequence_warnings import warn_said
 from .spun_parts import turned_back
 
 __all__ = ["interpolate", "Interpolator"]
@@ -216,7 +216,7 @@ class Interpolator:
         said = said + self._spun_back(x, factor)
         names = first.key_names
         for kind, message, defects, about in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
-            _warn(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
+            warn_said(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
                   kind, defects, (names[0], names[1]), about)
         return x
@@ -329,7 +329,7 @@ class Interpolator:
                 continue
             longer = growth[rows].max() >= shrinking[rows].max()
             ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
-            _warn(f"between {names[0]} and {names[1]}, at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle "
+            warn_said(f"between {names[0]} and {names[1]}, at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle "
                   f"{int(rows[0])}) have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
                   f"{cause}", "extrapolation", gap=(names[0], names[1]), factors=(factor,))
 

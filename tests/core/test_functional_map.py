@@ -67,6 +67,20 @@ def test_push_forward_keeps_a_preimage_on_an_inner_edge_of_a_curved_image():
     assert np.allclose(row @ ridge, corner[0], atol=1e-12)
 
 
+def test_push_forward_reads_the_boundary_of_a_given_topology_as_of_its_own():
+    """Given the base's topology (as the Transfer has it), the push-forward is the one it builds
+    from the triangles, bit for bit, where target points lie past the base's boundary (extrapolated
+    there) and inside; and it is a map of linear functions, exact past the boundary too."""
+    base, base_tris = grid(9, jitter=0.3)
+    target, _ = grid(13, jitter=0.3, seed=5, alternate=False)
+    target = 1.02 * target - 0.01  # a rim of target vertices just past the base's boundary
+    own = push_forward_matrix(target, base, base_tris)
+    given = push_forward_matrix(target, base, base_tris, topology=mesh_topology(base_tris, len(base)))
+    assert (own != given).nnz == 0 and (own.toarray() < 0.0).any()  # some rows extrapolated
+    linear = base @ np.array([0.3, -1.2, 0.0]) + 0.7
+    assert np.allclose(given @ linear, target @ np.array([0.3, -1.2, 0.0]) + 0.7, atol=1e-12)
+
+
 def test_locally_affine_images_keep_affine_maps_and_reduce_snapping():
     v, t = grid(15, jitter=0.3)
     edges = mesh_topology(t, len(v)).edges

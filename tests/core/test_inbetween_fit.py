@@ -21,18 +21,18 @@ def test_fit_tolerance_leaves_out_the_edges_a_fold_collapses():
 
 
 def test_the_fits_incidence_is_the_corner_edges_difference_operator_in_canonical_form():
-    """``_Topology.Dc`` (made in CSR form directly) is the matrix the sparse conversion from
+    """``Topology.Dc`` (made in CSR form directly) is the matrix the sparse conversion from
     coordinates gives, to its index arrays and types (the factorizations depend on its layout),
     and takes positions to the corner edges ``p[next corner] − p[corner]``, corner-major."""
     import scipy.sparse as sp
 
-    from core.inbetween_topology import _Topology
+    from core.inbetween_topology import Topology
     from core.mesh_topology import mesh_topology
     from meshes import grid, icosphere
 
     for vertices, triangles in (grid(6, 5, jitter=0.2), icosphere(2)):
         vertices = np.asarray(vertices, dtype=np.float64)
-        topo = _Topology(mesh_topology(triangles, len(vertices)), vertices)
+        topo = Topology(mesh_topology(triangles, len(vertices)), vertices)
         m, rows = len(triangles), np.arange(3 * len(triangles))
         expected = sp.csr_matrix((np.r_[-np.ones(3 * m), np.ones(3 * m)],
                                   (np.r_[rows, rows], np.r_[triangles.T.ravel(), triangles[:, [1, 2, 0]].T.ravel()])),

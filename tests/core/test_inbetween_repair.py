@@ -43,8 +43,8 @@ def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(m
     def problem(self, x, *args):
         return None if clean(x) else "3 triangle(s) flipped"
 
-    near_blend, real_fit = [], solver._Gap.fit  # fits started from the blend: the fallback's
-    monkeypatch.setattr(solver._Gap, "fit", lambda self, x, *args, **kwargs: near_blend.append(clean(x)) or
+    near_blend, real_fit = [], solver.Gap.fit  # fits started from the blend: the fallback's
+    monkeypatch.setattr(solver.Gap, "fit", lambda self, x, *args, **kwargs: near_blend.append(clean(x)) or
                         real_fit(self, x, *args, **kwargs))
     monkeypatch.setattr(repair.Repair, "problem", problem)
     monkeypatch.setattr(repair.Repair, "defects", defects)
@@ -103,7 +103,7 @@ def test_sequence_repairs_do_not_jump(monkeypatch, strip, shift, kept):
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if moved(x) else "1 triangle(s) flipped")
     # the checks are the test's own: the lift stands for a repair, its border stretched, not turned over
     monkeypatch.setattr(repair.Repair, "against_the_field", lambda self, x, frames: (None, (0, 0)))
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ShapeDifferenceWarning)
         x = SequenceInterpolator([a, b, c], tri).pose(0, 0.5)
@@ -153,7 +153,7 @@ def test_sequence_partial_repairs_do_not_jump(monkeypatch, strip, lift, kept):
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, s, frames, stretch, defects=None: "flipped")
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     assert moved(run()) == kept
     monkeypatch.setattr(inbetween_repair_rounds, "MAX_PARTIAL_REPAIR_MOVE", np.inf)  # the limit is what refused it
     assert moved(run())
@@ -184,7 +184,7 @@ def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, s
     a, b, c = _bend(flat, 0.0), _bend(flat, 1.0), _bend(flat, 1.5)
     middle = flat[tri].mean(axis=1)
     ends = [tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))] for x in (0.3, 1.7)]
-    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+    real_fit, real_local, real_fields = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit, \
         repair.Repair.imposed_fields
     imposed = []  # the index of the field last imposed (0: the interpolated rotations, 1: the blend's)
 
@@ -206,8 +206,8 @@ def test_separate_folds_are_repaired_each_by_its_own_field(monkeypatch, strip, s
     def folding_fit(self, x, *args, **kwargs):
         return fold(fold(real_fit(self, x, *args, **kwargs), ends[0]), ends[1])
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
     if not sequence:
         with pytest.warns(ShapeDifferenceWarning, match="flipped"):
@@ -297,12 +297,12 @@ def test_a_prediction_no_repair_cleans_is_solved_instead(monkeypatch, strip):
 
 
 def _recorded_solves(monkeypatch):
-    """``_Gap.fit`` and ``_Gap.released`` recording each fit's start (a copy), its step limit and
+    """``Gap.fit`` and ``Gap.released`` recording each fit's start (a copy), its step limit and
     its misfits, and each release test (the fits run as they are)."""
     import core.inbetween_solver as solver
 
     fits, releases = [], []
-    real_fit, real_released = solver._Gap.fit, solver._Gap.released
+    real_fit, real_released = solver.Gap.fit, solver.Gap.released
 
     def fit(self, x, stretch, frames, guide, s, motion, iterations=6, *args, **kwargs):
         misfits = kwargs.setdefault("misfits", [])
@@ -314,8 +314,8 @@ def _recorded_solves(monkeypatch):
         releases.append(args)
         return real_released(self, *args)
 
-    monkeypatch.setattr(solver._Gap, "fit", fit)
-    monkeypatch.setattr(solver._Gap, "released", released)
+    monkeypatch.setattr(solver.Gap, "fit", fit)
+    monkeypatch.setattr(solver.Gap, "released", released)
     return fits, releases
 
 
@@ -351,14 +351,14 @@ def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip)
 
     keys, tri, factors, solved, moving = _predictions_flagged(monkeypatch, strip)
     repaired_poses = {}
-    real_repaired = solver._Gap.repaired
+    real_repaired = solver.Gap.repaired
 
     def repaired(self, x, s, rings=None, defects=None):  # what the repair hands on, kept to compare
         out = real_repaired(self, x, s, rings, defects)
         repaired_poses[s] = out[0].copy()
         return out
 
-    monkeypatch.setattr(solver._Gap, "repaired", repaired)
+    monkeypatch.setattr(solver.Gap, "repaired", repaired)
     fits, releases = _recorded_solves(monkeypatch)
     seq = SequenceInterpolator(keys, tri)
     seq.poses(0, factors)
@@ -373,12 +373,12 @@ def test_a_prediction_no_repair_cleans_is_solved_from_itself(monkeypatch, strip)
 
 
 def _mark_solves_from_predictions(monkeypatch):
-    """Patch :meth:`core.inbetween_solver._Gap.pose` so that the gap's ``_from_prediction`` is True
+    """Patch :meth:`core.inbetween_solver.Gap.pose` so that the gap's ``_from_prediction`` is True
     while it solves from a given start (a prediction solved from itself), for patched checks to
     tell those solves apart."""
     import core.inbetween_solver as solver
 
-    pose = solver._Gap.pose
+    pose = solver.Gap.pose
 
     def marked_pose(self, s, weak=None, start=None, *args, **kwargs):
         self._from_prediction = start is not None
@@ -387,7 +387,7 @@ def _mark_solves_from_predictions(monkeypatch):
         finally:
             self._from_prediction = False
 
-    monkeypatch.setattr(solver._Gap, "pose", marked_pose)
+    monkeypatch.setattr(solver.Gap, "pose", marked_pose)
 
 
 @pytest.mark.parametrize("at_the_metric", [True, False])
@@ -487,7 +487,7 @@ def test_a_repair_that_moves_a_prediction_far_gives_way_to_the_solve(monkeypatch
     def repaired(self, x, s, rings=None, defects=None):  # clean, moved by ``shift`` mean edges
         return x + shift * self.mean_edge, None
 
-    monkeypatch.setattr(solver._Gap, "repaired", repaired)
+    monkeypatch.setattr(solver.Gap, "repaired", repaired)
     poses = dict(zip(factors, SequenceInterpolator(keys, tri).poses(0, factors)))
     for s in factors:
         if s not in (0.25, 0.75):  # the predicted ones
@@ -509,7 +509,7 @@ def test_a_repair_by_rows_falls_back_as_a_whole_pose_does(strip):
     x, message = gap.repaired(crumpled, s)
     assert message is not None and "near the linear blend" in message
     frames, stretch, motion, guide = gap.targets(s)
-    whole = gap.finished(gap.repair.checked(crumpled, crumpled, s, frames, stretch, guide, motion), s)
+    whole = gap.finished(gap.recorded(s, gap.repair.outcome(crumpled, crumpled, s, frames, stretch, guide, motion)), s)
     np.testing.assert_array_equal(x, whole[0])
     assert message == whole[1]
 
@@ -557,7 +557,7 @@ def _middle_folded(monkeypatch, strip, unfolds):
     keys = [_bend(flat, a) for a in (0.0, 0.7, 1.4)]
     middle = flat[tri].mean(axis=1)
     corners = tri[np.argmin(np.linalg.norm(middle - [1.0, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
-    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+    real_fit, real_local, real_fields = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit, \
         repair.Repair.imposed_fields
     imposed = []
 
@@ -577,8 +577,8 @@ def _middle_folded(monkeypatch, strip, unfolds):
         out = real_fit(self, x, stretch, frames, guide, s, *args, **kwargs)
         return fold(out) if s == 0.5 else out
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     monkeypatch.setattr(repair.Repair, "imposed_fields", fields)
     # the reflected corner is a large part of the bending strip's small correction: the gap would be
     # found too rough to predict from three solved factors, and solved at every eighth instead
@@ -646,9 +646,9 @@ def _two_folds(monkeypatch, strip, g):
     first, second = (tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
                      for x in (1.0, 1.15))
     assert not set(first) & set(second)
-    real_fit, real_local, real_fields = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
+    real_fit, real_local, real_fields = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit, \
         repair.Repair.imposed_fields
-    real_predicted = prediction_repairs._predicted_positions
+    real_predicted = prediction_repairs.predicted_positions
     imposed = []
 
     def fold(out, corners, free=None):
@@ -677,10 +677,10 @@ def _two_folds(monkeypatch, strip, g):
         out = real_predicted(gap, s, correction, motion)
         return fold(fold(out, first), second) if s == 0.5 else out
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     monkeypatch.setattr(repair.Repair, "imposed_fields", _recording_fields(real_fields, imposed))
-    monkeypatch.setattr(prediction_repairs, "_predicted_positions", folding_prediction)
+    monkeypatch.setattr(prediction_repairs, "predicted_positions", folding_prediction)
     return keys, tri, np.arange(1, g) / g, imposed
 
 
@@ -738,8 +738,8 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
     middle = flat[tri].mean(axis=1)
     first, second, third = (tri[np.argmin(np.linalg.norm(middle - [x, 0.5 * np.ptp(flat[:, 1]), 0.0], axis=1))]
                             for x in (1.0, 1.15, 0.4))  # _two_folds' two, and the third
-    folds_fit, folds_local, folds_predicted = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit, \
-        prediction_repairs._predicted_positions
+    folds_fit, folds_local, folds_predicted = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit, \
+        prediction_repairs.predicted_positions
 
     def fold(out, free=None):
         i, j, k = third
@@ -763,9 +763,9 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
         out = folds_predicted(gap, s, correction, motion)
         return fold(out) if s == 0.5 else out
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", fit)
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
-    monkeypatch.setattr(prediction_repairs, "_predicted_positions", predicted)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
+    monkeypatch.setattr(prediction_repairs, "predicted_positions", predicted)
     # the last untangling would unfold the third (test_inbetween_untangling): what the repairs keep is asked here
     monkeypatch.setattr(untangling, "untangled", lambda *args: None)
     seq = SequenceInterpolator(keys, tri)
@@ -785,7 +785,7 @@ def test_a_repair_again_that_leaves_some_defects_is_kept_and_warned_with_its_cou
 class _ScriptedGap:
     """A stand-in for a gap whose repairs of an in-between are scripted: ``passes`` (list of
     positions (n, 3)) are what its successive repairs return, each stored with its count in
-    ``outcomes`` as :meth:`core.inbetween_repair.Repair.checked` does; a triangle is flipped where its
+    ``outcomes`` as :meth:`core.inbetween_solver.Gap.recorded` does; a triangle is flipped where its
     row of the positions has a negative first coordinate (triangle i: vertex i thrice); ``limits`` the
     repairs' move limits."""
 
@@ -835,7 +835,7 @@ def test_a_repair_again_beyond_the_move_limit_from_the_first_pose_is_not_taken_a
         monkeypatch.setattr(prediction_repairs, "REPAIR_PASSES", passes)
         gap = _ScriptedGap([fewer, clean], (2.5, 2.5))
         gap.outcomes[0.5] = gap.outcome_of(first)  # the first pose's own check
-        x, problem = prediction_repairs._repaired_again(gap, 0.5, (first, "kept defects"))
+        x, problem = prediction_repairs.repaired_in_passes(gap, 0.5, (first, "kept defects"))
         assert np.array_equal(x, kept) and problem is not None
         assert gap.outcomes[0.5] == gap.outcome_of(kept)
 
@@ -890,8 +890,8 @@ def test_the_repairs_again_of_one_in_between_share_its_targets_and_the_nearby_ge
     rng = np.random.default_rng(1)
     crumpled = gap.linear_blend(s) + rng.normal(scale=0.05, size=flat.shape)
     nearby = gap.linear_blend(s) + rng.normal(scale=0.01, size=flat.shape)
-    made, real_targets = [], inbetween_solver._Gap.targets
-    monkeypatch.setattr(inbetween_solver._Gap, "targets",
+    made, real_targets = [], inbetween_solver.Gap.targets
+    monkeypatch.setattr(inbetween_solver.Gap, "targets",
                         lambda self, s, by_rows=False: made.append(by_rows) or real_targets(self, s, by_rows))
     of_nearby = []  # triangles whose local geometry of ``nearby`` was computed
     real_edges = df.corner_edges

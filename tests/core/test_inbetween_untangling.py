@@ -72,7 +72,7 @@ def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatc
     keys = [_bend(flat, angle) for angle in (0.0, 1.0, 2.0)]
     middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))  # keyed about the origin: sequences work
     keys = [key - middle for key in keys]  # about the first key's middle, and the mock sees positions
-    real_pose, folded = solver._Gap.pose, {}
+    real_pose, folded = solver.Gap.pose, {}
 
     def pose(self, s, *args, **kwargs):  # the fit with a fan folded over, kept as no repair removed it
         x, problem = real_pose(self, s, *args, **kwargs)
@@ -86,7 +86,7 @@ def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatc
         folded[s] = (x.copy(), centre)
         return x, "1 triangle(s) flipped or collapsed"
 
-    monkeypatch.setattr(solver._Gap, "pose", pose)
+    monkeypatch.setattr(solver.Gap, "pose", pose)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)

@@ -61,9 +61,9 @@ def test_a_pinned_gap_makes_its_whole_rotations_once_per_relative(monkeypatch):
     keys, triangles = data["keys"].astype(np.float64), data["triangles"]
     seq = core.SequenceInterpolator(keys, triangles, start="keys")
     made, relatives = [], []
-    real_entries, real_init = df.frame_rows_rotation_entries, keys_module._Relative.__init__
+    real_entries, real_init = df.frame_rows_rotation_entries, keys_module.Relative.__init__
     monkeypatch.setattr(df, "frame_rows_rotation_entries", lambda f, b: made.append(f.shape[-1]) or real_entries(f, b))
-    monkeypatch.setattr(keys_module._Relative, "__init__",
+    monkeypatch.setattr(keys_module.Relative, "__init__",
                         lambda self, *args, **kw: relatives.append(self) or real_init(self, *args, **kw))
     gap = seq._gap(1)
     assert seq._topo.pinned is not None and relatives
@@ -83,9 +83,9 @@ def test_the_pins_fit_is_measured_only_where_it_can_win_and_chosen_as_when_alway
     extremes (every triangle on the free fit: the pins' fit not measured; on the pins' one, turned
     170° from the free fit: measured and taken)."""
     import core.inbetween_rigid_fits as fits_module
-    from core.inbetween_keys import _Key
+    from core.inbetween_keys import Key
     from core.inbetween_rigid_fits import NEAR_HALF_TURN, PIN_FIT_MARGIN, pin_held_fits
-    from core.inbetween_topology import _Topology
+    from core.inbetween_topology import Topology
     from core.mesh_topology import mesh_topology
     from meshes import grid
 
@@ -94,9 +94,9 @@ def test_the_pins_fit_is_measured_only_where_it_can_win_and_chosen_as_when_alway
     count = 1 if seed < 2 else 3
     vertices = np.vstack([sheet + [2.0 * c, 0.0, 0.0] for c in range(count)])
     triangles = np.vstack([tri + c * len(sheet) for c in range(count)])
-    topo = _Topology(mesh_topology(triangles, len(vertices)), vertices)
+    topo = Topology(mesh_topology(triangles, len(vertices)), vertices)
     topo.pinned = np.array([c * len(sheet) for c in range(count)])
-    key = _Key(topo, vertices)
+    key = Key(topo, vertices)
     free = Rotation.random(count, random_state=seed).as_matrix()
     held = (Rotation.from_rotvec(rng.normal(size=(count, 3)) * rng.uniform(0.2, 3.0, size=(count, 1)))
             * Rotation.from_matrix(free)).as_matrix()

@@ -151,7 +151,7 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
     flat, tri = grid(12, 9, size=1.0)
     keys = [flat + np.array([0.0, 0.0, -0.1 * k * k]) + 0.05 * np.sin(3 * flat[:, [1, 0, 0]] + k) for k in range(5)]
     i, j, k = tri[len(tri) // 2]
-    real_correction, real_pose = prediction._correction, solver._Gap.pose
+    real_correction, real_pose = prediction.correction_polynomial, solver.Gap.pose
 
     def folding_correction(gap, solved):
         correction = real_correction(gap, solved)
@@ -165,10 +165,10 @@ def test_a_folded_prediction_is_repaired_where_the_fold_is(monkeypatch):
             return out
         return folded
 
-    solved, repaired, real_repaired = [], [], solver._Gap.repaired
-    monkeypatch.setattr(prediction, "_correction", folding_correction)
-    monkeypatch.setattr(solver._Gap, "pose", lambda self, s, **kw: solved.append(s) or real_pose(self, s, **kw))
-    monkeypatch.setattr(solver._Gap, "repaired", lambda self, x, s, *rest: repaired.append(s) or real_repaired(self, x, s, *rest))
+    solved, repaired, real_repaired = [], [], solver.Gap.repaired
+    monkeypatch.setattr(prediction, "correction_polynomial", folding_correction)
+    monkeypatch.setattr(solver.Gap, "pose", lambda self, s, **kw: solved.append(s) or real_pose(self, s, **kw))
+    monkeypatch.setattr(solver.Gap, "repaired", lambda self, x, s, *rest: repaired.append(s) or real_repaired(self, x, s, *rest))
     seq = SequenceInterpolator(keys, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)  # repaired: no fallback
@@ -201,12 +201,12 @@ def test_rough_corrections_are_solved_densely_and_predicted_between(monkeypatch)
         return {s: gap.topo.apply_motion(gap.splines["vertices"].at(s) + correction(s), *gap.motion(s))
                 for s in (0.25, 0.5, 0.75)}
 
-    assert not corrections._inconsistent(gap, posed(lambda s: s * (1 - s) * bump))  # smooth: predicted
-    assert corrections._inconsistent(gap, posed(lambda s: (1 if s != 0.5 else -1) * s * (1 - s) * bump))
+    assert not corrections.inconsistent(gap, posed(lambda s: s * (1 - s) * bump))  # smooth: predicted
+    assert corrections.inconsistent(gap, posed(lambda s: (1 if s != 0.5 else -1) * s * (1 - s) * bump))
 
     solved = []
     real_pose = type(gap).pose
-    monkeypatch.setattr(prediction, "_inconsistent", lambda gap, solved: True)
+    monkeypatch.setattr(prediction, "inconsistent", lambda gap, solved: True)
     monkeypatch.setattr(type(gap), "pose", lambda self, s, **kw: solved.append((s, self.rotation_limit)) or
                         real_pose(self, s, **kw))
     factors = np.arange(1, 16) / 16
@@ -227,11 +227,11 @@ def test_rough_gap_correction_is_the_chord_between_neighbouring_knots(knots):
     """The correction of a rough gap is zero at the keys, the solved value at each solved factor,
     and on the chord of the two knots around any other factor: it reproduces a correction linear
     in the factor between knots and never leaves the range of the two it joins."""
-    from core.inbetween_corrections import _PiecewiseLinearCorrection
+    from core.inbetween_corrections import PiecewiseLinearCorrection
 
     rng = np.random.default_rng(3)
     values = {s: rng.normal(size=(7, 3)) for s in knots}
-    correction = _PiecewiseLinearCorrection(values)
+    correction = PiecewiseLinearCorrection(values)
     nodes = [0.0, *knots, 1.0]
     data = [np.zeros((7, 3)), *(values[s] for s in knots), np.zeros((7, 3))]
     assert np.array_equal(correction(0.0), data[0]) and np.allclose(correction(1.0), data[-1], atol=0)
@@ -251,7 +251,7 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
     that degree vanishing at both keys exactly."""
     from scipy.interpolate import BarycentricInterpolator
 
-    from core.inbetween_corrections import _CorrectionPolynomial
+    from core.inbetween_corrections import CorrectionPolynomial
 
     rng = np.random.default_rng(3)
     coefficients = rng.normal(size=(len(factors), 7, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
@@ -259,7 +259,7 @@ def test_correction_polynomial_is_the_interpolating_polynomial_through_the_keys_
     def exact(s):
         return s * (1.0 - s) * sum(c * s ** k for k, c in enumerate(coefficients))
 
-    polynomial = _CorrectionPolynomial({s: exact(s) for s in factors})
+    polynomial = CorrectionPolynomial({s: exact(s) for s in factors})
     nodes = [0.0, *factors, 1.0]
     reference = BarycentricInterpolator(nodes, np.stack([exact(s) for s in nodes]), axis=0)
     for s in np.linspace(-0.5, 1.5, 17):
@@ -274,7 +274,7 @@ def test_correction_polynomial_takes_the_keys_slopes(factors):
     slopes exactly, and has the slopes asked for."""
     from scipy.interpolate import KroghInterpolator
 
-    from core.inbetween_corrections import _CorrectionPolynomial
+    from core.inbetween_corrections import CorrectionPolynomial
 
     rng = np.random.default_rng(4)
     coefficients = rng.normal(size=(len(factors) + 2, 5, 3))  # D(s) = s (1 − s) Σ_k c_k s^k
@@ -287,7 +287,7 @@ def test_correction_polynomial_takes_the_keys_slopes(factors):
         dp = sum(k * c * s ** (k - 1) for k, c in enumerate(coefficients) if k)
         return (1.0 - 2.0 * s) * p + s * (1.0 - s) * dp
 
-    polynomial = _CorrectionPolynomial({s: exact(s) for s in factors}, (slope(0.0), slope(1.0)))
+    polynomial = CorrectionPolynomial({s: exact(s) for s in factors}, (slope(0.0), slope(1.0)))
     nodes = [0.0, 0.0, *factors, 1.0, 1.0]
     values = [exact(0.0), slope(0.0), *(exact(s) for s in factors), exact(1.0), slope(1.0)]
     reference = KroghInterpolator(nodes, np.stack(values), axis=0)
@@ -333,13 +333,13 @@ def test_sequence_gaps_meet_at_a_key_with_one_velocity(monkeypatch):
 def _relative(base_vertices, other_vertices, triangles):
     """The in-between solver's view of ``other_vertices`` from ``base_vertices``: (topology, base key,
     other key, relative)."""
-    from core.inbetween_keys import _Key, _Relative
-    from core.inbetween_topology import _Topology
+    from core.inbetween_keys import Key, Relative
+    from core.inbetween_topology import Topology
     from core.mesh_topology import mesh_topology
 
-    topo = _Topology(mesh_topology(triangles, len(base_vertices)), base_vertices)
-    base, other = _Key(topo, base_vertices), _Key(topo, other_vertices)
-    return topo, base, other, _Relative(topo, base, other)
+    topo = Topology(mesh_topology(triangles, len(base_vertices)), base_vertices)
+    base, other = Key(topo, base_vertices), Key(topo, other_vertices)
+    return topo, base, other, Relative(topo, base, other)
 
 
 def test_triangle_sides_are_the_corner_edges_from_the_first_corner():
@@ -487,8 +487,8 @@ def test_residuals_add_turn_measures_the_whole_rotations_only_where_the_residual
         other = _rigid(other, Rotation.from_rotvec([0.0, 0.0, np.radians(degrees)]).as_matrix(), np.zeros(3))
     topo, base, other_key, relative = _relative(flat, other, tri)
     measured = []
-    real = whole_module._rotation_angles
-    monkeypatch.setattr(whole_module, "_rotation_angles", lambda *a: measured.append(1) or real(*a))
+    real = whole_module.rotation_angles
+    monkeypatch.setattr(whole_module, "rotation_angles", lambda *a: measured.append(1) or real(*a))
     residual = Rotation.from_rotvec(relative.rotvec)
     whole = Rotation.from_matrix(relative.motion[0][topo.triangle_component]) * residual
     expected = np.median(residual.magnitude()) > np.median(whole.magnitude()) + SPURIOUS_RIGID_TURN

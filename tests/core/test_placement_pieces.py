@@ -246,7 +246,7 @@ def test_the_pieces_sizes_are_measured_alike_on_a_turned_scene():
     and a sheet hanging from a rod that stops, turned, decided otherwise which pieces ride rigidly
     (1.016 × the Catmull–Rom spline's error instead of 0.924 ×); along each piece's principal axes a
     square sheet's axes are any in its plane and its diagonal anything from 1 to 1.41 × its own."""
-    from core.inbetween_topology import _Topology
+    from core.inbetween_topology import Topology
     from core.mesh_topology import mesh_topology
 
     flat, tri = grid(11, size=1.0)
@@ -258,7 +258,7 @@ def test_the_pieces_sizes_are_measured_alike_on_a_turned_scene():
     turn, shift = Rotation.from_rotvec([0.3, -0.7, 0.4]), np.array([40.0, -25.0, 10.0])
     sizes = []
     for points in (vertices, turn.apply(vertices) + shift):
-        sizes.append(_Topology(mesh_topology(triangles, len(points)), points).diagonals(points))
+        sizes.append(Topology(mesh_topology(triangles, len(points)), points).diagonals(points))
     np.testing.assert_allclose(sizes[1], sizes[0], rtol=1e-12)
     # the lumped masses' second moments on a grid of spacing h: the continuous sheet's to O(h²)
     own = [np.linalg.norm(np.ptp(piece, axis=0)) for piece in (wide, tall, square)]
@@ -760,7 +760,7 @@ def test_a_grid_between_two_rigid_ones_is_seated_on_the_lower_numbered_whatever_
     import scipy.spatial
 
     from core.inbetween_motion import seat_candidates
-    from core.inbetween_topology import _Topology
+    from core.inbetween_topology import Topology
     from core.mesh_topology import mesh_topology
 
     class Built(scipy.spatial.cKDTree):
@@ -773,7 +773,7 @@ def test_a_grid_between_two_rigid_ones_is_seated_on_the_lower_numbered_whatever_
     first, second = (below, above) if lower_first else (above, below)
     points = np.vstack([first, second, middle])
     triangles = np.vstack([tri, tri + 36, tri + 72])
-    topo = _Topology(mesh_topology(triangles, len(points)), points)
+    topo = Topology(mesh_topology(triangles, len(points)), points)
     piece = topo.vertex_component[[0, 36, 72]]  # the first-listed rigid grid, the other, the deforming one
     rigid = np.ones(len(topo.components), dtype=bool)
     rigid[piece[2]] = False

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import MeshError
-from core import point_cache
+from core import atomic_files, point_cache
 from core.point_cache import merge_pc2, read_mdd, read_pc2, read_point_cache, write_pc2
 
 
@@ -102,14 +102,14 @@ def test_a_chunk_whose_stamp_cannot_be_written_is_not_left(tmp_path, monkeypatch
     """A chunk is written, then its stamp: a disk that fills up in between (or a SIGTERM there)
     removes the chunk again, so that the failed or cancelled task leaves nothing written (before,
     the chunk stayed without its stamp, and the merge blamed another job for it)."""
-    write = point_cache._write_atomically
+    write = point_cache.write_atomically
 
     def full_at_the_stamp(path, chunks, **options):
         if str(path).endswith(point_cache.STAMP_SUFFIX):
             raise failure
         return write(path, chunks, **options)
 
-    monkeypatch.setattr(point_cache, "_write_atomically", full_at_the_stamp)
+    monkeypatch.setattr(point_cache, "write_atomically", full_at_the_stamp)
     with pytest.raises(type(failure)):
         write_pc2(tmp_path / "chunk1.pc2", samples(3), stamp=dict(job="j", gaps=[0, 1], key_gaps=2))
     assert list(tmp_path.iterdir()) == []
@@ -193,7 +193,7 @@ def test_a_killed_writers_temporary_file_is_removed_by_the_next_write(tmp_path):
     write_pc2(out, np.zeros((2, 3, 3)))
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["out.pc2", others.name])
 
-    handle, live = point_cache._open_part(out)  # another writer of out.pc2, alive and writing
+    handle, live = atomic_files.open_part(out)  # another writer of out.pc2, alive and writing
     try:
         write_pc2(out, np.zeros((2, 3, 3)))
         assert Path(live).exists()

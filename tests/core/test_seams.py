@@ -1070,7 +1070,7 @@ def test_seam_pairs_agree_with_the_full_distance_matrix(seed):
     """Copies at one place in every pose (a fan's centre), copies that part in a later pose (a rim
     vertex pulled off), some vertices kept apart: the same seams and the same vertex groups as every
     pair's distances give."""
-    from core.seam_welds import _seam_pairs, coincidence_tolerance
+    from core.seam_welds import coincidence_tolerance, seam_pairs
 
     rng = np.random.default_rng(seed)
     first, triangles = _fan_soup(24)
@@ -1083,7 +1083,7 @@ def test_seam_pairs_agree_with_the_full_distance_matrix(seed):
     apart = rng.choice(len(first), 4, replace=False)
     for poses in ([first], [first, second]):
         for kept_apart in (None, apart):
-            a, b = _seam_pairs(poses, topology, tolerance, apart=kept_apart)
+            a, b = seam_pairs(poses, topology, tolerance, apart=kept_apart)
             expected, labels = _seam_pairs_of_every_pair(poses, topology, tolerance,
                                                          np.zeros(0, int) if kept_apart is None else kept_apart)
             assert len(a) == 2 * len(expected)

@@ -453,12 +453,12 @@ def test_in_order_visit_builds_each_key_once(monkeypatch, strip):
 
     built = []
 
-    class Counting(keys_module._Key):
+    class Counting(keys_module.Key):
         def __init__(self, topo, vertices):
             super().__init__(topo, vertices)
             built.append(self)
 
-    monkeypatch.setattr(sequence_keys, "_Key", Counting)
+    monkeypatch.setattr(sequence_keys, "Key", Counting)
     flat, tri = strip
     keys = [_bend(flat, 0.3 * k) + np.array([0.0, 0.0, -0.1 * k * k]) for k in range(7)]
     seq = SequenceInterpolator(keys, tri)
@@ -506,13 +506,13 @@ def test_gaps_of_rigid_motion_are_their_screw_motion_without_a_solve(monkeypatch
     import core.inbetween_solver as solver
 
     solved = []
-    original = solver._Gap.pose
+    original = solver.Gap.pose
 
     def counting(self, s, *args, **kwargs):
         solved.append(s)
         return original(self, s, *args, **kwargs)
 
-    monkeypatch.setattr(solver._Gap, "pose", counting)
+    monkeypatch.setattr(solver.Gap, "pose", counting)
     flat, tri = strip
     turns = Rotation.from_rotvec(np.outer(np.arange(6), [0.0, 0.3, 0.1]))
     keys = [turns[k].apply(flat) + [0.0, 0.0, -0.2 * k * k] for k in range(5)]
@@ -737,15 +737,15 @@ def test_a_rough_gap_is_solved_with_the_wide_rotation_limit_and_gives_it_back(mo
     keys = [_bend(flat, a) for a in (0.0, 0.8, 1.6, 2.4)]
     seq = SequenceInterpolator(keys, tri)
     limits = []
-    real_fit = inbetween_solver._Gap.fit
+    real_fit = inbetween_solver.Gap.fit
 
     def recording_fit(self, *args, **kwargs):
         limits.append(self.rotation_limit)
         return real_fit(self, *args, **kwargs)
 
     checked = []  # fits before the roughness check
-    monkeypatch.setattr(inbetween_solver._Gap, "fit", recording_fit)
-    monkeypatch.setattr(inbetween_prediction, "_inconsistent", lambda gap, solved: checked.append(len(limits)) or True)
+    monkeypatch.setattr(inbetween_solver.Gap, "fit", recording_fit)
+    monkeypatch.setattr(inbetween_prediction, "inconsistent", lambda gap, solved: checked.append(len(limits)) or True)
     factors = np.arange(1, 16) / 16
     first = seq.poses(1, factors)
     before, after = limits[:checked[0]], limits[checked[0]:]
@@ -1182,8 +1182,8 @@ def test_a_gap_does_no_work_its_in_betweens_do_not_need(monkeypatch, strip):
     assert len(factors) < TRIMMED_TOLERANCE_BATCH
     seq = SequenceInterpolator(keys, tri)
     asked, made = set(), []
-    real_motion, real_exps = solver._Gap.motion, screw_motions.rigid_exps
-    monkeypatch.setattr(solver._Gap, "motion", lambda self, s: asked.add(s) or real_motion(self, s))
+    real_motion, real_exps = solver.Gap.motion, screw_motions.rigid_exps
+    monkeypatch.setattr(solver.Gap, "motion", lambda self, s: asked.add(s) or real_motion(self, s))
     monkeypatch.setattr(screw_motions, "rigid_exps", lambda screws: made.append(1) or real_exps(screws))
     seq.poses(2, factors)
     gap = seq._gap(2)
@@ -1303,13 +1303,13 @@ def test_predictions_stretched_past_twice_the_keys_change_are_solved(monkeypatch
     assert gap.tolerance > METRIC_TOLERANCE  # the keys' edges change: the tolerance above its floor
     change = gap.tolerance / KEY_VARIATION_FRACTION
     predicted_factors = [s for s in factors if s not in (0.25, 0.75)]
-    real = inbetween_prediction._predicted
+    real = inbetween_prediction.repaired_prediction
 
     def stretched(gap, s, correction, rings=None, allowed=None):
         x, problem = real(gap, s, correction, rings, allowed)
         return x[0] + (1.0 + changes * change) * (x - x[0]), problem  # about the corner that stays still
 
-    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
+    monkeypatch.setattr(inbetween_prediction, "repaired_prediction", stretched)
     poses = dict(zip(factors, seq.poses(0, factors)))
     for s in predicted_factors:
         alone = seq.pose(0, s)
@@ -1332,7 +1332,7 @@ def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
     flat, tri = strip
     seq = SequenceInterpolator([_bend(flat, a) for a in (0.0, 0.8, 1.6)], tri)
     assert seq._gap(0).tolerance == METRIC_TOLERANCE
-    real_predicted, real_solve = inbetween_prediction._predicted, inbetween_prediction_repairs._solved_instead
+    real_predicted, real_solve = inbetween_prediction.repaired_prediction, inbetween_prediction_repairs._solved_instead
     made = {}
 
     def stretched(gap, s, correction, rings=None, allowed=None):
@@ -1348,7 +1348,7 @@ def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
         x[a] = x[b]  # the triangles on that edge collapsed
         return x, "kept defects"
 
-    monkeypatch.setattr(inbetween_prediction, "_predicted", stretched)
+    monkeypatch.setattr(inbetween_prediction, "repaired_prediction", stretched)
     monkeypatch.setattr(inbetween_prediction_repairs, "_solved_instead", collapsed)
     return seq, list(np.arange(1, 8) / 8), made
 

@@ -137,16 +137,16 @@ def test_fallback_warns(monkeypatch, strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     it = Interpolator(a, b, tri)
-    real = sequence_inbetweens._Gap.fit
+    real = sequence_inbetweens.Gap.fit
 
     def broken(self, x, *args, **kwargs):
         return np.full_like(x, np.nan)
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", broken)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", broken)
     with pytest.warns(ShapeDifferenceWarning, match="non-finite"):
         x = it.pose(0.5)
     assert np.isfinite(x).all()
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", real)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", real)
 
 
 def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
@@ -158,7 +158,7 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 1.0)
     clean = Interpolator(a, b, tri).pose(0.5)
-    real_fit, real_local = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit
+    real_fit, real_local = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit
     forced = []
 
     def folding_fit(self, x, *args, **kwargs):
@@ -171,8 +171,8 @@ def test_flipped_reconstruction_is_repaired_locally(monkeypatch, strip):
         forced.append(region.rows.copy())
         return real_local(self, x, region, frames, stretch, guide)
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", folding_fit)
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", recording_local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", folding_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", recording_local_fit)
     it = Interpolator(a, b, tri)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ShapeDifferenceWarning)
@@ -209,7 +209,7 @@ def _record_fits_near_the_blend(monkeypatch) -> list:
     import core.inbetween_solver as solver
 
     near = []
-    original_fit = solver._Gap.fit
+    original_fit = solver.Gap.fit
 
     def fit(self, *args, **kwargs):
         x = original_fit(self, *args, **kwargs)
@@ -217,7 +217,7 @@ def _record_fits_near_the_blend(monkeypatch) -> list:
             near.append(x.copy())
         return x
 
-    monkeypatch.setattr(solver._Gap, "fit", fit)
+    monkeypatch.setattr(solver.Gap, "fit", fit)
     return near
 
 
@@ -445,7 +445,7 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     two = np.vstack([flat, flat + [0.0, 2.0, 0.0]])  # two strips side by side: two pieces
     tris = np.vstack([tri, tri + len(flat)])
     a, b = _bend(two, 0.0), _bend(two, 1.0)
-    regions, real_local = [], sequence_inbetweens._Gap.local_fit
+    regions, real_local = [], sequence_inbetweens.Gap.local_fit
 
     def defects(self, x, *args, rows=None):
         out = np.zeros(len(tris), dtype=bool)
@@ -458,7 +458,7 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
 
     monkeypatch.setattr(repair.Repair, "defects", defects)
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "1 triangle(s) flipped")
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
     with pytest.warns(ShapeDifferenceWarning, match="flipped"):
         Interpolator(a, b, tris).pose(0.5)
     assert regions and max(regions) <= inbetween_repair_rounds.MAX_REPAIR_FRACTION * len(tri)
@@ -484,8 +484,8 @@ def test_no_fit_near_a_folded_blend(monkeypatch, strip):
         out[:3] = True  # every candidate, the blend included, keeps three defects
         return out if rows is None else out[rows]
 
-    fits, real_fit = [], solver._Gap.fit
-    monkeypatch.setattr(solver._Gap, "fit", lambda self, *args, **kwargs: fits.append(kwargs.get("system")) or
+    fits, real_fit = [], solver.Gap.fit
+    monkeypatch.setattr(solver.Gap, "fit", lambda self, *args, **kwargs: fits.append(kwargs.get("system")) or
                         real_fit(self, *args, **kwargs))
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: "3 triangle(s) flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)
@@ -501,20 +501,20 @@ def _folding_repairs(monkeypatch, tri, keep_fold):
     ``rows``)."""
     from core import sequence_inbetweens
 
-    real_fit, real_local = sequence_inbetweens._Gap.fit, sequence_inbetweens._Gap.local_fit
+    real_fit, real_local = sequence_inbetweens.Gap.fit, sequence_inbetweens.Gap.local_fit
     i, j, k = tri[len(tri) // 2]
 
     def fold(out):
         out[i] = out[j] + out[k] - out[i]
         return out
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
+    monkeypatch.setattr(sequence_inbetweens.Gap, "fit", lambda self, x, *args, **kwargs: fold(real_fit(self, x, *args, **kwargs)))
 
     def local_fit(self, x, region, frames, stretch, guide):
         out = real_local(self, x, region, frames, stretch, guide)
         return fold(out) if keep_fold(frames, region.rows) else out
 
-    monkeypatch.setattr(sequence_inbetweens._Gap, "local_fit", local_fit)
+    monkeypatch.setattr(sequence_inbetweens.Gap, "local_fit", local_fit)
 
 
 def test_blend_geometry_is_spliced_where_the_interpolated_rotations_fold(monkeypatch, strip):
@@ -579,8 +579,8 @@ def test_a_fallback_that_returns_the_blend_says_so(monkeypatch, strip):
         out[:0 if np.allclose(x, blend) else 3] = True
         return out if rows is None else out[rows]
 
-    real_fit = solver._Gap.fit
-    monkeypatch.setattr(solver._Gap, "fit", lambda self, x, *args, **kwargs: x if np.allclose(x, blend) else
+    real_fit = solver.Gap.fit
+    monkeypatch.setattr(solver.Gap, "fit", lambda self, x, *args, **kwargs: x if np.allclose(x, blend) else
                         real_fit(self, x, *args, **kwargs))
     monkeypatch.setattr(repair.Repair, "problem", lambda self, x, *args: None if np.allclose(x, blend) else "3 flipped")
     monkeypatch.setattr(repair.Repair, "defects", defects)

@@ -12,7 +12,7 @@ from core.errors import KINDS, ShapeDifferenceWarning, shape_warning, warn
 
 ROOT = Path(__file__).resolve().parents[2]
 #: The core's functions that make or issue a warning, and where their ``kind`` argument is.
-WARNERS = {"warn": 1, "shape_warning": 1, "said_warning": 1, "_warn": 1}
+WARNERS = {"warn": 1, "shape_warning": 1, "said_warning": 1, "warn_said": 1}
 
 
 def _calls(name):

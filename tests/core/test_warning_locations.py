@@ -82,3 +82,21 @@ def test_a_warning_of_the_keys_points_at_the_constructors_caller(sequence):
     build = (lambda: SequenceInterpolator([a, b, b + 0.1], tri)) if sequence else (lambda: Interpolator(a, b, tri))
     said, expected = _located(build, build.__code__.co_firstlineno)
     assert said == expected
+
+
+def test_a_transfers_warning_points_at_the_line_that_builds_it():
+    """A Transfer built straight from a script with a map matching under half of the base's
+    vertices (``core.transfer_checks.WARN_MATCHED_FRACTION``) warns at the line that builds it, as
+    every warning of the core does: the warning is issued two calls deep in the core, whatever
+    depth its own code assumes."""
+    from core.functional_map import closest_point_correspondence
+    from core.transfer import Transfer
+    from meshes import grid
+
+    base, base_tris = grid(10, jitter=0.3)
+    target, target_tris = grid(12, jitter=0.3, seed=3, alternate=False)
+    vertex_map = closest_point_correspondence(base, target)
+    vertex_map[np.random.default_rng(4).random(len(base)) >= 0.4] = -1
+    build = lambda: Transfer(base, base_tris, target, target_tris, correspondence=vertex_map, k_M=16, k_N=32)  # noqa: E731
+    said, expected = _located(build, build.__code__.co_firstlineno)
+    assert said == expected

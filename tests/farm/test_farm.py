@@ -248,7 +248,7 @@ import core.point_cache as point_cache
 from core.__main__ import main
 
 point_cache.MERGE_BLOCK_BYTES = 64  # many small blocks: the merge is cancelled with some written
-write = point_cache._write_atomically
+write = point_cache.write_atomically
 
 def cancelled_midway(path, blocks):
     def sent():
@@ -258,7 +258,7 @@ def cancelled_midway(path, blocks):
             yield block
     return write(path, sent())
 
-point_cache._write_atomically = cancelled_midway
+point_cache.write_atomically = cancelled_midway
 sys.exit(main(sys.argv[1:]))
 """
 
@@ -368,13 +368,13 @@ extension.__path__ = [{root!r}]
 sys.modules["ext"] = extension
 if sys.argv[2:] == ["cancel"]:
     import ext.core.point_cache as point_cache
-    write = point_cache._write_atomically
+    write = point_cache.write_atomically
 
     def cancelled(path, blocks, **options):
         os.kill(os.getpid(), signal.SIGTERM)
         return write(path, blocks, **options)
 
-    point_cache._write_atomically = cancelled
+    point_cache.write_atomically = cancelled
 try:
     exec(sys.argv[1], {{"__name__": "__main__"}})
 except Exception:
