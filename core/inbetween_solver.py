@@ -216,19 +216,19 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if len(topo.components) > 1 and firm.sum() > 1:
             # pinned pieces and those others hang from lead a body (their motion keeps their pins,
             # carries their joints), never join one; pieces hanging from another with none from
-            # them (leaves) join one, or lead one before unjointed pieces (core.rigid_bodies)
-            links, leaves = self.held_pieces(), None
+            # them (leaves) join one that their parent or a sibling leads, or lead one before
+            # unjointed pieces (core.rigid_bodies)
+            links, parents = self.held_pieces(), None
             if self.joints is not None:
                 parents = self.joints[0]
                 links[parents[parents >= 0]] = True
-                leaves = (parents >= 0) & ~links & firm
             links &= firm
             candidates = firm & ~links
             known = [r.motion for r in relatives[:1] + relatives[2:]
                      if not r.extrapolated and getattr(r, "motion", None) is not None]
             scale = max(float(np.max(base.diagonals)), float(np.max(np.ptp(base.centroids, axis=0))),
                         np.finfo(float).tiny)
-            self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, leaves)
+            self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, parents)
         if len(topo.components) > 1:
             # what the joints leave untold (links apart, sliding joints, joints within rounding), the
             # pieces of a body counted with its leader: the gap warns

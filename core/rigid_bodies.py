@@ -29,19 +29,20 @@ BODY_MOTION_SPREAD = 0.5e-6
 
 
 def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray, mass: np.ndarray,
-                 scale: float, links: np.ndarray | None = None, leaves: np.ndarray | None = None) -> np.ndarray | None:
+                 scale: float, links: np.ndarray | None = None, parents: np.ndarray | None = None) -> np.ndarray | None:
     """Per component (C,), the component whose interpolated rigid motion it takes (its body's
     leader; its own index where it moves alone), or None where no two pieces move as one.
 
     ``motions``: per key the gap reads other than its base (rotations (C, 3, 3), translations
     (C, 3): each component's best rigid motion from the base key); ``candidates`` (bool (C,)): the
-    pieces that may join a body (rigid, unpinned, no piece jointed to them); ``nonrigidity`` (C,): each piece's
-    RMS rigid misfit over its size over the keys, what its motions are known to
+    pieces that may join a body (rigid, unpinned, no piece jointed to them); ``nonrigidity`` (C,):
+    each piece's RMS rigid misfit over its size over the keys, what its motions are known to
     (:func:`core.inbetween_rigid_fits.turn_spread`, at least :data:`BODY_MOTION_SPREAD`);
     ``mass`` (C,): each piece's mass (the leader is a body's heaviest piece of the first kind it
-    has of ``links``, ``leaves``, the rest: its fits the best known; the first of equals); ``scale``: the scene's size, which translations are measured
-    against. Two pieces are one body where their motions in all those keys together differ by at
-    most the sum of their spreads, and so is every chain of such pieces (:func:`core.spread_groups.spread_groups`).
+    has of ``links``, leaves (below), the rest: its fits the best known; the first of equals);
+    ``scale``: the scene's size, which translations are measured against. Two pieces are one body
+    where their motions in all those keys together differ by at most the sum of their spreads,
+    and so is every chain of such pieces (:func:`core.spread_groups.spread_groups`).
 
     ``links`` (bool (C,), or None: none): firmly rigid pieces others are jointed to
     (:mod:`core.inbetween_joints`), whose interpolated motion composes their joints' turns and
@@ -52,12 +53,19 @@ def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray,
     the links keep their own. On its own screw a pin nested
     in the wrist of an arm bent 40°, 120° and 170° at three hinges took the short way of its net
     turn (18° half-way) while its link took the joints' (165°), a third of the arm's diagonal away.
-    ``leaves`` (bool (C,), or None: none): candidates jointed to a piece with none jointed to them,
-    which lead a body without a link before its other pieces, whose own screws would leave their
-    joints: a pin touching the link below it and nested in the one above, which turns a half turn
-    about their joint, takes that link's way round, not the other."""
+    ``parents`` ((C,), or None: none jointed): each piece's parent in the joint tree
+    (:func:`core.inbetween_joints.joint_tree`, −1: none). Candidates with a parent (leaves: none is
+    jointed to them) lead a body without a link before its other pieces, whose own screws would
+    leave their joints: a pin touching the link below it and nested in the one above, which turns
+    a half turn about their joint, takes that link's way round, not the other. A leaf joins a
+    body only where its leader is its parent or hangs from the same parent (a turn relative to
+    that parent which holds both their joints' contacts turns both about one axis): two motions
+    alike in the keys part between them where they compose different joints (a lever hinged on a
+    still post turned 120° about its hinge, as the second link of an arm turned by two 60° hinges
+    moves in net: on the link's motion the lever left its hinge by 4.1e-2 of the diagonal
+    half-way, 0.27 at ×2)."""
     links = np.zeros(len(candidates), dtype=bool) if links is None else np.asarray(links, dtype=bool) & ~candidates
-    leaves = np.zeros(len(candidates), dtype=bool) if leaves is None else np.asarray(leaves, dtype=bool) & candidates
+    leaves = np.zeros(len(candidates), dtype=bool) if parents is None else (np.asarray(parents) >= 0) & candidates
     rows = np.flatnonzero(candidates | links)
     if not candidates.any() or rows.size < 2 or not motions:
         return None
@@ -77,6 +85,9 @@ def rigid_bodies(motions: list, candidates: np.ndarray, nonrigidity: np.ndarray,
     leader = np.arange(len(candidates))
     joining = candidates[rows]
     leader[rows[joining]] = leaders[group[joining]]
+    if leaves.any():  # a leaf keeps its own joint unless its leader's holds it (its parent, or its sibling)
+        parted = leaves & (leader != parents) & (parents[leader] != parents)
+        leader[parted] = np.flatnonzero(parted)
     if (leader == np.arange(len(candidates))).all():
         return None
     return leader

@@ -535,6 +535,55 @@ def test_pins_nested_in_a_robot_arms_links_move_with_their_links(angles, pins):
     assert not _said(caught, "by its own rigid motion")
 
 
+def _lever_beside_an_arm(s):
+    """A still slab (4.5 × 4 × 0.1), an arm of two bars lying on it (2.2 × 0.2 × 0.1, the second on
+    top of the first), each turned about z by ``s`` × 60° at its hinge (x = 0 on the slab, x = 2
+    on the first bar), and a lever (a 0.23 × 0.23 × 0.1 box) on a still post (0.33 × 0.33 × 0.1,
+    level with the slab), turned about z by ``s`` × 120° at a hinge c of its own: c is the point
+    the arm's two hinges turn its second bar about in net, so that the lever and the second bar
+    move alike between the poses and apart between them. Forward kinematics: vertices,
+    triangles, each vertex's piece (slab, bars, lever, post)."""
+    box, box_triangles = cube(8)
+
+    def placed(lo, hi, motion):
+        lo, hi = np.asarray(lo), np.asarray(hi)
+        return (lo + (box + 1.0) * 0.5 * (hi - lo)) @ motion[0].T + motion[1]
+
+    def turn(degrees, about):
+        rotation = Rotation.from_rotvec([0.0, 0.0, np.radians(degrees)]).as_matrix()
+        return rotation, np.asarray(about, dtype=float) - rotation @ about
+
+    def then(first, second):
+        return first[0] @ second[0], first[0] @ second[1] + first[1]
+
+    net = then(turn(60.0, [0.0, 0.0, 0.0]), turn(60.0, [2.0, 0.0, 0.0]))
+    c = np.r_[np.linalg.solve(np.eye(2) - net[0][:2, :2], net[1][:2]), 0.0]
+    parts = [placed([-1.0, -1.5, -0.1], [3.5, 2.5, 0.0], (np.eye(3), np.zeros(3))),
+             placed([-0.1, -0.1, 0.0], [2.1, 0.1, 0.1], turn(s * 60.0, [0.0, 0.0, 0.0])),
+             placed([1.9, -0.1, 0.1], [4.1, 0.1, 0.2],
+                    then(turn(s * 60.0, [0.0, 0.0, 0.0]), turn(s * 60.0, [2.0, 0.0, 0.0]))),
+             placed(c - [0.1, 0.1, 0.0], c + [0.13, 0.13, 0.1], turn(s * 120.0, c)),
+             placed(c - [0.15, 0.15, -0.1], c + [0.18, 0.18, 0.0], (np.eye(3), np.zeros(3)))]
+    return (np.vstack(parts), np.vstack([box_triangles + k * len(box) for k in range(len(parts))]),
+            np.repeat(np.arange(len(parts)), len(box)))
+
+
+def test_a_lever_moving_as_an_arms_link_between_two_poses_keeps_its_own_hinge():
+    """Two poses of :func:`_lever_beside_an_arm`: the lever, hinged on the still slab, and the
+    arm's second bar, hinged on the first, move by one rigid motion between the poses but about
+    different hinges between them; each piece is at its forward kinematics to 1e-6 of the diagonal
+    at every factor. Each is jointed to a different piece, so neither takes the other's motion
+    (core.rigid_bodies): on the second bar's motion the lever left its hinge by 4.1e-2 of the
+    diagonal half-way and 0.27 at ×2, silently."""
+    a, tri, piece = _lever_beside_an_arm(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, _lever_beside_an_arm(1.0)[0], tri)
+    for s, x in zip(FACTORS, _poses_and_warnings(interpolator, FACTORS)[0]):
+        truth = _lever_beside_an_arm(s)[0]
+        for k in range(5):
+            np.testing.assert_allclose(x[piece == k], truth[piece == k], atol=1e-6 * diagonal, err_msg=f"piece {k}")
+
+
 def _said(caught, words):
     """Whether any caught ShapeDifferenceWarning's message contains ``words``."""
     return any(issubclass(w.category, ShapeDifferenceWarning) and words in str(w.message) for w in caught)
