@@ -144,19 +144,29 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
     return out, bool((facing(y, False) >= 0.5 * margins).all())
 
 
-def untangled(gap, x: np.ndarray, s: float, defects: np.ndarray, scale: np.ndarray) -> np.ndarray | None:
+def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> np.ndarray | None:
     """An in-between ``x`` (n, 3) of a sequence at factor ``s`` of ``gap`` (a
-    ``core.inbetween_solver.Gap``) with flipped or collapsed triangles ``defects`` (bool (m,))
-    untangled (:func:`untangle`) on the triangles within :data:`UNTANGLE_RINGS` rings of them: the
+    ``core.inbetween_solver.Gap``; ``scale``: its ``area_scale(s)``) with flipped or collapsed
+    triangles, as the repairs count them (triangles that turn away from both keys as the
+    interpolated rotations turn them are none: :mod:`core.inbetween_turned_away`), untangled
+    (:func:`untangle`) on the triangles within :data:`UNTANGLE_RINGS` rings of them: the
     defective ones to face the keys' mean unit normal (where the keys' normals are within 120°;
     else the key's their normal opposes least), by :data:`UNTANGLE_MARGIN` of twice their
     interpolated area, every other one of the region the key it faces (the larger of its normal's
-    two projections) by half as much as it does or that margin, whichever is less; the still
-    vertices held. None unless the result has no defect and moves the pose by at most what a repair of it
+    two projections) by half as much as it does or that margin, whichever is less — or, turned
+    away from both keys, the way it faces —; the still vertices held. None where it has no such
+    triangle, else unless the result has none and moves the pose by at most what a repair of it
     may (:meth:`~core.inbetween_repair_rounds.RepairRounds.move_limits`)."""
     repair, topo = gap.repair, gap.topo
     limit = repair.move_limits(s)[0]
     if not np.isfinite(x).all():
+        return None
+    # the check the in-between's outcome and warning count by (the interpolated frames on the
+    # triangles the check reads: core.inbetween_solver.Gap.repaired); with the area scale the
+    # collapse test is the repairs' again (core.inbetween_prediction_repairs.repaired_in_passes)
+    frames, stretch = repair.factor_targets(s)[:2]
+    defects = repair.defects(x, s, frames, stretch, scale=scale)
+    if not defects.any():
         return None
     for rings in UNTANGLE_RINGS:
         rows = np.flatnonzero(repair.grow(defects, rings))
@@ -190,9 +200,16 @@ def untangled(gap, x: np.ndarray, s: float, defects: np.ndarray, scale: np.ndarr
         mean = first + second
         length = np.linalg.norm(mean, axis=1)
         bad = defects[rows]
+        facing = np.maximum(on_first, on_second)
+        # a triangle that faces away from both keys and is no defect turns as the interpolated
+        # rotations turn it: it keeps facing the way it does
+        away = ~bad & (facing < 0.0)
         sides = np.where((bad & (length >= 1.0))[:, None], mean / np.maximum(length, 1e-300)[:, None], nearer)
+        if away.any():
+            own = np.linalg.norm(normal[away], axis=1)
+            sides[away], facing[away] = normal[away] / np.maximum(own, 1e-300)[:, None], own
         least = UNTANGLE_MARGIN * 2.0 * gap.base.areas[rows] * scale[rows]
-        margins = np.maximum(np.where(bad, least, np.minimum(least, 0.5 * np.maximum(on_first, on_second))), 0.0)
+        margins = np.maximum(np.where(bad, least, np.minimum(least, 0.5 * facing)), 0.0)
         y, faces = x, True
         for part in np.unique(row_part):
             mine = row_part == part
@@ -203,7 +220,7 @@ def untangled(gap, x: np.ndarray, s: float, defects: np.ndarray, scale: np.ndarr
             continue
         if float(np.sum((y - x) ** 2)) > limit:
             return None
-        if not repair.defects(y, s, None, None, rows=rows, scale=scale).any():  # rows hold every defect
+        if not repair.defects(y, s, frames, stretch, rows=rows, scale=scale).any():  # rows hold every defect
             return y
     return None
 
@@ -216,13 +233,12 @@ def untangled_poses(gap, factors, results: list) -> list:
     for k, (s, (x, problem)) in enumerate(zip(factors, results)):
         if problem is not None and gap.repair.in_sequence(s):
             scale = gap.area_scale(s)
-            defects = gap.repair.defects(x, s, None, None, scale=scale)
-            if defects.any():
-                kept[k] = defects, scale
+            if gap.repair.defects(x, s, None, None, scale=scale).any():  # else none as the check counts either
+                kept[k] = scale
     if not kept:
         return results
     out = list(results)
-    done = per_factor(gap, lambda k: untangled(gap, results[k][0], factors[k], *kept[k]), list(kept))
+    done = per_factor(gap, lambda k: untangled(gap, results[k][0], factors[k], kept[k]), list(kept))
     for k, y in zip(kept, done):
         if y is not None:
             out[k] = (y, None)

@@ -7,6 +7,7 @@ from scipy.linalg import expm, logm
 from scipy.spatial import ConvexHull, Delaunay
 from scipy.spatial.transform import Rotation
 
+import meshes
 from meshes import grid, icosphere
 
 
@@ -83,6 +84,17 @@ def _curled_strip(angles, joints=(0.9, 1.9), n=121, width=9, length=3.0):
     flat, tri = grid(n, width, size=length)
     out = flat.copy()
     out[:, 0], out[:, 2], _ = _curled_line(flat[:, 0], angles, joints, 0.2)
+    return out, tri
+
+
+def _curled_tube(angles, joints, spread, radius=0.07, rings=61, sides=10):
+    """A closed tube (a finger: radius 0.07, length 1, 1,220 triangles) curled about y at the
+    ``joints`` by ``angles`` (radians), each bend spread over ``spread`` of its length: each
+    cross-section stays a circle normal to the curled centre line."""
+    tube, tri = meshes.closed_tube(rings, sides, radius=radius)
+    x, z, turn = _curled_line(tube[:, 0], angles, joints, spread)
+    out = tube.copy()
+    out[:, 0], out[:, 2] = x - np.sin(turn) * tube[:, 2], z + np.cos(turn) * tube[:, 2]
     return out, tri
 
 

@@ -21,7 +21,7 @@ from core.two_pose_inbetweens import Interpolator
 import meshes
 from inbetween_helpers import _normals
 from meshes import grid, icosphere
-from placement_helpers import (FACTORS, HALF_TURN_UNTOLD, _curled_line, _curled_strip, _head_with_eyes, _remeshed_tube,
+from placement_helpers import (FACTORS, HALF_TURN_UNTOLD, _curled_strip, _curled_tube, _head_with_eyes, _remeshed_tube,
                                _rigid, _skinned_limb)
 
 
@@ -199,17 +199,6 @@ def _assert_silently_true(interpolator, tri, diagonal, factors, truths):
         tolerance = interpolator._sequence._gap(0).tolerance
         assert np.sqrt(np.mean(np.sum((x - truth) ** 2, axis=1))) < tolerance * diagonal
         assert (np.einsum("ij,ij->i", _normals(x, tri), _normals(truth, tri)) > 0).all()
-
-
-def _curled_tube(angles, joints, spread, radius=0.07, rings=61, sides=10):
-    """A closed tube (a finger: radius 0.07, length 1, 1,220 triangles) curled about y at the
-    ``joints`` by ``angles`` (radians), each bend spread over ``spread`` of its length: each
-    cross-section stays a circle normal to the curled centre line."""
-    tube, tri = meshes.closed_tube(rings, sides, radius=radius)
-    x, z, turn = _curled_line(tube[:, 0], angles, joints, spread)
-    out = tube.copy()
-    out[:, 0], out[:, 2] = x - np.sin(turn) * tube[:, 2], z + np.cos(turn) * tube[:, 2]
-    return out, tri
 
 
 @pytest.mark.parametrize("degrees, joints, spread", [((120.0, 120.0), (0.25, 0.6), 0.35), ((240.0,), (0.3,), 0.5)])
