@@ -10,12 +10,14 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
-from .geometry import grouped_medians
-from .rigid_alignment import pivoted_alignment, rigid_alignments
+from .geometry import grouped_medians, nearest_rotations
+from .inbetween_whole_rotations import SPURIOUS_RIGID_TURN
+from .rigid_alignment import pivoted_alignment, rigid_alignments, turn_about_axis
 
 if TYPE_CHECKING:
     from .inbetween_keys import Key
@@ -46,18 +48,116 @@ def turn_spread(nonrigidity) -> np.ndarray:
     return np.minimum(screw_motions.TURN_NOISE * np.asarray(nonrigidity, dtype=np.float64), screw_motions.TURN_SPREAD)
 
 
+#: A piece is nearly one-dimensional (a ribbon, a strap, a strand of hair cards) in a key where
+#: the RMS spread of its vertices across its long axis (the second singular value of the centred
+#: positions, by mass) is under this share of the spread along it. Its rigid fit's turn about that
+#: axis rests on the small spread across it — the ribbon's width and the bow of its bend — and a
+#: bend that swings from one side to the other reads as a turn of up to a half turn about the axis
+#: the material does not make: a 3.0 × 0.08 ribbon (11,520 vertices) hanging and twisting from a
+#: turning hook, keys 4 frames apart, is fitted 167.5° about its length where its triangles turn
+#: 20° (the frames between, 40° in all): so interpolated, its gap is 1.18 × the linear blend's
+#: error and 2.10 × Catmull–Rom's; from its triangles, 0.52 × and 0.92 ×. Such a piece takes that
+#: turn from its triangles where they turn it over
+#: :data:`~core.inbetween_whole_rotations.SPURIOUS_RIGID_TURN` from the fit (the fit adds turn they
+#: do not make; :func:`_turned_as_triangles`): nearer, the two readings differ by how the piece's
+#: own twist is spread (0.1–20° on the ribbon), and the fit is kept (taken from the triangles there
+#: too, the ribbon keyed every 16 frames kept 5 flipped triangles where the fit keeps none). The 19
+#: cloths of the benchmark and 51 other bakes are sheets whose spread across is never under 0.14 of
+#: the spread along in any frame (a flag curled in wind); the two ribbons baked (twisting, piled)
+#: reach 0.025 and 0.042.
+THIN_PIECE = 0.1
+
+
 def rigid_fits(topo: Topology, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each component's best rigid motion taking vertices ``base`` (n, 3) onto ``other``: rotations
-    (C, 3, 3), translations (C, 3) and the RMS misfits (C,) it leaves (mass-weighted)."""
+    (C, 3, 3), translations (C, 3) and the RMS misfits (C,) it leaves (mass-weighted). A piece
+    nearly one-dimensional in either key (:data:`THIN_PIECE`) takes its turn about its long axis
+    from its triangles (:func:`_turned_as_triangles`)."""
     if len(topo.components) <= df.SLICED_PIECES:  # few pieces: each on its rows (views where consecutive)
-        fits = [rigid_alignments(base[rows], other[rows], None, 1, topo.weights[rows]) for rows in topo.component_rows]
+        fits = [rigid_alignments(base[rows], other[rows], None, 1, topo.weights[rows], singular_values=True)
+                for rows in topo.component_rows]
         rotations = np.concatenate([fit[0] for fit in fits]).reshape(-1, 3, 3)
         translations = np.concatenate([fit[1] for fit in fits]).reshape(-1, 3)
+        sigma = np.concatenate([fit[2] for fit in fits]).reshape(-1, 3)
     else:  # many: all at once (a loop took 0.1 s per call on 3,000 pieces)
         rows = topo.component_vertices
-        rotations, translations = rigid_alignments(base[rows], other[rows], topo.component_labels,
-                                                   len(topo.components), topo.weights[rows])
+        rotations, translations, sigma = rigid_alignments(base[rows], other[rows], topo.component_labels,
+                                                          len(topo.components), topo.weights[rows],
+                                                          singular_values=True)
+    # a piece thin in either key has a thin cross-covariance (its second singular value at most
+    # the share THIN_PIECE of the first, to within how far the keys' long axes part): only those
+    # pieces' own spreads are measured
+    maybe = np.flatnonzero(sigma[:, 1] + sigma[:, 2] < THIN_PIECE * sigma[:, 0])
+    if maybe.size:
+        rotations, translations = _turned_as_triangles(topo, base, other, rotations.copy(), translations.copy(),
+                                                       maybe)
     return rotations, translations, fit_misfits(topo, base, other, rotations, translations)
+
+
+def _thin(points: np.ndarray, weights: np.ndarray) -> bool:
+    """Whether ``points`` (r, 3) weighted by ``weights`` (r,) spread across their long axis by
+    under :data:`THIN_PIECE` of their spread along it (RMS: singular values of the centred rows)."""
+    w = weights / weights.sum()
+    centred = points - w @ points
+    spread = np.sqrt(np.maximum(np.linalg.eigvalsh((centred.T * w) @ centred), 0.0))  # ascending
+    return bool(spread[1] < THIN_PIECE * spread[2])
+
+
+def _turned_as_triangles(topo: Topology, base: np.ndarray, other: np.ndarray, rotations: np.ndarray,
+                         translations: np.ndarray, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``rotations`` (C, 3, 3), ``translations`` (C, 3) (the rigid fits from ``base`` (n, 3) to
+    ``other``), each of the ``pieces`` (int (k,)) thin in either key (:data:`THIN_PIECE`) turned
+    about its long axis in ``other`` (the cross-covariance's first left singular vector, which the
+    positions tell) by the turn that best agrees with its triangles' whole rotations (paper §8.4's
+    rotation field taken whole: the polar rotations of the triangles' planar maps, as
+    :class:`core.inbetween_keys.Relative` takes them), by area in ``base``: the ``Q`` maximizing
+    ``Σ a_t tr(Qᵀ W_t)`` (:func:`~core.rigid_alignment.turn_about_axis`), its translation keeping
+    the piece's centroid's, where that turn exceeds :data:`~core.inbetween_whole_rotations.SPURIOUS_RIGID_TURN`.
+    The triangles tell that turn where the positions read the bow of a bend instead; a rigid
+    motion (every ``W_t`` the fit's rotation: no turn) is left as it is."""
+    for c in pieces:
+        rows = topo.components[c]
+        w = topo.weights[rows]
+        if not w.sum() > 0 or not (_thin(base[rows], w) or _thin(other[rows], w)):
+            continue
+        w = w / w.sum()
+        s_mean, x_mean = w @ base[rows], w @ other[rows]
+        covariance = ((other[rows] - x_mean).T * w) @ (base[rows] - s_mean)
+        axis = np.linalg.svd(covariance)[0][:, 0]
+        entries, areas = triangle_turns(topo.triangles[topo.triangle_component == c], base, other)
+        whole = entries @ areas  # Σ a_t W_t (3, 3)
+        angle = turn_about_axis(axis, rotations[c] @ whole.T)
+        if abs(angle) <= SPURIOUS_RIGID_TURN:  # the positions read the turn the triangles make
+            continue
+        rotations[c] = Rotation.from_rotvec(angle * axis).as_matrix() @ rotations[c]
+        translations[c] = x_mean - rotations[c] @ s_mean
+    return rotations, translations
+
+
+def triangle_turns(triangles: np.ndarray, base: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The whole rotations ``W_t`` of ``triangles`` (r, 3) from vertices ``base`` (n, 3) to
+    ``other`` (the polar rotations of their planar maps, as :class:`core.inbetween_keys.Relative`
+    takes them; entries (3, 3, r)) and their areas (r,) in ``base``."""
+    frames = []
+    for x in (base, other):
+        # (3 coordinates, 3 corners, r), as the keys' corner edge rows
+        edges = np.ascontiguousarray(df.corner_edges(x, triangles).transpose(2, 1, 0))
+        frames.append(df.tangent_frame_rows(edges))
+    (base_columns, base_rows), (other_columns, other_rows) = frames
+    turn, _ = df.planar_polar(*df.planar_map_entries(other_rows, df.inverse_edge_rows(base_rows)))
+    entries = df.frame_rows_rotation_entries(df.plane_turned_frames(other_columns, turn), base_columns)
+    return entries, 0.5 * np.abs(base_rows[0, 0] * base_rows[1, 2])
+
+
+def mean_triangle_turns(topo: Topology, base: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Each component's rotation (C, 3, 3) nearest the area-weighted sum of its triangles' whole
+    rotations from ``base`` (n, 3) to ``other`` (:func:`triangle_turns`): the turn its surface
+    makes as a whole, which a deforming piece's positions may not tell."""
+    entries, areas = triangle_turns(topo.triangles, base, other)
+    pieces, count = topo.triangle_component, len(topo.components)
+    sums = np.stack([np.stack([np.bincount(pieces, areas * entries[a, b], minlength=count) for b in range(3)], axis=1)
+                     for a in range(3)], axis=1)  # (C, 3, 3)
+    return nearest_rotations(sums)
 
 
 def fit_misfits(topo: Topology, base: np.ndarray, other: np.ndarray, rotations, translations) -> np.ndarray:

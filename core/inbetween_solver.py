@@ -107,6 +107,10 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: gap does not take continuous across the mesh, and that piece's largest turn (radians)
     #: (``core.spun_parts.SpunParts._spun``): past ``TURNED_PART_SHARE`` the gap warns.
     spun_part = (0.0, 0.0)
+    #: Whether a piece's spin in the gap may be read the wrong way round by the keys, a gap next to
+    #: it reading a near half turn one way and it the other
+    #: (``core.sequence_half_turns.HalfTurns._aliased_spin``): the gap warns.
+    aliased_spin = False
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

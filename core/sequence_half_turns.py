@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from .deformation_fields import rotation_vectors
-from .rotation_continuity import either_way, residuals_turning_whole_way, the_other_way
+from .rotation_continuity import WRAP_CREASE, either_way, residuals_turning_whole_way, the_other_way
 from .inbetween_keys import Relative
-from .inbetween_rigid_fits import NEAR_HALF_TURN, rigid_fits, component_screws, turn_spread
+from .inbetween_rigid_fits import NEAR_HALF_TURN, component_screws, mean_triangle_turns, rigid_fits, turn_spread
 from .inbetween_solver import Gap
 from .rigid_alignment import rigid_alignment
 from .screw_motions import TURN_SPREAD
@@ -65,6 +65,26 @@ def turning_as_one(segment: Gap, nxt: Relative) -> bool:
     return bool(np.all(apart <= TURN_SPREAD) and np.all(shift <= TURN_SPREAD * size))
 
 
+def _same_way(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    """Per row of two rotation vectors (C, 3) each, whether both turn past
+    :data:`~core.rotation_continuity.WRAP_CREASE` (a way round to compare) and about axes
+    within a right angle of each other (bool (C,)) (:func:`_told`); :func:`_against` the same,
+    axes past it."""
+    return _told(first) & _told(second) & (np.einsum("ij,ij->i", first, second) > 0.0)
+
+
+def _against(first: np.ndarray, second: np.ndarray) -> np.ndarray:
+    return _told(first) & _told(second) & (np.einsum("ij,ij->i", first, second) < 0.0)
+
+
+def _told(turns: np.ndarray) -> np.ndarray:
+    """Per rotation vector (C, 3), whether it turns past WRAP_CREASE and is no half turn as short
+    either way round to within :data:`~core.screw_motions.TURN_SPREAD` (whose way the untold
+    half turns' warning is about: :func:`untold_half_turns`)."""
+    theta = np.linalg.norm(turns, axis=1)
+    return (theta > WRAP_CREASE) & ~either_way(theta, TURN_SPREAD)
+
+
 class HalfTurns:
     """The way round of near half turns between a sequence's keys, read from the steps around them;
     mixed into :class:`~core.sequence_inbetweens.SequenceInterpolator`.
@@ -84,6 +104,67 @@ class HalfTurns:
                                                           self._topo.triangle_component, self._edge_pairs,
                                                           self._key(base).areas, TURNED_PART_SHARE)
         return relative
+
+    def _spin_reading(self, gap: int, surface: bool) -> np.ndarray:
+        """Each piece's turn (rotation vectors (C, 3), the short way round) from key ``gap`` to the
+        next: its rigid fit's (:meth:`_fits`), or, ``surface``, its triangles' as a whole
+        (:func:`~core.inbetween_rigid_fits.mean_triangle_turns`); kept for every gap (a few numbers
+        per piece)."""
+        with self._cache_lock:
+            readings = self.__dict__.setdefault("_spin_readings", {})
+            known = readings.get((gap, surface))
+        if known is None:
+            rotations = mean_triangle_turns(self._topo, self._raw[gap], self._raw[gap + 1]) if surface else \
+                self._fits(gap, gap + 1)[0]
+            known = rotation_vectors(rotations)
+            with self._cache_lock:
+                readings[(gap, surface)] = known
+        return known
+
+    def _aliased_spin(self, gap: int) -> np.ndarray:
+        """Per component (bool (C,)), whether the keys may read its spin in gap ``gap`` the wrong
+        way round: by both its rigid fits and its triangles' turns as a whole
+        (:meth:`_spin_reading`), this gap turns it past :data:`~core.inbetween_rigid_fits.NEAR_HALF_TURN`
+        one way next to a gap turning it the other way (axes over a right angle apart, each past
+        :data:`~core.rotation_continuity.WRAP_CREASE`; :func:`_told`), or it is in the run of gaps
+        turning it that other way after such a gap. A piece spinning on one way a little past a
+        half turn per gap reads the short way round, the other way, from there on: a sheet pinned at
+        its centre in a vortex, keys 16 frames apart, turns about 190° / 225° / 283° per gap and
+        reads +173° / −136° / −77°, its last two gaps 1.33 / 1.15 × the linear blend's error (the
+        first 0.86 ×). Either reading alone also reads so what the in-betweens follow: a strip curled
+        170° per key at one joint (its fits, reading its shape, near a half turn one way and then the
+        other; its triangles 85°), a tail wagged past a half turn per key (its triangles, as a whole,
+        near a half turn either way; its fits under it). A swing that goes over and comes back
+        reads alike in both: the keys do not tell the two apart. The run before such a gap (a spin
+        slowing down through a half turn per gap reads so) is not said: on a benchmark flag keyed
+        every 16 frames it was a gap 0.56 × the blend's error."""
+        out = self._reversed_near_half_turn(gap, False)
+        if out.any():  # the triangles' turns only where the fits' read so (rare: made per gap then)
+            out &= self._reversed_near_half_turn(gap, True)
+        return out
+
+    def _reversed_near_half_turn(self, gap: int, surface: bool) -> np.ndarray:
+        """:meth:`_aliased_spin` by one reading (``surface`` as :meth:`_spin_reading`)."""
+        last = len(self._raw) - 1
+        count = len(self._topo.components)
+        if last < 2:
+            return np.zeros(count, dtype=bool)
+        here = self._spin_reading(gap, surface)
+        beside = np.zeros(count, dtype=bool)
+        for k in (gap - 1, gap + 1):
+            if 0 <= k < last:
+                beside |= _against(here, self._spin_reading(k, surface))
+        out = beside & (np.linalg.norm(here, axis=1) > NEAR_HALF_TURN)  # this gap's own near half turn
+        # ... or this gap in the run reading the other way after an earlier gap's
+        run, current = np.ones(count, dtype=bool), here
+        for k in range(gap - 1, -1, -1):
+            if not run.any():
+                break
+            earlier = self._spin_reading(k, surface)
+            out |= run & _against(current, earlier) & (np.linalg.norm(earlier, axis=1) > NEAR_HALF_TURN)
+            run &= _same_way(current, earlier)
+            current = earlier
+        return out
 
     def _pieces_turning_on(self, base: int, relative: Relative) -> Relative:
         """``relative`` (key ``base + 1`` seen from key ``base``) with each piece that turns past

@@ -209,6 +209,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.whole_half_turn = bool(segment.untold_half_turns) and turning_as_one(segment, ahead[0])
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
+        segment.aliased_spin = bool(self._aliased_spin(gap).any())
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

@@ -68,7 +68,8 @@ def composed_apart(topo: Topology, areas: np.ndarray, turning: np.ndarray, root:
 def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
     """The warnings' messages (list of str) of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
-    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``); ``key_names``: the keys as warnings name them."""
+    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``); ``key_names``: the keys as
+    warnings name them."""
     problems = []
     turned = (f"between {key_names[gap]} and {key_names[gap + 1]}, over "
               f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest of it")
@@ -92,6 +93,12 @@ def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
                         "in-betweens may turn it the short way round, back against the rest (keys at least "
                         f"{int(np.ceil(spun / np.pi))} times as often there tell which way it went; read from "
                         "patches of the mesh turning about the piece's rigid turn axis)")
+    if segment.aliased_spin:
+        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, a piece turns the other way round "
+                        "from a gap next to it that turns it nearly a half turn: it may spin on past a half turn "
+                        "per gap, which keys this far apart read the short way round, and the in-betweens may "
+                        "turn it back the wrong way (keys closer together, under a half turn apart, tell which "
+                        "way it spins)")
     if segment.whole_half_turn:
         problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, the whole mesh turns a half turn "
                         "(180°) as one to within what the keys tell, and nothing in them tells which way round: "

@@ -393,6 +393,24 @@ def test_a_rigid_fit_that_turns_further_than_the_triangles_is_not_used():
     assert relative.residuals_add_turn(topo, base, other).all()
 
 
+def test_a_thin_strip_takes_its_turn_about_its_length_from_its_triangles():
+    """A strip 60 times longer than wide whose bow swings from one side to the other while it
+    turns 20° about its length: its positions are best matched by a half turn more (the bows laid
+    onto each other, -160°), which its triangles do not make. Its rigid fit is the turn its
+    triangles make: by the strip's symmetry about its middle, exactly 20° about its length (to
+    round-off). A strip bowed less (its positions tell the turn) is fitted so already."""
+    flat, tri = grid(121, 5, size=3.0)
+    flat[:, 1] -= flat[:, 1].mean()
+    bow = 1.0 - (flat[:, 0] / 1.5 - 1.0) ** 2
+    turn = Rotation.from_rotvec([np.radians(20.0), 0.0, 0.0]).as_matrix()
+    for height in (0.15, 0.05):
+        before, after = flat.copy(), flat.copy()
+        before[:, 2], after[:, 2] = height * bow, -height * bow
+        after = _rigid(after, turn, np.zeros(3), (0.2, -0.1, 0.3))
+        fitted = _relative(before, after, tri)[3].motion[0][0]
+        assert Rotation.from_matrix(fitted.T @ turn).magnitude() < 1e-9
+
+
 def test_position_tangents_are_limited_at_a_stop_not_at_a_swing():
     """Per point, the incoming tangent is limited against the longer of this gap's and the next
     gap's secant: a point swinging back inside the gap (on a parabola through its turning point)

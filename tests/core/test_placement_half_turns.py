@@ -737,6 +737,30 @@ def test_pieces_turned_half_round_as_one_are_warned_of_as_the_whole_mesh():
         assert min(errors) < 1e-6 * diagonal, errors
 
 
+@pytest.mark.parametrize("turns, warned", [((170.0, 200.0, 230.0), (0, 1, 2)), ((130.0, 150.0, 170.0), ()),
+                                           ((170.0, 150.0, 130.0), ())])
+def test_a_spin_past_a_half_turn_per_gap_that_the_keys_read_backwards_is_warned(turns, warned):
+    """A sheet spinning on about its middle 170°, 200°, 230° per gap reads +170°, −160°, −130°
+    between its keys: the short way round, backwards past the first gap, which no in-between can
+    undo. Each gap says that its spin may be read the wrong way round (the gap reading a near half
+    turn, and the run reading the other way next to it), the last one too, whose reading (−130°)
+    is no near half turn. A sheet turning on one way under a half turn per gap, speeding up or
+    slowing down, is read as it turns and says nothing of it."""
+    sheet, tri = grid(9, size=1.0)
+    sheet -= sheet.mean(axis=0)
+    angles = np.radians(np.concatenate([[0.0], np.cumsum(turns)]))
+    keys = [Rotation.from_rotvec([0.0, 0.0, angle]).apply(sheet) for angle in angles]
+    sequence = SequenceInterpolator(keys, tri)
+    said = []
+    for gap in range(len(turns)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            sequence.poses(gap, [0.5])
+        if any("may spin on past a half turn per gap" in str(w.message) for w in caught):
+            said.append(gap)
+    assert tuple(said) == warned
+
+
 @pytest.mark.parametrize("keys", [3, 4])
 def test_a_sheet_keyed_every_half_turn_turns_about_its_axis(keys):
     """A draped sheet turning about the vertical axis through its middle, keyed every half turn
