@@ -136,7 +136,9 @@ class DefectChecks:
                             "cloth, a bend turned far): the in-between may turn them the other way; add a key "
                             "between the poses (they face against their interpolated rotation)")):
             if rows.any():
-                said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {int(np.argmax(rows))}) {what}")
+                first = int(np.argmax(rows))
+                first = first if gap.topo.caller_triangles is None else int(gap.topo.caller_triangles[first])
+                said.append(f"{int(rows.sum())} triangle(s) (e.g. triangle {first}) {what}")
         return "; ".join(said), (int(np.count_nonzero(against & ~over)), int(np.count_nonzero(against)))
 
     def problem(self, x, s, frames, stretch, defects=None) -> str | None:

@@ -108,6 +108,9 @@ class Topology:
         #: Vertices at one place in every key (pins), or None: the pieces' rigid fits keep them there
         #: (:func:`core.inbetween_rigid_fits.rigid_fits`).
         self.pinned: np.ndarray | None = None
+        #: The caller's index of each triangle where the triangles were reordered
+        #: (:func:`core.vertex_locality.renumbered`), or None: messages name triangles by it.
+        self.caller_triangles: np.ndarray | None = None
 
     @cached_property
     def D(self) -> sp.csr_matrix:

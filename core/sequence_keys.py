@@ -32,6 +32,7 @@ from .loose_vertices import attached_loose
 from .seam_welds import coincidence_tolerance, seam_weld
 from .near_duplicates import near_duplicates
 from .near_seams import near_seams
+from .vertex_locality import local_order, renumbered
 from .sequence_mirrors import warn_mirrored
 from .sequence_warnings import warn_said
 from .working_unit import working_unit
@@ -113,6 +114,16 @@ class SequenceKeys:
                 self._near = replace(self._near, still=still[self._near.members])
             keys, topology, still = [k[self._near.kept] for k in keys], self._near.topology, still[self._near.kept]
             kept = self._near.kept if kept is None else kept[self._near.kept]
+        # a vertex order that scatters neighbours over the mesh (a scan's, an exporter's) is solved in
+        # one that keeps them together (core.vertex_locality); the poses are given back in the caller's
+        # (_order / _triangle_order: the index before renumbering of each solved vertex / triangle)
+        self._order = self._unordered = self._triangle_order = None
+        order = local_order(topology)
+        if order is not None:
+            topology, self._triangle_order = renumbered(topology, order)
+            keys, still = [k[order] for k in keys], still[order]
+            self._order, self._unordered = order, np.argsort(order)
+            kept = order if kept is None else kept[order]
         # loose vertices near the surface follow a triangle there, not their piece's rigid motion
         self._attached = attached_loose(keys, topology, still)
         if still.any():  # set where they sit in the first key (copies: the caller's arrays stay)
@@ -138,6 +149,7 @@ class SequenceKeys:
             keys = [np.multiply(k, self._unit, out=k) if self._origin is not None else k * self._unit for k in keys]
         self._raw = keys
         self._topo = Topology(topology, keys[0])
+        self._topo.caller_triangles = self._triangle_order
         warn_mirrored(self._topo, self._raw, self.key_names, kept)
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (Relative); a sequence reads there which parts turn past a half
@@ -200,10 +212,16 @@ class SequenceKeys:
 
     def _caller_poses(self, out: np.ndarray, gap: int, factors: list[float]) -> np.ndarray:
         """Poses ``out`` (len(factors), n_solved, 3) of gap ``gap`` at ``factors`` for every vertex of
-        the caller's mesh: near-duplicate vertices placed about the one solved
+        the caller's mesh: in the caller's order where it was renumbered (:mod:`core.vertex_locality`),
+        near-duplicate vertices placed about the one solved
         (:meth:`core.near_duplicates.NearDuplicates.place`), seams' copies at their welded vertex."""
+        if self._order is not None:  # the solved vertices back in the order of the near-duplicates' and seams'
+            out = out[:, self._unordered]
         if self._near is not None:
-            out = self._near.place(out, (self._given[gap], self._given[gap + 1]), gap, factors)
+            given = (self._given[gap], self._given[gap + 1])
+            if self._order is not None:
+                given = tuple(k[self._unordered] for k in given)
+            out = self._near.place(out, given, gap, factors)
         return out if self._copies is None else out[:, self._copies]
 
     def __len__(self) -> int:

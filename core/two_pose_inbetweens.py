@@ -309,6 +309,8 @@ class Interpolator:
         by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
                      (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
         flagged = (growth > 0) | (shrinking > 0)
+        if sequence._triangle_order is not None:  # the solved triangles back in their order before renumbering
+            by_metric = by_metric[np.argsort(sequence._triangle_order)]
         near = sequence._near
         if near is not None:  # the solved triangles' (by_metric) among the caller's; the others are placed, not fitted
             flagged &= near.whole
