@@ -109,7 +109,8 @@ class Topology:
         #: (:func:`core.inbetween_rigid_fits.rigid_fits`).
         self.pinned: np.ndarray | None = None
         #: The caller's index of each triangle where the triangles were reordered
-        #: (:func:`core.vertex_locality.renumbered`), or None: messages name triangles by it.
+        #: (:func:`core.vertex_locality.renumbered`) or some dropped (near-duplicate vertices solved
+        #: as one, :mod:`core.near_duplicates`), or None: messages name triangles by it.
         self.caller_triangles: np.ndarray | None = None
 
     @cached_property

@@ -118,9 +118,13 @@ class SequenceKeys:
         # one that keeps them together (core.vertex_locality); the poses are given back in the caller's
         # (_order / _triangle_order: the index before renumbering of each solved vertex / triangle)
         self._order = self._unordered = self._triangle_order = None
+        # the caller's index of each solved triangle where it differs (messages name triangles by it):
+        # near-duplicates drop the triangles with two corners in one cluster, the renumbering sorts them
+        caller_triangles = None if self._near is None or self._near.whole.all() else np.flatnonzero(self._near.whole)
         order = local_order(topology)
         if order is not None:
             topology, self._triangle_order = renumbered(topology, order)
+            caller_triangles = self._triangle_order if caller_triangles is None else caller_triangles[self._triangle_order]
             keys, still = [k[order] for k in keys], still[order]
             self._order, self._unordered = order, np.argsort(order)
             kept = order if kept is None else kept[order]
@@ -149,7 +153,7 @@ class SequenceKeys:
             keys = [np.multiply(k, self._unit, out=k) if self._origin is not None else k * self._unit for k in keys]
         self._raw = keys
         self._topo = Topology(topology, keys[0])
-        self._topo.caller_triangles = self._triangle_order
+        self._topo.caller_triangles = caller_triangles
         warn_mirrored(self._topo, self._raw, self.key_names, kept)
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (Relative); a sequence reads there which parts turn past a half

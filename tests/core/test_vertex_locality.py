@@ -109,3 +109,28 @@ def test_a_renumbered_mesh_names_its_own_triangles(renumber_every_order):
     normals = [np.cross(c[1] - c[0], c[2] - c[0]) for c in corners]
     assert int(found.group(1)) == count
     assert np.dot(normals[0], normals[1]) < 0
+
+
+def test_a_mesh_with_near_duplicates_names_its_own_triangles():
+    """The cloth hanging from a rod (data/rod_sheet.npz) with its first triangle split at a point
+    1e-7 of its sides from a corner (prepended: the three pieces are the caller's triangles 0–2, the
+    rest shifted by two): the point and the corner are solved as one (core.near_duplicates), which
+    drops two of the pieces; the warning about triangles turning over between the poses names one,
+    in the caller's numbering, whose normals in the two poses face more than a right angle apart."""
+    import re
+    import warnings
+
+    data = np.load(DATA / "rod_sheet.npz")
+    (a, b), triangles = data["keys"].astype(np.float64), data["triangles"]
+    p, q, r = triangles[0]
+    v = len(a)
+    keys = [np.vstack([k, k[p] + 1e-7 * (k[q] + k[r] - 2.0 * k[p])]) for k in (a, b)]
+    split = np.vstack([[[p, q, v], [q, r, v], [r, p, v]], triangles[1:]])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Interpolator(keys[0], keys[1], split).pose(0.5)
+    found = [re.search(r"triangle\(s\) \(e\.g\. triangle (\d+)\) turn over between the poses", str(w.message))
+             for w in caught]
+    t = int(next(m for m in found if m is not None).group(1))
+    normals = [np.cross(k[split[t][1]] - k[split[t][0]], k[split[t][2]] - k[split[t][0]]) for k in keys]
+    assert np.dot(normals[0], normals[1]) < 0
