@@ -116,17 +116,17 @@ class SequenceKeys:
             kept = self._near.kept if kept is None else kept[self._near.kept]
         # a vertex order that scatters neighbours over the mesh (a scan's, an exporter's) is solved in
         # one that keeps them together (core.vertex_locality); the poses are given back in the caller's
-        # (_order / _triangle_order: the index before renumbering of each solved vertex / triangle)
-        self._order = self._unordered = self._triangle_order = None
-        # the caller's index of each solved triangle where it differs (messages name triangles by it):
+        # (_unordered: the solved index of each vertex before renumbering, or None)
+        self._unordered = None
+        # the caller's index of each solved triangle where it differs (Topology.caller_triangles):
         # near-duplicates drop the triangles with two corners in one cluster, the renumbering sorts them
         caller_triangles = None if self._near is None or self._near.whole.all() else np.flatnonzero(self._near.whole)
         order = local_order(topology)
         if order is not None:
-            topology, self._triangle_order = renumbered(topology, order)
-            caller_triangles = self._triangle_order if caller_triangles is None else caller_triangles[self._triangle_order]
+            topology, triangle_order = renumbered(topology, order)
+            caller_triangles = triangle_order if caller_triangles is None else caller_triangles[triangle_order]
             keys, still = [k[order] for k in keys], still[order]
-            self._order, self._unordered = order, np.argsort(order)
+            self._unordered = np.argsort(order)
             kept = order if kept is None else kept[order]
         # loose vertices near the surface follow a triangle there, not their piece's rigid motion
         self._attached = attached_loose(keys, topology, still)
@@ -219,11 +219,11 @@ class SequenceKeys:
         the caller's mesh: in the caller's order where it was renumbered (:mod:`core.vertex_locality`),
         near-duplicate vertices placed about the one solved
         (:meth:`core.near_duplicates.NearDuplicates.place`), seams' copies at their welded vertex."""
-        if self._order is not None:  # the solved vertices back in the order of the near-duplicates' and seams'
+        if self._unordered is not None:  # the solved vertices back in the order of the near-duplicates' and seams'
             out = out[:, self._unordered]
         if self._near is not None:
             given = (self._given[gap], self._given[gap + 1])
-            if self._order is not None:
+            if self._unordered is not None:
                 given = tuple(k[self._unordered] for k in given)
             out = self._near.place(out, given, gap, factors)
         return out if self._copies is None else out[:, self._copies]

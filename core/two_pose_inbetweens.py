@@ -309,13 +309,11 @@ class Interpolator:
         by_metric = ((metric > EXTRAPOLATED_GROWTH * np.maximum(first, second)) |
                      (metric * EXTRAPOLATED_GROWTH < np.minimum(first, second))).any(axis=0)
         flagged = (growth > 0) | (shrinking > 0)
-        if sequence._triangle_order is not None:  # the solved triangles back in their order before renumbering
-            by_metric = by_metric[np.argsort(sequence._triangle_order)]
-        near = sequence._near
-        if near is not None:  # the solved triangles' (by_metric) among the caller's; the others are placed, not fitted
-            flagged &= near.whole
-            solved, by_metric = by_metric, np.zeros(len(flagged), dtype=bool)
-            by_metric[near.whole] = solved
+        caller = sequence._topo.caller_triangles
+        if caller is not None:  # the solved triangles' (by_metric) among the caller's; those near-duplicates drop are placed, not fitted
+            solved, by_metric, fitted = by_metric, np.zeros(len(flagged), dtype=bool), np.zeros(len(flagged), dtype=bool)
+            by_metric[caller], fitted[caller] = solved, True
+            flagged &= fitted
         names = sequence.key_names
         for rows, cause in ((np.flatnonzero(flagged & by_metric),
                              "exaggerating (or reversing) raises each triangle's stretch between the poses to the "

@@ -70,13 +70,13 @@ def test_renumbered_inbetweens_equal_those_of_the_mesh_in_its_own_order(renumber
         expected = [SequenceInterpolator(keys, triangles).poses(g, factors) for g in range(len(keys) - 1)]
         pair = Interpolator(keys[0], keys[1], triangles).pose(1.5)
     sequence = SequenceInterpolator(keys[:, order], shuffled)
-    assert sequence._order is not None
+    assert sequence._unordered is not None
     for g in range(len(keys) - 1):
         got = sequence.poses(g, [0.0, *factors, 1.0])
         assert np.array_equal(got[0], keys[g][order]) and np.array_equal(got[-1], keys[g + 1][order])
         assert np.abs(got[1:-1][:, inverse] - expected[g]).max() <= 1e-9 * diagonal
     two = Interpolator(keys[0][order], keys[1][order], shuffled)
-    assert two._sequence._order is not None
+    assert two._sequence._unordered is not None
     assert np.abs(two.pose(1.5)[inverse] - pair).max() <= 1e-9 * diagonal
 
 
