@@ -218,9 +218,9 @@ class CarriedPieces:
         if not reachable.max() > 0:
             return [(None, None)] * count
         # the nearest few within the largest reach, then within each piece's own (the same sets);
-        # a piece with fewer than MIN_CARRIERS so, smaller than the edges under it (a scan's floater
-        # 0.15 of an edge across, 0.6 of one off the surface), and within an edge (``reach``) of a
-        # carrier, looks again within an edge beyond its nearest carrier, MIN_CARRIERS per vertex
+        # a piece with fewer than MIN_CARRIERS so (one smaller than the edges under it: a scan's
+        # floater 0.15 of an edge across, 0.6 of one off the surface) whose nearest carrier is within
+        # its reach or an edge (``reach``) looks again within an edge beyond that carrier
         distance, nearest = nearest_points(tree, first[rows], max(CARRIER_NEIGHBOURS, MIN_CARRIERS),
                                            max(reachable.max(), 2.0 * reach))
 
