@@ -98,6 +98,8 @@ class Woodbury:
         if capacitance is None:
             capacitance = f @ (self.dinv[:, None] * f.T)
             capacitance[np.diag_indices_from(capacitance)] += 1.0
+        if not np.isfinite(capacitance).all():  # SciPy would raise a bare ValueError
+            raise FloatingPointError("the low-rank system's capacitance matrix overflowed")
         self.chol = sla.cho_factor(capacitance, lower=True)
 
     def solve(self, r: np.ndarray) -> np.ndarray:

@@ -231,6 +231,8 @@ def oriented_pieces(triangles: np.ndarray, pieces: np.ndarray) -> np.ndarray:
     from scipy.sparse.csgraph import connected_components
 
     m, count = len(triangles), int(pieces.max()) + 1 if len(pieces) else 0
+    if not m:  # a weld that collapsed every triangle: nothing to orient (the caller's checks refuse it)
+        return triangles
     tails, heads = triangles.ravel(), triangles[:, [1, 2, 0]].ravel()
     owner = np.repeat(np.arange(m), 3)
     low, high = np.minimum(tails, heads), np.maximum(tails, heads)

@@ -45,7 +45,7 @@ from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fracti
                               check_spread, check_target_resolution, coincident_vertices, degenerate_at_rest,
                               mean_edge_length, warn_non_manifold, warn_outlying_matches)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
-from .validation import check_basis_sizes
+from .validation import check_basis_sizes, numerical_failures
 
 
 #: Relative stopping tolerance of the recovery's iterative solvers (area CG, edge-length ADMM)
@@ -142,7 +142,8 @@ class Transfer:
     :data:`~core.transfer_layers.SUBSPACE_ITERATIONS`). ``False``: every pose's recovery starts from the base and its
     embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
     ``size``: the target's size relative to the base through the map (:func:`target_size`);
-    :meth:`pose` rebuilds at the base's size and scales back by it.
+    :meth:`pose` rebuilds at the base's size and scales back by it. ``target_name``: what the
+    errors about the target's rest pose call it (the add-on: the source object's name).
 
     ``use_extrinsic=False`` (the default here, unlike the same-mesh pipeline): only the intrinsic
     pair is transferred, and the pose is the base mesh fitted to the recovered edge lengths from
@@ -160,7 +161,8 @@ class Transfer:
     def __init__(self, base_vertices, triangles, target_rest_vertices, target_triangles, *, correspondence=None,
                  k_M: int | None = 100, k_N: int | None = 200, offset: float | None = None,
                  use_extrinsic: bool = False, reference=None, refine_map: bool = True,
-                 correct_discretization: bool = True, warm_start: bool = True):
+                 correct_discretization: bool = True, warm_start: bool = True,
+                 target_name: str = "target rest vertices"):
         from .reference_shape import ReferenceShape
 
         k_M, k_N = basis_sizes(k_M, k_N)
@@ -174,7 +176,7 @@ class Transfer:
             reference = ReferenceShape(base_vertices, triangles, offset=offset, use_extrinsic=use_extrinsic)
         reference.basis_sizes(self.k_M, None)  # k_M against the base mesh (k_N is the target's)
         self.reference = reference
-        rest = check_vertices(target_rest_vertices, name="target rest vertices")
+        rest = check_vertices(target_rest_vertices, name=target_name)
         self.n_target = rest.shape[0]
         topology = mesh_topology(target_triangles, self.n_target, allow_non_manifold=True)
         # Coincident copies of a vertex (split along UV seams or sharp edges by an exporter) are
@@ -186,7 +188,7 @@ class Transfer:
             whole = (kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])
             # pieces wound against the ones they are welded to are turned over, as the in-betweens'
             kept = oriented_pieces(kept[whole], topology.components()[1][whole])
-        flat = degenerate_at_rest(rest, kept)  # slivers of a decimation: no area, no part of the surface
+        flat = degenerate_at_rest(rest, kept, target_name)  # slivers of a decimation: no area, no part of the surface
         # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
         # target's eigenbasis needs its surface, not its triangles.
         kept = delaunay_flips(rest, np.delete(kept, flat, axis=0), max_dihedral_degrees=MAX_DIHEDRAL_DEGREES)
@@ -203,7 +205,7 @@ class Transfer:
             topology = mesh_topology(compact[topology.triangles], self.target_used.size, allow_non_manifold=True)
         self.target_triangles = np.asarray(target_triangles, dtype=np.int64)
         rest_used = rest[self.target_used]
-        check_nondegenerate(rest_used, topology.triangles, name="target rest vertices")
+        check_nondegenerate(rest_used, topology.triangles, name=target_name)
         # k_N against the target's eigenbasis, before any work (the base's k_M was checked above)
         check_basis_sizes(self.k_M, self.k_N, None, full_basis=False, target_vertices=int(self.target_used.size))
         check_target_resolution(self.k_M, int(self.target_used.size))
@@ -487,15 +489,17 @@ class Transfer:
         """The target pose ``(n_N, 3)`` rebuilt on the base mesh, float64 ``(n_M, 3)``: recovered
         from its shape differences and placed by the rigid motion that brings each component
         closest to the base vertices' images on the target (the map). A target of another size
-        keeps it (:attr:`size`): the pose is rebuilt at the base's size and scaled."""
+        keeps it (:attr:`size`): the pose is rebuilt at the base's size and scaled. A solver's raw
+        numerical failure is a :class:`~core.errors.RecoveryError` (:func:`~core.validation.numerical_failures`)."""
         ref = self.reference
         positions = self._target_positions(target_vertices) / self.size  # at the base's size
-        differences = self._differences(positions)
-        metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
-                                    tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
-        carried = np.asarray(self._pull_back @ positions)  # each base vertex's image on this pose
-        embedded = self._embed(metric, carried)
-        placed = ref.place_near(embedded.base_vertices, carried) * self.size
+        with numerical_failures("Transferring the pose"):
+            differences = self._differences(positions)
+            metric = ref.recover_metric(differences, warm=self._warm_recovery if self.warm_start else None,
+                                        tolerance=RECOVERY_TOLERANCE, rho_scale=RECOVERY_RHO_SCALE)
+            carried = np.asarray(self._pull_back @ positions)  # each base vertex's image on this pose
+            embedded = self._embed(metric, carried)
+            placed = ref.place_near(embedded.base_vertices, carried) * self.size
         return ref.expand_pose(placed)
 
     def _projected(self, vertices) -> np.ndarray:

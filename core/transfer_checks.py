@@ -76,12 +76,12 @@ TARGET_FUNCTIONS_PER_VERTEX = 1 / 3
 WELD_DISTANCE = 1e-7
 
 
-def degenerate_at_rest(rest, triangles) -> np.ndarray:
+def degenerate_at_rest(rest, triangles, name: str = "target rest vertices") -> np.ndarray:
     """Indices of the target triangles of zero area at rest (as
     :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning:
     a decimated or remeshed target may carry a few collinear slivers, which add nothing to its
     surface but would make its Laplacian infinite. A target pose where a kept triangle
-    collapses is still an error."""
+    collapses is still an error; so is a target with no triangle left (``name`` names it)."""
     from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
 
     corners = rest[triangles]
@@ -89,7 +89,8 @@ def degenerate_at_rest(rest, triangles) -> np.ndarray:
     doubled_area = np.linalg.norm(np.cross(sides[:, 0], sides[:, 1]), axis=1)
     flat = np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * np.einsum("tki,tki->tk", sides, sides).max(axis=1)))
     if flat.size == triangles.shape[0]:
-        raise MeshError("target rest vertices: every triangle of the target has zero area.")
+        raise MeshError(f"{name}: every triangle has zero area (the mesh lies on a line or a point, or its "
+                        "coincident vertices welded leave no triangle).")
     if flat.size:
         warn(
             f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "

@@ -7,7 +7,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, edit_mode_problem,
-                   key_blocks_of, key_pose, load_core, mesh_pose, surface_triangles)
+                   key_blocks_of, key_pose, load_core, mesh_pose, reported_error, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -27,6 +27,40 @@ def _world(obj, positions, matrix=None):
 def _local(obj, positions):
     matrix = np.linalg.inv(np.array(obj.matrix_world, dtype=np.float64))
     return positions @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def check_invertible(obj):
+    """Refuse an active mesh whose world matrix flattens it (a scale of 0 along an axis, its own
+    or a parent's): the poses are rebuilt in the world and cannot be taken back into its mesh."""
+    linear = np.array(obj.matrix_world, dtype=np.float64)[:3, :3]
+    sigma = np.linalg.svd(linear, compute_uv=False)
+    if not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
+        scale = ", ".join(f"{value:.3g}" for value in np.linalg.norm(linear, axis=0))
+        raise InputError(
+            f"'{obj.name}' is flattened in the world (its scale there is ({scale})): the poses are rebuilt "
+            "in the world and cannot be taken back into its mesh. Give it (and its parents) a scale other "
+            "than 0 along every axis")
+
+
+def triangle_faces(obj):
+    """The face of every loop triangle of ``obj``'s mesh, or None where every face is a triangle
+    (:func:`~.base.name_faces`)."""
+    mesh = obj.data
+    return bridge.loop_triangle_polygons(mesh) if len(mesh.loop_triangles) > len(mesh.polygons) else None
+
+
+def about_mesh(obj, role: str, job):
+    """``yield from`` this to run ``job`` (an operator's :meth:`compute` of a core call whose
+    refusals concern ``obj``'s mesh alone) with those refusals naming the object, its ``role``
+    and the faces (two meshes are in play: the core's "triangle 7" or "Edge (3, 4)" says not
+    of which)."""
+    try:
+        return (yield from job)
+    except load_core().MeshError as error:
+        message = reported_error(error, triangle_faces(obj))
+        if f"'{obj.name}'" not in message:
+            message = f"'{obj.name}' ({role}): {message}"
+        raise InputError(message) from error
 
 
 def read_correspondence(obj, name: str, n_source: int) -> np.ndarray:
@@ -173,6 +207,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
     def run(self, context):
         obj = context.active_object
         source = self._source_object(context)
+        check_invertible(obj)
         triangles = surface_triangles(obj)
         source_triangles = surface_triangles(source)
         n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
@@ -192,9 +227,15 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         base = _world(obj, mesh_pose(obj))
         # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
         # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
+        # The active mesh is prepared (and checked) on its own first, so that a refusal of its mesh
+        # says which of the two meshes to fix; the source's rest pose is named in the core's checks.
+        reference = yield from about_mesh(obj, "the mesh the poses move", self.compute(
+            0.05, core.ReferenceShape, base, triangles, name=f"the mesh of '{obj.name}'",
+            offset=options["offset"], use_extrinsic=False))
         transfer = yield from self.compute(
             0.1, core.Transfer, base, triangles, _world(source, rest, rest_matrix), source_triangles,
-            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"])
+            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"], reference=reference,
+            target_name=f"the rest pose of '{source.name}' in the world")
         rebuilt = []
         for i, pose in enumerate(poses):
             world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose,

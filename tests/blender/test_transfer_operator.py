@@ -291,3 +291,53 @@ def test_frames_of_a_source_whose_scale_is_keyframed_are_measured_in_their_propo
     for frame in (1, 5, 9):
         moved = areas(bridge.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame {frame}"]))
         np.testing.assert_allclose(moved / rest, 1.0, atol=1e-4, err_msg=f"frame {frame}")
+
+
+def _refused_without_change(bridge, obj, match):
+    from blender_scenes import assert_unchanged
+
+    before = snapshot(bridge, obj)
+    with pytest.raises(RuntimeError, match=match) as refusal:
+        bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
+    assert "Traceback" not in str(refusal.value), "a crash, not a report"
+    assert_unchanged(before, snapshot(bridge, obj))
+
+
+@pytest.mark.parametrize("scaled", ["itself", "its parent"])
+def test_an_active_mesh_flattened_by_a_zero_scale_is_refused(pair, scaled):
+    """The poses are rebuilt in the world and taken back into the active mesh through its world
+    matrix: scaled to 0 along an axis (its own scale or a parent's) there is no way back (before: a
+    NumPy "Singular matrix" traceback after the whole transfer)."""
+    source, target, bridge = pair
+    if scaled == "itself":
+        target.scale = (1.0, 1.0, 0.0)
+    else:
+        parent = bpy.data.objects.new("Holder", None)
+        bpy.context.scene.collection.objects.link(parent)
+        parent.scale = (0.0, 1.0, 1.0)
+        target.parent = parent
+    bpy.context.view_layer.update()
+    _refused_without_change(bridge, target, r"^Error: 'Sheet' is flattened in the world \(its scale there is "
+                                            r"\((1, 1, 0|0, 1, 1)\)\).* a scale other than 0 along every axis$")
+    assert target.data.shape_keys is None
+
+
+def test_refusals_name_the_mesh_at_fault(pair):
+    """Two meshes are in play: a refusal of the active mesh's faces names it and its faces (before:
+    "Triangle 200 uses the same three vertices as triangle 0", of either mesh, numbered by loop
+    triangle), and a source flattened in the world by its scale is named (before: a NumPy traceback
+    from welding its rest pose, which left no triangle)."""
+    source, target, bridge = pair
+    mesh = target.data
+    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
+    doubled = bpy.data.meshes.new("Doubled")  # face 0 again, as the last face: a duplicate in place
+    doubled.from_pydata([vertex.co[:] for vertex in mesh.vertices], [], faces + faces[:1])
+    target.data = doubled
+    _refused_without_change(bridge, target, rf"^Error: 'Sheet' \(the mesh the poses move\): Triangle {2 * len(faces)} "
+                                            rf"\(of face {len(faces)}\) uses the same three vertices as triangle 0 "
+                                            r"\(of face 0\)")
+    target.data = mesh
+    source.scale = (1e-20, 1.0, 1.0)
+    bpy.context.view_layer.update()
+    _refused_without_change(bridge, target, r"^Error: the rest pose of 'Source' in the world: every triangle has "
+                                            r"zero area")

@@ -199,3 +199,22 @@ def test_a_mesh_rounded_flat_far_from_its_origin_is_a_mesh_error():
     far = (v + 1e7).astype(np.float32)
     with pytest.raises(MeshError, match=r"lies 1e\+07 units from its origin.*more than most of its edges are long"):
         core.Interpolator(far, far, t)
+
+
+def test_a_key_far_larger_than_the_others_in_a_truncated_basis_is_a_recovery_error():
+    """A key 1e20 × the size of the others (a broken frame, inside the accepted 1e30) overflows the
+    truncated area program's low-rank system: a RecoveryError naming the gap (before: SciPy's bare
+    "array must not contain infs or NaNs" ValueError from its Cholesky factorization); through
+    :class:`core.Transfer` too."""
+    v, t = grid(8)
+    keys = [v, drape(v, 1.0), drape(v, 1.0) * 1e20]
+    sequence = core.SequenceInterpolator(keys, t, k_M=12)
+    with pytest.raises(RecoveryError, match=r"^The in-between at factor 0.5 between key pose 1 and key pose 2 failed "
+                                            r"numerically \(FloatingPointError: .*overflowed\)"):
+        sequence.pose(1, 0.5)
+    target, target_triangles = grid(6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # the basis sizes' advice: not this test's
+        transfer = core.Transfer(target, target_triangles, v, t, k_M=9, k_N=20)
+    with pytest.raises(RecoveryError, match=r"^Transferring the pose failed numerically \(FloatingPointError"):
+        transfer.pose(drape(v, 1.0) * 1e20)

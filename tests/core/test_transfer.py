@@ -257,6 +257,21 @@ def test_errors_in_the_users_terms(sheets):
             Transfer(base, base_tris, target, target_tris, k_M=10, k_N=20, correspondence=onto)
 
 
+def test_a_target_whose_rest_pose_welds_into_no_triangle_is_refused_by_its_name(sheets):
+    """A target rest pose flattened onto a line (an object scaled to nearly 0 along an axis, laid
+    in the world) has every vertex coincide with others there: welding them leaves no triangle.
+    Refused as a mesh without area, naming the pose as the caller does (it raised NumPy's "zero-size
+    array to reduction operation" from the weld's orientation step)."""
+    base, base_tris = sheets[:2]
+    target, target_tris = grid(12)  # rows of vertices at one height: each row welds into one vertex
+    with pytest.raises(MeshError, match=r"^target rest vertices: every triangle has zero area"):
+        Transfer(base, base_tris, target * [1e-20, 1.0, 1.0], target_tris, k_M=10, k_N=20)
+    jittered, jittered_tris = sheets[2:]  # welds no row: its triangles are measured and have no area
+    for flattened, triangles in ((target * [1e-20, 1.0, 1.0], target_tris), (jittered * [1e-20, 1.0, 1.0], jittered_tris)):
+        with pytest.raises(MeshError, match=r"^the rest pose of 'Cloth': every triangle has zero area"):
+            Transfer(base, base_tris, flattened, triangles, k_M=10, k_N=20, target_name="the rest pose of 'Cloth'")
+
+
 def test_a_target_with_a_hole_where_the_base_is_closed_is_warned(sheets):
     """A closed sphere's target at rest is the sphere, meshed otherwise, with a cap of 5 % of its
     area cut out: closest points lay the base over the cap on its rim, and the transfer says so with
