@@ -13,11 +13,16 @@ region as little as keeps the pose's own edges (least squares) while every trian
 faces a given side: a quadratic penalty on each triangle's signed area toward its side, whose
 weight grows (:data:`UNTANGLE_WEIGHTS`) until every triangle faces its side (Gauss–Newton steps,
 each a dense solve of the part's few hundred unknowns at most; written here because SciPy's
-L-BFGS took 4–440 ms an in-between on the same problems). :func:`untangled` picks the region, the
-sides and takes the result only where it leaves the in-between free of defects.
+L-BFGS took 4–440 ms an in-between on the same problems). :func:`untangled` splits the defects into places
+(tangles that share no vertex), picks each one's region and sides, and keeps each place's result
+where it leaves that place free of defects; the places it cannot clean, or too large for its
+bounded work (:data:`UNTANGLE_FREE_VERTICES`, :data:`UNTANGLE_WORK`), are left as they were and said.
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 import scipy.sparse as sp
@@ -47,10 +52,15 @@ UNTANGLE_WEIGHTS = (1e4, 1e6)
 UNTANGLE_MARGIN = 0.05
 #: Gauss–Newton steps at each weight at most.
 UNTANGLE_ITERATIONS = 20
-#: A connected part of the region with more free vertices than this is not untangled, and parts are
-#: untangled together up to this many (the Gauss–Newton matrix is dense: 3 × this many unknowns at
-#: most; the benchmark's parts have 3–16): a fold that wide is no local tangle.
+#: A place (tangle) whose region has more free vertices than this is not untangled: a fold that wide
+#: is no local tangle, and the Gauss–Newton matrix is dense (3 × this many unknowns at most; the
+#: benchmark's places have 3–16).
 UNTANGLE_FREE_VERTICES = 200
+#: The free vertices of the regions one in-between's untangling solves for, all its places' tries
+#: counted (a place tried at one ring and then two counts both): the places beyond it are left, and
+#: said. Each try costs at most ``len(UNTANGLE_WEIGHTS) × UNTANGLE_ITERATIONS`` dense solves of
+#: 3 × its free vertices unknowns, so this bounds the work.
+UNTANGLE_WORK = 2000
 
 
 def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, sides: np.ndarray,
@@ -144,20 +154,41 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
     return out, bool((facing(y, False) >= 0.5 * margins).all())
 
 
-def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> np.ndarray | None:
+class Untangling(NamedTuple):
+    """What :func:`untangled` did to an in-between: the pose, and of the places where it kept
+    flipped or collapsed triangles (the tangles: connected groups of them with the triangles within
+    the first of :data:`UNTANGLE_RINGS` rings, sharing no vertex) how many it left, and why."""
+
+    positions: np.ndarray  # (n, 3)
+    defects: int  # the flipped or collapsed triangles the pose keeps, in the places left
+    tangles: int  # the places it had
+    left: int  # of those, the ones not untangled
+    too_large: int  # of those left, the ones never tried: over UNTANGLE_FREE_VERTICES or the in-between's UNTANGLE_WORK
+
+
+def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | None:
     """An in-between ``x`` (n, 3) of a sequence at factor ``s`` of ``gap`` (a
     ``core.inbetween_solver.Gap``; ``scale``: its ``area_scale(s)``) with flipped or collapsed
     triangles, as the repairs count them (triangles that turn away from both keys as the
-    interpolated rotations turn them are none: :mod:`core.inbetween_turned_away`), untangled
-    (:func:`untangle`) on the triangles within :data:`UNTANGLE_RINGS` rings of them: the
-    defective ones to face the keys' mean unit normal (where the keys' normals are within 120°;
-    else the key's their normal opposes least), by :data:`UNTANGLE_MARGIN` of twice their
-    interpolated area, every other one of the region the key it faces (the larger of its normal's
-    two projections) by half as much as it does or that margin, whichever is less — or, turned
-    away from both keys, the way it faces —; the still vertices held. None where it has no such
-    triangle, else unless the result has none and moves the pose by at most what a repair of it
-    may (:meth:`~core.inbetween_repair_rounds.RepairRounds.move_limits`)."""
-    repair, topo = gap.repair, gap.topo
+    interpolated rotations turn them are none: :mod:`core.inbetween_turned_away`), untangled place
+    by place. For each of :data:`UNTANGLE_RINGS` in turn, the defects still kept grown by that many
+    rings fall into places (connected parts that share no vertex: what moves in one changes no
+    triangle of another), packed in order into runs of at most :data:`UNTANGLE_FREE_VERTICES` free
+    vertices (:meth:`_Region.packs`), each run untangled at once (:func:`untangle`; a run that does
+    not come back facing its sides, place by place) on its triangles: the defective ones to face the keys' mean unit normal (where the keys' normals are
+    within 120°; else the key's their normal opposes least), by :data:`UNTANGLE_MARGIN` of twice
+    their interpolated area, every other one the key it faces (the larger of its normal's two
+    projections) by half as much as it does or that margin, whichever is less — or, turned away from
+    both keys, the way it faces —; the still vertices held. A place's move is kept where its region
+    comes back with no defect and the pose stays within what a repair of it may move
+    (:meth:`~core.inbetween_repair_rounds.RepairRounds.move_limits`, a sum of squared moves over the
+    whole pose, counted from ``x``); the others' are kept regardless, and the places left are tried
+    again at the next ring. A place is not tried where it has more than
+    :data:`UNTANGLE_FREE_VERTICES` free vertices or would take the in-between past
+    :data:`UNTANGLE_WORK` free vertices in all its tries (in the mesh's order). None where ``x`` is not finite, has no
+    such triangle, or where no place was untangled and every one was tried (the in-between as it
+    was, and what was said of it, stand); the places counted are those of the first ring."""
+    repair = gap.repair
     limit = repair.move_limits(s)[0]
     if not np.isfinite(x).all():
         return None
@@ -168,67 +199,141 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> np.ndarray | N
     defects = repair.defects(x, s, frames, stretch, scale=scale)
     if not defects.any():
         return None
+    y, moved, work, first = x.copy(), 0.0, 0, None
+    kept, tried = defects.copy(), np.zeros_like(defects)
+
+    def keep(part, z, places) -> None:  # each of ``places`` of ``part`` moved to ``z`` where that cleans it
+        nonlocal moved
+        for place in places:
+            mine, rows = part.vertex_place == place, part.rows[part.row_place == place]
+            vertices, new = part.vertices[mine], z[mine]
+            held, start = y[vertices], x[vertices]
+            step = float(np.sum((new - start) ** 2) - np.sum((held - start) ** 2))
+            if not np.isfinite(new).all() or moved + step > limit:
+                continue  # past what a repair of the in-between may move
+            y[vertices] = new
+            if repair.defects(y, s, frames, stretch, rows=rows, scale=scale).any():
+                y[vertices] = held  # its region holds every triangle a free vertex has
+                continue
+            moved += step
+            kept[rows] = False
+
     for rings in UNTANGLE_RINGS:
-        rows = np.flatnonzero(repair.grow(defects, rings))
-        corners = topo.triangles[rows]
-        touched, local = np.unique(corners, return_inverse=True)
-        inside = np.bincount(local, minlength=touched.size)
-        movable = inside == topo.triangles_per_vertex[touched]
+        if not kept.any():
+            break
+        region = _Region(gap, y, kept, repair.grow(kept, rings), scale)
+        first = region if first is None else first
+        for pack in region.packs():
+            size = int(region.sizes[pack].sum())
+            # past the in-between's work, each place alone while it fits
+            for places in [pack] if work + size <= UNTANGLE_WORK else [[place] for place in pack]:
+                if work + int(region.sizes[places].sum()) > UNTANGLE_WORK:
+                    continue
+                part = region.part(places)
+                work += part.free.size
+                tried[part.rows[kept[part.rows]]] = True
+                z, faces = untangle(y[part.vertices], part.corners, part.free, part.sides, part.margins)
+                if faces:
+                    keep(part, z, places)
+                elif len(places) > 1:  # one place that does not untangle held the others: each alone
+                    for place in places:
+                        alone = region.part([place])
+                        if work + alone.free.size > UNTANGLE_WORK:
+                            continue
+                        work += alone.free.size
+                        z, faces = untangle(y[alone.vertices], alone.corners, alone.free, alone.sides, alone.margins)
+                        if faces:
+                            keep(alone, z, [place])
+    # the places of the first ring: left where they keep a defect, too large where none of theirs was tried
+    places = first.row_place[defects[first.rows]]
+    left = np.bincount(places, kept[first.rows][defects[first.rows]], minlength=first.count) > 0
+    large = left & (np.bincount(places, tried[first.rows][defects[first.rows]], minlength=first.count) == 0)
+    if left.all() and not large.any():
+        return None
+    return Untangling(y, int(kept.sum()), first.count, int(left.sum()), int(large.sum()))
+
+
+class _Region:
+    """The triangles ``mask`` (bool (m,)) around the defects ``bad`` (bool (m,)) of an in-between
+    ``x`` (n, 3) of ``gap``, in places (``count`` connected parts: each triangle's ``row_place``,
+    each vertex's ``vertex_place``, the free vertices of each ``sizes`` (count,)), with the sides
+    each triangle is to face and by how much (:func:`untangled`; ``scale``: the gap's ``area_scale(s)``)."""
+
+    def __init__(self, gap, x: np.ndarray, bad: np.ndarray, mask: np.ndarray, scale: np.ndarray):
+        topo = gap.topo
+        self.rows = np.flatnonzero(mask)
+        corners = topo.triangles[self.rows]
+        self.touched, local = np.unique(corners, return_inverse=True)
+        self.local = local.reshape(-1, 3)
+        movable = np.bincount(local.ravel(), minlength=self.touched.size) == topo.triangles_per_vertex[self.touched]
         if gap.static is not None:
-            movable &= ~gap.static[touched]
-        count, labels = corner_joined_parts(local.ravel(), touched.size)
-        sizes = np.bincount(labels[rows.size:][movable], minlength=count)
-        if count and sizes.max() > UNTANGLE_FREE_VERTICES:
-            return None  # a fold that wide is no local tangle
-        # the connected parts (their free vertices share no triangle: each one's system is its own
-        # block) packed in order into groups of at most UNTANGLE_FREE_VERTICES free vertices, each
-        # group untangled at once (one dense system: 91 Gauss–Newton solves on the benchmark's 18
-        # in-betweens, 148 with one call per part)
-        group, total = np.zeros(count, dtype=np.intp), 0
-        for part, size in enumerate(sizes):
-            if total + size > UNTANGLE_FREE_VERTICES:
-                group[part:], total = group[part] + 1, 0
-            total += size
-        row_part, vertex_part = group[labels[:rows.size]], group[labels[rows.size:]]
-        first, second = gap.base.normal_rows[:, rows].T, gap.next.normal_rows[:, rows].T
-        first = first / np.linalg.norm(first, axis=1, keepdims=True)
-        second = second / np.linalg.norm(second, axis=1, keepdims=True)
-        p = x[corners]
-        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-        on_first, on_second = np.einsum("ij,ij->i", normal, first), np.einsum("ij,ij->i", normal, second)
-        nearer = np.where((on_first >= on_second)[:, None], first, second)
-        mean = first + second
-        length = np.linalg.norm(mean, axis=1)
-        bad = defects[rows]
-        facing = np.maximum(on_first, on_second)
-        # a triangle that faces away from both keys and is no defect turns as the interpolated
-        # rotations turn it: it keeps facing the way it does
-        away = ~bad & (facing < 0.0)
-        sides = np.where((bad & (length >= 1.0))[:, None], mean / np.maximum(length, 1e-300)[:, None], nearer)
-        if away.any():
-            own = np.linalg.norm(normal[away], axis=1)
-            sides[away], facing[away] = normal[away] / np.maximum(own, 1e-300)[:, None], own
-        least = UNTANGLE_MARGIN * 2.0 * gap.base.areas[rows] * scale[rows]
-        margins = np.maximum(np.where(bad, least, np.minimum(least, 0.5 * facing)), 0.0)
-        y, faces = x, True
-        for part in np.unique(row_part):
-            mine = row_part == part
-            y, faces = untangle(y, corners[mine], touched[movable & (vertex_part == part)], sides[mine], margins[mine])
-            if not faces:
-                break
-        if not faces or not np.isfinite(y).all():
-            continue
-        if float(np.sum((y - x) ** 2)) > limit:
-            return None
-        if not repair.defects(y, s, frames, stretch, rows=rows, scale=scale).any():  # rows hold every defect
-            return y
-    return None
+            movable &= ~gap.static[self.touched]
+        self.movable = movable
+        self.count, labels = corner_joined_parts(local.ravel(), self.touched.size)
+        self.row_place, self.vertex_place = labels[:self.rows.size], labels[self.rows.size:]
+        self.sizes = np.bincount(self.vertex_place[movable], minlength=self.count)
+        self.sides, self.margins = _sides(gap, x, self.rows, corners, bad[self.rows], scale)
+
+    def packs(self) -> list[list[int]]:
+        """The places of at most :data:`UNTANGLE_FREE_VERTICES` free vertices, in order, packed into
+        runs of at most that many free vertices in all: each run is untangled at once (one dense
+        system, its places' blocks independent: 91 Gauss–Newton solves for the 18 in-betweens of
+        the benchmark that kept flips, 148 with one call per place)."""
+        packs, total = [], UNTANGLE_FREE_VERTICES + 1
+        for place in np.flatnonzero(self.sizes <= UNTANGLE_FREE_VERTICES):
+            if total + self.sizes[place] > UNTANGLE_FREE_VERTICES:
+                packs.append([])
+                total = 0
+            packs[-1].append(int(place))
+            total += self.sizes[place]
+        return packs
+
+    def part(self, places) -> SimpleNamespace:
+        """The ``places`` (a list) of the region, numbered on their own: their triangles ``rows``
+        (r,) and the ``corners`` (r, 3) among their ``vertices`` (v,: the pose's indices), the
+        ``free`` ones (f,: among ``vertices``), ``sides`` (r, 3), ``margins`` (r,), and the place of
+        each triangle and vertex, ``row_place`` (r,) and ``vertex_place`` (v,)."""
+        mine = np.isin(self.row_place, places)
+        vertices = np.flatnonzero(np.isin(self.vertex_place, places))
+        renumbered = np.full(self.touched.size, -1)
+        renumbered[vertices] = np.arange(vertices.size)
+        return SimpleNamespace(rows=self.rows[mine], corners=renumbered[self.local[mine]],
+                               vertices=self.touched[vertices], free=renumbered[vertices[self.movable[vertices]]],
+                               sides=self.sides[mine], margins=self.margins[mine], row_place=self.row_place[mine],
+                               vertex_place=self.vertex_place[vertices])
+
+
+def _sides(gap, x: np.ndarray, rows: np.ndarray, corners: np.ndarray, bad: np.ndarray,
+           scale: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unit side (r, 3) each of the triangles ``rows`` (corners (r, 3)) of an in-between ``x``
+    (n, 3) of ``gap`` is to face in its untangling, and by how much (r,) (:func:`untangled`;
+    ``bad``: which of them are defects, bool (r,); ``scale``: the gap's ``area_scale(s)``)."""
+    first, second = gap.base.normal_rows[:, rows].T, gap.next.normal_rows[:, rows].T
+    first = first / np.linalg.norm(first, axis=1, keepdims=True)
+    second = second / np.linalg.norm(second, axis=1, keepdims=True)
+    p = x[corners]
+    normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    on_first, on_second = np.einsum("ij,ij->i", normal, first), np.einsum("ij,ij->i", normal, second)
+    nearer = np.where((on_first >= on_second)[:, None], first, second)
+    mean = first + second
+    length = np.linalg.norm(mean, axis=1)
+    facing = np.maximum(on_first, on_second)
+    # a triangle that faces away from both keys and is no defect turns as the interpolated
+    # rotations turn it: it keeps facing the way it does
+    away = ~bad & (facing < 0.0)
+    sides = np.where((bad & (length >= 1.0))[:, None], mean / np.maximum(length, 1e-300)[:, None], nearer)
+    if away.any():
+        own = np.linalg.norm(normal[away], axis=1)
+        sides[away], facing[away] = normal[away] / np.maximum(own, 1e-300)[:, None], own
+    least = UNTANGLE_MARGIN * 2.0 * gap.base.areas[rows] * scale[rows]
+    return sides, np.maximum(np.where(bad, least, np.minimum(least, 0.5 * facing)), 0.0)
 
 
 def untangled_poses(gap, factors, results: list) -> list:
     """``results`` (positions (n, 3), problem or None) at ``factors`` of ``gap`` with each
     in-between of a sequence that keeps flipped or collapsed triangles replaced by its
-    :func:`untangled` pose, clean, where there is one (its outcome then counts no defect)."""
+    :func:`untangled` pose where there is one: clean (its outcome then counts no defect), or with
+    the places it left said (its outcome then counts their defects)."""
     kept = {}
     for k, (s, (x, problem)) in enumerate(zip(factors, results)):
         if problem is not None and gap.repair.in_sequence(s):
@@ -239,8 +344,27 @@ def untangled_poses(gap, factors, results: list) -> list:
         return results
     out = list(results)
     done = per_factor(gap, lambda k: untangled(gap, results[k][0], factors[k], kept[k]), list(kept))
-    for k, y in zip(kept, done):
-        if y is not None:
-            out[k] = (y, None)
-            gap.outcomes[factors[k]] = Outcome(0, False)
+    for k, result in zip(kept, done):
+        if result is None:
+            continue
+        s = factors[k]
+        if not result.left:
+            out[k] = (result.positions, None)
+            gap.outcomes[s] = Outcome(0, False)
+            continue
+        out[k] = (result.positions, left_message(result))
+        before = gap.outcomes.get(s)
+        gap.outcomes[s] = Outcome(result.defects, before is not None and before.near_blend)
     return out
+
+
+def left_message(result: Untangling) -> str:
+    """The warning's text for an in-between the untangling left places in (``result``): what it
+    keeps first, where a report line cut to the status bar's width still shows it."""
+    large = "" if not result.too_large else (
+        f"; {result.too_large} of those left too large to untangle: a tangle of more than "
+        f"{UNTANGLE_FREE_VERTICES} vertices, or past {UNTANGLE_WORK} in the in-between")
+    return (f"it keeps {result.defects} triangle(s) flipped or collapsed in {result.left} of the {result.tangles} "
+            f"place(s) where its repairs left the cloth folded over or crushed ({result.tangles - result.left} "
+            f"untangled{large}); keys closer together here tell the motion better, or fix those triangles by hand "
+            "(the metric fit with the fewest defects, untangled place by place)")

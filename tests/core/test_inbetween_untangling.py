@@ -7,8 +7,10 @@ import warnings
 
 import numpy as np
 
+import core.inbetween_untangling as untangling
 from core.errors import ShapeDifferenceWarning
-from core.inbetween_untangling import UNTANGLE_MARGIN, untangle
+from core.inbetween_defects import COLLAPSE_RATIO
+from core.inbetween_untangling import UNTANGLE_FREE_VERTICES, UNTANGLE_MARGIN, UNTANGLE_WORK, untangle
 from core.sequence_inbetweens import SequenceInterpolator
 from inbetween_helpers import _bend, _flipped, _normals
 from meshes import grid
@@ -31,25 +33,29 @@ def _pushed(flat, tri, across=0.6):
     return _pushed_past(flat, tri, centre, across), centre, np.flatnonzero((tri == centre).any(axis=1))
 
 
-def _fits_folded(monkeypatch, tri, where) -> dict:
-    """Every in-between's fit of a sequence (``core.inbetween_solver.Gap.pose``, 0 < s < 1) with
-    the vertex ``where(x)`` pushed past its neighbour (:func:`_pushed_past`) and said to keep a
-    flipped triangle, as a fold no repair removed: {factor: (that pose, the vertex)}, filled as
-    they are made."""
+def _fits_made(monkeypatch, make) -> dict:
+    """Every in-between's fit of a sequence (``core.inbetween_solver.Gap.pose``, 0 < s < 1) made
+    into ``make(x)`` (a pose (n, 3) and what the test needs of it) and said to keep a flipped
+    triangle, as a fold no repair removed: {factor: what ``make`` returned}, filled as they are made."""
     import core.inbetween_solver as solver
 
-    real_pose, folded = solver.Gap.pose, {}
+    real_pose, made = solver.Gap.pose, {}
 
     def pose(self, s, *args, **kwargs):
         x, problem = real_pose(self, s, *args, **kwargs)
         if not 0.0 < s < 1.0:
             return x, problem
-        centre = where(x)
-        folded[s] = (_pushed_past(x, tri, centre), centre)
-        return folded[s][0].copy(), "1 triangle(s) flipped or collapsed"
+        made[s] = make(x)
+        return made[s][0].copy(), "1 triangle(s) flipped or collapsed"
 
     monkeypatch.setattr(solver.Gap, "pose", pose)
-    return folded
+    return made
+
+
+def _fits_folded(monkeypatch, tri, where) -> dict:
+    """:func:`_fits_made` with the vertex ``where(x)`` pushed past its neighbour
+    (:func:`_pushed_past`): {factor: (that pose, the vertex)}."""
+    return _fits_made(monkeypatch, lambda x: (_pushed_past(x, tri, where(x)), where(x)))
 
 
 def _within_rings(tri, centre, rings) -> np.ndarray:
@@ -150,3 +156,144 @@ def test_a_tip_turning_away_from_both_keys_is_left_as_it_turns_while_a_fold_is_u
     assert (np.einsum("ij,ij->i", _normals(y, tri), _normals(curl, tri)) > 0).all()
     near = _within_rings(tri, centre, 3)
     assert np.array_equal(y[~near], x[~near])
+
+
+def _sheet_keys(side=40):
+    """A unit sheet of ``side`` × ``side`` vertices bending about y through three keys (0, 0.6 and
+    1.2 radians, isometric: the interpolated areas are the flat sheet's), about the first key's
+    middle: (the flat sheet, triangles, the keys)."""
+    flat, tri = grid(side, side, size=1.0)
+    keys = [_bend(flat, angle, length=1.0) for angle in (0.0, 0.6, 1.2)]
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
+    return flat, tri, [key - middle for key in keys]
+
+
+def _crushed(x, flat, centre, radius, ramp=16.0, inner=1e-3):
+    """Positions ``x`` drawn toward vertex ``centre``: within ``radius`` grid spacings of it (on the
+    ``flat`` sheet) to ``inner`` of their distance, beyond that less and less, to none ``ramp``
+    spacings farther. Its triangles within the radius are crushed (area ``inner²`` of theirs: collapsed),
+    those around it squeezed but not collapsed, so the vertices two rings out enclose too little
+    area for the crushed ones to open: a tangle wider than the untangling's two rings."""
+    spacing = flat[1, 0] - flat[0, 0]
+    r = np.linalg.norm(flat[:, :2] - flat[centre, :2], axis=1) / spacing
+    share = np.clip(inner + (1.0 - inner) * (r - radius) / ramp, inner, 1.0)
+    return x[centre] + share[:, None] * (x - x[centre])
+
+
+def _collapsed(y, key, tri) -> int:
+    """Triangles of ``y`` whose area is below the collapse check's share of their area in ``key``
+    (the interpolated area where the keys bend isometrically)."""
+    return int(np.sum(np.linalg.norm(_normals(y, tri), axis=1) < COLLAPSE_RATIO * np.linalg.norm(_normals(key, tri), axis=1)))
+
+
+def _counted_untangling(monkeypatch) -> list:
+    """The number of free vertices of each system the untangling solves (its calls of
+    :func:`untangle`), filled as they are made."""
+    solved = []
+
+    def counted(vertices, triangles, free, *args, **kwargs):
+        solved.append(len(free))
+        return untangle(vertices, triangles, free, *args, **kwargs)
+
+    monkeypatch.setattr(untangling, "untangle", counted)
+    return solved
+
+
+def _crushed_and_folded(monkeypatch, radius):
+    """The middle in-between of :func:`_sheet_keys`'s first gap made with a crush of ``radius``
+    spacings at the sheet's middle (:func:`_crushed`) and a fold near a corner (a vertex pushed
+    past its neighbour, :func:`_pushed_past`), as kept by the repairs: (keys, triangles, the pose
+    made, the in-between returned, the folded vertex, the warnings said)."""
+    flat, tri, keys = _sheet_keys()
+    centre = int(np.argmin(np.linalg.norm(flat - [0.5, 0.5, 0.0], axis=1)))
+    corner = int(np.argmin(np.linalg.norm(flat - [0.1, 0.1, 0.0], axis=1)))
+    made = _fits_made(monkeypatch, lambda x: (_pushed_past(_crushed(x, flat, centre, radius), tri, corner),))
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        y = SequenceInterpolator(keys, tri).pose(0, 0.5)
+    return keys, tri, made[0.5][0], y, corner, [w.message for w in said]
+
+
+def test_a_fold_is_untangled_beside_a_crush_the_untangling_cannot_open(monkeypatch):
+    """An in-between kept by the repairs with two separate tangles: a fold near a corner (a vertex
+    pushed past its neighbour) and, at the middle, the cloth crushed to a point (96 triangles
+    collapsed) with the cloth around it squeezed, so that two rings out there is too little room to
+    open it. The fold is untangled (no flipped triangle left; only vertices within three rings of
+    it moved), the crush is left as it was, bit for bit, and the warning counts its collapsed
+    triangles, counted here from the areas. Accepting the untangling only where the whole
+    in-between came back clean, the fold was kept too."""
+    keys, tri, x, y, corner, said = _crushed_and_folded(monkeypatch, radius=4)
+    assert _flipped(x, keys[0], keys[1], tri) > 0
+    assert _flipped(y, keys[0], keys[1], tri) == 0
+    near = _within_rings(tri, corner, 3)
+    assert (y[near] != x[near]).any()
+    assert np.array_equal(y[~near], x[~near])
+    collapsed = _collapsed(y, keys[0], tri)
+    assert collapsed > 0
+    assert [(w.kind, w.defects) for w in said] == [("pose", collapsed)]
+
+
+def test_a_tangle_too_large_is_not_untangled_its_work_bounded_and_said(monkeypatch):
+    """As above with the crush over a radius of 9 spacings (520 triangles collapsed: more than
+    UNTANGLE_FREE_VERTICES free vertices around them): the untangling never solves for more free
+    vertices at once than that, nor more than UNTANGLE_WORK in all; the fold is untangled, the crush
+    left bit for bit, and the warning counts its collapsed triangles and says it was too large to
+    untangle. Leaving a part that large ended the untangling of the whole in-between: the fold
+    was kept too."""
+    solved = _counted_untangling(monkeypatch)
+    keys, tri, x, y, corner, said = _crushed_and_folded(monkeypatch, radius=9)
+    assert solved and max(solved) <= UNTANGLE_FREE_VERTICES and sum(solved) <= UNTANGLE_WORK
+    assert _flipped(x, keys[0], keys[1], tri) > 0
+    assert _flipped(y, keys[0], keys[1], tri) == 0
+    near = _within_rings(tri, corner, 3)
+    assert np.array_equal(y[~near], x[~near])
+    collapsed = _collapsed(y, keys[0], tri)
+    assert collapsed > 0
+    assert [(w.kind, w.defects) for w in said] == [("pose", collapsed)]
+    assert "too large to untangle" in str(said[0])
+
+
+def test_the_untangling_of_an_in_between_stops_at_its_work(monkeypatch):
+    """Two folds alike far apart (a vertex pushed past its neighbour at each), with the work of an
+    in-between's untangling (UNTANGLE_WORK) set short of what both take: one is untangled, the
+    other is left as it was, bit for bit, and said as too large to untangle, its flipped triangles
+    counted."""
+    flat, tri, keys = _sheet_keys()
+    ends = [int(np.argmin(np.linalg.norm(flat - [a, 0.5, 0.0], axis=1))) for a in (0.2, 0.8)]
+    solved = _counted_untangling(monkeypatch)
+    made = _fits_made(monkeypatch, lambda x: (_pushed_past(_pushed_past(x, tri, ends[0]), tri, ends[1]),))
+
+    def in_between():
+        solved.clear()
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            y = SequenceInterpolator(keys, tri).pose(0, 0.5)
+        return y, [w.message for w in said]
+
+    y, said = in_between()
+    assert not said and _flipped(y, keys[0], keys[1], tri) == 0  # both untangled
+    both = sum(solved)
+    monkeypatch.setattr(untangling, "UNTANGLE_WORK", both - 1)
+    y, said = in_between()
+    x = made[0.5][0]
+    assert len(solved) == 1 and solved[0] < both
+    moved = [np.array_equal(y[_within_rings(tri, end, 3)], x[_within_rings(tri, end, 3)]) for end in ends]
+    assert sorted(moved) == [False, True]  # one fold untangled, the other as it was
+    untangled_fold = _within_rings(tri, ends[moved.index(False)], 3)
+    assert np.array_equal(y[~untangled_fold], x[~untangled_fold])
+    flipped = _flipped(y, keys[0], keys[1], tri)
+    assert 0 < flipped < _flipped(x, keys[0], keys[1], tri)
+    assert [(w.kind, w.defects) for w in said] == [("pose", flipped)] and "too large to untangle" in str(said[0])
+
+
+def test_an_in_between_without_defects_is_left_bit_for_bit(monkeypatch):
+    """An in-between whose fit is said to keep a flipped triangle while it has none (a problem of
+    another kind): the untangling leaves it bit for bit, the same pose as the sequence gives
+    without the message."""
+    flat, tri, keys = _sheet_keys(side=12)
+    plain = SequenceInterpolator(keys, tri).pose(0, 0.5)
+    made = _fits_made(monkeypatch, lambda x: (x.copy(),))
+    with warnings.catch_warnings(record=True):
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        y = SequenceInterpolator(keys, tri).pose(0, 0.5)
+    assert np.array_equal(made[0.5][0], plain) and np.array_equal(y, plain)
