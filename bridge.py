@@ -357,6 +357,11 @@ def scene_time(scene: bpy.types.Scene, frame: float) -> float:
 #: Modifiers that simulate and keep a point cache (emptied when the object's mesh data changes,
 #: marked outdated when its modifiers change at a frame past its start).
 SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
+#: Modifiers that add or remove vertices (Blender's Generate category; Geometry Nodes apart, which
+#: may carry the motion itself).
+GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',
+                      'MULTIRES', 'REMESH', 'SCREW', 'SKIN', 'SOLIDIFY', 'SUBSURF', 'TRIANGULATE', 'WELD',
+                      'WIREFRAME'}
 
 
 def simulations(objects):
@@ -861,7 +866,7 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
                 continue
             positions = evaluated_positions(obj, context.evaluated_depsgraph_get())
             if len(positions) != vertex_count:
-                _refuse_vertex_count(obj, frame, len(positions), vertex_count)
+                _refuse_vertex_count(obj, frame, len(positions), vertex_count, aside)
             yield frame, positions
     finally:
         if switch_frame is not None:
@@ -875,9 +880,10 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             scene.frame_set(original_frame, subframe=original_subframe)
 
 
-def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int):
+def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=()):
     """Raise :class:`VertexCountChanged` for ``obj``'s evaluated mesh having ``count`` vertices at
-    ``frame`` instead of its mesh's ``vertex_count``, saying what changes the topology."""
+    ``frame`` instead of its mesh's ``vertex_count`` (with the modifiers ``aside`` switched off),
+    saying what changes the topology and, for a generator before the motion, naming it."""
     caches = [m for m in obj.modifiers if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
     if caches:
         source = caches[0].cache_file.filepath if caches[0].cache_file is not None else "its cache file"
@@ -896,12 +902,45 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int):
             f"{vertex_count}: the Ocean modifier '{oceans[0].name}' makes its own grid (Geometry › "
             "Generate), whose vertices are not the mesh's. Set its Geometry to Displace, on a mesh "
             "with as many vertices (a Grid, or a plane with a Subdivision applied), and run again.")
+    generators = [m for m in obj.modifiers if m.show_viewport and m.type in GENERATE_MODIFIERS and m not in aside]
+    if generators:
+        raise VertexCountChanged(f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+                                 f"{vertex_count}: " + _generators_before_motion(obj, generators, vertex_count))
     raise VertexCountChanged(
         f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
         f"{vertex_count}: a modifier before the motion (or a Geometry Nodes modifier) changes the "
         "topology. Disable modifiers that add or remove geometry there (Subdivision, Remesh, "
         "Decimate, ...) or apply them before simulating or rigging; those after the cloth or "
         "armature are set aside by themselves.")
+
+
+def _generators_before_motion(obj, generators: list, vertex_count: int) -> str:
+    """What to do about ``generators``, enabled generators of ``obj`` that are not set aside (they
+    come before its motion), for the refusal of :func:`_refuse_vertex_count`: apply them. A cloth or
+    soft body after them simulates the vertices they make, and its baked cache holds those: applied,
+    they become the mesh's and the bake keeps playing; disabled, Blender would simulate the mesh
+    without them again (its cache no longer matches), another motion than the bake's."""
+    one = len(generators) == 1
+    names = ", ".join(f"'{m.name}'" for m in generators)
+    it = "it" if one else "them"
+    after = list(obj.modifiers)[list(obj.modifiers).index(generators[-1]) + 1:]
+    simulations = [m for m in after if m.show_viewport and m.type in SIMULATION_MODIFIERS]
+    head = (f"{names} {'comes' if one else 'come'} before the motion and {'changes' if one else 'change'} the "
+            f"vertex count, and the poses are of the mesh's own {vertex_count} vertices. Apply {it} (the "
+            "modifier's menu › Apply)")
+    if not simulations:
+        return (f"{head}, so that the mesh has the vertices the motion after {it} moves, or disable {it}; "
+                "those after the cloth or armature are set aside by themselves.")
+    simulation = simulations[0]
+    kind = "cloth" if simulation.type == 'CLOTH' else "soft body"
+    if simulation.point_cache.is_baked:
+        return (f"{head}: {it} then {'gives' if one else 'give'} the mesh the vertices the {kind} "
+                f"'{simulation.name}' moves, and its baked cache, which holds them, keeps playing. Disabling {it} "
+                f"instead has Blender simulate the mesh without {it} again (its cache no longer matches): "
+                "another motion than the bake's.")
+    return (f"{head}: {it} then {'gives' if one else 'give'} the mesh the vertices the {kind} '{simulation.name}' "
+            "simulates (its cache is not baked: Blender simulates it again from its start, on those vertices as "
+            "now).")
 
 
 @dataclass

@@ -48,11 +48,8 @@ def objects_moving(obj) -> list:
     return found
 
 
-#: Modifiers that add or remove vertices (Blender's Generate category; Geometry Nodes apart, which
-#: may carry the motion itself).
-GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',
-                      'MULTIRES', 'REMESH', 'SCREW', 'SKIN', 'SOLIDIFY', 'SUBSURF', 'TRIANGULATE', 'WELD',
-                      'WIREFRAME'}
+#: Modifiers that add or remove vertices (:data:`bridge.GENERATE_MODIFIERS`).
+GENERATE_MODIFIERS = bridge.GENERATE_MODIFIERS
 #: Modifiers that smooth or displace the mesh without animation of their own: they may follow a
 #: generator in the run that is set aside.
 MOVING_TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE'}

@@ -5,6 +5,8 @@ and the new object that plays the result gets copies of them after its Mesh Cach
 looks like the source. A generator before the motion, or one after an unbaked simulation (whose
 cache switching it off would outdate), is refused and nothing changes."""
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -185,7 +187,69 @@ def test_a_generator_before_the_motion_is_refused(bpy_empty, extension):
     for operator in (bpy.ops.shape_differences.frames_to_shape_keys,
                      bpy.ops.shape_differences.inbetween_frames):
         fails_without_change(extension.bridge, strip, operator,
-                             "instead of .* a modifier before the motion")
+                             "instead of .* 'Decimate' comes before the motion and changes the vertex count.* "
+                             "Apply it .* or disable it")
+
+
+def read_with_aside(bridge, obj, frames, aside):
+    """The evaluated positions of ``obj`` at ``frames`` with the modifier ``aside`` switched off, switched at
+    frame 1 (a simulation's start, where switching does not outdate its bake); the scene is left at frame 1."""
+    scene = bpy.context.scene
+    scene.frame_set(1)
+    aside.show_viewport = False
+    out = played(bridge, obj, frames)
+    aside.show_viewport = True
+    bpy.context.view_layer.update()
+    return out
+
+
+def test_a_subdivision_under_a_baked_cloth_is_named_and_applying_it_keeps_the_bake(bpy_empty, extension, tmp_path):
+    """A Subdivision before a baked cloth (which simulates the subdivided vertices) and a Solidify after it:
+    the refusal names the Subdivision and says to apply it, which keeps the bake playing (its cache holds
+    those vertices), and the run then reads the baked frames (before: "Disable modifiers that add or remove
+    geometry there (Subdivision, …) or apply them before simulating", naming none: disabled, the Subdivision
+    has Blender simulate the coarser mesh again, another motion)."""
+    bridge = extension.bridge
+    flag = pinned_cloth_scene(frames=9)
+    subdivision, solidify = add_display_modifiers(flag)
+    flag.modifiers.move(len(flag.modifiers) - 2, 0)  # the Subdivision first, under the cloth
+    assert [m.type for m in flag.modifiers] == ['SUBSURF', 'CLOTH', 'SOLIDIFY']
+    scene = bpy.context.scene
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+    baked = read_with_aside(bridge, flag, [1, 5, 9], solidify)
+    assert len(baked[5]) > len(flag.data.vertices), "the cloth should simulate the subdivided vertices"
+    assert np.abs(baked[9] - baked[1]).max() > 0.1, "the cloth should move"
+    fails_without_change(bridge, flag, bpy.ops.shape_differences.inbetween_frames,
+                         "'Subdivision' comes before the motion .* Apply it .* the cloth 'Cloth' moves, and its baked "
+                         "cache, which holds them, keeps playing", frame_start=1, frame_end=9, frame_step=4)
+
+    # the advice holds: applied, the bake plays on and the run in-betweens the baked frames
+    with bpy.context.temp_override(object=flag, active_object=flag):
+        bpy.ops.object.modifier_apply(modifier="Subdivision")
+    assert flag.modifiers["Cloth"].point_cache.is_baked
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                               filepath=str(tmp_path / "flag.pc2"))
+    [copy] = new_objects(names)
+    assert [m.type for m in copy.modifiers] == ['MESH_CACHE', 'SOLIDIFY']
+    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(
+        bpy.path.abspath(copy.modifiers[0].filepath))
+    for sample, frame in ((0, 1), (4, 5), (8, 9)):  # the keys, as baked
+        np.testing.assert_allclose(cache.positions[sample], baked[frame], atol=TOLERANCE)
+
+
+def test_a_subdivision_under_an_unbaked_cloth_is_named(bpy_empty, extension):
+    """The same Subdivision under a cloth that is not baked: named, with what applying it does there (the
+    cloth simulates the vertices it makes again from its start)."""
+    flag = pinned_cloth_scene(frames=5)
+    flag.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    flag.modifiers.move(len(flag.modifiers) - 1, 0)
+    bpy.context.view_layer.update()
+    fails_without_change(extension.bridge, flag, bpy.ops.shape_differences.inbetween_frames,
+                         "'Subdivision' comes before the motion .* Apply it .* the cloth 'Cloth' simulates \\(its "
+                         "cache is not baked", frame_start=1, frame_end=5, frame_step=2)
 
 
 def test_a_collision_modifier_at_the_end_stays_with_the_source(bpy_empty, extension, tmp_path):
