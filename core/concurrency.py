@@ -29,6 +29,7 @@ import threading
 from contextlib import contextmanager
 
 _pool = None
+_pool_threads = 0  # the threads _pool was made with
 _pool_lock = threading.Lock()
 _controller = None  # see _blas_controller
 _limit_lock = threading.Lock()
@@ -94,12 +95,18 @@ def _outcome(call):
 
 
 def _shared_pool():
-    global _pool
+    """The process's pool, of one thread per core it may run on now: a pool made for another count
+    (the process's CPU affinity changed, as a farm's scheduler may change it) is replaced, and the
+    work already handed to it still runs."""
+    global _pool, _pool_threads
+    cores = available_cores()
     with _pool_lock:
-        if _pool is None:
+        if _pool is None or _pool_threads != cores:
             from concurrent.futures import ThreadPoolExecutor
 
-            _pool = ThreadPoolExecutor(available_cores(), thread_name_prefix="shape-differences")
+            if _pool is not None:
+                _pool.shutdown(wait=False)
+            _pool, _pool_threads = ThreadPoolExecutor(cores, thread_name_prefix="shape-differences"), cores
         return _pool
 
 

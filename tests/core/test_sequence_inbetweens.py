@@ -618,7 +618,7 @@ def test_background_work_holds_its_own_blas_limit():
     # first: it holds the limit, which gives back the counts found when it was taken
     cores = concurrency.available_cores()
     idle = threading.Barrier(cores)
-    for future in [concurrency.in_background(idle.wait) for _ in range(cores)]:
+    for future in [concurrency.in_background(idle.wait, 60) for _ in range(cores)]:
         future.result()
     started, release = threading.Event(), threading.Event()
 

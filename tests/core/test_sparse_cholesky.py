@@ -116,3 +116,17 @@ def test_a_background_piece_nobody_started_is_done_by_its_reader(monkeypatch):
     assert concurrency.result(queued, threading.get_ident) == threading.get_ident()
     release.set()
     assert all(concurrency.result(f, release.wait) for f in busy)
+
+
+@pytest.mark.parametrize("cores", [2, 3])
+def test_the_pool_has_a_thread_per_core_the_process_may_run_on_now(monkeypatch, cores):
+    """Pieces in the background run in as many threads at once as the cores the process may run
+    on when they are handed out, whatever count the pool was first made for (a farm's scheduler
+    may change a process's CPU affinity; so do the tests here)."""
+    import threading
+
+    monkeypatch.setattr(concurrency, "available_cores", lambda: cores)
+    together = threading.Barrier(cores)  # passed only by `cores` threads waiting at once
+    futures = [concurrency.in_background(together.wait, 10) for _ in range(cores)]
+    assert sorted(future.result() for future in futures) == list(range(cores))
+
