@@ -224,6 +224,11 @@ class WorldProportions:
         """Positions (…, n, 3) in the world's proportions (the same at every ``time``)."""
         return positions if self.matrix is None else positions @ self.matrix
 
+    def linear(self, time: float | None = None) -> np.ndarray | None:
+        """The linear map (3, 3) :meth:`to` applies (the same at every ``time``), None where it
+        leaves the poses in the mesh's coordinates."""
+        return None if self.matrix is None else self.matrix.T
+
     def reading(self, times):
         """Nothing to read: the proportions are the same at every time (as :meth:`WorldFrames.reading`)."""
         yield from ()
@@ -311,6 +316,10 @@ class WorldFrames:
         """Positions (n, 3) of the frame ``time`` (one of the frames read) in the world."""
         matrix = self.matrices[time]
         return positions @ matrix[:3, :3].T + matrix[:3, 3]
+
+    def linear(self, time: float) -> np.ndarray:
+        """The linear part (3, 3) of the matrix :meth:`to` takes the frame ``time`` through."""
+        return self.matrices[time][:3, :3]
 
     def reading(self, times):
         """Read the object's matrix at each of ``times`` not read yet, yielding after each: one pass

@@ -15,11 +15,12 @@ PATH_OPTIONS = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
                 if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else {'ANIMATABLE'})
 
 
-class CoreSettings:
-    """The core's settings: the scene settings and each core operator have them. Sizes and the
-    offset have soft limits only: Blender would clamp a script's −5 to 0 (the full basis, the
-    automatic offset) silently; the core reports them (``core.validation``), and the operators a
-    negative offset by its label (``operators.base.offset_option``)."""
+class BasisSettings:
+    """The core's basis sizes and its Extrinsic switch: the scene settings and each core operator
+    have them, the in-betweens (*In-between*, *Exaggerate*, *In-between Frames*, *Retime*) these
+    alone: their rotations come from the poses, and no offset surface's distance changes them.
+    Sizes have soft limits only: Blender would clamp a script's −5 to 0 (the full basis) silently;
+    the core reports them (``core.validation``), and the operators by their labels."""
 
     k_m: IntProperty(
         name="k_M", soft_min=0, default=0,
@@ -29,13 +30,22 @@ class CoreSettings:
         name="k_N", soft_min=0, default=0,
         description="Basis size on the target pose (functional map from the vertex correspondence, "
                     "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
-    offset: FloatProperty(
-        name="Offset t", soft_min=0.0, default=0.0, subtype='DISTANCE',
-        description="Distance of the offset surface that carries the extrinsic information; "
-                    "0 = automatic (scales with the mesh)")
     use_extrinsic: BoolProperty(
         name="Extrinsic", default=True,
         description="Use extrinsic (offset surface) shape differences as well as intrinsic ones")
+
+
+class CoreSettings(BasisSettings):
+    """The core's settings with the offset surface's distance: the scene settings and the core
+    operators other than the in-betweens (*Reconstruct*, *Transfer Poses*) have them. The
+    offset has a soft limit only, as the sizes: the operators report a negative one by its label
+    (``operators.base.offset_option``), where Blender would take the automatic distance silently."""
+
+    offset: FloatProperty(
+        name="Offset t", soft_min=0.0, default=0.0, subtype='DISTANCE',
+        description="Distance of the offset surface that carries the extrinsic information; "
+                    "0 = automatic (scales with the mesh). Reconstruct and the analysis measure on it; "
+                    "the in-betweens do not use it")
 
 
 class AnalysisBasis:

@@ -41,6 +41,8 @@ WHOLE_SAMPLE_TOLERANCE = 1e-9
 #: Blender's last frame (MAXFRAME); its first (MINAFRAME) is the negative. A scene set to a frame
 #: beyond them shows the nearest of the two.
 MAX_FRAME = 1_048_574
+#: How many frames Blender has, from its first to its last (:data:`MAX_FRAME`).
+BLENDER_FRAMES = 2 * MAX_FRAME + 1
 #: Most output samples a retime plans: Blender's last frame. A longer retime plays nowhere, and
 #: its plan alone (four arrays per output sample) would fill the memory (speed 1e-7 over 96
 #: samples: 950 million samples, the process killed by the system).
@@ -109,6 +111,16 @@ class RetimePlan:
         return range(start, stop)
 
 
+def step_remedy(n_frames: int, step: int, keys: int = 2) -> str:
+    """What makes ``n_frames`` frames taken every ``step``-th give ``keys`` (≥ 2) of them, where they
+    give fewer: a step the frames span ``keys − 1`` times, or more frames where Blender has that many
+    (:data:`BLENDER_FRAMES`; a step past them leaves only the smaller step)."""
+    gaps = keys - 1
+    remedies = ([f"a step of at most {(n_frames - 1) // gaps}"] if n_frames - 1 >= gaps else []) + \
+               ([f"at least {step * gaps + 1} frames"] if step * gaps + 1 <= BLENDER_FRAMES else [])
+    return " or ".join(remedies) or f"at least {keys} frames and a smaller step"
+
+
 def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     """Plan the retime of ``n_source`` samples keyed every ``step``-th, played at ``speed``: at
     least two output samples (a speed of at most ``n_source − 1``) and at most
@@ -121,7 +133,7 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     if n_source < 2 or n_source - 1 < step:
         raise MeshError(
             f"{n_source} frame{'s' if n_source != 1 else ''} with step {step} give fewer than two key "
-            f"poses: use at least {step + 1} frames or a smaller step."
+            f"poses: use {step_remedy(n_source, step)}."
         )
     keys = np.arange(0, n_source, step)
     tail = short_gap_keys(int(keys[-1]), n_source - 1)

@@ -41,9 +41,9 @@ from .functional_map import (UNMATCHED, check_correspondence, closest_point_corr
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_nondegenerate, check_vertices, mesh_topology, zero_area_triangles
 from .seam_welds import oriented_pieces
-from .transfer_checks import (WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation, check_overlap,
-                              check_spread, check_target_resolution, coincident_vertices, degenerate_at_rest,
-                              mean_edge_length, warn_non_manifold, warn_outlying_matches)
+from .transfer_checks import (TARGET_LABEL, WELD_DISTANCE, check_covered, check_matched_fraction, check_orientation,
+                              check_overlap, check_spread, check_target_resolution, coincident_vertices,
+                              degenerate_at_rest, mean_edge_length, warn_non_manifold, warn_outlying_matches)
 from .transfer_layers import TargetLayer, offset_surfaces_pull_back
 from .validation import check_basis_sizes, numerical_failures
 
@@ -143,7 +143,9 @@ class Transfer:
     embedding from the target pose carried through the map (:data:`WARM_EMBEDDING_GROWTH`).
     ``size``: the target's size relative to the base through the map (:func:`target_size`);
     :meth:`pose` rebuilds at the base's size and scales back by it. ``target_name``: what the
-    errors about the target's rest pose call it (the add-on: the source object's name).
+    errors about the target's rest pose call it (the add-on: the source object's name);
+    ``target_label``: what the warnings about the target mesh call it (default "the target mesh";
+    the add-on: the source object).
 
     ``use_extrinsic=False`` (the default here, unlike the same-mesh pipeline): only the intrinsic
     pair is transferred, and the pose is the base mesh fitted to the recovered edge lengths from
@@ -162,7 +164,7 @@ class Transfer:
                  k_M: int | None = 100, k_N: int | None = 200, offset: float | None = None,
                  use_extrinsic: bool = False, reference=None, refine_map: bool = True,
                  correct_discretization: bool = True, warm_start: bool = True,
-                 target_name: str = "target rest vertices"):
+                 target_name: str = "target rest vertices", target_label: str = TARGET_LABEL):
         from .reference_shape import ReferenceShape
 
         k_M, k_N = basis_sizes(k_M, k_N)
@@ -188,13 +190,14 @@ class Transfer:
             whole = (kept[:, 0] != kept[:, 1]) & (kept[:, 1] != kept[:, 2]) & (kept[:, 2] != kept[:, 0])
             # pieces wound against the ones they are welded to are turned over, as the in-betweens'
             kept = oriented_pieces(kept[whole], topology.components()[1][whole])
-        flat = degenerate_at_rest(rest, kept, target_name)  # slivers of a decimation: no area, no part of the surface
+        # slivers of a decimation: no area, no part of the surface
+        flat = degenerate_at_rest(rest, kept, target_name, target_label)
         # Edges flipped towards Delaunay where the surface is flat enough (core.delaunay_flips): the
         # target's eigenbasis needs its surface, not its triangles.
         kept = delaunay_flips(rest, np.delete(kept, flat, axis=0), max_dihedral_degrees=MAX_DIHEDRAL_DEGREES)
         if not np.array_equal(kept, topology.triangles):
             topology = mesh_topology(kept, self.n_target, allow_non_manifold=True)
-        warn_non_manifold(topology)
+        warn_non_manifold(topology, target_label)
         # Target vertices in no triangle are left out (compact numbering, as for the base).
         self.target_used = topology.used_vertices
         compact = np.full(self.n_target, -1, dtype=np.int64)
@@ -208,7 +211,7 @@ class Transfer:
         check_nondegenerate(rest_used, topology.triangles, name=target_name)
         # k_N against the target's eigenbasis, before any work (the base's k_M was checked above)
         check_basis_sizes(self.k_M, self.k_N, None, full_basis=False, target_vertices=int(self.target_used.size))
-        check_target_resolution(self.k_M, int(self.target_used.size))
+        check_target_resolution(self.k_M, int(self.target_used.size), target_label)
 
         base_used = reference.used_vertices
         # The map is found in the caller's units (its checks quote distances); the target's layers

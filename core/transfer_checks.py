@@ -76,12 +76,23 @@ TARGET_FUNCTIONS_PER_VERTEX = 1 / 3
 WELD_DISTANCE = 1e-7
 
 
-def degenerate_at_rest(rest, triangles, name: str = "target rest vertices") -> np.ndarray:
+#: What the warnings about a transfer's target mesh call it (:class:`~core.transfer.Transfer`'s
+#: ``target_label``; the add-on names the source object).
+TARGET_LABEL = "the target mesh"
+
+
+def sentence(label: str) -> str:
+    """``label`` opening a sentence: its first letter a capital."""
+    return label[:1].upper() + label[1:]
+
+
+def degenerate_at_rest(rest, triangles, name: str = "target rest vertices", label: str = TARGET_LABEL) -> np.ndarray:
     """Indices of the target triangles of zero area at rest (as
-    :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning:
-    a decimated or remeshed target may carry a few collinear slivers, which add nothing to its
-    surface but would make its Laplacian infinite. A target pose where a kept triangle
-    collapses is still an error; so is a target with no triangle left (``name`` names it)."""
+    :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning
+    (``label`` names the target mesh there): a decimated or remeshed target may carry a few
+    collinear slivers, which add nothing to its surface but would make its Laplacian infinite. A
+    target pose where a kept triangle collapses is still an error; so is a target with no triangle
+    left (``name`` names it)."""
     from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
 
     corners = rest[triangles]
@@ -93,7 +104,7 @@ def degenerate_at_rest(rest, triangles, name: str = "target rest vertices") -> n
                         "coincident vertices welded leave no triangle).")
     if flat.size:
         warn(
-            f"The target mesh has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
+            f"{sentence(label)} has {flat.size} triangle(s) of zero area at rest (triangle {int(flat[0])}, vertices "
             f"{triangles[flat[0]].tolist()}); they are left out (in Blender: Mesh > Clean Up > Degenerate "
             "Dissolve removes them).",
             "target",
@@ -243,18 +254,19 @@ def resolved_functions(n_target: int) -> int:
     return max(int(TARGET_FUNCTIONS_PER_VERTEX * n_target), 1)
 
 
-def check_target_resolution(k_M: int, n_target: int) -> None:
+def check_target_resolution(k_M: int, n_target: int, label: str = TARGET_LABEL) -> None:
     """Warn when the base's ``k_M`` eigenfunctions are more than a target of ``n_target``
     vertices (in triangles) resolves (:func:`resolved_functions`): a coarse target carries the
-    base's higher functions only through its own at the scale of its edges."""
+    base's higher functions only through its own at the scale of its edges. ``label`` names the
+    target mesh."""
     if k_M <= resolved_functions(n_target):
         return
     warn(
-        f"k_M is {k_M} base eigenfunctions, but the target mesh has only {n_target} vertices: a mesh resolves "
+        f"k_M is {k_M} base eigenfunctions, but {label} has only {n_target} vertices: a mesh resolves "
         f"about {TARGET_FUNCTIONS_PER_VERTEX:.2g} × as many functions as it has vertices, and the base's detail "
         "beyond that comes back roughly (a limb target of 131 vertices: 2.2–2.4 % RMS of the diagonal off at "
         f"k_M = 100 against 1.2 % at k_M = 20). Lower k_M to {resolved_functions(n_target)} "
-        "or less, or transfer from a finer target.",
+        "or less, or transfer from a finer mesh.",
         "target",
     )
 
@@ -296,14 +308,16 @@ def warn_outlying_matches(outlying, n_matched: int) -> None:
     )
 
 
-def warn_non_manifold(topology):
+def warn_non_manifold(topology, label: str = TARGET_LABEL):
+    """Warn about the target's (``topology``) non-manifold or inconsistently oriented edges, which
+    a transfer accepts; ``label`` names the target mesh."""
     counts = np.bincount(topology.triangle_edges.ravel(), minlength=topology.n_edges)
     hinged = (topology.edge_triangles >= 0).sum(axis=1)
     odd = np.flatnonzero((counts > 2) | ((counts == 2) & (hinged < 2)))
     if odd.size:
         named = ", ".join(str(tuple(int(v) for v in topology.edges[e])) for e in odd[:5])
         warn(
-            f"The target mesh has {odd.size} non-manifold or inconsistently oriented edge(s) "
+            f"{sentence(label)} has {odd.size} non-manifold or inconsistently oriented edge(s) "
             f"({named}{', ...' if odd.size > 5 else ''}). They are used for its Laplacian and mass "
             "matrix; its offset surface (extrinsic differences) is cut open along them.",
             "target",

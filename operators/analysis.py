@@ -14,9 +14,9 @@ from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
 from .motion_sources import refuse_emptying_caches, simulations_emptied_by
 from .output import require_local
-from .base import (SCENE_SETTING, GeneratorOperator, InputError, check_basis_order, check_basis_size,
-                   default_pose_key, frame_name, key_blocks_of, key_pose, mesh_pose, offset_option, report,
-                   resolve_key, surface_triangles)
+from .base import (MEASURED_IN_WORLD, SCENE_SETTING, GeneratorOperator, InputError, check_basis_order,
+                   check_basis_size, default_pose_key, frame_name, in_world, key_blocks_of, key_pose, mesh_pose,
+                   offset_option, report, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -149,7 +149,8 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
         # measured as the world shows them: each frame through its own matrix where the object's scale
         # is keyframed (shape differences do not see the rigid part), else the world's proportions
         space = bridge.frames_space(context, obj, dict(zip(frames or [], matrices)))
-        poses = [space.to(pose, time) for pose, time in zip(poses, frames or [None] * len(poses))]
+        poses = in_world(obj, space, poses, frames or [None] * len(poses), triangles, MEASURED_IN_WORLD,
+                         invertible=False)
         space = yield from _drive(
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
                               offset=self.resolved_offset(context), single_precision=True, key_names=pose_names),
@@ -327,7 +328,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
         # distortion as the world shows it: each frame through its own matrix where the object's scale is
         # keyframed, the rest mesh through the first frame's, else all in the world's proportions
         space = bridge.frames_space(context, obj, dict(zip(times, matrices)))
-        base, poses = space.to(base, times[0]), [space.to(pose, time) for pose, time in zip(poses, times)]
+        base, *poses = in_world(obj, space, [base, *poses], [times[0], *times], triangles, MEASURED_IN_WORLD,
+                                invertible=False)
         # bending lives on the offset surface, which needs an edge shared by two faces
         edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
         extrinsic = bool((np.unique(edges, axis=0, return_counts=True)[1] > 1).any())

@@ -14,9 +14,10 @@ from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures import wait as wait_for
 
 import bpy
+import numpy as np
 
 from .. import bridge
-from ..properties import CoreSettings
+from ..properties import BasisSettings, CoreSettings
 
 
 def load_core():
@@ -77,6 +78,63 @@ def offset_option(offset: float, where: str = "") -> float | None:
         raise InputError(f"Offset t{where} = {offset:g} must be positive, or 0 for the automatic distance (half "
                          "the mean edge length)")
     return offset or None
+
+
+#: What the world's proportions are to the operators that work in them (:func:`check_world_scale`).
+REBUILT_IN_WORLD = "the poses are rebuilt in the world"
+INBETWEENED_IN_WORLD = "the poses are in-betweened as the world shows them"
+MEASURED_IN_WORLD = "the poses are measured as the world shows them"
+
+
+def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *, invertible: bool = True) -> None:
+    """Refuse ``obj`` where its world matrix flattens it, naming its scale there (the object's own
+    or a parent's) as the cause rather than its mesh. ``matrix``: that world matrix (4, 4) or its
+    linear part (3, 3), ``obj``'s at the current frame by default; ``where``: what the operator does
+    in the world (:data:`REBUILT_IN_WORLD`, …). Refused where the matrix cannot be inverted to
+    working precision (its smallest singular value at most machine epsilon × its largest: a scale of
+    0 along an axis, or next to it), when ``invertible`` (the operator takes its results back into
+    the mesh); and where the matrix's smallest singular value is below 1e-5 × its largest (√ of
+    the core's degenerate ratio) and, in one of ``poses`` (pairs of positions (n, 3): in the mesh's
+    coordinates and as the world shows them), a triangle of ``triangles`` (int (m, 3)) the mesh
+    has with an area has none in the world (:func:`core.mesh_topology.zero_area_triangles`): the
+    core would refuse it as a degenerate face and advise dissolving faces the mesh does not have."""
+    linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
+    sigma = np.linalg.svd(linear, compute_uv=False)
+    scale = ", ".join(f"{value:.3g}" for value in np.linalg.norm(linear, axis=0))
+    flattened = f"'{obj.name}' is flattened in the world (its scale there is ({scale}))"
+    like = "scales of a like size along every axis"
+    if invertible and not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
+        raise InputError(f"{flattened}: {where} and cannot be taken back into its mesh. Give it (and its parents) "
+                         + ("a scale other than 0 along every axis" if sigma[-1] == 0 else like))
+    from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO, zero_area_triangles
+
+    # A linear map multiplies a triangle's area / longest edge² by at least its singular values'
+    # spread: where that is above √ of the ratio the core calls degenerate, a triangle the world
+    # flattens is a sliver of the mesh itself (area / edge² under 1e-5), whose own refusal ("… has
+    # zero area … Degenerate Dissolve") is the one to give; nor is any pass over the mesh made then.
+    if not sigma[-1] < np.sqrt(DEGENERATE_TRIANGLE_RATIO) * sigma[0]:
+        return
+    for mesh_positions, world_positions in poses:
+        flat = zero_area_triangles(world_positions, triangles)  # the one pass where nothing is flat
+        if flat.size:
+            flat = np.setdiff1d(flat, flat[zero_area_triangles(mesh_positions, triangles[flat])])
+        if flat.size:
+            raise InputError(f"{flattened}: {where}, and there {flat.size} of its triangles have no area, which "
+                             f"they have in its mesh. Give it (and its parents) {like}: the mesh itself is fine")
+
+
+def in_world(obj, space, poses, times, triangles, where: str, *, invertible: bool = True) -> list:
+    """``poses`` ((n, 3) each, in ``obj``'s mesh coordinates, shown at ``times``) as ``space``
+    (:class:`bridge.WorldProportions`, :class:`bridge.WorldFrames`) takes them into the world,
+    :func:`check_world_scale` refusing a world matrix there that flattens ``obj``."""
+    world = []
+    for pose, at in zip(poses, times):
+        moved = space.to(pose, at)
+        linear = space.linear(at)
+        if linear is not None:
+            check_world_scale(obj, where, linear, [(pose, moved)], triangles, invertible=invertible)
+        world.append(moved)
+    return world
 
 
 #: Where the scene's settings are, for a setting taken from there (:func:`offset_option`,
@@ -394,8 +452,12 @@ class GeneratorOperator:
 
 # -- settings shared with the core ----------------------------------------------------------
 
-class CoreSettingsProperties(CoreSettings):
-    """Core settings of an operator: each one not set is taken from the scene settings."""
+class InbetweenSettingsProperties(BasisSettings):
+    """Core settings of an in-between operator (basis sizes, Extrinsic; no offset, which the
+    in-betweens do not use): each one not set is taken from the scene settings."""
+
+    #: The operator's core settings, by property name.
+    core_settings = ("k_m", "k_n", "use_extrinsic")
 
     def core_options(self, context, vertex_count: int, target_count: int | None = None) -> dict:
         """Keyword arguments for the core facade, from this operator or the scene settings;
@@ -405,9 +467,8 @@ class CoreSettingsProperties(CoreSettings):
         Resolved values are written back to the operator so the Redo panel shows them.
         """
         settings = context.scene.shape_differences
-        where = {name: "" if self.properties.is_property_set(name) else SCENE_SETTING
-                 for name in ("k_m", "k_n", "offset")}
-        for name in ("k_m", "k_n", "offset", "use_extrinsic"):
+        where = {name: "" if self.properties.is_property_set(name) else SCENE_SETTING for name in self.core_settings}
+        for name in self.core_settings:
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
         for label, name in (("k_M", "k_m"), ("k_N", "k_n")):
@@ -422,8 +483,17 @@ class CoreSettingsProperties(CoreSettings):
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         check_basis_order(self.k_m, self.k_n)
-        return dict(k_M=self.k_m or None, k_N=self.k_n or None, offset=offset_option(self.offset, where["offset"]),
-                    use_extrinsic=self.use_extrinsic)
+        options = dict(k_M=self.k_m or None, k_N=self.k_n or None, use_extrinsic=self.use_extrinsic)
+        if "offset" in self.core_settings:
+            options["offset"] = offset_option(self.offset, where["offset"])
+        return options
+
+
+class CoreSettingsProperties(CoreSettings, InbetweenSettingsProperties):
+    """Core settings of an operator with an offset distance (*Reconstruct*, *Transfer Poses*): each
+    one not set is taken from the scene settings."""
+
+    core_settings = ("k_m", "k_n", "offset", "use_extrinsic")
 
 
 def check_basis_order(k_m: int, k_n: int) -> None:

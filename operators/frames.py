@@ -12,8 +12,9 @@ from bpy.props import IntProperty
 from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, finite_pose, frame_name,
-                   load_core, playback_range, report, require_count, surface_triangles)
+from .base import (INBETWEENED_IN_WORLD, GeneratorOperator, InbetweenSettingsProperties, InputError,
+                   check_memory, finite_pose, frame_name, in_world, load_core, playback_range, report, require_count,
+                   surface_triangles)
 from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside,
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
                              unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
@@ -75,10 +76,12 @@ class FrameRangeProperties:
         start, end = self.frame_range(context)
         frames = list(range(start, end + 1, self.frame_step))
         if len(frames) < self.minimum_frames:
+            from ..core.retime import step_remedy
+
             raise InputError(
                 f"Frames {start} to {end} with step {self.frame_step} give "
-                f"{len(frames)} frame{'s' if len(frames) != 1 else ''}, at least "
-                f"{self.minimum_frames} are needed: widen the frame range or lower the step")
+                f"{len(frames)} frame{'s' if len(frames) != 1 else ''}, at least {self.minimum_frames} are "
+                f"needed: use {step_remedy(end - start + 1, self.frame_step, self.minimum_frames)}")
         return frames
 
     def read_keys(self, context, obj, keys: list[int], progress_share: float, also=(), matrices: dict | None = None,
@@ -210,7 +213,7 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
 
 
 class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, AnimationOutput,
-                                            CoreSettingsProperties, FrameRangeProperties,
+                                            InbetweenSettingsProperties, FrameRangeProperties,
                                             PoseWriter, GeneratorOperator, bpy.types.Operator):
     """Take every n-th evaluated frame as a key pose and add in-betweens for each gap: as a point
     cache on a new object (the active object stays as it was), or as shape keys whose values are
@@ -252,7 +255,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                                                  stay=self.output == 'SHAPE_KEYS')
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = bridge.frames_space(context, obj, matrices)
-        scaled = {frame: space.to(positions, frame) for frame, positions in read.items()}
+        scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
@@ -316,7 +319,7 @@ class KeySamples:
         return self.keys[int(index)]
 
 
-class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsProperties,
+class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSettingsProperties,
                                   FrameRangeProperties, PoseWriter, GeneratorOperator,
                                   bpy.types.Operator):
     """Retime the evaluated animation: key every n-th frame and play the motion at a new speed
@@ -374,8 +377,9 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, CoreSettingsP
         with closing(space.reading(shown_at)) as reading:
             for _ in reading:
                 yield 0.1
-        samples = KeySamples(plan.n_source, {sample: space.to(read[start + sample], start + sample)
-                                             for sample in plan.samples_read})
+        shown = [start + sample for sample in plan.samples_read]
+        samples = KeySamples(plan.n_source, dict(zip(plan.samples_read, in_world(
+            obj, space, [read[frame] for frame in shown], shown, triangles, INBETWEENED_IN_WORLD))))
         poses_out = retime.iter_retime(samples, triangles, plan, **options,
                                        sample_names=lambda sample: frame_name(start + sample))
         retimed = []

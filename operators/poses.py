@@ -5,9 +5,9 @@ import bpy
 from .. import bridge
 from ..bridge import shorten
 from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, default_pose_key,
-                   key_blocks_of, load_core, playback_range, require_count, require_distinct, resolve_key,
-                   surface_triangles)
+from .base import (INBETWEENED_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InbetweenSettingsProperties,
+                   InputError, check_memory, default_pose_key, in_world, key_blocks_of, load_core, playback_range,
+                   require_count, require_distinct, resolve_key, surface_triangles)
 from .output import PoseWriter
 
 
@@ -63,15 +63,16 @@ class KeyPairProperties:
         check_memory(n_poses, len(obj.data.vertices), "The output", advice, work="pair")
         yield 0.0
         space = bridge.WorldProportions(obj)
+        keys = in_world(obj, space, [bridge.shape_key_positions(key, obj) for key in (start, end)], [None, None],
+                        triangles, INBETWEENED_IN_WORLD)
         interpolator = yield from self.compute(
-            0.0, load_core().Interpolator, space.to(bridge.shape_key_positions(start, obj)),
-            space.to(bridge.shape_key_positions(end, obj)), triangles, **options,
+            0.0, load_core().Interpolator, *keys, triangles, **options,
             key_names=(f"shape key '{start.name}'", f"shape key '{end.name}'"))
         return start, end, InWorldProportions(interpolator, space)
 
 
 class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
-                                     CoreSettingsProperties, PoseWriter, GeneratorOperator,
+                                     InbetweenSettingsProperties, PoseWriter, GeneratorOperator,
                                      bpy.types.Operator):
     """Add evenly spaced in-between poses from shape differences between two keys, as shape
     keys or as a point cache on a new object"""
@@ -97,7 +98,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
 
 
 class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProperties,
-                                      CoreSettingsProperties, PoseWriter, GeneratorOperator,
+                                      InbetweenSettingsProperties, PoseWriter, GeneratorOperator,
                                       bpy.types.Operator):
     """Add a pose pushed further from a reference pose (factor > 1) or toned down (factor < 1),
     through shape differences, as a shape key or as a point cache on a new object"""

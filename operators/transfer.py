@@ -6,8 +6,9 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
-from .base import (CoreSettingsProperties, GeneratorOperator, InputError, check_memory, edit_mode_problem,
-                   key_blocks_of, key_pose, load_core, mesh_pose, reported_error, surface_triangles)
+from .base import (REBUILT_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InputError, check_memory,
+                   check_world_scale, edit_mode_problem, key_blocks_of, key_pose, load_core, mesh_pose,
+                   reported_error, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -27,19 +28,6 @@ def _world(obj, positions, matrix=None):
 def _local(obj, positions):
     matrix = np.linalg.inv(np.array(obj.matrix_world, dtype=np.float64))
     return positions @ matrix[:3, :3].T + matrix[:3, 3]
-
-
-def check_invertible(obj):
-    """Refuse an active mesh whose world matrix flattens it (a scale of 0 along an axis, its own
-    or a parent's): the poses are rebuilt in the world and cannot be taken back into its mesh."""
-    linear = np.array(obj.matrix_world, dtype=np.float64)[:3, :3]
-    sigma = np.linalg.svd(linear, compute_uv=False)
-    if not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
-        scale = ", ".join(f"{value:.3g}" for value in np.linalg.norm(linear, axis=0))
-        raise InputError(
-            f"'{obj.name}' is flattened in the world (its scale there is ({scale})): the poses are rebuilt "
-            "in the world and cannot be taken back into its mesh. Give it (and its parents) a scale other "
-            "than 0 along every axis")
 
 
 def triangle_faces(obj):
@@ -207,8 +195,12 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
     def run(self, context):
         obj = context.active_object
         source = self._source_object(context)
-        check_invertible(obj)
         triangles = surface_triangles(obj)
+        # the active mesh as the world shows it, where the poses are rebuilt: refused there if its
+        # world matrix flattens it (its scale, or a parent's), before any work
+        positions = mesh_pose(obj)
+        base = _world(obj, positions)
+        check_world_scale(obj, REBUILT_IN_WORLD, poses=[(positions, base)], triangles=triangles)
         source_triangles = surface_triangles(source)
         n_base, n_source = len(obj.data.vertices), len(source.data.vertices)
         options = self.core_options(context, n_base, n_source)
@@ -224,7 +216,6 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
         core = load_core()
-        base = _world(obj, mesh_pose(obj))
         # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
         # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
         # The active mesh is prepared (and checked) on its own first, so that a refusal of its mesh
@@ -235,7 +226,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         transfer = yield from self.compute(
             0.1, core.Transfer, base, triangles, _world(source, rest, rest_matrix), source_triangles,
             correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"], reference=reference,
-            target_name=f"the rest pose of '{source.name}' in the world")
+            target_name=f"the rest pose of '{source.name}' in the world",
+            target_label=f"'{source.name}' (the source of the poses)")
         rebuilt = []
         for i, pose in enumerate(poses):
             world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose,

@@ -202,6 +202,16 @@ def test_a_range_that_starts_after_its_end(bpy_empty, extension):
                          "starts at 9, after its end at 1: swap Start and End", frame_start=9, frame_end=1)
 
 
+@pytest.mark.parametrize("operator, properties", [("inbetween_frames", {}), ("shape_space", dict(source='FRAMES'))])
+def test_a_step_past_blenders_frames_is_told_to_be_smaller(bpy_empty, extension, operator, properties):
+    """Frames 1–9 with Step 2³¹−1 give one frame: the only remedy is a smaller step, as no range of
+    Blender's frames is that long (before: "widen the frame range or lower the step")."""
+    source = armature_scene(frames=9)
+    fails_without_change(extension.bridge, source, getattr(bpy.ops.shape_differences, operator),
+                         r"^Error: Frames 1 to 9 with step 2147483647 give 1 frame, at least 2 are needed: use a "
+                         r"step of at most 8$", frame_start=1, frame_end=9, frame_step=2**31 - 1, **properties)
+
+
 @pytest.mark.parametrize("operator", ["inbetween", "inbetween_frames"])
 def test_count_zero_is_an_error(bpy_empty, extension, operator):
     obj = posed_grid(extension.bridge, 5)
@@ -212,7 +222,11 @@ def test_count_zero_is_an_error(bpy_empty, extension, operator):
 @pytest.mark.parametrize("properties, match", [
     (dict(speed=0.0), r"Speed = 0 must be positive: 0\.5 plays the motion twice as slow, 2 twice as fast"),
     (dict(speed=-1.0), r"Speed = -1 must be positive: 0\.5 plays the motion twice as slow"),
-    (dict(frame_start=1, frame_end=4, frame_step=4), "4 frames with step 4 give fewer than two key poses"),
+    (dict(frame_start=1, frame_end=4, frame_step=4),
+     r"4 frames with step 4 give fewer than two key poses: use a step of at most 3 or at least 5 frames\.$"),
+    # a step past Blender's frames: the only remedy is a smaller step (before: "use at least 2147483648 frames")
+    (dict(frame_start=1, frame_end=4, frame_step=2**31 - 1),
+     r"4 frames with step 2147483647 give fewer than two key poses: use a step of at most 3\.$"),
 ])
 def test_retime_settings_it_cannot_use(bpy_empty, extension, core, properties, match):
     strip = armature_scene(frames=5)
@@ -368,10 +382,11 @@ def test_reconstruct_names_the_shape_key_of_a_broken_pose(bpy_empty, extension):
                          key="Broken Pose")
 
 
-@pytest.mark.parametrize("operator", ["inbetween", "shape_space"])
+@pytest.mark.parametrize("operator", ["reconstruct", "shape_space"])
 def test_a_negative_scene_offset_is_named_as_the_scenes(bpy_empty, extension, operator):
     """The scene's Offset t, taken where the operator's is not set, negative: refused as the scene's
-    setting (the core said "Use None for the automatic distance", which no setting can be)."""
+    setting (the core said "Use None for the automatic distance", which no setting can be). The
+    in-betweens, which have no offset, do not read it."""
     obj = posed_grid(extension.bridge, 6)
     bpy.context.scene.shape_differences.offset = -0.1
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
@@ -1388,7 +1403,7 @@ def test_a_mesh_without_vertices_has_nothing_to_capture(bpy_empty, extension, ou
     ("shape_space", dict(k_n=-5), r"k_N = -5 must be 0 for the differences in the base's basis only, or a positive"),
     ("distortion_maps", dict(k_m=-5), r"k_M = -5 must be a positive number of eigenfunctions \(typically"),
     ("reconstruct", dict(k_m=20, k_n=10), "k_N = 10 must be at least k_M = 20"),
-    ("exaggerate", dict(offset=-0.5), "Offset t = -0.5 must be positive, or 0 for the automatic distance"),
+    ("reconstruct", dict(offset=-0.5), "Offset t = -0.5 must be positive, or 0 for the automatic distance"),
     ("shape_space", dict(k_m=1), "k_M .* is 1, but the first 1 Laplace–Beltrami eigenfunctions"),
     ("distortion_maps", dict(offset=-1.0), "Offset t = -1 must be positive, or 0 for the automatic distance")])
 def test_sizes_and_offsets_below_their_range_are_errors(bpy_empty, extension, core, operator, properties, match):
@@ -1448,3 +1463,66 @@ def test_a_solver_failure_in_the_in_betweens_is_reported_and_changes_nothing(bpy
     obj = posed_grid(extension.bridge, 6)
     fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
                          r"between shape key 'Basis' and shape key '.*' failed numerically \(LinAlgError", **properties)
+
+
+def _flattened_by_its_scale(obj, scale, scaled: str):
+    """Give ``obj`` (or an Empty it is parented to) ``scale``."""
+    if scaled == "itself":
+        obj.scale = scale
+    else:
+        parent = bpy.data.objects.new("Holder", None)
+        bpy.context.scene.collection.objects.link(parent)
+        parent.scale = scale
+        obj.parent = parent
+    bpy.context.view_layer.update()
+
+
+@pytest.mark.parametrize("operator", ["inbetween", "exaggerate", "distortion_maps", "shape_space", "inbetween_frames",
+                                      "retime"])
+@pytest.mark.parametrize("scale, scaled", [((1e12, 1.0, 1.0), "itself"), ((1e-20, 1.0, 1.0), "its parent")])
+def test_an_object_its_scale_flattens_in_the_world_is_refused_for_its_scale(bpy_empty, extension, operator, scale,
+                                                                             scaled):
+    """The operators work in the world's proportions (``bridge.WorldProportions``, ``WorldFrames``):
+    a grid scaled 1e12 along x (or under a parent scaled 1e-20 so) is flat there, though its mesh
+    is fine. Refused before any work naming the object's scale, nothing changed (before: "triangle 0
+    has zero area … Remove degenerate faces: Degenerate Dissolve", or, for the frame operators at
+    1e-20, in-betweens taken back into the mesh through a matrix that cannot be inverted)."""
+    if operator in ("inbetween_frames", "retime"):
+        obj = grid_object(6)
+        obj.modifiers.new("Wave", 'WAVE').height = 0.2
+        bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+        properties = dict(frame_step=4)
+    else:
+        obj = posed_grid(extension.bridge, 6)
+        properties = {}
+    _flattened_by_its_scale(obj, scale, scaled)
+    shown = re.escape("1e+12, 1, 1" if scale[0] > 1 else "1e-20, 1, 1")
+    fails_without_change(extension.bridge, obj, getattr(bpy.ops.shape_differences, operator),
+                         rf"^Error: 'Sheet' is flattened in the world \(its scale there is \({shown}\)\): .*"
+                         r"Give it \(and its parents\) scales of a like size along every axis", **properties)
+
+
+def test_a_degenerate_face_of_a_stretched_object_is_the_meshs_own(bpy_empty, extension):
+    """A triangle with no area in the mesh itself (its corners on one line) stays the core's refusal
+    with its remedy, on an object stretched along its axes: its scale is not blamed."""
+    obj = posed_grid(extension.bridge, 6)
+    mesh = obj.data
+    rest = extension.bridge.vertex_positions(mesh)
+    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
+    uses = {}
+    for face in faces:
+        for edge in zip(face, face[1:] + face[:1]):
+            uses[frozenset(edge)] = uses.get(frozenset(edge), 0) + 1
+    # a boundary edge, as its face runs along it; the sliver runs along it the other way
+    a, b = next(edge for face in faces for edge in zip(face, face[1:] + face[:1]) if uses[frozenset(edge)] == 1)
+    faces.append((b, a, len(rest)))
+    sliver = bpy.data.meshes.new("Sliver")
+    sliver.from_pydata([*map(tuple, rest), tuple((rest[a] + rest[b]) / 2)], [], faces)
+    obj.shape_key_clear()
+    obj.data = sliver
+    moved = np.vstack([rest, (rest[a] + rest[b]) / 2])
+    add_key(obj, "Bend", moved + [0.0, 0.0, 0.1])
+    _flattened_by_its_scale(obj, (3.0, 1.0, 0.2), "itself")
+    fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
+                         r"^Error: shape key 'Basis': triangle \d+ \(of face \d+; vertices .*\) has zero area .*"
+                         "Degenerate Dissolve")

@@ -12,15 +12,18 @@ bpy = pytest.importorskip("bpy")
 
 from dev_extension import MODULE, REPO_ROOT  # noqa: E402  (scripts/, put on sys.path by conftest)
 
-CORE = {"k_m", "k_n", "offset", "use_extrinsic"}
+BASIS = {"k_m", "k_n", "use_extrinsic"}
+CORE = BASIS | {"offset"}
 OUTPUT = {"output", "filepath"}
+#: The in-betweens' operators: their rotations come from the poses, and no offset distance changes them.
+INBETWEENS = ("inbetween", "exaggerate", "inbetween_frames", "retime")
 OPERATOR_PROPERTIES = {
     "frames_to_shape_keys": {"frame_start", "frame_end", "frame_step"} | OUTPUT,
-    "inbetween": {"key_a", "key_b", "count"} | CORE | OUTPUT,
-    "exaggerate": {"key", "reference", "factor"} | CORE | OUTPUT,
+    "inbetween": {"key_a", "key_b", "count"} | BASIS | OUTPUT,
+    "exaggerate": {"key", "reference", "factor"} | BASIS | OUTPUT,
     "reconstruct": {"key"} | CORE | OUTPUT,
-    "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count"} | CORE | OUTPUT,
-    "retime": {"frame_start", "frame_end", "frame_step", "speed", "filepath"} | CORE | OUTPUT,
+    "inbetween_frames": {"frame_start", "frame_end", "frame_step", "count"} | BASIS | OUTPUT,
+    "retime": {"frame_start", "frame_end", "frame_step", "speed", "filepath"} | BASIS | OUTPUT,
     "shape_space": {"source", "frame_start", "frame_end", "frame_step", "k_m", "k_n", "offset"},
     "shape_space_select": {"kind", "rank", "step"},
     "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "frame_step", "k_m", "offset"},
@@ -32,6 +35,17 @@ OPERATOR_PROPERTIES = {
 def test_operator_public_api(extension, name):
     rna = getattr(bpy.ops.shape_differences, name).get_rna_type()
     assert OPERATOR_PROPERTIES[name] <= set(rna.properties.keys())
+
+
+@pytest.mark.parametrize("name", INBETWEENS)
+def test_the_inbetweens_take_no_offset(extension, name):
+    """The in-betweens do not use the offset surface's distance (``core.Interpolator``: the rotations
+    come from the poses): their operators have no Offset t, so a value set in the Redo panel or by a
+    script cannot be silently ignored; a script passing one gets Blender's error naming it (before:
+    accepted, and the in-betweens bit for bit those at any other offset)."""
+    assert "offset" not in getattr(bpy.ops.shape_differences, name).get_rna_type().properties.keys()
+    with pytest.raises(TypeError, match="offset"):
+        getattr(bpy.ops.shape_differences, name)(offset=0.1)
 
 
 def test_operators_register_and_undo():
@@ -182,8 +196,9 @@ def test_properties_are_declared_once(bpy_empty):
     """The operators and the scene settings share one declaration of each property (the
     mixins of properties.py): same type, default and limits; ui does not import operators."""
     settings = bpy.context.scene.shape_differences.bl_rna.properties
-    shared = {"inbetween": ["key_a", "key_b", "count", "k_m", "k_n", "offset", "use_extrinsic"],
+    shared = {"inbetween": ["key_a", "key_b", "count", "k_m", "k_n", "use_extrinsic"],
               "exaggerate": ["key", "reference", "factor"], "retime": ["speed", "frame_step"],
+              "reconstruct": ["k_m", "k_n", "offset", "use_extrinsic"],
               "inbetween_frames": [("count", "frame_count")]}
     for operator, names in shared.items():
         properties = getattr(bpy.ops.shape_differences, operator).get_rna_type().properties

@@ -341,3 +341,46 @@ def test_refusals_name_the_mesh_at_fault(pair):
     bpy.context.view_layer.update()
     _refused_without_change(bridge, target, r"^Error: the rest pose of 'Source' in the world: every triangle has "
                                             r"zero area")
+
+
+def test_an_active_mesh_its_scale_flattens_in_the_world_is_refused_for_its_scale(pair):
+    """Scaled 1e12 along x, the active mesh is flat in the world, where the poses are rebuilt,
+    though its mesh is fine: refused naming its scale, nothing changed (before: "the mesh of
+    'Sheet': triangle 0 … has zero area … Degenerate Dissolve")."""
+    source, target, bridge = pair
+    target.scale = (1e12, 1.0, 1.0)
+    bpy.context.view_layer.update()
+    _refused_without_change(bridge, target, r"^Error: 'Sheet' is flattened in the world \(its scale there is "
+                                            r"\(1e\+12, 1, 1\)\): the poses are rebuilt in the world, and there "
+                                            r"\d+ of its triangles have no area, which they have in its mesh")
+
+
+def test_warnings_about_the_source_mesh_name_it(bpy_empty, extension, core, capfd):
+    """The core calls the mesh whose poses are transferred "the target mesh"; to the user that is the
+    source, beside the active mesh that the poses move. A source with a sliver (a triangle of no area
+    along its boundary) is transferred with the warning naming it (before: "The target mesh has 1
+    triangle(s) of zero area at rest")."""
+    bridge = extension.bridge
+    source = grid_object(14, name="Source")
+    mesh = source.data
+    rest = bridge.vertex_positions(mesh)
+    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
+    uses = {}
+    for face in faces:
+        for edge in zip(face, face[1:] + face[:1]):
+            uses[frozenset(edge)] = uses.get(frozenset(edge), 0) + 1
+    a, b = next(edge for face in faces for edge in zip(face, face[1:] + face[:1]) if uses[frozenset(edge)] == 1)
+    sliver = bpy.data.meshes.new("Sliver")
+    sliver.from_pydata([*map(tuple, rest), tuple((rest[a] + rest[b]) / 2)], [], faces + [(b, a, len(rest))])
+    source.data = sliver
+    add_key(source, "Bend", rolled(bridge.vertex_positions(sliver), 1.0))
+    target = grid_object(10, name="Sheet")
+    source.select_set(True)
+    target.select_set(True)
+    bpy.context.view_layer.objects.active = target
+    capfd.readouterr()
+    bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
+    out = capfd.readouterr().out
+    assert "'Source' (the source of the poses) has 1 triangle(s) of zero area at rest" in out, out
+    assert "target mesh" not in out
+    assert "Source Bend" in key_names(target)

@@ -135,6 +135,25 @@ def test_plan_rejects(n_source, step, speed):
         plan_retime(n_source, step, speed)
 
 
+@pytest.mark.parametrize("n_source, step, remedy", [
+    (5, 5, "a step of at most 4 or at least 6 frames"),
+    (1, 1, "at least 2 frames"),
+    # no range of Blender's frames is that long: only a smaller step makes two keys (before: "use
+    # at least 2147483648 frames")
+    (9, 2**31 - 1, "a step of at most 8"),
+    (2 * 1_048_574 + 1, 2 * 1_048_574 + 1, "a step of at most 2097148"),
+    (1, 2**31 - 1, "at least 2 frames and a smaller step")])
+def test_a_step_that_leaves_one_key_is_refused_with_a_remedy_blender_allows(n_source, step, remedy):
+    """Each remedy offered makes two keys and fits in Blender's frames (2,097,149 of them)."""
+    with pytest.raises(MeshError, match=rf"with step {step} give fewer than two key poses: use {remedy}\.$"):
+        plan_retime(n_source, step, 1.0)
+    # played in two frames (speed: the range): the keys alone
+    for smaller in re.findall(r"a step of at most (\d+)", remedy):
+        assert len(plan_retime(n_source, int(smaller), n_source - 1).keys) == 2
+    for frames in re.findall(r"at least (\d+) frames$", remedy):
+        assert int(frames) <= 2 * 1_048_574 + 1 and len(plan_retime(int(frames), step, int(frames) - 1).keys) == 2
+
+
 @pytest.mark.parametrize("speed, count", [(1e-7, "80,000,001"), (1e-300, "8e+300"), (8 / 1_048_574, "1,048,575")])
 def test_plan_refuses_more_frames_than_blender_plays(speed, count):
     """A speed that would give more output frames than Blender's last frame is refused before the

@@ -824,3 +824,42 @@ def test_coincident_target_vertices_weld_to_the_lowest_of_their_cluster():
     assert np.all(welded[chain] == 5991)  # a chain 0.9 of the weld distance a step, 2.7 end to end
     assert np.all(welded[2::2] == 1)
     assert coincident_vertices(rng.uniform(0.0, 1.0, (50, 3)), np.arange(50)) is None
+
+
+def _with_a_sliver_and_a_fin(vertices, triangles):
+    """``vertices``, ``triangles`` of an open sheet with a sliver (a vertex halfway along a boundary
+    edge, in a triangle of no area along it) and a fin (a triangle on an inner edge, standing up):
+    a target a transfer accepts, warning about each."""
+    edges = np.sort(triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    unique, counts = np.unique(edges, axis=0, return_counts=True)
+    # the boundary edge as its triangle runs along it, so that the sliver runs along it the other way
+    runs = triangles[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    a, b = next(run for run in runs if counts[np.all(unique == np.sort(run), axis=1)][0] == 1)
+    u, v = unique[counts == 2][len(unique) // 4]
+    n = len(vertices)
+    added = [(vertices[a] + vertices[b]) / 2, (vertices[u] + vertices[v]) / 2 + [0.0, 0.0, 0.2]]
+    return np.vstack([vertices, added]), np.vstack([triangles, [[b, a, n], [u, v, n + 1]]])
+
+
+@pytest.mark.parametrize("label", [None, "'Cloth' (the source of the poses)"])
+def test_warnings_about_the_target_mesh_name_it_as_the_caller_does(sheets, label):
+    """A target with a sliver and a fin, whose resolution is below k_M, is transferred with a
+    warning about each, which names it ``target_label`` (the operator: the source object, where "the
+    target mesh" read as the active one) or, by default, "the target mesh"."""
+    from core.transfer_checks import TARGET_LABEL, sentence
+
+    base, base_tris, target, target_tris = sheets
+    target, target_tris = _with_a_sliver_and_a_fin(target, target_tris)
+    named = label or TARGET_LABEL
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Transfer(base, base_tris, target, target_tris, k_M=60, k_N=120, use_extrinsic=False,
+                 **({} if label is None else {"target_label": label}))
+    messages = [str(w.message) for w in caught if issubclass(w.category, ShapeDifferenceWarning)]
+    opening = re.escape(sentence(named))
+    expected = [rf"^{opening} has 1 triangle\(s\) of zero area at rest \(triangle {len(target_tris) - 2}, ",
+                rf"^{opening} has 1 non-manifold or inconsistently oriented edge\(s\) ",
+                rf"^k_M is 60 base eigenfunctions, but {re.escape(named)} has only \d+ vertices"]
+    for pattern in expected:
+        assert any(re.search(pattern, message) for message in messages), (pattern, messages)
+    assert TARGET_LABEL == "the target mesh" and (label is None or not any("target mesh" in m for m in messages))
