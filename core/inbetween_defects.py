@@ -27,7 +27,8 @@ class DefectChecks:
     """The flipped and collapsed triangles of a pose of one gap, and what is wrong with it in
     words; mixed into :class:`~core.inbetween_repair.Repair`.
 
-    Of the Repair it is mixed into, it reads its ``_local``, ``gap`` and calls its ``_turned_away``."""
+    Of the Repair it is mixed into, it reads its ``_local``, ``gap`` and calls its ``_turned_away`` and
+    ``factor_targets``."""
 
     def flipped(self, cross: np.ndarray, length: np.ndarray, s: float, frames: np.ndarray | None,
                 rows=slice(None), sides=None, normals=None) -> np.ndarray:
@@ -71,6 +72,19 @@ class DefectChecks:
         length = np.sqrt(coordinate_dot(cross, cross))
         collapsed = 0.5 * length < COLLAPSE_RATIO * target
         return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+
+    def counted(self, x: np.ndarray, s: float, scale: np.ndarray) -> np.ndarray:
+        """The flipped or collapsed triangles (bool (m,)) of an in-between ``x`` (n, 3) at factor
+        ``s`` (0 < s < 1; ``scale``: the gap's ``area_scale(s)``) as its outcome, its warning and its
+        untangling count them: with the interpolated frames, so that triangles the interpolated
+        rotations turn away from both keys are none (:mod:`core.inbetween_turned_away`). Checked
+        first without them (the same triangles and more: the frames only take turned-away ones
+        out), and with them, on the gap's targets by rows at ``s``, only where that finds any."""
+        plain = self.defects(x, s, None, None, scale=scale)
+        if not plain.any():
+            return plain
+        frames, stretch = self.factor_targets(s)[:2]
+        return self.defects(x, s, frames, stretch, scale=scale)
 
     @staticmethod
     def _area_scale(stretch, scale, rows) -> np.ndarray:

@@ -235,11 +235,12 @@ def _moved_rigidly(gap, factors) -> dict | None:
     co-moving spline moved by the interpolated rigid motions, ``M(s) V(s)``, which is what the
     solve returns for a rigid motion (the fields then are the rigid rotations, the stretches one)
     and what a prediction starts from. None if one of them has a flipped or collapsed triangle
-    (then they are solved)."""
+    (as its check counts them, :meth:`~core.inbetween_defects.DefectChecks.counted`: then they are
+    solved)."""
     out = {}
     for s in factors:
         x = gap.topo.apply_motion(gap.spline_at("vertices", s), *gap.motion(s))
-        if not np.isfinite(x).all() or gap.repair.defects(x, s, None, None, scale=gap.area_scale(s)).any():
+        if not np.isfinite(x).all() or gap.repair.counted(x, s, gap.area_scale(s)).any():
             return None
         out[s] = gap.finished((x, None), s)
     return out

@@ -86,11 +86,11 @@ def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=N
         return gap.pose(s)
     x = _placed(gap, x, s)
     scale = gap.repair.factor_area_scale(s)  # the stretches themselves only if there is something to repair
-    defects = gap.repair.defects(x, s, None, None, scale=scale)
+    defects = gap.repair.counted(x, s, scale)
     if defects.any() and isinstance(correction, RelaxedCorrection):
         # the relaxation is kept only where it adds no defect to the plain prediction
         plain = _placed(gap, predicted_positions(gap, s, correction.correction, motion), s)
-        fewer = gap.repair.defects(plain, s, None, None, scale=scale)
+        fewer = gap.repair.counted(plain, s, scale)
         if fewer.sum() < defects.sum():
             x, defects = plain, fewer
     if not defects.any():
@@ -181,7 +181,7 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
     if pose[1] is None:
         return pose
     scale = gap.repair.factor_area_scale(s)
-    defects = gap.repair.defects(pose[0], s, None, None, scale=scale)
+    defects = gap.repair.counted(pose[0], s, scale)
     count = int(defects.sum())
     if not count:  # a fallback without flipped or collapsed triangles: nothing to repair
         return pose
@@ -191,7 +191,7 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
     for _ in range(REPAIR_PASSES):
         # never more defects: the rounds start from pose
         repaired = gap.repaired_again(pose[0], s, nearby, rings, defects)
-        fewer = _defects_after(gap, s, pose[0], defects, repaired[0], scale)
+        fewer = gap.repair.counted(repaired[0], s, scale)
         moved = float(np.sum((repaired[0] - start) ** 2))
         if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
             break
@@ -200,20 +200,6 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
             break
     _put_back(gap, s, outcome)
     return pose
-
-
-def _defects_after(gap, s: float, x: np.ndarray, defects: np.ndarray, y: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """The flipped and collapsed triangles (bool (m,)) of positions ``y`` (n, 3) at factor ``s``,
-    a repair of ``x`` whose are ``defects``: checked again only on the triangles with a vertex the
-    repair moved (its regions), each of them as a check of the whole mesh checks it (``scale``:
-    the gap's ``area_scale(s)``)."""
-    if not np.isfinite(y).all():
-        return gap.repair.defects(y, s, None, None, scale=scale)
-    moved = (y != x).any(axis=1)
-    rows = np.flatnonzero(moved[gap.topo.triangles].any(axis=1))
-    out = defects.copy()
-    out[rows] = gap.repair.defects(y, s, None, None, rows=rows, scale=scale)
-    return out
 
 
 def solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
@@ -298,7 +284,8 @@ def _solved_instead(gap, s: float) -> tuple[np.ndarray, str | None]:
 
 
 def defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:
-    """The flipped and collapsed triangles of positions ``x`` (n, 3) at factor ``s`` (``scale``:
-    the gap's ``area_scale(s)``, if made already)."""
+    """The flipped and collapsed triangles of positions ``x`` (n, 3) at factor ``s`` as the
+    in-between's warning counts them (:meth:`~core.inbetween_defects.DefectChecks.counted`;
+    ``scale``: the gap's ``area_scale(s)``, if made already)."""
     scale = gap.repair.factor_area_scale(s) if scale is None else scale
-    return int(gap.repair.defects(x, s, None, None, scale=scale).sum())
+    return int(gap.repair.counted(x, s, scale).sum())

@@ -804,6 +804,9 @@ class _ScriptedGap:
                 flipped = x[:, 0] < 0
                 return flipped if rows is None else flipped[rows]
 
+            def counted(self, x, s, scale):
+                return self.defects(x, s, None, None)
+
             def move_limits(self, s):
                 return limits
 
@@ -917,39 +920,42 @@ def test_the_repairs_again_of_one_in_between_share_its_targets_and_the_nearby_ge
     assert made.count(True) == 1  # let go at the scope's end
 
 
-def test_the_defects_of_a_repair_again_are_the_whole_meshs_checked_where_it_moved(strip):
-    """A pass of the repairs again checks its pose only on the triangles with a vertex it moved,
-    the rest keeping the defects of the pose it started from: equal, triangle by triangle, to the
-    check of the whole mesh, for moves that flip triangles, unflip them and collapse one (and
-    every triangle of a pose that is not finite)."""
-    from core.inbetween_prediction_repairs import _defects_after
-
+def test_the_defects_counted_are_the_check_with_the_interpolated_frames(strip):
+    """``Repair.counted`` (what the prediction's repairs, the repairs again and their passes count,
+    which the untangling and the warning count too) equals, triangle by triangle, the check of the
+    whole mesh with the interpolated frames and stretches, for poses with triangles flipped,
+    unflipped and collapsed (and every triangle of a pose that is not finite); the check without
+    the frames holds every one of them."""
     flat, tri = strip
     gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
     s, scale = 0.5, gap.area_scale(0.5)
+    frames, stretch = gap.repair.factor_targets(s)[:2]
     rng = np.random.default_rng(2)
     x = gap.linear_blend(s) + rng.normal(scale=0.03, size=flat.shape)
 
     def whole(y):
-        return gap.repair.defects(y, s, None, None, scale=scale)
+        return gap.repair.defects(y, s, frames, stretch, scale=scale)
 
     before = whole(x)
     assert before.any() and not before.all()
     edge = np.median(np.linalg.norm(flat[tri[:, 1]] - flat[tri[:, 0]], axis=1))
     i, j, k = tri[len(tri) // 2]
+    poses = []
     for moved in (rng.choice(len(x), size=12, replace=False), np.unique(tri[before])):
         y = x.copy()
         y[moved] += rng.normal(scale=edge, size=(len(moved), 3))
-        after = whole(y)
-        assert (after != before).any()
-        np.testing.assert_array_equal(_defects_after(gap, s, x, before, y, scale), after)
+        assert (whole(y) != before).any()
+        poses.append(y)
     collapsed = x.copy()
     collapsed[i] = 0.5 * (x[j] + x[k])  # on the opposite side: the triangle's area is zero
     assert whole(collapsed)[len(tri) // 2]
-    np.testing.assert_array_equal(_defects_after(gap, s, x, before, collapsed, scale), whole(collapsed))
+    for y in [x, *poses, collapsed]:
+        counted = gap.repair.counted(y, s, scale)
+        np.testing.assert_array_equal(counted, whole(y))
+        assert not (counted & ~gap.repair.defects(y, s, None, None, scale=scale)).any()
     broken = x.copy()
     broken[i] = np.nan
-    assert _defects_after(gap, s, x, before, broken, scale).all()
+    assert gap.repair.counted(broken, s, scale).all()
 
 
 def test_a_regions_checks_follow_the_stretches_they_are_given(strip):
