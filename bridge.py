@@ -366,6 +366,10 @@ def scene_time(scene: bpy.types.Scene, frame: float) -> float:
 #: Modifiers that simulate and keep a point cache (emptied when the object's mesh data changes,
 #: marked outdated when its modifiers change at a frame past its start).
 SIMULATION_MODIFIERS = {'CLOTH', 'SOFT_BODY'}
+#: Modifiers that replace the positions of their mesh with poses of their own (a simulation's frames,
+#: a cache's samples): the mesh's shape keys do not show under them, and a generator after them works
+#: on what they play (applied, it would give them other vertices than they hold).
+POSE_REPLACING_MODIFIERS = SIMULATION_MODIFIERS | {'MESH_CACHE', 'MESH_SEQUENCE_CACHE'}
 #: Modifiers that add or remove vertices (Blender's Generate category; Geometry Nodes apart, which
 #: may carry the motion itself).
 GENERATE_MODIFIERS = {'ARRAY', 'BEVEL', 'BOOLEAN', 'BUILD', 'DECIMATE', 'EDGE_SPLIT', 'MASK', 'MIRROR',
@@ -892,7 +896,9 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
 def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=()):
     """Raise :class:`VertexCountChanged` for ``obj``'s evaluated mesh having ``count`` vertices at
     ``frame`` instead of its mesh's ``vertex_count`` (with the modifiers ``aside`` switched off),
-    saying what changes the topology and, for a generator before the motion, naming it."""
+    saying what changes the topology and, for a generator not set aside, naming it (before the
+    motion, or after a cloth, soft body or Mesh Cache, whose bake or file the remedies differ in
+    keeping)."""
     caches = [m for m in obj.modifiers if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
     if caches:
         source = caches[0].cache_file.filepath if caches[0].cache_file is not None else "its cache file"
@@ -913,8 +919,15 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=(
             "with as many vertices (a Grid, or a plane with a Subdivision applied), and run again.")
     generators = [m for m in obj.modifiers if m.show_viewport and m.type in GENERATE_MODIFIERS and m not in aside]
     if generators:
+        stack = list(obj.modifiers)
+        # a generator with a cloth, soft body or Mesh Cache above it works on the vertices they move, not the mesh's
+        played = [next((m for m in stack[:stack.index(generator)]
+                        if m.show_viewport and m.type in POSE_REPLACING_MODIFIERS), None) for generator in generators]
+        before = [generator for generator, source in zip(generators, played) if source is None]
+        advice = (_generators_before_motion(obj, before, vertex_count) if before else
+                  _generators_after_playback(obj, generators, played[0], vertex_count))
         raise VertexCountChanged(f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
-                                 f"{vertex_count}: " + _generators_before_motion(obj, generators, vertex_count))
+                                 f"{vertex_count}: " + advice)
     raise VertexCountChanged(
         f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
         f"{vertex_count}: a modifier before the motion (or a Geometry Nodes modifier) changes the "
@@ -950,6 +963,38 @@ def _generators_before_motion(obj, generators: list, vertex_count: int) -> str:
     return (f"{head}: {it} then {'gives' if one else 'give'} the mesh the vertices the {kind} '{simulation.name}' "
             "simulates (its cache is not baked: Blender simulates it again from its start, on those vertices as "
             "now).")
+
+
+def _generators_after_playback(obj, generators: list, source, vertex_count: int) -> str:
+    """What to do about ``generators``, enabled generators of ``obj`` that come after ``source`` (a
+    cloth, soft body or cache reader: :data:`POSE_REPLACING_MODIFIERS`) and are not set aside, for the
+    refusal of :func:`_refuse_vertex_count`. Where a modifier that moves the mesh follows them (an
+    Armature), move them below it: at the end of the stack they are set aside while the frames are
+    read; at the end already, they were not set aside for a cache switching them would outdate (a
+    simulation's, not baked, or those of the objects ``obj`` collides with or pushes): bake it. Or
+    disable them. Applying them, the advice for a generator before the motion, would give ``source``
+    other vertices than its cache or file holds: a simulation simulates again (another motion), a
+    Mesh Cache no longer plays."""
+    one = len(generators) == 1
+    names = ", ".join(f"'{m.name}'" for m in generators)
+    it = "it" if one else "them"
+    kind = {'CLOTH': "cloth", 'SOFT_BODY': "soft body", 'MESH_CACHE': "Mesh Cache"}.get(source.type, "cache")
+    simulated = source.type in SIMULATION_MODIFIERS
+    stack = list(obj.modifiers)
+    below = [m for m in stack[stack.index(generators[-1]) + 1:] if m.show_viewport and m.type not in GENERATE_MODIFIERS]
+    bake = f"the {kind} '{source.name}'" if simulated and not source.point_cache.is_baked else ""
+    if below:
+        remedy = (f"Move {it} below {', '.join(repr(m.name) for m in below)}, to the end of the stack"
+                  + (f", and bake {bake} (Physics › Cache › Bake)" if bake else ""))
+    else:
+        remedy = (f"Bake {bake or 'the simulations of the objects it collides with or pushes'} (Physics › Cache › "
+                  "Bake), which switching it off would outdate")
+    applied = ("vertices it did not simulate: Blender would simulate it again, another motion" if simulated else
+               "other vertices than its file holds, which Blender does not play")
+    return (f"{names} {'comes' if one else 'come'} after the {kind} '{source.name}' and "
+            f"{'changes' if one else 'change'} the vertex count, and the poses are of the mesh's own {vertex_count} "
+            f"vertices. {remedy}: {it} {'is' if one else 'are'} then set aside while the frames are read (a new "
+            f"object gets a copy); or disable {it}. Applying {it} would give the {kind} {applied}.")
 
 
 @dataclass

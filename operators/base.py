@@ -86,11 +86,13 @@ INBETWEENED_IN_WORLD = "the poses are in-betweened as the world shows them"
 MEASURED_IN_WORLD = "the poses are measured as the world shows them"
 
 
-def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *, invertible: bool = True) -> None:
+def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *, invertible: bool = True,
+                      frame: float | None = None) -> None:
     """Refuse ``obj`` where its world matrix flattens it, naming its scale there (the object's own
     or a parent's) as the cause rather than its mesh. ``matrix``: that world matrix (4, 4) or its
     linear part (3, 3), ``obj``'s at the current frame by default; ``where``: what the operator does
-    in the world (:data:`REBUILT_IN_WORLD`, …). Refused where the matrix cannot be inverted to
+    in the world (:data:`REBUILT_IN_WORLD`, …); ``frame``: the (sub-)frame that matrix is shown at,
+    named where given (a scale keyframed through 0). Refused where the matrix cannot be inverted to
     working precision (its smallest singular value at most machine epsilon × its largest: a scale of
     0 along an axis, or next to it), when ``invertible`` (the operator takes its results back into
     the mesh); and where the matrix's smallest singular value is below 1e-5 × its largest (√ of
@@ -101,11 +103,14 @@ def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *,
     linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
     sigma = np.linalg.svd(linear, compute_uv=False)
     scale = ", ".join(f"{value:.3g}" for value in np.linalg.norm(linear, axis=0))
-    flattened = f"'{obj.name}' is flattened in the world (its scale there is ({scale}))"
+    at = "" if frame is None else f" at frame {frame:g}"
+    flattened = f"'{obj.name}' is flattened in the world{at} (its scale there is ({scale}))"
     like = "scales of a like size along every axis"
     if invertible and not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
+        keyed = ("" if frame is None else " there (a scale keyframed from one side of 0 to the other passes 0 "
+                 "between its keys), or in-betweens that miss that frame (another Step, Count or Speed)")
         raise InputError(f"{flattened}: {where} and cannot be taken back into its mesh. Give it (and its parents) "
-                         + ("a scale other than 0 along every axis" if sigma[-1] == 0 else like))
+                         + ("a scale other than 0 along every axis" if sigma[-1] == 0 else like) + keyed)
     from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO, zero_area_triangles
 
     # A linear map multiplies a triangle's area / longest edge² by at least its singular values'
@@ -135,6 +140,19 @@ def in_world(obj, space, poses, times, triangles, where: str, *, invertible: boo
             check_world_scale(obj, where, linear, [(pose, moved)], triangles, invertible=invertible)
         world.append(moved)
     return world
+
+
+def check_shown_in_world(obj, space, times, where: str) -> None:
+    """Refuse ``obj`` where ``space`` (:class:`bridge.WorldFrames`, its matrices at ``times`` read)
+    would take poses back into its mesh at one of ``times`` (frames; a fraction is a sub-frame)
+    through a world matrix that cannot be inverted (:func:`check_world_scale`, naming that frame):
+    a scale keyframed from one side of 0 to the other passes 0 between two keys, where an
+    in-between may fall. ``where``: what the operator does in the world. Nothing to check in the
+    world's proportions (:class:`bridge.WorldProportions`), the same at every time and checked with
+    the keys (:func:`in_world`)."""
+    if isinstance(space, bridge.WorldFrames):
+        for time in times:
+            check_world_scale(obj, where, space.linear(time), frame=time)
 
 
 #: Where the scene's settings are, for a setting taken from there (:func:`offset_option`,

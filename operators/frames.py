@@ -13,8 +13,8 @@ from .. import bridge
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
 from .base import (INBETWEENED_IN_WORLD, GeneratorOperator, InbetweenSettingsProperties, InputError,
-                   check_memory, finite_pose, frame_name, in_world, load_core, playback_range, report, require_count,
-                   surface_triangles)
+                   check_memory, check_shown_in_world, finite_pose, frame_name, in_world, load_core, playback_range,
+                   report, require_count, surface_triangles)
 from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, missing_zone_bake, modifiers_set_aside,
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
                              unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
@@ -278,6 +278,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         with closing(space.reading([time for *_, times in spans for time in times])) as reading:
             for _ in reading:
                 yield 0.2
+        check_shown_in_world(obj, space, [time for *_, times in spans for time in times], INBETWEENED_IN_WORLD)
         for gap, frame, next_frame, gap_factors, times in spans:
             names.append(frame_key_name(frame)), tails.append(""), all_poses.append(read[frame])
             timeline.append(frame)
@@ -380,6 +381,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         shown = [start + sample for sample in plan.samples_read]
         samples = KeySamples(plan.n_source, dict(zip(plan.samples_read, in_world(
             obj, space, [read[frame] for frame in shown], shown, triangles, INBETWEENED_IN_WORLD))))
+        check_shown_in_world(obj, space, shown_at, INBETWEENED_IN_WORLD)
         poses_out = retime.iter_retime(samples, triangles, plan, **options,
                                        sample_names=lambda sample: frame_name(start + sample))
         retimed = []

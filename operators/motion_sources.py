@@ -302,9 +302,9 @@ def trailing_generators(obj) -> list:
     return [modifier for modifier in enabled[start:] if modifier.type not in PASSIVE_MODIFIERS]
 
 
-#: Modifiers that replace the positions of their mesh with poses of their own (a simulation's frames,
-#: a cache's samples): the mesh's shape keys do not show under them.
-POSE_REPLACING_MODIFIERS = SIMULATION_MODIFIERS | {'MESH_CACHE', 'MESH_SEQUENCE_CACHE'}
+#: Modifiers that replace the positions of their mesh with poses of their own
+#: (:data:`bridge.POSE_REPLACING_MODIFIERS`).
+POSE_REPLACING_MODIFIERS = bridge.POSE_REPLACING_MODIFIERS
 #: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
 #: simulate again from its own start) and what reads a cache (it would replace the poses).
 NOT_COPIED_UNDER_KEYS = POSE_REPLACING_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
@@ -414,12 +414,18 @@ def refuse_emptying_caches(scene, obj, what: str, alternative: str = "", shapes:
 def modifiers_set_aside(context, obj) -> list:
     """The modifiers to switch off while the frames of ``obj`` are read: its trailing generators
     (:func:`trailing_generators`) when its evaluated mesh has other vertices than its mesh (the
-    poses are of the mesh's own vertices), none otherwise. Raises :class:`InputError` when one of
-    its simulations is not baked: switching a modifier of the object off and on again marks that
-    cache outdated, and Blender then drops its frames."""
-    if bridge.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
-        return []
+    poses are of the mesh's own vertices), or when a generator is among them and switching them
+    costs no cache: one that keeps the vertex count at the current frame may change it at another
+    (an Edge Split by angle, a Weld by distance, a Build), and a new object gets copies of them
+    (:func:`modifiers_under_frames`), which would add what they do to the poses a second time (a
+    Displace after a Triangulate). None otherwise. Raises :class:`InputError`, where the evaluated
+    mesh has other vertices, when one of its simulations is not baked: switching a modifier of the
+    object off and on again marks that cache outdated, and Blender then drops its frames."""
     aside = trailing_generators(obj)
+    if bridge.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
+        if not any(modifier.type in GENERATE_MODIFIERS for modifier in aside) or unbaked_simulations(obj):
+            return []
+        return [] if reacting_simulations(context.scene, [obj]) else aside
     unbaked = unbaked_simulations(obj)
     if aside and not unbaked:
         # switching a modifier of a collider or force field off and on empties the caches of

@@ -203,6 +203,23 @@ def add_key(obj, name: str, positions: np.ndarray):
     return key_block
 
 
+def with_boundary_sliver(bridge, mesh):
+    """A copy of ``mesh`` with one triangle of no area more: a boundary edge (a, b) and the midpoint
+    of it (a new last vertex), running along the edge the other way from the face it bounds, as a
+    decimation or a careless edit leaves one. Returns the new mesh and its positions (n + 1, 3)."""
+    rest = bridge.vertex_positions(mesh)
+    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
+    uses = {}
+    for face in faces:
+        for edge in zip(face, face[1:] + face[:1]):
+            uses[frozenset(edge)] = uses.get(frozenset(edge), 0) + 1
+    a, b = next(edge for face in faces for edge in zip(face, face[1:] + face[:1]) if uses[frozenset(edge)] == 1)
+    positions = np.vstack([rest, (rest[a] + rest[b]) / 2])
+    sliver = bpy.data.meshes.new("Sliver")
+    sliver.from_pydata([*map(tuple, positions)], [], faces + [(b, a, len(rest))])
+    return sliver, positions
+
+
 def posed_grid(bridge, subdivisions: int = 12):
     """A grid with a Basis and two rolled poses, "Bend" (the active key) and "Curl"."""
     obj = grid_object(subdivisions)

@@ -9,8 +9,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import (add_key, armature_scene, assert_unchanged, grid_object,  # noqa: E402
-                            posed_grid, snapshot)
+from blender_scenes import (_fcurves, add_key, armature_scene, assert_unchanged, grid_object,  # noqa: E402
+                            posed_grid, rolled, snapshot, with_boundary_sliver)
 
 
 def fails_without_change(bridge, obj, operator, match, **properties):
@@ -1502,25 +1502,53 @@ def test_an_object_its_scale_flattens_in_the_world_is_refused_for_its_scale(bpy_
                          r"Give it \(and its parents\) scales of a like size along every axis", **properties)
 
 
+def _sheet_scale_keyframed_through_zero(frames: int = 9):
+    """A grid bent by a shape key keyframed 0 → 1 over frames 1–``frames``, on an object whose x scale is
+    keyframed linearly 2 → −1 there: its proportions differ at the two ends, and its scale is 0 at frame
+    1 + 2/3 × (``frames`` − 1) (6 1/3 for 9 frames)."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    sheet = grid_object(6)
+    rest = np.array([vertex.co[:] for vertex in sheet.data.vertices])
+    add_key(sheet, "Bend", rolled(rest, 1.5))
+    bend = sheet.data.shape_keys.key_blocks["Bend"]
+    for frame, value, scale in ((1, 0.0, 2.0), (frames, 1.0, -1.0)):
+        bend.value = value
+        bend.keyframe_insert("value", frame=frame)
+        sheet.scale = (scale, 1.0, 1.0)
+        sheet.keyframe_insert("scale", frame=frame)
+    for animated in (sheet.animation_data, sheet.data.shape_keys.animation_data):
+        for fcurve in _fcurves(animated):
+            for point in fcurve.keyframe_points:
+                point.interpolation = 'LINEAR'
+    scene.frame_set(1)
+    return sheet
+
+
+@pytest.mark.parametrize("operator, properties", [
+    ("inbetween_frames", dict(frame_step=8, count=23)), ("inbetween_frames", dict(frame_step=8, count=23,
+                                                                                  output='SHAPE_KEYS')),
+    ("retime", dict(frame_step=8, speed=1 / 3))])
+def test_an_inbetween_where_a_keyframed_scale_passes_0_is_refused_naming_its_frame(bpy_empty, extension, operator,
+                                                                                   properties):
+    """An object whose scale is keyframed from 2 to −1 along x over frames 1–9: both keys (1, 9) are fine, but
+    the in-betweens 1/3 frame apart (23 per gap of 8, or a retime at speed 1/3) include frame 6 1/3, where the
+    scale is 0 and no pose can be taken back into the mesh. Refused naming that frame, nothing changed (before:
+    a NumPy traceback, "LinAlgError: Singular matrix", from ``WorldFrames.back``)."""
+    sheet = _sheet_scale_keyframed_through_zero()
+    fails_without_change(extension.bridge, sheet, getattr(bpy.ops.shape_differences, operator),
+                         r"^Error: 'Sheet' is flattened in the world at frame 6\.3333\d* \(its scale there is \(0, 1, "
+                         r"1\)\): .* cannot be taken back into its mesh\. .* a scale other than 0 along every axis there",
+                         frame_start=1, frame_end=9, **properties)
+
+
 def test_a_degenerate_face_of_a_stretched_object_is_the_meshs_own(bpy_empty, extension):
     """A triangle with no area in the mesh itself (its corners on one line) stays the core's refusal
     with its remedy, on an object stretched along its axes: its scale is not blamed."""
     obj = posed_grid(extension.bridge, 6)
-    mesh = obj.data
-    rest = extension.bridge.vertex_positions(mesh)
-    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
-    uses = {}
-    for face in faces:
-        for edge in zip(face, face[1:] + face[:1]):
-            uses[frozenset(edge)] = uses.get(frozenset(edge), 0) + 1
-    # a boundary edge, as its face runs along it; the sliver runs along it the other way
-    a, b = next(edge for face in faces for edge in zip(face, face[1:] + face[:1]) if uses[frozenset(edge)] == 1)
-    faces.append((b, a, len(rest)))
-    sliver = bpy.data.meshes.new("Sliver")
-    sliver.from_pydata([*map(tuple, rest), tuple((rest[a] + rest[b]) / 2)], [], faces)
+    sliver, moved = with_boundary_sliver(extension.bridge, obj.data)
     obj.shape_key_clear()
     obj.data = sliver
-    moved = np.vstack([rest, (rest[a] + rest[b]) / 2])
     add_key(obj, "Bend", moved + [0.0, 0.0, 0.1])
     _flattened_by_its_scale(obj, (3.0, 1.0, 0.2), "itself")
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,

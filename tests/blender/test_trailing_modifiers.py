@@ -2,8 +2,11 @@
 render) adds vertices to the evaluated mesh: frames are read with those trailing generators
 switched off (the poses are of the mesh's own vertices), they are switched on again afterwards,
 and the new object that plays the result gets copies of them after its Mesh Cache, so that it
-looks like the source. A generator before the motion, or one after an unbaked simulation (whose
-cache switching it off would outdate), is refused and nothing changes."""
+looks like the source; so are those that keep the vertex count at the current frame (they may
+change it at another, and their copies would add their work twice). A generator before the
+motion, one between the cloth and a deformer after it, or one after an unbaked simulation (whose
+cache switching it off would outdate) where it changes the vertex count, is refused naming it and
+nothing changes."""
 
 import importlib
 
@@ -12,8 +15,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import (armature_scene, assert_unchanged, cloth_scene,  # noqa: E402
-                            evaluated_frames, key_names, pinned_cloth_scene, played, snapshot)
+from blender_scenes import (armature_scene, assert_unchanged, cloth_scene, evaluated_frames,  # noqa: E402
+                            grid_object, key_names, pinned_cloth_scene, played, rolled, snapshot)
 from test_failures import fails_without_change  # noqa: E402
 
 TOLERANCE = 1e-5  # float32 positions
@@ -203,6 +206,20 @@ def read_with_aside(bridge, obj, frames, aside):
     return out
 
 
+def keys_of_a_run(extension, tmp_path, modifier_types: list) -> dict:
+    """Run *In-between Frames* on the active object over frames 1–9 (step 4, 3 in-betweens a gap) to a point
+    cache, check the new object's modifiers are of ``modifier_types``, and return its samples at the keys
+    ({frame: (n, 3)})."""
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                               filepath=str(tmp_path / "keys.pc2"))
+    [copy] = new_objects(names)
+    assert [m.type for m in copy.modifiers] == modifier_types
+    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(
+        bpy.path.abspath(copy.modifiers[0].filepath))
+    return {frame: cache.positions[frame - 1] for frame in (1, 5, 9)}
+
+
 def test_a_subdivision_under_a_baked_cloth_is_named_and_applying_it_keeps_the_bake(bpy_empty, extension, tmp_path):
     """A Subdivision before a baked cloth (which simulates the subdivided vertices) and a Solidify after it:
     the refusal names the Subdivision and says to apply it, which keeps the bake playing (its cache holds
@@ -229,15 +246,8 @@ def test_a_subdivision_under_a_baked_cloth_is_named_and_applying_it_keeps_the_ba
     with bpy.context.temp_override(object=flag, active_object=flag):
         bpy.ops.object.modifier_apply(modifier="Subdivision")
     assert flag.modifiers["Cloth"].point_cache.is_baked
-    names = set(bpy.data.objects.keys())
-    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
-                                               filepath=str(tmp_path / "flag.pc2"))
-    [copy] = new_objects(names)
-    assert [m.type for m in copy.modifiers] == ['MESH_CACHE', 'SOLIDIFY']
-    cache = importlib.import_module(f"{extension.__name__}.core.point_cache").read_pc2(
-        bpy.path.abspath(copy.modifiers[0].filepath))
-    for sample, frame in ((0, 1), (4, 5), (8, 9)):  # the keys, as baked
-        np.testing.assert_allclose(cache.positions[sample], baked[frame], atol=TOLERANCE)
+    for frame, positions in keys_of_a_run(extension, tmp_path, ['MESH_CACHE', 'SOLIDIFY']).items():
+        np.testing.assert_allclose(positions, baked[frame], atol=TOLERANCE)  # the keys, as baked
 
 
 def test_a_subdivision_under_an_unbaked_cloth_is_named(bpy_empty, extension):
@@ -250,6 +260,125 @@ def test_a_subdivision_under_an_unbaked_cloth_is_named(bpy_empty, extension):
     fails_without_change(extension.bridge, flag, bpy.ops.shape_differences.inbetween_frames,
                          "'Subdivision' comes before the motion .* Apply it .* the cloth 'Cloth' simulates \\(its "
                          "cache is not baked", frame_start=1, frame_end=5, frame_step=2)
+
+
+def baked_cloth_under(*modifiers):
+    """A pinned cloth followed by ``modifiers`` ((name, type) pairs, added in that order; an Armature
+    gets an armature object that leaves the mesh where it is), baked for 9 frames; the scene at frame 1.
+    Returns the cloth object and the modifiers added."""
+    flag = pinned_cloth_scene(frames=9)
+    added = [flag.modifiers.new(name, kind) for name, kind in modifiers]
+    for modifier in added:
+        if modifier.type == 'ARMATURE':
+            rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+            bpy.context.scene.collection.objects.link(rig)
+            modifier.object = rig
+    with bpy.context.temp_override(scene=bpy.context.scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    bpy.context.scene.frame_set(1)
+    return flag, added
+
+
+def test_a_subdivision_between_a_baked_cloth_and_an_armature_is_moved_not_applied(bpy_empty, extension, tmp_path):
+    """Cloth → Subdivision → Armature: the Subdivision works on the simulated vertices and is not at the end of
+    the stack, so it is not set aside. The refusal says it comes after the cloth and to move it below the
+    Armature (before: "'Subdivision' comes before the motion … Apply it", and applied, it gives the cloth
+    vertices its bake does not hold: Blender simulates again). The advice holds: moved to the end, the bake
+    plays on and the run in-betweens the baked frames."""
+    bridge = extension.bridge
+    flag, (subdivision, _armature) = baked_cloth_under(("Subdivision", 'SUBSURF'), ("Armature", 'ARMATURE'))
+    baked = read_with_aside(bridge, flag, [1, 5, 9], subdivision)
+    fails_without_change(bridge, flag, bpy.ops.shape_differences.inbetween_frames,
+                         "'Subdivision' comes after the cloth 'Cloth' and changes the vertex count.* Move it "
+                         "below 'Armature', to the end of the stack: it is then set aside .* or disable it. Applying "
+                         "it would give the cloth vertices it did not simulate", frame_start=1, frame_end=9,
+                         frame_step=4)
+
+    flag.modifiers.move(1, 2)
+    assert flag.modifiers["Cloth"].point_cache.is_baked
+    for frame, positions in keys_of_a_run(extension, tmp_path, ['MESH_CACHE', 'SUBSURF']).items():
+        np.testing.assert_allclose(positions, baked[frame], atol=TOLERANCE)  # the keys, as baked
+
+
+def test_a_subdivision_between_a_mesh_cache_and_an_armature_is_moved_not_applied(bpy_empty, extension, tmp_path):
+    """Mesh Cache → Subdivision → Armature: refused naming the Mesh Cache and the move below the Armature
+    (before: "comes before the motion … Apply it", which would leave the cache a mesh of other vertices than
+    its file's); moved there, the run in-betweens the file's samples."""
+    bridge = extension.bridge
+    point_cache = importlib.import_module(f"{extension.__name__}.core.point_cache")
+    sheet = grid_object(6)
+    rest = bridge.vertex_positions(sheet.data)
+    samples = np.array([rolled(rest, 0.1 * frame) for frame in range(1, 10)])
+    cache = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
+    cache.cache_format, cache.filepath, cache.frame_start = 'PC2', str(point_cache.write_pc2(
+        tmp_path / "sheet.pc2", samples, start=1.0)), 1.0
+    sheet.modifiers.new("Subdivision", 'SUBSURF').levels = 1
+    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    bpy.context.scene.collection.objects.link(rig)
+    sheet.modifiers.new("Armature", 'ARMATURE').object = rig
+    bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
+    fails_without_change(bridge, sheet, bpy.ops.shape_differences.inbetween_frames,
+                         "'Subdivision' comes after the Mesh Cache 'Mesh Cache' .* Move it below 'Armature', to the "
+                         "end of the stack: .* Applying it would give the Mesh Cache other vertices than its file "
+                         "holds",
+                         frame_start=1, frame_end=9, frame_step=4)
+
+    sheet.modifiers.move(1, 2)
+    for frame, positions in keys_of_a_run(extension, tmp_path, ['MESH_CACHE', 'SUBSURF']).items():
+        np.testing.assert_allclose(positions, samples[frame - 1], atol=TOLERANCE)  # as the file holds them
+
+
+def test_an_edge_split_after_a_baked_cloth_is_set_aside_though_the_current_frame_keeps_the_count(
+        bpy_empty, extension, tmp_path):
+    """An Edge Split by angle after a baked cloth adds no vertex while the cloth is flat (frame 1, the current
+    one) and splits its folds later: it is set aside all the same, the run reads the baked frames and the new
+    object gets a copy (before: refused at frame 5, "'EdgeSplit' comes before the motion … Apply it", though
+    the same run from frame 9 went through)."""
+    bridge = extension.bridge
+    flag, (split,) = baked_cloth_under(("EdgeSplit", 'EDGE_SPLIT'))
+    split.split_angle, split.use_edge_sharp = 0.02, False
+    counts = [len(positions) for positions in played(bridge, flag, [1, 5, 9]).values()]
+    assert counts[0] == len(flag.data.vertices) < counts[1], "the split should add vertices as the cloth folds"
+    baked = read_with_aside(bridge, flag, [1, 5, 9], split)
+    before = snapshot(bridge, flag)
+    keys = keys_of_a_run(extension, tmp_path, ['MESH_CACHE', 'EDGE_SPLIT'])
+    after = snapshot(bridge, flag)
+    after["meshes"] = before["meshes"]  # the new object brings its own mesh
+    assert_unchanged(before, after)
+    for frame, positions in keys.items():
+        np.testing.assert_allclose(positions, baked[frame], atol=TOLERANCE)
+
+
+def test_a_displace_after_a_triangulate_plays_once_on_the_new_object(bpy_empty, extension, tmp_path):
+    """Triangulate → Displace after a baked cloth keep the vertex count, and the new object gets copies of
+    both: the frames are read without them, so the new object shows the source's mesh at the keys (before:
+    read with the Displace, which its copy then added again, 0.15 off at strength 0.3)."""
+    bridge = extension.bridge
+    flag, (_triangulate, displace) = baked_cloth_under(("Triangulate", 'TRIANGULATE'), ("Displace", 'DISPLACE'))
+    displace.strength = 0.3
+    shown = played(bridge, flag, [1, 5, 9])
+    names = set(bpy.data.objects.keys())
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
+                                               filepath=str(tmp_path / "flag.pc2"))
+    [copy] = new_objects(names)
+    assert [m.type for m in copy.modifiers] == ['MESH_CACHE', 'TRIANGULATE', 'DISPLACE']
+    for frame, positions in played(bridge, copy, [1, 5, 9]).items():
+        np.testing.assert_allclose(positions, shown[frame], atol=TOLERANCE)
+
+
+def test_an_edge_split_after_an_unbaked_cloth_is_named_with_baking(bpy_empty, extension):
+    """The same Edge Split after a cloth that is not baked cannot be set aside (switching it would outdate the
+    cache): refused where it splits, with baking as the way out (before: "comes before the motion … Apply it",
+    which would have the cloth simulate vertices it did not)."""
+    flag = pinned_cloth_scene(frames=9)
+    split = flag.modifiers.new("EdgeSplit", 'EDGE_SPLIT')
+    split.split_angle, split.use_edge_sharp = 0.02, False
+    for frame in range(1, 10):  # simulated again into its memory cache, which the new modifier outdated
+        bpy.context.scene.frame_set(frame)
+    bpy.context.scene.frame_set(1)
+    fails_without_change(extension.bridge, flag, bpy.ops.shape_differences.inbetween_frames,
+                         "'EdgeSplit' comes after the cloth 'Cloth' .* Bake the cloth 'Cloth' \\(Physics › Cache › Bake\\)"
+                         ".* or disable it", frame_start=1, frame_end=9, frame_step=4)
 
 
 def test_a_collision_modifier_at_the_end_stays_with_the_source(bpy_empty, extension, tmp_path):

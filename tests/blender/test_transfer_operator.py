@@ -6,7 +6,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import add_key, cloth_scene, grid_object, key_names, rolled, snapshot, transfer_pair  # noqa: E402
+from blender_scenes import (add_key, cloth_scene, grid_object, key_names, rolled, snapshot,  # noqa: E402
+                            transfer_pair, with_boundary_sliver)
 
 TOLERANCE = 1e-4  # float32 storage of a ~2 unit mesh
 
@@ -362,18 +363,8 @@ def test_warnings_about_the_source_mesh_name_it(bpy_empty, extension, core, capf
     triangle(s) of zero area at rest")."""
     bridge = extension.bridge
     source = grid_object(14, name="Source")
-    mesh = source.data
-    rest = bridge.vertex_positions(mesh)
-    faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
-    uses = {}
-    for face in faces:
-        for edge in zip(face, face[1:] + face[:1]):
-            uses[frozenset(edge)] = uses.get(frozenset(edge), 0) + 1
-    a, b = next(edge for face in faces for edge in zip(face, face[1:] + face[:1]) if uses[frozenset(edge)] == 1)
-    sliver = bpy.data.meshes.new("Sliver")
-    sliver.from_pydata([*map(tuple, rest), tuple((rest[a] + rest[b]) / 2)], [], faces + [(b, a, len(rest))])
-    source.data = sliver
-    add_key(source, "Bend", rolled(bridge.vertex_positions(sliver), 1.0))
+    source.data, rest = with_boundary_sliver(bridge, source.data)
+    add_key(source, "Bend", rolled(rest, 1.0))
     target = grid_object(10, name="Sheet")
     source.select_set(True)
     target.select_set(True)
