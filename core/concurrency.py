@@ -52,9 +52,8 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
     items = list(items)
     if not worth_it or len(items) < 2 or available_cores() < 2:
         return [function(item) for item in items]
-    pool = _shared_pool()
     with single_threaded_blas():
-        futures = [pool.submit(function, item) for item in items[1:]]
+        futures = [_submitted(function, item) for item in items[1:]]
         outcomes = [_outcome(lambda: function(items[0]))]
         outcomes += [_outcome(lambda: result(future, function, item)) for future, item in zip(futures, items[1:])]
     for value, error in outcomes:  # every piece finished: none left running on shared state
@@ -68,7 +67,7 @@ def in_background(function, *arguments):
     or None with a single core (the caller then does the work when it needs it)."""
     if available_cores() < 2:
         return None
-    return _shared_pool().submit(_single_threaded, function, *arguments)
+    return _submitted(_single_threaded, function, *arguments)
 
 
 def _single_threaded(function, *arguments):
@@ -94,10 +93,12 @@ def _outcome(call):
         return None, error
 
 
-def _shared_pool():
-    """The process's pool, of one thread per core it may run on now: a pool made for another count
-    (the process's CPU affinity changed, as a farm's scheduler may change it) is replaced, and the
-    work already handed to it still runs."""
+def _submitted(function, *arguments):
+    """A Future of ``function(*arguments)`` handed to the process's pool, of one thread per core
+    it may run on now: a pool made for another count (the process's CPU affinity changed, as a
+    farm's scheduler may change it) is replaced, and the work already handed to it still runs (its
+    threads end once it is done). The pool is taken and given the work under one lock, so no work
+    goes to a pool another thread has just replaced (shut down, it would refuse it)."""
     global _pool, _pool_threads
     cores = available_cores()
     with _pool_lock:
@@ -107,7 +108,7 @@ def _shared_pool():
             if _pool is not None:
                 _pool.shutdown(wait=False)
             _pool, _pool_threads = ThreadPoolExecutor(cores, thread_name_prefix="shape-differences"), cores
-        return _pool
+        return _pool.submit(function, *arguments)
 
 
 @contextmanager

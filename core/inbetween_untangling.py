@@ -352,19 +352,23 @@ def untangled_poses(gap, factors, results: list) -> list:
             out[k] = (result.positions, None)
             gap.outcomes[s] = Outcome(0, False)
             continue
-        out[k] = (result.positions, left_message(result))
         before = gap.outcomes.get(s)
-        gap.outcomes[s] = Outcome(result.defects, before is not None and before.near_blend)
+        near_blend = before is not None and before.near_blend
+        out[k] = (result.positions, left_message(result, near_blend))
+        gap.outcomes[s] = Outcome(result.defects, near_blend)
     return out
 
 
-def left_message(result: Untangling) -> str:
+def left_message(result: Untangling, near_blend: bool) -> str:
     """The warning's text for an in-between the untangling left places in (``result``): what it
-    keeps first, where a report line cut to the status bar's width still shows it."""
+    keeps first, where a report line cut to the status bar's width still shows it; ``near_blend``:
+    whether the repairs left a fallback near the keys' linear blend (a sequence's fit that was not
+    finite, :meth:`~core.inbetween_repair.Repair.outcome`) rather than the metric fit."""
+    kept = "a fit near the keys' linear blend" if near_blend else "the metric fit"
     large = "" if not result.too_large else (
         f"; {result.too_large} of those left too large to untangle: a tangle of more than "
         f"{UNTANGLE_FREE_VERTICES} vertices, or past {UNTANGLE_WORK} in the in-between")
     return (f"it keeps {result.defects} triangle(s) flipped or collapsed in {result.left} of the {result.tangles} "
             f"place(s) where its repairs left the cloth folded over or crushed ({result.tangles - result.left} "
             f"untangled{large}); keys closer together here tell the motion better, or fix those triangles by hand "
-            "(the metric fit with the fewest defects, untangled place by place)")
+            f"({kept} with the fewest defects, untangled place by place)")

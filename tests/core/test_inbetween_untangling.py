@@ -340,3 +340,26 @@ def test_an_in_between_without_defects_is_left_bit_for_bit(monkeypatch):
         warnings.simplefilter("always", ShapeDifferenceWarning)
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)
     assert np.array_equal(made[0.5][0], plain) and np.array_equal(y, plain)
+
+
+def test_a_fit_near_the_blend_left_with_places_is_said_as_that_fit(monkeypatch):
+    """An in-between the repairs left as a fit near the keys' linear blend (the fallback of a
+    sequence's fit that is not finite), with a fold the untangling clears beside a crush it leaves:
+    its warning names that fit as what it keeps, not the metric fit. Said as the metric fit, the
+    warning named a pose the in-between is not."""
+    import core.inbetween_solver as solver
+    from core.inbetween_repair import Outcome
+
+    real_pose = solver.Gap.pose
+
+    def near_blend(self, s, *args, **kwargs):  # what Repair.outcome says of its fallback near the blend
+        x, problem = real_pose(self, s, *args, **kwargs)
+        if 0.0 < s < 1.0:
+            self.outcomes[s] = Outcome(1, True)
+        return x, problem
+
+    monkeypatch.setattr(solver.Gap, "pose", near_blend)
+    keys, tri, x, y, corner, said = _crushed_and_folded(monkeypatch, radius=4)
+    assert _flipped(x, keys[0], keys[1], tri) > 0 and _flipped(y, keys[0], keys[1], tri) == 0  # the fold cleared
+    assert [(w.kind, w.defects) for w in said] == [("pose", _collapsed(y, keys[0], tri))]
+    assert "(a fit near the keys' linear blend with the fewest defects" in str(said[0])

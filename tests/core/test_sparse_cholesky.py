@@ -130,3 +130,31 @@ def test_the_pool_has_a_thread_per_core_the_process_may_run_on_now(monkeypatch, 
     futures = [concurrency.in_background(together.wait, 10) for _ in range(cores)]
     assert sorted(future.result() for future in futures) == list(range(cores))
 
+
+
+def test_pieces_handed_out_while_another_thread_makes_the_pool_again_all_run(monkeypatch):
+    """A thread handing out pieces (``concurrently``) while another one finds the cores changed
+    and makes the pool again (a gap prepared in the background hands out work of its own): every
+    piece runs and its result comes back, in order. With the pool taken once and then handed the
+    pieces one by one, the piece handed out after the other thread replaced the pool went to the
+    pool it had shut down (RuntimeError: cannot schedule new futures after shutdown)."""
+    import threading
+    from concurrent.futures import ThreadPoolExecutor
+
+    cores = {"count": 2}
+    monkeypatch.setattr(concurrency, "available_cores", lambda: cores["count"])
+    real_submit, handed, other = ThreadPoolExecutor.submit, [], []
+
+    def submit(pool, function, *arguments, **keywords):
+        handed.append(pool)
+        if len(handed) == 2:  # between the first piece handed out and the second
+            cores["count"] = 3
+            other.append(threading.Thread(target=lambda: concurrency.result(concurrency.in_background(int), int)))
+            other[0].start()
+            other[0].join(timeout=0.5)  # it waits for the pool's lock where this thread holds it
+        return real_submit(pool, function, *arguments, **keywords)
+
+    monkeypatch.setattr(ThreadPoolExecutor, "submit", submit)
+    assert concurrency.concurrently(lambda i: i * i, range(4)) == [0, 1, 4, 9]
+    other[0].join(timeout=10)
+    assert not other[0].is_alive() and len(handed) == 4  # the other thread's work was handed out too
