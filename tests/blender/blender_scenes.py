@@ -293,6 +293,26 @@ def pinned_cloth_scene(subdivisions: int = 8, frames: int = 13, bake: bool = Fal
     return obj
 
 
+def soft_body_scene(frames: int = 9):
+    """A UV sphere with Soft Body physics (no goal, edge springs) dropped onto a plane with a Collision
+    modifier, baked for ``frames`` frames: it squashes where it lands."""
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, frames
+    bpy.ops.mesh.primitive_plane_add(size=4.0, location=(0, 0, 0))
+    bpy.context.active_object.modifiers.new("Collision", 'COLLISION')
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.5, location=(0, 0, 0.8), segments=16, ring_count=8)
+    obj = bpy.context.active_object
+    obj.name = "Ball"
+    soft_body = obj.modifiers.new("Softbody", 'SOFT_BODY')
+    obj.soft_body.use_goal = False
+    obj.soft_body.use_edges = True
+    soft_body.point_cache.frame_start, soft_body.point_cache.frame_end = 1, frames
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+    return obj
+
+
 def driven_keys_scene(frames: int = 9):
     """A grid whose "Bend" key value is keyframed 0 → 1 and whose "Curl" key value is driven by
     Bend's value (a driver), so the animation comes from keys driven by other keys."""
