@@ -946,31 +946,40 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=(
         "armature are set aside by themselves.")
 
 
+#: What the refusals call a modifier that plays poses of its own (:data:`POSE_REPLACING_MODIFIERS`).
+_PLAYER_KINDS = {'CLOTH': "cloth", 'SOFT_BODY': "soft body", 'MESH_CACHE': "Mesh Cache"}
+
+
+def _named(generators: list) -> tuple[str, str, str]:
+    """``generators`` as the refusals of :func:`_refuse_vertex_count` name them: their names quoted,
+    the pronoun for them, and the ending of a verb they are the subject of ("s" for one)."""
+    one = len(generators) == 1
+    return ", ".join(f"'{m.name}'" for m in generators), "it" if one else "them", "s" if one else ""
+
+
 def _generators_before_motion(obj, generators: list, vertex_count: int) -> str:
     """What to do about ``generators``, enabled generators of ``obj`` that are not set aside (they
     come before its motion), for the refusal of :func:`_refuse_vertex_count`: apply them. A cloth or
     soft body after them simulates the vertices they make, and its baked cache holds those: applied,
     they become the mesh's and the bake keeps playing; disabled, Blender would simulate the mesh
     without them again (its cache no longer matches), another motion than the bake's."""
-    one = len(generators) == 1
-    names = ", ".join(f"'{m.name}'" for m in generators)
-    it = "it" if one else "them"
+    names, it, s = _named(generators)
     after = list(obj.modifiers)[list(obj.modifiers).index(generators[-1]) + 1:]
     simulations = [m for m in after if m.show_viewport and m.type in SIMULATION_MODIFIERS]
-    head = (f"{names} {'comes' if one else 'come'} before the motion and {'changes' if one else 'change'} the "
+    head = (f"{names} come{s} before the motion and change{s} the "
             f"vertex count, and the poses are of the mesh's own {vertex_count} vertices. Apply {it} (the "
             "modifier's menu › Apply)")
     if not simulations:
         return (f"{head}, so that the mesh has the vertices the motion after {it} moves, or disable {it}; "
                 "those after the cloth or armature are set aside by themselves.")
     simulation = simulations[0]
-    kind = "cloth" if simulation.type == 'CLOTH' else "soft body"
+    kind = _PLAYER_KINDS[simulation.type]
     if simulation.point_cache.is_baked:
-        return (f"{head}: {it} then {'gives' if one else 'give'} the mesh the vertices the {kind} "
+        return (f"{head}: {it} then give{s} the mesh the vertices the {kind} "
                 f"'{simulation.name}' moves, and its baked cache, which holds them, keeps playing. Disabling {it} "
                 f"instead has Blender simulate the mesh without {it} again (its cache no longer matches): "
                 "another motion than the bake's.")
-    return (f"{head}: {it} then {'gives' if one else 'give'} the mesh the vertices the {kind} '{simulation.name}' "
+    return (f"{head}: {it} then give{s} the mesh the vertices the {kind} '{simulation.name}' "
             "simulates (its cache is not baked: Blender simulates it again from its start, on those vertices as "
             "now).")
 
@@ -985,10 +994,8 @@ def _generators_after_playback(obj, generators: list, source, vertex_count: int)
     disable them. Applying them, the advice for a generator before the motion, would give ``source``
     other vertices than its cache or file holds: a simulation simulates again (another motion), a
     Mesh Cache no longer plays."""
-    one = len(generators) == 1
-    names = ", ".join(f"'{m.name}'" for m in generators)
-    it = "it" if one else "them"
-    kind = {'CLOTH': "cloth", 'SOFT_BODY': "soft body", 'MESH_CACHE': "Mesh Cache"}.get(source.type, "cache")
+    names, it, s = _named(generators)
+    kind = _PLAYER_KINDS.get(source.type, "cache")
     simulated = source.type in SIMULATION_MODIFIERS
     stack = list(obj.modifiers)
     below = [m for m in stack[stack.index(generators[-1]) + 1:] if m.show_viewport and m.type not in GENERATE_MODIFIERS]
@@ -1001,9 +1008,9 @@ def _generators_after_playback(obj, generators: list, source, vertex_count: int)
                   "Bake), which switching it off would outdate")
     applied = ("vertices it did not simulate: Blender would simulate it again, another motion" if simulated else
                "other vertices than its file holds, which Blender does not play")
-    return (f"{names} {'comes' if one else 'come'} after the {kind} '{source.name}' and "
-            f"{'changes' if one else 'change'} the vertex count, and the poses are of the mesh's own {vertex_count} "
-            f"vertices. {remedy}: {it} {'is' if one else 'are'} then set aside while the frames are read (a new "
+    return (f"{names} come{s} after the {kind} '{source.name}' and "
+            f"change{s} the vertex count, and the poses are of the mesh's own {vertex_count} "
+            f"vertices. {remedy}: {it} {'is' if s else 'are'} then set aside while the frames are read (a new "
             f"object gets a copy); or disable {it}. Applying {it} would give the {kind} {applied}.")
 
 

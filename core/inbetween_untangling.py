@@ -218,6 +218,18 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
             moved += step
             kept[rows] = False
 
+    def attempt(region, places) -> bool | None:  # None: past the in-between's work, not tried
+        nonlocal work
+        if work + int(region.sizes[places].sum()) > UNTANGLE_WORK:
+            return None
+        part = region.part(places)
+        work += part.free.size
+        tried[part.rows[kept[part.rows]]] = True
+        z, faces = untangle(y[part.vertices], part.corners, part.free, part.sides, part.margins)
+        if faces:
+            keep(part, z, places)
+        return faces
+
     for rings in UNTANGLE_RINGS:
         if not kept.any():
             break
@@ -227,23 +239,9 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
             size = int(region.sizes[pack].sum())
             # past the in-between's work, each place alone while it fits
             for places in [pack] if work + size <= UNTANGLE_WORK else [[place] for place in pack]:
-                if work + int(region.sizes[places].sum()) > UNTANGLE_WORK:
-                    continue
-                part = region.part(places)
-                work += part.free.size
-                tried[part.rows[kept[part.rows]]] = True
-                z, faces = untangle(y[part.vertices], part.corners, part.free, part.sides, part.margins)
-                if faces:
-                    keep(part, z, places)
-                elif len(places) > 1:  # one place that does not untangle held the others: each alone
-                    for place in places:
-                        alone = region.part([place])
-                        if work + alone.free.size > UNTANGLE_WORK:
-                            continue
-                        work += alone.free.size
-                        z, faces = untangle(y[alone.vertices], alone.corners, alone.free, alone.sides, alone.margins)
-                        if faces:
-                            keep(alone, z, [place])
+                if attempt(region, places) is False and len(places) > 1:
+                    for place in places:  # one place that does not untangle held the others: each alone
+                        attempt(region, [place])
     # the places of the first ring: left where they keep a defect, too large where none of theirs was tried
     places = first.row_place[defects[first.rows]]
     left = np.bincount(places, kept[first.rows][defects[first.rows]], minlength=first.count) > 0

@@ -546,9 +546,15 @@ def surface_triangles(obj, operator=None):
             "the poses move. Export the object as Alembic and import it (a mesh played by a Mesh Sequence Cache), "
             "or convert a copy to a mesh (Object › Convert › Mesh) for a single pose" if makers else
             ": shape differences need a surface mesh"))
-    if operator is not None and len(triangles) > len(obj.data.polygons):
-        operator.triangle_faces = bridge.loop_triangle_polygons(obj.data)
+    if operator is not None:
+        operator.triangle_faces = triangle_faces(obj, triangles)
     return triangles
+
+
+def triangle_faces(obj, triangles):
+    """The face of each of ``triangles`` (``obj``'s loop triangles, :func:`surface_triangles`), or
+    None where every face is one triangle (:func:`name_faces`)."""
+    return bridge.loop_triangle_polygons(obj.data) if len(triangles) > len(obj.data.polygons) else None
 
 
 def frame_name(frame) -> str:

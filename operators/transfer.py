@@ -8,7 +8,7 @@ from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (REBUILT_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InputError, check_memory,
                    check_world_scale, edit_mode_problem, key_blocks_of, key_pose, load_core, mesh_pose,
-                   reported_error, surface_triangles)
+                   reported_error, surface_triangles, triangle_faces)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -30,13 +30,6 @@ def _local(obj, positions):
     return positions @ matrix[:3, :3].T + matrix[:3, 3]
 
 
-def triangle_faces(obj):
-    """The face of every loop triangle of ``obj``'s mesh, or None where every face is a triangle
-    (:func:`~.base.name_faces`)."""
-    mesh = obj.data
-    return bridge.loop_triangle_polygons(mesh) if len(mesh.loop_triangles) > len(mesh.polygons) else None
-
-
 def about_mesh(obj, role: str, job):
     """``yield from`` this to run ``job`` (an operator's :meth:`compute` of a core call whose
     refusals concern ``obj``'s mesh alone) with those refusals naming the object, its ``role``
@@ -45,7 +38,7 @@ def about_mesh(obj, role: str, job):
     try:
         return (yield from job)
     except load_core().MeshError as error:
-        message = reported_error(error, triangle_faces(obj))
+        message = reported_error(error, triangle_faces(obj, obj.data.loop_triangles))
         if f"'{obj.name}'" not in message:
             message = f"'{obj.name}' ({role}): {message}"
         raise InputError(message) from error
