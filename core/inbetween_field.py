@@ -13,6 +13,7 @@ import numpy as np
 
 from . import deformation_fields as df
 from .geometry import coordinate_dot
+from .inbetween_fit import MISFIT_LENGTH_FLOOR
 from .splines import HermiteGap
 
 
@@ -45,8 +46,56 @@ def log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.nda
     return HermiteGap([r.log_stretch_rows(rows) for r in relatives], cubic, **options)
 
 
+def thin_triangles(base, nxt, floor: float) -> np.ndarray:
+    """Indices of the triangles whose height (doubled area over the longest side) is under
+    ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`): slivers and needles
+    whose shape the keys tell only to the fits' precision (:data:`HELD_BEYOND_KEYS`)."""
+    thinnest = np.minimum(2.0 * base.areas / base.lengths.max(axis=1), 2.0 * nxt.areas / nxt.lengths.max(axis=1))
+    return np.flatnonzero(thinnest < floor)
+
+
+#: Beyond the keys a triangle's stretch is that of the nearer key where the triangle is thinner
+#: than this share of the gap's mean edge in either key (the fits' floor,
+#: :data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`): exaggerating raises each triangle's stretch
+#: between the keys to the factor's power, and a sliver 1e-9 of its edge high in one key that a
+#: skin opens to 1e-3 in the other (a scan's T-junction on a skinned limb) grows 1e6 × between the
+#: keys, 1e12 × at ×2: raised so, ×2 of a 100° bend of a capsule arm with 60 such slivers is 1e4 × its
+#: diagonal off the rig with 4,318 triangles flipped; held, 7.5e-2 with 20 kept (as the same arm
+#: whose slivers the skin leaves closed). Between the keys the stretches are interpolated, not
+#: raised to a power: nothing is held there.
+HELD_BEYOND_KEYS = MISFIT_LENGTH_FLOOR
+
+
 class InterpolatedField:
     """The field's part of a gap: its rotations' frames, stretches and area scales at a factor."""
+
+    @property
+    def held_beyond_keys(self) -> np.ndarray:
+        """Indices of the triangles whose stretch beyond the keys is the nearer key's
+        (:data:`HELD_BEYOND_KEYS`), found once per gap."""
+        held = self.__dict__.get("_held_beyond_keys")
+        if held is None:  # made twice at worst by two threads: the same rows
+            held = self.__dict__["_held_beyond_keys"] = thin_triangles(
+                self.base, self.next, HELD_BEYOND_KEYS * self.mean_edge)
+        return held
+
+    def _beyond_log_stretch(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
+        """The log-stretches (packed (m, 3), or (r, 3) of ``rows``) at ``s`` outside the keys, those
+        of the :attr:`held_beyond_keys` triangles at the nearer key."""
+        def at(t):
+            return self.spline_at("log_stretch", t) if rows is None else self.splines["log_stretch"].at(t, rows)
+
+        log = at(s)
+        held = self.held_beyond_keys
+        if held.size:
+            if rows is None:
+                where = held
+            else:
+                where = np.flatnonzero(np.isin(rows, held))
+            if where.size:
+                log = np.array(log, copy=True)  # the spline's own values may be read-only
+                log[where] = at(min(max(s, 0.0), 1.0))[where]
+        return log
 
     def spline_at(self, name: str, s: float) -> np.ndarray:
         """The spline ``name`` evaluated whole at factor ``s``, read-only once the gap has its repair
@@ -126,7 +175,9 @@ class InterpolatedField:
         def at(name):  # the spline on the rows, or whole
             return self.spline_at(name, s) if rows is None else self.splines[name].at(s, rows)
 
-        if not 0.0 < s < 1.0 or self.log_metric:
+        if not 0.0 < s < 1.0:
+            return df.exp_stretch(self._beyond_log_stretch(s, rows))
+        if self.log_metric:
             return df.exp_stretch(at("log_stretch"))
         stretch, ok = df.sqrt_stretch(at("metric"))
         if not ok.all():
@@ -139,7 +190,7 @@ class InterpolatedField:
         ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
         outside them, where that ``G`` is not positive definite and with ``log_metric``."""
         if not 0.0 < s < 1.0 or self.log_metric:
-            log = self.spline_at("log_stretch", s)
+            log = self._beyond_log_stretch(s) if not 0.0 < s < 1.0 else self.spline_at("log_stretch", s)
             return np.exp(log[:, 0] + log[:, 2])
         scale, ok = df.sqrt_det(self.spline_at("metric", s))
         if not ok.all():

@@ -209,7 +209,11 @@ class Relative(WholeRotations):
         cos, sin = self.turn
         out._make_log = partial(_inverse_log_stretch, self._log_source(), cos, sin)
         g11, g12, g22 = _turned(self.metric, cos, sin).T  # the metric of the inverse: its inverse
-        out.metric = np.stack([g22, -g12, g11], axis=1) / (g11 * g22 - g12 * g12)[:, None]
+        # a sliver whose height is under ~1e-8 of its side (validation accepts 1e-10) has a metric
+        # whose determinant cancels to 0 or below: its inverse is then infinite or NaN, which the
+        # metric's spline reads as not positive definite (the log-stretches' spline there)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out.metric = np.stack([g22, -g12, g11], axis=1) / (g11 * g22 - g12 * g12)[:, None]
         out.vertices = topo.apply_motion(other.vertices, rotations, translations)
         out.world = other.vertices
         out.centroids = other.centroids

@@ -354,8 +354,9 @@ FALLBACK_MISFIT_NOTED = 0.02
 
 
 #: An extrapolated pose warns where an edge comes out over this many times as long (or its inverse
-#: as short) as in either pose: a sheet whose triangle is a 1e-7 sliver in one pose reversed to −0.5
-#: was 3.94 × as wide, an edge 16 × its length, with no warning; ×2 of a 100° bend stays within 1.1.
+#: as short) as in either pose: a sheet drawn out 3 × in one pose comes out 2.92 × as long at ×2;
+#: ×2 of a 100° bend stays within 1.1. (A sliver under the fits' floor keeps its key's stretch
+#: beyond the keys, :data:`core.inbetween_field.HELD_BEYOND_KEYS`, and does not swell.)
 EXTRAPOLATED_GROWTH = 2.0
 
 

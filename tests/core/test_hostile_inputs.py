@@ -461,6 +461,31 @@ def test_an_exaggeration_far_past_the_keys_leaks_no_numpy_warning(sheet, factor)
                                                     if w.category is not ShapeDifferenceWarning]
 
 
+def test_a_sliver_a_skin_opens_leaks_no_numpy_warning():
+    """One triangle of a scan-like head, a T-junction sliver 1e-9 of its longest side high in the
+    first key (validation accepts down to 1e-10), that a nod's skin opens to 0.12–0.32 of it in
+    the next keys. The metric of the first key seen from the second (the sequence's key before
+    gap 1) has a determinant that cancels to 0 in double precision: its inverse is infinite, which
+    the metric's spline reads as not positive definite. The in-between is finite, and no NumPy
+    "divide by zero" RuntimeWarning reaches the caller (it did, from
+    core/inbetween_keys.Relative.inverse; under ``np.seterr(all="raise")`` a RecoveryError)."""
+    keys = np.array([
+        [[0.0, 0.0, 0.0], [0.04993732610332687, -0.017186925459870328, -0.07781815159757455],
+         [0.02496866304536446, -0.008593462822332643, -0.038909075782422586]],
+        [[0.0, 0.004973129495406625, -0.038127120551447735], [0.04993732610332687, -0.017186925459870328, -0.07781815159757455],
+         [0.02496866304536446, -0.006992870252895855, -0.04800490882306735]],
+        [[0.0, 0.03434572960889681, -0.0947165682887369], [0.04993732610332687, -0.017186925459870328, -0.07781815159757455],
+         [0.02496866304536446, 0.0006597993851196193, -0.061270330202238266]],
+        [[0.0, 0.019644828646134038, -0.07366795034695547], [0.04993732610332687, -0.017186925459870328, -0.07781815159757455],
+         [0.02496866304536446, -0.0030926417307187704, -0.05637654502821976]]])
+    tri = np.array([[0, 1, 2]])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pose = core.SequenceInterpolator(list(keys), tri).poses(1, [0.5])[0]
+    assert np.isfinite(pose).all()
+    assert not [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
 # -- units: a scene modelled far larger or smaller than 1 ---------------------------------------
 
 
