@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ShapeDifferenceError, ShapeDifferenceWarning, warn
+from .errors import ShapeDifferenceError, ShapeDifferenceWarning, unexpected_failure, warn
 from .obj_file import read_obj
-from .point_cache import (check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, read_pc2_header,
-                          read_point_cache, refuse_overwriting, unwritable, write_pc2)
+from .point_cache import (check_disk_space, check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, pc2_size,
+                          read_pc2_header, read_point_cache, refuse_overwriting, unwritable, write_pc2)
 from .retime import iter_retime, plan_retime
 from .validation import check_output_memory, check_working_memory
 
@@ -284,6 +284,12 @@ def _retime(args) -> int:
     check_working_memory(cache.n_points, "In-betweening this cache", "run it on a node with more memory")
     check_output_memory(len(outputs), cache.n_points, "The output of this retime",
                         "split it across processes with --chunk I/N (and merge the parts), or raise --speed")
+    check_disk_space(args.output, pc2_size(cache.n_points, len(outputs)))
+    if args.merged_output is not None:
+        try:
+            check_disk_space(args.merged_output, pc2_size(cache.n_points, plan.n_out))
+        except ShapeDifferenceError as error:
+            raise ShapeDifferenceError(f"--merged-output (the file the chunks will be merged into): {error}") from None
     poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)
     began = time.monotonic()
     def named(sample: int) -> str:  # the core's warnings name the keys as the messages here name samples
@@ -486,6 +492,9 @@ def _run(args) -> int:
     except _Cancelled as cancelled:  # SIGTERM: a farm's cancel, said in the task's log (the writes are atomic)
         print(f"{args.command}: cancelled (SIGTERM), nothing written", file=sys.stderr, flush=True)
         return cancelled.code
+    except Exception as error:  # a defect, not a refusal: its one line before Python's traceback (status 1)
+        print(f"{args.command}: {unexpected_failure(error)}", file=sys.stderr, flush=True)
+        raise
 
 
 if __name__ == "__main__":

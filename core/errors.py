@@ -118,3 +118,14 @@ def _outside_core() -> int:
 def _check_kind(warning: ShapeDifferenceWarning) -> None:
     if warning.kind not in KINDS:
         raise ValueError(f"{warning.kind!r} is no kind of warning (core.errors.KINDS)")
+
+
+def unexpected_failure(error: BaseException) -> str:
+    """One line naming an error that is no refusal (not a :class:`ShapeDifferenceError`: a defect of
+    the code), said by a headless run — ``python -m core``, an operator in ``blender -b`` — before
+    Python's traceback, so that a farm's log names the cause on a line of its own, where the
+    traceback ends with it after dozens of lines of frames:
+    ``failed: ZeroDivisionError: division by zero (unexpected: the traceback follows; please report it)``."""
+    text = " ".join(str(error).split())
+    return (f"failed: {type(error).__name__}{': ' + text if text else ''} "
+            "(unexpected: the traceback follows; please report it)")

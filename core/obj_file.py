@@ -24,6 +24,7 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
+    _check_text(path)
     vertices, polygons = [], []
     with open(path, encoding="utf-8-sig", errors="replace") as stream:  # -sig: a byte-order mark is no text
         for line_number, line in enumerate(stream, 1):
@@ -51,6 +52,26 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
         corners = corners[first:] + corners[:first]
         triangles += [[corners[0], corners[i], corners[i + 1]] for i in range(1, len(corners) - 1)]
     return vertices, np.array(triangles, dtype=np.int64)
+
+
+# Bytes read from the start of an OBJ to tell text from binary data.
+TEXT_PROBE_BYTES = 4096
+
+
+def _check_text(path: Path) -> None:
+    """Raise :class:`MeshError` where ``path`` holds binary data (a NUL byte in its first
+    :data:`TEXT_PROBE_BYTES`), which no OBJ holds: a point cache, an Alembic or a .blend given as the
+    topology (the cache and the OBJ swapped on a command line) would otherwise be refused by the
+    first of its bytes that happen to read as a face, quoted as garbage."""
+    with open(path, "rb") as stream:
+        head = stream.read(TEXT_PROBE_BYTES)
+    if b"\0" not in head:
+        return
+    formats = {b"POINTCACHE2": "a PC2 point cache", b"BLENDER": "a .blend file", b"Ogawa": "an Alembic cache"}
+    kind = next((f", {name}" for magic, name in formats.items() if head.startswith(magic)), "")
+    raise MeshError(f"'{path}' is not an OBJ file: it holds binary data{kind}. The topology is a Wavefront "
+                    "OBJ (text: 'v x y z' and 'f a b c' lines) exported from the mesh the cache moves; check "
+                    "that the cache and the OBJ are not swapped.")
 
 
 def fan_corners(vertices: np.ndarray, polygons: list[list[int]]) -> np.ndarray:

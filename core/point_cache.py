@@ -19,6 +19,7 @@ import hashlib
 import json
 import os
 import re
+import shutil
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -148,9 +149,7 @@ def unwritable(path) -> str | None:
     """Why a new file ``path`` cannot be written (its folders are made as needed), in the user's
     words, or None: the nearest existing folder on its way is a file, not writable, or on a
     read-only file system (where its permissions say it is writable)."""
-    existing = Path(path).parent
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
+    existing = _nearest_folder(path)
     if not existing.is_dir():
         return f"'{existing}' is a file, not a folder"
     if not os.access(existing, os.W_OK | os.X_OK):
@@ -159,6 +158,46 @@ def unwritable(path) -> str | None:
             return f"the folder '{existing}' is on a read-only file system"
         return f"the folder '{existing}' is not writable (Permission denied)"
     return None
+
+
+def _nearest_folder(path) -> Path:
+    """The nearest folder on the way to a new file ``path`` that exists (its folders are made as needed)."""
+    existing = Path(path).parent
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    return existing
+
+
+def free_space(folder) -> int | None:
+    """Bytes this process may still write on the file system holding ``folder`` (an existing folder),
+    or None where the file system reports no size (some network and FUSE mounts say 0 blocks of 0):
+    what is free for ordinary users, all that is free for root, who may use the blocks kept back."""
+    if not hasattr(os, "statvfs"):  # Windows
+        usage = shutil.disk_usage(folder)
+        return usage.free if usage.total > 0 else None
+    stats = os.statvfs(folder)
+    if stats.f_blocks == 0:
+        return None
+    free = stats.f_bfree if hasattr(os, "geteuid") and os.geteuid() == 0 else stats.f_bavail
+    return free * stats.f_frsize
+
+
+def pc2_size(n_points: int, n_samples: int) -> int:
+    """Bytes of a PC2 file of ``n_samples`` samples of ``n_points`` points."""
+    return PC2_HEADER.size + int(n_samples) * int(n_points) * 12
+
+
+def check_disk_space(path, n_bytes: int) -> None:
+    """Raise :class:`MeshError` where the file system that would hold a new file ``path`` of
+    ``n_bytes`` has less free space than that, before the work that computes it: a full disk is
+    otherwise found when the file is written, after all of that work (minutes of a farm node's CPU).
+    The file is written beside any old one and then renamed over it, so its whole size is needed
+    also where it replaces a file. Unchecked where the file system reports no size."""
+    folder = _nearest_folder(path)
+    free = free_space(folder)
+    if free is not None and n_bytes > free:
+        raise MeshError(f"Cannot write '{path}': it takes {n_bytes / 1e6:,.3g} MB and the disk holding '{folder}' "
+                        f"has {free / 1e6:,.3g} MB free. Free some space there or give an output on another disk.")
 
 
 def check_pc2_name(path) -> None:

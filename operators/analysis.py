@@ -16,7 +16,7 @@ from .motion_sources import refuse_emptying_caches, simulations_emptied_by
 from .output import require_local
 from .base import (MEASURED_IN_WORLD, SCENE_SETTING, GeneratorOperator, InputError, check_basis_order,
                    check_basis_size, default_pose_key, frame_name, in_world, key_blocks_of, key_pose, mesh_pose,
-                   offset_option, report, resolve_key, surface_triangles)
+                   offset_option, refused_in_poll, report, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -192,8 +192,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         if bridge.stored_shape_space(context.active_object) is None:
-            cls.poll_message_set("Run Shape Space on the active mesh first")
-            return False
+            return refused_in_poll(cls, "Run Shape Space on the active mesh first")
         return True
 
     def execute(self, context):

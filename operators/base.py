@@ -315,6 +315,19 @@ def look_first(warned: list[str], about: dict | None = None) -> str:
     return f"{count} warning{'s' if count > 1 else ''}, each in the Info editor; look first at: {first}"
 
 
+def refused_in_poll(operator_class, message: str) -> bool:
+    """Say ``message``, why ``operator_class`` cannot run now, as its poll message (Blender shows it
+    on the greyed-out button and puts it in the ``RuntimeError`` a script's call raises), and return
+    False for its ``poll``. Headless (``blender -b``) it is printed too, as one line
+    ``<label>: refused: <message>``: Blender prints no report for a failed poll, so a batch's log would
+    name the cause only on the last line of the traceback."""
+    operator_class.poll_message_set(message)
+    if bpy.app.background:
+        print(f"{getattr(operator_class, 'bl_label', operator_class.__name__)}: refused: {message}",
+              file=sys.stderr, flush=True)
+    return False
+
+
 class GeneratorOperator:
     """Mixin for operators whose work is the generator ``run(context)``; the core calls it makes
     name the poses they hand over (``key_names``: shape keys, frames) for the core's messages."""
@@ -325,12 +338,10 @@ class GeneratorOperator:
     def poll(cls, context):
         obj = context.active_object
         if obj is None or obj.type != 'MESH':
-            cls.poll_message_set("Select a mesh object: the active object must be a mesh" + instance_hint(obj))
-            return False
+            return refused_in_poll(cls, "Select a mesh object: the active object must be a mesh" + instance_hint(obj))
         editing = edit_mode_problem(obj)
         if editing:
-            cls.poll_message_set(editing)
-            return False
+            return refused_in_poll(cls, editing)
         return True
 
     def run(self, context):
@@ -415,10 +426,15 @@ class GeneratorOperator:
         last_print = time.monotonic()
         self._start(context)
         while True:
-            status, progress = self._step()
+            try:
+                status, progress = self._step()
+            except Exception as error:
+                if console:  # one line naming the cause before Blender's traceback, for a farm's log
+                    print(f"{label}: {load_core().errors.unexpected_failure(error)}", file=sys.stderr, flush=True)
+                raise
             if status:
-                if console:
-                    print(f"{label}: {'done' if status == 'FINISHED' else 'cancelled'}", file=sys.stderr,
+                if console:  # without a UI nothing cancels a run: it ends done, or refused (the error report says why)
+                    print(f"{label}: {'done' if status == 'FINISHED' else 'refused'}", file=sys.stderr,
                           flush=True)
                 return self._finish(status)
             if console and time.monotonic() - last_print >= CONSOLE_PROGRESS_INTERVAL:

@@ -8,7 +8,7 @@ from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (REBUILT_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InputError, check_memory,
                    check_world_scale, edit_mode_problem, key_blocks_of, key_pose, load_core, mesh_pose,
-                   reported_error, surface_triangles, triangle_faces)
+                   refused_in_poll, reported_error, surface_triangles, triangle_faces)
 from .frames import FrameRangeProperties, frame_key_name
 from .output import PoseWriter
 from .poses import scene_frames
@@ -135,8 +135,8 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
         if not super().poll(context):
             return False
         if not any(o.type == 'MESH' and o != context.active_object for o in context.selected_objects):
-            cls.poll_message_set("Also select the mesh whose poses to transfer (the active mesh is the one to move)")
-            return False
+            return refused_in_poll(
+                cls, "Also select the mesh whose poses to transfer (the active mesh is the one to move)")
         return True
 
     def _source_object(self, context):

@@ -348,6 +348,38 @@ def test_headless_runs_print_progress(bpy_empty, extension, core, capfd, monkeyp
     assert "Retime: 46%" in lines and lines[-1] == "Retime: done"
 
 
+def test_headless_runs_end_with_a_line_a_farm_can_read(bpy_empty, extension, capfd, monkeypatch, tmp_path):
+    """Without a UI nothing cancels a run: a refused one ends its console lines with 'refused'
+    (before, 'cancelled', what a farm's log reads as a user's cancel), Blender's 'Error: …' report
+    naming why; a run that fails unexpectedly (a defect planted here) says so on one line naming the
+    error before Blender's traceback (before, the traceback alone, the cause on its last line)."""
+    armature_scene(frames=5)
+    with pytest.raises(RuntimeError, match="is a device or special file"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=1.0,
+                                         filepath="/dev/null")
+    out = capfd.readouterr()
+    assert out.err.splitlines()[-1] == "Retime: refused" and "Error: " in out.out + out.err
+
+    def planted(*_args):
+        raise ZeroDivisionError("planted defect")
+    monkeypatch.setattr(extension.operators.frames, "load_core_retime", planted)
+    with pytest.raises(RuntimeError, match="planted defect"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=1.0,
+                                         filepath=str(tmp_path / "a.pc2"))
+    err = capfd.readouterr().err
+    line = ("Retime: failed: ZeroDivisionError: planted defect (unexpected: the traceback follows; "
+            "please report it)")
+    assert line in err.splitlines() and err.index(line) < err.index("Traceback")
+    assert not list(tmp_path.iterdir())
+
+    bpy.context.view_layer.objects.active = None  # a failed poll: Blender prints no report for it
+    with pytest.raises(RuntimeError, match="Select a mesh object"):
+        bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=1.0,
+                                         filepath=str(tmp_path / "a.pc2"))
+    err = capfd.readouterr().err
+    assert err.splitlines() == ["Retime: refused: Select a mesh object: the active object must be a mesh"]
+
+
 def test_default_cache_file_beside_the_saved_blend(bpy_empty, extension, core, tmp_path):
     source = armature_scene(frames=3)
     bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "shot.blend"))

@@ -7,6 +7,7 @@ import platform
 import subprocess
 import sys
 import textwrap
+import zipfile
 
 import pytest
 
@@ -69,6 +70,11 @@ print("KEYS", [k.name for k in obj.data.shape_keys.key_blocks])
 def test_linux_zip_installs_and_enables(tmp_path):
     zips = load_build_script().build(["linux-x64"], tmp_path / "dist")
     assert len(zips) == 1 and zips[0].name.endswith("-linux_x64.zip")
+    # the farm's job definitions travel with the core/ they run (README: `python -m core` and farm/ from
+    # the installed extension's folder; before, a studio given the zip had no farm/)
+    with zipfile.ZipFile(zips[0]) as archive:
+        names = set(archive.namelist())
+    assert {"core/__main__.py", "farm/retime.openjd.yaml", "farm/shape-differences-retime.js"} <= names
     user = tmp_path / "user"
     script = f"ZIP = {str(zips[0])!r}\n" + textwrap.dedent(INSTALL_SCRIPT)
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,

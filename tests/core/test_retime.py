@@ -269,6 +269,49 @@ def test_command_errors_are_one_line(tmp_path):
     assert not (tmp_path / "out.pc2").exists()
 
 
+def test_command_names_a_topology_that_is_no_obj(tmp_path):
+    """The cache and the OBJ swapped on the command line (or an Alembic or a .blend given as the
+    topology): one error line saying that the file holds binary data and what it is, exit status 2,
+    nothing written (before: "line 1830 cannot be read (invalid literal for int() …)" quoting the
+    binary bytes that happened to start with 'f', or "has no faces")."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    alembic = tmp_path / "shot.abc"
+    alembic.write_bytes(b"Ogawa\xff\x00\x01" + bytes(64))
+    for given, kind in ((cache, ", a PC2 point cache"), (alembic, ", an Alembic cache")):
+        result = subprocess.run([sys.executable, "-m", "core", "retime", str(cache), "--topology", str(given),
+                                 "--step", "2", "-q", "-o", str(tmp_path / "out.pc2")],
+                                cwd=ROOT, capture_output=True, text=True, timeout=120)
+        assert result.returncode == 2 and not (tmp_path / "out.pc2").exists()
+        assert result.stderr.splitlines() == [
+            f"error: '{given}' is not an OBJ file: it holds binary data{kind}. The topology is a Wavefront OBJ "
+            "(text: 'v x y z' and 'f a b c' lines) exported from the mesh the cache moves; check that the cache "
+            "and the OBJ are not swapped."]
+    assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q",
+                 "-o", str(tmp_path / "out.pc2")]) == 0
+
+
+def test_command_names_an_unexpected_failure_before_its_traceback(tmp_path):
+    """A failure that is no refusal (a defect, planted here in the OBJ reader) exits with status 1
+    and Python's traceback, after one line naming the error, first on stderr, which a farm's log
+    search finds (before: the traceback alone, the cause on its last line)."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    planted = ("import sys, core.__main__ as command\n"
+               "def read_obj(path):\n    raise ZeroDivisionError('planted defect')\n"
+               "command.read_obj = read_obj\nsys.exit(command.main(sys.argv[1:]))")
+    result = subprocess.run([sys.executable, "-c", planted, "retime", str(cache), "--topology", str(topology),
+                             "--step", "2", "-q", "-o", str(tmp_path / "out.pc2")],
+                            cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1 and not (tmp_path / "out.pc2").exists()
+    lines = result.stderr.splitlines()
+    assert lines[0] == ("retime: failed: ZeroDivisionError: planted defect (unexpected: the traceback follows; "
+                        "please report it)")
+    assert lines[1] == "Traceback (most recent call last):" and lines[-1] == "ZeroDivisionError: planted defect"
+
+
 def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monkeypatch):
     """An output that would take more than half the memory available, or a mesh whose in-betweens
     need more than there is, is refused before any work, with the way out (chunks); the same job
@@ -289,6 +332,37 @@ def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monk
     monkeypatch.setattr(core.resources, "available_memory", lambda: working - 1)
     assert main([*common, "--chunk", "1/8", "-o", str(tmp_path / "part2.pc2")]) == 2
     assert "In-betweening this cache (36 vertices) needs about" in capsys.readouterr().err
+
+
+def test_command_refuses_an_output_the_disk_has_no_room_for_before_any_work(tmp_path, capsys, monkeypatch):
+    """A disk with less free space than the output takes: the retime is refused before its
+    in-betweens (before, they were all computed and the write failed at the end: "No space left on
+    device"), and so is a chunk whose merged output (--merged-output) would not fit; with room for
+    the file to the byte it runs."""
+    import core.__main__ as command
+    import core.point_cache
+
+    source, triangles = rolling_sheet(n_frames=9, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5", "-q"]
+    whole = 32 + 17 * 25 * 12  # 17 samples of 25 points
+    in_betweens = []
+    real_retime = command.iter_retime
+    monkeypatch.setattr(command, "iter_retime", lambda *a, **k: in_betweens.append(1) or real_retime(*a, **k))
+    monkeypatch.setattr(core.point_cache, "free_space", lambda folder: whole - 1, raising=False)
+    assert main([*common, "-o", str(tmp_path / "out.pc2")]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"error: Cannot write '{tmp_path / 'out.pc2'}': it takes {whole / 1e6:.3g} MB and the disk holding "
+        f"'{tmp_path}' has {(whole - 1) / 1e6:.3g} MB free. Free some space there or give an output on another disk.")
+    assert main([*common, "--chunk", "1/2", "-o", str(tmp_path / "part1.pc2"),
+                 "--merged-output", str(tmp_path / "new" / "out.pc2")]) == 2
+    assert capsys.readouterr().err.startswith("error: --merged-output (the file the chunks will be merged into): "
+                                              f"Cannot write '{tmp_path / 'new' / 'out.pc2'}'")
+    assert not in_betweens and sorted(p.name for p in tmp_path.iterdir()) == ["in.pc2", "sheet.obj"]
+    monkeypatch.setattr(core.point_cache, "free_space", lambda folder: whole)
+    assert main([*common, "-o", str(tmp_path / "out.pc2")]) == 0
+    assert (tmp_path / "out.pc2").stat().st_size == whole and in_betweens
 
 
 def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
