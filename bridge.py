@@ -889,7 +889,15 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
                 continue
             positions = evaluated_positions(obj, context.evaluated_depsgraph_get())
             if len(positions) != vertex_count:
-                _refuse_vertex_count(obj, frame, len(positions), vertex_count, aside)
+                counts = {frame: len(positions)}
+                if not every_frame:
+                    # shown out of order anyway (a frame read in order is not shown ahead of its turn): the
+                    # first and last frames asked tell whether the count is one frame's doing
+                    for other in sorted({min(wanted), max(wanted)} - {frame}):
+                        scene.frame_set(other)
+                        shown = other
+                        counts[other] = evaluated_vertex_count(obj, context.evaluated_depsgraph_get())
+                _refuse_vertex_count(obj, counts, vertex_count, aside)
             yield frame, positions
     finally:
         if switch_frame is not None:
@@ -903,19 +911,32 @@ def frame_positions(context: bpy.types.Context, obj: bpy.types.Object, frames: l
             scene.frame_set(original_frame, subframe=original_subframe)
 
 
-def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=()):
-    """Raise :class:`VertexCountChanged` for ``obj``'s evaluated mesh having ``count`` vertices at
-    ``frame`` instead of its mesh's ``vertex_count`` (with the modifiers ``aside`` switched off),
-    saying what changes the topology and, for a generator not set aside, naming it (before the
-    motion, or after a cloth, soft body or Mesh Cache, whose bake or file the remedies differ in
+def _refuse_vertex_count(obj, counts: dict, vertex_count: int, aside=()):
+    """Raise :class:`VertexCountChanged` for ``obj``'s evaluated mesh having other vertices than its
+    mesh's ``vertex_count`` (with the modifiers ``aside`` switched off): ``counts`` {frame: vertex
+    count} of the frame where it was found and, where they were counted, of the first and last frames
+    read. The message says where (at both ends of the range read where it is so at both: no one
+    frame's doing) and what changes the topology and, for a generator not set aside, names it (before
+    the motion, or after a cloth, soft body or Mesh Cache, whose bake or file the remedies differ in
     keeping)."""
+    other = {frame: count for frame, count in counts.items() if count != vertex_count}
+    ends = min(counts) in other and max(counts) in other and len(counts) > 1
+    if ends:  # a modifier that changes the count from the start, or a cache of another mesh
+        low, high = min(other.values()), max(other.values())
+        at = f"At the first and the last frame read ({min(counts)} and {max(counts)})"
+        had = f"{low}" if low == high else f"{low} to {high}"
+    else:
+        frame = min(other)
+        at, had = f"At frame {frame}", f"{other[frame]}"
     caches = [m for m in obj.modifiers if m.type == 'MESH_SEQUENCE_CACHE' and m.show_viewport]
     if caches:
         source = caches[0].cache_file.filepath if caches[0].cache_file is not None else "its cache file"
+        cause = ("its file holds another mesh than this one (or this one was edited after it was imported)"
+                 if ends and low == high else
+                 "its topology changes over time (a fluid, or a mesh remeshed or built frame by frame)")
         raise VertexCountChanged(
-            f"At frame {frame} the mesh cache '{caches[0].name}' of '{obj.name}' ({source}) has "
-            f"{count} vertices instead of {vertex_count}: its topology changes over time (a fluid, "
-            "or a mesh remeshed or built frame by frame), and shape differences need one mesh whose "
+            f"{at} the mesh cache '{caches[0].name}' of '{obj.name}' ({source}) has "
+            f"{had} vertices instead of {vertex_count}: {cause}, and shape differences need one mesh whose "
             "vertices persist. Pick a frame range where the vertex count stays the same, or export "
             "the cache with a fixed topology.")
     # an Ocean makes its own grid by default (Geometry › Generate): the motion and the new
@@ -923,7 +944,7 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=(
     oceans = [m for m in obj.modifiers if m.type == 'OCEAN' and m.geometry_mode == 'GENERATE' and m.show_viewport]
     if oceans:
         raise VertexCountChanged(
-            f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+            f"{at} the evaluated mesh of '{obj.name}' has {had} vertices instead of "
             f"{vertex_count}: the Ocean modifier '{oceans[0].name}' makes its own grid (Geometry › "
             "Generate), whose vertices are not the mesh's. Set its Geometry to Displace, on a mesh "
             "with as many vertices (a Grid, or a plane with a Subdivision applied), and run again.")
@@ -936,10 +957,10 @@ def _refuse_vertex_count(obj, frame: int, count: int, vertex_count: int, aside=(
         before = [generator for generator, source in zip(generators, played) if source is None]
         advice = (_generators_before_motion(obj, before, vertex_count) if before else
                   _generators_after_playback(obj, generators, played[0], vertex_count))
-        raise VertexCountChanged(f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+        raise VertexCountChanged(f"{at} the evaluated mesh of '{obj.name}' has {had} vertices instead of "
                                  f"{vertex_count}: " + advice)
     raise VertexCountChanged(
-        f"At frame {frame} the evaluated mesh of '{obj.name}' has {count} vertices instead of "
+        f"{at} the evaluated mesh of '{obj.name}' has {had} vertices instead of "
         f"{vertex_count}: a modifier before the motion (or a Geometry Nodes modifier) changes the "
         "topology. Disable modifiers that add or remove geometry there (Subdivision, Remesh, "
         "Decimate, ...) or apply them before simulating or rigging; those after the cloth or "

@@ -15,12 +15,11 @@ PATH_OPTIONS = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
                 if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else {'ANIMATABLE'})
 
 
-class BasisSettings:
-    """The core's basis sizes and its Extrinsic switch: the scene settings and each core operator
-    have them, the in-betweens (*In-between*, *Exaggerate*, *In-between Frames*, *Retime*) these
-    alone: their rotations come from the poses, and no offset surface's distance changes them.
-    Sizes have soft limits only: Blender would clamp a script's −5 to 0 (the full basis) silently;
-    the core reports them (``core.validation``), and the operators by their labels."""
+class BasisSizes:
+    """The core's basis sizes: the scene settings and each core operator have them, *Transfer
+    Poses* these alone (it transfers intrinsic differences: no offset surface, no Extrinsic).
+    Soft limits only: Blender would clamp a script's −5 to 0 (the full basis) silently; the core
+    reports them (``core.validation``), and the operators by their labels."""
 
     k_m: IntProperty(
         name="k_M", soft_min=0, default=0,
@@ -30,14 +29,21 @@ class BasisSettings:
         name="k_N", soft_min=0, default=0,
         description="Basis size on the target pose (functional map from the vertex correspondence, "
                     "eq. 6); needs k_M; 0 = target not truncated (eq. 5)")
+
+
+class BasisSettings(BasisSizes):
+    """The basis sizes and the core's Extrinsic switch: the in-betweens (*In-between*,
+    *Exaggerate*, *In-between Frames*, *Retime*) have these alone: their rotations come from the
+    poses, and no offset surface's distance changes them."""
+
     use_extrinsic: BoolProperty(
         name="Extrinsic", default=True,
         description="Use extrinsic (offset surface) shape differences as well as intrinsic ones")
 
 
 class CoreSettings(BasisSettings):
-    """The core's settings with the offset surface's distance: the scene settings and the core
-    operators other than the in-betweens (*Reconstruct*, *Transfer Poses*) have them. The
+    """The core's settings with the offset surface's distance: the scene settings and
+    *Reconstruct* have them. The
     offset has a soft limit only, as the sizes: the operators report a negative one by its label
     (``operators.base.offset_option``), where Blender would take the automatic distance silently."""
 
@@ -45,7 +51,7 @@ class CoreSettings(BasisSettings):
         name="Offset t", soft_min=0.0, default=0.0, subtype='DISTANCE',
         description="Distance of the offset surface that carries the extrinsic information; "
                     "0 = automatic (scales with the mesh). Reconstruct and the analysis measure on it; "
-                    "the in-betweens do not use it")
+                    "the in-betweens and Transfer Poses do not use it")
 
 
 class AnalysisBasis:

@@ -12,7 +12,7 @@ from bpy.props import EnumProperty, IntProperty, StringProperty
 
 from .. import bridge
 from ..properties import AnalysisBasis, CaptureStep
-from .motion_sources import refuse_emptying_caches, simulations_emptied_by
+from .motion_sources import refuse_emptying_caches, simulations_emptied_by, zone_frames_dropped
 from .output import require_local
 from .base import (MEASURED_IN_WORLD, SCENE_SETTING, GeneratorOperator, InputError, check_basis_order,
                    check_basis_size, default_pose_key, frame_name, in_world, key_blocks_of, key_pose, mesh_pose,
@@ -348,6 +348,9 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
             yield 0.3 + 0.65 * (index + 1) / len(poses)
         self._write(mesh, triangles, base, labels, results)
+        dropped = zone_frames_dropped(context.scene, obj, "distortion maps written to")
+        if dropped:
+            report(self, {'WARNING'}, dropped)
         if unchanged:
             report(self, {'WARNING'}, f"{', '.join(unchanged[:5])}{' …' if len(unchanged) > 5 else ''} "
                                       f"{'does' if len(unchanged) == 1 else 'do'} not change the base (every "

@@ -17,7 +17,7 @@ import bpy
 import numpy as np
 
 from .. import bridge
-from ..properties import BasisSettings, CoreSettings
+from ..properties import BasisSettings, BasisSizes, CoreSettings
 
 
 def load_core():
@@ -87,12 +87,13 @@ MEASURED_IN_WORLD = "the poses are measured as the world shows them"
 
 
 def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *, invertible: bool = True,
-                      frame: float | None = None) -> None:
+                      frame: float | None = None, read: bool = False) -> None:
     """Refuse ``obj`` where its world matrix flattens it, naming its scale there (the object's own
     or a parent's) as the cause rather than its mesh. ``matrix``: that world matrix (4, 4) or its
     linear part (3, 3), ``obj``'s at the current frame by default; ``where``: what the operator does
     in the world (:data:`REBUILT_IN_WORLD`, …); ``frame``: the (sub-)frame that matrix is shown at,
-    named where given (a scale keyframed through 0). Refused where the matrix cannot be inverted to
+    named where given: an in-between's (a scale keyframed through 0), or, ``read``, a frame whose
+    pose was read (a scale keyframed to 0 there). Refused where the matrix cannot be inverted to
     working precision (its smallest singular value at most machine epsilon × its largest: a scale of
     0 along an axis, or next to it), when ``invertible`` (the operator takes its results back into
     the mesh); and where the matrix's smallest singular value is below 1e-5 × its largest (√ of
@@ -107,8 +108,9 @@ def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *,
     flattened = f"'{obj.name}' is flattened in the world{at} (its scale there is ({scale}))"
     like = "scales of a like size along every axis"
     if invertible and not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
-        keyed = ("" if frame is None else " there (a scale keyframed from one side of 0 to the other passes 0 "
-                 "between its keys), or in-betweens that miss that frame (another Step, Count or Speed)")
+        keyed = ("" if frame is None else " there, or a frame range and Step that leave that frame out" if read else
+                 " there (a scale keyframed from one side of 0 to the other passes 0 between its keys), or "
+                 "in-betweens that miss that frame (another Step, Count or Speed)")
         raise InputError(f"{flattened}: {where} and cannot be taken back into its mesh. Give it (and its parents) "
                          + ("a scale other than 0 along every axis" if sigma[-1] == 0 else like) + keyed)
     from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO, zero_area_triangles
@@ -131,13 +133,16 @@ def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *,
 def in_world(obj, space, poses, times, triangles, where: str, *, invertible: bool = True) -> list:
     """``poses`` ((n, 3) each, in ``obj``'s mesh coordinates, shown at ``times``) as ``space``
     (:class:`bridge.WorldProportions`, :class:`bridge.WorldFrames`) takes them into the world,
-    :func:`check_world_scale` refusing a world matrix there that flattens ``obj``."""
+    :func:`check_world_scale` refusing a world matrix there that flattens ``obj``, naming the frame
+    where each pose has its own (:class:`bridge.WorldFrames`: a scale keyframed to 0 at a key)."""
+    per_frame = isinstance(space, bridge.WorldFrames)
     world = []
     for pose, at in zip(poses, times):
         moved = space.to(pose, at)
         linear = space.linear(at)
         if linear is not None:
-            check_world_scale(obj, where, linear, [(pose, moved)], triangles, invertible=invertible)
+            check_world_scale(obj, where, linear, [(pose, moved)], triangles, invertible=invertible,
+                              frame=at if per_frame else None, read=True)
         world.append(moved)
     return world
 
@@ -486,12 +491,12 @@ class GeneratorOperator:
 
 # -- settings shared with the core ----------------------------------------------------------
 
-class InbetweenSettingsProperties(BasisSettings):
-    """Core settings of an in-between operator (basis sizes, Extrinsic; no offset, which the
-    in-betweens do not use): each one not set is taken from the scene settings."""
+class BasisSizeProperties(BasisSizes):
+    """Basis sizes of an operator that takes no other core setting (*Transfer Poses*: intrinsic
+    differences, no offset surface): each one not set is taken from the scene settings."""
 
     #: The operator's core settings, by property name.
-    core_settings = ("k_m", "k_n", "use_extrinsic")
+    core_settings = ("k_m", "k_n")
 
     def core_options(self, context, vertex_count: int, target_count: int | None = None) -> dict:
         """Keyword arguments for the core facade, from this operator or the scene settings;
@@ -517,15 +522,24 @@ class InbetweenSettingsProperties(BasisSettings):
         if self.k_n and not self.k_m:
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         check_basis_order(self.k_m, self.k_n)
-        options = dict(k_M=self.k_m or None, k_N=self.k_n or None, use_extrinsic=self.use_extrinsic)
+        options = dict(k_M=self.k_m or None, k_N=self.k_n or None)
+        if "use_extrinsic" in self.core_settings:
+            options["use_extrinsic"] = self.use_extrinsic
         if "offset" in self.core_settings:
             options["offset"] = offset_option(self.offset, where["offset"])
         return options
 
 
+class InbetweenSettingsProperties(BasisSettings, BasisSizeProperties):
+    """Core settings of an in-between operator (basis sizes, Extrinsic; no offset, which the
+    in-betweens do not use): each one not set is taken from the scene settings."""
+
+    core_settings = ("k_m", "k_n", "use_extrinsic")
+
+
 class CoreSettingsProperties(CoreSettings, InbetweenSettingsProperties):
-    """Core settings of an operator with an offset distance (*Reconstruct*, *Transfer Poses*): each
-    one not set is taken from the scene settings."""
+    """Core settings of an operator with an offset distance (*Reconstruct*): each one not set is
+    taken from the scene settings."""
 
     core_settings = ("k_m", "k_n", "offset", "use_extrinsic")
 

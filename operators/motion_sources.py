@@ -155,6 +155,41 @@ def _holds_bake(folder: str) -> bool:
         return False
 
 
+def zones_not_known_baked(scene, obj) -> list[str]:
+    """The enabled Geometry Nodes modifiers of ``obj`` with a simulation zone (:func:`simulation_zone_start`)
+    not known to be baked, named "'Simulation' of 'Sheet'": each one whose zones are not all baked to disk
+    with their files there (:func:`bake_folder`). The Python API does not tell whether a zone is baked
+    otherwise: a packed bake (Blender's default Bake Target) looks as a zone never baked."""
+    names = []
+    for modifier in obj.modifiers:
+        if not modifier.show_viewport or simulation_zone_start(scene, modifier) is None:
+            continue
+        folders = [bake_folder(obj, modifier, bake) for bake in zone_bakes(modifier)]
+        if not folders or not all(folder is not None and _holds_bake(folder) for folder in folders):
+            names.append(f"'{modifier.name}' of '{obj.name}'")
+    return names
+
+
+def zone_frames_dropped(scene, obj, what: str, alternative: str = "") -> str | None:
+    """A warning where changing the mesh of ``obj`` (``what``: "shape keys added to", "distortion maps
+    written to") may have dropped the frames a Geometry Nodes simulation zone holds in memory, its own or
+    that of an object sharing its mesh (:func:`zones_not_known_baked`): Blender simulates a zone that is
+    not baked again from its start once its mesh changed, and drops the states it had simulated when the
+    scene shows that start frame (as the run's return to a scene at its start does). None otherwise.
+    ``alternative``: another way to the result, offered last. Warned, not refused as an unbaked cloth is
+    (:func:`refuse_emptying_caches`): a baked zone cannot be told from one that is not."""
+    zones = [name for user in [obj] + sharing_mesh(obj) for name in zones_not_known_baked(scene, user)]
+    if not zones:
+        return None
+    one = len(zones) == 1
+    return (f"{what[0].upper() + what[1:]} '{obj.name}' changed the mesh that the simulation zone"
+            f"{'' if one else 's'} of {', '.join(zones)} simulate{'s' if one else ''}: unless "
+            f"{'it is' if one else 'they are'} baked (Blender does not tell scripts whether a zone is), Blender drops "
+            "the frames simulated in memory and simulates them again from the zone's start as the scene plays from "
+            f"there. Bake {'it' if one else 'them'} first (Physics › Simulation Nodes › Bake) to keep those frames"
+            + (f", or {alternative}" if alternative else ""))
+
+
 def missing_zone_bake(obj, movers: list) -> str | None:
     """The error when a Geometry Nodes simulation zone of one of ``movers`` (``obj`` and the objects
     whose motion reaches its mesh, :func:`objects_moving`) is set to bake to disk and Blender finds

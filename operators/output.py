@@ -24,8 +24,9 @@ import numpy as np
 
 from .. import bridge
 from .base import InputError, report
-from .motion_sources import (POSE_REPLACING_MODIFIERS, modifiers_under_frames, modifiers_under_keys, moves_vertices,
-                             object_motion, _plays_nla, refuse_emptying_caches, sharing_mesh)
+from .motion_sources import (POSE_REPLACING_MODIFIERS, modifiers_set_aside, modifiers_under_frames,
+                             modifiers_under_keys, moves_vertices, object_motion, _plays_nla, refuse_emptying_caches,
+                             sharing_mesh, zone_frames_dropped)
 
 CACHE_FOLDER = "caches"
 
@@ -244,8 +245,11 @@ class PoseWriter:
         self.deformed_again = None
         if self.output != 'SHAPE_KEYS':
             return
-        # generators are set aside while reading (or change no vertex): they do not add twice
-        movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and moves_vertices(m)]
+        # generators change no vertex, and what is set aside while the frames are read (a Displace
+        # after a Triangulate, :func:`~.motion_sources.modifiers_set_aside`) is not in the poses: it
+        # deforms the new keys once, as it deformed the frames
+        aside = modifiers_set_aside(bpy.context, source)
+        movers = [f"'{m.name}'" for m in source.modifiers if m.show_viewport and moves_vertices(m) and m not in aside]
         key = source.data.shape_keys
         # relative keys add to the new ones; absolute keys show one key (or two blended) at a time
         if key is not None and key.use_relative:
@@ -336,6 +340,10 @@ class PoseWriter:
             added = bridge.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
+            dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
+                                          "use Output › Point Cache (a new object; this one stays as it is)")
+            if dropped:
+                report(self, {'WARNING'}, dropped)
             # the keyed values are the mesh's: its other objects play the new keys as well, unless
             # their own simulation or cache replaces what the keys show
             others = [other for other in (sharing_mesh(source) if keyframe else [])

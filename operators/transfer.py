@@ -6,7 +6,7 @@ from bpy.props import BoolProperty, EnumProperty, StringProperty
 
 from .. import bridge
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
-from .base import (REBUILT_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InputError, check_memory,
+from .base import (REBUILT_IN_WORLD, BasisSizeProperties, GeneratorOperator, InputError, check_memory,
                    check_world_scale, edit_mode_problem, key_blocks_of, key_pose, load_core, mesh_pose,
                    refused_in_poll, reported_error, surface_triangles, triangle_faces)
 from .frames import FrameRangeProperties, frame_key_name
@@ -90,7 +90,7 @@ def read_map_files(obj, source, map_file: str, source_map_file: str, one_based: 
                               what=f"the Map File (vertices of '{source.name}', {n_source} in all)")
 
 
-class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsProperties, FrameRangeProperties, PoseWriter,
+class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, BasisSizeProperties, FrameRangeProperties, PoseWriter,
                                           GeneratorOperator, bpy.types.Operator):
     """Rebuild the poses of another selected mesh (shape keys or animation frames, any
     connectivity) on the active mesh from their shape differences through a functional map, as
@@ -209,16 +209,16 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, CoreSettingsP
             raise InputError(f"'{source.name}' has no pose to transfer")
         yield 0.05
         core = load_core()
-        # Intrinsic differences only (core.Transfer's default; the scene's Extrinsic setting is the
-        # same-mesh operators'): the offset layer's transferred lengths are too noisy to embed.
+        # Intrinsic differences only (core.Transfer's default), so no offset surface and no Extrinsic
+        # setting: the offset layer's transferred lengths are too noisy to embed.
         # The active mesh is prepared (and checked) on its own first, so that a refusal of its mesh
         # says which of the two meshes to fix; the source's rest pose is named in the core's checks.
         reference = yield from about_mesh(obj, "the mesh the poses move", self.compute(
             0.05, core.ReferenceShape, base, triangles, name=f"the mesh of '{obj.name}'",
-            offset=options["offset"], use_extrinsic=False))
+            use_extrinsic=False))
         transfer = yield from self.compute(
             0.1, core.Transfer, base, triangles, _world(source, rest, rest_matrix), source_triangles,
-            correspondence=correspondence, k_M=k_m, k_N=k_n, offset=options["offset"], reference=reference,
+            correspondence=correspondence, k_M=k_m, k_N=k_n, reference=reference,
             target_name=f"the rest pose of '{source.name}' in the world",
             target_label=f"'{source.name}' (the source of the poses)")
         rebuilt = []

@@ -630,6 +630,40 @@ def test_a_dynamic_paint_wave_not_baked_is_read_from_its_start(bpy_empty, extens
     assert bpy.context.scene.frame_current == 1
 
 
+@pytest.mark.parametrize("operator, properties", [
+    ("frames_to_shape_keys", dict(output='SHAPE_KEYS')), ("inbetween_frames", dict(count=1, output='SHAPE_KEYS')),
+    ("distortion_maps", dict(source='FRAMES', eigenfunctions=0)), ("frames_to_shape_keys", dict(output='CACHE'))])
+@pytest.mark.parametrize("baked", [False, True], ids=["not baked", "baked to disk"])
+def test_a_simulation_zone_whose_mesh_a_run_changes_is_warned_unless_baked(bpy_empty, extension, capfd, tmp_path,
+                                                                           operator, properties, baked):
+    """Shape keys or distortion maps written to an object whose Geometry Nodes simulation zone is not
+    baked change the mesh it simulates: Blender drops the frames it simulated (the scene at frame 9 no
+    longer shows the zone's frame 9) and says nothing. The run warns (before: no word), naming the
+    modifier; a zone baked to disk keeps its frames and is not warned, nor is a run that writes a new
+    object (the source's frames kept)."""
+    bridge = extension.bridge
+    obj = simulation_zone_scene(frames=17)
+    modifier = obj.modifiers["Simulation"]
+    if baked:
+        modifier.bake_target, modifier.bake_directory = 'DISK', str(tmp_path / "bake")
+        with bpy.context.temp_override(object=obj, active_object=obj):
+            bpy.ops.object.geometry_node_bake_single(session_uid=obj.session_uid, modifier_name=modifier.name,
+                                                     bake_id=modifier.bakes[0].bake_id)
+    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    bpy.context.scene.frame_set(1)
+    capfd.readouterr()
+    writes = properties.get("output") != 'CACHE'
+    path = {} if writes else dict(filepath=str(tmp_path / "out.pc2"))
+    getattr(bpy.ops.shape_differences, operator)(frame_start=1, frame_end=17, frame_step=4, **properties, **path)
+    out = capfd.readouterr().out
+    warned = ("changed the mesh that the simulation zone of 'Simulation' of 'Simulated' simulates: unless it is "
+              "baked") in out
+    kept = np.allclose(bridge.evaluated_positions(obj, _depsgraph_at(9)), played[9], atol=1e-6)
+    bpy.context.scene.frame_set(1)
+    assert kept == (baked or not writes), "the warning's premise: the frames are dropped where it is given"
+    assert warned == (writes and not baked), out
+
+
 def test_a_simulation_zone_not_baked_is_read_from_its_start(bpy_empty, extension):
     """A Geometry Nodes simulation zone that is not baked, read over frames 9–17 while the scene is
     at its start: the keys are the frames as played from the start (before, Blender stepped the zone

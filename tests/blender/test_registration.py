@@ -12,7 +12,8 @@ bpy = pytest.importorskip("bpy")
 
 from dev_extension import MODULE, REPO_ROOT  # noqa: E402  (scripts/, put on sys.path by conftest)
 
-BASIS = {"k_m", "k_n", "use_extrinsic"}
+SIZES = {"k_m", "k_n"}
+BASIS = SIZES | {"use_extrinsic"}
 CORE = BASIS | {"offset"}
 OUTPUT = {"output", "filepath"}
 #: The in-betweens' operators: their rotations come from the poses, and no offset distance changes them.
@@ -27,7 +28,7 @@ OPERATOR_PROPERTIES = {
     "shape_space": {"source", "frame_start", "frame_end", "frame_step", "k_m", "k_n", "offset"},
     "shape_space_select": {"kind", "rank", "step"},
     "distortion_maps": {"source", "key", "eigenfunctions", "frame_start", "frame_end", "frame_step", "k_m", "offset"},
-    "transfer_poses": {"source", "matching", "map_attribute", "frame_start", "frame_end", "frame_step"} | CORE | OUTPUT,
+    "transfer_poses": {"source", "matching", "map_attribute", "frame_start", "frame_end", "frame_step"} | SIZES | OUTPUT,
 }
 
 
@@ -46,6 +47,20 @@ def test_the_inbetweens_take_no_offset(extension, name):
     assert "offset" not in getattr(bpy.ops.shape_differences, name).get_rna_type().properties.keys()
     with pytest.raises(TypeError, match="offset"):
         getattr(bpy.ops.shape_differences, name)(offset=0.1)
+
+
+@pytest.mark.parametrize("keyword", ["offset", "use_extrinsic"])
+def test_transfer_takes_no_offset_nor_extrinsic(bpy_empty, extension, keyword):
+    """*Transfer Poses* transfers intrinsic differences (``core.Transfer``'s default): no offset surface
+    enters it, so it has neither Offset t nor Extrinsic, and a script passing one gets Blender's error
+    naming it (before: both accepted, and the poses bit for bit those at any other value)."""
+    from blender_scenes import transfer_pair
+
+    transfer_pair(extension.bridge, 6, 4)  # the operator's poll passes: a source selected
+    operator = bpy.ops.shape_differences.transfer_poses
+    assert keyword not in operator.get_rna_type().properties.keys()
+    with pytest.raises(TypeError, match=keyword):
+        operator(**{keyword: 0.1 if keyword == "offset" else False})
 
 
 def test_operators_register_and_undo():
@@ -198,7 +213,7 @@ def test_properties_are_declared_once(bpy_empty):
     settings = bpy.context.scene.shape_differences.bl_rna.properties
     shared = {"inbetween": ["key_a", "key_b", "count", "k_m", "k_n", "use_extrinsic"],
               "exaggerate": ["key", "reference", "factor"], "retime": ["speed", "frame_step"],
-              "reconstruct": ["k_m", "k_n", "offset", "use_extrinsic"],
+              "reconstruct": ["k_m", "k_n", "offset", "use_extrinsic"], "transfer_poses": ["k_m", "k_n"],
               "inbetween_frames": [("count", "frame_count")]}
     for operator, names in shared.items():
         properties = getattr(bpy.ops.shape_differences, operator).get_rna_type().properties

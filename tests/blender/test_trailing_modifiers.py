@@ -366,6 +366,46 @@ def test_a_displace_after_a_triangulate_plays_once_on_the_new_object(bpy_empty, 
         np.testing.assert_allclose(positions, shown[frame], atol=TOLERANCE)
 
 
+def test_a_displace_set_aside_is_not_named_as_deforming_the_new_keys_again(bpy_empty, extension, capfd):
+    """Triangulate → Displace after a baked cloth, captured as shape keys: the frames are read without
+    them, so the new keys are displaced once on playback, as the frames were. The warning names only the
+    cloth (before: "deformed again by 'Cloth', 'Displace'"), and doing what it says — disabling the cloth —
+    plays each key as the frame it was captured from showed."""
+    bridge = extension.bridge
+    flag, (_triangulate, displace) = baked_cloth_under(("Triangulate", 'TRIANGULATE'), ("Displace", 'DISPLACE'))
+    displace.strength = 0.3
+    shown = played(bridge, flag, [1, 5, 9])
+    capfd.readouterr()
+    bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4, output='SHAPE_KEYS')
+    out = capfd.readouterr().out
+    assert "The new shape keys are deformed again by 'Cloth' of 'Flag':" in out, out
+    assert "'Displace'" not in out, out
+    flag.modifiers["Cloth"].show_viewport = False
+    key_blocks = flag.data.shape_keys.key_blocks
+    for frame in (5, 9):
+        for key_block in key_blocks[1:]:
+            key_block.value = float(key_block.name == f"Frame {frame}")
+        np.testing.assert_allclose(evaluated_frames(bridge, flag, [frame])[frame], shown[frame], atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("operator", ["frames_to_shape_keys", "inbetween_frames", "retime"])
+def test_a_vertex_count_changed_at_every_frame_is_said_so(bpy_empty, extension, operator):
+    """A Decimate before the armature changes the vertex count at every frame: the refusal says it does at
+    the first and the last frame read, with the count the evaluated mesh has there (before: "At frame 1" or
+    "At frame 3", whichever frame was read first, for a count that is no frame's doing), and nothing
+    changes."""
+    strip = armature_scene()
+    decimate = strip.modifiers.new("Decimate", 'DECIMATE')
+    decimate.ratio = 0.5
+    strip.modifiers.move(len(strip.modifiers) - 1, 0)  # before the armature
+    shown = {len(positions) for positions in played(extension.bridge, strip, range(1, 10)).values()}
+    assert len(shown) == 1 and shown != {len(strip.data.vertices)}, shown
+    fails_without_change(extension.bridge, strip, getattr(bpy.ops.shape_differences, operator),
+                         r"^Error: At the first and the last frame read \(1 and 9\) the evaluated mesh of "
+                         rf"'{strip.name}' has {shown.pop()} vertices instead of {len(strip.data.vertices)}: "
+                         "'Decimate' comes before the motion", frame_start=1, frame_end=9, frame_step=4)
+
+
 def test_an_edge_split_after_an_unbaked_cloth_is_named_with_baking(bpy_empty, extension):
     """The same Edge Split after a cloth that is not baked cannot be set aside (switching it would outdate the
     cache): refused where it splits, with baking as the way out (before: "comes before the motion … Apply it",
