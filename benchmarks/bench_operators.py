@@ -263,9 +263,10 @@ def main(argv=None):
                       + " ".join(f"{part} {per[part]:6.1f}" for part in PARTS)
                       + f"  x bake {total / inbetweens / bake:.3f}  digest {digest}", flush=True)
         if not args.no_core:
-            read = dict(extension.bridge.frame_positions(bpy.context, obj, list(range(1, spec.frames + 1))))
+            read = dict(extension.bridge.frame_reading.frame_positions(bpy.context, obj,
+                                                                       list(range(1, spec.frames + 1))))
             frames = np.array([read[frame] for frame in range(1, spec.frames + 1)])
-            triangles = extension.bridge.mesh_triangles(obj.data)
+            triangles = extension.bridge.triangulation.mesh_triangles(obj.data)
             for step in args.steps:
                 seconds = core_alone(core, frames, triangles, step, step - 1)
                 inbetweens = (len(range(0, spec.frames, step)) - 1) * (step - 1)

@@ -136,7 +136,7 @@ def main():
           f"in {bake_seconds:.1f} s ({per_frame:.3f} s per frame)")
 
     frames = list(range(1, arguments.frames + 1))
-    truth_all = dict(bridge.frame_positions(bpy.context, cloth, frames))
+    truth_all = dict(bridge.frame_reading.frame_positions(bpy.context, cloth, frames))
     key_frames = frames[::arguments.step]
     count = arguments.step - 1
 
@@ -157,7 +157,7 @@ def main():
 
     # The in-betweens land on the dropped frames: compare with the simulation there.
     dropped_frames = [frame for frame in frames[: key_frames[-1]] if frame not in key_frames]
-    played = dict(bridge.frame_positions(bpy.context, ours_object, dropped_frames))
+    played = dict(bridge.frame_reading.frame_positions(bpy.context, ours_object, dropped_frames))
     ours, linear, truth = {}, {}, {}
     for frame, next_frame in zip(key_frames, key_frames[1:]):
         for i in range(1, count + 1):
@@ -186,9 +186,9 @@ def main():
     scene.collection.objects.link(sphere_copy)
     linear_object = copy_without_cloth(cloth, sphere, "Cloth (linear blend)", 2 * SPACING)
     linear_object.shape_key_clear()
-    bridge.add_shape_keys(linear_object,
-                          [bridge.NewShapeKey(f"Frame {f}", truth_all[f]) for f in key_frames],
-                          keyframes=key_frames)
+    bridge.shape_keys.add_shape_keys(linear_object,
+                                     [bridge.shape_keys.NewShapeKey(f"Frame {f}", truth_all[f]) for f in key_frames],
+                                     keyframes=key_frames)
     for obj, color in zip((cloth, ours_object, linear_object), COLORS):
         obj.color = color
     add_labels_camera_light(scene, width=3 * SPACING)

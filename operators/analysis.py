@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from .. import bridge
+from ..bridge import analysis_data, triangulation, world_space
 from ..properties import AnalysisBasis, CaptureStep
 from .motion_sources import refuse_emptying_caches, simulations_emptied_by, zone_frames_dropped
 from .output import require_local
@@ -148,7 +148,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
 
         # measured as the world shows them: each frame through its own matrix where the object's scale
         # is keyframed (shape differences do not see the rigid part), else the world's proportions
-        space = bridge.frames_space(context, obj, dict(zip(frames or [], matrices)))
+        space = world_space.frames_space(context, obj, dict(zip(frames or [], matrices)))
         poses = in_world(obj, space, poses, frames or [None] * len(poses), triangles, MEASURED_IN_WORLD,
                          invertible=False)
         space = yield from _drive(
@@ -168,7 +168,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             "selected": -1,
         }
         image = shape_space_image(obj, data)
-        obj[bridge.SHAPE_SPACE_PROPERTY] = data
+        obj[analysis_data.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)
         shares = ", ".join(f"{kind.replace('_', ' ')} {100 * data['variance'][kind][0]:.0f} %" for kind in KINDS)
         self.summary = (f"Shape space of {len(names)} poses drawn into image '{image.name}' "
@@ -191,7 +191,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        if bridge.stored_shape_space(context.active_object) is None:
+        if analysis_data.stored_shape_space(context.active_object) is None:
             return refused_in_poll(cls, "Run Shape Space on the active mesh first")
         return True
 
@@ -202,7 +202,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
         except InputError as error:
             report(self, {'ERROR'}, str(error))
             return {'CANCELLED'}
-        data = bridge.stored_shape_space(obj)
+        data = analysis_data.stored_shape_space(obj)
         try:  # read and drawn before anything changes
             first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
             order = np.argsort(first_axis, kind="stable")
@@ -230,7 +230,7 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
             context.scene.frame_set(frame)
         else:
             obj.active_shape_key_index = index
-        obj[bridge.SHAPE_SPACE_PROPERTY] = data
+        obj[analysis_data.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)
         report(self, {'INFO'}, f"Selected '{name}': {rank + 1} of {len(order)} along the first "
                                f"{self.kind.replace('_', ' ')} axis")
@@ -326,7 +326,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
 
         # distortion as the world shows it: each frame through its own matrix where the object's scale is
         # keyframed, the rest mesh through the first frame's, else all in the world's proportions
-        space = bridge.frames_space(context, obj, dict(zip(times, matrices)))
+        space = world_space.frames_space(context, obj, dict(zip(times, matrices)))
         base, *poses = in_world(obj, space, [base, *poses], [times[0], *times], triangles, MEASURED_IN_WORLD,
                                 invertible=False)
         # bending lives on the offset surface, which needs an edge shared by two faces
@@ -375,7 +375,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
     def _write(mesh, triangles, base, labels, results):
         from .analysis_plot import scalar_colors
 
-        polygons = bridge.loop_triangle_polygons(mesh)
+        polygons = triangulation.loop_triangle_polygons(mesh)
         corners = base[triangles]
         weights = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
         polygon_weight = np.bincount(polygons, weights, len(mesh.polygons))
@@ -390,13 +390,13 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 face_values = getattr(distortion, face_field)
                 if vertex_values is None:
                     continue
-                bridge.write_attribute(mesh, f"SD {name}{label}", 'POINT',
-                                scalar_colors(vertex_values, diverging=diverging, floor=centre,
-                                              round_off=getattr(distortion, vertex_round_off)), color=True)
+                analysis_data.write_attribute(mesh, f"SD {name}{label}", 'POINT',
+                                       scalar_colors(vertex_values, diverging=diverging, floor=centre,
+                                                     round_off=getattr(distortion, vertex_round_off)), color=True)
                 first = first or f"SD {name}{label}"
-                bridge.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
+                analysis_data.write_attribute(mesh, f"sd_{name.lower()}{label}", 'POINT', vertex_values)
                 per_polygon = np.bincount(polygons, weights * face_values, len(mesh.polygons)) / polygon_weight
-                bridge.write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
+                analysis_data.write_attribute(mesh, f"sd_{name.lower()}_face{label}", 'FACE', per_polygon)
             # eigenfunction maps of this label from an earlier run (another key, more functions)
             # would read as this pose's
             stale = re.compile(rf"SD Eigen ({'|'.join(EIGEN_TITLES.values())}) \d+{re.escape(label)}")
@@ -404,8 +404,8 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
                 mesh.attributes.remove(mesh.attributes[name])
             for kind, functions in eigen.items():
                 for i in range(functions.shape[1]):
-                    bridge.write_attribute(mesh, f"SD Eigen {EIGEN_TITLES[kind]} {i + 1}{label}", 'POINT',
-                                    scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
+                    analysis_data.write_attribute(mesh, f"SD Eigen {EIGEN_TITLES[kind]} {i + 1}{label}", 'POINT',
+                                           scalar_colors(functions[:, i], diverging=True, floor=0.0), color=True)
         if first is not None:  # by name: references to attributes go stale as others are added
             mesh.color_attributes.active_color = mesh.color_attributes[first]
         mesh.color_attributes.default_color_name = render_color  # "" keeps none
@@ -472,7 +472,7 @@ def redraw_shape_spaces(*_):
     where something held it), and undo and redo restore the stored shape space but not an image's
     pixels (an undone Select Pose stayed highlighted, a redone Shape Space came back blank)."""
     for obj in bpy.data.objects:
-        data = bridge.stored_shape_space(obj)
+        data = analysis_data.stored_shape_space(obj)
         if data is None or obj.library is not None:
             continue
         try:

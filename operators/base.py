@@ -16,7 +16,7 @@ from concurrent.futures import wait as wait_for
 import bpy
 import numpy as np
 
-from .. import bridge
+from ..bridge import frame_errors, mesh_data, triangulation, world_space
 from ..properties import BasisSettings, BasisSizes, CoreSettings
 
 
@@ -132,10 +132,10 @@ def check_world_scale(obj, where: str, matrix=None, poses=(), triangles=None, *,
 
 def in_world(obj, space, poses, times, triangles, where: str, *, invertible: bool = True) -> list:
     """``poses`` ((n, 3) each, in ``obj``'s mesh coordinates, shown at ``times``) as ``space``
-    (:class:`bridge.WorldProportions`, :class:`bridge.WorldFrames`) takes them into the world,
+    (:class:`bridge.world_space.WorldProportions`, :class:`bridge.world_space.WorldFrames`) takes them into the world,
     :func:`check_world_scale` refusing a world matrix there that flattens ``obj``, naming the frame
-    where each pose has its own (:class:`bridge.WorldFrames`: a scale keyframed to 0 at a key)."""
-    per_frame = isinstance(space, bridge.WorldFrames)
+    where each pose has its own (:class:`bridge.world_space.WorldFrames`: a scale keyframed to 0 at a key)."""
+    per_frame = isinstance(space, world_space.WorldFrames)
     world = []
     for pose, at in zip(poses, times):
         moved = space.to(pose, at)
@@ -148,14 +148,14 @@ def in_world(obj, space, poses, times, triangles, where: str, *, invertible: boo
 
 
 def check_shown_in_world(obj, space, times, where: str) -> None:
-    """Refuse ``obj`` where ``space`` (:class:`bridge.WorldFrames`, its matrices at ``times`` read)
+    """Refuse ``obj`` where ``space`` (:class:`bridge.world_space.WorldFrames`, its matrices at ``times`` read)
     would take poses back into its mesh at one of ``times`` (frames; a fraction is a sub-frame)
     through a world matrix that cannot be inverted (:func:`check_world_scale`, naming that frame):
     a scale keyframed from one side of 0 to the other passes 0 between two keys, where an
     in-between may fall. ``where``: what the operator does in the world. Nothing to check in the
-    world's proportions (:class:`bridge.WorldProportions`), the same at every time and checked with
+    world's proportions (:class:`bridge.world_space.WorldProportions`), the same at every time and checked with
     the keys (:func:`in_world`)."""
-    if isinstance(space, bridge.WorldFrames):
+    if isinstance(space, world_space.WorldFrames):
         for time in times:
             check_world_scale(obj, where, space.linear(time), frame=time)
 
@@ -180,7 +180,7 @@ def check_basis_size(label: str, k: int, where: str = "", zero: str | None = Non
 
 def reported_error(error: BaseException, triangle_faces=None) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
-    if isinstance(error, (InputError, bridge.FrameReadError)):
+    if isinstance(error, (InputError, frame_errors.FrameReadError)):
         return str(error)
     if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
             "scipy", "threadpoolctl"):
@@ -565,7 +565,7 @@ def surface_triangles(obj, operator=None):
     """The loop triangles of ``obj``'s mesh, int64 ``(m, 3)``; a mesh without faces is an error.
     ``operator`` (a :class:`GeneratorOperator`): where the mesh has faces of more than three
     corners, it keeps the face of every triangle so that core messages name faces too."""
-    triangles = bridge.mesh_triangles(obj.data)
+    triangles = triangulation.mesh_triangles(obj.data)
     if len(triangles) == 0:
         # faces its modifiers make (Geometry Nodes instances realized on a point) are not the mesh's
         # own: their vertices are no fixed set the poses and the results can be written on
@@ -584,7 +584,7 @@ def surface_triangles(obj, operator=None):
 def triangle_faces(obj, triangles):
     """The face of each of ``triangles`` (``obj``'s loop triangles, :func:`surface_triangles`), or
     None where every face is one triangle (:func:`name_faces`)."""
-    return bridge.loop_triangle_polygons(obj.data) if len(triangles) > len(obj.data.polygons) else None
+    return triangulation.loop_triangle_polygons(obj.data) if len(triangles) > len(obj.data.polygons) else None
 
 
 def frame_name(frame) -> str:
@@ -605,14 +605,14 @@ def finite_pose(positions, what: str):
 
 
 def key_pose(key_block, obj):
-    """The pose shape key ``key_block`` of ``obj`` shows at value 1 (:func:`bridge.shape_key_positions`),
+    """The pose shape key ``key_block`` of ``obj`` shows at value 1 (:func:`bridge.mesh_data.shape_key_positions`),
     checked by :func:`finite_pose`."""
-    return finite_pose(bridge.shape_key_positions(key_block, obj), f"shape key '{key_block.name}' of '{obj.name}'")
+    return finite_pose(mesh_data.shape_key_positions(key_block, obj), f"shape key '{key_block.name}' of '{obj.name}'")
 
 
 def mesh_pose(obj):
-    """The positions of ``obj``'s mesh (:func:`bridge.vertex_positions`), checked by :func:`finite_pose`."""
-    return finite_pose(bridge.vertex_positions(obj.data), f"the mesh of '{obj.name}'")
+    """The positions of ``obj``'s mesh (:func:`bridge.mesh_data.vertex_positions`), checked by :func:`finite_pose`."""
+    return finite_pose(mesh_data.vertex_positions(obj.data), f"the mesh of '{obj.name}'")
 
 
 def key_blocks_of(obj, needed: int = 2):

@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from .. import bridge
+from ..bridge import bake_checks, cache_checks, copied_motion, frame_errors, frame_reading, modifier_kinds, world_space
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
 from .base import (INBETWEENED_IN_WORLD, GeneratorOperator, InbetweenSettingsProperties, InputError,
@@ -116,7 +116,7 @@ class FrameRangeProperties:
                     stay: bool = False):
         """Yield progress while reading the evaluated mesh at ``frames``; returns the positions.
         ``matrices``: a list that gets ``obj``'s world matrix at each of ``frames``. ``stay``: the scene
-        may be left at the last frame read (:func:`bridge.frame_positions`), for a run that writes shape
+        may be left at the last frame read (:func:`bridge.frame_reading.frame_positions`), for a run that writes shape
         keys on ``obj`` next and sets the scene back after (inside :meth:`frame_set_back`): Blender then
         evaluates the new keys and the return to the scene's frame at once, where a return first and the
         keys after cost a cloth one more build at its start frame."""
@@ -124,20 +124,22 @@ class FrameRangeProperties:
         movers = objects_moving(obj)
         unfit = unfit_mesh_cache(obj, movers)
         if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
-            raise bridge.CacheFileUnfit(unfit)
+            raise frame_errors.CacheFileUnfit(unfit)
         lost = missing_zone_bake(obj, movers)
         if lost:  # before any frame: reading would simulate the zone again
-            raise bridge.BakeFilesMissing(lost)
+            raise frame_errors.BakeFilesMissing(lost)
         aside = modifiers_set_aside(context, obj)
         # what the unbaked caches hold before ("0 frames in memory"): it grows where frames are simulated
-        unbaked = {(mover, modifier): modifier.point_cache.info for mover, modifier in bridge.simulations(movers)
+        unbaked = {(mover, modifier): modifier.point_cache.info
+                   for mover, modifier in modifier_kinds.simulations(movers)
                    if not modifier.point_cache.is_baked}
         began = time.monotonic()
-        reader = bridge.frame_positions(context, obj, frames, first_visit=simulation_start(context.scene, movers),
-                                        every_frame=frames_depend_on_earlier(context.scene), set_aside=aside,
-                                        stay=stay)
+        reader = frame_reading.frame_positions(context, obj, frames,
+                                               first_visit=simulation_start(context.scene, movers),
+                                               every_frame=frames_depend_on_earlier(context.scene), set_aside=aside,
+                                               stay=stay)
         with closing(reader) as frame_reader:
-            for frame, positions in frame_reader:  # in the order visited (bridge.frame_positions)
+            for frame, positions in frame_reader:  # in the order visited (bridge.frame_reading.frame_positions)
                 read[frame] = positions
                 if matrices is not None:
                     shown[frame] = obj.matrix_world.copy()
@@ -150,16 +152,16 @@ class FrameRangeProperties:
         for frame, positions in zip(frames, poses):
             finite_pose(positions, f"frame {frame} of '{obj.name}'")
         # an error, as for a cache of another vertex count: the frames are not this mesh's poses
-        foreign = bridge.frames_of_another_mesh(obj, frames, poses, movers)
+        foreign = cache_checks.frames_of_another_mesh(obj, frames, poses, movers)
         if foreign:
-            raise bridge.CacheFileUnfit(foreign)
-        lost = bridge.missing_bake(obj, frames, poses, movers)
+            raise frame_errors.CacheFileUnfit(foreign)
+        lost = bake_checks.missing_bake(obj, frames, poses, movers)
         if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
-            raise bridge.BakeFilesMissing(lost)
-        unread = bridge.cache_reads_no_positions(obj, frames, poses, movers)
+            raise frame_errors.BakeFilesMissing(lost)
+        unread = cache_checks.cache_reads_no_positions(obj, frames, poses, movers)
         if unread:  # the same: the cache plays the mesh at rest
-            raise bridge.CacheFileUnfit(unread)
-        still = bridge.still_frames(obj, frames, poses)
+            raise frame_errors.CacheFileUnfit(unread)
+        still = bake_checks.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
         if still and "rigid_body" in object_motion(obj):  # a simulation that moves no vertex of the mesh
@@ -167,9 +169,9 @@ class FrameRangeProperties:
                      "pose: its rigid body simulation moves it as a whole (its place in the world, not the "
                      "vertices of its mesh), so there is no deformation to read or in-between")
         for warning in (render_only_motion(obj, movers), viewport_only_motion(obj, movers),
-                        bridge.frames_outside_simulation(obj, frames, movers),
-                        bridge.frames_outside_cache(context.scene, obj, frames, movers),
-                        bridge.frames_held_by_cache(obj, frames, poses, movers), still):
+                        bake_checks.frames_outside_simulation(obj, frames, movers),
+                        cache_checks.frames_outside_cache(context.scene, obj, frames, movers),
+                        cache_checks.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:
                 report(self, {'WARNING'}, warning)
         simulated = [(mover, modifier) for (mover, modifier), held in unbaked.items()
@@ -254,7 +256,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles, matrices=matrices,
                                                  stay=self.output == 'SHAPE_KEYS')
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
-        space = bridge.frames_space(context, obj, matrices)
+        space = world_space.frames_space(context, obj, matrices)
         scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
@@ -350,10 +352,10 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
             raise InputError(f"At speed {speed:g} the retimed motion runs to frame {last:,}, past Blender's last "
                              f"frame {retime.MAX_FRAME:,}, where nothing plays: use a speed of "
                              f"{math.ceil(slowest * 1e4) / 1e4:g} or more, or retime frames that start earlier")
-        if self.output != 'SHAPE_KEYS' and speed * bridge.NLA_MAX_SCALE < 1.0 and "keyframed" in object_motion(obj):
+        if self.output != 'SHAPE_KEYS' and speed * copied_motion.NLA_MAX_SCALE < 1.0 and "keyframed" in object_motion(obj):
             raise InputError(f"At speed {speed:g} the keyframed transform of '{obj.name}' would play "
                              f"{1.0 / speed:g} times slower on the new object, and Blender's NLA slows an action "
-                             f"down {bridge.NLA_MAX_SCALE:g} times at most: use a speed of {1.0 / bridge.NLA_MAX_SCALE:g} "
+                             f"down {copied_motion.NLA_MAX_SCALE:g} times at most: use a speed of {1.0 / copied_motion.NLA_MAX_SCALE:g} "
                              "or more")
         check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(speed)}",
                      "raise the speed or retime a shorter range")
@@ -374,7 +376,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         shown_at = out_frames if self.output == 'SHAPE_KEYS' else (start + plan.times).tolist()
         # an object scaled differently at different frames: interpolated in the world, where the simulation
         # ran; the matrices of the frames shown read in one pass
-        space = bridge.frames_space(context, obj, matrices)
+        space = world_space.frames_space(context, obj, matrices)
         with closing(space.reading(shown_at)) as reading:
             for _ in reading:
                 yield 0.1

@@ -15,18 +15,18 @@ import os
 import bpy
 import numpy as np
 
-from .. import bridge
+from ..bridge import cache_files, copied_motion, mesh_data, modifier_kinds, rigid_bodies, scene_timing
 from .base import InputError
 
 # Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
-SIMULATION_MODIFIERS = bridge.SIMULATION_MODIFIERS
+SIMULATION_MODIFIERS = modifier_kinds.SIMULATION_MODIFIERS
 # Modifiers that do not move the mesh they are on.
 PASSIVE_MODIFIERS = {'COLLISION'}
 
 
 def unbaked_simulations(obj) -> list[str]:
     """Names of ``obj``'s enabled cloth / soft body modifiers whose cache is not baked."""
-    return [modifier.name for _, modifier in bridge.simulations([obj]) if not modifier.point_cache.is_baked]
+    return [modifier.name for _, modifier in modifier_kinds.simulations([obj]) if not modifier.point_cache.is_baked]
 
 
 def objects_moving(obj) -> list:
@@ -48,8 +48,8 @@ def objects_moving(obj) -> list:
     return found
 
 
-#: Modifiers that add or remove vertices (:data:`bridge.GENERATE_MODIFIERS`).
-GENERATE_MODIFIERS = bridge.GENERATE_MODIFIERS
+#: Modifiers that add or remove vertices (:data:`bridge.modifier_kinds.GENERATE_MODIFIERS`).
+GENERATE_MODIFIERS = modifier_kinds.GENERATE_MODIFIERS
 #: Modifiers that smooth or displace the mesh without animation of their own: they may follow a
 #: generator in the run that is set aside.
 MOVING_TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE'}
@@ -239,9 +239,9 @@ def unfit_mesh_cache(obj, movers: list) -> str | None:
     user's words, or None: the file is not a PC2 / MDD of the modifier's Format or is cut short
     (Blender shows the rest mesh at every frame, or from where the samples stop), or it holds
     another number of points than the mesh has vertices (a cache of another mesh: Blender leaves
-    that mesh at rest at every frame, 'Vertex count mismatch' on the modifier). A file that is not there is left to ``bridge.missing_cache_file``;
-    a modifier after one that adds or removes vertices (a generator, Geometry Nodes) is not checked
-    against the mesh's count."""
+    that mesh at rest at every frame, 'Vertex count mismatch' on the modifier). A file that is not there is left to
+    ``bridge.cache_files.missing_cache_file``; a modifier after one that adds or removes vertices (a generator, Geometry
+    Nodes) is not checked against the mesh's count."""
     from ..core.errors import MeshError
     from ..core.point_cache import has_pc2_signature
 
@@ -253,14 +253,14 @@ def unfit_mesh_cache(obj, movers: list) -> str | None:
         for modifier in mover.modifiers:
             if not modifier.show_viewport:
                 continue
-            if modifier.type == 'MESH_CACHE' and os.path.isfile(bridge.mesh_cache_file(modifier)):
-                path = bridge.mesh_cache_file(modifier)
+            if modifier.type == 'MESH_CACHE' and os.path.isfile(cache_files.mesh_cache_file(modifier)):
+                path = cache_files.mesh_cache_file(modifier)
                 if modifier.cache_format == 'MDD' and has_pc2_signature(path):  # Blender's default Format is MDD
                     return (f"The Mesh Cache '{modifier.name}' of {owner} reads '{path}' as MDD (its Format), but it "
                             "is a PC2 file: Blender cannot read it so and shows the mesh at rest at every frame. Set "
                             "the modifier's Format to PC2")
                 try:
-                    _samples, points, _times = bridge.mesh_cache_header(modifier)
+                    _samples, points, _times = cache_files.mesh_cache_header(modifier)
                 except MeshError as error:
                     return (f"The Mesh Cache '{modifier.name}' of {owner} cannot play its file as "
                             f"{modifier.cache_format} (its Format): {error} Blender shows the mesh at rest wherever "
@@ -338,8 +338,8 @@ def trailing_generators(obj) -> list:
 
 
 #: Modifiers that replace the positions of their mesh with poses of their own
-#: (:data:`bridge.POSE_REPLACING_MODIFIERS`).
-POSE_REPLACING_MODIFIERS = bridge.POSE_REPLACING_MODIFIERS
+#: (:data:`bridge.modifier_kinds.POSE_REPLACING_MODIFIERS`).
+POSE_REPLACING_MODIFIERS = modifier_kinds.POSE_REPLACING_MODIFIERS
 #: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
 #: simulate again from its own start) and what reads a cache (it would replace the poses).
 NOT_COPIED_UNDER_KEYS = POSE_REPLACING_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
@@ -412,7 +412,7 @@ def refuse_emptying_caches(scene, obj, what: str, alternative: str = "", shapes:
     """Raise :class:`InputError` where changing the mesh of ``obj`` (``what``: "shape keys added
     to", "distortion maps written to") would empty an unbaked simulation's cache
     (:func:`simulations_emptied_by`), or, where it changes the mesh's shape (``shapes``: shape keys),
-    an unbaked rigid body simulation colliding that shape (:func:`bridge.unbaked_rigid_body_shape`),
+    an unbaked rigid body simulation colliding that shape (:func:`bridge.rigid_bodies.unbaked_rigid_body_shape`),
     before any work. ``alternative``: another way to the result,
     offered first."""
     def either(*advice):
@@ -437,7 +437,7 @@ def refuse_emptying_caches(scene, obj, what: str, alternative: str = "", shapes:
             f"react to '{obj.name}' as a collider or force field (Blender simulates them again when it changes): "
             + either("bake those first (Physics › Cache › Bake)"))
     for user in ([obj] + sharing_mesh(obj)) if shapes else ():
-        if bridge.unbaked_rigid_body_shape(user):
+        if rigid_bodies.unbaked_rigid_body_shape(user):
             raise InputError(
                 f"{change} '{user.name}' would change its rigid body simulation, which is not baked: its collision "
                 f"shape ({user.rigid_body.collision_shape.replace('_', ' ').title()}) is read from its deformed "
@@ -457,7 +457,7 @@ def modifiers_set_aside(context, obj) -> list:
     mesh has other vertices, when one of its simulations is not baked: switching a modifier of the
     object off and on again marks that cache outdated, and Blender then drops its frames."""
     aside = trailing_generators(obj)
-    if bridge.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
+    if mesh_data.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
         if not any(modifier.type in GENERATE_MODIFIERS for modifier in aside) or unbaked_simulations(obj):
             return []
         return [] if reacting_simulations(context.scene, [obj]) else aside
@@ -493,8 +493,8 @@ def motion_set_aside(context, obj, frames: list[int], aside: list) -> str | None
     copies of those modifiers. None otherwise. The scene's current frame is restored."""
     if not aside or len(frames) < 2:
         return None
-    shown = [bridge.evaluated_positions(obj, context.evaluated_depsgraph_get())
-             for _ in bridge.at_times(context.scene, (frames[0], frames[-1]))]
+    shown = [mesh_data.evaluated_positions(obj, context.evaluated_depsgraph_get())
+             for _ in scene_timing.at_times(context.scene, (frames[0], frames[-1]))]
     if shown[0].shape == shown[1].shape and np.array_equal(shown[0], shown[1]):
         return None
     generators = [modifier for modifier in aside if modifier.type in GENERATE_MODIFIERS]
@@ -533,7 +533,7 @@ def _plays_nla(animation) -> bool:
 
 def _transform_drivers(animation) -> bool:
     """Whether ``animation`` (an object's animation data) drives its transform."""
-    return any(driver.data_path in bridge.TRANSFORM_CHANNELS for driver in animation.drivers)
+    return any(driver.data_path in copied_motion.TRANSFORM_CHANNELS for driver in animation.drivers)
 
 
 def _own_motion(obj) -> dict[str, str]:
@@ -541,7 +541,7 @@ def _own_motion(obj) -> dict[str, str]:
     "keyframed", "nla", "drivers", "constraints")."""
     animation = obj.animation_data
     out = {}
-    if bridge.simulated_rigid_body(obj):
+    if rigid_bodies.simulated_rigid_body(obj):
         out["rigid_body"] = "its rigid body simulation"
     if animation is not None:
         if animation.action is not None:

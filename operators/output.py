@@ -22,7 +22,7 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from .. import bridge
+from ..bridge import cache_object, naming, scene_timing, shape_keys
 from .base import InputError, report
 from .motion_sources import (POSE_REPLACING_MODIFIERS, modifiers_set_aside, modifiers_under_frames,
                              modifiers_under_keys, moves_vertices, object_motion, _plays_nla, refuse_emptying_caches,
@@ -334,10 +334,10 @@ class PoseWriter:
         """
         if self.output == 'SHAPE_KEYS':
             tails = tails or [""] * len(names)
-            new_keys = [bridge.NewShapeKey(name, pose, tail)
+            new_keys = [shape_keys.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
-            times = [bridge.scene_time(context.scene, frame) for frame in frames]
-            added = bridge.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
+            times = [scene_timing.scene_time(context.scene, frame) for frame in frames]
+            added = shape_keys.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
             dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
@@ -394,8 +394,8 @@ class PoseWriter:
         if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
             raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
         # the Mesh Cache and the object's animation play the scene's time, not its frame number
-        start, sampling = bridge.scene_time(context.scene, frames[0]), bridge.scene_time(context.scene, sampling)
-        name = bridge.unique_name(source.name, f" {label}", bpy.data.objects.keys())
+        start, sampling = scene_timing.scene_time(context.scene, frames[0]), scene_timing.scene_time(context.scene, sampling)
+        name = naming.unique_name(source.name, f" {label}", bpy.data.objects.keys())
         path, _ = self.cache_path(name, check_free=False)
         try:
             path, written = write_new_cache(path, poses, start, sampling)
@@ -407,10 +407,10 @@ class PoseWriter:
         stored_path = self.stored_path(path)
         modifiers, left_out = modifiers_under_keys(source) if keyed else modifiers_under_frames(source)
         try:
-            obj = bridge.add_cache_object(context, source, name, stored_path, start, sampling,
-                                          modifiers=modifiers, speed=speed,
-                                          source_end=start + sampling * (len(frames) - 1) * speed,
-                                          deformed_by_parent=keyed)
+            obj = cache_object.add_cache_object(context, source, name, stored_path, start, sampling,
+                                                modifiers=modifiers, speed=speed,
+                                                source_end=start + sampling * (len(frames) - 1) * speed,
+                                                deformed_by_parent=keyed)
         except BaseException:
             if written:
                 path.unlink(missing_ok=True)
@@ -421,7 +421,7 @@ class PoseWriter:
             report(self, {'WARNING'},
                    f"'{obj.name}' plays the poses without {', '.join(repr(m.name) for m in left_out)} "
                    f"of '{source.name}' (a simulation, a cache or a particle system is not copied): {advice}")
-        # taken over (bridge.copy_object_motion): the keyframed transform at any speed, the
+        # taken over (bridge.copied_motion.copy_object_motion): the keyframed transform at any speed, the
         # parent and constraints at the scene's own
         motion = object_motion(source)
         if "rigid_body" in motion:  # the simulation moves the source alone: the new object stays put

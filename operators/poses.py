@@ -2,8 +2,8 @@
 
 import bpy
 
-from .. import bridge
-from ..bridge import shorten
+from ..bridge import mesh_data, triangulation, world_space
+from ..bridge.naming import shorten
 from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
 from .base import (INBETWEENED_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InbetweenSettingsProperties,
                    InputError, check_memory, default_pose_key, in_world, key_blocks_of, load_core, playback_range,
@@ -31,7 +31,7 @@ def scene_frames(context, count: int) -> list[float]:
 
 class InWorldProportions:
     """An interpolator of poses taken into the world's proportions, its poses back in the mesh's
-    coordinates (:class:`bridge.WorldProportions`)."""
+    coordinates (:class:`bridge.world_space.WorldProportions`)."""
 
     def __init__(self, interpolator, space):
         self.interpolator, self.space = interpolator, space
@@ -62,8 +62,8 @@ class KeyPairProperties:
         self.check_output(obj)
         check_memory(n_poses, len(obj.data.vertices), "The output", advice, work="pair")
         yield 0.0
-        space = bridge.WorldProportions(obj)
-        keys = in_world(obj, space, [bridge.shape_key_positions(key, obj) for key in (start, end)], [None, None],
+        space = world_space.WorldProportions(obj)
+        keys = in_world(obj, space, [mesh_data.shape_key_positions(key, obj) for key in (start, end)], [None, None],
                         triangles, INBETWEENED_IN_WORLD)
         interpolator = yield from self.compute(
             0.0, load_core().Interpolator, *keys, triangles, **options,
@@ -91,7 +91,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
         obj = context.active_object
         label = f"Inbetween {shorten(key_a.name, 16)}-{shorten(key_b.name, 16)} x{self.count}"
         if self.output == 'CACHE':  # the cache plays the whole motion, keys included
-            poses = [bridge.shape_key_positions(key_a, obj), *poses, bridge.shape_key_positions(key_b, obj)]
+            poses = [mesh_data.shape_key_positions(key_a, obj), *poses, mesh_data.shape_key_positions(key_b, obj)]
         names, tails = zip(*(inbetween_name(key_a.name, key_b.name, f) for f in factors))
         self.summary = self.write_poses(context, obj, poses, names=names, tails=tails,
                                         frames=scene_frames(context, len(poses)), label=label, keyed=True)
@@ -135,18 +135,18 @@ class SHAPE_DIFFERENCES_OT_reconstruct(PoseKey, PoseOutput, CoreSettingsProperti
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         if options["k_M"] is None:  # the full basis recovers areas exactly where the triangles allow it
-            triangles = bridge.area_recoverable_triangles(obj.data, triangles)
+            triangles = triangulation.area_recoverable_triangles(obj.data, triangles)
         self.check_output(obj)
         check_memory(1, len(obj.data.vertices), "The output", "decimate the mesh", work="reconstruct")
         yield 0.0
         core = load_core()
-        base = bridge.shape_key_positions(key_blocks[0], obj)
+        base = mesh_data.shape_key_positions(key_blocks[0], obj)
         use_extrinsic = options.pop("use_extrinsic")
         reference = yield from self.compute(0.0, core.ReferenceShape, base, triangles,
                                             name=f"shape key '{key_blocks[0].name}'",
                                             offset=options.pop("offset"), use_extrinsic=use_extrinsic)
         differences = yield from self.compute(0.2, reference.shape_differences,
-                                              bridge.shape_key_positions(key, obj), name=f"shape key '{key.name}'",
+                                              mesh_data.shape_key_positions(key, obj), name=f"shape key '{key.name}'",
                                               **options)
         pose = yield from self.compute(0.5, core.reconstruct, base, triangles, differences)
         tail = f" (k {self.k_m or 'full'}/{self.k_n or 'full'})"

@@ -4,7 +4,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, EnumProperty, StringProperty
 
-from .. import bridge
+from ..bridge import world_space
 from ..properties import PATH_OPTIONS, CaptureStep, PoseOutput
 from .base import (REBUILT_IN_WORLD, BasisSizeProperties, GeneratorOperator, InputError, check_memory,
                    check_world_scale, edit_mode_problem, key_blocks_of, key_pose, load_core, mesh_pose,
@@ -183,7 +183,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, BasisSizeProp
         matrices = []
         poses = yield from self.read_frames(context, source, frames, 0.05, matrices)
         return ([frame_key_name(f) for f in frames], [float(f) for f in frames], mesh_pose(source),
-                poses, matrices, bridge.with_proportions(source.matrix_world, matrices[0]))
+                poses, matrices, world_space.with_proportions(source.matrix_world, matrices[0]))
 
     def run(self, context):
         obj = context.active_object

@@ -138,7 +138,7 @@ class VIEW3D_PT_shape_differences_analysis(ShapeDiffPanel, bpy.types.Panel):
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
-        from ..bridge import stored_shape_space
+        from ..bridge.analysis_data import stored_shape_space
 
         layout = self.layout
         row = layout.row(align=True)

@@ -20,7 +20,7 @@ def stretched_sheet(bridge, scale=(2.0, 1.0, 0.5)):
     sheet = grid_object(8)
     sheet.scale = scale
     bpy.context.view_layer.update()
-    return sheet, np.array(sheet.matrix_world.to_3x3()), bridge.vertex_positions(sheet.data)
+    return sheet, np.array(sheet.matrix_world.to_3x3()), bridge.mesh_data.vertex_positions(sheet.data)
 
 
 def world_turned(positions: np.ndarray, linear: np.ndarray, turn: np.ndarray) -> np.ndarray:
@@ -59,7 +59,7 @@ def turning_sheet_scale_keyframed(extension, tmp_path, stretch: float = 0.0, sca
     from scipy.spatial.transform import Rotation
 
     sheet = grid_object(8)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
 
     def scale(frame):
         return 1.0 + 0.125 * (min(frame, 9) - 1) if scale_keyed else 1.0
@@ -79,7 +79,7 @@ def sheet_easing_off_scale_keyframed(extension, tmp_path, lift: float = 0.003, s
     functions of the frame. In the object's own coordinates a sheet scaled up shrinks from frame 1
     on, so it leaves its first frame moving; in the world it leaves it from rest."""
     sheet = grid_object(8)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
 
     def scale(frame):
         return 1.0 + 0.125 * (min(frame, 9) - 1) if scale_keyed else 1.0
@@ -207,7 +207,7 @@ def with_boundary_sliver(bridge, mesh):
     """A copy of ``mesh`` with one triangle of no area more: a boundary edge (a, b) and the midpoint
     of it (a new last vertex), running along the edge the other way from the face it bounds, as a
     decimation or a careless edit leaves one. Returns the new mesh and its positions (n + 1, 3)."""
-    rest = bridge.vertex_positions(mesh)
+    rest = bridge.mesh_data.vertex_positions(mesh)
     faces = [tuple(polygon.vertices) for polygon in mesh.polygons]
     uses = {}
     for face in faces:
@@ -223,7 +223,7 @@ def with_boundary_sliver(bridge, mesh):
 def posed_grid(bridge, subdivisions: int = 12):
     """A grid with a Basis and two rolled poses, "Bend" (the active key) and "Curl"."""
     obj = grid_object(subdivisions)
-    rest = bridge.vertex_positions(obj.data)
+    rest = bridge.mesh_data.vertex_positions(obj.data)
     add_key(obj, "Curl", rolled(rest, 2.0))
     add_key(obj, "Bend", rolled(rest, 1.0))
     obj.active_shape_key_index = 2
@@ -234,7 +234,7 @@ def transfer_pair(bridge, source_subdivisions: int, target_subdivisions: int):
     """A "Source" grid with a "Bend" key and a "Sheet" grid (active) over it, both selected: the
     selection Transfer reads (the source beside the active target)."""
     source = grid_object(source_subdivisions, name="Source")
-    add_key(source, "Bend", rolled(bridge.vertex_positions(source.data), 1.0))
+    add_key(source, "Bend", rolled(bridge.mesh_data.vertex_positions(source.data), 1.0))
     target = grid_object(target_subdivisions, name="Sheet")
     source.select_set(True)
     target.select_set(True)
@@ -388,25 +388,25 @@ def played(bridge, obj, frames) -> dict:
     result = {}
     for frame in frames:
         bpy.context.scene.frame_set(frame)
-        result[frame] = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+        result[frame] = bridge.mesh_data.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
     bpy.context.scene.frame_set(1)
     return result
 
 
 def evaluated_frames(bridge, obj, frames):
     """The evaluated positions of ``obj`` at each of ``frames`` (restores the current frame)."""
-    return dict(bridge.frame_positions(bpy.context, obj, list(frames)))
+    return dict(bridge.frame_reading.frame_positions(bpy.context, obj, list(frames)))
 
 
 def snapshot(bridge, obj) -> dict:
     """Everything about ``obj`` and the scene that a failed operator must leave as it was."""
     mesh = obj.data
-    positions = bridge.vertex_positions(mesh)
+    positions = bridge.mesh_data.vertex_positions(mesh)
     keys = {}
     animation = None
     if mesh.shape_keys is not None:
         for key_block in mesh.shape_keys.key_blocks:
-            keys[key_block.name] = (bridge.stored_key_positions(key_block), key_block.value,
+            keys[key_block.name] = (bridge.mesh_data.stored_key_positions(key_block), key_block.value,
                                     key_block.relative_key.name)
         animation_data = mesh.shape_keys.animation_data
         animation = animation_data.action.name if animation_data and animation_data.action else None

@@ -13,7 +13,7 @@ from blender_scenes import add_key, armature_scene, assert_unchanged, grid_objec
 def keyed(bpy_empty, extension, core):
     """A grid with Basis, Curl, Bend and mirrored copies of both (isometric to them)."""
     obj = posed_grid(extension.bridge, 10)
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     for name, angle in (("Curl down", 2.0), ("Bend down", 1.0)):
         add_key(obj, name, rolled(rest, angle) * np.array([1.0, 1.0, -1.0]))
     obj.active_shape_key_index = 2
@@ -28,8 +28,8 @@ def test_shape_space_of_keys(keyed, core):
     data = obj["shape_space"].to_dict()
     names = [kb.name for kb in obj.data.shape_keys.key_blocks]
     assert list(data["poses"]) == names
-    poses = [bridge.stored_key_positions(kb) for kb in obj.data.shape_keys.key_blocks]
-    space = core.shape_space(poses, bridge.mesh_triangles(obj.data), k_M=20, k_N=40)
+    poses = [bridge.mesh_data.stored_key_positions(kb) for kb in obj.data.shape_keys.key_blocks]
+    space = core.shape_space(poses, bridge.triangulation.mesh_triangles(obj.data), k_M=20, k_N=40)
     for kind in ("area", "offset_area"):
         stored = np.reshape(data["coordinates"][kind], (-1, 2))
         np.testing.assert_allclose(stored, space.coordinates(kind, 2), atol=1e-9 * np.abs(stored).max())
@@ -83,8 +83,8 @@ def test_distortion_maps_of_the_active_key(keyed, core):
         assert mesh.color_attributes.get(name) is not None, name
     values = np.empty(len(mesh.vertices), dtype=np.float32)
     mesh.attributes["sd_bending"].data.foreach_get("value", values)
-    basis, bend = (bridge.stored_key_positions(mesh.shape_keys.key_blocks[n]) for n in ("Basis", "Bend"))
-    expected = core.distortion(basis, bend, bridge.mesh_triangles(mesh), k=20).bending_vertices
+    basis, bend = (bridge.mesh_data.stored_key_positions(mesh.shape_keys.key_blocks[n]) for n in ("Basis", "Bend"))
+    expected = core.distortion(basis, bend, bridge.triangulation.mesh_triangles(mesh), k=20).bending_vertices
     np.testing.assert_allclose(values, expected, atol=1e-5)
     faces = np.empty(len(mesh.polygons), dtype=np.float32)
     mesh.attributes["sd_area_face"].data.foreach_get("value", faces)
@@ -158,7 +158,7 @@ def test_a_small_mesh_and_poses_that_do_not_differ(bpy_empty, extension, capfd):
     eigenfunction maps are arbitrary; a shape space of poses that do not differ says it has no
     spread (before: "share of PC 1: 100 %" of round-off)."""
     obj = grid_object(8)
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     add_key(obj, "Same", rest)
     add_key(obj, "Also same", rest)
     obj.active_shape_key_index = 1
@@ -262,7 +262,7 @@ def test_bending_of_a_swell_keeps_its_sign_on_a_mirrored_stretched_object(bpy_em
         obj = bpy.context.active_object
         obj.scale = scale
         bpy.context.view_layer.update()
-        rest = extension.bridge.vertex_positions(obj.data)
+        rest = extension.bridge.mesh_data.vertex_positions(obj.data)
         add_key(obj, "Swell", rest * (1.0 + 0.15 * np.exp(-8.0 * np.sum((rest - [0, 0, 1]) ** 2, axis=1)))[:, None])
         obj.active_shape_key_index = 1
         bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', eigenfunctions=0)
@@ -279,14 +279,14 @@ def test_default_sizes_shrink_to_the_vertices_in_faces(bpy_empty, extension):
     the core refused: "must be between 1 and 48; got 50" for sizes nobody set)."""
     obj = grid_object(6)
     obj.data.vertices.add(5)
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     for index, angle in enumerate((0.5, 1.0, 1.5)):
         bent = rest.copy()
         bent[:49] = rolled(rest[:49], angle)
         add_key(obj, f"Bend {index}", bent)
     result = bpy.ops.shape_differences.shape_space(source='KEYS')
     assert result == {'FINISHED'}
-    stored = extension.bridge.stored_shape_space(obj)
+    stored = extension.bridge.analysis_data.stored_shape_space(obj)
     assert (stored["k_M"], stored["k_N"]) == (48, 48)
 
 
@@ -301,7 +301,7 @@ def test_keys_that_only_move_the_mesh_and_stale_eigenfunction_maps(bpy_empty, ex
 
     bpy.ops.mesh.primitive_ico_sphere_add(subdivisions=3, radius=1.0)
     obj = bpy.context.active_object
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     for s in range(1, 4):
         add_key(obj, f"Moved {s}", rest @ Rotation.from_rotvec([0.4 * s, -0.3, 0.2]).as_matrix().T + [s, -s, 0.5])
     obj.active_shape_key_index = 1
@@ -351,7 +351,7 @@ def test_round_off_neither_hides_a_small_swell_nor_shows_as_noise(bpy_empty, ext
     world's proportions, computed in double precision, read as double-precision keys: 152
     colours of noise)."""
     obj = grid_object(40)
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     swell = rest.copy()
     r = np.linalg.norm(rest[:, :2] - [0.3, -0.4], axis=1)
     swell[:, 2] += 0.08 * np.clip(1 - r / 0.09, 0, None) ** 2  # 0.6 % of the sheet
@@ -365,7 +365,7 @@ def test_round_off_neither_hides_a_small_swell_nor_shows_as_noise(bpy_empty, ext
     skewed = bpy.context.active_object
     skewed.scale = (1.3, 1.0, 0.7)
     bpy.context.view_layer.update()
-    rest = extension.bridge.vertex_positions(skewed.data)
+    rest = extension.bridge.mesh_data.vertex_positions(skewed.data)
     add_key(skewed, "Moved", rest + [0.25, -0.5, 0.3])
     bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Moved", eigenfunctions=0)
     assert "'Moved' does not change the base" in capfd.readouterr().out
@@ -380,7 +380,7 @@ def test_messages_name_the_key_or_frame_and_maps_need_no_basis(bpy_empty, extens
     vertices", "pose 2"); maps without eigenfunctions are written whatever k_M is (before:
     "k_M = 100 is too large for a mesh with 49 vertices" for a basis they do not use)."""
     obj = posed_grid(extension.bridge, 6)
-    broken = extension.bridge.vertex_positions(obj.data)
+    broken = extension.bridge.mesh_data.vertex_positions(obj.data)
     broken[5, 2] = np.nan
     add_key(obj, "Broken", broken)
     with pytest.raises(RuntimeError, match="shape key 'Broken' of 'Sheet': vertex 5"):

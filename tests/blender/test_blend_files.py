@@ -124,7 +124,7 @@ def test_the_shape_space_image_is_drawn_again_when_the_blend_is_opened(bpy_empty
     """A generated image is not saved with the file: it came back missing (or blank); drawn again
     from the coordinates stored on the object, pixel for pixel."""
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     for index, angle in enumerate((0.5, 1.0, 1.5)):
         add_key(sheet, f"Bend {index}", rolled(rest, angle))
     bpy.ops.shape_differences.shape_space(source='KEYS')

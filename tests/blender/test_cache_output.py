@@ -97,7 +97,7 @@ def test_retime_half_speed_on_a_new_object(bpy_empty, extension, core, scene, tm
     before_key, start_key, last_key, middle = plan.end_samples
     ends = motion_ends.end_of_motion([source_frames[k + 1] for k in (before_key, start_key, last_key)],
                                      source_frames[middle + 1], 0.5)
-    sequence = core.SequenceInterpolator(keys, bridge.mesh_triangles(source.data), start=start, end=ends)
+    sequence = core.SequenceInterpolator(keys, bridge.triangulation.mesh_triangles(source.data), start=start, end=ends)
     for out_frame in (2, 4, 20, n_out - 1):  # in-betweens: time 1.5, 2.5, 10.5, end - 0.5
         gap = int(plan.gaps[out_frame - 1])  # each gap's in-betweens are computed together
         rows = [i for i in range(plan.n_out) if plan.gaps[i] == gap and plan.exact_keys[i] < 0]
@@ -194,7 +194,7 @@ def test_ranges_that_are_not_whole_steps(bpy_empty, extension, core, tmp_path):
     source = armature_scene(frames=12)
     bridge = extension.bridge
     source_frames = evaluated_frames(bridge, source, range(1, 13))
-    triangles = bridge.mesh_triangles(source.data)
+    triangles = bridge.triangulation.mesh_triangles(source.data)
     names = set(bpy.data.objects.keys())
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=12, frame_step=4, speed=0.5,
                                      filepath=str(tmp_path / "retime.pc2"))
@@ -255,7 +255,7 @@ def test_an_unbaked_cloth_sharing_the_mesh_keeps_its_cache(bpy_empty, extension,
     bpy.context.scene.collection.objects.link(twin)
     twin.shape_key_add(name="Basis")
     bend = twin.shape_key_add(name="Bend")
-    co = extension.bridge.vertex_positions(twin.data)
+    co = extension.bridge.mesh_data.vertex_positions(twin.data)
     co[:, 2] += 0.3 * co[:, 0] ** 2
     bend.data.foreach_set("co", co.astype(np.float32).ravel())
     bpy.context.view_layer.update()
@@ -288,8 +288,8 @@ def test_pose_operators_write_a_cache_object(bpy_empty, extension, core, operato
     obj = new_object(names)
     assert_cache_object(obj, source)
     assert_source_unchanged(bridge, source, before)
-    keys = {kb.name: bridge.stored_key_positions(kb) for kb in source.data.shape_keys.key_blocks}
-    poses = expected(core, keys, bridge.mesh_triangles(source.data))
+    keys = {kb.name: bridge.mesh_data.stored_key_positions(kb) for kb in source.data.shape_keys.key_blocks}
+    poses = expected(core, keys, bridge.triangulation.mesh_triangles(source.data))
     start = bpy.context.scene.frame_start
     playback = played(bridge, obj, range(start, start + len(poses)))
     for i, pose in enumerate(poses):
@@ -440,7 +440,8 @@ def test_a_cache_object_moves_as_its_source_does(bpy_empty, extension, core, par
     for frame in range(1, 10):
         bpy.context.scene.frame_set(frame)
         world[frame] = (np.array(source.matrix_world),
-                        _world(source, bridge.evaluated_positions(source, bpy.context.evaluated_depsgraph_get())))
+                        _world(source,
+                               bridge.mesh_data.evaluated_positions(source, bpy.context.evaluated_depsgraph_get())))
     bpy.context.scene.frame_set(1)
     names = set(bpy.data.objects.keys()) - {source.name}
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=4, count=3,
@@ -452,7 +453,7 @@ def test_a_cache_object_moves_as_its_source_does(bpy_empty, extension, core, par
         bpy.context.scene.frame_set(frame)
         np.testing.assert_allclose(np.array(obj.matrix_world), world[frame][0], atol=1e-6)
         if frame in (1, 5, 9):
-            played_world = _world(obj, bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get()))
+            played_world = _world(obj, bridge.mesh_data.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get()))
             np.testing.assert_allclose(played_world, world[frame][1], atol=1e-4)
     bpy.context.scene.frame_set(1)
     assert "Warning" not in capfd.readouterr().out  # everything that moves the source was taken over
@@ -629,7 +630,7 @@ def test_a_cache_object_of_shape_key_poses_is_deformed_as_the_keys_are(
     the source (before, at rest: the strip straight while the rig bends it)."""
     source = armature_scene(frames=9)
     bridge = extension.bridge
-    rest = bridge.vertex_positions(source.data)
+    rest = bridge.mesh_data.vertex_positions(source.data)
     curl = rest.copy()
     curl[:, 2] += 0.1 * np.sin(3.0 * curl[:, 0])  # a ripple the rig then bends
     add_key(source, "Curl", curl).value = 0.0
@@ -653,13 +654,13 @@ def test_a_cache_object_of_shape_key_poses_is_deformed_as_the_keys_are(
     bpy.context.scene.frame_set(frame)  # the rig bent
     added.value = 1.0
     bpy.context.view_layer.update()
-    keyed = bridge.evaluated_positions(source, depsgraph)
+    keyed = bridge.mesh_data.evaluated_positions(source, depsgraph)
     added.value = 0.0
     bpy.context.view_layer.update()
-    cached = bridge.evaluated_positions(obj, depsgraph)
+    cached = bridge.mesh_data.evaluated_positions(obj, depsgraph)
     assert len(cached) == len(keyed) > len(rest)
     assert np.abs(keyed - cached).max() < 1e-5
-    assert np.abs(keyed - bridge.vertex_positions(obj.evaluated_get(depsgraph).data)).max() < 1e-5
+    assert np.abs(keyed - bridge.mesh_data.vertex_positions(obj.evaluated_get(depsgraph).data)).max() < 1e-5
     assert "Warning" not in capfd.readouterr().out
 
 
@@ -695,7 +696,7 @@ def _world_shown(bridge, obj, frame):
     bpy.context.scene.frame_set(frame)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     matrix = np.array(obj.evaluated_get(depsgraph).matrix_world)
-    return bridge.evaluated_positions(obj, depsgraph) @ matrix[:3, :3].T + matrix[:3, 3]
+    return bridge.mesh_data.evaluated_positions(obj, depsgraph) @ matrix[:3, :3].T + matrix[:3, 3]
 
 
 @pytest.mark.parametrize("old, new", [(100, 50), (50, 100)])
@@ -856,7 +857,7 @@ def _shown(bridge, obj, frames) -> dict:
     for frame in frames:
         bpy.context.scene.frame_set(frame)
         matrix = np.array(obj.matrix_world)
-        result[frame] = (bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+        result[frame] = (bridge.mesh_data.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
                          @ matrix[:3, :3].T + matrix[:3, 3])
     bpy.context.scene.frame_set(1)
     return result

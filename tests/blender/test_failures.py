@@ -152,7 +152,7 @@ def test_a_cache_modifier_whose_file_is_gone_is_refused(bpy_empty, extension, op
     from blender_scenes import grid_object
 
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
     path = point_cache.write_pc2(tmp_path / "sim.pc2", np.array([rest + [0.0, 0.0, 0.1 * k] for k in range(9)]),
                                  start=1.0)
@@ -193,7 +193,7 @@ def test_an_object_hidden_with_the_eye_icon_runs(bpy_empty, extension):
         bpy.ops.shape_differences.frames_to_shape_keys(frame_start=1, frame_end=9, frame_step=4,
                                                        output='SHAPE_KEYS')
     key = strip.data.shape_keys.key_blocks["Frame 9"]
-    assert np.abs(extension.bridge.stored_key_positions(key) - extension.bridge.vertex_positions(strip.data)).max() > 0.1
+    assert np.abs(extension.bridge.mesh_data.stored_key_positions(key) - extension.bridge.mesh_data.vertex_positions(strip.data)).max() > 0.1
 
 
 def test_a_range_that_starts_after_its_end(bpy_empty, extension):
@@ -356,7 +356,7 @@ def test_a_cache_whose_topology_changes(bpy_empty, extension, tmp_path):
 
 def test_degenerate_pose(bpy_empty, extension, core):
     obj = posed_grid(extension.bridge, 6)
-    flat = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks["Basis"])
+    flat = extension.bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks["Basis"])
     flat[:, 0] = 0.0  # the flat sheet squashed onto a line: every triangle has zero area
     add_key(obj, "Collapsed", flat)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.inbetween,
@@ -372,7 +372,7 @@ def test_reconstruct_names_the_shape_key_of_a_broken_pose(bpy_empty, extension):
     vertices", "base vertices"), and the remedy is said of it (the core's "remove that frame" is
     said of the frames and arrays it is given)."""
     obj = posed_grid(extension.bridge, 6)
-    broken = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks["Bend"])
+    broken = extension.bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks["Bend"])
     broken[3, 0] = np.nan
     add_key(obj, "Broken Pose", broken)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.reconstruct,
@@ -458,10 +458,10 @@ def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension
     obj = bpy.data.objects.new("Ngon", mesh)
     bpy.context.collection.objects.link(obj)
     bpy.context.view_layer.objects.active = obj
-    rest = extension.bridge.vertex_positions(mesh)
+    rest = extension.bridge.mesh_data.vertex_positions(mesh)
     add_key(obj, "Lifted", rest + [0.0, 0.0, 0.5])
-    triangles = extension.bridge.mesh_triangles(mesh)
-    polygons = extension.bridge.loop_triangle_polygons(mesh)
+    triangles = extension.bridge.triangulation.mesh_triangles(mesh)
+    polygons = extension.bridge.triangulation.loop_triangle_polygons(mesh)
     corners = rest[triangles] - rest.mean(axis=0)
     vector_areas = 0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
     ngon = len(mesh.polygons) - 1
@@ -472,7 +472,7 @@ def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension
     # ... once (folded over itself: 70 % more; the wavy face is not flat, a few 1e-3 more)
     assert np.linalg.norm(own, axis=1).sum() == pytest.approx(np.linalg.norm(face_area), rel=1e-2)
     bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Lifted", count=1, output='SHAPE_KEYS')
-    middle = extension.bridge.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
+    middle = extension.bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
     tolerance = 2 * np.spacing(np.float32(offset + 1.0)) + 1e-6  # single-precision keys
     assert np.abs(middle - (rest + [0.0, 0.0, 0.25])).max() <= tolerance
 
@@ -496,8 +496,8 @@ def test_messages_about_triangles_of_quads_name_their_faces(bpy_empty, extension
     obj = posed_grid(extension.bridge, 6)
     obj.data.polygons[10].flip()
     obj.data.update()
-    triangles = extension.bridge.mesh_triangles(obj.data)
-    faces = extension.bridge.loop_triangle_polygons(obj.data)
+    triangles = extension.bridge.triangulation.mesh_triangles(obj.data)
+    faces = extension.bridge.triangulation.loop_triangle_polygons(obj.data)
     assert len(triangles) == 2 * len(obj.data.polygons)
     fails_without_change(extension.bridge, obj, bpy.ops.shape_differences.exaggerate,
                          r"[Tt]riangles \d+ and \d+ .*\(of faces (10 and \d+|\d+ and 10)\)")
@@ -510,10 +510,10 @@ def test_writing_is_all_or_nothing(bpy_empty, extension, with_keys):
     bridge = extension.bridge
     obj = posed_grid(bridge, 5) if with_keys else grid_object(5)
     before = snapshot(bridge, obj)
-    good = bridge.vertex_positions(obj.data)
-    new_keys = [bridge.NewShapeKey("Good", good), bridge.NewShapeKey("Wrong size", good[:-1])]
+    good = bridge.mesh_data.vertex_positions(obj.data)
+    new_keys = [bridge.shape_keys.NewShapeKey("Good", good), bridge.shape_keys.NewShapeKey("Wrong size", good[:-1])]
     with pytest.raises((RuntimeError, TypeError, ValueError)):
-        bridge.add_shape_keys(obj, new_keys, keyframes=[1, 2])
+        bridge.shape_keys.add_shape_keys(obj, new_keys, keyframes=[1, 2])
     assert (obj.data.shape_keys is not None) == with_keys
     assert_unchanged(before, snapshot(bridge, obj))
 
@@ -637,7 +637,7 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
     for path in files:
         path.unlink()
     if not names_known:
-        monkeypatch.setattr(extension.bridge, "bake_frames_on_disk", lambda *args: None)
+        monkeypatch.setattr(extension.bridge.bake_checks, "bake_frames_on_disk", lambda *args: None)
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
     cloth = bpy.data.objects["Cloth"]
     objects = set(bpy.data.objects)
@@ -684,7 +684,7 @@ def test_a_bake_from_a_cache_played_part_of_the_way_is_said_to_end_there(bpy_emp
     with bpy.context.temp_override(scene=bpy.context.scene, point_cache=cache):
         bpy.ops.ptcache.bake_from_cache()
     assert cache.is_baked and cache.info == "9 frames on disk."
-    played = dict(extension.bridge.frame_positions(bpy.context, cloth, [9, 17]))
+    played = dict(extension.bridge.frame_reading.frame_positions(bpy.context, cloth, [9, 17]))
     np.testing.assert_array_equal(played[17], played[9])  # what the message says: frame 9, held
     folder = tmp_path / "blendcache_shot"
     with bpy.context.temp_override(active_object=cloth, object=cloth, selected_objects=[cloth]):
@@ -857,7 +857,7 @@ def sheet_played_by_a_cache(extension, tmp_path, samples: int, extra_points: int
     import importlib
 
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
     poses = np.array([np.concatenate([rest, rest[:extra_points]]) + [0.0, 0.0, 0.1 * k] for k in range(samples)])
     modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
@@ -931,7 +931,7 @@ def _renumbered_grid(bridge, subdivisions: int):
     bpy.ops.object.mode_set(mode='EDIT')
     bpy.ops.mesh.sort_elements(type='RANDOMIZE', elements={'VERT'}, seed=3)
     bpy.ops.object.mode_set(mode='OBJECT')
-    positions = bridge.vertex_positions(copy.data)
+    positions = bridge.mesh_data.vertex_positions(copy.data)
     bpy.data.objects.remove(copy)
     return positions
 
@@ -953,7 +953,7 @@ def test_a_cache_in_another_vertex_order_is_refused(bpy_empty, extension, operat
     bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 9
     renumbered = _renumbered_grid(extension.bridge, 24)
     sheet = grid_object(24)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     modifier = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
     modifier.cache_format, modifier.frame_start = 'PC2', 1.0
     modifier.filepath = str(point_cache.write_pc2(tmp_path / "copy.pc2", _rolled(renumbered), start=1.0))
@@ -1008,7 +1008,7 @@ def test_a_narrow_strap_wound_up_tight_by_a_cache_is_played(bpy_empty, extension
     modifier = strap.modifiers.new("Mesh Cache", 'MESH_CACHE')
     modifier.cache_format, modifier.frame_start = 'PC2', 1.0
     modifier.filepath = str(point_cache.write_pc2(tmp_path / "strap.pc2", samples, start=1.0))
-    played = dict(extension.bridge.frame_positions(bpy.context, strap, [9]))[9]
+    played = dict(extension.bridge.frame_reading.frame_positions(bpy.context, strap, [9]))[9]
     edges = np.array([(a, b) for quad in quads for a, b in zip(quad, quad[1:] + quad[:1])])
     kept = np.linalg.norm(played[edges[:, 0]] - played[edges[:, 1]], axis=1)
     assert 0.95 < kept.min() and kept.max() < 1.0 + 1e-5  # wound, not stretched
@@ -1058,21 +1058,21 @@ def test_frames_past_a_mesh_cache_say_it_stands_still_there(bpy_empty, extension
     says nothing of it."""
     bridge = extension.bridge
     sheet = sheet_played_by_a_cache(extension, tmp_path, 9)
-    held = dict(bridge.frame_positions(bpy.context, sheet, [9, 13]))
+    held = dict(bridge.frame_reading.frame_positions(bpy.context, sheet, [9, 13]))
     np.testing.assert_array_equal(held[13], held[9])  # what the warning says: the last sample, held
     _said_only_past_the_cache(capfd, (1, 13, 4), (1, 9, 4), "played by the Mesh Cache",
                               "'Sheet' is played by the Mesh Cache 'Mesh Cache' from 'shot.pc2' (9 samples; Frame "
                               "Start 1, Frame Scale 1), and the range reads frame 13 after its last: Blender holds "
                               "the cache's last sample there")
     # an MDD played by its times (seconds): frames 0–8 at 24 fps, read over 0–12
-    rest = bridge.vertex_positions(sheet.data)
+    rest = bridge.mesh_data.vertex_positions(sheet.data)
     path = tmp_path / "shot.mdd"
     path.write_bytes(struct.pack(">ii", 9, len(rest)) + (np.arange(9) / 24.0).astype(">f4").tobytes()
                      + np.array([rest + [0.0, 0.0, 0.1 * k] for k in range(9)]).astype(">f4").tobytes())
     modifier = sheet.modifiers["Mesh Cache"]
     modifier.cache_format, modifier.filepath, modifier.time_mode, modifier.frame_start = 'MDD', str(path), 'TIME', 0.0
     bpy.context.scene.render.fps = 24
-    held = dict(bridge.frame_positions(bpy.context, sheet, [8, 12]))
+    held = dict(bridge.frame_reading.frame_positions(bpy.context, sheet, [8, 12]))
     np.testing.assert_array_equal(held[12], held[8])
     _said_only_past_the_cache(capfd, (0, 12, 4), (0, 8, 4), "played by the Mesh Cache",
                               "the range reads frame 12 after its last: Blender holds")
@@ -1101,7 +1101,7 @@ def test_frames_past_an_alembic_cache_say_it_stands_still_there(bpy_empty, exten
     bpy.context.scene.frame_start, bpy.context.scene.frame_end = 1, 13
     bpy.ops.wm.alembic_import(filepath=str(tmp_path / "strip.abc"), as_background_job=False, set_frame_range=False)
     strip = next(obj for obj in bpy.data.objects if obj.type == 'MESH')
-    poses = dict(extension.bridge.frame_positions(bpy.context, strip, [1, 2, 3, 9, 10, 13]))
+    poses = dict(extension.bridge.frame_reading.frame_positions(bpy.context, strip, [1, 2, 3, 9, 10, 13]))
     np.testing.assert_array_equal(poses[1], poses[3])  # what the warning says: the ends held
     np.testing.assert_array_equal(poses[13], poses[9])
     assert not np.array_equal(poses[3], poses[9])
@@ -1242,7 +1242,7 @@ def test_a_frame_with_a_nan_is_refused_by_its_number(bpy_empty, extension, tmp_p
     import importlib
 
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     frames = np.array([rest + [0.0, 0.0, 0.1 * k * k] for k in range(9)])
     frames[4, 7, 2] = np.nan
     point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
@@ -1271,7 +1271,7 @@ def test_a_collapsed_frame_is_named_by_its_number(bpy_empty, extension, tmp_path
     import importlib
 
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     frames = np.array([rest + [0.0, 0.0, 0.1 * k * k] for k in range(10)])
     frames[collapsed - 1, :, 0] = 0.0  # the sheet squashed onto a line: every triangle has zero area
     point_cache = importlib.import_module(extension.__name__ + ".core.point_cache")
@@ -1291,7 +1291,7 @@ def test_a_warning_names_the_keys_by_their_frames(bpy_empty, extension, tmp_path
     import importlib
 
     sheet = grid_object(6)
-    rest = extension.bridge.vertex_positions(sheet.data)
+    rest = extension.bridge.mesh_data.vertex_positions(sheet.data)
     rest = np.c_[rest[:, :2], 0.3 * rest[:, 0] ** 2 + 0.1 * rest[:, 1]]  # no plane: its mirror image is no motion
     frames = np.array([rest + [0.01 * k, 0.0, 0.0] for k in range(10)])
     frames[9] *= [-1.0, 1.0, 1.0]
@@ -1326,13 +1326,13 @@ def test_transfer_names_the_mesh_and_key_holding_a_nan(bpy_empty, extension, whe
     bridge = extension.bridge
     source, target = transfer_pair(bridge, 8, 6)
     if where == "target":
-        positions = bridge.vertex_positions(target.data)
+        positions = bridge.mesh_data.vertex_positions(target.data)
         positions[3, 0] = np.nan
         target.data.attributes["position"].data.foreach_set("vector", positions.astype(np.float32).ravel())
         target.data.update()
     else:
         key_block = source.data.shape_keys.key_blocks[where]
-        positions = bridge.stored_key_positions(key_block)
+        positions = bridge.mesh_data.stored_key_positions(key_block)
         positions[3, 0] = np.inf
         key_block.data.foreach_set("co", positions.astype(np.float32).ravel())
     remedy = r"exploded\)\." if where == "target" else f"or remove shape key '{where}'\\."
@@ -1483,7 +1483,7 @@ def _flattened_by_its_scale(obj, scale, scaled: str):
 @pytest.mark.parametrize("scale, scaled", [((1e12, 1.0, 1.0), "itself"), ((1e-20, 1.0, 1.0), "its parent")])
 def test_an_object_its_scale_flattens_in_the_world_is_refused_for_its_scale(bpy_empty, extension, operator, scale,
                                                                              scaled):
-    """The operators work in the world's proportions (``bridge.WorldProportions``, ``WorldFrames``):
+    """The operators work in the world's proportions (``bridge.world_space.WorldProportions``, ``WorldFrames``):
     a grid scaled 1e12 along x (or under a parent scaled 1e-20 so) is flat there, though its mesh
     is fine. Refused before any work naming the object's scale, nothing changed (before: "triangle 0
     has zero area … Remove degenerate faces: Degenerate Dissolve", or, for the frame operators at

@@ -19,7 +19,7 @@ TOLERANCE = 1e-4
 
 
 def positions_of(bridge, obj, name):
-    return bridge.stored_key_positions(obj.data.shape_keys.key_blocks[name])
+    return bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks[name])
 
 
 def assert_animation_untouched(before, after):
@@ -91,7 +91,7 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     start = motion_ends.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
     end = motion_ends.end_of_motion([poses[1], poses[5], poses[9]], poses[7], 0.5)
     sequence = core.SequenceInterpolator([poses[f] for f in frames],
-                                         bridge.mesh_triangles(obj.data), start=start, end=end)
+                                         bridge.triangulation.mesh_triangles(obj.data), start=start, end=end)
     for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
         np.testing.assert_allclose(positions_of(bridge, obj, f"Frame {frame}"), poses[frame],
                                    atol=TOLERANCE)
@@ -103,7 +103,7 @@ def test_inbetween_frames(bpy_empty, extension, core, make_scene):
     # Key values: 1 at the key's own frame, 0 at every other sample frame.
     key = obj.data.shape_keys
     for index, name in enumerate(expected_names[1:]):
-        fcurve = bridge.shape_key_value_fcurve(key, name)
+        fcurve = bridge.shape_keys.shape_key_value_fcurve(key, name)
         for other in range(1, 10):
             assert fcurve.evaluate(other) == pytest.approx(1.0 if other == 1 + index else 0.0)
         assert all(point.interpolation == 'LINEAR' for point in fcurve.keyframe_points)
@@ -122,7 +122,8 @@ def test_the_benchmarks_op_protocol_builds_the_sequence_the_operator_builds(bpy_
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=13, frame_step=4, count=3,
                                                output='SHAPE_KEYS')
     options = operator_options(poses, frames)
-    sequence = core.SequenceInterpolator([poses[f] for f in frames], bridge.mesh_triangles(obj.data), **options)
+    sequence = core.SequenceInterpolator([poses[f] for f in frames],
+                                         bridge.triangulation.mesh_triangles(obj.data), **options)
     factors = (0.25, 0.5, 0.75)
     for gap, (frame, next_frame) in enumerate(zip(frames, frames[1:])):
         for factor, pose in zip(factors, sequence.poses(gap, factors)):
@@ -139,7 +140,7 @@ def test_keyframed_shape_keys_on_absolute_keys_are_refused(bpy_empty, extension,
     from blender_scenes import add_key, grid_object, rolled
     bridge = extension.bridge
     obj = grid_object(6)
-    rest = bridge.vertex_positions(obj.data)
+    rest = bridge.mesh_data.vertex_positions(obj.data)
     add_key(obj, "A", rolled(rest, 1.0)), add_key(obj, "B", rolled(rest, 2.0))
     key = obj.data.shape_keys
     key.use_relative = False
@@ -179,15 +180,17 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
     assert retime.end_samples([1, 5, 9, 11], tail) == (7, 9, 11, 10)
     motion_ends = importlib.import_module(core.__name__ + ".motion_ends")
     end = motion_ends.end_of_motion([poses[7], poses[9], poses[11]], poses[10], 0.5, (2, 2))
-    short = core.SequenceInterpolator([poses[f] for f in tail], bridge.mesh_triangles(obj.data), start="keys",
+    short = core.SequenceInterpolator([poses[f] for f in tail],
+                                      bridge.triangulation.mesh_triangles(obj.data), start="keys",
                                       end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 9-Frame 11 0.50"),
                                short.pose(len(short) - 1, 0.5), atol=TOLERANCE)
-    fcurve = bridge.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
+    fcurve = bridge.shape_keys.shape_key_value_fcurve(obj.data.shape_keys, "Inbetween Frame 9-Frame 11 0.50")
     assert fcurve.evaluate(10) == pytest.approx(1.0) and fcurve.evaluate(11) == pytest.approx(0.0)
     # the whole gaps: the sequence of the keys and the last frame, at their frames
     start = motion_ends.start_of_motion([poses[1], poses[5], poses[9]], poses[3], 0.5)
-    sequence = core.SequenceInterpolator([poses[f] for f in (1, 5, 9, 11)], bridge.mesh_triangles(obj.data),
+    sequence = core.SequenceInterpolator([poses[f] for f in (1, 5, 9, 11)],
+                                         bridge.triangulation.mesh_triangles(obj.data),
                                          start=start, key_times=[1, 5, 9, 11], end=end)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Frame 5-Frame 9 0.50"),
                                sequence.poses(1, [0.25, 0.5, 0.75])[1], atol=TOLERANCE)
@@ -302,7 +305,8 @@ def test_shape_keys_are_written_before_the_scene_returns_to_its_frame(bpy_empty,
     assert [frame for frame, _ in visits].count(current) == 1 and visits[-1] == (current, 1 + len(written))
     assert all(keys == 0 for _, keys in visits[:-1])
     assert scene.frame_current == current and scene.frame_subframe == 0.0
-    keys = np.array([extension.bridge.stored_key_positions(key_block) for key_block in written], dtype=np.float32)
+    keys = np.array([extension.bridge.mesh_data.stored_key_positions(key_block)
+                     for key_block in written], dtype=np.float32)
     assert np.array_equal(keys, cached)
 
 
@@ -337,7 +341,8 @@ def test_a_soft_bodys_start_frame_is_read_last_where_shape_keys_are_written(bpy_
     assert visits[-2:] == [1, current] and visits.count(1) == 1 and visits.count(current) == 1
     assert scene.frame_current == current and scene.frame_subframe == 0.0
     written = obj.data.shape_keys.key_blocks[1:]
-    keys = np.array([extension.bridge.stored_key_positions(key_block) for key_block in written], dtype=np.float32)
+    keys = np.array([extension.bridge.mesh_data.stored_key_positions(key_block)
+                     for key_block in written], dtype=np.float32)
     assert np.array_equal(keys, cached)
     assert np.abs(cached[-1] - cached[0]).max() > 0.1  # the ball fell: the keys are of its motion
 
@@ -414,7 +419,8 @@ def test_a_turn_in_the_world_of_an_object_scaled_along_one_axis(bpy_empty, exten
     sheet, linear, turned = turning_stretched_sheet(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
+        made = bridge.mesh_data.stored_key_positions(
+            sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
 
 
@@ -427,7 +433,8 @@ def test_in_betweens_of_an_object_whose_scale_is_keyframed_are_the_world_motion(
     sheet, scale, world = turning_sheet_scale_keyframed(extension, tmp_path)
     bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=3, output='SHAPE_KEYS')
     for frame in (2, 3, 4, 6, 7, 8):
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
+        made = bridge.mesh_data.stored_key_positions(
+            sheet.data.shape_keys.key_blocks[_inbetween_of_frames_1_5_9(frame)])
         np.testing.assert_allclose(made * scale(frame), world(frame), atol=1e-6)
 
 
@@ -459,7 +466,7 @@ def test_the_matrices_of_an_object_whose_scale_is_keyframed_are_read_in_one_pass
     turning_sheet_scale_keyframed(extension, tmp_path)
     scene = bpy.context.scene
     scene.frame_set(20)  # after the range read: each return to it is seen
-    assert frames_set_during(lambda: list(bridge.at_times(scene, []))) == []
+    assert frames_set_during(lambda: list(bridge.scene_timing.at_times(scene, []))) == []
     if operator == "inbetween_frames":
         shown = frames_set_during(lambda: bpy.ops.shape_differences.inbetween_frames(
             frame_step=4, count=3, output='CACHE', filepath=str(tmp_path / "inbetweens.pc2")))
@@ -484,7 +491,8 @@ def easing_off_in_the_world(extension, core, tmp_path, last: int = 9, scale_keye
     assert motion_ends.start_of_motion([world(f) for f in keyed[:3]], world(3), 0.5, durations) == "rest"
     own = motion_ends.start_of_motion([world(f) / scale(f) for f in keyed[:3]], world(3) / scale(3), 0.5, durations)
     assert own == ("keys" if scale_keyed else "rest")
-    sequence = core.SequenceInterpolator([world(f) for f in keyed], extension.bridge.mesh_triangles(sheet.data),
+    sequence = core.SequenceInterpolator([world(f) for f in keyed],
+                                         extension.bridge.triangulation.mesh_triangles(sheet.data),
                                          start="rest", key_times=keyed)
     return sheet, scale, world, sequence
 
@@ -505,7 +513,7 @@ def test_in_between_frames_choose_the_start_from_the_middle_of_the_first_gap_in_
     expected = sequence.poses(0, [0.25, 0.5, 0.75])
     for frame in (2, 3, 4):
         name = f"Inbetween Frame 1-Frame 5 {(frame - 1) / 4:.2f}"
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+        made = bridge.mesh_data.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
         np.testing.assert_allclose(made * scale(frame), expected[frame - 2], atol=1e-6)
 
 
@@ -515,9 +523,10 @@ def _retimed_in_the_world(bridge, sheet, shown, output: str, speed: float, frame
     new object ``shown`` as evaluated (CACHE), through ``shown``'s world matrix. Sets the frame."""
     bpy.context.scene.frame_set(frame)
     if output == 'SHAPE_KEYS':
-        made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[f"Retime {speed:.2f}x frame {frame}"])
+        made = bridge.mesh_data.stored_key_positions(
+            sheet.data.shape_keys.key_blocks[f"Retime {speed:.2f}x frame {frame}"])
     else:
-        made = bridge.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
+        made = bridge.mesh_data.evaluated_positions(shown, bpy.context.evaluated_depsgraph_get())
     matrix = np.array(shown.matrix_world)
     return made @ matrix[:3, :3].T + matrix[:3, 3]
 
@@ -601,9 +610,9 @@ def test_in_betweens_are_in_the_proportions_of_the_frames_read(bpy_empty, extens
         if output == 'SHAPE_KEYS':  # the Mesh Cache after the keys replaces them in the evaluated mesh
             gap = 0 if frame < 7 else 1
             name = f"Inbetween Frame {3 + 4 * gap}-Frame {7 + 4 * gap} {(frame - 3 - 4 * gap) / 4:.2f}"
-            made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
+            made = bridge.mesh_data.stored_key_positions(sheet.data.shape_keys.key_blocks[name])
         else:
-            made = bridge.evaluated_positions(shown, _depsgraph_at(frame))
+            made = bridge.mesh_data.evaluated_positions(shown, _depsgraph_at(frame))
         np.testing.assert_allclose(made @ linear.T, turned(frame) @ linear.T, atol=2e-5)
     bpy.context.scene.frame_set(1)
 
@@ -619,7 +628,7 @@ def test_a_dynamic_paint_wave_not_baked_is_read_from_its_start(bpy_empty, extens
     frame 9 steps the surface once and shows another wave, 0.18 off on a grid 2 wide)."""
     bridge = extension.bridge
     obj = dynamic_paint_wave_scene(frames=17)
-    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    played = {frame: bridge.mesh_data.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
     surface = obj.modifiers["Dynamic Paint"].canvas_settings.canvas_surfaces[0]
     surface.wave_speed = surface.wave_speed  # any change empties the surface's cache
     bpy.context.scene.frame_set(1)
@@ -649,7 +658,7 @@ def test_a_simulation_zone_whose_mesh_a_run_changes_is_warned_unless_baked(bpy_e
         with bpy.context.temp_override(object=obj, active_object=obj):
             bpy.ops.object.geometry_node_bake_single(session_uid=obj.session_uid, modifier_name=modifier.name,
                                                      bake_id=modifier.bakes[0].bake_id)
-    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    played = {frame: bridge.mesh_data.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
     bpy.context.scene.frame_set(1)
     capfd.readouterr()
     writes = properties.get("output") != 'CACHE'
@@ -658,7 +667,7 @@ def test_a_simulation_zone_whose_mesh_a_run_changes_is_warned_unless_baked(bpy_e
     out = capfd.readouterr().out
     warned = ("changed the mesh that the simulation zone of 'Simulation' of 'Simulated' simulates: unless it is "
               "baked") in out
-    kept = np.allclose(bridge.evaluated_positions(obj, _depsgraph_at(9)), played[9], atol=1e-6)
+    kept = np.allclose(bridge.mesh_data.evaluated_positions(obj, _depsgraph_at(9)), played[9], atol=1e-6)
     bpy.context.scene.frame_set(1)
     assert kept == (baked or not writes), "the warning's premise: the frames are dropped where it is given"
     assert warned == (writes and not baked), out
@@ -670,7 +679,7 @@ def test_a_simulation_zone_not_baked_is_read_from_its_start(bpy_empty, extension
     once from frame 1 to frame 9, and frame 9 came out 0.99 off, on a sheet 2 wide)."""
     bridge = extension.bridge
     obj = simulation_zone_scene(frames=17)
-    played = {frame: bridge.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
+    played = {frame: bridge.mesh_data.evaluated_positions(obj, _depsgraph_at(frame)) for frame in range(1, 18)}
     turn = obj.modifiers["Simulation"].node_group.nodes["Vector Rotate"]
     turn.inputs["Angle"].default_value = turn.inputs["Angle"].default_value  # any change empties the zone's cache
     bpy.context.scene.frame_set(1)

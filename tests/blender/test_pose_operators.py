@@ -18,13 +18,13 @@ def posed(bpy_empty, extension, core):
 
 
 def positions_of(bridge, obj, name):
-    return bridge.stored_key_positions(obj.data.shape_keys.key_blocks[name])
+    return bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks[name])
 
 
 def assert_old_keys_kept(bridge, obj, before):
     for name, (coordinates, value, relative) in before["keys"].items():
         np.testing.assert_array_equal(positions_of(bridge, obj, name), coordinates)
-    np.testing.assert_array_equal(bridge.vertex_positions(obj.data), before["positions"])
+    np.testing.assert_array_equal(bridge.mesh_data.vertex_positions(obj.data), before["positions"])
     assert obj.active_shape_key_index == before["active_key"]
 
 
@@ -37,7 +37,7 @@ def test_inbetween(posed, core):
     assert_old_keys_kept(bridge, obj, before)
     interpolator = core.Interpolator(positions_of(bridge, obj, "Curl"),
                                      positions_of(bridge, obj, "Bend"),
-                                     bridge.mesh_triangles(obj.data))
+                                     bridge.triangulation.mesh_triangles(obj.data))
     for name, factor in zip(new, (0.25, 0.5, 0.75)):
         np.testing.assert_allclose(positions_of(bridge, obj, name), interpolator.pose(factor),
                                    atol=TOLERANCE)
@@ -57,13 +57,13 @@ def test_keys_are_read_as_the_poses_they_show(posed, core):
     for index, weight in enumerate(np.clip(rest[:, 0] + 0.5, 0.0, 1.0)):
         group.add([index], float(weight), 'REPLACE')
     add_key(obj, "Bend Right", bend).vertex_group = "Right"
-    triangles = bridge.mesh_triangles(obj.data)
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
     for name in ("Corrective", "Bend Right"):
         for block in blocks:
             block.value = 1.0 if block.name == name else 0.0
-        shown = bridge.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
+        shown = bridge.mesh_data.evaluated_positions(obj, bpy.context.evaluated_depsgraph_get())
         assert np.abs(shown - positions_of(bridge, obj, name)).max() > 0.1  # not what is stored
-        np.testing.assert_allclose(bridge.shape_key_positions(blocks[name], obj), shown, atol=TOLERANCE)
+        np.testing.assert_allclose(bridge.mesh_data.shape_key_positions(blocks[name], obj), shown, atol=TOLERANCE)
         blocks[name].value = 0.0
         bpy.ops.shape_differences.inbetween(key_a="Basis", key_b=name, count=1)
         np.testing.assert_allclose(positions_of(bridge, obj, f"Inbetween Basis-{name} 0.50"),
@@ -85,7 +85,7 @@ def test_exaggerate(posed, core):
     assert_old_keys_kept(bridge, obj, before)
     expected = core.Interpolator(positions_of(bridge, obj, "Basis"),
                                  positions_of(bridge, obj, "Bend"),
-                                 bridge.mesh_triangles(obj.data)).pose(1.5)
+                                 bridge.triangulation.mesh_triangles(obj.data)).pose(1.5)
     np.testing.assert_allclose(positions_of(bridge, obj, "Exaggerate Bend 1.50 from Basis"), expected,
                                atol=TOLERANCE)
 
@@ -97,7 +97,7 @@ def test_reconstruct_uses_scene_settings(bpy_empty, extension, core):
     settings.k_m, settings.k_n, settings.use_extrinsic = 12, 16, True
     bpy.ops.shape_differences.reconstruct(key="Curl")
     assert key_names(obj)[-1] == "Reconstruct Curl (k 12/16)"  # k from the scene settings
-    base, triangles = positions_of(bridge, obj, "Basis"), bridge.mesh_triangles(obj.data)
+    base, triangles = positions_of(bridge, obj, "Basis"), bridge.triangulation.mesh_triangles(obj.data)
     differences = core.shape_differences(base, positions_of(bridge, obj, "Curl"), triangles,
                                          k_M=12, k_N=16)
     np.testing.assert_allclose(positions_of(bridge, obj, "Reconstruct Curl (k 12/16)"),
@@ -109,7 +109,7 @@ def test_operator_settings_override_the_scene(posed, core):
     bpy.context.scene.shape_differences.k_m = 30
     bpy.ops.shape_differences.reconstruct(key="Bend", k_m=0, use_extrinsic=False)
     assert key_names(obj)[-1] == "Reconstruct Bend (k full/full)"
-    base, triangles = positions_of(bridge, obj, "Basis"), bridge.mesh_triangles(obj.data)
+    base, triangles = positions_of(bridge, obj, "Basis"), bridge.triangulation.mesh_triangles(obj.data)
     differences = core.shape_differences(base, positions_of(bridge, obj, "Bend"), triangles,
                                          use_extrinsic=False)
     with pytest.warns(core.ShapeDifferenceWarning, match="intrinsic differences only"):  # a sheet bends freely
@@ -122,7 +122,7 @@ def test_ngons_are_triangulated(bpy_empty, extension, core):
     bpy.ops.mesh.primitive_cylinder_add(vertices=12, depth=2.0, end_fill_type='NGON')
     obj = bpy.context.active_object
     bridge = extension.bridge
-    rest = bridge.vertex_positions(obj.data)
+    rest = bridge.mesh_data.vertex_positions(obj.data)
     obj.shape_key_add(name="Basis")
     squashed = obj.shape_key_add(name="Squash")
     squashed.data.foreach_set("co", (rest * [1.2, 1.2, 0.7]).astype(np.float32).ravel())
@@ -168,7 +168,7 @@ def test_captured_keys_warn_about_a_shape_key_left_at_a_value(bpy_empty, extensi
     the armature was named, and disabling it left the key's change doubled)."""
     from blender_scenes import armature_scene
     strip = armature_scene(frames=3)
-    rest = extension.bridge.vertex_positions(strip.data)
+    rest = extension.bridge.mesh_data.vertex_positions(strip.data)
     add_key(strip, "Bump", rest + [0.0, 0.0, 0.2]).value = 0.5
     add_key(strip, "Muted", rest + [0.0, 0.0, 0.3]).mute = True
     strip.data.shape_keys.key_blocks["Muted"].value = 1.0
@@ -188,12 +188,12 @@ def test_captured_keys_warn_about_shape_keys_played_by_nla_strips(bpy_empty, ext
     animation.nla_tracks.new().strips.new("Bend", 1, animation.action)
     animation.action = None
     bridge = extension.bridge
-    [(_, bent)] = list(bridge.frame_positions(bpy.context, obj, [9]))
+    [(_, bent)] = list(bridge.frame_reading.frame_positions(bpy.context, obj, [9]))
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=9, frame_step=8, count=1,
                                                output='SHAPE_KEYS')
     assert f"deformed again by its animated shape keys of '{obj.name}':" in capfd.readouterr().out
-    [(_, played)] = list(bridge.frame_positions(bpy.context, obj, [9]))
-    rest = bridge.vertex_positions(obj.data)
+    [(_, played)] = list(bridge.frame_reading.frame_positions(bpy.context, obj, [9]))
+    rest = bridge.mesh_data.vertex_positions(obj.data)
     np.testing.assert_allclose(played - rest, 2 * (bent - rest), atol=1e-5)  # what the warning is about
 
 
@@ -205,7 +205,7 @@ def test_a_refused_capture_says_nothing_of_the_keys_it_did_not_write(bpy_empty, 
     keys that were never written (before, that warning came first, then the refusal)."""
     from blender_scenes import driven_keys_scene
     obj = driven_keys_scene(frames=9)
-    rest = extension.bridge.vertex_positions(obj.data)
+    rest = extension.bridge.mesh_data.vertex_positions(obj.data)
     keys = obj.data.shape_keys.key_blocks
     bend, curl = (np.array([point.co[:] for point in keys[name].data]) for name in ("Bend", "Curl"))
     # at frame 9 Bend and Curl are at 1 (Curl = Bend²): with Flat at 1 too every vertex is at the origin
@@ -264,7 +264,7 @@ def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, e
         bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Turned", count=1)
     else:
         bpy.ops.shape_differences.exaggerate(key="Turned", reference="Basis", factor=factor)
-    made = bridge.stored_key_positions(sheet.data.shape_keys.key_blocks[-1]) @ linear.T
+    made = bridge.mesh_data.stored_key_positions(sheet.data.shape_keys.key_blocks[-1]) @ linear.T
     world_rest = rest @ linear.T
     edges = np.array([(e.vertices[0], e.vertices[1]) for e in sheet.data.edges])
     lengths = [np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) for x in (world_rest, made)]
@@ -323,10 +323,10 @@ def test_a_gltf_import_split_at_its_seams_is_in_betweened_as_the_welded_mesh(bpy
     bpy.ops.import_scene.gltf(filepath=path)
     obj = bpy.context.active_object
     assert obj != original and obj.type == 'MESH' and len(obj.data.vertices) > len(original.data.vertices)
-    rest = bridge.vertex_positions(obj.data).astype(np.float64)
-    triangles = bridge.mesh_triangles(obj.data)
-    welded_triangles = bridge.mesh_triangles(original.data)
-    welded = _corner_map(rest, triangles, bridge.vertex_positions(original.data), welded_triangles)
+    rest = bridge.mesh_data.vertex_positions(obj.data).astype(np.float64)
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    welded_triangles = bridge.triangulation.mesh_triangles(original.data)
+    welded = _corner_map(rest, triangles, bridge.mesh_data.vertex_positions(original.data), welded_triangles)
     first = np.unique(welded, return_index=True)[1]  # a split vertex of each welded one
     height = (rest[:, 2] - rest[:, 2].min()) / np.ptp(rest[:, 2])
     poses = {"Turned": (rest - rest.mean(axis=0)) @ Rotation.from_rotvec([0.5, 0.7, 0.4]).as_matrix().T,
@@ -354,7 +354,7 @@ def test_a_quad_mesh_with_a_handle_is_reconstructed_exactly(bpy_empty, extension
     bridge = extension.bridge
     bpy.ops.mesh.primitive_torus_add(major_segments=48, minor_segments=12, major_radius=1.0, minor_radius=0.25)
     obj = bpy.context.active_object
-    rest = bridge.vertex_positions(obj.data)
+    rest = bridge.mesh_data.vertex_positions(obj.data)
     bent = rest.copy()
     bent[:, 2] += 0.3 * rest[:, 0] ** 2
     add_key(obj, "Bend", bent)

@@ -84,7 +84,7 @@ def test_frames_of_a_baked_cloth_under_a_subdivision(bpy_empty, extension):
     assert key_names(cloth) == ["Basis", "Frame 1", "Frame 5", "Frame 9"]
     for frame in (1, 5, 9):
         np.testing.assert_allclose(
-            bridge.stored_key_positions(cloth.data.shape_keys.key_blocks[f"Frame {frame}"]),
+            bridge.mesh_data.stored_key_positions(cloth.data.shape_keys.key_blocks[f"Frame {frame}"]),
             moving[frame], atol=TOLERANCE)
     assert subdivision.show_viewport
     after = snapshot(bridge, cloth)
@@ -145,7 +145,7 @@ def test_shade_auto_smooth_after_the_motion_goes_with_the_new_object(bpy_empty, 
     for frame in (5, 9):
         bpy.context.scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        np.testing.assert_allclose(bridge.evaluated_positions(copy, depsgraph), shown[frame], atol=TOLERANCE)
+        np.testing.assert_allclose(bridge.mesh_data.evaluated_positions(copy, depsgraph), shown[frame], atol=TOLERANCE)
         sharp = [sharp_edges(obj.evaluated_get(depsgraph).data) for obj in (cloth, copy)]
         np.testing.assert_array_equal(sharp[1], sharp[0])
         counts.append((sharp[0].sum(), len(sharp[0])))
@@ -307,7 +307,7 @@ def test_a_subdivision_between_a_mesh_cache_and_an_armature_is_moved_not_applied
     bridge = extension.bridge
     point_cache = importlib.import_module(f"{extension.__name__}.core.point_cache")
     sheet = grid_object(6)
-    rest = bridge.vertex_positions(sheet.data)
+    rest = bridge.mesh_data.vertex_positions(sheet.data)
     samples = np.array([rolled(rest, 0.1 * frame) for frame in range(1, 10)])
     cache = sheet.modifiers.new("Mesh Cache", 'MESH_CACHE')
     cache.cache_format, cache.filepath, cache.frame_start = 'PC2', str(point_cache.write_pc2(

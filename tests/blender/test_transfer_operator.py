@@ -30,11 +30,12 @@ def test_transfer_keys_by_closest_points(pair, core):
     source, target, bridge = pair
     bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Source Bend"]
-    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Source Bend"])
-    rest = bridge.vertex_positions(target.data)
-    expected = core.Transfer(rest, bridge.mesh_triangles(target.data), bridge.vertex_positions(source.data),
-                             bridge.mesh_triangles(source.data), k_M=16, k_N=32).pose(
-        bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+    rebuilt = bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks["Source Bend"])
+    rest = bridge.mesh_data.vertex_positions(target.data)
+    expected = core.Transfer(rest, bridge.triangulation.mesh_triangles(target.data),
+                             bridge.mesh_data.vertex_positions(source.data),
+                             bridge.triangulation.mesh_triangles(source.data), k_M=16, k_N=32).pose(
+        bridge.mesh_data.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
     np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)
     truth = rolled(rest, 1.0)  # the source's pose is this surface; the rebuild is placed on it
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(rest, truth)
@@ -48,16 +49,17 @@ def test_default_bases_of_a_source_smaller_than_the_base_basis(bpy_empty, extens
     k_M = 63 on 64 source vertices is warned as more than the source resolves)."""
     bridge = extension.bridge
     source, target = transfer_pair(bridge, 7, 14)
-    rest = bridge.vertex_positions(source.data)
+    rest = bridge.mesh_data.vertex_positions(source.data)
     taper = rest.copy()
     taper[:, 1] *= 1.0 + 0.3 * (rest[:, 0] - rest[:, 0].min())
     add_key(source, "Taper", taper)
     assert bpy.ops.shape_differences.transfer_poses() == {'FINISHED'}
-    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Source Taper"])
-    transfer = core.Transfer(bridge.vertex_positions(target.data), bridge.mesh_triangles(target.data), rest,
-                             bridge.mesh_triangles(source.data), k_M=21, k_N=63)
-    transfer.pose(bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))  # the poses in turn
-    expected = transfer.pose(bridge.stored_key_positions(source.data.shape_keys.key_blocks["Taper"]))  # as stored
+    rebuilt = bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks["Source Taper"])
+    transfer = core.Transfer(bridge.mesh_data.vertex_positions(target.data),
+                             bridge.triangulation.mesh_triangles(target.data), rest,
+                             bridge.triangulation.mesh_triangles(source.data), k_M=21, k_N=63)
+    transfer.pose(bridge.mesh_data.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))  # the poses in turn
+    expected = transfer.pose(bridge.mesh_data.stored_key_positions(source.data.shape_keys.key_blocks["Taper"]))  # as stored
     np.testing.assert_allclose(rebuilt, expected, atol=TOLERANCE)
 
 
@@ -74,7 +76,8 @@ def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
     source, target, bridge = pair
     from scipy.spatial import cKDTree
 
-    _, matched = cKDTree(bridge.vertex_positions(source.data)).query(bridge.vertex_positions(target.data))
+    _, matched = cKDTree(bridge.mesh_data.vertex_positions(source.data)).query(
+        bridge.mesh_data.vertex_positions(target.data))
     attribute = target.data.attributes.new("map", 'INT', 'POINT')
     attribute.data.foreach_set("value", matched.astype(np.int32))
     before = snapshot(bridge, target)
@@ -83,7 +86,7 @@ def test_transfer_with_a_map_attribute_and_bad_maps(pair, core):
     attribute.data[3].value = 10_000
     with pytest.raises(RuntimeError, match="maps vertex 3 of 'Sheet' to source vertex 10000"):
         bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map", k_m=16, k_n=32)
-    assert target.data.shape_keys is None and before["positions"].shape == bridge.vertex_positions(target.data).shape
+    assert target.data.shape_keys is None and before["positions"].shape == bridge.mesh_data.vertex_positions(target.data).shape
     attribute.data[3].value = int(matched[3])
     bpy.ops.shape_differences.transfer_poses(matching='ATTRIBUTE', map_attribute="map", k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Source Bend"]
@@ -102,7 +105,7 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     source, target, bridge = pair
     from scipy.spatial import cKDTree
 
-    sheet, grid = bridge.vertex_positions(target.data), bridge.vertex_positions(source.data)
+    sheet, grid = bridge.mesh_data.vertex_positions(target.data), bridge.mesh_data.vertex_positions(source.data)
     _, matched = cKDTree(grid).query(sheet)
     np.savetxt(tmp_path / "map1.txt", matched + 1, fmt="%d")
     np.savetxt(tmp_path / "map0.txt", matched, fmt="%d")
@@ -123,11 +126,12 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     run(map_file=str(tmp_path / "map1.txt"))
     run(map_file=str(tmp_path / "map0.txt"), one_based=False)
     keys = target.data.shape_keys.key_blocks
-    expected = core.Transfer(sheet, bridge.mesh_triangles(target.data), grid, bridge.mesh_triangles(source.data),
+    expected = core.Transfer(sheet, bridge.triangulation.mesh_triangles(target.data), grid,
+                             bridge.triangulation.mesh_triangles(source.data),
                              correspondence=matched, k_M=16, k_N=32).pose(
-        bridge.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
+        bridge.mesh_data.stored_key_positions(source.data.shape_keys.key_blocks["Bend"]))
     for key in list(keys)[1:]:
-        np.testing.assert_allclose(bridge.stored_key_positions(key), expected, atol=TOLERANCE)
+        np.testing.assert_allclose(bridge.mesh_data.stored_key_positions(key), expected, atol=TOLERANCE)
     # Template maps: a 9 x 9 template over the same square; each file lists, per template vertex,
     # the 1-based index of the nearest vertex of one mesh. Fewer template vertices than sheet
     # vertices: some sheet vertices are unmatched.
@@ -140,7 +144,7 @@ def test_transfer_with_map_files(pair, core, tmp_path):
     with pytest.raises(RuntimeError, match="different lengths"):
         run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "short.vts"))
     run(map_file=str(tmp_path / "sheet.vts"), source_map_file=str(tmp_path / "grid.vts"))
-    rebuilt = bridge.stored_key_positions(list(target.data.shape_keys.key_blocks)[-1])
+    rebuilt = bridge.mesh_data.stored_key_positions(list(target.data.shape_keys.key_blocks)[-1])
     truth = rolled(sheet, 1.0)
     assert hausdorff(rebuilt, truth) < 0.5 * hausdorff(sheet, truth)
 
@@ -160,7 +164,7 @@ def test_transfer_cloth_frames(bpy_empty, extension, core):
     bpy.context.view_layer.objects.active = target
     bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=9, frame_end=9, k_m=16, k_n=32)
     assert key_names(target) == ["Basis", "Cloth Frame 9"]
-    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
+    rebuilt = bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks["Cloth Frame 9"])
     assert np.isfinite(rebuilt).all() and bpy.context.scene.frame_current == 1
 
 
@@ -186,13 +190,13 @@ def test_transfer_frames_of_a_source_moved_as_a_whole(bpy_empty, extension, core
     target.scale.y = 0.25
     bpy.ops.object.transform_apply(scale=True)
     bpy.context.scene.frame_set(9)
-    world = _world_of(source, bridge.evaluated_positions(source, bpy.context.evaluated_depsgraph_get()))
+    world = _world_of(source, bridge.mesh_data.evaluated_positions(source, bpy.context.evaluated_depsgraph_get()))
     bpy.context.scene.frame_set(1)
     source.select_set(True)
     target.select_set(True)
     bpy.context.view_layer.objects.active = target
     bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=1, frame_end=9, frame_step=8, k_m=16, k_n=32)
-    rebuilt = bridge.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame 9"])
+    rebuilt = bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame 9"])
     assert hausdorff(_world_of(target, rebuilt), world) < 0.1  # the rig rose 0.5
 
 
@@ -240,7 +244,7 @@ def test_frames_of_an_unbaked_cloth_are_simulated_from_its_start(bpy_empty, exte
         bpy.context.view_layer.objects.active = target
         bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=7, frame_end=13, frame_step=3,
                                                  k_m=16, k_n=32)
-        return [bridge.stored_key_positions(k) for k in target.data.shape_keys.key_blocks[1:]]
+        return [bridge.mesh_data.stored_key_positions(k) for k in target.data.shape_keys.key_blocks[1:]]
 
     for emptied, played in zip(transferred(True), transferred(False)):
         np.testing.assert_allclose(emptied, played, atol=1e-6)
@@ -251,17 +255,17 @@ def test_transferred_keys_in_a_cache_play_from_the_start_of_the_shot(pair, tmp_p
     In-between's and Exaggerate's caches do (before, at frames 1 and 2, so that the whole shot
     showed the last key held)."""
     source, target, bridge = pair
-    add_key(source, "Curl", rolled(bridge.vertex_positions(source.data), 2.0))
+    add_key(source, "Curl", rolled(bridge.mesh_data.vertex_positions(source.data), 2.0))
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1001, 1100
     bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32)  # the same poses as shape keys
-    keys = {name: bridge.stored_key_positions(target.data.shape_keys.key_blocks[name])
+    keys = {name: bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks[name])
             for name in ("Source Bend", "Source Curl")}
     bpy.ops.shape_differences.transfer_poses(k_m=16, k_n=32, output='CACHE', filepath=str(tmp_path / "shot.pc2"))
     cached = bpy.data.objects["Sheet Transfer Source"]
     for frame, name in ((1001, "Source Bend"), (1002, "Source Curl")):
         scene.frame_set(frame)
-        played = bridge.evaluated_positions(cached, bpy.context.evaluated_depsgraph_get())
+        played = bridge.mesh_data.evaluated_positions(cached, bpy.context.evaluated_depsgraph_get())
         np.testing.assert_allclose(played, keys[name], atol=1e-6)
 
 
@@ -282,15 +286,16 @@ def test_frames_of_a_source_whose_scale_is_keyframed_are_measured_in_their_propo
     bpy.context.view_layer.objects.active = target
     bpy.context.scene.frame_set(current)
     bpy.ops.shape_differences.transfer_poses(source='FRAMES', frame_start=1, frame_end=9, frame_step=4, k_m=16, k_n=32)
-    triangles = bridge.mesh_triangles(target.data)
+    triangles = bridge.triangulation.mesh_triangles(target.data)
 
     def areas(positions):
         a, b, c = (positions[triangles[:, k]] for k in range(3))
         return np.linalg.norm(np.cross(b - a, c - a), axis=1)
 
-    rest = areas(bridge.vertex_positions(target.data))
+    rest = areas(bridge.mesh_data.vertex_positions(target.data))
     for frame in (1, 5, 9):
-        moved = areas(bridge.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame {frame}"]))
+        moved = areas(
+            bridge.mesh_data.stored_key_positions(target.data.shape_keys.key_blocks[f"{source.name} Frame {frame}"]))
         np.testing.assert_allclose(moved / rest, 1.0, atol=1e-4, err_msg=f"frame {frame}")
 
 

@@ -33,10 +33,11 @@ def file_state(bridge) -> dict:
                                 for name in obj.keys()}}
         if obj.type == 'MESH':
             mesh, key = obj.data, obj.data.shape_keys
-            entry["positions"] = _digest(bridge.vertex_positions(mesh))
+            entry["positions"] = _digest(bridge.mesh_data.vertex_positions(mesh))
             entry["attributes"] = sorted((a.name, a.domain, a.data_type) for a in mesh.attributes)
             entry["mesh properties"] = sorted(mesh.keys())
-            entry["keys"] = [(kb.name, _digest(bridge.stored_key_positions(kb))) for kb in key.key_blocks] if key else []
+            entry["keys"] = [(kb.name, _digest(bridge.mesh_data.stored_key_positions(kb)))
+                             for kb in key.key_blocks] if key else []
             entry["keyframed"] = bool(key and key.animation_data and key.animation_data.action)
             entry["active key"] = obj.active_shape_key_index
         state[f"object {obj.name}"] = entry

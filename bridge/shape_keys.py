@@ -1,0 +1,120 @@
+"""Writing shape keys: new keys with their coordinates and free names, removed again on failure, and
+keyframes of their values that step playback through them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+
+from .naming import unique_name
+
+BASIS_NAME = "Basis"
+
+
+@dataclass
+class NewShapeKey:
+    """A shape key to be written: its wanted name and coordinates. ``name`` may be shortened to
+    fit Blender's limit; ``tail`` (e.g. the factor) is always kept."""
+
+    name: str
+    positions: np.ndarray
+    tail: str = ""
+
+
+def unique_key_name(obj: bpy.types.Object, name: str, tail: str = "") -> str:
+    """A shape key name for ``name + tail`` not yet used on ``obj`` (see :func:`bridge.naming.unique_name`)."""
+    taken = set(obj.data.shape_keys.key_blocks.keys()) if obj.data.shape_keys else set()
+    return unique_name(name, tail, taken)
+
+
+def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
+                   keyframes: list[float] | None = None) -> list[str]:
+    """Add each of ``new_keys`` as a new shape key with value 0 (creating the Basis first if the
+    mesh has none) and return the names they got.
+
+    With ``keyframes`` (one increasing frame per key), the key values are animated so that
+    playback steps through the keys (see :func:`keyframe_key_values`). Existing keys are never
+    touched and the active key stays active; a taken name gets a ``.001`` suffix
+    (:func:`unique_key_name`). If anything fails, every key added here (and a Basis created here)
+    is removed again before the error propagates.
+    """
+    had_basis = obj.data.shape_keys is not None
+    active_index = obj.active_shape_key_index
+    added: list[bpy.types.ShapeKey] = []
+    try:
+        if not had_basis:
+            obj.shape_key_add(name=BASIS_NAME, from_mix=False)
+        for new_key in new_keys:
+            key_block = obj.shape_key_add(name=unique_key_name(obj, new_key.name, new_key.tail),
+                                           from_mix=False)
+            added.append(key_block)
+            key_block.value = 0.0
+            # ``points``: the bulk write (:func:`bridge.mesh_data.stored_key_positions`)
+            key_block.points.foreach_set(
+                "co", np.ascontiguousarray(new_key.positions, dtype=np.float32).ravel())
+        names = [key_block.name for key_block in added]
+        if keyframes is not None:
+            keyframe_key_values(obj, list(zip(keyframes, names)))
+        obj.data.update()
+        return names
+    except BaseException:
+        remove_shape_keys(obj, [key_block.name for key_block in added], remove_basis=not had_basis)
+        raise
+    finally:
+        obj.active_shape_key_index = active_index
+
+
+def remove_shape_keys(obj: bpy.types.Object, names: list[str], *, remove_basis: bool = False):
+    """Remove the named shape keys (and the Basis too if ``remove_basis``)."""
+    key = obj.data.shape_keys
+    if key is None:
+        return
+    for name in names:
+        key_block = key.key_blocks.get(name)
+        if key_block is not None:
+            obj.shape_key_remove(key_block)
+    if remove_basis and obj.data.shape_keys is not None and len(obj.data.shape_keys.key_blocks) == 1:
+        obj.shape_key_remove(obj.data.shape_keys.key_blocks[0])
+    obj.data.update()
+
+
+def shape_key_value_fcurve(key: bpy.types.Key, key_name: str):
+    """The F-curve animating ``key_blocks[key_name].value`` (legacy and slotted actions)."""
+    animation_data = key.animation_data
+    data_path = f'key_blocks["{bpy.utils.escape_identifier(key_name)}"].value'
+    action = animation_data.action if animation_data else None
+    if action is None:
+        return None
+    if hasattr(animation_data, "action_slot"):  # Blender 4.4+: layered actions with slots
+        from bpy_extras import anim_utils
+        channelbag = anim_utils.action_get_channelbag_for_slot(action, animation_data.action_slot)
+        fcurves = channelbag.fcurves if channelbag else ()
+    else:
+        fcurves = action.fcurves
+    return next((fcurve for fcurve in fcurves if fcurve.data_path == data_path), None)
+
+
+def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]):
+    """Keyframe the values of the named shape keys so that playback steps through them.
+
+    ``timeline`` is ``(frame, key name)`` in increasing frame order: each key gets value 1 at its
+    frame and 0 at the frames of its neighbours, with linear interpolation, so between two samples
+    the mesh blends linearly from one key to the next. Only F-curves of these keys are written.
+    """
+    key = obj.data.shape_keys
+    frames = [frame for frame, _ in timeline]
+    for index, (frame, name) in enumerate(timeline):
+        key_block = key.key_blocks[name]
+        neighbours = [frames[i] for i in (index - 1, index + 1) if 0 <= i < len(frames)]
+        for when, value in [(frame, 1.0)] + [(neighbour, 0.0) for neighbour in neighbours]:
+            key_block.value = value
+            key_block.keyframe_insert("value", frame=when)
+        key_block.value = 0.0
+        fcurve = shape_key_value_fcurve(key, name)
+        if fcurve is not None:
+            for point in fcurve.keyframe_points:
+                point.interpolation = 'LINEAR'
+            fcurve.update()

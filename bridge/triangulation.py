@@ -1,0 +1,140 @@
+"""The triangles a mesh gives the core: its loop triangles (n-gons triangulated) as int64 ``(m, 3)``
+vertex indices, the n-gons split into zero-area triangles split again, the polygon of each loop
+triangle, and a quad re-split where full-basis differences could not determine a part's areas
+(paper Prop. 1).
+"""
+
+from __future__ import annotations
+
+import bpy
+import numpy as np
+
+from .mesh_data import vertex_positions
+
+
+def mesh_triangles(mesh: bpy.types.Mesh) -> np.ndarray:
+    """The loop triangles of ``mesh`` (n-gons triangulated) as int64 ``(m, 3)`` vertex indices,
+    with the n-gons Blender triangulated into zero-area triangles triangulated again about their
+    own centre (see :func:`_retriangulated`)."""
+    mesh.calc_loop_triangles()
+    buffer = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", buffer)
+    triangles = buffer.reshape(-1, 3).astype(np.int64)
+    if len(triangles) > len(mesh.polygons):  # n-gons
+        triangles = _retriangulated(mesh, triangles)
+    return triangles
+
+
+def _retriangulated(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
+    """``triangles`` with every n-gon that Blender split into a zero-area triangle (an n-gon with
+    collinear corners, as Dissolve leaves) split again by Blender's *Beauty* triangulation
+    (``bmesh.ops.triangulate``) in coordinates about the n-gon's centre, where the result has no
+    such triangle: the loop triangles' ear clipping may cut an ear between collinear corners (at
+    1e5 units from the origin, where single precision rounds them onto one line, it did). The
+    n-gon's triangles keep their rows (c − 2 for c corners either way) and its winding."""
+    import bmesh
+
+    from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO
+
+    def flat(rows):
+        return _doubled_areas(positions, rows) <= DEGENERATE_TRIANGLE_RATIO * _longest(positions, rows)
+
+    positions = vertex_positions(mesh)
+    degenerate = np.flatnonzero(flat(triangles))
+    if not degenerate.size:
+        return triangles
+    polygons = loop_triangle_polygons(mesh)
+    triangles = triangles.copy()
+    for polygon in np.unique(polygons[degenerate]):
+        corners = np.array(mesh.polygons[polygon].vertices, dtype=np.int64)
+        rows = np.flatnonzero(polygons == polygon)
+        bm = bmesh.new()
+        try:
+            verts = [bm.verts.new(p) for p in positions[corners] - positions[corners].mean(axis=0)]
+            bm.verts.index_update()
+            face = bm.faces.new(verts)
+            face.normal_update()  # triangulate projects along the face normal, (0, 0, 0) until computed
+            bmesh.ops.triangulate(bm, faces=[face], quad_method='BEAUTY', ngon_method='BEAUTY')
+            candidate = corners[np.array([[v.index for v in face.verts] for face in bm.faces], dtype=np.int64)]
+        except ValueError:  # a face Blender cannot rebuild (repeated corners): keep its triangles
+            continue
+        finally:
+            bm.free()
+        if len(candidate) == len(rows) and not flat(candidate).any() and _covers(positions, candidate, triangles[rows]):
+            triangles[rows] = candidate
+    return triangles
+
+
+def area_recoverable_triangles(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
+    """``triangles`` (:func:`mesh_triangles` of ``mesh``, int64 ``(m, 3)``) with one quad split
+    along its other diagonal in every closed part whose triangles two-colour
+    (:func:`core.full_basis_recovery.two_colour_parts`: full-basis differences cannot determine
+    its areas, Prop. 1): how Blender splits a quad is its choice, not the user's, and a quad mesh
+    with a handle (the Torus primitive) is split into such triangles, every vertex of even
+    valence. The other diagonal gives four vertices odd valence. A quad is re-split only where its
+    two new triangles face its way and cover it (:func:`_covers`), neither is flat and its other
+    diagonal is not already an edge (the mesh would not stay a manifold); a part
+    without such a quad, or a mesh the core refuses, keeps its triangles (the core says why)."""
+    from ..core.errors import MeshError
+    from ..core.full_basis_recovery import two_colour_parts
+    from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO, mesh_topology
+
+    try:
+        topology = mesh_topology(triangles, len(mesh.vertices))
+    except MeshError:
+        return triangles
+    labels, bad = two_colour_parts(topology)
+    if not bad.size:
+        return triangles
+    edges = set(map(tuple, topology.edges.tolist()))
+    positions = vertex_positions(mesh)
+    polygons = loop_triangle_polygons(mesh)
+    triangles = triangles.copy()
+    for part in bad:
+        for polygon in np.unique(polygons[labels == part]):
+            corners = np.array(mesh.polygons[polygon].vertices, dtype=np.int64)
+            if corners.size != 4:
+                continue
+            rows = np.flatnonzero(polygons == polygon)
+            splits = corners[np.array([[[0, 1, 2], [0, 2, 3]], [[0, 1, 3], [1, 2, 3]]])]
+            used = set(map(tuple, np.sort(triangles[rows], axis=1).tolist()))
+            candidate = splits[1] if used == set(map(tuple, np.sort(splits[0], axis=1).tolist())) else splits[0]
+            diagonal = tuple(sorted(set(candidate[0].tolist()) & set(candidate[1].tolist())))
+            flat = _doubled_areas(positions, candidate) <= DEGENERATE_TRIANGLE_RATIO * _longest(positions, candidate)
+            if diagonal not in edges and not flat.any() and _covers(positions, candidate, triangles[rows]):
+                triangles[rows] = candidate
+                break
+    return triangles
+
+
+def _covers(positions: np.ndarray, candidate: np.ndarray, original: np.ndarray) -> bool:
+    """Whether the triangles ``candidate`` of an n-gon cover it as its loop triangles ``original``
+    do: the same vector area (their area-weighted normals sum to the face's), every one facing
+    the face's way, none overlapping (their areas add up to no more than the loop triangles')."""
+    def vector_areas(rows):
+        a, b, c = (positions[rows[:, k]] for k in range(3))
+        return np.cross(b - a, c - a)
+
+    ours, theirs = vector_areas(candidate), vector_areas(original)
+    total = theirs.sum(axis=0)
+    scale = np.linalg.norm(theirs, axis=1).sum()
+    return bool(np.linalg.norm(ours.sum(axis=0) - total) <= 1e-6 * scale and (ours @ total > 0).all()
+                and np.linalg.norm(ours, axis=1).sum() <= (1 + 1e-6) * scale)
+
+
+def _doubled_areas(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    a, b, c = (positions[triangles[:, k]] for k in range(3))
+    return np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+def _longest(positions: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    a, b, c = (positions[triangles[:, k]] for k in range(3))
+    return np.max([np.einsum("ij,ij->i", p - q, p - q) for p, q in ((a, b), (b, c), (c, a))], axis=0)
+
+
+def loop_triangle_polygons(mesh) -> np.ndarray:
+    """The polygon of every loop triangle, int64 ``(m,)`` (same order as bridge.triangulation.mesh_triangles)."""
+    mesh.calc_loop_triangles()
+    buffer = np.empty(len(mesh.loop_triangles), dtype=np.int32)
+    mesh.loop_triangles.foreach_get("polygon_index", buffer)
+    return buffer.astype(np.int64)
