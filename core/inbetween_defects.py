@@ -86,6 +86,24 @@ class DefectChecks:
         frames, stretch = self.factor_targets(s)[:2]
         return self.defects(x, s, frames, stretch, scale=scale)
 
+    def region_defects(self, x: np.ndarray, s: float, frames, stretch, rows: np.ndarray, scale=None) -> np.ndarray:
+        """The flipped or collapsed triangles (bool (r,)) among ``rows`` (r,) of a whole pose ``x``
+        (n, 3) as the check of the whole pose counts them (:meth:`defects` without ``rows``): a
+        region's own check cannot tell a piece that turns away from both keys as the interpolated
+        rotations turn it (:meth:`~core.inbetween_turned_away.TurnedAway._turning_pieces`,
+        ``_edge_on``), which the whole check passes. The region's check first (the same
+        triangles and more); the whole pose's only where that check met a triangle the whole one
+        could pass (:meth:`~core.inbetween_turned_away.TurnedAway._whole_may_pass`, or one on the
+        metric whose ring the region cuts). A finger curled 120° at
+        each of two joints, fitted half-way (its tip facing away from both keys, no defect):
+        the check of a region around its tip read 8–29 of its triangles as flipped, and the repairs
+        of a fold beside the tip took fields that turned some of them back toward the keys."""
+        self._local.whole_may_pass = False  # set by the region's check (TurnedAway._turned_away)
+        found = self.defects(x, s, frames, stretch, rows=rows, scale=scale)
+        if not found.any() or not self._local.whole_may_pass:
+            return found
+        return found & self.defects(x, s, frames, stretch, scale=scale)[rows]
+
     @staticmethod
     def _area_scale(stretch, scale, rows) -> np.ndarray:
         """The interpolated areas' ratios to the base's on ``rows``: ``scale`` there if given, else

@@ -142,7 +142,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         # the fallbacks fit and check the whole mesh: its stretches whole (a repair of a predicted
         # in-between is given them by rows, core.inbetween_field._ByRows; [:] computes the rest)
         stretch = stretch[:]
-        folds = self.defects(blend, s, None, stretch)
+        folds = self.defects(blend, s, frames, stretch)
         # a fit held near a folded blend keeps its folds: tried only where the blend has fewer
         # folds than the metric fit (two poses of a cloth folding over as it is dragged by a
         # corner, keys 16 frames apart: 713 against the blend's 59, the fit near it 243, RMS 1.61
@@ -154,7 +154,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
             fitted = "the keys' linear blend (no fit near it improved on it)" if unmoved else \
                 "a fit near the keys' linear blend"
             tail = "the linear blend" if unmoved else "the interpolated metric fitted near the linear blend"
-            if self.problem(y, s, None, stretch) is None:
+            if self.problem(y, s, frames, stretch) is None:
                 return y, (f"it is {fitted}, with no triangle flipped or collapsed but edges that may "
                            f"be short where the cloth turns (its fit: {problem}, which no repair removed); keys "
                            f"closer together here tell the motion better ({tail})"), 0, True
@@ -181,10 +181,11 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
                   np.full(gap.topo.n, FALLBACK_ANCHOR_WEIGHT) * gap.topo.mass)
         return gap.fit(blend.copy(), stretch, None, blend, s, motion, REPAIR_ITERATIONS, system=system)
 
-    def nearer_the_metric(self, result, s, stretch, motion, targets) -> tuple[np.ndarray, str | None, int, bool]:
+    def nearer_the_metric(self, result, s, frames, stretch, motion, targets) -> tuple[np.ndarray, str | None, int, bool]:
         """An in-between of two poses ``result`` (positions, message: what :meth:`outcome` returned
         at factor ``s``, its outcome kept in the gap's ``outcomes[s]``) as :meth:`outcome` returns
-        it (with that outcome), or the interpolated metric fitted near the linear blend where ``result``
+        it (with that outcome; ``frames``: the interpolated frames its check counts by), or the
+        interpolated metric fitted near the linear blend where ``result``
         ends farther from the interpolated metric than the blend itself and beyond the fit's
         tolerance (mean relative deviation of the edge lengths from ``targets``, the fit's): the
         interpolated rotations do not integrate there, and their fit failed at its own objective
@@ -203,7 +204,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
             return kept
         stretch = stretch[:]
         y = self.fitted_near_blend(blend, s, stretch, motion)
-        count = int(self.defects(y, s, None, stretch).sum())
+        count = int(self.defects(y, s, frames, stretch).sum())
         if count > gap.outcomes[s].defects:
             return kept
         return y, None if not count else (

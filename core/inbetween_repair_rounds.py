@@ -292,7 +292,7 @@ class RepairRounds:
                     farthest = np.zeros(count)
                     np.maximum.at(farthest, free_part, squared)
                     finite &= farthest <= reach
-                counts = np.bincount(row_part[self.defects(fitted, s, frames, stretch, rows=region.rows)],
+                counts = np.bincount(row_part[self.region_defects(fitted, s, frames, stretch, region.rows)],
                                      minlength=count)
                 for part in np.flatnonzero((taken < 0) & finite & (counts == 0)):
                     if moves[part] <= budget:  # else the pose would jump away from its neighbours in time

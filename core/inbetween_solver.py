@@ -403,7 +403,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
             return self.finished(checked, s)
         # two poses (sequences keep their fits), which also say where triangles face against the field
-        x, said = self.finished(self.recorded(s, self.repair.nearer_the_metric(checked, s, stretch, motion, targets)), s)
+        x, said = self.finished(self.recorded(s, self.repair.nearer_the_metric(checked, s, frames, stretch, motion, targets)), s)
         turned, self.against[s] = self.repair.against_the_field(x, frames)
         return x, said if turned is None else turned if said is None else f"{said}; {turned}"
 

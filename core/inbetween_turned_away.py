@@ -56,16 +56,19 @@ class TurnedAway:
         away = (coordinate_dot(normal, base) < 0) & (coordinate_dot(normal, nxt) < 0)
         away &= following > -slack[candidates]  # ... that follow it
         # a whole mesh's check first keeps the pieces that turn whole; the rest, one by one (below)
+        whole = isinstance(rows, slice)
         turning = self._turning_pieces(cross[:, candidates], normal, following, base, nxt, columns, sides,
-                                       candidates) if isinstance(rows, slice) else None
+                                       candidates) if whole else None
+        if not whole:  # what a region's check cannot see (DefectChecks.region_defects asks)
+            self._local.whole_may_pass = self._whole_may_pass(cross[:, candidates], following, normal, base, nxt,
+                                                              triangles)
         kept_whole = None
         if turning is not None:
             kept_whole = candidates[turning]
             away &= ~turning
         # in a fit checked whole, triangles of a far-turning piece at edge-on with a key, to the
         # fit's precision (a repair region's fields are not fitted to it)
-        edge_on = self._edge_on(cross[:, candidates], following, base, nxt, triangles) \
-            if isinstance(rows, slice) else None
+        edge_on = self._edge_on(cross[:, candidates], following, base, nxt, triangles) if whole else None
         if edge_on is not None:
             kept_whole = candidates[edge_on] if kept_whole is None else np.union1d(kept_whole, candidates[edge_on])
             away &= ~edge_on
@@ -82,8 +85,39 @@ class TurnedAway:
         gap = self.gap
         nearly_rigid = np.asarray(gap.nonrigidity)[gap.topo.triangle_component[triangles]] < NOISY_TURN_NONRIGIDITY
         tolerance = np.where(nearly_rigid, max(METRIC_TOLERANCE, gap.tolerance), METRIC_TOLERANCE)
-        kept = self._carrying_a_vertex(candidates[deviation < tolerance], rows, kept_whole)
+        on_metric = candidates[deviation < tolerance]
+        kept = self._carrying_a_vertex(on_metric, rows, kept_whole)
+        if not whole and kept.size < on_metric.size:  # the whole mesh may complete the ring they turn
+            self._local.whole_may_pass = True
         return kept if kept_whole is None else np.sort(np.concatenate([kept_whole, kept]))
+
+    def _whole_may_pass(self, cross, following, normal, base, nxt, triangles) -> bool:
+        """Whether a check of the whole mesh could pass candidates that a region's check does not
+        (besides those on the metric whose ring the region cuts, :meth:`_turned_away`): the
+        region's candidates are ``triangles`` (r,), with normals ``cross`` (3, r), interpolated
+        normals ``normal`` (3, r), the products of the two ``following`` (r,) and the keys' unit
+        normals ``base`` / ``nxt`` (3, r). The whole check passes only candidates facing along their
+        interpolated normal, in a piece turning far (``gap.turning`` or, for two poses,
+        :meth:`_far_turning`: :meth:`_edge_on`, :meth:`_turning_pieces`) or in a piece each of
+        whose candidates is within ``arctan δ`` of its interpolated normal, that one within the same
+        angle of facing away from both keys (a piece turning whole, :meth:`_turning_pieces`)."""
+        gap = self.gap
+        pieces = gap.topo.triangle_component[triangles]
+        along = following > 0.0
+        if not along.any():
+            return False
+        far = gap.turning if gap.turning is not None else self._far_turning()
+        if (along & np.asarray(far)[pieces]).any():
+            return True
+        angle = np.arctan(max(METRIC_TOLERANCE, gap.tolerance))
+        size = np.sqrt(coordinate_dot(normal, normal))
+        lengths = np.sqrt(coordinate_dot(cross, cross)) * size
+        sine = np.sin(angle) * size
+        near = (following >= np.cos(angle) * lengths) & (coordinate_dot(normal, base) < sine) \
+            & (coordinate_dot(normal, nxt) < sine)
+        if not near.any():
+            return False
+        return bool((np.bincount(pieces[~near], minlength=len(gap.topo.piece_sizes)) == 0)[pieces[near]].any())
 
     def _carrying_a_vertex(self, kept: np.ndarray, rows, kept_whole) -> np.ndarray:
         """Those of ``kept`` (positions among ``rows``: candidates turned away from both keys along

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from scipy import linalg
 
 from .geometry import coordinate_cross, coordinate_dot
+from .inbetween_defects import COLLAPSE_RATIO
 from .inbetween_repair import Outcome
 from .inbetween_repair_regions import corner_joined_parts
 from .inbetween_threads import per_factor
@@ -50,21 +51,39 @@ UNTANGLE_WEIGHTS = (1e4, 1e6)
 #: area (its normal's length in the in-between the metric asks for): well clear of the collapse
 #: check's :data:`~core.inbetween_defects.COLLAPSE_RATIO`.
 UNTANGLE_MARGIN = 0.05
+#: A place whose untangling faces every side but leaves a triangle collapsed (one beside the defects,
+#: whose margin is half its own facing, squeezed below the collapse check) is tried once more with
+#: every margin raised so that a triangle facing its side by half its margin keeps at least this many
+#: times the area the collapse check asks (:data:`~core.inbetween_defects.COLLAPSE_RATIO` of its
+#: interpolated area). Only there: the floor on every try moved in-betweens of the benchmark's
+#: curtain and lifted sheet at g = 16 that the untangling already cleaned (up to 6e-3).
+UNTANGLE_COLLAPSE_FLOOR = 2.0
 #: Gauss–Newton steps at each weight at most.
 UNTANGLE_ITERATIONS = 20
 #: A place (tangle) whose region has more free vertices than this is not untangled: a fold that wide
 #: is no local tangle, and the Gauss–Newton matrix is dense (3 × this many unknowns at most; the
 #: benchmark's places have 3–16).
 UNTANGLE_FREE_VERTICES = 200
-#: The free vertices of the regions one in-between's untangling solves for, all its places' tries
-#: counted (a place tried at one ring and then two counts both): the places beyond it are left, and
-#: said. Each try costs at most ``len(UNTANGLE_WEIGHTS) × UNTANGLE_ITERATIONS`` dense solves of
-#: 3 × its free vertices unknowns, so this bounds the work.
-UNTANGLE_WORK = 2000
+#: The work one in-between's untangling may do, all its places' tries counted (a place tried at one
+#: ring and then two counts both), in Gauss–Newton steps of a system of :data:`UNTANGLE_FREE_VERTICES`
+#: free vertices (what a try costs, :func:`untangle_work`), for a mesh of up to
+#: :data:`UNTANGLE_WORK_VERTICES` vertices and in proportion to its size beyond: a try is made only
+#: where its most steps fit in what is left, so the places beyond it are left, and said. Ten tries at
+#: that size that do not open (each all ``len(UNTANGLE_WEIGHTS) × UNTANGLE_ITERATIONS`` steps) take
+#: about 3 s; 1,936 one-vertex folds on a 50k sheet take 1.5 s and about half of it, where a count of
+#: free vertices (the solves' sizes, not their steps) left three quarters of them.
+UNTANGLE_WORK = 400
+#: The mesh size (vertices) :data:`UNTANGLE_WORK` is for: larger meshes may do that work per as many
+#: vertices, as an in-between's own cost grows with the mesh.
+UNTANGLE_WORK_VERTICES = 50_000
+#: What a Gauss–Newton step of :func:`untangle` costs besides its dense algebra, in squared free
+#: vertices: one thread, 367 tries of 4–200 free vertices (1–40 steps each) took 1.1 ms + 0.45 ms a
+#: step + 1.8e-4 ms × (free vertices)² a step, a step of 200 free vertices 7.8 ms.
+UNTANGLE_STEP_OVERHEAD = 2500
 
 
 def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, sides: np.ndarray,
-             margins: np.ndarray, weights=UNTANGLE_WEIGHTS) -> tuple[np.ndarray, bool]:
+             margins: np.ndarray, weights=UNTANGLE_WEIGHTS, steps: list | None = None) -> tuple[np.ndarray, bool]:
     """``vertices`` (n, 3) with the ``free`` ones (f,: vertex indices, each of whose triangles is
     among ``triangles`` (r, 3)) moved so that every triangle ``t`` faces its side: its normal
     ``n_t = (p1 − p0) × (p2 − p0)`` (twice its area, along its unit normal) has ``n_t · sides[t] ≥
@@ -73,7 +92,8 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
     (max(0, margins − n · sides) / ℓ)²`` over the ``triangles``' corner edges ``e`` (``e⁰``: those of
     ``vertices``; ``ℓ``: their mean length), from ``vertices``, for ``μ`` in ``weights`` in turn,
     stopped at the first iterate where every triangle faces its side. Returns (positions (n, 3),
-    whether every triangle does). The other vertices stay where they are."""
+    whether every triangle does); the Gauss–Newton steps it solved are appended to ``steps`` if
+    given. The other vertices stay where they are."""
     vertices = np.asarray(vertices, dtype=float)
     out = vertices.copy()
     if not len(free) or not len(triangles):
@@ -136,6 +156,8 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
                                                       minlength=unknowns * unknowns).reshape(unknowns, unknowns)
             gradient = (on_free.T @ (edges @ y - target)).ravel()
             gradient -= weight * np.bincount(slots.ravel(), (rows * short[active, None]).ravel(), minlength=unknowns)
+            if steps is not None:
+                steps.append(unknowns)
             try:
                 step = linalg.solve(matrix, -gradient, assume_a="pos", check_finite=False)
             except linalg.LinAlgError:  # a free part held nowhere: no step
@@ -154,6 +176,15 @@ def untangle(vertices: np.ndarray, triangles: np.ndarray, free: np.ndarray, side
     return out, bool((facing(y, False) >= 0.5 * margins).all())
 
 
+def untangle_work(free: int, steps: int) -> float:
+    """What a try of :func:`untangle` on a system of ``free`` free vertices taking ``steps``
+    Gauss–Newton steps costs, in steps of a system of :data:`UNTANGLE_FREE_VERTICES` free vertices:
+    each step's dense algebra grows with the square of its unknowns (the matrix of 9 × ``free``²
+    entries made and solved), its other work not (:data:`UNTANGLE_STEP_OVERHEAD`), and the try's
+    set-up costs about two steps of a small system."""
+    return (steps + 2) * (free ** 2 + UNTANGLE_STEP_OVERHEAD) / (UNTANGLE_FREE_VERTICES ** 2 + UNTANGLE_STEP_OVERHEAD)
+
+
 class Untangling(NamedTuple):
     """What :func:`untangled` did to an in-between: the pose, and of the places where it kept
     flipped or collapsed triangles (the tangles: connected groups of them with the triangles within
@@ -163,7 +194,7 @@ class Untangling(NamedTuple):
     defects: int  # the flipped or collapsed triangles the pose keeps, in the places left
     tangles: int  # the places it had
     left: int  # of those, the ones not untangled
-    too_large: int  # of those left, the ones never tried: over UNTANGLE_FREE_VERTICES or the in-between's UNTANGLE_WORK
+    too_large: int  # of those left, the ones never tried: over UNTANGLE_FREE_VERTICES or the in-between's work (UNTANGLE_WORK)
 
 
 def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | None:
@@ -180,12 +211,16 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
     their interpolated area, every other one the key it faces (the larger of its normal's two
     projections) by half as much as it does or that margin, whichever is less — or, turned away from
     both keys, the way it faces —; the still vertices held. A place's move is kept where its region
-    comes back with no defect and the pose stays within what a repair of it may move
+    comes back with no defect (as the whole pose's check counts it,
+    :meth:`~core.inbetween_defects.DefectChecks.region_defects`; a place that faced its sides but
+    left a triangle collapsed is solved once more alone with its margins floored,
+    :data:`UNTANGLE_COLLAPSE_FLOOR`) and the pose stays within what a repair of it may move
     (:meth:`~core.inbetween_repair_rounds.RepairRounds.move_limits`, a sum of squared moves over the
     whole pose, counted from ``x``); the others' are kept regardless, and the places left are tried
     again at the next ring. A place is not tried where it has more than
-    :data:`UNTANGLE_FREE_VERTICES` free vertices or would take the in-between past
-    :data:`UNTANGLE_WORK` free vertices in all its tries (in the mesh's order). None where ``x`` is not finite, has no
+    :data:`UNTANGLE_FREE_VERTICES` free vertices or where its try at its most steps would take the
+    in-between past its work (:data:`UNTANGLE_WORK`, counted by :func:`untangle_work`; in the
+    mesh's order). None where ``x`` is not finite, has no
     such triangle, or where no place was untangled and every one was tried (the in-between as it
     was, and what was said of it, stand); the places counted are those of the first ring."""
     repair = gap.repair
@@ -199,11 +234,17 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
     defects = repair.defects(x, s, frames, stretch, scale=scale)
     if not defects.any():
         return None
-    y, moved, work, first = x.copy(), 0.0, 0, None
+    y, moved, work, first = x.copy(), 0.0, 0.0, None
     kept, tried = defects.copy(), np.zeros_like(defects)
+    budget = UNTANGLE_WORK * max(1.0, len(x) / UNTANGLE_WORK_VERTICES)
+    most = len(UNTANGLE_WEIGHTS) * UNTANGLE_ITERATIONS
 
-    def keep(part, z, places) -> None:  # each of ``places`` of ``part`` moved to ``z`` where that cleans it
+    def fits(size) -> bool:  # whether a try of ``size`` free vertices fits in the work left at its most steps
+        return work + untangle_work(size, most) <= budget
+
+    def keep(part, z, places) -> list:  # each of ``places`` of ``part`` moved to ``z`` where that cleans it
         nonlocal moved
+        collapsed = []  # the places whose region keeps a defect there
         for place in places:
             mine, rows = part.vertex_place == place, part.rows[part.row_place == place]
             vertices, new = part.vertices[mine], z[mine]
@@ -212,22 +253,28 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
             if not np.isfinite(new).all() or moved + step > limit:
                 continue  # past what a repair of the in-between may move
             y[vertices] = new
-            if repair.defects(y, s, frames, stretch, rows=rows, scale=scale).any():
+            if repair.region_defects(y, s, frames, stretch, rows, scale=scale).any():
                 y[vertices] = held  # its region holds every triangle a free vertex has
+                collapsed.append(place)
                 continue
             moved += step
             kept[rows] = False
+        return collapsed
 
-    def attempt(region, places) -> bool | None:  # None: past the in-between's work, not tried
+    def attempt(region, places, floored=False) -> bool | None:  # None: past the in-between's work, not tried
         nonlocal work
-        if work + int(region.sizes[places].sum()) > UNTANGLE_WORK:
+        if not fits(int(region.sizes[places].sum())):
             return None
         part = region.part(places)
-        work += part.free.size
         tried[part.rows[kept[part.rows]]] = True
-        z, faces = untangle(y[part.vertices], part.corners, part.free, part.sides, part.margins)
+        steps = []
+        margins = np.maximum(part.margins, part.floors) if floored else part.margins
+        z, faces = untangle(y[part.vertices], part.corners, part.free, part.sides, margins, steps=steps)
+        work += untangle_work(part.free.size, len(steps))
         if faces:
-            keep(part, z, places)
+            for place in keep(part, z, places):
+                if not floored:  # facing its sides, it left a triangle collapsed: once more, each margin floored
+                    attempt(region, [place], floored=True)
         return faces
 
     for rings in UNTANGLE_RINGS:
@@ -238,7 +285,7 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
         for pack in region.packs():
             size = int(region.sizes[pack].sum())
             # past the in-between's work, each place alone while it fits
-            for places in [pack] if work + size <= UNTANGLE_WORK else [[place] for place in pack]:
+            for places in [pack] if fits(size) else [[place] for place in pack]:
                 if attempt(region, places) is False and len(places) > 1:
                     for place in places:  # one place that does not untangle held the others: each alone
                         attempt(region, [place])
@@ -271,6 +318,9 @@ class _Region:
         self.row_place, self.vertex_place = labels[:self.rows.size], labels[self.rows.size:]
         self.sizes = np.bincount(self.vertex_place[movable], minlength=self.count)
         self.sides, self.margins = _sides(gap, x, self.rows, corners, bad[self.rows], scale)
+        # the margins' floor where a place is tried again: facing its side by half of it, a triangle's
+        # normal (twice its area) is at least 2 × UNTANGLE_COLLAPSE_FLOOR × the collapse check's area
+        self.floors = 4.0 * UNTANGLE_COLLAPSE_FLOOR * COLLAPSE_RATIO * gap.base.areas[self.rows] * scale[self.rows]
 
     def packs(self) -> list[list[int]]:
         """The places of at most :data:`UNTANGLE_FREE_VERTICES` free vertices, in order, packed into
@@ -289,15 +339,16 @@ class _Region:
     def part(self, places) -> SimpleNamespace:
         """The ``places`` (a list) of the region, numbered on their own: their triangles ``rows``
         (r,) and the ``corners`` (r, 3) among their ``vertices`` (v,: the pose's indices), the
-        ``free`` ones (f,: among ``vertices``), ``sides`` (r, 3), ``margins`` (r,), and the place of
-        each triangle and vertex, ``row_place`` (r,) and ``vertex_place`` (v,)."""
+        ``free`` ones (f,: among ``vertices``), ``sides`` (r, 3), ``margins`` (r,) and their
+        ``floors`` (r,), and the place of each triangle and vertex, ``row_place`` (r,) and ``vertex_place`` (v,)."""
         mine = np.isin(self.row_place, places)
         vertices = np.flatnonzero(np.isin(self.vertex_place, places))
         renumbered = np.full(self.touched.size, -1)
         renumbered[vertices] = np.arange(vertices.size)
         return SimpleNamespace(rows=self.rows[mine], corners=renumbered[self.local[mine]],
                                vertices=self.touched[vertices], free=renumbered[vertices[self.movable[vertices]]],
-                               sides=self.sides[mine], margins=self.margins[mine], row_place=self.row_place[mine],
+                               sides=self.sides[mine], margins=self.margins[mine], floors=self.floors[mine],
+                               row_place=self.row_place[mine],
                                vertex_place=self.vertex_place[vertices])
 
 
@@ -365,7 +416,7 @@ def left_message(result: Untangling, near_blend: bool) -> str:
     kept = "a fit near the keys' linear blend" if near_blend else "the metric fit"
     large = "" if not result.too_large else (
         f"; {result.too_large} of those left too large to untangle: a tangle of more than "
-        f"{UNTANGLE_FREE_VERTICES} vertices, or past {UNTANGLE_WORK} in the in-between")
+        f"{UNTANGLE_FREE_VERTICES} vertices, or past the work the untangling may do in the in-between")
     return (f"it keeps {result.defects} triangle(s) flipped or collapsed in {result.left} of the {result.tangles} "
             f"place(s) where its repairs left the cloth folded over or crushed ({result.tangles - result.left} "
             f"untangled{large}); keys closer together here tell the motion better, or fix those triangles by hand "

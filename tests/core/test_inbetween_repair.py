@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from core.errors import ShapeDifferenceWarning
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
-from inbetween_helpers import _bend, _edge_deviation, _flipped
+from inbetween_helpers import _bend, _edge_deviation, _flipped, _normals
 
 
 def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(monkeypatch, strip):
@@ -1106,3 +1106,73 @@ def test_an_in_betweens_reads_of_a_spline_at_its_factor_share_one_evaluation(mon
     evaluated.clear()
     gap.spline_at("vertices", s)
     assert evaluated == [vertices]  # let go at the scope's end
+
+
+def _two_pose_finger():
+    """Two poses of the finger of ``test_inbetween_untangling._curling_finger`` (curled by 120° at
+    each of two joints between them) and their in-between's gap fitted half-way: (keys, triangles,
+    the gap, its clean fit at 0.5, whose tip faces away from both keys as the interpolated rotations
+    turn it, the finger curled by the interpolated angles, the number of the tip's triangles)."""
+    from test_inbetween_untangling import _curling_finger
+
+    keys, tri, curl, centre = _curling_finger()
+    gap = Interpolator(keys[0], keys[1], tri)._sequence._gap(0)
+    x, problem = gap.pose(0.5)
+    turned = _flipped(curl, keys[0], keys[1], tri)
+    assert problem is None and turned > 0 and _flipped(x, keys[0], keys[1], tri) == turned
+    return keys, tri, gap, x, curl, centre
+
+
+def _against_the_curl(y, keys, tri, curl) -> int:
+    """Triangles of ``y`` facing against both keys and against the curled finger's own normal."""
+    n = _normals(y, tri)
+    return int(np.sum((np.einsum("ij,ij->i", n, _normals(keys[0], tri)) < 0)
+                      & (np.einsum("ij,ij->i", n, _normals(keys[1], tri)) < 0)
+                      & (np.einsum("ij,ij->i", n, _normals(curl, tri)) < 0)))
+
+
+def test_two_poses_fallback_near_the_blend_counts_as_the_fit_is_checked_not_the_tip_turned_away(monkeypatch):
+    """Two poses of a finger curling 120° at each of two joints, their in-between's fit at 0.5 with
+    two fans folded over between the joints (more defects than the keys' blend has), not repaired
+    (``repairable`` 0), so the fallback near the blend is tried; the fit near the blend made the
+    clean fit itself (its tip faces away from both keys as the interpolated rotations turn it,
+    which is no defect where the fit is checked). The fallback is taken as free of defects: count
+    0, said as "with no triangle flipped or collapsed", as the independent count against the curl
+    has it. Checked without the interpolated frames, the tip's triangles counted as flipped and the
+    warning read "which keeps 0 triangle(s) flipped or collapsed … no repair or fallback removed
+    them all"."""
+    from core.inbetween_repair import Repair
+    from test_inbetween_untangling import _pushed_past
+
+    keys, tri, gap, x, curl, centre = _two_pose_finger()
+    frames, stretch, motion, guide = gap.targets(0.5)[:4]
+    second = int(np.argmin(np.abs(np.linalg.norm(x - x[centre], axis=1) - 0.15)
+                           + 10 * (np.abs(x[:, 1] - x[centre, 1]) > 0.02)))
+    folded = _pushed_past(_pushed_past(x, tri, centre), tri, second)
+    blend = gap.linear_blend(0.5)
+    assert gap.repair.defects(folded, 0.5, frames, stretch).sum() > gap.repair.defects(blend, 0.5, frames, stretch).sum()
+    monkeypatch.setattr(Repair, "fitted_near_blend", lambda self, blend, s, stretch, motion: x.copy())
+    y, said, count, near_blend = gap.repair.outcome(folded, folded, 0.5, frames, stretch, guide, motion, repairable=0)
+    assert np.array_equal(y, x) and near_blend
+    assert count == _against_the_curl(y, keys, tri, curl) == 0
+    assert "with no triangle flipped or collapsed" in said and "keeps" not in said
+
+
+def test_two_poses_fit_nearer_the_metric_counts_as_the_fit_is_checked_not_the_tip_turned_away(monkeypatch):
+    """Two poses of the curling finger (above): an in-between far from the interpolated metric (the
+    keys' blend with noise of 0.02, outcome clean) is replaced by the fit near the blend, made the
+    clean fit itself, which has no more defects as the fit is checked (its tip turns away as the
+    interpolated rotations turn it): returned with no message, counted 0, as the count against the
+    curl has it. Counted without the interpolated frames, its tip's triangles were 48 defects,
+    more than the in-between's 0, and the in-between far from the metric was kept."""
+    from core.inbetween_repair import Outcome, Repair
+
+    keys, tri, gap, x, curl, centre = _two_pose_finger()
+    frames, stretch, motion, guide = gap.targets(0.5)[:4]
+    far = gap.linear_blend(0.5) + 0.02 * np.random.default_rng(0).standard_normal(x.shape)
+    gap.outcomes[0.5] = Outcome(0, False)
+    targets = gap.fit_targets(frames if gap.use_extrinsic else None, stretch)
+    monkeypatch.setattr(Repair, "fitted_near_blend", lambda self, blend, s, stretch, motion: x.copy())
+    y, said, count, near_blend = gap.repair.nearer_the_metric((far, None), 0.5, frames, stretch, motion, targets)
+    assert np.array_equal(y, x) and said is None and near_blend
+    assert count == _against_the_curl(y, keys, tri, curl) == 0

@@ -192,7 +192,7 @@ def test_defective_candidates_keep_the_metric_fit(monkeypatch, strip):
     a, b = _bend(flat, 0.0), _bend(flat, 2.0)
     blend = 0.5 * (a + b)
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, scale=None):
         out = np.zeros(len(tri), dtype=bool)
         out[:0 if np.allclose(x, blend) else 3] = True
         return out if rows is None else out[rows]
@@ -225,7 +225,7 @@ def _counted_defects(near: list, m: int, second_defects: int | None = None):
     """A stand-in for ``Repair.defects`` (m triangles): the linear blend has 1 flipped triangle,
     the fits near it (``near``) 2, any other fit 10 — and with ``second_defects``, every candidate
     of a whole-rotation fit that many."""
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, scale=None):
         if second_defects is not None and self.gap.whole_rotations.all():
             count = second_defects
         else:
@@ -366,7 +366,7 @@ def test_two_poses_do_not_fall_back_to_a_blend_that_crushes_the_surface(monkeypa
         blend_area = np.linalg.norm(_normals(blend, tri), axis=1) / np.linalg.norm(_normals(a, tri), axis=1)
         assert (blend_area.min() < repair.CRUSHED_AREA) == crushes  # the keys keep every area
 
-        def defects(self, x, *args, rows=None):
+        def defects(self, x, *args, rows=None, scale=None):
             inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
             out = np.zeros(len(tri), dtype=bool)
             out[:0 if np.allclose(x, inner_blend) else 3] = True
@@ -447,7 +447,7 @@ def test_repair_regions_stop_at_half_a_piece(monkeypatch, strip):
     a, b = _bend(two, 0.0), _bend(two, 1.0)
     regions, real_local = [], sequence_inbetweens.Gap.local_fit
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, scale=None):
         out = np.zeros(len(tris), dtype=bool)
         out[len(tri) + len(tri) // 2] = True  # one defect in the second piece, no repair removes it
         return out if rows is None else out[rows]
@@ -479,7 +479,7 @@ def test_no_fit_near_a_folded_blend(monkeypatch, strip):
     flat, tri = strip
     a, b = _bend(flat, 0.0), _bend(flat, 2.0)
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, scale=None):
         out = np.zeros(len(tri), dtype=bool)
         out[:3] = True  # every candidate, the blend included, keeps three defects
         return out if rows is None else out[rows]
@@ -574,7 +574,7 @@ def test_a_fallback_that_returns_the_blend_says_so(monkeypatch, strip):
     a, b = a - middle, b - middle
     blend = 0.5 * (a + b)
 
-    def defects(self, x, *args, rows=None):
+    def defects(self, x, *args, rows=None, scale=None):
         out = np.zeros(len(tri), dtype=bool)
         out[:0 if np.allclose(x, blend) else 3] = True
         return out if rows is None else out[rows]
