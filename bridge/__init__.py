@@ -12,12 +12,10 @@ The modules, one concept each:
 - :mod:`world_space`: the world's proportions and frames poses are interpolated in
 - :mod:`modifier_kinds`: simulations, modifiers that play poses, generators
 - :mod:`cache_files`: the files cache modifiers play: paths, headers, files gone
-- :mod:`pose_runs`: runs of identical poses read, spans of frames as messages name them
-- :mod:`cache_checks`: what frames read from a Mesh Cache or Alembic / USD cache tell
-- :mod:`bake_checks`: what frames read from a cloth or soft body tell: bakes gone, frames outside
-- :mod:`frame_errors`: the refusals of reading frames (FrameReadError and its kinds)
-- :mod:`frame_reading`: reading an object's frames (frame_positions)
-- :mod:`vertex_count_refusal`: the refusal of a frame with other vertices, and its way out
+- :mod:`frame_reading`: reading an object's frames (frame_positions) and its refusals (FrameReadError and its
+  kinds; a frame with other vertices, and its way out)
+- :mod:`frame_checks`: what frames read tell of the cache or simulation that played them: a Mesh Cache or
+  Alembic / USD cache (frames outside, held, another mesh), a cloth or soft body (bakes gone, frames outside)
 - :mod:`naming`: names within Blender's length limit, and free names
 - :mod:`shape_keys`: writing shape keys and keyframing their values
 - :mod:`cache_object`: a new object that plays a point cache, rendering as its source
@@ -31,6 +29,5 @@ Each name has one import path, ``bridge.<module>.<name>``: callers import the mo
 
 # every module loaded with the package, so that ``bridge.<module>`` names a module wherever the
 # package is imported
-from . import (mesh_data, triangulation, scene_timing, world_space, modifier_kinds, cache_files, pose_runs,
-               cache_checks, bake_checks, frame_errors, frame_reading, vertex_count_refusal, naming, shape_keys,
-               cache_object, copied_motion, rigid_bodies, analysis_data)  # noqa: F401
+from . import (mesh_data, triangulation, scene_timing, world_space, modifier_kinds, cache_files, frame_reading,
+               frame_checks, naming, shape_keys, cache_object, copied_motion, rigid_bodies, analysis_data)  # noqa: F401

@@ -16,7 +16,7 @@ from concurrent.futures import wait as wait_for
 import bpy
 import numpy as np
 
-from ..bridge import frame_errors, mesh_data, triangulation, world_space
+from ..bridge import frame_reading, mesh_data, triangulation, world_space
 from ..properties import BasisSettings, BasisSizes, CoreSettings
 
 
@@ -180,7 +180,7 @@ def check_basis_size(label: str, k: int, where: str = "", zero: str | None = Non
 
 def reported_error(error: BaseException, triangle_faces=None) -> str | None:
     """The message to show for an expected failure, or None for a bug that should propagate."""
-    if isinstance(error, (InputError, frame_errors.FrameReadError)):
+    if isinstance(error, (InputError, frame_reading.FrameReadError)):
         return str(error)
     if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
             "scipy", "threadpoolctl"):
@@ -300,12 +300,14 @@ def summarized(messages: list[str], label: str, about: dict | None = None) -> li
 LOOK_FIRST_CHARACTERS = 90
 
 
-def look_first(warned: list[str], about: dict | None = None) -> str:
+def look_first(warned: list[str], about: dict | None = None, headless: bool | None = None) -> str:
     """The last report of a run that gave the warning reports ``warned`` (in order), at level
     WARNING: Blender's status bar shows only an operator's last report, so it says how many there
     are, where they all are, and the one to look at first: the core's warning whose in-between keeps
     the most flipped or collapsed triangles (``about``: per message, the core's warning it came
-    from), said by its gap and kind, else the first warning's opening words."""
+    from), said by its gap and kind, else the first warning's opening words. Where they are: the
+    Info editor, or, ``headless`` (``blender -b``; by default ``bpy.app.background``), the console,
+    where Blender prints a script's operator reports in order, this one last."""
     about = about or {}
     core = [warning for warning in about.values() if getattr(warning, "gap", None) is not None]
     worst = max(core, key=lambda w: getattr(w, "defects", 0), default=None)
@@ -317,7 +319,8 @@ def look_first(warned: list[str], about: dict | None = None) -> str:
         cut = min((i for i in (text.find(": "), text.find("; ")) if i > 0), default=len(text))
         first = text[:cut] if cut <= LOOK_FIRST_CHARACTERS else text[:LOOK_FIRST_CHARACTERS].rsplit(" ", 1)[0] + " …"
     count = len(warned)
-    return f"{count} warning{'s' if count > 1 else ''}, each in the Info editor; look first at: {first}"
+    where = "printed above" if (bpy.app.background if headless is None else headless) else "in the Info editor"
+    return f"{count} warning{'s' if count > 1 else ''}, each {where}; look first at: {first}"
 
 
 def refused_in_poll(operator_class, message: str) -> bool:
@@ -491,12 +494,15 @@ class GeneratorOperator:
 
 # -- settings shared with the core ----------------------------------------------------------
 
+#: The core settings an operator can have, by property name: each operator has those its mixin
+#: declares (:class:`BasisSizeProperties`, :class:`InbetweenSettingsProperties`,
+#: :class:`CoreSettingsProperties`).
+CORE_SETTINGS = ("k_m", "k_n", "offset", "use_extrinsic")
+
+
 class BasisSizeProperties(BasisSizes):
     """Basis sizes of an operator that takes no other core setting (*Transfer Poses*: intrinsic
     differences, no offset surface): each one not set is taken from the scene settings."""
-
-    #: The operator's core settings, by property name.
-    core_settings = ("k_m", "k_n")
 
     def core_options(self, context, vertex_count: int, target_count: int | None = None) -> dict:
         """Keyword arguments for the core facade, from this operator or the scene settings;
@@ -506,8 +512,9 @@ class BasisSizeProperties(BasisSizes):
         Resolved values are written back to the operator so the Redo panel shows them.
         """
         settings = context.scene.shape_differences
-        where = {name: "" if self.properties.is_property_set(name) else SCENE_SETTING for name in self.core_settings}
-        for name in self.core_settings:
+        declared = [name for name in CORE_SETTINGS if name in self.properties.bl_rna.properties]
+        where = {name: "" if self.properties.is_property_set(name) else SCENE_SETTING for name in declared}
+        for name in declared:
             if not self.properties.is_property_set(name):
                 setattr(self, name, getattr(settings, name))
         for label, name in (("k_M", "k_m"), ("k_N", "k_n")):
@@ -523,9 +530,9 @@ class BasisSizeProperties(BasisSizes):
             raise InputError(f"k_N = {self.k_n} needs k_M (the base pose's basis size): set k_M, or k_N to 0")
         check_basis_order(self.k_m, self.k_n)
         options = dict(k_M=self.k_m or None, k_N=self.k_n or None)
-        if "use_extrinsic" in self.core_settings:
+        if "use_extrinsic" in declared:
             options["use_extrinsic"] = self.use_extrinsic
-        if "offset" in self.core_settings:
+        if "offset" in declared:
             options["offset"] = offset_option(self.offset, where["offset"])
         return options
 
@@ -534,14 +541,10 @@ class InbetweenSettingsProperties(BasisSettings, BasisSizeProperties):
     """Core settings of an in-between operator (basis sizes, Extrinsic; no offset, which the
     in-betweens do not use): each one not set is taken from the scene settings."""
 
-    core_settings = ("k_m", "k_n", "use_extrinsic")
-
 
 class CoreSettingsProperties(CoreSettings, InbetweenSettingsProperties):
     """Core settings of an operator with an offset distance (*Reconstruct*): each one not set is
     taken from the scene settings."""
-
-    core_settings = ("k_m", "k_n", "offset", "use_extrinsic")
 
 
 def check_basis_order(k_m: int, k_n: int) -> None:

@@ -9,7 +9,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty
 
-from ..bridge import bake_checks, cache_checks, copied_motion, frame_errors, frame_reading, modifier_kinds, world_space
+from ..bridge import copied_motion, frame_checks, frame_reading, modifier_kinds, world_space
 from ..properties import (AnimationOutput, CaptureStep, InbetweensPerGap, KeyStep, PoseOutput,
                           Speed)
 from .base import (INBETWEENED_IN_WORLD, GeneratorOperator, InbetweenSettingsProperties, InputError,
@@ -124,10 +124,10 @@ class FrameRangeProperties:
         movers = objects_moving(obj)
         unfit = unfit_mesh_cache(obj, movers)
         if unfit:  # an error, as for a file that is gone: every frame would read the rest mesh
-            raise frame_errors.CacheFileUnfit(unfit)
+            raise frame_reading.CacheFileUnfit(unfit)
         lost = missing_zone_bake(obj, movers)
         if lost:  # before any frame: reading would simulate the zone again
-            raise frame_errors.BakeFilesMissing(lost)
+            raise frame_reading.BakeFilesMissing(lost)
         aside = modifiers_set_aside(context, obj)
         # what the unbaked caches hold before ("0 frames in memory"): it grows where frames are simulated
         unbaked = {(mover, modifier): modifier.point_cache.info
@@ -152,16 +152,16 @@ class FrameRangeProperties:
         for frame, positions in zip(frames, poses):
             finite_pose(positions, f"frame {frame} of '{obj.name}'")
         # an error, as for a cache of another vertex count: the frames are not this mesh's poses
-        foreign = cache_checks.frames_of_another_mesh(obj, frames, poses, movers)
+        foreign = frame_checks.frames_of_another_mesh(obj, frames, poses, movers)
         if foreign:
-            raise frame_errors.CacheFileUnfit(foreign)
-        lost = bake_checks.missing_bake(obj, frames, poses, movers)
+            raise frame_reading.CacheFileUnfit(foreign)
+        lost = frame_checks.missing_bake(obj, frames, poses, movers)
         if lost:  # an error, not a warning: a batch or farm job must fail rather than write a still mesh
-            raise frame_errors.BakeFilesMissing(lost)
-        unread = cache_checks.cache_reads_no_positions(obj, frames, poses, movers)
+            raise frame_reading.BakeFilesMissing(lost)
+        unread = frame_checks.cache_reads_no_positions(obj, frames, poses, movers)
         if unread:  # the same: the cache plays the mesh at rest
-            raise frame_errors.CacheFileUnfit(unread)
-        still = bake_checks.still_frames(obj, frames, poses)
+            raise frame_reading.CacheFileUnfit(unread)
+        still = frame_checks.still_frames(obj, frames, poses)
         if still:  # the motion may be in what was set aside (an animated Displace after a Subdivision)
             still = motion_set_aside(context, obj, frames, aside) or still
         if still and "rigid_body" in object_motion(obj):  # a simulation that moves no vertex of the mesh
@@ -169,9 +169,9 @@ class FrameRangeProperties:
                      "pose: its rigid body simulation moves it as a whole (its place in the world, not the "
                      "vertices of its mesh), so there is no deformation to read or in-between")
         for warning in (render_only_motion(obj, movers), viewport_only_motion(obj, movers),
-                        bake_checks.frames_outside_simulation(obj, frames, movers),
-                        cache_checks.frames_outside_cache(context.scene, obj, frames, movers),
-                        cache_checks.frames_held_by_cache(obj, frames, poses, movers), still):
+                        frame_checks.frames_outside_simulation(obj, frames, movers),
+                        frame_checks.frames_outside_cache(context.scene, obj, frames, movers),
+                        frame_checks.frames_held_by_cache(obj, frames, poses, movers), still):
             if warning:
                 report(self, {'WARNING'}, warning)
         simulated = [(mover, modifier) for (mover, modifier), held in unbaked.items()

@@ -18,8 +18,6 @@ import numpy as np
 from ..bridge import cache_files, copied_motion, mesh_data, modifier_kinds, rigid_bodies, scene_timing
 from .base import InputError
 
-# Modifiers whose unbaked point cache Blender empties when the object's mesh data changes.
-SIMULATION_MODIFIERS = modifier_kinds.SIMULATION_MODIFIERS
 # Modifiers that do not move the mesh they are on.
 PASSIVE_MODIFIERS = {'COLLISION'}
 
@@ -48,8 +46,6 @@ def objects_moving(obj) -> list:
     return found
 
 
-#: Modifiers that add or remove vertices (:data:`bridge.modifier_kinds.GENERATE_MODIFIERS`).
-GENERATE_MODIFIERS = modifier_kinds.GENERATE_MODIFIERS
 #: Modifiers that smooth or displace the mesh without animation of their own: they may follow a
 #: generator in the run that is set aside.
 MOVING_TOUCH_UP_MODIFIERS = {'SMOOTH', 'CORRECTIVE_SMOOTH', 'LAPLACIANSMOOTH', 'DISPLACE'}
@@ -230,7 +226,8 @@ def _still(modifier) -> bool:
 def moves_vertices(modifier) -> bool:
     """Whether ``modifier`` may move the mesh's vertices without adding or removing any (a cloth,
     an armature, a deform, a smooth): not a generator, a collider or a modifier that moves nothing."""
-    return modifier.type not in PASSIVE_MODIFIERS and modifier.type not in GENERATE_MODIFIERS and not _still(modifier)
+    return (modifier.type not in PASSIVE_MODIFIERS and modifier.type not in modifier_kinds.GENERATE_MODIFIERS
+            and not _still(modifier))
 
 
 def unfit_mesh_cache(obj, movers: list) -> str | None:
@@ -271,7 +268,7 @@ def unfit_mesh_cache(obj, movers: list) -> str | None:
                             "leaves the mesh at rest at every frame ('Vertex count mismatch' on the modifier). Export "
                             "the cache from this mesh (its vertices, in the same order), or point the modifier to "
                             "the cache made for it")
-            changed = changed or modifier.type in GENERATE_MODIFIERS or (
+            changed = changed or modifier.type in modifier_kinds.GENERATE_MODIFIERS or (
                 modifier.type == 'NODES' and not attribute_only(modifier))
     return None
 
@@ -326,10 +323,11 @@ def trailing_generators(obj) -> list:
     Subdivision on for rendering only goes with the new object too, so that it renders alike."""
     enabled = [modifier for modifier in obj.modifiers if modifier.show_viewport or modifier.show_render]
     run = len(enabled)  # the last modifiers: generators and touch-ups only
-    while run > 0 and (enabled[run - 1].type in GENERATE_MODIFIERS | MOVING_TOUCH_UP_MODIFIERS
+    while run > 0 and (enabled[run - 1].type in modifier_kinds.GENERATE_MODIFIERS | MOVING_TOUCH_UP_MODIFIERS
                        or _still(enabled[run - 1])):
         run -= 1
-    generators = [index for index in range(run, len(enabled)) if enabled[index].type in GENERATE_MODIFIERS]
+    generators = [index for index in range(run, len(enabled))
+                  if enabled[index].type in modifier_kinds.GENERATE_MODIFIERS]
     start = generators[0] if generators else len(enabled)
     while start > run and _still(enabled[start - 1]):  # also those that never move a vertex before it
         start -= 1
@@ -337,12 +335,10 @@ def trailing_generators(obj) -> list:
     return [modifier for modifier in enabled[start:] if modifier.type not in PASSIVE_MODIFIERS]
 
 
-#: Modifiers that replace the positions of their mesh with poses of their own
-#: (:data:`bridge.modifier_kinds.POSE_REPLACING_MODIFIERS`).
-POSE_REPLACING_MODIFIERS = modifier_kinds.POSE_REPLACING_MODIFIERS
 #: Modifiers a cache object of shape-key poses does not take over: simulations (a copy would
 #: simulate again from its own start) and what reads a cache (it would replace the poses).
-NOT_COPIED_UNDER_KEYS = POSE_REPLACING_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID', 'COLLISION'}
+NOT_COPIED_UNDER_KEYS = modifier_kinds.POSE_REPLACING_MODIFIERS | {'PARTICLE_SYSTEM', 'DYNAMIC_PAINT', 'FLUID',
+                                                                   'COLLISION'}
 
 
 def modifiers_under_keys(obj) -> tuple[list, list]:
@@ -458,7 +454,8 @@ def modifiers_set_aside(context, obj) -> list:
     object off and on again marks that cache outdated, and Blender then drops its frames."""
     aside = trailing_generators(obj)
     if mesh_data.evaluated_vertex_count(obj, context.evaluated_depsgraph_get()) == len(obj.data.vertices):
-        if not any(modifier.type in GENERATE_MODIFIERS for modifier in aside) or unbaked_simulations(obj):
+        if not any(modifier.type in modifier_kinds.GENERATE_MODIFIERS for modifier in aside) \
+                or unbaked_simulations(obj):
             return []
         return [] if reacting_simulations(context.scene, [obj]) else aside
     unbaked = unbaked_simulations(obj)
@@ -497,7 +494,7 @@ def motion_set_aside(context, obj, frames: list[int], aside: list) -> str | None
              for _ in scene_timing.at_times(context.scene, (frames[0], frames[-1]))]
     if shown[0].shape == shown[1].shape and np.array_equal(shown[0], shown[1]):
         return None
-    generators = [modifier for modifier in aside if modifier.type in GENERATE_MODIFIERS]
+    generators = [modifier for modifier in aside if modifier.type in modifier_kinds.GENERATE_MODIFIERS]
     moving = [modifier for modifier in aside if modifier not in generators] or aside
     names = ", ".join(repr(modifier.name) for modifier in moving)
     before = ", ".join(repr(modifier.name) for modifier in generators) or "the generator before it"

@@ -22,11 +22,10 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from ..bridge import cache_object, naming, scene_timing, shape_keys
+from ..bridge import cache_object, modifier_kinds, naming, scene_timing, shape_keys
 from .base import InputError, report
-from .motion_sources import (POSE_REPLACING_MODIFIERS, modifiers_set_aside, modifiers_under_frames,
-                             modifiers_under_keys, moves_vertices, object_motion, _plays_nla, refuse_emptying_caches,
-                             sharing_mesh, zone_frames_dropped)
+from .motion_sources import (modifiers_set_aside, modifiers_under_frames, modifiers_under_keys, moves_vertices,
+                             object_motion, _plays_nla, refuse_emptying_caches, sharing_mesh, zone_frames_dropped)
 
 CACHE_FOLDER = "caches"
 
@@ -347,7 +346,7 @@ class PoseWriter:
             # the keyed values are the mesh's: its other objects play the new keys as well, unless
             # their own simulation or cache replaces what the keys show
             others = [other for other in (sharing_mesh(source) if keyframe else [])
-                      if not any(modifier.show_viewport and modifier.type in POSE_REPLACING_MODIFIERS
+                      if not any(modifier.show_viewport and modifier.type in modifier_kinds.POSE_REPLACING_MODIFIERS
                                  for modifier in other.modifiers)]
             if others:
                 named = ", ".join(f"'{other.name}'" for other in others)
@@ -394,7 +393,8 @@ class PoseWriter:
         if len(frames) > 1 and not np.allclose(np.diff(frames), sampling, rtol=1e-6):
             raise ValueError("A point cache needs evenly spaced frames")  # a bug, not user input
         # the Mesh Cache and the object's animation play the scene's time, not its frame number
-        start, sampling = scene_timing.scene_time(context.scene, frames[0]), scene_timing.scene_time(context.scene, sampling)
+        start = scene_timing.scene_time(context.scene, frames[0])
+        sampling = scene_timing.scene_time(context.scene, sampling)
         name = naming.unique_name(source.name, f" {label}", bpy.data.objects.keys())
         path, _ = self.cache_path(name, check_free=False)
         try:

@@ -108,3 +108,17 @@ def test_the_extension_imports_each_name_from_the_module_that_defines_it(caller)
         elif node.module is None:
             assert "bridge" not in {alias.name for alias in node.names}, \
                 f"{caller.name}:{node.lineno} imports the package: import its modules"
+
+
+@pytest.mark.parametrize("caller", CALLERS, ids=[str(path.relative_to(ROOT)) for path in CALLERS])
+def test_the_extension_binds_no_second_name_for_a_bridge_name(caller):
+    """No module of the extension keeps a bridge name under a name of its own (``X = modifier_kinds.X``):
+    it would be a second import path, and a test patching one would not patch the other."""
+    modules = {alias.asname or alias.name for node in ast.walk(tree(caller))
+               if isinstance(node, ast.ImportFrom) and node.level and (node.module or "") == "bridge"
+               for alias in node.names}
+    for node in tree(caller).body:
+        if isinstance(node, (ast.Assign, ast.AnnAssign)) and isinstance(node.value, ast.Attribute):
+            value = node.value.value
+            assert not (isinstance(value, ast.Name) and value.id in modules), \
+                f"{caller.name}:{node.lineno} names {value.id}.{node.value.attr} again: use it from {value.id}"

@@ -637,7 +637,7 @@ def test_a_disk_bake_whose_files_are_gone_is_refused(bpy_empty, extension, tmp_p
     for path in files:
         path.unlink()
     if not names_known:
-        monkeypatch.setattr(extension.bridge.bake_checks, "bake_frames_on_disk", lambda *args: None)
+        monkeypatch.setattr(extension.bridge.frame_checks, "bake_frames_on_disk", lambda *args: None)
     bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "shot.blend"))
     cloth = bpy.data.objects["Cloth"]
     objects = set(bpy.data.objects)
@@ -1310,7 +1310,7 @@ def test_a_warning_names_the_keys_by_their_frames(bpy_empty, extension, tmp_path
     assert [line.split(": ")[0] for line in reports] == ["Warning", "Warning", "Info", "Warning"], reports
     assert reports[1].startswith("Warning: Shape-difference interpolation: 1 piece(s) of the mesh"), reports
     assert reports[2].startswith("Info: Added 6 shape keys"), reports
-    assert reports[3] == "Warning: 2 warnings, each in the Info editor; look first at: The new shape keys are " \
+    assert reports[3] == "Warning: 2 warnings, each printed above; look first at: The new shape keys are " \
         "deformed again by 'Mesh Cache' of 'Sheet'", reports
 
 

@@ -120,7 +120,7 @@ def test_core_warnings_become_warning_reports(extension, core):
     assert job.execute(SimpleNamespace()) == {'FINISHED'}
     # the summary, then a last line at WARNING: the status bar shows only the last report
     assert log[-3:] == [({'WARNING'}, "Used the fallback"), ({'INFO'}, "done"),
-                        ({'WARNING'}, "1 warning, each in the Info editor; look first at: Used the fallback")]
+                        ({'WARNING'}, "1 warning, each printed above; look first at: Used the fallback")]
 
 
 def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core, capsys):
@@ -148,7 +148,7 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
     reports = [message for kind, message in log if kind == {'WARNING'}]
     assert reports[:-1] == [messages[0][:-1] + " (and 2 more like it; between frame 9 and frame 17 (factor 0.5); "
                             "between frame 17 and frame 25 (factor 0.5); each in full in the system console).", other], reports
-    assert reports[-1] == "2 warnings, each in the Info editor; look first at: between frame 1 and frame 9, the " \
+    assert reports[-1] == "2 warnings, each printed above; look first at: between frame 1 and frame 9, the " \
         "in-between at factor 0.5", reports
     console = capsys.readouterr().err
     assert messages[1] in console and messages[2] in console and messages[0] not in console
@@ -161,6 +161,18 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
     assert extension.operators.base.summarized(list(pair), "In-between", pair) == [
         list(pair)[0][:-1] + " (and 3 more like it; between shape key 'A' and shape key 'B' (factors 0.4, 0.6, 0.8); "
         "each in full in the system console)."]
+
+
+def test_the_last_line_says_where_the_warnings_are(extension):
+    """The run's last line says where its warnings are: in the Info editor from the UI; headless
+    (``blender -b``, as the bpy module runs here) there is no Info editor, and Blender prints a
+    script's operator reports on the console in order, this line last."""
+    look_first = extension.operators.base.look_first
+    assert look_first(["Mind the gap: 3 flipped"], headless=False) == \
+        "1 warning, each in the Info editor; look first at: Mind the gap"
+    assert look_first(["Mind the gap: 3 flipped", "Other"], headless=True) == \
+        "2 warnings, each printed above; look first at: Mind the gap"
+    assert look_first(["Other"]) == look_first(["Other"], headless=True)
 
 
 def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped_triangles(extension, core, capsys):
@@ -189,7 +201,7 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
     assert reports[:-1] == [messages[1][:-1] + " (and 2 more like it; between frame 1 and frame 9 (factor 0.5); "
                             "between frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
     # the run's last line, which the status bar shows, points at the gap that keeps the most
-    assert log[-1] == ({'WARNING'}, "1 warning, each in the Info editor; look first at: between frame 9 and frame 17, "
+    assert log[-1] == ({'WARNING'}, "1 warning, each printed above; look first at: between frame 9 and frame 17, "
                                     "9 flipped or collapsed triangle(s) kept [pose]"), log
     console = capsys.readouterr().err
     assert messages[0] in console and messages[2] in console and messages[1] not in console
