@@ -96,8 +96,9 @@ class DefectChecks:
         could pass (:meth:`~core.inbetween_turned_away.TurnedAway._whole_may_pass`, or one on the
         metric whose ring the region cuts). A finger curled 120° at
         each of two joints, fitted half-way (its tip facing away from both keys, no defect):
-        the check of a region around its tip read 8–29 of its triangles as flipped, and the repairs
-        of a fold beside the tip took fields that turned some of them back toward the keys."""
+        the check of a region around its tip alone reads 8–29 of its triangles as flipped, and a
+        repair of a fold beside the tip checked so takes fields that turn some of them back toward
+        the keys."""
         self._local.whole_may_pass = False  # set by the region's check (TurnedAway._turned_away)
         found = self.defects(x, s, frames, stretch, rows=rows, scale=scale)
         if not found.any() or not self._local.whole_may_pass:

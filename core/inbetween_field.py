@@ -1,7 +1,8 @@
 """The interpolated field of a gap at one factor (paper §7.3): the splines of its keys' relatives
 by name, the rotations' frames (in the triangles' base frames, whole or composed with their
 pieces' rigid motions) and the stretches (from the metrics' spline between the keys, the
-log-stretches' outside them, and between them where the gap's ``log_metric`` says so). Mixed
+log-stretches' outside them — a sliver's held at the nearer key's, :data:`HELD_BEYOND_KEYS` — and
+between them where the gap's ``log_metric`` says so). Mixed
 into :class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``relatives``,
 ``cubic``, ``whole_rotations``, ``log_metric``,
 ``splines``, ``_log_options``) with the pieces' ``motion`` and the
@@ -47,9 +48,10 @@ def log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.nda
 
 
 def thin_triangles(base, nxt, floor: float) -> np.ndarray:
-    """Indices of the triangles whose height (doubled area over the longest side) is under
-    ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`): slivers and needles
-    whose shape the keys tell only to the fits' precision (:data:`HELD_BEYOND_KEYS`)."""
+    """Indices (int (k,), ascending) of the m triangles whose height (doubled area over the longest
+    side) is under the length ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`:
+    its ``areas`` (m,) and edge ``lengths`` (m, 3)): slivers and needles whose shape the keys tell
+    only to the fits' precision (:data:`HELD_BEYOND_KEYS`)."""
     thinnest = np.minimum(2.0 * base.areas / base.lengths.max(axis=1), 2.0 * nxt.areas / nxt.lengths.max(axis=1))
     return np.flatnonzero(thinnest < floor)
 
@@ -71,7 +73,7 @@ class InterpolatedField:
 
     @property
     def held_beyond_keys(self) -> np.ndarray:
-        """Indices of the triangles whose stretch beyond the keys is the nearer key's
+        """Indices (int (k,)) of the triangles whose stretch beyond the keys is the nearer key's
         (:data:`HELD_BEYOND_KEYS`), found once per gap."""
         held = self.__dict__.get("_held_beyond_keys")
         if held is None:  # made twice at worst by two threads: the same rows
@@ -87,7 +89,7 @@ class InterpolatedField:
 
         log = at(s)
         held = self.held_beyond_keys
-        if held.size:
+        if held.size and not 0.0 <= s <= 1.0:  # at a key its own stretch already
             if rows is None:
                 where = held
             else:

@@ -97,7 +97,7 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         self._keys: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._move_limits: tuple[float, float] | None = None
         self._far_move: float | None = None  # mean squared move: see moved_far
-        self._local = threading.local()  # see _rows_of
+        self._local = threading.local()  # per thread: see _rows_of and region_defects
 
     def outcome(self, x, x0, s, frames, stretch, guide, motion, rings=REPAIR_RINGS, defects=None,
                 looser=None, nearby=None, repairable=None) -> tuple[np.ndarray, str | None, int, bool]:

@@ -71,14 +71,16 @@ UNTANGLE_FREE_VERTICES = 200
 #: where its most steps fit in what is left, so the places beyond it are left, and said. Ten tries at
 #: that size that do not open (each all ``len(UNTANGLE_WEIGHTS) × UNTANGLE_ITERATIONS`` steps) take
 #: about 3 s; 1,936 one-vertex folds on a 50k sheet take 1.5 s and about half of it, where a count of
-#: free vertices (the solves' sizes, not their steps) left three quarters of them.
+#: free vertices alone (the solves' sizes, not their steps) would leave three quarters of them.
 UNTANGLE_WORK = 400
 #: The mesh size (vertices) :data:`UNTANGLE_WORK` is for: larger meshes may do that work per as many
 #: vertices, as an in-between's own cost grows with the mesh.
 UNTANGLE_WORK_VERTICES = 50_000
 #: What a Gauss–Newton step of :func:`untangle` costs besides its dense algebra, in squared free
-#: vertices: one thread, 367 tries of 4–200 free vertices (1–40 steps each) took 1.1 ms + 0.45 ms a
-#: step + 1.8e-4 ms × (free vertices)² a step, a step of 200 free vertices 7.8 ms.
+#: vertices (0.45 ms ÷ 1.8e-4 ms): one thread, 367 tries of 4–200 free vertices (1–40 steps each)
+#: took 1.1 ms + 0.45 ms a step + 1.8e-4 ms × (free vertices)² a step, a step of 200 free vertices
+#: 7.8 ms (a least-squares fit of the tries' CPU times; docs/design-decisions.md, *the untangling's
+#: work counted by what it costs*).
 UNTANGLE_STEP_OVERHEAD = 2500
 
 
@@ -181,7 +183,9 @@ def untangle_work(free: int, steps: int) -> float:
     Gauss–Newton steps costs, in steps of a system of :data:`UNTANGLE_FREE_VERTICES` free vertices:
     each step's dense algebra grows with the square of its unknowns (the matrix of 9 × ``free``²
     entries made and solved), its other work not (:data:`UNTANGLE_STEP_OVERHEAD`), and the try's
-    set-up costs about two steps of a small system."""
+    set-up (1.1 ms, about two steps of a small system) is counted as two steps of its own size: about right
+    for the small systems most tries solve, for large ones an over-count of under ``2 / (steps + 2)``
+    of the charge, which keeps the bound on the safe side."""
     return (steps + 2) * (free ** 2 + UNTANGLE_STEP_OVERHEAD) / (UNTANGLE_FREE_VERTICES ** 2 + UNTANGLE_STEP_OVERHEAD)
 
 

@@ -24,9 +24,8 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     if not path.is_file():
         raise MeshError(f"'{path}' does not exist or is not a file.")
-    _check_text(path)
     vertices, polygons = [], []
-    with open(path, encoding="utf-8-sig", errors="replace") as stream:  # -sig: a byte-order mark is no text
+    with open(path, encoding=_text_encoding(path), errors="replace") as stream:
         for line_number, line in enumerate(stream, 1):
             fields = line.split()
             if not fields:
@@ -58,15 +57,19 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
 TEXT_PROBE_BYTES = 4096
 
 
-def _check_text(path: Path) -> None:
-    """Raise :class:`MeshError` where ``path`` holds binary data (a NUL byte in its first
-    :data:`TEXT_PROBE_BYTES`), which no OBJ holds: a point cache, an Alembic or a .blend given as the
-    topology (the cache and the OBJ swapped on a command line) would otherwise be refused by the
-    first of its bytes that happen to read as a face, quoted as garbage."""
+def _text_encoding(path: Path) -> str:
+    """The encoding to read the OBJ ``path`` in: UTF-16 where it starts with UTF-16's byte-order mark
+    (as Windows PowerShell's ``>`` saves text), else UTF-8 (``-sig``: a UTF-8 byte-order mark is no
+    text). Raise :class:`MeshError` where it holds binary data (a NUL byte in its first
+    :data:`TEXT_PROBE_BYTES`), which no OBJ in UTF-8 holds: a point cache, an Alembic or a .blend
+    given as the topology (the cache and the OBJ swapped on a command line) would otherwise be
+    refused by the first of its bytes that happen to read as a face, quoted as garbage."""
     with open(path, "rb") as stream:
         head = stream.read(TEXT_PROBE_BYTES)
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # in UTF-16 every ASCII character has a NUL byte
+        return "utf-16"
     if b"\0" not in head:
-        return
+        return "utf-8-sig"
     formats = {b"POINTCACHE2": "a PC2 point cache", b"BLENDER": "a .blend file", b"Ogawa": "an Alembic cache"}
     kind = next((f", {name}" for magic, name in formats.items() if head.startswith(magic)), "")
     raise MeshError(f"'{path}' is not an OBJ file: it holds binary data{kind}. The topology is a Wavefront "

@@ -170,12 +170,18 @@ def _nearest_folder(path) -> Path:
 
 def free_space(folder) -> int | None:
     """Bytes this process may still write on the file system holding ``folder`` (an existing folder),
-    or None where the file system reports no size (some network and FUSE mounts say 0 blocks of 0):
-    what is free for ordinary users, all that is free for root, who may use the blocks kept back."""
-    if not hasattr(os, "statvfs"):  # Windows
-        usage = shutil.disk_usage(folder)
-        return usage.free if usage.total > 0 else None
-    stats = os.statvfs(folder)
+    or None where the file system reports no size (some network and FUSE mounts say 0 blocks of 0,
+    or fail the query: ENOSYS where a FUSE mount does not implement it, ESTALE on a stale NFS
+    handle): what is free for ordinary users, all that is free for root, who may use the blocks
+    kept back. The space is advisory (:func:`check_disk_space`), so a query that fails leaves the
+    write to say what is wrong."""
+    try:
+        if not hasattr(os, "statvfs"):  # Windows
+            usage = shutil.disk_usage(folder)
+            return usage.free if usage.total > 0 else None
+        stats = os.statvfs(folder)
+    except OSError:
+        return None
     if stats.f_blocks == 0:
         return None
     free = stats.f_bfree if hasattr(os, "geteuid") and os.geteuid() == 0 else stats.f_bavail
@@ -192,12 +198,18 @@ def check_disk_space(path, n_bytes: int) -> None:
     ``n_bytes`` has less free space than that, before the work that computes it: a full disk is
     otherwise found when the file is written, after all of that work (minutes of a farm node's CPU).
     The file is written beside any old one and then renamed over it, so its whole size is needed
-    also where it replaces a file. Unchecked where the file system reports no size."""
+    also where it replaces a file. Unchecked where the file system reports no size (:func:`free_space`)."""
     folder = _nearest_folder(path)
     free = free_space(folder)
     if free is not None and n_bytes > free:
-        raise MeshError(f"Cannot write '{path}': it takes {n_bytes / 1e6:,.3g} MB and the disk holding '{folder}' "
-                        f"has {free / 1e6:,.3g} MB free. Free some space there or give an output on another disk.")
+        raise MeshError(f"Cannot write '{path}': it takes {_size_text(n_bytes)} and the disk holding '{folder}' "
+                        f"has {_size_text(free)} free. Free some space there or give an output on another disk.")
+
+
+def _size_text(n_bytes: int) -> str:
+    """``n_bytes`` as a TD reads a file's size: MB to three digits below a gigabyte, GB to a tenth
+    from there (a 100k-vertex retime's output is gigabytes: "12.0 GB", not "1.2e+04 MB")."""
+    return f"{n_bytes / 1e6:.3g} MB" if n_bytes < 999.5e6 else f"{n_bytes / 1e9:,.1f} GB"  # 999.5 MB: "1e+03" in .3g
 
 
 def check_pc2_name(path) -> None:

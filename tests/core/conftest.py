@@ -41,3 +41,19 @@ def every_core_warning_has_a_kind(monkeypatch):
     yield issued
     kindless = [message for kind, message in issued if kind not in KINDS]
     assert not kindless, f"warnings of the core without a kind of core.errors.KINDS: {kindless}"
+
+
+@pytest.fixture
+def own_pool(monkeypatch):
+    """A thread pool of its own (:mod:`core.concurrency`) for a test that patches
+    ``available_cores``: the pool it makes is sized for the patched cores, so it is shut down after
+    the test and the process's pool (or none) given back, rather than kept for the tests after it."""
+    import core.concurrency as concurrency
+
+    monkeypatch.setattr(concurrency, "_pool", None)
+    monkeypatch.setattr(concurrency, "_pool_threads", 0)
+    yield
+    with concurrency._pool_lock:
+        pool = concurrency._pool
+    if pool is not None:
+        pool.shutdown(wait=True)  # outside the lock: a piece still finishing may take it

@@ -292,7 +292,7 @@ def test_reference_start_is_raced_against_the_hinge_frames():
         embed_thickening(surface, squared, reference_points=reference[:-1])
 
 
-def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkeypatch):
+def test_raced_starts_give_the_same_fit_in_threads_as_one_after_the_other(monkeypatch, own_pool):
     # The starts (hinge frames, reference pose) and the continuation schedules are fitted side
     # by side when there are two cores; the chosen fit must not depend on it, bit for bit.
     import core.concurrency as concurrency

@@ -55,19 +55,9 @@ def test_an_exaggerated_bend_is_not_the_linear_extrapolation():
     before, the fit held near the linear extrapolation 2b − a was returned (forearm 1.94 × its
     length, 0.88 of the diagonal off the 200° bend) as "the interpolated metric fitted near the
     linear blend"."""
-    sides, rings = 12, 41
-    angles = np.linspace(0.0, 2.0 * np.pi, sides, endpoint=False)
-    a = np.vstack([np.c_[np.full(sides, x), 0.15 * np.cos(angles), 0.15 * np.sin(angles)]
-                   for x in np.linspace(0.0, 2.0, rings)])
-    i, j = np.meshgrid(np.arange(rings - 1), np.arange(sides), indexing="ij")
-    i, j = i.ravel(), j.ravel()
-    tri = np.r_[np.c_[i * sides + j, i * sides + (j + 1) % sides, (i + 1) * sides + (j + 1) % sides],
-                np.c_[i * sides + j, (i + 1) * sides + (j + 1) % sides, (i + 1) * sides + j]]
-    t = np.clip((a[:, 0] - 0.6) / 0.8, 0.0, 1.0)
-    t = t * t * (3.0 - 2.0 * t)
-    axis = np.array([0.3, 0.5, 1.0]) / np.linalg.norm([0.3, 0.5, 1.0])
+    a, tri = _tube()
+    b = _skinned(a, 100.0)
     joint = np.array([1.0, 0.0, 0.0])
-    b = np.einsum("nij,nj->ni", Rotation.from_rotvec(np.outer(t * np.radians(100.0), axis)).as_matrix(), a - joint) + joint
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         x = Interpolator(a, b, tri).pose(2.0)
@@ -136,10 +126,12 @@ def test_slivers_a_skin_bends_keep_their_size_in_an_exaggerated_bend(height):
     tube's ×2 is the plain one's to within a mean edge (0.26): the two triangulations of the bend
     zone differ at that scale."""
     a, tri = _tube()
-    plain = Interpolator(a, _skinned(a, 100.0), tri).pose(2.0)
     slivered, slivered_tri = _with_slivers(a, tri, height)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # the keys' slivers turn over: warned
+        # the plain tube's ×2 about this oblique axis keeps a few defects, and the keys' slivers
+        # turn over: both warned, neither what is compared here
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        plain = Interpolator(a, _skinned(a, 100.0), tri).pose(2.0)
         x = Interpolator(slivered, _skinned(slivered, 100.0), slivered_tri).pose(2.0)
     edges = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
     mean_edge = np.linalg.norm(a[edges[:, 0]] - a[edges[:, 1]], axis=1).mean()

@@ -365,6 +365,54 @@ def test_command_refuses_an_output_the_disk_has_no_room_for_before_any_work(tmp_
     assert (tmp_path / "out.pc2").stat().st_size == whole and in_betweens
 
 
+@pytest.mark.parametrize("euid, blocks, expected", [(1000, 100, 30 * 4096), (0, 100, 40 * 4096), (1000, 0, None)])
+def test_free_space_is_what_the_user_may_write_or_none_where_the_disk_reports_no_size(tmp_path, monkeypatch,
+                                                                                       euid, blocks, expected):
+    """The free space of a disk reporting 40 free blocks of 4,096 bytes, 10 of them kept back for
+    root: 30 blocks for a user, 40 for root; a file system reporting 0 blocks of 0 (some network
+    and FUSE mounts) is not checked, and nor is one whose query fails (ENOSYS: a FUSE mount without
+    statfs; ESTALE: a stale NFS handle), where the write itself says what is wrong (before, the
+    failed query refused the retime: "error: Function not implemented")."""
+    import errno
+
+    import core.point_cache as point_cache
+
+    stats = type("Stats", (), {"f_blocks": blocks, "f_bfree": 40 if blocks else 0,
+                               "f_bavail": 30 if blocks else 0, "f_frsize": 4096})
+    monkeypatch.setattr(os, "statvfs", lambda path: stats, raising=False)
+    monkeypatch.setattr(os, "geteuid", lambda: euid, raising=False)
+    assert point_cache.free_space(tmp_path) == expected
+    if expected is None:
+        point_cache.check_disk_space(tmp_path / "out.pc2", 10**12)  # no size reported: unchecked
+    else:  # a file that fits to the byte is written, one byte more is refused
+        point_cache.check_disk_space(tmp_path / "out.pc2", expected)
+        with pytest.raises(MeshError, match="MB free"):
+            point_cache.check_disk_space(tmp_path / "out.pc2", expected + 1)
+    for code in (errno.ENOSYS, errno.ESTALE):
+        def failing(path, code=code):
+            raise OSError(code, os.strerror(code), str(path))
+
+        monkeypatch.setattr(os, "statvfs", failing, raising=False)
+        monkeypatch.setattr(point_cache.shutil, "disk_usage", failing)
+        assert point_cache.free_space(tmp_path) is None
+        point_cache.check_disk_space(tmp_path / "out.pc2", 10**12)  # unchecked: no refusal
+
+
+def test_a_disk_refusal_says_an_output_of_gigabytes_in_gigabytes(tmp_path, monkeypatch):
+    """10,000 samples of 100,000 points (12.0 GB) on a disk with 3.4 GB free: said in GB, as the
+    memory refusals say it (before: "1.2e+04 MB" and "3.4e+03 MB"); a small output stays in MB."""
+    import core.point_cache as point_cache
+
+    monkeypatch.setattr(point_cache, "free_space", lambda folder: 3_400_000_000)
+    with pytest.raises(MeshError, match=r"it takes 12\.0 GB and the disk holding .* has 3\.4 GB free\. "):
+        point_cache.check_disk_space(tmp_path / "out.pc2", point_cache.pc2_size(100_000, 10_000))
+    monkeypatch.setattr(point_cache, "free_space", lambda folder: 999_000)
+    with pytest.raises(MeshError, match=r"it takes 1\.2 MB and the disk holding .* has 0\.999 MB free\. "):
+        point_cache.check_disk_space(tmp_path / "out.pc2", point_cache.pc2_size(1_000, 100))
+    with pytest.raises(MeshError, match=r"it takes 1\.0 GB and .* has 0\.999 MB free\. "):  # not "1e+03 MB"
+        point_cache.check_disk_space(tmp_path / "out.pc2", 999_600_000)
+
+
 def test_command_names_a_broken_sample_of_the_cache(tmp_path, capsys):
     """A cache with NaN in a sample the retime reads (a simulation that exploded): the error names
     that sample and its frame in the cache's own numbering, before any work; NaN in a sample the
@@ -545,6 +593,21 @@ def test_obj_with_a_byte_order_mark(tmp_path):
     path = write_obj(tmp_path / "sheet.obj", vertices, triangles)
     (tmp_path / "bom.obj").write_bytes(b"\xef\xbb\xbf" + path.read_bytes())
     read_vertices, read_triangles = read_obj(tmp_path / "bom.obj")
+    np.testing.assert_allclose(read_vertices, vertices, atol=1e-9)
+    np.testing.assert_array_equal(read_triangles, triangles)
+
+
+@pytest.mark.parametrize("encoding", ["utf-16", "utf-16-le", "utf-16-be"])
+def test_obj_saved_as_utf16_is_read(tmp_path, encoding):
+    """An OBJ saved as UTF-16 with its byte-order mark (Windows PowerShell's ``>``, ``Out-File``) reads
+    as the same mesh as its UTF-8 text (before, it was refused as binary data, its ASCII
+    characters' NUL bytes taken for a swapped cache)."""
+    vertices, triangles = grid(3)
+    path = write_obj(tmp_path / "sheet.obj", vertices, triangles)
+    mark = "" if encoding == "utf-16" else "\ufeff"  # "utf-16" writes its own
+    (tmp_path / "wide.obj").write_bytes((mark + path.read_text(encoding="utf-8")).encode(encoding))
+    read_vertices, read_triangles = read_obj(tmp_path / "wide.obj")
+    np.testing.assert_array_equal(read_vertices, read_obj(path)[0])
     np.testing.assert_allclose(read_vertices, vertices, atol=1e-9)
     np.testing.assert_array_equal(read_triangles, triangles)
 

@@ -64,7 +64,7 @@ def test_solves_agree_with_a_direct_solve(backend, weight):
         assert np.abs(matrix @ x - b).max() <= bound
 
 
-def test_concurrently_keeps_order_and_raises(monkeypatch):
+def test_concurrently_keeps_order_and_raises(monkeypatch, own_pool):
     monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
     assert concurrently(lambda k: k * k, range(7)) == [k * k for k in range(7)]
 
@@ -77,7 +77,7 @@ def test_concurrently_keeps_order_and_raises(monkeypatch):
         concurrently(fails, range(5))
 
 
-def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
+def test_inbetweens_do_not_depend_on_the_threads(monkeypatch, own_pool):
     """Solved and predicted in-betweens of a sequence are the same in one thread and in several
     (to the round-off of a BLAS that may sum in another order when it is limited to one thread)."""
     flat, triangles = grid(24, 16, size=1.0)
@@ -95,7 +95,7 @@ def test_inbetweens_do_not_depend_on_the_threads(monkeypatch):
     assert np.isfinite(results[2]).all()
 
 
-def test_concurrently_nested_in_every_thread_finishes(monkeypatch):
+def test_concurrently_nested_in_every_thread_finishes(monkeypatch, own_pool):
     # pieces that hand out pieces of their own, more than there are pool threads: a thread
     # waiting for a piece nobody started does it itself, so the pool cannot deadlock
     monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
@@ -106,7 +106,7 @@ def test_concurrently_nested_in_every_thread_finishes(monkeypatch):
     assert tree(4) == 3 ** 4
 
 
-def test_a_background_piece_nobody_started_is_done_by_its_reader(monkeypatch):
+def test_a_background_piece_nobody_started_is_done_by_its_reader(monkeypatch, own_pool):
     monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
     import threading
 
@@ -119,7 +119,7 @@ def test_a_background_piece_nobody_started_is_done_by_its_reader(monkeypatch):
 
 
 @pytest.mark.parametrize("cores", [2, 3])
-def test_the_pool_has_a_thread_per_core_the_process_may_run_on_now(monkeypatch, cores):
+def test_the_pool_has_a_thread_per_core_the_process_may_run_on_now(monkeypatch, own_pool, cores):
     """Pieces in the background run in as many threads at once as the cores the process may run
     on when they are handed out, whatever count the pool was first made for (a farm's scheduler
     may change a process's CPU affinity; so do the tests here)."""
@@ -132,7 +132,7 @@ def test_the_pool_has_a_thread_per_core_the_process_may_run_on_now(monkeypatch, 
 
 
 
-def test_pieces_handed_out_while_another_thread_makes_the_pool_again_all_run(monkeypatch):
+def test_pieces_handed_out_while_another_thread_makes_the_pool_again_all_run(monkeypatch, own_pool):
     """A thread handing out pieces (``concurrently``) while another one finds the cores changed
     and makes the pool again (a gap prepared in the background hands out work of its own): every
     piece runs and its result comes back, in order. With the pool taken once and then handed the
