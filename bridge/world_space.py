@@ -23,10 +23,23 @@ class WorldProportions:
     frame, scaled (2, 1, 1): edge deviation 0.79 → 2.80 %, RMS error ×2; the linear blend does not
     care). Poses go through :meth:`to` before the core and :meth:`back` after; for a similarity
     (any rotation, one scale) nothing is done. ``matrix``: the world matrix (4, 4) the poses were
-    shown under (frames read: one of theirs), else ``obj``'s at the current frame (its shape keys)."""
+    shown under (frames read: one of theirs), else ``obj``'s at the current frame (its shape keys).
+    An object an armature deforms (one rig, by an Armature modifier, shown or not, or an armature
+    parent), and no cloth or soft body simulates in the world, is taken into the rig's space
+    instead: the armature turns its bones there (the mesh's coordinates through the rig's inverse
+    world matrix), so under a rig scaled (2, 1, 1) a bent limb's turn is a turn there and a shear
+    in the world (In-between half-way 0.23 of the diagonal off the rig, 0.026 unscaled)."""
 
     def __init__(self, obj: bpy.types.Object, matrix: np.ndarray | None = None):
         linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
+        rigs = {modifier.object for modifier in obj.modifiers if modifier.type == 'ARMATURE' and modifier.object}
+        if obj.parent is not None and obj.parent_type == 'ARMATURE':
+            rigs.add(obj.parent)
+        if len(rigs) == 1 and not any(modifier.type in ('CLOTH', 'SOFT_BODY') for modifier in obj.modifiers):
+            rig = np.array(next(iter(rigs)).matrix_world, dtype=np.float64)[:3, :3]
+            rig_sigma = np.linalg.svd(rig, compute_uv=False)
+            if rig_sigma[-1] > np.finfo(np.float64).eps * rig_sigma[0]:  # else the world's, refused by its scale
+                linear = np.linalg.solve(rig, linear)
         sigma = np.linalg.svd(linear, compute_uv=False)
         skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
         linear = _unmirrored(linear)

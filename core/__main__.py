@@ -234,6 +234,14 @@ def _check_parts_exist(parts: list[str]) -> None:
 
 
 def _retime(args) -> int:
+    # the progress lines' seconds count from the start, and the heartbeat covers the reading too:
+    # at 100k vertices the OBJ and the keys' samples take 3 s before the first in-between's 1 s
+    with _Progress(time.monotonic(), args.quiet) as progress:
+        progress.doing = f"reading '{args.cache}' and '{args.topology}'"
+        return _retime_in(args, progress)
+
+
+def _retime_in(args, progress: "_Progress") -> int:
     inputs = {args.cache: "the input cache", args.topology: "the topology OBJ"}
     _check_output(args.output, inputs)  # said before the in-betweens, which it would waste
     if args.merged_output is not None:
@@ -291,16 +299,21 @@ def _retime(args) -> int:
         except ShapeDifferenceError as error:
             raise ShapeDifferenceError(f"--merged-output (the file the chunks will be merged into): {error}") from None
     poses = np.empty((len(outputs), cache.n_points, 3), dtype=np.float32)
-    began = time.monotonic()
+    progress.say(f"retime: read {len(read)} of {cache.n_samples} samples (the keys and what they need), "
+                 f"{cache.n_points} points, {progress.seconds()}; in-betweening {len(outputs)} sample(s) "
+                 f"(key gaps {gaps.start}:{gaps.stop} of {plan.n_gaps})")
+
     def named(sample: int) -> str:  # the core's warnings name the keys as the messages here name samples
         return f"sample {sample + 1} (frame {cache.start + sample * cache.sampling:g})"
 
+    def sample(index: int) -> str:
+        return f"sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps})"
+
+    progress.doing = sample(outputs.start) if len(outputs) else f"writing '{args.output}'"
     for done, (index, pose) in enumerate(iter_retime(samples, triangles, plan, gaps, sample_names=named, **options), 1):
         poses[index - outputs.start] = pose
-        if not args.quiet:
-            print(f"retime: sample {index + 1}/{plan.n_out} (gap {plan.gaps[index] + 1}/{plan.n_gaps}), "
-                  f"{done}/{len(outputs)} of this part, {time.monotonic() - began:.1f} s",
-                  file=sys.stderr, flush=True)
+        progress.doing = sample(index + 1) if index + 1 < outputs.stop else f"writing '{args.output}'"
+        progress.say(f"retime: {sample(index)}, {done}/{len(outputs)} of this part, {progress.seconds()}")
     start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
     stamp = None
     if args.chunk is not None or args.gaps is not None:  # a part of a job: merge checks what it is
@@ -308,8 +321,61 @@ def _retime(args) -> int:
                      key_gaps=plan.n_gaps, input=str(args.cache), step=args.step, speed=args.speed)
     write_pc2(args.output, poses, start=start, sampling=cache.sampling, stamp=stamp)
     _say(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
-         f"of {plan.n_gaps}), {cache.n_points} points, {time.monotonic() - began:.1f} s")
+         f"of {plan.n_gaps}), {cache.n_points} points, {progress.seconds()}")
     return 0
+
+
+#: Seconds without a progress line after which a retime says what it is working on: reading takes
+#: 3 s at 100k vertices before the first line, and a gap's in-betweens, computed together, 11 s
+#: between two lines.
+HEARTBEAT_SECONDS = 2.0
+#: Held while a line goes to stderr, so that the heartbeat's thread never splits another line.
+_STDERR_LOCK = threading.Lock()
+
+
+def _line(text: str) -> None:
+    """Print ``text`` as one line on stderr, whole whatever thread prints beside it."""
+    with _STDERR_LOCK:
+        print(text, file=sys.stderr, flush=True)
+
+
+class _Progress:
+    """A retime's progress lines on stderr (none when ``quiet``): :meth:`say` prints one, and in
+    the block a thread prints ``retime: working on sample I/N (gap G/M), T s`` whenever no line
+    came for :data:`HEARTBEAT_SECONDS` (a farm's watchdog on silence then sees a long gap alive).
+    Seconds count from ``began``."""
+
+    def __init__(self, began: float, quiet: bool):
+        self.began, self.quiet = began, quiet
+        self.last = time.monotonic()
+        self.doing = ""  # what the heartbeat names: the sample being computed
+        self._stop = threading.Event()
+        self._thread = None
+
+    def say(self, text: str) -> None:
+        if not self.quiet:
+            _line(text)
+        self.last = time.monotonic()
+
+    def seconds(self) -> str:
+        return f"{time.monotonic() - self.began:.1f} s"
+
+    def _beat(self) -> None:
+        while not self._stop.wait(max(0.0, self.last + HEARTBEAT_SECONDS - time.monotonic())):
+            if time.monotonic() - self.last >= HEARTBEAT_SECONDS and self.doing:
+                self.say(f"retime: working on {self.doing}, {self.seconds()}")
+
+    def __enter__(self):
+        if not self.quiet:
+            self._thread = threading.Thread(target=self._beat, name="retime-heartbeat", daemon=True)
+            self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        return False
 
 
 def _say(text: str) -> None:
@@ -325,7 +391,7 @@ def _warning(command: str, text: str, kind: str | None = None) -> None:
     ``<command>: warning [<kind>]: <text>`` for a warning of that kind (:data:`core.errors.KINDS`;
     ``<command>: warning: <text>`` for a warning without one, which the core does not give): the
     output is written (exit status 0), but worth a look."""
-    print(f"{command}: warning{f' [{kind}]' if kind else ''}: {' '.join(text.split())}", file=sys.stderr, flush=True)
+    _line(f"{command}: warning{f' [{kind}]' if kind else ''}: {' '.join(text.split())}")
 
 
 def _warnings_summary(command: str, shown: list[ShapeDifferenceWarning]) -> str | None:
@@ -374,7 +440,7 @@ def _warnings_as_lines(command: str):
         yield
     summary = _warnings_summary(command, said)
     if summary:
-        print(summary, file=sys.stderr, flush=True)
+        _line(summary)
 
 
 class _Cancelled(SystemExit):

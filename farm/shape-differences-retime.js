@@ -83,9 +83,10 @@ function compileJob(job) {
 }
 
 // A command that runs `python -m core <args>` through the chosen runner and exits with the command's
-// status (0 done, 2 refused, 143 cancelled with SIGTERM, 130 interrupted: docs/pipeline.md). In
-// Blender, sys.exit ends Blender with that status; --python-exit-code 2 covers a script that fails
-// before the command runs (the extension not installed).
+// status (0 done, 1 an unexpected failure, 2 refused, 143 cancelled with SIGTERM, 130 interrupted:
+// docs/pipeline.md). In Blender, sys.exit ends Blender with that status; --python-exit-code 1 gives
+// an uncaught exception (an unexpected failure, or the extension not installed) the status 1 that
+// the runner "python" exits with.
 function coreCommand(settings, args) {
   const run = "sys.exit(main(" + JSON.stringify(args) + "))";
   if (settings.runner === "python") {
@@ -99,7 +100,7 @@ function coreCommand(settings, args) {
   return author.Command("blender-render", {
     exe: "{blender}",
     exeArgs: "{blenderArgs}",
-    argsBefore: ["--python-exit-code", "2"],
+    argsBefore: ["--python-exit-code", "1"],
     args: ["--python-expr", script],
   });
 }

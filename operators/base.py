@@ -254,6 +254,13 @@ def report(operator, kind: set[str], message: str) -> None:
 SUMMARY_PLACES = 3
 
 
+def shown(window: str, headless: str) -> str:
+    """Where a run's reports are, said for where it runs: ``window`` in Blender with its UI (the Info
+    editor, the system console), ``headless`` under ``blender -b``, which has neither: its reports
+    and the console's lines go to the same log (reports on stdout, the console's lines on stderr)."""
+    return headless if bpy.app.background else window
+
+
 def summarized(messages: list[str], label: str, about: dict | None = None) -> list[str]:
     """The warning reports of the ``messages`` an operator (``label``) collected: messages that say
     the same problem for other gaps or in-betweens, differing only in their numbers (frames,
@@ -290,7 +297,8 @@ def summarized(messages: list[str], label: str, about: dict | None = None) -> li
                  for gap, factors in places.items()]
         where = "".join(f"; {place}" for place in where[:SUMMARY_PLACES]) + \
             ("; …" if len(where) > SUMMARY_PLACES else "")
-        out.append(f"{first} (and {len(others)} more like it{where}; each in full in the system console){stop}")
+        out.append(f"{first} (and {len(others)} more like it{where}; each in full "
+                   f"{shown('in the system console', 'on stderr')}){stop}")
         for message in others:
             print(f"{label}: warning: {message}", file=sys.stderr, flush=True)
     return out
@@ -303,7 +311,7 @@ LOOK_FIRST_CHARACTERS = 90
 def look_first(warned: list[str], about: dict | None = None, headless: bool | None = None) -> str:
     """The last report of a run that gave the warning reports ``warned`` (in order), at level
     WARNING: Blender's status bar shows only an operator's last report, so it says how many there
-    are, where they all are, and the one to look at first: the core's warning whose in-between keeps
+    are, where they all are (:func:`shown`), and the one to look at first: the core's warning whose in-between keeps
     the most flipped or collapsed triangles (``about``: per message, the core's warning it came
     from), said by its gap and kind, else the first warning's opening words. Where they are: the
     Info editor, or, ``headless`` (``blender -b``; by default ``bpy.app.background``), the console,
@@ -431,7 +439,7 @@ class GeneratorOperator:
         """Run the whole job now; in background mode print its progress on the console."""
         console = bpy.app.background
         label = getattr(self, "bl_label", type(self).__name__)
-        last_print = time.monotonic()
+        last_print = -np.inf  # the first step's progress at once: a long run does not start silently
         self._start(context)
         while True:
             try:

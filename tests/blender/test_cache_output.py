@@ -348,6 +348,18 @@ def test_headless_runs_print_progress(bpy_empty, extension, core, capfd, monkeyp
     assert "Retime: 46%" in lines and lines[-1] == "Retime: done"
 
 
+def test_headless_runs_print_a_first_progress_line_at_once(bpy_empty, extension, capfd, monkeypatch, tmp_path):
+    """The first progress line comes at the run's first step, not a console interval after the
+    start (a long run read frames and prepared keys for seconds without a line): with an interval
+    longer than any run, the first step's line and the last line, nothing between."""
+    monkeypatch.setattr(extension.operators.base, "CONSOLE_PROGRESS_INTERVAL", 1e9)
+    armature_scene(frames=5)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=5, frame_step=2, speed=1.0,
+                                     filepath=str(tmp_path / "a.pc2"))
+    lines = [line for line in capfd.readouterr().err.splitlines() if line.startswith("Retime: ")]
+    assert len(lines) == 2 and re.fullmatch(r"Retime: \d+%", lines[0]) and lines[1] == "Retime: done", lines
+
+
 def test_headless_runs_end_with_a_line_a_farm_can_read(bpy_empty, extension, capfd, monkeypatch, tmp_path):
     """Without a UI nothing cancels a run: a refused one ends its console lines with 'refused'
     (before, 'cancelled', what a farm's log reads as a user's cancel), Blender's 'Error: …' report

@@ -123,6 +123,26 @@ def test_core_warnings_become_warning_reports(extension, core):
                         ({'WARNING'}, "1 warning, each printed above; look first at: Used the fallback")]
 
 
+def test_where_the_warnings_are_is_said_for_a_window_and_for_blender_b(extension, core, monkeypatch, capsys):
+    """The run's last line and a summary of warnings alike point where the warnings are: headless
+    (``blender -b``, these tests) at the log, which has no Info editor or system console to open
+    (they said "each in the Info editor" there too); with Blender's UI at the Info editor and the
+    system console."""
+    base = extension.operators.base
+    said = {str(warning): warning for warning in (
+        core.sequence_warnings.said_warning(f"between frame {a} and frame {a + 8}, the in-between at factor 0.5: "
+                                            "1 triangle(s) flipped or collapsed", "pose", 1,
+                                            (f"frame {a}", f"frame {a + 8}"), (0.5,)) for a in (1, 9))}
+    headless = (base.look_first(list(said), said), base.summarized(list(said), "Job", said))
+    monkeypatch.setattr(base, "bpy", SimpleNamespace(app=SimpleNamespace(background=False)))
+    window = (base.look_first(list(said), said), base.summarized(list(said), "Job", said))
+    assert headless[0].startswith("2 warnings, each printed above; look first at: between frame 1 and frame 9")
+    assert window[0] == headless[0].replace("each printed above", "each in the Info editor")
+    assert headless[1][0].endswith("(factor 0.5); each in full on stderr).")
+    assert window[1] == [headless[1][0].replace("on stderr", "in the system console")]
+    assert capsys.readouterr().err.count(list(said)[1]) == 2  # printed in full by both
+
+
 def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core, capsys):
     """The same problem in every gap of a retime, or at every in-between of two keys (each one
     :meth:`core.Interpolator.pose` call), is one warning report with how many more there are, the
@@ -147,7 +167,7 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
     assert Job().execute(SimpleNamespace()) == {'FINISHED'}
     reports = [message for kind, message in log if kind == {'WARNING'}]
     assert reports[:-1] == [messages[0][:-1] + " (and 2 more like it; between frame 9 and frame 17 (factor 0.5); "
-                            "between frame 17 and frame 25 (factor 0.5); each in full in the system console).", other], reports
+                            "between frame 17 and frame 25 (factor 0.5); each in full on stderr).", other], reports
     assert reports[-1] == "2 warnings, each printed above; look first at: between frame 1 and frame 9, the " \
         "in-between at factor 0.5", reports
     console = capsys.readouterr().err
@@ -160,7 +180,7 @@ def test_warnings_alike_but_for_their_numbers_are_reported_once(extension, core,
         for f, n in ((0.2, 1), (0.4, 5), (0.6, 2), (0.8, 1)))}
     assert extension.operators.base.summarized(list(pair), "In-between", pair) == [
         list(pair)[0][:-1] + " (and 3 more like it; between shape key 'A' and shape key 'B' (factors 0.4, 0.6, 0.8); "
-        "each in full in the system console)."]
+        "each in full on stderr)."]
 
 
 def test_the_last_line_says_where_the_warnings_are(extension):
@@ -199,7 +219,7 @@ def test_a_summary_of_warnings_alike_reports_the_gap_that_keeps_the_most_flipped
     assert Job().execute(SimpleNamespace()) == {'FINISHED'}
     reports = [message for kind, message in log if kind == {'WARNING'}]
     assert reports[:-1] == [messages[1][:-1] + " (and 2 more like it; between frame 1 and frame 9 (factor 0.5); "
-                            "between frame 17 and frame 25 (factor 0.5); each in full in the system console)."], reports
+                            "between frame 17 and frame 25 (factor 0.5); each in full on stderr)."], reports
     # the run's last line, which the status bar shows, points at the gap that keeps the most
     assert log[-1] == ({'WARNING'}, "1 warning, each printed above; look first at: between frame 9 and frame 17, "
                                     "9 flipped or collapsed triangle(s) kept [pose]"), log
@@ -252,7 +272,7 @@ def test_a_problem_said_for_one_in_between_and_for_several_is_one_report_naming_
     assert reports[0].startswith("Shape-difference interpolation: between Key 1, left and Key 2, left, the "
                                  "in-between at factor 0.5: "), reports
     assert reports[0].endswith(" (and 2 more like it; between Key 2, left and Key 3, left (factor 0.5); between "
-                               "Key 3, left and Key 4, left; each in full in the system console)."), reports
+                               "Key 3, left and Key 4, left; each in full on stderr)."), reports
     assert "between Key 3, left and Key 4, left, 3 of the 3 in-betweens alike" in capsys.readouterr().err
 
 

@@ -275,6 +275,48 @@ def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, e
                        atol=1e-4)
 
 
+@pytest.mark.parametrize("rig_scale", [(2.0, 1.0, 0.5), (-2.0, 1.0, 0.5)])
+@pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 1.5)])
+def test_a_mesh_an_armature_deforms_under_a_scaled_rig_turns_rigidly_in_the_rig_s_space(
+        bpy_empty, extension, operator, factor, rig_scale):
+    """A sheet parented to an armature object scaled (2, 1, 0.5) (and mirrored: (−2, 1, 0.5)) in
+    Object Mode, deformed by it through an Armature modifier, whose key turns it rigidly by 80° in
+    its own coordinates, which are the rig's space, where the armature turns its bones: the
+    in-between and the exaggeration turn it rigidly there, by the factor's share of the turn, as
+    for an unscaled rig (before, interpolated in the world's proportions, where the turn is a
+    shear: a skinned limb half-way 0.23 of its diagonal off the rig, 0.026 unscaled)."""
+    import importlib
+
+    from scipy.spatial.transform import Rotation
+
+    from blender_scenes import grid_object
+
+    bridge = extension.bridge
+    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    bpy.context.collection.objects.link(rig)
+    rig.scale = rig_scale
+    sheet = grid_object(8)
+    sheet.parent = rig
+    sheet.modifiers.new("Armature", 'ARMATURE').object = rig
+    bpy.context.view_layer.update()
+    assert not np.allclose(np.abs(np.linalg.svd(np.array(sheet.matrix_world.to_3x3()), compute_uv=False)), 1.0)
+    rest = bridge.mesh_data.vertex_positions(sheet.data)
+    turn = Rotation.from_rotvec([0.0, np.radians(80.0), 0.3]).as_matrix()
+    add_key(sheet, "Turned", rest @ turn.T)
+    if operator == "inbetween":
+        bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Turned", count=1)
+    else:
+        bpy.ops.shape_differences.exaggerate(key="Turned", reference="Basis", factor=factor)
+    made = bridge.mesh_data.stored_key_positions(sheet.data.shape_keys.key_blocks[-1]).astype(np.float64)
+    edges = np.array([(e.vertices[0], e.vertices[1]) for e in sheet.data.edges])
+    lengths = [np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1) for x in (rest, made)]
+    np.testing.assert_allclose(lengths[1], lengths[0], rtol=1e-5)
+    alignment = importlib.import_module(extension.__name__ + ".core.rigid_alignment")
+    found = alignment.rigid_alignment(rest, made)[0]
+    assert np.allclose(Rotation.from_matrix(found).as_rotvec(), Rotation.from_matrix(turn).as_rotvec() * factor,
+                       atol=1e-4)
+
+
 def _corner_map(split_positions, split_triangles, positions, triangles):
     """The vertex of a mesh (``positions``, ``triangles``) at each vertex of a copy of it split at
     seams: triangles matched by their corners' coordinates (equal in float32), corner for corner."""

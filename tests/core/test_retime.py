@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -290,6 +291,52 @@ def test_command_names_a_topology_that_is_no_obj(tmp_path):
             "and the OBJ are not swapped."]
     assert main(["retime", str(cache), "--topology", str(topology), "--step", "2", "-q",
                  "-o", str(tmp_path / "out.pc2")]) == 0
+
+
+def test_command_says_what_it_works_on_while_no_line_comes(tmp_path, capsys, monkeypatch):
+    """A retime says what was read, and how long it took, before the first in-between's line, its
+    seconds counted from the start; and while no line comes for ``HEARTBEAT_SECONDS`` (at 100k
+    vertices: 3 s of reading before the first line, 11 s between the lines of samples 1 and 2, a
+    gap's in-betweens computed together) it says what it is working on, in whole lines. ``-q``
+    prints none of them. Slowness is planted here (the OBJ reader and each in-between 0.3 s)."""
+    import core.__main__ as command
+
+    source, triangles = rolling_sheet(n_frames=9, nx=6)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "--speed", "0.5"]
+    monkeypatch.setattr(command, "HEARTBEAT_SECONDS", 1e9, raising=False)
+    assert main([*common, "-o", str(tmp_path / "out.pc2")]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    read = len(plan_retime(9, 4, 0.5).samples_read)
+    assert re.fullmatch(rf"retime: read {read} of 9 samples \(the keys and what they need\), 36 points, \d+\.\d s; "
+                        r"in-betweening 17 sample\(s\) \(key gaps 0:2 of 2\)", lines[0]), lines
+    assert lines[1].startswith("retime: sample 1/17 ") and lines[-1].startswith("retime: sample 17/17 "), lines
+
+    real_read_obj, real_iter_retime = command.read_obj, command.iter_retime
+
+    def slow_read_obj(path):
+        time.sleep(0.3)
+        return real_read_obj(path)
+
+    def slow_iter_retime(*args, **kwargs):
+        for item in real_iter_retime(*args, **kwargs):
+            time.sleep(0.3 if item[0] < 2 else 0.0)
+            yield item
+
+    monkeypatch.setattr(command, "HEARTBEAT_SECONDS", 0.05, raising=False)
+    monkeypatch.setattr(command, "read_obj", slow_read_obj)
+    monkeypatch.setattr(command, "iter_retime", slow_iter_retime)
+    assert main([*common, "-o", str(tmp_path / "slow.pc2")]) == 0
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith(f"retime: working on reading '{cache}' and '{topology}', "), lines
+    first = next(i for i, line in enumerate(lines) if line.startswith("retime: sample 1/17 "))
+    assert any(line.startswith("retime: working on sample 2/17 (gap 1/2), ") for line in lines[first:]), lines
+    assert all(line.startswith("retime: ") for line in lines), lines
+    seconds = [float(re.search(r", (\d+\.\d) s\b", line).group(1)) for line in lines]
+    assert seconds == sorted(seconds) and seconds[-1] >= 0.9, lines
+    assert main([*common, "-q", "-o", str(tmp_path / "quiet.pc2")]) == 0
+    assert capsys.readouterr().err == ""
 
 
 def test_command_names_an_unexpected_failure_before_its_traceback(tmp_path):

@@ -356,21 +356,24 @@ def test_flamenco_job_runs_chunks_then_merge(job):
     assert "bl_ext.user_default.shape_differences.core.__main__" in command["parameters"]["args"][1]
 
 
-#: What `blender -b --python-exit-code 2 --python-expr SCRIPT` does with the runner "blender"'s
+#: What `blender -b --python-exit-code CODE --python-expr SCRIPT` does with the runner "blender"'s
 #: SCRIPT (argv[1]), for a plain Python: the extension is importable under its module name ("ext"),
-#: an uncaught exception exits 2, and sys.exit(code) exits with that code (Blender's bpy_atexit
+#: an uncaught exception exits CODE, and sys.exit(code) exits with that code (Blender's bpy_atexit
 #: closes Blender, then Python exits). With argv[2] "cancel" the task is cancelled with SIGTERM,
-#: as a farm does, as its output is being written.
+#: as a farm does, as its output is being written; with "fail" writing the output raises an
+#: error the command does not expect.
 BLENDER_PYTHON_EXPR = """
 import os, signal, sys, types
 extension = types.ModuleType("ext")
 extension.__path__ = [{root!r}]
 sys.modules["ext"] = extension
-if sys.argv[2:] == ["cancel"]:
+if sys.argv[2:] in (["cancel"], ["fail"]):
     import ext.core.point_cache as point_cache
     write = point_cache.write_atomically
 
     def cancelled(path, blocks, **options):
+        if sys.argv[2] == "fail":
+            raise ZeroDivisionError("a failure nobody expects")
         os.kill(os.getpid(), signal.SIGTERM)
         return write(path, blocks, **options)
 
@@ -380,7 +383,7 @@ try:
 except Exception:
     import traceback
     traceback.print_exc()
-    sys.exit(2)
+    sys.exit({code})
 """
 
 
@@ -388,15 +391,18 @@ except Exception:
 def test_flamenco_blender_runner_exits_with_the_command_s_status(job, tmp_path):
     """The runner "blender"'s chunk task exits as the command does: 0 done, 2 refused, 143 when the
     farm cancels it with SIGTERM (it said 2, through a failed assert, so a cancelled task read as a
-    failed one, with an AssertionError traceback in its log), the chunk file removed."""
+    failed one, with an AssertionError traceback in its log), the chunk file removed, and 1 on an
+    unexpected failure, as the runner "python" (`python -m core`) does (it said 2, a refusal's
+    status)."""
     folder, cache, topology, single = job
     settings = dict(input_cache=str(cache), topology=str(topology), output_cache=str(tmp_path / "out.pc2"),
                     chunk_directory=str(tmp_path), step=4, speed=0.5, chunks=2, runner="blender",
                     extension_module="ext")
     (command,) = compile_flamenco_job(settings)[0]["commands"]
-    assert command["parameters"]["argsBefore"] == ["--python-exit-code", "2"]
+    before = command["parameters"]["argsBefore"]
+    assert before[0] == "--python-exit-code"
     script = command["parameters"]["args"][1]
-    expr = BLENDER_PYTHON_EXPR.format(root=str(ROOT))
+    expr = BLENDER_PYTHON_EXPR.format(root=str(ROOT), code=int(before[1]))
 
     def run(script, *how):
         return subprocess.run([sys.executable, "-c", expr, script, *how], cwd=tmp_path, capture_output=True,
@@ -405,6 +411,10 @@ def test_flamenco_blender_runner_exits_with_the_command_s_status(job, tmp_path):
     cancelled = run(script, "cancel")
     assert cancelled.returncode == 128 + 15, cancelled.stderr
     assert cancelled.stderr.splitlines()[-1] == "retime: cancelled (SIGTERM), nothing written"
+    assert not (tmp_path / "chunk1.pc2").exists()
+    failed = run(script, "fail")
+    assert failed.returncode == 1, failed.stderr
+    assert "retime: failed: " in failed.stderr and "ZeroDivisionError" in failed.stderr.splitlines()[-1]
     assert not (tmp_path / "chunk1.pc2").exists()
     refused = run(script.replace(str(topology), str(tmp_path / "missing.obj")))
     assert refused.returncode == 2 and "Traceback" not in refused.stderr, refused.stderr
