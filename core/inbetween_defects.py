@@ -58,7 +58,7 @@ class DefectChecks:
         if rows is None:
             if not np.isfinite(x).all():
                 return np.ones(len(self.gap.topo.triangles), dtype=bool)
-            e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
+            e1, e2, cross, length = self._whole_sides(x)
             rows = slice(None)
             normals = None
             target = self.gap.base.areas * self._area_scale(stretch, scale, rows)
@@ -68,8 +68,8 @@ class DefectChecks:
             if not np.isfinite(p).all():
                 return np.ones(len(rows), dtype=bool)
             e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
-        cross = coordinate_cross(e1, e2)
-        length = np.sqrt(coordinate_dot(cross, cross))
+            cross = coordinate_cross(e1, e2)
+            length = np.sqrt(coordinate_dot(cross, cross))
         collapsed = 0.5 * length < COLLAPSE_RATIO * target
         return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
 
@@ -79,12 +79,32 @@ class DefectChecks:
         untangling count them: with the interpolated frames, so that triangles the interpolated
         rotations turn away from both keys are none (:mod:`core.inbetween_turned_away`). Checked
         first without them (the same triangles and more: the frames only take turned-away ones
-        out), and with them, on the gap's targets by rows at ``s``, only where that finds any."""
-        plain = self.defects(x, s, None, None, scale=scale)
-        if not plain.any():
-            return plain
-        frames, stretch = self.factor_targets(s)[:2]
-        return self.defects(x, s, frames, stretch, scale=scale)
+        out), and with them, on the gap's targets by rows at ``s``, only where that finds any: the
+        second check takes the first one's sides and normals (:meth:`_whole_sides`)."""
+        self._local.sides = None  # both checks read the pose's sides, normals and their lengths once
+        try:
+            plain = self.defects(x, s, None, None, scale=scale)
+            if not plain.any():
+                return plain
+            frames, stretch = self.factor_targets(s)[:2]
+            return self.defects(x, s, frames, stretch, scale=scale)
+        finally:
+            self._local.sides = False  # let go (a count inside another leaves the outer one to take its own)
+
+    def _whole_sides(self, x: np.ndarray) -> tuple:
+        """The sides from the first corner (two (3, m)), the normals ``cross`` (3, m) and their
+        lengths (m,) of every triangle of ``x`` (n, 3); inside :meth:`counted`, which checks one pose
+        twice, the ones it made for ``x`` first (per thread: a gap's in-betweens are counted
+        concurrently)."""
+        kept = getattr(self._local, "sides", False)
+        if kept and kept[0] is x:
+            return kept[1]
+        e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
+        cross = coordinate_cross(e1, e2)
+        sides = e1, e2, cross, np.sqrt(coordinate_dot(cross, cross))
+        if kept is not False:
+            self._local.sides = (x, sides)
+        return sides
 
     def region_defects(self, x: np.ndarray, s: float, frames, stretch, rows: np.ndarray, scale=None) -> np.ndarray:
         """The flipped or collapsed triangles (bool (r,)) among ``rows`` (r,) of a whole pose ``x``

@@ -490,3 +490,26 @@ def test_a_fit_near_the_blend_left_with_places_is_said_as_that_fit(monkeypatch):
     assert _flipped(x, keys[0], keys[1], tri) > 0 and _flipped(y, keys[0], keys[1], tri) == 0  # the fold cleared
     assert [(w.kind, w.defects) for w in said] == [("pose", _collapsed(y, keys[0], tri))]
     assert "(a fit near the keys' linear blend with the fewest defects" in str(said[0])
+
+
+def test_a_count_reads_the_pose_once_and_takes_the_turned_tip_out(monkeypatch):
+    """``Repair.counted`` on the finger of :func:`_curling_finger` half-way through its first gap,
+    with a fan folded over between the joints: it equals, triangle by triangle, the whole mesh's
+    check with the interpolated frames (the fold's triangles; not the tip's, which face away from
+    both keys as the interpolated rotations turn them), which the check without the frames does not
+    (it holds the tip's too), and it takes the pose's triangle sides once for both checks (the
+    second check reads the first one's sides and normals: the same pose)."""
+    keys, tri, curl, centre = _curling_finger()
+    gap = SequenceInterpolator(keys, tri, start="keys")._gap(0)
+    s, scale = 0.5, gap.area_scale(0.5)
+    x = _pushed_past(gap.pose(s)[0], tri, centre)
+    frames, stretch = gap.repair.factor_targets(s)[:2]
+    with_frames = gap.repair.defects(x, s, frames, stretch, scale=scale)
+    plain = gap.repair.defects(x, s, None, None, scale=scale)
+    turned = _flipped(curl, keys[0], keys[1], tri)
+    assert with_frames.any() and plain.sum() >= with_frames.sum() + turned > with_frames.sum()
+    read = []
+    real = type(gap.topo).triangle_sides
+    monkeypatch.setattr(type(gap.topo), "triangle_sides", lambda topo, y: read.append(y) or real(topo, y))
+    np.testing.assert_array_equal(gap.repair.counted(x, s, scale), with_frames)
+    assert len(read) == 1
