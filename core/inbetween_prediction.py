@@ -33,7 +33,8 @@ import numpy as np
 from .inbetween_corrections import (RELAXED_SOLVED, PiecewiseLinearCorrection, co_moving_correction,
                                     correction_polynomial, inconsistent, relaxed_correction, slopes_disagree)
 from .inbetween_fit import METRIC_TOLERANCE
-from .inbetween_prediction_repairs import REDUCED_ROUNDS, defect_count, repaired_in_passes, repaired_prediction, solve_off_metric
+from .inbetween_prediction_repairs import (REDUCED_ROUNDS, defect_count, held_before, repaired_in_passes, repaired_prediction,
+                                          solve_off_metric)
 from .inbetween_repair_rounds import REPAIR_RINGS
 from .inbetween_threads import per_factor
 from .inbetween_untangling import untangled_poses
@@ -166,8 +167,10 @@ def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
         correction = relaxed_correction(gap, correction, sorted(solved))
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
 
+    held = held_before(gap)  # the solved in-betweens': read once, the same for every prediction
+
     def predict(s):
-        return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings), outer, rings)
+        return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings, held=held), outer, rings)
 
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
     solve_off_metric(gap, solved, solved_factors, predicted)
@@ -204,10 +207,12 @@ def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | N
     left = {0.0: 0, 1.0: 0, **{s: defect_count(gap, s, x) for s, (x, problem) in solved.items() if problem}}
     knots = sorted(left.keys() | solved.keys())
 
+    held = held_before(gap)  # the solved in-betweens': read once, the same for every prediction
+
     def predict(s):
         after = int(np.searchsorted(knots, s))
         allowed = max(left.get(knots[after - 1], 0), left.get(knots[after], 0))
-        return repaired_prediction(gap, s, correction, rings, allowed)
+        return repaired_prediction(gap, s, correction, rings, allowed, held=held)
 
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
     solve_off_metric(gap, solved, targets, predicted)

@@ -74,12 +74,14 @@ REDUCED_ROUNDS = 3
 
 
 def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=None,
-               allowed: int | None = None) -> tuple[np.ndarray, str | None]:
+               allowed: int | None = None, held: bool = False) -> tuple[np.ndarray, str | None]:
     """The predicted pose at ``s``, repaired (rounds ``rings``, all by default) where it has a
     defect; where no repair removes every defect and ``rings`` is None (the solved in-betweens
     had none left), or more than ``allowed`` defects are left, the pose solved at ``s`` from the
     repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`; repaired only where its fit has at most
-    :data:`UNREPAIRED_SOLVE_DEFECTS` × the prediction's defects) instead if it has no more."""
+    :data:`UNREPAIRED_SOLVE_DEFECTS` × the prediction's defects) instead if it has no more.
+    ``held``: whether the gap's in-betweens solved before the predictions were held off the metric
+    (:func:`held_before`), which decides the anchor of those solves."""
     motion = gap.motion(s)
     x = predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():
@@ -98,7 +100,7 @@ def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=N
     result = gap.repaired(x, s, rings, defects)
     if result[1] is None and gap.repair.moved_far(result[0], x):
         # a clean repair that moves the pose by more than the cloth deforms: the solve, if clean
-        solved = _solved_instead(gap, s)
+        solved = _solved_instead(gap, s, held)
         return solved if solved[1] is None else result
     if result[1] is None or (rings is not None and allowed is None):
         return result
@@ -116,14 +118,14 @@ def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=N
     # UNREPAIRED_SOLVE_DEFECTS × the prediction's defects
     misfits = []
     repaired = gap.outcomes.get(s)  # each check below stores its own: the one of the pose returned is kept
-    solved = gap.pose(s, weak=any(gap.held_factors.values()), start=result[0],
+    solved = gap.pose(s, weak=held, start=result[0],
                       iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits,
                       repairable=UNREPAIRED_SOLVE_DEFECTS * np.count_nonzero(defects))
     defects, outcome = count(solved[0]), gap.outcomes.get(s)
     if solved[1] is not None and misfits[-1] < gap.tolerance:
         # the prediction fits the metric and its fit keeps defects: they are not the metric's doing,
         # the solve from the field's Poisson solve is tried too, and kept on a tie
-        fresh = _solved_instead(gap, s)
+        fresh = _solved_instead(gap, s, held)
         fewer = count(fresh[0])
         if fewer <= defects:
             solved, defects, outcome = fresh, fewer, gap.outcomes.get(s)
@@ -209,18 +211,25 @@ def solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
     predicted from two solved factors, every one where the middle prediction is stretched
     (:func:`_stretched_predictions`). A prediction that kept defects is replaced only where its
     solve keeps no more, a clean one only by a clean solve."""
+    held = held_before(gap)
     if gap.tolerance <= METRIC_TOLERANCE:
         off = _off_metric(gap, {s: results[s][0] for s in solved}, {s: results[s][0] for s in predicted})
     elif len(solved) == 2:
         off = _stretched_predictions(gap, results, solved, predicted)
     else:
         return
-    def solve(s):  # where both keep defects, the solve repaired again as the prediction was
-        pose = _solved_instead(gap, s)
+    def solve(s, weak=held):  # where both keep defects, the solve repaired again as the prediction was
+        pose = _solved_instead(gap, s, weak)
         return repaired_in_passes(gap, s, pose) if results[s][1] is not None else pose
 
     before = {s: gap.outcomes.get(s) for s in off}  # the predictions' (their solves store their own)
-    for s, pose in zip(off, per_factor(gap, solve, off)):
+    poses = dict(zip(off, per_factor(gap, solve, off)))
+    if not held and any(gap.held_factors.get(s) for s in off):
+        # some were held off the metric: the others solved with the weak anchor too, as the gap's
+        # solved in-betweens are (core.inbetween_prediction._solved), whatever order they ran in
+        strong = [s for s in off if not gap.held_factors.get(s)]
+        poses.update(zip(strong, per_factor(gap, lambda s: solve(s, True), strong)))
+    for s, pose in poses.items():
         if pose[1] is None:
             results[s] = pose
         elif results[s][1] is not None and defect_count(gap, s, pose[0]) <= defect_count(gap, s, results[s][0]):
@@ -277,10 +286,20 @@ def _off_metric(gap, solved: dict, predicted: dict) -> list:
     return [s for s, misfit in misfits.items() if misfit > reached + gap.tolerance]
 
 
-def _solved_instead(gap, s: float) -> tuple[np.ndarray, str | None]:
-    """The pose solved at ``s`` in place of a prediction, with the weak anchor if the gap's solved
-    in-betweens were (see :func:`core.inbetween_prediction._solved`)."""
-    return gap.pose(s, weak=True if any(gap.held_factors.values()) else None)
+def held_before(gap) -> bool:
+    """Whether any in-between of ``gap`` solved so far was held off the metric and solved with the
+    weak anchor (``gap.held_factors``; see :func:`core.inbetween_prediction._solved`). Read once
+    before in-betweens are solved in place of predictions, concurrently: each of those solves may
+    itself be held and record it, so a read inside them would depend on which ran first (the
+    threads' timing) and the in-betweens with it."""
+    return any(gap.held_factors.values())
+
+
+def _solved_instead(gap, s: float, held: bool) -> tuple[np.ndarray, str | None]:
+    """The pose solved at ``s`` in place of a prediction, with the weak anchor if ``held`` (the
+    gap's in-betweens solved before were: :func:`held_before`), else with the gap's own and the
+    weak one if its fit is held (:meth:`core.inbetween_solver.Gap.pose`)."""
+    return gap.pose(s, weak=True if held else None)
 
 
 def defect_count(gap, s: float, x: np.ndarray, scale: np.ndarray | None = None) -> int:

@@ -1305,8 +1305,8 @@ def test_predictions_stretched_past_twice_the_keys_change_are_solved(monkeypatch
     predicted_factors = [s for s in factors if s not in (0.25, 0.75)]
     real = inbetween_prediction.repaired_prediction
 
-    def stretched(gap, s, correction, rings=None, allowed=None):
-        x, problem = real(gap, s, correction, rings, allowed)
+    def stretched(gap, s, correction, rings=None, allowed=None, **held):
+        x, problem = real(gap, s, correction, rings, allowed, **held)
         return x[0] + (1.0 + changes * change) * (x - x[0]), problem  # about the corner that stays still
 
     monkeypatch.setattr(inbetween_prediction, "repaired_prediction", stretched)
@@ -1335,14 +1335,14 @@ def _off_metric_predictions_and_collapsed_solves(monkeypatch, strip):
     real_predicted, real_solve = inbetween_prediction.repaired_prediction, inbetween_prediction_repairs._solved_instead
     made = {}
 
-    def stretched(gap, s, correction, rings=None, allowed=None):
-        x, _ = real_predicted(gap, s, correction, rings, allowed)
+    def stretched(gap, s, correction, rings=None, allowed=None, **held):
+        x, _ = real_predicted(gap, s, correction, rings, allowed, **held)
         made[s] = x.copy()  # stretched along x from the edge x = 0, which stays still
         made[s][:, 0] = x[0, 0] + (1.0 + 10.0 * METRIC_TOLERANCE) * (x[:, 0] - x[0, 0])
         return made[s], "kept a defect"
 
-    def collapsed(gap, s):
-        x, _ = real_solve(gap, s)
+    def collapsed(gap, s, *held):
+        x, _ = real_solve(gap, s, *held)
         x = x.copy()
         a, b = tri[len(tri) // 2, :2]
         x[a] = x[b]  # the triangles on that edge collapsed
@@ -1388,6 +1388,55 @@ def test_an_off_metric_solve_with_defects_is_repaired_again_before_it_is_weighed
         assert not gap.repair.defects(seq._to_working(poses[s]), s, None, None, scale=gap.area_scale(s)).any()
         # not the prediction (1 % longer): the solve, repaired
         assert np.abs((poses[s] - x) - (poses[s][0] - x[0])).max() > METRIC_TOLERANCE * np.ptp(flat[:, 0])
+
+
+@pytest.mark.parametrize("order", ["reversed", "from the middle out"])
+def test_off_metric_solves_take_one_anchor_whatever_order_they_run_in(monkeypatch, strip, order):
+    """The off-metric predictions of keys of one metric (:func:`_off_metric_predictions_and_collapsed_solves`,
+    its predictions only) solved in their place run concurrently, so in an order the threads'
+    timing decides. Where one of those solves is held off the metric (standing in: the fit at
+    5/8 with the gap's own anchor, which takes the weak anchor) and none solved before was, every
+    other is solved with the weak anchor too, as the gap's solved in-betweens are: the
+    in-betweens are the same to the bit in whichever order the solves run, and all of them
+    weakly anchored. (Where each solve read what the others had recorded so far, those solved
+    before the held one kept the gap's anchor and those after took the weak one.)"""
+    from core import inbetween_prediction_repairs
+    from core.inbetween_solver import Gap
+
+    real_pose, real_solved_instead = Gap.pose, inbetween_prediction_repairs._solved_instead
+    held_here = 0.625
+
+    def pose(gap, s, weak=None, start=None, **options):
+        if weak is None and start is None and 0.0 < s < 1.0:  # the held test, decided here
+            weak = abs(s - held_here) < 1e-12
+        return real_pose(gap, s, weak=weak, start=start, **options)
+
+    monkeypatch.setattr(Gap, "pose", pose)
+    monkeypatch.setattr(inbetween_prediction_repairs, "REPAIR_PASSES", 0)
+    real_per_factor = inbetween_prediction_repairs.per_factor
+
+    def in_order(gap, function, factors):
+        factors = list(factors)
+        if order == "reversed":
+            ran = factors[::-1]
+        else:
+            ran = sorted(factors, key=lambda s: abs(s - 0.5))
+        out = dict(zip(ran, real_per_factor(gap, function, ran)))
+        return [out[s] for s in factors]
+
+    results = {}
+    for how in ("given", order):
+        seq, factors, made = _off_metric_predictions_and_collapsed_solves(monkeypatch, strip)
+        monkeypatch.setattr(inbetween_prediction_repairs, "_solved_instead", real_solved_instead)  # the real solves
+        monkeypatch.setattr(inbetween_prediction_repairs, "per_factor", in_order if how == order else real_per_factor)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ShapeDifferenceWarning)
+            results[how] = np.stack(seq.poses(0, factors))
+        gap = seq._gap(0)
+        off = sorted(made)
+        assert held_here in off and len(off) >= 3
+        assert all(gap.held_factors[s] for s in off)
+    np.testing.assert_array_equal(results["given"], results[order])
 
 
 def test_thousands_of_pieces_moving_as_one_are_in_betweened_as_one():
