@@ -1,8 +1,11 @@
 """The defects of an in-between a repair removes (:mod:`core.inbetween_repair`): flipped triangles, whose
 normal opposes both keys' (or, beyond the keys, the interpolated normal) by more than
 :data:`FLIP_COSINE`, and collapsed ones, whose area dropped below :data:`COLLAPSE_RATIO` of the
-interpolated area; every triangle of a pose that is not finite. Positions ``x`` (n, 3), the
-triangles of the gap's topology (m, 3); in-betweens of paper §8.4.
+interpolated area; every triangle of a pose that is not finite. A triangle less high than the fits'
+floor (:data:`core.inbetween_fit.UNTOLD_HEIGHT`) in both keys and than the noise of its rigid
+piece's keys in either is neither: the keys do not tell which way it faces
+(:mod:`core.untold_triangles`). Positions ``x`` (n, 3), the triangles of the gap's topology (m, 3);
+in-betweens of paper §8.4.
 """
 
 from __future__ import annotations
@@ -71,7 +74,11 @@ class DefectChecks:
             cross = coordinate_cross(e1, e2)
             length = np.sqrt(coordinate_dot(cross, cross))
         collapsed = 0.5 * length < COLLAPSE_RATIO * target
-        return self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+        defects = self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+        untold = self.gap.untold[2]
+        if untold.any():  # a triangle whose facing neither key tells is neither (core.untold_triangles)
+            defects &= ~untold[rows]
+        return defects
 
     def counted(self, x: np.ndarray, s: float, scale: np.ndarray) -> np.ndarray:
         """The flipped or collapsed triangles (bool (m,)) of an in-between ``x`` (n, 3) at factor
@@ -176,6 +183,7 @@ class DefectChecks:
         against = coordinate_dot(cross, normal) < slack * np.sqrt(coordinate_dot(normal, normal))
         against &= (coordinate_dot(cross, gap.base.normal_rows) < slack) != \
             (coordinate_dot(cross, gap.next.normal_rows) < slack)
+        against &= ~gap.untold[2]  # whose facing neither key tells (core.untold_triangles)
         if not against.any():
             return None, (0, 0)
         over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys

@@ -15,7 +15,9 @@ from __future__ import annotations
 import numpy as np
 
 from .geometry import coordinate_dot
+from .inbetween_motion import RIGID_PLACEMENT_SCALE
 from .sewn_seams import sewn_offsets
+from .untold_triangles import borrowed_edges, told_donors, unfaced_triangles, untold_triangles
 
 #: Local/global iterations after the Poisson solve, at most. They bring the edge lengths onto the
 #: interpolated metric where the interpolated rotations are not integrable (crumpling cloth); the
@@ -78,6 +80,14 @@ ARAP_TOLERANCE = 1e-5
 #: Largest angle between a triangle's fitted rotation and its interpolated one (radians); beyond
 #: it the interpolated rotation is kept (keeps folds from flipping over during the fit).
 MAX_ROTATION_DEVIATION = np.pi / 4
+#: A triangle less high than this share of the gap's mean edge in both keys (the fits' floor,
+#: :data:`MISFIT_LENGTH_FLOOR`) is untold (:mod:`core.untold_triangles`): its target edges are
+#: those of the nearest told triangle's deformation and the local steps keep them; where it is also
+#: lower than the noise of its rigid piece's keys in either key the checks do not count it flipped
+#: or collapsed (the keys do not tell which way it faces). A 5.8k scan with 40 T-junction slivers
+#: 1e-9–1e-5 of their side high, turned rigidly with 1e-6 noise: 5.8e-3 of its diagonal off at 0.5
+#: with their own targets, 1.2e-6 (the noise's) with their donors'; exactly rigid, ×2: 9.7e-3 → 6e-13.
+UNTOLD_HEIGHT = MISFIT_LENGTH_FLOOR
 #: The local steps' per-triangle arithmetic runs in this precision: their edge targets carry
 #: ~3e-7 relative error, far below the fit's tolerance (METRIC_TOLERANCE, 1e-3) and the
 #: simulations' own edge noise, and the arrays they stream are half the size (100k sheet: 33 → 13.5
@@ -142,6 +152,51 @@ class LocalGlobalFit:
     #: (:data:`core.inbetween_prediction.ROUGH_ROTATION_DEVIATION`).
     rotation_limit = MAX_ROTATION_DEVIATION
 
+    @property
+    def untold(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(rows, donors, unfaced)``: of the triangles less high than :data:`UNTOLD_HEIGHT` × the
+        mean edge in both keys, those that take their target edges from a told triangle (``rows``)
+        and that triangle (``donors``; :mod:`core.untold_triangles`), and (bool (m,) ``unfaced``)
+        those also less high in either key than twice their rigid piece's misfit over the gap's keys
+        (the noise between keys of a rigid motion: :func:`core.untold_triangles.unfaced_triangles`),
+        whose facing the keys do not tell; found once per gap."""
+        untold = self.__dict__.get("_untold")
+        if untold is None:  # made twice at worst by two threads: the same rows
+            mask = untold_triangles(self.base, self.next, UNTOLD_HEIGHT * self.mean_edge)
+            rows, donors = told_donors(self.topo.triangles, self.base.lengths, mask)
+            unfaced = mask.copy()
+            if mask.any():
+                known = [r for r in self.relatives if getattr(r, "misfits", None) is not None]
+                noise = np.zeros(len(self.topo.components))
+                if known:  # a rigid piece's misfit is the noise between its keys; a deforming one's is not
+                    misfits = np.max([np.asarray(r.misfits) for r in known], axis=0)
+                    rigid = np.max([r.nonrigidity for r in known], axis=0) < RIGID_PLACEMENT_SCALE
+                    noise[rigid] = misfits[rigid]
+                unfaced = unfaced_triangles(self.base, self.next, noise[self.topo.triangle_component]) & mask
+            untold = self.__dict__["_untold"] = (rows, donors, unfaced)
+        return untold
+
+    def _borrowed(self, edges: np.ndarray, frames: np.ndarray, stretch: np.ndarray, rows=None) -> None:
+        """Set the target edges ``edges`` (3 coordinates, 3 corners, r) of the untold triangles
+        among ``rows`` (index array of the r triangles; None: all) whose donors are among them too to
+        their donors' (:func:`core.untold_triangles.borrowed_edges`; ``frames`` (≥ 2 columns, 3
+        coordinates, r) and ``stretch`` (r, 3) of the same rows)."""
+        untold, donors, _ = self.untold
+        if not untold.size:
+            return
+        if rows is None:
+            at, by = untold, donors
+        else:
+            position = np.full(len(self.topo.triangles), -1)
+            position[rows] = np.arange(len(rows))
+            kept = (position[untold] >= 0) & (position[donors] >= 0)
+            untold, donors = untold[kept], donors[kept]
+            if not untold.size:
+                return
+            at, by = position[untold], position[donors]
+        edges[:, :, at] = borrowed_edges(self.base.column_rows, self.base.tangent_rows, untold, donors,
+                                         frames[:2, :, by], np.asarray(stretch)[by])
+
     def solve(self, edges: np.ndarray, guide: np.ndarray, system=None, s: float | None = None) -> np.ndarray:
         """Positions (n, 3) fitting corner ``edges`` (3 coordinates, 3 corners, m) and the anchor
         to ``guide`` (``system``: (factor, per-vertex anchor) other than the gap's own); in a gap
@@ -180,6 +235,10 @@ class LocalGlobalFit:
             for d in range(3):
                 edge = np.multiply(u, f0[d], out=edges[:, c, d])
                 edge += v * f1[d]
+        if self.untold[0].size:  # the untold triangles' targets are their donors' (on the rows that hold both)
+            rows = None if isinstance(rows, slice) else np.asarray(rows)
+            by_coordinate = edges.transpose(2, 1, 0)  # a view (3 coordinates, 3 corners, r)
+            self._borrowed(by_coordinate, np.asarray(frames).transpose(0, 2, 1), stretch, rows)
         return {"edges": edges}
 
     def fit_targets(self, frames: np.ndarray | None, stretch: np.ndarray) -> dict:
@@ -195,6 +254,7 @@ class LocalGlobalFit:
         if frames is not None:
             f = out["frames"] = np.ascontiguousarray(frames.transpose(0, 2, 1))
             out["edges"] = f[0][:, None, :] * u + f[1][:, None, :] * v
+            self._borrowed(out["edges"], f, stretch)  # the untold triangles' are their donors'
         return out
 
     @staticmethod
@@ -262,6 +322,10 @@ class LocalGlobalFit:
             out[k] += np.multiply(w1[k], v, out=corners)
         if targets["frames"] is None:
             return out
+        untold = self.untold[0]
+        if untold.size:  # the untold triangles keep their donors' edges: their own fit turns them by the noise
+            force = np.zeros(out.shape[-1], dtype=bool) if force is None else force.copy()
+            force[untold] = True
         f0, f1 = targets["frames"][:2]
         # trace of the turn from the interpolated rotation [f0, f1, f0×f1] to [w0, w1, w0×w1]; by
         # Binet–Cauchy (w0×w1)·(f0×f1) = (w0·f0)(w1·f1) − (w0·f1)(w1·f0), no cross product needed

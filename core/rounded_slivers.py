@@ -5,8 +5,10 @@ float32, as Blender stores shape keys and caches; large far from the origin). Th
 stretched, squashed or turned over by the rounding alone, and the fit bends the mesh around what
 the rounding made: a sphere 3.5 across with four slivers 1e-5–1e-4 high, turned rigidly 1,000
 units from the origin in single precision (rounding 1.2e-4), came 1.2e-4–1.0e-3 of its diagonal
-off at 0.5 and 0.17–2 % at ×2 (the keys' own rounding: 1.7e-5 of it); slivers 1e-3 high, 9.4e-6.
-Such slivers are counted, so that the gap warns of them.
+off at 0.5 and 0.17–2 % at ×2 (the keys' own rounding: 1.7e-5 of it) with their own targets.
+A sliver less high than the fits' floor in both keys takes a told neighbour's targets instead
+(:mod:`core.untold_triangles`: 0.7 of the rounding off); the others, and those with no told
+neighbour, are counted, so that the gap warns of them.
 """
 
 from __future__ import annotations

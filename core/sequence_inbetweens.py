@@ -265,13 +265,16 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
         """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every
         in-between of it: how its pieces turn, their joints, and the triangles thin against the
-        keys' rounding (:func:`core.rounded_slivers.rounded_slivers`). Made once per gap: they
+        keys' rounding (:func:`core.rounded_slivers.rounded_slivers`) that keep their own targets
+        (no told neighbour: :mod:`core.untold_triangles`). Made once per gap: they
         depend on the keys only."""
         if gap not in self._gap_messages:
             names = self.key_names
             keys = (segment.base, segment.next)
-            slivers = int(rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
-                                          self._rounding * self._unit).size)  # the keys' lengths are the working keys
+            slivers = rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
+                                      self._rounding * self._unit)  # the keys' lengths are the working keys
+            # those that take a told neighbour's targets follow the mesh (core.untold_triangles): not said
+            slivers = int(np.setdiff1d(slivers, segment.untold[0], assume_unique=True).size)
             self._gap_messages[gap] = [("turn", m, 0, ()) for m in turn_warnings(segment, names, gap)] + \
                 [("joint", m, 0, ()) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
                 [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]

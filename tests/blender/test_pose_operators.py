@@ -409,3 +409,42 @@ def test_a_quad_mesh_with_a_handle_is_reconstructed_exactly(bpy_empty, extension
     turn, _ = Rotation.align_vectors(key - key.mean(axis=0), result - result.mean(axis=0))
     laid = turn.apply(result - result.mean(axis=0)) + key.mean(axis=0)
     assert np.abs(laid - key).max() < 1e-5 * np.linalg.norm(np.ptp(key, axis=0))
+
+
+@pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 2.0)])
+def test_a_rigid_motion_keyed_in_single_precision_with_slivers_stays_rigid(bpy_empty, extension, operator, factor):
+    """A tube with 28 T-junction slivers 1e-5 of their side high (a scan's), whose shape key turns
+    it rigidly by 60° and shifts it, stored in single precision as Blender stores keys (rounding
+    4.2e-8 of the diagonal, over the slivers' height): the in-between and the exaggeration are the
+    screw motion to within the rounding the factor carries (and the new key's own). The slivers'
+    turns, read from the rounding, bent the tube around them: 5.2e-7 off at 0.5, 2.7e-2 at ×2."""
+    import sys
+    from pathlib import Path
+
+    from scipy.spatial.transform import Rotation
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "core"))
+    from placement_helpers import _screw
+    from test_placement_exaggeration import _tube, _with_slivers
+
+    bridge = extension.bridge
+    vertices, triangles = _with_slivers(*_tube(), 1e-5)
+    mesh = bpy.data.meshes.new("Scan")
+    mesh.from_pydata(vertices.tolist(), [], triangles.tolist())
+    scan = bpy.data.objects.new("Scan", mesh)
+    bpy.context.collection.objects.link(scan)
+    bpy.context.view_layer.objects.active = scan
+    rest = bridge.mesh_data.vertex_positions(mesh).astype(np.float64)
+    axis = np.array([0.3, -0.5, 0.81]) / np.linalg.norm([0.3, -0.5, 0.81])
+    turn, shift = Rotation.from_rotvec(np.radians(60.0) * axis).as_matrix(), np.array([0.3, 0.2, -0.1])
+    add_key(scan, "Turned", rest @ turn.T + shift)
+    stored = positions_of(bridge, scan, "Turned").astype(np.float64)
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    rounding = np.linalg.norm(stored - (rest @ turn.T + shift), axis=1).max()
+    if operator == "inbetween":
+        bpy.ops.shape_differences.inbetween(key_a="Basis", key_b="Turned", count=1)
+    else:
+        bpy.ops.shape_differences.exaggerate(key="Turned", reference="Basis", factor=factor)
+    made = bridge.mesh_data.stored_key_positions(scan.data.shape_keys.key_blocks[-1]).astype(np.float64)
+    off = np.linalg.norm(made - _screw(rest, turn, shift, factor), axis=1).max()
+    assert off < (2.0 * max(factor, 1.0) + 1.0) * rounding, (off / diagonal, rounding / diagonal)
