@@ -28,13 +28,20 @@ class WorldProportions:
     parent), and no cloth or soft body simulates in the world, is taken into the rig's space
     instead: the armature turns its bones there (the mesh's coordinates through the rig's inverse
     world matrix), so under a rig scaled (2, 1, 1) a bent limb's turn is a turn there and a shear
-    in the world (In-between half-way 0.23 of the diagonal off the rig, 0.026 unscaled)."""
+    in the world (In-between half-way 0.23 of the diagonal off the rig, 0.026 unscaled). So is an
+    object whose Lattice modifier's lattice one rig deforms: a lattice moves the mesh by weights
+    fixed in its cells, the same in any space, so the mesh turns where the lattice's points turn, in
+    the rig's space (a bar bent 100° under a rig scaled (2, 1, 1): half-way 0.19 of the diagonal
+    off the lattice's own pose in the world's proportions, 0.035 in the rig's). A lattice no rig
+    deforms is not such a space: its points are turned in the world (Edit Mode in the viewport, a
+    hook), where the mesh then turns (the same bar: 0.038 in the world's proportions, 0.18 in the
+    lattice object's space, scaled (1.76, 0.9, 0.9) to fit the bar)."""
 
     def __init__(self, obj: bpy.types.Object, matrix: np.ndarray | None = None):
         linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
-        rigs = {modifier.object for modifier in obj.modifiers if modifier.type == 'ARMATURE' and modifier.object}
-        if obj.parent is not None and obj.parent_type == 'ARMATURE':
-            rigs.add(obj.parent)
+        rigs = _rigs(obj)
+        for lattice in {modifier.object for modifier in obj.modifiers if modifier.type == 'LATTICE' and modifier.object}:
+            rigs |= _rigs(lattice)
         if len(rigs) == 1 and not any(modifier.type in ('CLOTH', 'SOFT_BODY') for modifier in obj.modifiers):
             rig = np.array(next(iter(rigs)).matrix_world, dtype=np.float64)[:3, :3]
             rig_sigma = np.linalg.svd(rig, compute_uv=False)
@@ -66,6 +73,15 @@ class WorldProportions:
         """Positions (…, n, 3) in the world's proportions back in the mesh's coordinates (the same at
         every time of ``times``)."""
         return positions if self.inverse is None else positions @ self.inverse
+
+
+def _rigs(obj: bpy.types.Object) -> set:
+    """The armature objects that deform ``obj`` (a mesh or a lattice): those its Armature modifiers
+    name, shown or not (the keys a user applies from them are their turns), and its armature parent."""
+    rigs = {modifier.object for modifier in obj.modifiers if modifier.type == 'ARMATURE' and modifier.object}
+    if obj.parent is not None and obj.parent_type == 'ARMATURE':
+        rigs.add(obj.parent)
+    return rigs
 
 
 def _unmirrored(matrix: np.ndarray) -> np.ndarray:

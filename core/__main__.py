@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ShapeDifferenceError, ShapeDifferenceWarning, unexpected_failure, warn
+from .heartbeat import HEARTBEAT_SECONDS, Heartbeat
+from .heartbeat import line as _line
 from .obj_file import read_obj
 from .point_cache import (check_disk_space, check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, pc2_size,
                           read_pc2_header, read_point_cache, refuse_overwriting, unwritable, write_pc2)
@@ -236,12 +238,12 @@ def _check_parts_exist(parts: list[str]) -> None:
 def _retime(args) -> int:
     # the progress lines' seconds count from the start, and the heartbeat covers the reading too:
     # at 100k vertices the OBJ and the keys' samples take 3 s before the first in-between's 1 s
-    with _Progress(time.monotonic(), args.quiet) as progress:
+    with Heartbeat("retime", time.monotonic(), args.quiet, every=HEARTBEAT_SECONDS) as progress:
         progress.doing = f"reading '{args.cache}' and '{args.topology}'"
         return _retime_in(args, progress)
 
 
-def _retime_in(args, progress: "_Progress") -> int:
+def _retime_in(args, progress: Heartbeat) -> int:
     inputs = {args.cache: "the input cache", args.topology: "the topology OBJ"}
     _check_output(args.output, inputs)  # said before the in-betweens, which it would waste
     if args.merged_output is not None:
@@ -323,59 +325,6 @@ def _retime_in(args, progress: "_Progress") -> int:
     _say(f"wrote {args.output}: {len(outputs)} of {plan.n_out} samples (key gaps {gaps.start}:{gaps.stop} "
          f"of {plan.n_gaps}), {cache.n_points} points, {progress.seconds()}")
     return 0
-
-
-#: Seconds without a progress line after which a retime says what it is working on: reading takes
-#: 3 s at 100k vertices before the first line, and a gap's in-betweens, computed together, 11 s
-#: between two lines.
-HEARTBEAT_SECONDS = 2.0
-#: Held while a line goes to stderr, so that the heartbeat's thread never splits another line.
-_STDERR_LOCK = threading.Lock()
-
-
-def _line(text: str) -> None:
-    """Print ``text`` as one line on stderr, whole whatever thread prints beside it."""
-    with _STDERR_LOCK:
-        print(text, file=sys.stderr, flush=True)
-
-
-class _Progress:
-    """A retime's progress lines on stderr (none when ``quiet``): :meth:`say` prints one, and in
-    the block a thread prints ``retime: working on sample I/N (gap G/M), T s`` whenever no line
-    came for :data:`HEARTBEAT_SECONDS` (a farm's watchdog on silence then sees a long gap alive).
-    Seconds count from ``began``."""
-
-    def __init__(self, began: float, quiet: bool):
-        self.began, self.quiet = began, quiet
-        self.last = time.monotonic()
-        self.doing = ""  # what the heartbeat names: the sample being computed
-        self._stop = threading.Event()
-        self._thread = None
-
-    def say(self, text: str) -> None:
-        if not self.quiet:
-            _line(text)
-        self.last = time.monotonic()
-
-    def seconds(self) -> str:
-        return f"{time.monotonic() - self.began:.1f} s"
-
-    def _beat(self) -> None:
-        while not self._stop.wait(max(0.0, self.last + HEARTBEAT_SECONDS - time.monotonic())):
-            if time.monotonic() - self.last >= HEARTBEAT_SECONDS and self.doing:
-                self.say(f"retime: working on {self.doing}, {self.seconds()}")
-
-    def __enter__(self):
-        if not self.quiet:
-            self._thread = threading.Thread(target=self._beat, name="retime-heartbeat", daemon=True)
-            self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-        return False
 
 
 def _say(text: str) -> None:

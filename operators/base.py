@@ -364,16 +364,29 @@ class GeneratorOperator:
         """Validate, compute (yielding progress in 0..1), then write. Set ``self.summary``."""
         raise NotImplementedError
 
-    def compute(self, progress: float, function, *args, **kwargs):
+    def compute(self, progress: float, function, *args, doing: str = "", **kwargs):
         """``yield from`` this to run one core call ``function(*args, **kwargs)`` (pure NumPy, no
         bpy) and get its result. From the UI it runs in a worker thread while this yields
         ``progress`` every few hundredths of a second, so Esc cancels at once however long the
         call takes (a cancelled call finishes in the background and its result is dropped);
-        in ``execute`` it simply runs. Warnings the call raises are collected like the job's
-        own while a timer tick waits for it, which is nearly all the time it runs."""
+        in ``execute`` it simply runs, headless (``blender -b``) with a heartbeat on the console
+        (``<label>: working on <doing>, T s`` whenever no line came for ``HEARTBEAT_SECONDS``;
+        ``doing`` by default ``the step from N%``): preparing the keys of a 100k mesh is one
+        call of many seconds. Warnings the call raises are collected like the job's own while a
+        timer tick waits for it, which is nearly all the time it runs."""
         if not getattr(self, "_modal", False):
             yield progress  # lets execute() print progress on the console
-            return function(*args, **kwargs)
+            if not (bpy.app.background and hasattr(self, "_console_began")):
+                return function(*args, **kwargs)
+            # The call runs in this thread and prints nothing, the heartbeat's thread only while
+            # it runs (joined when it ends), so the two never print at once.
+            from ..core.heartbeat import Heartbeat
+            with Heartbeat(getattr(self, "bl_label", type(self).__name__), self._console_began,
+                           last=self._console_last) as heartbeat:
+                heartbeat.doing = doing or f"the step from {100 * progress:.0f}%"
+                result = function(*args, **kwargs)
+            self._console_last = heartbeat.last
+            return result
         future = worker().submit(function, *args, **kwargs)
         try:
             while not wait_for([future], timeout=WORKER_POLL_SECONDS).done:
@@ -441,6 +454,8 @@ class GeneratorOperator:
         label = getattr(self, "bl_label", type(self).__name__)
         last_print = -np.inf  # the first step's progress at once: a long run does not start silently
         self._start(context)
+        # the heartbeat's seconds count from here, its silence from the last line (compute)
+        self._console_began = self._console_last = time.monotonic()
         while True:
             try:
                 status, progress = self._step()
@@ -454,7 +469,7 @@ class GeneratorOperator:
                           flush=True)
                 return self._finish(status)
             if console and time.monotonic() - last_print >= CONSOLE_PROGRESS_INTERVAL:
-                last_print = time.monotonic()
+                last_print = self._console_last = time.monotonic()
                 print(f"{label}: {100 * progress:.0f}%", file=sys.stderr, flush=True)
 
     def invoke(self, context, event):

@@ -262,6 +262,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         options.update(retime.motion_ends(scaled, keyed, tail))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed,
+                                           doing=f"preparing the {len(keyed)} keys",
                                            key_names=[frame_name(f) for f in keyed])
         names, tails, all_poses, timeline = [], [], [], []
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
@@ -287,12 +288,14 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
             if gap is None and gap_factors:
                 sequence = yield from self.compute(progress, retime.short_gap_sequence, scaled, triangles, tail,
-                                                   **options, key_names=[frame_name(f) for f in tail])
+                                                   **options, key_names=[frame_name(f) for f in tail],
+                                                   doing=f"preparing the keys after frame {frame:g}")
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
-                all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors)),
-                                            times).astype(np.float32))
+                doing = f"the in-betweens of frames {frame:g}-{next_frame:g}"
+                all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors,
+                                                                     doing=doing)), times).astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)
@@ -388,7 +391,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
                                        sample_names=lambda sample: frame_name(start + sample))
         retimed = []
         for index in range(plan.n_out):
-            _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out)
+            _index, pose = yield from self.compute(0.1 + 0.9 * index / plan.n_out, next, poses_out,
+                                                   doing=f"output frame {index + 1}/{plan.n_out}")
             # kept as float32, what shape keys and point caches store
             retimed.append(space.back(pose[None], shown_at[index:index + 1])[0].astype(np.float32))
         shown_speed = format_factor(speed)

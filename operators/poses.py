@@ -67,7 +67,8 @@ class KeyPairProperties:
                         triangles, INBETWEENED_IN_WORLD)
         interpolator = yield from self.compute(
             0.0, load_core().Interpolator, *keys, triangles, **options,
-            key_names=(f"shape key '{start.name}'", f"shape key '{end.name}'"))
+            key_names=(f"shape key '{start.name}'", f"shape key '{end.name}'"),
+            doing=f"preparing shape keys '{start.name}' and '{end.name}'")
         return start, end, InWorldProportions(interpolator, space)
 
 
@@ -87,7 +88,8 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
         factors = [i / (self.count + 1) for i in range(1, self.count + 1)]
         poses = []
         for i, factor in enumerate(factors, 1):
-            poses.append((yield from self.compute((i - 1) / self.count, interpolator.pose, factor)))
+            poses.append((yield from self.compute((i - 1) / self.count, interpolator.pose, factor,
+                                                   doing=f"the in-between at factor {factor:g}")))
         obj = context.active_object
         label = f"Inbetween {shorten(key_a.name, 16)}-{shorten(key_b.name, 16)} x{self.count}"
         if self.output == 'CACHE':  # the cache plays the whole motion, keys included
@@ -109,7 +111,8 @@ class SHAPE_DIFFERENCES_OT_exaggerate(ExaggeratedPose, PoseOutput, KeyPairProper
     def run(self, context):
         reference, key, interpolator = yield from self.pair_interpolator(
             context, "reference", "key", ("Reference", "Key"), advice="decimate the mesh")
-        pose = yield from self.compute(0.5, interpolator.pose, self.factor)
+        pose = yield from self.compute(0.5, interpolator.pose, self.factor,
+                                       doing=f"the pose at factor {self.factor:g}")
         tail = f" {format_factor(self.factor)} from {shorten(reference.name, 20)}"
         self.summary = self.write_poses(
             context, context.active_object, [pose], names=[f"Exaggerate {key.name}"], tails=[tail],

@@ -220,11 +220,11 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, BasisSizeProp
             0.1, core.Transfer, base, triangles, _world(source, rest, rest_matrix), source_triangles,
             correspondence=correspondence, k_M=k_m, k_N=k_n, reference=reference,
             target_name=f"the rest pose of '{source.name}' in the world",
-            target_label=f"'{source.name}' (the source of the poses)")
+            target_label=f"'{source.name}' (the source of the poses)", doing=f"preparing '{source.name}'")
         rebuilt = []
         for i, pose in enumerate(poses):
             world = yield from self.compute(0.1 + 0.9 * i / len(poses), transfer.pose,
-                                            _world(source, pose, matrices[i]))
+                                            _world(source, pose, matrices[i]), doing=f"pose {i + 1}/{len(poses)}")
             rebuilt.append(_local(obj, world))
         self.summary = self.write_poses(
             context, obj, rebuilt, names=[f"{source.name} {name}" for name in names], frames=frames,

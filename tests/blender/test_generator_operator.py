@@ -304,6 +304,48 @@ def test_escape_is_answered_while_a_core_call_runs(extension):
     assert window_manager.progress[-2:] == [30, "end"] and window_manager.timers == 0
 
 
+def test_headless_runs_say_what_they_work_on_inside_a_long_core_call(extension, core, monkeypatch, capsys):
+    """Headless (``blender -b``, these tests) one core call can take many seconds (preparing the
+    keys of a 100k mesh) and printed nothing in that time: while it runs, a line
+    ``<label>: working on <what>, T s`` comes whenever no line came for ``HEARTBEAT_SECONDS`` (0.05 s
+    here; a slow call of 0.4 s is planted), whole lines, seconds counted from the run's start and
+    never going back; the call's result is the job's; none comes after the call or when the calls
+    are quicker than the interval."""
+    import re
+    import time
+    base, heartbeat = extension.operators.base, importlib.import_module(f"{core.__name__}.heartbeat")
+    results = []
+
+    class SlowJob(base.GeneratorOperator):
+        bl_label = "Slow Job"
+
+        def report(self, kind, message):
+            pass
+
+        def run(self, context):
+            yield 0.0
+            results.append((yield from self.compute(0.3, lambda: time.sleep(0.4) or "prepared",
+                                                    doing="preparing the 3 keys")))
+            results.append((yield from self.compute(0.6, max, 1, 2)))
+
+    monkeypatch.setattr(base, "CONSOLE_PROGRESS_INTERVAL", 1e9)  # the first step's line, no other
+    monkeypatch.setattr(heartbeat, "HEARTBEAT_SECONDS", 0.05)
+    assert SlowJob().execute(SimpleNamespace()) == {'FINISHED'}
+    lines = capsys.readouterr().err.splitlines()
+    assert results == ["prepared", 2] and lines[0] == "Slow Job: 0%" and lines[-1] == "Slow Job: done", lines
+    beats = [line for line in lines if line.startswith("Slow Job: working on ")]
+    assert len(beats) >= 3 and all(re.fullmatch(r"Slow Job: working on preparing the 3 keys, \d+\.\d s", line)
+                                   for line in beats), lines
+    seconds = [float(line.rsplit(", ", 1)[1][:-2]) for line in beats]
+    assert seconds == sorted(seconds) and 0.3 <= seconds[-1] < 5.0, beats
+    # all while the slow call runs: right after its step's first line, the quick call and the end after them
+    assert lines[1:1 + len(beats)] == beats and lines[1 + len(beats):] == ["Slow Job: done"], lines
+
+    monkeypatch.setattr(heartbeat, "HEARTBEAT_SECONDS", 1.0)
+    assert SlowJob().execute(SimpleNamespace()) == {'FINISHED'}
+    assert not [line for line in capsys.readouterr().err.splitlines() if "working on" in line]
+
+
 def test_other_warnings_are_passed_on_once(extension, core):
     """A warning that is not the core's (e.g. NumPy's RuntimeWarning) is passed on once to the
     usual warning display (it used to be re-recorded forever), and the job finishes."""

@@ -275,16 +275,19 @@ def test_an_object_scaled_along_one_axis_turns_rigidly_in_the_world(bpy_empty, e
                        atol=1e-4)
 
 
+@pytest.mark.parametrize("through", ["armature", "lattice"])
 @pytest.mark.parametrize("rig_scale", [(2.0, 1.0, 0.5), (-2.0, 1.0, 0.5)])
 @pytest.mark.parametrize("operator, factor", [("inbetween", 0.5), ("exaggerate", 1.5)])
 def test_a_mesh_an_armature_deforms_under_a_scaled_rig_turns_rigidly_in_the_rig_s_space(
-        bpy_empty, extension, operator, factor, rig_scale):
+        bpy_empty, extension, operator, factor, rig_scale, through):
     """A sheet parented to an armature object scaled (2, 1, 0.5) (and mirrored: (−2, 1, 0.5)) in
-    Object Mode, deformed by it through an Armature modifier, whose key turns it rigidly by 80° in
-    its own coordinates, which are the rig's space, where the armature turns its bones: the
-    in-between and the exaggeration turn it rigidly there, by the factor's share of the turn, as
-    for an unscaled rig (before, interpolated in the world's proportions, where the turn is a
-    shear: a skinned limb half-way 0.23 of its diagonal off the rig, 0.026 unscaled)."""
+    Object Mode, deformed by it through an Armature modifier, or through a Lattice modifier whose
+    lattice the armature deforms, whose key turns it rigidly by 80° in its own coordinates, which
+    are the rig's space, where the armature turns its bones (and a lattice's points, which the sheet
+    follows by fixed weights): the in-between and the exaggeration turn it rigidly there, by the
+    factor's share of the turn, as for an unscaled rig (before, interpolated in the world's
+    proportions, where the turn is a shear: a skinned limb half-way 0.23 of its diagonal off the
+    rig, 0.026 unscaled; a bar in a lattice the rig bends 0.19, 0.035 in the rig's space)."""
     import importlib
 
     from scipy.spatial.transform import Rotation
@@ -297,7 +300,13 @@ def test_a_mesh_an_armature_deforms_under_a_scaled_rig_turns_rigidly_in_the_rig_
     rig.scale = rig_scale
     sheet = grid_object(8)
     sheet.parent = rig
-    sheet.modifiers.new("Armature", 'ARMATURE').object = rig
+    if through == "armature":
+        sheet.modifiers.new("Armature", 'ARMATURE').object = rig
+    else:
+        lattice = bpy.data.objects.new("Lattice", bpy.data.lattices.new("Lattice"))
+        bpy.context.collection.objects.link(lattice)
+        lattice.modifiers.new("Armature", 'ARMATURE').object = rig
+        sheet.modifiers.new("Lattice", 'LATTICE').object = lattice
     bpy.context.view_layer.update()
     assert not np.allclose(np.abs(np.linalg.svd(np.array(sheet.matrix_world.to_3x3()), compute_uv=False)), 1.0)
     rest = bridge.mesh_data.vertex_positions(sheet.data)
