@@ -279,6 +279,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self._arc_candidates &= ~(near_half & (nonrigidity > SIMILAR_SHAPE_MISFIT[0]))
         self.repair = Repair(self)
         self.held_factors: dict[float, bool] = {}  # in-betweens solved with the weak anchor (see pose)
+        # a sequence's in-betweens fitted: the least misfit of the fit each returned (core.sequence_edge_misfit)
+        self.fit_misfits: dict[float, float] = {}
         self.outcomes: dict[float, Outcome] = {}  # what the checks of each factor's in-between returned
         # two poses: how many triangles of each factor's in-between face against the field (the
         # poses' normals facing the same way, and in all; DefectChecks.against_the_field)
@@ -394,6 +396,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                          misfits=steps, looser=looser)
         if between:
             self.held_factors[s] = bool(weak)
+            if steps:
+                self.fit_misfits[s] = min(steps)
         if misfits is not None:
             misfits.extend(steps)
         # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)

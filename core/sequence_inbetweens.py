@@ -48,6 +48,7 @@ import numpy as np
 
 from .allocator import keep_heap
 from .concurrency import in_background, result, single_threaded_blas
+from .geometry import coordinate_dot
 from .inbetween_prediction import gap_poses
 from .inbetween_keys import Relative
 from .inbetween_solver import Gap
@@ -61,6 +62,7 @@ from .inbetween_joint_doubts import joint_warnings
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
+from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
@@ -329,6 +331,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return self._caller_poses(out, gap, [0.0 if k in between else f for k, f in enumerate(factors)]), []
         segment = self._gap(gap)
         self._prepare_in_background(gap + 1)
+        segment.fit_misfits.clear()  # this call's fits only
         solved = gap_poses(segment, [factors[k] for k in between])
         problems = []  # (factor, kind, what happened, defects kept) of each in-between with a problem
         held = self._held(gap)
@@ -357,12 +360,41 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 problems.append((factors[k], "non_finite", problem, 0))
         said = self._gap_warnings(gap, segment) + \
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
+        misfit = self._misfit_warning(gap, segment, {factors[k]: x for k, (x, _) in zip(between, solved)})
+        if misfit is not None:
+            said.append(("fit", misfit[0], 0, misfit[1]))
         if self._near_seams is not None:  # seams the gap's keys keep closed, not welded: opened by the in-betweens?
             opening = seam_opening(self._near_seams, [out[k] for k in between], [factors[k] for k in between],
                                    (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices, gap)
             if opening is not None:
                 said.append(("seam", opening[0], 0, opening[1]))
         return self._caller_poses(out, gap, factors), said
+
+    def _misfit_warning(self, gap: int, segment: Gap, poses: dict) -> tuple[str, tuple[float, ...]] | None:
+        """The warning (message, factors) of gap ``gap`` (its data ``segment``) whose in-betweens
+        ``poses`` {factor: working positions (n, 3)} include fitted ones farther off the interpolated
+        metric than the keys' own edge deviation from the first key allows
+        (:func:`core.sequence_edge_misfit.misfit_warning`); None where none is. The fits' misfits
+        are the solve's; the keys' deviations are measured only where a fit ends past
+        :data:`~core.sequence_edge_misfit.MISFIT_NOTED_FLOOR`. Not said of a gap whose pieces are
+        mirrored (:func:`core.sequence_mirrors.warn_mirrored` says why its edges are off)."""
+        fitted = [m for s, m in segment.fit_misfits.items() if s in poses]
+        if not fitted or max(fitted) <= MISFIT_NOTED_FLOOR or gap in self._mirrored_gaps:
+            return None
+        if self._first_lengths is None:
+            self._first_lengths = self._key(0).lengths
+        keys = (segment.base.lengths, segment.next.lengths)
+        allowed = misfit_allowed([key_deviation(k, self._first_lengths) for k in keys])
+
+        def signed(s):
+            edges = segment.edges_of(poses[s])  # (3 coordinates, 3 corners, m), as the fit's
+            lengths = np.sqrt(coordinate_dot(edges, edges)).T
+            target = (1.0 - s) * keys[0] + s * keys[1]
+            kept = target > 0.0
+            return float(np.mean(lengths[kept] / target[kept] - 1.0))
+
+        return misfit_warning(segment.fit_misfits, list(poses), allowed, (self.key_names[gap], self.key_names[gap + 1]),
+                              signed)
 
     def _finite(self, x: np.ndarray, gap: int, factor: float) -> str | None:
         """None where the pose ``x`` (n, 3) at ``factor`` in gap ``gap`` is finite (the check is

@@ -142,6 +142,7 @@ class SequenceKeys:
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
         self._gap_messages: dict[int, list] = {}  # per gap, its warnings (SequenceInterpolator._gap_warnings)
+        self._first_lengths = None  # the first key's corner edge lengths (m, 3), once asked (SequenceInterpolator._misfit_warning)
         self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None
@@ -154,7 +155,7 @@ class SequenceKeys:
         self._raw = keys
         self._topo = Topology(topology, keys[0])
         self._topo.caller_triangles = caller_triangles
-        warn_mirrored(self._topo, self._raw, self.key_names, kept)
+        self._mirrored_gaps = warn_mirrored(self._topo, self._raw, self.key_names, kept)  # said there, once
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (Relative); a sequence reads there which parts turn past a half
         # turn per gap (Relative.turning) and takes those parts' turns continuous across them

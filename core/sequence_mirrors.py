@@ -24,17 +24,20 @@ MIRROR_SAMPLES = 256
 
 
 def warn_mirrored(topo: Topology, keys: list[np.ndarray], key_names: list[str],
-                  kept: np.ndarray | None) -> None:
+                  kept: np.ndarray | None) -> frozenset[int]:
     """Warn where a piece is its own mirror image from one key to the next: a reflection (a
     negative scale, a mirrored copy) fits it within :data:`MIRROR_FIT` of its diagonal and no
     rigid motion within :data:`MIRROR_MISS`. No motion turns a shape into its mirror image, so
     the in-betweens deform it through a flattened shape (tetrahedra mirrored: flat at 0.5,
     edges 18 % off, silently). ``topo``: the sequence's topology; ``keys``: the K key poses
     (n, 3) as interpolated; ``key_names``: the keys as warnings name them; ``kept``: the
-    caller's index of each vertex (n,) (seams welded), or None."""
+    caller's index of each vertex (n,) (seams welded), or None. Returns the gaps warned of (their
+    first keys' indices): their in-betweens' edges are off the metric by the flattening, which this
+    warning says (:mod:`core.sequence_edge_misfit` does not say it again)."""
     count = len(topo.components)
+    warned = set()
     if not count:
-        return
+        return frozenset()
     # about MIRROR_SAMPLES vertices of each piece, evenly along its vertices: a reflection's
     # fit and a rotation's miss 30 × apart are told by a few hundred (a cloth's check per pair
     # of keys on all 100k vertices cost 1 % of its in-betweens)
@@ -56,6 +59,7 @@ def warn_mirrored(topo: Topology, keys: list[np.ndarray], key_names: list[str],
         fit, miss = np.sqrt(reflection / mass), np.sqrt(rotation / mass)
         mirrored = pieces[(fit <= MIRROR_FIT * size) & (miss > MIRROR_MISS * size)]
         if mirrored.size:
+            warned.add(i)
             first = int(topo.component_vertices[topo.component_labels == mirrored[0]][0])
             first = first if kept is None else int(kept[first])
             warn_said(f"{mirrored.size} piece(s) of the mesh (e.g. the one with vertex {first}) are the mirror "
@@ -63,3 +67,4 @@ def warn_mirrored(topo: Topology, keys: list[np.ndarray], key_names: list[str],
                   "negative scale gives), which no motion makes: the in-betweens deform them through a "
                   "flattened shape. Check that key (apply the scale, or mirror the mesh back)", "mirror",
                   gap=(key_names[i], key_names[i + 1]))
+    return frozenset(warned)

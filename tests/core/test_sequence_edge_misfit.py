@@ -1,0 +1,103 @@
+"""A sequence's in-betweens fitted far off the interpolated edge lengths are warned of
+(core.sequence_edge_misfit): keys that turn a sheet far between them, whose in-betweens the anchor
+toward the keys' per-vertex spline compresses, against keys that turn it gently."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from core import Interpolator, SequenceInterpolator, ShapeDifferenceWarning
+from core.sequence_edge_misfit import MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, misfit_allowed
+
+from meshes import grid
+
+FACTORS = [j / 8 for j in range(1, 8)]
+
+
+def _waved(vertices, amplitude, phase, waves=1.5):
+    """``vertices`` of a flat strip along x bent, without stretching it, into a wave travelling
+    along it: its tangent turns by ``amplitude · sin(2π waves u / L − phase)`` at arc length ``u``."""
+    x0 = vertices[:, 0].min()
+    length = vertices[:, 0].max() - x0
+    u = np.linspace(0.0, length, 4001)
+    turn = amplitude * np.sin(2 * np.pi * waves * u / length - phase)
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (np.cos(turn[1:]) + np.cos(turn[:-1])) * np.diff(u))])
+    z = np.concatenate([[0.0], np.cumsum(0.5 * (np.sin(turn[1:]) + np.sin(turn[:-1])) * np.diff(u))])
+    out = vertices.copy()
+    arc = vertices[:, 0] - x0
+    out[:, 0], out[:, 2] = np.interp(arc, u, x), np.interp(arc, u, z)
+    return out
+
+
+def _lengths(x, triangles):
+    p = x[triangles]
+    return np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)
+
+
+def _run(amplitude, step):
+    """Per gap of five keys of the travelling wave (``step`` radians of phase between keys): the
+    edge-misfit warnings of its in-betweens and their largest mean relative edge deviation from
+    the flat strip (the keys are bent without stretching: the simulation's own deviation is 0)."""
+    vertices, triangles = grid(49, 7, size=2.0)
+    keys = [_waved(vertices, amplitude, k * step) for k in range(5)]
+    rest = _lengths(vertices, triangles)
+    keys_off = max(np.mean(np.abs(_lengths(k, triangles) / rest - 1.0)) for k in keys)
+    sequence = SequenceInterpolator(keys, triangles)
+    out = []
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, FACTORS)
+        said = [w.message for w in caught if issubclass(w.category, ShapeDifferenceWarning)
+                and "the keys' edge lengths interpolated on average" in str(w.message)]
+        change = [np.mean(_lengths(x, triangles) / rest - 1.0) for x in poses]
+        out.append((said, min(change), max(np.mean(np.abs(_lengths(x, triangles) / rest - 1.0)) for x in poses)))
+    return keys, triangles, keys_off, sequence, out
+
+
+def test_keys_that_turn_a_sheet_far_warn_of_in_betweens_compressed_in_its_plane():
+    """A strip waved 80° each way, the wave travelling 150° of phase between keys: its triangles
+    turn up to 160° from key to key and the in-betweens come out compressed (the keys are the strip
+    bent without stretching, to the polyline's 1e-4): every gap whose in-betweens deviate past the
+    issue's bound (2 × the keys' own deviation + 0.1 point, at least the fits' accuracy) is warned, once, naming its keys and the
+    in-betweens it is about, their edges shorter (or off both ways at the worst fitted one) and
+    some of them compressed on average; none within the bound is."""
+    keys, triangles, keys_off, sequence, gaps = _run(np.radians(80), np.radians(150))
+    assert keys_off < 1e-3
+    bound = max(2 * keys_off + MISFIT_NOTED_MARGIN, MISFIT_NOTED_FLOOR)
+    over = [deviation > bound for _, _, deviation in gaps]
+    assert sum(over) >= 2  # the property is exercised: the method does compress here
+    for gap, ((said, shortest, deviation), far) in enumerate(zip(gaps, over)):
+        assert bool(said) == far, (gap, deviation, [str(m) for m in said])
+        if said:
+            (message,) = said
+            assert message.kind == "fit"
+            assert message.gap == (sequence.key_names[gap], sequence.key_names[gap + 1])
+            assert message.factors and set(message.factors) <= set(FACTORS)
+            assert ("% shorter than the keys' edge lengths" in str(message)
+                    or "% off the keys' edge lengths interpolated on average, some shorter" in str(message))
+            assert "add keys in this gap" in str(message)
+            assert shortest < -bound  # in-betweens of it compressed on average
+    # two poses have their own note (FALLBACK_MISFIT_NOTED) and never this one
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        Interpolator(keys[1], keys[2], triangles).pose(0.5)
+    assert not [w for w in caught if "the keys' edge lengths interpolated on average" in str(w.message)]
+
+
+def test_keys_that_turn_a_sheet_gently_give_no_edge_misfit_warning():
+    """The same wave at 20° each way, 30° of phase between keys: the in-betweens keep the strip's
+    edge lengths to within the fits' own accuracy (MISFIT_NOTED_FLOOR) and nothing is said."""
+    _, _, keys_off, _, gaps = _run(np.radians(20), np.radians(30))
+    for said, _, deviation in gaps:
+        assert not said
+        assert deviation < keys_off + MISFIT_NOTED_FLOOR
+
+
+@pytest.mark.parametrize("deviations, allowed", [((0.0, 0.0), MISFIT_NOTED_FLOOR), ((0.02, 0.04), 0.061)])
+def test_the_misfit_allowed_is_the_issue_bound_with_the_keys_for_the_simulation(deviations, allowed):
+    """The issue's bound on an in-between's edges (2 × the simulation's own deviation + 0.1 point),
+    the mean of the gap's keys' deviations from the first key standing in for the simulation's;
+    never under the fits' own accuracy."""
+    assert misfit_allowed(deviations) == pytest.approx(allowed)
