@@ -60,7 +60,8 @@ KINDS = {
     "pose": "an in-between keeps flipped or collapsed triangles, or is a simpler fallback, or has triangles "
             "facing against the motion, or pinned vertices off their path",
     "non_finite": "a numerical failure: pieces of an in-between are the keys' linear blend",
-    "turn": "a part turns so far between the keys that they do not tell which way round it went",
+    "turn": ("a part turns so far between the keys that they do not tell which way round it went, or that the "
+             "in-betweens cut its arc"),
     "joint": "rigid pieces that move as jointed ones do, but are not placed as one",
     "sliver": "triangles so thin that the keys' coordinate rounding reshapes them",
     "mirror": "a piece is its own mirror image from one key to the next",

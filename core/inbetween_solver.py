@@ -111,6 +111,10 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: it reading a near half turn one way and it the other
     #: (``core.sequence_half_turns.HalfTurns._aliased_spin``): the gap warns.
     aliased_spin = False
+    #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
+    #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turn``): past
+    #: ``core.sequence_bent_parts.BENT_PART_TURN`` the gap warns.
+    bent_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

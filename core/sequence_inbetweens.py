@@ -59,6 +59,7 @@ from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
+from .sequence_bent_parts import bent_part_turn
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -175,6 +176,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
+        # parts bent about a joint far between the keys, read before the rotations are taken whole
+        bent = bent_part_turn(topo.triangle_component, self._edge_pairs, ahead[0].rotvec, ahead[0].metric,
+                              base.areas) if self._across is None and gap not in self._mirrored_gaps else 0.0
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
@@ -212,6 +216,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
         segment.aliased_spin = bool(self._aliased_spin(gap).any())
+        segment.bent_turn = bent
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

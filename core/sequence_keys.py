@@ -155,7 +155,9 @@ class SequenceKeys:
         self._raw = keys
         self._topo = Topology(topology, keys[0])
         self._topo.caller_triangles = caller_triangles
-        self._mirrored_gaps = warn_mirrored(self._topo, self._raw, self.key_names, kept)  # said there, once
+        # the gaps warned of mirrored pieces: said there once (their edges' misfit, core.sequence_edge_misfit,
+        # and their rotations, which read no bend, core.sequence_bent_parts, are not said again)
+        self._mirrored_gaps = warn_mirrored(self._topo, self._raw, self.key_names, kept)
         # the pairs of triangles sharing an edge (E, 2): two poses take the triangles' rotations
         # continuous across them (Relative); a sequence reads there which parts turn past a half
         # turn per gap (Relative.turning) and takes those parts' turns continuous across them

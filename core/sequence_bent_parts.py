@@ -1,0 +1,92 @@
+"""Parts of a piece that turn as rigid bodies far from each other between two keys (a skinned
+limb bent at a joint), read from the triangles' rotations and stretches of a key seen from the
+gap's base key (:class:`~core.inbetween_keys.Relative`, paper §8.4).
+
+The in-betweens of a sequence place each piece along its keys' splines; a part that turns about a
+joint by θ between two keys follows the spline's chord of its arc, which falls inside the arc by a
+share growing with θ (a uniform Catmull–Rom through points turned evenly by θ per key, at mid-gap:
+6.0 / 11.6 / 16.9 % of the radius at 75 / 90 / 100°). The keys alone tell such parts: regions of
+triangles kept isometric (metric ``G ≈ I``) with one rotation, each a share of its piece, turning
+from one another.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial.transform import Rotation
+
+#: Rotation between two triangles sharing an edge (radians) under which they turn as one.
+SAME_TURN = 1e-2
+#: Largest deviation of the metric ``G`` from the identity (entries) of a triangle kept isometric.
+ISOMETRIC = 5e-3
+#: Largest angle (radians) of a region's triangles from its mean rotation: a rigid part, not a
+#: slow bend whose neighbours each turn alike.
+RIGID_SPREAD = np.radians(2.0)
+#: Least share of its piece's area that a rigid part covers.
+PART_SHARE = 0.05
+#: Turn between two rigid parts of a piece (radians) past which the in-betweens cut their arc
+#: measurably (6.0 % of the radius at mid-gap).
+BENT_PART_TURN = np.radians(75.0)
+
+
+def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
+                   metric: np.ndarray, areas: np.ndarray) -> float:
+    """The largest turn (radians) between two rigid parts of one piece from a key to another,
+    where one is over ``BENT_PART_TURN`` (0 where none is, or no piece has two parts).
+
+    ``triangle_component`` int (m,): each triangle's piece; ``edge_pairs`` int (e, 2): the
+    triangles sharing each interior edge; ``rotvec`` (m, 3): each triangle's rotation with its
+    piece's rigid rotation undone (rotation vectors, :attr:`core.inbetween_keys.Relative.rotvec`);
+    ``metric`` (m, 3): each triangle's metric ``G`` packed ``(g11, g12, g22)`` in the base key's
+    tangent basis; ``areas`` (m,): the triangles' areas in the base key.
+
+    A rigid part is a connected region of isometric triangles (``ISOMETRIC``) whose neighbours
+    turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the region's mean rotation and
+    covering ``PART_SHARE`` of its piece's area."""
+    m = len(rotvec)
+    if m == 0 or len(edge_pairs) == 0:
+        return 0.0
+    g11, g12, g22 = metric[:, 0], metric[:, 1], metric[:, 2]
+    isometric = (np.abs(g11 - 1.0) < ISOMETRIC) & (np.abs(g12) < ISOMETRIC) & (np.abs(g22 - 1.0) < ISOMETRIC)
+    piece_area = np.bincount(triangle_component, areas)
+    # two parts of a piece need twice the least part's share of it kept isometric (a cloth has none)
+    if not (np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
+            >= 2 * PART_SHARE * piece_area).any():
+        return 0.0
+    # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
+    # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
+    if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= BENT_PART_TURN:
+        return 0.0
+    rows = np.flatnonzero(isometric)  # the isometric triangles, numbered 0 … len(rows) − 1 below
+    number = np.full(m, -1)
+    number[rows] = np.arange(rows.size)
+    a, b = number[edge_pairs[:, 0]], number[edge_pairs[:, 1]]
+    candidate = (a >= 0) & (b >= 0)
+    a, b = a[candidate], b[candidate]
+    # unit quaternions: two rotations are θ apart where |q · q'| = cos(θ / 2)
+    quaternions = Rotation.from_rotvec(rotvec[rows]).as_quat()
+    alike = np.abs(np.einsum("ij,ij->i", quaternions[a], quaternions[b])) > np.cos(SAME_TURN / 2)
+    a, b = a[alike], b[alike]
+    graph = coo_matrix((np.ones(a.size), (a, b)), shape=(rows.size, rows.size))
+    _, labels = connected_components(graph, directed=False)
+    pieces, weights = triangle_component[rows], areas[rows]
+    region_area = np.bincount(labels, weights)
+    first = np.zeros(labels.max() + 1, dtype=np.int64)
+    first[labels[::-1]] = np.arange(rows.size)[::-1]  # a triangle of each region: its piece
+    large = np.flatnonzero(region_area >= PART_SHARE * piece_area[pieces[first]])
+    if np.bincount(pieces[first[large]], minlength=len(piece_area)).max(initial=0) < 2:
+        return 0.0  # no piece has two
+    parts: dict[int, list[np.ndarray]] = {}
+    for region in large:
+        inside = np.flatnonzero(labels == region)
+        mean = Rotation.from_quat(quaternions[inside]).mean(weights=weights[inside]).as_quat()
+        if np.abs(quaternions[inside] @ mean).min() >= np.cos(RIGID_SPREAD / 2):
+            parts.setdefault(int(pieces[inside[0]]), []).append(mean)
+    largest = 0.0
+    for means in parts.values():
+        for i in range(len(means)):
+            for j in range(i + 1, len(means)):
+                largest = max(largest, 2.0 * float(np.arccos(min(1.0, abs(float(means[i] @ means[j]))))))
+    return largest
