@@ -16,6 +16,7 @@ from . import deformation_fields as df
 from .geometry import coordinate_dot
 from .inbetween_fit import MISFIT_LENGTH_FLOOR
 from .splines import HermiteGap
+from .untold_triangles import thin_triangles
 
 
 class Splines(dict):
@@ -47,18 +48,9 @@ def log_stretch_spline(relatives: list, cubic: bool, options: dict, rows: np.nda
     return HermiteGap([r.log_stretch_rows(rows) for r in relatives], cubic, **options)
 
 
-def thin_triangles(base, nxt, floor: float) -> np.ndarray:
-    """Indices (int (k,), ascending) of the m triangles whose height (doubled area over the longest
-    side) is under the length ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`:
-    its ``areas`` (m,) and edge ``lengths`` (m, 3)): slivers and needles whose shape the keys tell
-    only to the fits' precision (:data:`HELD_BEYOND_KEYS`)."""
-    thinnest = np.minimum(2.0 * base.areas / base.lengths.max(axis=1), 2.0 * nxt.areas / nxt.lengths.max(axis=1))
-    return np.flatnonzero(thinnest < floor)
-
-
-#: Beyond the keys a triangle's stretch is that of the nearer key where the triangle is thinner
-#: than this share of the gap's mean edge in either key (the fits' floor,
-#: :data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`): exaggerating raises each triangle's stretch
+#: Beyond the keys a triangle's stretch is that of the nearer key where the triangle is less high
+#: than this share of the gap's mean edge in either key (:func:`core.untold_triangles.thin_triangles`;
+#: the fits' floor, :data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`): exaggerating raises each triangle's stretch
 #: between the keys to the factor's power, and a sliver 1e-9 of its edge high in one key that a
 #: skin opens to 1e-3 in the other (a scan's T-junction on a skinned limb) grows 1e6 × between the
 #: keys, 1e12 × at ×2: raised so, ×2 of a 100° bend of a capsule arm with 60 such slivers is 1e4 × its

@@ -163,9 +163,10 @@ class LocalGlobalFit:
         untold = self.__dict__.get("_untold")
         if untold is None:  # made twice at worst by two threads: the same rows
             mask = untold_triangles(self.base, self.next, UNTOLD_HEIGHT * self.mean_edge)
-            rows, donors = told_donors(self.topo.triangles, self.base.lengths, mask)
+            rows = donors = np.zeros(0, dtype=np.int64)
             unfaced = mask.copy()
             if mask.any():
+                rows, donors = told_donors(self.topo.across, self.base.lengths, mask)
                 known = [r for r in self.relatives if getattr(r, "misfits", None) is not None]
                 noise = np.zeros(len(self.topo.components))
                 if known:  # a rigid piece's misfit is the noise between its keys; a deforming one's is not

@@ -112,6 +112,17 @@ class Topology:
         #: (:func:`core.vertex_locality.renumbered`) or some dropped (near-duplicate vertices solved
         #: as one, :mod:`core.near_duplicates`), or None: messages name triangles by it.
         self.caller_triangles: np.ndarray | None = None
+        self._edge_triangles, self._triangle_edges = topo.edge_triangles, topo.triangle_edges  # for across
+
+    @cached_property
+    def across(self) -> np.ndarray:
+        """The triangle across each corner edge (int (m, 3): corner edge ``c`` from corner ``c`` to
+        ``c + 1``, as ``i`` and ``j`` number them), -1 on the boundary: the other triangle of the
+        mesh topology's edge (:class:`core.mesh_topology.MeshTopology`, whose ``triangle_edges[:, k]``
+        is opposite corner ``k``, corner edge ``k + 1``); made when first asked for."""
+        pairs = self._edge_triangles[self._triangle_edges[:, [2, 0, 1]]]  # (m, 3 corner edges, 2)
+        own = np.arange(len(self.triangles))[:, None]
+        return np.where(pairs[..., 0] == own, pairs[..., 1], pairs[..., 0])
 
     @cached_property
     def D(self) -> sp.csr_matrix:

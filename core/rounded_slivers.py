@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .untold_triangles import triangle_heights
+
 #: A triangle is thin against the rounding ``r`` (machine epsilon times the largest coordinate: one
 #: to two steps of the coordinates' grid) where its smallest height is at most ``r / ROUNDED_SLIVER``:
 #: rounding each corner's coordinates by up to half a step moves it by up to 0.87 of a step, which
@@ -30,8 +32,7 @@ def rounded_slivers(lengths: list[np.ndarray], areas: list[np.ndarray], rounding
         return np.zeros(0, dtype=np.int64)
     thin = np.zeros(len(lengths[0]), dtype=bool)
     for length, area in zip(lengths, areas):
-        # smallest height = 2 area / longest edge ≤ rounding / ROUNDED_SLIVER
-        thin |= 2.0 * ROUNDED_SLIVER * area <= rounding * length.max(axis=1)
+        thin |= triangle_heights(area, length) <= rounding / ROUNDED_SLIVER
     return np.flatnonzero(thin)
 
 

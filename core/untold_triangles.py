@@ -1,5 +1,9 @@
-"""Triangles whose shape neither key of a gap tells: slivers and needles less high than the fits'
-floor in both keys (a scan's T-junctions, 1e-9–1e-3 of their side high). Their turn and stretch
+"""Triangles whose shape a key of a gap does not tell: slivers and needles less high (doubled area
+over the longest side, :func:`triangle_heights`) than the fits' floor. Less high in either key
+(:func:`thin_triangles`), a triangle keeps the nearer key's stretch beyond the keys
+(:data:`core.inbetween_field.HELD_BEYOND_KEYS`: exaggerating would raise a stretch that one key
+does not tell to a power). Less high in both keys (:func:`untold_triangles`: a scan's
+T-junctions, 1e-9–1e-3 of their side high), neither key tells it. Their turn and stretch
 between the keys (paper §4.2, §8.4: the polar decomposition of each triangle's map) are set by
 where each corner lies across the triangle's longest side, which any noise in the keys (a rigid
 motion stored in single precision, a scanner's jitter) moves by more than the triangle's height:
@@ -20,61 +24,61 @@ import numpy as np
 from .geometry import coordinate_cross
 
 
+def triangle_heights(areas: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """The smallest height (m,) of each triangle: its doubled area (``areas`` (m,)) over its longest
+    side (``lengths`` (m, 3)); a key's triangles are not degenerate (checked where keys are given:
+    :meth:`core.mesh_topology.MeshTopology.check_pose`), so no side is 0."""
+    return 2.0 * areas / lengths.max(axis=1)
+
+
+def thin_triangles(base, nxt, floor: float) -> np.ndarray:
+    """Indices (int (k,), ascending) of the m triangles less high (:func:`triangle_heights`) than
+    the length ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`: its ``areas``
+    (m,) and edge ``lengths`` (m, 3)): slivers and needles whose shape the keys tell only to the
+    fits' precision (:data:`core.inbetween_field.HELD_BEYOND_KEYS`)."""
+    thinnest = np.minimum(triangle_heights(base.areas, base.lengths), triangle_heights(nxt.areas, nxt.lengths))
+    return np.flatnonzero(thinnest < floor)
+
+
 def untold_triangles(base, nxt, floor: float) -> np.ndarray:
-    """Bool (m,): the triangles whose height (doubled area over the longest side) is under
-    ``floor`` in both key ``base`` and key ``nxt`` (:class:`core.inbetween_keys.Key`)."""
-    return (2.0 * base.areas < floor * base.lengths.max(axis=1)) & (2.0 * nxt.areas < floor * nxt.lengths.max(axis=1))
+    """Bool (m,): the triangles less high (:func:`triangle_heights`) than the length ``floor`` in
+    both key ``base`` and key ``nxt`` (:class:`core.inbetween_keys.Key`)."""
+    return (triangle_heights(base.areas, base.lengths) < floor) & (triangle_heights(nxt.areas, nxt.lengths) < floor)
 
 
 def unfaced_triangles(base, nxt, noise: np.ndarray) -> np.ndarray:
-    """Bool (m,): the triangles less high in key ``base`` or key ``nxt`` than twice the
-    ``noise`` (m,: the RMS misfit of the rigid motion of a triangle's piece between the keys, 0
-    for a deforming piece, whose noise the keys do not tell): noise that size turns them over
-    (the factor of :data:`core.rounded_slivers.ROUNDED_SLIVER`), so the keys do not tell which way
-    they turn, nor which way they face in between (a sliver 1e-10 high in one key is as high as
-    the noise makes it in the other)."""
-    return (base.areas < noise * base.lengths.max(axis=1)) | (nxt.areas < noise * nxt.lengths.max(axis=1))
+    """Bool (m,): the triangles less high (:func:`triangle_heights`) in key ``base`` or key ``nxt``
+    than twice the ``noise`` (m,: the RMS misfit of the rigid motion of a triangle's piece between
+    the keys, 0 for a deforming piece, whose noise the keys do not tell): noise that size turns
+    them over (the factor of :data:`core.rounded_slivers.ROUNDED_SLIVER`), so the keys do not tell
+    which way they turn, nor which way they face in between (a sliver 1e-10 high in one key is as
+    high as the noise makes it in the other)."""
+    return (triangle_heights(base.areas, base.lengths) < 2.0 * noise) | \
+        (triangle_heights(nxt.areas, nxt.lengths) < 2.0 * noise)
 
 
-def told_donors(triangles: np.ndarray, lengths: np.ndarray, untold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def told_donors(across: np.ndarray, lengths: np.ndarray, untold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(rows, donors)`` (index arrays (k,)): each untold triangle (bool (m,) ``untold``) that
-    reaches a told one across sides, and that told triangle: the one across its longest side
-    (``lengths`` (m, 3), corner edge ``c`` from corner ``c`` to ``c + 1`` of ``triangles`` (m, 3))
-    if told, else, ring by ring, the donor of its neighbour across the longest side that has one.
-    Untold triangles with no told triangle in their piece keep their own targets (not listed)."""
-    m = len(triangles)
-    donor = np.where(untold, -1, np.arange(m))
-    if not untold.any():
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    # the corner edges of the untold triangles and of every triangle, by their sorted vertex pair
-    start, end = triangles.ravel(), triangles[:, [1, 2, 0]].ravel()
-    keys = np.minimum(start, end).astype(np.int64) * (int(triangles.max()) + 1) + np.maximum(start, end)
-    order = np.argsort(keys, kind="stable")
-    sorted_keys = keys[order]
-    owner = order // 3
+    reaches a told one across sides, and that told triangle: the one across its longest side if
+    told (``across`` (m, 3): the triangle across each corner edge, -1 on the boundary,
+    :attr:`core.inbetween_topology.Topology.across`; ``lengths`` (m, 3): the corner edges'), else,
+    ring by ring, the donor of its neighbour across the longest side that has one. Untold
+    triangles with no told triangle in their piece keep their own targets (not listed)."""
+    donor = np.where(untold, -1, np.arange(len(untold)))
     thin_rows = np.flatnonzero(untold)
-    corner_keys = keys.reshape(m, 3)[thin_rows]  # (k, 3)
+    neighbours = across[thin_rows]  # (k, 3)
     side = lengths[thin_rows]  # (k, 3)
-    for _ in range(m):  # ring by ring; a ring that assigns none ends it
+    for _ in range(thin_rows.size):  # ring by ring; a ring that assigns none ends it
         open_ = donor[thin_rows] < 0
         if not open_.any():
             break
-        best_length = np.full(thin_rows.size, -1.0)
-        best = np.full(thin_rows.size, -1)
-        for c in range(3):
-            first = np.searchsorted(sorted_keys, corner_keys[:, c], side="left")
-            last = np.searchsorted(sorted_keys, corner_keys[:, c], side="right")
-            for offset in range(int((last - first).max(initial=0))):  # the triangles on that side
-                at = first + offset
-                valid = at < last
-                neighbour = np.where(valid, owner[np.minimum(at, len(owner) - 1)], -1)
-                valid &= (neighbour != thin_rows) & (neighbour >= 0)
-                given = np.where(valid, donor[np.maximum(neighbour, 0)], -1)
-                better = open_ & (given >= 0) & (side[:, c] > best_length)
-                best[better], best_length[better] = given[better], side[better, c]
-        if not (best >= 0).any():
+        given = np.where(neighbours >= 0, donor[np.maximum(neighbours, 0)], -1)  # (k, 3)
+        # the neighbour with a donor across the longest side (the first such side where two are as long)
+        best = given[np.arange(thin_rows.size), np.argmax(np.where(given >= 0, side, -1.0), axis=1)]
+        reached = open_ & (best >= 0)
+        if not reached.any():
             break
-        donor[thin_rows[best >= 0]] = best[best >= 0]
+        donor[thin_rows[reached]] = best[reached]
     reached = donor[thin_rows] >= 0
     return thin_rows[reached], donor[thin_rows[reached]]
 

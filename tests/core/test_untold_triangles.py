@@ -16,7 +16,8 @@ from core.inbetween_keys import Key
 from core.inbetween_topology import Topology
 from core.mesh_topology import mesh_topology
 from core.two_pose_inbetweens import Interpolator
-from core.untold_triangles import borrowed_edges, told_donors, untold_triangles
+from core.untold_triangles import (borrowed_edges, thin_triangles, told_donors, triangle_heights, unfaced_triangles,
+                                   untold_triangles)
 
 from placement_helpers import _screw
 from test_placement_rigid_motions import _sphere_turned_far_in_single_precision
@@ -50,12 +51,90 @@ def test_slivers_take_the_triangle_across_their_long_side_as_donor():
     mean_edge = float(np.mean(base.lengths))
     untold = untold_triangles(base, nxt, 0.01 * mean_edge)
     assert np.array_equal(np.flatnonzero(untold), slivers)
-    rows, donors = told_donors(triangles, base.lengths, untold)
+    rows, donors = told_donors(topology.across, base.lengths, untold)
     assert np.array_equal(rows, slivers)
     for row, donor in zip(rows, donors):
         longest = int(np.argmax(base.lengths[row]))
         side = {triangles[row, longest], triangles[row, (longest + 1) % 3]}
         assert side <= set(triangles[donor]) and not untold[donor]
+
+
+def test_one_height_tells_thin_untold_and_unfaced_triangles():
+    """The height of each triangle is its cross product's length over its longest side (an
+    independent formula, per triangle); thin triangles are those under the floor in either key,
+    untold ones those under it in both (so untold ⊆ thin), unfaced ones those under twice the noise
+    in either key, each read against that height. The tube with 1e-5 slivers, its second key
+    squashed along its axis on its first half, so that the triangles there are low in that key only."""
+    vertices, triangles, _, _ = _slivered_tube(1e-5)
+    other = vertices.copy()
+    other[vertices[:, 0] < 1.0, 0] *= 1e-4  # the tube runs 0 … 2 along x
+    _, base, nxt = _keys(vertices, triangles, other)
+    def heights(x):
+        corners = x[triangles]
+        cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        longest = np.linalg.norm(corners[:, [1, 2, 0]] - corners, axis=2).max(axis=1)
+        return np.linalg.norm(cross, axis=1) / longest
+    expected = heights(vertices), heights(other)
+    assert np.allclose(triangle_heights(base.areas, base.lengths), expected[0], rtol=1e-9, atol=0.0)
+    assert np.allclose(triangle_heights(nxt.areas, nxt.lengths), expected[1], rtol=1e-9, atol=0.0)
+    floor = 0.01 * float(np.mean(base.lengths))
+    # away from the floor by more than the heights' rounding, so either formula reads each alike
+    clear = (np.abs(expected[0] / floor - 1.0) > 1e-6) & (np.abs(expected[1] / floor - 1.0) > 1e-6)
+    thin, untold = thin_triangles(base, nxt, floor), untold_triangles(base, nxt, floor)
+    low = (expected[0] < floor, expected[1] < floor)
+    assert np.array_equal(np.isin(np.flatnonzero(clear), thin), (low[0] | low[1])[clear])
+    assert np.array_equal(untold[clear], (low[0] & low[1])[clear])
+    assert np.isin(np.flatnonzero(untold), thin).all() and 0 < untold.sum() < thin.size
+    noise = np.full(len(triangles), 0.5 * floor)
+    assert np.array_equal(unfaced_triangles(base, nxt, noise)[clear], (low[0] | low[1])[clear])
+
+
+def test_across_is_the_triangle_sharing_each_corner_edge():
+    """``Topology.across``: for corner edge c of each triangle (corners c, c + 1) the other
+    triangle holding both its vertices, -1 where none does (the tube's open ends), read against a
+    search of every triangle's vertex pairs."""
+    vertices, triangles, _, _ = _slivered_tube(1e-5)
+    topology, _, _ = _keys(vertices, triangles, vertices)
+    owners = {}
+    for t, corners in enumerate(triangles.tolist()):
+        for c in range(3):
+            owners.setdefault(frozenset((corners[c], corners[(c + 1) % 3])), []).append(t)
+    expected = np.array([[next((o for o in owners[frozenset((row[c], row[(c + 1) % 3]))] if o != t), -1)
+                          for c in range(3)] for t, row in enumerate(triangles.tolist())])
+    assert np.array_equal(topology.across, expected)
+    assert (expected < 0).any()
+
+
+def test_triangles_ringed_by_untold_ones_take_their_donor_ring_by_ring():
+    """Untold triangles with no told neighbour take, ring by ring, the donor of their neighbour
+    across the longest side among those one ring nearer the told triangles, read against a
+    breadth-first search over the neighbours; every donor is told, and an untold piece with no
+    told triangle lists none. A band of the tube's triangles untold around each sliver."""
+    vertices, triangles, _, slivers = _slivered_tube(1e-5)
+    topology, base, _ = _keys(vertices, triangles, vertices)
+    across, lengths = topology.across, base.lengths
+    untold = np.zeros(len(triangles), dtype=bool)
+    untold[slivers] = True
+    for _ in range(2):  # two rings around the slivers
+        untold[across[untold][across[untold] >= 0]] = True
+    ring = np.where(untold, -1, 0)
+    donor = np.where(untold, -1, np.arange(len(triangles)))
+    for depth in range(1, len(triangles)):
+        reached = {}
+        for t in np.flatnonzero(ring < 0):
+            near = [(lengths[t, c], -c, across[t, c]) for c in range(3)
+                    if across[t, c] >= 0 and ring[across[t, c]] == depth - 1]
+            if near:
+                reached[t] = donor[max(near)[2]]  # the longest side, the first of two as long
+        if not reached:
+            break
+        for t, d in reached.items():
+            ring[t], donor[t] = depth, d
+    rows, donors = told_donors(across, lengths, untold)
+    assert ring.max() >= 2 and np.array_equal(rows, np.flatnonzero(untold & (ring > 0)))
+    assert np.array_equal(donors, donor[rows]) and not untold[donors].any()
+    everything = np.ones(len(triangles), dtype=bool)
+    assert told_donors(across, lengths, everything)[0].size == 0
 
 
 def test_borrowed_edges_are_the_donors_map_of_the_edges():
@@ -65,7 +144,7 @@ def test_borrowed_edges_are_the_donors_map_of_the_edges():
     formula: one matrix product per edge)."""
     vertices, triangles, _, slivers = _slivered_tube(1e-5)
     topology, base, nxt = _keys(vertices, triangles, vertices)
-    rows, donors = told_donors(triangles, base.lengths, untold_triangles(base, nxt, 0.01 * np.mean(base.lengths)))
+    rows, donors = told_donors(topology.across, base.lengths, untold_triangles(base, nxt, 0.01 * np.mean(base.lengths)))
     rng = np.random.default_rng(4)
     turns = Rotation.random(len(rows), random_state=5).as_matrix()  # (k, 3, 3)
     count = len(rows)
