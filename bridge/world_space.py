@@ -35,15 +35,23 @@ class WorldProportions:
     off the lattice's own pose in the world's proportions, 0.035 in the rig's). A lattice no rig
     deforms is not such a space: its points are turned in the world (Edit Mode in the viewport, a
     hook), where the mesh then turns (the same bar: 0.038 in the world's proportions, 0.18 in the
-    lattice object's space, scaled (1.76, 0.9, 0.9) to fit the bar)."""
+    lattice object's space, scaled (1.76, 0.9, 0.9) to fit the bar). The rig's space is the one
+    of the frame ``matrix`` was read at (``rig_matrix``, the rig's world matrix (4, 4) there; by
+    default the rig's at the current frame, that of the shape keys): a mesh the rig carries then
+    has the same map whatever the rig's own turn (a rig scaled (2, 1, 1) and turned as an object
+    between the frames read and the current one). The rig's space stands for the whole mesh where
+    a vertex group limits the armature to a part (the rest does not move, in any space), and
+    for Preserve Volume (it turns the bones there too); an Armature modifier counts whether it is
+    enabled in the viewport, in renders or in neither. A rig whose scale is keyframed stretches a
+    mesh it carries differently from frame to frame: those frames go through the world
+    (:class:`WorldFrames`, :func:`frames_space`), not the rig's space."""
 
-    def __init__(self, obj: bpy.types.Object, matrix: np.ndarray | None = None):
+    def __init__(self, obj: bpy.types.Object, matrix: np.ndarray | None = None,
+                 rig_matrix: np.ndarray | None = None):
         linear = np.array(obj.matrix_world if matrix is None else matrix, dtype=np.float64)[:3, :3]
-        rigs = _rigs(obj)
-        for lattice in {modifier.object for modifier in obj.modifiers if modifier.type == 'LATTICE' and modifier.object}:
-            rigs |= _rigs(lattice)
-        if len(rigs) == 1 and not any(modifier.type in ('CLOTH', 'SOFT_BODY') for modifier in obj.modifiers):
-            rig = np.array(next(iter(rigs)).matrix_world, dtype=np.float64)[:3, :3]
+        rig = the_rig(obj)
+        if rig is not None:
+            rig = np.array(rig.matrix_world if rig_matrix is None else rig_matrix, dtype=np.float64)[:3, :3]
             rig_sigma = np.linalg.svd(rig, compute_uv=False)
             if rig_sigma[-1] > np.finfo(np.float64).eps * rig_sigma[0]:  # else the world's, refused by its scale
                 linear = np.linalg.solve(rig, linear)
@@ -73,6 +81,18 @@ class WorldProportions:
         """Positions (…, n, 3) in the world's proportions back in the mesh's coordinates (the same at
         every time of ``times``)."""
         return positions if self.inverse is None else positions @ self.inverse
+
+
+def the_rig(obj: bpy.types.Object) -> bpy.types.Object | None:
+    """The one armature object that deforms ``obj``, directly (:func:`_rigs`) or through the
+    lattices of its Lattice modifiers, where no Cloth or Soft Body modifier simulates it in the
+    world; None where none or several do (:class:`WorldProportions` then keeps the world's)."""
+    rigs = _rigs(obj)
+    for lattice in {modifier.object for modifier in obj.modifiers if modifier.type == 'LATTICE' and modifier.object}:
+        rigs |= _rigs(lattice)
+    if len(rigs) != 1 or any(modifier.type in ('CLOTH', 'SOFT_BODY') for modifier in obj.modifiers):
+        return None
+    return next(iter(rigs))
 
 
 def _rigs(obj: bpy.types.Object) -> set:
@@ -176,4 +196,9 @@ def frames_space(context: bpy.types.Context, obj: bpy.types.Object, matrices: di
     those of the current frame."""
     if proportions_change(matrices.values()):
         return WorldFrames(context, obj, matrices)
-    return WorldProportions(obj, next(iter(matrices.values()), None))
+    frame, matrix = next(iter(matrices.items()), (None, None))
+    rig, rig_matrix = the_rig(obj), None
+    if rig is not None and frame is not None:  # the rig's space of that frame (WorldProportions)
+        for _ in at_times(context.scene, [frame]):
+            rig_matrix = np.array(rig.matrix_world, dtype=np.float64)
+    return WorldProportions(obj, matrix, rig_matrix)

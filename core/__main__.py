@@ -38,6 +38,7 @@ import numpy as np
 from .errors import ShapeDifferenceError, ShapeDifferenceWarning, unexpected_failure, warn
 from .heartbeat import HEARTBEAT_SECONDS, Heartbeat
 from .heartbeat import line as _line
+from .heartbeat import whole
 from .obj_file import read_obj
 from .point_cache import (check_disk_space, check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, pc2_size,
                           read_pc2_header, read_point_cache, refuse_overwriting, unwritable, write_pc2)
@@ -257,8 +258,8 @@ def _retime_in(args, progress: Heartbeat) -> int:
     if not (np.isfinite(args.offset) and args.offset >= 0):
         raise ShapeDifferenceError(f"--offset {args.offset:g} must be 0 or positive (it has no effect: "
                                    "in-betweens use no offset surface).")
-    if args.offset and not args.quiet:
-        print("retime: --offset has no effect on in-betweens (ignored)", file=sys.stderr)
+    if args.offset:
+        progress.say("retime: --offset has no effect on in-betweens (ignored)")
     if cache.times is not None and not _even_times(cache.times):
         # said as the core's warnings are (_warnings_as_lines), and counted with them
         warn(f"the frame times of '{args.cache}' are not evenly spaced and increasing (or not finite); its frames "
@@ -314,8 +315,8 @@ def _retime_in(args, progress: Heartbeat) -> int:
     progress.doing = sample(outputs.start) if len(outputs) else f"writing '{args.output}'"
     for done, (index, pose) in enumerate(iter_retime(samples, triangles, plan, gaps, sample_names=named, **options), 1):
         poses[index - outputs.start] = pose
-        progress.doing = sample(index + 1) if index + 1 < outputs.stop else f"writing '{args.output}'"
-        progress.say(f"retime: {sample(index)}, {done}/{len(outputs)} of this part, {progress.seconds()}")
+        progress.say(f"retime: {sample(index)}, {done}/{len(outputs)} of this part, {progress.seconds()}",
+                     doing=sample(index + 1) if index + 1 < outputs.stop else f"writing '{args.output}'")
     start = (cache.start if args.start is None else args.start) + outputs.start * cache.sampling
     stamp = None
     if args.chunk is not None or args.gaps is not None:  # a part of a job: merge checks what it is
@@ -380,8 +381,8 @@ def _warnings_as_lines(command: str):
             kind = getattr(message, "kind", None)
             _warning(command, str(message), kind)
             said.append(message)
-        else:
-            shown(message, category, filename, lineno, file, line)
+        else:  # Python's own format, whole beside the heartbeat's lines
+            whole(shown, message, category, filename, lineno, file, line)
 
     with warnings.catch_warnings():
         warnings.simplefilter("default", ShapeDifferenceWarning)

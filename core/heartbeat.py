@@ -14,14 +14,21 @@ import time
 #: vertices a retime reads for 3 s before its first line and computes a gap's in-betweens together
 #: for 11 s between two lines; preparing the keys of *In-between Frames* is one core call as long.
 HEARTBEAT_SECONDS = 2.0
-#: Held while a line goes to stderr, so that a heartbeat's thread never splits another line.
-_STDERR_LOCK = threading.Lock()
+#: Held while a line goes to stderr, so that a heartbeat's thread never splits another line
+#: (re-entrant: a heartbeat prints its line while holding it for the silence's check).
+_STDERR_LOCK = threading.RLock()
 
 
 def line(text: str) -> None:
     """Print ``text`` as one line on stderr, whole whatever thread prints beside it."""
+    whole(print, text, file=sys.stderr, flush=True)
+
+
+def whole(write, *args, **kwargs):
+    """``write(*args, **kwargs)`` (a writer to stderr that is not :func:`line`: Python's own
+    warnings) while no other line is being printed, so that neither splits the other."""
     with _STDERR_LOCK:
-        print(text, file=sys.stderr, flush=True)
+        return write(*args, **kwargs)
 
 
 class Heartbeat:
@@ -41,11 +48,16 @@ class Heartbeat:
         self._stop = threading.Event()
         self._thread = None
 
-    def say(self, text: str) -> None:
-        """Print ``text`` as the run's next line (see :func:`line`)."""
-        if not self.quiet:
-            line(text)
-        self.last = time.monotonic()
+    def say(self, text: str, doing: str | None = None) -> None:
+        """Print ``text`` as the run's next line (see :func:`line`) and, given ``doing``, name what
+        the run works on next, both at once: no heartbeat line comes between them to name the
+        next step before ``text`` says the last one ended, or the step ``text`` says has ended."""
+        with _STDERR_LOCK:
+            if not self.quiet:
+                line(text)
+            self.last = time.monotonic()
+            if doing is not None:
+                self.doing = doing
 
     def seconds(self) -> str:
         """The seconds since ``began``, as the lines say them."""
@@ -53,8 +65,10 @@ class Heartbeat:
 
     def _beat(self) -> None:
         while not self._stop.wait(max(0.0, self.last + self.every - time.monotonic())):
-            if time.monotonic() - self.last >= self.every and self.doing:
-                self.say(f"{self.label}: working on {self.doing}, {self.seconds()}")
+            with _STDERR_LOCK:  # the silence checked where no other line can end it meanwhile
+                if time.monotonic() - self.last >= self.every and self.doing and not self._stop.is_set():
+                    line(f"{self.label}: working on {self.doing}, {self.seconds()}")
+                    self.last = time.monotonic()
 
     def __enter__(self):
         if not self.quiet:

@@ -326,6 +326,35 @@ def test_a_mesh_an_armature_deforms_under_a_scaled_rig_turns_rigidly_in_the_rig_
                        atol=1e-4)
 
 
+def test_the_rig_s_space_of_frames_read_is_that_of_their_frame(bpy_empty, extension):
+    """A sheet parented to a rig scaled (2, 1, 0.5) whose object turns 90° between frame 1 and
+    frame 20, deformed by it through an Armature modifier: the sheet's own coordinates are the
+    rig's space at every frame (the rig carries it), so frames read at frame 1 while the scene
+    stands at frame 20 are taken through no map (before, the rig's matrix of frame 20 against the
+    sheet's of frame 1: a shear of the rig's stretch turned 90°); the scene is left at frame 20."""
+    from blender_scenes import grid_object
+
+    world_space = extension.bridge.world_space
+    scene = bpy.context.scene
+    rig = bpy.data.objects.new("Rig", bpy.data.armatures.new("Rig"))
+    bpy.context.collection.objects.link(rig)
+    rig.scale = (2.0, 1.0, 0.5)
+    for frame, angle in ((1, 0.0), (20, np.pi / 2)):
+        rig.rotation_euler = (0.0, 0.0, angle)
+        rig.keyframe_insert("rotation_euler", frame=frame)
+    sheet = grid_object(4)
+    sheet.parent = rig
+    sheet.modifiers.new("Armature", 'ARMATURE').object = rig
+    scene.frame_set(1)
+    at_first = np.array(sheet.matrix_world)
+    scene.frame_set(20)
+    assert not np.allclose(np.array(sheet.matrix_world), at_first)  # the rig turned the sheet in the world
+    space = world_space.frames_space(bpy.context, sheet, {1: at_first})
+    assert space.linear() is None
+    assert world_space.WorldProportions(sheet).linear() is None  # the shape keys', at frame 20
+    assert scene.frame_current == 20
+
+
 def _corner_map(split_positions, split_triangles, positions, triangles):
     """The vertex of a mesh (``positions``, ``triangles``) at each vertex of a copy of it split at
     seams: triangles matched by their corners' coordinates (equal in float32), corner for corner."""
