@@ -29,12 +29,16 @@ PART_SHARE = 0.05
 #: Turn between two rigid parts of a piece (radians) past which the in-betweens cut their arc
 #: measurably (6.0 % of the radius at mid-gap).
 BENT_PART_TURN = np.radians(75.0)
+#: Turn between two rigid parts of a piece (radians) past which a sequence of only two keys anchors
+#: its gap as two poses do: twice the spread a rigid part may have (``RIGID_SPREAD``), so a piece
+#: read as two parts turned apart is bent at a joint, not a part's own rounding.
+TWO_KEY_BENT_TURN = 2.0 * RIGID_SPREAD
 
 
 def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
-                   metric: np.ndarray, areas: np.ndarray) -> float:
+                   metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN) -> float:
     """The largest turn (radians) between two rigid parts of one piece from a key to another,
-    where one is over ``BENT_PART_TURN`` (0 where none is, or no piece has two parts).
+    where one can be over ``least`` (radians; 0 where none is, or no piece has two parts).
 
     ``triangle_component`` int (m,): each triangle's piece; ``edge_pairs`` int (e, 2): the
     triangles sharing each interior edge; ``rotvec`` (m, 3): each triangle's rotation with its
@@ -57,7 +61,7 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
         return 0.0
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
     # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
-    if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= BENT_PART_TURN:
+    if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= least:
         return 0.0
     rows = np.flatnonzero(isometric)  # the isometric triangles, numbered 0 … len(rows) − 1 below
     number = np.full(m, -1)

@@ -24,8 +24,9 @@ Reconstruction (§7.3 in local/global form): positions minimizing
 a Poisson solve whose matrix depends on the topology and the anchor weights only, factorized once
 (sparse LU, symmetric ordering) and reused for every in-between, then a few local/global
 (as-rigid-as-possible) steps re-fitting each triangle's rotation while keeping its interpolated
-metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation,
-where vertices whose neighbourhood only translates between the keys are anchored to the linear
+metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation
+(and a sequence of only two keys that bend a piece at a joint,
+:data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`), where vertices whose neighbourhood only translates between the keys are anchored to the linear
 blend (exact for them, at every factor: parts that do not move stay put); see
 :data:`core.inbetween_anchor.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
 centroid, moved by the interpolated rigid motion of the whole mesh plus the interpolated residual
@@ -59,7 +60,7 @@ from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
-from .sequence_bent_parts import bent_part_turn
+from .sequence_bent_parts import BENT_PART_TURN, TWO_KEY_BENT_TURN, bent_part_turn
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -176,9 +177,16 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        # parts bent about a joint far between the keys, read before the rotations are taken whole
+        # parts bent about a joint far between the keys, read before the rotations are taken whole;
+        # with only two keys, at any turn: the keys' spline is then their chord, which the anchor
+        # would pull a bending part onto, inside its arc
+        two_keys = last == 1 and self._across is None
         bent = bent_part_turn(topo.triangle_component, self._edge_pairs, ahead[0].rotvec, ahead[0].metric,
-                              base.areas) if self._across is None and gap not in self._mirrored_gaps else 0.0
+                              base.areas, TWO_KEY_BENT_TURN if two_keys else BENT_PART_TURN) \
+            if self._across is None and gap not in self._mirrored_gaps else 0.0
+        # two keys of a piece bent at a joint: anchored to the blend where it keeps the edge lengths,
+        # as two poses are (the part that does not turn holds, the turning part follows its rotations)
+        anchored = two_keys and bent > TWO_KEY_BENT_TURN
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
@@ -203,12 +211,12 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free)
+        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free, anchored)
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free)
+            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free, anchored)
         segment.folded_turn = bool(folded.any())
         segment.unsure_turn = bool(unsure.any())
         segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
@@ -216,20 +224,22 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
         segment.aliased_spin = bool(self._aliased_spin(gap).any())
-        segment.bent_turn = bent
+        segment.bent_turn = bent if bent > BENT_PART_TURN else 0.0
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
 
     def _segment(self, gap: int, ahead: list[Relative], others: list[int], whole: np.ndarray,
-                 turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None) -> Gap:
+                 turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None,
+                 anchored: bool = False) -> Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
         ``whole`` (bool (C,); :meth:`Relative.whole_rotations`), those of the next key taken
         continuous across the mesh in the components ``turning`` (bool (C,), whole too: a part of
         them turns far from the rest, :meth:`Relative.turning`; ``root``: their
         triangles that the rest turns from, bool (m,), or None; ``free``: the triangles whose
-        turns are read from the part nearest their piece's rigid turn, :meth:`_reading`)."""
+        turns are read from the part nearest their piece's rigid turn, :meth:`_reading`; ``anchored``:
+        anchored to the linear blend as two poses are, whatever the sequence's own anchor)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = Relative.identity(topo, base)
@@ -261,7 +271,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         else:
             prev = after = ident
         return Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
-                    self._anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance * self._unit,
+                    self._anchored or anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance * self._unit,
                     start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
