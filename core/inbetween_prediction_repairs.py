@@ -117,18 +117,18 @@ def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=N
     # the solve where it has no more defects, repaired only where its fit has at most
     # UNREPAIRED_SOLVE_DEFECTS × the prediction's defects
     misfits = []
-    repaired = gap.outcomes.get(s)  # each check below stores its own: the one of the pose returned is kept
+    repaired = _taken(gap, s)  # each check and fit below stores its own: those of the pose returned are kept
     solved = gap.pose(s, weak=held, start=result[0],
                       iterations=SOLVED_INSTEAD_ITERATIONS, misfits=misfits,
                       repairable=UNREPAIRED_SOLVE_DEFECTS * np.count_nonzero(defects))
-    defects, outcome = count(solved[0]), gap.outcomes.get(s)
+    defects, outcome = count(solved[0]), _taken(gap, s)
     if solved[1] is not None and misfits[-1] < gap.tolerance:
         # the prediction fits the metric and its fit keeps defects: they are not the metric's doing,
         # the solve from the field's Poisson solve is tried too, and kept on a tie
         fresh = _solved_instead(gap, s, held)
         fewer = count(fresh[0])
         if fewer <= defects:
-            solved, defects, outcome = fresh, fewer, gap.outcomes.get(s)
+            solved, defects, outcome = fresh, fewer, _taken(gap, s)
     if defects <= kept:
         _put_back(gap, s, outcome)
         return solved
@@ -146,15 +146,24 @@ def _placed(gap, x: np.ndarray, s: float) -> np.ndarray:
     return x
 
 
-def _put_back(gap, s: float, outcome) -> None:
-    """The gap's outcome at ``s`` set to ``outcome``, the one the check of the pose returned there
-    stored (None: that pose was not checked): a later check of a pose not taken stores its own, and
-    the in-between's warning counts the flipped or collapsed triangles from it
-    (:meth:`core.SequenceInterpolator.poses`)."""
-    if outcome is None:
-        gap.outcomes.pop(s, None)
-    else:
-        gap.outcomes[s] = outcome
+def _taken(gap, s: float) -> tuple:
+    """What the gap holds at ``s`` of the pose just made there, to be put back (:func:`_put_back`)
+    where a later pose at ``s`` is not taken: the outcome its check stored and the misfit its fit
+    ended at (:attr:`core.inbetween_solver.Gap.fit_misfits`), each None where it has none (a
+    prediction has no fit)."""
+    return gap.outcomes.get(s), gap.fit_misfits.get(s)
+
+
+def _put_back(gap, s: float, taken: tuple) -> None:
+    """The gap's outcome and fit misfit at ``s`` set to ``taken`` (:func:`_taken` of the pose
+    returned there; None: that pose has none): a later check or fit of a pose not taken stores its
+    own, and the in-between's warnings count the flipped or collapsed triangles from the outcome
+    and read its misfit from the fit (:meth:`core.SequenceInterpolator.poses`)."""
+    for held, value in zip((gap.outcomes, gap.fit_misfits), taken):
+        if value is None:
+            held.pop(s, None)
+        else:
+            held[s] = value
 
 
 def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple[np.ndarray, str | None]:
@@ -189,7 +198,7 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
         return pose
     nearby = None if outer is None else predicted_positions(gap, s, outer(), gap.motion(s))
     start, (limit, partial_limit) = pose[0], gap.repair.move_limits(s) or (np.inf, np.inf)  # none for two keys
-    outcome = gap.outcomes.get(s)
+    outcome = _taken(gap, s)
     for _ in range(REPAIR_PASSES):
         # never more defects: the rounds start from pose
         repaired = gap.repaired_again(pose[0], s, nearby, rings, defects)
@@ -197,7 +206,7 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
         moved = float(np.sum((repaired[0] - start) ** 2))
         if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
             break
-        pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), gap.outcomes.get(s)
+        pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), _taken(gap, s)
         if not count:
             break
     _put_back(gap, s, outcome)
@@ -222,7 +231,7 @@ def solve_off_metric(gap, results: dict, solved: list, predicted: list) -> None:
         pose = _solved_instead(gap, s, weak)
         return repaired_in_passes(gap, s, pose) if results[s][1] is not None else pose
 
-    before = {s: gap.outcomes.get(s) for s in off}  # the predictions' (their solves store their own)
+    before = {s: _taken(gap, s) for s in off}  # the predictions' (their solves store their own)
     poses = dict(zip(off, per_factor(gap, solve, off)))
     if not held and any(gap.held_factors.get(s) for s in off):
         # some were held off the metric: the others solved with the weak anchor too, as the gap's

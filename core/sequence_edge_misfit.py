@@ -71,6 +71,9 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
                        "as where the keys turn it far between them",
             "longer": "than the keys' edge lengths interpolated on average: the cloth is stretched in its plane",
             "off": "the keys' edge lengths interpolated on average, some shorter, some longer"}[way]
+    # the spline's chords shorten edges; edges longer, or off both ways, no chord explains
+    cause = ("the anchor toward the keys' per-vertex spline cuts the chords of the arcs" if way == "shorter" else
+             "the fit does not reach the interpolated metric near the keys' per-vertex spline")
     if len(asked) == 1:
         place = f"the in-between at factor {worst:g}"
     else:
@@ -80,5 +83,4 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
             f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; add keys in this gap or use a "
             f"smaller step [its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
             f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from the first key allows (twice it + "
-            f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): the anchor toward the "
-            f"keys' per-vertex spline cuts the chords of the arcs]", tuple(over))
+            f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over))

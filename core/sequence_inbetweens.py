@@ -396,10 +396,14 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         fitted = [m for s, m in segment.fit_misfits.items() if s in poses]
         if not fitted or max(fitted) <= MISFIT_NOTED_FLOOR or gap in self._mirrored_gaps:
             return None
-        if self._first_lengths is None:
-            self._first_lengths = self._key(0).lengths
+        if self._first_lengths is None:  # its corner edges alone, as Key has them: no key built, none let go
+            edges = self._topo.corner_edge_rows(self._raw[0])
+            self._first_lengths = np.sqrt(coordinate_dot(edges, edges)).T
         keys = (segment.base.lengths, segment.next.lengths)
-        allowed = misfit_allowed([key_deviation(k, self._first_lengths) for k in keys])
+        for index, lengths in zip((gap, gap + 1), keys):  # each key's once: it is in two gaps
+            if index not in self._key_deviations:
+                self._key_deviations[index] = key_deviation(lengths, self._first_lengths)
+        allowed = misfit_allowed([self._key_deviations[gap], self._key_deviations[gap + 1]])
 
         def signed(s):
             edges = segment.edges_of(poses[s])  # (3 coordinates, 3 corners, m), as the fit's

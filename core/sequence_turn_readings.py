@@ -116,9 +116,9 @@ def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
         problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, a part of a piece turns "
                         f"{np.degrees(segment.bent_turn):.0f}° from another part of it, each keeping its shape "
                         "(a limb bent at a joint): the in-betweens take it along a path inside its arc and "
-                        "may turn triangles over there (add keys so that a bending part "
-                        f"turns at most about {np.degrees(BENT_PART_TURN):.0f}° between two of them; the keys' "
-                        "splines cut the arc of a part turning past that)")
+                        "may turn triangles over there; add keys so that a bending part "
+                        f"turns at most about {np.degrees(BENT_PART_TURN):.0f}° between two of them [the keys' "
+                        "per-vertex splines cut the arc of a part turning past that]")
     return problems
 
 

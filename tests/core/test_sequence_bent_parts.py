@@ -60,6 +60,10 @@ def test_a_limb_bent_past_the_limit_between_two_keys_is_warned_in_that_gap_alone
     assert list(said) == [("key pose 0", "key pose 1")]  # 100° there, 50° in the second gap
     (message,) = said[("key pose 0", "key pose 1")]
     assert "turns 100° from another part" in message and "at most about 75° between two of them" in message
+    # what to do in the user's terms, the method's words last in brackets (docs/errors.md)
+    advice, _, method = message.partition(" [")
+    assert advice.endswith("add keys so that a bending part turns at most about 75° between two of them")
+    assert method.endswith("splines cut the arc of a part turning past that].") and "(" not in method
 
 
 def test_the_turn_read_between_the_rigid_parts_is_the_rigs_joint_angle():

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from core import Interpolator, SequenceInterpolator, ShapeDifferenceWarning
-from core.sequence_edge_misfit import MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, misfit_allowed
+from core.sequence_edge_misfit import MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, misfit_allowed, misfit_warning
 
 from meshes import grid
 
@@ -101,3 +101,16 @@ def test_the_misfit_allowed_is_the_issue_bound_with_the_keys_for_the_simulation(
     the mean of the gap's keys' deviations from the first key standing in for the simulation's;
     never under the fits' own accuracy."""
     assert misfit_allowed(deviations) == pytest.approx(allowed)
+
+
+@pytest.mark.parametrize("change, way", [(-0.04, "shorter"), (0.04, "longer"), (-0.005, "off")])
+def test_the_message_gives_the_chords_as_the_cause_only_of_edges_shorter(change, way):
+    """The way the worst in-between's edges are off (its mean signed change against the keys'
+    lengths blended, beside its fit's misfit of 4 %) is said, and the spline's chords, which only
+    shorten edges, are named as the cause only where they are shorter: a stretched in-between is
+    not said to come from a cut chord."""
+    message, factors = misfit_warning({0.5: 0.04}, [0.25, 0.5, 0.75], 0.01, ("a", "b"), lambda s: change)
+    assert factors == (0.5,)
+    assert f" {way} " in message.split(" [")[0]
+    assert ("cuts the chords" in message) == (way == "shorter")
+    assert message.endswith("]") and message.count(" [") == 1
