@@ -10,6 +10,7 @@ import numpy as np
 
 from .errors import MeshError
 from .mesh_topology import DEGENERATE_TRIANGLE_RATIO
+from .point_cache import PC2_MAGIC
 
 
 def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
@@ -70,7 +71,7 @@ def _text_encoding(path: Path) -> str:
         return "utf-16"
     if b"\0" not in head:
         return "utf-8-sig"
-    formats = {b"POINTCACHE2": "a PC2 point cache", b"BLENDER": "a .blend file", b"Ogawa": "an Alembic cache"}
+    formats = {PC2_MAGIC[:11]: "a PC2 point cache", b"BLENDER": "a .blend file", b"Ogawa": "an Alembic cache"}
     kind = next((f", {name}" for magic, name in formats.items() if head.startswith(magic)), "")
     raise MeshError(f"'{path}' is not an OBJ file: it holds binary data{kind}. The topology is a Wavefront "
                     "OBJ (text: 'v x y z' and 'f a b c' lines) exported from the mesh the cache moves; check "

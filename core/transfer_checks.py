@@ -86,7 +86,7 @@ def sentence(label: str) -> str:
     return label[:1].upper() + label[1:]
 
 
-def degenerate_at_rest(rest, triangles, name: str = "target rest vertices", label: str = TARGET_LABEL) -> np.ndarray:
+def degenerate_at_rest(rest, triangles, name: str, label: str = TARGET_LABEL) -> np.ndarray:
     """Indices of the target triangles of zero area at rest (as
     :func:`~core.mesh_topology.check_nondegenerate` measures it), left out with a warning
     (``label`` names the target mesh there): a decimated or remeshed target may carry a few
