@@ -8,6 +8,7 @@ from __future__ import annotations
 import bpy
 import numpy as np
 
+from .modifier_kinds import SIMULATION_MODIFIERS
 from .scene_timing import at_times
 
 #: Relative spread of the singular values of an object's world matrix above which poses are
@@ -90,7 +91,7 @@ def the_rig(obj: bpy.types.Object) -> bpy.types.Object | None:
     rigs = _rigs(obj)
     for lattice in {modifier.object for modifier in obj.modifiers if modifier.type == 'LATTICE' and modifier.object}:
         rigs |= _rigs(lattice)
-    if len(rigs) != 1 or any(modifier.type in ('CLOTH', 'SOFT_BODY') for modifier in obj.modifiers):
+    if len(rigs) != 1 or any(modifier.type in SIMULATION_MODIFIERS for modifier in obj.modifiers):
         return None
     return next(iter(rigs))
 

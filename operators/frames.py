@@ -278,10 +278,11 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # in one pass over the frames, before the gaps' poses go back through them
         spans = [(gap, frame, after, gap_factors, [frame + factor * (after - frame) for factor in gap_factors])
                  for gap, frame, after, gap_factors in spans]
-        with closing(space.reading([time for *_, times in spans for time in times])) as reading:
+        inbetween_times = [time for *_, times in spans for time in times]
+        with closing(space.reading(inbetween_times)) as reading:
             for _ in reading:
                 yield 0.2
-        check_shown_in_world(obj, space, [time for *_, times in spans for time in times], INBETWEENED_IN_WORLD)
+        check_shown_in_world(obj, space, inbetween_times, INBETWEENED_IN_WORLD)
         for gap, frame, next_frame, gap_factors, times in spans:
             names.append(frame_key_name(frame)), tails.append(""), all_poses.append(read[frame])
             timeline.append(frame)
