@@ -73,15 +73,17 @@ class InterpolatedField:
                 self.base, self.next, HELD_BEYOND_KEYS * self.mean_edge)
         return held
 
-    def _beyond_log_stretch(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
-        """The log-stretches (packed (m, 3), or (r, 3) of ``rows``) at ``s`` outside the keys, those
-        of the :attr:`held_beyond_keys` triangles at the nearer key."""
+    def _log_stretch(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
+        """The log-stretches' spline (packed (m, 3), or (r, 3) of ``rows``) at ``s``; outside the
+        keys, those of the :attr:`held_beyond_keys` triangles at the nearer key."""
         def at(t):
             return self.spline_at("log_stretch", t) if rows is None else self.splines["log_stretch"].at(t, rows)
 
         log = at(s)
+        if 0.0 <= s <= 1.0:  # between the keys nothing is held; at a key its own stretch already
+            return log
         held = self.held_beyond_keys
-        if held.size and not 0.0 <= s <= 1.0:  # at a key its own stretch already
+        if held.size:
             if rows is None:
                 where = held
             else:
@@ -169,10 +171,8 @@ class InterpolatedField:
         def at(name):  # the spline on the rows, or whole
             return self.spline_at(name, s) if rows is None else self.splines[name].at(s, rows)
 
-        if not 0.0 < s < 1.0:
-            return df.exp_stretch(self._beyond_log_stretch(s, rows))
-        if self.log_metric:
-            return df.exp_stretch(at("log_stretch"))
+        if not 0.0 < s < 1.0 or self.log_metric:
+            return df.exp_stretch(self._log_stretch(s, rows))
         stretch, ok = df.sqrt_stretch(at("metric"))
         if not ok.all():
             bad = np.flatnonzero(~ok)
@@ -184,7 +184,7 @@ class InterpolatedField:
         ``√det G`` of the metric's spline between the keys, ``e^(tr L)`` of the log spline
         outside them, where that ``G`` is not positive definite and with ``log_metric``."""
         if not 0.0 < s < 1.0 or self.log_metric:
-            log = self._beyond_log_stretch(s) if not 0.0 < s < 1.0 else self.spline_at("log_stretch", s)
+            log = self._log_stretch(s)
             return np.exp(log[:, 0] + log[:, 2])
         scale, ok = df.sqrt_det(self.spline_at("metric", s))
         if not ok.all():

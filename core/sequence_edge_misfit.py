@@ -20,7 +20,8 @@ import numpy as np
 
 from .inbetween_fit import METRIC_TOLERANCE, STALL_NEAR
 
-__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "key_deviation", "misfit_allowed", "misfit_warning"]
+__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "key_deviation", "misfit_allowed", "misfit_warning",
+           "signed_deviation"]
 
 #: A gap's in-betweens are warned of where the fit of one of them ends farther from the interpolated
 #: metric (its mean relative edge misfit) than twice its keys' mean edge deviation from the first key
@@ -44,11 +45,25 @@ def misfit_allowed(key_deviations) -> float:
     return max(2.0 * float(np.mean(key_deviations)) + MISFIT_NOTED_MARGIN, MISFIT_NOTED_FLOOR)
 
 
+def _relative_changes(lengths: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """``ℓ / ℓ₀ − 1`` (k,) of corner edge lengths ``lengths`` (m, 3) against ``rest`` (m, 3), on the
+    k edges of positive ``rest`` (edges of zero rest length are left out)."""
+    kept = rest > 0.0
+    return lengths[kept] / rest[kept] - 1.0
+
+
 def key_deviation(lengths: np.ndarray, rest: np.ndarray) -> float:
     """Mean relative deviation ``|ℓ / ℓ₀ − 1|`` of a key's corner edge lengths ``lengths`` (m, 3)
     from those of the first key, ``rest`` (m, 3); edges of zero rest length are left out."""
-    kept = rest > 0.0
-    return float(np.mean(np.abs(lengths[kept] / rest[kept] - 1.0))) if kept.any() else 0.0
+    changes = _relative_changes(lengths, rest)
+    return float(np.mean(np.abs(changes))) if changes.size else 0.0
+
+
+def signed_deviation(lengths: np.ndarray, target: np.ndarray) -> float:
+    """Mean signed relative deviation ``ℓ / ℓ* − 1`` of an in-between's corner edge lengths
+    ``lengths`` (m, 3) from ``target`` (m, 3), the keys' edge lengths interpolated at its factor:
+    negative where its edges are shorter on average (the ``signed`` of :func:`misfit_warning`)."""
+    return float(np.mean(_relative_changes(lengths, target)))
 
 
 def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str, str],

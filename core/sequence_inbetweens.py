@@ -64,7 +64,7 @@ from .sequence_bent_parts import BENT_PART_TURN, TWO_KEY_BENT_TURN, bent_part_tu
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
-from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning
+from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers
@@ -396,9 +396,12 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         fitted = [m for s, m in segment.fit_misfits.items() if s in poses]
         if not fitted or max(fitted) <= MISFIT_NOTED_FLOOR or gap in self._mirrored_gaps:
             return None
-        if self._first_lengths is None:  # its corner edges alone, as Key has them: no key built, none let go
-            edges = self._topo.corner_edge_rows(self._raw[0])
-            self._first_lengths = np.sqrt(coordinate_dot(edges, edges)).T
+        def lengths_of(x):  # corner edge lengths (m, 3) of positions x (n, 3), as Key has them
+            edges = self._topo.corner_edge_rows(x)  # (3 coordinates, 3 corners, m), as the fit's
+            return np.sqrt(coordinate_dot(edges, edges)).T
+
+        if self._first_lengths is None:  # its corner edges alone: no key built, none let go
+            self._first_lengths = lengths_of(self._raw[0])
         keys = (segment.base.lengths, segment.next.lengths)
         for index, lengths in zip((gap, gap + 1), keys):  # each key's once: it is in two gaps
             if index not in self._key_deviations:
@@ -406,11 +409,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         allowed = misfit_allowed([self._key_deviations[gap], self._key_deviations[gap + 1]])
 
         def signed(s):
-            edges = segment.edges_of(poses[s])  # (3 coordinates, 3 corners, m), as the fit's
-            lengths = np.sqrt(coordinate_dot(edges, edges)).T
-            target = (1.0 - s) * keys[0] + s * keys[1]
-            kept = target > 0.0
-            return float(np.mean(lengths[kept] / target[kept] - 1.0))
+            return signed_deviation(lengths_of(poses[s]), (1.0 - s) * keys[0] + s * keys[1])
 
         return misfit_warning(segment.fit_misfits, list(poses), allowed, (self.key_names[gap], self.key_names[gap + 1]),
                               signed)

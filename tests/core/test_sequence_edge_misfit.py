@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from core import Interpolator, SequenceInterpolator, ShapeDifferenceWarning
-from core.sequence_edge_misfit import MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, misfit_allowed, misfit_warning
+from core.sequence_edge_misfit import (MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, key_deviation, misfit_allowed,
+                                      misfit_warning, signed_deviation)
 
 from meshes import grid
 
@@ -101,6 +102,19 @@ def test_the_misfit_allowed_is_the_issue_bound_with_the_keys_for_the_simulation(
     the mean of the gap's keys' deviations from the first key standing in for the simulation's;
     never under the fits' own accuracy."""
     assert misfit_allowed(deviations) == pytest.approx(allowed)
+
+
+def test_the_edge_deviations_are_the_relative_changes_of_edges_of_positive_rest_length():
+    """A key's deviation is the mean of |ℓ / ℓ₀ − 1|, an in-between's signed deviation the mean of
+    ℓ / ℓ* − 1 (negative: shorter), both over the edges whose reference is longer than 0: two
+    edges 10 % longer and three 30 % shorter deviate 22 % by magnitude and −14 % signed; the edge
+    of zero reference length (given any length) is left out."""
+    rest = np.array([[1.0, 2.0, 0.0], [4.0, 0.5, 3.0]])
+    lengths = rest * np.array([[1.1, 0.7, 1.0], [0.7, 1.1, 0.7]])
+    lengths[0, 2] = 5.0
+    assert key_deviation(lengths, rest) == pytest.approx(0.22, rel=1e-12)
+    assert signed_deviation(lengths, rest) == pytest.approx(-0.14, rel=1e-12)
+    assert key_deviation(np.ones((2, 3)), np.zeros((2, 3))) == 0.0
 
 
 @pytest.mark.parametrize("change, way", [(-0.04, "shorter"), (0.04, "longer"), (-0.005, "off")])
