@@ -112,8 +112,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: (``core.sequence_half_turns.HalfTurns._aliased_spin``): the gap warns.
     aliased_spin = False
     #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
-    #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turn``): past
-    #: ``core.sequence_bent_parts.BENT_PART_TURN`` the gap warns.
+    #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turn``), where it is
+    #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses are.
     bent_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,

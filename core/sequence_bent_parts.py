@@ -2,12 +2,13 @@
 limb bent at a joint), read from the triangles' rotations and stretches of a key seen from the
 gap's base key (:class:`~core.inbetween_keys.Relative`, paper §8.4).
 
-The in-betweens of a sequence place each piece along its keys' splines; a part that turns about a
-joint by θ between two keys follows the spline's chord of its arc, which falls inside the arc by a
-share growing with θ (a uniform Catmull–Rom through points turned evenly by θ per key, at mid-gap:
-6.0 / 11.6 / 16.9 % of the radius at 75 / 90 / 100°). The keys alone tell such parts: regions of
-triangles kept isometric (metric ``G ≈ I``) with one rotation, each a share of its piece, turning
-from one another.
+The in-betweens of a sequence are anchored to the keys' per-vertex splines; a part that turns about
+a joint by θ between two keys would be pulled onto the spline's chord of its arc, which falls inside
+the arc by a share growing with θ (a uniform Catmull–Rom through points turned evenly by θ per key,
+at mid-gap: 6.0 / 11.6 / 16.9 % of the radius at 75 / 90 / 100°). The keys alone tell such parts:
+regions of triangles kept isometric (metric ``G ≈ I``) with one rotation, each a share of its piece,
+turning from one another. A gap whose splines read such a turn is anchored as two poses are
+(:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`).
 """
 
 from __future__ import annotations
@@ -26,13 +27,33 @@ ISOMETRIC = 5e-3
 RIGID_SPREAD = np.radians(2.0)
 #: Least share of its piece's area that a rigid part covers.
 PART_SHARE = 0.05
-#: Turn between two rigid parts of a piece (radians) past which the in-betweens cut their arc
-#: measurably (6.0 % of the radius at mid-gap).
+#: Turn between two rigid parts of a piece (radians) past which the keys' per-vertex spline cuts
+#: their arc measurably (6.0 % of the radius at mid-gap): a gap whose spline reads such a turn (its
+#: own, or a neighbouring gap's) is anchored as two poses are.
 BENT_PART_TURN = np.radians(75.0)
 #: Turn between two rigid parts of a piece (radians) past which a sequence of only two keys anchors
 #: its gap as two poses do: twice the spread a rigid part may have (``RIGID_SPREAD``), so a piece
 #: read as two parts turned apart is bent at a joint, not a part's own rounding.
 TWO_KEY_BENT_TURN = 2.0 * RIGID_SPREAD
+
+
+def _isometric(metric: np.ndarray) -> np.ndarray:
+    """Whether each triangle is kept isometric (bool (m,)): every entry of its metric ``G``
+    (``metric`` (m, 3), packed ``(g11, g12, g22)``) within ``ISOMETRIC`` of the identity's."""
+    g11, g12, g22 = metric[:, 0], metric[:, 1], metric[:, 2]
+    return (np.abs(g11 - 1.0) < ISOMETRIC) & (np.abs(g12) < ISOMETRIC) & (np.abs(g22 - 1.0) < ISOMETRIC)
+
+
+def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray) -> bool:
+    """Whether a piece keeps room for two rigid parts from a key to another: twice the least part's
+    share of its area (``PART_SHARE``) kept isometric (``ISOMETRIC``; a cloth has none).
+
+    ``triangle_component`` int (m,): each triangle's piece; ``metric`` (m, 3): each triangle's metric
+    ``G`` packed ``(g11, g12, g22)``; ``areas`` (m,): the triangles' areas in the base key."""
+    isometric = _isometric(metric)
+    piece_area = np.bincount(triangle_component, areas)
+    return bool((np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
+                 >= 2 * PART_SHARE * piece_area).any())
 
 
 def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
@@ -50,15 +71,10 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
     turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the region's mean rotation and
     covering ``PART_SHARE`` of its piece's area."""
     m = len(rotvec)
-    if m == 0 or len(edge_pairs) == 0:
+    if m == 0 or len(edge_pairs) == 0 or not rigid_share(triangle_component, metric, areas):
         return 0.0
-    g11, g12, g22 = metric[:, 0], metric[:, 1], metric[:, 2]
-    isometric = (np.abs(g11 - 1.0) < ISOMETRIC) & (np.abs(g12) < ISOMETRIC) & (np.abs(g22 - 1.0) < ISOMETRIC)
+    isometric = _isometric(metric)
     piece_area = np.bincount(triangle_component, areas)
-    # two parts of a piece need twice the least part's share of it kept isometric (a cloth has none)
-    if not (np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
-            >= 2 * PART_SHARE * piece_area).any():
-        return 0.0
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
     # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
     if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= least:

@@ -26,7 +26,9 @@ a Poisson solve whose matrix depends on the topology and the anchor weights only
 (as-rigid-as-possible) steps re-fitting each triangle's rotation while keeping its interpolated
 metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation
 (and a sequence of only two keys that bend a piece at a joint,
-:data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`), where vertices whose neighbourhood only translates between the keys are anchored to the linear
+:data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`, or a gap of more keys whose splines read a part of
+a piece turned past :data:`core.sequence_bent_parts.BENT_PART_TURN` from another, in it or in a gap next
+to it), where vertices whose neighbourhood only translates between the keys are anchored to the linear
 blend (exact for them, at every factor: parts that do not move stay put); see
 :data:`core.inbetween_anchor.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
 centroid, moved by the interpolated rigid motion of the whole mesh plus the interpolated residual
@@ -60,7 +62,7 @@ from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
-from .sequence_bent_parts import BENT_PART_TURN, TWO_KEY_BENT_TURN, bent_part_turn
+from .sequence_bent_parts import BENT_PART_TURN, TWO_KEY_BENT_TURN, bent_part_turn, rigid_share
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -181,9 +183,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # with only two keys, at any turn: the keys' spline is then their chord, which the anchor
         # would pull a bending part onto, inside its arc
         two_keys = last == 1 and self._across is None
-        bent = bent_part_turn(topo.triangle_component, self._edge_pairs, ahead[0].rotvec, ahead[0].metric,
-                              base.areas, TWO_KEY_BENT_TURN if two_keys else BENT_PART_TURN) \
-            if self._across is None and gap not in self._mirrored_gaps else 0.0
+        bent = self._bent_turn(gap, ahead[0], TWO_KEY_BENT_TURN if two_keys else BENT_PART_TURN)
         # two keys of a piece bent at a joint: anchored to the blend where it keeps the edge lengths,
         # as two poses are (the part that does not turn holds, the turning part follows its rotations)
         anchored = two_keys and bent > TWO_KEY_BENT_TURN
@@ -203,6 +203,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 free = self._unsure(gap)[topo.triangle_component]
                 unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
                 free = free if free.any() else None
+        # more keys: so too where the keys' spline reads a part bent past BENT_PART_TURN, unless the
+        # piece is read turning (its rotations taken whole and continuous, placed along its turn)
+        if not two_keys and self._across is None and not turning.any():
+            anchored = self._bent_nearby(gap, bent, ahead[0])
         # parts spun past a half turn that the keys read the short way round: patches of the mesh
         # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
         # pieces read turning or folded above are taken so or warned of already)
@@ -228,6 +232,39 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
+
+    def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN) -> float:
+        """The largest turn (radians) between two rigid parts of one piece from key ``gap`` to the
+        next (:func:`core.sequence_bent_parts.bent_part_turn`, ``least`` its least turn read); 0 in
+        a gap warned of mirrored pieces and for two poses. ``relative``: key ``gap + 1`` seen from
+        key ``gap`` (:meth:`_relatives`), if at hand. Kept per gap and least turn: a gap reads its
+        neighbours' (:meth:`_bent_nearby`)."""
+        if self._across is not None or gap in self._mirrored_gaps:
+            return 0.0
+        if (gap, least) not in self._bent_turns:
+            relative = relative if relative is not None else self._relatives(gap, [gap + 1])[0]
+            self._bent_turns[(gap, least)] = bent_part_turn(self._topo.triangle_component, self._edge_pairs,
+                                                            relative.rotvec, relative.metric,
+                                                            self._key(gap).areas, least)
+        return self._bent_turns[(gap, least)]
+
+    def _bent_nearby(self, gap: int, bent: float, relative: Relative) -> bool:
+        """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn`,
+        ``relative``: key ``gap + 1`` seen from key ``gap``) is anchored as two poses are: where
+        the keys' per-vertex spline it would be anchored to reads a part of a piece turning past
+        :data:`~core.sequence_bent_parts.BENT_PART_TURN` from another, whose arc that spline cuts —
+        in the gap itself or, for a cubic spline (keys ``gap − 1`` … ``gap + 2``), in a gap next to
+        it, whose keys' tangents bend the spline inside the arc too. The neighbours are read only
+        where the gap's own keys keep room for two rigid parts
+        (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none), and not with a truncated
+        metric (``k_M``: its recovery prepares one base shape per key, which a neighbour's reading
+        would prepare again)."""
+        if bent > BENT_PART_TURN:
+            return True
+        if not (self.smooth and len(self) >= 2) or self.k_M is not None or \
+                not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
+            return False
+        return any(self._bent_turn(near) > BENT_PART_TURN for near in (gap - 1, gap + 1) if 0 <= near < len(self))
 
     def _segment(self, gap: int, ahead: list[Relative], others: list[int], whole: np.ndarray,
                  turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None,

@@ -11,7 +11,6 @@ from scipy.spatial.transform import Rotation
 
 from .rotation_continuity import WRAP_CREASE, jumping_pairs
 from .rotation_continuity import unwrapped_rotation_vectors
-from .sequence_bent_parts import BENT_PART_TURN
 from .inbetween_keys import Relative
 from .inbetween_solver import Gap
 from .inbetween_topology import Topology
@@ -69,7 +68,7 @@ def composed_apart(topo: Topology, areas: np.ndarray, turning: np.ndarray, root:
 def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
     """The warnings' messages (list of str) of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
-    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``, ``bent_turn``); ``key_names``: the keys as
+    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``); ``key_names``: the keys as
     warnings name them."""
     problems = []
     turned = (f"between {key_names[gap]} and {key_names[gap + 1]}, over "
@@ -110,15 +109,6 @@ def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
                         f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "
                         "tell, and nothing in them tells which way round: the in-betweens may turn them the "
                         "other way round (keys closer together tell which way they went)")
-    # a part warned of above is not said twice; a piece read turning from the rest (its rotations
-    # taken whole and continuous, not anchored to the keys' spline) is placed along its turn
-    if segment.bent_turn > BENT_PART_TURN and not problems and segment.turning is None:
-        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, a part of a piece turns "
-                        f"{np.degrees(segment.bent_turn):.0f}° from another part of it, each keeping its shape "
-                        "(a limb bent at a joint): the in-betweens take it along a path inside its arc and "
-                        "may turn triangles over there; add keys so that a bending part "
-                        f"turns at most about {np.degrees(BENT_PART_TURN):.0f}° between two of them [the keys' "
-                        "per-vertex splines cut the arc of a part turning past that]")
     return problems
 
 
