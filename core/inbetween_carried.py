@@ -11,7 +11,8 @@ its seat and turns about a point of their contact (a hand at the wrist of a bend
 :func:`core.inbetween_joints.joint_offset`), the seat carries it: at every factor the piece takes
 the seat's best rigid motion from the base key to the pose, times the part of its own motion the
 seat misses (interpolated, so that both keys are met exactly). Elsewhere the piece keeps its own
-motion.
+motion. Rigid pieces jointed to a carried one that no seat carries (glasses on a head riding on a
+torso) move with it.
 
 Measured (docs/inbetween-measurements.md, *Pieces carried by deforming ones*): a hand (a separate sphere) on a
 forearm bent by 100°, two poses: off the forearm's end by 0.37–0.57 % of the diagonal in-between
@@ -92,6 +93,7 @@ class CarriedPieces:
         self.pieces: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
         topo, base, nxt = gap.topo, gap.base.vertices, gap.next.vertices
         self.riding = np.zeros(len(topo.components), dtype=bool)  # the components of the riders kept
+        self._followers = None  # the rigid pieces jointed to a carried one (see _jointed_followers)
         self.base = base
         if len(topo.components) < 2:
             return
@@ -172,12 +174,41 @@ class CarriedPieces:
         self._rider_components = pieces[index[self._riders]]
         self.riding[self._rider_components] = True
         self._rigid_rows = ~riders[pieces[index]][self._row_piece]
+        self._followers = self._jointed_followers(gap, pieces[index], riders[pieces[index]], size)
         if self._riders.size:
             _, rotations, scales, means = self._seat_similarities(nxt)
             rotations, scales, means = rotations[self._riders], scales[self._riders], means[self._riders]
             self._rider_starts = gap.base.centroids[self._rider_components] - self._base_mean[self._riders]
             ends = topo.centroids(nxt)[self._rider_components] - means
             self._rider_offsets = np.einsum("pji,pj->pi", rotations, ends) / scales[:, None] - self._rider_starts
+
+    def _jointed_followers(self, gap, carried: np.ndarray, riders: np.ndarray, size: np.ndarray):
+        """The rigid pieces jointed to a carried one that no seat carries (glasses on a head that
+        a bending torso carries; smaller than :data:`CARRIER_SIZE` × it, else the piece is not
+        carried, see above), or None: ``(leaders, rows, labels, members)``, per follower set the
+        index (L,) of the carried piece it follows among :attr:`pieces` (the largest carried rigid
+        piece of its joint group, :func:`~core.inbetween_joints.joint_groups`), and their vertices
+        (r,) with each one's set (r,; among ``leaders``) and piece (r,; 0, 1, … in order). Placed
+        by the joint tree about the piece's own motion, they part from the piece that its seat
+        moves; :meth:`place` moves them with it. Pinned pieces keep their pins."""
+        if gap.joints is None:
+            return None
+        groups_of = joint_groups(gap.joints[0])
+        rigid = ~riders
+        lead = np.full(len(groups_of), -1)  # per joint group, the largest carried rigid piece there
+        for k in np.flatnonzero(rigid)[np.argsort(-size[carried[rigid]], kind="stable")]:
+            if lead[groups_of[carried[k]]] < 0:
+                lead[groups_of[carried[k]]] = k
+        following = lead[groups_of] >= 0
+        following[carried] = False
+        following &= ~gap.held_pieces() & (gap.rigidity > 0.0)
+        if not following.any():
+            return None
+        members = np.flatnonzero(following)
+        leaders, labels = np.unique(lead[groups_of[members]], return_inverse=True)
+        rows = [gap.topo.components[c] for c in members]
+        sizes = [r.size for r in rows]
+        return leaders, np.concatenate(rows), np.repeat(labels, sizes), np.repeat(np.arange(members.size), sizes)
 
     @staticmethod
     def _ridden(gap, base: np.ndarray, nxt: np.ndarray, own) -> np.ndarray:
@@ -293,7 +324,20 @@ class CarriedPieces:
         total = rotations @ residual_rotations
         shift = np.einsum("pij,pj->pi", rotations, residual_translations) + translations
         rows, piece = self._rows[self._rigid_rows], self._row_piece[self._rigid_rows]
+        before = x[rows]
         x[rows] = np.einsum("kij,kj->ki", total[piece], self.base[rows]) + shift[piece]
+        if self._followers is not None:
+            # the pieces jointed to a carried one move with it: by the rigid motion that took it
+            # from where the joint tree put it to where its seat puts it (each rigid as it moves:
+            # a predicted in-between's shapes are not)
+            leaders, follower_rows, labels, members = self._followers
+            chosen = np.isin(piece, leaders)
+            which = np.searchsorted(leaders, piece[chosen])
+            moves = rigid_alignments(before[chosen], x[rows[chosen]], which, leaders.size)
+            own = rigid_alignments(self.base[follower_rows], x[follower_rows], members, members[-1] + 1)
+            rotations = moves[0][labels] @ own[0][members]
+            translations = np.einsum("kij,kj->ki", moves[0][labels], own[1][members]) + moves[1][labels]
+            x[follower_rows] = np.einsum("kij,kj->ki", rotations, self.base[follower_rows]) + translations
         return x
 
     def rider_places(self, x: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray] | None:

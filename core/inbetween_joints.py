@@ -40,7 +40,8 @@ on their roots, meshing gears on their axles without a vertex there) move along 
 which are their motions: their relative motion turns about their contact too (the pitch point of
 two gears), and composed on it a card or gear left its root or axle. They are told from a joint
 by their contact, which a joint's moving parent carries between the keys and which their own
-screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`), unless both
+screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`; the contact
+read from the same vertex pairs in both keys where some are closest in both, :func:`shared_contacts`), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
 the point but not the turn relative to the link below).
 """
@@ -197,6 +198,32 @@ def closest_pairs(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> tuple[n
     # each run's first pair at its least distance (a reduction: sorting the pairs cost more than the rest)
     closest = np.minimum.reduceat(np.where(gap == np.repeat(nearest, counts), np.arange(len(ends)), len(ends)), first)
     return nearest, 0.5 * (x[ends[closest, 0]] + x[ends[closest, 1]])
+
+
+def shared_contacts(base: np.ndarray, nxt: np.ndarray, ends: np.ndarray, first: np.ndarray, nearest_base: np.ndarray,
+                    nearest_later: np.ndarray, tolerance: np.ndarray, contact_base: np.ndarray,
+                    contact_later: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces of :func:`touching_pairs` (P,; its vertex pairs ``ends`` in runs from
+    ``first``, touching in the base key), where it touches in the base key and in the next
+    (``base``, ``nxt``: positions (n, 3)): where some of its vertex pairs are within ``tolerance``
+    (P,) of its least distance in both keys (``nearest_base``, ``nearest_later`` (P,)), the mean
+    midpoint of those pairs in each key, the same points read twice; elsewhere ``contact_base``
+    and ``contact_later`` (P, 3), its closest pair in each key."""
+    if not first.size:
+        return contact_base, contact_later
+    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
+    apart = [np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) for x in (base, nxt)]
+    shared = ((apart[0] - nearest_base[run] <= tolerance[run]) & (apart[1] - nearest_later[run] <= tolerance[run]))
+    counts = np.bincount(run[shared], minlength=first.size)
+    if not counts.any():
+        return contact_base, contact_later
+    found = counts > 0
+    out = []
+    for x, contact in ((base, contact_base), (nxt, contact_later)):
+        middle = 0.5 * (x[ends[shared, 0]] + x[ends[shared, 1]])
+        mean = np.stack([np.bincount(run[shared], middle[:, d], minlength=first.size) for d in range(3)], axis=1)
+        out.append(np.where(found[:, None], mean / np.maximum(counts, 1)[:, None], contact))
+    return out[0], out[1]
 
 
 def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
@@ -371,6 +398,11 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             drift = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k[t]], point) + translations[k[t]]
                                                 - point, axis=1) for k in (u, v)))
             together[t] = drift > precision[t]
+        # the same vertex pairs read in both keys where some are closest in both (coincident
+        # vertices along a hinge): the first of several equally close pairs is another pair in
+        # each key, and two points of a carried hinge read as a contact that stays put
+        contact_base, contact_later = shared_contacts(base, nxt, ends, first, nearest_base, nearest_later,
+                                                      precision, contact_base, contact_later)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried

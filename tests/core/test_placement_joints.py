@@ -736,3 +736,40 @@ def test_pieces_turned_half_round_with_the_body_they_hang_near_are_no_links_apar
         assert np.isclose(Rotation.from_matrix(rotation).magnitude(), np.radians(degrees), atol=1e-5)
     assert _said(caught, "which way round")
     assert not _said(caught, "as jointed links do")
+
+
+def _boxes_arm(s, angles=(10.0, 30.0, 40.0)):
+    """A robot arm of six boxes (0.3 thick, each a separate piece of 26 vertices) meeting face to
+    face along x: a still base of two, then three links on joints at x = 1.6 (about z), 3.0 and 3.8
+    (about y, through the middle of the faces that meet there), the links of two, one and one
+    boxes, each joint turned by ``s`` × its angle (degrees): the forward kinematics at ``s``. The
+    boxes' vertices along each hinge coincide, and some across it at a right angle."""
+    box, box_triangles = cube(2)
+    spans = [(0.0, 1.0, 0), (1.0, 1.6, 0), (1.6, 2.4, 1), (2.4, 3.0, 1), (3.0, 3.8, 2), (3.8, 4.4, 3)]
+    joints = [([1.6, 0.0, 0.0], [0.0, 0.0, 1.0]), ([3.0, 0.0, 0.0], [0.0, 1.0, 0.0]),
+              ([3.8, 0.0, 0.0], [0.0, 1.0, 0.0])]
+    parts = []
+    for low, high, link in spans:
+        x = (box + 1.0) / 2.0 * [high - low, 0.3, 0.3] + [low, -0.15, -0.15]
+        for j in reversed(range(link)):
+            pivot, axis = np.array(joints[j][0]), np.array(joints[j][1])
+            x = Rotation.from_rotvec(s * np.radians(angles[j]) * axis).apply(x - pivot) + pivot
+        parts.append(x)
+    return np.vstack(parts), np.vstack([box_triangles + k * len(box) for k in range(len(spans))])
+
+
+def test_a_robot_arm_of_boxes_meeting_face_to_face_is_its_forward_kinematics_in_every_gap():
+    """The arm of :func:`_boxes_arm` keyed at constant joint speeds (10°, 30°, 40° per key): every
+    in-between of every gap of a sequence is the arm at that time, to 1e-6 of the diagonal. The
+    boxes' coincident vertices make many vertex pairs equally closest, and the first of them was
+    another pair in each key: in the gap where the elbow reaches a right angle the joint read as a
+    contact that stays put (0.055 moved where the yaw carries it 0.245), so the elbow was taken for
+    two pieces turning about their own axes and left unjointed, its two links on their own screws
+    1.2e-3 of the diagonal off (3 of 24 random arms so keyed were off by 0.9–2.6e-3)."""
+    _, tri = _boxes_arm(0.0)
+    keys = [_boxes_arm(float(k))[0] for k in range(4)]
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(3):
+        for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(x, _boxes_arm(gap + s)[0], atol=1e-6 * diagonal)
