@@ -25,6 +25,7 @@ import scipy.sparse as sp
 
 from .errors import MeshError
 from .mesh_topology import MeshTopology, mesh_topology
+from .validation import real_array
 
 #: Rings of base neighbours in the local affine fit that smooths a vertex map
 #: (:func:`locally_affine_images`), and the relative spread below which a direction of a ring
@@ -59,7 +60,7 @@ def check_correspondence(correspondence, n_base: int, n_target: int, *, allow_un
     """``correspondence`` as int64 ``(n_base,)`` with values in ``0..n_target-1`` (and
     :data:`UNMATCHED`, -1, for a base vertex without a match when ``allow_unmatched``); raises
     :class:`MeshError` naming the first bad entry."""
-    array = np.asarray(correspondence)
+    array = real_array(correspondence, "The correspondence", "target vertex indices")  # no booleans, text, complex
     if array.ndim != 1 or array.shape[0] != n_base:
         raise MeshError(
             f"The correspondence must give one target vertex index per base vertex, an integer "
@@ -68,8 +69,9 @@ def check_correspondence(correspondence, n_base: int, n_target: int, *, allow_un
     if array.size and not np.issubdtype(array.dtype, np.integer):
         if not (np.isfinite(array).all() and np.all(np.mod(array, 1) == 0)):
             raise MeshError("The correspondence must hold integer target vertex indices.")
-    array = array.astype(np.int64)
     low = UNMATCHED if allow_unmatched else 0
+    # in the given type: the cast to int64 wraps uint64 2^64 − 1 to −1 (read as unmatched) and
+    # floats past 2^63 to another index
     bad = np.flatnonzero((array < low) | (array >= n_target))
     if bad.size:
         i = int(bad[0])
@@ -79,7 +81,7 @@ def check_correspondence(correspondence, n_base: int, n_target: int, *, allow_un
             f"target has {n_target} vertices (valid indices are 0..{n_target - 1}{unmatched}); "
             f"{bad.size} entries are out of range. Use a map computed for these two meshes."
         )
-    return array
+    return array.astype(np.int64)
 
 
 def closest_point_correspondence(base_vertices: np.ndarray, target_vertices: np.ndarray) -> np.ndarray:

@@ -4,6 +4,7 @@ pulls in a scene graph or a renderer."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +21,7 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
     zero-area or inverted triangle, from the corner whose fan's worst triangle is the largest
     (:func:`fan_corners`); ``v/vt/vn`` corners and negative (relative) indices are understood;
     other statements (normals, groups, materials, lines) are ignored. A missing file, a bad index
-    or a file without faces raises :class:`MeshError`.
+    or a file without faces, and a vertex coordinate that is not a finite number, raise :class:`MeshError`.
     """
     path = Path(path)
     if not path.is_file():
@@ -35,7 +36,10 @@ def read_obj(path) -> tuple[np.ndarray, np.ndarray]:
                 if fields[0] == "v":
                     if len(fields) < 4:
                         raise ValueError("a vertex needs three coordinates")
-                    vertices.append([float(value) for value in fields[1:4]])
+                    vertex = [float(value) for value in fields[1:4]]
+                    if not all(math.isfinite(x) for x in vertex):  # "nan", "inf", 1e400: no place to fan faces at
+                        raise ValueError("a vertex coordinate is not a finite number")
+                    vertices.append(vertex)
                 elif fields[0] == "f":
                     corners = [int(corner.split("/")[0]) for corner in fields[1:]]
                     corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]

@@ -28,9 +28,12 @@ import numpy as np
 
 from .atomic_files import write_atomically
 from .errors import MeshError
+from .validation import real_array
 
 #: Bytes of samples :func:`merge_pc2` reads and writes at a time.
 MERGE_BLOCK_BYTES = 16 << 20
+#: The largest coordinate a PC2 or MDD file holds: its coordinates are single precision.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 #: Added to a chunk's file name for its stamp (:func:`write_pc2`, ``stamp=``): the retime it is part
 #: of, its key gaps and the SHA-256 of its bytes, which :func:`merge_pc2` checks.
 STAMP_SUFFIX = ".json"
@@ -75,15 +78,16 @@ def _samples(positions) -> tuple[list, int]:
     ``(points, 3)`` poses, or one pose (one sample) — and their point count, checked (shape, one
     point count, finite coordinates) without copying them: the writer converts one sample at a
     time, so an output is not held twice while it is written."""
+    what = "point cache positions"
     if isinstance(positions, np.ndarray) or not len(positions) or np.ndim(positions[0]) != 2:
-        array = np.asarray(positions)
+        array = real_array(positions, "The point cache positions", what)
         if array.ndim == 2:
             array = array[None]
         shape = array.shape
         _check_samples_shape(shape)
         samples = list(array)  # views of the array
     else:
-        samples = [np.asarray(pose) for pose in positions]
+        samples = [real_array(pose, f"Point cache sample {index}", what) for index, pose in enumerate(positions)]
         shapes = {sample.shape for sample in samples}
         if len(shapes) > 1:
             raise MeshError(f"Point cache samples must all have one shape (points, 3); got {sorted(shapes)}.")
@@ -92,6 +96,13 @@ def _samples(positions) -> tuple[list, int]:
     for index, sample in enumerate(samples):
         if not np.isfinite(sample).all():
             raise MeshError(f"Point cache sample {index} has non-finite coordinates (NaN or inf).")
+        # written as float32: beyond its range a coordinate would be stored as inf (reduced without a
+        # temporary array: one sample is written at a time)
+        largest = max(float(sample.max()), -float(sample.min())) if sample.size else 0.0
+        if largest > FLOAT32_MAX:
+            raise MeshError(f"Point cache sample {index} has a coordinate of {largest:.3g}, "
+                            f"beyond the {FLOAT32_MAX:.3g} a PC2 file's single-precision coordinates hold (it "
+                            "would be stored as infinite). Scale the positions down.")
     return samples, shape[1]
 
 

@@ -24,6 +24,7 @@ import scipy.sparse as sp
 from .errors import MeshError, RecoveryError
 from .geometry import DIVISION_FLOOR, expand_vertex_values, heron, lumped_vertex_areas, normalize, vertex_labels
 from .laplace_basis import LaplaceBasis, cached_split_group, checked_laplace_basis, warn_eigenvalue_split
+from .validation import check_count, check_energies, check_positive, check_result_memory
 
 #: Heat method time step t = HEAT_TIME_FACTOR × (mean edge length)² (Crane et al.'s choice, m = 1).
 HEAT_TIME_FACTOR = 1.0
@@ -225,7 +226,10 @@ class PulledBackMetric:
         with :func:`~core.laplace_basis.checked_laplace_basis`'s few more (for :meth:`_warn_split`).
         Eigenpairs within a group of equal eigenvalues are one arbitrary orthonormal choice of its
         eigenspace, as from any eigensolver, at any ``k``."""
-        larger = [size for size in self._bases if size >= k]
+        # a whole number (text, fractions, booleans refused); below 1 it reaches the size check of
+        # checked_laplace_basis, not a cached basis cut at k (a negative k would drop its last −k)
+        k = check_count(k, "k", minimum=None)
+        larger = [size for size in self._bases if size >= k] if k >= 1 else []
         if not larger:
             computed, _ = checked_laplace_basis(self.mass_matrix(), self.laplacian(), k, what="pulled-back metric")
             self._bases[computed.size] = computed
@@ -265,24 +269,33 @@ class PulledBackMetric:
         the first ``k`` nonzero eigenpairs. ``energies``: a count (evenly spaced log-energies
         between the extreme log-eigenvalues, ``WKS_MARGIN`` widths inside) or explicit values (to
         compare several metrics at the same energies, see :meth:`wks_energies`)."""
-        k = min(k, self.reference.topology.n_vertices - 1)
+        k = min(check_count(k, "k", minimum=1), self.reference.topology.n_vertices - 1)
+        energies, variance = check_energies(energies), check_positive(variance, "variance")
+        if np.ndim(energies) == 0:
+            check_result_memory((self.reference.n_vertices, energies), f"energies = {energies:,}", "ask for fewer")
         basis = self.laplace_basis(k)
         self._warn_split(k)
         return self._expand(wave_kernel_signature(basis, energies, variance=variance), 0.0)
 
     def wks_energies(self, count: int = 100, *, k: int = 100, variance: float = WKS_VARIANCE) -> np.ndarray:
         """The log-energies ``(count,)`` :meth:`wave_kernel_signature` uses for ``count``."""
-        basis = self.laplace_basis(min(k, self.reference.topology.n_vertices - 1))
+        count, variance = check_count(count, "count", minimum=1), check_positive(variance, "variance")
+        check_result_memory((count,), f"count = {count:,}", "ask for fewer")
+        basis = self.laplace_basis(min(check_count(k, "k", minimum=1), self.reference.topology.n_vertices - 1))
         return wks_energies(basis.eigenvalues, count, variance=variance)[0]
 
     # -- vertex numbering --------------------------------------------------------------------------
     def _compact_vertex(self, vertex: int) -> int:
-        if isinstance(vertex, (bool, np.bool_)) or int(vertex) != vertex \
-                or not 0 <= vertex < self.reference.n_vertices:  # True is no vertex index
+        try:  # a whole number: True, 1.5, NaN, text are no vertex index
+            index = check_count(vertex, "source_vertex", minimum=None)
+        except MeshError:
+            index = None
+        if index is None or not 0 <= index < self.reference.n_vertices:
             raise MeshError(
                 f"source_vertex must be a vertex index in 0..{self.reference.n_vertices - 1}; got {vertex!r}."
             )
-        position = np.searchsorted(self.reference.used_vertices, int(vertex))
+        vertex = index
+        position = np.searchsorted(self.reference.used_vertices, vertex)
         if position >= self.reference.used_vertices.size or self.reference.used_vertices[position] != vertex:
             raise MeshError(f"Vertex {vertex} is in no triangle, so it has no geodesic distances.")
         return int(position)

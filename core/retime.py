@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MeshError
+from .validation import describe, check_count, check_positive, check_vertices
 
 # An output time this close to a whole sample (relative) is that sample: k · speed in floating
 # point misses integers by a few ulps (3 · 0.1 = 0.30000000000000004).
@@ -124,21 +125,24 @@ def step_remedy(n_frames: int, step: int, keys: int = 2) -> str:
 def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
     """Plan the retime of ``n_source`` samples keyed every ``step``-th, played at ``speed``: at
     least two output samples (a speed of at most ``n_source − 1``) and at most
-    :data:`MAX_OUTPUT_SAMPLES`, else :class:`MeshError`."""
-    if int(step) != step or step < 1:
-        raise MeshError(f"The frame step must be a whole number of at least 1; got {step}.")
-    if not (np.isfinite(speed) and speed > 0):
-        raise MeshError(f"The speed must be a positive number; got {speed}.")
-    step, speed = int(step), float(speed)
+    :data:`MAX_OUTPUT_SAMPLES`, and at most as many keys, else :class:`MeshError`."""
+    step_given = step
+    try:  # whole numbers and a real number: NaN, text, booleans, complex, arrays are refused in these terms
+        step = check_count(step, "step")
+    except MeshError:
+        step = None
+    if step is None or step < 1:
+        raise MeshError(f"The frame step must be a whole number of at least 1; got {describe(step_given)}.")
+    try:
+        speed = check_positive(speed, "speed")
+    except MeshError:
+        raise MeshError(f"The speed must be a positive number; got {describe(speed)}.") from None
+    n_source = check_count(n_source, "The number of frames", minimum=None)
     if n_source < 2 or n_source - 1 < step:
         raise MeshError(
             f"{n_source} frame{'s' if n_source != 1 else ''} with step {step} give fewer than two key "
             f"poses: use {step_remedy(n_source, step)}."
         )
-    keys = np.arange(0, n_source, step)
-    tail = short_gap_keys(int(keys[-1]), n_source - 1)
-    if keys[-1] != n_source - 1:
-        keys = np.append(keys, n_source - 1)
     last = n_source - 1
     span = last / speed * (1 + WHOLE_SAMPLE_TOLERANCE)  # n_out − 1 before the floor; may overflow to inf
     if span >= MAX_OUTPUT_SAMPLES:
@@ -151,6 +155,14 @@ def plan_retime(n_source: int, step: int, speed: float) -> RetimePlan:
         raise MeshError(f"Speed {speed:g} over {n_source} frames gives one output frame (the first), and a "
                         f"retime needs at least two: use a speed of at most {last} (the range played in two "
                         "frames) or retime a longer range.")
+    if last // step + 1 > MAX_OUTPUT_SAMPLES:  # checked before the keys are listed (2^31 of them: 16 GB)
+        raise MeshError(f"{n_source:,} frames with step {step} give {last // step + 1:,} key poses, more than "
+                        f"{MAX_OUTPUT_SAMPLES:,} (the last frame Blender plays): use a larger step or retime a "
+                        "shorter range.")
+    keys = np.arange(0, n_source, step)
+    tail = short_gap_keys(int(keys[-1]), last)
+    if keys[-1] != last:
+        keys = np.append(keys, last)
     times = np.arange(n_out) * speed
     whole = np.round(times)
     snap = np.abs(times - whole) <= WHOLE_SAMPLE_TOLERANCE * np.maximum(1.0, whole)
@@ -211,7 +223,6 @@ def motion_ends(samples, keys, tail, chosen=()) -> dict:
     a middle sample is no pose of the keys' mesh (a non-finite coordinate would make both choices'
     distances NaN, and the comparison choose silently)."""
     from .motion_ends import end_of_motion, start_of_motion
-    from .validation import check_vertices
 
     def middle_pose(sample, key):
         return check_vertices(samples[sample], len(samples[key]), name=f"sample {sample}")
@@ -231,12 +242,20 @@ def motion_ends(samples, keys, tail, chosen=()) -> dict:
     return options
 
 
-def _key_pose(sample) -> np.ndarray:
-    """A source ``sample`` as float64 ``(n, 3)``, made read-only where the conversion made an array
-    of its own (float32 samples, a memory map's rows), so the sequence keeps it as its key instead
-    of a copy (:func:`core.validation.check_vertices`); the caller's own float64 arrays (a list of
-    frames) are left as they are, writable."""
-    pose = np.asarray(sample, dtype=np.float64)
+def _check_samples(samples) -> None:
+    """MeshError unless ``samples`` can be counted and indexed (a list of poses, an array, a memory
+    map); each sample read is checked as a pose where it is read (:func:`_key_pose`)."""
+    if not hasattr(samples, "__len__") or not hasattr(samples, "__getitem__") or isinstance(samples, (str, bytes)):
+        raise MeshError(f"samples must be a sequence of poses (n, 3) or an array (samples, n, 3); got {describe(samples)}.")
+
+
+def _key_pose(sample, name: str) -> np.ndarray:
+    """A source ``sample`` as float64 ``(n, 3)``, checked (:func:`core.validation.check_vertices`:
+    real numbers, shape, finite; ``name`` in its messages), made read-only where the conversion
+    made an array of its own (float32 samples, a memory map's rows), so the sequence keeps it as its
+    key instead of a copy; the caller's own float64 arrays (a list of frames) are left as they are,
+    writable."""
+    pose = check_vertices(sample, name=name)
     if pose is not sample and pose.base is None:
         pose.flags.writeable = False
     return pose
@@ -248,7 +267,7 @@ def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     motion; its last gap is the short gap."""
     from .sequence_inbetweens import SequenceInterpolator
 
-    return SequenceInterpolator([np.asarray(samples[key], dtype=np.float64) for key in tail], triangles,
+    return SequenceInterpolator([check_vertices(samples[key], name=f"sample {int(key)}") for key in tail], triangles,
                                 **{**interpolator_options, "start": "keys"})
 
 
@@ -270,12 +289,14 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     """
     from .sequence_inbetweens import SequenceInterpolator
 
+    _check_samples(samples)
     if len(samples) != plan.n_source:
         raise MeshError(f"The plan is for {plan.n_source} samples; got {len(samples)}.")
     gaps = range(plan.n_gaps) if gaps is None else gaps
-    if gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
-        raise ValueError(f"gaps {gaps} is not a contiguous range within the {plan.n_gaps} gaps.")
-    key_poses = [_key_pose(samples[key]) for key in plan.keys]
+    if not isinstance(gaps, range) or gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
+        raise MeshError(f"gaps {describe(gaps)} is not a contiguous range within the {plan.n_gaps} gaps.")
+    key_poses = [_key_pose(samples[key], f"key pose {i}" if sample_names is None else sample_names(int(key)))
+                 for i, key in enumerate(plan.keys)]
     interpolator_options = {**interpolator_options,
                             **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
     names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]
@@ -309,7 +330,8 @@ def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = 
     """The retimed samples float32 ``(n_out, n, 3)`` (only those in ``gaps`` if given) of
     ``samples`` float ``(n_source, n, 3)`` keyed every ``step``-th, at ``speed``; see the module
     docstring."""
+    _check_samples(samples)
     plan = plan_retime(len(samples), step, speed)
-    n_points = np.shape(samples)[1]
+    n_points = _key_pose(samples[0], "key pose 0").shape[0]  # the first key: checked again as one
     poses = [pose for _, pose in iter_retime(samples, triangles, plan, gaps, **interpolator_options)]
     return np.asarray(poses, dtype=np.float32).reshape(-1, n_points, 3)

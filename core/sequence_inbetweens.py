@@ -56,7 +56,7 @@ from .inbetween_prediction import gap_poses
 from .inbetween_keys import Relative
 from .inbetween_solver import Gap
 from .inbetween_threads import CONCURRENT_VERTICES
-from .validation import (check_factor, check_gap_index, check_key_times, check_real, check_end, check_sequence,
+from .validation import (check_factors, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time, numerical_failures)
 from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
@@ -358,7 +358,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         """:meth:`poses` and the warnings ``(kind, message, defects, factors)``, not yet given (the caller warns: a
         warning filter changed around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
-        gap, factors = check_gap_index(gap_index, len(self)), [check_factor(f) for f in np.atleast_1d(factors)]
+        gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
         out = np.empty((len(factors), self._topo.n, 3))
         between = [k for k, s in enumerate(factors) if s not in (0.0, 1.0)]
         for k, s in enumerate(factors):

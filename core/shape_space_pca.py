@@ -35,7 +35,7 @@ from .concurrency import single_threaded_blas
 from .errors import MeshError, warn
 from .coordinate_rounding import relative_round_off
 from .seam_folds import seam_sides, warn_seam_folds
-from .validation import check_count, check_key_names
+from .validation import check_count, check_key_names, check_result_memory
 
 #: A PCA axis whose spread (singular value of the centred differences) is at most this fraction of
 #: the differences' Frobenius norm is round-off, not a difference between poses: identical poses
@@ -105,6 +105,8 @@ class ShapeSpace:
         """PCA coordinates float64 ``(N, dims)`` of every pose (row ``i`` is ``poses[i]``) for one
         kind of difference; axes ordered by decreasing variance, zero beyond the rank."""
         dims = check_count(dims, "dims", minimum=1)
+        check_result_memory((self.n_poses, dims), f"dims = {dims:,}",
+                            f"ask for fewer (beyond the {self.n_poses} poses the coordinates are all zero)")
         scores, _, _ = self._decomposition(kind)
         out = np.zeros((self.n_poses, int(dims)))
         used = min(int(dims), scores.shape[1])

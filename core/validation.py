@@ -10,7 +10,8 @@ Checks: :func:`check_vertices`, :func:`check_triangles`, :func:`check_mesh` (bot
 topology: manifold edges *and* vertices, consistent orientation), :func:`check_basis_sizes`,
 :func:`check_offset`, :func:`check_factor`, :func:`check_gap_index`, :func:`check_time`,
 :func:`check_flag`, :func:`check_key_poses`, :func:`check_key_names`, :func:`check_output_memory`,
-:func:`check_working_memory`;
+:func:`check_working_memory`, :func:`check_positive`, :func:`check_factors`, :func:`check_energies`,
+:func:`check_result_memory`, :func:`check_shared_frame`;
 :func:`numerical_failures` turns a solver's raw
 exception into a :class:`~core.errors.RecoveryError`.
 """
@@ -50,12 +51,12 @@ PAIR_WORKING_BYTES_PER_VERTEX = 6_000
 RECONSTRUCT_WORKING_BYTES_PER_VERTEX = 40_000
 
 
-def _describe(value) -> str:
+def describe(value) -> str:
     text = repr(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _real_array(values, name: str, what: str) -> np.ndarray:
+def real_array(values, name: str, what: str) -> np.ndarray:
     """``values`` as a NumPy array of real numbers (no copy if already one); MeshError otherwise."""
     try:
         array = np.asarray(values)
@@ -85,7 +86,7 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
     it is a copy wherever it would share memory with a caller's array the caller can write to
     (a frame buffer filled again with the next frame would change the keys under the prepared
     in-betweens); an array that owns its memory and is read-only is kept as it is."""
-    array = _real_array(vertices, name, "vertex coordinates (n, 3)")
+    array = real_array(vertices, name, "vertex coordinates (n, 3)")
     if array.ndim != 2 or array.shape[1] != 3:
         raise MeshError(f"{name} must be an array of shape (n, 3); got shape {array.shape}.")
     if n_vertices is not None and array.shape[0] != n_vertices:
@@ -120,7 +121,7 @@ def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> n
     """``triangles`` as contiguous int64 ``(m, 3)``, ``m ≥ 1``, every index in ``0..n_vertices−1``
     and no vertex twice in a triangle. Integer-valued floats are accepted; fractional, complex,
     boolean or text indices are a MeshError (nothing is rounded or wrapped)."""
-    array = _real_array(triangles, name, "integer vertex indices (m, 3)")
+    array = real_array(triangles, name, "integer vertex indices (m, 3)")
     if array.ndim != 2 or array.shape[1] != 3:
         raise MeshError(f"{name} must be an integer array of shape (m, 3); got shape {array.shape}.")
     if array.shape[0] < 1:
@@ -200,14 +201,15 @@ def _whole_number(value, name: str, *, allow_none: bool = False):
         return int(value)
     if isinstance(value, numbers.Real) and math.isfinite(float(value)) and float(value).is_integer():
         return int(value)
-    raise MeshError(f"{name} must be a whole number; got {_describe(value)}.")
+    raise MeshError(f"{name} must be a whole number; got {describe(value)}.")
 
 
-def check_count(value, name: str, *, minimum: int = 0) -> int:
+def check_count(value, name: str, *, minimum: int | None = 0) -> int:
     """``value`` as a Python int if it is a whole number of at least ``minimum`` (how many
-    eigenfunctions or axes to return); MeshError otherwise."""
+    eigenfunctions or axes to return; ``None``: any whole number, for a caller that checks the
+    range itself); MeshError otherwise."""
     count = _whole_number(value, name)
-    if count < minimum:
+    if minimum is not None and count < minimum:
         raise MeshError(f"{name} must be at least {minimum}; got {count}.")
     return count
 
@@ -275,11 +277,37 @@ def check_real(value, name: str) -> float:
     """``value`` as a finite Python float; MeshError for booleans, text, complex and non-finite."""
     value = _scalar(value)
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
-        raise MeshError(f"{name} must be a real number; got {_describe(value)}.")
+        raise MeshError(f"{name} must be a real number; got {describe(value)}.")
     number = float(value)
     if not math.isfinite(number):
         raise MeshError(f"{name} must be a finite number; got {value!r}.")
     return number
+
+
+def check_positive(value, name: str) -> float:
+    """``value`` as a finite Python float above 0 (a width, a speed); MeshError otherwise
+    (:func:`check_real`'s cases, 0 and below)."""
+    number = check_real(value, name)
+    if not number > 0:
+        raise MeshError(f"{name} must be a positive number; got {describe(value)}.")
+    return number
+
+
+def check_energies(energies):
+    """The wave kernel signature's ``energies`` (:meth:`core.PulledBackMetric.wave_kernel_signature`):
+    a count (a whole number, at least 1) as a Python int, or explicit log-energies as float64
+    ``(e,)``, finite, at least one; MeshError otherwise."""
+    try:
+        values = np.asarray(energies)
+    except (ValueError, TypeError):  # ragged
+        values = None
+    if values is not None and values.ndim == 0:
+        return check_count(energies, "energies (a count)", minimum=1)
+    if values is None or values.ndim != 1 or not values.size or values.dtype.kind not in "iuf" \
+            or not np.isfinite(values).all():
+        raise MeshError("energies must be a count or a list of finite log-energies (see wks_energies); "
+                        f"got {describe(energies)}.")
+    return values.astype(np.float64)
 
 
 def check_offset(offset) -> float | None:
@@ -307,6 +335,17 @@ def check_factor(factor, *, name: str = "factor") -> float:
             "slightly beyond for exaggeration."
         )
     return s
+
+
+def check_factors(factors) -> list[float]:
+    """Interpolation factors: a number or a flat sequence of numbers, each :func:`check_factor`'s,
+    as a list of Python floats. A nested or ragged sequence is a MeshError (NumPy would raise its
+    own ValueError making an array of it)."""
+    try:
+        values = np.atleast_1d(factors)
+    except (ValueError, TypeError):
+        raise MeshError(f"factors must be a number or a list of numbers; got {describe(factors)}.") from None
+    return [check_factor(f) for f in values]
 
 
 def check_gap_index(gap_index, n_gaps: int) -> int:
@@ -341,7 +380,7 @@ def check_flag(value, name: str) -> bool:
     are MeshError (``bool("False")`` is true)."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    raise MeshError(f"{name} must be True or False; got {_describe(value)}.")
+    raise MeshError(f"{name} must be True or False; got {describe(value)}.")
 
 
 #: How a sequence's first gap starts (see :class:`core.SequenceInterpolator`).
@@ -365,7 +404,7 @@ def check_end(value) -> str:
 def _check_mode(name: str, value, modes: tuple) -> str:
     if isinstance(value, str) and value in modes:
         return value
-    raise MeshError(f"{name} must be one of {', '.join(repr(m) for m in modes)}; got {_describe(value)}.")
+    raise MeshError(f"{name} must be one of {', '.join(repr(m) for m in modes)}; got {describe(value)}.")
 
 
 def check_key_times(value, count: int) -> np.ndarray | None:
@@ -379,7 +418,7 @@ def check_key_times(value, count: int) -> np.ndarray | None:
         times = None
     if times is None or times.dtype == bool or not np.issubdtype(times.dtype, np.number) \
             or np.iscomplexobj(times) or times.shape != (count,):
-        raise MeshError(f"key_times must be {count} numbers, one per key pose; got {_describe(value)}.")
+        raise MeshError(f"key_times must be {count} numbers, one per key pose; got {describe(value)}.")
     times = times.astype(np.float64)
     if not np.isfinite(times).all() or not (np.diff(times) > 0).all():
         raise MeshError(f"key_times must be finite and strictly increasing (the frame of each key pose); "
@@ -392,7 +431,8 @@ def check_key_names(key_names, count: int, default: list[str], what: str = "pose
     frames or shape keys), else ``default``. Raises :class:`MeshError` unless one per pose."""
     if key_names is None:
         return default
-    if isinstance(key_names, (str, bytes)) or not hasattr(key_names, "__len__"):
+    if isinstance(key_names, (str, bytes)) or not hasattr(key_names, "__len__") or \
+            (isinstance(key_names, np.ndarray) and key_names.ndim != 1):  # a 0-d array has __len__ and no length
         raise MeshError(f"key_names must be a list of names, one for each of the {count} {what}; "
                         f"got {type(key_names).__name__}.")
     if len(key_names) != count:
@@ -432,9 +472,50 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     names = names or [f"key pose {i}" for i in range(len(poses))]
     first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True, kept=kept)
     checked = [first] + [check_pose(pose, topology, name=name, kept=kept) for pose, name in zip(poses[1:], names[1:])]
+    check_shared_frame(checked, topology, names)
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0],
                                  geometry=(first, topology))
     return checked, k_M, k_N, check_offset(offset), check_flag(use_extrinsic, "use_extrinsic"), topology
+
+
+def check_shared_frame(poses: list[np.ndarray], topology, names: list[str]) -> None:
+    """Refuse (:class:`~core.errors.MeshError`) a key pose (``poses``: ``(n, 3)`` each, of the mesh
+    ``topology``) that the first key's place flattens: the in-betweens take every key about the
+    first key's middle (:class:`core.sequence_keys.SequenceKeys`) in double precision, and moving a
+    key there rounds its coordinates to machine epsilon times that middle's largest coordinate. Where
+    that rounding makes every triangle of a key thin (its height at most the rounding over
+    :data:`core.rounded_slivers.ROUNDED_SLIVER`), most of them flattened to zero area, the key keeps
+    no shape in the in-betweens: a key 1 unit across after a key 3e15 across gave NumPy's division
+    warnings and in-betweens of the flattened key, after one 1e30 across a raw ValueError. A key
+    whose own coordinates are as large as that middle (all keys far from the origin, or a key far
+    larger than the first) is rounded so as given, and keeps the in-betweens' warning of slivers."""
+    from .coordinate_rounding import inverse_heights
+    from .rounded_slivers import ROUNDED_SLIVER
+
+    if len(poses) < 2:
+        return
+    used = topology.used_vertices
+    rows = [np.ascontiguousarray(pose.T) if used.size == pose.shape[0] else np.ascontiguousarray(pose[used].T)
+            for pose in poses]  # by coordinate: reductions along contiguous rows
+    low, high = rows[0].min(axis=1), rows[0].max(axis=1)
+    place = float(np.max(np.abs(0.5 * (low + high))))  # the first key's middle, its largest coordinate
+    eps = float(np.finfo(np.float64).eps)
+    thin = eps * place / ROUNDED_SLIVER
+    for name, pose, r in zip(names[1:], poses[1:], rows[1:]):
+        own = float(max(np.max(np.abs(r.max(axis=1))), np.max(np.abs(r.min(axis=1)))))
+        # rounded at least as coarsely as given; or a key of triangles all at most `thin` high that
+        # spans more than 1/√eps (6.7e7) of them across: larger than any mesh in-betweened
+        if own >= place or float(np.max(r.max(axis=1) - r.min(axis=1))) > thin / math.sqrt(eps):
+            continue
+        tallest = 1.0 / float(np.min(inverse_heights(pose, topology.triangles)))
+        if tallest <= thin:
+            raise MeshError(
+                f"{name} has no triangle higher than {tallest:.3g}, and the in-betweens take every key about the "
+                f"middle of {names[0]}, {place:.3g} units out, where double precision rounds coordinates to "
+                f"{eps * place:.2g}: every triangle of {name} would be flattened or reshaped. The keys differ in "
+                "size or place by more than double precision holds (about 1e15): give poses of comparable size "
+                "and place (a key scaled down to almost nothing: a small size such as 1e-6 rather than 1e-30)."
+            )
 
 
 def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, bytes_per_point: int = 12) -> None:
@@ -451,6 +532,21 @@ def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, 
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
         raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB, "
                         f"and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
+
+
+def check_result_memory(shape: tuple, what: str, advice: str) -> None:
+    """Refuse (:class:`~core.errors.MeshError`) a float64 result of ``shape`` asked for by a count
+    argument (``what``, e.g. ``"dims = 10,000,000,000"``) that would take more than
+    :data:`OUTPUT_MEMORY_SHARE` of the memory available now, rather than let NumPy fail allocating
+    it (or use the system's swap); ``advice``: the smaller count that serves. Unchecked where the
+    system does not say how much memory is available."""
+    from .resources import available_memory
+
+    need = math.prod(int(size) for size in shape) * 8
+    free = available_memory()
+    if free is not None and need > OUTPUT_MEMORY_SHARE * free:
+        raise MeshError(f"{what} asks for an array of shape {tuple(int(x) for x in shape)}, {need / 1e9:.3g} GB, and "
+                        f"this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
 
 
 def check_working_memory(n_points: int, what: str, advice: str, *,

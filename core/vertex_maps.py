@@ -18,6 +18,7 @@ Two forms are common:
 from __future__ import annotations
 
 import os
+import warnings
 
 import numpy as np
 
@@ -36,7 +37,9 @@ def read_vertex_map(path) -> np.ndarray:
     if not os.path.isfile(path):
         raise MeshError(f"The map file '{path}' does not exist.")
     try:  # utf-8-sig: a byte-order mark (Notepad's) is not part of the first index
-        values = np.load(path) if path.lower().endswith(".npy") else np.loadtxt(path, ndmin=1, encoding="utf-8-sig")
+        with warnings.catch_warnings():  # an empty file: NumPy's UserWarning, then the MeshError below
+            warnings.filterwarnings("ignore", "loadtxt: input contained no data", UserWarning)
+            values = np.load(path) if path.lower().endswith(".npy") else np.loadtxt(path, ndmin=1, encoding="utf-8-sig")
     except ValueError as error:
         raise MeshError(f"The map file '{path}' is not a list of vertex indices, one per line ({error}).") from error
     values = np.asarray(values)

@@ -1,0 +1,196 @@
+"""Hostile arguments to the entry points past the mesh (the pulled-back metric's methods, the shape
+space's, a sequence's factors and key names, the retime, the point cache writer, the OBJ and map
+readers): each bad value is a MeshError in the argument's own terms, never NumPy's or Python's own
+exception, a silent coercion or a file holding values the caller did not give (docs/errors.md).
+Each case here escaped as something else before (said in the test)."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import core
+import core.resources
+from core import MeshError
+from core.obj_file import read_obj
+from core.point_cache import read_pc2, write_pc2
+from core.retime import plan_retime, retime
+from core.vertex_maps import read_vertex_map
+
+from meshes import drape
+from test_hostile_inputs import sheet  # noqa: F401 — the fixture: a jittered 6 × 6 sheet and its drape
+
+
+@pytest.fixture(scope="module")
+def pulled(sheet):
+    v, t, target = sheet
+    return core.pull_back(v, t, core.shape_differences(v, target, t, use_extrinsic=False))
+
+
+def test_a_basis_size_below_one_is_refused_after_a_larger_basis_was_computed(pulled):
+    """k = −3 after k = 10 was asked for took the cached basis cut at −3, its first 7 eigenpairs,
+    without a word; it is refused as k = 0 is, and the next call answers as before."""
+    first = pulled.eigenfunctions(10)
+    for k in (-3, 0, -1):
+        with pytest.raises(MeshError, match=rf"between 1 and \d+; got {k}\. Lower k\.$"):
+            pulled.eigenfunctions(k)
+    np.testing.assert_array_equal(pulled.eigenfunctions(10), first)
+
+
+@pytest.mark.parametrize("call, message", [
+    # NaN, inf, None: ValueError / OverflowError / TypeError of int() before
+    (lambda p: p.geodesic_distances(float("nan")), "source_vertex must be a vertex index"),
+    (lambda p: p.geodesic_distances(None), "source_vertex must be a vertex index"),
+    (lambda p: p.geodesic_distances(np.array([3])), "source_vertex must be a vertex index"),  # a NumPy DeprecationWarning
+    # a variance of 0, NaN or below: a signature of NaN, returned
+    (lambda p: p.wave_kernel_signature(5, k=8, variance=0.0), "variance must be a positive number"),
+    (lambda p: p.wave_kernel_signature(5, k=8, variance=float("nan")), "variance must be a finite number"),
+    (lambda p: p.wave_kernel_signature(5, k=8, variance=-7.0), "variance must be a positive number"),
+    # 0 energies: NumPy's divide-by-zero warnings and an empty signature; −3: NumPy's ValueError
+    (lambda p: p.wave_kernel_signature(0, k=8), r"energies \(a count\) must be at least 1"),
+    (lambda p: p.wave_kernel_signature(-3, k=8), r"energies \(a count\) must be at least 1"),
+    (lambda p: p.wave_kernel_signature([0.5, float("nan")], k=8), "finite log-energies"),
+    # a fractional or textual k: IndexError / TypeError of slicing; a negative one was clamped silently
+    (lambda p: p.wave_kernel_signature(5, k=2.5), "k must be a whole number"),
+    (lambda p: p.wave_kernel_signature(5, k="8"), "k must be a whole number"),
+    (lambda p: p.wave_kernel_signature(5, k=-8), "k must be at least 1"),
+    (lambda p: p.eigenfunctions("8"), "k must be a whole number"),
+    (lambda p: p.wks_energies(0, k=8), "count must be at least 1"),
+])
+def test_the_pulled_back_metric_checks_its_arguments(pulled, call, message):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NumPy warning on the way
+        with pytest.raises(MeshError, match=message):
+            call(pulled)
+
+
+def test_a_count_past_the_memory_is_refused_before_allocating(sheet, pulled, monkeypatch):
+    """dims = 2^40 (ShapeSpace.coordinates, zero beyond the rank) and 2^40 energies asked NumPy for
+    terabytes: a MemoryError (or a hang in the system's swap), and 2^63 NumPy's "maximum allowed
+    dimension exceeded" / an IndexError. Refused against the memory the system says is available."""
+    v, t, target = sheet
+    space = core.shape_space([v, target, drape(v, 0.5)], t, k_M=5, k_N=10)
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 4e9)
+    for count in (2**40, 2**63):
+        with pytest.raises(MeshError, match="GB of memory available"):
+            space.coordinates("area", count)
+        with pytest.raises(MeshError, match="GB of memory available"):
+            pulled.wave_kernel_signature(count, k=8)
+    assert space.coordinates("area", 10).shape == (3, 10)  # zero beyond the rank, as documented
+
+
+def test_sequence_factors_and_key_names_are_refused_in_their_terms(sheet):
+    v, t, target = sheet
+    sequence = core.SequenceInterpolator([v, target], t)
+    # a nested factor: NumPy's "inhomogeneous shape" ValueError before
+    with pytest.raises(MeshError, match="factors must be a number or a list of numbers"):
+        sequence.poses(0, [0.5, [0.25]])
+    # a 0-d array of names has __len__ but no length: TypeError before
+    with pytest.raises(MeshError, match="key_names must be a list of names"):
+        core.SequenceInterpolator([v, target], t, key_names=np.array("ab"))
+    np.testing.assert_array_equal(sequence.poses(0, np.array([0.5])), sequence.poses(0, [0.5]))
+
+
+def test_retime_checks_its_samples_and_settings(sheet):
+    v, t, target = sheet
+    keys = [v, target, v, target]
+    # samples of other shapes: NumPy's "inhomogeneous shape" ValueError before
+    with pytest.raises(MeshError, match="key pose 1 of key_poses has 35 vertices but the base mesh has 36"):
+        retime([v, target[:-1], v, target], t, step=1, speed=0.5)
+    with pytest.raises(MeshError, match=r"key pose 0 must be an array of shape \(n, 3\)"):
+        retime([v[:, :2], target, v, target], t, step=1, speed=0.5)
+    # complex samples: the imaginary part dropped with NumPy's ComplexWarning only
+    with pytest.raises(MeshError, match="complex values"):
+        retime([k.astype(complex) for k in keys], t, step=1, speed=0.5)
+    with pytest.raises(MeshError, match="samples must be a sequence of poses"):
+        retime(None, t, step=1, speed=0.5)  # TypeError of len() before
+    # True as a step ran with step 1; NaN and None were ValueError / TypeError of int()
+    for step in (True, float("nan"), None, "2"):
+        with pytest.raises(MeshError, match="The frame step must be a whole number of at least 1"):
+            retime(keys, t, step=step, speed=0.5)
+    for speed in (None, "0.5", True, 1j):  # TypeError of NumPy before; True ran at speed 1
+        with pytest.raises(MeshError, match="The speed must be a positive number"):
+            retime(keys, t, step=1, speed=speed)
+    with pytest.raises(MeshError, match="must be a whole number"):
+        plan_retime(4.5, 1, 0.5)  # planned as if 4.5 frames
+    # 2^63 frames at a speed that gives few outputs: NumPy's ValueError listing 2^63 keys before
+    with pytest.raises(MeshError, match="key poses, more than 1,048,574"):
+        plan_retime(2**63, 1, 2.0**61)
+    with pytest.raises(MeshError, match="is not a contiguous range"):
+        retime(keys, t, step=1, speed=0.5, gaps=[0, 1])  # AttributeError before
+    retimed = retime(keys, t, step=1, speed=0.5)
+    np.testing.assert_array_equal(retimed[::2], np.asarray(keys, dtype=np.float32))  # keys exact
+
+
+def test_the_pc2_writer_refuses_what_a_pc2_cannot_hold(tmp_path, sheet):
+    """Complex positions were written without their imaginary part (NumPy's ComplexWarning only),
+    coordinates past float32's 3.4e38 as infinite (a file every reader refuses, or plays with
+    vertices at infinity), text as NumPy's TypeError; nothing is written now."""
+    v, _, target = sheet
+    poses = np.stack([v, target])
+    for bad, message in ((poses.astype(complex), "complex values"), (poses * 1e39, "beyond the 3.4e"),
+                         (poses.astype(str).astype(object), "must hold numbers")):
+        with pytest.raises(MeshError, match=message):
+            write_pc2(tmp_path / "out.pc2", bad)
+        assert not list(tmp_path.iterdir())
+    huge = poses * 3e38  # within float32's range: written as given
+    np.testing.assert_array_equal(read_pc2(write_pc2(tmp_path / "out.pc2", huge)).positions, huge.astype(np.float32))
+
+
+def test_an_obj_with_a_non_finite_coordinate_is_refused_at_its_line(tmp_path):
+    """"v 0 0 nan" was read as a vertex at NaN (and its faces fanned by NaN areas)."""
+    for value in ("nan", "inf", "1e400"):
+        path = tmp_path / f"{value}.obj"
+        path.write_text(f"v 0 0 0\nv 1 0 0\nv 0 1 {value}\nf 1 2 3\n")
+        with pytest.raises(MeshError, match=rf"line 3 cannot be read \(a vertex coordinate is not a finite number\)"):
+            read_obj(path)
+
+
+def test_an_empty_map_file_is_refused_without_numpys_warning(tmp_path):
+    path = tmp_path / "empty.vts"
+    path.write_text("")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # NumPy's UserWarning "input contained no data" before
+        with pytest.raises(MeshError, match="is empty"):
+            read_vertex_map(path)
+
+
+def test_a_key_the_first_keys_place_flattens_is_refused(sheet):
+    """The in-betweens take every key about the first key's middle in double precision: a key 1
+    unit across after one 3e15 across (its middle 1.5e15 out, rounding coordinates to 0.33) lost
+    every triangle's shape there, and came back with NumPy's division warnings (a pair) or, after a
+    key 1e30 across, a raw ValueError (a sequence). Refused, naming the key; keys of comparable
+    size, keys all far from the origin and a key far larger than the first (rounded so as given)
+    run as before."""
+    v, t, target = sheet
+    for scale in (3e15, 1e30):
+        with pytest.raises(MeshError, match="vertices_b has no triangle higher than 0.1.* flattened"):
+            core.Interpolator(v * scale, target, t)
+        with pytest.raises(MeshError, match="key pose 1 has no triangle higher than 0.1.* flattened"):
+            core.SequenceInterpolator([v * scale, target, v * scale], t)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pose = core.Interpolator(v * 1e14, target, t).pose(0.5)
+        far = core.SequenceInterpolator([v + 1e12, target + 1e12, v], t).pose(0, 0.5)  # key 2 rounds to 2e-4
+    assert np.isfinite(pose).all() and np.isfinite(far).all()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", core.ShapeDifferenceWarning)  # the large key's own slivers
+        warnings.simplefilter("error", RuntimeWarning)
+        assert np.isfinite(core.Interpolator(v, target * 1e30, t).pose(0.5)).all()
+
+
+def test_a_correspondence_is_checked_before_its_cast_to_int64():
+    """uint64 2^64 − 1 was cast to −1 and read as "unmatched"; booleans as indices 0 and 1; 1e20 as
+    target vertex −9223372036854775808 (with NumPy's cast warning)."""
+    from core.functional_map import check_correspondence
+
+    with pytest.raises(MeshError, match="to target vertex 18446744073709551615, but the target has 3"):
+        check_correspondence(np.full(4, 2**64 - 1, dtype=np.uint64), 4, 3, allow_unmatched=True)
+    with pytest.raises(MeshError, match="holds booleans"):
+        check_correspondence(np.array([True, False, True, False]), 4, 3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(MeshError, match="to target vertex 100000000000000000000, but"):
+            check_correspondence(np.array([1e20, 0.0, 1.0, 2.0]), 4, 3)
+    np.testing.assert_array_equal(check_correspondence(np.array([0, 1, 2, -1], dtype=np.int32), 4, 3,
+                                                       allow_unmatched=True), [0, 1, 2, -1])
