@@ -193,6 +193,9 @@ class SequenceKeys:
         self._keys: OrderedDict[int, Key] = OrderedDict()
         self._fitted: OrderedDict[tuple, tuple] = OrderedDict()  # (base, other) → rigid fits (see _fits)
         self._gaps: OrderedDict[int, Gap] = OrderedDict()
+        # base key → its next key seen from it as the base's gap made it (_relatives): the gap after
+        # reads it inverted (_previous), also where the gap's own were taken whole or let go
+        self._forwards: OrderedDict[int, Relative] = OrderedDict()
         self._pending: dict = {}  # gap index → Future of its preparation in the background
         # which way round each gap reads its parts' turns (_reading: the last few), which pieces turn
         # far per gap, whether the readings of two gaps add up (per first gap) and are unsure (per gap)
@@ -318,7 +321,8 @@ class SequenceKeys:
     def _relatives(self, base: int, others: list[int]) -> list[Relative]:
         """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
         built first: the key cache is not shared with the threads) unless a truncated recovery,
-        which prepares one base shape for them all, makes the metric."""
+        which prepares one base shape for them all, makes the metric. The relative of key
+        ``base + 1`` is kept for the gap after (:meth:`_previous`)."""
         if self.k_M is not None:
             return [self._relative(base, k) for k in others]
         topo, key = self._topo, self._key(base)
@@ -326,20 +330,28 @@ class SequenceKeys:
         relatives = concurrently(lambda pair: Relative(topo, key, pair[1], across=self._across,
                                                         fits=self._fits(base, pair[0])),
                                  zip(others, keys), worth_it=topo.n >= CONCURRENT_VERTICES)
-        return [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
+        relatives = [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
+        if others[0] == base + 1:
+            with self._cache_lock:
+                self._forwards[base] = relatives[0]
+                while len(self._forwards) > GAP_CACHE:
+                    self._forwards.popitem(last=False)
+        return relatives
 
     def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
-        next key (the same whichever gaps were computed before), or, with a truncated basis (its
+        next key as :meth:`_relatives` made it (kept for the last GAP_CACHE base keys, also where
+        that gap took its rotations whole, which it did on a copy; built again only where it was
+        let go: the same values whichever gaps were computed before), or, with a truncated basis (its
         metric is recovered per base key), from the poses; with the triangles' whole rotations in
         the components ``whole`` (bool (C,); :meth:`Relative.whole_rotations`), from the poses."""
         if self.k_M is not None or whole.any():
             previous = self._relative(gap, gap - 1, turns)
             return previous.whole_rotations(self._topo, self._key(gap), self._key(gap - 1), whole) \
                 if whole.any() else previous
-        cached = self._gaps.get(gap - 1)
-        forward = cached.relatives[2] if cached is not None and not cached.relatives[2].whole.any() else \
-            self._relative(gap - 1, gap)
+        with self._cache_lock:
+            forward = self._forwards.get(gap - 1)
+        forward = forward if forward is not None else self._relative(gap - 1, gap)
         return forward.inverse(self._topo, self._key(gap), self._key(gap - 1), turns)
 
     def _nonrigidity(self, base: int, other: int) -> np.ndarray:

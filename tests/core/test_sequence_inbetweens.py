@@ -1459,3 +1459,45 @@ def test_thousands_of_pieces_moving_as_one_are_in_betweened_as_one():
     for x in poses:
         rotation, _ = Rotation.align_vectors(x - x.mean(axis=0), flat - flat.mean(axis=0))
         assert np.abs(rotation.apply(flat - flat.mean(axis=0)) - (x - x.mean(axis=0))).max() < 1e-6
+
+
+@pytest.mark.parametrize("cores", [1, 8])
+def test_next_key_relative_built_once_after_whole_rotations(monkeypatch, strip, own_pool, cores):
+    """A gap whose rotations are taken whole (forced here in the second gap, as where its pieces'
+    rigid fits add turn) keeps the relative of its next key it built from the poses for the gap
+    after, which reads it inverted: visited in order, each key pair's relative is built once, with
+    one core and with eight (the next gap prepared in the background), and the in-betweens are the
+    same to the bit as a sequence whose caches start empty for every gap."""
+    import core.concurrency as concurrency
+    import core.inbetween_keys as keys_module
+    from core import sequence_inbetweens
+
+    monkeypatch.setattr(concurrency, "available_cores", lambda: cores)
+    monkeypatch.setattr(sequence_inbetweens, "CONCURRENT_VERTICES", 0)  # the strip prepared in the background too
+    flat, tri = strip
+    keys = [_bend(flat, 0.3 * k) + np.array([0.0, 0.0, -0.1 * k * k]) for k in range(6)]
+    add_turn = keys_module.Relative.residuals_add_turn
+
+    def forced(relative, topo, base, other):  # every piece taken whole in the gap from key 1
+        told = add_turn(relative, topo, base, other)
+        return np.ones_like(told) if np.array_equal(base.vertices, seq._raw[1]) else told
+
+    monkeypatch.setattr(keys_module.Relative, "residuals_add_turn", forced)
+    built = []
+    init = keys_module.Relative.__init__
+
+    def counting(relative, topo, base, other, *arguments, **options):
+        init(relative, topo, base, other, *arguments, **options)
+        built.append(tuple(next(k for k in range(len(keys)) if np.array_equal(key.vertices, seq._raw[k]))
+                           for key in (base, other)))
+
+    seq = SequenceInterpolator(keys, tri)
+    fresh = SequenceInterpolator(keys, tri)
+    monkeypatch.setattr(keys_module.Relative, "__init__", counting)
+    ours = [seq.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(seq))]
+    forward = [pair for pair in built if pair[1] == pair[0] + 1]
+    assert sorted(forward) == [(k, k + 1) for k in range(len(seq))], built
+    for gap in range(len(fresh)):
+        fresh._gaps.clear()
+        fresh._forwards.clear()
+        np.testing.assert_array_equal(fresh.poses(gap, [0.25, 0.5, 0.75]), ours[gap])
