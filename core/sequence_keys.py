@@ -322,25 +322,32 @@ class SequenceKeys:
         """``self._relative(base, k)`` for each of ``others``, in threads on large meshes (keys
         built first: the key cache is not shared with the threads) unless a truncated recovery,
         which prepares one base shape for them all, makes the metric. The relative of key
-        ``base + 1`` is kept for the gap after (:meth:`_previous`)."""
+        ``base + 1`` is kept for the gap after (:meth:`_previous`) and for a later call that asks
+        for it again (a neighbouring gap's reading of bent parts, :meth:`_bent_turn`, before this
+        gap is prepared): it depends on the keys alone and is not changed in place after."""
         if self.k_M is not None:
             return [self._relative(base, k) for k in others]
+        with self._cache_lock:
+            kept = self._forwards.get(base) if others[0] == base + 1 else None
+        rest = others[1:] if kept is not None else others
         topo, key = self._topo, self._key(base)
-        keys = [self._key(k) for k in others]
+        keys = [self._key(k) for k in rest]
         relatives = concurrently(lambda pair: Relative(topo, key, pair[1], across=self._across,
                                                         fits=self._fits(base, pair[0])),
-                                 zip(others, keys), worth_it=topo.n >= CONCURRENT_VERTICES)
-        relatives = [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, others)]
+                                 zip(rest, keys), worth_it=topo.n >= CONCURRENT_VERTICES)
+        relatives = [self._turning_on(base, r) if k == base + 1 else r for r, k in zip(relatives, rest)]
+        if kept is not None:
+            return [kept] + relatives
         if others[0] == base + 1:
             with self._cache_lock:
                 self._forwards[base] = relatives[0]
-                while len(self._forwards) > GAP_CACHE:
+                while len(self._forwards) > GAP_CACHE + 1:  # a neighbouring gap's reading adds one ahead
                     self._forwards.popitem(last=False)
         return relatives
 
     def _previous(self, gap: int, turns: np.ndarray, whole: np.ndarray) -> Relative:
         """Key ``gap − 1`` seen from key ``gap``: the inverse of the previous gap's relative of its
-        next key as :meth:`_relatives` made it (kept for the last GAP_CACHE base keys, also where
+        next key as :meth:`_relatives` made it (kept for the last GAP_CACHE + 1 base keys, also where
         that gap took its rotations whole, which it did on a copy; built again only where it was
         let go: the same values whichever gaps were computed before), or, with a truncated basis (its
         metric is recovered per base key), from the poses; with the triangles' whole rotations in

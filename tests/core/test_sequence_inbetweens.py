@@ -1496,7 +1496,7 @@ def test_next_key_relative_built_once_after_whole_rotations(monkeypatch, strip, 
     monkeypatch.setattr(keys_module.Relative, "__init__", counting)
     ours = [seq.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(seq))]
     forward = [pair for pair in built if pair[1] == pair[0] + 1]
-    assert sorted(forward) == [(k, k + 1) for k in range(len(seq))], built
+    assert sorted(forward) == [(k, k + 1) for k in range(len(seq))], str(built)
     for gap in range(len(fresh)):
         fresh._gaps.clear()
         fresh._forwards.clear()
