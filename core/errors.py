@@ -40,12 +40,16 @@ class ShapeDifferenceWarning(UserWarning):
     in-betweens alike it speaks for, the worst); 0 where it keeps none or is about something else.
     ``gap``: the names of the two keys of the gap it is about, as the message says them (None where
     it is about no one gap); ``factors``: the factors of the in-betweens it is about (empty where
-    it holds for every in-between of the gap, or is about something else)."""
+    it holds for every in-between of the gap, or is about something else).
+    ``excess``: how far past what it allows the (worst) in-between it is about is, its measure ÷ the
+    allowance (the ``fit`` warning of a sequence's gap: its worst fit's misfit ÷ the misfit allowed), over 1;
+    0 where the warning measures nothing against an allowance."""
 
     kind: str | None = None
     defects: int = 0
     gap: tuple[str, str] | None = None
     factors: tuple[float, ...] = ()
+    excess: float = 0.0
 
 
 class MeshIndexError(MeshError, IndexError):

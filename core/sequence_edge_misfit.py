@@ -67,8 +67,9 @@ def signed_deviation(lengths: np.ndarray, target: np.ndarray) -> float:
 
 
 def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str, str],
-                   signed) -> tuple[str, tuple[float, ...]] | None:
-    """The message and factors of the warning of a gap (keys ``names``) whose in-betweens at
+                   signed) -> tuple[str, tuple[float, ...], float] | None:
+    """The message, factors and excess (the worst fit's misfit ÷ ``allowed``, over 1:
+    :attr:`core.errors.ShapeDifferenceWarning.excess`) of the warning of a gap (keys ``names``) whose in-betweens at
     ``factors`` include fitted ones (``fit_misfits`` {factor: the least mean relative edge misfit
     of its fit}, :attr:`core.inbetween_solver.Gap.fit_misfits`) farther than ``allowed`` off the
     interpolated metric; None where none is. ``signed(factor)``: the mean signed relative
@@ -98,4 +99,5 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
             f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; add keys in this gap or use a "
             f"smaller step [its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
             f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from the first key allows (twice it + "
-            f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over))
+            f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over),
+            misfit / allowed)

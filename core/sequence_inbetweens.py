@@ -345,8 +345,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         measurements against solving each); :meth:`pose` solves every pose."""
         out, problems = self._poses(gap_index, factors)
         gap = (self.key_names[int(gap_index)], self.key_names[int(gap_index) + 1]) if problems else None  # checked
-        for kind, message, defects, about in problems:
-            warn_said(message, kind, defects, gap, about)
+        for kind, message, defects, about, *excess in problems:  # excess: the fit warning's (misfit ÷ allowed)
+            warn_said(message, kind, defects, gap, about, *excess)
         return out
 
     # BLAS single-threaded: its calls here are (n, 3) × (3, 3) products, which a second BLAS thread
@@ -414,7 +414,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
         misfit = self._misfit_warning(gap, segment, {factors[k]: x for k, (x, _) in zip(between, solved)})
         if misfit is not None:
-            said.append(("fit", misfit[0], 0, misfit[1]))
+            said.append(("fit", misfit[0], 0, misfit[1], misfit[2]))
         if self._near_seams is not None:  # seams the gap's keys keep closed, not welded: opened by the in-betweens?
             opening = seam_opening(self._near_seams, [out[k] for k in between], [factors[k] for k in between],
                                    (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices, gap)
@@ -422,8 +422,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 said.append(("seam", opening[0], 0, opening[1]))
         return self._caller_poses(out, gap, factors), said
 
-    def _misfit_warning(self, gap: int, segment: Gap, poses: dict) -> tuple[str, tuple[float, ...]] | None:
-        """The warning (message, factors) of gap ``gap`` (its data ``segment``) whose in-betweens
+    def _misfit_warning(self, gap: int, segment: Gap, poses: dict) -> tuple[str, tuple[float, ...], float] | None:
+        """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) whose in-betweens
         ``poses`` {factor: working positions (n, 3)} include fitted ones farther off the interpolated
         metric than the keys' own edge deviation from the first key allows
         (:func:`core.sequence_edge_misfit.misfit_warning`); None where none is. The fits' misfits

@@ -26,23 +26,25 @@ _NUMBERS = re.compile(r"#(?:(?:, | and |–|-)(?:…, )?#)+")
 
 
 def said_warning(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None,
-                 factors=()) -> ShapeDifferenceWarning:
+                 factors=(), excess: float = 0.0) -> ShapeDifferenceWarning:
     """The :class:`~core.errors.ShapeDifferenceWarning` "Shape-difference interpolation: ``message``."
     (``message`` without its final full stop) with its attributes: ``kind`` (one of :data:`~core.errors.KINDS`),
     ``defects`` (the flipped or collapsed triangles the worst in-between it is about keeps), ``gap``
-    (the names of the gap's two keys, as the message says them; None where it is about no one gap)
-    and ``factors`` (the factors of the in-betweens it is about; empty where it holds for the whole
-    gap)."""
+    (the names of the gap's two keys, as the message says them; None where it is about no one gap),
+    ``factors`` (the factors of the in-betweens it is about; empty where it holds for the whole
+    gap) and ``excess`` (the worst one's measure ÷ what the warning allows, where it has one; else 0)."""
     warning = shape_warning(f"Shape-difference interpolation: {message}.", kind)
     warning.defects = int(defects)
     warning.gap, warning.factors = (None if gap is None else (str(gap[0]), str(gap[1]))), tuple(float(f) for f in factors)
+    warning.excess = float(excess)
     return warning
 
 
-def warn_said(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=()) -> None:
+def warn_said(message: str, kind: str, defects: int = 0, gap: tuple[str, str] | None = None, factors=(),
+              excess: float = 0.0) -> None:
     """Warn with :func:`said_warning` (same arguments), at the caller's line outside the core
     (:func:`core.errors.warn`)."""
-    warn(said_warning(message, kind, defects, gap, factors))
+    warn(said_warning(message, kind, defects, gap, factors, excess))
 
 
 #: How an in-between's own problem is placed in its gap's message (after "between A and B, "): one

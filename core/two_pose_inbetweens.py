@@ -216,10 +216,10 @@ class Interpolator:
         x, said, misfit = self._log_fit(chosen, factor, x, said, misfit)
         said = said + self._spun_back(x, factor)
         names = first.key_names
-        for kind, message, defects, about in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
+        for kind, message, defects, about, *excess in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
             warn_said(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
-                  kind, defects, (names[0], names[1]), about)
+                  kind, defects, (names[0], names[1]), about, *excess)
         return x
 
     def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...]]]:

@@ -74,6 +74,7 @@ def test_keys_that_turn_a_sheet_far_warn_of_in_betweens_compressed_in_its_plane(
         if said:
             (message,) = said
             assert message.kind == "fit"
+            assert message.excess > 1.0  # past what it allows: the operators' last line names the largest
             assert message.gap == (sequence.key_names[gap], sequence.key_names[gap + 1])
             assert message.factors and set(message.factors) <= set(FACTORS)
             assert ("% shorter than the keys' edge lengths" in str(message)
@@ -123,8 +124,10 @@ def test_the_message_gives_the_chords_as_the_cause_only_of_edges_shorter(change,
     lengths blended, beside its fit's misfit of 4 %) is said, and the spline's chords, which only
     shorten edges, are named as the cause only where they are shorter: a stretched in-between is
     not said to come from a cut chord."""
-    message, factors = misfit_warning({0.5: 0.04}, [0.25, 0.5, 0.75], 0.01, ("a", "b"), lambda s: change)
+    message, factors, excess = misfit_warning({0.5: 0.04}, [0.25, 0.5, 0.75], 0.01, ("a", "b"), lambda s: change)
     assert factors == (0.5,)
+    assert excess == pytest.approx(4.0)  # the worst fit's misfit ÷ the misfit allowed
     assert f" {way} " in message.split(" [")[0]
     assert ("cuts the chords" in message) == (way == "shorter")
     assert message.endswith("]") and message.count(" [") == 1
+
