@@ -31,9 +31,10 @@ PART_SHARE = 0.05
 #: their arc measurably (6.0 % of the radius at mid-gap): a gap whose spline reads such a turn (its
 #: own, or a neighbouring gap's) is anchored as two poses are.
 BENT_PART_TURN = np.radians(75.0)
-#: Turn between two rigid parts of a piece (radians) past which a sequence of only two keys anchors
-#: its gap as two poses do: twice the spread a rigid part may have (``RIGID_SPREAD``), so a piece
-#: read as two parts turned apart is bent at a joint, not a part's own rounding.
+#: Turn between two rigid parts of a piece (radians) past which a sequence of only two keys, or a
+#: linear one (``smooth=False``: each gap's spline is its keys' chord), anchors its gaps as two
+#: poses do: twice the spread a rigid part may have (``RIGID_SPREAD``), so a piece read as two parts
+#: turned apart is bent at a joint, not a part's own rounding.
 TWO_KEY_BENT_TURN = 2.0 * RIGID_SPREAD
 
 

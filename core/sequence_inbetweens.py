@@ -25,7 +25,7 @@ a Poisson solve whose matrix depends on the topology and the anchor weights only
 (sparse LU, symmetric ordering) and reused for every in-between, then a few local/global
 (as-rigid-as-possible) steps re-fitting each triangle's rotation while keeping its interpolated
 metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation
-(and a sequence of only two keys that bend a piece at a joint,
+(and a sequence of only two keys, or a linear one (``smooth=False``), that bends a piece at a joint,
 :data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`, or a gap of more keys whose splines read a part of
 a piece turned past :data:`core.sequence_bent_parts.BENT_PART_TURN` from another, in it or in a gap next
 to it), where vertices whose neighbourhood only translates between the keys are anchored to the linear
@@ -180,13 +180,15 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
         # parts bent about a joint far between the keys, read before the rotations are taken whole;
-        # with only two keys, at any turn: the keys' spline is then their chord, which the anchor
-        # would pull a bending part onto, inside its arc
-        two_keys = last == 1 and self._across is None
-        bent = self._bent_turn(gap, ahead[0], TWO_KEY_BENT_TURN if two_keys else BENT_PART_TURN)
-        # two keys of a piece bent at a joint: anchored to the blend where it keeps the edge lengths,
-        # as two poses are (the part that does not turn holds, the turning part follows its rotations)
-        anchored = two_keys and bent > TWO_KEY_BENT_TURN
+        # with only two keys or a linear spline (smooth=False), at any turn: the keys' spline is
+        # then their chord, which the anchor would pull a bending part onto, inside its arc
+        chord = (last == 1 or not self.smooth) and self._across is None
+        reading = self._keys_relative(gap, ahead[0]) if self._across is None else None
+        bent = self._bent_turn(gap, reading, TWO_KEY_BENT_TURN if chord else BENT_PART_TURN)
+        # a chord across a piece bent at a joint: anchored to the blend where it keeps the edge
+        # lengths, as two poses are (the part that does not turn holds, the turning part follows
+        # its rotations)
+        anchored = chord and bent > TWO_KEY_BENT_TURN
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
@@ -205,8 +207,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 free = free if free.any() else None
         # more keys: so too where the keys' spline reads a part bent past BENT_PART_TURN, unless the
         # piece is read turning (its rotations taken whole and continuous, placed along its turn)
-        if not two_keys and self._across is None and not turning.any():
-            anchored = self._bent_nearby(gap, bent, ahead[0])
+        if not chord and self._across is None and not turning.any():
+            anchored = self._bent_nearby(gap, bent, reading)
         # parts spun past a half turn that the keys read the short way round: patches of the mesh
         # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
         # pieces read turning or folded above are taken so or warned of already)
@@ -233,35 +235,50 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             self._gaps[gap] = segment
         return segment
 
+    def _keys_relative(self, gap: int, relative: Relative | None = None) -> Relative:
+        """Key ``gap + 1`` seen from key ``gap`` with the keys' own metric, which the rigid parts of
+        a piece are read from (:func:`core.sequence_bent_parts.bent_part_turn`): ``relative`` (the
+        gap's, :meth:`_relatives`, made here if None) but with a truncated metric (``k_M``), whose
+        recovery smooths it off the identity on a bent limb's bones (a tube keyed 0 / 100 / 150°
+        read no part at k_M = 60 and was placed 2.1e-2 of the diagonal off the rig half-way,
+        unwarned)."""
+        if self.k_M is None:
+            return relative if relative is not None else self._relatives(gap, [gap + 1])[0]
+        return self._turning_on(gap, Relative(self._topo, self._key(gap), self._key(gap + 1), across=self._across,
+                                              fits=self._fits(gap, gap + 1)))
+
     def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN) -> float:
         """The largest turn (radians) between two rigid parts of one piece from key ``gap`` to the
         next (:func:`core.sequence_bent_parts.bent_part_turn`, ``least`` its least turn read); 0 in
         a gap warned of mirrored pieces and for two poses. ``relative``: key ``gap + 1`` seen from
-        key ``gap`` (:meth:`_relatives`), if at hand. Kept per gap and least turn: a gap reads its
-        neighbours' (:meth:`_bent_nearby`)."""
+        key ``gap`` with the keys' own metric (:meth:`_keys_relative`), if at hand. Kept per gap and
+        least turn: a gap reads its neighbours' (:meth:`_bent_nearby`)."""
         if self._across is not None or gap in self._mirrored_gaps:
             return 0.0
-        if (gap, least) not in self._bent_turns:
-            relative = relative if relative is not None else self._relatives(gap, [gap + 1])[0]
-            self._bent_turns[(gap, least)] = bent_part_turn(self._topo.triangle_component, self._edge_pairs,
-                                                            relative.rotvec, relative.metric,
-                                                            self._key(gap).areas, least)
-        return self._bent_turns[(gap, least)]
+        with self._cache_lock:  # gaps are prepared on several threads; the reading depends on the keys alone
+            known = self._bent_turns.get((gap, least))
+        if known is not None:
+            return known
+        relative = relative if relative is not None else self._keys_relative(gap)
+        turn = bent_part_turn(self._topo.triangle_component, self._edge_pairs, relative.rotvec, relative.metric,
+                              self._key(gap).areas, least)
+        with self._cache_lock:
+            self._bent_turns[(gap, least)] = turn
+        return turn
 
     def _bent_nearby(self, gap: int, bent: float, relative: Relative) -> bool:
         """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn`,
-        ``relative``: key ``gap + 1`` seen from key ``gap``) is anchored as two poses are: where
-        the keys' per-vertex spline it would be anchored to reads a part of a piece turning past
-        :data:`~core.sequence_bent_parts.BENT_PART_TURN` from another, whose arc that spline cuts —
+        ``relative``: key ``gap + 1`` seen from key ``gap``, :meth:`_keys_relative`) is anchored as
+        two poses are: where the keys' per-vertex spline it would be anchored to reads a part of a
+        piece turning past :data:`~core.sequence_bent_parts.BENT_PART_TURN` from another, whose arc
+        that spline cuts —
         in the gap itself or, for a cubic spline (keys ``gap − 1`` … ``gap + 2``), in a gap next to
         it, whose keys' tangents bend the spline inside the arc too. The neighbours are read only
         where the gap's own keys keep room for two rigid parts
-        (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none), and not with a truncated
-        metric (``k_M``: its recovery prepares one base shape per key, which a neighbour's reading
-        would prepare again)."""
+        (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none)."""
         if bent > BENT_PART_TURN:
             return True
-        if not (self.smooth and len(self) >= 2) or self.k_M is not None or \
+        if not (self.smooth and len(self) >= 2) or \
                 not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
             return False
         return any(self._bent_turn(near) > BENT_PART_TURN for near in (gap - 1, gap + 1) if 0 <= near < len(self))

@@ -41,10 +41,13 @@ def _skinned(rest: np.ndarray, degrees: float, joint: float = 2.0, ramp: float =
     return ((1 - weight) * rest + weight * turned).astype(np.float32).astype(np.float64)
 
 
-def _anchored(keys, triangles) -> list[bool]:
-    """Whether each gap of the sequence of ``keys`` is anchored as two poses are."""
-    sequence = SequenceInterpolator(keys, triangles)
-    return [sequence._gap(gap).anchored for gap in range(len(sequence))]
+def _anchored(keys, triangles, **options) -> list[bool]:
+    """Whether each gap of the sequence of ``keys`` (``options`` of :class:`SequenceInterpolator`)
+    is anchored as two poses are."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # k_M = 60 splits a pair of frequencies
+        sequence = SequenceInterpolator(keys, triangles, **options)
+        return [sequence._gap(gap).anchored for gap in range(len(sequence))]
 
 
 def _off_the_rig(x, rig, start, end, triangles, diagonal):
@@ -70,15 +73,16 @@ def _off_the_rig(x, rig, start, end, triangles, diagonal):
     return rms(angles) / diagonal, int(np.count_nonzero(np.einsum("ij,ij->i", normals(x), normals(posed)) <= 0.0))
 
 
-def _sequence_and_pairs(keys, triangles, factors=(0.25, 0.5, 0.75)):
+def _sequence_and_pairs(keys, triangles, factors=(0.25, 0.5, 0.75), k_M=None, smooth=True):
     """Each gap's in-betweens at ``factors`` from the sequence of ``keys`` and from two poses on the
-    same pair of keys: [(gap, factor, the sequence's pose, the two poses' pose)]."""
+    same pair of keys (both with ``k_M``; the sequence ``smooth`` or not): [(gap, factor, the
+    sequence's pose, the two poses' pose)]."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ShapeDifferenceWarning)
-        sequence = SequenceInterpolator(keys, triangles)
+        sequence = SequenceInterpolator(keys, triangles, k_M=k_M, smooth=smooth)
         out = []
         for gap in range(len(sequence)):
-            pair = Interpolator(keys[gap], keys[gap + 1], triangles)
+            pair = Interpolator(keys[gap], keys[gap + 1], triangles, k_M=k_M)
             out += [(gap, f, x, pair.pose(f)) for f, x in zip(factors, sequence.poses(gap, list(factors)))]
     return out
 
@@ -118,6 +122,52 @@ def test_a_limb_bent_past_the_limit_follows_the_rig_as_two_poses_do():
             assert off <= 1.02 * pair_off, factor
         else:
             assert off < 1.5e-3, factor
+
+
+@pytest.mark.parametrize("k_M", [60, 200])
+def test_a_limb_bent_past_the_limit_is_read_from_the_keys_with_a_truncated_metric(k_M):
+    # the bent parts are read from the keys' own metric: the truncated recovery's smooths a bone's
+    # off the identity (at k_M = 60 no part was read, the first gap 2.1e-2 of the diagonal off the
+    # rig half-way where two poses with the same k_M are 2.3e-3 off), and a neighbour's reading
+    # was skipped (the 50° gap after the 100° one 8.0e-3 off at its quarter point, 3.2–4.6e-4 for
+    # two poses), both unwarned
+    rest, triangles = _tube()
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    angles = (0.0, 100.0, 150.0)
+    keys = [_skinned(rest, a) for a in angles]
+    assert _anchored(keys, triangles, k_M=k_M) == [True, True]
+
+    def rig(a):
+        return _skinned(rest, a[0])
+
+    for gap, factor, x, pair in _sequence_and_pairs(keys, triangles, k_M=k_M):
+        (off, against), (pair_off, _) = (_off_the_rig(y, rig, angles[gap], angles[gap + 1], triangles, diagonal)
+                                         for y in (x, pair))
+        assert against == 0
+        if gap == 0:
+            assert off <= 1.02 * pair_off, factor
+        else:
+            assert off < 1.5e-3, factor
+
+
+def test_a_limb_bent_in_a_linear_sequence_follows_the_rig_as_two_poses_do():
+    # smooth=False: each gap's spline is its keys' chord, as with only two keys, which the anchor
+    # pulled a part bent 40° per key onto (3.4–3.7e-3 of the diagonal off the rig half-way where two
+    # poses are 4.7–8.0e-4 off; keyed 20° apart 1.7e-3 against 9.6e-5): anchored as two poses are,
+    # at any turn past TWO_KEY_BENT_TURN
+    rest, triangles = _tube()
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    angles = (0.0, 40.0, 80.0, 120.0)
+    keys = [_skinned(rest, a) for a in angles]
+    assert _anchored(keys, triangles, smooth=False) == [True] * 3
+
+    def rig(a):
+        return _skinned(rest, a[0])
+
+    for gap, factor, x, pair in _sequence_and_pairs(keys, triangles, smooth=False):
+        (off, against), (pair_off, _) = (_off_the_rig(y, rig, angles[gap], angles[gap + 1], triangles, diagonal)
+                                         for y in (x, pair))
+        assert against == 0 and off <= 1.02 * pair_off, (gap, factor)
 
 
 @pytest.mark.parametrize("limb", ["two joints", "two joints far", "three joints", "swung at the root"])
