@@ -100,7 +100,8 @@ class TurnedAway:
         interpolated normal, in a piece turning far (``gap.turning`` or, for two poses,
         :meth:`_far_turning`: :meth:`_edge_on`, :meth:`_turning_pieces`) or in a piece each of
         whose candidates is within ``arctan δ`` of its interpolated normal, that one within the same
-        angle of facing away from both keys (a piece turning whole, :meth:`_turning_pieces`)."""
+        angle of facing away from both keys (a piece turning whole: :meth:`_whole_pieces`, the test
+        :meth:`_turning_pieces` makes, here with no piece taken as turning far)."""
         gap = self.gap
         pieces = gap.topo.triangle_component[triangles]
         along = following > 0.0
@@ -109,15 +110,8 @@ class TurnedAway:
         far = gap.turning if gap.turning is not None else self._far_turning()
         if (along & np.asarray(far)[pieces]).any():
             return True
-        angle = np.arctan(max(METRIC_TOLERANCE, gap.tolerance))
-        size = np.sqrt(coordinate_dot(normal, normal))
-        lengths = np.sqrt(coordinate_dot(cross, cross)) * size
-        sine = np.sin(angle) * size
-        near = (following >= np.cos(angle) * lengths) & (coordinate_dot(normal, base) < sine) \
-            & (coordinate_dot(normal, nxt) < sine)
-        if not near.any():
-            return False
-        return bool((np.bincount(pieces[~near], minlength=len(gap.topo.piece_sizes)) == 0)[pieces[near]].any())
+        whole_pieces = self._whole_pieces(cross, normal, following, base, nxt, pieces)
+        return bool(whole_pieces(np.zeros(len(gap.topo.piece_sizes), dtype=bool))[0].any())
 
     def _carrying_a_vertex(self, kept: np.ndarray, rows, kept_whole) -> np.ndarray:
         """Those of ``kept`` (positions among ``rows``: candidates turned away from both keys along
@@ -238,30 +232,9 @@ class TurnedAway:
         normal): on six benchmark cloths no piece was turning."""
         gap = self.gap
         tolerance = max(METRIC_TOLERANCE, gap.tolerance)
-        angle = np.arctan(tolerance)
         pieces = gap.topo.triangle_component[candidates]
         count = len(gap.topo.piece_sizes)
-        unit = normal / np.sqrt(coordinate_dot(normal, normal))
-        lengths = np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
-        per_piece = np.bincount(pieces, minlength=count)
-
-        def whole_pieces(far: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            # the pieces (C,) each of whose candidates has its normal within the piece's angle of
-            # its interpolated normal, and that one within the same angle of facing away from both
-            # keys; of the pieces turning far (``far``, (C,)), all but DEVIANT_SHARE of them. The
-            # candidates (r,) that turn as the field says: those, and in a piece turning far those
-            # beyond the angle facing along their interpolated normal still (the others are judged
-            # one by one)
-            far_pieces = far[pieces]
-            limit = np.where(far_pieces, np.cos(MAX_ROTATION_DEVIATION), np.cos(angle))
-            sine = np.where(far_pieces, np.sin(MAX_ROTATION_DEVIATION), np.sin(angle))
-            facing_away = (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
-            near = (following >= limit * lengths) & facing_away
-            near_count = np.bincount(pieces[near], minlength=count)
-            allowed = np.where(far, np.floor(DEVIANT_SHARE * per_piece), 0)
-            whole = (per_piece - near_count <= allowed) & (near_count > 0)
-            return whole, near | (far_pieces & facing_away & (following > 0.0))
-
+        whole_pieces = self._whole_pieces(cross, normal, following, base, nxt, pieces)
         if gap.turning is not None:
             far = gap.turning[:count]
         elif whole_pieces(np.ones(count, dtype=bool))[0].any():
@@ -286,6 +259,38 @@ class TurnedAway:
                        np.bincount(pieces[inside][deviation >= tolerance], minlength=count) > 0)
         turning &= ~off
         return turning[pieces] & following_field if turning.any() else None
+
+    def _whole_pieces(self, cross, normal, following, base, nxt, pieces):
+        """The test of a piece turning as the interpolated field says, on candidates (r,) facing away
+        from both keys (``cross`` their normals, ``normal`` their interpolated normals (3, r),
+        ``following`` the products of the two, ``base`` / ``nxt`` the keys' unit normals (3, r),
+        ``pieces`` their pieces (r,)), as the function of the pieces taken as turning far (``far``,
+        bool (C,)) that :meth:`_turning_pieces` and :meth:`_whole_may_pass` apply: it gives the
+        pieces (C,) each of whose candidates has its normal within the piece's angle (``arctan δ``,
+        δ the gap's tolerance; :data:`~core.inbetween_fit.MAX_ROTATION_DEVIATION` where far) of its
+        interpolated normal, and that one within the same angle of facing away from both keys, of
+        the pieces turning far all but :data:`DEVIANT_SHARE` of them; and the candidates (r,) that
+        turn as the field says: those, and in a piece turning far those beyond the angle facing
+        along their interpolated normal still (the others are judged one by one)."""
+        gap = self.gap
+        angle = np.arctan(max(METRIC_TOLERANCE, gap.tolerance))
+        count = len(gap.topo.piece_sizes)
+        unit = normal / np.sqrt(coordinate_dot(normal, normal))
+        lengths = np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
+        per_piece = np.bincount(pieces, minlength=count)
+
+        def whole_pieces(far: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            far_pieces = far[pieces]
+            limit = np.where(far_pieces, np.cos(MAX_ROTATION_DEVIATION), np.cos(angle))
+            sine = np.where(far_pieces, np.sin(MAX_ROTATION_DEVIATION), np.sin(angle))
+            facing_away = (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
+            near = (following >= limit * lengths) & facing_away
+            near_count = np.bincount(pieces[near], minlength=count)
+            allowed = np.where(far, np.floor(DEVIANT_SHARE * per_piece), 0)
+            whole = (per_piece - near_count <= allowed) & (near_count > 0)
+            return whole, near | (far_pieces & facing_away & (following > 0.0))
+
+        return whole_pieces
 
     def _far_turning(self) -> np.ndarray:
         """Per piece (bool (C,)), whether a part of it turns far from the rest between the keys as

@@ -270,3 +270,29 @@ def test_a_limb_bent_between_only_two_keys_follows_the_rig_and_its_still_part_st
         off = np.linalg.norm(x - _skinned(rest, 100.0 * factor), axis=1) / diagonal
         assert np.sqrt(np.mean(off ** 2)) < 5e-3 and off.max() < 2.5e-2
         assert np.abs(x[still] - rest[still]).max() < 1e-6 * diagonal
+
+
+@pytest.mark.parametrize("cores", [1, 8])
+def test_a_gaps_in_betweens_do_not_depend_on_the_gaps_asked_before(monkeypatch, own_pool, cores):
+    """A limb bent 50° per key reads its neighbouring gaps' bent parts (their relatives of the next
+    key, kept by ``SequenceKeys._relatives`` and reused by the gap itself and by the gap after):
+    the gaps asked for in reverse, then out of order and again after their data was let go, with
+    one core and with eight (the next gap prepared in the background), give the in-betweens of a
+    sequence made anew for each gap, to the bit (a kept relative changed in place after it is
+    stored fails here)."""
+    import core.concurrency as concurrency
+    from core import sequence_inbetweens, sequence_keys
+
+    monkeypatch.setattr(concurrency, "available_cores", lambda: cores)
+    monkeypatch.setattr(sequence_inbetweens, "CONCURRENT_VERTICES", 0)  # prepared in the background too
+    monkeypatch.setattr(sequence_keys, "CONCURRENT_VERTICES", 0)  # relatives built side by side
+    rest, triangles = _tube()
+    keys = [_skinned(rest, a) for a in (0.0, 50.0, 100.0, 150.0, 100.0, 40.0)]
+    factors = [0.25, 0.5, 0.75]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        fresh = [SequenceInterpolator(keys, triangles).poses(gap, factors) for gap in range(len(keys) - 1)]
+        sequence = SequenceInterpolator(keys, triangles)
+        for gap in (4, 3, 2, 0, 1, 3, 0):
+            np.testing.assert_array_equal(sequence.poses(gap, factors), fresh[gap])
+    assert len(sequence._forwards) >= 2  # relatives were kept and read back
