@@ -103,10 +103,22 @@ class Woodbury:
         self.chol = sla.cho_factor(capacitance, lower=True)
 
     def solve(self, r: np.ndarray) -> np.ndarray:
-        y = self.dinv * r
+        """``x`` (N,) for ``r`` (N,); FloatingPointError where a value leaves the products' range."""
         f = self.f
-        small = sla.cho_solve(self.chol, f @ y.astype(f.dtype, copy=False), check_finite=False)
-        return y - self.dinv * (f.T @ small.astype(f.dtype, copy=False))
+        # A right-hand side past float32's 3.4e38 (squared lengths of a pose ~1e19 across, against a
+        # base ~1 across) becomes inf in the cast to the float32 products, then NaN in them (and one
+        # an earlier step overflowed is inf or NaN already): a failure said here, once, rather than
+        # NumPy's overflow and invalid-value warnings every iteration.
+        with np.errstate(over="ignore", invalid="ignore"):
+            y = self.dinv * r
+            projected = f @ y.astype(f.dtype, copy=False)
+            if not np.isfinite(projected).all():
+                largest = float(np.max(np.abs(y)))  # NaN where an earlier step overflowed already
+                where = f", up to {largest:.3g} where its products hold {float(np.finfo(f.dtype).max):.3g}," \
+                    if np.isfinite(largest) else ""
+                raise FloatingPointError(f"the low-rank system's right-hand side{where} overflowed")
+            small = sla.cho_solve(self.chol, projected, check_finite=False)
+            return y - self.dinv * (f.T @ small.astype(f.dtype, copy=False))
 
 
 def gram_of_rows(a: np.ndarray) -> np.ndarray:

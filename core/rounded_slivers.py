@@ -36,14 +36,44 @@ def rounded_slivers(lengths: list[np.ndarray], areas: list[np.ndarray], rounding
     return np.flatnonzero(thin)
 
 
-def rounded_sliver_warning(count: int, rounding: float, names: tuple[str, str]) -> list[str]:
+#: The factor by which a change must lower the keys' rounding to be named as its cause in the
+#: ``sliver`` warning (:func:`rounding_cause`): a coordinate's rounding is machine epsilon times its
+#: power of two, so a change that lowers the largest coordinate less than twofold may leave it.
+ROUNDING_STEP = 2.0
+
+
+def rounding_cause(poses: list[np.ndarray], pair: tuple[int, int], names: list[str]) -> str:
+    """What sets the keys' rounding (:func:`core.coordinate_rounding.coordinate_rounding`, machine
+    epsilon times the keys' largest coordinate), as the ``sliver`` warning's reason and advice:
+    ``poses`` the keys (K, each (n, 3)), ``pair`` the gap's two keys (indices into ``poses`` and
+    ``names``). Moving the origin to the keys' common middle lowers the largest coordinate to their
+    common half extent: where that lowers it more than :data:`ROUNDING_STEP` times, the keys' place is
+    the cause; else where the largest key is that many times the smaller of the gap's two keys across,
+    it is the keys' size ratio (a key far larger than the smaller of the gap's keys rounds that one as its
+    own size is rounded); else the triangles are the mesh's own slivers."""
+    low = np.min([pose.min(axis=0) for pose in poses], axis=0)
+    high = np.max([pose.max(axis=0) for pose in poses], axis=0)
+    largest = float(np.max(np.maximum(np.abs(low), np.abs(high))))
+    centred = float(np.max(0.5 * (high - low)))
+    if largest > ROUNDING_STEP * centred:
+        return (f"their precision {largest:.3g} units from the origin; move the mesh's origin near it, or dissolve the "
+                "slivers: Mesh > Clean Up > Degenerate Dissolve")
+    sizes = [float(np.max(pose.max(axis=0) - pose.min(axis=0))) for pose in poses]
+    big = int(np.argmax(sizes))
+    small = pair[0] if sizes[pair[0]] <= sizes[pair[1]] else pair[1]
+    if sizes[big] >= ROUNDING_STEP * sizes[small]:
+        return (f"set by {names[big]}, {sizes[big]:.3g} across, {sizes[big] / sizes[small]:.3g} times the size of "
+                f"{names[small]}; give keys of comparable size (a key scaled by mistake: apply its scale)")
+    return "the mesh's own slivers at this size; dissolve them: Mesh > Clean Up > Degenerate Dissolve"
+
+
+def rounded_sliver_warning(count: int, rounding: float, names: tuple[str, str], cause: str) -> list[str]:
     """The gap's warning (list of at most one message) for ``count`` triangles that
     :func:`rounded_slivers` found in the keys ``names``, whose coordinates are rounded to
-    ``rounding``."""
+    ``rounding`` for the reason ``cause`` (:func:`rounding_cause`, with its advice)."""
     if not count:
         return []
     return [f"between {names[0]} and {names[1]}, {count} triangle(s) are less high than twice the rounding "
-            f"of the keys' coordinates ({rounding:.2g}, their precision this far from the origin): "
+            f"of the keys' coordinates ({rounding:.2g}, {cause}): "
             "the keys do not tell their shape nor which way they face, and the in-betweens may bend the "
-            "mesh around what the rounding made of them (move the mesh's origin near it, or dissolve the "
-            "slivers: Mesh > Clean Up > Degenerate Dissolve)"]
+            "mesh around what the rounding made of them"]

@@ -69,7 +69,7 @@ from .sewn_seams import gap_groups, sewn_offsets
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
-from .rounded_slivers import rounded_sliver_warning, rounded_slivers
+from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause
 
 __all__ = ["SequenceInterpolator"]
 
@@ -346,9 +346,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                       self._rounding * self._unit)  # the keys' lengths are the working keys
             # those that take a told neighbour's targets follow the mesh (core.untold_triangles): not said
             slivers = int(np.setdiff1d(slivers, segment.untold[0], assume_unique=True).size)
+            cause = rounding_cause(self._given, (gap, gap + 1), names) if slivers else ""  # read where said
             self._gap_messages[gap] = [("turn", m, 0, ()) for m in turn_warnings(segment, names, gap)] + \
                 [("joint", m, 0, ()) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
-                [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]))]
+                [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]),
+                                                                      cause)]
         return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:

@@ -194,3 +194,81 @@ def test_a_correspondence_is_checked_before_its_cast_to_int64():
             check_correspondence(np.array([1e20, 0.0, 1.0, 2.0]), 4, 3)
     np.testing.assert_array_equal(check_correspondence(np.array([0, 1, 2, -1], dtype=np.int32), 4, 3,
                                                        allow_unmatched=True), [0, 1, 2, -1])
+
+
+def test_a_low_rank_solve_past_its_products_range_fails_once_without_numpys_warnings():
+    """Woodbury with float32 products (the ADMM's): a right-hand side past float32's 3.4e38 became
+    inf in the cast and NaN in the products, with NumPy's overflow and invalid-value warnings at
+    every iteration; it is a FloatingPointError naming the overflow. Within range the solve agrees
+    with a dense solve of (FᵀF + diag(d)) x = r."""
+    from core.low_rank import Woodbury
+
+    rng = np.random.default_rng(0)
+    f, d = rng.standard_normal((4, 30)), 1.0 + rng.random(30)
+    solver = Woodbury(f, d, products=f.astype(np.float32))
+    r = rng.standard_normal(30)
+    dense = np.linalg.solve(f.T @ f + np.diag(d), r)
+    np.testing.assert_allclose(solver.solve(r), dense, rtol=1e-5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(FloatingPointError, match=r"right-hand side, up to 1\.\d+e\+40 where its products hold 3\.4e\+38, overflowed"):
+            solver.solve(r * 1e40)
+    assert not caught, [str(w.message) for w in caught]
+
+
+def test_a_transfer_of_a_pose_1e30_across_ends_in_a_recovery_error_without_numpys_warnings(sheet):
+    """A target pose 1e30 across against a base (and target rest) 1 across: the recovery's squared
+    lengths (~1e60) overflow its float32 products; the documented RecoveryError came after NumPy's
+    "overflow encountered in cast" and "invalid value encountered in matmul" warnings."""
+    v, t, target = sheet
+    transfer = core.Transfer(v, t, v, t, k_M=10, k_N=10)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(core.RecoveryError, match="overflowed"):
+            transfer.pose(target * 1e30)
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
+
+
+def _sliver_messages(*args):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        core.Interpolator(*args).pose(0.5)
+    return [str(w.message) for w in caught if "less high than twice the rounding" in str(w.message)]
+
+
+def test_the_sliver_warning_names_the_cause_of_the_rounding(sheet):
+    """The `sliver` warning advised moving the mesh's origin whatever set the rounding. A first key
+    5e14 across (its own coordinates set the rounding, 0.11, wherever the origin is) is named with
+    its size ratio; keys 3e14 out (1 across) with their place and the origin; a sliver 1.5e-7 high in
+    float32 keys at the origin (rounding 1.2e-7) as the mesh's own, to dissolve."""
+    v, t, target = sheet
+    [size] = _sliver_messages(v * 5e14, target, t)
+    assert "set by vertices_a, 5e+14 across, 5e+14 times the size of vertices_b" in size and "origin" not in size
+    [place] = _sliver_messages(v + 3e14, target + 3e14, t)
+    assert "3e+14 units from the origin; move the mesh's origin near it" in place and "times the size" not in place
+    a, b, c = t[4]
+
+    def with_sliver(pose):  # corner c 1.5e-7 off the middle of side ab, in float32
+        pose = pose.astype(np.float32)
+        side = pose[b] - pose[a]
+        across = np.cross(side, [0.0, 0.0, 1.0])
+        pose[c] = 0.5 * (pose[a] + pose[b]) + 1.5e-7 * across / np.linalg.norm(across)
+        return pose
+
+    [own] = _sliver_messages(with_sliver(v), with_sliver(target), t)
+    assert "1 triangle(s)" in own and "the mesh's own slivers" in own and "Degenerate Dissolve" in own
+    assert "origin" not in own and "times the size" not in own
+
+
+def test_in_betweens_of_a_key_1e20_times_the_others_in_a_truncated_basis_leak_no_numpy_warning():
+    """The truncated area program's low-rank solve took an inf right-hand side into NumPy's
+    "invalid value encountered in multiply" before the documented RecoveryError naming the gap."""
+    from meshes import grid
+
+    v, t = grid(8)
+    sequence = core.SequenceInterpolator([v, drape(v, 1.0), drape(v, 1.0) * 1e20], t, k_M=12)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(core.RecoveryError, match="between key pose 1 and key pose 2 failed numerically"):
+            sequence.pose(1, 0.5)
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
