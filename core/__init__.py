@@ -27,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 
-from .errors import MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning, warn
+from .errors import (MeshError, MeshIndexError, RecoveryError, ShapeDifferenceError, ShapeDifferenceWarning,
+                     shape_warning, warn)
 from .offset_surface import default_offset
 from .reference_shape import (OFFSET_RANGE, PRECISION_TOLERANCE, RecoveredMetric, ReferenceShape, ShapeDifferences,
                               differences_reference)
@@ -197,7 +198,7 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
     worst = int(np.argmax(error))
     if error[worst] > REALIZATION_TOLERANCE:
         a, b = (int(reference.used_vertices[i]) for i in reference.topology.edges[worst])
-        warn(
+        warning = shape_warning(
             f"The reconstructed pose misses the edge lengths the differences describe: edge ({a}, {b}) "
             f"is {100 * error[worst]:.3g} % off ({int(np.count_nonzero(error > REALIZATION_TOLERANCE))} "
             f"edges beyond {100 * REALIZATION_TOLERANCE:g} %). The embedding could not realize this "
@@ -205,6 +206,8 @@ def _warn_unrealized(reference: ReferenceShape, metric: RecoveredMetric, placed:
             "check the result.",
             "fit",
         )
+        warning.excess = float(error[worst]) / REALIZATION_TOLERANCE  # the worst edge's miss ÷ the miss allowed
+        warn(warning)
 
 
 def _warn_bending_free(reference: ReferenceShape, placed: np.ndarray) -> None:

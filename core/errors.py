@@ -41,9 +41,10 @@ class ShapeDifferenceWarning(UserWarning):
     ``gap``: the names of the two keys of the gap it is about, as the message says them (None where
     it is about no one gap); ``factors``: the factors of the in-betweens it is about (empty where
     it holds for every in-between of the gap, or is about something else).
-    ``excess``: how far past what it allows the (worst) in-between it is about is, its measure ÷ the
-    allowance (the ``fit`` warning of a sequence's gap: its worst fit's misfit ÷ the misfit allowed), over 1;
-    0 where the warning measures nothing against an allowance."""
+    ``excess``: how far past what it allows the (worst) in-between or result it is about is, its measure ÷
+    the allowance, over 1 (the ``fit`` warning of a sequence's gap: its worst fit's misfit ÷ the misfit
+    allowed; of a reconstruction: its worst edge's miss ÷ ``REALIZATION_TOLERANCE``; of the truncated area
+    program: the residual reached ÷ the one asked for); 0 for the other warnings (docs/errors.md, *Warnings*)."""
 
     kind: str | None = None
     defects: int = 0

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .admm import admm
-from .errors import RecoveryError, warn
+from .errors import RecoveryError, shape_warning, warn
 from .geometry import DIVISION_FLOOR, rows_dot
 from .low_rank import LowRankGram, SplitGram, low_rank_gram, randomly_pivoted_cholesky
 from .triangle_constraints import feasible_lengths, project_triangles, satisfied
@@ -262,13 +262,15 @@ class TruncatedRecovery:
             )
         if info > 0:
             residual = np.linalg.norm(normal.matvec(mu) - rhs) / max(np.linalg.norm(rhs), DIVISION_FLOOR)
-            warn(
+            warning = shape_warning(
                 f"The triangle areas of the {self.layer.name} are recovered only to a relative residual of "
-                f"{residual:.1e}, not {CG_TOLERANCE:g}: check the result, or use the full basis (k_M = 0), "
+                f"{residual:.1e}, not {rtol:g}: check the result, or use the full basis (k_M = 0), "
                 f"which recovers them exactly (the area program stopped after {info} conjugate-gradient "
                 "iterations; its last iterate is used).",
                 "fit",
             )
+            warning.excess = float(residual) / rtol  # the residual reached ÷ the one asked for
+            warn(warning)
         if mu.min() < 0.0:
             mu = self._bounded_areas(normal.matvec, rhs, eps, mu)
             method = "bounded"

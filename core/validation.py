@@ -344,7 +344,9 @@ def check_factors(factors) -> list[float]:
     try:
         values = np.atleast_1d(factors)
     except (ValueError, TypeError):
-        raise MeshError(f"factors must be a number or a list of numbers; got {describe(factors)}.") from None
+        values = None
+    if values is None or values.ndim != 1:  # ragged, or nested ([[0.5, 0.25]]: one row, not a factor)
+        raise MeshError(f"factors must be a number or a list of numbers; got {describe(factors)}.")
     return [check_factor(f) for f in values]
 
 

@@ -315,7 +315,7 @@ def look_first(warned: list[str], about: dict | None = None, headless: bool | No
     WARNING: Blender's status bar shows only an operator's last report, so it says how many there
     are, where they all are (:func:`shown`), and the one to look at first: the core's warning whose in-between keeps
     the most flipped or collapsed triangles (``about``: per message, the core's warning it came
-    from), said by its gap and kind, else the first warning's opening words. Where they are: the
+    from; on a tie the one farthest past its allowance, then the first, as :func:`summarized`), said by its gap and kind, else the first warning's opening words. Where they are: the
     Info editor, or, ``headless`` (``blender -b``; by default ``bpy.app.background``), the console,
     where Blender prints a script's operator reports in order, this one last. Where no warning keeps
     flipped or collapsed triangles, the one to look at first is the core's warning farthest past what
@@ -323,7 +323,9 @@ def look_first(warned: list[str], about: dict | None = None, headless: bool | No
     3.2, before one 0.8 % off where 0.7 % is, 1.1), else the first."""
     about = about or {}
     core = [warning for warning in about.values() if getattr(warning, "gap", None) is not None]
-    worst = max(core, key=lambda w: getattr(w, "defects", 0), default=None)
+    # of warnings alike in triangles kept, the one farthest past its allowance, then the first: the
+    # one summarized reports in full
+    worst = max(core, key=lambda w: (getattr(w, "defects", 0), getattr(w, "excess", 0.0)), default=None)
     if worst is not None and worst.defects > 0:
         first = (f"between {worst.gap[0]} and {worst.gap[1]}, {worst.defects} flipped or collapsed "
                  f"triangle(s) kept [{worst.kind}]")

@@ -376,3 +376,18 @@ def test_the_last_line_names_the_warning_farthest_past_its_allowance(extension, 
         warning.excess = 0.0
     assert base.look_first(list(said), said, headless=True).endswith("look first at: between frame 1 and frame 9, 7 "
                                                                      "of the 7 in-betweens, the worst at factor 0.5")
+
+
+def test_the_last_line_and_the_summary_pick_the_same_warning_on_a_tie_of_triangles(extension, core):
+    """Of two warnings alike that keep as many flipped triangles, the one reported in full
+    (``summarized``: the one farthest past its allowance) is the one the run's last line names
+    (``look_first``), whichever comes first."""
+    base = extension.operators.base
+    said = {str(warning): warning for warning in (
+        core.sequence_warnings.said_warning(f"between frame {a} and frame {a + 8}, 7 of the 7 in-betweens, the worst at "
+                                            f"factor 0.5: its edges are {off} % shorter", "fit", 3,
+                                            (f"frame {a}", f"frame {a + 8}"), (0.5,), off / 2.1)
+        for a, off in ((1, 2.5), (25, 6.7)))}
+    assert base.summarized(list(said), "Job", said)[0].startswith("Shape-difference interpolation: between frame 25")
+    assert base.look_first(list(said), said, headless=True).endswith("look first at: between frame 25 and frame 33, "
+                                                                     "3 flipped or collapsed triangle(s) kept [fit]")

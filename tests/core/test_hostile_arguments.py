@@ -272,3 +272,12 @@ def test_in_betweens_of_a_key_1e20_times_the_others_in_a_truncated_basis_leak_no
         with pytest.raises(core.RecoveryError, match="between key pose 1 and key pose 2 failed numerically"):
             sequence.pose(1, 0.5)
     assert not [w for w in caught if issubclass(w.category, RuntimeWarning)], [str(w.message) for w in caught]
+
+
+def test_a_nested_list_of_factors_is_refused_as_factors(sheet):
+    """One row of factors (``[[0.5, 0.25]]``) is no list of factors: refused naming ``factors``, not
+    taken row by row into ``check_factor`` ("factor must be a real number; got array([0.5, 0.25])")."""
+    v, t, target = sheet
+    sequence = core.SequenceInterpolator([v, target], t)
+    with pytest.raises(MeshError, match="factors must be a number or a list of numbers"):
+        sequence.poses(0, [[0.5, 0.25]])
