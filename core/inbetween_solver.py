@@ -113,7 +113,9 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     aliased_spin = False
     #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
     #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turn``), where it is
-    #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses are.
+    #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses
+    #: are (in a sequence of three keys or more, unless a piece of it is read turning:
+    #: ``SequenceInterpolator._prepare``); read by no rule after, kept to tell what the gap read.
     bent_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,

@@ -205,8 +205,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 free = self._unsure(gap)[topo.triangle_component]
                 unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
                 free = free if free.any() else None
-        # more keys: so too where the keys' spline reads a part bent past BENT_PART_TURN, unless the
-        # piece is read turning (its rotations taken whole and continuous, placed along its turn)
+        # more keys: so too where the keys' spline reads a part bent past BENT_PART_TURN, unless a
+        # piece of the gap (any, not only the bent one) is read turning (its rotations taken whole
+        # and continuous, placed along its turn)
         if not chord and self._across is None and not turning.any():
             anchored = self._bent_nearby(gap, bent, reading)
         # parts spun past a half turn that the keys read the short way round: patches of the mesh
@@ -373,9 +374,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     # sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread). One thread also whatever
     # ran before in the process: the same poses to the bit (core.concurrency).
     @single_threaded_blas()
-    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]]]:
-        """:meth:`poses` and the warnings ``(kind, message, defects, factors)``, not yet given (the caller warns: a
-        warning filter changed around the call would be the process's, not this thread's)."""
+    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple]]:
+        """:meth:`poses` and the warnings ``(kind, message, defects, factors)`` (the ``fit`` warning's
+        with its ``excess`` after them), not yet given (the caller warns: a warning filter changed
+        around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
         out = np.empty((len(factors), self._topo.n, 3))

@@ -97,7 +97,7 @@ class Interpolator:
         for name, value in flags.items():
             setattr(variant, name, value)
         variant._gaps, variant._pending, variant._cache_lock = OrderedDict(), {}, threading.RLock()
-        variant._forwards = OrderedDict()
+        variant._forwards, variant._bent_turns = OrderedDict(), {}  # written under the variant's own lock
         variant._gap_messages = {}
         return variant
 
