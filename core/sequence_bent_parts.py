@@ -51,10 +51,17 @@ def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.nd
 
     ``triangle_component`` int (m,): each triangle's piece; ``metric`` (m, 3): each triangle's metric
     ``G`` packed ``(g11, g12, g22)``; ``areas`` (m,): the triangles' areas in the base key."""
+    return _room(triangle_component, metric, areas)[2]
+
+
+def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(isometric, piece_area, room)``: :func:`_isometric`, each piece's area (C,) and
+    :func:`rigid_share`'s answer, for :func:`bent_part_turn` to read on without computing them again."""
     isometric = _isometric(metric)
     piece_area = np.bincount(triangle_component, areas)
-    return bool((np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
+    room = bool((np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
                  >= 2 * PART_SHARE * piece_area).any())
+    return isometric, piece_area, room
 
 
 def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
@@ -72,10 +79,11 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
     turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the region's mean rotation and
     covering ``PART_SHARE`` of its piece's area."""
     m = len(rotvec)
-    if m == 0 or len(edge_pairs) == 0 or not rigid_share(triangle_component, metric, areas):
+    if m == 0 or len(edge_pairs) == 0:
         return 0.0
-    isometric = _isometric(metric)
-    piece_area = np.bincount(triangle_component, areas)
+    isometric, piece_area, room = _room(triangle_component, metric, areas)
+    if not room:
+        return 0.0
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
     # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
     if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= least:

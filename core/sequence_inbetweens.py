@@ -279,8 +279,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none)."""
         if bent > BENT_PART_TURN:
             return True
-        if not (self.smooth and len(self) >= 2) or \
-                not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
+        if not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
             return False
         return any(self._bent_turn(near) > BENT_PART_TURN for near in (gap - 1, gap + 1) if 0 <= near < len(self))
 

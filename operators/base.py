@@ -284,8 +284,7 @@ def summarized(messages: list[str], label: str, about: dict | None = None) -> li
         if len(alike) == 1:
             out.append(alike[0])
             continue
-        worst = max(range(len(alike)), key=lambda i: (getattr(about.get(alike[i]), "defects", 0),
-                                                      getattr(about.get(alike[i]), "excess", 0.0), -i))
+        worst = max(range(len(alike)), key=lambda i: (*severity(about.get(alike[i])), -i))
         others = alike[:worst] + alike[worst + 1:]
         first, stop = (alike[worst][:-1], ".") if alike[worst].endswith(".") else (alike[worst], "")
         places: dict[tuple[str, str], list[float]] = {}  # each gap of the others, with their lone in-betweens' factors
@@ -304,6 +303,13 @@ def summarized(messages: list[str], label: str, about: dict | None = None) -> li
         for message in others:
             print(f"{label}: warning: {message}", file=sys.stderr, flush=True)
     return out
+
+
+def severity(warning) -> tuple[int, float]:
+    """How much a core warning (None or another object: nothing) asks to be looked at, as
+    :func:`summarized` and :func:`look_first` rank it: the flipped or collapsed triangles it keeps,
+    then how far past its allowance it is (its ``excess``)."""
+    return getattr(warning, "defects", 0), getattr(warning, "excess", 0.0)
 
 
 # How much of a warning's opening a run's last line quotes, where the warning names no gap.
@@ -325,14 +331,14 @@ def look_first(warned: list[str], about: dict | None = None, headless: bool | No
     core = [warning for warning in about.values() if getattr(warning, "gap", None) is not None]
     # of warnings alike in triangles kept, the one farthest past its allowance, then the first: the
     # one summarized reports in full
-    worst = max(core, key=lambda w: (getattr(w, "defects", 0), getattr(w, "excess", 0.0)), default=None)
+    worst = max(core, key=severity, default=None)
     if worst is not None and worst.defects > 0:
         first = (f"between {worst.gap[0]} and {worst.gap[1]}, {worst.defects} flipped or collapsed "
                  f"triangle(s) kept [{worst.kind}]")
     else:
         # the message of the warning farthest past its allowance, where one measures against one
-        farthest = max(about, key=lambda message: getattr(about[message], "excess", 0.0), default=None)
-        text = farthest if farthest is not None and getattr(about[farthest], "excess", 0.0) > 0.0 else warned[0]
+        farthest = max(about, key=lambda message: severity(about[message])[1], default=None)
+        text = farthest if farthest is not None and severity(about[farthest])[1] > 0.0 else warned[0]
         text = text.removeprefix("Shape-difference interpolation: ")
         cut = min((i for i in (text.find(": "), text.find("; ")) if i > 0), default=len(text))
         first = text[:cut] if cut <= LOOK_FIRST_CHARACTERS else text[:LOOK_FIRST_CHARACTERS].rsplit(" ", 1)[0] + " …"
