@@ -8,7 +8,9 @@ the arc by a share growing with θ (a uniform Catmull–Rom through points turne
 at mid-gap: 6.0 / 11.6 / 16.9 % of the radius at 75 / 90 / 100°). The keys alone tell such parts:
 regions of triangles kept isometric (metric ``G ≈ I``) with one rotation, each a share of its piece,
 turning from one another. A gap whose splines read such a turn is anchored as two poses are
-(:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`).
+(:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`): past ``BENT_PART_TURN`` for
+parts isometric to ``ISOMETRIC`` (a cloth's flat patches are too), past ``RIGID_BENT_TURN`` for parts
+rigid to the keys' rounding (``RIGID_METRIC``: a skinned bone's; no moving cloth's).
 """
 
 from __future__ import annotations
@@ -36,13 +38,26 @@ BENT_PART_TURN = np.radians(75.0)
 #: poses do: twice the spread a rigid part may have (``RIGID_SPREAD``), so a piece read as two parts
 #: turned apart is bent at a joint, not a part's own rounding.
 TWO_KEY_BENT_TURN = 2.0 * RIGID_SPREAD
+#: Largest deviation of the metric ``G`` from the identity (entries) of a triangle kept rigid to the
+#: keys' rounding: a skinned bone's region (weight 1) is moved as a rigid body, its metric off only by
+#: the single-precision keys' rounding (1e-7–1e-6), where a cloth's patches keep their metric only to
+#: their stretch (the hanging sheet's parts read past ``ISOMETRIC``'s 5e-3 at 1.7–4.5e-3, turning
+#: 7–10.5° apart; no moving cloth of the benchmark keeps a tenth of a piece within 1e-4).
+RIGID_METRIC = 1e-4
+#: Turn between two parts of a piece rigid to the keys' rounding (``RIGID_METRIC``; radians) past which
+#: a sequence's gap is anchored as two poses are, whatever its spline: the keys' per-vertex spline cuts
+#: a turning part's arc at any turn, most in the first and last gaps, whose end tangents bend it off
+#: the arc (an LBS tube keyed 30° apart: 1.8e-3 of the diagonal off the rig half-way in its first gap,
+#: two poses 4.3e-4), and parts rigid to the rounding are a joint's, not a cloth's (no moving cloth
+#: has them). The same least turn as two keys' (``TWO_KEY_BENT_TURN``): a bend, not a part's rounding.
+RIGID_BENT_TURN = TWO_KEY_BENT_TURN
 
 
-def _isometric(metric: np.ndarray) -> np.ndarray:
+def _isometric(metric: np.ndarray, tolerance: float = ISOMETRIC) -> np.ndarray:
     """Whether each triangle is kept isometric (bool (m,)): every entry of its metric ``G``
-    (``metric`` (m, 3), packed ``(g11, g12, g22)``) within ``ISOMETRIC`` of the identity's."""
+    (``metric`` (m, 3), packed ``(g11, g12, g22)``) within ``tolerance`` of the identity's."""
     g11, g12, g22 = metric[:, 0], metric[:, 1], metric[:, 2]
-    return (np.abs(g11 - 1.0) < ISOMETRIC) & (np.abs(g12) < ISOMETRIC) & (np.abs(g22 - 1.0) < ISOMETRIC)
+    return (np.abs(g11 - 1.0) < tolerance) & (np.abs(g12) < tolerance) & (np.abs(g22 - 1.0) < tolerance)
 
 
 def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray) -> bool:
@@ -54,10 +69,11 @@ def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.nd
     return _room(triangle_component, metric, areas)[2]
 
 
-def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray) -> tuple[np.ndarray, np.ndarray, bool]:
-    """``(isometric, piece_area, room)``: :func:`_isometric`, each piece's area (C,) and
-    :func:`rigid_share`'s answer, for :func:`bent_part_turn` to read on without computing them again."""
-    isometric = _isometric(metric)
+def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray,
+          tolerance: float = ISOMETRIC) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``(isometric, piece_area, room)``: :func:`_isometric` (to ``tolerance``), each piece's area (C,)
+    and :func:`rigid_share`'s answer, for :func:`bent_part_turn` to read on without computing them again."""
+    isometric = _isometric(metric, tolerance)
     piece_area = np.bincount(triangle_component, areas)
     room = bool((np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
                  >= 2 * PART_SHARE * piece_area).any())
@@ -65,7 +81,8 @@ def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray)
 
 
 def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
-                   metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN) -> float:
+                   metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN,
+                   tolerance: float = ISOMETRIC) -> float:
     """The largest turn (radians) between two rigid parts of one piece from a key to another,
     where one can be over ``least`` (radians; 0 where none is, or no piece has two parts).
 
@@ -75,13 +92,14 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
     ``metric`` (m, 3): each triangle's metric ``G`` packed ``(g11, g12, g22)`` in the base key's
     tangent basis; ``areas`` (m,): the triangles' areas in the base key.
 
-    A rigid part is a connected region of isometric triangles (``ISOMETRIC``) whose neighbours
-    turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the region's mean rotation and
-    covering ``PART_SHARE`` of its piece's area."""
+    A rigid part is a connected region of isometric triangles (every metric entry within
+    ``tolerance`` of the identity's: ``ISOMETRIC``, or ``RIGID_METRIC`` for parts rigid to the keys'
+    rounding) whose neighbours turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the
+    region's mean rotation and covering ``PART_SHARE`` of its piece's area."""
     m = len(rotvec)
     if m == 0 or len(edge_pairs) == 0:
         return 0.0
-    isometric, piece_area, room = _room(triangle_component, metric, areas)
+    isometric, piece_area, room = _room(triangle_component, metric, areas, tolerance)
     if not room:
         return 0.0
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which

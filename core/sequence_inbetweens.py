@@ -27,9 +27,10 @@ a Poisson solve whose matrix depends on the topology and the anchor weights only
 metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT`) except in two-pose interpolation
 (and a sequence of only two keys, or a linear one (``smooth=False``), that bends a piece at a joint,
 :data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`, or a gap of more keys whose splines read a part of
-a piece turned past :data:`core.sequence_bent_parts.BENT_PART_TURN` from another, in it or in a gap next
-to it), where vertices whose neighbourhood only translates between the keys are anchored to the linear
-blend (exact for them, at every factor: parts that do not move stay put); see
+a piece turned past :data:`core.sequence_bent_parts.BENT_PART_TURN` from another, or past
+:data:`core.sequence_bent_parts.RIGID_BENT_TURN` where both parts are rigid to the keys' rounding, in
+it or in a gap next to it), where vertices whose neighbourhood only translates between the keys are
+anchored to the linear blend (exact for them, at every factor: parts that do not move stay put); see
 :data:`core.inbetween_anchor.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
 centroid, moved by the interpolated rigid motion of the whole mesh plus the interpolated residual
 of the component (pieces of a mesh move as one).
@@ -62,7 +63,8 @@ from .sequence_gap_starts import GapStarts
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
-from .sequence_bent_parts import BENT_PART_TURN, TWO_KEY_BENT_TURN, bent_part_turn, rigid_share
+from .sequence_bent_parts import (BENT_PART_TURN, ISOMETRIC, RIGID_BENT_TURN, RIGID_METRIC, TWO_KEY_BENT_TURN,
+                                  bent_part_turn, rigid_share)
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -248,40 +250,51 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         return self._turning_on(gap, Relative(self._topo, self._key(gap), self._key(gap + 1), across=self._across,
                                               fits=self._fits(gap, gap + 1)))
 
-    def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN) -> float:
+    def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN,
+                   tolerance: float = ISOMETRIC) -> float:
         """The largest turn (radians) between two rigid parts of one piece from key ``gap`` to the
-        next (:func:`core.sequence_bent_parts.bent_part_turn`, ``least`` its least turn read); 0 in
-        a gap warned of mirrored pieces and for two poses. ``relative``: key ``gap + 1`` seen from
-        key ``gap`` with the keys' own metric (:meth:`_keys_relative`), if at hand. Kept per gap and
-        least turn: a gap reads its neighbours' (:meth:`_bent_nearby`)."""
+        next (:func:`core.sequence_bent_parts.bent_part_turn`, ``least`` its least turn read, its parts'
+        metric the identity's to ``tolerance``); 0 in a gap warned of mirrored pieces and for two poses.
+        ``relative``: key ``gap + 1`` seen from key ``gap`` with the keys' own metric
+        (:meth:`_keys_relative`), if at hand. Kept per gap, least turn and tolerance: a gap reads its
+        neighbours' (:meth:`_bent_nearby`)."""
         if self._across is not None or gap in self._mirrored_gaps:
             return 0.0
         with self._cache_lock:  # gaps are prepared on several threads; the reading depends on the keys alone
-            known = self._bent_turns.get((gap, least))
+            known = self._bent_turns.get((gap, least, tolerance))
         if known is not None:
             return known
         relative = relative if relative is not None else self._keys_relative(gap)
         turn = bent_part_turn(self._topo.triangle_component, self._edge_pairs, relative.rotvec, relative.metric,
-                              self._key(gap).areas, least)
+                              self._key(gap).areas, least, tolerance)
         with self._cache_lock:
-            self._bent_turns[(gap, least)] = turn
+            self._bent_turns[(gap, least, tolerance)] = turn
         return turn
+
+    def _bent_past(self, gap: int, relative: Relative | None = None) -> bool:
+        """Whether gap ``gap`` (of three keys or more) reads a part of a piece turned from another past
+        its least turn: :data:`~core.sequence_bent_parts.BENT_PART_TURN` for parts isometric to
+        :data:`~core.sequence_bent_parts.ISOMETRIC`, :data:`~core.sequence_bent_parts.RIGID_BENT_TURN`
+        for parts rigid to the keys' rounding (:data:`~core.sequence_bent_parts.RIGID_METRIC`: a skinned
+        bone's, whose arc the keys' spline cuts at any turn). ``relative`` as for :meth:`_bent_turn`."""
+        return self._bent_turn(gap, relative) > BENT_PART_TURN or \
+            self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC) > RIGID_BENT_TURN
 
     def _bent_nearby(self, gap: int, bent: float, relative: Relative) -> bool:
         """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn`,
         ``relative``: key ``gap + 1`` seen from key ``gap``, :meth:`_keys_relative`) is anchored as
         two poses are: where the keys' per-vertex spline it would be anchored to reads a part of a
-        piece turning past :data:`~core.sequence_bent_parts.BENT_PART_TURN` from another, whose arc
-        that spline cuts —
-        in the gap itself or, for a cubic spline (keys ``gap − 1`` … ``gap + 2``), in a gap next to
-        it, whose keys' tangents bend the spline inside the arc too. The neighbours are read only
-        where the gap's own keys keep room for two rigid parts
+        piece turning from another past its least turn (:meth:`_bent_past`), whose arc that spline
+        cuts — in the gap itself or, for a cubic spline (keys ``gap − 1`` … ``gap + 2``), in a gap
+        next to it, whose keys' tangents bend the spline inside the arc too. The neighbours are read
+        only where the gap's own keys keep room for two rigid parts
         (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none)."""
         if bent > BENT_PART_TURN:
             return True
         if not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
             return False
-        return any(self._bent_turn(near) > BENT_PART_TURN for near in (gap - 1, gap + 1) if 0 <= near < len(self))
+        return any(self._bent_past(near, relative if near == gap else None) for near in (gap, gap - 1, gap + 1)
+                   if 0 <= near < len(self))
 
     def _segment(self, gap: int, ahead: list[Relative], others: list[int], whole: np.ndarray,
                  turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None,

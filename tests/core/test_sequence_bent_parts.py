@@ -12,7 +12,7 @@ from scipy.optimize import minimize, minimize_scalar
 from scipy.spatial.transform import Rotation
 
 from core.errors import ShapeDifferenceWarning
-from core.sequence_bent_parts import BENT_PART_TURN
+from core.sequence_bent_parts import BENT_PART_TURN, RIGID_BENT_TURN, RIGID_METRIC
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
 from placement_helpers import _curled_tube, _remeshed_tube, _skinned_limb
@@ -88,15 +88,59 @@ def _sequence_and_pairs(keys, triangles, factors=(0.25, 0.5, 0.75), k_M=None, sm
 
 
 def test_a_limb_bent_past_the_limit_is_anchored_in_that_gap_and_the_gaps_next_to_it():
+    # keys stored to 4 decimals (edges 0.1): the bones keep their metric only to a few 1e-3, isometric
+    # (ISOMETRIC) but not rigid to the keys' rounding (RIGID_METRIC), so the limit is BENT_PART_TURN
     rest, triangles = _tube()
+
+    def keys(angles):
+        return [np.round(_skinned(rest, a), 4) for a in angles]
+
     # 100° in the first gap, 50° in the second, whose cubic spline reads the first gap's keys
-    assert _anchored([_skinned(rest, a) for a in (0.0, 100.0, 150.0)], triangles) == [True, True]
+    assert _anchored(keys((0.0, 100.0, 150.0)), triangles) == [True, True]
     # 40° then 100°: the first gap's spline reads the second's keys; a third gap's does not
-    assert _anchored([_skinned(rest, a) for a in (0.0, 40.0, 140.0, 150.0, 160.0)], triangles) == \
-        [True, True, True, False]
+    assert _anchored(keys((0.0, 40.0, 140.0, 150.0, 160.0)), triangles) == [True, True, True, False]
     # within the limit: anchored to the keys' spline, as before
-    assert _anchored([_skinned(rest, a) for a in (0.0, 60.0, 120.0, 180.0)], triangles) == [False] * 3
+    assert _anchored(keys((0.0, 60.0, 120.0, 180.0)), triangles) == [False] * 3
     assert np.degrees(BENT_PART_TURN) > 60.0
+
+
+def test_a_limb_whose_bones_are_rigid_to_the_keys_rounding_is_anchored_at_any_bend():
+    # single-precision keys of a skin keep each bone's metric to ~1e-7: a joint's parts, which no
+    # moving cloth has, so a gap is anchored as two poses are past RIGID_BENT_TURN (the 75° limit
+    # left 0 / 60 / 120 / 180° and 0 / 40 / 140 / 150 / 160°'s last gap on the keys' spline)
+    rest, triangles = _tube()
+    assert _anchored([_skinned(rest, a) for a in (0.0, 60.0, 120.0, 180.0)], triangles) == [True] * 3
+    assert _anchored([_skinned(rest, a) for a in (0.0, 40.0, 140.0, 150.0, 160.0)], triangles) == [True] * 4
+    assert _anchored([_skinned(rest, a) for a in (0.0, 2.0, 4.0)], triangles) == [False] * 2  # within RIGID_SPREAD
+    sequence = SequenceInterpolator([_skinned(rest, a) for a in (0.0, 30.0, 60.0)], triangles)
+    # the turn read between the rigid parts is the joint's, to single precision
+    assert np.degrees(sequence._bent_turn(0, least=RIGID_BENT_TURN, tolerance=RIGID_METRIC)) == \
+        pytest.approx(30.0, abs=1e-3)
+
+
+@pytest.mark.parametrize("limb", ["LBS tube 30° a key", "remeshed 60° a key", "remeshed 15° a key"])
+def test_a_limb_keyed_within_the_limit_follows_the_rig_no_farther_than_two_poses(limb):
+    # keyed under 75° apart, the keys' per-vertex spline cut the bone's arc, most in the first and
+    # last gaps, whose end tangents bend it off the arc: 1.8e-3 / 5.8e-3 / 9.6e-4 of the diagonal RMS
+    # off the rig half-way in the first gap where two poses on the same keys are 4.3e-4 / 1.9e-3 /
+    # 3.5e-4 off (3.1e-3 / 4.2e-3 / 1.25e-3 at ¾ of the last); the bones are rigid to the keys'
+    # rounding (RIGID_METRIC), so every gap is anchored as two poses are
+    lbs = limb.startswith("LBS")
+    rest, triangles = _tube() if lbs else _remeshed_tube(2500, 3)
+    keyed = {"LBS tube 30° a key": (0.0, 30.0, 60.0, 90.0), "remeshed 60° a key": (0.0, 60.0, 120.0, 180.0),
+             "remeshed 15° a key": (0.0, 15.0, 30.0, 45.0)}[limb]
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+
+    def rig(a):  # one joint: at x = 2 (LBS, weights over 0.6) or 1.5 (bones turned by weight, over 0.6)
+        return _skinned(rest, a[0]) if lbs else _skinned_limb(rest, np.radians(a), (1.5,))
+
+    still = rest[:, 0] <= (2.0 if lbs else 1.5) - 0.3  # the first bone's vertices: never moved by the rig
+    keys = [rig(np.atleast_1d(a)) for a in keyed]
+    for gap, factor, x, pair in _sequence_and_pairs(keys, triangles):
+        (off, against), (pair_off, _) = (_off_the_rig(y, rig, keyed[gap], keyed[gap + 1], triangles, diagonal)
+                                         for y in (x, pair))
+        assert against == 0 and off <= pair_off, (gap, factor)
+        assert np.abs(x[still] - rest[still]).max() < 1e-6 * diagonal
 
 
 def test_a_limb_bent_past_the_limit_follows_the_rig_as_two_poses_do():
