@@ -68,6 +68,7 @@ from .sequence_bent_parts import (BENT_PART_TURN, ISOMETRIC, RIGID_BENT_TURN, RI
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
+from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
@@ -445,7 +446,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 problems.append((factors[k], "non_finite", problem, 0))
         said = self._gap_warnings(gap, segment) + \
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
-        misfit = self._misfit_warning(gap, segment, {factors[k]: x for k, (x, _) in zip(between, solved)})
+        poses = {factors[k]: x for k, (x, _) in zip(between, solved)}
+        misfit = self._misfit_warning(gap, segment, poses)
+        if misfit is None:  # fits within what their keys allow: the keys may still alias a brief stretch
+            misfit = self._caught_stretch_warning(gap, segment, poses)
         if misfit is not None:
             said.append(("fit", misfit[0], 0, misfit[1], misfit[2]))
         if self._near_seams is not None:  # seams the gap's keys keep closed, not welded: opened by the in-betweens?
@@ -466,23 +470,67 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         fitted = [m for s, m in segment.fit_misfits.items() if s in poses]
         if not fitted or max(fitted) <= MISFIT_NOTED_FLOOR or gap in self._mirrored_gaps:
             return None
-        def lengths_of(x):  # corner edge lengths (m, 3) of positions x (n, 3), as Key has them
-            edges = self._topo.corner_edge_rows(x)  # (3 coordinates, 3 corners, m), as the fit's
-            return np.sqrt(coordinate_dot(edges, edges)).T
-
-        if self._first_lengths is None:  # its corner edges alone: no key built, none let go
-            self._first_lengths = lengths_of(self._raw[0])
         keys = (segment.base.lengths, segment.next.lengths)
-        for index, lengths in zip((gap, gap + 1), keys):  # each key's once: it is in two gaps
-            if index not in self._key_deviations:
-                self._key_deviations[index] = key_deviation(lengths, self._first_lengths)
-        allowed = misfit_allowed([self._key_deviations[gap], self._key_deviations[gap + 1]])
+        allowed = misfit_allowed([self._key_deviation(gap, keys[0]), self._key_deviation(gap + 1, keys[1])])
 
         def signed(s):
-            return signed_deviation(lengths_of(poses[s]), (1.0 - s) * keys[0] + s * keys[1])
+            return signed_deviation(self._corner_lengths(poses[s]), (1.0 - s) * keys[0] + s * keys[1])
 
         return misfit_warning(segment.fit_misfits, list(poses), allowed, (self.key_names[gap], self.key_names[gap + 1]),
                               signed)
+
+    def _corner_lengths(self, x: np.ndarray) -> np.ndarray:
+        """Corner edge lengths (m, 3) of working positions ``x`` (n, 3), as :class:`Key` has them."""
+        edges = self._topo.corner_edge_rows(x)  # (3 coordinates, 3 corners, m), as the fit's
+        return np.sqrt(coordinate_dot(edges, edges)).T
+
+    def _key_deviation(self, index: int, lengths: np.ndarray | None = None) -> float:
+        """Key ``index``'s mean relative edge deviation from the first key
+        (:func:`core.sequence_edge_misfit.key_deviation`), measured once (a key is in two gaps) from its
+        corner edge ``lengths`` (m, 3) where the caller has them (its gap's :class:`Key`), else from it."""
+        if self._first_lengths is None:  # its corner edges alone: no key built, none let go
+            self._first_lengths = self._corner_lengths(self._raw[0])
+        if index not in self._key_deviations:
+            lengths = self._corner_lengths(self._raw[index]) if lengths is None else lengths
+            self._key_deviations[index] = key_deviation(lengths, self._first_lengths)
+        return self._key_deviations[index]
+
+    def _caught_stretch_warning(self, gap: int, segment: Gap,
+                                poses: dict) -> tuple[str, tuple[float, ...], float] | None:
+        """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) beside a key
+        that catches a brief stretch on a motion passing through it, whose in-betweens ``poses``
+        {factor: working positions (n, 3)} end farther off the first key than the gap's other key
+        allows (:mod:`core.sequence_caught_stretch`); None elsewhere, and in a gap whose pieces are
+        mirrored (:func:`core.sequence_mirrors.warn_mirrored` says why its edges are off). Each key is
+        read once (its deviation; its neighbour outside the gap and the shapes around it only where
+        that is over what its neighbour inside the gap allows); the in-betweens are measured only
+        beside a key that catches a stretch, at most three of them
+        (:func:`core.sequence_caught_stretch.caught_stretch_factors`)."""
+        asked = [s for s in poses if 0.0 < s < 1.0]
+        if not asked or gap in self._mirrored_gaps:
+            return None
+        ends = (gap, gap + 1)
+        lengths = dict(zip(ends, (segment.base.lengths, segment.next.lengths)))
+        for at, other in zip(ends, reversed(ends)):
+            if not 0 < at < len(self._raw) - 1:  # the first and last keys have one neighbour
+                continue
+            if at not in self._caught_stretches:  # each key's once: it is in two gaps
+                # the neighbour outside this gap (its lengths not at hand) read only where the one inside allows less
+                three = (at - 1, at, at + 1)
+                if self._key_deviation(at, lengths[at]) <= misfit_allowed([self._key_deviation(other, lengths[other])]):
+                    self._caught_stretches[at] = False
+                else:
+                    self._caught_stretches[at] = caught_stretch([self._key_deviation(k, lengths.get(k)) for k in three],
+                                                                [self._raw[k] for k in three])
+            if not self._caught_stretches[at]:
+                continue
+            deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._first_lengths)
+                                       for s in caught_stretch_factors(asked)]))
+            said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
+                                          self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked)
+            if said is not None:
+                return said
+        return None
 
     def _finite(self, x: np.ndarray, gap: int, factor: float) -> str | None:
         """None where the pose ``x`` (n, 3) at ``factor`` in gap ``gap`` is finite (the check is

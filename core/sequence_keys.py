@@ -144,6 +144,7 @@ class SequenceKeys:
         self._gap_messages: dict[int, list] = {}  # per gap, its warnings (SequenceInterpolator._gap_warnings)
         self._first_lengths = None  # the first key's corner edge lengths (m, 3), once asked (SequenceInterpolator._misfit_warning)
         self._key_deviations: dict[int, float] = {}  # ... and each key's mean relative edge deviation from them
+        self._caught_stretches: dict[int, bool] = {}  # per key, whether it catches a brief stretch (core.sequence_caught_stretch)
         self._bent_turns: dict[tuple[int, float, float], float] = {}  # per gap, least turn and tolerance (_bent_turn)
         self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)

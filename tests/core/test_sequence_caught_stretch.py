@@ -1,0 +1,138 @@
+"""A key that catches a stretch its neighbours do not have, on a motion passing through it (cloth
+landing just before the key), warns the gaps beside it whose in-betweens carry that stretch
+(core.sequence_caught_stretch); a swing sampled at its extremes, whose in-betweens pass through the
+stretched shape as the interpolated ones do, does not."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from core import SequenceInterpolator
+from core.sequence_caught_stretch import PASSING_THROUGH, caught_stretch, caught_stretch_warning, passing_through
+from core.sequence_edge_misfit import misfit_allowed
+
+from meshes import grid
+
+FACTORS = [j / 8 for j in range(1, 8)]
+QUARTERS = (0.25, 0.5, 0.75)  # the in-betweens the warning measures of those (caught_stretch_factors)
+
+
+def _draped(vertices, angle, stretch, drop=0.0):
+    """``vertices`` of a flat strip along x (at z = 0) stretched along x by the factor 1 + ``stretch``
+    and its far half bent down by ``angle`` over a quarter of its length (a circular arc), lowered
+    by ``drop``: a sheet draped over an edge."""
+    x0 = vertices[:, 0].min()
+    length = vertices[:, 0].max() - x0
+    u = np.linspace(0.0, (1.0 + stretch) * length, 4001)
+    start, bend = 0.4 * length, 0.25 * length
+    turn = -angle * np.clip((u - start) / bend, 0.0, 1.0)
+    x = np.concatenate([[0.0], np.cumsum(0.5 * (np.cos(turn[1:]) + np.cos(turn[:-1])) * np.diff(u))])
+    z = np.concatenate([[0.0], np.cumsum(0.5 * (np.sin(turn[1:]) + np.sin(turn[:-1])) * np.diff(u))])
+    out = vertices.copy()
+    arc = (1.0 + stretch) * (vertices[:, 0] - x0)
+    out[:, 0], out[:, 2] = np.interp(arc, u, x), np.interp(arc, u, z) - drop
+    return out
+
+
+def _lengths(x, triangles):
+    p = x[triangles]
+    return np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2)
+
+
+def _deviation(x, rest, triangles):
+    return float(np.mean(np.abs(_lengths(x, triangles) / rest - 1.0)))
+
+
+def _warned(keys, triangles):
+    """Per gap of ``keys``: the caught-stretch warnings of its in-betweens at FACTORS, and the mean
+    relative edge deviation from the first key of those at QUARTERS."""
+    rest = _lengths(keys[0], triangles)
+    sequence = SequenceInterpolator(keys, triangles)
+    quarters = [FACTORS.index(s) for s in QUARTERS]
+
+    def asked(gap):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            poses = sequence.poses(gap, FACTORS)
+        deviation = np.mean([_deviation(poses[k], rest, triangles) for k in quarters])
+        return [w.message for w in caught if "catches a stretch" in str(w.message)], float(deviation)
+
+    return [asked(gap) for gap in range(len(sequence))]
+
+
+def _landing():
+    """A flat strip falling (key 0), landing over an edge stretched 6 % along itself (key 1, bent
+    60°), and draped further with the stretch let go to 1 % (key 2, bent 120°)."""
+    vertices, triangles = grid(41, 9, size=2.0)
+    keys = [_draped(vertices, 0.0, 0.0), _draped(vertices, np.radians(60.0), 0.06, drop=0.8),
+            _draped(vertices, np.radians(120.0), 0.01, drop=0.9)]
+    return keys, triangles
+
+
+def test_a_stretch_caught_at_a_key_the_motion_passes_through_is_warned_beside_it():
+    """The landing: the middle key is 3.0 % off the first key (its neighbours 0 and 0.5 %) and the
+    keys either side are 2.2 × farther apart than the nearer is from it (the strip goes on bending);
+    the first gap's in-betweens, 1.1 % off the first key on average where the first key allows 0.3 %,
+    are warned (kind ``fit``, an excess of their deviation ÷ that), and so is the second, whose 1.9 %
+    is over the 1.05 % its last key allows. Before, both were silent: every fit is within what its
+    keys allow the misfit (core.sequence_edge_misfit)."""
+    keys, triangles = _landing()
+    rest = _lengths(keys[0], triangles)
+    deviations = [_deviation(k, rest, triangles) for k in keys]
+    assert deviations[1] > misfit_allowed([max(deviations[0], deviations[2])])
+    assert passing_through(*keys) >= PASSING_THROUGH
+    for (said, deviation), other in zip(_warned(keys, triangles), (deviations[0], deviations[2])):
+        assert deviation > misfit_allowed([other])
+        assert len(said) == 1 and said[0].kind == "fit" and "key pose 1 catches a stretch" in str(said[0])
+        assert said[0].excess == pytest.approx(deviation / misfit_allowed([other]), rel=1e-6)
+
+
+def test_a_stretch_at_the_key_a_swing_turns_back_at_is_not_warned():
+    """The same strip swung up 60° (key 0), down 60° stretched 6 % (key 1) and up 70° stretched 1 %
+    (key 2): the middle key has the same stretch against its neighbours, but the swing turns back
+    at it (the keys either side 0.11 × as far apart as the nearer is from it), so its in-betweens
+    pass through the stretched shape as the true ones would and neither gap is warned, though their
+    in-betweens are farther off the first key than the landing's (1.5 / 2.0 %)."""
+    vertices, triangles = grid(41, 9, size=2.0)
+    keys = [_draped(vertices, np.radians(-60.0), 0.0), _draped(vertices, np.radians(60.0), 0.06),
+            _draped(vertices, np.radians(-70.0), 0.01)]
+    rest = _lengths(keys[0], triangles)
+    deviations = [_deviation(k, rest, triangles) for k in keys]
+    assert deviations[1] > misfit_allowed([max(deviations[0], deviations[2])])
+    assert passing_through(*keys) < PASSING_THROUGH
+    out = _warned(keys, triangles)
+    assert out[0][1] > misfit_allowed([deviations[0]])  # the gap the landing warns is over its allowance too
+    assert all(not said for said, _ in out)
+
+
+def test_the_motion_passes_through_a_key_midway_and_turns_back_at_a_key_its_neighbours_share():
+    """passing_through: keys on a straight path of shapes (the strip bent 0°, 30°, 60°) are twice as
+    far apart as the middle is from either (2 to the bends' discretisation); a key whose neighbours
+    are one shape is a turning point (0); a neighbour the key itself up to a rigid motion is not a
+    step away from it (the ratio past 1e6: rounding is all that separates them)."""
+    vertices, _ = grid(41, 9, size=2.0)
+    bent = [_draped(vertices, np.radians(a), 0.0) for a in (0.0, 30.0, 60.0)]
+    assert passing_through(*bent) == pytest.approx(2.0, rel=0.05)
+    assert passing_through(bent[0], bent[1], bent[0] + 3.0) == pytest.approx(0.0, abs=1e-9)
+    assert passing_through(bent[0], bent[1], bent[1][:, [1, 0, 2]] * [1, -1, 1] + 2.0) > 1e6
+
+
+@pytest.mark.parametrize("deviations, caught", [((0.0, 0.024, 0.004), True), ((0.0, 0.0099, 0.0044), True),
+                                                ((0.0, 0.0097, 0.0044), False), ((0.0, 0.0029, 0.0), False)])
+def test_a_key_catches_a_stretch_over_what_its_larger_neighbour_allows(deviations, caught):
+    """The deviation test of caught_stretch is misfit_allowed of the larger neighbour (twice it +
+    0.1 point, at least 0.3 %), on keys the motion passes through."""
+    vertices, _ = grid(41, 9, size=2.0)
+    bent = [_draped(vertices, np.radians(a), 0.0) for a in (0.0, 30.0, 60.0)]
+    assert caught_stretch(deviations, bent) is caught
+
+
+def test_the_warning_says_the_deviation_against_what_the_other_key_allows():
+    """caught_stretch_warning: None at or under the other key's allowance; over it, the excess is
+    the deviation ÷ the allowance and the message names the key that catches the stretch."""
+    names = ("frame 1", "frame 17")
+    assert caught_stretch_warning(0.003, 0.0, names, "frame 17", 0.05, (0.5,)) is None
+    message, factors, excess = caught_stretch_warning(0.025, 0.0, names, "frame 17", 0.0488, (0.25, 0.5))
+    assert factors == (0.25, 0.5) and excess == pytest.approx(0.025 / 0.003)
+    assert "frame 17 catches a stretch (4.9 %)" in message and "what frame 1 allows" in message
