@@ -44,7 +44,13 @@ class ShapeDifferenceWarning(UserWarning):
     ``excess``: how far past what it allows the (worst) in-between or result it is about is, its measure ÷
     the allowance, over 1 (the ``fit`` warning of a sequence's gap: its worst fit's misfit ÷ the misfit
     allowed; of a reconstruction: its worst edge's miss ÷ ``REALIZATION_TOLERANCE``; of the truncated area
-    program: the residual reached ÷ the one asked for); 0 for the other warnings (docs/errors.md, *Warnings*)."""
+    program: the residual reached ÷ the one asked for; a ``seam`` the in-betweens open: how much farther
+    apart than in the keys ÷ the opening allowed; ``sliver``: the least height allowed ÷ the thinnest
+    triangle's; ``joint``: links apart, their gap ÷ the contact reach; joints in a loop, the placement
+    apart ÷ the one warned past; joints within rounding, their tolerance ÷ the one warned past; a
+    ``turn`` that names a share of a piece: that share ÷ the share warned past; ``extrapolation``: the
+    growth ÷ the growth allowed); 0 for the other warnings, which measure nothing against an allowance
+    (docs/errors.md, *Warnings*)."""
 
     kind: str | None = None
     defects: int = 0

@@ -70,8 +70,10 @@ class JointDoubts:
     apart: int = 0
     apart_share: float = 0.0
     apart_edges: float = 0.0  # the widest gap where links apart meet, in the finer piece's mean edge lengths
+    apart_excess: float = 0.0  # the widest such gap ÷ the contact reach joints are found within (over 1)
     looped: int = 0  # pieces of held contacts the joint tree joins through other pieces
     looped_share: float = 0.0
+    looped_excess: float = 0.0  # the farthest such placement ÷ the one warned past (JOINT_LOOP_SHARE, JOINT_STAKE)
     sliding: int = 0
     sliding_share: float = 0.0
     rounded: int = 0
@@ -170,6 +172,8 @@ def _joints_in_loops(doubts: JointDoubts, c: Contacts, joints: tuple, group: np.
     if off.any():
         doubts.looped = int(np.unique(np.r_[child[off], parent[off]]).size)
         doubts.looped_share = float(np.max(stake[off] / size[child[off]]))
+        allowed = np.maximum(JOINT_STAKE * c.precision[looped][off], JOINT_LOOP_SHARE * size[child[off]])
+        doubts.looped_excess = float(np.max(stake[off] / allowed))
 
 
 class _Stakes:
@@ -306,38 +310,46 @@ def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, 
             apart.update((int(a), int(b)))
             doubts.apart_share = max(doubts.apart_share, float(risk / smaller[p]))
             doubts.apart_edges = max(doubts.apart_edges, gap_base / float(min(edges[pieces[a]], edges[pieces[b]])))
+            doubts.apart_excess = max(doubts.apart_excess, gap_base / float(finer[p]))
     doubts.apart = len(apart)
 
 
-def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -> list[str]:
-    """The warnings' messages (list of str) of gap ``gap`` of a sequence about its rigid pieces'
-    joints (:func:`joint_doubts`); ``key_names``: the keys as warnings name them."""
+def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -> list[tuple[str, float]]:
+    """The warnings ``(message, excess)`` of gap ``gap`` of a sequence about its rigid pieces'
+    joints (:func:`joint_doubts`); ``key_names``: the keys as warnings name them. ``excess``
+    (:attr:`core.errors.ShapeDifferenceWarning.excess`): the message's measure ÷ what the rule
+    allows it, where it has an allowance: links apart, their gap ÷ the contact reach joints are
+    found within; joints in a loop, the placement apart ÷ the one warned past; joints within
+    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`. Sliding joints have no allowance (not
+    modelled: any slide is warned past the fits' precision): 0."""
     if not doubts:
         return []
     between = f"between {key_names[gap]} and {key_names[gap + 1]}"
     problems = []
     if doubts.apart:
-        problems.append(f"{between}, {doubts.apart} rigid piece(s) turn about a point between them and a piece "
-                        f"near them as jointed links do but stay up to {doubts.apart_edges:.1f} edge lengths from it "
-                        "where they meet (joints are found within one): each moves by its own rigid motion, up to "
-                        f"{100 * doubts.apart_share:.1f} % of its size off the joint's path half-way (links modelled "
-                        "within an edge length of each other where they meet are jointed)")
+        problems.append((f"{between}, {doubts.apart} rigid piece(s) turn about a point between them and a piece "
+                         f"near them as jointed links do but stay up to {doubts.apart_edges:.1f} edge lengths from it "
+                         "where they meet (joints are found within one): each moves by its own rigid motion, up to "
+                         f"{100 * doubts.apart_share:.1f} % of its size off the joint's path half-way (links modelled "
+                         "within an edge length of each other where they meet are jointed)", doubts.apart_excess))
     if doubts.looped:
-        problems.append(f"{between}, {doubts.looped} rigid piece(s) touch and turn about a point where they meet "
-                        "as jointed pieces do, as well as the pieces the joints join them through (each piece "
-                        "hangs from one other: a loop of such contacts, as in a chain curled so that every other "
-                        "link comes as close to the next-but-one as to the links it holds): the joints place "
-                        f"them up to {100 * doubts.looped_share:.2g} % of a piece's size from where a joint "
-                        "between the two would half-way, and the keys do not tell which pieces hold each other "
-                        "(keys closer together, before the pieces come that close, leave no loop)")
+        problems.append((f"{between}, {doubts.looped} rigid piece(s) touch and turn about a point where they meet "
+                         "as jointed pieces do, as well as the pieces the joints join them through (each piece "
+                         "hangs from one other: a loop of such contacts, as in a chain curled so that every other "
+                         "link comes as close to the next-but-one as to the links it holds): the joints place "
+                         f"them up to {100 * doubts.looped_share:.2g} % of a piece's size from where a joint "
+                         "between the two would half-way, and the keys do not tell which pieces hold each other "
+                         "(keys closer together, before the pieces come that close, leave no loop)",
+                         doubts.looped_excess))
     if doubts.sliding:
-        problems.append(f"{between}, {doubts.sliding} rigid piece(s) slide along a piece they touch while turning "
-                        "with it (as a finger sliding in a hand): sliding joints are not modelled, and each moves "
-                        f"by its own rigid motion, up to {100 * doubts.sliding_share:.1f} % of its size off the "
-                        "sliding joint's path half-way (keys closer together bring them nearer)")
+        problems.append((f"{between}, {doubts.sliding} rigid piece(s) slide along a piece they touch while turning "
+                         "with it (as a finger sliding in a hand): sliding joints are not modelled, and each moves "
+                         f"by its own rigid motion, up to {100 * doubts.sliding_share:.1f} % of its size off the "
+                         "sliding joint's path half-way (keys closer together bring them nearer)", 0.0))
     if doubts.rounded:
-        problems.append(f"{between}, {doubts.rounded} joint(s) between rigid pieces are told from pieces touching "
-                        f"by chance only to {100 * doubts.rounded_share:.2g} % of their size (coordinates rounded in single "
-                        "precision far from the origin, or noise): pieces that merely touch (hair cards, debris) "
-                        "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)")
+        problems.append((f"{between}, {doubts.rounded} joint(s) between rigid pieces are told from pieces touching "
+                         f"by chance only to {100 * doubts.rounded_share:.2g} % of their size (coordinates rounded in "
+                         "single precision far from the origin, or noise): pieces that merely touch (hair cards, debris) "
+                         "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)",
+                         doubts.rounded_share / JOINT_DOUBT))
     return problems

@@ -54,9 +54,14 @@ BENT_TURN = np.pi / 2
 
 def rotation_angles(frames, columns) -> np.ndarray:
     """The angle (m,) of each triangle's rotation taking the frame ``columns`` to ``frames`` (both
-    stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle."""
-    trace = sum(coordinate_dot(frames[c], columns[c]) for c in range(3))
-    return df.trace_rotation_angles(trace)
+    stored by coordinate, 3 columns × (3, m)): from its trace, three dot products per triangle.
+    The trace is summed as :func:`~core.deformation_fields.entries_rotation_angles` sums it from
+    the rotation's entries (:func:`~core.deformation_fields.frame_rows_rotation_entries`): each
+    diagonal entry ``R_aa = Σ_c f_ca b_ca`` over the columns, then ``(R_00 + R_11) + R_22``, so
+    that an angle is the same to the bit whichever of the two it is read from
+    (:meth:`WholeRotations.residuals_add_turn` reads the entries where they are kept, else the frames)."""
+    diagonal = [coordinate_dot(frames[:, a], columns[:, a]) for a in range(3)]  # R_aa, the columns summed in order
+    return df.trace_rotation_angles(diagonal[0] + diagonal[1] + diagonal[2])
 
 
 class WholeRotations:

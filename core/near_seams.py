@@ -69,16 +69,20 @@ class NearSeams:
     allowed: np.ndarray
     every: np.ndarray
 
-    def opening(self, x: np.ndarray, gap: int = 0) -> tuple[int, float, int]:
+    def opening(self, x: np.ndarray, gap: int = 0) -> tuple[int, float, int, float]:
         """How pose ``x`` (n, 3), an in-between of gap ``gap``, opens the seams its keys keep closed:
-        ``(pairs opened, the widest distance of an opened pair, that pair's index)``; ``(0, 0.0, -1)``
-        where none opens."""
+        ``(pairs opened, the widest distance of an opened pair, that pair's index, excess)``, the
+        excess the most an opened pair lies farther apart than in the keys ÷ the opening allowed it
+        (:data:`SEAM_OPENING_SHARE` of its edge plus the weld's distance; over 1);
+        ``(0, 0.0, -1, 0.0)`` where none opens."""
         distance = np.linalg.norm(x[self.a] - x[self.b], axis=1)
         opened = distance > self.allowed[gap]
         if not opened.any():
-            return 0, 0.0, -1
+            return 0, 0.0, -1, 0.0
         worst = int(np.argmax(np.where(opened, distance, -np.inf)))
-        return int(np.count_nonzero(opened)), float(distance[worst]), worst
+        apart, allowed = self.apart[gap][opened], self.allowed[gap][opened]  # allowed: finite where opened
+        excess = float(np.max((distance[opened] - apart) / (allowed - apart)))
+        return int(np.count_nonzero(opened)), float(distance[worst]), worst, excess
 
 
 def near_seams(keys: list[np.ndarray], topology, tolerance: float) -> NearSeams | None:
@@ -191,8 +195,9 @@ def _apart_along_mesh(x: np.ndarray, edges: np.ndarray, a: np.ndarray, b: np.nda
 
 
 def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float], names: tuple[str, str],
-                 vertices: np.ndarray | None = None, gap: int = 0) -> tuple[str, tuple[float, ...]] | None:
-    """The warning's message and factors where the in-betweens ``poses`` (list of (n, 3), in the
+                 vertices: np.ndarray | None = None, gap: int = 0) -> tuple[str, tuple[float, ...], float] | None:
+    """The warning's message, factors and excess (:meth:`NearSeams.opening`'s, the worst
+    in-between's) where the in-betweens ``poses`` (list of (n, 3), in the
     positions' indices of ``seams``) at ``factors`` of gap ``gap``, between the keys ``names``, open
     the near-seams ``seams`` that both keys of the gap keep closed, once for the gap; None where
     none opens. ``vertices``: the caller's index of each vertex (int (n,)), where the poses' are
@@ -201,7 +206,8 @@ def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float]
     opened = [o for o in opened if o[1]]
     if not opened:
         return None
-    factor, count, widest, pair = max(opened, key=lambda o: o[2])
+    factor, count, widest, pair, _ = max(opened, key=lambda o: o[2])
+    excess = max(o[4] for o in opened)
     a, b = int(seams.a[pair]), int(seams.b[pair])
     if vertices is not None:
         a, b = int(vertices[a]), int(vertices[b])
@@ -219,8 +225,8 @@ def seam_opening(seams: NearSeams, poses: list[np.ndarray], factors: list[float]
                 "them nearer")
     between = f"between {names[0]} and {names[1]}"
     if len(opened) == 1:
-        return f"{between}, the {pose} at factor {factor:g}: {what}", (factor,)
+        return f"{between}, the {pose} at factor {factor:g}: {what}", (factor,), excess
     # worded as core.sequence_warnings.gap_problems words several in-betweens alike (one shape for the operators)
     return (f"{between}, {len(opened)} of the {len(factors)} {pose}s alike, the worst at factor {factor:g}: {what}; "
             f"{pose}s alike at factors {factor_list([o[0] for o in opened])}",
-            tuple(o[0] for o in opened))
+            tuple(o[0] for o in opened), excess)

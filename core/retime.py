@@ -263,12 +263,13 @@ def _key_pose(sample, name: str) -> np.ndarray:
 
 def short_gap_sequence(samples, triangles, tail, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
-    (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions), starting inside the
-    motion; its last gap is the short gap."""
+    (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions, checked by the caller where
+    it names them: :func:`iter_retime` its keys and the tail's other samples, the *In-between
+    Frames* operator its frames; the sequence checks its keys again, as every one does), starting
+    inside the motion; its last gap is the short gap."""
     from .sequence_inbetweens import SequenceInterpolator
 
-    return SequenceInterpolator([check_vertices(samples[key], name=f"sample {int(key)}") for key in tail], triangles,
-                                **{**interpolator_options, "start": "keys"})
+    return SequenceInterpolator([samples[key] for key in tail], triangles, **{**interpolator_options, "start": "keys"})
 
 
 def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, *, sample_names=None,
@@ -297,19 +298,24 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
         raise MeshError(f"gaps {describe(gaps)} is not a contiguous range within the {plan.n_gaps} gaps.")
     key_poses = [_key_pose(samples[key], f"key pose {i}" if sample_names is None else sample_names(int(key)))
                  for i, key in enumerate(plan.keys)]
-    interpolator_options = {**interpolator_options,
-                            **motion_ends(samples, plan.keys, plan.tail, interpolator_options)}
+    # the short last gap's tail: its keys named as the plan's, as the main sequence's warnings name
+    # them (its last gap is the plan's last, "between key pose K − 2 and key pose K − 1"; the samples
+    # before it are no keys of the plan); those that are no keys checked here, once, before the end
+    # of the motion is read from them
+    position = {int(key): i for i, key in enumerate(plan.keys)}
+    tail_names = [sample_names(int(s)) if sample_names is not None else
+                  f"key pose {position[int(s)]}" if int(s) in position else f"sample {int(s)}" for s in plan.tail]
+    checked = {int(key): pose for key, pose in zip(plan.keys, key_poses)}
+    for s, name in zip(plan.tail, tail_names):
+        if int(s) not in checked:
+            checked[int(s)] = _key_pose(samples[s], name)
+    read = {s: checked[s] if s in checked else samples[s] for s in plan.samples_read}  # middles: motion_ends checks them
+    interpolator_options = {**interpolator_options, **motion_ends(read, plan.keys, plan.tail, interpolator_options)}
     names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys, key_names=names)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
-        # its keys named as the plan's, as the main sequence's warnings name them (its last gap is
-        # the plan's last, "between key pose K − 2 and key pose K − 1"; the samples before it are
-        # no keys of the plan)
-        position = {int(key): i for i, key in enumerate(plan.keys)}
-        names = [sample_names(int(s)) if sample_names is not None else
-                 f"key pose {position[int(s)]}" if int(s) in position else f"sample {int(s)}" for s in plan.tail]
-        tail = short_gap_sequence(samples, triangles, plan.tail, **interpolator_options, key_names=names)
+        tail = short_gap_sequence(checked, triangles, plan.tail, **interpolator_options, key_names=tail_names)
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]
@@ -330,8 +336,9 @@ def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = 
     """The retimed samples float32 ``(n_out, n, 3)`` (only those in ``gaps`` if given) of
     ``samples`` float ``(n_source, n, 3)`` keyed every ``step``-th, at ``speed``; see the module
     docstring."""
-    _check_samples(samples)
+    _check_samples(samples)  # before len(): a clear refusal of what has none
     plan = plan_retime(len(samples), step, speed)
-    n_points = _key_pose(samples[0], "key pose 0").shape[0]  # the first key: checked again as one
     poses = [pose for _, pose in iter_retime(samples, triangles, plan, gaps, **interpolator_options)]
+    # iter_retime checked every key, the first included, even where it gives no pose (gaps empty)
+    n_points = poses[0].shape[0] if poses else len(samples[int(plan.keys[0])])
     return np.asarray(poses, dtype=np.float32).reshape(-1, n_points, 3)

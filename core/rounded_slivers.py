@@ -36,6 +36,18 @@ def rounded_slivers(lengths: list[np.ndarray], areas: list[np.ndarray], rounding
     return np.flatnonzero(thin)
 
 
+def sliver_excess(lengths: list[np.ndarray], areas: list[np.ndarray], rows: np.ndarray, rounding: float) -> float:
+    """How far past its allowance the thinnest of the triangles ``rows`` (int (k,), of
+    :func:`rounded_slivers`) is in the keys whose edge ``lengths`` ((m, 3) each) and ``areas``
+    ((m,) each) are given: the least height the keys' ``rounding`` allows (``rounding /
+    ROUNDED_SLIVER``) ÷ its smallest height in any key (at least 1 for such a triangle; a key's
+    triangles are not degenerate); 0 where ``rows`` is empty (:attr:`core.errors.ShapeDifferenceWarning.excess`)."""
+    if not rows.size:
+        return 0.0
+    thinnest = min(float(triangle_heights(area[rows], length[rows]).min()) for length, area in zip(lengths, areas))
+    return rounding / ROUNDED_SLIVER / thinnest
+
+
 #: The factor by which a change must lower the keys' rounding to be named as its cause in the
 #: ``sliver`` warning (:func:`rounding_cause`): a coordinate's rounding is machine epsilon times its
 #: power of two, so a change that lowers the largest coordinate less than twofold may leave it.

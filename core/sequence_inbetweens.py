@@ -72,7 +72,7 @@ from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, cau
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
-from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause
+from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause, sliver_excess
 
 __all__ = ["SequenceInterpolator"]
 
@@ -347,24 +347,25 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit,
                     sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit))
 
-    def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...]]]:
-        """The warnings ``(kind, message, 0, ())`` of gap ``gap`` (its data ``segment``) that hold for every
+    def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...], float]]:
+        """The warnings ``(kind, message, 0, (), excess)`` of gap ``gap`` (its data ``segment``) that hold for every
         in-between of it: how its pieces turn, their joints, and the triangles thin against the
         keys' rounding (:func:`core.rounded_slivers.rounded_slivers`) that keep their own targets
-        (no told neighbour: :mod:`core.untold_triangles`). Made once per gap: they
-        depend on the keys only."""
+        (no told neighbour: :mod:`core.untold_triangles`; excess: :func:`core.rounded_slivers.sliver_excess`).
+        Made once per gap: they depend on the keys only."""
         if gap not in self._gap_messages:
             names = self.key_names
             keys = (segment.base, segment.next)
             slivers = rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
                                       self._rounding * self._unit)  # the keys' lengths are the working keys
             # those that take a told neighbour's targets follow the mesh (core.untold_triangles): not said
-            slivers = int(np.setdiff1d(slivers, segment.untold[0], assume_unique=True).size)
-            cause = rounding_cause(self._given, (gap, gap + 1), names) if slivers else ""  # read where said
-            self._gap_messages[gap] = [("turn", m, 0, ()) for m in turn_warnings(segment, names, gap)] + \
-                [("joint", m, 0, ()) for m in joint_warnings(segment.joint_doubts, names, gap)] + \
-                [("sliver", m, 0, ()) for m in rounded_sliver_warning(slivers, self._rounding, (names[gap], names[gap + 1]),
-                                                                      cause)]
+            slivers = np.setdiff1d(slivers, segment.untold[0], assume_unique=True)
+            thin = sliver_excess([k.lengths for k in keys], [k.areas for k in keys], slivers, self._rounding * self._unit)
+            cause = rounding_cause(self._given, (gap, gap + 1), names) if slivers.size else ""  # read where said
+            self._gap_messages[gap] = [("turn", m, 0, (), e) for m, e in turn_warnings(segment, names, gap)] + \
+                [("joint", m, 0, (), e) for m, e in joint_warnings(segment.joint_doubts, names, gap)] + \
+                [("sliver", m, 0, (), thin) for m in rounded_sliver_warning(slivers.size, self._rounding,
+                                                                            (names[gap], names[gap + 1]), cause)]
         return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:
@@ -378,7 +379,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         measurements against solving each); :meth:`pose` solves every pose."""
         out, problems = self._poses(gap_index, factors)
         gap = (self.key_names[int(gap_index)], self.key_names[int(gap_index) + 1]) if problems else None  # checked
-        for kind, message, defects, about, *excess in problems:  # excess: the fit warning's (misfit ÷ allowed)
+        for kind, message, defects, about, *excess in problems:  # excess: a measure ÷ its allowance, where one is
             warn_said(message, kind, defects, gap, about, *excess)
         return out
 
@@ -388,8 +389,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     # ran before in the process: the same poses to the bit (core.concurrency).
     @single_threaded_blas()
     def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple]]:
-        """:meth:`poses` and the warnings ``(kind, message, defects, factors)`` (the ``fit`` warning's
-        with its ``excess`` after them), not yet given (the caller warns: a warning filter changed
+        """:meth:`poses` and the warnings ``(kind, message, defects, factors)`` (those with a measure
+        against an allowance with their ``excess`` after them), not yet given (the caller warns: a warning filter changed
         around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
@@ -456,7 +457,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             opening = seam_opening(self._near_seams, [out[k] for k in between], [factors[k] for k in between],
                                    (self.key_names[gap], self.key_names[gap + 1]), self._welded_vertices, gap)
             if opening is not None:
-                said.append(("seam", opening[0], 0, opening[1]))
+                said.append(("seam", opening[0], 0, opening[1], opening[2]))
         return self._caller_poses(out, gap, factors), said
 
     def _misfit_warning(self, gap: int, segment: Gap, poses: dict) -> tuple[str, tuple[float, ...], float] | None:

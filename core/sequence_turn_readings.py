@@ -65,50 +65,53 @@ def composed_apart(topo: Topology, areas: np.ndarray, turning: np.ndarray, root:
     return np.bincount(pieces[apart], areas[apart], minlength=count) / total
 
 
-def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[str]:
-    """The warnings' messages (list of str) of gap ``gap`` of a sequence about how its pieces
+def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[tuple[str, float]]:
+    """The warnings ``(message, excess)`` of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
     ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``); ``key_names``: the keys as
-    warnings name them."""
+    warnings name them. ``excess`` (:attr:`core.errors.ShapeDifferenceWarning.excess`): the share of
+    the piece's area the message names ÷ :data:`TURNED_PART_SHARE` where it names one (a path
+    apart, a part spun on), else 0 (a way round the keys do not tell: no measure)."""
     problems = []
     turned = (f"between {key_names[gap]} and {key_names[gap + 1]}, over "
               f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest of it")
     if segment.folded_turn:
-        problems.append(f"{turned} across a fold: the in-betweens may turn it the other way round (keys closer "
-                        "together tell which way it went)")
+        problems.append((f"{turned} across a fold: the in-betweens may turn it the other way round (keys closer "
+                         "together tell which way it went)", 0.0))
     if segment.unsure_turn:
-        problems.append(f"{turned}, and these keys do not tell which way round it went: the in-betweens may "
-                        "turn it the other way round (keys closer together tell which way it went; the gaps next "
-                        "to it read the turn differently, or the piece's rigid motion reads it the other way "
-                        "round)")
+        problems.append((f"{turned}, and these keys do not tell which way round it went: the in-betweens may "
+                         "turn it the other way round (keys closer together tell which way it went; the gaps next "
+                         "to it read the turn differently, or the piece's rigid motion reads it the other way "
+                         "round)", 0.0))
     if segment.composed_apart > TURNED_PART_SHARE:
-        problems.append(f"{turned} while the rest of it turns about another axis, and the keys do not tell "
-                        f"which path it took: half-way, {100 * segment.composed_apart:.0f} % of the piece's area "
-                        f"may be over {np.degrees(WRAP_CREASE):.0f}° off it (keys closer together bring the paths "
-                        "nearer; each part is turned as one turn, not as the rest's turn composed with its own)")
+        problems.append((f"{turned} while the rest of it turns about another axis, and the keys do not tell "
+                         f"which path it took: half-way, {100 * segment.composed_apart:.0f} % of the piece's area "
+                         f"may be over {np.degrees(WRAP_CREASE):.0f}° off it (keys closer together bring the paths "
+                         "nearer; each part is turned as one turn, not as the rest's turn composed with its own)",
+                         segment.composed_apart / TURNED_PART_SHARE))
     share, spun = segment.spun_part
     if share > TURNED_PART_SHARE:
-        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, {100 * share:.0f} % of a piece's area "
-                        f"spins on more than a half turn (up to {np.degrees(spun):.0f}°) from the rest of it: the "
-                        "in-betweens may turn it the short way round, back against the rest (keys at least "
-                        f"{int(np.ceil(spun / np.pi))} times as often there tell which way it went; read from "
-                        "patches of the mesh turning about the piece's rigid turn axis)")
+        problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, {100 * share:.0f} % of a piece's area "
+                         f"spins on more than a half turn (up to {np.degrees(spun):.0f}°) from the rest of it: the "
+                         "in-betweens may turn it the short way round, back against the rest (keys at least "
+                         f"{int(np.ceil(spun / np.pi))} times as often there tell which way it went; read from "
+                         "patches of the mesh turning about the piece's rigid turn axis)", share / TURNED_PART_SHARE))
     if segment.aliased_spin:
-        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, a piece turns the other way round "
-                        "from a gap next to it that turns it nearly a half turn: it may spin on past a half turn "
-                        "per gap, which keys this far apart read the short way round, and the in-betweens may "
-                        "turn it back the wrong way (keys closer together, under a half turn apart, tell which "
-                        "way it spins)")
+        problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, a piece turns the other way round "
+                         "from a gap next to it that turns it nearly a half turn: it may spin on past a half turn "
+                         "per gap, which keys this far apart read the short way round, and the in-betweens may "
+                         "turn it back the wrong way (keys closer together, under a half turn apart, tell which "
+                         "way it spins)", 0.0))
     if segment.whole_half_turn:
-        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, the whole mesh turns a half turn "
-                        "(180°) as one to within what the keys tell, and nothing in them tells which way round: "
-                        "the in-betweens may turn it the other way round (keys closer together tell which way "
-                        "it went)")
+        problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, the whole mesh turns a half turn "
+                         "(180°) as one to within what the keys tell, and nothing in them tells which way round: "
+                         "the in-betweens may turn it the other way round (keys closer together tell which way "
+                         "it went)", 0.0))
     elif segment.untold_half_turns:
-        problems.append(f"between {key_names[gap]} and {key_names[gap + 1]}, "
-                        f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "
-                        "tell, and nothing in them tells which way round: the in-betweens may turn them the "
-                        "other way round (keys closer together tell which way they went)")
+        problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, "
+                         f"{segment.untold_half_turns} piece(s) turn a half turn (180°) to within what the keys "
+                         "tell, and nothing in them tells which way round: the in-betweens may turn them the "
+                         "other way round (keys closer together tell which way they went)", 0.0))
     return problems
 
 

@@ -92,12 +92,18 @@ class Interpolator:
     def _variant(source: SequenceInterpolator, **flags) -> SequenceInterpolator:
         """A copy of ``source`` with its class flags ``flags`` set: it shares the keys and topology,
         and has its own gaps (with their anchored systems) and their warnings (a turn reads
-        otherwise with whole rotations)."""
+        otherwise with whole rotations). It starts with the relative of the second pose that
+        ``source`` keeps (:meth:`~core.sequence_keys.SequenceKeys._relatives`): that depends on the
+        poses alone, not on the flags, and no reader changes it in place (what it lets go and
+        makes again, the same values: :func:`~core.inbetween_whole_rotations.rotation_angles`),
+        so it is not built again per variant."""
         variant = copy.copy(source)
         for name, value in flags.items():
             setattr(variant, name, value)
+        with source._cache_lock:
+            forwards = OrderedDict(source._forwards)
         variant._gaps, variant._pending, variant._cache_lock = OrderedDict(), {}, threading.RLock()
-        variant._forwards, variant._bent_turns = OrderedDict(), {}  # written under the variant's own lock
+        variant._forwards, variant._bent_turns = forwards, {}  # written under the variant's own lock
         variant._gap_messages = {}
         return variant
 
@@ -222,8 +228,9 @@ class Interpolator:
                   kind, defects, (names[0], names[1]), about, *excess)
         return x
 
-    def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...]]]:
-        """The warning ``(kind, message, defects, factors)`` where the in-between ``x`` (n, 3) at ``factor``
+    def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...], float]]:
+        """The warning ``(kind, message, defects, factors, excess)`` (excess: the share ÷
+        :data:`~core.sequence_turn_readings.TURNED_PART_SHARE`) where the in-between ``x`` (n, 3) at ``factor``
         turns back the short way round over :data:`~core.sequence_turn_readings.TURNED_PART_SHARE`
         of a piece that spins on past a half turn from the rest of it between the poses
         (:func:`core.spun_parts.turned_back`), in a piece whose triangles' turns are left with a jump
@@ -249,7 +256,8 @@ class Interpolator:
                  f"piece's area spins on more than a half turn (up to {np.degrees(spun[worst]):.0f}°) from the rest "
                  "of it, and the in-between turns it back the short way round, against the rest (a pose between "
                  "the two, interpolated with them as a sequence, tells which way it went; read from patches of "
-                 "the mesh turning about the piece's rigid turn axis)", 0, (factor,))]
+                 "the mesh turning about the piece's rigid turn axis)", 0, (factor,),
+                 float(share[worst]) / TURNED_PART_SHARE)]
 
     def _jumping_pieces(self, pieces: int) -> np.ndarray:
         """Per piece (bool (``pieces``,)), whether the poses' triangles' turns, taken continuous
@@ -292,7 +300,8 @@ class Interpolator:
         whose extrapolated rotations and stretches do not fit together there (a shear, a swirl) and
         which stretches or crushes the triangles to close them. An edge shorter than the fits' floor
         in the poses (:data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`: near-duplicate vertices) grows
-        from the floor and shrinks unsaid: no fit places its ends that finely."""
+        from the floor and shrinks unsaid: no fit places its ends that finely. The warning's
+        ``excess``: the most an edge grew or shrank ÷ :data:`EXTRAPOLATED_GROWTH`."""
         lengths = self._squared_lengths(x)
         # an edge far under the mesh's own (near-duplicate vertices) grows from the floor: no fit places it
         floor = self._misfit_floor ** 2
@@ -332,7 +341,8 @@ class Interpolator:
             ratio = np.sqrt(max(growth[rows].max(), shrinking[rows].max()))
             warn_said(f"between {names[0]} and {names[1]}, at factor {factor:g}, {rows.size} triangle(s) (e.g. triangle "
                   f"{int(rows[0])}) have edges {ratio:.3g} × as {'long' if longer else 'short'} as in either pose: "
-                  f"{cause}", "extrapolation", gap=(names[0], names[1]), factors=(factor,))
+                  f"{cause}", "extrapolation", gap=(names[0], names[1]), factors=(factor,),
+                  excess=ratio / EXTRAPOLATED_GROWTH)
 
 
 #: Two poses whose triangles' turns are no more alike between neighbours than this times the

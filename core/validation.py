@@ -295,14 +295,25 @@ def check_positive(value, name: str) -> float:
 
 def check_energies(energies):
     """The wave kernel signature's ``energies`` (:meth:`core.PulledBackMetric.wave_kernel_signature`):
-    a count (a whole number, at least 1) as a Python int, or explicit log-energies as float64
-    ``(e,)``, finite, at least one; MeshError otherwise."""
+    a count (an integer, at least 1) as a Python int, or explicit log-energies as float64
+    ``(e,)``, finite, at least one; MeshError otherwise. A single number that is not an integer
+    (a float, a value read from an array of log-energies) is refused, not read as a count: ``2.0``
+    would be taken as two energies where one log-energy of 2 was meant; one log-energy is a list
+    of one."""
     try:
         values = np.asarray(energies)
     except (ValueError, TypeError):  # ragged
         values = None
     if values is not None and values.ndim == 0:
-        return check_count(energies, "energies (a count)", minimum=1)
+        value = _scalar(energies)
+        if isinstance(value, numbers.Real) and not isinstance(value, numbers.Integral):
+            number = float(value)
+            count = int(number) if number.is_integer() and number >= 1 else "an integer of at least 1"
+            one = f", or [{number!r}] for one log-energy" if math.isfinite(number) else ""
+            raise MeshError(f"energies must be a count (an integer, such as 100) or a list of finite log-energies "
+                            f"(see wks_energies); got the single number {number!r}, not an integer: pass {count} "
+                            f"for a count{one}.")
+        return check_count(energies, "energies (a count)", minimum=1)  # booleans and text refused there
     if values is None or values.ndim != 1 or not values.size or values.dtype.kind not in "iuf" \
             or not np.isfinite(values).all():
         raise MeshError("energies must be a count or a list of finite log-energies (see wks_energies); "

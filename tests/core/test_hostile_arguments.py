@@ -50,6 +50,11 @@ def test_a_basis_size_below_one_is_refused_after_a_larger_basis_was_computed(pul
     (lambda p: p.wave_kernel_signature(0, k=8), r"energies \(a count\) must be at least 1"),
     (lambda p: p.wave_kernel_signature(-3, k=8), r"energies \(a count\) must be at least 1"),
     (lambda p: p.wave_kernel_signature([0.5, float("nan")], k=8), "finite log-energies"),
+    # a single log-energy read from an array: 2.0 was two energies (silently), 2.5 "energies (a count)
+    # must be a whole number", which said nothing of log-energies
+    (lambda p: p.wave_kernel_signature(np.float64(2.0), k=8), r"not an integer: pass 2 for a count, or \[2\.0\] for one"),
+    (lambda p: p.wave_kernel_signature(2.5, k=8), r"not an integer: .* or \[2\.5\] for one log-energy"),
+    (lambda p: p.wave_kernel_signature(np.array(3.0), k=8), r"pass 3 for a count"),
     # a fractional or textual k: IndexError / TypeError of slicing; a negative one was clamped silently
     (lambda p: p.wave_kernel_signature(5, k=2.5), "k must be a whole number"),
     (lambda p: p.wave_kernel_signature(5, k="8"), "k must be a whole number"),

@@ -516,6 +516,37 @@ def test_residuals_add_turn_measures_the_whole_rotations_only_where_the_residual
     assert relative.__dict__.get("_plane_frames") is None and relative.__dict__.get("_whole") is None
 
 
+def test_residuals_add_turn_measures_the_same_angles_from_kept_entries_as_from_frames(monkeypatch):
+    """The whole rotations' angles are read from their entries where a reader (the pins' fits,
+    ``turning``) kept them, else from the turned frames: the trace is summed in one order either
+    way (each diagonal entry over the frame's columns, then the three), so a gap asked again after
+    its entries were let go reads the same angles to the bit, and decides the same pieces. Two
+    relatives of the strip whose halves trade places, one with its entries kept: the traces each
+    measures are equal bit for bit (they differed in the last bits for 11 of its 320 triangles when
+    the frames' trace was summed column by column)."""
+    import core.deformation_fields as df
+
+    flat, tri = grid(41, 5, size=2.0)
+    other = flat.copy()
+    other[:, 0] = np.where(flat[:, 0] < 1.0, flat[:, 0] + 1.0, flat[:, 0] - 1.0)
+    other[:, 2] = 0.2 * np.sin(np.pi * flat[:, 0])
+    traces = []
+    real = df.trace_rotation_angles
+    monkeypatch.setattr(df, "trace_rotation_angles", lambda trace: traces.append(trace.copy()) or real(trace))
+    answers = []
+    for keep in (False, True):
+        topo, base, other_key, relative = _relative(flat, other, tri)
+        if keep:
+            relative._whole_entries(base, other_key, keep=True)  # as the pins' fits and turning keep them
+            assert relative.__dict__.get("_plane_frames") is None  # the entries, not the frames, are read
+        traces.clear()
+        answers.append(relative.residuals_add_turn(topo, base, other_key).tolist())
+        assert len(traces) == 1
+        answers.append(traces[0])
+    assert answers[0] == answers[2]
+    np.testing.assert_array_equal(answers[1], answers[3])
+
+
 def test_a_relatives_screw_is_made_once_when_first_read_and_is_the_whole_meshs_turns(monkeypatch):
     """A relative built without ``turns`` takes each piece's half turn the way the whole mesh turns
     (§5.3 rigid part). Its screw is made when first read: the key two ahead of a sequence's gap has

@@ -985,3 +985,30 @@ def test_command_warnings_name_the_keys_by_the_inputs_samples_and_frames(tmp_pat
     assert "from sample 5 (frame 14) to sample 7 (frame 16)" in err and "key pose" not in err, err
     with pytest.raises(MeshError, match="key_names must name each of the 5 key poses; got 2"):
         SequenceInterpolator(list(frames[::2]), triangles, key_names=["a", "b"])
+
+
+def test_each_sample_a_retime_reads_is_checked_once(monkeypatch):
+    """30 samples keyed every 8th (keys 0, 8, 16, 24, 29; the short last gap keyed on its own tail
+    14, 19, 24, 29): every sample read is checked as a pose once, where it is named — the first key
+    was checked by ``retime`` and again by ``iter_retime``, the tail's keys 24 and 29 as keys and
+    again by the short gap's sequence — and a sample of the tail that is no key is checked before
+    the end of the motion is read from it: one with an infinite coordinate is refused by its name,
+    where it was read first (NumPy's "invalid value" warning from the end's spline) and refused after."""
+    import core.retime as retime_module
+
+    source, triangles = rolling_sheet(n_frames=30, nx=5)
+    checked, real = [], retime_module.check_vertices
+    monkeypatch.setattr(retime_module, "check_vertices",
+                        lambda sample, *args, name=None, **kwargs: checked.append(name) or real(sample, *args, name=name,
+                                                                                                  **kwargs))
+    out = retime(source, triangles, step=8, speed=0.5)
+    assert len(out) == 59
+    assert len(checked) == len(set(checked)), sorted(checked)
+    plan = plan_retime(len(source), 8, 0.5)
+    assert len(checked) == len(plan.samples_read), (sorted(checked), plan.samples_read)
+    broken = source.copy()
+    broken[19, 2, 1] = np.inf
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(MeshError, match="sample 19: vertex 2 has a non-finite coordinate"):
+            retime(broken, triangles, step=8, speed=0.5)

@@ -675,6 +675,45 @@ def test_the_second_fit_of_two_poses_keeps_no_turned_frames(strip):
     np.testing.assert_allclose(relative.rotvec, turned, rtol=0.0, atol=1e-12)
 
 
+def test_a_second_fit_starts_from_the_relative_the_first_built_and_gives_the_same_pose(strip, monkeypatch):
+    """Two poses bent far apart, fitted twice (the second with its rotations taken whole): the
+    second fit reuses the relative of the second pose the first built (it depends on the poses
+    alone, and no reader changes it in place), so that relative is built once per pair, not once
+    per fit (twice before); and the pose is the same to the bit as where the second fit builds its
+    own."""
+    import core.inbetween_keys as inbetween_keys
+
+    flat, tri = strip
+    rng = np.random.default_rng(0)
+    a, b = _bend(flat, 0.2) + 0.01 * rng.normal(size=flat.shape), _bend(flat, 5.5) + 0.01 * rng.normal(size=flat.shape)
+    built, real_init = [], inbetween_keys.Relative.__init__
+
+    def counted(self, topo, base, other, *args, **kwargs):
+        built.append((base, other))
+        real_init(self, topo, base, other, *args, **kwargs)
+
+    monkeypatch.setattr(inbetween_keys.Relative, "__init__", counted)
+    pair = Interpolator(a, b, tri)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        x = pair.pose(0.5)
+    assert pair._whole is not None  # the second fit was made
+    first, second = pair._sequence._key(0), pair._sequence._key(1)
+    assert sum(base is first and other is second for base, other in built) == 1
+    real_variant = Interpolator._variant
+
+    def own(source, **flags):  # a variant that builds its own relative, as each did before
+        variant = real_variant(source, **flags)
+        variant._forwards.clear()
+        return variant
+
+    monkeypatch.setattr(Interpolator, "_variant", staticmethod(own))
+    fresh = Interpolator(a, b, tri)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        np.testing.assert_array_equal(fresh.pose(0.5), x)
+
+
 def test_slivers_folded_over_between_two_poses_are_repaired_or_warned():
     """Two poses 16 frames apart of a Blender cloth hanging from two corners whose middle is a band
     of 20:1 slivers (100 columns, 10,000 vertices; frames 4 and 20, and the simulated frame 12):
