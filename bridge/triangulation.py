@@ -1,5 +1,6 @@
 """The triangles a mesh gives the core: its loop triangles (n-gons triangulated) as int64 ``(m, 3)``
-vertex indices, the n-gons split into zero-area triangles split again, the polygon of each loop
+vertex indices, the n-gons split into zero-area triangles or slivers thinner than the rounding of
+the mesh's coordinates split again, the polygon of each loop
 triangle, and a quad re-split where full-basis differences could not determine a part's areas
 (paper Prop. 1).
 """
@@ -14,8 +15,8 @@ from .mesh_data import vertex_positions
 
 def mesh_triangles(mesh: bpy.types.Mesh) -> np.ndarray:
     """The loop triangles of ``mesh`` (n-gons triangulated) as int64 ``(m, 3)`` vertex indices,
-    with the n-gons Blender triangulated into zero-area triangles triangulated again about their
-    own centre (see :func:`_retriangulated`)."""
+    with the n-gons Blender triangulated into zero-area triangles or rounding slivers triangulated
+    again about their own centre (see :func:`_retriangulated`)."""
     mesh.calc_loop_triangles()
     buffer = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
     mesh.loop_triangles.foreach_get("vertices", buffer)
@@ -27,19 +28,29 @@ def mesh_triangles(mesh: bpy.types.Mesh) -> np.ndarray:
 
 def _retriangulated(mesh: bpy.types.Mesh, triangles: np.ndarray) -> np.ndarray:
     """``triangles`` with every n-gon that Blender split into a zero-area triangle (an n-gon with
-    collinear corners, as Dissolve leaves) split again by Blender's *Beauty* triangulation
-    (``bmesh.ops.triangulate``) in coordinates about the n-gon's centre, where the result has no
-    such triangle: the loop triangles' ear clipping may cut an ear between collinear corners (at
-    1e5 units from the origin, where single precision rounds them onto one line, it did). The
-    n-gon's triangles keep their rows (c − 2 for c corners either way) and its winding."""
+    collinear corners, as Dissolve leaves) or into a sliver less high than twice the rounding of
+    the mesh's coordinates (the core's ``sliver`` warning, :mod:`core.rounded_slivers`) split again
+    by Blender's *Beauty* triangulation (``bmesh.ops.triangulate``) in coordinates about the
+    n-gon's centre, where the result has no such triangle: the loop triangles' ear clipping may cut
+    an ear between collinear corners (at 1e5 units from the origin, where single precision rounds
+    them onto one line, it did), and between corners that single precision rounds just off one
+    line (a grid whose rows of quads were merged into 6- and 10-gons, then turned and applied: 1,019
+    ears 3e-10–9e-8 high against sides of 0.02–0.04, which the core warned of as "the mesh's own
+    slivers" to dissolve, and which a key moved along the normal can round to zero area, refused
+    as degenerate faces: Degenerate Dissolve leaves such n-gons as they are). The n-gon's
+    triangles keep their rows (c − 2 for c corners either way) and its winding."""
     import bmesh
 
+    from ..core.coordinate_rounding import coordinate_rounding
     from ..core.mesh_topology import DEGENERATE_TRIANGLE_RATIO
+    from ..core.rounded_slivers import ROUNDED_SLIVER
 
     def flat(rows):
-        return _doubled_areas(positions, rows) <= DEGENERATE_TRIANGLE_RATIO * _longest(positions, rows)
+        doubled, longest = _doubled_areas(positions, rows), _longest(positions, rows)
+        return (doubled <= DEGENERATE_TRIANGLE_RATIO * longest) | (doubled <= thin * np.sqrt(longest))
 
     positions = vertex_positions(mesh)
+    thin = coordinate_rounding([positions]) / ROUNDED_SLIVER  # the core's sliver height (rounded_slivers)
     degenerate = np.flatnonzero(flat(triangles))
     if not degenerate.size:
         return triangles

@@ -3,6 +3,7 @@ nothing changes (shape keys, vertices, modifiers, animation, current frame)."""
 
 import re
 import struct
+import warnings
 
 import numpy as np
 import pytest
@@ -475,6 +476,37 @@ def test_an_ngon_with_collinear_corners_far_from_the_origin(bpy_empty, extension
     middle = extension.bridge.mesh_data.stored_key_positions(obj.data.shape_keys.key_blocks[-1])
     tolerance = 2 * np.spacing(np.float32(offset + 1.0)) + 1e-6  # single-precision keys
     assert np.abs(middle - (rest + [0.0, 0.0, 0.25])).max() <= tolerance
+
+
+@pytest.mark.parametrize("cells", [SQUARE, SQUARE - {(5, 5), (5, 6)}], ids=["square", "U-shaped"])
+def test_an_ngon_whose_straight_sides_single_precision_bends(bpy_empty, extension, core, cells):
+    """The n-gon sheet turned about a general axis, stored in single precision as Blender stores it:
+    its n-gon's straight sides are rounded just off their lines, and Blender's loop triangles cut
+    ears between those corners, 1e-9–1e-8 high against their 0.2–0.5 sides, which a key moved
+    along the sheet's normal rounded onto one line: the sequence was refused as having a degenerate
+    face, to be dissolved (Degenerate Dissolve leaves such a face as it is). The n-gon is
+    triangulated again, no triangle is less high than twice the coordinates' rounding (the core's
+    ``sliver`` warning), and the sequence lifting the sheet is that lift, without that warning."""
+    verts, faces = _sheet_with_an_ngon(12, cells, 0.0)
+    axis = np.array([0.3, -0.5, 0.7]) / np.linalg.norm([0.3, -0.5, 0.7])
+    cross = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    turn = np.eye(3) + np.sin(0.9) * cross + (1.0 - np.cos(0.9)) * cross @ cross  # Rodrigues
+    mesh = bpy.data.meshes.new("Ngon")
+    mesh.from_pydata([tuple(turn @ v) for v in np.array(verts)], [], faces)
+    rest = extension.bridge.mesh_data.vertex_positions(mesh)
+    triangles = extension.bridge.triangulation.mesh_triangles(mesh)
+    corners = rest[triangles]
+    doubled = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    longest = np.max([np.linalg.norm(corners[:, a] - corners[:, b], axis=1) for a, b in ((0, 1), (1, 2), (2, 0))],
+                     axis=0)
+    rounding = np.finfo(np.float32).eps * np.abs(rest).max()
+    assert (doubled / longest > 2 * rounding).all()  # the core's sliver height (core.rounded_slivers)
+    keys = [(rest + turn @ [0.0, 0.0, lift]).astype(np.float32).astype(np.float64) for lift in (0.0, 0.5, 1.0, 1.5)]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        middle = core.SequenceInterpolator(keys, triangles).pose(1, 0.5)  # a gap between two others
+    assert not [str(w.message) for w in caught if "rounding" in str(w.message)]
+    assert np.abs(middle - 0.5 * (keys[1] + keys[2])).max() <= 1e-6
 
 
 def test_non_manifold_mesh(bpy_empty, extension, core):
