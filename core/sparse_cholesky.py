@@ -6,13 +6,19 @@ sequences), so the solve is what counts. ``cholespy`` (wheels for Linux, macOS a
 CHOLMOD's simplicial LLᵀ after a nested-dissection ordering (METIS) and solves several right-hand
 sides per pass over the factor: on the 99,856-vertex sheet three in 13–19 ms, SuperLU's LU in
 symmetric mode 31–34 ms (factorizations 0.76–1.01 s against 0.58–0.64 s). About two thirds of a
-factorization is that ordering (15,400 vertices: 54 of 72–95 ms), redone for every weight, since
-cholespy has no separate analysis; QDLDL's numeric update, CVXOPT's CHOLMOD given a permutation
+factorization is that ordering (15,400 vertices: 54 of 72–95 ms), which cholespy's binding
+redoes for every weight (it has no separate analysis; called directly, below, CHOLMOD keeps a
+pattern's analysis for the next weight); QDLDL's numeric update, CVXOPT's CHOLMOD given a permutation
 and SuperLU given one reuse an ordering but solve three right-hand sides 2–3 × slower: on the
 benchmark's sequences 1–4 % of the CPU saved where each factor serves few solves, 2–10 % lost
 where it serves many (measured in docs/inbetweens.md). Without
 ``cholespy`` the same matrix is factored by SuperLU with a minimum-degree ordering of ``A + Aᵀ``
 and no pivoting; both give the solution to round-off (tests/core/test_sparse_cholesky.py).
+CHOLMOD is called through the C functions cholespy's extension exports where they can be
+(:mod:`core.cholmod_direct`): the same factor and solutions to the bit, without holding Python's
+global lock, which cholespy's binding holds (the in-betweens' other thread stopped meanwhile), and
+with a pattern's ordering and symbolic analysis made once for all its weights; through cholespy's
+binding elsewhere.
 """
 
 from __future__ import annotations
@@ -23,6 +29,8 @@ import weakref
 
 import numpy as np
 import scipy.sparse as sp
+
+from . import cholmod_direct
 
 _live: weakref.WeakSet = weakref.WeakSet()  # factors holding a CHOLMOD solver
 
@@ -45,16 +53,22 @@ class SPDFactor:
         self.shape = matrix.shape
         self._lock = threading.Lock()
         try:
+            import cholespy
             from cholespy import CholeskySolverD, MatrixType
         except ImportError:  # not bundled for this platform or Python: SuperLU
             from scipy.sparse.linalg import splu
 
             self._superlu = splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
                                  options={"SymmetricMode": True})
-            self._cholmod = None
+            self._cholmod = self._direct = None
             return
-        coo = sp.coo_matrix(matrix)
         self._superlu = None
+        lib = cholmod_direct.library(cholespy)
+        if lib is not None:  # CHOLMOD without the global lock
+            self._direct, self._cholmod = cholmod_direct.CholmodFactor(lib, matrix), None
+            return
+        self._direct = None
+        coo = sp.coo_matrix(matrix)
         try:
             self._cholmod = CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
                                             coo.data.astype(np.float64), MatrixType.COO)
@@ -64,13 +78,16 @@ class SPDFactor:
 
     @property
     def backend(self) -> str:
-        return "SuperLU" if self._cholmod is None else "CHOLMOD"
+        return "SuperLU" if self._superlu is not None else "CHOLMOD"
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """The solution (shape of ``rhs``) of ``matrix @ x = rhs``."""
         if self._superlu is not None:
             return self._superlu.solve(rhs)
         b = np.ascontiguousarray(rhs, dtype=np.float64)
+        if self._direct is not None:
+            with self._lock:  # CHOLMOD solves in the factor's own workspace
+                return self._direct.solve(b)
         x = np.empty_like(b)
         with self._lock:  # cholespy does not say its solves may share a factor concurrently
             self._cholmod.solve(b, x)

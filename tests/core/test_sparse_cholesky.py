@@ -1,9 +1,11 @@
-"""The factor of core/sparse_cholesky.py (CHOLMOD through cholespy, or SuperLU without it) and the
-threads of core/concurrency.py: same solutions, same in-betweens."""
+"""The factor of core/sparse_cholesky.py (CHOLMOD through cholespy's extension, called directly where it
+can be, or SuperLU without it) and the threads of core/concurrency.py: same solutions, same in-betweens."""
 
 from __future__ import annotations
 
 import builtins
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -62,6 +64,105 @@ def test_solves_agree_with_a_direct_solve(backend, weight):
         # and a residual of round-off size: a small multiple of ε ‖A‖ ‖x‖
         bound = 1e3 * np.finfo(float).eps * spla.norm(matrix, np.inf) * np.abs(x).max()
         assert np.abs(matrix @ x - b).max() <= bound
+
+
+def _sheet_matrix(side, weight):
+    """The in-betweens' normal matrix (graph Laplacian plus ``weight`` on the diagonal) of a ``side``
+    × ``side`` grid sheet."""
+    _, triangles = grid(side, side)
+    i, j = triangles.ravel(), triangles[:, [1, 2, 0]].ravel()
+    n = triangles.max() + 1
+    rows = np.arange(i.size)
+    incidence = sp.csr_matrix((np.r_[-np.ones(i.size), np.ones(i.size)], (np.r_[rows, rows], np.r_[i, j])),
+                              shape=(i.size, n))
+    return (incidence.T @ incidence + sp.diags(weight * (1.0 + np.arange(n) % 7))).tocsc()
+
+
+def test_cholmod_called_directly_gives_cholespys_bits():
+    """Where CHOLMOD is called through the functions cholespy's extension exports (without the
+    global lock), the solutions are bitwise those of cholespy's own solver on the same matrix: the
+    in-betweens do not change with the way in."""
+    cholespy = pytest.importorskip("cholespy")
+    from core import cholmod_direct
+
+    if cholmod_direct.library(cholespy) is None:
+        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    rng = np.random.default_rng(3)
+    for side, weight in ((15, 1e-2), (60, 0.1), (90, 1e-3)):
+        matrix = _sheet_matrix(side, weight)
+        factor = SPDFactor(matrix)
+        assert factor._direct is not None
+        coo = matrix.tocoo()
+        theirs = cholespy.CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
+                                          coo.data.astype(np.float64), cholespy.MatrixType.COO)
+        for rhs in (rng.standard_normal((matrix.shape[0], 3)), rng.standard_normal(matrix.shape[0])):
+            expected = np.empty_like(rhs)
+            theirs.solve(rhs, expected)
+            assert np.array_equal(factor.solve(rhs), expected)
+            assert np.array_equal(factor.solve(np.asfortranarray(rhs)), expected)
+
+
+def test_a_kept_analysis_gives_the_bits_of_a_factorization_made_anew():
+    """A second anchor weight on the same mesh copies the first one's ordering and symbolic analysis
+    (its pattern is the same) and factors numerically alone: the solutions are bitwise those of
+    cholespy's solver, which orders the matrix anew."""
+    cholespy = pytest.importorskip("cholespy")
+    from core import cholmod_direct
+
+    if cholmod_direct.library(cholespy) is None:
+        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    rng = np.random.default_rng(5)
+    first = SPDFactor(_sheet_matrix(70, 0.1))
+    for weight in (1e-3, 0.03, 10.0):
+        matrix = _sheet_matrix(70, weight)
+        factor = SPDFactor(matrix)
+        assert not factor._direct.analysed_anew
+        coo = matrix.tocoo()
+        theirs = cholespy.CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
+                                          coo.data.astype(np.float64), cholespy.MatrixType.COO)
+        rhs = rng.standard_normal((matrix.shape[0], 3))
+        expected = np.empty_like(rhs)
+        theirs.solve(rhs, expected)
+        assert np.array_equal(factor.solve(rhs), expected)
+    assert first.solve(np.ones(first.shape[0])).shape == (first.shape[0],)  # the first factor still solves
+
+
+def test_a_matrix_that_is_not_positive_definite_is_refused_in_numpys_terms():
+    pytest.importorskip("cholespy")
+    matrix = (_sheet_matrix(15, 1e-2) - 20.0 * sp.identity(225)).tocsc()
+    with pytest.raises(np.linalg.LinAlgError, match="not positive definite.*225 unknowns"):
+        SPDFactor(matrix)
+
+
+def test_a_factorization_lets_other_threads_run():
+    """Python code in another thread keeps running while a factor is made (cholespy's binding
+    holds the global lock through its factorization: the other thread stood still for all of it).
+    The longest pause between the other thread's steps is compared with the factorization's own
+    time in that thread."""
+    cholespy = pytest.importorskip("cholespy")
+    from core import cholmod_direct
+
+    if cholmod_direct.library(cholespy) is None:
+        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    matrix = _sheet_matrix(120, 1e-2)  # 14,400 unknowns: a factorization of ~0.1 s
+    started, done, spans = threading.Event(), threading.Event(), []
+
+    def factorize():
+        started.set()
+        begin = time.perf_counter()
+        SPDFactor(matrix)
+        spans.append(time.perf_counter() - begin)
+        done.set()
+
+    worker = threading.Thread(target=factorize)
+    worker.start()
+    started.wait()
+    last, longest = time.perf_counter(), 0.0
+    while not done.is_set():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+    worker.join()
+    assert longest < 0.5 * spans[0]
 
 
 def test_concurrently_keeps_order_and_raises(monkeypatch, own_pool):
