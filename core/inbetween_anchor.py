@@ -2,7 +2,7 @@
 the guide (:mod:`core.inbetween_guide`) — the linear blend where it keeps the keys' edge lengths
 for two poses, the keys' spline for sequences, the pins firmly — their factorizations, and the
 weaker anchor of fits it holds off the metric. Mixed into :class:`core.inbetween_solver.Gap`,
-whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``anchored``,
+whose data it reads (``topo``, ``base``, ``next``, ``relatives``, ``splines``, ``anchored``, ``left``,
 ``static``, ``riding``, ``riding_screws``, ``joints``, ``use_extrinsic``, ``tolerance``,
 ``change_tolerance``, ``_anchors``, ``_riding_motions``) with its other parts: the field
 (``world_rotvec``, ``key_frames``, ``stretch``), the fit (``solve``, ``edges_of``, ``local_targets``, ``misfit``), the
@@ -177,6 +177,8 @@ class Anchor:
             weights, co_moving, key = None, None, None
             if self.anchored:
                 weights, co_moving = self.anchor_weights(between)
+                if self.left is not None:  # a sequence's turning pieces: its gauge, as spline_weights
+                    weights = self.gauge_on(weights, self.left)
                 if self.static is not None:  # still in both keys: held there as firmly as in sequences
                     weights = self.pinned_weights(weights)
                     co_moving = co_moving & ~self.static
@@ -289,9 +291,15 @@ class Anchor:
         :data:`SEQUENCE_ANCHOR_WEIGHT`: 9–11 % of the diagonal off, at 1e-4 0.2–0.3 %, 1e-3 2 %)."""
         w = np.full(self.topo.n, weight)
         if self.turning is not None:
-            owner = self.topo.vertex_owner
-            w[(owner >= 0) & self.turning[np.maximum(owner, 0)]] = GAUGE_WEIGHT
+            w = self.gauge_on(w, self.turning)
         return self.pinned_weights(w)
+
+    def gauge_on(self, weights: np.ndarray, pieces: np.ndarray) -> np.ndarray:
+        """``weights`` (n,) with :data:`~core.inbetween_topology.GAUGE_WEIGHT` on the vertices of
+        ``pieces`` (bool (C,)), in place; returned."""
+        owner = self.topo.vertex_owner
+        weights[(owner >= 0) & pieces[np.maximum(owner, 0)]] = GAUGE_WEIGHT
+        return weights
 
     def spline_key(self, weight: float) -> tuple:
         """The key of the factorization of :meth:`spline_weights` at ``weight`` (one per weight and

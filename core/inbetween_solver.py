@@ -112,10 +112,10 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: (``core.sequence_half_turns.HalfTurns._aliased_spin``): the gap warns.
     aliased_spin = False
     #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
-    #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turn``), where it is
+    #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turns``), where it is
     #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses
-    #: are (in a sequence of three keys or more, unless a piece of it is read turning:
-    #: ``SequenceInterpolator._prepare``); read by no rule after, kept to tell what the gap read.
+    #: are (in a sequence of three keys or more, its pieces read turning left at the gauge:
+    #: ``SequenceInterpolator._bent_nearby``); read by no rule after, kept to tell what the gap read.
     bent_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
@@ -125,7 +125,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  whole_rotations: np.ndarray | None = None, steady: np.ndarray | None = None, entry: tuple | None = None,
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
-                 root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0, sewn=None):
+                 root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0, sewn=None,
+                 left: np.ndarray | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # groups of vertices both keys keep together along a seam, each one unknown in every solve
         # (core.sewn_seams.SewnGroups), or None
@@ -137,6 +138,10 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # per component: a part of it turns far from the rest between the keys (past a half turn,
         # or past a right angle without a crease: Relative.turning): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
+        # per component: the pieces an anchored gap leaves at the gauge (bool (C,), or None): a
+        # sequence's turning pieces where another piece is bent past BENT_PART_TURN
+        # (SequenceInterpolator._bent_nearby), placed as the sequence places them
+        self.left = left if left is not None and left.any() else None
         # ... and the vertices of the part of those the rest turns from (placed by it: PieceMotion.place)
         self.turning_root = None
         if self.turning is not None and root is not None and root.any():

@@ -7,7 +7,8 @@ a joint by θ between two keys would be pulled onto the spline's chord of its ar
 the arc by a share growing with θ (a uniform Catmull–Rom through points turned evenly by θ per key,
 at mid-gap: 6.0 / 11.6 / 16.9 % of the radius at 75 / 90 / 100°). The keys alone tell such parts:
 regions of triangles kept isometric (metric ``G ≈ I``) with one rotation, each a share of its piece,
-turning from one another. A gap whose splines read such a turn is anchored as two poses are
+turning from one another, read per piece. A gap whose splines read such a turn in a piece it does
+not read turning is anchored as two poses are, its pieces read turning left at the sequence's gauge
 (:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`): past ``BENT_PART_TURN`` for
 parts isometric to ``ISOMETRIC`` (a cloth's flat patches are too), past ``RIGID_BENT_TURN`` for parts
 rigid to the keys' rounding (``RIGID_METRIC``: a skinned bone's; no moving cloth's).
@@ -72,7 +73,7 @@ def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.nd
 def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray,
           tolerance: float = ISOMETRIC) -> tuple[np.ndarray, np.ndarray, bool]:
     """``(isometric, piece_area, room)``: :func:`_isometric` (to ``tolerance``), each piece's area (C,)
-    and :func:`rigid_share`'s answer, for :func:`bent_part_turn` to read on without computing them again."""
+    and :func:`rigid_share`'s answer, for :func:`bent_part_turns` to read on without computing them again."""
     isometric = _isometric(metric, tolerance)
     piece_area = np.bincount(triangle_component, areas)
     room = bool((np.bincount(triangle_component[isometric], areas[isometric], minlength=len(piece_area))
@@ -80,11 +81,13 @@ def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray,
     return isometric, piece_area, room
 
 
-def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
-                   metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN,
-                   tolerance: float = ISOMETRIC) -> float:
-    """The largest turn (radians) between two rigid parts of one piece from a key to another,
-    where one can be over ``least`` (radians; 0 where none is, or no piece has two parts).
+def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
+                    metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN,
+                    tolerance: float = ISOMETRIC) -> np.ndarray:
+    """Per piece (float (C,), C = ``triangle_component.max() + 1``), the largest turn (radians)
+    between two rigid parts of it from a key to another; 0 for a piece without two parts, and for
+    every piece where none can turn over ``least`` (radians) from another (no isometric triangle
+    turns by ``least`` / 2 from its piece's rigid turn): the callers compare with ``least``.
 
     ``triangle_component`` int (m,): each triangle's piece; ``edge_pairs`` int (e, 2): the
     triangles sharing each interior edge; ``rotvec`` (m, 3): each triangle's rotation with its
@@ -95,17 +98,21 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
     A rigid part is a connected region of isometric triangles (every metric entry within
     ``tolerance`` of the identity's: ``ISOMETRIC``, or ``RIGID_METRIC`` for parts rigid to the keys'
     rounding) whose neighbours turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the
-    region's mean rotation and covering ``PART_SHARE`` of its piece's area."""
+    region's mean rotation and covering ``PART_SHARE`` of its piece's area. Per piece, so that a gap
+    can anchor a bent piece while another piece of the mesh keeps its own placement
+    (:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`)."""
     m = len(rotvec)
+    largest = np.zeros(0 if m == 0 else int(triangle_component.max()) + 1)
     if m == 0 or len(edge_pairs) == 0:
-        return 0.0
+        return largest
     isometric, piece_area, room = _room(triangle_component, metric, areas, tolerance)
+    largest = np.zeros(len(piece_area))
     if not room:
-        return 0.0
+        return largest
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
     # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
     if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= least:
-        return 0.0
+        return largest
     rows = np.flatnonzero(isometric)  # the isometric triangles, numbered 0 … len(rows) − 1 below
     number = np.full(m, -1)
     number[rows] = np.arange(rows.size)
@@ -124,16 +131,15 @@ def bent_part_turn(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotve
     first[labels[::-1]] = np.arange(rows.size)[::-1]  # a triangle of each region: its piece
     large = np.flatnonzero(region_area >= PART_SHARE * piece_area[pieces[first]])
     if np.bincount(pieces[first[large]], minlength=len(piece_area)).max(initial=0) < 2:
-        return 0.0  # no piece has two
+        return largest  # no piece has two
     parts: dict[int, list[np.ndarray]] = {}
     for region in large:
         inside = np.flatnonzero(labels == region)
         mean = Rotation.from_quat(quaternions[inside]).mean(weights=weights[inside]).as_quat()
         if np.abs(quaternions[inside] @ mean).min() >= np.cos(RIGID_SPREAD / 2):
             parts.setdefault(int(pieces[inside[0]]), []).append(mean)
-    largest = 0.0
-    for means in parts.values():
+    for piece, means in parts.items():
         for i in range(len(means)):
             for j in range(i + 1, len(means)):
-                largest = max(largest, 2.0 * float(np.arccos(min(1.0, abs(float(means[i] @ means[j]))))))
+                largest[piece] = max(largest[piece], 2.0 * float(np.arccos(min(1.0, abs(float(means[i] @ means[j]))))))
     return largest

@@ -29,8 +29,9 @@ metric. The anchor ``w`` is a gauge (:data:`core.inbetween_topology.GAUGE_WEIGHT
 :data:`core.sequence_bent_parts.TWO_KEY_BENT_TURN`, or a gap of more keys whose splines read a part of
 a piece turned past :data:`core.sequence_bent_parts.BENT_PART_TURN` from another, or past
 :data:`core.sequence_bent_parts.RIGID_BENT_TURN` where both parts are rigid to the keys' rounding, in
-it or in a gap next to it), where vertices whose neighbourhood only translates between the keys are
-anchored to the linear blend (exact for them, at every factor: parts that do not move stay put); see
+it or in a gap next to it, in a piece the gap does not read turning: those keep the sequence's gauge),
+where vertices whose neighbourhood only translates between the keys are anchored to the linear blend
+(exact for them, at every factor: parts that do not move stay put); see
 :data:`core.inbetween_anchor.BLEND_ANCHOR_WEIGHT`. Connected components with no such vertex are placed by their
 centroid, moved by the interpolated rigid motion of the whole mesh plus the interpolated residual
 of the component (pieces of a mesh move as one).
@@ -64,7 +65,7 @@ from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_bent_parts import (BENT_PART_TURN, ISOMETRIC, RIGID_BENT_TURN, RIGID_METRIC, TWO_KEY_BENT_TURN,
-                                  bent_part_turn, rigid_share)
+                                  bent_part_turns, rigid_share)
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -191,7 +192,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # a chord across a piece bent at a joint: anchored to the blend where it keeps the edge
         # lengths, as two poses are (the part that does not turn holds, the turning part follows
         # its rotations)
-        anchored = chord and bent > TWO_KEY_BENT_TURN
+        anchored = chord and bool((bent > TWO_KEY_BENT_TURN).any())
         # the pieces a part of which turns past a half turn from the rest of them, or past a right
         # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
         # turns continuous across the mesh)
@@ -208,11 +209,14 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 free = self._unsure(gap)[topo.triangle_component]
                 unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
                 free = free if free.any() else None
-        # more keys: so too where the keys' spline reads a part bent past BENT_PART_TURN, unless a
-        # piece of the gap (any, not only the bent one) is read turning (its rotations taken whole
-        # and continuous, placed along its turn)
-        if not chord and self._across is None and not turning.any():
-            anchored = self._bent_nearby(gap, bent, reading)
+        # more keys: so too where the keys' spline reads a part bent past its least turn (_bent_past:
+        # BENT_PART_TURN, or RIGID_BENT_TURN for parts rigid to the keys' rounding) in a piece not read
+        # turning; the pieces read turning (their rotations taken whole and continuous,
+        # placed along their turn) keep the sequence's gauge in that anchor (Gap's ``left``)
+        left = None
+        if not chord and self._across is None:
+            anchored = self._bent_nearby(gap, bent, reading, turning)
+            left = turning if anchored and turning.any() else None
         # parts spun past a half turn that the keys read the short way round: patches of the mesh
         # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
         # pieces read turning or folded above are taken so or warned of already)
@@ -221,12 +225,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # and in the turning ones
         whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
             np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free, anchored)
+        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free, anchored, left)
         # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
         against = segment.rotations_against_guide()
         if against.any():
             segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free, anchored)
+            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free, anchored,
+                                    left)
         segment.folded_turn = bool(folded.any())
         segment.unsure_turn = bool(unsure.any())
         segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
@@ -234,14 +239,15 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
         segment.aliased_spin = bool(self._aliased_spin(gap).any())
-        segment.bent_turn = bent if bent > BENT_PART_TURN else 0.0
+        largest = float(bent.max(initial=0.0))  # of any piece, turning or not
+        segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
 
     def _keys_relative(self, gap: int, relative: Relative | None = None) -> Relative:
         """Key ``gap + 1`` seen from key ``gap`` with the keys' own metric, which the rigid parts of
-        a piece are read from (:func:`core.sequence_bent_parts.bent_part_turn`): ``relative`` (the
+        a piece are read from (:func:`core.sequence_bent_parts.bent_part_turns`): ``relative`` (the
         gap's, :meth:`_relatives`, made here if None) but with a truncated metric (``k_M``), whose
         recovery smooths it off the identity on a bent limb's bones (a tube keyed 0 / 100 / 150°
         read no part at k_M = 60 and was placed 2.1e-2 of the diagonal off the rig half-way,
@@ -252,54 +258,60 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                               fits=self._fits(gap, gap + 1)))
 
     def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN,
-                   tolerance: float = ISOMETRIC) -> float:
-        """The largest turn (radians) between two rigid parts of one piece from key ``gap`` to the
-        next (:func:`core.sequence_bent_parts.bent_part_turn`, ``least`` its least turn read, its parts'
-        metric the identity's to ``tolerance``); 0 in a gap warned of mirrored pieces and for two poses.
-        ``relative``: key ``gap + 1`` seen from key ``gap`` with the keys' own metric
-        (:meth:`_keys_relative`), if at hand. Kept per gap, least turn and tolerance: a gap reads its
-        neighbours' (:meth:`_bent_nearby`)."""
+                   tolerance: float = ISOMETRIC) -> np.ndarray:
+        """Per piece (float (C,)), the largest turn (radians) between two rigid parts of it from key
+        ``gap`` to the next (:func:`core.sequence_bent_parts.bent_part_turns`, ``least`` its least
+        turn read, its parts' metric the identity's to ``tolerance``); 0 in a gap warned of mirrored
+        pieces and for two poses. ``relative``: key ``gap + 1`` seen from key ``gap`` with the keys'
+        own metric (:meth:`_keys_relative`), if at hand. Kept per gap, least turn and tolerance (not
+        to be changed in place): a gap reads its neighbours' (:meth:`_bent_nearby`)."""
+        count = len(self._topo.components)
         if self._across is not None or gap in self._mirrored_gaps:
-            return 0.0
+            return np.zeros(count)
         with self._cache_lock:  # gaps are prepared on several threads; the reading depends on the keys alone
             known = self._bent_turns.get((gap, least, tolerance))
         if known is not None:
             return known
         relative = relative if relative is not None else self._keys_relative(gap)
-        turn = bent_part_turn(self._topo.triangle_component, self._edge_pairs, relative.rotvec, relative.metric,
-                              self._key(gap).areas, least, tolerance)
+        turn = bent_part_turns(self._topo.triangle_component, self._edge_pairs, relative.rotvec, relative.metric,
+                               self._key(gap).areas, least, tolerance)
+        turn = np.pad(turn, (0, count - len(turn)))  # pieces with no triangle after the last that has one
         with self._cache_lock:
             self._bent_turns[(gap, least, tolerance)] = turn
         return turn
 
-    def _bent_past(self, gap: int, relative: Relative | None = None) -> bool:
-        """Whether gap ``gap`` (of three keys or more) reads a part of a piece turned from another past
-        its least turn: :data:`~core.sequence_bent_parts.BENT_PART_TURN` for parts isometric to
-        :data:`~core.sequence_bent_parts.ISOMETRIC`, :data:`~core.sequence_bent_parts.RIGID_BENT_TURN`
-        for parts rigid to the keys' rounding (:data:`~core.sequence_bent_parts.RIGID_METRIC`: a skinned
-        bone's, whose arc the keys' spline cuts at any turn). ``relative`` as for :meth:`_bent_turn`."""
-        return self._bent_turn(gap, relative) > BENT_PART_TURN or \
-            self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC) > RIGID_BENT_TURN
+    def _bent_past(self, gap: int, pieces: np.ndarray, relative: Relative | None = None) -> bool:
+        """Whether gap ``gap`` (of three keys or more) reads a part of one of ``pieces`` (bool (C,))
+        turned from another past its least turn: :data:`~core.sequence_bent_parts.BENT_PART_TURN` for
+        parts isometric to :data:`~core.sequence_bent_parts.ISOMETRIC`,
+        :data:`~core.sequence_bent_parts.RIGID_BENT_TURN` for parts rigid to the keys' rounding
+        (:data:`~core.sequence_bent_parts.RIGID_METRIC`: a skinned bone's, whose arc the keys' spline
+        cuts at any turn). ``relative`` as for :meth:`_bent_turn`."""
+        return bool((self._bent_turn(gap, relative)[pieces] > BENT_PART_TURN).any()) or \
+            bool((self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC)[pieces] > RIGID_BENT_TURN).any())
 
-    def _bent_nearby(self, gap: int, bent: float, relative: Relative) -> bool:
-        """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn`,
+    def _bent_nearby(self, gap: int, bent: np.ndarray, relative: Relative, turning: np.ndarray) -> bool:
+        """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn` per piece,
         ``relative``: key ``gap + 1`` seen from key ``gap``, :meth:`_keys_relative`) is anchored as
         two poses are: where the keys' per-vertex spline it would be anchored to reads a part of a
         piece turning from another past its least turn (:meth:`_bent_past`), whose arc that spline
         cuts — in the gap itself or, for a cubic spline (keys ``gap − 1`` … ``gap + 2``), in a gap
-        next to it, whose keys' tangents bend the spline inside the arc too. The neighbours are read
-        only where the gap's own keys keep room for two rigid parts
+        next to it, whose keys' tangents bend the spline inside the arc too — in a piece the gap does
+        not read ``turning`` (bool (C,)): those take their rotations whole and keep the sequence's
+        gauge in the anchor (:class:`~core.inbetween_solver.Gap`'s ``left``), so a bent limb is
+        anchored beside a curling tail of another piece. The neighbours are read only where the
+        gap's own keys keep room for two rigid parts
         (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none)."""
-        if bent > BENT_PART_TURN:
+        if (bent[~turning] > BENT_PART_TURN).any():
             return True
         if not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
             return False
-        return any(self._bent_past(near, relative if near == gap else None) for near in (gap, gap - 1, gap + 1)
-                   if 0 <= near < len(self))
+        return any(self._bent_past(near, ~turning, relative if near == gap else None)
+                   for near in (gap, gap - 1, gap + 1) if 0 <= near < len(self))
 
     def _segment(self, gap: int, ahead: list[Relative], others: list[int], whole: np.ndarray,
                  turning: np.ndarray, root: np.ndarray | None = None, free: np.ndarray | None = None,
-                 anchored: bool = False) -> Gap:
+                 anchored: bool = False, left: np.ndarray | None = None) -> Gap:
         """Gap ``gap``'s data from the relatives ``ahead`` of its keys ``others`` (the next one and,
         in a cubic sequence, the one after), with the triangles' whole rotations in the components
         ``whole`` (bool (C,); :meth:`Relative.whole_rotations`), those of the next key taken
@@ -307,7 +319,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         them turns far from the rest, :meth:`Relative.turning`; ``root``: their
         triangles that the rest turns from, bool (m,), or None; ``free``: the triangles whose
         turns are read from the part nearest their piece's rigid turn, :meth:`_reading`; ``anchored``:
-        anchored to the linear blend as two poses are, whatever the sequence's own anchor)."""
+        anchored to the linear blend as two poses are, whatever the sequence's own anchor; ``left``:
+        bool (C,) or None, the pieces such an anchor leaves at the gauge, :meth:`_bent_nearby`)."""
         topo, base = self._topo, self._key(gap)
         last = len(self._raw) - 1
         ident = Relative.identity(topo, base)
@@ -344,7 +357,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     whole_rotations=whole, steady=self._steady(gap) if cubic else None,
                     entry=self._entry(gap, prev.nonrigidity) if cubic else None,
                     exit=self._exit(gap) if cubic else None,
-                    hooked=self._hooked, turning=turning, root=root, log_metric=self._log_metric, unit=self._unit,
+                    hooked=self._hooked, turning=turning, root=root, left=left, log_metric=self._log_metric,
+                    unit=self._unit,
                     sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit))
 
     def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...], float]]:

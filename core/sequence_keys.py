@@ -145,7 +145,8 @@ class SequenceKeys:
         self._first_lengths = None  # the first key's corner edge lengths (m, 3), once asked (SequenceInterpolator._misfit_warning)
         self._key_deviations: dict[int, float] = {}  # ... and each key's mean relative edge deviation from them
         self._caught_stretches: dict[int, bool] = {}  # per key, whether it catches a brief stretch (core.sequence_caught_stretch)
-        self._bent_turns: dict[tuple[int, float, float], float] = {}  # per gap, least turn and tolerance (_bent_turn)
+        # per gap, least turn and tolerance, per piece (SequenceInterpolator._bent_turn)
+        self._bent_turns: dict[tuple[int, float, float], np.ndarray] = {}
         self._hold_tolerance, self._holds = tolerance, {}
         origin = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0)) if keys[0].size else np.zeros(3)
         self._origin = origin if origin.any() else None

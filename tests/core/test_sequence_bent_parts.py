@@ -276,6 +276,78 @@ def test_rigid_pieces_turning_apart_are_not_anchored():
     assert _anchored(keys, both) == [False, False]
 
 
+
+def test_the_bent_parts_are_read_per_piece():
+    # two separate tubes bent at their joints by 100° and 50° between the keys: each piece's own
+    # joint angle (the bones are rigid to single precision), not the largest of the mesh
+    rest, triangles = _tube(rings=21, length=2.0)
+    second = rest + [0.0, 2.0, 0.0]
+    both = np.concatenate([triangles, triangles + len(rest)])
+
+    def keys(a, b):
+        return np.concatenate([_skinned(rest, a, joint=1.0), _skinned(second, b, joint=1.0)])
+
+    sequence = SequenceInterpolator([keys(0.0, 0.0), keys(100.0, 50.0)], both)
+    np.testing.assert_allclose(np.degrees(sequence._bent_turn(0)), [100.0, 50.0], atol=1e-3)
+
+
+def _tail(angle, shift):
+    """A thin tail (:func:`_curled_tube`, radius 0.04, root still) curled ``angle`` degrees at each of
+    four joints, moved by ``shift``: its tip turns 4 × ``angle`` from its root, which reads it turning."""
+    v, t = _curled_tube(np.radians(np.full(4, angle)), (0.2, 0.4, 0.6, 0.8), 0.1, radius=0.04)
+    return v + shift, t
+
+
+@pytest.mark.parametrize("limb", ["LBS tube", "LBS tube, four keys", "remeshed, two joints", "LBS tube 30° a key"])
+def test_a_bent_limb_beside_a_piece_read_turning_follows_the_rig_and_the_other_piece_keeps_its_place(limb):
+    # a mesh of two pieces: a limb bent past the limit and a tail curling 40° per key at four joints
+    # beside it, which reads turning (its rotations taken whole, not anchored to the keys' spline).
+    # The anchoring was decided per mesh: the tail skipped it for the limb too, left on the keys'
+    # spline, 2.8e-2 of the diagonal off the rig half-way where two poses are 2.3e-3 off (LBS tube;
+    # four keys 4.8e-2 with 2 triangles against the rig, remeshed 3.4e-2 with 7). Now the limb's
+    # gaps are anchored and the tail keeps the sequence's gauge: the tail comes out as it does in a
+    # sequence of its own (before 1.5–6.5e-5 of its diagonal off that, now within 1e-6). The limb
+    # keyed 30° apart is bent past RIGID_BENT_TURN only, its bones rigid to the keys' rounding: the
+    # same per-piece rule (before, its gaps were left on the keys' spline beside the tail too)
+    angles, tails, shift = {
+        "LBS tube": ([(0.0,), (100.0,), (150.0,)], (0.0, 40.0, 80.0), [0.5, 2.0, 0.0]),
+        "LBS tube, four keys": ([(0.0,), (120.0,), (150.0,), (40.0,)], (0.0, 40.0, 80.0, 120.0), [0.5, 2.0, 0.0]),
+        "remeshed, two joints": ([(0, 0), (90, 90), (180, 120)], (0.0, 40.0, 80.0), [0.0, 1.5, 0.5]),
+        "LBS tube 30° a key": ([(0.0,), (30.0,), (60.0,), (90.0,)], (0.0, 40.0, 80.0, 120.0), [0.5, 2.0, 0.0]),
+    }[limb]
+    if limb.startswith("LBS"):
+        rest, triangles = _tube()
+
+        def rig(a):
+            return _skinned(rest, a[0])
+    else:
+        rest, triangles = _remeshed_tube(2500, 3)
+
+        def rig(a):
+            return _skinned_limb(rest, np.radians(np.asarray(a, float)), (1.0, 2.0))
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+    tail_triangles = _tail(0.0, shift)[1]
+    n = len(rest)
+    both = np.concatenate([triangles, tail_triangles + n])
+    keys = [np.concatenate([rig(a), _tail(t, shift)[0]]) for a, t in zip(angles, tails)]
+    tail_keys = [k[n:] for k in keys]
+    tail_diagonal = np.linalg.norm(np.ptp(tail_keys[0], axis=0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # LBS pinches the joint at 120°: said as for two poses
+        sequence = SequenceInterpolator(keys, both)
+        alone = SequenceInterpolator(tail_keys, tail_triangles)
+        turning = [sequence._gap(gap).turning for gap in range(len(sequence))]
+        assert all(t is not None and list(t) == [False, True] for t in turning)  # the tail, not the limb
+        assert _anchored(keys, both) == [True] * len(sequence)
+        for gap, factor, x, pair in _sequence_and_pairs(keys, both):
+            (off, against), (pair_off, pair_against) = (
+                _off_the_rig(y[:n], rig, angles[gap], angles[gap + 1], triangles, diagonal) for y in (x, pair))
+            # as near the rig as two poses, or (a gap next to the bent one) within 1.5e-3 as the limb alone is
+            assert against <= pair_against and (off <= 1.02 * pair_off or off < 1.5e-3), (gap, factor, off, pair_off)
+            own = alone.pose(gap, factor)
+            assert np.sqrt(np.mean(np.sum((x[n:] - own) ** 2, axis=1))) < 5e-6 * tail_diagonal, (gap, factor)
+
+
 def test_a_tail_curling_past_a_right_angle_keeps_its_turn():
     # five segments of a thin tail curled 40° per key at each of four joints (each bend over 0.1 of
     # its length, within what its radius allows without the inner side folding): the tip turns 160°
