@@ -77,7 +77,9 @@ MIN_CARRIER_SIZE = 0.01
 #: piece's is: its centroid goes where the seat's best similarity from the base key to the pose
 #: takes it, plus the share ``s`` of where it sits against the seat in the next key, instead of
 #: along the keys' straight line, which the seat's interpolated shape leaves (its own shape is
-#: kept; :meth:`core.inbetween_motion.PieceMotion.place_riders`). A squashed head's eyes were
+#: kept; :meth:`core.inbetween_motion.PieceMotion.place_riders`). The point placed so is the
+#: mean of the part the seat holds over the gap (:meth:`CarriedPieces._rider_contacts`), all of a
+#: rider that moves with its seat, the root of a tail that curls on it. A squashed head's eyes were
 #: 7.2e-3 / 1.8e-2 of the diagonal off their sockets at ×1.5 / ×2 (the slider 5.1e-4 / 1.3e-3).
 #: Never on a piece about as large (the two sheets of a cloth lying on each other, 2.72 and 2.47
 #: across: each would be placed by the other).
@@ -95,6 +97,7 @@ class CarriedPieces:
         self.riding = np.zeros(len(topo.components), dtype=bool)  # the components of the riders kept
         self._followers = None  # the rigid pieces jointed to a carried one (see _jointed_followers)
         self.base = base
+        self.topo = topo
         if len(topo.components) < 2:
             return
         rigid = gap.rigidity > 0.0  # moves rigidly across the gap's keys (RIGID_PLACEMENT_SCALE)
@@ -176,11 +179,39 @@ class CarriedPieces:
         self._rigid_rows = ~riders[pieces[index]][self._row_piece]
         self._followers = self._jointed_followers(gap, pieces[index], riders[pieces[index]], size)
         if self._riders.size:
+            self._contacts = self._rider_contacts(base, nxt, JOINT_REACH * gap.mean_edge)
             _, rotations, scales, means = self._seat_similarities(nxt)
             rotations, scales, means = rotations[self._riders], scales[self._riders], means[self._riders]
-            self._rider_starts = gap.base.centroids[self._rider_components] - self._base_mean[self._riders]
-            ends = topo.centroids(nxt)[self._rider_components] - means
+            self._rider_starts = self._contact_points(base) - self._base_mean[self._riders]
+            ends = self._contact_points(nxt) - means
             self._rider_offsets = np.einsum("pji,pj->pi", rotations, ends) / scales[:, None] - self._rider_starts
+
+    def _rider_contacts(self, base: np.ndarray, nxt: np.ndarray, reach: float) -> tuple[np.ndarray, ...]:
+        """Each rider's contact with its seat in the gap: its vertices that the seat's best
+        similarity from the base key to the next (``base``, ``nxt``: positions (n, 3)) takes within
+        ``reach`` of the best-held one's miss, as ``(rows (c,), rider (c,) among the riders, mass
+        (c,))``. A rider that deforms on its seat (a tail curling at joints along a bone) moves its
+        centroid against the seat while the part the seat holds stays where it holds it:
+        :meth:`rider_places` places that part, the rest of the rider follows by its shape. A rider
+        that moves with its seat is held everywhere: its contact is all of it."""
+        _, rotations, scales, means = self._seat_similarities(nxt)
+        rows, rider = [], []
+        for j, k in enumerate(self._riders):
+            piece = self.pieces[k][0]
+            moved = means[k] + scales[k] * (base[piece] - self._base_mean[k]) @ rotations[k].T
+            miss = np.linalg.norm(moved - nxt[piece], axis=1)
+            held = piece[miss <= miss.min() + reach]
+            rows.append(held)
+            rider.append(np.full(held.size, j))
+        rows = np.concatenate(rows)
+        return rows, np.concatenate(rider), self.topo.mass[rows]
+
+    def _contact_points(self, x: np.ndarray) -> np.ndarray:
+        """Each rider's contact (:meth:`_rider_contacts`) mass-weighted mean (R, 3) in ``x`` (n, 3)."""
+        rows, rider, mass = self._contacts
+        count = self._riders.size
+        sums = np.stack([np.bincount(rider, mass * x[rows, d], minlength=count) for d in range(3)], axis=1)
+        return sums / np.bincount(rider, mass, minlength=count)[:, None]
 
     def _jointed_followers(self, gap, carried: np.ndarray, riders: np.ndarray, size: np.ndarray):
         """The rigid pieces jointed to a carried one that no seat carries (glasses on a head that
@@ -342,15 +373,19 @@ class CarriedPieces:
 
     def rider_places(self, x: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray] | None:
         """The riders' components (R,) and where their centroids (R, 3) go in ``x`` (n, 3), a pose
-        at factor ``s``: where their seat's best similarity from the base key to ``x`` takes their
-        centroid in the base key, moved by the share ``s`` of its offset in the next key (in the
-        seat's coordinates; :data:`RIDER_SIZE`); None without riders or where a seat is not finite."""
+        at factor ``s``: those that put each rider's contact (:meth:`_rider_contacts`, its shape in
+        ``x`` kept) where its seat's best similarity from the base key to ``x`` takes the contact in
+        the base key, moved by the share ``s`` of its offset in the next key (in the seat's
+        coordinates; :data:`RIDER_SIZE`); None without riders or where a seat is not finite."""
         if not self.riding.any() or not np.isfinite(x[self._carriers]).all():
             return None
         _, rotations, scales, means = self._seat_similarities(x)
         k = self._riders
         local = self._rider_starts + s * self._rider_offsets
-        return self._rider_components, means[k] + scales[k, None] * np.einsum("pij,pj->pi", rotations[k], local)
+        contact = means[k] + scales[k, None] * np.einsum("pij,pj->pi", rotations[k], local)
+        # the centroid that puts the contact there, the rider's shape in ``x`` kept
+        centroids = self.topo.centroids(x)[self._rider_components]
+        return self._rider_components, contact + centroids - self._contact_points(x)
 
     def _seat_similarities(self, x: np.ndarray) -> tuple[np.ndarray, ...]:
         """Each seat's best rigid motion from the base key to ``x`` (n, 3), translations (P, 3) and

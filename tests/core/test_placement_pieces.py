@@ -886,3 +886,44 @@ def test_glasses_on_a_head_that_a_bending_torso_carries_move_with_the_head():
         x = interpolator.pose(s)
         rotation, translation = rigid_alignment(a[head], x[head])
         np.testing.assert_allclose(x[on_head:], a[on_head:] @ rotation.T + translation, atol=1e-6 * diagonal)
+
+
+@pytest.mark.parametrize("two_poses", [True, False])
+def test_a_tail_curling_on_a_turning_bone_keeps_its_root_where_the_bone_holds_it(two_poses):
+    """A tail (1 long, radius 0.04) lying along the end of a skinned limb's turning bone and curling
+    at four joints is a rider (``core.inbetween_carried``, RIDER_SIZE): the curl moves its centroid
+    against the bone while its root, which no joint turns, stays on the bone. In-between, the root
+    stays there, within half the tail's radius of where the bone (fitted to the limb's in-between)
+    holds it; placed by its centroid, the root came 4.1–7.0e-2 off (two poses) and 4.6–6.2e-2
+    (sequence) half-way, its shape right."""
+    from scipy.optimize import minimize_scalar  # noqa: PLC0415
+    from test_sequence_bent_parts import _skinned, _tube  # noqa: PLC0415
+
+    from placement_helpers import _curled_tube  # noqa: PLC0415
+
+    rest, limb_triangles = _tube()
+    joints, radius = (0.2, 0.4, 0.6, 0.8), 0.04
+    tail_rest, tail_triangles = _curled_tube(np.zeros(4), joints, 0.1, radius=radius)
+
+    def tail(bone, curl):  # along the bone's end (x 3-4 on its surface), turned with it about its joint
+        curled = _curled_tube(np.radians(np.full(4, curl)), joints, 0.1, radius=radius)[0] + [3.0, 0.3 + radius, 0.0]
+        return Rotation.from_euler("z", bone, degrees=True).apply(curled - [2.0, 0, 0]) + [2.0, 0, 0]
+
+    n = len(rest)
+    triangles = np.concatenate([limb_triangles, tail_triangles + n])
+    bones, curls = (0.0, 100.0, 150.0), (0.0, 40.0, 80.0)
+    keys = [np.concatenate([_skinned(rest, b), tail(b, c)]) for b, c in zip(bones, curls)]
+    root = np.flatnonzero(tail_rest[:, 0] <= joints[0])  # the part no joint of the curl turns
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        if two_poses:
+            interpolator = Interpolator(keys[0], keys[1], triangles)
+            poses = [interpolator.pose(s) for s in (0.25, 0.5, 0.75)]
+        else:
+            poses = SequenceInterpolator(keys, triangles).poses(0, [0.25, 0.5, 0.75])
+    for x in poses:
+        bone = minimize_scalar(lambda b: np.sum((x[:n] - _skinned(rest, b)) ** 2),  # noqa: B023
+                               bounds=(-60.0, 240.0), method="bounded").x
+        held = tail(bone, 0.0)[root]
+        off = np.sqrt(np.mean(np.sum((x[n:][root] - held) ** 2, axis=1)))
+        assert off <= 0.5 * radius
