@@ -48,7 +48,9 @@ class ShapeDifferenceWarning(UserWarning):
     apart than in the keys ÷ the opening allowed; ``sliver``: the least height allowed ÷ the thinnest
     triangle's; ``joint``: links apart, their gap ÷ the contact reach; joints in a loop, the placement
     apart ÷ the one warned past; joints within rounding, their tolerance ÷ the one warned past; a
-    ``turn`` that names a share of a piece: that share ÷ the share warned past; ``extrapolation``: the
+    ``turn`` that names a share of a piece: that share ÷ the share warned past; a ``turn`` of a spin read
+    backwards between gaps turning it on: how many times as closely its turn taken the long way round
+    continues theirs as the short way does (1 is the allowance); ``extrapolation``: the
     growth ÷ the growth allowed); 0 for the other warnings, which measure nothing against an allowance
     (docs/errors.md, *Warnings*)."""
 

@@ -111,6 +111,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: it reading a near half turn one way and it the other
     #: (``core.sequence_half_turns.HalfTurns._aliased_spin``): the gap warns.
     aliased_spin = False
+    #: Where no ``aliased_spin`` is said: how much nearer the turns of the gaps either side a piece's
+    #: turn in the gap is taken the other way round than the short way, where both those gaps turn
+    #: it the other way (``core.sequence_half_turns.HalfTurns._reversed_spin``; 0 where none): past 1
+    #: the gap warns.
+    reversed_spin = 0.0
     #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
     #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turns``), where it is
     #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses

@@ -239,6 +239,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.composed_apart = float(apart.max(initial=0.0))
         segment.spun_part = spun
         segment.aliased_spin = bool(self._aliased_spin(gap).any())
+        segment.reversed_spin = 0.0 if segment.aliased_spin else self._reversed_spin(gap)
         largest = float(bent.max(initial=0.0))  # of any piece, turning or not
         segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
         with self._cache_lock:

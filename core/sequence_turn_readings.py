@@ -68,10 +68,12 @@ def composed_apart(topo: Topology, areas: np.ndarray, turning: np.ndarray, root:
 def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[tuple[str, float]]:
     """The warnings ``(message, excess)`` of gap ``gap`` of a sequence about how its pieces
     turn, from its data ``segment`` (``folded_turn``, ``unsure_turn``, ``composed_apart``,
-    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``); ``key_names``: the keys as
+    ``spun_part``, ``untold_half_turns``, ``whole_half_turn``, ``aliased_spin``, ``reversed_spin``); ``key_names``: the keys as
     warnings name them. ``excess`` (:attr:`core.errors.ShapeDifferenceWarning.excess`): the share of
     the piece's area the message names ÷ :data:`TURNED_PART_SHARE` where it names one (a path
-    apart, a part spun on), else 0 (a way round the keys do not tell: no measure)."""
+    apart, a part spun on), the reversed spin's measure where it names that (``reversed_spin``: how many
+    times as closely the long way round continues the gaps beside), else 0 (a way round the keys do
+    not tell: no measure)."""
     problems = []
     turned = (f"between {key_names[gap]} and {key_names[gap + 1]}, over "
               f"{100 * TURNED_PART_SHARE:.0f} % of a piece's area turns past a half turn from the rest of it")
@@ -102,6 +104,13 @@ def turn_warnings(segment: Gap, key_names: list[str], gap: int) -> list[tuple[st
                          "per gap, which keys this far apart read the short way round, and the in-betweens may "
                          "turn it back the wrong way (keys closer together, under a half turn apart, tell which "
                          "way it spins)", 0.0))
+    if segment.reversed_spin > 1.0:
+        problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, a piece turns the other way round "
+                         "from both gaps next to it, and its turn taken the long way round, past a half turn, "
+                         f"continues theirs {segment.reversed_spin:.1f} times as closely: it may spin on past a "
+                         "half turn per gap, which keys this far apart read the short way round, and the "
+                         "in-betweens may turn it back the wrong way (keys closer together, under a half turn "
+                         "apart, tell which way it spins)", segment.reversed_spin))
     if segment.whole_half_turn:
         problems.append((f"between {key_names[gap]} and {key_names[gap + 1]}, the whole mesh turns a half turn "
                          "(180°) as one to within what the keys tell, and nothing in them tells which way round: "

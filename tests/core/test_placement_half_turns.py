@@ -746,19 +746,26 @@ def test_a_spin_past_a_half_turn_per_gap_that_the_keys_read_backwards_is_warned(
     turn, and the run reading the other way next to it), the last one too, whose reading (−130°)
     is no near half turn. A sheet turning on one way under a half turn per gap, speeding up or
     slowing down, is read as it turns and says nothing of it."""
+    _, middles = _spun_sheet(turns)
+    assert tuple(gap for gap, (_, spins) in enumerate(middles) if spins) == warned
+
+
+def _spun_sheet(turns):
+    """A 9 × 9 sheet about its middle turned ``turns`` (degrees) about z per gap: its keys, and per
+    gap the sequence's in-between half-way with the warnings of its gap that say its spin may be
+    read the wrong way round."""
     sheet, tri = grid(9, size=1.0)
     sheet -= sheet.mean(axis=0)
     angles = np.radians(np.concatenate([[0.0], np.cumsum(turns)]))
     keys = [Rotation.from_rotvec([0.0, 0.0, angle]).apply(sheet) for angle in angles]
     sequence = SequenceInterpolator(keys, tri)
-    said = []
+    middles = []
     for gap in range(len(turns)):
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ShapeDifferenceWarning)
-            sequence.poses(gap, [0.5])
-        if any("may spin on past a half turn per gap" in str(w.message) for w in caught):
-            said.append(gap)
-    assert tuple(said) == warned
+            middle = sequence.pose(gap, 0.5)
+        middles.append((middle, [w.message for w in caught if "may spin on past a half turn per gap" in str(w.message)]))
+    return keys, middles
 
 
 @pytest.mark.parametrize("keys", [3, 4])
@@ -908,3 +915,38 @@ def test_a_skin_body_turned_half_round_reads_its_tied_regions_by_their_readings(
                 expected = np.count_nonzero(np.linalg.norm(vectors[:, 0] - vectors[:, 1], axis=1)
                                             > rotation_continuity.WRAP_CREASE)
             assert counts[i] == expected
+
+
+@pytest.mark.parametrize("turns, warned, excess", [((70.0, 220.0, 110.0), (1,), 230.0 / 130.0),
+                                                   ((80.0, -80.0, 80.0, -80.0), (), None),
+                                                   ((100.0, -100.0, 100.0, -100.0), (1, 2), 200.0 / 160.0),
+                                                   ((70.0, 140.0, 110.0), (), None)])
+def test_a_spin_read_backwards_for_one_gap_under_a_near_half_turn_is_warned(turns, warned, excess):
+    """A sheet twirled +70°, +220°, +110° per gap reads +70°, −140°, +110° between its keys: the
+    middle gap, no near half turn, reads the short way round, backwards between two gaps that turn
+    it on, and its in-betweens turn it back (over 30° half-way). Taken the long way round (+220°)
+    it is 130° from the mean turn of the gaps beside (+90°), the short way 230°: that gap, and only
+    it, says its spin may be read the wrong way round, with that ratio as its excess. A sheet wagged
+    ±80° per gap (its long way, 280°, 200° from the turns beside it, the short way 160°), and one
+    twirled on under a half turn per gap, say nothing of it; wagged ±100°, the keys do not tell it
+    from a spin of +100°, +260°, +100°, … (the long way 160° from the turns beside, the short way
+    200°): its middle gaps say so, their in-betweens turning it the short way, between its keys."""
+    keys, middles = _spun_sheet(turns)
+    said = []
+    for gap, (middle, spins) in enumerate(middles):
+        if not spins:
+            continue
+        said.append(gap)
+        assert len(spins) == 1 and spins[0].kind == "turn"
+        assert spins[0].excess == pytest.approx(excess, rel=1e-9)
+        # half-way, the sheet's turn from the gap's first key (about its middle, z up)
+        start = keys[gap] - keys[gap].mean(axis=0)
+        far = np.hypot(start[:, 0], start[:, 1]) > 0.25
+        moved = middle - middle.mean(axis=0)
+        turned = np.degrees(np.angle((moved[far, 0] + 1j * moved[far, 1]) / (start[far, 0] + 1j * start[far, 1])))
+        if turns[gap] > 180.0:  # the twirl turned back, where it went on +110°: the miss the warning is about
+            assert np.all(turned < -30.0), turned.max()
+        else:  # the wag's in-betweens turn it back the short way, between its keys (as it went)
+            assert np.all((turned < 0.0) & (turned > turns[gap])) if turns[gap] < 0 else \
+                np.all((turned > 0.0) & (turned < turns[gap])), turned
+    assert tuple(said) == warned
