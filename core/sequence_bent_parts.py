@@ -11,7 +11,9 @@ turning from one another, read per piece. A gap whose splines read such a turn i
 not read turning is anchored as two poses are, its pieces read turning left at the sequence's gauge
 (:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`): past ``BENT_PART_TURN`` for
 parts isometric to ``ISOMETRIC`` (a cloth's flat patches are too), past ``RIGID_BENT_TURN`` for parts
-rigid to the keys' rounding (``RIGID_METRIC``: a skinned bone's; no moving cloth's).
+rigid to the keys' rounding (``RIGID_METRIC``: a skinned bone's; a cloth's only where it is pinned,
+two pinned shares of its piece on carriers turning apart, whose gaps are then anchored too, their
+in-betweens at most 2.4 % farther from the simulation: docs/inbetween-measurements.md).
 """
 
 from __future__ import annotations
@@ -43,14 +45,17 @@ TWO_KEY_BENT_TURN = 2.0 * RIGID_SPREAD
 #: keys' rounding: a skinned bone's region (weight 1) is moved as a rigid body, its metric off only by
 #: the single-precision keys' rounding (1e-7–1e-6), where a cloth's patches keep their metric only to
 #: their stretch (the hanging sheet's parts read past ``ISOMETRIC``'s 5e-3 at 1.7–4.5e-3, turning
-#: 7–10.5° apart; no moving cloth of the benchmark keeps a tenth of a piece within 1e-4).
+#: 7–10.5° apart; no moving cloth of the benchmark keeps a tenth of a piece within 1e-4, though a
+#: cloth pinned over two shares of its piece does: pins move as rigid bodies too).
 RIGID_METRIC = 1e-4
 #: Turn between two parts of a piece rigid to the keys' rounding (``RIGID_METRIC``; radians) past which
 #: a sequence's gap is anchored as two poses are, whatever its spline: the keys' per-vertex spline cuts
 #: a turning part's arc at any turn, most in the first and last gaps, whose end tangents bend it off
 #: the arc (an LBS tube keyed 30° apart: 1.8e-3 of the diagonal off the rig half-way in its first gap,
-#: two poses 4.3e-4), and parts rigid to the rounding are a joint's, not a cloth's (no moving cloth
-#: has them). The same least turn as two keys' (``TWO_KEY_BENT_TURN``): a bend, not a part's rounding.
+#: two poses 4.3e-4), and parts rigid to the rounding are a joint's or a pin's, not a free cloth's
+#: (no moving cloth of the benchmark has them; a cloth pinned to two carriers turning apart is
+#: anchored, its in-betweens at most 2.4 % farther from the simulation, docs/inbetween-measurements.md).
+#: The same least turn as two keys' (``TWO_KEY_BENT_TURN``): a bend, not a part's rounding.
 RIGID_BENT_TURN = TWO_KEY_BENT_TURN
 
 

@@ -18,6 +18,12 @@ either is to it; where the motion passes on through the key (its neighbours fart
 the nearer of them is from it, :data:`PASSING_THROUGH`), nothing in the keys says the stretch
 lasts, and a gap beside that key whose in-betweens end off the first key by more than the gap's
 other key allows is warned of.
+
+The distances are between whole shapes, the stretch included: where the stretch is most of what
+changes at the key (a sheet landing flat on a floor, a bounce back toward the shape before, a pulse
+on a still mesh), its neighbours are nearer each other than either is to it, as a swing's are, and
+nothing is warned (test strips 3–10 × past the allowance, unwarned); nor at the first and last keys,
+which have one neighbour (docs/inbetween-measurements.md, *The caught-stretch warning's limits*).
 """
 
 from __future__ import annotations

@@ -1012,3 +1012,21 @@ def test_each_sample_a_retime_reads_is_checked_once(monkeypatch):
         warnings.simplefilter("error", RuntimeWarning)
         with pytest.raises(MeshError, match="sample 19: vertex 2 has a non-finite coordinate"):
             retime(broken, triangles, step=8, speed=0.5)
+
+
+def test_a_chunk_of_the_first_gaps_refuses_a_broken_sample_of_the_tail_it_reads_the_end_from():
+    """A chunk (``gaps``) that does not make the short last gap still reads the end of the motion
+    from the tail's samples (keys 0, 8, 16, 24, 29; tail 14, 19, 24, 29): sample 19, no key, with an
+    infinite coordinate is refused by its name there too, before anything is read from it, as the
+    chunk with the last gap refuses it (before, the first chunk ran on with NumPy's "invalid value"
+    warning from the end's spline and only the last refused, docs/errors.md)."""
+    source, triangles = rolling_sheet(n_frames=30, nx=5)
+    plan = plan_retime(len(source), 8, 0.5)
+    assert 19 in plan.tail.tolist() and 19 not in plan.keys.tolist()
+    broken = source.copy()
+    broken[19, 2, 1] = np.inf
+    for gaps in (range(0, 1), range(0, plan.n_gaps)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", RuntimeWarning)
+            with pytest.raises(MeshError, match="sample 19: vertex 2 has a non-finite coordinate"):
+                list(iter_retime(broken, triangles, plan, gaps))
