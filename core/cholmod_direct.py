@@ -19,7 +19,11 @@ later factorization of that pattern copies it and runs the numeric factorization
 bits as an analysis made anew (19 against 74 ms at 15,400 unknowns; the ordering is ~57 % of a
 factorization at 100k). :func:`library` checks that the ``cholmod_common`` layout below
 is the linked CHOLMOD's (its documented defaults read back through it) and gives None otherwise
-(another platform's or version's extension: cholespy's own binding is used then).
+(another platform's or version's extension: cholespy's own binding is used then; cholespy 2.2.0's
+Linux and macOS extensions export the functions, its Windows one does not).
+Hand-written because no packaged binding does it: cholespy's holds the global lock and analyses
+every matrix anew, and another CHOLMOD binding (scikit-sparse) is a second build of CHOLMOD (other
+bits) and a second dependency for the extension's zips.
 """
 
 from __future__ import annotations
@@ -86,6 +90,18 @@ _look_lock = threading.Lock()
 #: Factorizations run one at a time (CHOLMOD's nested dissection calls METIS, whose
 #: thread safety this build does not promise); cholespy's held the global lock, so they did before.
 _factor_lock = threading.Lock()
+
+
+def _new_locks_after_fork() -> None:
+    """A forked child (multiprocessing, a farm's workers) has only the thread that forked: a lock
+    another thread held at the fork would never be released there, so the child gets new ones.
+    The kept analyses are complete copies in the child's memory and stay usable."""
+    global _look_lock, _factor_lock
+    _look_lock, _factor_lock = threading.Lock(), threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
+    os.register_at_fork(after_in_child=_new_locks_after_fork)
 
 
 def library(cholespy_module):
@@ -163,7 +179,9 @@ class _Started:
         if not lib.cholmod_start(self.address):
             raise MemoryError("CHOLMOD could not start")
         self.held = [None]  # the address of the factor made in it, once made: freed with it
-        weakref.finalize(self, _release, lib, self.memory, self.held)
+        # not run at exit (the process's memory goes with it): a thread still solving then would
+        # find its factor freed under it
+        weakref.finalize(self, _release, lib, self.memory, self.held).atexit = False
         common = _Common.from_buffer(self.memory)
         common.print = 0  # errors come back as exceptions, not printed
         common.supernodal, common.final_ll = _SIMPLICIAL, 1
@@ -206,9 +224,10 @@ def _keep(analysis: _Analysis) -> None:
 class CholmodFactor:
     """The simplicial ``LLᵀ`` factor of a sparse symmetric positive definite ``matrix`` (n, n)
     made by ``lib`` (:func:`library`), as cholespy makes it; :meth:`solve` takes right-hand sides
-    (n,) or (n, k). Not positive definite: ``numpy.linalg.LinAlgError``. Solves on one factor are
-    serialized by its caller (CHOLMOD solves in the factor's own workspace). ``analysed_anew``:
-    whether its pattern was analysed for it (else a kept analysis was copied)."""
+    (n,) or (n, k). Not positive definite: ``numpy.linalg.LinAlgError``; CHOLMOD out of memory:
+    ``MemoryError``. Solves on one factor are serialized by its caller (CHOLMOD solves in the
+    factor's own workspace). ``analysed_anew``: whether its pattern was analysed for it (else a
+    kept analysis was copied)."""
 
     def __init__(self, lib, matrix: sp.spmatrix):
         self._lib, self.n = lib, matrix.shape[0]
@@ -237,9 +256,13 @@ class CholmodFactor:
                 self._factor = self._owner.held[0] = lib.cholmod_copy_factor(analysis.factor, self._common)
                 if not self._factor:
                     raise MemoryError(f"CHOLMOD could not hold the factor of a matrix of {self.n} unknowns")
-                lib.cholmod_factorize(a, self._factor, self._common)
+                # FALSE only where CHOLMOD failed (out of memory): the factor is then still the
+                # symbolic copy, whose ``minor`` is ``n``; a matrix not positive definite gives TRUE
+                factored = lib.cholmod_factorize(a, self._factor, self._common)
             finally:
                 lib.cholmod_free_sparse(ctypes.byref(a), self._common)
+        if not factored:
+            raise MemoryError(f"CHOLMOD could not factor a matrix of {self.n} unknowns")
         if _FactorHead.from_address(self._factor).minor < self.n:
             raise np.linalg.LinAlgError(f"Matrix is not positive definite! (CHOLMOD, {self.n} unknowns)")
 

@@ -4,8 +4,11 @@ can be, or SuperLU without it) and the threads of core/concurrency.py: same solu
 from __future__ import annotations
 
 import builtins
+import ctypes
+import os
 import threading
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -78,15 +81,23 @@ def _sheet_matrix(side, weight):
     return (incidence.T @ incidence + sp.diags(weight * (1.0 + np.arange(n) % 7))).tocsc()
 
 
+def _direct_library():
+    """cholespy, core.cholmod_direct and its library; the test skipped where CHOLMOD's functions
+    cannot be called directly."""
+    cholespy = pytest.importorskip("cholespy")
+    from core import cholmod_direct
+
+    lib = cholmod_direct.library(cholespy)
+    if lib is None:
+        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    return cholespy, cholmod_direct, lib
+
+
 def test_cholmod_called_directly_gives_cholespys_bits():
     """Where CHOLMOD is called through the functions cholespy's extension exports (without the
     global lock), the solutions are bitwise those of cholespy's own solver on the same matrix: the
     in-betweens do not change with the way in."""
-    cholespy = pytest.importorskip("cholespy")
-    from core import cholmod_direct
-
-    if cholmod_direct.library(cholespy) is None:
-        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    cholespy, cholmod_direct, _ = _direct_library()
     rng = np.random.default_rng(3)
     for side, weight in ((15, 1e-2), (60, 0.1), (90, 1e-3)):
         matrix = _sheet_matrix(side, weight)
@@ -106,11 +117,7 @@ def test_a_kept_analysis_gives_the_bits_of_a_factorization_made_anew():
     """A second anchor weight on the same mesh copies the first one's ordering and symbolic analysis
     (its pattern is the same) and factors numerically alone: the solutions are bitwise those of
     cholespy's solver, which orders the matrix anew."""
-    cholespy = pytest.importorskip("cholespy")
-    from core import cholmod_direct
-
-    if cholmod_direct.library(cholespy) is None:
-        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    cholespy, cholmod_direct, _ = _direct_library()
     rng = np.random.default_rng(5)
     first = SPDFactor(_sheet_matrix(70, 0.1))
     for weight in (1e-3, 0.03, 10.0):
@@ -139,11 +146,7 @@ def test_a_factorization_lets_other_threads_run():
     holds the global lock through its factorization: the other thread stood still for all of it).
     The longest pause between the other thread's steps is compared with the factorization's own
     time in that thread."""
-    cholespy = pytest.importorskip("cholespy")
-    from core import cholmod_direct
-
-    if cholmod_direct.library(cholespy) is None:
-        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    _direct_library()
     matrix = _sheet_matrix(120, 1e-2)  # 14,400 unknowns: a factorization of ~0.1 s
     started, done, spans = threading.Event(), threading.Event(), []
 
@@ -163,6 +166,123 @@ def test_a_factorization_lets_other_threads_run():
         longest, last = max(longest, now - last), now
     worker.join()
     assert longest < 0.5 * spans[0]
+
+
+def test_a_factorization_cholmod_could_not_finish_is_refused():
+    """``cholmod_factorize`` returns FALSE where it fails (out of memory), leaving the copied
+    symbolic factor, whose ``minor`` reads as positive definite: the factor is refused then, not
+    kept to fail (or solve with nothing) later."""
+    _, cholmod_direct, lib = _direct_library()
+
+    class Failing:  # CHOLMOD with a factorization that runs out of memory
+        def __getattr__(self, name):
+            return getattr(lib, name)
+
+        @staticmethod
+        def cholmod_factorize(a, factor, common):
+            return 0
+
+    with pytest.raises(MemoryError, match="could not factor a matrix of 225 unknowns"):
+        cholmod_direct.CholmodFactor(Failing(), _sheet_matrix(15, 1e-2))
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_child_forked_while_another_thread_factors_can_factor():
+    """A process forked while another thread holds the factorization lock (multiprocessing, a
+    farm's workers) factors and solves in the child: the child gets new locks instead of one no
+    thread of it will ever release."""
+    _, cholmod_direct, _ = _direct_library()
+    matrix, rhs = _sheet_matrix(15, 1e-2), np.ones(225)
+    expected = SPDFactor(matrix).solve(rhs)
+    held, release = threading.Event(), threading.Event()
+
+    def factoring():  # holds the lock as a factorization in this thread would
+        with cholmod_direct._factor_lock:
+            held.set()
+            release.wait()
+
+    other = threading.Thread(target=factoring)
+    other.start()
+    held.wait()
+    with warnings.catch_warnings():  # Python 3.12+ warns of a fork beside threads: the case tested
+        warnings.simplefilter("ignore", DeprecationWarning)
+        child = os.fork()
+    if child == 0:  # the child: exit status 0 if it factors and solves to the same bits
+        status = 1
+        try:
+            status = 0 if np.array_equal(SPDFactor(matrix).solve(rhs), expected) else 2
+        finally:
+            os._exit(status)
+    release.set()
+    other.join()
+    for _ in range(300):  # up to 30 s: the child's factorization takes milliseconds
+        done, status = os.waitpid(child, os.WNOHANG)
+        if done:
+            break
+        time.sleep(0.1)
+    else:
+        os.kill(child, 9)
+        os.waitpid(child, 0)
+        pytest.fail("the forked child waited for a lock no thread of it holds")
+    assert os.waitstatus_to_exitcode(status) == 0
+
+
+_SOLVE_AFTER_EXIT_FINALIZERS = """
+import sys, weakref
+import numpy as np
+sys.path[:0] = sys.argv[1:]
+from core.sparse_cholesky import SPDFactor
+from test_sparse_cholesky import _sheet_matrix
+factor = SPDFactor(_sheet_matrix(100, 1e-2))
+rhs = np.ones((factor.shape[0], 3))
+expected = factor.solve(rhs)
+weakref.finalize._exitfunc()  # what the interpreter's exit runs, here while the factor is in use
+sys.exit(0 if np.array_equal(factor.solve(rhs), expected) else 3)
+"""
+
+
+def test_a_factor_still_in_use_at_exit_is_not_freed_under_its_thread():
+    """At exit the interpreter runs the finalizers of objects still alive before daemon threads
+    stop: a thread still solving (a user's daemon thread, an interrupted run) found its CHOLMOD
+    factor freed under it, a crash at exit (a daemon thread solving at exit: 3 segmentation faults
+    in 6 runs). The factors' memory goes with the process instead; here the exit's finalizers are
+    run, then the factor solves to the same bits (a crash or other bits before)."""
+    import subprocess
+    import sys
+
+    _direct_library()
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    run = subprocess.run([sys.executable, "-c", _SOLVE_AFTER_EXIT_FINALIZERS, root, os.path.dirname(__file__)],
+                         capture_output=True, timeout=120)
+    assert run.returncode == 0, run.stderr.decode()[-2000:]
+
+
+def test_a_cholmod_the_module_cannot_read_falls_back_to_cholespys_binding(monkeypatch):
+    """Another CHOLMOD's ``cholmod_common`` layout (simulated: every field one int further) or a
+    function the extension does not export leaves the direct calls unused; SPDFactor then factors
+    through cholespy's binding, to the same bits."""
+    cholespy, cholmod_direct, _ = _direct_library()
+    matrix = _sheet_matrix(30, 0.1)
+    rhs = np.random.default_rng(7).standard_normal((900, 3))
+    direct = SPDFactor(matrix).solve(rhs)
+
+    class Shifted(ctypes.Structure):
+        _fields_ = [("padding", ctypes.c_int)] + cholmod_direct._Common._fields_
+
+    with monkeypatch.context() as patch:
+        patch.setattr(cholmod_direct, "_Common", Shifted)
+        assert cholmod_direct._load(cholespy) is None
+
+    def unexported(lib):
+        raise AttributeError("cholmod_copy_factor")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(cholmod_direct, "_typed", unexported)
+        assert cholmod_direct._load(cholespy) is None
+    monkeypatch.setattr(cholmod_direct, "_library", False)
+    factor = SPDFactor(matrix)
+    assert factor._direct is None and factor._cholmod is not None
+    assert np.array_equal(factor.solve(rhs), direct)
 
 
 def test_concurrently_keeps_order_and_raises(monkeypatch, own_pool):
