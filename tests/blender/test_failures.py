@@ -509,6 +509,62 @@ def test_an_ngon_whose_straight_sides_single_precision_bends(bpy_empty, extensio
     assert np.abs(middle - 0.5 * (keys[1] + keys[2])).max() <= 1e-6
 
 
+@pytest.mark.parametrize("cells", [SQUARE, SQUARE - {(5, 5), (5, 6)}], ids=["square", "U-shaped"])
+def test_an_ngon_with_collinear_corners_on_a_narrow_strip_far_from_the_origin(bpy_empty, extension, core, cells):
+    """The n-gon sheet squashed to a strip 0.2 wide, 1e5 units out: Blender's loop triangles cut
+    zero-area ears, and every triangulation of the n-gon has triangles less high than twice the
+    coordinates' rounding (0.024 there). Beauty's has none of zero area: it is taken, and the
+    sequence lifting the strip is that lift, where keeping Blender's refused the sequence as having
+    a degenerate face (a zero-area ear was kept unless Beauty left no sliver)."""
+    verts, faces = _sheet_with_an_ngon(12, cells, 0.0)
+    mesh = bpy.data.meshes.new("Strip")
+    mesh.from_pydata([tuple(v) for v in np.array(verts) * [1.0, 0.1, 1.0] + [1e5, 0.0, 0.0]], [], faces)
+    rest = extension.bridge.mesh_data.vertex_positions(mesh)
+    triangles = extension.bridge.triangulation.mesh_triangles(mesh)
+    corners = rest[triangles]
+    doubled = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+    longest = np.max([np.sum((corners[:, a] - corners[:, b]) ** 2, axis=1) for a, b in ((0, 1), (1, 2), (2, 0))],
+                     axis=0)
+    assert (doubled > core.mesh_topology.DEGENERATE_TRIANGLE_RATIO * longest).all()  # the core's degenerate test
+    keys = [rest + [0.0, 0.0, lift] for lift in (0.0, 0.5, 1.0, 1.5)]
+    middle = core.SequenceInterpolator(keys, triangles).pose(1, 0.5)  # a gap between two others
+    assert np.abs(middle - 0.5 * (keys[1] + keys[2])).max() <= 2 * np.spacing(np.float32(1e5))
+
+
+def test_the_sliver_bound_of_quads_and_ngons(bpy_empty, extension):
+    """``_sliver_bound``, which spares the n-gons no triangulation could rid of slivers a rebuild:
+    per polygon it is at least the least height of its loop triangles and of every fan about one of
+    its corners (triangulations that cover it), and a quad's is the higher of its two splits'."""
+    triangulation = extension.bridge.triangulation
+    verts, faces = _sheet_with_an_ngon(12, SQUARE - {(5, 5), (5, 6)}, 0.0)  # quads and a concave n-gon
+    mesh = bpy.data.meshes.new("Sheet")
+    mesh.from_pydata(verts, [], faces)
+    positions = triangulation.vertex_positions(mesh)
+    mesh.calc_loop_triangles()
+    buffer = np.empty(len(mesh.loop_triangles) * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", buffer)
+    triangles = buffer.reshape(-1, 3).astype(np.int64)
+    polygons = triangulation.loop_triangle_polygons(mesh)
+    chosen = np.arange(len(mesh.polygons))
+    bound = triangulation._sliver_bound(mesh, positions, triangles, polygons, chosen)
+
+    def least_height(rows):
+        a, b, c = (positions[rows[:, k]] for k in range(3))
+        longest = np.max([np.linalg.norm(p - q, axis=1) for p, q in ((a, b), (b, c), (c, a))], axis=0)
+        return (np.linalg.norm(np.cross(b - a, c - a), axis=1) / longest).min()
+
+    for polygon in chosen:
+        ring = np.array(mesh.polygons[polygon].vertices)
+        assert bound[polygon] >= least_height(triangles[polygons == polygon]) * (1 - 1e-12)
+        fans = [np.array([[ring[k], ring[(k + i) % len(ring)], ring[(k + i + 1) % len(ring)]]
+                          for i in range(1, len(ring) - 1)]) for k in range(len(ring))]
+        if len(ring) == 4:
+            assert bound[polygon] == pytest.approx(max(least_height(fan) for fan in fans[:2]), rel=1e-12)
+        for fan in fans:
+            if triangulation._covers(positions, fan, triangles[polygons == polygon]):
+                assert bound[polygon] >= least_height(fan) * (1 - 1e-12)
+
+
 def test_non_manifold_mesh(bpy_empty, extension, core):
     """Three triangles sharing one edge: core rejects the mesh, the operator reports it."""
     mesh = bpy.data.meshes.new("Fin")
