@@ -170,31 +170,35 @@ class CarriedPieces:
         self._base_mean = np.add.reduceat(seated, self._starts, axis=0) / self._counts[:, None]
         self._base_centred = seated - np.repeat(self._base_mean, self._counts, axis=0)
         self._screws = np.array(screws)
-        # riders (their index among the pieces kept and their component): their centroid about their
-        # seat's mean in the base key, and its move to where their centroid in the next key sits in
-        # the coordinates of their seat's best similarity from the base key to it
+        # riders (their index among the pieces kept and their component): their contact with their
+        # seat (_rider_contacts) about the seat's mean in the base key, and its move to where that
+        # contact in the next key sits in the coordinates of their seat's best similarity from the
+        # base key to it
         self._riders = np.flatnonzero(riders[pieces[index]])
         self._rider_components = pieces[index[self._riders]]
         self.riding[self._rider_components] = True
         self._rigid_rows = ~riders[pieces[index]][self._row_piece]
         self._followers = self._jointed_followers(gap, pieces[index], riders[pieces[index]], size)
         if self._riders.size:
-            self._contacts = self._rider_contacts(base, nxt, JOINT_REACH * gap.mean_edge)
-            _, rotations, scales, means = self._seat_similarities(nxt)
+            similarities = self._seat_similarities(nxt)  # made once: the contacts read it too
+            self._contacts = self._rider_contacts(base, nxt, similarities, JOINT_REACH * gap.mean_edge)
+            _, rotations, scales, means = similarities
             rotations, scales, means = rotations[self._riders], scales[self._riders], means[self._riders]
             self._rider_starts = self._contact_points(base) - self._base_mean[self._riders]
             ends = self._contact_points(nxt) - means
             self._rider_offsets = np.einsum("pji,pj->pi", rotations, ends) / scales[:, None] - self._rider_starts
 
-    def _rider_contacts(self, base: np.ndarray, nxt: np.ndarray, reach: float) -> tuple[np.ndarray, ...]:
+    def _rider_contacts(self, base: np.ndarray, nxt: np.ndarray, similarities: tuple,
+                        reach: float) -> tuple[np.ndarray, ...]:
         """Each rider's contact with its seat in the gap: its vertices that the seat's best
-        similarity from the base key to the next (``base``, ``nxt``: positions (n, 3)) takes within
+        similarity from the base key to the next (``base``, ``nxt``: positions (n, 3);
+        ``similarities``: :meth:`_seat_similarities` of ``nxt``) takes within
         ``reach`` of the best-held one's miss, as ``(rows (c,), rider (c,) among the riders, mass
         (c,))``. A rider that deforms on its seat (a tail curling at joints along a bone) moves its
         centroid against the seat while the part the seat holds stays where it holds it:
         :meth:`rider_places` places that part, the rest of the rider follows by its shape. A rider
         that moves with its seat is held everywhere: its contact is all of it."""
-        _, rotations, scales, means = self._seat_similarities(nxt)
+        _, rotations, scales, means = similarities
         rows, rider = [], []
         for j, k in enumerate(self._riders):
             piece = self.pieces[k][0]

@@ -118,9 +118,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     reversed_spin = 0.0
     #: The largest turn (radians) between two rigid parts of one piece from the gap's first key to
     #: its second, a part bent about a joint (``core.sequence_bent_parts.bent_part_turns``), where it is
-    #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0): such a gap is anchored as two poses
-    #: are (in a sequence of three keys or more, its pieces read turning left at the gauge:
-    #: ``SequenceInterpolator._bent_nearby``); read by no rule after, kept to tell what the gap read.
+    #: past ``core.sequence_bent_parts.BENT_PART_TURN`` (else 0), in any piece, turning or not: a gap
+    #: of a sequence of three keys or more is anchored as two poses are where such a turn (or one
+    #: past ``RIGID_BENT_TURN`` of parts rigid to the keys' rounding) is in a piece it does not read
+    #: turning, its pieces read turning left at the gauge (``SequenceInterpolator._bent_nearby``);
+    #: read by no rule after, kept to tell what the gap read.
     bent_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
@@ -144,8 +146,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # or past a right angle without a crease: Relative.turning): not anchored to the keys' spline
         self.turning = turning if turning is not None and turning.any() else None
         # per component: the pieces an anchored gap leaves at the gauge (bool (C,), or None): a
-        # sequence's turning pieces where another piece is bent past BENT_PART_TURN
-        # (SequenceInterpolator._bent_nearby), placed as the sequence places them
+        # sequence's turning pieces where another piece is bent past its least turn
+        # (SequenceInterpolator._bent_past, _bent_nearby), placed as the sequence places them
         self.left = left if left is not None and left.any() else None
         # ... and the vertices of the part of those the rest turns from (placed by it: PieceMotion.place)
         self.turning_root = None

@@ -68,7 +68,8 @@ def _isometric(metric: np.ndarray, tolerance: float = ISOMETRIC) -> np.ndarray:
 
 def rigid_share(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray) -> bool:
     """Whether a piece keeps room for two rigid parts from a key to another: twice the least part's
-    share of its area (``PART_SHARE``) kept isometric (``ISOMETRIC``; a cloth has none).
+    share of its area (``PART_SHARE``) kept isometric (``ISOMETRIC``; no free cloth of the benchmark
+    has it, a cloth pinned over two shares of its piece does).
 
     ``triangle_component`` int (m,): each triangle's piece; ``metric`` (m, 3): each triangle's metric
     ``G`` packed ``(g11, g12, g22)``; ``areas`` (m,): the triangles' areas in the base key."""

@@ -302,7 +302,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         gauge in the anchor (:class:`~core.inbetween_solver.Gap`'s ``left``), so a bent limb is
         anchored beside a curling tail of another piece. The neighbours are read only where the
         gap's own keys keep room for two rigid parts
-        (:func:`core.sequence_bent_parts.rigid_share`; a cloth has none)."""
+        (:func:`core.sequence_bent_parts.rigid_share`; a free cloth has none, a pinned one may)."""
         if (bent[~turning] > BENT_PART_TURN).any():
             return True
         if not rigid_share(self._topo.triangle_component, relative.metric, self._key(gap).areas):
