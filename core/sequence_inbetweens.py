@@ -527,6 +527,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return None
         ends = (gap, gap + 1)
         lengths = dict(zip(ends, (segment.base.lengths, segment.next.lengths)))
+        deviation = None  # the in-betweens' deviation from the first key: measured once, for either key
         for at, other in zip(ends, reversed(ends)):
             if not 0 < at < len(self._raw) - 1:  # the first and last keys have one neighbour
                 continue
@@ -540,8 +541,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                                                 [self._raw[k] for k in three])
             if not self._caught_stretches[at]:
                 continue
-            deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._first_lengths)
-                                       for s in caught_stretch_factors(asked)]))
+            if deviation is None:
+                deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._first_lengths)
+                                           for s in caught_stretch_factors(asked)]))
             said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
                                           self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked)
             if said is not None:
