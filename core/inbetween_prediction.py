@@ -113,16 +113,18 @@ STILL_MOVE = float(np.sqrt(8.0 * METRIC_TOLERANCE))
 STILL_RIGIDITY = 1e-6
 
 
-def gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
+def gap_poses(gap, factors, ahead=None) -> list[tuple[np.ndarray, str | None]]:
     """``(positions (n, 3), problem or None)`` at each of ``factors`` (floats, extrapolations and
     keys included) of ``gap`` (a ``core.inbetween_solver.Gap``). The in-betweens are solved,
     and predicted, concurrently (:func:`core.concurrency.concurrently`); those that keep flipped
     or collapsed triangles after their repairs are untangled where that cleans them
-    (:func:`core.inbetween_untangling.untangled_poses`)."""
-    return untangled_poses(gap, factors, _gap_poses(gap, factors))
+    (:func:`core.inbetween_untangling.untangled_poses`). ``ahead``: a function of no arguments
+    called once the batch of predictions is reached, where one in-between may run alone in the
+    pool (a sequence begins its next gap there, :mod:`core.sequence_gaps_ahead`), or None."""
+    return untangled_poses(gap, factors, _gap_poses(gap, factors, ahead))
 
 
-def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
+def _gap_poses(gap, factors, ahead=None) -> list[tuple[np.ndarray, str | None]]:
     """:func:`gap_poses` before the untangling."""
     interior = sorted({s for s in factors if 0.0 < s < 1.0})
     if interior and not gap.anchored and _nearly_still(gap):
@@ -160,7 +162,7 @@ def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     if len(solved) >= 3 and inconsistent(gap, positions):  # too rough to predict from three: every eighth solved, all at the wide limit
         gap.rotation_limit = ROUGH_ROTATION_DEVIATION
         try:
-            return _rough_poses(gap, factors, interior)
+            return _rough_poses(gap, factors, interior, ahead)
         finally:
             del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
     if len(solved) >= RELAXED_SOLVED and not stubborn:
@@ -172,6 +174,8 @@ def _gap_poses(gap, factors) -> list[tuple[np.ndarray, str | None]]:
     def predict(s):
         return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings, held=held), outer, rings)
 
+    if ahead is not None:
+        ahead()
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
     solve_off_metric(gap, solved, solved_factors, predicted)
     return _solved(gap, factors, solved)
@@ -191,8 +195,9 @@ def _outer_correction(gap, solved: dict):
     return functools.cache(lambda: correction_polynomial(gap, outer))
 
 
-def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | None]]:
-    """The poses at ``factors`` of a gap too rough to predict from three solved factors: those
+def _rough_poses(gap, factors, interior: list, ahead=None) -> list[tuple[np.ndarray, str | None]]:
+    """The poses at ``factors`` of a gap too rough to predict from three solved factors (``ahead``:
+    as for :func:`gap_poses`): those
     nearest :data:`ROUGH_SOLVED_FACTORS` solved, each other one predicted from the two solved
     (or keys) around it (:class:`~core.inbetween_corrections.PiecewiseLinearCorrection`), repaired
     as any prediction, and solved where it keeps more defects than both of those."""
@@ -214,6 +219,8 @@ def _rough_poses(gap, factors, interior: list) -> list[tuple[np.ndarray, str | N
         allowed = max(left.get(knots[after - 1], 0), left.get(knots[after], 0))
         return repaired_prediction(gap, s, correction, rings, allowed, held=held)
 
+    if ahead is not None:
+        ahead()
     solved.update(zip(predicted, per_factor(gap, predict, predicted)))
     solve_off_metric(gap, solved, targets, predicted)
     return _solved(gap, factors, solved)

@@ -41,7 +41,8 @@ that fails a documented fallback is returned with a :class:`~core.errors.ShapeDi
 (:mod:`core.inbetween_repair`).
 
 The parts :class:`SequenceInterpolator` composes: its keys, their relatives and caches
-(:mod:`core.sequence_keys`), how each gap starts (:mod:`core.sequence_gap_starts`), near half turns
+(:mod:`core.sequence_keys`), how each gap starts (:mod:`core.sequence_gap_starts`), the next gap begun in
+the pool while a gap ends (:mod:`core.sequence_gaps_ahead`), near half turns
 (:mod:`core.sequence_half_turns`), parts turned past a half turn (:mod:`core.sequence_turn_readings`),
 parts spun past a half turn through a wrung cloth (:mod:`core.spun_parts`), mirrored keys
 (:mod:`core.sequence_mirrors`), its warnings (:mod:`core.sequence_warnings`).
@@ -61,6 +62,7 @@ from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (check_factors, check_gap_index, check_key_times, check_real, check_end, check_sequence,
                          check_start, check_time, numerical_failures)
 from .sequence_gap_starts import GapStarts
+from .sequence_gaps_ahead import GapsAhead
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
@@ -85,7 +87,7 @@ __all__ = ["SequenceInterpolator"]
 KEY_TIME_RATIO_LIMIT = 16.0
 
 
-class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, SpunParts):
+class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, SpunParts, GapsAhead):
     """In-betweens for every gap of K ≥ 2 key poses of one mesh (e.g. every 4th simulation frame).
 
     ``key_poses``: sequence of K arrays ``(n, 3)`` (or an array ``(K, n, 3)``); ``triangles`` int
@@ -409,6 +411,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
+        taken = self._taken_ahead(gap, factors)  # the call begun ahead settled first (core.sequence_gaps_ahead)
+        return taken if taken is not None else self._computed_poses(gap, factors, True)
+
+    def _computed_poses(self, gap: int, factors: list[float], ahead: bool) -> tuple[np.ndarray, list[tuple]]:
+        """:meth:`_poses` of gap ``gap`` at ``factors`` (checked) computed; ``ahead``: the next gap's
+        call may be begun in the pool while this one ends (:class:`~core.sequence_gaps_ahead.GapsAhead`;
+        False in that call itself)."""
         out = np.empty((len(factors), self._topo.n, 3))
         between = [k for k, s in enumerate(factors) if s not in (0.0, 1.0)]
         for k, s in enumerate(factors):
@@ -420,12 +429,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             f"at factors {', '.join(f'{f:g}' for f in asked)}" if len(asked) <= 4 else f"at {len(asked)} factors"
         with numerical_failures(f"The in-between{'s' if len(asked) > 1 else ''} {at} between {self.key_names[gap]} "
                                 f"and {self.key_names[gap + 1]}"):
-            return self._solved_poses(gap, factors, out, between)
+            return self._solved_poses(gap, factors, out, between, ahead)
 
-    def _solved_poses(self, gap: int, factors: list[float], out: np.ndarray,
-                      between: list[int]) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]]]:
+    def _solved_poses(self, gap: int, factors: list[float], out: np.ndarray, between: list[int],
+                      ahead: bool = False) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]]]:
         """:meth:`_poses` once its arguments are checked: ``out`` (len(factors), n, 3) holds the keys
-        at factors 0 and 1, the rows ``between`` are solved here. The warnings: the gap's
+        at factors 0 and 1, the rows ``between`` are solved here (``ahead``: as for
+        :meth:`_computed_poses`). The warnings: the gap's
         (:meth:`_gap_warnings`), then the in-betweens' own, one per kind of problem
         (:func:`core.sequence_warnings.gap_problems`)."""
         if not between or self._hold(gap):  # a hold: the pose at every factor
@@ -434,7 +444,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment = self._gap(gap)
         self._prepare_in_background(gap + 1)
         segment.fit_misfits.clear()  # this call's fits only
-        solved = gap_poses(segment, [factors[k] for k in between])
+        solved = gap_poses(segment, [factors[k] for k in between], self._beginning_ahead(gap, factors) if ahead else None)
         problems = []  # (factor, kind, what happened, defects kept) of each in-between with a problem
         held = self._held(gap)
         for k, (x, problem) in zip(between, solved):

@@ -239,8 +239,8 @@ def test_a_problem_said_for_one_in_between_and_for_several_is_one_report_naming_
     sequence_inbetweens = importlib.import_module(f"{core.__name__}.sequence_inbetweens")
     solve = sequence_inbetweens.gap_poses
 
-    def poisoned(segment, factors):
-        solved = solve(segment, factors)
+    def poisoned(segment, factors, *ahead):
+        solved = solve(segment, factors, *ahead)
         for x, _ in solved:
             x[3] = np.nan
         return solved

@@ -114,7 +114,7 @@ def test_an_error_of_the_code_itself_is_not_passed_off_as_a_numerical_failure(tw
     change a valid pose."""
     keys, triangles, _ = two_pieces
 
-    def failing(segment, factors):
+    def failing(segment, factors, *ahead):
         raise error
 
     monkeypatch.setattr(sequence_inbetweens, "gap_poses", failing)
@@ -129,8 +129,8 @@ def test_an_error_of_the_code_itself_is_not_passed_off_as_a_numerical_failure(tw
 def _poisoned(original, rows):
     """``gap_poses`` with NaN in ``rows`` of every pose it returns (what no fit or repair returns
     on any input found: the last net is reached only past them)."""
-    def gap_poses(segment, factors):
-        solved = original(segment, factors)
+    def gap_poses(segment, factors, *ahead):
+        solved = original(segment, factors, *ahead)
         for x, _ in solved:
             x[rows] = np.nan
         return solved

@@ -776,11 +776,11 @@ def test_the_short_last_gap_s_warnings_name_the_plan_s_keys(monkeypatch):
     assert plan.keys.tolist() == [0, 8, 16, 24, 29] and plan.tail.tolist() == [14, 19, 24, 29]
     real = sequence_inbetweens.gap_poses
 
-    def gap_poses(gap, factors):
+    def gap_poses(gap, factors, *ahead):
         moved = gap.next.vertices - gap.base.vertices
         first, second = next((i, j) for i in range(len(source)) for j in range(i + 1, len(source))
                              if np.allclose(source[j] - source[i], moved, rtol=0.0, atol=1e-9))
-        return [(x, f"samples {first}-{second}") for x, _ in real(gap, factors)]
+        return [(x, f"samples {first}-{second}") for x, _ in real(gap, factors, *ahead)]
 
     monkeypatch.setattr(sequence_inbetweens, "gap_poses", gap_poses)
     with pytest.warns(ShapeDifferenceWarning) as caught:
