@@ -36,6 +36,8 @@ import weakref
 import numpy as np
 import scipy.sparse as sp
 
+from .errors import MeshError
+
 _SIZE, _INT, _DOUBLE, _POINTER = ctypes.c_size_t, ctypes.c_int, ctypes.c_double, ctypes.c_void_p
 _MAXMETHODS = 9  # CHOLMOD_MAXMETHODS
 _SIMPLICIAL, _NESDIS, _REAL, _SOLVE_A = 0, 4, 1, 0  # CHOLMOD_SIMPLICIAL, CHOLMOD_NESDIS, CHOLMOD_REAL, CHOLMOD_A
@@ -221,6 +223,21 @@ def _keep(analysis: _Analysis) -> None:
     del _analyses[:-KEPT_ANALYSES]
 
 
+def int32_columns(csc: sp.csc_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """The index pointers (n + 1,) and row indices (nnz,) of ``csc`` (n, n) as the 32-bit integers
+    CHOLMOD's ``int`` interface (the one cholespy's extension exports) reads them. MeshError where
+    they do not fit (2³¹ − 1 at most: ``scipy.sparse.safely_cast_index_arrays``): cast unchecked, the
+    pointers past it wrap to negative offsets and CHOLMOD reads outside the matrix. Neither
+    cholespy's binding nor SciPy's SuperLU takes more (both index in 32 bits)."""
+    try:
+        indices, indptr = sp.safely_cast_index_arrays(csc, np.int32, "CHOLMOD's 32-bit indices")
+    except ValueError as error:
+        raise MeshError(f"The mesh is too large to solve: its system of {csc.shape[0]:,} unknowns has "
+                        f"{int(csc.indptr[-1]):,} nonzeros, more than the 2,147,483,647 the sparse factorizations "
+                        f"index ({error}); split it into pieces of fewer vertices") from error
+    return indptr, indices
+
+
 class CholmodFactor:
     """The simplicial ``LLᵀ`` factor of a sparse symmetric positive definite ``matrix`` (n, n)
     made by ``lib`` (:func:`library`), as cholespy makes it; :meth:`solve` takes right-hand sides
@@ -236,7 +253,7 @@ class CholmodFactor:
         csc = sp.csc_matrix(matrix, dtype=np.float64, copy=True)
         csc.sum_duplicates()
         csc.sort_indices()
-        indptr, indices = csc.indptr.astype(np.int32), csc.indices.astype(np.int32)
+        indptr, indices = int32_columns(csc)
         values = np.ascontiguousarray(csc.data, dtype=np.float64)
         self._owner = _Started(lib)
         self._common = self._owner.address

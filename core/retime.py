@@ -261,15 +261,20 @@ def _key_pose(sample, name: str) -> np.ndarray:
     return pose
 
 
-def short_gap_sequence(samples, triangles, tail, **interpolator_options):
+def short_gap_sequence(samples, triangles, tail, first=None, **interpolator_options):
     """The :class:`core.SequenceInterpolator` of a short last gap keyed on samples ``tail``
     (:func:`short_gap_keys`; ``samples[i]``: sample ``i``'s positions, checked by the caller where
     it names them: :func:`iter_retime` its keys and the tail's other samples, the *In-between
     Frames* operator its frames; the sequence checks its keys again, as every one does), starting
-    inside the motion; its last gap is the short gap."""
+    inside the motion; its last gap is the short gap. ``first``: the sample the whole sequence
+    starts at, whose edges its warnings measure deviations from where no ``rest_pose`` is given: the
+    tail's are measured from it too, not from the tail's first key, a shape deep in the motion
+    (:mod:`core.sequence_edge_misfit`)."""
     from .sequence_inbetweens import SequenceInterpolator
 
-    return SequenceInterpolator([samples[key] for key in tail], triangles, **{**interpolator_options, "start": "keys"})
+    rest = {} if first is None or interpolator_options.get("rest_pose") is not None else {"rest_pose": samples[first]}
+    return SequenceInterpolator([samples[key] for key in tail], triangles,
+                                **{**interpolator_options, **rest, "start": "keys"})
 
 
 def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None, *, sample_names=None,
@@ -283,7 +288,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     ``samples``: the source, float ``(n_source, n, 3)`` (a memory map is fine: only
     :attr:`RetimePlan.samples_read` are read).
     ``interpolator_options``: ``k_M``, ``k_N``, ``offset``, ``use_extrinsic``, ``smooth``, ``start``,
-    ``end`` of :class:`core.SequenceInterpolator`; ``start`` by default from the middle of the first gap
+    ``end``, ``rest_pose`` of :class:`core.SequenceInterpolator`; ``start`` by default from the middle of the first gap
     (:func:`core.motion_ends.start_of_motion`), ``end`` from the middle of the last gap
     (:func:`core.motion_ends.end_of_motion`); the shorter last gap's sequence starts inside the
     motion (``start="keys"``) and ends as the whole one.
@@ -315,7 +320,8 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys, key_names=names)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
-        tail = short_gap_sequence(checked, triangles, plan.tail, **interpolator_options, key_names=tail_names)
+        tail = short_gap_sequence(checked, triangles, plan.tail, int(plan.keys[0]), **interpolator_options,
+                                  key_names=tail_names)
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]

@@ -16,8 +16,9 @@ pass through the stretched shapes as the interpolated ones do. What tells them a
 motion: a swing turns back at the key, so the keys either side of it are nearer each other than
 either is to it; where the motion passes on through the key (its neighbours farther apart than
 the nearer of them is from it, :data:`PASSING_THROUGH`), nothing in the keys says the stretch
-lasts, and a gap beside that key whose in-betweens end off the first key by more than the gap's
-other key allows is warned of.
+lasts, and a gap beside that key whose in-betweens end off the rest by more than the gap's
+other key allows is warned of (deviations from the caller's rest pose where given, else from the
+first key: :mod:`core.sequence_edge_misfit`).
 
 The distances are between whole shapes, the stretch included: where the stretch is most of what
 changes at the key (a sheet landing flat on a floor, a bounce back toward the shape before, a pulse
@@ -62,7 +63,7 @@ def passing_through(before: np.ndarray, key: np.ndarray, after: np.ndarray) -> f
 
 def caught_stretch(deviations, shapes) -> bool:
     """Whether the middle of three consecutive keys catches a stretch on a motion passing through it:
-    its mean relative edge deviation from the first key (``deviations``, the three keys',
+    its mean relative edge deviation from the rest (``deviations``, the three keys',
     :func:`core.sequence_edge_misfit.key_deviation`) is over what the larger of its neighbours' allows
     an in-between (:func:`core.sequence_edge_misfit.misfit_allowed`: twice it + 0.1 point, at least
     0.3 %) and the keys ``shapes`` (three (n, 3) positions) pass on through it
@@ -86,18 +87,20 @@ def caught_stretch_factors(factors) -> list[float]:
     return np.unique(factors[np.abs(np.subtract.outer(SOLVED_FACTORS, factors)).argmin(axis=1)]).tolist()
 
 
-def caught_stretch_warning(deviation: float, other: float, names: tuple[str, str], at: str,
-                           key: float, factors) -> tuple[str, tuple[float, ...], float] | None:
+def caught_stretch_warning(deviation: float, other: float, names: tuple[str, str], at: str, key: float, factors,
+                           reference: str = "the first key") -> tuple[str, tuple[float, ...], float] | None:
     """The message, factors and excess (``deviation`` ÷ what ``other`` allows, over 1) of the warning of
     a gap (keys ``names``) beside the key named ``at`` that catches a stretch (:func:`caught_stretch`;
-    ``key`` its mean relative edge deviation from the first key), whose in-betweens at ``factors`` are
-    off the first key by ``deviation`` on average (mean relative edge deviation), more than twice the
-    gap's other key's (``other``) + 0.1 point (at least 0.3 %); None where they are not."""
+    ``key`` its mean relative edge deviation from the rest), whose in-betweens at ``factors`` are
+    off the rest by ``deviation`` on average (mean relative edge deviation), more than twice the
+    gap's other key's (``other``) + 0.1 point (at least 0.3 %); None where they are not. The deviations are
+    from ``reference``, as the message names it (the first key, or the caller's rest pose)."""
     allowed = misfit_allowed([other])
     if deviation <= allowed:
         return None
-    return (f"between {names[0]} and {names[1]}, the in-betweens' edges are {100 * deviation:.1f} % off the first "
-            f"key's on average, {deviation / allowed:.1f} × what {names[1] if at == names[0] else names[0]} allows "
+    other_key = names[1] if at == names[0] else names[0]
+    return (f"between {names[0]} and {names[1]}, the in-betweens' edges are {100 * deviation:.1f} % off "
+            f"{reference}'s on average, {deviation / allowed:.1f} × what {other_key} allows "
             f"(twice its {100 * other:.1f} % + {100 * MISFIT_NOTED_MARGIN:.1f} point, at least "
             f"{100 * MISFIT_NOTED_FLOOR:.1f} %): {at} catches a stretch ({100 * key:.1f} %) neither key beside it has, "
             f"on a motion that passes through it (cloth landing just before it?), and the in-betweens carry a share of "

@@ -10,8 +10,11 @@ where the simulation stays within 1 % of its rest. The fits measure that misfit 
 (:meth:`core.inbetween_fit.LocalGlobalFit.misfit`; :attr:`core.inbetween_solver.Gap.fit_misfits`
 keeps the least of each in-between fitted), so the check costs the caller nothing: it holds the
 fit's misfit to what issue 17 allows a simulation's in-betweens, edge lengths within twice the
-simulation's own deviation from its rest + 0.1 point, the keys' own deviation from the first key
-standing in for the simulation's.
+simulation's own deviation from its rest + 0.1 point, the keys' own deviation from the rest standing
+in for the simulation's: from the caller's rest pose where given (``rest_pose`` of
+:class:`core.SequenceInterpolator`), else from the first key, the rest where the keys start at a
+simulation's first frame (keys cut from the middle of one are measured against a deformed shape
+there: docs/inbetween-measurements.md, *The edge warnings' reference*).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ __all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "key_deviation", "misfit
            "signed_deviation"]
 
 #: A gap's in-betweens are warned of where the fit of one of them ends farther from the interpolated
-#: metric (its mean relative edge misfit) than twice its keys' mean edge deviation from the first key
+#: metric (its mean relative edge misfit) than twice its keys' mean edge deviation from the rest
 #: plus this: the fit alone is then off the keys' lengths by more than issue 17 allows an in-between
 #: to be off the rest (2 × the simulation's own deviation + 0.1 point), the keys standing in for the
 #: simulation. On 57 benchmark and 21 unseen cells it warns all 14 cells above the bound and 12 of
@@ -40,7 +43,7 @@ MISFIT_NOTED_FLOOR = STALL_NEAR * METRIC_TOLERANCE
 
 def misfit_allowed(key_deviations) -> float:
     """The misfit a gap's fits may end at unwarned, given its two keys' mean relative edge
-    deviations from the first key (:func:`key_deviation`): twice their mean +
+    deviations from the rest (:func:`key_deviation`): twice their mean +
     :data:`MISFIT_NOTED_MARGIN`, at least :data:`MISFIT_NOTED_FLOOR`."""
     return max(2.0 * float(np.mean(key_deviations)) + MISFIT_NOTED_MARGIN, MISFIT_NOTED_FLOOR)
 
@@ -54,7 +57,8 @@ def _relative_changes(lengths: np.ndarray, rest: np.ndarray) -> np.ndarray:
 
 def key_deviation(lengths: np.ndarray, rest: np.ndarray) -> float:
     """Mean relative deviation ``|ℓ / ℓ₀ − 1|`` of a key's corner edge lengths ``lengths`` (m, 3)
-    from those of the first key, ``rest`` (m, 3); edges of zero rest length are left out."""
+    from those of the rest, ``rest`` (m, 3) (the caller's rest pose, or the first key); edges of zero
+    rest length are left out."""
     changes = _relative_changes(lengths, rest)
     return float(np.mean(np.abs(changes))) if changes.size else 0.0
 
@@ -67,14 +71,15 @@ def signed_deviation(lengths: np.ndarray, target: np.ndarray) -> float:
 
 
 def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str, str],
-                   signed) -> tuple[str, tuple[float, ...], float] | None:
+                   signed, reference: str = "the first key") -> tuple[str, tuple[float, ...], float] | None:
     """The message, factors and excess (the worst fit's misfit ÷ ``allowed``, over 1:
     :attr:`core.errors.ShapeDifferenceWarning.excess`) of the warning of a gap (keys ``names``) whose in-betweens at
     ``factors`` include fitted ones (``fit_misfits`` {factor: the least mean relative edge misfit
     of its fit}, :attr:`core.inbetween_solver.Gap.fit_misfits`) farther than ``allowed`` off the
     interpolated metric; None where none is. ``signed(factor)``: the mean signed relative
     deviation of that in-between's edges from the keys' edge lengths interpolated, asked of the
-    worst one only (it measures the pose once more)."""
+    worst one only (it measures the pose once more). ``reference``: what the keys' deviation that
+    sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose)."""
     asked = [s for s in factors if 0.0 < s < 1.0]
     fitted = {s: fit_misfits[s] for s in asked if s in fit_misfits}
     over = sorted(s for s, m in fitted.items() if m > allowed)
@@ -98,6 +103,6 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
     return (f"between {names[0]} and {names[1]}, {place}: its edges are "
             f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; add keys in this gap or use a "
             f"smaller step [its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
-            f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from the first key allows (twice it + "
+            f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from {reference} allows (twice it + "
             f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over),
             misfit / allowed)

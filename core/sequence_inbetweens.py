@@ -60,7 +60,7 @@ from .inbetween_keys import Relative
 from .inbetween_solver import Gap
 from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (check_factors, check_gap_index, check_key_times, check_real, check_end, check_sequence,
-                         check_start, check_time, numerical_failures)
+                         check_start, check_time, check_vertices, numerical_failures)
 from .sequence_gap_starts import GapStarts
 from .sequence_gaps_ahead import GapsAhead
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
@@ -130,20 +130,37 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     the frames of a cache's samples, :func:`core.retime.iter_retime`, or the operators' frames),
     else ``"key pose i"``; a sequence keyed on some of another's keys names them as that one does
     (:func:`core.retime.iter_retime`'s short last gap).
+
+    ``rest_pose``: the mesh's rest shape (n, 3), in the keys' space and size (a simulation's first
+    frame), or None. The sequence's ``fit`` warnings hold the in-betweens' edge lengths to what the
+    keys' own deviation from the rest allows (:mod:`core.sequence_edge_misfit`,
+    :mod:`core.sequence_caught_stretch`); without it the first key stands for the rest, as it does
+    where the keys start at a simulation's first frame. Keys cut from the middle of a simulation,
+    measured from their first key, measure the change between two deformed states instead: a
+    curtain 10 % off its rest at the first key reads keys back within 1.5 % of the rest as 10 % off,
+    and gaps 2.7 × past issue 17's edge bound go unwarned; a flag 1.9 % off its rest at the first key
+    is allowed a misfit of 1.8 % where the rest allows 4.1 %, and in-betweens within the bound are
+    warned (docs/inbetween-measurements.md, *The edge warnings' reference*). No in-between changes.
     """
 
     @single_threaded_blas()  # one BLAS thread, as in _poses: the same keys whatever ran before in the process
     def __init__(self, key_poses, triangles, *, k_M: int | None = None, k_N: int | None = None,
                  offset: float | None = None, use_extrinsic: bool = True, smooth: bool = True, start: str = "rest",
-                 key_times=None, end: str = "keys", key_names=None):
+                 key_times=None, end: str = "keys", key_names=None, rest_pose=None):
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start, end = check_start(start), check_end(end)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(
             key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth, key_names)
         key_times = check_key_times(key_times, len(key_poses))
+        rest_pose = None if rest_pose is None else check_vertices(rest_pose, len(key_poses[0]), name="rest_pose",
+                                                                  kept=True)
         with numerical_failures(f"Preparing the in-betweens of {len(key_poses)} key poses"):
             self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end,
                         key_names=key_names)
+        # in the working space of the keys (their vertices as solved: welded, merged, renumbered; moved and sized)
+        kept = self._welded_vertices
+        self._rest = None if rest_pose is None else self._to_working(rest_pose if kept is None else rest_pose[kept])
+        self._rest_name = "the first key" if rest_pose is None else "the rest pose"  # as the warnings name it
 
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
@@ -488,9 +505,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     def _misfit_warning(self, gap: int, segment: Gap, poses: dict) -> tuple[str, tuple[float, ...], float] | None:
         """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) whose in-betweens
         ``poses`` {factor: working positions (n, 3)} include fitted ones farther off the interpolated
-        metric than the keys' own edge deviation from the first key allows
-        (:func:`core.sequence_edge_misfit.misfit_warning`); None where none is. The fits' misfits
-        are the solve's; the keys' deviations are measured only where a fit ends past
+        metric than the keys' own edge deviation from the rest allows (the rest pose where given, else
+        the first key: :meth:`_key_deviation`; :func:`core.sequence_edge_misfit.misfit_warning`); None
+        where none is. The fits' misfits are the solve's; the keys' deviations are measured only where a
+        fit ends past
         :data:`~core.sequence_edge_misfit.MISFIT_NOTED_FLOOR`. Not said of a gap whose pieces are
         mirrored (:func:`core.sequence_mirrors.warn_mirrored` says why its edges are off)."""
         fitted = [m for s, m in segment.fit_misfits.items() if s in poses]
@@ -503,7 +521,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return signed_deviation(self._corner_lengths(poses[s]), (1.0 - s) * keys[0] + s * keys[1])
 
         return misfit_warning(segment.fit_misfits, list(poses), allowed, (self.key_names[gap], self.key_names[gap + 1]),
-                              signed)
+                              signed, self._rest_name)
 
     def _corner_lengths(self, x: np.ndarray) -> np.ndarray:
         """Corner edge lengths (m, 3) of working positions ``x`` (n, 3), as :class:`Key` has them."""
@@ -511,22 +529,23 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         return np.sqrt(coordinate_dot(edges, edges)).T
 
     def _key_deviation(self, index: int, lengths: np.ndarray | None = None) -> float:
-        """Key ``index``'s mean relative edge deviation from the first key
-        (:func:`core.sequence_edge_misfit.key_deviation`), measured once (a key is in two gaps) from its
-        corner edge ``lengths`` (m, 3) where the caller has them (its gap's :class:`Key`), else from it."""
-        if self._first_lengths is None:  # its corner edges alone: no key built, none let go
-            self._first_lengths = self._corner_lengths(self._raw[0])
+        """Key ``index``'s mean relative edge deviation from the rest (:func:`core.sequence_edge_misfit.key_deviation`):
+        from the caller's ``rest_pose`` where given, else from the first key; measured once (a key is in two
+        gaps) from its corner edge ``lengths`` (m, 3) where the caller has them (its gap's :class:`Key`), else
+        from it."""
+        if self._rest_lengths is None:  # its corner edges alone: no key built, none let go
+            self._rest_lengths = self._corner_lengths(self._raw[0] if self._rest is None else self._rest)
         if index not in self._key_deviations:
             lengths = self._corner_lengths(self._raw[index]) if lengths is None else lengths
-            self._key_deviations[index] = key_deviation(lengths, self._first_lengths)
+            self._key_deviations[index] = key_deviation(lengths, self._rest_lengths)
         return self._key_deviations[index]
 
     def _caught_stretch_warning(self, gap: int, segment: Gap,
                                 poses: dict) -> tuple[str, tuple[float, ...], float] | None:
         """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) beside a key
         that catches a brief stretch on a motion passing through it, whose in-betweens ``poses``
-        {factor: working positions (n, 3)} end farther off the first key than the gap's other key
-        allows (:mod:`core.sequence_caught_stretch`); None elsewhere, and in a gap whose pieces are
+        {factor: working positions (n, 3)} end farther off the rest (:meth:`_key_deviation`) than the gap's
+        other key allows (:mod:`core.sequence_caught_stretch`); None elsewhere, and in a gap whose pieces are
         mirrored (:func:`core.sequence_mirrors.warn_mirrored` says why its edges are off). Each key is
         read once (its deviation; its neighbour outside the gap and the shapes around it only where
         that is over what its neighbour inside the gap allows); the in-betweens are measured only
@@ -537,7 +556,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return None
         ends = (gap, gap + 1)
         lengths = dict(zip(ends, (segment.base.lengths, segment.next.lengths)))
-        deviation = None  # the in-betweens' deviation from the first key: measured once, for either key
+        deviation = None  # the in-betweens' deviation from the rest: measured once, for either key
         for at, other in zip(ends, reversed(ends)):
             if not 0 < at < len(self._raw) - 1:  # the first and last keys have one neighbour
                 continue
@@ -552,10 +571,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             if not self._caught_stretches[at]:
                 continue
             if deviation is None:
-                deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._first_lengths)
+                deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._rest_lengths)
                                            for s in caught_stretch_factors(asked)]))
             said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
-                                          self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked)
+                                          self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked,
+                                          self._rest_name)
             if said is not None:
                 return said
         return None

@@ -142,7 +142,9 @@ class SequenceKeys:
         # (a sheet keyed 1e3 units out: 0.1 of its size off in two of four gaps)
         self._given, self._still = keys, still
         self._gap_messages: dict[int, list] = {}  # per gap, its warnings (SequenceInterpolator._gap_warnings)
-        self._first_lengths = None  # the first key's corner edge lengths (m, 3), once asked (SequenceInterpolator._misfit_warning)
+        # the corner edge lengths (m, 3) the edge warnings measure deviations from: the rest pose's where the caller
+        # gives it, else the first key's; once asked (SequenceInterpolator._key_deviation)
+        self._rest_lengths = None
         self._key_deviations: dict[int, float] = {}  # ... and each key's mean relative edge deviation from them
         self._caught_stretches: dict[int, bool] = {}  # per key, whether it catches a brief stretch (core.sequence_caught_stretch)
         # per gap, least turn and tolerance, per piece (SequenceInterpolator._bent_turn)

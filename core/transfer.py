@@ -630,11 +630,12 @@ def sequence_class():
         the base mesh (``base_vertices`` on ``triangles``) by a :class:`Transfer` with ``k_M`` /
         ``k_N`` (``correspondence``, ``target_rest_vertices`` as there; intrinsic, its default),
         then in-betweened on the base mesh in the full basis (``use_extrinsic`` applies to the
-        in-betweens). Without ``target_triangles``: the same-mesh interpolator."""
+        in-betweens). Without ``target_triangles``: the same-mesh interpolator. ``rest_pose``: the
+        rest shape of the mesh in-betweened (the base mesh's where the keys are transferred)."""
 
         def __init__(self, key_poses, triangles, *, k_M=None, k_N=None, offset=None, use_extrinsic=True,
                      smooth=True, start="rest", key_times=None, base_vertices=None, target_triangles=None,
-                     correspondence=None, target_rest_vertices=None, end="keys", key_names=None):
+                     correspondence=None, target_rest_vertices=None, end="keys", key_names=None, rest_pose=None):
             if target_triangles is not None:
                 if base_vertices is None:
                     raise MeshError("Key poses of another mesh need base_vertices: the pose of the mesh to move.")
@@ -644,7 +645,8 @@ def sequence_class():
                 )
                 k_M = k_N = None
             super().__init__(key_poses, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
-                             smooth=smooth, start=start, key_times=key_times, end=end, key_names=key_names)
+                             smooth=smooth, start=start, key_times=key_times, end=end, key_names=key_names,
+                             rest_pose=rest_pose)
 
     TransferSequenceInterpolator.__name__ = TransferSequenceInterpolator.__qualname__ = "SequenceInterpolator"
     return TransferSequenceInterpolator

@@ -41,6 +41,16 @@ def simulation_start(scene, movers: list) -> int | None:
     return min(starts) if starts else None
 
 
+def simulation_first_frame(obj, start: int) -> list[int]:
+    """``[frame]``: the first frame of the cloth and soft body simulations moving ``obj``
+    (:func:`objects_moving`), where a range starting at ``start`` starts after it; else ``[]``. The mesh
+    is at its rest there (the simulation starts from it), which a range cut from inside the motion
+    does not begin at."""
+    first = min((modifier.point_cache.frame_start for _, modifier in modifier_kinds.simulations(objects_moving(obj))),
+                default=None)
+    return [first] if first is not None and first < start else []
+
+
 class FrameRangeProperties:
     """Frame range properties; start and end default to the playback range when not set (the
     preview range where it is on, else the scene's)."""
@@ -252,14 +262,19 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # of the first and last gaps of the sequence keyed (core.retime.motion_ends)
         middles = [ends[3] for ends in (retime.start_samples(keyed), retime.end_samples(keyed, tail))
                    if ends and ends[3] is not None]
+        # a range starting inside a cloth or soft body simulation: its first frame read too, the rest the
+        # warnings measure the edges from (else the first key: core.SequenceInterpolator's rest_pose)
+        rest = simulation_first_frame(obj, frames[0])
         matrices = {}
-        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles, matrices=matrices,
-                                                 stay=self.output == 'SHAPE_KEYS')
+        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles + rest,
+                                                 matrices=matrices, stay=self.output == 'SHAPE_KEYS')
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = world_space.frames_space(context, obj, matrices)
         scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
+        if rest:
+            options["rest_pose"] = scaled[rest[0]]
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed,
                                            doing=f"preparing the {len(keyed)} keys",
@@ -289,7 +304,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             progress = 0.2 + 0.8 * len(timeline) / ((len(spans) + 1) * (self.count + 1))
             if gap is None and gap_factors:
                 sequence = yield from self.compute(progress, retime.short_gap_sequence, scaled, triangles, tail,
-                                                   **options, key_names=[frame_name(f) for f in tail],
+                                                   frames[0], **options, key_names=[frame_name(f) for f in tail],
                                                    doing=f"preparing the keys after frame {frame:g}")
                 gap = len(sequence) - 1  # its last gap is the short one
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them

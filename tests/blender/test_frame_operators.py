@@ -196,6 +196,50 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
                                sequence.poses(1, [0.25, 0.5, 0.75])[1], atol=TOLERANCE)
 
 
+def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_frame(bpy_empty, extension, core,
+                                                                                  monkeypatch):
+    """Frames 5–13 every 3rd of a cloth simulated from frame 1: the sequences (the whole gaps', the
+    short last gap's) measure the edges their warnings hold the in-betweens to from frame 1, where the
+    cloth is at its rest, not from frame 5, where it is already falling (core.SequenceInterpolator's
+    ``rest_pose``); the in-betweens are those of the same keys without it. From frame 1 the first key is
+    that rest: none is given."""
+    obj = cloth_scene(frames=13)
+    bridge = extension.bridge
+    poses = evaluated_frames(bridge, obj, [1, 5, 8, 11, 13])
+    given, original = [], core.SequenceInterpolator
+    retime = importlib.import_module(core.__name__ + ".retime")
+    short_gap_sequence = retime.short_gap_sequence
+
+    def recording(*args, **kwargs):
+        given.append(kwargs.get("rest_pose"))
+        return original(*args, **kwargs)
+
+    def recording_tail(*args, **kwargs):
+        given.append(kwargs.get("rest_pose"))
+        return short_gap_sequence(*args, **kwargs)
+
+    monkeypatch.setattr(core, "SequenceInterpolator", recording)
+    monkeypatch.setattr(retime, "short_gap_sequence", recording_tail)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=13, frame_step=3, count=2,
+                                               output='SHAPE_KEYS')
+    assert len(given) == 2  # the whole gaps' sequence and the short last gap's
+    for rest in given:
+        assert rest is not None  # measured from the first key, frame 5
+        np.testing.assert_allclose(rest, poses[1], atol=TOLERANCE)
+    assert not np.allclose(poses[5], poses[1], atol=1e-2)  # frame 5 is no rest
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    plain = original([poses[f] for f in (5, 8, 11, 13)], triangles, key_times=[5, 8, 11, 13], start="keys")
+    with_rest = original([poses[f] for f in (5, 8, 11, 13)], triangles, key_times=[5, 8, 11, 13], start="keys",
+                         rest_pose=poses[1])
+    np.testing.assert_array_equal(with_rest.poses(0, [1 / 3, 2 / 3]), plain.poses(0, [1 / 3, 2 / 3]))
+    bpy.ops.wm.read_homefile(use_empty=True)
+    cloth_scene(frames=13)
+    given.clear()
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=10, frame_step=3, count=2,
+                                               output='SHAPE_KEYS')
+    assert given == [None]
+
+
 def test_invoke_runs_to_the_end_in_background(bpy_empty, extension):
     """From the UI, invoke() runs the work from a modal timer; in background mode (scripts,
     ``blender --background``) it runs synchronously like execute()."""

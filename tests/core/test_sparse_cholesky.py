@@ -186,6 +186,25 @@ def test_a_factorization_cholmod_could_not_finish_is_refused():
         cholmod_direct.CholmodFactor(Failing(), _sheet_matrix(15, 1e-2))
 
 
+def test_compressed_columns_past_32_bit_indices_are_refused_not_wrapped():
+    """CHOLMOD's ``int`` interface reads 32-bit column pointers: a matrix of 2³¹ nonzeros (its arrays
+    broadcast, nothing of that size allocated) cast unchecked wraps its last pointer to −2³¹, an offset
+    before the matrix; it is refused with the counts instead. A matrix that fits keeps its indices."""
+    from core.cholmod_direct import int32_columns
+    from core.errors import MeshError
+
+    nonzeros = 2 ** 31
+    huge = sp.csc_matrix((np.broadcast_to(1.0, (nonzeros,)), np.broadcast_to(np.int64(0), (nonzeros,)),
+                          np.array([0, nonzeros], dtype=np.int64)), shape=(1, 1))
+    assert huge.indptr.astype(np.int32)[-1] < 0  # what the unchecked cast handed CHOLMOD
+    with pytest.raises(MeshError, match="1 unknowns has 2,147,483,648 nonzeros, more than the 2,147,483,647"):
+        int32_columns(huge)
+    matrix = _normal_matrix(1e-2)
+    indptr, indices = int32_columns(matrix)
+    assert indptr.dtype == indices.dtype == np.int32
+    assert np.array_equal(indptr, matrix.indptr) and np.array_equal(indices, matrix.indices)
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
 def test_a_child_forked_while_another_thread_factors_can_factor():
     """A process forked while another thread holds the factorization lock (multiprocessing, a
