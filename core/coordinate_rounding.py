@@ -43,6 +43,52 @@ def coordinate_rounding(poses: list[np.ndarray], single: bool | None = None) -> 
     return float(np.finfo(np.float32 if single else np.float64).eps * largest)
 
 
+#: The decimal places :func:`decimal_rounding` looks for (1 … 9): a cache or an OBJ sequence written
+#: with a fixed count of decimals (Blender's OBJ exporter writes 6; hand-made exports 3–5). Not whole
+#: units: a mesh whose every key lies on a grid that coarse is built on it, not rounded to it.
+DECIMAL_PLACES = range(1, 10)
+#: Largest distance of a coordinate from the decimal grid, as a share of its step, for
+#: :func:`decimal_rounding` to take the coordinates as rounded to it: a coordinate not rounded so lies
+#: anywhere within half a step of it, so over a mesh's coordinates some lie far past this share; one
+#: read back in single precision lies within half a float32 spacing of it, far under this share where
+#: the step is :data:`DECIMAL_FLOAT_STEPS` spacings or more.
+DECIMAL_GRID_SHARE = 0.05
+#: Least step of a decimal grid, in spacings of the largest coordinate's precision (single where every
+#: coordinate is a float32, else double), that :func:`decimal_rounding` reads: finer ones are lost in
+#: that precision's own rounding.
+DECIMAL_FLOAT_STEPS = 16.0
+#: The coordinates :func:`decimal_rounding` checks a grid on first (all of them only where these are
+#: on it): a mesh's coordinates not rounded leave it at once, so the check costs little on them.
+DECIMAL_SAMPLE = 1024
+
+
+def decimal_rounding(poses: list[np.ndarray], rounding: float | None = None) -> float:
+    """The step ``10**-d`` of the coarsest decimal grid that every coordinate of ``poses`` (list of
+    (n, 3)) lies on (to :data:`DECIMAL_GRID_SHARE` of the step: keys exported to ``d`` decimals, read
+    back in single or double precision), ``d`` in :data:`DECIMAL_PLACES`; 0 where none (a bake, a
+    shape key: single precision, :func:`coordinate_rounding`) or where that step is under
+    :data:`DECIMAL_FLOAT_STEPS` spacings of the largest coordinate's precision. Rounding to ``d`` decimals
+    moves a coordinate by up to half the step, as single precision moves it by up to half its spacing:
+    the step is the keys' rounding as :func:`coordinate_rounding` gives it, where it is the larger
+    (``rounding``: that, where the caller has it)."""
+    poses = [np.asarray(pose, dtype=np.float64) for pose in poses if np.size(pose)]
+    if not poses:
+        return 0.0
+    finest = DECIMAL_FLOAT_STEPS * (coordinate_rounding(poses) if rounding is None else rounding)
+    sample = poses[0].ravel()[:DECIMAL_SAMPLE]
+    for places in DECIMAL_PLACES:
+        step = 10.0 ** -places
+        if step < finest:
+            break
+
+        def on_grid(values):
+            return float(np.max(np.abs(values - np.round(values, places)))) <= DECIMAL_GRID_SHARE * step
+
+        if on_grid(sample) and all(on_grid(pose) for pose in poses):
+            return step
+    return 0.0
+
+
 def inverse_heights(pose: np.ndarray, triangles: np.ndarray) -> np.ndarray:
     """Per triangle (m,) of ``pose`` (n, 3), one over its smallest height (its longest edge over
     its doubled area; inf for a flat one): times a coordinate rounding

@@ -124,6 +124,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
     #: turning, its pieces read turning left at the gauge (``SequenceInterpolator._bent_nearby``);
     #: read by no rule after, kept to tell what the gap read.
     bent_turn = 0.0
+    #: The largest turn (radians) between two parts of a piece not read turning that the gap reads
+    #: isometric but not rigid where the keys' coordinate rounding is too coarse to tell a bone's
+    #: rigidity (``core.sequence_bent_parts.hidden_rigid_turn``), in a gap not anchored; 0 elsewhere:
+    #: past 0 the gap warns.
+    hidden_rigid_turn = 0.0
 
     def __init__(self, topo: Topology, base: Key, nxt: Key, relatives: list[Relative], cubic: bool,
                  use_extrinsic: bool, anchored: bool, static: np.ndarray | None = None,

@@ -13,7 +13,11 @@ not read turning is anchored as two poses are, its pieces read turning left at t
 parts isometric to ``ISOMETRIC`` (a cloth's flat patches are too), past ``RIGID_BENT_TURN`` for parts
 rigid to the keys' rounding (``RIGID_METRIC``: a skinned bone's; a cloth's only where it is pinned,
 two pinned shares of its piece on carriers turning apart, whose gaps are then anchored too, their
-in-betweens at most 2.4 % farther from the simulation: docs/inbetween-measurements.md).
+in-betweens at most 2.4 % farther from the simulation: docs/inbetween-measurements.md). Rigid to the
+keys' rounding means to what their coordinates' rounding (a decimal grid they were stored on, or their
+precision) moves each triangle's metric by, up to ``RIGID_METRIC_CAP`` (:func:`rounded_tolerance`);
+past it a gap whose parts only the rounding keeps from being read rigid warns
+(:func:`hidden_rigid_turn`).
 """
 
 from __future__ import annotations
@@ -57,6 +61,28 @@ RIGID_METRIC = 1e-4
 #: anchored, its in-betweens at most 2.4 % farther from the simulation, docs/inbetween-measurements.md).
 #: The same least turn as two keys' (``TWO_KEY_BENT_TURN``): a bend, not a part's rounding.
 RIGID_BENT_TURN = TWO_KEY_BENT_TURN
+#: Largest deviation of a rigid triangle's metric from the identity (entries) per unit of the keys'
+#: rounding over its smallest height (``q / h``, :func:`rounded_tolerance`): rounding each corner's
+#: coordinates by up to half a step ``q`` changes its edges by up to √3 q and its metric, taken from both
+#: keys, by a few ``q / h``; measured on the LBS tube of tests/core/test_sequence_bent_parts.py stored
+#: to 3–6 decimals, its bones' triangles at most 1.2–1.9 ``q / h`` off (99th percentile 1.0–1.3).
+ROUNDED_RIGID = 4.0
+#: Largest tolerance (entries of ``G − I``) a triangle rigid to the keys' rounding is read with, however
+#: coarse the rounding (:func:`rounded_tolerance`): at 1e-3 the 16 cloth scenes of the benchmark read at
+#: most 1.6° between parts at g = 4 / 8 / 16 (flag_wind), under ``RIGID_BENT_TURN``, where at
+#: ``ISOMETRIC``'s 5e-3 a hanging sheet reads parts 7–10.5° apart (docs/inbetween-measurements.md).
+#: Keys rounded coarser than that allows (``ROUNDED_RIGID q / h`` past it) may hide a bone's rigidity:
+#: the gap warns where it reads parts turned apart only as isometric (:func:`hidden_rigid_turn`).
+#: A cloth's parts are read to this only where its keys are rounded so coarsely (float32 keys of the
+#: benchmark's cloths: only their crushed triangles, whose metric is far off the identity anyway).
+RIGID_METRIC_CAP = 1e-3
+#: Largest deviation (entries) of a part's area-weighted mean metric from the identity for the gap to
+#: warn that the keys' rounding may hide a bone (:func:`hidden_rigid_turn`): a bone's triangles are off
+#: by the rounding alone, which averages out over the part, where a cloth's patch keeps its stretch.
+#: The LBS tube of tests/core/test_sequence_bent_parts.py stored to 3 decimals reads its bones within
+#: it in every gap (30° apart); the hanging sheet (hang_corners) stored to 4 decimals reads no patch
+#: within it, where its patches read 7–23.6° apart to 2e-3 and up to 2.3° to 1e-3.
+HIDDEN_PART_MEAN = 6e-4
 
 
 def _isometric(metric: np.ndarray, tolerance: float = ISOMETRIC) -> np.ndarray:
@@ -89,7 +115,7 @@ def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray,
 
 def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
                     metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN,
-                    tolerance: float = ISOMETRIC) -> np.ndarray:
+                    tolerance: float | np.ndarray = ISOMETRIC, mean: float | None = None) -> np.ndarray:
     """Per piece (float (C,), C = ``triangle_component.max() + 1``), the largest turn (radians)
     between two rigid parts of it from a key to another; 0 for a piece without two parts, and for
     every piece where none can turn over ``least`` (radians) from another (no isometric triangle
@@ -103,10 +129,13 @@ def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotv
 
     A rigid part is a connected region of isometric triangles (every metric entry within
     ``tolerance`` of the identity's: ``ISOMETRIC``, or ``RIGID_METRIC`` for parts rigid to the keys'
-    rounding) whose neighbours turn alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the
-    region's mean rotation and covering ``PART_SHARE`` of its piece's area. Per piece, so that a gap
-    can anchor a bent piece while another piece of the mesh keeps its own placement
-    (:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`)."""
+    rounding; per triangle (m,) where raised to it, :func:`rounded_tolerance`) whose neighbours turn
+    alike (``SAME_TURN``), each within ``RIGID_SPREAD`` of the region's mean rotation and covering
+    ``PART_SHARE`` of its piece's area; with ``mean``, only a region whose area-weighted mean metric
+    is the identity's to ``mean`` (every entry): a rigid part's triangles are off by the keys'
+    rounding alone, which averages out over the region, where a cloth's patch keeps its stretch. Per
+    piece, so that a gap can anchor a bent piece while another piece of the mesh keeps its own
+    placement (:meth:`core.sequence_inbetweens.SequenceInterpolator._bent_nearby`)."""
     m = len(rotvec)
     largest = np.zeros(0 if m == 0 else int(triangle_component.max()) + 1)
     if m == 0 or len(edge_pairs) == 0:
@@ -141,11 +170,71 @@ def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotv
     parts: dict[int, list[np.ndarray]] = {}
     for region in large:
         inside = np.flatnonzero(labels == region)
-        mean = Rotation.from_quat(quaternions[inside]).mean(weights=weights[inside]).as_quat()
-        if np.abs(quaternions[inside] @ mean).min() >= np.cos(RIGID_SPREAD / 2):
-            parts.setdefault(int(pieces[inside[0]]), []).append(mean)
+        turn = Rotation.from_quat(quaternions[inside]).mean(weights=weights[inside]).as_quat()
+        if np.abs(quaternions[inside] @ turn).min() < np.cos(RIGID_SPREAD / 2):
+            continue
+        if mean is not None:
+            off = weights[inside] @ (metric[rows[inside]] - (1.0, 0.0, 1.0)) / weights[inside].sum()
+            if np.abs(off).max() > mean:
+                continue
+        parts.setdefault(int(pieces[inside[0]]), []).append(turn)
     for piece, means in parts.items():
         for i in range(len(means)):
             for j in range(i + 1, len(means)):
                 largest[piece] = max(largest[piece], 2.0 * float(np.arccos(min(1.0, abs(float(means[i] @ means[j]))))))
     return largest
+
+
+def rounded_tolerance(heights: np.ndarray, rounding: float, least: float, most: float = np.inf) -> np.ndarray:
+    """Per triangle (m,), a tolerance of the metric's deviation from the identity (entries) raised to
+    what the keys' coordinate ``rounding`` (their grid's step,
+    :func:`core.coordinate_rounding.decimal_rounding`, or their precision's spacing,
+    :func:`core.coordinate_rounding.coordinate_rounding`, in the units of ``heights``) moves it by:
+    ``ROUNDED_RIGID`` × ``rounding`` over its smallest height (``heights`` (m,)), at least ``least``,
+    at most ``most``. Rigid to the keys' rounding: ``least`` = ``RIGID_METRIC``, ``most`` =
+    ``RIGID_METRIC_CAP`` (keys stored to 5 decimals on edges of 0.1 move a bone's metric by up to
+    2.2e-4: at ``RIGID_METRIC`` alone a limb keyed 20° apart read no rigid part in its last gap and was
+    placed by the keys' spline, 1.6e-3 of its diagonal off the rig)."""
+    return np.clip(ROUNDED_RIGID * rounding / heights, least, most)
+
+
+def rounding_hides(triangle_component: np.ndarray, heights: np.ndarray, areas: np.ndarray,
+                   rounding: float) -> np.ndarray:
+    """Per piece (bool (C,)), whether the keys' coordinate ``rounding`` moves the metric of
+    ``PART_SHARE`` of its area or more past ``RIGID_METRIC_CAP`` (``ROUNDED_RIGID`` × ``rounding`` over
+    the triangles' smallest ``heights`` (m,); ``areas`` (m,), ``triangle_component`` int (m,)): the keys
+    may hide whether its parts are rigid bones (a part is ``PART_SHARE`` of its piece)."""
+    piece_area = np.bincount(triangle_component, areas)
+    coarse = ROUNDED_RIGID * rounding / heights > RIGID_METRIC_CAP
+    return np.bincount(triangle_component[coarse], areas[coarse], minlength=len(piece_area)) >= \
+        PART_SHARE * piece_area
+
+
+def hidden_rigid_turn(hidden: np.ndarray, isometric_turn: np.ndarray, rigid_turn: np.ndarray) -> float:
+    """The largest turn (radians) between two parts of a piece that the gap reads isometric to the keys'
+    rounding, their mean metric the identity's to ``HIDDEN_PART_MEAN`` (``isometric_turn`` (C,),
+    :func:`bent_part_turns` from ``RIGID_BENT_TURN`` to :func:`rounded_tolerance` from ``ISOMETRIC``,
+    ``mean`` = ``HIDDEN_PART_MEAN``) past ``RIGID_BENT_TURN`` but not rigid (``rigid_turn``
+    (C,), to it from ``RIGID_METRIC``), in a piece whose keys' rounding may hide a skinned bone's rigidity
+    (``hidden`` bool (C,), :func:`rounding_hides`): such a gap is placed by the keys' per-vertex spline,
+    which cuts a bone's arc (an LBS tube keyed 0 / 30 / 60 / 90° to 3 decimals, edges 0.1: 3.1e-3 of its
+    diagonal off the rig, two poses 4.3e-4). 0 where no piece is so."""
+    turn = np.where(hidden & (rigid_turn <= RIGID_BENT_TURN), isometric_turn, 0.0)
+    return float(turn.max(initial=0.0)) if (turn > RIGID_BENT_TURN).any() else 0.0
+
+
+def hidden_rigid_warning(turn: float, rounding: float, decimals: bool, names: tuple[str, str]) -> list[str]:
+    """The gap's warning (list of at most one message) of parts of a piece turned ``turn`` (radians,
+    :func:`hidden_rigid_turn`; none where 0) apart between the keys ``names``, whose coordinate
+    ``rounding`` (a decimal grid's step where ``decimals``, else single precision's spacing) hides
+    whether they are a joint's rigid bones."""
+    if not turn > 0.0:
+        return []
+    how = (f"stored to {max(0, int(round(-np.log10(rounding))))} decimals" if decimals else
+           f"rounded to {rounding:.2g} (single precision this far from the origin)")
+    way = ("store them with more decimals" if decimals else
+           "move the mesh's origin near it, or give the keys relative to it")
+    return [f"between {names[0]} and {names[1]}, parts of a piece turn {np.degrees(turn):.0f}° apart, but the keys "
+            f"are {how}, too coarse to tell whether they are rigid bones at a joint: they are placed as a cloth is, "
+            "by the keys' per-vertex splines, which cut a bone's arc (up to a few thousandths of the mesh's size); "
+            f"if it is a limb, {way}"]

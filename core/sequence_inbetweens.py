@@ -66,8 +66,9 @@ from .sequence_gaps_ahead import GapsAhead
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
-from .sequence_bent_parts import (BENT_PART_TURN, ISOMETRIC, RIGID_BENT_TURN, RIGID_METRIC, TWO_KEY_BENT_TURN,
-                                  bent_part_turns, rigid_share)
+from .sequence_bent_parts import (BENT_PART_TURN, HIDDEN_PART_MEAN, ISOMETRIC, RIGID_BENT_TURN, RIGID_METRIC,
+                                  RIGID_METRIC_CAP, TWO_KEY_BENT_TURN, bent_part_turns, hidden_rigid_turn,
+                                  hidden_rigid_warning, rigid_share, rounded_tolerance, rounding_hides)
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
@@ -76,6 +77,7 @@ from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allo
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause, sliver_excess
+from .untold_triangles import triangle_heights
 
 __all__ = ["SequenceInterpolator"]
 
@@ -261,6 +263,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.reversed_spin = 0.0 if segment.aliased_spin else self._reversed_spin(gap)
         largest = float(bent.max(initial=0.0))  # of any piece, turning or not
         segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
+        if not anchored and not chord and self._across is None:  # parts the keys' rounding may hide as bones
+            segment.hidden_rigid_turn = self._hidden_rigid_turn(gap, reading, turning)
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment
@@ -278,27 +282,60 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                               fits=self._fits(gap, gap + 1)))
 
     def _bent_turn(self, gap: int, relative: Relative | None = None, least: float = BENT_PART_TURN,
-                   tolerance: float = ISOMETRIC) -> np.ndarray:
+                   tolerance: float = ISOMETRIC, rounded: bool = False, mean: float | None = None) -> np.ndarray:
         """Per piece (float (C,)), the largest turn (radians) between two rigid parts of it from key
         ``gap`` to the next (:func:`core.sequence_bent_parts.bent_part_turns`, ``least`` its least
         turn read, its parts' metric the identity's to ``tolerance``); 0 in a gap warned of mirrored
         pieces and for two poses. ``relative``: key ``gap + 1`` seen from key ``gap`` with the keys'
-        own metric (:meth:`_keys_relative`), if at hand. Kept per gap, least turn and tolerance (not
-        to be changed in place): a gap reads its neighbours' (:meth:`_bent_nearby`)."""
+        own metric (:meth:`_keys_relative`), if at hand; ``rounded``: the tolerance raised per triangle to
+        what the keys' rounding moves its metric by (:meth:`_rounded_tolerance`); ``mean``: the parts' mean
+        metric the identity's to it too. Kept per gap and reading (not to be changed in place): a gap reads
+        its neighbours' (:meth:`_bent_nearby`)."""
         count = len(self._topo.components)
         if self._across is not None or gap in self._mirrored_gaps:
             return np.zeros(count)
         with self._cache_lock:  # gaps are prepared on several threads; the reading depends on the keys alone
-            known = self._bent_turns.get((gap, least, tolerance))
+            known = self._bent_turns.get((gap, least, tolerance, rounded, mean))
         if known is not None:
             return known
         relative = relative if relative is not None else self._keys_relative(gap)
+        within = self._rounded_tolerance(gap, tolerance) if rounded else tolerance
         turn = bent_part_turns(self._topo.triangle_component, self._edge_pairs, relative.rotvec, relative.metric,
-                               self._key(gap).areas, least, tolerance)
+                               self._key(gap).areas, least, within, mean)
         turn = np.pad(turn, (0, count - len(turn)))  # pieces with no triangle after the last that has one
         with self._cache_lock:
-            self._bent_turns[(gap, least, tolerance)] = turn
+            self._bent_turns[(gap, least, tolerance, rounded, mean)] = turn
         return turn
+
+    def _key_rounding(self) -> float:
+        """The keys' coordinate rounding in working units: the decimal grid they were stored on
+        (:func:`core.coordinate_rounding.decimal_rounding`) or their precision's spacing
+        (:func:`core.coordinate_rounding.coordinate_rounding`), whichever is coarser."""
+        return max(self._rounding, self._decimal_rounding) * self._unit
+
+    def _rounded_tolerance(self, gap: int, least: float) -> np.ndarray:
+        """Per triangle (m,), the metric's tolerance ``least`` raised to what the keys' rounding moves it
+        by in gap ``gap`` (:func:`core.sequence_bent_parts.rounded_tolerance`, the heights of its first
+        key): for parts rigid to the rounding (``least`` = ``RIGID_METRIC``) at most ``RIGID_METRIC_CAP``."""
+        base = self._key(gap)
+        return rounded_tolerance(triangle_heights(base.areas, base.lengths), self._key_rounding(), least,
+                                 RIGID_METRIC_CAP if least == RIGID_METRIC else np.inf)
+
+    def _hidden_rigid_turn(self, gap: int, relative: Relative, turning: np.ndarray) -> float:
+        """The turn (radians) between two parts of a piece not read ``turning`` (bool (C,)) that gap ``gap``
+        reads isometric to the keys' rounding (their mean metric the identity's to ``HIDDEN_PART_MEAN``)
+        but not rigid to it, where that rounding is too coarse to tell a bone's rigidity
+        (:func:`core.sequence_bent_parts.hidden_rigid_turn`; ``relative`` as for :meth:`_bent_turn`); 0
+        elsewhere. Keys finer than that (every benchmark cloth's) cost a look at their first key's heights."""
+        base = self._key(gap)
+        heights = triangle_heights(base.areas, base.lengths)
+        hidden = rounding_hides(self._topo.triangle_component, heights, base.areas, self._key_rounding())
+        hidden = np.pad(hidden, (0, len(turning) - len(hidden))) & ~turning
+        if not hidden.any():
+            return 0.0
+        return hidden_rigid_turn(hidden, self._bent_turn(gap, relative, RIGID_BENT_TURN, ISOMETRIC, rounded=True,
+                                                         mean=HIDDEN_PART_MEAN),
+                                 self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC, rounded=True))
 
     def _bent_past(self, gap: int, pieces: np.ndarray, relative: Relative | None = None) -> bool:
         """Whether gap ``gap`` (of three keys or more) reads a part of one of ``pieces`` (bool (C,))
@@ -308,7 +345,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         (:data:`~core.sequence_bent_parts.RIGID_METRIC`: a skinned bone's, whose arc the keys' spline
         cuts at any turn). ``relative`` as for :meth:`_bent_turn`."""
         return bool((self._bent_turn(gap, relative)[pieces] > BENT_PART_TURN).any()) or \
-            bool((self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC)[pieces] > RIGID_BENT_TURN).any())
+            bool((self._bent_turn(gap, relative, RIGID_BENT_TURN, RIGID_METRIC, rounded=True)[pieces] >
+                  RIGID_BENT_TURN).any())
 
     def _bent_nearby(self, gap: int, bent: np.ndarray, relative: Relative, turning: np.ndarray) -> bool:
         """Whether gap ``gap`` (of three keys or more; ``bent``: its own :meth:`_bent_turn` per piece,
@@ -399,7 +437,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             self._gap_messages[gap] = [("turn", m, 0, (), e) for m, e in turn_warnings(segment, names, gap)] + \
                 [("joint", m, 0, (), e) for m, e in joint_warnings(segment.joint_doubts, names, gap)] + \
                 [("sliver", m, 0, (), thin) for m in rounded_sliver_warning(slivers.size, self._rounding,
-                                                                            (names[gap], names[gap + 1]), cause)]
+                                                                            (names[gap], names[gap + 1]), cause)] + \
+                [("turn", m, 0, (), 0.0) for m in hidden_rigid_warning(
+                    segment.hidden_rigid_turn, max(self._rounding, self._decimal_rounding),
+                    self._decimal_rounding > self._rounding, (names[gap], names[gap + 1]))]
         return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:

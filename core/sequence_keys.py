@@ -27,7 +27,7 @@ from .inbetween_topology import Topology
 from .laplace_basis import basis_sizes
 from .mesh_topology import check_manifold_vertices
 from .pins import moving_edges, riding_tolerance, riding_vertices, still_vertices, witnessed_riding
-from .coordinate_rounding import coordinate_rounding, rounding_scale
+from .coordinate_rounding import coordinate_rounding, decimal_rounding, rounding_scale
 from .loose_vertices import attached_loose
 from .seam_welds import coincidence_tolerance, seam_weld
 from .near_duplicates import near_duplicates
@@ -89,6 +89,9 @@ class SequenceKeys:
         # the keys' rounding (single precision where every coordinate is a float32), read before the
         # keys are moved: slivers within two of it are reshaped by it (core.rounded_slivers)
         self._rounding = coordinate_rounding(keys)
+        # the grid they were stored on where coarser (keys exported to a few decimals): the rigid parts
+        # of a piece are read to it (core.sequence_bent_parts.rounded_tolerance)
+        self._decimal_rounding = decimal_rounding(keys, self._rounding)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
         apart = None  # why the seams cannot be joined
         try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seam_welds)

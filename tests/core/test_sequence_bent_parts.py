@@ -88,12 +88,14 @@ def _sequence_and_pairs(keys, triangles, factors=(0.25, 0.5, 0.75), k_M=None, sm
 
 
 def test_a_limb_bent_past_the_limit_is_anchored_in_that_gap_and_the_gaps_next_to_it():
-    # keys stored to 4 decimals (edges 0.1): the bones keep their metric only to a few 1e-3, isometric
-    # (ISOMETRIC) but not rigid to the keys' rounding (RIGID_METRIC), so the limit is BENT_PART_TURN
+    # keys jittered by up to 5e-5 (edges 0.1; noise on no grid, a scan's): the bones keep their metric
+    # only to a few 1e-3, isometric (ISOMETRIC) but not rigid to the keys' rounding (RIGID_METRIC), so
+    # the limit is BENT_PART_TURN
     rest, triangles = _tube()
+    rng = np.random.default_rng(0)
 
     def keys(angles):
-        return [np.round(_skinned(rest, a), 4) for a in angles]
+        return [_skinned(rest, a) + rng.uniform(-5e-5, 5e-5, rest.shape) for a in angles]
 
     # 100° in the first gap, 50° in the second, whose cubic spline reads the first gap's keys
     assert _anchored(keys((0.0, 100.0, 150.0)), triangles) == [True, True]
@@ -116,6 +118,92 @@ def test_a_limb_whose_bones_are_rigid_to_the_keys_rounding_is_anchored_at_any_be
     # the turn read between the rigid parts is the joint's, to single precision
     assert np.degrees(sequence._bent_turn(0, least=RIGID_BENT_TURN, tolerance=RIGID_METRIC)) == \
         pytest.approx(30.0, abs=1e-3)
+
+
+def _stored(keys, how):
+    """``keys`` as an exporter stores them: to ``how`` = ``"d decimals"``, or in single precision
+    ``"1000 out"`` from the origin (moved back by the caller)."""
+    if how == "1000 out":
+        return [(k + 1000.0).astype(np.float32).astype(np.float64) for k in keys]
+    return [np.round(k, int(how.split()[0])) for k in keys]
+
+
+def test_the_keys_decimal_rounding_is_read_from_their_coordinates():
+    # keys exported to d decimals, read back in double or single precision: the grid's step exactly;
+    # a bake's single-precision keys and keys jittered off any grid: none
+    from core.coordinate_rounding import decimal_rounding
+
+    rest, _ = _tube()
+    keys = [_skinned(rest, a) for a in (0.0, 30.0, 60.0)]
+    for places in (3, 4, 5, 6):
+        rounded = [np.round(k, places) for k in keys]
+        assert decimal_rounding(rounded) == 10.0 ** -places
+        assert decimal_rounding([k.astype(np.float32) for k in rounded]) == (10.0 ** -places if places < 6 else 0.0)
+    assert decimal_rounding(keys) == 0.0
+    assert decimal_rounding([k + np.random.default_rng(0).uniform(-5e-5, 5e-5, k.shape) for k in keys]) == 0.0
+    # one key off the grid: the keys are not on it
+    assert decimal_rounding([np.round(keys[0], 4), keys[1]]) == 0.0
+
+
+@pytest.mark.parametrize("stored", ["5 decimals", "4 decimals", "1000 out"])
+def test_a_limb_whose_keys_are_rounded_coarsely_is_read_rigid_to_their_rounding(stored):
+    # keys stored to 5 / 4 decimals (edges 0.1), or in single precision 1000 units out, move a bone's
+    # metric by up to 2.2e-4 / 2.5e-3 / ~1.5e-3, past RIGID_METRIC: read to it alone, the LBS tube keyed
+    # 30° apart read no rigid part to 4 decimals or 1000 out (no gap anchored: 3.1e-3 of the diagonal
+    # off the rig at ¾ of the last gap, two poses 4.3e-4), keyed 20° apart to 5 decimals none in its last
+    # gap (1.6e-3 off). Read to the keys' own rounding (rounded_tolerance), every gap is anchored and
+    # no in-between is farther from the rig than two poses on the same keys.
+    rest, triangles = _tube()
+    shift = 1000.0 if stored == "1000 out" else 0.0
+    assert _anchored(_stored([_skinned(rest, a) for a in range(0, 161, 20)], stored), triangles) == [True] * 8
+    keyed = (0.0, 30.0, 60.0, 90.0)
+    keys = _stored([_skinned(rest, a) for a in keyed], stored)
+    assert _anchored(keys, triangles) == [True] * 3
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+
+    def rig(a):
+        return _skinned(rest, a[0])
+
+    for gap, factor, x, pair in _sequence_and_pairs(keys, triangles):
+        (off, against), (pair_off, _) = (_off_the_rig(y - shift, rig, keyed[gap], keyed[gap + 1], triangles, diagonal)
+                                         for y in (x, pair))
+        assert against == 0 and off <= pair_off, (gap, factor)
+
+
+def test_a_limb_whose_keys_are_too_coarse_to_tell_its_bones_rigid_is_warned():
+    # stored to 3 decimals (edges 0.1) the keys move a bone's metric by up to 1.6e-2, past
+    # RIGID_METRIC_CAP: no part is read rigid, and each gap is placed by the keys' per-vertex spline
+    # (3.1e-3 of the diagonal off the rig at ¾ of the last gap), silently before
+    rest, triangles = _tube()
+    keyed = (0.0, 30.0, 60.0, 90.0)
+    keys = [np.round(_skinned(rest, a), 3) for a in keyed]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        sequence = SequenceInterpolator(keys, triangles)
+        late = sequence.pose(2, 0.75)
+    said = [w.message for w in caught if "too coarse to tell whether they are rigid bones" in str(w.message)]
+    assert [m.gap for m in said] == [("key pose 2", "key pose 3")]
+    assert said[0].kind == "turn" and "stored to 3 decimals" in str(said[0]) and "30° apart" in str(said[0])
+    assert not any(sequence._gap(gap).anchored for gap in range(3))
+    # what it says: the spline places the bone off its arc, where the keys stored with one more decimal
+    # (read rigid, anchored) place it within a twelfth of that
+    diagonal = np.linalg.norm(np.ptp(rest, axis=0))
+
+    def rig(a):
+        return _skinned(rest, a[0])
+
+    finer = SequenceInterpolator([np.round(_skinned(rest, a), 4) for a in keyed], triangles).pose(2, 0.75)
+    off, finer_off = (_off_the_rig(x, rig, 60.0, 90.0, triangles, diagonal)[0] for x in (late, finer))
+    assert off > 2e-3 and off > 8.0 * finer_off
+    # keys that tell the bones rigid (single precision near the origin), or a bend within a rigid
+    # part's spread, say nothing of it
+    for keys in ([_skinned(rest, a) for a in keyed], [np.round(_skinned(rest, a), 3) for a in (0.0, 1.0, 2.0)]):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            sequence = SequenceInterpolator(keys, triangles)
+            for gap in range(len(sequence)):
+                sequence.pose(gap, 0.5)
+        assert not any("too coarse to tell" in str(w.message) for w in caught)
 
 
 @pytest.mark.parametrize("limb", ["LBS tube 30° a key", "remeshed 60° a key", "remeshed 15° a key"])

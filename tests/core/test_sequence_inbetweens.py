@@ -63,20 +63,28 @@ def _swinging_flap():
     return flat, tri, [swung(t) for t in range(9)], swung
 
 
-@pytest.mark.parametrize("decimals", [None, 5])
-def test_swinging_flap_keeps_its_edge_lengths(decimals):
+def _jittered(keys, size=5e-6, seed=0):
+    """``keys`` with every coordinate moved by up to ``size`` at random: noise the size of keys stored
+    to 5 decimals, on no grid (a scan's), so the flap's halves keep their metric only to it and are not
+    read rigid to the keys' rounding (:func:`core.sequence_bent_parts.rounded_tolerance`)."""
+    rng = np.random.default_rng(seed)
+    return [k + rng.uniform(-size, size, k.shape) for k in keys]
+
+
+@pytest.mark.parametrize("jitter", [None, 5e-6])
+def test_swinging_flap_keeps_its_edge_lengths(jitter):
     """The swinging flap (:func:`_swinging_flap`): the keys' per-vertex spline cuts the chords of
-    the flap's arcs (edges up to 2.9 % short). Keys stored to 5 decimals keep the flap's halves
-    rigid only to that rounding, and the first gaps keep the spline anchor, which held the fit there
-    (0.5 % mean, 1.1 % worst): solved again with the weak anchor the in-betweens keep the lengths to
-    within the fit's tolerance (0.1 %) a few times over. Keys as computed keep the halves rigid to
-    round-off, a hinge's parts (``RIGID_METRIC``), and every gap is anchored as two poses are. Either
-    way the in-betweens sit closer to the true swing than the spline."""
+    the flap's arcs (edges up to 2.9 % short). Keys jittered by 5e-6 (:func:`_jittered`) keep the
+    flap's halves rigid only to that noise, and the first gaps keep the spline anchor, which held the
+    fit there: solved again with the weak anchor the in-betweens keep the lengths to within the fit's
+    tolerance (0.1 %) a few times over. Keys as computed keep the halves rigid to round-off, a hinge's
+    parts (``RIGID_METRIC``), and every gap is anchored as two poses are. Either way the in-betweens
+    sit closer to the true swing than the spline."""
     flat, tri, keys, swung = _swinging_flap()
-    keys = keys if decimals is None else [np.round(k, decimals) for k in keys]
+    keys = keys if jitter is None else _jittered(keys, jitter)
     seq = SequenceInterpolator(keys, tri)
-    # which path each gap takes: the weak anchor's (5 decimals, first gap) or two poses' (as computed)
-    assert seq._gap(0).anchored == (decimals is None)
+    # which path each gap takes: the weak anchor's (jittered, first gap) or two poses' (as computed)
+    assert seq._gap(0).anchored == (jitter is None)
     ours, spline = [], []
     for k in range(len(seq)):
         p0, p3 = (keys[k - 1] if k else 2 * keys[0] - keys[1]), (keys[k + 2] if k + 2 < len(keys) else 2 * keys[-1] - keys[-2])
@@ -104,13 +112,13 @@ def test_weak_anchor_only_where_letting_go_starts_the_fit_closer():
     less than half as far off. Where the guide is what the target edges integrate to (their
     Poisson solve with the gauge anchor alone, moved as a whole), the anchor holds nothing back,
     however far off the metric those edges are (perturbed here): letting it go moves nothing, and
-    the fit is not solved again. The keys are stored to 5 decimals: the flap's halves then keep
-    their metric only to that rounding, so the gap keeps the spline anchor (halves rigid to the
-    keys' single-precision rounding are a hinge's, anchored as two poses: core.sequence_bent_parts)."""
+    the fit is not solved again. The keys are jittered by 5e-6 (:func:`_jittered`): the flap's halves
+    then keep their metric only to that noise, so the gap keeps the spline anchor (halves rigid to the
+    keys' rounding are a hinge's, anchored as two poses: core.sequence_bent_parts)."""
     from core.inbetween_topology import GAUGE_WEIGHT
 
     _, tri, keys, _ = _swinging_flap()
-    gap = SequenceInterpolator([np.round(k, 5) for k in keys], tri)._gap(0)
+    gap = SequenceInterpolator(_jittered(keys), tri)._gap(0)
     assert not gap.anchored
     s = 0.5
     gap.select(s)
