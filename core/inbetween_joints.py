@@ -41,7 +41,8 @@ which are their motions: their relative motion turns about their contact too (th
 two gears), and composed on it a card or gear left its root or axle. They are told from a joint
 by their contact, which a joint's moving parent carries between the keys and which their own
 screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`; the contact
-read from the same vertex pairs in both keys where some are closest in both, :func:`shared_contacts`), unless both
+read from the same vertex pairs in both keys where some are closest in both, :func:`shared_contacts`, elsewhere
+as the centre of all its touching vertex pairs in each key, :func:`contact_centres`), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
 the point but not the turn relative to the link below).
 """
@@ -226,6 +227,43 @@ def shared_contacts(base: np.ndarray, nxt: np.ndarray, ends: np.ndarray, first: 
     return out[0], out[1]
 
 
+def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """Per pair of pieces of :func:`touching_pairs` (P,; its vertex pairs ``ends`` in runs from
+    ``first``), the centre (P, 3) of where they touch at positions ``x`` (n, 3): the mean midpoint
+    of its vertex pairs within ``within`` (P,) of each other (nan where none is)."""
+    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
+    near = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) <= within[run]
+    middle = 0.5 * (x[ends[near, 0]] + x[ends[near, 1]])
+    counts = np.bincount(run[near], minlength=first.size)
+    sums = np.stack([np.bincount(run[near], middle[:, d], minlength=first.size) for d in range(3)], axis=1)
+    return np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], np.nan)
+
+
+def touching_centres(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
+                     asked: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """Per pair of pieces ``keys`` (P,; as :func:`touching_pairs` names them), the centre (P, 3) of
+    where it touches at positions ``x`` (:func:`contact_centres` of its vertices ``index`` within
+    ``within`` (P,) ≤ ``reach`` of each other) where it is ``asked`` (bool (P,)), else nan (only the
+    asked pairs' pieces searched)."""
+    ends, first, here, there = _asked_pairs(x, index, label, count, reach, keys, asked)
+    reaches = np.full(first.size, -1.0)  # pairs not asked for: none within
+    reaches[there] = np.where(asked[here], within[here], -1.0)
+    centres = np.full((keys.size, 3), np.nan)
+    centres[here] = contact_centres(x, ends, first, reaches)[there]
+    return centres
+
+
+def _asked_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
+                 asked: np.ndarray) -> tuple:
+    """The vertex pairs within ``reach`` at positions ``x`` of the pairs of pieces ``keys`` that are
+    ``asked`` (:func:`touching_pairs` of their pieces' vertices: ``ends``, ``first``), and which of
+    ``keys`` (``here``) each of the runs found (``there``) is."""
+    kept = np.isin(label, np.divmod(keys[asked], count))
+    found, ends, first = touching_pairs(x, index[kept], label[kept], count, reach)
+    _, here, there = np.intersect1d(keys, found[first], assume_unique=True, return_indices=True)
+    return ends, first, here, there
+
+
 def _nearest(x: np.ndarray, ends: np.ndarray, first: np.ndarray) -> np.ndarray:
     """Per pair of pieces of :func:`touching_pairs`, the distance of its closest two vertices ``ends``
     at positions ``x``."""
@@ -239,10 +277,8 @@ def nearest_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: in
     """Per pair of pieces ``keys`` (as :func:`touching_pairs` names them), the distance of its closest two
     vertices ``index`` at positions ``x`` where it is ``asked`` (bool) and they are within ``reach``,
     else inf (only the asked pairs' pieces searched), and their midpoint (nan where none)."""
-    kept = np.isin(label, np.divmod(keys[asked], count))
-    found, ends, first = touching_pairs(x, index[kept], label[kept], count, reach)
+    ends, first, here, there = _asked_pairs(x, index, label, count, reach, keys, asked)
     nearest, where = np.full(keys.size, np.inf), np.full((keys.size, 3), np.nan)
-    _, here, there = np.intersect1d(keys, found[first], assume_unique=True, return_indices=True)
     distance, midpoint = closest_pairs(x, ends, first)
     nearest[here], where[here] = distance[there], midpoint[there]
     return np.where(asked, nearest, np.inf), where
@@ -398,9 +434,17 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             drift = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k[t]], point) + translations[k[t]]
                                                 - point, axis=1) for k in (u, v)))
             together[t] = drift > precision[t]
-        # the same vertex pairs read in both keys where some are closest in both (coincident
-        # vertices along a hinge): the first of several equally close pairs is another pair in
-        # each key, and two points of a carried hinge read as a contact that stays put
+        # the contact in each key: the centre of all its vertex pairs touching (within the finer
+        # piece's edges), where the closest pair of meshing teeth jumps from tooth to tooth as the
+        # gears turn (half a tooth's pitch on a turn of a third of it: so read, a contact that stays
+        # put between the teeth moved as far as the gears' motions carried it); and the same vertex
+        # pairs read in both keys where some are closest in both (coincident vertices along a
+        # hinge): the first of several equally close pairs is another pair in each key, and two
+        # points of a carried hinge read as a contact that stays put
+        within = np.broadcast_to(finer, jointed.shape)
+        contact_base = np.where(jointed[:, None], contact_centres(base, ends, first, within), contact_base)
+        contact_later = np.where(jointed[:, None], touching_centres(nxt, index, label, pieces.size, reach, key[first],
+                                                                    jointed, within), contact_later)
         contact_base, contact_later = shared_contacts(base, nxt, ends, first, nearest_base, nearest_later,
                                                       precision, contact_base, contact_later)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]

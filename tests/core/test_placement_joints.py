@@ -126,6 +126,26 @@ def test_meshing_gears_turn_about_their_own_axles(degrees):
         np.testing.assert_allclose(interpolator.pose(s), _gear_train(s * degrees)[0], atol=1e-6)
 
 
+@pytest.mark.parametrize("degrees", [5.0, 9.0, 13.0])
+def test_meshing_gears_turned_less_than_a_tooth_turn_about_their_own_axles(degrees):
+    """The gear train turned by less than a tooth's pitch (18° on the large gear): every factor of
+    two poses is both gears turned by that factor about their own axles, to 1e-6, and so is every
+    in-between of a sequence turning by as much a key. The closest pair of teeth jumps to the next
+    tooth between the keys (by half a tooth's pitch), further than the gears' short turns carry
+    the contact, which read so seemed carried by a moving parent: the small gear hung from the large
+    one, 6.1e-3 (5°), 2.0e-2 (9°) and 4.0e-2 (13°) of the pair's diagonal off its axle (at ×2 and
+    −0.5), and 4.3e-4–2.5e-3 in the sequences' end gaps; the centre of the whole contact stays put."""
+    a, tri, _ = _gear_train(0.0)
+    interpolator = Interpolator(a, _gear_train(degrees)[0], tri)
+    for s in FACTORS + (-1.0, 3.0):
+        np.testing.assert_allclose(interpolator.pose(s), _gear_train(s * degrees)[0], atol=1e-6)
+    sequence = SequenceInterpolator([_gear_train(k * degrees)[0] for k in range(5)], tri, start="keys")
+    factors = (0.25, 0.5, 0.75)
+    for gap in range(4):
+        for factor, pose in zip(factors, sequence.poses(gap, factors)):
+            np.testing.assert_allclose(pose, _gear_train((gap + factor) * degrees)[0], atol=1e-6)
+
+
 def _forearm_and_hand(bend, swing, n=60, k=16, radius=0.1):
     """A tube forearm (x ∈ [0, 2], radius 0.1) bent about y by ``bend`` over x ∈ [0.9, 1.5], and a
     hand (an ellipsoid, a separate piece overlapping the tube's end) turned at the wrist by
