@@ -34,17 +34,21 @@ class DefectChecks:
     ``factor_targets``."""
 
     def flipped(self, cross: np.ndarray, length: np.ndarray, s: float, frames: np.ndarray | None,
-                rows=slice(None), sides=None, normals=None) -> np.ndarray:
+                rows=slice(None), sides=None, normals=None, against=None) -> np.ndarray:
         """Triangles (bool (r,)) among ``rows`` whose normal ``cross`` (3 coordinates, r; its
         lengths ``length`` (r,)) opposes both keys' unit normals (in-betweens, 0 ≤ s ≤ 1) or, for
         extrapolations, the interpolated normal ``R_T(s) n_T`` (``frames``: (3, m, 3) of every
         triangle, ``frames[2]`` the normals; without them: the nearer key's normal), by more than
-        :data:`FLIP_COSINE` (``normals``: the keys' normals on ``rows``, if the caller has them)."""
+        :data:`FLIP_COSINE` (``normals``: the keys' normals on ``rows``, if the caller has them;
+        ``against``: the triangles whose normal opposes both keys', if the caller has them)."""
         gap = self.gap
         slack = -FLIP_COSINE * length
         if 0.0 <= s <= 1.0:
-            base, nxt = normals or (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows])
-            flipped = (coordinate_dot(cross, base) < slack) & (coordinate_dot(cross, nxt) < slack)
+            if against is None:
+                base, nxt = normals or (gap.base.normal_rows[:, rows], gap.next.normal_rows[:, rows])
+                flipped = (coordinate_dot(cross, base) < slack) & (coordinate_dot(cross, nxt) < slack)
+            else:
+                flipped = against.copy()
             if frames is not None and sides is not None and sides[2] is not None and flipped.any():
                 flipped[self._turned_away(cross, slack, frames, rows, np.flatnonzero(flipped), sides)] = False
             return flipped
@@ -61,10 +65,8 @@ class DefectChecks:
         if rows is None:
             if not np.isfinite(x).all():
                 return np.ones(len(self.gap.topo.triangles), dtype=bool)
-            e1, e2, cross, length = self._whole_sides(x)
-            rows = slice(None)
-            normals = None
-            target = self.gap.base.areas * self._area_scale(stretch, scale, rows)
+            e1, e2, cross, length, against, collapsed = self._whole_check(x, s, stretch, scale)
+            rows, normals = slice(None), None
         else:
             corners, normals, target = self._rows_of(rows, stretch, scale)
             p = np.take(x, corners, axis=0)  # (3 corners, r, 3) in one gather
@@ -73,8 +75,8 @@ class DefectChecks:
             e1, e2 = (p[1] - p[0]).T, (p[2] - p[0]).T
             cross = coordinate_cross(e1, e2)
             length = np.sqrt(coordinate_dot(cross, cross))
-        collapsed = 0.5 * length < COLLAPSE_RATIO * target
-        defects = self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals) | collapsed
+            against, collapsed = None, _collapsed(length, target)
+        defects = self.flipped(cross, length, s, frames, rows, (e1, e2, stretch), normals, against) | collapsed
         untold = self.gap.untold[2]
         if untold.any():  # a triangle whose facing neither key tells is neither (core.untold_triangles)
             defects &= ~untold[rows]
@@ -87,8 +89,9 @@ class DefectChecks:
         rotations turn away from both keys are none (:mod:`core.inbetween_turned_away`). Checked
         first without them (the same triangles and more: the frames only take turned-away ones
         out), and with them, on the gap's targets by rows at ``s``, only where that finds any: the
-        second check takes the first one's sides and normals (:meth:`_whole_sides`)."""
-        self._local.sides = None  # both checks read the pose's sides, normals and their lengths once
+        second check takes the first one's sides, normals, flips against both keys and collapses
+        (:meth:`_whole_check`) and judges only those flips against the frames."""
+        self._local.sides = None  # both checks read the pose's sides and test them against the keys once
         try:
             plain = self.defects(x, s, None, None, scale=scale)
             if not plain.any():
@@ -98,20 +101,26 @@ class DefectChecks:
         finally:
             self._local.sides = False  # let go (a count inside another leaves the outer one to take its own)
 
-    def _whole_sides(self, x: np.ndarray) -> tuple:
-        """The sides from the first corner (two (3, m)), the normals ``cross`` (3, m) and their
-        lengths (m,) of every triangle of ``x`` (n, 3); inside :meth:`counted`, which checks one pose
-        twice, the ones it made for ``x`` first (per thread: a gap's in-betweens are counted
-        concurrently)."""
+    def _whole_check(self, x: np.ndarray, s: float, stretch, scale) -> tuple:
+        """Of every triangle of ``x`` (n, 3): the sides from the first corner (two (3, m)), the normals
+        ``cross`` (3, m) and their lengths (m,), which normals oppose both keys' (bool (m,); None
+        beyond the keys, where the keys' normals do not decide) and which triangles collapsed
+        (bool (m,); the interpolated areas from ``stretch`` or ``scale`` as :meth:`defects` takes
+        them): none of it depends on the interpolated frames, so inside :meth:`counted`, which
+        checks one pose without and with them at one ``s`` and ``scale``, the ones it made for ``x``
+        first (per thread: a gap's in-betweens are counted concurrently)."""
         kept = getattr(self._local, "sides", False)
-        if kept and kept[0] is x:
-            return kept[1]
+        if kept and kept[0] is x and kept[1] == s and kept[2] is scale:
+            return kept[3]
         e1, e2 = self.gap.topo.triangle_sides(x)  # by coordinate (3, m)
         cross = coordinate_cross(e1, e2)
-        sides = e1, e2, cross, np.sqrt(coordinate_dot(cross, cross))
-        if kept is not False:
-            self._local.sides = (x, sides)
-        return sides
+        length = np.sqrt(coordinate_dot(cross, cross))
+        against = self.flipped(cross, length, s, None) if 0.0 <= s <= 1.0 else None
+        collapsed = _collapsed(length, self.gap.base.areas * self._area_scale(stretch, scale, slice(None)))
+        made = e1, e2, cross, length, against, collapsed
+        if kept is not False and scale is not None:  # the areas from ``scale``: the same in both checks
+            self._local.sides = (x, s, scale, made)
+        return made
 
     def region_defects(self, x: np.ndarray, s: float, frames, stretch, rows: np.ndarray, scale=None) -> np.ndarray:
         """The flipped or collapsed triangles (bool (r,)) among ``rows`` (r,) of a whole pose ``x``
@@ -208,6 +217,12 @@ class DefectChecks:
             return "the fit came out with non-finite coordinates (a numerical failure)"
         count = int((self.defects(x, s, frames, stretch) if defects is None else defects).sum())
         return f"{count} triangle(s) flipped or collapsed" if count else None
+
+
+def _collapsed(length: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Triangles (bool (r,)) whose area (half their normals' ``length`` (r,)) dropped below
+    :data:`COLLAPSE_RATIO` of their interpolated ``target`` area (r,)."""
+    return 0.5 * length < COLLAPSE_RATIO * target
 
 
 def _weak(value):

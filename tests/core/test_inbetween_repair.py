@@ -959,6 +959,37 @@ def test_the_defects_counted_are_the_check_with_the_interpolated_frames(strip):
     assert gap.repair.counted(broken, s, scale).all()
 
 
+def test_a_count_checks_each_triangle_against_the_keys_once(monkeypatch):
+    """``Repair.counted`` of a pose with flipped triangles reads its sides and tests its normals
+    against both keys' once: the check with the interpolated frames takes the first check's flips
+    against both keys and its collapses and judges only those flips against the frames (it tested
+    every triangle against both keys again). What it counts is the whole check's with the frames,
+    triangle by triangle: the curling finger (two poses, 120° at each of two joints) fitted half-way
+    with two fans folded over between the joints, its tip facing away from both keys as the
+    interpolated rotations turn it (flipped without the frames, not with them)."""
+    import core.inbetween_defects as inbetween_defects
+    from test_inbetween_untangling import _pushed_past
+
+    keys, tri, gap, x, curl, centre = _two_pose_finger()
+    s = 0.5
+    second = int(np.argmin(np.abs(np.linalg.norm(x - x[centre], axis=1) - 0.15)
+                           + 10 * (np.abs(x[:, 1] - x[centre, 1]) > 0.02)))
+    folded = _pushed_past(_pushed_past(x, tri, centre), tri, second)
+    scale = gap.area_scale(s)
+    frames, stretch = gap.repair.factor_targets(s)[:2]
+    whole = gap.repair.defects(folded, s, frames, stretch, scale=scale)
+    plain = gap.repair.defects(folded, s, None, None, scale=scale)
+    assert whole.any() and (plain & ~whole).any()  # folded fans, and the tip the frames take out
+    sides, products = [], []  # the pose's sides read; products over every triangle (3, m) in the check
+    real_sides, real_dot = gap.topo.triangle_sides, inbetween_defects.coordinate_dot
+    monkeypatch.setattr(gap.topo, "triangle_sides", lambda y: sides.append(y) or real_sides(y))
+    monkeypatch.setattr(inbetween_defects, "coordinate_dot",
+                        lambda a, b, out=None: products.append(a.shape == b.shape == (3, len(tri))) or real_dot(a, b, out))
+    counted = gap.repair.counted(folded, s, scale)
+    assert len(sides) == 1 and products.count(True) == 3  # the normals' lengths, one product per key
+    np.testing.assert_array_equal(counted, whole)
+
+
 def test_a_regions_checks_follow_the_stretches_they_are_given(strip):
     """The checks of one region keep its target areas while they are given the same stretches; given
     others (another field's, or whole ones) on the same rows, they check against those: each equals
