@@ -122,6 +122,25 @@ def _polar(matrix) -> tuple[np.ndarray, np.ndarray]:
     return u @ vt, (vt.T * sigma) @ vt
 
 
+def shown_under(positions: np.ndarray, shown, under) -> np.ndarray | None:
+    """Positions (n, 3) of an object's mesh shown under the world matrix ``shown`` (4, 4), as the
+    mesh coordinates that show them at the same places under the world matrix ``under`` (4, 4): a
+    pose read at a frame whose matrix is not that of the frames interpolated (a simulation's first
+    frame before the range, its object scaled or turned since), taken to theirs, so that its edges
+    are the world's there in their proportions. ``positions`` itself where the two matrices are the
+    same; None where ``shown`` flattens the mesh (its smallest singular value at most machine epsilon
+    × its largest, as :class:`WorldProportions` takes a rig's): what the world shows there is no shape
+    the mesh's coordinates can hold."""
+    shown, under = np.asarray(shown, dtype=np.float64), np.asarray(under, dtype=np.float64)
+    if np.array_equal(shown, under):
+        return positions
+    sigma = np.linalg.svd(shown[:3, :3], compute_uv=False)
+    if not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
+        return None
+    world = positions @ shown[:3, :3].T + shown[:3, 3]
+    return np.linalg.solve(under[:3, :3], (world - under[:3, 3]).T).T
+
+
 def with_proportions(placement, proportions) -> np.ndarray:
     """The world matrix (4, 4) that places an object where ``placement`` (4, 4) does (its turn,
     mirror and translation) and stretches it as ``proportions`` (4, 4) does (:func:`_polar`'s ``S``):

@@ -41,14 +41,24 @@ def simulation_start(scene, movers: list) -> int | None:
     return min(starts) if starts else None
 
 
-def simulation_first_frame(obj, start: int) -> list[int]:
+def simulation_first_frame(scene, obj, start: int) -> list[int]:
     """``[frame]``: the first frame of the cloth and soft body simulations moving ``obj``
     (:func:`objects_moving`), where a range starting at ``start`` starts after it; else ``[]``. The mesh
     is at its rest there (the simulation starts from it), which a range cut from inside the motion
-    does not begin at."""
-    first = min((modifier.point_cache.frame_start for _, modifier in modifier_kinds.simulations(objects_moving(obj))),
+    does not begin at. Also ``[]`` where reading it would have more frames evaluated than the range's:
+    where ``scene``'s frames are read one after the other (:func:`frames_depend_on_earlier`: an unbaked
+    simulation anywhere in it) from the range's start or an unbaked simulation's of ``obj``
+    (:func:`simulation_start`), after that frame (each frame from there would be evaluated, and
+    simulated where not baked, for a measure of the warnings)."""
+    movers = objects_moving(obj)
+    first = min((modifier.point_cache.frame_start for _, modifier in modifier_kinds.simulations(movers)),
                 default=None)
-    return [first] if first is not None and first < start else []
+    if first is None or first >= start:
+        return []
+    visited = simulation_start(scene, movers)
+    if frames_depend_on_earlier(scene) and first < min(start, start if visited is None else visited):
+        return []
+    return [first]
 
 
 class FrameRangeProperties:
@@ -264,17 +274,23 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
                    if ends and ends[3] is not None]
         # a range starting inside a cloth or soft body simulation: its first frame read too, the rest the
         # warnings measure the edges from (else the first key: core.SequenceInterpolator's rest_pose)
-        rest = simulation_first_frame(obj, frames[0])
+        rest = simulation_first_frame(context.scene, obj, frames[0])
         matrices = {}
         _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles + rest,
                                                  matrices=matrices, stay=self.output == 'SHAPE_KEYS')
+        # that frame is for the warnings alone: the space, and so the in-betweens, are the range's as without it
+        # (an object scaled or turned between the simulation's start and the range; one flattened there)
+        rest = [(read.pop(frame), matrices.pop(frame)) for frame in rest]
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = world_space.frames_space(context, obj, matrices)
         scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
-        if rest:
-            options["rest_pose"] = scaled[rest[0]]
+        # the rest as the world shows it at its frame, in the first key's coordinates, then in the range's space;
+        # none where the world flattens it there (measured from the first key, as without it)
+        rest = [world_space.shown_under(positions, matrix, matrices[frames[0]]) for positions, matrix in rest]
+        if rest and rest[0] is not None:
+            options["rest_pose"] = space.to(rest[0], frames[0])
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed,
                                            doing=f"preparing the {len(keyed)} keys",

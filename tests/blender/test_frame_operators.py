@@ -9,7 +9,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import (armature_scene, cloth_scene, evaluated_frames,  # noqa: E402
+from blender_scenes import (armature_scene, cloth_scene, evaluated_frames, grid_object,  # noqa: E402
                             dynamic_paint_wave_scene, key_names, sheet_easing_off_scale_keyframed, simulation_zone_scene,
                             snapshot,
                             turning_sheet_scale_keyframed,
@@ -238,6 +238,123 @@ def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_fram
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=10, frame_step=3, count=2,
                                                output='SHAPE_KEYS')
     assert given == [None]
+
+
+def _cloth_scaled_before(first_scale):
+    """The cloth of :func:`cloth_scene`, its object scaled ``first_scale`` at frame 1 and (1.5, 1, 1)
+    from frame 4 on, turned 0.6 rad about z from frame 4 to 11 (keyframed, baked after): the frames 5–13
+    share one stretch (the world's proportions), the simulation's first frame has another."""
+    obj = cloth_scene(frames=13)
+    scene = bpy.context.scene
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.free_bake_all()
+    obj.scale = first_scale
+    obj.keyframe_insert("scale", frame=1)
+    obj.scale = (1.5, 1.0, 1.0)
+    obj.keyframe_insert("scale", frame=4)
+    obj.keyframe_insert("rotation_euler", frame=4)  # turned over the range: its frames' matrices differ
+    obj.rotation_euler.z = 0.6
+    obj.keyframe_insert("rotation_euler", frame=11)
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+    return obj
+
+
+def _rests_given(extension, monkeypatch):
+    """The operators' module and the list that gets the ``rest_pose`` of every sequence made from then on."""
+    frames_module = importlib.import_module(extension.__name__ + ".operators.frames")
+    core = frames_module.load_core()
+    given, original = [], core.SequenceInterpolator
+
+    def recording(*args, **kwargs):
+        given.append(kwargs.get("rest_pose"))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(core, "SequenceInterpolator", recording)
+    return frames_module, given
+
+
+def _inbetweens_with_and_without_the_rest_frame(bridge, obj, frames_module, monkeypatch):
+    """In-between Frames 5–11 every 3rd, 2 per gap, on ``obj`` as it runs, then with no simulation's first
+    frame read (:func:`operators.frames.simulation_first_frame` patched): the shape keys' names and
+    positions of each run."""
+    runs = []
+    for _ in range(2):
+        bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=11, frame_step=3, count=2,
+                                                   output='SHAPE_KEYS')
+        names = key_names(obj)[1:]
+        runs.append((names, [positions_of(bridge, obj, name) for name in names]))
+        obj.shape_key_clear()
+        monkeypatch.setattr(frames_module, "simulation_first_frame", lambda *_: [])
+    return runs
+
+
+def test_inbetween_frames_inside_a_simulation_keeps_the_range_s_space(bpy_empty, extension, monkeypatch):
+    """Frames 5–11 every 3rd of a cloth whose object is scaled (1, 1, 1) at the simulation's first
+    frame and (1.5, 1, 1) over the whole range, turned over it: the first frame, read for the warnings'
+    rest only, leaves the in-betweens as they are without it (the range's one stretch: the world's
+    proportions; before, its matrix put them in the world through each frame's: 0.023 off on the
+    2-unit sheet), and its rest reaches the sequence in that space, its edges those of the world at
+    frame 1, which the cloth keeps."""
+    obj = _cloth_scaled_before((1.0, 1.0, 1.0))
+    bridge = extension.bridge
+    read = evaluated_frames(bridge, obj, [1, 5])  # before the shape keys written play there
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    frames_module, given = _rests_given(extension, monkeypatch)
+    (names, with_rest), (names_without, without) = _inbetweens_with_and_without_the_rest_frame(
+        bridge, obj, frames_module, monkeypatch)
+    rest = given[0]
+    assert rest is not None and given[1:] == [None]
+
+    def lengths(x):
+        return np.linalg.norm(x[triangles[:, 1]] - x[triangles[:, 0]], axis=1)
+
+    np.testing.assert_allclose(lengths(rest), lengths(read[1]), rtol=1e-6)  # scale 1 at frame 1: the world's
+    assert names_without == names
+    for pose, pose_without in zip(with_rest, without):
+        np.testing.assert_array_equal(pose, pose_without)
+
+
+def test_inbetween_frames_inside_a_simulation_from_a_flattened_frame(bpy_empty, extension, monkeypatch):
+    """The same cloth scaled (1, 1, 0) at the simulation's first frame, a frame outside the range
+    asked: In-between Frames 5–11 runs (the in-betweens those without that frame), its warnings measured
+    from the first key, as where no rest is read, rather than refusing a scale the range never shows."""
+    obj = _cloth_scaled_before((1.0, 1.0, 0.0))
+    bridge = extension.bridge
+    frames_module, given = _rests_given(extension, monkeypatch)
+    assert frames_module.simulation_first_frame(bpy.context.scene, obj, 5) == [1]
+    (names, poses), (names_without, without) = _inbetweens_with_and_without_the_rest_frame(
+        bridge, obj, frames_module, monkeypatch)
+    assert given == [None, None] and names_without == names
+    for pose, pose_without in zip(poses, without):
+        np.testing.assert_array_equal(pose, pose_without)
+
+
+def test_inbetween_frames_inside_a_simulation_reads_no_earlier_frames_in_a_scene_read_frame_by_frame(
+        bpy_empty, extension, monkeypatch):
+    """The baked cloth of :func:`cloth_scene` beside another cloth that is not baked, from frame 4: the
+    scene's frames are read one after the other (each may need the one before), so the cloth's first
+    frame, read for the warnings' rest, would have frames 1–3 evaluated too (and the other cloth
+    simulated there): In-between Frames 5–11 reads from frame 5 as without it, its warnings measured
+    from the first key."""
+    obj = cloth_scene(frames=13)
+    other = grid_object(4, name="Other")
+    other.location.x = 5.0
+    other.modifiers.new("Cloth", 'CLOTH').point_cache.frame_start = 4
+    bpy.context.view_layer.objects.active = obj
+    frames_module, given = _rests_given(extension, monkeypatch)
+    reading = frames_module.frame_reading
+    visits, positions = [], reading.frame_positions
+
+    def recording_reads(context, obj, frames, first_visit=None, **kwargs):
+        visits.append(min(frames) if first_visit is None else min(first_visit, *frames))
+        return positions(context, obj, frames, first_visit, **kwargs)
+
+    monkeypatch.setattr(reading, "frame_positions", recording_reads)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=11, frame_step=3, count=2,
+                                               output='SHAPE_KEYS')
+    assert visits == [5] and given == [None]
 
 
 def test_invoke_runs_to_the_end_in_background(bpy_empty, extension):
