@@ -62,7 +62,7 @@ DECIMAL_FLOAT_STEPS = 16.0
 DECIMAL_SAMPLE = 1024
 
 
-def decimal_rounding(poses: list[np.ndarray], rounding: float | None = None) -> float:
+def decimal_rounding(poses: list[np.ndarray], edges: np.ndarray, rounding: float | None = None) -> float:
     """The step ``10**-d`` of the coarsest decimal grid that every coordinate of ``poses`` (list of
     (n, 3)) lies on (to :data:`DECIMAL_GRID_SHARE` of the step: keys exported to ``d`` decimals, read
     back in single or double precision), ``d`` in :data:`DECIMAL_PLACES`; 0 where none (a bake, a
@@ -70,16 +70,26 @@ def decimal_rounding(poses: list[np.ndarray], rounding: float | None = None) -> 
     :data:`DECIMAL_FLOAT_STEPS` spacings of the largest coordinate's precision. Rounding to ``d`` decimals
     moves a coordinate by up to half the step, as single precision moves it by up to half its spacing:
     the step is the keys' rounding as :func:`coordinate_rounding` gives it, where it is the larger
-    (``rounding``: that, where the caller has it)."""
+    (``rounding``: that, where the caller has it).
+
+    Only grids no coarser than the first key's shortest edge allows (``edges`` int (e, 2), its vertex
+    pairs): two vertices on distinct points of a grid differ by a whole step in some coordinate, so an
+    edge between them is at least the step less twice :data:`DECIMAL_GRID_SHARE` of it long. A mesh
+    smaller than a twentieth of a step (a 4 mm limb in metres) lies within that share of a grid point
+    of every coarser grid, on none of them."""
     poses = [np.asarray(pose, dtype=np.float64) for pose in poses if np.size(pose)]
     if not poses:
         return 0.0
     finest = DECIMAL_FLOAT_STEPS * (coordinate_rounding(poses) if rounding is None else rounding)
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    shortest = float(np.linalg.norm(poses[0][edges[:, 0]] - poses[0][edges[:, 1]], axis=1).min(initial=np.inf))
     sample = poses[0].ravel()[:DECIMAL_SAMPLE]
     for places in DECIMAL_PLACES:
         step = 10.0 ** -places
         if step < finest:
             break
+        if (1.0 - 2.0 * DECIMAL_GRID_SHARE) * step > shortest:
+            continue  # a grid coarser than an edge holds no mesh: its coordinates sit near it by their smallness
 
         def on_grid(values):
             return float(np.max(np.abs(values - np.round(values, places)))) <= DECIMAL_GRID_SHARE * step

@@ -91,7 +91,7 @@ class SequenceKeys:
         self._rounding = coordinate_rounding(keys)
         # the grid they were stored on where coarser (keys exported to a few decimals): the rigid parts
         # of a piece are read to it (core.sequence_bent_parts.rounded_tolerance)
-        self._decimal_rounding = decimal_rounding(keys, self._rounding)
+        self._decimal_rounding = decimal_rounding(keys, topology.edges, self._rounding)
         tolerance = coincidence_tolerance(keys[0], topology.edges, rounding)
         apart = None  # why the seams cannot be joined
         try:  # pieces that touch along seams are interpolated as one, loose copies with their vertex (core.seam_welds)

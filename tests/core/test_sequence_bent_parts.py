@@ -128,21 +128,61 @@ def _stored(keys, how):
     return [np.round(k, int(how.split()[0])) for k in keys]
 
 
+def _warned_too_coarse(keys, triangles) -> bool:
+    """Whether the sequence of ``keys``, each gap posed half-way, warns that the keys are too coarse to
+    tell its bones rigid (:func:`core.sequence_bent_parts.hidden_rigid_warning`)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
+        sequence = SequenceInterpolator(keys, triangles)
+        for gap in range(len(sequence)):
+            sequence.pose(gap, 0.5)
+    return any("too coarse to tell" in str(w.message) for w in caught)
+
+
 def test_the_keys_decimal_rounding_is_read_from_their_coordinates():
     # keys exported to d decimals, read back in double or single precision: the grid's step exactly;
     # a bake's single-precision keys and keys jittered off any grid: none
     from core.coordinate_rounding import decimal_rounding
+    from core.mesh_topology import mesh_topology
 
-    rest, _ = _tube()
+    rest, triangles = _tube()
+    edges = mesh_topology(triangles, len(rest)).edges
     keys = [_skinned(rest, a) for a in (0.0, 30.0, 60.0)]
     for places in (3, 4, 5, 6):
         rounded = [np.round(k, places) for k in keys]
-        assert decimal_rounding(rounded) == 10.0 ** -places
-        assert decimal_rounding([k.astype(np.float32) for k in rounded]) == (10.0 ** -places if places < 6 else 0.0)
-    assert decimal_rounding(keys) == 0.0
-    assert decimal_rounding([k + np.random.default_rng(0).uniform(-5e-5, 5e-5, k.shape) for k in keys]) == 0.0
+        assert decimal_rounding(rounded, edges) == 10.0 ** -places
+        assert decimal_rounding([k.astype(np.float32) for k in rounded], edges) == \
+            (10.0 ** -places if places < 6 else 0.0)
+        # negative coordinates: the same grid
+        assert decimal_rounding([np.round(-k, places) for k in keys], edges) == 10.0 ** -places
+    assert decimal_rounding(keys, edges) == 0.0
+    assert decimal_rounding([k + np.random.default_rng(0).uniform(-5e-5, 5e-5, k.shape) for k in keys], edges) == 0.0
     # one key off the grid: the keys are not on it
-    assert decimal_rounding([np.round(keys[0], 4), keys[1]]) == 0.0
+    assert decimal_rounding([np.round(keys[0], 4), keys[1]], edges) == 0.0
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e-4])
+def test_a_mesh_smaller_than_a_grid_step_is_not_read_as_stored_on_it(scale):
+    # a limb 4 mm / 0.4 mm long in metres lies within 5 % of a step of the grid points 0 of every grid
+    # from 0.1 / 0.01 down: read as stored to 1 / 2 decimals, a hundred times its own size, its bones
+    # were read to RIGID_METRIC_CAP and its noisy keys warned that they were stored to 1 decimal. A grid
+    # holds a mesh only where its step is within an edge's length (two grid points differ by a step):
+    # the grid read is the one the keys were stored on, or none
+    from core.coordinate_rounding import decimal_rounding
+    from core.mesh_topology import mesh_topology
+
+    rest, triangles = _tube()
+    edges = mesh_topology(triangles, len(rest)).edges
+    keyed = (0.0, 30.0, 60.0, 90.0)
+    # scan noise on no grid (a few 1e-3 of the bones' metric, as at full size): no warning of decimals,
+    # as at full size
+    rng = np.random.default_rng(0)
+    noisy = [(_skinned(rest, a) + rng.uniform(-5e-5, 5e-5, rest.shape)) * scale for a in keyed]
+    for keys in (noisy, [k / scale for k in noisy]):
+        assert not _warned_too_coarse(keys, triangles)
+    small = [_skinned(rest, a) * scale for a in keyed]
+    assert decimal_rounding(small, edges) == 0.0
+    assert decimal_rounding([np.round(k, 9) for k in small], edges) == 1e-9
 
 
 @pytest.mark.parametrize("stored", ["5 decimals", "4 decimals", "1000 out"])
@@ -198,12 +238,7 @@ def test_a_limb_whose_keys_are_too_coarse_to_tell_its_bones_rigid_is_warned():
     # keys that tell the bones rigid (single precision near the origin), or a bend within a rigid
     # part's spread, say nothing of it
     for keys in ([_skinned(rest, a) for a in keyed], [np.round(_skinned(rest, a), 3) for a in (0.0, 1.0, 2.0)]):
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", ShapeDifferenceWarning)
-            sequence = SequenceInterpolator(keys, triangles)
-            for gap in range(len(sequence)):
-                sequence.pose(gap, 0.5)
-        assert not any("too coarse to tell" in str(w.message) for w in caught)
+        assert not _warned_too_coarse(keys, triangles)
 
 
 @pytest.mark.parametrize("limb", ["LBS tube 30° a key", "remeshed 60° a key", "remeshed 15° a key"])
