@@ -416,9 +416,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   relative turn tells it, or warns that nothing does (a crank keyed every 180°);
         # - the contact moves with the pieces between the keys (a joint carried by a moving
         #   parent; a gear's teeth roll through the same place);
-        # - their own screws part them (OWN_SCREW_FACTORS): anywhere beyond how close they are in
-        #   the keys, or where the same two vertices touch in both keys, those two (the links of an
-        #   arm folded onto each other stay close along their own screws where their joint parts)
+        # - their own screws part them (OWN_SCREW_FACTORS) beyond how close they are in the keys.
+        #   Not where their own screws part two vertices that touch in both keys: each moves with its
+        #   piece, so such a pair is carried as far as the motions carry it, and where the contact
+        #   stays put it is a pair passing through the contact, not holding it (a tooth pair entering
+        #   the mesh in one key and leaving it, mirrored across the line of centres, in the next; a
+        #   joint's own pair moves with the contact, which the rule above then finds carried)
         together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
         half = rotation_continuity.either_way(np.linalg.norm(screws[pieces, :3], axis=1), screw_motions.TURN_SPREAD)
         together &= ~(half[u] | half[v])
@@ -450,14 +453,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
-        if together.any():
-            slack = OWN_CONTACT_SLACK * finer
-            kept = np.minimum(nearest_base, nearest_later) + slack
-            apart = np.maximum(np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1),
-                               np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1))
-            same = apart <= slack[run]  # the vertex pairs (nearly) shared in both keys
-            position = np.empty(len(base), dtype=np.intp)
-            position[index] = np.arange(index.size)
+        kept = np.minimum(nearest_base, nearest_later) + OWN_CONTACT_SLACK * finer
         for s in OWN_SCREW_FACTORS:
             if not together.any():
                 break
@@ -465,9 +461,6 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             moved = np.einsum("kab,kb->ka", rotations_s[label], base[index]) + translations_s[label]
             together &= nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
                                        key[first], together)[0] <= kept
-            parted = same & (np.linalg.norm(moved[position[ends[:, 0]]] - moved[position[ends[:, 1]]], axis=1)
-                             > apart + finer[run])
-            together &= np.bincount(run[parted], minlength=first.size) == 0
         jointed &= ~together
     touching.held = jointed
     if not jointed.any():

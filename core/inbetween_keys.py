@@ -131,6 +131,12 @@ class Relative(WholeRotations):
         a relative built with ``turns``, or not from the poses."""
         return False if self.__dict__.get("_whole_of") is None else self._whole_turn()[1]
 
+    @property
+    def whole_turn(self) -> np.ndarray | None:
+        """The whole mesh's rotation vector from the base key (3,) (:meth:`_whole_turn`); None for a
+        relative built with ``turns``, or not from the poses."""
+        return None if self.__dict__.get("_whole_of") is None else self._whole_turn()[0][0]
+
     def _whole_turn(self) -> tuple[np.ndarray, bool]:
         """The whole mesh's rotation vector from the base key repeated per component (C, 3) (its
         rigid fit; a mesh of one piece: that piece's), and :attr:`whole_tells`; made once."""

@@ -42,6 +42,18 @@ def whole_tells(turn: np.ndarray) -> bool:
     return theta > screw_motions.TURN_SPREAD and not rotation_continuity.either_way(theta, screw_motions.TURN_SPREAD)
 
 
+def turning_against(turns: np.ndarray, whole: np.ndarray, spread: np.ndarray) -> np.ndarray:
+    """Per piece (bool (C,)), whether its rotation vector (``turns`` (C, 3)) turns against the whole
+    mesh's turn ``whole`` (3,): about the whole's axis the other way by more than it is known to
+    (``spread`` (C,), radians), and is itself no half turn as short either way round. Where some
+    piece does, the pieces do not all turn the whole mesh's way, which then tells no piece's half
+    turn its way (meshing gears turn opposite ways: the large one's +90° made the whole's turn, and
+    the small one's exact −180° was taken +180° with it, silently)."""
+    axis = whole / max(float(np.linalg.norm(whole)), np.finfo(float).tiny)
+    theta = np.linalg.norm(turns, axis=1)
+    return (turns @ axis < -spread) & ~rotation_continuity.either_way(theta, spread)
+
+
 def turn_spread(nonrigidity) -> np.ndarray:
     """The angles (radians, (C,)) the components' rotations are known to, from their
     ``nonrigidity`` (C,) (see :data:`core.screw_motions.TURN_NOISE`)."""

@@ -12,7 +12,8 @@ import numpy as np
 from .deformation_fields import rotation_vectors
 from .rotation_continuity import WRAP_CREASE, either_way, residuals_turning_whole_way, the_other_way
 from .inbetween_keys import Relative
-from .inbetween_rigid_fits import NEAR_HALF_TURN, component_screws, mean_triangle_turns, rigid_fits, turn_spread
+from .inbetween_rigid_fits import (NEAR_HALF_TURN, component_screws, mean_triangle_turns, rigid_fits, turn_spread,
+                                   turning_against)
 from .inbetween_solver import Gap
 from .rigid_alignment import rigid_alignment
 from .screw_motions import TURN_SPREAD
@@ -213,14 +214,18 @@ class HalfTurns:
         this relative sees the same). Sets ``relative.untold_half_turn`` (bool (C,)): the pieces
         that turn a half turn, as short either way round to within what their fits are known to
         (:func:`~core.rotation_continuity.either_way`), whose way neither the whole mesh's turn
-        (:func:`~core.inbetween_rigid_fits.whole_tells`) nor such a step tells (two poses have no
+        (:func:`~core.inbetween_rigid_fits.whole_tells`, where no piece turns against it:
+        :func:`~core.inbetween_rigid_fits.turning_against`) nor such a step tells (two poses have no
         steps): the keys do not tell which way round they went (a crank turning 180° per gap on a
         fixed block: its keys alternate between two poses)."""
         last = len(self._raw) - 1
         w = relative.screw[:, :3]
         theta = np.linalg.norm(w, axis=1)
         near = theta > NEAR_HALF_TURN
-        relative.untold_half_turn = either_way(theta, turn_spread(relative.nonrigidity)) & (not relative.whole_tells)
+        spread = turn_spread(relative.nonrigidity)
+        # the whole mesh's way tells the pieces' half turns only where no piece turns against it
+        told = relative.whole_tells and not turning_against(w, relative.whole_turn, spread).any()
+        relative.untold_half_turn = either_way(theta, spread) & (not told)
         if not near.any() or not self.smooth or last < 2:
             return relative
         d = self._durations

@@ -146,6 +146,76 @@ def test_meshing_gears_turned_less_than_a_tooth_turn_about_their_own_axles(degre
             np.testing.assert_allclose(pose, _gear_train((gap + factor) * degrees)[0], atol=1e-6)
 
 
+@pytest.mark.parametrize("degrees", [18.0, 21.0])
+def test_meshing_gears_with_teeth_straddling_the_line_of_centres_turn_about_their_own_axles(degrees):
+    """The gear train with its tips touching the other gear's roots (no clearance), the large gear
+    turned by ``degrees``: a tooth pair entering the mesh in the first key leaves it, mirrored
+    across the line of centres, in the second, the same two vertices touching in both keys. Every
+    factor of two poses is both gears turned by that factor about their own axles, to 1e-6. Such a
+    pair was read as a joint's own (its vertices parted along the gears' own screws): the small
+    gear hung from the large one, 8e-2 (18°) and 0.1 (21°) of the pair's diagonal off its axle."""
+    a, tri, _ = _gear_train(0.0, clearance=0.0)
+    interpolator = Interpolator(a, _gear_train(degrees, clearance=0.0)[0], tri)
+    for s in FACTORS + (-1.0, 3.0):
+        np.testing.assert_allclose(interpolator.pose(s), _gear_train(s * degrees, clearance=0.0)[0], atol=1e-6)
+
+
+def _three_gear_train(degrees):
+    """:func:`_gear_train` (tip to root 0.03 apart) and a third gear of 30 teeth about radius 1.5
+    meshing with the large one on its other side, turned 2/3 as far the other way about its own
+    axle: vertices, triangles, each gear's rows."""
+    vertices, triangles, rows = _gear_train(degrees)
+    axle = np.array([-2.53, 0.0, 0.0])
+    c, c_tri = _gear(30, 1.5, 0.45, axle, -5 * (2.0 * np.pi / 30) / 8)  # a root facing the large gear's tip
+    turn = Rotation.from_rotvec([0.0, 0.0, -2.0 / 3.0 * np.radians(degrees)]).as_matrix()
+    rows = rows + [len(vertices) + np.arange(len(c))]
+    return np.vstack([vertices, _rigid(c, turn, axle)]), np.vstack([triangles, c_tri + len(vertices)]), rows
+
+
+def test_a_gear_turned_a_half_turn_among_gears_turning_both_ways_is_warned():
+    """Three meshing gears, the large one turned 90°: the small one turns −180°, which gives the
+    same keys as +180°, and the third −60°. The pieces' half turns take the way the whole mesh
+    turns, which is no way of theirs where pieces turn both ways round it: the gap warns that the
+    keys do not tell which way the half turn goes (silent before), and the third gear turns about
+    its own axle, to 1e-6 (the half-turned one either way round; the large one, jointed to it by its
+    half turn, is left up to 5.2 off, under this warning)."""
+    a, tri, rows = _three_gear_train(0.0)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        interpolator = Interpolator(a, _three_gear_train(90.0)[0], tri)
+        poses = [interpolator.pose(s) for s in FACTORS]
+    assert _said(caught, "turn a half turn"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        truth = _three_gear_train(s * 90.0)[0]
+        np.testing.assert_allclose(pose[rows[2]], truth[rows[2]], atol=1e-6)
+
+
+def _folded_arm(turn, fold):
+    """Two links (thin ellipsoids of length 1, separate pieces) jointed end to end at x = 1, the
+    second folded back by ``fold`` (radians, about z) to lie along the first, both turned by
+    ``turn`` about z at the first's root (the origin): an arm folded onto itself."""
+    link, link_triangles = icosphere(2)
+    link = link * [0.5, 0.12, 0.12] + [0.5, 0.0, 0.0]
+    folded = link @ Rotation.from_rotvec([0.0, 0.0, fold]).as_matrix().T + [1.0, 0.0, 0.0]
+    turn_matrix = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix()
+    return np.vstack([link, folded]) @ turn_matrix.T, np.vstack([link_triangles, link_triangles + len(link)])
+
+
+@pytest.mark.parametrize(("turn", "folds"), [(40.0, (150.0, 165.0)), (-60.0, (160.0, 140.0))])
+def test_an_arm_folded_onto_itself_turns_about_its_joints(turn, folds):
+    """The forearm folded back along the upper arm (touching it along its length as well as at the
+    elbow), the fold opening or closing while the arm turns at the shoulder: every factor of two
+    poses is the arm at that factor of the turn and the fold, to 1e-6. The elbow's own vertex pair
+    moves with the contact, which the arm's turn carries: a joint, wherever the links' own screws
+    keep them touching (the case the gear rule's shared-pair part was kept for)."""
+    turn, folds = np.radians(turn), np.radians(folds)
+    a, tri = _folded_arm(0.0, folds[0])
+    interpolator = Interpolator(a, _folded_arm(turn, folds[1])[0], tri)
+    for s in FACTORS + (-1.0,):
+        truth, _ = _folded_arm(s * turn, folds[0] + s * (folds[1] - folds[0]))
+        np.testing.assert_allclose(interpolator.pose(s), truth, atol=1e-6)
+
+
 def _forearm_and_hand(bend, swing, n=60, k=16, radius=0.1):
     """A tube forearm (x ∈ [0, 2], radius 0.1) bent about y by ``bend`` over x ∈ [0.9, 1.5], and a
     hand (an ellipsoid, a separate piece overlapping the tube's end) turned at the wrist by
