@@ -20,6 +20,9 @@ work handed to the background) and given back as it found it when the last lets 
 computation inside it runs with one BLAS thread whatever else runs or ran before in the process
 (a gap still being prepared in the background included), and the process's own setting is back
 once no such work is left.
+
+A child process forked from one whose pool is at work makes a pool of its own at first use, with
+new locks (the parent's threads do not exist in it, and a lock one of them held would stay held).
 """
 
 from __future__ import annotations
@@ -35,6 +38,20 @@ _controller = None  # see _blas_controller
 _limit_lock = threading.Lock()
 _limit_holders = 0  # the single_threaded_blas contexts open in the process
 _limiter = None  # threadpoolctl's limit while any is open (it gives back the original counts)
+
+
+def _new_pool_after_fork() -> None:
+    """In a child process forked from this one: the parent's pool threads do not exist here (work
+    handed to its pool would never run, only be stolen by the thread that waits for it), and a lock
+    one of them held at the fork would never be given back; a new pool is made at first use, with
+    new locks. (The single-threaded-BLAS count keeps the parent's holders: the limit stays set.)"""
+    global _pool, _pool_threads, _pool_lock, _limit_lock
+    _pool, _pool_threads = None, 0
+    _pool_lock, _limit_lock = threading.Lock(), threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
+    os.register_at_fork(after_in_child=_new_pool_after_fork)
 
 
 def available_cores() -> int:

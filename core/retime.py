@@ -333,7 +333,10 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
             rows = [i for i in plan.outputs(range(gap, gap + 1)) if plan.exact_keys[i] < 0]
             factors = [float(plan.factors[i]) for i in rows]
             short = tail is not None and gap == plan.n_gaps - 1
-            batch = dict(zip(rows, tail.poses(len(tail) - 1, factors) if short else sequence.poses(gap, factors)))
+            # the sequence's last gap asked (the shorter last gap is the tail's): nothing begun ahead of it
+            ahead = gap + 1 < gaps.stop - (tail is not None)
+            batch = dict(zip(rows, tail.poses(len(tail) - 1, factors) if short else
+                             sequence.poses(gap, factors, ahead=ahead)))
         yield index, batch[index]
 
 

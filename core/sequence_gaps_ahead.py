@@ -25,6 +25,15 @@ on one gap at once would overwrite):
   until it ends and drops its result and its exception — so no two calls ever run on one gap's
   state, and a gap's results depend only on the keys, the gap and the factors asked for;
 - its warnings are returned with its poses (``_poses``), said by the call that takes them;
+- a caller that knows it asks nothing more of the next gap (its last gap: :func:`core.retime.iter_retime`'s
+  gap before the shorter last gap, which another sequence keys, or a chunk's last gap; the *In-between
+  Frames* operator's likewise) says so (``poses(…, ahead=False)``): nothing is begun for it, where a
+  call begun ahead would run a whole gap's work to waste in the pool after the caller has its poses
+  (the process's exit, and the caller's next work, wait or compete for it);
+- in a child forked while a call ahead (or a gap's preparation) runs, the pool's threads are gone:
+  its Future never ends there, so the child drops it and computes the call itself (waiting for it,
+  the child hung), with the caches' lock made anew (a lock the parent's pool thread held at the
+  fork is never given back in the child);
 - only with a second core (:func:`core.concurrency.in_background`; one core: nothing is begun,
   every call is computed where it is asked), on meshes of
   :data:`~core.inbetween_threads.CONCURRENT_VERTICES` vertices or more, and without a truncated
@@ -33,6 +42,8 @@ on one gap at once would overwrite):
 
 from __future__ import annotations
 
+import os
+import threading
 from concurrent.futures import wait
 
 from .concurrency import in_background, result
@@ -48,6 +59,8 @@ class GapsAhead:
     _last_asked = None
     #: Whether the caller's last call followed an in-order visit at one set of factors (see the module).
     _in_order = True
+    #: The process whose pool holds the calls begun ahead and the gaps' preparations (see :meth:`_forked`).
+    _pool_process = None
 
     def _beginning_ahead(self, gap: int, factors: list[float]):
         """A function of no arguments that begins ``_computed_poses(gap + 1, factors)`` in the
@@ -66,12 +79,25 @@ class GapsAhead:
 
         return begin
 
-    def _taken_ahead(self, gap: int, factors: list[float]):
+    def _forked(self) -> None:
+        """In a child process forked since the pool was last handed work: the call held ahead and
+        the gaps' preparations dropped (their pool threads do not exist here: their Futures never
+        end; those not yet begun are computed again where they are needed), the caches' lock made
+        anew (one a pool thread held at the fork stays held in the child)."""
+        process = os.getpid()
+        if self._pool_process is not None and self._pool_process != process:
+            self._ahead = None
+            self._pending.clear()
+            self._cache_lock = threading.RLock()
+        self._pool_process = process
+
+    def _taken_ahead(self, gap: int, factors: list[float], ahead: bool = True):
         """The call held ahead settled before a call on gap ``gap`` at (checked) ``factors``: its
         ``(poses, warnings)`` if it was begun for exactly these (its exception raised here, or
-        computed here if the pool had not begun it); else None, once it is cancelled or has
-        ended (its result and exception dropped). Notes whether this call continues an in-order
-        visit at one set of factors."""
+        computed here if the pool had not begun it, ``ahead`` as for ``_computed_poses``); else None,
+        once it is cancelled or has ended (its result and exception dropped). Notes whether this call
+        continues an in-order visit at one set of factors."""
+        self._forked()
         asked = (gap, _bits(factors))
         self._in_order = self._last_asked is None or self._last_asked == (gap - 1, asked[1])
         self._last_asked = asked
@@ -80,7 +106,7 @@ class GapsAhead:
             return None
         at, bits, future = held
         if (at, bits) == asked:
-            return result(future, self._computed_poses, gap, factors, True)
+            return result(future, self._computed_poses, gap, factors, ahead)
         if not future.cancel():
             wait([future])  # running on gap ``at``'s state: ended before any call goes on
         return None

@@ -447,12 +447,14 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         """The pose at ``factor`` in gap ``gap_index`` (key ``gap_index`` → ``gap_index + 1``)."""
         return self.poses(gap_index, [factor])[0]
 
-    def poses(self, gap_index: int, factors) -> np.ndarray:
+    def poses(self, gap_index: int, factors, *, ahead: bool = True) -> np.ndarray:
         """The poses (len(factors), n, 3) at ``factors`` in gap ``gap_index``, sharing the work:
         with three or more in-betweens the reconstruction is solved at one to three of them and the
         others are predicted from those (:mod:`core.inbetween_prediction`, which gives the
-        measurements against solving each); :meth:`pose` solves every pose."""
-        out, problems = self._poses(gap_index, factors)
+        measurements against solving each); :meth:`pose` solves every pose. ``ahead``: False where
+        the caller asks nothing of gap ``gap_index + 1`` next (its last gap): the next gap is then not
+        begun in the pool while this one ends (:mod:`core.sequence_gaps_ahead`); the poses are the same."""
+        out, problems = self._poses(gap_index, factors, bool(ahead))
         gap = (self.key_names[int(gap_index)], self.key_names[int(gap_index) + 1]) if problems else None  # checked
         for kind, message, defects, about, *excess in problems:  # excess: a measure ÷ its allowance, where one is
             warn_said(message, kind, defects, gap, about, *excess)
@@ -463,14 +465,14 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     # sheet, keys 4 apart: 0.037 → 0.031 s per in-between in one thread). One thread also whatever
     # ran before in the process: the same poses to the bit (core.concurrency).
     @single_threaded_blas()
-    def _poses(self, gap_index: int, factors) -> tuple[np.ndarray, list[tuple]]:
-        """:meth:`poses` and the warnings ``(kind, message, defects, factors)`` (those with a measure
+    def _poses(self, gap_index: int, factors, ahead: bool = True) -> tuple[np.ndarray, list[tuple]]:
+        """:meth:`poses` (``ahead`` as there) and the warnings ``(kind, message, defects, factors)`` (those with a measure
         against an allowance with their ``excess`` after them), not yet given (the caller warns: a warning filter changed
         around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
-        taken = self._taken_ahead(gap, factors)  # the call begun ahead settled first (core.sequence_gaps_ahead)
-        return taken if taken is not None else self._computed_poses(gap, factors, True)
+        taken = self._taken_ahead(gap, factors, ahead)  # the call begun ahead settled first (core.sequence_gaps_ahead)
+        return taken if taken is not None else self._computed_poses(gap, factors, ahead)
 
     def _computed_poses(self, gap: int, factors: list[float], ahead: bool) -> tuple[np.ndarray, list[tuple]]:
         """:meth:`_poses` of gap ``gap`` at ``factors`` (checked) computed; ``ahead``: the next gap's

@@ -326,8 +326,11 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
             if gap_factors:  # all in-betweens of a gap in one call: the core shares the work between them
                 # kept as float32, what shape keys and point caches store
                 doing = f"the in-betweens of frames {frame:g}-{next_frame:g}"
+                # nothing begun ahead of the sequence's last gap asked (the shorter last gap has its own)
+                ahead = gap + 1 < len(frames) - 1
                 all_poses.extend(space.back((yield from self.compute(progress, sequence.poses, gap, gap_factors,
-                                                                     doing=doing)), times).astype(np.float32))
+                                                                     ahead=ahead, doing=doing)), times)
+                                 .astype(np.float32))
             for factor in gap_factors:
                 name, tail_name = inbetween_name(frame_key_name(frame), frame_key_name(next_frame), factor)
                 names.append(name), tails.append(tail_name)

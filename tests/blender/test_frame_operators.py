@@ -196,6 +196,27 @@ def test_inbetween_frames_covers_a_range_that_is_not_whole_steps(bpy_empty, exte
                                sequence.poses(1, [0.25, 0.5, 0.75])[1], atol=TOLERANCE)
 
 
+def test_inbetween_frames_begin_no_gap_ahead_that_they_do_not_ask_for(bpy_empty, extension, core, monkeypatch):
+    """Frames 1–15 every 4th: keys 1, 5, 9, 13 and the last frame 15, whose short gap 13 → 15 is
+    keyed by a sequence of its own. The whole gaps are asked in order at one set of factors, so the
+    sequence may begin the next one in the pool while a gap ends (core.sequence_gaps_ahead), but
+    never the short gap, which it is not asked for (its work would run to waste after the operator
+    is done)."""
+    begun = []  # the gap each call may begin ahead (whether its path reaches a batch of predictions or not)
+    original = core.SequenceInterpolator._beginning_ahead
+
+    def counted(self, gap, factors):
+        begun.append(gap + 1)
+        return original(self, gap, factors)
+
+    monkeypatch.setattr(core.SequenceInterpolator, "_beginning_ahead", counted)
+    obj = armature_scene(frames=15)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=15, frame_step=4, count=3,
+                                               output='SHAPE_KEYS')
+    assert key_names(obj)[-3:] == ["Frame 13", "Inbetween Frame 13-Frame 15 0.50", "Frame 15"]
+    assert begun and max(begun) <= 2  # the whole gaps 0–2 of the keys 1, 5, 9, 13, 15
+
+
 def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_frame(bpy_empty, extension, core,
                                                                                   monkeypatch):
     """Frames 5–13 every 3rd of a cloth simulated from frame 1: the sequences (the whole gaps', the

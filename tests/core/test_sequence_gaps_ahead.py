@@ -181,3 +181,85 @@ def test_an_error_of_the_call_begun_ahead_is_raised_by_the_call_that_asks_for_it
     sequence.poses(2, THREE)  # computed here (nothing held), begins gap 3
     assert _begun(sequence)[0] == 3
     assert np.isfinite(sequence.poses(3, SIXTEENTHS)).all()  # other factors: its error dropped
+
+
+#: A small draped sheet's samples, 15 frames: keyed every 4th, the last gap shorter (frames 12–14).
+SMALL, SMALL_TRIANGLES = grid(16, jitter=0.3)
+SAMPLES = np.array([drape(SMALL, 0.1 * f) for f in range(15)])
+
+
+@pytest.mark.parametrize("gaps", [None, range(0, 3)])
+def test_a_retime_begins_no_gap_it_does_not_ask_for(monkeypatch, gaps):
+    """A retime whose last gap is shorter (keyed by a sequence of its own) or one chunk of it asks the
+    main sequence for its gaps in order at one set of factors, and nothing after its last: no call
+    is begun ahead for a gap it does not ask for (it would run a gap's work to waste in the pool once
+    the retime is done), and the poses are those of a sequence that begins nothing."""
+    from core import retime
+
+    monkeypatch.setattr(sequence_gaps_ahead, "CONCURRENT_VERTICES", 0)  # its 256 vertices begun ahead too
+    begun, _ = _counted(monkeypatch)
+    asked = []
+    original_poses = SequenceInterpolator.poses
+
+    def counted_poses(self, gap_index, factors, **options):
+        asked.append((len(self), gap_index))
+        return original_poses(self, gap_index, factors, **options)
+
+    monkeypatch.setattr(SequenceInterpolator, "poses", counted_poses)
+    plan = retime.plan_retime(len(SAMPLES), 4, 1.0)
+    main = len(plan.keys) - 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        poses = retime.retime(SAMPLES, SMALL_TRIANGLES, step=4, speed=1.0, gaps=gaps)
+        main_asked = {gap for count, gap in asked if count == main}
+        assert len(main_asked) >= 2 and begun and set(begun) <= main_asked
+        monkeypatch.setattr(SequenceInterpolator, "_beginning_ahead", _never_ahead)
+        alone = retime.retime(SAMPLES, SMALL_TRIANGLES, step=4, speed=1.0, gaps=gaps)
+    assert poses.tobytes() == alone.tobytes()
+
+
+def test_a_child_forked_while_a_call_runs_ahead_computes_it_itself(monkeypatch):
+    """A process forked while the call begun ahead runs in the pool (a pipeline's worker processes):
+    the child has no pool thread to end it, so it computes the call itself and answers as a sequence
+    that begins nothing; it waited for that call forever before."""
+    import os
+    import signal
+
+    if not hasattr(os, "fork"):
+        pytest.skip("no fork on this system")
+    monkeypatch.setattr(sequence_gaps_ahead, "CONCURRENT_VERTICES", 0)
+    keys = [drape(SMALL, 0.3 * k) for k in range(4)]
+    release = threading.Event()
+    original = sequence_inbetweens.gap_poses
+
+    def held_in_the_pool(*arguments):
+        if threading.current_thread() is not threading.main_thread():
+            release.wait(60)  # still running when the process forks
+        return original(*arguments)
+
+    monkeypatch.setattr(sequence_inbetweens, "gap_poses", held_in_the_pool)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        monkeypatch.setattr(SequenceInterpolator, "_beginning_ahead", _never_ahead)
+        expected = SequenceInterpolator(keys, SMALL_TRIANGLES).poses(1, THREE)
+        monkeypatch.undo()
+        monkeypatch.setattr(sequence_gaps_ahead, "CONCURRENT_VERTICES", 0)
+        monkeypatch.setattr(sequence_inbetweens, "gap_poses", held_in_the_pool)
+        sequence = SequenceInterpolator(keys, SMALL_TRIANGLES)
+        sequence.poses(0, THREE)
+        assert _begun(sequence)[0] == 1 and sequence._ahead[2].running()
+        reading, writing = os.pipe()
+        child = os.fork()
+        if child == 0:  # the child: answers within 60 s, or is stopped
+            try:
+                signal.alarm(60)
+                same = sequence.poses(1, THREE).tobytes() == expected.tobytes()
+                os.write(writing, b"same" if same else b"different")
+            finally:
+                os._exit(0)
+        release.set()
+        os.close(writing)
+        _, status = os.waitpid(child, 0)
+        told = os.read(reading, 16)
+        os.close(reading)
+    assert told == b"same", (told, status)
