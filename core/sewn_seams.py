@@ -29,6 +29,8 @@ the same energy (:func:`sewn_together`), and a repair that moves one side is fol
 
 from __future__ import annotations
 
+import os
+import threading
 from dataclasses import dataclass, replace
 from functools import cached_property
 
@@ -269,14 +271,36 @@ def _added_joins(known: SewnGroups, groups: SewnGroups) -> sp.csr_matrix | None:
                          shape=(k, known.count))
 
 
+#: Held while :func:`sewn_factor` looks up, builds and keeps a sewn factor and its bases.
+_bases_lock = threading.Lock()
+
+
+def _new_lock_after_fork() -> None:
+    """In a child forked from this process: a lock a parent's thread held at the fork is never given back."""
+    global _bases_lock
+    _bases_lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
+    os.register_at_fork(after_in_child=_new_lock_after_fork)
+
+
 def sewn_factor(topo, weights, key, groups: SewnGroups | None):
     """The factor of ``DᵀD + diag(w · mass)`` of ``topo`` (a :class:`core.inbetween_topology.Topology`)
     for ``weights`` (see its ``factor``): its own where ``groups`` is None, else a :class:`SewnFactor`
     with those groups, kept with the topology's factors per ``key`` and groups (a gap whose keys sew
     the same vertices as the gap before reuses it), or an :class:`AddedJoins` on one made for fewer
-    joins with the same weights (seams closing from gap to gap)."""
+    joins with the same weights (seams closing from gap to gap). One thread at a time: two gaps solved
+    at once (a gap begun ahead, :mod:`core.sequence_gaps_ahead`) must find the same bases, or a later
+    gap would build on another and its in-betweens differ in their last bits from run to run."""
     if groups is None:
         return topo.factor(weights, key)
+    with _bases_lock:
+        return _sewn_factor(topo, weights, key, groups)
+
+
+def _sewn_factor(topo, weights, key, groups: SewnGroups):
+    """:func:`sewn_factor` with groups, under its lock."""
     weight_key = weights if np.isscalar(weights) else key
     cache = ("sewn", weight_key, groups.key)
     found = topo._uniform.get(cache) if weight_key is not None else None

@@ -97,3 +97,41 @@ def test_joins_added_to_a_factor_of_fewer_solve_as_a_factor_of_their_own():
         np.testing.assert_allclose(added.solve(rhs, t), expected, rtol=0, atol=1e-10 * np.abs(expected).max())
     across = sewn_groups(left[:2], right[1::-1], triangles, n)  # left 0 with right 1, left 1 with right 0
     assert across.count == n - 2 and _added_joins(earlier, across) is None
+
+
+def test_two_threads_asking_for_one_sewn_factor_share_one_base(monkeypatch):
+    """Two gaps solved at once (a gap begun ahead) asking for the factor of the same groups and
+    weight get the same factor, built once, and keep one base: a base built twice would leave one
+    of them lost, and a later gap building on the other would differ in its last bits from run to
+    run (core.sewn_seams.sewn_factor holds a lock while it looks up, builds and keeps them)."""
+    import threading
+    import time
+    from types import SimpleNamespace
+
+    import core.sewn_seams as sewn
+
+    triangles, n, left, right = _two_panels()
+    groups = sewn_groups(left, right, triangles, n)
+    topo = SimpleNamespace(_uniform={}, n=n, laplacian=_normal_matrix(triangles, n, 0.0), mass=np.ones(n))
+    built = []
+
+    class SlowFactor(SewnFactor):  # long enough to build for the other thread to ask meanwhile
+        def __init__(self, *arguments):
+            built.append(self)
+            time.sleep(0.2)
+            super().__init__(*arguments)
+
+    monkeypatch.setattr(sewn, "SewnFactor", SlowFactor)
+    got = [None, None]
+
+    def ask(i):
+        got[i] = sewn.sewn_factor(topo, 1e-2, None, groups)
+
+    threads = [threading.Thread(target=ask, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert len(built) == 1
+    assert got[0] is got[1] is built[0]
+    assert topo._uniform[("sewn bases", 1e-2)] == [built[0]]
