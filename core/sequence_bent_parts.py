@@ -230,7 +230,8 @@ def hidden_rigid_warning(turn: float, rounding: float, decimals: bool, names: tu
     whether they are a joint's rigid bones."""
     if not turn > 0.0:
         return []
-    how = (f"stored to {max(0, int(round(-np.log10(rounding))))} decimals" if decimals else
+    places = max(0, int(round(-np.log10(rounding))))
+    how = (f"stored to {places} decimal{'' if places == 1 else 's'}" if decimals else
            f"rounded to {rounding:.2g} (single precision this far from the origin)")
     way = ("store them with more decimals" if decimals else
            "move the mesh's origin near it, or give the keys relative to it")

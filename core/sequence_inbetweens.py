@@ -438,7 +438,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 [("joint", m, 0, (), e) for m, e in joint_warnings(segment.joint_doubts, names, gap)] + \
                 [("sliver", m, 0, (), thin) for m in rounded_sliver_warning(slivers.size, self._rounding,
                                                                             (names[gap], names[gap + 1]), cause)] + \
-                [("turn", m, 0, (), 0.0) for m in hidden_rigid_warning(
+                [("turn", m, 0, (), segment.hidden_rigid_turn / RIGID_BENT_TURN) for m in hidden_rigid_warning(
                     segment.hidden_rigid_turn, max(self._rounding, self._decimal_rounding),
                     self._decimal_rounding > self._rounding, (names[gap], names[gap + 1]))]
         return self._gap_messages[gap]

@@ -224,6 +224,9 @@ def test_a_limb_whose_keys_are_too_coarse_to_tell_its_bones_rigid_is_warned():
     said = [w.message for w in caught if "too coarse to tell whether they are rigid bones" in str(w.message)]
     assert [m.gap for m in said] == [("key pose 2", "key pose 3")]
     assert said[0].kind == "turn" and "stored to 3 decimals" in str(said[0]) and "30° apart" in str(said[0])
+    # its excess: the turn hidden ÷ the turn that anchors a rigid part (RIGID_BENT_TURN), as the message says it
+    from core.sequence_bent_parts import RIGID_BENT_TURN
+    assert said[0].excess == pytest.approx(np.radians(30.0) / RIGID_BENT_TURN, rel=0.05)
     assert not any(sequence._gap(gap).anchored for gap in range(3))
     # what it says: the spline places the bone off its arc, where the keys stored with one more decimal
     # (read rigid, anchored) place it within a twelfth of that
