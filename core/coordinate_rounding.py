@@ -3,7 +3,9 @@ Blender stores them), double otherwise (:func:`coordinate_rounding`, :func:`roun
 what it changes a triangle's area and angles by (:func:`inverse_heights`, :func:`across_edges`) and
 the shape differences by, averaged over the mesh (:func:`relative_round_off`): the tolerances of
 the still and riding vertices, of coincident vertices (:func:`core.seam_welds.coincidence_tolerance`),
-of folds along seams and of the distortion maps and shape space are set above it.
+of folds along seams and of the distortion maps and shape space are set above it. Keys exported with a
+fixed count of decimals are rounded coarser, to that decimal grid (:func:`decimal_rounding`): the rigid
+parts of a sequence's pieces are read to it (:func:`core.sequence_bent_parts.rounded_tolerance`).
 """
 
 from __future__ import annotations

@@ -71,7 +71,9 @@ JOINT_REACH = 1.0
 #: root, tumbling debris), and moved by a neighbour's motion composed with that they left their own.
 JOINT_SLIDE = 3.0
 #: Two touching pieces are not jointed where the contact stays put in the world between the keys
-#: (its closest point moves by at most this share of how far either piece's motion carries it)...
+#: (its point — the same closest vertex pairs in both keys where there are some, else the centre of
+#: its touching vertex pairs in each key where it keeps its extent, else the closest pair — moves by
+#: at most this share of how far either piece's motion carries it)...
 CONTACT_CARRIED = 0.5
 #: ... the contact read as the centre of all its touching vertex pairs only where as many touch in
 #: both keys to this ratio (meshing teeth keep their contact's extent as they turn: 51–54 pairs

@@ -207,7 +207,7 @@ def test_an_arm_folded_onto_itself_turns_about_its_joints(turn, folds):
     elbow), the fold opening or closing while the arm turns at the shoulder: every factor of two
     poses is the arm at that factor of the turn and the fold, to 1e-6. The elbow's own vertex pair
     moves with the contact, which the arm's turn carries: a joint, wherever the links' own screws
-    keep them touching (the case the gear rule's shared-pair part was kept for)."""
+    keep them touching (the case the gear rule's shared-pair part, now removed, was written for)."""
     turn, folds = np.radians(turn), np.radians(folds)
     a, tri = _folded_arm(0.0, folds[0])
     interpolator = Interpolator(a, _folded_arm(turn, folds[1])[0], tri)

@@ -102,7 +102,7 @@ def test_keys_that_turn_a_sheet_gently_give_no_edge_misfit_warning():
 @pytest.mark.parametrize("deviations, allowed", [((0.0, 0.0), MISFIT_NOTED_FLOOR), ((0.02, 0.04), 0.061)])
 def test_the_misfit_allowed_is_the_issue_bound_with_the_keys_for_the_simulation(deviations, allowed):
     """The issue's bound on an in-between's edges (2 × the simulation's own deviation + 0.1 point),
-    the mean of the gap's keys' deviations from the first key standing in for the simulation's;
+    the mean of the gap's keys' deviations from the rest standing in for the simulation's;
     never under the fits' own accuracy."""
     assert misfit_allowed(deviations) == pytest.approx(allowed)
 
