@@ -53,8 +53,7 @@ class WorldProportions:
         rig = the_rig(obj)
         if rig is not None:
             rig = np.array(rig.matrix_world if rig_matrix is None else rig_matrix, dtype=np.float64)[:3, :3]
-            rig_sigma = np.linalg.svd(rig, compute_uv=False)
-            if rig_sigma[-1] > np.finfo(np.float64).eps * rig_sigma[0]:  # else the world's, refused by its scale
+            if not _flattens(rig):  # else the world's, refused by its scale
                 linear = np.linalg.solve(rig, linear)
         sigma = np.linalg.svd(linear, compute_uv=False)
         skewed = sigma[-1] > 0 and sigma[0] / sigma[-1] - 1.0 > SIMILARITY_TOLERANCE
@@ -122,20 +121,25 @@ def _polar(matrix) -> tuple[np.ndarray, np.ndarray]:
     return u @ vt, (vt.T * sigma) @ vt
 
 
+def _flattens(linear: np.ndarray) -> bool:
+    """Whether the linear map ``linear`` (3, 3) flattens what it maps: its smallest singular value at
+    most machine epsilon × its largest (no shape it shows can be taken back)."""
+    sigma = np.linalg.svd(linear, compute_uv=False)
+    return not sigma[-1] > np.finfo(np.float64).eps * sigma[0]
+
+
 def shown_under(positions: np.ndarray, shown, under) -> np.ndarray | None:
     """Positions (n, 3) of an object's mesh shown under the world matrix ``shown`` (4, 4), as the
     mesh coordinates that show them at the same places under the world matrix ``under`` (4, 4): a
     pose read at a frame whose matrix is not that of the frames interpolated (a simulation's first
     frame before the range, its object scaled or turned since), taken to theirs, so that its edges
     are the world's there in their proportions. ``positions`` itself where the two matrices are the
-    same; None where ``shown`` flattens the mesh (its smallest singular value at most machine epsilon
-    × its largest, as :class:`WorldProportions` takes a rig's): what the world shows there is no shape
-    the mesh's coordinates can hold."""
+    same; None where ``shown`` flattens the mesh (:func:`_flattens`, as :class:`WorldProportions` takes a
+    rig's): what the world shows there is no shape the mesh's coordinates can hold."""
     shown, under = np.asarray(shown, dtype=np.float64), np.asarray(under, dtype=np.float64)
     if np.array_equal(shown, under):
         return positions
-    sigma = np.linalg.svd(shown[:3, :3], compute_uv=False)
-    if not sigma[-1] > np.finfo(np.float64).eps * sigma[0]:
+    if _flattens(shown[:3, :3]):
         return None
     world = positions @ shown[:3, :3].T + shown[:3, 3]
     return np.linalg.solve(under[:3, :3], (world - under[:3, 3]).T).T

@@ -223,16 +223,24 @@ def shared_contacts(base: np.ndarray, nxt: np.ndarray, ends: np.ndarray, first: 
     run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
     apart = [np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) for x in (base, nxt)]
     shared = ((apart[0] - nearest_base[run] <= tolerance[run]) & (apart[1] - nearest_later[run] <= tolerance[run]))
-    counts = np.bincount(run[shared], minlength=first.size)
-    if not counts.any():
+    if not shared.any():
         return contact_base, contact_later
-    found = counts > 0
     out = []
     for x, contact in ((base, contact_base), (nxt, contact_later)):
-        middle = 0.5 * (x[ends[shared, 0]] + x[ends[shared, 1]])
-        mean = np.stack([np.bincount(run[shared], middle[:, d], minlength=first.size) for d in range(3)], axis=1)
-        out.append(np.where(found[:, None], mean / np.maximum(counts, 1)[:, None], contact))
+        mean, counts = _mean_midpoints(x, ends, run, shared, first.size)
+        out.append(np.where(counts[:, None] > 0, mean, contact))
     return out[0], out[1]
+
+
+def _mean_midpoints(x: np.ndarray, ends: np.ndarray, run: np.ndarray, chosen: np.ndarray,
+                    count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per run (``count`` of them; ``run`` (k,) the run of each vertex pair ``ends`` (k, 2)), the mean
+    midpoint (count, 3) at positions ``x`` of its ``chosen`` (bool (k,)) pairs (nan where none is), and
+    how many those are (int (count,))."""
+    middle = 0.5 * (x[ends[chosen, 0]] + x[ends[chosen, 1]])
+    counts = np.bincount(run[chosen], minlength=count)
+    sums = np.stack([np.bincount(run[chosen], middle[:, d], minlength=count) for d in range(3)], axis=1)
+    return np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], np.nan), counts
 
 
 def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray, within: np.ndarray) -> np.ndarray:
@@ -242,10 +250,7 @@ def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray, within: 
     pairs that is (int (P,))."""
     run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
     near = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) <= within[run]
-    middle = 0.5 * (x[ends[near, 0]] + x[ends[near, 1]])
-    counts = np.bincount(run[near], minlength=first.size)
-    sums = np.stack([np.bincount(run[near], middle[:, d], minlength=first.size) for d in range(3)], axis=1)
-    return np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], np.nan), counts
+    return _mean_midpoints(x, ends, run, near, first.size)
 
 
 def touching_centres(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,

@@ -11,7 +11,7 @@ and the turns read from them (parts turning past a half turn, rigid fits that ad
 
 from __future__ import annotations
 
-from functools import partial
+from functools import cached_property, partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -25,6 +25,7 @@ from .geometry import coordinate_dot
 from .inbetween_rigid_fits import component_nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells
 from .inbetween_whole_rotations import WholeRotations, rotation_angles
 from .rigid_alignment import rigid_alignment
+from .untold_triangles import triangle_heights
 
 if TYPE_CHECKING:
     from .inbetween_topology import Topology
@@ -56,6 +57,12 @@ class Key:
         self.areas = 0.5 * np.abs(self.tangent_rows[0, 0] * self.tangent_rows[1, 2])
         self.centroids = topo.centroids(v)
         self.diagonals = topo.diagonals(v)
+
+    @cached_property
+    def heights(self) -> np.ndarray:
+        """Each triangle's smallest height (m,) (:func:`core.untold_triangles.triangle_heights`),
+        made once for the several readings of a key (thin triangles, the rounding's tolerance)."""
+        return triangle_heights(self.areas, self.lengths)
 
 
 class Relative(WholeRotations):

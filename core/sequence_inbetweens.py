@@ -77,7 +77,6 @@ from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allo
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause, sliver_excess
-from .untold_triangles import triangle_heights
 
 __all__ = ["SequenceInterpolator"]
 
@@ -162,7 +161,6 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # in the working space of the keys (their vertices as solved: welded, merged, renumbered; moved and sized)
         kept = self._welded_vertices
         self._rest = None if rest_pose is None else self._to_working(rest_pose if kept is None else rest_pose[kept])
-        self._rest_name = "the first key" if rest_pose is None else "the rest pose"  # as the warnings name it
 
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
@@ -318,7 +316,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         by in gap ``gap`` (:func:`core.sequence_bent_parts.rounded_tolerance`, the heights of its first
         key): for parts rigid to the rounding (``least`` = ``RIGID_METRIC``) at most ``RIGID_METRIC_CAP``."""
         base = self._key(gap)
-        return rounded_tolerance(triangle_heights(base.areas, base.lengths), self._key_rounding(), least,
+        return rounded_tolerance(base.heights, self._key_rounding(), least,
                                  RIGID_METRIC_CAP if least == RIGID_METRIC else np.inf)
 
     def _hidden_rigid_turn(self, gap: int, relative: Relative, turning: np.ndarray) -> float:
@@ -328,8 +326,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         (:func:`core.sequence_bent_parts.hidden_rigid_turn`; ``relative`` as for :meth:`_bent_turn`); 0
         elsewhere. Keys finer than that (every benchmark cloth's) cost a look at their first key's heights."""
         base = self._key(gap)
-        heights = triangle_heights(base.areas, base.lengths)
-        hidden = rounding_hides(self._topo.triangle_component, heights, base.areas, self._key_rounding())
+        hidden = rounding_hides(self._topo.triangle_component, base.heights, base.areas, self._key_rounding())
         hidden = np.pad(hidden, (0, len(turning) - len(hidden))) & ~turning
         if not hidden.any():
             return 0.0
@@ -564,12 +561,17 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             return signed_deviation(self._corner_lengths(poses[s]), (1.0 - s) * keys[0] + s * keys[1])
 
         return misfit_warning(segment.fit_misfits, list(poses), allowed, (self.key_names[gap], self.key_names[gap + 1]),
-                              signed, self._rest_name)
+                              signed, self._rest_named)
 
     def _corner_lengths(self, x: np.ndarray) -> np.ndarray:
         """Corner edge lengths (m, 3) of working positions ``x`` (n, 3), as :class:`Key` has them."""
         edges = self._topo.corner_edge_rows(x)  # (3 coordinates, 3 corners, m), as the fit's
         return np.sqrt(coordinate_dot(edges, edges)).T
+
+    @property
+    def _rest_named(self) -> str:
+        """What the ``fit`` warnings measure deviation from, as they name it."""
+        return "the first key" if self._rest is None else "the rest pose"
 
     def _key_deviation(self, index: int, lengths: np.ndarray | None = None) -> float:
         """Key ``index``'s mean relative edge deviation from the rest (:func:`core.sequence_edge_misfit.key_deviation`):
@@ -618,7 +620,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                            for s in caught_stretch_factors(asked)]))
             said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
                                           self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked,
-                                          self._rest_name)
+                                          self._rest_named)
             if said is not None:
                 return said
         return None

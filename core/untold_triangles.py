@@ -36,14 +36,14 @@ def thin_triangles(base, nxt, floor: float) -> np.ndarray:
     the length ``floor`` in key ``base`` or ``nxt`` (:class:`core.inbetween_keys.Key`: its ``areas``
     (m,) and edge ``lengths`` (m, 3)): slivers and needles whose shape the keys tell only to the
     fits' precision (:data:`core.inbetween_field.HELD_BEYOND_KEYS`)."""
-    thinnest = np.minimum(triangle_heights(base.areas, base.lengths), triangle_heights(nxt.areas, nxt.lengths))
+    thinnest = np.minimum(base.heights, nxt.heights)
     return np.flatnonzero(thinnest < floor)
 
 
 def untold_triangles(base, nxt, floor: float) -> np.ndarray:
     """Bool (m,): the triangles less high (:func:`triangle_heights`) than the length ``floor`` in
     both key ``base`` and key ``nxt`` (:class:`core.inbetween_keys.Key`)."""
-    return (triangle_heights(base.areas, base.lengths) < floor) & (triangle_heights(nxt.areas, nxt.lengths) < floor)
+    return (base.heights < floor) & (nxt.heights < floor)
 
 
 def unfaced_triangles(base, nxt, noise: np.ndarray) -> np.ndarray:
@@ -53,8 +53,7 @@ def unfaced_triangles(base, nxt, noise: np.ndarray) -> np.ndarray:
     them over (the factor of :data:`core.rounded_slivers.ROUNDED_SLIVER`), so the keys do not tell
     which way they turn, nor which way they face in between (a sliver 1e-10 high in one key is as
     high as the noise makes it in the other)."""
-    return (triangle_heights(base.areas, base.lengths) < 2.0 * noise) | \
-        (triangle_heights(nxt.areas, nxt.lengths) < 2.0 * noise)
+    return (base.heights < 2.0 * noise) | (nxt.heights < 2.0 * noise)
 
 
 def told_donors(across: np.ndarray, lengths: np.ndarray, untold: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -56,7 +56,7 @@ def simulation_first_frame(scene, obj, start: int) -> list[int]:
     if first is None or first >= start:
         return []
     visited = simulation_start(scene, movers)
-    if frames_depend_on_earlier(scene) and first < min(start, start if visited is None else visited):
+    if frames_depend_on_earlier(scene) and first < (start if visited is None else min(start, visited)):
         return []
     return [first]
 
