@@ -306,7 +306,10 @@ def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, 
         held = np.linalg.lstsq(np.eye(3) - relative_rotations[p], relative_translations[p] - slide[p] * axis[p],
                                rcond=None)[0]
         offset = midpoint - held
-        if np.linalg.norm(offset - (offset @ axis[p]) * axis[p]) <= max(gap_base, gap_next) + precision[p]:
+        # the nearest vertices stand for the pieces' nearest points to within the coarser one's
+        # edge (links whose tips overlap: their surfaces cross where no vertex lies)
+        sampled = max(edges[pieces[a]], edges[pieces[b]])
+        if np.linalg.norm(offset - (offset @ axis[p]) * axis[p]) <= max(gap_base, gap_next) + sampled + precision[p]:
             apart.update((int(a), int(b)))
             doubts.apart_share = max(doubts.apart_share, float(risk / smaller[p]))
             doubts.apart_edges = max(doubts.apart_edges, gap_base / float(min(edges[pieces[a]], edges[pieces[b]])))

@@ -42,8 +42,8 @@ two gears), and composed on it a card or gear left its root or axle. They are to
 by their contact, which a joint's moving parent carries between the keys and which their own
 screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`; the contact
 read from the same vertex pairs in both keys where some are closest in both, :func:`shared_contacts`, elsewhere
-as the centre of all its touching vertex pairs in each key where as many touch in both,
-:func:`contact_centres`, :data:`CONTACT_STEADY`, else as their closest pair), unless both
+as the centre of all its touching vertex pairs in each key; only a contact where as many touch in
+both keys, :data:`CONTACT_STEADY`, is read so: one that shrinks or grows holds the joint), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
 the point but not the turn relative to the link below).
 """
@@ -72,13 +72,16 @@ JOINT_REACH = 1.0
 JOINT_SLIDE = 3.0
 #: Two touching pieces are not jointed where the contact stays put in the world between the keys
 #: (its point — the same closest vertex pairs in both keys where there are some, else the centre of
-#: its touching vertex pairs in each key where it keeps its extent, else the closest pair — moves by
-#: at most this share of how far either piece's motion carries it)...
+#: its touching vertex pairs in each key — moves by at most this share of how far either piece's
+#: motion carries it)...
 CONTACT_CARRIED = 0.5
-#: ... the contact read as the centre of all its touching vertex pairs only where as many touch in
-#: both keys to this ratio (meshing teeth keep their contact's extent as they turn: 51–54 pairs
-#: on the tests' gear trains; blades of scissors opening about their pivot slide off each other:
-#: 95 → 48, 86 → 39, 210 → 53), else as the closest pair, which stays at a pivot...
+#: ... only where as many of its vertex pairs touch in both keys to this ratio (meshing teeth keep
+#: their contact's extent as they turn: 51–54 pairs on the tests' gear trains); a contact that
+#: shrinks or grows holds the joint, its place in the keys not read (blades of scissors opening
+#: about their pivot slide off each other, 95 → 48, 86 → 39, 210 → 53, 41 → 22: their closest pair,
+#: which jumps between vertex pairs as the seam shrinks, stayed put in three cells where their
+#: motions carried it, and each blade left the pivot by up to 9.1e-2 of the diagonal at ×2;
+#: a lid lifting off its box touches along the hinge alone)...
 CONTACT_STEADY = 0.75
 #: ... and their own screw motions keep them in contact at these factors (Exaggerate's 2 and −1,
 #: their in-betweens at 0.5; the farthest first, which parts most pairs that part)...
@@ -429,6 +432,8 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   each splined in its own frame, part a little (an eye left a turning head by 0.055);
         # - either turns a half turn, whose way round its own screw does not tell: the joint's
         #   relative turn tells it, or warns that nothing does (a crank keyed every 180°);
+        # - the contact shrinks or grows between the keys (CONTACT_STEADY: blades of scissors sliding
+        #   off each other; meshing teeth keep their contact's extent);
         # - the contact moves with the pieces between the keys (a joint carried by a moving
         #   parent; a gear's teeth roll through the same place);
         # - their own screws part them (OWN_SCREW_FACTORS) beyond how close they are in the keys.
@@ -459,8 +464,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         # pairs read in both keys where some are closest in both (coincident vertices along a
         # hinge): the first of several equally close pairs is another pair in each key, and two
         # points of a carried hinge read as a contact that stays put
-        # (where as many pairs touch in both keys, CONTACT_STEADY: blades sliding off each other as they
-        # open about a pivot keep it at their closest pair, and their centre moves less than they carry it)
+        # (only where as many pairs touch in both keys, CONTACT_STEADY: blades sliding off each other as
+        # they open about a pivot hold their joint, whose closest pair jumps between vertex pairs and
+        # whose centre moves less than they carry it)
         within = np.broadcast_to(finer, jointed.shape)
         centres_base, count_base = contact_centres(base, ends, first, within)
         centres_later, count_later = touching_centres(nxt, index, label, pieces.size, reach, key[first], jointed,
@@ -472,7 +478,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                                                       precision, contact_base, contact_later)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
-        together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
+        together &= steady & (np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried)
         kept = np.minimum(nearest_base, nearest_later) + OWN_CONTACT_SLACK * finer
         for s in OWN_SCREW_FACTORS:
             if not together.any():

@@ -54,6 +54,19 @@ def turning_against(turns: np.ndarray, whole: np.ndarray, spread: np.ndarray) ->
     return (turns @ axis < -spread) & ~rotation_continuity.either_way(theta, spread)
 
 
+def turning_with(rotations: np.ndarray, whole: np.ndarray) -> np.ndarray:
+    """Per piece (bool (C,)), whether its rotation (``rotations`` (C, 3, 3)) turns with the whole
+    mesh's turn ``whole`` (a rotation vector (3,)): its rotation relative to the whole's turns it
+    less than the whole's own angle, so that the piece is nearer the whole's turn than no turn at
+    all. Only such a piece takes its half turn's way from the whole mesh: a piece turning a half
+    turn with a mesh turned nearly as far rides with it, where one turning about its own axis apart
+    from what the rest does (the small of two meshing gears turned −180° beside the large one's
+    +90°: the whole's fit turns 56°, the small gear 124° from it) is told nothing by it."""
+    whole_rotation = Rotation.from_rotvec(np.asarray(whole, dtype=np.float64)).as_matrix()
+    apart = np.linalg.norm(df.rotation_vectors(whole_rotation.T @ rotations), axis=1)
+    return apart < np.linalg.norm(whole)
+
+
 def turn_spread(nonrigidity) -> np.ndarray:
     """The angles (radians, (C,)) the components' rotations are known to, from their
     ``nonrigidity`` (C,) (see :data:`core.screw_motions.TURN_NOISE`)."""

@@ -13,7 +13,7 @@ from .deformation_fields import rotation_vectors
 from .rotation_continuity import WRAP_CREASE, either_way, residuals_turning_whole_way, the_other_way
 from .inbetween_keys import Relative
 from .inbetween_rigid_fits import (NEAR_HALF_TURN, component_screws, mean_triangle_turns, rigid_fits, turn_spread,
-                                   turning_against)
+                                   turning_against, turning_with)
 from .inbetween_solver import Gap
 from .rigid_alignment import rigid_alignment
 from .screw_motions import TURN_SPREAD
@@ -215,7 +215,8 @@ class HalfTurns:
         that turn a half turn, as short either way round to within what their fits are known to
         (:func:`~core.rotation_continuity.either_way`), whose way neither the whole mesh's turn
         (:func:`~core.inbetween_rigid_fits.whole_tells`, where no piece turns against it:
-        :func:`~core.inbetween_rigid_fits.turning_against`) nor such a step tells (two poses have no
+        :func:`~core.inbetween_rigid_fits.turning_against`, and of a piece that turns with it:
+        :func:`~core.inbetween_rigid_fits.turning_with`) nor such a step tells (two poses have no
         steps): the keys do not tell which way round they went (a crank turning 180° per gap on a
         fixed block: its keys alternate between two poses)."""
         last = len(self._raw) - 1
@@ -223,9 +224,12 @@ class HalfTurns:
         theta = np.linalg.norm(w, axis=1)
         near = theta > NEAR_HALF_TURN
         spread = turn_spread(relative.nonrigidity)
-        # the whole mesh's way tells the pieces' half turns only where no piece turns against it
-        told = relative.whole_tells and not turning_against(w, relative.whole_turn, spread).any()
-        relative.untold_half_turn = either_way(theta, spread) & (not told)
+        # the whole mesh's way tells the pieces' half turns only where no piece turns against it,
+        # and only those of the pieces that turn with it
+        told = np.zeros(theta.size, dtype=bool)
+        if relative.whole_tells and not turning_against(w, relative.whole_turn, spread).any():
+            told = turning_with(relative.motion[0], relative.whole_turn)
+        relative.untold_half_turn = either_way(theta, spread) & ~told
         if not near.any() or not self.smooth or last < 2:
             return relative
         d = self._durations

@@ -863,3 +863,122 @@ def test_a_robot_arm_of_boxes_meeting_face_to_face_is_its_forward_kinematics_in_
     for gap in range(3):
         for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
             np.testing.assert_allclose(x, _boxes_arm(gap + s)[0], atol=1e-6 * diagonal)
+
+
+def _lid_on_box(s, opened, opening, move, turn=0.2):
+    """A box (the cube [−1, 1]³, 4 × 4 vertices a face) and its lid (a separate 2 × 2 plate of
+    5 × 5 vertices on its top) hinged along the edge x = −1, z = 1 and open by ``opened + s ·
+    opening`` (radians), the pair carried by ``s`` times the screw of the rigid motion that turns by
+    ``turn`` about the z axis through (0, 2, 0) and then moves by ``move`` (the constant-velocity
+    motion of :func:`placement_helpers._screw`), the scene turned: vertices, triangles."""
+    box, box_triangles = cube(4)
+    lid, lid_triangles = grid(5, 5, size=2.0)
+    lid = lid - [1.0, 1.0, 0.0]
+    lid[:, 2] = 1.0
+    hinge = Rotation.from_rotvec([0.0, -(opened + s * opening), 0.0]).as_matrix()
+    carry = Rotation.from_rotvec([0.0, 0.0, turn]).as_matrix()
+    shift = (np.eye(3) - carry) @ [0.0, 2.0, 0.0] + np.asarray(move)
+    x = _screw(np.vstack([box, _rigid(lid, hinge, np.array([-1.0, 0.0, 1.0]))]), carry, shift, s)
+    scene = Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix()
+    return x @ scene.T, np.vstack([box_triangles, lid_triangles + len(box)])
+
+
+@pytest.mark.xfail(strict=True, reason="the keys do not tell which piece carries the other; the lid moves least")
+@pytest.mark.parametrize(("opened", "opening"), [(0.2, 0.3), (0.2, 1.0), (0.0, 0.3)])
+def test_a_box_carried_while_its_lid_opens_carries_the_lid(opened, opening):
+    """A box carried (moved by 1, turned 11°) while its lid opens about the hinge: every factor of
+    two poses, and every in-between of four keys, would be the box along its own screw with the lid
+    turned about the hinge it carries, to 1e-6. FAILS (a known limit, unwarned): a joint group
+    hangs from the piece that moves least over the gap's keys, and the lid, lifted against the
+    carry, moves 1–3 % less than the box between two poses and 8–23 % less in the sequence's gaps;
+    the box, composed on the lid's motion, leaves its own path by 7.5e-2 (0.2 / 0.3) and 0.20
+    (0.2 / 1.0) of the diagonal at ×2, and by 3.3e-3 / 3.5e-3 in the sequences. The keys fit the
+    lid moving by its own screw with the box hinged to it as well; hanging the group from its
+    heaviest piece where the moves are within 1.5 × makes these exact but hangs an arm's chain from
+    its heavier outer link (docs/inbetween-measurements.md, *Scissors, a carried lid, overlapping
+    links and a gear's half turn (session 74)*)."""
+    move = (1.0, 0.0, 0.2)
+    a, tri = _lid_on_box(0.0, opened, opening, move)
+    interpolator = Interpolator(a, _lid_on_box(1.0, opened, opening, move)[0], tri)
+    for s in FACTORS + (-1.0,):
+        np.testing.assert_allclose(interpolator.pose(s), _lid_on_box(s, opened, opening, move)[0], atol=1e-6)
+    sequence = SequenceInterpolator([_lid_on_box(float(k), opened, opening, move)[0] for k in range(4)], tri,
+                                    start="keys")
+    for gap in range(3):
+        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(pose, _lid_on_box(gap + factor, opened, opening, move)[0], atol=1e-6)
+
+
+def test_two_gears_one_turned_a_half_turn_beside_the_others_quarter_turn_is_warned():
+    """The two-gear train with the large gear turned 90°: the small one turns −180°, which gives the
+    same keys as +180°. The whole mesh's fit turns 56° (the large gear's way), and the small gear,
+    turning about its own axle 124° from it, does not turn with it, so the whole's way tells it
+    nothing: the gap warns that the keys do not tell which way the half turn goes. Before, the
+    small gear took the whole's way, +180°, silently (0.3 of the diagonal off at 0.5); the large
+    one turns about its own axle, to 1e-6."""
+    a, tri, rows = _gear_train(0.0)
+    poses, caught = _poses_and_warnings(Interpolator(a, _gear_train(90.0)[0], tri), FACTORS)
+    assert _said(caught, "turn a half turn"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose[rows[0]], _gear_train(s * 90.0)[0][rows[0]], atol=1e-6)
+
+
+def test_a_gear_turned_a_half_turn_with_the_whole_mesh_takes_its_way_silently():
+    """The counterpart: the gear train turned 170° as one rigid body while the small gear turns 10°
+    further on its axle, a half turn in all; the small gear turns with the whole (10° from its
+    turn), which tells its way: every factor is the truth to 1e-6, without a warning."""
+    a, tri, rows = _gear_train(0.0)
+
+    def turned(s):
+        x = _gear_train(0.0)[0]
+        small = Rotation.from_rotvec([0.0, 0.0, np.radians(10.0 * s)]).as_matrix()
+        x[rows[1]] = _rigid(x[rows[1]], small, np.array([1.53, 0.0, 0.0]))
+        return _rigid(x, Rotation.from_rotvec([0.0, 0.0, np.radians(170.0 * s)]).as_matrix(), np.zeros(3))
+
+    poses, caught = _poses_and_warnings(Interpolator(a, turned(1.0), tri), FACTORS)
+    assert not _said(caught, "half turn"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, turned(s), atol=1e-6)
+
+
+def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
+    """Two separate links jointed end to end, the second's tip ``sunk`` into the first's (a box of
+    one cell a face, 0.76 long, and a finely meshed ellipsoid 1.05 long: their surfaces cross where
+    no vertex lies), the first turned ``s`` × 7.7° at its root, the second ``s`` × ``bend_angle``
+    (radians) at the joint, about general axes, the arm placed off the origin: vertices, triangles."""
+    def link(kind, level, length, radius, spin):
+        if kind == "box":
+            v, t = cube(level)
+            v = v / np.abs(v).max()
+        else:
+            v, t = icosphere(level)
+        v = Rotation.from_rotvec([spin, 0.0, 0.0]).apply(v)
+        return v * [length / 2, radius, radius] + [length / 2, 0.0, 0.0], t
+
+    first, first_triangles = link("box", 1, 0.76, 0.144, 2.94)
+    second, second_triangles = link("ellipsoid", 3, 1.049, 0.18, 5.228)
+    def about(angle, axis):
+        return Rotation.from_rotvec(angle * np.asarray(axis) / np.linalg.norm(axis))
+
+    turn = about(s * 0.134, [-0.575, -0.497, 0.649])
+    bend = turn * about(s * bend_angle, [0.492, -0.351, 0.797])
+    joint = turn.apply([0.76 - sunk, 0.0, 0.0])
+    x = np.vstack([turn.apply(first), bend.apply(second - [sunk, 0.0, 0.0]) + joint])
+    return (Rotation.from_rotvec([-2.516, -0.313, 0.144]).apply(x) + [1.444, 0.456, -1.907],
+            np.vstack([first_triangles, second_triangles + len(first)]))
+
+
+@pytest.mark.parametrize("sunk", [0.03, 0.055])
+def test_links_whose_tips_overlap_are_jointed_or_warned(sunk):
+    """:func:`_overlapping_links`: the links' nearest vertices are 0.107 / 0.088 apart in the first
+    key (1.8–2.2 of the fine link's edges), 0.026 / 0.042 in the second, so no joint is found and
+    each link moves by its own screw (4.7e-2 of the diagonal off at ×2). They turn about a point
+    inside both tips, 0.16 / 0.17 from the midpoint of those vertices, which stand for where the
+    surfaces cross only to within the coarse link's edge: the gap warns that they turn about a
+    point between them as jointed links do (before, silently: the point was sought within the
+    vertices' gap alone)."""
+    a, tri = _overlapping_links(0.0, sunk)
+    poses, caught = _poses_and_warnings(Interpolator(a, _overlapping_links(1.0, sunk)[0], tri), FACTORS)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    off = max(np.abs(pose - _overlapping_links(s, sunk)[0]).max() for s, pose in zip(FACTORS, poses)) / diagonal
+    assert off <= 1e-6 or _said(caught, "turn about a point between them"), (off, [str(w.message) for w in caught])
