@@ -232,10 +232,29 @@ def int32_columns(csc: sp.csc_matrix) -> tuple[np.ndarray, np.ndarray]:
     try:
         indices, indptr = sp.safely_cast_index_arrays(csc, np.int32, "CHOLMOD's 32-bit indices")
     except ValueError as error:
-        raise MeshError(f"The mesh is too large to solve: its system of {csc.shape[0]:,} unknowns has "
-                        f"{int(csc.indptr[-1]):,} nonzeros, more than the 2,147,483,647 the sparse factorizations "
-                        f"index ({error}); split it into pieces of fewer vertices") from error
+        raise _too_large(csc, int(csc.indptr[-1]), error) from error
     return indptr, indices
+
+
+def int32_coordinates(coo: sp.coo_matrix) -> tuple[np.ndarray, np.ndarray]:
+    """The row and column indices (nnz,) of ``coo`` (n, n) as the 32-bit integers cholespy's binding
+    reads them (it counts the unknowns and the nonzeros in C ``int`` too). MeshError where they do
+    not fit, as :func:`int32_columns`: cast unchecked, an index past 2³¹ − 1 wraps to a negative row."""
+    if coo.nnz > np.iinfo(np.int32).max:
+        raise _too_large(coo, coo.nnz, "more nonzeros than cholespy's 32-bit count")
+    try:
+        rows, columns = sp.safely_cast_index_arrays(coo, np.int32, "cholespy's 32-bit indices")
+    except ValueError as error:
+        raise _too_large(coo, coo.nnz, error) from error
+    return rows, columns
+
+
+def _too_large(matrix: sp.spmatrix, nonzeros: int, error) -> MeshError:
+    """The error of a system ``matrix`` (n, n) of ``nonzeros`` nonzeros whose indices do not fit in
+    32 bits (``error``: what did not fit), in the user's terms."""
+    return MeshError(f"The mesh is too large to solve: its system of {matrix.shape[0]:,} unknowns has {nonzeros:,} "
+                     "nonzeros, and the sparse factorizations index at most 2,147,483,647 of either "
+                     f"({error}); split it into pieces of fewer vertices")
 
 
 class CholmodFactor:

@@ -14,6 +14,8 @@ Conventions used throughout :mod:`core`:
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -152,8 +154,12 @@ def zero_area_triangles(vertices: np.ndarray, triangles: np.ndarray) -> np.ndarr
         return np.flatnonzero(~(doubled_area > DEGENERATE_TRIANGLE_RATIO * longest))
 
 
-def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices") -> None:
-    """Raise :class:`MeshError` naming the first triangle whose area is (numerically) zero."""
+def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: str = "vertices",
+                        earlier=None) -> None:
+    """Raise :class:`MeshError` naming the first triangle whose area is (numerically) zero.
+    ``earlier``: ``(first name, poses)``, the keys checked before this one (a list of (n, 3), the
+    first named so), where ``vertices`` is a later key: flat triangles that the keys' decimal
+    rounding flattened are told so (:func:`_rounded_flat_advice`), not as the mesh's."""
     by_coordinate, doubled_area, squared, longest = _triangle_measures(vertices, triangles)
     with np.errstate(over="ignore", invalid="ignore"):
         overflow = ~np.isfinite(doubled_area) | ~np.isfinite(longest)
@@ -180,6 +186,7 @@ def check_nondegenerate(vertices: np.ndarray, triangles: np.ndarray, *, name: st
             f"{name}: triangle {t} (vertices {triangles[t].tolist()}) has zero area "
             f"({bad.size} degenerate triangle(s) in all). "
             + (_far_out_advice(by_coordinate, squared) or
+               (_rounded_flat_advice(by_coordinate.T, triangles, bad, name, *earlier) if earlier else None) or
                "Remove degenerate faces: in Blender use Mesh > Clean Up > Degenerate Dissolve, or Merge "
                "by Distance. If only this pose flattens them (a shape key that scales a part to a "
                "point, a frame that crushes the cloth), scale that part to a small size instead of "
@@ -229,6 +236,36 @@ def _far_out_advice(by_coordinate: np.ndarray, squared: list[np.ndarray]) -> str
             f"{rounding:.2g} ({share}): "
             "triangles less high than that read as flat. Move the mesh's origin near it (in Blender: "
             "Object > Set Origin > Origin to Geometry, then bake the simulation again).")
+
+
+#: Decimals more than the keys' that :func:`_rounded_flat_advice` tells the user to export with: a
+#: triangle the rounding flattened was at most √3 steps high (each corner moves at most √3/2 of a
+#: step), how much less is lost. On the 19 benchmark bakes rounded to 4 decimals (and ×0.01 to 6),
+#: where 1 to 9 keys flattened 4 to 32 triangles, 2 more kept every triangle of every key; 1 more
+#: left 2 flat on the 100k sheet (docs/inbetween-measurements.md, *Keys flattened by their rounding*).
+ROUNDED_FLAT_DECIMALS = 2
+
+
+def _rounded_flat_advice(vertices: np.ndarray, triangles: np.ndarray, bad: np.ndarray, name: str,
+                         first_name: str, keys: list) -> str | None:
+    """The advice for the flat triangles ``bad`` (indices into ``triangles`` (m, 3)) of a later key
+    ``vertices`` (n, 3), named ``name``, where it and the keys before it (``keys``: (n, 3) each, the
+    first named ``first_name``, in which every triangle has an area) lie on a decimal grid
+    (:func:`core.coordinate_rounding.decimal_rounding`: exported with a fixed count of decimals):
+    the export's rounding flattened them, not the mesh (no frame of the 19 benchmark bakes, stored in
+    single precision, has a flat triangle). None where the keys are on no decimal grid."""
+    from .coordinate_rounding import decimal_rounding
+
+    step = decimal_rounding(list(keys) + [vertices], triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2))
+    if not step > 0:
+        return None
+    places = round(-math.log10(step))
+    more, finer = 10 ** ROUNDED_FLAT_DECIMALS, places + ROUNDED_FLAT_DECIMALS
+    return (f"Every key so far is rounded to {places} decimal(s) (steps of {step:.0e}), and {first_name} has those "
+            f"triangle(s) whole: {name}'s rounding flattened them (a triangle less than about two steps high "
+            f"can land on one line), not the mesh. Export the keys with more decimals (try {finer}: each one "
+            f"more keeps triangles 10 × thinner), or scale the object up {more:g} × before exporting them "
+            "(and down after in-betweening).")
 
 
 def mesh_topology(triangles, n_vertices: int, *, allow_non_manifold: bool = False,

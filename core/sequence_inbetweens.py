@@ -73,6 +73,7 @@ from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
 from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
+from .rest_pose_scale import check_rest_scale
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
@@ -142,6 +143,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     and gaps 2.7 × past issue 17's edge bound go unwarned; a flag 1.9 % off its rest at the first key
     is allowed a misfit of 1.8 % where the rest allows 4.1 %, and in-betweens within the bound are
     warned (docs/inbetween-measurements.md, *The edge warnings' reference*). No in-between changes.
+    A rest whose edges are a median ratio past :data:`~core.rest_pose_scale.REST_SCALE_LIMIT` (2 ×)
+    or under its inverse of the first key's (other units, another object scale) raises MeshError
+    (:mod:`core.rest_pose_scale`).
     """
 
     @single_threaded_blas()  # one BLAS thread, as in _poses: the same keys whatever ran before in the process
@@ -155,6 +159,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         key_times = check_key_times(key_times, len(key_poses))
         rest_pose = None if rest_pose is None else check_vertices(rest_pose, len(key_poses[0]), name="rest_pose",
                                                                   kept=True)
+        if rest_pose is not None:  # one in other units than the keys would allow every misfit: refused
+            check_rest_scale(rest_pose, key_poses[0], topology.triangles)
         with numerical_failures(f"Preparing the in-betweens of {len(key_poses)} key poses"):
             self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end,
                         key_names=key_names)

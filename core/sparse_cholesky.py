@@ -47,7 +47,8 @@ class SPDFactor:
     """The factor of a sparse symmetric positive definite ``matrix`` (n, n); :meth:`solve` takes
     right-hand sides (n,) or (n, k). Safe to share between threads (solves are serialized).
     A matrix CHOLMOD finds not positive definite raises ``numpy.linalg.LinAlgError``; SuperLU
-    raises ``RuntimeError`` for an exactly singular one."""
+    raises ``RuntimeError`` for an exactly singular one; one whose indices do not fit in 32 bits
+    (2³¹ − 1 unknowns or nonzeros) :class:`~core.errors.MeshError` through CHOLMOD."""
 
     def __init__(self, matrix: sp.spmatrix):
         self.shape = matrix.shape
@@ -69,9 +70,9 @@ class SPDFactor:
             return
         self._direct = None
         coo = sp.coo_matrix(matrix)
+        rows, columns = cholmod_direct.int32_coordinates(coo)  # MeshError past 32-bit indices
         try:
-            self._cholmod = CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
-                                            coo.data.astype(np.float64), MatrixType.COO)
+            self._cholmod = CholeskySolverD(matrix.shape[0], rows, columns, coo.data.astype(np.float64), MatrixType.COO)
         except ValueError as error:  # cholespy's "Matrix is not positive definite!": NumPy's error for it
             raise np.linalg.LinAlgError(f"{error} (CHOLMOD, {matrix.shape[0]} unknowns)") from error
         _live.add(self)

@@ -169,10 +169,11 @@ def check_mesh(vertices, triangles, *, name: str = "vertices", allow_bow_ties: b
     return array, topology
 
 
-def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices", kept: bool = False) -> np.ndarray:
+def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices", kept: bool = False,
+               earlier=None) -> np.ndarray:
     """Validate one pose ``(n, 3)`` of a mesh of known topology: count, finite, range, size of the
     used part (≥ :data:`MIN_EXTENT`), no degenerate triangle. Returns float64 ``(n, 3)``
-    (``kept``: as :func:`check_vertices`)."""
+    (``kept``: as :func:`check_vertices`; ``earlier``: as :func:`core.mesh_topology.check_nondegenerate`)."""
     from .mesh_topology import check_nondegenerate
 
     array = check_vertices(vertices, topology.n_vertices, name=name, kept=kept)
@@ -185,7 +186,7 @@ def check_pose(vertices: np.ndarray, topology, *, name: str = "vertices", kept: 
             f"{MIN_EXTENT:.0e} (areas and squared lengths would underflow). Scale it up (in "
             "Blender: scale the object, then Object > Apply > Scale)."
         )
-    check_nondegenerate(rows.T, topology.triangles, name=name)
+    check_nondegenerate(rows.T, topology.triangles, name=name, earlier=earlier)
     return array
 
 
@@ -484,7 +485,9 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
     ``kept``: as :func:`check_vertices` (the caller's poses, not yet checked)."""
     names = names or [f"key pose {i}" for i in range(len(poses))]
     first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True, kept=kept)
-    checked = [first] + [check_pose(pose, topology, name=name, kept=kept) for pose, name in zip(poses[1:], names[1:])]
+    checked = [first]
+    for pose, name in zip(poses[1:], names[1:]):  # a later key's flat triangles told against the keys before it
+        checked.append(check_pose(pose, topology, name=name, kept=kept, earlier=(names[0], checked)))
     check_shared_frame(checked, topology, names)
     k_M, k_N = check_basis_sizes(k_M, k_N, int(topology.used_vertices.size), topology.components()[0],
                                  geometry=(first, topology))

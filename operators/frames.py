@@ -61,6 +61,43 @@ def simulation_first_frame(scene, obj, start: int) -> list[int]:
     return [first]
 
 
+class SimulationRest:
+    """The rest a sequence's warnings measure the edges from (``rest_pose`` of
+    :class:`core.SequenceInterpolator`) where a range starting at frame ``start`` of ``obj`` starts
+    inside a cloth or soft body simulation: its first frame (:func:`simulation_first_frame`), read
+    with the range's frames (:attr:`frames`: the frame to read, or none), set aside before the
+    range's space is chosen (:meth:`set_aside`: it is for the warnings alone, so the space and the
+    in-betweens are the range's as without it), then taken to that space (:meth:`options`). Else
+    the first key stands for the rest."""
+
+    def __init__(self, scene, obj, start: int):
+        self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start), []
+
+    def set_aside(self, read: dict, matrices: dict) -> None:
+        """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}
+        of the frames read), and keep the range's first frame's positions."""
+        self._read = [(read.pop(frame), matrices.pop(frame), read[self.start]) for frame in self.frames]
+
+    def options(self, space, matrices: dict, triangles) -> dict:
+        """``{"rest_pose": positions (n, 3)}`` in ``space`` (that of the range's frames, whose world
+        matrices are ``matrices``): the rest as the world shows it at its frame, in the first key's
+        coordinates, then in the range's space; ``{}`` where there is no rest frame, where the world
+        flattens the mesh there, or where the core would refuse it against the first key
+        (``core.rest_pose_scale``: a cloth that shrinks or grows to under half or over twice its size,
+        Blender's Shrinking, 0.7 reads 3.3 ×): measured from the first key, as without it.
+        ``triangles`` (m, 3): the mesh's."""
+        from ..core import rest_pose_scale
+
+        for positions, matrix, first in self._read:
+            shown = world_space.shown_under(positions, matrix, matrices[self.start])
+            if shown is None:
+                continue
+            rest, first = space.to(shown, self.start), space.to(first, self.start)
+            if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)):
+                return {"rest_pose": rest}
+        return {}
+
+
 class FrameRangeProperties:
     """Frame range properties; start and end default to the playback range when not set (the
     preview range where it is on, else the scene's)."""
@@ -273,24 +310,18 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         middles = [ends[3] for ends in (retime.start_samples(keyed), retime.end_samples(keyed, tail))
                    if ends and ends[3] is not None]
         # a range starting inside a cloth or soft body simulation: its first frame read too, the rest the
-        # warnings measure the edges from (else the first key: core.SequenceInterpolator's rest_pose)
-        rest = simulation_first_frame(context.scene, obj, frames[0])
+        # warnings measure the edges from
+        rest = SimulationRest(context.scene, obj, frames[0])
         matrices = {}
-        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles + rest,
+        _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles + rest.frames,
                                                  matrices=matrices, stay=self.output == 'SHAPE_KEYS')
-        # that frame is for the warnings alone: the space, and so the in-betweens, are the range's as without it
-        # (an object scaled or turned between the simulation's start and the range; one flattened there)
-        rest = [(read.pop(frame), matrices.pop(frame)) for frame in rest]
+        rest.set_aside(read, matrices)
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = world_space.frames_space(context, obj, matrices)
         scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
         # chosen in that space: an object scaled up from rest leaves its first key moving in its own coordinates
         options.update(retime.motion_ends(scaled, keyed, tail))
-        # the rest as the world shows it at its frame, in the first key's coordinates, then in the range's space;
-        # none where the world flattens it there (measured from the first key, as without it)
-        rest = [world_space.shown_under(positions, matrix, matrices[frames[0]]) for positions, matrix in rest]
-        if rest and rest[0] is not None:
-            options["rest_pose"] = space.to(rest[0], frames[0])
+        options.update(rest.options(space, matrices, triangles))
         sequence = yield from self.compute(0.2, load_core().SequenceInterpolator, [scaled[f] for f in keyed],
                                            triangles, **options, key_times=keyed,
                                            doing=f"preparing the {len(keyed)} keys",
@@ -402,11 +433,14 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
         # the keys and the other samples the retime reads (core.retime.RetimePlan.samples_read: the shorter
-        # last gap's keys, the middles of the first and last gaps)
+        # last gap's keys, the middles of the first and last gaps); a range starting inside a cloth or soft
+        # body simulation: its first frame too, the rest the warnings measure the edges from
+        rest = SimulationRest(context.scene, obj, start)
         matrices = {}
         _poses, read = yield from self.read_keys(context, obj, key_frames, 0.1,
-                                                 also=[start + sample for sample in plan.samples_read],
+                                                 also=[start + sample for sample in plan.samples_read] + rest.frames,
                                                  matrices=matrices, stay=self.output == 'SHAPE_KEYS')
+        rest.set_aside(read, matrices)
         out_frames = [float(start + k) for k in range(plan.n_out)]
         # each pose is shown under the object's matrix of a frame: a new object plays the source's
         # keyframed transform retimed, at the pose's source time; shape keys play under the source's
@@ -422,6 +456,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         samples = KeySamples(plan.n_source, dict(zip(plan.samples_read, in_world(
             obj, space, [read[frame] for frame in shown], shown, triangles, INBETWEENED_IN_WORLD))))
         check_shown_in_world(obj, space, shown_at, INBETWEENED_IN_WORLD)
+        options.update(rest.options(space, matrices, triangles))
         poses_out = retime.iter_retime(samples, triangles, plan, **options,
                                        sample_names=lambda sample: frame_name(start + sample))
         retimed = []

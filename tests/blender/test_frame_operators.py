@@ -261,6 +261,91 @@ def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_fram
     assert given == [None]
 
 
+def _rests_given_to_every_sequence(core, monkeypatch) -> list:
+    """The list that gets the ``rest_pose`` of every sequence made from then on, by the operators
+    (``core.SequenceInterpolator``) and the retime (:mod:`core.sequence_inbetweens`'s)."""
+    sequences = importlib.import_module(core.__name__ + ".sequence_inbetweens")
+    given, original = [], sequences.SequenceInterpolator
+
+    def recording(*args, **kwargs):
+        given.append(kwargs.get("rest_pose"))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(sequences, "SequenceInterpolator", recording)
+    monkeypatch.setattr(core, "SequenceInterpolator", recording)
+    return given
+
+
+def _rebaked(obj, shrink: float) -> None:
+    """``obj``'s cloth baked again with Blender's Shrinking at ``shrink``."""
+    scene = bpy.context.scene
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.free_bake_all()
+    obj.modifiers["Cloth"].settings.shrink_min = shrink
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+
+
+def test_a_retime_inside_a_simulation_measures_edges_from_its_first_frame(bpy_empty, extension, core, monkeypatch):
+    """Retime at half speed of frames 5–13 every 3rd of a cloth simulated from frame 1: every sequence
+    it makes (the whole gaps', the short last gap's) measures the edges its warnings hold the
+    in-betweens to from frame 1, where the cloth is at its rest, as In-between Frames does (before, from
+    frame 5, where it is already falling: no ``rest_pose`` given); the retimed frames are those of the
+    same keys without it. From frame 1 the first key is that rest: none is given."""
+    obj = cloth_scene(frames=13)
+    bridge = extension.bridge
+    frames_module = importlib.import_module(extension.__name__ + ".operators.frames")
+    rest = evaluated_frames(bridge, obj, [1])[1]
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    runs = []
+    for _ in range(2):  # as it runs, then with no simulation's first frame read
+        bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=3, speed=0.5, output='SHAPE_KEYS')
+        names = key_names(obj)[1:]
+        runs.append((names, [positions_of(bridge, obj, name) for name in names]))
+        obj.shape_key_clear()
+        if not runs[1:]:
+            assert len(given) == 2  # the whole gaps' sequence and the short last gap's
+            for pose in given:
+                assert pose is not None  # measured from the first key, frame 5
+                np.testing.assert_allclose(pose, rest, atol=TOLERANCE)
+            monkeypatch.setattr(frames_module, "simulation_first_frame", lambda *_: [])
+    # the short gap's sequence is measured from frame 5 (core.retime.short_gap_sequence)
+    assert len(given) == 4 and given[2] is None
+    (names, with_rest), (names_without, without) = runs
+    assert names_without == names and len(names) == 17
+    for pose, pose_without in zip(with_rest, without):
+        np.testing.assert_array_equal(pose, pose_without)
+    monkeypatch.undo()
+    bpy.ops.wm.read_homefile(use_empty=True)
+    cloth_scene(frames=13)
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=10, frame_step=3, speed=0.5, output='SHAPE_KEYS')
+    assert given == [None]
+
+
+def test_operators_inside_a_shrinking_simulation_measure_edges_from_the_first_key(bpy_empty, extension, core,
+                                                                                   monkeypatch):
+    """The cloth of :func:`cloth_scene` with Blender's Shrinking at 0.7: from frame 2 on its edges are
+    0.3 × frame 1's, so frame 1 is no rest of frames 5–13 (3.3 × their size, which the core refuses as
+    a ``rest_pose`` in other units). In-between Frames and Retime of 5–13 measure the warnings from
+    the first key, as where no rest is read, and run (else: "rest_pose is 3.3 × the size of the
+    first key"); the same cloth unshrunk is given its frame 1."""
+    obj = cloth_scene(frames=13)
+    _rebaked(obj, 0.7)
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=13, frame_step=4, count=1,
+                                               output='SHAPE_KEYS')
+    obj.shape_key_clear()
+    bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
+    assert len(given) == 2 and all(rest is None for rest in given)
+    obj.shape_key_clear()
+    _rebaked(obj, 0.0)
+    given.clear()
+    bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
+    assert len(given) == 1 and given[0] is not None
+
+
 def _cloth_scaled_before(first_scale):
     """The cloth of :func:`cloth_scene`, its object scaled ``first_scale`` at frame 1 and (1.5, 1, 1)
     from frame 4 on, turned 0.6 rad about z from frame 4 to 11 (keyframed, baked after): the frames 5–13

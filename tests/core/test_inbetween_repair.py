@@ -959,35 +959,55 @@ def test_the_defects_counted_are_the_check_with_the_interpolated_frames(strip):
     assert gap.repair.counted(broken, s, scale).all()
 
 
-def test_a_count_checks_each_triangle_against_the_keys_once(monkeypatch):
-    """``Repair.counted`` of a pose with flipped triangles reads its sides and tests its normals
-    against both keys' once: the check with the interpolated frames takes the first check's flips
-    against both keys and its collapses and judges only those flips against the frames (it tested
-    every triangle against both keys again). What it counts is the whole check's with the frames,
-    triangle by triangle: the curling finger (two poses, 120° at each of two joints) fitted half-way
-    with two fans folded over between the joints, its tip facing away from both keys as the
-    interpolated rotations turn it (flipped without the frames, not with them)."""
-    import core.inbetween_defects as inbetween_defects
+def test_a_count_reusing_its_first_check_is_the_whole_check_with_fresh_frames():
+    """``Repair.counted`` checks a pose without the interpolated frames, then with them only where
+    that finds defects, reusing the first check's sides, normals, flips against both keys and
+    collapses (keyed by the pose array, ``s`` and ``scale``, held only inside the count). It counts
+    what the whole check with the frames computed afresh counts, triangle by triangle, on the
+    curling finger (two poses, 120° at each of two joints) at three factors: fitted, folded over
+    twice between the joints (the tip flipped without the frames, not with them), curled by the
+    interpolated angles, that curl folded, and the fold jittered; also where one array is
+    overwritten in place with another pose between two counts, and where another pose is checked
+    whole at the same ``s`` and ``scale`` inside the count (while its frames are made)."""
     from test_inbetween_untangling import _pushed_past
 
     keys, tri, gap, x, curl, centre = _two_pose_finger()
-    s = 0.5
+    repair = gap.repair
     second = int(np.argmin(np.abs(np.linalg.norm(x - x[centre], axis=1) - 0.15)
                            + 10 * (np.abs(x[:, 1] - x[centre, 1]) > 0.02)))
     folded = _pushed_past(_pushed_past(x, tri, centre), tri, second)
-    scale = gap.area_scale(s)
-    frames, stretch = gap.repair.factor_targets(s)[:2]
-    whole = gap.repair.defects(folded, s, frames, stretch, scale=scale)
-    plain = gap.repair.defects(folded, s, None, None, scale=scale)
-    assert whole.any() and (plain & ~whole).any()  # folded fans, and the tip the frames take out
-    sides, products = [], []  # the pose's sides read; products over every triangle (3, m) in the check
-    real_sides, real_dot = gap.topo.triangle_sides, inbetween_defects.coordinate_dot
-    monkeypatch.setattr(gap.topo, "triangle_sides", lambda y: sides.append(y) or real_sides(y))
-    monkeypatch.setattr(inbetween_defects, "coordinate_dot",
-                        lambda a, b, out=None: products.append(a.shape == b.shape == (3, len(tri))) or real_dot(a, b, out))
-    counted = gap.repair.counted(folded, s, scale)
-    assert len(sides) == 1 and products.count(True) == 3  # the normals' lengths, one product per key
-    np.testing.assert_array_equal(counted, whole)
+    poses = [x, folded, curl, _pushed_past(curl, tri, centre),
+             folded + np.random.default_rng(0).normal(scale=0.02, size=folded.shape)]
+
+    def whole(y, s, scale):
+        frames, stretch = repair.factor_targets(s)[:2]
+        return repair.defects(y, s, frames, stretch, scale=scale)
+
+    taken_out = 0  # poses whose first check finds flips the frames take out: the second check's work
+    for s in (0.25, 0.5, 0.75):
+        scale = gap.area_scale(s)
+        buffer = x.copy()
+        counts = [repair.counted(y, s, scale) for y in poses] + [repair.counted(buffer, s, scale)]
+        buffer[:] = folded  # the same array, another pose: counted again with nothing checked between
+        counts.append(repair.counted(buffer, s, scale))
+        for y, counted in zip(poses + [x, folded], counts):  # the whole checks after all the counts
+            expected = whole(y, s, scale)
+            taken_out += bool((repair.defects(y, s, None, None, scale=scale) & ~expected).any())
+            np.testing.assert_array_equal(counted, expected)
+    assert taken_out >= 3 and whole(folded, 0.5, gap.area_scale(0.5)).any()
+    s, scale = 0.5, gap.area_scale(0.5)
+    expected, made = whole(folded, s, scale), repair.factor_targets
+
+    def meddling(t):  # another pose checked whole inside the count, at its s and scale
+        repair.defects(poses[3], t, None, None, scale=scale)
+        return made(t)
+
+    repair.factor_targets = meddling
+    try:
+        counted = repair.counted(folded, s, scale)
+    finally:
+        del repair.factor_targets
+    np.testing.assert_array_equal(counted, expected)
 
 
 def test_a_regions_checks_follow_the_stretches_they_are_given(strip):

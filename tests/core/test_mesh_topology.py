@@ -73,6 +73,51 @@ def test_triangles_flattened_by_the_rounding_far_from_the_origin_say_so():
     assert "Degenerate Dissolve" in message and "from its origin" not in message
 
 
+def _crushed_keys():
+    """Three keys of a 20 × 20 sheet (edges 1/19): flat, stretched 2 % along x, and one whose vertex 41
+    is pushed to 1.5e-5 above the middle of the opposite side of triangle 40, as a simulation crushes
+    a triangle (thin, not flat: its area is 4e-7 of its longest edge squared); and its triangles."""
+    vertices, triangles = grid(20)
+    crushed = vertices * [1.02, 1.0, 1.0]
+    a, b, c = triangles[40]
+    crushed[c] = 0.5 * (crushed[a] + crushed[b]) + [0.0, 1.5e-5, 0.0]
+    return [vertices, vertices * [1.02, 1.0, 1.0], crushed], triangles
+
+
+@pytest.mark.parametrize("single", [False, True])
+def test_triangles_a_later_keys_decimal_rounding_flattened_are_told_as_the_rounding(single):
+    """The keys exported to 4 decimals (read back in double precision, or single as Blender stores
+    them): the crushed triangle lands on one line in the third key, while the first key has it
+    whole. Refused as the export's rounding, with the decimals to export (before: "Remove degenerate
+    faces", blaming the mesh, which Blender's Clean Up would not find degenerate); exported so, the
+    keys are taken. The same key flattened in place, on no decimal grid, is still the mesh's."""
+    from core.mesh_topology import zero_area_triangles
+
+    keys, triangles = _crushed_keys()
+    assert zero_area_triangles(keys[2], triangles).size == 0  # the simulation's key: thin, whole
+
+    def exported(places):
+        rounded = [np.round(key, places) for key in keys]
+        return [key.astype(np.float32).astype(np.float64) for key in rounded] if single else rounded
+
+    rounded = exported(4)
+    assert zero_area_triangles(rounded[0], triangles).size == 0
+    assert 40 in zero_area_triangles(rounded[2], triangles)  # and its neighbour along the same row
+    with pytest.raises(core.MeshError) as info:
+        core.SequenceInterpolator(rounded, triangles)
+    message = str(info.value)
+    assert message.startswith("key pose 2: triangle ") and "zero area" in message
+    assert "rounded to 4 decimal(s)" in message and "key pose 0 has those triangle(s) whole" in message
+    assert "try 6" in message and "scale the object up 100 ×" in message and "Degenerate Dissolve" not in message
+    core.SequenceInterpolator(exported(6), triangles)  # the advice followed
+    flat = [key.copy() for key in keys]
+    a, b, c = triangles[40]
+    flat[2][c] = 0.5 * (flat[2][a] + flat[2][b])
+    with pytest.raises(core.MeshError, match="Degenerate Dissolve") as info:
+        core.SequenceInterpolator(flat, triangles)
+    assert "decimal" not in str(info.value)
+
+
 def test_degenerate_target_is_rejected_too():
     vertices, triangles = grid(4)
     target = vertices.copy()

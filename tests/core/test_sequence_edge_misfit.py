@@ -221,6 +221,42 @@ def test_a_rest_pose_of_another_mesh_is_refused():
         SequenceInterpolator(keys, triangles, rest_pose=bad)
 
 
+@pytest.mark.parametrize("units", [100.0, 0.01, 2.54, 1 / 3.2808])
+def test_a_rest_pose_in_other_units_than_the_keys_is_refused_with_its_scale(units):
+    """The rest of the keys after a stretched first key (each later gap warned from it, the test
+    above) given in other units (cm for m, m for cm, inches for cm, feet for m): every key read 99 %
+    (or 0.99 × …) off it, every gap was allowed that misfit and none was warned (before: no error, no
+    warning). Refused naming ``rest_pose`` and the scale found (the median ratio of the edges); the
+    rest in the keys' units, and one 4 % larger, are taken."""
+    keys, rest, triangles = _stretched_wave(first_stretch=1.1)
+    keys = keys[:1] + [_waved(rest, np.radians(60), k * np.radians(90)) for k in range(5)]
+    with pytest.raises(MeshError, match=r"rest_pose is (\S+) × the size of the first key") as refused:
+        SequenceInterpolator(keys, triangles, rest_pose=rest * units)
+    found = float(str(refused.value).split()[2])  # to 4 digits
+    # the first key is the rest stretched 10 % along the strip and not across: its edges' ratios lie between
+    assert units / 1.1 * (1 - 1e-3) <= found <= units * (1 + 1e-3)
+    for taken in (rest, rest * 1.04):
+        SequenceInterpolator(keys, triangles, rest_pose=taken)
+
+
+def test_the_rest_pose_scale_is_the_median_edge_ratio():
+    """:func:`core.rest_pose_scale.rest_scale` against an independent count: a strip whose every x is
+    3 × the key's and y 1.5 × (edges along x 3 ×, across 1.5 ×, diagonals between) reads the median
+    of those per corner edge; a rest at the limit either way is taken, one past it refused."""
+    from core.rest_pose_scale import REST_SCALE_LIMIT, check_rest_scale, rest_scale, scale_taken
+
+    vertices, triangles = grid(9, 3)
+    rest = vertices * [3.0, 1.5, 1.0]
+    ratios = [np.linalg.norm(rest[t[j]] - rest[t[i]]) / np.linalg.norm(vertices[t[j]] - vertices[t[i]])
+              for t in triangles for i, j in ((0, 1), (1, 2), (2, 0))]
+    assert rest_scale(rest, vertices, triangles) == pytest.approx(np.median(ratios), rel=1e-12)
+    assert rest_scale(vertices * 2.5, vertices, triangles) == pytest.approx(2.5, rel=1e-12)
+    assert scale_taken(REST_SCALE_LIMIT) and scale_taken(1.0 / REST_SCALE_LIMIT) and not scale_taken(2.01)
+    check_rest_scale(vertices * REST_SCALE_LIMIT, vertices, triangles)  # the limit itself is taken
+    with pytest.raises(MeshError, match="rest_pose is 2.01 ×"):
+        check_rest_scale(vertices * 2.01, vertices, triangles)
+
+
 def test_a_retimes_short_last_gap_measures_from_the_whole_sequences_first_sample():
     """The short last gap of a retime is keyed by a sequence of its own starting deep in the motion
     (core.retime.short_gap_sequence): its warnings measure from the whole sequence's first sample,

@@ -197,12 +197,47 @@ def test_compressed_columns_past_32_bit_indices_are_refused_not_wrapped():
     huge = sp.csc_matrix((np.broadcast_to(1.0, (nonzeros,)), np.broadcast_to(np.int64(0), (nonzeros,)),
                           np.array([0, nonzeros], dtype=np.int64)), shape=(1, 1))
     assert huge.indptr.astype(np.int32)[-1] < 0  # what the unchecked cast handed CHOLMOD
-    with pytest.raises(MeshError, match="1 unknowns has 2,147,483,648 nonzeros, more than the 2,147,483,647"):
+    with pytest.raises(MeshError, match="1 unknowns has 2,147,483,648 nonzeros, and the sparse factorizations "
+                                        "index at most 2,147,483,647"):
         int32_columns(huge)
     matrix = _normal_matrix(1e-2)
     indptr, indices = int32_columns(matrix)
     assert indptr.dtype == indices.dtype == np.int32
     assert np.array_equal(indptr, matrix.indptr) and np.array_equal(indices, matrix.indices)
+
+
+def test_coordinates_past_32_bit_indices_are_refused_not_wrapped_through_cholespys_binding(monkeypatch):
+    """Where CHOLMOD is reached through cholespy's binding (its functions not readable directly), the
+    matrix goes as coordinates in 32-bit integers: a row past 2³¹ − 1 (a system of 2³¹ + 1 unknowns,
+    one nonzero) cast unchecked wrapped to −2³¹ and reached the binding (before: handed to it); it is
+    refused with the counts, as are 2³¹ nonzeros (their arrays broadcast, nothing of that size
+    allocated), before anything is cast or factored. A matrix that fits factors as before."""
+    cholespy, cholmod_direct, _ = _direct_library()
+    from core.errors import MeshError
+
+    handed = []
+
+    class Binding:  # cholespy's solver, recording what it is handed instead of factoring it
+        def __init__(self, n, rows, columns, data, kind):
+            handed.append(rows)
+
+    monkeypatch.setattr(cholmod_direct, "_library", False)
+    monkeypatch.setattr(cholespy, "CholeskySolverD", Binding)
+    last = 2 ** 31
+    beyond = sp.coo_matrix(([1.0], ([last], [last])), shape=(last + 1, last + 1))
+    assert np.array_equal(beyond.row.astype(np.int32), [-last])  # what the unchecked cast handed the binding
+    with pytest.raises(MeshError, match="2,147,483,649 unknowns has 1 nonzeros, and the sparse factorizations "
+                                        "index at most 2,147,483,647"):
+        SPDFactor(beyond)
+    many = sp.coo_matrix(([1.0], ([0], [0])), shape=(1, 1))
+    many.coords, many.data = (np.broadcast_to(np.int64(0), (last,)),) * 2, np.broadcast_to(1.0, (last,))
+    with pytest.raises(MeshError, match="1 unknowns has 2,147,483,648 nonzeros"):
+        SPDFactor(many)
+    assert handed == []
+    monkeypatch.undo()
+    monkeypatch.setattr(cholmod_direct, "_library", False)
+    matrix, rhs = _sheet_matrix(15, 1e-2), np.ones(225)
+    np.testing.assert_allclose(matrix @ SPDFactor(matrix).solve(rhs), rhs, atol=1e-10)
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
