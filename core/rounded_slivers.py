@@ -15,36 +15,36 @@ from __future__ import annotations
 
 import numpy as np
 
-from .untold_triangles import triangle_heights
-
 #: A triangle is thin against the rounding ``r`` (machine epsilon times the largest coordinate: one
-#: to two steps of the coordinates' grid) where its smallest height is at most ``r / ROUNDED_SLIVER``:
+#: to two steps of the coordinates' grid) where its smallest height
+#: (:func:`core.untold_triangles.triangle_heights`) is at most ``r / ROUNDED_SLIVER``:
 #: rounding each corner's coordinates by up to half a step moves it by up to 0.87 of a step, which
 #: changes such a height by a fifth or more.
 ROUNDED_SLIVER = 0.5
 
 
-def rounded_slivers(lengths: list[np.ndarray], areas: list[np.ndarray], rounding: float) -> np.ndarray:
+def rounded_slivers(heights: list[np.ndarray], rounding: float) -> np.ndarray:
     """Indices (k,) of the triangles thin against the ``rounding`` (:data:`ROUNDED_SLIVER`)
-    in any of the keys whose edge ``lengths`` ((m, 3) each) and ``areas`` ((m,) each) are given:
-    the keys do not tell their shape nor which way they face."""
-    if not rounding > 0.0 or not lengths or not len(lengths[0]):
+    in any of the keys whose triangles' smallest ``heights`` ((m,) each: the keys' own,
+    :attr:`core.inbetween_keys.Key.heights`, made once per key for every reading of them) are
+    given: the keys do not tell their shape nor which way they face."""
+    if not rounding > 0.0 or not heights or not len(heights[0]):
         return np.zeros(0, dtype=np.int64)
-    thin = np.zeros(len(lengths[0]), dtype=bool)
-    for length, area in zip(lengths, areas):
-        thin |= triangle_heights(area, length) <= rounding / ROUNDED_SLIVER
+    thin = np.zeros(len(heights[0]), dtype=bool)
+    for height in heights:
+        thin |= height <= rounding / ROUNDED_SLIVER
     return np.flatnonzero(thin)
 
 
-def sliver_excess(lengths: list[np.ndarray], areas: list[np.ndarray], rows: np.ndarray, rounding: float) -> float:
+def sliver_excess(heights: list[np.ndarray], rows: np.ndarray, rounding: float) -> float:
     """How far past its allowance the thinnest of the triangles ``rows`` (int (k,), of
-    :func:`rounded_slivers`) is in the keys whose edge ``lengths`` ((m, 3) each) and ``areas``
-    ((m,) each) are given: the least height the keys' ``rounding`` allows (``rounding /
+    :func:`rounded_slivers`) is in the keys whose triangles' smallest ``heights`` ((m,) each, as
+    there) are given: the least height the keys' ``rounding`` allows (``rounding /
     ROUNDED_SLIVER``) ÷ its smallest height in any key (at least 1 for such a triangle; a key's
     triangles are not degenerate); 0 where ``rows`` is empty (:attr:`core.errors.ShapeDifferenceWarning.excess`)."""
     if not rows.size:
         return 0.0
-    thinnest = min(float(triangle_heights(area[rows], length[rows]).min()) for length, area in zip(lengths, areas))
+    thinnest = min(float(height[rows].min()) for height in heights)
     return rounding / ROUNDED_SLIVER / thinnest
 
 

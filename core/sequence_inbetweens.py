@@ -430,12 +430,12 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         Made once per gap: they depend on the keys only."""
         if gap not in self._gap_messages:
             names = self.key_names
-            keys = (segment.base, segment.next)
-            slivers = rounded_slivers([k.lengths for k in keys], [k.areas for k in keys],
-                                      self._rounding * self._unit)  # the keys' lengths are the working keys
+            # the keys' heights, as the untold and rounding readings have them (in the working keys' units)
+            heights = [segment.base.heights, segment.next.heights]
+            slivers = rounded_slivers(heights, self._rounding * self._unit)
             # those that take a told neighbour's targets follow the mesh (core.untold_triangles): not said
             slivers = np.setdiff1d(slivers, segment.untold[0], assume_unique=True)
-            thin = sliver_excess([k.lengths for k in keys], [k.areas for k in keys], slivers, self._rounding * self._unit)
+            thin = sliver_excess(heights, slivers, self._rounding * self._unit)
             cause = rounding_cause(self._given, (gap, gap + 1), names) if slivers.size else ""  # read where said
             self._gap_messages[gap] = [("turn", m, 0, (), e) for m, e in turn_warnings(segment, names, gap)] + \
                 [("joint", m, 0, (), e) for m, e in joint_warnings(segment.joint_doubts, names, gap)] + \

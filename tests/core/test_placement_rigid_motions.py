@@ -445,6 +445,38 @@ def test_a_gap_s_sliver_warning_is_made_once_and_said_at_each_call(monkeypatch):
     assert len(made) == 1, made
 
 
+def test_a_sequence_s_sliver_warnings_measure_each_gap_from_its_own_keys(monkeypatch):
+    """The slivered sphere turned 30° per key far from the origin in single precision, four keys:
+    every gap warns of its slivers, from the triangle heights of its own two keys (``Key.heights``,
+    which the warnings read instead of making them again). The gaps' excesses are the least height
+    allowed over the thinnest height of either key, from the keys as given (as
+    test_warning_excess.py measures them)."""
+    import core.inbetween_fit as inbetween_fit
+    from core.coordinate_rounding import coordinate_rounding
+
+    monkeypatch.setattr(inbetween_fit, "UNTOLD_HEIGHT", 0.0)  # every sliver keeps its own targets: said
+    vertices, triangles = _slivered_sphere(1e-5)
+    rotation = Rotation.from_rotvec(np.radians(30.0) * np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2]))
+    keys = [_screw(vertices + 1000.0, rotation.as_matrix(), np.zeros(3), s).astype(np.float32)
+            for s in (0.0, 1.0, 2.0, 3.0)]
+    sequence = SequenceInterpolator(keys, triangles)
+    excesses = []
+    for gap in range(len(sequence)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ShapeDifferenceWarning)
+            sequence.pose(gap, 0.5)
+        excesses += [w.message.excess for w in caught if getattr(w.message, "kind", None) == "sliver"]
+    heights = []
+    for key in keys:
+        corners = key.astype(np.float64)[triangles]
+        sides = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
+        area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1)
+        heights.append((2.0 * area / sides.max(axis=1)).min())
+    rounding = coordinate_rounding(keys)
+    expected = [2.0 * rounding / min(heights[gap], heights[gap + 1]) for gap in range(len(keys) - 1)]
+    np.testing.assert_allclose(excesses, expected, rtol=1e-6)
+
+
 def test_slivers_well_above_the_keys_rounding_turn_rigidly_and_silently():
     """The same sphere with slivers 1e-3 high (eight roundings) 1,000 units out in single
     precision: the rigid motion to a few of the keys' roundings, and no warning of slivers."""
