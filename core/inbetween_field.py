@@ -259,9 +259,10 @@ class _ByRows:
         rows = np.arange(len(self._done))[rows] if isinstance(rows, slice) else np.asarray(rows)
         if rows.dtype == bool:
             rows = np.flatnonzero(rows)
-        new = np.unique(rows[~self._done[rows]])
-        values = self._values if self.axis == 0 else self._values.transpose(1, 0, 2)  # triangles first
-        if new.size:
+        pending = ~np.take(self._done, rows)
+        if pending.any():
+            new = np.unique(rows[pending])
+            values = self._values if self.axis == 0 else self._values.transpose(1, 0, 2)  # triangles first
             values[new] = self.compute(new) if self.axis == 0 else self.compute(new).transpose(1, 0, 2)
             self._done[new] = True
-        return self._values[rows] if self.axis == 0 else self._values[:, rows]
+        return np.take(self._values, rows, axis=self.axis)  # NumPy's indexing of rows of 3 costs 4–6 × more

@@ -101,13 +101,13 @@ class Region:
             # (with both ends held it has no entry in D_fᵀ), so the edge less this is the edge less
             # its held end's position or plus its held start's, as it would be one at a time
             held = np.zeros((self.free_t.shape[1], 3))
-            held[self._held_ends[0]] = x[self._held_ends[1]]
-            held[self._held_starts[0]] -= x[self._held_starts[1]]
+            held[self._held_ends[0]] = np.take(x, self._held_ends[1], axis=0)
+            held[self._held_starts[0]] -= np.take(x, self._held_starts[1], axis=0)
             self._held = (x, held)
         residual = np.asarray(edges, dtype=float).reshape(-1, 3) - self._held[1]
         rhs = self.free_t @ residual
         if self._pull is None or self._pull[0] is not guide:  # the same guide for every field of a round
-            self._pull = (guide, self.anchor[:, None] * guide[self.free])
+            self._pull = (guide, self.anchor[:, None] * np.take(guide, self.free, axis=0))
         rhs += self._pull[1]
         return self.lu.solve(np.asfortranarray(rhs))
 

@@ -87,19 +87,13 @@ class RepairRounds:
         """The triangles (bool (m,)) within ``rings`` vertex rings of ``triangles`` (walked on the
         vertex–triangle adjacency: the cost is that of the region, not of the mesh)."""
         topo = self.gap.topo
-        adjacency = topo.vertex_triangles
         out = triangles.copy()
         rows = np.flatnonzero(out)
         used = np.empty(topo.n, dtype=bool)
         for _ in range(rings):
             used[:] = False  # the rows' vertices, ascending, by a mask (a sort of their corners costs more)
             used[topo.triangles[rows]] = True
-            vertices = np.flatnonzero(used)
-            starts, stops = adjacency.indptr[vertices], adjacency.indptr[vertices + 1]
-            counts = stops - starts
-            offsets = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-            near = adjacency.indices[offsets]
-            out[near] = True
+            out[topo.triangles_around(np.flatnonzero(used))] = True
             rows = np.flatnonzero(out)
         return out
 
@@ -117,7 +111,7 @@ class RepairRounds:
         def key_field(index):  # the key's geometry made when a round first imposes it
             def field(rows):
                 frames, stretches = self.key_geometry(index)
-                return frames[:, rows], stretches[rows]
+                return np.take(frames, rows, axis=1), np.take(stretches, rows, axis=0)
             return field
 
         keys = (1, 2) if s < 0.5 else (2, 1)  # nearer key first
@@ -158,7 +152,7 @@ class RepairRounds:
                 frames_of[:, new] = df.plane_turned_frames(columns, turn)[:2].transpose(0, 2, 1)
                 stretches_of[new] = mesh_stretch
                 done[new] = True
-            return frames_of[:, rows], stretches_of[rows]
+            return np.take(frames_of, rows, axis=1), np.take(stretches_of, rows, axis=0)
         return field
 
     def factor_fields(self, s: float, blend: np.ndarray) -> tuple:
@@ -271,7 +265,8 @@ class RepairRounds:
             # per part: the squared move from the start its free vertices already have in x, the
             # field taken (−1: none repairs it yet) and the fewest defects a field leaves there
             # (x's own to begin with) with that field's positions
-            had = np.bincount(free_part, np.sum((x[free] - start[free]) ** 2, axis=1), minlength=count)
+            at_start = np.take(start, free, axis=0)  # row gathers by np.take: 4–6 × NumPy's indexing of (n, 3)
+            had = np.bincount(free_part, np.sum((np.take(x, free, axis=0) - at_start) ** 2, axis=1), minlength=count)
             own = np.bincount(row_part[left[region.rows]], minlength=count)
             fewest = own.copy()
             taken, partial = np.full(count, -1), np.full(count, -1)
@@ -281,12 +276,12 @@ class RepairRounds:
                 if round_index >= WHOLE_GEOMETRY_ROUND and not whole:
                     continue
                 fitted = gap.local_fit(x, region, *field(region.rows), guide)
-                z = fits[index] = fitted[free]
+                z = fits[index] = np.take(fitted, free, axis=0)
                 infinite = ~np.isfinite(z).all(axis=1)
                 finite = np.bincount(free_part[infinite], minlength=count) == 0
                 if infinite.any():  # checked with x's positions there (the rest is x's, finite)
                     fitted[free[~finite[free_part]]] = x[free[~finite[free_part]]]
-                squared = np.sum((fitted[free] - start[free]) ** 2, axis=1)
+                squared = np.sum((np.take(fitted, free, axis=0) - at_start) ** 2, axis=1)
                 moves = np.bincount(free_part, squared, minlength=count) - had
                 if reach is not None:  # parts with a vertex moved too far are no candidates
                     farthest = np.zeros(count)

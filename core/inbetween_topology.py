@@ -194,6 +194,16 @@ class Topology:
         np.negative(e2, out=e2)
         return e1, e2
 
+    def triangles_around(self, vertices: np.ndarray) -> np.ndarray:
+        """The triangles (indices, each as often as it has a corner among ``vertices``) around the
+        ``vertices`` (ascending index array), read from :attr:`vertex_triangles` by index: the cost
+        is that of the vertices, not of the mesh."""
+        adjacency = self.vertex_triangles
+        starts, stops = adjacency.indptr[vertices], adjacency.indptr[vertices + 1]
+        counts = stops - starts
+        offsets = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
+        return adjacency.indices[offsets]
+
     def component_sums(self, values: np.ndarray) -> np.ndarray:
         """Per component (C, …), the sums of the mass-weighted ``values`` (n, …) of its vertices."""
         flat = values.reshape(self.n, -1)

@@ -51,16 +51,17 @@ class TurnedAway:
         triangles = candidates if isinstance(rows, slice) else np.asarray(rows)[candidates]
         columns = frames[:, triangles]
         normal = coordinate_cross(columns[0].T, columns[1].T)  # (3 coordinates, r) of the interpolated R_T t1, R_T t2
-        base, nxt = self.gap.base.normal_rows[:, triangles], self.gap.next.normal_rows[:, triangles]
-        following = coordinate_dot(cross[:, candidates], normal)
+        base, nxt = (np.take(key.normal_rows, triangles, axis=1) for key in (self.gap.base, self.gap.next))
+        cross = np.take(cross, candidates, axis=1)  # the candidates' normals, read below
+        following = coordinate_dot(cross, normal)
         away = (coordinate_dot(normal, base) < 0) & (coordinate_dot(normal, nxt) < 0)
         away &= following > -slack[candidates]  # ... that follow it
         # a whole mesh's check first keeps the pieces that turn whole; the rest, one by one (below)
         whole = isinstance(rows, slice)
-        turning = self._turning_pieces(cross[:, candidates], normal, following, base, nxt, columns, sides,
+        turning = self._turning_pieces(cross, normal, following, base, nxt, columns, sides,
                                        candidates) if whole else None
         if not whole:  # what a region's check cannot see (DefectChecks.region_defects asks)
-            self._local.whole_may_pass = self._whole_may_pass(cross[:, candidates], following, normal, base, nxt,
+            self._local.whole_may_pass = self._whole_may_pass(cross, following, normal, base, nxt,
                                                               triangles)
         kept_whole = None
         if turning is not None:
@@ -68,7 +69,7 @@ class TurnedAway:
             away &= ~turning
         # in a fit checked whole, triangles of a far-turning piece at edge-on with a key, to the
         # fit's precision (a repair region's fields are not fitted to it)
-        edge_on = self._edge_on(cross[:, candidates], following, base, nxt, triangles) if whole else None
+        edge_on = self._edge_on(cross, following, base, nxt, triangles) if whole else None
         if edge_on is not None:
             kept_whole = candidates[edge_on] if kept_whole is None else np.union1d(kept_whole, candidates[edge_on])
             away &= ~edge_on
@@ -110,6 +111,10 @@ class TurnedAway:
         far = gap.turning if gap.turning is not None else self._far_turning()
         if (along & np.asarray(far)[pieces]).any():
             return True
+        # a piece turning whole has a candidate whose interpolated normal faces away from both keys
+        # to within the angle (none far): where none does, none turns whole (the common case, a fold)
+        if not _facing_away(_unit(normal), base, nxt, np.sin(self._turn_angle())).any():
+            return False
         whole_pieces = self._whole_pieces(cross, normal, following, base, nxt, pieces)
         return bool(whole_pieces(np.zeros(len(gap.topo.piece_sizes), dtype=bool))[0].any())
 
@@ -273,9 +278,9 @@ class TurnedAway:
         turn as the field says: those, and in a piece turning far those beyond the angle facing
         along their interpolated normal still (the others are judged one by one)."""
         gap = self.gap
-        angle = np.arctan(max(METRIC_TOLERANCE, gap.tolerance))
+        angle = self._turn_angle()
         count = len(gap.topo.piece_sizes)
-        unit = normal / np.sqrt(coordinate_dot(normal, normal))
+        unit = _unit(normal)
         lengths = np.sqrt(coordinate_dot(cross, cross) * coordinate_dot(normal, normal))
         per_piece = np.bincount(pieces, minlength=count)
 
@@ -283,7 +288,7 @@ class TurnedAway:
             far_pieces = far[pieces]
             limit = np.where(far_pieces, np.cos(MAX_ROTATION_DEVIATION), np.cos(angle))
             sine = np.where(far_pieces, np.sin(MAX_ROTATION_DEVIATION), np.sin(angle))
-            facing_away = (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)
+            facing_away = _facing_away(unit, base, nxt, sine)
             near = (following >= limit * lengths) & facing_away
             near_count = np.bincount(pieces[near], minlength=count)
             allowed = np.where(far, np.floor(DEVIANT_SHARE * per_piece), 0)
@@ -291,6 +296,13 @@ class TurnedAway:
             return whole, near | (far_pieces & facing_away & (following > 0.0))
 
         return whole_pieces
+
+    def _turn_angle(self) -> float:
+        """The angle ``arctan δ`` (δ the gap's tolerance, at least
+        :data:`~core.inbetween_fit.METRIC_TOLERANCE`) by which a side whose end is a relative δ off
+        its target turns: how far a piece's normals may stray from their interpolated ones and
+        those from facing away from both keys for the piece to turn whole (:meth:`_whole_pieces`)."""
+        return np.arctan(max(METRIC_TOLERANCE, self.gap.tolerance))
 
     def _far_turning(self) -> np.ndarray:
         """Per piece (bool (C,)), whether a part of it turns far from the rest between the keys as
@@ -321,3 +333,14 @@ class TurnedAway:
                 known = (reading[0] | reading[2])[:len(known)]  # past a half turn, without or with a crease
             self._far = known
         return known
+
+
+def _unit(normal: np.ndarray) -> np.ndarray:
+    """The unit vectors (3, r) of ``normal`` (3, r), by coordinate."""
+    return normal / np.sqrt(coordinate_dot(normal, normal))
+
+
+def _facing_away(unit: np.ndarray, base: np.ndarray, nxt: np.ndarray, sine) -> np.ndarray:
+    """Whether each ``unit`` normal (3, r) lies within the angle whose sine is ``sine`` (a number,
+    or (r,)) of facing away from both keys' unit normals ``base`` and ``nxt`` (3, r) (bool (r,))."""
+    return (coordinate_dot(unit, base) < sine) & (coordinate_dot(unit, nxt) < sine)

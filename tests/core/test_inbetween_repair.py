@@ -1010,6 +1010,69 @@ def test_a_count_reusing_its_first_check_is_the_whole_check_with_fresh_frames():
     np.testing.assert_array_equal(counted, expected)
 
 
+def test_a_count_after_another_counts_what_a_count_of_its_own_counts():
+    """Inside an in-between's scope (``fields_kept``), a count after another at the same factor
+    (the repair of the pose counted before, the same pose again) rechecks only the triangles at the
+    vertices the pose moved, and must count what a count of its own counts, triangle by triangle:
+    the curling finger fitted half-way (its tip facing away from both keys as the interpolated
+    rotations turn it: no defect), one fan folded over, then a second one, then the same pose again,
+    then a pose moved everywhere; a count at another factor or outside the scope likewise."""
+    from core.inbetween_defects import RECHECKED_SHARE
+    from test_inbetween_untangling import _pushed_past
+
+    keys, tri, gap, x, curl, centre = _two_pose_finger()
+    s = 0.5
+    second = int(np.argmin(np.abs(np.linalg.norm(x - x[centre], axis=1) - 0.15)
+                           + 10 * (np.abs(x[:, 1] - x[centre, 1]) > 0.02)))
+    once = _pushed_past(x, tri, centre)
+    twice = _pushed_past(once, tri, second)
+    shaken = x + np.random.default_rng(3).normal(scale=1e-3, size=x.shape)  # every vertex moved
+    scale = gap.area_scale(s)
+    poses = (x, once, twice, twice.copy(), shaken, twice)
+    alone = [gap.repair.counted(y, s, scale) for y in poses]  # each a count of its own
+    assert alone[0].sum() == 0 < alone[1].sum() < alone[2].sum()  # the tip is no defect; the fans are
+    moved = np.zeros(len(tri), dtype=bool)
+    moved[gap.topo.triangles_around(np.array([centre, second]))] = True
+    assert moved.sum() <= RECHECKED_SHARE * len(tri)  # the folds are rechecked, not counted whole
+    other = gap.repair.counted(twice, 0.25, gap.area_scale(0.25))
+    with gap.repair.fields_kept():
+        for y, expected in zip(poses, alone):
+            np.testing.assert_array_equal(gap.repair.counted(y, s, scale), expected)
+        np.testing.assert_array_equal(gap.repair.counted(twice, 0.25, gap.area_scale(0.25)), other)
+    np.testing.assert_array_equal(gap.repair.counted(twice, s, scale), alone[2])
+
+
+def test_a_regions_check_tests_pieces_as_turning_whole_only_where_a_candidate_field_faces_away(monkeypatch, strip):
+    """What a region's check asks of the whole mesh (``_whole_may_pass``) where its candidates
+    (triangles facing away from both keys) follow their interpolated normals: where none of those
+    normals faces away from both keys (a triangle rolled over sideways as the field swings it past
+    the keys' normals, not turned past a half turn), no piece can turn whole, and the pieces are not
+    tested (they were, for every field's fit of every region); where they face away and the
+    candidates follow them, the piece turns whole, and the whole mesh may pass them. Each answer is
+    the pieces' own test's (``_whole_pieces`` with no piece turning far)."""
+    from core import inbetween_turned_away
+    from core.geometry import coordinate_dot
+
+    flat, tri = strip
+    gap = SequenceInterpolator([_bend(flat, a) for a in (0.0, 1.0, 2.0)], tri)._gap(0)
+    piece = np.flatnonzero(gap.topo.triangle_component == 0)
+    rows = piece  # every triangle of one piece a candidate
+    r = rows.size
+    base, nxt = np.tile([[0.0], [0.0], [1.0]], r), np.tile([[1.0], [0.0], [0.0]], r)  # keys' normals 90° apart
+    real = inbetween_turned_away.TurnedAway._whole_pieces
+    monkeypatch.setattr(gap, "turning", np.zeros(len(gap.topo.piece_sizes), dtype=bool))  # no piece turns far
+    pieces_turn = []
+    for normal, cross in ((np.tile([[0.3], [0.9], [0.3]], r), np.tile([[-0.1], [1.0], [-0.1]], r)),  # rolled over
+                          (np.tile([[-1.0], [0.0], [-1.0]], r), np.tile([[-1.0], [0.0], [-1.0]], r))):  # turned past
+        following = coordinate_dot(cross, normal)
+        assert (following > 0).all() and (coordinate_dot(cross, base) < 0).all() and (coordinate_dot(cross, nxt) < 0).all()
+        passes = gap.repair._whole_may_pass(cross, following, normal, base, nxt, rows)
+        whole = real(gap.repair, cross, normal, following, base, nxt, gap.topo.triangle_component[rows])
+        pieces_turn.append(bool(whole(np.zeros(len(gap.topo.piece_sizes), dtype=bool))[0].any()))
+        assert passes == pieces_turn[-1]
+    assert pieces_turn == [False, True]  # the shortcut's answer where the field faces away and where not
+
+
 def test_a_regions_checks_follow_the_stretches_they_are_given(strip):
     """The checks of one region keep its target areas while they are given the same stretches; given
     others (another field's, or whole ones) on the same rows, they check against those: each equals
