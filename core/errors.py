@@ -43,7 +43,7 @@ class ShapeDifferenceWarning(UserWarning):
     it holds for every in-between of the gap, or is about something else).
     ``excess``: how far past what it allows the (worst) in-between or result it is about is, its measure ÷
     the allowance, over 1 (1 exactly for a ``sliver`` or joints within rounding at their threshold, which
-    they warn at; the ``fit`` warning of a sequence's gap: its worst fit's misfit ÷ the misfit
+    they warn at; the ``fit`` warning of a sequence's gap (or of two poses' in-between): its worst fit's misfit ÷ the misfit
     allowed; of a reconstruction: its worst edge's miss ÷ ``REALIZATION_TOLERANCE``; of the truncated area
     program: the residual reached ÷ the one asked for; a ``seam`` the in-betweens open: how much farther
     apart than in the keys ÷ the opening allowed; ``sliver``: the least height allowed ÷ the thinnest

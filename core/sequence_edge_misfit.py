@@ -23,7 +23,7 @@ import numpy as np
 
 from .inbetween_fit import METRIC_TOLERANCE, STALL_NEAR
 
-__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "key_deviation", "misfit_allowed", "misfit_warning",
+__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "MORE_KEYS", "key_deviation", "misfit_allowed", "misfit_warning",
            "signed_deviation"]
 
 #: A gap's in-betweens are warned of where the fit of one of them ends farther from the interpolated
@@ -70,8 +70,13 @@ def signed_deviation(lengths: np.ndarray, target: np.ndarray) -> float:
     return float(np.mean(_relative_changes(lengths, target)))
 
 
+#: What :func:`misfit_warning` tells a sequence to do: key the gap more often.
+MORE_KEYS = "add keys in this gap or use a smaller step"
+
+
 def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str, str],
-                   signed, reference: str = "the first key") -> tuple[str, tuple[float, ...], float] | None:
+                   signed, reference: str = "the first key",
+                   advice: str = MORE_KEYS) -> tuple[str, tuple[float, ...], float] | None:
     """The message, factors and excess (the worst fit's misfit ÷ ``allowed``, over 1:
     :attr:`core.errors.ShapeDifferenceWarning.excess`) of the warning of a gap (keys ``names``) whose in-betweens at
     ``factors`` include fitted ones (``fit_misfits`` {factor: the least mean relative edge misfit
@@ -79,7 +84,9 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
     interpolated metric; None where none is. ``signed(factor)``: the mean signed relative
     deviation of that in-between's edges from the keys' edge lengths interpolated, asked of the
     worst one only (it measures the pose once more). ``reference``: what the keys' deviation that
-    sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose)."""
+    sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose).
+    ``advice``: what the message tells the caller to do (:data:`MORE_KEYS`; two poses: a pose between
+    them, :mod:`core.two_pose_inbetweens`)."""
     asked = [s for s in factors if 0.0 < s < 1.0]
     fitted = {s: fit_misfits[s] for s in asked if s in fit_misfits}
     over = sorted(s for s, m in fitted.items() if m > allowed)
@@ -101,8 +108,8 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
         fitted_only = "" if len(fitted) == len(asked) else f" ({len(fitted)} fitted, the others predicted from them)"
         place = f"{len(over)} of the {len(asked)} in-betweens{fitted_only}, the worst at factor {worst:g}"
     return (f"between {names[0]} and {names[1]}, {place}: its edges are "
-            f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; add keys in this gap or use a "
-            f"smaller step [its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
+            f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; {advice} "
+            f"[its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
             f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from {reference} allows (twice it + "
             f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over),
             misfit / allowed)

@@ -615,10 +615,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 # the neighbour outside this gap (its lengths not at hand) read only where the one inside allows less
                 three = (at - 1, at, at + 1)
                 if self._key_deviation(at, lengths[at]) <= misfit_allowed([self._key_deviation(other, lengths[other])]):
-                    self._caught_stretches[at] = False
+                    self._caught_stretches[at] = None
                 else:
                     self._caught_stretches[at] = caught_stretch([self._key_deviation(k, lengths.get(k)) for k in three],
-                                                                [self._raw[k] for k in three])
+                                                                [self._raw[k] for k in three],
+                                                                self._topo.corner_edge_rows)
             if not self._caught_stretches[at]:
                 continue
             if deviation is None:
@@ -626,7 +627,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                            for s in caught_stretch_factors(asked)]))
             said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
                                           self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked,
-                                          self._rest_named)
+                                          self._rest_named, self._caught_stretches[at])
             if said is not None:
                 return said
         return None

@@ -149,7 +149,7 @@ class SequenceKeys:
         # gives it, else the first key's; once asked (SequenceInterpolator._key_deviation)
         self._rest_lengths = None
         self._key_deviations: dict[int, float] = {}  # ... and each key's mean relative edge deviation from them
-        self._caught_stretches: dict[int, bool] = {}  # per key, whether it catches a brief stretch (core.sequence_caught_stretch)
+        self._caught_stretches: dict[int, str | None] = {}  # per key, how it catches a brief stretch, if it does (core.sequence_caught_stretch)
         # per gap, least turn and tolerance, per piece (SequenceInterpolator._bent_turn)
         self._bent_turns: dict[tuple[int, float, float], np.ndarray] = {}
         self._hold_tolerance, self._holds = tolerance, {}

@@ -31,6 +31,7 @@ from .inbetween_prediction import STILL_RIGIDITY
 from .validation import check_factor, check_interpolation, check_key_names, numerical_failures
 from .sequence_inbetweens import SequenceInterpolator
 from .rotation_continuity import jumping_pairs
+from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_turn_readings import TURNED_PART_SHARE
 from .sequence_warnings import warn_said
 from .spun_parts import turned_back
@@ -74,6 +75,7 @@ class Interpolator:
         self._misfit_floor = MISFIT_LENGTH_FLOOR * float(np.mean(np.sqrt(self._squared[0])))
         self._given_poses = poses
         self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
+        self._apart = None  # the second pose's mean relative edge deviation from the first (made when first asked)
 
     def _whole_sequence(self) -> SequenceInterpolator:
         """The same keys with every piece's rotations taken whole (:meth:`_variant`)."""
@@ -141,16 +143,21 @@ class Interpolator:
         """The squared lengths of the mesh's corner edges (3m,) in positions ``x`` (n, 3)."""
         return np.sum((x[self._edges[:, 1]] - x[self._edges[:, 0]]) ** 2, axis=1)
 
+    def _squared_target(self, factor: float, log: SequenceInterpolator | None = None) -> np.ndarray:
+        """The squared corner edge lengths (3m,) of the interpolated metric at ``factor`` (squared
+        lengths linear in it), or of the log-stretches' of the sequence ``log`` (:meth:`_log_sequence`),
+        in the order of the corner edges of :meth:`_squared_lengths`; at least the smallest positive float."""
+        if log is not None:  # the corner lengths (3 corners, m) in the order of self._edges
+            lengths = log._gap(0).metric_lengths(factor).T.reshape(-1) / log._unit  # in the poses' units
+            return np.maximum(lengths ** 2, np.finfo(float).tiny)
+        return np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
+
     def _misfit(self, x: np.ndarray, factor: float, log: SequenceInterpolator | None = None) -> float:
         """Mean relative deviation of the edge lengths of ``x`` (n, 3) from the interpolated metric's
         (squared lengths linear in ``factor``), or from the log-stretches' of the sequence ``log``
-        (:meth:`_log_sequence`); an edge shorter than the fits' floor is measured over the floor
+        (:meth:`_squared_target`); an edge shorter than the fits' floor is measured over the floor
         (:data:`~core.inbetween_fit.MISFIT_LENGTH_FLOOR`), as the fits measure it."""
-        if log is not None:  # the corner lengths (3 corners, m) in the order of self._edges
-            lengths = log._gap(0).metric_lengths(factor).T.reshape(-1) / log._unit  # in the poses' units
-            target = np.maximum(lengths ** 2, np.finfo(float).tiny)
-        else:
-            target = np.maximum((1.0 - factor) * self._squared[0] + factor * self._squared[1], np.finfo(float).tiny)
+        target = self._squared_target(factor, log)
         lengths = self._squared_lengths(x)
         deviations = np.abs(np.sqrt(lengths / target) - 1.0)
         target = np.sqrt(target)
@@ -219,14 +226,41 @@ class Interpolator:
                 other_misfit <= misfit and WHOLE_FIT_BLEND_RATIO * away <= first_away
             if nearer_metric or fewer_defects or no_worse:
                 x, said, misfit, chosen = y, other, other_misfit, second
-        x, said, misfit = self._log_fit(chosen, factor, x, said, misfit)
-        said = said + self._spun_back(x, factor)
+        x, said, misfit, log = self._log_fit(chosen, factor, x, said, misfit)
+        said = said + self._spun_back(x, factor) + self._edges_off(x, factor, misfit, log)
         names = first.key_names
         for kind, message, defects, about, *excess in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
             warn_said(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
                   f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
                   kind, defects, (names[0], names[1]), about, *excess)
         return x
+
+    def _edges_off(self, x: np.ndarray, factor: float, misfit: float,
+                   log: SequenceInterpolator | None) -> list[tuple[str, str, int, tuple[float, ...], float]]:
+        """The ``fit`` warning ``(kind, message, defects, factors, excess)`` (excess: ``misfit`` ÷ what
+        is allowed) where the in-between ``x`` (n, 3) at ``factor`` ends farther off the metric it was
+        fitted to (``misfit``, :meth:`_misfit`; of the log-stretches' where ``log`` is their sequence)
+        than the poses' own edge deviation allows, else none: the rule of a sequence's gap
+        (:func:`core.sequence_edge_misfit.misfit_allowed`, the first pose standing for the rest, so
+        twice the mean of 0 and the second pose's mean relative edge deviation from the first + 0.1
+        point, at least 0.3 %), measured on the pose returned, as two poses fit it (their gap is
+        anchored: its fits keep no misfit of their own). A pair whose keys hide an impact (cloth
+        landing just before the second) is still silent where the fit follows the metric: the two
+        poses do not tell a stretch that came in a frame from one that grew across the gap
+        (docs/limits.md). Not said where the poses' pieces are mirrored, as of a sequence's gap
+        (:func:`core.sequence_mirrors.warn_mirrored` says why their edges are off)."""
+        if misfit <= MISFIT_NOTED_FLOOR or 0 in self._sequence._mirrored_gaps:  # within the fits' accuracy; mirrored
+            return []
+        if self._apart is None:
+            self._apart = key_deviation(np.sqrt(self._squared[1]), np.sqrt(self._squared[0]))
+        names = self._sequence.key_names
+
+        def signed(s):
+            return signed_deviation(np.sqrt(self._squared_lengths(x)), np.sqrt(self._squared_target(s, log)))
+
+        said = misfit_warning({factor: misfit}, [factor], misfit_allowed([0.0, self._apart]), names, signed, names[0],
+                              advice=f"interpolate {names[0]} and {names[1]} as a sequence with a pose between them")
+        return [] if said is None else [("fit", said[0], 0, said[1], said[2])]
 
     def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...], float]]:
         """The warning ``(kind, message, defects, factors, excess)`` (excess: the share ÷
@@ -274,23 +308,25 @@ class Interpolator:
 
     def _log_fit(self, kept: SequenceInterpolator, factor: float, x: np.ndarray,
                  said: list[tuple[str, str, int, tuple[float, ...]]],
-                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]], float]:
-        """``(x, said, misfit)`` of the fit of ``kept`` (the first or the whole-rotation sequence)
-        at ``factor``, or of the same fit to the log-stretches' metric where ``x`` has triangles
+                 misfit: float) -> tuple[np.ndarray, list[tuple[str, str, int, tuple[float, ...]]], float,
+                                         SequenceInterpolator | None]:
+        """``(x, said, misfit, None)`` of the fit of ``kept`` (the first or the whole-rotation sequence)
+        at ``factor``, or ``(x, said, misfit, log)`` of the same fit to the log-stretches' metric (of the
+        sequence ``log``) where ``x`` has triangles
         facing against their interpolated rotation and one pose, at least half of them where the
         poses face the same way, and that fit has fewer facing against it and no more flipped or
         collapsed triangles (:data:`LOG_METRIC_FIT`)."""
         same_way, against = kept._gap(0).against.get(factor, (0, 0))
         # most of them turned over by the metric, not by a turn over between the poses (a fold)
         if not (LOG_METRIC_FIT and same_way and 2 * same_way >= against):
-            return x, said, misfit
+            return x, said, misfit, None
         log = self._log_sequence(kept is not self._sequence)
         (y,), other = log._poses(0, [factor])
         gap, first = log._gap(0), kept._gap(0)
         held, logged = first.outcomes.get(factor), gap.outcomes.get(factor)
         fewer = gap.against.get(factor, (0, 0))[1] < against and \
             (held is None or logged is None or logged.defects <= held.defects)
-        return (y, other, self._misfit(y, factor, log)) if fewer else (x, said, misfit)
+        return (y, other, self._misfit(y, factor, log), log) if fewer else (x, said, misfit, None)
 
     def _warn_grown(self, x: np.ndarray, factor: float) -> None:
         """Warn where an extrapolated pose ``x`` (n, 3) has edges over :data:`EXTRAPOLATED_GROWTH`

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from core import SequenceInterpolator
-from core.sequence_caught_stretch import PASSING_THROUGH, caught_stretch, caught_stretch_warning, passing_through
+from core.sequence_caught_stretch import (PASSING_THROUGH, caught_stretch, caught_stretch_warning, passing_through,
+                                          stretch_alone)
 from core.sequence_edge_misfit import misfit_allowed
 
 from meshes import grid
@@ -125,7 +126,61 @@ def test_a_key_catches_a_stretch_over_what_its_larger_neighbour_allows(deviation
     0.1 point, at least 0.3 %), on keys the motion passes through."""
     vertices, _ = grid(41, 9, size=2.0)
     bent = [_draped(vertices, np.radians(a), 0.0) for a in (0.0, 30.0, 60.0)]
-    assert caught_stretch(deviations, bent) is caught
+    assert caught_stretch(deviations, bent) == ("through" if caught else None)
+
+
+def _flat(vertices, stretch, height):
+    """The flat strip stretched by the factor 1 + ``stretch`` along x and raised by ``height``."""
+    return vertices * [1.0 + stretch, 1.0, 1.0] + [0.0, 0.0, height]
+
+
+def _corner_edges(triangles):
+    """Corner edge vectors by coordinate (3, 3, m) of positions, as the sequence's topology gives them."""
+    def rows(x):
+        p = x[triangles]
+        return np.ascontiguousarray((p[:, [1, 2, 0]] - p).transpose(2, 1, 0))
+    return rows
+
+
+@pytest.mark.parametrize("case", ["flat landing", "bounce off a floor", "pulse in place"])
+def test_a_stretch_that_is_all_that_changes_at_a_key_is_warned_beside_it(case):
+    """The strip falling flat and landing on a floor stretched 6 % (key 1), lying there 0.5 % (key 2);
+    bouncing off the floor (up, down stretched 6 %, up again 0.5 %); lying still with a 6 % pulse at
+    the middle key. Aligned rigidly, the middle key's neighbours are nearer each other than it is to
+    either (passing_through 0–0.09, as at a swing's extreme), so before, both gaps were silent with
+    in-betweens 1.5–1.9 % off the first key where 0.3–0.6 % is allowed (5–6 × past). Its triangles
+    turn 0 against its neighbours where its edges stretch 3 % from theirs (stretch_alone): each gap
+    whose in-betweens are over what its other key allows is warned (kind fit), naming the key and
+    saying little else changes at it; the excess is their deviation ÷ that allowance."""
+    vertices, triangles = grid(41, 9, size=2.0)
+    heights = {"flat landing": (1.0, 0.0, 0.0), "bounce off a floor": (0.5, 0.0, 0.4),
+               "pulse in place": (0.0, 0.0, 0.0)}[case]
+    keys = [_flat(vertices, s, h) for s, h in zip((0.0, 0.06, 0.0 if case == "pulse in place" else 0.005), heights)]
+    rest = _lengths(keys[0], triangles)
+    deviations = [_deviation(k, rest, triangles) for k in keys]
+    assert passing_through(*keys) < PASSING_THROUGH  # the motion reads as turning back at the key
+    assert caught_stretch(deviations, keys, _corner_edges(triangles)) == "alone"
+    for (said, deviation), other in zip(_warned(keys, triangles), (deviations[0], deviations[2])):
+        assert deviation > misfit_allowed([other])
+        assert len(said) == 1 and said[0].kind == "fit" and "key pose 1 catches a stretch" in str(said[0])
+        assert "with little else changing at it" in str(said[0])
+        assert said[0].excess == pytest.approx(deviation / misfit_allowed([other]), rel=1e-6)
+
+
+def test_the_stretch_is_all_that_changes_where_the_triangles_turn_less_than_the_edges_stretch():
+    """stretch_alone: the strip stretched 6 % and moved rigidly (turned 40°, shifted) against the
+    flat one: its triangles turn 0 against it placed rigidly, its edges 3 % longer: the stretch is
+    all that changes. Its far half bent 30° as well, its triangles turn 0.24 rad RMS, over the 0.03
+    its edges stretch: not the stretch alone. Each neighbour is read: one bent
+    neighbour is enough to say no."""
+    vertices, triangles = grid(41, 9, size=2.0)
+    edges = _corner_edges(triangles)
+    turn = np.array([[np.cos(0.7), 0.0, np.sin(0.7)], [0.0, 1.0, 0.0], [-np.sin(0.7), 0.0, np.cos(0.7)]])
+    flat, stretched = _flat(vertices, 0.0, 0.0), _flat(vertices, 0.06, 0.0) @ turn.T + [0.3, -1.0, 2.0]
+    assert stretch_alone(stretched, (flat, flat + 5.0), edges)
+    bent = _draped(vertices, np.radians(30.0), 0.0)
+    assert not stretch_alone(stretched, (flat, bent), edges)
+    assert not stretch_alone(_draped(vertices, np.radians(30.0), 0.06), (flat,), edges)
 
 
 def test_the_warning_says_the_deviation_against_what_the_other_key_allows():

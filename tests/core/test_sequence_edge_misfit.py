@@ -83,11 +83,39 @@ def test_keys_that_turn_a_sheet_far_warn_of_in_betweens_compressed_in_its_plane(
                     or "% off the keys' edge lengths interpolated on average, some shorter" in str(message))
             assert "add keys in this gap" in str(message)
             assert shortest < -bound  # in-betweens of it compressed on average
-    # two poses have their own note (FALLBACK_MISFIT_NOTED) and never this one
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        Interpolator(keys[1], keys[2], triangles).pose(0.5)
-    assert not [w for w in caught if "the keys' edge lengths interpolated on average" in str(w.message)]
+
+
+@pytest.mark.parametrize("amplitude, step", [(80, 150), (80, 90), (60, 90), (40, 60), (20, 30)])
+def test_two_poses_warn_where_their_in_between_ends_off_the_interpolated_edge_lengths(amplitude, step):
+    """Two poses of the waved strip (bent without stretching: the keys 0.1 % or less apart in edge
+    length, the simulation they stand for 0 % off): the in-between half-way is warned (kind ``fit``)
+    exactly where its edges, measured here against the keys' squared lengths averaged, are farther
+    off on average than the poses' own edge deviation allows (twice the mean of 0 and the second
+    pose's deviation from the first + 0.1 point, at least 0.3 %), its excess that misfit ÷ the
+    allowance, telling the caller to interpolate the two as a sequence with a pose between them.
+    Before, two poses never said it: their fits are anchored and keep no misfit of their own, and
+    the waved strip's in-betweens, compressed 0.4–10 % (the wave travelling 90–150° between the
+    poses), were silent."""
+    vertices, triangles = grid(49, 7, size=2.0)
+    keys = [_waved(vertices, np.radians(amplitude), k * np.radians(step)) for k in range(3)]
+    warned = []
+    for a, b in ((keys[0], keys[1]), (keys[1], keys[2])):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            x = Interpolator(a, b, triangles).pose(0.5)
+        la, lb, lx = _lengths(a, triangles), _lengths(b, triangles), _lengths(x, triangles)
+        misfit = np.mean(np.abs(lx / np.sqrt(0.5 * (la ** 2 + lb ** 2)) - 1.0))
+        allowed = max(np.mean(np.abs(lb / la - 1.0)) + MISFIT_NOTED_MARGIN, MISFIT_NOTED_FLOOR)
+        said = [w.message for w in caught if issubclass(w.category, ShapeDifferenceWarning) and w.message.kind == "fit"]
+        assert bool(said) == (misfit > allowed), (misfit, allowed, [str(m) for m in said])
+        if said:
+            (message,) = said
+            assert message.excess == pytest.approx(misfit / allowed, rel=1e-6)
+            assert message.gap == ("vertices_a", "vertices_b") and message.factors == (0.5,)
+            assert "shorter than the keys' edge lengths interpolated" in str(message)
+            assert "interpolate vertices_a and vertices_b as a sequence with a pose between them" in str(message)
+        warned.append(bool(said))
+    assert any(warned) == (step >= 90)  # the property is exercised both ways
 
 
 def test_keys_that_turn_a_sheet_gently_give_no_edge_misfit_warning():
