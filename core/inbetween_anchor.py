@@ -161,7 +161,7 @@ class Anchor:
         self._mid_world_strains = None
         if not self.anchored and max(self.relatives[2].nonrigidity) > RIGID_PLACEMENT_SCALE:
             reference = self.mid_gap_reference()
-            self._mid_world_strains = self._triangle_strains(self.splines["world"].at(0.5), reference)
+            self._mid_world_strains = self._triangle_strains(self.mid_world(), reference)
             strain = float(np.mean(self._mid_world_strains))
             if strain < SMOOTH_SPLINE_STRAIN and strain <= self.mid_gap_strain(
                     0.5 * (self.base.vertices + self.next.vertices), reference) + METRIC_TOLERANCE:

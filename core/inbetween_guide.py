@@ -4,7 +4,7 @@ motion where the piece moves rigidly or turns as a whole, and the triangles whos
 are splined because their residuals would turn them against it. Mixed into
 :class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``next``,
 ``relatives``, ``splines``, ``cubic``, ``anchored``, ``whole_rotations``, ``riding``, ``rigidity``,
-``_mid_world_strains``, ``_arc_candidates``) with its other parts: the anchor (``weights``,
+``_mid_world_strains``, ``_chords_middle``, ``_arc_candidates``) with its other parts: the anchor (``weights``,
 ``co_moving``, ``ride``), the field's ``world_rotvec``, the fit's ``edges_of`` and the pieces'
 ``motion``."""
 
@@ -112,6 +112,13 @@ class Guide:
             scaled(offset, 1.0 - mix, out=offset)  # per coordinate column: 3× faster than broadcasting
         return base, offset
 
+    def mid_world(self) -> np.ndarray:
+        """The keys' per-vertex spline in the world at the middle of the gap (n, 3) with Catmull–Rom's
+        tangents (``_chords_middle`` where the five keys' tangents change the guide,
+        :data:`~core.splines.FIVE_KEY_LIMIT`): what :meth:`mid_gap_strain`'s readings of the chords
+        it cuts (the anchor's weight, :meth:`turning_as_a_whole`) were set on."""
+        return self.splines["world"].at(0.5) if self._chords_middle is None else self._chords_middle
+
     def mid_gap_reference(self) -> np.ndarray:
         """The corner edge lengths (3 corners, m) :meth:`mid_gap_strain` measures against: the mean of
         the two keys', in the local steps' precision."""
@@ -152,7 +159,7 @@ class Guide:
         counts = np.maximum(topo.piece_sizes, 1)
         world = self._mid_world_strains  # measured by the constructor where it chose the anchor
         if world is None:
-            world = self._triangle_strains(self.splines["world"].at(0.5), reference)
+            world = self._triangle_strains(self.mid_world(), reference)
         co_moving = topo.apply_motion(self.splines["vertices"].at(0.5), *self.motion(0.5))
         moving = self._triangle_strains(co_moving, reference)
         world, moving = (np.bincount(topo.triangle_component, strains, minlength=len(counts)) / counts

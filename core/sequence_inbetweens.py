@@ -420,7 +420,22 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     exit=self._exit(gap) if cubic else None,
                     hooked=self._hooked, turning=turning, root=root, left=left, log_metric=self._log_metric,
                     unit=self._unit,
-                    sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit))
+                    sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit),
+                    outer=self._outer_keys(gap) if cubic else None)
+
+    def _outer_keys(self, gap: int) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The keys' positions two keys beyond gap ``gap``'s neighbours, ``(x[gap − 2], x[gap + 3])``,
+        each None where that key or the neighbour on the other side is missing (a sequence's end)
+        or the five keys around the tangent's key are unevenly spaced: the world spline's tangents
+        there are the five keys' central difference (:data:`~core.splines.FIVE_KEY_LIMIT`)."""
+        x, d, last = self._raw, self._durations, len(self._raw) - 1
+
+        def even(first: int) -> bool:  # the four gaps from key ``first`` on are one duration
+            return np.ptp(d[first:first + 4]) == 0
+
+        before = x[gap - 2] if gap >= 2 and gap + 2 <= last and even(gap - 2) else None
+        after = x[gap + 3] if gap >= 1 and gap + 3 <= last and even(gap - 1) else None
+        return before, after
 
     def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...], float]]:
         """The warnings ``(kind, message, 0, (), excess)`` of gap ``gap`` (its data ``segment``) that hold for every

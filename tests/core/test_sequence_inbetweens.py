@@ -1519,3 +1519,28 @@ def test_next_key_relative_built_once_after_whole_rotations(monkeypatch, strip, 
         fresh._gaps.clear()
         fresh._forwards.clear()
         np.testing.assert_array_equal(fresh.poses(gap, [0.25, 0.5, 0.75]), ours[gap])
+
+
+def test_the_guide_of_a_gap_inside_five_keys_follows_cubic_motion(strip):
+    """The anchor's guide (the keys' per-vertex spline in the world) of a gap with two keys beyond
+    each of its neighbours follows vertices moving on cubic paths in time exactly (the five keys'
+    tangents, core.splines.FIVE_KEY_LIMIT): a strip bending and sliding, keys at t = 0 … 6. Its
+    Catmull–Rom spline is off by 8.7e-5 of the strip's length a quarter into gap 2; the last gap,
+    with no key two beyond its start and the linear extrapolation past its end, keeps Catmull–Rom's."""
+    flat, tri = strip
+    bend = np.sin(np.pi * flat[:, 0] / np.ptp(flat[:, 0]))
+
+    def pose(t):
+        x = flat.copy()
+        x[:, 2] += 0.05 * bend * t ** 3 / 27.0
+        x[:, 0] += 0.1 * t + 0.01 * t ** 3 / 27.0 * bend
+        return x
+
+    seq = SequenceInterpolator([pose(t) for t in range(7)], tri)
+    scale = np.ptp(seq._to_working(flat)[:, 0])
+    for s in (0.25, 0.5, 0.75):
+        off = np.abs(seq._gap(2).splines["world"].at(s) - seq._to_working(pose(2.0 + s))).max()
+        assert off < 1e-9 * scale
+    last = [pose(t) for t in (4.0, 5.0, 6.0)]
+    catmull_rom = seq._to_working(_catmull_rom(*last, 2.0 * last[2] - last[1], 0.5))
+    np.testing.assert_allclose(seq._gap(5).splines["world"].at(0.5), catmull_rom, atol=1e-9 * scale)
