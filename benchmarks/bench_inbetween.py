@@ -244,10 +244,23 @@ def _poses(seq, gap, factors):
 
 def _timed(compute, *args):
     """``compute(*args)`` and its seconds: ``(result, wall, cpu)``; the CPU time counts every thread
-    of this process (the in-betweens use threads from ``CONCURRENT_VERTICES`` on)."""
+    of this process (the in-betweens use threads from ``CONCURRENT_VERTICES`` on) and the second
+    process a sequence shares its gaps with (``core.gap_processes``, its start included where the
+    sequence started it)."""
+    worker = _worker_cpu()
     wall, cpu = time.perf_counter(), time.process_time()
     out = compute(*args)
-    return out, time.perf_counter() - wall, time.process_time() - cpu
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    return out, wall, cpu + _worker_cpu() - worker
+
+
+def _worker_cpu() -> float:
+    """CPU seconds of the processes this one's sequences have shared gaps with (0 for a core without them)."""
+    try:
+        from core.gap_processes import worker_cpu
+    except ImportError:
+        return 0.0
+    return worker_cpu()
 
 
 def kept_keys(frames: np.ndarray, g: int) -> np.ndarray:

@@ -23,6 +23,12 @@ once no such work is left.
 
 A child process forked from one whose pool is at work makes a pool of its own at first use, with
 new locks (the parent's threads do not exist in it, and a lock one of them held would stay held).
+
+Inside :func:`one_thread` every piece runs in the thread that asks for it, with BLAS
+single-threaded: a sequence whose gaps a second process shares (:mod:`core.gap_processes`) runs so
+in both processes, since a third busy thread on two cores costs more than it gains.
+:data:`USE_PROCESSES` (the environment variable ``SHAPE_DIFFERENCES_PROCESSES=0`` sets it False)
+turns that second process off.
 """
 
 from __future__ import annotations
@@ -38,6 +44,12 @@ _controller = None  # see _blas_controller
 _limit_lock = threading.Lock()
 _limit_holders = 0  # the single_threaded_blas contexts open in the process
 _limiter = None  # threadpoolctl's limit while any is open (it gives back the original counts)
+_one_thread_holders = 0  # the one_thread contexts open in the process
+
+#: Whether a sequence's gaps may be shared with a second, kept process (:mod:`core.gap_processes`):
+#: True unless the environment variable ``SHAPE_DIFFERENCES_PROCESSES`` is ``0`` when the core is
+#: imported; a script may set it (``core.concurrency.USE_PROCESSES = False``) at any time.
+USE_PROCESSES = os.environ.get("SHAPE_DIFFERENCES_PROCESSES", "1").strip() != "0"
 
 
 def _new_pool_after_fork() -> None:
@@ -67,7 +79,7 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
     there are several items and the caller says each is ``worth_it`` (large enough to pay for
     handing it to a thread); in order, the first exception raised."""
     items = list(items)
-    if not worth_it or len(items) < 2 or available_cores() < 2:
+    if not worth_it or len(items) < 2 or not _threads_allowed():
         return [function(item) for item in items]
     with single_threaded_blas():
         futures = [_submitted(function, item) for item in items[1:]]
@@ -81,8 +93,9 @@ def concurrently(function, items, *, worth_it: bool = True) -> list:
 
 def in_background(function, *arguments):
     """A Future of ``function(*arguments)`` run in a pool thread (read it with :func:`result`),
-    or None with a single core (the caller then does the work when it needs it)."""
-    if available_cores() < 2:
+    or None with a single core or inside :func:`one_thread` (the caller then does the work when it
+    needs it)."""
+    if not _threads_allowed():
         return None
     return _submitted(_single_threaded, function, *arguments)
 
@@ -162,7 +175,7 @@ def per_layer_threads(calls, *, parallel: bool = True) -> list:
     (:func:`concurrently`): each layer's embedding still races its starts there."""
     import importlib.util
 
-    parallel = (parallel and len(calls) > 1 and available_cores() > 1
+    parallel = (parallel and len(calls) > 1 and _threads_allowed()
                 and importlib.util.find_spec("threadpoolctl") is not None)
     if not parallel:
         return [call() for call in calls]
@@ -171,6 +184,28 @@ def per_layer_threads(calls, *, parallel: bool = True) -> list:
     with single_threaded_blas(), ThreadPoolExecutor(len(calls)) as pool:
         futures = [pool.submit(call) for call in calls]
         return [future.result() for future in futures]
+
+
+def _threads_allowed() -> bool:
+    """Whether work may go to other threads: a second core, and no :func:`one_thread` open."""
+    return _one_thread_holders == 0 and available_cores() > 1
+
+
+@contextmanager
+def one_thread():
+    """A context in which :func:`concurrently`, :func:`in_background` and :func:`per_layer_threads`
+    run every piece in the calling thread, with BLAS single-threaded: the process's other core is
+    another process's (:mod:`core.gap_processes`). Process-wide, counted like
+    :func:`single_threaded_blas`: the last context closed lets the threads work again."""
+    global _one_thread_holders
+    with single_threaded_blas():
+        with _limit_lock:
+            _one_thread_holders += 1
+        try:
+            yield
+        finally:
+            with _limit_lock:
+                _one_thread_holders -= 1
 
 
 def _blas_controller():

@@ -322,6 +322,14 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if len(plan.tail) and gaps.stop == plan.n_gaps:
         tail = short_gap_sequence(checked, triangles, plan.tail, int(plan.keys[0]), **interpolator_options,
                                   key_names=tail_names)
+    # the sequence's gaps asked, in order, with their factors: the later ones may be computed in a
+    # second process meanwhile (core.gap_processes)
+    asked = {}
+    for index in plan.outputs(gaps):
+        gap = int(plan.gaps[index])
+        if plan.exact_keys[index] < 0 and not (tail is not None and gap == plan.n_gaps - 1):
+            asked.setdefault(gap, []).append(float(plan.factors[index]))
+    sequence.will_ask(asked.items())
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]

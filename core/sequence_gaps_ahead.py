@@ -34,6 +34,10 @@ on one gap at once would overwrite):
   its Future never ends there, so the child drops it and computes the call itself (waiting for it,
   the child hung), with the caches' lock made anew (a lock the parent's pool thread held at the
   fork is never given back in the child);
+- nothing is begun while a second process computes later gaps of the sequence (the caller's calls
+  then run in one thread, :mod:`core.gap_processes`), nor for a gap it holds, nor by a call under way when
+  :func:`core.gap_processes.stop` (the operators' Esc) came, which also cancels the call held ahead
+  where the pool has not begun it (one it runs ends with its gap);
 - only with a second core (:func:`core.concurrency.in_background`; one core: nothing is begun,
   every call is computed where it is asked), on meshes of
   :data:`~core.inbetween_threads.CONCURRENT_VERTICES` vertices or more, and without a truncated
@@ -61,6 +65,8 @@ class GapsAhead:
     _in_order = True
     #: The process whose pool holds the calls begun ahead and the gaps' preparations (see :meth:`_forked`).
     _pool_process = None
+    #: Set by :func:`core.gap_processes.stop` (the operators' Esc): the call under way begins nothing ahead.
+    _halted = False
 
     def _beginning_ahead(self, gap: int, factors: list[float]):
         """A function of no arguments that begins ``_computed_poses(gap + 1, factors)`` in the
@@ -68,14 +74,15 @@ class GapsAhead:
         both cores; None where none is begun (a caller off an in-order visit at one set of factors,
         the last gap, a small mesh, a truncated metric)."""
         if (not self._in_order or gap + 1 >= len(self) or self.k_M is not None
-                or self._topo.n < CONCURRENT_VERTICES):
+                or self._topo.n < CONCURRENT_VERTICES or self._worker_holds(gap + 1)):
             return None
 
         def begin() -> None:
-            if self._ahead is None:  # one at a time: a call taken or dropped is no longer held
+            # one at a time (a call taken or dropped is no longer held); none once core.gap_processes.stop halted it
+            if self._ahead is None and not self._halted:
                 future = in_background(self._computed_poses, gap + 1, factors, False)
                 if future is not None:
-                    self._ahead = (gap + 1, _bits(factors), future)
+                    self._ahead = (gap + 1, factor_bits(factors), future)
 
         return begin
 
@@ -98,7 +105,7 @@ class GapsAhead:
         once it is cancelled or has ended (its result and exception dropped). Notes whether this call
         continues an in-order visit at one set of factors."""
         self._forked()
-        asked = (gap, _bits(factors))
+        asked = (gap, factor_bits(factors))
         self._in_order = self._last_asked is None or self._last_asked == (gap - 1, asked[1])
         self._last_asked = asked
         held, self._ahead = self._ahead, None
@@ -112,6 +119,6 @@ class GapsAhead:
         return None
 
 
-def _bits(factors: list[float]) -> tuple[str, ...]:
+def factor_bits(factors: list[float]) -> tuple[str, ...]:
     """The factors exactly (−0.0 and 0.0 apart): a call ahead is taken only for the same ones."""
     return tuple(float(s).hex() for s in factors)

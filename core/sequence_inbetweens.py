@@ -42,7 +42,8 @@ that fails a documented fallback is returned with a :class:`~core.errors.ShapeDi
 
 The parts :class:`SequenceInterpolator` composes: its keys, their relatives and caches
 (:mod:`core.sequence_keys`), how each gap starts (:mod:`core.sequence_gap_starts`), the next gap begun in
-the pool while a gap ends (:mod:`core.sequence_gaps_ahead`), near half turns
+the pool while a gap ends (:mod:`core.sequence_gaps_ahead`), the later gaps computed in a second process
+(:mod:`core.gap_processes`), near half turns
 (:mod:`core.sequence_half_turns`), parts turned past a half turn (:mod:`core.sequence_turn_readings`),
 parts spun past a half turn through a wrung cloth (:mod:`core.spun_parts`), mirrored keys
 (:mod:`core.sequence_mirrors`), its warnings (:mod:`core.sequence_warnings`).
@@ -63,6 +64,7 @@ from .validation import (check_factors, check_gap_index, check_key_times, check_
                          check_start, check_time, check_vertices, numerical_failures)
 from .sequence_gap_starts import GapStarts
 from .sequence_gaps_ahead import GapsAhead
+from .gap_processes import GapProcesses
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
 from .sequence_keys import GAP_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
@@ -89,7 +91,7 @@ __all__ = ["SequenceInterpolator"]
 KEY_TIME_RATIO_LIMIT = 16.0
 
 
-class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, SpunParts, GapsAhead):
+class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, SpunParts, GapsAhead, GapProcesses):
     """In-betweens for every gap of K ≥ 2 key poses of one mesh (e.g. every 4th simulation frame).
 
     ``key_poses``: sequence of K arrays ``(n, 3)`` (or an array ``(K, n, 3)``); ``triangles`` int
@@ -167,6 +169,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # in the working space of the keys (their vertices as solved: welded, merged, renumbered; moved and sized)
         kept = self._welded_vertices
         self._rest = None if rest_pose is None else self._to_working(rest_pose if kept is None else rest_pose[kept])
+        # what a second process builds its own from, where it may share the gaps (core.gap_processes)
+        self._share_gaps_later((key_poses, np.asarray(triangles), dict(
+            k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic, smooth=smooth, start=start,
+            key_times=key_times, end=end, key_names=self.key_names, rest_pose=rest_pose)))
 
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
@@ -190,9 +196,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         """Start preparing gap ``gap`` (the next one of an in-order visit) in a pool thread while
         the current gap's in-betweens are solved: its keys and relatives are half of a gap's
         serial work on large meshes. Not with a truncated metric (its recovery warns and keeps
-        one base shape) nor on small meshes."""
+        one base shape), on small meshes, nor for a gap a second process computes
+        (:mod:`core.gap_processes`)."""
         if (gap >= len(self) or gap in self._gaps or gap in self._pending or self.k_M is not None
-                or self._topo.n < CONCURRENT_VERTICES):
+                or self._topo.n < CONCURRENT_VERTICES or self._worker_holds(gap)):
             return
         future = in_background(self._prepare, gap)
         if future is not None:
@@ -490,7 +497,12 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
         taken = self._taken_ahead(gap, factors, ahead)  # the call begun ahead settled first (core.sequence_gaps_ahead)
-        return taken if taken is not None else self._computed_poses(gap, factors, ahead)
+        # the later gaps given to a second process, or this one taken from it (core.gap_processes)
+        shared = self._from_worker(gap, factors, ahead, taken is not None)
+        if taken is not None or shared is not None:
+            return taken if taken is not None else shared
+        with self._sharing():  # one thread while that process has gaps of this sequence
+            return self._computed_poses(gap, factors, ahead)
 
     def _computed_poses(self, gap: int, factors: list[float], ahead: bool) -> tuple[np.ndarray, list[tuple]]:
         """:meth:`_poses` of gap ``gap`` at ``factors`` (checked) computed; ``ahead``: the next gap's

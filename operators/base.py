@@ -511,6 +511,11 @@ class GeneratorOperator:
         status = None
         try:
             if event.type == 'ESC':
+                # the in-betweens' work in the background stops too: the gaps a second process holds,
+                # the calls begun ahead (core.gap_processes.stop); a core call under way ends in the
+                # worker thread, its result dropped
+                from ..core.gap_processes import stop as stop_background
+                stop_background()
                 self._job.close()  # runs the job's clean-up; nothing has been written yet
                 report(self, {'WARNING'}, "Cancelled: nothing was changed")
                 status = 'CANCELLED'

@@ -391,3 +391,17 @@ def test_the_last_line_and_the_summary_pick_the_same_warning_on_a_tie_of_triangl
     assert base.summarized(list(said), "Job", said)[0].startswith("Shape-difference interpolation: between frame 25")
     assert base.look_first(list(said), said, headless=True).endswith("look first at: between frame 25 and frame 33, "
                                                                      "3 flipped or collapsed triangle(s) kept [fit]")
+
+
+def test_escape_stops_the_in_betweens_work_in_the_background(extension, core, monkeypatch):
+    """Esc stops what the in-betweens run beside the job's own thread: the gaps a second process holds
+    and the calls begun ahead in the pool (core.gap_processes.stop), once, when Esc comes."""
+    gap_processes = importlib.import_module(f"{core.__name__}.gap_processes")
+    stopped = []
+    monkeypatch.setattr(gap_processes, "stop", lambda: stopped.append("stopped"))
+    log = []
+    job, context, _window_manager = start(extension, log)
+    job.modal(context, event('TIMER'))
+    assert stopped == []
+    assert job.modal(context, event('ESC')) == {'CANCELLED'}
+    assert stopped == ["stopped"] and "wrote" not in log

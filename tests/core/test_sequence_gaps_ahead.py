@@ -36,9 +36,10 @@ THREE = [0.3, 0.55, 0.8]
 
 
 @pytest.fixture(autouse=True)
-def two_cores():
+def two_cores(monkeypatch):
     if concurrency.available_cores() < 2:
         pytest.skip("one core: nothing is begun ahead")
+    monkeypatch.setattr(concurrency, "USE_PROCESSES", False)  # the threads' rule alone (no gaps in a second process)
 
 
 def _never_ahead(self, gap, factors):

@@ -1,0 +1,485 @@
+"""A sequence's gaps shared with a second, kept process: the later half of the gaps its caller has
+yet to ask for computed there while the caller's own process computes the earlier half.
+
+A sequence's second thread hands Python's global lock back and forth with the first at each
+NumPy call on the mesh's arrays, and costs 1.3–1.7 × a thread's CPU for 0.80–1.02 × its wall time
+(docs/inbetween-measurements.md, *The next gap begun ahead at the prediction batch; one core against two*). The gaps are
+independent given the keys (a gap's in-betweens do not depend on the gaps computed before it, nor
+on the threads: the same bits), so two single-threaded processes, each taking a contiguous part of
+the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a mixin of
+:class:`~core.sequence_inbetweens.SequenceInterpolator`) does:
+
+- *The worker.* One process per Python session (:func:`kept_worker`), started when the first
+  sequence that could share its gaps is built and kept for the next ones: its start (a fresh
+  interpreter importing NumPy, SciPy and the core, 0.4–0.5 s) overlaps the caller's first gaps,
+  which the caller computes as before (threads, the next gap begun ahead) until the worker is
+  ready. It is spawned, never forked (Blender's process has many threads), as ``sys.executable
+  -I -c`` :data:`BOOT` with the caller's ``sys.path``, and loads the core from its folder under a
+  private package name (:data:`PRIVATE_NAME`), so it works where the core is
+  ``bl_ext.<repo>.<id>.core`` inside Blender (the core imports itself only relatively); its BLAS
+  has one thread (``OPENBLAS_NUM_THREADS`` and the like, and :func:`core.concurrency.one_thread`).
+  What it does and the messages: :mod:`core.gap_worker`.
+- *Which gaps.* Those of a caller visiting the gaps in order at one set of factors (as
+  :mod:`core.sequence_gaps_ahead` reads it: a sequence's first call, or the gap after the
+  previous call's at the same factors), or following the calls it said it will make
+  (:meth:`GapProcesses.will_ask`: :func:`core.retime.iter_retime`, whose factors may change from
+  gap to gap). When the worker is ready and idle, the later half of the calls left (the current
+  one counted as the caller's) goes to it, contiguous and in order: a gap's relative of its next key
+  is kept for the gap after, which alternating gaps would lose. A worker done with its share before
+  the caller is done with its own gets the later half of what the caller has left, again. Only
+  where the sequence's threads would run (:data:`~core.inbetween_threads.CONCURRENT_VERTICES`
+  vertices or more, two cores, no truncated metric) and at most :data:`PROCESS_VERTICES` vertices
+  (the two processes' memory).
+- *The caller's side.* While the worker holds calls of its sequence not yet made, the caller's calls
+  run in one thread (:func:`core.concurrency.one_thread`: no gap begun ahead, no per-factor
+  threads, nothing prepared in the background; three busy threads on two cores lose, and the threads
+  buy the caller's own part 0.80–1.02 × the wall time for 1.3–1.7 × the CPU). A call on a gap the
+  worker holds waits for its result: the same poses and warnings (returned with them, said by
+  :meth:`poses` as its own), its exception raised there (a :mod:`core.errors` class by name; any
+  other exception, and a gap the worker did not return, computed in the caller, which raises as it
+  would have). While it waits, the calls the worker has not begun are taken back from the last and
+  computed by the caller (the worker skips them) while two or more are left (:data:`TAKEN_BACK_LEAST`),
+  so a worker started late, or slowed by other processes, keeps only what it can do.
+- *Safety.* A worker that cannot be started (no ``sys.executable``, a sandbox), or that dies,
+  or breaks, leaves the gaps to the caller, nothing lost; one that does not start within
+  :data:`START_TIMEOUT` seconds is ended and not tried again in the session.
+  :data:`core.concurrency.USE_PROCESSES` (``SHAPE_DIFFERENCES_PROCESSES=0``) turns it off. A caller off
+  its visit (another gap or factors than it said or than in order) drops the worker's gaps, as
+  does a sequence let go; :func:`stop` (the operators' Esc) drops every sequence's and cancels
+  their calls begun ahead. The worker ends with the session (:mod:`atexit`) or when the
+  caller's process is gone (its input closes).
+"""
+
+from __future__ import annotations
+
+import atexit
+import itertools
+import os
+import pickle
+import subprocess
+import sys
+import threading
+import time
+import weakref
+from contextlib import nullcontext
+
+from . import concurrency, errors
+from .inbetween_threads import CONCURRENT_VERTICES
+from .sequence_gaps_ahead import factor_bits
+
+#: Most vertices a sequence shares its gaps with the worker at: both processes hold a sequence's
+#: keys and gap data (sheet over a cube, keys 8 frames apart: 50k vertices 623 + 462 = 1,085 MB for
+#: the two, against 695 MB in one; 100k 1,733 MB against 1,197, over issue 17's 1.5 GB), and at
+#: 50k–100k one process with its threads is already at 0.081 × the bake.
+PROCESS_VERTICES = 60_000
+#: Seconds a worker may take to start (import NumPy, SciPy and the core; 0.4–0.5 s, 1.4 s on a
+#: loaded machine) before it is ended and none is started again in the session.
+START_TIMEOUT = 60.0
+#: Calls the worker must have left not begun for the caller, waiting for one of its results, to
+#: take the last back and compute it: a gap taken back has no relative kept from the gap before it
+#: (curtain, keys 4 apart: 0.18 s against 0.12 s in order), so with one left the worker, ending its
+#: gap under way and then that one, is as soon done.
+TAKEN_BACK_LEAST = 2
+#: The name the worker loads the core's folder under: not ``core`` (a package of that name may be
+#: another's on the caller's ``sys.path``) nor the extension's ``bl_ext…`` (made by Blender).
+PRIVATE_NAME = "_shape_differences_worker_core"
+#: What the worker runs: ``argv`` is the core's folder, :data:`PRIVATE_NAME` and the caller's ``sys.path``.
+BOOT = (
+    "import importlib, importlib.util, os, sys\n"
+    "folder, name = sys.argv[1], sys.argv[2]\n"
+    "sys.path[:] = sys.argv[3:]\n"
+    "spec = importlib.util.spec_from_file_location(name, os.path.join(folder, '__init__.py'),\n"
+    "                                              submodule_search_locations=[folder])\n"
+    "package = importlib.util.module_from_spec(spec)\n"
+    "sys.modules[name] = package\n"
+    "spec.loader.exec_module(package)\n"
+    "importlib.import_module(name + '.gap_worker').serve()\n"
+)
+#: The core's folder, which the worker loads.
+_FOLDER = os.path.dirname(os.path.abspath(__file__))
+#: The worker's environment beyond the caller's: one BLAS thread (its cores are the caller's too), and
+#: no worker of its own.
+WORKER_ENVIRONMENT = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                      "SHAPE_DIFFERENCES_PROCESSES": "0"}
+
+_worker = None  # the kept worker (_Worker), or None
+_worker_lock = threading.Lock()
+_unstartable = False  # a worker failed to start: none is tried again in the session
+_ended_cpu = 0.0  # CPU seconds of the workers that have ended
+_job_ids = itertools.count()
+_sequences = weakref.WeakSet()  # sequences that may have work in the background (for stop)
+
+
+class _Job:
+    """The calls of one sequence given to the worker: ``calls`` {(gap, factor bits): factors} in
+    order, ``outcomes`` the worker's messages of those computed and not yet taken, ``ended`` once
+    the worker will send no more (done, dropped, broken, or gone)."""
+
+    def __init__(self, calls: list[tuple[int, tuple, list[float]]]):
+        self.id = next(_job_ids)
+        self.calls = {(gap, bits): factors for gap, bits, factors in calls}
+        self.outcomes: dict[tuple, tuple] = {}
+        self.begun: set[tuple] = set()  # the calls the worker has begun
+        self.ended = False
+
+
+class _Worker:
+    """The worker process (spawned at once; ready once it has said so), its messages read by a
+    thread of its own (see :mod:`core.gap_worker` for them)."""
+
+    def __init__(self):
+        executable = sys.executable
+        if not executable or not os.path.isfile(executable):
+            raise OSError(f"no Python interpreter to start ({executable!r})")
+        path = [os.path.abspath(entry) if entry else os.getcwd() for entry in sys.path]
+        self.process = subprocess.Popen([executable, "-I", "-c", BOOT, _FOLDER, PRIVATE_NAME, *path],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        env={**os.environ, **WORKER_ENVIRONMENT})
+        self.started = time.monotonic()
+        self.ready = False
+        self.alive = True
+        self.cpu = 0.0  # its CPU seconds, as its last message said
+        self.modules = None  # the modules named core…, bl_ext… or its own core's it imported (its first message)
+        self.jobs: dict[int, _Job] = {}
+        self.condition = threading.Condition()
+        self._write_lock = threading.Lock()
+        self._reader = threading.Thread(target=self._read, daemon=True, name="gap-worker-reader")
+        self._reader.start()
+
+    def idle(self) -> bool:
+        """Ready, alive, and no job of any sequence under way."""
+        with self.condition:
+            return self.ready and self.alive and not self.jobs
+
+    def submit(self, job: _Job, arguments: tuple) -> bool:
+        """Give the worker ``job`` on the sequence of ``arguments`` (keys, triangles, options)."""
+        with self.condition:
+            self.jobs[job.id] = job
+        calls = [(gap, factors) for (gap, _), factors in job.calls.items()]
+        return self._send(("job", job.id, *arguments, calls))
+
+    def drop(self, job: int) -> None:
+        """The worker leaves the remaining calls of job ``job`` (its id) undone (its gap under way
+        ends first)."""
+        with self.condition:
+            if job not in self.jobs:
+                return
+        self._send(("drop", job))
+
+    def outcome(self, job: _Job, key: tuple, steal=None):
+        """The worker's message on call ``key`` of ``job``, waited for; None where it will send none.
+        While it is not there and the worker has :data:`TAKEN_BACK_LEAST` calls of ``job`` or more not
+        begun, the last is taken back (the worker told to skip it) and given to ``steal(call,
+        factors)``, which computes it."""
+        while True:
+            with self.condition:
+                while key in job.calls and key not in job.outcomes and not job.ended:
+                    left = [call for call in job.calls if call not in job.begun]
+                    if len(left) >= TAKEN_BACK_LEAST and steal is not None:
+                        break
+                    self.condition.wait()
+                else:
+                    return job.outcomes.pop(key, None)
+                call = left[-1]
+                factors = job.calls.pop(call)
+            self._send(("skip", job.id, *call))
+            steal(call, factors)
+
+    def _send(self, message) -> bool:
+        try:
+            with self._write_lock:
+                pickle.dump(message, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+                self.process.stdin.flush()
+            return True
+        except (OSError, ValueError):  # its end closed: gone
+            self._gone()
+            return False
+
+    def _read(self) -> None:
+        stream = self.process.stdout
+        try:
+            while True:
+                message = pickle.load(stream)
+                with self.condition:
+                    self.cpu = message[-1]
+                    kind = message[0]
+                    if kind == "ready":
+                        self.ready, self.modules = True, message[2]
+                    elif kind in ("gap", "failed", "begun"):
+                        job = self.jobs.get(message[1])
+                        if job is not None and kind == "begun":
+                            job.begun.add((message[2], message[3]))
+                        elif job is not None and (message[2], message[3]) in job.calls:  # not taken back
+                            job.outcomes[(message[2], message[3])] = message
+                    else:  # done or broken: nothing more of that job
+                        job = self.jobs.pop(message[1], None)
+                        if job is not None:
+                            job.ended = True
+                    self.condition.notify_all()
+        except Exception:  # its output closed (it ended or was killed) or garbled: gone
+            pass
+        self._gone()
+        stream.close()
+        try:
+            self.process.kill()  # garbled output: ended here (a process that has ended is left as it is)
+            self.process.wait()
+        except OSError:
+            pass
+
+    def _gone(self) -> None:
+        with self.condition:
+            self.alive = False
+            for job in self.jobs.values():
+                job.ended = True
+            self.jobs.clear()
+            self.condition.notify_all()
+
+    def end(self) -> None:
+        """Ask the worker to quit, and end it if it has not within a second."""
+        self._send(("quit",))
+        try:
+            self.process.stdin.close()
+        except OSError:
+            pass
+        try:
+            self.process.wait(timeout=1.0)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        self._gone()
+        self._reader.join(timeout=1.0)
+
+
+def kept_worker() -> _Worker | None:
+    """The session's worker, started now if there is none (it gets ready in the background); None
+    where none can be started (see the module)."""
+    global _worker, _unstartable, _ended_cpu
+    with _worker_lock:
+        worker = _worker
+        if worker is not None and not worker.alive:
+            worker.process.poll()  # reaped
+            _ended_cpu += worker.cpu
+            _unstartable = _unstartable or not worker.ready  # it died starting: it would again
+            _worker = worker = None
+        if worker is not None and not worker.ready and time.monotonic() - worker.started > START_TIMEOUT:
+            worker.end()
+            _ended_cpu += worker.cpu
+            _unstartable, _worker, worker = True, None, None
+        if worker is None and not _unstartable:
+            try:
+                _worker = worker = _Worker()
+            except (OSError, ValueError, subprocess.SubprocessError):  # no interpreter, a sandbox, no pipes
+                _unstartable = True
+        return worker
+
+
+def shares_gaps(vertices: int, k_M) -> bool:
+    """Whether a sequence of ``vertices`` vertices (with truncated metric ``k_M``, or None) may share
+    its gaps with the worker (see the module)."""
+    return (concurrency.USE_PROCESSES and not _unstartable and k_M is None
+            and CONCURRENT_VERTICES <= vertices <= PROCESS_VERTICES and concurrency.available_cores() >= 2)
+
+
+def worker_cpu(settle: float = 10.0) -> float:
+    """CPU seconds the workers of this process have used (for a benchmark: its own CPU time counts
+    only its own process), once the worker has finished its jobs (waited up to ``settle`` s)."""
+    worker = _worker
+    if worker is None:
+        return _ended_cpu
+    deadline = time.monotonic() + settle
+    with worker.condition:
+        while worker.alive and worker.jobs and time.monotonic() < deadline:
+            worker.condition.wait(0.05)
+        return _ended_cpu + worker.cpu
+
+
+def stop() -> None:
+    """Stop the in-betweens' work in the background (the operators' Esc): every sequence's gaps in
+    the worker are dropped (the gap under way there ends first) and its call begun ahead in the pool
+    cancelled where the pool has not begun it; a call under way begins nothing more (a call begun
+    ahead that is running ends with its gap)."""
+    for sequence in list(_sequences):
+        sequence._stop_background()
+
+
+def shut_down() -> None:
+    """End the worker (at the session's end)."""
+    global _worker, _ended_cpu
+    with _worker_lock:
+        worker, _worker = _worker, None
+    if worker is not None:
+        worker.end()
+        _ended_cpu += worker.cpu
+
+
+atexit.register(shut_down)
+
+
+class GapProcesses:
+    """A sequence's gaps shared with the worker process (see the module)."""
+
+    #: ``(worker, job)`` of each job of this sequence's calls given to the worker with calls not yet made.
+    _jobs = ()
+    #: The calls the caller said it will make (:meth:`will_ask`), ``(gap, factor bits, factors)``, and
+    #: how many of them it has made; None where it said none.
+    _plan = None
+    _planned = 0
+    #: The constructor's checked arguments (keys, triangles, options) the worker builds its own
+    #: sequence from; None where the sequence shares no gaps.
+    _worker_arguments = None
+    #: Calls of the worker's taken back and computed here before they were asked: {(gap, bits): a
+    #: function returning their (poses, warnings) or raising their error}.
+    _taken_back: dict = {}  # (read only: the first hand-over makes the sequence's own)
+
+    def _share_gaps_later(self, arguments: tuple) -> None:
+        """Keep the constructor's ``arguments`` and start the worker (it gets ready while the caller's
+        first gaps are computed), where this sequence may share its gaps."""
+        _sequences.add(self)
+        if len(self) >= 2 and shares_gaps(self._topo.n, self.k_M):
+            self._worker_arguments = arguments
+            kept_worker()
+
+    def will_ask(self, calls) -> None:
+        """Say which calls of :meth:`poses` come next, in order: ``calls`` pairs ``(gap, factors)``
+        (:func:`core.retime.iter_retime` says its plan, whose factors may change from gap to gap).
+        The later half of those not yet made may then be computed in the worker process; a call
+        off the plan forgets it."""
+        from .validation import check_factors, check_gap_index
+
+        plan = []
+        for gap, factors in calls:
+            gap, factors = check_gap_index(gap, len(self)), check_factors(factors)
+            plan.append((gap, factor_bits(factors), factors))
+        self._plan, self._planned = plan, 0
+
+    def _stop_background(self) -> None:
+        """:func:`stop` for this sequence: the call under way begins nothing more in the background
+        (``_halted``, cleared by the next call), the worker's gaps dropped, the call held ahead cancelled."""
+        self._halted = True
+        self._drop_jobs()
+        held = self._ahead
+        if held is not None:
+            held[2].cancel()  # not begun: the call that asks for it computes it
+
+    def _drop_jobs(self) -> None:
+        held, self._jobs = self._jobs, ()
+        for worker, job in held:
+            worker.drop(job.id)
+
+    def _from_worker(self, gap: int, factors: list[float], ahead: bool, computed: bool = False):
+        """Before a call on gap ``gap`` at (checked) ``factors`` is computed: the worker's ``(poses,
+        warnings)`` of it where the worker holds it (its warnings raised meanwhile raised here, its
+        error raised here); else None, once the later half of the calls left is given to the worker
+        where that pays (the caller's visit read here: in order, or as planned, and ``ahead``;
+        ``computed``: this call's poses are at hand already, taken from the call begun ahead)."""
+        self._halted = False
+        bits = factor_bits(factors)
+        on_plan = self._plan is not None and self._planned < len(self._plan) and \
+            self._plan[self._planned][:2] == (gap, bits)
+        if self._plan is not None and not on_plan:
+            self._plan = None  # off its plan: read as any other caller from here
+        self._planned += on_plan
+        taken = None if computed else self._taken_back.pop((gap, bits), None)
+        if taken is not None:  # the worker's, taken back and computed here while an earlier call waited
+            return taken()
+        for worker, job in self._jobs:
+            if (gap, bits) in job.calls and not computed:
+                return self._taken_from_worker(worker, job, gap, factors, bits)
+        if not (on_plan or self._in_order):  # off its visit: the worker's gaps would go unasked
+            self._drop_jobs()
+        elif ahead and not any(not job.ended for _, job in self._jobs):
+            self._hand_over(gap, factors, bits, computed)
+        return None
+
+    def _hand_over(self, gap: int, factors: list[float], bits: tuple, computed: bool) -> None:
+        """Give the worker the later half of the calls left after this one (on gap ``gap``) up to those
+        it holds already, this one counted as the caller's unless ``computed`` already, where the
+        worker is ready and idle (again once it has done a first share before the caller has done
+        its own)."""
+        if self._worker_arguments is None or not shares_gaps(self._topo.n, self.k_M):
+            return
+        if self._plan is not None:
+            rest = self._plan[self._planned:]
+        else:
+            rest = [(later, bits, factors) for later in range(gap + 1, len(self))]
+        held = [call for _, job in self._jobs for call in job.calls] + list(self._taken_back)
+        if held:  # the calls before the first the worker holds (those after it are its or asked already)
+            first = next((i for i, (at, asked, _) in enumerate(rest) if (at, asked) in held), len(rest))
+            rest = rest[:first]
+        share = (len(rest) + (not computed)) // 2
+        if share < 1:
+            return
+        worker = kept_worker()
+        if worker is None or not worker.idle():
+            return
+        job = _Job(rest[len(rest) - share:])
+        if worker.submit(job, self._worker_arguments):
+            self._jobs = (*self._jobs, (worker, job))
+            if "_taken_back" not in vars(self):
+                self._taken_back = {}
+            weakref.finalize(self, worker.drop, job.id)  # a sequence let go leaves its gaps undone
+
+    def _taken_from_worker(self, worker: _Worker, job: _Job, gap: int, factors: list[float], bits: tuple):
+        """The worker's outcome of call ``(gap, bits)`` of ``job`` (see :meth:`_from_worker`); while
+        it is not there, the calls the worker has not begun computed here, from the last."""
+        outcome = worker.outcome(job, (gap, bits), self._take_back)
+        job.calls.pop((gap, bits), None)
+        if not job.calls:
+            self._jobs = tuple(held for held in self._jobs if held[1] is not job)
+        taken = self._taken_back.pop((gap, bits), None)
+        if taken is not None:  # this very call was taken back
+            return taken()
+        if outcome is None:  # dropped, broken or gone: computed here
+            return None
+        if outcome[0] == "failed":
+            error = _error(outcome[4], outcome[5])
+            if error is None:
+                return None  # not one of the core's errors: computed here, raised as it would be
+            raise error
+        poses, problems, said = outcome[4:7]
+        for message, attributes in said:
+            _warn_again(message, attributes)
+        return poses, problems
+
+    def _take_back(self, call: tuple, factors: list[float]) -> None:
+        """Compute here the worker's ``call`` (gap, bits) it has not begun, for when it is asked
+        (its poses and warnings, or its error raised then)."""
+        with concurrency.one_thread():
+            try:
+                poses = self._computed_poses(call[0], factors, False)
+            except Exception as error:
+                def answer(error=error):
+                    raise error
+            else:
+                def answer(poses=poses):
+                    return poses
+        self._taken_back[call] = answer
+
+    def _worker_holds(self, gap: int) -> bool:
+        """Whether the worker computes (or has computed) gap ``gap`` for a call not yet made: nothing
+        of it is begun or prepared here."""
+        return any(at == gap for _, job in self._jobs for at, _ in list(job.calls))
+
+    def _sharing(self):
+        """The context of a call computed here: one thread while the worker holds calls of this sequence
+        not yet made (the caller's own part: threads would buy it 0.80–1.02 × the wall time for 1.3–1.7 ×
+        the CPU)."""
+        return concurrency.one_thread() if self._jobs else nullcontext()
+
+
+def _error(name: str, message: str) -> Exception | None:
+    """The core's error of class ``name`` with ``message``, as the worker raised it; None for any
+    other class (or one whose message would read otherwise)."""
+    kind = getattr(errors, name, None)
+    if not (isinstance(kind, type) and issubclass(kind, errors.ShapeDifferenceError)):
+        return None
+    error = kind(message)
+    return error if str(error) == message else None
+
+
+def _warn_again(message: str, attributes: dict) -> None:
+    """A warning the worker's call raised (the core's: :func:`core.errors.warn`), raised here with its
+    attributes (kind, defects, gap, factors, excess)."""
+    warning = errors.shape_warning(message, attributes["kind"])
+    warning.__dict__.update(attributes)
+    errors.warn(warning)

@@ -1,0 +1,266 @@
+"""A sequence's gaps shared with a second, kept process (core.gap_processes, core.gap_worker): the
+same in-betweens, warnings and errors to the bit as in one process, in the caller's order; the
+caller computing what a worker that cannot start, dies or is stopped leaves; no worker on one core;
+the worker's core loaded under a private name. Small meshes: the vertex threshold is lowered."""
+
+from __future__ import annotations
+
+import shutil
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core import concurrency, gap_processes, retime
+from core.errors import RecoveryError, ShapeDifferenceWarning
+from core.sequence_inbetweens import SequenceInterpolator
+from meshes import drape, grid
+
+#: A sheet spun through half turns (tests/core/data/spinning_sheet.npz): six keys, five gaps, the
+#: last two warned of (its turns), 150 vertices.
+DATA = np.load(Path(__file__).parent / "data" / "spinning_sheet.npz")
+KEYS, TRIANGLES = list(DATA["keys"]), DATA["triangles"]
+SIXTEENTHS = list(np.arange(1, 16) / 16)
+
+
+@pytest.fixture(autouse=True)
+def shared(monkeypatch):
+    """Gaps shared on these small meshes, on any machine (two cores read even on one: the results do
+    not depend on the threads), the switch on."""
+    monkeypatch.setattr(gap_processes, "CONCURRENT_VERTICES", 0)
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
+    monkeypatch.setattr(concurrency, "USE_PROCESSES", True)
+    monkeypatch.setattr(gap_processes, "_unstartable", False)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def no_worker_left():
+    yield
+    gap_processes.shut_down()
+    assert gap_processes._worker is None
+
+
+def _ready_worker():
+    worker = gap_processes.kept_worker()
+    deadline = time.monotonic() + 120
+    while not worker.ready and worker.alive and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert worker.ready
+    return worker
+
+
+def _asked(sequence, requests, *, after_first=None):
+    """``(poses, the warnings' (message, kind, gap, factors, excess))`` of each request ``(gap,
+    factors)``, or ``(type, message)`` of the error it raised; ``after_first()`` run after the first."""
+    out = []
+    for index, (gap, factors) in enumerate(requests):
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            try:
+                poses = sequence.poses(gap, factors, ahead=gap + 1 < len(sequence))
+            except RecoveryError as error:
+                poses = (type(error), str(error))
+        out.append((poses, [(str(w.message), w.message.kind, w.message.gap, w.message.factors, w.message.excess)
+                            for w in said if isinstance(w.message, ShapeDifferenceWarning)]))
+        if index == 0 and after_first is not None:
+            after_first()
+    return out
+
+
+def _one_process(requests, monkeypatch, keys=KEYS):
+    with monkeypatch.context() as patch:
+        patch.setattr(concurrency, "USE_PROCESSES", False)
+        return _asked(SequenceInterpolator(keys, TRIANGLES), requests)
+
+
+def _same(these, those):
+    assert len(these) == len(those)
+    for (x, said), (y, told) in zip(these, those):
+        assert said == told
+        if isinstance(x, tuple):
+            assert x == y
+        else:
+            assert x.dtype == y.dtype and x.shape == y.shape and x.tobytes() == y.tobytes()
+
+
+def _counted_jobs(monkeypatch):
+    """The gaps of each job given to the worker, and the calls taken from it."""
+    given, taken = [], []
+    submit, take = gap_processes._Worker.submit, gap_processes.GapProcesses._taken_from_worker
+
+    def counted_submit(self, job, arguments):
+        given.append(sorted(gap for gap, _ in job.calls))
+        return submit(self, job, arguments)
+
+    def counted_take(self, worker, job, gap, factors, bits):
+        taken.append(gap)
+        return take(self, worker, job, gap, factors, bits)
+
+    monkeypatch.setattr(gap_processes._Worker, "submit", counted_submit)
+    monkeypatch.setattr(gap_processes.GapProcesses, "_taken_from_worker", counted_take)
+    return given, taken
+
+
+def test_same_poses_and_warnings_in_order_as_one_process(monkeypatch):
+    """Five gaps in order at 15 factors: the worker takes the later two (the warned ones), and every
+    pose and warning (message, kind, gap, factors, excess), in order, is one process's."""
+    _ready_worker()
+    given, taken = _counted_jobs(monkeypatch)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)
+    # the later two at the first call; the one before them where the worker is done before the caller's second
+    assert given[0] == [3, 4] and given[1:] in ([], [[2]]) and taken == [2, 3, 4][3 - sum(map(len, given)):]
+    alone = _one_process(requests, monkeypatch)
+    assert sum(len(said) for _, said in alone[3:]) >= 2  # the worker's gaps warn
+    _same(shared, alone)
+
+
+def test_the_worker_starts_no_worker_of_its_own(monkeypatch):
+    """The worker's own sequences (built for each job, of a size that shares gaps) start no process."""
+    worker = _ready_worker()
+    children = Path(f"/proc/{worker.process.pid}/task/{worker.process.pid}/children")
+    if not children.exists():
+        pytest.skip("no /proc children list on this system")
+    given, taken = _counted_jobs(monkeypatch)
+    flat, triangles = grid(72)  # 5,184 vertices: past CONCURRENT_VERTICES in the worker too
+    keys = [drape(flat, amount) for amount in (0.2, 0.4, 0.6)]
+    _asked(SequenceInterpolator(keys, triangles), [(0, [0.5]), (1, [0.5])])
+    assert given == [[1]] and taken == [1]
+    time.sleep(1.0)  # a process it started would be there by now
+    assert children.read_text().split() == []
+
+
+def test_a_retime_at_another_speed_shares_its_planned_gaps(monkeypatch):
+    """A retime whose factors change from gap to gap says its plan (will_ask): the worker takes the
+    later half of it, and the retimed samples are one process's to the bit."""
+    _ready_worker()
+    given, _ = _counted_jobs(monkeypatch)
+    samples = np.array([KEYS[k // 3] if k % 3 == 0 else
+                        (1 - (k % 3) / 3) * KEYS[k // 3] + (k % 3) / 3 * KEYS[k // 3 + 1] for k in range(16)])
+    shared = retime.retime(samples, TRIANGLES, step=3, speed=0.7)
+    assert given and len(given[0]) == 2
+    monkeypatch.setattr(concurrency, "USE_PROCESSES", False)
+    assert shared.tobytes() == retime.retime(samples, TRIANGLES, step=3, speed=0.7).tobytes()
+
+
+def _patched_core(folder: Path, gap: int, action: str) -> Path:
+    """A copy of the core whose sequences run ``action`` (a statement) first when they solve gap
+    ``gap``."""
+    core = folder / "core"
+    shutil.copytree(Path(gap_processes.__file__).parent, core, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(core / "sequence_inbetweens.py", "a") as module:
+        module.write(f"\n\nimport time as _time\nfrom .errors import RecoveryError as _Failed\n"
+                     f"_solved = SequenceInterpolator._solved_poses\n\n\n"
+                     f"def _patched(self, gap, *arguments, **options):\n"
+                     f"    if gap == {gap}:\n"
+                     f"        {action}\n"
+                     f"    return _solved(self, gap, *arguments, **options)\n\n\n"
+                     f"SequenceInterpolator._solved_poses = _patched\n")
+    return core
+
+
+def test_a_failing_gap_raises_when_the_caller_reaches_it(monkeypatch, tmp_path):
+    """Gap 3 fails (in the worker, which holds it, and in the parent alike): the calls before it
+    answer, it raises the core's error with one process's message, the gap after it answers."""
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 3, "raise _Failed('gap 3 fails here')")))
+    solved = SequenceInterpolator._solved_poses
+
+    def failing(self, gap, *arguments, **options):
+        if gap == 3:
+            raise RecoveryError("gap 3 fails here")
+        return solved(self, gap, *arguments, **options)
+
+    monkeypatch.setattr(SequenceInterpolator, "_solved_poses", failing)
+    try:
+        _ready_worker()
+        given, taken = _counted_jobs(monkeypatch)
+        requests = [(gap, SIXTEENTHS) for gap in range(5)]
+        shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)
+        assert given[0] == [3, 4] and given[1:] in ([], [[2]]) and taken == [2, 3, 4][3 - sum(map(len, given)):]
+    finally:
+        gap_processes.shut_down()
+    assert shared[3][0][0] is RecoveryError and "gap 3 fails here" in shared[3][0][1]
+    assert all(isinstance(x, np.ndarray) for x, _ in shared[:3] + shared[4:])
+    _same(shared, _one_process(requests, monkeypatch))
+
+
+def test_calls_the_worker_has_not_begun_are_taken_back(monkeypatch, tmp_path):
+    """Ten gaps (the spun sheet there and back), the worker's first (gap 5) taking seconds there (a
+    pause in its core): the caller, waiting for it, computes the worker's last gaps meanwhile, which
+    the worker skips, down to the one it would do next; one process's poses and warnings."""
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 5, "_time.sleep(3.0)")))
+    taken_back = []
+    take_back = gap_processes.GapProcesses._take_back
+
+    def counted(self, call, factors):
+        taken_back.append(call[0])
+        return take_back(self, call, factors)
+
+    monkeypatch.setattr(gap_processes.GapProcesses, "_take_back", counted)
+    keys = KEYS + KEYS[-2::-1]
+    try:
+        _ready_worker()
+        given, taken = _counted_jobs(monkeypatch)
+        requests = [(gap, SIXTEENTHS) for gap in range(10)]
+        shared = _asked(SequenceInterpolator(keys, TRIANGLES), requests)
+        assert given == [[5, 6, 7, 8, 9]] and taken == [5, 6] and taken_back == [9, 8, 7]
+    finally:
+        gap_processes.shut_down()
+    _same(shared, _one_process(requests, monkeypatch, keys))
+
+
+def test_a_worker_that_cannot_start_leaves_the_gaps_to_the_caller(monkeypatch):
+    """No interpreter to start: nothing given, the session marks it, the poses are one process's."""
+    monkeypatch.setattr(gap_processes, "_worker", None)
+    monkeypatch.setattr(gap_processes.sys, "executable", "/nonexistent/python")
+    given, _ = _counted_jobs(monkeypatch)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)
+    assert given == [] and gap_processes._unstartable and gap_processes._worker is None
+    _same(shared, _one_process(requests, monkeypatch))
+
+
+def test_a_worker_killed_mid_sequence_leaves_its_gaps_to_the_caller(monkeypatch):
+    """The worker is killed once it holds the later gaps: the caller computes them, the poses and
+    warnings are one process's; the next sequence has a new worker."""
+    worker = _ready_worker()
+    given, _ = _counted_jobs(monkeypatch)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=worker.process.kill)
+    assert given[0] == [3, 4] and not worker.alive
+    _same(shared, _one_process(requests, monkeypatch))
+    assert _ready_worker() is not worker
+
+
+def test_stopped_sequences_compute_what_the_worker_held(monkeypatch):
+    """stop() (the operators' Esc) after the first call: the worker drops its gaps, the caller computes
+    them, one process's poses and warnings; the worker is idle after."""
+    worker = _ready_worker()
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=gap_processes.stop)
+    _same(shared, _one_process(requests, monkeypatch))
+    deadline = time.monotonic() + 60
+    while not worker.idle() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert worker.idle()
+
+
+def test_one_core_starts_no_worker(monkeypatch):
+    """One core (a CPU affinity of one): no worker started, nothing given."""
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 1)
+    monkeypatch.setattr(gap_processes, "_worker", None)
+    given, _ = _counted_jobs(monkeypatch)
+    _asked(SequenceInterpolator(KEYS, TRIANGLES), [(gap, SIXTEENTHS) for gap in range(5)])
+    assert given == [] and gap_processes._worker is None
+
+
+def test_the_worker_loads_the_core_under_a_private_name():
+    """The worker imported no module named core (nor bl_ext…): its core is the private package."""
+    worker = _ready_worker()
+    private = gap_processes.PRIVATE_NAME
+    assert {private, private + ".sequence_inbetweens", private + ".gap_worker"} <= set(worker.modules)
+    assert [m for m in worker.modules if not m.startswith(private)] == []
