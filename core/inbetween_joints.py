@@ -42,8 +42,9 @@ two gears), and composed on it a card or gear left its root or axle. They are to
 by their contact, which a joint's moving parent carries between the keys and which their own
 screws keep (:data:`CONTACT_CARRIED`, :data:`OWN_SCREW_FACTORS`, :func:`joint_tree`; the contact
 read from the same vertex pairs in both keys where some are closest in both, :func:`shared_contacts`, elsewhere
-as the centre of all its touching vertex pairs in each key; only a contact where as many touch in
-both keys, :data:`CONTACT_STEADY`, is read so: one that shrinks or grows holds the joint), unless both
+as the centre of all its touching vertex pairs in each key where as many touch in both keys,
+:data:`CONTACT_STEADY`, else as their closest pair; a contact that shrinks or grows in place on both
+pieces holds the joint, :func:`contracts_in_place`), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
 the point but not the turn relative to the link below).
 """
@@ -75,19 +76,23 @@ JOINT_SLIDE = 3.0
 #: its touching vertex pairs in each key — moves by at most this share of how far either piece's
 #: motion carries it)...
 CONTACT_CARRIED = 0.5
-#: ... only where as many of its vertex pairs touch in both keys to this ratio (meshing teeth keep
-#: their contact's extent as they turn: 51–54 pairs on the tests' gear trains); a contact that
-#: shrinks or grows holds the joint, its place in the keys not read (blades of scissors opening
-#: about their pivot slide off each other, 95 → 48, 86 → 39, 210 → 53, 41 → 22: their closest pair,
-#: which jumps between vertex pairs as the seam shrinks, stayed put in three cells where their
-#: motions carried it, and each blade left the pivot by up to 9.1e-2 of the diagonal at ×2;
-#: a lid lifting off its box touches along the hinge alone)...
+#: ... read as the centre of all its touching vertex pairs where as many touch in both keys to this
+#: ratio (meshing teeth keep their contact's extent as they turn: 51–54 pairs on the tests' gear
+#: trains), else as its closest pair; and a contact that shrinks or grows in place on both pieces
+#: (:func:`contracts_in_place`: blades of scissors opening about their pivot slide off each other,
+#: 95 → 48, 86 → 39, 210 → 53, 41 → 22, their seam shrinking about the pivot on each blade, while
+#: their closest pair jumped between vertex pairs and stayed put in three cells where their motions
+#: carried it: each blade left the pivot by up to 9.1e-2 of the diagonal at ×2) holds the joint.
+#: Coarse meshing teeth change their contact's extent too (flat involute gears of 12 and 6 teeth:
+#: 608 → 381–424 pairs) but roll it along both gears, off the vertices that touched...
 CONTACT_STEADY = 0.75
 #: ... and their own screw motions keep them in contact at these factors (Exaggerate's 2 and −1,
 #: their in-betweens at 0.5; the farthest first, which parts most pairs that part)...
 OWN_SCREW_FACTORS = (2.0, -1.0, 0.5)
 #: ... to within this share of the finer piece's mean edge length of how close they are in the
-#: keys (the closer of the two).
+#: keys (the closer of the two); and a contact shrinks or grows in place where every vertex
+#: touching in the key where fewer pairs touch was within this share beyond the finer edge in the
+#: other (a vertex at the contact's rim crosses the touching distance as the contact changes).
 OWN_CONTACT_SLACK = 0.3
 
 
@@ -182,6 +187,32 @@ def _axis_points(rotations: np.ndarray, translations: np.ndarray, axis: np.ndarr
     (P, 3, 3), ``translations`` (P, 3); ``axis`` and ``slide`` from :func:`screw_axes`): the least-
     squares solution of ``(I − R) p = t − slide · axis``."""
     return screw_motions.least_squares_3x3(np.eye(3) - rotations, translations - slide[:, None] * axis)
+
+
+def contracts_in_place(base: np.ndarray, nxt: np.ndarray, index: np.ndarray, label: np.ndarray, u: np.ndarray,
+                       v: np.ndarray, finer: np.ndarray, fewer_later: np.ndarray) -> np.ndarray:
+    """Per pair of touching pieces ``u``, ``v`` (T,; labels of the vertices ``index``, ``label``)
+    whose contact shrinks or grows between the keys ``base`` and ``nxt`` (positions (n, 3)),
+    whether it does so in place on both pieces (bool (T,)): every vertex of either piece within
+    ``finer`` (T,) of the other in the key where fewer vertex pairs touch (``fewer_later`` (T,) bool:
+    the next key) was within :data:`OWN_CONTACT_SLACK` beyond ``finer`` of it in the other key. A
+    joint's contact shrinks or grows about the joint, which each piece carries (the seam of scissors
+    opening about their pivot: the touching vertices in the later key are some of those touching in
+    the first, on both blades); meshing teeth roll their contact along both gears, to vertices that
+    were apart. Few pairs at once (those the gear rule would free); a KD-tree per piece and key."""
+    from scipy.spatial import cKDTree
+
+    order = np.argsort(label, kind="stable")
+    starts = np.searchsorted(label[order], np.arange(label.max(initial=-1) + 2))
+    rows = [index[order[starts[k]:starts[k + 1]]] for k in range(starts.size - 1)]
+    out = np.ones(u.size, dtype=bool)
+    for k in range(u.size):
+        fewer, other = (nxt, base) if fewer_later[k] else (base, nxt)
+        for a, b in ((u[k], v[k]), (v[k], u[k])):
+            near = cKDTree(fewer[rows[b]]).query(fewer[rows[a]], distance_upper_bound=finer[k])[0] <= finer[k]
+            then = cKDTree(other[rows[b]]).query(other[rows[a][near]])[0] if near.any() else np.zeros(0)
+            out[k] &= bool((then <= (1.0 + OWN_CONTACT_SLACK) * finer[k]).all())
+    return out
 
 
 def touching_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
@@ -432,8 +463,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   each splined in its own frame, part a little (an eye left a turning head by 0.055);
         # - either turns a half turn, whose way round its own screw does not tell: the joint's
         #   relative turn tells it, or warns that nothing does (a crank keyed every 180°);
-        # - the contact shrinks or grows between the keys (CONTACT_STEADY: blades of scissors sliding
-        #   off each other; meshing teeth keep their contact's extent);
+        # - the contact shrinks or grows in place on both pieces between the keys (CONTACT_STEADY,
+        #   contracts_in_place: blades of scissors sliding off each other about their pivot;
+        #   meshing teeth roll their contact along both gears);
         # - the contact moves with the pieces between the keys (a joint carried by a moving
         #   parent; a gear's teeth roll through the same place);
         # - their own screws part them (OWN_SCREW_FACTORS) beyond how close they are in the keys.
@@ -464,9 +496,10 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         # pairs read in both keys where some are closest in both (coincident vertices along a
         # hinge): the first of several equally close pairs is another pair in each key, and two
         # points of a carried hinge read as a contact that stays put
-        # (only where as many pairs touch in both keys, CONTACT_STEADY: blades sliding off each other as
-        # they open about a pivot hold their joint, whose closest pair jumps between vertex pairs and
-        # whose centre moves less than they carry it)
+        # (the centre only where as many pairs touch in both keys, CONTACT_STEADY, else the closest
+        # pair; blades sliding off each other as they open about a pivot, whose closest pair jumps
+        # between vertex pairs and whose centre moves less than they carry it, hold their joint where
+        # the seam shrinks in place on both blades, contracts_in_place)
         within = np.broadcast_to(finer, jointed.shape)
         centres_base, count_base = contact_centres(base, ends, first, within)
         centres_later, count_later = touching_centres(nxt, index, label, pieces.size, reach, key[first], jointed,
@@ -478,7 +511,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                                                       precision, contact_base, contact_later)
         carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
                                               - contact_base, axis=1) for k in (u, v)))
-        together &= steady & (np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried)
+        together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
+        changed = np.flatnonzero(together & ~steady)
+        if changed.size:
+            together[changed] = ~contracts_in_place(base, nxt, index, label, u[changed], v[changed],
+                                                    within[changed],
+                                                    count_later[changed] < count_base[changed])
         kept = np.minimum(nearest_base, nearest_later) + OWN_CONTACT_SLACK * finer
         for s in OWN_SCREW_FACTORS:
             if not together.any():

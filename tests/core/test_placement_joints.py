@@ -160,6 +160,75 @@ def test_meshing_gears_with_teeth_straddling_the_line_of_centres_turn_about_thei
         np.testing.assert_allclose(interpolator.pose(s), _gear_train(s * degrees, clearance=0.0)[0], atol=1e-6)
 
 
+def _involute_gear(teeth, module, centre, phase, backlash=0.01, flank=6):
+    """A flat spur gear of ``teeth`` involute teeth (pressure angle 20°, addendum ``module``, dedendum
+    1.25 ``module``, ``flank`` vertices up each flank, 3 across each tip and root, the tooth
+    thinned by ``backlash`` at the pitch circle) round a hole of 0.3 of its pitch radius, tooth 0
+    on angle ``phase`` about ``centre`` in the plane z = 0: vertices, triangles (the rim's vertex k
+    joined to the hole's)."""
+    pitch, alpha = module * teeth / 2, np.radians(20.0)
+    base, tip, root = pitch * np.cos(alpha), pitch + module, pitch - 1.25 * module
+    radii = np.linspace(max(base, root), tip, flank)
+    involute = np.tan(alpha) - alpha - (np.tan(np.arccos(base / radii)) - np.arccos(base / radii))
+    half = np.pi / (2 * teeth) - backlash / (2 * pitch) + involute  # half the tooth's angle at each radius
+    step = 2 * np.pi / teeth
+    angle, radius = [], []
+    for k in range(teeth):
+        c = phase + k * step
+        angle += [*np.linspace(c - step / 2, c - half[0], 4)[:-1], *(c - half), *np.linspace(c - half[-1], c + half[-1], 5)[1:-1],
+                  *(c + half[::-1]), *np.linspace(c + half[0], c + step / 2, 4)[1:-1]]
+        radius += [*[root] * 3, *radii, *[tip] * 3, *radii[::-1], *[root] * 2]
+    angle, radius = np.array(angle), np.array(radius)
+    count = angle.size
+    ring = np.concatenate([np.stack([r * np.cos(angle), r * np.sin(angle), np.zeros(count)], axis=1)
+                           for r in (np.full(count, 0.3 * pitch), radius)]) + centre
+    i = np.arange(count)
+    j = (i + 1) % count
+    return ring, np.concatenate([np.stack([i, j, count + j], axis=1), np.stack([i, count + j, count + i], axis=1)])
+
+
+def _coarse_gear_pair(degrees):
+    """Two meshing flat involute gears of 12 and 6 teeth (module 0.1: pitch radii 0.6 and 0.3), the
+    large one at the origin turned by ``degrees`` about its axle, the small one beside it twice as
+    far the other way about its own: vertices, triangles."""
+    axles = np.array([[0.0, 0.0, 0.0], [0.9, 0.0, 0.0]])
+    a, a_tri = _involute_gear(12, 0.1, axles[0], 0.0)
+    b, b_tri = _involute_gear(6, 0.1, axles[1], np.pi + np.pi / 6)  # a root facing the large gear's tooth
+    turns = [Rotation.from_rotvec([0.0, 0.0, rate * np.radians(degrees)]).as_matrix() for rate in (1.0, -2.0)]
+    return (np.vstack([_rigid(a, turns[0], axles[0]), _rigid(b, turns[1], axles[1])]),
+            np.vstack([a_tri, b_tri + len(a)]))
+
+
+@pytest.mark.parametrize("degrees", [20.0, 45.0, 80.0])
+def test_coarse_meshing_gears_whose_contact_changes_extent_turn_about_their_own_axles(degrees):
+    """Two flat involute gears of 12 and 6 teeth, finely outlined: as their coarse teeth engage and
+    disengage, the vertex pairs touching within the finer gear's edge go from 608 to 381–424
+    (fewer than CONTACT_STEADY's share), their contact rolled along both gears to vertices that were
+    apart (:func:`core.inbetween_joints.contracts_in_place`). Every factor of two poses is both gears
+    turned by that factor about their own axles, to 1e-6, and every in-between of a sequence
+    turning by 25° a key. Where a contact that changed its extent held the joint (fe02c72), the small
+    gear hung from the large one, silently: 8.8e-2 (20°), 0.37 (45°) and 1.3 (80°) of the pair's
+    diagonal off its axle."""
+    a, tri = _coarse_gear_pair(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    interpolator = Interpolator(a, _coarse_gear_pair(degrees)[0], tri)
+    for s in FACTORS + (-1.0,):
+        np.testing.assert_allclose(interpolator.pose(s), _coarse_gear_pair(s * degrees)[0], atol=1e-6 * diagonal)
+
+
+def test_coarse_meshing_gears_keyed_every_25_degrees_turn_about_their_own_axles():
+    """:func:`_coarse_gear_pair` keyed every 25°: every in-between of the sequence is both gears
+    turned about their own axles, to 1e-6 (where a contact that changed its extent held the joint,
+    5.6e-4 of the diagonal off, silently)."""
+    _, tri = _coarse_gear_pair(0.0)
+    keys = [_coarse_gear_pair(25.0 * k)[0] for k in range(4)]
+    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
+    sequence = SequenceInterpolator(keys, tri, start="keys")
+    for gap in range(3):
+        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(pose, _coarse_gear_pair(25.0 * (gap + factor))[0], atol=1e-6 * diagonal)
+
+
 def _three_gear_train(degrees):
     """:func:`_gear_train` (tip to root 0.03 apart) and a third gear of 30 teeth about radius 1.5
     meshing with the large one on its other side, turned 2/3 as far the other way about its own

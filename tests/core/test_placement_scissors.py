@@ -3,11 +3,13 @@ pair moves; their overlap is a long seam whose centre slides toward the pivot as
 Review r4 of d4b9aa9 (the gear rule's contact read as the centre of all touching vertex pairs)
 found three cells where each blade was placed by its own screw, off the pivot, unwarned: the seam's
 closest pair, read where the touching pairs' count changes, stayed put while the blades' motions
-carried it, as a gear's contact does. Since session 74 the gear rule reads only contacts that
-keep their extent (``CONTACT_STEADY``), and a seam that shrinks or grows holds the joint; numbers in
+carried it, as a gear's contact does. Since session 74 a seam that shrinks or grows in place on
+both blades holds the joint (``contracts_in_place``; not every contact that changes its extent, as
+fe02c72 had it: coarse gears' contacts change theirs too, rolled along both gears); numbers in
 docs/inbetween-measurements.md, *Review of the meshing teeth's whole contact: scissors read as
-gears (session 73)* and *Scissors, a carried lid, overlapping links and a gear's half turn
-(session 74)*. No bpy."""
+gears (session 73)*, *Scissors, a carried lid, overlapping links and a gear's half turn
+(session 74)* and *Review of fe02c72: coarse gears held as joints; a contact's change read in
+place (session 74)*. No bpy."""
 
 from __future__ import annotations
 
