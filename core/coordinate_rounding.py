@@ -10,6 +10,8 @@ parts of a sequence's pieces are read to it (:func:`core.sequence_bent_parts.rou
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -99,6 +101,35 @@ def decimal_rounding(poses: list[np.ndarray], edges: np.ndarray, rounding: float
         if on_grid(sample) and all(on_grid(pose) for pose in poses):
             return step
     return 0.0
+
+
+#: A grid that every key lies on, of step 1, 2 or 5 × 10^k at least this share of the first key's median
+#: edge, is the mesh's own (:func:`built_on_grid`): a mesh made on it (a voxel mesh on whole units, Blender's
+#: Grid primitive on 0.2, vertices moved by snapping to increments), not one rounded to it. Rounding that
+#: coarse moves a corner by up to √3/2 step, a fifth of such an edge; the 19 benchmark bakes rounded to
+#: 3 decimals, the coarsest export measured, keep 7.6–79 steps per median edge (the 100k sheet the fewest).
+BUILT_GRID_SHARE = 0.25
+
+
+def built_on_grid(poses: list[np.ndarray], edges: np.ndarray) -> bool:
+    """Whether every coordinate of ``poses`` (list of (n, 3)) lies (to :data:`DECIMAL_GRID_SHARE` of
+    its step) on a grid of step 1, 2 or 5 × 10^k between :data:`BUILT_GRID_SHARE` of the first pose's
+    median edge (``edges`` int (e, 2), its vertex pairs) and that edge ÷ 0.9 (a coarser grid holds no
+    such edge, :func:`decimal_rounding`): keys on a grid as coarse as their edges were built on it, so
+    a triangle they flatten is the mesh's (a key collapsing a part, a vertex snapped onto a line),
+    not a rounding's, whatever decimal grid :func:`decimal_rounding` finds them on."""
+    poses = [np.asarray(pose, dtype=np.float64) for pose in poses if np.size(pose)]
+    edges = np.asarray(edges, dtype=np.int64).reshape(-1, 2)
+    if not poses or not len(edges):
+        return False
+    median = float(np.median(np.linalg.norm(poses[0][edges[:, 0]] - poses[0][edges[:, 1]], axis=1)))
+    low, high = BUILT_GRID_SHARE * median, median / (1.0 - 2.0 * DECIMAL_GRID_SHARE)
+    if not low > 0 or not np.isfinite(high):
+        return False
+    steps = [factor * 10.0 ** power for power in range(math.floor(math.log10(low)), math.ceil(math.log10(high)) + 1)
+             for factor in (1.0, 2.0, 5.0)]
+    return any(all(float(np.max(np.abs(pose / step - np.round(pose / step)))) <= DECIMAL_GRID_SHARE for pose in poses)
+               for step in steps if low <= step <= high)
 
 
 def inverse_heights(pose: np.ndarray, triangles: np.ndarray) -> np.ndarray:

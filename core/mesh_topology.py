@@ -253,11 +253,14 @@ def _rounded_flat_advice(vertices: np.ndarray, triangles: np.ndarray, bad: np.nd
     first named ``first_name``, in which every triangle has an area) lie on a decimal grid
     (:func:`core.coordinate_rounding.decimal_rounding`: exported with a fixed count of decimals):
     the export's rounding flattened them, not the mesh (no frame of the 19 benchmark bakes, stored in
-    single precision, has a flat triangle). None where the keys are on no decimal grid."""
-    from .coordinate_rounding import decimal_rounding
+    single precision, has a flat triangle). None where the keys are on no decimal grid, or on one as
+    coarse as their edges (:func:`core.coordinate_rounding.built_on_grid`: a voxel mesh, a Grid
+    primitive, whose key collapsing a part is the mesh's doing)."""
+    from .coordinate_rounding import built_on_grid, decimal_rounding
 
-    step = decimal_rounding(list(keys) + [vertices], triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2))
-    if not step > 0:
+    poses, edges = list(keys) + [vertices], triangles[:, [[0, 1], [1, 2], [2, 0]]].reshape(-1, 2)
+    step = decimal_rounding(poses, edges)
+    if not step > 0 or built_on_grid(poses, edges):  # keys on a grid as coarse as their edges: the mesh's own
         return None
     places = round(-math.log10(step))
     more, finer = 10 ** ROUNDED_FLAT_DECIMALS, places + ROUNDED_FLAT_DECIMALS

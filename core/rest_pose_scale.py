@@ -6,8 +6,10 @@ from the rest allows (``rest_pose`` of :class:`core.SequenceInterpolator`,
 :mod:`core.sequence_edge_misfit`). A rest 100 × the keys' size (centimetres against metres) makes
 every key read 99 % off it, so every gap is allowed a misfit of about 2, and no warning is ever
 said; one 0.01 × their size does the same. A cloth's rest differs from its frames by what the cloth
-stretches, a few percent at most over the median edge (:data:`REST_SCALE_LIMIT`), so the median
-ratio of the rest's edges to the first key's tells the two apart.
+stretches, a few percent over the median edge (:data:`REST_SCALE_LIMIT`), so the median ratio of the
+rest's edges to the first key's tells the two apart. A cloth that stretches past it (a soft balloon
+under high pressure: tension 5, pressure 60 reads 0.52) is refused too, for the same reason: measured
+from its rest, every key is far off it and every misfit allowed.
 """
 
 from __future__ import annotations
@@ -30,10 +32,11 @@ REST_SCALE_LIMIT = 2.0
 
 def rest_scale(rest_pose: np.ndarray, first_key: np.ndarray, triangles: np.ndarray) -> float:
     """The median ratio of the edge lengths of ``rest_pose`` (n, 3) to those of ``first_key`` (n, 3)
-    over ``triangles`` (m, 3) (their corner edges, 3 m), on the edges of positive length in both;
-    1.0 where there is none."""
+    over ``triangles`` (m, 3) (their corner edges, 3 m), on the edges of positive length in the first
+    key (a rest's edge of length 0 reads 0: a rest at one point, an array never filled, reads 0, not
+    a size it does not have); 1.0 where there is none."""
     rest, key = (np.linalg.norm(x[triangles[:, [1, 2, 0]]] - x[triangles], axis=2) for x in (rest_pose, first_key))
-    kept = (rest > 0.0) & (key > 0.0)
+    kept = key > 0.0
     return float(np.median(rest[kept] / key[kept])) if kept.any() else 1.0
 
 
@@ -49,9 +52,14 @@ def check_rest_scale(rest_pose: np.ndarray, first_key: np.ndarray, triangles: np
     scale = rest_scale(rest_pose, first_key, triangles)
     if scale_taken(scale):
         return
+    if not scale > 0.0:
+        raise MeshError("rest_pose has most of its edges of length 0 (its vertices at one point or a few: an array "
+                        "never filled?): give the mesh's rest shape in the keys' space, or leave rest_pose out to "
+                        "measure the warnings from the first key.")
     raise MeshError(
         f"rest_pose is {scale:.4g} × the size of the first key (the median ratio of their edge lengths), "
-        f"more than the {REST_SCALE_LIMIT:g} × a cloth's rest may differ from its frames: it is in other units "
-        f"or at another object scale than the keys. Give it in the keys' space (scale it by {1.0 / scale:.4g}, "
-        "or read it with the same object transform as the keys), or leave rest_pose out to measure the "
-        "warnings from the first key.")
+        f"more than the {REST_SCALE_LIMIT:g} × the keys may be off their rest: it is likely in other units or at "
+        "another object scale than the keys, or the cloth stretched that far from it (a soft balloon under "
+        "pressure), where measured from it every misfit would be allowed. Give it in the keys' space (scale it by "
+        f"{1.0 / scale:.4g}, or read it with the same object transform as the keys), or leave rest_pose out to "
+        "measure the warnings from the first key.")

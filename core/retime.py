@@ -269,10 +269,15 @@ def short_gap_sequence(samples, triangles, tail, first=None, **interpolator_opti
     inside the motion; its last gap is the short gap. ``first``: the sample the whole sequence
     starts at, whose edges its warnings measure deviations from where no ``rest_pose`` is given: the
     tail's are measured from it too, not from the tail's first key, a shape deep in the motion
-    (:mod:`core.sequence_edge_misfit`)."""
+    (:mod:`core.sequence_edge_misfit`), where it is within :data:`core.rest_pose_scale.REST_SCALE_LIMIT`
+    of the tail's first key's size (else from that key)."""
+    from .rest_pose_scale import rest_scale, scale_taken
     from .sequence_inbetweens import SequenceInterpolator
 
-    rest = {} if first is None or interpolator_options.get("rest_pose") is not None else {"rest_pose": samples[first]}
+    # the whole sequence's first sample stands for the rest only where it is a rest of the tail's keys
+    # (a mesh grown past twice its size since, a shape key's grow, is measured from the tail's first key)
+    rest = {} if (first is None or interpolator_options.get("rest_pose") is not None or not scale_taken(
+        rest_scale(samples[first], samples[tail[0]], triangles))) else {"rest_pose": samples[first]}
     return SequenceInterpolator([samples[key] for key in tail], triangles,
                                 **{**interpolator_options, **rest, "start": "keys"})
 

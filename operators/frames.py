@@ -61,6 +61,27 @@ def simulation_first_frame(scene, obj, start: int) -> list[int]:
     return [first]
 
 
+def rest_length_factor(obj) -> float | None:
+    """The factor the cloth and soft body simulations moving ``obj`` (:func:`objects_moving`) set their
+    springs' rest lengths to over their first frame's edges: 1 − Shrinking for cloth (``shrink_min``:
+    at 0.1 frame 1's edges read 1 / 0.9 = 1.111 × every later frame's, at −0.2 0.833 ×), 1 where nothing
+    changes them. None where it differs over the mesh or between the simulations (a Shrinking vertex
+    group between two factors) or where Blender does not say by how much (a soft body's Shrink / Blow up
+    ``spring_length`` or its ``plastic`` deformation)."""
+    factors = set()
+    for _, modifier in modifier_kinds.simulations(objects_moving(obj)):
+        settings = modifier.settings
+        if modifier.type != 'CLOTH':
+            if settings.spring_length or settings.plastic:
+                return None
+            factors.add(1.0)
+        elif settings.vertex_group_shrink and settings.shrink_max != settings.shrink_min:
+            return None
+        else:
+            factors.add(1.0 - settings.shrink_min)
+    return factors.pop() if len(factors) == 1 else (1.0 if not factors else None)
+
+
 class SimulationRest:
     """The rest a sequence's warnings measure the edges from (``rest_pose`` of
     :class:`core.SequenceInterpolator`) where a range starting at frame ``start`` of ``obj`` starts
@@ -68,10 +89,16 @@ class SimulationRest:
     with the range's frames (:attr:`frames`: the frame to read, or none), set aside before the
     range's space is chosen (:meth:`set_aside`: it is for the warnings alone, so the space and the
     in-betweens are the range's as without it), then taken to that space (:meth:`options`). Else
-    the first key stands for the rest."""
+    the first key stands for the rest. A cloth that Shrinking shrinks or grows is at its rest lengths
+    times :func:`rest_length_factor` there, not at its edges (frame 1 of Shrinking 0.1 read as the rest
+    makes every key 11 % off it, and the warnings allow that much more misfit): its edges are scaled so;
+    where the factor is not one number, no frame is read."""
 
     def __init__(self, scene, obj, start: int):
         self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start), []
+        self._factor = rest_length_factor(obj) if self.frames else 1.0
+        if self._factor is None:
+            self.frames = []
 
     def set_aside(self, read: dict, matrices: dict) -> None:
         """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}
@@ -81,11 +108,11 @@ class SimulationRest:
     def options(self, space, matrices: dict, triangles) -> dict:
         """``{"rest_pose": positions (n, 3)}`` in ``space`` (that of the range's frames, whose world
         matrices are ``matrices``): the rest as the world shows it at its frame, in the first key's
-        coordinates, then in the range's space; ``{}`` where there is no rest frame, where the world
-        flattens the mesh there, or where the core would refuse it against the first key
-        (``core.rest_pose_scale``: a cloth that shrinks or grows to under half or over twice its size,
-        Blender's Shrinking, 0.7 reads 3.3 ×): measured from the first key, as without it.
-        ``triangles`` (m, 3): the mesh's."""
+        coordinates, then in the range's space, scaled about its centroid by :func:`rest_length_factor`;
+        ``{}`` where there is no rest frame, where the world flattens the mesh there, or where the core
+        would refuse it against the first key (``core.rest_pose_scale``: a cloth that shrinks or grows
+        to under half or over twice its size other than by Shrinking): measured from the first key, as
+        without it. ``triangles`` (m, 3): the mesh's."""
         from ..core import rest_pose_scale
 
         for positions, matrix, first in self._read:
@@ -93,6 +120,9 @@ class SimulationRest:
             if shown is None:
                 continue
             rest, first = space.to(shown, self.start), space.to(first, self.start)
+            if self._factor != 1.0:  # Shrinking's rest lengths: the edges scaled alike, about any point
+                centre = rest.mean(axis=0)
+                rest = centre + self._factor * (rest - centre)
             if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)):
                 return {"rest_pose": rest}
         return {}

@@ -324,26 +324,45 @@ def test_a_retime_inside_a_simulation_measures_edges_from_its_first_frame(bpy_em
     assert given == [None]
 
 
-def test_operators_inside_a_shrinking_simulation_measure_edges_from_the_first_key(bpy_empty, extension, core,
-                                                                                   monkeypatch):
-    """The cloth of :func:`cloth_scene` with Blender's Shrinking at 0.7: from frame 2 on its edges are
-    0.3 × frame 1's, so frame 1 is no rest of frames 5–13 (3.3 × their size, which the core refuses as
-    a ``rest_pose`` in other units). In-between Frames and Retime of 5–13 measure the warnings from
-    the first key, as where no rest is read, and run (else: "rest_pose is 3.3 × the size of the
-    first key"); the same cloth unshrunk is given its frame 1."""
+def _median_edge_ratio(a, b, triangles) -> float:
+    """The median ratio of the corner edges of ``a`` (n, 3) to those of ``b`` (n, 3) over ``triangles``."""
+    lengths = [np.linalg.norm(x[triangles[:, [1, 2, 0]]] - x[triangles], axis=2) for x in (a, b)]
+    return float(np.median(lengths[0] / lengths[1]))
+
+
+@pytest.mark.parametrize("shrink", [0.7, 0.1, -0.2])
+def test_operators_inside_a_shrinking_simulation_measure_edges_from_its_rest_lengths(bpy_empty, extension, core,
+                                                                                     monkeypatch, shrink):
+    """The cloth of :func:`cloth_scene` with Blender's Shrinking: its springs' rest lengths are 1 − shrink
+    times frame 1's edges, and from frame 2 on its edges keep them (frame 1 reads 3.33 ×, 1.11 ×, 0.83 ×
+    frames 5–13). In-between Frames and Retime of 5–13 measure the warnings from those rest lengths:
+    the rest given is frame 1 scaled by 1 − shrink, within 1 % of the keys' edges. Before: at 0.7 no
+    rest (frame 1 past the core's limit, the first key stood for it), at 0.1 and −0.2 frame 1 as it
+    is, every key 11 % / 17 % off it, which the warnings then allowed as misfit. The same cloth with a
+    Shrinking vertex group (the factor differs over the mesh) is given no rest."""
     obj = cloth_scene(frames=13)
-    _rebaked(obj, 0.7)
+    _rebaked(obj, shrink)
+    bridge = extension.bridge
+    frames = evaluated_frames(bridge, obj, [1, 5])
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
     given = _rests_given_to_every_sequence(core, monkeypatch)
     bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=13, frame_step=4, count=1,
                                                output='SHAPE_KEYS')
     obj.shape_key_clear()
     bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
-    assert len(given) == 2 and all(rest is None for rest in given)
+    assert len(given) == 2 and all(rest is not None for rest in given)
+    for rest in given:
+        assert _median_edge_ratio(rest, frames[1], triangles) == pytest.approx(1.0 - shrink, rel=1e-6)
+        assert _median_edge_ratio(rest, frames[5], triangles) == pytest.approx(1.0, abs=1e-2)
     obj.shape_key_clear()
-    _rebaked(obj, 0.0)
+    group = obj.vertex_groups.new(name="Shrink")
+    group.add(list(range(len(obj.data.vertices) // 2)), 1.0, 'REPLACE')
+    settings = obj.modifiers["Cloth"].settings
+    settings.vertex_group_shrink, settings.shrink_max = group.name, shrink + 0.2  # weight 1 shrinks 0.2 more
+    _rebaked(obj, shrink)
     given.clear()
     bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
-    assert len(given) == 1 and given[0] is not None
+    assert len(given) == 1 and given[0] is None
 
 
 def _cloth_scaled_before(first_scale):

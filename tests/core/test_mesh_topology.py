@@ -118,6 +118,37 @@ def test_triangles_a_later_keys_decimal_rounding_flattened_are_told_as_the_round
     assert "decimal" not in str(info.value)
 
 
+@pytest.mark.parametrize("built", ["whole units", "Grid primitive"])
+def test_flat_triangles_of_keys_built_on_a_grid_are_the_meshs_not_a_rounding(built):
+    """Keys whose every vertex lies on a grid as coarse as their edges were built on it, not rounded
+    to it: a voxel-like sheet on whole units (edges 1), Blender's Grid primitive (size 2, 10 cuts:
+    edges 0.2, in single precision). A later key that collapses a 2 × 2 patch to a grid point, or
+    snaps a vertex onto the line of a triangle's other two (the midpoint, on the 0.1 grid), flattens
+    triangles by its own doing: refused with the mesh's advice. Before, both said "Every key so far
+    is rounded to 1 decimal(s) … Export the keys with more decimals (try 3…)", which changes nothing.
+    The crushed sheet's keys exported to 2 decimals (edges 5 steps of the grid) are still told as
+    the rounding."""
+    if built == "whole units":
+        first, triangles = grid(11, size=10.0)
+    else:
+        first, triangles = grid(11, size=2.0)
+        first = (first - [1.0, 1.0, 0.0]).astype(np.float32).astype(np.float64)
+    collapsed = first.copy()
+    collapsed[[0, 1, 11, 12]] = first[0]
+    snapped = first.copy()
+    a, b, c = triangles[0]
+    snapped[c] = 0.5 * (first[a] + first[b])
+    for key in (collapsed, snapped):
+        with pytest.raises(core.MeshError) as info:
+            core.SequenceInterpolator([first, key, first], triangles)
+        message = str(info.value)
+        assert message.startswith("key pose 1: triangle ") and "zero area" in message
+        assert "decimal" not in message and "scale that part to a small size instead of zero" in message
+    keys, triangles = _crushed_keys()
+    with pytest.raises(core.MeshError, match=r"rounded to 2 decimal\(s\)"):
+        core.SequenceInterpolator([np.round(key, 2) for key in keys], triangles)
+
+
 def test_degenerate_target_is_rejected_too():
     vertices, triangles = grid(4)
     target = vertices.copy()

@@ -261,6 +261,8 @@ def test_a_rest_pose_in_other_units_than_the_keys_is_refused_with_its_scale(unit
     with pytest.raises(MeshError, match=r"rest_pose is (\S+) × the size of the first key") as refused:
         SequenceInterpolator(keys, triangles, rest_pose=rest * units)
     found = float(str(refused.value).split()[2])  # to 4 digits
+    # a cloth that truly stretched that far from its rest (a soft balloon) is not told it is in other units
+    assert "likely in other units" in str(refused.value) and "stretched that far" in str(refused.value)
     # the first key is the rest stretched 10 % along the strip and not across: its edges' ratios lie between
     assert units / 1.1 * (1 - 1e-3) <= found <= units * (1 + 1e-3)
     for taken in (rest, rest * 1.04):
@@ -283,6 +285,50 @@ def test_the_rest_pose_scale_is_the_median_edge_ratio():
     check_rest_scale(vertices * REST_SCALE_LIMIT, vertices, triangles)  # the limit itself is taken
     with pytest.raises(MeshError, match="rest_pose is 2.01 ×"):
         check_rest_scale(vertices * 2.01, vertices, triangles)
+
+
+def test_a_rest_pose_at_one_point_is_refused_not_read_as_the_keys_size():
+    """A rest of zeros (an array never filled) or with most of its vertices at one point has no edge
+    lengths to measure the keys from. Before, its edges of length 0 were left out of the median and it
+    read 1 × the first key's size (none left) or only its few whole edges' ratio: the zeros were taken,
+    and every gap of the strip was warned, the first one too, within the issue's bound from the true
+    rest. Now both are refused naming ``rest_pose``; a rest with a few edges of length 0 is taken at
+    the median of all the first key's edges."""
+    keys, rest, triangles = _stretched_wave(first_stretch=1.1)
+    keys = keys[:1] + [_waved(rest, np.radians(60), k * np.radians(90)) for k in range(5)]
+    crowded = rest.copy()
+    crowded[: 3 * len(rest) // 4] = rest[0]
+    for bad in (np.zeros_like(rest), crowded):
+        with pytest.raises(MeshError, match="rest_pose has most of its edges of length 0"):
+            SequenceInterpolator(keys, triangles, rest_pose=bad)
+    from core.rest_pose_scale import rest_scale
+
+    nicked = rest.copy()
+    nicked[1] = nicked[0]  # one edge of length 0, its neighbours' lengths changed
+    lengths = [np.linalg.norm(x[triangles[:, [1, 2, 0]]] - x[triangles], axis=2) for x in (nicked, keys[0])]
+    assert rest_scale(nicked, keys[0], triangles) == pytest.approx(np.median(lengths[0] / lengths[1]), rel=1e-12)
+    SequenceInterpolator(keys, triangles, rest_pose=nicked)
+
+
+def test_a_retime_of_a_mesh_that_grows_past_twice_its_size_is_not_refused_for_a_rest_nobody_gave():
+    """Eleven samples of a waving sheet growing to 4 × its size (a shape key's grow effect, a balloon
+    inflating), retimed at half speed keyed every 4th: nobody gives a ``rest_pose``, yet the short
+    last gap's sequence (samples 4, 6, 8, 10) is given sample 0 as its rest, 0.45 × its first key, and
+    is refused "rest_pose is 0.4545 × …, likely in other units" (Retime in Blender fails so on a shape
+    key growing 5 ×; before 6574803 the same retime ran). It runs: the short gap measures from its own
+    first key where sample 0 is past the limit."""
+    from core.retime import retime
+
+    vertices, triangles = grid(9)
+    source = []
+    for i in range(11):
+        size = 1.0 + 0.3 * i
+        pose = vertices * size
+        pose[:, 2] = 0.1 * size * np.sin(3.0 * vertices[:, 0] + 0.3 * i)
+        source.append(pose)
+    out = retime(np.array(source), triangles, step=4, speed=0.5)
+    keys = np.array(source, dtype=np.float32)[[0, 4, 8, 10]]
+    np.testing.assert_allclose(out[[0, 8, 16, 20]], keys, atol=1e-5)  # at half speed, the keys at output 0, 8, 16, 20
 
 
 def test_a_retimes_short_last_gap_measures_from_the_whole_sequences_first_sample():
