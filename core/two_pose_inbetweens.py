@@ -259,7 +259,8 @@ class Interpolator:
             return signed_deviation(np.sqrt(self._squared_lengths(x)), np.sqrt(self._squared_target(s, log)))
 
         said = misfit_warning({factor: misfit}, [factor], misfit_allowed([0.0, self._apart]), names, signed, names[0],
-                              advice=f"interpolate {names[0]} and {names[1]} as a sequence with a pose between them")
+                              advice=f"add a pose between {names[0]} and {names[1]} and in-between each half (or "
+                                     "interpolate the three as a sequence)")
         return [] if said is None else [("fit", said[0], 0, said[1], said[2])]
 
     def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...], float]]:

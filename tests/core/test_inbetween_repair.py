@@ -1045,6 +1045,73 @@ def test_a_count_after_another_counts_what_a_count_of_its_own_counts():
     np.testing.assert_array_equal(gap.repair.counted(twice, s, scale), alone[2])
 
 
+def test_every_count_after_another_over_random_repairs_counts_what_a_count_of_its_own_counts(monkeypatch):
+    """The reuse of the last count (``_rechecked``) over random series of repairs of the curling
+    finger at ¼, ½, ¾ in one scope each, every count against a count of the same pose made alone:
+    fans folded over, regions moved by 1e-9 to 0.05, the pose counted before changed in place,
+    coordinates set to 0.0 and −0.0 (not moved to the check: no comparison reads a zero's sign),
+    a corner put on another (collapsed), a vertex not finite (every triangle a defect, the next
+    count against the last finite one), the whole pose moved, another factor counted between and a
+    scale made anew (not the kept one). Triangle by triangle the same; most counts rechecked."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from core import inbetween_defects
+    from test_inbetween_untangling import _pushed_past
+
+    keys, tri, gap, x0, curl, centre = _two_pose_finger()
+    repair, rng, rechecked = gap.repair, np.random.default_rng(7), []
+    real = inbetween_defects.DefectChecks._rechecked
+
+    def counting(self, *args):
+        made = real(self, *args)
+        rechecked.append(made is not None)
+        return made
+
+    monkeypatch.setattr(inbetween_defects.DefectChecks, "_rechecked", counting)
+
+    def alone(y, s, scale):  # in another thread: outside this thread's scope, nothing reused
+        return other.submit(repair.counted, y.copy(), s, scale).result()
+
+    n, total = len(x0), 0
+    with ThreadPoolExecutor(1) as other:
+        for series in range(6):
+            s = (0.25, 0.5, 0.75)[series % 3]
+            with repair.fields_kept():
+                scale = repair.factor_area_scale(s)
+                y = (x0 if series % 2 else curl).copy()
+                for step in range(20):
+                    near = np.flatnonzero(np.linalg.norm(y - y[rng.integers(n)], axis=1) < 0.1)
+                    change = rng.integers(8)
+                    if change == 0:
+                        y = _pushed_past(y, tri, int(rng.integers(n)))
+                    elif change == 1:
+                        y = y.copy()
+                        y[near] += rng.normal(scale=rng.choice([1e-9, 1e-3, 0.05]), size=(near.size, 3))
+                    elif change == 2:  # the array counted before, changed in place
+                        y[near] += rng.normal(scale=0.02, size=(near.size, 3))
+                    elif change == 3:
+                        y[near, rng.integers(3)] = rng.choice([0.0, -0.0])
+                    elif change == 4:
+                        corners = tri[rng.integers(len(tri))]
+                        y = y.copy()
+                        y[corners[0]] = y[corners[1]]
+                    elif change == 5:
+                        y = y.copy()
+                        y[rng.integers(n), rng.integers(3)] = np.nan
+                    elif change == 6:
+                        y = y + rng.normal(scale=1e-3, size=y.shape)
+                    else:
+                        between = 0.5 if s != 0.5 else 0.25  # another factor counted between
+                        repair.counted(y, between, repair.factor_area_scale(between))
+                        scale = scale if rng.random() < 0.5 else gap.area_scale(s)
+                    expected = alone(y, s, scale)
+                    np.testing.assert_array_equal(repair.counted(y, s, scale), expected)
+                    total += 1
+                    if not np.isfinite(y).all():
+                        y = np.where(np.isfinite(y), y, x0)
+    assert total == 120 and sum(rechecked) > 40  # the reuse was taken, not only the whole check
+
+
 def test_a_regions_check_tests_pieces_as_turning_whole_only_where_a_candidate_field_faces_away(monkeypatch, strip):
     """What a region's check asks of the whole mesh (``_whole_may_pass``) where its candidates
     (triangles facing away from both keys) follow their interpolated normals: where none of those

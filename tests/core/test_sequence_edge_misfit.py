@@ -92,7 +92,8 @@ def test_two_poses_warn_where_their_in_between_ends_off_the_interpolated_edge_le
     exactly where its edges, measured here against the keys' squared lengths averaged, are farther
     off on average than the poses' own edge deviation allows (twice the mean of 0 and the second
     pose's deviation from the first + 0.1 point, at least 0.3 %), its excess that misfit ÷ the
-    allowance, telling the caller to interpolate the two as a sequence with a pose between them.
+    allowance, telling the caller to add a pose between the two and in-between each half (the In-between
+    operator takes two keys: a sequence of three is the API's).
     Before, two poses never said it: their fits are anchored and keep no misfit of their own, and
     the waved strip's in-betweens, compressed 0.4–10 % (the wave travelling 90–150° between the
     poses), were silent."""
@@ -113,7 +114,7 @@ def test_two_poses_warn_where_their_in_between_ends_off_the_interpolated_edge_le
             assert message.excess == pytest.approx(misfit / allowed, rel=1e-6)
             assert message.gap == ("vertices_a", "vertices_b") and message.factors == (0.5,)
             assert "shorter than the keys' edge lengths interpolated" in str(message)
-            assert "interpolate vertices_a and vertices_b as a sequence with a pose between them" in str(message)
+            assert "add a pose between vertices_a and vertices_b and in-between each half" in str(message)
         warned.append(bool(said))
     assert any(warned) == (step >= 90)  # the property is exercised both ways
 
