@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import ShapeDifferenceError, ShapeDifferenceWarning, unexpected_failure, warn
+from .gap_processes import start_worker
 from .heartbeat import HEARTBEAT_SECONDS, Heartbeat
 from .heartbeat import line as _line
 from .heartbeat import whole
@@ -264,13 +265,16 @@ def _retime_in(args, progress: Heartbeat) -> int:
         # said as the core's warnings are (_warnings_as_lines), and counted with them
         warn(f"the frame times of '{args.cache}' are not evenly spaced and increasing (or not finite); its frames "
              "are retimed in the file's order as if they were", "frame_times")
+    plan = plan_retime(cache.n_samples, args.step, args.speed)
+    # the in-betweens' second process started before the OBJ and the keys' samples are read, where the
+    # retime's sequence may share its gaps with it: its start overlaps the reading (core.gap_processes)
+    start_worker(cache.n_points, plan.n_gaps, args.k_m or None)
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
             f"'{args.topology}' has {len(rest)} vertices but '{args.cache}' has {cache.n_points} points: "
             "export the OBJ from the same mesh, without modifiers that change its vertices."
         )
-    plan = plan_retime(cache.n_samples, args.step, args.speed)
     read = np.asarray(plan.samples_read, dtype=int)
     samples = _SamplesRead(cache, read)
     broken = read[[not np.isfinite(samples[sample]).all() for sample in read]]

@@ -10,7 +10,8 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
 :class:`~core.sequence_inbetweens.SequenceInterpolator`) does:
 
 - *The worker.* One process per Python session (:func:`kept_worker`), started when the first
-  sequence that could share its gaps is built and kept for the next ones: its start (a fresh
+  sequence that could share its gaps is built, or before its keys are read (:func:`start_worker`),
+  and kept for the next ones: its start (a fresh
   interpreter importing NumPy, SciPy and the core, 0.4–0.5 s) overlaps the caller's first gaps,
   which the caller computes as before (threads, the next gap begun ahead) until the worker is
   ready. It is spawned, never forked (Blender's process has many threads), as ``sys.executable
@@ -62,6 +63,8 @@ import threading
 import time
 import weakref
 from contextlib import nullcontext
+
+import numpy as np
 
 from . import concurrency, errors
 from .inbetween_threads import CONCURRENT_VERTICES
@@ -280,6 +283,26 @@ def shares_gaps(vertices: int, k_M) -> bool:
             and CONCURRENT_VERTICES <= vertices <= PROCESS_VERTICES and concurrency.available_cores() >= 2)
 
 
+def start_worker(vertices: int, gaps: int = 2, k_M: int | None = None) -> bool:
+    """Start the session's worker now, where a sequence of ``vertices`` vertices, ``gaps`` key gaps
+    and truncated metric ``k_M`` (None: the full basis) would share its gaps (:func:`shares_gaps`,
+    two gaps or more), so that its start (a fresh interpreter importing NumPy, SciPy and the core,
+    0.2–0.5 s) overlaps the caller's reading of the keys rather than its first gaps: the *In-between
+    Frames* and *Retime* operators before they read the frames, ``python -m core retime`` before it
+    reads the samples, a pipeline before it loads its keys. Nothing is started elsewhere (a small
+    mesh, one core, ``SHAPE_DIFFERENCES_PROCESSES=0``), nor where one is running already. Returns
+    whether the worker is running (ready or getting ready); the in-betweens are the same to the
+    bit either way. Raises :class:`~core.errors.MeshError` for a count that is not a whole number."""
+    counts = {"vertices": vertices, "gaps": gaps}
+    for name, count in counts.items():
+        if isinstance(count, bool) or not isinstance(count, (int, np.integer)):
+            raise errors.MeshError(f"start_worker: {name} = {count!r} must be a whole number (the sequence's "
+                                   f"{'vertex' if name == 'vertices' else 'key gap'} count)")
+    if gaps < 2 or not shares_gaps(int(vertices), k_M):
+        return False
+    return kept_worker() is not None
+
+
 def worker_cpu(settle: float = 10.0) -> float:
     """CPU seconds the workers of this process have used (for a benchmark: its own CPU time counts
     only its own process), once the worker has finished its jobs (waited up to ``settle`` s)."""
@@ -335,9 +358,8 @@ class GapProcesses:
         """Keep the constructor's ``arguments`` and start the worker (it gets ready while the caller's
         first gaps are computed), where this sequence may share its gaps."""
         _sequences.add(self)
-        if len(self) >= 2 and shares_gaps(self._topo.n, self.k_M):
+        if start_worker(self._topo.n, len(self), self.k_M):
             self._worker_arguments = arguments
-            kept_worker()
 
     def will_ask(self, calls) -> None:
         """Say which calls of :meth:`poses` come next, in order: ``calls`` pairs ``(gap, factors)``

@@ -339,6 +339,9 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # of the first and last gaps of the sequence keyed (core.retime.motion_ends)
         middles = [ends[3] for ends in (retime.start_samples(keyed), retime.end_samples(keyed, tail))
                    if ends and ends[3] is not None]
+        # the in-betweens' second process started now, where the sequence may share its gaps with it: its
+        # start overlaps the reading of the frames rather than the first gaps (core.gap_processes)
+        start_gap_worker(len(obj.data.vertices), len(keyed) - 1, options["k_M"])
         # a range starting inside a cloth or soft body simulation: its first frame read too, the rest the
         # warnings measure the edges from
         rest = SimulationRest(context.scene, obj, frames[0])
@@ -462,6 +465,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))
         self.check_captured_output(obj, keyframed=True)
+        # as for In-between Frames: the second process started before the frames are read
+        start_gap_worker(len(obj.data.vertices), plan.n_gaps, options["k_M"])
         # the keys and the other samples the retime reads (core.retime.RetimePlan.samples_read: the shorter
         # last gap's keys, the middles of the first and last gaps); a range starting inside a cloth or soft
         # body simulation: its first frame too, the rest the warnings measure the edges from
@@ -514,3 +519,12 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
 def load_core_retime():
     from ..core import retime
     return retime
+
+
+def start_gap_worker(vertices: int, gaps: int, k_M: int | None) -> None:
+    """Start the in-betweens' second process (:func:`core.gap_processes.start_worker`) where a sequence
+    of ``vertices`` vertices, ``gaps`` key gaps and basis size ``k_M`` (None: full) may share its gaps
+    with it; nothing elsewhere (small meshes, one core, processes off)."""
+    from ..core.gap_processes import start_worker
+
+    start_worker(vertices, gaps, k_M)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from core import concurrency, gap_processes, retime
-from core.errors import RecoveryError, ShapeDifferenceWarning
+from core.errors import MeshError, RecoveryError, ShapeDifferenceWarning
 from core.sequence_inbetweens import SequenceInterpolator
 from meshes import drape, grid
 
@@ -264,3 +264,65 @@ def test_the_worker_loads_the_core_under_a_private_name():
     private = gap_processes.PRIVATE_NAME
     assert {private, private + ".sequence_inbetweens", private + ".gap_worker"} <= set(worker.modules)
     assert [m for m in worker.modules if not m.startswith(private)] == []
+
+
+def test_start_worker_starts_one_only_where_a_sequence_would_share_its_gaps(monkeypatch):
+    """``start_worker`` (what the operators and ``python -m core retime`` call before they read the
+    keys) starts the worker for a sequence that shares its gaps, and the sequence built after uses
+    that worker; nothing below the vertex threshold, above PROCESS_VERTICES, with one gap, a truncated
+    metric, one core or processes off. Counts that are not whole numbers are refused."""
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "CONCURRENT_VERTICES", 100)
+    for vertices, gaps, k_M in ((99, 5, None), (gap_processes.PROCESS_VERTICES + 1, 5, None), (150, 1, None),
+                                (150, 5, 20)):
+        assert not gap_processes.start_worker(vertices, gaps, k_M) and gap_processes._worker is None
+    for patched in ((concurrency, "available_cores", lambda: 1), (concurrency, "USE_PROCESSES", False)):
+        with monkeypatch.context() as patch:
+            patch.setattr(*patched)
+            assert not gap_processes.start_worker(150, 5) and gap_processes._worker is None
+    for vertices, gaps in ((150.0, 5), (True, 5), ("150", 5), (150, 5.0)):
+        with pytest.raises(MeshError, match="whole number"):
+            gap_processes.start_worker(vertices, gaps)
+    assert gap_processes.start_worker(np.int64(150), 5)
+    started = gap_processes._worker
+    assert started is not None and started.alive
+    assert gap_processes.start_worker(150, 5) and gap_processes._worker is started  # kept, not another
+    given, _ = _counted_jobs(monkeypatch)
+    _ready_worker()
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)
+    assert given and gap_processes._worker is started
+    _same(shared, _one_process(requests, monkeypatch))
+
+
+@pytest.mark.parametrize("eligible", [True, False], ids=["shared", "small"])
+def test_the_retime_command_starts_the_worker_before_it_reads_the_keys(monkeypatch, tmp_path, eligible):
+    """``python -m core retime`` on a mesh whose sequence shares its gaps has the worker started when
+    it reads the OBJ (before the keys' samples), and writes the file one process writes, byte for
+    byte; on a mesh below the threshold no worker is started at all."""
+    from core import __main__ as command
+    from core.obj_file import write_obj
+    from core.point_cache import write_pc2
+
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "CONCURRENT_VERTICES", 100 if eligible else 151)
+    cache = write_pc2(tmp_path / "in.pc2", np.array(KEYS), start=1.0)
+    topology = write_obj(tmp_path / "sheet.obj", KEYS[0], TRIANGLES)
+    running = []
+    read_obj = command.read_obj
+
+    def reading(path):
+        running.append(gap_processes._worker is not None)
+        if running[-1]:  # ready before the gaps, which take milliseconds here: the worker takes its share
+            _ready_worker()
+        return read_obj(path)
+
+    monkeypatch.setattr(command, "read_obj", reading)
+    given, _ = _counted_jobs(monkeypatch)
+    arguments = ["retime", str(cache), "--topology", str(topology), "--step", "1", "--speed", "0.4", "-q"]
+    assert command.main([*arguments, "-o", str(tmp_path / "shared.pc2")]) == 0
+    assert running == [eligible] and (gap_processes._worker is not None) == eligible and bool(given) == eligible
+    with monkeypatch.context() as patch:
+        patch.setattr(concurrency, "USE_PROCESSES", False)
+        assert command.main([*arguments, "-o", str(tmp_path / "alone.pc2")]) == 0
+    assert (tmp_path / "shared.pc2").read_bytes() == (tmp_path / "alone.pc2").read_bytes()
