@@ -46,8 +46,9 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   :data:`START_TIMEOUT` seconds is ended and not tried again in the session.
   :data:`core.concurrency.USE_PROCESSES` (``SHAPE_DIFFERENCES_PROCESSES=0``) turns it off. A caller off
   its visit (another gap or factors than it said or than in order) drops the worker's gaps, as
-  does a sequence let go; :func:`stop` (the operators' Esc) drops every sequence's and cancels
-  their calls begun ahead. The worker ends with the session (:mod:`atexit`) or when the
+  does a sequence let go; :func:`stop` (the operators' Esc) drops every sequence's, lets a call
+  waiting for one go (computed in the caller) and cancels their calls begun ahead. A process
+  forked from the caller forgets its worker (:func:`_forgotten_after_fork`). The worker ends with the session (:mod:`atexit`) or when the
   caller's process is gone (its input closes).
 """
 
@@ -136,7 +137,7 @@ class _Worker:
             raise OSError(f"no Python interpreter to start ({executable!r})")
         path = [os.path.abspath(entry) if entry else os.getcwd() for entry in sys.path]
         self.process = subprocess.Popen([executable, "-I", "-c", BOOT, _FOLDER, PRIVATE_NAME, *path],
-                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=_worker_errors(),
                                         env={**os.environ, **WORKER_ENVIRONMENT})
         self.started = time.monotonic()
         self.ready = False
@@ -169,6 +170,15 @@ class _Worker:
                 return
         self._send(("drop", job))
 
+    def drop_soon(self, job: int) -> None:
+        """:meth:`drop`, sent by a thread of its own: for a sequence's finalizer, which the cyclic
+        garbage collector may run inside any allocation, this thread's :meth:`_send` included, whose
+        lock it would wait for forever."""
+        try:
+            threading.Thread(target=self.drop, args=(job,), daemon=True, name="gap-worker-drop").start()
+        except RuntimeError:  # the interpreter is ending: so is the worker (shut_down)
+            pass
+
     def outcome(self, job: _Job, key: tuple, steal=None):
         """The worker's message on call ``key`` of ``job``, waited for; None where it will send none.
         While it is not there and the worker has :data:`TAKEN_BACK_LEAST` calls of ``job`` or more not
@@ -187,6 +197,13 @@ class _Worker:
                 factors = job.calls.pop(call)
             self._send(("skip", job.id, *call))
             steal(call, factors)
+
+    def let_go(self, job: _Job) -> None:
+        """Wait no more for the worker's messages on ``job`` (dropped): a call waiting in
+        :meth:`outcome` takes what has come and computes the rest itself."""
+        with self.condition:
+            job.ended = True
+            self.condition.notify_all()
 
     def _send(self, message) -> bool:
         try:
@@ -251,6 +268,16 @@ class _Worker:
             self.process.wait()
         self._gone()
         self._reader.join(timeout=1.0)
+
+
+def _worker_errors():
+    """Where the worker's standard error goes: the caller's (a farm job's log, Blender's console),
+    or nowhere where the caller has none (its descriptor 2 closed: a worker given none fails to start)."""
+    try:
+        os.fstat(2)
+    except OSError:
+        return subprocess.DEVNULL
+    return None
 
 
 def kept_worker() -> _Worker | None:
@@ -338,6 +365,35 @@ def shut_down() -> None:
 atexit.register(shut_down)
 
 
+def _forgotten_after_fork() -> None:
+    """In a child process forked from this one: the worker is the parent's (its messages are read
+    by the parent's thread, which does not exist here, so a call waiting for one would wait for
+    ever; what the child wrote on its pipe would mix with the parent's messages), so the child
+    forgets it: its sequences compute the calls they gave it themselves, and the next sequence that
+    shares gaps starts a worker of the child's own. The locks are made anew (one the parent's threads
+    held at the fork would never be given back), and the child's copies of the pipes are closed (the
+    worker sees its input close when the parent ends, whatever the child does)."""
+    global _worker, _worker_lock
+    worker, _worker = _worker, None
+    _worker_lock = threading.Lock()
+    if worker is None:
+        return
+    worker.condition, worker._write_lock = threading.Condition(), threading.Lock()
+    worker.alive = False
+    for job in worker.jobs.values():
+        job.ended = True
+    worker.jobs.clear()
+    for stream in (worker.process.stdin, worker.process.stdout):
+        try:
+            stream.raw.close()  # the descriptor only: nothing the parent had buffered is written again
+        except (AttributeError, OSError, ValueError):
+            pass
+
+
+if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
+    os.register_at_fork(after_in_child=_forgotten_after_fork)
+
+
 class GapProcesses:
     """A sequence's gaps shared with the worker process (see the module)."""
 
@@ -376,9 +432,14 @@ class GapProcesses:
 
     def _stop_background(self) -> None:
         """:func:`stop` for this sequence: the call under way begins nothing more in the background
-        (``_halted``, cleared by the next call), the worker's gaps dropped, the call held ahead cancelled."""
+        (``_halted``, cleared by the next call), the worker's gaps dropped and a call waiting for one
+        of them let go at once (it computes its gap itself: a worker that hangs would hold it for
+        ever), the call held ahead cancelled."""
         self._halted = True
+        jobs = self._jobs
         self._drop_jobs()
+        for worker, job in jobs:
+            worker.let_go(job)
         held = self._ahead
         if held is not None:
             held[2].cancel()  # not begun: the call that asks for it computes it
@@ -439,7 +500,8 @@ class GapProcesses:
             self._jobs = (*self._jobs, (worker, job))
             if "_taken_back" not in vars(self):
                 self._taken_back = {}
-            weakref.finalize(self, worker.drop, job.id)  # a sequence let go leaves its gaps undone
+            # a sequence let go leaves its gaps undone (not at exit: shut_down ends the worker)
+            weakref.finalize(self, worker.drop_soon, job.id).atexit = False
 
     def _taken_from_worker(self, worker: _Worker, job: _Job, gap: int, factors: list[float], bits: tuple):
         """The worker's outcome of call ``(gap, bits)`` of ``job`` (see :meth:`_from_worker`); while

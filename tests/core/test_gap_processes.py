@@ -5,7 +5,13 @@ the worker's core loaded under a private name. Small meshes: the vertex threshol
 
 from __future__ import annotations
 
+import os
+import pickle
 import shutil
+import signal
+import subprocess
+import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -326,3 +332,123 @@ def test_the_retime_command_starts_the_worker_before_it_reads_the_keys(monkeypat
         patch.setattr(concurrency, "USE_PROCESSES", False)
         assert command.main([*arguments, "-o", str(tmp_path / "alone.pc2")]) == 0
     assert (tmp_path / "shared.pc2").read_bytes() == (tmp_path / "alone.pc2").read_bytes()
+
+
+def _digest(answers) -> list:
+    """The bytes of each answer's poses (or its error) and its warnings, to compare across processes."""
+    return [(x.tobytes() if isinstance(x, np.ndarray) else x, said) for x, said in answers]
+
+
+def _slowed_at_gap_3(monkeypatch, tmp_path, seconds: float, first_calls: int):
+    """A new worker whose core pauses ``seconds`` at gap 3, a sequence of the spun sheet and the
+    answers of its first ``first_calls`` calls (gaps in order at 15 factors): the worker then holds
+    gaps 3 and 4. ``(sequence, answers, the gaps taken from the worker, worker)``."""
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 3, f"_time.sleep({seconds})")))
+    worker = _ready_worker()
+    given, taken = _counted_jobs(monkeypatch)
+    sequence = SequenceInterpolator(KEYS, TRIANGLES)
+    answers = _asked(sequence, [(gap, SIXTEENTHS) for gap in range(first_calls)])
+    assert given == [[3, 4]]
+    return sequence, answers, taken, worker
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this system")
+def test_a_child_forked_while_the_worker_holds_gaps_computes_them_itself(monkeypatch, tmp_path):
+    """A process forked while the worker (slowed at gap 3) holds a sequence's gaps 3 and 4: the
+    worker's messages are read by the parent's thread, which the child does not have, so the child
+    computes those gaps itself (one process's poses and warnings) rather than wait for ever (before:
+    the child hung at gap 3, ended here by its alarm); the parent still gets them from the worker."""
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    try:
+        sequence, first, taken, _ = _slowed_at_gap_3(monkeypatch, tmp_path, 3.0, 1)
+        reading, writing = os.pipe()
+        child = os.fork()
+        if child == 0:  # the child: its answers through the pipe, or its error's name
+            try:
+                signal.alarm(60)
+                out = pickle.dumps(_digest(first + _asked(sequence, requests[1:])))
+            except BaseException as error:
+                out = pickle.dumps(repr(error))
+            finally:
+                with os.fdopen(writing, "wb") as pipe:
+                    pipe.write(out)
+                os._exit(0)
+        os.close(writing)
+        with os.fdopen(reading, "rb") as pipe:
+            in_child = pickle.loads(pipe.read() or pickle.dumps("no answer"))
+        _, status = os.waitpid(child, 0)
+        in_parent = first + _asked(sequence, requests[1:])
+        assert 3 in taken and 4 in taken  # the parent's from its worker
+    finally:
+        gap_processes.shut_down()
+    assert os.waitstatus_to_exitcode(status) == 0
+    alone = _digest(_one_process(requests, monkeypatch))
+    assert in_child == alone and _digest(in_parent) == alone
+
+
+def test_stop_lets_a_caller_waiting_for_the_worker_go(monkeypatch, tmp_path):
+    """stop() (the operators' Esc, from another thread) while the caller waits for a gap the worker
+    has begun and takes 40 s on: the caller computes it itself at once, one process's poses (before:
+    it waited the worker's 40 s, for ever where the worker hangs)."""
+    try:
+        sequence, shared, _, _ = _slowed_at_gap_3(monkeypatch, tmp_path, 40.0, 3)
+        escape = threading.Timer(1.0, gap_processes.stop)
+        escape.start()
+        began = time.monotonic()
+        shared += _asked(sequence, [(3, SIXTEENTHS)])
+        waited = time.monotonic() - began
+        escape.join()
+        shared += _asked(sequence, [(4, SIXTEENTHS)])
+    finally:
+        gap_processes.shut_down()
+    assert waited < 20.0
+    _same(shared, _one_process([(gap, SIXTEENTHS) for gap in range(5)], monkeypatch))
+
+
+def test_a_sequence_let_go_inside_the_pipes_lock_drops_its_gaps(monkeypatch, tmp_path):
+    """A sequence whose gaps the worker holds let go while the caller's thread holds the pipe's lock
+    (the cyclic garbage collector runs finalizers inside any allocation, a message's pickling
+    included): its drop still reaches the worker, which never begins gap 4, without waiting for that
+    lock (before: the thread waited for its own lock for ever)."""
+    try:
+        sequence, _, _, worker = _slowed_at_gap_3(monkeypatch, tmp_path, 3.0, 1)
+        (job,) = worker.jobs.values()
+        held = [sequence]
+        del sequence
+
+        def let_go():
+            with worker._write_lock:
+                held.clear()  # its last reference: the finalizer runs here
+
+        thread = threading.Thread(target=let_go, daemon=True)
+        thread.start()
+        thread.join(10.0)
+        stuck = thread.is_alive()
+        if stuck:
+            worker._write_lock = threading.Lock()  # so that shut_down can write
+        deadline = time.monotonic() + 30
+        while not worker.idle() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert not stuck and worker.idle()
+        assert 4 not in {gap for gap, _ in job.begun}  # dropped before gap 3's 3 s were over
+    finally:
+        gap_processes.shut_down()
+
+def test_a_caller_without_standard_error_still_starts_a_worker():
+    """A caller whose standard error is closed (a daemon, a detached farm job): its worker starts
+    and says it is ready (before: it started with no standard error, failed at once, and the
+    session gave up on workers)."""
+    script = ("import os, time\n"
+              "from core import concurrency, gap_processes\n"
+              "worker = gap_processes.kept_worker()\n"
+              "deadline = time.monotonic() + 120\n"
+              "while not worker.ready and worker.alive and time.monotonic() < deadline:\n"
+              "    time.sleep(0.01)\n"
+              "os.write(1, repr((worker.ready, worker.alive)).encode())\n"
+              "gap_processes.shut_down()\n")
+    root = Path(gap_processes.__file__).parents[1]
+    told = subprocess.run([sys.executable, "-c", script], cwd=root, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
+                          pass_fds=(), preexec_fn=lambda: os.close(2), timeout=300,
+                          env={**os.environ, "PYTHONPATH": str(root)})
+    assert told.stdout.decode() == "(True, True)"
