@@ -138,7 +138,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0, sewn=None,
-                 left: np.ndarray | None = None, outer: tuple | None = None):
+                 left: np.ndarray | None = None, corrections: tuple | None = None):
         self.topo, self.base, self.next = topo, base, nxt
         # groups of vertices both keys keep together along a seam, each one unknown in every solve
         # (core.sewn_seams.SewnGroups), or None
@@ -183,9 +183,9 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                         (self.per_element(name, exit[0]), exit[1].get(name)))
 
         def hermite(name: str, values: list) -> HermiteGap:
-            # the keys' positions two away (outer: (x₋₂, x₃), each or None) give the world
-            # spline's tangents the five keys' central difference (splines.FIVE_KEY_LIMIT)
-            return HermiteGap(values, cubic, **options(name), outer=outer if name == "world" else None)
+            # the five keys' corrections to the world spline's start / end tangents (each (n, 3) or
+            # None: splines.five_key_tangent_correction, FIVE_KEY_LIMIT)
+            return HermiteGap(values, cubic, **options(name), corrections=corrections if name == "world" else None)
 
         # the pieces' screws splined in their principal frames in the base key, about their
         # centroids (see ScrewGap); a linear spline limits nothing and stays in the world's
@@ -202,7 +202,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # mid-gap strain, Guide.turning_as_a_whole) were set on it, and a piece turning as a whole
         # keeps its co-moving guide (None: the world spline's own)
         self._chords_middle = None
-        if cubic and outer is not None and any(keys is not None for keys in outer):
+        if cubic and corrections is not None and any(c is not None for c in corrections):
             self._chords_middle = HermiteGap([r.world for r in relatives], cubic, **options("world")).at(0.5)
         # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
         spline["screw"] = ScrewGap([r.screw for r in relatives[:3]] + [relatives[3].continued_screw], pieces, cubic,

@@ -66,7 +66,7 @@ from .sequence_gap_starts import GapStarts
 from .sequence_gaps_ahead import GapsAhead
 from .gap_processes import GapProcesses
 from .sequence_half_turns import HalfTurns, turning_as_one, untold_half_turns
-from .sequence_keys import GAP_CACHE, SequenceKeys
+from .sequence_keys import GAP_CACHE, KEY_CACHE, SequenceKeys
 from .inbetween_joint_doubts import joint_warnings
 from .sequence_bent_parts import (BENT_PART_TURN, HIDDEN_PART_MEAN, ISOMETRIC, RIGID_BENT_TURN, RIGID_METRIC,
                                   RIGID_METRIC_CAP, TWO_KEY_BENT_TURN, bent_part_turns, hidden_rigid_turn,
@@ -74,6 +74,7 @@ from .sequence_bent_parts import (BENT_PART_TURN, HIDDEN_PART_MEAN, ISOMETRIC, R
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
+from .splines import five_key_tangent_correction
 from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
 from .rest_pose_scale import check_rest_scale
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
@@ -428,21 +429,29 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     hooked=self._hooked, turning=turning, root=root, left=left, log_metric=self._log_metric,
                     unit=self._unit,
                     sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit),
-                    outer=self._outer_keys(gap) if cubic else None)
+                    corrections=(self._tangent_correction(gap), self._tangent_correction(gap + 1)) if cubic else None)
 
-    def _outer_keys(self, gap: int) -> tuple[np.ndarray | None, np.ndarray | None]:
-        """The keys' positions two keys beyond gap ``gap``'s neighbours, ``(x[gap − 2], x[gap + 3])``,
-        each None where that key or the neighbour on the other side is missing (a sequence's end)
-        or the five keys around the tangent's key are unevenly spaced: the world spline's tangents
-        there are the five keys' central difference (:data:`~core.splines.FIVE_KEY_LIMIT`)."""
+    def _tangent_correction(self, key: int) -> np.ndarray | None:
+        """The five keys' correction to Catmull–Rom's tangent of the world spline of positions at key
+        ``key`` (n, 3; :func:`~core.splines.five_key_tangent_correction`, :data:`~core.splines.FIVE_KEY_LIMIT`),
+        or None where a key two away on either side is missing (a sequence's end: no phantom key) or
+        the five keys are unevenly spaced. Made once for both gaps that meet at the key (read-only),
+        kept for the last :data:`KEY_CACHE` keys."""
         x, d, last = self._raw, self._durations, len(self._raw) - 1
-
-        def even(first: int) -> bool:  # the four gaps from key ``first`` on are one duration
-            return np.ptp(d[first:first + 4]) == 0
-
-        before = x[gap - 2] if gap >= 2 and gap + 2 <= last and even(gap - 2) else None
-        after = x[gap + 3] if gap >= 1 and gap + 3 <= last and even(gap - 1) else None
-        return before, after
+        if not 2 <= key <= last - 2 or np.ptp(d[key - 2:key + 2]) != 0:
+            return None
+        with self._cache_lock:
+            known = self._corrections.get(key)
+            if known is not None:
+                self._corrections.move_to_end(key)
+                return known
+        correction = five_key_tangent_correction(*x[key - 2:key + 3])
+        correction.flags.writeable = False
+        with self._cache_lock:
+            self._corrections[key] = correction
+            while len(self._corrections) > KEY_CACHE:
+                self._corrections.popitem(last=False)
+        return correction
 
     def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...], float]]:
         """The warnings ``(kind, message, 0, (), excess)`` of gap ``gap`` (its data ``segment``) that hold for every

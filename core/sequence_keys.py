@@ -199,6 +199,7 @@ class SequenceKeys:
         self._centroids = np.array([self._topo.centroids(k) for k in keys])
         self._keys: OrderedDict[int, Key] = OrderedDict()
         self._fitted: OrderedDict[tuple, tuple] = OrderedDict()  # (base, other) → rigid fits (see _fits)
+        self._corrections: OrderedDict[int, np.ndarray] = OrderedDict()  # key → its tangent correction (_tangent_correction)
         self._gaps: OrderedDict[int, Gap] = OrderedDict()
         # base key → its next key seen from it as the base's gap made it (_relatives): the gap after
         # reads it inverted (_previous), also where the gap's own were taken whole or let go

@@ -55,7 +55,8 @@ END_TANGENT_LIMIT = 3.0
 #: impact). The correction's length is limited to FIVE_KEY_LIMIT × the shorter of ``a`` and ``b``
 #: over 12 (a minmod limiter, as slope limiters take the smoother side): the whole of it where they
 #: agree, none where they point apart (10k drape, keys 4 apart: 0.727 × Catmull–Rom's RMS with
-#: its tangents, 0.920 with the five keys' unlimited, 0.704 limited). Numbers in docs/inbetweens.md.
+#: its tangents, 0.920 with the five keys' unlimited, 0.704 limited), and to the longer chord at
+#: the key (a point's own hold keeps Catmull–Rom's zero tangent). Numbers in docs/inbetweens.md.
 FIVE_KEY_LIMIT = 2.0
 
 
@@ -92,26 +93,26 @@ class HermiteGap:
     :data:`core.inbetween_flight.IMPACT_SLOWDOWN`).
     ``rest_end``: the end tangent is zero (a sequence's last gap whose motion comes to rest at the
     last key: ``end="rest"`` of :class:`core.SequenceInterpolator`).
-    ``outer``: ``(v₋₂, v₃)``, each an array of the values' shape or None, the keys at times −2 and 3
-    (``rows`` only): the tangent at a key with keys two away on both sides is the five keys'
-    central difference, :func:`five_key_tangent_correction` added to Catmull–Rom's, before any
-    limit or replacement above.
+    ``corrections``: ``(c₀, c₁)``, each an array of the values' shape or None: added to Catmull–Rom's
+    start / end tangent before any limit or replacement above — at a key with evenly spaced keys two
+    away on both sides, the five keys' :func:`five_key_tangent_correction` (a sequence makes each
+    key's once for the two gaps that meet there).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
                  parabolic_end: np.ndarray | None = None, entry: tuple | None = None,
                  parabolic_start: np.ndarray | None = None, onward: bool = False, rest_end: bool = False,
-                 exit: tuple | None = None, outer: tuple | None = None):
+                 exit: tuple | None = None, corrections: tuple | None = None):
         before, start, end, after = values
-        before2, after2 = (None, None) if outer is None else outer
+        start_correction, end_correction = (None, None) if corrections is None else corrections
         self.start = start
         self.secant = end - start
         self.cubic = cubic
         if cubic:
             t0 = end - before
             t0 *= 0.5
-            if before2 is not None:
-                t0 += five_key_tangent_correction(before2, before, start, end, after)
+            if start_correction is not None:
+                t0 += start_correction
             if entry is not None:
                 t0 = np.where(entry[0], entry[1], t0)
             # positions: each row's length is limited (rotation invariant, keeps C¹ per point),
@@ -127,8 +128,8 @@ class HermiteGap:
             self.t0 = limited_tangent(t0, limit, start_bound, rows)
             self.t1 = after - start
             self.t1 *= 0.5
-            if after2 is not None:
-                self.t1 += five_key_tangent_correction(before, start, end, after, after2)
+            if end_correction is not None:
+                self.t1 += end_correction
             if parabolic_end is not None:
                 self.t1 = np.where(parabolic_end, 2.0 * self.secant - self.t0, self.t1)
             if exit is not None:
@@ -160,24 +161,38 @@ def five_key_tangent_correction(v_2: np.ndarray, v_1: np.ndarray, v0: np.ndarray
     """What the five keys' central difference ``(8 (v₁ − v₋₁) − (v₂ − v₋₂)) / 12`` adds to Catmull–Rom's
     tangent ``(v₁ − v₋₁) / 2`` at the key ``v0`` from evenly spaced keys ``v_2 … v2`` (points (n, 3)
     at key times −2 … 2), per point (n, 3): ``−(a + b) / 12``, ``a`` and ``b`` the third differences
-    over keys −2 … 1 and −1 … 2, limited where they disagree (see :data:`FIVE_KEY_LIMIT`).
+    over keys −2 … 1 and −1 … 2, limited where they disagree (see :data:`FIVE_KEY_LIMIT`) and to the
+    longer of the chords ``v0 − v₋₁`` and ``v₁ − v0``: where both are zero (a point held still over
+    the two gaps around the key, moving the same way before and after) the third differences come
+    from the keys two away alone, and the correction would move the held point back and forth
+    (4/27 of it at a third of each gap; Catmull–Rom's tangent there is zero).
 
     Catmull–Rom's tangent is exact for quadratic motion; the five keys' for cubic motion too (there
     ``a = b``, the correction is whole), and the cubic Hermite spline with it reproduces cubic motion. A motion smooth over the keys but sampled
     coarsely loses less of its speed: at ``θ`` radians of an oscillation per key Catmull–Rom's
     tangent is ``sin θ / θ`` of the velocity (0.90 at 45°, 0.64 at 90°), the five keys'
     ``(8 sin θ − sin 2θ) / 6θ`` (0.99, 0.85)."""
+    before, after = v0 - v_1, v1 - v0  # the chords either side of the key
     a = v1 - v_2
-    a -= 3.0 * (v0 - v_1)
+    a -= 3.0 * before
     b = v2 - v_1
-    b -= 3.0 * (v1 - v0)
+    b -= 3.0 * after
     aa, bb, ab = (np.einsum("ij,ij->i", x, y) for x, y in ((a, a), (b, b), (a, b)))
     tt = aa + bb + 2.0 * ab  # |a + b|²
-    share = np.sqrt(np.minimum(aa, bb) / np.maximum(tt, np.finfo(float).tiny))
+    with np.errstate(over="ignore"):  # a + b = 0 (a symmetric swing): inf here, zeroed below (ab < 0)
+        share = np.sqrt(np.minimum(aa, bb) / np.maximum(tt, np.finfo(float).tiny))
     share *= FIVE_KEY_LIMIT
     np.minimum(share, 1.0, out=share)
     share[ab <= 0.0] = 0.0
     share *= -1.0 / 12.0
+    # at most the longer chord at the key: a point still over both gaps around it (its own hold
+    # between two motions, which the keys beyond it agree on) keeps Catmull–Rom's tangent, zero
+    chord = np.maximum(np.einsum("ij,ij->i", before, before), np.einsum("ij,ij->i", after, after))
+    length2 = share * share
+    length2 *= tt
+    over = length2 > chord
+    if over.any():
+        share[over] *= np.sqrt(chord[over] / length2[over])
     a += b
     a *= share[:, None]
     return a

@@ -584,11 +584,11 @@ def test_a_relatives_screw_is_made_once_when_first_read_and_is_the_whole_meshs_t
 
 
 def test_five_keys_give_the_positions_cubic_motion_exactly():
-    """With keys two away on both sides (``outer``), the positions' tangents are the five keys'
-    central difference: a point on a cubic path in time is reproduced exactly over the gap, where
+    """With keys two away on both sides (their ``corrections``), the positions' tangents are the five
+    keys' central difference: a point on a cubic path in time is reproduced exactly over the gap, where
     Catmull–Rom's tangents (exact for quadratic motion only) leave it off by up to 0.096 × the
     cubic's coefficient; a point on a parabola stays exact either way."""
-    from core.splines import HermiteGap
+    from core.splines import HermiteGap, five_key_tangent_correction
 
     cubic = np.array([0.4, -0.3, 0.2])
 
@@ -596,7 +596,9 @@ def test_five_keys_give_the_positions_cubic_motion_exactly():
         return np.stack([cubic * t ** 3 + np.array([0.1, 0.5, -0.2]) * t, np.array([0.3 * t * t, -0.2 * t, 0.1])])
 
     values = [path(t) for t in (-1.0, 0.0, 1.0, 2.0)]
-    five = HermiteGap(values, cubic=True, rows=True, outer=(path(-2.0), path(3.0)))
+    corrections = (five_key_tangent_correction(path(-2.0), *values[:4]),
+                   five_key_tangent_correction(*values, path(3.0)))
+    five = HermiteGap(values, cubic=True, rows=True, corrections=corrections)
     four = HermiteGap(values, cubic=True, rows=True)
     for s in np.linspace(0.0, 1.0, 9):
         np.testing.assert_allclose(five.at(s), path(s), atol=1e-12)
@@ -621,3 +623,38 @@ def test_five_keys_do_not_carry_a_stop_a_key_farther():
     cubic = [np.array([[t ** 3 + t, 0.5 * t ** 3, -t]]) for t in (-2.0, -1.0, 0.0, 1.0, 2.0)]
     np.testing.assert_allclose(0.5 * (cubic[3] - cubic[1]) + five_key_tangent_correction(*cubic),
                                [[1.0, 0.0, -1.0]], atol=1e-12)
+
+
+def test_five_keys_keep_a_point_held_between_two_motions_still():
+    """A point that moves, stays put over the two gaps around a key and moves on the same way has
+    equal third differences on both sides of that key (they come from the keys two away alone), so
+    the minmod limit keeps the whole correction, −1/6 of a step here: the held point would swing
+    back by 4/27 of it a third into the gap. The correction is at most the longer chord at the key
+    (zero for a hold): the hold's first gap keeps the point still, as Catmull–Rom's tangents (the
+    start one limited by the gap's and the next gap's chords) do; where the point moves through the
+    key steadily the bound does not act."""
+    from core.splines import HermiteGap, five_key_tangent_correction
+
+    step = np.array([[1.0, 0.5, 0.0]])
+    keys = [0.0 * step, step, step, step, 2.0 * step]  # key times −2 … 2: held over −1 … 1
+    np.testing.assert_array_equal(five_key_tangent_correction(*keys), np.zeros((1, 3)))
+    spline = HermiteGap(keys[:4], cubic=True, rows=True, corrections=(None, five_key_tangent_correction(*keys)))
+    for s in np.linspace(0.0, 1.0, 7):  # the gap −1 → 0
+        np.testing.assert_array_equal(spline.at(s), step)
+    # smooth (cubic) motion through the key: the chords bound nothing, the velocity is exact
+    cubic = [np.array([[t ** 3 + t, 0.5 * t ** 3, -t]]) for t in (-2.0, -1.0, 0.0, 1.0, 2.0)]
+    np.testing.assert_allclose(0.5 * (cubic[3] - cubic[1]) + five_key_tangent_correction(*cubic),
+                               [[1.0, 0.0, -1.0]], atol=1e-12)
+
+
+def test_five_keys_give_no_correction_and_say_nothing_on_a_symmetric_swing():
+    """A point swinging out and back symmetrically about a key it rests on (keys 3, 0, 0, 0, 3: the third
+    differences either side opposite, a + b = 0) keeps Catmull–Rom's tangent, and the correction's
+    limit divides nothing into a NumPy overflow warning (it reached users' consoles)."""
+    from core.splines import five_key_tangent_correction
+
+    keys = [np.array([[x, 0.0, 0.0], [0.0, 2.0 * x, 1.0]]) for x in (3.0, 0.0, 0.0, 0.0, 3.0)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        correction = five_key_tangent_correction(*keys)
+    np.testing.assert_array_equal(correction, 0.0)

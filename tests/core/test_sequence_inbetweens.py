@@ -1544,3 +1544,41 @@ def test_the_guide_of_a_gap_inside_five_keys_follows_cubic_motion(strip):
     last = [pose(t) for t in (4.0, 5.0, 6.0)]
     catmull_rom = seq._to_working(_catmull_rom(*last, 2.0 * last[2] - last[1], 0.5))
     np.testing.assert_allclose(seq._gap(5).splines["world"].at(0.5), catmull_rom, atol=1e-9 * scale)
+
+
+def test_each_keys_five_key_correction_is_made_once_for_both_its_gaps(monkeypatch, strip):
+    """A key's correction to the world spline's tangent (core.splines.five_key_tangent_correction)
+    is the same for the gap that ends there and the gap that starts there: the sequence makes it
+    once per key (keys 2 … 4 of seven evenly spaced keys: three; made per gap end, six), and
+    each gap's tangents are the ones the corrections made from its keys give, bit for bit."""
+    import core.sequence_inbetweens as sequence_module
+    import core.splines as splines
+
+    flat, tri = strip
+    bend = np.sin(np.pi * flat[:, 0] / np.ptp(flat[:, 0]))
+
+    def pose(t):
+        x = flat.copy()
+        x[:, 2] += 0.05 * bend * np.sin(0.9 * t)
+        x[:, 0] += 0.1 * t + 0.02 * bend * np.cos(0.7 * t)
+        return x
+
+    made = []
+    original = splines.five_key_tangent_correction
+
+    def counted(*keys):
+        made.append(1)
+        return original(*keys)
+
+    for module in (sequence_module, splines):
+        monkeypatch.setattr(module, "five_key_tangent_correction", counted, raising=False)
+    seq = SequenceInterpolator([pose(t) for t in range(7)], tri)
+    gaps = [seq._gap(gap) for gap in range(len(seq))]
+    assert len(made) == 3
+    x = [seq._to_working(pose(t)) for t in range(7)]
+    for gap in (1, 2, 3, 4):
+        world = gaps[gap].splines["world"]
+        corrections = [original(*x[k - 2:k + 3]) if 2 <= k <= 4 else None for k in (gap, gap + 1)]
+        expected = splines.HermiteGap(x[gap - 1:gap + 3], True, rows=True, corrections=corrections)
+        np.testing.assert_array_equal(world.t0, expected.t0)
+        np.testing.assert_array_equal(world.t1, expected.t1)
