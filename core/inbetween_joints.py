@@ -212,6 +212,8 @@ def contracts_in_place(base: np.ndarray, nxt: np.ndarray, index: np.ndarray, lab
             near = cKDTree(fewer[rows[b]]).query(fewer[rows[a]], distance_upper_bound=finer[k])[0] <= finer[k]
             then = cKDTree(other[rows[b]]).query(other[rows[a][near]])[0] if near.any() else np.zeros(0)
             out[k] &= bool((then <= (1.0 + OWN_CONTACT_SLACK) * finer[k]).all())
+            if not out[k]:
+                break
     return out
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .deformation_fields import corner_edges
 from .errors import MeshError
 
 __all__ = ["REST_SCALE_LIMIT", "check_rest_scale", "rest_scale", "scale_taken"]
@@ -35,7 +36,7 @@ def rest_scale(rest_pose: np.ndarray, first_key: np.ndarray, triangles: np.ndarr
     over ``triangles`` (m, 3) (their corner edges, 3 m), on the edges of positive length in the first
     key (a rest's edge of length 0 reads 0: a rest at one point, an array never filled, reads 0, not
     a size it does not have); 1.0 where there is none."""
-    rest, key = (np.linalg.norm(x[triangles[:, [1, 2, 0]]] - x[triangles], axis=2) for x in (rest_pose, first_key))
+    rest, key = (np.linalg.norm(corner_edges(x, triangles), axis=2) for x in (rest_pose, first_key))
     kept = key > 0.0
     return float(np.median(rest[kept] / key[kept])) if kept.any() else 1.0
 

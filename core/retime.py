@@ -327,14 +327,15 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     if len(plan.tail) and gaps.stop == plan.n_gaps:
         tail = short_gap_sequence(checked, triangles, plan.tail, int(plan.keys[0]), **interpolator_options,
                                   key_names=tail_names)
+    # the in-betweens' output indices of each gap, in order (outputs are sorted by gap)
+    rows_of: dict[int, list[int]] = {}
+    for index in plan.outputs(gaps):
+        if plan.exact_keys[index] < 0:
+            rows_of.setdefault(int(plan.gaps[index]), []).append(int(index))
     # the sequence's gaps asked, in order, with their factors: the later ones may be computed in a
     # second process meanwhile (core.gap_processes)
-    asked = {}
-    for index in plan.outputs(gaps):
-        gap = int(plan.gaps[index])
-        if plan.exact_keys[index] < 0 and not (tail is not None and gap == plan.n_gaps - 1):
-            asked.setdefault(gap, []).append(float(plan.factors[index]))
-    sequence.will_ask(asked.items())
+    sequence.will_ask((gap, [float(plan.factors[i]) for i in rows]) for gap, rows in rows_of.items()
+                      if not (tail is not None and gap == plan.n_gaps - 1))
     batch: dict[int, np.ndarray] = {}  # output index → pose, for the in-betweens of one gap asked together
     for index in plan.outputs(gaps):
         key = plan.exact_keys[index]
@@ -343,7 +344,7 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
             continue
         gap = int(plan.gaps[index])
         if index not in batch:
-            rows = [i for i in plan.outputs(range(gap, gap + 1)) if plan.exact_keys[i] < 0]
+            rows = rows_of[gap]
             factors = [float(plan.factors[i]) for i in rows]
             short = tail is not None and gap == plan.n_gaps - 1
             # the sequence's last gap asked (the shorter last gap is the tail's): nothing begun ahead of it

@@ -440,18 +440,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         x, d, last = self._raw, self._durations, len(self._raw) - 1
         if not 2 <= key <= last - 2 or np.ptp(d[key - 2:key + 2]) != 0:
             return None
-        with self._cache_lock:
-            known = self._corrections.get(key)
-            if known is not None:
-                self._corrections.move_to_end(key)
-                return known
-        correction = five_key_tangent_correction(*x[key - 2:key + 3])
-        correction.flags.writeable = False
-        with self._cache_lock:
-            self._corrections[key] = correction
-            while len(self._corrections) > KEY_CACHE:
-                self._corrections.popitem(last=False)
-        return correction
+
+        def corrected():
+            correction = five_key_tangent_correction(*x[key - 2:key + 3])
+            correction.flags.writeable = False
+            return correction
+
+        return self._cached(self._corrections, key, KEY_CACHE, corrected)
 
     def _gap_warnings(self, gap: int, segment: Gap) -> list[tuple[str, str, int, tuple[float, ...], float]]:
         """The warnings ``(kind, message, 0, (), excess)`` of gap ``gap`` (its data ``segment``) that hold for every

@@ -251,36 +251,35 @@ class SequenceKeys:
     def triangles(self) -> np.ndarray:
         return self._triangles
 
+    def _cached(self, cache, name, limit: int, make):
+        """``cache[name]`` (an OrderedDict), made by ``make()`` where it is not there, the last
+        ``limit`` used kept (made outside the lock: two threads may make one at once, the last stored)."""
+        with self._cache_lock:
+            known = cache.get(name)
+            if known is not None:
+                cache.move_to_end(name)
+                return known
+        value = make()
+        with self._cache_lock:
+            cache[name] = value
+            while len(cache) > limit:
+                cache.popitem(last=False)
+        return value
+
     def _key(self, index: int) -> Key:
-        with self._cache_lock:
-            key = self._keys.get(index)
-            if key is not None:
-                self._keys.move_to_end(index)
-                return key
-        key = Key(self._topo, self._raw[index])
-        with self._cache_lock:
-            self._keys[index] = key
-            while len(self._keys) > KEY_CACHE:
-                self._keys.popitem(last=False)
-        return key
+        return self._cached(self._keys, index, KEY_CACHE, lambda: Key(self._topo, self._raw[index]))
 
     def _fits(self, base: int, other: int) -> tuple:
         """:func:`~core.inbetween_rigid_fits.rigid_fits` of key ``other`` from key ``base`` (rotations
         (C, 3, 3), translations (C, 3), misfits (C,); read-only: the relatives and the
         non-rigidity share them), kept for the last :data:`FIT_CACHE` pairs."""
-        with self._cache_lock:
-            known = self._fitted.get((base, other))
-            if known is not None:
-                self._fitted.move_to_end((base, other))
-                return known
-        fits = rigid_fits(self._topo, self._raw[base], self._raw[other])
-        for value in fits:
-            value.flags.writeable = False
-        with self._cache_lock:
-            self._fitted[(base, other)] = fits
-            while len(self._fitted) > FIT_CACHE:
-                self._fitted.popitem(last=False)
-        return fits
+        def fitted():
+            fits = rigid_fits(self._topo, self._raw[base], self._raw[other])
+            for value in fits:
+                value.flags.writeable = False
+            return fits
+
+        return self._cached(self._fitted, (base, other), FIT_CACHE, fitted)
 
     def _reference(self, index: int):
         """The truncated recovery's prepared base for key ``index`` (eigenbasis, Gram factor).
