@@ -23,8 +23,8 @@ import numpy as np
 
 from .inbetween_fit import METRIC_TOLERANCE, STALL_NEAR
 
-__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "MORE_KEYS", "key_deviation", "misfit_allowed", "misfit_warning",
-           "signed_deviation"]
+__all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "MORE_KEYS", "key_deviation", "least_shared_deviation",
+           "misfit_allowed", "misfit_warning", "signed_deviation"]
 
 #: A gap's in-betweens are warned of where the fit of one of them ends farther from the interpolated
 #: metric (its mean relative edge misfit) than twice its keys' mean edge deviation from the rest
@@ -63,6 +63,23 @@ def key_deviation(lengths: np.ndarray, rest: np.ndarray) -> float:
     return float(np.mean(np.abs(changes))) if changes.size else 0.0
 
 
+def least_shared_deviation(lengths: np.ndarray, other: np.ndarray, floor: float = 0.0) -> float:
+    """The least mean relative edge deviation two poses' corner edge lengths ``lengths`` and
+    ``other`` (same shape, such as (m, 3) or (3m,)) can have from a rest they share, on average
+    over the two (two poses, whose rest is not given: :mod:`core.two_pose_inbetweens`). Per edge,
+    ``|ℓa / ℓ₀ − 1| + |ℓb / ℓ₀ − 1|`` is least at ``ℓ₀ = max(ℓa, ℓb)``, where it is
+    ``|ℓa − ℓb| / max(ℓa, ℓb)``; this is half its mean over the edges of positive length in either
+    pose (an edge under ``floor`` in both measured over ``floor``, as the fits measure it:
+    :data:`core.inbetween_fit.MISFIT_LENGTH_FLOOR`). Symmetric in the two poses, each edge's term
+    at most 1: with the first pose taken as the rest (:func:`key_deviation`) an edge reads
+    ``|ℓa − ℓb| / ℓa``, no less, and one crushed to a tenth in it a change of 900 %."""
+    longer = np.maximum(lengths, other)
+    kept = longer > 0.0
+    if not kept.any():
+        return 0.0
+    return 0.5 * float(np.mean(np.abs(lengths[kept] - other[kept]) / np.maximum(longer[kept], floor)))
+
+
 def signed_deviation(lengths: np.ndarray, target: np.ndarray) -> float:
     """Mean signed relative deviation ``ℓ / ℓ* − 1`` of an in-between's corner edge lengths
     ``lengths`` (m, 3) from ``target`` (m, 3), the keys' edge lengths interpolated at its factor:
@@ -84,7 +101,8 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
     interpolated metric; None where none is. ``signed(factor)``: the mean signed relative
     deviation of that in-between's edges from the keys' edge lengths interpolated, asked of the
     worst one only (it measures the pose once more). ``reference``: what the keys' deviation that
-    sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose).
+    sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose;
+    two poses: the least from a rest they share, :func:`least_shared_deviation`).
     ``advice``: what the message tells the caller to do (:data:`MORE_KEYS`; two poses: a pose between
     them, :mod:`core.two_pose_inbetweens`)."""
     asked = [s for s in factors if 0.0 < s < 1.0]

@@ -31,7 +31,8 @@ from .inbetween_prediction import STILL_RIGIDITY
 from .validation import check_factor, check_interpolation, check_key_names, numerical_failures
 from .sequence_inbetweens import SequenceInterpolator
 from .rotation_continuity import jumping_pairs
-from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
+from .sequence_edge_misfit import (MISFIT_NOTED_FLOOR, least_shared_deviation, misfit_allowed, misfit_warning,
+                                   signed_deviation)
 from .sequence_turn_readings import TURNED_PART_SHARE
 from .sequence_warnings import warn_said
 from .spun_parts import turned_back
@@ -75,7 +76,7 @@ class Interpolator:
         self._misfit_floor = MISFIT_LENGTH_FLOOR * float(np.mean(np.sqrt(self._squared[0])))
         self._given_poses = poses
         self._chatter = None  # whether the poses differ by wrinkles only (made when first asked)
-        self._apart = None  # the second pose's mean relative edge deviation from the first (made when first asked)
+        self._apart = None  # the poses' least edge deviation from a rest they share (made when first asked)
 
     def _whole_sequence(self) -> SequenceInterpolator:
         """The same keys with every piece's rotations taken whole (:meth:`_variant`)."""
@@ -241,10 +242,14 @@ class Interpolator:
         is allowed) where the in-between ``x`` (n, 3) at ``factor`` ends farther off the metric it was
         fitted to (``misfit``, :meth:`_misfit`; of the log-stretches' where ``log`` is their sequence)
         than the poses' own edge deviation allows, else none: the rule of a sequence's gap
-        (:func:`core.sequence_edge_misfit.misfit_allowed`, the first pose standing for the rest, so
-        twice the mean of 0 and the second pose's mean relative edge deviation from the first + 0.1
-        point, at least 0.3 %), measured on the pose returned, as two poses fit it (their gap is
-        anchored: its fits keep no misfit of their own). A pair whose keys hide an impact (cloth
+        (:func:`core.sequence_edge_misfit.misfit_allowed`), measured on the pose returned, as two
+        poses fit it (their gap is anchored: its fits keep no misfit of their own). Two poses give
+        no rest: their deviation is the least they can have from any rest they share
+        (:func:`core.sequence_edge_misfit.least_shared_deviation`), so twice it + 0.1 point, at
+        least 0.3 %. Taking the first pose as the rest instead read every edge crushed in it (a
+        fold pressed by a collision) as a change of up to hundreds of percent to the second, and
+        allowed misfits past the bound (docs/inbetween-measurements.md, *Two poses' edge
+        allowance from a rest they share*). A pair whose keys hide an impact (cloth
         landing just before the second) is still silent where the fit follows the metric: the two
         poses do not tell a stretch that came in a frame from one that grew across the gap
         (docs/limits.md). Not said where the poses' pieces are mirrored, as of a sequence's gap
@@ -252,13 +257,15 @@ class Interpolator:
         if misfit <= MISFIT_NOTED_FLOOR or 0 in self._sequence._mirrored_gaps:  # within the fits' accuracy; mirrored
             return []
         if self._apart is None:
-            self._apart = key_deviation(np.sqrt(self._squared[1]), np.sqrt(self._squared[0]))
+            self._apart = least_shared_deviation(np.sqrt(self._squared[0]), np.sqrt(self._squared[1]),
+                                                 self._misfit_floor)
         names = self._sequence.key_names
 
         def signed(s):
             return signed_deviation(np.sqrt(self._squared_lengths(x)), np.sqrt(self._squared_target(s, log)))
 
-        said = misfit_warning({factor: misfit}, [factor], misfit_allowed([0.0, self._apart]), names, signed, names[0],
+        said = misfit_warning({factor: misfit}, [factor], misfit_allowed([self._apart, self._apart]), names, signed,
+                              f"a rest {names[0]} and {names[1]} share (the least it can be)",
                               advice=f"add a pose between {names[0]} and {names[1]} and in-between each half (or "
                                      "interpolate the three as a sequence)")
         return [] if said is None else [("fit", said[0], 0, said[1], said[2])]
