@@ -24,7 +24,13 @@ the other piece (numbers in docs/inbetween-measurements.md, *Joints the keys do 
 - **joints within rounding** (:data:`JOINT_DOUBT`): joints whose slide is told apart from a chance
   contact's only to within the rigid fits' precision, a share of the pieces' size at which pieces
   touching by chance pass as jointed (hair cards in single precision 1,000 from the origin: 18 of
-  200 cards jointed, 4.1e-3 of the diagonal off at 0.5).
+  200 cards jointed, 4.1e-3 of the diagonal off at 0.5);
+- **carriers two poses do not tell** (:func:`_carriers_untold`): a joint group hangs from the piece
+  that moves least (in a chain the moves add up from the piece fixed to the world, and so do the
+  turns); where another piece of the group turns less than that one, the two readings disagree,
+  and two poses have nothing else to tell which piece carries the others (a sequence's keys do:
+  :mod:`core.inbetween_carriers`). A box carried while its lid opens, the lid lifted against the
+  carry: the box, hung from the lid, left its own path by 7.5e-2–0.20 of the diagonal at ×2.
 """
 
 from __future__ import annotations
@@ -34,6 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import screw_motions
+from .deformation_fields import rotation_vectors
 from .inbetween_joints import (JOINT_REACH, Contacts, composed, contact_reach, joint_groups, nearest_pairs,
                                relative_motions, screw_axes, slide_precision)
 from .inbetween_rigid_fits import turn_spread
@@ -78,14 +85,18 @@ class JointDoubts:
     sliding_share: float = 0.0
     rounded: int = 0
     rounded_share: float = 0.0
+    carried: int = 0  # pieces of joint groups whose carrier two poses do not tell (_carriers_untold)
+    carried_share: float = 0.0
+    carried_excess: float = 0.0  # the farthest such placement ÷ the one warned past (JOINT_LOOP_SHARE, JOINT_STAKE)
 
     def __bool__(self) -> bool:
-        return bool(self.apart or self.looped or self.sliding or self.rounded)
+        return bool(self.apart or self.looped or self.sliding or self.rounded or self.carried)
 
 
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
                  joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
-                 bodies: np.ndarray | None = None) -> JointDoubts | None:
+                 bodies: np.ndarray | None = None, two_poses: bool = False,
+                 pins: np.ndarray | None = None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
     ``core.inbetween_topology.Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
@@ -94,7 +105,9 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     each piece's RMS rigid misfit over the gap's keys (C,); ``sizes``: each piece's size (C,,
     :meth:`~core.inbetween_topology.Topology.diagonals`); ``bodies`` (C,): each piece's body
     leader (:func:`core.rigid_bodies.rigid_bodies`, None: none), whose motion and joint group its
-    pieces take. Only pairs of pieces in different joint
+    pieces take; ``two_poses``: the gap reads no key beyond its two (two poses, a linear sequence:
+    its carriers are read from those alone, :func:`_carriers_untold`); ``pins``: bool (n,), the
+    pinned vertices (a group with one hangs from the world), or None. Only pairs of pieces in different joint
     groups (in one group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`),
     and where the joint would move the child otherwise than its own motion (or the tree) does (a card
     turning about its root above a still scalp moves as it would on it), count."""
@@ -122,6 +135,9 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     key, first, u, v, relative, precision = c.key, c.first, c.u, c.v, c.relative, c.precision
     if joints is not None and c.held is not None:
         _joints_in_loops(doubts, c, joints, group, size, stakes)
+    if joints is not None and two_poses:
+        _carriers_untold(doubts, c, joints, size, stakes, slide_precision(base[index], nxt[index], reach, misfits,
+                                                                          pieces, pieces), pins)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         angle = c.angle
@@ -155,10 +171,7 @@ def _joints_in_loops(doubts: JointDoubts, c: Contacts, joints: tuple, group: np.
     tree keeps all but one of them, and the keys do not tell which one the pieces do not hold (a
     chain curled so that links meet the next-but-one as closely as the links they hold)."""
     u, v = c.u, c.v
-    parents = joints[0]
-    jointed = np.full(c.pieces.size, -1)  # per rigid piece, its parent's index among them (−1: a root)
-    has_parent = parents[c.pieces] >= 0
-    jointed[has_parent] = np.searchsorted(c.pieces, parents[c.pieces[has_parent]])
+    jointed = _rigid_parents(c.pieces, joints[0])
     # pieces that turn relative to each other (those moving as one, as a pile turned whole, stay
     # together whichever contacts the tree keeps)
     turning = c.angle * np.minimum(size[u], size[v]) > c.precision
@@ -174,6 +187,57 @@ def _joints_in_loops(doubts: JointDoubts, c: Contacts, joints: tuple, group: np.
         doubts.looped_share = float(np.max(stake[off] / size[child[off]]))
         allowed = np.maximum(JOINT_STAKE * c.precision[looped][off], JOINT_LOOP_SHARE * size[child[off]])
         doubts.looped_excess = float(np.max(stake[off] / allowed))
+
+
+def _rigid_parents(pieces: np.ndarray, parents: np.ndarray) -> np.ndarray:
+    """Per rigid piece (``pieces`` (R,), components ascending), its parent's index among them (−1: a
+    root or unjointed); ``parents`` (C,): :func:`core.inbetween_joints.joint_tree`'s."""
+    jointed = np.full(pieces.size, -1)
+    has_parent = parents[pieces] >= 0
+    jointed[has_parent] = np.searchsorted(pieces, parents[pieces[has_parent]])
+    return jointed
+
+
+def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.ndarray, stakes: "_Stakes",
+                     precision: np.ndarray, pins: np.ndarray | None) -> None:
+    """Count in ``doubts`` the rigid pieces of ``c`` in joint groups (``joints``: ``(parents (C,),
+    order)``) whose carrier two poses do not tell: the group hangs from its piece that moves least
+    (:func:`core.inbetween_joints.joint_tree`: in a chain the moves add up from the piece fixed to
+    the world, as the turns do), and another of its pieces turns less than that one (beyond both
+    turns' spread: what their rigid fits resolve); counted where the group hung from that piece
+    instead places a piece otherwise half-way by more than :data:`JOINT_STAKE` times the group's
+    joint precision (``precision`` (R,) per rigid piece) and :data:`JOINT_LOOP_SHARE` of the piece's
+    size (a root still, or turning about the joints' axes, places every piece the same either way).
+    Groups with a pinned vertex (``pins``: bool (n,) or None) hang from the world, which tells."""
+    jointed = _rigid_parents(c.pieces, joints[0])
+    group = joint_groups(joints[0])[c.pieces]
+    pinned = np.zeros(c.pieces.size, dtype=bool) if pins is None else \
+        np.bincount(c.label, pins[c.index], minlength=c.pieces.size) > 0
+    angle = np.linalg.norm(rotation_vectors(c.rotations), axis=1)
+    order = np.searchsorted(c.pieces, joints[1])
+    placed = None
+    for root in np.flatnonzero((jointed < 0) & np.isin(np.arange(c.pieces.size), jointed)):
+        members = np.flatnonzero(group == group[root])
+        least = members[np.argmin(angle[members])]
+        if pinned[members].any() or angle[least] >= angle[root] - stakes.spread[root] - stakes.spread[least]:
+            continue
+        other, k, below = jointed.copy(), least, -1  # the tree hung from ``least``: the path to the root reversed
+        while k >= 0:
+            other[k], below, k = below, k, jointed[k]
+        depth = np.zeros(c.pieces.size, dtype=np.intp)
+        for _ in range(members.size):
+            depth[members] = np.where(other[members] >= 0, depth[np.maximum(other[members], 0)] + 1, 0)
+        placed = stakes.jointed(jointed, order) if placed is None else placed
+        rotations, translations = stakes.jointed(other, members[np.argsort(depth[members], kind="stable")])
+        for m in members:
+            x = stakes.points[stakes.starts[m]:stakes.starts[m] + stakes.counts[m]]
+            apart = float(np.linalg.norm(x @ (placed[0][m] - rotations[m]).T + placed[1][m] - translations[m],
+                                         axis=1).max())
+            allowed = max(JOINT_STAKE * float(precision[members].max()), JOINT_LOOP_SHARE * float(size[m]))
+            if apart > allowed:
+                doubts.carried += 1
+                doubts.carried_share = max(doubts.carried_share, apart / float(size[m]))
+                doubts.carried_excess = max(doubts.carried_excess, apart / allowed)
 
 
 class _Stakes:
@@ -355,4 +419,11 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                          "single precision far from the origin, or noise): pieces that merely touch (hair cards, debris) "
                          "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)",
                          doubts.rounded_share / JOINT_DOUBT))
+    if doubts.carried:
+        problems.append((f"{between}, {doubts.carried} rigid piece(s) jointed to each other are placed as carried by "
+                         "the piece of theirs that moves least, which turns more than another of them: carried by "
+                         f"that one instead, they would be up to {100 * doubts.carried_share:.2g} % of a piece's size "
+                         "elsewhere half-way, and two keys alone do not tell which piece carries the others (as a "
+                         "box carried while its lid opens; a smooth sequence's keys on either side tell it)",
+                         doubts.carried_excess))
     return problems

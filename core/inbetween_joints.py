@@ -17,7 +17,11 @@ finer piece's own mean edge length too (a gap wider than a small piece's edges i
 whatever the mesh's other pieces make its mean edge). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
 that moves least over the gap's keys (a fixed base stays the root; measured by its vertices'
-moves, since a link turning past a half turn reads as a small turn the other way). At the keys the composed
+moves, since a link turning past a half turn reads as a small turn the other way), in a sequence
+of those whose screws at the keys keep to one line where some do (:mod:`core.inbetween_carriers`:
+a box carried steadily while its lid opens, the lid lifted against the carry moving less; between
+two poses, where another piece of the group turns less than the one moving least, the gap warns:
+:mod:`core.inbetween_joint_doubts`). At the keys the composed
 motions are the pieces' own, and a rigid motion of the whole mesh has identity
 relative motions, so it is reproduced exactly either way.
 
@@ -86,6 +90,11 @@ CONTACT_CARRIED = 0.5
 #: Coarse meshing teeth change their contact's extent too (flat involute gears of 12 and 6 teeth:
 #: 608 → 381–424 pairs) but roll it along both gears, off the vertices that touched...
 CONTACT_STEADY = 0.75
+#: ... and carried by their motions along arcs within this ratio of each other (meshing teeth roll on
+#: each other, each gear carrying the contact by the same arc about its axle: the probes' gears of
+#: 6–24 teeth turned 5°–80°, 1.0–1.4 ×, off it as far as the centre of their touching pairs sits off
+#: the pitch point; a link turning 118° a key on a parent turning 2°: 4.1 ×)...
+ROLLING_SPREAD = 2.0
 #: ... and their own screw motions keep them in contact at these factors (Exaggerate's 2 and −1,
 #: their in-betweens at 0.5; the farthest first, which parts most pairs that part)...
 OWN_SCREW_FACTORS = (2.0, -1.0, 0.5)
@@ -215,6 +224,19 @@ def contracts_in_place(base: np.ndarray, nxt: np.ndarray, index: np.ndarray, lab
             if not out[k]:
                 break
     return out
+
+
+def _rolling(chords: list, rotations: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Per pair of pieces ``u``, ``v`` (P,; their rigid motions' ``rotations`` (R, 3, 3)), whether the
+    two carry their contact along arcs within :data:`ROLLING_SPREAD` of each other, as teeth rolling
+    on each other do: each piece's chord (``chords``, two (P,) arrays: how far its motion carries the
+    contact) over ``sinc`` of half its turn θ, the arc ``θ ρ`` at the contact's distance ``ρ`` from
+    its axis, ``chord = 2 ρ sin(θ/2)``."""
+    arcs = []
+    for chord, k in zip(chords, (u, v)):
+        half = 0.5 * np.linalg.norm(df.rotation_vectors(rotations[k]), axis=1)
+        arcs.append(chord * np.where(half > 1e-8, half / np.sin(np.maximum(half, 1e-8)), 1.0))
+    return np.maximum(*arcs) <= ROLLING_SPREAD * np.minimum(*arcs)
 
 
 def touching_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
@@ -404,7 +426,7 @@ def contacts(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray,
 def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarray, np.ndarray], rigid: np.ndarray,
                moves: np.ndarray, reach: float, loose: np.ndarray | None = None, pins: np.ndarray | None = None,
                edges: np.ndarray | None = None, screws: np.ndarray | None = None, misfits: np.ndarray | None = None,
-               touching: Contacts | None = None):
+               touching: Contacts | None = None, departures: np.ndarray | None = None):
     """``(parents (C,), order)`` of the jointed rigid pieces of ``topo`` (a
     ``core.inbetween_topology.Topology``) between vertices ``base`` and ``nxt`` (n, 3): each piece's
     parent (−1 for roots and unjointed pieces) and the jointed pieces parents first; None when no
@@ -427,7 +449,10 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     their own axes touching in the same place are jointed too; ``misfits``: each piece's RMS misfit
     of its best rigid motion over the gap's keys (C,, lengths; 0 where None), what a joint's slide
     is measured against (:data:`JOINT_SLIDE`); ``touching``: :func:`contacts` of these arguments, where
-    the caller has them; its ``held`` is set (the touching pairs whose contact holds a joint)."""
+    the caller has them; its ``held`` is set (the touching pairs whose contact holds a joint);
+    ``departures``: in a sequence, how far each piece's screws at the keys about the gap leave one
+    screw (C,; :func:`core.inbetween_carriers.screw_departures`, 0 where within its fits): where some
+    piece of a group keeps to one screw, the root is the one of those that moves least (None: all 0)."""
     touching = contacts(topo, base, nxt, motions, rigid, reach, misfits) if touching is None else touching
     if touching is None or not touching.key.size:
         return None
@@ -511,8 +536,14 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         contact_later = np.where(steady[:, None], centres_later, contact_later)
         contact_base, contact_later = shared_contacts(base, nxt, ends, first, nearest_base, nearest_later,
                                                       precision, contact_base, contact_later)
-        carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k]
-                                              - contact_base, axis=1) for k in (u, v)))
+        chords = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k] - contact_base,
+                                 axis=1) for k in (u, v)]
+        carried = np.maximum(*chords)
+        # - the pieces carry the contact by arcs unequal beyond ROLLING_SPREAD: meshing teeth roll,
+        #   each gear carrying the contact along the same arc; a link turning far on a nearly still
+        #   parent whose contact was read to stay put (it moved 0.0078 where the parent carried it
+        #   0.039, under the contact's reading) carries it along an arc 4.1 × the parent's
+        together &= _rolling(chords, rotations, u, v)
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
         changed = np.flatnonzero(together & ~steady)
         if changed.size:
@@ -555,9 +586,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     parents = np.full(len(topo.components), -1)
     order, seen = [], set()
     loose = np.zeros(len(topo.components), dtype=bool) if loose is None else loose
-    # the world's group first, then the firmly rigid piece of each other group that moves least
-    for root in sorted(neighbours, key=lambda k: (False, -np.inf) if k == world else
-                       (bool(loose[pieces[k]]), moves[pieces[k]])):
+    # the world's group first, then of each other group the firmly rigid piece that moves least,
+    # among those that keep to one screw over a sequence's keys where some do (core.inbetween_carriers:
+    # a box carried steadily while its lid opens, though the lid moves less)
+    unsteady = np.zeros(len(topo.components), dtype=bool) if departures is None else departures > 0
+    for root in sorted(neighbours, key=lambda k: (False, False, -np.inf) if k == world else
+                       (bool(loose[pieces[k]]), bool(unsteady[pieces[k]]), moves[pieces[k]])):
         if root in seen:
             continue
         seen.add(root)

@@ -34,6 +34,7 @@ import numpy as np
 from . import deformation_fields as df
 from . import screw_motions
 from .inbetween_anchor import Anchor
+from .inbetween_carriers import screw_departures
 from .inbetween_carried import CarriedPieces
 from .inbetween_field import InterpolatedField, Splines, log_stretch_spline
 from .inbetween_fit import ARAP_ITERATIONS, LocalGlobalFit, change_tolerance, trimmed_tolerance
@@ -240,9 +241,17 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                                       minlength=len(topo.components)) / (3 * topo.piece_sizes)
             reach, misfits = JOINT_REACH * self.mean_edge, nonrigidity * base.diagonals
             touching = contacts(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, reach, misfits)
+            # a smooth sequence's joint groups hang from a piece that keeps to one screw over the keys
+            # about the gap (two poses and linear gaps read their two keys alone)
+            departures = None
+            if cubic and touching is not None and touching.key.size:
+                departures = screw_departures([r.screw for r in relatives[:3]] + [relatives[3].continued_screw],
+                                              [not r.extrapolated for r in relatives],
+                                              base.vertices[topo.component_vertices], topo.component_labels,
+                                              len(topo.components), misfits)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,
                                      self.piece_moves(relatives), reach, nonrigidity > 0.5 * RIGID_PLACEMENT_SCALE,
-                                     static, piece_edges, relatives[2].screw, misfits, touching)
+                                     static, piece_edges, relatives[2].screw, misfits, touching, departures)
         # firmly rigid pieces that move as one body in every key the gap reads, however far apart,
         # take one motion (core.rigid_bodies): a pinned piece's or a link's where the body holds
         # one; a piece deforming past half the rigid scale (a sheet falling while it barely
@@ -269,7 +278,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             # what the joints leave untold (links apart, sliding joints, joints within rounding), the
             # pieces of a body counted with its leader: the gap warns
             self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
-                                             piece_edges, misfits, base.diagonals, self.bodies)
+                                             piece_edges, misfits, base.diagonals, self.bodies,
+                                             not cubic, static)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
         # to within the turn's arc) keep their own, which are its translation to that arc
