@@ -184,8 +184,9 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                         (self.per_element(name, exit[0]), exit[1].get(name)))
 
         def hermite(name: str, values: list) -> HermiteGap:
-            # the five keys' corrections to the world spline's start / end tangents (each (n, 3) or
-            # None: splines.five_key_tangent_correction, FIVE_KEY_LIMIT)
+            # the corrections to the world spline's start / end tangents (each (n, 3) or None: the
+            # five keys', splines.five_key_tangent_correction; at a sequence's last key the slowing
+            # end's, splines.slowing_end_correction)
             return HermiteGap(values, cubic, **options(name), corrections=corrections if name == "world" else None)
 
         # the pieces' screws splined in their principal frames in the base key, about their

@@ -74,7 +74,7 @@ from .sequence_bent_parts import (BENT_PART_TURN, HIDDEN_PART_MEAN, ISOMETRIC, R
 from .sequence_turn_readings import TurnReadings, composed_apart, turn_warnings
 from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
-from .splines import five_key_tangent_correction
+from .splines import five_key_tangent_correction, slowing_end_correction
 from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
 from .rest_pose_scale import check_rest_scale
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
@@ -126,8 +126,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
 
     ``end``: how the motion reaches the last key. ``"keys"`` (the default): at the last gap's mean
     velocity (the linear extrapolation past the last key, as Catmull–Rom's end condition), as a
-    simulation stopped at any frame. ``"rest"``: it comes to rest there, as an animation easing
-    into its last keyframe — the last gap ends with zero velocity (every spline's end tangent;
+    simulation stopped at any frame — slower where the last three keys show a point slowing into
+    the last key (the positions in the world, :func:`~core.splines.slowing_end_correction`).
+    ``"rest"``: it comes to rest there, as an animation easing into its last keyframe — the last
+    gap ends with zero velocity (every spline's end tangent;
     exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the
     source's frame in the middle of the last gap.
 
@@ -411,8 +413,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             if after is not None and ahead_time != 2.0:  # where an evenly spaced key would be
                 after = after.rescaled(nxt, 1.0 / (ahead_time - 1.0))
             # the sequence's start: from rest, or the parabola through the first three keys, its
-            # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear
-            # (or at rest: end="rest", which sets the last gap's end tangents to zero)
+            # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear,
+            # the positions slowed where the last keys slow (_tangent_correction), or at rest
+            # (end="rest", which sets the last gap's end tangents to zero)
             prev = self._previous(gap, -back_time * turn, whole).continue_turns(-back_time * nxt.rotvec) \
                 if gap >= 1 else Relative.phantom(nxt, ident, after)
             if back_time != 1.0:
@@ -435,9 +438,23 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         """The five keys' correction to Catmull–Rom's tangent of the world spline of positions at key
         ``key`` (n, 3; :func:`~core.splines.five_key_tangent_correction`, :data:`~core.splines.FIVE_KEY_LIMIT`),
         or None where a key two away on either side is missing (a sequence's end: no phantom key) or
-        the five keys are unevenly spaced. Made once for both gaps that meet at the key (read-only),
-        kept for the last :data:`KEY_CACHE` keys."""
+        the five keys are unevenly spaced; at the last key of an ``end="keys"`` sequence the slowing
+        end's correction to the linear end condition (:func:`~core.splines.slowing_end_correction`;
+        None where the last two gaps are unevenly spaced). Made once for both gaps that meet at the
+        key (read-only), kept for the last :data:`KEY_CACHE` keys."""
         x, d, last = self._raw, self._durations, len(self._raw) - 1
+        if key == last:
+            # the last key (end="keys"; end="rest" makes the tangent zero): the linear end condition's
+            # tangent, slowed where the last three keys show the motion slowing into the key
+            if last < 2 or self.end != "keys" or d[-1] != d[-2]:
+                return None
+
+            def slowed():
+                correction = slowing_end_correction(*x[last - 2:])
+                correction.flags.writeable = False
+                return correction
+
+            return self._cached(self._corrections, key, KEY_CACHE, slowed)
         if not 2 <= key <= last - 2 or np.ptp(d[key - 2:key + 2]) != 0:
             return None
 

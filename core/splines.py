@@ -96,7 +96,8 @@ class HermiteGap:
     ``corrections``: ``(c₀, c₁)``, each an array of the values' shape or None: added to Catmull–Rom's
     start / end tangent before any limit or replacement above — at a key with evenly spaced keys two
     away on both sides, the five keys' :func:`five_key_tangent_correction` (a sequence makes each
-    key's once for the two gaps that meet there).
+    key's once for the two gaps that meet there); at a sequence's last key, to the linear end
+    condition's tangent, :func:`slowing_end_correction`.
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
@@ -196,6 +197,33 @@ def five_key_tangent_correction(v_2: np.ndarray, v_1: np.ndarray, v0: np.ndarray
     a += b
     a *= share[:, None]
     return a
+
+
+def slowing_end_correction(v_1: np.ndarray, v0: np.ndarray, v1: np.ndarray) -> np.ndarray:
+    """What the positions' tangent at a sequence's last key ``v1`` gets added to the linear end
+    condition's, the last gap's secant ``d = v₁ − v₀``, from the keys ``v_1``, ``v0``, ``v1`` (points
+    (n, 3) at key times −1, 0, 1, evenly spaced), per point (n, 3): the tangent becomes ``λ d`` with
+    ``λ`` the part along ``d`` of the tangent of the parabola through the three keys,
+    ``(3 d − d′) / 2`` with ``d′ = v₀ − v₋₁``, as a share of ``d``, held to [0, 1].
+
+    A point that slows into the last key (an arm easing into its stop, a swing nearing its turning
+    point, a cloth settling) moved farther in the gap before along its last chord than in the last
+    gap, ``d′ · d > |d|²``, and reaches the key at less than its mean speed over the gap: exact for
+    motion at constant deceleration along a line (the start tangent, Catmull–Rom's, is exact for
+    it too), at rest where it moved three times as far before (``λ`` = 0: it stopped inside the
+    gap). A point moving steadily or speeding up keeps the secant (``λ`` = 1): the parabola would
+    carry its acceleration past a key where an impact may stop it. With ``λ`` in [0, 1] and a start
+    tangent within 3 × the secant (:data:`TANGENT_LIMIT`) a point moving along a line never passes
+    the last key inside the gap (Fritsch–Carlson)."""
+    secant = v1 - v0
+    length2 = np.einsum("ij,ij->i", secant, secant)
+    share = np.einsum("ij,ij->i", v0 - v_1, secant)
+    share /= np.maximum(length2, np.finfo(float).tiny)
+    share *= -0.5
+    share += 0.5  # λ − 1 = (3 d − d′) · d / 2|d|² − 1
+    np.clip(share, -1.0, 0.0, out=share)
+    secant *= share[:, None]
+    return secant
 
 
 def limited_tangent(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:

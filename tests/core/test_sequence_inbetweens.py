@@ -1546,6 +1546,59 @@ def test_the_guide_of_a_gap_inside_five_keys_follows_cubic_motion(strip):
     np.testing.assert_allclose(seq._gap(5).splines["world"].at(0.5), catmull_rom, atol=1e-9 * scale)
 
 
+def test_a_sequence_slowing_into_its_last_key_ends_on_its_parabola(strip):
+    """The last gap's guide (the keys' per-vertex spline in the world) of a strip whose vertices
+    slow down along lines at constant deceleration, each at its own rate, reaches the last key on
+    the motion's parabola (core.splines.slowing_end_correction): exact at every factor, where the
+    linear end condition (the secant's velocity, Catmull–Rom's) is off by 5.9e-3 of the strip's
+    length (the vertices that stop at the last key); the vertices that speed up
+    keep the linear end's tangent, the last gap's secant."""
+    flat, tri = strip
+    bend = np.sin(np.pi * flat[:, 0] / np.ptp(flat[:, 0]))
+    direction = np.stack([0.3 + 0.2 * bend, np.zeros_like(bend), 0.1 + 0.3 * bend], axis=1)
+    slowing = flat[:, 0] < np.median(flat[:, 0])  # those stop at t = 3 + bend; the others speed up
+
+    def pose(t):
+        travel = np.where(slowing, (3.0 + bend) * t - 0.5 * t * t, t + 0.1 * t * t)
+        return flat + travel[:, None] * direction
+
+    seq = SequenceInterpolator([pose(float(t)) for t in range(4)], tri, start="keys")
+    scale = np.ptp(seq._to_working(flat)[:, 0])
+    world = seq._gap(2).splines["world"]
+    for s in (0.25, 0.5, 0.75):
+        off = np.abs(world.at(s)[slowing] - seq._to_working(pose(2.0 + s))[slowing]).max()
+        assert off < 1e-9 * scale
+    secant = seq._to_working(pose(3.0)) - seq._to_working(pose(2.0))
+    np.testing.assert_allclose(world.t1[~slowing], secant[~slowing], atol=1e-12 * scale)
+
+
+def test_a_cloth_landing_in_the_last_gap_reaches_the_last_key_at_rest_without_passing_it(strip):
+    """A strip falling from rest (z = −t²/2 per key step squared, each vertex from its own height)
+    onto a floor it reaches inside the last gap: the last gap's guide never passes the floor at any
+    factor, and the vertices that moved three times as far in the gap before as in the last one
+    reach the last key at rest (zero end tangent; the linear end condition ends them at their mean
+    velocity into the floor)."""
+    flat, tri = strip
+    height = 2.05 + 0.4 * np.sin(np.pi * flat[:, 0] / np.ptp(flat[:, 0]))
+
+    def pose(t):
+        x = flat.copy()
+        x[:, 2] = np.maximum(height - 0.5 * t * t, 0.0)  # lands at t = √(2 h), early in gap 2 (t 2 … 3)
+        return x
+
+    seq = SequenceInterpolator([pose(float(t)) for t in range(4)], tri)
+    working = [seq._to_working(pose(float(t))) for t in range(4)]
+    floor = working[3][:, 2].min()
+    scale = np.ptp(working[0][:, 0])
+    world = seq._gap(2).splines["world"]
+    for s in np.linspace(0.0, 1.0, 41):
+        assert world.at(s)[:, 2].min() >= floor - 1e-12 * scale
+    before, last = working[2] - working[1], working[3] - working[2]
+    stopped = np.einsum("ij,ij->i", before, last) >= 3.0 * np.einsum("ij,ij->i", last, last)
+    assert stopped.any()
+    assert np.abs(world.t1[stopped]).max() < 1e-12 * scale
+
+
 def test_each_keys_five_key_correction_is_made_once_for_both_its_gaps(monkeypatch, strip):
     """A key's correction to the world spline's tangent (core.splines.five_key_tangent_correction)
     is the same for the gap that ends there and the gap that starts there: the sequence makes it
