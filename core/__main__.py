@@ -266,9 +266,18 @@ def _retime_in(args, progress: Heartbeat) -> int:
         warn(f"the frame times of '{args.cache}' are not evenly spaced and increasing (or not finite); its frames "
              "are retimed in the file's order as if they were", "frame_times")
     plan = plan_retime(cache.n_samples, args.step, args.speed)
-    # the in-betweens' second process started before the OBJ and the keys' samples are read, where the
-    # retime's sequence may share its gaps with it: its start overlaps the reading (core.gap_processes)
-    start_worker(cache.n_points, plan.n_gaps, args.k_m or None)
+    if args.chunk is not None:
+        gaps = plan.chunk(*args.chunk)
+    elif args.gaps is not None:
+        gaps = range(*args.gaps)
+        if not 0 <= gaps.start <= gaps.stop <= plan.n_gaps:
+            raise ShapeDifferenceError(f"--gaps {gaps.start}:{gaps.stop} is outside the {plan.n_gaps} key gaps.")
+    else:
+        gaps = range(plan.n_gaps)
+    # the in-betweens' second process started before the OBJ and the keys' samples are read, where this
+    # part's gaps may be shared with it (two or more; not a farm's one-gap chunk): its start overlaps the
+    # reading (core.gap_processes)
+    start_worker(cache.n_points, len(gaps), args.k_m or None)
     rest, triangles = read_obj(args.topology)
     if len(rest) != cache.n_points:
         raise ShapeDifferenceError(
@@ -285,14 +294,6 @@ def _retime_in(args, progress: Heartbeat) -> int:
             f"non-finite coordinates (NaN or inf; {broken.size} of the samples the retime reads): the "
             "simulation exploded there. Export the cache again without those frames, or pick a --step "
             "whose keys avoid them.")
-    if args.chunk is not None:
-        gaps = plan.chunk(*args.chunk)
-    elif args.gaps is not None:
-        gaps = range(*args.gaps)
-        if not 0 <= gaps.start <= gaps.stop <= plan.n_gaps:
-            raise ShapeDifferenceError(f"--gaps {gaps.start}:{gaps.stop} is outside the {plan.n_gaps} key gaps.")
-    else:
-        gaps = range(plan.n_gaps)
     outputs = plan.outputs(gaps)
     options = dict(k_M=args.k_m or None, k_N=args.k_n or None, offset=args.offset or None,
                    use_extrinsic=not args.intrinsic, smooth=not args.linear)

@@ -12,7 +12,8 @@ docs/design-decisions.md. Threads share at most two heaps (:data:`ARENA_MAX`), s
 in-betweens' pool threads reuse each other's freed blocks. Only the process's C allocator settings change (no data); under another
 allocator (musl, macOS, Windows, or a malloc replaced by the host, as Blender's jemalloc builds do)
 this does nothing. Nor does it in an interactive Blender session, whose own allocations should go
-back to the system as usual; Blender in the background (farm and batch jobs) is tuned.
+back to the system as usual; Blender in the background (farm and batch jobs) is tuned. A process
+about to stay idle hands its free heap back (:func:`give_back_heap`).
 """
 
 from __future__ import annotations
@@ -43,15 +44,37 @@ def keep_heap() -> bool:
     global _done
     if _done:
         return True
-    if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
-        return False
     blender = sys.modules.get("bpy")
     if blender is not None and not getattr(getattr(blender, "app", None), "background", True):
         return False  # an interactive session: leave the host's allocator as it is
+    libc = _glibc()
     try:
-        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
-        _done = all(libc.mallopt(parameter, value) for parameter, value in (
+        _done = libc is not None and all(libc.mallopt(parameter, value) for parameter, value in (
             (_M_MMAP_THRESHOLD, MMAP_THRESHOLD), (_M_TRIM_THRESHOLD, TRIM_THRESHOLD), (_M_ARENA_MAX, ARENA_MAX)))
-    except (OSError, AttributeError):  # no loadable C library or no mallopt: nothing to tune
+    except AttributeError:  # no mallopt: nothing to tune
         return False
     return _done
+
+
+def give_back_heap() -> bool:
+    """Hand the free memory of glibc's heaps back to the system (``malloc_trim(0)``: the top of each
+    heap and the whole free pages inside it), which :func:`keep_heap`'s thresholds otherwise keep for
+    the next computation: for a process about to stay idle (the in-betweens' second process between
+    jobs, :mod:`core.gap_worker`). Returns whether memory was handed back (False where there was none
+    to give, or on other platforms or C libraries, where this does nothing)."""
+    libc = _glibc()
+    try:
+        return libc is not None and bool(libc.malloc_trim(0))
+    except AttributeError:  # no malloc_trim
+        return False
+
+
+def _glibc():
+    """glibc's C library (:mod:`ctypes`), or None on other platforms and C libraries or where it cannot
+    be loaded."""
+    if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
+        return None
+    try:
+        return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+    except OSError:  # no loadable C library
+        return None

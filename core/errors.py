@@ -92,6 +92,8 @@ KINDS = {
     "correspondence": "a transfer's map lays the meshes on each other only in part, strays or turns parts inside out",
     "target": "a transfer's target mesh has triangles, edges or vertices it cannot carry, or too few vertices",
     "frame_times": "a point cache's frame times are not evenly spaced",
+    "process": ("the in-betweens' second process stopped answering and was ended: its gaps were computed in "
+                "the caller's process (the same in-betweens, more slowly)"),
 }
 
 

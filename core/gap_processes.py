@@ -9,9 +9,10 @@ on the threads: the same bits), so two single-threaded processes, each taking a 
 the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a mixin of
 :class:`~core.sequence_inbetweens.SequenceInterpolator`) does:
 
-- *The worker.* One process per Python session (:func:`kept_worker`), started when the first
-  sequence that could share its gaps is built, or before its keys are read (:func:`start_worker`),
-  and kept for the next ones: its start (a fresh
+- *The worker.* One process per Python session (:func:`kept_worker`), started when the caller of a
+  sequence that could share its gaps is first known to ask two gaps or more (its plan, or the first
+  call of a visit in order that leaves later gaps: not for a farm's one-gap chunk), or before its
+  keys are read (:func:`start_worker`), and kept for the next ones: its start (a fresh
   interpreter importing NumPy, SciPy and the core, 0.4–0.5 s) overlaps the caller's first gaps,
   which the caller computes as before (threads, the next gap begun ahead) until the worker is
   ready. It is spawned, never forked (Blender's process has many threads), as ``sys.executable
@@ -19,7 +20,11 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   private package name (:data:`PRIVATE_NAME`), so it works where the core is
   ``bl_ext.<repo>.<id>.core`` inside Blender (the core imports itself only relatively); its BLAS
   has one thread (``OPENBLAS_NUM_THREADS`` and the like, and :func:`core.concurrency.one_thread`).
-  What it does and the messages: :mod:`core.gap_worker`.
+  On Windows it opens no console window (:data:`WINDOWLESS`). It keeps the last sequence it built,
+  under a hash of its keys, triangles and options (:func:`_digest`), so that the next job of the
+  same keys (the sequence asked for other gaps, an operator run again) sends and builds nothing;
+  idle for :data:`core.gap_worker.IDLE_SECONDS`, it lets that sequence go and hands its free heap
+  back. What it does and the messages: :mod:`core.gap_worker`.
 - *Which gaps.* Those of a caller visiting the gaps in order at one set of factors (as
   :mod:`core.sequence_gaps_ahead` reads it: a sequence's first call, or the gap after the
   previous call's at the same factors), or following the calls it said it will make
@@ -43,7 +48,10 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   so a worker started late, or slowed by other processes, keeps only what it can do.
 - *Safety.* A worker that cannot be started (no ``sys.executable``, a sandbox), or that dies,
   or breaks, leaves the gaps to the caller, nothing lost; one that does not start within
-  :data:`START_TIMEOUT` seconds is ended and not tried again in the session.
+  :data:`START_TIMEOUT` seconds is ended and not tried again in the session; one that sends nothing
+  on a job for :data:`HANG_GAPS` times the slowest gap so far (at least :data:`HANG_LEAST` seconds)
+  while a caller waits for it is ended, with a warning (kind ``process``), its gaps computed by
+  their callers, and none is started again in the session.
   :data:`core.concurrency.USE_PROCESSES` (``SHAPE_DIFFERENCES_PROCESSES=0``) turns it off. A caller off
   its visit (another gap or factors than it said or than in order) drops the worker's gaps, as
   does a sequence let go; :func:`stop` (the operators' Esc) drops every sequence's, lets a call
@@ -55,6 +63,7 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
 from __future__ import annotations
 
 import atexit
+import hashlib
 import itertools
 import os
 import pickle
@@ -63,7 +72,7 @@ import sys
 import threading
 import time
 import weakref
-from contextlib import nullcontext
+from contextlib import contextmanager, nullcontext
 
 import numpy as np
 
@@ -84,6 +93,19 @@ START_TIMEOUT = 60.0
 #: (curtain, keys 4 apart: 0.18 s against 0.12 s in order), so with one left the worker, ending its
 #: gap under way and then that one, is as soon done.
 TAKEN_BACK_LEAST = 2
+#: A caller waiting for the worker's result ends the worker where it has sent nothing on the job for
+#: this many times the slowest gap timed so far (the worker's, from its call begun to its poses, and
+#: the caller's own of that sequence), and at least :data:`HANG_LEAST` seconds: a worker that hangs
+#: (stopped, swapped out) with fewer than :data:`TAKEN_BACK_LEAST` calls not begun would otherwise hold a
+#: script without Esc (``blender --background``, a farm task) for ever. Between two messages the worker
+#: builds a sequence or computes one gap (its build, 0.05–0.07 s at 15k vertices, is below a gap's
+#: 0.12 s); gaps of one sequence differ in cost up to a few times, and the two processes share cores.
+HANG_GAPS = 30
+#: The least time (s) a caller waits for a silent worker before it ends it (:data:`HANG_GAPS`).
+HANG_LEAST = 10.0
+#: Windows' ``CREATE_NO_WINDOW`` process creation flag (``subprocess.CREATE_NO_WINDOW`` there): the
+#: worker, a console program, opens no console window beside Blender's.
+WINDOWLESS = 0x08000000
 #: The name the worker loads the core's folder under: not ``core`` (a package of that name may be
 #: another's on the caller's ``sys.path``) nor the extension's ``bl_ext…`` (made by Blender).
 PRIVATE_NAME = "_shape_differences_worker_core"
@@ -123,8 +145,9 @@ class _Job:
         self.id = next(_job_ids)
         self.calls = {(gap, bits): factors for gap, bits, factors in calls}
         self.outcomes: dict[tuple, tuple] = {}
-        self.begun: set[tuple] = set()  # the calls the worker has begun
+        self.begun: dict[tuple, float] = {}  # the calls the worker has begun: when (time.monotonic)
         self.ended = False
+        self.heard = time.monotonic()  # when it was given, or the worker's last message on it
 
 
 class _Worker:
@@ -138,12 +161,15 @@ class _Worker:
         path = [os.path.abspath(entry) if entry else os.getcwd() for entry in sys.path]
         self.process = subprocess.Popen([executable, "-I", "-c", BOOT, _FOLDER, PRIVATE_NAME, *path],
                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=_worker_errors(),
-                                        env={**os.environ, **WORKER_ENVIRONMENT})
+                                        env={**os.environ, **WORKER_ENVIRONMENT},
+                                        creationflags=WINDOWLESS if sys.platform == "win32" else 0)
         self.started = time.monotonic()
         self.ready = False
         self.alive = True
         self.cpu = 0.0  # its CPU seconds, as its last message said
         self.modules = None  # the modules named core…, bl_ext… or its own core's it imported (its first message)
+        self.kept = None  # the token of the sequence it keeps (as the caller last knew), or None
+        self.slowest = 0.0  # its slowest gap so far (s, wall: from its "begun" message to its poses)
         self.jobs: dict[int, _Job] = {}
         self.condition = threading.Condition()
         self._write_lock = threading.Lock()
@@ -155,12 +181,14 @@ class _Worker:
         with self.condition:
             return self.ready and self.alive and not self.jobs
 
-    def submit(self, job: _Job, arguments: tuple) -> bool:
-        """Give the worker ``job`` on the sequence of ``arguments`` (keys, triangles, options)."""
+    def submit(self, job: _Job, token: bytes, arguments: tuple) -> bool:
+        """Give the worker ``job`` on the sequence of ``arguments`` (keys, triangles, options), whose
+        hash is ``token``: sent only where the worker does not keep that sequence already."""
         with self.condition:
             self.jobs[job.id] = job
+            known, self.kept = self.kept == token, token
         calls = [(gap, factors) for (gap, _), factors in job.calls.items()]
-        return self._send(("job", job.id, *arguments, calls))
+        return self._send(("job", job.id, token, None if known else arguments, calls))
 
     def drop(self, job: int) -> None:
         """The worker leaves the remaining calls of job ``job`` (its id) undone (its gap under way
@@ -179,21 +207,26 @@ class _Worker:
         except RuntimeError:  # the interpreter is ending: so is the worker (shut_down)
             pass
 
-    def outcome(self, job: _Job, key: tuple, steal=None):
+    def outcome(self, job: _Job, key: tuple, steal=None, limit: float = HANG_LEAST):
         """The worker's message on call ``key`` of ``job``, waited for; None where it will send none.
         While it is not there and the worker has :data:`TAKEN_BACK_LEAST` calls of ``job`` or more not
         begun, the last is taken back (the worker told to skip it) and given to ``steal(call,
-        factors)``, which computes it."""
+        factors)``, which computes it. Raises :class:`_Silent` where the worker has sent nothing on
+        ``job`` for ``limit`` seconds (:data:`HANG_GAPS`)."""
         while True:
             with self.condition:
+                call = None
                 while key in job.calls and key not in job.outcomes and not job.ended:
-                    left = [call for call in job.calls if call not in job.begun]
+                    left = [pending for pending in job.calls if pending not in job.begun]
                     if len(left) >= TAKEN_BACK_LEAST and steal is not None:
+                        call = left[-1]
                         break
-                    self.condition.wait()
+                    silent = time.monotonic() - job.heard
+                    if silent >= limit:
+                        raise _Silent(silent)
+                    self.condition.wait(min(limit - silent, threading.TIMEOUT_MAX))
                 else:
                     return job.outcomes.pop(key, None)
-                call = left[-1]
                 factors = job.calls.pop(call)
             self._send(("skip", job.id, *call))
             steal(call, factors)
@@ -220,18 +253,27 @@ class _Worker:
         try:
             while True:
                 message = pickle.load(stream)
+                now = time.monotonic()
                 with self.condition:
                     self.cpu = message[-1]
                     kind = message[0]
                     if kind == "ready":
                         self.ready, self.modules = True, message[2]
+                    elif kind == "forgot":  # idle: its kept sequence let go
+                        self.kept = None
                     elif kind in ("gap", "failed", "begun"):
-                        job = self.jobs.get(message[1])
+                        job, call = self.jobs.get(message[1]), (message[2], message[3])
+                        if job is not None:
+                            job.heard = now
                         if job is not None and kind == "begun":
-                            job.begun.add((message[2], message[3]))
-                        elif job is not None and (message[2], message[3]) in job.calls:  # not taken back
-                            job.outcomes[(message[2], message[3])] = message
+                            job.begun[call] = now
+                        elif job is not None:
+                            self.slowest = max(self.slowest, now - job.begun.get(call, now))
+                            if call in job.calls:  # not taken back
+                                job.outcomes[call] = message
                     else:  # done or broken: nothing more of that job
+                        if kind == "broken":  # no sequence kept
+                            self.kept = None
                         job = self.jobs.pop(message[1], None)
                         if job is not None:
                             job.ended = True
@@ -278,6 +320,40 @@ def _worker_errors():
     except OSError:
         return subprocess.DEVNULL
     return None
+
+
+class _Silent(Exception):
+    """The worker has sent nothing on a job for longer than the caller waits (``args[0]``: seconds)."""
+
+
+def _end_silent(worker: _Worker, silent: float, limit: float) -> None:
+    """End ``worker``, silent for ``silent`` seconds past the ``limit`` a caller waits for it
+    (:data:`HANG_GAPS`), and start none again in the session: its jobs' calls are computed by their
+    callers (the same in-betweens), with a warning."""
+    global _unstartable
+    _unstartable = True  # a process that hung once (stopped, swapped out) would hold the next caller too
+    try:
+        worker.process.kill()
+    except OSError:
+        pass
+    worker._gone()
+    errors.warn(f"the in-betweens' second process sent nothing for {silent:.1f} s, past the {limit:.1f} s it is "
+                f"allowed ({HANG_GAPS} times the slowest gap so far, at least {HANG_LEAST:g} s): it was ended, its "
+                "gaps are computed in this process (the same in-betweens, more slowly), and no second process is "
+                "started again in this session. Check the machine's memory and load (a process stopped or swapped "
+                "out); SHAPE_DIFFERENCES_PROCESSES=0 starts none", "process")
+
+
+def _digest(arguments: tuple) -> bytes:
+    """A hash of ``arguments`` (keys, triangles, options) as their pickle to the worker (streamed
+    into the hash, never held whole): the token the worker keeps their sequence under."""
+    digest = hashlib.blake2b(digest_size=20)
+
+    class Stream:
+        write = digest.update
+
+    pickle.Pickler(Stream(), protocol=pickle.HIGHEST_PROTOCOL).dump(arguments)
+    return digest.digest()
 
 
 def kept_worker() -> _Worker | None:
@@ -406,15 +482,22 @@ class GapProcesses:
     #: The constructor's checked arguments (keys, triangles, options) the worker builds its own
     #: sequence from; None where the sequence shares no gaps.
     _worker_arguments = None
+    #: The hash of :attr:`_worker_arguments` (:func:`_digest`), made at the first hand-over.
+    _token = None
     #: Calls of the worker's taken back and computed here before they were asked: {(gap, bits): a
     #: function returning their (poses, warnings) or raising their error}.
     _taken_back: dict = {}  # (read only: the first hand-over makes the sequence's own)
+    #: The slowest call computed here so far (s, wall), of which the wait for a silent worker is a
+    #: multiple (:data:`HANG_GAPS`).
+    _slowest = 0.0
 
     def _share_gaps_later(self, arguments: tuple) -> None:
-        """Keep the constructor's ``arguments`` and start the worker (it gets ready while the caller's
-        first gaps are computed), where this sequence may share its gaps."""
+        """Keep the constructor's ``arguments`` where this sequence may share its gaps. The worker is
+        started once the caller is known to ask two gaps or more: at a plan of two calls or more
+        (:meth:`will_ask`), or at the first call of a visit in order that leaves later gaps
+        (:meth:`_hand_over`), not for a caller that asks one gap (a farm's one-gap chunk)."""
         _sequences.add(self)
-        if start_worker(self._topo.n, len(self), self.k_M):
+        if len(self) >= 2 and shares_gaps(self._topo.n, self.k_M):
             self._worker_arguments = arguments
 
     def will_ask(self, calls) -> None:
@@ -429,6 +512,8 @@ class GapProcesses:
             gap, factors = check_gap_index(gap, len(self)), check_factors(factors)
             plan.append((gap, factor_bits(factors), factors))
         self._plan, self._planned = plan, 0
+        if len(plan) >= 2 and self._worker_arguments is not None and shares_gaps(self._topo.n, self.k_M):
+            kept_worker()  # started now: it gets ready while the first calls are computed
 
     def _stop_background(self) -> None:
         """:func:`stop` for this sequence: the call under way begins nothing more in the background
@@ -496,7 +581,9 @@ class GapProcesses:
         if worker is None or not worker.idle():
             return
         job = _Job(rest[len(rest) - share:])
-        if worker.submit(job, self._worker_arguments):
+        if self._token is None:
+            self._token = _digest(self._worker_arguments)
+        if worker.submit(job, self._token, self._worker_arguments):
             self._jobs = (*self._jobs, (worker, job))
             if "_taken_back" not in vars(self):
                 self._taken_back = {}
@@ -506,7 +593,12 @@ class GapProcesses:
     def _taken_from_worker(self, worker: _Worker, job: _Job, gap: int, factors: list[float], bits: tuple):
         """The worker's outcome of call ``(gap, bits)`` of ``job`` (see :meth:`_from_worker`); while
         it is not there, the calls the worker has not begun computed here, from the last."""
-        outcome = worker.outcome(job, (gap, bits), self._take_back)
+        limit = max(HANG_LEAST, HANG_GAPS * max(worker.slowest, self._slowest))
+        try:
+            outcome = worker.outcome(job, (gap, bits), self._take_back, limit)
+        except _Silent as silent:  # hung: ended, and this call and the worker's others computed here
+            _end_silent(worker, silent.args[0], limit)
+            outcome = None
         job.calls.pop((gap, bits), None)
         if not job.calls:
             self._jobs = tuple(held for held in self._jobs if held[1] is not job)
@@ -528,7 +620,7 @@ class GapProcesses:
     def _take_back(self, call: tuple, factors: list[float]) -> None:
         """Compute here the worker's ``call`` (gap, bits) it has not begun, for when it is asked
         (its poses and warnings, or its error raised then)."""
-        with concurrency.one_thread():
+        with self._timed(), concurrency.one_thread():
             try:
                 poses = self._computed_poses(call[0], factors, False)
             except Exception as error:
@@ -544,11 +636,20 @@ class GapProcesses:
         of it is begun or prepared here."""
         return any(at == gap for _, job in self._jobs for at, _ in list(job.calls))
 
+    @contextmanager
     def _sharing(self):
-        """The context of a call computed here: one thread while the worker holds calls of this sequence
-        not yet made (the caller's own part: threads would buy it 0.80–1.02 × the wall time for 1.3–1.7 ×
-        the CPU)."""
-        return concurrency.one_thread() if self._jobs else nullcontext()
+        """The context of a call computed here, timed (:attr:`_slowest`): one thread while the worker
+        holds calls of this sequence not yet made (the caller's own part: threads would buy it 0.80–1.02 ×
+        the wall time for 1.3–1.7 × the CPU)."""
+        with self._timed(), concurrency.one_thread() if self._jobs else nullcontext():
+            yield
+
+    @contextmanager
+    def _timed(self):
+        """:attr:`_slowest` updated with the wall time of the block, where it ends without an error."""
+        began = time.monotonic()
+        yield
+        self._slowest = max(self._slowest, time.monotonic() - began)
 
 
 def _error(name: str, message: str) -> Exception | None:

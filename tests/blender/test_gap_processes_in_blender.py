@@ -25,7 +25,7 @@ def test_the_extensions_sequences_share_their_gaps_with_a_worker(core, monkeypat
     given = []
     submit = gap_processes._Worker.submit
     monkeypatch.setattr(gap_processes._Worker, "submit",
-                        lambda self, job, arguments: given.append(len(job.calls)) or submit(self, job, arguments))
+                        lambda self, job, *arguments: given.append(len(job.calls)) or submit(self, job, *arguments))
     try:
         worker = gap_processes.kept_worker()
         deadline = time.monotonic() + 120
@@ -76,7 +76,7 @@ def _frame_operator_run(core, extension, monkeypatch, operator: str, eligible: b
 
         patch.setattr(reading, "frame_positions", first_read)
         patch.setattr(gap_processes._Worker, "submit",
-                      lambda self, job, arguments: given.append(len(job.calls)) or submit(self, job, arguments))
+                      lambda self, job, *arguments: given.append(len(job.calls)) or submit(self, job, *arguments))
         bpy = importlib.import_module("bpy")
         bpy.ops.wm.read_homefile(use_empty=True)
         obj = armature_scene(frames=13)

@@ -57,6 +57,14 @@ def _ready_worker():
     return worker
 
 
+def _idle(worker):
+    """Wait until ``worker`` has no job left (the last job's end said)."""
+    deadline = time.monotonic() + 60
+    while not worker.idle() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert worker.idle()
+
+
 def _asked(sequence, requests, *, after_first=None):
     """``(poses, the warnings' (message, kind, gap, factors, excess))`` of each request ``(gap,
     factors)``, or ``(type, message)`` of the error it raised; ``after_first()`` run after the first."""
@@ -96,9 +104,9 @@ def _counted_jobs(monkeypatch):
     given, taken = [], []
     submit, take = gap_processes._Worker.submit, gap_processes.GapProcesses._taken_from_worker
 
-    def counted_submit(self, job, arguments):
+    def counted_submit(self, job, *arguments):
         given.append(sorted(gap for gap, _ in job.calls))
-        return submit(self, job, arguments)
+        return submit(self, job, *arguments)
 
     def counted_take(self, worker, job, gap, factors, bits):
         taken.append(gap)
@@ -249,10 +257,7 @@ def test_stopped_sequences_compute_what_the_worker_held(monkeypatch):
     requests = [(gap, SIXTEENTHS) for gap in range(5)]
     shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=gap_processes.stop)
     _same(shared, _one_process(requests, monkeypatch))
-    deadline = time.monotonic() + 60
-    while not worker.idle() and time.monotonic() < deadline:
-        time.sleep(0.01)
-    assert worker.idle()
+    _idle(worker)
 
 
 def test_one_core_starts_no_worker(monkeypatch):
@@ -452,3 +457,170 @@ def test_a_caller_without_standard_error_still_starts_a_worker():
                           pass_fds=(), preexec_fn=lambda: os.close(2), timeout=300,
                           env={**os.environ, "PYTHONPATH": str(root)})
     assert told.stdout.decode() == "(True, True)"
+
+
+def _sent_jobs(monkeypatch):
+    """Each job message sent to the worker: ``(job id, whether the keys were sent)``, and the kinds of
+    the worker's messages the caller took (``gap``: computed there)."""
+    sent, answered = [], []
+    send, outcome = gap_processes._Worker._send, gap_processes._Worker.outcome
+
+    def recorded_send(self, message):
+        if message[0] == "job":
+            sent.append((message[1], message[3] is not None))
+        return send(self, message)
+
+    def recorded_outcome(self, *arguments, **options):
+        answer = outcome(self, *arguments, **options)
+        answered.append(None if answer is None else answer[0])
+        return answer
+
+    monkeypatch.setattr(gap_processes._Worker, "_send", recorded_send)
+    monkeypatch.setattr(gap_processes._Worker, "outcome", recorded_outcome)
+    return sent, answered
+
+
+def test_a_second_job_of_the_same_keys_sends_and_builds_nothing(monkeypatch):
+    """A sequence of the same keys built again (an operator run again) and asked its gaps again: the
+    worker computes its share from the sequence it kept, the keys not sent again (before: sent, and the
+    sequence built again, for every job), with one process's poses and warnings, its warned gaps
+    included; a sequence of other keys replaces it (one kept), after which the first keys are sent again."""
+    worker = _ready_worker()
+    sent, answered = _sent_jobs(monkeypatch)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    alone = _one_process(requests, monkeypatch)
+    _same(_asked(SequenceInterpolator(KEYS, TRIANGLES), requests), alone)
+    assert sent and sent[0][1] and not any(with_keys for _, with_keys in sent[1:])  # once per sequence
+    _idle(worker)
+    before, heard = len(sent), len(answered)
+    _same(_asked(SequenceInterpolator([key.copy() for key in KEYS], TRIANGLES), requests), alone)
+    assert sent[before:] and not any(with_keys for _, with_keys in sent[before:]) and "gap" in answered[heard:]
+    others = KEYS[::-1]
+    _idle(worker)
+    before = len(sent)
+    _same(_asked(SequenceInterpolator(others, TRIANGLES), requests), _one_process(requests, monkeypatch, others))
+    assert sent[before:] and sent[before][1]
+    _idle(worker)
+    before = len(sent)
+    _same(_asked(SequenceInterpolator(KEYS, TRIANGLES), requests), alone)
+    assert sent[before:] and sent[before][1]
+
+
+def _patched_worker(folder: Path, statement: str) -> Path:
+    """A copy of the core whose gap_worker module runs ``statement`` (a module-level statement) last."""
+    core = folder / "core"
+    shutil.copytree(Path(gap_processes.__file__).parent, core, ignore=shutil.ignore_patterns("__pycache__"))
+    with open(core / "gap_worker.py", "a") as module:
+        module.write(f"\n\n{statement}\n")
+    return core
+
+
+def _resident_mb(pid: int) -> float:
+    """The resident set (MB) of process ``pid`` (Linux's /proc)."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS")
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="no /proc on this system")
+def test_an_idle_worker_lets_its_sequence_and_heap_go(monkeypatch, tmp_path):
+    """A worker idle for IDLE_SECONDS (0.5 s here) after a job on a 14,400-vertex sheet lets its kept
+    sequence go and hands its free heap back: its resident set returns to within 40 MB of what it was
+    when ready (before: 144 MB against 66 when ready, for the rest of the session), and the next job of
+    those keys sends them again."""
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_worker(tmp_path, "IDLE_SECONDS = 0.5")))
+    try:
+        worker = _ready_worker()
+        time.sleep(1.0)  # its own idle time after the start
+        ready = _resident_mb(worker.process.pid)
+        flat, triangles = grid(120)
+        keys = [drape(flat, amount) for amount in (0.1, 0.3, 0.5, 0.7)]
+        sent, answered = _sent_jobs(monkeypatch)
+        _asked(SequenceInterpolator(keys, triangles), [(gap, [0.25, 0.5, 0.75]) for gap in range(3)])
+        assert "gap" in answered
+        deadline = time.monotonic() + 60
+        while (worker.jobs or worker.kept is not None) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        time.sleep(0.2)  # its heap handed back after it said so
+        idle = _resident_mb(worker.process.pid)
+        assert worker.kept is None and idle - ready < 40, (ready, idle)
+        _asked(SequenceInterpolator(keys, triangles), [(gap, [0.25, 0.5, 0.75]) for gap in range(3)])
+        assert sent[-1][1]
+    finally:
+        gap_processes.shut_down()
+
+
+def test_a_worker_that_hangs_is_ended_and_its_gaps_computed_here(monkeypatch, tmp_path):
+    """The worker hangs in gap 3 (a pause of 60 s) while the caller waits for it with no call left to
+    take back: after HANG_LEAST (1 s here; the sheet's gaps take milliseconds) without a message the
+    caller ends it, warns once (kind ``process``) and computes gaps 3 and 4 itself, one process's poses
+    and warnings; no worker is started again in the session (before: the caller waited the 60 s, for
+    ever for a worker that never answers)."""
+    monkeypatch.setattr(gap_processes, "HANG_LEAST", 1.0)
+    try:
+        sequence, shared, _, worker = _slowed_at_gap_3(monkeypatch, tmp_path, 60.0, 3)
+        began = time.monotonic()
+        shared += _asked(sequence, [(3, SIXTEENTHS), (4, SIXTEENTHS)])
+        waited = time.monotonic() - began
+        ended = worker.process.wait(timeout=10)
+    finally:
+        gap_processes.shut_down()
+    assert waited < 20.0 and ended != 0
+    hung = [told for _, said in shared for told in said if told[1] == "process"]
+    assert len(hung) == 1 and "second process sent nothing" in hung[0][0]
+    shared[3] = (shared[3][0], [told for told in shared[3][1] if told[1] != "process"])
+    _same(shared, _one_process([(gap, SIXTEENTHS) for gap in range(5)], monkeypatch))
+    assert gap_processes._unstartable and not gap_processes.start_worker(150, 5)
+
+
+def test_a_one_gap_part_starts_no_worker(monkeypatch, tmp_path):
+    """A sequence whose caller asks one gap (a farm's one-gap chunk: ``iter_retime`` over one gap of
+    many, or a plan of one call) starts no worker; a plan of two calls does (before: the sequence
+    started one when built, 0.2–0.5 s of CPU for nothing). ``python -m core retime --chunk`` of one gap
+    starts none either, and writes the file one process writes."""
+    from core import __main__ as command
+    from core.obj_file import write_obj
+    from core.point_cache import write_pc2
+
+    gap_processes.shut_down()
+    sequence = SequenceInterpolator(KEYS, TRIANGLES)
+    sequence.will_ask([(2, SIXTEENTHS)])
+    sequence.poses(2, SIXTEENTHS, ahead=False)
+    assert gap_processes._worker is None
+    samples = np.array(KEYS)
+    assert retime.retime(samples, TRIANGLES, step=1, speed=0.5, gaps=range(1, 2)).shape[0] >= 1
+    assert gap_processes._worker is None
+    cache = write_pc2(tmp_path / "in.pc2", samples, start=1.0)
+    topology = write_obj(tmp_path / "sheet.obj", KEYS[0], TRIANGLES)
+    arguments = ["retime", str(cache), "--topology", str(topology), "--step", "1", "--speed", "0.4", "-q",
+                 "--chunk", "2/5"]
+    assert command.main([*arguments, "-o", str(tmp_path / "shared.pc2")]) == 0
+    assert gap_processes._worker is None
+    with monkeypatch.context() as patch:
+        patch.setattr(concurrency, "USE_PROCESSES", False)
+        assert command.main([*arguments, "-o", str(tmp_path / "alone.pc2")]) == 0
+    assert (tmp_path / "shared.pc2").read_bytes() == (tmp_path / "alone.pc2").read_bytes()
+    SequenceInterpolator(KEYS, TRIANGLES).will_ask([(1, SIXTEENTHS), (2, SIXTEENTHS)])
+    assert gap_processes._worker is not None
+    gap_processes.shut_down()
+
+
+def test_the_worker_opens_no_console_window_on_windows(monkeypatch):
+    """On Windows the worker is created with CREATE_NO_WINDOW (a console program started from Blender's
+    window would open a console of its own); elsewhere with no creation flags (which POSIX refuses)."""
+    flags = []
+
+    def recorded(command, **options):
+        flags.append(options.get("creationflags"))
+        raise OSError("recorded, not started")
+
+    monkeypatch.setattr(gap_processes.subprocess, "Popen", recorded)
+    for platform in ("win32", "linux"):
+        with monkeypatch.context() as patch:
+            patch.setattr(sys, "platform", platform)
+            with pytest.raises(OSError, match="recorded"):
+                gap_processes._Worker()
+    assert flags == [0x08000000, 0]
+    assert getattr(subprocess, "CREATE_NO_WINDOW", 0x08000000) == gap_processes.WINDOWLESS
