@@ -43,8 +43,19 @@ from .heartbeat import whole
 from .obj_file import read_obj
 from .point_cache import (check_disk_space, check_pc2_name, check_pc2_timing, foreign_path, merge_pc2, pc2_size,
                           read_pc2_header, read_point_cache, refuse_overwriting, unwritable, write_pc2)
-from .retime import iter_retime, plan_retime
-from .validation import check_output_memory, check_working_memory
+from .retime import MAX_OUTPUT_SAMPLES, iter_retime, plan_retime
+from .validation import INBETWEEN_BYTES_PER_VERTEX, check_output_memory, check_working_memory
+
+
+def _too_many_chunks(count: int) -> str | None:
+    """Why ``count`` chunks of a retime (``retime --chunk I/N``'s N, ``merge --count``) are more than
+    any retime is split into, or None: a retime has at most :data:`core.retime.MAX_OUTPUT_SAMPLES`
+    key gaps (Blender's frames), so the chunks past them are empty, and a merge would look for each
+    one's file (10¹² names listed before the first is looked for: a typo's count filled the memory)."""
+    if count <= MAX_OUTPUT_SAMPLES:
+        return None
+    return (f"{count:,} chunks are more than any retime has key gaps (at most {MAX_OUTPUT_SAMPLES:,}, one per "
+            "frame Blender plays): give the number of chunks the retime was split into")
 
 
 def _chunk(text: str) -> tuple[int, int]:
@@ -54,6 +65,9 @@ def _chunk(text: str) -> tuple[int, int]:
         raise argparse.ArgumentTypeError(f"--chunk wants I/N (e.g. 2/8); got {text!r}") from None
     if not 1 <= index <= count:
         raise argparse.ArgumentTypeError(f"--chunk {text}: need 1 <= I <= N")
+    too_many = _too_many_chunks(count)
+    if too_many:
+        raise argparse.ArgumentTypeError(f"--chunk {text}: {too_many}")
     return index - 1, count
 
 
@@ -128,6 +142,9 @@ def _numbered(pattern: str, count: int | None) -> list[str]:
     if "#" not in name or not count or count < 1:
         raise ShapeDifferenceError("--numbered needs a PATTERN whose file name has a '#' (such as "
                                    "chunks/chunk#.pc2) and --count N >= 1")
+    too_many = _too_many_chunks(count)
+    if too_many:  # before the names are listed
+        raise ShapeDifferenceError(f"--count {count}: {too_many}.")
     return [os.path.join(folder, name.replace("#", str(i))) for i in range(1, count + 1)]
 
 
@@ -299,7 +316,8 @@ def _retime_in(args, progress: Heartbeat) -> int:
                    use_extrinsic=not args.intrinsic, smooth=not args.linear)
     check_working_memory(cache.n_points, "In-betweening this cache", "run it on a node with more memory")
     check_output_memory(len(outputs), cache.n_points, "The output of this retime",
-                        "split it across processes with --chunk I/N (and merge the parts), or raise --speed")
+                        "split it across processes with --chunk I/N (and merge the parts), or raise --speed",
+                        working=plan.batch(gaps) * cache.n_points * INBETWEEN_BYTES_PER_VERTEX)
     check_disk_space(args.output, pc2_size(cache.n_points, len(outputs)))
     if args.merged_output is not None:
         try:

@@ -34,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import MeshError
-from .validation import describe, check_count, check_positive, check_vertices
+from .validation import (INBETWEEN_BYTES_PER_VERTEX, check_count, check_output_memory, check_positive, check_triangles,
+                         check_vertices, describe)
 
 # An output time this close to a whole sample (relative) is that sample: k · speed in floating
 # point misses integers by a few ulps (3 · 0.1 = 0.30000000000000004).
@@ -99,11 +100,21 @@ class RetimePlan:
         return len(self.times)
 
     def chunk(self, index: int, count: int) -> range:
-        """The gaps of chunk ``index`` (0-based) of ``count`` near-equal contiguous chunks."""
+        """The gaps of chunk ``index`` (0-based) of ``count`` near-equal contiguous chunks: chunk
+        ``i`` starts at gap ``n_gaps · i // count``. Only its own two bounds are computed (in Python
+        integers), whatever the count: the list of every chunk's bounds, before, took 0.9 s and 90 MB
+        for a count of 10⁷ (``--chunk 1/1000000000`` ran past two minutes, 3 GB, without a gap)."""
         if not (isinstance(count, (int, np.integer)) and count >= 1 and 0 <= index < count):
             raise ValueError(f"chunk {index} of {count}: need 0 <= index < count and count >= 1.")
-        bounds = [self.n_gaps * i // count for i in range(count + 1)]
-        return range(bounds[index], bounds[index + 1])
+        index, count = int(index), int(count)
+        return range(self.n_gaps * index // count, self.n_gaps * (index + 1) // count)
+
+    def batch(self, gaps: range) -> int:
+        """The most in-betweens (output samples that are no keys) of one gap in ``gaps``: what
+        :func:`iter_retime` asks of a sequence at once."""
+        outputs = self.outputs(gaps)
+        asked = self.gaps[outputs.start:outputs.stop][self.exact_keys[outputs.start:outputs.stop] < 0]
+        return int(np.bincount(asked).max()) if asked.size else 0
 
     def outputs(self, gaps: range) -> range:
         """The output samples that lie in ``gaps`` (a contiguous range, possibly empty)."""
@@ -249,13 +260,13 @@ def _check_samples(samples) -> None:
         raise MeshError(f"samples must be a sequence of poses (n, 3) or an array (samples, n, 3); got {describe(samples)}.")
 
 
-def _key_pose(sample, name: str) -> np.ndarray:
+def _key_pose(sample, name: str, n_vertices: int | None = None) -> np.ndarray:
     """A source ``sample`` as float64 ``(n, 3)``, checked (:func:`core.validation.check_vertices`:
-    real numbers, shape, finite; ``name`` in its messages), made read-only where the conversion
-    made an array of its own (float32 samples, a memory map's rows), so the sequence keeps it as its
-    key instead of a copy; the caller's own float64 arrays (a list of frames) are left as they are,
-    writable."""
-    pose = check_vertices(sample, name=name)
+    real numbers, shape, finite, ``n_vertices`` vertices where given; ``name`` in its messages),
+    made read-only where the conversion made an array of its own (float32 samples, a memory map's
+    rows), so the sequence keeps it as its key instead of a copy; the caller's own float64 arrays (a
+    list of frames) are left as they are, writable."""
+    pose = check_vertices(sample, n_vertices, name=name)
     if pose is not sample and pose.base is None:
         pose.flags.writeable = False
     return pose
@@ -306,8 +317,15 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     gaps = range(plan.n_gaps) if gaps is None else gaps
     if not isinstance(gaps, range) or gaps.step != 1 or gaps.start < 0 or gaps.stop > plan.n_gaps or gaps.start > gaps.stop:
         raise MeshError(f"gaps {describe(gaps)} is not a contiguous range within the {plan.n_gaps} gaps.")
-    key_poses = [_key_pose(samples[key], f"key pose {i}" if sample_names is None else sample_names(int(key)))
+    key_names = [f"key pose {i}" if sample_names is None else sample_names(int(key))
                  for i, key in enumerate(plan.keys)]
+    first = _key_pose(samples[plan.keys[0]], key_names[0])
+    # every key of the first key's vertex count, and the faces of a mesh of them, before the motion's
+    # ends are read from the samples (:func:`motion_ends`): keys of two counts reached it as NumPy's
+    # "operands could not be broadcast", empty keys as its "Mean of empty slice" warning
+    key_poses = [first] + [_key_pose(samples[key], name, len(first))
+                           for key, name in zip(plan.keys[1:], key_names[1:])]
+    check_triangles(triangles, len(first))
     # the short last gap's tail: its keys named as the plan's, as the main sequence's warnings name
     # them (its last gap is the plan's last, "between key pose K − 2 and key pose K − 1"; the samples
     # before it are no keys of the plan); those that are no keys checked here, once, before the end
@@ -318,10 +336,10 @@ def iter_retime(samples, triangles, plan: RetimePlan, gaps: range | None = None,
     checked = {int(key): pose for key, pose in zip(plan.keys, key_poses)}
     for s, name in zip(plan.tail, tail_names):
         if int(s) not in checked:
-            checked[int(s)] = _key_pose(samples[s], name)
+            checked[int(s)] = _key_pose(samples[s], name, len(first))
     read = {s: checked[s] if s in checked else samples[s] for s in plan.samples_read}  # middles: motion_ends checks them
     interpolator_options = {**interpolator_options, **motion_ends(read, plan.keys, plan.tail, interpolator_options)}
-    names = None if sample_names is None else [sample_names(int(key)) for key in plan.keys]
+    names = None if sample_names is None else key_names
     sequence = SequenceInterpolator(key_poses, triangles, **interpolator_options, key_times=plan.keys, key_names=names)
     tail = None
     if len(plan.tail) and gaps.stop == plan.n_gaps:
@@ -361,7 +379,19 @@ def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = 
     docstring."""
     _check_samples(samples)  # before len(): a clear refusal of what has none
     plan = plan_retime(len(samples), step, speed)
-    poses = [pose for _, pose in iter_retime(samples, triangles, plan, gaps, **interpolator_options)]
-    # iter_retime checked every key, the first included, even where it gives no pose (gaps empty)
-    n_points = poses[0].shape[0] if poses else len(samples[int(plan.keys[0])])
-    return np.asarray(poses, dtype=np.float32).reshape(-1, n_points, 3)
+    # the output (and the in-betweens of its largest gap while they are made) within half the memory
+    # available, before any work, as the command's and the operators'; the vertex count read from the
+    # first key before iter_retime checks it (once, by its name; no pose: refused there)
+    try:
+        n_points = len(samples[int(plan.keys[0])])
+    except TypeError:
+        n_points = 0
+    asked = range(plan.n_gaps) if gaps is None else gaps if isinstance(gaps, range) else range(0)  # else refused
+    outputs = plan.outputs(asked)  # by iter_retime
+    check_output_memory(len(outputs), n_points, "The output of this retime",
+                        "retime it in parts (gaps=plan.chunk(i, count)) or raise the speed",
+                        working=plan.batch(asked) * n_points * INBETWEEN_BYTES_PER_VERTEX)
+    poses = np.empty((len(outputs), n_points, 3), dtype=np.float32)  # filled in place: no float64 list beside it
+    for index, pose in iter_retime(samples, triangles, plan, gaps, **interpolator_options):
+        poses[index - outputs.start] = pose
+    return poses

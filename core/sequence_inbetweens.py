@@ -60,8 +60,9 @@ from .inbetween_prediction import gap_poses
 from .inbetween_keys import Relative
 from .inbetween_solver import Gap
 from .inbetween_threads import CONCURRENT_VERTICES
-from .validation import (check_factors, check_gap_index, check_key_times, check_real, check_end, check_sequence,
-                         check_start, check_time, check_vertices, numerical_failures)
+from .validation import (INBETWEEN_BYTES_PER_VERTEX, check_factors, check_gap_index, check_key_times,
+                         check_output_memory, check_real, check_end, check_sequence, check_start, check_time,
+                         check_vertices, numerical_failures)
 from .sequence_gap_starts import GapStarts
 from .sequence_gaps_ahead import GapsAhead
 from .gap_processes import GapProcesses
@@ -517,6 +518,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
+        # the poses (float64) and their working copies within half the memory available, as every output
+        # (100,000 factors of a 10k mesh: NumPy's raw MemoryError, or the memory filled as they are made)
+        check_output_memory(len(factors), self._topo.n, f"The in-betweens asked of gap {gap} at once",
+                            "ask for fewer factors at a time", bytes_per_point=INBETWEEN_BYTES_PER_VERTEX)
         taken = self._taken_ahead(gap, factors, ahead)  # the call begun ahead settled first (core.sequence_gaps_ahead)
         # the later gaps given to a second process, or this one taken from it (core.gap_processes)
         shared = self._from_worker(gap, factors, ahead, taken is not None)

@@ -38,6 +38,10 @@ MAX_FACTOR = 1e3
 #: Largest share of the memory available now that a job's output poses may take: the rest is
 #: for the job's own work and for whatever else the machine runs (Blender itself, other jobs).
 OUTPUT_MEMORY_SHARE = 0.5
+#: Memory each in-between asked of a gap at once takes per vertex while it is made
+#: (:meth:`core.SequenceInterpolator.poses`): its float64 pose (24 bytes) and the working copy it is
+#: solved in; measured peak 2.06 / 2.22 × the poses' 24 bytes (a 2,500-vertex sheet, 400 / 100 in-betweens).
+INBETWEEN_BYTES_PER_VERTEX = 48
 #: Memory a sequence's in-betweens take per vertex at their peak (keys, fields, factorizations):
 #: the benchmark's 100k-vertex sheets peak at 948 MB, the analytic one with 15 in-betweens per gap
 #: at 1,114 MB (docs/inbetweens.md).
@@ -434,9 +438,15 @@ def check_key_times(value, count: int) -> np.ndarray | None:
             or np.iscomplexobj(times) or times.shape != (count,):
         raise MeshError(f"key_times must be {count} numbers, one per key pose; got {describe(value)}.")
     times = times.astype(np.float64)
-    if not np.isfinite(times).all() or not (np.diff(times) > 0).all():
+    with np.errstate(over="ignore", invalid="ignore"):  # steps past float64's range: said below, not as NumPy's
+        steps = np.diff(times)
+    if not np.isfinite(times).all() or not (steps > 0).all():
         raise MeshError(f"key_times must be finite and strictly increasing (the frame of each key pose); "
                         f"got {times.tolist()}.")
+    if not np.isfinite(steps).all():  # a gap's duration, which its splines' tangents are scaled by, infinite
+        gap = int(np.flatnonzero(~np.isfinite(steps))[0])
+        raise MeshError(f"key_times {times[gap]:g} and {times[gap + 1]:g} (keys {gap} and {gap + 1}) are farther "
+                        "apart than double precision holds: give the keys' frames, or times in a unit nearer them.")
     return times
 
 
@@ -534,20 +544,23 @@ def check_shared_frame(poses: list[np.ndarray], topology, names: list[str]) -> N
             )
 
 
-def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, bytes_per_point: int = 12) -> None:
+def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, bytes_per_point: int = 12,
+                        working: int = 0) -> None:
     """Refuse (:class:`~core.errors.MeshError`) an output of ``n_poses`` poses of ``n_points``
-    points (``bytes_per_point`` each: 12 for float32 coordinates) that would take more than
-    :data:`OUTPUT_MEMORY_SHARE` of the memory available now, before any work: the job would swap
-    or be killed by the system after running for a long time (a farm node's other jobs with it).
-    ``what`` says which output, ``advice`` how to make it smaller. Nothing is checked where the
-    system does not say how much memory is available."""
+    points (``bytes_per_point`` each: 12 for float32 coordinates), with ``working`` bytes beside it
+    while it is made (a retime's largest gap's in-betweens, :data:`INBETWEEN_BYTES_PER_VERTEX`), that
+    would take more than :data:`OUTPUT_MEMORY_SHARE` of the memory available now, before any work:
+    the job would swap or be killed by the system after running for a long time (a farm node's other
+    jobs with it). ``what`` says which output, ``advice`` how to make it smaller. Nothing is checked
+    where the system does not say how much memory is available."""
     from .resources import available_memory
 
-    need = int(n_poses) * int(n_points) * bytes_per_point
+    need = int(n_poses) * int(n_points) * bytes_per_point + int(working)
     free = available_memory()
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
-        raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB, "
-                        f"and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
+        beside = f" with the {working / 1e9:.3g} GB its in-betweens take while they are made" if working else ""
+        raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB"
+                        f"{beside}, and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
 
 
 def check_result_memory(shape: tuple, what: str, advice: str) -> None:

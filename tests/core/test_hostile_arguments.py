@@ -100,7 +100,8 @@ def test_retime_checks_its_samples_and_settings(sheet):
     v, t, target = sheet
     keys = [v, target, v, target]
     # samples of other shapes: NumPy's "inhomogeneous shape" ValueError before
-    with pytest.raises(MeshError, match="key pose 1 of key_poses has 35 vertices but the base mesh has 36"):
+    # (named as the retime names its keys, no longer as the sequence's "key pose 1 of key_poses")
+    with pytest.raises(MeshError, match="key pose 1 has 35 vertices but the base mesh has 36"):
         retime([v, target[:-1], v, target], t, step=1, speed=0.5)
     with pytest.raises(MeshError, match=r"key pose 0 must be an array of shape \(n, 3\)"):
         retime([v[:, :2], target, v, target], t, step=1, speed=0.5)
@@ -286,3 +287,79 @@ def test_a_nested_list_of_factors_is_refused_as_factors(sheet):
     sequence = core.SequenceInterpolator([v, target], t)
     with pytest.raises(MeshError, match="factors must be a number or a list of numbers"):
         sequence.poses(0, [[0.5, 0.25]])
+
+
+def test_in_betweens_past_half_the_memory_are_refused_before_any_work(sheet, monkeypatch):
+    """``SequenceInterpolator.poses`` and ``core.retime.retime`` refuse an output past half the memory
+    available, as the command and the operators do (``check_output_memory``), before any in-between:
+    a list of factors or a speed asking for more poses than fit filled the memory one in-between after
+    another (or, past the machine's memory, NumPy's raw MemoryError). Asked in parts, they run."""
+    import core.sequence_inbetweens
+
+    v, t, target = sheet
+    keys = [v, target, drape(v, 1.5)]
+    sequence = core.SequenceInterpolator(keys, t)
+    factors = np.linspace(0.0, 1.0, 1001)[1:-1]  # 999 poses of 36 vertices, 48 bytes a vertex while made: 1.7 MB
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 10**6)  # half of it: 500 kB
+    calls = []
+    monkeypatch.setattr(core.sequence_inbetweens.SequenceInterpolator, "_computed_poses",
+                        lambda self, *args: calls.append(args))
+    with pytest.raises(MeshError, match="The in-betweens asked of gap 1 at once is 999 poses of 36 vertices.*fewer"):
+        sequence.poses(1, factors)
+    # speed 0.0005 over 9 samples: 16,001 poses of 36 vertices, float32: 6.9 MB
+    samples = [drape(v, s) for s in np.linspace(0.0, 1.5, 9)]
+    built = []
+    monkeypatch.setattr(core.sequence_inbetweens.SequenceInterpolator, "__init__",
+                        lambda self, *args, **kwargs: built.append(args))
+    with pytest.raises(MeshError, match="The output of this retime is 16,001 poses of 36 vertices"):
+        retime(samples, t, step=4, speed=0.0005)
+    assert not calls and not built  # nothing computed, no sequence prepared
+    monkeypatch.undo()
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 10**6)
+    assert sequence.poses(1, factors[:250]).shape == (250, 36, 3)  # 432 kB: within half of it
+
+
+def test_retimed_samples_are_the_in_betweens_in_single_precision(sheet):
+    """``retime`` fills its float32 output in place (no list of float64 poses beside it): the same
+    values as the in-betweens ``iter_retime`` gives, rounded once, in every chunk."""
+    from core.retime import iter_retime
+
+    v, t, _ = sheet
+    samples = [drape(v, s) for s in np.linspace(0.0, 1.5, 11)]  # a last gap shorter than the step
+    plan = plan_retime(len(samples), 4, 0.6)
+    for gaps in (None, plan.chunk(0, 2), plan.chunk(1, 2), range(1, 1)):
+        expected = [pose for _, pose in iter_retime(samples, t, plan, gaps)]
+        got = retime(samples, t, step=4, speed=0.6, gaps=gaps)
+        assert got.dtype == np.float32 and got.shape == (len(expected), len(v), 3)
+        np.testing.assert_array_equal(got, np.asarray(expected, dtype=np.float32).reshape(-1, len(v), 3))
+
+
+def test_key_times_past_double_precisions_range_are_refused():
+    """Key times 1.7e308 on either side of 0 are finite and increasing, but the gap between them is
+    not: its duration came out infinite with NumPy's "overflow encountered in subtract", and every
+    time in that gap was read as its first key."""
+    from meshes import grid
+
+    v, t = grid(5)
+    keys = [v, drape(v, 1.0), drape(v, 1.5)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NumPy overflow warning on the way
+        with pytest.raises(MeshError, match="key_times -1.7e.308 and 1.7e.308 .keys 0 and 1. are farther apart than"):
+            core.SequenceInterpolator(keys, t, key_times=[-1.7e308, 1.7e308, 1.75e308])
+    sequence = core.SequenceInterpolator(keys, t, key_times=[-1.7e308, 0.0, 1.7e308])  # each gap finite
+    np.testing.assert_allclose(sequence.pose_at(0.0), keys[1], rtol=0, atol=1e-12)  # its second key's time
+
+
+def test_retime_checks_its_keys_and_faces_before_reading_how_the_motion_starts(sheet):
+    """Keys four samples apart: the samples in the middle of the first and last gaps tell how the
+    motion starts and ends (``core.retime.motion_ends``), read before the sequence checks its keys.
+    A key of another vertex count reached it as NumPy's "operands could not be broadcast together",
+    an empty mesh with NumPy's "Mean of empty slice" warning before its refusal."""
+    v, t, target = sheet
+    samples = [v] * 4 + [target[:-1]] + [drape(v, 1.5)] * 4
+    with pytest.raises(MeshError, match="key pose 1 has 35 vertices but the base mesh has 36"):
+        retime(samples, t, step=4, speed=0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NumPy warning on the way
+        with pytest.raises(MeshError, match="The mesh has no triangles"):
+            retime(np.zeros((9, 0, 3)), np.zeros((0, 3), dtype=int), step=4, speed=0.5)

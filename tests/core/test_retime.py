@@ -381,6 +381,26 @@ def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monk
     assert "In-betweening this cache (36 vertices) needs about" in capsys.readouterr().err
 
 
+def test_command_counts_the_largest_gaps_in_betweens_beside_the_output(tmp_path, capsys, monkeypatch):
+    """A gap's in-betweens are asked at once (float64, with their working copies: 48 bytes a vertex,
+    INBETWEEN_BYTES_PER_VERTEX) while the output fills: speed 0.01 keyed every 4th of 9 samples asks
+    399 in-betweens of each gap. The output alone (801 samples of 36 points, float32: 346 kB) is within
+    half of 1.4 MB; with a gap's in-betweens (689 kB) it is not, and is refused before any work (it ran
+    before); at speed 0.05 both fit."""
+    import core.resources
+
+    source, triangles = rolling_sheet(n_frames=9, nx=6)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 1.4e6)
+    common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "-q"]
+    assert main([*common, "--speed", "0.01", "-o", str(tmp_path / "out.pc2")]) == 2
+    err = capsys.readouterr().err
+    assert "is 801 poses of 36 vertices, 0.00104 GB with the 0.000689 GB its in-betweens take" in err, err
+    assert not (tmp_path / "out.pc2").exists()
+    assert main([*common, "--speed", "0.05", "-o", str(tmp_path / "out.pc2")]) == 0
+
+
 def test_command_refuses_an_output_the_disk_has_no_room_for_before_any_work(tmp_path, capsys, monkeypatch):
     """A disk with less free space than the output takes: the retime is refused before its
     in-betweens (before, they were all computed and the write failed at the end: "No space left on
@@ -945,6 +965,28 @@ def test_merge_names_a_missing_chunk_and_the_task_that_writes_it(tmp_path, capsy
     assert f"Chunk 2 of 3, '{tmp_path / 'chunk2.pc2'}', does not exist" in err
     assert "--chunk 2/3" in err and "task Chunk=2 of step RetimeChunk" in err
     assert not output.exists()
+
+
+def test_commands_refuse_more_chunks_than_any_retime_has_key_gaps(tmp_path, capsys):
+    """A chunk count past the key gaps any retime has (1,048,574, Blender's frames) is a typo: the
+    merge listed every chunk's name before looking for the first (``--count 10**12`` filled the
+    memory), and a retime's chunk of it ran as an empty chunk. Refused with the count, nothing
+    written; a count of more chunks than this retime's gaps (empty chunks) still runs."""
+    source, triangles = rolling_sheet(n_frames=5, nx=5)
+    cache = write_pc2(tmp_path / "in.pc2", source)
+    topology = write_obj(tmp_path / "sheet.obj", source[0], triangles)
+    settings = ["retime", str(cache), "--topology", str(topology), "--step", "2", "--speed", "0.5", "-q"]
+    with pytest.raises(SystemExit) as refused:  # argparse's refusal of an option's value: status 2
+        main([*settings, "--chunk", "1/1048575", "-o", str(tmp_path / "part.pc2")])
+    assert refused.value.code == 2
+    assert "1,048,575 chunks are more than any retime has key gaps (at most 1,048,574" in capsys.readouterr().err
+    assert not (tmp_path / "part.pc2").exists()
+    output = tmp_path / "out.pc2"
+    assert main(["merge", "--numbered", str(tmp_path / "chunk#.pc2"), "--count", str(10**12), "-o", str(output)]) == 2
+    assert "--count 1000000000000: 1,000,000,000,000 chunks are more than any retime has key gaps" in \
+        capsys.readouterr().err and not output.exists()
+    assert main([*settings, "--chunk", "1/3", "-o", str(tmp_path / "part1.pc2")]) == 0  # 2 gaps, 3 chunks
+    assert read_pc2(tmp_path / "part1.pc2").positions.shape == (0, 25, 3)  # the first one empty
 
 
 def test_commands_refuse_an_output_not_named_pc2(tmp_path, capsys):
