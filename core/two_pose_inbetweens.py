@@ -264,8 +264,11 @@ class Interpolator:
         def signed(s):
             return signed_deviation(np.sqrt(self._squared_lengths(x)), np.sqrt(self._squared_target(s, log)))
 
+        # the rest named as what it is (not "a rest the poses share": the first pose is often the
+        # mesh's Basis, which an artist takes for the rest, and it is not what is measured from)
         said = misfit_warning({factor: misfit}, [factor], misfit_allowed([self._apart, self._apart]), names, signed,
-                              f"a rest {names[0]} and {names[1]} share (the least it can be)",
+                              f"the rest nearest both {names[0]} and {names[1]} (each edge at the longer of its "
+                              "two lengths: the least that deviation can be)",
                               advice=f"add a pose between {names[0]} and {names[1]} and in-between each half (or "
                                      "interpolate the three as a sequence)")
         return [] if said is None else [("fit", said[0], 0, said[1], said[2])]

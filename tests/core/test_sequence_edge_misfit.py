@@ -13,7 +13,7 @@ from core.retime import short_gap_sequence
 from core.sequence_edge_misfit import (MISFIT_NOTED_FLOOR, MISFIT_NOTED_MARGIN, key_deviation,
                                       least_shared_deviation, misfit_allowed, misfit_warning, signed_deviation)
 
-from meshes import grid
+from meshes import grid, icosphere
 
 FACTORS = [j / 8 for j in range(1, 8)]
 
@@ -157,7 +157,8 @@ def test_two_poses_allow_the_least_edge_deviation_from_a_rest_they_share(share):
         assert misfit > allowed  # the property is exercised: both orders are over the allowance
         (message,) = said
         assert message.excess == pytest.approx(misfit / allowed, rel=1e-6)
-        assert "from a rest vertices_a and vertices_b share (the least it can be) allows" in str(message)
+        assert ("from the rest nearest both vertices_a and vertices_b (each edge at the longer of its two lengths: "
+                "the least that deviation can be) allows") in str(message)
 
 
 def test_the_least_deviation_from_a_shared_rest_is_the_least_over_every_rest():
@@ -178,6 +179,27 @@ def test_the_least_deviation_from_a_shared_rest_is_the_least_over_every_rest():
     assert 2 * least_shared_deviation(first, second) < 0.2 * key_deviation(second, first)
     tiny = np.array([1e-4, 1.0, 0.0]), np.array([3e-4, 1.0, 0.0])
     assert least_shared_deviation(*tiny, floor=1e-2) == pytest.approx(0.5 * (2e-4 / 1e-2 + 0.0) / 2)
+
+
+def test_two_poses_of_a_mesh_scaled_uniformly_read_the_scale_as_deviation_and_say_nothing():
+    """Two poses of a sphere, the second ×2 in every direction: the least deviation the two can have
+    from a rest they share is (1 − 1/2) ÷ 2 = 25 % (each edge's rest its longer length), so the
+    allowance is 50.1 %. The in-between half-way is a sphere (its radii within 1e-3 of their mean)
+    between the blend's size (1.5) and the interpolated metric's (√2.5 ≈ 1.58), 2.2 % off the
+    interpolated edge lengths, and gets no ``fit`` warning: the misfit is the size the two poses
+    leave open, not a defect. An allowance without the common scale (0.3 %) would warn of it."""
+    sphere, triangles = icosphere(3)
+    lengths = _lengths(sphere, triangles)
+    assert least_shared_deviation(lengths, 2 * lengths) == pytest.approx(0.25, rel=1e-12)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        x = Interpolator(sphere, 2 * sphere, triangles).pose(0.5)
+    radii = np.linalg.norm(x - x.mean(axis=0), axis=1)
+    assert np.abs(radii / radii.mean() - 1.0).max() < 1e-3 and 1.5 <= radii.mean() <= np.sqrt(2.5)
+    lx, la = _lengths(x, triangles), lengths
+    misfit = np.mean(np.abs(lx / np.sqrt(0.5 * (la ** 2 + (2 * la) ** 2)) - 1.0))
+    assert misfit > 3 * MISFIT_NOTED_FLOOR  # the warning is asked: the in-between is off the metric
+    assert not [w for w in caught if issubclass(w.category, ShapeDifferenceWarning) and w.message.kind == "fit"]
 
 
 def test_keys_that_turn_a_sheet_gently_give_no_edge_misfit_warning():
