@@ -32,8 +32,10 @@ def screw_departures(screws: list, keys: list, points: np.ndarray, labels: np.nd
     """Per component (``count``,), how far its screws at the keys about a gap leave the line through
     the base key's (zero) and the next key's: ``screws`` the components' screw coordinates ``(ω, v)``
     (C, 6) at the keys of times −1, 0, 1, 2 from the base key (as the gap's screw spline takes them),
-    ``keys`` (4,) whether each is a key (not a sequence's end condition, which is read from the
-    keys beside it). Each key's screw ``σ`` less its least-squares multiple of the next key's ``σ₁``
+    ``keys`` (4,) whether each stands for a key (not a sequence's end condition past the keys,
+    which is read from the keys beside it; a key rescaled to even spacing, keys unevenly timed,
+    does: :meth:`core.inbetween_keys.Relative.rescaled` moves its screw along the line through the
+    base key's and its own). Each key's screw ``σ`` less its least-squares multiple of the next key's ``σ₁``
     is a screw ``(δω, δv)`` whose displacement field ``δv + δω × x`` is measured as its RMS over the
     component's vertices ``points`` (k, 3; in the base key, ``labels`` (k,) their components) —
     first order in the residual, a length: ``|δv + δω × c|² + δωᵀ K δω`` with ``c`` the vertices'

@@ -243,11 +243,13 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             reach, misfits = JOINT_REACH * self.mean_edge, nonrigidity * base.diagonals
             touching = contacts(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid, reach, misfits)
             # a smooth sequence's joint groups hang from a piece that keeps to one screw over the keys
-            # about the gap (two poses and linear gaps read their two keys alone)
+            # about the gap (two poses and linear gaps read their two keys alone); a neighbouring key
+            # rescaled to even spacing (keys unevenly timed) is a key, its screw moved along the line
+            # through the base key's and its own, which a steady screw's keys share
             departures = None
             if cubic and touching is not None and touching.key.size:
                 departures = screw_departures([r.screw for r in relatives[:3]] + [relatives[3].continued_screw],
-                                              [not r.extrapolated for r in relatives],
+                                              [r.key_world is not None for r in relatives],
                                               base.vertices[topo.component_vertices], topo.component_labels,
                                               len(topo.components), misfits)
             self.joints = joint_tree(topo, base.vertices, nxt.vertices, relatives[2].motion, rigid,

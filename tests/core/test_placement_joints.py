@@ -1001,6 +1001,27 @@ def test_a_lid_carried_while_the_box_swings_from_it_carries_the_box_in_a_sequenc
             np.testing.assert_allclose(pose, _box_under_lid(gap + factor, opened, opening, move)[0], atol=1e-6)
 
 
+@pytest.mark.parametrize(("build", "opened", "opening", "times"), [
+    (_lid_on_box, 0.2, 1.0, (0.0, 1.0, 3.0, 4.0)), (_lid_on_box, 0.0, 0.3, (0.0, 2.0, 3.0, 5.0)),
+    (_box_under_lid, 0.2, 0.3, (0.0, 1.0, 3.0, 4.0)), (_box_under_lid, 0.0, 0.3, (0.0, 2.0, 3.0, 5.0))])
+def test_a_carried_box_and_lid_keyed_at_uneven_times_hang_from_the_steady_piece(build, opened, opening, times):
+    """The box and lid of the two tests above keyed at uneven times: every in-between of every gap
+    is the truth at its time, to 1e-6. A neighbouring key at another distance in time is rescaled to
+    where an evenly spaced key would be, which marks it as a sequence's end condition; read as no
+    key, a gap between a key one step and one two steps away (or at the sequence's end) read no key
+    beyond its two, every piece kept to its screw, and the group hung from the piece that moved
+    least: 1.8e-2–0.19 off (the box 2 across), silently. The rescaled key moves its screw along the line through the
+    base key's and its own, so a steady piece's keys stay on one line and it is read as a key."""
+    move = (1.0, 0.0, 0.2)
+    _, tri = build(0.0, opened, opening, move)
+    sequence = SequenceInterpolator([build(t, opened, opening, move)[0] for t in times], tri, start="keys",
+                                    key_times=times)
+    for gap in range(3):
+        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            time = times[gap] + factor * (times[gap + 1] - times[gap])
+            np.testing.assert_allclose(pose, build(time, opened, opening, move)[0], atol=1e-6)
+
+
 @pytest.mark.parametrize(("opened", "opening"), [(0.2, 0.3), (0.2, 1.0)])
 def test_a_box_carried_while_its_lid_opens_between_two_poses_is_warned(opened, opening):
     """Two poses of the box of the tests above, the lid open 11° at the first: the group hangs from
