@@ -31,6 +31,11 @@ the other piece (numbers in docs/inbetween-measurements.md, *Joints the keys do 
   and two poses have nothing else to tell which piece carries the others (a sequence's keys do:
   :mod:`core.inbetween_carriers`). A box carried while its lid opens, the lid lifted against the
   carry: the box, hung from the lid, left its own path by 7.5e-2–0.20 of the diagonal at ×2.
+- **gears turned the other way round** (:func:`_rolled_the_other_way`): pieces touching in both
+  keys, each turning about its own axis, the axes parallel, their contact staying put, as meshing
+  gears do, whose roll on each other tells a turn more than a half turn from the one the keys are
+  read as (the short way round): a gear turned −190° by its mate is read +170°, its teeth through
+  the mate's half-way.
 """
 
 from __future__ import annotations
@@ -41,9 +46,10 @@ import numpy as np
 
 from . import screw_motions
 from .deformation_fields import rotation_vectors
-from .inbetween_joints import (JOINT_REACH, Contacts, composed, contact_reach, joint_groups, nearest_pairs,
-                               relative_motions, screw_axes, slide_precision)
+from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, composed, contact_reach, joint_groups,
+                               nearest_pairs, relative_motions, screw_axes, slide_precision)
 from .inbetween_rigid_fits import turn_spread
+from .rotation_continuity import either_way
 
 #: Two rigid pieces whose nearest vertices lie within this share of the smaller one's size in both
 #: keys of a gap are near each other, as linked chain links are (a link 1.0 across clearing the next
@@ -89,14 +95,20 @@ class JointDoubts:
     carried_share: float = 0.0
     carried_excess: float = 0.0  # the farthest such placement ÷ the one warned past (JOINT_LOOP_SHARE, JOINT_STAKE)
 
+    rolled: int = 0  # pieces whose roll on a piece they touch tells another way round than they turn
+    rolled_turn: float = 0.0  # the largest such told turn (radians, signed about the piece's axis as read)
+    rolled_read: float = 0.0  # that piece's turn as read (radians, the short way round: ≥ 0 about its axis)
+    rolled_excess: float = 0.0  # the farthest a told turn is from the one read ÷ a half turn (over 1)
+
+
     def __bool__(self) -> bool:
-        return bool(self.apart or self.looped or self.sliding or self.rounded or self.carried)
+        return bool(self.apart or self.looped or self.sliding or self.rounded or self.carried or self.rolled)
 
 
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
                  joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
                  bodies: np.ndarray | None = None, two_poses: bool = False,
-                 pins: np.ndarray | None = None) -> JointDoubts | None:
+                 pins: np.ndarray | None = None, screws: np.ndarray | None = None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
     ``core.inbetween_topology.Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
@@ -107,9 +119,11 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     leader (:func:`core.rigid_bodies.rigid_bodies`, None: none), whose motion and joint group its
     pieces take; ``two_poses``: the gap reads no key beyond its two (two poses, a linear sequence:
     its carriers are read from those alone, :func:`_carriers_untold`); ``pins``: bool (n,), the
-    pinned vertices (a group with one hangs from the world), or None. Only pairs of pieces in different joint
-    groups (in one group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`),
-    and where the joint would move the child otherwise than its own motion (or the tree) does (a card
+    pinned vertices (a group with one hangs from the world), or None; ``screws`` (C, 6): the
+    pieces' own screws from ``base`` to ``nxt`` as the in-betweens take them (None: gears turned
+    the other way round are not sought). Only pairs of pieces in different joint groups (in one
+    group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`), and where
+    the joint would move the child otherwise than its own motion (or the tree) does (a card
     turning about its root above a still scalp moves as it would on it), count."""
     if touching is None:
         return None
@@ -159,6 +173,9 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
                 doubts.sliding_share = float(np.max(stake[off] / size[child[sliding][off]]))
     _links_apart(doubts, base, nxt, index, label, pieces, (rotations, translations), reach, edges, misfits, size,
                  group, stakes)
+    if screws is not None and key.size:
+        _rolled_the_other_way(doubts, c, nxt, screws[pieces], contact_reach(reach, edges, pieces[u], pieces[v]), size,
+                              group, turn_spread(misfits[pieces] / size))
     return doubts if doubts else None
 
 
@@ -381,13 +398,70 @@ def _links_apart(doubts: JointDoubts, base, nxt, index, label, pieces, motions, 
     doubts.apart = len(apart)
 
 
+def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, screws: np.ndarray, finer: np.ndarray,
+                          size: np.ndarray, group: np.ndarray, spread: np.ndarray) -> None:
+    """Count in ``doubts`` the rigid pieces of the touching pairs of ``c`` that roll on each other as
+    meshing gears do but turn, as read, the other way round: pairs of different joint ``group``s
+    within the finer piece's edges (``finer`` (P,)) of each other in both keys, each turning about
+    its own axis without sliding along it (``screws`` (R, 6): the rigid pieces' own, as the
+    in-betweens take them), the axes parallel (to the pair's slide precision over the smaller
+    piece's ``size``), their contact (its closest vertex pair) staying put between the keys
+    (:data:`core.inbetween_joints.CONTACT_CARRIED`). Meshing gears roll: at their contact their
+    surfaces move alike, so one's turn tells the other's (in the inverse ratio of the contact's
+    distances from the axles), which the keys give only to a whole turn. Where the turn so told is
+    past a half turn and more than a half turn from the piece's own (two gears of 20 and 10 teeth,
+    the large one turned 95°: the small one −190°, read +170°, its teeth through the other's
+    half-way), the keys were read the short way round; a piece turning a half turn (within its
+    ``spread`` (R,): either way) is warned of as such elsewhere."""
+    u, v, precision = c.u, c.v, c.precision
+    w, moved = screws[:, :3], screws[:, 3:]
+    theta = np.linalg.norm(w, axis=1)
+    safe = np.where(theta > 0, theta, 1.0)
+    axis = w / safe[:, None]
+    point = np.cross(w, moved) / (safe ** 2)[:, None]  # a point of each screw's axis (ω × v / θ²)
+    slide = np.abs(np.einsum("ka,ka->k", moved, axis))
+    smaller = np.minimum(size[u], size[v])
+    tilt = np.linalg.norm(np.cross(axis[u], axis[v]), axis=1)
+    asked = ((c.nearest <= finer) & (group[u] != group[v]) & (theta[u] * size[u] > precision)
+             & (theta[v] * size[v] > precision) & (slide[u] <= precision) & (slide[v] <= precision)
+             & (tilt * smaller <= precision))
+    if not asked.any():
+        return
+    nearest, later = nearest_pairs(nxt, c.index, c.label, c.pieces.size, float(finer[asked].max()), c.key[c.first],
+                                   asked)
+    contact = c.nearest_at
+    carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", c.rotations[k], contact) + c.translations[k]
+                                          - contact, axis=1) for k in (u, v)))
+    asked &= (nearest <= finer) & (np.linalg.norm(np.nan_to_num(later) - contact, axis=1) <= CONTACT_CARRIED * carried)
+    pairs = np.flatnonzero(asked)
+    if not pairs.size:
+        return
+    rolled = set()
+    for a, b in ((u, v), (v, u)):
+        a, b = a[pairs], b[pairs]
+        # b's turn about its axis that moves its surface at the contact as a's own turn moves a's
+        velocity = np.cross(w[a], contact[pairs] - point[a])
+        lever = np.cross(axis[b], contact[pairs] - point[b])
+        told = np.einsum("pa,pa->p", velocity, lever) / np.maximum(np.einsum("pa,pa->p", lever, lever),
+                                                                   np.finfo(float).tiny)
+        # past a half turn, and more than one from the turn read: the keys' short way round is its alias
+        other = (np.abs(told) > np.pi) & (np.abs(told - theta[b]) > np.pi) & ~either_way(theta[b], spread[b])
+        for k in np.flatnonzero(other):
+            rolled.add(int(b[k]))
+            if abs(told[k]) > abs(doubts.rolled_turn):
+                doubts.rolled_turn, doubts.rolled_read = float(told[k]), float(theta[b[k]])
+            doubts.rolled_excess = max(doubts.rolled_excess, float(abs(told[k] - theta[b[k]]) / np.pi))
+    doubts.rolled = len(rolled)
+
+
 def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -> list[tuple[str, float]]:
     """The warnings ``(message, excess)`` of gap ``gap`` of a sequence about its rigid pieces'
     joints (:func:`joint_doubts`); ``key_names``: the keys as warnings name them. ``excess``
     (:attr:`core.errors.ShapeDifferenceWarning.excess`): the message's measure ÷ what the rule
     allows it, where it has an allowance: links apart, their gap ÷ the contact reach joints are
     found within; joints in a loop, the placement apart ÷ the one warned past; joints within
-    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`. Sliding joints have no allowance (not
+    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; gears turned the other way round, how far
+    the turn their roll tells is from the one read ÷ a half turn. Sliding joints have no allowance (not
     modelled: any slide is warned past the fits' precision): 0."""
     if not doubts:
         return []
@@ -426,4 +500,12 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                          "elsewhere half-way, and two keys alone do not tell which piece carries the others (as a "
                          "box carried while its lid opens; a smooth sequence's keys on either side tell it)",
                          doubts.carried_excess))
+    if doubts.rolled:
+        problems.append((f"{between}, {doubts.rolled} rigid piece(s) touch a piece in both keys and turn about axes "
+                         "parallel to its, their contact staying put, as meshing gears do, but rolling on it would turn "
+                         f"one {np.degrees(doubts.rolled_turn):+.0f}° where the keys, read the short way round, turn it "
+                         f"{np.degrees(doubts.rolled_read):+.0f}° about the same axis (keys give a turn only to a whole "
+                         "turn): each moves by its own rigid motion, the short way (keys closer together tell the way "
+                         "round)",
+                         doubts.rolled_excess))
     return problems

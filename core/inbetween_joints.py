@@ -239,6 +239,32 @@ def _rolling(chords: list, rotations: np.ndarray, u: np.ndarray, v: np.ndarray) 
     return np.maximum(*arcs) <= ROLLING_SPREAD * np.minimum(*arcs)
 
 
+def _axis_distances(chords: np.ndarray, angles: np.ndarray) -> np.ndarray:
+    """Per rigid motion turning by ``angles`` (P,, radians) that carries a point along ``chords`` (P,),
+    the point's distance from its screw axis (less any slide along it): ``chord / (2 sin(θ/2))``;
+    inf where the motion does not turn (no axis)."""
+    chord_per_distance = 2.0 * np.sin(0.5 * angles)  # angles in [0, π]: rotation vectors
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(chord_per_distance > 1e-12, chords / np.maximum(chord_per_distance, 1e-12), np.inf)
+
+
+def _turns_about(contact: np.ndarray, centres: np.ndarray, rotations: np.ndarray, translations: np.ndarray,
+                 u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Per pair of touching pieces ``u``, ``v`` (P,; their centroids ``centres`` (R, 3) and rigid
+    motions ``rotations`` (R, 3, 3), ``translations`` (R, 3)), whether either piece turns about their
+    ``contact`` (P, 3): its own screw axis passes nearer the contact than its centroid
+    (:func:`_axis_distances`), as a joint's child turns about its end where it meets the parent; a
+    piece spinning on its axle (a gear, a cube about its centre) turns about a point inside it, the
+    contact at its rim."""
+    out = np.zeros(u.size, dtype=bool)
+    for k in (u, v):
+        angle = np.linalg.norm(df.rotation_vectors(rotations[k]), axis=1)
+        chord = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], x) + translations[k] - x, axis=1)
+                 for x in (contact, centres[k])]
+        out |= _axis_distances(chord[0], angle) < _axis_distances(chord[1], angle)
+    return out
+
+
 def touching_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float) -> tuple:
     """The pairs of vertices ``index`` of different pieces (``label``: each vertex's piece, of
     ``count``) within ``reach`` of each other at positions ``x``: ``(key, ends, first)``, each pair's
@@ -357,16 +383,22 @@ def nearest_pairs(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: in
     return np.where(asked, nearest, np.inf), where
 
 
-def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: np.ndarray,
-                    relative: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """Per pair, a bound on how far its ``relative`` rigid motion (rotations (P, 3, 3), translations
-    (P, 3)) moves the vertices at ``x`` of its ``child`` piece (vertices ``index`` in runs per piece,
-    ``label``): the move of the piece's centroid plus its radius times the chord ``2 sin(θ/2)`` of
-    the turn by θ."""
+def _piece_centres(x: np.ndarray, index: np.ndarray, label: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per piece (vertices ``index`` in runs per piece, ``label``), the centroid (R, 3) of its
+    vertices at ``x`` and its radius about it (R,)."""
     counts = np.bincount(label)
     starts = np.r_[0, np.cumsum(counts)[:-1]]
     centres = np.add.reduceat(x[index], starts) / counts[:, None]
-    radii = np.sqrt(np.maximum.reduceat(np.sum((x[index] - centres[label]) ** 2, axis=1), starts))
+    return centres, np.sqrt(np.maximum.reduceat(np.sum((x[index] - centres[label]) ** 2, axis=1), starts))
+
+
+def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: np.ndarray,
+                    relative: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """Per pair, a bound on how far its ``relative`` rigid motion (rotations (P, 3, 3), translations
+    (P, 3); or any motion per pair: the child's own) moves the vertices at ``x`` of its ``child``
+    piece (vertices ``index`` in runs per piece, ``label``): the move of the piece's centroid plus
+    its radius times the chord ``2 sin(θ/2)`` of the turn by θ."""
+    centres, radii = _piece_centres(x, index, label)
     rotations, translations = relative
     centre = centres[child]
     shift = np.linalg.norm(np.einsum("pab,pb->pa", rotations, centre) + translations - centre, axis=1)
@@ -486,8 +518,12 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         # their axles: composed on a neighbour's motion, gears left their axles by 0.2 of the
         # diagonal at ×2 and turned the long way round at 60° a key, 0.8 off). A joint stays where
         # - the pieces move as one (their relative motion moves no vertex of the child farther than
-        #   their contact's reach): the parent's motion is the child's, where their own screws,
-        #   each splined in its own frame, part a little (an eye left a turning head by 0.055);
+        #   their contact's reach, nor as far as the child's own motion does): the parent's motion is
+        #   the child's, where their own screws, each splined in its own frame, part a little (an eye
+        #   left a turning head by 0.055). Pieces each turning about their own axis move relative to
+        #   each other at least as far as in the world (coarse cubes 0.1 apart turning 25° and 60°:
+        #   their relative motion moves one by 1.04, within the cubes' edge of 1.14, and its own by
+        #   0.87; held as one, 0.14 of the diagonal off);
         # - either turns a half turn, whose way round its own screw does not tell: the joint's
         #   relative turn tells it, or warns that nothing does (a crank keyed every 180°);
         # - the contact shrinks or grows in place on both pieces between the keys (CONTACT_STEADY,
@@ -501,7 +537,9 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   stays put it is a pair passing through the contact, not holding it (a tooth pair entering
         #   the mesh in one key and leaving it, mirrored across the line of centres, in the next; a
         #   joint's own pair moves with the contact, which the rule above then finds carried)
-        together = jointed & (_relative_moves(base, index, label, v, relative) > finer)
+        relative_move = _relative_moves(base, index, label, v, relative)
+        own = _relative_moves(base, index, label, v, (rotations[v], translations[v]))
+        together = jointed & ((relative_move > finer) | (relative_move >= own))
         half = rotation_continuity.either_way(np.linalg.norm(screws[pieces, :3], axis=1), screw_motions.TURN_SPREAD)
         together &= ~(half[u] | half[v])
         # - both turn about the joint's point (of its axis, nearest the contact), which stays put to
@@ -539,11 +577,17 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         chords = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k] - contact_base,
                                  axis=1) for k in (u, v)]
         carried = np.maximum(*chords)
-        # - the pieces carry the contact by arcs unequal beyond ROLLING_SPREAD: meshing teeth roll,
-        #   each gear carrying the contact along the same arc; a link turning far on a nearly still
-        #   parent whose contact was read to stay put (it moved 0.0078 where the parent carried it
-        #   0.039, under the contact's reading) carries it along an arc 4.1 × the parent's
-        together &= _rolling(chords, rotations, u, v)
+        # - one of the pieces turns about the contact (its own axis nearer it than its centroid:
+        #   _turns_about) and they carry it by arcs unequal beyond ROLLING_SPREAD: a link turning far
+        #   on a nearly still parent whose contact was read to stay put (it moved 0.0078 where the
+        #   parent carried it 0.039, under the contact's reading) turns about its end, 0.074 from
+        #   the contact and 0.56 from its centroid, and carries it along an arc 4.1 × the parent's;
+        #   meshing teeth roll, each gear carrying the contact along the same arc. Pieces each
+        #   spinning about an axis through them (coarse cubes 0.1–0.2 apart turning 20° and 50°,
+        #   the contact 0.6 from their axes through their centroids) turn about no contact, and their
+        #   arcs tell nothing
+        about = _turns_about(contact_base, _piece_centres(base, index, label)[0], rotations, translations, u, v)
+        together &= _rolling(chords, rotations, u, v) | ~about
         together &= np.linalg.norm(contact_later - contact_base, axis=1) <= CONTACT_CARRIED * carried
         changed = np.flatnonzero(together & ~steady)
         if changed.size:

@@ -278,11 +278,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                         np.finfo(float).tiny)
             self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, parents)
         if len(topo.components) > 1:
-            # what the joints leave untold (links apart, sliding joints, joints within rounding), the
-            # pieces of a body counted with its leader: the gap warns
+            # what the joints leave untold (links apart, sliding joints, joints within rounding, gears
+            # turned the other way round), the pieces of a body counted with its leader: the gap warns
             self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
                                              piece_edges, misfits, base.diagonals, self.bodies,
-                                             not cubic, static)
+                                             not cubic, static, relatives[2].screw)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
         # to within the turn's arc) keep their own, which are its translation to that arc

@@ -571,6 +571,68 @@ def test_tumbling_debris_that_touches_in_both_keys_moves_each_piece_by_its_own_m
             np.testing.assert_allclose(x, pose(gap + s), atol=1e-6 * diagonal)
 
 
+
+def _coarse_cubes_spinning(s, gap, turns, tilt):
+    """Two cubes of one cell a face (8 vertices, edges 1 and 1.41), 1 across and ``gap`` apart along
+    x, each turning about its own centre by ``s`` × ``turns`` (degrees): the first about z, the
+    second about z tilted by ``tilt`` (radians) toward x; the scene turned off the axes. Vertices,
+    triangles."""
+    cube_vertices, cube_triangles = cube(1)
+    cube_vertices = 0.5 * cube_vertices
+    second_axis = np.array([np.sin(tilt), 0.0, np.cos(tilt)])
+    first = cube_vertices @ Rotation.from_rotvec([0.0, 0.0, np.radians(s * turns[0])]).as_matrix().T
+    second = cube_vertices @ Rotation.from_rotvec(np.radians(s * turns[1]) * second_axis).as_matrix().T
+    x = np.vstack([first, second + [1.0 + gap, 0.0, 0.0]])
+    return (x @ Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix().T,
+            np.vstack([cube_triangles, cube_triangles + len(cube_vertices)]))
+
+
+@pytest.mark.parametrize("gap, turns, tilt", [(0.2, (20.0, 50.0), 0.0), (0.1, (25.0, 60.0), 0.4)])
+def test_coarse_pieces_spinning_side_by_side_are_not_moved_as_one(gap, turns, tilt):
+    """:func:`_coarse_cubes_spinning`: the cubes' nearest vertices are within an edge of each other
+    in both keys, so they touch, and their relative motion turns about a point near them without
+    sliding; it moves the second cube by 0.87 / 1.04 (a bound), within their contact's reach (an edge,
+    1.14), and they were taken to move as one: the second hung from the first, 6.0e-2 / 0.14 of the
+    diagonal off at × 2, silently. Each turns about its own axis, which moves the second cube by
+    0.73 / 0.87 only: pieces moving as one move against each other less than in the world. Every
+    factor of two poses is each cube's own turn, to 1e-6."""
+    a, tri = _coarse_cubes_spinning(0.0, gap, turns, tilt)
+    poses, _ = _poses_and_warnings(Interpolator(a, _coarse_cubes_spinning(1.0, gap, turns, tilt)[0], tri), FACTORS)
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, _coarse_cubes_spinning(s, gap, turns, tilt)[0], atol=1e-6)
+
+
+@pytest.mark.parametrize("axles, turns, about", [
+    (((0.0, 0.0), (1.2, 0.0)), (20.0, 50.0), False),  # cubes spinning side by side, each on its centre
+    (((0.0, 0.0), (1.2, 0.0)), (10.0, -70.0), False),
+    (((-1.0, 0.0), (0.62, 0.0)), (2.0, 118.0), True),  # a parent on its far shoulder, a link on its end
+    (((0.0, 0.4), (1.2, -0.3)), (-35.0, 80.0), False),  # axles off the centres, still nearer them
+])
+def test_a_piece_turns_about_a_contact_only_where_its_axis_is_nearer_it_than_its_centroid(axles, turns, about):
+    """``_turns_about`` against distances measured in the plane: two pieces with centroids (0, 0)
+    and (1.2, 0), their contact at (0.6, 0), each turning by ``turns`` (degrees) about z through its
+    point of ``axles``. A piece turns about the contact where its axle is nearer the contact than
+    its centroid (a link turning about its end where it meets its parent; a cube or gear spinning on
+    an axle through it turns about no contact): the link on its end at (0.62, 0), 0.02 from the
+    contact and 0.62 from its centroid, does; pieces spinning on axles nearer their centroids do
+    not."""
+    from core.inbetween_joints import _axis_distances, _turns_about
+
+    axles = np.array([[*a, 0.0] for a in axles])
+    centres = np.array([[0.0, 0.0, 0.0], [1.2, 0.0, 0.0]])
+    contact = np.array([[0.6, 0.0, 0.0]])
+    rotations = Rotation.from_rotvec(np.radians(turns)[:, None] * [0.0, 0.0, 1.0]).as_matrix()
+    translations = axles - np.einsum("kab,kb->ka", rotations, axles)
+    for k in (0, 1):  # the distances from the axle that the chords give are the plane's
+        for x in (contact[0], centres[k]):
+            chord = np.linalg.norm(rotations[k] @ x + translations[k] - x)
+            np.testing.assert_allclose(_axis_distances(np.array([chord]), np.radians([abs(turns[k])])),
+                                       [np.linalg.norm(x - axles[k])], rtol=1e-12)
+    expected = any(np.linalg.norm(contact[0] - axles[k]) < np.linalg.norm(centres[k] - axles[k]) for k in (0, 1))
+    assert expected == about
+    assert bool(_turns_about(contact, centres, rotations, translations, np.array([0]), np.array([1]))[0]) == about
+
+
 _FRESH = """
 import hashlib, sys
 import numpy as np
@@ -1132,6 +1194,35 @@ def test_a_gear_turned_a_half_turn_with_the_whole_mesh_takes_its_way_silently():
     assert not _said(caught, "half turn"), [str(w.message) for w in caught]
     for s, pose in zip(FACTORS, poses):
         np.testing.assert_allclose(pose, turned(s), atol=1e-6)
+
+
+
+@pytest.mark.parametrize("degrees", [95.0, 110.0])
+def test_a_gear_turned_past_a_half_turn_by_its_mate_is_warned(degrees):
+    """The two-gear train with the large gear turned 95° / 110°: the small one turns −190° / −220°,
+    which the keys give as +170° / +140°, and is read so (the short way round, as every piece of
+    two poses is), its teeth through the large one's half-way (0.3 of the diagonal off at 0.5). The
+    gears touch in both keys and turn about parallel axles, their contact staying put: rolling on
+    the large gear the small one would turn about −190° / −220°, more than a half turn from the
+    turn read, and the gap warns (before, silently). The large gear turns about its own axle, to
+    1e-6."""
+    a, tri, rows = _gear_train(0.0)
+    poses, caught = _poses_and_warnings(Interpolator(a, _gear_train(degrees)[0], tri), FACTORS)
+    assert _said(caught, "as meshing gears do"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose[rows[0]], _gear_train(s * degrees)[0][rows[0]], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [30.0, 85.0])
+def test_meshing_gears_turned_under_a_half_turn_are_not_warned_of_rolling_the_other_way(degrees):
+    """The counterpart: the large gear turned 30° / 85°, the small one −60° / −170°, which the keys
+    read right: both gears about their own axles at every factor, to 1e-6, and no warning of gears
+    turned the other way round (their roll tells each one's turn to within the contact's place)."""
+    a, tri, _ = _gear_train(0.0)
+    poses, caught = _poses_and_warnings(Interpolator(a, _gear_train(degrees)[0], tri), FACTORS)
+    assert not _said(caught, "as meshing gears do"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, _gear_train(s * degrees)[0], atol=1e-6)
 
 
 def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
