@@ -331,13 +331,12 @@ class Anchor:
 
     def repair_anchor(self, free: np.ndarray) -> np.ndarray:
         """Anchor (per-vertex weight × mass) of the ``free`` vertices of a repair region: the
-        gap's own for two poses; for sequences only the still vertices' (a repair imposes a local
-        field and the region's boundary fixes its place: a pull toward the spline would fight it)."""
-        anchor = self.system[1][free]
+        gap's own for two poses; for sequences the gauge alone (a repair imposes a local field and
+        the region's boundary fixes its place: a pull toward the spline would fight it; pinned
+        vertices are never free, :class:`~core.inbetween_repair_regions.Region`)."""
         if self.anchored:
-            return anchor
-        gauge = GAUGE_WEIGHT * self.topo.mass[free]
-        return gauge if self.static is None else np.where(self.static[free], anchor, gauge)
+            return self.system[1][free]
+        return GAUGE_WEIGHT * self.topo.mass[free]
 
     def anchor_weights(self, between: bool) -> tuple[np.ndarray, np.ndarray]:
         """Per-vertex weights (n,) anchoring to the linear blend where it keeps the keys' edge

@@ -30,7 +30,9 @@ def corner_joined_parts(local: np.ndarray, count: int) -> tuple[int, np.ndarray]
 
 class Region:
     """A repair's region: the triangles ``rows`` (r,) of a mask, the vertices ``free`` all of whose
-    triangles are in it, and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
+    triangles are in it but the pinned ones (``gap.static``: held where the pose has them, exactly
+    where :meth:`~core.inbetween_solver.Gap.finished` sets them, so that the check of the repair
+    counts the pose returned), and the factorized block ``D_fᵀ D_f + diag(anchor_f)`` of the normal
     matrix on them (``D_f``: the region's corner edges × free vertices); the held vertices enter
     the right-hand side."""
 
@@ -48,6 +50,8 @@ class Region:
         slot[touched] = np.arange(touched.size)
         local = slot[corners].ravel()  # (3r,) each corner's vertex among the touched ones
         is_free = np.bincount(local, minlength=touched.size) == topo.triangles_per_vertex[touched]
+        if gap.static is not None:  # the pins held (see the class's docstring)
+            is_free &= ~gap.static[touched]
         self.free = touched[is_free]
         self._parts = (local, touched.size, is_free)  # see parts
         self.anchor = gap.repair_anchor(self.free)

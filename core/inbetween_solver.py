@@ -447,6 +447,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             misfits.extend(steps)
         # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)
         x0 = x0 if start is None else x
+        if self.static is not None:  # the pins set exactly (finished) before the check, which then sees the pose returned
+            x[self.static] = self.pinned_positions(s)
         checked = self.recorded(s, self.repair.outcome(x, x0, s, frames, stretch, guide, motion,
                                                        looser=looser[0] if looser else None, repairable=repairable))
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):

@@ -137,23 +137,32 @@ def test_pins_jittered_by_single_precision_rounding_stay_put():
     assert all(np.array_equal(k, c) for k, c in zip(keys, copies))
 
 
-def test_slivers_at_pins_do_not_turn_over_in_predicted_in_betweens():
-    """A sheet pinned along its top edge, whose row next to the pins is 1/50 of a row away from
-    them (slivers, as Delaunay meshes of scanned cloth have), swings and curls between the keys so
-    that its best rigid motion turns about an axis off the pinned edge. Predicted in-betweens put the
-    pins where that motion takes them and the miss is spread around them (before: the pins alone
-    were set back, 2.7e-3 = 3.5 % of a row, and 13 slivers turned over against both keys)."""
+def _sheet_pinned_by_slivers():
+    """A sheet pinned along its top edge (14 × 10 vertices, size 1), whose row next to the pins is
+    1/50 of a row away from them (slivers, as Delaunay meshes of scanned cloth have), swinging and
+    curling over five keys so that its best rigid motion turns about an axis off the pinned edge:
+    the keys (5 × (n, 3)), the triangles, the pinned vertices and the sliver row (bool (n,) each)."""
     flat, tri = grid(14, 10, size=1.0)
     top = flat[:, 1].max()
     pinned = flat[:, 1] >= top - 1e-12
     rows = np.unique(flat[:, 1])
-    flat[np.isclose(flat[:, 1], rows[-2]), 1] = top - 0.02 * (rows[-1] - rows[-2])
+    sliver = np.isclose(flat[:, 1], rows[-2])
+    flat[sliver, 1] = top - 0.02 * (rows[-1] - rows[-2])
     depth = top - flat[:, 1]
     keys = []
     for k, amplitude in enumerate([0.0, 0.9, 1.8, 1.2, 0.3]):
         angle = amplitude * (depth / depth.max()) ** 2 + 0.3 * np.sin(1.3 * k) * depth
         wave = 0.05 * depth * np.sin(4.0 * flat[:, 0] + k)
         keys.append(np.stack([flat[:, 0], top - depth * np.cos(angle), depth * np.sin(angle) + wave], axis=1))
+    return keys, tri, pinned, sliver
+
+
+def test_slivers_at_pins_do_not_turn_over_in_predicted_in_betweens():
+    """The sheet pinned by slivers (:func:`_sheet_pinned_by_slivers`) swings and curls between
+    the keys. Predicted in-betweens put the pins where that motion takes them and the miss is
+    spread around them (before: the pins alone were set back, 2.7e-3 = 3.5 % of a row, and 13
+    slivers turned over against both keys)."""
+    keys, tri, pinned, _ = _sheet_pinned_by_slivers()
 
     def normals(x):
         return np.cross(x[tri[:, 1]] - x[tri[:, 0]], x[tri[:, 2]] - x[tri[:, 0]])
@@ -166,6 +175,48 @@ def test_slivers_at_pins_do_not_turn_over_in_predicted_in_betweens():
             turned = (np.einsum("ij,ij->i", n, facing[0]) < 0) & (np.einsum("ij,ij->i", n, facing[1]) < 0)
             assert not turned.any()
             assert np.array_equal(x[pinned], keys[0][pinned])
+
+
+def test_the_defect_check_sees_the_pins_where_the_in_between_has_them(monkeypatch):
+    """The pins are set exactly where they belong after the fit and its repairs
+    (``Gap.finished``), so the check for flipped triangles and its repairs must see them there:
+    a solved in-between reaches the check with its pins in place (before: the fit's anchor left
+    them off by up to 1e-3 of its pull), a predicted one too, its miss at the pins small or large
+    (:func:`core.inbetween_corrections.pins_in_place`; before: a miss under the metric's
+    tolerance was left and a spread one kept ~1/w of it), and a repair of a sliver row folded over
+    the pins holds them (before: they moved by 2.5e-6, and setting them back afterwards turned
+    a sliver of a 1k flag over at its pole, one flipped triangle the check had not seen)."""
+    from core.inbetween_corrections import pins_in_place
+    from core.inbetween_fit import METRIC_TOLERANCE
+
+    keys, tri, pinned, sliver = _sheet_pinned_by_slivers()
+    seq = SequenceInterpolator(keys, tri)
+    s, segment = 0.5, seq._gap(1)
+    assert np.array_equal(segment.static, pinned)
+    where = segment.pinned_positions(s)
+    checked = []
+    real = segment.repair.outcome
+    monkeypatch.setattr(segment.repair, "outcome", lambda x, *a, **k: checked.append(x.copy()) or real(x, *a, **k))
+    segment.pose(s)
+    assert checked and np.array_equal(checked[0][pinned], where)
+    x = seq._to_working(seq.poses(1, [s])[0])
+    for miss in (0.1, 10.0):  # × the metric's tolerance of the mean edge
+        off = x.copy()
+        off[pinned] += miss * METRIC_TOLERANCE * segment.mean_edge * np.array([0.6, -0.8, 0.0])
+        assert np.array_equal(pins_in_place(segment, off, s)[pinned], where)
+    # a vertex of the sliver row folded over the pinned edge: the repair removes the fold and
+    # leaves the pins where they are
+    folded = x.copy()
+    middle = np.flatnonzero(sliver)[np.count_nonzero(sliver) // 2]
+    above = np.flatnonzero(pinned)[np.argmin(np.linalg.norm(keys[0][pinned] - keys[0][middle], axis=1))]
+    folded[middle] = 2.0 * x[above] - x[middle]
+    defects = segment.repair.counted(folded, s, segment.area_scale(s))
+    assert defects.any()
+    frames, stretch, motion, guide = segment.repair.factor_targets(s)
+    repaired, problem = segment.repair.outcome(folded, folded, s, frames, stretch, guide, motion, defects=defects)[:2]
+    assert problem is None
+    assert np.array_equal(repaired[pinned], folded[pinned])
+    assert not segment.repair.counted(repaired, s, segment.area_scale(s)).any()
 
 
 def test_vertices_riding_on_an_animated_pole_follow_its_motion():
