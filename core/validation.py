@@ -42,6 +42,9 @@ OUTPUT_MEMORY_SHARE = 0.5
 #: (:meth:`core.SequenceInterpolator.poses`): its float64 pose (24 bytes) and the working copy it is
 #: solved in; measured peak 2.06 / 2.22 × the poses' 24 bytes (a 2,500-vertex sheet, 400 / 100 in-betweens).
 INBETWEEN_BYTES_PER_VERTEX = 48
+#: Said after the memory available in a refusal: on a farm node or in a container it is the job's
+#: memory limit less what the job uses (:func:`core.resources.cgroup_headroom`), not the machine's.
+LIMITS_NOTE = " (within its container's or farm job's memory limit, if any)"
 #: Memory a sequence's in-betweens take per vertex at their peak (keys, fields, factorizations):
 #: the benchmark's 100k-vertex sheets peak at 948 MB, the analytic one with 15 in-betweens per gap
 #: at 1,114 MB (docs/inbetweens.md).
@@ -560,7 +563,8 @@ def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, 
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
         beside = f" with the {working / 1e9:.3g} GB its in-betweens take while they are made" if working else ""
         raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB"
-                        f"{beside}, and this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
+                        f"{beside}, and this process{LIMITS_NOTE} has {free / 1e9:.3g} GB of memory available: "
+                        f"{advice}.")
 
 
 def check_result_memory(shape: tuple, what: str, advice: str) -> None:
@@ -575,7 +579,7 @@ def check_result_memory(shape: tuple, what: str, advice: str) -> None:
     free = available_memory()
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
         raise MeshError(f"{what} asks for an array of shape {tuple(int(x) for x in shape)}, {need / 1e9:.3g} GB, and "
-                        f"this machine has {free / 1e9:.3g} GB of memory available: {advice}.")
+                        f"this process{LIMITS_NOTE} has {free / 1e9:.3g} GB of memory available: {advice}.")
 
 
 def check_working_memory(n_points: int, what: str, advice: str, *,
@@ -593,7 +597,7 @@ def check_working_memory(n_points: int, what: str, advice: str, *,
     free = available_memory()
     if free is not None and need > free:
         raise MeshError(f"{what} ({int(n_points):,} vertices) needs about {need / 1e9:.3g} GB of memory and this "
-                        f"machine has {free / 1e9:.3g} GB available: {advice}.")
+                        f"process{LIMITS_NOTE} has {free / 1e9:.3g} GB available: {advice}.")
 
 
 @contextmanager

@@ -703,9 +703,12 @@ def require_count(count: int, what: str):
         raise InputError(f"Count is {count}: ask for at least 1 of the {what}")
 
 
-def check_memory(n_poses: int, n_vertices: int, what: str, advice: str, *, work: str | None = "sequence") -> None:
+def check_memory(n_poses: int, n_vertices: int, what: str, advice: str, *, work: str | None = "sequence",
+                 batch: int = 0) -> None:
     """Refuse, before any work, a job whose output of ``n_poses`` poses of ``n_vertices`` vertices
-    (``what``, made smaller as ``advice`` says) would take over half the memory available
+    (``what``, made smaller as ``advice`` says), with the ``batch`` in-betweens of its largest gap
+    made at once beside it (``core.validation.INBETWEEN_BYTES_PER_VERTEX`` each, as the command's
+    retime counts them), would take over half the memory available
     (``core.validation.check_output_memory``), or whose computation needs more than there is
     (``check_working_memory``): ``work`` is "sequence" (in-betweens of frames), "pair" (two shape
     keys), "reconstruct", or None (poses read, nothing computed). Blender with the artist's unsaved
@@ -721,7 +724,8 @@ def check_memory(n_poses: int, n_vertices: int, what: str, advice: str, *, work:
                                         "with more memory" + (" (python -m core retime on a farm node)"
                                                               if work == "sequence" else ""),
                                         bytes_per_vertex=per_vertex)
-    validation.check_output_memory(n_poses, n_vertices, what, advice)
+    validation.check_output_memory(n_poses, n_vertices, what, advice,
+                                   working=int(batch) * int(n_vertices) * validation.INBETWEEN_BYTES_PER_VERTEX)
 
 
 def require_distinct(first, second, first_name: str, second_name: str):

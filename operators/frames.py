@@ -329,7 +329,7 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # the shorter last gap (at most as many) and the last frame
         gaps = len(frames) - 1 + (end > frames[-1])
         check_memory(len(frames) + (end > frames[-1]) + gaps * self.count, len(obj.data.vertices),
-                     "The output", "lower In-betweens per gap or the frame range")
+                     "The output", "lower In-betweens per gap or the frame range", batch=self.count)
         # a range that is not whole steps ends with a shorter gap, keyed by its own sequence (core.retime)
         retime = load_core_retime()
         tail = (frames[0] + retime.short_gap_keys(frames[-1] - frames[0], end - frames[0])).tolist()
@@ -460,7 +460,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
                              f"down {copied_motion.NLA_MAX_SCALE:g} times at most: use a speed of {1.0 / copied_motion.NLA_MAX_SCALE:g} "
                              "or more")
         check_memory(plan.n_out, len(obj.data.vertices), f"Retime at speed {format_factor(speed)}",
-                     "raise the speed or retime a shorter range")
+                     "raise the speed or retime a shorter range", batch=plan.batch(range(plan.n_gaps)))
         key_frames = [start + int(key) for key in plan.keys]
         triangles = surface_triangles(obj, self)
         options = self.core_options(context, len(obj.data.vertices))

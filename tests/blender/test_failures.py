@@ -632,6 +632,34 @@ def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, cor
                              frame_step=4)
 
 
+def test_operators_count_the_largest_gaps_in_betweens_beside_the_output(bpy_empty, extension, core, monkeypatch):
+    """In-between Frames (100 in-betweens per gap) and Retime (speed 0.04: 99 in-betweens in a gap)
+    hold the output poses and, while a gap is made, its in-betweens (48 bytes per vertex each) at
+    once: refused before any work where the two together pass half the memory available, as the
+    command's retime counts them (before, each passed its own check, the output's up front and the
+    batch's in SequenceInterpolator.poses, and the job ran past half the memory)."""
+    import importlib
+
+    resources = importlib.import_module(core.__name__ + ".resources")
+    validation = importlib.import_module(core.__name__ + ".validation")
+    retime = importlib.import_module(core.__name__ + ".retime")
+    strip = armature_scene(frames=9)
+    n = len(strip.data.vertices)
+    free = validation.WORKING_BYTES_PER_VERTEX * n  # just enough for the sequence's own work
+    monkeypatch.setattr(resources, "available_memory", lambda: free)
+    plan = retime.plan_retime(9, 4, 0.04)
+    for operator, n_out, batch, properties, match in (
+            (bpy.ops.shape_differences.inbetween_frames, 3 + 2 * 100, 100, {"count": 100}, "The output is 203 poses"),
+            (bpy.ops.shape_differences.retime, plan.n_out, plan.batch(range(plan.n_gaps)), {"speed": 0.04},
+             f"Retime at speed .* is {plan.n_out} poses")):
+        output, working = n_out * n * 12, batch * n * validation.INBETWEEN_BYTES_PER_VERTEX
+        # each alone within half the memory, the two together past it
+        assert max(output, working) <= validation.OUTPUT_MEMORY_SHARE * free < output + working
+        fails_without_change(extension.bridge, strip, operator,
+                             f"{match} of {n} vertices, .* GB with the .* GB its in-betweens take while they are made",
+                             frame_step=4, **properties)
+
+
 def test_two_pose_captured_and_transferred_outputs_too_large_are_refused_before_any_work(bpy_empty, extension,
                                                                                           core, monkeypatch):
     """The In-between of two shape keys asked for 2,147,483,647 in-betweens (Count's largest: before,

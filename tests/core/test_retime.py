@@ -1072,3 +1072,35 @@ def test_a_chunk_of_the_first_gaps_refuses_a_broken_sample_of_the_tail_it_reads_
             warnings.simplefilter("error", RuntimeWarning)
             with pytest.raises(MeshError, match="sample 19: vertex 2 has a non-finite coordinate"):
                 list(iter_retime(broken, triangles, plan, gaps))
+
+
+def test_chunk_bounds_are_the_list_formulas_for_every_index_and_count():
+    """``RetimePlan.chunk`` computes only its own two bounds (since b1a0bef); the ranges are those of
+    the list of every chunk's bounds it built before (``n_gaps · i // count`` for i = 0 … count),
+    for every index of every count up to past the gaps (empty chunks), for NumPy integers, and at
+    the largest plans and counts a command accepts; together the chunks are the gaps, in order."""
+    from core.retime import MAX_OUTPUT_SAMPLES, RetimePlan
+
+    def old_bounds(n_gaps, count):  # the list of every chunk's bounds, as chunk built it before b1a0bef
+        return [n_gaps * i // count for i in range(count + 1)]
+
+    def plan(n_gaps):  # only the keys set the gaps a chunk splits
+        empty = np.zeros(0)
+        return RetimePlan(n_gaps + 1, 1, 1.0, np.arange(n_gaps + 1), empty, empty, empty, empty, empty)
+
+    rng = np.random.default_rng(7)
+    cases = [(n, c) for n in range(0, 41) for c in range(1, 47)]
+    cases += [(int(rng.integers(0, MAX_OUTPUT_SAMPLES + 1)), int(rng.integers(1, 20_000))) for _ in range(30)]
+    cases += [(MAX_OUTPUT_SAMPLES, 3), (MAX_OUTPUT_SAMPLES - 1, MAX_OUTPUT_SAMPLES), (7, MAX_OUTPUT_SAMPLES)]
+    for n_gaps, count in cases:
+        retime_plan = plan(n_gaps)
+        assert retime_plan.n_gaps == n_gaps
+        bounds = old_bounds(n_gaps, count)
+        indices = range(count) if count <= 50 else sorted({0, count - 1, *map(int, rng.integers(0, count, 10))})
+        for index in indices:
+            expected = range(bounds[index], bounds[index + 1])
+            assert retime_plan.chunk(index, count) == expected
+            assert retime_plan.chunk(np.int64(index), np.int32(count)) == expected
+        if count <= 50:
+            joined = [gap for index in range(count) for gap in retime_plan.chunk(index, count)]
+            assert joined == list(range(n_gaps))
