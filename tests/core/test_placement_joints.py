@@ -1014,24 +1014,6 @@ def _lid_on_box(s, opened, opening, move, turn=0.2):
     return x @ scene.T, np.vstack([box_triangles, lid_triangles + len(box)])
 
 
-@pytest.mark.parametrize(("opened", "opening"), [(0.2, 0.3), (0.2, 1.0), (0.0, 0.3)])
-def test_a_box_carried_while_its_lid_opens_carries_the_lid_in_a_sequence(opened, opening):
-    """A box carried steadily (moved by 1, turned 11° a key) while its lid opens about the hinge,
-    keyed four times: every in-between of every gap is the box along its own screw with the lid
-    turned about the hinge it carries, to 1e-6. The lid, lifted against the carry, moves 8–23 %
-    less than the box over each gap's keys, and the group hung from it (the piece that moved least)
-    put the box off its own path by 1.2e-3–2.5e-2 (the box 2 across), silently; the box's screws at the
-    keys lie on one line, the lid's (the carry composed with the hinge's turn) do not, so the box
-    is the root (core.inbetween_carriers)."""
-    move = (1.0, 0.0, 0.2)
-    _, tri = _lid_on_box(0.0, opened, opening, move)
-    sequence = SequenceInterpolator([_lid_on_box(float(k), opened, opening, move)[0] for k in range(4)], tri,
-                                    start="keys")
-    for gap in range(3):
-        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(pose, _lid_on_box(gap + factor, opened, opening, move)[0], atol=1e-6)
-
-
 def _box_under_lid(s, opened, opening, move, turn=0.2):
     """The box and lid of :func:`_lid_on_box` the other way round: the lid carried by ``s`` times
     that screw while the box swings about the hinge the lid carries, open by ``opened + s ·
@@ -1048,19 +1030,23 @@ def _box_under_lid(s, opened, opening, move, turn=0.2):
     return x @ scene.T, np.vstack([box_triangles, lid_triangles + len(box)])
 
 
+@pytest.mark.parametrize("build", [_lid_on_box, _box_under_lid])
 @pytest.mark.parametrize(("opened", "opening"), [(0.2, 0.3), (0.2, 1.0), (0.0, 0.3)])
-def test_a_lid_carried_while_the_box_swings_from_it_carries_the_box_in_a_sequence(opened, opening):
-    """The counterpart of the test above: the lid carried steadily while the box swings from the
-    hinge it carries (:func:`_box_under_lid`). The lid's screws at the keys lie on one line, the
-    box's do not: the lid is the root whichever moves less, and every in-between of every gap is
-    the truth to 1e-6."""
+def test_the_piece_carried_steadily_carries_its_hinged_partner_in_a_sequence(build, opened, opening):
+    """A box carried steadily (moved by 1, turned 11° a key) while its lid opens about the hinge
+    (:func:`_lid_on_box`), and the other way round, the lid carried while the box swings from the
+    hinge it carries (:func:`_box_under_lid`), keyed four times: every in-between of every gap is
+    the carried piece along its own screw with the other turned about the hinge it carries, to 1e-6.
+    The carried piece's screws at the keys lie on one line, its partner's (the carry composed with
+    the hinge's turn) do not, so it is the root whichever moves less (core.inbetween_carriers): the
+    lid, lifted against the carry, moves 8–23 % less than the box, and the group hung from it put
+    the box off its own path by 1.2e-3–2.5e-2 (the box 2 across), silently."""
     move = (1.0, 0.0, 0.2)
-    _, tri = _box_under_lid(0.0, opened, opening, move)
-    sequence = SequenceInterpolator([_box_under_lid(float(k), opened, opening, move)[0] for k in range(4)], tri,
-                                    start="keys")
+    _, tri = build(0.0, opened, opening, move)
+    sequence = SequenceInterpolator([build(float(k), opened, opening, move)[0] for k in range(4)], tri, start="keys")
     for gap in range(3):
         for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(pose, _box_under_lid(gap + factor, opened, opening, move)[0], atol=1e-6)
+            np.testing.assert_allclose(pose, build(gap + factor, opened, opening, move)[0], atol=1e-6)
 
 
 @pytest.mark.parametrize(("build", "opened", "opening", "times"), [
