@@ -24,7 +24,9 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   under a hash of its keys, triangles and options (:func:`_digest`), so that the next job of the
   same keys (the sequence asked for other gaps, an operator run again) sends and builds nothing;
   idle for :data:`core.gap_worker.IDLE_SECONDS`, it lets that sequence go and hands its free heap
-  back. What it does and the messages: :mod:`core.gap_worker`.
+  back (a job sent without the keys as it did is answered ``broken`` and handed over again with
+  them: :attr:`_Job.forgotten`). It builds from the sequence's own copies of the keys and triangles,
+  which the caller may reuse. What it does and the messages: :mod:`core.gap_worker`.
 - *Which gaps.* Those of a caller visiting the gaps in order at one set of factors (as
   :mod:`core.sequence_gaps_ahead` reads it: a sequence's first call, or the gap after the
   previous call's at the same factors), or following the calls it said it will make
@@ -148,6 +150,10 @@ class _Job:
         self.begun: dict[tuple, float] = {}  # the calls the worker has begun: when (time.monotonic)
         self.ended = False
         self.heard = time.monotonic()  # when it was given, or the worker's last message on it
+        self.keyless = False  # sent without the keys: the worker was thought to keep their sequence
+        #: Sent without the keys to a worker that kept no sequence under their token (it let it go, idle,
+        #: as the job was on its way): none of its calls begun, they are handed over again with the keys.
+        self.forgotten = False
 
 
 class _Worker:
@@ -187,6 +193,7 @@ class _Worker:
         with self.condition:
             self.jobs[job.id] = job
             known, self.kept = self.kept == token, token
+            job.keyless = known
         calls = [(gap, factors) for (gap, _), factors in job.calls.items()]
         return self._send(("job", job.id, token, None if known else arguments, calls))
 
@@ -277,6 +284,7 @@ class _Worker:
                         job = self.jobs.pop(message[1], None)
                         if job is not None:
                             job.ended = True
+                            job.forgotten = kind == "broken" and job.keyless  # the keys not sent: nothing to build
                     self.condition.notify_all()
         except Exception:  # its output closed (it ended or was killed) or garbled: gone
             pass
@@ -550,6 +558,8 @@ class GapProcesses:
         taken = None if computed else self._taken_back.pop((gap, bits), None)
         if taken is not None:  # the worker's, taken back and computed here while an earlier call waited
             return taken()
+        # a job that reached the worker after it let its sequence go (idle) began nothing: its calls free again
+        self._jobs = tuple(held for held in self._jobs if not held[1].forgotten)
         for worker, job in self._jobs:
             if (gap, bits) in job.calls and not computed:
                 return self._taken_from_worker(worker, job, gap, factors, bits)

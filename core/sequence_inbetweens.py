@@ -173,8 +173,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         # in the working space of the keys (their vertices as solved: welded, merged, renumbered; moved and sized)
         kept = self._welded_vertices
         self._rest = None if rest_pose is None else self._to_working(rest_pose if kept is None else rest_pose[kept])
-        # what a second process builds its own from, where it may share the gaps (core.gap_processes)
-        self._share_gaps_later((key_poses, np.asarray(triangles), dict(
+        # what a second process builds its own from, where it may share the gaps (core.gap_processes): the
+        # sequence's own copies (the keys are, by check_sequence), never the caller's triangles, which it may
+        # reuse for another mesh once the sequence is built
+        self._share_gaps_later((key_poses, np.array(triangles), dict(
             k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic, smooth=smooth, start=start,
             key_times=key_times, end=end, key_names=self.key_names, rest_pose=rest_pose)))
 
