@@ -51,7 +51,7 @@ def _too_many_chunks(count: int) -> str | None:
     """Why ``count`` chunks of a retime (``retime --chunk I/N``'s N, ``merge --count``) are more than
     any retime is split into, or None: a retime has at most :data:`core.retime.MAX_OUTPUT_SAMPLES`
     key gaps (Blender's frames), so the chunks past them are empty, and a merge would look for each
-    one's file (10¹² names listed before the first is looked for: a typo's count filled the memory)."""
+    one's file (a count in the trillions would list that many names before looking for the first)."""
     if count <= MAX_OUTPUT_SAMPLES:
         return None
     return (f"{count:,} chunks are more than any retime has key gaps (at most {MAX_OUTPUT_SAMPLES:,}, one per "

@@ -10,10 +10,10 @@ spline of screws lying on one line through the base key's (zero) stays on that l
 one screw at any rate (a carried box moving and turning steadily, a robot's link turning about its
 base) is reproduced on its screw, and a piece hung from it is placed by it exactly where its motion
 relative to it is steady too. A lid opening on that box has the box's screw composed with the
-hinge's turn, about an axis that turns from key to key: its key screws leave any line, and the box,
-hung from the lid because the lid moved 8–23 % less, left its own path by 1.9e-3–1.3e-2 of the
-diagonal in sequences. Two poses have no key beyond the gap (its end conditions are no keys): every
-piece keeps to its screw there, and the group hangs from the piece that moves least, as before.
+hinge's turn, about an axis that turns from key to key: its key screws leave any line, so the box
+carries the lid even where the lid moves less (docs/inbetween-measurements.md, *A carried lid's
+carrier told by its steady screw*). Two poses have no key beyond the gap (its end conditions are
+no keys): every piece keeps to its screw there, and the group hangs from the piece that moves least.
 """
 
 from __future__ import annotations

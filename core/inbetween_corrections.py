@@ -193,8 +193,9 @@ def pins_in_place(gap, x: np.ndarray, s: float) -> np.ndarray:
     the keys and at the solved factors: the interpolated rigid motion of a flapping flag swings
     its pole in between (a flag with small triangles at its pole, keys 8 frames apart: by 22 % of
     the mean edge length), and setting the pins alone back afterwards (``finished``) put the whole
-    miss into the triangles at the pole (131 of them turned over). Unchanged where the miss is
-    under :data:`~core.inbetween_fit.METRIC_TOLERANCE` of the mean edge length."""
+    miss into the triangles at the pole (131 of them turned over). No solve where the miss is under
+    :data:`~core.inbetween_fit.METRIC_TOLERANCE` of the mean edge length; the pins are always set
+    exactly."""
     still = gap.static
     if still is None:
         return x

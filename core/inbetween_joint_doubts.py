@@ -460,7 +460,8 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
     (:attr:`core.errors.ShapeDifferenceWarning.excess`): the message's measure ÷ what the rule
     allows it, where it has an allowance: links apart, their gap ÷ the contact reach joints are
     found within; joints in a loop, the placement apart ÷ the one warned past; joints within
-    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; gears turned the other way round, how far
+    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; carriers two poses do not tell, the
+    placement apart ÷ the one warned past; gears turned the other way round, how far
     the turn their roll tells is from the one read ÷ a half turn. Sliding joints have no allowance (not
     modelled: any slide is warned past the fits' precision): 0."""
     if not doubts:

@@ -241,8 +241,9 @@ def _rolling(chords: list, rotations: np.ndarray, u: np.ndarray, v: np.ndarray) 
 
 def _axis_distances(chords: np.ndarray, angles: np.ndarray) -> np.ndarray:
     """Per rigid motion turning by ``angles`` (P,, radians) that carries a point along ``chords`` (P,),
-    the point's distance from its screw axis (less any slide along it): ``chord / (2 sin(θ/2))``;
-    inf where the motion does not turn (no axis)."""
+    ``chord / (2 sin(θ/2))``: the point's distance from its screw axis where the motion does not
+    slide along it (a slide lengthens the chord, so this is at least that distance); inf where the
+    motion does not turn (no axis)."""
     chord_per_distance = 2.0 * np.sin(0.5 * angles)  # angles in [0, π]: rotation vectors
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(chord_per_distance > 1e-12, chords / np.maximum(chord_per_distance, 1e-12), np.inf)

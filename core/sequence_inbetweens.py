@@ -520,8 +520,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         around the call would be the process's, not this thread's)."""
         # a gap index in range and finite factors within ±MAX_FACTOR, as Python ints and floats
         gap, factors = check_gap_index(gap_index, len(self)), check_factors(factors)
-        # the poses (float64) and their working copies within half the memory available, as every output
-        # (100,000 factors of a 10k mesh: NumPy's raw MemoryError, or the memory filled as they are made)
+        # the poses (float64) and their working copies within half the memory available, as every output,
+        # refused before any work in the user's terms
         check_output_memory(len(factors), self._topo.n, f"The in-betweens asked of gap {gap} at once",
                             "ask for fewer factors at a time", bytes_per_point=INBETWEEN_BYTES_PER_VERTEX)
         taken = self._taken_ahead(gap, factors, ahead)  # the call begun ahead settled first (core.sequence_gaps_ahead)

@@ -246,10 +246,9 @@ class Interpolator:
         poses fit it (their gap is anchored: its fits keep no misfit of their own). Two poses give
         no rest: their deviation is the least they can have from any rest they share
         (:func:`core.sequence_edge_misfit.least_shared_deviation`), so twice it + 0.1 point, at
-        least 0.3 %. Taking the first pose as the rest instead read every edge crushed in it (a
-        fold pressed by a collision) as a change of up to hundreds of percent to the second, and
-        allowed misfits past the bound (docs/inbetween-measurements.md, *Two poses' edge
-        allowance from a rest they share*). A pair whose keys hide an impact (cloth
+        least 0.3 %, the same whichever pose comes first, and an edge crushed in one pose (a fold a
+        collision presses) not read as a change of hundreds of percent (docs/inbetween-measurements.md,
+        *Two poses' edge allowance from a rest they share*). A pair whose keys hide an impact (cloth
         landing just before the second) is still silent where the fit follows the metric: the two
         poses do not tell a stretch that came in a frame from one that grew across the gap
         (docs/limits.md). Not said where the poses' pieces are mirrored, as of a sequence's gap

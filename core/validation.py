@@ -40,8 +40,9 @@ MAX_FACTOR = 1e3
 OUTPUT_MEMORY_SHARE = 0.5
 #: Memory each in-between asked of a gap at once takes per vertex while it is made
 #: (:meth:`core.SequenceInterpolator.poses`): its float64 pose (24 bytes) and the working copy it is
-#: solved in; measured peak 2.06 / 2.22 × the poses' 24 bytes (a 2,500-vertex sheet, 400 / 100 in-betweens).
-INBETWEEN_BYTES_PER_VERTEX = 48
+#: solved in; measured peak 2.06 / 2.22 × the poses' 24 bytes (a 2,500-vertex sheet, 400 / 100 in-betweens),
+#: so 2.25 × 24 bytes.
+INBETWEEN_BYTES_PER_VERTEX = 54
 #: Said after the memory available in a refusal: on a farm node or in a container it is the job's
 #: memory limit less what the job uses (:func:`core.resources.cgroup_headroom`), not the machine's.
 LIMITS_NOTE = " (within its container's or farm job's memory limit, if any)"
@@ -561,7 +562,7 @@ def check_output_memory(n_poses: int, n_points: int, what: str, advice: str, *, 
     need = int(n_poses) * int(n_points) * bytes_per_point + int(working)
     free = available_memory()
     if free is not None and need > OUTPUT_MEMORY_SHARE * free:
-        beside = f" with the {working / 1e9:.3g} GB its in-betweens take while they are made" if working else ""
+        beside = f", {working / 1e9:.3g} GB of it its in-betweens while they are made" if working else ""
         raise MeshError(f"{what} is {int(n_poses):,} poses of {int(n_points):,} vertices, {need / 1e9:.3g} GB"
                         f"{beside}, and this process{LIMITS_NOTE} has {free / 1e9:.3g} GB of memory available: "
                         f"{advice}.")

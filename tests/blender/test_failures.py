@@ -634,7 +634,7 @@ def test_outputs_too_large_are_refused_before_any_work(bpy_empty, extension, cor
 
 def test_operators_count_the_largest_gaps_in_betweens_beside_the_output(bpy_empty, extension, core, monkeypatch):
     """In-between Frames (100 in-betweens per gap) and Retime (speed 0.04: 99 in-betweens in a gap)
-    hold the output poses and, while a gap is made, its in-betweens (48 bytes per vertex each) at
+    hold the output poses and, while a gap is made, its in-betweens (54 bytes per vertex each) at
     once: refused before any work where the two together pass half the memory available, as the
     command's retime counts them (before, each passed its own check, the output's up front and the
     batch's in SequenceInterpolator.poses, and the job ran past half the memory)."""
@@ -656,7 +656,7 @@ def test_operators_count_the_largest_gaps_in_betweens_beside_the_output(bpy_empt
         # each alone within half the memory, the two together past it
         assert max(output, working) <= validation.OUTPUT_MEMORY_SHARE * free < output + working
         fails_without_change(extension.bridge, strip, operator,
-                             f"{match} of {n} vertices, .* GB with the .* GB its in-betweens take while they are made",
+                             f"{match} of {n} vertices, .* GB, .* GB of it its in-betweens while they are made",
                              frame_step=4, **properties)
 
 

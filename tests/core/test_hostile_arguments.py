@@ -299,7 +299,7 @@ def test_in_betweens_past_half_the_memory_are_refused_before_any_work(sheet, mon
     v, t, target = sheet
     keys = [v, target, drape(v, 1.5)]
     sequence = core.SequenceInterpolator(keys, t)
-    factors = np.linspace(0.0, 1.0, 1001)[1:-1]  # 999 poses of 36 vertices, 48 bytes a vertex while made: 1.7 MB
+    factors = np.linspace(0.0, 1.0, 1001)[1:-1]  # 999 poses of 36 vertices, 54 bytes a vertex while made: 1.9 MB
     monkeypatch.setattr(core.resources, "available_memory", lambda: 10**6)  # half of it: 500 kB
     calls = []
     monkeypatch.setattr(core.sequence_inbetweens.SequenceInterpolator, "_computed_poses",

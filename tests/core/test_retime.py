@@ -382,10 +382,10 @@ def test_command_refuses_an_output_larger_than_the_memory(tmp_path, capsys, monk
 
 
 def test_command_counts_the_largest_gaps_in_betweens_beside_the_output(tmp_path, capsys, monkeypatch):
-    """A gap's in-betweens are asked at once (float64, with their working copies: 48 bytes a vertex,
+    """A gap's in-betweens are asked at once (float64, with their working copies: 54 bytes a vertex,
     INBETWEEN_BYTES_PER_VERTEX) while the output fills: speed 0.01 keyed every 4th of 9 samples asks
     399 in-betweens of each gap. The output alone (801 samples of 36 points, float32: 346 kB) is within
-    half of 1.4 MB; with a gap's in-betweens (689 kB) it is not, and is refused before any work (it ran
+    half of 1.4 MB; with a gap's in-betweens (776 kB) it is not, and is refused before any work (it ran
     before); at speed 0.05 both fit."""
     import core.resources
 
@@ -396,7 +396,7 @@ def test_command_counts_the_largest_gaps_in_betweens_beside_the_output(tmp_path,
     common = ["retime", str(cache), "--topology", str(topology), "--step", "4", "-q"]
     assert main([*common, "--speed", "0.01", "-o", str(tmp_path / "out.pc2")]) == 2
     err = capsys.readouterr().err
-    assert "is 801 poses of 36 vertices, 0.00104 GB with the 0.000689 GB its in-betweens take" in err, err
+    assert "is 801 poses of 36 vertices, 0.00112 GB, 0.000776 GB of it its in-betweens while they are made" in err, err
     assert not (tmp_path / "out.pc2").exists()
     assert main([*common, "--speed", "0.05", "-o", str(tmp_path / "out.pc2")]) == 0
 
