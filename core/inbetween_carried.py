@@ -30,7 +30,7 @@ from . import screw_motions
 from .geometry import nearest_rotations
 from .inbetween_joints import JOINT_REACH, joint_groups, joint_offset, relative_motion
 from .nearest_points import nearest_points, point_tree
-from .rigid_alignment import rigid_alignment, rigid_alignments
+from .rigid_alignment import group_covariances, rigid_alignment, rigid_alignments
 
 #: A rigid piece's seat: for each of its vertices the nearest few vertices of deforming components
 #: in the first key, those within this many of the piece's bounding-box diagonals of it (0.5 missed
@@ -307,13 +307,8 @@ class CarriedPieces:
         seat_piece, carriers = pair // deforming.size, deforming[pair % deforming.size]
         counts = np.bincount(seat_piece, minlength=count)
         seated = base[carriers]
-        sums = np.stack([np.bincount(seat_piece, seated[:, d], minlength=count) for d in range(3)], axis=1)
-        centre = sums / np.maximum(counts, 1)[:, None]  # the carriers' centroid, per piece
-        centred = seated - centre[seat_piece]
-        scatter = np.zeros((count, 3, 3))
-        for a in range(3):
-            for b in range(3):
-                scatter[:, a, b] = np.bincount(seat_piece, centred[:, a] * centred[:, b], minlength=count)
+        # the carriers' scatter about their centroid, and that centroid, per piece
+        scatter, centre = group_covariances(seated, seated, seat_piece, count, np.ones(len(seated)))[:2]
         # the singular values of the centred carriers (RMS over them): second against first and size
         singular = np.sqrt(np.maximum(np.linalg.eigvalsh(scatter), 0.0) / np.maximum(counts, 1)[:, None])
         usable = (diagonal > 0) & (counts >= MIN_CARRIERS) & (singular[:, 1] >= MIN_CARRIER_SPREAD * singular[:, 2]) \

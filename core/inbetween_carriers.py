@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .rigid_alignment import group_covariances
+
 #: A piece keeps to one screw over a gap's keys where its key screws leave the line of the next
 #: key's by at most this many times its RMS rigid misfit over the keys (plus the coordinates'
 #: rounding): what its rigid fits resolve, as :data:`core.inbetween_joints.JOINT_SLIDE` takes a
@@ -48,12 +50,8 @@ def screw_departures(screws: list, keys: list, points: np.ndarray, labels: np.nd
     if not far:
         return out
     counts = np.maximum(np.bincount(labels, minlength=count), 1)
-    centre = np.stack([np.bincount(labels, points[:, d], minlength=count) for d in range(3)], axis=1) / counts[:, None]
-    y = points - centre[labels]
-    spread = np.empty((count, 3, 3))
-    for a in range(3):
-        for b in range(3):
-            spread[:, a, b] = np.bincount(labels, y[:, a] * y[:, b], minlength=count) / counts
+    scatter, centre = group_covariances(points, points, labels, count, np.ones(len(points)))[:2]
+    spread = scatter / counts[:, None, None]  # mean y yᵀ about each component's centroid
     inertia = np.trace(spread, axis1=1, axis2=2)[:, None, None] * np.eye(3) - spread  # mean |y|² I − y yᵀ
 
     def inner(p: np.ndarray, q: np.ndarray) -> np.ndarray:  # per component, the fields' mean product

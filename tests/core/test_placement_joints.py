@@ -20,6 +20,15 @@ from meshes import cube, grid, icosphere
 from placement_helpers import FACTORS, _curled_strip, _rigid, _screw
 
 
+def _keyed_four_times_follows(rig, triangles, atol):
+    """Keys of ``rig`` (time → vertices (n, 3)) at times 0–3 as a sequence (``start="keys"``): every
+    in-between at 0.25 / 0.5 / 0.75 of each gap is ``rig`` at its time, to ``atol``."""
+    sequence = SequenceInterpolator([rig(float(k)) for k in range(4)], triangles, start="keys")
+    for gap in range(3):
+        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(pose, rig(gap + factor), atol=atol)
+
+
 def _chain(angles):
     """Three links (thin ellipsoids of length 1, each a separate piece) end to end along x from the
     origin, each turned about y at its root joint by ``angles`` (radians) relative to the link
@@ -221,12 +230,8 @@ def test_coarse_meshing_gears_keyed_every_25_degrees_turn_about_their_own_axles(
     turned about their own axles, to 1e-6 (where a contact that changed its extent held the joint,
     5.6e-4 of the diagonal off, silently)."""
     _, tri = _coarse_gear_pair(0.0)
-    keys = [_coarse_gear_pair(25.0 * k)[0] for k in range(4)]
-    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
-    sequence = SequenceInterpolator(keys, tri, start="keys")
-    for gap in range(3):
-        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(pose, _coarse_gear_pair(25.0 * (gap + factor))[0], atol=1e-6 * diagonal)
+    diagonal = np.linalg.norm(np.ptp(_coarse_gear_pair(0.0)[0], axis=0))
+    _keyed_four_times_follows(lambda t: _coarse_gear_pair(25.0 * t)[0], tri, 1e-6 * diagonal)
 
 
 def _three_gear_train(degrees):
@@ -564,11 +569,7 @@ def test_tumbling_debris_that_touches_in_both_keys_moves_each_piece_by_its_own_m
         for s in FACTORS:
             np.testing.assert_allclose(interpolator.pose(s), pose(s), atol=1e-6 * diagonal)
         return
-    keys = [pose(float(k)) for k in range(4)]
-    seq = SequenceInterpolator(keys, tri, start="keys")
-    for gap in range(3):
-        for s, x in zip((0.25, 0.5, 0.75), seq.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(x, pose(gap + s), atol=1e-6 * diagonal)
+    _keyed_four_times_follows(pose, tri, 1e-6 * diagonal)
 
 
 
@@ -718,10 +719,7 @@ def test_a_robot_arm_jointed_at_points_its_links_turn_about_is_its_forward_kinem
     interpolator = Interpolator(a, _robot(1.0, capped)[0], tri)
     for s in FACTORS:
         np.testing.assert_allclose(interpolator.pose(s), _robot(s, capped)[0], atol=1e-6 * diagonal)
-    sequence = SequenceInterpolator([_robot(k / 3, capped)[0] for k in range(4)], tri, start="keys")
-    for gap in range(3):
-        for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(x, _robot((gap + s) / 3, capped)[0], atol=1e-6 * diagonal)
+    _keyed_four_times_follows(lambda t: _robot(t / 3, capped)[0], tri, 1e-6 * diagonal)
 
 
 @pytest.mark.parametrize(("angles", "pins"), [((40.0, 120.0, 100.0, 30.0, 170.0, 60.0), 0.2),
@@ -988,12 +986,8 @@ def test_a_robot_arm_of_boxes_meeting_face_to_face_is_its_forward_kinematics_in_
     two pieces turning about their own axes and left unjointed, its two links on their own screws
     1.2e-3 of the diagonal off (3 of 24 random arms so keyed were off by 0.9–2.6e-3)."""
     _, tri = _boxes_arm(0.0)
-    keys = [_boxes_arm(float(k))[0] for k in range(4)]
-    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
-    sequence = SequenceInterpolator(keys, tri, start="keys")
-    for gap in range(3):
-        for s, x in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(x, _boxes_arm(gap + s)[0], atol=1e-6 * diagonal)
+    diagonal = np.linalg.norm(np.ptp(_boxes_arm(0.0)[0], axis=0))
+    _keyed_four_times_follows(lambda t: _boxes_arm(t)[0], tri, 1e-6 * diagonal)
 
 
 def _lid_on_box(s, opened, opening, move, turn=0.2):
@@ -1043,10 +1037,7 @@ def test_the_piece_carried_steadily_carries_its_hinged_partner_in_a_sequence(bui
     the box off its own path by 1.2e-3–2.5e-2 (the box 2 across), silently."""
     move = (1.0, 0.0, 0.2)
     _, tri = build(0.0, opened, opening, move)
-    sequence = SequenceInterpolator([build(float(k), opened, opening, move)[0] for k in range(4)], tri, start="keys")
-    for gap in range(3):
-        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(pose, build(gap + factor, opened, opening, move)[0], atol=1e-6)
+    _keyed_four_times_follows(lambda t: build(t, opened, opening, move)[0], tri, 1e-6)
 
 
 @pytest.mark.parametrize(("build", "opened", "opening", "times"), [
@@ -1142,12 +1133,8 @@ def test_a_link_turning_far_on_a_nearly_still_parent_is_jointed_not_geared():
     teeth roll, each gear carrying the contact along the same arc about its axle; here the outer
     link carries it 4 × farther than its parent, which no rolling does (``ROLLING_SPREAD``)."""
     tri = _sunk_arm(0.0)[1]
-    keys = [_sunk_arm(float(k))[0] for k in range(4)]
-    diagonal = np.linalg.norm(np.ptp(keys[0], axis=0))
-    sequence = SequenceInterpolator(keys, tri, start="keys")
-    for gap in range(3):
-        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
-            np.testing.assert_allclose(pose, _sunk_arm(gap + factor)[0], atol=1e-6 * diagonal)
+    diagonal = np.linalg.norm(np.ptp(_sunk_arm(0.0)[0], axis=0))
+    _keyed_four_times_follows(lambda t: _sunk_arm(t)[0], tri, 1e-6 * diagonal)
 
 
 def test_two_gears_one_turned_a_half_turn_beside_the_others_quarter_turn_is_warned():
