@@ -447,8 +447,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             misfits.extend(steps)
         # a fit from a given start has no Poisson solve to fall back on (x0 is x: none)
         x0 = x0 if start is None else x
-        if self.static is not None:  # the pins set exactly (finished) before the check, which then sees the pose returned
-            x[self.static] = self.pinned_positions(s)
+        self._pins_set(x, s)  # as finished sets them, before the check, which then sees the pose returned
         checked = self.recorded(s, self.repair.outcome(x, x0, s, frames, stretch, guide, motion,
                                                        looser=looser[0] if looser else None, repairable=repairable))
         if not (self.anchored and 0.0 < s < 1.0 and self.use_extrinsic):
@@ -473,9 +472,14 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         of ``x`` (bool (m,)) if known). Only the repair regions move: the pieces keep the placement
         :meth:`finished` gave ``x``; the still vertices are put back where they sit in the keys."""
         out = self._repaired(x, s, nearby, rings, defects)
-        if self.static is not None:
-            out[0][self.static] = self.pinned_positions(s)
+        self._pins_set(out[0], s)
         return out
+
+    def _pins_set(self, x: np.ndarray, s: float) -> None:
+        """The sequence's still vertices of ``x`` (n, 3) at factor ``s`` set, in place, exactly where
+        they sit in the keys (:meth:`pinned_positions`); nothing without any."""
+        if self.static is not None:
+            x[self.static] = self.pinned_positions(s)
 
     def _repaired(self, x: np.ndarray, s: float, nearby, rings, defects) -> tuple[np.ndarray, str | None]:
         """:meth:`repaired` and :meth:`repaired_again` before their placement: the check of ``x``
@@ -506,8 +510,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         pieces the anchor barely holds are moved toward their centroid
         (:data:`~core.inbetween_anchor.CENTROID_ANCHOR_SHARE`; a translation each, after the fit and
         its repairs, which it leaves as they are)."""
-        if self.static is not None:
-            result[0][self.static] = self.pinned_positions(s)
+        self._pins_set(result[0], s)
         partly = ((self.by_centroid > 0.0) & (self.by_centroid < 1.0)).any()
         if partly or (0.0 < s < 1.0 and self.held_on_seats().any()):
             self.place(result[0], s, self.motion(s), partly=True)
