@@ -49,7 +49,7 @@ from .inbetween_rigid_fits import NEAR_HALF_TURN
 from .pins import riding_motions
 from .rigid_alignment import principal_frames
 from .rigid_bodies import rigid_bodies
-from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap
+from .splines import TANGENT_LIMIT, HermiteGap, ScrewGap, slowing_end_correction
 
 if TYPE_CHECKING:
     from .inbetween_keys import Key, Relative
@@ -139,7 +139,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                  exit: tuple | None = None,
                  hooked: list[np.ndarray] | None = None, turning: np.ndarray | None = None,
                  root: np.ndarray | None = None, log_metric: bool = False, unit: float = 1.0, sewn=None,
-                 left: np.ndarray | None = None, corrections: tuple | None = None):
+                 left: np.ndarray | None = None, corrections: tuple | None = None, slowing_end: bool = False):
         self.topo, self.base, self.next = topo, base, nxt
         # groups of vertices both keys keep together along a seam, each one unknown in every solve
         # (core.sewn_seams.SewnGroups), or None
@@ -183,11 +183,22 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                         exit=None if exit is None else
                         (self.per_element(name, exit[0]), exit[1].get(name)))
 
-        def hermite(name: str, values: list) -> HermiteGap:
+        def hermite(name: str, values: list, end: np.ndarray | None = None) -> HermiteGap:
             # the corrections to the world spline's start / end tangents (each (n, 3) or None: the
             # five keys', splines.five_key_tangent_correction; at a sequence's last key the slowing
-            # end's, splines.slowing_end_correction)
-            return HermiteGap(values, cubic, **options(name), corrections=corrections if name == "world" else None)
+            # end's, splines.slowing_end_correction); another spline's end correction: ``end``
+            own = corrections if name == "world" else None if end is None else (None, end)
+            return HermiteGap(values, cubic, **options(name), corrections=own)
+
+        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)  # per component, over the keys
+        rigid = nonrigidity < RIGID_PLACEMENT_SCALE
+        rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
+        # a sequence's last gap whose positions slow into the last key (``slowing_end``: end="keys",
+        # evenly spaced last gaps, SequenceInterpolator._tangent_correction): the rigid motions (the
+        # pieces' and joints' screws, the flying bodies' points) slow there too, by each piece's
+        # rigidity, the share of its guide its rigid motion places (Guide._guide_parts): a rigid
+        # piece ends as the cloth does, a deforming one keeps its screw's linear end
+        slowing = rigidity if slowing_end and cubic and rigidity.any() else None
 
         # the pieces' screws splined in their principal frames in the base key, about their
         # centroids (see ScrewGap); a linear spline limits nothing and stays in the world's
@@ -208,16 +219,14 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             self._chords_middle = HermiteGap([r.world for r in relatives], cubic, **options("world")).at(0.5)
         # the key after: the screw whose Catmull–Rom tangent is the next gap's start velocity
         spline["screw"] = ScrewGap([r.screw for r in relatives[:3]] + [relatives[3].continued_screw], pieces, cubic,
-                                   **options("screw"))
+                                   slowing, **options("screw"))
         # the rotation residuals splined in each triangle's base frame (t1, t2, n), where their
         # tangents' per-element limits do not depend on how the scene is turned (see local_rotvec)
         spline["rotvec"] = hermite("rotvec", [self.local_rotvec(r.rotvec) for r in relatives])
         # between the keys the stretch comes from the metrics G = U² (see stretch)
         spline["metric"] = hermite("log_stretch", [r.metric for r in relatives])
         self.splines = spline
-        nonrigidity = np.max([r.nonrigidity for r in relatives], axis=0)  # per component, over the keys
-        rigid = nonrigidity < RIGID_PLACEMENT_SCALE
-        self._turn_about_points(rigid, nonrigidity, hermite)  # before any motion is asked for
+        self._turn_about_points(rigid, nonrigidity, hermite, slowing)  # before any motion is asked for
         self.anchored = anchored
         self.static = static  # bool (n,): pinned (core.pins: still, or riding on an animated object), or None
         # the riding sets (index arrays, core.pins) and the spline of each one's rigid motion from
@@ -296,7 +305,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],
                                                           [getattr(r, "motion", None) for r in relatives]),
-                                             pieces, cubic, **options("screw"))
+                                             pieces, cubic, slowing, **options("screw"))
         self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
         self._riding_motions: dict[float, tuple] = {}  # see ride
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
@@ -305,7 +314,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         self.tolerance = self.change_tolerance
         self.choose_anchor_weight()
         self.select(0.5)
-        self.rigidity = np.clip(1.0 - nonrigidity / RIGID_PLACEMENT_SCALE, 0.0, 1.0)
+        self.rigidity = rigidity
         self.nonrigidity = nonrigidity
         # the splines' conditions for free flight and impacts act on the world spline: not there
         self._arc_candidates = np.full(len(topo.components), cubic and not anchored)
@@ -340,7 +349,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if loose.any():
             whole = self.arc_guided & loose
             if whole.any():
-                self._turn_about_points(rigid | whole, nonrigidity, hermite)
+                self._turn_about_points(rigid | whole, nonrigidity, hermite, slowing)
                 self._motions.clear()  # the screw's motions, asked for by arc_guided (its turns are the same)
 
     def held_pieces(self) -> np.ndarray:
@@ -353,9 +362,12 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         held[topo.vertex_owner[pinned]] = True
         return held
 
-    def _turn_about_points(self, pieces: np.ndarray, nonrigidity: np.ndarray, hermite) -> None:
+    def _turn_about_points(self, pieces: np.ndarray, nonrigidity: np.ndarray, hermite,
+                           slowing: np.ndarray | None = None) -> None:
         """Set ``flying`` for the components ``pieces`` (bool (C,); :func:`~core.inbetween_flight.flying_groups`)
-        and the spline of each group's point at the keys (the pieces' centroids elsewhere)."""
+        and the spline of each group's point at the keys (the pieces' centroids elsewhere); ``slowing``:
+        None, or per component (C,) the share of the slowing end's correction
+        (:func:`~core.splines.slowing_end_correction`) its point's spline takes at a sequence's last key."""
         self.flying = flying_groups(self.topo, self.relatives, pieces, nonrigidity)
         if self.flying is not None:
             labels, points = self.flying
@@ -365,7 +377,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
                 where = r.centroids.copy()
                 where[rows] = r.positions_of(points[labels[rows]], rows)
                 at_keys.append(where)
-            self.splines["flying"] = hermite("centroids", at_keys)
+            end = None
+            if slowing is not None:
+                end = slowing_end_correction(*at_keys[:3])
+                end *= slowing[:, None]
+            self.splines["flying"] = hermite("centroids", at_keys, end)
 
     @cached_property
     def trimmed_tolerance(self) -> float:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .splines import END_TANGENT_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, limited_tangent
+from .splines import END_TANGENT_LIMIT, START_TANGENT_LIMIT, TANGENT_LIMIT, limited_tangent, slowing_end_correction
 
 
 def start_of_motion(keys, middle, factor: float, durations=None) -> str:
@@ -46,8 +46,12 @@ def end_of_motion(keys, middle, factor: float, durations=None) -> str:
 
     Each end's per-vertex spline over the last gap — the start tangent the mean of the two
     secants per unit time (at most :data:`~core.splines.TANGENT_LIMIT` × the gap's secant per
-    point, as the positions' spline limits it), the end tangent the gap's secant (``"keys"``) or
-    zero (``"rest"``) — is compared with the frame: the nearer one (RMS over the vertices). How
+    point, as the positions' spline limits it), the end tangent the gap's secant slowed where the
+    keys slow into the last one, as the sequence's positions and its rigid pieces' motions end there
+    (``"keys"``; the secant itself with unevenly spaced last gaps, :func:`~core.splines.slowing_end_correction`,
+    :func:`~core.splines.slowing_screw_correction`) or zero
+    (``"rest"``) — is compared with the frame: the nearer one (RMS over the vertices; on a tie,
+    every point stopping at the last key, ``"rest"``). How
     far an ease into the last key reaches back depends on how long it is against the gap, which
     the velocity at the key does not say: a hopping character keyed in Blender (auto-clamped
     Bézier handles) slows in its last two frames, the rest end right with keys 4 frames apart and
@@ -58,8 +62,14 @@ def end_of_motion(keys, middle, factor: float, durations=None) -> str:
     secant = end - start
     tangent = limited_tangent(0.5 * ((start - before) * (last / back) + secant), TANGENT_LIMIT,
                        np.einsum("ij,ij->i", secant, secant), rows=True)
-    return "rest" if _nearer(middle, factor, start, secant, (tangent, secant), (tangent, np.zeros_like(secant))) \
-        else "keys"
+    # "keys" ends as the sequence's world spline of positions and its rigid pieces' screws do: slowed
+    # where the keys slow into the last one, with evenly spaced last gaps (splines.slowing_end_correction;
+    # a rigid piece by its screw's parts, per point the same for a move along a line)
+    arrival = secant + slowing_end_correction(before, start, end) if back == last else secant
+    # a tie (every point stops at the last key: the slowed end is the rest end) is "rest", which
+    # brings every spline of the sequence, not only the positions', to rest there
+    return "keys" if _nearer(middle, factor, start, secant, (tangent, np.zeros_like(secant)), (tangent, arrival)) \
+        else "rest"
 
 
 def _nearer(middle, factor: float, start: np.ndarray, secant: np.ndarray, tangents: tuple, other: tuple) -> bool:

@@ -128,7 +128,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     ``end``: how the motion reaches the last key. ``"keys"`` (the default): at the last gap's mean
     velocity (the linear extrapolation past the last key, as Catmull–Rom's end condition), as a
     simulation stopped at any frame — slower where the last three keys show a point slowing into
-    the last key (the positions in the world, :func:`~core.splines.slowing_end_correction`).
+    the last key (the positions in the world, :func:`~core.splines.slowing_end_correction`; a rigid
+    piece's rigid motion, its turn and its move each from its own keys' slowing,
+    :func:`~core.splines.slowing_screw_correction`, by the piece's rigidity).
     ``"rest"``: it comes to rest there, as an animation easing into its last keyframe — the last
     gap ends with zero velocity (every spline's end tangent;
     exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the
@@ -417,7 +419,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 after = after.rescaled(nxt, 1.0 / (ahead_time - 1.0))
             # the sequence's start: from rest, or the parabola through the first three keys, its
             # tangent at most the first gap's secant (see splines.START_TANGENT_LIMIT); its end: linear,
-            # the positions slowed where the last keys slow (_tangent_correction), or at rest
+            # the positions and the rigid pieces' motions slowed where the last keys slow
+            # (_tangent_correction, Gap's slowing_end), or at rest
             # (end="rest", which sets the last gap's end tangents to zero)
             prev = self._previous(gap, -back_time * turn, whole).continue_turns(-back_time * nxt.rotvec) \
                 if gap >= 1 else Relative.phantom(nxt, ident, after)
@@ -426,6 +429,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             after = after if after is not None else Relative.phantom(ident, nxt)
         else:
             prev = after = ident
+        corrections = (self._tangent_correction(gap), self._tangent_correction(gap + 1)) if cubic else None
         return Gap(topo, base, self._key(gap + 1), [prev, ident, nxt, after], cubic, self.use_extrinsic,
                     self._anchored or anchored, self._static, self._riding, riding_tolerance=self._riding_tolerance * self._unit,
                     start_limit=self._start_limit(gap), rest_end=cubic and self.end == "rest" and gap == last - 1,
@@ -435,7 +439,10 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                     hooked=self._hooked, turning=turning, root=root, left=left, log_metric=self._log_metric,
                     unit=self._unit,
                     sewn=gap_groups(self._near_seams, gap, topo.triangles, topo.n, self._rounding * self._unit),
-                    corrections=(self._tangent_correction(gap), self._tangent_correction(gap + 1)) if cubic else None)
+                    corrections=corrections,
+                    # the last key's slowing end (its correction made: end="keys", evenly spaced) for the
+                    # rigid motions too
+                    slowing_end=cubic and gap + 1 == last and corrections[1] is not None)
 
     def _tangent_correction(self, key: int) -> np.ndarray | None:
         """The five keys' correction to Catmull–Rom's tangent of the world spline of positions at key

@@ -97,7 +97,8 @@ class HermiteGap:
     start / end tangent before any limit or replacement above — at a key with evenly spaced keys two
     away on both sides, the five keys' :func:`five_key_tangent_correction` (a sequence makes each
     key's once for the two gaps that meet there); at a sequence's last key, to the linear end
-    condition's tangent, :func:`slowing_end_correction`.
+    condition's tangent, :func:`slowing_end_correction` (bodies' screws:
+    :func:`slowing_screw_correction`, :class:`ScrewGap`'s ``slowing``).
     """
 
     def __init__(self, values, cubic: bool, rows: bool = False, limit: float = TANGENT_LIMIT,
@@ -226,6 +227,18 @@ def slowing_end_correction(v_1: np.ndarray, v0: np.ndarray, v1: np.ndarray) -> n
     return secant
 
 
+def slowing_screw_correction(s_1: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+    """:func:`slowing_end_correction` of bodies' screw coordinates ``(ω, v)`` (P, 6) at key times −1,
+    0, 1 (a sequence's last key ``s1``), per body (P, 6): the turn ``ω`` and the translation part ``v``
+    each slowed by its own share ``λ``, read from its own chords. Apart, as radians and lengths do
+    not add: one ``λ`` from the six coordinates would weigh the turn against the move by the scene's
+    units. A body turning about a fixed axis at a constant deceleration has both parts proportional
+    to its angle (``ω = θ â``, ``v = θ (p × â)`` for an axis through ``p``): both read its ``λ``,
+    and the screw's spline with it is exact, as the positions' is for a point slowing along a line."""
+    return np.concatenate([slowing_end_correction(s_1[:, part], s0[:, part], s1[:, part])
+                           for part in (slice(0, 3), slice(3, 6))], axis=1)
+
+
 def limited_tangent(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:
     """``tangent`` limited in place to ``limit`` × ``bound``: each row's length against the squared
     lengths ``bound`` (``rows``), or each element against the magnitudes ``bound``."""
@@ -247,13 +260,20 @@ class ScrewGap:
     those limits depend on the world's axes and origin, and a scene turned by a general rotation
     came back up to 9.0e-3 of its diagonal off the unturned one's in-betweens (a flag keyed every
     8th frame; 1.7e-7, its keys' single-precision rounding, in the flag's principal frame).
-    ``frames`` None: in world coordinates (a linear spline, where no limit acts). Other arguments
-    as :class:`HermiteGap`'s."""
+    ``frames`` None: in world coordinates (a linear spline, where no limit acts). ``slowing``: None,
+    or per body (P,) the share of :func:`slowing_screw_correction` (in the bodies' frames) its end
+    tangent takes at a sequence's last key (``end="keys"``: each piece's rigidity, so that its rigid
+    motion slows into the last key as the positions' spline does). Other arguments as
+    :class:`HermiteGap`'s."""
 
-    def __init__(self, values, frames: tuple | None, cubic: bool, **options):
+    def __init__(self, values, frames: tuple | None, cubic: bool, slowing: np.ndarray | None = None, **options):
         self.frames = frames
         if frames is not None:
             values = [screw_motions.framed_screws(value, *frames) for value in values]
+        if slowing is not None and cubic:
+            correction = slowing_screw_correction(*values[:3])
+            correction *= slowing[:, None]
+            options["corrections"] = (None, correction)
         self.gap = HermiteGap(values, cubic, **options)
 
     def at(self, s: float) -> np.ndarray:

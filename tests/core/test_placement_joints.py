@@ -722,6 +722,28 @@ def test_a_robot_arm_jointed_at_points_its_links_turn_about_is_its_forward_kinem
     _keyed_four_times_follows(lambda t: _robot(t / 3, capped)[0], tri, 1e-6 * diagonal)
 
 
+def test_a_robot_arm_slowing_into_its_last_key_is_its_forward_kinematics():
+    """The robot arm's joints slowing at a constant deceleration to a stop a quarter of a gap past
+    the last key (keys at 0–3): the in-betweens of the gaps with a key before them, the last one
+    included, are the arm at their time, to 1e-6 of the diagonal, and its base link, still in every
+    key, is where the keys have it: the joints' screws slow into the last key as the positions do
+    (core.splines.slowing_screw_correction). With their linear end the last gap was 9.5e-3 of the
+    diagonal off (the rest end 4.7e-3)."""
+    stop = 3.25
+
+    def rig(t):
+        return _robot((t - t * t / (2.0 * stop)) / 2.0)[0]
+
+    a, tri = _robot(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    base = np.arange(len(a) // 7)  # the first of the seven tubes
+    sequence = SequenceInterpolator([rig(float(k)) for k in range(4)], tri, start="keys")
+    for gap in (1, 2):
+        for factor, pose in zip((0.25, 0.5, 0.75), sequence.poses(gap, (0.25, 0.5, 0.75))):
+            np.testing.assert_allclose(pose, rig(gap + factor), atol=1e-6 * diagonal)
+            np.testing.assert_array_equal(pose[base], a[base])
+
+
 @pytest.mark.parametrize(("angles", "pins"), [((40.0, 120.0, 100.0, 30.0, 170.0, 60.0), 0.2),
                                              ((58.0, 36.0, 22.0, 21.0, 69.0, 75.0), 0.2),
                                              ((0.0, 0.0, 60.0, 180.0, 0.0, 0.0), -0.1)])

@@ -326,6 +326,33 @@ def test_a_body_slowing_down_round_a_far_axis_turns_about_it():
             np.testing.assert_allclose(x[:, 2], a[:, 2], atol=1e-9 * diagonal)
 
 
+@pytest.mark.parametrize("stop", [3.0, 3.25, 5.0])
+def test_a_body_slowing_into_the_last_key_ends_on_its_motion(stop):
+    """A head with its eyes swinging about a fixed tilted axis off it (a door on its hinge), slowing
+    at a constant deceleration to a stop at time ``stop`` (keys at 0–3: at the last key, a quarter
+    of a gap past it, two gaps past): the in-betweens of the gaps with a key before them, the last
+    one included, are the swing at their time, to 1e-9 of the diagonal, pieces included: its
+    screw's spline is exact for a turn quadratic in time, with Catmull–Rom's tangent at the gap's
+    start and, at the last key, the keys' slowing on the screw's turn and move
+    (core.splines.slowing_screw_correction). With the screw's linear end at the last key (where the
+    sequence's positions slowed since session 75) the last gap was 2.0e-2 / 1.8e-2 / 1.1e-2 of the
+    diagonal off."""
+    a, tri = _head_with_eyes()
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    axis = np.array([0.2, 0.3, 1.0]) / np.linalg.norm([0.2, 0.3, 1.0])
+    pivot = a.mean(axis=0) + np.array([1.5, -0.5, 0.0])
+
+    def at(time):
+        angle = np.radians(70.0) * (time - time * time / (2.0 * stop))
+        return _rigid(a, Rotation.from_rotvec(angle * axis).as_matrix(), pivot)
+
+    seq = SequenceInterpolator([at(float(k)) for k in range(4)], tri, start="keys")
+    factors = (0.25, 0.5, 0.75)
+    for gap in (1, 2):
+        for s, x in zip(factors, seq.poses(gap, factors)):
+            assert np.abs(x - at(gap + s)).max() < 1e-9 * diagonal, (gap, s, np.abs(x - at(gap + s)).max() / diagonal)
+
+
 def test_a_box_bouncing_while_it_tumbles_is_not_turned_about_a_point_outside_it():
     """A rigid box thrown upward that bounces on the floor (restitution 0.6) and tumbles at a new
     constant angular velocity after each bounce, keys 16 frames apart: in the gaps with keys on
