@@ -25,17 +25,22 @@ the other piece (numbers in docs/inbetween-measurements.md, *Joints the keys do 
   contact's only to within the rigid fits' precision, a share of the pieces' size at which pieces
   touching by chance pass as jointed (hair cards in single precision 1,000 from the origin: 18 of
   200 cards jointed, 4.1e-3 of the diagonal off at 0.5);
-- **carriers two poses do not tell** (:func:`_carriers_untold`): a joint group hangs from the piece
+- **carriers the keys do not tell** (:func:`_carriers_untold`): a joint group hangs from the piece
   that moves least (in a chain the moves add up from the piece fixed to the world, and so do the
   turns); where another piece of the group turns less than that one, the two readings disagree,
-  and two poses have nothing else to tell which piece carries the others (a sequence's keys do:
-  :mod:`core.inbetween_carriers`). A box carried while its lid opens, the lid lifted against the
-  carry: the box, hung from the lid, left its own path by 7.5e-2–0.20 of the diagonal at ×2.
+  and two poses have nothing else to tell which piece carries the others (a sequence's keys do
+  where a piece of the group keeps to one screw over them: :mod:`core.inbetween_carriers`; where
+  none does, they do not either). A box carried while its lid opens, the lid lifted against the
+  carry: the box, hung from the lid, left its own path by 7.5e-2–0.20 of the diagonal at ×2; an
+  arm carried along a translation, no link on one screw, hung from its outer link (which moved
+  0.07 % less than the base): 6.1e-2 off in a sequence.
 - **gears turned the other way round** (:func:`_rolled_the_other_way`): pieces touching in both
   keys, each turning about its own axis, the axes parallel, their contact staying put, as meshing
   gears do, whose roll on each other tells a turn more than a half turn from the one the keys are
   read as (the short way round): a gear turned −190° by its mate is read +170°, its teeth through
-  the mate's half-way.
+  the mate's half-way; or both gears past a half turn, which roll on each other taken the other
+  way round and not as read (16 and 12 teeth turned +200° / −267°, read −160° / +93°: 0.50 of
+  the diagonal off).
 """
 
 from __future__ import annotations
@@ -91,7 +96,8 @@ class JointDoubts:
     sliding_share: float = 0.0
     rounded: int = 0
     rounded_share: float = 0.0
-    carried: int = 0  # pieces of joint groups whose carrier two poses do not tell (_carriers_untold)
+    carried: int = 0  # pieces of joint groups whose carrier the keys do not tell (_carriers_untold)
+    carried_unsteady: bool = False  # read in a sequence whose keys keep none of the group to one screw
     carried_share: float = 0.0
     carried_excess: float = 0.0  # the farthest such placement ÷ the one warned past (JOINT_LOOP_SHARE, JOINT_STAKE)
 
@@ -108,7 +114,8 @@ class JointDoubts:
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
                  joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
                  bodies: np.ndarray | None = None, two_poses: bool = False,
-                 pins: np.ndarray | None = None, screws: np.ndarray | None = None) -> JointDoubts | None:
+                 pins: np.ndarray | None = None, screws: np.ndarray | None = None,
+                 departures: np.ndarray | None = None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
     ``core.inbetween_topology.Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
@@ -121,10 +128,14 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     its carriers are read from those alone, :func:`_carriers_untold`); ``pins``: bool (n,), the
     pinned vertices (a group with one hangs from the world), or None; ``screws`` (C, 6): the
     pieces' own screws from ``base`` to ``nxt`` as the in-betweens take them (None: gears turned
-    the other way round are not sought). Only pairs of pieces in different joint groups (in one
-    group: held contacts the tree joins through other pieces, :func:`_joints_in_loops`), and where
-    the joint would move the child otherwise than its own motion (or the tree) does (a card
-    turning about its root above a still scalp moves as it would on it), count."""
+    the other way round are not sought); ``departures`` (C,): in a smooth sequence, how far each
+    piece's screws at the keys about the gap leave one screw
+    (:func:`core.inbetween_carriers.screw_departures`, 0 where within its fits): a group whose root
+    leaves it has its carrier read as two poses' are (None: not read). Only pairs of pieces in
+    different joint groups (in one group: held contacts the tree joins through other pieces,
+    :func:`_joints_in_loops`), and where the joint would move the child otherwise than its own
+    motion (or the tree) does (a card turning about its root above a still scalp moves as it would
+    on it), count."""
     if touching is None:
         return None
     doubts = JointDoubts()
@@ -149,9 +160,10 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     key, first, u, v, relative, precision = c.key, c.first, c.u, c.v, c.relative, c.precision
     if joints is not None and c.held is not None:
         _joints_in_loops(doubts, c, joints, group, size, stakes)
-    if joints is not None and two_poses:
+    if joints is not None and (two_poses or departures is not None):
         _carriers_untold(doubts, c, joints, size, stakes, slide_precision(base[index], nxt[index], reach, misfits,
-                                                                          pieces, pieces), pins)
+                                                                          pieces, pieces), pins,
+                         None if two_poses else departures[pieces] > 0)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         angle = c.angle
@@ -216,9 +228,12 @@ def _rigid_parents(pieces: np.ndarray, parents: np.ndarray) -> np.ndarray:
 
 
 def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.ndarray, stakes: "_Stakes",
-                     precision: np.ndarray, pins: np.ndarray | None) -> None:
+                     precision: np.ndarray, pins: np.ndarray | None, unsteady: np.ndarray | None = None) -> None:
     """Count in ``doubts`` the rigid pieces of ``c`` in joint groups (``joints``: ``(parents (C,),
-    order)``) whose carrier two poses do not tell: the group hangs from its piece that moves least
+    order)``) whose carrier the keys do not tell: two poses, or in a smooth sequence a group whose
+    root leaves one screw over the keys about the gap (``unsteady`` (R,) per rigid piece, None: two
+    poses; the tree takes a piece on one screw for the root where the group has one, and the
+    group's path is then told). The group hangs from its piece that moves least
     (:func:`core.inbetween_joints.joint_tree`: in a chain the moves add up from the piece fixed to
     the world, as the turns do), and another of its pieces turns less than that one (beyond both
     turns' spread: what their rigid fits resolve); counted where the group hung from that piece
@@ -234,6 +249,8 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
     order = np.searchsorted(c.pieces, joints[1])
     placed = None
     for root in np.flatnonzero((jointed < 0) & np.isin(np.arange(c.pieces.size), jointed)):
+        if unsteady is not None and not unsteady[root]:
+            continue  # a piece on one screw carries the group: the keys about the gap tell it
         members = np.flatnonzero(group == group[root])
         least = members[np.argmin(angle[members])]
         if pinned[members].any() or angle[least] >= angle[root] - stakes.spread[root] - stakes.spread[least]:
@@ -253,6 +270,7 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
             allowed = max(JOINT_STAKE * float(precision[members].max()), JOINT_LOOP_SHARE * float(size[m]))
             if apart > allowed:
                 doubts.carried += 1
+                doubts.carried_unsteady = unsteady is not None
                 doubts.carried_share = max(doubts.carried_share, apart / float(size[m]))
                 doubts.carried_excess = max(doubts.carried_excess, apart / allowed)
 
@@ -411,8 +429,11 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     distances from the axles), which the keys give only to a whole turn. Where the turn so told is
     past a half turn and more than a half turn from the piece's own (two gears of 20 and 10 teeth,
     the large one turned 95°: the small one −190°, read +170°, its teeth through the other's
-    half-way), the keys were read the short way round; a piece turning a half turn (within its
-    ``spread`` (R,): either way) is warned of as such elsewhere."""
+    half-way), the keys were read the short way round; where it is past a half turn but nearer the
+    piece's own, and the mate's turn the other way round rolls the piece onto its own the other way
+    round closer than the two turns read roll on each other, both were (both pieces counted); a
+    piece turning a half turn (within its ``spread`` (R,): either way) is warned of as such
+    elsewhere."""
     u, v, precision = c.u, c.v, c.precision
     w, moved = screws[:, :3], screws[:, 3:]
     theta = np.linalg.norm(w, axis=1)
@@ -446,11 +467,23 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
                                                                    np.finfo(float).tiny)
         # past a half turn, and more than one from the turn read: the keys' short way round is its alias
         other = (np.abs(told) > np.pi) & (np.abs(told - theta[b]) > np.pi) & ~either_way(theta[b], spread[b])
-        for k in np.flatnonzero(other):
-            rolled.add(int(b[k]))
-            if abs(told[k]) > abs(doubts.rolled_turn):
-                doubts.rolled_turn, doubts.rolled_read = float(told[k]), float(theta[b[k]])
-            doubts.rolled_excess = max(doubts.rolled_excess, float(abs(told[k] - theta[b[k]]) / np.pi))
+        # past a half turn but nearer the turn read, where a's alias (its turn the other way round,
+        # θ_a − 2π) rolls b onto b's alias (θ_b − 2π) closer than the reads roll on each other:
+        # both gears past a half turn (16 and 12 teeth turned +200° / −267°, read −160° / +93°: the
+        # large one's read rolls the small one +213°, 120° from its read; its alias +200° rolls it
+        # −267°, its alias exactly). Reads that are right, the told turn off only by the contact's
+        # place off the pitch point (a ratio 1 + δ), give the aliases the larger residual where
+        # the gears' ratio is 1 or more: theirs |δ θ_b − 2π (ρ − 1)| against δ θ_b
+        told_alias = told * (1.0 - 2.0 * np.pi / theta[a])
+        nearer = np.abs(told_alias - theta[b] + 2.0 * np.pi) < np.abs(told - theta[b])
+        both = (np.abs(told) > np.pi) & ~other & nearer & ~either_way(theta[a], spread[a]) \
+            & ~either_way(theta[b], spread[b])
+        for k in np.flatnonzero(other | both):
+            rolled.update((int(b[k]), int(a[k])) if both[k] else (int(b[k]),))
+            turn = float(told_alias[k] if both[k] else told[k])
+            if abs(turn) > abs(doubts.rolled_turn):
+                doubts.rolled_turn, doubts.rolled_read = turn, float(theta[b[k]])
+            doubts.rolled_excess = max(doubts.rolled_excess, float(abs(turn - theta[b[k]]) / np.pi))
     doubts.rolled = len(rolled)
 
 
@@ -460,7 +493,7 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
     (:attr:`core.errors.ShapeDifferenceWarning.excess`): the message's measure ÷ what the rule
     allows it, where it has an allowance: links apart, their gap ÷ the contact reach joints are
     found within; joints in a loop, the placement apart ÷ the one warned past; joints within
-    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; carriers two poses do not tell, the
+    rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; carriers the keys do not tell, the
     placement apart ÷ the one warned past; gears turned the other way round, how far
     the turn their roll tells is from the one read ÷ a half turn. Sliding joints have no allowance (not
     modelled: any slide is warned past the fits' precision): 0."""
@@ -495,12 +528,15 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                          "may be moved as jointed (keys with the mesh nearer its object's origin tell them apart)",
                          doubts.rounded_share / JOINT_DOUBT))
     if doubts.carried:
+        told = ("and none of them keeps to one screw over the keys about the gap, so the keys do not tell which "
+                "piece carries the others (as an arm carried along a path on which no link moves steadily; "
+                "keys closer together bring the two placements nearer)") if doubts.carried_unsteady else (
+                "and two keys alone do not tell which piece carries the others (as a box carried while its lid "
+                "opens; a smooth sequence's keys on either side tell it)")
         problems.append((f"{between}, {doubts.carried} rigid piece(s) jointed to each other are placed as carried by "
                          "the piece of theirs that moves least, which turns more than another of them: carried by "
                          f"that one instead, they would be up to {100 * doubts.carried_share:.2g} % of a piece's size "
-                         "elsewhere half-way, and two keys alone do not tell which piece carries the others (as a "
-                         "box carried while its lid opens; a smooth sequence's keys on either side tell it)",
-                         doubts.carried_excess))
+                         f"elsewhere half-way, {told}", doubts.carried_excess))
     if doubts.rolled:
         problems.append((f"{between}, {doubts.rolled} rigid piece(s) touch a piece in both keys and turn about axes "
                          "parallel to its, their contact staying put, as meshing gears do, but rolling on it would turn "

@@ -288,10 +288,11 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, parents)
         if len(topo.components) > 1:
             # what the joints leave untold (links apart, sliding joints, joints within rounding, gears
-            # turned the other way round), the pieces of a body counted with its leader: the gap warns
+            # turned the other way round, carriers two poses or a sequence with no piece on one screw
+            # do not tell), the pieces of a body counted with its leader: the gap warns
             self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
                                              piece_edges, misfits, base.diagonals, self.bodies,
-                                             not cubic, static, relatives[2].screw)
+                                             not cubic, static, relatives[2].screw, departures)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
         # to within the turn's arc) keep their own, which are its translation to that arc

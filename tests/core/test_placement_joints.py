@@ -1159,6 +1159,61 @@ def test_a_link_turning_far_on_a_nearly_still_parent_is_jointed_not_geared():
     _keyed_four_times_follows(lambda t: _sunk_arm(t)[0], tri, 1e-6 * diagonal)
 
 
+def _carried_sunk_arm(s, shift, wobble=0.0, bend=1.0):
+    """The arm of :func:`_sunk_arm` at ``bend`` × ``s`` (0: held still) carried along ``s`` ×
+    ``shift`` times (1, 0.4, −0.2), and turned ``wobble`` × sin(s) rad about the z axis through its
+    first key's centroid (a path no screw follows where ``wobble`` is not 0): vertices, triangles."""
+    x, triangles = _sunk_arm(bend * s)
+    centre = _sunk_arm(0.0)[0].mean(axis=0)
+    sway = Rotation.from_rotvec([0.0, 0.0, wobble * np.sin(s)]).as_matrix()
+    return (x - centre) @ sway.T + centre + s * shift * np.array([1.0, 0.4, -0.2]), triangles
+
+
+def _sequence_warnings(rig, triangles):
+    """The ShapeDifferenceWarning messages of a sequence of ``rig`` (time → vertices) keyed at
+    times 0–3 (``start="keys"``), every gap's in-betweens at 0.25 / 0.5 / 0.75 asked."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sequence = SequenceInterpolator([rig(float(k)) for k in range(4)], triangles, start="keys")
+        for gap in range(3):
+            sequence.poses(gap, (0.25, 0.5, 0.75))
+    return [str(w.message) for w in caught if issubclass(w.category, ShapeDifferenceWarning)]
+
+
+@pytest.mark.parametrize("shift", [5.0, 2.0])
+def test_an_arm_carried_along_a_path_on_which_no_link_keeps_to_one_screw_is_warned(shift):
+    """The arm of :func:`_sunk_arm` carried along a translation of ``shift`` a key, keyed four times:
+    its base turns 0.5° a key about its root while the carry moves it far, which no one screw does
+    (its key screws leave the line by 0.044 at 5 a key), and the other links turn on it, so no piece
+    keeps to one screw and the group hangs from the piece that moves least, the outer link (0.07 %
+    less than the base at 5 a key): 6.1e-2 of the diagonal off in the middle gap (at 2 a key 3.4e-4
+    in the first), silently. The base turns least; carried by it the arm would be elsewhere, and
+    the keys do not tell which piece carries the others: the gap warns (a kind the operators
+    report, ``joint``)."""
+    triangles = _sunk_arm(0.0)[1]
+    said = _sequence_warnings(lambda t: _carried_sunk_arm(t, shift)[0], triangles)
+    assert any("none of them keeps to one screw" in m for m in said), said
+
+
+@pytest.mark.parametrize(("shift", "wobble", "bend"), [(0.0, 0.0, 1.0), (5.0, 0.3, 0.0)])
+def test_an_arm_whose_carrier_the_keys_tell_or_that_moves_as_one_is_not_warned_of_its_carrier(
+        shift, wobble, bend):
+    """The counterparts: the arm of :func:`_sunk_arm` alone, its base turning steadily about its root
+    (one screw: it carries the others, every in-between exact to 1e-6), and the arm held still
+    (``bend`` 0: the links never turn on each other) while carried along a swaying path no screw
+    follows, every piece moving as one (whichever piece carries the others places them the same):
+    no warning of the carrier."""
+    triangles = _sunk_arm(0.0)[1]
+
+    def rig(t):
+        return _carried_sunk_arm(t, shift, wobble, bend)[0]
+
+    said = _sequence_warnings(rig, triangles)
+    assert not any("carries the others" in m for m in said), said
+    if bend:
+        _keyed_four_times_follows(rig, triangles, 1e-6 * np.linalg.norm(np.ptp(rig(0.0), axis=0)))
+
+
 def test_two_gears_one_turned_a_half_turn_beside_the_others_quarter_turn_is_warned():
     """The two-gear train with the large gear turned 90°: the small one turns −180°, which gives the
     same keys as +180°. The whole mesh's fit turns 56° (the large gear's way), and the small gear,
@@ -1218,6 +1273,53 @@ def test_meshing_gears_turned_under_a_half_turn_are_not_warned_of_rolling_the_ot
     assert not _said(caught, "as meshing gears do"), [str(w.message) for w in caught]
     for s, pose in zip(FACTORS, poses):
         np.testing.assert_allclose(pose, _gear_train(s * degrees)[0], atol=1e-6)
+
+
+def _sixteen_twelve_train(degrees, clearance):
+    """Two meshing gears of :func:`_gear`, 16 teeth about radius 1 at the origin and 12 about radius
+    0.75 beside it (tip to root ``clearance`` apart), the first turned by ``degrees`` about its axle
+    and the second 16 / 12 times as far the other way about its own: vertices, triangles."""
+    pitch_a, pitch_b = 2.0 * np.pi / 16, 2.0 * np.pi / 12
+    axles = np.array([[0.0, 0.0, 0.0], [1.75 + clearance, 0.0, 0.0]])
+    a, a_tri = _gear(16, 1.0, 0.3, axles[0], -pitch_a / 8)
+    b, b_tri = _gear(12, 0.75, 0.225, axles[1], np.pi - 5 * pitch_b / 8)
+    rows = [np.arange(len(a)), len(a) + np.arange(len(b))]
+    vertices = np.vstack([a, b])
+    for k, rate in enumerate((1.0, -16.0 / 12.0)):
+        turn = Rotation.from_rotvec([0.0, 0.0, rate * np.radians(degrees)]).as_matrix()
+        vertices[rows[k]] = _rigid(vertices[rows[k]], turn, axles[k])
+    return vertices, np.vstack([a_tri, b_tri + len(a)])
+
+
+@pytest.mark.parametrize("clearance", [0.0, 0.03])
+def test_two_meshing_gears_both_turned_past_a_half_turn_are_warned(clearance):
+    """Gears of 16 and 12 teeth, the large one turned 200°, the small one −267°: the keys give them
+    as −160° and +93° (each the short way round), and each is read so, 0.50 of the diagonal off.
+    Rolling on the large gear as read, the small one would turn +213°: past a half turn, so the
+    reads do not roll on each other, but only 120° from the small one's read, which alone was
+    warned of. The large gear taken the other way round (+200°) rolls the small one −267°, its read
+    taken the other way round, exactly: both were read the short way, and the gap warns (before,
+    silently). Each gear stays rigid, to 1e-6."""
+    a, tri = _sixteen_twelve_train(0.0, clearance)
+    poses, caught = _poses_and_warnings(Interpolator(a, _sixteen_twelve_train(200.0, clearance)[0], tri), FACTORS)
+    assert _said(caught, "as meshing gears do"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        truth = _sixteen_twelve_train(s * 200.0, clearance)[0]
+        for rows in (np.arange(128), np.arange(128, len(a))):
+            rotation, translation = rigid_alignment(truth[rows], pose[rows])
+            np.testing.assert_allclose(truth[rows] @ rotation.T + translation, pose[rows], atol=1e-6)
+
+
+@pytest.mark.parametrize("degrees", [100.0, 130.0])
+def test_gears_of_sixteen_and_twelve_teeth_read_right_are_not_warned_of_rolling_the_other_way(degrees):
+    """The counterpart: the large gear turned 100° / 130°, the small one −133° / −173°, which the keys
+    read right: both gears about their own axles at every factor, to 1e-6, and no warning of gears
+    turned the other way round."""
+    a, tri = _sixteen_twelve_train(0.0, 0.03)
+    poses, caught = _poses_and_warnings(Interpolator(a, _sixteen_twelve_train(degrees, 0.03)[0], tri), FACTORS)
+    assert not _said(caught, "as meshing gears do"), [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, _sixteen_twelve_train(s * degrees, 0.03)[0], atol=1e-6)
 
 
 def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
