@@ -294,10 +294,13 @@ def interpolate(
     target_triangles=None,
     correspondence=None,
     target_rest_vertices=None,
+    rest_pose=None,
 ) -> np.ndarray:
     """The pose at ``factor`` between ``vertices_a`` (0) and ``vertices_b`` (1): 0.5 is an
     in-between, 1.5 an exaggeration, negative values reverse the motion (§8.4). See
-    :class:`Interpolator` to reuse the preparation for many factors.
+    :class:`Interpolator` to reuse the preparation for many factors. ``rest_pose``: the mesh's rest
+    shape (n, 3) (of ``vertices_a``'s mesh), what the edge warning measures the poses' deviation
+    from (:class:`Interpolator`); no pose changes.
 
     With ``target_triangles``, ``vertices_b`` is a pose of another mesh: it is first rebuilt on
     the mesh of ``vertices_a`` (:class:`Transfer`, ``k_M`` / ``k_N``, ``correspondence`` and
@@ -315,7 +318,8 @@ def interpolate(
         )
         k_M = k_N = None
     return Interpolator(
-        vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic
+        vertices_a, vertices_b, triangles, k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic,
+        rest_pose=rest_pose,
     ).pose(factor)
 
 

@@ -62,7 +62,7 @@ from .inbetween_solver import Gap
 from .inbetween_threads import CONCURRENT_VERTICES
 from .validation import (INBETWEEN_BYTES_PER_VERTEX, check_factors, check_gap_index, check_key_times,
                          check_output_memory, check_real, check_end, check_sequence, check_start, check_time,
-                         check_vertices, numerical_failures)
+                         numerical_failures)
 from .sequence_gap_starts import GapStarts
 from .sequence_gaps_ahead import GapsAhead
 from .gap_processes import GapProcesses
@@ -77,7 +77,7 @@ from .near_seams import seam_opening
 from .sewn_seams import gap_groups, sewn_offsets
 from .splines import five_key_tangent_correction, slowing_end_correction
 from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
-from .rest_pose_scale import check_rest_scale
+from .rest_pose_scale import checked_rest_pose
 from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
@@ -165,10 +165,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(
             key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth, key_names)
         key_times = check_key_times(key_times, len(key_poses))
-        rest_pose = None if rest_pose is None else check_vertices(rest_pose, len(key_poses[0]), name="rest_pose",
-                                                                  kept=True)
-        if rest_pose is not None:  # one in other units than the keys would allow every misfit: refused
-            check_rest_scale(rest_pose, key_poses[0], topology.triangles)
+        rest_pose = checked_rest_pose(rest_pose, key_poses[0], topology.triangles)
         with numerical_failures(f"Preparing the in-betweens of {len(key_poses)} key poses"):
             self._setup(key_poses, topology, k_M, k_N, offset, use_extrinsic, smooth, start, key_times, end=end,
                         key_names=key_names)

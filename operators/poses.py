@@ -29,6 +29,27 @@ def scene_frames(context, count: int) -> list[float]:
     return [float(start + i) for i in range(count)]
 
 
+def basis_rest(obj, space, first, triangles) -> dict:
+    """``{"rest_pose": positions (n, 3)}``: the Basis of ``obj``'s shape keys (the reference key)
+    in ``space`` (:class:`bridge.world_space.WorldProportions`, the poses'), the rest the edge
+    warning of two poses measures their deviation from (``rest_pose`` of ``core.Interpolator``): the
+    shape a cloth's keys were simulated from, a character's keys are made on. Without it the poses'
+    deviation is the least they can have from any rest they share, and poses 2–3 % off their rest but
+    nearer each other are warned within issue 17's edge bound. ``{}`` (that least deviation, as
+    without a rest, and nothing said) where the keys are absolute (*Relative* off: the Basis is the
+    first pose Evaluation Time plays, not a rest), or where the core would refuse the Basis against
+    the first pose ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half
+    its size (``core.rest_pose_scale``), where it is not that pose's rest."""
+    from ..core import rest_pose_scale
+
+    keys = obj.data.shape_keys
+    if not keys.use_relative:
+        return {}
+    rest = space.to(mesh_data.shape_key_positions(keys.key_blocks[0], obj))
+    return {"rest_pose": rest} if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)) \
+        else {}
+
+
 class InWorldProportions:
     """An interpolator of poses taken into the world's proportions, its poses back in the mesh's
     coordinates (:class:`bridge.world_space.WorldProportions`)."""
@@ -66,7 +87,7 @@ class KeyPairProperties:
         keys = in_world(obj, space, [mesh_data.shape_key_positions(key, obj) for key in (start, end)], [None, None],
                         triangles, INBETWEENED_IN_WORLD)
         interpolator = yield from self.compute(
-            0.0, load_core().Interpolator, *keys, triangles, **options,
+            0.0, load_core().Interpolator, *keys, triangles, **options, **basis_rest(obj, space, keys[0], triangles),
             key_names=(f"shape key '{start.name}'", f"shape key '{end.name}'"),
             doing=f"preparing shape keys '{start.name}' and '{end.name}'")
         return start, end, InWorldProportions(interpolator, space)

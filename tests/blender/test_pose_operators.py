@@ -486,3 +486,35 @@ def test_a_rigid_motion_keyed_in_single_precision_with_slivers_stays_rigid(bpy_e
     made = bridge.mesh_data.stored_key_positions(scan.data.shape_keys.key_blocks[-1]).astype(np.float64)
     off = np.linalg.norm(made - _screw(rest, turn, shift, factor), axis=1).max()
     assert off < (2.0 * max(factor, 1.0) + 1.0) * rounding, (off / diagonal, rounding / diagonal)
+
+
+def test_inbetween_measures_its_edge_warning_from_the_basis(posed, core, monkeypatch):
+    """In-between of Curl and Bend gives ``core.Interpolator`` the Basis as its ``rest_pose`` (the
+    shape the keys were made on, what its edge warning measures the poses' deviation from; before,
+    none: the least deviation the two can have from any rest they share), and writes the poses of the
+    same keys without it. Nothing is given where the keys are absolute (the Basis is the first pose
+    Evaluation Time plays, not a rest) or where the Basis is over twice the poses' size (not their
+    rest: the core would refuse it)."""
+    obj, bridge = posed
+    given, original = [], core.Interpolator
+
+    def recording(*args, **kwargs):
+        given.append(kwargs.get("rest_pose"))
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(core, "Interpolator", recording)
+    bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
+    (rest,) = given
+    assert rest is not None
+    np.testing.assert_allclose(rest, positions_of(bridge, obj, "Basis"), atol=TOLERANCE)
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Curl-Bend 0.50"),
+                               original(positions_of(bridge, obj, "Curl"), positions_of(bridge, obj, "Bend"),
+                                        triangles).pose(0.5), atol=TOLERANCE)
+    obj.data.shape_keys.use_relative = False
+    bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
+    obj.data.shape_keys.use_relative = True
+    basis = obj.data.shape_keys.key_blocks["Basis"]
+    basis.data.foreach_set("co", (3.0 * positions_of(bridge, obj, "Basis")).astype(np.float32).ravel())
+    bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
+    assert given[1:] == [None, None]
