@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import platform
 import sys
 
@@ -69,9 +70,11 @@ def give_back_heap() -> bool:
         return False
 
 
+@functools.cache
 def _glibc():
     """glibc's C library (:mod:`ctypes`), or None on other platforms and C libraries or where it cannot
-    be loaded."""
+    be loaded; looked for once per process (:func:`platform.libc_ver` reads the interpreter's binary
+    where the C library is not glibc: musl's, at every sequence built)."""
     if not sys.platform.startswith("linux") or platform.libc_ver()[0] != "glibc":
         return None
     try:

@@ -15,6 +15,16 @@ import math
 import numpy as np
 
 
+#: The round-off of a rigid motion computed in double precision from coordinates (a piece's rigid fit,
+#: motions composed, turned into a screw), as a share of the coordinates' magnitude (the largest
+#: coordinate plus the pieces' extent or the joint's reach): a length under it is no motion, in a
+#: piece's screws off the next key's line (:func:`core.inbetween_carriers.screw_departures`) and a
+#: joint's slide along its axis (:func:`core.inbetween_joints.slide_precision`). A margin: some 1e7
+#: times double precision's unit round-off (1.1e-16) for the digits those steps lose, far under any
+#: motion those rules tell apart.
+RIGID_ROUNDING = 1e-9
+
+
 def _single_precision(poses: list[np.ndarray]) -> bool:
     """Whether every coordinate of ``poses`` (list of (n, 3)) is a float32 (as Blender stores them)."""
     return all(np.array_equal(pose, pose.astype(np.float32)) for pose in poses)

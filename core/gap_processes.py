@@ -13,7 +13,7 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   sequence that could share its gaps is first known to ask two gaps or more (its plan, or the first
   call of a visit in order that leaves later gaps: not for a farm's one-gap chunk), or before its
   keys are read (:func:`start_worker`), and kept for the next ones: its start (a fresh
-  interpreter importing NumPy, SciPy and the core, 0.4–0.5 s) overlaps the caller's first gaps,
+  interpreter importing NumPy, SciPy and the core, 0.24–0.26 s of its CPU) overlaps the caller's first gaps,
   which the caller computes as before (threads, the next gap begun ahead) until the worker is
   ready. It is spawned, never forked (Blender's process has many threads), as ``sys.executable
   -I -c`` :data:`BOOT` with the caller's ``sys.path``, and loads the core from its folder under a
@@ -53,7 +53,9 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   :data:`START_TIMEOUT` seconds is ended and not tried again in the session; one that sends nothing
   on a job for :data:`HANG_GAPS` times the slowest gap so far (at least :data:`HANG_LEAST` seconds)
   while a caller waits for it is ended, with a warning (kind ``process``), its gaps computed by
-  their callers, and none is started again in the session.
+  their callers, and none is started again in the session (:func:`_end_silent` says why); so is one
+  that takes no part of a message written to it for :data:`HANG_LEAST` seconds (stopped with its
+  input's pipe full: a job's keys are far more than a pipe holds, and the write would wait for ever).
   :data:`core.concurrency.USE_PROCESSES` (``SHAPE_DIFFERENCES_PROCESSES=0``) turns it off. A caller off
   its visit (another gap or factors than it said or than in order) drops the worker's gaps, as
   does a sequence let go; :func:`stop` (the operators' Esc) drops every sequence's, lets a call
@@ -87,8 +89,8 @@ from .sequence_gaps_ahead import factor_bits
 #: the two, against 695 MB in one; 100k 1,733 MB against 1,197, over issue 17's 1.5 GB), and at
 #: 50k–100k one process with its threads is already at 0.081 × the bake.
 PROCESS_VERTICES = 60_000
-#: Seconds a worker may take to start (import NumPy, SciPy and the core; 0.4–0.5 s, 1.4 s on a
-#: loaded machine) before it is ended and none is started again in the session.
+#: Seconds a worker may take to start (import NumPy, SciPy and the core: 0.24–0.26 s of its CPU, 1.0–1.25 s
+#: wall at a load of 10 on two cores) before it is ended and none is started again in the session.
 START_TIMEOUT = 60.0
 #: Calls the worker must have left not begun for the caller, waiting for one of its results, to
 #: take the last back and compute it: a gap taken back has no relative kept from the gap before it
@@ -103,7 +105,9 @@ TAKEN_BACK_LEAST = 2
 #: builds a sequence or computes one gap (its build, 0.05–0.07 s at 15k vertices, is below a gap's
 #: 0.12 s); gaps of one sequence differ in cost up to a few times, and the two processes share cores.
 HANG_GAPS = 30
-#: The least time (s) a caller waits for a silent worker before it ends it (:data:`HANG_GAPS`).
+#: The least time (s) a caller waits for a silent worker before it ends it (:data:`HANG_GAPS`), and the
+#: longest a message written to the worker may wait with no part of it taken (the worker reads its
+#: input at once, in a thread of its own) before it is ended so.
 HANG_LEAST = 10.0
 #: Windows' ``CREATE_NO_WINDOW`` process creation flag (``subprocess.CREATE_NO_WINDOW`` there): the
 #: worker, a console program, opens no console window beside Blender's.
@@ -246,14 +250,47 @@ class _Worker:
             self.condition.notify_all()
 
     def _send(self, message) -> bool:
+        """Write ``message`` to the worker's input; False where the worker is gone (its end closed) or
+        took none of it for :data:`HANG_LEAST` seconds (:meth:`_watched`: ended, with a warning)."""
+        pipe = _NotedPipe(self.process.stdin)
         try:
-            with self._write_lock:
-                pickle.dump(message, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-                self.process.stdin.flush()
+            with self._write_lock, self._watched(pipe):
+                pickle.dump(message, pipe, protocol=pickle.HIGHEST_PROTOCOL)
+                pipe.flush()
             return True
-        except (OSError, ValueError):  # its end closed: gone
+        except (OSError, ValueError):  # its end closed: gone, or ended by the watch
             self._gone()
+            if pipe.stalled is not None and message[0] != "quit":  # not at the session's end: nothing waits
+                _end_silent(self, pipe.stalled, HANG_LEAST, writing=True)
             return False
+
+    @contextmanager
+    def _watched(self, pipe: _NotedPipe):
+        """The block, which writes to the worker through ``pipe``, watched by a thread of its own: where
+        no write of it has been taken for :data:`HANG_LEAST` seconds (the worker stopped or swapped out
+        with the pipe full: its input is read at once by a thread of its own, :mod:`core.gap_worker`),
+        the worker is killed, which ends the write with an error (``pipe.stalled``: the seconds)."""
+        done = threading.Event()
+
+        def watch() -> None:
+            while not done.wait(max(pipe.taken + HANG_LEAST - time.monotonic(), 0.0)):
+                stalled = time.monotonic() - pipe.taken
+                if stalled >= HANG_LEAST:
+                    pipe.stalled = stalled
+                    try:
+                        self.process.kill()
+                    except OSError:
+                        pass
+                    return
+
+        try:
+            threading.Thread(target=watch, daemon=True, name="gap-worker-write-watch").start()
+        except RuntimeError:  # the interpreter is ending (a finalizer's drop): written unwatched
+            pass
+        try:
+            yield
+        finally:
+            done.set()
 
     def _read(self) -> None:
         stream = self.process.stdout
@@ -330,26 +367,51 @@ def _worker_errors():
     return None
 
 
+class _NotedPipe:
+    """The worker's input (a binary stream) noting when its last write was taken (``taken``,
+    :func:`time.monotonic`): pickle writes a message's frames and each of its arrays (a key, the
+    triangles: a few MB at most) in writes of their own; ``stalled``: the seconds it had taken none when
+    the worker was ended (:meth:`_Worker._watched`), else None."""
+
+    def __init__(self, stream):
+        self.stream, self.taken, self.stalled = stream, time.monotonic(), None
+
+    def write(self, data) -> int:
+        written = self.stream.write(data)
+        self.taken = time.monotonic()
+        return written
+
+    def flush(self) -> None:
+        self.stream.flush()
+        self.taken = time.monotonic()
+
+
 class _Silent(Exception):
     """The worker has sent nothing on a job for longer than the caller waits (``args[0]``: seconds)."""
 
 
-def _end_silent(worker: _Worker, silent: float, limit: float) -> None:
+def _end_silent(worker: _Worker, silent: float, limit: float, writing: bool = False) -> None:
     """End ``worker``, silent for ``silent`` seconds past the ``limit`` a caller waits for it
-    (:data:`HANG_GAPS`), and start none again in the session: its jobs' calls are computed by their
-    callers (the same in-betweens), with a warning."""
+    (:data:`HANG_GAPS`; ``writing``: that took nothing of a message for ``silent`` seconds,
+    :data:`HANG_LEAST`), and start none again in the session: its jobs' calls are computed by their
+    callers (the same in-betweens), with a warning. None again: what stops a worker (a machine out of
+    memory and swapping, a process stopped by a job controller or a debugger, a load that makes a gap
+    take 30 times its slowest) outlasts the job, and a new worker would hold the next caller as long
+    again, with a second copy of the keys in memory; what is lost is the second core (the same bits)."""
     global _unstartable
-    _unstartable = True  # a process that hung once (stopped, swapped out) would hold the next caller too
+    _unstartable = True
     try:
         worker.process.kill()
     except OSError:
         pass
     worker._gone()
-    errors.warn(f"the in-betweens' second process sent nothing for {silent:.1f} s, past the {limit:.1f} s it is "
-                f"allowed ({HANG_GAPS} times the slowest gap so far, at least {HANG_LEAST:g} s): it was ended, its "
-                "gaps are computed in this process (the same in-betweens, more slowly), and no second process is "
-                "started again in this session. Check the machine's memory and load (a process stopped or swapped "
-                "out); SHAPE_DIFFERENCES_PROCESSES=0 starts none", "process")
+    silence = (f"took nothing this process sent it for {silent:.1f} s (at most {limit:g} s allowed)" if writing else
+               f"sent nothing for {silent:.1f} s, past the {limit:.1f} s it is allowed ({HANG_GAPS} times the "
+               f"slowest gap so far, at least {HANG_LEAST:g} s)")
+    errors.warn(f"the in-betweens' second process {silence}: it was ended, its gaps are computed in this process "
+                "(the same in-betweens, more slowly), and no second process is started again in this session. "
+                "Check the machine's memory and load (a process stopped or swapped out); "
+                "SHAPE_DIFFERENCES_PROCESSES=0 starts none", "process")
 
 
 def _digest(arguments: tuple) -> bytes:
@@ -398,9 +460,9 @@ def start_worker(vertices: int, gaps: int = 2, k_M: int | None = None) -> bool:
     """Start the session's worker now, where a sequence of ``vertices`` vertices, ``gaps`` key gaps
     and truncated metric ``k_M`` (None: the full basis) would share its gaps (:func:`shares_gaps`,
     two gaps or more), so that its start (a fresh interpreter importing NumPy, SciPy and the core,
-    0.2–0.5 s) overlaps the caller's reading of the keys rather than its first gaps: the *In-between
-    Frames* and *Retime* operators before they read the frames, ``python -m core retime`` before it
-    reads the samples, a pipeline before it loads its keys. Nothing is started elsewhere (a small
+    0.24–0.26 s of its CPU) overlaps the caller's reading of the keys rather than its first gaps: the
+    *In-between Frames* and *Retime* operators before they read the frames, ``python -m core retime``
+    before it reads the samples, a pipeline before it loads its keys. Nothing is started elsewhere (a small
     mesh, one core, ``SHAPE_DIFFERENCES_PROCESSES=0``), nor where one is running already. Returns
     whether the worker is running (ready or getting ready); the in-betweens are the same to the
     bit either way. Raises :class:`~core.errors.MeshError` for a count that is not a whole number."""

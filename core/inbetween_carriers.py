@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .coordinate_rounding import RIGID_ROUNDING
 from .rigid_alignment import group_covariances
 
 #: A piece keeps to one screw over a gap's keys where its key screws leave the line of the next
@@ -66,5 +67,5 @@ def screw_departures(screws: list, keys: list, points: np.ndarray, labels: np.nd
         residual = screws[k] - share[:, None] * nxt
         out += np.maximum(inner(residual, residual), 0.0)
     out = np.sqrt(out)
-    rounding = 1e-9 * (np.abs(points).max(initial=0.0) + np.sqrt(np.trace(spread, axis1=1, axis2=2)))
+    rounding = RIGID_ROUNDING * (np.abs(points).max(initial=0.0) + np.sqrt(np.trace(spread, axis1=1, axis2=2)))
     return np.where(out <= STEADY_SLACK * misfits + rounding, 0.0, out)

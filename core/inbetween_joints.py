@@ -65,6 +65,7 @@ from scipy.sparse.csgraph import minimum_spanning_tree
 from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
+from .coordinate_rounding import RIGID_ROUNDING
 
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
@@ -177,7 +178,7 @@ def slide_precision(base: np.ndarray, nxt: np.ndarray, reach: float, misfits: np
     lengths, or None: exact) plus the coordinates' rounding (``base``, ``nxt``: the pieces' vertices
     in the gap's keys; ``reach``: the joint distance)."""
     misfit = np.zeros(max(u.max(initial=0), v.max(initial=0)) + 1) if misfits is None else misfits
-    rounding = 1e-9 * (max(np.abs(base).max(), np.abs(nxt).max()) + reach)
+    rounding = RIGID_ROUNDING * (max(np.abs(base).max(), np.abs(nxt).max()) + reach)
     return JOINT_SLIDE * (misfit[u] + misfit[v]) + rounding
 
 
@@ -229,13 +230,15 @@ def contracts_in_place(base: np.ndarray, nxt: np.ndarray, index: np.ndarray, lab
 def _rolling(chords: list, rotations: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Per pair of pieces ``u``, ``v`` (P,; their rigid motions' ``rotations`` (R, 3, 3)), whether the
     two carry their contact along arcs within :data:`ROLLING_SPREAD` of each other, as teeth rolling
-    on each other do: each piece's chord (``chords``, two (P,) arrays: how far its motion carries the
-    contact) over ``sinc`` of half its turn θ, the arc ``θ ρ`` at the contact's distance ``ρ`` from
-    its axis, ``chord = 2 ρ sin(θ/2)``."""
+    on each other do: each piece's arc ``θ ρ`` at the contact's distance ``ρ`` from its axis
+    (:func:`_axis_distances` of its chord, ``chords``: two (P,) arrays, how far its motion carries the
+    contact), the chord itself where the piece does not turn (no axis: the arc's limit)."""
     arcs = []
     for chord, k in zip(chords, (u, v)):
-        half = 0.5 * np.linalg.norm(df.rotation_vectors(rotations[k]), axis=1)
-        arcs.append(chord * np.where(half > 1e-8, half / np.sin(np.maximum(half, 1e-8)), 1.0))
+        angle = np.linalg.norm(df.rotation_vectors(rotations[k]), axis=1)
+        radius = _axis_distances(chord, angle)
+        turning = np.isfinite(radius)
+        arcs.append(np.where(turning, angle * np.where(turning, radius, 0.0), chord))
     return np.maximum(*arcs) <= ROLLING_SPREAD * np.minimum(*arcs)
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import ctypes
 import os
+import sys
 
 #: A cgroup v1 memory limit at or past this many bytes is no limit: the kernel writes "unlimited"
 #: as the largest page-aligned 63-bit number (9,223,372,036,854,771,712).
@@ -11,9 +13,8 @@ _NO_CGROUP_LIMIT = 2**62
 
 def available_memory() -> int | None:
     """Bytes of memory a new allocation can get without swapping or being killed: the system's
-    (Linux: ``MemAvailable``; other systems: free physical pages), or less where the process runs
-    under a memory limit (:func:`cgroup_headroom`: a container's, a farm job's), or None where the
-    system does not tell."""
+    (:func:`_system_available`), or less where the process runs under a memory limit
+    (:func:`cgroup_headroom`: a container's, a farm job's), or None where the system does not tell."""
     system = _system_available()
     limited = cgroup_headroom()
     if system is None or limited is None:
@@ -22,7 +23,14 @@ def available_memory() -> int | None:
 
 
 def _system_available() -> int | None:
-    """The system's memory available (``MemAvailable`` of /proc/meminfo, else free physical pages)."""
+    """The system's memory available, as the system itself counts it: Windows
+    (:func:`_windows_available`) and macOS (:func:`_macos_available`) by their own calls; elsewhere
+    ``MemAvailable`` of /proc/meminfo (Linux: free pages and the caches the kernel reclaims), else free
+    physical pages (``SC_AVPHYS_PAGES``: the BSDs); None where the system does not tell."""
+    if sys.platform == "win32":
+        return _windows_available()
+    if sys.platform == "darwin":
+        return _macos_available()
     try:
         with open("/proc/meminfo", encoding="ascii") as meminfo:
             for line in meminfo:
@@ -34,6 +42,58 @@ def _system_available() -> int | None:
         return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (AttributeError, ValueError, OSError):
         return None
+
+
+class _MemoryStatus(ctypes.Structure):
+    """Windows' ``MEMORYSTATUSEX`` (64 bytes), which ``GlobalMemoryStatusEx`` fills."""
+
+    _fields_ = [("dwLength", ctypes.c_uint32), ("dwMemoryLoad", ctypes.c_uint32),
+                ("ullTotalPhys", ctypes.c_uint64), ("ullAvailPhys", ctypes.c_uint64),
+                ("ullTotalPageFile", ctypes.c_uint64), ("ullAvailPageFile", ctypes.c_uint64),
+                ("ullTotalVirtual", ctypes.c_uint64), ("ullAvailVirtual", ctypes.c_uint64),
+                ("ullAvailExtendedVirtual", ctypes.c_uint64)]
+
+
+def _kernel32():
+    """Windows' kernel32 library (:mod:`ctypes`; AttributeError elsewhere)."""
+    return ctypes.windll.kernel32
+
+
+def _windows_available() -> int | None:
+    """Windows' memory available (``GlobalMemoryStatusEx``): its available physical memory (the free,
+    zeroed and standby pages: Task Manager's *Available*), or less where the commit limit is nearer
+    (``ullAvailPageFile``: what the process can still commit; with a small page file an allocation
+    fails there, before the physical memory is used); None where the call fails."""
+    status = _MemoryStatus(dwLength=ctypes.sizeof(_MemoryStatus))
+    try:
+        done = _kernel32().GlobalMemoryStatusEx(ctypes.byref(status))
+    except (AttributeError, OSError):
+        return None
+    return int(min(status.ullAvailPhys, status.ullAvailPageFile)) if done else None
+
+
+def _system_library():
+    """The C library's functions as the process links them (:mod:`ctypes`: ``sysctlbyname`` on macOS)."""
+    return ctypes.CDLL(None)
+
+
+def _macos_available() -> int | None:
+    """macOS's memory available: the share of its physical memory (``hw.memsize``) the kernel counts
+    available (``kern.memorystatus_level``, percent: what ``memory_pressure`` prints as the
+    system-wide memory free percentage), past which the system compresses memory, then swaps. None
+    where a call fails.
+    (``SC_AVPHYS_PAGES`` does not exist there; the free pages alone leave out the file cache, most of
+    an idle Mac's memory.)"""
+    level, total = ctypes.c_int32(), ctypes.c_uint64()
+    try:
+        library = _system_library()
+        for name, value in ((b"kern.memorystatus_level", level), (b"hw.memsize", total)):
+            size = ctypes.c_size_t(ctypes.sizeof(value))
+            if library.sysctlbyname(name, ctypes.byref(value), ctypes.byref(size), None, ctypes.c_size_t(0)) != 0:
+                return None
+    except (AttributeError, OSError):
+        return None
+    return total.value * level.value // 100 if 0 <= level.value <= 100 else None
 
 
 def _read(path: str) -> str | None:

@@ -380,11 +380,13 @@ def retime(samples, triangles, *, step: int, speed: float, gaps: range | None = 
     plan = plan_retime(len(samples), step, speed)
     # the output (and the in-betweens of its largest gap while they are made) within half the memory
     # available, before any work, as the command's and the operators'; the vertex count read from the
-    # first key before iter_retime checks it (once, by its name; no pose: refused there)
+    # first key before iter_retime checks it (once, by its name): a pose of another shape than (n, 3)
+    # (a flat (3n,) one, none) counts none here and is refused there by its shape
     try:
-        n_points = len(samples[int(plan.keys[0])])
-    except TypeError:
-        n_points = 0
+        shape = np.shape(samples[int(plan.keys[0])])
+    except (TypeError, ValueError):  # no pose, a ragged one
+        shape = ()
+    n_points = int(shape[0]) if len(shape) == 2 and shape[1] == 3 else 0
     asked = range(plan.n_gaps) if gaps is None else gaps if isinstance(gaps, range) else range(0)  # else refused
     outputs = plan.outputs(asked)  # by iter_retime
     check_output_memory(len(outputs), n_points, "The output of this retime",

@@ -65,7 +65,16 @@ def describe(value) -> str:
 
 
 def real_array(values, name: str, what: str) -> np.ndarray:
-    """``values`` as a NumPy array of real numbers (no copy if already one); MeshError otherwise."""
+    """``values`` as a NumPy array of real numbers (no copy if already one); MeshError otherwise, and
+    for a masked array with values masked (a masked array with none is its data)."""
+    if isinstance(values, np.ma.MaskedArray) and np.ma.getmaskarray(values).any():
+        # the values under a mask are no data (a missing sample), and np.asarray would use them
+        masked = np.ma.getmaskarray(values)
+        at = tuple(int(i) for i in np.argwhere(masked)[0])
+        raise MeshError(f"{name} is a masked array with {int(masked.sum()):,} masked value(s), the first at index "
+                        f"{at[0] if len(at) == 1 else at}: every one of its {what} is needed (the values under "
+                        "the mask would be used as they are). Fill them (numpy.ma.filled with the values meant) or "
+                        "leave that pose out.")
     try:
         array = np.asarray(values)
     except Exception as error:  # ragged lists, objects NumPy cannot hold
@@ -104,12 +113,15 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
             "the same mesh, and avoid modifiers that add or remove vertices (Subdivision, "
             "Decimate, Remesh) or apply them to every pose."
         )
-    given, array = array, np.ascontiguousarray(array, dtype=np.float64)
+    with np.errstate(over="ignore"):  # a longdouble past double precision's range: refused below by its size
+        given, array = array, np.ascontiguousarray(array, dtype=np.float64)
     if kept and not isinstance(vertices, (list, tuple)) and np.may_share_memory(array, given) and \
             (array.flags.writeable or array.base is not None):
         array = array.copy()
     if not np.isfinite(array).all():  # whole-array checks first: row-wise reductions are slow
         bad = int(np.flatnonzero(~np.isfinite(array).all(axis=1))[0])
+        if np.isfinite(given[bad]).all():  # finite as given, past float64 (a longdouble 1e400)
+            raise _too_far(name, bad, np.format_float_scientific(np.abs(given[bad]).max(), precision=9, trim="-"))
         raise MeshError(
             f"{name}: vertex {bad} has a non-finite coordinate {array[bad].tolist()}. Fix the pose "
             "(e.g. a simulation that exploded) or remove that frame."
@@ -117,12 +129,18 @@ def check_vertices(vertices, n_vertices: int | None = None, *, name: str = "vert
     if array.size and np.abs(array).max() > MAX_COORDINATE:
         magnitude = np.abs(array).max(axis=1)
         bad = int(np.argmax(magnitude))
-        raise MeshError(
-            f"{name}: vertex {bad} has coordinate {magnitude[bad]:.10g}, beyond the supported "
-            f"{MAX_COORDINATE:.0e} (edge lengths to the fourth power would overflow). Scale the "
-            "mesh down (in Blender: scale the object, then Object > Apply > Scale), or fix that vertex."
-        )
+        raise _too_far(name, bad, f"{magnitude[bad]:.10g}")
     return array
+
+
+def _too_far(name: str, vertex: int, coordinate: str) -> MeshError:
+    """The refusal of vertex ``vertex`` of ``name``, whose largest coordinate (``coordinate``, as text)
+    is past :data:`MAX_COORDINATE`."""
+    return MeshError(
+        f"{name}: vertex {vertex} has coordinate {coordinate}, beyond the supported "
+        f"{MAX_COORDINATE:.0e} (edge lengths to the fourth power would overflow). Scale the "
+        "mesh down (in Blender: scale the object, then Object > Apply > Scale), or fix that vertex."
+    )
 
 
 def check_triangles(triangles, n_vertices: int, *, name: str = "triangles") -> np.ndarray:

@@ -18,3 +18,27 @@ def test_keep_heap_takes_effect_on_glibc_once(monkeypatch):
     first = keep_heap()
     assert keep_heap() == first
     assert first == (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+
+
+def test_the_c_library_is_looked_for_once_per_process_where_it_is_not_glibc():
+    """Under another C library than glibc (musl: Alpine containers) ``keep_heap`` found nothing to
+    tune and looked again at every sequence built, ``platform.libc_ver`` reading the interpreter's
+    binary each time (as ``give_back_heap`` did at each idle worker's rest): three of each looked six
+    times. A fresh process (the library found is kept for the process) told it is not glibc looks once
+    and tunes nothing."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import core.allocator as allocator
+
+    script = ("import platform, sys\n"
+              "looked = []\n"
+              "platform.libc_ver = lambda *args, **kwargs: looked.append(1) or ('musl', '1.2.4')\n"
+              "sys.platform = 'linux'\n"
+              "from core import allocator\n"
+              "tuned = [allocator.keep_heap() or allocator.give_back_heap() for _ in range(3)]\n"
+              "print(len(looked), any(tuned))\n")
+    root = Path(allocator.__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", script], cwd=root, capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["1", "False"], out

@@ -635,7 +635,7 @@ def test_a_worker_that_hangs_is_ended_and_its_gaps_computed_here(monkeypatch, tm
 def test_a_one_gap_part_starts_no_worker(monkeypatch, tmp_path):
     """A sequence whose caller asks one gap (a farm's one-gap chunk: ``iter_retime`` over one gap of
     many, or a plan of one call) starts no worker; a plan of two calls does (before: the sequence
-    started one when built, 0.2–0.5 s of CPU for nothing). ``python -m core retime --chunk`` of one gap
+    started one when built, 0.24–0.26 s of CPU for nothing). ``python -m core retime --chunk`` of one gap
     starts none either, and writes the file one process writes."""
     from core import __main__ as command
     from core.obj_file import write_obj
@@ -681,3 +681,40 @@ def test_the_worker_opens_no_console_window_on_windows(monkeypatch):
                 gap_processes._Worker()
     assert flags == [0x08000000, 0]
     assert getattr(subprocess, "CREATE_NO_WINDOW", 0x08000000) == gap_processes.WINDOWLESS
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="no SIGSTOP on this system")
+def test_a_worker_stopped_while_a_job_is_written_is_ended_and_its_gaps_computed_here(monkeypatch):
+    """The worker is stopped (SIGSTOP: a job controller, a debugger; a machine swapping is alike) as it
+    waits for a job: the caller's write of the keys (4 × 6,400 vertices, 0.9 MB, far past a pipe's
+    64 kB) found the pipe full and waited for ever, a headless script with it (the caller's wait for
+    results is bounded, its write was not). After HANG_LEAST (1 s here) with nothing taken the caller
+    ends the worker, warns once (kind ``process``), computes every gap itself (one process's poses and
+    warnings) and starts no worker again in the session."""
+    monkeypatch.setattr(gap_processes, "HANG_LEAST", 1.0)
+    gap_processes.shut_down()
+    flat, triangles = grid(80)
+    keys = [drape(flat, amount) for amount in (0.1, 0.3, 0.5, 0.7)]
+    requests = [(gap, [0.25, 0.5, 0.75]) for gap in range(3)]
+    worker = _ready_worker()
+    shared = []
+    caller = threading.Thread(target=lambda: shared.extend(_asked(SequenceInterpolator(keys, triangles), requests)),
+                              daemon=True)
+    worker.process.send_signal(signal.SIGSTOP)
+    try:
+        caller.start()
+        caller.join(timeout=60)
+        hung = caller.is_alive()
+    finally:
+        worker.process.send_signal(signal.SIGCONT)  # before: the write goes on, and the caller with it
+        caller.join(timeout=60)
+        gap_processes.shut_down()
+    assert not hung, "the caller still writing to the stopped worker after 60 s"
+    assert worker.process.poll() is not None and not worker.alive
+    warned = [told for _, said in shared for told in said if told[1] == "process"]
+    assert len(warned) == 1 and "took nothing this process sent it for" in warned[0][0]
+    with monkeypatch.context() as patch:
+        patch.setattr(concurrency, "USE_PROCESSES", False)
+        alone = _asked(SequenceInterpolator(keys, triangles), requests)
+    _same([(poses, [told for told in said if told[1] != "process"]) for poses, said in shared], alone)
+    assert gap_processes._unstartable and not gap_processes.start_worker(len(flat), 3)

@@ -363,3 +363,56 @@ def test_retime_checks_its_keys_and_faces_before_reading_how_the_motion_starts(s
         warnings.simplefilter("error")  # no NumPy warning on the way
         with pytest.raises(MeshError, match="The mesh has no triangles"):
             retime(np.zeros((9, 0, 3)), np.zeros((0, 3), dtype=int), step=4, speed=0.5)
+
+
+def test_a_flat_retime_sample_is_refused_by_its_shape_not_counted_as_thrice_its_vertices(sheet, monkeypatch):
+    """Samples given flat ((3n,) each: a cache's rows read as they are stored) were counted as 3n
+    vertices by the retime's memory check, before the keys are read: with memory enough for the
+    output of the 36-vertex sheet but not of 108 vertices, the refusal said "17 poses of 108 vertices"
+    and asked for a higher speed. The sample's shape is refused first, as with the memory to spare."""
+    v, t, target = sheet
+    samples = [drape(v, s) for s in np.linspace(0.0, 1.5, 9)]
+    # keyed every 4th at speed 0.5: 17 poses (float32) and 7 in-betweens of a gap at once (54 bytes a vertex)
+    need = 17 * 12 + 7 * 54
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 2.5 * need * 36)  # half: 36 fit, 108 do not
+    with pytest.raises(MeshError, match=r"key pose 0 must be an array of shape \(n, 3\); got shape \(108,\)"):
+        retime([s.ravel() for s in samples], t, step=4, speed=0.5)
+    monkeypatch.setattr(core.resources, "available_memory", lambda: 1.5 * need * 36)
+    with pytest.raises(MeshError, match="is 17 poses of 36 vertices"):
+        retime(samples, t, step=4, speed=0.5)  # the memory counted of its 36 vertices
+
+
+def test_a_masked_coordinate_is_refused_not_read_under_its_mask(sheet):
+    """A key given as a masked array lost its mask (``np.asarray``): the values under it (a missing
+    sample's fill value, or what was there) were in-betweened without a word. A key with a value masked
+    is refused, naming where; a masked array with none masked is its data (the same in-betweens)."""
+    v, t, target = sheet
+    third = drape(v, 1.5)
+    gappy = np.ma.masked_array(target.copy(), mask=False)
+    gappy[7, 2] = np.ma.masked
+    gappy.data[7, 2] = 1e6  # under the mask: not a coordinate
+    with pytest.raises(MeshError, match=r"key pose 1 of key_poses is a masked array with 1 masked value\(s\), the "
+                                        r"first at index \(7, 2\)"):
+        core.SequenceInterpolator([v, gappy, third], t)
+    with pytest.raises(MeshError, match="masked value"):
+        core.SequenceInterpolator(np.ma.stack([v, gappy, third]), t)  # the keys as one (K, n, 3) masked array
+    with pytest.raises(MeshError, match="masked value"):
+        retime([v, gappy, v, target], t, step=1, speed=0.5)
+    whole = np.ma.masked_array(target)  # nothing masked
+    np.testing.assert_array_equal(core.SequenceInterpolator([v, whole, third], t).poses(0, [0.25, 0.5]),
+                                  core.SequenceInterpolator([v, target, third], t).poses(0, [0.25, 0.5]))
+
+
+@pytest.mark.skipif(np.finfo(np.longdouble).max <= np.finfo(np.float64).max, reason="long double is double here")
+def test_a_longdouble_coordinate_past_double_precision_is_refused_by_its_size(sheet):
+    """A long-double key with a coordinate of 1e400 (finite there, past double precision) was refused
+    as "a non-finite coordinate [inf, …]" after NumPy's "overflow encountered in cast"; it is refused as
+    past the supported 1e+30, with its value, without NumPy's warning."""
+    v, t, target = sheet
+    far = target.astype(np.longdouble)
+    far[4, 1] = np.longdouble("1e400")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no NumPy overflow warning on the way
+        with pytest.raises(MeshError, match=r"key pose 1 of key_poses: vertex 4 has coordinate 1e\+400, beyond the "
+                                            r"supported 1e\+30"):
+            core.SequenceInterpolator([v, far], t)

@@ -3,7 +3,9 @@ the cgroup's limit less its usage, not the host's MemAvailable (a 16 GB job on a
 killed at 16 GB). The cgroup trees here are written as the kernel lays them out (cgroup v2's
 unified hierarchy as Slurm nests a job, cgroup v1's memory controller as Docker mounts it)."""
 
+import ctypes
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -92,3 +94,63 @@ def test_this_processs_headroom_is_within_what_the_system_reports():
     if free is None:
         pytest.skip("this system does not say how much memory is available")
     assert 0 <= free <= system and np.isfinite(free)
+
+
+class _Kernel32:
+    """Windows' kernel32 as the tests give it: ``GlobalMemoryStatusEx`` fills MEMORYSTATUSEX with
+    ``available`` physical and ``commit`` committable bytes, or fails (returns 0)."""
+
+    def __init__(self, available: int, commit: int, works: bool = True):
+        self.available, self.commit, self.works = available, commit, works
+
+    def GlobalMemoryStatusEx(self, pointer):  # noqa: N802 — Windows' name
+        status = pointer._obj
+        assert status.dwLength == ctypes.sizeof(status) == 64  # set by the caller, as Windows requires
+        status.ullTotalPhys, status.ullAvailPhys, status.ullAvailPageFile = 32 * GB, self.available, self.commit
+        return int(self.works)
+
+
+def test_windows_reports_its_available_memory(monkeypatch):
+    """On Windows (no /proc/meminfo, no SC_AVPHYS_PAGES) the system said nothing and no memory was
+    checked: an output of 10 GB on a machine with 8 GB free was made until it swapped. Its own call
+    (GlobalMemoryStatusEx) gives the available physical memory, or the commit left where that is less
+    (a small page file: allocations fail there first); a call that fails leaves it unchecked."""
+    monkeypatch.setattr(sys, "platform", "win32")
+    monkeypatch.setattr(core.resources, "cgroup_headroom", lambda: None)
+    monkeypatch.setattr(core.resources, "_kernel32", lambda: _Kernel32(8 * GB, 40 * GB), raising=False)
+    assert available_memory() == 8 * GB
+    with pytest.raises(MeshError, match="has 8 GB of memory available"):
+        check_output_memory(100, 10 * GB // 1200, "The output", "ask for less")
+    monkeypatch.setattr(core.resources, "_kernel32", lambda: _Kernel32(8 * GB, 3 * GB))
+    assert available_memory() == 3 * GB
+    monkeypatch.setattr(core.resources, "_kernel32", lambda: _Kernel32(8 * GB, 40 * GB, works=False))
+    assert available_memory() is None
+
+
+class _LibSystem:
+    """macOS's C library as the tests give it: ``sysctlbyname`` of the integer sysctls ``values``."""
+
+    def __init__(self, values: dict):
+        self.values = values
+
+    def sysctlbyname(self, name, value, size, new, new_size):
+        if name not in self.values:
+            return -1
+        assert size._obj.value == ctypes.sizeof(value._obj) and new is None
+        value._obj.value = self.values[name]
+        return 0
+
+
+def test_macos_reports_its_available_memory(monkeypatch):
+    """macOS has no SC_AVPHYS_PAGES: nothing was checked there. The kernel's share of memory available
+    (kern.memorystatus_level, percent) of its physical memory (hw.memsize) is read; a sysctl that
+    fails leaves it unchecked."""
+    monkeypatch.setattr(sys, "platform", "darwin")
+    monkeypatch.setattr(core.resources, "cgroup_headroom", lambda: None)
+    values = {b"kern.memorystatus_level": 37, b"hw.memsize": 16 * 2**30}
+    monkeypatch.setattr(core.resources, "_system_library", lambda: _LibSystem(values), raising=False)
+    assert available_memory() == 16 * 2**30 * 37 // 100
+    with pytest.raises(MeshError, match="has 6.36 GB of memory available"):
+        check_output_memory(100, 4 * GB // 1200, "The output", "ask for less")
+    del values[b"kern.memorystatus_level"]
+    assert available_memory() is None
