@@ -19,7 +19,7 @@ from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, miss
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
                              unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
 from .output import PoseWriter
-from .poses import format_factor, inbetween_name
+from .poses import format_factor, inbetween_name, rest_lengths_scaled
 
 
 def frame_key_name(frame: int) -> str:
@@ -120,9 +120,7 @@ class SimulationRest:
             if shown is None:
                 continue
             rest, first = space.to(shown, self.start), space.to(first, self.start)
-            if self._factor != 1.0:  # Shrinking's rest lengths: the edges scaled alike, about any point
-                centre = rest.mean(axis=0)
-                rest = centre + self._factor * (rest - centre)
+            rest = rest_lengths_scaled(rest, self._factor)  # Shrinking's rest lengths
             if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)):
                 return {"rest_pose": rest}
         return {}

@@ -2,12 +2,13 @@
 
 import bpy
 
-from ..bridge import mesh_data, triangulation, world_space
+from ..bridge import mesh_data, modifier_kinds, triangulation, world_space
 from ..bridge.naming import shorten
 from ..properties import ExaggeratedPose, KeyPair, PoseKey, PoseOutput
 from .base import (INBETWEENED_IN_WORLD, CoreSettingsProperties, GeneratorOperator, InbetweenSettingsProperties,
                    InputError, check_memory, default_pose_key, in_world, key_blocks_of, load_core, playback_range,
                    require_count, require_distinct, resolve_key, surface_triangles)
+from .motion_sources import moves_vertices
 from .output import PoseWriter
 
 
@@ -29,23 +30,62 @@ def scene_frames(context, count: int) -> list[float]:
     return [float(start + i) for i in range(count)]
 
 
+def rest_lengths_scaled(rest, factor: float):
+    """``rest`` (n, 3) with every edge ``factor`` × as long (the rest lengths Shrinking sets,
+    ``frames.rest_length_factor``), scaled about its centroid (any point would do); ``rest`` itself
+    at 1."""
+    if factor == 1.0:
+        return rest
+    centre = rest.mean(axis=0)
+    return centre + factor * (rest - centre)
+
+
+def cloth_rest_key(obj):
+    """``(usable, key)`` of the rest the cloth simulating ``obj`` (its first cloth modifier enabled in
+    the viewport) builds its springs from: ``(True, None)`` where there is no cloth, or one that
+    starts from the mesh as it is (the reference key: :func:`basis_rest`); ``(True, key block)``
+    where its *Shape › Rest Shape Key* is set (the cloth reads that key's stored coordinates);
+    ``(False, None)`` where no key of the mesh is its rest: *Dynamic Mesh* on (the rest follows the
+    modifiers before the cloth at every frame), or a modifier before it that moves, adds or removes
+    vertices (an Armature, a Subdivision Surface: the cloth's rest is what they make of the mesh at its
+    first frame, or a mesh of other vertices)."""
+    for index, modifier in enumerate(obj.modifiers):
+        if modifier.type != 'CLOTH' or not modifier.show_viewport:
+            continue
+        before = [m for m in list(obj.modifiers)[:index] if m.show_viewport]
+        if modifier.settings.use_dynamic_mesh or any(
+                m.type in modifier_kinds.GENERATE_MODIFIERS or moves_vertices(m) for m in before):
+            return False, None
+        return True, modifier.settings.rest_shape_key
+    return True, None
+
+
 def basis_rest(obj, space, first, triangles) -> dict:
-    """``{"rest_pose": positions (n, 3)}``: the Basis of ``obj``'s shape keys (the reference key)
-    in ``space`` (:class:`bridge.world_space.WorldProportions`, the poses'), the rest the edge
-    warning of two poses measures their deviation from (``rest_pose`` of ``core.Interpolator``): the
-    shape a cloth's keys were simulated from, a character's keys are made on. Without it the poses'
-    deviation is the least they can have from any rest they share, and poses 2–3 % off their rest but
-    nearer each other are warned within issue 17's edge bound. ``{}`` (that least deviation, as
-    without a rest, and nothing said) where the keys are absolute (*Relative* off: the Basis is the
-    first pose Evaluation Time plays, not a rest), or where the core would refuse the Basis against
-    the first pose ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half
-    its size (``core.rest_pose_scale``), where it is not that pose's rest."""
+    """``{"rest_pose": positions (n, 3)}``: the rest the edge warning of two poses measures their
+    deviation from (``rest_pose`` of ``core.Interpolator``), in ``space``
+    (:class:`bridge.world_space.WorldProportions`, the poses'): the shape a cloth's keys were
+    simulated from, a character's keys are made on. That is the Basis of ``obj``'s relative shape keys
+    (the reference key), or the cloth's Rest Shape Key where one is set (:func:`cloth_rest_key`), its
+    edges scaled by 1 − Shrinking (``frames.rest_length_factor``: the cloth's springs are that much
+    shorter than the mesh's edges). Without it the poses' deviation is the least they can have from
+    any rest they share, and poses 2–3 % off their rest but nearer each other are warned within issue
+    17's edge bound. ``{}`` (that least deviation, as without a rest, and nothing said) where no key is
+    the rest: absolute keys without a Rest Shape Key (*Relative* off: the Basis is the first pose
+    Evaluation Time plays, not a rest), a cloth whose rest no key holds (:func:`cloth_rest_key`), a
+    Shrinking vertex group between two factors, or where the core would refuse the rest against the
+    first pose ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half its size
+    (``core.rest_pose_scale``), where it is not that pose's rest."""
     from ..core import rest_pose_scale
+    from .frames import rest_length_factor
 
     keys = obj.data.shape_keys
-    if not keys.use_relative:
+    usable, rest_key = cloth_rest_key(obj)
+    factor = rest_length_factor(obj)
+    if not usable or factor is None or (rest_key is None and not keys.use_relative):
         return {}
-    rest = space.to(mesh_data.shape_key_positions(keys.key_blocks[0], obj))
+    rest = space.to(mesh_data.stored_key_positions(rest_key) if rest_key is not None else
+                    mesh_data.shape_key_positions(keys.key_blocks[0], obj))
+    rest = rest_lengths_scaled(rest, factor)
     return {"rest_pose": rest} if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)) \
         else {}
 

@@ -488,14 +488,10 @@ def test_a_rigid_motion_keyed_in_single_precision_with_slivers_stays_rigid(bpy_e
     assert off < (2.0 * max(factor, 1.0) + 1.0) * rounding, (off / diagonal, rounding / diagonal)
 
 
-def test_inbetween_measures_its_edge_warning_from_the_basis(posed, core, monkeypatch):
-    """In-between of Curl and Bend gives ``core.Interpolator`` the Basis as its ``rest_pose`` (the
-    shape the keys were made on, what its edge warning measures the poses' deviation from; before,
-    none: the least deviation the two can have from any rest they share), and writes the poses of the
-    same keys without it. Nothing is given where the keys are absolute (the Basis is the first pose
-    Evaluation Time plays, not a rest) or where the Basis is over twice the poses' size (not their
-    rest: the core would refuse it)."""
-    obj, bridge = posed
+@pytest.fixture
+def given_rests(core, monkeypatch):
+    """The ``rest_pose`` each ``core.Interpolator`` the operators make is given (None where none),
+    in order."""
     given, original = [], core.Interpolator
 
     def recording(*args, **kwargs):
@@ -503,14 +499,27 @@ def test_inbetween_measures_its_edge_warning_from_the_basis(posed, core, monkeyp
         return original(*args, **kwargs)
 
     monkeypatch.setattr(core, "Interpolator", recording)
+    return given
+
+
+def test_inbetween_measures_its_edge_warning_from_the_basis(posed, core, given_rests):
+    """In-between of Curl and Bend gives ``core.Interpolator`` the Basis as its ``rest_pose`` (the
+    shape the keys were made on, what its edge warning measures the poses' deviation from; before,
+    none: the least deviation the two can have from any rest they share), and writes the poses of the
+    same keys without it. Nothing is given where the keys are absolute (the Basis is the first pose
+    Evaluation Time plays, not a rest) or where the Basis is over twice the poses' size (not their
+    rest: the core would refuse it)."""
+    obj, bridge = posed
+    given = given_rests
     bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
     (rest,) = given
     assert rest is not None
     np.testing.assert_allclose(rest, positions_of(bridge, obj, "Basis"), atol=TOLERANCE)
     triangles = bridge.triangulation.mesh_triangles(obj.data)
     np.testing.assert_allclose(positions_of(bridge, obj, "Inbetween Curl-Bend 0.50"),
-                               original(positions_of(bridge, obj, "Curl"), positions_of(bridge, obj, "Bend"),
-                                        triangles).pose(0.5), atol=TOLERANCE)
+                               core.two_pose_inbetweens.Interpolator(
+                                   positions_of(bridge, obj, "Curl"), positions_of(bridge, obj, "Bend"),
+                                   triangles).pose(0.5), atol=TOLERANCE)
     obj.data.shape_keys.use_relative = False
     bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
     obj.data.shape_keys.use_relative = True
@@ -518,3 +527,46 @@ def test_inbetween_measures_its_edge_warning_from_the_basis(posed, core, monkeyp
     basis.data.foreach_set("co", (3.0 * positions_of(bridge, obj, "Basis")).astype(np.float32).ravel())
     bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1)
     assert given[1:] == [None, None]
+
+
+def test_inbetween_measures_its_edge_warning_from_the_cloths_rest(posed, given_rests):
+    """Where a cloth simulates the mesh, In-between gives ``core.Interpolator`` the rest the cloth
+    builds its springs from: its Rest Shape Key's stored coordinates where one is set (not the Basis),
+    the Basis's edges scaled by 1 − Shrinking (0.1: springs 0.9 × the mesh's edges), and none where
+    no key is that rest: Dynamic Mesh on (the rest follows the modifiers before the cloth), a
+    Subdivision Surface before the cloth (its rest is a mesh of other vertices), a Shrinking vertex
+    group between two factors. Before, the Basis was given in every case."""
+    obj, bridge = posed
+    given = given_rests
+    basis = positions_of(bridge, obj, "Basis")
+    rest_key = add_key(obj, "Cloth Rest", 1.05 * basis + [0.0, 0.0, 0.2])
+    obj.active_shape_key_index = 2
+    cloth = obj.modifiers.new("Cloth", 'CLOTH').settings
+    cloth.rest_shape_key = rest_key
+
+    def inbetween():  # to a point cache: keys added would empty the unbaked cloth's cache
+        bpy.context.view_layer.objects.active = obj
+        bpy.ops.shape_differences.inbetween(key_a="Curl", key_b="Bend", count=1, output='CACHE')
+        return given[-1]
+
+    np.testing.assert_allclose(inbetween(), positions_of(bridge, obj, "Cloth Rest"), atol=TOLERANCE)
+    cloth.rest_shape_key = obj.data.shape_keys.key_blocks["Basis"]  # (Blender does not take None here)
+    cloth.shrink_min = 0.1
+    shrunk = inbetween()
+    centre = basis.mean(axis=0)
+    np.testing.assert_allclose(shrunk, centre + 0.9 * (basis - centre), atol=TOLERANCE)
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    edges = [np.linalg.norm(p[triangles] - p[np.roll(triangles, 1, axis=1)], axis=2) for p in (shrunk, basis)]
+    np.testing.assert_allclose(edges[0], 0.9 * edges[1], rtol=1e-5)
+    obj.vertex_groups.new(name="Shrink")
+    cloth.vertex_group_shrink, cloth.shrink_max = "Shrink", 0.3
+    assert inbetween() is None
+    cloth.vertex_group_shrink, cloth.shrink_min = "", 0.0
+    cloth.use_dynamic_mesh = True
+    assert inbetween() is None
+    cloth.use_dynamic_mesh = False
+    obj.modifiers.new("Subdivision", 'SUBSURF')
+    obj.modifiers.move(1, 0)
+    assert inbetween() is None
+    obj.modifiers.move(0, 1)  # after the cloth: the cloth's rest is the Basis again
+    np.testing.assert_allclose(inbetween(), basis, atol=TOLERANCE)
