@@ -109,6 +109,11 @@ HANG_GAPS = 30
 #: longest a message written to the worker may wait with no part of it taken (the worker reads its
 #: input at once, in a thread of its own) before it is ended so.
 HANG_LEAST = 10.0
+#: Bytes of a message written to the worker at a time, each noted taken (:class:`_NotedPipe`): a Linux
+#: pipe's capacity (64 kB; Windows' anonymous pipes hold less, and take a part in several reads), so
+#: that :data:`HANG_LEAST` bounds a wait for one pipe's worth of reading, not for a whole key (2.4 MB
+#: at 100k vertices, 37 pipes' worth).
+WRITE_PART = 1 << 16
 #: Windows' ``CREATE_NO_WINDOW`` process creation flag (``subprocess.CREATE_NO_WINDOW`` there): the
 #: worker, a console program, opens no console window beside Blender's.
 WINDOWLESS = 0x08000000
@@ -257,25 +262,32 @@ class _Worker:
             with self._write_lock, self._watched(pipe):
                 pickle.dump(message, pipe, protocol=pickle.HIGHEST_PROTOCOL)
                 pipe.flush()
-            return True
         except (OSError, ValueError):  # its end closed: gone, or ended by the watch
-            self._gone()
-            if pipe.stalled is not None and message[0] != "quit":  # not at the session's end: nothing waits
-                _end_silent(self, pipe.stalled, HANG_LEAST, writing=True)
-            return False
+            pass
+        else:
+            if pipe.stalled is None:  # written, and the watch did not end the worker as the last part was taken
+                return True
+        self._gone()
+        if pipe.stalled is not None and message[0] != "quit":  # not at the session's end: nothing waits
+            _end_silent(self, pipe.stalled, HANG_LEAST, writing=True)
+        return False
 
     @contextmanager
     def _watched(self, pipe: _NotedPipe):
         """The block, which writes to the worker through ``pipe``, watched by a thread of its own: where
         no write of it has been taken for :data:`HANG_LEAST` seconds (the worker stopped or swapped out
         with the pipe full: its input is read at once by a thread of its own, :mod:`core.gap_worker`),
-        the worker is killed, which ends the write with an error (``pipe.stalled``: the seconds)."""
-        done = threading.Event()
+        the worker is killed, which ends the write with an error (``pipe.stalled``: the seconds). The kill
+        is decided under a lock the block's end takes too: a write ending as the kill comes leaves
+        ``pipe.stalled`` set (the worker is dead, whatever the write says), a block ended kills nothing."""
+        done, deciding = threading.Event(), threading.Lock()
 
         def watch() -> None:
             while not done.wait(max(pipe.taken + HANG_LEAST - time.monotonic(), 0.0)):
-                stalled = time.monotonic() - pipe.taken
-                if stalled >= HANG_LEAST:
+                with deciding:  # the block's end and the kill exclude each other: a kill is always told
+                    stalled = time.monotonic() - pipe.taken
+                    if done.is_set() or stalled < HANG_LEAST:
+                        continue
                     pipe.stalled = stalled
                     try:
                         self.process.kill()
@@ -290,7 +302,8 @@ class _Worker:
         try:
             yield
         finally:
-            done.set()
+            with deciding:
+                done.set()
 
     def _read(self) -> None:
         stream = self.process.stdout
@@ -370,16 +383,25 @@ def _worker_errors():
 class _NotedPipe:
     """The worker's input (a binary stream) noting when its last write was taken (``taken``,
     :func:`time.monotonic`): pickle writes a message's frames and each of its arrays (a key, the
-    triangles: a few MB at most) in writes of their own; ``stalled``: the seconds it had taken none when
-    the worker was ended (:meth:`_Worker._watched`), else None."""
+    triangles: a few MB at most) in writes of their own, passed on here in parts of at most
+    :data:`WRITE_PART` bytes, so that a worker reading slowly (swapping) is seen taking each part, not
+    only a whole array; ``stalled``: the seconds it had taken none when the worker was ended
+    (:meth:`_Worker._watched`), else None."""
 
     def __init__(self, stream):
         self.stream, self.taken, self.stalled = stream, time.monotonic(), None
 
     def write(self, data) -> int:
-        written = self.stream.write(data)
-        self.taken = time.monotonic()
-        return written
+        view = memoryview(data)
+        if view.nbytes <= WRITE_PART or not view.c_contiguous:  # (an F-ordered array's buffer: whole, as pickle gives it)
+            written = self.stream.write(data)
+            self.taken = time.monotonic()
+            return written
+        view = view.cast("B")
+        for start in range(0, len(view), WRITE_PART):
+            self.stream.write(view[start:start + WRITE_PART])
+            self.taken = time.monotonic()
+        return len(view)
 
     def flush(self) -> None:
         self.stream.flush()

@@ -80,8 +80,11 @@ def _system_library():
 def _macos_available() -> int | None:
     """macOS's memory available: the share of its physical memory (``hw.memsize``) the kernel counts
     available (``kern.memorystatus_level``, percent: what ``memory_pressure`` prints as the
-    system-wide memory free percentage), past which the system compresses memory, then swaps. None
-    where a call fails.
+    system-wide memory free percentage). The kernel counts there every page not wired nor compressed
+    (xnu's ``AVAILABLE_NON_COMPRESSED_MEMORY``: free, speculative, inactive and *active* pages), so
+    other processes' working sets count as available: an upper bound, which lets through a job that
+    would make the system compress, then swap; it refuses only what the machine cannot hold at all.
+    None where a call fails.
     (``SC_AVPHYS_PAGES`` does not exist there; the free pages alone leave out the file cache, most of
     an idle Mac's memory.)"""
     level, total = ctypes.c_int32(), ctypes.c_uint64()

@@ -73,8 +73,8 @@ def real_array(values, name: str, what: str) -> np.ndarray:
         at = tuple(int(i) for i in np.argwhere(masked)[0])
         raise MeshError(f"{name} is a masked array with {int(masked.sum()):,} masked value(s), the first at index "
                         f"{at[0] if len(at) == 1 else at}: every one of its {what} is needed (the values under "
-                        "the mask would be used as they are). Fill them (numpy.ma.filled with the values meant) or "
-                        "leave that pose out.")
+                        "the mask would be used as they are). Fill them with the values meant (numpy.ma.filled), or "
+                        "pass the data without them.")
     try:
         array = np.asarray(values)
     except Exception as error:  # ragged lists, objects NumPy cannot hold

@@ -718,3 +718,72 @@ def test_a_worker_stopped_while_a_job_is_written_is_ended_and_its_gaps_computed_
         alone = _asked(SequenceInterpolator(keys, triangles), requests)
     _same([(poses, [told for told in said if told[1] != "process"]) for poses, said in shared], alone)
     assert gap_processes._unstartable and not gap_processes.start_worker(len(flat), 3)
+
+
+class _FakeProcess:
+    """A worker process as :meth:`gap_processes._Worker._send` sees it: its input ``stdin``; ``kill``
+    noted (``killed``) and, as a real kill does, ending whatever waits on it."""
+
+    def __init__(self, stdin):
+        self.stdin, self.killed = stdin, threading.Event()
+
+    def kill(self):
+        self.killed.set()
+
+
+def _fake_worker(stdin) -> gap_processes._Worker:
+    worker = gap_processes._Worker.__new__(gap_processes._Worker)  # no process spawned: its input is faked
+    worker.process, worker.alive, worker.jobs = _FakeProcess(stdin), True, {}
+    worker.condition, worker._write_lock = threading.Condition(), threading.Lock()
+    return worker
+
+
+def test_a_worker_reading_a_large_job_slowly_but_steadily_is_not_ended(monkeypatch):
+    """A worker that takes a 2 MB key a pipe's worth (64 kB) every 30 ms (a farm node swapping) is
+    reading: it must not be ended as hung after HANG_LEAST (0.3 s here) although the whole key takes
+    1 s. Before, a key was noted taken only once all of it was (one write of 2 MB): the worker was
+    killed, with a warning, and its gaps lost to it. The bytes it gets are the message's pickle."""
+    monkeypatch.setattr(gap_processes, "HANG_LEAST", 0.3)
+
+    class Slow:
+        def __init__(self):
+            self.got = bytearray()
+
+        def write(self, data):
+            time.sleep(0.03 * memoryview(data).nbytes / 65536)
+            self.got += bytes(data)
+            return memoryview(data).nbytes
+
+        def flush(self):
+            pass
+
+    stream = Slow()
+    worker = _fake_worker(stream)
+    message = ("job", 7, np.arange(2**18, dtype=np.float64))  # 2 MB
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ShapeDifferenceWarning)
+        assert worker._send(message)
+    assert not worker.process.killed.is_set() and worker.alive
+    assert bytes(stream.got) == pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def test_a_worker_killed_as_its_message_was_taken_is_told_not_taken_as_sent(monkeypatch):
+    """The watch ends a worker that took nothing for HANG_LEAST (0.2 s here) just as the message's last
+    part goes through (the flush returns once the kill has come). Before, the write had not failed, so
+    the caller counted the message sent and waited on a killed worker: no warning, and a worker started
+    again later. Now the kill is always told: not sent, one warning (kind ``process``), none again."""
+    monkeypatch.setattr(gap_processes, "HANG_LEAST", 0.2)
+    monkeypatch.setattr(gap_processes, "_unstartable", False)
+
+    class TakenAtTheKill:
+        def write(self, data):
+            return memoryview(data).nbytes
+
+        def flush(self):
+            assert worker.process.killed.wait(5.0)
+
+    worker = _fake_worker(TakenAtTheKill())
+    with pytest.warns(ShapeDifferenceWarning, match="took nothing this process sent it for") as told:
+        assert not worker._send(("job", 7, np.zeros(10)))
+    assert [warning.message.kind for warning in told] == ["process"]
+    assert not worker.alive and gap_processes._unstartable

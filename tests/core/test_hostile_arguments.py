@@ -416,3 +416,22 @@ def test_a_longdouble_coordinate_past_double_precision_is_refused_by_its_size(sh
         with pytest.raises(MeshError, match=r"key pose 1 of key_poses: vertex 4 has coordinate 1e\+400, beyond the "
                                             r"supported 1e\+30"):
             core.SequenceInterpolator([v, far], t)
+
+
+def test_a_masked_array_is_refused_in_the_terms_of_what_it_holds(sheet):
+    """Triangles given as a masked array with an index masked are refused naming the triangles and
+    what to do with them; before, the message ended "or leave that pose out", about a pose the user
+    had not given. A mask given as one value (``nomask``, False) masks nothing: the array is its data;
+    one given as True masks every value, and is refused."""
+    v, t, target = sheet
+    holed = np.ma.masked_array(t.copy(), mask=False)
+    holed[3, 1] = np.ma.masked
+    with pytest.raises(MeshError, match=r"triangles is a masked array with 1 masked value\(s\), the first at index "
+                                        r"\(3, 1\)") as refused:
+        core.SequenceInterpolator([v, target], holed)
+    assert "pose" not in str(refused.value)
+    for whole in (np.ma.masked_array(target, mask=np.ma.nomask), np.ma.masked_array(target, mask=False)):
+        np.testing.assert_array_equal(core.SequenceInterpolator([v, whole], t).poses(0, [0.5]),
+                                      core.SequenceInterpolator([v, target], t).poses(0, [0.5]))
+    with pytest.raises(MeshError, match=rf"{target.size:,} masked value\(s\), the first at index \(0, 0\)"):
+        core.SequenceInterpolator([v, np.ma.masked_array(target, mask=True)], t)
