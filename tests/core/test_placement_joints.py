@@ -1322,6 +1322,28 @@ def test_gears_of_sixteen_and_twelve_teeth_read_right_are_not_warned_of_rolling_
         np.testing.assert_allclose(pose, _sixteen_twelve_train(s * degrees, 0.03)[0], atol=1e-6)
 
 
+@pytest.mark.parametrize(("train", "degrees", "turn", "read"),
+                         [("20/10", 95.0, -190, 170), ("20/10", 110.0, -220, 140), ("16/12", 200.0, -267, 93)])
+def test_gears_turned_the_other_way_round_are_told_of_their_true_turn(train, degrees, turn, read):
+    """The warning of gears turned the other way round names the small gear's true turn (−190° /
+    −220° beside the 20-tooth gear turned 95° / 110°, −267° beside the 16-tooth one turned 200°) and
+    its read (+170° / +140° / +93°), 360° apart: the keys give both exactly, to a whole turn. The
+    turn rolling tells is off by the contact's place off the pitch point (the closest vertex pair,
+    a tooth's tip on the mate's root): the message printed that one, −237° / −274° / −317°, which
+    no key gives, and an artist reading "−317° where the keys turn it +93°" looks for a turn of
+    410° between the keys."""
+    if train == "20/10":
+        a, tri, _ = _gear_train(0.0)
+        b = _gear_train(degrees)[0]
+    else:
+        a, tri = _sixteen_twelve_train(0.0, 0.03)
+        b = _sixteen_twelve_train(degrees, 0.03)[0]
+    caught = _poses_and_warnings(Interpolator(a, b, tri), (0.5,))[1]
+    said = [str(w.message) for w in caught if "as meshing gears do" in str(w.message)]
+    assert len(said) == 1, said
+    assert f"turns one {turn:+d}° where the keys, read the short way round, turn it {read:+d}°" in said[0], said
+
+
 def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
     """Two separate links jointed end to end, the second's tip ``sunk`` into the first's (a box of
     one cell a face, 0.76 long, and a finely meshed ellipsoid 1.05 long: their surfaces cross where
