@@ -306,7 +306,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
                                                           [r.extrapolated for r in relatives],
                                                           [getattr(r, "motion", None) for r in relatives]),
-                                             pieces, cubic, slowing, **options("screw"))
+                                             pieces, cubic, slowing, pivoted=True, **options("screw"))
         self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
         self._riding_motions: dict[float, tuple] = {}  # see ride
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one

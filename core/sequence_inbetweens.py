@@ -129,8 +129,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     velocity (the linear extrapolation past the last key, as Catmull–Rom's end condition), as a
     simulation stopped at any frame — slower where the last three keys show a point slowing into
     the last key (the positions in the world, :func:`~core.splines.slowing_end_correction`; a rigid
-    piece's rigid motion, its turn and its move each from its own keys' slowing,
-    :func:`~core.splines.slowing_screw_correction`, by the piece's rigidity).
+    piece's rigid motion, its turn and its move each from its own keys' slowing, a jointed piece's
+    relative to its parent by its turn's, :func:`~core.splines.slowing_screw_correction`, by the
+    piece's rigidity).
     ``"rest"``: it comes to rest there, as an animation easing into its last keyframe — the last
     gap ends with zero velocity (every spline's end tangent;
     exact for motion at constant deceleration to a stop). :func:`~core.motion_ends.end_of_motion` chooses from the

@@ -217,26 +217,45 @@ def slowing_end_correction(v_1: np.ndarray, v0: np.ndarray, v1: np.ndarray) -> n
     tangent within 3 × the secant (:data:`TANGENT_LIMIT`) a point moving along a line never passes
     the last key inside the gap (Fritsch–Carlson)."""
     secant = v1 - v0
+    secant *= _slowing_share(v0 - v_1, secant)[:, None]
+    return secant
+
+
+def _slowing_share(before: np.ndarray, secant: np.ndarray) -> np.ndarray:
+    """``λ − 1`` per row (n,) of :func:`slowing_end_correction` from the chords ``d′`` (``before``)
+    and ``d`` (``secant``), rows (n, k) of any one inner product's coordinates."""
     length2 = np.einsum("ij,ij->i", secant, secant)
-    share = np.einsum("ij,ij->i", v0 - v_1, secant)
+    share = np.einsum("ij,ij->i", before, secant)
     share /= np.maximum(length2, np.finfo(float).tiny)
     share *= -0.5
     share += 0.5  # λ − 1 = (3 d − d′) · d / 2|d|² − 1
     np.clip(share, -1.0, 0.0, out=share)
-    secant *= share[:, None]
-    return secant
+    return share
 
 
-def slowing_screw_correction(s_1: np.ndarray, s0: np.ndarray, s1: np.ndarray) -> np.ndarray:
+def slowing_screw_correction(s_1: np.ndarray, s0: np.ndarray, s1: np.ndarray, pivoted: bool = False) -> np.ndarray:
     """:func:`slowing_end_correction` of bodies' screw coordinates ``(ω, v)`` (P, 6) at key times −1,
     0, 1 (a sequence's last key ``s1``), per body (P, 6): the turn ``ω`` and the translation part ``v``
     each slowed by its own share ``λ``, read from its own chords. Apart, as radians and lengths do
     not add: one ``λ`` from the six coordinates would weigh the turn against the move by the scene's
-    units. A body turning about a fixed axis at a constant deceleration has both parts proportional
-    to its angle (``ω = θ â``, ``v = θ (p × â)`` for an axis through ``p``): both read its ``λ``,
-    and the screw's spline with it is exact, as the positions' is for a point slowing along a line."""
-    return np.concatenate([slowing_end_correction(s_1[:, part], s0[:, part], s1[:, part])
-                           for part in (slice(0, 3), slice(3, 6))], axis=1)
+    units; and the turn's own ``λ`` depends on the turn only, not on the point its screw is taken
+    about, so pieces moving as one (each's screw about its own centroid) turn as one. A body turning
+    about a fixed axis at a constant deceleration has both parts proportional to its angle (``ω = θ
+    â``, ``v = θ (p × â)`` for an axis through ``p``): both read its ``λ``, and the screw's spline
+    with it is exact, as the positions' is for a point slowing along a line.
+
+    ``pivoted``: each body turns about a point ``p`` fixed in its frame at every key, ``v = p × ω``
+    (a jointed piece's screw relative to its parent, about their joint): the whole screw takes the
+    turn's ``λ``, which keeps that relation at every factor. With ``v``'s own ``λ`` a ball joint,
+    whose axis swings (``v`` is not a multiple of ``ω`` then), opened as it decelerated into the
+    last key (2.7e-4 of the diagonal)."""
+    turn = slice(0, 3)
+    if not pivoted:
+        return np.concatenate([slowing_end_correction(s_1[:, part], s0[:, part], s1[:, part])
+                               for part in (turn, slice(3, 6))], axis=1)
+    secant = s1 - s0
+    secant *= _slowing_share(s0[:, turn] - s_1[:, turn], secant[:, turn])[:, None]
+    return secant
 
 
 def limited_tangent(tangent: np.ndarray, limit: float, bound: np.ndarray, rows: bool) -> np.ndarray:
@@ -263,15 +282,17 @@ class ScrewGap:
     ``frames`` None: in world coordinates (a linear spline, where no limit acts). ``slowing``: None,
     or per body (P,) the share of :func:`slowing_screw_correction` (in the bodies' frames) its end
     tangent takes at a sequence's last key (``end="keys"``: each piece's rigidity, so that its rigid
-    motion slows into the last key as the positions' spline does). Other arguments as
-    :class:`HermiteGap`'s."""
+    motion slows into the last key as the positions' spline does); ``pivoted``: the bodies turn
+    about points fixed in their frames (jointed pieces relative to their parents), see
+    :func:`slowing_screw_correction`. Other arguments as :class:`HermiteGap`'s."""
 
-    def __init__(self, values, frames: tuple | None, cubic: bool, slowing: np.ndarray | None = None, **options):
+    def __init__(self, values, frames: tuple | None, cubic: bool, slowing: np.ndarray | None = None,
+                 pivoted: bool = False, **options):
         self.frames = frames
         if frames is not None:
             values = [screw_motions.framed_screws(value, *frames) for value in values]
         if slowing is not None and cubic:
-            correction = slowing_screw_correction(*values[:3])
+            correction = slowing_screw_correction(*values[:3], pivoted)
             correction *= slowing[:, None]
             options["corrections"] = (None, correction)
         self.gap = HermiteGap(values, cubic, **options)

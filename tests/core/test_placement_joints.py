@@ -744,6 +744,46 @@ def test_a_robot_arm_slowing_into_its_last_key_is_its_forward_kinematics():
             np.testing.assert_array_equal(pose[base], a[base])
 
 
+@pytest.mark.parametrize("stop", [3.0, 3.25])
+def test_ball_joints_slowing_into_the_last_key_stay_shut(stop):
+    """Three capped tubes on a fixed base, each turned at its root (its cap's centre on the parent's
+    end cap's) by a ball joint whose turn decelerates to a stop at time ``stop`` (keys at 0–3) while
+    its axis swings (rotation vector ``u a + 0.4 u² b``, ``u = t − t²/(2 stop)``): at every factor
+    of the last two gaps each joint's two cap centres coincide, to 1e-9 of the diagonal, and the
+    base is where the keys have it. The joints' screws relative to their parents turn about the
+    joint (``v = p × ω`` at every key, ``v`` no multiple of ``ω`` as the axis swings); the last
+    key's slowing takes the turn's share for the whole screw (core.splines.slowing_screw_correction,
+    ``pivoted``), which keeps that relation. With the turn and the move slowed each by its own
+    share (cbeb9a6) the joints opened in the last gap by 2.3e-4 / 2.7e-4 of the diagonal."""
+    tube, tube_triangles = meshes.closed_tube(13, 12, length=0.6, radius=0.08)
+    n = len(tube)
+    root_cap, end_cap = n - 2 + np.argsort(tube[-2:, 0])  # the caps' centres at x = 0 and x = 0.6
+    sweeps = np.array([[[1.0, 0.2, 0.0], [0.0, 1.0, 0.5]], [[0.0, 1.0, 0.3], [0.8, 0.0, 1.0]],
+                       [[0.3, 0.0, 1.0], [1.0, 0.6, 0.0]]])
+
+    def rig(t):
+        u = t - t * t / (2.0 * stop)
+        rotation, translation, parts = np.eye(3), np.zeros(3), [tube]
+        for k, (a, b) in enumerate(sweeps, start=1):
+            joint = np.array([0.6 * k, 0.0, 0.0])
+            turn = Rotation.from_rotvec(np.radians(25.0) * (u * a + 0.4 * u * u * b)).as_matrix()
+            translation = rotation @ (joint - turn @ joint) + translation
+            rotation = rotation @ turn
+            parts.append((tube + joint) @ rotation.T + translation)
+        return np.vstack(parts)
+
+    triangles = np.vstack([tube_triangles + k * n for k in range(4)])
+    a = rig(0.0)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    sequence = SequenceInterpolator([rig(float(k)) for k in range(4)], triangles, start="keys")
+    factors = np.linspace(0.05, 0.95, 19)
+    for gap in (1, 2):
+        for pose in sequence.poses(gap, factors):
+            for k in range(3):
+                assert np.linalg.norm(pose[k * n + end_cap] - pose[(k + 1) * n + root_cap]) < 1e-9 * diagonal, (gap, k)
+            np.testing.assert_array_equal(pose[:n], a[:n])
+
+
 @pytest.mark.parametrize(("angles", "pins"), [((40.0, 120.0, 100.0, 30.0, 170.0, 60.0), 0.2),
                                              ((58.0, 36.0, 22.0, 21.0, 69.0, 75.0), 0.2),
                                              ((0.0, 0.0, 60.0, 180.0, 0.0, 0.0), -0.1)])

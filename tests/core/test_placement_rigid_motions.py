@@ -333,7 +333,7 @@ def test_a_body_slowing_into_the_last_key_ends_on_its_motion(stop):
     of a gap past it, two gaps past): the in-betweens of the gaps with a key before them, the last
     one included, are the swing at their time, to 1e-9 of the diagonal, pieces included: its
     screw's spline is exact for a turn quadratic in time, with Catmull–Rom's tangent at the gap's
-    start and, at the last key, the keys' slowing on the screw's turn and move
+    start and, at the last key, the keys' slowing on the screw
     (core.splines.slowing_screw_correction). With the screw's linear end at the last key (where the
     sequence's positions slowed since session 75) the last gap was 2.0e-2 / 1.8e-2 / 1.1e-2 of the
     diagonal off."""
