@@ -19,7 +19,7 @@ from .motion_sources import (dynamic_paint_start, frames_depend_on_earlier, miss
                              motion_set_aside, object_motion, objects_moving, render_only_motion, simulation_zone_start,
                              unbaked_simulations, unfit_mesh_cache, viewport_only_motion)
 from .output import PoseWriter
-from .poses import format_factor, inbetween_name, rest_lengths_scaled
+from .poses import format_factor, inbetween_name, rest_option
 
 
 def frame_key_name(frame: int) -> str:
@@ -113,16 +113,14 @@ class SimulationRest:
         would refuse it against the first key (``core.rest_pose_scale``: a cloth that shrinks or grows
         to under half or over twice its size other than by Shrinking): measured from the first key, as
         without it. ``triangles`` (m, 3): the mesh's."""
-        from ..core import rest_pose_scale
-
         for positions, matrix, first in self._read:
             shown = world_space.shown_under(positions, matrix, matrices[self.start])
             if shown is None:
                 continue
             rest, first = space.to(shown, self.start), space.to(first, self.start)
-            rest = rest_lengths_scaled(rest, self._factor)  # Shrinking's rest lengths
-            if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)):
-                return {"rest_pose": rest}
+            option = rest_option(rest, self._factor, first, triangles)  # Shrinking's rest lengths
+            if option:
+                return option
         return {}
 
 

@@ -30,14 +30,18 @@ def scene_frames(context, count: int) -> list[float]:
     return [float(start + i) for i in range(count)]
 
 
-def rest_lengths_scaled(rest, factor: float):
-    """``rest`` (n, 3) with every edge ``factor`` × as long (the rest lengths Shrinking sets,
-    ``frames.rest_length_factor``), scaled about its centroid (any point would do); ``rest`` itself
-    at 1."""
-    if factor == 1.0:
-        return rest
-    centre = rest.mean(axis=0)
-    return centre + factor * (rest - centre)
+def rest_option(rest, factor: float, first, triangles) -> dict:
+    """``{"rest_pose": rest}`` with every edge of ``rest`` (n, 3) ``factor`` × as long (the rest
+    lengths Shrinking sets, ``frames.rest_length_factor``; scaled about its centroid, any point would
+    do), or ``{}`` where the core would refuse that rest against the first key ``first`` (n, 3) over
+    ``triangles`` (m, 3) (``core.rest_pose_scale``: past 2 × or under half its size, not its rest)."""
+    from ..core import rest_pose_scale
+
+    if factor != 1.0:
+        centre = rest.mean(axis=0)
+        rest = centre + factor * (rest - centre)
+    return {"rest_pose": rest} if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)) \
+        else {}
 
 
 def cloth_rest_key(obj):
@@ -75,7 +79,6 @@ def basis_rest(obj, space, first, triangles) -> dict:
     Shrinking vertex group between two factors, or where the core would refuse the rest against the
     first pose ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half its size
     (``core.rest_pose_scale``), where it is not that pose's rest."""
-    from ..core import rest_pose_scale
     from .frames import rest_length_factor
 
     keys = obj.data.shape_keys
@@ -85,9 +88,7 @@ def basis_rest(obj, space, first, triangles) -> dict:
         return {}
     rest = space.to(mesh_data.stored_key_positions(rest_key) if rest_key is not None else
                     mesh_data.shape_key_positions(keys.key_blocks[0], obj))
-    rest = rest_lengths_scaled(rest, factor)
-    return {"rest_pose": rest} if rest_pose_scale.scale_taken(rest_pose_scale.rest_scale(rest, first, triangles)) \
-        else {}
+    return rest_option(rest, factor, first, triangles)
 
 
 class InWorldProportions:
