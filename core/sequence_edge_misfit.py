@@ -92,8 +92,8 @@ MORE_KEYS = "add keys in this gap or use a smaller step"
 
 
 def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str, str],
-                   signed, reference: str = "the first key",
-                   advice: str = MORE_KEYS) -> tuple[str, tuple[float, ...], float] | None:
+                   signed, reference: str = "the first key", advice: str = MORE_KEYS, made: str = "its fit",
+                   cause: str | None = None) -> tuple[str, tuple[float, ...], float] | None:
     """The message, factors and excess (the worst fit's misfit ÷ ``allowed``, over 1:
     :attr:`core.errors.ShapeDifferenceWarning.excess`) of the warning of a gap (keys ``names``) whose in-betweens at
     ``factors`` include fitted ones (``fit_misfits`` {factor: the least mean relative edge misfit
@@ -104,7 +104,9 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
     sets ``allowed`` is from, as the message names it (the first key, or the caller's rest pose;
     two poses: the least from a rest they share, :func:`least_shared_deviation`).
     ``advice``: what the message tells the caller to do (:data:`MORE_KEYS`; two poses: a pose between
-    them, :mod:`core.two_pose_inbetweens`)."""
+    them, :mod:`core.two_pose_inbetweens`). ``made`` and ``cause``: what the bracket calls the pose
+    measured and why its edges are off, where it is no fit (two poses' blend); else the fit and the
+    spline's chords or the fit's reach."""
     asked = [s for s in factors if 0.0 < s < 1.0]
     fitted = {s: fit_misfits[s] for s in asked if s in fit_misfits}
     over = sorted(s for s, m in fitted.items() if m > allowed)
@@ -113,13 +115,14 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
     worst = max(over, key=lambda s: fitted[s])
     misfit, change = fitted[worst], signed(worst)
     way = "shorter" if change < -0.5 * misfit else "longer" if change > 0.5 * misfit else "off"
-    what = {"shorter": "than the keys' edge lengths interpolated on average: the cloth is compressed in its plane, "
-                       "as where the keys turn it far between them",
+    what = {"shorter": "than the keys' edge lengths interpolated on average: the cloth is compressed in its plane"
+                       + (", as where the keys turn it far between them" if cause is None else ""),
             "longer": "than the keys' edge lengths interpolated on average: the cloth is stretched in its plane",
             "off": "the keys' edge lengths interpolated on average, some shorter, some longer"}[way]
     # the spline's chords shorten edges; edges longer, or off both ways, no chord explains
-    cause = ("the anchor toward the keys' per-vertex spline cuts the chords of the arcs" if way == "shorter" else
-             "the fit does not reach the interpolated metric near the keys' per-vertex spline")
+    if cause is None:
+        cause = ("the anchor toward the keys' per-vertex spline cuts the chords of the arcs" if way == "shorter" else
+                 "the fit does not reach the interpolated metric near the keys' per-vertex spline")
     if len(asked) == 1:
         place = f"the in-between at factor {worst:g}"
     else:
@@ -127,7 +130,7 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
         place = f"{len(over)} of the {len(asked)} in-betweens{fitted_only}, the worst at factor {worst:g}"
     return (f"between {names[0]} and {names[1]}, {place}: its edges are "
             f"{100 * (abs(change) if way != 'off' else misfit):.1f} % {way} {what}; {advice} "
-            f"[its fit ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
+            f"[{made} ends {100 * misfit:.1f} % off the interpolated metric (mean relative edge "
             f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from {reference} allows (twice it + "
             f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over),
             misfit / allowed)

@@ -216,8 +216,10 @@ class Interpolator:
             if not 0.0 <= factor <= 1.0:
                 self._warn_grown(x, factor)
             return x
-        if self._chattering():
-            return (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
+        if self._chattering():  # the blend, its edges held to the bound as a fit's (it averages the wrinkles away)
+            x = (1.0 - factor) * self._given_poses[0] + factor * self._given_poses[1]
+            self._say(self._edges_off(x, factor, self._misfit(x, factor), None, blend=True), 0.0)
+            return x
         (x,), said = first._poses(0, [factor])
         misfit, chosen = self._misfit(x, factor), first
         # a first fit within the margin of the metric cannot be bettered by it: no second fit
@@ -245,22 +247,30 @@ class Interpolator:
             if nearer_metric or fewer_defects or no_worse:
                 x, said, misfit, chosen = y, other, other_misfit, second
         x, said, misfit, log = self._log_fit(chosen, factor, x, said, misfit)
-        said = said + self._spun_back(x, factor) + self._edges_off(x, factor, misfit, log)
-        names = first.key_names
-        for kind, message, defects, about, *excess in said:  # a pose's edges, said where they are far from the metric (a crushed blend)
-            warn_said(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
-                  f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
-                  kind, defects, (names[0], names[1]), about, *excess)
+        self._say(said + self._spun_back(x, factor) + self._edges_off(x, factor, misfit, log), misfit)
         return x
 
-    def _edges_off(self, x: np.ndarray, factor: float, misfit: float,
-                   log: SequenceInterpolator | None) -> list[tuple[str, str, int, tuple[float, ...], float]]:
+    def _say(self, said: list, misfit: float) -> None:
+        """Warn each ``(kind, message, defects, factors, excess)`` of ``said``, a fallback's (``pose``)
+        with the pose's mean relative edge misfit ``misfit`` added where it is past
+        :data:`FALLBACK_MISFIT_NOTED` (a crushed blend)."""
+        names = self._sequence.key_names
+        for kind, message, defects, about, *excess in said:
+            warn_said(message if kind != "pose" or misfit <= FALLBACK_MISFIT_NOTED else
+                      f"{message}; its edge lengths are {100 * misfit:.1f} % off the interpolated ones on average",
+                      kind, defects, (names[0], names[1]), about, *excess)
+
+    def _edges_off(self, x: np.ndarray, factor: float, misfit: float, log: SequenceInterpolator | None,
+                   blend: bool = False) -> list[tuple[str, str, int, tuple[float, ...], float]]:
         """The ``fit`` warning ``(kind, message, defects, factors, excess)`` of the in-between ``x``
         (n, 3) at ``factor`` (``misfit``: its mean relative edge misfit to the metric it was fitted
         to, :meth:`_misfit`; of the log-stretches' where ``log`` is their sequence), else none. What is
         allowed is issue 17's edge bound with the poses standing in for the simulation: twice their
         mean edge deviation from the rest + 0.1 point, at least 0.3 %
-        (:func:`core.sequence_edge_misfit.misfit_allowed`).
+        (:func:`core.sequence_edge_misfit.misfit_allowed`). ``blend``: ``x`` is the poses' linear blend,
+        returned where they differ by wrinkles alone (:meth:`_chattering`), held to the same bound (the
+        blend averages the two wrinkle patterns away, the sheet shrinks in its plane where the frames
+        between have wrinkles of their own), and its message says so.
 
         With the caller's ``rest_pose`` the deviations are measured from it (each pose's,
         :func:`core.sequence_edge_misfit.key_deviation`) and so is the in-between's: warned where it is
@@ -296,6 +306,7 @@ class Interpolator:
         names, allowed = self._sequence.key_names, misfit_allowed(self._apart)
         advice = (f"add a pose between {names[0]} and {names[1]} and in-between each half (or interpolate the three "
                   "as a sequence)")
+        made = BLEND_MADE if blend else "its fit"
         if rest is not None:
             deviation = key_deviation(np.sqrt(self._squared_lengths(x)), rest)
             if deviation <= allowed:
@@ -303,7 +314,7 @@ class Interpolator:
             return [("fit", f"between {names[0]} and {names[1]}, the in-between at factor {factor:g}: its edges are "
                      f"{100 * deviation:.1f} % off the rest pose's on average, {deviation / allowed:.1f} × what the "
                      f"poses' own deviation from it allows (twice their {50 * sum(self._apart):.1f} % + "
-                     f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %; its fit "
+                     f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %; {made} "
                      f"ends {100 * misfit:.1f} % off the edge lengths interpolated between them); {advice}", 0,
                      (factor,), deviation / allowed)]
 
@@ -314,7 +325,8 @@ class Interpolator:
         # mesh's Basis, which an artist takes for the rest, and it is not what is measured from)
         said = misfit_warning({factor: misfit}, [factor], allowed, names, signed,
                               f"the rest nearest both {names[0]} and {names[1]} (each edge at the longer of its "
-                              "two lengths: the least that deviation can be)", advice=advice)
+                              "two lengths: the least that deviation can be)", advice=advice,
+                              made=made, cause=BLEND_CAUSE if blend else None)
         return [] if said is None else [("fit", said[0], 0, said[1], said[2])]
 
     def _spun_back(self, x: np.ndarray, factor: float) -> list[tuple[str, str, int, tuple[float, ...], float]]:
@@ -454,6 +466,11 @@ CHATTER_COHERENCE = 1.0
 #: %), and the warning said only "used the interpolated metric fitted near the linear blend".
 FALLBACK_MISFIT_NOTED = 0.02
 
+
+#: What a two-pose edge warning calls the pose it measures where the poses differ by wrinkles alone
+#: (:meth:`Interpolator._chattering`), and why its edges are off: the blend, not a fit.
+BLEND_MADE = "it is the poses' linear blend (they differ by wrinkles alone), which"
+BLEND_CAUSE = "the blend averages the two poses' wrinkles away, and the sheet shrinks in its plane"
 
 #: An extrapolated pose warns where an edge comes out over this many times as long (or its inverse
 #: as short) as in either pose: a sheet drawn out 3 × in one pose comes out 2.92 × as long at ×2;

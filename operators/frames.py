@@ -51,8 +51,7 @@ def simulation_first_frame(scene, obj, start: int) -> list[int]:
     (:func:`simulation_start`), after that frame (each frame from there would be evaluated, and
     simulated where not baked, for a measure of the warnings)."""
     movers = objects_moving(obj)
-    first = min((modifier.point_cache.frame_start for _, modifier in modifier_kinds.simulations(movers)),
-                default=None)
+    first = _first_simulated(movers)
     if first is None or first >= start:
         return []
     visited = simulation_start(scene, movers)
@@ -61,21 +60,57 @@ def simulation_first_frame(scene, obj, start: int) -> list[int]:
     return [first]
 
 
+def _first_simulated(movers: list) -> int | None:
+    """The first frame of the cloth and soft body simulations of ``movers`` (:func:`objects_moving`), or None."""
+    return min((modifier.point_cache.frame_start for _, modifier in modifier_kinds.simulations(movers)),
+               default=None)
+
+
+#: Blender's modifiers that only move vertices (its deform-only kind): a stack of these before a cloth
+#: hands it its vertices' positions alone, and there Blender 4.2–5.0 reads no Rest Shape Key
+#: (:func:`cloth_rest_is_input`).
+DEFORM_ONLY_MODIFIERS = {'ARMATURE', 'CAST', 'CLOTH', 'COLLISION', 'CORRECTIVE_SMOOTH', 'CURVE', 'DISPLACE', 'HOOK',
+                         'LAPLACIANDEFORM', 'LAPLACIANSMOOTH', 'LATTICE', 'MESH_CACHE', 'MESH_DEFORM', 'SHRINKWRAP',
+                         'SIMPLE_DEFORM', 'SMOOTH', 'SOFT_BODY', 'SURFACE_DEFORM', 'WARP', 'WAVE'}
+
+
+def cloth_rest_is_input(obj, modifier) -> bool:
+    """Whether the cloth ``modifier`` of ``obj`` builds its springs from the mesh it is given at its first
+    frame (what the frames show there, its edges times 1 − Shrinking). Not with *Dynamic Mesh* (the springs
+    follow that mesh at every frame), nor with a *Rest Shape Key* set behind a modifier that makes a new mesh
+    (a Subdivision Surface, a Weld, Geometry Nodes: there Blender builds the springs from the key carried
+    through it). Behind deforming modifiers only (:data:`DEFORM_ONLY_MODIFIERS`) or none, Blender 4.2–5.0
+    read no Rest Shape Key: the cloth modifier copies the key only where it is given no mesh, which such a
+    stack never does (``MOD_cloth.cc``, ``deform_verts``), so the cloth's rest is that first frame whatever
+    the key (docs/inbetween-measurements.md, *The cloth's Rest Shape Key*)."""
+    settings = modifier.settings
+    if settings.use_dynamic_mesh:
+        return False
+    if settings.rest_shape_key is None:
+        return True
+    before = list(obj.modifiers)[:list(obj.modifiers).index(modifier)]
+    return all(m.type in DEFORM_ONLY_MODIFIERS for m in before if m.show_viewport)
+
+
 def rest_length_factor(obj) -> float | None:
     """The factor the cloth and soft body simulations moving ``obj`` (:func:`objects_moving`) set their
     springs' rest lengths to over their first frame's edges: 1 − Shrinking for cloth (``shrink_min``:
     at 0.1 frame 1's edges read 1 / 0.9 = 1.111 × every later frame's, at −0.2 0.833 ×), 1 where nothing
     changes them. None where it differs over the mesh or between the simulations (a Shrinking vertex
-    group between two factors) or where Blender does not say by how much (a soft body's Shrink / Blow up
-    ``spring_length`` or its ``plastic`` deformation)."""
+    group between two factors), where Blender does not say by how much (a soft body's Shrink / Blow up
+    ``spring_length`` or its ``plastic`` deformation) or where a cloth's springs are not built from its
+    first frame (:func:`cloth_rest_is_input`: Dynamic Mesh, a Rest Shape Key Blender reads). The one
+    source of the rest's scale for a sequence's rest (:class:`SimulationRest`) and two poses'
+    (``poses.basis_rest``)."""
     factors = set()
-    for _, modifier in modifier_kinds.simulations(objects_moving(obj)):
+    for mover, modifier in modifier_kinds.simulations(objects_moving(obj)):
         settings = modifier.settings
         if modifier.type != 'CLOTH':
             if settings.spring_length or settings.plastic:
                 return None
             factors.add(1.0)
-        elif settings.vertex_group_shrink and settings.shrink_max != settings.shrink_min:
+        elif (settings.vertex_group_shrink and settings.shrink_max != settings.shrink_min) or \
+                not cloth_rest_is_input(mover, modifier):
             return None
         else:
             factors.add(1.0 - settings.shrink_min)
@@ -91,19 +126,26 @@ class SimulationRest:
     in-betweens are the range's as without it), then taken to that space (:meth:`options`). Else
     the first key stands for the rest. A cloth that Shrinking shrinks or grows is at its rest lengths
     times :func:`rest_length_factor` there, not at its edges (frame 1 of Shrinking 0.1 read as the rest
-    makes every key 11 % off it, and the warnings allow that much more misfit): its edges are scaled so;
-    where the factor is not one number, no frame is read."""
+    makes every key 11 % off it, and the warnings allow that much more misfit): its edges are scaled so,
+    and so are the first key's where the range starts at the simulation's first frame. Where the factor
+    is not one number or the springs are not built from that frame (:func:`rest_length_factor`: Dynamic
+    Mesh, a Rest Shape Key behind a modifier that makes a new mesh), no frame is read and none is given."""
 
     def __init__(self, scene, obj, start: int):
         self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start), []
-        self._factor = rest_length_factor(obj) if self.frames else 1.0
+        self._factor = rest_length_factor(obj)
         if self._factor is None:
             self.frames = []
+        # a range from the simulation's first frame: its first key is the rest, at other lengths where Shrinking
+        self._from_start = self._factor not in (None, 1.0) and _first_simulated(objects_moving(obj)) == start
 
     def set_aside(self, read: dict, matrices: dict) -> None:
         """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}
-        of the frames read), and keep the range's first frame's positions."""
+        of the frames read), and keep the range's first frame's positions (its matrix too where that
+        frame is the rest)."""
         self._read = [(read.pop(frame), matrices.pop(frame), read[self.start]) for frame in self.frames]
+        if self._from_start:
+            self._read = [(read[self.start], matrices[self.start], read[self.start])]
 
     def options(self, space, matrices: dict, triangles) -> dict:
         """``{"rest_pose": positions (n, 3)}`` in ``space`` (that of the range's frames, whose world

@@ -44,24 +44,19 @@ def rest_option(rest, factor: float, first, triangles) -> dict:
         else {}
 
 
-def cloth_rest_key(obj):
-    """``(usable, key)`` of the rest the cloth simulating ``obj`` (its first cloth modifier enabled in
-    the viewport) builds its springs from: ``(True, None)`` where there is no cloth, or one that
-    starts from the mesh as it is (the reference key: :func:`basis_rest`); ``(True, key block)``
-    where its *Shape › Rest Shape Key* is set (the cloth reads that key's stored coordinates);
-    ``(False, None)`` where no key of the mesh is its rest: *Dynamic Mesh* on (the rest follows the
-    modifiers before the cloth at every frame), or a modifier before it that moves, adds or removes
-    vertices (an Armature, a Subdivision Surface: the cloth's rest is what they make of the mesh at its
-    first frame, or a mesh of other vertices)."""
+def cloth_input_is_basis(obj) -> bool:
+    """Whether the cloth simulating ``obj`` (its first cloth modifier enabled in the viewport) is given the
+    mesh itself at its first frame, the shape its keys are made on: no modifier enabled before it moves,
+    adds or removes vertices (an Armature, a Subdivision Surface: the cloth's rest is what they make of the
+    mesh there, or a mesh of other vertices). True where no cloth simulates ``obj``. Whether the cloth's
+    springs are built from that mesh at all (not with Dynamic Mesh, nor a Rest Shape Key Blender reads) is
+    ``frames.rest_length_factor``'s, which a sequence's rest shares."""
     for index, modifier in enumerate(obj.modifiers):
         if modifier.type != 'CLOTH' or not modifier.show_viewport:
             continue
-        before = [m for m in list(obj.modifiers)[:index] if m.show_viewport]
-        if modifier.settings.use_dynamic_mesh or any(
-                m.type in modifier_kinds.GENERATE_MODIFIERS or moves_vertices(m) for m in before):
-            return False, None
-        return True, modifier.settings.rest_shape_key
-    return True, None
+        return not any(m.type in modifier_kinds.GENERATE_MODIFIERS or moves_vertices(m)
+                       for m in list(obj.modifiers)[:index] if m.show_viewport)
+    return True
 
 
 def basis_rest(obj, space, first, triangles) -> dict:
@@ -69,25 +64,25 @@ def basis_rest(obj, space, first, triangles) -> dict:
     deviation from (``rest_pose`` of ``core.Interpolator``), in ``space``
     (:class:`bridge.world_space.WorldProportions`, the poses'): the shape a cloth's keys were
     simulated from, a character's keys are made on. That is the Basis of ``obj``'s relative shape keys
-    (the reference key), or the cloth's Rest Shape Key where one is set (:func:`cloth_rest_key`), its
-    edges scaled by 1 − Shrinking (``frames.rest_length_factor``: the cloth's springs are that much
-    shorter than the mesh's edges). Without it the poses' deviation is the least they can have from
+    (the reference key), its edges scaled by 1 − Shrinking (``frames.rest_length_factor``: the cloth's
+    springs are that much shorter than the mesh's edges). A cloth's Rest Shape Key is not it: Blender
+    4.2–5.0 read that key only behind a modifier that makes a new mesh (``frames.cloth_rest_is_input``),
+    where the Basis is no rest either. Without it the poses' deviation is the least they can have from
     any rest they share, and poses 2–3 % off their rest but nearer each other are warned within issue
-    17's edge bound. ``{}`` (that least deviation, as without a rest, and nothing said) where no key is
-    the rest: absolute keys without a Rest Shape Key (*Relative* off: the Basis is the first pose
-    Evaluation Time plays, not a rest), a cloth whose rest no key holds (:func:`cloth_rest_key`), a
-    Shrinking vertex group between two factors, or where the core would refuse the rest against the
-    first pose ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half its size
+    17's edge bound. ``{}`` (that least deviation, as without a rest, and nothing said) where the Basis
+    is not the rest: absolute keys (*Relative* off: the Basis is the first pose Evaluation Time plays,
+    not a rest), a cloth given another mesh than the Basis (:func:`cloth_input_is_basis`) or whose
+    springs are not built from it (Dynamic Mesh, a Shrinking vertex group between two factors:
+    ``frames.rest_length_factor``), or where the core would refuse the rest against the first pose
+    ``first`` (n, 3, in ``space``) over ``triangles`` (m, 3): past 2 × or under half its size
     (``core.rest_pose_scale``), where it is not that pose's rest."""
     from .frames import rest_length_factor
 
     keys = obj.data.shape_keys
-    usable, rest_key = cloth_rest_key(obj)
     factor = rest_length_factor(obj)
-    if not usable or factor is None or (rest_key is None and not keys.use_relative):
+    if factor is None or not keys.use_relative or not cloth_input_is_basis(obj):
         return {}
-    rest = space.to(mesh_data.stored_key_positions(rest_key) if rest_key is not None else
-                    mesh_data.shape_key_positions(keys.key_blocks[0], obj))
+    rest = space.to(mesh_data.shape_key_positions(keys.key_blocks[0], obj))
     return rest_option(rest, factor, first, triangles)
 
 

@@ -9,7 +9,7 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-from blender_scenes import (armature_scene, cloth_scene, evaluated_frames, grid_object,  # noqa: E402
+from blender_scenes import (add_key, armature_scene, cloth_scene, evaluated_frames, grid_object,  # noqa: E402
                             dynamic_paint_wave_scene, key_names, sheet_easing_off_scale_keyframed, simulation_zone_scene,
                             snapshot,
                             turning_sheet_scale_keyframed,
@@ -330,6 +330,25 @@ def _median_edge_ratio(a, b, triangles) -> float:
     return float(np.median(lengths[0] / lengths[1]))
 
 
+def _rests_of_a_shrinking_cloth(bridge, obj, core, monkeypatch, start: int, shrink: float) -> list:
+    """The rests In-between Frames and Retime of frames ``start``–13 every 4th of ``obj``, a cloth baked
+    with Shrinking ``shrink``, give the sequences they make (the list, from then on), each checked: one
+    per operator, its edges 1 − ``shrink`` times frame 1's (the springs' rest lengths) and within 1 % of
+    frame 5's (the cloth keeps them)."""
+    frames = evaluated_frames(bridge, obj, [1, 5])
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=start, frame_end=13, frame_step=4, count=1,
+                                               output='SHAPE_KEYS')
+    obj.shape_key_clear()
+    bpy.ops.shape_differences.retime(frame_start=start, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
+    assert len(given) == 2 and all(rest is not None for rest in given)
+    for rest in given:
+        assert _median_edge_ratio(rest, frames[1], triangles) == pytest.approx(1.0 - shrink, rel=1e-6)
+        assert _median_edge_ratio(rest, frames[5], triangles) == pytest.approx(1.0, abs=1e-2)
+    return given
+
+
 @pytest.mark.parametrize("shrink", [0.7, 0.1, -0.2])
 def test_operators_inside_a_shrinking_simulation_measure_edges_from_its_rest_lengths(bpy_empty, extension, core,
                                                                                      monkeypatch, shrink):
@@ -342,18 +361,7 @@ def test_operators_inside_a_shrinking_simulation_measure_edges_from_its_rest_len
     Shrinking vertex group (the factor differs over the mesh) is given no rest."""
     obj = cloth_scene(frames=13)
     _rebaked(obj, shrink)
-    bridge = extension.bridge
-    frames = evaluated_frames(bridge, obj, [1, 5])
-    triangles = bridge.triangulation.mesh_triangles(obj.data)
-    given = _rests_given_to_every_sequence(core, monkeypatch)
-    bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=13, frame_step=4, count=1,
-                                               output='SHAPE_KEYS')
-    obj.shape_key_clear()
-    bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
-    assert len(given) == 2 and all(rest is not None for rest in given)
-    for rest in given:
-        assert _median_edge_ratio(rest, frames[1], triangles) == pytest.approx(1.0 - shrink, rel=1e-6)
-        assert _median_edge_ratio(rest, frames[5], triangles) == pytest.approx(1.0, abs=1e-2)
+    given = _rests_of_a_shrinking_cloth(extension.bridge, obj, core, monkeypatch, 5, shrink)
     obj.shape_key_clear()
     group = obj.vertex_groups.new(name="Shrink")
     group.add(list(range(len(obj.data.vertices) // 2)), 1.0, 'REPLACE')
@@ -363,6 +371,74 @@ def test_operators_inside_a_shrinking_simulation_measure_edges_from_its_rest_len
     given.clear()
     bpy.ops.shape_differences.retime(frame_start=5, frame_end=13, frame_step=4, speed=0.5, output='SHAPE_KEYS')
     assert len(given) == 1 and given[0] is None
+
+
+def _cloth_with_rest_key(before: str | None, gravity: float):
+    """The cloth of :func:`cloth_scene` with a Rest Shape Key 1.05 × its Basis (value 0: the mesh shows
+    the Basis), ``before`` ('WELD': a Weld before the cloth, which makes a new mesh of the same vertices
+    (none is as near another as its merge distance); 'DYNAMIC': Dynamic Mesh on) and the scene's gravity
+    ``gravity`` along z, baked again."""
+    obj = cloth_scene(frames=13)
+    scene = bpy.context.scene
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.free_bake_all()
+    basis = np.array([vertex.co[:] for vertex in obj.data.vertices])
+    key = add_key(obj, "Rest", 1.05 * basis)
+    key.value = 0.0
+    settings = obj.modifiers["Cloth"].settings
+    settings.rest_shape_key = key
+    if before == 'WELD':
+        obj.modifiers.new("Weld", 'WELD')
+        obj.modifiers.move(1, 0)
+    settings.use_dynamic_mesh = before == 'DYNAMIC'
+    scene.gravity = (0.0, 0.0, gravity)
+    with bpy.context.temp_override(scene=scene):
+        bpy.ops.ptcache.bake_all(bake=True)
+    scene.frame_set(1)
+    return obj
+
+
+
+
+@pytest.mark.parametrize("before", [None, 'WELD', 'DYNAMIC'])
+def test_a_cloths_rest_shape_key_counts_only_behind_a_modifier_that_makes_a_new_mesh(bpy_empty, extension, core,
+                                                                                    monkeypatch, before):
+    """A cloth with a Rest Shape Key 1.05 × its Basis, baked without gravity: with nothing before the cloth
+    Blender reads no such key (its cloth modifier copies the key only where it is given no mesh, which a
+    deform-only stack never does) and the cloth keeps frame 1's edges (its rest); behind a Weld (a
+    modifier that makes a new mesh, here of the same vertices) it reads the key and grows to 1.05 × them. In-between Frames 5–13 of the same cloth falling
+    measures the warnings from frame 1 in the first case, from no rest (the first key stands for it) in the
+    second and with Dynamic Mesh (the springs follow the mesh at every frame). Before, frame 1 was
+    given in all three."""
+    bridge = extension.bridge
+    if before != 'DYNAMIC':
+        obj = _cloth_with_rest_key(before, 0.0)
+        frames = evaluated_frames(bridge, obj, [1, 13])
+        triangles = bridge.triangulation.mesh_triangles(obj.data)
+        assert _median_edge_ratio(frames[13], frames[1], triangles) == pytest.approx(1.0 if before is None else 1.05,
+                                                                                    abs=2e-3)
+        bpy.ops.wm.read_homefile(use_empty=True)
+    obj = _cloth_with_rest_key(before, -9.81)
+    first = evaluated_frames(bridge, obj, [1])[1]
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=5, frame_end=13, frame_step=4, count=1,
+                                               output='CACHE')
+    assert len(given) == 1
+    if before is None:
+        np.testing.assert_allclose(given[0], first, atol=TOLERANCE)
+    else:
+        assert given[0] is None
+
+
+def test_operators_from_a_shrinking_simulations_first_frame_measure_edges_from_its_rest_lengths(
+        bpy_empty, extension, core, monkeypatch):
+    """The cloth of :func:`cloth_scene` with Shrinking 0.1, In-between Frames and Retime of 1–13, from the
+    simulation's first frame: the first key is the mesh the cloth starts from, its springs 0.9 × its
+    edges, and the warnings measure from those (the rest given: frame 1 scaled by 0.9, within 1 % of the
+    later keys' edges; before, none: the first key stood for the rest, every later key 11 % off it)."""
+    obj = cloth_scene(frames=13)
+    _rebaked(obj, 0.1)
+    _rests_of_a_shrinking_cloth(extension.bridge, obj, core, monkeypatch, 1, 0.1)
 
 
 def _cloth_scaled_before(first_scale):
