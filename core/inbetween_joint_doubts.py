@@ -41,6 +41,14 @@ the other piece (numbers in docs/inbetween-measurements.md, *Joints the keys do 
   the mate's half-way; or both gears past a half turn, which roll on each other taken the other
   way round and not as read (16 and 12 teeth turned +200° / −267°, read −160° / +93°: 0.50 of
   the diagonal off).
+- **pieces each on an axle through them, jointed** (:func:`_spun_jointed`, :data:`AXLE_SHARE`):
+  a joint held between two pieces that each turn about their own axis through them, as meshing
+  gears turned less than their teeth resolve (the same vertex pairs touching in both keys) or
+  coarse pieces spinning side by side within an edge of each other do; two poses fit both readings
+  (rolling turns about the contact to first order, as a hinge does), and the joint is kept (gears of
+  8 and 4 teeth turned 11°: 3.0e-2 of the diagonal off at ×2; cubes 0.1 apart turning −30° / 45°:
+  9.9e-2), read between two keys alone. Two gears of equal teeth both past a half turn are not among these: their keys are those
+  of the gears turned the short way, to rounding.
 """
 
 from __future__ import annotations
@@ -51,8 +59,9 @@ import numpy as np
 
 from . import screw_motions
 from .deformation_fields import rotation_vectors
-from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, composed, contact_reach, joint_groups,
-                               nearest_pairs, relative_motions, screw_axes, slide_precision)
+from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about,
+                               composed, contact_reach, joint_groups, nearest_pairs,
+                               relative_motions, screw_axes, slide_precision)
 from .inbetween_rigid_fits import turn_spread
 from .rotation_continuity import either_way
 
@@ -77,6 +86,13 @@ JOINT_STAKE = 3.0
 #: joint by more than this share of the piece's size: below it the two placements are one to the eye
 #: (80 sequins overlapping on a rolled sheet: 1.6e-4; a curled chain taking passing links: 9e-3 and more).
 JOINT_LOOP_SHARE = 1e-3
+#: Two jointed pieces each turn about an axle through them (:func:`_spun_jointed`, the gap warns)
+#: where each one's own screw axis passes within this share of its contact's distance from its
+#: centroid: gears on their axles and coarse pieces spinning about their centres 0 (≤ 4e-14 over
+#: the probes' 168 pieces); a link turning about its far end, where it meets the next, ties at 1
+#: (arm probe seed 1, no. 30: 0.93, beside a link whose own turn happened to pass 0.23 from its
+#: centroid); a knob turning on a lever's end 6–11.
+AXLE_SHARE = 0.5
 
 
 @dataclass
@@ -106,10 +122,13 @@ class JointDoubts:
     # signed about the piece's axis as read: its read ± 2π, which the keys give as exactly as the read)
     rolled_read: float = 0.0  # that piece's turn as read (radians, the short way round: ≥ 0 about its axis)
     rolled_excess: float = 0.0  # the farthest a told turn is from the one read ÷ a half turn (over 1)
-
+    spun: int = 0  # jointed pieces that each turn about their own axis through them (_spun_jointed)
+    spun_share: float = 0.0
+    spun_excess: float = 0.0  # the farthest such placement ÷ the one warned past (JOINT_LOOP_SHARE, JOINT_STAKE)
 
     def __bool__(self) -> bool:
-        return bool(self.apart or self.looped or self.sliding or self.rounded or self.carried or self.rolled)
+        return bool(self.apart or self.looped or self.sliding or self.rounded or self.carried or self.rolled
+                    or self.spun)
 
 
 def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | None, reach: float,
@@ -186,6 +205,8 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
                 doubts.sliding_share = float(np.max(stake[off] / size[child[sliding][off]]))
     _links_apart(doubts, base, nxt, index, label, pieces, (rotations, translations), reach, edges, misfits, size,
                  group, stakes)
+    if two_poses and screws is not None and joints is not None and key.size:
+        _spun_jointed(doubts, c, base, joints[0], screws[pieces], size, stakes)
     if screws is not None and key.size:
         _rolled_the_other_way(doubts, c, nxt, screws[pieces], contact_reach(reach, edges, pieces[u], pieces[v]), size,
                               group, turn_spread(misfits[pieces] / size))
@@ -440,12 +461,8 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     piece turning a half turn (within its ``spread`` (R,): either way) is warned of as such
     elsewhere."""
     u, v, precision = c.u, c.v, c.precision
-    w, moved = screws[:, :3], screws[:, 3:]
-    theta = np.linalg.norm(w, axis=1)
-    safe = np.where(theta > 0, theta, 1.0)
-    axis = w / safe[:, None]
-    point = np.cross(w, moved) / (safe ** 2)[:, None]  # a point of each screw's axis (ω × v / θ²)
-    slide = np.abs(np.einsum("ka,ka->k", moved, axis))
+    w = screws[:, :3]
+    theta, axis, point, slide = _own_axes(screws)
     smaller = np.minimum(size[u], size[v])
     tilt = np.linalg.norm(np.cross(axis[u], axis[v]), axis=1)
     asked = ((c.nearest <= finer) & (group[u] != group[v]) & (theta[u] * size[u] > precision)
@@ -496,6 +513,72 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     doubts.rolled = len(rolled)
 
 
+def _own_axes(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per screw ``(ω, v)`` (R, 6), its angle θ = |ω| (R,), unit axis (R, 3; ω itself where θ = 0), a
+    point of its axis ``ω × v / θ²`` (R, 3) and its slide along the axis ``|v · ω̂|`` (R,)."""
+    w, moved = screws[:, :3], screws[:, 3:]
+    theta = np.linalg.norm(w, axis=1)
+    safe = np.where(theta > 0, theta, 1.0)
+    axis = w / safe[:, None]
+    return theta, axis, np.cross(w, moved) / (safe ** 2)[:, None], np.abs(np.einsum("ka,ka->k", moved, axis))
+
+
+def _spun_jointed(doubts: JointDoubts, c: Contacts, base: np.ndarray, parents: np.ndarray, screws: np.ndarray,
+                  size: np.ndarray, stakes: _Stakes) -> None:
+    """Count in ``doubts`` the jointed pieces (``parents`` (C,): the joint tree's) of the touching
+    pairs of ``c`` that each turn about their own axis through them: each piece's own screw
+    (``screws`` (R, 6), as the in-betweens take them) turns without sliding along its axis (to the
+    pair's slide precision over the piece's ``size`` (R,)) and passes nearer the piece's centroid
+    (in ``base``) than the contact (:func:`core.inbetween_joints._turns_about` false), and within
+    :data:`AXLE_SHARE` of the contact's distance from the centroid (an axle through it), where the
+    joint places the child otherwise than its own screw half-way (``stakes``) by more than
+    :data:`JOINT_STAKE` × the precision and :data:`JOINT_LOOP_SHARE` of its size. Two poses fit
+    both readings: meshing gears turned less than their teeth are resolved (the contact's place moves
+    with both gears by under an edge), or pieces spinning side by side within an edge of each other,
+    turn relative to each other about a point of their contact as a hinge's pieces do, and a hinge
+    whose two pieces happen to turn about axles through them reads the same (warned too: the keys
+    do not tell). A link turning about its far end, where it meets the next, ties at the share's 1,
+    a knob turning on a lever's end at 6–11: neither is read so. Read only where the gap reads its
+    two keys alone (:func:`joint_doubts`' ``two_poses``): a smooth sequence splines the joint's
+    relative screw across the keys, which follows the roll, and the two poses' stake overstates
+    where it places the child (involute gears keyed 5°–12° a key: gaps 1.9e-6 of the diagonal off
+    read past it)."""
+    u, v, precision = c.u, c.v, c.precision
+    pieces = c.pieces
+    forward = parents[pieces[v]] == pieces[u]
+    held = forward | (parents[pieces[u]] == pieces[v])
+    if not held.any():
+        return
+    theta, axis, point, slide = _own_axes(screws)
+    spinning = held & (theta[u] * size[u] > precision) & (theta[v] * size[v] > precision) \
+        & (slide[u] <= precision) & (slide[v] <= precision)
+    if not spinning.any():
+        return
+    pairs = np.flatnonzero(spinning)
+    centres = _piece_centres(base, c.index, c.label)[0]
+    contact = c.nearest_at[pairs]
+    # each on an axle through it: its own axis passes nearer its centroid than the contact
+    # (_turns_about false) and within AXLE_SHARE of the contact's distance from the centroid (a
+    # gear's axle, a cube's centre: 0); a link turning about its far end ties there (1), a knob
+    # turning on a lever's end turns about a point out beyond it (6–11)
+    through = ~_turns_about(contact, centres, c.rotations, c.translations, u[pairs], v[pairs])
+    for k in (u[pairs], v[pairs]):
+        off_axis = np.linalg.norm(np.cross(centres[k] - point[k], axis[k]), axis=1)
+        through &= off_axis < AXLE_SHARE * np.linalg.norm(contact - centres[k], axis=1)
+    pairs = pairs[through]
+    if not pairs.size:
+        return
+    parent = np.where(forward[pairs], u[pairs], v[pairs])
+    child = np.where(forward[pairs], v[pairs], u[pairs])
+    stake = stakes.distances(parent, child)
+    allowed = np.maximum(JOINT_STAKE * precision[pairs], JOINT_LOOP_SHARE * size[child])
+    off = stake > allowed
+    if off.any():
+        doubts.spun = int(np.unique(np.r_[parent[off], child[off]]).size)
+        doubts.spun_share = float(np.max(stake[off] / size[child[off]]))
+        doubts.spun_excess = float(np.max(stake[off] / allowed[off]))
+
+
 def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -> list[tuple[str, float]]:
     """The warnings ``(message, excess)`` of gap ``gap`` of a sequence about its rigid pieces'
     joints (:func:`joint_doubts`); ``key_names``: the keys as warnings name them. ``excess``
@@ -504,7 +587,8 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
     found within; joints in a loop, the placement apart ÷ the one warned past; joints within
     rounding, their slide tolerance ÷ :data:`JOINT_DOUBT`; carriers the keys do not tell, the
     placement apart ÷ the one warned past; gears turned the other way round, how far
-    the turn their roll tells is from the one read ÷ a half turn. Sliding joints have no allowance (not
+    the turn their roll tells is from the one read ÷ a half turn; pieces each on an axle through them,
+    jointed, the placement apart ÷ the one warned past. Sliding joints have no allowance (not
     modelled: any slide is warned past the fits' precision): 0."""
     if not doubts:
         return []
@@ -554,4 +638,12 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                          "only to a whole turn): each moves by its own rigid motion, the short way (keys closer together, "
                          "each gear turning under a half turn between them, tell the way round)",
                          doubts.rolled_excess))
+    if doubts.spun:
+        problems.append((f"{between}, {doubts.spun} rigid piece(s) touch and each turn about their own axis through "
+                         "them, as meshing gears or pieces spinning side by side do, but turn relative to each other "
+                         "about where they touch, as jointed pieces do: they are moved as jointed, up to "
+                         f"{100 * doubts.spun_share:.2g} % of a piece's size from where each piece's own turn would "
+                         "take it half-way, and two keys do not tell which they are (pieces modelled more than an "
+                         "edge length apart are never jointed; gears turned by a tooth or more between keys, or "
+                         "a finer mesh where they touch, show their contact rolling)", doubts.spun_excess))
     return problems

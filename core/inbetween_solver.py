@@ -289,7 +289,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if len(topo.components) > 1:
             # what the joints leave untold (links apart, sliding joints, joints within rounding, gears
             # turned the other way round, carriers two poses or a sequence with no piece on one screw
-            # do not tell), the pieces of a body counted with its leader: the gap warns
+            # do not tell, pieces each on an axle through them jointed between two poses), the pieces
+            # of a body counted with its leader: the gap warns
             self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
                                              piece_edges, misfits, base.diagonals, self.bodies,
                                              not cubic, static, relatives[2].screw, departures)

@@ -1384,6 +1384,87 @@ def test_gears_turned_the_other_way_round_are_told_of_their_true_turn(train, deg
     assert f"turns one {turn:+d}° where the keys, read the short way round, turn it {read:+d}°" in said[0], said
 
 
+def _spun_share(caught):
+    """The share of a piece's size (a fraction) the warning of jointed pieces each turning about
+    their own axis gives, or None where it is not given."""
+    said = [str(w.message) for w in caught if "each turn about their own axis through them" in str(w.message)]
+    assert len(said) <= 1, said
+    return float(said[0].split("up to ")[1].split(" %")[0]) / 100.0 if said else None
+
+
+def _off_own_turns(pose, truth, rows):
+    """Per piece (``rows``: each piece's vertex rows), the farthest its vertices in ``pose`` are from
+    ``truth`` ÷ the piece's bounding-box diagonal."""
+    return [float(np.linalg.norm(pose[r] - truth[r], axis=1).max() / np.linalg.norm(np.ptp(truth[r], axis=0)))
+            for r in rows]
+
+
+@pytest.mark.parametrize("degrees", [4.0])
+def test_meshing_gears_turned_too_little_to_show_their_roll_are_warned(degrees):
+    """The two-gear train with the large gear turned 4° (the small one −8°), under a quarter of a
+    tooth: the same vertex pairs touch in both keys and their centre moves with the gears, so the
+    contact reads as carried and the small gear hangs from the large one at it, as a hinge's child
+    does; two poses fit that as well as each gear on its axle. Half-way it is off its axle's turn by
+    some 4 % of its size (3.9e-3 of the diagonal at ×2), silently before; now the gap warns, and the
+    share the warning gives is the small gear's distance from its own turn half-way (to the
+    difference between a gear's mass-weighted size and its bounding box). The large gear turns about
+    its axle, to 1e-6."""
+    a, tri, rows = _gear_train(0.0)
+    poses, caught = _poses_and_warnings(Interpolator(a, _gear_train(degrees)[0], tri), (0.5,))
+    share = _spun_share(caught)
+    assert share is not None, [str(w.message) for w in caught]
+    large, small = _off_own_turns(poses[0], _gear_train(0.5 * degrees)[0], rows)
+    assert large <= 1e-6
+    assert 1e-3 < small and 0.7 < share / small < 1.4, (share, small)
+
+
+@pytest.mark.parametrize("gap, turns", [(0.1, (20.0, 50.0)), (0.1, (-30.0, 45.0)), (0.2, (-30.0, 45.0))])
+def test_coarse_pieces_spinning_side_by_side_read_as_jointed_are_warned(gap, turns):
+    """:func:`_coarse_cubes_spinning` about parallel axes (the cells of session 74's probe left
+    jointed): the cubes' contact (their nearest vertices, within an edge in both keys) moves with
+    them by under an edge, so it reads as carried, and the second cube hangs from the first at it;
+    each turns about an axis through its centre, which the joint does not keep (5.7e-2–0.11 of the
+    diagonal off at × 2, silently before). Now the gap warns, the share it gives is the cube's
+    distance from its own turn half-way, and the first cube turns about its own centre, to 1e-6."""
+    a, tri = _coarse_cubes_spinning(0.0, gap, turns, 0.0)
+    poses, caught = _poses_and_warnings(Interpolator(a, _coarse_cubes_spinning(1.0, gap, turns, 0.0)[0], tri), (0.5,))
+    share = _spun_share(caught)
+    assert share is not None, [str(w.message) for w in caught]
+    off = _off_own_turns(poses[0], _coarse_cubes_spinning(0.5, gap, turns, 0.0)[0], (np.arange(8), np.arange(8, 16)))
+    assert min(off) <= 1e-6
+    assert 1e-3 < max(off) and 0.7 < share / max(off) < 1.4, (share, off)
+
+
+def _knob_on_lever(s, lever_turn):
+    """A lever (a box 2 × 0.2 × 0.2 of three cells a side from the origin along x) turning by ``s`` ×
+    ``lever_turn`` degrees about z at the origin, and a knob (a box 0.16 across) on its far end,
+    touching it, turning on its own axle there by ``s`` × (180 − ``lever_turn``)°: a half turn in
+    all. Vertices, triangles."""
+    lever, lever_triangles = cube(3)
+    lever = lever * [1.0, 0.1, 0.1] + [1.0, 0.0, 0.0]
+    knob, knob_triangles = cube(2)
+    knob = knob * 0.08 + [1.9, 0.0, 0.18]
+    turn = lambda degrees: Rotation.from_rotvec([0.0, 0.0, np.radians(degrees)]).as_matrix()
+    knob = _rigid(knob, turn(s * (180.0 - lever_turn)), np.array([1.9, 0.0, 0.0]))
+    x = np.vstack([_rigid(lever, turn(s * lever_turn), np.zeros(3)), _rigid(knob, turn(s * lever_turn), np.zeros(3))])
+    return x, np.vstack([lever_triangles, knob_triangles + len(lever)])
+
+
+@pytest.mark.parametrize("rig, turn", [("knob", 100.0), ("knob", 130.0), ("gears", 9.0), ("gears", 30.0)])
+def test_jointed_pieces_and_gears_read_right_are_not_warned_of_turning_each_about_their_own_axis(rig, turn):
+    """The counterparts: a knob jointed to a turning lever's end (the lever turned 100° / 130°, the
+    knob 80° / 50° on it), whose own turn is about a point beyond it, 1.5–1.7 from the knob 0.16
+    across, not an axle through it (a first reading of the rule warned it); and the gear train
+    turned 9° / 30°, its contact rolling, each gear on its axle. Every factor of two poses is the
+    rig's, to 1e-6, and no warning of pieces each turning about their own axis."""
+    rig = _knob_on_lever if rig == "knob" else (lambda s, turn: _gear_train(s * turn)[:2])
+    a, tri = rig(0.0, turn)
+    poses, caught = _poses_and_warnings(Interpolator(a, rig(1.0, turn)[0], tri), FACTORS)
+    assert _spun_share(caught) is None, [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, rig(s, turn)[0], atol=1e-6 * np.linalg.norm(np.ptp(a, axis=0)))
+
+
 def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
     """Two separate links jointed end to end, the second's tip ``sunk`` into the first's (a box of
     one cell a face, 0.76 long, and a finely meshed ellipsoid 1.05 long: their surfaces cross where
