@@ -59,7 +59,11 @@ Metrics (per predicted frame, then median or mean over frames):
 - ``s/inb``: seconds per in-between (wall clock), the preparation of the keys included (``seq``:
   the whole ``SequenceInterpolator`` construction and every gap's ``poses`` divided by the
   in-betweens; ``pair``: one ``Interpolator`` construction and ``pose``), the least over the
-  repeats;
+  repeats. Each repeat is a first request of its keys: before every timed sequence the gap worker
+  (:mod:`core.gap_processes`) is started afresh and waited for until ready, outside the timing
+  (:func:`fresh_worker`), since a worker serves the same keys asked again from the sequence it
+  kept (nothing sent or built: cheaper than the user's first run, and the least of the repeats
+  would take it);
 - ``× bake``: its ratio to Blender's cloth bake per frame of the same scene, timed in this run:
   per scene ``--repeats`` K times (default 3, 1 with ``--quick``), interleaved — a bake in a child
   process (a fresh Blender builds the scene from its spec and bakes it; the cached frames are not
@@ -76,7 +80,9 @@ Metrics (per predicted frame, then median or mean over frames):
   bitwise repeatable); timing never needs it. A cache is otherwise re-baked only when its scene's
   parameters changed;
 - ``MB``: peak resident memory of a child process that prepares the keys and computes the
-  in-betweens of the sequence (``--memory``; the ``seq`` protocol's).
+  in-betweens of the sequence (``--memory``; the ``seq`` protocol's), its gap worker's added, and
+  what the child's peak holds (:class:`HeapWatch`: glibc's heap in use and freed but kept, the
+  libraries, the rest).
 """
 
 from __future__ import annotations
@@ -285,8 +291,10 @@ def cost_ratio(ours, bake) -> dict:
     Least ÷ least because load from other processes only ever adds time: each side's least over
     the repeats is its nearest to its cost on an idle machine, whereas a per-repeat ratio mixes
     two moments of a shared machine (three runs of the balloon at g = 4 under load: least ÷ least
-    0.080–0.105, the per-repeat ratios' median 0.101–0.149). The per-repeat range (which always
-    contains the ratio when both sides have every repeat) shows how far a single run could land."""
+    0.080–0.105, the per-repeat ratios' median 0.101–0.149). Every repeat is a first request of its
+    keys (:func:`fresh_worker`): the least is no repeat's discount. The per-repeat range
+    (which always contains the ratio when both sides have every repeat) shows how far a single run
+    could land."""
     ours, bake = np.asarray(ours, dtype=float), np.asarray(bake, dtype=float)
     if ours.size == 0 or bake.size == 0 or not (bake > 0).all():
         raise ValueError(f"cost_ratio needs timings and positive bake times: ours {ours}, bake {bake}")
@@ -308,12 +316,42 @@ def _middle_pose(a, b, triangles):
 
 def _time_sequence(keys, triangles, factors, **options):
     """Every in-between of a sequence with its keys' preparation: ``(predicted, wall, cpu)``;
-    ``options`` go to ``SequenceInterpolator`` (none: its defaults, the ``seq`` protocol)."""
+    ``options`` go to ``SequenceInterpolator`` (none: its defaults, the ``seq`` protocol). Each
+    call is a first request of its keys: :func:`fresh_worker` before the timing."""
     def compute():
         seq = SequenceInterpolator(keys, triangles, **options)
         return [_poses(seq, k, factors) for k in range(len(seq))]
 
+    fresh_worker(np.shape(keys[0])[0], len(keys) - 1)
     return _timed(compute)
+
+
+def fresh_worker(vertices: int, gaps: int, timeout: float = 120.0) -> bool:
+    """Before a timed sequence of ``vertices`` vertices and ``gaps`` key gaps, outside the timing: the
+    session's gap worker (:mod:`core.gap_processes`) ended and, where the sequence will share its
+    gaps, a new one started and waited for until ready.
+
+    A worker keeps the last sequence it built and serves the same keys asked again from it (nothing
+    sent or built, its caches warm), so the repeats of one cell timed back to back (a run of one
+    gap) would time a cheaper run than a user's first, and the least of the repeats would take it
+    (measured: docs/benchmarks.md, *How the cost column is measured*). A worker that has seen no
+    keys makes each repeat a first request, as an operator's run on new keys meets it (the
+    operators start the worker before reading the keys), or a script's after the worker was idle
+    for :data:`core.gap_worker.IDLE_SECONDS`; a fresh one cannot keep anything, whatever the
+    worker's rules for taking a job become. Returns whether a worker is ready (False for a core
+    without one, or a sequence that shares no gaps)."""
+    try:
+        from core import gap_processes
+    except ImportError:
+        return False
+    gap_processes.shut_down()
+    if not gap_processes.start_worker(int(vertices), int(gaps)):
+        return False
+    worker = gap_processes._worker
+    deadline = time.monotonic() + timeout
+    while worker is not None and worker.alive and not worker.ready and time.monotonic() < deadline:
+        time.sleep(0.005)
+    return worker is not None and worker.alive and worker.ready
 
 
 def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), repeats: int = 1,
@@ -453,20 +491,95 @@ def format_timing(entries: list[dict]) -> str:
             f"{cpu.min():.3f} s (CPU ÷ wall {span(cpu / wall, 2)}); by CPU time × bake: {cells}")
 
 
-def peak_memory(name: str, gap: int) -> tuple[float, float, float]:
+class HeapWatch:
+    """What a process's resident memory holds at its peak (Linux with glibc: ``split`` is None
+    elsewhere). A thread of its own reads, every ``interval`` seconds, the resident set
+    (``/proc/self/status``: ``VmRSS``, of it ``RssFile``, the mapped libraries) and glibc's heap
+    (``mallinfo2``: bytes in use, bytes free but kept, bytes in blocks mapped on their own). At the
+    resident peak the heap's free bytes are memory the process freed and the allocator kept: holes
+    between blocks still in use, which the heap cannot hand back, and free memory at its top below
+    ``core.allocator.TRIM_THRESHOLD``; resident, counted by the peak, holding no data. The live peak
+    (in use plus mapped, at most) comes at another moment. Sampled: the resident peak read may lie
+    below the kernel's exact ``VmHWM`` by what one interval allocates and frees."""
+
+    def __init__(self, interval: float = 0.02):
+        import ctypes
+        import threading
+
+        class Mallinfo2(ctypes.Structure):
+            _fields_ = [(field, ctypes.c_size_t) for field in (
+                "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
+                "keepcost")]
+
+        try:
+            self._mallinfo = ctypes.CDLL("libc.so.6").mallinfo2
+            self._mallinfo.restype = Mallinfo2
+            open("/proc/self/status").close()
+        except (OSError, AttributeError):  # not Linux, or a C library without mallinfo2 (glibc before 2.33)
+            self._mallinfo = None
+        self.interval, self.peak, self.live = interval, None, 0.0
+        self._done = threading.Event()
+        self._thread = threading.Thread(target=self._watch, daemon=True, name="heap-watch")
+        if self.available:
+            self._thread.start()
+
+    @property
+    def available(self) -> bool:
+        """Whether this platform gives the split (Linux with glibc 2.33 or later)."""
+        return self._mallinfo is not None
+
+    def _sample(self) -> dict:
+        status = {}
+        for line in open("/proc/self/status"):
+            field, _, value = line.partition(":")
+            if field in ("VmRSS", "RssFile"):
+                status[field] = int(value.split()[0]) / 1024
+        heap = self._mallinfo()
+        mb = 1.0 / (1 << 20)
+        return {"resident": status["VmRSS"], "libraries": status["RssFile"], "heap_in_use": heap.uordblks * mb,
+                "heap_free": heap.fordblks * mb, "mapped": heap.hblkhd * mb}
+
+    def _watch(self) -> None:
+        while True:
+            sample = self._sample()
+            self.live = max(self.live, sample["heap_in_use"] + sample["mapped"])
+            if self.peak is None or sample["resident"] > self.peak["resident"]:
+                self.peak = sample
+            if self._done.wait(self.interval):
+                return
+
+    def split(self) -> dict | None:
+        """Stop watching; the sample at the resident peak (MB: ``resident``, ``libraries``,
+        ``heap_in_use``, ``heap_free``, ``mapped``, and ``other``: the rest, the interpreter's own
+        small-object arenas, thread stacks, BLAS buffers) and ``live_peak``, the most the heap held
+        in use plus mapped at any sample; None where nothing could be read."""
+        if not self.available:
+            return None
+        self._done.set()
+        self._thread.join()
+        if self.peak is None:  # the thread read nothing (a /proc without the fields)
+            return None
+        peak = dict(self.peak)
+        peak["other"] = peak["resident"] - peak["libraries"] - peak["heap_in_use"] - peak["heap_free"] - peak["mapped"]
+        peak["live_peak"] = self.live
+        return peak
+
+
+def peak_memory(name: str, gap: int) -> tuple[float, float, float, dict | None]:
     """Peak resident memory (MB, the kernel's ``VmHWM`` of the child's own address space:
     ``ru_maxrss`` would keep the parent's across ``exec``) of a child process that loads scene
     ``name``, prepares its keys (every ``gap``-th frame) and computes every in-between of the
-    sequence; its baseline after loading and the imports too; and the peak of the gap worker it
+    sequence; its baseline after loading and the imports too; the peak of the gap worker it
     shared gaps with (:mod:`core.gap_processes`; 0 where none ran), read before the child ends:
-    the two peaks' sum bounds what the sequence held at once."""
+    the two peaks' sum bounds what the sequence held at once; and what the child's peak holds
+    (:class:`HeapWatch`; None off glibc)."""
     code = f"""
-import sys, warnings
+import json, sys, warnings
 sys.path.insert(0, {str(ROOT)!r})
 import numpy as np
 from benchmarks.cloth_scenes import load_scene
 from core.sequence_inbetweens import SequenceInterpolator
-from benchmarks.bench_inbetween import _poses
+from benchmarks.bench_inbetween import HeapWatch, _poses
 scene = load_scene({name!r})
 keys = np.ascontiguousarray(scene.frames[::{gap}]); triangles = scene.triangles
 del scene
@@ -477,15 +590,27 @@ def peak(pid="self"):
             return int(line.split()[1]) / 1024
 base = peak()
 warnings.simplefilter("ignore")
+watch = HeapWatch()
 seq = SequenceInterpolator(keys, triangles)
 for k in range(len(seq)):
     _poses(seq, k, np.arange(1, {gap}) / {gap})
 worker = gap_processes._worker
-print(base, peak(), peak(worker.process.pid) if worker is not None and worker.alive else 0.0)
+split = watch.split()
+print(json.dumps([base, peak(), peak(worker.process.pid) if worker is not None and worker.alive else 0.0, split]))
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    base, peak, worker = map(float, out.stdout.split()[-3:])
-    return base, peak, worker
+    base, peak, worker, split = json.loads(out.stdout.splitlines()[-1])
+    return base, peak, worker, split
+
+
+def format_split(split: dict | None) -> str:
+    """``peak_memory``'s split of the caller's peak, for the line under a scene ('' off glibc)."""
+    if split is None:
+        return ""
+    return (f"; at its peak (sampled {split['resident']:.0f} MB) glibc's heap {split['heap_in_use']:.0f} MB in use "
+            f"and {split['heap_free']:.0f} MB freed but kept, blocks mapped on their own {split['mapped']:.0f} MB, "
+            f"libraries {split['libraries']:.0f} MB, the rest {split['other']:.0f} MB; the heap's live peak "
+            f"{split['live_peak']:.0f} MB")
 
 
 def analytic_sheet_memory(side: int = 317, n_keys: int = 6, gap: int = 16) -> tuple[float, float, float]:
@@ -700,10 +825,11 @@ def main(argv=None, *, bake_timer=None):
                              bake_timer=bake_timer,
                              max_pairs=8 if args.quick or name in PAIR_SAMPLED_SCENES else None)
         if args.memory and name in LARGE_SCENES:
-            base, peak, worker = peak_memory(name, min(args.gaps))
+            base, peak, worker, split = peak_memory(name, min(args.gaps))
             print(f"  {name}: peak memory {peak + worker:.0f} MB (this process {peak:.0f}, after loading and "
-                  f"imports {base:.0f}; the gap worker {worker:.0f}), gap {min(args.gaps)}")
+                  f"imports {base:.0f}; the gap worker {worker:.0f}), gap {min(args.gaps)}{format_split(split)}")
             results[-1]["memory_mb"] = peak + worker
+            results[-1]["memory_split"] = split
     if args.memory:
         base, peak, seconds = analytic_sheet_memory()
         print(f"  analytic sheet, 100,489 vertices, 6 keys, 15 in-betweens per gap: peak memory {peak:.0f} MB "

@@ -4,6 +4,7 @@ frames. Blender and the clocks are replaced by stubs: these tests check the prot
 never a speed."""
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -147,6 +148,46 @@ def test_repeats_that_give_other_in_betweens_stop_the_run(fake_scene, monkeypatc
     with pytest.raises(RuntimeError, match="repeat 2 gives other in-betweens"):
         bench.run_scene("fake", [4], protocols=("seq",), repeats=2, bake_timer=lambda name: (1.0, 1.0),
                         log=lambda line: None)
+
+
+def test_every_repeat_times_a_first_request_of_its_keys(fake_scene, monkeypatch):
+    """The gap worker keeps the last sequence it built and serves the same keys asked again from it
+    (nothing sent, nothing built): each repeat's sequence must meet a worker that has not seen its
+    keys, ready before the timing, as a user's first request does. Every repeat here gives the
+    worker a job with the keys, a worker of each repeat's own; before, the first repeat's worker
+    was still starting and took no job, and the third repeat's job went without the keys, served
+    from the second's sequence (with bakes shorter than the worker's start no repeat gave it a job
+    at all)."""
+    from core import concurrency, gap_processes
+
+    monkeypatch.setattr(gap_processes, "CONCURRENT_VERTICES", 0)  # the 64-vertex sheet shares its gaps
+    monkeypatch.setattr(concurrency, "available_cores", lambda: 2)
+    monkeypatch.setattr(concurrency, "USE_PROCESSES", True)
+    monkeypatch.setattr(gap_processes, "_unstartable", False)
+    gap_processes.shut_down()
+    cloth_scenes.load_scene("fake")
+    jobs = []  # per repeat: (worker's process id, whether the keys were sent) of each job
+    submit = gap_processes._Worker.submit
+
+    def recorded(self, job, token, arguments):
+        jobs[-1].append((self.process.pid, self.kept != token))  # the keys are sent unless it keeps them
+        return submit(self, job, token, arguments)
+
+    def stub_timer(name):
+        jobs.append([])  # a repeat begins with its bake, which takes seconds: a worker started is ready after it
+        worker, deadline = gap_processes._worker, time.monotonic() + 120
+        while worker is not None and worker.alive and not worker.ready and time.monotonic() < deadline:
+            time.sleep(0.01)
+        return 1.0, 1.0
+
+    monkeypatch.setattr(gap_processes._Worker, "submit", recorded)
+    try:
+        bench.run_scene("fake", [4], protocols=("seq",), repeats=3, bake_timer=stub_timer, log=lambda line: None)
+    finally:
+        gap_processes.shut_down()
+    assert len(jobs) == 3 and all(jobs), jobs  # a job in every repeat: the worker ready at its start
+    assert all(sent for repeat in jobs for _, sent in repeat), jobs  # never served from a kept sequence
+    assert len({pid for repeat in jobs for pid, _ in repeat}) == 3, jobs  # a worker of each repeat's own
 
 
 def test_options():
