@@ -66,23 +66,29 @@ def _first_simulated(movers: list) -> int | None:
                default=None)
 
 
-#: Blender's modifiers that only move vertices (its deform-only kind): a stack of these before a cloth
-#: hands it its vertices' positions alone, and there Blender 4.2–5.0 reads no Rest Shape Key
-#: (:func:`cloth_rest_is_input`).
+#: Blender's modifiers of its deform-only kind (``ModifierTypeType::OnlyDeform``: they hand the next one the
+#: same mesh, its positions changed or not): a stack of these alone before a cloth gives it no Rest Shape Key,
+#: in Blender 4.2–5.0 (:func:`cloth_rest_is_input`). A Particle System and a Surface (a force field's) are of
+#: that kind though they move nothing; a UV Project or a Normal Edit, which move nothing either, are not, and
+#: behind them the key is read (measured: docs/inbetween-measurements.md, *The cloth's Rest Shape Key*).
 DEFORM_ONLY_MODIFIERS = {'ARMATURE', 'CAST', 'CLOTH', 'COLLISION', 'CORRECTIVE_SMOOTH', 'CURVE', 'DISPLACE', 'HOOK',
-                         'LAPLACIANDEFORM', 'LAPLACIANSMOOTH', 'LATTICE', 'MESH_CACHE', 'MESH_DEFORM', 'SHRINKWRAP',
-                         'SIMPLE_DEFORM', 'SMOOTH', 'SOFT_BODY', 'SURFACE_DEFORM', 'WARP', 'WAVE'}
+                         'LAPLACIANDEFORM', 'LAPLACIANSMOOTH', 'LATTICE', 'MESH_CACHE', 'MESH_DEFORM',
+                         'PARTICLE_SYSTEM', 'SHRINKWRAP', 'SIMPLE_DEFORM', 'SMOOTH', 'SOFT_BODY', 'SURFACE',
+                         'SURFACE_DEFORM', 'WARP', 'WAVE'}
 
 
 def cloth_rest_is_input(obj, modifier) -> bool:
     """Whether the cloth ``modifier`` of ``obj`` builds its springs from the mesh it is given at its first
     frame (what the frames show there, its edges times 1 − Shrinking). Not with *Dynamic Mesh* (the springs
-    follow that mesh at every frame), nor with a *Rest Shape Key* set behind a modifier that makes a new mesh
-    (a Subdivision Surface, a Weld, Geometry Nodes: there Blender builds the springs from the key carried
-    through it). Behind deforming modifiers only (:data:`DEFORM_ONLY_MODIFIERS`) or none, Blender 4.2–5.0
-    read no Rest Shape Key: the cloth modifier copies the key only where it is given no mesh, which such a
-    stack never does (``MOD_cloth.cc``, ``deform_verts``), so the cloth's rest is that first frame whatever
-    the key (docs/inbetween-measurements.md, *The cloth's Rest Shape Key*)."""
+    follow that mesh at every frame), nor with a *Rest Shape Key* set behind any enabled modifier outside
+    :data:`DEFORM_ONLY_MODIFIERS` (a Subdivision Surface, a Weld, Geometry Nodes, even a UV Project): Blender
+    may build the springs from the key there (the modifier stack adds the key as a layer of the mesh before
+    the first such modifier and carries it through; those that rebuild the mesh through BMesh, an Edge Split
+    or a Triangulate, drop it, and the rest is then the first frame after all: no rest, cautious). Behind
+    deform-only modifiers or none, Blender 4.2–5.0 read no Rest Shape Key (the cloth modifier's own copy of
+    the key runs only where it is given no mesh, which never happens: ``MOD_cloth.cc``, ``deform_verts``),
+    so the cloth's rest is that first frame whatever the key (docs/inbetween-measurements.md, *The cloth's
+    Rest Shape Key*)."""
     settings = modifier.settings
     if settings.use_dynamic_mesh:
         return False
@@ -129,7 +135,8 @@ class SimulationRest:
     makes every key 11 % off it, and the warnings allow that much more misfit): its edges are scaled so,
     and so are the first key's where the range starts at the simulation's first frame. Where the factor
     is not one number or the springs are not built from that frame (:func:`rest_length_factor`: Dynamic
-    Mesh, a Rest Shape Key behind a modifier that makes a new mesh), no frame is read and none is given."""
+    Mesh, a Rest Shape Key behind a modifier not of Blender's deform-only kind), no frame is read and none
+    is given."""
 
     def __init__(self, scene, obj, start: int):
         self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start), []

@@ -66,10 +66,11 @@ def basis_rest(obj, space, first, triangles) -> dict:
     simulated from, a character's keys are made on. That is the Basis of ``obj``'s relative shape keys
     (the reference key), its edges scaled by 1 − Shrinking (``frames.rest_length_factor``: the cloth's
     springs are that much shorter than the mesh's edges). A cloth's Rest Shape Key is not it: Blender
-    4.2–5.0 read that key only behind a modifier that makes a new mesh (``frames.cloth_rest_is_input``),
-    where the Basis is no rest either. Without it the poses' deviation is the least they can have from
-    any rest they share, and poses 2–3 % off their rest but nearer each other are warned within issue
-    17's edge bound. ``{}`` (that least deviation, as without a rest, and nothing said) where the Basis
+    4.2–5.0 read that key only behind a modifier not of their deform-only kind
+    (``frames.cloth_rest_is_input``), where the Basis is no rest either (none is given there:
+    ``frames.rest_length_factor``). Without it the poses' deviation is the least they can have from any
+    rest they share, and poses 2–3 % off their rest but nearer each other are warned within issue 17's
+    edge bound. ``{}`` (that least deviation, as without a rest, and nothing said) where the Basis
     is not the rest: absolute keys (*Relative* off: the Basis is the first pose Evaluation Time plays,
     not a rest), a cloth given another mesh than the Basis (:func:`cloth_input_is_basis`) or whose
     springs are not built from it (Dynamic Mesh, a Shrinking vertex group between two factors:

@@ -533,7 +533,7 @@ def test_inbetween_measures_its_edge_warning_from_the_cloths_rest(posed, given_r
     """Where a cloth simulates the mesh, In-between gives ``core.Interpolator`` the rest the cloth
     builds its springs from: the Basis where a Rest Shape Key is set with nothing before the cloth
     (Blender reads no such key there: test_frame_operators.py,
-    ``test_a_cloths_rest_shape_key_counts_only_behind_a_modifier_that_makes_a_new_mesh``; before, the
+    ``test_a_cloths_rest_shape_key_counts_only_behind_a_modifier_not_of_blenders_deform_only_kind``; before, the
     key was given, 5 % off the springs), the Basis's edges scaled by 1 − Shrinking (0.1: springs 0.9 ×
     the mesh's edges), and none where no key is that rest: Dynamic Mesh on (the rest follows the
     modifiers before the cloth), a Subdivision Surface before the cloth (its rest is a mesh of other
