@@ -135,7 +135,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
                  joints: tuple | None, edges: np.ndarray, misfits: np.ndarray, sizes: np.ndarray,
                  bodies: np.ndarray | None = None, two_poses: bool = False,
                  pins: np.ndarray | None = None, screws: np.ndarray | None = None,
-                 departures: np.ndarray | None = None) -> JointDoubts | None:
+                 departures: np.ndarray | None = None, placements=None) -> JointDoubts | None:
     """The :class:`JointDoubts` of a gap between vertices ``base`` and ``nxt`` (n, 3) of ``topo`` (a
     ``core.inbetween_topology.Topology``), or None where it has none. ``touching``: the rigid
     pieces' :func:`core.inbetween_joints.contacts` between the keys (None: fewer than two);
@@ -151,7 +151,9 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     the other way round are not sought); ``departures`` (C,): in a smooth sequence, how far each
     piece's screws at the keys about the gap leave one screw
     (:func:`core.inbetween_carriers.screw_departures`, 0 where within its fits): a group whose root
-    leaves it has its carrier read as two poses' are (None: not read). Only pairs of pieces in
+    leaves it has its carrier read as two poses' are (None: not read), its two placements compared as
+    the gap places them (``placements``, given with ``departures``:
+    :meth:`core.inbetween_motion.PieceMotion.hung_motions`). Only pairs of pieces in
     different joint groups (in one group: held contacts the tree joins through other pieces,
     :func:`_joints_in_loops`), and where the joint would move the child otherwise than its own
     motion (or the tree) does (a card turning about its root above a still scalp moves as it would
@@ -183,7 +185,7 @@ def joint_doubts(topo, base: np.ndarray, nxt: np.ndarray, touching: Contacts | N
     if joints is not None and (two_poses or departures is not None):
         _carriers_untold(doubts, c, joints, size, stakes, slide_precision(base[index], nxt[index], reach, misfits,
                                                                           pieces, pieces), pins,
-                         None if two_poses else departures[pieces] > 0)
+                         None if two_poses else departures[pieces] > 0, placements)
     if key.size:  # touching in both keys and turning together, one sliding along the other
         near = (c.nearest <= contact_reach(reach, edges, pieces[u], pieces[v])) & (group[u] != group[v])
         angle = c.angle
@@ -250,7 +252,8 @@ def _rigid_parents(pieces: np.ndarray, parents: np.ndarray) -> np.ndarray:
 
 
 def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.ndarray, stakes: "_Stakes",
-                     precision: np.ndarray, pins: np.ndarray | None, unsteady: np.ndarray | None = None) -> None:
+                     precision: np.ndarray, pins: np.ndarray | None, unsteady: np.ndarray | None = None,
+                     placements=None) -> None:
     """Count in ``doubts`` the rigid pieces of ``c`` in joint groups (``joints``: ``(parents (C,),
     order)``) whose carrier the keys do not tell: two poses, or in a smooth sequence a group whose
     root leaves one screw over the keys about the gap (``unsteady`` (R,) per rigid piece, None: two
@@ -259,17 +262,23 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
     (:func:`core.inbetween_joints.joint_tree`: in a chain the moves add up from the piece fixed to
     the world, as the turns do), and another of its pieces turns less than that one (beyond both
     turns' spread: what their rigid fits resolve); counted where the group hung from that piece
-    instead places a piece otherwise half-way by more than :data:`JOINT_STAKE` times the group's
-    joint precision (``precision`` (R,) per rigid piece) and :data:`JOINT_LOOP_SHARE` of the piece's
-    size (a root still, or turning about the joints' axes, places every piece the same either way).
-    Groups with a pinned vertex (``pins``: bool (n,) or None) hang from the world, which tells."""
+    instead places a piece otherwise by more than :data:`JOINT_STAKE` times the group's joint
+    precision (``precision`` (R,) per rigid piece) and :data:`JOINT_LOOP_SHARE` of the piece's size
+    (a root still, or turning about the joints' axes, places every piece the same either way).
+    Groups with a pinned vertex (``pins``: bool (n,) or None) hang from the world, which tells.
+
+    Two poses place the pieces half-way by their two keys' screws (:class:`_Stakes`). A sequence
+    splines both trees' screws through the same keys, where they agree, and places a piece by the
+    splines (``placements``: :meth:`core.inbetween_motion.PieceMotion.hung_motions`, the gap's
+    motions with a given tree at given factors): the two placements differ by the splines' error,
+    of order h⁴ in the key spacing h where the two-pose half-way difference is of order h², so
+    they are compared at :data:`CARRIER_FACTORS` as the sequence places them."""
     jointed = _rigid_parents(c.pieces, joints[0])
     group = joint_groups(joints[0])[c.pieces]
     pinned = np.zeros(c.pieces.size, dtype=bool) if pins is None else \
         np.bincount(c.label, pins[c.index], minlength=c.pieces.size) > 0
     angle = np.linalg.norm(rotation_vectors(c.rotations), axis=1)
-    order = np.searchsorted(c.pieces, joints[1])
-    placed = None
+    hung = []  # per group whose carrier is in doubt: its members and the piece it would hang from instead
     for root in np.flatnonzero((jointed < 0) & np.isin(np.arange(c.pieces.size), jointed)):
         if unsteady is not None and not unsteady[root]:
             continue  # a piece on one screw carries the group: the keys about the gap tell it
@@ -277,28 +286,89 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
         least = members[np.argmin(angle[members])]
         if pinned[members].any() or angle[least] >= angle[root] - stakes.spread[root] - stakes.spread[least]:
             continue
-        # the group's own tree hung from ``least`` (the path to the root reversed), the other pieces
-        # left unjointed: only the group's members are compared, and composing the others' joints
-        # for every group made the check quadratic in the pieces (3,000 hinged cubes: 1.7 s a gap)
-        other, k, below = np.full(jointed.size, -1), least, -1
-        other[members] = jointed[members]
-        while k >= 0:
-            other[k], below, k = below, k, jointed[k]
-        depth = np.zeros(c.pieces.size, dtype=np.intp)
-        for _ in range(members.size):
-            depth[members] = np.where(other[members] >= 0, depth[np.maximum(other[members], 0)] + 1, 0)
-        placed = stakes.jointed(jointed, order) if placed is None else placed
-        rotations, translations = stakes.jointed(other, members[np.argsort(depth[members], kind="stable")])
-        for m in members:
-            x = stakes.points[stakes.starts[m]:stakes.starts[m] + stakes.counts[m]]
-            apart = float(np.linalg.norm(x @ (placed[0][m] - rotations[m]).T + placed[1][m] - translations[m],
-                                         axis=1).max())
-            allowed = max(JOINT_STAKE * float(precision[members].max()), JOINT_LOOP_SHARE * float(size[m]))
-            if apart > allowed:
-                doubts.carried += 1
-                doubts.carried_unsteady = unsteady is not None
-                doubts.carried_share = max(doubts.carried_share, apart / float(size[m]))
-                doubts.carried_excess = max(doubts.carried_excess, apart / allowed)
+        hung.append((members, least))
+    if not hung:
+        return
+    if unsteady is not None:
+        apart = _splined_apart(c, joints, stakes, hung, placements)
+    else:
+        placed = stakes.jointed(jointed, np.searchsorted(c.pieces, joints[1]))
+        apart = np.concatenate([_halfway_apart(c, stakes, jointed, placed, members, least) for members, least in hung])
+    members = np.concatenate([m for m, _ in hung])
+    group_precision = np.concatenate([np.full(m.size, float(precision[m].max())) for m, _ in hung])
+    allowed = np.maximum(JOINT_STAKE * group_precision, JOINT_LOOP_SHARE * size[members])
+    off = apart > allowed
+    if off.any():
+        doubts.carried = int(off.sum())
+        doubts.carried_unsteady = unsteady is not None
+        doubts.carried_share = float(np.max(apart[off] / size[members[off]]))
+        doubts.carried_excess = float(np.max(apart[off] / allowed[off]))
+
+
+#: The factors at which a sequence's two placements of a group whose carrier the keys do not tell
+#: are compared (:func:`_carriers_untold`): they agree at the keys, and a difference growing and
+#: shrinking as a cubic in the factor, ``s (1 − s)(a + b s)``, peaks at least 0.95 × as high at one
+#: of these as between them (at 0.5 where b = 0, 2/3 where a = 0: 0.141 of b at 0.75 against 0.148).
+CARRIER_FACTORS = (0.25, 0.5, 0.75)
+
+
+def _hang_from(parents: np.ndarray, piece: int) -> None:
+    """The tree ``parents`` (an index array, −1 for roots) re-rooted in place at ``piece``: the path
+    from it to its root reversed."""
+    k, below = piece, -1
+    while k >= 0:
+        parents[k], below, k = below, k, parents[k]
+
+
+def _halfway_apart(c: Contacts, stakes: "_Stakes", jointed: np.ndarray, placed: tuple, members: np.ndarray,
+                   least: int) -> np.ndarray:
+    """Per piece of ``members`` (rigid pieces' indices), the farthest its vertices are placed apart
+    half-way between two poses by the group's tree (``jointed``: each rigid piece's parent among them;
+    ``placed``: the rigid pieces' motions half-way so, :meth:`_Stakes.jointed`) and by the group hung
+    from ``least`` instead."""
+    # the group's own tree hung from ``least``, the other pieces left unjointed: only the group's
+    # members are compared, and composing the others' joints for every group made the check
+    # quadratic in the pieces (3,000 hinged cubes: 1.7 s a gap)
+    other = np.full(jointed.size, -1)
+    other[members] = jointed[members]
+    _hang_from(other, least)
+    depth = np.zeros(c.pieces.size, dtype=np.intp)
+    for _ in range(members.size):
+        depth[members] = np.where(other[members] >= 0, depth[np.maximum(other[members], 0)] + 1, 0)
+    rotations, translations = stakes.jointed(other, members[np.argsort(depth[members], kind="stable")])
+    out = np.zeros(members.size)
+    for i, m in enumerate(members):
+        x = stakes.points[stakes.starts[m]:stakes.starts[m] + stakes.counts[m]]
+        out[i] = np.linalg.norm(x @ (placed[0][m] - rotations[m]).T + placed[1][m] - translations[m], axis=1).max()
+    return out
+
+
+def _splined_apart(c: Contacts, joints: tuple, stakes: "_Stakes", hung: list, placements) -> np.ndarray:
+    """Per piece of the groups ``hung`` (``(members, least)``, rigid pieces' indices), the farthest its
+    vertices are placed apart at :data:`CARRIER_FACTORS` by the sequence with the gap's joint tree
+    (``joints``) and with every such group hung from its ``least`` instead (``placements``: see
+    :func:`_carriers_untold`), all groups in one tree."""
+    parents = joints[0].copy()
+    for _, least in hung:
+        _hang_from(parents, int(c.pieces[least]))
+    depth = np.zeros(parents.size, dtype=np.intp)
+    for _ in range(parents.size):  # one level down per pass; a tree is no deeper than its pieces
+        deeper = np.where(parents >= 0, depth[np.maximum(parents, 0)] + 1, 0)
+        if (deeper == depth).all():
+            break
+        depth = deeper
+    members = np.concatenate([m for m, _ in hung])
+    counts = stakes.counts[members]
+    first = np.r_[0, np.cumsum(counts)[:-1]]
+    x = stakes.points[np.repeat(stakes.starts[members] - first, counts) + np.arange(counts.sum())]
+    piece = np.repeat(c.pieces[members], counts)  # every member vertex's component
+    out = np.zeros(members.size)
+    for (own_rotations, own_translations), (rotations, translations) in zip(
+            placements(joints, CARRIER_FACTORS), placements((parents, np.argsort(depth, kind="stable")), CARRIER_FACTORS)):
+        apart = np.einsum("kab,kb->ka", own_rotations[piece] - rotations[piece], x) \
+            + own_translations[piece] - translations[piece]
+        np.maximum(out, np.maximum.reduceat(np.linalg.norm(apart, axis=1), first), out=out)
+    return out
 
 
 class _Stakes:
@@ -629,7 +699,8 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
         problems.append((f"{between}, {doubts.carried} rigid piece(s) jointed to each other are placed as carried by "
                          "the piece of theirs that moves least, which turns more than another of them: carried by "
                          f"that one instead, they would be up to {100 * doubts.carried_share:.2g} % of a piece's size "
-                         f"elsewhere half-way, {told}", doubts.carried_excess))
+                         f"elsewhere {'between the keys' if doubts.carried_unsteady else 'half-way'}, {told}",
+                         doubts.carried_excess))
     if doubts.rolled:
         problems.append((f"{between}, {doubts.rolled} rigid piece(s) touch a piece in both keys and turn about axes "
                          "parallel to its, their contact staying put, as meshing gears do, but rolling on it turns "

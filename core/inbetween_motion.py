@@ -5,7 +5,7 @@ Poisson solve leaves a component free, its centroid placed along that motion, it
 spline, its best similarity's path or with the rigid piece it sits on. Mixed into
 :class:`core.inbetween_solver.Gap`, whose data it reads (``topo``, ``base``, ``next``,
 ``relatives``, ``splines``, ``flying``, ``joints``, ``bodies``, ``body_members``, ``rigidity``,
-``nonrigidity``, ``_motions``) with the anchor's ``by_centroid``."""
+``nonrigidity``, ``cubic``, ``_motions``, ``_joint_spline_settings``) with the anchor's ``by_centroid``."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ import numpy as np
 
 from . import deformation_fields as df
 from . import screw_motions
-from .inbetween_joints import composed
+from .inbetween_joints import composed, joint_screws
+from .splines import ScrewGap
 
 #: Components without anchored vertices are placed by their centroid: along the screw motion of
 #: their best rigid motion where they move rigidly (exact for any rigid motion, pieces turning
@@ -88,6 +89,33 @@ class PieceMotion:
         return known[0].copy(), known[1].copy()
 
     def _motion(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        return self._jointed_motion(s, self.joints, None if self.joints is None else self.splines["joint_screw"])
+
+    def hung_motions(self, joints: tuple, factors) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The components' interpolated rigid motions (rotations (C, 3, 3), translations (C, 3)) at
+        each of ``factors`` as :meth:`motion` places them, but with the joint tree ``joints``
+        (``(parents (C,), order)``, parents first): the gap's own (:attr:`joints`), or its groups hung
+        from other roots, each jointed piece's screw relative to its parent splined across the keys
+        as the gap splines its own tree's (:func:`core.inbetween_joints.joint_screws`). What the
+        keys leave a choice of carrier to, compared (:func:`core.inbetween_joint_doubts._carriers_untold`)."""
+        if self.joints is not None and joints[0] is self.joints[0]:
+            return [self.motion(s) for s in factors]
+        spline = self._joint_spline(joints[0])
+        return [self._jointed_motion(s, joints, spline) for s in factors]
+
+    def _joint_spline(self, parents: np.ndarray) -> ScrewGap:
+        """Each jointed piece's screw relative to its parent (``parents`` (C,), −1 for roots and
+        unjointed pieces) at the gap's keys (:func:`core.inbetween_joints.joint_screws`), splined as
+        the pieces' own screws are (about points fixed in their frames: ``pivoted``)."""
+        frames, slowing, options = self._joint_spline_settings
+        relatives = self.relatives
+        return ScrewGap(joint_screws(parents, [r.screw for r in relatives], [r.extrapolated for r in relatives],
+                                     [getattr(r, "motion", None) for r in relatives]),
+                        frames, self.cubic, slowing, pivoted=True, **options)
+
+    def _jointed_motion(self, s: float, joints: tuple | None, joint_screw) -> tuple[np.ndarray, np.ndarray]:
+        # the pieces' own screws (flying ones about their point), composed along ``joints`` with the
+        # spline of the jointed pieces' screws relative to their parents (``joint_screw``: ScrewGap)
         motion = screw_motions.rigid_exps(self.splines["screw"].at(s))
         if self.flying is not None:  # turned about each group's point, which follows its spline
             labels, points = self.flying
@@ -95,8 +123,8 @@ class PieceMotion:
             rows = np.flatnonzero(labels >= 0)
             translations[rows] = self.splines["flying"].at(s)[rows] - np.einsum(
                 "cab,cb->ca", rotations[rows], points[labels[rows]])
-        if self.joints is not None:
-            motion = composed(*self.joints, *motion, screw_motions.rigid_exps(self.splines["joint_screw"].at(s)))
+        if joints is not None:
+            motion = composed(*joints, *motion, screw_motions.rigid_exps(joint_screw.at(s)))
         if self.body_members is not None:  # the pieces of a turning rigid body: its leader's motion (core.rigid_bodies)
             rotations, translations = motion
             members, leaders = self.body_members, self.bodies[self.body_members]

@@ -41,7 +41,7 @@ from .inbetween_fit import ARAP_ITERATIONS, LocalGlobalFit, change_tolerance, tr
 from .inbetween_flight import FLYING_MIN_TURN, after_impact, flying_groups, free_flight
 from .inbetween_guide import Guide
 from .inbetween_joint_doubts import joint_doubts
-from .inbetween_joints import JOINT_REACH, contacts, joint_screws, joint_tree
+from .inbetween_joints import JOINT_REACH, contacts, joint_tree
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, SIMILAR_SHAPE_MISFIT, PieceMotion
 from .inbetween_repair import Outcome, Repair
 from .inbetween_repair_regions import Region
@@ -286,14 +286,6 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             scale = max(float(np.max(base.diagonals)), float(np.max(np.ptp(base.centroids, axis=0))),
                         np.finfo(float).tiny)
             self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, parents)
-        if len(topo.components) > 1:
-            # what the joints leave untold (links apart, sliding joints, joints within rounding, gears
-            # turned the other way round, carriers two poses or a sequence with no piece on one screw
-            # do not tell, pieces each on an axle through them jointed between two poses), the pieces
-            # of a body counted with its leader: the gap warns
-            self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
-                                             piece_edges, misfits, base.diagonals, self.bodies,
-                                             not cubic, static, relatives[2].screw, departures)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
         # to within the turn's arc) keep their own, which are its translation to that arc
@@ -303,11 +295,12 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             members = np.flatnonzero((self.bodies != np.arange(len(topo.components)))
                                      & (turn[self.bodies] > FLYING_MIN_TURN))
             self.body_members = members if members.size else None
+        # the joint screws' spline's frames, slowing and options, for the gap's joint tree and another
+        # tree (PieceMotion.hung_motions); kept as values: a closure over ``options`` would hold the
+        # gap in a reference cycle, freed only by a full garbage collection
+        self._joint_spline_settings = (pieces, slowing, options("screw"))
         if self.joints is not None:
-            spline["joint_screw"] = ScrewGap(joint_screws(self.joints[0], [r.screw for r in relatives],
-                                                          [r.extrapolated for r in relatives],
-                                                          [getattr(r, "motion", None) for r in relatives]),
-                                             pieces, cubic, slowing, pivoted=True, **options("screw"))
+            spline["joint_screw"] = self._joint_spline(self.joints[0])
         self._motions: dict[float, tuple] = {}  # see motion (its splines, flying groups and joints are set)
         self._riding_motions: dict[float, tuple] = {}  # see ride
         # the fit stops at the whole change's tolerance but where a batch asks for the trimmed one
@@ -353,6 +346,16 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             if whole.any():
                 self._turn_about_points(rigid | whole, nonrigidity, hermite, slowing)
                 self._motions.clear()  # the screw's motions, asked for by arc_guided (its turns are the same)
+        if len(topo.components) > 1:
+            # what the joints leave untold (links apart, sliding joints, joints within rounding, gears
+            # turned the other way round, carriers two poses or a sequence with no piece on one screw
+            # do not tell, pieces each on an axle through them jointed between two poses), the pieces
+            # of a body counted with its leader: the gap warns. Read last: a sequence's carriers are
+            # compared as the gap places its pieces (hung_motions)
+            self.joint_doubts = joint_doubts(topo, base.vertices, nxt.vertices, touching, reach, self.joints,
+                                             piece_edges, misfits, base.diagonals, self.bodies,
+                                             not cubic, static, relatives[2].screw, departures,
+                                             None if departures is None else self.hung_motions)
 
     def held_pieces(self) -> np.ndarray:
         """Per component (bool (C,)), whether it has a pinned vertex (:attr:`static`, or of a riding set)."""
