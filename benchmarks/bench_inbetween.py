@@ -63,7 +63,8 @@ Metrics (per predicted frame, then median or mean over frames):
   (:mod:`core.gap_processes`) is started afresh and waited for until ready, outside the timing
   (:func:`fresh_worker`), since a worker serves the same keys asked again from the sequence it
   kept (nothing sent or built: cheaper than the user's first run, and the least of the repeats
-  would take it);
+  would take it); the worker's start, which a process pays once (a Blender session's first run,
+  each ``python -m core retime``), is shown apart on the scene's timing line;
 - ``× bake``: its ratio to Blender's cloth bake per frame of the same scene, timed in this run:
   per scene ``--repeats`` K times (default 3, 1 with ``--quick``), interleaved — a bake in a child
   process (a fresh Blender builds the scene from its spec and bakes it; the cached frames are not
@@ -315,43 +316,64 @@ def _middle_pose(a, b, triangles):
 
 
 def _time_sequence(keys, triangles, factors, **options):
-    """Every in-between of a sequence with its keys' preparation: ``(predicted, wall, cpu)``;
+    """Every in-between of a sequence with its keys' preparation: ``(predicted, wall, cpu, start)``;
     ``options`` go to ``SequenceInterpolator`` (none: its defaults, the ``seq`` protocol). Each
-    call is a first request of its keys: :func:`fresh_worker` before the timing."""
+    call is a first request of its keys: :func:`fresh_worker` before the timing, whose start's CPU
+    seconds are ``start`` (0 where no worker started), outside ``cpu``."""
     def compute():
         seq = SequenceInterpolator(keys, triangles, **options)
         return [_poses(seq, k, factors) for k in range(len(seq))]
 
-    fresh_worker(np.shape(keys[0])[0], len(keys) - 1)
-    return _timed(compute)
+    start = fresh_worker(np.shape(keys[0])[0], len(keys) - 1)
+    predicted, wall, cpu = _timed(compute)
+    # ended once its CPU is read: idle for core.gap_worker.IDLE_SECONDS, it would let its sequence go and
+    # trim its heap inside a later timing (a pair's, which counts the worker's CPU too)
+    _end_worker()
+    return predicted, wall, cpu, start or 0.0
 
 
-def fresh_worker(vertices: int, gaps: int, timeout: float = 120.0) -> bool:
-    """Before a timed sequence of ``vertices`` vertices and ``gaps`` key gaps, outside the timing: the
-    session's gap worker (:mod:`core.gap_processes`) ended and, where the sequence will share its
-    gaps, a new one started and waited for until ready.
-
-    A worker keeps the last sequence it built and serves the same keys asked again from it (nothing
-    sent or built, its caches warm), so the repeats of one cell timed back to back (a run of one
-    gap) would time a cheaper run than a user's first, and the least of the repeats would take it
-    (measured: docs/benchmarks.md, *How the cost column is measured*). A worker that has seen no
-    keys makes each repeat a first request, as an operator's run on new keys meets it (the
-    operators start the worker before reading the keys), or a script's after the worker was idle
-    for :data:`core.gap_worker.IDLE_SECONDS`; a fresh one cannot keep anything, whatever the
-    worker's rules for taking a job become. Returns whether a worker is ready (False for a core
-    without one, or a sequence that shares no gaps)."""
+def _end_worker() -> bool:
+    """End the session's gap worker (:func:`core.gap_processes.shut_down`; its CPU stays counted by
+    :func:`_worker_cpu`); False for a core without one."""
     try:
         from core import gap_processes
     except ImportError:
         return False
     gap_processes.shut_down()
+    return True
+
+
+def fresh_worker(vertices: int, gaps: int, timeout: float = 120.0) -> float | None:
+    """Before a timed sequence of ``vertices`` vertices and ``gaps`` key gaps, outside the timing: the
+    session's gap worker (:mod:`core.gap_processes`) ended and, where the sequence will share its
+    gaps, a new one started and waited for until ready (:func:`_time_sequence` ends it again after
+    the timing). Returns the CPU seconds its start took (a fresh interpreter importing NumPy, SciPy
+    and the core, as the worker said when ready); None where no worker is ready (a core without
+    one, a sequence that shares no gaps, or not ready within ``timeout`` seconds).
+
+    A worker keeps the last sequence it built and serves the same keys asked again from it (nothing
+    sent or built, its caches warm), so the repeats of one cell timed back to back (a run of one
+    gap) would time a cheaper run than a user's first, and the least of the repeats would take it
+    (measured: docs/benchmarks.md, *How the cost column is measured*). A worker that has seen no
+    keys makes each repeat a first request of its keys, whatever the worker's rules for taking a job
+    become. Its start is left out of the timing because a user does not pay it at each request: the
+    worker is kept for the whole Python process (:func:`core.gap_processes.kept_worker`; idle, it lets
+    its sequence go but keeps running), so in Blender the session's first *In-between Frames* or
+    *Retime* run starts it (before reading the keys, its start overlapping that) and the later runs
+    find it ready; but every ``python -m core retime`` (each farm task of two gaps or more) is a
+    process of its own and pays it. :func:`run_scene` reports it beside the cost column
+    (:func:`format_timing`), as the bake's column leaves out Blender's start and the scene's build."""
+    if not _end_worker():
+        return None
+    from core import gap_processes
+
     if not gap_processes.start_worker(int(vertices), int(gaps)):
-        return False
+        return None
     worker = gap_processes._worker
     deadline = time.monotonic() + timeout
     while worker is not None and worker.alive and not worker.ready and time.monotonic() < deadline:
         time.sleep(0.005)
-    return worker is not None and worker.alive and worker.ready
+    return worker.cpu if worker is not None and worker.alive and worker.ready else None
 
 
 def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), repeats: int = 1,
@@ -367,7 +389,7 @@ def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), re
     frames, triangles = scene.frames, scene.triangles
     metric = Metrics(frames, triangles)
     bake = {"wall": [], "cpu": []}
-    timing = {(g, p): {"wall": [], "cpu": []} for g in gaps for p in protocols}
+    timing = {(g, p): {"wall": [], "cpu": [], "start": []} for g in gaps for p in protocols}
     entries, fingerprints, warned = {}, {}, []
     for repeat in range(repeats):
         wall, cpu = bake_timer(name)
@@ -398,8 +420,9 @@ def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), re
                         keyed = np.arange(len(keys)) * g  # the keys' frames
                         factors = np.arange(1, g) / g
                         options = operator_options(frames, keyed) if protocol == "op" else {}
-                        predicted, wall, cpu = _time_sequence(keys, triangles, factors, **options)
+                        predicted, wall, cpu, start = _time_sequence(keys, triangles, factors, **options)
                         count = len(predicted) * len(factors)
+                        timing[g, protocol]["start"].append(start / count)
                         fingerprint = _fingerprint(predicted)
                         if fingerprints.setdefault((g, protocol), fingerprint) != fingerprint:
                             raise RuntimeError(f"{name} g = {g}: repeat {repeat + 1} gives other in-betweens "
@@ -435,6 +458,8 @@ def run_scene(name: str, gaps, *, stride: int = 2, protocols=("seq", "pair"), re
                      cpu_cost=cost_ratio(ours["cpu"], bake["cpu"]),
                      timing={"ours_wall": ours["wall"], "ours_cpu": ours["cpu"],
                              "bake_wall": bake["wall"], "bake_cpu": bake["cpu"]})
+        if protocol in SEQUENCE_PROTOCOLS:  # the gap worker's start, per in-between: not in the cost (fresh_worker)
+            entry["timing"]["worker_start_cpu"] = ours["start"]
         results.append(entry)
         log(format_row(entry))
         if protocol == "pair":
@@ -477,7 +502,9 @@ def format_row(e: dict) -> str:
 def format_timing(entries: list[dict]) -> str:
     """A line under a scene's rows: Blender's bake per frame (wall: least and range over the
     repeats; CPU, and CPU ÷ wall: above 1 where the bake had both cores, below where other
-    processes took them) and the rows' cost by CPU time (least ÷ least, per-repeat range)."""
+    processes took them), the rows' cost by CPU time (least ÷ least, per-repeat range) and, for
+    the sequences that started a gap worker, what its start adds to that where a process pays it
+    (:func:`fresh_worker`: least ÷ least bake, per in-between of the sequence)."""
     t = entries[0]["timing"]
     wall, cpu = np.array(t["bake_wall"]), np.array(t["bake_cpu"])
 
@@ -487,8 +514,12 @@ def format_timing(entries: list[dict]) -> str:
 
     cells = ", ".join(f"g = {e['gap']} {e['protocol']} {format_cost(e['cpu_cost'])}" for e in entries)
     repeats = f", least of {wall.size}: {span(wall, 3)}" if wall.size > 1 else ""
+    started = ", ".join(f"g = {e['gap']} {e['protocol']} +{min(e['timing']['worker_start_cpu']) / cpu.min():.3f}"
+                        for e in entries if any(e["timing"].get("worker_start_cpu", ())))
+    start = (f"; the gap worker's start, outside these (paid once per process: a Blender session's first "
+             f"run, each python -m core retime): {started}") if started else ""
     return (f"  {entries[0]['scene']}: Blender's bake {wall.min():.3f} s per frame (wall{repeats}), CPU "
-            f"{cpu.min():.3f} s (CPU ÷ wall {span(cpu / wall, 2)}); by CPU time × bake: {cells}")
+            f"{cpu.min():.3f} s (CPU ÷ wall {span(cpu / wall, 2)}); by CPU time × bake: {cells}{start}")
 
 
 class HeapWatch:
@@ -500,7 +531,11 @@ class HeapWatch:
     between blocks still in use, which the heap cannot hand back, and free memory at its top below
     ``core.allocator.TRIM_THRESHOLD``; resident, counted by the peak, holding no data. The live peak
     (in use plus mapped, at most) comes at another moment. Sampled: the resident peak read may lie
-    below the kernel's exact ``VmHWM`` by what one interval allocates and frees."""
+    below the kernel's exact ``VmHWM`` by what one interval allocates and frees. A sample costs the
+    thread about 0.3 ms of CPU (``mallinfo2`` 0.06 ms of it, with glibc's heaps locked), 3.5–4.6 %
+    of the 15k curtain's CPU at g = 4: used in :func:`peak_memory`'s child, never in a timed run. Off glibc
+    (``core.allocator`` decides: macOS, Windows, musl) and where the kernel gives no ``RssFile``
+    (before Linux 4.5) it starts no thread and ``split`` is None."""
 
     def __init__(self, interval: float = 0.02):
         import ctypes
@@ -511,11 +546,14 @@ class HeapWatch:
                 "arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks",
                 "keepcost")]
 
+        from core.allocator import _glibc
+
+        libc = _glibc()  # None off Linux and under other C libraries (musl), as core.allocator decides
         try:
-            self._mallinfo = ctypes.CDLL("libc.so.6").mallinfo2
+            self._mallinfo = libc.mallinfo2
             self._mallinfo.restype = Mallinfo2
-            open("/proc/self/status").close()
-        except (OSError, AttributeError):  # not Linux, or a C library without mallinfo2 (glibc before 2.33)
+            self._sample_status()
+        except (OSError, AttributeError, KeyError):  # no glibc, one before 2.33 (no mallinfo2), no VmRSS / RssFile
             self._mallinfo = None
         self.interval, self.peak, self.live = interval, None, 0.0
         self._done = threading.Event()
@@ -528,15 +566,23 @@ class HeapWatch:
         """Whether this platform gives the split (Linux with glibc 2.33 or later)."""
         return self._mallinfo is not None
 
-    def _sample(self) -> dict:
+    @staticmethod
+    def _sample_status() -> tuple[float, float]:
+        """The resident set and its mapped files (MB, ``VmRSS`` and ``RssFile``; KeyError where the
+        kernel gives no ``RssFile``, before Linux 4.5)."""
         status = {}
-        for line in open("/proc/self/status"):
-            field, _, value = line.partition(":")
-            if field in ("VmRSS", "RssFile"):
-                status[field] = int(value.split()[0]) / 1024
+        with open("/proc/self/status") as lines:
+            for line in lines:
+                field, _, value = line.partition(":")
+                if field in ("VmRSS", "RssFile"):
+                    status[field] = int(value.split()[0]) / 1024
+        return status["VmRSS"], status["RssFile"]
+
+    def _sample(self) -> dict:
+        resident, libraries = self._sample_status()
         heap = self._mallinfo()
         mb = 1.0 / (1 << 20)
-        return {"resident": status["VmRSS"], "libraries": status["RssFile"], "heap_in_use": heap.uordblks * mb,
+        return {"resident": resident, "libraries": libraries, "heap_in_use": heap.uordblks * mb,
                 "heap_free": heap.fordblks * mb, "mapped": heap.hblkhd * mb}
 
     def _watch(self) -> None:

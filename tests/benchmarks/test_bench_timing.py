@@ -138,11 +138,11 @@ def test_repeats_that_give_other_in_betweens_stop_the_run(fake_scene, monkeypatc
     timed, runs = bench._time_sequence, []
 
     def drifting(keys, triangles, factors):
-        predicted, wall, cpu = timed(keys, triangles, factors)
+        predicted, *times = timed(keys, triangles, factors)
         runs.append(1)
         if len(runs) > 1:
             predicted[0] = predicted[0] + 1e-15 * np.abs(predicted[0]).max()
-        return predicted, wall, cpu
+        return predicted, *times
 
     monkeypatch.setattr(bench, "_time_sequence", drifting)
     with pytest.raises(RuntimeError, match="repeat 2 gives other in-betweens"):
@@ -153,11 +153,12 @@ def test_repeats_that_give_other_in_betweens_stop_the_run(fake_scene, monkeypatc
 def test_every_repeat_times_a_first_request_of_its_keys(fake_scene, monkeypatch):
     """The gap worker keeps the last sequence it built and serves the same keys asked again from it
     (nothing sent, nothing built): each repeat's sequence must meet a worker that has not seen its
-    keys, ready before the timing, as a user's first request does. Every repeat here gives the
-    worker a job with the keys, a worker of each repeat's own; before, the first repeat's worker
-    was still starting and took no job, and the third repeat's job went without the keys, served
-    from the second's sequence (with bakes shorter than the worker's start no repeat gave it a job
-    at all)."""
+    keys, ready before the timing, as a user's request on new keys does; the worker's start is
+    reported apart, and the worker ended after the timing. Every repeat here gives the worker a job
+    with the keys, a worker of each repeat's own; before session 77 the first repeat's worker was
+    still starting and took no job, and the third repeat's job went without the keys, served from
+    the second's sequence (with bakes shorter than the worker's start no repeat gave it a job at
+    all); at 390c6f1 the start was reported nowhere and each worker sat idle through the next bake."""
     from core import concurrency, gap_processes
 
     monkeypatch.setattr(gap_processes, "CONCURRENT_VERTICES", 0)  # the 64-vertex sheet shares its gaps
@@ -167,27 +168,43 @@ def test_every_repeat_times_a_first_request_of_its_keys(fake_scene, monkeypatch)
     gap_processes.shut_down()
     cloth_scenes.load_scene("fake")
     jobs = []  # per repeat: (worker's process id, whether the keys were sent) of each job
+    starts = []  # per repeat: the CPU seconds the worker's start took, as it said when ready
     submit = gap_processes._Worker.submit
 
     def recorded(self, job, token, arguments):
         jobs[-1].append((self.process.pid, self.kept != token))  # the keys are sent unless it keeps them
+        if len(starts) < len(jobs):
+            starts.append(self.cpu)  # its first job: its only message so far said it was ready
         return submit(self, job, token, arguments)
+
+    between = []  # the worker alive at each bake (None: none)
 
     def stub_timer(name):
         jobs.append([])  # a repeat begins with its bake, which takes seconds: a worker started is ready after it
         worker, deadline = gap_processes._worker, time.monotonic() + 120
+        between.append(worker)
         while worker is not None and worker.alive and not worker.ready and time.monotonic() < deadline:
             time.sleep(0.01)
         return 1.0, 1.0
 
     monkeypatch.setattr(gap_processes._Worker, "submit", recorded)
+    lines = []
     try:
-        bench.run_scene("fake", [4], protocols=("seq",), repeats=3, bake_timer=stub_timer, log=lambda line: None)
+        [entry] = bench.run_scene("fake", [4], protocols=("seq",), repeats=3, bake_timer=stub_timer,
+                                  log=lines.append)
+        between.append(gap_processes._worker)
     finally:
         gap_processes.shut_down()
     assert len(jobs) == 3 and all(jobs), jobs  # a job in every repeat: the worker ready at its start
     assert all(sent for repeat in jobs for _, sent in repeat), jobs  # never served from a kept sequence
     assert len({pid for repeat in jobs for pid, _ in repeat}) == 3, jobs  # a worker of each repeat's own
+    # none outlives its sequence: an idle one would let its sequence go inside a later timing (a pair's)
+    assert between == [None] * 4, between
+    # each start, outside the timing, is reported per in-between (4 gaps of 3) and as a share of the bake
+    count = (len(bench.kept_keys(cloth_scenes.load_scene("fake").frames, 4)) - 1) * 3
+    assert len(starts) == 3 and min(starts) > 0, starts
+    assert entry["timing"]["worker_start_cpu"] == pytest.approx([start / count for start in starts], rel=1e-12)
+    assert f"g = 4 seq +{min(starts) / count / 1.0:.3f}" in lines[-1], lines[-1]
 
 
 def test_options():
