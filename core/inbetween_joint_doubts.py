@@ -598,12 +598,15 @@ def _spun_jointed(doubts: JointDoubts, c: Contacts, base: np.ndarray, parents: n
     """Count in ``doubts`` the jointed pieces (``parents`` (C,): the joint tree's) of the touching
     pairs of ``c`` that each turn about their own axis through them: each piece's own screw
     (``screws`` (R, 6), as the in-betweens take them) turns without sliding along its axis (to the
-    pair's slide precision over the piece's ``size`` (R,)) and passes nearer the piece's centroid
-    (in ``base``) than the contact (:func:`core.inbetween_joints._turns_about` false), and within
-    :data:`AXLE_SHARE` of the contact's distance from the centroid (an axle through it), where the
-    joint places the child otherwise than its own screw half-way (``stakes``) by more than
-    :data:`JOINT_STAKE` × the precision and :data:`JOINT_LOOP_SHARE` of its size. Two poses fit
-    both readings: meshing gears turned less than their teeth are resolved (the contact's place moves
+    pair's slide precision over the piece's ``size`` (R,)) and passes within :data:`AXLE_SHARE` of
+    the contact's distance from the piece's centroid (in ``base``) of that centroid (an axle through
+    it) and nearer it than the contact (:func:`core.inbetween_joints._turns_about` false), the two
+    not on one axle (each axis that near the other's centroid too: two pieces turning on a shared
+    axle, a propeller on its shaft, turn relative to each other about it as a hinge's do, and
+    nothing rolls between them), where the joint places the child otherwise than its own screw
+    half-way (``stakes``) by more than :data:`JOINT_STAKE` × the precision and
+    :data:`JOINT_LOOP_SHARE` of its size. Two poses fit both readings: meshing gears turned less
+    than their teeth are resolved (the contact's place moves
     with both gears by under an edge), or pieces spinning side by side within an edge of each other,
     turn relative to each other about a point of their contact as a hinge's pieces do, and a hinge
     whose two pieces happen to turn about axles through them reads the same (warned too: the keys
@@ -627,14 +630,19 @@ def _spun_jointed(doubts: JointDoubts, c: Contacts, base: np.ndarray, parents: n
     pairs = np.flatnonzero(spinning)
     centres = _piece_centres(base, c.index, c.label)[0]
     contact = c.nearest_at[pairs]
-    # each on an axle through it: its own axis passes nearer its centroid than the contact
-    # (_turns_about false) and within AXLE_SHARE of the contact's distance from the centroid (a
-    # gear's axle, a cube's centre: 0); a link turning about its far end ties there (1), a knob
-    # turning on a lever's end turns about a point out beyond it (6–11)
-    through = ~_turns_about(contact, centres, c.rotations, c.translations, u[pairs], v[pairs])
-    for k in (u[pairs], v[pairs]):
-        off_axis = np.linalg.norm(np.cross(centres[k] - point[k], axis[k]), axis=1)
-        through &= off_axis < AXLE_SHARE * np.linalg.norm(contact - centres[k], axis=1)
+    # each on an axle through it: its own axis passes within AXLE_SHARE of the contact's distance
+    # from its centroid (a gear's axle, a cube's centre: 0; a link turning about its far end ties
+    # there, 1; a knob turning on a lever's end turns about a point out beyond it, 6–11); and the
+    # two not on one axle (each axis within that share of the other's centroid too): pieces turning
+    # on a shared axle, as a propeller on its shaft, turn relative to each other about that axle, a
+    # hinge's turn, and nothing rolls between them; and each axis nearer its centroid than the
+    # contact (_turns_about false)
+    one, two = u[pairs], v[pairs]
+    reach = [AXLE_SHARE * np.linalg.norm(contact - centres[k], axis=1) for k in (one, two)]
+    apart = [[np.linalg.norm(np.cross(centres[m] - point[k], axis[k]), axis=1) for m in (one, two)] for k in (one, two)]
+    shared = (apart[0][1] < reach[1]) & (apart[1][0] < reach[0])
+    through = (~_turns_about(contact, centres, c.rotations, c.translations, one, two)
+               & (apart[0][0] < reach[0]) & (apart[1][1] < reach[1]) & ~shared)
     pairs = pairs[through]
     if not pairs.size:
         return
@@ -716,5 +724,6 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                          f"{100 * doubts.spun_share:.2g} % of a piece's size from where each piece's own turn would "
                          "take it half-way, and two keys do not tell which they are (pieces modelled more than an "
                          "edge length apart are never jointed; gears turned by a tooth or more between keys, or "
-                         "a finer mesh where they touch, show their contact rolling)", doubts.spun_excess))
+                         "a finer mesh where they touch, show their contact rolling; pieces hinged there, as a door "
+                         "on a turntable, are placed right)", doubts.spun_excess))
     return problems

@@ -1515,6 +1515,37 @@ def test_jointed_pieces_and_gears_read_right_are_not_warned_of_turning_each_abou
         np.testing.assert_allclose(pose, rig(s, turn)[0], atol=1e-6 * np.linalg.norm(np.ptp(a, axis=0)))
 
 
+def _propeller_on_shaft(s, shaft_turn, blade_turn):
+    """A shaft (a box 0.2 × 0.2 × 2 about the z axis) turning by ``s`` × ``shaft_turn`` degrees
+    about z, and a blade (a box 2 × 0.2 × 0.04) on its top end turning on the same axle by ``s`` ×
+    (``shaft_turn`` + ``blade_turn``)°, as a Blender child keyed on its parent: vertices, triangles."""
+    shaft, shaft_triangles = cube(2)
+    blade, blade_triangles = cube(3)
+    turn = lambda degrees: Rotation.from_rotvec([0.0, 0.0, np.radians(degrees)]).as_matrix()
+    x = np.vstack([(shaft * [0.1, 0.1, 1.0]) @ turn(s * shaft_turn).T,
+                   (blade * [1.0, 0.1, 0.02] + [0.0, 0.0, 1.02]) @ turn(s * (shaft_turn + blade_turn)).T])
+    return x, np.vstack([shaft_triangles, blade_triangles + len(shaft)])
+
+
+@pytest.mark.parametrize("shaft_turn, blade_turn", [(120.0, 90.0), (60.0, 90.0)])
+def test_a_propeller_turning_on_its_shaft_is_not_warned_of_turning_each_about_their_own_axis(shaft_turn,
+                                                                                              blade_turn):
+    """A propeller jointed to its shaft, both turning about the one axle: relative to each other they
+    turn about that axle, a hinge's turn, and nothing rolls between them, so the joint is all the
+    keys tell. With the blade turned 210° in all (120° + 90°) its own screw, read the short way, is
+    −150° while the joint turns it the keyed +105° half-way: the joint is right, and the gap warned
+    that the two keys do not tell jointed pieces from pieces each on its own axle (7669abd). Every
+    factor of two poses is the rig's, to 1e-6, and no such warning; at 60° + 90° (both under a half
+    turn) the two readings agree."""
+    a, tri = _propeller_on_shaft(0.0, shaft_turn, blade_turn)
+    poses, caught = _poses_and_warnings(Interpolator(a, _propeller_on_shaft(1.0, shaft_turn, blade_turn)[0], tri),
+                                        FACTORS)
+    assert _spun_share(caught) is None, [str(w.message) for w in caught]
+    for s, pose in zip(FACTORS, poses):
+        np.testing.assert_allclose(pose, _propeller_on_shaft(s, shaft_turn, blade_turn)[0],
+                                   atol=1e-6 * np.linalg.norm(np.ptp(a, axis=0)))
+
+
 def _overlapping_links(s, sunk=0.042, bend_angle=0.872):
     """Two separate links jointed end to end, the second's tip ``sunk`` into the first's (a box of
     one cell a face, 0.76 long, and a finely meshed ellipsoid 1.05 long: their surfaces cross where
