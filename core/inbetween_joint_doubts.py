@@ -272,7 +272,8 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
     splines (``placements``: :meth:`core.inbetween_motion.PieceMotion.hung_motions`, the gap's
     motions with a given tree at given factors): the two placements differ by the splines' error,
     of order h⁴ in the key spacing h where the two-pose half-way difference is of order h², so
-    they are compared at :data:`CARRIER_FACTORS` as the sequence places them."""
+    they are compared as the sequence places them, where they differ most between the keys
+    (read at :data:`CARRIER_FACTORS`, :func:`_peak_between`)."""
     jointed = _rigid_parents(c.pieces, joints[0])
     group = joint_groups(joints[0])[c.pieces]
     pinned = np.zeros(c.pieces.size, dtype=bool) if pins is None else \
@@ -306,10 +307,20 @@ def _carriers_untold(doubts: JointDoubts, c: Contacts, joints: tuple, size: np.n
 
 
 #: The factors at which a sequence's two placements of a group whose carrier the keys do not tell
-#: are compared (:func:`_carriers_untold`): they agree at the keys, and a difference growing and
-#: shrinking as a cubic in the factor, ``s (1 − s)(a + b s)``, peaks at least 0.95 × as high at one
-#: of these as between them (at 0.5 where b = 0, 2/3 where a = 0: 0.141 of b at 0.75 against 0.148).
+#: are compared (:func:`_carriers_untold`). They agree at the keys, so each vertex's difference is
+#: read as ``s (1 − s) q(s)``, ``q`` the quadratic through the three factors' readings
+#: (:func:`_peak_between`): exact for a difference of degree four or less vanishing at the keys,
+#: as a cubic's ``s (1 − s)(a + b s)`` is. Read at the factors alone, such a cubic peaked as little
+#: as 0.914 × as high there as between them (a = b / 4: its peak at s = 0.63).
 CARRIER_FACTORS = (0.25, 0.5, 0.75)
+
+#: The steps per gap at which :func:`_peak_between` seeks each vertex's largest difference between
+#: the keys (its fitted ``s (1 − s) q(s)``, of degree four: a peak between two steps of 1/64 read
+#: to within 0.1 %); the steps hold :data:`CARRIER_FACTORS`, so it never reads less than they do.
+CARRIER_PEAK_STEPS = 64
+
+#: Vertices per block in :func:`_peak_between` (memory only: 63 steps × 4,096 vertices, 2 MB).
+CARRIER_PEAK_BLOCK = 4096
 
 
 def _hang_from(parents: np.ndarray, piece: int) -> None:
@@ -345,7 +356,8 @@ def _halfway_apart(c: Contacts, stakes: "_Stakes", jointed: np.ndarray, placed: 
 
 def _splined_apart(c: Contacts, joints: tuple, stakes: "_Stakes", hung: list, placements) -> np.ndarray:
     """Per piece of the groups ``hung`` (``(members, least)``, rigid pieces' indices), the farthest its
-    vertices are placed apart at :data:`CARRIER_FACTORS` by the sequence with the gap's joint tree
+    vertices are placed apart between the keys (read at :data:`CARRIER_FACTORS`, their peak
+    :func:`_peak_between`) by the sequence with the gap's joint tree
     (``joints``) and with every such group hung from its ``least`` instead (``placements``: see
     :func:`_carriers_untold`), all groups in one tree."""
     parents = joints[0].copy()
@@ -362,13 +374,33 @@ def _splined_apart(c: Contacts, joints: tuple, stakes: "_Stakes", hung: list, pl
     first = np.r_[0, np.cumsum(counts)[:-1]]
     x = stakes.points[np.repeat(stakes.starts[members] - first, counts) + np.arange(counts.sum())]
     piece = np.repeat(c.pieces[members], counts)  # every member vertex's component
-    out = np.zeros(members.size)
-    for (own_rotations, own_translations), (rotations, translations) in zip(
-            placements(joints, CARRIER_FACTORS), placements((parents, np.argsort(depth, kind="stable")), CARRIER_FACTORS)):
-        apart = np.einsum("kab,kb->ka", own_rotations[piece] - rotations[piece], x) \
-            + own_translations[piece] - translations[piece]
-        np.maximum(out, np.maximum.reduceat(np.linalg.norm(apart, axis=1), first), out=out)
-    return out
+    apart = [np.einsum("kab,kb->ka", own_rotations[piece] - rotations[piece], x) + own_translations[piece]
+             - translations[piece] for (own_rotations, own_translations), (rotations, translations) in zip(
+                 placements(joints, CARRIER_FACTORS),
+                 placements((parents, np.argsort(depth, kind="stable")), CARRIER_FACTORS))]
+    return np.maximum.reduceat(_peak_between(np.array(apart)), first)
+
+
+def _peak_between(differences: np.ndarray) -> np.ndarray:
+    """Per vertex, the largest length between the keys of a difference ``d(s)`` (vectors) read at
+    :data:`CARRIER_FACTORS` (``differences`` (3, N, 3)) and zero at both keys: ``d(s) = s (1 − s) q(s)``
+    with ``q`` the quadratic through ``d(f) / (f (1 − f))`` at the factors (Lagrange's form), sought
+    at :data:`CARRIER_PEAK_STEPS` steps (N,)."""
+    factors = np.array(CARRIER_FACTORS)
+    s = np.arange(1, CARRIER_PEAK_STEPS) / CARRIER_PEAK_STEPS
+    weights = np.outer(s * (1.0 - s), 1.0 / (factors * (1.0 - factors)))  # (steps, 3): d(s) from the readings
+    for k in range(factors.size):
+        for j in range(factors.size):
+            if j != k:
+                weights[:, k] *= (s - factors[j]) / (factors[k] - factors[j])
+    # |d(s)|² = Σ_kl w_k(s) w_l(s) (D_k · D_l): the readings' six dot products per vertex, then one
+    # product for every step (a block of vertices at a time: (steps, block) floats, not (steps, N, 3))
+    pairs = [(k, j) for k in range(factors.size) for j in range(k, factors.size)]
+    products = np.stack([weights[:, k] * weights[:, j] * (1.0 if k == j else 2.0) for k, j in pairs], axis=1)
+    dots = np.stack([np.einsum("na,na->n", differences[k], differences[j]) for k, j in pairs])
+    peak = np.concatenate([(products @ dots[:, i:i + CARRIER_PEAK_BLOCK]).max(axis=0, initial=0.0)
+                           for i in range(0, dots.shape[1], CARRIER_PEAK_BLOCK)])
+    return np.sqrt(np.maximum(peak, 0.0))
 
 
 class _Stakes:
