@@ -24,7 +24,7 @@ import numpy as np
 from .inbetween_fit import METRIC_TOLERANCE, STALL_NEAR
 
 __all__ = ["MISFIT_NOTED_MARGIN", "MISFIT_NOTED_FLOOR", "MORE_KEYS", "key_deviation", "least_shared_deviation",
-           "misfit_allowed", "misfit_warning", "signed_deviation"]
+           "misfit_allowed", "misfit_warning", "off_rest_warning", "signed_deviation"]
 
 #: A gap's in-betweens are warned of where the fit of one of them ends farther from the interpolated
 #: metric (its mean relative edge misfit) than twice its keys' mean edge deviation from the rest
@@ -134,3 +134,25 @@ def misfit_warning(fit_misfits: dict, factors, allowed: float, names: tuple[str,
             f"misfit), over the {100 * allowed:.1f} % the keys' own edge deviation from {reference} allows (twice it + "
             f"{100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): {cause}]", tuple(over),
             misfit / allowed)
+
+
+def off_rest_warning(deviation: float, key_deviations, factors, names: tuple[str, str],
+                     reference: str = "the first key") -> tuple[str, tuple[float, ...], float] | None:
+    """The message, factors and excess (``deviation`` ÷ what the keys allow, over 1) of the warning of
+    a gap (keys ``names``) whose in-betweens at ``factors`` (in (0, 1)) are off the rest by ``deviation``
+    on average (mean relative edge deviation from ``reference``, as the message names it), more than
+    issue 17's bound with the keys standing in for the simulation: twice the keys' deviations
+    ``key_deviations`` (the two keys', :func:`key_deviation`) interpolated at ``factors`` + 0.1 point,
+    at least 0.3 % (:func:`misfit_allowed`); None where they are not. It reads what the bound reads,
+    the in-betweens' own edges against the rest, where :func:`misfit_warning` reads the fits' edges
+    against the interpolated metric: an in-between predicted between fitted ones, or one whose fit
+    is near a metric farther off the rest than the keys' lengths interpolated, is seen here only."""
+    before, after = (float(d) for d in key_deviations)
+    allowed = misfit_allowed([(1.0 - s) * before + s * after for s in factors])
+    if deviation <= allowed:
+        return None
+    return (f"between {names[0]} and {names[1]}, the in-betweens' edges are {100 * deviation:.1f} % off "
+            f"{reference}'s on average, {deviation / allowed:.1f} × what the keys allow (twice their own "
+            f"deviation from it, {100 * before:.1f} and {100 * after:.1f} %, interpolated at the in-betweens' factors, "
+            f"+ {100 * MISFIT_NOTED_MARGIN:.1f} point, at least {100 * MISFIT_NOTED_FLOOR:.1f} %): the in-betweens "
+            f"stretch or compress the cloth farther than the keys do; {MORE_KEYS}", tuple(factors), deviation / allowed)

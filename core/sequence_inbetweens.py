@@ -78,7 +78,8 @@ from .sewn_seams import gap_groups, sewn_offsets
 from .splines import five_key_tangent_correction, slowing_end_correction
 from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, caught_stretch_warning
 from .rest_pose_scale import checked_rest_pose
-from .sequence_edge_misfit import MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, signed_deviation
+from .sequence_edge_misfit import (MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, off_rest_warning,
+                                   signed_deviation)
 from .sequence_warnings import gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause, sliver_excess
@@ -597,8 +598,11 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             gap_problems(problems, len(between), (self.key_names[gap], self.key_names[gap + 1]))
         poses = {factors[k]: x for k, (x, _) in zip(between, solved)}
         misfit = self._misfit_warning(gap, segment, poses)
+        measured = {}  # the in-betweens' deviation from the rest: measured once, for both readings below
         if misfit is None:  # fits within what their keys allow: the keys may still alias a brief stretch
-            misfit = self._caught_stretch_warning(gap, segment, poses)
+            misfit = self._caught_stretch_warning(gap, segment, poses, measured)
+        if misfit is None:  # ... and the in-betweens themselves may still be off the rest farther than the keys
+            misfit = self._off_rest_warning(gap, segment, poses, measured)
         if misfit is not None:
             said.append(("fit", misfit[0], 0, misfit[1], misfit[2]))
         if self._near_seams is not None:  # seams the gap's keys keep closed, not welded: opened by the in-betweens?
@@ -651,8 +655,36 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             self._key_deviations[index] = key_deviation(lengths, self._rest_lengths)
         return self._key_deviations[index]
 
-    def _caught_stretch_warning(self, gap: int, segment: Gap,
-                                poses: dict) -> tuple[str, tuple[float, ...], float] | None:
+    def _rest_deviation(self, poses: dict, measured: dict) -> tuple[list[float], float]:
+        """The factors of the in-betweens ``poses`` {factor: working positions (n, 3)} that stand for a
+        gap's (:func:`core.sequence_caught_stretch.caught_stretch_factors`: at most three) and their mean
+        relative edge deviation from the rest (:meth:`_key_deviation`'s); kept in ``measured`` (a dict
+        of this call's) and read from it where it is there already."""
+        if not measured:
+            factors = caught_stretch_factors([s for s in poses if 0.0 < s < 1.0])
+            measured["factors"] = factors
+            measured["deviation"] = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._rest_lengths)
+                                                   for s in factors]))
+        return measured["factors"], measured["deviation"]
+
+    def _off_rest_warning(self, gap: int, segment: Gap, poses: dict,
+                          measured: dict) -> tuple[str, tuple[float, ...], float] | None:
+        """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) whose in-betweens
+        ``poses`` {factor: working positions (n, 3)} are off the rest (:meth:`_key_deviation`'s) farther
+        than twice the keys' own deviation interpolated at their factors + 0.1 point
+        (:func:`core.sequence_edge_misfit.off_rest_warning`); None elsewhere, and in a gap whose pieces
+        are mirrored (:func:`core.sequence_mirrors.warn_mirrored` says why its edges are off) and in
+        two poses' (anchored: :class:`core.two_pose_inbetweens.Interpolator` holds its pose to the bound
+        itself). ``measured``: as :meth:`_rest_deviation` keeps it."""
+        if self._anchored or not any(0.0 < s < 1.0 for s in poses) or gap in self._mirrored_gaps:
+            return None
+        ends = (self._key_deviation(gap, segment.base.lengths), self._key_deviation(gap + 1, segment.next.lengths))
+        factors, deviation = self._rest_deviation(poses, measured)
+        return off_rest_warning(deviation, ends, factors, (self.key_names[gap], self.key_names[gap + 1]),
+                                self._rest_named)
+
+    def _caught_stretch_warning(self, gap: int, segment: Gap, poses: dict,
+                                measured: dict) -> tuple[str, tuple[float, ...], float] | None:
         """The warning (message, factors, excess) of gap ``gap`` (its data ``segment``) beside a key
         that catches a brief stretch on a motion passing through it, whose in-betweens ``poses``
         {factor: working positions (n, 3)} end farther off the rest (:meth:`_key_deviation`) than the gap's
@@ -661,13 +693,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         read once (its deviation; its neighbour outside the gap and the shapes around it only where
         that is over what its neighbour inside the gap allows); the in-betweens are measured only
         beside a key that catches a stretch, at most three of them
-        (:func:`core.sequence_caught_stretch.caught_stretch_factors`)."""
+        (:func:`core.sequence_caught_stretch.caught_stretch_factors`; ``measured``: as
+        :meth:`_rest_deviation` keeps it)."""
         asked = [s for s in poses if 0.0 < s < 1.0]
         if not asked or gap in self._mirrored_gaps:
             return None
         ends = (gap, gap + 1)
         lengths = dict(zip(ends, (segment.base.lengths, segment.next.lengths)))
-        deviation = None  # the in-betweens' deviation from the rest: measured once, for either key
         for at, other in zip(ends, reversed(ends)):
             if not 0 < at < len(self._raw) - 1:  # the first and last keys have one neighbour
                 continue
@@ -682,9 +714,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                                                 self._topo.corner_edge_rows)
             if not self._caught_stretches[at]:
                 continue
-            if deviation is None:
-                deviation = float(np.mean([key_deviation(self._corner_lengths(poses[s]), self._rest_lengths)
-                                           for s in caught_stretch_factors(asked)]))
+            deviation = self._rest_deviation(poses, measured)[1]
             said = caught_stretch_warning(deviation, self._key_deviations[other], (self.key_names[gap],
                                           self.key_names[gap + 1]), self.key_names[at], self._key_deviations[at], asked,
                                           self._rest_named, self._caught_stretches[at])
