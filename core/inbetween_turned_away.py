@@ -330,6 +330,7 @@ class TurnedAway:
                 # imported here: core.sequence_inbetweens imports this module
                 from .sequence_turn_readings import TURNED_PART_SHARE
                 reading = relative.turning(gap.topo, gap.base, gap.next, relative._across, TURNED_PART_SHARE)
+                relative.let_go_whole_vectors()  # kept for a gap's preparation alone
                 known = (reading[0] | reading[2])[:len(known)]  # past a half turn, without or with a crease
             self._far = known
         return known

@@ -82,6 +82,14 @@ class WholeRotations:
     #: ``_plane_frames`` where two readers ask for them (:meth:`_whole_entries`; the frames let go
     #: then, and these as they would be), or None.
     _whole = None
+    #: The triangles' whole rotation vectors (m, 3) from the base key, the short way round (all the
+    #: triangles'), made once by :meth:`continued_turns` and read-only: a sequence's gap reads them
+    #: up to four times while it is prepared (its turns, the rotations taken whole in one or two
+    #: builds of the gap, :meth:`whole_rotations`, the rotations against the guide); shared by the
+    #: copies :meth:`whole_rotations` makes, let go by :meth:`let_go_whole_vectors`; or None. Each
+    #: row is its own (element-wise products of that triangle's frames), so a row read from them is
+    #: the one made from that row's entries alone, to the bit.
+    _whole_vectors = None
 
     def _turned_frames(self, other: Key, rows=slice(None), keep: bool = False) -> np.ndarray:
         """The triangles' whole rotations from the base to ``other`` (the key this relative was
@@ -183,10 +191,27 @@ class WholeRotations:
         round a part turns, :meth:`turning`), or, on the triangles ``free`` (bool (m,) or None),
         from the part nearest the rigid motion's turn
         (:func:`core.rotation_continuity.continuous_rotation_vectors`)."""
-        whole = df.rotation_vectors_of_entries(self._whole_entries(base, other, keep=True))
+        # a copy of the kept vectors: the readers may keep or change it (SciPy's rotations take no
+        # read-only array), and the gap's whole rotations read the kept rows after
+        whole = self._whole_rotation_vectors(base, other).copy()
         continued = rotation_continuity.continuous_rotation_vectors(whole, pairs, topo.triangle_component,
                                                                     toward=self._rigid_turns(topo, base), free=free)
         return whole, continued
+
+    def _whole_rotation_vectors(self, base: Key, other: Key) -> np.ndarray:
+        """The triangles' whole rotation vectors (m, 3, read-only) from ``base`` to ``other`` (the
+        keys this relative was built from), the short way round: :attr:`_whole_vectors`, made from
+        the entries (:meth:`_whole_entries`, kept for :meth:`residuals_add_turn`) where not yet made."""
+        vectors = self._whole_vectors
+        if vectors is None:
+            vectors = df.rotation_vectors_of_entries(self._whole_entries(base, other, keep=True))
+            vectors.flags.writeable = False
+            self._whole_vectors = vectors
+        return vectors
+
+    def let_go_whole_vectors(self) -> None:
+        """Let go of :attr:`_whole_vectors` (24 bytes per triangle), once the gap that read them is prepared."""
+        self.__dict__.pop("_whole_vectors", None)
 
     def _rigid_turns(self, topo: Topology, base: Key) -> tuple:
         """Each triangle's piece's rigid rotation vector (m, 3) (the screw's, unwrapped as the
@@ -261,10 +286,15 @@ class WholeRotations:
         across this relative's triangle pairs (two poses) or ``across`` (E, 2), from the part
         nearest the rigid motion's turn on the triangles ``free`` (:meth:`continued_turns`)."""
         rows = np.flatnonzero(components[topo.triangle_component])
-        entries = self._whole_entries(base, other, rows)  # let go before the copy: it keeps none
+        kept = self._whole_vectors  # all the triangles', where continued_turns made them
+        if kept is None:
+            entries = self._whole_entries(base, other, rows)  # let go before the copy: it keeps none
+        else:  # the frames and entries let go as reading them would
+            self.__dict__.pop("_whole", None)
+            self.__dict__.pop("_plane_frames", None)
         out = copy.copy(self)
         out.rotvec = self.rotvec.copy()
-        out.rotvec[rows] = df.rotation_vectors_of_entries(entries)
+        out.rotvec[rows] = df.rotation_vectors_of_entries(entries) if kept is None else kept[rows]
         across = self._across if across is None else across
         if across is not None:
             out.rotvec = rotation_continuity.continuous_rotation_vectors(out.rotvec, across, topo.triangle_component,

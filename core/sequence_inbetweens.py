@@ -283,6 +283,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
         if not anchored and not chord and self._across is None:  # parts the keys' rounding may hide as bones
             segment.hidden_rigid_turn = self._hidden_rigid_turn(gap, reading, turning)
+        for relative in ahead + segment.relatives:  # read by this gap's preparation alone
+            relative.let_go_whole_vectors()
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

@@ -1637,3 +1637,71 @@ def test_each_keys_five_key_correction_is_made_once_for_both_its_gaps(monkeypatc
         expected = splines.HermiteGap(x[gap - 1:gap + 3], True, rows=True, corrections=corrections)
         np.testing.assert_array_equal(world.t0, expected.t0)
         np.testing.assert_array_equal(world.t1, expected.t1)
+
+
+def test_kept_whole_rotation_vectors_are_the_rows_made_from_the_entries(strip):
+    """A relative's whole rotation vectors, made once for all triangles where its turns are read
+    (``continued_turns``) and kept while its gap is prepared, give :meth:`whole_rotations` the same
+    rows to the bit as the entries made for those rows alone (a relative that kept none), on the
+    triangles of one piece of two (strips bent, turned and moved apart); read-only, and let go."""
+    from core.inbetween_keys import Key, Relative
+    from core.inbetween_topology import Topology
+    from core.mesh_topology import mesh_topology
+
+    flat, tri = strip
+    twin = flat + [0.0, 3.0, 0.0]
+    vertices = np.vstack([flat, twin])
+    triangles = np.vstack([tri, tri + len(flat)])
+    turn = Rotation.from_rotvec([0.4, -1.9, 0.7])
+    moved = np.vstack([turn.apply(_bend(flat, 2.6)) + [0.3, 0.0, 0.2], _bend(twin, -1.4) + [0.0, 0.5, -0.1]])
+    mesh = mesh_topology(triangles, len(vertices))
+    topo = Topology(mesh, vertices)
+    base, other = Key(topo, vertices), Key(topo, moved)
+    pairs = mesh.edge_triangles[mesh.interior_edges]
+    kept, fresh = Relative(topo, base, other), Relative(topo, base, other)
+    whole, _ = kept.continued_turns(topo, base, other, pairs)
+    assert kept._whole_vectors is not None and not kept._whole_vectors.flags.writeable
+    np.testing.assert_array_equal(whole, kept._whole_vectors)
+    for components in (np.array([True, False]), np.array([False, True]), np.array([True, True])):
+        ours = kept.whole_rotations(topo, base, other, components)
+        theirs = Relative(topo, base, other).whole_rotations(topo, base, other, components)
+        np.testing.assert_array_equal(ours.rotvec, theirs.rotvec)
+        assert np.abs(ours.rotvec - fresh.rotvec).max() > 0.1  # the whole rotations, not the residuals
+    kept.let_go_whole_vectors()
+    assert kept._whole_vectors is None
+
+
+def test_a_gap_built_twice_reads_its_kept_whole_rotations_to_the_bit(monkeypatch, strip):
+    """A gap whose rotations are taken whole and which is built a second time for the rotations
+    against the guide (both forced here in every gap) reads its next key's whole rotation vectors
+    kept from its turns' reading: the in-betweens are those of a sequence that makes them from the
+    entries at every reading, to the bit, and no gap holds them once prepared."""
+    import core.inbetween_keys as keys_module
+    from core import deformation_fields as df
+    from core.inbetween_solver import Gap
+    from core.inbetween_whole_rotations import WholeRotations
+
+    flat, tri = strip
+    keys = [_bend(flat, 0.9 * k) + np.array([0.0, 0.1 * k, -0.1 * k * k]) for k in range(5)]
+    monkeypatch.setattr(keys_module.Relative, "residuals_add_turn",
+                        lambda relative, topo, base, other: np.ones(len(topo.components), dtype=bool))
+    monkeypatch.setattr(Gap, "rotations_against_guide", lambda gap: np.ones(len(gap.topo.components), dtype=bool))
+    built = []
+    segment = SequenceInterpolator._segment
+
+    def counted(seq, gap, *arguments, **options):
+        built.append(gap)
+        return segment(seq, gap, *arguments, **options)
+
+    monkeypatch.setattr(SequenceInterpolator, "_segment", counted)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        seq = SequenceInterpolator(keys, tri)
+        ours = [seq.poses(gap, [0.25, 0.5, 0.75]) for gap in range(len(seq))]
+        assert sorted(built) == sorted(2 * list(range(len(seq))))  # each gap built twice
+        assert all(r._whole_vectors is None for g in seq._gaps.values() for r in g.relatives)
+        monkeypatch.setattr(WholeRotations, "_whole_rotation_vectors", lambda relative, base, other:
+                            df.rotation_vectors_of_entries(relative._whole_entries(base, other, keep=True)))
+        made = SequenceInterpolator(keys, tri)
+        for gap in range(len(made)):
+            np.testing.assert_array_equal(made.poses(gap, [0.25, 0.5, 0.75]), ours[gap])
