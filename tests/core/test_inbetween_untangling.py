@@ -105,17 +105,20 @@ def test_untangle_leaves_a_pose_that_faces_its_sides_as_it_is():
 def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatch, strip):
     """A strip bending through three keys whose middle in-between comes out of its fit and repairs
     with part of a vertex's fan turned over (a vertex pushed past its neighbour, as a fold no field
-    of the repairs unfolds): the in-between returned has no flipped triangle and no warning, and
-    only the vertices within three rings of the pushed one moved, by less than a mean edge (the repair
-    limits' scale). Without the untangling the fold was kept and warned."""
+    of the repairs unfolds): the in-between returned has no flipped triangle and no warning of one (the
+    pushed vertex's ring stays off its lengths, which the gap's ``fit`` warning may say, keeping no
+    defect), and only the vertices within three rings of the pushed one moved, by less than a mean edge
+    (the repair limits' scale). Without the untangling the fold was kept and warned."""
     flat, tri = strip
     keys = [_bend(flat, angle) for angle in (0.0, 1.0, 2.0)]
     middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))  # keyed about the origin: sequences work
     keys = [key - middle for key in keys]  # about the first key's middle, and the mock sees positions
     folded = _fits_folded(monkeypatch, tri, lambda x: int(np.argmin(np.linalg.norm(x - x.mean(axis=0), axis=1))))
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", ShapeDifferenceWarning)
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always", ShapeDifferenceWarning)
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)
+    said = [w.message for w in said if isinstance(w.message, ShapeDifferenceWarning)]
+    assert all(w.kind == "fit" and w.defects == 0 for w in said), [str(w) for w in said]
     x, centre = folded[0.5]
     assert _flipped(x, keys[0], keys[1], tri) > 0
     assert _flipped(y, keys[0], keys[1], tri) == 0
@@ -339,7 +342,9 @@ def test_a_fold_is_untangled_beside_a_crush_the_untangling_cannot_open(monkeypat
     assert np.array_equal(y[~near], x[~near])
     collapsed = _collapsed(y, keys[0], tri)
     assert collapsed > 0
-    assert [(w.kind, w.defects) for w in said] == [("pose", collapsed)]
+    # the crush's collapsed triangles said once; the gap's ``fit`` warning may say its edges are off too
+    assert [(w.kind, w.defects) for w in said if w.kind != "fit"] == [("pose", collapsed)]
+    assert all(w.defects == 0 for w in said if w.kind == "fit")
 
 
 def test_a_tangle_too_large_is_not_untangled_its_work_bounded_and_said(monkeypatch):
