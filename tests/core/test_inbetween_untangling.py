@@ -17,6 +17,14 @@ from inbetween_helpers import _bend, _flipped, _normals
 from meshes import grid
 
 
+def _defects_said(said) -> list:
+    """The warnings of ``said`` (warning messages, or recorded warnings) but a ``fit`` warning that
+    keeps no defect: a gap whose in-between is folded or crushed on purpose here has its edges off the
+    keys' lengths, which its ``fit`` warning may say beside the defects' warnings these tests are about."""
+    said = [getattr(w, "message", w) for w in said]
+    return [w for w in said if not (w.kind == "fit" and w.defects == 0)]
+
+
 def _pushed_past(x, tri, centre, across=0.6):
     """Positions ``x`` with vertex ``centre`` pushed ``across`` of an edge length past its
     neighbour farthest along +x: the triangles of its fan on that side turn over."""
@@ -117,8 +125,7 @@ def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatc
     with warnings.catch_warnings(record=True) as said:
         warnings.simplefilter("always", ShapeDifferenceWarning)
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)
-    said = [w.message for w in said if isinstance(w.message, ShapeDifferenceWarning)]
-    assert all(w.kind == "fit" and w.defects == 0 for w in said), [str(w) for w in said]
+    assert not _defects_said(w for w in said if isinstance(w.message, ShapeDifferenceWarning))
     x, centre = folded[0.5]
     assert _flipped(x, keys[0], keys[1], tri) > 0
     assert _flipped(y, keys[0], keys[1], tri) == 0
@@ -343,8 +350,7 @@ def test_a_fold_is_untangled_beside_a_crush_the_untangling_cannot_open(monkeypat
     collapsed = _collapsed(y, keys[0], tri)
     assert collapsed > 0
     # the crush's collapsed triangles said once; the gap's ``fit`` warning may say its edges are off too
-    assert [(w.kind, w.defects) for w in said if w.kind != "fit"] == [("pose", collapsed)]
-    assert all(w.defects == 0 for w in said if w.kind == "fit")
+    assert [(w.kind, w.defects) for w in _defects_said(said)] == [("pose", collapsed)]
 
 
 def test_a_tangle_too_large_is_not_untangled_its_work_bounded_and_said(monkeypatch):
@@ -363,7 +369,7 @@ def test_a_tangle_too_large_is_not_untangled_its_work_bounded_and_said(monkeypat
     assert np.array_equal(y[~near], x[~near])
     collapsed = _collapsed(y, keys[0], tri)
     assert collapsed > 0
-    assert [(w.kind, w.defects) for w in said] == [("pose", collapsed)]
+    assert [(w.kind, w.defects) for w in _defects_said(said)] == [("pose", collapsed)]
     assert "too large to untangle" in str(said[0])
 
 
@@ -386,7 +392,7 @@ def test_the_untangling_of_an_in_between_stops_at_its_work(monkeypatch):
         return y, [w.message for w in said]
 
     y, said = in_between()
-    assert not said and _flipped(y, keys[0], keys[1], tri) == 0  # both untangled
+    assert not _defects_said(said) and _flipped(y, keys[0], keys[1], tri) == 0  # both untangled
     both = sum(solved)
     assert len(solved) == 1  # both in one try
     most = len(UNTANGLE_WEIGHTS) * UNTANGLE_ITERATIONS
@@ -400,6 +406,7 @@ def test_the_untangling_of_an_in_between_stops_at_its_work(monkeypatch):
     assert np.array_equal(y[~untangled_fold], x[~untangled_fold])
     flipped = _flipped(y, keys[0], keys[1], tri)
     assert 0 < flipped < _flipped(x, keys[0], keys[1], tri)
+    said = _defects_said(said)
     assert [(w.kind, w.defects) for w in said] == [("pose", flipped)] and "too large to untangle" in str(said[0])
 
 
@@ -422,7 +429,7 @@ def test_a_fold_beside_a_crush_joined_at_the_second_ring_is_untangled_with_no_tr
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)
     x = made[0.5][0]
     assert _collapsed(x, keys[0], tri) > 0 and _flipped(x, keys[0], keys[1], tri) > 0
-    assert not said
+    assert not _defects_said(said)
     assert _flipped(y, keys[0], keys[1], tri) == 0 and _collapsed(y, keys[0], tri) == 0
     near = _within_rings(tri, centre, 6) | _within_rings(tri, fold, 3)
     assert np.array_equal(y[~near], x[~near])
@@ -451,7 +458,7 @@ def test_many_small_folds_on_a_larger_sheet_are_all_untangled_within_the_work(mo
         y = SequenceInterpolator(keys, tri).pose(0, 0.5)
     x = made[0.5][0]
     assert _flipped(x, keys[0], keys[1], tri) >= 2 * len(folds)
-    assert not said and _flipped(y, keys[0], keys[1], tri) == 0
+    assert not _defects_said(said) and _flipped(y, keys[0], keys[1], tri) == 0
     assert sum(f for f, _ in tries) > 2000  # more than a count of free vertices allowed
     assert _collapsed(y, keys[0], tri) == 0
     assert _work(tries) <= UNTANGLE_WORK
@@ -493,6 +500,7 @@ def test_a_fit_near_the_blend_left_with_places_is_said_as_that_fit(monkeypatch):
     monkeypatch.setattr(solver.Gap, "pose", near_blend)
     keys, tri, x, y, corner, said = _crushed_and_folded(monkeypatch, radius=4)
     assert _flipped(x, keys[0], keys[1], tri) > 0 and _flipped(y, keys[0], keys[1], tri) == 0  # the fold cleared
+    said = _defects_said(said)
     assert [(w.kind, w.defects) for w in said] == [("pose", _collapsed(y, keys[0], tri))]
     assert "(a fit near the keys' linear blend with the fewest defects" in str(said[0])
 
