@@ -35,26 +35,32 @@ TRIM_THRESHOLD = 64 << 20
 #: 1,324 MB with glibc's default of 8 per core, 1,016 MB with 2, no slower).
 ARENA_MAX = 2
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD, _M_ARENA_MAX = -1, -3, -8  # glibc's mallopt parameter numbers
-_done = False
+#: The settings :func:`keep_heap` makes, by name: each is set on its own, so that one glibc refuses
+#: (some versions refuse an mmap threshold above HEAP_MAX_SIZE / 2) leaves the others in force.
+SETTINGS = {"M_MMAP_THRESHOLD": (_M_MMAP_THRESHOLD, MMAP_THRESHOLD),
+            "M_TRIM_THRESHOLD": (_M_TRIM_THRESHOLD, TRIM_THRESHOLD),
+            "M_ARENA_MAX": (_M_ARENA_MAX, ARENA_MAX)}
+_held: frozenset[str] | None = None  # the settings in force, once keep_heap has set them
 
 
-def keep_heap() -> bool:
+def keep_heap() -> frozenset[str]:
     """Raise glibc's mmap and trim thresholds and cap its arenas once per process (see the
-    module docstring).
-    Returns whether the settings are in force (False on other platforms or C libraries)."""
-    global _done
-    if _done:
-        return True
+    module docstring), each setting on its own: one glibc refuses leaves the others in force.
+    Returns the names of the settings in force (of :data:`SETTINGS`; empty, so false, on other
+    platforms or C libraries and in an interactive Blender)."""
+    global _held
+    if _held is not None:
+        return _held
     blender = sys.modules.get("bpy")
     if blender is not None and not getattr(getattr(blender, "app", None), "background", True):
-        return False  # an interactive session: leave the host's allocator as it is
+        return frozenset()  # an interactive session: leave the host's allocator as it is
     libc = _glibc()
     try:
-        _done = libc is not None and all(libc.mallopt(parameter, value) for parameter, value in (
-            (_M_MMAP_THRESHOLD, MMAP_THRESHOLD), (_M_TRIM_THRESHOLD, TRIM_THRESHOLD), (_M_ARENA_MAX, ARENA_MAX)))
+        _held = frozenset() if libc is None else frozenset(
+            name for name, (parameter, value) in SETTINGS.items() if libc.mallopt(parameter, value))
     except AttributeError:  # no mallopt: nothing to tune
-        return False
-    return _done
+        _held = frozenset()
+    return _held
 
 
 def give_back_heap() -> bool:

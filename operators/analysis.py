@@ -16,7 +16,7 @@ from .motion_sources import refuse_emptying_caches, simulations_emptied_by, zone
 from .output import require_local
 from .base import (MEASURED_IN_WORLD, SCENE_SETTING, GeneratorOperator, InputError, check_basis_order,
                    check_basis_size, default_pose_key, frame_name, in_world, key_blocks_of, key_pose, mesh_pose,
-                   offset_option, refused_in_poll, report, resolve_key, surface_triangles)
+                   offset_option, ran_out_of_memory, refused_in_poll, report, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
@@ -105,6 +105,21 @@ def shape_space_image(obj, data: dict, highlight: int | None = None):
     return image
 
 
+def restore_shape_space(obj, name: str, before: dict | None, images: set) -> None:
+    """Give ``obj`` back the shape space stored on it ``before`` (None: none) and its image
+    ``name``: removed where it is not one of ``images`` (those there before), else drawn again."""
+    image = bpy.data.images.get(name)
+    if before is None:
+        obj.pop(analysis_data.SHAPE_SPACE_PROPERTY, None)
+    else:
+        obj[analysis_data.SHAPE_SPACE_PROPERTY] = before
+    if image is not None and image not in images:
+        bpy.data.images.remove(image)
+    elif before is not None and before.get("image") == name:
+        selected = int(before.get("selected", -1))
+        shape_space_image(obj, before, highlight=selected if selected >= 0 else None)
+
+
 def show_image(context, image):
     """Show ``image`` in every Image Editor of the current screen (there may be none)."""
     screen = getattr(context, "screen", None)
@@ -122,6 +137,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
 
     bl_idname = "shape_differences.shape_space"
     bl_label = "Shape Space"
+    memory_advice = "take fewer poses (raise Step or narrow the frame range) or lower k_M and k_N"
 
     source: EnumProperty(name="Poses", items=SOURCE_ITEMS, default='KEYS')
 
@@ -167,6 +183,10 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             "variance": {kind: space.explained_variance_ratio(kind)[:4].tolist() for kind in KINDS},
             "selected": -1,
         }
+        # should the run fail from here, the image is drawn again from the shape space stored before
+        # (or removed, where it is new) and that shape space stays
+        before, images = analysis_data.stored_shape_space(obj), set(bpy.data.images)
+        self.undo_on_failure(lambda: restore_shape_space(obj, data["image"], before, images))
         image = shape_space_image(obj, data)
         obj[analysis_data.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)
@@ -202,6 +222,22 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
         except InputError as error:
             report(self, {'ERROR'}, str(error))
             return {'CANCELLED'}
+        before = analysis_data.stored_shape_space(obj)
+        frame, index = context.scene.frame_current, obj.active_shape_key_index
+        try:
+            return self._select(context, obj)
+        except MemoryError as error:  # drawing the image: the selection, frame, active key and image as they were
+            context.scene.frame_set(frame)
+            obj.active_shape_key_index = index
+            try:
+                restore_shape_space(obj, before["image"], before, set(bpy.data.images))
+            except MemoryError:  # the image is drawn again from the stored selection after undo or a reload
+                pass
+            report(self, {'ERROR'}, ran_out_of_memory(error, "save the .blend and restart Blender, which gives "
+                                                             "back the memory it holds"))
+            return {'CANCELLED'}
+
+    def _select(self, context, obj):
         data = analysis_data.stored_shape_space(obj)
         try:  # read and drawn before anything changes
             first_axis = np.asarray(data["coordinates"][self.kind], dtype=float).reshape(-1, 2)[:, 0]
@@ -279,6 +315,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
 
     bl_idname = "shape_differences.distortion_maps"
     bl_label = "Distortion Maps"
+    memory_advice = "raise Step, narrow the frame range or write fewer Eigenfunctions"
 
     source: EnumProperty(name="Poses", items=DISTORTION_SOURCE_ITEMS, default='ACTIVE_KEY')
     key: StringProperty(name="Key", description="Pose to map (empty: the active key)")
@@ -347,6 +384,7 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             if unchanged_pose(distortion):
                 unchanged.append(f"'{self.key}'" if self.source == 'ACTIVE_KEY' else f"frame {frames[index]}")
             yield 0.3 + 0.65 * (index + 1) / len(poses)
+        self.undo_on_failure(maps_restorer(mesh, labels))  # the maps it overwrites come back should the run fail
         self._write(mesh, triangles, base, labels, results)
         dropped = zone_frames_dropped(context.scene, obj, "distortion maps written to")
         if dropped:
@@ -410,6 +448,47 @@ class SHAPE_DIFFERENCES_OT_distortion_maps(AnalysisBasisProperties, CaptureStep,
             mesh.color_attributes.active_color = mesh.color_attributes[first]
         mesh.color_attributes.default_color_name = render_color  # "" keeps none
         mesh.update()
+
+
+def maps_restorer(mesh, labels: list[str]):
+    """A function that gives ``mesh`` back the distortion maps of ``labels`` (a key's "", a frame's
+    " f12") it has now (:data:`bridge.analysis_data.ANALYSIS_ATTRIBUTE`: their values, those written
+    since removed; the maps of other frames, which a run of ``labels`` leaves alone, are not copied),
+    its active and render colour attributes and its list of frame maps, for a run that fails while
+    writing its own (:meth:`GeneratorOperator.undo_on_failure`)."""
+    labels = set(labels)
+
+    def ours(name: str) -> bool:
+        match = analysis_data.ANALYSIS_ATTRIBUTE.fullmatch(name)
+        return match is not None and (match.group(analysis_data.ANALYSIS_ATTRIBUTE.groups) or "") in labels  # its frame
+
+    kept = {}
+    for attribute in mesh.attributes:
+        if ours(attribute.name):
+            color = attribute.data_type == 'FLOAT_COLOR'
+            values = np.empty(len(attribute.data) * (4 if color else 1), dtype=np.float32)
+            attribute.data.foreach_get("color" if color else "value", values)
+            kept[attribute.name] = (attribute.domain, color, values)
+    active = mesh.color_attributes.active_color_name
+    render = mesh.color_attributes.default_color_name
+    frame_maps = mesh.get(FRAME_MAPS_PROPERTY)
+    frame_maps = frame_maps.to_dict() if hasattr(frame_maps, "to_dict") else frame_maps
+
+    def restore():
+        for name in [a.name for a in mesh.attributes if ours(a.name) and a.name not in kept]:
+            mesh.attributes.remove(mesh.attributes[name])
+        for name, (domain, color, values) in kept.items():
+            analysis_data.write_attribute(mesh, name, domain, values, color=color)
+        if active in mesh.color_attributes:
+            mesh.color_attributes.active_color_name = active
+        mesh.color_attributes.default_color_name = render
+        if frame_maps is None:
+            mesh.pop(FRAME_MAPS_PROPERTY, None)
+        else:
+            mesh[FRAME_MAPS_PROPERTY] = frame_maps
+        mesh.update()
+
+    return restore
 
 
 #: A pose whose maps are all at most this (or the size of the coordinates' rounding,

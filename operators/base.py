@@ -178,10 +178,30 @@ def check_basis_size(label: str, k: int, where: str = "", zero: str | None = Non
         raise InputError(f"{label}{where} = {k} must be {allowed} (typically 50–300)")
 
 
-def reported_error(error: BaseException, triangle_faces=None) -> str | None:
-    """The message to show for an expected failure, or None for a bug that should propagate."""
+#: What a run that ran out of memory says to make smaller, where its operator names nothing of its
+#: own (:attr:`GeneratorOperator.memory_advice`).
+MEMORY_ADVICE = "decimate the mesh or split it into parts"
+
+
+def ran_out_of_memory(error: MemoryError, advice: str = MEMORY_ADVICE) -> str:
+    """The report of a run that ran out of memory past the checks made before any work
+    (:func:`check_memory`: another program took it meanwhile, or the system does not say how much
+    there is): what ran out (the core's or NumPy's words, "CHOLMOD could not hold the factor of a
+    matrix of … unknowns", "Unable to allocate 1.2 GiB for an array …") and what to do: ``advice``
+    (the operator's own, what makes its job smaller), close other programs, or run it where there
+    is more memory."""
+    said = " ".join(str(error).split())
+    return (f"Ran out of memory{f' ({said})' if said else ''}: nothing was changed. To run it, {advice}; "
+            "close other programs to free memory; or run it on a machine with more memory")
+
+
+def reported_error(error: BaseException, triangle_faces=None, memory_advice: str = MEMORY_ADVICE) -> str | None:
+    """The message to show for an expected failure, or None for a bug that should propagate.
+    ``memory_advice``: what makes the job smaller, for a :class:`MemoryError` (:func:`ran_out_of_memory`)."""
     if isinstance(error, (InputError, frame_reading.FrameReadError)):
         return str(error)
+    if isinstance(error, MemoryError):
+        return ran_out_of_memory(error, memory_advice)
     if isinstance(error, ImportError) and error.name and error.name.split(".")[0] in (
             "scipy", "threadpoolctl"):
         return (f"The Python package '{error.name}' is missing. Install the Shape Differences "
@@ -365,6 +385,8 @@ class GeneratorOperator:
     name the poses they hand over (``key_names``: shape keys, frames) for the core's messages."""
 
     bl_options = {'REGISTER', 'UNDO'}
+    #: What makes the job smaller where it runs out of memory (:func:`ran_out_of_memory`).
+    memory_advice = MEMORY_ADVICE
 
     @classmethod
     def poll(cls, context):
@@ -422,6 +444,26 @@ class GeneratorOperator:
         self._warned: list[str] = []  # the warning reports made (report), for the run's last line
         self.summary = ""
         self.triangle_faces = None
+        self._ran_out = False  # the job ran out of memory (said on the console, headless)
+        self._undo: list = []  # what takes back each write made so far (undo_on_failure), in order
+
+    def undo_on_failure(self, undo) -> None:
+        """Have ``undo()`` (no arguments) take back a write the job just made (shape keys added, a
+        new object, a file, attributes) should the job fail after it: a job writes in its last
+        step, where memory may still run out (a :class:`MemoryError` after the first keys are
+        added), and an operator that does not finish leaves no undo step of its own, so the
+        user's file would keep half the output. Undone last first (:meth:`_take_back`)."""
+        self._undo.append(undo)
+
+    def _take_back(self) -> None:
+        """Undo the job's writes (:meth:`undo_on_failure`), last first; one that fails to be
+        undone is said on the console and the others are still undone."""
+        undo, self._undo = self._undo, []
+        for step in reversed(undo):
+            try:
+                step()
+            except Exception as error:  # the others still go
+                print(f"Shape Differences: could not take back a write of a failed run: {error!r}", file=sys.stderr)
 
     def _step(self) -> tuple[str | None, float]:
         """Advance the job by one step: (final status or None while running, progress)."""
@@ -432,9 +474,17 @@ class GeneratorOperator:
                 try:
                     return None, next(self._job)
                 except StopIteration:
+                    self._undo = []
                     return 'FINISHED', 1.0
                 except Exception as error:
-                    message = reported_error(error, self.triangle_faces)
+                    self._take_back()  # whatever the failure, the file is left as it was
+                    if isinstance(error, MemoryError):
+                        self._ran_out = True
+                        # the in-betweens' work in the background stops too, as Esc stops it: its memory
+                        # goes with it (core.gap_processes.stop)
+                        from ..core.gap_processes import stop as stop_background
+                        stop_background()
+                    message = reported_error(error, self.triangle_faces, self.memory_advice)
                     if message is None:
                         raise
                     report(self, {'ERROR'}, message)
@@ -481,8 +531,9 @@ class GeneratorOperator:
                 raise
             if status:
                 if console:  # without a UI nothing cancels a run: it ends done, or refused (the error report says why)
-                    print(f"{label}: {'done' if status == 'FINISHED' else 'refused'}", file=sys.stderr,
-                          flush=True)
+                    ended = ('done' if status == 'FINISHED' else 'ran out of memory, nothing changed'
+                             if getattr(self, "_ran_out", False) else 'refused')
+                    print(f"{label}: {ended}", file=sys.stderr, flush=True)
                 return self._finish(status)
             if console and time.monotonic() - last_print >= CONSOLE_PROGRESS_INTERVAL:
                 last_print = self._console_last = time.monotonic()

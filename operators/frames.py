@@ -325,6 +325,7 @@ class SHAPE_DIFFERENCES_OT_frames_to_shape_keys(CaptureStep, PoseOutput, FrameRa
 
     bl_idname = "shape_differences.frames_to_shape_keys"
     bl_label = "Frames to Shape Keys"
+    memory_advice = "raise Step or narrow the frame range"
 
     def run(self, context):
         with self.frame_set_back(context):
@@ -355,6 +356,8 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
 
     bl_idname = "shape_differences.inbetween_frames"
     bl_label = "In-between Frames"
+    memory_advice = ("lower In-betweens per gap (made at once for each gap), raise Step or narrow the frame range, "
+                     "or on a farm run python -m core retime in parts (--chunk I/N)")
 
     minimum_frames = 2
 
@@ -478,6 +481,8 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
 
     bl_idname = "shape_differences.retime"
     bl_label = "Retime"
+    memory_advice = ("raise the speed or retime a shorter range, or on a farm run python -m core retime in parts "
+                     "(--chunk I/N)")
 
     def run(self, context):
         with self.frame_set_back(context):

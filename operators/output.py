@@ -336,7 +336,13 @@ class PoseWriter:
             new_keys = [shape_keys.NewShapeKey(name, pose, tail)
                         for name, pose, tail in zip(names, poses, tails)]
             times = [scene_timing.scene_time(context.scene, frame) for frame in frames]
+            had_basis = source.data.shape_keys is not None
+            had_action = bool(had_basis and source.data.shape_keys.animation_data
+                              and source.data.shape_keys.animation_data.action)
             added = shape_keys.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
+            undo = getattr(self, "undo_on_failure", None)  # a failure after this (GeneratorOperator) takes them back
+            if undo is not None:
+                undo(lambda: remove_added_keys(source, added, had_basis, had_action))
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
             dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
@@ -415,6 +421,9 @@ class PoseWriter:
             if written:
                 path.unlink(missing_ok=True)
             raise
+        undo = getattr(self, "undo_on_failure", None)  # a failure after this (GeneratorOperator) takes it back
+        if undo is not None:
+            undo(lambda: remove_cache_object(obj, path if written else None))
         if left_out:
             advice = ("use Output › Shape Keys to see them under it" if keyed else "copy them to it by hand if it "
                       "should render them (Particle Properties › Copy Active to Selected Objects)")
@@ -443,6 +452,48 @@ class PoseWriter:
                 else f"frames {frames[0]:g}-{frames[-1]:g}")
         return (f"Added '{obj.name}' playing {len(frames)} pose{'s' if len(frames) != 1 else ''} "
                 f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
+
+
+def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool) -> None:
+    """Take back the shape keys ``names`` added to ``obj`` (:meth:`PoseWriter.write_poses`), the
+    Basis made for them (not ``had_basis``) and their keyframes: the action made for them (not
+    ``had_action``), else their F-curves in the keys' own action."""
+    key = obj.data.shape_keys
+    animation = key.animation_data if key is not None else None
+    if animation is not None and animation.action is not None:
+        if had_action:
+            for name in names:
+                fcurve = shape_keys.shape_key_value_fcurve(key, name)
+                if fcurve is not None:
+                    _remove_fcurve(animation, fcurve)
+        else:  # the action alone: drivers of the keys stay
+            action = animation.action
+            animation.action = None
+            if action.users == 0:
+                bpy.data.actions.remove(action)
+    shape_keys.remove_shape_keys(obj, names, remove_basis=not had_basis)
+
+
+def _remove_fcurve(animation, fcurve) -> None:
+    """Remove ``fcurve`` from ``animation``'s action (legacy and slotted actions, as
+    :func:`bridge.shape_keys.shape_key_value_fcurve` finds it)."""
+    if hasattr(animation, "action_slot"):  # Blender 4.4+: the slot's channel bag holds it
+        from bpy_extras import anim_utils
+
+        anim_utils.action_get_channelbag_for_slot(animation.action, animation.action_slot).fcurves.remove(fcurve)
+    else:
+        animation.action.fcurves.remove(fcurve)
+
+
+def remove_cache_object(obj, path: Path | None) -> None:
+    """Take back a new object playing a point cache (:meth:`PoseWriter.write_cache_object`), its
+    mesh, and ``path``, the file this run wrote for it (None: an earlier run's, which stays)."""
+    mesh = obj.data
+    bpy.data.objects.remove(obj)
+    if mesh is not None and mesh.users == 0:
+        bpy.data.meshes.remove(mesh)
+    if path is not None:
+        path.unlink(missing_ok=True)
 
 
 #: Where a user turns a rigid body's motion into keyframes, which a new object takes over.

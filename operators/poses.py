@@ -138,6 +138,7 @@ class SHAPE_DIFFERENCES_OT_inbetween(KeyPair, PoseOutput, KeyPairProperties,
 
     bl_idname = "shape_differences.inbetween"
     bl_label = "In-between"
+    memory_advice = "lower Count or decimate the mesh"
 
     def run(self, context):
         require_count(self.count, "in-betweens")

@@ -100,6 +100,7 @@ class SHAPE_DIFFERENCES_OT_transfer_poses(CaptureStep, PoseOutput, BasisSizeProp
 
     bl_idname = "shape_differences.transfer_poses"
     bl_label = "Transfer Poses"
+    memory_advice = "transfer fewer frames (raise Step or narrow the frame range) or lower k_M and k_N"
 
     source: EnumProperty(
         name="Poses", default='KEYS',

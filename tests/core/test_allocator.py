@@ -10,14 +10,42 @@ def test_keep_heap_takes_effect_on_glibc_once(monkeypatch):
 
     import core.allocator as allocator
 
-    monkeypatch.setattr(allocator, "_done", False)
+    monkeypatch.setattr(allocator, "_held", None)
     interactive = types.SimpleNamespace(app=types.SimpleNamespace(background=False))
     monkeypatch.setitem(sys.modules, "bpy", interactive)
     assert not keep_heap()  # an interactive Blender keeps its allocator's settings
     monkeypatch.setitem(sys.modules, "bpy", types.SimpleNamespace(app=types.SimpleNamespace(background=True)))
     first = keep_heap()
     assert keep_heap() == first
-    assert first == (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+    assert bool(first) == (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
+    assert first in (frozenset(), frozenset(allocator.SETTINGS))  # this glibc takes all three or is none
+
+
+def test_a_setting_glibc_refuses_leaves_the_others_in_force(monkeypatch):
+    """A glibc that refuses the 64 MB mmap threshold (some versions cap it at HEAP_MAX_SIZE / 2)
+    still gets the trim threshold and the arena cap, and ``keep_heap`` says which held. Before,
+    the first refusal stopped it: neither of the other two was set and it said none held."""
+    import sys
+    import types
+
+    import core.allocator as allocator
+
+    made = []
+
+    def mallopt(parameter, value):  # glibc's answer: 1 where the setting is taken, 0 where refused
+        made.append((parameter, value))
+        return int(parameter != allocator._M_MMAP_THRESHOLD)
+
+    monkeypatch.setattr(allocator, "_held", None, raising=False)
+    monkeypatch.setattr(allocator, "_done", False, raising=False)  # the flag before _held
+    monkeypatch.setattr(allocator, "_glibc", lambda: types.SimpleNamespace(mallopt=mallopt))
+    monkeypatch.setitem(sys.modules, "bpy", types.SimpleNamespace(app=types.SimpleNamespace(background=True)))
+    held = allocator.keep_heap()
+    asked = [(allocator._M_MMAP_THRESHOLD, allocator.MMAP_THRESHOLD), (allocator._M_TRIM_THRESHOLD,
+             allocator.TRIM_THRESHOLD), (allocator._M_ARENA_MAX, allocator.ARENA_MAX)]
+    assert sorted(made) == sorted(asked)  # each one asked for, once
+    assert held == {"M_TRIM_THRESHOLD", "M_ARENA_MAX"}
+    assert allocator.keep_heap() == held and len(made) == 3  # once per process
 
 
 def test_the_c_library_is_looked_for_once_per_process_where_it_is_not_glibc():

@@ -1,0 +1,163 @@
+"""Memory that runs out past the checks made before any work (another program takes it meanwhile, a
+system that does not say how much there is): every operator reports it in the user's terms (what ran
+out, what makes the job smaller) and leaves the file as it was, also where it ran out while writing
+(shape keys and their keyframes added, a new object and its cache file, distortion maps overwritten,
+a shape space drawn): an operator that does not finish pushes no undo step, so half its output
+would otherwise stay in the user's file."""
+
+import importlib
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+
+from blender_scenes import _fcurves, armature_scene, posed_grid  # noqa: E402
+from dev_extension import MODULE  # noqa: E402
+from test_undo import file_state  # noqa: E402
+
+
+def _module(name: str):
+    return importlib.import_module(f"{MODULE}.{name}")
+
+
+def _out_of_memory(*_args, **_kwargs):
+    raise MemoryError("Unable to allocate 1.21 GiB for an array with shape (54000, 3000) and data type float64")
+
+
+def fails_out_of_memory(bridge, operator, advice: str, said: str = "Unable to allocate 1.21 GiB", **properties):
+    """Run ``operator``: it reports running out of memory (``said``: the words of what ran out) with
+    ``advice``, not a traceback, and the file is as it was."""
+    before = file_state(bridge)
+    with pytest.raises(RuntimeError) as failure:
+        operator(**properties)
+    assert file_state(bridge) == before
+    message = str(failure.value)
+    assert "Traceback" not in message and "Ran out of memory" in message, "a crash, not a report"
+    assert said in message and advice in message and "nothing was changed" in message, message
+    assert "close other programs" in message
+
+
+@pytest.mark.parametrize("output", ['SHAPE_KEYS', 'CACHE'])
+def test_memory_running_out_after_the_poses_are_written_takes_them_back(bpy_empty, extension, core, monkeypatch,
+                                                                       tmp_path, output):
+    """In-between Frames runs out of memory once its keyframed shape keys are added (or its new object
+    plays its cache file): the keys, their keyframes and action, the Basis made for them, the object,
+    its mesh and the file go again. Before, Blender showed a traceback and the file kept them."""
+    output_module = _module("operators.output")
+    point = "zone_frames_dropped" if output == 'SHAPE_KEYS' else "object_motion"
+    calls = []
+
+    def after_the_write(*args, **kwargs):  # called once the keys are added (the object made)
+        calls.append(1)
+        _out_of_memory()
+
+    strip = armature_scene(frames=9)
+    assert strip.data.shape_keys is None
+    monkeypatch.setattr(output_module, point, after_the_write)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween_frames,
+                        "python -m core retime in parts (--chunk I/N)", frame_step=4, count=1, output=output,
+                        filepath=str(tmp_path) + "/")
+    assert calls and not list(tmp_path.iterdir())  # it did write; no cache file left
+    assert strip.data.shape_keys is None and not bpy.data.actions.get("KeyAction")
+
+
+def test_memory_running_out_in_the_core_is_reported_in_the_users_terms(bpy_empty, extension, core, monkeypatch):
+    """A MemoryError of the core (CHOLMOD's own words) while the in-betweens are made: reported with the
+    operator's advice (In-between: lower Count), nothing written."""
+    posed_grid(extension.bridge, 6)
+
+    def cholmod(*_args, **_kwargs):
+        raise MemoryError("CHOLMOD could not hold the factor of a matrix of 36 unknowns")
+
+    monkeypatch.setattr(core.Interpolator, "pose", cholmod)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween, "lower Count",
+                        said="CHOLMOD could not hold the factor of a matrix of 36 unknowns", count=2)
+
+
+def test_memory_running_out_while_distortion_maps_are_written_gives_the_earlier_maps_back(bpy_empty, extension,
+                                                                                         core, monkeypatch):
+    """Distortion Maps of another key run out of memory half-way through writing its maps over an
+    earlier run's: the earlier maps are there as they were (values, active colour attribute), the
+    half-written ones gone."""
+    obj = posed_grid(extension.bridge, 6)
+    bpy.ops.shape_differences.distortion_maps(source='ACTIVE_KEY', key="Curl", k_m=20, eigenfunctions=1)
+    analysis_data = _module("bridge.analysis_data")
+    write_attribute = analysis_data.write_attribute
+    calls = []
+
+    def half_way(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 4:
+            _out_of_memory()
+        return write_attribute(*args, **kwargs)
+
+    monkeypatch.setattr(analysis_data, "write_attribute", half_way)
+    before = maps(obj.data)
+    active = obj.data.color_attributes.active_color_name
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.distortion_maps, "write fewer Eigenfunctions",
+                        source='ACTIVE_KEY', key="Bend", k_m=20, eigenfunctions=2)
+    assert len(calls) >= 4  # three of the earlier maps overwritten with Bend's (then the restore's own writes)
+    after = maps(obj.data)
+    assert after.keys() == before.keys() and all(np.array_equal(after[name], before[name]) for name in before)
+    assert obj.data.color_attributes.active_color_name == active
+
+
+def maps(mesh) -> dict:
+    """The values of every attribute of ``mesh`` whose name is a distortion map's."""
+    analysis_data = _module("bridge.analysis_data")
+    values = {}
+    for attribute in mesh.attributes:
+        if analysis_data.ANALYSIS_ATTRIBUTE.fullmatch(attribute.name):
+            color = attribute.data_type == 'FLOAT_COLOR'
+            values[attribute.name] = np.empty(len(attribute.data) * (4 if color else 1), dtype=np.float32)
+            attribute.data.foreach_get("color" if color else "value", values[attribute.name])
+    return values
+
+
+def test_memory_running_out_once_a_shape_space_is_drawn_takes_it_back(bpy_empty, extension, core, monkeypatch):
+    """Shape Space runs out of memory once its image is drawn and its coordinates stored: the image
+    goes and no shape space is stored."""
+    posed_grid(extension.bridge, 6)
+    monkeypatch.setattr(_module("operators.analysis"), "show_image", _out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.shape_space, "lower k_M and k_N",
+                        source='KEYS', k_m=20, k_n=0)
+    assert not bpy.data.images
+
+
+def test_memory_running_out_while_select_pose_draws_leaves_the_selection_and_image(bpy_empty, extension, core,
+                                                                                    monkeypatch):
+    """Select Pose runs out of memory once it has drawn the new selection into the image: the image
+    shows the stored selection again (its pixels as before), the selection and active key stay."""
+    posed_grid(extension.bridge, 6)
+    bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=0)
+    bpy.ops.shape_differences.shape_space_select(kind='offset_area', rank=0)
+    analysis = _module("operators.analysis")
+    drawn_from, calls = analysis.drawn_from, []
+
+    def once(*args, **kwargs):  # after the image's pixels are written
+        calls.append(1)
+        if len(calls) == 1:
+            _out_of_memory()
+        return drawn_from(*args, **kwargs)
+
+    monkeypatch.setattr(analysis, "drawn_from", once)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.shape_space_select, "restart Blender",
+                        kind='offset_area', rank=2)
+    assert calls
+
+
+def test_memory_running_out_after_keys_are_added_beside_keyframed_ones_leaves_their_action_as_it_was(
+        bpy_empty, extension, core, monkeypatch):
+    """A second In-between Frames into shape keys already keyframed (their action there before) runs
+    out of memory once its keys are added: its keys and their F-curves go, the action and the first
+    run's keys and F-curves stay."""
+    strip = armature_scene(frames=9)
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    action = strip.data.shape_keys.animation_data.action
+    curves = sorted(fcurve.data_path for fcurve in _fcurves(strip.data.shape_keys.animation_data))
+    monkeypatch.setattr(_module("operators.output"), "zone_frames_dropped", _out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween_frames, "In-betweens per gap",
+                        frame_step=4, count=2, output='SHAPE_KEYS')
+    assert strip.data.shape_keys.animation_data.action == action
+    assert sorted(fcurve.data_path for fcurve in _fcurves(strip.data.shape_keys.animation_data)) == curves
