@@ -222,69 +222,73 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         last = len(self._raw) - 1
         others = [gap + 1, gap + 2] if self.smooth and last >= 2 and gap + 2 <= last else [gap + 1]
         ahead = self._relatives(gap, others)
-        # parts bent about a joint far between the keys, read before the rotations are taken whole;
-        # with only two keys or a linear spline (smooth=False), at any turn: the keys' spline is
-        # then their chord, which the anchor would pull a bending part onto, inside its arc
-        chord = (last == 1 or not self.smooth) and self._across is None
-        reading = self._keys_relative(gap, ahead[0]) if self._across is None else None
-        bent = self._bent_turn(gap, reading, TWO_KEY_BENT_TURN if chord else BENT_PART_TURN)
-        # a chord across a piece bent at a joint: anchored to the blend where it keeps the edge
-        # lengths, as two poses are (the part that does not turn holds, the turning part follows
-        # its rotations)
-        anchored = chord and bool((bent > TWO_KEY_BENT_TURN).any())
-        # the pieces a part of which turns past a half turn from the rest of them, or past a right
-        # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
-        # turns continuous across the mesh)
-        none = np.zeros(len(topo.components), dtype=bool)
-        turning, root, folded, free, unsure, apart = none, None, none, None, none, np.zeros(len(topo.components))
-        if self._across is None:
-            turning, root, folded, _, contested, *_ = self._reading(gap, relative=ahead[0])
-            if turning.any():
-                # where the readings of the gaps around disagree, from the part nearest the rigid turn
-                turning, root, folded, continued, contested, held_only, _ = self._reading(gap, final=True,
-                                                                                          relative=ahead[0])
-                contested = contested | self._held_alone(gap, held_only)
-                apart = composed_apart(self._topo, self._key(gap).areas, turning, root, continued)
-                free = self._unsure(gap)[topo.triangle_component]
-                unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
-                free = free if free.any() else None
-        # more keys: so too where the keys' spline reads a part bent past its least turn (_bent_past:
-        # BENT_PART_TURN, or RIGID_BENT_TURN for parts rigid to the keys' rounding) in a piece not read
-        # turning; the pieces read turning (their rotations taken whole and continuous,
-        # placed along their turn) keep the sequence's gauge in that anchor (Gap's ``left``)
-        left = None
-        if not chord and self._across is None:
-            anchored = self._bent_nearby(gap, bent, reading, turning)
-            left = turning if anchored and turning.any() else None
-        # parts spun past a half turn that the keys read the short way round: patches of the mesh
-        # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
-        # pieces read turning or folded above are taken so or warned of already)
-        spun = self._spun(gap, turning | folded) if self._across is None else (0.0, 0.0)
-        # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
-        # and in the turning ones
-        whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
-            np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
-        segment = self._segment(gap, ahead, others, whole | turning, turning, root, free, anchored, left)
-        # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
-        against = segment.rotations_against_guide()
-        if against.any():
-            segment = None  # let the first build go before the second is made (one gap held, not two)
-            segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free, anchored,
-                                    left)
-        segment.folded_turn = bool(folded.any())
-        segment.unsure_turn = bool(unsure.any())
-        segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
-        segment.whole_half_turn = bool(segment.untold_half_turns) and turning_as_one(segment, ahead[0])
-        segment.composed_apart = float(apart.max(initial=0.0))
-        segment.spun_part = spun
-        segment.aliased_spin = bool(self._aliased_spin(gap).any())
-        segment.reversed_spin = 0.0 if segment.aliased_spin else self._reversed_spin(gap)
-        largest = float(bent.max(initial=0.0))  # of any piece, turning or not
-        segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
-        if not anchored and not chord and self._across is None:  # parts the keys' rounding may hide as bones
-            segment.hidden_rigid_turn = self._hidden_rigid_turn(gap, reading, turning)
-        for relative in ahead + segment.relatives:  # read by this gap's preparation alone
-            relative.let_go_whole_vectors()
+        try:
+            # parts bent about a joint far between the keys, read before the rotations are taken whole;
+            # with only two keys or a linear spline (smooth=False), at any turn: the keys' spline is
+            # then their chord, which the anchor would pull a bending part onto, inside its arc
+            chord = (last == 1 or not self.smooth) and self._across is None
+            reading = self._keys_relative(gap, ahead[0]) if self._across is None else None
+            bent = self._bent_turn(gap, reading, TWO_KEY_BENT_TURN if chord else BENT_PART_TURN)
+            # a chord across a piece bent at a joint: anchored to the blend where it keeps the edge
+            # lengths, as two poses are (the part that does not turn holds, the turning part follows
+            # its rotations)
+            anchored = chord and bool((bent > TWO_KEY_BENT_TURN).any())
+            # the pieces a part of which turns past a half turn from the rest of them, or past a right
+            # angle where they bend without a crease (TURNED_PART_SHARE; two poses take every piece's
+            # turns continuous across the mesh)
+            none = np.zeros(len(topo.components), dtype=bool)
+            turning, root, folded, free, unsure, apart = none, None, none, None, none, np.zeros(len(topo.components))
+            if self._across is None:
+                turning, root, folded, _, contested, *_ = self._reading(gap, relative=ahead[0])
+                if turning.any():
+                    # where the readings of the gaps around disagree, from the part nearest the rigid turn
+                    turning, root, folded, continued, contested, held_only, _ = self._reading(gap, final=True,
+                                                                                              relative=ahead[0])
+                    contested = contested | self._held_alone(gap, held_only)
+                    apart = composed_apart(self._topo, self._key(gap).areas, turning, root, continued)
+                    free = self._unsure(gap)[topo.triangle_component]
+                    unsure = (self._unsure(gap, final=True) if free.any() else none) | (contested & self._wagging(gap))
+                    free = free if free.any() else None
+            # more keys: so too where the keys' spline reads a part bent past its least turn (_bent_past:
+            # BENT_PART_TURN, or RIGID_BENT_TURN for parts rigid to the keys' rounding) in a piece not read
+            # turning; the pieces read turning (their rotations taken whole and continuous,
+            # placed along their turn) keep the sequence's gauge in that anchor (Gap's ``left``)
+            left = None
+            if not chord and self._across is None:
+                anchored = self._bent_nearby(gap, bent, reading, turning)
+                left = turning if anchored and turning.any() else None
+            # parts spun past a half turn that the keys read the short way round: patches of the mesh
+            # tell them where its wrinkles keep its triangles' turns from being taken continuous (the
+            # pieces read turning or folded above are taken so or warned of already)
+            spun = self._spun(gap, turning | folded) if self._across is None else (0.0, 0.0)
+            # rotation fields taken whole in the components whose rigid fits add turn (SPURIOUS_RIGID_TURN)
+            # and in the turning ones
+            whole = np.ones(len(topo.components), dtype=bool) if self._whole_rotations else \
+                np.any([r.residuals_add_turn(topo, base, self._key(k)) for r, k in zip(ahead, others)], axis=0)
+            segment = self._segment(gap, ahead, others, whole | turning, turning, root, free, anchored, left)
+            # ... and in those whose composed rotations pull against the world spline's guide (AGAINST_GUIDE_SHARE)
+            against = segment.rotations_against_guide()
+            if against.any():
+                segment = None  # let the first build go before the second is made (one gap held, not two)
+                segment = self._segment(gap, ahead, others, whole | turning | against, turning, root, free, anchored,
+                                        left)
+            segment.folded_turn = bool(folded.any())
+            segment.unsure_turn = bool(unsure.any())
+            segment.untold_half_turns = int(np.count_nonzero(untold_half_turns(segment, ahead[0])))
+            segment.whole_half_turn = bool(segment.untold_half_turns) and turning_as_one(segment, ahead[0])
+            segment.composed_apart = float(apart.max(initial=0.0))
+            segment.spun_part = spun
+            segment.aliased_spin = bool(self._aliased_spin(gap).any())
+            segment.reversed_spin = 0.0 if segment.aliased_spin else self._reversed_spin(gap)
+            largest = float(bent.max(initial=0.0))  # of any piece, turning or not
+            segment.bent_turn = largest if largest > BENT_PART_TURN else 0.0
+            if not anchored and not chord and self._across is None:  # parts the keys' rounding may hide as bones
+                segment.hidden_rigid_turn = self._hidden_rigid_turn(gap, reading, turning)
+            for relative in segment.relatives:  # copies sharing the vectors: read by this preparation alone
+                relative.let_go_whole_vectors()
+        finally:  # the relatives ahead are cached (_forwards): let go on every path, a failed one too
+            for relative in ahead:
+                relative.let_go_whole_vectors()
         with self._cache_lock:
             self._gaps[gap] = segment
         return segment

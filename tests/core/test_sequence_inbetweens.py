@@ -1705,3 +1705,46 @@ def test_a_gap_built_twice_reads_its_kept_whole_rotations_to_the_bit(monkeypatch
         made = SequenceInterpolator(keys, tri)
         for gap in range(len(made)):
             np.testing.assert_array_equal(made.poses(gap, [0.25, 0.5, 0.75]), ours[gap])
+
+
+def test_a_gap_whose_preparation_fails_lets_go_of_its_kept_whole_rotations():
+    """A sheet half of which turns about a hinge past a half turn between keys (its turns read,
+    the whole rotation vectors made for all its triangles) whose gap's build then fails (a
+    MemoryError, as a large mesh's may): the relatives the sequence keeps for the gaps around
+    (``_forwards``) hold no whole rotation vectors after, and the gap asked again gives the
+    in-betweens of a sequence that never failed, to the bit. Before, a failed preparation left
+    them on the kept relative (24 bytes a triangle) for as long as the sequence lived."""
+    from core.inbetween_whole_rotations import WholeRotations
+
+    sheet, tri = grid(15, 15, size=1.0)
+    sheet = sheet - [0.5, 0.5, 0.0]
+    right = sheet[:, 0] > 0.0
+
+    def hinged(degrees):
+        x = sheet.copy()
+        x[right] = Rotation.from_rotvec([0.0, np.radians(degrees), 0.0]).apply(sheet[right])
+        return x
+
+    keys = [hinged(a) for a in (0.0, 100.0, 220.0, 330.0)]
+    made = []
+    making = WholeRotations._whole_rotation_vectors
+
+    def counted(relative, base, other):
+        made.append(relative)
+        return making(relative, base, other)
+
+    def failing(*arguments, **options):
+        raise MemoryError("a gap's build ran out of memory")
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)
+        seq = SequenceInterpolator(keys, tri)
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(WholeRotations, "_whole_rotation_vectors", counted)
+            patch.setattr(SequenceInterpolator, "_segment", failing)
+            with pytest.raises(MemoryError):
+                seq.poses(1, [0.25, 0.5, 0.75], ahead=False)
+        assert made  # the turns were read and the vectors made before the build failed
+        assert seq._forwards and all(r._whole_vectors is None for r in seq._forwards.values())
+        again = seq.poses(1, [0.25, 0.5, 0.75], ahead=False)
+        np.testing.assert_array_equal(again, SequenceInterpolator(keys, tri).poses(1, [0.25, 0.5, 0.75], ahead=False))
