@@ -68,33 +68,69 @@ def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
 
 
 def remove_shape_keys(obj: bpy.types.Object, names: list[str], *, remove_basis: bool = False):
-    """Remove the named shape keys (and the Basis too if ``remove_basis``)."""
+    """Remove the named shape keys (and the Basis too if ``remove_basis``). The active key, where it
+    is not one of them, stays active (Blender moves the active index down on each removal)."""
     key = obj.data.shape_keys
     if key is None:
         return
+    active = obj.active_shape_key.name if obj.active_shape_key is not None else None
     for name in names:
         key_block = key.key_blocks.get(name)
         if key_block is not None:
             obj.shape_key_remove(key_block)
     if remove_basis and obj.data.shape_keys is not None and len(obj.data.shape_keys.key_blocks) == 1:
         obj.shape_key_remove(obj.data.shape_keys.key_blocks[0])
+    elif active in key.key_blocks:
+        obj.active_shape_key_index = key.key_blocks.find(active)
     obj.data.update()
+
+
+def key_value_path(key_name: str) -> str:
+    """The data path of the value of the shape key ``key_name``, as its F-curve names it."""
+    return f'key_blocks["{bpy.utils.escape_identifier(key_name)}"].value'
+
+
+def key_fcurves(key: bpy.types.Key):
+    """The F-curves of ``key``'s action that animate it (legacy actions, or the slot it plays in
+    Blender 4.4+'s slotted ones); none without an action."""
+    animation_data = key.animation_data
+    action = animation_data.action if animation_data else None
+    if action is None:
+        return ()
+    if hasattr(animation_data, "action_slot"):  # Blender 4.4+: layered actions with slots
+        from bpy_extras import anim_utils
+        channelbag = anim_utils.action_get_channelbag_for_slot(action, animation_data.action_slot)
+        return channelbag.fcurves if channelbag else ()
+    return action.fcurves
 
 
 def shape_key_value_fcurve(key: bpy.types.Key, key_name: str):
     """The F-curve animating ``key_blocks[key_name].value`` (legacy and slotted actions)."""
-    animation_data = key.animation_data
-    data_path = f'key_blocks["{bpy.utils.escape_identifier(key_name)}"].value'
-    action = animation_data.action if animation_data else None
-    if action is None:
-        return None
-    if hasattr(animation_data, "action_slot"):  # Blender 4.4+: layered actions with slots
-        from bpy_extras import anim_utils
-        channelbag = anim_utils.action_get_channelbag_for_slot(action, animation_data.action_slot)
-        fcurves = channelbag.fcurves if channelbag else ()
-    else:
-        fcurves = action.fcurves
-    return next((fcurve for fcurve in fcurves if fcurve.data_path == data_path), None)
+    data_path = key_value_path(key_name)
+    return next((fcurve for fcurve in key_fcurves(key) if fcurve.data_path == data_path), None)
+
+
+#: What :func:`keyframes_of` keeps of each keyframe: enough to put an F-curve back as it was.
+KEYFRAME_FIELDS = ("handle_left_type", "handle_right_type", "co", "handle_left", "handle_right",
+                   "interpolation", "easing", "type")
+
+
+def keyframes_of(fcurve) -> list[dict]:
+    """``fcurve``'s keyframes, each a dict of :data:`KEYFRAME_FIELDS`, for :func:`set_keyframes`."""
+    return [{field: (tuple(value) if field in ("co", "handle_left", "handle_right") else value)
+             for field in KEYFRAME_FIELDS for value in (getattr(point, field),)}
+            for point in fcurve.keyframe_points]
+
+
+def set_keyframes(fcurve, keyframes: list[dict]) -> None:
+    """Give ``fcurve`` exactly ``keyframes`` (:func:`keyframes_of`), in place of those it has."""
+    points = fcurve.keyframe_points
+    points.clear()
+    points.add(len(keyframes))
+    for point, keyframe in zip(points, keyframes):
+        for field in KEYFRAME_FIELDS:  # the handle types first: setting them may move the handles
+            setattr(point, field, keyframe[field])
+    fcurve.update()
 
 
 def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]):

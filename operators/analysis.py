@@ -105,9 +105,22 @@ def shape_space_image(obj, data: dict, highlight: int | None = None):
     return image
 
 
-def restore_shape_space(obj, name: str, before: dict | None, images: set) -> None:
+def image_pixels(name: str):
+    """The image ``name`` as it is now, for :func:`restore_shape_space`: its size, pixels
+    (float32, RGBA bottom-up) and what it was drawn from (:func:`drawn_from`); None where there is none."""
+    image = bpy.data.images.get(name)
+    if image is None:
+        return None
+    pixels = np.empty(image.size[0] * image.size[1] * image.channels, dtype=np.float32)
+    image.pixels.foreach_get(pixels)
+    return tuple(image.size), pixels, _DRAWN.get(image.session_uid)
+
+
+def restore_shape_space(obj, name: str, before: dict | None, images: set, pixels=None) -> None:
     """Give ``obj`` back the shape space stored on it ``before`` (None: none) and its image
-    ``name``: removed where it is not one of ``images`` (those there before), else drawn again."""
+    ``name``: removed where it is not one of ``images`` (those there before); else given back its
+    ``pixels`` (:func:`image_pixels`, taken before it was drawn: also another object's image of that
+    name, or the user's), or without them drawn again from ``before``."""
     image = bpy.data.images.get(name)
     if before is None:
         obj.pop(analysis_data.SHAPE_SPACE_PROPERTY, None)
@@ -115,6 +128,16 @@ def restore_shape_space(obj, name: str, before: dict | None, images: set) -> Non
         obj[analysis_data.SHAPE_SPACE_PROPERTY] = before
     if image is not None and image not in images:
         bpy.data.images.remove(image)
+    elif image is not None and pixels is not None:
+        size, values, drawn = pixels
+        if tuple(image.size) != size:
+            image.scale(*size)
+        image.pixels.foreach_set(values)
+        image.update()
+        if drawn is None:
+            _DRAWN.pop(image.session_uid, None)
+        else:
+            _DRAWN[image.session_uid] = drawn
     elif before is not None and before.get("image") == name:
         selected = int(before.get("selected", -1))
         shape_space_image(obj, before, highlight=selected if selected >= 0 else None)
@@ -183,10 +206,12 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             "variance": {kind: space.explained_variance_ratio(kind)[:4].tolist() for kind in KINDS},
             "selected": -1,
         }
-        # should the run fail from here, the image is drawn again from the shape space stored before
-        # (or removed, where it is new) and that shape space stays
+        # should the run fail from here, the image gets its pixels back (whoever's it is: an image
+        # named after this object may be another's, renamed since) or goes, where it is new, and the
+        # shape space stored before stays
         before, images = analysis_data.stored_shape_space(obj), set(bpy.data.images)
-        self.undo_on_failure(lambda: restore_shape_space(obj, data["image"], before, images))
+        pixels = image_pixels(data["image"])
+        self.undo_on_failure(lambda: restore_shape_space(obj, data["image"], before, images, pixels))
         image = shape_space_image(obj, data)
         obj[analysis_data.SHAPE_SPACE_PROPERTY] = data
         show_image(context, image)

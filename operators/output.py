@@ -339,10 +339,13 @@ class PoseWriter:
             had_basis = source.data.shape_keys is not None
             had_action = bool(had_basis and source.data.shape_keys.animation_data
                               and source.data.shape_keys.animation_data.action)
+            # F-curves the new keys may be keyframed into: those of keys this mesh does not have (an
+            # action shared with another mesh's keys, a deleted key's curve), kept to be given back
+            others = foreign_key_curves(source) if keyframe and had_action else {}
             added = shape_keys.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             undo = getattr(self, "undo_on_failure", None)  # a failure after this (GeneratorOperator) takes them back
             if undo is not None:
-                undo(lambda: remove_added_keys(source, added, had_basis, had_action))
+                undo(lambda: remove_added_keys(source, added, had_basis, had_action, others))
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
             dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
@@ -454,17 +457,35 @@ class PoseWriter:
                 f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
 
 
-def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool) -> None:
+def foreign_key_curves(obj) -> dict[str, list[dict]]:
+    """The keyframes (:func:`bridge.shape_keys.keyframes_of`) of the F-curves in ``obj``'s shape
+    keys' action that animate a key ``obj`` does not have, by data path: a key added later under
+    that name is keyframed into that F-curve, which may be another mesh's (a shared action)."""
+    key = obj.data.shape_keys
+    if key is None:
+        return {}
+    own = {shape_keys.key_value_path(key_block.name) for key_block in key.key_blocks}
+    return {fcurve.data_path: shape_keys.keyframes_of(fcurve) for fcurve in shape_keys.key_fcurves(key)
+            if fcurve.data_path not in own}
+
+
+def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool,
+                      others: dict[str, list[dict]] | None = None) -> None:
     """Take back the shape keys ``names`` added to ``obj`` (:meth:`PoseWriter.write_poses`), the
     Basis made for them (not ``had_basis``) and their keyframes: the action made for them (not
-    ``had_action``), else their F-curves in the keys' own action."""
+    ``had_action``), else their F-curves in the keys' own action, where these are new; an F-curve
+    that was there before (``others``: :func:`foreign_key_curves`, taken before the keys were
+    added) gets its keyframes back instead, as another mesh sharing the action had them."""
+    others = others or {}
     key = obj.data.shape_keys
     animation = key.animation_data if key is not None else None
     if animation is not None and animation.action is not None:
         if had_action:
             for name in names:
                 fcurve = shape_keys.shape_key_value_fcurve(key, name)
-                if fcurve is not None:
+                if fcurve is not None and fcurve.data_path in others:
+                    shape_keys.set_keyframes(fcurve, others[fcurve.data_path])
+                elif fcurve is not None:
                     _remove_fcurve(animation, fcurve)
         else:  # the action alone: drivers of the keys stay
             action = animation.action
@@ -476,7 +497,7 @@ def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool) 
 
 def _remove_fcurve(animation, fcurve) -> None:
     """Remove ``fcurve`` from ``animation``'s action (legacy and slotted actions, as
-    :func:`bridge.shape_keys.shape_key_value_fcurve` finds it)."""
+    :func:`bridge.shape_keys.key_fcurves` finds it)."""
     if hasattr(animation, "action_slot"):  # Blender 4.4+: the slot's channel bag holds it
         from bpy_extras import anim_utils
 

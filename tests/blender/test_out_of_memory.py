@@ -161,3 +161,77 @@ def test_memory_running_out_after_keys_are_added_beside_keyframed_ones_leaves_th
                         frame_step=4, count=2, output='SHAPE_KEYS')
     assert strip.data.shape_keys.animation_data.action == action
     assert sorted(fcurve.data_path for fcurve in _fcurves(strip.data.shape_keys.animation_data)) == curves
+
+
+def _keyframes(animation_data) -> dict:
+    """Every F-curve of ``animation_data``'s action (its slot's) by data path: its keyframes' frames and values."""
+    return {fcurve.data_path: [(tuple(point.co), point.interpolation) for point in fcurve.keyframe_points]
+            for fcurve in _fcurves(animation_data)}
+
+
+def test_memory_running_out_leaves_an_action_shared_with_another_mesh_as_it_was(bpy_empty, extension, core,
+                                                                                monkeypatch):
+    """An action shared by two meshes' shape keys: the second strip's keys are keyframed, the first
+    strip plays the same action (and slot) and has only a Basis. In-between Frames on the first strip
+    adds keys named as the second strip's (free names on the first), keyframing them into the second
+    strip's F-curves; when it runs out of memory, the take-back must give those F-curves their
+    keyframes back, not remove them (before: the second strip's animation was deleted)."""
+    first = armature_scene(frames=9)
+    second = first.copy()
+    second.data = first.data.copy()
+    bpy.context.scene.collection.objects.link(second)
+    bpy.context.view_layer.objects.active = second
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == second)
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    shared = second.data.shape_keys.animation_data
+    kept = _keyframes(shared)
+    assert kept
+    first.shape_key_add(name="Basis", from_mix=False)
+    animation = first.data.shape_keys.animation_data_create()
+    animation.action = shared.action
+    if hasattr(animation, "action_slot"):
+        animation.action_slot = shared.action_slot
+    bpy.context.view_layer.objects.active = first
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == first)
+    monkeypatch.setattr(_module("operators.output"), "zone_frames_dropped", _out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween_frames, "In-betweens per gap",
+                        frame_step=4, count=1, output='SHAPE_KEYS')
+    assert second.data.shape_keys.animation_data.action == shared.action
+    assert _keyframes(second.data.shape_keys.animation_data) == kept
+
+
+@pytest.mark.parametrize("active", [0, 1, 2])
+def test_memory_running_out_after_in_betweens_are_added_keeps_the_active_key(bpy_empty, extension, core, monkeypatch,
+                                                                             active):
+    """In-between runs out of memory once its keys are added to a mesh whose active key is the
+    Basis, "Curl" or "Bend": the keys go and the same key is active (removing a key in Blender moves the
+    active index down)."""
+    obj = posed_grid(extension.bridge, 6)
+    obj.active_shape_key_index = active
+    monkeypatch.setattr(_module("operators.output"), "zone_frames_dropped", _out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween, "lower Count", count=2)
+    assert obj.active_shape_key_index == active
+
+
+def test_memory_running_out_once_a_shape_space_is_drawn_gives_another_objects_image_back(bpy_empty, extension, core,
+                                                                                        monkeypatch):
+    """The image a new shape space is drawn into is named after the object ("Shape Space Grid"): where
+    another object's image has that name (the grid it was made on was renamed "Sheet" since, then a new
+    "Grid" made), Shape Space on the new grid running out of memory gives that image its pixels back.
+    Before, the image was kept only where the object's own earlier shape space named it: the
+    renamed sheet's image kept the failed run's plot."""
+    first = posed_grid(extension.bridge, 6)
+    first.name = "Grid"
+    bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=0)
+    first.name = "Sheet"
+    second = posed_grid(extension.bridge, 5)
+    second.name = "Grid"
+    for obj in bpy.context.view_layer.objects:
+        obj.select_set(obj == second)
+    bpy.context.view_layer.objects.active = second
+    assert bpy.data.images.get("Shape Space Grid") is not None
+    monkeypatch.setattr(_module("operators.analysis"), "show_image", _out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.shape_space, "lower k_M and k_N",
+                        source='KEYS', k_m=20, k_n=0)

@@ -18,7 +18,7 @@ def test_keep_heap_takes_effect_on_glibc_once(monkeypatch):
     first = keep_heap()
     assert keep_heap() == first
     assert bool(first) == (sys.platform.startswith("linux") and platform.libc_ver()[0] == "glibc")
-    assert first in (frozenset(), frozenset(allocator.SETTINGS))  # this glibc takes all three or is none
+    assert first <= frozenset(allocator.SETTINGS)  # names of SETTINGS (a glibc may refuse one: the next test)
 
 
 def test_a_setting_glibc_refuses_leaves_the_others_in_force(monkeypatch):
