@@ -60,6 +60,7 @@ import numpy as np
 from . import screw_motions
 from .deformation_fields import rotation_vectors
 from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about,
+                               own_axes,
                                composed, contact_reach, joint_groups, nearest_pairs,
                                relative_motions, screw_axes, slide_precision)
 from .inbetween_rigid_fits import turn_spread
@@ -564,7 +565,7 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     elsewhere."""
     u, v, precision = c.u, c.v, c.precision
     w = screws[:, :3]
-    theta, axis, point, slide = _own_axes(screws)
+    theta, axis, point, slide = own_axes(screws)
     smaller = np.minimum(size[u], size[v])
     tilt = np.linalg.norm(np.cross(axis[u], axis[v]), axis=1)
     asked = ((c.nearest <= finer) & (group[u] != group[v]) & (theta[u] * size[u] > precision)
@@ -615,16 +616,6 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     doubts.rolled = len(rolled)
 
 
-def _own_axes(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per screw ``(ω, v)`` (R, 6), its angle θ = |ω| (R,), unit axis (R, 3; ω itself where θ = 0), a
-    point of its axis ``ω × v / θ²`` (R, 3) and its slide along the axis ``|v · ω̂|`` (R,)."""
-    w, moved = screws[:, :3], screws[:, 3:]
-    theta = np.linalg.norm(w, axis=1)
-    safe = np.where(theta > 0, theta, 1.0)
-    axis = w / safe[:, None]
-    return theta, axis, np.cross(w, moved) / (safe ** 2)[:, None], np.abs(np.einsum("ka,ka->k", moved, axis))
-
-
 def _spun_jointed(doubts: JointDoubts, c: Contacts, base: np.ndarray, parents: np.ndarray, screws: np.ndarray,
                   size: np.ndarray, stakes: _Stakes) -> None:
     """Count in ``doubts`` the jointed pieces (``parents`` (C,): the joint tree's) of the touching
@@ -654,7 +645,7 @@ def _spun_jointed(doubts: JointDoubts, c: Contacts, base: np.ndarray, parents: n
     held = forward | (parents[pieces[u]] == pieces[v])
     if not held.any():
         return
-    theta, axis, point, slide = _own_axes(screws)
+    theta, axis, point, slide = own_axes(screws)
     spinning = held & (theta[u] * size[u] > precision) & (theta[v] * size[v] > precision) \
         & (slide[u] <= precision) & (slide[v] <= precision)
     if not spinning.any():
@@ -737,7 +728,8 @@ def joint_warnings(doubts: JointDoubts | None, key_names: list[str], gap: int) -
                 "and two keys alone do not tell which piece carries the others (as a box carried while its lid "
                 "opens; a smooth sequence's keys on either side tell it)")
         problems.append((f"{between}, {doubts.carried} rigid piece(s) jointed to each other are placed as carried by "
-                         "the piece of theirs that moves least, which turns more than another of them: carried by "
+                         "the piece of theirs they hang from (one still or turning on an axle through it, else the one that "
+                         "moves least), which turns more than another of them: carried by "
                          f"that one instead, they would be up to {100 * doubts.carried_share:.2g} % of a piece's size "
                          f"elsewhere {'between the keys' if doubts.carried_unsteady else 'half-way'}, {told}",
                          doubts.carried_excess))

@@ -17,7 +17,9 @@ finer piece's own mean edge length too (a gap wider than a small piece's edges i
 whatever the mesh's other pieces make its mean edge). The joints are a minimum
 spanning tree of how well each contact is held, and each group hangs from the piece
 that moves least over the gap's keys (a fixed base stays the root; measured by its vertices'
-moves, since a link turning past a half turn reads as a small turn the other way), in a sequence
+moves, since a link turning past a half turn reads as a small turn the other way), of those still
+or turning on an axle through them where some are (:data:`ROOT_AXLE_SHARE`: a turntable carrying a
+door that turns back against it, the door moving less), in a sequence
 of those whose screws at the keys keep to one line where some do (:mod:`core.inbetween_carriers`:
 a box carried steadily while its lid opens, the lid lifted against the carry moving less; between
 two poses, where another piece of the group turns less than the one moving least, the gap warns:
@@ -104,6 +106,16 @@ OWN_SCREW_FACTORS = (2.0, -1.0, 0.5)
 #: touching in the key where fewer pairs touch was within this share beyond the finer edge in the
 #: other (a vertex at the contact's rim crosses the touching distance as the contact changes).
 OWN_CONTACT_SLACK = 0.3
+#: A joint group hangs from a piece still or turning on an axle through it — its own screw's axis
+#: within this share of the piece's radius of its centroid, without sliding (:func:`_on_axles`) —
+#: before one on neither that moves less: a door hinged at a turntable's rim turning back against
+#: it turns less in the world than the turntable (or not at all), and the turntable hung from it
+#: left its axle half-way (0.07–0.75 of the diagonal off, silently). A turntable, a wheel or a box
+#: spinning about its centre measure 0 (a vertex centroid off a symmetric piece's axle by its
+#: mesh's irregularity: a share of it); the door in the world 0.32–4.3, a lid about its hinge 0.71;
+#: at 0.5 a blade of scissors opening on a turning pair (its world axis 0.46 from its centroid by
+#: chance, the other blade's 0.55) carried the pair, 1.4e-2 / 1.7e-2 of the diagonal off.
+ROOT_AXLE_SHARE = 0.1
 
 
 def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
@@ -638,8 +650,16 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     # among those that keep to one screw over a sequence's keys where some do (core.inbetween_carriers:
     # a box carried steadily while its lid opens, though the lid moves less)
     unsteady = np.zeros(len(topo.components), dtype=bool) if departures is None else departures > 0
-    for root in sorted(neighbours, key=lambda k: (False, False, -np.inf) if k == world else
-                       (bool(loose[pieces[k]]), bool(unsteady[pieces[k]]), moves[pieces[k]])):
+    # (after those) a piece still or turning on an axle through it (_on_axles, ROOT_AXLE_SHARE)
+    # before one whose own motion is neither: moves add up from the piece fixed to the world only
+    # where the joints turn the same way, and a door turning back against the turntable it is
+    # hinged on moves less than the turntable, which hung from it left its axle
+    unseated = np.zeros(len(topo.components), dtype=bool)
+    if screws is not None:
+        unseated[pieces] = ~_on_axles(base, index, label, screws[pieces], c.precision, c.u, c.v)
+    for root in sorted(neighbours, key=lambda k: (False, False, False, -np.inf) if k == world else
+                       (bool(loose[pieces[k]]), bool(unsteady[pieces[k]]), bool(unseated[pieces[k]]),
+                        moves[pieces[k]])):
         if root in seen:
             continue
         seen.add(root)
@@ -659,6 +679,35 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
     if not (parents >= 0).any():
         return None
     return parents, order
+
+
+def own_axes(screws: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per screw ``(ω, v)`` (R, 6), its angle θ = |ω| (R,), unit axis (R, 3; ω itself where θ = 0), a
+    point of its axis ``ω × v / θ²`` (R, 3) and its slide along the axis ``|v · ω̂|`` (R,)."""
+    w, moved = screws[:, :3], screws[:, 3:]
+    theta = np.linalg.norm(w, axis=1)
+    safe = np.where(theta > 0, theta, 1.0)
+    axis = w / safe[:, None]
+    return theta, axis, np.cross(w, moved) / (safe ** 2)[:, None], np.abs(np.einsum("ka,ka->k", moved, axis))
+
+
+def _on_axles(base: np.ndarray, index: np.ndarray, label: np.ndarray, screws: np.ndarray, precision: np.ndarray,
+              u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Per rigid piece (its vertices ``index`` in runs per piece, ``label``; its own screw ``screws``
+    (R, 6) from ``base``), whether it is still or turns on an axle through it: its screw moves no
+    vertex by more than the precision of its joints (``precision`` per touching pair ``u``, ``v``:
+    the largest), or slides along its axis by no more and the axis passes within
+    :data:`ROOT_AXLE_SHARE` of the piece's radius of its centroid (a turntable, a wheel, a spinning
+    box)."""
+    centres, radii = _piece_centres(base, index, label)
+    tolerance = np.zeros(radii.size)
+    np.maximum.at(tolerance, u, precision)
+    np.maximum.at(tolerance, v, precision)
+    theta, axis, point, slide = own_axes(screws)
+    moved = screws[:, 3:]
+    off = np.linalg.norm(np.cross(centres - point, axis), axis=1)
+    still = (theta * radii <= tolerance) & (np.linalg.norm(moved, axis=1) <= tolerance)
+    return still | ((theta * radii > tolerance) & (slide <= tolerance) & (off <= ROOT_AXLE_SHARE * radii))
 
 
 def _pins_kept(base: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, pins: np.ndarray | None,
