@@ -59,10 +59,9 @@ import numpy as np
 
 from . import screw_motions
 from .deformation_fields import rotation_vectors
-from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about,
-                               own_axes,
-                               composed, contact_reach, joint_groups, nearest_pairs,
-                               relative_motions, screw_axes, slide_precision)
+from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about, composed,
+                               contact_reach, joint_groups, nearest_pairs, own_axes, relative_motions, screw_axes,
+                               slide_precision)
 from .inbetween_rigid_fits import turn_spread
 from .rotation_continuity import either_way
 
@@ -332,6 +331,17 @@ def _hang_from(parents: np.ndarray, piece: int) -> None:
         parents[k], below, k = below, k, parents[k]
 
 
+def _depths(parents: np.ndarray) -> np.ndarray:
+    """Each node's depth in the forest ``parents`` (an index array, −1 for roots): 0 at the roots."""
+    depth = np.zeros(parents.size, dtype=np.intp)
+    for _ in range(parents.size):  # one level down per pass; a tree is no deeper than its nodes
+        deeper = np.where(parents >= 0, depth[np.maximum(parents, 0)] + 1, 0)
+        if np.array_equal(deeper, depth):
+            break
+        depth = deeper
+    return depth
+
+
 def _halfway_apart(c: Contacts, stakes: "_Stakes", jointed: np.ndarray, placed: tuple, members: np.ndarray,
                    least: int) -> np.ndarray:
     """Per piece of ``members`` (rigid pieces' indices), the farthest its vertices are placed apart
@@ -344,9 +354,7 @@ def _halfway_apart(c: Contacts, stakes: "_Stakes", jointed: np.ndarray, placed: 
     other = np.full(jointed.size, -1)
     other[members] = jointed[members]
     _hang_from(other, least)
-    depth = np.zeros(c.pieces.size, dtype=np.intp)
-    for _ in range(members.size):
-        depth[members] = np.where(other[members] >= 0, depth[np.maximum(other[members], 0)] + 1, 0)
+    depth = _depths(other)
     rotations, translations = stakes.jointed(other, members[np.argsort(depth[members], kind="stable")])
     out = np.zeros(members.size)
     for i, m in enumerate(members):
@@ -364,12 +372,7 @@ def _splined_apart(c: Contacts, joints: tuple, stakes: "_Stakes", hung: list, pl
     parents = joints[0].copy()
     for _, least in hung:
         _hang_from(parents, int(c.pieces[least]))
-    depth = np.zeros(parents.size, dtype=np.intp)
-    for _ in range(parents.size):  # one level down per pass; a tree is no deeper than its pieces
-        deeper = np.where(parents >= 0, depth[np.maximum(parents, 0)] + 1, 0)
-        if (deeper == depth).all():
-            break
-        depth = deeper
+    depth = _depths(parents)
     members = np.concatenate([m for m, _ in hung])
     counts = stakes.counts[members]
     first = np.r_[0, np.cumsum(counts)[:-1]]

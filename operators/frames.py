@@ -66,23 +66,12 @@ def _first_simulated(movers: list) -> int | None:
                default=None)
 
 
-#: Blender's modifiers of its deform-only kind (``ModifierTypeType::OnlyDeform``: they hand the next one the
-#: same mesh, its positions changed or not): a stack of these alone before a cloth gives it no Rest Shape Key,
-#: in Blender 4.2–5.0 (:func:`cloth_rest_is_input`). A Particle System and a Surface (a force field's) are of
-#: that kind though they move nothing; a UV Project or a Normal Edit, which move nothing either, are not, and
-#: behind them the key is read (measured: docs/inbetween-measurements.md, *The cloth's Rest Shape Key*).
-DEFORM_ONLY_MODIFIERS = {'ARMATURE', 'CAST', 'CLOTH', 'COLLISION', 'CORRECTIVE_SMOOTH', 'CURVE', 'DISPLACE', 'HOOK',
-                         'LAPLACIANDEFORM', 'LAPLACIANSMOOTH', 'LATTICE', 'MESH_CACHE', 'MESH_DEFORM',
-                         'PARTICLE_SYSTEM', 'SHRINKWRAP', 'SIMPLE_DEFORM', 'SMOOTH', 'SOFT_BODY', 'SURFACE',
-                         'SURFACE_DEFORM', 'WARP', 'WAVE'}
-
-
 def cloth_rest_is_input(obj, modifier) -> bool:
     """Whether the cloth ``modifier`` of ``obj`` builds its springs from the mesh it is given at its first
     frame (what the frames show there, its edges times 1 − Shrinking). Not with *Dynamic Mesh* (the springs
     follow that mesh at every frame), nor with a *Rest Shape Key* set behind any enabled modifier outside
-    :data:`DEFORM_ONLY_MODIFIERS` (a Subdivision Surface, a Weld, Geometry Nodes, even a UV Project): Blender
-    may build the springs from the key there (the modifier stack adds the key as a layer of the mesh before
+    ``bridge.modifier_kinds.DEFORM_ONLY_MODIFIERS`` (a Subdivision Surface, a Weld, Geometry Nodes, even a
+    UV Project): Blender may build the springs from the key there (the modifier stack adds the key as a layer of the mesh before
     the first such modifier and carries it through; those that rebuild the mesh through BMesh, an Edge Split
     or a Triangulate, drop it, and the rest is then the first frame after all: no rest, cautious). Behind
     deform-only modifiers or none, Blender 4.2–5.0 read no Rest Shape Key (the cloth modifier's own copy of
@@ -94,8 +83,8 @@ def cloth_rest_is_input(obj, modifier) -> bool:
         return False
     if settings.rest_shape_key is None:
         return True
-    before = list(obj.modifiers)[:list(obj.modifiers).index(modifier)]
-    return all(m.type in DEFORM_ONLY_MODIFIERS for m in before if m.show_viewport)
+    before = modifier_kinds.enabled_before(obj, modifier)
+    return all(m.type in modifier_kinds.DEFORM_ONLY_MODIFIERS for m in before)
 
 
 def rest_length_factor(obj) -> float | None:

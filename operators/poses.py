@@ -51,11 +51,11 @@ def cloth_input_is_basis(obj) -> bool:
     mesh there, or a mesh of other vertices). True where no cloth simulates ``obj``. Whether the cloth's
     springs are built from that mesh at all (not with Dynamic Mesh, nor a Rest Shape Key Blender reads) is
     ``frames.rest_length_factor``'s, which a sequence's rest shares."""
-    for index, modifier in enumerate(obj.modifiers):
+    for modifier in obj.modifiers:
         if modifier.type != 'CLOTH' or not modifier.show_viewport:
             continue
         return not any(m.type in modifier_kinds.GENERATE_MODIFIERS or moves_vertices(m)
-                       for m in list(obj.modifiers)[:index] if m.show_viewport)
+                       for m in modifier_kinds.enabled_before(obj, modifier))
     return True
 
 

@@ -412,7 +412,7 @@ def test_a_cloths_rest_shape_key_counts_only_behind_a_modifier_not_of_blenders_d
     fails them. In-between Frames 5–13 of the same cloth falling measures the warnings from frame 1 in the
     first cases, from no rest (the first key stands for it) behind the Weld and the UV Project and with
     Dynamic Mesh (the springs follow the mesh at every frame). Before session 77, frame 1 was given in every
-    case; before the Surface joined ``frames.DEFORM_ONLY_MODIFIERS`` (review r1), none behind it."""
+    case; before the Surface joined ``modifier_kinds.DEFORM_ONLY_MODIFIERS`` (review r1), none behind it."""
     bridge = extension.bridge
     if before != 'DYNAMIC':
         obj = _cloth_with_rest_key(before, 0.0)
