@@ -25,9 +25,35 @@ class NewShapeKey:
 
 
 def unique_key_name(obj: bpy.types.Object, name: str, tail: str = "") -> str:
-    """A shape key name for ``name + tail`` not yet used on ``obj`` (see :func:`bridge.naming.unique_name`)."""
-    taken = set(obj.data.shape_keys.key_blocks.keys()) if obj.data.shape_keys else set()
-    return unique_name(name, tail, taken)
+    """A shape key name for ``name + tail`` (see :func:`bridge.naming.unique_name`) that no key of
+    ``obj`` has, no F-curve of its keys' action (its slot's) animates, and no key of another mesh
+    playing that action (and slot) has: a new key of such a name would have its keyframes written
+    into that F-curve, which may be another mesh's (an action shared between meshes) or a deleted
+    key's, and its value played by it."""
+    key = obj.data.shape_keys
+    if key is None:
+        return unique_name(name, tail, ())
+    return unique_name(name, tail, _TakenKeyNames(key))
+
+
+class _TakenKeyNames:
+    """The names :func:`unique_key_name` leaves out for the keys ``key``, as a container (``in``)."""
+
+    def __init__(self, key: bpy.types.Key):
+        self.names = set(key.key_blocks.keys())
+        self.paths = {fcurve.data_path for fcurve in key_fcurves(key)}
+        animation = key.animation_data
+        action = animation.action if animation else None
+        if action is not None:
+            slot = getattr(animation, "action_slot", None)  # Blender 4.4+
+            for other in bpy.data.shape_keys:
+                played = other.animation_data
+                if other != key and played is not None and played.action == action and \
+                        getattr(played, "action_slot", None) == slot:
+                    self.names.update(other.key_blocks.keys())
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.names or key_value_path(name) in self.paths
 
 
 def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
@@ -110,47 +136,27 @@ def shape_key_value_fcurve(key: bpy.types.Key, key_name: str):
     return next((fcurve for fcurve in key_fcurves(key) if fcurve.data_path == data_path), None)
 
 
-#: What :func:`keyframes_of` keeps of each keyframe: enough to put an F-curve back as it was.
-KEYFRAME_FIELDS = ("handle_left_type", "handle_right_type", "co", "handle_left", "handle_right",
-                   "interpolation", "easing", "type")
-
-
-def keyframes_of(fcurve) -> list[dict]:
-    """``fcurve``'s keyframes, each a dict of :data:`KEYFRAME_FIELDS`, for :func:`set_keyframes`."""
-    return [{field: (tuple(value) if field in ("co", "handle_left", "handle_right") else value)
-             for field in KEYFRAME_FIELDS for value in (getattr(point, field),)}
-            for point in fcurve.keyframe_points]
-
-
-def set_keyframes(fcurve, keyframes: list[dict]) -> None:
-    """Give ``fcurve`` exactly ``keyframes`` (:func:`keyframes_of`), in place of those it has."""
-    points = fcurve.keyframe_points
-    points.clear()
-    points.add(len(keyframes))
-    for point, keyframe in zip(points, keyframes):
-        for field in KEYFRAME_FIELDS:  # the handle types first: setting them may move the handles
-            setattr(point, field, keyframe[field])
-    fcurve.update()
-
-
 def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]):
     """Keyframe the values of the named shape keys so that playback steps through them.
 
     ``timeline`` is ``(frame, key name)`` in increasing frame order: each key gets value 1 at its
     frame and 0 at the frames of its neighbours, with linear interpolation, so between two samples
-    the mesh blends linearly from one key to the next. Only F-curves of these keys are written.
+    the mesh blends linearly from one key to the next. Only F-curves of these keys are written, and only
+    the keyframes inserted here are made linear.
     """
     key = obj.data.shape_keys
     frames = [frame for frame, _ in timeline]
     for index, (frame, name) in enumerate(timeline):
         key_block = key.key_blocks[name]
         neighbours = [frames[i] for i in (index - 1, index + 1) if 0 <= i < len(frames)]
-        for when, value in [(frame, 1.0)] + [(neighbour, 0.0) for neighbour in neighbours]:
+        inserted = [(frame, 1.0)] + [(neighbour, 0.0) for neighbour in neighbours]
+        for when, value in inserted:
             key_block.value = value
             key_block.keyframe_insert("value", frame=when)
         key_block.value = 0.0
         fcurve = shape_key_value_fcurve(key, name)
-        if fcurve is not None:
-            for point in fcurve.keyframe_points:
-                point.interpolation = 'LINEAR'
+        if fcurve is not None and len(fcurve.keyframe_points):  # only the points inserted here
+            points = fcurve.keyframe_points
+            for when, _ in inserted:  # the point at that frame (stored in single precision: the nearest)
+                min(points, key=lambda point: abs(point.co[0] - when)).interpolation = 'LINEAR'
             fcurve.update()

@@ -5,12 +5,13 @@ an image and custom properties, the distortion maps write mesh attributes only.
 """
 
 import re
+import sys
 
 import bpy
 import numpy as np
 from bpy.props import EnumProperty, IntProperty, StringProperty
 
-from ..bridge import analysis_data, triangulation, world_space
+from ..bridge import analysis_data, naming, triangulation, world_space
 from ..properties import AnalysisBasis, CaptureStep
 from .motion_sources import refuse_emptying_caches, simulations_emptied_by, zone_frames_dropped
 from .output import require_local
@@ -18,6 +19,7 @@ from .base import (MEASURED_IN_WORLD, SCENE_SETTING, GeneratorOperator, InputErr
                    check_basis_size, default_pose_key, frame_name, in_world, key_blocks_of, key_pose, mesh_pose,
                    offset_option, ran_out_of_memory, refused_in_poll, report, resolve_key, surface_triangles)
 from .frames import FrameRangeProperties, frame_key_name
+from .handler_guard import skipped_out_of_memory
 
 KINDS = ("area", "conformal", "offset_area", "offset_conformal")
 KIND_ITEMS = [
@@ -85,8 +87,29 @@ def drawn_from(data: dict, highlight: int | None) -> str:
     return repr((data["coordinates"], data["variance"], highlight))
 
 
+#: The custom property that marks an image as one Shape Space draws into (:func:`shape_space_image_name`).
+SHAPE_SPACE_IMAGE_MARK = "shape_differences_shape_space"
+
+
+def shape_space_image_name(obj, before: dict | None) -> str:
+    """The image a new shape space of ``obj`` is drawn into: the one its shape space stored ``before``
+    (None: none) was drawn into, where that image is marked as Shape Space's
+    (:data:`SHAPE_SPACE_IMAGE_MARK`) and no other object's stored shape space names it (a duplicated object
+    copies the stored shape space, and its image with it); else "Shape Space <object>", numbered (.001, …)
+    where an image has that name: the user's own, or another object's (one renamed since its shape space
+    was drawn), which a run must not draw over."""
+    name = before.get("image") if before else None
+    image = bpy.data.images.get(name) if isinstance(name, str) else None
+    if image is not None and image.get(SHAPE_SPACE_IMAGE_MARK) and not any(
+            (analysis_data.stored_shape_space(other) or {}).get("image") == name
+            for other in bpy.data.objects if other != obj):
+        return name
+    return naming.unique_name(f"Shape Space {obj.name}", "", set(bpy.data.images.keys()))
+
+
 def shape_space_image(obj, data: dict, highlight: int | None = None):
-    """Draw the stored shape space of ``obj`` into the image ``data['image']`` (created or resized)."""
+    """Draw the stored shape space of ``obj`` into the image ``data['image']`` (created or resized;
+    marked as Shape Space's: :data:`SHAPE_SPACE_IMAGE_MARK`)."""
     from .analysis_plot import shape_space_image as draw
 
     coordinates = {kind: np.asarray(data["coordinates"][kind], dtype=float).reshape(-1, 2) for kind in KINDS}
@@ -99,6 +122,7 @@ def shape_space_image(obj, data: dict, highlight: int | None = None):
     if image is None:
         image = bpy.data.images.new(data["image"], width, height, alpha=True, float_buffer=True)
     image.pixels.foreach_set(pixels.ravel())
+    image[SHAPE_SPACE_IMAGE_MARK] = True
     image.update()
     image.preview_ensure().reload()  # the sidebar shows the preview (drawing may not create it)
     _DRAWN[image.session_uid] = drawn_from(data, highlight)
@@ -119,8 +143,8 @@ def image_pixels(name: str):
 def restore_shape_space(obj, name: str, before: dict | None, images: set, pixels=None) -> None:
     """Give ``obj`` back the shape space stored on it ``before`` (None: none) and its image
     ``name``: removed where it is not one of ``images`` (those there before); else given back its
-    ``pixels`` (:func:`image_pixels`, taken before it was drawn: also another object's image of that
-    name, or the user's), or without them drawn again from ``before``."""
+    ``pixels`` (:func:`image_pixels`, taken before it was drawn), or without them drawn again from
+    ``before``."""
     image = bpy.data.images.get(name)
     if before is None:
         obj.pop(analysis_data.SHAPE_SPACE_PROPERTY, None)
@@ -194,6 +218,7 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             shape_space_steps(poses, triangles, k_M=self.k_m, k_N=self.k_n or None,
                               offset=self.resolved_offset(context), single_precision=True, key_names=pose_names),
             0.1, 0.85)
+        before = analysis_data.stored_shape_space(obj)
         data = {
             "source": self.source,
             "poses": names,
@@ -201,15 +226,14 @@ class SHAPE_DIFFERENCES_OT_shape_space(AnalysisBasisProperties, CaptureStep, Fra
             "k_M": self.k_m,
             "k_N": self.k_n,
             "offset": space.offset,
-            "image": f"Shape Space {obj.name}",
+            "image": shape_space_image_name(obj, before),
             "coordinates": {kind: space.coordinates(kind, 2).ravel().tolist() for kind in KINDS},
             "variance": {kind: space.explained_variance_ratio(kind)[:4].tolist() for kind in KINDS},
             "selected": -1,
         }
-        # should the run fail from here, the image gets its pixels back (whoever's it is: an image
-        # named after this object may be another's, renamed since) or goes, where it is new, and the
-        # shape space stored before stays
-        before, images = analysis_data.stored_shape_space(obj), set(bpy.data.images)
+        # should the run fail from here, the image gets its pixels back (this object's own, drawn
+        # over) or goes, where it is new, and the shape space stored before stays
+        images = set(bpy.data.images)
         pixels = image_pixels(data["image"])
         self.undo_on_failure(lambda: restore_shape_space(obj, data["image"], before, images, pixels))
         image = shape_space_image(obj, data)
@@ -248,16 +272,20 @@ class SHAPE_DIFFERENCES_OT_shape_space_select(bpy.types.Operator):
             report(self, {'ERROR'}, str(error))
             return {'CANCELLED'}
         before = analysis_data.stored_shape_space(obj)
-        frame, index = context.scene.frame_current, obj.active_shape_key_index
+        scene = context.scene
+        frame, index = (scene.frame_current, scene.frame_subframe), obj.active_shape_key_index
         try:
             return self._select(context, obj)
-        except MemoryError as error:  # drawing the image: the selection, frame, active key and image as they were
-            context.scene.frame_set(frame)
-            obj.active_shape_key_index = index
+        except Exception as error:  # any failure: the selection, frame, active key and image as they were
             try:
+                if (scene.frame_current, scene.frame_subframe) != frame:
+                    scene.frame_set(frame[0], subframe=frame[1])
+                obj.active_shape_key_index = index
                 restore_shape_space(obj, before["image"], before, set(bpy.data.images))
-            except MemoryError:  # the image is drawn again from the stored selection after undo or a reload
-                pass
+            except Exception as failed:  # the image is drawn again from the stored selection after undo or a reload
+                print(f"Shape Differences: could not take back Select Pose: {failed!r}", file=sys.stderr)
+            if not isinstance(error, MemoryError):
+                raise  # a bug: Blender shows its traceback
             report(self, {'ERROR'}, ran_out_of_memory(error, "save the .blend and restart Blender, which gives "
                                                              "back the memory it holds"))
             return {'CANCELLED'}
@@ -536,7 +564,7 @@ def unchanged_pose(distortion) -> bool:
 FRAME_MAPS_PROPERTY = "shape_differences_frame_maps"
 
 
-@bpy.app.handlers.persistent
+@skipped_out_of_memory("while showing the distortion map of the frame")
 def follow_frame(scene, _depsgraph=None):
     """After a frame change, make each mesh's distortion map of that frame (or of the last mapped
     frame before it) the active colour attribute, so playback shows the maps frame by frame. Only
@@ -568,7 +596,9 @@ def follow_frame(scene, _depsgraph=None):
         mesh.color_attributes.active_color = attribute
 
 
-@bpy.app.handlers.persistent
+@skipped_out_of_memory("while drawing the shape space images again",
+                       "skipped there (an image may show an earlier selection, or nothing), and tried again at "
+                       "the next undo, redo or file load")
 def redraw_shape_spaces(*_):
     """After a .blend is opened, and after undo and redo: draw the image of each shape space stored
     on its objects again from the stored coordinates and selection where it does not show them or

@@ -41,19 +41,24 @@ def simulation_start(scene, movers: list) -> int | None:
     return min(starts) if starts else None
 
 
-def simulation_first_frame(scene, obj, start: int) -> list[int]:
+def simulation_first_frame(scene, obj, start: int, end: int) -> list[int]:
     """``[frame]``: the first frame of the cloth and soft body simulations moving ``obj``
-    (:func:`objects_moving`), where a range starting at ``start`` starts after it; else ``[]``. The mesh
+    (:func:`objects_moving`), where a range ``start``–``end`` does not begin there; else ``[]``. The mesh
     is at its rest there (the simulation starts from it), which a range cut from inside the motion
-    does not begin at. Also ``[]`` where reading it would have more frames evaluated than the range's:
+    does not begin at; a range that begins before it reads the mesh the simulation is given, not yet
+    simulated (Blender holds a simulation at its input before its first frame), and the rest is the
+    mesh at that frame, inside the range (none where the range ends before it: nothing in it is
+    simulated). ``[]`` also where reading it would have more frames evaluated than the range's:
     where ``scene``'s frames are read one after the other (:func:`frames_depend_on_earlier`: an unbaked
     simulation anywhere in it) from the range's start or an unbaked simulation's of ``obj``
     (:func:`simulation_start`), after that frame (each frame from there would be evaluated, and
     simulated where not baked, for a measure of the warnings)."""
     movers = objects_moving(obj)
     first = _first_simulated(movers)
-    if first is None or first >= start:
+    if first is None or first == start:
         return []
+    if first > start:  # inside the range: read with it, or between its frames (one frame more at most)
+        return [first] if first <= end else []
     visited = simulation_start(scene, movers)
     if frames_depend_on_earlier(scene) and first < (start if visited is None else min(start, visited)):
         return []
@@ -114,32 +119,37 @@ def rest_length_factor(obj) -> float | None:
 
 class SimulationRest:
     """The rest a sequence's warnings measure the edges from (``rest_pose`` of
-    :class:`core.SequenceInterpolator`) where a range starting at frame ``start`` of ``obj`` starts
-    inside a cloth or soft body simulation: its first frame (:func:`simulation_first_frame`), read
-    with the range's frames (:attr:`frames`: the frame to read, or none), set aside before the
-    range's space is chosen (:meth:`set_aside`: it is for the warnings alone, so the space and the
-    in-betweens are the range's as without it), then taken to that space (:meth:`options`). Else
-    the first key stands for the rest. A cloth that Shrinking shrinks or grows is at its rest lengths
-    times :func:`rest_length_factor` there, not at its edges (frame 1 of Shrinking 0.1 read as the rest
-    makes every key 11 % off it, and the warnings allow that much more misfit): its edges are scaled so,
-    and so are the first key's where the range starts at the simulation's first frame. Where the factor
-    is not one number or the springs are not built from that frame (:func:`rest_length_factor`: Dynamic
-    Mesh, a Rest Shape Key behind a modifier not of Blender's deform-only kind), no frame is read and none
-    is given."""
+    :class:`core.SequenceInterpolator`) where a range ``start``–``end`` of ``obj`` does not start at the
+    first frame of a cloth or soft body simulation inside it: that frame (:func:`simulation_first_frame`),
+    read with the range's frames (:attr:`frames`: the frame to read, or none), set aside before the
+    range's space is chosen where the range does not read it itself (:meth:`set_aside`: it is for the
+    warnings alone, so the space and the in-betweens are the range's as without it), then taken to that
+    space (:meth:`options`). A range that starts before the simulation begins with the mesh as the
+    simulation is given it, not at its rest lengths where Shrinking is set: the simulation's first frame
+    is the rest there too. Else the first key stands for the rest. A cloth that Shrinking shrinks or grows
+    is at its rest lengths times :func:`rest_length_factor` there, not at its edges (frame 1 of Shrinking
+    0.1 read as the rest makes every key 11 % off it, and the warnings allow that much more misfit): its
+    edges are scaled so, and so are the first key's where the range starts at the simulation's first
+    frame. Where the factor is not one number or the springs are not built from that frame
+    (:func:`rest_length_factor`: Dynamic Mesh, a Rest Shape Key behind a modifier not of Blender's
+    deform-only kind), no frame is read and none is given."""
 
-    def __init__(self, scene, obj, start: int):
-        self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start), []
+    def __init__(self, scene, obj, start: int, end: int):
+        self.start, self.frames, self._read = start, simulation_first_frame(scene, obj, start, end), []
         self._factor = rest_length_factor(obj)
         if self._factor is None:
             self.frames = []
         # a range from the simulation's first frame: its first key is the rest, at other lengths where Shrinking
         self._from_start = self._factor not in (None, 1.0) and _first_simulated(objects_moving(obj)) == start
 
-    def set_aside(self, read: dict, matrices: dict) -> None:
+    def set_aside(self, read: dict, matrices: dict, ranges: list) -> None:
         """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}
-        of the frames read), and keep the range's first frame's positions (its matrix too where that
-        frame is the rest)."""
-        self._read = [(read.pop(frame), matrices.pop(frame), read[self.start]) for frame in self.frames]
+        of the frames read) where it is not one of the range's own frames ``ranges`` (those it read for
+        itself: a range that starts before the simulation may key its first frame), and keep the range's
+        first frame's positions (its matrix too where that frame is the rest)."""
+        kept = set(ranges)
+        self._read = [((read[frame], matrices[frame]) if frame in kept else (read.pop(frame), matrices.pop(frame)))
+                      + (read[self.start],) for frame in self.frames]
         if self._from_start:
             self._read = [(read[self.start], matrices[self.start], read[self.start])]
 
@@ -379,13 +389,13 @@ class SHAPE_DIFFERENCES_OT_inbetween_frames(KeyStep, InbetweensPerGap, Animation
         # the in-betweens' second process started now, where the sequence may share its gaps with it: its
         # start overlaps the reading of the frames rather than the first gaps (core.gap_processes)
         start_gap_worker(len(obj.data.vertices), len(keyed) - 1, options["k_M"])
-        # a range starting inside a cloth or soft body simulation: its first frame read too, the rest the
-        # warnings measure the edges from
-        rest = SimulationRest(context.scene, obj, frames[0])
+        # a range starting inside a cloth or soft body simulation, or before it: its first frame read too, the
+        # rest the warnings measure the edges from
+        rest = SimulationRest(context.scene, obj, frames[0], end)
         matrices = {}
         _poses, read = yield from self.read_keys(context, obj, frames, 0.2, also=tail + middles + rest.frames,
                                                  matrices=matrices, stay=self.output == 'SHAPE_KEYS')
-        rest.set_aside(read, matrices)
+        rest.set_aside(read, matrices, frames + tail + middles)
         # an object scaled differently at different frames: interpolated in the world, where the simulation ran
         space = world_space.frames_space(context, obj, matrices)
         scaled = dict(zip(read, in_world(obj, space, read.values(), read, triangles, INBETWEENED_IN_WORLD)))
@@ -508,13 +518,13 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         start_gap_worker(len(obj.data.vertices), plan.n_gaps, options["k_M"])
         # the keys and the other samples the retime reads (core.retime.RetimePlan.samples_read: the shorter
         # last gap's keys, the middles of the first and last gaps); a range starting inside a cloth or soft
-        # body simulation: its first frame too, the rest the warnings measure the edges from
-        rest = SimulationRest(context.scene, obj, start)
+        # body simulation, or before it: its first frame too, the rest the warnings measure the edges from
+        rest = SimulationRest(context.scene, obj, start, end)
         matrices = {}
-        _poses, read = yield from self.read_keys(context, obj, key_frames, 0.1,
-                                                 also=[start + sample for sample in plan.samples_read] + rest.frames,
+        samples_read = [start + sample for sample in plan.samples_read]
+        _poses, read = yield from self.read_keys(context, obj, key_frames, 0.1, also=samples_read + rest.frames,
                                                  matrices=matrices, stay=self.output == 'SHAPE_KEYS')
-        rest.set_aside(read, matrices)
+        rest.set_aside(read, matrices, key_frames + samples_read)
         out_frames = [float(start + k) for k in range(plan.n_out)]
         # each pose is shown under the object's matrix of a frame: a new object plays the source's
         # keyframed transform retimed, at the pose's source time; shape keys play under the source's
@@ -526,7 +536,7 @@ class SHAPE_DIFFERENCES_OT_retime(KeyStep, Speed, AnimationOutput, InbetweenSett
         with closing(space.reading(shown_at)) as reading:
             for _ in reading:
                 yield 0.1
-        shown = [start + sample for sample in plan.samples_read]
+        shown = samples_read
         samples = KeySamples(plan.n_source, dict(zip(plan.samples_read, in_world(
             obj, space, [read[frame] for frame in shown], shown, triangles, INBETWEENED_IN_WORLD))))
         check_shown_in_world(obj, space, shown_at, INBETWEENED_IN_WORLD)

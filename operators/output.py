@@ -24,6 +24,7 @@ import numpy as np
 
 from ..bridge import cache_object, modifier_kinds, naming, scene_timing, shape_keys
 from .base import InputError, report
+from .handler_guard import skipped_out_of_memory
 from .motion_sources import (modifiers_set_aside, modifiers_under_frames, modifiers_under_keys, moves_vertices,
                              object_motion, _plays_nla, refuse_emptying_caches, sharing_mesh, zone_frames_dropped)
 
@@ -135,7 +136,9 @@ _LAST_CACHE: dict[str, str | None] = {}
 _MOVED_FOR_SAVE: dict[tuple[str, str], str] = {}
 
 
-@bpy.app.handlers.persistent
+@skipped_out_of_memory("while copying caches from Blender's temporary folder beside the .blend being saved",
+                       "skipped: the saved .blend may play caches from that folder, which Blender deletes when it "
+                       "quits; save again once memory is free")
 def keep_session_caches(filepath, *_):
     """Before a save to ``filepath``: a cache written while the .blend had never been saved went
     to Blender's temporary folder (:meth:`PoseWriter.cache_path`), which Blender deletes when it
@@ -163,7 +166,8 @@ def keep_session_caches(filepath, *_):
             modifier.filepath = f"//{CACHE_FOLDER}/{target.name}"
 
 
-@bpy.app.handlers.persistent
+@skipped_out_of_memory("while pointing the Mesh Cache modifiers back after Save Copy",
+                       "skipped: they may still play the copies beside the saved copy (see each Mesh Cache's File Path)")
 def restore_after_copy(filepath, *_):
     """After a save: where it was a copy (*Save Copy*: this session's .blend is another or none),
     the session's modifiers point back to the caches they played (the copy keeps its own)."""
@@ -339,13 +343,12 @@ class PoseWriter:
             had_basis = source.data.shape_keys is not None
             had_action = bool(had_basis and source.data.shape_keys.animation_data
                               and source.data.shape_keys.animation_data.action)
-            # F-curves the new keys may be keyframed into: those of keys this mesh does not have (an
-            # action shared with another mesh's keys, a deleted key's curve), kept to be given back
-            others = foreign_key_curves(source) if keyframe and had_action else {}
+            # named so that no F-curve there before animates them (bridge.shape_keys.unique_key_name):
+            # their keyframes go into new F-curves of their own
             added = shape_keys.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             undo = getattr(self, "undo_on_failure", None)  # a failure after this (GeneratorOperator) takes them back
             if undo is not None:
-                undo(lambda: remove_added_keys(source, added, had_basis, had_action, others))
+                undo(lambda: remove_added_keys(source, added, had_basis, had_action))
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
             dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
@@ -457,35 +460,18 @@ class PoseWriter:
                 f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
 
 
-def foreign_key_curves(obj) -> dict[str, list[dict]]:
-    """The keyframes (:func:`bridge.shape_keys.keyframes_of`) of the F-curves in ``obj``'s shape
-    keys' action that animate a key ``obj`` does not have, by data path: a key added later under
-    that name is keyframed into that F-curve, which may be another mesh's (a shared action)."""
-    key = obj.data.shape_keys
-    if key is None:
-        return {}
-    own = {shape_keys.key_value_path(key_block.name) for key_block in key.key_blocks}
-    return {fcurve.data_path: shape_keys.keyframes_of(fcurve) for fcurve in shape_keys.key_fcurves(key)
-            if fcurve.data_path not in own}
-
-
-def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool,
-                      others: dict[str, list[dict]] | None = None) -> None:
+def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool) -> None:
     """Take back the shape keys ``names`` added to ``obj`` (:meth:`PoseWriter.write_poses`), the
     Basis made for them (not ``had_basis``) and their keyframes: the action made for them (not
-    ``had_action``), else their F-curves in the keys' own action, where these are new; an F-curve
-    that was there before (``others``: :func:`foreign_key_curves`, taken before the keys were
-    added) gets its keyframes back instead, as another mesh sharing the action had them."""
-    others = others or {}
+    ``had_action``), else their F-curves in the keys' own action, which are new (the keys are named so
+    that no F-curve there before animates them: :func:`bridge.shape_keys.unique_key_name`)."""
     key = obj.data.shape_keys
     animation = key.animation_data if key is not None else None
     if animation is not None and animation.action is not None:
         if had_action:
             for name in names:
                 fcurve = shape_keys.shape_key_value_fcurve(key, name)
-                if fcurve is not None and fcurve.data_path in others:
-                    shape_keys.set_keyframes(fcurve, others[fcurve.data_path])
-                elif fcurve is not None:
+                if fcurve is not None:
                     _remove_fcurve(animation, fcurve)
         else:  # the action alone: drivers of the keys stay
             action = animation.action

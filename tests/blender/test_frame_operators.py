@@ -445,6 +445,36 @@ def test_operators_from_a_shrinking_simulations_first_frame_measure_edges_from_i
     _rests_of_a_shrinking_cloth(extension.bridge, obj, core, monkeypatch, 1, 0.1)
 
 
+@pytest.mark.parametrize("start", [1, 2])
+def test_operators_from_before_a_shrinking_simulations_start_measure_edges_from_its_rest_lengths(
+        bpy_empty, extension, core, monkeypatch, start):
+    """The cloth of :func:`cloth_scene` simulated from frame 5 with Shrinking 0.1, In-between Frames and
+    Retime of ``start``–13 every 4th: a range that starts before the simulation. Blender itself (first
+    assertions, pinning Blender 5.0's behaviour): frames 1–5 are all the mesh the cloth is given, and from
+    frame 5 on its springs are 0.9 × those edges (frame 13's within 1 % of that). The rest given is frame 5
+    scaled by 0.9: read as a key of 1–13, read and set aside for 2–14 (the keys 2, 6, 10 and 14). Before, none:
+    the first key stood for the rest, every later key 11 % off it, which the warnings then allowed."""
+    obj = cloth_scene(frames=17)
+    obj.modifiers["Cloth"].point_cache.frame_start = 5
+    _rebaked(obj, 0.1)
+    bridge = extension.bridge
+    frames = evaluated_frames(bridge, obj, [1, 3, 5, 13])
+    triangles = bridge.triangulation.mesh_triangles(obj.data)
+    for frame in (1, 3):  # held at the input before the simulation's start
+        np.testing.assert_array_equal(frames[frame], frames[5])
+    assert _median_edge_ratio(frames[13], frames[5], triangles) == pytest.approx(0.9, abs=1e-2)
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    end = start + 12
+    bpy.ops.shape_differences.inbetween_frames(frame_start=start, frame_end=end, frame_step=4, count=1,
+                                               output='SHAPE_KEYS')
+    obj.shape_key_clear()
+    bpy.ops.shape_differences.retime(frame_start=start, frame_end=end, frame_step=4, speed=0.5, output='SHAPE_KEYS')
+    assert len(given) == 2 and all(rest is not None for rest in given), "no rest given"
+    for rest in given:
+        assert _median_edge_ratio(rest, frames[5], triangles) == pytest.approx(0.9, rel=1e-6)
+        assert _median_edge_ratio(rest, frames[13], triangles) == pytest.approx(1.0, abs=1e-2)
+
+
 def _cloth_scaled_before(first_scale):
     """The cloth of :func:`cloth_scene`, its object scaled ``first_scale`` at frame 1 and (1.5, 1, 1)
     from frame 4 on, turned 0.6 rad about z from frame 4 to 11 (keyframed, baked after): the frames 5–13
@@ -528,7 +558,7 @@ def test_inbetween_frames_inside_a_simulation_from_a_flattened_frame(bpy_empty, 
     obj = _cloth_scaled_before((1.0, 1.0, 0.0))
     bridge = extension.bridge
     frames_module, given = _rests_given(extension, monkeypatch)
-    assert frames_module.simulation_first_frame(bpy.context.scene, obj, 5) == [1]
+    assert frames_module.simulation_first_frame(bpy.context.scene, obj, 5, 11) == [1]
     (names, poses), (names_without, without) = _inbetweens_with_and_without_the_rest_frame(
         bridge, obj, frames_module, monkeypatch)
     assert given == [None, None] and names_without == names

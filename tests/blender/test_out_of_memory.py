@@ -173,9 +173,9 @@ def test_memory_running_out_leaves_an_action_shared_with_another_mesh_as_it_was(
                                                                                 monkeypatch):
     """An action shared by two meshes' shape keys: the second strip's keys are keyframed, the first
     strip plays the same action (and slot) and has only a Basis. In-between Frames on the first strip
-    adds keys named as the second strip's (free names on the first), keyframing them into the second
-    strip's F-curves; when it runs out of memory, the take-back must give those F-curves their
-    keyframes back, not remove them (before: the second strip's animation was deleted)."""
+    runs out of memory once its keys are keyframed: the second strip's F-curves keep their keyframes
+    (session 77: the new keys took the second strip's names and keyframes into its F-curves, and the
+    take-back deleted them; since session 78 the new keys take names no F-curve there animates)."""
     first = armature_scene(frames=9)
     second = first.copy()
     second.data = first.data.copy()
@@ -219,9 +219,10 @@ def test_memory_running_out_once_a_shape_space_is_drawn_gives_another_objects_im
                                                                                         monkeypatch):
     """The image a new shape space is drawn into is named after the object ("Shape Space Grid"): where
     another object's image has that name (the grid it was made on was renamed "Sheet" since, then a new
-    "Grid" made), Shape Space on the new grid running out of memory gives that image its pixels back.
-    Before, the image was kept only where the object's own earlier shape space named it: the
-    renamed sheet's image kept the failed run's plot."""
+    "Grid" made), Shape Space on the new grid running out of memory leaves that image's pixels as they
+    were. In session 77 the run drew into it and the take-back gave its pixels back (before that, the
+    renamed sheet's image kept the failed run's plot); since session 78 the run draws into an image of
+    its own ("Shape Space Grid.001"), which the take-back removes."""
     first = posed_grid(extension.bridge, 6)
     first.name = "Grid"
     bpy.ops.shape_differences.shape_space(source='KEYS', k_m=20, k_n=0)

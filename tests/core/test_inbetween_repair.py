@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from core.errors import ShapeDifferenceWarning
 from core.sequence_inbetweens import SequenceInterpolator
 from core.two_pose_inbetweens import Interpolator
-from inbetween_helpers import _bend, _edge_deviation, _flipped, _normals
+from inbetween_helpers import _bend, _edge_deviation, _flipped, _normals, _strip
 
 
 def test_sequence_in_between_keeps_the_metric_fit_when_only_the_blend_is_clean(monkeypatch, strip):
@@ -1361,3 +1361,32 @@ def test_two_poses_fit_nearer_the_metric_counts_as_the_fit_is_checked_not_the_ti
     y, said, count, near_blend = gap.repair.nearer_the_metric((far, None), 0.5, frames, stretch, motion, targets)
     assert np.array_equal(y, x) and said is None and near_blend
     assert count == _against_the_curl(y, keys, tri, curl) == 0
+
+
+def test_two_poses_fallback_is_counted_with_its_pinned_vertices_put_back(monkeypatch):
+    """Two poses of a strip bent 2.5 rad about its end x = 0, whose six vertices there stay still (the
+    gap's pinned ``static`` vertices, which the gap's finish puts back where the keys have them); the fit at
+    0.5 with a vertex pushed past its neighbour (two flipped triangles), not repaired (``repairable`` 0),
+    and a fit near the blend made the blend moved 0.2 along −x, which is clean as it stands but flips the
+    ten triangles at the still end once those vertices are put back (its neighbours lie past them). The
+    outcome's count and words are those of the pose as the gap returns it (its pins set): the independent
+    count of triangles facing against both keys agrees. Before, the fallback was counted with its pinned
+    vertices left where the fit put them: "with no triangle flipped or collapsed", count 0, and the pose
+    returned had 10 (on a cape pinned to a turning arm, keys 16 frames apart, 1,457 said for 1,487)."""
+    from core.inbetween_repair import Repair
+    from test_inbetween_untangling import _pushed_past
+
+    flat, tri = _strip()
+    keys = [flat, _bend(flat, 2.5)]
+    gap = Interpolator(keys[0], keys[1], tri)._sequence._gap(0)
+    assert gap.static is not None and gap.static.sum() == 6
+    x, _ = gap.pose(0.5)
+    frames, stretch, motion, guide = gap.targets(0.5)[:4]
+    folded = _pushed_past(x, tri, int(np.argmin(np.linalg.norm(x - x.mean(axis=0), axis=1))))
+    shifted = np.array([-0.2, 0.0, 0.0])
+    monkeypatch.setattr(Repair, "fitted_near_blend", lambda self, blend, s, stretch, motion: blend + shifted)
+    y, said, count, _ = gap.repair.outcome(folded, folded, 0.5, frames, stretch, guide, motion, repairable=0)
+    returned = y.copy()
+    gap._pins_set(returned, 0.5)  # as the gap's finish does
+    assert count == _flipped(returned, keys[0], keys[1], tri) > 0
+    assert f"keeps {count} triangle(s) flipped or collapsed" in said

@@ -223,14 +223,17 @@ def _record_fits_near_the_blend(monkeypatch) -> list:
 
 def _counted_defects(near: list, m: int, second_defects: int | None = None):
     """A stand-in for ``Repair.defects`` (m triangles): the linear blend has 1 flipped triangle,
-    the fits near it (``near``) 2, any other fit 10 — and with ``second_defects``, every candidate
-    of a whole-rotation fit that many."""
+    the fits near it (``near``; told apart by their vertices that are not pinned, as a fallback is
+    checked with its pinned vertices put back: ``Repair.as_finished``) 2, any other fit 10 — and with
+    ``second_defects``, every candidate of a whole-rotation fit that many."""
     def defects(self, x, *args, rows=None, scale=None):
         if second_defects is not None and self.gap.whole_rotations.all():
             count = second_defects
         else:
             inner_blend = 0.5 * (self.gap.base.vertices + self.gap.next.vertices)  # the gap's own coordinates
-            count = 1 if np.allclose(x, inner_blend) else 2 if any(np.array_equal(x, y) for y in near) else 10
+            free = slice(None) if self.gap.static is None else ~self.gap.static
+            count = 1 if np.allclose(x, inner_blend) else \
+                2 if any(np.array_equal(x[free], y[free]) for y in near) else 10
         out = np.zeros(m, dtype=bool)
         out[:count] = True
         return out if rows is None else out[rows]
