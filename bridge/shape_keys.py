@@ -24,33 +24,66 @@ class NewShapeKey:
     tail: str = ""
 
 
-def unique_key_name(obj: bpy.types.Object, name: str, tail: str = "") -> str:
+def unique_key_name(obj: bpy.types.Object, name: str, tail: str = "", *, keyframed: bool = False) -> str:
     """A shape key name for ``name + tail`` (see :func:`bridge.naming.unique_name`) that no key of
-    ``obj`` has, no F-curve of its keys' action (its slot's) animates, and no key of another mesh
-    playing that action (and slot) has: a new key of such a name would have its keyframes written
-    into that F-curve, which may be another mesh's (an action shared between meshes) or a deleted
-    key's, and its value played by it."""
+    ``obj`` has, nor any key of another mesh playing its keys' action (and slot: :func:`played_key_names`,
+    as its action or through an NLA strip): a key's value is animated by the F-curve of its name, so
+    another mesh's key of that name would be played by the new key's keyframes. Nor one a dead F-curve
+    there animates (its key removed: Blender keeps the F-curve, which would play the new key at its old
+    keyframes), unless the new key is ``keyframed`` (:func:`keyframe_key_values` empties that curve first,
+    so a run again into a mesh whose earlier keys were deleted names its keys as before) and the curve is
+    not muted, locked, given modifiers or extrapolated linearly."""
     key = obj.data.shape_keys
     if key is None:
         return unique_name(name, tail, ())
-    return unique_name(name, tail, _TakenKeyNames(key))
+    return unique_name(name, tail, _TakenKeyNames(key, keyframed))
+
+
+def played_key_names(key: bpy.types.Key) -> set[str]:
+    """The names of the keys of ``key`` and of every other mesh's keys that play ``key``'s action in
+    the same slot, as their action or through one of their NLA strips: the keys an F-curve of that
+    action (slot) animates, where one has its name."""
+    names = set(key.key_blocks.keys())
+    animation = key.animation_data
+    action = animation.action if animation else None
+    if action is None:
+        return names
+    slot = getattr(animation, "action_slot", None)  # Blender 4.4+
+
+    def plays(data) -> bool:  # AnimData or NlaStrip
+        return data.action == action and getattr(data, "action_slot", None) == slot
+
+    for other in bpy.data.shape_keys:
+        played = other.animation_data
+        if other == key or played is None:
+            continue
+        if plays(played) or any(plays(strip) for track in played.nla_tracks for strip in track.strips):
+            names.update(other.key_blocks.keys())
+    return names
+
+
+def dead_key_curves(key: bpy.types.Key) -> dict[str, list[dict]]:
+    """The keyframes (:func:`keyframes_of`) of the F-curves of ``key``'s action (slot) that animate the
+    value of no key playing it (:func:`played_key_names`: keys removed since, whose F-curves Blender
+    keeps), by data path: what a new key of such a name, keyframed, empties (:func:`keyframe_key_values`),
+    for a take-back to give back."""
+    alive = {key_value_path(name) for name in played_key_names(key)}
+    return {fcurve.data_path: keyframes_of(fcurve) for fcurve in key_fcurves(key)
+            if fcurve.data_path.startswith("key_blocks[") and fcurve.data_path.endswith("].value")
+            and fcurve.data_path not in alive}
 
 
 class _TakenKeyNames:
     """The names :func:`unique_key_name` leaves out for the keys ``key``, as a container (``in``)."""
 
-    def __init__(self, key: bpy.types.Key):
-        self.names = set(key.key_blocks.keys())
-        self.paths = {fcurve.data_path for fcurve in key_fcurves(key)}
-        animation = key.animation_data
-        action = animation.action if animation else None
-        if action is not None:
-            slot = getattr(animation, "action_slot", None)  # Blender 4.4+
-            for other in bpy.data.shape_keys:
-                played = other.animation_data
-                if other != key and played is not None and played.action == action and \
-                        getattr(played, "action_slot", None) == slot:
-                    self.names.update(other.key_blocks.keys())
+    def __init__(self, key: bpy.types.Key, keyframed: bool):
+        self.names = played_key_names(key)
+        # with keyframes, a dead F-curve's name is free (emptied first), unless the curve would still
+        # change what the key plays: muted, locked, with modifiers (a Noise plays without points) or
+        # extrapolated linearly (the value past the first and last keyframes)
+        self.paths = {fcurve.data_path for fcurve in key_fcurves(key)
+                      if not keyframed or fcurve.mute or fcurve.lock or len(fcurve.modifiers)
+                      or fcurve.extrapolation != 'CONSTANT'}
 
     def __contains__(self, name: str) -> bool:
         return name in self.names or key_value_path(name) in self.paths
@@ -74,8 +107,8 @@ def add_shape_keys(obj: bpy.types.Object, new_keys: list[NewShapeKey],
         if not had_basis:
             obj.shape_key_add(name=BASIS_NAME, from_mix=False)
         for new_key in new_keys:
-            key_block = obj.shape_key_add(name=unique_key_name(obj, new_key.name, new_key.tail),
-                                           from_mix=False)
+            key_block = obj.shape_key_add(name=unique_key_name(obj, new_key.name, new_key.tail,
+                                                               keyframed=keyframes is not None), from_mix=False)
             added.append(key_block)
             key_block.value = 0.0
             # ``points``: the bulk write (:func:`bridge.mesh_data.stored_key_positions`)
@@ -136,27 +169,52 @@ def shape_key_value_fcurve(key: bpy.types.Key, key_name: str):
     return next((fcurve for fcurve in key_fcurves(key) if fcurve.data_path == data_path), None)
 
 
+#: What :func:`keyframes_of` keeps of each keyframe: enough to put an F-curve back as it was.
+KEYFRAME_FIELDS = ("handle_left_type", "handle_right_type", "co", "handle_left", "handle_right",
+                   "interpolation", "easing", "type")
+
+
+def keyframes_of(fcurve) -> list[dict]:
+    """``fcurve``'s keyframes, each a dict of :data:`KEYFRAME_FIELDS`, for :func:`set_keyframes`."""
+    return [{field: (tuple(value) if field in ("co", "handle_left", "handle_right") else value)
+             for field in KEYFRAME_FIELDS for value in (getattr(point, field),)}
+            for point in fcurve.keyframe_points]
+
+
+def set_keyframes(fcurve, keyframes: list[dict]) -> None:
+    """Give ``fcurve`` exactly ``keyframes`` (:func:`keyframes_of`), in place of those it has."""
+    points = fcurve.keyframe_points
+    points.clear()
+    points.add(len(keyframes))
+    for point, keyframe in zip(points, keyframes):
+        for field in KEYFRAME_FIELDS:  # the handle types first: setting them may move the handles
+            setattr(point, field, keyframe[field])
+    fcurve.update()
+
+
 def keyframe_key_values(obj: bpy.types.Object, timeline: list[tuple[float, str]]):
     """Keyframe the values of the named shape keys so that playback steps through them.
 
     ``timeline`` is ``(frame, key name)`` in increasing frame order: each key gets value 1 at its
     frame and 0 at the frames of its neighbours, with linear interpolation, so between two samples
-    the mesh blends linearly from one key to the next. Only F-curves of these keys are written, and only
-    the keyframes inserted here are made linear.
+    the mesh blends linearly from one key to the next. Only F-curves of these keys are written: new ones,
+    or that of a key of the name removed since (its keyframes cleared first: :func:`unique_key_name`), so
+    every point on them is one inserted here.
     """
     key = obj.data.shape_keys
     frames = [frame for frame, _ in timeline]
     for index, (frame, name) in enumerate(timeline):
         key_block = key.key_blocks[name]
+        dead = shape_key_value_fcurve(key, name)  # the F-curve of a key removed since (unique_key_name)
+        if dead is not None:
+            dead.keyframe_points.clear()
         neighbours = [frames[i] for i in (index - 1, index + 1) if 0 <= i < len(frames)]
-        inserted = [(frame, 1.0)] + [(neighbour, 0.0) for neighbour in neighbours]
-        for when, value in inserted:
+        for when, value in [(frame, 1.0)] + [(neighbour, 0.0) for neighbour in neighbours]:
             key_block.value = value
             key_block.keyframe_insert("value", frame=when)
         key_block.value = 0.0
         fcurve = shape_key_value_fcurve(key, name)
-        if fcurve is not None and len(fcurve.keyframe_points):  # only the points inserted here
-            points = fcurve.keyframe_points
-            for when, _ in inserted:  # the point at that frame (stored in single precision: the nearest)
-                min(points, key=lambda point: abs(point.co[0] - when)).interpolation = 'LINEAR'
+        if fcurve is not None:  # its own, every point inserted here
+            for point in fcurve.keyframe_points:
+                point.interpolation = 'LINEAR'
             fcurve.update()

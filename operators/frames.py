@@ -47,8 +47,9 @@ def simulation_first_frame(scene, obj, start: int, end: int) -> list[int]:
     is at its rest there (the simulation starts from it), which a range cut from inside the motion
     does not begin at; a range that begins before it reads the mesh the simulation is given, not yet
     simulated (Blender holds a simulation at its input before its first frame), and the rest is the
-    mesh at that frame, inside the range (none where the range ends before it: nothing in it is
-    simulated). ``[]`` also where reading it would have more frames evaluated than the range's:
+    mesh at that frame, inside the range (none where the range ends before it or at it: nothing in it
+    is simulated, that frame showing the mesh the simulation is given, as every frame before it).
+    ``[]`` also where reading it would have more frames evaluated than the range's:
     where ``scene``'s frames are read one after the other (:func:`frames_depend_on_earlier`: an unbaked
     simulation anywhere in it) from the range's start or an unbaked simulation's of ``obj``
     (:func:`simulation_start`), after that frame (each frame from there would be evaluated, and
@@ -58,7 +59,7 @@ def simulation_first_frame(scene, obj, start: int, end: int) -> list[int]:
     if first is None or first == start:
         return []
     if first > start:  # inside the range: read with it, or between its frames (one frame more at most)
-        return [first] if first <= end else []
+        return [first] if first < end else []
     visited = simulation_start(scene, movers)
     if frames_depend_on_earlier(scene) and first < (start if visited is None else min(start, visited)):
         return []

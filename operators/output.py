@@ -343,12 +343,14 @@ class PoseWriter:
             had_basis = source.data.shape_keys is not None
             had_action = bool(had_basis and source.data.shape_keys.animation_data
                               and source.data.shape_keys.animation_data.action)
-            # named so that no F-curve there before animates them (bridge.shape_keys.unique_key_name):
-            # their keyframes go into new F-curves of their own
+            # named so that no F-curve there animates another key (bridge.shape_keys.unique_key_name): their
+            # keyframes go into new F-curves of their own, or those of keys removed since, emptied (kept to be
+            # given back on failure)
+            dead = shape_keys.dead_key_curves(source.data.shape_keys) if keyframe and had_action else {}
             added = shape_keys.add_shape_keys(source, new_keys, keyframes=times if keyframe else None)
             undo = getattr(self, "undo_on_failure", None)  # a failure after this (GeneratorOperator) takes them back
             if undo is not None:
-                undo(lambda: remove_added_keys(source, added, had_basis, had_action))
+                undo(lambda: remove_added_keys(source, added, had_basis, had_action, dead))
             if getattr(self, "deformed_again", None):  # captured poses (check_captured_output)
                 report(self, {'WARNING'}, self.deformed_again)
             dropped = zone_frames_dropped(context.scene, source, "shape keys added to",
@@ -460,18 +462,23 @@ class PoseWriter:
                 f"({span}) from {path}" + ("" if written else " (an earlier run's file, which holds these poses)"))
 
 
-def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool) -> None:
+def remove_added_keys(obj, names: list[str], had_basis: bool, had_action: bool,
+                      dead: dict[str, list[dict]] | None = None) -> None:
     """Take back the shape keys ``names`` added to ``obj`` (:meth:`PoseWriter.write_poses`), the
     Basis made for them (not ``had_basis``) and their keyframes: the action made for them (not
-    ``had_action``), else their F-curves in the keys' own action, which are new (the keys are named so
-    that no F-curve there before animates them: :func:`bridge.shape_keys.unique_key_name`)."""
+    ``had_action``), else their F-curves in the keys' own action, which are new, or were those of keys
+    removed before the run (``dead``: :func:`bridge.shape_keys.dead_key_curves`, taken before the keys
+    were added), which get their keyframes back."""
+    dead = dead or {}
     key = obj.data.shape_keys
     animation = key.animation_data if key is not None else None
     if animation is not None and animation.action is not None:
         if had_action:
             for name in names:
                 fcurve = shape_keys.shape_key_value_fcurve(key, name)
-                if fcurve is not None:
+                if fcurve is not None and fcurve.data_path in dead:
+                    shape_keys.set_keyframes(fcurve, dead[fcurve.data_path])
+                elif fcurve is not None:
                     _remove_fcurve(animation, fcurve)
         else:  # the action alone: drivers of the keys stay
             action = animation.action

@@ -475,6 +475,28 @@ def test_operators_from_before_a_shrinking_simulations_start_measure_edges_from_
         assert _median_edge_ratio(rest, frames[13], triangles) == pytest.approx(1.0, abs=1e-2)
 
 
+@pytest.mark.parametrize("end", [4, 5])
+def test_operators_ending_at_or_before_a_shrinking_simulations_start_give_no_rest(bpy_empty, extension, core,
+                                                                                  monkeypatch, end):
+    """The cloth of :func:`cloth_scene` simulated from frame 5 with Shrinking 0.1, In-between Frames and
+    Retime of 1–``end`` (keys 1 and ``end``): nothing in the range is simulated (frame 5 is the
+    mesh the cloth is given, as frames 1–4 are: first assertion), so every key is at the input's edges and
+    no rest is given (the first key stands for it). Before, a range ending at frame 5 was given frame 5
+    × 0.9 as the rest, which every key is 11 % off, and the warnings allowed that much more misfit."""
+    obj = cloth_scene(frames=17)
+    obj.modifiers["Cloth"].point_cache.frame_start = 5
+    _rebaked(obj, 0.1)
+    frames = evaluated_frames(extension.bridge, obj, [1, end])
+    np.testing.assert_array_equal(frames[end], frames[1])
+    given = _rests_given_to_every_sequence(core, monkeypatch)
+    bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=end, frame_step=end - 1, count=1,
+                                               output='SHAPE_KEYS')
+    obj.shape_key_clear()
+    bpy.ops.shape_differences.retime(frame_start=1, frame_end=end, frame_step=end - 1, speed=0.5,
+                                     output='SHAPE_KEYS')
+    assert [rest is None for rest in given] == [True, True], "a rest given"
+
+
 def _cloth_scaled_before(first_scale):
     """The cloth of :func:`cloth_scene`, its object scaled ``first_scale`` at frame 1 and (1.5, 1, 1)
     from frame 4 on, turned 0.6 rad about z from frame 4 to 11 (keyframed, baked after): the frames 5–13

@@ -170,3 +170,118 @@ def test_handlers_that_run_out_of_memory_skip_that_call_and_say_so_once(bpy_empt
     assert "while showing the distortion map of the frame" in said
     assert "while drawing the shape space images again" in said and "Unable to allocate 1.21 GiB" in said
     assert mesh.color_attributes.active_color.name == "SD Area f1"  # the call skipped
+
+
+def _in_between_frames_keys(obj) -> list[str]:
+    """Run In-between Frames (every 4th frame, one in-between) into ``obj``'s shape keys; the names added."""
+    _active(obj)
+    before = set(obj.data.shape_keys.key_blocks.keys()) if obj.data.shape_keys else set()
+    bpy.ops.shape_differences.inbetween_frames(frame_step=4, count=1, output='SHAPE_KEYS')
+    return [name for name in obj.data.shape_keys.key_blocks.keys() if name not in before and name != "Basis"]
+
+
+def _deleted_keys_rerun():
+    """A mesh given In-between Frames' keys, which the user deletes (Blender keeps their F-curves), one of
+    those F-curves given a keyframe of its own at frame 20 (an old animation of the key): the names of the
+    first run, and the mesh."""
+    obj = armature_scene(frames=9)
+    first = _in_between_frames_keys(obj)
+    for name in first:
+        obj.shape_key_remove(obj.data.shape_keys.key_blocks[name])
+    animation = obj.data.shape_keys.animation_data
+    stale = {fcurve.data_path: fcurve for fcurve in _fcurves(animation)}[f'key_blocks["{first[2]}"].value']
+    stale.keyframe_points.insert(20.0, 1.0)
+    return obj, first
+
+
+def test_in_between_frames_again_after_its_keys_were_deleted_names_them_as_before(bpy_empty, extension):
+    """In-between Frames into a mesh, its keys deleted by the user, then run again: the new keys take the
+    names of the first run's ("Frame 5", not "Frame 5.001"), each keyframed on the F-curve Blender kept for
+    the deleted key of its name, emptied first (no point of the old animation left: the stale keyframe at
+    frame 20 would play the new key there), every point linear, and no F-curve more than keys. Before
+    (session 78, h3), every such run took new names (.001, .002, …) and left one more dead F-curve per key
+    in the action each time."""
+    obj, first = _deleted_keys_rerun()
+    assert _in_between_frames_keys(obj) == first
+    curves = _keyframes(obj.data.shape_keys.animation_data)
+    assert sorted(curves) == sorted(f'key_blocks["{name}"].value' for name in first)
+    scene = bpy.context.scene
+    key_blocks = obj.data.shape_keys.key_blocks
+    for path, points in curves.items():
+        assert all(interpolation == 'LINEAR' for _, interpolation in points) and \
+            all(frame <= 9 for (frame, _), _ in points), (path, points)
+    scene.frame_set(20)  # the stale keyframe's frame: the key as after its last keyframe (frame 9), at 0
+    assert key_blocks[first[2]].value == 0.0
+    scene.frame_set(5)
+    assert key_blocks[first[2]].value == 1.0
+
+
+@pytest.mark.parametrize("still", ['NOISE', 'EXTRAPOLATED'])
+def test_a_deleted_keys_f_curve_that_still_plays_without_its_points_keeps_its_name(bpy_empty, extension, still):
+    """The mesh of the test above, the deleted "Frame 5" key's F-curve given a Noise modifier (which plays
+    without keyframes) or linear extrapolation (which emptied would still extrapolate the new points): run
+    again, the key for frame 5 takes "Frame 5.001" (its own F-curve) and that curve keeps its points and
+    modifier; the other keys take their first names."""
+    obj, first = _deleted_keys_rerun()
+    animation = obj.data.shape_keys.animation_data
+    path = f'key_blocks["{first[2]}"].value'
+    dead = {fcurve.data_path: fcurve for fcurve in _fcurves(animation)}[path]
+    if still == 'NOISE':
+        dead.modifiers.new('NOISE')
+    else:
+        dead.extrapolation = 'LINEAR'
+    kept = _keyframes(animation)[path]
+    again = _in_between_frames_keys(obj)
+    assert again == first[:2] + [first[2] + ".001"] + first[3:]
+    curve = {fcurve.data_path: fcurve for fcurve in _fcurves(animation)}[path]
+    assert _keyframes(animation)[path] == kept and len(curve.modifiers) == (still == 'NOISE')
+
+
+def test_a_failed_run_gives_a_deleted_keys_f_curve_its_keyframes_back(bpy_empty, extension, core, monkeypatch):
+    """The mesh of the test above (a deleted key's F-curve with a keyframe at frame 20): In-between Frames
+    runs out of memory once its keys, named as the deleted ones, are keyframed on those F-curves: the
+    take-back gives each F-curve the keyframes it had, and removes none."""
+    from test_out_of_memory import _out_of_memory as out_of_memory, fails_out_of_memory
+
+    obj, _first = _deleted_keys_rerun()
+    kept = _keyframes(obj.data.shape_keys.animation_data)
+    monkeypatch.setattr(_module("operators.output"), "zone_frames_dropped", out_of_memory)
+    fails_out_of_memory(extension.bridge, bpy.ops.shape_differences.inbetween_frames, "In-betweens per gap",
+                        frame_step=4, count=1, output='SHAPE_KEYS')
+    assert _keyframes(obj.data.shape_keys.animation_data) == kept
+
+
+def test_in_between_frames_into_an_action_another_mesh_plays_through_the_nla_leaves_its_keys(bpy_empty,
+                                                                                              extension):
+    """Another mesh with keys "Frame 1", "Frame 5" and "Frame 9", not animated, and an animated key
+    "Other", plays its action only through an NLA strip; the first strip plays that action (and slot) as its
+    own with only a Basis. In-between Frames on it: its new keys take none of the other mesh's names, so
+    the other mesh's keys stay unanimated and its "Other" F-curve keeps its keyframes. Before, only meshes
+    playing the action as their action were looked at: the new keys took "Frame 1", … and their F-curves
+    played the other mesh's keys of those names through its strip."""
+    first = armature_scene(frames=9)
+    second = first.copy()
+    second.data = first.data.copy()
+    bpy.context.scene.collection.objects.link(second)
+    second.shape_key_add(name="Basis", from_mix=False)
+    for name in ("Frame 1", "Frame 5", "Frame 9", "Other"):
+        second.shape_key_add(name=name, from_mix=False)
+    other = second.data.shape_keys.key_blocks["Other"]
+    for frame, value in ((1, 0.0), (9, 1.0)):
+        other.value = value
+        other.keyframe_insert("value", frame=frame)
+    played = second.data.shape_keys.animation_data
+    action, slot = played.action, getattr(played, "action_slot", None)
+    strip = played.nla_tracks.new().strips.new("Other", 1, action)
+    played.action = None
+    assert strip.action == action and getattr(strip, "action_slot", None) == slot
+    kept = {f.data_path: [tuple(p.co) for p in f.keyframe_points] for f in _fcurves(strip)}
+    first.shape_key_add(name="Basis", from_mix=False)
+    animation = first.data.shape_keys.animation_data_create()
+    animation.action = action
+    if slot is not None:
+        animation.action_slot = slot
+    added = _in_between_frames_keys(first)
+    assert len(added) == 5 and not set(added) & set(second.data.shape_keys.key_blocks.keys())
+    curves = {f.data_path: [tuple(p.co) for p in f.keyframe_points] for f in _fcurves(strip)}
+    assert {path: curves[path] for path in kept} == kept
