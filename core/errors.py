@@ -80,6 +80,7 @@ KINDS = {
     "sliver": "triangles so thin that the keys' coordinate rounding reshapes them",
     "mirror": "a piece is its own mirror image from one key to the next",
     "extrapolation": "an exaggerated or reversed pose stretches or crushes triangles",
+    "overshoot": "a sequence's in-betweens carry on the speed of a motion that stopped before their gap",
     # any computation
     "seam": "pieces touching along seams that cannot be joined there, that open, fold or hinge there",
     "truncated": ("a truncated basis (k_M, k_N, k) is too small for the deformation (areas or edge lengths not "

@@ -11,6 +11,27 @@ import numpy as np
 from .inbetween_flight import FREE_FLIGHT_JERK, FREE_FLIGHT_NONRIGIDITY, IMPACT_SLOWDOWN, after_impact, free_flight
 from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 
+#: A gap right after a stop that the after-impact start (:data:`~core.inbetween_flight.IMPACT_SLOWDOWN`)
+#: leaves alone — a piece's centroid moved over IMPACT_SLOWDOWN × as far in the gap before as in
+#: this one, but the piece keeps deforming (a sheet landed on a stair and creeps down its steps) —
+#: starts with Catmull–Rom's tangent, the fall's velocity, limited in length only
+#: (:data:`~core.splines.TANGENT_LIMIT` × the longer chord): a fall across the creep passes that limit
+#: and bulges the in-betweens sideways. The gap is warned (:meth:`GapStarts._carried_stop`) where its
+#: world spline of positions strays from the keys' chord over this many times as far (RMS over the
+#: slowed pieces' points at :data:`STOP_CARRY_FACTORS` of the gap) as the spline that starts it
+#: slowing to a stop does (``parabolic_start`` of :class:`~core.splines.HermiteGap`, the constant
+#: deceleration the after-impact start takes): the linear blend is about that far from a motion
+#: that slows so, and ours at least the difference, so ours is the farther past 2. Only pieces that
+#: deformed more across the gap before than across this one: a cloth stopped on contact settles,
+#: one carried on by its own swing after its carrier stops (a cape on a turning body) or spinning (a
+#: skirt) deforms on as fast, and there the spline's carried speed is right. The benchmark's 57
+#: sequence cells: no gap warned (the largest ratio 2.50, a flag in wind at g = 8, its spline nearer
+#: the frames than the blend); the stair 5.22 (1.61 × the blend's RMS). Numbers in
+#: docs/inbetween-measurements.md, *A sheet landing on a stair*.
+STOP_CARRY_RATIO = 3.0
+#: The factors of a gap at which :meth:`GapStarts._carried_stop` compares the two splines.
+STOP_CARRY_FACTORS = (0.25, 0.5, 0.75)
+
 
 class GapStarts:
     """Holds, start tangent limits, free-flight entries and landing exits of a sequence's gaps, read
@@ -131,3 +152,48 @@ class GapStarts:
                               rest_end=rest_end).t0
 
         return impact, {"world": start_velocity(self._raw), "centroids": start_velocity(c)}
+
+    def _carried_stop(self, gap: int) -> float:
+        """How many times as far gap ``gap``'s world spline of positions strays from its keys' chord
+        as the spline that starts it slowing to a stop does (see :data:`STOP_CARRY_RATIO`), over the
+        points (n,) of the pieces (C,) whose centroid moved over
+        :data:`~core.inbetween_flight.IMPACT_SLOWDOWN` × as far in the gap before as in this one, that
+        deformed more there (non-rigidity of the key before, seen from the gap's start key, over the
+        next key's) and that do not start the gap after an impact (:meth:`_exit` of the gap before); 0
+        where no piece slowed so, in a sequence's first gap, after a hold, or with keys unevenly spaced
+        around it.
+        From the keys only."""
+        k, last = gap, len(self._raw) - 1
+        if k < 1 or last < 2 or not self.smooth or self._start_limit(k) is not None:
+            return 0.0
+        d = self._durations
+        if np.ptp(d[k - 1:min(k + 2, last)]) > 0:
+            return 0.0
+        c = self._centroids
+        slowed = np.linalg.norm(c[k] - c[k - 1], axis=1) > IMPACT_SLOWDOWN * np.linalg.norm(c[k + 1] - c[k], axis=1)
+        if not slowed.any():
+            return 0.0
+        impact = self._exit(k - 1)
+        if impact is not None:
+            slowed &= ~impact[0]
+        # ... that deformed more across the gap before than across this one (a cloth stopped on contact
+        # settles; one carried on by its own swing, or spinning, deforms on as fast)
+        slowed &= self._nonrigidity(k, k - 1) > self._nonrigidity(k, k + 1)
+        rows = slowed[self._topo.vertex_owner]
+        if not rows.any():
+            return 0.0
+        x = self._raw
+        after = x[k + 2][rows] if k + 2 <= last else 2.0 * x[k + 1][rows] - x[k][rows]
+        values = (x[k - 1][rows], x[k][rows], x[k + 1][rows], after)
+        corrections = tuple(None if t is None else t[rows]
+                            for t in (self._tangent_correction(k), self._tangent_correction(k + 1)))
+        rest_end = self.end == "rest" and k + 1 == last
+        splines = [HermiteGap(values, True, rows=True, corrections=corrections, rest_end=rest_end, parabolic_start=start)
+                   for start in (None, np.bool_(True))]
+        chord = values[2] - values[1]
+        carried, stopping = (sum(float(np.sum((h.at(s) - values[1] - s * chord) ** 2)) for s in STOP_CARRY_FACTORS)
+                             for h in splines)
+        if carried == 0.0:
+            return 0.0
+        # the stopping spline on the chord to round-off (a creep at constant speed): no finite ratio
+        return float(np.sqrt(carried / stopping)) if stopping > 1e-12 * carried else np.inf

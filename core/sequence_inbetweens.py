@@ -80,7 +80,7 @@ from .sequence_caught_stretch import caught_stretch, caught_stretch_factors, cau
 from .rest_pose_scale import checked_rest_pose
 from .sequence_edge_misfit import (MISFIT_NOTED_FLOOR, key_deviation, misfit_allowed, misfit_warning, off_rest_warning,
                                    signed_deviation)
-from .sequence_warnings import gap_problems, warn_said
+from .sequence_warnings import carried_stop_warning, gap_problems, warn_said
 from .spun_parts import SpunParts
 from .rounded_slivers import rounded_sliver_warning, rounded_slivers, rounding_cause, sliver_excess
 
@@ -501,7 +501,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                                                                             (names[gap], names[gap + 1]), cause)] + \
                 [("turn", m, 0, (), segment.hidden_rigid_turn / RIGID_BENT_TURN) for m in hidden_rigid_warning(
                     segment.hidden_rigid_turn, max(self._rounding, self._decimal_rounding),
-                    self._decimal_rounding > self._rounding, (names[gap], names[gap + 1]))]
+                    self._decimal_rounding > self._rounding, (names[gap], names[gap + 1]))] + \
+                [("overshoot", m, 0, (), e) for m, e in carried_stop_warning(self._carried_stop(gap), names, gap)]
         return self._gap_messages[gap]
 
     def pose(self, gap_index: int, factor: float) -> np.ndarray:

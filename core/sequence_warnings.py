@@ -14,7 +14,10 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from .errors import ShapeDifferenceWarning, shape_warning, warn
+from .sequence_gap_starts import STOP_CARRY_RATIO
 
 #: The numbers in a message (counts, indices, factors, frames, shares), masked by
 #: :func:`message_shape` to tell messages that differ only in them.
@@ -114,3 +117,24 @@ def gap_problems(problems: list[tuple[float, str, str, int]], asked: int,
                           f"at factor {factor:g}: {what}; {poses}s alike at factors "
                           f"{factor_list([f for f, *_ in members])}", kept, tuple(f for f, *_ in members)))
     return out
+
+
+def carried_stop_warning(ratio: float, key_names: list[str], gap: int) -> list[tuple[str, float]]:
+    """The warning ``(message, excess)`` of gap ``gap`` of a sequence whose in-betweens carry on the
+    speed of a motion that stopped before it, as a list (empty where none): ``ratio``, how many times
+    as far its spline strays from the keys' chord as one slowing to a stop
+    (:meth:`core.sequence_gap_starts.GapStarts._carried_stop`), over
+    :data:`~core.sequence_gap_starts.STOP_CARRY_RATIO` (``excess``: ``ratio`` ÷ that; 0 where ``ratio`` is
+    infinite: the spline slowing to a stop is the chord itself)."""
+    if not ratio > STOP_CARRY_RATIO:
+        return []
+    a, b = key_names[gap], key_names[gap + 1]
+    # a motion slowing to a stop may keep to the chord exactly (a last gap ending at the secant): no ratio
+    how = f"{ratio:.1f} × as far from the keys' straight path as a motion slowing to a stop would" if np.isfinite(ratio) \
+        else "from the keys' straight path, which a motion slowing to a stop keeps to"
+    return [(f"between {a} and {b}, the in-betweens may overshoot: the cloth moved far faster before {a} than after "
+             f"it (it stopped, landing on something?), and the in-betweens carry that speed on: they stray "
+             f"{how}; add a key a "
+             f"few frames after the stop, inside this gap, or use a smaller step [the spline's start tangent keeps "
+             f"the motion before {a}; the after-impact start is not taken: the cloth keeps deforming after it]",
+             ratio / STOP_CARRY_RATIO if np.isfinite(ratio) else 0.0)]
