@@ -242,14 +242,17 @@ class DefectChecks:
             return None, (0, 0)
         over = coordinate_dot(gap.base.normal_rows, gap.next.normal_rows) < 0  # turned over between the keys
         said = []
-        for rows, what in ((against & ~over, "are turned over in the in-between where both poses face them the "
-                            "same way (where the surface stretches between a part that stays and one that turns, "
-                            "and two poses do not tell its edge lengths in between); add a key between the poses "
-                            "(they face against their interpolated rotation and one pose)"),
+        # neither kind is flipped (against both poses: :meth:`flipped`), and neither message says so
+        for rows, what in ((against & ~over, "face against their interpolated rotation and one pose in the in-between, "
+                            "where both poses face them the same way: turned past a right angle from where their "
+                            "rotation carries them, toward the other pose, not flipped against both (where the "
+                            "surface stretches between a part that stays and one that turns, and two poses do not "
+                            "tell its edge lengths in between); add a key between the poses"),
                            (against & over, "turn over between the poses, and two poses do not tell which way they "
                             "go over (where the surface folds over between the poses: a crease, a fold in the "
                             "cloth, a bend turned far): the in-between may turn them the other way; add a key "
-                            "between the poses (they face against their interpolated rotation)")):
+                            "between the poses (they face against their interpolated rotation and one pose, not "
+                            "flipped against both)")):
             if rows.any():
                 first = int(np.argmax(rows))
                 first = first if gap.topo.caller_triangles is None else int(gap.topo.caller_triangles[first])
