@@ -17,7 +17,11 @@ pattern alone, and the in-betweens factor one pattern (the mesh's) for several a
 analysis of a pattern is kept (:class:`_Analysis`, the last :data:`KEPT_ANALYSES` patterns) and a
 later factorization of that pattern copies it and runs the numeric factorization alone, the same
 bits as an analysis made anew (19 against 74 ms at 15,400 unknowns; the ordering is ~57 % of a
-factorization at 100k). :func:`library` checks that the ``cholmod_common`` layout below
+factorization at 100k). A pattern's ordering (the analysis's fill-reducing permutation, postordered)
+can be handed to another process (:func:`orderings`, :func:`take_orderings`: the in-betweens' gap
+worker, :mod:`core.gap_processes`), whose analysis of that pattern then takes it as given instead of
+running the nested dissection again: the same permutation, so the same symbolic and numeric factor
+to the bit (23 against 75 ms at 15,400 unknowns). :func:`library` checks that the ``cholmod_common`` layout below
 is the linked CHOLMOD's (its documented defaults read back through it) and gives None otherwise
 (another platform's or version's extension: cholespy's own binding is used then; cholespy 2.2.0's
 Linux and macOS extensions export the functions, its Windows one does not).
@@ -29,6 +33,7 @@ bits) and a second dependency for the extension's zips.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import os
 import threading
 import weakref
@@ -41,8 +46,10 @@ from .errors import MeshError
 _SIZE, _INT, _DOUBLE, _POINTER = ctypes.c_size_t, ctypes.c_int, ctypes.c_double, ctypes.c_void_p
 _MAXMETHODS = 9  # CHOLMOD_MAXMETHODS
 _SIMPLICIAL, _NESDIS, _REAL, _SOLVE_A = 0, 4, 1, 0  # CHOLMOD_SIMPLICIAL, CHOLMOD_NESDIS, CHOLMOD_REAL, CHOLMOD_A
+_GIVEN = 1  # CHOLMOD_GIVEN: the ordering is the permutation passed to cholmod_analyze_p
 #: Patterns whose analysis is kept for later factorizations (a sequence factors one pattern, its
-#: seams and two poses' blend anchor another few).
+#: seams and two poses' blend anchor another few), and orderings another process gave that are held
+#: for a first analysis (:func:`take_orderings`).
 KEPT_ANALYSES = 4
 #: Bytes held for a ``cholmod_common`` (the linked CHOLMOD 3's is under 2 KB past the fields
 #: read here; the rest of the struct is CHOLMOD's own, never read from Python).
@@ -82,9 +89,10 @@ class _Dense(ctypes.Structure):
 
 
 class _FactorHead(ctypes.Structure):
-    """The leading fields of ``cholmod_factor``: its order and the column where a factorization
-    found the matrix not positive definite (``n`` if it did not)."""
-    _fields_ = [("n", _SIZE), ("minor", _SIZE)]
+    """The leading fields of ``cholmod_factor``: its order, the column where a factorization
+    found the matrix not positive definite (``n`` if it did not) and its fill-reducing permutation
+    (``int`` (n,), the rows' order in the factor)."""
+    _fields_ = [("n", _SIZE), ("minor", _SIZE), ("Perm", _POINTER)]
 
 
 _library = None  # the loaded extension with its functions typed, False where unusable, None before the first look
@@ -98,8 +106,8 @@ def _new_locks_after_fork() -> None:
     """A forked child (multiprocessing, a farm's workers) has only the thread that forked: a lock
     another thread held at the fork would never be released there, so the child gets new ones.
     The kept analyses are complete copies in the child's memory and stay usable."""
-    global _look_lock, _factor_lock
-    _look_lock, _factor_lock = threading.Lock(), threading.Lock()
+    global _look_lock, _factor_lock, _given_lock
+    _look_lock, _factor_lock, _given_lock = threading.Lock(), threading.Lock(), threading.Lock()
 
 
 if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
@@ -150,6 +158,10 @@ def _typed(lib) -> None:
     lib.cholmod_free_dense.argtypes = [ctypes.POINTER(ctypes.POINTER(_Dense)), pointer]
     lib.cholmod_copy_factor.restype = pointer
     lib.cholmod_copy_factor.argtypes = [pointer, pointer]
+    analyze_p = getattr(lib, "cholmod_analyze_p", None)  # optional: orderings given by another process
+    if analyze_p is not None:
+        analyze_p.restype = pointer
+        analyze_p.argtypes = [ctypes.POINTER(_Sparse), pointer, pointer, _SIZE, pointer]
 
 
 def _layout_is_cholmods(lib) -> bool:
@@ -192,20 +204,113 @@ class _Started:
 
 class _Analysis:
     """The ordering and symbolic factor of one sparsity pattern (``indptr``, ``indices`` of its
-    sorted compressed columns), made by ``cholmod_analyze`` from any matrix of that pattern."""
+    sorted compressed columns), made by ``cholmod_analyze`` from any matrix of that pattern, or by
+    ``cholmod_analyze_p`` with the ordering ``given`` (int32 (n,), a permutation another process's
+    analysis of the pattern made: :func:`take_orderings`)."""
 
-    def __init__(self, lib, a, indptr: np.ndarray, indices: np.ndarray):
+    def __init__(self, lib, a, indptr: np.ndarray, indices: np.ndarray, given: np.ndarray | None = None):
         self.indptr, self.indices = indptr, indices
         self._common = _Started(lib)
-        self.factor = self._common.held[0] = lib.cholmod_analyze(a, self._common.address)
-        if not self.factor:
+        self._digest = None
+        self.ordering_given = given is not None
+        if given is None:
+            self.factor = self._common.held[0] = lib.cholmod_analyze(a, self._common.address)
+        else:
+            _Common.from_buffer(self._common.memory).method[0].ordering = _GIVEN
+            self.factor = self._common.held[0] = lib.cholmod_analyze_p(a, given.ctypes.data, None, 0,
+                                                                       self._common.address)
+        if not self.factor and given is None:  # a given ordering refused: the caller orders it here
             raise MemoryError(f"CHOLMOD could not order a matrix of {len(indptr) - 1} unknowns")
 
     def fits(self, indptr: np.ndarray, indices: np.ndarray) -> bool:
         return np.array_equal(self.indptr, indptr) and np.array_equal(self.indices, indices)
 
+    @property
+    def digest(self) -> bytes:
+        """:func:`pattern_digest` of its pattern (made once)."""
+        if self._digest is None:
+            self._digest = pattern_digest(self.indptr, self.indices)
+        return self._digest
+
+    def permutation(self) -> np.ndarray:
+        """A copy of its ordering (int32 (n,): the factor's rows in the matrix's numbering)."""
+        n = len(self.indptr) - 1
+        perm = _FactorHead.from_address(self.factor).Perm
+        return np.ctypeslib.as_array(ctypes.cast(perm, ctypes.POINTER(ctypes.c_int32)), shape=(n,)).copy()
+
 
 _analyses: list = []  # the last KEPT_ANALYSES patterns' analyses, the latest last
+#: Orderings another process sent (:func:`take_orderings`), by :func:`pattern_digest`, for the first
+#: analysis of their patterns here; the last KEPT_ANALYSES taken are held (under :data:`_given_lock`,
+#: not the factorizations' lock: a message reader takes them while a factorization runs).
+_given: dict = {}
+_given_lock = threading.Lock()
+
+
+def pattern_digest(indptr: np.ndarray, indices: np.ndarray) -> bytes:
+    """A hash (16 bytes) of a sparsity pattern's sorted compressed columns (int32 ``indptr``,
+    ``indices``): what an ordering handed between processes is filed under."""
+    digest = hashlib.blake2b(digest_size=16)
+    digest.update(np.ascontiguousarray(indptr, dtype=np.int32).tobytes())
+    digest.update(np.ascontiguousarray(indices, dtype=np.int32).tobytes())
+    return digest.digest()
+
+
+def _pattern(matrix: sp.spmatrix) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
+    """``matrix`` (n, n) as the sorted compressed columns CHOLMOD is given (float64, duplicates
+    summed) and their int32 index pointers and row indices (:func:`int32_columns`)."""
+    csc = sp.csc_matrix(matrix, dtype=np.float64, copy=True)
+    csc.sum_duplicates()
+    csc.sort_indices()
+    indptr, indices = int32_columns(csc)
+    return csc, indptr, indices
+
+
+def orderings(lib, matrix=None) -> dict:
+    """{:func:`pattern_digest`: ordering (int32 (n,))} of the patterns whose analysis is kept here,
+    ``matrix``'s (n, n; or a function of nothing making it) first analysed where it is not (its
+    numeric factor is not made): for another process to factor those patterns without ordering them
+    again (:func:`take_orderings`)."""
+    if matrix is not None:
+        csc, indptr, indices = _pattern(matrix() if callable(matrix) else matrix)
+        with _factor_lock:
+            if _kept_analysis(indptr, indices) is None:
+                owner = _Started(lib)
+                a = _copied_sparse(lib, csc, indptr, indices, owner)
+                try:
+                    _keep(_Analysis(lib, a, indptr, indices))
+                finally:
+                    lib.cholmod_free_sparse(ctypes.byref(a), owner.address)
+    with _factor_lock:
+        return {analysis.digest: analysis.permutation() for analysis in _analyses}
+
+
+def take_orderings(orderings: dict) -> None:
+    """Keep the ``orderings`` another process's :func:`orderings` gave, for the first analysis here of
+    each of their patterns (one of another pattern under the same digest, or one CHOLMOD would not
+    keep as given, is not used: that pattern is ordered anew)."""
+    with _given_lock:
+        for digest, ordering in orderings.items():
+            _given.pop(digest, None)
+            _given[digest] = np.ascontiguousarray(ordering, dtype=np.int32)
+        for digest in list(_given)[:-KEPT_ANALYSES]:
+            del _given[digest]
+
+
+def _analysis(lib, a, indptr: np.ndarray, indices: np.ndarray) -> _Analysis:
+    """A new analysis of the pattern of ``a`` (call under :data:`_factor_lock`): from the ordering
+    another process gave for it, where there is one of its length that CHOLMOD keeps as it is
+    (the factor of an ordering made here, to the bit), else ordered here."""
+    if _given and getattr(lib, "cholmod_analyze_p", None) is not None:
+        digest = pattern_digest(indptr, indices)
+        with _given_lock:
+            given = _given.pop(digest, None)
+        n = len(indptr) - 1
+        if given is not None and given.shape == (n,) and np.array_equal(np.sort(given), np.arange(n)):
+            analysis = _Analysis(lib, a, indptr, indices, given)
+            if analysis.factor and np.array_equal(analysis.permutation(), given):
+                return analysis
+    return _Analysis(lib, a, indptr, indices)
 
 
 def _kept_analysis(indptr: np.ndarray, indices: np.ndarray) -> _Analysis | None:
@@ -263,32 +368,23 @@ class CholmodFactor:
     (n,) or (n, k). Not positive definite: ``numpy.linalg.LinAlgError``; CHOLMOD out of memory:
     ``MemoryError``. Solves on one factor are serialized by its caller (CHOLMOD solves in the
     factor's own workspace). ``analysed_anew``: whether its pattern was analysed for it (else a
-    kept analysis was copied)."""
+    kept analysis was copied); ``ordering_given``: whether that analysis took the ordering another
+    process gave (:func:`take_orderings`) instead of ordering the matrix here."""
 
     def __init__(self, lib, matrix: sp.spmatrix):
         self._lib, self.n = lib, matrix.shape[0]
-        # the whole matrix in sorted compressed columns, as cholespy hands it to CHOLMOD (stype −1:
-        # the lower triangle is read)
-        csc = sp.csc_matrix(matrix, dtype=np.float64, copy=True)
-        csc.sum_duplicates()
-        csc.sort_indices()
-        indptr, indices = int32_columns(csc)
-        values = np.ascontiguousarray(csc.data, dtype=np.float64)
+        csc, indptr, indices = _pattern(matrix)
         self._owner = _Started(lib)
         self._common = self._owner.address
         with _factor_lock:
-            a = lib.cholmod_allocate_sparse(self.n, self.n, max(values.size, 1), 1, 1, -1, _REAL, self._common)
-            if not a:
-                raise MemoryError(f"CHOLMOD could not hold a matrix of {self.n} unknowns")
+            a = _copied_sparse(lib, csc, indptr, indices, self._owner)
             try:
-                ctypes.memmove(a.contents.p, indptr.ctypes.data, indptr.nbytes)
-                ctypes.memmove(a.contents.i, indices.ctypes.data, indices.nbytes)
-                ctypes.memmove(a.contents.x, values.ctypes.data, values.nbytes)
                 analysis = _kept_analysis(indptr, indices)
                 self.analysed_anew = analysis is None
                 if analysis is None:
-                    analysis = _Analysis(lib, a, indptr, indices)
+                    analysis = _analysis(lib, a, indptr, indices)
                     _keep(analysis)
+                self.ordering_given = self.analysed_anew and analysis.ordering_given
                 self._factor = self._owner.held[0] = lib.cholmod_copy_factor(analysis.factor, self._common)
                 if not self._factor:
                     raise MemoryError(f"CHOLMOD could not hold the factor of a matrix of {self.n} unknowns")
@@ -320,6 +416,20 @@ class CholmodFactor:
             lib.cholmod_free_dense(ctypes.byref(b), self._common)
             if x:
                 lib.cholmod_free_dense(ctypes.byref(x), self._common)
+
+
+def _copied_sparse(lib, csc: sp.csc_matrix, indptr: np.ndarray, indices: np.ndarray, owner: _Started):
+    """A ``cholmod_sparse`` copy of ``csc`` (n, n; its int32 ``indptr``, ``indices``) in CHOLMOD's
+    memory, whole and in sorted compressed columns as cholespy hands it to CHOLMOD (stype −1: the
+    lower triangle is read), allocated in ``owner``'s common (free it there)."""
+    n, values = csc.shape[0], np.ascontiguousarray(csc.data, dtype=np.float64)
+    a = lib.cholmod_allocate_sparse(n, n, max(values.size, 1), 1, 1, -1, _REAL, owner.address)
+    if not a:
+        raise MemoryError(f"CHOLMOD could not hold a matrix of {n} unknowns")
+    ctypes.memmove(a.contents.p, indptr.ctypes.data, indptr.nbytes)
+    ctypes.memmove(a.contents.i, indices.ctypes.data, indices.nbytes)
+    ctypes.memmove(a.contents.x, values.ctypes.data, values.nbytes)
+    return a
 
 
 def _as_array(dense, columns: int, n: int) -> np.ndarray:

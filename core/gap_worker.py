@@ -11,7 +11,9 @@ process prints goes to its standard error):
   ``keys`` a list of float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``, ``options`` the sequence's
   keyword arguments, the sequence built from them and kept under ``token`` (bytes: a hash of them)
   for the next jobs; or None for the sequence kept under ``token``; ``calls`` a list of
-  ``(gap, factors)`` computed in that order; ``("drop", job)`` — the job's remaining gaps left
+  ``(gap, factors)`` computed in that order; ``("orderings", orderings)`` — the caller's
+  factorization orderings (:func:`core.sparse_cholesky.orderings`), taken as they arrive: the
+  factors made after take them instead of ordering their matrices again; ``("drop", job)`` — the job's remaining gaps left
   undone; ``("skip", job, gap, bits)`` — that call left undone, unless begun (the caller computes
   it); ``("quit",)``.
 - out: ``("ready", pid, names, cpu)`` once the core is imported (``names``: the modules named
@@ -61,6 +63,7 @@ def serve() -> None:
     from .errors import ShapeDifferenceWarning
     from .sequence_gaps_ahead import factor_bits
     from .sequence_inbetweens import SequenceInterpolator
+    from .sparse_cholesky import take_orderings
 
     channel = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # stray prints go to standard error, not the channel
@@ -80,6 +83,11 @@ def serve() -> None:
                 os._exit(0)
             if message[0] == "drop":
                 dropped.add(message[1])
+            elif message[0] == "orderings":  # read here: the build under way may factor with them
+                try:
+                    take_orderings(message[1])
+                except Exception:  # not taken: the factors order their matrices here, as without them
+                    pass
             elif message[0] == "skip":
                 skipped.add(message[1:])
             else:

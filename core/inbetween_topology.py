@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from . import deformation_fields as df
 from . import small_matrices
 from .geometry import column_means, coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
-from .sparse_cholesky import SPDFactor
+from .sparse_cholesky import SPDFactor, orderings
 
 #: Anchor weight (per unit vertex mass, mean mass 1, relative to the unit edge terms) that only
 #: fixes the translation gauge of the Poisson solve: small enough to leave shapes exact to ~1e-7
@@ -145,6 +145,13 @@ class Topology:
         if cache is not None:
             self._uniform[cache] = lu
         return lu
+
+    def factor_orderings(self) -> dict:
+        """The orderings of the patterns factored in this process, that of :meth:`factor`'s matrices
+        (``DᵀD`` plus a positive diagonal: one pattern for every weight) made now where it was not
+        (:func:`core.sparse_cholesky.orderings`): for the gap worker, which factors the same matrices
+        (:mod:`core.gap_processes`)."""
+        return orderings(lambda: self.laplacian + sp.diags(self.mass))
 
     def incidence(self, dtype=np.float64) -> sp.csr_matrix:
         """``Dc`` with its ±1 entries in ``dtype`` (the index arrays shared)."""

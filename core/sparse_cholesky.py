@@ -43,6 +43,32 @@ def _release():
         factor._cholmod = None
 
 
+def _direct_library():
+    """CHOLMOD's library as :mod:`core.cholmod_direct` calls it, or None (no cholespy, or its
+    functions not callable directly)."""
+    try:
+        import cholespy
+    except ImportError:
+        return None
+    return cholmod_direct.library(cholespy)
+
+
+def orderings(matrix=None) -> dict:
+    """The fill-reducing orderings of the patterns factored in this process, ``matrix``'s (n, n; or a
+    function of nothing making it, called only where CHOLMOD is called directly) made now where it was
+    not (:func:`core.cholmod_direct.orderings`), for another process's :func:`take_orderings`; {}
+    where CHOLMOD is not called directly."""
+    lib = _direct_library()
+    return {} if lib is None else cholmod_direct.orderings(lib, matrix)
+
+
+def take_orderings(orderings: dict | None) -> None:
+    """Factor the patterns of ``orderings`` (another process's :func:`orderings`) here without
+    ordering them again: the same factors to the bit (:func:`core.cholmod_direct.take_orderings`)."""
+    if orderings and _direct_library() is not None:
+        cholmod_direct.take_orderings(orderings)
+
+
 class SPDFactor:
     """The factor of a sparse symmetric positive definite ``matrix`` (n, n); :meth:`solve` takes
     right-hand sides (n,) or (n, k). Safe to share between threads (solves are serialized).

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 
 from core import allocator, concurrency, gap_processes, retime
 from core.errors import MeshError, RecoveryError, ShapeDifferenceWarning
@@ -506,6 +507,46 @@ def test_a_second_job_of_the_same_keys_sends_and_builds_nothing(monkeypatch):
     before = len(sent)
     _same(_asked(SequenceInterpolator(KEYS, TRIANGLES), requests), alone)
     assert sent[before:] and sent[before][1]
+
+
+def test_a_job_with_the_keys_is_followed_by_the_meshs_factor_ordering(monkeypatch):
+    """Where the worker is sent the keys (it builds a sequence), the caller sends its ordering of the
+    mesh's normal matrix right after the job (the pattern of every anchor weight's factor, filed under
+    that pattern's hash), so that the worker's first factorization does not order it again; a job on
+    the sequence the worker keeps sends none. The poses stay one process's (before: no ordering sent)."""
+    cholespy = pytest.importorskip("cholespy")
+    from core import cholmod_direct
+
+    if cholmod_direct.library(cholespy) is None:
+        pytest.skip("CHOLMOD's functions are not exported by this platform's cholespy")
+    gap_processes.shut_down()
+    worker = _ready_worker()
+    messages = []
+    send = gap_processes._Worker._send
+
+    def recorded_send(self, message):
+        messages.append(message)
+        return send(self, message)
+
+    monkeypatch.setattr(gap_processes._Worker, "_send", recorded_send)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    sequence = SequenceInterpolator(KEYS, TRIANGLES)
+    shared = _asked(sequence, requests)
+    _idle(worker)
+    before = len(messages)
+    again = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)  # the same keys: the kept sequence
+    kinds = [message[0] for message in messages]
+    assert kinds[:2] == ["job", "orderings"] and messages[0][3] is not None
+    if messages[before][3] is None:  # sent without the keys (not where the idle worker let them go meanwhile)
+        assert "job" in kinds[before:] and "orderings" not in kinds[before:]
+    topo = sequence._topo
+    matrix = (topo.laplacian + sp.diags(0.37 * topo.mass)).tocsc()  # any weight: one pattern
+    matrix.sort_indices()
+    digest = cholmod_direct.pattern_digest(matrix.indptr, matrix.indices)
+    assert digest in messages[1][1] and sorted(messages[1][1][digest]) == list(range(topo.n))
+    alone = _one_process(requests, monkeypatch)
+    _same(shared, alone)
+    _same(again, alone)
 
 
 def test_triangles_the_caller_reuses_after_the_build_change_nothing(monkeypatch):

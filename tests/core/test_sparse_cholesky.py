@@ -93,6 +93,16 @@ def _direct_library():
     return cholespy, cholmod_direct, lib
 
 
+def _cholespys_solution(cholespy, matrix, rhs):
+    """cholespy's own solver's solution of ``matrix @ x = rhs`` (the matrix ordered anew)."""
+    coo = matrix.tocoo()
+    theirs = cholespy.CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
+                                      coo.data.astype(np.float64), cholespy.MatrixType.COO)
+    expected = np.empty_like(rhs)
+    theirs.solve(rhs, expected)
+    return expected
+
+
 def test_cholmod_called_directly_gives_cholespys_bits():
     """Where CHOLMOD is called through the functions cholespy's extension exports (without the
     global lock), the solutions are bitwise those of cholespy's own solver on the same matrix: the
@@ -124,14 +134,61 @@ def test_a_kept_analysis_gives_the_bits_of_a_factorization_made_anew():
         matrix = _sheet_matrix(70, weight)
         factor = SPDFactor(matrix)
         assert not factor._direct.analysed_anew
-        coo = matrix.tocoo()
-        theirs = cholespy.CholeskySolverD(matrix.shape[0], coo.row.astype(np.int32), coo.col.astype(np.int32),
-                                          coo.data.astype(np.float64), cholespy.MatrixType.COO)
         rhs = rng.standard_normal((matrix.shape[0], 3))
-        expected = np.empty_like(rhs)
-        theirs.solve(rhs, expected)
-        assert np.array_equal(factor.solve(rhs), expected)
+        assert np.array_equal(factor.solve(rhs), _cholespys_solution(cholespy, matrix, rhs))
     assert first.solve(np.ones(first.shape[0])).shape == (first.shape[0],)  # the first factor still solves
+
+
+def _in_another_process(monkeypatch, cholmod_direct):
+    """This process's kept analyses and given orderings set aside, as a fresh process has none."""
+    monkeypatch.setattr(cholmod_direct, "_analyses", [])
+    monkeypatch.setattr(cholmod_direct, "_given", {})
+
+
+def test_an_ordering_another_process_made_gives_the_bits_of_one_made_here(monkeypatch):
+    """A mesh's ordering made in one process (the caller's, :func:`orderings`) and taken in another (the
+    gap worker's, :func:`take_orderings`): that process's first factor of the pattern is not ordered
+    again, and its solutions are bitwise those of cholespy's solver, which orders the matrix anew, for
+    every anchor weight (before: no ordering could be handed over; the worker ordered it again)."""
+    cholespy, cholmod_direct, _ = _direct_library()
+    from core.sparse_cholesky import orderings, take_orderings
+
+    _in_another_process(monkeypatch, cholmod_direct)
+    sent = orderings(_sheet_matrix(70, 1.0))  # made here without a factor, as the caller does at the hand-over
+    assert len(sent) == 1 and sorted(next(iter(sent.values()))) == list(range(70 * 70))
+    _in_another_process(monkeypatch, cholmod_direct)
+    take_orderings(sent)
+    rng = np.random.default_rng(8)
+    for weight, given in ((1e-3, True), (0.1, False)):  # the second weight copies the first one's analysis
+        matrix = _sheet_matrix(70, weight)
+        factor = SPDFactor(matrix)
+        assert factor._direct.ordering_given == given and factor._direct.analysed_anew == given
+        rhs = rng.standard_normal((matrix.shape[0], 3))
+        assert np.array_equal(factor.solve(rhs), _cholespys_solution(cholespy, matrix, rhs))
+
+
+def test_an_ordering_of_another_pattern_or_one_cholmod_would_change_is_not_taken(monkeypatch):
+    """An ordering handed over is taken only by its own pattern's first analysis, and only as CHOLMOD
+    keeps it: another mesh orders its matrix here, and a permutation under the right pattern that CHOLMOD's
+    postordering would change (not one its analysis made) is dropped for the ordering made here: the
+    solutions stay cholespy's to the bit."""
+    cholespy, cholmod_direct, _ = _direct_library()
+    from core.sparse_cholesky import orderings, take_orderings
+
+    _in_another_process(monkeypatch, cholmod_direct)
+    sent = orderings(_sheet_matrix(40, 1.0))
+    _in_another_process(monkeypatch, cholmod_direct)
+    take_orderings(sent)
+    assert not SPDFactor(_sheet_matrix(41, 0.1))._direct.ordering_given  # another pattern
+    digest = next(iter(sent))
+    shuffled = np.random.default_rng(2).permutation(40 * 40).astype(np.int32)
+    for wrong in (shuffled, np.zeros(40 * 40, dtype=np.int32)):  # not kept as given; not a permutation
+        monkeypatch.setattr(cholmod_direct, "_analyses", [])
+        take_orderings({digest: wrong})
+        factor = SPDFactor(_sheet_matrix(40, 0.1))
+        assert factor._direct.analysed_anew and not factor._direct.ordering_given and not cholmod_direct._given
+    rhs = np.random.default_rng(4).standard_normal((40 * 40, 3))
+    assert np.array_equal(factor.solve(rhs), _cholespys_solution(cholespy, _sheet_matrix(40, 0.1), rhs))
 
 
 def test_a_matrix_that_is_not_positive_definite_is_refused_in_numpys_terms():
