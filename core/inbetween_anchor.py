@@ -11,11 +11,10 @@ pieces' ``motion`` and the guide's mid-gap strains. It sets ``weights``, ``co_mo
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import numpy as np
 
 from . import screw_motions
+from .cached_property import cached_property
 from .geometry import grouped_medians
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_motion import RIGID_PLACEMENT_SCALE, per_factor

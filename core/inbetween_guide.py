@@ -10,13 +10,12 @@ are splined because their residuals would turn them against it. Mixed into
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import numpy as np
 
 from scipy.spatial.transform import Rotation
 
 from . import deformation_fields as df
+from .cached_property import cached_property
 from .geometry import coordinate_cross, coordinate_dot, scaled
 from .inbetween_fit import LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_rigid_fits import rigid_fits

@@ -11,7 +11,7 @@ and the turns read from them (parts turning past a half turn, rigid fits that ad
 
 from __future__ import annotations
 
-from functools import cached_property, partial
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,6 +20,7 @@ from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
 from . import small_matrices
+from .cached_property import cached_property
 from .concurrency import single_threaded_blas
 from .geometry import coordinate_dot
 from .inbetween_rigid_fits import component_nonrigidity, component_screws, pin_held_fits, rigid_fits, turn_spread, whole_tells

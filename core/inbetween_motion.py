@@ -9,12 +9,11 @@ spline, its best similarity's path or with the rigid piece it sits on. Mixed int
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import numpy as np
 
 from . import deformation_fields as df
 from . import screw_motions
+from .cached_property import cached_property
 from .inbetween_joints import composed, joint_screws
 from .splines import ScrewGap
 

@@ -26,13 +26,14 @@ The public classes live in :mod:`core.sequence_inbetweens` and :mod:`core.two_po
 
 from __future__ import annotations
 
-from functools import cached_property, partial
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import deformation_fields as df
 from . import screw_motions
+from .cached_property import cached_property
 from .inbetween_anchor import Anchor
 from .inbetween_carriers import screw_departures
 from .inbetween_carried import CarriedPieces

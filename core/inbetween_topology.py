@@ -5,13 +5,12 @@ of the Poisson solve (the first of :class:`Topology` → ``Key`` → ``Relative`
 
 from __future__ import annotations
 
-from functools import cached_property
-
 import numpy as np
 import scipy.sparse as sp
 
 from . import deformation_fields as df
 from . import small_matrices
+from .cached_property import cached_property
 from .geometry import column_means, coordinate_cross, coordinate_dot, lumped_vertex_areas, shifted, vertex_labels
 from .sparse_cholesky import SPDFactor, orderings
 

@@ -11,10 +11,10 @@ embeddings.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 
+from .cached_property import cached_property
 from .concurrency import per_layer_threads
 from .errors import MeshError, warn
 from .full_basis_recovery import AreaRecovery, recover_squared_lengths

@@ -33,7 +33,8 @@ on one gap at once would overwrite):
 - in a child forked while a call ahead (or a gap's preparation) runs, the pool's threads are gone:
   its Future never ends there, so the child drops it and computes the call itself (waiting for it,
   the child hung), with the caches' lock made anew (a lock the parent's pool thread held at the
-  fork is never given back in the child);
+  fork is never given back in the child), as are the factors' solve locks
+  (:mod:`core.sparse_cholesky`); the gaps' cached properties hold no lock (:mod:`core.cached_property`);
 - nothing is begun while a second process computes later gaps of the sequence (the caller's calls
   then run in one thread, :mod:`core.gap_processes`), nor for a gap it holds, nor by a call under way when
   :func:`core.gap_processes.stop` (the operators' Esc) came, which also cancels the call held ahead

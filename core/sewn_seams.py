@@ -32,11 +32,11 @@ from __future__ import annotations
 import os
 import threading
 from dataclasses import dataclass, replace
-from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 
+from .cached_property import cached_property
 from .seam_welds import vertex_groups
 from .sparse_cholesky import SPDFactor
 

@@ -24,6 +24,7 @@ binding elsewhere.
 from __future__ import annotations
 
 import atexit
+import os
 import threading
 import weakref
 
@@ -33,6 +34,7 @@ import scipy.sparse as sp
 from . import cholmod_direct
 
 _live: weakref.WeakSet = weakref.WeakSet()  # factors holding a CHOLMOD solver
+_factors: weakref.WeakSet = weakref.WeakSet()  # every factor: their solves' locks (see _new_locks_after_fork)
 
 
 @atexit.register
@@ -69,6 +71,20 @@ def take_orderings(orderings: dict | None) -> None:
         cholmod_direct.take_orderings(orderings)
 
 
+def _new_locks_after_fork() -> None:
+    """In a child process forked from this one (a pipeline's workers forked while a sequence runs):
+    a factor another thread was solving with at the fork (a pool thread solving the next gap,
+    :mod:`core.sequence_gaps_ahead`) has its lock held by a thread that does not exist here, and the
+    child's first solve with it would wait for ever; every factor gets a new one. The factor itself is
+    a complete copy (a solve writes only the right-hand sides and solutions it allocates)."""
+    for factor in list(_factors):
+        factor._lock = threading.Lock()
+
+
+if hasattr(os, "register_at_fork"):  # not on Windows, which does not fork
+    os.register_at_fork(after_in_child=_new_locks_after_fork)
+
+
 class SPDFactor:
     """The factor of a sparse symmetric positive definite ``matrix`` (n, n); :meth:`solve` takes
     right-hand sides (n,) or (n, k). Safe to share between threads (solves are serialized).
@@ -79,6 +95,7 @@ class SPDFactor:
     def __init__(self, matrix: sp.spmatrix):
         self.shape = matrix.shape
         self._lock = threading.Lock()
+        _factors.add(self)
         try:
             import cholespy
             from cholespy import CholeskySolverD, MatrixType
