@@ -26,8 +26,12 @@ from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 #: one carried on by its own swing after its carrier stops (a cape on a turning body) or spinning (a
 #: skirt) deforms on as fast, and there the spline's carried speed is right. The benchmark's 57
 #: sequence cells: no gap warned (the largest ratio 2.50, a flag in wind at g = 8, its spline nearer
-#: the frames than the blend); the stair 5.22 (1.61 × the blend's RMS). Numbers in
-#: docs/inbetween-measurements.md, *A sheet landing on a stair*.
+#: the frames than the blend); the stair 5.22 (1.61 × the blend's RMS). The pieces must have deformed
+#: as a landing does (over 2 × FREE_FLIGHT_NONRIGIDITY, as ``after_impact`` asks), and a last gap
+#: whose stopping spline is the chord (its end condition's secant: the blend itself) is not read:
+#: swinging plates, rigid or bending, were warned there with their in-betweens nearer the true swing
+#: than the blend. Numbers in docs/inbetween-measurements.md, *A sheet landing on a stair* and its
+#: review.
 STOP_CARRY_RATIO = 3.0
 #: The factors of a gap at which :meth:`GapStarts._carried_stop` compares the two splines.
 STOP_CARRY_FACTORS = (0.25, 0.5, 0.75)
@@ -158,10 +162,12 @@ class GapStarts:
         as the spline that starts it slowing to a stop does (see :data:`STOP_CARRY_RATIO`), over the
         points (n,) of the pieces (C,) whose centroid moved over
         :data:`~core.inbetween_flight.IMPACT_SLOWDOWN` × as far in the gap before as in this one, that
-        deformed more there (non-rigidity of the key before, seen from the gap's start key, over the
-        next key's) and that do not start the gap after an impact (:meth:`_exit` of the gap before); 0
-        where no piece slowed so, in a sequence's first gap, after a hold, or with keys unevenly spaced
-        around it.
+        deformed there (non-rigidity of the key before, seen from the gap's start key, over 2 ×
+        :data:`~core.inbetween_flight.FREE_FLIGHT_NONRIGIDITY`, as a landing's in
+        :func:`~core.inbetween_flight.after_impact`) and more than to the next key, and that do not start the gap after an impact (:meth:`_exit` of the gap before); 0
+        where no piece slowed so, in a sequence's first gap, after a hold, with keys unevenly spaced
+        around it, or in a last gap whose stopping spline is the chord (the end condition's secant:
+        the blend itself, no measure of a stop).
         From the keys only."""
         k, last = gap, len(self._raw) - 1
         if k < 1 or last < 2 or not self.smooth or self._start_limit(k) is not None:
@@ -176,9 +182,13 @@ class GapStarts:
         impact = self._exit(k - 1)
         if impact is not None:
             slowed &= ~impact[0]
-        # ... that deformed more across the gap before than across this one (a cloth stopped on contact
-        # settles; one carried on by its own swing, or spinning, deforms on as fast)
-        slowed &= self._nonrigidity(k, k - 1) > self._nonrigidity(k, k + 1)
+        # ... that deformed across the gap before, as after_impact asks of a landing (over 2 ×
+        # FREE_FLIGHT_NONRIGIDITY: a rigid piece's non-rigidity is round-off, and a pendulum slowing
+        # toward its turning point passed the comparison below on it), and more there than across
+        # this one (a cloth stopped on contact settles; one carried on by its own swing, or
+        # spinning, deforms on as fast)
+        before = self._nonrigidity(k, k - 1)
+        slowed &= (before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > self._nonrigidity(k, k + 1))
         rows = slowed[self._topo.vertex_owner]
         if not rows.any():
             return 0.0
@@ -193,7 +203,12 @@ class GapStarts:
         chord = values[2] - values[1]
         carried, stopping = (sum(float(np.sum((h.at(s) - values[1] - s * chord) ** 2)) for s in STOP_CARRY_FACTORS)
                              for h in splines)
-        if carried == 0.0:
+        if carried == 0.0 or (stopping <= 1e-12 * carried and k + 1 == last):
+            # the stopping spline on the chord in a last gap: it ends on the secant because the end
+            # condition says so (no key after tells the velocity there), so it is the blend itself and
+            # the ratio tells nothing of the motion (a cloth swinging into its last key was warned
+            # with its in-betweens 0.58–0.82 × the blend's error from the true swing): not read
             return 0.0
-        # the stopping spline on the chord to round-off (a creep at constant speed): no finite ratio
+        # the stopping spline on the chord to round-off (the keys after creep at constant speed): no
+        # finite ratio
         return float(np.sqrt(carried / stopping)) if stopping > 1e-12 * carried else np.inf

@@ -134,7 +134,7 @@ def carried_stop_warning(ratio: float, key_names: list[str], gap: int) -> list[t
         else "from the keys' straight path, which a motion slowing to a stop keeps to"
     return [(f"between {a} and {b}, the in-betweens may overshoot: the cloth moved far faster before {a} than after "
              f"it (it stopped, landing on something?), and the in-betweens carry that speed on: they stray "
-             f"{how}; add a key a "
-             f"few frames after the stop, inside this gap, or use a smaller step [the spline's start tangent keeps "
+             f"{how}; use a smaller step, or, where you pick the keys yourself, add a key a few frames after the "
+             f"stop, inside this gap [the spline's start tangent keeps "
              f"the motion before {a}; the after-impact start is not taken: the cloth keeps deforming after it]",
              ratio / STOP_CARRY_RATIO if np.isfinite(ratio) else 0.0)]
