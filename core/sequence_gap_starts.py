@@ -24,7 +24,8 @@ from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 #: that slows so, and ours at least the difference, so ours is the farther past 2. Only pieces that
 #: deformed more across the gap before than across this one: a cloth stopped on contact settles,
 #: one carried on by its own swing after its carrier stops (a cape on a turning body) or spinning (a
-#: skirt) deforms on as fast, and there the spline's carried speed is right. The benchmark's 57
+#: skirt) deforms on as fast, and there the spline's carried speed is right; and only pieces the
+#: gap places on that spline (not those whose rotations it takes whole). The benchmark's 57
 #: sequence cells: no gap warned (the largest ratio 2.50, a flag in wind at g = 8, its spline nearer
 #: the frames than the blend); the stair 5.22 (1.61 × the blend's RMS). The pieces must have deformed
 #: as a landing does (over 2 × FREE_FLIGHT_NONRIGIDITY, as ``after_impact`` asks), and a last gap
@@ -157,7 +158,7 @@ class GapStarts:
 
         return impact, {"world": start_velocity(self._raw), "centroids": start_velocity(c)}
 
-    def _carried_stop(self, gap: int) -> float:
+    def _carried_stop(self, gap: int, off_spline: np.ndarray | None = None) -> float:
         """How many times as far gap ``gap``'s world spline of positions strays from its keys' chord
         as the spline that starts it slowing to a stop does (see :data:`STOP_CARRY_RATIO`), over the
         points (n,) of the pieces (C,) whose centroid moved over
@@ -167,8 +168,10 @@ class GapStarts:
         :func:`~core.inbetween_flight.after_impact`) and more than to the next key, and that do not start the gap after an impact (:meth:`_exit` of the gap before); 0
         where no piece slowed so, in a sequence's first gap, after a hold, with keys unevenly spaced
         around it, or in a last gap whose stopping spline is the chord (the end condition's secant:
-        the blend itself, no measure of a stop).
-        From the keys only."""
+        the blend itself, no measure of a stop). ``off_spline``: bool (C,) or None, the pieces the gap
+        does not place on the keys' spline of positions (their rotations taken whole: a part turns far
+        from the rest), left out: that spline's stray says nothing of their in-betweens (a tube curling
+        at a steady rate, whose centroid slows as it curls in). From the keys only."""
         k, last = gap, len(self._raw) - 1
         if k < 1 or last < 2 or not self.smooth or self._start_limit(k) is not None:
             return 0.0
@@ -189,6 +192,8 @@ class GapStarts:
         # spinning, deforms on as fast)
         before = self._nonrigidity(k, k - 1)
         slowed &= (before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > self._nonrigidity(k, k + 1))
+        if off_spline is not None:
+            slowed &= ~off_spline
         rows = slowed[self._topo.vertex_owner]
         if not rows.any():
             return 0.0
