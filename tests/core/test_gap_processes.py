@@ -66,6 +66,16 @@ def _idle(worker):
     assert worker.idle()
 
 
+def _begun(worker, gap: int):
+    """Wait until ``worker`` has begun gap ``gap`` of its one job (its "begun" message read): under
+    load a fresh worker may still be building its sequence when the caller reaches that gap."""
+    (job,) = worker.jobs.values()
+    deadline = time.monotonic() + 120
+    while not any(at == gap for at, _ in job.begun) and not job.ended and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert any(at == gap for at, _ in job.begun)
+
+
 def _asked(sequence, requests, *, after_first=None):
     """``(poses, the warnings' (message, kind, gap, factors, excess))`` of each request ``(gap,
     factors)``, or ``(type, message)`` of the error it raised; ``after_first()`` run after the first."""
@@ -367,7 +377,8 @@ def test_a_child_forked_while_the_worker_holds_gaps_computes_them_itself(monkeyp
     the child hung at gap 3, ended here by its alarm); the parent still gets them from the worker."""
     requests = [(gap, SIXTEENTHS) for gap in range(5)]
     try:
-        sequence, first, taken, _ = _slowed_at_gap_3(monkeypatch, tmp_path, 3.0, 1)
+        sequence, first, taken, worker = _slowed_at_gap_3(monkeypatch, tmp_path, 3.0, 1)
+        _begun(worker, 3)  # else a parent reaching gap 3 first takes gap 4 back (neither begun)
         reading, writing = os.pipe()
         child = os.fork()
         if child == 0:  # the child: its answers through the pipe, or its error's name
@@ -433,10 +444,8 @@ def test_a_sequence_let_go_inside_the_pipes_lock_drops_its_gaps(monkeypatch, tmp
         stuck = thread.is_alive()
         if stuck:
             worker._write_lock = threading.Lock()  # so that shut_down can write
-        deadline = time.monotonic() + 30
-        while not worker.idle() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert not stuck and worker.idle()
+        assert not stuck
+        _idle(worker)
         assert 4 not in {gap for gap, _ in job.begun}  # dropped before gap 3's 3 s were over
     finally:
         gap_processes.shut_down()
