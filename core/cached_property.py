@@ -5,11 +5,10 @@ Python 3.11's :class:`functools.cached_property` computes under one lock per pro
 computes such a property (a pool thread preparing or solving a gap, :mod:`core.sequence_gaps_ahead`;
 a pipeline's worker processes forked while a sequence runs) gets that lock held by a thread that does
 not exist in the child: the child's first computation of the property on any instance waits for ever
-(a forked child computing one small gap was stopped by its 60 s alarm in a whole-suite run, stuck in
-``functools.cached_property.__get__``). The lock also made two threads computing the property on two
-different gaps wait for each other. Python 3.12 dropped it (a value two threads compute at once is
-computed twice, the last stored); this is the same property on 3.11. Every property kept so in the
-core depends on its instance alone, so two threads computing it at once compute the same value.
+(docs/inbetween-measurements.md, *A forked child stuck on a lock of the parent's threads*). The
+lock also made two threads computing the property on two different gaps wait for each other. Python
+3.12 dropped it (a value two threads compute at once is computed twice, the last stored); this is the
+same property on 3.11. Every property kept so in the core depends on its instance alone, so two threads computing it at once compute the same value.
 """
 
 from __future__ import annotations

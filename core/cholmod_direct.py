@@ -219,7 +219,9 @@ class _Analysis:
             _Common.from_buffer(self._common.memory).method[0].ordering = _GIVEN
             self.factor = self._common.held[0] = lib.cholmod_analyze_p(a, given.ctypes.data, None, 0,
                                                                        self._common.address)
-        if not self.factor and given is None:  # a given ordering refused: the caller orders it here
+        # a null factor from a given ordering is left to the caller (:func:`_analysis`), which orders
+        # the pattern here instead; without one, CHOLMOD ran out of memory
+        if not self.factor and given is None:
             raise MemoryError(f"CHOLMOD could not order a matrix of {len(indptr) - 1} unknowns")
 
     def fits(self, indptr: np.ndarray, indices: np.ndarray) -> bool:
@@ -291,7 +293,7 @@ def take_orderings(orderings: dict) -> None:
     keep as given, is not used: that pattern is ordered anew)."""
     with _given_lock:
         for digest, ordering in orderings.items():
-            _given.pop(digest, None)
+            _given.pop(digest, None)  # sent again: filed as the latest
             _given[digest] = np.ascontiguousarray(ordering, dtype=np.int32)
         for digest in list(_given)[:-KEPT_ANALYSES]:
             del _given[digest]

@@ -181,9 +181,10 @@ class Repair(DefectChecks, TurnedAway, RepairRounds):
         where it is not taken), with the gap's pinned vertices (still ones, sets riding on an animated
         object: ``static``) put where the gap's finish puts them (:meth:`core.inbetween_solver.Gap.finished`),
         in place; returned. A fallback is checked and its flipped or collapsed triangles counted so, as
-        the fit is: the fit near the blend of a cape pinned to a turning arm (keys 16 frames apart) left
-        its 121 riding vertices on the blend's chords, and put back on their arcs they flipped 30 and 57
-        more triangles than its warning said (1,457 → 1,487, 2,655 → 2,712)."""
+        the fit is: a fit near the blend leaves vertices riding an animated object on the blend's
+        chords, and the triangles beside them flip or not once they are put back on their arcs, so
+        its warning counts the pose as returned (docs/inbetween-measurements.md, *A two-pose fallback
+        counted as it is returned*)."""
         gap = self.gap
         if gap.static is not None:
             x[gap.static] = gap.pinned_positions(s)

@@ -2,7 +2,9 @@
 (both keys of a gap the same pose, or pieces in the same place) stays put and the motion after it
 starts from rest; the first gap starts as the sequence's ``start`` says (its tangent limit,
 :mod:`core.splines`); a gap after free flight into an impact starts with the parabola's velocity
-(:mod:`core.inbetween_flight`), and the gap in which the cloth lands ends with it."""
+(:mod:`core.inbetween_flight`), and the gap in which the cloth lands ends with it; a gap after a stop
+that the after-impact start leaves alone is measured for the ``overshoot`` warning
+(:meth:`GapStarts._carried_stop`)."""
 
 from __future__ import annotations
 
@@ -20,19 +22,18 @@ from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 #: world spline of positions strays from the keys' chord over this many times as far (RMS over the
 #: slowed pieces' points at :data:`STOP_CARRY_FACTORS` of the gap) as the spline that starts it
 #: slowing to a stop does (``parabolic_start`` of :class:`~core.splines.HermiteGap`, the constant
-#: deceleration the after-impact start takes): the linear blend is about that far from a motion
-#: that slows so, and ours at least the difference, so ours is the farther past 2. Only pieces that
-#: deformed more across the gap before than across this one: a cloth stopped on contact settles,
-#: one carried on by its own swing after its carrier stops (a cape on a turning body) or spinning (a
-#: skirt) deforms on as fast, and there the spline's carried speed is right; and only pieces the
-#: gap places on that spline (not those whose rotations it takes whole). The benchmark's 57
-#: sequence cells: no gap warned (the largest ratio 2.50, a flag in wind at g = 8, its spline nearer
-#: the frames than the blend); the stair 5.22 (1.61 × the blend's RMS). The pieces must have deformed
-#: as a landing does (over 2 × FREE_FLIGHT_NONRIGIDITY, as ``after_impact`` asks), and a last gap
-#: whose stopping spline is the chord (its end condition's secant: the blend itself) is not read:
-#: swinging plates, rigid or bending, were warned there with their in-betweens nearer the true swing
-#: than the blend. Numbers in docs/inbetween-measurements.md, *A sheet landing on a stair* and its
-#: review.
+#: deceleration the after-impact start takes). Why past 2 ours is the worse: where the cloth did slow
+#: so, the linear blend (the chord) is off that motion by about the stopping spline's distance from
+#: the chord, and ours by at least the difference of the two distances. Read only on pieces that
+#: landed as :func:`~core.inbetween_flight.after_impact` asks (non-rigidity of the key before over
+#: 2 × FREE_FLIGHT_NONRIGIDITY: a rigid piece's is round-off) and deformed more across the gap before
+#: than across this one (a cloth stopped on contact settles; one carried on by its own swing after its
+#: carrier stops, or spinning, deforms on as fast, and there the carried speed is right), placed on
+#: the keys' spline (not pieces whose rotations the gap takes whole); not in a last gap whose stopping
+#: spline is the chord (its end condition's secant: the blend itself, no measure of a stop). 3 leaves
+#: the benchmark's 57 sequence cells silent (the largest ratio 2.50, a flag in wind at g = 8, its
+#: spline nearer the frames than the blend) and warns an unseen sheet landing on a stair (5.22,
+#: 1.61 × the blend's RMS): docs/inbetween-measurements.md, *A sheet landing on a stair* and its review.
 STOP_CARRY_RATIO = 3.0
 #: The factors of a gap at which :meth:`GapStarts._carried_stop` compares the two splines.
 STOP_CARRY_FACTORS = (0.25, 0.5, 0.75)
@@ -161,17 +162,21 @@ class GapStarts:
     def _carried_stop(self, gap: int, off_spline: np.ndarray | None = None) -> float:
         """How many times as far gap ``gap``'s world spline of positions strays from its keys' chord
         as the spline that starts it slowing to a stop does (see :data:`STOP_CARRY_RATIO`), over the
-        points (n,) of the pieces (C,) whose centroid moved over
-        :data:`~core.inbetween_flight.IMPACT_SLOWDOWN` × as far in the gap before as in this one, that
-        deformed there (non-rigidity of the key before, seen from the gap's start key, over 2 ×
-        :data:`~core.inbetween_flight.FREE_FLIGHT_NONRIGIDITY`, as a landing's in
-        :func:`~core.inbetween_flight.after_impact`) and more than to the next key, and that do not start the gap after an impact (:meth:`_exit` of the gap before); 0
-        where no piece slowed so, in a sequence's first gap, after a hold, with keys unevenly spaced
-        around it, or in a last gap whose stopping spline is the chord (the end condition's secant:
-        the blend itself, no measure of a stop). ``off_spline``: bool (C,) or None, the pieces the gap
-        does not place on the keys' spline of positions (their rotations taken whole: a part turns far
-        from the rest), left out: that spline's stray says nothing of their in-betweens (a tube curling
-        at a steady rate, whose centroid slows as it curls in). From the keys only."""
+        points (n,) of the pieces (C,) that (1) moved their centroid over
+        :data:`~core.inbetween_flight.IMPACT_SLOWDOWN` × as far in the gap before as in this one,
+        (2) do not start this gap after an impact (:meth:`_exit` of the gap before: the after-impact
+        start already slows them), (3) deformed across the gap before as a landing does (non-rigidity
+        of the key before, seen from the gap's start key, over 2 ×
+        :data:`~core.inbetween_flight.FREE_FLIGHT_NONRIGIDITY`, as in
+        :func:`~core.inbetween_flight.after_impact`) and more than across this gap, and (4) are not in
+        ``off_spline`` (bool (C,) or None: the pieces the gap does not place on the keys' spline of
+        positions, their rotations taken whole; that spline's stray says nothing of their in-betweens,
+        e.g. a tube curling at a steady rate, whose centroid slows as it curls in).
+        ``inf`` where the stopping spline is the chord to round-off outside a last gap (the keys after
+        the stop creep at constant speed). 0 where no piece qualifies or their spline is the chord, in
+        a sequence's first gap, in a sequence of two keys or not ``smooth``, after a hold, with the
+        keys around the gap unevenly spaced, or in a last gap whose stopping spline is the chord. From
+        the keys only."""
         k, last = gap, len(self._raw) - 1
         if k < 1 or last < 2 or not self.smooth or self._start_limit(k) is not None:
             return 0.0
@@ -185,11 +190,9 @@ class GapStarts:
         impact = self._exit(k - 1)
         if impact is not None:
             slowed &= ~impact[0]
-        # ... that deformed across the gap before, as after_impact asks of a landing (over 2 ×
-        # FREE_FLIGHT_NONRIGIDITY: a rigid piece's non-rigidity is round-off, and a pendulum slowing
-        # toward its turning point passed the comparison below on it), and more there than across
-        # this one (a cloth stopped on contact settles; one carried on by its own swing, or
-        # spinning, deforms on as fast)
+        # deformed before the gap as a landing does (a rigid piece's non-rigidity is round-off, which
+        # the comparison after it would read as noise), and more than across it (a cloth stopped on
+        # contact settles; one carried on by its own swing, or spinning, deforms on as fast)
         before = self._nonrigidity(k, k - 1)
         slowed &= (before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > self._nonrigidity(k, k + 1))
         if off_spline is not None:
@@ -209,11 +212,10 @@ class GapStarts:
         carried, stopping = (sum(float(np.sum((h.at(s) - values[1] - s * chord) ** 2)) for s in STOP_CARRY_FACTORS)
                              for h in splines)
         if carried == 0.0 or (stopping <= 1e-12 * carried and k + 1 == last):
-            # the stopping spline on the chord in a last gap: it ends on the secant because the end
-            # condition says so (no key after tells the velocity there), so it is the blend itself and
-            # the ratio tells nothing of the motion (a cloth swinging into its last key was warned
-            # with its in-betweens 0.58–0.82 × the blend's error from the true swing): not read
+            # in a last gap the end condition makes the end tangent the secant, so the stopping
+            # spline is the chord (the blend itself): the ratio would tell only that ours is not the
+            # blend, nothing of a stop
             return 0.0
-        # the stopping spline on the chord to round-off (the keys after creep at constant speed): no
-        # finite ratio
+        # elsewhere the stopping spline on the chord to round-off (the keys after the stop creep at
+        # constant speed): no finite ratio
         return float(np.sqrt(carried / stopping)) if stopping > 1e-12 * carried else np.inf

@@ -502,7 +502,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 [("turn", m, 0, (), segment.hidden_rigid_turn / RIGID_BENT_TURN) for m in hidden_rigid_warning(
                     segment.hidden_rigid_turn, max(self._rounding, self._decimal_rounding),
                     self._decimal_rounding > self._rounding, (names[gap], names[gap + 1]))] + \
-                [("overshoot", m, 0, (), e) for m, e in carried_stop_warning(
+                [("overshoot", m, 0, (), e) for m, e in carried_stop_warning(  # off the keys' spline: pieces
+                    # whose rotations are taken whole, or with a part turning far (not anchored to it)
                     self._carried_stop(gap, segment.whole_rotations if segment.turning is None
                                        else segment.whole_rotations | segment.turning), names, gap)]
         return self._gap_messages[gap]

@@ -125,11 +125,13 @@ def carried_stop_warning(ratio: float, key_names: list[str], gap: int) -> list[t
     as far its spline strays from the keys' chord as one slowing to a stop
     (:meth:`core.sequence_gap_starts.GapStarts._carried_stop`), over
     :data:`~core.sequence_gap_starts.STOP_CARRY_RATIO` (``excess``: ``ratio`` ÷ that; 0 where ``ratio`` is
-    infinite: the spline slowing to a stop is the chord itself)."""
+    infinite: the spline slowing to a stop is the chord itself, the keys after the stop creeping at
+    constant speed)."""
     if not ratio > STOP_CARRY_RATIO:
         return []
     a, b = key_names[gap], key_names[gap + 1]
-    # a motion slowing to a stop may keep to the chord exactly (a last gap ending at the secant): no ratio
+    # a motion slowing to a stop may keep to the chord exactly (keys after the stop creeping at constant
+    # speed): no finite ratio to say
     how = f"{ratio:.1f} × as far from the keys' straight path as a motion slowing to a stop would" if np.isfinite(ratio) \
         else "from the keys' straight path, which a motion slowing to a stop keeps to"
     return [(f"between {a} and {b}, the in-betweens may overshoot: the cloth moved far faster before {a} than after "

@@ -163,10 +163,9 @@ class Interpolator:
         (:meth:`core.inbetween_defects.DefectChecks.defects`, without the interpolated rotations:
         the blend does not follow them). Where two poses differ by wrinkles alone
         (:meth:`_chattering`) the blend is their in-between unless it has any: averaging two
-        wrinkle patterns can cross a fold's triangles over (a sleeve bent at the elbow, poses 8
-        frames apart: 1–3 triangles of the fold facing against both poses in the blend, none in
-        the fit, which is 0.969–0.997 × the blend's RMS error there; docs/inbetween-measurements.md,
-        *Two poses that differ by wrinkles alone: a blend that turns triangles over*)."""
+        wrinkle patterns can cross a fold's triangles over, which the fit does not
+        (docs/inbetween-measurements.md, *Two poses that differ by wrinkles alone: a blend that
+        turns triangles over*)."""
         gap = self._sequence._gap(0)
         return int(np.count_nonzero(gap.repair.defects(gap.linear_blend(factor), factor, None, None,
                                                        scale=gap.area_scale(factor))))

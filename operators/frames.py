@@ -143,12 +143,12 @@ class SimulationRest:
         # a range from the simulation's first frame: its first key is the rest, at other lengths where Shrinking
         self._from_start = self._factor not in (None, 1.0) and _first_simulated(objects_moving(obj)) == start
 
-    def set_aside(self, read: dict, matrices: dict, ranges: list) -> None:
+    def set_aside(self, read: dict, matrices: dict, own_frames: list) -> None:
         """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}
-        of the frames read) where it is not one of the range's own frames ``ranges`` (those it read for
+        of the frames read) where it is not one of the range's ``own_frames`` (those it read for
         itself: a range that starts before the simulation may key its first frame), and keep the range's
         first frame's positions (its matrix too where that frame is the rest)."""
-        kept = set(ranges)
+        kept = set(own_frames)
         self._read = [((read[frame], matrices[frame]) if frame in kept else (read.pop(frame), matrices.pop(frame)))
                       + (read[self.start],) for frame in self.frames]
         if self._from_start:
