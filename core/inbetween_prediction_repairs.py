@@ -12,9 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from .deformation_fields import corner_edges
 from .inbetween_corrections import CorrectionPolynomial, RelaxedCorrection, pins_in_place, predicted_positions
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE
+from .inbetween_repair import Outcome
 from .inbetween_threads import per_factor
+from .inbetween_untangling import untangled
+from .sequence_edge_misfit import MISFIT_NOTED_MARGIN
 from .sewn_seams import sewn_together
 
 
@@ -37,6 +41,28 @@ STRETCHED_PREDICTION_CHANGES = 2.0
 #: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
 #: flipped triangles, with three 34, with five or more 33.
 REPAIR_PASSES = 8
+#: A sequence's predicted in-between whose repair keeps at most this many flipped or collapsed
+#: triangles is untangled then (:func:`untangled_first`: the step every in-between that keeps
+#: defects goes through last, :mod:`core.inbetween_untangling`) and, where that leaves it clean,
+#: is not repaired again (:func:`repaired_in_passes`). The few defects a repair leaves are where
+#: every field's solve folds them again (the region's boundary sits where the fold needs it): a
+#: pass of the repairs again runs a repair's rounds and removes a few, the untangling solves each
+#: tangle directly (15k curtain, keys 16 apart: a pass 7–18 ms, an untangled tangle 2–5 ms). Not
+#: the solved in-betweens, which the predictions are made from: untangled first, their local moves
+#: reached the predictions and the largest frame-to-frame jump grew (lifted sheet at g = 16 0.567 →
+#: 0.669 × the simulation's, banner 0.766 → 0.795, two sheets 0.436 → 0.463; predictions alone:
+#: 0.565 / 0.766 / 0.436). Numbers in docs/inbetween-measurements.md, *Predictions with few defects
+#: untangled before the repairs again*.
+UNTANGLED_FIRST_DEFECTS = 30
+#: ... where the untangling raises the in-between's mean relative edge misfit to the interpolated
+#: metric by at most this (the 0.1 point the edge criterion grants beyond twice the keys' own
+#: deviation, :data:`core.sequence_edge_misfit.MISFIT_NOTED_MARGIN`): the untangling holds the
+#: pose's own edges while it turns each triangle to its side, so a corner reflected across its
+#: edge is opened near the edge line, stretched, where a pass of the repairs again puts it back
+#: along a field. Where it would cost more, the passes run as before. Measured: a reflected corner
+#: on a 180-vertex strip +0.16 point (passes run), a vertex pushed 0.6 edge past its neighbour on a
+#: 1,600-vertex sheet +0.005, the 15k curtain's eleven at g = 16 −0.013 … +0.007 point (taken).
+UNTANGLED_FIRST_STRETCH = MISFIT_NOTED_MARGIN
 #: A prediction that no repair cleans (or, in a rough gap, that keeps more defects than the solved
 #: in-betweens around it) is solved in its place from the repaired prediction rather than from the
 #: Poisson solve of the field, with at most this many local/global steps (not
@@ -81,7 +107,53 @@ def repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings=N
     repaired one (:data:`SOLVED_INSTEAD_ITERATIONS`; repaired only where its fit has at most
     :data:`UNREPAIRED_SOLVE_DEFECTS` × the prediction's defects) instead if it has no more.
     ``held``: whether the gap's in-betweens solved before the predictions were held off the metric
-    (:func:`held_before`), which decides the anchor of those solves."""
+    (:func:`held_before`), which decides the anchor of those solves. Where what it returns keeps
+    at most :data:`UNTANGLED_FIRST_DEFECTS`, that untangled where this cleans it
+    (:func:`untangled_first`)."""
+    return untangled_first(gap, s, _repaired_prediction(gap, s, correction, rings, allowed, held))
+
+
+def untangled_first(gap, s: float, pose: tuple) -> tuple[np.ndarray, str | None]:
+    """``pose`` (positions (n, 3), problem), a sequence's in-between at ``s`` (0 < s < 1) that keeps
+    at most :data:`UNTANGLED_FIRST_DEFECTS` flipped or collapsed triangles as its warning counts
+    them, untangled (:func:`core.inbetween_untangling.untangled`) where that leaves it clean and
+    raises its mean edge misfit to the metric by at most :data:`UNTANGLED_FIRST_STRETCH`: then
+    clean, recorded so in the gap's outcome at ``s`` (as :func:`core.inbetween_untangling.untangled_poses`
+    records it), and not repaired again (:func:`repaired_in_passes` returns a clean pose as it is);
+    else ``pose`` as it is."""
+    if pose[1] is None or not gap.repair.in_sequence(s):
+        return pose
+    scale = gap.repair.factor_area_scale(s)
+    defects = gap.repair.counted(pose[0], s, scale)
+    if not defects.any() or np.count_nonzero(defects) > UNTANGLED_FIRST_DEFECTS:
+        return pose
+    done = untangled(gap, pose[0], s, scale, defects)
+    if done is None or done.defects or _stretched_open(gap, s, pose[0], done.positions):
+        return pose
+    gap.outcomes[s] = Outcome(0, False)
+    return done.positions, None
+
+
+def _stretched_open(gap, s, x, y) -> bool:
+    """Whether the untangled ``y`` (n, 3) raises the in-between's mean relative corner-edge misfit
+    to the interpolated metric (``gap.metric_lengths(s)``, (3, m)) above that of ``x`` (n, 3) by
+    more than :data:`UNTANGLED_FIRST_STRETCH`: the edges' misfits of the triangles at the vertices
+    it moved (the others are the same), summed, the difference over all the mesh's corner edges."""
+    changed = (y != x).any(axis=1)
+    rows = np.unique(gap.topo.triangles_around(np.flatnonzero(changed)))
+    metric = gap.metric_lengths(s)
+    target = metric[:, rows]
+    corners = gap.topo.triangles[rows]
+
+    def misfit(z):  # summed |ℓ / t − 1| over the rows' corner edges
+        return float(np.sum(np.abs(np.linalg.norm(corner_edges(z, corners), axis=2).T / target - 1.0)))
+
+    return misfit(y) - misfit(x) > UNTANGLED_FIRST_STRETCH * metric.size
+
+
+def _repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings, allowed,
+                         held: bool) -> tuple[np.ndarray, str | None]:
+    """:func:`repaired_prediction` before :func:`untangled_first`."""
     motion = gap.motion(s)
     x = predicted_positions(gap, s, correction, motion)
     if not np.isfinite(x).all():

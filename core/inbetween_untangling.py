@@ -201,7 +201,8 @@ class Untangling(NamedTuple):
     too_large: int  # of those left, the ones never tried: over UNTANGLE_FREE_VERTICES or the in-between's work (UNTANGLE_WORK)
 
 
-def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | None:
+def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray,
+              defects: np.ndarray | None = None) -> Untangling | None:
     """An in-between ``x`` (n, 3) of a sequence at factor ``s`` of ``gap`` (a
     ``core.inbetween_solver.Gap``; ``scale``: its ``area_scale(s)``) with flipped or collapsed
     triangles, as the repairs count them (triangles that turn away from both keys as the
@@ -226,7 +227,10 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
     in-between past its work (:data:`UNTANGLE_WORK`, counted by :func:`untangle_work`; in the
     mesh's order). None where ``x`` is not finite, has no
     such triangle, or where no place was untangled and every one was tried (the in-between as it
-    was, and what was said of it, stand); the places counted are those of the first ring."""
+    was, and what was said of it, stand); the places counted are those of the first ring.
+    ``defects``: those of ``x`` (bool (m,)) as that check counts them, if the caller has them (the
+    repairs again, :func:`core.inbetween_prediction_repairs.repaired_in_passes`, which untangle an
+    in-between that keeps few before their passes)."""
     repair = gap.repair
     limit = repair.move_limits(s)[0]
     if not np.isfinite(x).all():
@@ -235,7 +239,7 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray) -> Untangling | N
     # triangles the check reads: core.inbetween_solver.Gap.repaired); with the area scale the
     # collapse test is the repairs' again (core.inbetween_prediction_repairs.repaired_in_passes)
     frames, stretch = repair.factor_targets(s)[:2]
-    defects = repair.defects(x, s, frames, stretch, scale=scale)
+    defects = repair.defects(x, s, frames, stretch, scale=scale) if defects is None else defects
     if not defects.any():
         return None
     y, moved, work, first = x.copy(), 0.0, 0.0, None

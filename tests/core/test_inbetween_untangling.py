@@ -142,6 +142,136 @@ def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatc
     assert np.linalg.norm(y - x, axis=1).max() < mean_edge
 
 
+def _predictions_folded(monkeypatch):
+    """The first gap of :func:`_sheet_keys` asked at seven factors (two solved, the others
+    predicted), every in-between folded near a corner (a vertex pushed past its neighbour: two
+    triangles turned over) and kept so by its repair, as a fold no field removes: the solved ones
+    by their fits (:func:`_fits_made`: a gap whose solved in-betweens keep defects has its
+    predictions kept as their repairs leave them, not solved), each prediction as it is made.
+    (keys, triangles, the poses returned by factor, the predictions made by factor, the poses the
+    untangling of :func:`~core.inbetween_prediction_repairs.untangled_first` was given by factor,
+    the folded vertex, the factors of the passes of the repairs again made, the gap)."""
+    import core.inbetween_prediction_repairs as prediction_repairs
+    import core.inbetween_solver as solver
+    from core.inbetween_repair import Outcome
+
+    flat, tri, keys = _sheet_keys()
+    corner = int(np.argmin(np.linalg.norm(flat - [0.3, 0.3, 0.0], axis=1)))
+    _fits_made(monkeypatch, lambda x: (_pushed_past(x, tri, corner),))
+    real_predicted, made, passes = prediction_repairs.predicted_positions, {}, []
+
+    def predicted(gap, s, correction, motion):
+        made[s] = _pushed_past(real_predicted(gap, s, correction, motion), tri, corner)
+        return made[s].copy()
+
+    def kept(self, x, s, rings=None, defects=None):  # the repair removes nothing
+        self.outcomes[s] = Outcome(int(np.count_nonzero(defects)), False)
+        return x, f"{np.count_nonzero(defects)} triangle(s) flipped or collapsed"
+
+    real_again, real_untangled, given = solver.Gap.repaired_again, prediction_repairs.untangled, {}
+
+    def untangled(gap, x, s, *args):  # what the untangling is given
+        given[s] = x.copy()
+        return real_untangled(gap, x, s, *args)
+
+    monkeypatch.setattr(prediction_repairs, "untangled", untangled)
+    monkeypatch.setattr(prediction_repairs, "predicted_positions", predicted)
+    monkeypatch.setattr(solver.Gap, "repaired", kept)
+    monkeypatch.setattr(solver.Gap, "repaired_again", lambda self, x, s, *args, **kwargs: passes.append(s)
+                        or real_again(self, x, s, *args, **kwargs))
+    sequence = SequenceInterpolator(keys, tri)
+    factors = np.arange(1, 8) / 8
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ShapeDifferenceWarning)  # the solved in-betweens' folds may be said
+        poses = dict(zip(factors, sequence.poses(0, factors)))
+    return keys, tri, poses, made, given, corner, passes, sequence._gap(0)
+
+
+def test_predictions_whose_repairs_keep_few_defects_are_untangled_without_a_pass(monkeypatch):
+    """Predicted in-betweens whose repairs kept a few defects (two triangles of a vertex's fan
+    turned over: at most UNTANGLED_FIRST_DEFECTS; :func:`_predictions_folded`) are untangled before
+    the repairs again, which then make no pass on them: each comes back with no triangle facing against both keys (counted here from its
+    normals), its outcome clean, and only the vertices within three rings of the pushed one moved
+    (the fan and the untangling's two rings), by less than a mean edge. Before, each went through
+    passes of the repairs again first."""
+    from core.inbetween_prediction_repairs import UNTANGLED_FIRST_DEFECTS
+    from core.inbetween_repair import Outcome
+
+    keys, tri, poses, made, given, corner, passes, gap = _predictions_folded(monkeypatch)
+    assert made and sorted(given) == sorted(made) and not set(passes) & set(made)
+    near = _within_rings(tri, corner, 3)
+    mean_edge = np.mean(np.linalg.norm(keys[0][tri[:, 1]] - keys[0][tri[:, 0]], axis=1))
+    for s, x in given.items():
+        assert 0 < _flipped(x, keys[0], keys[1], tri) <= UNTANGLED_FIRST_DEFECTS
+        y = poses[s]
+        assert _flipped(y, keys[0], keys[1], tri) == 0 and gap.outcomes[s] == Outcome(0, False)
+        assert (y[near] != x[near]).any() and np.array_equal(y[~near], x[~near])
+        assert np.linalg.norm(y - x, axis=1).max() < mean_edge
+
+
+def test_an_in_between_with_more_defects_or_one_the_untangling_leaves_is_kept_for_the_repairs_again(monkeypatch):
+    """:func:`core.inbetween_prediction_repairs.untangled_first` hands back the pose it is given, the
+    very array with its problem and the gap's outcome untouched, where the in-between keeps more than
+    UNTANGLED_FIRST_DEFECTS (the untangling not tried) and where the untangling leaves a defect (its
+    pose, here a stand-in moving every vertex, not kept): the repairs again start from it as before."""
+    import core.inbetween_prediction_repairs as prediction_repairs
+    from core.inbetween_repair import Outcome
+
+    flat, tri, keys = _sheet_keys(side=20)
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    corner = int(np.argmin(np.linalg.norm(flat - [0.3, 0.3, 0.0], axis=1)))
+    x = _pushed_past(gap.pose(0.5)[0], tri, corner)
+    tried = []
+
+    def leaving_one(gap, x, s, scale, defects):
+        tried.append(int(np.count_nonzero(defects)))
+        return untangling.Untangling(x + 1.0, 1, 1, 1, 0)
+
+    monkeypatch.setattr(prediction_repairs, "untangled", leaving_one)
+    for most, expected in ((1, []), (prediction_repairs.UNTANGLED_FIRST_DEFECTS, [2])):
+        monkeypatch.setattr(prediction_repairs, "UNTANGLED_FIRST_DEFECTS", most)
+        tried.clear()
+        gap.outcomes[0.5] = Outcome(2, False)
+        with gap.repair.fields_kept():
+            y, problem = prediction_repairs.untangled_first(gap, 0.5, (x, "2 triangle(s) flipped or collapsed"))
+        assert y is x and problem is not None and tried == expected
+        assert gap.outcomes[0.5] == Outcome(2, False)
+
+
+def test_an_untangled_prediction_is_taken_only_where_it_stretches_the_in_between_little(monkeypatch):
+    """The guard of :func:`core.inbetween_prediction_repairs.untangled_first` (``_stretched_open``)
+    turns down an untangled pose exactly where the in-between's mean relative edge misfit to the
+    interpolated metric, computed here over every corner edge of the mesh, rises by more than
+    UNTANGLED_FIRST_STRETCH: one vertex of a 20 × 20 sheet moved along x by lengths on both sides of
+    the bound (found from the whole mesh's misfit, not from the rows the guard reads), and a move
+    that lowers the misfit taken whatever its size."""
+    from core.inbetween_prediction_repairs import UNTANGLED_FIRST_STRETCH, _stretched_open
+
+    flat, tri, keys = _sheet_keys(side=20)
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    s = 0.5
+    metric = gap.metric_lengths(s)
+    centre = int(np.argmin(np.linalg.norm(flat - flat.mean(axis=0), axis=1)))
+    x = gap.pose(s)[0]
+
+    def mean_misfit(z):  # over every corner edge of the mesh, (3, m) as the metric's
+        p = z[tri]
+        return float(np.mean(np.abs(np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).T / metric - 1.0)))
+
+    def moved(d):
+        y = x.copy()
+        y[centre, 0] += d
+        return y
+
+    rises = {d: mean_misfit(moved(d)) - mean_misfit(x) for d in np.linspace(0.0, 0.05, 51)[1:]}
+    assert min(rises.values()) < UNTANGLED_FIRST_STRETCH < max(rises.values())
+    for d, rise in rises.items():
+        if abs(rise - UNTANGLED_FIRST_STRETCH) > 1e-6:
+            assert _stretched_open(gap, s, x, moved(d)) == (rise > UNTANGLED_FIRST_STRETCH)
+    far = moved(0.05)
+    assert mean_misfit(x) < mean_misfit(far) and not _stretched_open(gap, s, far, x)  # back toward the metric
+
+
 def _curling_finger():
     """A finger (a closed tube) curling by 120° at each of two joints per key, three keys about the
     first key's middle (sequences work about it): (keys, triangles, the finger curled by the
