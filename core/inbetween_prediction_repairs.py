@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from .deformation_fields import corner_edges
 from .inbetween_corrections import CorrectionPolynomial, RelaxedCorrection, pins_in_place, predicted_positions
 from .inbetween_fit import KEY_VARIATION_FRACTION, LOCAL_STEP_DTYPE, METRIC_TOLERANCE
 from .inbetween_repair import Outcome
@@ -135,20 +134,17 @@ def untangled_first(gap, s: float, pose: tuple) -> tuple[np.ndarray, str | None]
 
 
 def _stretched_open(gap, s, x, y) -> bool:
-    """Whether the untangled ``y`` (n, 3) raises the in-between's mean relative corner-edge misfit
-    to the interpolated metric (``gap.metric_lengths(s)``, (3, m)) above that of ``x`` (n, 3) by
-    more than :data:`UNTANGLED_FIRST_STRETCH`: the edges' misfits of the triangles at the vertices
-    it moved (the others are the same), summed, the difference over all the mesh's corner edges."""
-    changed = (y != x).any(axis=1)
-    rows = np.unique(gap.topo.triangles_around(np.flatnonzero(changed)))
+    """Whether the untangled ``y`` (n, 3) raises the in-between's misfit to the interpolated metric
+    (the fit's measure, ``gap.misfit``, against ``gap.metric_lengths(s)``) above that of ``x``
+    (n, 3) by more than :data:`UNTANGLED_FIRST_STRETCH`: measured on the triangles at the vertices
+    it moved (the others are the same), their mean's rise scaled to all the mesh's triangles."""
+    rows = np.unique(gap.topo.triangles_around(np.flatnonzero((y != x).any(axis=1))))
+    if rows.size == 0:
+        return False
     metric = gap.metric_lengths(s)
-    target = metric[:, rows]
-    corners = gap.topo.triangles[rows]
-
-    def misfit(z):  # summed |ℓ / t − 1| over the rows' corner edges
-        return float(np.sum(np.abs(np.linalg.norm(corner_edges(z, corners), axis=2).T / target - 1.0)))
-
-    return misfit(y) - misfit(x) > UNTANGLED_FIRST_STRETCH * metric.size
+    targets = {"lengths": metric[:, rows]}
+    rise = gap.misfit(gap.edges_of(y)[:, :, rows], targets) - gap.misfit(gap.edges_of(x)[:, :, rows], targets)
+    return rise * rows.size > UNTANGLED_FIRST_STRETCH * metric.shape[1]
 
 
 def _repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings, allowed,

@@ -228,9 +228,9 @@ def untangled(gap, x: np.ndarray, s: float, scale: np.ndarray,
     mesh's order). None where ``x`` is not finite, has no
     such triangle, or where no place was untangled and every one was tried (the in-between as it
     was, and what was said of it, stand); the places counted are those of the first ring.
-    ``defects``: those of ``x`` (bool (m,)) as that check counts them, if the caller has them (the
-    repairs again, :func:`core.inbetween_prediction_repairs.repaired_in_passes`, which untangle an
-    in-between that keeps few before their passes)."""
+    ``defects``: those of ``x`` (bool (m,)) as that check counts them, if the caller has them
+    (:func:`core.inbetween_prediction_repairs.untangled_first`, which untangles a prediction that
+    keeps few before the repairs again)."""
     repair = gap.repair
     limit = repair.move_limits(s)[0]
     if not np.isfinite(x).all():
