@@ -29,8 +29,10 @@ from .splines import REST_START_LIMIT, START_TANGENT_LIMIT, HermiteGap
 #: 2 × FREE_FLIGHT_NONRIGIDITY: a rigid piece's is round-off) and deformed more across the gap before
 #: than across this one (a cloth stopped on contact settles; one carried on by its own swing after its
 #: carrier stops, or spinning, deforms on as fast, and there the carried speed is right), placed on
-#: the keys' spline (not pieces whose rotations the gap takes whole); not in a last gap whose stopping
-#: spline is the chord (its end condition's secant: the blend itself, no measure of a stop). 3 leaves
+#: the keys' spline (not pieces whose rotations the gap takes whole); not in a last gap: there the end
+#: condition sets the end tangent to a share of the secant (the secant itself, the keys' slowing
+#: correction or rest), so the stopping spline runs along the chord, off it only in timing, and the
+#: ratio measures that ours is not the blend, nothing of a stop. 3 leaves
 #: the benchmark's 57 sequence cells silent (the largest ratio 2.50, a flag in wind at g = 8, its
 #: spline nearer the frames than the blend) and warns an unseen sheet landing on a stair (5.22,
 #: 1.61 × the blend's RMS): docs/inbetween-measurements.md, *A sheet landing on a stair* and its review.
@@ -172,16 +174,20 @@ class GapStarts:
         ``off_spline`` (bool (C,) or None: the pieces the gap does not place on the keys' spline of
         positions, their rotations taken whole; that spline's stray says nothing of their in-betweens,
         e.g. a tube curling at a steady rate, whose centroid slows as it curls in).
-        ``inf`` where the stopping spline is the chord to round-off outside a last gap (the keys after
-        the stop creep at constant speed). 0 where no piece qualifies or their spline is the chord, in
-        a sequence's first gap, in a sequence of two keys or not ``smooth``, after a hold, with the
-        keys around the gap unevenly spaced, or in a last gap whose stopping spline is the chord. From
-        the keys only."""
+        ``inf`` where the stopping spline is the chord to round-off (the keys after the stop creep at
+        constant speed). 0 where no piece qualifies or their spline is the chord, in a sequence's
+        first or last gap, in a sequence of two keys or not ``smooth``, after a hold, or with the keys
+        around the gap unevenly spaced. From the keys only."""
         k, last = gap, len(self._raw) - 1
-        if k < 1 or last < 2 or not self.smooth or self._start_limit(k) is not None:
+        # a last gap's end tangent is a share of its secant (the linear end condition's secant, the
+        # keys' slowing correction, :func:`~core.splines.slowing_end_correction`, or rest), so the
+        # spline slowing to a stop, whose start tangent is 2 × the secant − that tangent, runs along
+        # the chord and differs from the blend in timing only: the ratio would tell that ours is not
+        # the blend, nothing of a stop (a cloth swinging into its last key was warned so)
+        if k < 1 or k + 1 >= last or not self.smooth or self._start_limit(k) is not None:
             return 0.0
         d = self._durations
-        if np.ptp(d[k - 1:min(k + 2, last)]) > 0:
+        if np.ptp(d[k - 1:k + 2]) > 0:
             return 0.0
         c = self._centroids
         slowed = np.linalg.norm(c[k] - c[k - 1], axis=1) > IMPACT_SLOWDOWN * np.linalg.norm(c[k + 1] - c[k], axis=1)
@@ -201,21 +207,16 @@ class GapStarts:
         if not rows.any():
             return 0.0
         x = self._raw
-        after = x[k + 2][rows] if k + 2 <= last else 2.0 * x[k + 1][rows] - x[k][rows]
-        values = (x[k - 1][rows], x[k][rows], x[k + 1][rows], after)
+        values = (x[k - 1][rows], x[k][rows], x[k + 1][rows], x[k + 2][rows])
         corrections = tuple(None if t is None else t[rows]
                             for t in (self._tangent_correction(k), self._tangent_correction(k + 1)))
-        rest_end = self.end == "rest" and k + 1 == last
-        splines = [HermiteGap(values, True, rows=True, corrections=corrections, rest_end=rest_end, parabolic_start=start)
+        splines = [HermiteGap(values, True, rows=True, corrections=corrections, parabolic_start=start)
                    for start in (None, np.bool_(True))]
         chord = values[2] - values[1]
         carried, stopping = (sum(float(np.sum((h.at(s) - values[1] - s * chord) ** 2)) for s in STOP_CARRY_FACTORS)
                              for h in splines)
-        if carried == 0.0 or (stopping <= 1e-12 * carried and k + 1 == last):
-            # in a last gap the end condition makes the end tangent the secant, so the stopping
-            # spline is the chord (the blend itself): the ratio would tell only that ours is not the
-            # blend, nothing of a stop
+        if carried == 0.0:
             return 0.0
-        # elsewhere the stopping spline on the chord to round-off (the keys after the stop creep at
-        # constant speed): no finite ratio
+        # the stopping spline on the chord to round-off (the keys after the stop creep at constant
+        # speed): no finite ratio
         return float(np.sqrt(carried / stopping)) if stopping > 1e-12 * carried else np.inf

@@ -6,6 +6,7 @@ motion that does not stop is not."""
 import warnings
 
 import numpy as np
+import pytest
 
 from core import SequenceInterpolator
 from core.sequence_gap_starts import STOP_CARRY_RATIO
@@ -94,12 +95,15 @@ def test_a_pendulum_swinging_through_its_keys_is_not_warned():
         assert not warned, (start, step, bend)
 
 
-def test_a_swinging_cloth_slowing_into_its_last_key_is_not_warned():
+@pytest.mark.parametrize("start", [60.0, 20.0, 200.0])
+def test_a_swinging_cloth_slowing_into_its_last_key_is_not_warned(start):
     """A plate bending as it swings slows into its last key (keyed every 90° of its swing from
-    60°), deforming less there: the last gap ends on its secant, so the spline slowing to a stop
-    is the chord, the blend itself, and the spline's stray over it is no measure of an overshoot
-    (it was warned as infinitely far). The in-betweens are nearer the true swing than the blend."""
-    phases = np.radians(60.0 + 90.0 * np.arange(6))
+    ``start``), deforming less there. A last gap's end tangent is a share of its secant (the linear
+    end condition; from 20° and 200° the keys' slowing correction shortens it), so the spline slowing
+    to a stop runs along the chord, off the blend in timing only, and the spline's stray over it is
+    no measure of an overshoot: it was warned as infinitely far (from 60°) and as 4.6 / 4.5 × as far
+    (from 20° / 200°). The in-betweens are nearer the true swing than the blend."""
+    phases = np.radians(start + 90.0 * np.arange(6))
     keys, triangles = _pendulum(phases, 1.0)
     s, warned = _overshoot_gaps(keys, triangles)
     assert not warned
