@@ -52,7 +52,10 @@ as the centre of all its touching vertex pairs in each key where as many touch i
 :data:`CONTACT_STEADY`, else as their closest pair; a contact that shrinks or grows in place on both
 pieces holds the joint, :func:`contracts_in_place`), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
-the point but not the turn relative to the link below).
+the point but not the turn relative to the link below). Nor does a contact that rolls or slides
+along both pieces, ending off itself as either piece carries it with none of its vertex pairs
+touching in both keys (:data:`CONTACT_ROLLS`, :func:`_held_contacts`): a wheel rolling on a still
+floor is no hinge on it.
 """
 
 from __future__ import annotations
@@ -116,6 +119,15 @@ OWN_CONTACT_SLACK = 0.3
 #: at 0.5 a blade of scissors opening on a turning pair (its world axis 0.46 from its centroid by
 #: chance, the other blade's 0.55) carried the pair, 1.4e-2 / 1.7e-2 of the diagonal off.
 ROOT_AXLE_SHARE = 0.1
+#: A joint's contact (the centre of its touching vertex pairs) in the next key lies within this many
+#: of the finer piece's mean edges, plus the contact's extent in the base key and the joint's
+#: precision, of where one of its pieces' motions carries it from the base key, or one of its
+#: touching vertex pairs touches in both keys: else it rolls or slides along them (a wheel on a still
+#: floor) and holds no joint. Set by what the centre resolves, an edge: pairs join and leave the
+#: contact's rim by the edge as the pieces turn. A cart's wheels rolling 90° / 150° on a still floor:
+#: exact (were 2.2e-2 / 6.7e-2 of the diagonal off at 0.5); rolled 20° / 45° they keep a touching
+#: pair or stay within the contact and stay jointed (1.0e-3 / 5.2e-3 off, as before).
+CONTACT_ROLLS = 1.0
 
 
 def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
@@ -351,6 +363,23 @@ def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray, within: 
     run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
     near = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) <= within[run]
     return _mean_midpoints(x, ends, run, near, first.size)
+
+
+def _held_contacts(base: np.ndarray, nxt: np.ndarray, ends: np.ndarray, first: np.ndarray, within: np.ndarray,
+                   centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per pair of pieces of :func:`touching_pairs` (P,; its vertex pairs ``ends`` in runs from
+    ``first``): whether one of its vertex pairs is within ``within`` (P,) of each other both at
+    ``base`` and at ``nxt`` (n, 3), a point of the contact held from one key to the next (bool
+    (P,)); and the contact's extent at ``base`` (P,): the largest distance of a pair touching there
+    (within ``within``) from its ``centres`` (P, 3; :func:`contact_centres`), 0 where none touches."""
+    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
+    near = np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1) <= within[run]
+    both = near & (np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1) <= within[run])
+    extent = np.zeros(first.size)
+    if near.any():
+        midpoints = 0.5 * (base[ends[near, 0]] + base[ends[near, 1]])
+        np.maximum.at(extent, run[near], np.linalg.norm(midpoints - centres[run[near]], axis=1))
+    return np.bincount(run[both], minlength=first.size) > 0, extent
 
 
 def touching_centres(x: np.ndarray, index: np.ndarray, label: np.ndarray, count: int, reach: float, keys: np.ndarray,
@@ -593,6 +622,20 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         chords = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k] - contact_base,
                                  axis=1) for k in (u, v)]
         carried = np.maximum(*chords)
+        # - a joint's contact goes where its pieces' motions carry it (both carry a hinge's point to
+        #   the same place) and keeps the vertex pairs at its axis, as a hinge does opening or folding
+        #   onto its parent: one whose touching pairs' centre ends off the contact as either piece
+        #   carries it (farther than the contact's extent in the base key plus what the centre
+        #   resolves, CONTACT_ROLLS: a lever spinning face to face on its post moves the centre of
+        #   their overlap within it) and of whose touching vertex pairs none touches in the next key
+        #   (_held_contacts) rolls or slides along them. A wheel rolling 90° on a still floor was
+        #   hung from the floor as on a hinge and carried a cart's body round its own screw (2.2e-2
+        #   of the diagonal off at 0.5, silently)
+        reached = np.minimum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], centres_base) + translations[k]
+                                              - centres_later, axis=1) for k in (u, v)))
+        if jointed.any():
+            held, extent = _held_contacts(base, nxt, ends, first, within, centres_base)
+            jointed &= held | (reached <= CONTACT_ROLLS * finer + extent + precision)
         # - one of the pieces turns about the contact (its own axis nearer it than its centroid:
         #   _turns_about) and they carry it by arcs unequal beyond ROLLING_SPREAD: a link turning far
         #   on a nearly still parent whose contact was read to stay put (it moved 0.0078 where the
