@@ -193,21 +193,22 @@ class InterpolatedField:
             scale[rows] = np.exp(log[:, 0] + log[:, 2])
         return scale
 
-    def metric_lengths(self, s: float) -> np.ndarray:
+    def metric_lengths(self, s: float, rows: np.ndarray | None = None) -> np.ndarray:
         """Lengths (3 corners, m) of the base's corner edges under the interpolated metric at
         factor ``s``: ``√(eᵀ G e)`` of the metric's spline ``G`` between the keys, without its square
         root ``U`` (the lengths ``|U e|`` of :meth:`stretch`'s fit targets, to rounding); ``U²`` of
         :meth:`stretch` where that ``G`` is not positive definite, outside the keys and with
-        ``log_metric``."""
+        ``log_metric``. With ``rows`` (an index array, r,): (3 corners, r) of those triangles alone,
+        per element the same values."""
         if 0.0 < s < 1.0 and not self.log_metric:
-            metric = self.splines["metric"].at(s)
+            metric = self.splines["metric"].at(s, rows)
             ok = df.sqrt_det(metric)[1]
             if not ok.all():
                 bad = np.flatnonzero(~ok)
-                metric[bad] = df.squared_stretch(self.stretch(s, bad))
+                metric[bad] = df.squared_stretch(self.stretch(s, bad if rows is None else rows[bad]))
         else:
-            metric = df.squared_stretch(self.stretch(s))
-        x, y = self.base.tangent_rows
+            metric = df.squared_stretch(self.stretch(s, rows))
+        x, y = self.base.tangent_rows if rows is None else np.ascontiguousarray(self.base.tangent_rows[:, :, rows])
         g11, g12, g22 = np.ascontiguousarray(metric.T)
         # a metric extrapolated hundreds of gaps out overflows or cancels to NaN lengths, which no
         # bound the callers compare them with holds

@@ -137,14 +137,18 @@ def _stretched_open(gap, s, x, y) -> bool:
     """Whether the untangled ``y`` (n, 3) raises the in-between's misfit to the interpolated metric
     (the fit's measure, ``gap.misfit``, against ``gap.metric_lengths(s)``) above that of ``x``
     (n, 3) by more than :data:`UNTANGLED_FIRST_STRETCH`: measured on the triangles at the vertices
-    it moved (the others are the same), their mean's rise scaled to all the mesh's triangles."""
-    rows = np.unique(gap.topo.triangles_around(np.flatnonzero((y != x).any(axis=1))))
+    it moved (the others are the same), their mean's rise scaled to all the mesh's triangles. The
+    edges and the metric's lengths are made on those triangles alone (a tangle moves a few dozen of
+    the mesh's triangles), contiguous: the misfit floors the short edges' deviations in place
+    (:func:`~core.inbetween_fit.floored_deviations`), which on a slice of the whole mesh's edges (not
+    contiguous) writes into a copy and leaves them unfloored."""
+    topo = gap.topo
+    rows = np.unique(topo.triangles_around(np.flatnonzero((y != x).any(axis=1))))
     if rows.size == 0:
         return False
-    metric = gap.metric_lengths(s)
-    targets = {"lengths": metric[:, rows]}
-    rise = gap.misfit(gap.edges_of(y)[:, :, rows], targets) - gap.misfit(gap.edges_of(x)[:, :, rows], targets)
-    return rise * rows.size > UNTANGLED_FIRST_STRETCH * metric.shape[1]
+    targets = {"lengths": gap.metric_lengths(s, rows)}
+    rise = gap.misfit(topo.corner_edge_rows_on(y, rows), targets) - gap.misfit(topo.corner_edge_rows_on(x, rows), targets)
+    return rise * rows.size > UNTANGLED_FIRST_STRETCH * len(topo.triangles)
 
 
 def _repaired_prediction(gap, s: float, correction: CorrectionPolynomial, rings, allowed,

@@ -181,6 +181,12 @@ class Topology:
             out[d] = incidence @ coordinates[d]
         return out.reshape(3, 3, m)
 
+    def corner_edge_rows_on(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """:meth:`corner_edge_rows` (float64) of the triangles ``rows`` (r,) alone: (3 coordinates, 3
+        corners, r), contiguous, each edge the one difference ``x[end] − x[start]`` the incidence
+        product makes (the same values), at the cost of the rows rather than of the mesh."""
+        return np.ascontiguousarray(df.corner_edges(x, self.triangles[rows]).transpose(2, 1, 0))
+
     @cached_property
     def _side_incidence(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
         """The rows of ``Dc`` of corner edges 0 and 2 (each triangle's sides from its first corner)."""

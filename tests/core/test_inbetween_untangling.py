@@ -272,6 +272,50 @@ def test_an_untangled_prediction_is_taken_only_where_it_stretches_the_in_between
     assert mean_misfit(x) < mean_misfit(far) and not _stretched_open(gap, s, far, x)  # back toward the metric
 
 
+def test_the_untangle_first_guard_measures_a_short_edge_over_the_fits_floor():
+    """The guard of :func:`core.inbetween_prediction_repairs.untangled_first` measures as the fit does
+    (``gap.misfit``): an edge whose metric length is under MISFIT_LENGTH_FLOOR of the mean edge
+    deviates by its change over that floor, not over its own length. A 20 × 20 sheet with one edge
+    2e-3 of a spacing long in every key, that edge lengthened 1, 2, 4 and 8 times its length by a move
+    of one of its ends: the guard turns the move down exactly where the in-between's mean misfit
+    computed here with the floor, over every corner edge of the mesh, rises past UNTANGLED_FIRST_STRETCH
+    (measured without the floor it would at 2 and 4 already)."""
+    from core.inbetween_fit import MISFIT_LENGTH_FLOOR
+    from core.inbetween_prediction_repairs import UNTANGLED_FIRST_STRETCH, _stretched_open
+
+    flat, tri = grid(20, 20, size=1.0)
+    spacing = flat[1, 0] - flat[0, 0]
+    centre = int(np.argmin(np.linalg.norm(flat - flat.mean(axis=0), axis=1)))
+    right = centre + 1  # its neighbour along x
+    sliver = flat.copy()
+    sliver[centre, 0] = flat[right, 0] - 2e-3 * spacing
+    keys = [_bend(sliver, angle, length=1.0) for angle in (0.0, 0.6, 1.2)]
+    middle = 0.5 * (keys[0].min(axis=0) + keys[0].max(axis=0))
+    gap = SequenceInterpolator([key - middle for key in keys], tri)._gap(0)
+    s = 0.5
+    metric, floor = gap.metric_lengths(s), MISFIT_LENGTH_FLOOR * gap.mean_edge
+    short = (metric < floor) & (metric > 0.0)
+    assert short.sum() == 2  # the edge, in its two triangles
+    x = gap.pose(s)[0]
+
+    def mean_misfit(z, floored=True):  # over every corner edge of the mesh, (3, m) as the metric's
+        p = z[tri]
+        lengths = np.linalg.norm(p[:, [1, 2, 0]] - p, axis=2).T
+        deviation = np.abs(lengths / metric - 1.0)
+        if floored:
+            deviation[short] = np.abs(lengths - metric)[short] / floor
+        return float(np.mean(deviation))
+
+    along = (x[right] - x[centre]) / np.linalg.norm(x[right] - x[centre])
+    for times in (1, 2, 4, 8):
+        y = x.copy()
+        y[centre] -= times * 2e-3 * spacing * along
+        rise = mean_misfit(y) - mean_misfit(x)
+        assert _stretched_open(gap, s, x, y) == (rise > UNTANGLED_FIRST_STRETCH)
+        if times in (2, 4):  # the floor decides these
+            assert rise < UNTANGLED_FIRST_STRETCH < mean_misfit(y, floored=False) - mean_misfit(x, floored=False)
+
+
 def _curling_finger():
     """A finger (a closed tube) curling by 120° at each of two joints per key, three keys about the
     first key's middle (sequences work about it): (keys, triangles, the finger curled by the

@@ -358,6 +358,21 @@ def test_triangle_sides_are_the_corner_edges_from_the_first_corner():
     np.testing.assert_allclose(e1, (bent[tri[:, 1]] - bent[tri[:, 0]]).T, rtol=0, atol=1e-15)
 
 
+def test_corner_edges_on_some_triangles_are_the_whole_meshs_there_bit_for_bit():
+    """The corner edges of some triangles alone (``corner_edge_rows_on``, what the untangle-first
+    guard reads) are those of the whole mesh's incidence product on those triangles, bit for bit,
+    in any order of the triangles and with repeats, far from the origin too."""
+    flat, tri = grid(15, 11, size=1.0)
+    bent = flat.copy()
+    bent[:, 2] = 0.3 * np.sin(2.5 * flat[:, 0]) * flat[:, 1]
+    topo = _relative(flat, bent, tri)[0]
+    rows = np.random.default_rng(3).choice(len(tri), size=40)  # unsorted, some twice
+    for x in (bent, bent + 1e3):
+        on = topo.corner_edge_rows_on(x, rows)
+        assert on.shape == (3, 3, rows.size) and on.flags["C_CONTIGUOUS"]
+        np.testing.assert_array_equal(on, topo.corner_edge_rows(x)[:, :, rows])
+
+
 def test_whole_rotations_are_the_same_rotations_as_rigid_motion_and_residuals():
     """A relative's triangle rotations taken whole equal its component's rigid rotation composed
     with the residuals (both map each base triangle's frame onto the other key's triangle)."""

@@ -883,8 +883,15 @@ def test_metric_lengths_are_the_lengths_of_the_stretched_edges(monkeypatch, stri
     gap = SequenceInterpolator(keys, tri)._gap(0)
     for s in (0.3, 0.5, 1.5, -0.5):
         np.testing.assert_allclose(gap.metric_lengths(s), gap.fit_targets(None, gap.stretch(s))["lengths"], rtol=1e-12)
+    _metric_spline_broken(monkeypatch, gap)
+    np.testing.assert_allclose(gap.metric_lengths(0.4), gap.fit_targets(None, gap.stretch(0.4))["lengths"], rtol=1e-12)
+
+
+def _metric_spline_broken(monkeypatch, gap) -> np.ndarray:
+    """The metric's spline of ``gap`` made not positive definite on every seventh triangle (whole or
+    on rows): those triangles (bool (m,))."""
     spline, real_at = gap.splines["metric"], gap.splines["metric"].at
-    broken = np.zeros(len(tri), dtype=bool)
+    broken = np.zeros(len(gap.topo.triangles), dtype=bool)
     broken[::7] = True
 
     def at(s, rows=None):
@@ -893,7 +900,23 @@ def test_metric_lengths_are_the_lengths_of_the_stretched_edges(monkeypatch, stri
         return g
 
     monkeypatch.setattr(spline, "at", at)
-    np.testing.assert_allclose(gap.metric_lengths(0.4), gap.fit_targets(None, gap.stretch(0.4))["lengths"], rtol=1e-12)
+    return broken
+
+
+def test_metric_lengths_on_some_triangles_are_the_whole_ones_there_bit_for_bit(monkeypatch, strip):
+    """The metric's lengths of some triangles alone (``metric_lengths(s, rows)``, what the
+    untangle-first guard reads) are the whole mesh's on those triangles, bit for bit: between the
+    keys, outside them, and where the metric's spline is not positive definite (the log spline's
+    there), the rows in any order."""
+    flat, tri = strip
+    keys = [_bend(flat, 0.0), 1.1 * _bend(flat, 0.8), _bend(flat, 1.6)]
+    gap = SequenceInterpolator(keys, tri)._gap(0)
+    rows = np.random.default_rng(5).permutation(len(tri))[: len(tri) // 3]
+    for s in (0.3, 0.5, 1.5, -0.5):
+        np.testing.assert_array_equal(gap.metric_lengths(s, rows), gap.metric_lengths(s)[:, rows])
+    broken = _metric_spline_broken(monkeypatch, gap)
+    assert broken[rows].any() and not broken[rows].all()
+    np.testing.assert_array_equal(gap.metric_lengths(0.4, rows), gap.metric_lengths(0.4)[:, rows])
 
 
 def test_a_hold_stays_put_and_the_motion_after_it_starts_from_rest():
