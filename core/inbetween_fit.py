@@ -135,8 +135,9 @@ def floored_deviations(deviations: np.ndarray, lengths: np.ndarray, targets: np.
     edges ``short`` (flat indices, :func:`short_edges`) of ``lengths`` from ``targets`` (same
     shape) to ``|ℓ − t| / floor``; the others are left as they are."""
     if short.size:
-        flat = deviations.reshape(-1)  # a view: the arrays are made contiguous by their callers
-        flat[short] = np.abs(lengths.reshape(-1)[short] - targets.reshape(-1)[short]) / floor
+        # np.put writes through to ``deviations`` whatever its layout (a reshape of a strided
+        # slice would be a copy, and the floor lost)
+        np.put(deviations, short, np.abs(lengths.reshape(-1)[short] - targets.reshape(-1)[short]) / floor)
 
 
 def _key_changes(base_lengths: np.ndarray, next_lengths: np.ndarray) -> np.ndarray:

@@ -81,3 +81,21 @@ def test_a_local_step_turns_each_triangle_by_its_own_rotation_within_the_limit(s
         out = gap.fitted_edges(turned.astype(np.float32), local)
         assert out.dtype == np.float32
         np.testing.assert_allclose(out, expected, rtol=0, atol=2e-5 * np.abs(expected).max())
+
+
+def test_the_short_edge_floor_is_written_into_a_strided_array_too():
+    """``floored_deviations`` sets ``|ℓ − t| / floor`` on the short edges of the array it is given,
+    in place, also when that array is a strided slice (a reshape of one would be a copy)."""
+    from core.inbetween_fit import floored_deviations
+    rng = np.random.default_rng(3)
+    lengths, targets = rng.uniform(0.5, 2.0, (2, 3, 3, 8))
+    whole = np.abs(lengths / targets - 1.0)
+    deviations = whole[:, :, :5]  # five of eight triangles: no single stride
+    short = np.array([0, 5, 11])
+    floor = 4.0
+    part_lengths, part_targets = np.ascontiguousarray(lengths[:, :, :5]), np.ascontiguousarray(targets[:, :, :5])
+    expected = np.abs(part_lengths / part_targets - 1.0).reshape(-1)
+    expected[short] = np.abs(part_lengths.reshape(-1)[short] - part_targets.reshape(-1)[short]) / floor
+    floored_deviations(deviations, part_lengths, part_targets, floor, short)
+    assert np.array_equal(deviations.reshape(-1), expected)
+    assert np.array_equal(whole[:, :, :5], deviations)  # written through to the array sliced
