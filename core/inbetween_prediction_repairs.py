@@ -139,9 +139,8 @@ def _stretched_open(gap, s, x, y) -> bool:
     (n, 3) by more than :data:`UNTANGLED_FIRST_STRETCH`: measured on the triangles at the vertices
     it moved (the others are the same), their mean's rise scaled to all the mesh's triangles. The
     edges and the metric's lengths are made on those triangles alone (a tangle moves a few dozen of
-    the mesh's triangles), contiguous: the misfit floors the short edges' deviations in place
-    (:func:`~core.inbetween_fit.floored_deviations`), which on a slice of the whole mesh's edges (not
-    contiguous) writes into a copy and leaves them unfloored."""
+    the mesh's triangles), and their short edges are measured over the fit's floor, as ``gap.misfit``
+    measures them (:func:`~core.inbetween_fit.floored_deviations`)."""
     topo = gap.topo
     rows = np.unique(topo.triangles_around(np.flatnonzero((y != x).any(axis=1))))
     if rows.size == 0:
