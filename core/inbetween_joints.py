@@ -54,8 +54,8 @@ pieces holds the joint, :func:`contracts_in_place`), unless both
 turn about the joint's own point, which then stays put (that robot's shoulder: its own screw keeps
 the point but not the turn relative to the link below). Nor does a contact that rolls or slides
 along both pieces, ending off itself as either piece carries it with none of its vertex pairs
-touching in both keys (:data:`CONTACT_ROLLS`, :func:`_held_contacts`): a wheel rolling on a still
-floor is no hinge on it.
+touching in both keys (:data:`CONTACT_ROLLS`, :func:`_held_contacts`), where another joint places
+one of its pieces: a wheel rolling on a still floor is no hinge on it.
 """
 
 from __future__ import annotations
@@ -126,7 +126,9 @@ ROOT_AXLE_SHARE = 0.1
 #: floor) and holds no joint. Set by what the centre resolves, an edge: pairs join and leave the
 #: contact's rim by the edge as the pieces turn. A cart's wheels rolling 90° / 150° on a still floor:
 #: exact (were 2.2e-2 / 6.7e-2 of the diagonal off at 0.5); rolled 20° / 45° they keep a touching
-#: pair or stay within the contact and stay jointed (1.0e-3 / 5.2e-3 off, as before).
+#: pair or stay within the contact and stay jointed (1.0e-3 / 5.2e-3 off, as before). Only where
+#: another joint places one of the pieces (the wheel's axle): a drum jointed by nothing else keeps its
+#: joint, which carries it with a carried plate (6.9e-2 of the diagonal off it at 0.5 without, 2.9e-2 with).
 CONTACT_ROLLS = 1.0
 
 
@@ -635,7 +637,15 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
                                               - centres_later, axis=1) for k in (u, v)))
         if jointed.any():
             held, extent = _held_contacts(base, nxt, ends, first, within, centres_base)
-            jointed &= held | (reached <= CONTACT_ROLLS * finer + extent + precision)
+            rolls = jointed & ~(held | (reached <= CONTACT_ROLLS * finer + extent + precision))
+            # only where another joint places one of its pieces (a wheel on its axle), which the
+            # rolling contact would then hang from the roll's screw; a piece jointed by nothing else
+            # rolls on the other as its relative motion carries it, where its own screw leaves a
+            # carried parent (a drum rolling 90° on a plate turned 40°: 6.9e-2 of the diagonal off
+            # the plate at 0.5, silently, 2.9e-2 jointed)
+            fixed = jointed & ~rolls
+            others = np.bincount(np.r_[u[fixed], v[fixed]], minlength=pieces.size)
+            jointed &= ~(rolls & ((others[u] > 0) | (others[v] > 0)))
         # - one of the pieces turns about the contact (its own axis nearer it than its centroid:
         #   _turns_about) and they carry it by arcs unequal beyond ROLLING_SPREAD: a link turning far
         #   on a nearly still parent whose contact was read to stay put (it moved 0.0078 where the

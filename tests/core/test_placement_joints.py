@@ -1723,3 +1723,41 @@ def test_wheels_rolling_on_a_still_floor_are_no_hinges_on_it(angle):
         pose = interpolator.pose(s)
         np.testing.assert_allclose(pose, _rolling_cart(s * angle)[0], atol=1e-6 * diagonal)
         np.testing.assert_array_equal(pose[floor], a[floor])
+
+
+def _drum_on_plate(angle: float, carried: bool):
+    """A drum (a closed tube of radius 0.2 and length 0.1, 32 sides, its axis along y) lying on a
+    plate (a box 1.6 × 0.6 × 1.0, its top at z = 0), rolled ``angle`` degrees along x (turned on its
+    axis and moved on by the arc it rolls); ``carried``: the plate and the drum on it turned 40° about
+    a skew axis and shifted as one. Vertices, triangles and the plate's vertex indices."""
+    radius = 0.2
+    plate, plate_triangles = cube(8)
+    plate = plate * [0.8, 0.3, 0.5] - [0.0, 0.0, 0.5]
+    drum, drum_triangles = meshes.closed_tube(6, 32, length=0.1, radius=radius)
+    drum = drum[:, [1, 0, 2]] - [0.0, 0.05, -radius]
+    drum = _rigid(drum, Rotation.from_rotvec([0.0, np.radians(angle), 0.0]).as_matrix(), [0.0, 0.0, radius],
+                  [np.radians(angle) * radius, 0.0, 0.0])
+    vertices = np.vstack([plate, drum])
+    if carried:
+        carry = Rotation.from_rotvec(np.radians(40.0) * np.array([1.0, 1.0, 0.3]) / np.linalg.norm([1.0, 1.0, 0.3]))
+        vertices = _rigid(vertices, carry.as_matrix(), [0.2, -0.1, -0.3], [0.3, 0.1, 0.2])
+    return vertices, np.vstack([plate_triangles, drum_triangles[:, ::-1] + len(plate)]), np.arange(len(plate))
+
+
+@pytest.mark.parametrize("angle", [90.0, 150.0])
+def test_a_drum_rolling_on_a_carried_plate_sits_on_it_as_on_a_still_one(angle):
+    """A drum rolling on a plate, two poses, the plate still or carried (turned 40° and shifted with
+    the drum on it): at every factor (exaggerations included) the drum sits on the plate, in the
+    plate's own frame, as it does on the still plate, to 1e-6 of the diagonal: carrying both pieces
+    changes nothing between them. The roll takes the contact along both pieces, which holds no joint
+    where another joint places one of them (a cart's wheel on its axle); a drum with no other joint
+    left the carried plate's motion for its own screw, 6.9e-2 / 0.18 of the diagonal off the plate
+    at 0.5 (90° / 150°, silently) where on the still plate it sits 2.9e-2 / 9.1e-2 off it."""
+    a, tri, plate = _drum_on_plate(0.0, False)
+    diagonal = np.linalg.norm(np.ptp(a, axis=0))
+    still = Interpolator(a, _drum_on_plate(angle, False)[0], tri)
+    carried = Interpolator(a, _drum_on_plate(angle, True)[0], tri)
+    for s in FACTORS:
+        on_still, on_carried = still.pose(s), carried.pose(s)
+        rotation, translation = rigid_alignment(on_carried[plate], a[plate])  # back into the plate's frame
+        np.testing.assert_allclose(on_carried @ rotation.T + translation, on_still, atol=1e-6 * diagonal)
