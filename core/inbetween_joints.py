@@ -357,13 +357,22 @@ def _mean_midpoints(x: np.ndarray, ends: np.ndarray, run: np.ndarray, chosen: np
     return np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], np.nan), counts
 
 
-def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray, within: np.ndarray) -> np.ndarray:
+def _touching_runs(x: np.ndarray, ends: np.ndarray, first: np.ndarray,
+                   within: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per vertex pair ``ends`` (k, 2) of the pairs of pieces of :func:`touching_pairs` (P,; in runs
+    from ``first``): its pair of pieces (int (k,)) and whether its two vertices are within
+    ``within`` (P,) of each other at positions ``x`` (n, 3) (bool (k,))."""
+    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
+    return run, np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) <= within[run]
+
+
+def contact_centres(x: np.ndarray, ends: np.ndarray, first: np.ndarray,
+                    within: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per pair of pieces of :func:`touching_pairs` (P,; its vertex pairs ``ends`` in runs from
     ``first``), the centre (P, 3) of where they touch at positions ``x`` (n, 3): the mean midpoint
     of its vertex pairs within ``within`` (P,) of each other (nan where none is), and how many
     pairs that is (int (P,))."""
-    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
-    near = np.linalg.norm(x[ends[:, 0]] - x[ends[:, 1]], axis=1) <= within[run]
+    run, near = _touching_runs(x, ends, first, within)
     return _mean_midpoints(x, ends, run, near, first.size)
 
 
@@ -374,9 +383,8 @@ def _held_contacts(base: np.ndarray, nxt: np.ndarray, ends: np.ndarray, first: n
     ``base`` and at ``nxt`` (n, 3), a point of the contact held from one key to the next (bool
     (P,)); and the contact's extent at ``base`` (P,): the largest distance of a pair touching there
     (within ``within``) from its ``centres`` (P, 3; :func:`contact_centres`), 0 where none touches."""
-    run = np.repeat(np.arange(first.size), np.diff(np.r_[first, len(ends)]))
-    near = np.linalg.norm(base[ends[:, 0]] - base[ends[:, 1]], axis=1) <= within[run]
-    both = near & (np.linalg.norm(nxt[ends[:, 0]] - nxt[ends[:, 1]], axis=1) <= within[run])
+    run, near = _touching_runs(base, ends, first, within)
+    both = near & _touching_runs(nxt, ends, first, within)[1]
     extent = np.zeros(first.size)
     if near.any():
         midpoints = 0.5 * (base[ends[near, 0]] + base[ends[near, 1]])
@@ -630,22 +638,20 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   carries it (farther than the contact's extent in the base key plus what the centre
         #   resolves, CONTACT_ROLLS: a lever spinning face to face on its post moves the centre of
         #   their overlap within it) and of whose touching vertex pairs none touches in the next key
-        #   (_held_contacts) rolls or slides along them. A wheel rolling 90° on a still floor was
-        #   hung from the floor as on a hinge and carried a cart's body round its own screw (2.2e-2
-        #   of the diagonal off at 0.5, silently)
+        #   (_held_contacts) rolls or slides along them: a wheel rolling on a still floor, held as
+        #   a hinge on the floor, would carry a cart's body round the wheel's own screw
         reached = np.minimum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], centres_base) + translations[k]
                                               - centres_later, axis=1) for k in (u, v)))
-        if jointed.any():
-            held, extent = _held_contacts(base, nxt, ends, first, within, centres_base)
-            rolls = jointed & ~(held | (reached <= CONTACT_ROLLS * finer + extent + precision))
-            # only where another joint places one of its pieces (a wheel on its axle), which the
-            # rolling contact would then hang from the roll's screw; a piece jointed by nothing else
-            # rolls on the other as its relative motion carries it, where its own screw leaves a
-            # carried parent (a drum rolling 90° on a plate turned 40°: 6.9e-2 of the diagonal off
-            # the plate at 0.5, silently, 2.9e-2 jointed)
-            fixed = jointed & ~rolls
-            others = np.bincount(np.r_[u[fixed], v[fixed]], minlength=pieces.size)
-            jointed &= ~(rolls & ((others[u] > 0) | (others[v] > 0)))
+        held, extent = _held_contacts(base, nxt, ends, first, within, centres_base)
+        rolls = jointed & ~(held | (reached <= CONTACT_ROLLS * finer + extent + precision))
+        # only where another joint places one of its pieces (a wheel on its axle), which the rolling
+        # contact would then hang from the roll's screw; a piece jointed by nothing else rolls on the
+        # other as its relative motion carries it, where its own screw leaves a carried parent (a
+        # drum rolling 90° on a plate turned 40°: 6.9e-2 of the diagonal off the plate at 0.5,
+        # silently, 2.9e-2 jointed)
+        fixed = jointed & ~rolls
+        others = np.bincount(np.r_[u[fixed], v[fixed]], minlength=pieces.size)
+        jointed &= ~(rolls & ((others[u] > 0) | (others[v] > 0)))
         # - one of the pieces turns about the contact (its own axis nearer it than its centroid:
         #   _turns_about) and they carry it by arcs unequal beyond ROLLING_SPREAD: a link turning far
         #   on a nearly still parent whose contact was read to stay put (it moved 0.0078 where the

@@ -183,7 +183,7 @@ class GapStarts:
         # keys' slowing correction, :func:`~core.splines.slowing_end_correction`, or rest), so the
         # spline slowing to a stop, whose start tangent is 2 × the secant − that tangent, runs along
         # the chord and differs from the blend in timing only: the ratio would tell that ours is not
-        # the blend, nothing of a stop (a cloth swinging into its last key was warned so)
+        # the blend, nothing of a stop (a cloth swinging into its last key would be warned so)
         if k < 1 or k + 1 >= last or not self.smooth or self._start_limit(k) is not None:
             return 0.0
         d = self._durations
