@@ -88,7 +88,11 @@ FREE_FLIGHT_JERK = 0.5
 #: ends with that start velocity (its positions; its other splines with the next gap's secant), so
 #: the two gaps meet with one velocity: the cloth landed inside the gap before and arrives slow (a
 #: 10k drape on a sphere, keys 8 apart: the second difference across the key 5.0 → 2.1 × the
-#: simulation's, the gap before it 1.02 → 0.81 × Catmull–Rom's RMS).
+#: simulation's, the gap before it 1.02 → 0.81 × Catmull–Rom's RMS). Not where the piece is hit
+#: again right after the gap (:func:`hit_again`): the parabola's end tangent then carries the second
+#: hit (a sewn pillow landed and then squashed, keys 4 apart: 2.83 → 1.41 × the blend in the still
+#: gap between, 1.14 → 0.39 × in the gap of the landing; docs/inbetween-measurements.md, *A second
+#: hit right after a landing*).
 IMPACT_SLOWDOWN = 2.0
 
 
@@ -105,23 +109,42 @@ def free_flight(before, nxt, after, start_limit: float | None, steady: np.ndarra
         flight = nxt
     else:
         return None
-    free = ((flight < FREE_FLIGHT_NONRIGIDITY) & (after > 2.0 * FREE_FLIGHT_NONRIGIDITY)
-            & (after > FREE_FLIGHT_JUMP * flight))
+    free = (flight < FREE_FLIGHT_NONRIGIDITY) & hit_again(flight, after)
     return free if free.any() else None
 
 
-def after_impact(before, nxt, incoming, outgoing, start_limit: float | None) -> np.ndarray | None:
+def after_impact(before, nxt, incoming, outgoing, start_limit: float | None, after=None) -> np.ndarray | None:
     """Per component (C,), whether a gap starts right after an impact (see :data:`IMPACT_SLOWDOWN`),
     from the non-rigidity (C,) of the keys before the gap and at its end, seen from its start key,
     and the distances (C,) its centroid moved over the gap before (``incoming``) and over this one
     (``outgoing``); or None if no component does. Not in a sequence's first gap (``start_limit``
-    set), whose key before is an end condition."""
+    set), whose key before is an end condition, nor for a component hit again right after the gap
+    (``after``: the non-rigidity (C,) of the key after the gap, seen from its start key, or None
+    where there is none), which :func:`hit_again` tells."""
     if start_limit is not None:
         return None
     before, nxt = np.asarray(before), np.asarray(nxt)
     hit = ((before > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (before > FREE_FLIGHT_JUMP * nxt)
            & (np.asarray(incoming) > IMPACT_SLOWDOWN * np.asarray(outgoing)))
+    if after is not None:
+        hit &= ~hit_again(nxt, after)
     return hit if hit.any() else None
+
+
+def hit_again(nxt, after) -> np.ndarray:
+    """Per component (C,), whether it is deformed at the key after a gap as an impact deforms it:
+    the non-rigidity (C,) of that key, seen from the gap's start key (``after``), over 2 ×
+    :data:`FREE_FLIGHT_NONRIGIDITY` and over :data:`FREE_FLIGHT_JUMP` × the gap's own (``nxt``, of
+    its end key), the test :func:`free_flight` reads a hit right after a gap by. The after-impact
+    start (:data:`IMPACT_SLOWDOWN`) takes the gap's end tangent, Catmull–Rom's ``(v₂ − v₀)/2``, for
+    the gap's own velocity and starts on the parabola through it, ``2 (v₁ − v₀) − t₁``; where a
+    second impact deforms the piece right after the gap, that tangent carries the second impact's
+    motion, and the parabola mirrors it into a start velocity the other way (a pillow landed, then
+    squashed by a slab: its top panel's middle started up at 92 mm per gap where Catmull–Rom's
+    tangent goes down at 34, and the in-betweens bulged 3 cm above the still pillow, 2.8 × the
+    blend's RMS). Such a gap keeps Catmull–Rom's start."""
+    after = np.asarray(after)
+    return (after > 2.0 * FREE_FLIGHT_NONRIGIDITY) & (after > FREE_FLIGHT_JUMP * np.asarray(nxt))
 
 
 def flying_groups(topo: Topology, relatives: list, rigid: np.ndarray,

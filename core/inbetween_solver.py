@@ -170,7 +170,8 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if cubic:
             free = free_flight(*(r.nonrigidity for r in relatives[:1] + relatives[2:]), start_limit, steady)
             moves = np.linalg.norm(np.diff([r.centroids for r in relatives[:3]], axis=0), axis=2)  # (2, C)
-            impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit)
+            impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit,
+                                  None if relatives[3].extrapolated else relatives[3].nonrigidity)
 
         def options(name: str) -> dict:
             # a piece that swings back inside the gap keeps its turn's tangent, as a point does (onward)

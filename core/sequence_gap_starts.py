@@ -150,6 +150,9 @@ class GapStarts:
         if not (incoming > IMPACT_SLOWDOWN * outgoing).any():  # no slowdown: the rigid fits are not needed
             return None
         impact = after_impact(self._nonrigidity(k, gap), self._nonrigidity(k, k + 1), incoming, outgoing, None)
+        if impact is not None and k + 2 <= last:  # ... unless hit again right after it, as the gap after reads
+            impact = after_impact(self._nonrigidity(k, gap), self._nonrigidity(k, k + 1), incoming, outgoing, None,
+                                  self._nonrigidity(k, k + 2))
         if impact is None:
             return None
         rest_end = self.end == "rest" and k == last - 1

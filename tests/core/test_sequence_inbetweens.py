@@ -267,6 +267,33 @@ def test_a_still_sheet_hit_after_a_key_stays_still_in_the_gap_before(strip):
     assert np.linalg.norm(arriving - end_tangent, axis=1).max() < 1e-3
 
 
+def test_a_gap_between_a_landing_and_a_second_hit_keeps_catmull_roms_start(strip):
+    """Keys cut from a fall (``start="keys"``): flat, bent by a landing at the third key, sliding
+    0.02 by the fourth, then bent further by a second hit right after it (a pillow landed, then
+    squashed by a slab). The after-impact start (the parabola through the gap's end) would take
+    Catmull–Rom's end tangent, which carries the second hit, for the gap's own velocity, and
+    mirror it into a start velocity the other way: the in-betweens strayed 0.212 from the keys'
+    blend. The gap keeps Catmull–Rom's start, and its in-betweens stay within the cubic's bound
+    (4/27 of the tangents' differences from the secant, 0.180) of the blend."""
+    flat, tri = strip
+    bent = _bend(flat, 1.0)
+    drift = np.array([0.02, 0.0, 0.0])
+    hit = _bend(flat, 3.0)
+    keys = [flat + [0.0, 0.0, 0.4], flat + [0.0, 0.0, 0.2], bent, bent + drift, hit + 2.0 * drift,
+            hit + 3.0 * drift]
+    seq = SequenceInterpolator(keys, tri, start="keys")
+    secant = keys[3] - keys[2]
+    start_tangent, end_tangent = 0.5 * (keys[3] - keys[1]), 0.5 * (keys[4] - keys[2])  # Catmull–Rom's
+    bound = 4.0 / 27.0 * (np.linalg.norm(start_tangent - secant, axis=1)
+                          + np.linalg.norm(end_tangent - secant, axis=1)).max()
+    for s in np.linspace(0.05, 0.95, 19):
+        blend = (1.0 - s) * keys[2] + s * keys[3]
+        assert np.linalg.norm(seq.pose(2, s) - blend, axis=1).max() <= bound
+    # nor does the gap of the landing end with the after-impact start's velocity (its exit reads the
+    # second hit as the gap after does)
+    assert seq._exit(1) is None
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
