@@ -93,15 +93,20 @@ def serve() -> None:
             else:
                 inbox.put(message)
 
-    threading.Thread(target=read, daemon=True, name="gap-worker-inbox").start()
-    concurrency.USE_PROCESSES = False  # its sequences share no gaps: it is the second process
-    keep_heap()
-    own = __name__.rpartition(".")[0]  # the private name it was loaded under
-    names = sorted(m for m in sys.modules if m in ("core", own) or m.startswith(("core.", "bl_ext", own + ".")))
-    send(("ready", os.getpid(), names))
-    kept_token, kept = None, None  # the sequence kept between jobs, and the token it was sent with
-    idle = False  # nothing kept and the heap handed back since the last job
+    # The libraries both threads need are loaded before the reader starts: threadpoolctl's look-up of
+    # the BLAS libraries (made at the first one_thread) runs Python inside glibc's dl_iterate_phdr,
+    # which holds the loader's lock, and a library loaded in the reader meanwhile (CHOLMOD's, at the
+    # first orderings: cholespy imported) waits for that lock holding Python's: neither ever goes on.
     with one_thread():
+        take_orderings(None, load=True)
+        threading.Thread(target=read, daemon=True, name="gap-worker-inbox").start()
+        concurrency.USE_PROCESSES = False  # its sequences share no gaps: it is the second process
+        keep_heap()
+        own = __name__.rpartition(".")[0]  # the private name it was loaded under
+        names = sorted(m for m in sys.modules if m in ("core", own) or m.startswith(("core.", "bl_ext", own + ".")))
+        send(("ready", os.getpid(), names))
+        kept_token, kept = None, None  # the sequence kept between jobs, and the token it was sent with
+        idle = False  # nothing kept and the heap handed back since the last job
         while True:
             try:
                 message = inbox.get(timeout=None if idle else IDLE_SECONDS)

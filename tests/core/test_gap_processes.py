@@ -883,3 +883,54 @@ def test_a_worker_killed_as_its_message_was_taken_is_told_not_taken_as_sent(monk
         assert not worker._send(("job", 7, np.zeros(10)))
     assert [warning.message.kind for warning in told] == ["process"]
     assert not worker.alive and gap_processes._unstartable
+
+
+#: Run in the worker before its boot (the test below): threadpoolctl's look-up of the BLAS libraries,
+#: whose callback glibc's ``dl_iterate_phdr`` runs holding the loader's lock, held until another thread
+#: of the worker is about to load a compiled module (at once where the worker has no other thread, or
+#: CHOLMOD's library is loaded already; at most 60 s).
+HELD_LOOKUP = (
+    "import sys, threading, time, threadpoolctl\n"
+    "_make = threadpoolctl.ThreadpoolController._make_controller_from_path\n"
+    "def _loading():\n"
+    "    for ident, frame in sys._current_frames().items():\n"
+    "        while ident != threading.get_ident() and frame is not None:\n"
+    "            if frame.f_code.co_name == 'create_module' and 'importlib' in frame.f_code.co_filename:\n"
+    "                return True\n"
+    "            frame = frame.f_back\n"
+    "    return False\n"
+    "def _held(self, filepath):\n"
+    "    deadline = time.monotonic() + 60\n"
+    "    while len(sys._current_frames()) > 1 and 'cholespy._cholespy_core' not in sys.modules \\\n"
+    "            and time.monotonic() < deadline:\n"
+    "        if _loading():\n"
+    "            time.sleep(0.5)\n"
+    "            break\n"
+    "        time.sleep(0.01)\n"
+    "    return _make(self, filepath)\n"
+    "threadpoolctl.ThreadpoolController._make_controller_from_path = _held\n"
+)
+
+
+def test_the_worker_loads_no_library_in_its_reader_while_it_looks_its_blas_up(monkeypatch):
+    """The worker's reader thread takes the caller's orderings (CHOLMOD's library loaded at the first:
+    cholespy imported) while its loop makes threadpoolctl's view of the BLAS libraries (a Python
+    callback run by glibc under the loader's lock): loaded in that window, each waits for the other's
+    lock for ever, and the worker is silent (ended as hung, the second core lost for the session).
+    The look-up is held here until the reader is about to load a library: the worker still answers
+    its job, no ``process`` warning, the same in-betweens as one process."""
+    from core import sparse_cholesky
+
+    if sparse_cholesky._direct_library() is None:
+        pytest.skip("CHOLMOD not called directly: no orderings sent, no library loaded by the reader")
+    assert hasattr(__import__("threadpoolctl").ThreadpoolController, "_make_controller_from_path")
+    gap_processes.shut_down()
+    monkeypatch.setattr(gap_processes, "BOOT", HELD_LOOKUP + gap_processes.BOOT)
+    monkeypatch.setattr(gap_processes, "HANG_LEAST", 20.0)
+    given, _ = _counted_jobs(monkeypatch)
+    worker = _ready_worker()
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)  # a worker ended says so among these warnings
+    assert given and worker.alive and gap_processes._worker is worker
+    _same(shared, _one_process(requests, monkeypatch))
+    gap_processes.shut_down()
