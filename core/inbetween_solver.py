@@ -170,8 +170,10 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         if cubic:
             free = free_flight(*(r.nonrigidity for r in relatives[:1] + relatives[2:]), start_limit, steady)
             moves = np.linalg.norm(np.diff([r.centroids for r in relatives[:3]], axis=0), axis=2)  # (2, C)
+            # the key after, as free flight reads it: a key at another spacing (rescaled) has its own
+            # pose's non-rigidity; a sequence's end condition has its neighbours' larger (never a hit)
             impact = after_impact(relatives[0].nonrigidity, relatives[2].nonrigidity, *moves, start_limit,
-                                  None if relatives[3].extrapolated else relatives[3].nonrigidity)
+                                  relatives[3].nonrigidity)
 
         def options(name: str) -> dict:
             # a piece that swings back inside the gap keeps its turn's tangent, as a point does (onward)

@@ -294,6 +294,29 @@ def test_a_gap_between_a_landing_and_a_second_hit_keeps_catmull_roms_start(strip
     assert seq._exit(1) is None
 
 
+@pytest.mark.parametrize("key_times", [[0, 2, 4, 6, 7, 8], [0, 3, 6, 9, 11, 12]])
+def test_a_second_hit_after_keys_unevenly_spaced_keeps_catmull_roms_start(strip, key_times):
+    """The landing and the second hit of the test above, the gap after the still gap ½ / ⅔ as long:
+    the key after stands rescaled to where an evenly spaced key would be (an end condition in form,
+    with its pose's own non-rigidity), farther out, and the gap still reads it as a second hit. The
+    after-impact start strayed 0.418 / 0.315 from the blend; the in-betweens stay within the cubic's
+    bound with Catmull–Rom's tangents of the rescaled key (0.300 / 0.240)."""
+    flat, tri = strip
+    bent, hit, drift = _bend(flat, 1.0), _bend(flat, 3.0), np.array([0.02, 0.0, 0.0])
+    keys = [flat + [0.0, 0.0, 0.4], flat + [0.0, 0.0, 0.2], bent, bent + drift, hit + 2.0 * drift,
+            hit + 3.0 * drift]
+    seq = SequenceInterpolator(keys, tri, start="keys", key_times=key_times)
+    scale = (key_times[3] - key_times[2]) / (key_times[4] - key_times[3])
+    after = keys[3] + scale * (keys[4] - keys[3])  # the key after, evenly spaced
+    secant = keys[3] - keys[2]
+    start_tangent, end_tangent = 0.5 * (keys[3] - keys[1]), 0.5 * (after - keys[2])
+    bound = 4.0 / 27.0 * (np.linalg.norm(start_tangent - secant, axis=1)
+                          + np.linalg.norm(end_tangent - secant, axis=1)).max()
+    for s in np.linspace(0.05, 0.95, 19):
+        blend = (1.0 - s) * keys[2] + s * keys[3]
+        assert np.linalg.norm(seq.pose(2, s) - blend, axis=1).max() <= bound
+
+
 def test_motion_from_rest_leaves_the_first_key_with_zero_velocity(strip):
     """A fall that stops at the second key (an impact): ``start="rest"`` leaves the first key with
     zero velocity (displacement O(ε²) at factor ε), ``"keys"`` with the first gap's secant (the
