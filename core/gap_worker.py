@@ -63,7 +63,7 @@ def serve() -> None:
     from .errors import ShapeDifferenceWarning
     from .sequence_gaps_ahead import factor_bits
     from .sequence_inbetweens import SequenceInterpolator
-    from .sparse_cholesky import take_orderings
+    from .sparse_cholesky import load_library, take_orderings
 
     channel = os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())  # stray prints go to standard error, not the channel
@@ -98,7 +98,7 @@ def serve() -> None:
     # which holds the loader's lock, and a library loaded in the reader meanwhile (CHOLMOD's, at the
     # first orderings: cholespy imported) waits for that lock holding Python's: neither ever goes on.
     with one_thread():
-        take_orderings(None, load=True)
+        load_library()
         threading.Thread(target=read, daemon=True, name="gap-worker-inbox").start()
         concurrency.USE_PROCESSES = False  # its sequences share no gaps: it is the second process
         keep_heap()

@@ -149,10 +149,10 @@ class GapStarts:
         incoming, outgoing = np.linalg.norm(c[k] - c[gap], axis=1), np.linalg.norm(c[k + 1] - c[k], axis=1)
         if not (incoming > IMPACT_SLOWDOWN * outgoing).any():  # no slowdown: the rigid fits are not needed
             return None
-        impact = after_impact(self._nonrigidity(k, gap), self._nonrigidity(k, k + 1), incoming, outgoing, None)
+        before, nxt = self._nonrigidity(k, gap), self._nonrigidity(k, k + 1)
+        impact = after_impact(before, nxt, incoming, outgoing, None)
         if impact is not None and k + 2 <= last:  # ... unless hit again right after it, as the gap after reads
-            impact = after_impact(self._nonrigidity(k, gap), self._nonrigidity(k, k + 1), incoming, outgoing, None,
-                                  self._nonrigidity(k, k + 2))
+            impact = after_impact(before, nxt, incoming, outgoing, None, self._nonrigidity(k, k + 2))
         if impact is None:
             return None
         rest_end = self.end == "rest" and k == last - 1

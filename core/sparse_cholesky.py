@@ -64,15 +64,17 @@ def orderings(matrix=None) -> dict:
     return {} if lib is None else cholmod_direct.orderings(lib, matrix)
 
 
-def take_orderings(orderings: dict | None, load: bool = False) -> None:
+def take_orderings(orderings: dict | None) -> None:
     """Factor the patterns of ``orderings`` (another process's :func:`orderings`) here without
-    ordering them again: the same factors to the bit (:func:`core.cholmod_direct.take_orderings`).
-    ``load``: CHOLMOD's library loaded now (cholespy imported), for a process that will take
-    orderings in another thread (:mod:`core.gap_worker`'s reader), which then loads no library."""
-    if not (orderings or load):
-        return
-    if _direct_library() is not None and orderings:
+    ordering them again: the same factors to the bit (:func:`core.cholmod_direct.take_orderings`)."""
+    if orderings and _direct_library() is not None:
         cholmod_direct.take_orderings(orderings)
+
+
+def load_library() -> None:
+    """CHOLMOD's library loaded now (cholespy imported), for a process that will take orderings in
+    another thread (:mod:`core.gap_worker`'s reader), which then loads no library."""
+    _direct_library()
 
 
 def _new_locks_after_fork() -> None:
