@@ -24,6 +24,12 @@ once no such work is left.
 A child process forked from one whose pool is at work makes a pool of its own at first use, with
 new locks (the parent's threads do not exist in it, and a lock one of them held would stay held).
 
+threadpoolctl's view of the BLAS libraries (:func:`_blas_controller`) is made as this module is
+imported, in the importing thread, before any thread of the core exists (its pool, a layer's, a gap
+worker's reader, an operator's worker thread): threadpoolctl before 3.7 lists the libraries on Linux
+by running Python inside glibc's ``dl_iterate_phdr``, under the loader's lock, and a thread that
+loads a library meanwhile (an extension module imported, holding Python's lock) stops both for ever.
+
 Inside :func:`one_thread` every piece runs in the thread that asks for it, with BLAS
 single-threaded: a sequence whose gaps a second process shares (:mod:`core.gap_processes`) runs so
 in both processes, since a third busy thread on two cores costs more than it gains.
@@ -211,8 +217,11 @@ def one_thread():
 def _blas_controller():
     """threadpoolctl's view of the process's BLAS libraries, made once (None without
     threadpoolctl): ``threadpool_limits`` looks the loaded libraries up again at every call, 1–4 ms,
-    as much as a tenth of a 10k-vertex in-between. Made at first use, when NumPy's and SciPy's
-    BLAS are loaded (``core`` imports both)."""
+    as much as a tenth of a 10k-vertex in-between. Made when this module is imported (below), once
+    NumPy's and SciPy's BLAS are loaded, so that no thread of the core can load a library while the
+    look-up runs (see the module). A thread that is not the core's (another add-on's, Blender's) can:
+    threadpoolctl 3.7 (the one the extension bundles) lists the libraries on Linux from
+    ``/proc/self/maps`` and runs no Python under the loader's lock."""
     global _controller
     if _controller is None:
         try:
@@ -224,3 +233,7 @@ def _blas_controller():
 
             _controller = ThreadpoolController()
     return _controller or None
+
+
+# Before any thread of the core exists (see the module's docstring): the look-up in the importing thread.
+_blas_controller()

@@ -93,10 +93,11 @@ def serve() -> None:
             else:
                 inbox.put(message)
 
-    # The libraries both threads need are loaded before the reader starts: threadpoolctl's look-up of
-    # the BLAS libraries (made at the first one_thread) runs Python inside glibc's dl_iterate_phdr,
-    # which holds the loader's lock, and a library loaded in the reader meanwhile (CHOLMOD's, at the
-    # first orderings: cholespy imported) waits for that lock holding Python's: neither ever goes on.
+    # The reader starts after threadpoolctl's look-up of the BLAS libraries (made as the core was
+    # imported: core.concurrency) and loads no library itself (CHOLMOD's is loaded here first): before
+    # threadpoolctl 3.7 the look-up runs Python inside glibc's dl_iterate_phdr, under the loader's lock,
+    # and a library loaded by the reader meanwhile (at the first orderings: cholespy imported) waits
+    # for that lock holding Python's: neither ever goes on.
     with one_thread():
         load_library()
         threading.Thread(target=read, daemon=True, name="gap-worker-inbox").start()
