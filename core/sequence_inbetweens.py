@@ -165,7 +165,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         keep_heap()  # many mesh-sized temporaries from here on: reuse the heap's pages
         start, end = check_start(start), check_end(end)
         key_poses, k_M, k_N, offset, use_extrinsic, smooth, topology = check_sequence(
-            key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth, key_names)
+            key_poses, triangles, k_M, k_N, offset, use_extrinsic, smooth, key_names, checked=self._keys_checked)
         key_times = check_key_times(key_times, len(key_poses))
         rest_pose = checked_rest_pose(rest_pose, key_poses[0], topology.triangles)
         with numerical_failures(f"Preparing the in-betweens of {len(key_poses)} key poses"):
@@ -181,6 +181,9 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
             k_M=k_M, k_N=k_N, offset=offset, use_extrinsic=use_extrinsic, smooth=smooth, start=start,
             key_times=key_times, end=end, key_names=self.key_names, rest_pose=rest_pose)))
 
+    #: The keys and options as another process's sequence checked them, not checked again (the gap
+    #: worker's copy of the caller's sequence, :mod:`core.gap_worker`; :func:`core.validation.check_sequence`).
+    _keys_checked = False
     #: Every piece's rotations taken whole, not as residuals to its rigid motion (the second fit of
     #: :class:`~core.two_pose_inbetweens.Interpolator`, see :data:`~core.two_pose_inbetweens.WHOLE_FIT_MARGIN`).
     _whole_rotations = False
@@ -646,7 +649,8 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
     def _corner_lengths(self, x: np.ndarray) -> np.ndarray:
         """Corner edge lengths (m, 3) of working positions ``x`` (n, 3), as :class:`Key` has them."""
         edges = self._topo.corner_edge_rows(x)  # (3 coordinates, 3 corners, m), as the fit's
-        return np.sqrt(coordinate_dot(edges, edges)).T
+        squared = coordinate_dot(edges, edges)
+        return np.sqrt(squared, out=squared).T
 
     @property
     def _rest_named(self) -> str:

@@ -934,3 +934,26 @@ def test_the_worker_loads_no_library_in_its_reader_while_it_looks_its_blas_up(mo
     assert given and worker.alive and gap_processes._worker is worker
     _same(shared, _one_process(requests, monkeypatch))
     gap_processes.shut_down()
+
+
+def test_the_workers_build_takes_the_keys_as_the_caller_checked_them(monkeypatch):
+    """The worker builds the caller's sequence from the keys, triangles and options the caller's
+    constructor checked and sent (``_worker_arguments``) without checking the keys again
+    (``core.gap_worker.CallerSequence``): built with every pose check refusing, it is the caller's
+    sequence to the bit, each gap's poses and warnings (the spinning sheet warns of its last two gaps)."""
+    from core import gap_worker, validation
+
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    keys, triangles, options = SequenceInterpolator(KEYS, TRIANGLES)._worker_arguments  # no worker started yet
+
+    def refused(*args, **kwargs):
+        raise AssertionError("a key checked again")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(concurrency, "USE_PROCESSES", False)  # as in the worker: its sequences share no gaps
+        with monkeypatch.context() as checks:
+            checks.setattr(validation, "check_pose", refused)
+            checks.setattr(validation, "check_key_poses", refused)
+            built = gap_worker.CallerSequence(keys, triangles, **options)
+        shared = _asked(built, requests)
+    _same(shared, _one_process(requests, monkeypatch))

@@ -2,6 +2,7 @@
 (core.sequence_edge_misfit): keys that turn a sheet far between them, whose in-betweens the anchor
 toward the keys' per-vertex spline compresses, against keys that turn it gently."""
 
+import math
 import warnings
 
 import numpy as np
@@ -231,6 +232,25 @@ def test_the_edge_deviations_are_the_relative_changes_of_edges_of_positive_rest_
     assert signed_deviation(lengths, rest) == pytest.approx(-0.14, rel=1e-12)
     assert key_deviation(np.ones((2, 3)), np.zeros((2, 3))) == 0.0
 
+
+@pytest.mark.parametrize("layout", ["rows", "transposed"])
+def test_the_edge_deviations_over_every_edge_add_them_in_row_order_whatever_the_layout(layout):
+    """Where every reference edge is longer than 0 the deviations are taken without leaving any out,
+    to the bit the mean of |ℓ / ℓ₀ − 1| (and of ℓ / ℓ* − 1) over the edges in row-major order, as
+    over the edges kept (the sequences pass corner lengths as transposed views (m, 3) of (3, m)
+    rows: the order of the sum must not follow that layout); both within round-off of the exact sum."""
+    rng = np.random.default_rng(7)
+    rest = rng.uniform(0.5, 2.0, (3, 1001))
+    lengths = rest * rng.uniform(0.7, 1.3, rest.shape)
+    rest, lengths = (rest.T, lengths.T) if layout == "transposed" else (rest.T.copy(), lengths.T.copy())
+    changes = np.array([a / b - 1.0 for a, b in zip(lengths.ravel(order="C").tolist(), rest.ravel(order="C").tolist())])
+    assert key_deviation(lengths, rest) == float(np.mean(np.abs(changes)))
+    assert signed_deviation(lengths, rest) == float(np.mean(changes))
+    assert key_deviation(lengths, rest) == pytest.approx(math.fsum(np.abs(changes)) / changes.size, rel=1e-13)
+    assert signed_deviation(lengths, rest) == pytest.approx(math.fsum(changes) / changes.size, rel=1e-11)
+    before = lengths.copy()
+    key_deviation(lengths, rest)
+    assert np.array_equal(lengths, before)  # the caller's lengths are read, not changed
 
 @pytest.mark.parametrize("change, way", [(-0.04, "shorter"), (0.04, "longer"), (-0.005, "off")])
 def test_the_message_gives_the_chords_as_the_cause_only_of_edges_shorter(change, way):
