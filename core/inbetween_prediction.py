@@ -172,7 +172,8 @@ def _gap_poses(gap, factors, ahead=None) -> list[tuple[np.ndarray, str | None]]:
     held = held_before(gap)  # the solved in-betweens': read once, the same for every prediction
 
     def predict(s):
-        return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings, held=held), outer, rings)
+        return repaired_in_passes(gap, s, repaired_prediction(gap, s, correction, rings, held=held), outer, rings,
+                                  untangle=True)
 
     if ahead is not None:
         ahead()

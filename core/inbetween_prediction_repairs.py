@@ -40,18 +40,25 @@ STRETCHED_PREDICTION_CHANGES = 2.0
 #: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
 #: flipped triangles, with three 34, with five or more 33.
 REPAIR_PASSES = 8
-#: A sequence's predicted in-between whose repair keeps at most this many flipped or collapsed
-#: triangles is untangled then (:func:`untangled_first`: the step every in-between that keeps
-#: defects goes through last, :mod:`core.inbetween_untangling`) and, where that leaves it clean,
-#: is not repaired again (:func:`repaired_in_passes`). The few defects a repair leaves are where
-#: every field's solve folds them again (the region's boundary sits where the fold needs it): a
-#: pass of the repairs again runs a repair's rounds and removes a few, the untangling solves each
-#: tangle directly (15k curtain, keys 16 apart: a pass 7–18 ms, an untangled tangle 2–5 ms). Not
-#: the solved in-betweens, which the predictions are made from: untangled first, their local moves
-#: reached the predictions and the largest frame-to-frame jump grew (lifted sheet at g = 16 0.567 →
-#: 0.669 × the simulation's, banner 0.766 → 0.795, two sheets 0.436 → 0.463; predictions alone:
-#: 0.565 / 0.766 / 0.436). Numbers in docs/inbetween-measurements.md, *Predictions with few defects
-#: untangled before the repairs again*.
+#: A sequence's predicted in-between whose repair, or a pass of its repairs again, keeps at most
+#: this many flipped or collapsed triangles is untangled then (:func:`untangled_first`: the step
+#: every in-between that keeps defects goes through last, :mod:`core.inbetween_untangling`) and,
+#: where that leaves it clean, is not repaired again (:func:`repaired_in_passes`): a pass's pose
+#: with few defects left is a repair's pose like the first one's, its passes after it cost the same
+#: and remove as few (15k curtain at g = 16, s = 7/16 of the ball's gap: 76 → 28 → 10 → 9 → 9 in
+#: four passes of 22 / 18 / 13 / 13 ms, then untangled at the gap's end; with the rule after a pass
+#: its repairs again and last untangling take 58 ms less, and the lifted sheet's largest
+#: frame-to-frame jump at g = 16 is 0.5753 × the simulation's instead of 0.5645, beside its one
+#: in-between untangled so: the simulation's own there 0.81–0.83). The few defects a repair
+#: leaves are where every field's solve folds them again (the region's boundary sits where the fold
+#: needs it): a pass of the repairs again runs a repair's rounds and removes a few, the untangling
+#: solves each tangle directly (15k curtain, keys 16 apart: a pass 7–18 ms, an untangled tangle 2–5
+#: ms). Not the solved in-betweens, which the predictions are made from: untangled first, their
+#: local moves reached the predictions and the largest frame-to-frame jump grew (lifted sheet at g =
+#: 16 0.567 → 0.669 × the simulation's, banner 0.766 → 0.795, two sheets 0.436 → 0.463; predictions
+#: alone: 0.565 / 0.766 / 0.436). Numbers in docs/inbetween-measurements.md, *Predictions with few
+#: defects untangled before the repairs again* and *Predictions untangled after any pass of their
+#: repairs again that leaves few defects*.
 UNTANGLED_FIRST_DEFECTS = 30
 #: ... where the untangling raises the in-between's mean relative edge misfit to the interpolated
 #: metric by at most this (the 0.1 point the edge criterion grants beyond twice the keys' own
@@ -237,7 +244,8 @@ def _put_back(gap, s: float, taken: tuple) -> None:
             held[s] = value
 
 
-def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tuple[np.ndarray, str | None]:
+def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None,
+                       untangle: bool = False) -> tuple[np.ndarray, str | None]:
     """``pose`` (positions, problem), an in-between at ``s`` that kept defects no repair removed,
     repaired again from itself (:meth:`core.inbetween_solver.Gap.repaired_again`; ``rings``: the
     repair rounds), and again from each repair that leaves fewer defects, up to
@@ -259,7 +267,10 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
     flipped triangle instead of 117 (the middle of its fourth gap: 1,285 in the prediction, 115
     after its repair, 29 after one more); keys 16 apart, the sphere lifting a 10k sheet keeps 10
     instead of 18, the ball through the 15k curtain 33 instead of 104 (numbers in
-    docs/inbetween-measurements.md, *Repairs again from the fewest defects*)."""
+    docs/inbetween-measurements.md, *Repairs again from the fewest defects*). ``untangle``: a
+    prediction's passes (:func:`core.inbetween_prediction._gap_poses`), each of which that leaves
+    at most :data:`UNTANGLED_FIRST_DEFECTS` has the pose untangled then (:func:`untangled_first`),
+    returned where that cleans it, the passes going on where it does not."""
     if pose[1] is None:
         return pose
     scale = gap.repair.factor_area_scale(s)
@@ -280,6 +291,10 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None) -> tu
         pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), _taken(gap, s)
         if not count:
             break
+        if untangle and count <= UNTANGLED_FIRST_DEFECTS:  # a prediction a pass left with few: untangled now
+            done = untangled_first(gap, s, pose)
+            if done[1] is None:  # clean, its outcome recorded so
+                return done
     _put_back(gap, s, outcome)
     return pose
 

@@ -145,30 +145,48 @@ def test_a_sequence_in_between_whose_repairs_keep_a_fold_is_untangled(monkeypatc
 def _predictions_folded(monkeypatch):
     """The first gap of :func:`_sheet_keys` asked at seven factors (two solved, the others
     predicted), every in-between folded near a corner (a vertex pushed past its neighbour: two
-    triangles turned over) and kept so by its repair, as a fold no field removes: the solved ones
-    by their fits (:func:`_fits_made`: a gap whose solved in-betweens keep defects has its
-    predictions kept as their repairs leave them, not solved), each prediction as it is made.
-    (keys, triangles, the poses returned by factor, the predictions made by factor, the poses the
-    untangling of :func:`~core.inbetween_prediction_repairs.untangled_first` was given by factor,
-    the folded vertex, the factors of the passes of the repairs again made, the gap)."""
+    triangles turned over) and kept so by its repair, as a fold no field removes
+    (:func:`_predictions_kept`): what that returns."""
+    flat, tri, _ = _sheet_keys()
+    corner = _corner(flat)
+    return _predictions_kept(monkeypatch, lambda s, x: _pushed_past(x, tri, corner))
+
+
+def _corner(flat) -> int:
+    """The vertex of :func:`_sheet_keys`' ``flat`` sheet the solved in-betweens of
+    :func:`_predictions_kept` are folded at."""
+    return int(np.argmin(np.linalg.norm(flat - [0.3, 0.3, 0.0], axis=1)))
+
+
+def _predictions_kept(monkeypatch, fold, again=None):
+    """The first gap of :func:`_sheet_keys` asked at seven factors (two solved, the others
+    predicted): the solved ones folded by their fits near a corner (:func:`_corner`, a vertex
+    pushed past its neighbour; :func:`_fits_made`: a gap whose solved in-betweens keep defects has
+    its predictions kept as their repairs leave them, not solved), each prediction at factor ``s``
+    made into ``fold(s, x)`` (``x``: the prediction (n, 3)) and kept so by its repair, as folds no
+    field removes; the passes of the repairs again ``again`` (a stand-in for
+    ``core.inbetween_solver.Gap.repaired_again``) if given, else the real ones. (keys, triangles,
+    the poses returned by factor, the predictions made by factor, the poses the untangling of
+    :func:`~core.inbetween_prediction_repairs.untangled_first` was given by factor, the corner, the
+    factors of the passes of the repairs again made, the gap)."""
     import core.inbetween_prediction_repairs as prediction_repairs
     import core.inbetween_solver as solver
     from core.inbetween_repair import Outcome
 
     flat, tri, keys = _sheet_keys()
-    corner = int(np.argmin(np.linalg.norm(flat - [0.3, 0.3, 0.0], axis=1)))
+    corner = _corner(flat)
     _fits_made(monkeypatch, lambda x: (_pushed_past(x, tri, corner),))
     real_predicted, made, passes = prediction_repairs.predicted_positions, {}, []
 
     def predicted(gap, s, correction, motion):
-        made[s] = _pushed_past(real_predicted(gap, s, correction, motion), tri, corner)
+        made[s] = fold(s, real_predicted(gap, s, correction, motion))
         return made[s].copy()
 
     def kept(self, x, s, rings=None, defects=None):  # the repair removes nothing
         self.outcomes[s] = Outcome(int(np.count_nonzero(defects)), False)
         return x, f"{np.count_nonzero(defects)} triangle(s) flipped or collapsed"
 
-    real_again, real_untangled, given = solver.Gap.repaired_again, prediction_repairs.untangled, {}
+    real_again, real_untangled, given = again or solver.Gap.repaired_again, prediction_repairs.untangled, {}
 
     def untangled(gap, x, s, *args):  # what the untangling is given
         given[s] = x.copy()
@@ -202,6 +220,54 @@ def test_predictions_whose_repairs_keep_few_defects_are_untangled_without_a_pass
     near = _within_rings(tri, corner, 3)
     mean_edge = np.mean(np.linalg.norm(keys[0][tri[:, 1]] - keys[0][tri[:, 0]], axis=1))
     for s, x in given.items():
+        assert 0 < _flipped(x, keys[0], keys[1], tri) <= UNTANGLED_FIRST_DEFECTS
+        y = poses[s]
+        assert _flipped(y, keys[0], keys[1], tri) == 0 and gap.outcomes[s] == Outcome(0, False)
+        assert (y[near] != x[near]).any() and np.array_equal(y[~near], x[~near])
+        assert np.linalg.norm(y - x, axis=1).max() < mean_edge
+
+
+def test_a_prediction_a_pass_leaves_with_few_defects_is_untangled_then_without_more_passes(monkeypatch):
+    """A predicted in-between whose repair keeps more than UNTANGLED_FIRST_DEFECTS (25 vertices of a
+    40 × 40 sheet pushed past their neighbours, as folds no field of its repair removes) is repaired
+    again; a pass that leaves it at most that many (here: all folds but three, near a side) has it
+    untangled then (:func:`core.inbetween_prediction_repairs.untangled_first`), and where that cleans
+    it no further pass runs: each prediction takes exactly one pass, the untangling is given that
+    pass's pose, and the prediction comes back with no triangle facing against both keys (counted
+    here from its normals), its outcome clean, only the vertices within three rings of the folds
+    left moved (and of the solved in-betweens' own fold, which the predictions made from them
+    inherit), by less than a mean edge. Before, a second pass ran on each (leaving the same folds)
+    and the last untangling of the gap removed them."""
+    from core.inbetween_prediction_repairs import UNTANGLED_FIRST_DEFECTS
+    from core.inbetween_repair import Outcome
+
+    flat, tri, _ = _sheet_keys()
+    lattice = [int(np.argmin(np.linalg.norm(flat - [a, b, 0.0], axis=1)))
+               for a in (0.15, 0.3, 0.45, 0.6, 0.75) for b in (0.15, 0.3, 0.45, 0.6, 0.75)]
+    left, others = lattice[:3], lattice[3:]  # the folds a pass leaves, and those it removes
+    clean = {}
+
+    def fold(s, x):  # every lattice vertex pushed past its neighbour
+        clean[s] = x
+        for v in lattice:
+            x = _pushed_past(x, tri, v)
+        return x
+
+    def again(self, x, s, *args, **kwargs):  # a pass removes every fold but those ``left``
+        y = x.copy()
+        if s in clean:
+            y[others] = clean[s][others]
+        count = int(self.repair.counted(y, s, self.repair.factor_area_scale(s)).sum())
+        self.outcomes[s] = Outcome(count, False)
+        return y, f"{count} triangle(s) flipped or collapsed" if count else None
+
+    keys, tri, poses, made, given, corner, passes, gap = _predictions_kept(monkeypatch, fold, again)
+    near = np.logical_or.reduce([_within_rings(tri, v, 3) for v in left + [corner]])
+    mean_edge = np.mean(np.linalg.norm(keys[0][tri[:, 1]] - keys[0][tri[:, 0]], axis=1))
+    assert made and sorted(given) == sorted(made)
+    for s, x in given.items():
+        assert passes.count(s) == 1
+        assert _flipped(made[s], keys[0], keys[1], tri) > UNTANGLED_FIRST_DEFECTS
         assert 0 < _flipped(x, keys[0], keys[1], tri) <= UNTANGLED_FIRST_DEFECTS
         y = poses[s]
         assert _flipped(y, keys[0], keys[1], tri) == 0 and gap.outcomes[s] == Outcome(0, False)
