@@ -367,11 +367,16 @@ class Anchor:
         loose = topo.edges_per_vertex == 0  # no edge to judge by: with their owner where it takes them
         # a jointed piece's motion is its parent's composed with the relative one (core.inbetween_joints):
         # with it undone the blend follows the joints, where in the world it is their linear blend
-        # (the last of three links bent +60° / −60° only translates: 4.5e-2 of the diagonal off at 0.5)
+        # (the last of three links bent +60° / −60° only translates: 4.5e-2 of the diagonal off at 0.5);
+        # so does a piece of a body whose leader is jointed, which takes the leader's motion (a scissor
+        # lift's platform plate, on its own translation 5.0e-2 of the diagonal off its bracket at 0.5)
         child = np.zeros(topo.n, dtype=bool)
         if self.joints is not None:
             owner = topo.vertex_owner
-            child = (owner >= 0) & (self.joints[0] >= 0)[np.maximum(owner, 0)]
+            hung = self.joints[0] >= 0
+            if self.body_members is not None:
+                hung[self.body_members] |= hung[self.bodies[self.body_members]]
+            child = (owner >= 0) & hung[np.maximum(owner, 0)]
         co_moving = ((co_moving_change < BLEND_SHORTENING_SCALE) & ((co_moving_change < world_change) | loose | child)
                      & (drift < CO_MOVING_DRIFT))
         if between:

@@ -140,6 +140,18 @@ def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarr
     return rotation.T @ child_rotation, rotation.T @ (child_translation - translation)
 
 
+def carry(rotations: np.ndarray, translations: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Each point of ``points`` (k, 3) moved by its own rigid motion ``x ↦ R x + t`` (``rotations``
+    (k, 3, 3), ``translations`` (k, 3)): where that motion carries it (k, 3)."""
+    return np.einsum("kab,kb->ka", rotations, points) + translations
+
+
+def carry_lengths(rotations: np.ndarray, translations: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """How far (k,) each point of ``points`` (k, 3) is moved by its own rigid motion (``rotations``
+    (k, 3, 3), ``translations`` (k, 3); :func:`carry`)."""
+    return np.linalg.norm(carry(rotations, translations, points) - points, axis=1)
+
+
 def joint_offset(contact: np.ndarray, rotation: np.ndarray, translation: np.ndarray, reach: float) -> float:
     """How far (≥ 0) the relative rigid motion ``x ↦ rotation · x + translation`` of two pieces
     (the child's motion with its parent's undone) is from holding their ``contact`` (points (k, 3)
@@ -159,8 +171,7 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     ``reach`` or does not turn. A hinge whose pivot lies inside both meshes moves every contact
     point but keeps its axis through the contact. Every pair at once (a pile of 30,000 pieces has
     50,000 touching pairs: 4 s per gap one by one)."""
-    moved = np.einsum("kab,kb->ka", rotations[pair], contact) + translations[pair]
-    held = np.maximum.reduceat(np.linalg.norm(moved - contact, axis=1), starts) <= reach
+    held = np.maximum.reduceat(carry_lengths(rotations[pair], translations[pair], contact), starts) <= reach
     angle, axis, slide = screw_axes(rotations, translations)
     hinged = ~held & (angle >= 1e-9) & (np.abs(slide) <= reach)
     pivot = np.zeros_like(translations)  # a point of each hinge's axis (only theirs: one small SVD each)
@@ -289,8 +300,7 @@ def _turns_about(contact: np.ndarray, centres: np.ndarray, rotations: np.ndarray
     out = np.zeros(u.size, dtype=bool)
     for k in (u, v):
         angle = np.linalg.norm(df.rotation_vectors(rotations[k]), axis=1)
-        chord = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], x) + translations[k] - x, axis=1)
-                 for x in (contact, centres[k])]
+        chord = [carry_lengths(rotations[k], translations[k], x) for x in (contact, centres[k])]
         out |= _axis_distances(chord[0], angle) < _axis_distances(chord[1], angle)
     return out
 
@@ -456,7 +466,7 @@ def _relative_moves(x: np.ndarray, index: np.ndarray, label: np.ndarray, child: 
     centres, radii = _piece_centres(x, index, label)
     rotations, translations = relative
     centre = centres[child]
-    shift = np.linalg.norm(np.einsum("pab,pb->pa", rotations, centre) + translations - centre, axis=1)
+    shift = carry_lengths(rotations, translations, centre)
     chord = np.linalg.norm(rotations - np.eye(3), axis=(1, 2)) / np.sqrt(2.0)  # ‖R − I‖_F = 2√2 sin(θ/2)
     return shift + chord * radii[child]
 
@@ -606,8 +616,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             pivot = _axis_points(relative[0][t], relative[1][t], axis[t], slide[t])
             offset = np.add.reduceat(contact, first)[t] / np.diff(np.r_[first, key.size])[t, None] - pivot
             point = pivot + np.einsum("pa,pa->p", offset, axis[t])[:, None] * axis[t]
-            drift = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k[t]], point) + translations[k[t]]
-                                                - point, axis=1) for k in (u, v)))
+            drift = np.maximum(*(carry_lengths(rotations[k[t]], translations[k[t]], point) for k in (u, v)))
             together[t] = drift > precision[t]
         # the contact in each key: the centre of all its vertex pairs touching (within the finer
         # piece's edges), where the closest pair of meshing teeth jumps from tooth to tooth as the
@@ -629,8 +638,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         contact_later = np.where(steady[:, None], centres_later, contact_later)
         contact_base, contact_later = shared_contacts(base, nxt, ends, first, nearest_base, nearest_later,
                                                       precision, contact_base, contact_later)
-        chords = [np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], contact_base) + translations[k] - contact_base,
-                                 axis=1) for k in (u, v)]
+        chords = [carry_lengths(rotations[k], translations[k], contact_base) for k in (u, v)]
         carried = np.maximum(*chords)
         # - a joint's contact goes where its pieces' motions carry it (both carry a hinge's point to
         #   the same place) and keeps the vertex pairs at its axis, as a hinge does opening or folding
@@ -640,8 +648,8 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         #   their overlap within it) and of whose touching vertex pairs none touches in the next key
         #   (_held_contacts) rolls or slides along them: a wheel rolling on a still floor, held as
         #   a hinge on the floor, would carry a cart's body round the wheel's own screw
-        reached = np.minimum(*(np.linalg.norm(np.einsum("pab,pb->pa", rotations[k], centres_base) + translations[k]
-                                              - centres_later, axis=1) for k in (u, v)))
+        reached = np.minimum(*(np.linalg.norm(carry(rotations[k], translations[k], centres_base) - centres_later,
+                                              axis=1) for k in (u, v)))
         held, extent = _held_contacts(base, nxt, ends, first, within, centres_base)
         rolls = jointed & ~(held | (reached <= CONTACT_ROLLS * finer + extent + precision))
         # only where another joint places one of its pieces (a wheel on its axle), which the rolling
@@ -674,7 +682,7 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
             if not together.any():
                 break
             rotations_s, translations_s = screw_motions.rigid_exps(s * screws[pieces])
-            moved = np.einsum("kab,kb->ka", rotations_s[label], base[index]) + translations_s[label]
+            moved = carry(rotations_s[label], translations_s[label], base[index])
             together &= nearest_pairs(moved, np.arange(index.size), label, pieces.size, kept[together].max(),
                                        key[first], together)[0] <= kept
         jointed &= ~together
@@ -802,8 +810,7 @@ def _pins_kept(base: np.ndarray, index: np.ndarray, label: np.ndarray, count: in
     rotations, translations = motions
     kept = []
     for mover, still in ((v, u), (u, v)):
-        moved = np.max([np.linalg.norm(np.einsum("pab,pb->pa", rotations[mover], x[still]) + translations[mover]
-                                       - x[still], axis=1) for x in points], axis=0)
+        moved = np.max([carry_lengths(rotations[mover], translations[mover], x[still]) for x in points], axis=0)
         kept.append((counts[still] == 0) | (moved <= precision))
     return counts > 0, kept[0], kept[1]
 
@@ -820,11 +827,9 @@ def joint_screws(parents: np.ndarray, screws: list, phantom: list, motions: list
     children = np.flatnonzero(parents >= 0)
     motions = [None] * len(screws) if motions is None else motions
 
-    def local(k):  # each child's rigid motion relative to its parent's at key k (relative_motion, every child at once)
+    def local(k):  # each child's rigid motion relative to its parent's at key k (every child at once)
         rotations, translations = screw_motions.rigid_exps(screws[k]) if motions[k] is None else motions[k]
-        inverse = np.transpose(rotations[parents[children]], (0, 2, 1))
-        return (inverse @ rotations[children],
-                np.einsum("cab,cb->ca", inverse, translations[children] - translations[parents[children]]))
+        return relative_motions(rotations, translations, parents[children], children)
 
     out = [screw.copy() for screw in screws]  # roots and unjointed pieces: their own
     if children.size:
@@ -864,6 +869,6 @@ def composed(parents: np.ndarray, order: list, rotations: np.ndarray, translatio
     for level in range(1, int(depth.max(initial=0)) + 1):  # a level's children at once, on their parents' motions
         c = np.flatnonzero(depth == level)
         p = parents[c]
-        translations[c] = np.einsum("cab,cb->ca", rotations[p], local_translations[c]) + translations[p]
+        translations[c] = carry(rotations[p], translations[p], local_translations[c])
         rotations[c] = rotations[p] @ local_rotations[c]
     return rotations, translations

@@ -124,7 +124,7 @@ class PieceMotion:
                 "cab,cb->ca", rotations[rows], points[labels[rows]])
         if joints is not None:
             motion = composed(*joints, *motion, screw_motions.rigid_exps(joint_screw.at(s)))
-        if self.body_members is not None:  # the pieces of a turning rigid body: its leader's motion (core.rigid_bodies)
+        if self.body_members is not None:  # a body that turns or hangs from a joint: its leader's motion (core.rigid_bodies)
             rotations, translations = motion
             members, leaders = self.body_members, self.bodies[self.body_members]
             rotations[members], translations[members] = rotations[leaders], translations[leaders]

@@ -292,12 +292,17 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
             self.bodies = rigid_bodies(known, candidates, nonrigidity, topo.component_mass, scale, links, parents)
         # ... the members of a body that turns take its leader's motion (PieceMotion.motion); a
         # body's pieces that only translate (turns under FLYING_MIN_TURN in every key: translations
-        # to within the turn's arc) keep their own, which are its translation to that arc
+        # to within the turn's arc) keep their own, which are its translation to that arc, unless
+        # the leader hangs from a joint: its motion is then its parent's composed with its turn
+        # relative to it, off its own translation's line between the keys (a scissor lift's
+        # platform, a plate with a bracket pinned on the top bars, rises as the sine of the bars'
+        # angle: on its own translation the plate left the bracket by 5.0e-2 of the diagonal at 0.5)
         self.body_members = None
         if self.bodies is not None:
             turn = np.max([np.linalg.norm(df.rotation_vectors(rotations), axis=1) for rotations, _ in known], axis=0)
+            hung = np.zeros(len(topo.components), dtype=bool) if parents is None else parents >= 0
             members = np.flatnonzero((self.bodies != np.arange(len(topo.components)))
-                                     & (turn[self.bodies] > FLYING_MIN_TURN))
+                                     & ((turn[self.bodies] > FLYING_MIN_TURN) | hung[self.bodies]))
             self.body_members = members if members.size else None
         # the joint screws' spline's frames, slowing and options, for the gap's joint tree and another
         # tree (PieceMotion.hung_motions); kept as values: a closure over ``options`` would hold the
