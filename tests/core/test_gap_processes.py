@@ -957,3 +957,29 @@ def test_the_workers_build_takes_the_keys_as_the_caller_checked_them(monkeypatch
             built = gap_worker.CallerSequence(keys, triangles, **options)
         shared = _asked(built, requests)
     _same(shared, _one_process(requests, monkeypatch))
+
+
+@pytest.mark.parametrize("form", ["float32", "lists", "fortran_stack"])
+def test_keys_in_any_accepted_form_reach_the_workers_unchecked_build_as_checked(form, monkeypatch):
+    """The worker takes the keys it is sent as checked (``core.gap_worker.CallerSequence``), so the
+    caller sends its checked copies, float64 ``(n, 3)`` C-contiguous, whatever form the user gave:
+    keys given as float32 arrays, nested lists or a Fortran-ordered ``(K, n, 3)`` stack. The worker
+    builds its sequence and begins its gaps (none answered ``broken`` and left to the caller), and
+    every pose and warning is one process's of the same keys to the bit."""
+    worker = _ready_worker()
+    keys = {"float32": [key.astype(np.float32) for key in KEYS], "lists": [key.tolist() for key in KEYS],
+            "fortran_stack": np.asfortranarray(np.stack(KEYS))}[form]
+    jobs, submit = [], gap_processes._Worker.submit
+
+    def kept_submit(self, job, *arguments):
+        jobs.append(job)
+        return submit(self, job, *arguments)
+
+    monkeypatch.setattr(gap_processes._Worker, "submit", kept_submit)
+    requests = [(gap, SIXTEENTHS) for gap in range(5)]
+    sequence = SequenceInterpolator(keys, TRIANGLES)
+    assert all(type(key) is np.ndarray and key.dtype == np.float64 and key.flags.c_contiguous and
+               key.shape == KEYS[0].shape for key in sequence._worker_arguments[0])
+    shared = _asked(sequence, requests, after_first=lambda: _begun(worker, 3))
+    assert jobs and any(job.begun for job in jobs)  # the worker built the sequence and computed gaps of it
+    _same(shared, _one_process(requests, monkeypatch, keys=keys))
