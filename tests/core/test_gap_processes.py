@@ -885,10 +885,11 @@ def test_a_worker_killed_as_its_message_was_taken_is_told_not_taken_as_sent(monk
     assert not worker.alive and gap_processes._unstartable
 
 
-#: Run in the worker before its boot (the test below): threadpoolctl's look-up of the BLAS libraries,
-#: whose callback glibc's ``dl_iterate_phdr`` runs holding the loader's lock, held until another thread
-#: of the worker is about to load a compiled module (at once where the worker has no other thread, or
-#: CHOLMOD's library is loaded already; at most 60 s).
+#: Run in the worker before its boot (the test below): threadpoolctl's look-up of the BLAS libraries
+#: (before threadpoolctl 3.7 in a callback glibc's ``dl_iterate_phdr`` runs holding the loader's lock),
+#: held until another thread of the worker is about to load a compiled module (at once where the worker
+#: has no other thread, as when the look-up is made as it imports the core, or CHOLMOD's library is
+#: loaded already; at most 60 s).
 HELD_LOOKUP = (
     "import sys, threading, time, threadpoolctl\n"
     "_make = threadpoolctl.ThreadpoolController._make_controller_from_path\n"
@@ -914,11 +915,13 @@ HELD_LOOKUP = (
 
 def test_the_worker_loads_no_library_in_its_reader_while_it_looks_its_blas_up(monkeypatch):
     """The worker's reader thread takes the caller's orderings (CHOLMOD's library loaded at the first:
-    cholespy imported) while its loop makes threadpoolctl's view of the BLAS libraries (a Python
-    callback run by glibc under the loader's lock): loaded in that window, each waits for the other's
-    lock for ever, and the worker is silent (ended as hung, the second core lost for the session).
-    The look-up is held here until the reader is about to load a library: the worker still answers
-    its job, no ``process`` warning, the same in-betweens as one process."""
+    cholespy imported). Loaded while threadpoolctl before 3.7 makes its view of the BLAS libraries (a
+    Python callback run by glibc under the loader's lock), each waits for the other's lock for ever,
+    and the worker is silent (ended as hung, the second core lost for the session). The look-up is
+    made as the worker imports the core, before its reader exists (core.concurrency), and CHOLMOD's
+    library is loaded before the reader starts; held here until another thread is about to load a
+    library (not held where the worker has no other thread then): the worker still answers its job,
+    no ``process`` warning, the same in-betweens as one process."""
     from core import sparse_cholesky
 
     if sparse_cholesky._direct_library() is None:
