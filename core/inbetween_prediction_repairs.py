@@ -43,22 +43,15 @@ REPAIR_PASSES = 8
 #: A sequence's predicted in-between whose repair, or a pass of its repairs again, keeps at most
 #: this many flipped or collapsed triangles is untangled then (:func:`untangled_first`: the step
 #: every in-between that keeps defects goes through last, :mod:`core.inbetween_untangling`) and,
-#: where that leaves it clean, is not repaired again (:func:`repaired_in_passes`): a pass's pose
-#: with few defects left is a repair's pose like the first one's, its passes after it cost the same
-#: and remove as few (15k curtain at g = 16, s = 7/16 of the ball's gap: 76 → 28 → 10 → 9 → 9 in
-#: four passes of 22 / 18 / 13 / 13 ms, then untangled at the gap's end; with the rule after a pass
-#: its repairs again and last untangling take 58 ms less, and the lifted sheet's largest
-#: frame-to-frame jump at g = 16 is 0.5753 × the simulation's instead of 0.5645, beside its one
-#: in-between untangled so: the simulation's own there 0.81–0.83). The few defects a repair
-#: leaves are where every field's solve folds them again (the region's boundary sits where the fold
-#: needs it): a pass of the repairs again runs a repair's rounds and removes a few, the untangling
-#: solves each tangle directly (15k curtain, keys 16 apart: a pass 7–18 ms, an untangled tangle 2–5
-#: ms). Not the solved in-betweens, which the predictions are made from: untangled first, their
-#: local moves reached the predictions and the largest frame-to-frame jump grew (lifted sheet at g =
-#: 16 0.567 → 0.669 × the simulation's, banner 0.766 → 0.795, two sheets 0.436 → 0.463; predictions
-#: alone: 0.565 / 0.766 / 0.436). Numbers in docs/inbetween-measurements.md, *Predictions with few
-#: defects untangled before the repairs again* and *Predictions untangled after any pass of their
-#: repairs again that leaves few defects*.
+#: where that leaves it clean, is not repaired again (:func:`repaired_in_passes`). The few defects
+#: a repair or a pass leaves are where every field's solve folds them again (the region's boundary
+#: sits where the fold needs it): each further pass runs a whole repair's rounds to remove a few,
+#: the untangling solves each tangle directly, for a fraction of a pass; with more defects the
+#: tangles grow and their untangling costs more than the passes it saves. Not the solved
+#: in-betweens, which the predictions are made from: their untangling's local moves reach the
+#: predictions and raise the frame-to-frame jumps. Numbers in docs/inbetweens.md's table and
+#: docs/inbetween-measurements.md, *Predictions with few defects untangled before the repairs
+#: again* and *Predictions untangled after any pass of their repairs again that leaves few defects*.
 UNTANGLED_FIRST_DEFECTS = 30
 #: ... where the untangling raises the in-between's mean relative edge misfit to the interpolated
 #: metric by at most this (the 0.1 point the edge criterion grants beyond twice the keys' own
