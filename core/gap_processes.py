@@ -33,8 +33,13 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   (:meth:`GapProcesses.will_ask`: :func:`core.retime.iter_retime`, whose factors may change from
   gap to gap). When the worker is ready and idle, the later half of the calls left (the current
   one counted as the caller's) goes to it, contiguous and in order: a gap's relative of its next key
-  is kept for the gap after, which alternating gaps would lose. A worker done with its share before
-  the caller is done with its own gets the later half of what the caller has left, again. Only
+  is kept for the gap after, which alternating gaps would lose. An odd count's middle call cannot be
+  halved, and on few gaps it is a whole gap one process idles through (three gaps: the caller's two
+  against the worker's one), so the half is rounded up and the worker's last call is *contested*
+  (:attr:`_Job.contested`): whichever process is free first computes it, the worker in its order, or
+  the caller, done with its own and waiting, taking it back even as the last one not begun. A worker
+  done with its share before the caller is done with its own gets the later half of what the caller
+  has left, again. Only
   where the sequence's threads would run (:data:`~core.inbetween_threads.CONCURRENT_VERTICES`
   vertices or more, two cores, no truncated metric) and at most :data:`PROCESS_VERTICES` vertices
   (the two processes' memory).
@@ -47,7 +52,7 @@ the gaps, use both cores without that hand-over. What :class:`GapProcesses` (a m
   other exception, and a gap the worker did not return, computed in the caller, which raises as it
   would have). While it waits, the calls the worker has not begun are taken back from the last and
   computed by the caller (the worker skips them) while two or more are left (:data:`TAKEN_BACK_LEAST`),
-  so a worker started late, or slowed by other processes, keeps only what it can do.
+  or the contested one, so a worker started late, or slowed by other processes, keeps only what it can do.
 - *Safety.* A worker that cannot be started (no ``sys.executable``, a sandbox), or that dies,
   or breaks, leaves the gaps to the caller, nothing lost; one that does not start within
   :data:`START_TIMEOUT` seconds is ended and not tried again in the session; one that sends nothing
@@ -95,7 +100,8 @@ START_TIMEOUT = 60.0
 #: Calls the worker must have left not begun for the caller, waiting for one of its results, to
 #: take the last back and compute it: a gap taken back has no relative kept from the gap before it
 #: (curtain, keys 4 apart: 0.18 s against 0.12 s in order), so with one left the worker, ending its
-#: gap under way and then that one, is as soon done.
+#: gap under way and then that one, is as soon done. The contested call (:attr:`_Job.contested`, an odd
+#: share's last) is taken back even alone: the caller, done with its own, would idle through two gaps.
 TAKEN_BACK_LEAST = 2
 #: A caller waiting for the worker's result ends the worker where it has sent nothing on the job for
 #: this many times the slowest gap timed so far (the worker's, from its call begun to its poses, and
@@ -163,6 +169,9 @@ class _Job:
         #: Sent without the keys to a worker that kept no sequence under their token (it let it go, idle,
         #: as the job was on its way): none of its calls begun, they are handed over again with the keys.
         self.forgotten = False
+        #: ``(gap, factor bits)`` of the call an odd share gave the worker beyond half (its last), which a
+        #: waiting caller takes back even as the last one not begun; None where the share was even.
+        self.contested = None
 
 
 class _Worker:
@@ -233,15 +242,16 @@ class _Worker:
     def outcome(self, job: _Job, key: tuple, steal=None, limit: float = HANG_LEAST):
         """The worker's message on call ``key`` of ``job``, waited for; None where it will send none.
         While it is not there and the worker has :data:`TAKEN_BACK_LEAST` calls of ``job`` or more not
-        begun, the last is taken back (the worker told to skip it) and given to ``steal(call,
-        factors)``, which computes it. Raises :class:`_Silent` where the worker has sent nothing on
-        ``job`` for ``limit`` seconds (:data:`HANG_GAPS`)."""
+        begun, or its last not begun is the job's contested one (:attr:`_Job.contested`), the last is
+        taken back (the worker told to skip it) and given to ``steal(call, factors)``, which computes
+        it. Raises :class:`_Silent` where the worker has sent nothing on ``job`` for ``limit`` seconds
+        (:data:`HANG_GAPS`)."""
         while True:
             with self.condition:
                 call = None
                 while key in job.calls and key not in job.outcomes and not job.ended:
                     left = [pending for pending in job.calls if pending not in job.begun]
-                    if len(left) >= TAKEN_BACK_LEAST and steal is not None:
+                    if steal is not None and (len(left) >= TAKEN_BACK_LEAST or left and left[-1] == job.contested):
                         call = left[-1]
                         break
                     silent = time.monotonic() - job.heard
@@ -664,7 +674,8 @@ class GapProcesses:
         """Give the worker the later half of the calls left after this one (on gap ``gap``) up to those
         it holds already, this one counted as the caller's unless ``computed`` already, where the
         worker is ready and idle (again once it has done a first share before the caller has done
-        its own)."""
+        its own). An odd count's half is rounded up, the caller keeping one call at least, and the
+        worker's last call then contested (:attr:`_Job.contested`)."""
         if self._worker_arguments is None or not shares_gaps(self._topo.n, self.k_M):
             return
         if self._plan is not None:
@@ -675,13 +686,16 @@ class GapProcesses:
         if held:  # the calls before the first the worker holds (those after it are its or asked already)
             first = next((i for i, (at, asked, _) in enumerate(rest) if (at, asked) in held), len(rest))
             rest = rest[:first]
-        share = (len(rest) + (not computed)) // 2
+        count = len(rest) + (not computed)  # the calls to share, this one counted where not computed
+        share = min((count + 1) // 2, count - 1)  # the caller keeps one at least (this one, where not computed)
         if share < 1:
             return
         worker = kept_worker()
         if worker is None or not worker.idle():
             return
         job = _Job(rest[len(rest) - share:])
+        if share > count // 2:  # an odd count's middle call: the worker's last, to whichever is free first
+            job.contested = tuple(rest[-1][:2])
         if self._token is None:
             self._token = _digest(self._worker_arguments)
         if worker.submit(job, self._token, self._worker_arguments):

@@ -138,18 +138,30 @@ def _counted_jobs(monkeypatch):
     return given, taken
 
 
+def _counted_take_backs(monkeypatch):
+    """The gaps the caller takes back from the worker, in order."""
+    taken_back, take_back = [], gap_processes.GapProcesses._take_back
+
+    def counted(self, call, factors):
+        taken_back.append(call[0])
+        return take_back(self, call, factors)
+
+    monkeypatch.setattr(gap_processes.GapProcesses, "_take_back", counted)
+    return taken_back
+
+
 def test_same_poses_and_warnings_in_order_as_one_process(monkeypatch):
-    """Five gaps in order at 15 factors: the worker takes the later two (the warned ones), and every
-    pose and warning (message, kind, gap, factors, excess), in order, is one process's. The caller goes
-    on after its first call once the worker has begun gap 3 (a starved worker that has not, as the
-    caller reaches gap 3, leaves two calls not begun, and the caller takes gap 4 back: failed 1 of 1
-    with the worker stopped 3 s after its job was handed over, ``taken`` [3] against [3, 4])."""
+    """Five gaps in order at 15 factors: the worker takes the later three (the half of five rounded
+    up, the last contested: the warned gaps among them), and every pose and warning (message, kind,
+    gap, factors, excess), in order, is one process's. The caller goes on after its first call once the
+    worker has begun gap 2; its gap 4 is the worker's or, where the worker has not begun it when the
+    caller waits for gap 2 or 3, taken back."""
     worker = _ready_worker()
     given, taken = _counted_jobs(monkeypatch)
+    taken_back = _counted_take_backs(monkeypatch)
     requests = [(gap, SIXTEENTHS) for gap in range(5)]
-    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=lambda: _begun(worker, 3))
-    # the later two at the first call; the one before them where the worker is done before the caller's second
-    assert given[0] == [3, 4] and given[1:] in ([], [[2]]) and taken == [2, 3, 4][3 - sum(map(len, given)):]
+    shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=lambda: _begun(worker, 2))
+    assert given == [[2, 3, 4]] and taken_back in ([], [4]) and sorted(taken + taken_back) == [2, 3, 4]
     alone = _one_process(requests, monkeypatch)
     assert sum(len(said) for _, said in alone[3:]) >= 2  # the worker's gaps warn
     _same(shared, alone)
@@ -172,13 +184,14 @@ def test_the_worker_starts_no_worker_of_its_own(monkeypatch):
 
 def test_a_retime_at_another_speed_shares_its_planned_gaps(monkeypatch):
     """A retime whose factors change from gap to gap says its plan (will_ask): the worker takes the
-    later half of it, and the retimed samples are one process's to the bit."""
+    later half of it (five calls: three, the half rounded up), and the retimed samples are one
+    process's to the bit."""
     _ready_worker()
     given, _ = _counted_jobs(monkeypatch)
     samples = np.array([KEYS[k // 3] if k % 3 == 0 else
                         (1 - (k % 3) / 3) * KEYS[k // 3] + (k % 3) / 3 * KEYS[k // 3 + 1] for k in range(16)])
     shared = retime.retime(samples, TRIANGLES, step=3, speed=0.7)
-    assert given and len(given[0]) == 2
+    assert given and len(given[0]) == 3
     monkeypatch.setattr(concurrency, "USE_PROCESSES", False)
     assert shared.tobytes() == retime.retime(samples, TRIANGLES, step=3, speed=0.7).tobytes()
 
@@ -211,8 +224,9 @@ def _paused_until(released: Path) -> str:
 def test_a_failing_gap_raises_when_the_caller_reaches_it(monkeypatch, tmp_path):
     """Gap 3 fails (in the worker, which holds it, and in the parent alike): the calls before it
     answer, it raises the core's error with one process's message, the gap after it answers. Each of
-    the worker's gaps is taken from it or, where the caller waited for gap 3 before the worker began
-    either (a loaded machine), gap 4 taken back and computed by the caller."""
+    the worker's gaps (2, 3 and 4) is taken from it or taken back and computed by the caller: gap 4
+    where the worker has not begun it when the caller waits (contested), and gap 3 too where the
+    worker had begun neither as the caller waited for gap 2 (a loaded machine)."""
     gap_processes.shut_down()
     monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 3, "raise _Failed('gap 3 fails here')")))
     solved = SequenceInterpolator._solved_poses
@@ -226,17 +240,11 @@ def test_a_failing_gap_raises_when_the_caller_reaches_it(monkeypatch, tmp_path):
     try:
         _ready_worker()
         given, taken = _counted_jobs(monkeypatch)
-        taken_back, take_back = [], gap_processes.GapProcesses._take_back
-
-        def counted(self, call, factors):
-            taken_back.append(call[0])
-            return take_back(self, call, factors)
-
-        monkeypatch.setattr(gap_processes.GapProcesses, "_take_back", counted)
+        taken_back = _counted_take_backs(monkeypatch)
         requests = [(gap, SIXTEENTHS) for gap in range(5)]
         shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests)
-        assert given[0] == [3, 4] and given[1:] in ([], [[2]]) and taken_back in ([], [4])
-        assert sorted(taken + taken_back) == [2, 3, 4][3 - sum(map(len, given)):]
+        assert given == [[2, 3, 4]] and taken_back in ([], [4], [4, 3])
+        assert sorted(taken + taken_back) == [2, 3, 4]
     finally:
         gap_processes.shut_down()
     assert shared[3][0][0] is RecoveryError and "gap 3 fails here" in shared[3][0][1]
@@ -296,7 +304,7 @@ def test_a_worker_killed_mid_sequence_leaves_its_gaps_to_the_caller(monkeypatch)
     given, _ = _counted_jobs(monkeypatch)
     requests = [(gap, SIXTEENTHS) for gap in range(5)]
     shared = _asked(SequenceInterpolator(KEYS, TRIANGLES), requests, after_first=worker.process.kill)
-    assert given[0] == [3, 4] and not worker.alive
+    assert given[0] == [2, 3, 4] and not worker.alive
     _same(shared, _one_process(requests, monkeypatch))
     assert _ready_worker() is not worker
 
@@ -397,21 +405,24 @@ def _digest(answers) -> list:
 
 def _slowed_at_gap_3(monkeypatch, tmp_path, seconds: float, first_calls: int):
     """A new worker whose core pauses ``seconds`` at gap 3, a sequence of the spun sheet and the
-    answers of its first ``first_calls`` calls (gaps in order at 15 factors): the worker then holds
-    gaps 3 and 4. ``(sequence, answers, the gaps taken from the worker, worker)``."""
+    answers of its first ``first_calls`` calls (gaps in order at 15 factors; after the first, the
+    worker's gap 3 begun: else a caller waiting for gap 2 takes gaps 4 and 3 back): the worker then
+    holds gaps 2, 3 and 4 (the last contested). ``(sequence, answers, the gaps taken from the worker,
+    worker)``."""
     gap_processes.shut_down()
     monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 3, f"_time.sleep({seconds})")))
     worker = _ready_worker()
     given, taken = _counted_jobs(monkeypatch)
     sequence = SequenceInterpolator(KEYS, TRIANGLES)
-    answers = _asked(sequence, [(gap, SIXTEENTHS) for gap in range(first_calls)])
-    assert given == [[3, 4]]
+    answers = _asked(sequence, [(gap, SIXTEENTHS) for gap in range(first_calls)],
+                     after_first=lambda: _begun(worker, 3))
+    assert given == [[2, 3, 4]]
     return sequence, answers, taken, worker
 
 
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this system")
 def test_a_child_forked_while_the_worker_holds_gaps_computes_them_itself(monkeypatch, tmp_path):
-    """A process forked while the worker (slowed at gap 3) holds a sequence's gaps 3 and 4: the
+    """A process forked while the worker (slowed at gap 3) holds a sequence's gaps 2, 3 and 4: the
     worker's messages are read by the parent's thread, which the child does not have, so the child
     computes those gaps itself (one process's poses and warnings) rather than wait for ever (before:
     the child hung at gap 3, ended here by its alarm); the parent still gets them from the worker."""
@@ -436,7 +447,7 @@ def test_a_child_forked_while_the_worker_holds_gaps_computes_them_itself(monkeyp
             in_child = pickle.loads(pipe.read() or pickle.dumps("no answer"))
         _, status = os.waitpid(child, 0)
         in_parent = first + _asked(sequence, requests[1:])
-        assert 3 in taken and 4 in taken  # the parent's from its worker
+        assert 2 in taken and 3 in taken  # the parent's from its worker (4, contested, may be taken back)
     finally:
         gap_processes.shut_down()
     assert os.waitstatus_to_exitcode(status) == 0
@@ -603,7 +614,7 @@ def test_triangles_the_caller_reuses_after_the_build_change_nothing(monkeypatch)
     turned over in place, as a loader filling the same array with the next mesh would): the worker
     builds its sequence from the sequence's own copy, so the shared gaps are one process's poses of the
     triangles given (before: the worker built from the caller's array as it was at the hand-over, and
-    gaps 3 and 4 came back up to 0.044 off, silently)."""
+    its gaps came back up to 0.044 off, silently)."""
     gap_processes.shut_down()
     _ready_worker()
     given, taken = _counted_jobs(monkeypatch)
@@ -615,7 +626,7 @@ def test_triangles_the_caller_reuses_after_the_build_change_nothing(monkeypatch)
         shared = _asked(sequence, requests)
     finally:
         gap_processes.shut_down()
-    assert given == [[3, 4]] and 3 in taken
+    assert given == [[2, 3, 4]] and 2 in taken
     _same(shared, _one_process(requests, monkeypatch))
 
 
@@ -986,3 +997,33 @@ def test_keys_in_any_accepted_form_reach_the_workers_unchecked_build_as_checked(
     shared = _asked(sequence, requests, after_first=lambda: _begun(worker, 3))
     assert jobs and any(job.begun for job in jobs)  # the worker built the sequence and computed gaps of it
     _same(shared, _one_process(requests, monkeypatch, keys=keys))
+
+
+def test_three_gaps_the_contested_last_goes_to_the_caller_free_first(monkeypatch, tmp_path):
+    """Three gaps in order (an odd count: the caller's two against the worker's one left the worker
+    idle half the caller's time): the worker is given the later two, the last contested; its gap 1 is
+    paused (in its core) until the caller, done with gap 0 and waiting for gap 1, has taken gap 2 back
+    though it is the only call not begun. Every pose and warning is one process's, to the bit. Failed
+    on the old code: the worker was given gap 2 alone (``given`` [[2]])."""
+    gap_processes.shut_down()
+    released = tmp_path / "released"
+    monkeypatch.setattr(gap_processes, "_FOLDER", str(_patched_core(tmp_path, 1, _paused_until(released))))
+    taken_back, take_back = [], gap_processes.GapProcesses._take_back
+
+    def counted(self, call, factors):
+        taken_back.append(call[0])
+        try:
+            return take_back(self, call, factors)
+        finally:
+            released.touch()
+
+    monkeypatch.setattr(gap_processes.GapProcesses, "_take_back", counted)
+    requests = [(gap, SIXTEENTHS) for gap in range(3)]
+    try:
+        worker = _ready_worker()
+        given, taken = _counted_jobs(monkeypatch)
+        shared = _asked(SequenceInterpolator(KEYS[:4], TRIANGLES), requests, after_first=lambda: _begun(worker, 1))
+        assert given == [[1, 2]] and taken == [1] and taken_back == [2]
+    finally:
+        gap_processes.shut_down()
+    _same(shared, _one_process(requests, monkeypatch, keys=KEYS[:4]))
