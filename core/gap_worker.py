@@ -8,8 +8,9 @@ and output (the output the loop writes to is a duplicate of it made first; anyth
 process prints goes to its standard error):
 
 - in: ``("job", job, token, arguments, calls)`` — ``arguments`` ``(keys, triangles, options)``:
-  ``keys`` a list of float64 ``(n, 3)``, ``triangles`` int ``(m, 3)``, ``options`` the sequence's
-  keyword arguments, the sequence built from them and kept under ``token`` (bytes: a hash of them)
+  ``keys`` a list of float64 ``(n, 3)`` C-contiguous arrays, ``triangles`` int ``(m, 3)``, ``options``
+  the sequence's keyword arguments, all as the caller's constructor checked them (not checked again:
+  :class:`CallerSequence`), the sequence built from them and kept under ``token`` (bytes: a hash of them)
   for the next jobs; or None for the sequence kept under ``token``; ``calls`` a list of
   ``(gap, factors)`` computed in that order; ``("orderings", orderings)`` — the caller's
   factorization orderings (:func:`core.sparse_cholesky.orderings`), taken as they arrive: the

@@ -59,9 +59,9 @@ import numpy as np
 
 from . import screw_motions
 from .deformation_fields import rotation_vectors
-from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about, composed,
-                               contact_reach, joint_groups, nearest_pairs, own_axes, relative_motions, screw_axes,
-                               slide_precision)
+from .inbetween_joints import (CONTACT_CARRIED, JOINT_REACH, Contacts, _piece_centres, _turns_about, carry,
+                               carry_lengths, composed, contact_reach, joint_groups, nearest_pairs, own_axes,
+                               relative_motions, screw_axes, slide_precision)
 from .inbetween_rigid_fits import turn_spread
 from .rotation_continuity import either_way
 
@@ -443,9 +443,9 @@ class _Stakes:
         first = np.r_[0, np.cumsum(counts)[:-1]]
         x = self.points[np.repeat(self.starts[child] - first, counts) + np.arange(counts.sum())]
         p = parent[pair]
-        own = np.einsum("kab,kb->ka", own_rotations[pair], x) + own_translations[pair]
-        local = np.einsum("kab,kb->ka", local_rotations[pair], x) + local_translations[pair]
-        joint = np.einsum("kab,kb->ka", rotations[p], local) + translations[p]
+        own = carry(own_rotations[pair], own_translations[pair], x)
+        local = carry(local_rotations[pair], local_translations[pair], x)
+        joint = carry(rotations[p], translations[p], local)
         return np.maximum.reduceat(np.linalg.norm(own - joint, axis=1), first)
 
     def _own_halves(self, parent: np.ndarray, child: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -579,8 +579,7 @@ def _rolled_the_other_way(doubts: JointDoubts, c: Contacts, nxt: np.ndarray, scr
     nearest, later = nearest_pairs(nxt, c.index, c.label, c.pieces.size, float(finer[asked].max()), c.key[c.first],
                                    asked)
     contact = c.nearest_at
-    carried = np.maximum(*(np.linalg.norm(np.einsum("pab,pb->pa", c.rotations[k], contact) + c.translations[k]
-                                          - contact, axis=1) for k in (u, v)))
+    carried = np.maximum(*(carry_lengths(c.rotations[k], c.translations[k], contact) for k in (u, v)))
     asked &= (nearest <= finer) & (np.linalg.norm(np.nan_to_num(later) - contact, axis=1) <= CONTACT_CARRIED * carried)
     pairs = np.flatnonzero(asked)
     if not pairs.size:

@@ -296,7 +296,7 @@ class Gap(Anchor, Guide, PieceMotion, InterpolatedField, LocalGlobalFit):
         # the leader hangs from a joint: its motion is then its parent's composed with its turn
         # relative to it, off its own translation's line between the keys (a scissor lift's
         # platform, a plate with a bracket pinned on the top bars, rises as the sine of the bars'
-        # angle: on its own translation the plate left the bracket by 5.0e-2 of the diagonal at 0.5)
+        # angle: on its own translation the plate would leave the bracket, 5.0e-2 of the diagonal at 0.5)
         self.body_members = None
         if self.bodies is not None:
             turn = np.max([np.linalg.norm(df.rotation_vectors(rotations), axis=1) for rotations, _ in known], axis=0)

@@ -54,7 +54,7 @@ def _relative_changes(lengths: np.ndarray, rest: np.ndarray) -> np.ndarray:
     array the caller may change in place)."""
     kept = rest > 0.0
     if kept.all():  # every edge: the same values in the same order without the two masked gathers,
-        # which on the corner lengths' transposed views cost twice the rest (9.3 → 3.9 ms at 100k vertices)
+        # which on the corner lengths' transposed views (m, 3) of (3, m) rows cost more than the division
         changes = np.divide(lengths, rest, order="C").reshape(-1)
         changes -= 1.0
         return changes

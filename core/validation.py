@@ -515,7 +515,7 @@ def check_interpolation(poses, triangles, k_M=None, k_N=None, offset=None, use_e
 
     ``poses``: list of vertex arrays; ``names``: their names in messages (default ``key pose i``);
     ``kept``: as :func:`check_vertices` (the caller's poses, not yet checked)."""
-    names = [f"key pose {i}" for i in range(len(poses))] if names is None else list(names)  # an array of names too
+    names = list(names) if names is not None and len(names) else [f"key pose {i}" for i in range(len(poses))]  # an array too
     first, topology = check_mesh(poses[0], triangles, name=names[0], allow_bow_ties=True, kept=kept)
     checked = [first]
     for pose, name in zip(poses[1:], names[1:]):  # a later key's flat triangles told against the keys before it

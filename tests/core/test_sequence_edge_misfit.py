@@ -252,6 +252,7 @@ def test_the_edge_deviations_over_every_edge_add_them_in_row_order_whatever_the_
     key_deviation(lengths, rest)
     assert np.array_equal(lengths, before)  # the caller's lengths are read, not changed
 
+
 @pytest.mark.parametrize("change, way", [(-0.04, "shorter"), (0.04, "longer"), (-0.005, "off")])
 def test_the_message_gives_the_chords_as_the_cause_only_of_edges_shorter(change, way):
     """The way the worst in-between's edges are off (its mean signed change against the keys'

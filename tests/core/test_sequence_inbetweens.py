@@ -748,7 +748,7 @@ def test_errors_name_the_keys_by_the_callers_names(strip):
             Interpolator(keys[0], keys[1], tri, key_names=given)
     with pytest.raises(MeshError, match="one for each of the 4 key poses; got str"):
         SequenceInterpolator(keys, tri, key_names="abcd")
-    # an array of names is a list of names (it once failed inside the check on its truth value)
+    # an array of names is taken as the list of its names, not read by its (ambiguous) truth value
     with pytest.raises(MeshError, match="^frame 9: triangle .* zero area"):
         SequenceInterpolator(keys, tri, key_names=np.array(named))
 
