@@ -40,6 +40,13 @@ STRETCHED_PREDICTION_CHANGES = 2.0
 #: lifted sheet at 16: no in-between took more than five; with at most two the curtain keeps 46
 #: flipped triangles, with three 34, with five or more 33.
 REPAIR_PASSES = 8
+#: A pass of the repairs again that removes fewer than this share of the defects it started from is
+#: the last (its pose taken, :func:`repaired_in_passes`): where a fold turns most of the cloth over,
+#: every field's region solve folds it again, and each pass removes a smaller share at the cost of
+#: a whole repair's rounds; passes that remove a real share of few defects go on as before (under
+#: 100 defects one removed is 1 %, so no pass stops for it there). Numbers in docs/inbetweens.md's
+#: table and docs/inbetween-measurements.md, *The paddle-wheel sheet's fold at g = 16*.
+REPAIR_PASS_LEAST_SHARE = 0.01
 #: A sequence's predicted in-between whose repair, or a pass of its repairs again, keeps at most
 #: this many flipped or collapsed triangles is untangled then (:func:`untangled_first`: the step
 #: every in-between that keeps defects goes through last, :mod:`core.inbetween_untangling`) and,
@@ -281,9 +288,10 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None,
         moved = float(np.sum((repaired[0] - start) ** 2))
         if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
             break
+        removed = count - int(fewer.sum())
         pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), _taken(gap, s)
-        if not count:
-            break
+        if not count or removed < REPAIR_PASS_LEAST_SHARE * (count + removed):
+            break  # clean, or a fold no field unfolds: the passes after it remove fewer still
         if untangle and count <= UNTANGLED_FIRST_DEFECTS:  # a prediction a pass left with few: untangled now
             done = untangled_first(gap, s, pose)
             if done[1] is None:  # clean, its outcome recorded so

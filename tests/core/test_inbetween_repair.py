@@ -847,6 +847,30 @@ def test_a_repair_again_beyond_the_move_limit_from_the_first_pose_is_not_taken_a
         assert gap.outcomes[0.5] == gap.outcome_of(kept)
 
 
+def test_the_repairs_again_stop_after_a_pass_that_removes_under_its_share_of_the_defects():
+    """200 defects; a first pass that leaves 199 (0.5 %, under ``REPAIR_PASS_LEAST_SHARE``) ends
+    the passes: its pose is returned with its outcome, and the second scripted repair (which would
+    leave 100) is never asked for. A first pass that leaves 190 (5 %) does not: the second is taken
+    (and a third, which leaves as many, is asked for and ends them as before)."""
+    from core import inbetween_prediction_repairs as prediction_repairs
+
+    first = np.zeros((300, 3))
+    first[:200, 0] = -1.0
+    for left in (199, 190):
+        once = first.copy()
+        once[left:200, 0] = 0.0
+        twice = first.copy()
+        twice[100:200, 0] = 0.0
+        assert (200 - left < prediction_repairs.REPAIR_PASS_LEAST_SHARE * 200) == (left == 199)
+        gap = _ScriptedGap([once, twice, twice.copy()], (np.inf, np.inf))
+        gap.outcomes[0.5] = gap.outcome_of(first)
+        x, problem = prediction_repairs.repaired_in_passes(gap, 0.5, (first, "kept defects"))
+        kept = once if left == 199 else twice
+        assert np.array_equal(x, kept) and problem is not None
+        assert gap.outcomes[0.5] == gap.outcome_of(kept)
+        assert len(gap.passes) == (2 if left == 199 else 0)
+
+
 def test_the_repairs_of_one_in_between_share_the_blend_and_spline_geometry(monkeypatch, strip):
     """The repairs of one in-between (a prediction's, the solve from it, the repairs again: one
     scope, ``Repair.fields_kept``) compute each triangle's local geometry of the linear
