@@ -285,13 +285,14 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None,
         # never more defects: the rounds start from pose
         repaired = gap.repaired_again(pose[0], s, nearby, rings, defects)
         fewer = gap.repair.counted(repaired[0], s, scale)
-        moved = float(np.sum((repaired[0] - start) ** 2))
-        if fewer.sum() >= count or moved > (partial_limit if fewer.any() else limit):
+        moved, left = float(np.sum((repaired[0] - start) ** 2)), int(fewer.sum())
+        if left >= count or moved > (partial_limit if left else limit):
             break
-        removed = count - int(fewer.sum())
-        pose, defects, count, outcome = repaired, fewer, int(fewer.sum()), _taken(gap, s)
-        if not count or removed < REPAIR_PASS_LEAST_SHARE * (count + removed):
-            break  # clean, or a fold no field unfolds: the passes after it remove fewer still
+        # clean, or a fold no field unfolds (the passes after it remove fewer still): the last pass
+        last = not left or count - left < REPAIR_PASS_LEAST_SHARE * count
+        pose, defects, count, outcome = repaired, fewer, left, _taken(gap, s)
+        if last:
+            break
         if untangle and count <= UNTANGLED_FIRST_DEFECTS:  # a prediction a pass left with few: untangled now
             done = untangled_first(gap, s, pose)
             if done[1] is None:  # clean, its outcome recorded so
