@@ -34,8 +34,23 @@ fastest, turns against both neighbours as a whole: it turns back at its extremes
 and its stretch follows its speed, which the interpolated metric follows too (its in-betweens
 within 0.02 point of the swing's stretch, 1.75 % at the bottom). A bounce that bends the
 cloth back toward the shape before (bent 20°, 60° stretched, 25°) turns its triangles as a swing
-does and stays unwarned; so do the first and last keys, which have one neighbour
-(docs/inbetween-measurements.md, *The caught-stretch warning's limits*; docs/limits.md).
+does and is read by the motion in the world instead, below; the first and last keys, which have one
+neighbour, stay unwarned (docs/inbetween-measurements.md, *The caught-stretch warning's limits*;
+docs/limits.md).
+
+Where the deviations are from a rest — the caller's rest pose, or a first key the sequence starts
+from at rest, a simulation's first frame — a key the motion turns back at in the world (its
+neighbours as given, not placed rigidly, nearer each other than the nearer is to it:
+:func:`passing_through` with ``placed=False`` under :data:`PASSING_THROUGH`) is read as catching
+the stretch too (``"back"``): a free swing turns back where it is slowest, and its pull, which grows
+with its speed, is least there (a pendulum's stretch is at its bottom, which the motion passes
+through as given), so a key stretched past both its neighbours where the cloth turns back was
+pushed there: a collider pressing into it, as a ball bouncing in a hammock does, and the cloth
+springs back within a few frames (a gathered hammock keyed every 16th frame: key 32, the bounce's
+bottom, 2.6 % off the rest against 0.6 / 0.9 % at keys 16 and 48, the simulation back to 0.5 %
+four frames later; both gaps over the issue's edge bound). Keys cut from the middle of a motion
+(``start="keys"``) without a rest pose are not read so: their first key is not the rest, and a
+swing reversed at a key (a tail wagged left, right, left) reads as stretch from it.
 """
 
 from __future__ import annotations
@@ -78,14 +93,15 @@ PASSING_THROUGH = 1.0
 STRETCH_ALONE = 1.0
 
 
-def passing_through(before: np.ndarray, key: np.ndarray, after: np.ndarray) -> float:
+def passing_through(before: np.ndarray, key: np.ndarray, after: np.ndarray, placed: bool = True) -> float:
     """RMS distance between the keys ``before`` and ``after`` (n, 3) either side of ``key`` (n, 3),
     ``after`` placed rigidly on ``before`` (Kabsch, :func:`core.rigid_alignment.align_rigidly`), ÷ the
     smaller of their RMS distances to ``key`` (each placed rigidly on it): under 1 where the motion
     turns back at ``key``, 1 or more where it goes on past it (:data:`PASSING_THROUGH`); ``inf``
-    where a neighbour is ``key`` itself (the distance to it exactly 0)."""
+    where a neighbour is ``key`` itself (the distance to it exactly 0). ``placed=False``: the keys as
+    given, none placed on another (the motion in the world, a rigid swing's included)."""
     def apart(a, b):
-        return float(np.sqrt(np.mean(np.sum((align_rigidly(b, a) - a) ** 2, axis=1))))
+        return float(np.sqrt(np.mean(np.sum(((align_rigidly(b, a) if placed else b) - a) ** 2, axis=1))))
 
     nearer = min(apart(key, before), apart(key, after))
     return apart(before, after) / nearer if nearer > 0.0 else float("inf")
@@ -125,7 +141,7 @@ def _rms_turn(normals: np.ndarray, others: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.arccos(np.clip(coordinate_dot(normals, others), -1.0, 1.0)) ** 2)))
 
 
-def caught_stretch(deviations, shapes, corner_edges=None) -> str | None:
+def caught_stretch(deviations, shapes, corner_edges=None, from_rest: bool = False) -> str | None:
     """How the middle of three consecutive keys catches a stretch, or None where it does not: its
     mean relative edge deviation from the rest (``deviations``, the three keys',
     :func:`core.sequence_edge_misfit.key_deviation`) is over what the larger of its neighbours' allows
@@ -133,7 +149,9 @@ def caught_stretch(deviations, shapes, corner_edges=None) -> str | None:
     0.3 %), and the keys ``shapes`` (three (n, 3) positions) pass on through it (``"through"``:
     :func:`passing_through` at least :data:`PASSING_THROUGH`) or, given ``corner_edges`` (as
     :func:`stretch_alone` takes it), differ from it by its stretch more than by their triangles'
-    turns (``"alone"``)."""
+    turns (``"alone"``), or, where ``from_rest`` (the deviations are from the mesh's rest, not from a
+    deformed first key), turn back at it in the world (``"back"``: :func:`passing_through` of the
+    keys as given under :data:`PASSING_THROUGH`)."""
     before, at, after = (float(d) for d in deviations)
     if at <= misfit_allowed([max(before, after)]):
         return None
@@ -141,6 +159,8 @@ def caught_stretch(deviations, shapes, corner_edges=None) -> str | None:
         return "through"
     if corner_edges is not None and stretch_alone(shapes[1], (shapes[0], shapes[2]), corner_edges):
         return "alone"
+    if from_rest and passing_through(*shapes, placed=False) < PASSING_THROUGH:
+        return "back"
     return None
 
 
@@ -183,4 +203,6 @@ def caught_stretch_warning(deviation: float, other: float, names: tuple[str, str
 #: How a key catches a stretch (:func:`caught_stretch`), as :func:`caught_stretch_warning` says it.
 _HOW = {"through": "on a motion that passes through it (cloth landing just before it?)",
         "alone": ("with little else changing at it: its triangles turn less against the keys beside it than its "
-                  "edges stretch (cloth landing flat, bouncing off a surface, or a pulse of stretch?)")}
+                  "edges stretch (cloth landing flat, bouncing off a surface, or a pulse of stretch?)"),
+        "back": ("where the motion turns back, at which a free swing is least stretched (a collider pressing "
+                 "into the cloth, a ball bouncing in it?)")}

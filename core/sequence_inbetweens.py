@@ -653,6 +653,13 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
         return np.sqrt(squared, out=squared).T
 
     @property
+    def _from_rest(self) -> bool:
+        """Whether the ``fit`` warnings' deviations are from the mesh's rest: the caller's ``rest_pose``,
+        or a first key the sequence starts from at rest (``start="rest"``, a simulation's first frame),
+        not a deformed first key of keys cut from a motion (:func:`core.sequence_caught_stretch.caught_stretch`)."""
+        return self._rest is not None or self.start == "rest"
+
+    @property
     def _rest_named(self) -> str:
         """What the ``fit`` warnings measure deviation from, as they name it."""
         return "the first key" if self._rest is None else "the rest pose"
@@ -725,7 +732,7 @@ class SequenceInterpolator(SequenceKeys, GapStarts, HalfTurns, TurnReadings, Spu
                 else:
                     self._caught_stretches[at] = caught_stretch([self._key_deviation(k, lengths.get(k)) for k in three],
                                                                 [self._raw[k] for k in three],
-                                                                self._topo.corner_edge_rows)
+                                                                self._topo.corner_edge_rows, self._from_rest)
             if not self._caught_stretches[at]:
                 continue
             deviation = self._rest_deviation(poses, measured)[1]
