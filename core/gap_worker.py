@@ -116,6 +116,9 @@ def serve() -> None:
         keep_heap()
         own = __name__.rpartition(".")[0]  # the private name it was loaded under
         names = sorted(m for m in sys.modules if m in ("core", own) or m.startswith(("core.", "bl_ext", own + ".")))
+        # what the imports made lives as long as the process: set apart from the collections below, which
+        # then walk only what the jobs made (a kept sequence let go) instead of the modules' ~36,000 objects
+        gc.freeze()
         send(("ready", os.getpid(), names))
         kept_token, kept = None, None  # the sequence kept between jobs, and the token it was sent with
         idle = False  # nothing kept and the heap handed back since the last job

@@ -113,13 +113,29 @@ def _room(triangle_component: np.ndarray, metric: np.ndarray, areas: np.ndarray,
     return isometric, piece_area, room
 
 
+def _far_turn(least: float) -> float:
+    """The least angle (radians) from its piece's rigid turn of every triangle of a rigid part turned
+    ``least`` / 2 or more from it (:func:`bent_part_turns`): ``least`` / 2 − ``RIGID_SPREAD``, taken a
+    millionth short so that round-off in the angles read never lets a part through."""
+    return max(0.5 * least - RIGID_SPREAD, 0.0) * (1.0 - 1e-6)
+
+
+def _far_share(triangle_component: np.ndarray, areas: np.ndarray, piece_area: np.ndarray, far: np.ndarray) -> bool:
+    """Whether some piece (``piece_area`` (C,)) has ``PART_SHARE`` of its area on the triangles ``far``
+    (bool (m,); ``triangle_component`` int (m,), ``areas`` (m,)), to within round-off of the sums."""
+    held = np.bincount(triangle_component[far], areas[far], minlength=len(piece_area))
+    return bool((held >= PART_SHARE * piece_area * (1.0 - 1e-9)).any())
+
+
 def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotvec: np.ndarray,
                     metric: np.ndarray, areas: np.ndarray, least: float = BENT_PART_TURN,
                     tolerance: float | np.ndarray = ISOMETRIC, mean: float | None = None) -> np.ndarray:
     """Per piece (float (C,), C = ``triangle_component.max() + 1``), the largest turn (radians)
     between two rigid parts of it from a key to another; 0 for a piece without two parts, and for
     every piece where none can turn over ``least`` (radians) from another (no isometric triangle
-    turns by ``least`` / 2 from its piece's rigid turn): the callers compare with ``least``.
+    turns by ``least`` / 2 from its piece's rigid turn, or no piece has ``PART_SHARE`` of its area on
+    isometric triangles turned ``least`` / 2 − ``RIGID_SPREAD`` from it): the callers compare with
+    ``least``.
 
     ``triangle_component`` int (m,): each triangle's piece; ``edge_pairs`` int (e, 2): the
     triangles sharing each interior edge; ``rotvec`` (m, 3): each triangle's rotation with its
@@ -146,7 +162,14 @@ def bent_part_turns(triangle_component: np.ndarray, edge_pairs: np.ndarray, rotv
         return largest
     # two parts turned from each other by θ turn at least θ / 2 from the piece's rigid turn, which
     # ``rotvec`` is taken from in a sequence: a piece near it throughout has none (a cloth at rest)
-    if 2.0 * np.sqrt(np.einsum("ij,ij->i", rotvec[isometric], rotvec[isometric]).max()) <= least:
+    squared = np.einsum("ij,ij->i", rotvec, rotvec)
+    if 2.0 * np.sqrt(squared[isometric].max()) <= least:
+        return largest
+    # ... and each triangle of such a part within RIGID_SPREAD of its mean turn: a part's whole area,
+    # PART_SHARE of its piece's, on isometric triangles turned least / 2 − RIGID_SPREAD or more (a
+    # rotation vector is no shorter than its angle); where no piece has that much, none turns over
+    # ``least`` (crumpled cloth: isometric triangles turned far, each alone or in small patches)
+    if not _far_share(triangle_component, areas, piece_area, isometric & (squared >= _far_turn(least) ** 2)):
         return largest
     rows = np.flatnonzero(isometric)  # the isometric triangles, numbered 0 … len(rows) − 1 below
     number = np.full(m, -1)

@@ -538,3 +538,38 @@ def test_a_gaps_in_betweens_do_not_depend_on_the_gaps_asked_before(monkeypatch, 
         for gap in (4, 3, 2, 0, 1, 3, 0):
             np.testing.assert_array_equal(sequence.poses(gap, factors), fresh[gap])
     assert len(sequence._forwards) >= 2  # relatives were kept and read back
+
+
+
+@pytest.mark.parametrize("least", [BENT_PART_TURN, RIGID_BENT_TURN])
+def test_two_parts_turned_apart_past_the_least_turn_are_read_whatever_their_triangles_turn_alone(least):
+    """The reading's shortcut (no piece with ``PART_SHARE`` of its area on isometric triangles turned
+    ``least / 2 − RIGID_SPREAD`` or more from its rigid turn: nothing read) never drops a pair of parts
+    that turn apart past ``least``. Two parts of a strip, each 5.25 % of its area, turned either way
+    about one axis: most of each part's area just short of ``least / 2`` from the rigid turn, a ramp
+    of small triangles up to one 0.9 ``RIGID_SPREAD`` past it, whose area takes the part's mean turn just
+    past ``least / 2`` (under 1 % of the strip is turned ``least / 2`` or more); between them triangles
+    that are not isometric. The reading is the angle between the parts' mean turns."""
+    from core.sequence_bent_parts import PART_SHARE, RIGID_SPREAD, SAME_TURN, bent_part_turns
+
+    low, top = 0.5 * least - 1e-3, 0.5 * least + 0.9 * RIGID_SPREAD
+    ramp = np.linspace(low, top, 6)[1:]  # steps under SAME_TURN: one region
+    assert np.diff(ramp).max() < SAME_TURN
+    angles = np.r_[np.full(16, low), ramp]
+    areas = np.r_[np.ones(16), np.full(4, 0.01), 1.0]  # the part's area-weighted mean turn just past least / 2
+    mean = Rotation.from_rotvec(angles[:, None] * [0.0, 0.0, 1.0]).mean(weights=areas).magnitude()
+    assert 0.5 * least < mean < low + RIGID_SPREAD and top - mean < RIGID_SPREAD
+    others = int(round(areas.sum() / 0.0525)) - 2 * len(areas)  # each part 5.25 % of the strip's area
+    angle = np.r_[-angles[::-1], np.zeros(others), angles]
+    area = np.r_[areas[::-1], np.ones(others), areas]
+    assert (areas.sum() / area.sum() > PART_SHARE and
+            area[np.abs(angle) >= 0.5 * least].sum() < 0.2 * PART_SHARE * area.sum())
+    m = len(angle)
+    rotvec = np.zeros((m, 3))
+    rotvec[:, 2] = angle
+    metric = np.tile([1.2, 0.0, 1.0], (m, 1))  # stretched between the parts: no part there
+    metric[np.abs(angle) > 0.0] = (1.0, 0.0, 1.0)
+    pairs = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1)  # a strip of triangles
+    turn = bent_part_turns(np.zeros(m, dtype=np.int64), pairs, rotvec, metric, area, least)
+    assert turn[0] > least
+    assert turn[0] == pytest.approx(2.0 * mean, abs=1e-6)
