@@ -56,6 +56,14 @@ the point but not the turn relative to the link below). Nor does a contact that 
 along both pieces, ending off itself as either piece carries it with none of its vertex pairs
 touching in both keys (:data:`CONTACT_ROLLS`, :func:`_held_contacts`), where another joint places
 one of its pieces: a wheel rolling on a still floor is no hinge on it.
+
+A piece that does not turn beside one that does turns relative to it by that one's turn undone,
+about an axis parallel to that one's own, which the keys fit as a hinge as well: the two are jointed
+only where that axis holds a point of both pieces, of the gap between them, or of a ring their
+contact makes about it (:func:`_sliding_past`, :mod:`core.joint_points`). A drawer sliding out over
+a door turning 90° on its hinge, its front edge on the door's top edge, turns relative to the door
+about a vertical axis 0.24 behind the door's back face: hung from the door, it went round the door's
+hinge, 4.3e-2 of the diagonal off its slide at 0.5 and 0.21 at ×2, silently.
 """
 
 from __future__ import annotations
@@ -130,6 +138,9 @@ ROOT_AXLE_SHARE = 0.1
 #: another joint places one of the pieces (the wheel's axle): a drum jointed by nothing else keeps its
 #: joint, which carries it with a carried plate (6.9e-2 of the diagonal off it at 0.5 without, 2.9e-2 with).
 CONTACT_ROLLS = 1.0
+#: A joint's point is sought on its axis at this many points, evenly spread (by quantile) over the
+#: touching vertices' extent along it (:func:`_sliding_past`).
+AXIS_SAMPLES = 9
 
 
 def relative_motion(parent: tuple[np.ndarray, np.ndarray], child: tuple[np.ndarray, np.ndarray]
@@ -183,6 +194,73 @@ def joint_offsets(contact: np.ndarray, pair: np.ndarray, starts: np.ndarray, rot
     offset = centre - pivot
     distance = np.linalg.norm(offset - np.einsum("pa,pa->p", offset, axis)[:, None] * axis, axis=1)
     return np.where(held, 0.0, np.where(hinged, np.maximum(0.0, distance - radius - reach), np.inf))
+
+
+def _sliding_past(topo, base: np.ndarray, c: Contacts, asked: np.ndarray, within: np.ndarray) -> np.ndarray:
+    """Per touching pair of ``c`` (P,), whether it is ``asked`` (bool (P,)), one of its pieces does not
+    turn over the gap while the other does (a turn moving the piece's vertices by at most, or more
+    than, the pair's precision), and their relative motion's axis holds no joint's point
+    (:func:`core.joint_points.joint_point`, at :data:`AXIS_SAMPLES` points of the axis spread over
+    the touching vertices' extent along it): no point of it is on or in both pieces (on a surface,
+    of ``topo``'s triangles at ``base``, within the gap between them where they touch — their
+    touching vertices' distance from the other's triangles around its own — plus the precision) or
+    in the gap between them, and the two pieces' touching vertices (of pairs within ``within`` (P,))
+    do not both surround it seen along the axis (a pin through a ring).
+
+    The piece that does not turn moves relative to the other by the other's turn undone, about an
+    axis parallel to that one's own: jointed, it rides a circle about the turning piece's axis
+    through both keys, where its own motion is a straight translation (or none). The keys fit both
+    readings; the contact tells them apart. A joint's point, which their relative motion keeps, is
+    a point of both pieces or of the gap between them (a carriage kept level on a link's end turns
+    on it about their shared face's centre, a gondola's ring about the wheel's pin through it),
+    where pieces sliding past each other (a drawer sliding out over a door turning on its hinge)
+    turn relative to each other about a point off one of them: the relative motion of a turn and a
+    translation, whose axis is no place of the mechanism. Pieces that both turn are not asked: a
+    drum rolling on a plate turns relative to it about a point inside the drum, off the plate, and
+    jointed rolls on the plate to second order in its roll (its own screw leaves a carried plate)."""
+    from .joint_points import joint_point, surface_points
+
+    pieces, u, v = c.pieces, c.u, c.v
+    radii = _piece_centres(base, c.index, c.label)[1]
+    turned = [np.linalg.norm(df.rotation_vectors(c.rotations[k]), axis=1) * radii[k] > c.precision for k in (u, v)]
+    out = np.zeros(u.size, dtype=bool)
+    candidates = np.flatnonzero(asked & (turned[0] != turned[1]) & (c.angle >= 1e-9))
+    if not candidates.size:
+        return out
+    run, touch = _touching_runs(base, c.ends, c.first, within)
+    rotations, translations = c.relative
+    axis = c.axis
+    pivot = _axis_points(rotations[candidates], translations[candidates], axis[candidates], c.slide[candidates])
+    order = np.argsort(topo.triangle_component, kind="stable")
+    starts = np.searchsorted(topo.triangle_component[order], np.arange(len(topo.components) + 1))
+    for p, at in zip(candidates, pivot):
+        touching = np.unique(c.ends[touch & (run == p)])
+        owner = topo.vertex_component[touching]
+        ours = [touching[owner == pieces[k[p]]] for k in (u, v)]
+        near = [base[topo.triangles[np.unique(topo.triangles_around(x))]] for x in ours]
+        gap = min(surface_points(base[ours[0]], near[1])[1].min(), surface_points(base[ours[1]], near[0])[1].min())
+        # the axis's points across the contact's extent along it: a hinge's line may meet both pieces
+        # only at one end of their contact (a door standing on a turntable's rim, hinged on its edge)
+        along = np.quantile(base[np.r_[ours[0], ours[1]]] @ axis[p], np.linspace(0.0, 1.0, AXIS_SAMPLES))
+        points = at + (along - at @ axis[p])[:, None] * axis[p]
+        whole = tuple(base[topo.triangles[order[starts[k]:starts[k + 1]]]] for k in pieces[[u[p], v[p]]])
+        if joint_point(points, whole, gap + c.precision[p], within[p]):
+            continue
+        across = np.cross(axis[p], np.eye(3)[np.argmin(np.abs(axis[p]))])
+        across /= np.linalg.norm(across)
+        plane = np.stack([across, np.cross(axis[p], across)], axis=1)  # (3, 2): seen along the axis
+        out[p] = not all(_surrounds((base[x] - at) @ plane) for x in ours)
+    return out
+
+
+def _surrounds(points: np.ndarray) -> bool:
+    """Whether the convex hull of ``points`` (k, 2) holds the origin (False where they span no area)."""
+    from scipy.spatial import Delaunay, QhullError
+
+    try:
+        return bool(Delaunay(points).find_simplex(np.zeros((1, 2)))[0] >= 0)
+    except (QhullError, ValueError):  # fewer than three points, or all on a line
+        return False
 
 
 def piece_vertices(topo, pieces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -577,6 +655,10 @@ def joint_tree(topo, base: np.ndarray, nxt: np.ndarray, motions: tuple[np.ndarra
         # (to within what the pieces' rigid fits resolve; pieces moving as one neither turn nor slide)
         precision, axis, slide = c.precision, c.axis, c.slide
         jointed &= np.abs(slide) <= precision
+    if jointed.any():
+        # a piece that does not turn beside one that does is jointed to it only where their relative
+        # motion's axis holds a point of both (or of the gap between them, or through a ring)
+        jointed &= ~_sliding_past(topo, base, c, jointed, finer)
     if jointed.any() and screws is not None:
         # no joint where the pieces turn about their own axes, touching in the same place: their own
         # screws are then their motions (hair cards turning about their roots, meshing gears about
