@@ -127,7 +127,12 @@ class SimulationRest:
     warnings alone, so the space and the in-betweens are the range's as without it), then taken to that
     space (:meth:`options`). A range that starts before the simulation begins with the mesh as the
     simulation is given it, not at its rest lengths where Shrinking is set: the simulation's first frame
-    is the rest there too. Else the first key stands for the rest. A cloth that Shrinking shrinks or grows
+    is the rest there too. A range that starts at the simulation's first frame is given its first key as
+    the rest: the sequence then reads its keys' deviations as from a rest whatever start
+    :func:`core.retime.motion_ends` chooses (``start="keys"`` alone says the keys are cut from a motion,
+    and a key the cloth bounces back from is read only from a rest:
+    :func:`core.sequence_caught_stretch.caught_stretch`); the deviations are those from the first key, as
+    without it, the warnings naming it the rest pose. Else the first key stands for the rest. A cloth that Shrinking shrinks or grows
     is at its rest lengths times :func:`rest_length_factor` there, not at its edges (frame 1 of Shrinking
     0.1 read as the rest makes every key 11 % off it, and the warnings allow that much more misfit): its
     edges are scaled so, and so are the first key's where the range starts at the simulation's first
@@ -140,8 +145,9 @@ class SimulationRest:
         self._factor = rest_length_factor(obj)
         if self._factor is None:
             self.frames = []
-        # a range from the simulation's first frame: its first key is the rest, at other lengths where Shrinking
-        self._from_start = self._factor not in (None, 1.0) and _first_simulated(objects_moving(obj)) == start
+        # a range from the simulation's first frame: its first key is the rest (at other lengths where Shrinking
+        # is set), given as such so that the sequence knows it whatever start the motion's ends choose
+        self._from_start = self._factor is not None and _first_simulated(objects_moving(obj)) == start
 
     def set_aside(self, read: dict, matrices: dict, own_frames: list) -> None:
         """Take the rest frame's positions and world matrix out of ``read`` and ``matrices`` ({frame: …}

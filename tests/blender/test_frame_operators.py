@@ -223,7 +223,7 @@ def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_fram
     short last gap's) measure the edges their warnings hold the in-betweens to from frame 1, where the
     cloth is at its rest, not from frame 5, where it is already falling (core.SequenceInterpolator's
     ``rest_pose``); the in-betweens are those of the same keys without it. From frame 1 the first key is
-    that rest: none is given."""
+    that rest, and it is given as such (before, none: test_operators_from_a_simulations_first_frame_give_it_as_the_rest)."""
     obj = cloth_scene(frames=13)
     bridge = extension.bridge
     poses = evaluated_frames(bridge, obj, [1, 5, 8, 11, 13])
@@ -258,7 +258,8 @@ def test_inbetween_frames_inside_a_simulation_measures_edges_from_its_first_fram
     given.clear()
     bpy.ops.shape_differences.inbetween_frames(frame_start=1, frame_end=10, frame_step=3, count=2,
                                                output='SHAPE_KEYS')
-    assert given == [None]
+    assert len(given) == 1 and given[0] is not None
+    np.testing.assert_allclose(given[0], poses[1], atol=TOLERANCE)
 
 
 def _rests_given_to_every_sequence(core, monkeypatch) -> list:
@@ -292,7 +293,8 @@ def test_a_retime_inside_a_simulation_measures_edges_from_its_first_frame(bpy_em
     it makes (the whole gaps', the short last gap's) measures the edges its warnings hold the
     in-betweens to from frame 1, where the cloth is at its rest, as In-between Frames does (before, from
     frame 5, where it is already falling: no ``rest_pose`` given); the retimed frames are those of the
-    same keys without it. From frame 1 the first key is that rest: none is given."""
+    same keys without it. From frame 1 the first key is that rest, and it is given as such (before, none:
+    test_operators_from_a_simulations_first_frame_give_it_as_the_rest)."""
     obj = cloth_scene(frames=13)
     bridge = extension.bridge
     frames_module = importlib.import_module(extension.__name__ + ".operators.frames")
@@ -321,7 +323,43 @@ def test_a_retime_inside_a_simulation_measures_edges_from_its_first_frame(bpy_em
     cloth_scene(frames=13)
     given = _rests_given_to_every_sequence(core, monkeypatch)
     bpy.ops.shape_differences.retime(frame_start=1, frame_end=10, frame_step=3, speed=0.5, output='SHAPE_KEYS')
-    assert given == [None]
+    assert len(given) == 1 and given[0] is not None
+    np.testing.assert_allclose(given[0], rest, atol=TOLERANCE)
+
+
+@pytest.mark.parametrize("operator", ["inbetween_frames", "retime"])
+def test_operators_from_a_simulations_first_frame_give_it_as_the_rest(bpy_empty, extension, core, monkeypatch,
+                                                                      operator):
+    """In-between Frames and Retime of frames 1–10 every 3rd of a cloth simulated from frame 1, how its
+    motion leaves the first key read as keys cut from a motion (``core.retime.motion_ends`` choosing
+    ``start="keys"``, as it does for some bakes from their first frame: a trampoline a ball lands on keyed
+    every 8th or 16th frame): the sequence is given its first key, the simulation's rest, as its
+    ``rest_pose``, exactly, so it reads its keys' deviations as from a rest (a key the cloth bounces back
+    from is warned of only so, core.sequence_caught_stretch) and they are those from the first key
+    (the first key's 0). Before, none was given, and with ``start="keys"`` the sequence took its first key
+    for a deformed one, cut from a motion."""
+    obj = cloth_scene(frames=13)
+    sequences = importlib.import_module(core.__name__ + ".sequence_inbetweens")
+    retime = importlib.import_module(core.__name__ + ".retime")
+    made, original = [], sequences.SequenceInterpolator
+
+    def recording(*args, **kwargs):
+        sequence = original(*args, **kwargs)
+        made.append((sequence, np.array(args[0][0]), kwargs.get("rest_pose")))
+        return sequence
+
+    monkeypatch.setattr(sequences, "SequenceInterpolator", recording)
+    monkeypatch.setattr(core, "SequenceInterpolator", recording)
+    monkeypatch.setattr(retime, "motion_ends", lambda *args, **kwargs: {"start": "keys"})
+    run = getattr(bpy.ops.shape_differences, operator)
+    run(frame_start=1, frame_end=10, frame_step=3, output='SHAPE_KEYS',
+        **({"count": 2} if operator == "inbetween_frames" else {"speed": 0.5}))
+    assert len(made) == 1
+    sequence, first, rest = made[0]
+    assert sequence.start == "keys"
+    assert rest is not None, "no rest given from the simulation's first frame"
+    np.testing.assert_array_equal(rest, first)
+    assert sequence._from_rest and sequence._key_deviation(0) == 0.0
 
 
 def _median_edge_ratio(a, b, triangles) -> float:

@@ -124,7 +124,7 @@ def _bounce():
 def test_a_stretch_at_a_key_the_cloth_bounces_back_from_is_warned_beside_it(options):
     """The bounce, from rest (a simulation's first frame: ``start="rest"``, the default) or keyed
     from its motion with the rest pose given: the middle key is 3.0 % off the rest (its neighbours
-    0 and 0.25 %) and the motion turns back at it, placed rigidly (0.13) and as given (0.30, under
+    0 and 0.25 %) and the motion turns back at it, placed rigidly (0.13) and as given (0.13, under
     PASSING_THROUGH), its triangles turning as a swing's (not the stretch alone). A free swing is
     least stretched where it turns back, so the stretch was a push (a ball bouncing in a hammock),
     which the keys do not say lasts: each gap whose in-betweens are off the rest by more than its
