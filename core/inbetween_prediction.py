@@ -148,23 +148,23 @@ def _gap_poses(gap, factors, ahead=None) -> list[tuple[np.ndarray, str | None]]:
         targets = SOLVED_FACTORS
     solved_factors = sorted({min(interior, key=lambda s: abs(s - q)) for q in targets})
     solved = dict(zip(solved_factors, _solved(gap, solved_factors, {})))
+    if len(solved) >= 3 and inconsistent(gap, {s: x for s, (x, _) in solved.items()}):
+        return _rough(gap, factors, interior, ahead)  # too rough as solved: every eighth solved, no repairs again
     stubborn = any(problem for _, problem in solved.values())
     outer = _outer_correction(gap, solved)
     middle = solved_factors[1] if outer is not None else None
+    as_solved = dict(solved)
     for s in solved_factors:  # those that kept defects their repair did not remove; the middle near the outer two
         with gap.repair.fields_kept():
             solved[s] = repaired_in_passes(gap, s, solved[s], outer if s == middle else None)
+    repaired = any(solved[s] is not as_solved[s] for s in solved)  # a pose not repaired again comes back as it was
     positions = {s: x for s, (x, _) in solved.items()}
     correction = correction_polynomial(gap, positions)
     predicted = [s for s in interior if s not in solved]
     if len(solved) == 1 and slopes_disagree(gap, correction, positions, predicted):
         return _solved(gap, factors, solved)  # the keys' slopes and the middle tell different in-betweens
-    if len(solved) >= 3 and inconsistent(gap, positions):  # too rough to predict from three: every eighth solved, all at the wide limit
-        gap.rotation_limit = ROUGH_ROTATION_DEVIATION
-        try:
-            return _rough_poses(gap, factors, interior, ahead)
-        finally:
-            del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
+    if len(solved) >= 3 and repaired and inconsistent(gap, positions):  # a repair again can put it past the limit
+        return _rough(gap, factors, interior, ahead)
     if len(solved) >= RELAXED_SOLVED and not stubborn:
         correction = relaxed_correction(gap, correction, sorted(solved))
     rings = REPAIR_RINGS[:REDUCED_ROUNDS] if stubborn else None
@@ -194,6 +194,23 @@ def _outer_correction(gap, solved: dict):
         return None
     outer = {first: solved[first][0], last: solved[last][0]}
     return functools.cache(lambda: correction_polynomial(gap, outer))
+
+
+def _rough(gap, factors, interior: list, ahead=None) -> list[tuple[np.ndarray, str | None]]:
+    """:func:`_rough_poses` at the wide rotation limit (:data:`ROUGH_ROTATION_DEVIATION`), for a gap
+    whose three solved in-betweens are too rough to predict from
+    (:func:`~core.inbetween_corrections.inconsistent`). Read in :func:`_gap_poses` on the solves
+    as they come, where a gap that is rough already goes here without the repairs again of those
+    three (their poses are solved again here, so those repairs would only feed the check), and
+    again after those repairs where one of them moved a pose: a repair of a fold moves the
+    middle's correction and can put the gap past the check's limit. Numbers in
+    docs/inbetween-measurements.md, *The paddle-wheel sheet's fold read rough before the repairs
+    again*."""
+    gap.rotation_limit = ROUGH_ROTATION_DEVIATION
+    try:
+        return _rough_poses(gap, factors, interior, ahead)
+    finally:
+        del gap.rotation_limit  # the class's again: a gap's poses never depend on earlier calls
 
 
 def _rough_poses(gap, factors, interior: list, ahead=None) -> list[tuple[np.ndarray, str | None]]:

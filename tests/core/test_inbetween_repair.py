@@ -630,6 +630,59 @@ def test_a_middle_fold_the_outer_solves_geometry_keeps_too_is_kept_as_it_was(mon
         np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), poses)
 
 
+def test_a_gap_rough_as_its_three_solves_come_is_solved_rough_without_repairing_them_again(monkeypatch, strip):
+    """The middle fold of :func:`_middle_folded`, which no field unfolds, at the real
+    ``MAX_CROSS_VALIDATION``: the three solved in-betweens are too rough to predict from as they
+    come, so the gap is solved at every eighth (``_rough_poses``) without their repairs again, which
+    that path solves anew; its in-betweens are bit for bit those the gap gives when its roughness is
+    read only after those repairs (the order before)."""
+    import core.inbetween_corrections as corrections
+    import core.inbetween_prediction as prediction
+    import core.inbetween_untangling as untangling
+
+    limit = corrections.MAX_CROSS_VALIDATION
+    keys, tri, _ = _middle_folded(monkeypatch, strip, unfolds=set())
+    monkeypatch.setattr(corrections, "MAX_CROSS_VALIDATION", limit)
+    monkeypatch.setattr(untangling, "untangled", lambda *args: None)  # the poses the repairs leave
+    calls = []
+    real_passes, real_rough, real_inconsistent = (prediction.repaired_in_passes, prediction._rough_poses,
+                                                  prediction.inconsistent)
+
+    def passes(gap, s, *args, **kwargs):
+        calls.append(("passes", s))
+        return real_passes(gap, s, *args, **kwargs)
+
+    def rough(*args, **kwargs):
+        calls.append(("rough", None))
+        return real_rough(*args, **kwargs)
+
+    monkeypatch.setattr(prediction, "repaired_in_passes", passes)
+    monkeypatch.setattr(prediction, "_rough_poses", rough)
+    factors = np.arange(1, 16) / 16
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        poses = SequenceInterpolator(keys, tri).poses(0, factors)
+    assert ("rough", None) in calls
+    assert calls.index(("rough", None)) == 0  # no repair again before the gap went rough
+    # the roughness read only after the three's repairs again (its first reading says smooth; each
+    # repair again hands back a copy, as one that moved its pose does, so the check is read again)
+    readings = []
+
+    def read_after_the_repairs(gap, solved):
+        readings.append(1)
+        return len(readings) > 1 and real_inconsistent(gap, solved)
+
+    def passes_copied(gap, s, pose, *args, **kwargs):
+        x, problem = passes(gap, s, pose, *args, **kwargs)
+        return x.copy(), problem
+
+    monkeypatch.setattr(prediction, "inconsistent", read_after_the_repairs)
+    monkeypatch.setattr(prediction, "repaired_in_passes", passes_copied)
+    calls.clear()
+    with pytest.warns(ShapeDifferenceWarning, match="flipped"):
+        np.testing.assert_array_equal(SequenceInterpolator(keys, tri).poses(0, factors), poses)
+    assert [kind for kind, _ in calls[:4]] == ["passes"] * 3 + ["rough"]
+
+
 def _two_folds(monkeypatch, strip, g):
     """Keys of a bending strip, its triangles and the factors of the ``g`` − 1 in-betweens of a gap
     keyed every ``g``-th frame, with the poses at s = 1/2 — the fit and the prediction — folding two
