@@ -540,6 +540,20 @@ def test_a_gaps_in_betweens_do_not_depend_on_the_gaps_asked_before(monkeypatch, 
     assert len(sequence._forwards) >= 2  # relatives were kept and read back
 
 
+def _strip_reading(angle: np.ndarray, area: np.ndarray, least: float) -> float:
+    """:func:`core.sequence_bent_parts.bent_part_turns` of one piece, a strip of triangles (each sharing
+    an edge with the next) turned ``angle`` (m,) about z, of areas ``area`` (m,): isometric where
+    turned, stretched where not (no part there)."""
+    from core.sequence_bent_parts import bent_part_turns
+
+    m = len(angle)
+    rotvec = np.zeros((m, 3))
+    rotvec[:, 2] = angle
+    metric = np.tile([1.2, 0.0, 1.0], (m, 1))
+    metric[np.abs(angle) > 0.0] = (1.0, 0.0, 1.0)
+    pairs = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1)
+    return float(bent_part_turns(np.zeros(m, dtype=np.int64), pairs, rotvec, metric, area, least)[0])
+
 
 @pytest.mark.parametrize("least", [BENT_PART_TURN, RIGID_BENT_TURN])
 def test_two_parts_turned_apart_past_the_least_turn_are_read_whatever_their_triangles_turn_alone(least):
@@ -550,7 +564,7 @@ def test_two_parts_turned_apart_past_the_least_turn_are_read_whatever_their_tria
     of small triangles up to one 0.9 ``RIGID_SPREAD`` past it, whose area takes the part's mean turn just
     past ``least / 2`` (under 1 % of the strip is turned ``least / 2`` or more); between them triangles
     that are not isometric. The reading is the angle between the parts' mean turns."""
-    from core.sequence_bent_parts import PART_SHARE, RIGID_SPREAD, SAME_TURN, bent_part_turns
+    from core.sequence_bent_parts import PART_SHARE, RIGID_SPREAD, SAME_TURN
 
     low, top = 0.5 * least - 1e-3, 0.5 * least + 0.9 * RIGID_SPREAD
     ramp = np.linspace(low, top, 6)[1:]  # steps under SAME_TURN: one region
@@ -564,12 +578,39 @@ def test_two_parts_turned_apart_past_the_least_turn_are_read_whatever_their_tria
     area = np.r_[areas[::-1], np.ones(others), areas]
     assert (areas.sum() / area.sum() > PART_SHARE and
             area[np.abs(angle) >= 0.5 * least].sum() < 0.2 * PART_SHARE * area.sum())
-    m = len(angle)
-    rotvec = np.zeros((m, 3))
-    rotvec[:, 2] = angle
-    metric = np.tile([1.2, 0.0, 1.0], (m, 1))  # stretched between the parts: no part there
-    metric[np.abs(angle) > 0.0] = (1.0, 0.0, 1.0)
-    pairs = np.stack([np.arange(m - 1), np.arange(1, m)], axis=1)  # a strip of triangles
-    turn = bent_part_turns(np.zeros(m, dtype=np.int64), pairs, rotvec, metric, area, least)
-    assert turn[0] > least
-    assert turn[0] == pytest.approx(2.0 * mean, abs=1e-6)
+    turn = _strip_reading(angle, area, least)
+    assert turn > least
+    assert turn == pytest.approx(2.0 * mean, abs=1e-6)
+
+
+@pytest.mark.parametrize("least", [BENT_PART_TURN, RIGID_BENT_TURN])
+def test_two_parts_turned_apart_past_the_least_turn_are_read_with_half_their_area_a_spread_short(least):
+    """The reading's shortcut takes every triangle of a part within a whole ``RIGID_SPREAD`` of its
+    mean turn (a part's mean ``least / 2`` or more from its piece's rigid turn keeps all its area at
+    ``least / 2 − RIGID_SPREAD`` or more), not less: a part's triangles may sit up to that far on the
+    rigid turn's side of its mean, and half its area can. Two parts of a strip about one axis, their
+    means just past ``least / 2`` either way, each PART_SHARE of the strip's area and a thousandth
+    more: half of each part's area 0.99 ``RIGID_SPREAD`` short of its mean, the other half 0.999 past
+    it, a ramp of tiny triangles between; so under ``PART_SHARE`` of the strip is turned
+    ``least / 2 − 0.98 RIGID_SPREAD`` or more, and a bound set there would drop the pair. The reading
+    is the angle between the parts' mean turns."""
+    from core.sequence_bent_parts import PART_SHARE, RIGID_SPREAD, SAME_TURN
+
+    inner, outer = 0.99 * RIGID_SPREAD, 0.999 * RIGID_SPREAD
+    middle = 0.5 * least + 2e-4  # the parts' mean turns, from a rigid turn half-way between them
+    ramp = np.linspace(middle - inner, middle + outer, 9)  # steps under SAME_TURN: one region
+    assert np.diff(ramp).max() < SAME_TURN
+    angles = np.r_[np.full(8, ramp[0]), ramp[1:-1], np.full(8, ramp[-1])]
+    # the blocks' areas inversely as their distances from the mean: the mean stays where it was put
+    areas = np.r_[np.full(8, outer / (inner + outer)), np.full(7, 1e-4), np.full(8, inner / (inner + outer))]
+    mean = Rotation.from_rotvec(angles[:, None] * [0.0, 0.0, 1.0]).mean(weights=areas).magnitude()
+    assert 0.5 * least < mean and np.abs(angles - mean).max() < RIGID_SPREAD
+    strip = areas.sum() / (PART_SHARE * 1.001)
+    others = 40
+    angle = np.r_[-angles[::-1], np.zeros(others), angles]
+    area = np.r_[areas[::-1], np.full(others, (strip - 2.0 * areas.sum()) / others), areas]
+    assert areas.sum() >= PART_SHARE * area.sum()
+    assert area[np.abs(angle) >= 0.5 * least - 0.98 * RIGID_SPREAD].sum() < PART_SHARE * area.sum()
+    turn = _strip_reading(angle, area, least)
+    assert turn > least
+    assert turn == pytest.approx(2.0 * mean, abs=1e-6)
