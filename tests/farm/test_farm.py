@@ -119,11 +119,12 @@ def test_openjd_takes_a_folder_that_is_no_text_through_a_link_named_in_utf8(job,
                           ChunkDirectory=where / "chunks", ExtensionDirectory=ROOT, Python=sys.executable,
                           Step=4, Speed=0.5, Chunks=2)
         result = subprocess.run(_openjd_command(parameters), capture_output=True, timeout=600)
-        assert result.returncode == status, result.stdout[-3000:] + result.stderr[-3000:]
+        log = result.stdout[-3000:] + result.stderr[-3000:]  # said with any assertion below
+        assert result.returncode == status, log
         if status:
-            assert b"UnicodeEncodeError" in result.stdout + result.stderr
-            assert sorted(p.name for p in shot.iterdir()) == ["chunks", "in.pc2", "sheet.obj"]
-            assert not list((shot / "chunks").iterdir())
+            assert b"UnicodeEncodeError" in result.stdout + result.stderr, log
+            assert sorted(p.name for p in shot.iterdir()) == ["chunks", "in.pc2", "sheet.obj"], log
+            assert not list((shot / "chunks").iterdir()), log
     _same_frames(shot / "out.pc2", single)
 
 
