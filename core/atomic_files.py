@@ -120,6 +120,17 @@ def _link_new(temporary: str, path: Path) -> None:
 
 
 def _umask() -> int:
-    mask = os.umask(0)
+    """The process's file mode mask, read from ``/proc/self/status`` where the system gives it
+    (Linux 4.7+). Python reads the mask only by setting it (``os.umask``), which leaves it 0 for a
+    moment in which a file another thread of the process creates (Blender's, an add-on's) would be
+    world-writable; that is done only where the system does not give the mask."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as status:
+            for line in status:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0)  # elsewhere (Windows, macOS) the mask is read by setting it
     os.umask(mask)
     return mask

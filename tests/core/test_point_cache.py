@@ -257,3 +257,20 @@ def test_a_cache_of_another_layout_is_named_as_such(tmp_path, name, raw, match):
     standard = tmp_path / ("standard" + path.suffix)
     standard.write_bytes(_pc2_of(data) if path.suffix == ".pc2" else _mdd_of(data))
     np.testing.assert_array_equal(read_point_cache(standard).positions, data)
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="the system gives no /proc/self/status")
+def test_a_write_gives_the_umasks_mode_without_setting_the_umask(tmp_path, monkeypatch):
+    # Setting the mask to read it leaves it 0 for a moment in which another thread's new file is
+    # world-writable; where the system gives the mask, a write reads it there and never sets it.
+    old = os.umask(0o027)
+    try:
+        def no_setting(mask):
+            raise AssertionError(f"the umask was set to {mask:o}")
+
+        monkeypatch.setattr(os, "umask", no_setting)
+        write_pc2(tmp_path / "out.pc2", samples())
+    finally:
+        monkeypatch.undo()
+        os.umask(old)
+    assert (tmp_path / "out.pc2").stat().st_mode & 0o777 == 0o640
