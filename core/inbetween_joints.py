@@ -204,8 +204,9 @@ def _sliding_past(topo, base: np.ndarray, c: Contacts, asked: np.ndarray, within
     the touching vertices' extent along it): no point of it is on or in both pieces (on a surface,
     of ``topo``'s triangles at ``base``, within the gap between them where they touch — their
     touching vertices' distance from the other's triangles around its own — plus the precision) or
-    in the gap between them, and the two pieces' touching vertices (of pairs within ``within`` (P,))
-    do not both surround it seen along the axis (a pin through a ring).
+    in the gap between them, and not each piece encloses one of those points or, seen along the axis,
+    surrounds it with its vertices as near it as its touching ones (of pairs within ``within`` (P,)):
+    a pin through a ring, a wheel hanging on its axle with a clearance wider than an edge.
 
     The piece that does not turn moves relative to the other by the other's turn undone, about an
     axis parallel to that one's own: jointed, it rides a circle about the turning piece's axis
@@ -218,7 +219,7 @@ def _sliding_past(topo, base: np.ndarray, c: Contacts, asked: np.ndarray, within
     translation, whose axis is no place of the mechanism. Pieces that both turn are not asked: a
     drum rolling on a plate turns relative to it about a point inside the drum, off the plate, and
     jointed rolls on the plate to second order in its roll (its own screw leaves a carried plate)."""
-    from .joint_points import joint_point, surface_points
+    from .joint_points import joint_point, surface_points, winding_numbers
 
     pieces, u, v = c.pieces, c.u, c.v
     radii = _piece_centres(base, c.index, c.label)[1]
@@ -249,7 +250,16 @@ def _sliding_past(topo, base: np.ndarray, c: Contacts, asked: np.ndarray, within
         across = np.cross(axis[p], np.eye(3)[np.argmin(np.abs(axis[p]))])
         across /= np.linalg.norm(across)
         plane = np.stack([across, np.cross(axis[p], across)], axis=1)  # (3, 2): seen along the axis
-        out[p] = not all(_surrounds((base[x] - at) @ plane) for x in ours)
+        # each piece holds the axis: encloses one of its points, or, seen along it, its vertices as
+        # near the axis as its touching ones surround it (a pin through a ring; a wheel hanging on its
+        # axle with a clearance wider than an edge, its touching vertices an arc under the axle)
+        held = []
+        for piece, x, corners in zip(pieces[[u[p], v[p]]], ours, whole):
+            seen = (base[topo.vertex_component == piece] - at) @ plane
+            reach = np.linalg.norm((base[x] - at) @ plane, axis=1).max() + c.precision[p]
+            held.append(_surrounds(seen[np.linalg.norm(seen, axis=1) <= reach])
+                        or bool((np.abs(winding_numbers(points, corners)) >= 0.5).any()))
+        out[p] = not all(held)
     return out
 
 

@@ -8,7 +8,7 @@ import numpy as np
 
 
 #: Point–triangle pairs measured at once by :func:`surface_points` and :func:`winding_numbers`
-#: (their arrays are points × triangles × 3 large: 12 MB at this many).
+#: (their arrays are pairs × 3 large: 12 MB at this many).
 PAIRS_AT_ONCE = 500_000
 
 
@@ -25,40 +25,68 @@ def _batch(triangles: int) -> int:
 GAP_SIDES = -0.5
 
 
+def _nearest_points(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per point–triangle pair, broadcast over the leading axes of the points ``x`` (..., 3) and the
+    triangles' corners ``a``, ``b``, ``c`` (..., 3 each): the triangle's nearest point (..., 3) and its
+    distance (...): the point's foot on the triangle's plane where it lies inside the triangle, else
+    the nearest point of its sides (degenerate triangles by their sides alone)."""
+    normal = np.cross(b - a, c - a)
+    area = np.linalg.norm(normal, axis=-1)
+    unit = normal / np.where(area > 0, area, 1.0)[..., None]
+    height = np.einsum("...a,...a->...", x - a, unit)
+    nearest = x - height[..., None] * unit  # the feet on the planes
+    inside = area > 0
+    sides = ((a, b), (b, c), (c, a))
+    for p, q in sides:  # the foot on the inner side of every side
+        inside = inside & (np.einsum("...a,...a->...", np.cross(q - p, nearest - p), unit) >= 0)
+    distance = np.where(inside, np.abs(height), np.inf)
+    for p, q in sides:
+        side = q - p
+        length = np.maximum(np.einsum("...a,...a->...", side, side), np.finfo(float).tiny)
+        along = np.clip(np.einsum("...a,...a->...", x - p, side) / length, 0.0, 1.0)
+        on_side = p + along[..., None] * side
+        apart = np.linalg.norm(x - on_side, axis=-1)
+        closer = apart < distance
+        nearest = np.where(closer[..., None], on_side, nearest)
+        distance = np.where(closer, apart, distance)
+    return nearest, distance
+
+
+def _candidate_pairs(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The point–triangle pairs (two int (N,): the points' rows of ``points`` (k, 3), the triangles'
+    of ``corners`` (T, 3, 3)) that can hold a point's nearest point of the triangles: a triangle's
+    corner bounds that distance from above, and a triangle within that bound of the point has its
+    centroid within the bound plus the triangle's reach (its corners' farthest from its centroid)
+    of it (KD-trees of the corners and of the centroids). Every point keeps the triangles of its
+    nearest corner; a contact of k vertices costs about k pairs, not k × T."""
+    from scipy.spatial import cKDTree
+
+    centres = corners.mean(axis=1)
+    reach = np.linalg.norm(corners - centres[:, None], axis=2).max(axis=1)  # (T,)
+    bound = cKDTree(corners.reshape(-1, 3)).query(points)[0]  # (k,)
+    slack = 1.0 + 1e-9  # the balls a little wider than their radii: the sums' rounding loses no pair
+    pairs = cKDTree(points).sparse_distance_matrix(cKDTree(centres), (bound.max() + reach.max()) * slack,
+                                                   output_type="ndarray")
+    kept = pairs["v"] <= (bound[pairs["i"]] + reach[pairs["j"]]) * slack
+    return pairs["i"][kept].astype(np.int64), pairs["j"][kept].astype(np.int64)
+
+
 def surface_points(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Per point of ``points`` (k, 3), the nearest point (k, 3) of the triangles ``corners`` (T, 3, 3)
-    and its distance (k,): the point's foot on a triangle's plane where it lies inside the
-    triangle, else the nearest point of its sides (degenerate triangles by their sides alone); inf
-    (and nan) for no triangle."""
+    and its distance (k,) (:func:`_nearest_points`, over :func:`_candidate_pairs`; of equally near
+    triangles, the first); inf (and nan) for no triangle."""
     out, feet = np.full(len(points), np.inf), np.full((len(points), 3), np.nan)
-    if not len(corners):
+    if not len(corners) or not len(points):
         return feet, out
-    a, b, c = corners[:, 0], corners[:, 1], corners[:, 2]
-    normal = np.cross(b - a, c - a)
-    area = np.linalg.norm(normal, axis=1)
-    unit = normal / np.where(area > 0, area, 1.0)[:, None]
-    sides = [(p, q - p, np.maximum(np.einsum("ta,ta->t", q - p, q - p), np.finfo(float).tiny))
-             for p, q in ((a, b), (b, c), (c, a))]
-    step = _batch(len(corners))
-    for start in range(0, len(points), step):
-        x = points[start:start + step, None, :]  # (k, 1, 3) against (T, 3)
-        height = np.einsum("kta,ta->kt", x - a, unit)
-        nearest = x - height[..., None] * unit  # (k, T, 3): the feet on the planes
-        inside = np.broadcast_to(area > 0, height.shape).copy()
-        for p, side, _ in sides:  # the foot on the inner side of every side
-            inside &= np.einsum("kta,ta->kt", np.cross(side, nearest - p), unit) >= 0
-        distance = np.where(inside, np.abs(height), np.inf)
-        for p, side, length in sides:
-            along = np.clip(np.einsum("kta,ta->kt", x - p, side) / length, 0.0, 1.0)
-            on_side = p + along[..., None] * side
-            apart = np.linalg.norm(x - on_side, axis=2)
-            closer = apart < distance
-            nearest = np.where(closer[..., None], on_side, nearest)
-            distance = np.where(closer, apart, distance)
-        best = np.argmin(distance, axis=1)
-        rows = np.arange(best.size)
-        out[start:start + step] = distance[rows, best]
-        feet[start:start + step] = nearest[rows, best]
+    rows, columns = _candidate_pairs(points, corners)
+    nearest, distance = np.empty((rows.size, 3)), np.empty(rows.size)
+    for start in range(0, rows.size, PAIRS_AT_ONCE):
+        i, j = rows[start:start + PAIRS_AT_ONCE], columns[start:start + PAIRS_AT_ONCE]
+        nearest[start:start + i.size], distance[start:start + i.size] = _nearest_points(
+            points[i], corners[j, 0], corners[j, 1], corners[j, 2])
+    order = np.lexsort((columns, distance, rows))  # per point, the nearest first
+    first = order[np.r_[True, rows[order[1:]] != rows[order[:-1]]]]
+    out[rows[first]], feet[rows[first]] = distance[first], nearest[first]
     return feet, out
 
 

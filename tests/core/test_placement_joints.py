@@ -1848,3 +1848,27 @@ def test_a_piece_kept_level_on_a_hinge_goes_round_it(rig):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # placement is what is checked here (the ring moves least: its carrier untold)
         _follows_its_rig(lambda s: make(s)[0], tri, 1e-9 * np.linalg.norm(np.ptp(rest, axis=0)))
+
+
+def test_a_wheel_hanging_on_its_axle_with_clearance_turns_about_its_own_centre():
+    """A wheel (a torus of 72 × 12 quads, its hole 0.15 wide) hanging on a carried axle (a tube of
+    radius 0.1) with a clearance of 0.05, wider than the wheel's edges (0.013): the axle slides
+    while the wheel turns 70° about its own centre, 0.05 below the axle's axis. Their relative axis
+    is inside the axle and in the wheel's hole; the wheel's touching vertices are an arc under the
+    axle, but its vertices as near the axis surround it: jointed, the wheel follows the axle exactly
+    (freed, it took its own screw: 4.8e-2 of the diagonal off at 0.5, 0.35 at ×2)."""
+    axle, axle_triangles = meshes.closed_tube(5, 24, length=0.6, radius=0.1)
+    axle = axle[:, [1, 2, 0]] - [0.0, 0.0, 0.3]  # along z, its axis through the origin
+    wheel, wheel_triangles = meshes.twisted_torus(72, 12, major=0.3, minor=0.15)
+    wheel = wheel + [0.0, -0.05, 0.0]  # hanging: its hole's top on the axle's top
+    rest = np.vstack([axle, wheel])
+    triangles = np.vstack([axle_triangles, wheel_triangles + len(axle)])
+    centre = np.array([0.0, -0.05, 0.0])
+    travel = np.radians(70.0) * 0.45
+
+    def rig(s):
+        turn = Rotation.from_rotvec([0.0, 0.0, -np.radians(70.0) * s]).as_matrix()
+        carried = np.array([travel * s, 0.0, 0.0])
+        return np.vstack([axle + carried, (wheel - centre) @ turn.T + centre + carried])
+
+    _follows_its_rig(rig, triangles, 1e-9 * np.linalg.norm(np.ptp(np.vstack([rig(0.0), rig(1.0)]), axis=0)))
