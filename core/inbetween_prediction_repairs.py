@@ -262,8 +262,9 @@ def repaired_in_passes(gap, s: float, pose: tuple, outer=None, rings=None,
     rotations, the blend's, the keys' and their spline's geometry fold them too), and the
     predictions made from it inherit them; the solves a quarter of the gap away came out clean, and
     the pose they predict has folds of its own, elsewhere, but not those. The last pose that kept
-    fewer defects is returned, else ``pose`` (the rounds start from it: never more). Clean poses are
-    returned as they are. Keys 8 frames apart, the leather flag swinging round its pole keeps 1
+    fewer defects is returned (a new tuple), else ``pose`` itself, its positions unchanged (the
+    rounds start from it: never more; :func:`core.inbetween_prediction._gap_poses` tells a solved
+    in-between not repaired again by that identity). Clean poses are returned as they are. Keys 8 frames apart, the leather flag swinging round its pole keeps 1
     flipped triangle instead of 117 (the middle of its fourth gap: 1,285 in the prediction, 115
     after its repair, 29 after one more); keys 16 apart, the sphere lifting a 10k sheet keeps 10
     instead of 18, the ball through the 15k curtain 33 instead of 104 (numbers in

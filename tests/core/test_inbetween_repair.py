@@ -924,6 +924,29 @@ def test_the_repairs_again_stop_after_a_pass_that_removes_under_its_share_of_the
         assert len(gap.passes) == (2 if left == 199 else 0)
 
 
+def test_a_pose_its_repairs_again_leave_as_it_was_comes_back_itself_and_a_repaired_one_as_another(monkeypatch):
+    """Two defects; a repair again that leaves as many (not taken), none asked for (no passes), and
+    a clean pose: each is handed back as the very tuple given, its positions unchanged, which is
+    how ``_gap_poses`` tells the solved in-betweens no repair again moved (it reads their roughness
+    again only where one did). A repair again that leaves one is handed back as another tuple."""
+    from core import inbetween_prediction_repairs as prediction_repairs
+
+    first = np.array([[-1.0, 0, 0], [-1.0, 0, 0], [1.0, 0, 0]])
+    fewer = first.copy()
+    fewer[0, 0] = 0.0
+    for passes, scripted, kept in ((prediction_repairs.REPAIR_PASSES, [first.copy() * 2.0], True), (0, [first], True),
+                                   (prediction_repairs.REPAIR_PASSES, [fewer, fewer.copy()], False)):
+        monkeypatch.setattr(prediction_repairs, "REPAIR_PASSES", passes)
+        pose = (first.copy(), "kept defects")
+        before = pose[0].copy()
+        back = prediction_repairs.repaired_in_passes(_ScriptedGap(scripted, (np.inf, np.inf)), 0.5, pose)
+        assert (back is pose) == kept
+        assert np.array_equal(pose[0], before)  # the pose given is never written to
+        assert np.array_equal(back[0], before if kept else fewer)
+    clean = (np.abs(first), None)
+    assert prediction_repairs.repaired_in_passes(_ScriptedGap([first], (np.inf, np.inf)), 0.5, clean) is clean
+
+
 def test_the_repairs_of_one_in_between_share_the_blend_and_spline_geometry(monkeypatch, strip):
     """The repairs of one in-between (a prediction's, the solve from it, the repairs again: one
     scope, ``Repair.fields_kept``) compute each triangle's local geometry of the linear
