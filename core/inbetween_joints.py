@@ -79,6 +79,7 @@ from . import deformation_fields as df
 from . import rotation_continuity
 from . import screw_motions
 from .coordinate_rounding import RIGID_ROUNDING
+from .joint_points import joint_point, surface_points, winding_numbers
 
 #: Largest distance (in mean edge lengths of the mesh) between the nearest vertices of two rigid
 #: pieces, at both keys of a gap, for them to be jointed.
@@ -219,8 +220,6 @@ def _sliding_past(topo, base: np.ndarray, c: Contacts, asked: np.ndarray, within
     translation, whose axis is no place of the mechanism. Pieces that both turn are not asked: a
     drum rolling on a plate turns relative to it about a point inside the drum, off the plate, and
     jointed rolls on the plate to second order in its roll (its own screw leaves a carried plate)."""
-    from .joint_points import joint_point, surface_points, winding_numbers
-
     pieces, u, v = c.pieces, c.u, c.v
     radii = _piece_centres(base, c.index, c.label)[1]
     turned = [np.linalg.norm(df.rotation_vectors(c.rotations[k]), axis=1) * radii[k] > c.precision for k in (u, v)]
