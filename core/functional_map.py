@@ -247,10 +247,12 @@ def plane_weights(points: np.ndarray, corners: np.ndarray) -> np.ndarray:
 def closest_points_on_triangles(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Closest point of each ``points`` ``(P, 3)`` on its triangle ``corners`` ``(P, 3, 3)``:
     returns barycentric weights ``(P, 3)`` and squared distances ``(P,)``. Inside the triangle
-    the orthogonal projection, else the nearest point of its three sides. (Written out: no
-    library in the extension's dependencies offers it vectorized.)"""
+    the orthogonal projection, else the nearest point of its three sides; a triangle of no area (a
+    segment, a point) by its sides alone. (Written out: no library in the extension's dependencies
+    offers it vectorized.)"""
     weights = plane_weights(points, corners)
-    outside = (weights < 0).any(axis=1)
+    flat = ~(np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]), axis=1) > 0)
+    outside = (weights < 0).any(axis=1) | flat
     if outside.any():
         best = np.full(int(outside.sum()), np.inf)
         best_w = np.zeros((best.size, 3))

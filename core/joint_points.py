@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from .functional_map import closest_points_on_triangles
+
 
 #: Point–triangle pairs measured at once by :func:`surface_points` and :func:`winding_numbers`
 #: (their arrays are pairs × 3 large: 12 MB at this many).
@@ -25,31 +27,12 @@ def _batch(triangles: int) -> int:
 GAP_SIDES = -0.5
 
 
-def _nearest_points(x: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Per point–triangle pair, broadcast over the leading axes of the points ``x`` (..., 3) and the
-    triangles' corners ``a``, ``b``, ``c`` (..., 3 each): the triangle's nearest point (..., 3) and its
-    distance (...): the point's foot on the triangle's plane where it lies inside the triangle, else
-    the nearest point of its sides (degenerate triangles by their sides alone)."""
-    normal = np.cross(b - a, c - a)
-    area = np.linalg.norm(normal, axis=-1)
-    unit = normal / np.where(area > 0, area, 1.0)[..., None]
-    height = np.einsum("...a,...a->...", x - a, unit)
-    nearest = x - height[..., None] * unit  # the feet on the planes
-    inside = area > 0
-    sides = ((a, b), (b, c), (c, a))
-    for p, q in sides:  # the foot on the inner side of every side
-        inside = inside & (np.einsum("...a,...a->...", np.cross(q - p, nearest - p), unit) >= 0)
-    distance = np.where(inside, np.abs(height), np.inf)
-    for p, q in sides:
-        side = q - p
-        length = np.maximum(np.einsum("...a,...a->...", side, side), np.finfo(float).tiny)
-        along = np.clip(np.einsum("...a,...a->...", x - p, side) / length, 0.0, 1.0)
-        on_side = p + along[..., None] * side
-        apart = np.linalg.norm(x - on_side, axis=-1)
-        closer = apart < distance
-        nearest = np.where(closer[..., None], on_side, nearest)
-        distance = np.where(closer, apart, distance)
-    return nearest, distance
+def _nearest_points(x: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per point–triangle pair, of the points ``x`` (N, 3) and the triangles ``corners`` (N, 3, 3): the
+    triangle's nearest point (N, 3) and its distance (N,)
+    (:func:`core.functional_map.closest_points_on_triangles`)."""
+    weights, squared = closest_points_on_triangles(x, corners)
+    return np.einsum("nk,nka->na", weights, corners), np.sqrt(squared)
 
 
 def _candidate_pairs(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -82,8 +65,7 @@ def surface_points(points: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray,
     nearest, distance = np.empty((rows.size, 3)), np.empty(rows.size)
     for start in range(0, rows.size, PAIRS_AT_ONCE):
         i, j = rows[start:start + PAIRS_AT_ONCE], columns[start:start + PAIRS_AT_ONCE]
-        nearest[start:start + i.size], distance[start:start + i.size] = _nearest_points(
-            points[i], corners[j, 0], corners[j, 1], corners[j, 2])
+        nearest[start:start + i.size], distance[start:start + i.size] = _nearest_points(points[i], corners[j])
     order = np.lexsort((columns, distance, rows))  # per point, the nearest first
     first = order[np.r_[True, rows[order[1:]] != rows[order[:-1]]]]
     out[rows[first]], feet[rows[first]] = distance[first], nearest[first]

@@ -46,9 +46,8 @@ the stretch too (``"back"``): a free swing turns back where it is slowest, and i
 with its speed, is least there (a pendulum's stretch is at its bottom, which the motion passes
 through as given), so a key stretched past both its neighbours where the cloth turns back was
 pushed there: a collider pressing into it, as a ball bouncing in a hammock does, and the cloth
-springs back within a few frames (a gathered hammock keyed every 16th frame: key 32, the bounce's
-bottom, 2.6 % off the rest against 0.6 / 0.9 % at keys 16 and 48, the simulation back to 0.5 %
-four frames later; both gaps over the issue's edge bound). The cloth's own springs stretch it most where
+springs back within a few frames (a gathered hammock keyed every 16th frame, its key at the
+bounce's bottom: docs/inbetween-measurements.md, *A bounce the keys straddle*). The cloth's own springs stretch it most where
 it turns back too, with no collider (a sheet pinned all round sagging from flat, keyed where its first sag
 bottoms out): that key reads so and its first gap is warned, its in-betweens within both peers
 (docs/inbetween-measurements.md, *Review r1 of the bounce warning*). Keys cut from the middle of a motion

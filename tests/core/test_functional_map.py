@@ -29,6 +29,17 @@ def test_closest_points_on_triangles_match_dense_sampling():
     assert np.all(squared >= sampled - 0.02 * np.sqrt(sampled) * np.max(np.ptp(corners, axis=1), axis=1) - 1e-12)
 
 
+def test_closest_points_on_triangles_of_no_area_are_on_their_sides():
+    """A triangle of no area (two corners equal: a segment; all three: a point) gives the nearest
+    point of the segment, not its first corner (its plane is undefined)."""
+    corners = np.array([[[0.0, 0, 0], [2, 0, 0], [2, 0, 0]], [[0.0, 0, 0], [0, 0, 0], [0, 2, 0]],
+                        [[1.0, 1, 1], [1, 1, 1], [1, 1, 1]]])
+    points = np.array([[1.5, 1.0, 0.0], [0.5, 1.0, 0.0], [1.0, 1.0, 3.0]])
+    weights, squared = closest_points_on_triangles(points, corners)
+    np.testing.assert_allclose(np.einsum("nk,nki->ni", weights, corners), [[1.5, 0, 0], [0, 1, 0], [1, 1, 1]], atol=1e-15)
+    np.testing.assert_allclose(squared, [1.0, 0.25, 4.0], atol=1e-15)
+
+
 def test_identity_map_is_the_same_mesh_functional_map():
     v, t = grid(12, jitter=0.3)
     target = drape(v, 1.5)
